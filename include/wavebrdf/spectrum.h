@@ -1,0 +1,27 @@
+#pragma once
+// Wavelength sampling and the conversion of spectral BRDF values to linear sRGB.
+#include <array>
+#include <vector>
+
+namespace wavebrdf {
+
+// CIE 1931 2° colour-matching functions (x̄, ȳ, z̄) at a wavelength in µm, linearly
+// interpolated in the tabulated CIE data (360–830 nm); zero outside.
+std::array<double, 3> cie1931_xyz(double lambda_um);
+
+// N wavelengths spread over the visible range the reference program uses,
+// λ_k = 0.36 + (k + ½) · 0.47 / N µm (N = 8 gives genBrdf's samples). N ≥ 1.
+std::vector<double> spectral_wavelengths_um(int count);
+
+// Per-wavelength weights (a 3 × N matrix, row-major: weights[c * N + k]) that map the
+// values f(λ_k) at the given wavelengths to linear sRGB (Rec. 709 primaries, D65 white):
+// CIE 1931 at the sampled wavelengths (Riemann sum, Y normalised so that a constant
+// spectrum has Y = 1), then a Bradford adaptation of that sampled equal-energy white to D65,
+// then XYZ → linear sRGB. So a constant spectrum c maps exactly (to rounding) to (c, c, c).
+// Throws std::invalid_argument on an empty list or non-positive wavelength.
+std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_um);
+
+// XYZ (D65-relative) → linear sRGB matrix, derived from the Rec. 709 primaries and D65.
+std::array<double, 9> xyz_to_linear_srgb();
+
+}  // namespace wavebrdf
