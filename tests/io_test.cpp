@@ -1,0 +1,346 @@
+#include "wavebrdf/io.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <ImfRgbaFile.h>
+#include <gtest/gtest.h>
+#include <png.h>
+
+namespace fs = std::filesystem;
+using wavebrdf::Heightfield;
+using wavebrdf::RgbImage;
+
+namespace {
+
+// A fresh directory per test, so leftovers from one test cannot satisfy another's checks.
+class IoTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        m_dir = fs::path(WAVEBRDF_TEST_TMP) / "io" /
+                (std::string(info->name()) + "-" + std::to_string(::getpid()));
+        fs::remove_all(m_dir);
+        fs::create_directories(m_dir);
+    }
+    void TearDown() override {
+        std::error_code ignored;
+        fs::remove_all(m_dir, ignored);
+    }
+    std::string file(const std::string& name) const { return (m_dir / name).string(); }
+    std::vector<std::string> listing() const {
+        std::vector<std::string> names;
+        for (const auto& entry : fs::directory_iterator(m_dir))
+            names.push_back(entry.path().filename().string());
+        return names;
+    }
+
+    fs::path m_dir;
+};
+
+// Values exactly representable in both half and float: small multiples of 1/8.
+Heightfield make_field(int rows, int cols) {
+    std::vector<double> values(static_cast<std::size_t>(rows) * cols);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            values[static_cast<std::size_t>(i) * cols + j] = 0.125 * (i * 17 - j * 5) - 3.0;
+    return Heightfield(rows, cols, values);
+}
+
+// Expects `call` to throw exactly `Exception` with the path somewhere in its message.
+template <typename Exception, typename Call>
+void expect_throw_naming(Call call, const std::string& path) {
+    try {
+        call();
+        ADD_FAILURE() << "no exception for " << path;
+    } catch (const Exception& e) {
+        const std::string message = e.what();
+        EXPECT_NE(message.find(path), std::string::npos) << message;
+        EXPECT_EQ(message.find('\n'), std::string::npos) << "message is not one line: " << message;
+    } catch (const std::exception& e) {
+        ADD_FAILURE() << "wrong exception type for " << path << ": " << e.what();
+    }
+}
+
+struct Png {
+    int rows = 0;
+    int cols = 0;
+    std::vector<std::uint8_t> pixels;
+};
+
+Png read_png(const std::string& path, bool rgb) {
+    png_image image;
+    std::memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    if (png_image_begin_read_from_file(&image, path.c_str()) == 0)
+        throw std::runtime_error("cannot read " + path + ": " + image.message);
+    image.format = rgb ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY;
+    Png png;
+    png.rows = static_cast<int>(image.height);
+    png.cols = static_cast<int>(image.width);
+    png.pixels.resize(PNG_IMAGE_SIZE(image));
+    if (png_image_finish_read(&image, nullptr, png.pixels.data(), 0, nullptr) == 0)
+        throw std::runtime_error("cannot decode " + path + ": " + image.message);
+    return png;
+}
+
+// Writes a single float channel `channel` with the given data window (x = column, y = row).
+void write_exr_channel(const std::string& path, const char* channel, int rows, int cols, int x0,
+                       int y0, const std::vector<float>& data) {
+    Imf::Header header(Imath::Box2i({0, 0}, {x0 + cols + 2, y0 + rows + 2}),
+                       Imath::Box2i({x0, y0}, {x0 + cols - 1, y0 + rows - 1}));
+    header.channels().insert(channel, Imf::Channel(Imf::FLOAT));
+    Imf::FrameBuffer frame;
+    frame.insert(channel, Imf::Slice::Make(Imf::FLOAT, data.data(), header.dataWindow()));
+    Imf::OutputFile out(path.c_str(), header);
+    out.setFrameBuffer(frame);
+    out.writePixels(rows);
+}
+
+TEST_F(IoTest, HeightfieldFloatExrRoundTripsNonSquare) {
+    const Heightfield field = make_field(7, 13);
+    const std::string path = file("field.exr");
+    wavebrdf::write_heightfield_exr(path, field);
+    const Heightfield back = wavebrdf::read_heightfield_exr(path, 2.5, 0.5);
+    ASSERT_EQ(back.rows(), 7);
+    ASSERT_EQ(back.cols(), 13);
+    EXPECT_EQ(back.values(), field.values());
+    EXPECT_EQ(back.texel_um(), 2.5);
+    EXPECT_EQ(back.vscale(), 0.5);
+    // Only the target remains: the temporary was renamed, not copied.
+    EXPECT_EQ(listing(), std::vector<std::string>{"field.exr"});
+}
+
+TEST_F(IoTest, ReadsHalfExrWrittenWithRgbaApi) {
+    const int rows = 5, cols = 3;
+    std::vector<Imf::Rgba> pixels(rows * cols);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            pixels[i * cols + j] =
+                Imf::Rgba(half(0.25f * static_cast<float>(i) - 0.5f * static_cast<float>(j)),
+                          half(1.0f), half(2.0f), half(1.0f));
+    const std::string path = file("half.exr");
+    {
+        Imf::RgbaOutputFile out(path.c_str(), cols, rows, Imf::WRITE_RGBA);
+        out.setFrameBuffer(pixels.data(), 1, cols);
+        out.writePixels(rows);
+    }
+    const Heightfield field = wavebrdf::read_heightfield_exr(path);
+    ASSERT_EQ(field.rows(), rows);
+    ASSERT_EQ(field.cols(), cols);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            EXPECT_EQ(field.value(i, j), 0.25 * i - 0.5 * j) << i << "," << j;
+
+    const RgbImage image = wavebrdf::read_rgb_exr(path);
+    ASSERT_EQ(image.rows, rows);
+    ASSERT_EQ(image.cols, cols);
+    EXPECT_EQ(image.data[(1 * cols + 2) * 3 + 0], 0.25f - 1.0f);
+    EXPECT_EQ(image.data[(1 * cols + 2) * 3 + 1], 1.0f);
+    EXPECT_EQ(image.data[(1 * cols + 2) * 3 + 2], 2.0f);
+}
+
+TEST_F(IoTest, HonoursDataWindowOffset) {
+    const int rows = 4, cols = 6;
+    std::vector<float> data(rows * cols);
+    for (int k = 0; k < rows * cols; ++k) data[k] = static_cast<float>(k);
+    const std::string path = file("offset.exr");
+    write_exr_channel(path, "R", rows, cols, 3, 5, data);
+    const Heightfield field = wavebrdf::read_heightfield_exr(path);
+    ASSERT_EQ(field.rows(), rows);
+    ASSERT_EQ(field.cols(), cols);
+    EXPECT_EQ(field.value(0, 0), 0.0);
+    EXPECT_EQ(field.value(2, 5), 2.0 * cols + 5);
+    EXPECT_EQ(field.value(3, 1), 3.0 * cols + 1);
+}
+
+TEST_F(IoTest, AcceptsLuminanceOnlyExr) {
+    const std::vector<float> data = {1.5f, -2.0f, 0.0f, 4.0f, 8.0f, -0.25f};
+    const std::string path = file("y.exr");
+    write_exr_channel(path, "Y", 2, 3, 0, 0, data);
+    const Heightfield field = wavebrdf::read_heightfield_exr(path);
+    ASSERT_EQ(field.rows(), 2);
+    ASSERT_EQ(field.cols(), 3);
+    EXPECT_EQ(field.value(1, 2), -0.25);
+    const RgbImage image = wavebrdf::read_rgb_exr(path);
+    EXPECT_EQ(image.data[(1 * 3 + 0) * 3 + 2], 4.0f);
+}
+
+TEST_F(IoTest, RgbExrRoundTripsWithAndWithoutAlpha) {
+    RgbImage image{2, 3, {}};
+    for (int k = 0; k < 2 * 3 * 3; ++k) image.data.push_back(0.1f * static_cast<float>(k) - 0.7f);
+    for (bool alpha : {false, true}) {
+        const std::string path = file(alpha ? "rgba.exr" : "rgb.exr");
+        wavebrdf::write_rgb_exr(path, image, alpha);
+        const RgbImage back = wavebrdf::read_rgb_exr(path);
+        EXPECT_EQ(back.rows, 2);
+        EXPECT_EQ(back.cols, 3);
+        EXPECT_EQ(back.data, image.data);
+        Imf::InputFile in(path.c_str());
+        const Imf::ChannelList& channels = in.header().channels();
+        EXPECT_EQ(channels.findChannel("A") != nullptr, alpha);
+        ASSERT_NE(channels.findChannel("G"), nullptr);
+        EXPECT_EQ(channels.findChannel("G")->type, Imf::FLOAT);
+        if (alpha) {
+            std::vector<float> a(6, 0.0f);
+            Imf::FrameBuffer frame;
+            frame.insert("A", Imf::Slice::Make(Imf::FLOAT, a.data(), in.header().dataWindow()));
+            in.setFrameBuffer(frame);
+            in.readPixels(0, 1);
+            EXPECT_EQ(a, std::vector<float>(6, 1.0f));
+        }
+    }
+}
+
+TEST_F(IoTest, MissingFileThrowsNamingPath) {
+    const std::string path = file("absent.exr");
+    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
+}
+
+TEST_F(IoTest, TextFileThrowsNamingPath) {
+    const std::string path = file("notes.exr");
+    std::ofstream(path) << "this is not an image\n";
+    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+}
+
+TEST_F(IoTest, TruncatedExrThrowsNamingPath) {
+    // Big and noisy enough that half the file cuts through pixel data, not just the header.
+    const int rows = 64, cols = 48;
+    std::vector<double> values(rows * cols);
+    for (std::size_t k = 0; k < values.size(); ++k)
+        values[k] = std::sin(0.37 * static_cast<double>(k)) * 1e3 + static_cast<double>(k);
+    const std::string path = file("cut.exr");
+    wavebrdf::write_heightfield_exr(path, Heightfield(rows, cols, values));
+    const auto size = fs::file_size(path);
+    fs::resize_file(path, size / 2);
+    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+}
+
+TEST_F(IoTest, ExrWithoutRedOrLuminanceThrowsNamingPath) {
+    const std::string path = file("green.exr");
+    write_exr_channel(path, "G", 2, 2, 0, 0, {1.0f, 2.0f, 3.0f, 4.0f});
+    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
+}
+
+TEST_F(IoTest, NonFiniteValueThrowsDomainErrorNamingPath) {
+    const std::string path = file("nan.exr");
+    write_exr_channel(path, "R", 2, 2, 0, 0,
+                      {1.0f, std::numeric_limits<float>::quiet_NaN(), 3.0f, 4.0f});
+    expect_throw_naming<std::domain_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+}
+
+TEST_F(IoTest, FailedWritesLeaveNoFileBehind) {
+    const Heightfield field = make_field(3, 4);
+    const RgbImage image{1, 2, {0.f, 0.5f, 1.f, 2.f, 3.f, 4.f}};
+    // A missing directory, and a "directory" that is a regular file (fails even for root).
+    std::ofstream(file("plain")) << "x";
+    for (const std::string& dir : {file("missing"), file("plain")}) {
+        const std::string path = dir + "/out";
+        expect_throw_naming<std::runtime_error>(
+            [&] { wavebrdf::write_heightfield_exr(path + ".exr", field); }, path + ".exr");
+        expect_throw_naming<std::runtime_error>(
+            [&] { wavebrdf::write_heightfield_png(path + ".png", field); }, path + ".png");
+        expect_throw_naming<std::runtime_error>(
+            [&] { wavebrdf::write_rgb_exr(path + ".exr", image, true); }, path + ".exr");
+        expect_throw_naming<std::runtime_error>(
+            [&] { wavebrdf::write_rgb_png(path + ".png", image); }, path + ".png");
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::check_writable(path + ".exr"); },
+                                                path + ".exr");
+    }
+    EXPECT_FALSE(fs::exists(file("missing")));
+    EXPECT_EQ(listing(), std::vector<std::string>{"plain"});
+}
+
+TEST_F(IoTest, RenameOntoDirectoryFailsAndRemovesTemporary) {
+    // The temporary is written fine; only the final rename fails, which must clean up too.
+    fs::create_directory(file("taken.exr"));
+    fs::create_directory(file("taken.exr") + "/inside");
+    expect_throw_naming<std::runtime_error>(
+        [&] { wavebrdf::write_heightfield_exr(file("taken.exr"), make_field(2, 2)); },
+        file("taken.exr"));
+    EXPECT_EQ(listing(), std::vector<std::string>{"taken.exr"});
+}
+
+TEST_F(IoTest, CheckWritableLeavesNothing) {
+    wavebrdf::check_writable(file("later.exr"));
+    EXPECT_TRUE(listing().empty());
+}
+
+TEST_F(IoTest, RgbPngHasSizeAndSrgbValues) {
+    // 0.5 linear → sRGB 0.7354 → 188; 0.001 is on the linear segment → 0.01292 → 3.
+    RgbImage image{2, 3, std::vector<float>(18, 0.0f)};
+    auto px = [&](int i, int j, int c) -> float& { return image.data[(i * 3 + j) * 3 + c]; };
+    px(0, 0, 0) = 0.5f;
+    px(0, 0, 1) = 0.001f;
+    px(0, 0, 2) = 7.0f;  // clamps to white
+    px(1, 2, 0) = std::numeric_limits<float>::quiet_NaN();
+    px(1, 2, 1) = std::numeric_limits<float>::infinity();
+    px(1, 2, 2) = -3.0f;
+    px(0, 1, 0) = 0.25f;  // exposure +1 → 0.5 → 188; with Reinhard 1/3 → 0.6125 → 156
+    const std::string path = file("img.png");
+    wavebrdf::write_rgb_png(path, image);
+    Png png = read_png(path, true);
+    ASSERT_EQ(png.rows, 2);
+    ASSERT_EQ(png.cols, 3);
+    auto at = [&](int i, int j, int c) {
+        return static_cast<int>(png.pixels[(i * 3 + j) * 3 + c]);
+    };
+    EXPECT_EQ(at(0, 0, 0), 188);
+    EXPECT_EQ(at(0, 0, 1), 3);
+    EXPECT_EQ(at(0, 0, 2), 255);
+    EXPECT_EQ(at(1, 2, 0), 0);
+    EXPECT_EQ(at(1, 2, 1), 0);
+    EXPECT_EQ(at(1, 2, 2), 0);
+    EXPECT_EQ(at(0, 1, 0), 137);  // 0.25 → 0.5371 → 137
+
+    wavebrdf::write_rgb_png(path, image, 1.0);
+    png = read_png(path, true);
+    EXPECT_EQ(at(0, 1, 0), 188);
+    wavebrdf::write_rgb_png(path, image, 1.0, true);
+    png = read_png(path, true);
+    EXPECT_EQ(at(0, 1, 0), 156);
+    EXPECT_EQ(listing(), std::vector<std::string>{"img.png"});
+}
+
+TEST_F(IoTest, HeightfieldPngStretchesMinToMax) {
+    const Heightfield field(2, 3, {-1.0, 0.0, 1.0, 3.0, -1.0, 0.5});
+    const std::string path = file("h.png");
+    wavebrdf::write_heightfield_png(path, field);
+    Png png = read_png(path, false);
+    ASSERT_EQ(png.rows, 2);
+    ASSERT_EQ(png.cols, 3);
+    EXPECT_EQ(png.pixels, (std::vector<std::uint8_t>{0, 64, 128, 255, 0, 96}));
+
+    wavebrdf::write_heightfield_png(path, Heightfield(1, 2, {4.0, 4.0}));
+    png = read_png(path, false);
+    EXPECT_EQ(png.pixels, (std::vector<std::uint8_t>{128, 128}));
+}
+
+TEST_F(IoTest, InvalidImageArgumentsThrow) {
+    const std::string path = file("bad.png");
+    EXPECT_THROW(wavebrdf::write_rgb_png(path, RgbImage{2, 2, std::vector<float>(5)}),
+                 std::invalid_argument);
+    EXPECT_THROW(wavebrdf::write_rgb_exr(file("bad.exr"), RgbImage{0, 2, {}}),
+                 std::invalid_argument);
+    EXPECT_THROW(wavebrdf::write_rgb_png(path, RgbImage{1, 1, {0.f, 0.f, 0.f}}, std::nan("")),
+                 std::domain_error);
+    EXPECT_TRUE(listing().empty());
+}
+
+}  // namespace
