@@ -1,0 +1,64 @@
+#pragma once
+// Rendering BRDF slices (MODEL.md, "BRDF slice"): f_r over the projected outgoing disk.
+//
+// Two paths compute the same sum over the footprint's kernels:
+//  - separable: for OHS and ROHS, I = X · diag(c_k C_k) · Yᵀ on the slice's regular grid, a
+//    complex matrix product (exact: no pruning beyond the model's 3σ_p cut);
+//  - direct: every pixel sums every kernel (all five models), optionally skipping kernels
+//    whose Gaussian factor is so small that the total error stays below `prune_tolerance`
+//    times the slice's peak (checked after rendering; re-rendered tighter if not met).
+// Slices are row-major n × n: value[i * n + j] for ω_o = (slice_omega(i), slice_omega(j)),
+// zero outside the unit disk; non-finite values (cos θ_o = 0 at the rim) are written as 0.
+#include <vector>
+
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/model.h"
+
+namespace wavebrdf {
+
+class Progress;
+
+enum class RenderPath { Auto, Separable, Direct };
+
+struct RenderOptions {
+    RenderPath path = RenderPath::Auto;  // Auto: separable for OHS/ROHS, direct otherwise
+    // Direct path: bound on the pruning error relative to the slice's peak; at most 1e-6.
+    // 0 disables pruning (the plain reference sum).
+    double prune_tolerance = 1e-7;
+    Progress* progress = nullptr;        // advanced by `work_units` (below) per slice
+};
+
+// Units of progress one slice reports (so callers can size a Progress bar).
+long long work_units(int resolution);
+
+// One single-wavelength slice of `heightfield` for `query` at λ = lambda_um (µm),
+// resolution × resolution pixels (1…8192). Validates every argument (std::domain_error /
+// std::invalid_argument naming the value). Float is float or double.
+template <typename Float>
+std::vector<Float> render_slice(const Heightfield& heightfield, const Query& query,
+                                double lambda_um, int resolution, const RenderOptions& options = {});
+
+// The separable matrix-product path (OHS and ROHS only; throws std::invalid_argument for the
+// other models). Arguments are assumed valid.
+template <typename Float>
+std::vector<Float> render_slice_separable(const FootprintKernels& kernels, const Query& query,
+                                          double lambda_um, int resolution,
+                                          Progress* progress = nullptr);
+
+// The direct sum, the slow reference for every model. `prune_tolerance` as in RenderOptions.
+template <typename Float>
+std::vector<Float> render_slice_direct(const FootprintKernels& kernels, const Query& query,
+                                       double lambda_um, int resolution,
+                                       double prune_tolerance = 0.0,
+                                       Progress* progress = nullptr);
+
+// An RGB slice (resolution² × 3, row-major, channel-interleaved). One wavelength: its slice in
+// R, G and B. Several: each wavelength's slice weighted to linear sRGB with
+// spectral_to_srgb_weights (spectrum.h).
+template <typename Float>
+std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query,
+                              const std::vector<double>& lambdas_um, int resolution,
+                              const RenderOptions& options = {});
+
+}  // namespace wavebrdf

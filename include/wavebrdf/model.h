@@ -1,0 +1,54 @@
+#pragma once
+// The diffraction models of MODEL.md and the query (pixel footprint and light direction)
+// that selects one BRDF slice of a heightfield.
+#include <array>
+#include <string>
+
+namespace wavebrdf {
+
+// OHS: original Harvey–Shack; GHS: generalised Harvey–Shack; R…: their reciprocal
+// variants; Kirchhoff: Beckmann–Kirchhoff. Only OHS and ROHS are separable in u_x, u_y.
+enum class Model { OHS, GHS, ROHS, RGHS, Kirchhoff };
+
+// Parses the names above (exact spelling, as genBrdf's -d); throws std::invalid_argument
+// naming the value and listing the accepted names otherwise.
+Model parse_model(const std::string& name);
+const char* to_string(Model model);
+inline bool is_separable(Model model) { return model == Model::OHS || model == Model::ROHS; }
+
+// One BRDF query: a Gaussian coherence window (pixel footprint) and a light direction.
+struct Query {
+    double x_um = 0.0;        // footprint centre μ_p along x (rows), µm; any value (periodic)
+    double y_um = 0.0;        // footprint centre along y (columns), µm
+    double sigma_p_um = 10.0; // footprint standard deviation σ_p, µm, > 0
+    // Projected direction towards the light, |ω_i| < 1 (cos θ_i = sqrt(1 − |ω_i|²)).
+    std::array<double, 2> omega_i{{0.0, 0.0}};
+    Model model = Model::OHS;
+};
+
+// Throws std::domain_error naming the bad field: non-finite position, σ_p ≤ 0 or not
+// finite, |ω_i| ≥ 1 or not finite.
+void validate(const Query& query);
+// Throws std::domain_error unless λ is finite and > 0 (µm).
+void validate_lambda(double lambda_um);
+// Throws std::domain_error unless 1 ≤ resolution ≤ 8192.
+void validate_resolution(int resolution);
+
+// The projected outgoing direction of slice pixel (row i, column j) of an n × n slice:
+// ω_o = ((i + ½)/n · 2 − 1, (j + ½)/n · 2 − 1). Pixels with |ω_o| > 1 are not rendered.
+inline double slice_omega(int index, int resolution) {
+    return (index + 0.5) / resolution * 2.0 - 1.0;
+}
+
+// The per-direction factors of a model (MODEL.md, "BRDF"). cos θ = sqrt(|1 − |ω|²|) as in
+// the reference program.
+struct DirectionFactors {
+    double cos_theta_i;
+    double cos_theta_o;
+    double c1;           // f_r = c1 · |I|²  (includes 1/λ²)
+    double phase_scale;  // C3/2: scales H − s·μ and s for GHS, RGHS, Kirchhoff; 1 otherwise
+};
+DirectionFactors direction_factors(Model model, const std::array<double, 2>& omega_i,
+                                   double omega_o_x, double omega_o_y, double lambda_um);
+
+}  // namespace wavebrdf

@@ -1,0 +1,44 @@
+#pragma once
+// Small helpers shared by the C++ tests: seeded random heightfields without the generators.
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "wavebrdf/heightfield.h"
+
+namespace wavebrdf::test {
+
+// Smooth random heights (sum of a few random periodic sinusoids), in texel units.
+inline Heightfield random_heightfield(int rows, int cols, double amplitude, std::uint64_t seed,
+                                      double texel_um = 1.0, double vscale = 1.0) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> uni(0.0, 1.0);
+    std::vector<double> v(static_cast<std::size_t>(rows) * cols, 0.0);
+    const double two_pi = 2.0 * std::acos(-1.0);
+    for (int m = 0; m < 6; ++m) {
+        const int fx = static_cast<int>(uni(rng) * 4), fy = static_cast<int>(uni(rng) * 4);
+        const double phase = uni(rng) * two_pi, a = amplitude * (0.5 + uni(rng));
+        for (int i = 0; i < rows; ++i)
+            for (int j = 0; j < cols; ++j)
+                v[static_cast<std::size_t>(i) * cols + j] +=
+                    a * std::sin(two_pi * (fx * i / double(rows) + fy * j / double(cols)) + phase);
+    }
+    // White noise on top, so that no symmetry hides a sign or index error.
+    for (auto& x : v) x += 0.2 * amplitude * (uni(rng) - 0.5);
+    return Heightfield(rows, cols, std::move(v), texel_um, vscale);
+}
+
+inline double max_abs(const std::vector<double>& v) {
+    double m = 0.0;
+    for (double x : v) m = std::max(m, std::abs(x));
+    return m;
+}
+
+inline double max_abs_diff(const std::vector<double>& a, const std::vector<double>& b) {
+    double m = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i) m = std::max(m, std::abs(a[i] - b[i]));
+    return m;
+}
+
+}  // namespace wavebrdf::test
