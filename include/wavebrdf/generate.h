@@ -39,8 +39,50 @@ SurfaceType parse_surface_type(const std::string& name);
 const char* to_string(SurfaceType type);
 
 // The heightfield, stored in the public release's convention: values in units of texel width
-// (value = height_um / texel_um) with vscale 1. Throws std::invalid_argument /
-// std::domain_error on a size < 1, a non-positive length, or a non-finite parameter.
+// (value = height_um / texel_um) with vscale 1 and texel width params.texel_um. Deterministic in
+// params.seed (std::mt19937_64 and our own Box–Muller, so one toolchain gives one result).
+//   Flat       all zero.
+//   Isotropic  Gaussian-correlated Gaussian noise: white noise filtered in the Fourier domain by
+//              the square root of the power spectrum of C(r) = σ_h² exp(−r²/ℓ²), ℓ =
+//              correlation_um, sampled exactly on the periodic grid (aliasing included). The mean
+//              is removed and the field rescaled so that its realised rms height is exactly
+//              rms_height_um or, when rms_slope > 0, so that the realised rms of the central-
+//              difference slope, sqrt(mean(s_x² + s_y²) / 2), is exactly rms_slope.
+//   Brushed    the same with correlation length ℓ along x (rows) and anisotropy · ℓ along y.
+//   Scratched  a smooth isotropic base (rms height 0.1 · scratch_depth_um, correlation
+//              8 · correlation_um) plus scratch_count straight scratches with the Gaussian
+//              groove profile −depth · exp(−d² / (2 (width / 2)²)), d the periodic distance to
+//              the scratch. Each scratch runs through a random point in a random direction and
+//              is as long as one period along its dominant axis (rows/|cos θ| or cols/|sin θ|
+//              texels, whichever is shorter), so axis-aligned (and, on square tiles, diagonal)
+//              scratches close into infinite periodic lines; a straight line in a generic
+//              direction cannot close on the torus, so those end in rounded caps instead of
+//              jumping at the tile border. Where scratches cross, the deeper groove wins (a
+//              tool cuts to a depth below the original surface), so the minimum is ≈ −depth.
+//   Grating    H = amplitude_um · sin(2π x / period_um), x = (i + ½) · texel_um along rows,
+//              constant along columns. Exactly periodic only when period_um divides the tile
+//              period rows · texel_um; otherwise the tiling has a kink at the border.
+// Every field is validated whatever the type (the defaults are all valid):
+//   std::invalid_argument  rows or cols < 1 or > 16384; an unknown type; an isotropic or
+//                          brushed request for a non-zero rms on a grid that admits no
+//                          zero-mean variation (1×1; or, in rms-slope mode, a grid on which
+//                          every central difference vanishes, such as 2×2 or 1×2);
+//   std::domain_error      a non-finite value; texel_um, correlation_um, anisotropy,
+//                          scratch_width_um or period_um ≤ 0; rms_height_um, rms_slope,
+//                          scratch_depth_um or scratch_count < 0.
 Heightfield generate_heightfield(const SurfaceParams& params);
+
+// Summary statistics of a heightfield, in µm where dimensional (heights include vscale).
+struct HeightStats {
+    double mean_um = 0.0;        // mean height (added so the CLI can show the offset of
+                                 // scratched surfaces, whose mean is below zero)
+    double rms_height_um = 0.0;  // rms deviation from the mean height (R_q)
+    double min_um = 0.0;
+    double max_um = 0.0;
+    double rms_slope = 0.0;      // sqrt(mean(s_x² + s_y²) / 2), s from Heightfield::slope()
+};
+
+// Statistics of `heightfield` as above; never throws (a Heightfield is never empty).
+HeightStats height_stats(const Heightfield& heightfield);
 
 }  // namespace wavebrdf
