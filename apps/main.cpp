@@ -1,1 +1,27 @@
-int main() { return 0; }
+// wavebrdf: the command-line tool. Thin: parse arguments, call the library, map errors to a
+// one-line message and a non-zero exit.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+#include <iostream>
+
+#include "commands.h"
+
+int main(int argc, char** argv) {
+    CLI::App app{"wavebrdf: wave-optical BRDFs of microscale heightfields"};
+    app.require_subcommand(1);
+    app.set_version_flag("--version", "wavebrdf 0.1.0");
+    wavebrdf::cli::add_heightfield_command(app);
+    wavebrdf::cli::add_render_command(app);
+    wavebrdf::cli::add_genbrdf_command(app);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e);
+    } catch (const std::exception& e) {
+        // Errors raised by the commands themselves (they run from parse callbacks).
+        std::cerr << "wavebrdf: error: " << e.what() << "\n";
+        return 1;
+    }
+    return 0;
+}

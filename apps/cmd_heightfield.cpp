@@ -1,0 +1,95 @@
+#include <cstdio>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "commands.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/io.h"
+
+namespace wavebrdf::cli {
+
+namespace {
+
+struct HeightfieldArgs {
+    std::string type = "isotropic";
+    std::string size = "256";
+    std::string out;
+    std::string png;
+    bool no_png = false;
+    bool quiet = false;
+    SurfaceParams params;
+};
+
+// "N" or "NxM" → rows, cols.
+void parse_size(const std::string& text, int& rows, int& cols) {
+    const auto x = text.find_first_of("xX");
+    try {
+        std::size_t used = 0;
+        if (x == std::string::npos) {
+            rows = cols = std::stoi(text, &used);
+            if (used != text.size()) throw std::invalid_argument(text);
+        } else {
+            rows = std::stoi(text.substr(0, x), &used);
+            if (used != x) throw std::invalid_argument(text);
+            cols = std::stoi(text.substr(x + 1), &used);
+            if (used != text.size() - x - 1) throw std::invalid_argument(text);
+        }
+    } catch (const std::logic_error&) {
+        throw std::invalid_argument("size '" + text + "' is invalid; expected N or NxM (e.g. 512 or 256x384)");
+    }
+}
+
+std::string default_png(const std::string& exr) {
+    const auto dot = exr.rfind('.');
+    const auto slash = exr.rfind('/');
+    if (dot != std::string::npos && (slash == std::string::npos || dot > slash))
+        return exr.substr(0, dot) + ".png";
+    return exr + ".png";
+}
+
+void run(const HeightfieldArgs& a) {
+    SurfaceParams p = a.params;
+    p.type = parse_surface_type(a.type);
+    parse_size(a.size, p.rows, p.cols);
+    const std::string png = a.no_png ? "" : (a.png.empty() ? default_png(a.out) : a.png);
+    check_writable(a.out);
+    if (!png.empty()) check_writable(png);
+    const Heightfield hf = generate_heightfield(p);
+    write_heightfield_exr(a.out, hf);
+    if (!png.empty()) write_heightfield_png(png, hf);
+    if (!a.quiet) {
+        const HeightStats s = height_stats(hf);
+        std::printf("%s: %s %dx%d, texel %.4g um, rms height %.4g um, range [%.4g, %.4g] um, rms slope %.4g\n",
+                    a.out.c_str(), to_string(p.type), hf.rows(), hf.cols(), hf.texel_um(),
+                    s.rms_height_um, s.min_um, s.max_um, s.rms_slope);
+    }
+}
+
+}  // namespace
+
+void add_heightfield_command(CLI::App& app) {
+    auto args = std::make_shared<HeightfieldArgs>();
+    CLI::App* cmd = app.add_subcommand("heightfield", "Generate a procedural periodic heightfield (EXR + PNG preview)");
+    auto& p = args->params;
+    cmd->add_option("--type", args->type, "flat, isotropic, brushed, scratched or grating")->capture_default_str();
+    cmd->add_option("--size", args->size, "N or NxM texels (rows x columns)")->capture_default_str();
+    cmd->add_option("--seed", p.seed, "random seed")->capture_default_str();
+    cmd->add_option("--out", args->out, "output EXR (heights in units of texel width, R channel)")->required();
+    cmd->add_option("--png", args->png, "preview PNG (default: the EXR name with .png)");
+    cmd->add_flag("--no-png", args->no_png, "do not write a preview");
+    cmd->add_option("--texel-um", p.texel_um, "texel width w in um")->capture_default_str();
+    cmd->add_option("--rms-height-um", p.rms_height_um, "isotropic/brushed: rms height in um")->capture_default_str();
+    cmd->add_option("--rms-slope", p.rms_slope, "isotropic/brushed: rms slope per axis (overrides --rms-height-um when > 0)")->capture_default_str();
+    cmd->add_option("--correlation-um", p.correlation_um, "correlation length in um")->capture_default_str();
+    cmd->add_option("--anisotropy", p.anisotropy, "brushed: correlation along y / along x")->capture_default_str();
+    cmd->add_option("--scratches", p.scratch_count, "scratched: number of scratches")->capture_default_str();
+    cmd->add_option("--scratch-depth-um", p.scratch_depth_um, "scratched: groove depth in um")->capture_default_str();
+    cmd->add_option("--scratch-width-um", p.scratch_width_um, "scratched: groove width in um")->capture_default_str();
+    cmd->add_option("--amplitude-um", p.amplitude_um, "grating: amplitude A in um")->capture_default_str();
+    cmd->add_option("--period-um", p.period_um, "grating: period in um")->capture_default_str();
+    cmd->add_flag("--quiet", args->quiet, "print nothing");
+    cmd->callback([args] { run(*args); });
+}
+
+}  // namespace wavebrdf::cli

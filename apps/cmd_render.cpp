@@ -1,0 +1,85 @@
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "commands.h"
+#include "slice_job.h"
+#include "wavebrdf/io.h"
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf::cli {
+
+namespace {
+
+struct RenderArgs {
+    std::string heightfield;
+    double texel_um = 1.0;
+    double vscale = 1.0;
+    Query query;
+    std::string model = "OHS";
+    double lambda_um = 0.0;   // 0: not given
+    int spectral = 0;         // 0: not given
+    std::string precision = "float";
+    std::string path = "auto";
+    SliceJob job;
+};
+
+RenderPath parse_path(const std::string& name) {
+    if (name == "auto") return RenderPath::Auto;
+    if (name == "separable") return RenderPath::Separable;
+    if (name == "direct") return RenderPath::Direct;
+    throw std::invalid_argument("render path '" + name + "' is unknown; expected auto, separable or direct");
+}
+
+void run(RenderArgs a) {
+    a.query.model = parse_model(a.model);
+    a.job.options.path = parse_path(a.path);
+    if (a.precision != "float" && a.precision != "double")
+        throw std::invalid_argument("precision '" + a.precision + "' is unknown; expected float or double");
+    a.job.use_double = a.precision == "double";
+    if (a.spectral != 0) {
+        if (a.spectral < 1 || a.spectral > 256)
+            throw std::domain_error("--spectral " + std::to_string(a.spectral) + " is out of range; expected 1 to 256 samples");
+        a.job.lambdas_um = spectral_wavelengths_um(a.spectral);
+    } else {
+        if (a.lambda_um == 0.0) a.lambda_um = 0.5;
+        validate_lambda(a.lambda_um);
+        a.job.lambdas_um = {a.lambda_um};
+    }
+    validate(a.query);
+    validate_resolution(a.job.resolution);
+    const Heightfield hf = read_heightfield_exr(a.heightfield, a.texel_um, a.vscale);
+    run_slice_job(hf, a.query, a.job);
+}
+
+}  // namespace
+
+void add_render_command(CLI::App& app) {
+    auto a = std::make_shared<RenderArgs>();
+    CLI::App* cmd = app.add_subcommand("render", "Render one BRDF slice of a heightfield (MODEL.md)");
+    cmd->add_option("--heightfield", a->heightfield, "heightfield EXR (R channel, heights in texel widths)")->required();
+    cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
+    cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
+    cmd->add_option("--x-um", a->query.x_um, "footprint centre along x (rows) in um")->capture_default_str();
+    cmd->add_option("--y-um", a->query.y_um, "footprint centre along y (columns) in um")->capture_default_str();
+    cmd->add_option("--sigma-p-um", a->query.sigma_p_um, "footprint (coherence) size sigma_p in um")->capture_default_str();
+    cmd->add_option("--model", a->model, "OHS, GHS, ROHS, RGHS or Kirchhoff")->capture_default_str();
+    auto* lambda = cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default 0.5)");
+    auto* spectral = cmd->add_option("--spectral", a->spectral, "N wavelengths over 0.36-0.83 um, CIE 1931 to linear sRGB");
+    lambda->excludes(spectral);
+    cmd->add_option("--light-x", a->query.omega_i[0], "projected light direction, x")->capture_default_str();
+    cmd->add_option("--light-y", a->query.omega_i[1], "projected light direction, y")->capture_default_str();
+    cmd->add_option("--resolution", a->job.resolution, "slice size n (n x n pixels, 1-8192)")->capture_default_str();
+    cmd->add_option("--out", a->job.out_exr, "output EXR (float RGB)");
+    cmd->add_option("--png", a->job.png, "tonemapped 8-bit sRGB preview");
+    cmd->add_option("--exposure", a->job.exposure, "preview exposure in stops")->capture_default_str();
+    cmd->add_flag("--reinhard", a->job.tonemap, "preview: Reinhard x/(1+x) before the sRGB curve");
+    cmd->add_option("--precision", a->precision, "float or double")->capture_default_str();
+    cmd->add_option("--path", a->path, "auto, separable (OHS/ROHS) or direct")->capture_default_str();
+    cmd->add_option("--prune-tolerance", a->job.options.prune_tolerance,
+                    "direct path: pruning error bound relative to the slice peak (0-1e-6)")->capture_default_str();
+    cmd->add_flag("--quiet", a->job.quiet, "no progress bar or summary");
+    cmd->callback([a] { run(*a); });
+}
+
+}  // namespace wavebrdf::cli

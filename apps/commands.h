@@ -1,0 +1,11 @@
+#pragma once
+// The subcommands of the wavebrdf tool; each registers itself and runs from a callback.
+#include <CLI/CLI.hpp>
+
+namespace wavebrdf::cli {
+
+void add_heightfield_command(CLI::App& app);  // wavebrdf heightfield: procedural surfaces
+void add_render_command(CLI::App& app);       // wavebrdf render: one BRDF slice
+void add_genbrdf_command(CLI::App& app);      // wavebrdf genbrdf: the reference's flags
+
+}  // namespace wavebrdf::cli

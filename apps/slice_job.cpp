@@ -1,0 +1,47 @@
+#include "slice_job.h"
+
+#include <chrono>
+#include <cstdio>
+#include <stdexcept>
+
+#include "wavebrdf/io.h"
+#include "wavebrdf/progress.h"
+
+namespace wavebrdf::cli {
+
+void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob job) {
+    if (job.out_exr.empty() && job.png.empty())
+        throw std::invalid_argument("no output given; expected --out F.exr and/or --png F.png");
+    validate(query);
+    validate_resolution(job.resolution);
+    if (!job.out_exr.empty()) check_writable(job.out_exr);
+    if (!job.png.empty()) check_writable(job.png);
+
+    Progress progress("render", work_units(job.resolution) * static_cast<long long>(job.lambdas_um.size()),
+                      !job.quiet);
+    job.options.progress = &progress;
+    const auto start = std::chrono::steady_clock::now();
+    RgbImage image;
+    image.rows = image.cols = job.resolution;
+    if (job.use_double) {
+        const auto rgb = render_rgb<double>(heightfield, query, job.lambdas_um, job.resolution, job.options);
+        image.data.assign(rgb.begin(), rgb.end());
+    } else {
+        image.data = render_rgb<float>(heightfield, query, job.lambdas_um, job.resolution, job.options);
+    }
+    progress.finish();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+    if (!job.out_exr.empty()) write_rgb_exr(job.out_exr, image, job.with_alpha);
+    if (!job.png.empty()) write_rgb_png(job.png, image, job.exposure, job.tonemap);
+    if (!job.quiet) {
+        float peak = 0.0f;
+        for (float v : image.data) peak = std::max(peak, v);
+        std::fprintf(stderr, "rendered %dx%d slice, %zu wavelength%s, model %s, peak %.4g, %.3f s\n",
+                     job.resolution, job.resolution, job.lambdas_um.size(),
+                     job.lambdas_um.size() == 1 ? "" : "s", to_string(query.model), double(peak), seconds);
+    }
+}
+
+}  // namespace wavebrdf::cli
