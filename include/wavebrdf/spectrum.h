@@ -18,10 +18,15 @@ std::vector<double> spectral_wavelengths_um(int count);
 // CIE 1931 at the sampled wavelengths (Riemann sum, Y normalised so that a constant
 // spectrum has Y = 1), then a Bradford adaptation of that sampled equal-energy white to D65,
 // then XYZ → linear sRGB. So a constant spectrum c maps exactly (to rounding) to (c, c, c).
-// Throws std::invalid_argument on an empty list or non-positive wavelength.
+// Wavelengths in µm, any order; each sample's Δλ is half the distance to each neighbour (the
+// end ones: the full distance to their neighbour, so an equally spaced grid gets equal Δλ;
+// equal wavelengths share one Δλ). Samples outside 360–830 nm get zero weight.
+// Throws std::invalid_argument on an empty list, std::domain_error on a non-positive or
+// non-finite wavelength and when the sampled white has Y ≤ 0 (no sample inside 360–830 nm).
 std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_um);
 
-// XYZ (D65-relative) → linear sRGB matrix, derived from the Rec. 709 primaries and D65.
+// XYZ (D65-relative) → linear sRGB matrix (row-major), derived from the Rec. 709 primaries
+// and the D65 chromaticity (0.3127, 0.3290): D65 with Y = 1 maps to (1, 1, 1).
 std::array<double, 9> xyz_to_linear_srgb();
 
 }  // namespace wavebrdf
