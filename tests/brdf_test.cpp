@@ -7,6 +7,7 @@
 
 #include "test_util.h"
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/generate.h"
 
 using namespace wavebrdf;
 using wavebrdf::test::max_abs;
@@ -269,4 +270,43 @@ TEST(BrdfTest, BadInputThrowsNamingTheValue) {
     q = good;
     q.model = Model::GHS;
     EXPECT_THROW(render_slice<double>(hf, q, 0.5, 16, o), std::invalid_argument);
+}
+
+// Gaussian random surface, rms height σ_h: averaged over positions, the specular peak drops by
+// exp(−(4π σ_h cos θ_i / λ)²) relative to a mirror (MODEL.md). The cos θ_i comes from the
+// GHS-type models' phase scale (cos θ_i + cos θ_o)/2 = cos θ_i at the mirror direction; OHS and
+// ROHS keep the full phase 4πH/λ, so their attenuation has no cos θ_i at oblique light.
+TEST(BrdfTest, RoughSurfaceSpecularPeakFollowsBeckmannKirchhoff) {
+    SurfaceParams p;
+    p.type = SurfaceType::Isotropic;
+    p.rows = p.cols = 256;
+    p.correlation_um = 4.0;
+    p.seed = 21;
+    const double lambda = 0.5, g_target = 0.5;  // g = (4πσ_h/λ)²
+    p.rms_height_um = std::sqrt(g_target) * lambda / (4 * kPi);
+    const Heightfield rough = generate_heightfield(p);
+    const Heightfield flat(256, 256, std::vector<double>(256 * 256, 0.0), 1.0, 1.0);
+    const int n = 11;  // odd: the slice has a pixel exactly at ω_o = −ω_i when ω_i = 0
+    for (double tilt : {0.0, 0.5}) {
+        for (Model m : kModels) {
+            // A tilted light moves the mirror direction; pick ω_i on the pixel grid so that
+            // −ω_i is a pixel centre: ω_o = slice_omega(3, 11) = −0.3636…
+            const double wx = tilt == 0.0 ? 0.0 : -slice_omega(3, n);
+            const std::size_t peak = tilt == 0.0 ? static_cast<std::size_t>(5 * n + 5)
+                                                 : static_cast<std::size_t>(3 * n + 5);
+            const double mirror = render_slice<double>(flat, make_query(m, 32, 32, 14.0, wx, 0.0), lambda, n)[peak];
+            double mean = 0.0;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b)
+                    mean += render_slice<double>(rough, make_query(m, 32 + 64 * a, 32 + 64 * b, 14.0, wx, 0.0),
+                                                 lambda, n)[peak] / 16.0;
+            const double cos_i = std::sqrt(1 - wx * wx);
+            const double phase_cos = is_separable(m) ? 1.0 : cos_i;
+            const double expected = std::exp(-g_target * phase_cos * phase_cos);
+            EXPECT_NEAR(mean / mirror, expected, 0.05 * expected) << to_string(m) << " tilt " << tilt;
+            RecordProperty(std::string(to_string(m)) + "_tilt" + std::to_string(tilt), std::to_string(mean / mirror / expected));
+            // And the attenuation is real: far below the mirror's peak.
+            EXPECT_LT(mean / mirror, 0.85) << to_string(m);
+        }
+    }
 }

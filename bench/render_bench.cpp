@@ -1,0 +1,68 @@
+// Forward-renderer benchmarks (issue: 128×128 slice with 8 wavelengths of a 1024×1024
+// heightfield at σ_p = 10 µm; a 256×256 slice). Run: build/bin/render_bench (Google
+// Benchmark; report the median of --benchmark_repetitions). Counters:
+//   kernels   footprint kernels K (within 3σ_p)
+//   GFLOP/s   8·n²·K flops per wavelength (one complex multiply-add per pixel and kernel,
+//             the matrix product that dominates the separable path)
+#include <benchmark/benchmark.h>
+
+#include "wavebrdf/brdf.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/spectrum.h"
+
+using namespace wavebrdf;
+
+namespace {
+
+const Heightfield& surface() {
+    static const Heightfield hf = [] {
+        SurfaceParams p;
+        p.type = SurfaceType::Isotropic;
+        p.rows = p.cols = 1024;
+        p.rms_height_um = 0.05;
+        p.correlation_um = 4.0;
+        p.seed = 1;
+        return generate_heightfield(p);
+    }();
+    return hf;
+}
+
+Query query(Model model) {
+    Query q;
+    q.model = model;
+    q.x_um = 512.0;
+    q.y_um = 512.0;
+    q.sigma_p_um = 10.0;
+    return q;
+}
+
+template <typename Float>
+void run_slice(benchmark::State& state, Model model, int resolution, int wavelengths) {
+    const Query q = query(model);
+    const std::vector<double> lambdas =
+        wavelengths == 1 ? std::vector<double>{0.5} : spectral_wavelengths_um(wavelengths);
+    const auto kernels = footprint_kernels(surface(), q.x_um, q.y_um, q.sigma_p_um).size();
+    for (auto _ : state) {
+        auto rgb = render_rgb<Float>(surface(), q, lambdas, resolution);
+        benchmark::DoNotOptimize(rgb.data());
+    }
+    const double flops = 8.0 * resolution * resolution * double(kernels) * wavelengths;
+    state.counters["kernels"] = double(kernels);
+    state.counters["GFLOP/s"] = benchmark::Counter(flops * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void slice_float(benchmark::State& s, Model m, int n, int l) { run_slice<float>(s, m, n, l); }
+void slice_double(benchmark::State& s, Model m, int n, int l) { run_slice<double>(s, m, n, l); }
+
+}  // namespace
+
+BENCHMARK_CAPTURE(slice_float, ohs_128_spectral8_float, Model::OHS, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_double, ohs_128_spectral8_double, Model::OHS, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, ohs_256_mono_float, Model::OHS, 256, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_double, ohs_256_mono_double, Model::OHS, 256, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, rohs_128_spectral8_float, Model::ROHS, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, ohs_1024_mono_float, Model::OHS, 1024, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, ghs_direct_128_mono_float, Model::GHS, 128, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, kirchhoff_direct_64_mono_float, Model::Kirchhoff, 64, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+BENCHMARK_MAIN();
