@@ -17,8 +17,9 @@ struct RenderArgs {
     double vscale = 1.0;
     Query query;
     std::string model = "OHS";
-    double lambda_um = 0.0;   // 0: not given
-    int spectral = 0;         // 0: not given
+    double lambda_um = 0.5;
+    int spectral = 0;         // used only when given_spectral
+    bool given_spectral = false;
     std::string precision = "float";
     std::string path = "auto";
     SliceJob job;
@@ -37,12 +38,12 @@ void run(RenderArgs a) {
     if (a.precision != "float" && a.precision != "double")
         throw std::invalid_argument("precision '" + a.precision + "' is unknown; expected float or double");
     a.job.use_double = a.precision == "double";
-    if (a.spectral != 0) {
+    // Whether --spectral was given, not its value: --spectral 0 is an error, not "absent".
+    if (a.given_spectral) {
         if (a.spectral < 1 || a.spectral > 256)
             throw std::domain_error("--spectral " + std::to_string(a.spectral) + " is out of range; expected 1 to 256 samples");
         a.job.lambdas_um = spectral_wavelengths_um(a.spectral);
     } else {
-        if (a.lambda_um == 0.0) a.lambda_um = 0.5;
         validate_lambda(a.lambda_um);
         a.job.lambdas_um = {a.lambda_um};
     }
@@ -79,7 +80,10 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--prune-tolerance", a->job.options.prune_tolerance,
                     "direct path: pruning error bound relative to the slice peak (0-1e-6)")->capture_default_str();
     cmd->add_flag("--quiet", a->job.quiet, "no progress bar or summary");
-    cmd->callback([a] { run(*a); });
+    cmd->callback([a, spectral] {
+        a->given_spectral = spectral->count() > 0;
+        run(*a);
+    });
 }
 
 }  // namespace wavebrdf::cli

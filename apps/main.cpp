@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <string>
 
 #include "commands.h"
 
@@ -14,6 +15,11 @@ int main(int argc, char** argv) {
     wavebrdf::cli::add_heightfield_command(app);
     wavebrdf::cli::add_render_command(app);
     wavebrdf::cli::add_genbrdf_command(app);
+    // CLI11's own errors (unknown option, bad number, missing value) in the same one-line form
+    // as the commands' errors; --help and --version are not failures and print as usual.
+    app.failure_message([](const CLI::App*, const CLI::Error& e) {
+        return "wavebrdf: error: " + std::string(e.what()) + " (see --help)\n";
+    });
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {

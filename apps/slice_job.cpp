@@ -1,8 +1,10 @@
 #include "slice_job.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <string>
 
 #include "wavebrdf/io.h"
 #include "wavebrdf/progress.h"
@@ -16,6 +18,10 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     validate_resolution(job.resolution);
     if (!job.out_exr.empty()) check_writable(job.out_exr);
     if (!job.png.empty()) check_writable(job.png);
+    // write_rgb_png would reject it too, but only after the EXR is written: check up front.
+    if (!job.png.empty() && !std::isfinite(job.exposure))
+        throw std::domain_error("--exposure " + std::to_string(job.exposure) +
+                                " is invalid; expected a finite number of stops");
 
     Progress progress("render", work_units(job.resolution) * static_cast<long long>(job.lambdas_um.size()),
                       !job.quiet);

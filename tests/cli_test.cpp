@@ -1,0 +1,481 @@
+// End-to-end tests of the `wavebrdf` executable: every bad input must give one clear line on
+// stderr naming the problem, a non-zero exit and no (partial) output file; the happy paths
+// must write their files, and genbrdf must agree with render for the same parameters.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfOutputFile.h>
+#include <gtest/gtest.h>
+
+#include "wavebrdf/io.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct CliResult {
+    int exit_code = -1;  // the process's exit status; -1 when it did not exit normally
+    std::string out;     // stdout
+    std::string err;     // stderr
+};
+
+std::string read_text(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Single-quoted for /bin/sh (an embedded ' becomes '\'').
+std::string quote(const std::string& text) {
+    std::string q = "'";
+    for (char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+
+// stderr without its trailing newline, split into lines.
+std::vector<std::string> lines_of(std::string text) {
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    std::vector<std::string> lines;
+    if (text.empty()) return lines;
+    std::size_t start = 0;
+    for (;;) {
+        const std::size_t end = text.find('\n', start);
+        lines.push_back(text.substr(start, end - start));
+        if (end == std::string::npos) return lines;
+        start = end + 1;
+    }
+}
+
+// A fresh directory per test (named after it and the process, since ctest may run the tests
+// in parallel), so that leftovers from one test cannot satisfy another's checks.
+class CliTest : public ::testing::Test {
+protected:
+    void SetUp() override {
+        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+        m_dir = fs::path(WAVEBRDF_TEST_TMP) / "cli" /
+                (std::string(info->name()) + "-" + std::to_string(::getpid()));
+        fs::remove_all(m_dir);
+        fs::create_directories(m_dir);
+    }
+    void TearDown() override {
+        if (!HasFailure()) fs::remove_all(m_dir);
+    }
+
+    fs::path path(const std::string& name) const { return m_dir / name; }
+    std::string qpath(const std::string& name) const { return quote(path(name).string()); }
+
+    // Runs `wavebrdf args` in the test directory, stdout and stderr to files (so stderr is
+    // not a terminal, as in a script).
+    CliResult run(const std::string& args) const {
+        const fs::path out = m_dir / "stdout.txt", err = m_dir / "stderr.txt";
+        const std::string command = "cd " + quote(m_dir.string()) + " && " + quote(WAVEBRDF_CLI) +
+                                    " " + args + " > " + quote(out.string()) + " 2> " +
+                                    quote(err.string()) + " < /dev/null";
+        const int status = std::system(command.c_str());
+        CliResult r;
+        r.exit_code = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+        r.out = read_text(out);
+        r.err = read_text(err);
+        fs::remove(out);
+        fs::remove(err);
+        return r;
+    }
+
+    // A small random heightfield written by the tool itself; returns its path.
+    std::string make_heightfield(const std::string& name = "h.exr", const std::string& size = "64") {
+        const CliResult r = run("heightfield --size " + size + " --seed 7 --out " + qpath(name) +
+                                " --no-png --quiet");
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_TRUE(fs::exists(path(name)));
+        return path(name).string();
+    }
+
+    // The checks every bad input must pass: non-zero exit; exactly one line on stderr (a
+    // trailing newline aside) that contains every one of `needles` (the offending value and/or
+    // option); no file at any of `outputs` and no temporary `*.tmp-*` beside them.
+    void expect_clean_failure(const CliResult& r, const std::vector<std::string>& needles,
+                              const std::vector<fs::path>& outputs) const {
+        EXPECT_NE(r.exit_code, 0);
+        EXPECT_NE(r.exit_code, -1) << "did not exit normally (crashed?)";
+        const std::vector<std::string> lines = lines_of(r.err);
+        ASSERT_EQ(lines.size(), 1u) << "stderr:\n" << r.err;
+        for (const std::string& needle : needles)
+            EXPECT_NE(lines[0].find(needle), std::string::npos)
+                << "message does not name '" << needle << "': " << lines[0];
+        for (const fs::path& output : outputs) {
+            EXPECT_FALSE(fs::exists(output)) << output << " was left behind";
+            const fs::path dir = output.parent_path();
+            std::error_code ec;
+            if (!fs::is_directory(dir, ec)) continue;
+            for (const auto& entry : fs::directory_iterator(dir))
+                EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos)
+                    << "temporary file left behind: " << entry.path();
+        }
+    }
+
+    fs::path m_dir;
+};
+
+bool starts_with(const std::string& text, const std::string& prefix) {
+    return text.compare(0, prefix.size(), prefix) == 0;
+}
+
+bool is_png(const fs::path& path) {
+    const std::string head = read_text(path).substr(0, 8);
+    return head == std::string("\x89PNG\r\n\x1a\n", 8);
+}
+
+// A single-channel (R) float EXR written with OpenEXR directly, so it may hold values that
+// wavebrdf's own writer (which goes through a validated Heightfield) never would.
+void write_raw_exr(const std::string& file, int rows, int cols, const std::vector<float>& values) {
+    Imf::Header header(cols, rows);
+    header.channels().insert("R", Imf::Channel(Imf::FLOAT));
+    Imf::FrameBuffer frame;
+    frame.insert("R", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(values.data())),
+                                 sizeof(float), sizeof(float) * static_cast<std::size_t>(cols)));
+    Imf::OutputFile out(file.c_str(), header);
+    out.setFrameBuffer(frame);
+    out.writePixels(rows);
+}
+
+// The A channel of an EXR (empty when there is none).
+std::vector<float> read_alpha(const std::string& file) {
+    Imf::InputFile in(file.c_str());
+    if (in.header().channels().findChannel("A") == nullptr) return {};
+    const Imath::Box2i dw = in.header().dataWindow();
+    const int cols = dw.max.x - dw.min.x + 1, rows = dw.max.y - dw.min.y + 1;
+    std::vector<float> alpha(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols));
+    Imf::FrameBuffer frame;
+    frame.insert("A", Imf::Slice::Make(Imf::FLOAT, alpha.data(), dw));
+    in.setFrameBuffer(frame);
+    in.readPixels(dw.min.y, dw.max.y);
+    return alpha;
+}
+
+// Same size, and every value within `rel` of the larger image's peak.
+void expect_same_image(const wavebrdf::RgbImage& a, const wavebrdf::RgbImage& b, double rel) {
+    ASSERT_EQ(a.rows, b.rows);
+    ASSERT_EQ(a.cols, b.cols);
+    ASSERT_EQ(a.data.size(), b.data.size());
+    double peak = 0.0;
+    for (std::size_t k = 0; k < a.data.size(); ++k) {
+        ASSERT_TRUE(std::isfinite(a.data[k]) && std::isfinite(b.data[k])) << "pixel value " << k;
+        peak = std::max({peak, std::abs(double(a.data[k])), std::abs(double(b.data[k]))});
+    }
+    ASSERT_GT(peak, 0.0) << "an all-black slice would make the comparison vacuous";
+    double worst = 0.0;
+    for (std::size_t k = 0; k < a.data.size(); ++k)
+        worst = std::max(worst, std::abs(double(a.data[k]) - double(b.data[k])));
+    EXPECT_LE(worst, rel * peak) << "peak " << peak;
+}
+
+// %.17g: the shortest text that reads back as the same double.
+std::string exact(double value) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.17g", value);
+    return buf;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Happy paths
+
+TEST_F(CliTest, HeightfieldWritesExrAndPng) {
+    const CliResult r = run("heightfield --size 32x48 --out h.exr --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err, "");
+    EXPECT_EQ(r.out, "");  // --quiet: "print nothing"
+    ASSERT_TRUE(fs::exists(path("h.exr")));
+    ASSERT_TRUE(fs::exists(path("h.png")));  // the default preview name
+    EXPECT_TRUE(is_png(path("h.png")));
+    const wavebrdf::Heightfield hf = wavebrdf::read_heightfield_exr(path("h.exr").string());
+    EXPECT_EQ(hf.rows(), 32);
+    EXPECT_EQ(hf.cols(), 48);
+}
+
+TEST_F(CliTest, RenderWritesExrAndPngQuietly) {
+    const std::string hf = make_heightfield();
+    const CliResult r = run("render --heightfield " + quote(hf) +
+                            " --lambda-um 0.5 --resolution 32 --out a.exr --png a.png --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err, "") << "--quiet with stderr not a terminal must print nothing";
+    EXPECT_EQ(r.out, "");
+    ASSERT_TRUE(fs::exists(path("a.exr")));
+    ASSERT_TRUE(fs::exists(path("a.png")));
+    EXPECT_TRUE(is_png(path("a.png")));
+    const wavebrdf::RgbImage image = wavebrdf::read_rgb_exr(path("a.exr").string());
+    EXPECT_EQ(image.rows, 32);
+    EXPECT_EQ(image.cols, 32);
+    EXPECT_TRUE(read_alpha(path("a.exr").string()).empty()) << "render writes RGB, not RGBA";
+    for (const auto& entry : fs::directory_iterator(m_dir))
+        EXPECT_EQ(entry.path().filename().string().find(".tmp-"), std::string::npos);
+}
+
+// Without --quiet, but with stderr a file: no progress bar (no '\r' redraws), just the
+// one-line summary.
+TEST_F(CliTest, RenderWithoutQuietPrintsOnlyASummaryWhenNotATerminal) {
+    const std::string hf = make_heightfield();
+    const CliResult r =
+        run("render --heightfield " + quote(hf) + " --resolution 16 --out a.exr");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
+    const std::vector<std::string> lines = lines_of(r.err);
+    ASSERT_EQ(lines.size(), 1u) << r.err;
+    EXPECT_TRUE(starts_with(lines[0], "rendered 16x16 slice")) << lines[0];
+}
+
+TEST_F(CliTest, GenbrdfMatchesRender) {
+    const std::string hf = make_heightfield();
+    const CliResult g = run("genbrdf -i " + quote(hf) + " -o g.exr -r 32 -l 0.5 --quiet");
+    ASSERT_EQ(g.exit_code, 0) << g.err;
+    EXPECT_EQ(g.err, "");
+    EXPECT_EQ(g.out, "");
+    const CliResult r = run("render --heightfield " + quote(hf) +
+                            " --lambda-um 0.5 --resolution 32 --out r.exr --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::vector<float> alpha = read_alpha(path("g.exr").string());
+    ASSERT_EQ(alpha.size(), 32u * 32u) << "genbrdf writes RGBA";
+    for (float a : alpha) ASSERT_EQ(a, 1.0f);
+    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()),
+                      wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);
+}
+
+// genBrdf's -s S -t T is the light (S, T, 1) normalised; its projection is render's --light-*.
+TEST_F(CliTest, GenbrdfLightDirectionIsNormalised) {
+    const std::string hf = make_heightfield();
+    const CliResult g = run("genbrdf -i " + quote(hf) + " -o g.exr -r 32 -l 0.5 -s 0.3 -t 0 --quiet");
+    ASSERT_EQ(g.exit_code, 0) << g.err;
+    const double light_x = 0.3 / std::sqrt(0.3 * 0.3 + 0.0 * 0.0 + 1.0);  // 0.3 / sqrt(1.09)
+    const CliResult r = run("render --heightfield " + quote(hf) + " --lambda-um 0.5 --light-x " +
+                            exact(light_x) + " --light-y 0 --resolution 32 --out r.exr --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()),
+                      wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);
+    // And it is not the unnormalised direction (0.3, 0): the check above has teeth.
+    const CliResult u = run("render --heightfield " + quote(hf) +
+                            " --lambda-um 0.5 --light-x 0.3 --resolution 32 --out u.exr --quiet");
+    ASSERT_EQ(u.exit_code, 0) << u.err;
+    const auto gi = wavebrdf::read_rgb_exr(path("g.exr").string());
+    const auto ui = wavebrdf::read_rgb_exr(path("u.exr").string());
+    EXPECT_NE(gi.data, ui.data);
+}
+
+// genBrdf's -l 0 is its spectral mode (8 samples), i.e. render --spectral 8.
+TEST_F(CliTest, GenbrdfLambdaZeroIsSpectral) {
+    const std::string hf = make_heightfield();
+    const CliResult g = run("genbrdf -i " + quote(hf) + " -o g.exr -r 16 -l 0 --quiet");
+    ASSERT_EQ(g.exit_code, 0) << g.err;
+    EXPECT_EQ(g.err, "");
+    const CliResult r = run("render --heightfield " + quote(hf) +
+                            " --spectral 8 --resolution 16 --out r.exr --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()),
+                      wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bad heightfield inputs
+
+TEST_F(CliTest, MissingHeightfield) {
+    const CliResult r =
+        run("render --heightfield missing.exr --resolution 16 --out a.exr --png a.png");
+    expect_clean_failure(r, {"missing.exr", "does not exist"}, {path("a.exr"), path("a.png")});
+    const CliResult g = run("genbrdf -i missing.exr -o g.exr -r 16");
+    expect_clean_failure(g, {"missing.exr", "does not exist"}, {path("g.exr")});
+}
+
+TEST_F(CliTest, CorruptHeightfield) {
+    std::ofstream(path("corrupt.exr")) << "this is not an OpenEXR file\nsecond line\n";
+    const CliResult r = run("render --heightfield corrupt.exr --resolution 16 --out a.exr");
+    expect_clean_failure(r, {"corrupt.exr", "not an OpenEXR file"}, {path("a.exr")});
+    const CliResult g = run("genbrdf -i corrupt.exr -o g.exr -r 16");
+    expect_clean_failure(g, {"corrupt.exr", "not an OpenEXR file"}, {path("g.exr")});
+}
+
+TEST_F(CliTest, TruncatedHeightfield) {
+    const std::string hf = make_heightfield("cut.exr", "128");
+    fs::resize_file(hf, fs::file_size(hf) / 2);
+    const CliResult r = run("render --heightfield cut.exr --resolution 16 --out a.exr");
+    expect_clean_failure(r, {"cut.exr"}, {path("a.exr")});
+    const CliResult g = run("genbrdf -i cut.exr -o g.exr -r 16");
+    expect_clean_failure(g, {"cut.exr"}, {path("g.exr")});
+}
+
+TEST_F(CliTest, NonFiniteHeights) {
+    std::vector<float> values(8 * 8, 0.25f);
+    values[3 * 8 + 5] = std::numeric_limits<float>::quiet_NaN();
+    write_raw_exr(path("nan.exr").string(), 8, 8, values);
+    const CliResult r = run("render --heightfield nan.exr --resolution 16 --out a.exr");
+    expect_clean_failure(r, {"nan.exr", "row 3, column 5", "not finite"}, {path("a.exr")});
+    const CliResult g = run("genbrdf -i nan.exr -o g.exr -r 16");
+    expect_clean_failure(g, {"nan.exr", "not finite"}, {path("g.exr")});
+
+    values[3 * 8 + 5] = std::numeric_limits<float>::infinity();
+    write_raw_exr(path("inf.exr").string(), 8, 8, values);
+    const CliResult i = run("render --heightfield inf.exr --resolution 16 --out a.exr");
+    expect_clean_failure(i, {"inf.exr", "not finite"}, {path("a.exr")});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bad parameters
+
+TEST_F(CliTest, NonPositiveWavelength) {
+    const std::string hf = quote(make_heightfield());
+    const std::string base = "render --heightfield " + hf + " --resolution 16 --out a.exr";
+    // --lambda-um 0 is an explicit bad value, not "use the default".
+    expect_clean_failure(run(base + " --lambda-um 0"), {"wavelength 0 "}, {path("a.exr")});
+    expect_clean_failure(run(base + " --lambda-um -1"), {"wavelength -1"}, {path("a.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -l -0.5"), {"wavelength -0.5"},
+                         {path("g.exr")});
+}
+
+TEST_F(CliTest, LightDirectionOutsideUnitDisk) {
+    const std::string hf = quote(make_heightfield());
+    expect_clean_failure(run("render --heightfield " + hf +
+                             " --light-x 0.8 --light-y 0.7 --resolution 16 --out a.exr"),
+                         {"light direction (0.8, 0.7)"}, {path("a.exr")});
+    // Exactly on the unit circle is out too (cos θ_i = 0).
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --light-x 1 --resolution 16 --out a.exr"),
+        {"light direction (1, 0)"}, {path("a.exr")});
+}
+
+TEST_F(CliTest, NonPositiveSigmaP) {
+    const std::string hf = quote(make_heightfield());
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --sigma-p-um 0 --resolution 16 --out a.exr"),
+        {"sigma_p 0 "}, {path("a.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -p -1"), {"sigma_p -1"},
+                         {path("g.exr")});
+}
+
+TEST_F(CliTest, ResolutionOutOfRange) {
+    const std::string hf = quote(make_heightfield());
+    for (const char* n : {"0", "8193", "-4"}) {
+        SCOPED_TRACE(n);
+        expect_clean_failure(run("render --heightfield " + hf + " --resolution " + n +
+                                 " --out a.exr --png a.png"),
+                             {std::string("resolution ") + n + " "}, {path("a.exr"), path("a.png")});
+        expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r " + n),
+                             {std::string("resolution ") + n + " "}, {path("g.exr")});
+    }
+}
+
+TEST_F(CliTest, UnknownModel) {
+    const std::string hf = quote(make_heightfield());
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --model Foo --resolution 16 --out a.exr"), {"'Foo'"},
+        {path("a.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -d Foo"), {"'Foo'"},
+                         {path("g.exr")});
+}
+
+TEST_F(CliTest, UnwritableOutput) {
+    const std::string hf = quote(make_heightfield());
+    // A missing directory.
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --resolution 16 --out /nonexistent_dir/x.exr"),
+        {"/nonexistent_dir/x.exr"}, {"/nonexistent_dir/x.exr"});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o /nonexistent_dir/g.exr -r 16"),
+                         {"/nonexistent_dir/g.exr"}, {"/nonexistent_dir/g.exr"});
+    // A "directory" that is a regular file.
+    std::ofstream(path("plain")) << "a regular file\n";
+    const std::string under_file = (path("plain") / "x.exr").string();
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --resolution 16 --out " + quote(under_file)),
+        {under_file}, {under_file});
+    // A good EXR but an unwritable PNG: neither is written.
+    expect_clean_failure(run("render --heightfield " + hf +
+                             " --resolution 16 --out a.exr --png /nonexistent_dir/a.png"),
+                         {"/nonexistent_dir/a.png"}, {path("a.exr"), "/nonexistent_dir/a.png"});
+    // The output is a directory.
+    fs::create_directory(path("dir.exr"));
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out dir.exr"),
+                         {"dir.exr", "is a directory"}, {});
+    EXPECT_TRUE(fs::is_empty(path("dir.exr")));
+}
+
+TEST_F(CliTest, BadSpectralAndPrecision) {
+    const std::string hf = quote(make_heightfield());
+    const std::string base = "render --heightfield " + hf + " --resolution 16 --out a.exr";
+    // --spectral 0 is an explicit bad value, not "no --spectral".
+    expect_clean_failure(run(base + " --spectral 0"), {"--spectral 0"}, {path("a.exr")});
+    expect_clean_failure(run(base + " --spectral 257"), {"--spectral 257"}, {path("a.exr")});
+    expect_clean_failure(run(base + " --precision quad"), {"'quad'"}, {path("a.exr")});
+    expect_clean_failure(run(base + " --path sideways"), {"'sideways'"}, {path("a.exr")});
+}
+
+// An exposure the PNG writer rejects must fail before the EXR is written, not after.
+TEST_F(CliTest, BadExposureLeavesNoExr) {
+    const std::string hf = quote(make_heightfield());
+    for (const char* e : {"nan", "1e999"}) {
+        SCOPED_TRACE(e);
+        expect_clean_failure(run("render --heightfield " + hf +
+                                 " --resolution 16 --out a.exr --png a.png --exposure " + e),
+                             {"--exposure"}, {path("a.exr"), path("a.png")});
+    }
+}
+
+TEST_F(CliTest, NoOutputGiven) {
+    const std::string hf = quote(make_heightfield());
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16"),
+                         {"no output given"}, {});
+}
+
+TEST_F(CliTest, UnsupportedGenbrdfMethod) {
+    const std::string hf = quote(make_heightfield());
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -m Geometric"),
+                         {"'Geometric'"}, {path("g.exr")});
+}
+
+TEST_F(CliTest, BadHeightfieldArguments) {
+    const std::vector<fs::path> outputs = {path("h.exr"), path("h.png")};
+    expect_clean_failure(run("heightfield --type foo --size 16 --out h.exr"), {"'foo'"}, outputs);
+    expect_clean_failure(run("heightfield --size 0 --out h.exr"), {"rows = 0"}, outputs);
+    expect_clean_failure(run("heightfield --size 12xq --out h.exr"), {"'12xq'"}, outputs);
+    expect_clean_failure(run("heightfield --size 16x --out h.exr"), {"'16x'"}, outputs);
+    expect_clean_failure(run("heightfield --size 16 --out /nonexistent_dir/h.exr"),
+                         {"/nonexistent_dir/h.exr"}, {"/nonexistent_dir/h.exr"});
+    // A writable EXR but an unwritable preview: neither is written.
+    expect_clean_failure(run("heightfield --size 16 --out h.exr --png /nonexistent_dir/h.png"),
+                         {"/nonexistent_dir/h.png"}, outputs);
+}
+
+// CLI11's own parse errors come out in the same one-line form as the commands' errors.
+TEST_F(CliTest, ParseErrorsAreOneLine) {
+    const std::string hf = quote(make_heightfield());
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --resolution abc --out a.exr"),
+        {"--resolution", "abc"}, {path("a.exr")});
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out a.exr --bogus"),
+                         {"--bogus"}, {path("a.exr")});
+    expect_clean_failure(run("render --resolution 16 --out a.exr"), {"--heightfield"},
+                         {path("a.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -l"), {"-l"}, {path("g.exr")});
+    expect_clean_failure(run("render --heightfield " + hf +
+                             " --lambda-um 0.5 --spectral 8 --resolution 16 --out a.exr"),
+                         {"--lambda-um", "--spectral"}, {path("a.exr")});
+    expect_clean_failure(run(""), {"subcommand"}, {});
+    // CLI11 checks for a missing subcommand before unknown arguments, so an unknown subcommand
+    // is reported as a missing one.
+    expect_clean_failure(run("frobnicate"), {"subcommand"}, {});
+    // --help is not an error: usage on stdout, exit 0.
+    const CliResult help = run("render --help");
+    EXPECT_EQ(help.exit_code, 0);
+    EXPECT_NE(help.out.find("--lambda-um"), std::string::npos);
+}
+
+}  // namespace
