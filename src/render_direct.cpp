@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "wavebrdf/brdf.h"
+#include "direct.h"
 #include "wavebrdf/progress.h"
 
 namespace wavebrdf {
@@ -67,12 +68,15 @@ double amplitude_bound(const FootprintKernels& k, Model model) {
 
 }  // namespace
 
-template <typename Float>
-std::vector<Float> render_slice_direct(const FootprintKernels& k, const Query& query,
-                                       double lambda_um, int n, double prune_tolerance,
-                                       Progress* progress) {
+namespace detail {
+
+DirectField direct_field(const FootprintKernels& k, const Query& query, double lambda_um, int n,
+                         double prune_tolerance, Progress* progress) {
     const std::size_t pixels = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
-    std::vector<double> field_abs(pixels, 0.0), c1(pixels, 0.0), value(pixels, 0.0);
+    DirectField out;
+    out.field.assign(pixels, 0.0);
+    out.c1.assign(pixels, 0.0);
+    out.value.assign(pixels, 0.0);
     const double bound = amplitude_bound(k, query.model);
     // Start by dropping terms below 1e-3 · tolerance of the bound; tighten if the a-posteriori
     // check below fails. No pruning at all when the tolerance is 0.
@@ -88,10 +92,10 @@ std::vector<Float> render_slice_direct(const FootprintKernels& k, const Query& q
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
                 if (ox * ox + oy * oy > 1.0) continue;
                 const PixelSum s = sum_pixel(k, query, lambda_um, ox, oy, cutoff);
-                field_abs[at] = std::abs(s.field);
-                c1[at] = s.c1;
+                out.field[at] = s.field;
+                out.c1[at] = s.c1;
                 const double v = s.c1 * std::norm(s.field);
-                value[at] = std::isfinite(v) ? v : 0.0;
+                out.value[at] = std::isfinite(v) ? v : 0.0;
             }
             if (progress && attempt == 0) progress->advance(units / n + (p < units % n ? 1 : 0));
         }
@@ -101,20 +105,26 @@ std::vector<Float> render_slice_direct(const FootprintKernels& k, const Query& q
         const double eps = std::exp(-cutoff) * bound;
         double peak = 0.0, worst = 0.0;
         for (std::size_t at = 0; at < pixels; ++at) {
-            peak = std::max(peak, value[at]);
-            const double err = c1[at] * (2.0 * field_abs[at] + eps) * eps;
+            peak = std::max(peak, out.value[at]);
+            const double err = out.c1[at] * (2.0 * std::abs(out.field[at]) + eps) * eps;
             if (std::isfinite(err)) worst = std::max(worst, err);
         }
-        if (worst <= prune_tolerance * std::max(peak - worst, 0.0) || attempt >= 3) {
-            if (attempt >= 3) {  // still not provable: fall back to the full sum
-                cutoff = std::numeric_limits<double>::infinity();
-                continue;
-            }
-            break;
-        }
-        cutoff += std::log(1e4);
+        if (worst <= prune_tolerance * std::max(peak - worst, 0.0)) break;
+        // Not provable yet: tighten, and after three tries fall back to the full sum.
+        cutoff = attempt >= 2 ? std::numeric_limits<double>::infinity() : cutoff + std::log(1e4);
     }
-    return std::vector<Float>(value.begin(), value.end());
+    out.cutoff = cutoff;
+    return out;
+}
+
+}  // namespace detail
+
+template <typename Float>
+std::vector<Float> render_slice_direct(const FootprintKernels& k, const Query& query,
+                                       double lambda_um, int n, double prune_tolerance,
+                                       Progress* progress) {
+    const detail::DirectField f = detail::direct_field(k, query, lambda_um, n, prune_tolerance, progress);
+    return std::vector<Float>(f.value.begin(), f.value.end());
 }
 
 template std::vector<float> render_slice_direct<float>(const FootprintKernels&, const Query&,

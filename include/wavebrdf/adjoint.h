@@ -1,0 +1,53 @@
+#pragma once
+// Gradients of BRDF slices with respect to the heights, by hand-derived adjoints of the
+// model (MODEL.md, "Differentiation"): h → (H_k, s_k) → (C_k, a_k) → I(u) → f_r → loss.
+// No tape: the backward pass keeps only the forward's field I (n² complex values) and
+// rebuilds the kernel factors chunk by chunk, so memory is that of the forward pass.
+//
+// Separable path (OHS, ROHS): with B = W ⊙ c1 ⊙ conj(I), the gradient needs Z = B·Y and
+// V = Bᵀ·X, two more matrix products of the forward's size. Direct path (all models): every
+// pixel scatters into per-kernel accumulators.
+#include <functional>
+#include <vector>
+
+#include "wavebrdf/brdf.h"
+
+namespace wavebrdf {
+
+// The gradient of L = Σ_p weights[p] · slice[p] (a vector-Jacobian product of one slice) with
+// respect to every raw height value h[i][j] (texel units, as stored in the Heightfield), added
+// into `gradient` (rows·cols, row-major; resized and zeroed when empty). Returns the slice.
+// `weights` has resolution² entries; entries outside the disk are ignored.
+template <typename Float>
+std::vector<Float> slice_gradient(const Heightfield& heightfield, const Query& query,
+                                  double lambda_um, int resolution,
+                                  const std::vector<Float>& weights, std::vector<double>& gradient,
+                                  const RenderOptions& options = {});
+
+// The same, with the weights computed from the slice after the forward pass (for a loss L(f):
+// weights = ∂L/∂f). The callback receives the slice and returns the weights.
+template <typename Float>
+std::vector<Float> slice_gradient(
+    const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
+    const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
+    std::vector<double>& gradient, const RenderOptions& options = {});
+
+// The tangent (Jacobian-vector product) of the direct sum: d slice for a height perturbation
+// `direction` (rows·cols, texel units). The reference for the adjoint's dot-product test.
+std::vector<double> slice_tangent_direct(const Heightfield& heightfield, const Query& query,
+                                         double lambda_um, int resolution,
+                                         const std::vector<double>& direction);
+
+// --- building blocks (per-kernel gradients) -----------------------------------------------
+
+// ∂L/∂H_k (per µm), ∂L/∂s_kx, ∂L/∂s_ky for every footprint kernel.
+struct KernelGradient {
+    std::vector<double> height, slope_x, slope_y;
+};
+
+// Chains per-kernel gradients to the raw heights: H = v·w·h[i][j] and the central-difference
+// slope stencil, which scatters ∂L/∂s to the four neighbours.
+void scatter_to_heights(const Heightfield& heightfield, const FootprintKernels& kernels,
+                        const KernelGradient& kernel_gradient, std::vector<double>& gradient);
+
+}  // namespace wavebrdf

@@ -1,0 +1,154 @@
+// Entry points of the gradients: forward once, weights from the caller, backward by the
+// adjoint of the path that rendered, then the chain to the raw heights.
+#include <stdexcept>
+#include <string>
+
+#include "direct.h"
+#include "separable.h"
+#include "wavebrdf/adjoint.h"
+
+namespace wavebrdf {
+
+namespace detail {
+template <typename Float>
+KernelGradient separable_backward(const FootprintKernels&, const Query&, double, int,
+                                  const ComplexMatrix<Float>&, const std::vector<Float>&);
+KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int,
+                               const DirectField&, const std::vector<double>&);
+std::vector<double> direct_tangent(const FootprintKernels&, const Query&, double, int,
+                                   const DirectField&, const KernelGradient&);
+}  // namespace detail
+
+void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
+                        const KernelGradient& g, std::vector<double>& gradient) {
+    const double v = hf.vscale(), w = hf.texel_um();
+    const int rows = hf.rows(), cols = hf.cols();
+    auto at = [&](int i, int j) -> double& {
+        i = ((i % rows) + rows) % rows;
+        j = ((j % cols) + cols) % cols;
+        return gradient[hf.index(i, j)];
+    };
+    for (std::size_t idx = 0; idx < k.size(); ++idx) {
+        const int i = k.row[idx], j = k.col[idx];
+        at(i, j) += v * w * g.height[idx];            // H = v·w·h[i][j]
+        at(i + 1, j) += 0.5 * v * g.slope_x[idx];     // s_x = v (h[i+1][j] − h[i−1][j]) / 2
+        at(i - 1, j) -= 0.5 * v * g.slope_x[idx];
+        at(i, j + 1) += 0.5 * v * g.slope_y[idx];     // s_y = v (h[i][j+1] − h[i][j−1]) / 2
+        at(i, j - 1) -= 0.5 * v * g.slope_y[idx];
+    }
+}
+
+namespace {
+
+void validate_all(const Query& query, double lambda_um, int resolution, const RenderOptions& options) {
+    validate(query);
+    validate_lambda(lambda_um);
+    validate_resolution(resolution);
+    if (!(options.prune_tolerance >= 0.0 && options.prune_tolerance <= 1e-6))
+        throw std::domain_error("prune tolerance " + std::to_string(options.prune_tolerance) +
+                                " is out of range; expected 0 to 1e-6 of the slice peak");
+    if (options.path == RenderPath::Separable && !is_separable(query.model))
+        throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") +
+                                    to_string(query.model));
+}
+
+template <typename Float>
+void check_weights(const std::vector<Float>& weights, int resolution) {
+    if (weights.size() != static_cast<std::size_t>(resolution) * resolution)
+        throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
+                                    " entries; expected resolution^2 = " +
+                                    std::to_string(static_cast<long long>(resolution) * resolution));
+}
+
+}  // namespace
+
+template <typename Float>
+std::vector<Float> slice_gradient(
+    const Heightfield& hf, const Query& query, double lambda_um, int n,
+    const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
+    std::vector<double>& gradient, const RenderOptions& options) {
+    validate_all(query, lambda_um, n, options);
+    const std::size_t cells = static_cast<std::size_t>(hf.rows()) * hf.cols();
+    if (gradient.empty()) gradient.assign(cells, 0.0);
+    if (gradient.size() != cells)
+        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
+                                    " entries; expected rows*cols = " + std::to_string(cells));
+    const FootprintKernels kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
+    const bool separable = options.path == RenderPath::Separable ||
+                           (options.path == RenderPath::Auto && is_separable(query.model));
+    std::vector<Float> slice(static_cast<std::size_t>(n) * n, Float(0));
+    KernelGradient g;
+    if (separable) {
+        const auto field = detail::separable_field<Float>(kernels, query, lambda_um, n, options.progress);
+        for (int p = 0; p < n; ++p)
+            for (int q = 0; q < n; ++q) {
+                const double ox = slice_omega(p, n), oy = slice_omega(q, n);
+                if (ox * ox + oy * oy > 1.0) continue;
+                const double v = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1 *
+                                 double(std::norm(field(p, q)));
+                slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(v) ? Float(v) : Float(0);
+            }
+        const std::vector<Float> weights = weights_of_slice(slice);
+        check_weights(weights, n);
+        g = detail::separable_backward<Float>(kernels, query, lambda_um, n, field, weights);
+    } else {
+        const detail::DirectField field =
+            detail::direct_field(kernels, query, lambda_um, n, options.prune_tolerance, options.progress);
+        for (std::size_t at = 0; at < slice.size(); ++at) slice[at] = Float(field.value[at]);
+        const std::vector<Float> weights = weights_of_slice(slice);
+        check_weights(weights, n);
+        g = detail::direct_backward(kernels, query, lambda_um, n, field,
+                                    std::vector<double>(weights.begin(), weights.end()));
+    }
+    scatter_to_heights(hf, kernels, g, gradient);
+    return slice;
+}
+
+template <typename Float>
+std::vector<Float> slice_gradient(const Heightfield& hf, const Query& query, double lambda_um,
+                                  int n, const std::vector<Float>& weights,
+                                  std::vector<double>& gradient, const RenderOptions& options) {
+    check_weights(weights, n);
+    return slice_gradient<Float>(
+        hf, query, lambda_um, n,
+        std::function<std::vector<Float>(const std::vector<Float>&)>(
+            [&weights](const std::vector<Float>&) { return weights; }),
+        gradient, options);
+}
+
+std::vector<double> slice_tangent_direct(const Heightfield& hf, const Query& query, double lambda_um,
+                                         int n, const std::vector<double>& direction) {
+    validate_all(query, lambda_um, n, RenderOptions{});
+    if (direction.size() != static_cast<std::size_t>(hf.rows()) * hf.cols())
+        throw std::invalid_argument("direction has " + std::to_string(direction.size()) +
+                                    " entries; expected rows*cols");
+    const FootprintKernels k = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
+    // Push the height perturbation through H = v·w·h and the slope stencil.
+    const Heightfield dh = hf.with_values(direction);
+    KernelGradient dk;
+    for (std::size_t idx = 0; idx < k.size(); ++idx) {
+        const auto s = dh.slope(k.row[idx], k.col[idx]);
+        dk.height.push_back(dh.height_um(k.row[idx], k.col[idx]));
+        dk.slope_x.push_back(s[0]);
+        dk.slope_y.push_back(s[1]);
+    }
+    const detail::DirectField field = detail::direct_field(k, query, lambda_um, n, 0.0, nullptr);
+    return detail::direct_tangent(k, query, lambda_um, n, field, dk);
+}
+
+template std::vector<float> slice_gradient<float>(const Heightfield&, const Query&, double, int,
+                                                  const std::vector<float>&, std::vector<double>&,
+                                                  const RenderOptions&);
+template std::vector<double> slice_gradient<double>(const Heightfield&, const Query&, double, int,
+                                                    const std::vector<double>&, std::vector<double>&,
+                                                    const RenderOptions&);
+template std::vector<float> slice_gradient<float>(
+    const Heightfield&, const Query&, double, int,
+    const std::function<std::vector<float>(const std::vector<float>&)>&, std::vector<double>&,
+    const RenderOptions&);
+template std::vector<double> slice_gradient<double>(
+    const Heightfield&, const Query&, double, int,
+    const std::function<std::vector<double>(const std::vector<double>&)>&, std::vector<double>&,
+    const RenderOptions&);
+
+}  // namespace wavebrdf

@@ -1,0 +1,119 @@
+// Adjoint and tangent of the direct sum (forward: render_direct.cpp). Each term of pixel u is
+//   t_k = c_k w² K2_k exp(−E_k) e^{iΦ_k},  E_k = 2π²σ²|u + S a_k|²,  Φ_k = −(4π/λ) S H_k − 2π u·δ_k
+// so ∂t/∂H_k = −i (4π/λ) S t_k and ∂t/∂s_kx = −4π²σ² (u_x + S a_kx)(2S/λ) t_k − ω_hx base_k,
+// the last part only for Kirchhoff (K2 = cos θ_i + cos θ_o − (ω_i + ω_o)·s, base = t/K2).
+// With f = c1 |I|², a loss Σ W f has dL = 2 Re Σ_pixels W c1 conj(I) dI.
+#include <cmath>
+#include <complex>
+#include <omp.h>
+
+#include "direct.h"
+#include "wavebrdf/adjoint.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+
+// Calls visit(k, dt_dH, dt_dsx, dt_dsy) for every kernel term of pixel (ox, oy).
+template <typename Visit>
+void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um, double ox,
+                 double oy, double cutoff, Visit&& visit) {
+    const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
+    const double ux = (query.omega_i[0] + ox) / lambda_um;
+    const double uy = (query.omega_i[1] + oy) / lambda_um;
+    const double scale = f.phase_scale;
+    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
+    const double freq = scale * 2.0 / lambda_um;
+    const double height_phase = scale * 4.0 * kPi / lambda_um;
+    const bool kirchhoff = query.model == Model::Kirchhoff;
+    const double hx = query.omega_i[0] + ox, hy = query.omega_i[1] + oy;
+    const double hz = f.cos_theta_i + f.cos_theta_o;
+    for (std::size_t i = 0; i < k.size(); ++i) {
+        const double vx = ux + freq * k.slope_x[i];
+        const double vy = uy + freq * k.slope_y[i];
+        const double exponent = gauss * (vx * vx + vy * vy);
+        if (exponent > cutoff) continue;
+        const double phase =
+            -(height_phase * k.height_um[i] + 2.0 * kPi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
+        const std::complex<double> base = std::polar(k.weight[i] * std::exp(-exponent), phase);
+        const double c2 = kirchhoff ? hz - hx * k.slope_x[i] - hy * k.slope_y[i] : 1.0;
+        const std::complex<double> t = base * c2;
+        const std::complex<double> dt_dh = std::complex<double>(0.0, -height_phase) * t;
+        std::complex<double> dt_dsx = (-2.0 * gauss * vx * freq) * t;
+        std::complex<double> dt_dsy = (-2.0 * gauss * vy * freq) * t;
+        if (kirchhoff) {
+            dt_dsx -= hx * base;
+            dt_dsy -= hy * base;
+        }
+        visit(i, dt_dh, dt_dsx, dt_dsy);
+    }
+}
+
+}  // namespace
+
+KernelGradient direct_backward(const FootprintKernels& k, const Query& query, double lambda_um,
+                               int n, const DirectField& forward, const std::vector<double>& weights) {
+    const std::size_t total = k.size();
+    const int threads = omp_get_max_threads();
+    std::vector<KernelGradient> partial(static_cast<std::size_t>(threads));
+#pragma omp parallel
+    {
+        KernelGradient& g = partial[static_cast<std::size_t>(omp_get_thread_num())];
+        g.height.assign(total, 0.0);
+        g.slope_x.assign(total, 0.0);
+        g.slope_y.assign(total, 0.0);
+#pragma omp for schedule(dynamic, 1)
+        for (int p = 0; p < n; ++p) {
+            const double ox = slice_omega(p, n);
+            for (int q = 0; q < n; ++q) {
+                const double oy = slice_omega(q, n);
+                const std::size_t at = static_cast<std::size_t>(p) * n + q;
+                if (ox * ox + oy * oy > 1.0) continue;
+                const double v = forward.c1[at] * std::norm(forward.field[at]);
+                if (!std::isfinite(v) || weights[at] == 0.0) continue;
+                const std::complex<double> b = 2.0 * weights[at] * forward.c1[at] * std::conj(forward.field[at]);
+                visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
+                            [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
+                                std::complex<double> dsy) {
+                                g.height[i] += std::real(b * dh);
+                                g.slope_x[i] += std::real(b * dsx);
+                                g.slope_y[i] += std::real(b * dsy);
+                            });
+            }
+        }
+    }
+    KernelGradient sum = partial[0];
+    for (std::size_t t = 1; t < partial.size(); ++t)
+        for (std::size_t i = 0; i < total; ++i) {
+            sum.height[i] += partial[t].height[i];
+            sum.slope_x[i] += partial[t].slope_x[i];
+            sum.slope_y[i] += partial[t].slope_y[i];
+        }
+    return sum;
+}
+
+std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query, double lambda_um,
+                                   int n, const DirectField& forward, const KernelGradient& dk) {
+    std::vector<double> out(static_cast<std::size_t>(n) * n, 0.0);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int p = 0; p < n; ++p) {
+        const double ox = slice_omega(p, n);
+        for (int q = 0; q < n; ++q) {
+            const double oy = slice_omega(q, n);
+            const std::size_t at = static_cast<std::size_t>(p) * n + q;
+            if (ox * ox + oy * oy > 1.0) continue;
+            if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) continue;
+            std::complex<double> d_field = 0.0;
+            visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
+                        [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
+                            std::complex<double> dsy) {
+                            d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
+                        });
+            out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
+        }
+    }
+    return out;
+}
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,79 @@
+// Adjoint of the separable path (forward: render_separable.cpp). With the forward field I and
+// B[p,q] = W[p,q] c1[p,q] conj(I[p,q]), a loss L = Σ W f has dL = 2 Re Σ_pq B dI, and
+//   dI[p,q] = Σ_k X[p,k] Y[q,k] dw_k + w_k (∂_a X[p,k] Y[q,k] da_kx + X[p,k] ∂_a Y[q,k] da_ky)
+// with dw_k = −i(4π/λ) w_k dH_k, ∂_a X[p,k] = −4π²σ²(u_x[p] + a_kx) X[p,k], da = (2/λ) ds.
+// So with Z = B·Y and V = Bᵀ·X (two matrix products of the forward's size):
+//   ∂L/∂H_k  = 2 Re[−i(4π/λ) w_k Σ_p X[p,k] Z[p,k]]
+//   ∂L/∂s_kx = 2 Re[(2/λ) w_k Σ_p ∂_a X[p,k] Z[p,k]],  ∂L/∂s_ky likewise with Y and V.
+#include <algorithm>
+#include <cmath>
+
+#include "separable.h"
+#include "wavebrdf/adjoint.h"
+
+namespace wavebrdf::detail {
+
+template <typename Float>
+KernelGradient separable_backward(const FootprintKernels& k, const Query& query, double lambda_um,
+                                  int n, const ComplexMatrix<Float>& field,
+                                  const std::vector<Float>& weights) {
+    using Complex = std::complex<Float>;
+    const SliceGrid grid(query, lambda_um, n);
+    ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
+#pragma omp parallel for schedule(static)
+    for (int p = 0; p < n; ++p) {
+        const double ox = slice_omega(p, n);
+        for (int q = 0; q < n; ++q) {
+            const double oy = slice_omega(q, n);
+            if (ox * ox + oy * oy > 1.0) continue;
+            const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
+            const double scale = double(weights[static_cast<std::size_t>(p) * n + q]) * f.c1;
+            // The forward wrote non-finite pixels as 0: they carry no gradient.
+            if (!std::isfinite(scale * double(std::norm(field(p, q))))) continue;
+            b(p, q) = Complex(Float(scale)) * std::conj(field(p, q));
+        }
+    }
+
+    const std::size_t total = k.size();
+    KernelGradient g;
+    g.height.assign(total, 0.0);
+    g.slope_x.assign(total, 0.0);
+    g.slope_y.assign(total, 0.0);
+    const Eigen::Index chunk = chunk_size(n, sizeof(Complex), 4);
+    const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
+    ComplexMatrix<Float> xs(n, cols), ys(n, cols), z(n, cols), v(n, cols);
+    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
+    const double two_over_lambda = 2.0 / lambda_um;
+    for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
+        const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
+        build_factors<Float>(k, grid, lambda_um, k0, count, false, xs, ys);
+        z.leftCols(count).noalias() = b * ys.leftCols(count);
+        v.leftCols(count).noalias() = b.transpose() * xs.leftCols(count);
+#pragma omp parallel for schedule(static)
+        for (Eigen::Index c = 0; c < count; ++c) {
+            const std::size_t idx = static_cast<std::size_t>(k0 + c);
+            const double ax = two_over_lambda * k.slope_x[idx];
+            const double ay = two_over_lambda * k.slope_y[idx];
+            std::complex<double> t0 = 0.0, t1 = 0.0, t2 = 0.0;
+            for (Eigen::Index p = 0; p < n; ++p) {
+                const std::complex<double> xz = std::complex<double>(xs(p, c)) * std::complex<double>(z(p, c));
+                t0 += xz;
+                t1 += -2.0 * gauss * (grid.ux[p] + ax) * xz;
+                t2 += -2.0 * gauss * (grid.uy[p] + ay) * std::complex<double>(ys(p, c)) *
+                      std::complex<double>(v(p, c));
+            }
+            const std::complex<double> w = kernel_weight(k, idx, lambda_um);
+            g.height[idx] = 2.0 * std::real(std::complex<double>(0.0, -4.0 * kPi / lambda_um) * w * t0);
+            g.slope_x[idx] = 2.0 * std::real(two_over_lambda * w * t1);
+            g.slope_y[idx] = 2.0 * std::real(two_over_lambda * w * t2);
+        }
+    }
+    return g;
+}
+
+template KernelGradient separable_backward<float>(const FootprintKernels&, const Query&, double, int,
+                                                  const ComplexMatrix<float>&, const std::vector<float>&);
+template KernelGradient separable_backward<double>(const FootprintKernels&, const Query&, double, int,
+                                                   const ComplexMatrix<double>&, const std::vector<double>&);
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,78 @@
+#pragma once
+// Internal: the factor matrices of the separable path, shared by the forward pass
+// (render_separable.cpp) and its adjoint (adjoint_separable.cpp).
+#include <Eigen/Dense>
+#include <complex>
+#include <vector>
+
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/model.h"
+
+namespace wavebrdf {
+class Progress;
+}
+
+namespace wavebrdf::detail {
+
+constexpr double kPi = 3.14159265358979323846;
+
+template <typename Float>
+using ComplexMatrix = Eigen::Matrix<std::complex<Float>, Eigen::Dynamic, Eigen::Dynamic>;
+
+// Spatial frequencies of the slice's rows (u_x) and columns (u_y): u = (ω_i + ω_o)/λ.
+struct SliceGrid {
+    std::vector<double> ux, uy;
+    SliceGrid(const Query& query, double lambda_um, int n) : ux(n), uy(n) {
+        for (int p = 0; p < n; ++p) {
+            ux[p] = (query.omega_i[0] + slice_omega(p, n)) / lambda_um;
+            uy[p] = (query.omega_i[1] + slice_omega(p, n)) / lambda_um;
+        }
+    }
+};
+
+// Kernels per chunk: long enough for an efficient matrix product, small enough that the
+// factor matrices (`matrices` of them, n × chunk complex) stay within ~32 MiB.
+inline Eigen::Index chunk_size(int n, std::size_t bytes_per_entry, int matrices) {
+    const Eigen::Index budget = (Eigen::Index(32) << 20) /
+                                (Eigen::Index(matrices) * n * Eigen::Index(bytes_per_entry));
+    return std::max<Eigen::Index>(64, std::min<Eigen::Index>(2048, budget));
+}
+
+// w_k = c_k w² e^{−i(4π/λ) H_k}: the kernel's complex weight.
+inline std::complex<double> kernel_weight(const FootprintKernels& k, std::size_t idx, double lambda_um) {
+    return k.weight[idx] * std::polar(1.0, -4.0 * kPi / lambda_um * k.height_um[idx]);
+}
+
+// Columns c = 0…count−1 of X and Y for kernels k0…k0+count−1:
+//   X[p,c] = exp(−2π²σ²(u_x[p] + a_x)²) e^{−i2π u_x[p] δ_x}, Y likewise in y,
+// with Y multiplied by the kernel weight when `weighted`.
+template <typename Float>
+void build_factors(const FootprintKernels& k, const SliceGrid& grid, double lambda_um,
+                   Eigen::Index k0, Eigen::Index count, bool weighted, ComplexMatrix<Float>& xs,
+                   ComplexMatrix<Float>& ys) {
+    using Complex = std::complex<Float>;
+    const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
+    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;  // 2π²σ²
+    const double two_over_lambda = 2.0 / lambda_um;
+#pragma omp parallel for schedule(static)
+    for (Eigen::Index c = 0; c < count; ++c) {
+        const std::size_t idx = static_cast<std::size_t>(k0 + c);
+        const double ax = two_over_lambda * k.slope_x[idx];
+        const double ay = two_over_lambda * k.slope_y[idx];
+        const double dx = k.dx_um[idx], dy = k.dy_um[idx];
+        const std::complex<double> w = weighted ? kernel_weight(k, idx, lambda_um) : 1.0;
+        for (Eigen::Index p = 0; p < n; ++p) {
+            const double vx = grid.ux[p] + ax;
+            xs(p, c) = Complex(std::polar(std::exp(-gauss * vx * vx), -2.0 * kPi * grid.ux[p] * dx));
+            const double vy = grid.uy[p] + ay;
+            ys(p, c) = Complex(w * std::polar(std::exp(-gauss * vy * vy), -2.0 * kPi * grid.uy[p] * dy));
+        }
+    }
+}
+
+// The field I(u_x[p], u_y[q]) = Σ_k X[p,k] w_k Y[q,k] of the slice, n × n.
+template <typename Float>
+ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const Query& query,
+                                     double lambda_um, int n, Progress* progress);
+
+}  // namespace wavebrdf::detail
