@@ -6,6 +6,7 @@
 //             the matrix product that dominates the separable path)
 #include <benchmark/benchmark.h>
 
+#include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/spectrum.h"
@@ -64,5 +65,21 @@ BENCHMARK_CAPTURE(slice_float, rohs_128_spectral8_float, Model::ROHS, 128, 8)->U
 BENCHMARK_CAPTURE(slice_float, ohs_1024_mono_float, Model::OHS, 1024, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(slice_float, ghs_direct_128_mono_float, Model::GHS, 128, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(slice_float, kirchhoff_direct_64_mono_float, Model::Kirchhoff, 64, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+
+// Gradient of Σ W·f for one slice against the forward alone (issue: at most 3× the forward).
+static void gradient_float(benchmark::State& state, Model model, int resolution) {
+    const Query q = query(model);
+    const std::vector<float> weights(static_cast<std::size_t>(resolution) * resolution, 1.0f);
+    std::vector<double> grad;
+    for (auto _ : state) {
+        grad.assign(surface().values().size(), 0.0);
+        auto f = slice_gradient<float>(surface(), q, 0.5, resolution, weights, grad);
+        benchmark::DoNotOptimize(f.data());
+    }
+}
+BENCHMARK_CAPTURE(gradient_float, ohs_128_mono_float, Model::OHS, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, ohs_128_mono_float, Model::OHS, 128, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(gradient_float, ohs_256_mono_float, Model::OHS, 256)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();

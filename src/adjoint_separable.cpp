@@ -19,6 +19,7 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
                                   const std::vector<Float>& weights) {
     using Complex = std::complex<Float>;
     const SliceGrid grid(query, lambda_um, n);
+    const PhaseTables phases(k, grid);
     ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
 #pragma omp parallel for schedule(static)
     for (int p = 0; p < n; ++p) {
@@ -46,7 +47,7 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     const double two_over_lambda = 2.0 / lambda_um;
     for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
         const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
-        build_factors<Float>(k, grid, lambda_um, k0, count, false, xs, ys);
+        build_factors<Float>(k, grid, phases, lambda_um, k0, count, false, xs, ys);
         z.leftCols(count).noalias() = b * ys.leftCols(count);
         v.leftCols(count).noalias() = b.transpose() * xs.leftCols(count);
 #pragma omp parallel for schedule(static)

@@ -20,6 +20,7 @@ template <typename Float>
 ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& query,
                                      double lambda_um, int n, Progress* progress) {
     const SliceGrid grid(query, lambda_um, n);
+    const PhaseTables phases(k, grid);
     const Eigen::Index total = static_cast<Eigen::Index>(k.size());
     const Eigen::Index chunk = chunk_size(n, sizeof(std::complex<Float>), 2);
     ComplexMatrix<Float> field = ComplexMatrix<Float>::Zero(n, n);
@@ -29,7 +30,7 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& que
     long long reported = 0;
     for (Eigen::Index k0 = 0; k0 < total; k0 += chunk) {
         const Eigen::Index count = std::min(chunk, total - k0);
-        build_factors<Float>(k, grid, lambda_um, k0, count, true, xs, ys);
+        build_factors<Float>(k, grid, phases, lambda_um, k0, count, true, xs, ys);
         field.noalias() += xs.leftCols(count) * ys.leftCols(count).transpose();
         if (progress) {
             const long long target = units * (k0 + count) / total;

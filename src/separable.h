@@ -2,6 +2,7 @@
 // Internal: the factor matrices of the separable path, shared by the forward pass
 // (render_separable.cpp) and its adjoint (adjoint_separable.cpp).
 #include <Eigen/Dense>
+#include <algorithm>
 #include <complex>
 #include <vector>
 
@@ -43,13 +44,51 @@ inline std::complex<double> kernel_weight(const FootprintKernels& k, std::size_t
     return k.weight[idx] * std::polar(1.0, -4.0 * kPi / lambda_um * k.height_um[idx]);
 }
 
+// The phase factors e^{−i2π u_x[p] δ_x} and e^{−i2π u_y[q] δ_y}. δ_x depends only on the
+// kernel's row and δ_y only on its column, so there are only as many distinct phase vectors as
+// rows (columns) the footprint spans: tabulating them once per wavelength replaces a sincos per
+// matrix entry by a table lookup.
+struct PhaseTables {
+    std::vector<int> slot_x, slot_y;                 // per kernel: column of phase_x / phase_y
+    Eigen::MatrixXcd phase_x, phase_y;               // n × (distinct rows / columns)
+
+    PhaseTables(const FootprintKernels& k, const SliceGrid& grid) {
+        const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
+        slot_x = slots(k.row, k.dx_um, phase_x, grid.ux, n);
+        slot_y = slots(k.col, k.dy_um, phase_y, grid.uy, n);
+    }
+
+private:
+    static std::vector<int> slots(const std::vector<int>& index, const std::vector<double>& offset,
+                                  Eigen::MatrixXcd& table, const std::vector<double>& u, Eigen::Index n) {
+        int max_index = -1;
+        for (int i : index) max_index = std::max(max_index, i);
+        std::vector<int> slot_of(static_cast<std::size_t>(max_index + 1), -1), out(index.size());
+        std::vector<double> offsets;
+        for (std::size_t k = 0; k < index.size(); ++k) {
+            int& s = slot_of[static_cast<std::size_t>(index[k])];
+            if (s < 0) {
+                s = static_cast<int>(offsets.size());
+                offsets.push_back(offset[k]);
+            }
+            out[k] = s;
+        }
+        table.resize(n, static_cast<Eigen::Index>(offsets.size()));
+        for (Eigen::Index c = 0; c < table.cols(); ++c)
+            for (Eigen::Index p = 0; p < n; ++p)
+                table(p, c) = std::polar(1.0, -2.0 * kPi * u[static_cast<std::size_t>(p)] *
+                                                  offsets[static_cast<std::size_t>(c)]);
+        return out;
+    }
+};
+
 // Columns c = 0…count−1 of X and Y for kernels k0…k0+count−1:
 //   X[p,c] = exp(−2π²σ²(u_x[p] + a_x)²) e^{−i2π u_x[p] δ_x}, Y likewise in y,
 // with Y multiplied by the kernel weight when `weighted`.
 template <typename Float>
-void build_factors(const FootprintKernels& k, const SliceGrid& grid, double lambda_um,
-                   Eigen::Index k0, Eigen::Index count, bool weighted, ComplexMatrix<Float>& xs,
-                   ComplexMatrix<Float>& ys) {
+void build_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
+                   double lambda_um, Eigen::Index k0, Eigen::Index count, bool weighted,
+                   ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys) {
     using Complex = std::complex<Float>;
     const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
     const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;  // 2π²σ²
@@ -59,13 +98,14 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, double lamb
         const std::size_t idx = static_cast<std::size_t>(k0 + c);
         const double ax = two_over_lambda * k.slope_x[idx];
         const double ay = two_over_lambda * k.slope_y[idx];
-        const double dx = k.dx_um[idx], dy = k.dy_um[idx];
         const std::complex<double> w = weighted ? kernel_weight(k, idx, lambda_um) : 1.0;
+        const std::complex<double>* px = &phases.phase_x(0, phases.slot_x[idx]);
+        const std::complex<double>* py = &phases.phase_y(0, phases.slot_y[idx]);
         for (Eigen::Index p = 0; p < n; ++p) {
             const double vx = grid.ux[p] + ax;
-            xs(p, c) = Complex(std::polar(std::exp(-gauss * vx * vx), -2.0 * kPi * grid.ux[p] * dx));
+            xs(p, c) = Complex(std::exp(-gauss * vx * vx) * px[p]);
             const double vy = grid.uy[p] + ay;
-            ys(p, c) = Complex(w * std::polar(std::exp(-gauss * vy * vy), -2.0 * kPi * grid.uy[p] * dy));
+            ys(p, c) = Complex(std::exp(-gauss * vy * vy) * (w * py[p]));
         }
     }
 }
