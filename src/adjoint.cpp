@@ -1,5 +1,6 @@
 // Entry points of the gradients: forward once, weights from the caller, backward by the
 // adjoint of the path that rendered, then the chain to the raw heights.
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -63,45 +64,91 @@ void check_weights(const std::vector<Float>& weights, int resolution) {
 }  // namespace
 
 template <typename Float>
-std::vector<Float> slice_gradient(
-    const Heightfield& hf, const Query& query, double lambda_um, int n,
-    const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
-    std::vector<double>& gradient, const RenderOptions& options) {
+struct SliceAdjoint<Float>::State {
+    const Heightfield* heightfield;
+    Query query;
+    double lambda_um;
+    int n;
+    FootprintKernels kernels;
+    bool separable;
+    detail::ComplexMatrix<Float> separable_field;  // separable path
+    detail::DirectField direct;                     // direct path
+    std::vector<Float> slice;
+};
+
+template <typename Float>
+SliceAdjoint<Float>::SliceAdjoint(const Heightfield& hf, const Query& query, double lambda_um,
+                                  int n, const RenderOptions& options)
+    : m_state(std::make_unique<State>()) {
     validate_all(query, lambda_um, n, options);
-    const std::size_t cells = static_cast<std::size_t>(hf.rows()) * hf.cols();
-    if (gradient.empty()) gradient.assign(cells, 0.0);
-    if (gradient.size() != cells)
-        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
-                                    " entries; expected rows*cols = " + std::to_string(cells));
-    const FootprintKernels kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
-    const bool separable = options.path == RenderPath::Separable ||
-                           (options.path == RenderPath::Auto && is_separable(query.model));
-    std::vector<Float> slice(static_cast<std::size_t>(n) * n, Float(0));
-    KernelGradient g;
-    if (separable) {
-        const auto field = detail::separable_field<Float>(kernels, query, lambda_um, n, options.progress);
+    State& s = *m_state;
+    s.heightfield = &hf;
+    s.query = query;
+    s.lambda_um = lambda_um;
+    s.n = n;
+    s.kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
+    s.separable = options.path == RenderPath::Separable ||
+                  (options.path == RenderPath::Auto && is_separable(query.model));
+    s.slice.assign(static_cast<std::size_t>(n) * n, Float(0));
+    if (s.separable) {
+        s.separable_field = detail::separable_field<Float>(s.kernels, query, lambda_um, n, options.progress);
         for (int p = 0; p < n; ++p)
             for (int q = 0; q < n; ++q) {
                 const double ox = slice_omega(p, n), oy = slice_omega(q, n);
                 if (ox * ox + oy * oy > 1.0) continue;
                 const double v = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1 *
-                                 double(std::norm(field(p, q)));
-                slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(v) ? Float(v) : Float(0);
+                                 double(std::norm(s.separable_field(p, q)));
+                s.slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(v) ? Float(v) : Float(0);
             }
-        const std::vector<Float> weights = weights_of_slice(slice);
-        check_weights(weights, n);
-        g = detail::separable_backward<Float>(kernels, query, lambda_um, n, field, weights);
     } else {
-        const detail::DirectField field =
-            detail::direct_field(kernels, query, lambda_um, n, options.prune_tolerance, options.progress);
-        for (std::size_t at = 0; at < slice.size(); ++at) slice[at] = Float(field.value[at]);
-        const std::vector<Float> weights = weights_of_slice(slice);
-        check_weights(weights, n);
-        g = detail::direct_backward(kernels, query, lambda_um, n, field,
-                                    std::vector<double>(weights.begin(), weights.end()));
+        s.direct = detail::direct_field(s.kernels, query, lambda_um, n, options.prune_tolerance, options.progress);
+        for (std::size_t at = 0; at < s.slice.size(); ++at) s.slice[at] = Float(s.direct.value[at]);
     }
-    scatter_to_heights(hf, kernels, g, gradient);
-    return slice;
+}
+
+template <typename Float>
+SliceAdjoint<Float>::~SliceAdjoint() = default;
+template <typename Float>
+SliceAdjoint<Float>::SliceAdjoint(SliceAdjoint&&) noexcept = default;
+template <typename Float>
+SliceAdjoint<Float>& SliceAdjoint<Float>::operator=(SliceAdjoint&&) noexcept = default;
+
+template <typename Float>
+const std::vector<Float>& SliceAdjoint<Float>::slice() const {
+    return m_state->slice;
+}
+
+template <typename Float>
+void SliceAdjoint<Float>::backward(const std::vector<Float>& weights, std::vector<double>& gradient) const {
+    const State& s = *m_state;
+    check_weights(weights, s.n);
+    const std::size_t cells = static_cast<std::size_t>(s.heightfield->rows()) * s.heightfield->cols();
+    if (gradient.empty()) gradient.assign(cells, 0.0);
+    if (gradient.size() != cells)
+        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
+                                    " entries; expected rows*cols = " + std::to_string(cells));
+    const KernelGradient g =
+        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, s.lambda_um, s.n, s.separable_field, weights)
+                    : detail::direct_backward(s.kernels, s.query, s.lambda_um, s.n, s.direct,
+                                              std::vector<double>(weights.begin(), weights.end()));
+    scatter_to_heights(*s.heightfield, s.kernels, g, gradient);
+}
+
+template class SliceAdjoint<float>;
+template class SliceAdjoint<double>;
+
+template <typename Float>
+std::vector<Float> slice_gradient(
+    const Heightfield& hf, const Query& query, double lambda_um, int n,
+    const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
+    std::vector<double>& gradient, const RenderOptions& options) {
+    const std::size_t cells = static_cast<std::size_t>(hf.rows()) * hf.cols();
+    if (!gradient.empty() && gradient.size() != cells)
+        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
+                                    " entries; expected rows*cols = " + std::to_string(cells));
+    const SliceAdjoint<Float> adjoint(hf, query, lambda_um, n, options);
+    adjoint.backward(weights_of_slice(adjoint.slice()), gradient);
+    return adjoint.slice();
 }
 
 template <typename Float>

@@ -8,6 +8,7 @@
 // V = Bᵀ·X, two more matrix products of the forward's size. Direct path (all models): every
 // pixel scatters into per-kernel accumulators.
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "wavebrdf/brdf.h"
@@ -31,6 +32,29 @@ std::vector<Float> slice_gradient(
     const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
     const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
     std::vector<double>& gradient, const RenderOptions& options = {});
+
+// A slice whose forward pass has run and whose backward pass can be called later, any number
+// of times (e.g. once per loss, or after the slices of other wavelengths are known, as a
+// spectral loss needs). Holds the forward's field: n² complex values plus the kernels.
+template <typename Float>
+class SliceAdjoint {
+public:
+    // Validates like render_slice and runs the forward pass. Keeps a reference to
+    // `heightfield` (for the backward pass): it must outlive this object.
+    SliceAdjoint(const Heightfield& heightfield, const Query& query, double lambda_um,
+                 int resolution, const RenderOptions& options = {});
+    ~SliceAdjoint();
+    SliceAdjoint(SliceAdjoint&&) noexcept;
+    SliceAdjoint& operator=(SliceAdjoint&&) noexcept;
+
+    const std::vector<Float>& slice() const;
+    // Adds ∂(Σ weights · slice)/∂h into `gradient` (rows·cols; resized and zeroed when empty).
+    void backward(const std::vector<Float>& weights, std::vector<double>& gradient) const;
+
+private:
+    struct State;
+    std::unique_ptr<State> m_state;
+};
 
 // The tangent (Jacobian-vector product) of the direct sum: d slice for a height perturbation
 // `direction` (rows·cols, texel units). The reference for the adjoint's dot-product test.
