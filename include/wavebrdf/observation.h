@@ -1,0 +1,48 @@
+#pragma once
+// Observations: reference BRDF slices with the queries that produced them, and the loss of a
+// heightfield against a set of them, with its gradient (summed over wavelengths, positions,
+// light directions; spectral slices through the CIE → sRGB weights).
+#include <string>
+#include <vector>
+
+#include "wavebrdf/brdf.h"
+#include "wavebrdf/loss.h"
+
+namespace wavebrdf {
+
+struct Observation {
+    Query query;
+    std::vector<double> lambdas_um;  // one: single wavelength (1 channel); several: RGB (3)
+    int resolution = 32;
+    std::vector<double> reference;   // resolution² · channels(), row-major, interleaved
+    int channels() const { return lambdas_um.size() == 1 ? 1 : 3; }
+};
+
+// Throws std::invalid_argument / std::domain_error naming the observation (by index) and the
+// field: invalid query, wavelength or resolution; reference of the wrong size; non-finite or
+// negative reference values.
+void validate(const Observation& observation, std::size_t index = 0);
+
+// What `observation` would see of `heightfield`: resolution² · channels() values (double).
+std::vector<double> render_observation(const Heightfield& heightfield, const Observation& observation,
+                                       const RenderOptions& options = {});
+
+// The mean over observations of loss(render(heightfield), reference) and, when `gradient` is
+// not null, its gradient with respect to the raw heights (rows·cols, texel units; overwritten).
+// `rendered`, when not null, receives each observation's rendered slice.
+double observation_loss(const Heightfield& heightfield, const std::vector<Observation>& observations,
+                        const Loss& loss, std::vector<double>* gradient,
+                        const RenderOptions& options = {},
+                        std::vector<std::vector<double>>* rendered = nullptr);
+
+// Observations as JSON (so measured or rendered slices can be given to `invert`):
+// {"observations": [{"x_um":…, "y_um":…, "sigma_p_um":…, "light": [wx, wy], "model": "OHS",
+//   "lambda_um": 0.5 | "spectral": 8 | "lambdas_um": […], "resolution": 32,
+//   "reference": "slice.exr" | [values…]}]}. A reference file is an EXR read with
+// read_rgb_exr (its R channel for one wavelength, RGB for several), relative to the JSON's
+// directory. Throws std::runtime_error naming the file and the field on any problem.
+std::vector<Observation> read_observations_json(const std::string& path);
+// Writes observations with their references stored inline.
+void write_observations_json(const std::string& path, const std::vector<Observation>& observations);
+
+}  // namespace wavebrdf

@@ -1,0 +1,213 @@
+// Observations and the multi-observation loss: forward every wavelength of every observation
+// (keeping each slice's field), form the loss, then run each slice's adjoint with the loss's
+// gradient mapped back through the spectral weights.
+#include "wavebrdf/observation.h"
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "wavebrdf/adjoint.h"
+#include "wavebrdf/io.h"
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf {
+
+void validate(const Observation& o, std::size_t index) {
+    const std::string where = "observation " + std::to_string(index) + ": ";
+    try {
+        validate(o.query);
+        validate_resolution(o.resolution);
+        if (o.lambdas_um.empty()) throw std::invalid_argument("no wavelength given");
+        for (double l : o.lambdas_um) validate_lambda(l);
+    } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(where + e.what());
+    } catch (const std::domain_error& e) {
+        throw std::domain_error(where + e.what());
+    }
+    const std::size_t expected = static_cast<std::size_t>(o.resolution) * o.resolution * o.channels();
+    if (o.reference.size() != expected)
+        throw std::invalid_argument(where + "reference has " + std::to_string(o.reference.size()) +
+                                    " values; expected resolution^2 * channels = " + std::to_string(expected));
+    for (std::size_t i = 0; i < o.reference.size(); ++i)
+        if (!std::isfinite(o.reference[i]))
+            throw std::domain_error(where + "reference value " + std::to_string(i) +
+                                    " is not finite; expected finite values");
+}
+
+std::vector<double> render_observation(const Heightfield& hf, const Observation& o,
+                                       const RenderOptions& options) {
+    std::vector<double> rgb = render_rgb<double>(hf, o.query, o.lambdas_um, o.resolution, options);
+    if (o.channels() == 3) return rgb;
+    std::vector<double> mono(rgb.size() / 3);
+    for (std::size_t i = 0; i < mono.size(); ++i) mono[i] = rgb[3 * i];
+    return mono;
+}
+
+double observation_loss(const Heightfield& hf, const std::vector<Observation>& observations,
+                        const Loss& loss, std::vector<double>* gradient, const RenderOptions& options,
+                        std::vector<std::vector<double>>* rendered) {
+    if (observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
+    for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
+    if (gradient) gradient->assign(hf.values().size(), 0.0);
+    if (rendered) rendered->assign(observations.size(), {});
+    double total = 0.0;
+    const double scale = 1.0 / static_cast<double>(observations.size());
+    for (std::size_t oi = 0; oi < observations.size(); ++oi) {
+        const Observation& o = observations[oi];
+        const std::size_t pixels = static_cast<std::size_t>(o.resolution) * o.resolution;
+        const int channels = o.channels();
+        const std::size_t count = o.lambdas_um.size();
+        // Forward every wavelength, keeping the fields for the backward pass.
+        std::vector<SliceAdjoint<double>> slices;
+        slices.reserve(count);
+        for (double lambda : o.lambdas_um) slices.emplace_back(hf, o.query, lambda, o.resolution, options);
+        std::vector<double> weights;  // 3 × count spectral weights (RGB only)
+        std::vector<double> estimate(pixels * channels, 0.0);
+        if (channels == 1) {
+            estimate = slices[0].slice();
+        } else {
+            weights = spectral_to_srgb_weights(o.lambdas_um);
+            for (std::size_t l = 0; l < count; ++l) {
+                const auto& f = slices[l].slice();
+                for (std::size_t p = 0; p < pixels; ++p)
+                    for (int c = 0; c < 3; ++c) estimate[3 * p + c] += weights[c * count + l] * f[p];
+            }
+        }
+        std::vector<double> d_estimate;
+        total += scale * loss_value(loss, estimate, o.reference, channels, gradient ? &d_estimate : nullptr);
+        if (gradient) {
+            for (std::size_t l = 0; l < count; ++l) {
+                std::vector<double> w(pixels);
+                for (std::size_t p = 0; p < pixels; ++p) {
+                    if (channels == 1) {
+                        w[p] = scale * d_estimate[p];
+                    } else {
+                        double sum = 0.0;
+                        for (int c = 0; c < 3; ++c) sum += weights[c * count + l] * d_estimate[3 * p + c];
+                        w[p] = scale * sum;
+                    }
+                }
+                slices[l].backward(w, *gradient);
+            }
+        }
+        if (rendered) (*rendered)[oi] = std::move(estimate);
+    }
+    return total;
+}
+
+namespace {
+
+using nlohmann::json;
+
+std::string directory_of(const std::string& path) {
+    const auto slash = path.rfind('/');
+    return slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
+}
+
+template <typename T>
+T field(const json& j, const char* name, const std::string& where) {
+    if (!j.contains(name)) throw std::runtime_error(where + "missing field '" + name + "'");
+    try {
+        return j.at(name).get<T>();
+    } catch (const json::exception&) {
+        throw std::runtime_error(where + "field '" + name + "' has the wrong type");
+    }
+}
+
+}  // namespace
+
+std::vector<Observation> read_observations_json(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw std::runtime_error(path + ": cannot open the observations file");
+    json doc;
+    try {
+        doc = json::parse(in);
+    } catch (const json::exception& e) {
+        throw std::runtime_error(path + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    if (!doc.is_object() || !doc.contains("observations") || !doc["observations"].is_array())
+        throw std::runtime_error(path + ": expected an object with an array 'observations'");
+    std::vector<Observation> out;
+    const std::string dir = directory_of(path);
+    std::size_t index = 0;
+    for (const json& j : doc["observations"]) {
+        const std::string where = path + ": observation " + std::to_string(index) + ": ";
+        if (!j.is_object()) throw std::runtime_error(where + "expected an object");
+        Observation o;
+        o.query.x_um = field<double>(j, "x_um", where);
+        o.query.y_um = field<double>(j, "y_um", where);
+        o.query.sigma_p_um = field<double>(j, "sigma_p_um", where);
+        if (j.contains("light")) {
+            const auto light = field<std::vector<double>>(j, "light", where);
+            if (light.size() != 2) throw std::runtime_error(where + "field 'light' must have 2 values");
+            o.query.omega_i = {light[0], light[1]};
+        }
+        if (j.contains("model")) o.query.model = parse_model(field<std::string>(j, "model", where));
+        const int given = int(j.contains("lambda_um")) + int(j.contains("spectral")) + int(j.contains("lambdas_um"));
+        if (given != 1)
+            throw std::runtime_error(where + "expected exactly one of 'lambda_um', 'spectral', 'lambdas_um'");
+        if (j.contains("lambda_um")) o.lambdas_um = {field<double>(j, "lambda_um", where)};
+        if (j.contains("spectral")) o.lambdas_um = spectral_wavelengths_um(field<int>(j, "spectral", where));
+        if (j.contains("lambdas_um")) o.lambdas_um = field<std::vector<double>>(j, "lambdas_um", where);
+        o.resolution = field<int>(j, "resolution", where);
+        if (!j.contains("reference")) throw std::runtime_error(where + "missing field 'reference'");
+        if (j["reference"].is_string()) {
+            const std::string file = j["reference"].get<std::string>();
+            const RgbImage image = read_rgb_exr(file.empty() || file[0] == '/' ? file : dir + file);
+            if (image.rows != o.resolution || image.cols != o.resolution)
+                throw std::runtime_error(where + "reference image is " + std::to_string(image.rows) + "x" +
+                                         std::to_string(image.cols) + "; expected resolution " +
+                                         std::to_string(o.resolution));
+            if (o.channels() == 3) {
+                o.reference.assign(image.data.begin(), image.data.end());
+            } else {
+                o.reference.resize(image.data.size() / 3);
+                for (std::size_t i = 0; i < o.reference.size(); ++i) o.reference[i] = image.data[3 * i];
+            }
+        } else {
+            o.reference = field<std::vector<double>>(j, "reference", where);
+        }
+        try {
+            validate(o, index);
+        } catch (const std::exception& e) {
+            throw std::runtime_error(path + ": " + e.what());
+        }
+        out.push_back(std::move(o));
+        ++index;
+    }
+    if (out.empty()) throw std::runtime_error(path + ": 'observations' is empty; expected at least one");
+    return out;
+}
+
+void write_observations_json(const std::string& path, const std::vector<Observation>& observations) {
+    json doc;
+    doc["observations"] = json::array();
+    for (const Observation& o : observations) {
+        json j;
+        j["x_um"] = o.query.x_um;
+        j["y_um"] = o.query.y_um;
+        j["sigma_p_um"] = o.query.sigma_p_um;
+        j["light"] = {o.query.omega_i[0], o.query.omega_i[1]};
+        j["model"] = to_string(o.query.model);
+        j["lambdas_um"] = o.lambdas_um;
+        j["resolution"] = o.resolution;
+        j["reference"] = o.reference;
+        doc["observations"].push_back(j);
+    }
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp);
+        if (!out) throw std::runtime_error(path + ": cannot write the observations file");
+        out << doc.dump(1) << "\n";
+        if (!out) throw std::runtime_error(path + ": write failed");
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw std::runtime_error(path + ": cannot rename the temporary file into place");
+    }
+}
+
+}  // namespace wavebrdf

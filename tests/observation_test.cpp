@@ -1,0 +1,109 @@
+// The multi-observation loss and its gradient: finite differences over spectral and
+// single-wavelength observations at several positions and light directions, and the JSON
+// round trip.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "test_util.h"
+#include "wavebrdf/observation.h"
+#include "wavebrdf/spectrum.h"
+
+using namespace wavebrdf;
+using wavebrdf::test::random_heightfield;
+
+namespace {
+
+Observation make_observation(const Heightfield& truth, double x, double y, std::array<double, 2> light,
+                             std::vector<double> lambdas, Model model = Model::OHS) {
+    Observation o;
+    o.query.x_um = x;
+    o.query.y_um = y;
+    o.query.sigma_p_um = 2.5;
+    o.query.omega_i = light;
+    o.query.model = model;
+    o.lambdas_um = std::move(lambdas);
+    o.resolution = 16;
+    o.reference = render_observation(truth, o);
+    return o;
+}
+
+RenderOptions exact() {
+    RenderOptions o;
+    o.prune_tolerance = 0.0;
+    return o;
+}
+
+}  // namespace
+
+TEST(ObservationTest, LossIsZeroAtTheTruth) {
+    const Heightfield truth = random_heightfield(12, 12, 0.3, 4, 1.0, 1.0);
+    const std::vector<Observation> obs = {make_observation(truth, 6, 6, {0, 0}, {0.5}),
+                                          make_observation(truth, 2, 9, {0.2, 0}, spectral_wavelengths_um(4))};
+    for (const char* name : {"cmsle:1", "mse", "amplitude"}) {
+        std::vector<double> grad;
+        EXPECT_NEAR(observation_loss(truth, obs, parse_loss(name), &grad, exact()), 0.0, 1e-20) << name;
+        EXPECT_LT(test::max_abs(grad), 1e-12) << name;
+    }
+}
+
+TEST(ObservationTest, GradientMatchesFiniteDifferences) {
+    const Heightfield truth = random_heightfield(12, 10, 0.3, 5, 1.0, 1.0);
+    const Heightfield guess = random_heightfield(12, 10, 0.3, 6, 1.0, 1.0);
+    const std::vector<Observation> obs = {
+        make_observation(truth, 6, 5, {0.0, 0.0}, {0.5}),
+        make_observation(truth, 1, 8, {0.2, -0.1}, spectral_wavelengths_um(3)),
+        make_observation(truth, 9, 2, {-0.1, 0.3}, {0.6}, Model::GHS)};
+    for (const char* name : {"cmsle:1", "cmsle:0.01", "mse", "amplitude"}) {
+        const Loss loss = parse_loss(name);
+        std::vector<double> grad;
+        observation_loss(guess, obs, loss, &grad, exact());
+        double scale = test::max_abs(grad);
+        ASSERT_GT(scale, 0.0) << name;
+        const double h = 1e-6;
+        for (std::size_t cell = 0; cell < grad.size(); cell += 13) {
+            std::vector<double> plus = guess.values(), minus = guess.values();
+            plus[cell] += h;
+            minus[cell] -= h;
+            const double fd = (observation_loss(guess.with_values(plus), obs, loss, nullptr, exact()) -
+                               observation_loss(guess.with_values(minus), obs, loss, nullptr, exact())) / (2 * h);
+            EXPECT_LE(std::abs(fd - grad[cell]), 1e-6 * scale) << name << " cell " << cell;
+        }
+    }
+}
+
+TEST(ObservationTest, JsonRoundTripAndErrors) {
+    const Heightfield truth = random_heightfield(8, 8, 0.3, 7, 1.0, 1.0);
+    const std::vector<Observation> obs = {make_observation(truth, 3, 4, {0.1, 0.2}, spectral_wavelengths_um(3), Model::ROHS)};
+    const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test";
+    std::filesystem::create_directories(dir);
+    const std::string path = (dir / "obs.json").string();
+    write_observations_json(path, obs);
+    const auto back = read_observations_json(path);
+    ASSERT_EQ(back.size(), 1u);
+    EXPECT_EQ(back[0].reference, obs[0].reference);
+    EXPECT_EQ(back[0].lambdas_um, obs[0].lambdas_um);
+    EXPECT_EQ(back[0].query.model, Model::ROHS);
+    EXPECT_EQ(back[0].query.omega_i, obs[0].query.omega_i);
+
+    auto write = [&](const std::string& text) {
+        std::ofstream(path) << text;
+        return path;
+    };
+    auto expect_error = [&](const std::string& text, const std::string& needle) {
+        try {
+            read_observations_json(write(text));
+            ADD_FAILURE() << "no error for " << text;
+        } catch (const std::runtime_error& e) {
+            EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+        }
+    };
+    expect_error("{", "not valid JSON");
+    expect_error(R"({"observations": []})", "empty");
+    expect_error(R"({"observations": [{"y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "'x_um'");
+    expect_error(R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 2, "reference": [1, 2]}]})", "reference has 2 values");
+    expect_error(R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "spectral": 3, "resolution": 1, "reference": [1]}]})", "exactly one");
+    expect_error(R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": -2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "sigma_p");
+    expect_error(R"({"observations": [{"x_um": "a", "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "wrong type");
+}
