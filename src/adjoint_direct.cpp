@@ -63,7 +63,9 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
         g.height.assign(total, 0.0);
         g.slope_x.assign(total, 0.0);
         g.slope_y.assign(total, 0.0);
-#pragma omp for schedule(dynamic, 1)
+        // Static schedule: each thread always gets the same rows, so the per-thread sums and
+        // their reduction are bitwise reproducible (resume relies on it).
+#pragma omp for schedule(static)
         for (int p = 0; p < n; ++p) {
             const double ox = slice_omega(p, n);
             for (int q = 0; q < n; ++q) {

@@ -290,6 +290,37 @@ void write_rgb_png(const std::string& path, const RgbImage& image, double exposu
     });
 }
 
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+               const std::vector<double>& data) {
+    std::size_t count = 1;
+    for (std::size_t d : shape) count *= d;
+    if (count != data.size())
+        throw std::invalid_argument(path + ": npy shape holds " + std::to_string(count) + " values but " +
+                                    std::to_string(data.size()) + " were given");
+    // NPY format 1.0: magic, version, little-endian header length, a Python dict literal padded
+    // with spaces to a multiple of 64 bytes and ending in a newline, then the raw data.
+    std::string dict = "{'descr': '<f8', 'fortran_order': False, 'shape': (";
+    for (std::size_t d : shape) dict += std::to_string(d) + ", ";
+    dict += "), }";
+    const std::size_t preamble = 10;
+    std::size_t total = preamble + dict.size() + 1;
+    dict.append((64 - total % 64) % 64, ' ');
+    dict += '\n';
+    write_atomically(path, [&](const std::string& tmp) {
+        std::FILE* f = std::fopen(tmp.c_str(), "wb");
+        if (!f) throw std::runtime_error("cannot create the file");
+        const unsigned short length = static_cast<unsigned short>(dict.size());
+        const unsigned char head[10] = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0,
+                                        static_cast<unsigned char>(length & 0xff),
+                                        static_cast<unsigned char>(length >> 8)};
+        bool ok = std::fwrite(head, 1, 10, f) == 10 &&
+                  std::fwrite(dict.data(), 1, dict.size(), f) == dict.size() &&
+                  std::fwrite(data.data(), sizeof(double), data.size(), f) == data.size();
+        ok = (std::fclose(f) == 0) && ok;
+        if (!ok) throw std::runtime_error("write failed");
+    });
+}
+
 void check_writable(const std::string& path) {
     std::error_code ec;
     if (fs::is_directory(path, ec)) fail(path, "is a directory; expected a file path");

@@ -42,6 +42,11 @@ RgbImage read_rgb_exr(const std::string& path);
 void write_rgb_png(const std::string& path, const RgbImage& image, double exposure = 0.0,
                    bool tonemap = false);
 
+// Writes a little-endian float64 NumPy .npy array of the given shape (C order), for the
+// Python plotting scripts. Atomic like every writer here.
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+               const std::vector<double>& data);
+
 // Throws std::runtime_error when `path` cannot be created (missing directory, no permission),
 // without leaving a file behind. Lets a command fail before long work, not after it.
 void check_writable(const std::string& path);

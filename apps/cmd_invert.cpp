@@ -1,0 +1,484 @@
+// `wavebrdf invert`: the inverse renderer from the command line. Defaults are the thesis's
+// first experiment (16×16 heights, normal incidence, 32×32 spectral slice, flat start, Adam
+// 0.01/0.9/0.99 with decay 0.005, 300 epochs, CMSLE ε = 1) on a generated truth.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "commands.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/invert.h"
+#include "wavebrdf/io.h"
+#include "wavebrdf/progress.h"
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::atomic<int> g_signal{0};
+extern "C" void on_signal(int sig) { g_signal.store(sig); }
+
+struct InvertArgs {
+    std::string truth, observations, init = "flat", size = "16";
+    double texel_um = 1.0, vscale = 1.0, x_um = NAN, y_um = NAN, sigma_p_um = 4.0;
+    std::string model = "OHS";
+    double lambda_um = 0.0;
+    int spectral = 0;
+    double light_x = 0.0, light_y = 0.0;
+    int resolution = 32, epochs = 300;
+    std::string optimizer = "adam", loss = "cmsle:1", positions = "fixed";
+    double lr = 0.01, beta1 = 0.9, beta2 = 0.99, decay = 0.005;
+    std::uint64_t seed = 1;
+    std::string out, resume, snapshots = "0,10,30,100,300";
+    int checkpoint_every = 50;
+    bool quiet = false, no_plots = false;
+};
+
+nlohmann::json to_json(const InvertArgs& a) {
+    return {{"truth", a.truth}, {"observations", a.observations}, {"init", a.init}, {"size", a.size},
+            {"texel_um", a.texel_um}, {"vscale", a.vscale},
+            {"x_um", std::isnan(a.x_um) ? nlohmann::json(nullptr) : nlohmann::json(a.x_um)},
+            {"y_um", std::isnan(a.y_um) ? nlohmann::json(nullptr) : nlohmann::json(a.y_um)},
+            {"sigma_p_um", a.sigma_p_um}, {"model", a.model}, {"lambda_um", a.lambda_um},
+            {"spectral", a.spectral}, {"light_x", a.light_x}, {"light_y", a.light_y},
+            {"resolution", a.resolution}, {"epochs", a.epochs}, {"optimizer", a.optimizer},
+            {"loss", a.loss}, {"positions", a.positions}, {"lr", a.lr}, {"beta1", a.beta1},
+            {"beta2", a.beta2}, {"decay", a.decay}, {"seed", a.seed}, {"snapshots", a.snapshots},
+            {"checkpoint_every", a.checkpoint_every}};
+}
+
+InvertArgs from_json(const nlohmann::json& j) {
+    InvertArgs a;
+    a.truth = j.at("truth");
+    a.observations = j.at("observations");
+    a.init = j.at("init");
+    a.size = j.at("size");
+    a.texel_um = j.at("texel_um");
+    a.vscale = j.at("vscale");
+    a.x_um = j.at("x_um").is_null() ? NAN : j.at("x_um").get<double>();
+    a.y_um = j.at("y_um").is_null() ? NAN : j.at("y_um").get<double>();
+    a.sigma_p_um = j.at("sigma_p_um");
+    a.model = j.at("model");
+    a.lambda_um = j.at("lambda_um");
+    a.spectral = j.at("spectral");
+    a.light_x = j.at("light_x");
+    a.light_y = j.at("light_y");
+    a.resolution = j.at("resolution");
+    a.epochs = j.at("epochs");
+    a.optimizer = j.at("optimizer");
+    a.loss = j.at("loss");
+    a.positions = j.at("positions");
+    a.lr = j.at("lr");
+    a.beta1 = j.at("beta1");
+    a.beta2 = j.at("beta2");
+    a.decay = j.at("decay");
+    a.seed = j.at("seed");
+    a.snapshots = j.at("snapshots");
+    a.checkpoint_every = j.at("checkpoint_every");
+    return a;
+}
+
+void parse_size(const std::string& text, int& rows, int& cols) {
+    const auto x = text.find_first_of("xX");
+    try {
+        std::size_t used = 0;
+        rows = std::stoi(text.substr(0, x), &used);
+        if (used != (x == std::string::npos ? text.size() : x)) throw std::invalid_argument(text);
+        cols = rows;
+        if (x != std::string::npos) {
+            cols = std::stoi(text.substr(x + 1), &used);
+            if (used != text.size() - x - 1) throw std::invalid_argument(text);
+        }
+    } catch (const std::logic_error&) {
+        throw std::invalid_argument("--size '" + text + "' is invalid; expected N or NxM");
+    }
+    if (rows < 1 || cols < 1 || rows > 16384 || cols > 16384)
+        throw std::invalid_argument("--size '" + text + "' is out of range; expected 1 to 16384 per side");
+}
+
+std::set<int> parse_epoch_list(const std::string& text) {
+    std::set<int> out;
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        try {
+            std::size_t used = 0;
+            const int e = std::stoi(item, &used);
+            if (used != item.size() || e < 0) throw std::invalid_argument(item);
+            out.insert(e);
+        } catch (const std::logic_error&) {
+            throw std::invalid_argument("--snapshots '" + text + "' is invalid; expected epochs like 0,10,30");
+        }
+    }
+    return out;
+}
+
+std::vector<std::array<double, 2>> read_positions_json(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw std::runtime_error(path + ": cannot open the positions file");
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+        throw std::runtime_error(path + ": not valid JSON (" + std::string(e.what()) + ")");
+    }
+    const nlohmann::json& list = j.is_object() && j.contains("positions") ? j["positions"] : j;
+    if (!list.is_array() || list.empty())
+        throw std::runtime_error(path + ": expected a non-empty array of [x_um, y_um] pairs");
+    std::vector<std::array<double, 2>> out;
+    for (const auto& p : list) {
+        if (!p.is_array() || p.size() != 2 || !p[0].is_number() || !p[1].is_number())
+            throw std::runtime_error(path + ": every position must be [x_um, y_um]");
+        out.push_back({p[0].get<double>(), p[1].get<double>()});
+    }
+    return out;
+}
+
+void write_text_atomically(const std::string& path, const std::string& text) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp);
+        out << text;
+        if (!out) throw std::runtime_error(path + ": cannot write");
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw std::runtime_error(path + ": cannot move into place");
+    }
+}
+
+std::string metrics_csv(const std::vector<EpochMetrics>& history) {
+    std::ostringstream out;
+    out.precision(10);
+    out << "epoch,loss,brdf_mse,cmsle_1,cmsle_0.001,rgb_mse,rgb_gamma_mse,height_mse,seconds\n";
+    for (const EpochMetrics& m : history)
+        out << m.epoch << ',' << m.loss << ',' << m.brdf_mse << ',' << m.cmsle_1 << ',' << m.cmsle_0_001 << ','
+            << m.rgb_mse << ',' << m.rgb_gamma_mse << ',' << (std::isnan(m.height_mse) ? std::string("nan") : [&] {
+                   std::ostringstream s;
+                   s.precision(10);
+                   s << m.height_mse;
+                   return s.str();
+               }()) << ',' << m.seconds << '\n';
+    return out.str();
+}
+
+std::vector<double> heights_um(const Heightfield& hf) {
+    std::vector<double> v = hf.values();
+    for (double& x : v) x *= hf.vscale() * hf.texel_um();
+    return v;
+}
+
+RgbImage to_image(const std::vector<double>& slice, int n, int channels) {
+    RgbImage image;
+    image.rows = image.cols = n;
+    image.data.resize(static_cast<std::size_t>(n) * n * 3);
+    for (std::size_t p = 0; p < static_cast<std::size_t>(n) * n; ++p)
+        for (int c = 0; c < 3; ++c) image.data[3 * p + c] = float(slice[p * channels + (channels == 3 ? c : 0)]);
+    return image;
+}
+
+// Exposure (in stops) that maps the 99.9th percentile of `slice` to about 1 before Reinhard.
+double auto_exposure(const std::vector<double>& slice) {
+    std::vector<double> v(slice.begin(), slice.end());
+    if (v.empty()) return 0.0;
+    const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(0.999 * double(v.size())));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k] > 0 ? -std::log2(v[k]) + 2.0 : 0.0;
+}
+
+void run(InvertArgs a) {
+    const bool resuming = !a.resume.empty();
+    const bool quiet = a.quiet;
+    const bool no_plots = a.no_plots;
+    std::string dir = a.out;
+    if (resuming) {
+        dir = a.resume;
+        std::ifstream in(dir + "/run.json");
+        if (!in) throw std::runtime_error(dir + "/run.json: cannot open; expected a directory written by 'wavebrdf invert --out'");
+        try {
+            a = from_json(nlohmann::json::parse(in).at("args"));
+        } catch (const nlohmann::json::exception& e) {
+            throw std::runtime_error(dir + "/run.json: corrupt (" + std::string(e.what()) + ")");
+        }
+        if (!fs::exists(dir + "/checkpoint.json"))
+            throw std::runtime_error(dir + "/checkpoint.json: missing; nothing to resume");
+    }
+    if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
+
+    // Settings.
+    InversionSettings settings;
+    settings.loss = parse_loss(a.loss);
+    if (a.optimizer == "adam") settings.optimizer = OptimizerKind::Adam;
+    else if (a.optimizer == "lbfgs") settings.optimizer = OptimizerKind::Lbfgs;
+    else throw std::invalid_argument("--optimizer '" + a.optimizer + "' is unknown; expected adam or lbfgs");
+    settings.adam.lr = a.lr;
+    settings.adam.beta1 = a.beta1;
+    settings.adam.beta2 = a.beta2;
+    settings.adam.decay = a.decay;
+    if (a.epochs < 0) throw std::invalid_argument("--epochs " + std::to_string(a.epochs) + " is negative; expected >= 0");
+    settings.epochs = a.epochs;
+    settings.seed = a.seed;
+    std::vector<std::array<double, 2>> position_list;
+    if (a.positions == "random") settings.positions = PositionMode::Random;
+    else if (a.positions != "fixed") position_list = read_positions_json(a.positions);
+    const std::set<int> snapshots = parse_epoch_list(a.snapshots);
+    if (a.checkpoint_every < 1)
+        throw std::invalid_argument("--checkpoint-every " + std::to_string(a.checkpoint_every) + " is invalid; expected >= 1");
+    { Adam check(1, settings.adam); }  // validates the Adam options with their own messages
+
+    // Wavelengths.
+    std::vector<double> lambdas;
+    if (a.spectral != 0 && a.lambda_um != 0.0)
+        throw std::invalid_argument("--lambda-um and --spectral exclude each other");
+    if (a.lambda_um != 0.0) {
+        validate_lambda(a.lambda_um);
+        lambdas = {a.lambda_um};
+    } else {
+        const int count = a.spectral == 0 ? 8 : a.spectral;
+        if (count < 1 || count > 256)
+            throw std::domain_error("--spectral " + std::to_string(count) + " is out of range; expected 1 to 256");
+        lambdas = spectral_wavelengths_um(count);
+    }
+    validate_resolution(a.resolution);
+
+    // Truth, observations, initial guess.
+    if (!a.truth.empty() && !a.observations.empty())
+        throw std::invalid_argument("--truth and --observations exclude each other");
+    std::unique_ptr<Heightfield> truth;
+    std::vector<Observation> observations;
+    int rows = 0, cols = 0;
+    if (!a.observations.empty()) {
+        observations = read_observations_json(a.observations);
+        parse_size(a.size, rows, cols);
+        if (settings.positions == PositionMode::Random && observations.size() < 2)
+            throw std::invalid_argument("--positions random with --observations needs at least two observations");
+    } else {
+        if (a.truth.empty()) {
+            // The built-in default: a generated 16×16 isotropic surface (heights about ±1 texel,
+            // like the thesis's crop of the release's isotropic.exr).
+            SurfaceParams p;
+            p.type = SurfaceType::Isotropic;
+            parse_size(a.size, p.rows, p.cols);
+            p.texel_um = a.texel_um;
+            p.rms_height_um = 0.35 * a.texel_um;
+            p.correlation_um = 2.0 * a.texel_um;
+            p.seed = a.seed;
+            truth = std::make_unique<Heightfield>(generate_heightfield(p).with_scale(a.texel_um, a.vscale));
+        } else {
+            truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
+        }
+        rows = truth->rows();
+        cols = truth->cols();
+        Observation base;
+        base.query.model = parse_model(a.model);
+        base.query.sigma_p_um = a.sigma_p_um;
+        base.query.omega_i = {a.light_x, a.light_y};
+        base.lambdas_um = lambdas;
+        base.resolution = a.resolution;
+        if (position_list.empty())
+            position_list.push_back({std::isnan(a.x_um) ? 0.5 * truth->period_x_um() : a.x_um,
+                                     std::isnan(a.y_um) ? 0.5 * truth->period_y_um() : a.y_um});
+        for (const auto& pos : position_list) {
+            Observation o = base;
+            o.query.x_um = pos[0];
+            o.query.y_um = pos[1];
+            validate(o.query);
+            o.reference = render_observation(*truth, o, settings.render);
+            observations.push_back(std::move(o));
+        }
+    }
+
+    std::vector<double> init(static_cast<std::size_t>(rows) * cols, 0.0);
+    if (a.init == "flat") {
+    } else if (a.init.rfind("noisy:", 0) == 0) {
+        if (!truth) throw std::invalid_argument("--init noisy:FRAC needs --truth (noise is added to the truth)");
+        double frac = 0.0;
+        try {
+            std::size_t used = 0;
+            frac = std::stod(a.init.substr(6), &used);
+            if (used != a.init.size() - 6) throw std::invalid_argument(a.init);
+        } catch (const std::logic_error&) {
+            throw std::invalid_argument("--init '" + a.init + "' is invalid; expected flat, noisy:FRAC or FILE.exr");
+        }
+        if (!(frac >= 0.0) || !std::isfinite(frac))
+            throw std::domain_error("--init noisy:" + a.init.substr(6) + " is invalid; expected a fraction >= 0");
+        const auto& t = truth->values();
+        const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
+        const double width = frac * (*hi - *lo);
+        std::mt19937_64 rng(a.seed ^ 0x5eedULL);
+        std::uniform_real_distribution<double> uni(-0.5 * width, 0.5 * width);
+        for (std::size_t i = 0; i < init.size(); ++i) init[i] = t[i] + uni(rng);
+    } else {
+        const Heightfield file = read_heightfield_exr(a.init, a.texel_um, a.vscale);
+        if (file.rows() != rows || file.cols() != cols)
+            throw std::invalid_argument("--init " + a.init + " is " + std::to_string(file.rows()) + "x" +
+                                        std::to_string(file.cols()) + "; expected " + std::to_string(rows) + "x" +
+                                        std::to_string(cols));
+        init = file.values();
+    }
+    Inversion inversion(observations, Heightfield(rows, cols, init, a.texel_um, a.vscale), settings, truth.get());
+
+    // Output directory.
+    fs::create_directories(dir + "/snapshots");
+    check_writable(dir + "/metrics.csv");
+    const int channels = observations[0].channels();
+    if (resuming) {
+        inversion.load_checkpoint(dir + "/checkpoint.json");
+    } else {
+        nlohmann::json run = {{"args", to_json(a)},
+                              {"title", "wavebrdf invert: " + a.loss + ", " + a.optimizer + ", " +
+                                            std::to_string(rows) + "x" + std::to_string(cols) + " heights, " +
+                                            std::to_string(a.resolution) + "^2 slices, " +
+                                            std::to_string(observations.size()) + " observation(s), positions " + a.positions},
+                              {"snapshot_epochs", std::vector<int>(snapshots.begin(), snapshots.end())},
+                              {"channels", channels},
+                              {"resolution", observations[0].resolution},
+                              {"texel_um", a.texel_um},
+                              {"truth", truth != nullptr},
+                              {"observations", observations.size()}};
+        write_text_atomically(dir + "/run.json", run.dump(1) + "\n");
+        const Observation& o = observations[0];
+        write_npy(dir + "/reference.npy",
+                  {std::size_t(o.resolution), std::size_t(o.resolution), std::size_t(channels)}, o.reference);
+        if (truth) {
+            write_npy(dir + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*truth));
+            write_heightfield_exr(dir + "/truth.exr", *truth);
+        }
+        for (std::size_t i = 0; i < observations.size(); ++i) {
+            char name[64];
+            std::snprintf(name, sizeof name, "/reference_%03zu", i);
+            const RgbImage image = to_image(observations[i].reference, observations[i].resolution, channels);
+            write_rgb_exr(dir + name + ".exr", image);
+            write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
+        }
+    }
+
+    g_signal.store(0);
+    std::signal(SIGINT, on_signal);
+    std::signal(SIGTERM, on_signal);
+    Progress progress("invert", settings.epochs + 1, !quiet);
+    progress.advance(inversion.epoch());
+    int last_checkpoint = inversion.epoch();
+    auto checkpoint = [&] {
+        inversion.save_checkpoint(dir + "/checkpoint.json");
+        write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history()));
+    };
+    inversion.run([&](const EpochMetrics& m, const Heightfield& estimate, const std::vector<double>& gradient,
+                      const std::vector<std::vector<double>>& slices) {
+        if (snapshots.count(m.epoch)) {
+            char name[64];
+            std::snprintf(name, sizeof name, "%04d.npy", m.epoch);
+            const std::string base = dir + "/snapshots/";
+            write_npy(base + "height_" + name, {std::size_t(rows), std::size_t(cols)}, heights_um(estimate));
+            const int n = observations[0].resolution;
+            write_npy(base + "slice_" + name, {std::size_t(n), std::size_t(n), std::size_t(channels)}, slices[0]);
+            std::vector<double> g = gradient.empty() ? std::vector<double>(estimate.values().size(), 0.0) : gradient;
+            write_npy(base + "gradient_" + name, {std::size_t(rows), std::size_t(cols)}, g);
+        }
+        char message[96];
+        std::snprintf(message, sizeof message, "epoch %d loss %.4g", m.epoch, m.loss);
+        progress.set_message(message);
+        progress.advance(1);
+        if (g_signal.load() != 0) {
+            checkpoint();
+            return false;
+        }
+        if (m.epoch - last_checkpoint >= a.checkpoint_every) {
+            checkpoint();
+            last_checkpoint = m.epoch;
+        }
+        return true;
+    });
+    progress.finish();
+    checkpoint();
+
+    // Final outputs.
+    const Heightfield& estimate = inversion.estimate();
+    write_heightfield_exr(dir + "/estimate.exr", estimate);
+    write_heightfield_png(dir + "/estimate.png", estimate);
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        char name[64];
+        std::snprintf(name, sizeof name, "/final_%03zu", i);
+        const auto slice = render_observation(estimate, observations[i], settings.render);
+        const RgbImage image = to_image(slice, observations[i].resolution, channels);
+        write_rgb_exr(dir + name + ".exr", image);
+        write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
+    }
+    const int sig = g_signal.load();
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
+    if (!no_plots) {
+        const std::string script = std::string(WAVEBRDF_SOURCE_DIR) + "/scripts/plot_inversion.py";
+        const std::string command = "/usr/bin/python3 '" + script + "' '" + dir + "' > /dev/null";
+        if (!fs::exists(script) || std::system(command.c_str()) != 0)
+            std::fprintf(stderr, "wavebrdf: warning: could not draw report.png and curves.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
+    }
+    const auto& h = inversion.history();
+    if (!quiet && !h.empty()) {
+        const EpochMetrics& first = h.front();
+        const EpochMetrics& last = h.back();
+        std::fprintf(stderr, "epoch %d: loss %.4g (%.2f%% of epoch 0), BRDF MSE %.2f%% of epoch 0", last.epoch,
+                     last.loss, 100.0 * last.loss / first.loss, 100.0 * last.brdf_mse / first.brdf_mse);
+        if (!std::isnan(last.height_mse)) std::fprintf(stderr, ", height MSE %.4g um^2", last.height_mse);
+        std::fprintf(stderr, ", %.1f s; results in %s\n", last.seconds, dir.c_str());
+    }
+    if (sig != 0) {
+        std::fprintf(stderr, "wavebrdf: interrupted at epoch %d; checkpoint written, continue with: wavebrdf invert --resume %s\n",
+                     inversion.epoch(), dir.c_str());
+        std::exit(128 + sig);
+    }
+}
+
+}  // namespace
+
+void add_invert_command(CLI::App& app) {
+    auto a = std::make_shared<InvertArgs>();
+    CLI::App* cmd = app.add_subcommand("invert", "Recover heights whose BRDF slices match references (the thesis's inverse renderer)");
+    cmd->add_option("--truth", a->truth, "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");
+    cmd->add_option("--observations", a->observations, "reference slices with their query parameters (JSON)");
+    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")->capture_default_str();
+    cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
+    cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
+    cmd->add_option("--x-um", a->x_um, "footprint centre x in um (default: tile centre)");
+    cmd->add_option("--y-um", a->y_um, "footprint centre y in um (default: tile centre)");
+    cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um")->capture_default_str();
+    cmd->add_option("--model", a->model, "OHS, GHS, ROHS, RGHS or Kirchhoff")->capture_default_str();
+    cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default: --spectral 8)");
+    cmd->add_option("--spectral", a->spectral, "N wavelengths, CIE 1931 to linear sRGB (default 8)");
+    cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
+    cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
+    cmd->add_option("--resolution", a->resolution, "slice size n")->capture_default_str();
+    cmd->add_option("--init", a->init, "flat, noisy:FRAC (truth + uniform noise of width FRAC x height range) or FILE.exr")->capture_default_str();
+    cmd->add_option("--epochs", a->epochs, "epochs (Adam steps or L-BFGS iterations)")->capture_default_str();
+    cmd->add_option("--optimizer", a->optimizer, "adam or lbfgs")->capture_default_str();
+    cmd->add_option("--lr", a->lr, "Adam learning rate (heights in texel units)")->capture_default_str();
+    cmd->add_option("--beta1", a->beta1, "Adam beta1")->capture_default_str();
+    cmd->add_option("--beta2", a->beta2, "Adam beta2")->capture_default_str();
+    cmd->add_option("--decay", a->decay, "learning-rate decay per epoch: lr * exp(-decay * epoch)")->capture_default_str();
+    cmd->add_option("--loss", a->loss, "cmsle:EPS, mse or amplitude")->capture_default_str();
+    cmd->add_option("--positions", a->positions, "fixed, random (a new position per epoch) or FILE.json ([[x_um, y_um], ...])")->capture_default_str();
+    cmd->add_option("--seed", a->seed, "seed (generated truth, noise, random positions)")->capture_default_str();
+    cmd->add_option("--out", a->out, "output directory");
+    cmd->add_option("--resume", a->resume, "continue the interrupted run in this directory");
+    cmd->add_option("--snapshots", a->snapshots, "epochs to keep heights, slices and gradients for the report")->capture_default_str();
+    cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
+    cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
+    cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
+    cmd->callback([a] { run(*a); });
+}
+
+}  // namespace wavebrdf::cli

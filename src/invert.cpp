@@ -1,0 +1,275 @@
+// The inversion loop. Each epoch evaluates the estimate on the observations (metrics, and the
+// gradient in fixed mode), reports it, then steps. A checkpoint taken in the report callback
+// holds everything the next step needs, and every computation is deterministic for a given
+// thread count, so a resumed run continues bit for bit.
+#include "wavebrdf/invert.h"
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+
+namespace wavebrdf {
+
+namespace {
+
+std::uint64_t splitmix64(std::uint64_t x) {
+    x += 0x9e3779b97f4a7c15ULL;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+    return x ^ (x >> 31);
+}
+
+double unit_interval(std::uint64_t bits) { return double(bits >> 11) * (1.0 / 9007199254740992.0); }
+
+// FNV-1a over the bytes of the values that define a run.
+struct Fingerprint {
+    std::uint64_t h = 1469598103934665603ULL;
+    void add(const void* data, std::size_t size) {
+        const auto* p = static_cast<const unsigned char*>(data);
+        for (std::size_t i = 0; i < size; ++i) h = (h ^ p[i]) * 1099511628211ULL;
+    }
+    void add(double v) { add(&v, sizeof v); }
+    void add(std::uint64_t v) { add(&v, sizeof v); }
+    void add(int v) { add(&v, sizeof v); }
+};
+
+}  // namespace
+
+Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
+                     InversionSettings settings, const Heightfield* truth)
+    : m_observations(std::move(observations)), m_estimate(std::move(initial)),
+      m_settings(settings), m_truth(truth), m_adam(m_estimate.values().size(), settings.adam) {
+    if (m_observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
+    for (std::size_t i = 0; i < m_observations.size(); ++i) validate(m_observations[i], i);
+    if (settings.epochs < 0)
+        throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
+    if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
+        throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
+    if (truth && (truth->rows() != m_estimate.rows() || truth->cols() != m_estimate.cols()))
+        throw std::invalid_argument("truth is " + std::to_string(truth->rows()) + "x" + std::to_string(truth->cols()) +
+                                    " but the estimate is " + std::to_string(m_estimate.rows()) + "x" +
+                                    std::to_string(m_estimate.cols()) + "; expected the same size");
+}
+
+std::array<double, 2> Inversion::random_position(std::uint64_t seed, int epoch, const Heightfield& tile) {
+    const std::uint64_t a = splitmix64(seed * 0x100000001b3ULL + static_cast<std::uint64_t>(epoch));
+    const std::uint64_t b = splitmix64(a);
+    return {unit_interval(a) * tile.period_x_um(), unit_interval(b) * tile.period_y_um()};
+}
+
+std::vector<Observation> Inversion::epoch_observations(int epoch) const {
+    if (m_settings.positions == PositionMode::Fixed) return m_observations;
+    if (m_truth) {
+        Observation o = m_observations[0];
+        const auto pos = random_position(m_settings.seed, epoch, m_estimate);
+        o.query.x_um = pos[0];
+        o.query.y_um = pos[1];
+        o.reference = render_observation(*m_truth, o, m_settings.render);
+        return {o};
+    }
+    const std::uint64_t pick = splitmix64(m_settings.seed ^ (0xabcdefULL + static_cast<std::uint64_t>(epoch)));
+    return {m_observations[pick % m_observations.size()]};
+}
+
+EpochMetrics Inversion::evaluate(std::vector<double>* gradient,
+                                 std::vector<std::vector<double>>* rendered) const {
+    EpochMetrics m;
+    std::vector<std::vector<double>> slices;
+    m.loss = observation_loss(m_estimate, m_observations, m_settings.loss, gradient, m_settings.render, &slices);
+    const Loss mse{LossKind::MSE, 1.0}, cmsle1{LossKind::CMSLE, 1.0}, cmsle3{LossKind::CMSLE, 1e-3};
+    const double scale = 1.0 / double(m_observations.size());
+    for (std::size_t i = 0; i < m_observations.size(); ++i) {
+        const Observation& o = m_observations[i];
+        m.brdf_mse += scale * loss_value(mse, slices[i], o.reference, o.channels());
+        m.cmsle_1 += scale * loss_value(cmsle1, slices[i], o.reference, o.channels());
+        m.cmsle_0_001 += scale * loss_value(cmsle3, slices[i], o.reference, o.channels());
+        m.rgb_mse += scale * rgb_mse(slices[i], o.reference, o.channels());
+        m.rgb_gamma_mse += scale * rgb_gamma_mse(slices[i], o.reference, o.channels());
+    }
+    if (m_truth) {
+        // In µm², on the heights H = v·w·h of both.
+        std::vector<double> est = m_estimate.values(), tru = m_truth->values();
+        for (double& v : est) v *= m_estimate.vscale() * m_estimate.texel_um();
+        for (double& v : tru) v *= m_truth->vscale() * m_truth->texel_um();
+        m.height_mse = height_mse(est, tru);
+    }
+    if (rendered) *rendered = std::move(slices);
+    return m;
+}
+
+void Inversion::run(const Callback& on_epoch) {
+    const auto start = std::chrono::steady_clock::now();
+    auto seconds = [&] {
+        return m_seconds_before + std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    const bool fixed = m_settings.positions == PositionMode::Fixed;
+    // Report the estimate of the current epoch unless a checkpoint already did.
+    auto report = [&](const std::vector<double>& gradient, EpochMetrics& metrics,
+                      const std::vector<std::vector<double>>& slices) {
+        if (!m_history.empty() && m_history.back().epoch == m_epoch) return true;
+        metrics.epoch = m_epoch;
+        metrics.seconds = seconds();
+        m_history.push_back(metrics);
+        return !on_epoch || on_epoch(metrics, m_estimate, gradient, slices);
+    };
+
+    if (m_settings.optimizer == OptimizerKind::Adam) {
+        while (true) {
+            std::vector<double> gradient;
+            std::vector<std::vector<double>> slices;
+            EpochMetrics metrics = evaluate(fixed ? &gradient : nullptr, &slices);
+            if (!fixed)
+                observation_loss(m_estimate, epoch_observations(m_epoch), m_settings.loss, &gradient, m_settings.render);
+            if (!report(gradient, metrics, slices)) break;
+            if (m_epoch >= m_settings.epochs) break;
+            std::vector<double> x = m_estimate.values();
+            m_adam.step(x, gradient, m_epoch);
+            m_estimate = m_estimate.with_values(std::move(x));
+            ++m_epoch;
+        }
+        m_seconds_before = seconds();
+        return;
+    }
+
+    // L-BFGS: one iteration per epoch. Its curvature history is not checkpointed: a resumed
+    // run restarts the history at the checkpoint's heights.
+    {
+        std::vector<double> gradient;
+        std::vector<std::vector<double>> slices;
+        EpochMetrics metrics = evaluate(&gradient, &slices);
+        if (!report(gradient, metrics, slices) || m_epoch >= m_settings.epochs) {
+            m_seconds_before = seconds();
+            return;
+        }
+    }
+    std::vector<double> x = m_estimate.values();
+    LbfgsOptions options = m_settings.lbfgs;
+    options.max_iterations = m_settings.epochs - m_epoch;
+    auto objective = [&](const std::vector<double>& v, std::vector<double>& g) {
+        return observation_loss(m_estimate.with_values(v), m_observations, m_settings.loss, &g, m_settings.render);
+    };
+    bool stopped = false;
+    lbfgs_minimize(objective, x, options, [&](int, double) {
+        m_estimate = m_estimate.with_values(x);
+        ++m_epoch;
+        std::vector<double> gradient;
+        std::vector<std::vector<double>> slices;
+        EpochMetrics metrics = evaluate(&gradient, &slices);
+        if (!report(gradient, metrics, slices)) {
+            stopped = true;
+            return false;
+        }
+        return m_epoch < m_settings.epochs;
+    });
+    if (!stopped) m_estimate = m_estimate.with_values(x);
+    m_seconds_before = seconds();
+}
+
+std::string Inversion::fingerprint() const {
+    Fingerprint f;
+    f.add(m_estimate.rows());
+    f.add(m_estimate.cols());
+    f.add(m_estimate.texel_um());
+    f.add(m_estimate.vscale());
+    f.add(int(m_settings.loss.kind));
+    f.add(m_settings.loss.epsilon);
+    f.add(int(m_settings.optimizer));
+    f.add(m_settings.adam.lr);
+    f.add(m_settings.adam.beta1);
+    f.add(m_settings.adam.beta2);
+    f.add(m_settings.adam.epsilon);
+    f.add(m_settings.adam.decay);
+    f.add(int(m_settings.positions));
+    f.add(m_settings.seed);
+    for (const Observation& o : m_observations) {
+        f.add(o.query.x_um);
+        f.add(o.query.y_um);
+        f.add(o.query.sigma_p_um);
+        f.add(o.query.omega_i[0]);
+        f.add(o.query.omega_i[1]);
+        f.add(int(o.query.model));
+        f.add(o.resolution);
+        for (double l : o.lambdas_um) f.add(l);
+        for (double r : o.reference) f.add(r);
+    }
+    std::ostringstream out;
+    out << std::hex << f.h;
+    return out.str();
+}
+
+void Inversion::save_checkpoint(const std::string& path) const {
+    nlohmann::json j;
+    j["format"] = "wavebrdf-checkpoint-1";
+    j["fingerprint"] = fingerprint();
+    j["epoch"] = m_epoch;
+    j["seconds"] = m_history.empty() ? m_seconds_before : m_history.back().seconds;
+    j["rows"] = m_estimate.rows();
+    j["cols"] = m_estimate.cols();
+    j["heights"] = m_estimate.values();
+    j["adam_m"] = m_adam.state().m;
+    j["adam_v"] = m_adam.state().v;
+    j["adam_steps"] = m_adam.state().steps;
+    nlohmann::json rows = nlohmann::json::array();
+    for (const EpochMetrics& m : m_history)
+        rows.push_back({m.epoch, m.loss, m.brdf_mse, m.cmsle_1, m.cmsle_0_001, m.rgb_mse, m.rgb_gamma_mse,
+                        std::isnan(m.height_mse) ? nlohmann::json(nullptr) : nlohmann::json(m.height_mse), m.seconds});
+    j["metrics"] = rows;
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp);
+        if (!out) throw std::runtime_error(path + ": cannot write the checkpoint");
+        out << j.dump() << "\n";
+        if (!out) throw std::runtime_error(path + ": writing the checkpoint failed");
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        std::remove(tmp.c_str());
+        throw std::runtime_error(path + ": cannot move the checkpoint into place");
+    }
+}
+
+void Inversion::load_checkpoint(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw std::runtime_error(path + ": cannot open the checkpoint");
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(in);
+        if (j.at("format").get<std::string>() != "wavebrdf-checkpoint-1")
+            throw std::runtime_error(path + ": unknown checkpoint format");
+        if (j.at("fingerprint").get<std::string>() != fingerprint())
+            throw std::runtime_error(path + ": the checkpoint belongs to a different run (settings, "
+                                            "observations or seed differ); expected the same options as the run it came from");
+        if (j.at("rows").get<int>() != m_estimate.rows() || j.at("cols").get<int>() != m_estimate.cols())
+            throw std::runtime_error(path + ": checkpoint size differs from the heightfield");
+        Adam::State state;
+        state.m = j.at("adam_m").get<std::vector<double>>();
+        state.v = j.at("adam_v").get<std::vector<double>>();
+        state.steps = j.at("adam_steps").get<long long>();
+        m_adam.set_state(state);
+        m_estimate = m_estimate.with_values(j.at("heights").get<std::vector<double>>());
+        m_epoch = j.at("epoch").get<int>();
+        m_seconds_before = j.at("seconds").get<double>();
+        m_history.clear();
+        for (const auto& r : j.at("metrics")) {
+            EpochMetrics m;
+            m.epoch = r.at(0).get<int>();
+            m.loss = r.at(1).get<double>();
+            m.brdf_mse = r.at(2).get<double>();
+            m.cmsle_1 = r.at(3).get<double>();
+            m.cmsle_0_001 = r.at(4).get<double>();
+            m.rgb_mse = r.at(5).get<double>();
+            m.rgb_gamma_mse = r.at(6).get<double>();
+            m.height_mse = r.at(7).is_null() ? std::numeric_limits<double>::quiet_NaN() : r.at(7).get<double>();
+            m.seconds = r.at(8).get<double>();
+            m_history.push_back(m);
+        }
+    } catch (const nlohmann::json::exception& e) {
+        throw std::runtime_error(path + ": corrupt checkpoint (" + std::string(e.what()) + ")");
+    } catch (const std::invalid_argument& e) {
+        throw std::runtime_error(path + ": checkpoint does not fit this run (" + std::string(e.what()) + ")");
+    }
+}
+
+}  // namespace wavebrdf
