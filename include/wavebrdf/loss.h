@@ -18,22 +18,32 @@ struct Loss {
     double epsilon = 1.0;  // CMSLE's ε (> 0); unused by the others
 };
 
-// Parses "cmsle:EPS" (e.g. "cmsle:0.01"; plain "cmsle" means ε = 1), "mse", "amplitude".
-// Throws std::invalid_argument naming the text and the accepted forms; std::domain_error for
-// ε ≤ 0 or not finite.
+// Parses "cmsle:EPS" (e.g. "cmsle:0.01"; plain "cmsle" means ε = 1), "mse", "amplitude"
+// (exact, lower case, no blanks). Throws std::invalid_argument naming the text and the accepted
+// forms; std::domain_error, also naming the text, for ε ≤ 0 or not finite.
 Loss parse_loss(const std::string& text);
+// The text parse_loss reads back to the same Loss: "cmsle:EPS" with the shortest EPS that
+// round-trips (so "cmsle:1", "cmsle:0.01"), "mse", "amplitude".
 std::string to_string(const Loss& loss);
 
 // The loss of `estimate` against `reference` (same size, a multiple of `channels`). When
 // `gradient` is not null it receives ∂loss/∂estimate (resized to estimate.size()).
 // Negative values (impossible for a BRDF, possible in float noise) are clamped to 0 for the
 // log and square root; the amplitude loss uses √(I + 1e-30) so its gradient stays finite at 0.
-// Throws std::invalid_argument on a size mismatch or channels < 1.
+// The gradient is that of the clamped function: 0 where estimate < 0 (CMSLE, amplitude), the
+// one-sided derivative at estimate = 0, so finite differences and line searches see one
+// consistent function. Non-finite inputs are not checked and propagate into the result.
+// Throws std::invalid_argument on a size mismatch, a size that is not a multiple of
+// `channels`, channels < 1, or empty slices (the mean over no pixels is undefined);
+// std::domain_error for a CMSLE ε ≤ 0 or not finite.
 double loss_value(const Loss& loss, const std::vector<double>& estimate,
                   const std::vector<double>& reference, int channels,
                   std::vector<double>* gradient = nullptr);
 
-// Reporting metrics (no gradients). Mono slices (channels = 1) are treated as grey RGB.
+// Reporting metrics (no gradients). Mono slices (channels = 1) are treated as grey RGB, which
+// makes both a plain mean over all values; negative values are clamped to 0 first (as above).
+// Throws std::invalid_argument on a size mismatch, empty slices, or channels other than 1 or 3
+// (spectral slices must be converted to RGB first).
 //   rgb_mse        mean over pixels and channels of (T(I) − T(R))², T(x) = x / (1 + x)
 //                  (Reinhard's global operator)
 //   rgb_gamma_mse  the same with T(x) = (x / (1 + x))^(1/2.2)
@@ -41,7 +51,8 @@ double rgb_mse(const std::vector<double>& estimate, const std::vector<double>& r
 double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels);
 
 // Mean squared difference of two heightfields (same size) after removing each one's mean
-// height, which no slice can see. In the units of the inputs.
+// height, which no slice can see. In the squared units of the inputs. Throws
+// std::invalid_argument on a size mismatch or empty inputs.
 double height_mse(const std::vector<double>& estimate, const std::vector<double>& truth);
 
 }  // namespace wavebrdf

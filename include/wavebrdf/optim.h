@@ -7,8 +7,11 @@
 
 namespace wavebrdf {
 
-// Adam (Kingma and Ba 2015) with an exponential learning-rate decay per epoch:
+// Adam (Kingma and Ba 2015, Algorithm 1) with an exponential learning-rate decay per epoch:
 // lr_epoch = lr · exp(−decay · epoch). Defaults are the thesis's: 0.01, 0.9, 0.99, 0.005.
+// Each step t = 1, 2, ...: m ← β₁m + (1 − β₁)g, v ← β₂v + (1 − β₂)g², m̂ = m/(1 − β₁ᵗ),
+// v̂ = v/(1 − β₂ᵗ), x ← x − lr_epoch · m̂/(√v̂ + ε). The step count t (bias correction) and the
+// epoch (learning rate) are independent, so several steps may share one epoch.
 struct AdamOptions {
     double lr = 0.01;
     double beta1 = 0.9;
@@ -23,8 +26,11 @@ public:
     // decay < 0, or a non-finite value.
     Adam(std::size_t size, const AdamOptions& options = {});
     // One update of `x` (size as constructed) against `gradient`, at learning rate
-    // lr · exp(−decay · epoch) with the given epoch (0-based).
+    // lr · exp(−decay · epoch) with the given epoch (0-based). Throws std::invalid_argument on
+    // a size mismatch or epoch < 0, std::domain_error on a non-finite gradient entry; in
+    // both cases before changing x or the state.
     void step(std::vector<double>& x, const std::vector<double>& gradient, int epoch);
+    // lr · exp(−decay · epoch); throws std::invalid_argument for epoch < 0.
     double learning_rate(int epoch) const;
 
     // Full state, for checkpoints: moments and step count.
@@ -33,14 +39,22 @@ public:
         long long steps = 0;
     };
     const State& state() const { return m_state; }
-    void set_state(const State& state);  // throws std::invalid_argument on a size mismatch
+    // Throws std::invalid_argument on a size mismatch, steps < 0, or a non-finite moment or
+    // v < 0 (a corrupt checkpoint), leaving the state unchanged.
+    void set_state(const State& state);
 
 private:
     AdamOptions m_options;
     State m_state;
 };
 
-// Limited-memory BFGS with a backtracking (Armijo) line search, minimising f(x).
+// Limited-memory BFGS with a backtracking (Armijo) line search, minimising f(x)
+// (Nocedal and Wright 2006, Algorithms 7.4, 7.5 and 3.1). Direction by the two-loop recursion
+// with H₀ = (sᵀy / yᵀy) I from the newest pair; pairs with sᵀy ≤ 1e-12 |s||y| are skipped.
+// Line search: c₁ = 1e-4, halving, starting at step 1, or at min(1, 1/‖g‖₂) while no pair is
+// kept (the first iteration, and after a reset); a non-finite trial value or gradient counts
+// as a failed trial. Options are validated with std::domain_error naming the option
+// (history ≥ 1, max_iterations ≥ 0, gradient_tolerance finite and ≥ 0, max_line_search ≥ 1).
 struct LbfgsOptions {
     int history = 10;            // pairs kept (m)
     int max_iterations = 100;
@@ -49,15 +63,20 @@ struct LbfgsOptions {
 };
 
 struct LbfgsResult {
-    int iterations = 0;
-    int evaluations = 0;
-    double value = 0.0;
-    bool converged = false;
+    int iterations = 0;      // accepted steps
+    int evaluations = 0;     // calls of the objective, the one at the start included
+    double value = 0.0;      // f at the returned x
+    bool converged = false;  // ‖g‖∞ ≤ gradient_tolerance at the returned x
 };
 
 // `objective(x, gradient)` returns f(x) and writes ∇f(x) into gradient (resized to x.size()).
 // `on_iteration(iteration, value)`, when given, is called after each accepted step; returning
-// false stops the run.
+// false stops the run. Trial points are evaluated in a separate vector, so `x` only ever holds
+// accepted points, and during on_iteration it already holds the newest one. Stops also at the
+// gradient tolerance, after max_iterations, or when a line search finds no acceptable step in
+// max_line_search trials; x is then the last accepted point and `value` its f. Throws
+// std::invalid_argument for an empty x or objective or an objective that resizes the
+// gradient, std::domain_error when f or ∇f at the starting x is not finite.
 LbfgsResult lbfgs_minimize(
     const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
     std::vector<double>& x, const LbfgsOptions& options = {},

@@ -1,0 +1,197 @@
+#include "wavebrdf/loss.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
+
+namespace wavebrdf {
+
+namespace {
+
+// Shortest "%.{15,16,17}g" text that reads back as the same double, so that
+// parse_loss(to_string(loss)) == loss and common values print as typed ("0.01", not
+// "0.010000000000000000208").
+std::string format_shortest(double v) {
+    char buf[40];
+    for (int precision = 15; precision <= 17; ++precision) {
+        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
+        if (std::strtod(buf, nullptr) == v) break;
+    }
+    return buf;
+}
+
+void check_epsilon(double epsilon, const std::string& what) {
+    if (!(std::isfinite(epsilon) && epsilon > 0.0))
+        throw std::domain_error("CMSLE epsilon must be finite and > 0, got " + what);
+}
+
+// Validates a (estimate, reference, channels) triple; returns the number of pixels.
+std::size_t check_slices(const char* function, const std::vector<double>& estimate,
+                         const std::vector<double>& reference, int channels) {
+    const std::string where = std::string(function) + ": ";
+    if (channels < 1)
+        throw std::invalid_argument(where + "channels must be >= 1, got " + std::to_string(channels));
+    if (estimate.size() != reference.size())
+        throw std::invalid_argument(where + "estimate has " + std::to_string(estimate.size()) +
+                                    " values but reference has " + std::to_string(reference.size()));
+    if (estimate.empty()) throw std::invalid_argument(where + "the slices are empty");
+    const auto c = static_cast<std::size_t>(channels);
+    if (estimate.size() % c != 0)
+        throw std::invalid_argument(where + "size " + std::to_string(estimate.size()) +
+                                    " is not a multiple of channels = " + std::to_string(channels));
+    return estimate.size() / c;
+}
+
+// Shared body of rgb_mse and rgb_gamma_mse: mean over all values of (T(I) − T(R))².
+template <typename ToneMap>
+double tone_mapped_mse(const char* function, const std::vector<double>& estimate,
+                       const std::vector<double>& reference, int channels, ToneMap tone_map) {
+    check_slices(function, estimate, reference, channels);
+    if (channels != 1 && channels != 3)
+        throw std::invalid_argument(std::string(function) + ": channels must be 1 (mono) or 3 (RGB), got " +
+                                    std::to_string(channels));
+    // A grey pixel (v, v, v) contributes three equal terms, so for mono slices the mean over
+    // pixels and RGB channels equals the mean over the mono values: both cases divide by size.
+    double sum = 0.0;
+    for (std::size_t i = 0; i < estimate.size(); ++i) {
+        const double d = tone_map(std::max(estimate[i], 0.0)) - tone_map(std::max(reference[i], 0.0));
+        sum += d * d;
+    }
+    return sum / static_cast<double>(estimate.size());
+}
+
+// Shared body of loss_value: `residual(e, r)` is the per-value difference whose square is
+// summed, `derivative(e, r, d)` is ∂(d²)/∂e. The value and the gradient are two separate loops
+// so that the value is bit-for-bit the same whether or not the gradient is asked for (one
+// fused loop lets the compiler contract and vectorise the sum differently in each case).
+template <typename Residual, typename Derivative>
+double mean_over_pixels(const std::vector<double>& estimate, const std::vector<double>& reference,
+                        double inv_pixels, std::vector<double>* gradient, Residual residual,
+                        Derivative derivative) {
+    const std::size_t n = estimate.size();
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double d = residual(estimate[i], reference[i]);
+        sum += d * d;
+    }
+    if (gradient) {
+        gradient->resize(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            const double d = residual(estimate[i], reference[i]);
+            (*gradient)[i] = derivative(estimate[i], reference[i], d) * inv_pixels;
+        }
+    }
+    return sum * inv_pixels;
+}
+
+}  // namespace
+
+Loss parse_loss(const std::string& text) {
+    const auto bad = [&]() {
+        return std::invalid_argument("unknown loss '" + text +
+                                     "'; expected 'cmsle', 'cmsle:EPS' (EPS > 0, e.g. cmsle:0.01), "
+                                     "'mse' or 'amplitude'");
+    };
+    if (text == "mse") return {LossKind::MSE, 1.0};
+    if (text == "amplitude") return {LossKind::Amplitude, 1.0};
+    if (text == "cmsle") return {LossKind::CMSLE, 1.0};
+    const std::string prefix = "cmsle:";
+    if (text.compare(0, prefix.size(), prefix) != 0) throw bad();
+    const std::string number = text.substr(prefix.size());
+    // strtod accepts leading blanks; we do not, so that "cmsle: 1" is not half-accepted.
+    if (number.empty() || std::isspace(static_cast<unsigned char>(number[0]))) throw bad();
+    char* end = nullptr;
+    const double epsilon = std::strtod(number.c_str(), &end);
+    if (end != number.c_str() + number.size()) throw bad();
+    check_epsilon(epsilon, "'" + text + "'");
+    return {LossKind::CMSLE, epsilon};
+}
+
+std::string to_string(const Loss& loss) {
+    switch (loss.kind) {
+        case LossKind::CMSLE: return "cmsle:" + format_shortest(loss.epsilon);
+        case LossKind::MSE: return "mse";
+        case LossKind::Amplitude: return "amplitude";
+    }
+    throw std::invalid_argument("to_string: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
+}
+
+double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
+                  int channels, std::vector<double>* gradient) {
+    const std::size_t pixels = check_slices("loss_value", estimate, reference, channels);
+    // Definition 3.2 normalises by |P| only (not |P|·|C|): each pixel's channel vector is one sample.
+    const double inv_pixels = 1.0 / static_cast<double>(pixels);
+    switch (loss.kind) {
+        case LossKind::CMSLE: {
+            const double eps = loss.epsilon;
+            check_epsilon(eps, format_shortest(eps));
+            return mean_over_pixels(
+                estimate, reference, inv_pixels, gradient,
+                [eps](double e, double r) {
+                    e = std::max(e, 0.0);
+                    r = std::max(r, 0.0);
+                    // log(e + ε) − log(r + ε) as log1p of the relative difference: exact to a
+                    // few ulps also when e ≈ r, where the difference of two logs would cancel.
+                    return std::log1p((e - r) / (r + eps));
+                },
+                // ∂/∂e (d²) = 2 d / (e + ε); zero where the clamp is active (e < 0).
+                [eps](double e, double, double d) { return e >= 0.0 ? 2.0 * d / (e + eps) : 0.0; });
+        }
+        case LossKind::MSE:
+            return mean_over_pixels(
+                estimate, reference, inv_pixels, gradient, [](double e, double r) { return e - r; },
+                [](double, double, double d) { return 2.0 * d; });
+        case LossKind::Amplitude: {
+            constexpr double tiny = 1e-30;  // keeps 1/√e finite at e = 0
+            return mean_over_pixels(
+                estimate, reference, inv_pixels, gradient,
+                [](double e, double r) {
+                    e = std::max(e, 0.0);
+                    r = std::max(r, 0.0);
+                    // √(e + δ) − √(r + δ) = (e − r) / (√(e + δ) + √(r + δ)), without cancellation.
+                    return (e - r) / (std::sqrt(e + tiny) + std::sqrt(r + tiny));
+                },
+                // ∂/∂e (d²) = 2 d / (2 √(e + δ)); zero where the clamp is active (e < 0).
+                [](double e, double, double d) { return e >= 0.0 ? d / std::sqrt(e + tiny) : 0.0; });
+        }
+    }
+    throw std::invalid_argument("loss_value: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
+}
+
+double rgb_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels) {
+    return tone_mapped_mse("rgb_mse", estimate, reference, channels, [](double x) { return x / (1.0 + x); });
+}
+
+double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels) {
+    return tone_mapped_mse("rgb_gamma_mse", estimate, reference, channels,
+                           [](double x) { return std::pow(x / (1.0 + x), 1.0 / 2.2); });
+}
+
+double height_mse(const std::vector<double>& estimate, const std::vector<double>& truth) {
+    if (estimate.size() != truth.size())
+        throw std::invalid_argument("height_mse: estimate has " + std::to_string(estimate.size()) +
+                                    " heights but truth has " + std::to_string(truth.size()));
+    if (estimate.empty()) throw std::invalid_argument("height_mse: the heightfields are empty");
+    const double n = static_cast<double>(estimate.size());
+    double mean_e = 0.0, mean_t = 0.0;
+    for (std::size_t i = 0; i < estimate.size(); ++i) {
+        mean_e += estimate[i];
+        mean_t += truth[i];
+    }
+    mean_e /= n;
+    mean_t /= n;
+    // Two passes: subtracting the means before squaring keeps large common offsets from
+    // swamping the differences.
+    double sum = 0.0;
+    for (std::size_t i = 0; i < estimate.size(); ++i) {
+        const double d = (estimate[i] - mean_e) - (truth[i] - mean_t);
+        sum += d * d;
+    }
+    return sum / n;
+}
+
+}  // namespace wavebrdf

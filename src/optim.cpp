@@ -1,0 +1,211 @@
+#include "wavebrdf/optim.h"
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <stdexcept>
+#include <string>
+
+namespace wavebrdf {
+
+namespace {
+
+std::string format_value(double v) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.17g", v);
+    return buf;
+}
+
+void require(bool ok, const char* option, double value, const char* expected) {
+    if (!ok)
+        throw std::domain_error(std::string(option) + " must be " + expected + ", got " + format_value(value));
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Adam
+
+Adam::Adam(std::size_t size, const AdamOptions& options) : m_options(options) {
+    const auto finite = [](double v) { return std::isfinite(v); };
+    require(finite(options.lr) && options.lr > 0.0, "Adam lr", options.lr, "finite and > 0");
+    require(finite(options.beta1) && options.beta1 >= 0.0 && options.beta1 < 1.0, "Adam beta1",
+            options.beta1, "in [0, 1)");
+    require(finite(options.beta2) && options.beta2 >= 0.0 && options.beta2 < 1.0, "Adam beta2",
+            options.beta2, "in [0, 1)");
+    require(finite(options.epsilon) && options.epsilon > 0.0, "Adam epsilon", options.epsilon,
+            "finite and > 0");
+    require(finite(options.decay) && options.decay >= 0.0, "Adam decay", options.decay, "finite and >= 0");
+    m_state.m.assign(size, 0.0);
+    m_state.v.assign(size, 0.0);
+    m_state.steps = 0;
+}
+
+double Adam::learning_rate(int epoch) const {
+    if (epoch < 0) throw std::invalid_argument("Adam: epoch must be >= 0, got " + std::to_string(epoch));
+    return m_options.lr * std::exp(-m_options.decay * static_cast<double>(epoch));
+}
+
+void Adam::step(std::vector<double>& x, const std::vector<double>& gradient, int epoch) {
+    const std::size_t n = m_state.m.size();
+    if (x.size() != n || gradient.size() != n)
+        throw std::invalid_argument("Adam::step: expected " + std::to_string(n) + " parameters and gradients, got " +
+                                    std::to_string(x.size()) + " and " + std::to_string(gradient.size()));
+    // Checked before any update, so that one NaN does not poison the moments for good and the
+    // caller can still checkpoint the last good state.
+    for (std::size_t i = 0; i < n; ++i)
+        if (!std::isfinite(gradient[i]))
+            throw std::domain_error("Adam::step: gradient[" + std::to_string(i) + "] is not finite (" +
+                                    format_value(gradient[i]) + ")");
+    const double lr = learning_rate(epoch);
+    const long long t = m_state.steps + 1;
+    const double b1 = m_options.beta1, b2 = m_options.beta2, eps = m_options.epsilon;
+    // Bias corrections 1 − β^t of Kingma and Ba (2015), Algorithm 1.
+    const double c1 = 1.0 - std::pow(b1, static_cast<double>(t));
+    const double c2 = 1.0 - std::pow(b2, static_cast<double>(t));
+    double* m = m_state.m.data();
+    double* v = m_state.v.data();
+    for (std::size_t i = 0; i < n; ++i) {
+        const double g = gradient[i];
+        m[i] = b1 * m[i] + (1.0 - b1) * g;
+        v[i] = b2 * v[i] + (1.0 - b2) * g * g;
+        const double m_hat = m[i] / c1, v_hat = v[i] / c2;
+        x[i] -= lr * m_hat / (std::sqrt(v_hat) + eps);
+    }
+    m_state.steps = t;
+}
+
+void Adam::set_state(const State& state) {
+    const std::size_t n = m_state.m.size();
+    if (state.m.size() != n || state.v.size() != n)
+        throw std::invalid_argument("Adam::set_state: expected moments of size " + std::to_string(n) + ", got " +
+                                    std::to_string(state.m.size()) + " and " + std::to_string(state.v.size()));
+    if (state.steps < 0)
+        throw std::invalid_argument("Adam::set_state: steps must be >= 0, got " + std::to_string(state.steps));
+    for (std::size_t i = 0; i < n; ++i)
+        if (!std::isfinite(state.m[i]) || !std::isfinite(state.v[i]) || state.v[i] < 0.0)
+            throw std::invalid_argument("Adam::set_state: moment " + std::to_string(i) +
+                                        " is not finite or v < 0 (m = " + format_value(state.m[i]) +
+                                        ", v = " + format_value(state.v[i]) + ")");
+    m_state = state;
+}
+
+// ---------------------------------------------------------------------------------------------
+// L-BFGS (Nocedal and Wright 2006, Algorithm 7.4 and 7.5; Armijo backtracking, Algorithm 3.1)
+
+LbfgsResult lbfgs_minimize(
+    const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
+    std::vector<double>& x, const LbfgsOptions& options, const std::function<bool(int, double)>& on_iteration) {
+    require(options.history >= 1, "L-BFGS history", options.history, ">= 1");
+    require(options.max_iterations >= 0, "L-BFGS max_iterations", options.max_iterations, ">= 0");
+    require(std::isfinite(options.gradient_tolerance) && options.gradient_tolerance >= 0.0,
+            "L-BFGS gradient_tolerance", options.gradient_tolerance, "finite and >= 0");
+    require(options.max_line_search >= 1, "L-BFGS max_line_search", options.max_line_search, ">= 1");
+    if (!objective) throw std::invalid_argument("lbfgs_minimize: the objective is empty");
+    if (x.empty()) throw std::invalid_argument("lbfgs_minimize: x is empty");
+
+    using Vec = Eigen::VectorXd;
+    const std::size_t n = x.size();
+    const auto en = static_cast<Eigen::Index>(n);
+    constexpr double c1 = 1e-4;               // Armijo's sufficient-decrease constant
+    constexpr double curvature_skip = 1e-12;  // pairs with sᵀy ≤ this·|s||y| are not kept
+
+    LbfgsResult result;
+    std::vector<double> trial(n), trial_gradient(n), g_std(n);
+    // One evaluation, counted, with its gradient checked for size.
+    const auto evaluate = [&](const std::vector<double>& at, std::vector<double>& grad) {
+        grad.assign(n, 0.0);
+        const double f = objective(at, grad);
+        ++result.evaluations;
+        if (grad.size() != n)
+            throw std::invalid_argument("lbfgs_minimize: the objective resized the gradient to " +
+                                        std::to_string(grad.size()) + ", expected " + std::to_string(n));
+        return f;
+    };
+    const auto all_finite = [](const std::vector<double>& v) {
+        return std::all_of(v.begin(), v.end(), [](double a) { return std::isfinite(a); });
+    };
+
+    double f = evaluate(x, g_std);
+    if (!std::isfinite(f) || !all_finite(g_std))
+        throw std::domain_error("lbfgs_minimize: the objective or its gradient is not finite at the start (f = " +
+                                format_value(f) + ")");
+    Vec xv = Eigen::Map<const Vec>(x.data(), en);
+    Vec g = Eigen::Map<const Vec>(g_std.data(), en);
+    result.value = f;
+    result.converged = g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance;
+
+    struct Pair {
+        Vec s, y;
+        double rho;  // 1 / sᵀy
+    };
+    std::deque<Pair> history;
+    std::vector<double> alpha(static_cast<std::size_t>(options.history));
+
+    while (!result.converged && result.iterations < options.max_iterations) {
+        // Two-loop recursion: d = −H g, with H₀ = γ I, γ = sᵀy / yᵀy of the newest pair.
+        Vec d = g;
+        for (std::size_t k = history.size(); k-- > 0;) {
+            alpha[k] = history[k].rho * history[k].s.dot(d);
+            d -= alpha[k] * history[k].y;
+        }
+        if (!history.empty()) {
+            const Pair& last = history.back();
+            d *= 1.0 / (last.rho * last.y.squaredNorm());
+        }
+        for (std::size_t k = 0; k < history.size(); ++k) {
+            const double beta = history[k].rho * history[k].y.dot(d);
+            d += (alpha[k] - beta) * history[k].s;
+        }
+        d = -d;
+        double slope = g.dot(d);
+        // H is positive definite in exact arithmetic; should rounding make d uphill anyway,
+        // forget the history and fall back to steepest descent.
+        if (!(slope < 0.0) || !std::isfinite(slope)) {
+            history.clear();
+            d = -g;
+            slope = g.dot(d);
+        }
+        // Without curvature information the step length of −g has no scale: start at
+        // min(1, 1/‖g‖) so that the first trial moves x by at most 1.
+        double step = history.empty() ? std::min(1.0, 1.0 / g.norm()) : 1.0;
+
+        // Armijo backtracking: halve until f(x + αd) ≤ f(x) + c₁ α gᵀd. A non-finite value or
+        // gradient at the trial point counts as a failed trial.
+        bool accepted = false;
+        double f_trial = f;
+        for (int ls = 0; ls < options.max_line_search; ++ls, step *= 0.5) {
+            Eigen::Map<Vec>(trial.data(), en) = xv + step * d;
+            f_trial = evaluate(trial, trial_gradient);
+            if (std::isfinite(f_trial) && f_trial <= f + c1 * step * slope && all_finite(trial_gradient)) {
+                accepted = true;
+                break;
+            }
+        }
+        if (!accepted) break;  // x stays at the last accepted point; converged stays false
+
+        const Vec x_new = Eigen::Map<const Vec>(trial.data(), en);
+        const Vec g_new = Eigen::Map<const Vec>(trial_gradient.data(), en);
+        Vec s = x_new - xv, y = g_new - g;
+        const double sy = s.dot(y);
+        // Keep the pair only with enough positive curvature, so that H stays positive definite.
+        if (sy > curvature_skip * s.norm() * y.norm()) {
+            if (static_cast<int>(history.size()) == options.history) history.pop_front();
+            history.push_back({std::move(s), std::move(y), 1.0 / sy});
+        }
+        xv = x_new;
+        g = g_new;
+        f = f_trial;
+        x = trial;
+        ++result.iterations;
+        result.value = f;
+        result.converged = g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance;
+        if (on_iteration && !on_iteration(result.iterations, f)) break;
+    }
+    return result;
+}
+
+}  // namespace wavebrdf
