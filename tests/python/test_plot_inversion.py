@@ -1,0 +1,152 @@
+"""Tests for scripts/plot_inversion.py (run: /usr/bin/python3 -m pytest -q tests/python)."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+SCRIPT = os.path.join(ROOT, "scripts", "plot_inversion.py")
+sys.path.insert(0, os.path.join(ROOT, "scripts"))
+
+import plot_inversion as pi  # noqa: E402
+import matplotlib.image as mpimg  # noqa: E402
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+HEADER = "epoch,loss,brdf_mse,cmsle_1,cmsle_0.001,rgb_mse,rgb_gamma_mse,height_mse,seconds"
+
+
+def build_dir(root, channels=3, truth=True, epochs=(0, 10, 30), n=16, size=24, all_epochs=(0, 10, 30, 100, 300),
+              n_rows=31):
+    """A synthetic `wavebrdf invert --out` directory with random data."""
+    rng = np.random.default_rng(channels * 10 + truth)
+    d = root / ("run_c%d_%s" % (channels, "truth" if truth else "notruth"))
+    (d / "snapshots").mkdir(parents=True)
+    (d / "run.json").write_text(json.dumps({
+        "title": "synthetic %d-channel run" % channels, "snapshot_epochs": list(all_epochs),
+        "channels": channels, "resolution": n, "texel_um": 0.5, "truth": truth, "ignored": [1, 2]}))
+    lines = [HEADER]
+    for e in range(n_rows):
+        decay = np.exp(-e / 10.0)
+        vals = [decay * rng.uniform(0.5, 2.0) for _ in range(6)]
+        hm = "nan" if not truth else repr(0.3 * decay + 0.01)
+        lines.append(",".join([str(e)] + [repr(v) for v in vals] + [hm, repr(0.1 * e)]))
+    (d / "metrics.csv").write_text("\n".join(lines) + "\n")
+    if truth:
+        np.save(d / "truth_height.npy", rng.normal(0, 0.2, (size, size)))
+    np.save(d / "reference.npy", rng.exponential(1.0, (n, n, channels)))
+    for e in epochs:
+        np.save(d / "snapshots" / ("height_%04d.npy" % e), rng.normal(0, 0.1, (size, size)))
+        np.save(d / "snapshots" / ("slice_%04d.npy" % e), rng.exponential(1.0, (n, n, channels)))
+        np.save(d / "snapshots" / ("gradient_%04d.npy" % e), rng.normal(0, 1e-3, (size, size)))
+    return d
+
+
+def check_png(path, min_w, min_h):
+    assert os.path.isfile(path)
+    with open(path, "rb") as f:
+        assert f.read(8) == PNG_MAGIC
+    img = mpimg.imread(path)
+    h, w = img.shape[:2]
+    assert min_w <= w <= 4000 and min_h <= h <= 4000, (w, h)
+    # Not a blank canvas.
+    assert float(np.ptp(img[..., :3])) > 0.2
+    return w, h
+
+
+@pytest.mark.parametrize("channels,truth", [(1, True), (3, True), (3, False)])
+def test_report_and_curves(tmp_path, channels, truth):
+    d = build_dir(tmp_path, channels=channels, truth=truth)
+    report = pi.make_report(str(d))
+    curves = pi.make_curves(str(d))
+    assert report == os.path.join(str(d), "report.png")
+    assert curves == os.path.join(str(d), "curves.png")
+    w, h = check_png(report, 500, 800)
+    assert h > w  # five rows of three columns
+    check_png(curves, 500, 350)
+    # No temporary files left behind.
+    assert sorted(p.name for p in d.iterdir() if p.name.startswith(".")) == []
+
+
+def test_main_writes_both_and_prints_paths(tmp_path, capsys):
+    d = build_dir(tmp_path, channels=1, truth=False)
+    assert pi.main([str(d)]) == 0
+    out = capsys.readouterr().out.split()
+    assert out == [os.path.join(str(d), "report.png"), os.path.join(str(d), "curves.png")]
+    for p in out:
+        check_png(p, 300, 300)
+
+
+def test_command_line(tmp_path):
+    d = build_dir(tmp_path, channels=3, truth=True, epochs=(0, 10, 30, 100, 300), n=64, size=256)
+    r = subprocess.run([sys.executable, SCRIPT, str(d)], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [str(d / "report.png"), str(d / "curves.png")]
+    w, h = check_png(str(d / "report.png"), 1000, 1000)
+    assert w < 2500 and h < 2500
+
+
+def test_missing_metrics_exit_2(tmp_path, capsys):
+    d = build_dir(tmp_path, channels=3, truth=True)
+    os.remove(d / "metrics.csv")
+    assert pi.main([str(d)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "metrics.csv" in err[0]
+    assert not (d / "report.png").exists() and not (d / "curves.png").exists()
+    r = subprocess.run([sys.executable, SCRIPT, str(d)], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "metrics.csv" in r.stderr and r.stdout == ""
+
+
+def test_missing_dir_exit_2(tmp_path, capsys):
+    missing = tmp_path / "nope"
+    assert pi.main([str(missing)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(missing) in err[0]
+
+
+def test_interrupted_run(tmp_path):
+    """Only some snapshots, a missing gradient, a torn .npy, a partial last CSV line."""
+    d = build_dir(tmp_path, channels=1, truth=True, epochs=(0, 10))
+    os.remove(d / "snapshots" / "gradient_0010.npy")
+    (d / "snapshots" / "slice_0010.npy").write_bytes(b"\x93NUMPY garbage")
+    with open(d / "metrics.csv", "a") as f:
+        f.write("31,0.1,0.2")
+    assert pi.main([str(d)]) == 0
+    check_png(str(d / "report.png"), 300, 600)
+    check_png(str(d / "curves.png"), 300, 300)
+
+
+def test_no_snapshots_no_reference(tmp_path):
+    d = build_dir(tmp_path, channels=3, truth=False, epochs=())
+    os.remove(d / "reference.npy")
+    os.remove(d / "run.json")
+    assert pi.main([str(d)]) == 0
+    check_png(str(d / "report.png"), 200, 200)
+
+
+def test_read_metrics_normalisation(tmp_path):
+    d = build_dir(tmp_path, channels=3, truth=False)
+    header, cols = pi.read_metrics(str(d))
+    assert header == HEADER.split(",")
+    assert len(cols["epoch"]) == 31 and cols["epoch"][0] == 0
+    assert np.isnan(cols["height_mse"]).all()
+
+
+def test_tonemap():
+    ref = np.zeros((8, 8, 1))
+    ref[3, 4] = 10.0
+    scale = pi.tonemap_scale(ref)
+    assert np.percentile(ref, 99.9) * scale == pytest.approx(4.0)
+    img = pi.tonemap(ref, scale)
+    assert img.shape == (8, 8)
+    assert img[0, 0] == 0.0
+    x = 10.0 * scale
+    assert img[3, 4] == pytest.approx((x / (1 + x)) ** (1 / 2.2))
+    assert 0 < img.max() < 1
+    rgb = pi.tonemap(np.ones((4, 4, 3)), 1.0)
+    assert rgb.shape == (4, 4, 3)
+    assert rgb[0, 0, 0] == pytest.approx(0.5 ** (1 / 2.2))
+    err = pi.squared_error(np.ones((4, 4, 3)), np.zeros((4, 4, 3)))
+    assert err.shape == (4, 4) and (err == 3.0).all()
