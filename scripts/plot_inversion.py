@@ -20,6 +20,7 @@ import csv
 import json
 import math
 import os
+import textwrap
 import re
 import sys
 import tempfile
@@ -389,7 +390,8 @@ def make_curves(d):
     run = _load_run(d)
     header, cols = read_metrics(d)
     fig, ax = plt.subplots(figsize=(8.0, 5.2), layout="constrained")
-    ax.set_title(_title(run, d), fontsize=12, fontweight="bold")
+    # The curves figure is narrower than the report: wrap long titles instead of cutting them.
+    ax.set_title("\n".join(textwrap.wrap(_title(run, d), 70)), fontsize=11, fontweight="bold")
     ax.set_xlabel("epoch")
     ax.set_ylabel("metric / metric at epoch 0")
     ax.set_yscale("log")
