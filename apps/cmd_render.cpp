@@ -71,7 +71,7 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--light-x", a->query.omega_i[0], "projected light direction, x")->capture_default_str();
     cmd->add_option("--light-y", a->query.omega_i[1], "projected light direction, y")->capture_default_str();
     cmd->add_option("--resolution", a->job.resolution, "slice size n (n x n pixels, 1-8192)")->capture_default_str();
-    cmd->add_option("--out", a->job.out_exr, "output EXR (float RGB)");
+    cmd->add_option("--out", a->job.out_exr, "output EXR (float RGB), or .npy (n x n x 3 float64)");
     cmd->add_option("--png", a->job.png, "tonemapped 8-bit sRGB preview");
     cmd->add_option("--exposure", a->job.exposure, "preview exposure in stops")->capture_default_str();
     cmd->add_flag("--reinhard", a->job.tonemap, "preview: Reinhard x/(1+x) before the sRGB curve");

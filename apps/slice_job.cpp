@@ -39,7 +39,16 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-    if (!job.out_exr.empty()) write_rgb_exr(job.out_exr, image, job.with_alpha);
+    const auto ends_with = [](const std::string& s, const std::string& tail) {
+        return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+    };
+    if (!job.out_exr.empty() && ends_with(job.out_exr, ".npy")) {
+        // NumPy output (n, n, 3) float64, for scripts that have no EXR reader.
+        write_npy(job.out_exr, {std::size_t(image.rows), std::size_t(image.cols), 3},
+                  std::vector<double>(image.data.begin(), image.data.end()));
+    } else if (!job.out_exr.empty()) {
+        write_rgb_exr(job.out_exr, image, job.with_alpha);
+    }
     if (!job.png.empty()) write_rgb_png(job.png, image, job.exposure, job.tonemap);
     if (!job.quiet) {
         float peak = 0.0f;
