@@ -5,6 +5,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 (cd build && ctest --output-on-failure -j"$(nproc)")
+echo "test: Python (pytest)"
+/usr/bin/python3 -m pytest -q tests/python
 
 echo "test: sanitizer build (ASan + UBSan)"
 cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWAVEBRDF_SANITIZE=ON \
