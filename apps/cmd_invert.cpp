@@ -36,8 +36,11 @@ struct InvertArgs {
     std::string truth, observations, init = "flat", size = "16";
     double texel_um = 1.0, vscale = 1.0, x_um = NAN, y_um = NAN, sigma_p_um = 4.0;
     std::string model = "OHS";
-    double lambda_um = 0.0;
-    int spectral = 0;
+    double lambda_um = 0.0;  // used only when given_lambda
+    int spectral = 0;        // used only when given_spectral
+    // Whether the option was given, not its value: --spectral 0 and --lambda-um 0 are errors,
+    // not "absent". Not in run.json: a stored run has a non-zero value exactly when given.
+    bool given_lambda = false, given_spectral = false;
     double light_x = 0.0, light_y = 0.0;
     int resolution = 32, epochs = 300;
     std::string optimizer = "adam", loss = "cmsle:1", positions = "fixed";
@@ -69,12 +72,14 @@ InvertArgs from_json(const nlohmann::json& j) {
     a.size = j.at("size");
     a.texel_um = j.at("texel_um");
     a.vscale = j.at("vscale");
-    a.x_um = j.at("x_um").is_null() ? NAN : j.at("x_um").get<double>();
-    a.y_um = j.at("y_um").is_null() ? NAN : j.at("y_um").get<double>();
+    a.x_um = j.at("x_um").is_null() ? double(NAN) : j.at("x_um").get<double>();
+    a.y_um = j.at("y_um").is_null() ? double(NAN) : j.at("y_um").get<double>();
     a.sigma_p_um = j.at("sigma_p_um");
     a.model = j.at("model");
     a.lambda_um = j.at("lambda_um");
     a.spectral = j.at("spectral");
+    a.given_lambda = a.lambda_um != 0.0;
+    a.given_spectral = a.spectral != 0;
     a.light_x = j.at("light_x");
     a.light_y = j.at("light_y");
     a.resolution = j.at("resolution");
@@ -242,13 +247,17 @@ void run(InvertArgs a) {
 
     // Wavelengths.
     std::vector<double> lambdas;
-    if (a.spectral != 0 && a.lambda_um != 0.0)
+    if (a.given_spectral && a.given_lambda)
         throw std::invalid_argument("--lambda-um and --spectral exclude each other");
-    if (a.lambda_um != 0.0) {
-        validate_lambda(a.lambda_um);
+    if (a.given_lambda) {
+        try {
+            validate_lambda(a.lambda_um);
+        } catch (const std::exception& e) {
+            throw std::domain_error("--lambda-um: " + std::string(e.what()));
+        }
         lambdas = {a.lambda_um};
     } else {
-        const int count = a.spectral == 0 ? 8 : a.spectral;
+        const int count = a.given_spectral ? a.spectral : 8;
         if (count < 1 || count > 256)
             throw std::domain_error("--spectral " + std::to_string(count) + " is out of range; expected 1 to 256");
         lambdas = spectral_wavelengths_um(count);
@@ -457,8 +466,8 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--y-um", a->y_um, "footprint centre y in um (default: tile centre)");
     cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um")->capture_default_str();
     cmd->add_option("--model", a->model, "OHS, GHS, ROHS, RGHS or Kirchhoff")->capture_default_str();
-    cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default: --spectral 8)");
-    cmd->add_option("--spectral", a->spectral, "N wavelengths, CIE 1931 to linear sRGB (default 8)");
+    auto* lambda = cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default: --spectral 8)");
+    auto* spectral = cmd->add_option("--spectral", a->spectral, "N wavelengths, CIE 1931 to linear sRGB (default 8)");
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
     cmd->add_option("--resolution", a->resolution, "slice size n")->capture_default_str();
@@ -478,7 +487,11 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
-    cmd->callback([a] { run(*a); });
+    cmd->callback([a, lambda, spectral] {
+        a->given_lambda = lambda->count() > 0;
+        a->given_spectral = spectral->count() > 0;
+        run(*a);
+    });
 }
 
 }  // namespace wavebrdf::cli

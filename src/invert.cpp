@@ -36,6 +36,45 @@ struct Fingerprint {
     void add(int v) { add(&v, sizeof v); }
 };
 
+// The values the fingerprint covers, by name, so that a mismatched checkpoint can say which
+// of them differ (the observations as a hash of their own).
+nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings& s,
+                           const std::vector<Observation>& observations) {
+    Fingerprint f;
+    for (const Observation& o : observations) {
+        f.add(o.query.x_um);
+        f.add(o.query.y_um);
+        f.add(o.query.sigma_p_um);
+        f.add(o.query.omega_i[0]);
+        f.add(o.query.omega_i[1]);
+        f.add(int(o.query.model));
+        f.add(o.resolution);
+        for (double l : o.lambdas_um) f.add(l);
+        for (double r : o.reference) f.add(r);
+    }
+    std::ostringstream hash;
+    hash << std::hex << f.h;
+    return {{"size", std::to_string(estimate.rows()) + "x" + std::to_string(estimate.cols())},
+            {"texel_um", estimate.texel_um()}, {"vscale", estimate.vscale()}, {"loss", to_string(s.loss)},
+            {"optimizer", s.optimizer == OptimizerKind::Adam ? "adam" : "lbfgs"}, {"lr", s.adam.lr},
+            {"beta1", s.adam.beta1}, {"beta2", s.adam.beta2}, {"adam_epsilon", s.adam.epsilon},
+            {"decay", s.adam.decay}, {"positions", s.positions == PositionMode::Fixed ? "fixed" : "random"},
+            {"seed", s.seed}, {"observations", observations.size()}, {"observations_hash", hash.str()}};
+}
+
+// "lr 0.01 in the checkpoint, 0.02 now; …" for the entries of `now` that differ in `saved`.
+std::string describe_differences(const nlohmann::json& saved, const nlohmann::json& now) {
+    const auto text = [](const nlohmann::json& v) { return v.is_string() ? v.get<std::string>() : v.dump(); };
+    std::string out;
+    for (const auto& [key, value] : now.items()) {
+        if (saved.contains(key) && saved[key] == value) continue;
+        if (!out.empty()) out += "; ";
+        out += key + " " + (saved.contains(key) ? text(saved[key]) : std::string("(absent)")) +
+               " in the checkpoint, " + text(value) + " now";
+    }
+    return out;
+}
+
 }  // namespace
 
 Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
@@ -204,6 +243,7 @@ void Inversion::save_checkpoint(const std::string& path) const {
     nlohmann::json j;
     j["format"] = "wavebrdf-checkpoint-1";
     j["fingerprint"] = fingerprint();
+    j["run"] = run_summary(m_estimate, m_settings, m_observations);
     j["epoch"] = m_epoch;
     j["seconds"] = m_history.empty() ? m_seconds_before : m_history.back().seconds;
     j["rows"] = m_estimate.rows();
@@ -238,9 +278,14 @@ void Inversion::load_checkpoint(const std::string& path) {
         j = nlohmann::json::parse(in);
         if (j.at("format").get<std::string>() != "wavebrdf-checkpoint-1")
             throw std::runtime_error(path + ": unknown checkpoint format");
-        if (j.at("fingerprint").get<std::string>() != fingerprint())
-            throw std::runtime_error(path + ": the checkpoint belongs to a different run (settings, "
-                                            "observations or seed differ); expected the same options as the run it came from");
+        if (j.at("fingerprint").get<std::string>() != fingerprint()) {
+            const std::string differences =
+                j.contains("run") ? describe_differences(j["run"], run_summary(m_estimate, m_settings, m_observations))
+                                  : std::string();
+            throw std::runtime_error(path + ": the checkpoint belongs to a different run (" +
+                                     (differences.empty() ? "settings, observations or seed differ" : differences) +
+                                     "); expected the same options as the run it came from");
+        }
         if (j.at("rows").get<int>() != m_estimate.rows() || j.at("cols").get<int>() != m_estimate.cols())
             throw std::runtime_error(path + ": checkpoint size differs from the heightfield");
         Adam::State state;
