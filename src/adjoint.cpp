@@ -92,14 +92,7 @@ SliceAdjoint<Float>::SliceAdjoint(const Heightfield& hf, const Query& query, dou
     s.slice.assign(static_cast<std::size_t>(n) * n, Float(0));
     if (s.separable) {
         s.separable_field = detail::separable_field<Float>(s.kernels, query, lambda_um, n, options.progress);
-        for (int p = 0; p < n; ++p)
-            for (int q = 0; q < n; ++q) {
-                const double ox = slice_omega(p, n), oy = slice_omega(q, n);
-                if (ox * ox + oy * oy > 1.0) continue;
-                const double v = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1 *
-                                 double(std::norm(s.separable_field(p, q)));
-                s.slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(v) ? Float(v) : Float(0);
-            }
+        s.slice = detail::separable_slice<Float>(s.separable_field, query, lambda_um, n);
     } else {
         s.direct = detail::direct_field(s.kernels, query, lambda_um, n, options.prune_tolerance, options.progress);
         for (std::size_t at = 0; at < s.slice.size(); ++at) s.slice[at] = Float(s.direct.value[at]);

@@ -36,11 +36,8 @@ struct Fingerprint {
     void add(int v) { add(&v, sizeof v); }
 };
 
-// The values the fingerprint covers, by name, so that a mismatched checkpoint can say which
-// of them differ (the observations as a hash of their own).
-nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings& s,
-                           const std::vector<Observation>& observations) {
-    Fingerprint f;
+// Everything about the observations that defines a run, references included.
+void add_observations(Fingerprint& f, const std::vector<Observation>& observations) {
     for (const Observation& o : observations) {
         f.add(o.query.x_um);
         f.add(o.query.y_um);
@@ -52,6 +49,14 @@ nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings&
         for (double l : o.lambdas_um) f.add(l);
         for (double r : o.reference) f.add(r);
     }
+}
+
+// The values the fingerprint covers, by name, so that a mismatched checkpoint can say which
+// of them differ (the observations as a hash of their own).
+nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings& s,
+                           const std::vector<Observation>& observations) {
+    Fingerprint f;
+    add_observations(f, observations);
     std::ostringstream hash;
     hash << std::hex << f.h;
     return {{"size", std::to_string(estimate.rows()) + "x" + std::to_string(estimate.cols())},
@@ -223,17 +228,7 @@ std::string Inversion::fingerprint() const {
     f.add(m_settings.adam.decay);
     f.add(int(m_settings.positions));
     f.add(m_settings.seed);
-    for (const Observation& o : m_observations) {
-        f.add(o.query.x_um);
-        f.add(o.query.y_um);
-        f.add(o.query.sigma_p_um);
-        f.add(o.query.omega_i[0]);
-        f.add(o.query.omega_i[1]);
-        f.add(int(o.query.model));
-        f.add(o.resolution);
-        for (double l : o.lambdas_um) f.add(l);
-        for (double r : o.reference) f.add(r);
-    }
+    add_observations(f, m_observations);
     std::ostringstream out;
     out << std::hex << f.h;
     return out.str();

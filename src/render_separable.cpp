@@ -54,19 +54,7 @@ std::vector<Float> render_slice_separable(const FootprintKernels& k, const Query
         throw std::invalid_argument(std::string("model ") + to_string(query.model) +
                                     " is not separable; expected OHS or ROHS");
     const detail::ComplexMatrix<Float> field = detail::separable_field<Float>(k, query, lambda_um, n, progress);
-    std::vector<Float> slice(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Float(0));
-#pragma omp parallel for schedule(static)
-    for (int p = 0; p < n; ++p) {
-        const double ox = slice_omega(p, n);
-        for (int q = 0; q < n; ++q) {
-            const double oy = slice_omega(q, n);
-            if (ox * ox + oy * oy > 1.0) continue;
-            const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
-            const double value = f.c1 * static_cast<double>(std::norm(field(p, q)));
-            slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(value) ? Float(value) : Float(0);
-        }
-    }
-    return slice;
+    return detail::separable_slice<Float>(field, query, lambda_um, n);
 }
 
 template std::vector<float> render_slice_separable<float>(const FootprintKernels&, const Query&,

@@ -3,6 +3,7 @@
 // (render_separable.cpp) and its adjoint (adjoint_separable.cpp).
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cmath>
 #include <complex>
 #include <vector>
 
@@ -108,6 +109,25 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
             ys(p, c) = Complex(std::exp(-gauss * vy * vy) * (w * py[p]));
         }
     }
+}
+
+// f = c1 |I|² over the disk (0 outside it and where the value is not finite), row-major.
+template <typename Float>
+std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Query& query,
+                                   double lambda_um, int n) {
+    std::vector<Float> slice(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Float(0));
+#pragma omp parallel for schedule(static)
+    for (int p = 0; p < n; ++p) {
+        const double ox = slice_omega(p, n);
+        for (int q = 0; q < n; ++q) {
+            const double oy = slice_omega(q, n);
+            if (ox * ox + oy * oy > 1.0) continue;
+            const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
+            const double value = f.c1 * static_cast<double>(std::norm(field(p, q)));
+            slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(value) ? Float(value) : Float(0);
+        }
+    }
+    return slice;
 }
 
 // The field I(u_x[p], u_y[q]) = Σ_k X[p,k] w_k Y[q,k] of the slice, n × n.

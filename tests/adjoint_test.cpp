@@ -8,21 +8,13 @@
 #include "wavebrdf/adjoint.h"
 
 using namespace wavebrdf;
+using wavebrdf::test::make_query;
 using wavebrdf::test::random_heightfield;
 
 namespace {
 
 const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
 
-Query make_query(Model model, double x, double y, double sigma_p, double wx, double wy) {
-    Query q;
-    q.model = model;
-    q.x_um = x;
-    q.y_um = y;
-    q.sigma_p_um = sigma_p;
-    q.omega_i = {wx, wy};
-    return q;
-}
 
 std::vector<double> random_vector(std::size_t size, std::uint64_t seed) {
     std::mt19937_64 rng(seed);

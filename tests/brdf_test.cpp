@@ -12,6 +12,7 @@
 using namespace wavebrdf;
 using wavebrdf::test::max_abs;
 using wavebrdf::test::max_abs_diff;
+using wavebrdf::test::make_query;
 using wavebrdf::test::random_heightfield;
 
 namespace {
@@ -19,15 +20,6 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
 
-Query make_query(Model model, double x, double y, double sigma_p, double wx = 0.0, double wy = 0.0) {
-    Query q;
-    q.model = model;
-    q.x_um = x;
-    q.y_um = y;
-    q.sigma_p_um = sigma_p;
-    q.omega_i = {wx, wy};
-    return q;
-}
 
 // MODEL.md written out literally: absolute kernel positions μ_k, C_k and a_k as stated,
 // ĝ_k(u) = C_k exp(−2π²σ²|u + a_k|²) e^{−i2π(u + a_k)·μ_k}, no algebraic shortcut. Only valid

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "wavebrdf/heightfield.h"
+#include "wavebrdf/model.h"
 
 namespace wavebrdf::test {
 
@@ -27,6 +28,17 @@ inline Heightfield random_heightfield(int rows, int cols, double amplitude, std:
     // White noise on top, so that no symmetry hides a sign or index error.
     for (auto& x : v) x += 0.2 * amplitude * (uni(rng) - 0.5);
     return Heightfield(rows, cols, std::move(v), texel_um, vscale);
+}
+
+inline Query make_query(Model model, double x, double y, double sigma_p, double wx = 0.0,
+                        double wy = 0.0) {
+    Query q;
+    q.model = model;
+    q.x_um = x;
+    q.y_um = y;
+    q.sigma_p_um = sigma_p;
+    q.omega_i = {wx, wy};
+    return q;
 }
 
 inline double max_abs(const std::vector<double>& v) {
