@@ -8,6 +8,7 @@
 #include <omp.h>
 
 #include "direct.h"
+#include "parallel.h"
 #include "wavebrdf/adjoint.h"
 
 namespace wavebrdf::detail {
@@ -55,9 +56,10 @@ void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um
 KernelGradient direct_backward(const FootprintKernels& k, const Query& query, double lambda_um,
                                int n, const DirectField& forward, const std::vector<double>& weights) {
     const std::size_t total = k.size();
-    const int threads = omp_get_max_threads();
+    const bool parallel = worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(total));
+    const int threads = parallel ? omp_get_max_threads() : 1;
     std::vector<KernelGradient> partial(static_cast<std::size_t>(threads));
-#pragma omp parallel
+#pragma omp parallel if (parallel) num_threads(threads)
     {
         KernelGradient& g = partial[static_cast<std::size_t>(omp_get_thread_num())];
         g.height.assign(total, 0.0);
@@ -98,7 +100,7 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
 std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query, double lambda_um,
                                    int n, const DirectField& forward, const KernelGradient& dk) {
     std::vector<double> out(static_cast<std::size_t>(n) * n, 0.0);
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
     for (int p = 0; p < n; ++p) {
         const double ox = slice_omega(p, n);
         for (int q = 0; q < n; ++q) {

@@ -21,7 +21,7 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     const SliceGrid grid(query, lambda_um, n);
     const PhaseTables phases(k, grid);
     ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
     for (int p = 0; p < n; ++p) {
         const double ox = slice_omega(p, n);
         for (int q = 0; q < n; ++q) {
@@ -48,9 +48,12 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
         const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
         build_factors<Float>(k, grid, phases, lambda_um, k0, count, false, xs, ys);
-        z.leftCols(count).noalias() = b * ys.leftCols(count);
-        v.leftCols(count).noalias() = b.transpose() * xs.leftCols(count);
-#pragma omp parallel for schedule(static)
+        // Z = B·Y and V = Bᵀ·X, split over kernels (columns).
+        for_column_blocks(count, 2.0 * double(n) * n * double(count), [&](long long first, long long cols) {
+            z.middleCols(first, cols).noalias() = b * ys.middleCols(first, cols);
+            v.middleCols(first, cols).noalias() = b.transpose() * xs.middleCols(first, cols);
+        });
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(count) * n))
         for (Eigen::Index c = 0; c < count; ++c) {
             const std::size_t idx = static_cast<std::size_t>(k0 + c);
             const double ax = two_over_lambda * k.slope_x[idx];

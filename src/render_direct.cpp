@@ -10,6 +10,7 @@
 
 #include "wavebrdf/brdf.h"
 #include "direct.h"
+#include "parallel.h"
 #include "wavebrdf/progress.h"
 
 namespace wavebrdf {
@@ -84,7 +85,7 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
                                           : std::numeric_limits<double>::infinity();
     const long long units = work_units(n);
     for (int attempt = 0;; ++attempt) {
-#pragma omp parallel for schedule(dynamic, 1)
+#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
         for (int p = 0; p < n; ++p) {
             const double ox = slice_omega(p, n);
             for (int q = 0; q < n; ++q) {

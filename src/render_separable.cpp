@@ -31,7 +31,10 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& que
     for (Eigen::Index k0 = 0; k0 < total; k0 += chunk) {
         const Eigen::Index count = std::min(chunk, total - k0);
         build_factors<Float>(k, grid, phases, lambda_um, k0, count, true, xs, ys);
-        field.noalias() += xs.leftCols(count) * ys.leftCols(count).transpose();
+        for_column_blocks(n, double(n) * n * double(count), [&](long long first, long long cols) {
+            field.middleCols(first, cols).noalias() +=
+                xs.leftCols(count) * ys.leftCols(count).middleRows(first, cols).transpose();
+        });
         if (progress) {
             const long long target = units * (k0 + count) / total;
             progress->advance(target - reported);

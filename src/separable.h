@@ -7,6 +7,7 @@
 #include <complex>
 #include <vector>
 
+#include "parallel.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/model.h"
 
@@ -94,7 +95,7 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
     const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
     const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;  // 2π²σ²
     const double two_over_lambda = 2.0 / lambda_um;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(count) * n))
     for (Eigen::Index c = 0; c < count; ++c) {
         const std::size_t idx = static_cast<std::size_t>(k0 + c);
         const double ax = two_over_lambda * k.slope_x[idx];
@@ -116,7 +117,7 @@ template <typename Float>
 std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Query& query,
                                    double lambda_um, int n) {
     std::vector<Float> slice(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Float(0));
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
     for (int p = 0; p < n; ++p) {
         const double ox = slice_omega(p, n);
         for (int q = 0; q < n; ++q) {
