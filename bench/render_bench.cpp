@@ -1,5 +1,6 @@
 // Forward-renderer benchmarks (issue: 128×128 slice with 8 wavelengths of a 1024×1024
-// heightfield at σ_p = 10 µm; a 256×256 slice). Run: build/bin/render_bench (Google
+// heightfield at σ_p = 10 µm; a 256×256 slice), and gradients (gradient_tile_*: the cases of
+// the PyTorch baseline, bench/torch_reference.py). Run: build/bin/render_bench (Google
 // Benchmark; report the median of --benchmark_repetitions). Counters:
 //   kernels   footprint kernels K (within 3σ_p)
 //   GFLOP/s   8·n²·K flops per wavelength (one complex multiply-add per pixel and kernel,
@@ -81,5 +82,59 @@ static void gradient_float(benchmark::State& state, Model model, int resolution)
 BENCHMARK_CAPTURE(gradient_float, ohs_128_mono_float, Model::OHS, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(slice_float, ohs_128_mono_float, Model::OHS, 128, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(gradient_float, ohs_256_mono_float, Model::OHS, 256)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Gradient on a whole small tile, footprint at its centre (the PyTorch-autograd baseline,
+// bench/torch_reference.py): the thesis's size (16×16 heights, σ_p = 4 µm, so all 256 texels
+// are kernels, 32×32 slice) and 256×256 heights at σ_p = 10 µm with a 128×128 slice. OHS,
+// λ = 0.5 µm, Σ W·f with W = 1.
+namespace {
+
+// The same generator as surface(), on a size × size tile.
+Heightfield isotropic_tile(int size) {
+    SurfaceParams p;
+    p.type = SurfaceType::Isotropic;
+    p.rows = p.cols = size;
+    p.rms_height_um = 0.05;
+    p.correlation_um = 4.0;
+    p.seed = 1;
+    return generate_heightfield(p);
+}
+
+const Heightfield& tile(int size) {
+    static const Heightfield thesis = isotropic_tile(16), large = isotropic_tile(256);
+    return size == 16 ? thesis : large;
+}
+
+template <typename Float>
+void run_tile_gradient(benchmark::State& state, int size, double sigma_p_um, int resolution) {
+    const Heightfield& hf = tile(size);
+    Query q;
+    q.model = Model::OHS;
+    q.x_um = q.y_um = 0.5 * size * hf.texel_um();
+    q.sigma_p_um = sigma_p_um;
+    const std::vector<Float> weights(static_cast<std::size_t>(resolution) * resolution, Float(1));
+    std::vector<double> grad;
+    for (auto _ : state) {
+        grad.assign(hf.values().size(), 0.0);
+        auto f = slice_gradient<Float>(hf, q, 0.5, resolution, weights, grad);
+        benchmark::DoNotOptimize(f.data());
+        benchmark::DoNotOptimize(grad.data());
+    }
+    state.counters["kernels"] = double(footprint_kernels(hf, q.x_um, q.y_um, q.sigma_p_um).size());
+}
+
+void gradient_tile_float(benchmark::State& s, int size, double sigma_p_um, int n) {
+    run_tile_gradient<float>(s, size, sigma_p_um, n);
+}
+void gradient_tile_double(benchmark::State& s, int size, double sigma_p_um, int n) {
+    run_tile_gradient<double>(s, size, sigma_p_um, n);
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(gradient_tile_float, thesis_16_sigma4_32_float, 16, 4.0, 32)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(gradient_tile_double, thesis_16_sigma4_32_double, 16, 4.0, 32)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(gradient_tile_float, tile_256_sigma10_128_float, 256, 10.0, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(gradient_tile_double, tile_256_sigma10_128_double, 256, 10.0, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();
