@@ -29,9 +29,10 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     const auto start = std::chrono::steady_clock::now();
     RgbImage image;
     image.rows = image.cols = job.resolution;
+    std::vector<double> full;  // the double-precision slice, kept for .npy output
     if (job.use_double) {
-        const auto rgb = render_rgb<double>(heightfield, query, job.lambdas_um, job.resolution, job.options);
-        image.data.assign(rgb.begin(), rgb.end());
+        full = render_rgb<double>(heightfield, query, job.lambdas_um, job.resolution, job.options);
+        image.data.assign(full.begin(), full.end());
     } else {
         image.data = render_rgb<float>(heightfield, query, job.lambdas_um, job.resolution, job.options);
     }
@@ -45,7 +46,7 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     if (!job.out_exr.empty() && ends_with(job.out_exr, ".npy")) {
         // NumPy output (n, n, 3) float64, for scripts that have no EXR reader.
         write_npy(job.out_exr, {std::size_t(image.rows), std::size_t(image.cols), 3},
-                  std::vector<double>(image.data.begin(), image.data.end()));
+                  job.use_double ? full : std::vector<double>(image.data.begin(), image.data.end()));
     } else if (!job.out_exr.empty()) {
         write_rgb_exr(job.out_exr, image, job.with_alpha);
     }
