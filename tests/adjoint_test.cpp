@@ -9,20 +9,13 @@
 
 using namespace wavebrdf;
 using wavebrdf::test::make_query;
+using wavebrdf::test::uniform_vector;
 using wavebrdf::test::random_heightfield;
 
 namespace {
 
 const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
 
-
-std::vector<double> random_vector(std::size_t size, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> uni(-1.0, 1.0);
-    std::vector<double> v(size);
-    for (double& x : v) x = uni(rng);
-    return v;
-}
 
 RenderOptions with_path(RenderPath path) {
     RenderOptions o;
@@ -50,7 +43,7 @@ TEST(AdjointTest, GradientMatchesFiniteDifferences) {
     const Heightfield hf = random_heightfield(14, 12, 0.35, 17, 0.9, 1.2);
     const int n = 20;
     const double lambda = 0.6;
-    const auto weights = random_vector(static_cast<std::size_t>(n) * n, 3);
+    const auto weights = uniform_vector(static_cast<std::size_t>(n) * n, -1.0, 1.0, 3);
     for (Model m : kModels) {
         const Query q = make_query(m, 5.5, 6.0, 2.2, 0.15, -0.2);  // footprint wraps the tile
         for (RenderPath path : paths_for(m)) {
@@ -77,8 +70,8 @@ TEST(AdjointTest, DotProductIdentityWithTheTangent) {
     const Heightfield hf = random_heightfield(16, 18, 0.4, 23, 1.0, 1.0);
     const int n = 24;
     const double lambda = 0.5;
-    const auto y = random_vector(static_cast<std::size_t>(n) * n, 5);
-    const auto x = random_vector(hf.values().size(), 6);
+    const auto y = uniform_vector(static_cast<std::size_t>(n) * n, -1.0, 1.0, 5);
+    const auto x = uniform_vector(hf.values().size(), -1.0, 1.0, 6);
     for (Model m : kModels) {
         const Query q = make_query(m, 8.0, 9.0, 2.5, -0.1, 0.3);
         const auto jx = slice_tangent_direct(hf, q, lambda, n, x);
@@ -101,7 +94,7 @@ TEST(AdjointTest, GradientSumsToZero) {
     // Adding a constant to every height changes no slice, so the gradient has zero sum.
     const Heightfield hf = random_heightfield(20, 20, 0.4, 29, 1.0, 1.0);
     const int n = 24;
-    const auto w = random_vector(static_cast<std::size_t>(n) * n, 8);
+    const auto w = uniform_vector(static_cast<std::size_t>(n) * n, -1.0, 1.0, 8);
     for (Model m : kModels) {
         const Query q = make_query(m, 10.0, 10.0, 3.0, 0.2, 0.1);
         std::vector<double> grad;
@@ -118,7 +111,7 @@ TEST(AdjointTest, GradientSumsToZero) {
 TEST(AdjointTest, SeparableAndDirectGradientsAgree) {
     const Heightfield hf = random_heightfield(40, 36, 0.4, 31, 1.0, 1.0);
     const int n = 32;
-    const auto w = random_vector(static_cast<std::size_t>(n) * n, 9);
+    const auto w = uniform_vector(static_cast<std::size_t>(n) * n, -1.0, 1.0, 9);
     for (Model m : {Model::OHS, Model::ROHS}) {
         const Query q = make_query(m, 3.0, 30.0, 4.0, 0.25, -0.3);
         std::vector<double> gs, gd;
@@ -131,7 +124,7 @@ TEST(AdjointTest, SeparableAndDirectGradientsAgree) {
 TEST(AdjointTest, FloatGradientAgreesWithDouble) {
     const Heightfield hf = random_heightfield(48, 48, 0.4, 37, 1.0, 1.0);
     const int n = 32;
-    const auto w = random_vector(static_cast<std::size_t>(n) * n, 10);
+    const auto w = uniform_vector(static_cast<std::size_t>(n) * n, -1.0, 1.0, 10);
     const std::vector<float> wf(w.begin(), w.end());
     const Query q = make_query(Model::OHS, 20.0, 20.0, 5.0, 0.0, 0.1);
     std::vector<double> gd, gf;

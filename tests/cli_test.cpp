@@ -22,55 +22,19 @@
 #include <ImfOutputFile.h>
 #include <gtest/gtest.h>
 
+#include "cli_util.h"
 #include "wavebrdf/io.h"
 
 namespace fs = std::filesystem;
+using namespace wavebrdf::test;
 
 namespace {
-
-struct CliResult {
-    int exit_code = -1;  // the process's exit status; -1 when it did not exit normally
-    std::string out;     // stdout
-    std::string err;     // stderr
-};
-
-std::string read_text(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-// Single-quoted for /bin/sh (an embedded ' becomes '\'').
-std::string quote(const std::string& text) {
-    std::string q = "'";
-    for (char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
-
-// stderr without its trailing newline, split into lines.
-std::vector<std::string> lines_of(std::string text) {
-    while (!text.empty() && text.back() == '\n') text.pop_back();
-    std::vector<std::string> lines;
-    if (text.empty()) return lines;
-    std::size_t start = 0;
-    for (;;) {
-        const std::size_t end = text.find('\n', start);
-        lines.push_back(text.substr(start, end - start));
-        if (end == std::string::npos) return lines;
-        start = end + 1;
-    }
-}
 
 // A fresh directory per test (named after it and the process, since ctest may run the tests
 // in parallel), so that leftovers from one test cannot satisfy another's checks.
 class CliTest : public ::testing::Test {
 protected:
-    void SetUp() override {
-        const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        m_dir = fs::path(WAVEBRDF_TEST_TMP) / "cli" /
-                (std::string(info->name()) + "-" + std::to_string(::getpid()));
-        fs::remove_all(m_dir);
-        fs::create_directories(m_dir);
-    }
+    void SetUp() override { m_dir = fresh_dir("cli"); }
     void TearDown() override {
         if (!HasFailure()) fs::remove_all(m_dir);
     }
@@ -78,22 +42,7 @@ protected:
     fs::path path(const std::string& name) const { return m_dir / name; }
     std::string qpath(const std::string& name) const { return quote(path(name).string()); }
 
-    // Runs `wavebrdf args` in the test directory, stdout and stderr to files (so stderr is
-    // not a terminal, as in a script).
-    CliResult run(const std::string& args) const {
-        const fs::path out = m_dir / "stdout.txt", err = m_dir / "stderr.txt";
-        const std::string command = "cd " + quote(m_dir.string()) + " && " + quote(WAVEBRDF_CLI) +
-                                    " " + args + " > " + quote(out.string()) + " 2> " +
-                                    quote(err.string()) + " < /dev/null";
-        const int status = std::system(command.c_str());
-        CliResult r;
-        r.exit_code = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        r.out = read_text(out);
-        r.err = read_text(err);
-        fs::remove(out);
-        fs::remove(err);
-        return r;
-    }
+    CliResult run(const std::string& args) const { return run_cli(m_dir, args); }
 
     // A small random heightfield written by the tool itself; returns its path.
     std::string make_heightfield(const std::string& name = "h.exr", const std::string& size = "64") {
@@ -109,13 +58,7 @@ protected:
     // option); no file at any of `outputs` and no temporary `*.tmp-*` beside them.
     void expect_clean_failure(const CliResult& r, const std::vector<std::string>& needles,
                               const std::vector<fs::path>& outputs) const {
-        EXPECT_NE(r.exit_code, 0);
-        EXPECT_NE(r.exit_code, -1) << "did not exit normally (crashed?)";
-        const std::vector<std::string> lines = lines_of(r.err);
-        ASSERT_EQ(lines.size(), 1u) << "stderr:\n" << r.err;
-        for (const std::string& needle : needles)
-            EXPECT_NE(lines[0].find(needle), std::string::npos)
-                << "message does not name '" << needle << "': " << lines[0];
+        if (!expect_one_line_naming(r, needles)) return;
         for (const fs::path& output : outputs) {
             EXPECT_FALSE(fs::exists(output)) << output << " was left behind";
             const fs::path dir = output.parent_path();

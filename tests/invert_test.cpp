@@ -30,6 +30,7 @@
 #include <ImfOutputFile.h>
 #include <gtest/gtest.h>
 
+#include "cli_util.h"
 #include "test_util.h"
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
@@ -37,6 +38,7 @@
 
 namespace fs = std::filesystem;
 using namespace wavebrdf;
+using namespace wavebrdf::test;
 
 namespace {
 
@@ -65,21 +67,6 @@ InversionSettings tiny_settings(int epochs) {
     return s;
 }
 
-std::string read_text(const fs::path& path) {
-    std::ifstream in(path, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-// A per-test scratch directory (named after the test and the process, as in cli_test.cpp).
-fs::path fresh_dir(const std::string& group) {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const fs::path dir = fs::path(WAVEBRDF_TEST_TMP) / group /
-                         (std::string(info->name()) + "-" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir;
-}
-
 // Runs `f`, expecting exception E whose message contains every one of `needles`.
 template <typename E, typename F>
 void expect_throw_naming(F&& f, const std::vector<std::string>& needles) {
@@ -96,33 +83,7 @@ void expect_throw_naming(F&& f, const std::vector<std::string>& needles) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The fixture: a fresh directory per test, and the CLI helpers of cli_test.cpp.
-
-struct CliResult {
-    int exit_code = -1;  // the process's exit status; -1 when it did not exit normally
-    std::string out;
-    std::string err;
-};
-
-// Single-quoted for /bin/sh.
-std::string quote(const std::string& text) {
-    std::string q = "'";
-    for (char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return q + "'";
-}
-
-std::vector<std::string> lines_of(std::string text) {
-    while (!text.empty() && text.back() == '\n') text.pop_back();
-    std::vector<std::string> lines;
-    if (text.empty()) return lines;
-    std::size_t start = 0;
-    for (;;) {
-        const std::size_t end = text.find('\n', start);
-        lines.push_back(text.substr(start, end - start));
-        if (end == std::string::npos) return lines;
-        start = end + 1;
-    }
-}
+// The fixture: a fresh directory per test and the CLI helpers of cli_util.h.
 
 // A single-wavelength tiny run, fast enough (< 1 s) for every test below.
 const std::string kSmall = " --size 8 --sigma-p-um 2 --resolution 16 --no-plots --quiet";
@@ -136,19 +97,7 @@ protected:
 
     fs::path path(const std::string& name) const { return m_dir / name; }
 
-    CliResult run(const std::string& args) const {
-        const fs::path out = m_dir / "stdout.txt", err = m_dir / "stderr.txt";
-        const std::string command = "cd " + quote(m_dir.string()) + " && " + quote(WAVEBRDF_CLI) + " " + args +
-                                    " > " + quote(out.string()) + " 2> " + quote(err.string()) + " < /dev/null";
-        const int status = std::system(command.c_str());
-        CliResult r;
-        r.exit_code = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-        r.out = read_text(out);
-        r.err = read_text(err);
-        fs::remove(out);
-        fs::remove(err);
-        return r;
-    }
+    CliResult run(const std::string& args) const { return run_cli(m_dir, args); }
 
     // `invert` with the tiny defaults; --epochs 20 and --lambda-um 0.5 unless `extra` sets them.
     CliResult invert(const std::string& extra) const {
@@ -165,13 +114,7 @@ protected:
     // any of `absent` (nor a temporary file in the test directory).
     void expect_clean_failure(const CliResult& r, const std::vector<std::string>& needles,
                               const std::vector<fs::path>& absent) const {
-        EXPECT_NE(r.exit_code, 0);
-        EXPECT_NE(r.exit_code, -1) << "did not exit normally (crashed?)";
-        const std::vector<std::string> lines = lines_of(r.err);
-        ASSERT_EQ(lines.size(), 1u) << "stderr:\n" << r.err;
-        for (const std::string& needle : needles)
-            EXPECT_NE(lines[0].find(needle), std::string::npos)
-                << "message does not name '" << needle << "': " << lines[0];
+        if (!expect_one_line_naming(r, needles)) return;
         for (const fs::path& p : absent) EXPECT_FALSE(fs::exists(p)) << p << " was left behind";
         for (const auto& entry : fs::recursive_directory_iterator(m_dir))
             EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos)

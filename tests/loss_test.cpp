@@ -2,6 +2,8 @@
 // finite differences (double), zeros at equality, invariances, and parse/validation errors.
 #include <gtest/gtest.h>
 
+#include "test_util.h"
+
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -11,16 +13,9 @@
 #include "wavebrdf/loss.h"
 
 using namespace wavebrdf;
+using wavebrdf::test::uniform_vector;
 
 namespace {
-
-std::vector<double> uniform_vector(std::size_t size, double lo, double hi, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> uni(lo, hi);
-    std::vector<double> v(size);
-    for (double& x : v) x = uni(rng);
-    return v;
-}
 
 // ∂loss/∂estimate[i] by central differences with one Richardson extrapolation,
 // (4 D(h/2) − D(h)) / 3, whose O(h⁴) error lets a relative tolerance of 1e-7 test the

@@ -3,6 +3,8 @@
 // its callback, evaluation count and failure modes.
 #include <gtest/gtest.h>
 
+#include "test_util.h"
+
 #include <Eigen/Dense>
 
 #include <cmath>
@@ -15,16 +17,9 @@
 #include "wavebrdf/optim.h"
 
 using namespace wavebrdf;
+using wavebrdf::test::uniform_vector;
 
 namespace {
-
-std::vector<double> uniform_vector(std::size_t size, double lo, double hi, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> uni(lo, hi);
-    std::vector<double> v(size);
-    for (double& x : v) x = uni(rng);
-    return v;
-}
 
 // f(x) = Σ a_i (x_i − c_i)², a separable quadratic with curvatures a_i.
 struct Quadratic {

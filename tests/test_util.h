@@ -41,6 +41,15 @@ inline Query make_query(Model model, double x, double y, double sigma_p, double 
     return q;
 }
 
+// `size` values drawn uniformly from [lo, hi), seeded.
+inline std::vector<double> uniform_vector(std::size_t size, double lo, double hi, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> uni(lo, hi);
+    std::vector<double> v(size);
+    for (double& x : v) x = uni(rng);
+    return v;
+}
+
 inline double max_abs(const std::vector<double>& v) {
     double m = 0.0;
     for (double x : v) m = std::max(m, std::abs(x));

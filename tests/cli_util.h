@@ -1,0 +1,95 @@
+#pragma once
+// Helpers shared by the end-to-end tests of the `wavebrdf` executable (cli_test.cpp,
+// invert_test.cpp): running it with stdout and stderr captured, per-test scratch directories,
+// and the check every bad input must pass.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+namespace wavebrdf::test {
+
+namespace fs = std::filesystem;
+
+struct CliResult {
+    int exit_code = -1;  // the process's exit status; -1 when it did not exit normally
+    std::string out;     // stdout
+    std::string err;     // stderr
+};
+
+inline std::string read_text(const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Single-quoted for /bin/sh (an embedded ' becomes '\'').
+inline std::string quote(const std::string& text) {
+    std::string q = "'";
+    for (char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+
+// Text without its trailing newlines, split into lines.
+inline std::vector<std::string> lines_of(std::string text) {
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    std::vector<std::string> lines;
+    if (text.empty()) return lines;
+    std::size_t start = 0;
+    for (;;) {
+        const std::size_t end = text.find('\n', start);
+        lines.push_back(text.substr(start, end - start));
+        if (end == std::string::npos) return lines;
+        start = end + 1;
+    }
+}
+
+// A fresh directory per test under WAVEBRDF_TEST_TMP/group (named after the test and the
+// process, since ctest may run tests in parallel), so leftovers of one test cannot satisfy
+// another's checks.
+inline fs::path fresh_dir(const std::string& group) {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const fs::path dir = fs::path(WAVEBRDF_TEST_TMP) / group /
+                         (std::string(info->name()) + "-" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir;
+}
+
+// Runs `wavebrdf args` in `dir`, stdout and stderr to files (so stderr is not a terminal, as in
+// a script), stdin from /dev/null.
+inline CliResult run_cli(const fs::path& dir, const std::string& args) {
+    const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
+    const std::string command = "cd " + quote(dir.string()) + " && " + quote(WAVEBRDF_CLI) + " " + args +
+                                " > " + quote(out.string()) + " 2> " + quote(err.string()) + " < /dev/null";
+    const int status = std::system(command.c_str());
+    CliResult r;
+    r.exit_code = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    r.out = read_text(out);
+    r.err = read_text(err);
+    fs::remove(out);
+    fs::remove(err);
+    return r;
+}
+
+// A failed run: non-zero exit (not a crash) and exactly one line on stderr (a trailing newline
+// aside) that contains every one of `needles`. Returns false when the line count is wrong.
+inline bool expect_one_line_naming(const CliResult& r, const std::vector<std::string>& needles) {
+    EXPECT_NE(r.exit_code, 0);
+    EXPECT_NE(r.exit_code, -1) << "did not exit normally (crashed?)";
+    const std::vector<std::string> lines = lines_of(r.err);
+    EXPECT_EQ(lines.size(), 1u) << "stderr:\n" << r.err;
+    if (lines.size() != 1) return false;
+    for (const std::string& needle : needles)
+        EXPECT_NE(lines[0].find(needle), std::string::npos)
+            << "message does not name '" << needle << "': " << lines[0];
+    return true;
+}
+
+}  // namespace wavebrdf::test
