@@ -14,38 +14,22 @@
 namespace wavebrdf::detail {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 // Calls visit(k, dt_dH, dt_dsx, dt_dsy) for every kernel term of pixel (ox, oy).
 template <typename Visit>
 void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um, double ox,
                  double oy, double cutoff, Visit&& visit) {
-    const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
-    const double ux = (query.omega_i[0] + ox) / lambda_um;
-    const double uy = (query.omega_i[1] + oy) / lambda_um;
-    const double scale = f.phase_scale;
-    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
-    const double freq = scale * 2.0 / lambda_um;
-    const double height_phase = scale * 4.0 * kPi / lambda_um;
-    const bool kirchhoff = query.model == Model::Kirchhoff;
-    const double hx = query.omega_i[0] + ox, hy = query.omega_i[1] + oy;
-    const double hz = f.cos_theta_i + f.cos_theta_o;
+    const PixelTerms terms(k, query, lambda_um, ox, oy);
+    PixelTerms::Term term;
     for (std::size_t i = 0; i < k.size(); ++i) {
-        const double vx = ux + freq * k.slope_x[i];
-        const double vy = uy + freq * k.slope_y[i];
-        const double exponent = gauss * (vx * vx + vy * vy);
-        if (exponent > cutoff) continue;
-        const double phase =
-            -(height_phase * k.height_um[i] + 2.0 * kPi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
-        const std::complex<double> base = std::polar(k.weight[i] * std::exp(-exponent), phase);
-        const double c2 = kirchhoff ? hz - hx * k.slope_x[i] - hy * k.slope_y[i] : 1.0;
-        const std::complex<double> t = base * c2;
-        const std::complex<double> dt_dh = std::complex<double>(0.0, -height_phase) * t;
-        std::complex<double> dt_dsx = (-2.0 * gauss * vx * freq) * t;
-        std::complex<double> dt_dsy = (-2.0 * gauss * vy * freq) * t;
-        if (kirchhoff) {
-            dt_dsx -= hx * base;
-            dt_dsy -= hy * base;
+        if (!terms.evaluate(i, cutoff, term)) continue;
+        const std::complex<double> t = term.base * term.c2;
+        const std::complex<double> dt_dh = std::complex<double>(0.0, -terms.height_phase) * t;
+        std::complex<double> dt_dsx = (-2.0 * terms.gauss * term.vx * terms.freq) * t;
+        std::complex<double> dt_dsy = (-2.0 * terms.gauss * term.vy * terms.freq) * t;
+        if (terms.kirchhoff) {  // ∂C2/∂s = −(ω_i + ω_o)_xy
+            dt_dsx -= terms.hx * term.base;
+            dt_dsy -= terms.hy * term.base;
         }
         visit(i, dt_dh, dt_dsx, dt_dsy);
     }

@@ -1,6 +1,7 @@
 #pragma once
 // Internal: the direct sum's per-pixel field, shared by the forward pass (render_direct.cpp)
 // and its adjoint and tangent (adjoint_direct.cpp).
+#include <cmath>
 #include <complex>
 #include <vector>
 
@@ -12,6 +13,56 @@ class Progress;
 }
 
 namespace wavebrdf::detail {
+
+constexpr double kDirectPi = 3.14159265358979323846;
+
+// One pixel of the direct sum (MODEL.md, "BRDF"), shared by the forward pass, its adjoint and
+// its tangent: the per-pixel constants, and each kernel's term
+//   t_k = base_k · c2_k,  base_k = c_k w² exp(−E_k) e^{iΦ_k},  E_k = 2π²σ²|u + S a_k|²,
+//   Φ_k = −(4π/λ) S H_k − 2π u·δ_k,  c2_k = C2 for Kirchhoff (1 otherwise)
+// with u = (ω_i + ω_o)/λ, S = C3/2 for the GHS-type models (1 otherwise), a_k = 2 s_k / λ.
+struct PixelTerms {
+    struct Term {
+        double vx, vy;              // u + S a_k, the Gaussian's argument
+        std::complex<double> base;  // c_k w² exp(−E_k) e^{iΦ_k}
+        double c2;                  // Kirchhoff's C2, else 1
+    };
+
+    PixelTerms(const FootprintKernels& kernels, const Query& query, double lambda_um, double ox,
+               double oy)
+        : k(kernels), factors(direction_factors(query.model, query.omega_i, ox, oy, lambda_um)) {
+        ux = (query.omega_i[0] + ox) / lambda_um;
+        uy = (query.omega_i[1] + oy) / lambda_um;
+        gauss = 2.0 * kDirectPi * kDirectPi * k.sigma_um * k.sigma_um;
+        freq = factors.phase_scale * 2.0 / lambda_um;
+        height_phase = factors.phase_scale * 4.0 * kDirectPi / lambda_um;
+        kirchhoff = query.model == Model::Kirchhoff;
+        hx = query.omega_i[0] + ox;
+        hy = query.omega_i[1] + oy;
+        hz = factors.cos_theta_i + factors.cos_theta_o;
+    }
+
+    // Kernel i's term; false (and `out` untouched) when its exponent exceeds `cutoff`.
+    bool evaluate(std::size_t i, double cutoff, Term& out) const {
+        const double vx = ux + freq * k.slope_x[i];
+        const double vy = uy + freq * k.slope_y[i];
+        const double exponent = gauss * (vx * vx + vy * vy);
+        if (exponent > cutoff) return false;
+        const double phase =
+            -(height_phase * k.height_um[i] + 2.0 * kDirectPi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
+        out.vx = vx;
+        out.vy = vy;
+        out.base = std::polar(k.weight[i] * std::exp(-exponent), phase);
+        // Kirchhoff: C2 = (ω_o + ω_i)·m / m_z with m ∝ (−s, 1), the kernel's own (unscaled) slope.
+        out.c2 = kirchhoff ? hz - hx * k.slope_x[i] - hy * k.slope_y[i] : 1.0;
+        return true;
+    }
+
+    const FootprintKernels& k;
+    DirectionFactors factors;
+    double ux, uy, gauss, freq, height_phase, hx, hy, hz;
+    bool kirchhoff;
+};
 
 struct DirectField {
     std::vector<std::complex<double>> field;  // I per pixel (0 outside the disk)

@@ -16,7 +16,6 @@
 namespace wavebrdf {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 struct PixelSum {
     std::complex<double> field;
@@ -26,32 +25,12 @@ struct PixelSum {
 // The sum at one pixel, skipping kernels whose Gaussian exponent exceeds `cutoff`.
 PixelSum sum_pixel(const FootprintKernels& k, const Query& query, double lambda_um, double ox,
                    double oy, double cutoff) {
-    const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
-    const double ux = (query.omega_i[0] + ox) / lambda_um;
-    const double uy = (query.omega_i[1] + oy) / lambda_um;
-    const double scale = f.phase_scale;
-    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
-    const double freq = scale * 2.0 / lambda_um;             // a_k = S · 2 s_k / λ
-    const double height_phase = scale * 4.0 * kPi / lambda_um;
-    const bool kirchhoff = query.model == Model::Kirchhoff;
-    const double hx = query.omega_i[0] + ox, hy = query.omega_i[1] + oy;
-    const double hz = f.cos_theta_i + f.cos_theta_o;
-
+    const detail::PixelTerms terms(k, query, lambda_um, ox, oy);
+    detail::PixelTerms::Term t;
     std::complex<double> sum = 0.0;
-    const std::size_t count = k.size();
-    for (std::size_t i = 0; i < count; ++i) {
-        const double vx = ux + freq * k.slope_x[i];
-        const double vy = uy + freq * k.slope_y[i];
-        const double exponent = gauss * (vx * vx + vy * vy);
-        if (exponent > cutoff) continue;
-        double amplitude = k.weight[i] * std::exp(-exponent);
-        // Kirchhoff: C2 = (ω_o + ω_i)·m / m_z with m ∝ (−s, 1), the kernel's own (unscaled) slope.
-        if (kirchhoff) amplitude *= hz - hx * k.slope_x[i] - hy * k.slope_y[i];
-        const double phase =
-            -(height_phase * k.height_um[i] + 2.0 * kPi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
-        sum += std::polar(amplitude, phase);
-    }
-    return {sum, f.c1};
+    for (std::size_t i = 0; i < k.size(); ++i)
+        if (terms.evaluate(i, cutoff, t)) sum += t.base * t.c2;
+    return {sum, terms.factors.c1};
 }
 
 // Upper bound on Σ_k c_k w² |K2_k|, the amplitude the pruned kernels can at most carry
