@@ -13,7 +13,8 @@ namespace wavebrdf {
 namespace detail {
 template <typename Float>
 KernelGradient separable_backward(const FootprintKernels&, const Query&, double, int,
-                                  const ComplexMatrix<Float>&, const std::vector<Float>&);
+                                  const ComplexMatrix<Float>&, const std::vector<Float>&,
+                                  const SeparableFactors<Float>*);
 KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int,
                                const DirectField&, const std::vector<double>&);
 std::vector<double> direct_tangent(const FootprintKernels&, const Query&, double, int,
@@ -72,6 +73,7 @@ struct SliceAdjoint<Float>::State {
     FootprintKernels kernels;
     bool separable;
     detail::ComplexMatrix<Float> separable_field;  // separable path
+    detail::SeparableFactors<Float> factors;        // the forward's factors, when one chunk
     detail::DirectField direct;                     // direct path
     std::vector<Float> slice;
 };
@@ -91,7 +93,8 @@ SliceAdjoint<Float>::SliceAdjoint(const Heightfield& hf, const Query& query, dou
                   (options.path == RenderPath::Auto && is_separable(query.model));
     s.slice.assign(static_cast<std::size_t>(n) * n, Float(0));
     if (s.separable) {
-        s.separable_field = detail::separable_field<Float>(s.kernels, query, lambda_um, n, options.progress);
+        s.separable_field = detail::separable_field<Float>(s.kernels, query, lambda_um, n, options.progress,
+                                                           &s.factors);
         s.slice = detail::separable_slice<Float>(s.separable_field, query, lambda_um, n);
     } else {
         s.direct = detail::direct_field(s.kernels, query, lambda_um, n, options.prune_tolerance, options.progress);
@@ -121,7 +124,8 @@ void SliceAdjoint<Float>::backward(const std::vector<Float>& weights, std::vecto
         throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
                                     " entries; expected rows*cols = " + std::to_string(cells));
     const KernelGradient g =
-        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, s.lambda_um, s.n, s.separable_field, weights)
+        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, s.lambda_um, s.n, s.separable_field,
+                                                      weights, &s.factors)
                     : detail::direct_backward(s.kernels, s.query, s.lambda_um, s.n, s.direct,
                                               std::vector<double>(weights.begin(), weights.end()));
     scatter_to_heights(*s.heightfield, s.kernels, g, gradient);

@@ -2,11 +2,14 @@
 // B[p,q] = W[p,q] c1[p,q] conj(I[p,q]), a loss L = Σ W f has dL = 2 Re Σ_pq B dI, and
 //   dI[p,q] = Σ_k X[p,k] Y[q,k] dw_k + w_k (∂_a X[p,k] Y[q,k] da_kx + X[p,k] ∂_a Y[q,k] da_ky)
 // with dw_k = −i(4π/λ) w_k dH_k, ∂_a X[p,k] = −4π²σ²(u_x[p] + a_kx) X[p,k], da = (2/λ) ds.
-// So with Z = B·Y and V = Bᵀ·X (two matrix products of the forward's size):
-//   ∂L/∂H_k  = 2 Re[−i(4π/λ) w_k Σ_p X[p,k] Z[p,k]]
-//   ∂L/∂s_kx = 2 Re[(2/λ) w_k Σ_p ∂_a X[p,k] Z[p,k]],  ∂L/∂s_ky likewise with Y and V.
+// With the forward's weighted factor Y_w = Y·diag(w), Z = B·Y_w and V = Bᵀ·X (two matrix
+// products of the forward's size):
+//   ∂L/∂H_k  = 2 Re[−i(4π/λ) Σ_p X[p,k] Z[p,k]]
+//   ∂L/∂s_kx = 2 Re[(2/λ) Σ_p ∂_a X[p,k] Z[p,k]],  ∂L/∂s_ky = 2 Re[(2/λ) Σ_q ∂_a Y_w[q,k] V[q,k]].
+// The factors are the forward's own when it kept them (one chunk), else rebuilt chunk by chunk.
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "separable.h"
 #include "wavebrdf/adjoint.h"
@@ -16,10 +19,10 @@ namespace wavebrdf::detail {
 template <typename Float>
 KernelGradient separable_backward(const FootprintKernels& k, const Query& query, double lambda_um,
                                   int n, const ComplexMatrix<Float>& field,
-                                  const std::vector<Float>& weights) {
+                                  const std::vector<Float>& weights,
+                                  const SeparableFactors<Float>* kept) {
     using Complex = std::complex<Float>;
     const SliceGrid grid(query, lambda_um, n);
-    const PhaseTables phases(k, grid);
     ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
     for (int p = 0; p < n; ++p) {
@@ -40,15 +43,25 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     g.height.assign(total, 0.0);
     g.slope_x.assign(total, 0.0);
     g.slope_y.assign(total, 0.0);
-    const Eigen::Index chunk = chunk_size(n, sizeof(Complex), 4);
+    const bool reuse = kept && !kept->empty() && kept->xs.cols() == Eigen::Index(total);
+    const std::optional<PhaseTables> phases = reuse ? std::nullopt : std::optional<PhaseTables>(std::in_place, k, grid);
+    const Eigen::Index chunk = reuse ? Eigen::Index(total) : chunk_size(n, sizeof(Complex), 4);
     const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
-    ComplexMatrix<Float> xs(n, cols), ys(n, cols), z(n, cols), v(n, cols);
+    ComplexMatrix<Float> built_xs, built_ys;
+    if (!reuse) {
+        built_xs.resize(n, cols);
+        built_ys.resize(n, cols);
+    }
+    const ComplexMatrix<Float>& xs = reuse ? kept->xs : built_xs;
+    const ComplexMatrix<Float>& ys = reuse ? kept->ys : built_ys;
+    ComplexMatrix<Float> z(n, cols), v(n, cols);
     const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
     const double two_over_lambda = 2.0 / lambda_um;
+    const std::complex<double> height_factor(0.0, -4.0 * kPi / lambda_um);
     for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
         const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
-        build_factors<Float>(k, grid, phases, lambda_um, k0, count, false, xs, ys);
-        // Z = B·Y and V = Bᵀ·X, split over kernels (columns).
+        if (!reuse) build_factors<Float>(k, grid, *phases, lambda_um, k0, count, true, built_xs, built_ys);
+        // Z = B·Y_w and V = Bᵀ·X, split over kernels (columns).
         for_column_blocks(count, 2.0 * double(n) * n * double(count), [&](long long first, long long cols) {
             z.middleCols(first, cols).noalias() = b * ys.middleCols(first, cols);
             v.middleCols(first, cols).noalias() = b.transpose() * xs.middleCols(first, cols);
@@ -66,18 +79,19 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
                 t2 += -2.0 * gauss * (grid.uy[p] + ay) * std::complex<double>(ys(p, c)) *
                       std::complex<double>(v(p, c));
             }
-            const std::complex<double> w = kernel_weight(k, idx, lambda_um);
-            g.height[idx] = 2.0 * std::real(std::complex<double>(0.0, -4.0 * kPi / lambda_um) * w * t0);
-            g.slope_x[idx] = 2.0 * std::real(two_over_lambda * w * t1);
-            g.slope_y[idx] = 2.0 * std::real(two_over_lambda * w * t2);
+            g.height[idx] = 2.0 * std::real(height_factor * t0);
+            g.slope_x[idx] = 2.0 * std::real(two_over_lambda * t1);
+            g.slope_y[idx] = 2.0 * std::real(two_over_lambda * t2);
         }
     }
     return g;
 }
 
 template KernelGradient separable_backward<float>(const FootprintKernels&, const Query&, double, int,
-                                                  const ComplexMatrix<float>&, const std::vector<float>&);
+                                                  const ComplexMatrix<float>&, const std::vector<float>&,
+                                                  const SeparableFactors<float>*);
 template KernelGradient separable_backward<double>(const FootprintKernels&, const Query&, double, int,
-                                                   const ComplexMatrix<double>&, const std::vector<double>&);
+                                                   const ComplexMatrix<double>&, const std::vector<double>&,
+                                                   const SeparableFactors<double>*);
 
 }  // namespace wavebrdf::detail

@@ -18,7 +18,8 @@ namespace detail {
 
 template <typename Float>
 ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& query,
-                                     double lambda_um, int n, Progress* progress) {
+                                     double lambda_um, int n, Progress* progress,
+                                     SeparableFactors<Float>* keep) {
     const SliceGrid grid(query, lambda_um, n);
     const PhaseTables phases(k, grid);
     const Eigen::Index total = static_cast<Eigen::Index>(k.size());
@@ -42,11 +43,17 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& que
         }
     }
     if (progress && reported < units) progress->advance(units - reported);
+    if (keep && total > 0 && total <= chunk) {
+        keep->xs = std::move(xs);
+        keep->ys = std::move(ys);
+    }
     return field;
 }
 
-template ComplexMatrix<float> separable_field<float>(const FootprintKernels&, const Query&, double, int, Progress*);
-template ComplexMatrix<double> separable_field<double>(const FootprintKernels&, const Query&, double, int, Progress*);
+template ComplexMatrix<float> separable_field<float>(const FootprintKernels&, const Query&, double, int,
+                                                    Progress*, SeparableFactors<float>*);
+template ComplexMatrix<double> separable_field<double>(const FootprintKernels&, const Query&, double, int,
+                                                      Progress*, SeparableFactors<double>*);
 
 }  // namespace detail
 

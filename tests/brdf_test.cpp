@@ -105,6 +105,17 @@ TEST(BrdfTest, SeparableMatchesDirectSum) {
     }
 }
 
+// The separable factors carry their Gaussians by recurrence from the peak: check a fine grid
+// (many steps) with slopes steep enough to put some peaks off the slice.
+TEST(BrdfTest, SeparableMatchesDirectSumOnFineGridsWithSteepSlopes) {
+    const Heightfield hf = random_heightfield(16, 16, 0.5, 5, 1.0, 1.0);
+    const Query q = make_query(Model::OHS, 5.0, 9.0, 2.0, 0.2, -0.1);
+    const auto d = direct(hf, q, 0.5, 320);
+    const auto s = separable(hf, q, 0.5, 320);
+    EXPECT_LT(max_abs_diff(d, s), 1e-11 * max_abs(d));
+    EXPECT_GT(max_abs(d), 0.0);
+}
+
 TEST(BrdfTest, FloatAgreesWithDouble) {
     const Heightfield hf = random_heightfield(64, 64, 0.4, 3, 1.0, 1.0);
     const Query q = make_query(Model::OHS, 30.0, 20.0, 6.0, 0.1, 0.0);
