@@ -16,6 +16,11 @@
 
 namespace wavebrdf::detail {
 
+// When the adjoint rebuilds factors, it holds four n × chunk matrices (X, Y_w, Z, V): a chunk
+// of 512 kernels keeps its peak below the forward's (two n × 2048) at no measurable cost in
+// the products (256² heights, 128² slice: 10.6 → 7.0 MiB peak in float).
+constexpr Eigen::Index kAdjointChunkColumns = 512;
+
 template <typename Float>
 KernelGradient separable_backward(const FootprintKernels& k, const Query& query, double lambda_um,
                                   int n, const ComplexMatrix<Float>& field,
@@ -45,7 +50,7 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     g.slope_y.assign(total, 0.0);
     const bool reuse = kept && !kept->empty() && kept->xs.cols() == Eigen::Index(total);
     const std::optional<PhaseTables> phases = reuse ? std::nullopt : std::optional<PhaseTables>(std::in_place, k, grid);
-    const Eigen::Index chunk = reuse ? Eigen::Index(total) : chunk_size(n, sizeof(Complex), 4);
+    const Eigen::Index chunk = reuse ? Eigen::Index(total) : chunk_size(n, sizeof(Complex), 4, kAdjointChunkColumns);
     const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
     ComplexMatrix<Float> built_xs, built_ys;
     if (!reuse) {

@@ -33,12 +33,14 @@ struct SliceGrid {
     }
 };
 
-// Kernels per chunk: long enough for an efficient matrix product, small enough that the
-// factor matrices (`matrices` of them, n × chunk complex) stay within ~32 MiB.
-inline Eigen::Index chunk_size(int n, std::size_t bytes_per_entry, int matrices) {
+// Kernels per chunk: long enough for an efficient matrix product (at least 64, at most
+// `max_columns`), small enough that the factor matrices (`matrices` of them, n × chunk complex)
+// stay within ~32 MiB.
+inline Eigen::Index chunk_size(int n, std::size_t bytes_per_entry, int matrices,
+                               Eigen::Index max_columns = 2048) {
     const Eigen::Index budget = (Eigen::Index(32) << 20) /
                                 (Eigen::Index(matrices) * n * Eigen::Index(bytes_per_entry));
-    return std::max<Eigen::Index>(64, std::min<Eigen::Index>(2048, budget));
+    return std::max<Eigen::Index>(64, std::min<Eigen::Index>(max_columns, budget));
 }
 
 // w_k = c_k w² e^{−i(4π/λ) H_k}: the kernel's complex weight.
