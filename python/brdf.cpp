@@ -1,0 +1,279 @@
+// Rendering slices and their vector-Jacobian products (brdf.h, adjoint.h), the Query, and the
+// spectral helpers (spectrum.h).
+//
+// RGB and the adjoint: a slice is always (n, n, 3). One wavelength λ gives R = G = B = f_λ, so
+// the gradient of Σ W·slice is that of Σ_p (W_R + W_G + W_B)[p] · f_λ[p]. Several wavelengths
+// give channel c = Σ_l M[c, l] f_l with M the library's CIE 1931 → linear sRGB weights
+// (spectral_to_srgb_weights, as render_rgb and observation_loss use), so the gradient is
+// Σ_l of the single-wavelength adjoint with weights w_l[p] = Σ_c M[c, l] W_c[p].
+#include "common.h"
+#include "gabor_rep.h"
+#include "wavebrdf/adjoint.h"
+#include "wavebrdf/brdf.h"
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf::python {
+
+using namespace pybind11::literals;
+
+namespace {
+
+template <typename Float>
+py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n) {
+    std::vector<Float> rgb;
+    {
+        py::gil_scoped_release release;
+        rgb = render_rgb<Float>(hf, q.query, q.lambdas_um, n);
+    }
+    return owning_array(std::move(rgb), {n, n, 3});
+}
+
+// ∂(Σ W · rgb)/∂h (rows·cols, texel units) for RGB weights W (n²·3), see the top of this file.
+template <typename Float>
+std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n, const std::vector<double>& weights) {
+    py::gil_scoped_release release;
+    const std::size_t pixels = static_cast<std::size_t>(n) * n;
+    const std::size_t count = q.lambdas_um.size();
+    const std::vector<double> mix = count == 1 ? std::vector<double>{1.0, 1.0, 1.0} : spectral_to_srgb_weights(q.lambdas_um);
+    std::vector<double> gradient;
+    std::vector<Float> w(pixels);
+    for (std::size_t l = 0; l < count; ++l) {
+        for (std::size_t p = 0; p < pixels; ++p)
+            w[p] = Float(mix[l] * weights[3 * p] + mix[count + l] * weights[3 * p + 1] +
+                         mix[2 * count + l] * weights[3 * p + 2]);
+        slice_gradient<Float>(hf, q.query, q.lambdas_um[l], n, w, gradient);
+    }
+    return gradient;
+}
+
+std::vector<double> weights_argument(py::handle weights, int n) {
+    const py::array w = float_array(weights, "weights");
+    check_shape(w, {n, n, 3}, "weights");
+    return to_doubles(w, "weights");
+}
+
+py::array gradient_array(std::vector<double>&& g, const Heightfield& hf, bool single) {
+    if (!single) return owning_array(std::move(g), {hf.rows(), hf.cols()});
+    return owning_array(std::vector<float>(g.begin(), g.end()), {hf.rows(), hf.cols()});
+}
+
+bool double_precision(const std::string& precision) {
+    if (precision == "double") return true;
+    if (precision == "float") return false;
+    bad_argument("precision", "'" + precision + "'", "'float' or 'double'");
+}
+
+// The plain functions' arguments, checked in the order of the signature.
+struct Plain {
+    Heightfield hf;
+    bool single;
+    PyQuery q;
+};
+
+Plain plain_arguments(py::handle heights, double texel_um, double vscale, double x_um, double y_um, double sigma_p_um,
+                      const py::object& lambda_um, const py::object& spectral, const py::object& light, int resolution,
+                      const std::string& model) {
+    const py::array h = float_array(heights, "heights");
+    const bool single = is_float32(h);
+    Heightfield hf = heightfield_from_array(h, "heights", texel_um, vscale);
+    check_resolution(resolution);
+    return {std::move(hf), single, make_query(x_um, y_um, sigma_p_um, light, model, lambda_um, spectral)};
+}
+
+std::string query_repr(const PyQuery& q) {
+    std::string s = "Query(x_um=" + format_number(q.query.x_um) + ", y_um=" + format_number(q.query.y_um) +
+                    ", sigma_p_um=" + format_number(q.query.sigma_p_um) + ", light=(" +
+                    format_number(q.query.omega_i[0]) + ", " + format_number(q.query.omega_i[1]) + "), model='" +
+                    to_string(q.query.model) + "', ";
+    if (!q.spectral) return s + "lambda_um=" + format_number(q.lambdas_um[0]) + ")";
+    s += "spectral=[";
+    for (std::size_t i = 0; i < q.lambdas_um.size(); ++i) s += (i ? ", " : "") + format_number(q.lambdas_um[i]);
+    return s + "])";
+}
+
+const char* kPlainArgs = R"doc(
+heights     2-D float32 or float64 array (rows, cols), finite, in texel units. float64 renders
+            in double precision, float32 in single (the CLI's --precision); the result has the
+            same dtype.
+texel_um    texel width w in um, > 0 (default 1)
+vscale      vertical scale v, finite (default 1): height in um = vscale * texel_um * heights
+x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
+            default 0)
+sigma_p_um  footprint (coherence) standard deviation sigma_p in um, > 0 (default 10)
+lambda_um   one wavelength in um, > 0: R = G = B = its slice. Default 0.5 when spectral is None.
+spectral    N (1...256): the library's N wavelengths over 0.36-0.83 um (the CLI's --spectral N),
+            or a list of wavelengths in um; mapped to linear sRGB through the CIE 1931 curves.
+            Excludes lambda_um.
+light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0))
+resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
+            ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
+model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+)doc";
+
+}  // namespace
+
+void bind_brdf(py::module_& m) {
+    py::class_<PyQuery>(m, "Query", R"doc(
+One BRDF query: a Gaussian footprint on the surface, a light direction, a diffraction model
+and the wavelength(s).
+
+Query(x_um=0.0, y_um=0.0, sigma_p_um=10.0, light=(0.0, 0.0), model='OHS', lambda_um=None,
+      spectral=None)
+    x_um, y_um   footprint centre in um (x along rows, y along columns); finite, periodic
+    sigma_p_um   footprint standard deviation in um, > 0
+    light        projected direction towards the light (wx, wy), wx^2 + wy^2 < 1
+    model        'OHS', 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+    lambda_um    one wavelength in um (> 0); default 0.5 when spectral is None
+    spectral     N samples over 0.36-0.83 um (1...256) or a list of wavelengths in um, to
+                 linear sRGB (CIE 1931); excludes lambda_um
+Position, sigma_p, light and model can be set later (validated); the wavelengths are fixed.
+)doc")
+        .def(py::init(&make_query), "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0,
+             "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "lambda_um"_a = py::none(),
+             "spectral"_a = py::none())
+        .def_property("x_um", [](const PyQuery& q) { return q.query.x_um; },
+                      [](PyQuery& q, double v) { q.query.x_um = check_finite(v, "x_um"); })
+        .def_property("y_um", [](const PyQuery& q) { return q.query.y_um; },
+                      [](PyQuery& q, double v) { q.query.y_um = check_finite(v, "y_um"); })
+        .def_property("sigma_p_um", [](const PyQuery& q) { return q.query.sigma_p_um; },
+                      [](PyQuery& q, double v) { q.query.sigma_p_um = check_positive(v, "sigma_p_um"); })
+        .def_property("light", [](const PyQuery& q) { return py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]); },
+                      [](PyQuery& q, py::object v) { q.query.omega_i = light_direction(v); })
+        .def_property("model", [](const PyQuery& q) { return std::string(to_string(q.query.model)); },
+                      [](PyQuery& q, const std::string& v) { q.query.model = model_from(v); })
+        .def_property_readonly("lambdas_um", [](const PyQuery& q) { return q.lambdas_um; }, "the wavelengths in um")
+        .def_property_readonly("spectral", [](const PyQuery& q) { return q.spectral; },
+                               "True when the slice is spectral (RGB through CIE 1931)")
+        .def("kwargs", [](const PyQuery& q) {
+            py::dict d("x_um"_a = q.query.x_um, "y_um"_a = q.query.y_um, "sigma_p_um"_a = q.query.sigma_p_um,
+                       "light"_a = py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]),
+                       "model"_a = to_string(q.query.model));
+            if (q.spectral) d["spectral"] = q.lambdas_um; else d["lambda_um"] = q.lambdas_um[0];
+            return d;
+        }, "The query as keyword arguments of render_slice and slice_gradient.")
+        .def("copy", [](const PyQuery& q) { return PyQuery(q); })
+        .def("__copy__", [](const PyQuery& q) { return PyQuery(q); })
+        .def("__deepcopy__", [](const PyQuery& q, py::dict) { return PyQuery(q); }, "memo"_a)
+        .def("__repr__", &query_repr);
+
+    m.def("render_slice",
+          [](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
+             double sigma_p_um, const py::object& lambda_um, const py::object& spectral, const py::object& light,
+             const std::string& model) {
+              const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
+                                              light, resolution, model);
+              return a.single ? render_rgb_array<float>(a.hf, a.q, resolution)
+                              : render_rgb_array<double>(a.hf, a.q, resolution);
+          },
+          "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
+          "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
+          "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
+          (std::string("render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, "
+                       "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')\n\n"
+                       "One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),\n"
+                       "linear RGB. The same as `wavebrdf render` with the same options.\n") + kPlainArgs)
+              .c_str());
+
+    m.def("slice_gradient",
+          [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale, double x_um,
+             double y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
+             const py::object& light, const std::string& model) {
+              const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
+                                              light, resolution, model);
+              const std::vector<double> w = weights_argument(weights, resolution);
+              std::vector<double> g = a.single ? rgb_gradient<float>(a.hf, a.q, resolution, w)
+                                               : rgb_gradient<double>(a.hf, a.q, resolution, w);
+              return gradient_array(std::move(g), a.hf, a.single);
+          },
+          "heights"_a, "weights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0,
+          "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(),
+          "spectral"_a = py::none(), "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
+          (std::string("slice_gradient(heights, weights, *, resolution, **the options of render_slice)\n\n"
+                       "The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`\n"
+                       "(texel units), a vector-Jacobian product by the library's adjoint: an array shaped\n"
+                       "and typed like `heights`. For a loss L of the slice, weights = dL/dslice gives\n"
+                       "dL/dheights.\n\n"
+                       "weights     float32/float64 array (resolution, resolution, 3), finite; one weight per\n"
+                       "            pixel and channel. One wavelength: R = G = B, so the three channels'\n"
+                       "            weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]\n"
+                       "            with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk\n"
+                       "            are ignored.\n") +
+           kPlainArgs)
+              .c_str());
+
+    m.def("render",
+          [](const Heightfield& hf, const PyQuery& q, int resolution, const std::string& precision) {
+              check_resolution(resolution);
+              return double_precision(precision) ? render_rgb_array<double>(hf, q, resolution)
+                                                 : render_rgb_array<float>(hf, q, resolution);
+          },
+          "heightfield"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double", R"doc(
+The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear RGB, float64
+(precision='double') or float32 ('float'); resolution 1...8192.
+)doc");
+    m.def("render",
+          [](const GaborRep& rep, const PyQuery& q, int resolution, const std::string& precision) {
+              check_resolution(resolution);
+              if (q.query.x_um != rep.x_um || q.query.y_um != rep.y_um || q.query.sigma_p_um != rep.sigma_p_um)
+                  throw py::value_error("query footprint (" + format_number(q.query.x_um) + ", " +
+                                        format_number(q.query.y_um) + ", sigma_p " + format_number(q.query.sigma_p_um) +
+                                        ") differs from the GaborRep's (" + format_number(rep.x_um) + ", " +
+                                        format_number(rep.y_um) + ", sigma_p " + format_number(rep.sigma_p_um) +
+                                        "); expected the query the GaborRep was made for");
+              const bool dbl = double_precision(precision);
+              for (double l : q.lambdas_um) validate_lambda(l);
+              if (dbl) {
+                  std::vector<double> rgb;
+                  {
+                      py::gil_scoped_release release;
+                      rgb = render_kernels_rgb<double>(rep, q.query, q.lambdas_um, resolution);
+                  }
+                  return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
+              }
+              std::vector<float> rgb;
+              {
+                  py::gil_scoped_release release;
+                  rgb = render_kernels_rgb<float>(rep, q.query, q.lambdas_um, resolution);
+              }
+              return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
+          },
+          "gabor"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double",
+          "The same from a GaborRep made for this query's footprint (the kernels are not gathered again).");
+
+    m.def("gradient",
+          [](const Heightfield& hf, const PyQuery& q, py::handle weights, const std::string& precision) {
+              const py::array wa = float_array(weights, "weights");
+              if (wa.ndim() != 3 || wa.shape(0) != wa.shape(1) || wa.shape(2) != 3)
+                  throw py::value_error("weights has shape " + shape_string(wa) + "; expected (n, n, 3)");
+              const int n = check_resolution(static_cast<int>(wa.shape(0)), "weights.shape[0]");
+              const std::vector<double> w = to_doubles(wa, "weights");
+              std::vector<double> g = double_precision(precision) ? rgb_gradient<double>(hf, q, n, w)
+                                                                  : rgb_gradient<float>(hf, q, n, w);
+              return owning_array(std::move(g), {hf.rows(), hf.cols()});
+          },
+          "heightfield"_a, "query"_a, "weights"_a, "precision"_a = "double", R"doc(
+The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
+values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss
+(Loss.value_and_gradient); see slice_gradient for how channels map to wavelengths.
+)doc");
+
+    m.def("spectral_wavelengths_um", [](int count) {
+              if (count < 1 || count > 256) bad_argument("count", std::to_string(count), "1 to 256");
+              return spectral_wavelengths_um(count);
+          }, "count"_a,
+          "The library's N wavelengths in um: 0.36 + (k + 1/2) * 0.47 / N (N = 8: genBrdf's samples).");
+    m.def("spectral_to_srgb_weights", [](const std::vector<double>& lambdas_um) {
+              std::vector<double> w = spectral_to_srgb_weights(lambdas_um);
+              const auto n = static_cast<py::ssize_t>(lambdas_um.size());
+              return owning_array(std::move(w), {3, n});
+          }, "lambdas_um"_a, R"doc(
+The (3, N) matrix M mapping values at the N wavelengths (um) to linear sRGB (CIE 1931,
+Bradford to D65): rgb[c] = sum_l M[c, l] f(lambda_l). A constant spectrum maps to grey.
+)doc");
+    m.def("cie1931_xyz", [](double lambda_um) {
+              const auto v = cie1931_xyz(check_finite(lambda_um, "lambda_um"));
+              return py::make_tuple(v[0], v[1], v[2]);
+          }, "lambda_um"_a, "CIE 1931 2-degree colour-matching functions (x, y, z) at a wavelength in um.");
+}
+
+}  // namespace wavebrdf::python

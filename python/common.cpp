@@ -1,0 +1,208 @@
+#include "common.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf::python {
+
+using namespace pybind11::literals;
+
+std::string format_number(double value) {
+    std::ostringstream out;
+    out.precision(10);
+    out << value;
+    return out.str();
+}
+
+void bad_argument(const std::string& name, const std::string& got, const std::string& expected) {
+    throw py::value_error(name + " = " + got + " is invalid; expected " + expected);
+}
+
+double check_finite(double value, const char* name) {
+    if (!std::isfinite(value)) bad_argument(name, format_number(value), "a finite number");
+    return value;
+}
+
+double check_positive(double value, const char* name) {
+    if (!std::isfinite(value) || value <= 0.0) bad_argument(name, format_number(value), "a finite number > 0");
+    return value;
+}
+
+int check_resolution(int resolution, const char* name) {
+    if (resolution < 1 || resolution > 8192)
+        bad_argument(name, std::to_string(resolution), "a slice size from 1 to 8192 pixels");
+    return resolution;
+}
+
+bool is_float32(const py::array& array) { return array.dtype().equal(py::dtype::of<float>()); }
+
+py::array float_array(py::handle object, const char* name) {
+    if (!py::isinstance<py::array>(object)) {
+        // Lists, tuples, CPU tensors: convert (a copy) to float64.
+        try {
+            py::module_ numpy = py::module_::import("numpy");
+            return numpy.attr("asarray")(object, "dtype"_a = "float64");
+        } catch (py::error_already_set& e) {
+            if (!e.matches(PyExc_TypeError) && !e.matches(PyExc_ValueError)) throw;
+            throw py::value_error(std::string(name) + " is not an array of numbers (" +
+                                  std::string(py::str(py::type::of(object).attr("__name__"))) +
+                                  "); expected a float32 or float64 NumPy array");
+        }
+    }
+    py::array array = py::reinterpret_borrow<py::array>(object);
+    if (!array.dtype().equal(py::dtype::of<float>()) && !array.dtype().equal(py::dtype::of<double>()))
+        throw py::value_error(std::string(name) + " has dtype " + std::string(py::str(array.dtype())) +
+                              "; expected float32 or float64 (native byte order)");
+    return array;
+}
+
+std::string shape_string(const std::vector<py::ssize_t>& shape) {
+    std::string s = "(";
+    for (std::size_t i = 0; i < shape.size(); ++i) {
+        if (i) s += ", ";
+        s += shape[i] < 0 ? std::string("any") : std::to_string(shape[i]);
+    }
+    if (shape.size() == 1) s += ",";
+    return s + ")";
+}
+
+std::string shape_string(const py::array& array) {
+    return shape_string(std::vector<py::ssize_t>(array.shape(), array.shape() + array.ndim()));
+}
+
+void check_shape(const py::array& array, const std::vector<py::ssize_t>& shape, const char* name) {
+    bool ok = array.ndim() == static_cast<py::ssize_t>(shape.size());
+    for (std::size_t i = 0; ok && i < shape.size(); ++i)
+        ok = shape[i] < 0 || array.shape(static_cast<py::ssize_t>(i)) == shape[i];
+    if (!ok)
+        throw py::value_error(std::string(name) + " has shape " + shape_string(array) + "; expected " +
+                              shape_string(shape));
+}
+
+namespace {
+
+template <typename T>
+void gather(const char* base, const py::ssize_t* shape, const py::ssize_t* strides, py::ssize_t ndim,
+            double*& out) {
+    if (ndim == 0) {
+        *out++ = static_cast<double>(*reinterpret_cast<const T*>(base));
+        return;
+    }
+    for (py::ssize_t i = 0; i < shape[0]; ++i) gather<T>(base + i * strides[0], shape + 1, strides + 1, ndim - 1, out);
+}
+
+}  // namespace
+
+std::vector<double> to_doubles(const py::array& array, const char* name, bool finite) {
+    std::vector<double> values(static_cast<std::size_t>(array.size()));
+    double* out = values.data();
+    const char* base = static_cast<const char*>(array.data());
+    if (is_float32(array))
+        gather<float>(base, array.shape(), array.strides(), array.ndim(), out);
+    else
+        gather<double>(base, array.shape(), array.strides(), array.ndim(), out);
+    if (finite)
+        for (std::size_t k = 0; k < values.size(); ++k)
+            if (!std::isfinite(values[k])) {
+                // The index in the array's own shape, e.g. [3, 4].
+                std::string index;
+                std::size_t rest = k;
+                for (py::ssize_t d = array.ndim() - 1; d >= 0; --d) {
+                    const auto extent = static_cast<std::size_t>(array.shape(d));
+                    index = std::to_string(rest % extent) + (index.empty() ? "" : ", ") + index;
+                    rest /= extent;
+                }
+                throw py::value_error(std::string(name) + "[" + index + "] = " + format_number(values[k]) +
+                                      " is not finite; expected finite values");
+            }
+    return values;
+}
+
+Heightfield heightfield_from_array(py::handle object, const char* name, double texel_um, double vscale) {
+    const py::array heights = float_array(object, name);
+    if (heights.ndim() != 2 || heights.size() == 0)
+        throw py::value_error(std::string(name) + " has shape " + shape_string(heights) +
+                              "; expected a non-empty 2-D array (rows, cols) of heights in texel units");
+    check_positive(texel_um, "texel_um");
+    check_finite(vscale, "vscale");
+    return Heightfield(static_cast<int>(heights.shape(0)), static_cast<int>(heights.shape(1)),
+                       to_doubles(heights, name), texel_um, vscale);
+}
+
+std::vector<double> wavelengths(const py::object& lambda_um, const py::object& spectral) {
+    if (!lambda_um.is_none() && !spectral.is_none())
+        throw py::value_error("lambda_um and spectral exclude each other; expected one of them (or neither: 0.5 um)");
+    if (!spectral.is_none()) {
+        if (py::isinstance<py::int_>(spectral) && !py::isinstance<py::bool_>(spectral)) {
+            const long long count = spectral.cast<long long>();
+            if (count < 1 || count > 256)
+                bad_argument("spectral", std::to_string(count), "1 to 256 wavelength samples, or a list of wavelengths in um");
+            return spectral_wavelengths_um(static_cast<int>(count));
+        }
+        std::vector<double> list;
+        try {
+            list = spectral.cast<std::vector<double>>();
+        } catch (const py::cast_error&) {
+            throw py::value_error("spectral = " + std::string(py::repr(spectral)) +
+                                  " is invalid; expected a sample count (int) or a list of wavelengths in um");
+        }
+        if (list.empty()) bad_argument("spectral", "[]", "at least one wavelength");
+        for (double l : list)
+            if (!std::isfinite(l) || l <= 0.0)
+                bad_argument("spectral", std::string(py::repr(spectral)), "wavelengths that are finite and > 0 (um)");
+        return list;
+    }
+    if (!lambda_um.is_none()) {
+        double l = 0.0;
+        try {
+            l = lambda_um.cast<double>();
+        } catch (const py::cast_error&) {
+            throw py::value_error("lambda_um = " + std::string(py::repr(lambda_um)) + " is invalid; expected a wavelength in um");
+        }
+        check_positive(l, "lambda_um");
+        return {l};
+    }
+    return {0.5};
+}
+
+std::array<double, 2> light_direction(const py::object& light, const char* name) {
+    std::vector<double> v;
+    try {
+        v = light.cast<std::vector<double>>();
+    } catch (const py::cast_error&) {
+        throw py::value_error(std::string(name) + " = " + std::string(py::repr(light)) +
+                              " is invalid; expected a pair (wx, wy)");
+    }
+    if (v.size() != 2)
+        throw py::value_error(std::string(name) + " = " + std::string(py::repr(light)) +
+                              " is invalid; expected a pair (wx, wy)");
+    if (!std::isfinite(v[0]) || !std::isfinite(v[1]) || v[0] * v[0] + v[1] * v[1] >= 1.0)
+        bad_argument(name, "(" + format_number(v[0]) + ", " + format_number(v[1]) + ")",
+                     "a projected direction towards the light with wx^2 + wy^2 < 1");
+    return {v[0], v[1]};
+}
+
+Model model_from(const std::string& name, const char* argument) {
+    try {
+        return parse_model(name);
+    } catch (const std::invalid_argument&) {
+        bad_argument(argument, "'" + name + "'", "one of 'OHS', 'GHS', 'ROHS', 'RGHS', 'Kirchhoff'");
+    }
+}
+
+PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object& light,
+                   const std::string& model, const py::object& lambda_um, const py::object& spectral) {
+    PyQuery q;
+    q.query.x_um = check_finite(x_um, "x_um");
+    q.query.y_um = check_finite(y_um, "y_um");
+    q.query.sigma_p_um = check_positive(sigma_p_um, "sigma_p_um");
+    q.query.omega_i = light_direction(light);
+    q.query.model = model_from(model);
+    q.lambdas_um = wavelengths(lambda_um, spectral);
+    q.spectral = !spectral.is_none();
+    return q;
+}
+
+}  // namespace wavebrdf::python

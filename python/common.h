@@ -1,0 +1,89 @@
+#pragma once
+// Shared by the binding files: argument checks that name the Python argument, NumPy arrays in
+// (float32 or float64, any strides) and out (owning the library's vectors, no copy), and the
+// query with its wavelengths as Python sees it.
+//
+// Errors: a bad argument raises ValueError "NAME ...; expected ...". The library's
+// std::invalid_argument and std::domain_error reach Python as ValueError, std::runtime_error
+// (files) as RuntimeError, std::bad_alloc as MemoryError (pybind11's standard translations).
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/model.h"
+
+namespace wavebrdf::python {
+
+namespace py = pybind11;
+
+// Throws py::value_error("NAME = GOT is invalid; expected EXPECTED").
+[[noreturn]] void bad_argument(const std::string& name, const std::string& got, const std::string& expected);
+std::string format_number(double value);
+
+// Scalar checks; each returns its value.
+double check_finite(double value, const char* name);
+double check_positive(double value, const char* name);  // finite and > 0
+int check_resolution(int resolution, const char* name = "resolution");  // 1 ... 8192
+
+// A float32 or float64 NumPy array (native byte order). Lists and other array-likes (not
+// ndarrays) are converted to float64 first; an ndarray of another dtype is a ValueError, so
+// nothing is silently rounded or reinterpreted.
+py::array float_array(py::handle object, const char* name);
+bool is_float32(const py::array& array);
+std::string shape_string(const py::array& array);
+std::string shape_string(const std::vector<py::ssize_t>& shape);
+// Checks ndim (and each extent that is ≥ 0 in `shape`; −1 means any extent).
+void check_shape(const py::array& array, const std::vector<py::ssize_t>& shape, const char* name);
+// The values in C order as double, through any strides; with `finite`, a non-finite value is a
+// ValueError naming its index.
+std::vector<double> to_doubles(const py::array& array, const char* name, bool finite = true);
+
+// A 2-D float array of heights in texel units → Heightfield (values copied once, as double).
+Heightfield heightfield_from_array(py::handle heights, const char* name, double texel_um, double vscale);
+
+// A NumPy array that owns `values` (moved, not copied), of the given C-order shape.
+template <typename T>
+py::array_t<T> owning_array(std::vector<T>&& values, const std::vector<py::ssize_t>& shape) {
+    auto* owner = new std::vector<T>(std::move(values));
+    py::capsule capsule(owner, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+    return py::array_t<T>(shape, owner->data(), capsule);
+}
+// A read-only NumPy view of memory owned by `base` (which the view keeps alive).
+template <typename T>
+py::array_t<T> readonly_view(const T* data, const std::vector<py::ssize_t>& shape, py::handle base) {
+    py::array_t<T> view(shape, data, base);
+    py::detail::array_proxy(view.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return view;
+}
+
+// The wavelengths of `lambda_um` (one, µm) or `spectral` (an integer N: the library's N
+// samples over 0.36–0.83 µm, 1 ≤ N ≤ 256; or a sequence of wavelengths in µm). Both None: 0.5 µm.
+std::vector<double> wavelengths(const py::object& lambda_um, const py::object& spectral);
+// A projected light direction (wx, wy), finite, |ω_i| < 1.
+std::array<double, 2> light_direction(const py::object& light, const char* name = "light");
+Model model_from(const std::string& name, const char* argument = "model");
+
+// A query as Python sees it: the library's Query plus its wavelengths.
+struct PyQuery {
+    Query query;
+    std::vector<double> lambdas_um;
+    bool spectral = false;  // given as `spectral` (RGB through CIE 1931) rather than `lambda_um`
+};
+PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object& light,
+                   const std::string& model, const py::object& lambda_um, const py::object& spectral);
+
+// Registration, one function per binding file.
+void bind_heightfield(py::module_& m);
+void bind_gabor(py::module_& m);
+void bind_brdf(py::module_& m);
+void bind_loss(py::module_& m);
+void bind_observation(py::module_& m);
+void bind_optim(py::module_& m);
+void bind_invert(py::module_& m);
+
+}  // namespace wavebrdf::python

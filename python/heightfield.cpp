@@ -1,0 +1,152 @@
+// Heightfield: from NumPy or an EXR file, to NumPy; the procedural generators.
+#include <cstring>
+
+#include "common.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/io.h"
+
+namespace wavebrdf::python {
+
+using namespace pybind11::literals;
+
+namespace {
+
+py::array_t<double> values_view(const Heightfield& hf, py::handle owner) {
+    return readonly_view<double>(hf.values().data(), {hf.rows(), hf.cols()}, owner);
+}
+
+// Overwrites the values in place, so that views handed out earlier stay valid (they see the
+// new values). Validated first: same shape, finite.
+void set_values(Heightfield& hf, py::handle object) {
+    const py::array a = float_array(object, "values");
+    check_shape(a, {hf.rows(), hf.cols()}, "values");
+    const std::vector<double> v = to_doubles(a, "values");
+    std::memcpy(const_cast<double*>(hf.values().data()), v.data(), v.size() * sizeof(double));
+}
+
+}  // namespace
+
+void bind_heightfield(py::module_& m) {
+    py::class_<Heightfield> cls(m, "Heightfield", R"doc(
+A periodic heightfield on a grid of square texels (the public release's convention).
+
+Values are heights in units of the texel width: the height in um is
+``vscale * texel_um * value``. Row index i runs along the surface coordinate x, column j
+along y; the surface tiles the plane.
+
+Heightfield(values, texel_um=1.0, vscale=1.0)
+    values    2-D float32/float64 array (rows, cols) of finite heights in texel units
+              (copied once into the heightfield, as float64)
+    texel_um  texel width w in um, finite and > 0
+    vscale    vertical scale v (dimensionless), finite
+)doc");
+    cls.def(py::init([](py::handle values, double texel_um, double vscale) {
+                return heightfield_from_array(values, "values", texel_um, vscale);
+            }),
+            "values"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0)
+        .def_static(
+            "from_exr",
+            [](const std::string& path, double texel_um, double vscale) {
+                check_positive(texel_um, "texel_um");
+                check_finite(vscale, "vscale");
+                py::gil_scoped_release release;
+                return read_heightfield_exr(path, texel_um, vscale);
+            },
+            "path"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0,
+            "Reads the R (or Y) channel of an OpenEXR file (half or float) as heights in texel units.\n"
+            "RuntimeError names the file when it is missing, unreadable or corrupt; ValueError on a\n"
+            "non-finite value.")
+        .def_static(
+            "generate",
+            [](const std::string& type, int rows, py::object cols, double texel_um, std::uint64_t seed,
+               double rms_height_um, double rms_slope, double correlation_um, double anisotropy,
+               int scratch_count, double scratch_depth_um, double scratch_width_um, double amplitude_um,
+               double period_um) {
+                SurfaceParams p;
+                p.type = parse_surface_type(type);
+                p.rows = rows;
+                p.cols = cols.is_none() ? rows : cols.cast<int>();
+                p.texel_um = texel_um;
+                p.seed = seed;
+                p.rms_height_um = rms_height_um;
+                p.rms_slope = rms_slope;
+                p.correlation_um = correlation_um;
+                p.anisotropy = anisotropy;
+                p.scratch_count = scratch_count;
+                p.scratch_depth_um = scratch_depth_um;
+                p.scratch_width_um = scratch_width_um;
+                p.amplitude_um = amplitude_um;
+                p.period_um = period_um;
+                py::gil_scoped_release release;
+                return generate_heightfield(p);
+            },
+            "type"_a = "isotropic", "rows"_a = 256, "cols"_a = py::none(), "texel_um"_a = 1.0, "seed"_a = 1,
+            "rms_height_um"_a = 0.1, "rms_slope"_a = 0.0, "correlation_um"_a = 4.0, "anisotropy"_a = 8.0,
+            "scratch_count"_a = 40, "scratch_depth_um"_a = 0.05, "scratch_width_um"_a = 1.5,
+            "amplitude_um"_a = 0.1, "period_um"_a = 32.0, R"doc(
+A procedural periodic surface, deterministic in ``seed`` (as ``wavebrdf heightfield``).
+
+type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_um, or rms
+      slope rms_slope when > 0, correlation length correlation_um), 'brushed' (the same,
+      anisotropy times longer along y), 'scratched' (scratch_count Gaussian grooves of depth
+      scratch_depth_um and width scratch_width_um on a smooth base) or 'grating'
+      (amplitude_um * sin(2 pi x / period_um)). Lengths in um; rows, cols in 1...16384
+      (cols defaults to rows). The result has vscale 1 and texel width texel_um.
+)doc")
+        .def_property_readonly("rows", &Heightfield::rows)
+        .def_property_readonly("cols", &Heightfield::cols)
+        .def_property_readonly("shape", [](const Heightfield& hf) { return py::make_tuple(hf.rows(), hf.cols()); },
+                               "(rows, cols)")
+        .def_property_readonly("texel_um", &Heightfield::texel_um, "texel width w in um")
+        .def_property_readonly("vscale", &Heightfield::vscale, "vertical scale v")
+        .def_property_readonly("period_x_um", &Heightfield::period_x_um, "tile period along x (rows), um")
+        .def_property_readonly("period_y_um", &Heightfield::period_y_um, "tile period along y (columns), um")
+        .def_property(
+            "values", [](py::object self) { return values_view(self.cast<const Heightfield&>(), self); },
+            [](Heightfield& hf, py::handle v) { set_values(hf, v); },
+            "The heights in texel units, a read-only float64 view (rows, cols) of this heightfield's\n"
+            "memory (no copy). Assigning an array of the same shape overwrites them in place.")
+        .def("to_numpy", [](const Heightfield& hf) { return owning_array(std::vector<double>(hf.values()), {hf.rows(), hf.cols()}); },
+             "A writable float64 copy of the values (rows, cols), in texel units.")
+        .def("__array__", [](py::object self, py::object dtype) {
+                 py::array v = values_view(self.cast<const Heightfield&>(), self);
+                 return dtype.is_none() ? v : py::array(v.attr("astype")(dtype));
+             }, "dtype"_a = py::none())
+        .def("heights_um", [](const Heightfield& hf) {
+                 std::vector<double> v = hf.values();
+                 for (double& x : v) x *= hf.vscale() * hf.texel_um();
+                 return owning_array(std::move(v), {hf.rows(), hf.cols()});
+             }, "Heights in um, vscale * texel_um * values (a new float64 array).")
+        .def("slope", [](const Heightfield& hf, int i, int j) { const auto s = hf.slope(i, j); return py::make_tuple(s[0], s[1]); },
+             "i"_a, "j"_a, "Dimensionless slope (s_x, s_y) at texel (i, j) by periodic central differences.")
+        .def("with_values", [](const Heightfield& hf, py::handle values) {
+                 const py::array a = float_array(values, "values");
+                 check_shape(a, {hf.rows(), hf.cols()}, "values");
+                 return hf.with_values(to_doubles(a, "values"));
+             }, "values"_a, "The same geometry with other values (same shape).")
+        .def("with_scale", [](const Heightfield& hf, double texel_um, double vscale) {
+                 return hf.with_scale(check_positive(texel_um, "texel_um"), check_finite(vscale, "vscale"));
+             }, "texel_um"_a, "vscale"_a, "The same values with another texel width (um) and vertical scale.")
+        .def("stats", [](const Heightfield& hf) {
+                 const HeightStats s = height_stats(hf);
+                 return py::dict("mean_um"_a = s.mean_um, "rms_height_um"_a = s.rms_height_um, "min_um"_a = s.min_um,
+                                 "max_um"_a = s.max_um, "rms_slope"_a = s.rms_slope);
+             }, "Mean, rms height, min and max in um (vscale included) and rms slope.")
+        .def("save_exr", [](const Heightfield& hf, const std::string& path) {
+                 py::gil_scoped_release release;
+                 write_heightfield_exr(path, hf);
+             }, "path"_a, "Writes the values (texel units) as a single-channel float EXR (atomically).")
+        .def("save_png", [](const Heightfield& hf, const std::string& path) {
+                 py::gil_scoped_release release;
+                 write_heightfield_png(path, hf);
+             }, "path"_a, "Writes a grey PNG preview, min black, max white.")
+        .def("copy", [](const Heightfield& hf) { return Heightfield(hf); })
+        .def("__copy__", [](const Heightfield& hf) { return Heightfield(hf); })
+        .def("__deepcopy__", [](const Heightfield& hf, py::dict) { return Heightfield(hf); }, "memo"_a)
+        .def("__repr__", [](const Heightfield& hf) {
+            return "Heightfield(" + std::to_string(hf.rows()) + "x" + std::to_string(hf.cols()) +
+                   ", texel_um=" + format_number(hf.texel_um()) + ", vscale=" + format_number(hf.vscale()) + ")";
+        });
+}
+
+}  // namespace wavebrdf::python

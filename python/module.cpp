@@ -1,0 +1,15 @@
+// The compiled part of the Python package: wavebrdf._core (re-exported by wavebrdf/__init__.py).
+#include "common.h"
+
+PYBIND11_MODULE(_core, m) {
+    using namespace wavebrdf::python;
+    m.doc() = "wavebrdf's C++ library: wave-optical BRDF slices of heightfields, their gradients, "
+              "losses, optimisers and the inverse renderer";
+    bind_heightfield(m);
+    bind_brdf(m);
+    bind_gabor(m);
+    bind_loss(m);
+    bind_observation(m);
+    bind_optim(m);
+    bind_invert(m);
+}

@@ -1,0 +1,130 @@
+// Observations (reference slices with their queries) and the loss of a heightfield against
+// them with its gradient with respect to the heights (observation.h).
+#include "common.h"
+#include "observation_arg.h"
+#include "wavebrdf/observation.h"
+
+namespace wavebrdf::python {
+
+using namespace pybind11::literals;
+
+Loss loss_argument(const py::object& loss) {
+    if (py::isinstance<py::str>(loss)) return parse_loss(loss.cast<std::string>());
+    try {
+        return loss.cast<Loss>();
+    } catch (const py::cast_error&) {
+        throw py::value_error("loss = " + std::string(py::repr(loss)) +
+                              " is invalid; expected a Loss or a string 'cmsle:EPS', 'mse' or 'amplitude'");
+    }
+}
+
+std::vector<Observation> observations_argument(const py::object& observations) {
+    if (py::isinstance<Observation>(observations)) return {observations.cast<Observation>()};
+    std::vector<Observation> list;
+    try {
+        list = observations.cast<std::vector<Observation>>();
+    } catch (const py::cast_error&) {
+        throw py::value_error("observations = " + std::string(py::repr(observations)) +
+                              " is invalid; expected an Observation or a list of them");
+    }
+    if (list.empty()) throw py::value_error("observations is empty; expected at least one Observation");
+    return list;
+}
+
+py::array observation_array(std::vector<double>&& values, const Observation& o) {
+    const int n = o.resolution;
+    if (o.channels() == 1) return owning_array(std::move(values), {n, n});
+    return owning_array(std::move(values), {n, n, 3});
+}
+
+namespace {
+
+Observation make_observation(const PyQuery& q, py::handle reference) {
+    const py::array r = float_array(reference, "reference");
+    const bool rgb = q.lambdas_um.size() > 1;
+    const bool ok = rgb ? (r.ndim() == 3 && r.shape(2) == 3) : r.ndim() == 2;
+    if (!ok || r.shape(0) != r.shape(1) || r.shape(0) < 1)
+        throw py::value_error("reference has shape " + shape_string(r) + "; expected " +
+                              (rgb ? "(n, n, 3) for a spectral query" :
+                                     "(n, n) for a single-wavelength query (e.g. slice[..., 0])"));
+    Observation o;
+    o.query = q.query;
+    o.lambdas_um = q.lambdas_um;
+    o.resolution = check_resolution(static_cast<int>(r.shape(0)), "reference.shape[0]");
+    o.reference = to_doubles(r, "reference");
+    for (std::size_t i = 0; i < o.reference.size(); ++i)
+        if (o.reference[i] < 0.0)
+            throw py::value_error("reference has a negative value " + format_number(o.reference[i]) +
+                                  "; expected a BRDF (values >= 0)");
+    validate(o);
+    return o;
+}
+
+PyQuery query_of(const Observation& o) {
+    PyQuery q;
+    q.query = o.query;
+    q.lambdas_um = o.lambdas_um;
+    q.spectral = o.lambdas_um.size() > 1;
+    return q;
+}
+
+}  // namespace
+
+void bind_observation(py::module_& m) {
+    py::class_<Observation>(m, "Observation", R"doc(
+A reference slice with the query that produced it (an input of observation_loss and invert).
+
+Observation(query, reference)
+    query      a Query
+    reference  the slice, finite and >= 0: (n, n) for one wavelength, (n, n, 3) linear sRGB
+               for a spectral query; n = the resolution (1...8192)
+)doc")
+        .def(py::init(&make_observation), "query"_a, "reference"_a)
+        .def_property_readonly("query", &query_of)
+        .def_property_readonly("resolution", [](const Observation& o) { return o.resolution; })
+        .def_property_readonly("channels", &Observation::channels, "1 (one wavelength) or 3 (RGB)")
+        .def_property_readonly("lambdas_um", [](const Observation& o) { return o.lambdas_um; })
+        .def_property_readonly("reference", [](py::object self) {
+            const auto& o = self.cast<const Observation&>();
+            const py::ssize_t n = o.resolution;
+            return o.channels() == 1 ? readonly_view<double>(o.reference.data(), {n, n}, self)
+                                     : readonly_view<double>(o.reference.data(), {n, n, 3}, self);
+        }, "the reference slice, a read-only float64 view")
+        .def("render", [](const Observation& o, const Heightfield& hf) {
+            std::vector<double> v;
+            {
+                py::gil_scoped_release release;
+                v = render_observation(hf, o);
+            }
+            return observation_array(std::move(v), o);
+        }, "heightfield"_a, "What this observation would see of `heightfield`, shaped like the reference (float64).")
+        .def("__repr__", [](const Observation& o) {
+            return "Observation(" + std::to_string(o.resolution) + "x" + std::to_string(o.resolution) + "x" +
+                   std::to_string(o.channels()) + ", " + std::to_string(o.lambdas_um.size()) + " wavelength(s), at (" +
+                   format_number(o.query.x_um) + ", " + format_number(o.query.y_um) + ") um)";
+        });
+
+    m.def("observation_loss", [](const Heightfield& hf, const py::object& observations, const py::object& loss) {
+        const std::vector<Observation> list = observations_argument(observations);
+        const Loss l = loss_argument(loss);
+        std::vector<double> gradient;
+        double value = 0.0;
+        {
+            py::gil_scoped_release release;
+            value = observation_loss(hf, list, l, &gradient);
+        }
+        return py::make_tuple(value, owning_array(std::move(gradient), {hf.rows(), hf.cols()}));
+    }, "heightfield"_a, "observations"_a, "loss"_a = "cmsle:1", R"doc(
+The mean over observations of loss(render(heightfield), reference) and its gradient with
+respect to the heightfield's values (texel units, float64 (rows, cols)), in double precision:
+(value, gradient). loss: a Loss or its spec ('cmsle:EPS', 'mse', 'amplitude').
+)doc");
+
+    m.def("read_observations", [](const std::string& path) { return read_observations_json(path); }, "path"_a,
+          "Observations from JSON (the format of `wavebrdf invert --observations`).");
+    m.def("write_observations", [](const std::string& path, const py::object& observations) {
+        write_observations_json(path, observations_argument(observations));
+    }, "path"_a, "observations"_a, "Writes observations as JSON with inline references (atomically).");
+}
+
+}  // namespace wavebrdf::python
