@@ -478,7 +478,7 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--beta1", a->beta1, "Adam beta1")->capture_default_str();
     cmd->add_option("--beta2", a->beta2, "Adam beta2")->capture_default_str();
     cmd->add_option("--decay", a->decay, "learning-rate decay per epoch: lr * exp(-decay * epoch)")->capture_default_str();
-    cmd->add_option("--loss", a->loss, "cmsle:EPS, mse or amplitude")->capture_default_str();
+    cmd->add_option("--loss", a->loss, "cmsle:EPS, mse, amplitude or poisson:N (N photons per slice)")->capture_default_str();
     cmd->add_option("--positions", a->positions, "fixed, random (a new position per epoch) or FILE.json ([[x_um, y_um], ...])")->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, noise, random positions)")->capture_default_str();
     cmd->add_option("--out", a->out, "output directory");

@@ -29,6 +29,23 @@ void check_epsilon(double epsilon, const std::string& what) {
         throw std::domain_error("CMSLE epsilon must be finite and > 0, got " + what);
 }
 
+void check_photons(double photons, const std::string& what) {
+    if (!(std::isfinite(photons) && photons > 0.0))
+        throw std::domain_error("Poisson photons per slice must be finite and > 0, got " + what);
+}
+
+// The number after "name:" in `text`, or throws `bad()`. strtod accepts leading blanks; we do
+// not, so that "cmsle: 1" is not half-accepted.
+template <typename Bad>
+double parse_parameter(const std::string& text, std::size_t prefix, Bad bad) {
+    const std::string number = text.substr(prefix);
+    if (number.empty() || std::isspace(static_cast<unsigned char>(number[0]))) throw bad();
+    char* end = nullptr;
+    const double value = std::strtod(number.c_str(), &end);
+    if (end != number.c_str() + number.size()) throw bad();
+    return value;
+}
+
 // Validates a (estimate, reference, channels) triple; returns the number of pixels.
 std::size_t check_slices(const char* function, const std::vector<double>& estimate,
                          const std::vector<double>& reference, int channels) {
@@ -94,21 +111,23 @@ Loss parse_loss(const std::string& text) {
     const auto bad = [&]() {
         return std::invalid_argument("unknown loss '" + text +
                                      "'; expected 'cmsle', 'cmsle:EPS' (EPS > 0, e.g. cmsle:0.01), "
-                                     "'mse' or 'amplitude'");
+                                     "'mse', 'amplitude' or 'poisson:N' (N photons per slice, e.g. poisson:1e4)");
     };
     if (text == "mse") return {LossKind::MSE, 1.0};
     if (text == "amplitude") return {LossKind::Amplitude, 1.0};
     if (text == "cmsle") return {LossKind::CMSLE, 1.0};
-    const std::string prefix = "cmsle:";
-    if (text.compare(0, prefix.size(), prefix) != 0) throw bad();
-    const std::string number = text.substr(prefix.size());
-    // strtod accepts leading blanks; we do not, so that "cmsle: 1" is not half-accepted.
-    if (number.empty() || std::isspace(static_cast<unsigned char>(number[0]))) throw bad();
-    char* end = nullptr;
-    const double epsilon = std::strtod(number.c_str(), &end);
-    if (end != number.c_str() + number.size()) throw bad();
-    check_epsilon(epsilon, "'" + text + "'");
-    return {LossKind::CMSLE, epsilon};
+    const auto starts_with = [&](const std::string& prefix) { return text.compare(0, prefix.size(), prefix) == 0; };
+    if (starts_with("cmsle:")) {
+        const double epsilon = parse_parameter(text, 6, bad);
+        check_epsilon(epsilon, "'" + text + "'");
+        return {LossKind::CMSLE, epsilon};
+    }
+    if (starts_with("poisson:")) {
+        const double photons = parse_parameter(text, 8, bad);
+        check_photons(photons, "'" + text + "'");
+        return {LossKind::Poisson, 1.0, photons};
+    }
+    throw bad();
 }
 
 std::string to_string(const Loss& loss) {
@@ -116,6 +135,7 @@ std::string to_string(const Loss& loss) {
         case LossKind::CMSLE: return "cmsle:" + format_shortest(loss.epsilon);
         case LossKind::MSE: return "mse";
         case LossKind::Amplitude: return "amplitude";
+        case LossKind::Poisson: return "poisson:" + format_shortest(loss.photons);
     }
     throw std::invalid_argument("to_string: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
 }
@@ -157,6 +177,35 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
                 },
                 // ∂/∂e (d²) = 2 d / (2 √(e + δ)); zero where the clamp is active (e < 0).
                 [](double e, double, double d) { return e >= 0.0 ? d / std::sqrt(e + tiny) : 0.0; });
+        }
+        case LossKind::Poisson: {
+            check_photons(loss.photons, format_shortest(loss.photons));
+            double total = 0.0;
+            for (double r : reference) total += std::max(r, 0.0);
+            if (!(total > 0.0))
+                throw std::invalid_argument("loss_value: the Poisson loss needs a reference with a positive sum "
+                                            "(its photon scale N / sum), got sum " + format_shortest(total));
+            const double s = loss.photons / total;
+            // 1e-9 counts added to both k and μ keep log μ and 1/μ finite where I = 0 and the
+            // loss exactly 0 where I = R.
+            constexpr double tiny = 1e-9;
+            const auto term = [s](double e, double r) {
+                const double k = s * std::max(r, 0.0) + tiny, mu = s * std::max(e, 0.0) + tiny;
+                // k log(k/μ) − (k − μ), with log1p for k ≈ μ (no cancellation).
+                return 2.0 * (k * std::log1p((k - mu) / mu) - (k - mu));
+            };
+            double sum = 0.0;
+            for (std::size_t i = 0; i < estimate.size(); ++i) sum += term(estimate[i], reference[i]);
+            if (gradient) {
+                gradient->resize(estimate.size());
+                for (std::size_t i = 0; i < estimate.size(); ++i) {
+                    const double e = estimate[i];
+                    const double k = s * std::max(reference[i], 0.0) + tiny, mu = s * std::max(e, 0.0) + tiny;
+                    // ∂/∂e = 2 s (1 − k/μ); zero where the clamp is active (e < 0).
+                    (*gradient)[i] = e >= 0.0 ? 2.0 * s * (1.0 - k / mu) * inv_pixels : 0.0;
+                }
+            }
+            return sum * inv_pixels;
         }
     }
     throw std::invalid_argument("loss_value: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));

@@ -49,7 +49,8 @@ void expect_throw_naming(Fn fn, const std::string& text) {
 const Loss kLosses[] = {{LossKind::CMSLE, 1.0},
                         {LossKind::CMSLE, 0.01},
                         {LossKind::MSE, 1.0},
-                        {LossKind::Amplitude, 1.0}};
+                        {LossKind::Amplitude, 1.0},
+                        {LossKind::Poisson, 1.0, 1e4}};
 
 }  // namespace
 
@@ -61,6 +62,8 @@ TEST(LossTest, ParsesEveryForm) {
     EXPECT_EQ(parse_loss("cmsle:1e-3").epsilon, 1e-3);
     EXPECT_EQ(parse_loss("mse").kind, LossKind::MSE);
     EXPECT_EQ(parse_loss("amplitude").kind, LossKind::Amplitude);
+    EXPECT_EQ(parse_loss("poisson:1e4").kind, LossKind::Poisson);
+    EXPECT_EQ(parse_loss("poisson:1e4").photons, 1e4);
 }
 
 TEST(LossTest, ToStringRoundTrips) {
@@ -68,6 +71,8 @@ TEST(LossTest, ToStringRoundTrips) {
     EXPECT_EQ(to_string(Loss{LossKind::CMSLE, 0.01}), "cmsle:0.01");
     EXPECT_EQ(to_string(Loss{LossKind::MSE, 1.0}), "mse");
     EXPECT_EQ(to_string(Loss{LossKind::Amplitude, 1.0}), "amplitude");
+    EXPECT_EQ(to_string(Loss{LossKind::Poisson, 1.0, 10000.0}), "poisson:10000");
+    EXPECT_EQ(parse_loss(to_string(Loss{LossKind::Poisson, 1.0, 1.0 / 3.0})).photons, 1.0 / 3.0);
     for (double eps : {1.0, 0.001, 0.1 + 0.2, 1.0 / 3.0, 5e-300, 1e300}) {
         const Loss back = parse_loss(to_string(Loss{LossKind::CMSLE, eps}));
         EXPECT_EQ(back.kind, LossKind::CMSLE);
@@ -76,10 +81,11 @@ TEST(LossTest, ToStringRoundTrips) {
 }
 
 TEST(LossTest, ParseErrorsNameTheText) {
-    for (const char* text : {"cmsle:0", "cmsle:-1", "cmsle:-0", "cmsle:inf", "cmsle:nan"})
+    for (const char* text : {"cmsle:0", "cmsle:-1", "cmsle:-0", "cmsle:inf", "cmsle:nan", "poisson:0",
+                             "poisson:-5", "poisson:inf"})
         expect_throw_naming<std::domain_error>([&] { parse_loss(text); }, text);
     for (const char* text : {"cmsle:abc", "foo", "", "cmsle:", "cmsle:1x", "cmsle: 1", "CMSLE", "mse:1",
-                             "cmsle0.1"})
+                             "cmsle0.1", "poisson", "poisson:", "poisson:1e4x"})
         expect_throw_naming<std::invalid_argument>([&] { parse_loss(text); }, std::string("'") + text + "'");
 }
 
@@ -103,6 +109,13 @@ TEST(LossTest, HandComputedValues) {
     const Loss amplitude{LossKind::Amplitude, 1.0};
     // (√4 − √1)² + (√9 − √1)² = 1 + 4, one pixel of two channels.
     EXPECT_NEAR(loss_value(amplitude, {4, 9}, {1, 1}, 2), 5.0, 1e-14);
+
+    // N = 10 photons over R = (1, 1): s = 5, counts k = (5, 5), rates μ = s·I = (10, 2.5):
+    // 2[5 log(1/2) + 5] + 2[5 log 2 − 2.5] = 5 over 2 pixels.
+    const Loss poisson{LossKind::Poisson, 1.0, 10.0};
+    EXPECT_NEAR(loss_value(poisson, {2.0, 0.5}, {1.0, 1.0}, 1), 2.5, 1e-9);
+    // The scale comes from the reference's sum: the same counts at another brightness.
+    EXPECT_NEAR(loss_value(poisson, {6.0, 1.5}, {3.0, 3.0}, 1), 2.5, 1e-9);
 }
 
 TEST(LossTest, NegativeValuesAreClampedToZero) {
@@ -162,6 +175,9 @@ TEST(LossTest, SizeAndChannelErrorsThrow) {
     EXPECT_THROW(loss_value(loss, empty, empty, 1), std::invalid_argument);
     EXPECT_THROW(loss_value(Loss{LossKind::CMSLE, 0.0}, a, a, 1), std::domain_error);
     EXPECT_THROW(loss_value(Loss{LossKind::CMSLE, std::nan("")}, a, a, 1), std::domain_error);
+    EXPECT_THROW(loss_value(Loss{LossKind::Poisson, 1.0, 0.0}, a, a, 1), std::domain_error);
+    expect_throw_naming<std::invalid_argument>(
+        [&] { loss_value(Loss{LossKind::Poisson, 1.0, 1e4}, a, std::vector<double>(6, 0.0), 1); }, "positive sum");
     EXPECT_THROW(rgb_mse(a, b, 3), std::invalid_argument);
     EXPECT_THROW(rgb_mse(a, a, 2), std::invalid_argument);
     EXPECT_THROW(rgb_gamma_mse(a, b, 1), std::invalid_argument);

@@ -6,24 +6,29 @@
 //   CMSLE(I, R)     = 1/|P| Σ_p Σ_c (log(I + ε) − log(R + ε))²
 //   MSE(I, R)       = 1/|P| Σ_p Σ_c (I − R)²
 //   amplitude(I, R) = 1/|P| Σ_p Σ_c (√I − √R)²   (the Gaussian-noise loss on amplitudes)
+//   poisson(I, R)   = 1/|P| Σ_p Σ_c 2 [k log(k / μ) − (k − μ)],  k = s·R, μ = s·I
+//                     the Poisson deviance (negative log-likelihood up to a constant) of photon
+//                     counts k for a slice measured with N photons: s = N / Σ R (noise.h)
 #include <string>
 #include <vector>
 
 namespace wavebrdf {
 
-enum class LossKind { CMSLE, MSE, Amplitude };
+enum class LossKind { CMSLE, MSE, Amplitude, Poisson };
 
 struct Loss {
     LossKind kind = LossKind::CMSLE;
     double epsilon = 1.0;  // CMSLE's ε (> 0); unused by the others
+    double photons = 0.0;  // Poisson: expected photons per slice N (> 0); unused by the others
 };
 
-// Parses "cmsle:EPS" (e.g. "cmsle:0.01"; plain "cmsle" means ε = 1), "mse", "amplitude"
-// (exact, lower case, no blanks). Throws std::invalid_argument naming the text and the accepted
-// forms; std::domain_error, also naming the text, for ε ≤ 0 or not finite.
+// Parses "cmsle:EPS" (e.g. "cmsle:0.01"; plain "cmsle" means ε = 1), "mse", "amplitude",
+// "poisson:N" (N photons per slice, e.g. poisson:1e4) (exact, lower case, no blanks). Throws
+// std::invalid_argument naming the text and the accepted forms; std::domain_error, also naming
+// the text, for ε or N ≤ 0 or not finite.
 Loss parse_loss(const std::string& text);
 // The text parse_loss reads back to the same Loss: "cmsle:EPS" with the shortest EPS that
-// round-trips (so "cmsle:1", "cmsle:0.01"), "mse", "amplitude".
+// round-trips (so "cmsle:1", "cmsle:0.01"), "mse", "amplitude", "poisson:N".
 std::string to_string(const Loss& loss);
 
 // The loss of `estimate` against `reference` (same size, a multiple of `channels`). When
@@ -33,9 +38,11 @@ std::string to_string(const Loss& loss);
 // The gradient is that of the clamped function: 0 where estimate < 0 (CMSLE, amplitude), the
 // one-sided derivative at estimate = 0, so finite differences and line searches see one
 // consistent function. Non-finite inputs are not checked and propagate into the result.
+// The Poisson loss takes its count scale s = N / Σ R from the reference (Σ R > 0 required) and
+// adds 1e-9 counts to k and μ, so its gradient 2 s (1 − k/μ) stays finite where I = 0.
 // Throws std::invalid_argument on a size mismatch, a size that is not a multiple of
-// `channels`, channels < 1, or empty slices (the mean over no pixels is undefined);
-// std::domain_error for a CMSLE ε ≤ 0 or not finite.
+// `channels`, channels < 1, empty slices (the mean over no pixels is undefined), or a Poisson
+// reference that sums to 0; std::domain_error for a CMSLE ε or Poisson N ≤ 0 or not finite.
 double loss_value(const Loss& loss, const std::vector<double>& estimate,
                   const std::vector<double>& reference, int channels,
                   std::vector<double>* gradient = nullptr);
