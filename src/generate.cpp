@@ -15,9 +15,16 @@
 #include <string>
 #include <vector>
 
+#include "random.h"
+
 namespace wavebrdf {
 
 namespace {
+
+// Random numbers depend on the seed only (random.h).
+using detail::derive_seed;
+using detail::fill_standard_normal;
+using detail::uniform01;
 
 constexpr double k_pi = 3.14159265358979323846;
 constexpr int k_max_size = 16384;
@@ -89,36 +96,6 @@ void validate(const SurfaceParams& p) {
     require_positive(p.scratch_width_um, "scratch_width_um");
     require_finite(p.amplitude_um, "amplitude_um");
     require_positive(p.period_um, "period_um");
-}
-
-// ---------------------------------------------------------------------------------------------
-// Random numbers: std::mt19937_64 with our own uniform and Box–Muller transforms, so that the
-// result depends on the seed only (std distributions are implementation-defined).
-
-// SplitMix64 finaliser: independent generator seeds for the parts of one surface.
-std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t stream) {
-    std::uint64_t z = seed + 0x9E3779B97F4A7C15ull * (stream + 1);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
-
-// Uniform in [0, 1) with 53 random bits.
-double uniform01(std::mt19937_64& rng) {
-    return static_cast<double>(rng() >> 11) * 0x1.0p-53;
-}
-
-// Fills `out[0..n)` with independent standard normal samples (Box–Muller, both outputs used).
-void fill_standard_normal(double* out, std::size_t n, std::mt19937_64& rng) {
-    for (std::size_t k = 0; k < n; k += 2) {
-        // u1 in (0, 1] so that log(u1) is finite.
-        const double u1 = static_cast<double>((rng() >> 11) + 1) * 0x1.0p-53;
-        const double u2 = uniform01(rng);
-        const double r = std::sqrt(-2.0 * std::log(u1));
-        const double phi = 2.0 * k_pi * u2;
-        out[k] = r * std::cos(phi);
-        if (k + 1 < n) out[k + 1] = r * std::sin(phi);
-    }
 }
 
 // ---------------------------------------------------------------------------------------------

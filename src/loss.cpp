@@ -8,21 +8,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "text.h"
+
 namespace wavebrdf {
 
 namespace {
-
-// Shortest "%.{15,16,17}g" text that reads back as the same double, so that
-// parse_loss(to_string(loss)) == loss and common values print as typed ("0.01", not
-// "0.010000000000000000208").
-std::string format_shortest(double v) {
-    char buf[40];
-    for (int precision = 15; precision <= 17; ++precision) {
-        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-        if (std::strtod(buf, nullptr) == v) break;
-    }
-    return buf;
-}
 
 void check_epsilon(double epsilon, const std::string& what) {
     if (!(std::isfinite(epsilon) && epsilon > 0.0))
@@ -32,18 +22,6 @@ void check_epsilon(double epsilon, const std::string& what) {
 void check_photons(double photons, const std::string& what) {
     if (!(std::isfinite(photons) && photons > 0.0))
         throw std::domain_error("Poisson photons per slice must be finite and > 0, got " + what);
-}
-
-// The number after "name:" in `text`, or throws `bad()`. strtod accepts leading blanks; we do
-// not, so that "cmsle: 1" is not half-accepted.
-template <typename Bad>
-double parse_parameter(const std::string& text, std::size_t prefix, Bad bad) {
-    const std::string number = text.substr(prefix);
-    if (number.empty() || std::isspace(static_cast<unsigned char>(number[0]))) throw bad();
-    char* end = nullptr;
-    const double value = std::strtod(number.c_str(), &end);
-    if (end != number.c_str() + number.size()) throw bad();
-    return value;
 }
 
 // Validates a (estimate, reference, channels) triple; returns the number of pixels.
@@ -118,12 +96,12 @@ Loss parse_loss(const std::string& text) {
     if (text == "cmsle") return {LossKind::CMSLE, 1.0};
     const auto starts_with = [&](const std::string& prefix) { return text.compare(0, prefix.size(), prefix) == 0; };
     if (starts_with("cmsle:")) {
-        const double epsilon = parse_parameter(text, 6, bad);
+        const double epsilon = detail::parse_number_from(text, 6, bad);
         check_epsilon(epsilon, "'" + text + "'");
         return {LossKind::CMSLE, epsilon};
     }
     if (starts_with("poisson:")) {
-        const double photons = parse_parameter(text, 8, bad);
+        const double photons = detail::parse_number_from(text, 8, bad);
         check_photons(photons, "'" + text + "'");
         return {LossKind::Poisson, 1.0, photons};
     }
@@ -132,10 +110,10 @@ Loss parse_loss(const std::string& text) {
 
 std::string to_string(const Loss& loss) {
     switch (loss.kind) {
-        case LossKind::CMSLE: return "cmsle:" + format_shortest(loss.epsilon);
+        case LossKind::CMSLE: return "cmsle:" + detail::format_shortest(loss.epsilon);
         case LossKind::MSE: return "mse";
         case LossKind::Amplitude: return "amplitude";
-        case LossKind::Poisson: return "poisson:" + format_shortest(loss.photons);
+        case LossKind::Poisson: return "poisson:" + detail::format_shortest(loss.photons);
     }
     throw std::invalid_argument("to_string: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
 }
@@ -148,7 +126,7 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
     switch (loss.kind) {
         case LossKind::CMSLE: {
             const double eps = loss.epsilon;
-            check_epsilon(eps, format_shortest(eps));
+            check_epsilon(eps, detail::format_shortest(eps));
             return mean_over_pixels(
                 estimate, reference, inv_pixels, gradient,
                 [eps](double e, double r) {
@@ -179,12 +157,12 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
                 [](double e, double, double d) { return e >= 0.0 ? d / std::sqrt(e + tiny) : 0.0; });
         }
         case LossKind::Poisson: {
-            check_photons(loss.photons, format_shortest(loss.photons));
+            check_photons(loss.photons, detail::format_shortest(loss.photons));
             double total = 0.0;
             for (double r : reference) total += std::max(r, 0.0);
             if (!(total > 0.0))
                 throw std::invalid_argument("loss_value: the Poisson loss needs a reference with a positive sum "
-                                            "(its photon scale N / sum), got sum " + format_shortest(total));
+                                            "(its photon scale N / sum), got sum " + detail::format_shortest(total));
             const double s = loss.photons / total;
             // 1e-9 counts added to both k and μ keep log μ and 1/μ finite where I = 0 and the
             // loss exactly 0 where I = R.
