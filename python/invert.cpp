@@ -337,7 +337,7 @@ init          'flat', 'noisy:FRAC' (truth + uniform noise of width FRAC x its he
               a Heightfield, a 2-D array or an EXR path
 epochs        >= 0 (Adam steps or L-BFGS iterations); optimizer 'adam' or 'lbfgs'
 lr, beta1, beta2, decay   Adam's options (lr > 0, betas in [0, 1), decay >= 0 per epoch)
-loss          'cmsle:EPS', 'mse', 'amplitude' or a Loss
+loss          'cmsle:EPS', 'mse', 'amplitude', 'poisson:N' or a Loss
 positions     'fixed', 'random' (a new footprint position per epoch, Adam only), a list of
               (x_um, y_um), or a JSON path ([[x_um, y_um], ...])
 seed          generated truth, noise and random positions

@@ -40,15 +40,19 @@ A loss between an estimated and a reference slice (the thesis's Definition 3.2):
     'cmsle:EPS'  1/|P| sum_p sum_c (log(I + EPS) - log(R + EPS))^2, EPS > 0 ('cmsle' = 'cmsle:1')
     'mse'        1/|P| sum_p sum_c (I - R)^2
     'amplitude'  1/|P| sum_p sum_c (sqrt(I) - sqrt(R))^2
+    'poisson:N'  1/|P| sum_p sum_c 2 (k log(k / mu) - (k - mu)), k = s R, mu = s I, s = N / sum(R):
+                 the Poisson deviance of a slice measured with N photons (N > 0)
 Negative values are clamped to 0 for the log and square root (and get gradient 0).
 Loss(spec='cmsle:1'); loss(estimate, reference) -> float;
 loss.value_and_gradient(estimate, reference) -> (float, dloss/destimate shaped like estimate).
 )doc") + kShapes).c_str())
         .def(py::init([](const std::string& spec) { return parse_loss(spec); }), "spec"_a = "cmsle:1")
         .def_property_readonly("kind", [](const Loss& l) {
-            return l.kind == LossKind::CMSLE ? "cmsle" : l.kind == LossKind::MSE ? "mse" : "amplitude";
-        })
+            const std::string spec = to_string(l);
+            return spec.substr(0, spec.find(':'));
+        }, "'cmsle', 'mse', 'amplitude' or 'poisson'")
         .def_property_readonly("epsilon", [](const Loss& l) { return l.epsilon; }, "CMSLE's epsilon")
+        .def_property_readonly("photons", [](const Loss& l) { return l.photons; }, "Poisson's photons per slice N")
         .def("__call__", [](const Loss& l, py::handle e, py::handle r) {
             const Pair p = slice_pair(e, r);
             return loss_value(l, p.estimate, p.reference, p.channels);

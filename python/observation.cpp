@@ -14,7 +14,7 @@ Loss loss_argument(const py::object& loss) {
         return loss.cast<Loss>();
     } catch (const py::cast_error&) {
         throw py::value_error("loss = " + std::string(py::repr(loss)) +
-                              " is invalid; expected a Loss or a string 'cmsle:EPS', 'mse' or 'amplitude'");
+                              " is invalid; expected a Loss or a spec 'cmsle:EPS', 'mse', 'amplitude' or 'poisson:N'");
     }
 }
 
@@ -117,7 +117,7 @@ Observation(query, reference)
     }, "heightfield"_a, "observations"_a, "loss"_a = "cmsle:1", R"doc(
 The mean over observations of loss(render(heightfield), reference) and its gradient with
 respect to the heightfield's values (texel units, float64 (rows, cols)), in double precision:
-(value, gradient). loss: a Loss or its spec ('cmsle:EPS', 'mse', 'amplitude').
+(value, gradient). loss: a Loss or its spec ('cmsle:EPS', 'mse', 'amplitude', 'poisson:N').
 )doc");
 
     m.def("read_observations", [](const std::string& path) { return read_observations_json(path); }, "path"_a,

@@ -3,14 +3,14 @@
 # AddressSanitizer and UndefinedBehaviorSanitizer.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
 (cd build && ctest --output-on-failure -j"$(nproc)")
 echo "test: Python (pytest)"
 /usr/bin/python3 -m pytest -q tests/python
 
 echo "test: sanitizer build (ASan + UBSan)"
 cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWAVEBRDF_SANITIZE=ON \
-      -DWAVEBRDF_BUILD_BENCH=OFF >/dev/null
+      -DWAVEBRDF_BUILD_BENCH=OFF -DWAVEBRDF_BUILD_PYTHON=OFF >/dev/null
 cmake --build build-sanitize -j"$(nproc)"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1

@@ -1,0 +1,25 @@
+"""pytest set-up for tests/python: the module and the CLI come from one build directory,
+build/ by default (what scripts/setup.sh builds) or $WAVEBRDF_BUILD_DIR (relative to the
+repository root, or absolute)."""
+import os
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+BUILD = os.path.join(ROOT, os.environ.get("WAVEBRDF_BUILD_DIR", "build"))
+sys.path.insert(0, os.path.join(BUILD, "python"))
+
+
+@pytest.fixture
+def cli():
+    """The `wavebrdf` executable of the same build as the module."""
+    path = os.path.join(BUILD, "bin", "wavebrdf")
+    assert os.path.exists(path), "%s is missing; build the wavebrdf_cli target" % path
+    return path
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
