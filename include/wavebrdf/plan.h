@@ -1,0 +1,87 @@
+#pragma once
+// Acquisition planning for heightfield recovery (recover.h): where to put the footprints, how
+// finely to sample each slice, and which wavelengths to measure, so that the slices determine
+// the heights; and the check of given observations against the same rules.
+//
+// The rules (ptychography; ours to measure in docs/recovery.md):
+//  - A footprint window has support D = 6σ_p (the model's 3σ_p cut). Neighbouring windows
+//    overlap linearly by 1 − d/D at centre distance d; recovery needs ≥ 60 %. Positions are a
+//    raster over the periodic tile, each jittered by up to ±jitter · step (a perfect raster
+//    has ambiguities of its own), with the step chosen so the worst case still overlaps.
+//  - A slice samples u = (ω_i + ω_o)/λ every Δu = 2/(nλ). The intensity of a window of support
+//    D is band-limited to |Δx| ≤ D, so Nyquist asks Δu ≤ 1/(2D): n ≥ 4D/λ.
+//  - One wavelength determines the heights modulo λ/2. A pair (λ0, λj) has the synthetic
+//    wavelength Λ = λ0λj/|λ0 − λj| and determines them modulo Λ/2. The planner builds a ladder
+//    of synthetic wavelengths from one that spans the height range with a margin down to λ0,
+//    each step at most `max_step_ratio` finer than the previous (each level's height estimate
+//    must be good to a fraction of the next level's ambiguity).
+#include <array>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/model.h"
+
+namespace wavebrdf {
+
+class Heightfield;
+struct Observation;
+
+struct PlanRequest {
+    int rows = 32, cols = 32;       // heightfield size (texels)
+    double texel_um = 1.0;          // texel width w, µm
+    double height_range_um = 0.0;   // expected peak-to-valley of the heights, µm (≥ 0)
+    double sigma_p_um = 0.0;        // footprint σ_p, µm; 0: 4 texels
+    double overlap = 0.7;           // linear overlap of neighbouring windows, 0.6 … 0.95
+    double jitter = 0.15;           // position jitter, fraction of the raster step, 0 … 0.3
+    double lambda_um = 0.55;        // base wavelength λ0, µm
+    double lambda_min_um = 0.40;    // wavelengths available to the ladder, µm
+    double lambda_max_um = 0.70;
+    double max_step_ratio = 3.0;    // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
+    std::array<double, 2> light{{0.0, 0.0}};  // ω_i of every observation
+    Model model = Model::OHS;
+    std::uint64_t seed = 1;         // jitter
+};
+
+struct AcquisitionPlan {
+    double sigma_p_um = 0.0;
+    int resolution = 0;                           // slice pixels per side
+    std::vector<double> lambdas_um;               // λ0 first, then the ladder's partners
+    std::vector<double> synthetic_um;             // the ladder Λ_1 > Λ_2 > … (λ0 excluded)
+    std::vector<std::array<double, 2>> positions_um;  // footprint centres (x, y)
+    double step_x_um = 0.0, step_y_um = 0.0;      // raster steps
+    double overlap = 0.0;                         // worst-case linear overlap of neighbours
+    std::array<double, 2> light{{0.0, 0.0}};
+    Model model = Model::OHS;
+    std::vector<std::string> notes;               // choices the caller should know about
+};
+
+// Throws std::invalid_argument / std::domain_error naming the field for sizes < 1, texel_um,
+// σ_p, λ or ranges out of range, overlap outside 0.6 … 0.95, jitter outside 0 … 0.3, a
+// base wavelength outside [lambda_min_um, lambda_max_um], or a height range the wavelength
+// range cannot unwrap (names the largest range it can).
+AcquisitionPlan plan_acquisition(const PlanRequest& request);
+
+// One observation per (position, wavelength) of `plan`, with empty references (render them with
+// render_observation, or fill them with measurements).
+std::vector<Observation> planned_observations(const AcquisitionPlan& plan);
+
+// The synthetic-wavelength ladder for heights spanning `height_range_um` (see above): the
+// partner wavelengths of λ0, coarsest first. Empty when λ0 alone suffices (range < λ0/4).
+// Throws std::domain_error when the range needs a finer λ step than [λ_min, λ_max] offers.
+std::vector<double> plan_wavelengths(double height_range_um, double lambda0_um, double lambda_min_um,
+                                     double lambda_max_um, double max_step_ratio,
+                                     std::vector<double>* synthetic_um = nullptr);
+
+// Warnings (one line each) for observations that are too coarse or too sparse to determine the
+// heights of a rows × cols tile of texel `texel_um`: neighbouring windows overlapping < 60 %,
+// texels farther than 2σ_p from every footprint centre, slices with Δu > 1/(2D), wavelengths
+// that cannot unwrap `height_range_um` (NaN: unknown, not checked), fewer measured values than
+// heights, and (with `truth`) slopes that reflect light off the slice. Empty when all is well.
+std::vector<std::string> check_acquisition(const std::vector<Observation>& observations, int rows, int cols,
+                                           double texel_um,
+                                           double height_range_um = std::numeric_limits<double>::quiet_NaN(),
+                                           const Heightfield* truth = nullptr);
+
+}  // namespace wavebrdf

@@ -1,0 +1,289 @@
+#include "wavebrdf/plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <random>
+#include <set>
+#include <stdexcept>
+#include <string>
+
+#include "random.h"
+#include "text.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/observation.h"
+
+namespace wavebrdf {
+
+namespace {
+
+using detail::format_shortest;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+std::string fixed(double v, int digits) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+
+void require_range(double value, double lo, double hi, const char* name) {
+    if (!(std::isfinite(value) && value >= lo && value <= hi))
+        throw std::domain_error(std::string(name) + " = " + format_shortest(value) + " is out of range; expected " +
+                                format_shortest(lo) + " to " + format_shortest(hi));
+}
+
+// Window support D = 6σ_p (the model's 3σ_p cut on either side).
+double support_um(double sigma_p_um) { return 6.0 * sigma_p_um; }
+
+// Slice pixels n with Δu = 2/(nλ) ≤ 1/(2D), rounded up to a multiple of 8.
+int nyquist_resolution(double sigma_p_um, double lambda_um) {
+    const double n = 4.0 * support_um(sigma_p_um) / lambda_um;
+    return static_cast<int>(std::ceil(n / 8.0 - 1e-9)) * 8;
+}
+
+// Periodic distance along one axis.
+double wrapped(double d, double period) {
+    d = std::fmod(std::abs(d), period);
+    return std::min(d, period - d);
+}
+
+}  // namespace
+
+std::vector<double> plan_wavelengths(double range_um, double lambda0, double lambda_min, double lambda_max,
+                                     double max_ratio, std::vector<double>* synthetic_out) {
+    require_range(range_um, 0.0, 1e6, "height range (um)");
+    require_range(lambda0, lambda_min, lambda_max, "base wavelength lambda0 (um)");
+    require_range(max_ratio, 1.5, 100.0, "ladder step ratio");
+    std::vector<double> partners, synthetic;
+    // One wavelength determines heights modulo λ0/2; keep the range within half of that.
+    if (range_um >= 0.25 * lambda0) {
+        // Finest synthetic wavelength the range [λ_min, λ_max] offers: the partner farthest from λ0.
+        const double shortest = std::min(lambda_min < lambda0 ? lambda0 * lambda_min / (lambda0 - lambda_min) : kInfinity,
+                                         lambda_max > lambda0 ? lambda0 * lambda_max / (lambda_max - lambda0) : kInfinity);
+        if (!(shortest <= max_ratio * lambda0))
+            throw std::domain_error(
+                "wavelengths " + format_shortest(lambda_min) + " to " + format_shortest(lambda_max) +
+                " um cannot bridge synthetic wavelengths down to lambda0 = " + format_shortest(lambda0) +
+                " um within a step ratio of " + format_shortest(max_ratio) + "; heights up to " +
+                format_shortest(0.25 * lambda0) + " um peak-to-valley need one wavelength only");
+        // Λ_1 = 4 × range: the range fills half of the coarsest ambiguity interval Λ/2.
+        double level = std::max(4.0 * range_um, shortest);
+        for (;;) {
+            synthetic.push_back(level);
+            if (level <= max_ratio * lambda0) break;
+            level = std::max(level / max_ratio, shortest);
+        }
+        for (double big : synthetic) {
+            // Partner on the short side if available, else on the long side.
+            const double shorter = lambda0 * big / (big + lambda0);
+            partners.push_back(shorter >= lambda_min ? shorter : lambda0 * big / (big - lambda0));
+        }
+    }
+    if (synthetic_out) *synthetic_out = synthetic;
+    return partners;
+}
+
+AcquisitionPlan plan_acquisition(const PlanRequest& r) {
+    if (r.rows < 1 || r.cols < 1)
+        throw std::invalid_argument("heightfield size " + std::to_string(r.rows) + "x" + std::to_string(r.cols) +
+                                    " is invalid; expected at least 1x1");
+    require_range(r.texel_um, 1e-6, 1e6, "texel_um");
+    require_range(r.overlap, 0.6, 0.95, "overlap");
+    require_range(r.jitter, 0.0, 0.3, "jitter");
+    require_range(r.lambda_min_um, 0.01, 100.0, "lambda_min_um");
+    require_range(r.lambda_max_um, r.lambda_min_um, 100.0, "lambda_max_um");
+    if (!(r.sigma_p_um == 0.0)) require_range(r.sigma_p_um, 1e-6, 1e6, "sigma_p_um");
+    Query probe;
+    probe.omega_i = r.light;
+    probe.model = r.model;
+    validate(probe);
+
+    AcquisitionPlan plan;
+    plan.light = r.light;
+    plan.model = r.model;
+    plan.sigma_p_um = r.sigma_p_um > 0.0 ? r.sigma_p_um : 4.0 * r.texel_um;
+    const double d_um = support_um(plan.sigma_p_um);
+
+    // Wavelengths: λ0 and the ladder's partners.
+    plan.lambdas_um.push_back(r.lambda_um);
+    const std::vector<double> partners = plan_wavelengths(r.height_range_um, r.lambda_um, r.lambda_min_um,
+                                                          r.lambda_max_um, r.max_step_ratio, &plan.synthetic_um);
+    plan.lambdas_um.insert(plan.lambdas_um.end(), partners.begin(), partners.end());
+
+    // Positions: a raster whose worst-case (jittered) neighbour distance keeps the overlap.
+    const double period_x = r.rows * r.texel_um, period_y = r.cols * r.texel_um;
+    const double max_step = (1.0 - r.overlap) * d_um / (1.0 + 2.0 * r.jitter);
+    const int nx = std::max(1, static_cast<int>(std::ceil(period_x / max_step - 1e-9)));
+    const int ny = std::max(1, static_cast<int>(std::ceil(period_y / max_step - 1e-9)));
+    plan.step_x_um = period_x / nx;
+    plan.step_y_um = period_y / ny;
+    std::mt19937_64 rng(detail::derive_seed(r.seed, 17));
+    for (int i = 0; i < nx; ++i)
+        for (int j = 0; j < ny; ++j) {
+            const double jx = (2.0 * detail::uniform01(rng) - 1.0) * r.jitter * plan.step_x_um;
+            const double jy = (2.0 * detail::uniform01(rng) - 1.0) * r.jitter * plan.step_y_um;
+            plan.positions_um.push_back({(i + 0.5) * plan.step_x_um + jx, (j + 0.5) * plan.step_y_um + jy});
+        }
+    plan.overlap = 1.0 - std::max(plan.step_x_um, plan.step_y_um) * (1.0 + 2.0 * r.jitter) / d_um;
+
+    // Resolution: Nyquist for the window at the shortest wavelength.
+    const double lambda_short = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());
+    plan.resolution = nyquist_resolution(plan.sigma_p_um, lambda_short);
+    validate_resolution(plan.resolution);
+
+    plan.notes.push_back("footprint sigma_p = " + format_shortest(plan.sigma_p_um) + " um (window support D = " +
+                         format_shortest(d_um) + " um)");
+    plan.notes.push_back(std::to_string(plan.positions_um.size()) + " positions on a " + std::to_string(nx) + "x" +
+                         std::to_string(ny) + " raster, steps " + fixed(plan.step_x_um, 2) + " x " +
+                         fixed(plan.step_y_um, 2) + " um, jitter +-" + fixed(100.0 * r.jitter, 0) +
+                         " % of a step: neighbours overlap by at least " + fixed(100.0 * plan.overlap, 0) + " %");
+    plan.notes.push_back(std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) +
+                         " slices: du = " + fixed(2.0 / (plan.resolution * lambda_short), 4) +
+                         " 1/um at lambda = " + format_shortest(lambda_short) + " um, <= 1/(2D) = " +
+                         fixed(0.5 / d_um, 4));
+    std::string lambdas;
+    for (double l : plan.lambdas_um) lambdas += (lambdas.empty() ? "" : ", ") + fixed(l, 4);
+    std::string synthetic;
+    for (double s : plan.synthetic_um) synthetic += (synthetic.empty() ? "" : ", ") + fixed(s, 3);
+    plan.notes.push_back("wavelengths " + lambdas + " um" +
+                         (synthetic.empty() ? std::string(" (one suffices for the height range)")
+                                            : " (synthetic " + synthetic + " um; heights unwrap up to " +
+                                                  fixed(0.5 * plan.synthetic_um.front(), 3) + " um)"));
+    return plan;
+}
+
+std::vector<Observation> planned_observations(const AcquisitionPlan& plan) {
+    std::vector<Observation> out;
+    for (const auto& p : plan.positions_um)
+        for (double lambda : plan.lambdas_um) {
+            Observation o;
+            o.query.x_um = p[0];
+            o.query.y_um = p[1];
+            o.query.sigma_p_um = plan.sigma_p_um;
+            o.query.omega_i = plan.light;
+            o.query.model = plan.model;
+            o.lambdas_um = {lambda};
+            o.resolution = plan.resolution;
+            out.push_back(o);
+        }
+    return out;
+}
+
+std::vector<std::string> check_acquisition(const std::vector<Observation>& observations, int rows, int cols,
+                                           double texel_um, double height_range_um, const Heightfield* truth) {
+    std::vector<std::string> warnings;
+    if (observations.empty()) return {"no observations"};
+    const double period_x = rows * texel_um, period_y = cols * texel_um;
+
+    // Footprints, per σ_p: overlap of neighbours and coverage of the tile.
+    std::set<double> sigmas;
+    for (const Observation& o : observations) sigmas.insert(o.query.sigma_p_um);
+    for (double sigma_p : sigmas) {
+        std::vector<std::array<double, 2>> centres;
+        for (const Observation& o : observations) {
+            if (o.query.sigma_p_um != sigma_p) continue;
+            const std::array<double, 2> c{{o.query.x_um, o.query.y_um}};
+            if (std::find(centres.begin(), centres.end(), c) == centres.end()) centres.push_back(c);
+        }
+        const std::string which = sigmas.size() > 1 ? " (sigma_p = " + format_shortest(sigma_p) + " um)" : "";
+        const double d_um = support_um(sigma_p);
+        const auto distance = [&](const std::array<double, 2>& a, const std::array<double, 2>& b) {
+            return std::hypot(wrapped(a[0] - b[0], period_x), wrapped(a[1] - b[1], period_y));
+        };
+        if (centres.size() < 2) {
+            warnings.push_back("one footprint position" + which +
+                               ": a single window cannot determine the heights; use overlapping positions");
+        } else {
+            double worst = 0.0;  // the largest nearest-neighbour distance
+            for (std::size_t a = 0; a < centres.size(); ++a) {
+                double nearest = kInfinity;
+                for (std::size_t b = 0; b < centres.size(); ++b)
+                    if (a != b) nearest = std::min(nearest, distance(centres[a], centres[b]));
+                worst = std::max(worst, nearest);
+            }
+            const double overlap = 1.0 - worst / d_um;
+            if (overlap < 0.6)
+                warnings.push_back("neighbouring footprints" + which + " overlap by only " + fixed(100.0 * overlap, 0) +
+                                   " % (centres up to " + fixed(worst, 2) + " um apart, window D = 6 sigma_p = " +
+                                   fixed(d_um, 2) + " um); expected at least 60 %");
+        }
+        int uncovered = 0;
+        for (int i = 0; i < rows; ++i)
+            for (int j = 0; j < cols; ++j) {
+                const std::array<double, 2> t{{(i + 0.5) * texel_um, (j + 0.5) * texel_um}};
+                double nearest = kInfinity;
+                for (const auto& c : centres) nearest = std::min(nearest, distance(t, c));
+                if (nearest > 2.0 * sigma_p) ++uncovered;
+            }
+        if (uncovered > 0)
+            warnings.push_back(std::to_string(uncovered) + " of " + std::to_string(rows * cols) + " texels" + which +
+                               " are farther than 2 sigma_p from every footprint centre: their heights are "
+                               "barely measured");
+    }
+
+    // Sampling of each slice.
+    std::set<std::string> seen;
+    for (const Observation& o : observations) {
+        const double d_um = support_um(o.query.sigma_p_um);
+        for (double lambda : o.lambdas_um) {
+            const double du = 2.0 / (o.resolution * lambda);
+            if (du <= 0.5 / d_um) continue;
+            const std::string w = std::to_string(o.resolution) + "x" + std::to_string(o.resolution) +
+                                  " slices at lambda = " + format_shortest(lambda) + " um sample u every " +
+                                  fixed(du, 4) + " 1/um, coarser than 1/(2D) = " + fixed(0.5 / d_um, 4) +
+                                  " for sigma_p = " + format_shortest(o.query.sigma_p_um) + " um; expected at least " +
+                                  std::to_string(nyquist_resolution(o.query.sigma_p_um, lambda)) + " pixels";
+            if (seen.insert(w).second) warnings.push_back(w);
+        }
+    }
+
+    // Wavelengths against the height range: the coarsest synthetic wavelength must span it.
+    if (std::isfinite(height_range_um)) {
+        std::set<double> lambdas;
+        for (const Observation& o : observations) lambdas.insert(o.lambdas_um.begin(), o.lambdas_um.end());
+        double coarsest = *lambdas.begin();
+        for (double a : lambdas)
+            for (double b : lambdas)
+                if (a < b) coarsest = std::max(coarsest, a * b / (b - a));
+        if (height_range_um >= 0.5 * coarsest)
+            warnings.push_back("heights spanning " + format_shortest(height_range_um) +
+                               " um wrap: the wavelengths given determine heights only modulo " +
+                               fixed(0.5 * coarsest, 3) + " um (half their coarsest synthetic wavelength)");
+    }
+
+    // Enough numbers for the unknowns.
+    double values = 0.0;
+    for (const Observation& o : observations) {
+        int inside = 0;
+        for (int p = 0; p < o.resolution; ++p)
+            for (int q = 0; q < o.resolution; ++q) {
+                const double ox = slice_omega(p, o.resolution), oy = slice_omega(q, o.resolution);
+                if (ox * ox + oy * oy <= 1.0) ++inside;
+            }
+        values += double(inside) * double(o.lambdas_um.size());
+    }
+    if (values < double(rows) * cols)
+        warnings.push_back("the slices hold " + fixed(values, 0) + " values for " + std::to_string(rows * cols) +
+                           " heights: too few to determine them");
+
+    // Light must stay on the slice: a facet of slope s reflects towards ω_o ≈ −ω_i − 2s.
+    if (truth) {
+        double max_slope = 0.0;
+        for (int i = 0; i < truth->rows(); ++i)
+            for (int j = 0; j < truth->cols(); ++j) {
+                const auto s = truth->slope(i, j);
+                max_slope = std::max(max_slope, std::hypot(s[0], s[1]));
+            }
+        double light = 0.0;
+        for (const Observation& o : observations) light = std::max(light, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
+        if (light + 2.0 * max_slope > 0.9)
+            warnings.push_back("slopes up to " + fixed(max_slope, 3) + " reflect light towards |omega_o| up to " +
+                               fixed(light + 2.0 * max_slope, 2) +
+                               ", at or beyond the slice's rim: part of the field is not measured (use larger texels "
+                               "or lower heights)");
+    }
+    return warnings;
+}
+
+}  // namespace wavebrdf

@@ -1,0 +1,210 @@
+// Tests of acquisition planning: the planned positions, resolution and wavelengths satisfy the
+// rules they are planned by (measured independently here: nearest-neighbour distances on the
+// periodic tile, the u spacing, synthetic wavelengths from the pairs), the ladder unwraps
+// noisy single-wavelength phases into the right heights, and check_acquisition names each
+// kind of too-coarse or too-sparse data.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "test_util.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/observation.h"
+#include "wavebrdf/plan.h"
+
+using namespace wavebrdf;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+double periodic_distance(const std::array<double, 2>& a, const std::array<double, 2>& b, double px, double py) {
+    double dx = std::fmod(std::abs(a[0] - b[0]), px), dy = std::fmod(std::abs(a[1] - b[1]), py);
+    dx = std::min(dx, px - dx);
+    dy = std::min(dy, py - dy);
+    return std::hypot(dx, dy);
+}
+
+bool mentions(const std::vector<std::string>& warnings, const std::string& text) {
+    for (const auto& w : warnings)
+        if (w.find(text) != std::string::npos) return true;
+    return false;
+}
+
+std::vector<Observation> with_flat_references(std::vector<Observation> obs) {
+    for (auto& o : obs) o.reference.assign(static_cast<std::size_t>(o.resolution) * o.resolution, 1.0);
+    return obs;
+}
+
+}  // namespace
+
+TEST(PlanTest, PositionsOverlapAsRequestedAndCoverTheTile) {
+    for (double overlap : {0.6, 0.75, 0.9}) {
+        PlanRequest r;
+        r.rows = 48;
+        r.cols = 40;
+        r.texel_um = 1.5;
+        r.overlap = overlap;
+        r.jitter = 0.2;
+        r.seed = 3;
+        const AcquisitionPlan plan = plan_acquisition(r);
+        const double px = r.rows * r.texel_um, py = r.cols * r.texel_um, d = 6.0 * plan.sigma_p_um;
+        double worst = 0.0;
+        for (std::size_t a = 0; a < plan.positions_um.size(); ++a) {
+            double nearest = INFINITY;
+            for (std::size_t b = 0; b < plan.positions_um.size(); ++b)
+                if (a != b) nearest = std::min(nearest, periodic_distance(plan.positions_um[a], plan.positions_um[b], px, py));
+            worst = std::max(worst, nearest);
+        }
+        EXPECT_GE(1.0 - worst / d, overlap) << "overlap " << overlap;
+        EXPECT_GE(plan.overlap, overlap);
+        // Jittered: not all on one raster line.
+        std::vector<double> xs;
+        for (const auto& p : plan.positions_um) xs.push_back(std::fmod(p[0], plan.step_x_um));
+        EXPECT_GT(*std::max_element(xs.begin(), xs.end()) - *std::min_element(xs.begin(), xs.end()), 0.01 * plan.step_x_um);
+        EXPECT_TRUE(check_acquisition(with_flat_references(planned_observations(plan)), r.rows, r.cols, r.texel_um).empty());
+    }
+}
+
+TEST(PlanTest, ResolutionSamplesTheWindowAtEveryWavelength) {
+    PlanRequest r;
+    r.height_range_um = 2.0;
+    const AcquisitionPlan plan = plan_acquisition(r);
+    const double d = 6.0 * plan.sigma_p_um;
+    for (double lambda : plan.lambdas_um) EXPECT_LE(2.0 / (plan.resolution * lambda), 0.5 / d) << lambda;
+    const double shortest = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());
+    EXPECT_GT(2.0 / ((plan.resolution - 8) * shortest), 0.5 / d) << "not larger than needed";
+    EXPECT_EQ(plan.resolution % 8, 0);
+}
+
+TEST(PlanTest, WavelengthLadderSpansTheRangeInBoundedSteps) {
+    for (double range : {0.1, 0.3, 1.0, 2.0, 5.0}) {
+        std::vector<double> synthetic;
+        const auto partners = plan_wavelengths(range, 0.55, 0.4, 0.7, 4.0, &synthetic);
+        ASSERT_EQ(partners.size(), synthetic.size());
+        if (range < 0.25 * 0.55) {
+            EXPECT_TRUE(partners.empty()) << range;
+            continue;
+        }
+        ASSERT_FALSE(partners.empty()) << range;
+        for (std::size_t j = 0; j < partners.size(); ++j) {
+            EXPECT_GE(partners[j], 0.4);
+            EXPECT_LE(partners[j], 0.7);
+            EXPECT_NEAR(0.55 * partners[j] / std::abs(0.55 - partners[j]), synthetic[j], 1e-9 * synthetic[j]);
+            if (j > 0) {
+                EXPECT_LE(synthetic[j - 1] / synthetic[j], 4.0 + 1e-9);
+            }
+        }
+        EXPECT_GE(0.5 * synthetic.front(), range) << "the coarsest level spans the range";
+        EXPECT_LE(synthetic.back() / 0.55, 4.0 + 1e-9) << "the finest level reaches lambda0";
+    }
+    EXPECT_THROW(plan_wavelengths(2.0, 0.55, 0.54, 0.56, 4.0), std::domain_error);
+}
+
+// The point of the ladder: wrapped phases at the planned wavelengths, with phase noise, give
+// back the heights (to the single-wavelength precision, no wrong integer anywhere).
+TEST(PlanTest, LadderUnwrapsNoisyPhasesIntoHeights) {
+    // Step ratio 3 tolerates phase noise up to ~π/(4·3·√2) ≈ 0.19 rad at 4σ per level.
+    const double range = 2.0, lambda0 = 0.55, noise_rad = 0.1;
+    std::vector<double> synthetic;
+    const auto partners = plan_wavelengths(range, lambda0, 0.4, 0.7, 3.0, &synthetic);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> height(-0.5 * range, 0.5 * range);
+    std::normal_distribution<double> noise(0.0, noise_rad);
+    const auto wrap = [](double phi) { return phi - 2.0 * kPi * std::floor(phi / (2.0 * kPi) + 0.5); };
+    double worst = 0.0;
+    for (int trial = 0; trial < 2000; ++trial) {
+        const double h = height(rng);
+        const auto phase = [&](double lambda) { return wrap(4.0 * kPi * h / lambda + noise(rng)); };
+        const double phi0 = phase(lambda0);
+        // Coarsest level: the pair's phase difference determines h modulo Λ/2 ⊇ the range.
+        double estimate = 0.0;
+        for (std::size_t j = 0; j < partners.size(); ++j) {
+            const double big = synthetic[j];
+            const double sign = partners[j] < lambda0 ? 1.0 : -1.0;  // 4πh(1/λj − 1/λ0) = ±4πh/Λ
+            const double diff = wrap(sign * (phase(partners[j]) - phi0));
+            // h = Λ (diff + 2πm) / 4π with m nearest the previous estimate.
+            const double base = big * diff / (4.0 * kPi), period = 0.5 * big;
+            estimate = j == 0 ? base : base + period * std::round((estimate - base) / period);
+        }
+        const double base = lambda0 * phi0 / (4.0 * kPi), period = 0.5 * lambda0;
+        estimate = partners.empty() ? base : base + period * std::round((estimate - base) / period);
+        worst = std::max(worst, std::abs(estimate - h));
+    }
+    // Single-wavelength precision: λ0 · 5σ / 4π; a wrong integer would be ≥ λ0/2 = 0.275.
+    EXPECT_LT(worst, lambda0 * 5.0 * noise_rad / (4.0 * kPi));
+}
+
+TEST(PlanTest, CheckNamesSparseCoarseAndWrappingData) {
+    PlanRequest r;
+    r.height_range_um = 1.0;
+    const AcquisitionPlan plan = plan_acquisition(r);
+    auto obs = with_flat_references(planned_observations(plan));
+    EXPECT_TRUE(check_acquisition(obs, r.rows, r.cols, r.texel_um, 1.0).empty());
+
+    // One position only.
+    const std::vector<Observation> single(obs.begin(), obs.begin() + 1);
+    EXPECT_TRUE(mentions(check_acquisition(single, r.rows, r.cols, r.texel_um), "one footprint position"));
+
+    // Every other raster column dropped: neighbours too far apart.
+    std::vector<Observation> sparse;
+    for (const auto& o : obs)
+        if (static_cast<int>(std::floor(o.query.x_um / plan.step_x_um)) % 3 == 0 &&
+            static_cast<int>(std::floor(o.query.y_um / plan.step_y_um)) % 3 == 0)
+            sparse.push_back(o);
+    ASSERT_GE(sparse.size(), 2u);
+    EXPECT_TRUE(mentions(check_acquisition(sparse, r.rows, r.cols, r.texel_um), "overlap by only"));
+
+    // Half the resolution.
+    auto coarse = obs;
+    for (auto& o : coarse) {
+        o.resolution = plan.resolution / 2;
+        o.reference.assign(static_cast<std::size_t>(o.resolution) * o.resolution, 1.0);
+    }
+    EXPECT_TRUE(mentions(check_acquisition(coarse, r.rows, r.cols, r.texel_um), "expected at least " +
+                                                                                    std::to_string(plan.resolution)));
+
+    // One wavelength for 1 µm of heights.
+    std::vector<Observation> mono;
+    for (const auto& o : obs)
+        if (o.lambdas_um[0] == plan.lambdas_um[0]) mono.push_back(o);
+    EXPECT_TRUE(mentions(check_acquisition(mono, r.rows, r.cols, r.texel_um, 1.0), "wrap"));
+
+    // Steep slopes reflect light off the slice.
+    const Heightfield steep = test::random_heightfield(r.rows, r.cols, 2.0, 3, r.texel_um, 1.0);
+    EXPECT_TRUE(mentions(check_acquisition(obs, r.rows, r.cols, r.texel_um, NAN, &steep), "slopes up to"));
+}
+
+TEST(PlanTest, BadRequestsNameTheField) {
+    const auto expect_naming = [](PlanRequest r, const std::string& name) {
+        try {
+            plan_acquisition(r);
+            ADD_FAILURE() << "no exception for " << name;
+        } catch (const std::exception& e) {
+            EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+        }
+    };
+    PlanRequest r;
+    r.overlap = 0.5;
+    expect_naming(r, "overlap");
+    r = {};
+    r.jitter = 0.5;
+    expect_naming(r, "jitter");
+    r = {};
+    r.texel_um = -1.0;
+    expect_naming(r, "texel_um");
+    r = {};
+    r.rows = 0;
+    expect_naming(r, "size");
+    r = {};
+    r.lambda_um = 0.8;
+    expect_naming(r, "lambda0");
+    r = {};
+    r.height_range_um = NAN;
+    expect_naming(r, "height range");
+}
