@@ -1,0 +1,146 @@
+#pragma once
+// Recovering the true heightfield from BRDF slices at several overlapping footprint positions
+// and several wavelengths (MODEL.md, last section): field first, heights second.
+//
+//  1. Field retrieval, per wavelength. At zero slope the Gabor model's field is a
+//     ptychographic far field: with the object O_k = e^{−i(4π/λ)H_k} on the texel grid,
+//       I(u) = env(u) · Σ_k P_k O_k e^{−i2π u·δ_k},   env(u) = exp(−2π²σ²|u|²), σ = w/2,
+//     P_k = c_k w² the footprint window (known), δ_k = μ_k − μ_p. Slices at overlapping
+//     positions determine O up to a global phase; retrieve_field minimises the amplitude loss
+//     Σ (√c1 |I| − √R)² over complex O with L-BFGS.
+//  2. Unwrapping: the phases of the fields at several wavelengths give the heights beyond the
+//     λ/2 ambiguity of one wavelength (synthetic wavelengths λ1λ2/|λ1 − λ2|, then a joint fit).
+//  3. Refinement of the heights in the full Gabor model (slopes included) with L-BFGS on the
+//     amplitude loss of the observations, using the model's analytic gradient.
+//
+// Conventions: objects and fields are complex, row-major (object: rows × cols texels as in the
+// Heightfield; field: resolution × resolution slice pixels); e^{−ix} phase convention of
+// MODEL.md. Heights in µm unless named otherwise.
+#include <complex>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/observation.h"
+
+namespace wavebrdf {
+
+// ---- 1. The ptychographic field model ------------------------------------------------------
+
+// The linear map from a complex object on the texel grid to the far field of one footprint
+// at one wavelength (the formula above), on the slice grid of one observation. It is the
+// separable Gabor field of render_slice with every slope set to zero (same kernels, weights,
+// 3σ_p cut, envelope and pixel grid), so for OHS / ROHS
+//   slice = amplitude_factor² · |forward(e^{−i(4π/λ)H})|²  wherever all slopes vanish.
+// Pixels where the envelope is below 1e-16 of its peak (and outside the disk) are left 0 by
+// forward and ignored by adjoint.
+class FieldOperator {
+public:
+    // rows, cols ≥ 1 texels of width texel_um (> 0, µm); query and λ as for render_slice
+    // (OHS or ROHS: the other models are not separable); resolution 1…8192. Throws
+    // std::invalid_argument / std::domain_error naming the bad value.
+    FieldOperator(int rows, int cols, double texel_um, const Query& query, double lambda_um,
+                  int resolution, int refine = 1);
+    ~FieldOperator();
+    FieldOperator(FieldOperator&&) noexcept;
+    FieldOperator& operator=(FieldOperator&&) noexcept;
+
+    // object: rows·cols values → field: resolution² values.
+    std::vector<std::complex<double>> forward(const std::vector<std::complex<double>>& object) const;
+    // The adjoint (conjugate transpose) of forward: resolution² values → rows·cols values.
+    std::vector<std::complex<double>> adjoint(const std::vector<std::complex<double>>& field) const;
+    // √c1 per slice pixel (0 outside the disk and where c1 is not finite): f = this² · |I|².
+    const std::vector<double>& amplitude_factor() const;
+    int resolution() const;
+
+private:
+    struct Impl;
+    friend struct FieldAccess;  // the retrieval loop works on the factor matrices directly
+    std::unique_ptr<Impl> m_impl;
+};
+
+struct FieldRetrievalSettings {
+    // The object grid is this many times finer than the texels (odd, so that every texel
+    // centre is an object sample: texel (i, j) is sample (i·refine + refine/2, …)).
+    int refine = 1;
+    int iterations = 300;               // L-BFGS iterations (accepted steps)
+    int history = 20;                   // L-BFGS pairs
+    double relative_tolerance = 1e-12;  // stop when the relative loss drops below this
+};
+
+struct FieldRetrievalResult {
+    std::vector<std::complex<double>> object;  // rows·cols, up to a global phase
+    double relative_loss = 0.0;  // Σ(√c1|I| − √R)² / Σ R over the observations
+    int iterations = 0;
+};
+
+// Phase retrieval of the object at one wavelength from single-wavelength observations (all
+// with lambdas_um == {lambda_um}, OHS or ROHS) of a rows × cols tile with texels of texel_um.
+// `initial` (rows·cols; empty: all ones, a flat surface) is the starting object.
+// on_iteration(iteration, relative_loss), when given, is called after each step; returning
+// false stops. Throws std::invalid_argument naming the observation that does not fit.
+FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um,
+                                    int rows, int cols, double texel_um,
+                                    const std::vector<std::complex<double>>& initial = {},
+                                    const FieldRetrievalSettings& settings = {},
+                                    const std::function<bool(int, double)>& on_iteration = {});
+
+// ---- 2. Multi-wavelength unwrapping --------------------------------------------------------
+
+// Heights H_k (µm, mean 0) such that fields[l][k] ∝ e^{−i(4π/λ_l)H_k} up to one unknown global
+// phase per wavelength, from fields at one or more distinct wavelengths; |fields[l][k]| weighs
+// sample k at wavelength l (0: no information). Two starts:
+//  - rows, cols > 0: the fields are samples on a periodic rows × cols grid, fine enough that
+//    neighbours differ by less than π in phase: the wrapped differences, averaged over the
+//    wavelengths, are integrated by least squares (spatial unwrapping);
+//  - rows = cols = 0: each sample on its own, by synthetic wavelengths λ1λ2/|λ1 − λ2|, coarse
+//    to fine, from the first whose half covers max_range_um (a bound on max H − min H).
+// Then, with two or more wavelengths, each sample takes the branch of the shortest wavelength
+// that fits all wavelengths best, and a joint least-squares fit of heights and global phases
+// ends it. Throws std::invalid_argument on size mismatches, no field, equal wavelengths or a
+// grid that does not hold the fields; std::domain_error for a non-positive λ or range.
+std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
+                                   const std::vector<std::vector<std::complex<double>>>& fields,
+                                   double max_range_um, int rows = 0, int cols = 0);
+
+// ---- 3. The pipeline -----------------------------------------------------------------------
+
+struct RecoverSettings {
+    FieldRetrievalSettings field;  // stage 1, per wavelength
+    double max_range_um = 4.0;     // bound on the height range, for unwrapping (stage 2)
+    // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
+    int refine_iterations = 200;
+    int refine_history = 20;
+    double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
+    Loss refine_loss{LossKind::Amplitude, 1.0};
+};
+
+// What recover_heights reports after every iteration of every stage.
+struct StageMetrics {
+    std::string stage;      // "field:λ=0.5", "unwrap", "refine"
+    int iteration = 0;
+    double loss = 0.0;      // the stage's own loss (relative for the field stage)
+    double seconds = 0.0;   // since recover_heights started
+    double height_rel_rmse = -1.0;  // when a truth is given and heights exist (else −1)
+};
+
+// The heightfield (rows × cols, values in texel units with the given texel_um and vscale)
+// whose slices best match `observations`, from a flat start: field retrieval for every
+// wavelength that has single-wavelength observations, unwrapping, refinement on all of the
+// observations. on_step returning false stops the recovery and returns the estimate so far
+// (after the field stages: the unwrapped heights). `truth`, when
+// given, only feeds height_rel_rmse in the metrics. Throws std::invalid_argument when the
+// observations are empty or have no single-wavelength OHS / ROHS slice.
+Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols,
+                            double texel_um, double vscale, const RecoverSettings& settings = {},
+                            const std::function<bool(const StageMetrics&)>& on_step = {},
+                            const Heightfield* truth = nullptr);
+
+// RMS of (estimate − truth) in µm after removing each one's mean, divided by the truth's
+// height range max − min (µm). Throws std::invalid_argument on a size mismatch and
+// std::domain_error when the truth is flat.
+double height_rel_rmse(const Heightfield& estimate, const Heightfield& truth);
+
+}  // namespace wavebrdf

@@ -1,0 +1,129 @@
+// The recovery pipeline: field retrieval per wavelength → unwrapping → refinement in the full
+// Gabor model (recover.h).
+#include "wavebrdf/recover.h"
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+#include "wavebrdf/optim.h"
+
+namespace wavebrdf {
+
+double height_rel_rmse(const Heightfield& estimate, const Heightfield& truth) {
+    if (estimate.rows() != truth.rows() || estimate.cols() != truth.cols())
+        throw std::invalid_argument("height_rel_rmse: estimate is " + std::to_string(estimate.rows()) + " x " +
+                                    std::to_string(estimate.cols()) + " but truth is " +
+                                    std::to_string(truth.rows()) + " x " + std::to_string(truth.cols()));
+    const double n = double(truth.values().size());
+    double mean_e = 0.0, mean_t = 0.0, lo = INFINITY, hi = -INFINITY;
+    for (int i = 0; i < truth.rows(); ++i)
+        for (int j = 0; j < truth.cols(); ++j) {
+            mean_e += estimate.height_um(i, j);
+            const double t = truth.height_um(i, j);
+            mean_t += t;
+            lo = std::min(lo, t);
+            hi = std::max(hi, t);
+        }
+    if (!(hi > lo)) throw std::domain_error("height_rel_rmse: the truth is flat; its height range is 0");
+    mean_e /= n;
+    mean_t /= n;
+    double sum = 0.0;
+    for (int i = 0; i < truth.rows(); ++i)
+        for (int j = 0; j < truth.cols(); ++j) {
+            const double d = (estimate.height_um(i, j) - mean_e) - (truth.height_um(i, j) - mean_t);
+            sum += d * d;
+        }
+    return std::sqrt(sum / n) / (hi - lo);
+}
+
+Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols,
+                            double texel_um, double vscale, const RecoverSettings& settings,
+                            const std::function<bool(const StageMetrics&)>& on_step,
+                            const Heightfield* truth) {
+    if (observations.empty()) throw std::invalid_argument("recover_heights: no observations given");
+    for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
+    const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0),
+                           texel_um, vscale);
+    if (truth && (truth->rows() != rows || truth->cols() != cols))
+        throw std::invalid_argument("recover_heights: truth is " + std::to_string(truth->rows()) + " x " +
+                                    std::to_string(truth->cols()) + "; expected " + std::to_string(rows) +
+                                    " x " + std::to_string(cols));
+    if (vscale == 0.0) throw std::domain_error("recover_heights: vscale 0 maps every height to 0; expected != 0");
+
+    // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
+    std::map<double, std::vector<Observation>> by_lambda;
+    for (const Observation& o : observations)
+        if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(o);
+    if (by_lambda.empty())
+        throw std::invalid_argument(
+            "recover_heights: no single-wavelength OHS or ROHS observation; the field stage needs some");
+
+    const auto start = std::chrono::steady_clock::now();
+    const auto seconds = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    bool stopped = false;
+    const auto report = [&](const std::string& stage, int iteration, double loss, const Heightfield* hf) {
+        if (!on_step) return true;
+        StageMetrics m;
+        m.stage = stage;
+        m.iteration = iteration;
+        m.loss = loss;
+        m.seconds = seconds();
+        if (truth && hf) m.height_rel_rmse = height_rel_rmse(*hf, *truth);
+        const bool go_on = on_step(m);
+        if (!go_on) stopped = true;
+        return go_on;
+    };
+
+    // Stage 1: the field at every wavelength, from a flat surface (O = 1).
+    std::vector<double> lambdas;
+    std::vector<std::vector<std::complex<double>>> fields;
+    for (const auto& [lambda, group] : by_lambda) {
+        char name[48];
+        std::snprintf(name, sizeof name, "field:%g", lambda);
+        const FieldRetrievalResult r =
+            retrieve_field(group, lambda, rows, cols, texel_um, {}, settings.field,
+                           [&](int it, double loss) { return report(name, it, loss, nullptr); });
+        lambdas.push_back(lambda);
+        fields.push_back(r.object);
+        if (stopped) return flat;
+    }
+
+    // Stage 2: heights from the phases.
+    // Stage 2: heights on the object grid, then at the texel centres (refine is odd: texel
+    // (i, j) is sample (i·q + q/2, j·q + q/2)).
+    const int q = settings.field.refine, obj_cols = cols * q;
+    const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.max_range_um, rows * q, obj_cols);
+    std::vector<double> h(std::size_t(rows) * cols);
+    const double to_texel = 1.0 / (vscale * texel_um);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            h[std::size_t(i) * cols + j] = fine_um[std::size_t(i * q + q / 2) * obj_cols + (j * q + q / 2)] * to_texel;
+    Heightfield estimate = flat.with_values(h);
+    if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
+
+    // Stage 3: the full model.
+    if (settings.refine_iterations > 0) {
+        const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
+            return observation_loss(flat.with_values(x), observations, settings.refine_loss, &g);
+        };
+        LbfgsOptions lo;
+        lo.history = settings.refine_history;
+        lo.max_iterations = settings.refine_iterations;
+        lo.gradient_tolerance = 0.0;
+        const double reference_loss = observation_loss(flat, observations, settings.refine_loss, nullptr);
+        lbfgs_minimize(objective, h, lo, [&](int it, double value) {
+            const Heightfield current = flat.with_values(h);
+            if (!report("refine", it, value, &current)) return false;
+            return value > settings.refine_relative_tolerance * reference_loss;
+        });
+        estimate = flat.with_values(h);
+    }
+    return estimate;
+}
+
+}  // namespace wavebrdf

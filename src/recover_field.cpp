@@ -1,0 +1,319 @@
+// Stage 1 of the recovery: the ptychographic field model (the Gabor field at zero slope) and
+// phase retrieval of the object O = e^{−i(4π/λ)H} from the slices of overlapping footprints.
+//
+// For one footprint the model is a product of small matrices, as in the separable renderer
+// (render_separable.cpp), but per texel row / column instead of per kernel, because with
+// a_k = 0 the kernel factor X[p,k] depends on the kernel only through its row's offset δ_x:
+//   I = X · (P ⊙ O_fp) · Yᵀ,  X[p,r] = exp(−2π²σ²u_x[p]²) e^{−i2π u_x[p] δ_x[r]},
+// O_fp the object on the footprint's rows × columns and P the window c·w² (0 beyond 3σ_p).
+// Its adjoint is Xᴴ · G · conj(Y), masked by P and scattered back onto the tile.
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/optim.h"
+#include "wavebrdf/recover.h"
+
+namespace wavebrdf {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// Slice rows / columns whose envelope is below this (relative to its peak 1) are left out of
+// the products: the model's field there is below 1e-16 of the footprint's.
+constexpr double kEnvelopeCut = 1e-16;
+
+std::string fmt(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
+}  // namespace
+
+struct FieldOperator::Impl {
+    int rows = 0, cols = 0, n = 0;
+    std::vector<int> row_index, col_index;  // footprint texel rows / columns on the tile
+    Eigen::MatrixXd probe;                  // P[r,c] = c_k w² (0 beyond the 3σ_p cut)
+    int a0 = 0, ma = 0, b0 = 0, mb = 0;     // pixel box [a0, a0+ma) × [b0, b0+mb) in use
+    Eigen::MatrixXcd x, y;                  // ma × rows_fp, mb × cols_fp
+    Eigen::MatrixXd amp;                    // √c1 on the box (0 outside the disk)
+    std::vector<double> amp_full;           // √c1 on the whole slice
+
+    // Ψ = X (P ⊙ O_fp) Yᵀ on the box; `object` is rows × cols, row-major.
+    void forward(const std::complex<double>* object, Eigen::MatrixXcd& psi) const {
+        Eigen::MatrixXcd m(probe.rows(), probe.cols());
+        for (Eigen::Index r = 0; r < probe.rows(); ++r)
+            for (Eigen::Index c = 0; c < probe.cols(); ++c)
+                m(r, c) = probe(r, c) * object[std::size_t(row_index[r]) * cols + col_index[c]];
+        psi.noalias() = x * (m * y.transpose());
+    }
+    // object += P ⊙ (Xᴴ G conj(Y)) scattered onto the tile; G on the box.
+    void adjoint_add(const Eigen::MatrixXcd& g, std::complex<double>* object) const {
+        const Eigen::MatrixXcd m = (x.adjoint() * g) * y.conjugate();
+        for (Eigen::Index r = 0; r < probe.rows(); ++r)
+            for (Eigen::Index c = 0; c < probe.cols(); ++c)
+                object[std::size_t(row_index[r]) * cols + col_index[c]] += probe(r, c) * m(r, c);
+    }
+};
+
+// Gives the retrieval loop access to the factor matrices.
+struct FieldAccess {
+    static const FieldOperator::Impl& impl(const FieldOperator& op) { return *op.m_impl; }
+};
+
+FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& query,
+                             double lambda_um, int resolution, int refine)
+    : m_impl(std::make_unique<Impl>()) {
+    if (refine < 1 || refine > 64)
+        throw std::invalid_argument("object grid refinement " + std::to_string(refine) + " is invalid; expected 1 to 64");
+    if (rows < 1 || cols < 1)
+        throw std::invalid_argument("tile of " + std::to_string(rows) + " x " + std::to_string(cols) +
+                                    " texels; expected at least 1 x 1");
+    if (!std::isfinite(texel_um) || texel_um <= 0.0)
+        throw std::domain_error("texel width " + fmt(texel_um) + " um is invalid; expected a finite value > 0");
+    validate(query);
+    validate_lambda(lambda_um);
+    validate_resolution(resolution);
+    if (!is_separable(query.model))
+        throw std::invalid_argument(std::string("model ") + to_string(query.model) +
+                                    " has no field model; expected OHS or ROHS");
+    Impl& s = *m_impl;
+    s.rows = rows * refine;
+    s.cols = cols * refine;
+    s.n = resolution;
+
+    // The footprint exactly as the renderer sees it on a grid `refine` times finer: the same
+    // kernels, offsets and weights.
+    const Heightfield flat(s.rows, s.cols, std::vector<double>(std::size_t(s.rows) * s.cols, 0.0),
+                           texel_um / refine);
+    const FootprintKernels k = footprint_kernels(flat, query.x_um, query.y_um, query.sigma_p_um);
+    std::vector<int> slot_r(s.rows, -1), slot_c(s.cols, -1);
+    std::vector<double> dx, dy;
+    for (std::size_t i = 0; i < k.size(); ++i) {
+        if (slot_r[k.row[i]] < 0) {
+            slot_r[k.row[i]] = int(s.row_index.size());
+            s.row_index.push_back(k.row[i]);
+            dx.push_back(k.dx_um[i]);
+        }
+        if (slot_c[k.col[i]] < 0) {
+            slot_c[k.col[i]] = int(s.col_index.size());
+            s.col_index.push_back(k.col[i]);
+            dy.push_back(k.dy_um[i]);
+        }
+    }
+    s.probe = Eigen::MatrixXd::Zero(Eigen::Index(s.row_index.size()), Eigen::Index(s.col_index.size()));
+    for (std::size_t i = 0; i < k.size(); ++i) s.probe(slot_r[k.row[i]], slot_c[k.col[i]]) = k.weight[i];
+
+    // Slice grid u = (ω_i + ω_o)/λ and the envelope exp(−2π²σ²u²) per row / column.
+    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
+    const auto axis_box = [&](double omega_i, int& first, int& count) {
+        first = resolution;
+        int last = -1;
+        for (int p = 0; p < resolution; ++p) {
+            const double u = (omega_i + slice_omega(p, resolution)) / lambda_um;
+            if (std::exp(-gauss * u * u) >= kEnvelopeCut) {
+                first = std::min(first, p);
+                last = p;
+            }
+        }
+        count = std::max(0, last - first + 1);
+        if (count == 0) first = 0;
+    };
+    axis_box(query.omega_i[0], s.a0, s.ma);
+    axis_box(query.omega_i[1], s.b0, s.mb);
+    const auto factor = [&](double omega_i, int first, int count, const std::vector<double>& offsets) {
+        Eigen::MatrixXcd f(count, Eigen::Index(offsets.size()));
+        for (int p = 0; p < count; ++p) {
+            const double u = (omega_i + slice_omega(first + p, resolution)) / lambda_um;
+            const double env = std::exp(-gauss * u * u);
+            for (std::size_t r = 0; r < offsets.size(); ++r)
+                f(p, Eigen::Index(r)) = env * std::polar(1.0, -2.0 * kPi * u * offsets[r]);
+        }
+        return f;
+    };
+    s.x = factor(query.omega_i[0], s.a0, s.ma, dx);
+    s.y = factor(query.omega_i[1], s.b0, s.mb, dy);
+
+    // f = c1 |I|² inside the disk (MODEL.md, "BRDF"); the renderer writes non-finite values as 0.
+    s.amp_full.assign(std::size_t(resolution) * resolution, 0.0);
+    for (int p = 0; p < resolution; ++p) {
+        const double ox = slice_omega(p, resolution);
+        for (int q = 0; q < resolution; ++q) {
+            const double oy = slice_omega(q, resolution);
+            if (ox * ox + oy * oy > 1.0) continue;
+            const double c1 = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
+            if (std::isfinite(c1) && c1 > 0.0) s.amp_full[std::size_t(p) * resolution + q] = std::sqrt(c1);
+        }
+    }
+    s.amp.resize(s.ma, s.mb);
+    for (int p = 0; p < s.ma; ++p)
+        for (int q = 0; q < s.mb; ++q) s.amp(p, q) = s.amp_full[std::size_t(s.a0 + p) * resolution + s.b0 + q];
+}
+
+FieldOperator::~FieldOperator() = default;
+FieldOperator::FieldOperator(FieldOperator&&) noexcept = default;
+FieldOperator& FieldOperator::operator=(FieldOperator&&) noexcept = default;
+
+std::vector<std::complex<double>> FieldOperator::forward(const std::vector<std::complex<double>>& object) const {
+    const Impl& s = *m_impl;
+    if (object.size() != std::size_t(s.rows) * s.cols)
+        throw std::invalid_argument("object has " + std::to_string(object.size()) + " values; expected rows * cols = " +
+                                    std::to_string(std::size_t(s.rows) * s.cols));
+    Eigen::MatrixXcd psi;
+    s.forward(object.data(), psi);
+    std::vector<std::complex<double>> field(std::size_t(s.n) * s.n, 0.0);
+    for (int p = 0; p < s.ma; ++p)
+        for (int q = 0; q < s.mb; ++q) field[std::size_t(s.a0 + p) * s.n + s.b0 + q] = psi(p, q);
+    return field;
+}
+
+std::vector<std::complex<double>> FieldOperator::adjoint(const std::vector<std::complex<double>>& field) const {
+    const Impl& s = *m_impl;
+    if (field.size() != std::size_t(s.n) * s.n)
+        throw std::invalid_argument("field has " + std::to_string(field.size()) + " values; expected resolution^2 = " +
+                                    std::to_string(std::size_t(s.n) * s.n));
+    Eigen::MatrixXcd g(s.ma, s.mb);
+    for (int p = 0; p < s.ma; ++p)
+        for (int q = 0; q < s.mb; ++q) g(p, q) = field[std::size_t(s.a0 + p) * s.n + s.b0 + q];
+    std::vector<std::complex<double>> object(std::size_t(s.rows) * s.cols, 0.0);
+    s.adjoint_add(g, object.data());
+    return object;
+}
+
+const std::vector<double>& FieldOperator::amplitude_factor() const { return m_impl->amp_full; }
+int FieldOperator::resolution() const { return m_impl->n; }
+
+// ---- phase retrieval -------------------------------------------------------------------------
+
+FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um,
+                                    int rows, int cols, double texel_um,
+                                    const std::vector<std::complex<double>>& initial,
+                                    const FieldRetrievalSettings& settings,
+                                    const std::function<bool(int, double)>& on_iteration) {
+    if (observations.empty()) throw std::invalid_argument("retrieve_field: no observations given");
+    validate_lambda(lambda_um);
+    if (settings.refine < 1 || settings.refine > 64)
+        throw std::invalid_argument("retrieve_field: refine " + std::to_string(settings.refine) +
+                                    " is invalid; expected 1 to 64");
+    // The object lives on the grid `refine` times finer than the texels.
+    const int q = settings.refine;
+    const std::size_t texels = std::size_t(rows) * q * std::size_t(std::max(cols, 0)) * q;
+    const int obj_cols = cols * q;
+    if (!initial.empty() && initial.size() != texels)
+        throw std::invalid_argument("retrieve_field: initial object has " + std::to_string(initial.size()) +
+                                    " values; expected (rows * refine) * (cols * refine) = " + std::to_string(texels));
+    if (settings.iterations < 0 || settings.history < 1)
+        throw std::domain_error("retrieve_field: iterations " + std::to_string(settings.iterations) + " / history " +
+                                std::to_string(settings.history) + " invalid; expected >= 0 / >= 1");
+
+    struct Slice {
+        FieldOperator op;
+        Eigen::MatrixXd sqrt_ref;  // √R on the operator's box
+        double outside = 0.0;      // Σ R beyond the box (the model is 0 there)
+    };
+    std::vector<Slice> slices;
+    slices.reserve(observations.size());
+    double total = 0.0;
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        const Observation& o = observations[i];
+        validate(o, i);
+        if (o.lambdas_um.size() != 1 || std::abs(o.lambdas_um[0] - lambda_um) > 1e-12 * lambda_um)
+            throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
+                                        " is not a single-wavelength slice at " + fmt(lambda_um) + " um");
+        Slice s{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0};
+        const auto& impl = FieldAccess::impl(s.op);
+        s.sqrt_ref.resize(impl.ma, impl.mb);
+        const int n = o.resolution;
+        for (int p = 0; p < n; ++p)
+            for (int q = 0; q < n; ++q) {
+                const double r = std::max(0.0, o.reference[std::size_t(p) * n + q]);
+                total += r;
+                const int a = p - impl.a0, b = q - impl.b0;
+                if (a >= 0 && a < impl.ma && b >= 0 && b < impl.mb) s.sqrt_ref(a, b) = std::sqrt(r);
+                else s.outside += r;
+            }
+        slices.push_back(std::move(s));
+    }
+    if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
+
+    // Texels no footprint sees carry no information: they stay 0.
+    std::vector<double> coverage(texels, 0.0);
+    for (const Slice& s : slices) {
+        const auto& impl = FieldAccess::impl(s.op);
+        for (Eigen::Index r = 0; r < impl.probe.rows(); ++r)
+            for (Eigen::Index c = 0; c < impl.probe.cols(); ++c)
+                coverage[std::size_t(impl.row_index[r]) * obj_cols + impl.col_index[c]] += impl.probe(r, c) * impl.probe(r, c);
+    }
+    const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
+
+    // Unknowns: (Re O, Im O) per texel, interleaved, so the vector is the std::complex array.
+    std::vector<double> xv(2 * texels, 0.0);
+    for (std::size_t t = 0; t < texels; ++t) {
+        const std::complex<double> v = initial.empty() ? std::complex<double>(1.0) : initial[t];
+        if (coverage[t] > 1e-12 * max_coverage) {
+            xv[2 * t] = v.real();
+            xv[2 * t + 1] = v.imag();
+        }
+    }
+
+    // L(O) = Σ_slices [Σ_box (√c1|Ψ| − √R)² + Σ_outside R] / Σ R. With g = ∂L/∂Re Ψ + i ∂L/∂Im Ψ
+    // = 2(√c1|Ψ| − √R) √c1 Ψ/|Ψ| / ΣR, the gradient (∂/∂Re O + i ∂/∂Im O) is Aᴴ g.
+    const double inv_total = 1.0 / total;
+    const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
+        const auto* object = reinterpret_cast<const std::complex<double>*>(x.data());
+        double value = 0.0;
+        grad.assign(x.size(), 0.0);
+#pragma omp parallel reduction(+ : value) if (slices.size() > 1)
+        {
+            std::vector<std::complex<double>> local(texels, 0.0);
+            Eigen::MatrixXcd psi, g;
+#pragma omp for schedule(dynamic)
+            for (std::size_t i = 0; i < slices.size(); ++i) {
+                const Slice& s = slices[i];
+                const auto& impl = FieldAccess::impl(s.op);
+                impl.forward(object, psi);
+                g.resize(psi.rows(), psi.cols());
+                double v = s.outside;
+                for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                    for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                        const double mag = std::abs(psi(a, b));
+                        const double amp = impl.amp(a, b);
+                        const double diff = amp * mag - s.sqrt_ref(a, b);
+                        v += diff * diff;
+                        g(a, b) = mag > 0.0 ? (2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0;
+                    }
+                value += v * inv_total;
+                impl.adjoint_add(g, local.data());
+            }
+#pragma omp critical
+            for (std::size_t t = 0; t < texels; ++t) {
+                grad[2 * t] += local[t].real();
+                grad[2 * t + 1] += local[t].imag();
+            }
+        }
+        return value;
+    };
+
+    LbfgsOptions lo;
+    lo.history = settings.history;
+    lo.max_iterations = settings.iterations;
+    lo.gradient_tolerance = 0.0;
+    FieldRetrievalResult result;
+    const auto stop = [&](int it, double value) {
+        result.iterations = it;
+        if (on_iteration && !on_iteration(it, value)) return false;
+        return value > settings.relative_tolerance;
+    };
+    const LbfgsResult r = lbfgs_minimize(objective, xv, lo, stop);
+    result.relative_loss = r.value;
+    result.iterations = r.iterations;
+    result.object.resize(texels);
+    for (std::size_t t = 0; t < texels; ++t) result.object[t] = {xv[2 * t], xv[2 * t + 1]};
+    return result;
+}
+
+}  // namespace wavebrdf
