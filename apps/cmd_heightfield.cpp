@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
@@ -21,25 +22,6 @@ struct HeightfieldArgs {
     SurfaceParams params;
 };
 
-// "N" or "NxM" → rows, cols.
-void parse_size(const std::string& text, int& rows, int& cols) {
-    const auto x = text.find_first_of("xX");
-    try {
-        std::size_t used = 0;
-        if (x == std::string::npos) {
-            rows = cols = std::stoi(text, &used);
-            if (used != text.size()) throw std::invalid_argument(text);
-        } else {
-            rows = std::stoi(text.substr(0, x), &used);
-            if (used != x) throw std::invalid_argument(text);
-            cols = std::stoi(text.substr(x + 1), &used);
-            if (used != text.size() - x - 1) throw std::invalid_argument(text);
-        }
-    } catch (const std::logic_error&) {
-        throw std::invalid_argument("size '" + text + "' is invalid; expected N or NxM (e.g. 512 or 256x384)");
-    }
-}
-
 std::string default_png(const std::string& exr) {
     const auto dot = exr.rfind('.');
     const auto slash = exr.rfind('/');
@@ -51,7 +33,7 @@ std::string default_png(const std::string& exr) {
 void run(const HeightfieldArgs& a) {
     SurfaceParams p = a.params;
     p.type = parse_surface_type(a.type);
-    parse_size(a.size, p.rows, p.cols);
+    parse_size("--size", a.size, p.rows, p.cols);
     const std::string png = a.no_png ? "" : (a.png.empty() ? default_png(a.out) : a.png);
     check_writable(a.out);
     if (!png.empty()) check_writable(png);

@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/invert.h"
@@ -97,24 +98,6 @@ InvertArgs from_json(const nlohmann::json& j) {
     return a;
 }
 
-void parse_size(const std::string& text, int& rows, int& cols) {
-    const auto x = text.find_first_of("xX");
-    try {
-        std::size_t used = 0;
-        rows = std::stoi(text.substr(0, x), &used);
-        if (used != (x == std::string::npos ? text.size() : x)) throw std::invalid_argument(text);
-        cols = rows;
-        if (x != std::string::npos) {
-            cols = std::stoi(text.substr(x + 1), &used);
-            if (used != text.size() - x - 1) throw std::invalid_argument(text);
-        }
-    } catch (const std::logic_error&) {
-        throw std::invalid_argument("--size '" + text + "' is invalid; expected N or NxM");
-    }
-    if (rows < 1 || cols < 1 || rows > 16384 || cols > 16384)
-        throw std::invalid_argument("--size '" + text + "' is out of range; expected 1 to 16384 per side");
-}
-
 std::set<int> parse_epoch_list(const std::string& text) {
     std::set<int> out;
     std::stringstream in(text);
@@ -153,19 +136,6 @@ std::vector<std::array<double, 2>> read_positions_json(const std::string& path) 
     return out;
 }
 
-void write_text_atomically(const std::string& path, const std::string& text) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp);
-        out << text;
-        if (!out) throw std::runtime_error(path + ": cannot write");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw std::runtime_error(path + ": cannot move into place");
-    }
-}
-
 std::string metrics_csv(const std::vector<EpochMetrics>& history) {
     std::ostringstream out;
     out.precision(10);
@@ -179,30 +149,6 @@ std::string metrics_csv(const std::vector<EpochMetrics>& history) {
                    return s.str();
                }()) << ',' << m.seconds << '\n';
     return out.str();
-}
-
-std::vector<double> heights_um(const Heightfield& hf) {
-    std::vector<double> v = hf.values();
-    for (double& x : v) x *= hf.vscale() * hf.texel_um();
-    return v;
-}
-
-RgbImage to_image(const std::vector<double>& slice, int n, int channels) {
-    RgbImage image;
-    image.rows = image.cols = n;
-    image.data.resize(static_cast<std::size_t>(n) * n * 3);
-    for (std::size_t p = 0; p < static_cast<std::size_t>(n) * n; ++p)
-        for (int c = 0; c < 3; ++c) image.data[3 * p + c] = float(slice[p * channels + (channels == 3 ? c : 0)]);
-    return image;
-}
-
-// Exposure (in stops) that maps the 99.9th percentile of `slice` to about 1 before Reinhard.
-double auto_exposure(const std::vector<double>& slice) {
-    std::vector<double> v(slice.begin(), slice.end());
-    if (v.empty()) return 0.0;
-    const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(0.999 * double(v.size())));
-    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-    return v[k] > 0 ? -std::log2(v[k]) + 2.0 : 0.0;
 }
 
 void run(InvertArgs a) {
@@ -272,7 +218,7 @@ void run(InvertArgs a) {
     int rows = 0, cols = 0;
     if (!a.observations.empty()) {
         observations = read_observations_json(a.observations);
-        parse_size(a.size, rows, cols);
+        parse_size("--size", a.size, rows, cols);
         if (settings.positions == PositionMode::Random && observations.size() < 2)
             throw std::invalid_argument("--positions random with --observations needs at least two observations");
     } else {
@@ -281,7 +227,7 @@ void run(InvertArgs a) {
             // like the thesis's crop of the release's isotropic.exr).
             SurfaceParams p;
             p.type = SurfaceType::Isotropic;
-            parse_size(a.size, p.rows, p.cols);
+            parse_size("--size", a.size, p.rows, p.cols);
             p.texel_um = a.texel_um;
             p.rms_height_um = 0.35 * a.texel_um;
             p.correlation_um = 2.0 * a.texel_um;

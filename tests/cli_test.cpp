@@ -387,7 +387,7 @@ TEST_F(CliTest, UnsupportedGenbrdfMethod) {
 TEST_F(CliTest, BadHeightfieldArguments) {
     const std::vector<fs::path> outputs = {path("h.exr"), path("h.png")};
     expect_clean_failure(run("heightfield --type foo --size 16 --out h.exr"), {"'foo'"}, outputs);
-    expect_clean_failure(run("heightfield --size 0 --out h.exr"), {"rows = 0"}, outputs);
+    expect_clean_failure(run("heightfield --size 0 --out h.exr"), {"--size '0'", "1 to 16384"}, outputs);
     expect_clean_failure(run("heightfield --size 12xq --out h.exr"), {"'12xq'"}, outputs);
     expect_clean_failure(run("heightfield --size 16x --out h.exr"), {"'16x'"}, outputs);
     expect_clean_failure(run("heightfield --size 16 --out /nonexistent_dir/h.exr"),
