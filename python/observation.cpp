@@ -52,10 +52,6 @@ Observation make_observation(const PyQuery& q, py::handle reference) {
     o.lambdas_um = q.lambdas_um;
     o.resolution = check_resolution(static_cast<int>(r.shape(0)), "reference.shape[0]");
     o.reference = to_doubles(r, "reference");
-    for (std::size_t i = 0; i < o.reference.size(); ++i)
-        if (o.reference[i] < 0.0)
-            throw py::value_error("reference has a negative value " + format_number(o.reference[i]) +
-                                  "; expected a BRDF (values >= 0)");
     validate(o);
     return o;
 }
@@ -76,8 +72,9 @@ A reference slice with the query that produced it (an input of observation_loss 
 
 Observation(query, reference)
     query      a Query
-    reference  the slice, finite and >= 0: (n, n) for one wavelength, (n, n, 3) linear sRGB
-               for a spectral query; n = the resolution (1...8192)
+    reference  the slice, finite: (n, n) for one wavelength, (n, n, 3) linear sRGB for a
+               spectral query (may be slightly negative: out-of-gamut colours); n = the
+               resolution (1...8192)
 )doc")
         .def(py::init(&make_observation), "query"_a, "reference"_a)
         .def_property_readonly("query", &query_of)

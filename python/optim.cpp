@@ -95,14 +95,11 @@ of `epoch` (0-based).
         std::vector<double> x = to_doubles(a, "x0");
         const auto f = [&](const std::vector<double>& at, std::vector<double>& gradient) {
             py::object out = objective(owning_array(std::vector<double>(at), shape));
-            py::tuple pair;
-            try {
-                pair = out.cast<py::tuple>();
-            } catch (const py::cast_error&) {
-            }
-            if (!pair || pair.size() != 2)
+            const bool is_pair = (py::isinstance<py::tuple>(out) || py::isinstance<py::list>(out)) && py::len(out) == 2;
+            if (!is_pair)
                 throw py::value_error("objective returned " + std::string(py::repr(out)) +
                                       "; expected a pair (value, gradient)");
+            const py::sequence pair = py::reinterpret_borrow<py::sequence>(out);
             const py::array g = float_array(pair[1], "gradient");
             if (static_cast<std::size_t>(g.size()) != at.size())
                 throw py::value_error("objective's gradient has " + std::to_string(g.size()) + " values; expected " +
