@@ -1,5 +1,6 @@
 // Heightfield: from NumPy or an EXR file, to NumPy; the procedural generators.
 #include <cstring>
+#include <optional>
 
 #include "common.h"
 #include "wavebrdf/generate.h"
@@ -58,14 +59,14 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             "non-finite value.")
         .def_static(
             "generate",
-            [](const std::string& type, int rows, py::object cols, double texel_um, std::uint64_t seed,
+            [](const std::string& type, int rows, std::optional<int> cols, double texel_um, std::uint64_t seed,
                double rms_height_um, double rms_slope, double correlation_um, double anisotropy,
                int scratch_count, double scratch_depth_um, double scratch_width_um, double amplitude_um,
                double period_um) {
                 SurfaceParams p;
                 p.type = parse_surface_type(type);
                 p.rows = rows;
-                p.cols = cols.is_none() ? rows : cols.cast<int>();
+                p.cols = cols.value_or(rows);
                 p.texel_um = texel_um;
                 p.seed = seed;
                 p.rms_height_um = rms_height_um;

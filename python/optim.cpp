@@ -106,7 +106,11 @@ of `epoch` (0-based).
                                       std::to_string(at.size()));
             // Not checked for finiteness here: L-BFGS treats a non-finite trial as a failed step.
             gradient = to_doubles(g, "gradient", false);
-            return pair[0].cast<double>();
+            if (!py::isinstance<py::float_>(pair[0]) && !py::isinstance<py::int_>(pair[0]) &&
+                !py::isinstance(pair[0], py::module_::import("numpy").attr("number")))
+                throw py::value_error("objective returned the value " + std::string(py::repr(pair[0])) +
+                                      "; expected a number");
+            return py::float_(pair[0]).cast<double>();
         };
         std::function<bool(int, double)> on_iteration;
         if (!callback.is_none())
