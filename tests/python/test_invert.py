@@ -109,6 +109,9 @@ def test_truth_inputs_and_observations(tmp_path):
     # Listed positions render one observation each.
     r3 = wb.invert(truth=truth, positions=[(1.0, 1.0), (5.0, 5.0), (8.0, 2.0)], epochs=1, resolution=8)
     assert [(o.query.x_um, o.query.y_um) for o in r3.observations] == [(1.0, 1.0), (5.0, 5.0), (8.0, 2.0)]
+    (tmp_path / "p.json").write_text('{"positions": [[1.0, 1.0], [5.0, 5.0], [8.0, 2.0]]}')
+    r4 = wb.invert(truth=truth, positions=str(tmp_path / "p.json"), epochs=1, resolution=8)
+    np.testing.assert_array_equal(r4.metrics["loss"], r3.metrics["loss"])
 
 
 @pytest.mark.parametrize("kwargs,message", [
