@@ -19,8 +19,9 @@ struct Observation {
 };
 
 // Throws std::invalid_argument / std::domain_error naming the observation (by index) and the
-// field: invalid query, wavelength or resolution; reference of the wrong size; non-finite or
-// negative reference values.
+// field: invalid query, wavelength or resolution; reference of the wrong size; non-finite
+// reference values. Negative values are accepted (linear sRGB of an out-of-gamut spectral
+// colour is negative); the losses clamp them to 0.
 void validate(const Observation& observation, std::size_t index = 0);
 
 // What `observation` would see of `heightfield`: resolution² · channels() values (double).
