@@ -10,7 +10,6 @@
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <random>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -225,14 +224,9 @@ void run(InvertArgs a) {
         if (a.truth.empty()) {
             // The built-in default: a generated 16×16 isotropic surface (heights about ±1 texel,
             // like the thesis's crop of the release's isotropic.exr).
-            SurfaceParams p;
-            p.type = SurfaceType::Isotropic;
-            parse_size("--size", a.size, p.rows, p.cols);
-            p.texel_um = a.texel_um;
-            p.rms_height_um = 0.35 * a.texel_um;
-            p.correlation_um = 2.0 * a.texel_um;
-            p.seed = a.seed;
-            truth = std::make_unique<Heightfield>(generate_heightfield(p).with_scale(a.texel_um, a.vscale));
+            int r = 0, c = 0;
+            parse_size("--size", a.size, r, c);
+            truth = std::make_unique<Heightfield>(default_inversion_truth(r, c, a.texel_um, a.vscale, a.seed));
         } else {
             truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
         }
@@ -247,14 +241,7 @@ void run(InvertArgs a) {
         if (position_list.empty())
             position_list.push_back({std::isnan(a.x_um) ? 0.5 * truth->period_x_um() : a.x_um,
                                      std::isnan(a.y_um) ? 0.5 * truth->period_y_um() : a.y_um});
-        for (const auto& pos : position_list) {
-            Observation o = base;
-            o.query.x_um = pos[0];
-            o.query.y_um = pos[1];
-            validate(o.query);
-            o.reference = render_observation(*truth, o, settings.render);
-            observations.push_back(std::move(o));
-        }
+        observations = observe(*truth, base, position_list, settings.render);
     }
 
     std::vector<double> init(static_cast<std::size_t>(rows) * cols, 0.0);
@@ -271,12 +258,7 @@ void run(InvertArgs a) {
         }
         if (!(frac >= 0.0) || !std::isfinite(frac))
             throw std::domain_error("--init noisy:" + a.init.substr(6) + " is invalid; expected a fraction >= 0");
-        const auto& t = truth->values();
-        const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
-        const double width = frac * (*hi - *lo);
-        std::mt19937_64 rng(a.seed ^ 0x5eedULL);
-        std::uniform_real_distribution<double> uni(-0.5 * width, 0.5 * width);
-        for (std::size_t i = 0; i < init.size(); ++i) init[i] = t[i] + uni(rng);
+        init = noisy_start(*truth, frac, a.seed);
     } else {
         const Heightfield file = read_heightfield_exr(a.init, a.texel_um, a.vscale);
         if (file.rows() != rows || file.cols() != cols)

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <fstream>
 #include <memory>
-#include <random>
 
 #include "common.h"
 #include "observation_arg.h"
@@ -177,15 +176,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     } else {
         if (truth_arg.is_none()) {
             // The CLI's built-in default: a generated isotropic surface, heights about ±1 texel.
-            SurfaceParams p;
-            p.type = SurfaceType::Isotropic;
-            p.rows = rc[0];
-            p.cols = rc[1];
-            p.texel_um = texel_um;
-            p.rms_height_um = 0.35 * texel_um;
-            p.correlation_um = 2.0 * texel_um;
-            p.seed = seed;
-            truth = std::make_unique<Heightfield>(generate_heightfield(p).with_scale(texel_um, vscale));
+            truth = std::make_unique<Heightfield>(default_inversion_truth(rc[0], rc[1], texel_um, vscale, seed));
         } else {
             truth = std::make_unique<Heightfield>(
                 heightfield_argument(truth_arg, "truth", texel_um, vscale, !texel_arg.is_none() || !vscale_arg.is_none()));
@@ -201,14 +192,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
             position_list.push_back({x_um.is_none() ? 0.5 * truth->period_x_um() : check_finite(x_um.cast<double>(), "x_um"),
                                      y_um.is_none() ? 0.5 * truth->period_y_um() : check_finite(y_um.cast<double>(), "y_um")});
         py::gil_scoped_release release;
-        for (const auto& pos : position_list) {
-            Observation o = base;
-            o.query.x_um = pos[0];
-            o.query.y_um = pos[1];
-            validate(o.query);
-            o.reference = render_observation(*truth, o, settings.render);
-            observations.push_back(std::move(o));
-        }
+        observations = observe(*truth, base, position_list, settings.render);
     }
 
     // Initial guess.
@@ -228,13 +212,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
             bad_argument("init", "'" + init_spec + "'", "'flat', 'noisy:FRAC', a Heightfield, an array or an EXR path");
         }
         if (!(frac >= 0.0) || !std::isfinite(frac)) bad_argument("init", "'" + init_spec + "'", "a noise fraction >= 0");
-        // As the CLI: uniform noise of width FRAC × the truth's height range, seeded.
-        const auto& t = truth->values();
-        const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
-        const double width = frac * (*hi - *lo);
-        std::mt19937_64 rng(seed ^ 0x5eedULL);
-        std::uniform_real_distribution<double> uni(-0.5 * width, 0.5 * width);
-        for (std::size_t i = 0; i < start.size(); ++i) start[i] = t[i] + uni(rng);
+        start = noisy_start(*truth, frac, seed);  // as the CLI
     } else {
         const Heightfield given = heightfield_argument(init, "init", texel_um, vscale, false);
         if (given.rows() != rc[0] || given.cols() != rc[1])

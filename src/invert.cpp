@@ -4,12 +4,17 @@
 // thread count, so a resumed run continues bit for bit.
 #include "wavebrdf/invert.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <random>
 #include <stdexcept>
+#include <string>
+
+#include "wavebrdf/generate.h"
 
 namespace wavebrdf {
 
@@ -96,6 +101,45 @@ Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
         throw std::invalid_argument("truth is " + std::to_string(truth->rows()) + "x" + std::to_string(truth->cols()) +
                                     " but the estimate is " + std::to_string(m_estimate.rows()) + "x" +
                                     std::to_string(m_estimate.cols()) + "; expected the same size");
+}
+
+Heightfield default_inversion_truth(int rows, int cols, double texel_um, double vscale, std::uint64_t seed) {
+    SurfaceParams p;
+    p.type = SurfaceType::Isotropic;
+    p.rows = rows;
+    p.cols = cols;
+    p.texel_um = texel_um;
+    p.rms_height_um = 0.35 * texel_um;
+    p.correlation_um = 2.0 * texel_um;
+    p.seed = seed;
+    return generate_heightfield(p).with_scale(texel_um, vscale);
+}
+
+std::vector<Observation> observe(const Heightfield& truth, const Observation& base,
+                                 const std::vector<std::array<double, 2>>& positions_um, const RenderOptions& options) {
+    std::vector<Observation> out;
+    for (const auto& pos : positions_um) {
+        Observation o = base;
+        o.query.x_um = pos[0];
+        o.query.y_um = pos[1];
+        validate(o.query);
+        o.reference = render_observation(truth, o, options);
+        out.push_back(std::move(o));
+    }
+    return out;
+}
+
+std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed) {
+    if (!(frac >= 0.0) || !std::isfinite(frac))
+        throw std::domain_error("noise fraction " + std::to_string(frac) + " is invalid; expected a fraction >= 0");
+    const auto& t = truth.values();
+    const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
+    const double width = frac * (*hi - *lo);
+    std::mt19937_64 rng(seed ^ 0x5eedULL);
+    std::uniform_real_distribution<double> uni(-0.5 * width, 0.5 * width);
+    std::vector<double> out(t.size());
+    for (std::size_t i = 0; i < t.size(); ++i) out[i] = t[i] + uni(rng);
+    return out;
 }
 
 std::array<double, 2> Inversion::random_position(std::uint64_t seed, int epoch, const Heightfield& tile) {

@@ -40,6 +40,23 @@ struct EpochMetrics {
     double seconds = 0;  // wall time since the run started (continued across resumes)
 };
 
+// --- set-up shared by `wavebrdf invert` and the Python module --------------------------------
+
+// The built-in default truth: an isotropic surface with heights of about ±1 texel (rms 0.35
+// texels, correlation length 2 texels), like the thesis's 16×16 crop of the reference
+// release's isotropic.exr; texel width and vertical scale as given.
+Heightfield default_inversion_truth(int rows, int cols, double texel_um, double vscale, std::uint64_t seed);
+
+// One observation of `truth` per position: `base` (query, wavelengths, resolution) with the
+// footprint moved to the position and the reference rendered. Validates every query.
+std::vector<Observation> observe(const Heightfield& truth, const Observation& base,
+                                 const std::vector<std::array<double, 2>>& positions_um,
+                                 const RenderOptions& options = {});
+
+// The truth's raw values plus uniform noise on an interval of width frac × their range
+// (`--init noisy:FRAC`), seeded. Throws std::domain_error for frac < 0 or not finite.
+std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed);
+
 class Inversion {
 public:
     // `truth` (optional, same size as `initial`) gives height_mse and random-position references.
