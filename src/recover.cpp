@@ -39,6 +39,13 @@ double height_rel_rmse(const Heightfield& estimate, const Heightfield& truth) {
     return std::sqrt(sum / n) / (hi - lo);
 }
 
+int auto_refine(double texel_um, double lambda_min_um, double max_omega_i) {
+    // The object grid must hold the slice's band and the field's: 1/d > 2(1 + |ω_i|)/λ.
+    int q = int(std::floor(2.0 * texel_um * (1.0 + max_omega_i) / lambda_min_um)) + 1;
+    if (q % 2 == 0) ++q;
+    return std::max(q, 1);
+}
+
 Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols,
                             double texel_um, double vscale, const RecoverSettings& settings,
                             const std::function<bool(const StageMetrics&)>& on_step,
@@ -79,31 +86,49 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         return go_on;
     };
 
-    // Stage 1: the field at every wavelength, from a flat surface (O = 1).
+    // Stage 0: the surface's shape from blurred slices, from flat.
+    std::vector<Observation> mono;
+    for (const auto& [lambda, group] : by_lambda) mono.insert(mono.end(), group.begin(), group.end());
+    Heightfield estimate = flat;
+    if (!settings.blurred.blur_widths.empty() && settings.blurred.iterations > 0) {
+        estimate = fit_blurred(mono, flat, settings.blurred, [&](int stage, int it, double loss) {
+            return report("blur:" + std::to_string(stage), it, loss, nullptr);
+        });
+        if (!report("blur", 0, 0.0, &estimate) || stopped) return estimate;
+    }
+
+    // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.
+    double max_omega_i = 0.0;
+    for (const Observation& o : mono) max_omega_i = std::max(max_omega_i, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
+    const int q = settings.refine > 0 ? settings.refine
+                                            : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
+    FieldRetrievalSettings field_settings = settings.field;
+    field_settings.refine = q;
     std::vector<double> lambdas;
     std::vector<std::vector<std::complex<double>>> fields;
     for (const auto& [lambda, group] : by_lambda) {
         char name[48];
         std::snprintf(name, sizeof name, "field:%g", lambda);
         const FieldRetrievalResult r =
-            retrieve_field(group, lambda, rows, cols, texel_um, {}, settings.field,
-                           [&](int it, double loss) { return report(name, it, loss, nullptr); });
+            retrieve_field(group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
+                           field_settings, [&](int it, double loss) { return report(name, it, loss, nullptr); });
         lambdas.push_back(lambda);
         fields.push_back(r.object);
-        if (stopped) return flat;
+        if (stopped) return estimate;
     }
 
-    // Stage 2: heights from the phases.
-    // Stage 2: heights on the object grid, then at the texel centres (refine is odd: texel
-    // (i, j) is sample (i·q + q/2, j·q + q/2)).
-    const int q = settings.field.refine, obj_cols = cols * q;
-    const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.max_range_um, rows * q, obj_cols);
+    // Stage 2: heights on the refined grid (spatially unwrapped, or each sample on the branch
+    // nearest the blurred fit), then at the texel centres (refine is odd: texel (i, j) is sample (i·q + q/2, j·q + q/2)).
+    const int obj_cols = cols * q;
+    const std::vector<double> reference = refined_heights(estimate, q);
+    const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.max_range_um, rows * q, obj_cols,
+                                                       settings.unwrap_from_blurred ? &reference : nullptr);
     std::vector<double> h(std::size_t(rows) * cols);
     const double to_texel = 1.0 / (vscale * texel_um);
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j)
             h[std::size_t(i) * cols + j] = fine_um[std::size_t(i * q + q / 2) * obj_cols + (j * q + q / 2)] * to_texel;
-    Heightfield estimate = flat.with_values(h);
+    estimate = flat.with_values(h);
     if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
 
     // Stage 3: the full model.

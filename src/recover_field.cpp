@@ -13,6 +13,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <fftw3.h>
+
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
@@ -187,6 +189,42 @@ std::vector<std::complex<double>> FieldOperator::adjoint(const std::vector<std::
 const std::vector<double>& FieldOperator::amplitude_factor() const { return m_impl->amp_full; }
 int FieldOperator::resolution() const { return m_impl->n; }
 
+std::vector<double> refined_heights(const Heightfield& hf, int refine) {
+    if (refine < 1 || refine % 2 == 0)
+        throw std::invalid_argument("refine " + std::to_string(refine) + " is invalid; expected an odd value >= 1");
+    const int rows = hf.rows() * refine, cols = hf.cols() * refine;
+    const double w = hf.texel_um(), d = w / refine, sigma = 0.5 * w;
+    std::vector<double> out(std::size_t(rows) * cols);
+    // Kernels within 3 texels (≥ 6σ) of a sample contribute; the rest are below e^{-18}.
+    constexpr int reach = 3;
+#pragma omp parallel for schedule(static) if (std::size_t(rows) * cols > 4096)
+    for (int a = 0; a < rows; ++a)
+        for (int b = 0; b < cols; ++b) {
+            const int i0 = a / refine, j0 = b / refine;
+            // Offset of the sample from its texel's centre (µm).
+            const double ox = (a - i0 * refine - refine / 2) * d, oy = (b - j0 * refine - refine / 2) * d;
+            double num = 0.0, den = 0.0;
+            for (int di = -reach; di <= reach; ++di)
+                for (int dj = -reach; dj <= reach; ++dj) {
+                    const double dx = ox - di * w, dy = oy - dj * w;  // x − μ_k
+                    const double g = std::exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma));
+                    const auto s = hf.slope(i0 + di, j0 + dj);
+                    num += g * (hf.height_um(i0 + di, j0 + dj) + s[0] * dx + s[1] * dy);
+                    den += g;
+                }
+            out[std::size_t(a) * cols + b] = num / den;
+        }
+    return out;
+}
+
+std::vector<std::complex<double>> object_from_heights(const Heightfield& hf, double lambda_um, int refine) {
+    validate_lambda(lambda_um);
+    const std::vector<double> h = refined_heights(hf, refine);
+    std::vector<std::complex<double>> object(h.size());
+    for (std::size_t k = 0; k < h.size(); ++k) object[k] = std::polar(1.0, -4.0 * kPi / lambda_um * h[k]);
+    return object;
+}
+
 // ---- phase retrieval -------------------------------------------------------------------------
 
 FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um,
@@ -240,7 +278,6 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     }
     if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
 
-    // Texels no footprint sees carry no information: they stay 0.
     std::vector<double> coverage(texels, 0.0);
     for (const Slice& s : slices) {
         const auto& impl = FieldAccess::impl(s.op);
@@ -250,23 +287,18 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     }
     const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
 
-    // Unknowns: (Re O, Im O) per texel, interleaved, so the vector is the std::complex array.
-    std::vector<double> xv(2 * texels, 0.0);
-    for (std::size_t t = 0; t < texels; ++t) {
-        const std::complex<double> v = initial.empty() ? std::complex<double>(1.0) : initial[t];
-        if (coverage[t] > 1e-12 * max_coverage) {
-            xv[2 * t] = v.real();
-            xv[2 * t + 1] = v.imag();
-        }
-    }
+    // Texels no footprint sees carry no information: they stay 0.
+    std::vector<double> mask(texels);
+    for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
+    std::vector<std::complex<double>> object(texels);
+    for (std::size_t t = 0; t < texels; ++t) object[t] = mask[t] * (initial.empty() ? 1.0 : initial[t]);
 
     // L(O) = Σ_slices [Σ_box (√c1|Ψ| − √R)² + Σ_outside R] / Σ R. With g = ∂L/∂Re Ψ + i ∂L/∂Im Ψ
-    // = 2(√c1|Ψ| − √R) √c1 Ψ/|Ψ| / ΣR, the gradient (∂/∂Re O + i ∂/∂Im O) is Aᴴ g.
+    // = 2(√c1|Ψ| − √R) √c1 Ψ/|Ψ| / ΣR, the gradient G = ∂L/∂Re O + i ∂L/∂Im O is Aᴴ g.
     const double inv_total = 1.0 / total;
-    const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
-        const auto* object = reinterpret_cast<const std::complex<double>*>(x.data());
+    const auto loss = [&](const std::complex<double>* obj, std::vector<std::complex<double>>& grad) {
         double value = 0.0;
-        grad.assign(x.size(), 0.0);
+        grad.assign(texels, 0.0);
 #pragma omp parallel reduction(+ : value) if (slices.size() > 1)
         {
             std::vector<std::complex<double>> local(texels, 0.0);
@@ -275,7 +307,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
             for (std::size_t i = 0; i < slices.size(); ++i) {
                 const Slice& s = slices[i];
                 const auto& impl = FieldAccess::impl(s.op);
-                impl.forward(object, psi);
+                impl.forward(obj, psi);
                 g.resize(psi.rows(), psi.cols());
                 double v = s.outside;
                 for (Eigen::Index b = 0; b < psi.cols(); ++b)
@@ -290,29 +322,115 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 impl.adjoint_add(g, local.data());
             }
 #pragma omp critical
-            for (std::size_t t = 0; t < texels; ++t) {
-                grad[2 * t] += local[t].real();
-                grad[2 * t + 1] += local[t].imag();
-            }
+            for (std::size_t t = 0; t < texels; ++t) grad[t] += local[t];
         }
         return value;
     };
 
+    // Unknowns: the object's spectrum inside the band the slices see (unitary DFT of the
+    // periodic object grid), or the object itself when band_limit is off. Frequencies outside
+    // every slice's disk (|u − ω_i/λ| ≤ 1/λ, widened by the window's spectral reach 3/(2πσ_p))
+    // reach no pixel and would only drift; leaving them out also makes fewer unknowns.
+    const int obj_rows = rows * q;
+    std::vector<std::size_t> band;  // indices of the spectrum kept, row-major
+    if (settings.band_limit) {
+        const double period_x = rows * texel_um, period_y = cols * texel_um;
+        for (int a = 0; a < obj_rows; ++a)
+            for (int b = 0; b < obj_cols; ++b) {
+                const double nu_x = double(a < (obj_rows + 1) / 2 ? a : a - obj_rows) / period_x;
+                const double nu_y = double(b < (obj_cols + 1) / 2 ? b : b - obj_cols) / period_y;
+                bool inside = false;
+                for (const Observation& o : observations) {
+                    const double reach = 1.0 / lambda_um + 3.0 / (2.0 * kPi * o.query.sigma_p_um);
+                    const double cx = o.query.omega_i[0] / lambda_um, cy = o.query.omega_i[1] / lambda_um;
+                    if ((nu_x - cx) * (nu_x - cx) + (nu_y - cy) * (nu_y - cy) <= reach * reach) {
+                        inside = true;
+                        break;
+                    }
+                }
+                if (inside) band.push_back(std::size_t(a) * obj_cols + b);
+            }
+    }
+    std::vector<std::complex<double>> spectrum(texels);
+    fftw_plan to_spectrum = nullptr, to_object = nullptr;
+    if (settings.band_limit) {
+#pragma omp critical(wavebrdf_fftw_plan)
+        {
+            auto* data = reinterpret_cast<fftw_complex*>(spectrum.data());
+            to_spectrum = fftw_plan_dft_2d(obj_rows, obj_cols, data, data, FFTW_FORWARD, FFTW_ESTIMATE);
+            to_object = fftw_plan_dft_2d(obj_rows, obj_cols, data, data, FFTW_BACKWARD, FFTW_ESTIMATE);
+        }
+    }
+    const double unitary = 1.0 / std::sqrt(double(texels));
+    // x (interleaved re/im of the kept spectrum) → object; object gradient → x gradient (the
+    // adjoint of a unitary inverse DFT followed by a restriction is the DFT then the gather).
+    const auto to_grid = [&](const std::vector<double>& x, std::vector<std::complex<double>>& obj) {
+        std::fill(spectrum.begin(), spectrum.end(), 0.0);
+        for (std::size_t k = 0; k < band.size(); ++k) spectrum[band[k]] = {x[2 * k], x[2 * k + 1]};
+        fftw_execute(to_object);
+        obj.resize(texels);
+        for (std::size_t t = 0; t < texels; ++t) obj[t] = unitary * mask[t] * spectrum[t];
+    };
+    const auto from_grid = [&](const std::vector<std::complex<double>>& g, std::vector<double>& x) {
+        for (std::size_t t = 0; t < texels; ++t) spectrum[t] = unitary * mask[t] * g[t];
+        fftw_execute(to_spectrum);
+        x.resize(2 * band.size());
+        for (std::size_t k = 0; k < band.size(); ++k) {
+            x[2 * k] = spectrum[band[k]].real();
+            x[2 * k + 1] = spectrum[band[k]].imag();
+        }
+    };
+
+    FieldRetrievalResult result;
+    std::vector<double> xv;
+    if (settings.band_limit) {
+        from_grid(object, xv);
+    } else {
+        xv.resize(2 * texels);
+        for (std::size_t t = 0; t < texels; ++t) {
+            xv[2 * t] = object[t].real();
+            xv[2 * t + 1] = object[t].imag();
+        }
+    }
+    std::vector<std::complex<double>> grad, trial;
+    const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
+        double value;
+        if (settings.band_limit) {
+            to_grid(x, trial);
+            value = loss(trial.data(), grad);
+            from_grid(grad, g);
+        } else {
+            value = loss(reinterpret_cast<const std::complex<double>*>(x.data()), grad);
+            g.resize(2 * texels);
+            for (std::size_t t = 0; t < texels; ++t) {
+                g[2 * t] = grad[t].real();
+                g[2 * t + 1] = grad[t].imag();
+            }
+        }
+        return value;
+    };
     LbfgsOptions lo;
     lo.history = settings.history;
     lo.max_iterations = settings.iterations;
     lo.gradient_tolerance = 0.0;
-    FieldRetrievalResult result;
-    const auto stop = [&](int it, double value) {
+    const LbfgsResult r = lbfgs_minimize(objective, xv, lo, [&](int it, double value) {
         result.iterations = it;
         if (on_iteration && !on_iteration(it, value)) return false;
         return value > settings.relative_tolerance;
-    };
-    const LbfgsResult r = lbfgs_minimize(objective, xv, lo, stop);
+    });
     result.relative_loss = r.value;
     result.iterations = r.iterations;
-    result.object.resize(texels);
-    for (std::size_t t = 0; t < texels; ++t) result.object[t] = {xv[2 * t], xv[2 * t + 1]};
+    if (settings.band_limit) {
+        to_grid(xv, result.object);
+#pragma omp critical(wavebrdf_fftw_plan)
+        {
+            fftw_destroy_plan(to_spectrum);
+            fftw_destroy_plan(to_object);
+        }
+    } else {
+        result.object.resize(texels);
+        for (std::size_t t = 0; t < texels; ++t) result.object[t] = {xv[2 * t], xv[2 * t + 1]};
+    }
     return result;
 }
 

@@ -147,7 +147,8 @@ std::vector<double> spatial_heights(const std::vector<double>& lambdas_um,
 
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                                    const std::vector<std::vector<std::complex<double>>>& fields,
-                                   double max_range_um, int rows, int cols) {
+                                   double max_range_um, int rows, int cols,
+                                   const std::vector<double>* reference) {
     if (fields.empty() || fields.size() != lambdas_um.size())
         throw std::invalid_argument("unwrap_heights: " + std::to_string(fields.size()) + " fields for " +
                                     std::to_string(lambdas_um.size()) +
@@ -171,8 +172,13 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                                             " um is given twice; expected distinct wavelengths");
     }
 
+    if (reference && reference->size() != texels)
+        throw std::invalid_argument("unwrap_heights: reference has " + std::to_string(reference->size()) +
+                                    " heights; expected " + std::to_string(texels));
     std::vector<double> h;
-    if (rows > 0) {
+    if (reference) {
+        h = *reference;
+    } else if (rows > 0) {
         h = spatial_heights(lambdas_um, fields, rows, cols);
     } else {
         // Channels: single wavelengths and synthetic pairs, coarse (long Λ) first.

@@ -27,6 +27,24 @@
 
 namespace wavebrdf {
 
+// ---- 0. Blurred slices: the shape of the surface from a flat start -------------------------
+
+struct BlurredFitSettings {
+    // Blur widths, widest first, in units of the footprint's own far-field lobe (intensity std
+    // 1/(2√2 π σ_p) in u): each stage fits slices blurred by a Gaussian this many lobes wide.
+    std::vector<double> blur_widths{16.0, 8.0, 4.0};
+    int iterations = 40;  // L-BFGS iterations per stage
+    int history = 20;
+};
+
+// Heights that match the single-wavelength observations blurred in u (the distribution of
+// reflected directions, smooth in the heights), from `initial` (e.g. flat), wide blur first:
+// L-BFGS on Σ(√(B f B^T) − √(B R B^T))² / Σ B R B^T in the full model. on_iteration(stage, iteration, loss) returning false
+// stops. Throws std::invalid_argument when no single-wavelength observation is given.
+Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
+                        const BlurredFitSettings& settings = {},
+                        const std::function<bool(int, int, double)>& on_iteration = {});
+
 // ---- 1. The ptychographic field model ------------------------------------------------------
 
 // The linear map from a complex object on the texel grid to the far field of one footprint
@@ -65,7 +83,11 @@ struct FieldRetrievalSettings {
     // The object grid is this many times finer than the texels (odd, so that every texel
     // centre is an object sample: texel (i, j) is sample (i·refine + refine/2, …)).
     int refine = 1;
-    int iterations = 300;               // L-BFGS iterations (accepted steps)
+    int iterations = 100;               // L-BFGS iterations (accepted steps)
+    // Keep only the object's spectrum inside the band the slices see: the union of their disks
+    // |u − ω_i/λ| ≤ 1/λ widened by the window's spectral reach 3/(2πσ_p). What lies outside
+    // reaches no pixel; left free it drifts and corrupts the phases.
+    bool band_limit = true;
     int history = 20;                   // L-BFGS pairs
     double relative_tolerance = 1e-12;  // stop when the relative loss drops below this
 };
@@ -87,6 +109,16 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                                     const FieldRetrievalSettings& settings = {},
                                     const std::function<bool(int, double)>& on_iteration = {});
 
+// Heights (µm) of `heightfield` on the grid `refine` times finer than its texels (odd refine;
+// (rows·refine) × (cols·refine), row-major): the blend of the Gabor kernels' tangent planes
+// Σ_k G(x − μ_k) (H_k + s_k·(x − μ_k)) / Σ_k G(x − μ_k), the height whose e^{−i(4π/λ)H} the
+// model's kernels approximate. At texel centres it is close to H_k.
+std::vector<double> refined_heights(const Heightfield& heightfield, int refine);
+
+// The object e^{−i(4π/λ)H} of refined_heights, the field stage's starting point.
+std::vector<std::complex<double>> object_from_heights(const Heightfield& heightfield, double lambda_um,
+                                                      int refine);
+
 // ---- 2. Multi-wavelength unwrapping --------------------------------------------------------
 
 // Heights H_k (µm, mean 0) such that fields[l][k] ∝ e^{−i(4π/λ_l)H_k} up to one unknown global
@@ -101,15 +133,27 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
 // that fits all wavelengths best, and a joint least-squares fit of heights and global phases
 // ends it. Throws std::invalid_argument on size mismatches, no field, equal wavelengths or a
 // grid that does not hold the fields; std::domain_error for a non-positive λ or range.
+// With `reference` (heights in µm, one per sample) the start is the reference itself: each
+// sample then takes the branch nearest it (it must be within λ/4 of the truth at the shortest
+// wavelength, or within a quarter of the shortest synthetic wavelength with two or more).
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                                    const std::vector<std::vector<std::complex<double>>>& fields,
-                                   double max_range_um, int rows = 0, int cols = 0);
+                                   double max_range_um, int rows = 0, int cols = 0,
+                                   const std::vector<double>* reference = nullptr);
 
 // ---- 3. The pipeline -----------------------------------------------------------------------
 
+// The smallest odd object-grid refinement whose sampling holds a slice's band and the field's
+// (d = w/q < λ / (2 (1 + |ω_i|))).
+int auto_refine(double texel_um, double lambda_min_um, double max_omega_i = 0.0);
+
 struct RecoverSettings {
-    FieldRetrievalSettings field;  // stage 1, per wavelength
+    BlurredFitSettings blurred;    // stage 0 (empty blur_widths: start the field stage from flat)
+    FieldRetrievalSettings field;  // stage 1, per wavelength (its refine is replaced by:)
+    int refine = 0;                // object grid refinement; 0: auto_refine
     double max_range_um = 4.0;     // bound on the height range, for unwrapping (stage 2)
+    // Stage 2 starts from the spatially unwrapped fields (false) or from the blurred fit (true).
+    bool unwrap_from_blurred = false;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 200;
     int refine_history = 20;

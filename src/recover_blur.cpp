@@ -1,0 +1,144 @@
+// Stage 0 of the recovery: heights that match blurred slices.
+//
+// Blurring a slice in u by a Gaussian wider than its interference detail (the footprint's own
+// lobe, std 1/(2√2 π σ_p) in u) leaves the distribution of reflected directions: the window-
+// weighted histogram of slopes, the geometric-optics limit. Its loss is smooth in the heights
+// (no λ/2 wrapping), so L-BFGS from a flat start finds the heights' shape; narrowing the blur
+// step by step brings in finer detail. The result is close enough (a few % of the range) for
+// the field stage to start from.
+//
+// The model slice is rendered at the observation's resolution and blurred there (a coarser
+// rendering would alias: |I|² is band-limited only to the window's autocorrelation, 2·6σ_p).
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "wavebrdf/adjoint.h"
+#include "wavebrdf/optim.h"
+#include "wavebrdf/recover.h"
+
+namespace wavebrdf {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// B[p, f] = G_β(u'_p − u_f) Δu_f: the Gaussian of std β (cycles/µm) from a grid of n_from slice
+// pixels to one of n_to, both over the same disk at wavelength λ (u = (ω_i + ω_o)/λ; ω_i cancels).
+Eigen::MatrixXd blur_matrix(int n_to, int n_from, double lambda_um, double beta) {
+    Eigen::MatrixXd b(n_to, n_from);
+    const double du = 2.0 / (n_from * lambda_um);
+    const double norm = du / (std::sqrt(2.0 * kPi) * beta);
+    for (int p = 0; p < n_to; ++p)
+        for (int f = 0; f < n_from; ++f) {
+            const double d = (slice_omega(p, n_to) - slice_omega(f, n_from)) / lambda_um;
+            b(p, f) = norm * std::exp(-0.5 * d * d / (beta * beta));
+        }
+    return b;
+}
+
+Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n) {
+    Eigen::MatrixXd m(n, n);
+    for (int p = 0; p < n; ++p)
+        for (int q = 0; q < n; ++q) m(p, q) = v[std::size_t(p) * n + q];
+    return m;
+}
+
+}  // namespace
+
+Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
+                        const BlurredFitSettings& settings,
+                        const std::function<bool(int, int, double)>& on_iteration) {
+    std::vector<const Observation*> used;
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        validate(observations[i], i);
+        if (observations[i].lambdas_um.size() == 1) used.push_back(&observations[i]);
+    }
+    if (used.empty()) throw std::invalid_argument("fit_blurred: no single-wavelength observation given");
+    if (settings.iterations < 0 || settings.history < 1)
+        throw std::domain_error("fit_blurred: iterations " + std::to_string(settings.iterations) + " / history " +
+                                std::to_string(settings.history) + " invalid; expected >= 0 / >= 1");
+    for (double b : settings.blur_widths)
+        if (!(b > 0.0) || !std::isfinite(b))
+            throw std::domain_error("fit_blurred: blur width " + std::to_string(b) + " is invalid; expected > 0");
+
+    std::vector<double> h = initial.values();
+    for (std::size_t stage = 0; stage < settings.blur_widths.size(); ++stage) {
+        // Per observation: coarse resolution, blur matrices and the blurred reference.
+        struct Blurred {
+            int n_coarse;
+            Eigen::MatrixXd model_blur;  // n' × n'
+            Eigen::MatrixXd reference;   // n' × n' (blurred, on the coarse pixels)
+        };
+        std::vector<Blurred> data(used.size());
+        double total = 0.0;
+        for (std::size_t i = 0; i < used.size(); ++i) {
+            const Observation& o = *used[i];
+            const double lambda = o.lambdas_um[0];
+            // The footprint's lobe: |c|² has std σ_p/√2, so its far field intensity has
+            // std 1/(2√2 π σ_p) in u.
+            const double beta = settings.blur_widths[stage] / (2.0 * std::sqrt(2.0) * kPi * o.query.sigma_p_um);
+            const int n_coarse = o.resolution;
+            const Eigen::MatrixXd to_coarse = blur_matrix(n_coarse, o.resolution, lambda, beta);
+            Blurred& d = data[i];
+            d.n_coarse = n_coarse;
+            d.model_blur = blur_matrix(n_coarse, n_coarse, lambda, beta);
+            d.reference = to_coarse * as_matrix(o.reference, o.resolution).cwiseMax(0.0) * to_coarse.transpose();
+            total += d.reference.sum();
+        }
+        if (!(total > 0.0)) throw std::invalid_argument("fit_blurred: every reference slice is zero");
+        const double inv_total = 1.0 / total;
+
+        // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
+        const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
+            const Heightfield hf = initial.with_values(x);
+            grad.assign(x.size(), 0.0);
+            double value = 0.0;
+#pragma omp parallel reduction(+ : value)
+            {
+                std::vector<double> local(x.size(), 0.0);
+#pragma omp for schedule(dynamic)
+                for (std::size_t i = 0; i < used.size(); ++i) {
+                    const Observation& o = *used[i];
+                    const Blurred& d = data[i];
+                    const int n = d.n_coarse;
+                    SliceAdjoint<double> slice(hf, o.query, o.lambdas_um[0], n);
+                    const Eigen::MatrixXd m = d.model_blur * as_matrix(slice.slice(), n) * d.model_blur.transpose();
+                    Eigen::MatrixXd dm(n, n);
+                    double v = 0.0;
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) {
+                            const double a = std::sqrt(std::max(m(p, q), 0.0) + 1e-300);
+                            const double diff = a - std::sqrt(d.reference(p, q));
+                            v += diff * diff;
+                            dm(p, q) = m(p, q) > 0.0 ? inv_total * diff / a : 0.0;
+                        }
+                    value += v * inv_total;
+                    const Eigen::MatrixXd w = d.model_blur.transpose() * dm * d.model_blur;
+                    std::vector<double> weights(std::size_t(n) * n);
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
+                    slice.backward(weights, local);
+                }
+#pragma omp critical
+                for (std::size_t k = 0; k < local.size(); ++k) grad[k] += local[k];
+            }
+            return value;
+        };
+        LbfgsOptions lo;
+        lo.history = settings.history;
+        lo.max_iterations = settings.iterations;
+        lo.gradient_tolerance = 0.0;
+        bool go_on = true;
+        lbfgs_minimize(objective, h, lo, [&](int it, double value) {
+            if (on_iteration && !on_iteration(int(stage), it, value)) go_on = false;
+            return go_on;
+        });
+        if (!go_on) break;
+    }
+    return initial.with_values(h);
+}
+
+}  // namespace wavebrdf
