@@ -48,6 +48,7 @@ std::vector<double> parse_list(const std::string& s) {
 }  // namespace
 
 int main(int argc, char** argv) try {
+    std::setvbuf(stdout, nullptr, _IOLBF, 0);
     auto args = parse(argc, argv);
     const auto get = [&](const char* key, const char* def) {
         auto it = args.find(key);

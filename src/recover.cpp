@@ -94,7 +94,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         estimate = fit_blurred(mono, flat, settings.blurred, [&](int stage, int it, double loss) {
             return report("blur:" + std::to_string(stage), it, loss, nullptr);
         });
-        if (!report("blur", 0, 0.0, &estimate) || stopped) return estimate;
+        if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
     }
 
     // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.

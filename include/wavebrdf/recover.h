@@ -134,8 +134,9 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& heightf
 // ends it. Throws std::invalid_argument on size mismatches, no field, equal wavelengths or a
 // grid that does not hold the fields; std::domain_error for a non-positive λ or range.
 // With `reference` (heights in µm, one per sample) the start is the reference itself: each
-// sample then takes the branch nearest it (it must be within λ/4 of the truth at the shortest
-// wavelength, or within a quarter of the shortest synthetic wavelength with two or more).
+// sample then takes the branch nearest it. The reference must be well within λ/4 of the truth
+// at the shortest wavelength (the global phases are aligned to it), or, with two or more
+// wavelengths, within a quarter of the shortest synthetic wavelength and close on average.
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                                    const std::vector<std::vector<std::complex<double>>>& fields,
                                    double max_range_um, int rows = 0, int cols = 0,

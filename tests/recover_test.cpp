@@ -1,0 +1,380 @@
+// Recovery (recover.h): the field model against the renderer, its adjoint, phase retrieval,
+// unwrapping, the blurred fit and an end-to-end recovery from flat.
+#include "wavebrdf/recover.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <complex>
+#include <map>
+#include <random>
+
+#include "test_util.h"
+#include "wavebrdf/generate.h"
+
+namespace wavebrdf {
+namespace {
+
+using Complex = std::complex<double>;
+constexpr double kPi = 3.14159265358979323846;
+
+// A heightfield whose central-difference slopes all vanish: period 2 along both axes
+// (h[i+1] = h[i−1]), four free values. The Gabor model then has a_k = 0 for every kernel.
+Heightfield zero_slope_heightfield(int rows, int cols, double texel_um, const std::array<double, 4>& values) {
+    std::vector<double> v(std::size_t(rows) * cols);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) v[std::size_t(i) * cols + j] = values[std::size_t((i % 2) * 2 + (j % 2))];
+    return Heightfield(rows, cols, v, texel_um);
+}
+
+std::vector<Complex> object_of(const Heightfield& hf, double lambda_um) {
+    std::vector<Complex> o(hf.values().size());
+    for (int i = 0; i < hf.rows(); ++i)
+        for (int j = 0; j < hf.cols(); ++j)
+            o[hf.index(i, j)] = std::polar(1.0, -4.0 * kPi / lambda_um * hf.height_um(i, j));
+    return o;
+}
+
+std::vector<Complex> random_complex(std::size_t size, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> g(0.0, 1.0);
+    std::vector<Complex> v(size);
+    for (auto& z : v) z = {g(rng), g(rng)};
+    return v;
+}
+
+// Global-phase-free distance: min over φ of ‖a − e^{iφ} b‖ / ‖a‖.
+double distance_up_to_phase(const std::vector<Complex>& a, const std::vector<Complex>& b) {
+    Complex overlap = 0.0;
+    double norm = 0.0;
+    for (std::size_t k = 0; k < a.size(); ++k) {
+        overlap += std::conj(b[k]) * a[k];
+        norm += std::norm(a[k]);
+    }
+    const Complex phase = std::polar(1.0, std::arg(overlap));
+    double d = 0.0;
+    for (std::size_t k = 0; k < a.size(); ++k) d += std::norm(a[k] - phase * b[k]);
+    return std::sqrt(d / norm);
+}
+
+// The field model is the renderer's field at zero slope: with period-2 heights (every slope 0)
+// amplitude_factor² |forward(e^{−i(4π/λ)H})|² is the slice, here against the direct sum.
+TEST(FieldOperator, MatchesRenderSliceAtZeroSlope) {
+    const Heightfield hf = zero_slope_heightfield(12, 10, 1.5, {0.0, 0.13, -0.07, 0.21});
+    for (Model model : {Model::OHS, Model::ROHS}) {
+        // Footprint across the periodic border, oblique light.
+        const Query q = test::make_query(model, 1.1, 13.7, 2.5, 0.2, -0.1);
+        const double lambda = 0.55;
+        const int n = 40;
+        RenderOptions direct;
+        direct.path = RenderPath::Direct;
+        direct.prune_tolerance = 0.0;
+        const std::vector<double> slice = render_slice<double>(hf, q, lambda, n, direct);
+        const FieldOperator op(hf.rows(), hf.cols(), hf.texel_um(), q, lambda, n);
+        const std::vector<Complex> field = op.forward(object_of(hf, lambda));
+        double peak = 0.0, worst = 0.0;
+        for (std::size_t p = 0; p < slice.size(); ++p) {
+            const double a = op.amplitude_factor()[p];
+            peak = std::max(peak, slice[p]);
+            worst = std::max(worst, std::abs(a * a * std::norm(field[p]) - slice[p]));
+        }
+        EXPECT_GT(peak, 0.0);
+        EXPECT_LT(worst, 1e-10 * peak) << to_string(model);
+    }
+}
+
+// On a refined object grid the operator is the renderer of the refined heightfield (texel w/q)
+// at zero slope.
+TEST(FieldOperator, RefinedGridMatchesRenderOfRefinedHeightfield) {
+    const int q = 3;
+    const Heightfield fine = zero_slope_heightfield(8 * q, 6 * q, 2.0 / q, {0.05, -0.1, 0.02, 0.17});
+    const Query query = test::make_query(Model::OHS, 5.3, 2.2, 2.0);
+    const double lambda = 0.5;
+    const int n = 48;
+    const std::vector<double> slice = render_slice<double>(fine, query, lambda, n);
+    const FieldOperator op(8, 6, 2.0, query, lambda, n, q);
+    const std::vector<Complex> field = op.forward(object_of(fine, lambda));
+    double peak = 0.0, worst = 0.0;
+    for (std::size_t p = 0; p < slice.size(); ++p) {
+        const double a = op.amplitude_factor()[p];
+        peak = std::max(peak, slice[p]);
+        worst = std::max(worst, std::abs(a * a * std::norm(field[p]) - slice[p]));
+    }
+    EXPECT_LT(worst, 1e-10 * peak);
+}
+
+// ⟨A x, y⟩ = ⟨x, Aᴴ y⟩ for random complex x, y (footprint wrapping the border, oblique light).
+TEST(FieldOperator, AdjointDotProductIdentity) {
+    for (int refine : {1, 3}) {
+        const Query q = test::make_query(Model::ROHS, 0.4, 9.1, 1.7, -0.15, 0.25);
+        const FieldOperator op(7, 5, 2.0, q, 0.6, 24, refine);
+        const auto x = random_complex(std::size_t(7 * refine) * (5 * refine), 3);
+        const auto y = random_complex(24 * 24, 4);
+        const auto ax = op.forward(x);
+        const auto aty = op.adjoint(y);
+        Complex lhs = 0.0, rhs = 0.0;
+        for (std::size_t k = 0; k < y.size(); ++k) lhs += std::conj(y[k]) * ax[k];
+        for (std::size_t k = 0; k < x.size(); ++k) rhs += std::conj(aty[k]) * x[k];
+        EXPECT_GT(std::abs(lhs), 1e-3);
+        EXPECT_NEAR(lhs.real(), rhs.real(), 1e-11 * std::abs(lhs)) << "refine " << refine;
+        EXPECT_NEAR(lhs.imag(), rhs.imag(), 1e-11 * std::abs(lhs)) << "refine " << refine;
+    }
+}
+
+TEST(FieldOperator, RejectsBadArguments) {
+    const Query q = test::make_query(Model::OHS, 0.0, 0.0, 2.0);
+    EXPECT_THROW(FieldOperator(0, 4, 1.0, q, 0.5, 16), std::invalid_argument);
+    EXPECT_THROW(FieldOperator(4, 4, -1.0, q, 0.5, 16), std::domain_error);
+    EXPECT_THROW(FieldOperator(4, 4, 1.0, q, 0.5, 16, 0), std::invalid_argument);
+    EXPECT_THROW(FieldOperator(4, 4, 1.0, test::make_query(Model::GHS, 0.0, 0.0, 2.0), 0.5, 16),
+                 std::invalid_argument);
+    const FieldOperator op(4, 4, 1.0, q, 0.5, 16);
+    EXPECT_THROW(op.forward(std::vector<Complex>(15)), std::invalid_argument);
+    EXPECT_THROW(op.adjoint(std::vector<Complex>(17)), std::invalid_argument);
+}
+
+// Observations made by the field model itself from a known object (a smooth phase object).
+std::vector<Observation> model_observations(const std::vector<Complex>& object, int rows, int cols, double texel_um,
+                                            double lambda_um, int n, double sigma_p_um, double step_um) {
+    std::vector<Observation> out;
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> jitter(-0.15, 0.15);
+    for (double x = 0.5 * step_um; x < rows * texel_um; x += step_um)
+        for (double y = 0.5 * step_um; y < cols * texel_um; y += step_um) {
+            Observation o;
+            o.query = test::make_query(Model::OHS, x + jitter(rng) * step_um, y + jitter(rng) * step_um, sigma_p_um);
+            o.lambdas_um = {lambda_um};
+            o.resolution = n;
+            const FieldOperator op(rows, cols, texel_um, o.query, lambda_um, n);
+            const auto field = op.forward(object);
+            o.reference.resize(field.size());
+            for (std::size_t p = 0; p < field.size(); ++p)
+                o.reference[p] = std::pow(op.amplitude_factor()[p], 2) * std::norm(field[p]);
+            out.push_back(std::move(o));
+        }
+    return out;
+}
+
+// Overlapping slices determine the object up to a global phase: from a start 0.6 rad (rms)
+// away, the retrieval returns the object (which a single slice could not pin down).
+TEST(RetrieveField, RecoversKnownObjectUpToGlobalPhase) {
+    const int rows = 10, cols = 10;
+    const double texel = 1.0, lambda = 0.5;
+    const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
+    const std::vector<Complex> truth = object_of(hf, lambda);
+    const auto observations = model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0);
+    std::mt19937_64 rng(2);
+    std::normal_distribution<double> noise(0.0, 0.6);
+    std::vector<Complex> start(truth.size());
+    for (std::size_t k = 0; k < truth.size(); ++k) start[k] = truth[k] * std::polar(1.0, noise(rng));
+    ASSERT_GT(distance_up_to_phase(truth, start), 0.4);
+    FieldRetrievalSettings s;
+    s.iterations = 300;
+    const FieldRetrievalResult r = retrieve_field(observations, lambda, rows, cols, texel, start, s);
+    EXPECT_LT(r.relative_loss, 1e-10);
+    EXPECT_LT(distance_up_to_phase(truth, r.object), 1e-4);
+}
+
+TEST(RetrieveField, RejectsObservationsAtAnotherWavelength) {
+    Observation o;
+    o.query = test::make_query(Model::OHS, 1.0, 1.0, 1.0);
+    o.lambdas_um = {0.6};
+    o.resolution = 8;
+    o.reference.assign(64, 1.0);
+    EXPECT_THROW(retrieve_field({o}, 0.5, 4, 4, 1.0), std::invalid_argument);
+    EXPECT_THROW(retrieve_field({}, 0.5, 4, 4, 1.0), std::invalid_argument);
+}
+
+// Heights spanning 2.4 µm (far beyond λ/2) from exact fields at three wavelengths, each with
+// its own unknown global phase: per sample (synthetic wavelengths) and spatially.
+TEST(UnwrapHeights, RecoversHeightsFromExactFieldsAtSeveralWavelengths) {
+    const int rows = 64, cols = 56;
+    SurfaceParams p;
+    p.rows = rows;
+    p.cols = cols;
+    p.texel_um = 0.05;  // fine sampling: neighbours differ by less than π at 0.5 µm (checked)
+    p.correlation_um = 1.2;
+    p.rms_height_um = 0.55;
+    p.seed = 3;
+    const Heightfield hf = generate_heightfield(p);
+    const std::vector<double> lambdas = {0.5, 0.55, 0.65};
+    std::vector<std::vector<Complex>> fields;
+    double lo = INFINITY, hi = -INFINITY, mean = 0.0;
+    for (double v : hf.values()) {
+        lo = std::min(lo, v * p.texel_um);
+        hi = std::max(hi, v * p.texel_um);
+        mean += v * p.texel_um / double(rows * cols);
+    }
+    ASSERT_GT(hi - lo, 2.0);
+    double steepest = 0.0;  // largest height step between neighbours, µm
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            steepest = std::max({steepest, std::abs(hf.height_um(i + 1, j) - hf.height_um(i, j)),
+                                 std::abs(hf.height_um(i, j + 1) - hf.height_um(i, j))});
+    ASSERT_LT(4.0 * kPi / 0.5 * steepest, kPi);
+    for (std::size_t l = 0; l < lambdas.size(); ++l) {
+        auto f = object_of(hf, lambdas[l]);
+        for (auto& z : f) z *= std::polar(0.8, 1.0 + 2.0 * double(l));  // global phase and amplitude
+        fields.push_back(f);
+    }
+    for (bool spatial : {false, true}) {
+        const auto h = unwrap_heights(lambdas, fields, 3.0, spatial ? rows : 0, spatial ? cols : 0);
+        double worst = 0.0;
+        for (std::size_t k = 0; k < h.size(); ++k)
+            worst = std::max(worst, std::abs(h[k] - (hf.values()[k] * p.texel_um - mean)));
+        EXPECT_LT(worst, 1e-9) << (spatial ? "spatial" : "per sample");
+    }
+    // One wavelength alone cannot: per sample it only knows the heights modulo λ/2.
+    const auto one = unwrap_heights({0.5}, {fields[0]}, 3.0);
+    double worst = 0.0;
+    for (std::size_t k = 0; k < one.size(); ++k)
+        worst = std::max(worst, std::abs(one[k] - (hf.values()[k] * p.texel_um - mean)));
+    EXPECT_GT(worst, 0.1);
+}
+
+// With a reference within a branch of the truth, each sample snaps to the truth.
+TEST(UnwrapHeights, SnapsToTheBranchNearestAReference) {
+    const std::vector<double> truth = {0.0, 0.9, -0.7, 1.3, -1.1, 0.2};
+    std::vector<double> reference = truth;
+    for (std::size_t k = 0; k < reference.size(); ++k) reference[k] += (k % 2 ? 0.05 : -0.04);
+    std::vector<std::vector<Complex>> fields;
+    for (double lambda : {0.5, 0.6}) {
+        std::vector<Complex> f;
+        for (double h : truth) f.push_back(std::polar(1.0, -4.0 * kPi / lambda * h + 0.3));
+        fields.push_back(f);
+    }
+    const auto h = unwrap_heights({0.5, 0.6}, fields, 3.0, 0, 0, &reference);
+    double mean = 0.0;
+    for (double v : truth) mean += v / double(truth.size());
+    for (std::size_t k = 0; k < h.size(); ++k) EXPECT_NEAR(h[k], truth[k] - mean, 1e-12);
+}
+
+TEST(UnwrapHeights, RejectsBadArguments) {
+    const std::vector<Complex> f(4, 1.0);
+    EXPECT_THROW(unwrap_heights({0.5}, {}, 1.0), std::invalid_argument);
+    EXPECT_THROW(unwrap_heights({0.5, 0.5}, {f, f}, 1.0), std::invalid_argument);
+    EXPECT_THROW(unwrap_heights({0.5, 0.6}, {f, std::vector<Complex>(3)}, 1.0), std::invalid_argument);
+    EXPECT_THROW(unwrap_heights({0.5}, {f}, 1.0, 3, 3), std::invalid_argument);
+    EXPECT_THROW(unwrap_heights({0.5}, {f}, 0.0), std::domain_error);
+    EXPECT_THROW(unwrap_heights({-0.5}, {f}, 1.0), std::domain_error);
+}
+
+// refined_heights blends the kernels' tangent planes: exact for a constant surface, and for a
+// long-period sinusoid it follows H(x) between the texel centres.
+TEST(RefinedHeights, FollowsTheSurfaceBetweenTexelCentres) {
+    const int rows = 64, q = 5;
+    const double w = 0.5, period = rows * w, amplitude = 0.3;
+    std::vector<double> v(std::size_t(rows) * 2);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < 2; ++j) v[std::size_t(i) * 2 + j] = amplitude * std::sin(2.0 * kPi * (i + 0.5) * w / period) / w;
+    const Heightfield hf(rows, 2, v, w);
+    const auto fine = refined_heights(hf, q);
+    double worst = 0.0;
+    for (int a = 0; a < rows * q; ++a) {
+        const double x = (a + 0.5) * w / q;
+        worst = std::max(worst, std::abs(fine[std::size_t(a) * 2 * q] - amplitude * std::sin(2.0 * kPi * x / period)));
+    }
+    EXPECT_LT(worst, 2e-3 * amplitude);
+    const auto flat = refined_heights(Heightfield(3, 3, std::vector<double>(9, 0.25), 2.0), 3);
+    for (double h : flat) EXPECT_NEAR(h, 0.5, 1e-12);
+    EXPECT_THROW(refined_heights(hf, 2), std::invalid_argument);
+}
+
+// A fresh isotropic surface (correlation 4 texels, heights to ±0.5 µm: 2-4 rad per texel at
+// 0.5 µm) from a flat start, through every stage, to well under 1 % of its range.
+struct SmallCase {
+    Heightfield truth;
+    std::vector<Observation> observations;
+};
+
+SmallCase small_case(std::uint64_t seed) {
+    SurfaceParams p;
+    p.rows = p.cols = 12;
+    p.texel_um = 2.0;
+    p.correlation_um = 8.0;
+    p.rms_height_um = 1.0;
+    p.seed = seed;
+    const Heightfield raw = generate_heightfield(p);
+    double peak = 0.0;
+    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
+    std::vector<double> v = raw.values();
+    for (double& x : v) x *= 0.5 / (peak * p.texel_um);  // max |H| = 0.5 µm
+    SmallCase c{raw.with_values(v), {}};
+    std::mt19937_64 rng(seed + 100);
+    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
+    const double step = 4.0;  // σ_p = 3 µm: linear overlap 1 − 4/18 = 78 %
+    for (double lambda : {0.5, 0.6})
+        for (int a = 0; a < 6; ++a)
+            for (int b = 0; b < 6; ++b) {
+                Observation o;
+                o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step, 3.0);
+                o.lambdas_um = {lambda};
+                o.resolution = 64;
+                o.reference = render_observation(c.truth, o);
+                c.observations.push_back(std::move(o));
+            }
+    return c;
+}
+
+RecoverSettings quick_settings() {
+    RecoverSettings s;
+    s.blurred.blur_widths = {12.0, 4.0};
+    s.blurred.iterations = 15;
+    s.field.iterations = 40;
+    s.refine_iterations = 15;
+    return s;
+}
+
+TEST(RecoverHeights, RecoversASmallSurfaceFromFlat) {
+    const SmallCase c = small_case(21);
+    std::map<std::string, double> last_rmse;
+    const Heightfield estimate = recover_heights(
+        c.observations, 12, 12, 2.0, 1.0, quick_settings(),
+        [&](const StageMetrics& m) {
+            if (m.height_rel_rmse >= 0.0) last_rmse[m.stage] = m.height_rel_rmse;
+            return true;
+        },
+        &c.truth);
+    const double flat_rmse = height_rel_rmse(Heightfield(12, 12, std::vector<double>(144, 0.0), 2.0), c.truth);
+    EXPECT_GT(flat_rmse, 0.15);
+    // Each stage's own result: the blurred fit gets the shape, the fields the detail.
+    ASSERT_TRUE(last_rmse.count("blur") && last_rmse.count("unwrap") && last_rmse.count("refine"));
+    EXPECT_LT(last_rmse["blur"], 0.1);
+    EXPECT_LT(last_rmse["unwrap"], 0.02);
+    EXPECT_LT(height_rel_rmse(estimate, c.truth), 0.01);
+    EXPECT_EQ(estimate.texel_um(), 2.0);
+}
+
+TEST(RecoverHeights, StopsWhenTheCallbackSaysSo) {
+    const SmallCase c = small_case(22);
+    int calls = 0;
+    recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(), [&](const StageMetrics&) {
+        ++calls;
+        return false;
+    });
+    EXPECT_EQ(calls, 1);
+}
+
+TEST(RecoverHeights, RejectsObservationsWithoutASingleWavelengthSlice) {
+    Observation o;
+    o.query = test::make_query(Model::OHS, 1.0, 1.0, 1.0);
+    o.lambdas_um = {0.45, 0.55, 0.65};
+    o.resolution = 8;
+    o.reference.assign(8 * 8 * 3, 1.0);
+    EXPECT_THROW(recover_heights({o}, 4, 4, 1.0, 1.0), std::invalid_argument);
+    EXPECT_THROW(recover_heights({}, 4, 4, 1.0, 1.0), std::invalid_argument);
+}
+
+TEST(HeightRelRmse, IsTheRmsAfterRemovingMeansOverTheRange) {
+    const Heightfield truth(1, 4, {0.0, 1.0, 2.0, 3.0}, 0.5, 2.0);      // heights 0, 1, 2, 3 µm
+    const Heightfield estimate(1, 4, {5.0, 6.5, 7.0, 7.5}, 1.0, 1.0);   // minus mean: −1.5, 0, 0.5, 1
+    // Truth minus its mean: −1.5, −0.5, 0.5, 1.5. Differences 0, 0.5, 0, −0.5 → rms √(0.5/4);
+    // range 3.
+    EXPECT_NEAR(height_rel_rmse(estimate, truth), std::sqrt(0.5 / 4.0) / 3.0, 1e-15);
+    EXPECT_NEAR(height_rel_rmse(truth, truth), 0.0, 1e-15);
+    EXPECT_THROW(height_rel_rmse(Heightfield(1, 3, {0, 0, 0}), truth), std::invalid_argument);
+    EXPECT_THROW(height_rel_rmse(truth, Heightfield(1, 4, {1, 1, 1, 1})), std::domain_error);
+}
+
+}  // namespace
+}  // namespace wavebrdf
