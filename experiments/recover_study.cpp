@@ -117,11 +117,13 @@ int main(int argc, char** argv) try {
     RecoverSettings rs;
     rs.field.iterations = std::stoi(get("field_iters", "300"));
     rs.refine = std::stoi(get("refine", "0"));
-    rs.field.iterations = std::stoi(get("field_iters", "100"));
+    rs.field.iterations = std::stoi(get("field_iters", "50"));
     rs.unwrap_from_blurred = get("unwrap", "spatial") == "blurred";
-    rs.blurred.iterations = std::stoi(get("blur_iters", "40"));
+    rs.cascade = get("cascade", "1") == "1";
+    rs.blur_wavelengths = std::stoi(get("blur_wavelengths", "1"));
+    rs.blurred.iterations = std::stoi(get("blur_iters", "20"));
     if (args.count("blurs")) rs.blurred.blur_widths = parse_list(get("blurs", ""));
-    rs.refine_iterations = std::stoi(get("refine_iters", "200"));
+    rs.refine_iterations = std::stoi(get("refine_iters", "30"));
     rs.max_range_um = std::stod(get("max_range_um", "4"));
     double field_s = 0, unwrap_rmse = -1, field_end = 0;
     std::string last_stage;

@@ -3,6 +3,7 @@
 #include "wavebrdf/recover.h"
 
 #include <chrono>
+#include <iterator>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -87,11 +88,18 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     };
 
     // Stage 0: the surface's shape from blurred slices, from flat.
-    std::vector<Observation> mono;
+    std::vector<Observation> mono, blur_set;
     for (const auto& [lambda, group] : by_lambda) mono.insert(mono.end(), group.begin(), group.end());
+    // The blurred fit sees the slope distribution, nearly the same at every wavelength: the
+    // longest ones (smoothest) suffice.
+    int taken = 0;
+    for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it, ++taken) {
+        if (settings.blur_wavelengths > 0 && taken >= settings.blur_wavelengths) break;
+        blur_set.insert(blur_set.end(), it->second.begin(), it->second.end());
+    }
     Heightfield estimate = flat;
     if (!settings.blurred.blur_widths.empty() && settings.blurred.iterations > 0) {
-        estimate = fit_blurred(mono, flat, settings.blurred, [&](int stage, int it, double loss) {
+        estimate = fit_blurred(blur_set, flat, settings.blurred, [&](int stage, int it, double loss) {
             return report("blur:" + std::to_string(stage), it, loss, nullptr);
         });
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
@@ -104,35 +112,46 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                                             : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
     FieldRetrievalSettings field_settings = settings.field;
     field_settings.refine = q;
+    const int obj_cols = cols * q;
+    const double to_texel = 1.0 / (vscale * texel_um);
     std::vector<double> lambdas;
     std::vector<std::vector<std::complex<double>>> fields;
-    for (const auto& [lambda, group] : by_lambda) {
+    // Stage 2 (after each field when cascading): heights on the refined grid from the fields so
+    // far (spatially unwrapped, or each sample on the branch nearest the current estimate), then
+    // at the texel centres (refine is odd: texel (i, j) is sample (i·q + q/2, j·q + q/2)).
+    const auto unwrap_fields = [&] {
+        const std::vector<double> reference = refined_heights(estimate, q);
+        const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.max_range_um, rows * q, obj_cols,
+                                                           settings.unwrap_from_blurred ? &reference : nullptr);
+        std::vector<double> h(std::size_t(rows) * cols);
+        for (int i = 0; i < rows; ++i)
+            for (int j = 0; j < cols; ++j)
+                h[std::size_t(i) * cols + j] = fine_um[std::size_t(i * q + q / 2) * obj_cols + (j * q + q / 2)] * to_texel;
+        estimate = flat.with_values(h);
+    };
+    // Longest wavelength first: its phases are the least wrapped, so it converges from the
+    // blurred fit most surely; cascading, each next field starts from all fields before it.
+    for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
+        const double lambda = it->first;
         char name[48];
         std::snprintf(name, sizeof name, "field:%g", lambda);
         const FieldRetrievalResult r =
-            retrieve_field(group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
-                           field_settings, [&](int it, double loss) { return report(name, it, loss, nullptr); });
+            retrieve_field(it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
+                           field_settings, [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
+        if (stopped) return estimate;
         lambdas.push_back(lambda);
         fields.push_back(r.object);
-        if (stopped) return estimate;
+        if (settings.cascade && std::next(it) != by_lambda.rend()) {
+            unwrap_fields();
+            if (!report(name, r.iterations, r.relative_loss, &estimate)) return estimate;
+        }
     }
-
-    // Stage 2: heights on the refined grid (spatially unwrapped, or each sample on the branch
-    // nearest the blurred fit), then at the texel centres (refine is odd: texel (i, j) is sample (i·q + q/2, j·q + q/2)).
-    const int obj_cols = cols * q;
-    const std::vector<double> reference = refined_heights(estimate, q);
-    const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.max_range_um, rows * q, obj_cols,
-                                                       settings.unwrap_from_blurred ? &reference : nullptr);
-    std::vector<double> h(std::size_t(rows) * cols);
-    const double to_texel = 1.0 / (vscale * texel_um);
-    for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < cols; ++j)
-            h[std::size_t(i) * cols + j] = fine_um[std::size_t(i * q + q / 2) * obj_cols + (j * q + q / 2)] * to_texel;
-    estimate = flat.with_values(h);
+    unwrap_fields();
     if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
 
     // Stage 3: the full model.
     if (settings.refine_iterations > 0) {
+        std::vector<double> h = estimate.values();
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             return observation_loss(flat.with_values(x), observations, settings.refine_loss, &g);
         };

@@ -217,8 +217,10 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
     // shortest wavelength exactly, within a quarter of the shortest synthetic wavelength of the
     // estimate (where the joint fit has one maximum), the one with the best joint fit
     // J(H) = Σ_l |z_l| cos(arg z_l − φ_l + (4π/λ_l) H). Corrects what one noisy channel
-    // got wrong.
-    if (fields.size() > 1) {
+    // got wrong. (Not after spatial unwrapping: its least-squares average over neighbours is
+    // already on the right branch, and a per-sample choice would only let outliers jump.)
+    const bool spatial = !reference && rows > 0;
+    if (fields.size() > 1 && !spatial) {
         std::size_t shortest = 0;
         double min_synthetic = INFINITY;
         for (std::size_t a = 0; a < fields.size(); ++a) {

@@ -33,7 +33,7 @@ struct BlurredFitSettings {
     // Blur widths, widest first, in units of the footprint's own far-field lobe (intensity std
     // 1/(2√2 π σ_p) in u): each stage fits slices blurred by a Gaussian this many lobes wide.
     std::vector<double> blur_widths{16.0, 8.0, 4.0};
-    int iterations = 40;  // L-BFGS iterations per stage
+    int iterations = 20;  // L-BFGS iterations per stage
     int history = 20;
 };
 
@@ -83,7 +83,7 @@ struct FieldRetrievalSettings {
     // The object grid is this many times finer than the texels (odd, so that every texel
     // centre is an object sample: texel (i, j) is sample (i·refine + refine/2, …)).
     int refine = 1;
-    int iterations = 100;               // L-BFGS iterations (accepted steps)
+    int iterations = 50;                // L-BFGS iterations (accepted steps)
     // Keep only the object's spectrum inside the band the slices see: the union of their disks
     // |u − ω_i/λ| ≤ 1/λ widened by the window's spectral reach 3/(2πσ_p). What lies outside
     // reaches no pixel; left free it drifts and corrupts the phases.
@@ -129,9 +129,10 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& heightf
 //    wavelengths, are integrated by least squares (spatial unwrapping);
 //  - rows = cols = 0: each sample on its own, by synthetic wavelengths λ1λ2/|λ1 − λ2|, coarse
 //    to fine, from the first whose half covers max_range_um (a bound on max H − min H).
-// Then, with two or more wavelengths, each sample takes the branch of the shortest wavelength
-// that fits all wavelengths best, and a joint least-squares fit of heights and global phases
-// ends it. Throws std::invalid_argument on size mismatches, no field, equal wavelengths or a
+// Then, with two or more wavelengths and no spatial start, each sample takes the branch of the
+// shortest wavelength that fits all wavelengths best (this needs phase errors well below the
+// 2π(λ_b/λ_a − 1)/2 that separates branches; the spatial start is far more robust), and a joint
+// least-squares fit of heights and global phases ends it. Throws std::invalid_argument on size mismatches, no field, equal wavelengths or a
 // grid that does not hold the fields; std::domain_error for a non-positive λ or range.
 // With `reference` (heights in µm, one per sample) the start is the reference itself: each
 // sample then takes the branch nearest it. The reference must be well within λ/4 of the truth
@@ -150,13 +151,18 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i = 0.0)
 
 struct RecoverSettings {
     BlurredFitSettings blurred;    // stage 0 (empty blur_widths: start the field stage from flat)
+    int blur_wavelengths = 1;      // stage 0 uses the slices of this many longest wavelengths (0: all)
     FieldRetrievalSettings field;  // stage 1, per wavelength (its refine is replaced by:)
     int refine = 0;                // object grid refinement; 0: auto_refine
     double max_range_um = 4.0;     // bound on the height range, for unwrapping (stage 2)
-    // Stage 2 starts from the spatially unwrapped fields (false) or from the blurred fit (true).
+    // Stage 2 starts from the spatially unwrapped fields (false) or from the estimate before it
+    // (true: the blurred fit, or the fields so far when cascading).
     bool unwrap_from_blurred = false;
+    // Fields longest wavelength first, each started from the heights of the fields before it
+    // (true), or every field from the blurred fit (false).
+    bool cascade = true;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
-    int refine_iterations = 200;
+    int refine_iterations = 30;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     Loss refine_loss{LossKind::Amplitude, 1.0};
