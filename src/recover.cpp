@@ -2,6 +2,7 @@
 // Gabor model (recover.h).
 #include "wavebrdf/recover.h"
 
+#include <algorithm>
 #include <chrono>
 #include <iterator>
 #include <cmath>
@@ -131,29 +132,58 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     };
     // Longest wavelength first: its phases are the least wrapped, so it converges from the
     // blurred fit most surely; cascading, each next field starts from all fields before it.
-    for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
-        const double lambda = it->first;
-        char name[48];
-        std::snprintf(name, sizeof name, "field:%g", lambda);
-        const FieldRetrievalResult r =
-            retrieve_field(it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
-                           field_settings, [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
-        if (stopped) return estimate;
-        lambdas.push_back(lambda);
-        fields.push_back(r.object);
-        if (settings.cascade && std::next(it) != by_lambda.rend()) {
-            unwrap_fields();
-            if (!report(name, r.iterations, r.relative_loss, &estimate)) return estimate;
+    // Later passes start every field again from the heights of all of them: the heights are a
+    // projection onto pure-phase, smooth objects, which removes the local defects (phase
+    // vortices) a retrieval from a poor start can stall in.
+    const int passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
+    for (int pass = 0; pass < passes; ++pass)
+        for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
+            const double lambda = it->first;
+            char name[48];
+            std::snprintf(name, sizeof name, "field:%g", lambda);
+            const FieldRetrievalResult r =
+                retrieve_field(it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
+                               field_settings,
+                               [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
+            if (stopped) return estimate;
+            const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
+            if (at == lambdas.end()) {
+                lambdas.push_back(lambda);
+                fields.push_back(r.object);
+            } else {
+                fields[std::size_t(at - lambdas.begin())] = r.object;
+            }
+            const bool last = pass + 1 == passes && std::next(it) == by_lambda.rend();
+            if (settings.cascade && !last) {
+                unwrap_fields();
+                if (!report(name, r.iterations, r.relative_loss, &estimate)) return estimate;
+            }
         }
-    }
     unwrap_fields();
     if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
 
     // Stage 3: the full model.
     if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();
+        // observation_loss's mean, split over the observations on all threads (each slice alone
+        // is too small for the renderer to split).
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
-            return observation_loss(flat.with_values(x), observations, settings.refine_loss, &g);
+            const Heightfield hf = flat.with_values(x);
+            g.assign(x.size(), 0.0);
+            double value = 0.0;
+            const double scale = 1.0 / double(observations.size());
+#pragma omp parallel reduction(+ : value)
+            {
+                std::vector<double> local(x.size(), 0.0), one;
+#pragma omp for schedule(dynamic)
+                for (std::size_t i = 0; i < observations.size(); ++i) {
+                    value += scale * observation_loss(hf, {observations[i]}, settings.refine_loss, &one);
+                    for (std::size_t k = 0; k < one.size(); ++k) local[k] += scale * one[k];
+                }
+#pragma omp critical
+                for (std::size_t k = 0; k < local.size(); ++k) g[k] += local[k];
+            }
+            return value;
         };
         LbfgsOptions lo;
         lo.history = settings.refine_history;

@@ -104,8 +104,11 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                     const Observation& o = *used[i];
                     const Blurred& d = data[i];
                     const int n = d.n_coarse;
-                    SliceAdjoint<double> slice(hf, o.query, o.lambdas_um[0], n);
-                    const Eigen::MatrixXd m = d.model_blur * as_matrix(slice.slice(), n) * d.model_blur.transpose();
+                    // Single precision: this stage only needs the shape (and is the costliest).
+                    SliceAdjoint<float> slice(hf, o.query, o.lambdas_um[0], n);
+                    const std::vector<float>& f = slice.slice();
+                    const Eigen::MatrixXd m =
+                        d.model_blur * as_matrix(std::vector<double>(f.begin(), f.end()), n) * d.model_blur.transpose();
                     Eigen::MatrixXd dm(n, n);
                     double v = 0.0;
                     for (int p = 0; p < n; ++p)
@@ -117,9 +120,9 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                         }
                     value += v * inv_total;
                     const Eigen::MatrixXd w = d.model_blur.transpose() * dm * d.model_blur;
-                    std::vector<double> weights(std::size_t(n) * n);
+                    std::vector<float> weights(std::size_t(n) * n);
                     for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
+                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = float(w(p, q));
                     slice.backward(weights, local);
                 }
 #pragma omp critical

@@ -161,6 +161,9 @@ struct RecoverSettings {
     // Fields longest wavelength first, each started from the heights of the fields before it
     // (true), or every field from the blurred fit (false).
     bool cascade = true;
+    // Cascading: passes over the wavelengths, every field of a later pass started from the
+    // heights of all fields of the pass before.
+    int field_passes = 2;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 30;
     int refine_history = 20;
