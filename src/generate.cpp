@@ -457,4 +457,16 @@ HeightStats height_stats(const Heightfield& hf) {
     return stats;
 }
 
+Heightfield with_height_range(const Heightfield& hf, double range_um) {
+    if (!(std::isfinite(range_um) && range_um > 0.0))
+        throw std::domain_error("height range " + std::to_string(range_um) + " um is invalid; expected > 0");
+    const HeightStats stats = height_stats(hf);
+    const double now_um = stats.max_um - stats.min_um;
+    if (!(now_um > 0.0)) throw std::domain_error("the heightfield is flat; there is no height range to scale");
+    const double mean = stats.mean_um / (hf.vscale() * hf.texel_um());
+    std::vector<double> v = hf.values();
+    for (double& x : v) x = mean + (x - mean) * (range_um / now_um);
+    return hf.with_values(std::move(v));
+}
+
 }  // namespace wavebrdf

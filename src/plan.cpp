@@ -13,6 +13,7 @@
 #include "text.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/progress.h"
 
 namespace wavebrdf {
 
@@ -168,6 +169,17 @@ std::vector<Observation> planned_observations(const AcquisitionPlan& plan) {
             out.push_back(o);
         }
     return out;
+}
+
+std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
+                                               const Noise& noise, std::uint64_t seed, Progress* progress) {
+    std::vector<Observation> observations = planned_observations(plan);
+    for (Observation& o : observations) {
+        o.reference = render_observation(truth, o);
+        if (progress) progress->advance(1);
+    }
+    add_noise(observations, noise, seed);
+    return observations;
 }
 
 std::vector<std::string> check_acquisition(const std::vector<Observation>& observations, int rows, int cols,

@@ -450,5 +450,24 @@ TEST(GenerateTest, BadParametersThrowTheRightException) {
     }
 }
 
+TEST(GenerateTest, WithHeightRangeScalesPeakToValleyAboutTheMean) {
+    SurfaceParams p;
+    p.rows = 24;
+    p.cols = 20;
+    p.texel_um = 2.0;
+    p.seed = 4;
+    const Heightfield hf = generate_heightfield(p).with_scale(2.0, 0.5);
+    const Heightfield scaled = with_height_range(hf, 1.7);
+    const HeightStats before = height_stats(hf), after = height_stats(scaled);
+    EXPECT_NEAR(after.max_um - after.min_um, 1.7, 1e-12);
+    EXPECT_NEAR(after.mean_um, before.mean_um, 1e-12);
+    EXPECT_NEAR(after.rms_height_um / before.rms_height_um, 1.7 / (before.max_um - before.min_um), 1e-12);
+    EXPECT_EQ(scaled.texel_um(), 2.0);
+    EXPECT_EQ(scaled.vscale(), 0.5);
+    EXPECT_THROW(with_height_range(hf, 0.0), std::domain_error);
+    EXPECT_THROW(with_height_range(hf, NAN), std::domain_error);
+    EXPECT_THROW(with_height_range(Heightfield(4, 4, std::vector<double>(16, 1.0)), 1.0), std::domain_error);
+}
+
 }  // namespace
 }  // namespace wavebrdf

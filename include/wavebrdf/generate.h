@@ -85,4 +85,10 @@ struct HeightStats {
 // Statistics of `heightfield` as above; never throws (a Heightfield is never empty).
 HeightStats height_stats(const Heightfield& heightfield);
 
+// `heightfield` scaled about its mean so that its peak-to-valley height (max − min, µm) is
+// `range_um`; texel width and vertical scale unchanged. For recovery studies ("heights up to
+// ±1 µm"). Throws std::domain_error naming the value for range_um ≤ 0 or not finite, and for
+// a flat heightfield (nothing to scale).
+Heightfield with_height_range(const Heightfield& heightfield, double range_um);
+
 }  // namespace wavebrdf

@@ -22,10 +22,12 @@
 #include <vector>
 
 #include "wavebrdf/model.h"
+#include "wavebrdf/noise.h"
 
 namespace wavebrdf {
 
 class Heightfield;
+class Progress;
 struct Observation;
 
 struct PlanRequest {
@@ -66,6 +68,12 @@ AcquisitionPlan plan_acquisition(const PlanRequest& request);
 // One observation per (position, wavelength) of `plan`, with empty references (render them with
 // render_observation, or fill them with measurements).
 std::vector<Observation> planned_observations(const AcquisitionPlan& plan);
+
+// The planned observations of `truth`, rendered, with `noise` added (seeded per observation,
+// noise.h). `progress`, when given, advances by one per observation.
+std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
+                                               const Noise& noise, std::uint64_t seed,
+                                               Progress* progress = nullptr);
 
 // The synthetic-wavelength ladder for heights spanning `height_range_um` (see above): the
 // partner wavelengths of λ0, coarsest first. Empty when λ0 alone suffices (range < λ0/4).

@@ -1,0 +1,294 @@
+// `wavebrdf recover`: the heightfield from slices at several overlapping positions and
+// wavelengths (recover.h), with the acquisition planned (plan.h) and, for studies, the
+// observations simulated from a known truth with optional noise (noise.h). The thesis's
+// method (baseline.h) runs on the same data with --method thesis.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "wavebrdf/baseline.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/io.h"
+#include "wavebrdf/noise.h"
+#include "wavebrdf/plan.h"
+#include "wavebrdf/progress.h"
+#include "wavebrdf/recover.h"
+
+namespace wavebrdf::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct RecoverArgs {
+    std::string truth, observations, size = "32", out;
+    double texel_um = 4.0, vscale = 1.0;
+    double height_range_um = 2.0;       // generated truth: peak-to-valley; else the planner's bound
+    double correlation_texels = 4.0;    // generated truth
+    std::string model = "OHS";
+    double light_x = 0.0, light_y = 0.0;
+    double sigma_p_um = 0.0;            // 0: the planner's
+    int resolution = 0;                 // 0: the planner's
+    std::string lambdas;                // "": the planner's
+    double overlap = 0.7, jitter = 0.15;
+    std::string noise = "none", loss;   // loss "": matched to the noise
+    std::string method = "pipeline";
+    int field_iterations = -1, refine_iterations = -1, epochs = 1000;
+    std::uint64_t seed = 1;
+    bool save_observations = false, quiet = false, no_plots = false;
+};
+
+std::vector<double> parse_list(const std::string& option, const std::string& text) {
+    std::vector<double> out;
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        try {
+            std::size_t used = 0;
+            out.push_back(std::stod(item, &used));
+            if (used != item.size()) throw std::invalid_argument(item);
+        } catch (const std::logic_error&) {
+            throw std::invalid_argument(option + " '" + text + "' is invalid; expected numbers like 0.55,0.5");
+        }
+    }
+    if (out.empty()) throw std::invalid_argument(option + " is empty; expected numbers like 0.55,0.5");
+    return out;
+}
+
+// A generated isotropic truth: correlation length in texels, peak-to-valley height range.
+Heightfield generated_truth(const RecoverArgs& a, int rows, int cols) {
+    SurfaceParams p;
+    p.type = SurfaceType::Isotropic;
+    p.rows = rows;
+    p.cols = cols;
+    p.texel_um = a.texel_um;
+    p.correlation_um = a.correlation_texels * a.texel_um;
+    p.seed = a.seed;
+    return with_height_range(generate_heightfield(p).with_scale(a.texel_um, a.vscale), a.height_range_um);
+}
+
+// Observations as JSON whose references are EXR files beside it (read back by
+// read_observations_json).
+void save_observations(const std::string& dir, const std::vector<Observation>& observations) {
+    fs::create_directories(dir + "/observations");
+    nlohmann::json list = nlohmann::json::array();
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        const Observation& o = observations[i];
+        char name[64];
+        std::snprintf(name, sizeof name, "observations/slice_%04zu.exr", i);
+        write_rgb_exr(dir + "/" + name, to_image(o.reference, o.resolution, o.channels()));
+        nlohmann::json entry = {{"x_um", o.query.x_um}, {"y_um", o.query.y_um}, {"sigma_p_um", o.query.sigma_p_um},
+                                {"light", {o.query.omega_i[0], o.query.omega_i[1]}},
+                                {"model", to_string(o.query.model)}, {"resolution", o.resolution},
+                                {"reference", name}};
+        if (o.lambdas_um.size() == 1) entry["lambda_um"] = o.lambdas_um[0];
+        else entry["lambdas_um"] = o.lambdas_um;
+        list.push_back(entry);
+    }
+    write_text_atomically(dir + "/observations.json", nlohmann::json{{"observations", list}}.dump(1) + "\n");
+}
+
+void run(const RecoverArgs& a) {
+    if (a.out.empty()) throw std::invalid_argument("no output directory; expected --out DIR");
+    if (!a.truth.empty() && !a.observations.empty())
+        throw std::invalid_argument("--truth and --observations exclude each other");
+    if (a.method != "pipeline" && a.method != "thesis")
+        throw std::invalid_argument("--method '" + a.method + "' is unknown; expected pipeline or thesis");
+    const Noise noise = parse_noise(a.noise);
+    const Loss fallback = a.method == "thesis" ? Loss{LossKind::CMSLE, 1.0} : Loss{LossKind::Amplitude, 1.0};
+    const Loss loss = a.loss.empty() ? matched_loss(noise, fallback) : parse_loss(a.loss);
+    if (noise.kind != NoiseKind::None && !a.observations.empty())
+        throw std::invalid_argument("--noise simulates noise on rendered observations; it needs --truth (or the generated default), not --observations");
+
+    // Truth and observations.
+    std::unique_ptr<Heightfield> truth;
+    std::vector<Observation> observations;
+    std::vector<std::string> notes;
+    int rows = 0, cols = 0;
+    double range_um = a.height_range_um;
+    if (!a.observations.empty()) {
+        observations = read_observations_json(a.observations);
+        parse_size("--size", a.size, rows, cols);
+    } else {
+        if (a.truth.empty()) {
+            parse_size("--size", a.size, rows, cols);
+            truth = std::make_unique<Heightfield>(generated_truth(a, rows, cols));
+        } else {
+            truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
+            rows = truth->rows();
+            cols = truth->cols();
+        }
+        const HeightStats stats = height_stats(*truth);
+        range_um = stats.max_um - stats.min_um;
+        PlanRequest request;
+        request.rows = rows;
+        request.cols = cols;
+        request.texel_um = a.texel_um;
+        request.height_range_um = range_um;
+        request.sigma_p_um = a.sigma_p_um;
+        request.overlap = a.overlap;
+        request.jitter = a.jitter;
+        request.light = {a.light_x, a.light_y};
+        request.model = parse_model(a.model);
+        request.seed = a.seed;
+        AcquisitionPlan plan = plan_acquisition(request);
+        if (!a.lambdas.empty()) {
+            plan.lambdas_um = parse_list("--lambdas-um", a.lambdas);
+            for (double l : plan.lambdas_um) validate_lambda(l);
+        }
+        if (a.resolution != 0) {
+            validate_resolution(a.resolution);
+            plan.resolution = a.resolution;
+        }
+        notes = plan.notes;
+        Progress progress("simulate", static_cast<long long>(plan.positions_um.size() * plan.lambdas_um.size()), !a.quiet);
+        observations = simulate_observations(*truth, plan, noise, a.seed, &progress);
+        progress.finish();
+    }
+    const std::vector<std::string> warnings =
+        check_acquisition(observations, rows, cols, a.texel_um, range_um, truth.get());
+
+    // Output directory: fail before the long work when it cannot be written.
+    fs::create_directories(a.out);
+    check_writable(a.out + "/metrics.csv");
+    nlohmann::json run = {{"method", a.method}, {"size", std::to_string(rows) + "x" + std::to_string(cols)},
+                          {"texel_um", a.texel_um}, {"vscale", a.vscale}, {"height_range_um", range_um},
+                          {"noise", to_string(noise)}, {"loss", to_string(loss)}, {"seed", a.seed},
+                          {"observations", observations.size()}, {"plan", notes}, {"warnings", warnings},
+                          {"truth", truth != nullptr}};
+    write_text_atomically(a.out + "/run.json", run.dump(1) + "\n");
+    if (!a.quiet) {
+        for (const auto& n : notes) std::fprintf(stderr, "plan: %s\n", n.c_str());
+    }
+    for (const auto& w : warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
+    if (a.save_observations) save_observations(a.out, observations);
+    if (truth) {
+        write_heightfield_exr(a.out + "/truth.exr", *truth);
+        write_npy(a.out + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*truth));
+    }
+
+    // Recovery, with a metrics row per reported step.
+    std::ostringstream csv;
+    csv.precision(10);
+    csv << "stage,iteration,loss,seconds,height_rel_rmse\n";
+    // A progress bar per stage (drawn on terminals) and a one-line summary when a stage ends.
+    RecoverSettings settings;
+    BaselineSettings baseline;
+    std::unique_ptr<Progress> progress;
+    StageMetrics last;
+    auto end_stage = [&] {
+        if (!progress) return;
+        progress->finish();
+        progress.reset();
+        if (!a.quiet) {
+            std::fprintf(stderr, "%s: %d iterations, loss %.4g", last.stage.c_str(), last.iteration, last.loss);
+            if (last.height_rel_rmse >= 0.0) std::fprintf(stderr, ", height_rel_rmse %.3f%%", 100.0 * last.height_rel_rmse);
+            std::fprintf(stderr, " (%.1f s)\n", last.seconds);
+        }
+    };
+    auto on_step = [&](const StageMetrics& m) {
+        csv << m.stage << ',' << m.iteration << ',' << m.loss << ',' << m.seconds << ','
+            << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << '\n';
+        if (!progress || m.stage != last.stage) {
+            end_stage();
+            const long long total = m.stage.rfind("field", 0) == 0 ? settings.field.iterations
+                                    : m.stage == "refine"          ? settings.refine_iterations
+                                    : m.stage == "thesis"          ? baseline.epochs
+                                                                   : 1;
+            progress = std::make_unique<Progress>(m.stage, std::max<long long>(total, 1), !a.quiet);
+        }
+        char message[96];
+        if (m.height_rel_rmse >= 0.0)
+            std::snprintf(message, sizeof message, "loss %.3g height err %.2f%%", m.loss, 100.0 * m.height_rel_rmse);
+        else
+            std::snprintf(message, sizeof message, "loss %.3g", m.loss);
+        progress->set_message(message);
+        progress->advance(std::max<long long>(0, m.iteration - (m.stage == last.stage ? last.iteration : 0)));
+        last = m;
+        return true;
+    };
+    Heightfield estimate(rows, cols, std::vector<double>(std::size_t(rows) * cols, 0.0), a.texel_um, a.vscale);
+    if (a.method == "pipeline") {
+        settings.refine_loss = loss;
+        settings.max_range_um = std::max(range_um, 1e-3);
+        if (a.field_iterations >= 0) settings.field.iterations = a.field_iterations;
+        if (a.refine_iterations >= 0) settings.refine_iterations = a.refine_iterations;
+        estimate = recover_heights(observations, rows, cols, a.texel_um, a.vscale, settings, on_step, truth.get());
+    } else {
+        baseline.epochs = a.epochs;
+        baseline.loss = loss;
+        baseline.seed = a.seed;
+        estimate = recover_heights_thesis(observations, rows, cols, a.texel_um, a.vscale, baseline, on_step, truth.get());
+    }
+    end_stage();
+
+    write_text_atomically(a.out + "/metrics.csv", csv.str());
+    write_heightfield_exr(a.out + "/estimate.exr", estimate);
+    write_heightfield_png(a.out + "/estimate.png", estimate);
+    write_npy(a.out + "/estimate_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(estimate));
+    // One observation and the estimate's slice for it, for the report.
+    const Observation& first = observations.front();
+    const std::vector<std::size_t> shape{std::size_t(first.resolution), std::size_t(first.resolution),
+                                         std::size_t(first.channels())};
+    write_npy(a.out + "/reference.npy", shape, first.reference);
+    write_npy(a.out + "/final.npy", shape, render_observation(estimate, first));
+    if (!a.no_plots) {
+        const std::string script = std::string(WAVEBRDF_SOURCE_DIR) + "/scripts/plot_recovery.py";
+        const std::string command = "/usr/bin/python3 '" + script + "' '" + a.out + "' > /dev/null";
+        if (!fs::exists(script) || std::system(command.c_str()) != 0)
+            std::fprintf(stderr, "wavebrdf: warning: could not draw report.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
+    }
+    if (!a.quiet) {
+        if (truth)
+            std::fprintf(stderr, "height_rel_rmse %.3f%%; results in %s\n", 100.0 * height_rel_rmse(estimate, *truth),
+                         a.out.c_str());
+        else
+            std::fprintf(stderr, "results in %s\n", a.out.c_str());
+    }
+}
+
+}  // namespace
+
+void add_recover_command(CLI::App& app) {
+    auto a = std::make_shared<RecoverArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "recover", "Recover the true heightfield from slices at overlapping positions and several wavelengths");
+    cmd->add_option("--truth", a->truth, "true heightfield EXR: observations are planned and rendered from it (default: a generated one)");
+    cmd->add_option("--observations", a->observations, "measured or rendered slices with their query parameters (JSON)");
+    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")->capture_default_str();
+    cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
+    cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
+    cmd->add_option("--height-range-um", a->height_range_um,
+                    "generated truth: peak-to-valley height in um; with --observations: a bound for unwrapping")->capture_default_str();
+    cmd->add_option("--correlation-texels", a->correlation_texels, "generated truth: correlation length in texels")->capture_default_str();
+    cmd->add_option("--model", a->model, "OHS or ROHS (the field retrieval is separable)")->capture_default_str();
+    cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
+    cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
+    cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um (0: the planner's, 4 texels)")->capture_default_str();
+    cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's Nyquist choice)")->capture_default_str();
+    cmd->add_option("--lambdas-um", a->lambdas, "wavelengths in um, comma-separated (default: the planner's ladder)");
+    cmd->add_option("--overlap", a->overlap, "linear overlap of neighbouring windows, 0.6 to 0.95")->capture_default_str();
+    cmd->add_option("--jitter", a->jitter, "position jitter, fraction of the raster step, 0 to 0.3")->capture_default_str();
+    cmd->add_option("--noise", a->noise, "simulated noise: none, poisson:N (photons per slice) or gaussian:REL")->capture_default_str();
+    cmd->add_option("--loss", a->loss, "loss (default: matched to the noise; amplitude without noise, thesis: cmsle:1)");
+    cmd->add_option("--method", a->method, "pipeline (field retrieval, unwrapping, refinement) or thesis (Adam, one observation per epoch)")->capture_default_str();
+    cmd->add_option("--field-iterations", a->field_iterations, "field retrieval iterations per wavelength (default: the library's)");
+    cmd->add_option("--refine-iterations", a->refine_iterations, "refinement L-BFGS iterations (default: the library's)");
+    cmd->add_option("--epochs", a->epochs, "thesis method: Adam epochs")->capture_default_str();
+    cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
+    cmd->add_option("--out", a->out, "output directory")->required();
+    cmd->add_flag("--save-observations", a->save_observations, "also write the observations (observations.json + EXR slices)");
+    cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
+    cmd->add_flag("--quiet", a->quiet, "no progress or summary");
+    cmd->callback([a] { run(*a); });
+}
+
+}  // namespace wavebrdf::cli

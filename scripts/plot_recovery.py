@@ -1,0 +1,146 @@
+#!/usr/bin/env python3
+"""Draws report.png for a `wavebrdf recover --out DIR` run.
+
+Panels: the true heights (when known), the estimate, their difference after removing each
+one's mean (the mean height is invisible to every slice), one observation beside the
+estimate's slice for it, and the convergence of every stage (its loss, normalised to the
+stage's first value, and height_rel_rmse when the truth is known).
+
+Usage: /usr/bin/python3 scripts/plot_recovery.py DIR
+"""
+import csv
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def read_metrics(path):
+    """Rows of metrics.csv grouped by stage, in file order: {stage: {column: array}}."""
+    stages = {}
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            s = stages.setdefault(row["stage"], {"iteration": [], "loss": [], "seconds": [], "height_rel_rmse": []})
+            for key in s:
+                s[key].append(float(row[key]))
+    return {name: {k: np.array(v) for k, v in cols.items()} for name, cols in stages.items()}
+
+
+def tonemap(slice_rgb):
+    """Reinhard with an exposure that puts the 99.9th percentile near 4, as the CLI's PNGs."""
+    v = np.clip(slice_rgb, 0.0, None)
+    top = np.quantile(v, 0.999)
+    scale = 4.0 / top if top > 0 else 1.0
+    x = v * scale
+    return np.clip((x / (1.0 + x)) ** (1.0 / 2.2), 0.0, 1.0)
+
+
+def image(ax, data, title, cmap="viridis", vmin=None, vmax=None, unit="µm"):
+    im = ax.imshow(data, cmap=cmap, vmin=vmin, vmax=vmax, interpolation="nearest")
+    ax.set_title(title, fontsize=9)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if unit:
+        plt.colorbar(im, ax=ax, fraction=0.046, pad=0.04).set_label(unit, fontsize=8)
+
+
+def main(directory):
+    with open(os.path.join(directory, "run.json")) as f:
+        run = json.load(f)
+    stages = read_metrics(os.path.join(directory, "metrics.csv"))
+    estimate = np.load(os.path.join(directory, "estimate_height.npy"))
+    truth_path = os.path.join(directory, "truth_height.npy")
+    truth = np.load(truth_path) if os.path.exists(truth_path) else None
+    reference = np.load(os.path.join(directory, "reference.npy"))
+    final = np.load(os.path.join(directory, "final.npy"))
+
+    fig, axes = plt.subplots(2, 4, figsize=(16, 7.6))
+    title = "wavebrdf recover ({method}): {size} heights, {observations} observations, noise {noise}, loss {loss}".format(**run)
+    fig.suptitle(title, fontsize=11)
+
+    est = estimate - estimate.mean()
+    if truth is not None:
+        tru = truth - truth.mean()
+        lo, hi = float(min(tru.min(), est.min())), float(max(tru.max(), est.max()))
+        image(axes[0, 0], tru, "truth (mean removed)", vmin=lo, vmax=hi)
+        image(axes[0, 1], est, "estimate (mean removed)", vmin=lo, vmax=hi)
+        err = est - tru
+        bound = float(np.abs(err).max()) or 1.0
+        rel = np.sqrt(np.mean(err**2)) / (truth.max() - truth.min())
+        image(axes[0, 2], err, "estimate − truth: rel. RMSE {:.2%}".format(rel), cmap="RdBu_r", vmin=-bound, vmax=bound)
+    else:
+        image(axes[0, 0], est, "estimate (mean removed)")
+        axes[0, 1].axis("off")
+        axes[0, 2].axis("off")
+
+    # Slices: mono slices are (n, n, 1).
+    def rgb(s):
+        return np.repeat(s, 3, axis=2) if s.shape[2] == 1 else s
+
+    image(axes[0, 3], tonemap(rgb(reference)), "observation 0", unit=None)
+    image(axes[1, 3], tonemap(rgb(final)), "estimate's slice for it", unit=None)
+
+    # Convergence: each stage's loss relative to its first value, one after another.
+    ax = axes[1, 0]
+    offset = 0
+    for name, s in stages.items():
+        it = s["iteration"] + offset
+        loss = s["loss"] / s["loss"][0] if s["loss"][0] > 0 else s["loss"]
+        ax.semilogy(it, np.clip(loss, 1e-16, None), label=name)
+        offset = it[-1] if len(it) else offset
+    ax.set_xlabel("iteration (stages one after another)")
+    ax.set_ylabel("loss / stage's first")
+    ax.set_title("loss per stage", fontsize=9)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+
+    ax = axes[1, 1]
+    if truth is not None:
+        for name, s in stages.items():
+            ok = s["height_rel_rmse"] >= 0
+            if ok.any():
+                ax.semilogy(s["seconds"][ok], s["height_rel_rmse"][ok], label=name)
+        ax.axhline(0.01, color="k", ls="--", lw=0.8, label="1 %")
+        ax.set_xlabel("seconds")
+        ax.set_ylabel("height_rel_rmse")
+        ax.set_title("height error", fontsize=9)
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+    else:
+        ax.axis("off")
+
+    ax = axes[1, 2]
+    ax.axis("off")
+    lines = ["plan:"] + ["  " + n for n in run.get("plan", [])]
+    if run.get("warnings"):
+        lines += ["warnings:"] + ["  " + w for w in run["warnings"]]
+    ax.text(0.0, 1.0, "\n".join(_wrap(l, 60) for l in lines), va="top", ha="left", fontsize=7, family="monospace")
+
+    fig.tight_layout(rect=(0, 0, 1, 0.95))
+    out = os.path.join(directory, "report.png")
+    fig.savefig(out + ".tmp.png", dpi=110)
+    os.replace(out + ".tmp.png", out)
+    print(out)
+
+
+def _wrap(text, width):
+    words, lines, line = text.split(" "), [], ""
+    for w in words:
+        if len(line) + len(w) + 1 > width and line:
+            lines.append(line)
+            line = "    " + w
+        else:
+            line = (line + " " + w) if line else w
+    lines.append(line)
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        sys.exit("usage: plot_recovery.py DIR")
+    main(sys.argv[1])
