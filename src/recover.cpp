@@ -93,10 +93,25 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     for (const auto& [lambda, group] : by_lambda) mono.insert(mono.end(), group.begin(), group.end());
     // The blurred fit sees the slope distribution, nearly the same at every wavelength: the
     // longest ones (smoothest) suffice.
+    // It needs the slope distribution everywhere, not the overlap that pins phases down: positions
+    // closer than blur_spacing_sigma · σ_p to one already taken are left out (greedy, periodic
+    // distance), which buys more iterations for the same time.
+    const double period_x = rows * texel_um, period_y = cols * texel_um;
+    const auto periodic = [](double d, double period) { return d - period * std::floor(d / period + 0.5); };
     int taken = 0;
     for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it, ++taken) {
         if (settings.blur_wavelengths > 0 && taken >= settings.blur_wavelengths) break;
-        blur_set.insert(blur_set.end(), it->second.begin(), it->second.end());
+        const std::size_t first = blur_set.size();
+        for (const Observation& o : it->second) {
+            bool close = false;
+            for (std::size_t k = first; k < blur_set.size() && !close; ++k) {
+                const double dx = periodic(o.query.x_um - blur_set[k].query.x_um, period_x);
+                const double dy = periodic(o.query.y_um - blur_set[k].query.y_um, period_y);
+                const double spacing = settings.blur_spacing_sigma * std::min(o.query.sigma_p_um, blur_set[k].query.sigma_p_um);
+                close = dx * dx + dy * dy < spacing * spacing;
+            }
+            if (!close) blur_set.push_back(o);
+        }
     }
     Heightfield estimate = flat;
     if (!settings.blurred.blur_widths.empty() && settings.blurred.iterations > 0) {

@@ -32,8 +32,8 @@ namespace wavebrdf {
 struct BlurredFitSettings {
     // Blur widths, widest first, in units of the footprint's own far-field lobe (intensity std
     // 1/(2√2 π σ_p) in u): each stage fits slices blurred by a Gaussian this many lobes wide.
-    std::vector<double> blur_widths{16.0, 8.0, 4.0};
-    int iterations = 20;  // L-BFGS iterations per stage
+    std::vector<double> blur_widths{16.0, 8.0, 4.0, 2.0};
+    int iterations = 80;  // L-BFGS iterations per stage
     int history = 20;
 };
 
@@ -152,6 +152,7 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i = 0.0)
 struct RecoverSettings {
     BlurredFitSettings blurred;    // stage 0 (empty blur_widths: start the field stage from flat)
     int blur_wavelengths = 1;      // stage 0 uses the slices of this many longest wavelengths (0: all)
+    double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
     FieldRetrievalSettings field;  // stage 1, per wavelength (its refine is replaced by:)
     int refine = 0;                // object grid refinement; 0: auto_refine
     double max_range_um = 4.0;     // bound on the height range, for unwrapping (stage 2)
@@ -163,7 +164,7 @@ struct RecoverSettings {
     bool cascade = true;
     // Cascading: passes over the wavelengths, every field of a later pass started from the
     // heights of all fields of the pass before.
-    int field_passes = 2;
+    int field_passes = 1;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 30;
     int refine_history = 20;
