@@ -345,6 +345,43 @@ TEST(RecoverHeights, RecoversASmallSurfaceFromFlat) {
     EXPECT_EQ(estimate.texel_um(), 2.0);
 }
 
+// The blurred fit alone, from flat, finds the surface's shape (the stage that makes the field
+// retrieval converge); blurring less afterwards does not make it worse.
+TEST(FitBlurred, FindsTheShapeFromFlat) {
+    const SmallCase c = small_case(23);
+    const Heightfield flat(12, 12, std::vector<double>(144, 0.0), 2.0);
+    BlurredFitSettings s;
+    s.blur_widths = {12.0};
+    s.iterations = 30;
+    int calls = 0;
+    const Heightfield wide = fit_blurred(c.observations, flat, s, [&](int stage, int, double) {
+        EXPECT_EQ(stage, 0);
+        ++calls;
+        return true;
+    });
+    EXPECT_GT(calls, 5);
+    EXPECT_LT(height_rel_rmse(wide, c.truth), 0.4 * height_rel_rmse(flat, c.truth));
+    s.blur_widths = {4.0};
+    const Heightfield narrow = fit_blurred(c.observations, wide, s);
+    EXPECT_LT(height_rel_rmse(narrow, c.truth), height_rel_rmse(wide, c.truth));
+    s.blur_widths = {-1.0};
+    EXPECT_THROW(fit_blurred(c.observations, flat, s), std::domain_error);
+}
+
+TEST(AutoRefine, SamplesTheSliceBandAndTheField) {
+    // d = w/q < λ / (2(1 + |ω_i|)), q odd.
+    EXPECT_EQ(auto_refine(2.0, 0.5), 9);   // 2·2/0.5 = 8 → 9
+    EXPECT_EQ(auto_refine(1.0, 0.5), 5);   // 4 → 5
+    EXPECT_EQ(auto_refine(0.2, 0.5), 1);   // 0.8 → 1
+    EXPECT_EQ(auto_refine(2.0, 0.5, 0.3), 11);  // 10.4 → 11
+    const Heightfield hf = test::random_heightfield(4, 5, 0.2, 9, 1.5);
+    const auto object = object_from_heights(hf, 0.6, 3);
+    const auto heights = refined_heights(hf, 3);
+    ASSERT_EQ(object.size(), heights.size());
+    for (std::size_t k = 0; k < object.size(); ++k)
+        EXPECT_NEAR(std::arg(object[k] * std::polar(1.0, 4.0 * kPi / 0.6 * heights[k])), 0.0, 1e-12);
+}
+
 TEST(RecoverHeights, StopsWhenTheCallbackSaysSo) {
     const SmallCase c = small_case(22);
     int calls = 0;
