@@ -1,21 +1,29 @@
 #pragma once
 // Recovering the true heightfield from BRDF slices at several overlapping footprint positions
-// and several wavelengths (MODEL.md, last section): field first, heights second.
+// and several wavelengths (MODEL.md, last section): the fields first, the heights from them.
 //
-//  1. Field retrieval, per wavelength. At zero slope the Gabor model's field is a
-//     ptychographic far field: with the object O_k = e^{−i(4π/λ)H_k} on the texel grid,
-//       I(u) = env(u) · Σ_k P_k O_k e^{−i2π u·δ_k},   env(u) = exp(−2π²σ²|u|²), σ = w/2,
-//     P_k = c_k w² the footprint window (known), δ_k = μ_k − μ_p. Slices at overlapping
-//     positions determine O up to a global phase; retrieve_field minimises the amplitude loss
-//     Σ (√c1 |I| − √R)² over complex O with L-BFGS.
-//  2. Unwrapping: the phases of the fields at several wavelengths give the heights beyond the
-//     λ/2 ambiguity of one wavelength (synthetic wavelengths λ1λ2/|λ1 − λ2|, then a joint fit).
+//  0. Blurred fit (fit_blurred). From a flat start the phase retrieval has no useful gradient
+//     (the flat object's field is a specular lobe; the data lie elsewhere). Slices blurred in u
+//     show the distribution of slopes, smooth in the heights: L-BFGS on them, wide blur to
+//     narrow, in the full model, finds the shape to ~2 % of the height range.
+//  1. Field retrieval per wavelength (retrieve_field). The model's field is a ptychographic
+//     far field: with an object O on a grid `refine` times finer than the texels,
+//       I(u) = env(u) · Σ_a P_a O_a e^{−i2π u·δ_a},
+//     P the footprint window (known), δ_a = x_a − μ_p (FieldOperator). The object must be
+//     finer than the texels: ±1 µm heights change by ≈ 3 rad per texel at λ = 0.5 µm (aliased
+//     on the texel grid, where the Gabor kernels' tilts carry it); on a grid of spacing
+//     < λ/2 it is sampled, and the model leaves ~0.1 % of the slices' amplitude unexplained.
+//     L-BFGS on the amplitude loss Σ(√c1 |I| − √R)² over the object's spectrum inside the
+//     band the slices see, started from the current heights, longest wavelength first.
+//  2. Unwrapping (unwrap_heights): the refined grid samples the phase finely enough to unwrap
+//     it spatially (least squares over neighbours), averaged over the wavelengths; per sample
+//     by synthetic wavelengths λ1λ2/|λ1 − λ2| where no grid is given.
 //  3. Refinement of the heights in the full Gabor model (slopes included) with L-BFGS on the
-//     amplitude loss of the observations, using the model's analytic gradient.
+//     observations' amplitude loss and the model's analytic gradient.
 //
-// Conventions: objects and fields are complex, row-major (object: rows × cols texels as in the
-// Heightfield; field: resolution × resolution slice pixels); e^{−ix} phase convention of
-// MODEL.md. Heights in µm unless named otherwise.
+// Conventions: objects and fields are complex, row-major (object: (rows·refine) ×
+// (cols·refine) samples, sample a at x = (a + ½) w/refine; field: resolution² slice pixels);
+// e^{−ix} phase convention of MODEL.md. Heights in µm unless named otherwise.
 #include <complex>
 #include <functional>
 #include <memory>
@@ -39,35 +47,38 @@ struct BlurredFitSettings {
 
 // Heights that match the single-wavelength observations blurred in u (the distribution of
 // reflected directions, smooth in the heights), from `initial` (e.g. flat), wide blur first:
-// L-BFGS on Σ(√(B f B^T) − √(B R B^T))² / Σ B R B^T in the full model. on_iteration(stage, iteration, loss) returning false
-// stops. Throws std::invalid_argument when no single-wavelength observation is given.
+// L-BFGS on Σ(√(B f Bᵀ) − √(B R Bᵀ))² / Σ B R Bᵀ in the full model (slices in single
+// precision), B the Gaussian blur over the slice pixels. on_iteration(stage, iteration, loss)
+// returning false stops. Throws std::invalid_argument when no single-wavelength observation
+// is given, std::domain_error for a blur width ≤ 0 or iterations < 0.
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
                         const BlurredFitSettings& settings = {},
                         const std::function<bool(int, int, double)>& on_iteration = {});
 
 // ---- 1. The ptychographic field model ------------------------------------------------------
 
-// The linear map from a complex object on the texel grid to the far field of one footprint
-// at one wavelength (the formula above), on the slice grid of one observation. It is the
-// separable Gabor field of render_slice with every slope set to zero (same kernels, weights,
-// 3σ_p cut, envelope and pixel grid), so for OHS / ROHS
+// The linear map from a complex object on a grid `refine` times finer than the texels to the
+// far field of one footprint at one wavelength (the formula above), on the slice grid of one
+// observation. It is the separable Gabor field of render_slice, for the heightfield of texel
+// w/refine, with every slope set to zero (same kernels, weights, 3σ_p cut, envelope
+// exp(−2π²(w/2refine)²|u|²) and pixel grid), so for OHS / ROHS
 //   slice = amplitude_factor² · |forward(e^{−i(4π/λ)H})|²  wherever all slopes vanish.
-// Pixels where the envelope is below 1e-16 of its peak (and outside the disk) are left 0 by
-// forward and ignored by adjoint.
+// Pixels where the envelope is below 1e-16 of its peak are left 0 by forward and ignored by
+// adjoint.
 class FieldOperator {
 public:
     // rows, cols ≥ 1 texels of width texel_um (> 0, µm); query and λ as for render_slice
-    // (OHS or ROHS: the other models are not separable); resolution 1…8192. Throws
-    // std::invalid_argument / std::domain_error naming the bad value.
+    // (OHS or ROHS: the other models are not separable); resolution 1…8192; refine 1…64.
+    // Throws std::invalid_argument / std::domain_error naming the bad value.
     FieldOperator(int rows, int cols, double texel_um, const Query& query, double lambda_um,
                   int resolution, int refine = 1);
     ~FieldOperator();
     FieldOperator(FieldOperator&&) noexcept;
     FieldOperator& operator=(FieldOperator&&) noexcept;
 
-    // object: rows·cols values → field: resolution² values.
+    // object: (rows·refine)·(cols·refine) values → field: resolution² values.
     std::vector<std::complex<double>> forward(const std::vector<std::complex<double>>& object) const;
-    // The adjoint (conjugate transpose) of forward: resolution² values → rows·cols values.
+    // The adjoint (conjugate transpose) of forward: resolution² values → object values.
     std::vector<std::complex<double>> adjoint(const std::vector<std::complex<double>>& field) const;
     // √c1 per slice pixel (0 outside the disk and where c1 is not finite): f = this² · |I|².
     const std::vector<double>& amplitude_factor() const;
@@ -93,16 +104,19 @@ struct FieldRetrievalSettings {
 };
 
 struct FieldRetrievalResult {
-    std::vector<std::complex<double>> object;  // rows·cols, up to a global phase
+    std::vector<std::complex<double>> object;  // (rows·refine)·(cols·refine), up to a global phase
     double relative_loss = 0.0;  // Σ(√c1|I| − √R)² / Σ R over the observations
     int iterations = 0;
 };
 
 // Phase retrieval of the object at one wavelength from single-wavelength observations (all
-// with lambdas_um == {lambda_um}, OHS or ROHS) of a rows × cols tile with texels of texel_um.
-// `initial` (rows·cols; empty: all ones, a flat surface) is the starting object.
-// on_iteration(iteration, relative_loss), when given, is called after each step; returning
-// false stops. Throws std::invalid_argument naming the observation that does not fit.
+// with lambdas_um == {lambda_um}, OHS or ROHS) of a rows × cols tile with texels of texel_um:
+// L-BFGS on L(O) = Σ_slices Σ_pixels (√c1|I| − √R)² / Σ R (the products in single precision).
+// Samples no footprint reaches are 0. `initial` (the object's size; empty: all ones, a flat
+// surface, which only converges with dense positions) is the starting object, e.g.
+// object_from_heights. on_iteration(iteration, relative_loss), when given, is called after
+// each step; returning false stops. Throws std::invalid_argument naming the observation that
+// does not fit or a size mismatch, std::domain_error for iterations < 0 or history < 1.
 FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um,
                                     int rows, int cols, double texel_um,
                                     const std::vector<std::complex<double>>& initial = {},
@@ -132,8 +146,9 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& heightf
 // Then, with two or more wavelengths and no spatial start, each sample takes the branch of the
 // shortest wavelength that fits all wavelengths best (this needs phase errors well below the
 // 2π(λ_b/λ_a − 1)/2 that separates branches; the spatial start is far more robust), and a joint
-// least-squares fit of heights and global phases ends it. Throws std::invalid_argument on size mismatches, no field, equal wavelengths or a
-// grid that does not hold the fields; std::domain_error for a non-positive λ or range.
+// least-squares fit of heights and global phases ends it. Throws std::invalid_argument on size
+// mismatches, no field, equal wavelengths or a grid that does not hold the fields;
+// std::domain_error for a non-positive λ or range.
 // With `reference` (heights in µm, one per sample) the start is the reference itself: each
 // sample then takes the branch nearest it. The reference must be well within λ/4 of the truth
 // at the shortest wavelength (the global phases are aligned to it), or, with two or more
@@ -172,22 +187,26 @@ struct RecoverSettings {
     Loss refine_loss{LossKind::Amplitude, 1.0};
 };
 
-// What recover_heights reports after every iteration of every stage.
+// What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,
+// iterations), "blur" (its result), "field:λ" (iterations, then with cascading its result
+// after unwrapping), "unwrap", "refine".
 struct StageMetrics {
-    std::string stage;      // "field:λ=0.5", "unwrap", "refine"
+    std::string stage;
     int iteration = 0;
-    double loss = 0.0;      // the stage's own loss (relative for the field stage)
+    double loss = 0.0;      // the stage's own loss (relative for the blur and field stages; 0 for results)
     double seconds = 0.0;   // since recover_heights started
     double height_rel_rmse = -1.0;  // when a truth is given and heights exist (else −1)
 };
 
 // The heightfield (rows × cols, values in texel units with the given texel_um and vscale)
-// whose slices best match `observations`, from a flat start: field retrieval for every
-// wavelength that has single-wavelength observations, unwrapping, refinement on all of the
-// observations. on_step returning false stops the recovery and returns the estimate so far
-// (after the field stages: the unwrapped heights). `truth`, when
-// given, only feeds height_rel_rmse in the metrics. Throws std::invalid_argument when the
-// observations are empty or have no single-wavelength OHS / ROHS slice.
+// whose slices best match `observations`, from a flat start: the blurred fit and the fields on
+// the single-wavelength OHS / ROHS observations, unwrapping, refinement on all observations
+// (spectral ones included). Observations are used as given (measured, noisy or rendered).
+// on_step returning false stops the recovery and returns the estimate so far (flat, the
+// blurred fit, the last unwrapped heights or the refinement's last step). `truth`, when given,
+// only feeds height_rel_rmse in the metrics. Throws std::invalid_argument when the observations
+// are empty or have no single-wavelength OHS / ROHS slice, or the truth's size differs;
+// std::domain_error for vscale 0.
 Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols,
                             double texel_um, double vscale, const RecoverSettings& settings = {},
                             const std::function<bool(const StageMetrics&)>& on_step = {},
