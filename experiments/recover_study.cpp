@@ -132,11 +132,15 @@ int main(int argc, char** argv) try {
     if (args.count("cascade")) rs.cascade = args["cascade"] == "1";
     if (args.count("blur_spacing")) rs.blur_spacing_sigma = std::stod(args["blur_spacing"]);
     if (args.count("max_range_um")) rs.max_range_um = std::stod(args["max_range_um"]);
-    double field_s = 0, unwrap_rmse = -1, field_end = 0;
+    double blur_s = 0, blur_rmse = -1, field_s = 0, unwrap_rmse = -1, field_end = 0;
     std::string last_stage;
     const Heightfield estimate = recover_heights(
         observations, size, size, texel_um, 1.0, rs,
         [&](const StageMetrics& m) {
+            if (m.stage == "blur") {
+                blur_rmse = m.height_rel_rmse;
+                blur_s = m.seconds;
+            }
             if (m.stage == "unwrap") {
                 unwrap_rmse = m.height_rel_rmse;
                 field_s = m.seconds;
@@ -151,9 +155,10 @@ int main(int argc, char** argv) try {
         &truth);
     const double rel = height_rel_rmse(estimate, truth);
     std::printf("RESULT size=%d texel_um=%g corr_texels=%g sigma_p_um=%g step_um=%.3f positions=%zu resolution=%d "
-                "lambdas=%s unwrap_rel_rmse=%.5f field_unwrap_s=%.1f total_s=%.1f rel_rmse=%.5f\n",
+                "lambdas=%s blur_rel_rmse=%.5f blur_s=%.1f unwrap_rel_rmse=%.5f field_unwrap_s=%.1f total_s=%.1f "
+                "rel_rmse=%.5f\n",
                 size, texel_um, corr_texels, sigma_p_um, step, positions.size(), resolution,
-                get("lambdas", "0.5,0.55,0.65").c_str(), unwrap_rmse, field_s, field_end, rel);
+                get("lambdas", "0.5,0.55,0.65").c_str(), blur_rmse, blur_s, unwrap_rmse, field_s, field_end, rel);
 
     if (baseline_epochs > 0) {
         // The thesis's method on the same observations: Adam (lr 0.01, β 0.9/0.99, decay 0.005
