@@ -139,15 +139,9 @@ void run(const RecoverArgs& a) {
         request.light = {a.light_x, a.light_y};
         request.model = parse_model(a.model);
         request.seed = a.seed;
-        AcquisitionPlan plan = plan_acquisition(request);
-        if (!a.lambdas.empty()) {
-            plan.lambdas_um = parse_list("--lambdas-um", a.lambdas);
-            for (double l : plan.lambdas_um) validate_lambda(l);
-        }
-        if (a.resolution != 0) {
-            validate_resolution(a.resolution);
-            plan.resolution = a.resolution;
-        }
+        if (!a.lambdas.empty()) request.lambdas_um = parse_list("--lambdas-um", a.lambdas);
+        request.resolution = a.resolution;
+        const AcquisitionPlan plan = plan_acquisition(request);
         notes = plan.notes;
         Progress progress("simulate", static_cast<long long>(plan.positions_um.size() * plan.lambdas_um.size()), !a.quiet);
         observations = simulate_observations(*truth, plan, noise, a.seed, &progress);

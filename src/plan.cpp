@@ -106,11 +106,22 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
     plan.sigma_p_um = r.sigma_p_um > 0.0 ? r.sigma_p_um : 4.0 * r.texel_um;
     const double d_um = support_um(plan.sigma_p_um);
 
-    // Wavelengths: λ0 and the ladder's partners.
-    plan.lambdas_um.push_back(r.lambda_um);
-    const std::vector<double> partners = plan_wavelengths(r.height_range_um, r.lambda_um, r.lambda_min_um,
-                                                          r.lambda_max_um, r.max_step_ratio, &plan.synthetic_um);
-    plan.lambdas_um.insert(plan.lambdas_um.end(), partners.begin(), partners.end());
+    // Wavelengths: given, or λ0 and the ladder's partners.
+    if (!r.lambdas_um.empty()) {
+        for (double l : r.lambdas_um) validate_lambda(l);
+        plan.lambdas_um = r.lambdas_um;
+        for (std::size_t a = 0; a < plan.lambdas_um.size(); ++a)
+            for (std::size_t b = a + 1; b < plan.lambdas_um.size(); ++b)
+                if (plan.lambdas_um[a] != plan.lambdas_um[b])
+                    plan.synthetic_um.push_back(plan.lambdas_um[a] * plan.lambdas_um[b] /
+                                                std::abs(plan.lambdas_um[a] - plan.lambdas_um[b]));
+        std::sort(plan.synthetic_um.rbegin(), plan.synthetic_um.rend());
+    } else {
+        plan.lambdas_um.push_back(r.lambda_um);
+        const std::vector<double> partners = plan_wavelengths(r.height_range_um, r.lambda_um, r.lambda_min_um,
+                                                              r.lambda_max_um, r.max_step_ratio, &plan.synthetic_um);
+        plan.lambdas_um.insert(plan.lambdas_um.end(), partners.begin(), partners.end());
+    }
 
     // Positions: a raster whose worst-case (jittered) neighbour distance keeps the overlap.
     const double period_x = r.rows * r.texel_um, period_y = r.cols * r.texel_um;
@@ -130,7 +141,7 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
 
     // Resolution: Nyquist for the window at the shortest wavelength.
     const double lambda_short = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());
-    plan.resolution = nyquist_resolution(plan.sigma_p_um, lambda_short);
+    plan.resolution = r.resolution != 0 ? r.resolution : nyquist_resolution(plan.sigma_p_um, lambda_short);
     validate_resolution(plan.resolution);
 
     plan.notes.push_back("footprint sigma_p = " + format_shortest(plan.sigma_p_um) + " um (window support D = " +
@@ -139,16 +150,16 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
                          std::to_string(ny) + " raster, steps " + fixed(plan.step_x_um, 2) + " x " +
                          fixed(plan.step_y_um, 2) + " um, jitter +-" + fixed(100.0 * r.jitter, 0) +
                          " % of a step: neighbours overlap by at least " + fixed(100.0 * plan.overlap, 0) + " %");
+    const double du = 2.0 / (plan.resolution * lambda_short);
     plan.notes.push_back(std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) +
-                         " slices: du = " + fixed(2.0 / (plan.resolution * lambda_short), 4) +
-                         " 1/um at lambda = " + format_shortest(lambda_short) + " um, <= 1/(2D) = " +
-                         fixed(0.5 / d_um, 4));
+                         " slices: du = " + fixed(du, 4) + " 1/um at lambda = " + format_shortest(lambda_short) +
+                         " um, " + (du <= 0.5 / d_um ? "<= " : "coarser than ") + "1/(2D) = " + fixed(0.5 / d_um, 4));
     std::string lambdas;
     for (double l : plan.lambdas_um) lambdas += (lambdas.empty() ? "" : ", ") + fixed(l, 4);
     std::string synthetic;
     for (double s : plan.synthetic_um) synthetic += (synthetic.empty() ? "" : ", ") + fixed(s, 3);
     plan.notes.push_back("wavelengths " + lambdas + " um" +
-                         (synthetic.empty() ? std::string(" (one suffices for the height range)")
+                         (synthetic.empty() ? std::string(r.lambdas_um.empty() ? " (one suffices for the height range)" : "")
                                             : " (synthetic " + synthetic + " um; heights unwrap up to " +
                                                   fixed(0.5 * plan.synthetic_um.front(), 3) + " um)"));
     return plan;

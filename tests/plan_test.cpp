@@ -208,3 +208,23 @@ TEST(PlanTest, BadRequestsNameTheField) {
     r.height_range_um = NAN;
     expect_naming(r, "height range");
 }
+
+TEST(PlanTest, GivenWavelengthsAndResolutionReplaceThePlannedOnes) {
+    PlanRequest r;
+    r.height_range_um = 2.0;
+    r.lambdas_um = {0.5, 0.55, 0.65};
+    r.resolution = 48;
+    const AcquisitionPlan plan = plan_acquisition(r);
+    EXPECT_EQ(plan.lambdas_um, r.lambdas_um);
+    EXPECT_EQ(plan.resolution, 48);
+    ASSERT_EQ(plan.synthetic_um.size(), 3u);
+    EXPECT_NEAR(plan.synthetic_um.front(), 0.5 * 0.55 / 0.05, 1e-9);  // the coarsest pair
+    bool coarse_noted = false;
+    for (const auto& n : plan.notes) coarse_noted |= n.find("coarser than") != std::string::npos;
+    EXPECT_TRUE(coarse_noted) << "48 pixels are below the Nyquist rule for sigma_p = 4 um";
+    r.resolution = -5;
+    EXPECT_THROW(plan_acquisition(r), std::domain_error);
+    r.resolution = 0;
+    r.lambdas_um = {0.5, -1.0};
+    EXPECT_THROW(plan_acquisition(r), std::domain_error);
+}

@@ -41,6 +41,8 @@ struct PlanRequest {
     double lambda_min_um = 0.40;    // wavelengths available to the ladder, µm
     double lambda_max_um = 0.70;
     double max_step_ratio = 3.0;    // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
+    std::vector<double> lambdas_um; // given wavelengths (µm) instead of the ladder; empty: plan them
+    int resolution = 0;             // given slice size instead of Nyquist's; 0: plan it
     std::array<double, 2> light{{0.0, 0.0}};  // ω_i of every observation
     Model model = Model::OHS;
     std::uint64_t seed = 1;         // jitter
