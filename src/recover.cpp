@@ -126,6 +126,9 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     for (const Observation& o : mono) max_omega_i = std::max(max_omega_i, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
     const int q = settings.refine > 0 ? settings.refine
                                             : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
+    if (q % 2 == 0 || q > 63)
+        throw std::invalid_argument("recover_heights: refine " + std::to_string(q) +
+                                    " is invalid; expected an odd value up to 63 (texel centres must be samples)");
     FieldRetrievalSettings field_settings = settings.field;
     field_settings.refine = q;
     const int obj_cols = cols * q;

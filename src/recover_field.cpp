@@ -289,10 +289,10 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         s.sqrt_ref.resize(impl.ma, impl.mb);
         const int n = o.resolution;
         for (int p = 0; p < n; ++p)
-            for (int q = 0; q < n; ++q) {
-                const double r = std::max(0.0, o.reference[std::size_t(p) * n + q]);
+            for (int c = 0; c < n; ++c) {
+                const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
                 total += r;
-                const int a = p - impl.a0, b = q - impl.b0;
+                const int a = p - impl.a0, b = c - impl.b0;
                 if (a >= 0 && a < impl.ma && b >= 0 && b < impl.mb) s.sqrt_ref(a, b) = std::sqrt(r);
                 else s.outside += r;
             }
