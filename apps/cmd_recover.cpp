@@ -30,7 +30,7 @@ namespace fs = std::filesystem;
 
 struct RecoverArgs {
     std::string truth, observations, size = "32", out;
-    double texel_um = 4.0, vscale = 1.0;
+    double texel_um = 2.0, vscale = 1.0;
     double height_range_um = 2.0;       // generated truth: peak-to-valley; else the planner's bound
     double correlation_texels = 4.0;    // generated truth
     std::string model = "OHS";
@@ -38,7 +38,7 @@ struct RecoverArgs {
     double sigma_p_um = 0.0;            // 0: the planner's
     int resolution = 0;                 // 0: the planner's
     std::string lambdas;                // "": the planner's
-    double overlap = 0.7, jitter = 0.15;
+    double overlap = 0.6, jitter = 0.2;
     std::string noise = "none", loss;   // loss "": matched to the noise
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
@@ -148,7 +148,7 @@ void run(const RecoverArgs& a) {
         progress.finish();
     }
     const std::vector<std::string> warnings =
-        check_acquisition(observations, rows, cols, a.texel_um, range_um, truth.get());
+        check_acquisition(observations, rows, cols, a.texel_um, truth.get());
 
     // Output directory: fail before the long work when it cannot be written.
     fs::create_directories(a.out);
@@ -266,10 +266,10 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--model", a->model, "OHS or ROHS (the field retrieval is separable)")->capture_default_str();
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
-    cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um (0: the planner's, 4 texels)")->capture_default_str();
+    cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um (0: the planner's, 1.5 texels)")->capture_default_str();
     cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's Nyquist choice)")->capture_default_str();
     cmd->add_option("--lambdas-um", a->lambdas, "wavelengths in um, comma-separated (default: the planner's ladder)");
-    cmd->add_option("--overlap", a->overlap, "linear overlap of neighbouring windows, 0.6 to 0.95")->capture_default_str();
+    cmd->add_option("--overlap", a->overlap, "worst-case linear overlap of neighbouring windows (jitter included), 0.6 to 0.95")->capture_default_str();
     cmd->add_option("--jitter", a->jitter, "position jitter, fraction of the raster step, 0 to 0.3")->capture_default_str();
     cmd->add_option("--noise", a->noise, "simulated noise: none, poisson:N (photons per slice) or gaussian:REL")->capture_default_str();
     cmd->add_option("--loss", a->loss, "loss (default: matched to the noise; amplitude without noise, thesis: cmsle:1)");

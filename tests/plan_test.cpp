@@ -140,12 +140,12 @@ TEST(PlanTest, LadderUnwrapsNoisyPhasesIntoHeights) {
     EXPECT_LT(worst, lambda0 * 5.0 * noise_rad / (4.0 * kPi));
 }
 
-TEST(PlanTest, CheckNamesSparseCoarseAndWrappingData) {
+TEST(PlanTest, CheckNamesSparseAndCoarseData) {
     PlanRequest r;
     r.height_range_um = 1.0;
     const AcquisitionPlan plan = plan_acquisition(r);
     auto obs = with_flat_references(planned_observations(plan));
-    EXPECT_TRUE(check_acquisition(obs, r.rows, r.cols, r.texel_um, 1.0).empty());
+    EXPECT_TRUE(check_acquisition(obs, r.rows, r.cols, r.texel_um).empty());
 
     // One position only.
     const std::vector<Observation> single(obs.begin(), obs.begin() + 1);
@@ -160,24 +160,23 @@ TEST(PlanTest, CheckNamesSparseCoarseAndWrappingData) {
     ASSERT_GE(sparse.size(), 2u);
     EXPECT_TRUE(mentions(check_acquisition(sparse, r.rows, r.cols, r.texel_um), "overlap by only"));
 
-    // Half the resolution.
-    auto coarse = obs;
-    for (auto& o : coarse) {
-        o.resolution = plan.resolution / 2;
-        o.reference.assign(static_cast<std::size_t>(o.resolution) * o.resolution, 1.0);
-    }
-    EXPECT_TRUE(mentions(check_acquisition(coarse, r.rows, r.cols, r.texel_um), "expected at least " +
-                                                                                    std::to_string(plan.resolution)));
-
-    // One wavelength for 1 µm of heights.
-    std::vector<Observation> mono;
-    for (const auto& o : obs)
-        if (o.lambdas_um[0] == plan.lambdas_um[0]) mono.push_back(o);
-    EXPECT_TRUE(mentions(check_acquisition(mono, r.rows, r.cols, r.texel_um, 1.0), "wrap"));
+    // Slices 4× coarser than the planned (Nyquist) ones are accepted, 5× coarser are not.
+    const auto with_resolution = [&](int n) {
+        auto coarse = obs;
+        for (auto& o : coarse) {
+            o.resolution = n;
+            o.reference.assign(static_cast<std::size_t>(n) * n, 1.0);
+        }
+        return coarse;
+    };
+    ASSERT_EQ(plan.resolution % 4, 0);
+    EXPECT_TRUE(check_acquisition(with_resolution(plan.resolution / 4), r.rows, r.cols, r.texel_um).empty());
+    EXPECT_TRUE(mentions(check_acquisition(with_resolution(plan.resolution / 5), r.rows, r.cols, r.texel_um),
+                         "expected at least " + std::to_string(plan.resolution / 4) + " pixels"));
 
     // Steep slopes reflect light off the slice.
     const Heightfield steep = test::random_heightfield(r.rows, r.cols, 2.0, 3, r.texel_um, 1.0);
-    EXPECT_TRUE(mentions(check_acquisition(obs, r.rows, r.cols, r.texel_um, NAN, &steep), "slopes up to"));
+    EXPECT_TRUE(mentions(check_acquisition(obs, r.rows, r.cols, r.texel_um, &steep), "slopes up to"));
 }
 
 TEST(PlanTest, BadRequestsNameTheField) {

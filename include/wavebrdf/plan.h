@@ -17,7 +17,6 @@
 //    must be good to a fraction of the next level's ambiguity).
 #include <array>
 #include <cstdint>
-#include <limits>
 #include <string>
 #include <vector>
 
@@ -34,13 +33,13 @@ struct PlanRequest {
     int rows = 32, cols = 32;       // heightfield size (texels)
     double texel_um = 1.0;          // texel width w, µm
     double height_range_um = 0.0;   // expected peak-to-valley of the heights, µm (≥ 0)
-    double sigma_p_um = 0.0;        // footprint σ_p, µm; 0: 4 texels
-    double overlap = 0.7;           // linear overlap of neighbouring windows, 0.6 … 0.95
-    double jitter = 0.15;           // position jitter, fraction of the raster step, 0 … 0.3
-    double lambda_um = 0.55;        // base wavelength λ0, µm
-    double lambda_min_um = 0.40;    // wavelengths available to the ladder, µm
+    double sigma_p_um = 0.0;        // footprint σ_p, µm; 0: 1.5 texels
+    double overlap = 0.6;           // worst-case linear overlap of neighbouring windows, 0.6 … 0.95
+    double jitter = 0.2;            // position jitter, fraction of the raster step, 0 … 0.3
+    double lambda_um = 0.5;         // base wavelength λ0, µm
+    double lambda_min_um = 0.45;    // wavelengths available to the ladder, µm
     double lambda_max_um = 0.70;
-    double max_step_ratio = 3.0;    // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
+    double max_step_ratio = 4.0;    // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
     std::vector<double> lambdas_um; // given wavelengths (µm) instead of the ladder; empty: plan them
     int resolution = 0;             // given slice size instead of Nyquist's; 0: plan it
     std::array<double, 2> light{{0.0, 0.0}};  // ω_i of every observation
@@ -85,13 +84,13 @@ std::vector<double> plan_wavelengths(double height_range_um, double lambda0_um, 
                                      std::vector<double>* synthetic_um = nullptr);
 
 // Warnings (one line each) for observations that are too coarse or too sparse to determine the
-// heights of a rows × cols tile of texel `texel_um`: neighbouring windows overlapping < 60 %,
-// texels farther than 2σ_p from every footprint centre, slices with Δu > 1/(2D), wavelengths
-// that cannot unwrap `height_range_um` (NaN: unknown, not checked), fewer measured values than
-// heights, and (with `truth`) slopes that reflect light off the slice. Empty when all is well.
+// heights of a rows × cols tile of texel `texel_um`, at the limits measured in
+// docs/recovery.md: neighbouring windows overlapping < 60 % (41 % failed), texels farther than
+// 2σ_p from every footprint centre, slices sampling u more than 4× as coarsely as the rule
+// above (6× failed), fewer measured values than heights, and (with `truth`) slopes that
+// reflect light off the slice. Empty when all is well. (No warning about wrapping: the
+// recovery unwraps spatially on its fine grid, and one wavelength recovered ±1 µm.)
 std::vector<std::string> check_acquisition(const std::vector<Observation>& observations, int rows, int cols,
-                                           double texel_um,
-                                           double height_range_um = std::numeric_limits<double>::quiet_NaN(),
-                                           const Heightfield* truth = nullptr);
+                                           double texel_um, const Heightfield* truth = nullptr);
 
 }  // namespace wavebrdf
