@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/baseline.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
@@ -161,26 +162,22 @@ int main(int argc, char** argv) try {
                 get("lambdas", "0.5,0.55,0.65").c_str(), blur_rmse, blur_s, unwrap_rmse, field_s, field_end, rel);
 
     if (baseline_epochs > 0) {
-        // The thesis's method on the same observations: Adam (lr 0.01, β 0.9/0.99, decay 0.005
-        // per epoch), CMSLE ε = 1, one observation drawn at random per epoch, from flat. (The
-        // Inversion class does the same in PositionMode::Random, but it also evaluates every
-        // observation each epoch for its metrics, which costs hundreds of slices per epoch here.)
-        Adam adam(truth.values().size());
-        std::vector<double> h(truth.values().size(), 0.0);
-        std::mt19937_64 pick(seed);
-        std::uniform_int_distribution<std::size_t> any(0, observations.size() - 1);
-        const Loss cmsle{LossKind::CMSLE, 1.0};
+        // The thesis's method on the same observations (baseline.h): Adam (lr 0.01, β 0.9/0.99,
+        // decay 0.005 per epoch), CMSLE ε = 1, one observation drawn at random per epoch, from flat.
+        BaselineSettings settings;
+        settings.epochs = baseline_epochs;
+        settings.seed = seed;
+        settings.report_every = 100;
         const auto t0 = std::chrono::steady_clock::now();
         double best = INFINITY;
-        for (int epoch = 0; epoch < baseline_epochs; ++epoch) {
-            std::vector<double> g;
-            observation_loss(truth.with_values(h), {observations[any(pick)]}, cmsle, &g);
-            adam.step(h, g, epoch);
-            if ((epoch + 1) % 100 == 0) best = std::min(best, height_rel_rmse(truth.with_values(h), truth));
-        }
+        const Heightfield h = recover_heights_thesis(observations, truth.rows(), truth.cols(), truth.texel_um(),
+                                                     truth.vscale(), settings, [&](const StageMetrics& m) {
+                                                         best = std::min(best, m.height_rel_rmse);
+                                                         return true;
+                                                     }, &truth);
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         std::printf("BASELINE thesis-adam-cmsle epochs=%d seconds=%.1f rel_rmse=%.5f best_every_100=%.5f\n",
-                    baseline_epochs, s, height_rel_rmse(truth.with_values(h), truth), best);
+                    baseline_epochs, s, height_rel_rmse(h, truth), best);
     }
     const int direct_iters = args.count("direct_iters") ? std::stoi(args["direct_iters"]) : 0;
     if (direct_iters > 0) {
