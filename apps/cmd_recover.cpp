@@ -63,18 +63,6 @@ std::vector<double> parse_list(const std::string& option, const std::string& tex
     return out;
 }
 
-// A generated isotropic truth: correlation length in texels, peak-to-valley height range.
-Heightfield generated_truth(const RecoverArgs& a, int rows, int cols) {
-    SurfaceParams p;
-    p.type = SurfaceType::Isotropic;
-    p.rows = rows;
-    p.cols = cols;
-    p.texel_um = a.texel_um;
-    p.correlation_um = a.correlation_texels * a.texel_um;
-    p.seed = a.seed;
-    return with_height_range(generate_heightfield(p).with_scale(a.texel_um, a.vscale), a.height_range_um);
-}
-
 // Observations as JSON whose references are EXR files beside it (read back by
 // read_observations_json).
 void save_observations(const std::string& dir, const std::vector<Observation>& observations) {
@@ -100,73 +88,60 @@ void run(const RecoverArgs& a) {
     if (a.out.empty()) throw std::invalid_argument("no output directory; expected --out DIR");
     if (!a.truth.empty() && !a.observations.empty())
         throw std::invalid_argument("--truth and --observations exclude each other");
-    if (a.method != "pipeline" && a.method != "thesis")
-        throw std::invalid_argument("--method '" + a.method + "' is unknown; expected pipeline or thesis");
-    const Noise noise = parse_noise(a.noise);
-    const Loss fallback = a.method == "thesis" ? Loss{LossKind::CMSLE, 1.0} : Loss{LossKind::Amplitude, 1.0};
-    const Loss loss = a.loss.empty() ? matched_loss(noise, fallback) : parse_loss(a.loss);
-    if (noise.kind != NoiseKind::None && !a.observations.empty())
+    RecoveryOptions options;
+    options.method = parse_recovery_method(a.method, "--method");
+    options.noise = parse_noise(a.noise);
+    if (!a.loss.empty()) options.loss = parse_loss(a.loss);
+    if (options.noise.kind != NoiseKind::None && !a.observations.empty())
         throw std::invalid_argument("--noise simulates noise on rendered observations; it needs --truth (or the generated default), not --observations");
+    options.texel_um = a.texel_um;
+    options.vscale = a.vscale;
+    options.height_range_um = a.height_range_um;
+    options.correlation_texels = a.correlation_texels;
+    options.model = parse_model(a.model);
+    options.light = {a.light_x, a.light_y};
+    options.sigma_p_um = a.sigma_p_um;
+    options.resolution = a.resolution;
+    options.overlap = a.overlap;
+    options.jitter = a.jitter;
+    options.field_iterations = a.field_iterations;
+    options.refine_iterations = a.refine_iterations;
+    options.epochs = a.epochs;
+    options.seed = a.seed;
 
-    // Truth and observations.
+    // Truth and observations (files read here; planned, simulated and checked by the library).
     std::unique_ptr<Heightfield> truth;
     std::vector<Observation> observations;
-    std::vector<std::string> notes;
-    int rows = 0, cols = 0;
-    double range_um = a.height_range_um;
     if (!a.observations.empty()) {
         observations = read_observations_json(a.observations);
-        parse_size("--size", a.size, rows, cols);
+        parse_size("--size", a.size, options.rows, options.cols);
     } else {
-        if (a.truth.empty()) {
-            parse_size("--size", a.size, rows, cols);
-            truth = std::make_unique<Heightfield>(generated_truth(a, rows, cols));
-        } else {
-            truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
-            rows = truth->rows();
-            cols = truth->cols();
-        }
-        const HeightStats stats = height_stats(*truth);
-        range_um = stats.max_um - stats.min_um;
-        PlanRequest request;
-        request.rows = rows;
-        request.cols = cols;
-        request.texel_um = a.texel_um;
-        request.height_range_um = range_um;
-        request.sigma_p_um = a.sigma_p_um;
-        request.overlap = a.overlap;
-        request.jitter = a.jitter;
-        request.light = {a.light_x, a.light_y};
-        request.model = parse_model(a.model);
-        request.seed = a.seed;
-        if (!a.lambdas.empty()) request.lambdas_um = parse_list("--lambdas-um", a.lambdas);
-        request.resolution = a.resolution;
-        const AcquisitionPlan plan = plan_acquisition(request);
-        notes = plan.notes;
-        Progress progress("simulate", static_cast<long long>(plan.positions_um.size() * plan.lambdas_um.size()), !a.quiet);
-        observations = simulate_observations(*truth, plan, noise, a.seed, &progress);
-        progress.finish();
+        if (a.truth.empty()) parse_size("--size", a.size, options.rows, options.cols);
+        else truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
+        if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
     }
-    const std::vector<std::string> warnings =
-        check_acquisition(observations, rows, cols, a.texel_um, truth.get());
+    const PreparedRecovery r = prepare_recovery(options, truth.get(), std::move(observations), !a.quiet);
+    const int rows = r.rows, cols = r.cols;
+    const std::vector<std::string>& notes = r.notes;
+    const std::vector<std::string>& warnings = r.warnings;
 
     // Output directory: fail before the long work when it cannot be written.
     fs::create_directories(a.out);
     check_writable(a.out + "/metrics.csv");
     nlohmann::json run = {{"method", a.method}, {"size", std::to_string(rows) + "x" + std::to_string(cols)},
-                          {"texel_um", a.texel_um}, {"vscale", a.vscale}, {"height_range_um", range_um},
-                          {"noise", to_string(noise)}, {"loss", to_string(loss)}, {"seed", a.seed},
-                          {"observations", observations.size()}, {"plan", notes}, {"warnings", warnings},
-                          {"truth", truth != nullptr}};
+                          {"texel_um", a.texel_um}, {"vscale", a.vscale}, {"height_range_um", r.range_um},
+                          {"noise", to_string(r.noise)}, {"loss", to_string(r.loss)}, {"seed", a.seed},
+                          {"observations", r.observations.size()}, {"plan", notes}, {"warnings", warnings},
+                          {"truth", r.truth.has_value()}};
     write_text_atomically(a.out + "/run.json", run.dump(1) + "\n");
     if (!a.quiet) {
         for (const auto& n : notes) std::fprintf(stderr, "plan: %s\n", n.c_str());
     }
     for (const auto& w : warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
-    if (a.save_observations) save_observations(a.out, observations);
-    if (truth) {
-        write_heightfield_exr(a.out + "/truth.exr", *truth);
-        write_npy(a.out + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*truth));
+    if (a.save_observations) save_observations(a.out, r.observations);
+    if (r.truth) {
+        write_heightfield_exr(a.out + "/truth.exr", *r.truth);
+        write_npy(a.out + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*r.truth));
     }
 
     // Recovery, with a metrics row per reported step.
