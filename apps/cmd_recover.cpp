@@ -1,7 +1,8 @@
 // `wavebrdf recover`: the heightfield from slices at several overlapping positions and
 // wavelengths (recover.h), with the acquisition planned (plan.h) and, for studies, the
 // observations simulated from a known truth with optional noise (noise.h). The thesis's
-// method (baseline.h) runs on the same data with --method thesis.
+// method (baseline.h) runs on the same data with --method thesis. The run itself is
+// recovery_run.h's (shared with Python's recover()); this file reads and writes files.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,13 +15,9 @@
 
 #include "cli_common.h"
 #include "commands.h"
-#include "wavebrdf/baseline.h"
-#include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
-#include "wavebrdf/noise.h"
-#include "wavebrdf/plan.h"
 #include "wavebrdf/progress.h"
-#include "wavebrdf/recover.h"
+#include "wavebrdf/recovery_run.h"
 
 namespace wavebrdf::cli {
 
@@ -98,7 +95,6 @@ void run(const RecoverArgs& a) {
     options.vscale = a.vscale;
     options.height_range_um = a.height_range_um;
     options.correlation_texels = a.correlation_texels;
-    options.model = parse_model(a.model);
     options.light = {a.light_x, a.light_y};
     options.sigma_p_um = a.sigma_p_um;
     options.resolution = a.resolution;
@@ -118,6 +114,7 @@ void run(const RecoverArgs& a) {
     } else {
         if (a.truth.empty()) parse_size("--size", a.size, options.rows, options.cols);
         else truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
+        options.model = parse_model(a.model);
         if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
     }
     const PreparedRecovery r = prepare_recovery(options, truth.get(), std::move(observations), !a.quiet);
@@ -149,8 +146,6 @@ void run(const RecoverArgs& a) {
     csv.precision(10);
     csv << "stage,iteration,loss,seconds,height_rel_rmse\n";
     // A progress bar per stage (drawn on terminals) and a one-line summary when a stage ends.
-    RecoverSettings settings;
-    BaselineSettings baseline;
     std::unique_ptr<Progress> progress;
     StageMetrics last;
     auto end_stage = [&] {
@@ -168,9 +163,9 @@ void run(const RecoverArgs& a) {
             << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << '\n';
         if (!progress || m.stage != last.stage) {
             end_stage();
-            const long long total = m.stage.rfind("field", 0) == 0 ? settings.field.iterations
-                                    : m.stage == "refine"          ? settings.refine_iterations
-                                    : m.stage == "thesis"          ? baseline.epochs
+            const long long total = m.stage.rfind("field", 0) == 0 ? r.pipeline.field.iterations
+                                    : m.stage == "refine"          ? r.pipeline.refine_iterations
+                                    : m.stage == "thesis"          ? r.thesis.epochs
                                                                    : 1;
             progress = std::make_unique<Progress>(m.stage, std::max<long long>(total, 1), !a.quiet);
         }
@@ -184,19 +179,7 @@ void run(const RecoverArgs& a) {
         last = m;
         return true;
     };
-    Heightfield estimate(rows, cols, std::vector<double>(std::size_t(rows) * cols, 0.0), a.texel_um, a.vscale);
-    if (a.method == "pipeline") {
-        settings.refine_loss = loss;
-        settings.max_range_um = std::max(range_um, 1e-3);
-        if (a.field_iterations >= 0) settings.field.iterations = a.field_iterations;
-        if (a.refine_iterations >= 0) settings.refine_iterations = a.refine_iterations;
-        estimate = recover_heights(observations, rows, cols, a.texel_um, a.vscale, settings, on_step, truth.get());
-    } else {
-        baseline.epochs = a.epochs;
-        baseline.loss = loss;
-        baseline.seed = a.seed;
-        estimate = recover_heights_thesis(observations, rows, cols, a.texel_um, a.vscale, baseline, on_step, truth.get());
-    }
+    const Heightfield estimate = run_recovery(r, on_step);
     end_stage();
 
     write_text_atomically(a.out + "/metrics.csv", csv.str());
@@ -204,7 +187,7 @@ void run(const RecoverArgs& a) {
     write_heightfield_png(a.out + "/estimate.png", estimate);
     write_npy(a.out + "/estimate_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(estimate));
     // One observation and the estimate's slice for it, for the report.
-    const Observation& first = observations.front();
+    const Observation& first = r.observations.front();
     const std::vector<std::size_t> shape{std::size_t(first.resolution), std::size_t(first.resolution),
                                          std::size_t(first.channels())};
     write_npy(a.out + "/reference.npy", shape, first.reference);
@@ -216,8 +199,8 @@ void run(const RecoverArgs& a) {
             std::fprintf(stderr, "wavebrdf: warning: could not draw report.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
     }
     if (!a.quiet) {
-        if (truth)
-            std::fprintf(stderr, "height_rel_rmse %.3f%%; results in %s\n", 100.0 * height_rel_rmse(estimate, *truth),
+        if (r.truth)
+            std::fprintf(stderr, "height_rel_rmse %.3f%%; results in %s\n", 100.0 * height_rel_rmse(estimate, *r.truth),
                          a.out.c_str());
         else
             std::fprintf(stderr, "results in %s\n", a.out.c_str());

@@ -1,0 +1,108 @@
+#pragma once
+// One heightfield recovery as `wavebrdf recover` and the Python module's recover() run it, so
+// that both share one implementation: the truth (given, or generated for a study), the
+// acquisition planned for it and its observations simulated with noise (plan.h, noise.h) or
+// observations as given, the warnings of check_acquisition, the loss (given or matched to
+// the noise), and the recovery with the pipeline (recover.h) or the thesis's method
+// (baseline.h), both reporting through one StageMetrics stream. Writing files is the caller's.
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/baseline.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/loss.h"
+#include "wavebrdf/model.h"
+#include "wavebrdf/noise.h"
+#include "wavebrdf/observation.h"
+#include "wavebrdf/recover.h"
+
+namespace wavebrdf {
+
+enum class RecoveryMethod {
+    Pipeline,  // recover_heights: blurred fit, field retrieval, unwrapping, refinement
+    Thesis,    // recover_heights_thesis: Adam, one observation per epoch
+};
+
+// Parses "pipeline" or "thesis"; throws std::invalid_argument "NAME 'TEXT' is unknown;
+// expected pipeline or thesis" (`name` is the option or argument, e.g. "--method").
+RecoveryMethod parse_recovery_method(const std::string& text, const std::string& name = "method");
+const char* to_string(RecoveryMethod method);
+
+// The options of `wavebrdf recover` (its defaults), as values.
+struct RecoveryOptions {
+    // Grid of the generated truth, and of the estimate with given observations (≥ 1 each).
+    int rows = 32, cols = 32;
+    double texel_um = 2.0;            // texel width w, µm (> 0); a given truth brings its own
+    double vscale = 1.0;              // vertical scale v; a given truth brings its own
+    // Generated truth: peak-to-valley height, µm (> 0). With given observations: the bound on
+    // the height range for unwrapping. (With a given truth its own range is used.)
+    double height_range_um = 2.0;
+    double correlation_texels = 4.0;  // generated truth: correlation length, texels (> 0)
+    // Acquisition, planned for a truth (PlanRequest's fields of the same names).
+    Model model = Model::OHS;
+    std::array<double, 2> light{{0.0, 0.0}};
+    double sigma_p_um = 0.0;          // 0: the planner's (1.5 texels)
+    int resolution = 0;               // 0: the planner's Nyquist choice
+    std::vector<double> lambdas_um;   // empty: the planner's ladder
+    double overlap = 0.6, jitter = 0.2;
+    Noise noise;                      // simulated on the rendered observations (a truth only)
+    std::optional<Loss> loss;         // none: recovery_loss's choice
+    RecoveryMethod method = RecoveryMethod::Pipeline;
+    int field_iterations = -1;        // pipeline: per wavelength; < 0: RecoverSettings' default
+    int refine_iterations = -1;       // pipeline: L-BFGS on the heights; < 0: the default
+    int epochs = 1000;                // thesis: Adam epochs (≥ 0)
+    std::uint64_t seed = 1;           // generated truth, jitter, noise, the thesis's draws
+};
+
+// The loss the recovery fits: options.loss when given; else, for the pipeline, the one
+// matched to the noise (matched_loss: poisson:N for Poisson noise, mse for Gaussian noise,
+// amplitude without noise), and for the thesis's method its own cmsle:1 whatever the noise.
+Loss recovery_loss(const RecoveryOptions& options);
+
+// The study's default truth: an isotropic Gaussian-correlated surface (generate.h) of
+// rows × cols texels of texel_um, correlation length correlation_texels texels, seeded, with
+// vscale and scaled to the peak-to-valley height_range_um (with_height_range). Throws as
+// generate_heightfield and with_height_range do.
+Heightfield generated_recovery_truth(const RecoveryOptions& options);
+
+// Everything a recovery needs, resolved: what run_recovery runs and what a caller reports.
+struct PreparedRecovery {
+    std::optional<Heightfield> truth;     // given or generated; none with given observations
+    std::vector<Observation> observations;
+    int rows = 0, cols = 0;               // of the estimate
+    double texel_um = 0.0, vscale = 1.0;  // of the estimate
+    double range_um = 0.0;                // the truth's peak-to-valley, else options.height_range_um
+    RecoveryMethod method = RecoveryMethod::Pipeline;
+    Noise noise;
+    Loss loss;
+    RecoverSettings pipeline;             // used when method is Pipeline
+    BaselineSettings thesis;              // used when method is Thesis
+    std::vector<std::string> notes;       // the plan's (none with given observations)
+    std::vector<std::string> warnings;    // check_acquisition's
+};
+
+// The set-up: with `observations` (non-empty) they are used as given on an
+// options.rows × options.cols grid; else the truth is `truth` (its size, texel width and
+// vscale) or, when null, generated_recovery_truth(options), the acquisition is planned for its
+// size and height range (plan_acquisition) and the observations are simulated from it with
+// options.noise (simulate_observations, seed options.seed). `show_progress` draws a
+// "simulate" progress bar on a terminal. Throws std::invalid_argument when both a truth and
+// observations are given, when noise is asked for with given observations, or for the
+// thesis's epochs < 0 (before any work); the planner's, the generator's and the loss's exceptions
+// otherwise.
+PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth = nullptr,
+                                  std::vector<Observation> observations = {}, bool show_progress = false);
+
+// The estimate (prepared.rows × prepared.cols, texel units with prepared.texel_um and
+// vscale) from a flat start, by prepared.method. on_step receives every StageMetrics of the
+// method ("blur:S", "blur", "field:λ", "unwrap", "refine" for the pipeline; "thesis" every
+// report_every epochs), with height_rel_rmse when a truth is known; returning false stops
+// and returns the estimate so far.
+Heightfield run_recovery(const PreparedRecovery& prepared,
+                         const std::function<bool(const StageMetrics&)>& on_step = {});
+
+}  // namespace wavebrdf
