@@ -89,6 +89,8 @@ def main(directory):
     ax = axes[1, 0]
     offset = 0
     for name, s in stages.items():
+        if not (s["loss"] > 0).any():
+            continue  # stages without a loss of their own (the summary rows "blur", "unwrap")
         it = s["iteration"] + offset
         loss = s["loss"] / s["loss"][0] if s["loss"][0] > 0 else s["loss"]
         ax.semilogy(it, np.clip(loss, 1e-16, None), label=name)
@@ -104,7 +106,9 @@ def main(directory):
         for name, s in stages.items():
             ok = s["height_rel_rmse"] >= 0
             if ok.any():
-                ax.semilogy(s["seconds"][ok], s["height_rel_rmse"][ok], label=name)
+                # Markers: several stages report a single value (the end of the blurred fit,
+                # the unwrapped heights).
+                ax.semilogy(s["seconds"][ok], s["height_rel_rmse"][ok], "o-", ms=3, label=name)
         ax.axhline(0.01, color="k", ls="--", lw=0.8, label="1 %")
         ax.set_xlabel("seconds")
         ax.set_ylabel("height_rel_rmse")

@@ -152,7 +152,7 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
                          " % of a step: neighbours overlap by at least " + fixed(100.0 * plan.overlap, 0) + " %");
     const double du = 2.0 / (plan.resolution * lambda_short);
     plan.notes.push_back(std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) +
-                         " slices: du = " + fixed(du, 4) + " 1/um at lambda = " + format_shortest(lambda_short) +
+                         " slices: du = " + fixed(du, 4) + " 1/um at lambda = " + fixed(lambda_short, 4) +
                          " um, " + (du <= 0.5 / d_um ? "<= " : "coarser than ") + "1/(2D) = " + fixed(0.5 / d_um, 4));
     std::string lambdas;
     for (double l : plan.lambdas_um) lambdas += (lambdas.empty() ? "" : ", ") + fixed(l, 4);
