@@ -46,6 +46,13 @@ std::vector<double> to_doubles(const py::array& array, const char* name, bool fi
 // A 2-D float array of heights in texel units → Heightfield (values copied once, as double).
 Heightfield heightfield_from_array(py::handle heights, const char* name, double texel_um, double vscale);
 
+// `size`: N or (rows, cols), 1 ... 16384 per side; ValueError naming `name` otherwise.
+std::array<int, 2> size_argument(const py::object& size, const char* name = "size");
+// A Heightfield (rescaled to texel_um and vscale when `rescale`), an EXR path (read with
+// texel_um and vscale; without the GIL) or a 2-D array of heights in texel units.
+Heightfield heightfield_argument(const py::object& object, const char* name, double texel_um, double vscale,
+                                 bool rescale);
+
 // A NumPy array that owns `values` (moved, not copied), of the given C-order shape.
 template <typename T>
 py::array_t<T> owning_array(std::vector<T>&& values, const std::vector<py::ssize_t>& shape) {
@@ -85,5 +92,6 @@ void bind_loss(py::module_& m);
 void bind_observation(py::module_& m);
 void bind_optim(py::module_& m);
 void bind_invert(py::module_& m);
+void bind_recover(py::module_& m);
 
 }  // namespace wavebrdf::python

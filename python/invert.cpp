@@ -26,38 +26,6 @@ struct InversionResult {
     bool stopped = false;
 };
 
-std::array<int, 2> size_argument(const py::object& size) {
-    std::array<int, 2> rc{};
-    try {
-        if (py::isinstance<py::int_>(size)) {
-            rc[0] = rc[1] = size.cast<int>();
-        } else {
-            const auto v = size.cast<std::vector<int>>();
-            if (v.size() != 2) throw py::cast_error();
-            rc = {v[0], v[1]};
-        }
-    } catch (const py::cast_error&) {
-        throw py::value_error("size = " + std::string(py::repr(size)) + " is invalid; expected N or (rows, cols)");
-    }
-    if (rc[0] < 1 || rc[1] < 1 || rc[0] > 16384 || rc[1] > 16384)
-        throw py::value_error("size = " + std::string(py::repr(size)) + " is out of range; expected 1 to 16384 per side");
-    return rc;
-}
-
-Heightfield heightfield_argument(const py::object& object, const char* name, double texel_um, double vscale,
-                                 bool rescale) {
-    if (py::isinstance<Heightfield>(object)) {
-        const auto& hf = object.cast<const Heightfield&>();
-        return rescale ? hf.with_scale(texel_um, vscale) : hf;
-    }
-    if (py::isinstance<py::str>(object)) {
-        const std::string path = object.cast<std::string>();
-        py::gil_scoped_release release;
-        return read_heightfield_exr(path, texel_um, vscale);
-    }
-    return heightfield_from_array(object, name, texel_um, vscale);
-}
-
 std::vector<std::array<double, 2>> positions_argument(const py::object& positions) {
     std::vector<std::array<double, 2>> out;
     if (py::isinstance<py::str>(positions)) {
