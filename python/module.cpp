@@ -4,7 +4,7 @@
 PYBIND11_MODULE(_core, m) {
     using namespace wavebrdf::python;
     m.doc() = "wavebrdf's C++ library: wave-optical BRDF slices of heightfields, their gradients, "
-              "losses, optimisers and the inverse renderer";
+              "losses, optimisers, the inverse renderer and heightfield recovery";
     bind_heightfield(m);
     bind_brdf(m);
     bind_gabor(m);
@@ -12,4 +12,5 @@ PYBIND11_MODULE(_core, m) {
     bind_observation(m);
     bind_optim(m);
     bind_invert(m);
+    bind_recover(m);
 }

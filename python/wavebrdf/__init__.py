@@ -13,10 +13,13 @@ Two plain functions carry everything else:
 
 and the objects of the thesis's listing 4.1: Heightfield, GaborRep, Query, render, the losses
 (Loss, cmsle, mse, amplitude), gradient / observation_loss, the optimisers (Adam,
-lbfgs_minimize) and invert. ``wavebrdf.torch`` wraps render_slice as a differentiable PyTorch
+lbfgs_minimize) and invert. Heightfield recovery: recover (``wavebrdf recover``), its parts
+plan_acquisition, planned_observations, simulate_observations, add_noise, check_acquisition,
+recover_heights, recover_heights_thesis, and height_rel_rmse, with_height_range. ``wavebrdf.torch`` wraps render_slice as a differentiable PyTorch
 function. Bad arguments raise ValueError naming the argument; unreadable files RuntimeError.
 """
 from ._core import (  # noqa: F401
+    AcquisitionPlan,
     Adam,
     GaborRep,
     Heightfield,
@@ -25,31 +28,44 @@ from ._core import (  # noqa: F401
     Loss,
     Observation,
     Query,
+    RecoveryResult,
+    add_noise,
     amplitude,
     cie1931_xyz,
+    check_acquisition,
     cmsle,
     gradient,
     height_mse,
+    height_rel_rmse,
     invert,
     lbfgs_minimize,
     mse,
     observation_loss,
+    plan_acquisition,
+    planned_observations,
     read_observations,
+    recover,
+    recover_heights,
+    recover_heights_thesis,
     render,
     render_slice,
     rgb_gamma_mse,
     rgb_mse,
+    simulate_observations,
     slice_gradient,
     spectral_to_srgb_weights,
     spectral_wavelengths_um,
+    with_height_range,
     write_observations,
 )
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation", "Query",
-    "amplitude", "cie1931_xyz", "cmsle", "gradient", "height_mse", "invert", "lbfgs_minimize", "mse",
-    "observation_loss", "read_observations", "render", "render_slice", "rgb_gamma_mse", "rgb_mse",
-    "slice_gradient", "spectral_to_srgb_weights", "spectral_wavelengths_um", "write_observations",
+    "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
+    "Query", "RecoveryResult", "add_noise", "amplitude", "check_acquisition", "cie1931_xyz", "cmsle", "gradient",
+    "height_mse", "height_rel_rmse", "invert", "lbfgs_minimize", "mse", "observation_loss", "plan_acquisition",
+    "planned_observations", "read_observations", "recover", "recover_heights", "recover_heights_thesis", "render",
+    "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",
+    "spectral_to_srgb_weights", "spectral_wavelengths_um", "with_height_range", "write_observations",
 ]

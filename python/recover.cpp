@@ -1,0 +1,613 @@
+// Heightfield recovery (recover.h, baseline.h), acquisition planning (plan.h), simulated noise
+// (noise.h), and recover(): `wavebrdf recover` without its output directory, through the same
+// library piece as the CLI (recovery_run.h), so the same options give the same run.
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include "common.h"
+#include "observation_arg.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/noise.h"
+#include "wavebrdf/plan.h"
+#include "wavebrdf/recovery_run.h"
+
+namespace wavebrdf::python {
+
+using namespace pybind11::literals;
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+Noise noise_argument(const py::object& noise) {
+    if (noise.is_none()) return {};
+    if (!py::isinstance<py::str>(noise))
+        throw py::value_error("noise = " + std::string(py::repr(noise)) +
+                              " is invalid; expected 'none', 'poisson:N' or 'gaussian:REL'");
+    return parse_noise(noise.cast<std::string>());  // its messages name the noise text
+}
+
+// Observations as given (Observation, list) or read from a JSON path.
+std::vector<Observation> observations_or_file(const py::object& observations) {
+    if (py::isinstance<py::str>(observations)) {
+        const std::string path = observations.cast<std::string>();
+        py::gil_scoped_release release;
+        return read_observations_json(path);
+    }
+    return observations_argument(observations);
+}
+
+std::vector<double> wavelength_list(const py::object& lambdas, const char* name) {
+    if (lambdas.is_none()) return {};
+    std::vector<double> list;
+    try {
+        if (py::isinstance<py::str>(lambdas)) throw py::cast_error();
+        list = lambdas.cast<std::vector<double>>();
+    } catch (const py::cast_error&) {
+        throw py::value_error(std::string(name) + " = " + std::string(py::repr(lambdas)) +
+                              " is invalid; expected a list of wavelengths in um (or None)");
+    }
+    if (list.empty()) bad_argument(name, "[]", "at least one wavelength in um (or None: planned)");
+    for (double l : list)
+        if (!std::isfinite(l) || l <= 0.0)
+            bad_argument(name, std::string(py::repr(lambdas)), "wavelengths that are finite and > 0 (um)");
+    return list;
+}
+
+int planned_resolution(int resolution) {
+    if (resolution != 0) check_resolution(resolution, "resolution");
+    return resolution;
+}
+
+int optional_count(const py::object& value, const char* name) {
+    if (value.is_none()) return -1;
+    int n = 0;
+    try {
+        n = value.cast<int>();
+    } catch (const py::cast_error&) {
+        throw py::value_error(std::string(name) + " = " + std::string(py::repr(value)) +
+                              " is invalid; expected an iteration count >= 0 or None");
+    }
+    if (n < 0) bad_argument(name, std::to_string(n), "an iteration count >= 0 or None (the library's default)");
+    return n;
+}
+
+void check_callback(const py::object& callback) {
+    if (!callback.is_none() && !PyCallable_Check(callback.ptr()))
+        throw py::value_error("callback is not callable; expected callback(metrics: dict) -> bool | None, or None");
+}
+
+py::dict metrics_row(const StageMetrics& m) {
+    return py::dict("stage"_a = m.stage, "iteration"_a = m.iteration, "loss"_a = m.loss, "seconds"_a = m.seconds,
+                    "height_rel_rmse"_a = m.height_rel_rmse >= 0.0 ? m.height_rel_rmse : kNaN);
+}
+
+// The metrics.csv columns as arrays: stage (str), iteration (int64), loss, seconds,
+// height_rel_rmse (float64; NaN without a truth).
+py::dict metrics_columns(const std::vector<StageMetrics>& history) {
+    const auto n = static_cast<py::ssize_t>(history.size());
+    std::vector<std::int64_t> iteration;
+    std::vector<double> loss, seconds, error;
+    py::list stage;
+    for (const StageMetrics& m : history) {
+        stage.append(m.stage);
+        iteration.push_back(m.iteration);
+        loss.push_back(m.loss);
+        seconds.push_back(m.seconds);
+        error.push_back(m.height_rel_rmse >= 0.0 ? m.height_rel_rmse : kNaN);
+    }
+    py::dict d;
+    d["stage"] = py::module_::import("numpy").attr("array")(stage, "dtype"_a = "str");
+    d["iteration"] = owning_array(std::move(iteration), {n});
+    d["loss"] = owning_array(std::move(loss), {n});
+    d["seconds"] = owning_array(std::move(seconds), {n});
+    d["height_rel_rmse"] = owning_array(std::move(error), {n});
+    return d;
+}
+
+// Runs `work(on_step)` without the GIL. Every step is kept in `history` and, with the GIL
+// taken back, handed to `callback` (returning False stops: `stopped`); Ctrl-C and an exception
+// in the callback stop the run and are raised once it has returned.
+template <typename Work>
+Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& history, bool& stopped,
+                         Work&& work) {
+    bool python_error = false;
+    std::optional<Heightfield> estimate;
+    {
+        py::gil_scoped_release release;
+        estimate.emplace(work([&](const StageMetrics& m) {
+            history.push_back(m);
+            py::gil_scoped_acquire acquire;
+            if (PyErr_CheckSignals() != 0) {
+                python_error = true;
+                return false;
+            }
+            if (callback.is_none()) return true;
+            try {
+                py::object r = callback(metrics_row(m));
+                if (!r.is_none() && !r.cast<bool>()) {
+                    stopped = true;
+                    return false;
+                }
+            } catch (py::error_already_set& e) {
+                e.restore();  // raised again once the run has stopped
+                python_error = true;
+                return false;
+            } catch (const py::cast_error&) {
+                PyErr_SetString(PyExc_ValueError,
+                                "callback returned a value that is not a bool; expected True, False or None");
+                python_error = true;
+                return false;
+            }
+            return true;
+        }));
+    }
+    if (python_error) throw py::error_already_set();
+    return std::move(*estimate);
+}
+
+std::optional<Heightfield> optional_truth(const py::object& truth) {
+    if (truth.is_none()) return std::nullopt;
+    try {
+        return truth.cast<Heightfield>();
+    } catch (const py::cast_error&) {
+        throw py::value_error("truth is a " + std::string(py::str(py::type::of(truth).attr("__name__"))) +
+                              "; expected a Heightfield or None");
+    }
+}
+
+struct RecoveryResult {
+    py::object estimate, truth, observations, metrics;
+    std::vector<std::string> notes, warnings;
+    std::string method, loss, noise;
+    double height_range_um = 0.0;
+    bool stopped = false;
+};
+
+RecoveryResult recover(const py::object& truth_arg, const py::object& observations_arg, const py::object& size,
+                       const py::object& texel_arg, const py::object& vscale_arg, double height_range_um,
+                       double correlation_texels, const std::string& model, const py::object& light,
+                       double sigma_p_um, int resolution, const py::object& lambdas_um, double overlap, double jitter,
+                       const py::object& noise, const py::object& loss, const std::string& method,
+                       const py::object& field_iterations, const py::object& refine_iterations, int epochs,
+                       std::uint64_t seed, const py::object& callback) {
+    // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
+    RecoveryOptions options;
+    options.method = parse_recovery_method(method, "method");
+    options.noise = noise_argument(noise);
+    if (!loss.is_none()) options.loss = loss_argument(loss);
+    const std::array<int, 2> rc = size_argument(size);
+    options.rows = rc[0];
+    options.cols = rc[1];
+    const bool truth_object = py::isinstance<Heightfield>(truth_arg);
+    options.texel_um = texel_arg.is_none()
+                           ? (truth_object ? truth_arg.cast<const Heightfield&>().texel_um() : options.texel_um)
+                           : check_positive(texel_arg.cast<double>(), "texel_um");
+    options.vscale = vscale_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().vscale() : 1.0)
+                                          : check_finite(vscale_arg.cast<double>(), "vscale");
+    options.height_range_um = check_positive(height_range_um, "height_range_um");
+    options.correlation_texels = check_positive(correlation_texels, "correlation_texels");
+    options.model = model_from(model);
+    options.light = light_direction(light);
+    options.sigma_p_um = check_finite(sigma_p_um, "sigma_p_um");
+    options.resolution = planned_resolution(resolution);
+    options.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
+    options.overlap = check_finite(overlap, "overlap");
+    options.jitter = check_finite(jitter, "jitter");
+    options.field_iterations = optional_count(field_iterations, "field_iterations");
+    options.refine_iterations = optional_count(refine_iterations, "refine_iterations");
+    if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
+    options.epochs = epochs;
+    options.seed = seed;
+    check_callback(callback);
+    if (!truth_arg.is_none() && !observations_arg.is_none())
+        throw py::value_error("truth and observations exclude each other; expected one of them (or neither)");
+    if (options.noise.kind != NoiseKind::None && !observations_arg.is_none())
+        throw py::value_error("noise = '" + to_string(options.noise) +
+                              "' simulates noise on rendered observations; it needs a truth (or the generated "
+                              "default), not observations");
+
+    std::optional<Heightfield> truth;
+    std::vector<Observation> observations;
+    if (!observations_arg.is_none()) observations = observations_or_file(observations_arg);
+    else if (!truth_arg.is_none())
+        truth = heightfield_argument(truth_arg, "truth", options.texel_um, options.vscale,
+                                     !texel_arg.is_none() || !vscale_arg.is_none());
+
+    std::optional<PreparedRecovery> prepared;
+    {
+        py::gil_scoped_release release;
+        prepared = prepare_recovery(options, truth ? &*truth : nullptr, std::move(observations));
+    }
+    std::vector<StageMetrics> history;
+    RecoveryResult result;
+    const Heightfield estimate = run_released(callback, history, result.stopped, [&](const auto& on_step) {
+        return run_recovery(*prepared, on_step);
+    });
+    result.estimate = py::cast(estimate);
+    result.truth = prepared->truth ? py::cast(*prepared->truth) : py::none();
+    result.observations = py::cast(prepared->observations);
+    result.metrics = metrics_columns(history);
+    result.notes = prepared->notes;
+    result.warnings = prepared->warnings;
+    result.method = to_string(prepared->method);
+    result.loss = to_string(prepared->loss);
+    result.noise = to_string(prepared->noise);
+    result.height_range_um = prepared->range_um;
+    return result;
+}
+
+py::array positions_array(const AcquisitionPlan& plan) {
+    std::vector<double> v;
+    for (const auto& p : plan.positions_um) v.insert(v.end(), {p[0], p[1]});
+    return owning_array(std::move(v), {static_cast<py::ssize_t>(plan.positions_um.size()), 2});
+}
+
+const char* const kSettingsDoc = R"doc(
+observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
+              ones feed the blurred fit and the fields; all feed the refinement and Adam)
+size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
+truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
+callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse
+              (NaN without a truth)) after every reported step; return False to stop early
+              (the estimate so far is returned). The run releases the GIL; Ctrl-C stops it
+              at the next step (KeyboardInterrupt).
+)doc";
+
+}  // namespace
+
+void bind_recover(py::module_& m) {
+    // ---- planning ------------------------------------------------------------------------
+    py::class_<AcquisitionPlan>(m, "AcquisitionPlan", R"doc(
+What plan_acquisition proposes: footprint centres on a jittered raster over the periodic tile,
+a slice resolution that samples the window (Nyquist), and wavelengths whose synthetic
+wavelengths unwrap the height range. planned_observations / simulate_observations turn it
+into Observations (one per position and wavelength).
+)doc")
+        .def_readonly("sigma_p_um", &AcquisitionPlan::sigma_p_um, "footprint sigma_p, um")
+        .def_readonly("resolution", &AcquisitionPlan::resolution, "slice pixels per side")
+        .def_readonly("lambdas_um", &AcquisitionPlan::lambdas_um, "wavelengths in um, lambda0 first")
+        .def_readonly("synthetic_um", &AcquisitionPlan::synthetic_um,
+                      "the synthetic wavelengths lambda_a lambda_b / |lambda_a - lambda_b| in um, coarsest first")
+        .def_property_readonly("positions_um", &positions_array,
+                               "footprint centres (x_um, y_um), a float64 array (N, 2) (a copy)")
+        .def_property_readonly("step_um", [](const AcquisitionPlan& p) { return py::make_tuple(p.step_x_um, p.step_y_um); },
+                               "raster steps (x, y) in um")
+        .def_readonly("overlap", &AcquisitionPlan::overlap,
+                      "worst-case linear overlap 1 - d/D of neighbouring windows (D = 6 sigma_p), jitter included")
+        .def_property_readonly("light", [](const AcquisitionPlan& p) { return py::make_tuple(p.light[0], p.light[1]); },
+                               "projected light direction (wx, wy) of every observation")
+        .def_property_readonly("model", [](const AcquisitionPlan& p) { return std::string(to_string(p.model)); })
+        .def_readonly("notes", &AcquisitionPlan::notes, "the choices, one line each")
+        .def("__repr__", [](const AcquisitionPlan& p) {
+            return "AcquisitionPlan(" + std::to_string(p.positions_um.size()) + " positions, " +
+                   std::to_string(p.lambdas_um.size()) + " wavelength(s), " + std::to_string(p.resolution) + "x" +
+                   std::to_string(p.resolution) + " slices, sigma_p_um=" + format_number(p.sigma_p_um) + ")";
+        });
+
+    const PlanRequest pr;
+    m.def(
+        "plan_acquisition",
+        [](int rows, const py::object& cols, double texel_um, double height_range_um, double sigma_p_um,
+           double overlap, double jitter, double lambda_um, double lambda_min_um, double lambda_max_um,
+           double max_step_ratio, const py::object& lambdas_um, int resolution, const py::object& light,
+           const std::string& model, std::uint64_t seed) {
+            PlanRequest r;
+            if (rows < 1) bad_argument("rows", std::to_string(rows), "at least 1 texel");
+            r.rows = rows;
+            r.cols = cols.is_none() ? rows : cols.cast<int>();
+            if (r.cols < 1) bad_argument("cols", std::to_string(r.cols), "at least 1 texel");
+            r.texel_um = texel_um;  // the planner names texel_um, sigma_p_um, overlap, jitter, lambda_min/max_um
+            if (!std::isfinite(height_range_um) || height_range_um < 0.0)
+                bad_argument("height_range_um", format_number(height_range_um), "a peak-to-valley height >= 0 (um)");
+            r.height_range_um = height_range_um;
+            r.sigma_p_um = sigma_p_um;
+            r.overlap = overlap;
+            r.jitter = jitter;
+            if (!std::isfinite(lambda_um) || !(lambda_um >= lambda_min_um && lambda_um <= lambda_max_um))
+                bad_argument("lambda_um", format_number(lambda_um),
+                             "a base wavelength within lambda_min_um ... lambda_max_um (" + format_number(lambda_min_um) +
+                                 " to " + format_number(lambda_max_um) + " um)");
+            r.lambda_um = lambda_um;
+            r.lambda_min_um = lambda_min_um;
+            r.lambda_max_um = lambda_max_um;
+            if (!(max_step_ratio >= 1.5 && max_step_ratio <= 100.0))
+                bad_argument("max_step_ratio", format_number(max_step_ratio), "1.5 to 100");
+            r.max_step_ratio = max_step_ratio;
+            r.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
+            r.resolution = planned_resolution(resolution);
+            r.light = light_direction(light);
+            r.model = model_from(model);
+            r.seed = seed;
+            return plan_acquisition(r);
+        },
+        py::kw_only(), "rows"_a = pr.rows, "cols"_a = py::none(), "texel_um"_a = pr.texel_um,
+        "height_range_um"_a = pr.height_range_um, "sigma_p_um"_a = pr.sigma_p_um, "overlap"_a = pr.overlap,
+        "jitter"_a = pr.jitter, "lambda_um"_a = pr.lambda_um, "lambda_min_um"_a = pr.lambda_min_um,
+        "lambda_max_um"_a = pr.lambda_max_um, "max_step_ratio"_a = pr.max_step_ratio, "lambdas_um"_a = py::none(),
+        "resolution"_a = 0, "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "seed"_a = pr.seed, R"doc(
+An acquisition that determines the heights of a rows x cols tile (plan.h): returns an
+AcquisitionPlan. Keyword arguments (PlanRequest's fields):
+
+rows, cols       heightfield size in texels (>= 1; cols defaults to rows); texel_um > 0 (um)
+height_range_um  expected peak-to-valley of the heights, um (>= 0): sets the wavelength ladder
+sigma_p_um       footprint sigma_p, um (> 0; 0: 1.5 texels). Window support D = 6 sigma_p.
+overlap          worst-case linear overlap 1 - d/D of neighbouring windows, 0.6 ... 0.95
+jitter           position jitter, fraction of the raster step, 0 ... 0.3
+lambda_um        base wavelength lambda0 (um), within lambda_min_um ... lambda_max_um (the
+                 wavelengths the ladder may use); max_step_ratio: ladder step, 1.5 ... 100
+lambdas_um       given wavelengths (um) instead of the ladder; None: planned
+resolution       given slice size n (1...8192) instead of Nyquist's n >= 4D/lambda; 0: planned
+light            projected light direction (wx, wy), wx^2 + wy^2 < 1; model: 'OHS', 'ROHS', ...
+seed             the jitter
+A height range the wavelengths cannot unwrap is a ValueError naming the largest they can.
+)doc");
+
+    m.def(
+        "planned_observations",
+        [](const AcquisitionPlan& plan) {
+            std::vector<Observation> list = planned_observations(plan);
+            // The library leaves references empty; Python's Observation always holds a slice.
+            for (Observation& o : list)
+                o.reference.assign(std::size_t(o.resolution) * o.resolution * std::size_t(o.channels()), 0.0);
+            return list;
+        },
+        "plan"_a,
+          "One Observation per (position, wavelength) of `plan`, with zero references (fill them with\n"
+          "measurements, or use simulate_observations).");
+    m.def(
+        "simulate_observations",
+        [](const Heightfield& truth, const AcquisitionPlan& plan, const py::object& noise, std::uint64_t seed) {
+            const Noise n = noise_argument(noise);
+            py::gil_scoped_release release;
+            return simulate_observations(truth, plan, n, seed);
+        },
+        "truth"_a, "plan"_a, "noise"_a = "none", "seed"_a = 1, R"doc(
+The planned observations of `truth` (a Heightfield), rendered in double precision, with
+`noise` added: 'none', 'poisson:N' (N photons expected per slice, > 0) or 'gaussian:REL'
+(sigma REL x the slice's peak, >= 0, clamped at 0). Observation i's noise is drawn from
+(seed, i). Returns a list of Observations.
+)doc");
+
+    m.def(
+        "add_noise",
+        [](const py::object& values, const py::object& noise, std::uint64_t seed) -> py::object {
+            const Noise n = noise_argument(noise);
+            if (py::isinstance<Observation>(values) || py::isinstance<py::list>(values) ||
+                py::isinstance<py::tuple>(values)) {
+                std::vector<Observation> list = observations_argument(values);
+                add_noise(list, n, seed);
+                return py::cast(list);
+            }
+            const py::array a = float_array(values, "values");
+            std::vector<double> v = to_doubles(a, "values");
+            for (std::size_t k = 0; k < v.size(); ++k)
+                if (v[k] < 0.0)
+                    throw py::value_error("values has a negative value " + format_number(v[k]) +
+                                          "; expected a slice of non-negative values");
+            std::vector<double> noisy = add_noise(v, n, seed);
+            return owning_array(std::move(noisy), std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()));
+        },
+        "values"_a, "noise"_a, "seed"_a = 1, R"doc(
+Simulated measurement noise (noise.h), deterministic in `seed`.
+
+values  a slice (float array of non-negative values, any shape: one slice) -> a new float64
+        array of that shape; or Observation(s) -> a new list with noisy references, observation
+        i seeded from (seed, i)
+noise   'none', 'poisson:N' (photon noise, N photons expected per slice, > 0; a slice summing to
+        0 is unchanged) or 'gaussian:REL' (additive, sigma = REL x max, REL >= 0, clamped at 0)
+)doc");
+
+    m.def(
+        "check_acquisition",
+        [](const py::object& observations, const py::object& size, double texel_um, const py::object& truth) {
+            const std::vector<Observation> list = observations_argument(observations);
+            const std::array<int, 2> rc = size_argument(size);
+            check_positive(texel_um, "texel_um");
+            const std::optional<Heightfield> t = optional_truth(truth);
+            return check_acquisition(list, rc[0], rc[1], texel_um, t ? &*t : nullptr);
+        },
+        "observations"_a, "size"_a, "texel_um"_a, "truth"_a = py::none(), R"doc(
+Warnings (a list of str, empty when all is well) for observations too coarse or too sparse to
+determine the heights of a tile of `size` = N or (rows, cols) texels of texel_um (um):
+neighbouring windows overlapping < 60 %, texels farther than 2 sigma_p from every footprint,
+slices sampling u more than 4x as coarsely as Nyquist, fewer values than heights, and (with a
+truth Heightfield) slopes that reflect light off the slice.
+)doc");
+
+    // ---- recovery --------------------------------------------------------------------------
+    const RecoverSettings rs;
+    m.def(
+        "recover_heights",
+        [](const py::object& observations, const py::object& size, double texel_um, double vscale,
+           const py::object& truth, const std::vector<double>& blur_widths, int blur_iterations, int blur_wavelengths,
+           double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit,
+           int refine, double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
+           const py::object& refine_loss, const py::object& callback) {
+            const std::vector<Observation> list = observations_or_file(observations);
+            const std::array<int, 2> rc = size_argument(size);
+            check_positive(texel_um, "texel_um");
+            check_finite(vscale, "vscale");
+            if (vscale == 0.0) bad_argument("vscale", "0", "a non-zero vertical scale");
+            RecoverSettings s;
+            for (double w : blur_widths)
+                if (!std::isfinite(w) || w <= 0.0)
+                    bad_argument("blur_widths", format_number(w), "widths > 0 (in footprint lobes), widest first");
+            s.blurred.blur_widths = blur_widths;
+            if (blur_iterations < 0) bad_argument("blur_iterations", std::to_string(blur_iterations), ">= 0");
+            s.blurred.iterations = blur_iterations;
+            if (blur_wavelengths < 0) bad_argument("blur_wavelengths", std::to_string(blur_wavelengths), ">= 0 (0: all)");
+            s.blur_wavelengths = blur_wavelengths;
+            if (!std::isfinite(blur_spacing_sigma) || blur_spacing_sigma < 0.0)
+                bad_argument("blur_spacing_sigma", format_number(blur_spacing_sigma), ">= 0 (0: all positions)");
+            s.blur_spacing_sigma = blur_spacing_sigma;
+            if (field_iterations < 0) bad_argument("field_iterations", std::to_string(field_iterations), ">= 0");
+            s.field.iterations = field_iterations;
+            if (field_passes < 1) bad_argument("field_passes", std::to_string(field_passes), ">= 1");
+            s.field_passes = field_passes;
+            s.cascade = cascade;
+            s.field.band_limit = band_limit;
+            if (refine < 0 || (refine > 0 && refine % 2 == 0) || refine > 63)
+                bad_argument("refine", std::to_string(refine), "0 (automatic) or an odd object-grid refinement 1...63");
+            s.refine = refine;
+            s.max_range_um = check_positive(max_range_um, "max_range_um");
+            s.unwrap_from_blurred = unwrap_from_blurred;
+            if (refine_iterations < 0) bad_argument("refine_iterations", std::to_string(refine_iterations), ">= 0");
+            s.refine_iterations = refine_iterations;
+            if (refine_history < 1) bad_argument("refine_history", std::to_string(refine_history), ">= 1");
+            s.refine_history = refine_history;
+            s.refine_loss = loss_argument(refine_loss);
+            const std::optional<Heightfield> t = optional_truth(truth);
+            check_callback(callback);
+            std::vector<StageMetrics> history;
+            bool stopped = false;
+            return run_released(callback, history, stopped, [&](const auto& on_step) {
+                return recover_heights(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr);
+            });
+        },
+        "observations"_a, "size"_a, "texel_um"_a, "vscale"_a = 1.0, py::kw_only(), "truth"_a = py::none(),
+        "blur_widths"_a = rs.blurred.blur_widths, "blur_iterations"_a = rs.blurred.iterations,
+        "blur_wavelengths"_a = rs.blur_wavelengths, "blur_spacing_sigma"_a = rs.blur_spacing_sigma,
+        "field_iterations"_a = rs.field.iterations, "field_passes"_a = rs.field_passes, "cascade"_a = rs.cascade,
+        "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.max_range_um,
+        "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
+        "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss),
+        "callback"_a = py::none(),
+        (std::string(R"doc(
+The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
+phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
+on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
+vscale). Settings (defaults: the library's, in the signature):
+
+blur_widths         blurred fit: blur widths in footprint lobes, widest first ([] : start the
+                    fields from flat); blur_iterations: L-BFGS per width (>= 0)
+blur_wavelengths    the blurred fit uses this many longest wavelengths (0: all), at positions
+                    at least blur_spacing_sigma sigma_p apart (0: all)
+field_iterations    L-BFGS iterations of each field retrieval (>= 0); field_passes >= 1;
+                    cascade: each field starts from the heights of the fields before it;
+                    band_limit: keep only the object's spectrum the slices see
+refine              odd object-grid refinement 1...63 (0: automatic)
+max_range_um        bound on the height range for unwrapping (um, > 0)
+unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
+refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
+                    refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
+Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
+)doc") + kSettingsDoc).c_str());
+
+    const BaselineSettings bs;
+    m.def(
+        "recover_heights_thesis",
+        [](const py::object& observations, const py::object& size, double texel_um, double vscale,
+           const py::object& truth, int epochs, double lr, double beta1, double beta2, double decay,
+           const py::object& loss, std::uint64_t seed, int report_every, const py::object& callback) {
+            const std::vector<Observation> list = observations_or_file(observations);
+            const std::array<int, 2> rc = size_argument(size);
+            check_positive(texel_um, "texel_um");
+            check_finite(vscale, "vscale");
+            BaselineSettings s;
+            if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
+            s.epochs = epochs;
+            s.adam = AdamOptions{lr, beta1, beta2, s.adam.epsilon, decay};
+            { Adam check(1, s.adam); }  // the Adam options, with the library's messages
+            s.loss = loss_argument(loss);
+            s.seed = seed;
+            if (report_every < 1) bad_argument("report_every", std::to_string(report_every), "a number of epochs >= 1");
+            s.report_every = report_every;
+            const std::optional<Heightfield> t = optional_truth(truth);
+            check_callback(callback);
+            std::vector<StageMetrics> history;
+            bool stopped = false;
+            return run_released(callback, history, stopped, [&](const auto& on_step) {
+                return recover_heights_thesis(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr);
+            });
+        },
+        "observations"_a, "size"_a, "texel_um"_a, "vscale"_a = 1.0, py::kw_only(), "truth"_a = py::none(),
+        "epochs"_a = bs.epochs, "lr"_a = bs.adam.lr, "beta1"_a = bs.adam.beta1, "beta2"_a = bs.adam.beta2,
+        "decay"_a = bs.adam.decay, "loss"_a = to_string(bs.loss), "seed"_a = bs.seed,
+        "report_every"_a = bs.report_every, "callback"_a = py::none(),
+        (std::string(R"doc(
+The thesis's method as a baseline (baseline.h): Adam on `loss` (default cmsle:1), one
+observation drawn at random (from `seed`) per epoch, from a flat start. Returns a Heightfield.
+epochs >= 0; lr > 0, beta1 and beta2 in [0, 1), decay >= 0 per epoch (the thesis's 0.01, 0.9,
+0.99, 0.005); the callback sees stage 'thesis' every report_every (>= 1) epochs and the last.
+)doc") + kSettingsDoc).c_str());
+
+    m.def(
+        "height_rel_rmse",
+        [](const Heightfield& estimate, const Heightfield& truth) { return height_rel_rmse(estimate, truth); },
+        "estimate"_a, "truth"_a,
+        "RMS of (estimate - truth) in um after removing each one's mean, divided by the truth's\n"
+        "peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat.");
+    m.def(
+        "with_height_range",
+        [](const Heightfield& heightfield, double range_um) {
+            return with_height_range(heightfield, check_positive(range_um, "range_um"));
+        },
+        "heightfield"_a, "range_um"_a,
+        "`heightfield` scaled about its mean to the peak-to-valley height range_um (um, > 0); texel\n"
+        "width and vscale unchanged. A flat heightfield is a ValueError.");
+
+    // ---- the CLI's run -----------------------------------------------------------------------
+    py::class_<RecoveryResult>(m, "RecoveryResult", "What recover() returns.")
+        .def_readonly("estimate", &RecoveryResult::estimate, "the recovered Heightfield")
+        .def_readonly("truth", &RecoveryResult::truth, "the truth Heightfield (given or generated; None with observations)")
+        .def_readonly("observations", &RecoveryResult::observations, "the Observations recovered from (simulated or given)")
+        .def_readonly("notes", &RecoveryResult::notes, "the plan's choices, one line each (empty with observations)")
+        .def_readonly("warnings", &RecoveryResult::warnings, "check_acquisition's warnings")
+        .def_readonly("metrics", &RecoveryResult::metrics, R"doc(
+dict of arrays, one entry per reported step (the CLI's metrics.csv columns): stage (str),
+iteration (int64), loss, seconds (since the recovery started), height_rel_rmse (float64; NaN
+without a truth or before heights exist).
+)doc")
+        .def_readonly("method", &RecoveryResult::method, "'pipeline' or 'thesis'")
+        .def_readonly("loss", &RecoveryResult::loss, "the loss fitted, as a spec")
+        .def_readonly("noise", &RecoveryResult::noise, "the simulated noise, as a spec")
+        .def_readonly("height_range_um", &RecoveryResult::height_range_um,
+                      "the truth's peak-to-valley (um), or the bound given with observations")
+        .def_readonly("stopped", &RecoveryResult::stopped, "True when the callback stopped the run early");
+
+    const RecoveryOptions ro;
+    m.def("recover", &recover, "truth"_a = py::none(), "observations"_a = py::none(), py::kw_only(),
+          "size"_a = ro.rows, "texel_um"_a = py::none(), "vscale"_a = py::none(),
+          "height_range_um"_a = ro.height_range_um, "correlation_texels"_a = ro.correlation_texels, "model"_a = "OHS",
+          "light"_a = py::make_tuple(0.0, 0.0), "sigma_p_um"_a = ro.sigma_p_um, "resolution"_a = ro.resolution,
+          "lambdas_um"_a = py::none(), "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none",
+          "loss"_a = py::none(), "method"_a = "pipeline", "field_iterations"_a = py::none(),
+          "refine_iterations"_a = py::none(), "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(),
+          R"doc(
+Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
+options and seed give the same estimate. Returns a RecoveryResult.
+
+truth         Heightfield, 2-D array (texel units) or EXR path: the acquisition is planned for
+              it and its observations simulated. Default: a generated isotropic surface of
+              `size` (correlation_texels, peak-to-valley height_range_um, `seed`). Excludes
+              `observations`.
+observations  Observation(s) or a JSON path (the CLI's --observations): recovered as given, on
+              a `size` grid, with height_range_um as the bound for unwrapping
+size          N or (rows, cols), 1...16384 (default 32)
+texel_um      texel width in um (> 0), vscale: vertical scale; default the truth Heightfield's,
+              else 2 um and 1. Given, they apply to the truth and the estimate.
+height_range_um  generated truth: peak-to-valley in um (> 0, default 2: +-1 um); with
+              observations: bound on the height range
+correlation_texels  generated truth: correlation length in texels (> 0)
+model         'OHS' or 'ROHS' (the field retrieval is separable); light: (wx, wy), |w| < 1
+sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
+resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
+lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
+overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95; jitter 0 ... 0.3
+noise         simulated noise: 'none', 'poisson:N' (photons per slice) or 'gaussian:REL'
+loss          a spec or Loss; None: matched to the noise for the pipeline (amplitude without
+              noise, poisson:N, mse), cmsle:1 for the thesis's method
+method        'pipeline' (blurred fit, field retrieval, unwrapping, refinement) or 'thesis'
+              (Adam, one observation per epoch)
+field_iterations, refine_iterations  pipeline iterations (>= 0; None: the library's)
+epochs        thesis method: Adam epochs (>= 0)
+seed          generated truth, position jitter, noise, the thesis's draws
+callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse)
+              after every reported step; return False to stop early.
+The run releases the GIL; Ctrl-C stops it at the next step (KeyboardInterrupt).
+)doc");
+}
+
+}  // namespace wavebrdf::python
