@@ -6,6 +6,9 @@
 // runs on the calling thread only.
 #include <omp.h>
 
+#include <cstddef>
+#include <vector>
+
 namespace wavebrdf::detail {
 
 constexpr long long kParallelWork = 1LL << 16;  // loop iterations × inner entries
@@ -26,6 +29,31 @@ void for_column_blocks(long long columns, double multiply_adds, Body&& body) {
         const long long first = columns * b / blocks, last = columns * (b + 1) / blocks;
         if (last > first) body(first, last - first);
     }
+}
+
+// Σ_i body(i, local) over i = 0…count−1, and the sum of the vectors each call adds into
+// `local` (sized like `total`, zeroed) added into `total`, on all threads when `parallel`.
+// Reproducible for a given thread count: a static schedule gives every thread the same items
+// on every call, and the per-thread partial sums are combined in thread order afterwards (an
+// OpenMP reduction or a critical section combines them in whatever order threads finish).
+template <typename T, typename Body>
+double ordered_parallel_sum(std::size_t count, std::vector<T>& total, bool parallel, Body&& body) {
+    const int threads = parallel ? omp_get_max_threads() : 1;
+    std::vector<std::vector<T>> locals(static_cast<std::size_t>(threads));
+    std::vector<double> values(static_cast<std::size_t>(threads), 0.0);
+#pragma omp parallel num_threads(threads) if (threads > 1)
+    {
+        const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
+        locals[t].assign(total.size(), T(0));
+#pragma omp for schedule(static)
+        for (std::size_t i = 0; i < count; ++i) values[t] += body(i, locals[t]);
+    }
+    double value = 0.0;
+    for (std::size_t t = 0; t < locals.size(); ++t) {
+        value += values[t];
+        for (std::size_t k = 0; k < locals[t].size(); ++k) total[k] += locals[t][k];
+    }
+    return value;
 }
 
 }  // namespace wavebrdf::detail

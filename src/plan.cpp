@@ -125,7 +125,10 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
 
     // Positions: a raster whose worst-case (jittered) neighbour distance keeps the overlap.
     const double period_x = r.rows * r.texel_um, period_y = r.cols * r.texel_um;
-    const double max_step = (1.0 - r.overlap) * d_um / (1.0 + 2.0 * r.jitter);
+    // Worst case of two neighbours along x: jittered apart by up to 2·jitter·step along x and
+    // across it (y) as well, so step·√((1 + 2j)² + (2j)²) apart.
+    const double spread = std::hypot(1.0 + 2.0 * r.jitter, 2.0 * r.jitter);
+    const double max_step = (1.0 - r.overlap) * d_um / spread;
     const int nx = std::max(1, static_cast<int>(std::ceil(period_x / max_step - 1e-9)));
     const int ny = std::max(1, static_cast<int>(std::ceil(period_y / max_step - 1e-9)));
     plan.step_x_um = period_x / nx;
@@ -137,7 +140,7 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
             const double jy = (2.0 * detail::uniform01(rng) - 1.0) * r.jitter * plan.step_y_um;
             plan.positions_um.push_back({(i + 0.5) * plan.step_x_um + jx, (j + 0.5) * plan.step_y_um + jy});
         }
-    plan.overlap = 1.0 - std::max(plan.step_x_um, plan.step_y_um) * (1.0 + 2.0 * r.jitter) / d_um;
+    plan.overlap = 1.0 - std::max(plan.step_x_um, plan.step_y_um) * spread / d_um;
 
     // Resolution: Nyquist for the window at the shortest wavelength.
     const double lambda_short = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());

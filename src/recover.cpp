@@ -11,6 +11,7 @@
 #include <string>
 
 #include "wavebrdf/optim.h"
+#include "parallel.h"
 
 namespace wavebrdf {
 
@@ -188,20 +189,13 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             const Heightfield hf = flat.with_values(x);
             g.assign(x.size(), 0.0);
-            double value = 0.0;
             const double scale = 1.0 / double(observations.size());
-#pragma omp parallel reduction(+ : value)
-            {
-                std::vector<double> local(x.size(), 0.0), one;
-#pragma omp for schedule(dynamic)
-                for (std::size_t i = 0; i < observations.size(); ++i) {
-                    value += scale * observation_loss(hf, {observations[i]}, settings.refine_loss, &one);
-                    for (std::size_t k = 0; k < one.size(); ++k) local[k] += scale * one[k];
-                }
-#pragma omp critical
-                for (std::size_t k = 0; k < local.size(); ++k) g[k] += local[k];
-            }
-            return value;
+            return detail::ordered_parallel_sum(observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
+                std::vector<double> one;
+                const double v = scale * observation_loss(hf, {observations[i]}, settings.refine_loss, &one);
+                for (std::size_t k = 0; k < one.size(); ++k) local[k] += scale * one[k];
+                return v;
+            });
         };
         LbfgsOptions lo;
         lo.history = settings.refine_history;

@@ -19,6 +19,8 @@
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
 
+#include "parallel.h"
+
 namespace wavebrdf {
 
 namespace {
@@ -95,40 +97,32 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
             const Heightfield hf = initial.with_values(x);
             grad.assign(x.size(), 0.0);
-            double value = 0.0;
-#pragma omp parallel reduction(+ : value)
-            {
-                std::vector<double> local(x.size(), 0.0);
-#pragma omp for schedule(dynamic)
-                for (std::size_t i = 0; i < used.size(); ++i) {
-                    const Observation& o = *used[i];
-                    const Blurred& d = data[i];
-                    const int n = d.n_coarse;
-                    // Single precision: this stage only needs the shape (and is the costliest).
-                    SliceAdjoint<float> slice(hf, o.query, o.lambdas_um[0], n);
-                    const std::vector<float>& f = slice.slice();
-                    const Eigen::MatrixXd m =
-                        d.model_blur * as_matrix(std::vector<double>(f.begin(), f.end()), n) * d.model_blur.transpose();
-                    Eigen::MatrixXd dm(n, n);
-                    double v = 0.0;
-                    for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) {
-                            const double a = std::sqrt(std::max(m(p, q), 0.0) + 1e-300);
-                            const double diff = a - std::sqrt(d.reference(p, q));
-                            v += diff * diff;
-                            dm(p, q) = m(p, q) > 0.0 ? inv_total * diff / a : 0.0;
-                        }
-                    value += v * inv_total;
-                    const Eigen::MatrixXd w = d.model_blur.transpose() * dm * d.model_blur;
-                    std::vector<float> weights(std::size_t(n) * n);
-                    for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = float(w(p, q));
-                    slice.backward(weights, local);
-                }
-#pragma omp critical
-                for (std::size_t k = 0; k < local.size(); ++k) grad[k] += local[k];
-            }
-            return value;
+            return detail::ordered_parallel_sum(used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
+                const Observation& o = *used[i];
+                const Blurred& d = data[i];
+                const int n = d.n_coarse;
+                // Single precision: this stage only needs the shape (and is the costliest).
+                SliceAdjoint<float> slice(hf, o.query, o.lambdas_um[0], n);
+                const std::vector<float>& f = slice.slice();
+                const Eigen::MatrixXd m =
+                    d.model_blur * as_matrix(std::vector<double>(f.begin(), f.end()), n) * d.model_blur.transpose();
+                Eigen::MatrixXd dm(n, n);
+                double v = 0.0;
+                for (int p = 0; p < n; ++p)
+                    for (int q = 0; q < n; ++q) {
+                        const double a = std::sqrt(std::max(m(p, q), 0.0) + 1e-300);
+                        const double diff = a - std::sqrt(d.reference(p, q));
+                        v += diff * diff;
+                        dm(p, q) = m(p, q) > 0.0 ? inv_total * diff / a : 0.0;
+                    }
+                const double term = v * inv_total;
+                const Eigen::MatrixXd w = d.model_blur.transpose() * dm * d.model_blur;
+                std::vector<float> weights(std::size_t(n) * n);
+                for (int p = 0; p < n; ++p)
+                    for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = float(w(p, q));
+                slice.backward(weights, local);
+                return term;
+            });
         };
         LbfgsOptions lo;
         lo.history = settings.history;

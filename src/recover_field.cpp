@@ -18,6 +18,7 @@
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
+#include "parallel.h"
 
 namespace wavebrdf {
 
@@ -319,14 +320,10 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     // = 2(√c1|Ψ| − √R) √c1 Ψ/|Ψ| / ΣR, the gradient G = ∂L/∂Re O + i ∂L/∂Im O is Aᴴ g.
     const double inv_total = 1.0 / total;
     const auto loss = [&](const std::complex<double>* obj, std::vector<std::complex<double>>& grad) {
-        double value = 0.0;
         grad.assign(texels, 0.0);
-#pragma omp parallel reduction(+ : value) if (slices.size() > 1)
-        {
-            std::vector<std::complex<double>> local(texels, 0.0);
-            Eigen::MatrixXcf psi, g;
-#pragma omp for schedule(dynamic)
-            for (std::size_t i = 0; i < slices.size(); ++i) {
+        return detail::ordered_parallel_sum(
+            slices.size(), grad, slices.size() > 1, [&](std::size_t i, std::vector<std::complex<double>>& local) {
+                Eigen::MatrixXcf psi, g;
                 const Slice& s = slices[i];
                 const auto& impl = FieldAccess::impl(s.op);
                 impl.forward(obj, psi);
@@ -340,13 +337,9 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                         v += diff * diff;
                         g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
                     }
-                value += v * inv_total;
                 impl.adjoint_add(g, local.data());
-            }
-#pragma omp critical
-            for (std::size_t t = 0; t < texels; ++t) grad[t] += local[t];
-        }
-        return value;
+                return v * inv_total;
+            });
     };
 
     // Unknowns: the object's spectrum inside the band the slices see (unitary DFT of the

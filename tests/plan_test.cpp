@@ -227,3 +227,28 @@ TEST(PlanTest, GivenWavelengthsAndResolutionReplaceThePlannedOnes) {
     r.lambdas_um = {0.5, -1.0};
     EXPECT_THROW(plan_acquisition(r), std::domain_error);
 }
+
+// Not only each window's nearest neighbour: the raster neighbours along x and along y overlap
+// by the requested amount too, also at the largest jitter (which moves them across the axis).
+TEST(PlanTest, RasterNeighboursOverlapAtTheLargestJitter) {
+    PlanRequest r;
+    r.rows = r.cols = 40;
+    r.texel_um = 2.0;
+    r.overlap = 0.6;
+    r.jitter = 0.3;
+    for (std::uint64_t seed : {1, 2, 3}) {
+        r.seed = seed;
+        const AcquisitionPlan plan = plan_acquisition(r);
+        const double px = r.rows * r.texel_um, py = r.cols * r.texel_um, d = 6.0 * plan.sigma_p_um;
+        const int nx = static_cast<int>(std::lround(px / plan.step_x_um)), ny = static_cast<int>(std::lround(py / plan.step_y_um));
+        ASSERT_EQ(std::size_t(nx) * ny, plan.positions_um.size());
+        double worst = 0.0;
+        for (int i = 0; i < nx; ++i)
+            for (int j = 0; j < ny; ++j) {
+                const auto& p = plan.positions_um[std::size_t(i) * ny + j];
+                worst = std::max(worst, periodic_distance(p, plan.positions_um[std::size_t((i + 1) % nx) * ny + j], px, py));
+                worst = std::max(worst, periodic_distance(p, plan.positions_um[std::size_t(i) * ny + (j + 1) % ny], px, py));
+            }
+        EXPECT_GE(1.0 - worst / d, r.overlap) << "seed " << seed;
+    }
+}
