@@ -94,4 +94,51 @@ void bind_optim(py::module_& m);
 void bind_invert(py::module_& m);
 void bind_recover(py::module_& m);
 
+// A Python callback for C++ work that runs without the GIL (long inversions and recoveries).
+// step(invoke) takes the GIL, notices Ctrl-C, and when a callback was given calls
+// invoke(callback) (which builds the arguments under the GIL); it returns whether the work
+// should go on: false when the callback returned False (then stopped()), on Ctrl-C, or when
+// the callback raised or returned a non-bool (kept, and raised by rethrow_if_failed() once
+// the work has returned).
+class ReleasedCallback {
+public:
+    explicit ReleasedCallback(py::object callback) : m_callback(std::move(callback)) {}
+
+    template <typename Invoke>
+    bool step(Invoke&& invoke) {
+        py::gil_scoped_acquire acquire;
+        if (PyErr_CheckSignals() != 0) return fail();
+        if (m_callback.is_none()) return true;
+        try {
+            const py::object r = invoke(m_callback);
+            if (!r.is_none() && !r.cast<bool>()) {
+                m_stopped = true;
+                return false;
+            }
+        } catch (py::error_already_set& e) {
+            e.restore();  // raised again once the work has stopped
+            return fail();
+        } catch (const py::cast_error&) {
+            PyErr_SetString(PyExc_ValueError, "callback returned a value that is not a bool; expected True, False or None");
+            return fail();
+        }
+        return true;
+    }
+
+    bool stopped() const { return m_stopped; }
+    // Call with the GIL held, after the work has returned.
+    void rethrow_if_failed() const {
+        if (m_failed) throw py::error_already_set();
+    }
+
+private:
+    bool fail() {
+        m_failed = true;
+        return false;
+    }
+
+    py::object m_callback;
+    bool m_stopped = false, m_failed = false;
+};
+
 }  // namespace wavebrdf::python

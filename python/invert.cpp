@@ -193,38 +193,19 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
 
     // Run without the GIL; each epoch takes it back to call `callback` and to notice Ctrl-C.
     std::vector<std::vector<double>> last_slices;
-    bool python_error = false, stopped = false;
+    ReleasedCallback python_callback(callback);
     {
         py::gil_scoped_release release;
         inversion.run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>&,
                           const std::vector<std::vector<double>>& slices) {
             last_slices = slices;
-            py::gil_scoped_acquire acquire;
-            if (PyErr_CheckSignals() != 0) {
-                python_error = true;
-                return false;
-            }
-            if (callback.is_none()) return true;
-            try {
-                py::object r = callback(epoch_dict(metrics),
-                                        owning_array(std::vector<double>(estimate.values()), {estimate.rows(), estimate.cols()}));
-                if (!r.is_none() && !r.cast<bool>()) {
-                    stopped = true;
-                    return false;
-                }
-            } catch (py::error_already_set& e) {
-                e.restore();  // raised again once the run has stopped
-                python_error = true;
-                return false;
-            } catch (const py::cast_error&) {
-                PyErr_SetString(PyExc_ValueError, "callback returned a value that is not a bool; expected True, False or None");
-                python_error = true;
-                return false;
-            }
-            return true;
+            return python_callback.step([&](const py::object& f) {
+                return f(epoch_dict(metrics),
+                         owning_array(std::vector<double>(estimate.values()), {estimate.rows(), estimate.cols()}));
+            });
         });
     }
-    if (python_error) throw py::error_already_set();
+    python_callback.rethrow_if_failed();
 
     InversionResult result;
     result.estimate = py::cast(inversion.estimate());
@@ -236,7 +217,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
         finals.append(observation_array(std::move(last_slices[i]), observations[i]));
     result.final_slices = finals;
     result.epochs = inversion.epoch();
-    result.stopped = stopped;
+    result.stopped = python_callback.stopped();
     return result;
 }
 

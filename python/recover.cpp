@@ -112,38 +112,17 @@ py::dict metrics_columns(const std::vector<StageMetrics>& history) {
 template <typename Work>
 Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& history, bool& stopped,
                          Work&& work) {
-    bool python_error = false;
+    ReleasedCallback python_callback(callback);
     std::optional<Heightfield> estimate;
     {
         py::gil_scoped_release release;
         estimate.emplace(work([&](const StageMetrics& m) {
             history.push_back(m);
-            py::gil_scoped_acquire acquire;
-            if (PyErr_CheckSignals() != 0) {
-                python_error = true;
-                return false;
-            }
-            if (callback.is_none()) return true;
-            try {
-                py::object r = callback(metrics_row(m));
-                if (!r.is_none() && !r.cast<bool>()) {
-                    stopped = true;
-                    return false;
-                }
-            } catch (py::error_already_set& e) {
-                e.restore();  // raised again once the run has stopped
-                python_error = true;
-                return false;
-            } catch (const py::cast_error&) {
-                PyErr_SetString(PyExc_ValueError,
-                                "callback returned a value that is not a bool; expected True, False or None");
-                python_error = true;
-                return false;
-            }
-            return true;
+            return python_callback.step([&](const py::object& f) { return f(metrics_row(m)); });
         }));
     }
-    if (python_error) throw py::error_already_set();
+    python_callback.rethrow_if_failed();
+    stopped = python_callback.stopped();
     return std::move(*estimate);
 }
 
