@@ -14,6 +14,7 @@
 
 using namespace wavebrdf;
 using wavebrdf::test::uniform_vector;
+using wavebrdf::test::expect_throw_naming;
 
 namespace {
 
@@ -34,17 +35,6 @@ double finite_difference(const Loss& loss, std::vector<double> estimate, const s
     return (4.0 * d_half - d_h) / 3.0;
 }
 
-// Expects `fn` to throw `Exception` with `text` inside its message.
-template <typename Exception, typename Fn>
-void expect_throw_naming(Fn fn, const std::string& text) {
-    try {
-        fn();
-        ADD_FAILURE() << "no exception; expected one naming '" << text << "'";
-    } catch (const Exception& e) {
-        EXPECT_NE(std::string(e.what()).find(text), std::string::npos)
-            << "message '" << e.what() << "' does not name '" << text << "'";
-    }
-}
 
 const Loss kLosses[] = {{LossKind::CMSLE, 1.0},
                         {LossKind::CMSLE, 0.01},

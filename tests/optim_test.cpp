@@ -18,6 +18,7 @@
 
 using namespace wavebrdf;
 using wavebrdf::test::uniform_vector;
+using wavebrdf::test::expect_throw_naming;
 
 namespace {
 
@@ -41,17 +42,6 @@ double rosenbrock(const std::vector<double>& x, std::vector<double>& g) {
     g[0] = -2.0 * a - 400.0 * x[0] * b;
     g[1] = 200.0 * b;
     return a * a + 100.0 * b * b;
-}
-
-template <typename Exception, typename Fn>
-void expect_throw_naming(Fn fn, const std::string& text) {
-    try {
-        fn();
-        ADD_FAILURE() << "no exception; expected one naming '" << text << "'";
-    } catch (const Exception& e) {
-        EXPECT_NE(std::string(e.what()).find(text), std::string::npos)
-            << "message '" << e.what() << "' does not name '" << text << "'";
-    }
 }
 
 }  // namespace

@@ -3,12 +3,27 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
+
+#include <gtest/gtest.h>
 
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/model.h"
 
 namespace wavebrdf::test {
+
+// Expects `fn` to throw `Exception` with `text` inside its message.
+template <typename Exception, typename Fn>
+void expect_throw_naming(Fn fn, const std::string& text) {
+    try {
+        fn();
+        ADD_FAILURE() << "no exception; expected one naming '" << text << "'";
+    } catch (const Exception& e) {
+        EXPECT_NE(std::string(e.what()).find(text), std::string::npos)
+            << "message '" << e.what() << "' does not name '" << text << "'";
+    }
+}
 
 // Smooth random heights (sum of a few random periodic sinusoids), in texel units.
 inline Heightfield random_heightfield(int rows, int cols, double amplitude, std::uint64_t seed,
