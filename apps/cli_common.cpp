@@ -3,7 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
+#include <filesystem>
+#include <system_error>
 #include <stdexcept>
 
 namespace wavebrdf::cli {
@@ -26,16 +27,20 @@ void parse_size(const std::string& option, const std::string& text, int& rows, i
         throw std::invalid_argument(option + " '" + text + "' is out of range; expected 1 to 16384 per side");
 }
 
-void write_text_atomically(const std::string& path, const std::string& text) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp);
-        out << text;
-        if (!out) throw std::runtime_error(path + ": cannot write");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw std::runtime_error(path + ": cannot move into place");
+void check_distinct_files(const std::vector<std::pair<std::string, std::string>>& files) {
+    namespace fs = std::filesystem;
+    std::vector<fs::path> canonical(files.size());
+    for (std::size_t k = 0; k < files.size(); ++k) {
+        if (files[k].second.empty()) continue;
+        // Absolute first: weakly_canonical leaves a relative path whose first part does not
+        // exist relative, so `o.exr` and `./o.exr` would differ.
+        std::error_code ec;
+        canonical[k] = fs::weakly_canonical(fs::absolute(files[k].second, ec), ec);
+        if (ec) canonical[k] = fs::path(files[k].second).lexically_normal();
+        for (std::size_t i = 0; i < k; ++i)
+            if (!files[i].second.empty() && canonical[i] == canonical[k])
+                throw std::invalid_argument(files[i].first + " " + files[i].second + " and " + files[k].first + " " +
+                                            files[k].second + " name the same file; expected different paths");
     }
 }
 

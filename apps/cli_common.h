@@ -1,6 +1,8 @@
 #pragma once
-// Helpers shared by the subcommands: option texts, atomic text files, images of slices.
+// Helpers shared by the subcommands: option texts, distinct file names, images of slices.
+// (Atomic text files: wavebrdf::write_text_atomically in wavebrdf/io.h.)
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "wavebrdf/heightfield.h"
@@ -12,8 +14,11 @@ namespace wavebrdf::cli {
 // and the text.
 void parse_size(const std::string& option, const std::string& text, int& rows, int& cols);
 
-// Writes `text` to `path` through a temporary file and a rename: never a half-written file.
-void write_text_atomically(const std::string& path, const std::string& text);
+// Throws std::invalid_argument when two of `files` ({option, path}; empty paths are skipped)
+// name the same file, compared after std::filesystem::weakly_canonical (so `o.exr`, `./o.exr`
+// and `dir/../o.exr` match): an output written over another output, or over an input, would
+// silently lose it. The message names both options and the path.
+void check_distinct_files(const std::vector<std::pair<std::string, std::string>>& files);
 
 // Heights in µm (v · w · h), row-major.
 std::vector<double> heights_um(const Heightfield& heightfield);

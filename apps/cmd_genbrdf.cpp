@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "slice_job.h"
 #include "wavebrdf/io.h"
@@ -48,6 +49,7 @@ void run(const GenbrdfArgs& a) {
     job.quiet = a.quiet;
     validate(q);
     validate_resolution(job.resolution);
+    check_distinct_files({{"-i", a.input}, {"-o", a.output}});
     const Heightfield hf = read_heightfield_exr(a.input, a.texel, a.vscale);
     run_slice_job(hf, q, job);
 }

@@ -35,6 +35,8 @@ void run(const HeightfieldArgs& a) {
     p.type = parse_surface_type(a.type);
     parse_size("--size", a.size, p.rows, p.cols);
     const std::string png = a.no_png ? "" : (a.png.empty() ? default_png(a.out) : a.png);
+    // `--out h.png` would have its default preview written over it.
+    check_distinct_files({{"--out", a.out}, {a.png.empty() ? "the default preview" : "--png", png}});
     check_writable(a.out);
     if (!png.empty()) check_writable(png);
     const Heightfield hf = generate_heightfield(p);

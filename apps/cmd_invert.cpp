@@ -2,13 +2,12 @@
 // first experiment (16×16 heights, normal incidence, 32×32 spectral slice, flat start, Adam
 // 0.01/0.9/0.99 with decay 0.005, 300 epochs, CMSLE ε = 1) on a generated truth.
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -16,7 +15,9 @@
 #include <string>
 
 #include "cli_common.h"
+#include "cli_signals.h"
 #include "commands.h"
+#include "run_program.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
@@ -28,9 +29,6 @@ namespace wavebrdf::cli {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::atomic<int> g_signal{0};
-extern "C" void on_signal(int sig) { g_signal.store(sig); }
 
 struct InvertArgs {
     std::string truth, observations, init = "flat", size = "16";
@@ -304,9 +302,10 @@ void run(InvertArgs a) {
         }
     }
 
-    g_signal.store(0);
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
+    // The first SIGINT/SIGTERM stops at the end of the epoch with a checkpoint; a second one
+    // ends the process at once (temporary files removed, cli_signals.h).
+    std::optional<GracefulStop> stop;
+    stop.emplace();
     Progress progress("invert", settings.epochs + 1, !quiet);
     progress.advance(inversion.epoch());
     int last_checkpoint = inversion.epoch();
@@ -330,7 +329,7 @@ void run(InvertArgs a) {
         std::snprintf(message, sizeof message, "epoch %d loss %.4g", m.epoch, m.loss);
         progress.set_message(message);
         progress.advance(1);
-        if (g_signal.load() != 0) {
+        if (stop->signal() != 0) {
             checkpoint();
             return false;
         }
@@ -355,13 +354,13 @@ void run(InvertArgs a) {
         write_rgb_exr(dir + name + ".exr", image);
         write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
     }
-    const int sig = g_signal.load();
-    std::signal(SIGINT, SIG_DFL);
-    std::signal(SIGTERM, SIG_DFL);
+    const int sig = stop->signal();
+    stop.reset();
     if (!no_plots) {
+        // No shell: the directory is one argument, whatever its characters; absolute, so a
+        // name starting with '-' is not taken for an option.
         const std::string script = std::string(WAVEBRDF_SOURCE_DIR) + "/scripts/plot_inversion.py";
-        const std::string command = "/usr/bin/python3 '" + script + "' '" + dir + "' > /dev/null";
-        if (!fs::exists(script) || std::system(command.c_str()) != 0)
+        if (!fs::exists(script) || run_program({"/usr/bin/python3", script, fs::absolute(dir).string()}) != 0)
             std::fprintf(stderr, "wavebrdf: warning: could not draw report.png and curves.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
     }
     const auto& h = inversion.history();

@@ -15,6 +15,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "run_program.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/recovery_run.h"
@@ -193,9 +194,10 @@ void run(const RecoverArgs& a) {
     write_npy(a.out + "/reference.npy", shape, first.reference);
     write_npy(a.out + "/final.npy", shape, render_observation(estimate, first));
     if (!a.no_plots) {
+        // No shell: the directory is one argument, whatever its characters; absolute, so a
+        // name starting with '-' is not taken for an option.
         const std::string script = std::string(WAVEBRDF_SOURCE_DIR) + "/scripts/plot_recovery.py";
-        const std::string command = "/usr/bin/python3 '" + script + "' '" + a.out + "' > /dev/null";
-        if (!fs::exists(script) || std::system(command.c_str()) != 0)
+        if (!fs::exists(script) || run_program({"/usr/bin/python3", script, fs::absolute(a.out).string()}) != 0)
             std::fprintf(stderr, "wavebrdf: warning: could not draw report.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
     }
     if (!a.quiet) {

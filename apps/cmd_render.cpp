@@ -2,6 +2,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "cli_common.h"
 #include "commands.h"
 #include "slice_job.h"
 #include "wavebrdf/io.h"
@@ -49,6 +50,7 @@ void run(RenderArgs a) {
     }
     validate(a.query);
     validate_resolution(a.job.resolution);
+    check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.job.out_exr}, {"--png", a.job.png}});
     const Heightfield hf = read_heightfield_exr(a.heightfield, a.texel_um, a.vscale);
     run_slice_job(hf, a.query, a.job);
 }

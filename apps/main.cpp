@@ -6,9 +6,12 @@
 #include <iostream>
 #include <string>
 
+#include "cli_signals.h"
 #include "commands.h"
 
 int main(int argc, char** argv) {
+    // Before any output is written: a signal must not leave temporary files behind.
+    wavebrdf::cli::install_signal_cleanup();
     CLI::App app{"wavebrdf: wave-optical BRDFs of microscale heightfields"};
     app.require_subcommand(1);
     app.set_version_flag("--version", "wavebrdf 0.1.0");

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "wavebrdf/generate.h"
+#include "wavebrdf/io.h"
 
 namespace wavebrdf {
 
@@ -296,17 +297,7 @@ void Inversion::save_checkpoint(const std::string& path) const {
         rows.push_back({m.epoch, m.loss, m.brdf_mse, m.cmsle_1, m.cmsle_0_001, m.rgb_mse, m.rgb_gamma_mse,
                         std::isnan(m.height_mse) ? nlohmann::json(nullptr) : nlohmann::json(m.height_mse), m.seconds});
     j["metrics"] = rows;
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp);
-        if (!out) throw std::runtime_error(path + ": cannot write the checkpoint");
-        out << j.dump() << "\n";
-        if (!out) throw std::runtime_error(path + ": writing the checkpoint failed");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw std::runtime_error(path + ": cannot move the checkpoint into place");
-    }
+    write_text_atomically(path, j.dump() + "\n");
 }
 
 void Inversion::load_checkpoint(const std::string& path) {

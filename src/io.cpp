@@ -1,5 +1,6 @@
 #include "wavebrdf/io.h"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -23,6 +24,7 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfMultiPartInputFile.h>
 #include <ImfOutputFile.h>
 #include <ImfTestFile.h>
 #include <png.h>
@@ -45,7 +47,7 @@ std::string one_line(std::string text) {
 }
 
 // A name beside the target, so the final rename stays on one filesystem and is atomic.
-// The counter keeps two writes of the same path from one process apart.
+// The pid keeps processes apart; the counter keeps two writes of one process (threads) apart.
 std::string temporary_name(const std::string& path) {
     static std::atomic<unsigned> counter{0};
     return path + ".tmp-" + std::to_string(static_cast<long long>(::getpid())) + "-" +
@@ -57,26 +59,75 @@ void remove_quietly(const std::string& path) {
     fs::remove(path, ignored);
 }
 
-// Runs `write` on a temporary file and renames it onto `path`; on any failure the temporary
-// is removed and a std::runtime_error naming `path` is thrown, so no partial output remains.
-void write_atomically(const std::string& path,
-                      const std::function<void(const std::string&)>& write) {
-    const std::string tmp = temporary_name(path);
+// The temporary files of writes in progress, for remove_temporary_files() in a signal
+// handler: fixed slots, no allocation, no locks. A slot is free (0), being changed (1), or
+// holds the name of a temporary that may exist (2); the handler reads only slots in state 2.
+constexpr int kTemporarySlots = 64;
+constexpr std::size_t kTemporaryNameMax = 4096;
+struct TemporarySlot {
+    std::atomic<int> state{0};
+    char name[kTemporaryNameMax];
+};
+static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs lock-free atomics");
+TemporarySlot g_temporary_slots[kTemporarySlots];
+
+// Lists `name` in a free slot for as long as it lives (none free, or a name too long: not
+// listed, and the write goes on without that safety net).
+class TemporaryRegistration {
+public:
+    explicit TemporaryRegistration(const std::string& name) {
+        if (name.size() >= kTemporaryNameMax) return;
+        for (int k = 0; k < kTemporarySlots; ++k) {
+            int expected = 0;
+            if (g_temporary_slots[k].state.compare_exchange_strong(expected, 1)) {
+                std::memcpy(g_temporary_slots[k].name, name.c_str(), name.size() + 1);
+                g_temporary_slots[k].state.store(2);
+                m_slot = k;
+                return;
+            }
+        }
+    }
+    // Call once the temporary is renamed or removed (a handler that unlinks the old name in
+    // between finds nothing: the name is unique to this process and write).
+    ~TemporaryRegistration() {
+        if (m_slot >= 0) g_temporary_slots[m_slot].state.store(0);
+    }
+    TemporaryRegistration(const TemporaryRegistration&) = delete;
+    TemporaryRegistration& operator=(const TemporaryRegistration&) = delete;
+
+private:
+    int m_slot = -1;
+};
+
+// Throws when `path` exists and is not a regular file: renaming onto it would replace a device
+// node, FIFO, socket or symbolic link with a regular file (or fail on a directory).
+void refuse_non_regular(const std::string& path) {
+    struct stat st {};
+    if (::lstat(path.c_str(), &st) != 0) return;  // absent (or unreachable: the write will say)
+    if (S_ISREG(st.st_mode)) return;
+    const char* kind = S_ISDIR(st.st_mode)    ? "a directory"
+                       : S_ISLNK(st.st_mode)  ? "a symbolic link"
+                       : S_ISFIFO(st.st_mode) ? "a FIFO"
+                       : S_ISSOCK(st.st_mode) ? "a socket"
+                       : S_ISCHR(st.st_mode)  ? "a character device"
+                       : S_ISBLK(st.st_mode)  ? "a block device"
+                                              : "a special file";
+    fail(path, std::string("is ") + kind + ", not a regular file; refusing to replace it");
+}
+
+// Throws when `path` is an OpenEXR file of several parts: InputFile would silently read part 0
+// only. Refusing is simpler and safer than guessing which part holds the data.
+void refuse_multi_part(const std::string& path) {
+    if (!Imf::isMultiPartOpenExrFile(path.c_str())) return;
+    int parts = 0;
     try {
-        write(tmp);
+        parts = Imf::MultiPartInputFile(path.c_str()).parts();
     } catch (const std::exception& e) {
-        remove_quietly(tmp);
-        fail(path, std::string("cannot write file (") + e.what() + ")");
-    } catch (...) {
-        remove_quietly(tmp);
-        fail(path, "cannot write file (unknown error)");
+        fail(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
     }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        const int err = errno;
-        remove_quietly(tmp);
-        fail(path,
-             std::string("cannot move the finished file into place (") + std::strerror(err) + ")");
-    }
+    if (parts > 1)
+        fail(path, "is a multi-part OpenEXR file (" + std::to_string(parts) +
+                       " parts); expected a single-part image (extract the part you want first)");
 }
 
 void check_image(const RgbImage& image) {
@@ -100,6 +151,7 @@ struct ExrSource {
         // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
         if (!Imf::isOpenExrFile(path.c_str()))
             fail(path, "not an OpenEXR file (missing magic number or unreadable)");
+        refuse_multi_part(path);
         try {
             m_file = std::make_unique<Imf::InputFile>(path.c_str());
         } catch (const std::exception& e) {
@@ -210,7 +262,7 @@ Heightfield read_heightfield_exr(const std::string& path, double texel_um, doubl
 void write_heightfield_exr(const std::string& path, const Heightfield& heightfield) {
     const std::vector<double>& values = heightfield.values();
     const std::vector<float> data(values.begin(), values.end());
-    write_atomically(path, [&](const std::string& tmp) {
+    write_file_atomically(path, [&](const std::string& tmp) {
         write_float_exr(tmp, heightfield.rows(), heightfield.cols(), {"R"}, data.data());
     });
 }
@@ -226,7 +278,7 @@ void write_heightfield_png(const std::string& path, const Heightfield& heightfie
         const double t = range > 0.0 ? (values[k] - min) / range : 128.0 / 255.0;
         pixels[k] = static_cast<std::uint8_t>(std::lround(std::clamp(t, 0.0, 1.0) * 255.0));
     }
-    write_atomically(path, [&](const std::string& tmp) {
+    write_file_atomically(path, [&](const std::string& tmp) {
         write_png8(tmp, heightfield.rows(), heightfield.cols(), false, pixels);
     });
 }
@@ -234,7 +286,7 @@ void write_heightfield_png(const std::string& path, const Heightfield& heightfie
 void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha) {
     check_image(image);
     if (!with_alpha) {
-        write_atomically(path, [&](const std::string& tmp) {
+        write_file_atomically(path, [&](const std::string& tmp) {
             write_float_exr(tmp, image.rows, image.cols, {"R", "G", "B"}, image.data.data());
         });
         return;
@@ -244,7 +296,7 @@ void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alp
     std::vector<float> rgba(count * 4u, 1.0f);
     for (std::size_t k = 0; k < count; ++k)
         for (std::size_t c = 0; c < 3; ++c) rgba[k * 4u + c] = image.data[k * 3u + c];
-    write_atomically(path, [&](const std::string& tmp) {
+    write_file_atomically(path, [&](const std::string& tmp) {
         write_float_exr(tmp, image.rows, image.cols, {"R", "G", "B", "A"}, rgba.data());
     });
 }
@@ -285,7 +337,7 @@ void write_rgb_png(const std::string& path, const RgbImage& image, double exposu
         x = std::min(x, 1.0);
         pixels[k] = static_cast<std::uint8_t>(std::lround(srgb_encode(x) * 255.0));
     }
-    write_atomically(path, [&](const std::string& tmp) {
+    write_file_atomically(path, [&](const std::string& tmp) {
         write_png8(tmp, image.rows, image.cols, true, pixels);
     });
 }
@@ -306,7 +358,7 @@ void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
     std::size_t total = preamble + dict.size() + 1;
     dict.append((64 - total % 64) % 64, ' ');
     dict += '\n';
-    write_atomically(path, [&](const std::string& tmp) {
+    write_file_atomically(path, [&](const std::string& tmp) {
         std::FILE* f = std::fopen(tmp.c_str(), "wb");
         if (!f) throw std::runtime_error("cannot create the file");
         const unsigned short length = static_cast<unsigned short>(dict.size());
@@ -321,10 +373,50 @@ void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
     });
 }
 
-void check_writable(const std::string& path) {
-    std::error_code ec;
-    if (fs::is_directory(path, ec)) fail(path, "is a directory; expected a file path");
+void write_file_atomically(const std::string& path,
+                           const std::function<void(const std::string& temporary_path)>& write) {
+    refuse_non_regular(path);
     const std::string tmp = temporary_name(path);
+    const TemporaryRegistration registration(tmp);
+    try {
+        write(tmp);
+    } catch (const std::exception& e) {
+        remove_quietly(tmp);
+        fail(path, std::string("cannot write file (") + e.what() + ")");
+    } catch (...) {
+        remove_quietly(tmp);
+        fail(path, "cannot write file (unknown error)");
+    }
+    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+        const int err = errno;
+        remove_quietly(tmp);
+        fail(path,
+             std::string("cannot move the finished file into place (") + std::strerror(err) + ")");
+    }
+}
+
+void write_text_atomically(const std::string& path, const std::string& text) {
+    write_file_atomically(path, [&](const std::string& tmp) {
+        std::FILE* f = std::fopen(tmp.c_str(), "wb");
+        if (!f) {
+            const int err = errno;
+            throw std::runtime_error(std::string("cannot create the file: ") + std::strerror(err));
+        }
+        bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size();
+        ok = (std::fclose(f) == 0) && ok;
+        if (!ok) throw std::runtime_error("write failed (disk full?)");
+    });
+}
+
+void remove_temporary_files() noexcept {
+    for (TemporarySlot& slot : g_temporary_slots)
+        if (slot.state.load() == 2) ::unlink(slot.name);
+}
+
+void check_writable(const std::string& path) {
+    refuse_non_regular(path);
+    const std::string tmp = temporary_name(path);
+    const TemporaryRegistration registration(tmp);
     std::FILE* file = std::fopen(tmp.c_str(), "wb");
     if (file == nullptr) {
         const int err = errno;

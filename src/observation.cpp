@@ -197,17 +197,7 @@ void write_observations_json(const std::string& path, const std::vector<Observat
         j["reference"] = o.reference;
         doc["observations"].push_back(j);
     }
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp);
-        if (!out) throw std::runtime_error(path + ": cannot write the observations file");
-        out << doc.dump(1) << "\n";
-        if (!out) throw std::runtime_error(path + ": write failed");
-    }
-    if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-        std::remove(tmp.c_str());
-        throw std::runtime_error(path + ": cannot rename the temporary file into place");
-    }
+    write_text_atomically(path, doc.dump(1) + "\n");
 }
 
 }  // namespace wavebrdf

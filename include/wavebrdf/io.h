@@ -1,7 +1,16 @@
 #pragma once
-// File input and output: OpenEXR heightfields and images, PNG previews.
-// Every writer writes to a temporary file beside the target and renames it into place,
-// so an interrupted or failed write never leaves a partial output file.
+// File input and output: OpenEXR heightfields and images, PNG previews, text files.
+// Every writer writes to a temporary file beside the target (named `<path>.tmp-<pid>-<n>`,
+// unique per process and write) and renames it into place, so an interrupted or failed write
+// never leaves a partial output file, and two writers of one path never mix their contents
+// (the last rename wins). A writer replaces only a regular file: when `path` exists and is
+// anything else (directory, symbolic link, FIFO, socket, device node such as /dev/null) it
+// throws std::runtime_error "<path>: is a ..., not a regular file; refusing to replace it" and
+// touches nothing. Symbolic links are refused too, even to a regular file (write to the link's
+// target instead); links among the parent directories are followed as usual.
+// Temporary files in progress are listed in a fixed-size table that a signal handler may empty
+// with remove_temporary_files(), so a process killed by a handled signal leaves none behind.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -47,8 +56,25 @@ void write_rgb_png(const std::string& path, const RgbImage& image, double exposu
 void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
                const std::vector<double>& data);
 
-// Throws std::runtime_error when `path` cannot be created (missing directory, no permission),
-// without leaving a file behind. Lets a command fail before long work, not after it.
+// Throws std::runtime_error when `path` cannot be created (missing directory, no permission)
+// or exists and is not a regular file (see the top of this header), without leaving a file
+// behind. Lets a command fail before long work, not after it.
 void check_writable(const std::string& path);
+
+// The atomic write every writer here uses: refuses a non-regular `path` (see the top of this
+// header), calls `write(temporary_path)`, which must create and fill that file, and renames it
+// onto `path`. On any failure the temporary is removed and std::runtime_error naming `path`
+// (and the cause) is thrown; an existing `path` is then unchanged.
+void write_file_atomically(const std::string& path,
+                           const std::function<void(const std::string& temporary_path)>& write);
+
+// Writes `text` (bytes as given, no newline added) to `path` through write_file_atomically.
+void write_text_atomically(const std::string& path, const std::string& text);
+
+// Removes (unlink) every temporary file of a write in progress in this process. Async-signal-
+// safe: meant for a handler of SIGINT/SIGTERM that then ends the process. The table holds 64
+// writes in progress at once with paths up to 4095 bytes; a write beyond that still works but
+// its temporary is not removed by this call.
+void remove_temporary_files() noexcept;
 
 }  // namespace wavebrdf

@@ -1,0 +1,59 @@
+#include "cli_signals.h"
+
+#include <signal.h>
+
+#include <atomic>
+
+#include "wavebrdf/io.h"
+
+namespace wavebrdf::cli {
+
+namespace {
+
+std::atomic<bool> g_graceful{false};
+std::atomic<int> g_stop_signal{0};
+static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free,
+              "the signal handler needs lock-free atomics");
+
+// Only async-signal-safe calls: atomics, unlink (in remove_temporary_files), sigaction, raise.
+extern "C" void on_signal(int sig) {
+    if (sig != SIGHUP && g_graceful.load()) {
+        int none = 0;
+        if (g_stop_signal.compare_exchange_strong(none, sig)) return;  // the first: stop gracefully
+    }
+    remove_temporary_files();
+    struct sigaction fallback {};
+    fallback.sa_handler = SIG_DFL;
+    sigemptyset(&fallback.sa_mask);
+    sigaction(sig, &fallback, nullptr);
+    // Pending (the handler blocks it) until the handler returns, then fatal by default.
+    raise(sig);
+}
+
+}  // namespace
+
+void install_signal_cleanup() {
+    struct sigaction action {};
+    action.sa_handler = on_signal;
+    // One handler at a time: a SIGTERM while a SIGINT is handled waits for it.
+    sigemptyset(&action.sa_mask);
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&action.sa_mask, sig);
+    action.sa_flags = SA_RESTART;
+    for (int sig : {SIGINT, SIGTERM, SIGHUP}) {
+        // A signal ignored by whoever started us (nohup, a background job) stays ignored.
+        struct sigaction old {};
+        if (sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
+        sigaction(sig, &action, nullptr);
+    }
+}
+
+GracefulStop::GracefulStop() {
+    g_stop_signal.store(0);
+    g_graceful.store(true);
+}
+
+GracefulStop::~GracefulStop() { g_graceful.store(false); }
+
+int GracefulStop::signal() const { return g_stop_signal.load(); }
+
+}  // namespace wavebrdf::cli
