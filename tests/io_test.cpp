@@ -1,22 +1,36 @@
 #include "wavebrdf/io.h"
 
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <sys/un.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfMultiPartOutputFile.h>
 #include <ImfOutputFile.h>
+#include <ImfOutputPart.h>
+#include <ImfPartType.h>
 #include <ImfRgbaFile.h>
 #include <gtest/gtest.h>
 #include <png.h>
@@ -280,6 +294,282 @@ TEST_F(IoTest, RenameOntoDirectoryFailsAndRemovesTemporary) {
 TEST_F(IoTest, CheckWritableLeavesNothing) {
     wavebrdf::check_writable(file("later.exr"));
     EXPECT_TRUE(listing().empty());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Atomic writes replace only regular files, never mix, and leave no temporary behind.
+
+// The file type bits of `path` itself (a link is not followed); 0 when it does not exist.
+mode_t file_type(const std::string& path) {
+    struct stat st {};
+    return ::lstat(path.c_str(), &st) == 0 ? (st.st_mode & S_IFMT) : 0;
+}
+
+// Every writer on `path`, each expected to refuse with the path and "not a regular file".
+void expect_every_writer_refuses(const std::string& path) {
+    const Heightfield field = make_field(2, 3);
+    const RgbImage image{1, 2, {0.f, 0.5f, 1.f, 2.f, 3.f, 4.f}};
+    const std::vector<std::function<void()>> writers = {
+        [&] { wavebrdf::write_text_atomically(path, "text\n"); },
+        [&] { wavebrdf::write_file_atomically(path, [](const std::string& tmp) { std::ofstream(tmp) << "x"; }); },
+        [&] { wavebrdf::write_heightfield_exr(path, field); },
+        [&] { wavebrdf::write_heightfield_png(path, field); },
+        [&] { wavebrdf::write_rgb_exr(path, image, true); },
+        [&] { wavebrdf::write_rgb_png(path, image); },
+        [&] { wavebrdf::write_npy(path, {2}, {1.0, 2.0}); },
+        [&] { wavebrdf::check_writable(path); },
+    };
+    for (std::size_t k = 0; k < writers.size(); ++k) {
+        SCOPED_TRACE("writer " + std::to_string(k));
+        try {
+            writers[k]();
+            ADD_FAILURE() << "no exception for " << path;
+        } catch (const std::runtime_error& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find(path), std::string::npos) << message;
+            EXPECT_NE(message.find("not a regular file; refusing to replace it"), std::string::npos) << message;
+        }
+    }
+}
+
+TEST_F(IoTest, WritersRefuseFifoSymlinkDirectoryAndSocket) {
+    std::ofstream(file("target.txt")) << "keep me\n";
+    ASSERT_EQ(::mkfifo(file("fifo").c_str(), 0644), 0);
+    fs::create_symlink(file("target.txt"), file("link"));
+    fs::create_symlink(file("missing.txt"), file("dangling"));
+    fs::create_directory(file("dir"));
+    const int sock = ::socket(AF_UNIX, SOCK_STREAM, 0);
+    sockaddr_un address{};
+    address.sun_family = AF_UNIX;
+    const std::string socket_path = file("sock");
+    const bool have_socket = sock >= 0 && socket_path.size() < sizeof address.sun_path;
+    if (have_socket) {
+        std::memcpy(address.sun_path, socket_path.c_str(), socket_path.size() + 1);
+        ASSERT_EQ(::bind(sock, reinterpret_cast<const sockaddr*>(&address), sizeof address), 0);
+    }
+    for (const char* name : {"fifo", "link", "dangling", "dir", "sock"}) {
+        SCOPED_TRACE(name);
+        if (std::string(name) == "sock" && !have_socket) continue;
+        const mode_t before = file_type(file(name));
+        expect_every_writer_refuses(file(name));
+        EXPECT_EQ(file_type(file(name)), before) << "the target was replaced";
+    }
+    if (sock >= 0) ::close(sock);
+    EXPECT_EQ(fs::read_symlink(file("link")), fs::path(file("target.txt")));
+    std::ifstream in(file("target.txt"));
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(text, "keep me\n") << "wrote through the link";
+    EXPECT_FALSE(fs::exists(file("missing.txt"))) << "created the dangling link's target";
+    EXPECT_TRUE(fs::is_empty(file("dir")));
+    for (const std::string& name : listing()) EXPECT_EQ(name.find(".tmp"), std::string::npos) << name;
+}
+
+// A character device like /dev/null, made here (root only) so that a broken writer could only
+// replace a node of this test's own directory, never the machine's /dev/null.
+TEST_F(IoTest, WritersRefuseACharacterDevice) {
+    const std::string node = file("null");
+    if (::mknod(node.c_str(), S_IFCHR | 0666, makedev(1, 3)) != 0)
+        GTEST_SKIP() << "cannot create a device node here (not root?)";
+    ASSERT_EQ(file_type(node), static_cast<mode_t>(S_IFCHR));
+    expect_every_writer_refuses(node);
+    EXPECT_EQ(file_type(node), static_cast<mode_t>(S_IFCHR)) << "the device node was replaced";
+    EXPECT_EQ(listing(), std::vector<std::string>{"null"});
+}
+
+TEST_F(IoTest, WriteTextReplacesARegularFile) {
+    const std::string path = file("run.json");
+    std::ofstream(path) << "old contents, longer than the new\n";
+    wavebrdf::write_text_atomically(path, "new\n");
+    std::ifstream in(path);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(text, "new\n");
+    EXPECT_EQ(listing(), std::vector<std::string>{"run.json"});
+}
+
+// Threads of one process and two processes write the same path at once: every read sees one
+// writer's whole file (the last rename wins), and no temporary is left. (With one fixed
+// `<path>.tmp` name, two writers wrote into one temporary and mixed their contents.)
+TEST_F(IoTest, ConcurrentWritersNeverMixAndLeaveNoTemporary) {
+    const std::string path = file("metrics.csv");
+    const std::size_t size = 1 << 18;
+    auto writer = [&](char letter, int count) {
+        const std::string text(size, letter);
+        for (int k = 0; k < count; ++k) wavebrdf::write_text_atomically(path, text);
+    };
+    // Every complete read is one letter, `size` times.
+    auto uniform = [&](const std::string& text) {
+        return text.size() == size && text.find_first_not_of(text[0]) == std::string::npos;
+    };
+    auto read_all = [&] {
+        std::ifstream in(path, std::ios::binary);
+        return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    };
+    writer('z', 1);
+
+    std::atomic<bool> done{false};
+    std::atomic<int> mixed{0};
+    std::thread reader([&] {
+        while (!done.load())
+            if (!uniform(read_all())) ++mixed;
+    });
+    {
+        std::vector<std::thread> threads;
+        for (char letter : {'a', 'b', 'c'}) threads.emplace_back(writer, letter, 20);
+        for (std::thread& t : threads) t.join();
+    }
+    // Two processes (forked children write 'p' and 'q').
+    std::vector<pid_t> children;
+    for (char letter : {'p', 'q'}) {
+        const pid_t pid = ::fork();
+        ASSERT_GE(pid, 0);
+        if (pid == 0) {
+            try {
+                writer(letter, 20);
+            } catch (...) {
+                std::_Exit(1);
+            }
+            std::_Exit(0);
+        }
+        children.push_back(pid);
+    }
+    for (pid_t pid : children) {
+        int status = 0;
+        ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+        EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "child " << pid << " failed";
+    }
+    done.store(true);
+    reader.join();
+    EXPECT_EQ(mixed.load(), 0) << "a read saw a mixed or partial file";
+    EXPECT_TRUE(uniform(read_all()));
+    EXPECT_EQ(listing(), std::vector<std::string>{"metrics.csv"});
+}
+
+// A write that fails part way, or whose directory disappears before the rename, leaves no
+// temporary and (where it still exists) the old file unchanged.
+TEST_F(IoTest, FailedWriteLeavesNoTemporary) {
+    const std::string path = file("checkpoint.json");
+    std::ofstream(path) << "old\n";
+    EXPECT_THROW(wavebrdf::write_file_atomically(path,
+                                                 [](const std::string& tmp) {
+                                                     std::ofstream(tmp) << "half";
+                                                     throw std::runtime_error("disk full");
+                                                 }),
+                 std::runtime_error);
+    EXPECT_EQ(listing(), std::vector<std::string>{"checkpoint.json"});
+
+    const fs::path sub = m_dir / "sub";
+    fs::create_directory(sub);
+    const std::string inside = (sub / "metrics.csv").string();
+    expect_throw_naming<std::runtime_error>(
+        [&] {
+            wavebrdf::write_file_atomically(inside, [&](const std::string& tmp) {
+                std::ofstream(tmp) << "data";
+                fs::remove_all(sub);  // the run directory removed while the file is written
+            });
+        },
+        inside);
+    EXPECT_FALSE(fs::exists(sub));
+
+    // A directory without write permission (root may write anyway: skipped then).
+    fs::create_directory(sub);
+    fs::permissions(sub, fs::perms::owner_read | fs::perms::owner_exec);
+    if (::geteuid() != 0) {
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_text_atomically(inside, "x"); }, inside);
+        EXPECT_TRUE(fs::is_empty(sub));
+    }
+    fs::permissions(sub, fs::perms::owner_all);
+    std::vector<std::string> names = listing();
+    std::sort(names.begin(), names.end());
+    EXPECT_EQ(names, (std::vector<std::string>{"checkpoint.json", "sub"}));
+    EXPECT_TRUE(fs::is_empty(sub));
+    std::ifstream in(path);
+    EXPECT_EQ(std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>()), "old\n");
+}
+
+// A process killed by a signal in the middle of a write: its handler calls
+// remove_temporary_files(), and the temporary is gone.
+extern "C" void remove_temporaries_and_exit(int) {
+    wavebrdf::remove_temporary_files();
+    ::_exit(3);
+}
+
+TEST_F(IoTest, SignalHandlerRemovesTheTemporaryOfAWriteInProgress) {
+    const std::string path = file("estimate.exr");
+    int ready[2];
+    ASSERT_EQ(::pipe(ready), 0);
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        ::close(ready[0]);
+        ::signal(SIGTERM, remove_temporaries_and_exit);
+        ::alarm(60);  // never outlive a broken test
+        try {
+            wavebrdf::write_file_atomically(path, [&](const std::string& tmp) {
+                std::ofstream(tmp) << "half-written";
+                const char byte = 1;
+                if (::write(ready[1], &byte, 1) != 1) std::_Exit(1);
+                for (;;) ::pause();  // "still writing" until the signal comes
+            });
+        } catch (...) {
+        }
+        std::_Exit(2);
+    }
+    ::close(ready[1]);
+    char byte = 0;
+    ASSERT_EQ(::read(ready[0], &byte, 1), 1);
+    ::close(ready[0]);
+    bool temporary_seen = false;
+    for (const std::string& name : listing()) temporary_seen |= name.rfind("estimate.exr.tmp-", 0) == 0;
+    EXPECT_TRUE(temporary_seen) << "the child's temporary should exist while it writes";
+    ASSERT_EQ(::kill(pid, SIGTERM), 0);
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 3);
+    EXPECT_TRUE(listing().empty()) << "left: " << (listing().empty() ? "" : listing()[0]);
+}
+
+// A multi-part EXR: the reader used to read part 0 silently; it refuses and says why.
+void write_multi_part_exr(const std::string& path, int parts) {
+    const int rows = 2, cols = 3;
+    std::vector<float> values(static_cast<std::size_t>(rows * cols), 0.5f);
+    std::vector<Imf::Header> headers;
+    for (int p = 0; p < parts; ++p) {
+        Imf::Header header(cols, rows);
+        header.setName("part" + std::to_string(p));
+        header.setType(Imf::SCANLINEIMAGE);
+        for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(Imf::FLOAT));
+        headers.push_back(header);
+    }
+    Imf::MultiPartOutputFile out(path.c_str(), headers.data(), parts);
+    for (int p = 0; p < parts; ++p) {
+        Imf::OutputPart part(out, p);
+        Imf::FrameBuffer frame;
+        for (const char* c : {"R", "G", "B"})
+            frame.insert(c, Imf::Slice::Make(Imf::FLOAT, values.data(), headers[p].dataWindow()));
+        part.setFrameBuffer(frame);
+        part.writePixels(rows);
+    }
+}
+
+TEST_F(IoTest, MultiPartExrIsRefused) {
+    const std::string path = file("parts.exr");
+    write_multi_part_exr(path, 2);
+    for (int reader = 0; reader < 2; ++reader) {
+        try {
+            if (reader == 0) wavebrdf::read_heightfield_exr(path);
+            else wavebrdf::read_rgb_exr(path);
+            ADD_FAILURE() << "a multi-part file was read";
+        } catch (const std::runtime_error& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find(path), std::string::npos) << message;
+            EXPECT_NE(message.find("multi-part"), std::string::npos) << message;
+            EXPECT_NE(message.find("2 parts"), std::string::npos) << message;
+        }
+    }
+    // One part written through the multi-part API is an ordinary image.
+    write_multi_part_exr(file("one.exr"), 1);
+    EXPECT_EQ(wavebrdf::read_rgb_exr(file("one.exr")).cols, 3);
 }
 
 TEST_F(IoTest, RgbPngHasSizeAndSrgbValues) {
