@@ -1,6 +1,9 @@
 // End-to-end tests of the `wavebrdf` executable: every bad input must give one clear line on
 // stderr naming the problem, a non-zero exit and no (partial) output file; the happy paths
 // must write their files, and genbrdf must agree with render for the same parameters.
+#include <signal.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -349,6 +352,96 @@ TEST_F(CliTest, UnwritableOutput) {
     expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out dir.exr"),
                          {"dir.exr", "is a directory"}, {});
     EXPECT_TRUE(fs::is_empty(path("dir.exr")));
+}
+
+// Outputs replace only regular files: a FIFO, a symbolic link or a device node given as an
+// output is refused before any work and stays what it was (the temp-and-rename write used to
+// replace it with a regular file: `--out /dev/null` as root replaced the machine's /dev/null,
+// which is why this test makes its own device node instead).
+TEST_F(CliTest, OutputsThatAreNotRegularFilesAreRefused) {
+    const std::string hf = quote(make_heightfield());
+    const auto type_of = [](const fs::path& p) { return fs::symlink_status(p).type(); };
+    ASSERT_EQ(::mkfifo(path("fifo.exr").c_str(), 0644), 0);
+    std::ofstream(path("target.png")) << "keep\n";
+    fs::create_symlink(path("target.png"), path("link.png"));
+    std::vector<std::string> names = {"fifo.exr", "link.png"};
+    if (::mknod(path("null").c_str(), S_IFCHR | 0666, makedev(1, 3)) == 0) names.push_back("null");
+    for (const std::string& name : names) {
+        SCOPED_TRACE(name);
+        const fs::file_type before = type_of(path(name));
+        for (const std::string& args :
+             {"render --heightfield " + hf + " --resolution 16 --out " + qpath(name),
+              "render --heightfield " + hf + " --resolution 16 --out a.exr --png " + qpath(name),
+              "genbrdf -i " + hf + " -r 16 -o " + qpath(name),
+              "heightfield --size 16 --no-png --out " + qpath(name)}) {
+            SCOPED_TRACE(args);
+            expect_clean_failure(run(args), {path(name).string(), "not a regular file; refusing to replace it"},
+                                 {path("a.exr")});
+            EXPECT_EQ(type_of(path(name)), before) << "the output was replaced";
+        }
+    }
+    EXPECT_EQ(read_text(path("target.png")), "keep\n") << "wrote through the link";
+}
+
+// Two outputs (or an output and the input) naming one file: the second used to replace the
+// first silently (`--out o.exr --png o.exr` lost the EXR; `heightfield --out h.png` wrote its
+// default preview h.png over the EXR).
+TEST_F(CliTest, EqualPathsAreRefused) {
+    const std::string hf_path = make_heightfield();
+    const std::string hf = quote(hf_path);
+    const std::string before = read_text(hf_path);
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out o.exr --png o.exr"),
+                         {"--out o.exr", "--png o.exr", "same file"}, {path("o.exr")});
+    fs::create_directory(path("sub"));
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out o.exr --png sub/../o.exr"),
+                         {"--out o.exr", "--png sub/../o.exr", "same file"}, {path("o.exr")});
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out ./h.exr"),
+                         {"--heightfield", "--out ./h.exr", "same file"}, {});
+    expect_clean_failure(run("genbrdf -i " + hf + " -r 16 -o h.exr"), {"-i", "-o h.exr", "same file"}, {});
+    EXPECT_EQ(read_text(hf_path), before) << "the input was replaced";
+    expect_clean_failure(run("heightfield --size 16 --out x.png"), {"--out x.png", "default preview", "same file"},
+                         {path("x.png")});
+    expect_clean_failure(run("heightfield --size 16 --out x.exr --png ./x.exr"),
+                         {"--out x.exr", "--png ./x.exr", "same file"}, {path("x.exr")});
+    // Different names stay fine, and --no-png needs no preview name.
+    EXPECT_EQ(run("heightfield --size 16 --out x.png --no-png --quiet").exit_code, 0);
+    EXPECT_EQ(run("render --heightfield " + hf + " --resolution 16 --out o.exr --png o.png --quiet").exit_code, 0);
+}
+
+// SIGTERM while an output is being written (its temporary exists): the process ends by the
+// signal and removes the temporary (it used to stay behind as `o.exr.tmp-PID-N`).
+TEST_F(CliTest, SigtermDuringAWriteLeavesNoTemporary) {
+    const std::string hf = make_heightfield();
+    bool caught = false;
+    // A 2048^2 slice takes a fraction of a second to compress and write: watch for its
+    // temporary and signal then. Try again with a larger slice when the write was missed.
+    for (int resolution : {2048, 3072, 4096}) {
+        fs::remove(path("o.exr"));
+        fs::remove(path("o.png"));
+        const pid_t pid = start_cli(m_dir, {"render", "--heightfield", hf, "--resolution", std::to_string(resolution),
+                                            "--out", "o.exr", "--png", "o.png", "--quiet"});
+        ASSERT_GT(pid, 0);
+        int status = 0;
+        for (;;) {
+            if (!temporaries_under(m_dir).empty()) {
+                ::kill(pid, SIGTERM);
+                caught = true;
+                break;
+            }
+            if (::waitpid(pid, &status, WNOHANG) == pid) break;
+        }
+        if (caught) {
+            ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+            // Ended by the signal, unless the write finished in the instant before it.
+            if (WIFSIGNALED(status)) {
+                EXPECT_EQ(WTERMSIG(status), SIGTERM);
+                EXPECT_FALSE(fs::exists(path("o.png")));
+            }
+            break;
+        }
+    }
+    if (!caught) GTEST_SKIP() << "never saw a write in progress";
+    EXPECT_EQ(temporaries_under(m_dir), std::vector<std::string>{});
 }
 
 TEST_F(CliTest, BadSpectralAndPrecision) {

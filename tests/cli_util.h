@@ -2,6 +2,7 @@
 // Helpers shared by the end-to-end tests of the `wavebrdf` executable (cli_test.cpp,
 // invert_test.cpp): running it with stdout and stderr captured, per-test scratch directories,
 // and the check every bad input must pass.
+#include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -90,6 +91,52 @@ inline bool expect_one_line_naming(const CliResult& r, const std::vector<std::st
         EXPECT_NE(lines[0].find(needle), std::string::npos)
             << "message does not name '" << needle << "': " << lines[0];
     return true;
+}
+
+// Starts `wavebrdf args...` in `dir` without a shell (each string one argument, as given),
+// stdin, stdout and stderr on /dev/null; returns its pid (or -1) for kill() and waitpid().
+inline pid_t start_cli(const fs::path& dir, const std::vector<std::string>& args) {
+    std::vector<std::string> argv{WAVEBRDF_CLI};
+    argv.insert(argv.end(), args.begin(), args.end());
+    std::vector<char*> pointers;
+    for (std::string& a : argv) pointers.push_back(a.data());
+    pointers.push_back(nullptr);
+    const pid_t pid = ::fork();
+    if (pid != 0) return pid;
+    const int null = ::open("/dev/null", O_RDWR);
+    if (null < 0 || ::chdir(dir.c_str()) != 0) std::_Exit(127);
+    ::dup2(null, 0);
+    ::dup2(null, 1);
+    ::dup2(null, 2);
+    ::execv(pointers[0], pointers.data());
+    std::_Exit(127);
+}
+
+// Whether /usr/bin/python3 can import numpy and matplotlib (what the report plotters need).
+inline bool python_can_plot() {
+    const pid_t pid = ::fork();
+    if (pid < 0) return false;
+    if (pid == 0) {
+        const int null = ::open("/dev/null", O_RDWR);
+        if (null >= 0) {
+            ::dup2(null, 1);
+            ::dup2(null, 2);
+        }
+        ::execl("/usr/bin/python3", "python3", "-c", "import numpy, matplotlib", static_cast<char*>(nullptr));
+        std::_Exit(127);
+    }
+    int status = 0;
+    return ::waitpid(pid, &status, 0) == pid && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+// Names of the temporary files (`*.tmp*`) anywhere under `dir`.
+inline std::vector<std::string> temporaries_under(const fs::path& dir) {
+    std::vector<std::string> found;
+    std::error_code ec;
+    for (auto it = fs::recursive_directory_iterator(dir, ec); !ec && it != fs::recursive_directory_iterator();
+         it.increment(ec))
+        if (it->path().filename().string().find(".tmp") != std::string::npos) found.push_back(it->path().string());
+    return found;
 }
 
 }  // namespace wavebrdf::test

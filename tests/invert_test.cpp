@@ -481,6 +481,75 @@ TEST_F(InvertTest, CliSigtermCheckpointsAndResumeMatchesAnUninterruptedRun) {
     }
 }
 
+// The report plotter is started without a shell: a hostile --out runs nothing (it used to
+// run `touch PWNED` through std::system), and an ordinary name with a quote gets its report.
+TEST_F(InvertTest, CliHostileOutNamesRunNoShellAndGetTheirReport) {
+    const bool can_plot = python_can_plot();
+    for (const std::string name : {"x'; touch PWNED; echo '", "bob's run $(touch PWNED2)"}) {
+        SCOPED_TRACE(name);
+        const CliResult r = run("invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 2 --quiet --out " +
+                                quote(name));
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_TRUE(fs::exists(path(name) / "estimate.exr"));
+        if (can_plot) {
+            EXPECT_TRUE(fs::exists(path(name) / "report.png")) << r.err;
+            EXPECT_EQ(r.err, "") << "no warning when the plot is drawn";
+        }
+    }
+    for (const auto& entry : fs::recursive_directory_iterator(m_dir))
+        EXPECT_TRUE(entry.path().filename() != "PWNED" && entry.path().filename() != "PWNED2") << entry.path();
+}
+
+// Signals never leave temporary files: SIGTERM while the references are being written (the
+// process ends by the signal; its handler removes the temporary, which used to stay behind),
+// and, during the epochs, two signals at once: the first stops with a checkpoint, the second
+// ends the process now (which comes first is the kernel's choice; SIGINT may be ignored when
+// the tests run in the background).
+TEST_F(InvertTest, CliSignalsLeaveNoTemporaryFiles) {
+    bool caught = false;
+    for (const char* resolution : {"1024", "2048"}) {
+        fs::remove_all(path("early"));
+        const pid_t pid = start_cli(m_dir, {"invert", "--size", "8", "--sigma-p-um", "2", "--lambda-um", "0.5",
+                                            "--resolution", resolution, "--epochs", "3", "--no-plots", "--quiet",
+                                            "--out", "early"});
+        ASSERT_GT(pid, 0);
+        int status = 0;
+        for (;;) {
+            if (!temporaries_under(path("early")).empty()) {
+                ::kill(pid, SIGTERM);
+                caught = true;
+                break;
+            }
+            if (::waitpid(pid, &status, WNOHANG) == pid) break;
+        }
+        if (!caught) continue;
+        ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+        EXPECT_TRUE((WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) || (WIFEXITED(status) && WEXITSTATUS(status) == 143))
+            << "status " << status;
+        EXPECT_EQ(temporaries_under(path("early")), std::vector<std::string>{});
+        break;
+    }
+    EXPECT_TRUE(caught) << "never saw a write in progress";
+
+    const pid_t pid = start_cli(m_dir, {"invert", "--size", "8", "--sigma-p-um", "2", "--lambda-um", "0.5",
+                                        "--resolution", "16", "--epochs", "1000000", "--checkpoint-every", "1",
+                                        "--no-plots", "--quiet", "--out", "late"});
+    ASSERT_GT(pid, 0);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (!fs::exists(path("late/checkpoint.json")) && std::chrono::steady_clock::now() < deadline)
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));  // into the stream of checkpoint writes
+    ::kill(pid, SIGTERM);
+    ::kill(pid, SIGINT);
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    EXPECT_TRUE((WIFEXITED(status) && (WEXITSTATUS(status) == 143 || WEXITSTATUS(status) == 130)) ||
+                (WIFSIGNALED(status) && (WTERMSIG(status) == SIGINT || WTERMSIG(status) == SIGTERM)))
+        << "status " << status;
+    EXPECT_EQ(temporaries_under(path("late")), std::vector<std::string>{});
+    EXPECT_NO_THROW(nlohmann::json::parse(read_text(path("late/checkpoint.json")))) << "a whole checkpoint";
+}
+
 TEST_F(InvertTest, CliRunsFromObservationsButNoisyInitNeedsATruth) {
     write_observations("obs.json");
     const CliResult ok = invert("--observations obs.json --epochs 3 --out run");

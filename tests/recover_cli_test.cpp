@@ -83,6 +83,26 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
     EXPECT_FALSE(fs::exists(dir / "again" / "truth.exr"));
 }
 
+// The report plotter is started without a shell: a hostile --out runs nothing (it used to
+// run `touch PWNED` through std::system), and an ordinary name with a quote gets its report.
+TEST(RecoverCliTest, HostileOutNamesRunNoShellAndGetTheirReport) {
+    const fs::path dir = fresh_dir("recover");
+    const bool can_plot = python_can_plot();
+    for (const std::string name : {"x'; touch PWNED; echo '", "bob's run $(touch PWNED2)"}) {
+        SCOPED_TRACE(name);
+        const CliResult r = run_cli(dir, "recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 "
+                                         "--method thesis --epochs 2 --quiet --out " + quote(name));
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_TRUE(fs::exists(dir / name / "estimate.exr"));
+        if (can_plot) {
+            EXPECT_TRUE(fs::exists(dir / name / "report.png")) << r.err;
+            EXPECT_EQ(r.err.find("could not draw"), std::string::npos) << r.err;
+        }
+    }
+    for (const auto& entry : fs::recursive_directory_iterator(dir))
+        EXPECT_TRUE(entry.path().filename() != "PWNED" && entry.path().filename() != "PWNED2") << entry.path();
+}
+
 TEST(RecoverCliTest, ThesisMethodRunsOnTheSameData) {
     const fs::path dir = fresh_dir("recover");
     const CliResult r = run_cli(dir, "recover " + kSmall + " --method thesis --epochs 40 --out thesis");
