@@ -98,3 +98,22 @@ def test_json_round_trip(tmp_path, rng):
     assert wb.observation_loss(estimate, back, "mse")[0] == wb.observation_loss(estimate, observations, "mse")[0]
     with pytest.raises(RuntimeError, match="missing.json"):
         wb.read_observations(str(tmp_path / "missing.json"))
+
+
+def test_write_observations_replaces_only_regular_files(tmp_path, rng):
+    # A FIFO or a symbolic link is refused and stays what it was (the temp-and-rename write
+    # used to replace it with a regular file); no temporary is left.
+    import os
+    import stat
+    _, _, _, observations = make_case(rng, None)
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)
+    (tmp_path / "target.json").write_text("keep")
+    link = tmp_path / "link.json"
+    link.symlink_to(tmp_path / "target.json")
+    for path in (fifo, link):
+        with pytest.raises(RuntimeError, match="not a regular file; refusing to replace it"):
+            wb.write_observations(str(path), observations)
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert link.is_symlink() and (tmp_path / "target.json").read_text() == "keep"
+    assert not [p for p in os.listdir(tmp_path) if ".tmp" in p]
