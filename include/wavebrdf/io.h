@@ -7,7 +7,8 @@
 // anything else (directory, symbolic link, FIFO, socket, device node such as /dev/null) it
 // throws std::runtime_error "<path>: is a ..., not a regular file; refusing to replace it" and
 // touches nothing. Symbolic links are refused too, even to a regular file (write to the link's
-// target instead); links among the parent directories are followed as usual.
+// target instead); links among the parent directories are followed as usual. (The check and
+// the rename are two steps: a file another process puts at `path` in between is replaced.)
 // Temporary files in progress are listed in a fixed-size table that a signal handler may empty
 // with remove_temporary_files(), so a process killed by a handled signal leaves none behind.
 #include <functional>
@@ -28,8 +29,9 @@ struct RgbImage {
 // Reads the R channel of an OpenEXR file (half or float pixels, any size) as a heightfield in
 // the public release's convention (values in units of texel width; row i = image row).
 // Throws std::runtime_error naming the file when it is missing, unreadable, corrupt or
-// truncated, or has no R channel (a single Y channel is accepted too); std::domain_error when
-// a value is not finite.
+// truncated, has no R channel (a single Y channel is accepted too), or is a multi-part file of
+// two or more parts (refused rather than silently reading part 0; a one-part file written
+// through the multi-part API is read); std::domain_error when a value is not finite.
 Heightfield read_heightfield_exr(const std::string& path, double texel_um = 1.0,
                                  double vscale = 1.0);
 
@@ -43,7 +45,8 @@ void write_heightfield_png(const std::string& path, const Heightfield& heightfie
 // (the layout of genBrdf's output).
 void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha = false);
 
-// Reads the R, G, B channels of an EXR (half or float) as linear float.
+// Reads the R, G, B channels of an EXR (half or float) as linear float. Errors as
+// read_heightfield_exr's (multi-part files of two or more parts are refused).
 RgbImage read_rgb_exr(const std::string& path);
 
 // Writes an 8-bit sRGB PNG preview: value · 2^exposure, Reinhard-free clamp to [0, 1], sRGB
