@@ -222,8 +222,8 @@ void Inversion::run(const Callback& on_epoch) {
         return;
     }
 
-    // L-BFGS: one iteration per epoch. Its curvature history is not checkpointed: a resumed
-    // run restarts the history at the checkpoint's heights.
+    // L-BFGS: one iteration per epoch. Its curvature history (m_lbfgs) is updated before each
+    // report, so a checkpoint taken there continues exactly.
     {
         std::vector<double> gradient;
         std::vector<std::vector<double>> slices;
@@ -251,7 +251,7 @@ void Inversion::run(const Callback& on_epoch) {
             return false;
         }
         return m_epoch < m_settings.epochs;
-    });
+    }, &m_lbfgs);
     if (!stopped) m_estimate = m_estimate.with_values(x);
     m_seconds_before = seconds();
 }
@@ -291,6 +291,9 @@ void Inversion::save_checkpoint(const std::string& path) const {
     j["adam_m"] = m_adam.state().m;
     j["adam_v"] = m_adam.state().v;
     j["adam_steps"] = m_adam.state().steps;
+    j["lbfgs_s"] = m_lbfgs.s;
+    j["lbfgs_y"] = m_lbfgs.y;
+    j["lbfgs_rho"] = m_lbfgs.rho;
     nlohmann::json rows = nlohmann::json::array();
     for (const EpochMetrics& m : m_history)
         rows.push_back({m.epoch, m.loss, m.brdf_mse, m.cmsle_1, m.cmsle_0_001, m.rgb_mse, m.rgb_gamma_mse,
@@ -331,7 +334,16 @@ void Inversion::load_checkpoint(const std::string& path) {
         state.m = j.at("adam_m").get<std::vector<double>>();
         state.v = j.at("adam_v").get<std::vector<double>>();
         state.steps = j.at("adam_steps").get<long long>();
+        // Absent in checkpoints written before the history was kept: L-BFGS then starts afresh.
+        LbfgsState lbfgs;
+        if (j.contains("lbfgs_s")) {
+            lbfgs.s = j.at("lbfgs_s").get<std::vector<std::vector<double>>>();
+            lbfgs.y = j.at("lbfgs_y").get<std::vector<std::vector<double>>>();
+            lbfgs.rho = j.at("lbfgs_rho").get<std::vector<double>>();
+        }
+        validate_lbfgs_state(lbfgs, m_estimate.values().size(), m_settings.lbfgs.history);
         m_adam.set_state(state);
+        m_lbfgs = std::move(lbfgs);
         m_estimate = m_estimate.with_values(j.at("heights").get<std::vector<double>>());
         m_epoch = j.at("epoch").get<int>();
         m_seconds_before = j.at("seconds").get<double>();

@@ -76,9 +76,12 @@ public:
     const Heightfield& estimate() const { return m_estimate; }
     const std::vector<EpochMetrics>& history() const { return m_history; }
 
-    // Checkpoint: epoch, heights, optimiser state, metrics so far and a fingerprint of the
-    // settings and observations, as JSON. load_checkpoint throws std::runtime_error when the
-    // file does not match this run (different settings, observations or size).
+    // Checkpoint: epoch, heights, optimiser state (Adam's moments and step count, L-BFGS's
+    // curvature history), metrics so far and a fingerprint of the settings and observations,
+    // as JSON; a run continued from it takes the same steps as the uninterrupted run, bit for
+    // bit, with either optimiser. load_checkpoint throws std::runtime_error when the file does
+    // not match this run (different settings, observations or size). settings.epochs is not
+    // part of the run: a checkpoint continues with this Inversion's epochs (to extend a run).
     void save_checkpoint(const std::string& path) const;
     void load_checkpoint(const std::string& path);
 
@@ -95,6 +98,7 @@ private:
     InversionSettings m_settings;
     const Heightfield* m_truth;
     Adam m_adam;
+    LbfgsState m_lbfgs;  // L-BFGS's curvature history at m_epoch (checkpointed)
     int m_epoch = 0;
     double m_seconds_before = 0.0;
     std::vector<EpochMetrics> m_history;
