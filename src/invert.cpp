@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -93,10 +94,7 @@ Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
       m_settings(settings), m_truth(truth), m_adam(m_estimate.values().size(), settings.adam) {
     if (m_observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     for (std::size_t i = 0; i < m_observations.size(); ++i) validate(m_observations[i], i);
-    if (settings.epochs < 0)
-        throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
-    if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
-        throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
+    validate(settings);
     if (truth && (truth->rows() != m_estimate.rows() || truth->cols() != m_estimate.cols()))
         throw std::invalid_argument("truth is " + std::to_string(truth->rows()) + "x" + std::to_string(truth->cols()) +
                                     " but the estimate is " + std::to_string(m_estimate.rows()) + "x" +
@@ -129,9 +127,37 @@ std::vector<Observation> observe(const Heightfield& truth, const Observation& ba
     return out;
 }
 
+void validate_noise_fraction(double frac) {
+    if (!(frac >= 0.0 && frac <= kMaxNoiseFraction)) {
+        char text[160];
+        std::snprintf(text, sizeof text, "noise fraction %g is invalid; expected a fraction from 0 to %g", frac,
+                      kMaxNoiseFraction);
+        throw std::domain_error(text);
+    }
+}
+
+void validate(const InversionSettings& settings) {
+    { Adam check(0, settings.adam); }  // its own messages
+    if (!(settings.adam.lr <= kMaxInversionLr)) {
+        char text[200];
+        std::snprintf(text, sizeof text,
+                      "Adam lr %g is too large; expected at most %g (a step in texel units)", settings.adam.lr,
+                      kMaxInversionLr);
+        throw std::domain_error(text);
+    }
+    std::vector<double> x(1, 0.0);
+    LbfgsOptions lbfgs = settings.lbfgs;
+    lbfgs.max_iterations = 0;
+    lbfgs_minimize([](const std::vector<double>&, std::vector<double>& g) { g.assign(1, 0.0); return 0.0; }, x,
+                   lbfgs);  // validates the options (no step with 0 iterations)
+    if (settings.epochs < 0)
+        throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
+    if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
+        throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
+}
+
 std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed) {
-    if (!(frac >= 0.0) || !std::isfinite(frac))
-        throw std::domain_error("noise fraction " + std::to_string(frac) + " is invalid; expected a fraction >= 0");
+    validate_noise_fraction(frac);
     const auto& t = truth.values();
     const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
     const double width = frac * (*hi - *lo);

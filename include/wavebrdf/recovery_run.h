@@ -83,6 +83,10 @@ struct PreparedRecovery {
     BaselineSettings thesis;              // used when method is Thesis
     std::vector<std::string> notes;       // the plan's (none with given observations)
     std::vector<std::string> warnings;    // check_acquisition's
+    // Why height_rel_rmse is undefined although a truth is known ("undefined: the truth is
+    // flat", e.g. a 1×1 truth: its height range is 0); empty when it is defined or no truth.
+    // The recovery runs all the same, with height_rel_rmse −1 (as without a truth).
+    std::string metric_note;
 };
 
 // The set-up: with `observations` (non-empty) they are used as given on an
@@ -92,16 +96,17 @@ struct PreparedRecovery {
 // options.noise (simulate_observations, seed options.seed). `show_progress` draws a
 // "simulate" progress bar on a terminal. Throws std::invalid_argument when both a truth and
 // observations are given, when noise is asked for with given observations, or for the
-// thesis's epochs < 0 (before any work); the planner's, the generator's and the loss's exceptions
-// otherwise.
+// thesis's epochs < 0, and for the pipeline with a model that is not separable (planned
+// observations) or given observations without a single-wavelength OHS / ROHS one (all before
+// any work); the planner's, the generator's and the loss's exceptions otherwise.
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth = nullptr,
                                   std::vector<Observation> observations = {}, bool show_progress = false);
 
 // The estimate (prepared.rows × prepared.cols, texel units with prepared.texel_um and
 // vscale) from a flat start, by prepared.method. on_step receives every StageMetrics of the
 // method ("blur:S", "blur", "field:λ", "unwrap", "refine" for the pipeline; "thesis" every
-// report_every epochs), with height_rel_rmse when a truth is known; returning false stops
-// and returns the estimate so far.
+// report_every epochs), with height_rel_rmse when a truth is known and not flat (else −1);
+// returning false stops and returns the estimate so far.
 Heightfield run_recovery(const PreparedRecovery& prepared,
                          const std::function<bool(const StageMetrics&)>& on_step = {});
 
