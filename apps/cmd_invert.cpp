@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -56,6 +55,7 @@ struct InvertArgs {
     // command line ("--lr", ...), which --resume checks.
     bool force = false;
     std::vector<std::string> given;
+    const CLI::App* command = nullptr;  // to list them
 };
 
 // The options a resumed run accepts: the rest come from its run.json.
@@ -369,7 +369,7 @@ void run(InvertArgs a) {
             inversion.run(on_epoch);
         } catch (const std::exception& e) {
             std::vector<std::string> saved;
-            const auto keep = [&](const char* what, const std::function<void()>& write) {
+            const auto keep = [&](const char* what, auto&& write) {
                 try {
                     write();
                     saved.push_back(what);
@@ -491,11 +491,12 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
-    cmd->callback([a, lambda, spectral, cmd] {
+    a->command = cmd;
+    cmd->callback([a, lambda, spectral] {
         a->given_lambda = lambda->count() > 0;
         a->given_spectral = spectral->count() > 0;
         a->given.clear();
-        for (const CLI::Option* option : cmd->get_options())
+        for (const CLI::Option* option : a->command->get_options())
             if (option->count() > 0) a->given.push_back(option->get_name());
         run(*a);
     });

@@ -92,9 +92,13 @@ Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
                      InversionSettings settings, const Heightfield* truth)
     : m_observations(std::move(observations)), m_estimate(std::move(initial)),
       m_settings(settings), m_truth(truth), m_adam(m_estimate.values().size(), settings.adam) {
+    validate(m_settings);
     if (m_observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     for (std::size_t i = 0; i < m_observations.size(); ++i) validate(m_observations[i], i);
-    validate(settings);
+    if (settings.epochs < 0)
+        throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
+    if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
+        throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
     if (truth && (truth->rows() != m_estimate.rows() || truth->cols() != m_estimate.cols()))
         throw std::invalid_argument("truth is " + std::to_string(truth->rows()) + "x" + std::to_string(truth->cols()) +
                                     " but the estimate is " + std::to_string(m_estimate.rows()) + "x" +
@@ -360,6 +364,7 @@ void Inversion::load_checkpoint(const std::string& path) {
         state.m = j.at("adam_m").get<std::vector<double>>();
         state.v = j.at("adam_v").get<std::vector<double>>();
         state.steps = j.at("adam_steps").get<long long>();
+        m_adam.set_state(state);
         // Absent in checkpoints written before the history was kept: L-BFGS then starts afresh.
         LbfgsState lbfgs;
         if (j.contains("lbfgs_s")) {
@@ -368,7 +373,6 @@ void Inversion::load_checkpoint(const std::string& path) {
             lbfgs.rho = j.at("lbfgs_rho").get<std::vector<double>>();
         }
         validate_lbfgs_state(lbfgs, m_estimate.values().size(), m_settings.lbfgs.history);
-        m_adam.set_state(state);
         m_lbfgs = std::move(lbfgs);
         m_estimate = m_estimate.with_values(j.at("heights").get<std::vector<double>>());
         m_epoch = j.at("epoch").get<int>();

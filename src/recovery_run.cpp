@@ -47,6 +47,14 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                                     "' is simulated on rendered observations; it needs a truth, not given observations");
     if (options.method == RecoveryMethod::Thesis && options.epochs < 0)
         throw std::invalid_argument("epochs " + std::to_string(options.epochs) + " is negative; expected >= 0");
+
+    PreparedRecovery r;
+    r.method = options.method;
+    r.noise = options.noise;
+    r.loss = recovery_loss(options);
+    r.range_um = options.height_range_um;
+    r.texel_um = options.texel_um;
+    r.vscale = options.vscale;
     // The pipeline's field retrieval needs single-wavelength separable slices: checked here,
     // before the observations are simulated, not after.
     if (options.method == RecoveryMethod::Pipeline) {
@@ -62,14 +70,6 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                 "no single-wavelength OHS or ROHS observation given; the pipeline's field retrieval needs some "
                 "(or the thesis's method)");
     }
-
-    PreparedRecovery r;
-    r.method = options.method;
-    r.noise = options.noise;
-    r.loss = recovery_loss(options);
-    r.range_um = options.height_range_um;
-    r.texel_um = options.texel_um;
-    r.vscale = options.vscale;
     if (!observations.empty()) {
         r.observations = std::move(observations);
         r.rows = options.rows;

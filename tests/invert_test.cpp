@@ -616,6 +616,9 @@ TEST_F(InvertTest, CliResumeRefusesTheCheckpointOfAnotherRun) {
 TEST_F(InvertTest, CliBadOptions) {
     const fs::path out = path("o");
     const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+        // Values that used to fail only after the run had written its files.
+        {"--lr 1e300", {"lr", "1e+300", "at most 1000"}},
+        {"--init noisy:1e300", {"--init noisy:1e300", "0 to 1000"}},
         {"--optimizer sgd", {"--optimizer", "'sgd'"}},
         {"--loss foo", {"'foo'"}},
         {"--positions random --optimizer lbfgs", {"L-BFGS", "--positions"}},
@@ -634,9 +637,6 @@ TEST_F(InvertTest, CliBadOptions) {
         {"--snapshots 1,x", {"--snapshots"}},
         {"--checkpoint-every 0", {"--checkpoint-every 0"}},
         {"--epochs abc", {"--epochs", "abc"}},
-        // Values that used to fail only after the run had written its files.
-        {"--lr 1e300", {"lr", "1e+300", "at most 1000"}},
-        {"--init noisy:1e300", {"--init noisy:1e300", "0 to 1000"}},
     };
     for (const auto& [extra, needles] : cases) {
         SCOPED_TRACE(extra);

@@ -42,6 +42,8 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         std::vector<std::string> needles;
     };
     const std::vector<Case> cases = {
+        // Used to fail only after simulating the observations and writing run.json.
+        {"--size 8 --model GHS --out " + out, {"GHS", "OHS or ROHS"}},
         {"--truth a.exr --observations o.json --out " + out, {"--truth", "--observations"}},
         {"--method adam --out " + out, {"--method", "adam"}},
         {"--noise poisson:-3 --out " + out, {"poisson:-3"}},
@@ -53,8 +55,6 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--loss cmsle:0 --out " + out, {"cmsle:0"}},
         {"--truth missing.exr --out " + out, {"missing.exr"}},
         {"--observations missing.json --size 8 --out " + out, {"missing.json"}},
-        // Used to fail only after simulating the observations and writing run.json.
-        {"--size 8 --model GHS --out " + out, {"GHS", "OHS or ROHS"}},
     };
     for (const Case& c : cases) {
         SCOPED_TRACE(c.args);

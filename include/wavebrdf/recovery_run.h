@@ -89,6 +89,9 @@ struct PreparedRecovery {
     std::string metric_note;
 };
 
+// For the pipeline, a model that is not separable (planned observations) or given
+// observations without a single-wavelength OHS / ROHS one are refused (std::invalid_argument)
+// before any work.
 // The set-up: with `observations` (non-empty) they are used as given on an
 // options.rows × options.cols grid; else the truth is `truth` (its size, texel width and
 // vscale) or, when null, generated_recovery_truth(options), the acquisition is planned for its
@@ -96,9 +99,8 @@ struct PreparedRecovery {
 // options.noise (simulate_observations, seed options.seed). `show_progress` draws a
 // "simulate" progress bar on a terminal. Throws std::invalid_argument when both a truth and
 // observations are given, when noise is asked for with given observations, or for the
-// thesis's epochs < 0, and for the pipeline with a model that is not separable (planned
-// observations) or given observations without a single-wavelength OHS / ROHS one (all before
-// any work); the planner's, the generator's and the loss's exceptions otherwise.
+// thesis's epochs < 0 (before any work); the planner's, the generator's and the loss's exceptions
+// otherwise.
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth = nullptr,
                                   std::vector<Observation> observations = {}, bool show_progress = false);
 
