@@ -458,6 +458,7 @@ void run(InvertArgs a) {
 void add_invert_command(CLI::App& app) {
     auto a = std::make_shared<InvertArgs>();
     CLI::App* cmd = app.add_subcommand("invert", "Recover heights whose BRDF slices match references (the thesis's inverse renderer)");
+    a->command = cmd;
     cmd->add_option("--truth", a->truth, "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");
     cmd->add_option("--observations", a->observations, "reference slices with their query parameters (JSON)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")->capture_default_str();
@@ -491,7 +492,6 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
-    a->command = cmd;
     cmd->callback([a, lambda, spectral] {
         a->given_lambda = lambda->count() > 0;
         a->given_spectral = spectral->count() > 0;
