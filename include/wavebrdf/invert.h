@@ -53,18 +53,19 @@ std::vector<Observation> observe(const Heightfield& truth, const Observation& ba
                                  const std::vector<std::array<double, 2>>& positions_um,
                                  const RenderOptions& options = {});
 
+// The truth's raw values plus uniform noise on an interval of width frac × their range
+// (`--init noisy:FRAC`), seeded. Throws std::domain_error for frac < 0 or not finite.
+std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed);
+
 // The largest Adam learning rate (a step in texel units) and the largest noise fraction of
 // noisy_start that Inversion accepts: beyond them the heights leave any range a slice can
 // resolve (phases of 1e16 and more lose every digit) and the run ends in non-finite values.
 constexpr double kMaxInversionLr = 1e3;
 constexpr double kMaxNoiseFraction = 1e3;
 
-// Throws std::domain_error naming the value unless 0 ≤ frac ≤ kMaxNoiseFraction (finite).
+// Throws std::domain_error naming the value unless 0 ≤ frac ≤ kMaxNoiseFraction (noisy_start
+// checks it too, so it also refuses a fraction above kMaxNoiseFraction).
 void validate_noise_fraction(double frac);
-
-// The truth's raw values plus uniform noise on an interval of width frac × their range
-// (`--init noisy:FRAC`), seeded. Throws as validate_noise_fraction.
-std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed);
 
 // Checks settings before any work, with the messages Inversion's constructor gives: the Adam
 // options (Adam's own checks, and lr ≤ kMaxInversionLr), the L-BFGS options, epochs ≥ 0 and
@@ -75,7 +76,7 @@ class Inversion {
 public:
     // `truth` (optional, same size as `initial`) gives height_mse and random-position references.
     // Throws std::invalid_argument on empty observations, a size mismatch, L-BFGS with random
-    // positions, or epochs < 0.
+    // positions, or epochs < 0; as validate(settings) for the optimiser settings.
     Inversion(std::vector<Observation> observations, Heightfield initial, InversionSettings settings,
               const Heightfield* truth = nullptr);
 
