@@ -72,11 +72,12 @@ void validate_noise_fraction(double frac);
 // L-BFGS with random positions (std::invalid_argument; std::domain_error for the values).
 void validate(const InversionSettings& settings);
 
+// Inversion validates its settings as validate(settings) does.
 class Inversion {
 public:
     // `truth` (optional, same size as `initial`) gives height_mse and random-position references.
     // Throws std::invalid_argument on empty observations, a size mismatch, L-BFGS with random
-    // positions, or epochs < 0; as validate(settings) for the optimiser settings.
+    // positions, or epochs < 0.
     Inversion(std::vector<Observation> observations, Heightfield initial, InversionSettings settings,
               const Heightfield* truth = nullptr);
 
