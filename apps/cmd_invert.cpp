@@ -13,6 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "cli_common.h"
 #include "cli_signals.h"
@@ -22,6 +23,7 @@
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/progress.h"
+#include "wavebrdf/run_directory.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf::cli {
@@ -47,7 +49,20 @@ struct InvertArgs {
     std::string out, resume, snapshots = "0,10,30,100,300";
     int checkpoint_every = 50;
     bool quiet = false, no_plots = false;
+    // Not in run.json: --force (replace the run in --out) and the options given on the
+    // command line ("--lr", ...), which --resume checks.
+    bool force = false;
+    std::vector<std::string> given;
+    const CLI::App* command = nullptr;  // to list them
 };
+
+// The options a resumed run accepts: the rest come from its run.json.
+const std::set<std::string> kResumeOptions = {"--resume", "--epochs", "--quiet", "--no-plots"};
+
+// `path` as stored in run.json: absolute, so that --resume finds it from any directory.
+std::string absolute_path(const std::string& path) {
+    return path.empty() ? path : fs::absolute(path).lexically_normal().string();
+}
 
 nlohmann::json to_json(const InvertArgs& a) {
     return {{"truth", a.truth}, {"observations", a.observations}, {"init", a.init}, {"size", a.size},
@@ -154,6 +169,12 @@ void run(InvertArgs a) {
     const bool no_plots = a.no_plots;
     std::string dir = a.out;
     if (resuming) {
+        for (const std::string& option : a.given)
+            if (!kResumeOptions.count(option))
+                throw std::invalid_argument(option + " cannot be combined with --resume: a resumed run keeps the options in " +
+                                            a.resume + "/run.json; expected only --epochs (to extend it), --quiet or --no-plots");
+        const bool extend = std::find(a.given.begin(), a.given.end(), "--epochs") != a.given.end();
+        const int epochs = a.epochs;
         dir = a.resume;
         std::ifstream in(dir + "/run.json");
         if (!in) throw std::runtime_error(dir + "/run.json: cannot open; expected a directory written by 'wavebrdf invert --out'");
@@ -164,8 +185,11 @@ void run(InvertArgs a) {
         }
         if (!fs::exists(dir + "/checkpoint.json"))
             throw std::runtime_error(dir + "/checkpoint.json: missing; nothing to resume");
+        if (extend) a.epochs = epochs;
     }
     if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
+    // A new run goes into a new or empty directory (or, with --force, one of invert's own runs).
+    if (!resuming) check_run_directory(RunKind::Invert, dir, a.force);
 
     // Settings.
     InversionSettings settings;
@@ -186,7 +210,24 @@ void run(InvertArgs a) {
     const std::set<int> snapshots = parse_epoch_list(a.snapshots);
     if (a.checkpoint_every < 1)
         throw std::invalid_argument("--checkpoint-every " + std::to_string(a.checkpoint_every) + " is invalid; expected >= 1");
-    { Adam check(1, settings.adam); }  // validates the Adam options with their own messages
+    validate(settings);  // the Adam options with their own messages, bounds, L-BFGS vs random positions
+    // --init noisy:FRAC, checked before the truth is read or rendered.
+    double noisy_frac = -1.0;
+    if (a.init.rfind("noisy:", 0) == 0) {
+        if (!a.observations.empty()) throw std::invalid_argument("--init noisy:FRAC needs --truth (noise is added to the truth)");
+        try {
+            std::size_t used = 0;
+            noisy_frac = std::stod(a.init.substr(6), &used);
+            if (used != a.init.size() - 6) throw std::invalid_argument(a.init);
+        } catch (const std::logic_error&) {
+            throw std::invalid_argument("--init '" + a.init + "' is invalid; expected flat, noisy:FRAC or FILE.exr");
+        }
+        try {
+            validate_noise_fraction(noisy_frac);
+        } catch (const std::exception& e) {
+            throw std::domain_error("--init " + a.init + ": " + e.what());
+        }
+    }
 
     // Wavelengths.
     std::vector<double> lambdas;
@@ -244,19 +285,8 @@ void run(InvertArgs a) {
 
     std::vector<double> init(static_cast<std::size_t>(rows) * cols, 0.0);
     if (a.init == "flat") {
-    } else if (a.init.rfind("noisy:", 0) == 0) {
-        if (!truth) throw std::invalid_argument("--init noisy:FRAC needs --truth (noise is added to the truth)");
-        double frac = 0.0;
-        try {
-            std::size_t used = 0;
-            frac = std::stod(a.init.substr(6), &used);
-            if (used != a.init.size() - 6) throw std::invalid_argument(a.init);
-        } catch (const std::logic_error&) {
-            throw std::invalid_argument("--init '" + a.init + "' is invalid; expected flat, noisy:FRAC or FILE.exr");
-        }
-        if (!(frac >= 0.0) || !std::isfinite(frac))
-            throw std::domain_error("--init noisy:" + a.init.substr(6) + " is invalid; expected a fraction >= 0");
-        init = noisy_start(*truth, frac, a.seed);
+    } else if (noisy_frac >= 0.0) {
+        init = noisy_start(*truth, noisy_frac, a.seed);
     } else {
         const Heightfield file = read_heightfield_exr(a.init, a.texel_um, a.vscale);
         if (file.rows() != rows || file.cols() != cols)
@@ -268,13 +298,30 @@ void run(InvertArgs a) {
     Inversion inversion(observations, Heightfield(rows, cols, init, a.texel_um, a.vscale), settings, truth.get());
 
     // Output directory.
+    if (!resuming) prepare_run_directory(RunKind::Invert, dir, a.force);
     fs::create_directories(dir + "/snapshots");
     check_writable(dir + "/metrics.csv");
     const int channels = observations[0].channels();
     if (resuming) {
         inversion.load_checkpoint(dir + "/checkpoint.json");
+        if (a.epochs < inversion.epoch())
+            throw std::invalid_argument("--epochs " + std::to_string(a.epochs) + " is below the checkpoint's epoch " +
+                                        std::to_string(inversion.epoch()) + "; expected at least that many");
+        // The new target, for a later --resume.
+        std::ifstream in(dir + "/run.json");
+        nlohmann::json run = nlohmann::json::parse(in);
+        if (run["args"]["epochs"] != a.epochs) {
+            run["args"]["epochs"] = a.epochs;
+            write_text_atomically(dir + "/run.json", run.dump(1) + "\n");
+        }
     } else {
-        nlohmann::json run = {{"args", to_json(a)},
+        // Input files by absolute path, so that --resume finds them from any directory.
+        InvertArgs stored = a;
+        stored.truth = absolute_path(a.truth);
+        stored.observations = absolute_path(a.observations);
+        if (a.init != "flat" && noisy_frac < 0.0) stored.init = absolute_path(a.init);
+        if (a.positions != "fixed" && a.positions != "random") stored.positions = absolute_path(a.positions);
+        nlohmann::json run = {{"args", to_json(stored)},
                               {"title", "wavebrdf invert: " + a.loss + ", " + a.optimizer + ", " +
                                             std::to_string(rows) + "x" + std::to_string(cols) + " heights, " +
                                             std::to_string(a.resolution) + "^2 slices, " +
@@ -313,7 +360,33 @@ void run(InvertArgs a) {
         inversion.save_checkpoint(dir + "/checkpoint.json");
         write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history()));
     };
-    inversion.run([&](const EpochMetrics& m, const Heightfield& estimate, const std::vector<double>& gradient,
+    // A failure midway (an exception from the run or from writing its outputs) keeps what was
+    // finished: the checkpoint and metrics of the last completed epoch and its estimate, each
+    // written on its own so that one failing write does not lose the others.
+    const auto run_epochs = [&](const Inversion::Callback& on_epoch) {
+        try {
+            inversion.run(on_epoch);
+        } catch (const std::exception& e) {
+            std::vector<std::string> saved;
+            const auto keep = [&](const char* what, auto&& write) {
+                try {
+                    write();
+                    saved.push_back(what);
+                } catch (const std::exception&) {
+                }
+            };
+            keep("checkpoint.json", [&] { inversion.save_checkpoint(dir + "/checkpoint.json"); });
+            keep("metrics.csv", [&] { write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history())); });
+            keep("estimate.exr", [&] { write_heightfield_exr(dir + "/estimate.exr", inversion.estimate()); });
+            std::string list;
+            for (const std::string& name : saved) list += (list.empty() ? "" : ", ") + name;
+            throw std::runtime_error(std::string(e.what()) + "; the run stopped at epoch " +
+                                     std::to_string(inversion.epoch()) + " and " +
+                                     (saved.empty() ? std::string("nothing more could be written to ") + dir
+                                                    : "its " + list + " are in " + dir));
+        }
+    };
+    run_epochs([&](const EpochMetrics& m, const Heightfield& estimate, const std::vector<double>& gradient,
                       const std::vector<std::vector<double>>& slices) {
         if (snapshots.count(m.epoch)) {
             char name[64];
@@ -384,6 +457,7 @@ void run(InvertArgs a) {
 void add_invert_command(CLI::App& app) {
     auto a = std::make_shared<InvertArgs>();
     CLI::App* cmd = app.add_subcommand("invert", "Recover heights whose BRDF slices match references (the thesis's inverse renderer)");
+    a->command = cmd;
     cmd->add_option("--truth", a->truth, "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");
     cmd->add_option("--observations", a->observations, "reference slices with their query parameters (JSON)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")->capture_default_str();
@@ -409,7 +483,10 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--positions", a->positions, "fixed, random (a new position per epoch) or FILE.json ([[x_um, y_um], ...])")->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, noise, random positions)")->capture_default_str();
     cmd->add_option("--out", a->out, "output directory");
-    cmd->add_option("--resume", a->resume, "continue the interrupted run in this directory");
+    cmd->add_option("--resume", a->resume,
+                    "continue the run in this directory with its own options (--epochs N extends it to N epochs)");
+    cmd->add_flag("--force", a->force,
+                  "replace the earlier run in --out (only a directory that holds nothing but invert's outputs)");
     cmd->add_option("--snapshots", a->snapshots, "epochs to keep heights, slices and gradients for the report")->capture_default_str();
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
@@ -417,6 +494,9 @@ void add_invert_command(CLI::App& app) {
     cmd->callback([a, lambda, spectral] {
         a->given_lambda = lambda->count() > 0;
         a->given_spectral = spectral->count() > 0;
+        a->given.clear();
+        for (const CLI::Option* option : a->command->get_options())
+            if (option->count() > 0) a->given.push_back(option->get_name());
         run(*a);
     });
 }

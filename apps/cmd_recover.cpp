@@ -19,6 +19,7 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/recovery_run.h"
+#include "wavebrdf/run_directory.h"
 
 namespace wavebrdf::cli {
 
@@ -41,7 +42,7 @@ struct RecoverArgs {
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
-    bool save_observations = false, quiet = false, no_plots = false;
+    bool save_observations = false, quiet = false, no_plots = false, force = false;
 };
 
 std::vector<double> parse_list(const std::string& option, const std::string& text) {
@@ -84,6 +85,8 @@ void save_observations(const std::string& dir, const std::vector<Observation>& o
 
 void run(const RecoverArgs& a) {
     if (a.out.empty()) throw std::invalid_argument("no output directory; expected --out DIR");
+    // A new or empty directory (or, with --force, one of recover's own runs), before any work.
+    check_run_directory(RunKind::Recover, a.out, a.force);
     if (!a.truth.empty() && !a.observations.empty())
         throw std::invalid_argument("--truth and --observations exclude each other");
     RecoveryOptions options;
@@ -124,13 +127,14 @@ void run(const RecoverArgs& a) {
     const std::vector<std::string>& warnings = r.warnings;
 
     // Output directory: fail before the long work when it cannot be written.
-    fs::create_directories(a.out);
+    prepare_run_directory(RunKind::Recover, a.out, a.force);
     check_writable(a.out + "/metrics.csv");
     nlohmann::json run = {{"method", a.method}, {"size", std::to_string(rows) + "x" + std::to_string(cols)},
                           {"texel_um", a.texel_um}, {"vscale", a.vscale}, {"height_range_um", r.range_um},
                           {"noise", to_string(r.noise)}, {"loss", to_string(r.loss)}, {"seed", a.seed},
                           {"observations", r.observations.size()}, {"plan", notes}, {"warnings", warnings},
                           {"truth", r.truth.has_value()}};
+    if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
     write_text_atomically(a.out + "/run.json", run.dump(1) + "\n");
     if (!a.quiet) {
         for (const auto& n : notes) std::fprintf(stderr, "plan: %s\n", n.c_str());
@@ -180,7 +184,21 @@ void run(const RecoverArgs& a) {
         last = m;
         return true;
     };
-    const Heightfield estimate = run_recovery(r, on_step);
+    // A failure midway keeps the metrics of the steps that finished.
+    const Heightfield estimate = [&] {
+        try {
+            return run_recovery(r, on_step);
+        } catch (const std::exception& e) {
+            bool saved = false;
+            try {
+                write_text_atomically(a.out + "/metrics.csv", csv.str());
+                saved = true;
+            } catch (const std::exception&) {
+            }
+            throw std::runtime_error(std::string(e.what()) + (saved ? "; the metrics so far are in " + a.out + "/metrics.csv"
+                                                                    : "; nothing more could be written to " + a.out));
+        }
+    }();
     end_stage();
 
     write_text_atomically(a.out + "/metrics.csv", csv.str());
@@ -201,7 +219,9 @@ void run(const RecoverArgs& a) {
             std::fprintf(stderr, "wavebrdf: warning: could not draw report.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
     }
     if (!a.quiet) {
-        if (r.truth)
+        if (r.truth && !r.metric_note.empty())
+            std::fprintf(stderr, "height_rel_rmse %s; results in %s\n", r.metric_note.c_str(), a.out.c_str());
+        else if (r.truth)
             std::fprintf(stderr, "height_rel_rmse %.3f%%; results in %s\n", 100.0 * height_rel_rmse(estimate, *r.truth),
                          a.out.c_str());
         else
@@ -239,6 +259,8 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--epochs", a->epochs, "thesis method: Adam epochs")->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
     cmd->add_option("--out", a->out, "output directory")->required();
+    cmd->add_flag("--force", a->force,
+                  "replace the earlier run in --out (only a directory that holds nothing but recover's outputs)");
     cmd->add_flag("--save-observations", a->save_observations, "also write the observations (observations.json + EXR slices)");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -92,6 +93,7 @@ Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
                      InversionSettings settings, const Heightfield* truth)
     : m_observations(std::move(observations)), m_estimate(std::move(initial)),
       m_settings(settings), m_truth(truth), m_adam(m_estimate.values().size(), settings.adam) {
+    validate(m_settings);
     if (m_observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     for (std::size_t i = 0; i < m_observations.size(); ++i) validate(m_observations[i], i);
     if (settings.epochs < 0)
@@ -130,9 +132,37 @@ std::vector<Observation> observe(const Heightfield& truth, const Observation& ba
     return out;
 }
 
+void validate_noise_fraction(double frac) {
+    if (!(frac >= 0.0 && frac <= kMaxNoiseFraction)) {
+        char text[160];
+        std::snprintf(text, sizeof text, "noise fraction %g is invalid; expected a fraction from 0 to %g", frac,
+                      kMaxNoiseFraction);
+        throw std::domain_error(text);
+    }
+}
+
+void validate(const InversionSettings& settings) {
+    { Adam check(0, settings.adam); }  // its own messages
+    if (!(settings.adam.lr <= kMaxInversionLr)) {
+        char text[200];
+        std::snprintf(text, sizeof text,
+                      "Adam lr %g is too large; expected at most %g (a step in texel units)", settings.adam.lr,
+                      kMaxInversionLr);
+        throw std::domain_error(text);
+    }
+    std::vector<double> x(1, 0.0);
+    LbfgsOptions lbfgs = settings.lbfgs;
+    lbfgs.max_iterations = 0;
+    lbfgs_minimize([](const std::vector<double>&, std::vector<double>& g) { g.assign(1, 0.0); return 0.0; }, x,
+                   lbfgs);  // validates the options (no step with 0 iterations)
+    if (settings.epochs < 0)
+        throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
+    if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
+        throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
+}
+
 std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed) {
-    if (!(frac >= 0.0) || !std::isfinite(frac))
-        throw std::domain_error("noise fraction " + std::to_string(frac) + " is invalid; expected a fraction >= 0");
+    validate_noise_fraction(frac);
     const auto& t = truth.values();
     const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
     const double width = frac * (*hi - *lo);
@@ -223,8 +253,8 @@ void Inversion::run(const Callback& on_epoch) {
         return;
     }
 
-    // L-BFGS: one iteration per epoch. Its curvature history is not checkpointed: a resumed
-    // run restarts the history at the checkpoint's heights.
+    // L-BFGS: one iteration per epoch. Its curvature history (m_lbfgs) is updated before each
+    // report, so a checkpoint taken there continues exactly.
     {
         std::vector<double> gradient;
         std::vector<std::vector<double>> slices;
@@ -252,7 +282,7 @@ void Inversion::run(const Callback& on_epoch) {
             return false;
         }
         return m_epoch < m_settings.epochs;
-    });
+    }, &m_lbfgs);
     if (!stopped) m_estimate = m_estimate.with_values(x);
     m_seconds_before = seconds();
 }
@@ -292,6 +322,9 @@ void Inversion::save_checkpoint(const std::string& path) const {
     j["adam_m"] = m_adam.state().m;
     j["adam_v"] = m_adam.state().v;
     j["adam_steps"] = m_adam.state().steps;
+    j["lbfgs_s"] = m_lbfgs.s;
+    j["lbfgs_y"] = m_lbfgs.y;
+    j["lbfgs_rho"] = m_lbfgs.rho;
     nlohmann::json rows = nlohmann::json::array();
     for (const EpochMetrics& m : m_history)
         rows.push_back({m.epoch, m.loss, m.brdf_mse, m.cmsle_1, m.cmsle_0_001, m.rgb_mse, m.rgb_gamma_mse,
@@ -323,6 +356,15 @@ void Inversion::load_checkpoint(const std::string& path) {
         state.v = j.at("adam_v").get<std::vector<double>>();
         state.steps = j.at("adam_steps").get<long long>();
         m_adam.set_state(state);
+        // Absent in checkpoints written before the history was kept: L-BFGS then starts afresh.
+        LbfgsState lbfgs;
+        if (j.contains("lbfgs_s")) {
+            lbfgs.s = j.at("lbfgs_s").get<std::vector<std::vector<double>>>();
+            lbfgs.y = j.at("lbfgs_y").get<std::vector<std::vector<double>>>();
+            lbfgs.rho = j.at("lbfgs_rho").get<std::vector<double>>();
+        }
+        validate_lbfgs_state(lbfgs, m_estimate.values().size(), m_settings.lbfgs.history);
+        m_lbfgs = std::move(lbfgs);
         m_estimate = m_estimate.with_values(j.at("heights").get<std::vector<double>>());
         m_epoch = j.at("epoch").get<int>();
         m_seconds_before = j.at("seconds").get<double>();

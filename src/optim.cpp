@@ -96,9 +96,33 @@ void Adam::set_state(const State& state) {
 // ---------------------------------------------------------------------------------------------
 // L-BFGS (Nocedal and Wright 2006, Algorithm 7.4 and 7.5; Armijo backtracking, Algorithm 3.1)
 
+void validate_lbfgs_state(const LbfgsState& state, std::size_t size, int history) {
+    const std::size_t pairs = state.s.size();
+    if (state.y.size() != pairs || state.rho.size() != pairs)
+        throw std::invalid_argument("L-BFGS state: " + std::to_string(state.s.size()) + " s, " +
+                                    std::to_string(state.y.size()) + " y and " + std::to_string(state.rho.size()) +
+                                    " rho; expected equal counts");
+    if (pairs > static_cast<std::size_t>(std::max(history, 0)))
+        throw std::invalid_argument("L-BFGS state: " + std::to_string(pairs) + " pairs; expected at most " +
+                                    std::to_string(history) + " (the history kept)");
+    for (std::size_t k = 0; k < pairs; ++k) {
+        if (state.s[k].size() != size || state.y[k].size() != size)
+            throw std::invalid_argument("L-BFGS state: pair " + std::to_string(k) + " has " +
+                                        std::to_string(state.s[k].size()) + " and " + std::to_string(state.y[k].size()) +
+                                        " values; expected " + std::to_string(size));
+        const auto finite = [](const std::vector<double>& v) {
+            return std::all_of(v.begin(), v.end(), [](double a) { return std::isfinite(a); });
+        };
+        if (!finite(state.s[k]) || !finite(state.y[k]) || !std::isfinite(state.rho[k]) || !(state.rho[k] > 0.0))
+            throw std::invalid_argument("L-BFGS state: pair " + std::to_string(k) +
+                                        " is not finite or its rho is not > 0 (rho = " + format_value(state.rho[k]) + ")");
+    }
+}
+
 LbfgsResult lbfgs_minimize(
     const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
-    std::vector<double>& x, const LbfgsOptions& options, const std::function<bool(int, double)>& on_iteration) {
+    std::vector<double>& x, const LbfgsOptions& options, const std::function<bool(int, double)>& on_iteration,
+    LbfgsState* state) {
     require(options.history >= 1, "L-BFGS history", options.history, ">= 1");
     require(options.max_iterations >= 0, "L-BFGS max_iterations", options.max_iterations, ">= 0");
     require(std::isfinite(options.gradient_tolerance) && options.gradient_tolerance >= 0.0,
@@ -106,6 +130,7 @@ LbfgsResult lbfgs_minimize(
     require(options.max_line_search >= 1, "L-BFGS max_line_search", options.max_line_search, ">= 1");
     if (!objective) throw std::invalid_argument("lbfgs_minimize: the objective is empty");
     if (x.empty()) throw std::invalid_argument("lbfgs_minimize: x is empty");
+    if (state) validate_lbfgs_state(*state, x.size(), options.history);
 
     using Vec = Eigen::VectorXd;
     const std::size_t n = x.size();
@@ -144,6 +169,22 @@ LbfgsResult lbfgs_minimize(
     };
     std::deque<Pair> history;
     std::vector<double> alpha(static_cast<std::size_t>(options.history));
+    if (state)
+        for (std::size_t k = 0; k < state->s.size(); ++k)
+            history.push_back({Eigen::Map<const Vec>(state->s[k].data(), en),
+                               Eigen::Map<const Vec>(state->y[k].data(), en), state->rho[k]});
+    // The history, back into *state (after every accepted step).
+    const auto save_state = [&] {
+        if (!state) return;
+        state->s.resize(history.size());
+        state->y.resize(history.size());
+        state->rho.resize(history.size());
+        for (std::size_t k = 0; k < history.size(); ++k) {
+            state->s[k].assign(history[k].s.data(), history[k].s.data() + en);
+            state->y[k].assign(history[k].y.data(), history[k].y.data() + en);
+            state->rho[k] = history[k].rho;
+        }
+    };
 
     while (!result.converged && result.iterations < options.max_iterations) {
         // Two-loop recursion: d = −H g, with H₀ = γ I, γ = sᵀy / yᵀy of the newest pair.
@@ -203,6 +244,7 @@ LbfgsResult lbfgs_minimize(
         ++result.iterations;
         result.value = f;
         result.converged = g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance;
+        save_state();
         if (on_iteration && !on_iteration(result.iterations, f)) break;
     }
     return result;

@@ -55,6 +55,21 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     r.range_um = options.height_range_um;
     r.texel_um = options.texel_um;
     r.vscale = options.vscale;
+    // The pipeline's field retrieval needs single-wavelength separable slices: checked here,
+    // before the observations are simulated, not after.
+    if (options.method == RecoveryMethod::Pipeline) {
+        if (observations.empty() && !is_separable(options.model))
+            throw std::invalid_argument(std::string("model ") + to_string(options.model) +
+                                        " is not separable; the pipeline's field retrieval expects OHS or ROHS "
+                                        "(or the thesis's method)");
+        if (!observations.empty() &&
+            std::none_of(observations.begin(), observations.end(), [](const Observation& o) {
+                return o.lambdas_um.size() == 1 && is_separable(o.query.model);
+            }))
+            throw std::invalid_argument(
+                "no single-wavelength OHS or ROHS observation given; the pipeline's field retrieval needs some "
+                "(or the thesis's method)");
+    }
     if (!observations.empty()) {
         r.observations = std::move(observations);
         r.rows = options.rows;
@@ -87,7 +102,13 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.observations = simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
         progress.finish();
     }
+    if (r.truth) {
+        const HeightStats stats = height_stats(*r.truth);
+        if (!(stats.max_um > stats.min_um)) r.metric_note = "undefined: the truth is flat";
+    }
     r.warnings = check_acquisition(r.observations, r.rows, r.cols, r.texel_um, r.truth ? &*r.truth : nullptr);
+    if (!r.metric_note.empty())
+        r.warnings.push_back("height_rel_rmse is " + r.metric_note + " (its height range is 0); the metrics give nan");
 
     r.pipeline.refine_loss = r.loss;
     r.pipeline.max_range_um = std::max(r.range_um, 1e-3);
@@ -100,7 +121,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 }
 
 Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(const StageMetrics&)>& on_step) {
-    const Heightfield* truth = r.truth ? &*r.truth : nullptr;
+    // A flat truth has no relative height error (its range is 0): the recovery runs without it.
+    const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
     if (r.method == RecoveryMethod::Pipeline)
         return recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.pipeline, on_step, truth);
     return recover_heights_thesis(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.thesis, on_step, truth);

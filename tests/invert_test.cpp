@@ -100,7 +100,9 @@ protected:
     CliResult run(const std::string& args) const { return run_cli(m_dir, args); }
 
     // `invert` with the tiny defaults; --epochs 20 and --lambda-um 0.5 unless `extra` sets them.
+    // With --resume only --no-plots --quiet are added (the run keeps its own options).
     CliResult invert(const std::string& extra) const {
+        if (extra.find("--resume") != std::string::npos) return run("invert " + extra + " --no-plots --quiet");
         std::string args = "invert" + kSmall + " " + extra;
         if (extra.find("--epochs") == std::string::npos && extra.find("--resume") == std::string::npos)
             args += " --epochs 20";
@@ -236,6 +238,53 @@ TEST_F(InvertTest, CheckpointResumesBitForBit) {
         EXPECT_EQ(second.history()[e].epoch, whole.history()[e].epoch);
         EXPECT_EQ(second.history()[e].loss, whole.history()[e].loss) << "epoch " << e;
         EXPECT_EQ(second.history()[e].height_mse, whole.history()[e].height_mse) << "epoch " << e;
+    }
+}
+
+// Every optimiser (and random positions) resumes bit for bit, whether the first part was
+// stopped by its callback or ran to a smaller epoch count that the resume extends. L-BFGS
+// without its curvature history in the checkpoint took other steps after a resume.
+TEST_F(InvertTest, CheckpointResumesBitForBitWithEveryOptimiser) {
+    const Heightfield truth = tiny_truth();
+    const std::vector<Observation> obs = {tiny_observation(truth)};
+    struct Case {
+        const char* name;
+        OptimizerKind optimizer;
+        PositionMode positions;
+    };
+    for (const Case& c : {Case{"adam", OptimizerKind::Adam, PositionMode::Fixed},
+                          Case{"lbfgs", OptimizerKind::Lbfgs, PositionMode::Fixed},
+                          Case{"adam random", OptimizerKind::Adam, PositionMode::Random}}) {
+        SCOPED_TRACE(c.name);
+        InversionSettings settings = tiny_settings(14);
+        settings.optimizer = c.optimizer;
+        settings.positions = c.positions;
+        settings.lbfgs.history = 4;
+        Inversion whole(obs, flat(), settings, &truth);
+        whole.run({});
+        ASSERT_EQ(whole.epoch(), 14);
+        for (const bool extend : {false, true}) {
+            SCOPED_TRACE(extend ? "run to 7 epochs, extended to 14" : "stopped at epoch 7");
+            const std::string checkpoint = (m_dir / (std::string(c.name) + (extend ? "-e.json" : "-s.json"))).string();
+            {
+                InversionSettings first_settings = settings;
+                if (extend) first_settings.epochs = 7;
+                Inversion first(obs, flat(), first_settings, &truth);
+                first.run([&](const EpochMetrics& m, const Heightfield&, const std::vector<double>&,
+                              const std::vector<std::vector<double>>&) { return extend || m.epoch < 7; });
+                ASSERT_EQ(first.epoch(), 7);
+                first.save_checkpoint(checkpoint);
+            }
+            Inversion second(obs, flat(), settings, &truth);
+            second.load_checkpoint(checkpoint);
+            second.run({});
+            EXPECT_EQ(second.estimate().values(), whole.estimate().values()) << "not bitwise identical";
+            ASSERT_EQ(second.history().size(), whole.history().size());
+            for (std::size_t e = 0; e < whole.history().size(); ++e) {
+                EXPECT_EQ(second.history()[e].loss, whole.history()[e].loss) << "epoch " << e;
+                EXPECT_EQ(second.history()[e].height_mse, whole.history()[e].height_mse) << "epoch " << e;
+            }
+        }
     }
 }
 
@@ -636,6 +685,9 @@ TEST_F(InvertTest, CliResumeRefusesTheCheckpointOfAnotherRun) {
 TEST_F(InvertTest, CliBadOptions) {
     const fs::path out = path("o");
     const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+        // Values that used to fail only after the run had written its files.
+        {"--lr 1e300", {"lr", "1e+300", "at most 1000"}},
+        {"--init noisy:1e300", {"--init noisy:1e300", "0 to 1000"}},
         {"--optimizer sgd", {"--optimizer", "'sgd'"}},
         {"--loss foo", {"'foo'"}},
         {"--positions random --optimizer lbfgs", {"L-BFGS", "--positions"}},
@@ -660,6 +712,116 @@ TEST_F(InvertTest, CliBadOptions) {
         expect_clean_failure(invert(extra + " --out o"), needles, {out});
     }
     expect_clean_failure(invert(""), {"--out"}, {});
+}
+
+// metrics.csv without its wall-time column, and estimate.exr's bytes, of a run directory.
+std::pair<std::vector<std::vector<std::string>>, std::string> run_result(const fs::path& dir) {
+    std::vector<std::vector<std::string>> rows;
+    for (const std::string& line : lines_of(read_text(dir / "metrics.csv"))) {
+        std::vector<std::string> fields;
+        std::stringstream in(line);
+        std::string f;
+        while (std::getline(in, f, ',')) fields.push_back(f);
+        if (!fields.empty()) fields.pop_back();
+        rows.push_back(fields);
+    }
+    return {rows, read_text(dir / "estimate.exr")};
+}
+
+// N epochs straight against K epochs and `--resume DIR --epochs N`, bit for bit, for Adam,
+// L-BFGS (which restarted its curvature history on resume) and random positions; the inputs
+// by relative paths, the resume from another working directory (run.json stores them
+// absolute; --epochs was ignored and relative paths were not found).
+TEST_F(InvertTest, CliResumeExtendsARunBitForBitFromAnyDirectory) {
+    write_heightfield_exr(path("truth.exr").string(), tiny_truth());
+    write_heightfield_exr(path("init.exr").string(), test::random_heightfield(8, 8, 0.1, 5));
+    std::ofstream(path("pos.json")) << "[[4, 4], [2, 6]]";
+    fs::create_directory(path("elsewhere"));
+    for (const std::string& variant :
+         {std::string("--truth truth.exr"), std::string("--truth truth.exr --optimizer lbfgs --positions pos.json --init init.exr"),
+          std::string("--truth truth.exr --positions random --init noisy:0.5")}) {
+        SCOPED_TRACE(variant);
+        fs::remove_all(path("whole"));
+        fs::remove_all(path("part"));
+        const CliResult whole = invert(variant + " --epochs 12 --out whole");
+        ASSERT_EQ(whole.exit_code, 0) << whole.err;
+        const CliResult part = invert(variant + " --epochs 5 --out part");
+        ASSERT_EQ(part.exit_code, 0) << part.err;
+        const CliResult resumed = run_cli(path("elsewhere"), "invert --resume ../part --epochs 12 --quiet --no-plots");
+        ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+        EXPECT_EQ(nlohmann::json::parse(read_text(path("part/run.json"))).at("args").at("epochs"), 12)
+            << "the new target is kept for a later --resume";
+        const auto a = run_result(path("whole")), b = run_result(path("part"));
+        ASSERT_EQ(a.first.size(), 14u);
+        EXPECT_EQ(a.first, b.first) << "metrics differ from the uninterrupted run's";
+        EXPECT_FALSE(a.second.empty());
+        EXPECT_TRUE(a.second == b.second) << "estimate.exr differs from the uninterrupted run's";
+    }
+    // --epochs below the checkpoint's epoch is refused.
+    expect_clean_failure(invert("--resume part --epochs 3"), {"--epochs 3", "12"}, {});
+}
+
+// --resume with any option but --epochs, --quiet and --no-plots is refused by name, before
+// anything is written (they used to be ignored silently, and --out other wrote into DIR).
+TEST_F(InvertTest, CliResumeRefusesOtherOptions) {
+    const CliResult first = invert("--epochs 3 --out run");
+    ASSERT_EQ(first.exit_code, 0) << first.err;
+    const std::string metrics_before = read_text(path("run/metrics.csv"));
+    for (const auto& [extra, option] : std::vector<std::pair<std::string, std::string>>{
+             {"--lr 0.5", "--lr"}, {"--out other", "--out"}, {"--optimizer lbfgs", "--optimizer"},
+             {"--force", "--force"}, {"--truth t.exr", "--truth"}}) {
+        SCOPED_TRACE(extra);
+        expect_clean_failure(run("invert --resume run --epochs 6 " + extra), {option, "--resume"}, {path("other")});
+    }
+    EXPECT_EQ(read_text(path("run/metrics.csv")), metrics_before);
+    EXPECT_EQ(nlohmann::json::parse(read_text(path("run/run.json"))).at("args").at("epochs"), 3);
+}
+
+// A new run into a non-empty --out is refused (old snapshots mixed into the new report);
+// --force replaces a directory of invert's own outputs, but never deletes other files.
+TEST_F(InvertTest, CliOutMustBeNewOrEmptyUnlessForced) {
+    const CliResult first = invert("--epochs 12 --snapshots 0,10 --out run");
+    ASSERT_EQ(first.exit_code, 0) << first.err;
+    ASSERT_TRUE(fs::exists(path("run/snapshots/height_0010.npy")));
+    const std::string metrics_before = read_text(path("run/metrics.csv"));
+    expect_clean_failure(invert("--epochs 3 --out run"), {"--out run", "--force", "--resume"}, {});
+    EXPECT_EQ(read_text(path("run/metrics.csv")), metrics_before) << "the refused run changed the directory";
+
+    const CliResult forced = invert("--epochs 3 --out run --force");
+    ASSERT_EQ(forced.exit_code, 0) << forced.err;
+    EXPECT_FALSE(fs::exists(path("run/snapshots/height_0010.npy"))) << "the old run's snapshot survived --force";
+    EXPECT_EQ(metrics("run").size(), 5u);
+
+    std::ofstream(path("run/notes.txt")) << "mine";
+    expect_clean_failure(invert("--epochs 3 --out run --force"), {"--out run", "notes.txt"}, {});
+    EXPECT_EQ(read_text(path("run/notes.txt")), "mine");
+    EXPECT_TRUE(fs::exists(path("run/run.json"))) << "--force deleted files though a foreign one was there";
+
+    fs::create_directory(path("mine"));
+    std::ofstream(path("mine/data.csv")) << "1,2";
+    expect_clean_failure(invert("--out mine"), {"--out mine", "data.csv"}, {path("mine/run.json")});
+    fs::create_directory(path("empty"));
+    EXPECT_EQ(invert("--epochs 1 --out empty").exit_code, 0) << "an empty directory is fine";
+}
+
+// A failure midway (here the checkpoint outgrows a file-size limit, as on a full disk) keeps
+// what the run finished: metrics.csv up to the last epoch and estimate.exr, named in the one
+// error line (it used to write neither).
+TEST_F(InvertTest, CliFailureMidwayKeepsTheFinishedWork) {
+    const std::string command = "cd " + quote(m_dir.string()) + " && trap '' XFSZ && ulimit -f 40 && exec " +
+                                quote(WAVEBRDF_CLI) + " invert" + kSmall +
+                                " --lambda-um 0.5 --epochs 1000 --checkpoint-every 1 --out run > out.txt 2> err.txt";
+    const int status = std::system(command.c_str());
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 1);
+    const CliResult r{1, "", read_text(path("err.txt"))};
+    ASSERT_TRUE(expect_one_line_naming(r, {"checkpoint", "stopped at epoch", "metrics.csv", "estimate.exr"}));
+    const std::string line = lines_of(r.err)[0];
+    const int stopped = std::stoi(line.substr(line.find("stopped at epoch ") + 17));
+    EXPECT_GT(stopped, 10);
+    EXPECT_LT(stopped, 1000);
+    EXPECT_EQ(metrics("run").size(), static_cast<std::size_t>(stopped) + 2) << "header and epochs 0.." << stopped;
+    EXPECT_EQ(read_heightfield_exr(path("run/estimate.exr").string()).rows(), 8);
 }
 
 }  // namespace

@@ -329,3 +329,55 @@ TEST(OptimTest, LbfgsEdgeCasesAndValidation) {
                                 start),
                  std::domain_error);
 }
+
+// A run stopped after some iterations and continued from its x and LbfgsState takes the same
+// steps as the uninterrupted run, bit for bit (without the state, the restarted history took
+// other steps); a state that cannot fit is refused before any evaluation.
+TEST(OptimTest, LbfgsStateContinuesBitForBit) {
+    std::vector<double> whole = {-1.2, 1.0, 0.5, -0.7};
+    const auto rosenbrock4 = [](const std::vector<double>& x, std::vector<double>& g) {
+        double f = 0.0;
+        g.assign(x.size(), 0.0);
+        for (std::size_t i = 0; i + 1 < x.size(); ++i) {
+            const double a = 1.0 - x[i], b = x[i + 1] - x[i] * x[i];
+            f += a * a + 100.0 * b * b;
+            g[i] += -2.0 * a - 400.0 * x[i] * b;
+            g[i + 1] += 200.0 * b;
+        }
+        return f;
+    };
+    LbfgsOptions options;
+    options.history = 3;
+    options.max_iterations = 25;
+    options.gradient_tolerance = 0.0;
+    lbfgs_minimize(rosenbrock4, whole, options);
+
+    std::vector<double> x = {-1.2, 1.0, 0.5, -0.7};
+    LbfgsState state;
+    LbfgsOptions first = options;
+    first.max_iterations = 9;
+    lbfgs_minimize(rosenbrock4, x, first, {}, &state);
+    EXPECT_EQ(state.s.size(), 3u) << "history full after 9 iterations";
+    LbfgsOptions rest = options;
+    rest.max_iterations = 16;
+    const LbfgsResult r = lbfgs_minimize(rosenbrock4, x, rest, {}, &state);
+    EXPECT_EQ(r.iterations, 16);
+    EXPECT_EQ(x, whole) << "not bitwise identical to the uninterrupted run";
+
+    LbfgsState bad = state;
+    bad.rho[0] = -1.0;
+    int calls = 0;
+    const auto counted = [&](const std::vector<double>& v, std::vector<double>& g) {
+        ++calls;
+        return rosenbrock4(v, g);
+    };
+    expect_throw_naming<std::invalid_argument>([&] { lbfgs_minimize(counted, x, rest, {}, &bad); }, "rho");
+    bad = state;
+    bad.s[1].pop_back();
+    expect_throw_naming<std::invalid_argument>([&] { lbfgs_minimize(counted, x, rest, {}, &bad); }, "pair 1");
+    LbfgsOptions short_history = options;
+    short_history.history = 2;
+    expect_throw_naming<std::invalid_argument>([&] { lbfgs_minimize(counted, x, short_history, {}, &state); },
+                                               "3 pairs; expected at most 2");
+    EXPECT_EQ(calls, 0);
+}

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -40,6 +42,8 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         std::vector<std::string> needles;
     };
     const std::vector<Case> cases = {
+        // Used to fail only after simulating the observations and writing run.json.
+        {"--size 8 --model GHS --out " + out, {"GHS", "OHS or ROHS"}},
         {"--truth a.exr --observations o.json --out " + out, {"--truth", "--observations"}},
         {"--method adam --out " + out, {"--method", "adam"}},
         {"--noise poisson:-3 --out " + out, {"poisson:-3"}},
@@ -111,4 +115,46 @@ TEST(RecoverCliTest, ThesisMethodRunsOnTheSameData) {
     ASSERT_EQ(lines.size(), 1u + 4u) << "a row every 10 epochs";
     EXPECT_EQ(lines[1].rfind("thesis,10,", 0), 0u) << lines[1];
     EXPECT_TRUE(std::isfinite(final_height_error(dir / "thesis" / "metrics.csv")));
+}
+
+// A flat truth (8×8, and 1×1) has no relative height error: the run still writes its
+// estimate, with nan in the metrics and "undefined: the truth is flat" in run.json (it used to
+// fail in the metric after the recovery, writing no estimate).
+TEST(RecoverCliTest, FlatTruthReportsTheMetricAsUndefinedAndWritesTheEstimate) {
+    const fs::path dir = fresh_dir("recover");
+    write_heightfield_exr((dir / "flat.exr").string(), Heightfield(8, 8, std::vector<double>(64, 0.25), 2.0));
+    write_heightfield_exr((dir / "one.exr").string(), Heightfield(1, 1, std::vector<double>(1, 0.0), 2.0));
+    for (const std::string name : {"flat", "one"}) {
+        SCOPED_TRACE(name);
+        const CliResult r = run_cli(dir, "recover --truth " + name + ".exr --texel-um 2 --sigma-p-um 3 "
+                                         "--field-iterations 3 --refine-iterations 2 --no-plots --quiet --out " + name);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_NE(r.err.find("undefined: the truth is flat"), std::string::npos) << r.err;
+        EXPECT_TRUE(fs::exists(dir / name / "estimate.exr"));
+        EXPECT_TRUE(std::isnan(final_height_error(dir / name / "metrics.csv")));
+        EXPECT_EQ(nlohmann::json::parse(read_text(dir / name / "run.json")).at("height_rel_rmse"),
+                  "undefined: the truth is flat");
+    }
+}
+
+// A new run into a non-empty --out is refused; --force replaces a directory of recover's own
+// outputs and nothing else.
+TEST(RecoverCliTest, OutMustBeNewOrEmptyUnlessForced) {
+    const fs::path dir = fresh_dir("recover");
+    const std::string fast = kSmall + " --field-iterations 3 --refine-iterations 2";
+    const CliResult first = run_cli(dir, "recover " + fast + " --save-observations --out run");
+    ASSERT_EQ(first.exit_code, 0) << first.err;
+    const std::string metrics_before = read_text(dir / "run" / "metrics.csv");
+    expect_one_line_naming(run_cli(dir, "recover " + fast + " --loss mse --out run"), {"--out run", "--force"});
+    EXPECT_EQ(read_text(dir / "run" / "metrics.csv"), metrics_before) << "the refused run changed the directory";
+
+    const CliResult forced = run_cli(dir, "recover " + fast + " --loss mse --force --out run");
+    ASSERT_EQ(forced.exit_code, 0) << forced.err;
+    EXPECT_FALSE(fs::exists(dir / "run" / "observations.json")) << "the old run's observations survived --force";
+    EXPECT_FALSE(fs::exists(dir / "run" / "observations"));
+
+    std::ofstream(dir / "run" / "notes.txt") << "mine";
+    expect_one_line_naming(run_cli(dir, "recover " + fast + " --force --out run"), {"--out run", "notes.txt"});
+    EXPECT_EQ(read_text(dir / "run" / "notes.txt"), "mine");
+    EXPECT_TRUE(fs::exists(dir / "run" / "estimate.exr")) << "--force deleted files though a foreign one was there";
 }

@@ -57,6 +57,22 @@ std::vector<Observation> observe(const Heightfield& truth, const Observation& ba
 // (`--init noisy:FRAC`), seeded. Throws std::domain_error for frac < 0 or not finite.
 std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed);
 
+// The largest Adam learning rate (a step in texel units) and the largest noise fraction of
+// noisy_start that Inversion accepts: beyond them the heights leave any range a slice can
+// resolve (phases of 1e16 and more lose every digit) and the run ends in non-finite values.
+constexpr double kMaxInversionLr = 1e3;
+constexpr double kMaxNoiseFraction = 1e3;
+
+// Throws std::domain_error naming the value unless 0 ≤ frac ≤ kMaxNoiseFraction (noisy_start
+// checks it too, so it also refuses a fraction above kMaxNoiseFraction).
+void validate_noise_fraction(double frac);
+
+// Checks settings before any work, with the messages Inversion's constructor gives: the Adam
+// options (Adam's own checks, and lr ≤ kMaxInversionLr), the L-BFGS options, epochs ≥ 0 and
+// L-BFGS with random positions (std::invalid_argument; std::domain_error for the values).
+void validate(const InversionSettings& settings);
+
+// Inversion validates its settings as validate(settings) does.
 class Inversion {
 public:
     // `truth` (optional, same size as `initial`) gives height_mse and random-position references.
@@ -76,9 +92,12 @@ public:
     const Heightfield& estimate() const { return m_estimate; }
     const std::vector<EpochMetrics>& history() const { return m_history; }
 
-    // Checkpoint: epoch, heights, optimiser state, metrics so far and a fingerprint of the
-    // settings and observations, as JSON. load_checkpoint throws std::runtime_error when the
-    // file does not match this run (different settings, observations or size).
+    // Checkpoint: epoch, heights, optimiser state (Adam's moments and step count, L-BFGS's
+    // curvature history), metrics so far and a fingerprint of the settings and observations,
+    // as JSON; a run continued from it takes the same steps as the uninterrupted run, bit for
+    // bit, with either optimiser. load_checkpoint throws std::runtime_error when the file does
+    // not match this run (different settings, observations or size). settings.epochs is not
+    // part of the run: a checkpoint continues with this Inversion's epochs (to extend a run).
     void save_checkpoint(const std::string& path) const;
     void load_checkpoint(const std::string& path);
 
@@ -95,6 +114,7 @@ private:
     InversionSettings m_settings;
     const Heightfield* m_truth;
     Adam m_adam;
+    LbfgsState m_lbfgs;  // L-BFGS's curvature history at m_epoch (checkpointed)
     int m_epoch = 0;
     double m_seconds_before = 0.0;
     std::vector<EpochMetrics> m_history;

@@ -69,6 +69,20 @@ struct LbfgsResult {
     bool converged = false;  // ‖g‖∞ ≤ gradient_tolerance at the returned x
 };
 
+// The curvature history of lbfgs_minimize, for checkpoints: the kept pairs, oldest first,
+// s_k = x_{k+1} − x_k and y_k = ∇f(x_{k+1}) − ∇f(x_k), and ρ_k = 1 / s_kᵀy_k (> 0). Empty: no
+// curvature known yet (the start). With x this is everything the next iteration depends on:
+// f and ∇f at x are evaluated again, which gives the same values for a deterministic objective.
+struct LbfgsState {
+    std::vector<std::vector<double>> s, y;
+    std::vector<double> rho;
+};
+
+// Throws std::invalid_argument naming what is wrong when `state` cannot continue a run on
+// `size` parameters with `history` pairs kept: unequal pair counts, more pairs than
+// `history`, a vector not of `size`, a non-finite entry, or ρ not finite and > 0.
+void validate_lbfgs_state(const LbfgsState& state, std::size_t size, int history);
+
 // `objective(x, gradient)` returns f(x) and writes ∇f(x) into gradient (resized to x.size()).
 // `on_iteration(iteration, value)`, when given, is called after each accepted step; returning
 // false stops the run. Trial points are evaluated in a separate vector, so `x` only ever holds
@@ -77,9 +91,14 @@ struct LbfgsResult {
 // max_line_search trials; x is then the last accepted point and `value` its f. Throws
 // std::invalid_argument for an empty x or objective or an objective that resizes the
 // gradient, std::domain_error when f or ∇f at the starting x is not finite.
+// `state`, when given, is the curvature history to start from (validate_lbfgs_state; empty
+// for a fresh start) and is updated after every accepted step, before on_iteration: a run
+// stopped there and started again from the same x and *state takes exactly the steps the
+// uninterrupted run takes (bit for bit, for a deterministic objective). iteration counts
+// this call's steps only.
 LbfgsResult lbfgs_minimize(
     const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
     std::vector<double>& x, const LbfgsOptions& options = {},
-    const std::function<bool(int, double)>& on_iteration = {});
+    const std::function<bool(int, double)>& on_iteration = {}, LbfgsState* state = nullptr);
 
 }  // namespace wavebrdf

@@ -83,8 +83,15 @@ struct PreparedRecovery {
     BaselineSettings thesis;              // used when method is Thesis
     std::vector<std::string> notes;       // the plan's (none with given observations)
     std::vector<std::string> warnings;    // check_acquisition's
+    // Why height_rel_rmse is undefined although a truth is known ("undefined: the truth is
+    // flat", e.g. a 1×1 truth: its height range is 0); empty when it is defined or no truth.
+    // The recovery runs all the same, with height_rel_rmse −1 (as without a truth).
+    std::string metric_note;
 };
 
+// For the pipeline, a model that is not separable (planned observations) or given
+// observations without a single-wavelength OHS / ROHS one are refused (std::invalid_argument)
+// before any work.
 // The set-up: with `observations` (non-empty) they are used as given on an
 // options.rows × options.cols grid; else the truth is `truth` (its size, texel width and
 // vscale) or, when null, generated_recovery_truth(options), the acquisition is planned for its
@@ -100,8 +107,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 // The estimate (prepared.rows × prepared.cols, texel units with prepared.texel_um and
 // vscale) from a flat start, by prepared.method. on_step receives every StageMetrics of the
 // method ("blur:S", "blur", "field:λ", "unwrap", "refine" for the pipeline; "thesis" every
-// report_every epochs), with height_rel_rmse when a truth is known; returning false stops
-// and returns the estimate so far.
+// report_every epochs), with height_rel_rmse when a truth is known and not flat (else −1);
+// returning false stops and returns the estimate so far.
 Heightfield run_recovery(const PreparedRecovery& prepared,
                          const std::function<bool(const StageMetrics&)>& on_step = {});
 

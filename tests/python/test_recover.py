@@ -314,3 +314,16 @@ def test_bad_arguments_of_the_parts(small_observations):
         wb.recover_heights_thesis(obs, 8, 2.0, lr=-1.0)
     with pytest.raises(RuntimeError, match="missing.json"):
         wb.recover(observations="missing.json")
+
+
+def test_recover_flat_truth_reports_undefined_metric():
+    # A flat truth has no relative height error: the recovery runs, with NaN metrics and a
+    # warning (it used to raise from the metric after the work); a non-separable model is
+    # refused before the observations are simulated.
+    flat = wb.Heightfield(np.full((8, 8), 0.25), texel_um=2.0)
+    r = wb.recover(flat, sigma_p_um=3.0, field_iterations=3, refine_iterations=2, resolution=32)
+    assert r.estimate.shape == (8, 8)
+    assert np.all(np.isnan(r.metrics["height_rel_rmse"]))
+    assert any("undefined: the truth is flat" in w for w in r.warnings)
+    with pytest.raises(ValueError, match="GHS"):
+        wb.recover(**SMALL, model="GHS")
