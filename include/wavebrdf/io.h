@@ -16,11 +16,17 @@ struct RgbImage {
     std::vector<float> data;
 };
 
+// The most pixels an EXR file read here may declare (16384², the largest heightfield
+// `wavebrdf heightfield --size` makes): checked on the header, before any pixel is allocated,
+// so a small file declaring a huge data window fails with its size, not std::bad_alloc.
+// Not tied to the file size: compressed constant images are legitimately tiny.
+constexpr long long k_max_exr_pixels = 16384LL * 16384LL;
+
 // Reads the R channel of an OpenEXR file (half or float pixels, any size) as a heightfield in
 // the public release's convention (values in units of texel width; row i = image row).
 // Throws std::runtime_error naming the file when it is missing, unreadable, corrupt or
-// truncated, or has no R channel (a single Y channel is accepted too); std::domain_error when
-// a value is not finite.
+// truncated, declares more than k_max_exr_pixels pixels, or has no R channel (a single Y
+// channel is accepted too); std::domain_error when a value is not finite.
 Heightfield read_heightfield_exr(const std::string& path, double texel_um = 1.0,
                                  double vscale = 1.0);
 
@@ -34,7 +40,8 @@ void write_heightfield_png(const std::string& path, const Heightfield& heightfie
 // (the layout of genBrdf's output).
 void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha = false);
 
-// Reads the R, G, B channels of an EXR (half or float) as linear float.
+// Reads the R, G, B channels of an EXR (half or float) as linear float. Throws
+// std::runtime_error naming the file as read_heightfield_exr does (k_max_exr_pixels included).
 RgbImage read_rgb_exr(const std::string& path);
 
 // Writes an 8-bit sRGB PNG preview: value · 2^exposure, Reinhard-free clamp to [0, 1], sRGB
