@@ -99,8 +99,10 @@ InvertArgs from_json(const nlohmann::json& j) {
     a.beta1 = j.at("beta1");
     a.beta2 = j.at("beta2");
     a.decay = j.at("decay");
-    a.seed = static_cast<std::uint64_t>(
-        detail::json_int(j, "seed", 0, std::numeric_limits<long long>::max(), ""));
+    // Seeds are 64-bit unsigned: the upper half is a JSON unsigned integer, the rest as checked.
+    a.seed = j.at("seed").is_number_unsigned()
+                 ? j.at("seed").get<std::uint64_t>()
+                 : static_cast<std::uint64_t>(detail::json_int(j, "seed", 0, std::numeric_limits<long long>::max(), ""));
     a.snapshots = j.at("snapshots");
     a.checkpoint_every = detail::json_int32(j, "checkpoint_every", 1, std::numeric_limits<int>::max(), "");
     return a;
