@@ -1,6 +1,7 @@
 // `wavebrdf genbrdf`: the flags of the reference program genBrdf (Yan et al. 2018's public
 // release) with their meanings and defaults, so that existing scripts work unchanged.
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -24,6 +25,15 @@ struct GenbrdfArgs {
     bool quiet = false;
 };
 
+// The steepest light genbrdf takes: tan θ_i = |(s, t)| ≤ 1e6.
+constexpr double k_max_tan_theta_i = 1e6;
+
+std::string format_number(double v) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.10g", v);
+    return buf;
+}
+
 void run(const GenbrdfArgs& a) {
     if (a.method != "Wave")
         throw std::invalid_argument("method '" + a.method + "' is not supported; expected Wave (-m Wave)");
@@ -32,8 +42,15 @@ void run(const GenbrdfArgs& a) {
     q.x_um = a.mu_x;
     q.y_um = a.mu_y;
     q.sigma_p_um = a.sigma_p;
-    // genBrdf: ω_i = normalize(s, t, 1).xy.
-    const double norm = std::sqrt(a.s * a.s + a.t * a.t + 1.0);
+    // genBrdf: ω_i = normalize(s, t, 1).xy. s² + t² + 1 overflowed to inf for -s 1e200 and
+    // gave normal incidence; hypot does not overflow, and tan θ_i = |(s, t)| is bounded so that
+    // |ω_i| stays below 1 in double (cos θ_i ≥ 1e-6, θ_i ≤ 89.99994°).
+    const double tan_theta_i = std::hypot(a.s, a.t);
+    if (!std::isfinite(a.s) || !std::isfinite(a.t) || tan_theta_i > k_max_tan_theta_i)
+        throw std::domain_error("light direction -s " + format_number(a.s) + " -t " + format_number(a.t) +
+                                " is invalid; expected finite values with sqrt(s^2 + t^2) <= 1e6 "
+                                "(the direction (s, t, 1), up to 89.99994 degrees from the normal)");
+    const double norm = std::hypot(tan_theta_i, 1.0);
     q.omega_i = {a.s / norm, a.t / norm};
     SliceJob job;
     // -l 0 selects genBrdf's 8-sample spectral mode (with correct CIE weights, see README).

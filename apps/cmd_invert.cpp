@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <nlohmann/json.hpp>
@@ -25,6 +26,7 @@
 #include "wavebrdf/progress.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/spectrum.h"
+#include "../src/json_fields.h"
 
 namespace wavebrdf::cli {
 
@@ -34,7 +36,10 @@ namespace fs = std::filesystem;
 
 struct InvertArgs {
     std::string truth, observations, init = "flat", size = "16";
-    double texel_um = 1.0, vscale = 1.0, x_um = NAN, y_um = NAN, sigma_p_um = 4.0;
+    double texel_um = 1.0, vscale = 1.0, x_um = 0.0, y_um = 0.0, sigma_p_um = 4.0;
+    // Whether --x-um / --y-um were given (default: the tile centre). Not NaN as "absent":
+    // --x-um nan is an error like any non-finite position.
+    bool given_x = false, given_y = false;
     std::string model = "OHS";
     double lambda_um = 0.0;  // used only when given_lambda
     int spectral = 0;        // used only when given_spectral
@@ -67,8 +72,8 @@ std::string absolute_path(const std::string& path) {
 nlohmann::json to_json(const InvertArgs& a) {
     return {{"truth", a.truth}, {"observations", a.observations}, {"init", a.init}, {"size", a.size},
             {"texel_um", a.texel_um}, {"vscale", a.vscale},
-            {"x_um", std::isnan(a.x_um) ? nlohmann::json(nullptr) : nlohmann::json(a.x_um)},
-            {"y_um", std::isnan(a.y_um) ? nlohmann::json(nullptr) : nlohmann::json(a.y_um)},
+            {"x_um", a.given_x ? nlohmann::json(a.x_um) : nlohmann::json(nullptr)},
+            {"y_um", a.given_y ? nlohmann::json(a.y_um) : nlohmann::json(nullptr)},
             {"sigma_p_um", a.sigma_p_um}, {"model", a.model}, {"lambda_um", a.lambda_um},
             {"spectral", a.spectral}, {"light_x", a.light_x}, {"light_y", a.light_y},
             {"resolution", a.resolution}, {"epochs", a.epochs}, {"optimizer", a.optimizer},
@@ -85,18 +90,21 @@ InvertArgs from_json(const nlohmann::json& j) {
     a.size = j.at("size");
     a.texel_um = j.at("texel_um");
     a.vscale = j.at("vscale");
-    a.x_um = j.at("x_um").is_null() ? double(NAN) : j.at("x_um").get<double>();
-    a.y_um = j.at("y_um").is_null() ? double(NAN) : j.at("y_um").get<double>();
+    a.given_x = !j.at("x_um").is_null();
+    a.given_y = !j.at("y_um").is_null();
+    if (a.given_x) a.x_um = j.at("x_um").get<double>();
+    if (a.given_y) a.y_um = j.at("y_um").get<double>();
     a.sigma_p_um = j.at("sigma_p_um");
     a.model = j.at("model");
     a.lambda_um = j.at("lambda_um");
-    a.spectral = j.at("spectral");
+    // Integers must be integers in range (get<int> would read 8.7 as 8 and wrap 2^40 + 8 to 8).
+    a.spectral = detail::json_int32(j, "spectral", 0, k_max_spectral_samples, "");
     a.given_lambda = a.lambda_um != 0.0;
     a.given_spectral = a.spectral != 0;
     a.light_x = j.at("light_x");
     a.light_y = j.at("light_y");
-    a.resolution = j.at("resolution");
-    a.epochs = j.at("epochs");
+    a.resolution = detail::json_int32(j, "resolution", 1, 8192, "");
+    a.epochs = detail::json_int32(j, "epochs", 0, k_max_iterations, "");
     a.optimizer = j.at("optimizer");
     a.loss = j.at("loss");
     a.positions = j.at("positions");
@@ -104,9 +112,12 @@ InvertArgs from_json(const nlohmann::json& j) {
     a.beta1 = j.at("beta1");
     a.beta2 = j.at("beta2");
     a.decay = j.at("decay");
-    a.seed = j.at("seed");
+    // Seeds are 64-bit unsigned: the upper half is a JSON unsigned integer, the rest as checked.
+    a.seed = j.at("seed").is_number_unsigned()
+                 ? j.at("seed").get<std::uint64_t>()
+                 : static_cast<std::uint64_t>(detail::json_int(j, "seed", 0, std::numeric_limits<long long>::max(), ""));
     a.snapshots = j.at("snapshots");
-    a.checkpoint_every = j.at("checkpoint_every");
+    a.checkpoint_every = detail::json_int32(j, "checkpoint_every", 1, std::numeric_limits<int>::max(), "");
     return a;
 }
 
@@ -182,6 +193,8 @@ void run(InvertArgs a) {
             a = from_json(nlohmann::json::parse(in).at("args"));
         } catch (const nlohmann::json::exception& e) {
             throw std::runtime_error(dir + "/run.json: corrupt (" + std::string(e.what()) + ")");
+        } catch (const std::runtime_error& e) {  // an integer field out of range (from_json)
+            throw std::runtime_error(dir + "/run.json: " + std::string(e.what()));
         }
         if (!fs::exists(dir + "/checkpoint.json"))
             throw std::runtime_error(dir + "/checkpoint.json: missing; nothing to resume");
@@ -201,7 +214,7 @@ void run(InvertArgs a) {
     settings.adam.beta1 = a.beta1;
     settings.adam.beta2 = a.beta2;
     settings.adam.decay = a.decay;
-    if (a.epochs < 0) throw std::invalid_argument("--epochs " + std::to_string(a.epochs) + " is negative; expected >= 0");
+    validate_iterations(a.epochs, "--epochs");
     settings.epochs = a.epochs;
     settings.seed = a.seed;
     std::vector<std::array<double, 2>> position_list;
@@ -278,8 +291,8 @@ void run(InvertArgs a) {
         base.lambdas_um = lambdas;
         base.resolution = a.resolution;
         if (position_list.empty())
-            position_list.push_back({std::isnan(a.x_um) ? 0.5 * truth->period_x_um() : a.x_um,
-                                     std::isnan(a.y_um) ? 0.5 * truth->period_y_um() : a.y_um});
+            position_list.push_back({a.given_x ? a.x_um : 0.5 * truth->period_x_um(),
+                                     a.given_y ? a.y_um : 0.5 * truth->period_y_um()});
         observations = observe(*truth, base, position_list, settings.render);
     }
 
@@ -463,8 +476,8 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")->capture_default_str();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
     cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
-    cmd->add_option("--x-um", a->x_um, "footprint centre x in um (default: tile centre)");
-    cmd->add_option("--y-um", a->y_um, "footprint centre y in um (default: tile centre)");
+    auto* x_um = cmd->add_option("--x-um", a->x_um, "footprint centre x in um, any finite value (periodic; default: tile centre)");
+    auto* y_um = cmd->add_option("--y-um", a->y_um, "footprint centre y in um, any finite value (periodic; default: tile centre)");
     cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um")->capture_default_str();
     cmd->add_option("--model", a->model, "OHS, GHS, ROHS, RGHS or Kirchhoff")->capture_default_str();
     auto* lambda = cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default: --spectral 8)");
@@ -473,7 +486,7 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
     cmd->add_option("--resolution", a->resolution, "slice size n")->capture_default_str();
     cmd->add_option("--init", a->init, "flat, noisy:FRAC (truth + uniform noise of width FRAC x height range) or FILE.exr")->capture_default_str();
-    cmd->add_option("--epochs", a->epochs, "epochs (Adam steps or L-BFGS iterations)")->capture_default_str();
+    cmd->add_option("--epochs", a->epochs, "epochs (Adam steps or L-BFGS iterations), 0 to 10^7")->capture_default_str();
     cmd->add_option("--optimizer", a->optimizer, "adam or lbfgs")->capture_default_str();
     cmd->add_option("--lr", a->lr, "Adam learning rate (heights in texel units)")->capture_default_str();
     cmd->add_option("--beta1", a->beta1, "Adam beta1")->capture_default_str();
@@ -491,7 +504,9 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
-    cmd->callback([a, lambda, spectral] {
+    cmd->callback([a, lambda, spectral, x_um, y_um] {
+        a->given_x = x_um->count() > 0;
+        a->given_y = y_um->count() > 0;
         a->given_lambda = lambda->count() > 0;
         a->given_spectral = spectral->count() > 0;
         a->given.clear();

@@ -95,12 +95,14 @@ const char* kPlainArgs = R"doc(
 heights     2-D float32 or float64 array (rows, cols), finite, in texel units. float64 renders
             in double precision, float32 in single (the CLI's --precision); the result has the
             same dtype.
-texel_um    texel width w in um, > 0 (default 1)
-vscale      vertical scale v, finite (default 1): height in um = vscale * texel_um * heights
+texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
+vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
+            vscale * texel_um * heights
 x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
             default 0)
-sigma_p_um  footprint (coherence) standard deviation sigma_p in um, > 0 (default 10)
-lambda_um   one wavelength in um, > 0: R = G = B = its slice. Default 0.5 when spectral is None.
+sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
+            10 times the longer tile period (default 10)
+lambda_um   one wavelength in um, 0.01 to 1000: R = G = B = its slice. Default 0.5 when spectral is None.
 spectral    N (1...256): the library's N wavelengths over 0.36-0.83 um (the CLI's --spectral N),
             or a list of wavelengths in um; mapped to linear sRGB through the CIE 1931 curves.
             Excludes lambda_um.
@@ -120,10 +122,10 @@ and the wavelength(s).
 Query(x_um=0.0, y_um=0.0, sigma_p_um=10.0, light=(0.0, 0.0), model='OHS', lambda_um=None,
       spectral=None)
     x_um, y_um   footprint centre in um (x along rows, y along columns); finite, periodic
-    sigma_p_um   footprint standard deviation in um, > 0
+    sigma_p_um   footprint standard deviation in um, 1e-6 to 1e6 (and <= 10 tile periods)
     light        projected direction towards the light (wx, wy), wx^2 + wy^2 < 1
     model        'OHS', 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
-    lambda_um    one wavelength in um (> 0); default 0.5 when spectral is None
+    lambda_um    one wavelength in um (0.01 to 1000); default 0.5 when spectral is None
     spectral     N samples over 0.36-0.83 um (1...256) or a list of wavelengths in um, to
                  linear sRGB (CIE 1931); excludes lambda_um
 Position, sigma_p, light and model can be set later (validated); the wavelengths are fixed.

@@ -256,13 +256,14 @@ observations  Observation, list of them, or a JSON path (the CLI's --observation
 size          N or (rows, cols), 1...16384: the generated truth, or the estimate with observations
 texel_um      texel width in um (> 0), vscale: vertical scale; default the truth
               Heightfield's, else 1. Given, they apply to the truth and the estimate.
-x_um, y_um    footprint centre in um (default: tile centre); sigma_p_um > 0 (default 4)
+x_um, y_um    footprint centre in um, any finite value, periodic (default: tile centre);
+              sigma_p_um 1e-6 to 1e6 and <= 10 tile periods (default 4)
 model         'OHS', 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
 lambda_um     one wavelength in um, or spectral: N (1...256) or a list in um; default spectral 8
 light         projected light direction (wx, wy), wx^2 + wy^2 < 1; resolution: slice size n
 init          'flat', 'noisy:FRAC' (truth + uniform noise of width FRAC x its height range),
               a Heightfield, a 2-D array or an EXR path
-epochs        >= 0 (Adam steps or L-BFGS iterations); optimizer 'adam' or 'lbfgs'
+epochs        0 to 10^7 (Adam steps or L-BFGS iterations); optimizer 'adam' or 'lbfgs'
 lr, beta1, beta2, decay   Adam's options (lr > 0, betas in [0, 1), decay >= 0 per epoch)
 loss          'cmsle:EPS', 'mse', 'amplitude', 'poisson:N' or a Loss
 positions     'fixed', 'random' (a new footprint position per epoch, Adam only), a list of

@@ -14,8 +14,7 @@ Heightfield recover_heights_thesis(const std::vector<Observation>& observations,
                                    const std::function<bool(const StageMetrics&)>& on_step,
                                    const Heightfield* truth) {
     if (observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
-    if (settings.epochs < 0)
-        throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
+    validate_iterations(settings.epochs, "epochs");
     if (settings.report_every < 1)
         throw std::invalid_argument("report_every " + std::to_string(settings.report_every) + " is invalid; expected >= 1");
     for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);

@@ -1,6 +1,9 @@
 #include "wavebrdf/gabor.h"
 
+#include <algorithm>
 #include <cmath>
+#include <sstream>
+#include <stdexcept>
 
 namespace wavebrdf {
 
@@ -18,12 +21,15 @@ double periodic_offset(int index, double centre_um, double texel_um, int count) 
 // Texel indices along one axis within `radius_um` of `centre_um`, each once.
 std::vector<int> indices_within(double centre_um, double radius_um, double texel_um, int count) {
     std::vector<int> out;
-    const int reach = static_cast<int>(std::ceil(radius_um / texel_um)) + 1;
-    if (2 * reach + 1 >= count) {
+    // In double: a footprint many tiles wide must not overflow the texel count.
+    const double reach_texels = std::ceil(radius_um / texel_um) + 1.0;
+    if (2.0 * reach_texels + 1.0 >= static_cast<double>(count)) {
         for (int i = 0; i < count; ++i)
             if (std::abs(periodic_offset(i, centre_um, texel_um, count)) <= radius_um) out.push_back(i);
         return out;
     }
+    const int reach = static_cast<int>(reach_texels);
+    // centre_um is within one period (footprint_kernels reduced it), so this fits an int.
     const int centre = static_cast<int>(std::floor(centre_um / texel_um));
     for (int di = -reach; di <= reach; ++di) {
         int i = (centre + di) % count;
@@ -33,6 +39,14 @@ std::vector<int> indices_within(double centre_um, double radius_um, double texel
     return out;
 }
 
+// x modulo `period`, in [0, period): std::fmod is exact, so no precision is lost and no
+// integer conversion overflows however far from the origin the footprint was placed.
+double reduce_periodic(double x, double period) {
+    double r = std::fmod(x, period);
+    if (r < 0.0) r += period;
+    return r < period ? r : 0.0;  // r + period can round up to period for a tiny negative r
+}
+
 }  // namespace
 
 double window_weight(double distance_sq_um2, double sigma_p_um) {
@@ -40,8 +54,25 @@ double window_weight(double distance_sq_um2, double sigma_p_um) {
     return inv_sqrt_pi / sigma_p_um * std::exp(-distance_sq_um2 / (2.0 * sigma_p_um * sigma_p_um));
 }
 
-FootprintKernels footprint_kernels(const Heightfield& hf, double x_um, double y_um,
+void validate_footprint(double sigma_p_um, double period_x_um, double period_y_um) {
+    const double longest = std::max(period_x_um, period_y_um);
+    const double limit = k_max_sigma_p_periods * longest;
+    if (!(sigma_p_um > 0.0) || !(sigma_p_um <= limit)) {
+        std::ostringstream out;
+        out.precision(10);
+        out << "sigma_p " << sigma_p_um << " um is too large for the tile (" << period_x_um << " x "
+            << period_y_um << " um); expected 0 < sigma_p <= " << k_max_sigma_p_periods
+            << " x the longer tile period = " << limit
+            << " um (the window is cut to one periodic tile: a wider one only fades the slice)";
+        throw std::domain_error(out.str());
+    }
+}
+
+FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double y_in_um,
                                    double sigma_p_um) {
+    validate_footprint(sigma_p_um, hf.period_x_um(), hf.period_y_um());
+    const double x_um = reduce_periodic(x_in_um, hf.period_x_um());
+    const double y_um = reduce_periodic(y_in_um, hf.period_y_um());
     const double w = hf.texel_um();
     const double radius = 3.0 * sigma_p_um;
     const std::vector<int> rows = indices_within(x_um, radius, w, hf.rows());

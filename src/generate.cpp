@@ -88,10 +88,11 @@ void validate(const SurfaceParams& p) {
     require_non_negative(p.rms_slope, "rms_slope");
     require_positive(p.correlation_um, "correlation_um");
     require_positive(p.anisotropy, "anisotropy");
-    if (p.scratch_count < 0)
+    if (p.scratch_count < 0 || p.scratch_count > k_max_scratches)
         throw std::domain_error("surface parameter scratch_count = " +
                                 std::to_string(p.scratch_count) +
-                                " is invalid; expected a count >= 0");
+                                " is invalid; expected a count from 0 to " +
+                                std::to_string(k_max_scratches));
     require_non_negative(p.scratch_depth_um, "scratch_depth_um");
     require_positive(p.scratch_width_um, "scratch_width_um");
     require_finite(p.amplitude_um, "amplitude_um");

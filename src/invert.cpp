@@ -17,6 +17,7 @@
 
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
+#include "json_fields.h"
 
 namespace wavebrdf {
 
@@ -96,8 +97,9 @@ Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
     validate(m_settings);
     if (m_observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     for (std::size_t i = 0; i < m_observations.size(); ++i) validate(m_observations[i], i);
-    if (settings.epochs < 0)
-        throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
+    validate_iterations(settings.epochs, "epochs");
+    for (const Observation& o : m_observations)
+        validate_footprint(o.query.sigma_p_um, m_estimate.period_x_um(), m_estimate.period_y_um());
     if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
         throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
     if (truth && (truth->rows() != m_estimate.rows() || truth->cols() != m_estimate.cols()))
@@ -337,6 +339,9 @@ void Inversion::load_checkpoint(const std::string& path) {
     std::ifstream in(path);
     if (!in) throw std::runtime_error(path + ": cannot open the checkpoint");
     nlohmann::json j;
+    const std::string where = path + ": ";
+    // Heights per side: a checkpoint of a heightfield larger than any we make is corrupt.
+    constexpr long long k_max_side = 16384;
     try {
         j = nlohmann::json::parse(in);
         if (j.at("format").get<std::string>() != "wavebrdf-checkpoint-1")
@@ -349,12 +354,13 @@ void Inversion::load_checkpoint(const std::string& path) {
                                      (differences.empty() ? "settings, observations or seed differ" : differences) +
                                      "); expected the same options as the run it came from");
         }
-        if (j.at("rows").get<int>() != m_estimate.rows() || j.at("cols").get<int>() != m_estimate.cols())
+        if (detail::json_int(j, "rows", 1, k_max_side, where) != m_estimate.rows() ||
+            detail::json_int(j, "cols", 1, k_max_side, where) != m_estimate.cols())
             throw std::runtime_error(path + ": checkpoint size differs from the heightfield");
         Adam::State state;
         state.m = j.at("adam_m").get<std::vector<double>>();
         state.v = j.at("adam_v").get<std::vector<double>>();
-        state.steps = j.at("adam_steps").get<long long>();
+        state.steps = detail::json_int(j, "adam_steps", 0, std::numeric_limits<long long>::max(), where);
         m_adam.set_state(state);
         // Absent in checkpoints written before the history was kept: L-BFGS then starts afresh.
         LbfgsState lbfgs;
@@ -366,12 +372,12 @@ void Inversion::load_checkpoint(const std::string& path) {
         validate_lbfgs_state(lbfgs, m_estimate.values().size(), m_settings.lbfgs.history);
         m_lbfgs = std::move(lbfgs);
         m_estimate = m_estimate.with_values(j.at("heights").get<std::vector<double>>());
-        m_epoch = j.at("epoch").get<int>();
+        m_epoch = detail::json_int32(j, "epoch", 0, k_max_iterations, where);
         m_seconds_before = j.at("seconds").get<double>();
         m_history.clear();
         for (const auto& r : j.at("metrics")) {
             EpochMetrics m;
-            m.epoch = r.at(0).get<int>();
+            m.epoch = static_cast<int>(detail::json_int_value(r.at(0), where + "metrics epoch", 0, k_max_iterations));
             m.loss = r.at(1).get<double>();
             m.brdf_mse = r.at(2).get<double>();
             m.cmsle_1 = r.at(3).get<double>();

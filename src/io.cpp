@@ -164,6 +164,12 @@ struct ExrSource {
             height > std::numeric_limits<int>::max())
             fail(path, "data window " + std::to_string(width) + "x" + std::to_string(height) +
                            " is invalid; expected a non-empty image");
+        // Before any pixel is allocated: a small file may declare a huge image.
+        if (width * height > k_max_exr_pixels)
+            fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) +
+                           " image (" + std::to_string(width * height) +
+                           " pixels); the limit is " + std::to_string(k_max_exr_pixels) +
+                           " pixels (16384x16384)");
         m_rows = static_cast<int>(height);
         m_cols = static_cast<int>(width);
     }

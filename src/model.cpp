@@ -43,6 +43,9 @@ void validate(const Query& query) {
     if (!std::isfinite(query.sigma_p_um) || query.sigma_p_um <= 0.0)
         throw std::domain_error("sigma_p " + fmt(query.sigma_p_um) +
                                 " um is invalid; expected a finite value > 0");
+    if (query.sigma_p_um < k_min_sigma_p_um || query.sigma_p_um > k_max_sigma_p_um)
+        throw std::domain_error("sigma_p " + fmt(query.sigma_p_um) + " um is out of range; expected " +
+                                fmt(k_min_sigma_p_um) + " to " + fmt(k_max_sigma_p_um) + " um");
     const double wx = query.omega_i[0], wy = query.omega_i[1];
     if (!std::isfinite(wx) || !std::isfinite(wy) || wx * wx + wy * wy >= 1.0)
         throw std::domain_error("light direction (" + fmt(wx) + ", " + fmt(wy) +
@@ -53,6 +56,9 @@ void validate_lambda(double lambda_um) {
     if (!std::isfinite(lambda_um) || lambda_um <= 0.0)
         throw std::domain_error("wavelength " + fmt(lambda_um) +
                                 " um is invalid; expected a finite value > 0");
+    if (lambda_um < k_min_lambda_um || lambda_um > k_max_lambda_um)
+        throw std::domain_error("wavelength " + fmt(lambda_um) + " um is out of range; expected " +
+                                fmt(k_min_lambda_um) + " to " + fmt(k_max_lambda_um) + " um");
 }
 
 void validate_resolution(int resolution) {

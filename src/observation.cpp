@@ -12,6 +12,7 @@
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/spectrum.h"
+#include "json_fields.h"
 
 namespace wavebrdf {
 
@@ -150,9 +151,11 @@ std::vector<Observation> read_observations_json(const std::string& path) {
         if (given != 1)
             throw std::runtime_error(where + "expected exactly one of 'lambda_um', 'spectral', 'lambdas_um'");
         if (j.contains("lambda_um")) o.lambdas_um = {field<double>(j, "lambda_um", where)};
-        if (j.contains("spectral")) o.lambdas_um = spectral_wavelengths_um(field<int>(j, "spectral", where));
+        if (j.contains("spectral"))
+            o.lambdas_um = spectral_wavelengths_um(
+                detail::json_int32(j, "spectral", 1, k_max_spectral_samples, where));
         if (j.contains("lambdas_um")) o.lambdas_um = field<std::vector<double>>(j, "lambdas_um", where);
-        o.resolution = field<int>(j, "resolution", where);
+        o.resolution = detail::json_int32(j, "resolution", 1, 8192, where);
         if (!j.contains("reference")) throw std::runtime_error(where + "missing field 'reference'");
         if (j["reference"].is_string()) {
             const std::string file = j["reference"].get<std::string>();

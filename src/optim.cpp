@@ -26,6 +26,12 @@ void require(bool ok, const char* option, double value, const char* expected) {
 
 }  // namespace
 
+void validate_iterations(long long count, const std::string& name) {
+    if (count < 0 || count > k_max_iterations)
+        throw std::invalid_argument(name + " " + std::to_string(count) + " is out of range; expected 0 to " +
+                                    std::to_string(k_max_iterations));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Adam
 

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
 #include "parallel.h"
 
@@ -62,6 +63,12 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                                     std::to_string(truth->cols()) + "; expected " + std::to_string(rows) +
                                     " x " + std::to_string(cols));
     if (vscale == 0.0) throw std::domain_error("recover_heights: vscale 0 maps every height to 0; expected != 0");
+    validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
+    validate_iterations(settings.field.iterations, "recover_heights: field iterations");
+    validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
+    // Here, not only in the renderer: the stages render inside parallel regions.
+    for (const Observation& o : observations)
+        validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());
 
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     std::map<double, std::vector<Observation>> by_lambda;

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "wavebrdf/generate.h"
+#include "wavebrdf/optim.h"
 #include "wavebrdf/plan.h"
 #include "wavebrdf/progress.h"
 
@@ -45,8 +46,10 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.noise.kind != NoiseKind::None && !observations.empty())
         throw std::invalid_argument("noise '" + to_string(options.noise) +
                                     "' is simulated on rendered observations; it needs a truth, not given observations");
-    if (options.method == RecoveryMethod::Thesis && options.epochs < 0)
-        throw std::invalid_argument("epochs " + std::to_string(options.epochs) + " is negative; expected >= 0");
+    // Counts first, before the observations are planned and rendered (negative iteration counts: the library's default).
+    validate_iterations(options.epochs, "epochs");
+    if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
+    if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
 
     PreparedRecovery r;
     r.method = options.method;

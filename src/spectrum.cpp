@@ -107,9 +107,10 @@ std::array<double, 3> cie1931_xyz(double lambda_um) {
 }
 
 std::vector<double> spectral_wavelengths_um(int count) {
-    if (count < 1)
+    if (count < 1 || count > k_max_spectral_samples)
         throw std::invalid_argument("spectral sample count " + std::to_string(count) +
-                                    " is invalid; expected at least 1");
+                                    " is out of range; expected 1 to " +
+                                    std::to_string(k_max_spectral_samples));
     std::vector<double> lambdas(static_cast<std::size_t>(count));
     const double step = 0.47 / static_cast<double>(count);
     for (int k = 0; k < count; ++k)

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <array>
 #include <complex>
 
 #include "test_util.h"
@@ -273,6 +274,74 @@ TEST(BrdfTest, BadInputThrowsNamingTheValue) {
     q = good;
     q.model = Model::GHS;
     EXPECT_THROW(render_slice<double>(hf, q, 0.5, 16, o), std::invalid_argument);
+}
+
+// Issue 9: --x-um 3000000032 (and Python x_um = 32 + 64e8) gave an all-zero slice: the centre
+// went through an int (overflow) before it was reduced to the tile. The docs promise any finite
+// value, periodic: a shift by any whole number of periods gives the very same slice.
+TEST(BrdfTest, ShiftByAHugeMultipleOfThePeriodGivesTheSameSlice) {
+    const Heightfield hf = random_heightfield(64, 48, 0.4, 5, 1.0, 1.0);  // periods 64 x 48 um
+    // Exact doubles: 32 + 64 k and 20 + 48 m for large k, m (all below 2^53).
+    const std::array<std::array<double, 2>, 4> shifted{{{32.0 + 64e8, 20.0},
+                                                        {3000000032.0, 20.0 - 48e8},
+                                                        {32.0 - 64e13, 20.0 + 48e13},
+                                                        {32.0 + 64.0 * 3e13, 20.0 - 48.0 * 1e14}}};
+    for (Model m : {Model::OHS, Model::GHS}) {
+        const Query q = make_query(m, 32.0, 20.0, 4.0, 0.1, -0.2);
+        const auto expected = render_slice<double>(hf, q, 0.5, 24);
+        ASSERT_GT(max_abs(expected), 0.0);
+        for (const auto& [x, y] : shifted) {
+            Query far = q;
+            far.x_um = x;
+            far.y_um = y;
+            EXPECT_EQ(render_slice<double>(hf, far, 0.5, 24), expected) << to_string(m) << " at " << x << ", " << y;
+        }
+    }
+    const FootprintKernels k = footprint_kernels(hf, 32.0, 20.0, 4.0);
+    const FootprintKernels k_far = footprint_kernels(hf, 3000000032.0, 20.0 - 48e8, 4.0);
+    EXPECT_EQ(k_far.row, k.row);
+    EXPECT_EQ(k_far.col, k.col);
+    EXPECT_EQ(k_far.dx_um, k.dx_um);
+    EXPECT_EQ(k_far.weight, k.weight);
+}
+
+// Issue 9: --sigma-p-um 1e9 gave zeros and 7e8 tried to list 4e9 indices. The window is cut to
+// one periodic tile, so footprints far larger than the tile are refused with the allowed range
+// (σ_p ≤ 10 × the longer period); the limit itself still renders.
+TEST(BrdfTest, FootprintFarLargerThanTheTileIsRefusedWithTheRange) {
+    const Heightfield hf = random_heightfield(16, 8, 0.2, 1);  // 16 x 8 um: sigma_p <= 160 um
+    using wavebrdf::test::expect_throw_naming;
+    expect_throw_naming<std::domain_error>(
+        [&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 161.0), 0.5, 8); }, "sigma_p <= 10 x the longer tile period = 160 um");
+    expect_throw_naming<std::domain_error>(
+        [&] { render_slice<double>(hf, make_query(Model::GHS, 0, 0, 1e5), 0.5, 8); }, "160 um");
+    expect_throw_naming<std::domain_error>([&] { footprint_kernels(hf, 0, 0, 1e3); }, "160 um");
+    expect_throw_naming<std::domain_error>(
+        [&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 7e8), 0.5, 8); }, "1e-06 to 1000000 um");
+    expect_throw_naming<std::domain_error>(
+        [&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 1e9), 0.5, 8); }, "1e-06 to 1000000 um");
+    const auto at_limit = render_slice<double>(hf, make_query(Model::OHS, 0, 0, 160.0), 0.5, 8);
+    EXPECT_GT(max_abs(at_limit), 0.0);
+}
+
+// Issue 9: λ, texel and vscale of 1e-300 or 1e300 gave all-zero slices. Values outside a
+// physically meaningful range are refused with the range in the message; the ends render.
+TEST(BrdfTest, MeaninglessScalesAreRefusedWithTheRange) {
+    using wavebrdf::test::expect_throw_naming;
+    const Heightfield hf = random_heightfield(16, 16, 0.2, 1);
+    const Query q = make_query(Model::OHS, 8, 8, 3.0);
+    for (double lambda : {1e-300, 1e-3, 2e3, 1e300})
+        expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, q, lambda, 8); }, "expected 0.01 to 1000 um");
+    EXPECT_GT(max_abs(render_slice<double>(hf, q, 0.01, 8)), 0.0);
+    EXPECT_GT(max_abs(render_slice<double>(hf, q, 1000.0, 8)), 0.0);
+    for (double texel : {1e-300, 1e-5, 2e4, 1e300})
+        expect_throw_naming<std::domain_error>([&] { hf.with_scale(texel, 1.0); }, "expected 0.0001 to 10000 um");
+    for (double vscale : {1e-300, -1e-300, 1e-7, 2e4, -1e300})
+        expect_throw_naming<std::domain_error>([&] { hf.with_scale(1.0, vscale); }, "expected 0 or 1e-06 <= |vscale| <= 10000");
+    for (double vscale : {0.0, -0.5, 1e-6, 1e4}) EXPECT_NO_THROW(hf.with_scale(1.0, vscale));
+    Query tiny = q;
+    tiny.sigma_p_um = 1e-300;
+    expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, tiny, 0.5, 8); }, "expected 1e-06 to 1000000 um");
 }
 
 // Gaussian random surface, rms height σ_h: averaged over positions, the specular peak drops by

@@ -232,6 +232,48 @@ TEST_F(CliTest, GenbrdfLambdaZeroIsSpectral) {
                       wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);
 }
 
+// Issue 9: --x-um 3000000032 gave an all-zero slice (the centre overflowed an int before it was
+// reduced to the tile); any finite position is periodic, so a whole number of 64 um periods
+// away gives the very same slice.
+TEST_F(CliTest, RenderPositionAHugeMultipleOfThePeriodAway) {
+    const std::string hf = quote(make_heightfield());  // 64 x 64 texels of 1 um
+    const std::string base = "render --heightfield " + hf + " --sigma-p-um 4 --resolution 24 --quiet";
+    ASSERT_EQ(run(base + " --x-um 32 --y-um 20 --out a.exr").exit_code, 0);
+    ASSERT_EQ(run(base + " --x-um 3000000032 --y-um -6399999980 --out b.exr").exit_code, 0);
+    const auto a = wavebrdf::read_rgb_exr(path("a.exr").string());
+    expect_same_image(a, wavebrdf::read_rgb_exr(path("b.exr").string()), 0.0);
+}
+
+// Issue 9: meaningless values are refused with the allowed range, before any output.
+TEST_F(CliTest, OutOfRangeValuesNameTheRange) {
+    const std::string hf = quote(make_heightfield());
+    const std::string base = "render --heightfield " + hf + " --resolution 8 --out a.exr";
+    const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
+        {" --x-um nan", {"query position (nan"}},
+        {" --sigma-p-um 1e9", {"sigma_p 1000000000 um", "1e-06 to 1000000 um"}},
+        {" --sigma-p-um 1000", {"sigma_p 1000 um", "64 x 64 um", "640 um"}},
+        {" --lambda-um 1e-300", {"wavelength 1e-300 um", "0.01 to 1000 um"}},
+        {" --lambda-um 1e300", {"wavelength 1e+300 um", "0.01 to 1000 um"}},
+        {" --texel-um 1e-300", {"texel width 1e-300 um", "0.0001 to 10000 um"}},
+        {" --vscale 1e-300", {"vertical scale 1e-300", "1e-06 <= |vscale| <= 10000"}},
+    };
+    for (const auto& [extra, needles] : cases) {
+        SCOPED_TRACE(extra);
+        expect_clean_failure(run(base + extra), needles, {path("a.exr")});
+    }
+    // genbrdf -s 1e200: s^2 + t^2 + 1 overflowed to inf and gave normal incidence.
+    const std::string g = "genbrdf -i " + hf + " -o g.exr -r 8";
+    expect_clean_failure(run(g + " -s 1e200"), {"-s 1e+200", "sqrt(s^2 + t^2) <= 1e6"}, {path("g.exr")});
+    expect_clean_failure(run(g + " -t -1e7"), {"-t -10000000", "<= 1e6"}, {path("g.exr")});
+    expect_clean_failure(run(g + " -s nan"), {"-s nan"}, {path("g.exr")});
+    expect_clean_failure(run(g + " -x nan"), {"query position (nan"}, {path("g.exr")});
+    // The steepest light accepted still renders.
+    EXPECT_EQ(run(g + " -s 1e6 --quiet").exit_code, 0);
+    // Counts: 2147483647 scratches would run for days.
+    expect_clean_failure(run("heightfield --type scratched --scratches 2147483647 --size 16 --out h2.exr"),
+                         {"scratch_count = 2147483647", "0 to 10000"}, {path("h2.exr"), path("h2.png")});
+}
+
 // ---------------------------------------------------------------------------------------------
 // Bad heightfield inputs
 

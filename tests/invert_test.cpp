@@ -353,6 +353,17 @@ TEST_F(InvertTest, CorruptCheckpointThrows) {
     j = nlohmann::json::parse(text);
     j["heights"].erase(0);
     expect_throw_naming<std::runtime_error>([&] { load("short.json", j.dump()); }, {"short.json"});
+    // Issue 9: integers must be integers in range (get<int> read 2.5 as 2, wrapped 2^40 + 8).
+    for (const auto& [field, value] : std::vector<std::pair<const char*, nlohmann::json>>{
+             {"epoch", 2.5}, {"epoch", -1}, {"rows", 1099511627784LL}, {"adam_steps", 1.5}}) {
+        j = nlohmann::json::parse(text);
+        j[field] = value;
+        expect_throw_naming<std::runtime_error>([&] { load("int.json", j.dump()); },
+                                                {"int.json", std::string("'") + field + "'"});
+    }
+    j = nlohmann::json::parse(text);
+    j["metrics"][0][0] = 0.5;
+    expect_throw_naming<std::runtime_error>([&] { load("metric.json", j.dump()); }, {"metric.json", "metrics epoch"});
     j = nlohmann::json::parse(text);
     j.erase("adam_m");
     expect_throw_naming<std::runtime_error>([&] { load("no_m.json", j.dump()); }, {"no_m.json", "adam_m"});
@@ -654,6 +665,24 @@ TEST_F(InvertTest, CliBadObservations) {
                          {out});
 }
 
+// Issue 9: run.json's integers were read with implicit conversions (8.7 became 8, 2^40 + 8
+// wrapped to 8). A resume refuses them, naming the file and the field, and changes nothing.
+TEST_F(InvertTest, CliResumeRefusesNonIntegerFieldsInRunJson) {
+    const CliResult first = invert("--epochs 2 --out run");
+    ASSERT_EQ(first.exit_code, 0) << first.err;
+    const std::string original = read_text(path("run/run.json"));
+    const std::vector<std::pair<const char*, nlohmann::json>> cases = {
+        {"resolution", 8.7}, {"resolution", 1099511627784LL}, {"epochs", 2147483647LL},
+        {"spectral", 100000}, {"checkpoint_every", 0}, {"seed", -1}, {"epochs", "3"}};
+    for (const auto& [field, value] : cases) {
+        SCOPED_TRACE(std::string(field) + " = " + value.dump());
+        nlohmann::json run_json = nlohmann::json::parse(original);
+        run_json["args"][field] = value;
+        std::ofstream(path("run/run.json")) << run_json.dump(1);
+        expect_clean_failure(invert("--resume run"), {"run/run.json", std::string("'") + field + "'"}, {});
+    }
+}
+
 TEST_F(InvertTest, CliResumeNeedsARunDirectory) {
     fs::create_directory(path("empty"));
     expect_clean_failure(invert("--resume empty"), {"empty/run.json"}, {});
@@ -706,6 +735,14 @@ TEST_F(InvertTest, CliBadOptions) {
         {"--snapshots 1,x", {"--snapshots"}},
         {"--checkpoint-every 0", {"--checkpoint-every 0"}},
         {"--epochs abc", {"--epochs", "abc"}},
+        // Issue 9: 2147483647 overflowed the progress total; NaN meant "tile centre"; a footprint
+        // far larger than the tile gave zeros.
+        {"--epochs 2147483647", {"--epochs 2147483647", "0 to 10000000"}},
+        {"--x-um nan", {"query position (nan"}},
+        {"--y-um nan", {"query position", "nan)"}},
+        {"--texel-um 0.01", {"sigma_p 2 um", "0.08 x 0.08 um", "0.8 um"}},  // kSmall: 8 x 8, sigma_p 2
+        {"--texel-um 1e-300", {"texel width 1e-300 um", "0.0001 to 10000 um"}},
+        {"--vscale 1e300", {"vertical scale 1e+300", "1e-06 <= |vscale| <= 10000"}},
     };
     for (const auto& [extra, needles] : cases) {
         SCOPED_TRACE(extra);

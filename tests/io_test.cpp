@@ -245,6 +245,33 @@ TEST_F(IoTest, TruncatedExrThrowsNamingPath) {
     expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
 }
 
+// Issue 9: a 1.6 MB file declaring 20000² pixels took 4.7 GB and failed with std::bad_alloc.
+// The header alone (no pixels written) declares the size; the reader must refuse it before
+// allocating, naming the file, the declared size and the limit.
+TEST_F(IoTest, HugeDeclaredSizeIsRefusedBeforeAllocating) {
+    const std::string path = file("huge.exr");
+    {
+        Imf::Header header(20000, 20000);
+        header.channels().insert("R", Imf::Channel(Imf::FLOAT));
+        Imf::OutputFile out(path.c_str(), header);  // closed without pixels: header + offsets
+    }
+    ASSERT_LT(fs::file_size(path), 1u << 20);
+    for (const auto& read : {std::function<void()>([&] { wavebrdf::read_heightfield_exr(path); }),
+                             std::function<void()>([&] { wavebrdf::read_rgb_exr(path); })}) {
+        try {
+            read();
+            ADD_FAILURE() << "no exception for " << path;
+        } catch (const std::runtime_error& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find(path), std::string::npos) << message;
+            EXPECT_NE(message.find("20000x20000"), std::string::npos) << message;
+            EXPECT_NE(message.find(std::to_string(wavebrdf::k_max_exr_pixels)), std::string::npos) << message;
+        } catch (const std::exception& e) {
+            ADD_FAILURE() << "wrong exception type: " << e.what();
+        }
+    }
+}
+
 TEST_F(IoTest, ExrWithoutRedOrLuminanceThrowsNamingPath) {
     const std::string path = file("green.exr");
     write_exr_channel(path, "G", 2, 2, 0, 0, {1.0f, 2.0f, 3.0f, 4.0f});

@@ -111,3 +111,36 @@ TEST(ObservationTest, JsonRoundTripAndErrors) {
     expect_error(R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": -2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "sigma_p");
     expect_error(R"({"observations": [{"x_um": "a", "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "wrong type");
 }
+
+// Issue 9: integer fields were read with get<int>(): "resolution": 8.7 became 8 and 2^40 + 8
+// wrapped to 8; "spectral" had no upper bound (the CLI caps 256). Each is refused, naming the
+// file, the field and the range; an integral 1.0 (tools that only write doubles) is accepted.
+TEST(ObservationTest, JsonIntegerFieldsMustBeIntegersInRange) {
+    const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test";
+    std::filesystem::create_directories(dir);
+    const std::string path = (dir / "ints.json").string();
+    const auto json_with = [&](const std::string& fields) {
+        std::ofstream(path) << R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": 2, )" << fields
+                            << R"(, "reference": [1]}]})";
+    };
+    const auto expect_error = [&](const std::string& fields, const std::string& needle) {
+        json_with(fields);
+        try {
+            read_observations_json(path);
+            ADD_FAILURE() << "no error for " << fields;
+        } catch (const std::runtime_error& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find(path), std::string::npos) << message;
+            EXPECT_NE(message.find(needle), std::string::npos) << message;
+        }
+    };
+    expect_error(R"("lambda_um": 0.5, "resolution": 8.7)", "field 'resolution' is 8.7; expected an integer from 1 to 8192");
+    expect_error(R"("lambda_um": 0.5, "resolution": 1099511627784)", "field 'resolution' is 1099511627784; expected an integer from 1 to 8192");
+    expect_error(R"("lambda_um": 0.5, "resolution": -1)", "from 1 to 8192");
+    expect_error(R"("lambda_um": 0.5, "resolution": "1")", "field 'resolution'");
+    expect_error(R"("spectral": 100000, "resolution": 1)", "field 'spectral' is 100000; expected an integer from 1 to 256");
+    expect_error(R"("spectral": 2.5, "resolution": 1)", "field 'spectral' is 2.5");
+    expect_error(R"("spectral": 4294967299, "resolution": 1)", "field 'spectral' is 4294967299");
+    json_with(R"("lambda_um": 0.5, "resolution": 1.0)");
+    EXPECT_EQ(read_observations_json(path).at(0).resolution, 1);
+}

@@ -55,6 +55,10 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--loss cmsle:0 --out " + out, {"cmsle:0"}},
         {"--truth missing.exr --out " + out, {"missing.exr"}},
         {"--observations missing.json --size 8 --out " + out, {"missing.json"}},
+        // Issue 9: counts are bounded (2147483647 overflowed the progress total), before work.
+        {"--method thesis --epochs 2147483647 --out " + out, {"epochs 2147483647", "0 to 10000000"}},
+        {"--field-iterations 2147483647 --out " + out, {"field iterations 2147483647", "0 to 10000000"}},
+        {"--refine-iterations 10000001 --out " + out, {"refine iterations 10000001", "0 to 10000000"}},
     };
     for (const Case& c : cases) {
         SCOPED_TRACE(c.args);

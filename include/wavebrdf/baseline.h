@@ -25,7 +25,7 @@ struct BaselineSettings {
 // Heights (rows × cols, texel units with texel_um and vscale) from a flat start. on_step gets
 // stage "thesis", the epoch, the loss of that epoch's observation, the seconds, and
 // height_rel_rmse when `truth` is given; returning false stops. Throws std::invalid_argument
-// for no observations, epochs < 0 or report_every < 1; Adam's options are validated by Adam.
+// for no observations, epochs outside 0 … k_max_iterations (10^7) or report_every < 1; Adam's options are validated by Adam.
 Heightfield recover_heights_thesis(const std::vector<Observation>& observations, int rows, int cols,
                                    double texel_um, double vscale, const BaselineSettings& settings = {},
                                    const std::function<bool(const StageMetrics&)>& on_step = {},

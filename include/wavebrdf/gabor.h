@@ -23,8 +23,21 @@ struct FootprintKernels {
     std::size_t size() const { return weight.size(); }
 };
 
-// The kernels of `heightfield` within 3σ_p of (x_um, y_um). σ_p > 0 (not checked here;
-// validate the Query first).
+// The largest footprint a tile supports, in tile periods. Each texel enters the window once,
+// at its nearest periodic image, so the window is cut to one tile: at σ_p = P it keeps
+// erf(1/2)² ≈ 27 % of its energy, at 10 P erf(1/20)² ≈ 0.3 %, and beyond that the slice is
+// mostly the cut (it fades like (P/σ_p)² towards all-zero). Every texel is inside 3σ_p long
+// before that (from σ_p ≈ P/4), so a larger footprint adds nothing but the fade.
+constexpr double k_max_sigma_p_periods = 10.0;
+
+// Throws std::domain_error naming σ_p, the tile and the allowed range unless
+// 0 < sigma_p_um ≤ k_max_sigma_p_periods · max(period_x_um, period_y_um) (all in µm).
+void validate_footprint(double sigma_p_um, double period_x_um, double period_y_um);
+
+// The kernels of `heightfield` within 3σ_p of (x_um, y_um). The centre may be any finite
+// value: it is reduced modulo the tile period in floating point first (exactly, std::fmod),
+// so x_um and x_um + k · period_x_um give the same kernels. σ_p > 0 (validate the Query
+// first); throws std::domain_error when σ_p is too large for the tile (validate_footprint).
 FootprintKernels footprint_kernels(const Heightfield& heightfield, double x_um, double y_um,
                                    double sigma_p_um);
 

@@ -12,6 +12,10 @@ enum class SurfaceType { Flat, Isotropic, Brushed, Scratched, Grating };
 
 // Parameters of the generators; lengths in µm, heights in µm. Not every field applies to
 // every type (see generate_heightfield).
+// The most scratches a scratched surface takes: each is a full-period line, so 10000 of the
+// default width already cover the largest tile (16384 texels) about once; more only cost time.
+constexpr int k_max_scratches = 10000;
+
 struct SurfaceParams {
     SurfaceType type = SurfaceType::Isotropic;
     int rows = 256;
@@ -25,7 +29,7 @@ struct SurfaceParams {
     double correlation_um = 4.0;    // correlation length (Gaussian autocorrelation 1/e radius)
     double anisotropy = 8.0;        // brushed: correlation along y is this many times longer
     // Scratched: random straight scratches (periodic lines) on a smooth base.
-    int scratch_count = 40;
+    int scratch_count = 40;         // 0 … k_max_scratches
     double scratch_depth_um = 0.05;
     double scratch_width_um = 1.5;
     // Grating: H(x) = amplitude · sin(2π x / period), x along rows.
@@ -69,7 +73,8 @@ const char* to_string(SurfaceType type);
 //                          every central difference vanishes, such as 2×2 or 1×2);
 //   std::domain_error      a non-finite value; texel_um, correlation_um, anisotropy,
 //                          scratch_width_um or period_um ≤ 0; rms_height_um, rms_slope,
-//                          scratch_depth_um or scratch_count < 0.
+//                          scratch_depth_um or scratch_count < 0; scratch_count >
+//                          k_max_scratches.
 Heightfield generate_heightfield(const SurfaceParams& params);
 
 // Summary statistics of a heightfield, in µm where dimensional (heights include vscale).

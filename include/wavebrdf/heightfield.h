@@ -7,15 +7,24 @@
 
 namespace wavebrdf {
 
+// Physically meaningful ranges, refused outside (1e-300 or 1e300 gave all-zero slices).
+// Texel width: 0.1 nm (atomic steps) to 1 cm. Vertical scale: 0 (flat) or 1e-6 … 1e4 in
+// magnitude (heights v · h in texel widths; negative v mirrors the surface).
+constexpr double k_min_texel_um = 1e-4;
+constexpr double k_max_texel_um = 1e4;
+constexpr double k_min_vscale = 1e-6;
+constexpr double k_max_vscale = 1e4;
+
 class Heightfield {
 public:
     // rows × cols values, row-major (`values[i * cols + j]` is h[i][j]); row index i runs
     // along the first surface coordinate x, column index j along y (MODEL.md).
     //   values    heights in units of texel width, finite
-    //   texel_um  texel width w in µm, finite and > 0
-    //   vscale    vertical scale v (dimensionless), finite
+    //   texel_um  texel width w in µm, k_min_texel_um … k_max_texel_um (1e-4 … 1e4)
+    //   vscale    vertical scale v (dimensionless): 0, or k_min_vscale ≤ |v| ≤ k_max_vscale
+    //             (1e-6 … 1e4)
     // Throws std::invalid_argument on an empty grid or a size mismatch and
-    // std::domain_error on a non-finite value or parameter.
+    // std::domain_error on a non-finite value or a parameter outside its range.
     Heightfield(int rows, int cols, std::vector<double> values, double texel_um = 1.0,
                 double vscale = 1.0);
 

@@ -77,7 +77,8 @@ class Inversion {
 public:
     // `truth` (optional, same size as `initial`) gives height_mse and random-position references.
     // Throws std::invalid_argument on empty observations, a size mismatch, L-BFGS with random
-    // positions, or epochs < 0.
+    // positions, epochs outside 0 … k_max_iterations (10^7, optim.h), or a footprint too large
+    // for the heightfield (std::domain_error, validate_footprint in gabor.h).
     Inversion(std::vector<Observation> observations, Heightfield initial, InversionSettings settings,
               const Heightfield* truth = nullptr);
 

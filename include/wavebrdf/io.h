@@ -26,12 +26,19 @@ struct RgbImage {
     std::vector<float> data;
 };
 
+// The most pixels an EXR file read here may declare (16384², the largest heightfield
+// `wavebrdf heightfield --size` makes): checked on the header, before any pixel is allocated,
+// so a small file declaring a huge data window fails with its size, not std::bad_alloc.
+// Not tied to the file size: compressed constant images are legitimately tiny.
+constexpr long long k_max_exr_pixels = 16384LL * 16384LL;
+
 // Reads the R channel of an OpenEXR file (half or float pixels, any size) as a heightfield in
 // the public release's convention (values in units of texel width; row i = image row).
 // Throws std::runtime_error naming the file when it is missing, unreadable, corrupt or
-// truncated, has no R channel (a single Y channel is accepted too), or is a multi-part file of
-// two or more parts (refused rather than silently reading part 0; a one-part file written
-// through the multi-part API is read); std::domain_error when a value is not finite.
+// truncated, declares more than k_max_exr_pixels pixels, has no R channel (a single Y channel
+// is accepted too), or is a multi-part file of two or more parts (refused rather than silently
+// reading part 0; a one-part file written through the multi-part API is read);
+// std::domain_error when a value is not finite.
 Heightfield read_heightfield_exr(const std::string& path, double texel_um = 1.0,
                                  double vscale = 1.0);
 
@@ -46,7 +53,7 @@ void write_heightfield_png(const std::string& path, const Heightfield& heightfie
 void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha = false);
 
 // Reads the R, G, B channels of an EXR (half or float) as linear float. Errors as
-// read_heightfield_exr's (multi-part files of two or more parts are refused).
+// read_heightfield_exr's (k_max_exr_pixels, multi-part files of two or more parts refused).
 RgbImage read_rgb_exr(const std::string& path);
 
 // Writes an 8-bit sRGB PNG preview: value · 2^exposure, Reinhard-free clamp to [0, 1], sRGB

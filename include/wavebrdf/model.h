@@ -18,18 +18,33 @@ inline bool is_separable(Model model) { return model == Model::OHS || model == M
 
 // One BRDF query: a Gaussian coherence window (pixel footprint) and a light direction.
 struct Query {
-    double x_um = 0.0;        // footprint centre μ_p along x (rows), µm; any value (periodic)
-    double y_um = 0.0;        // footprint centre along y (columns), µm
-    double sigma_p_um = 10.0; // footprint standard deviation σ_p, µm, > 0
+    // Footprint centre μ_p along x (rows) and y (columns), µm: any finite value; it is reduced
+    // modulo the tile period in floating point (footprint_kernels), so x and x + k · period
+    // give the same slice for every integer k whose product is exact.
+    double x_um = 0.0;
+    double y_um = 0.0;
+    // Footprint standard deviation σ_p, µm: k_min_sigma_p_um … k_max_sigma_p_um, and at most
+    // k_max_sigma_p_periods tile periods (validate_footprint, gabor.h).
+    double sigma_p_um = 10.0;
     // Projected direction towards the light, |ω_i| < 1 (cos θ_i = sqrt(1 − |ω_i|²)).
     std::array<double, 2> omega_i{{0.0, 0.0}};
     Model model = Model::OHS;
 };
 
-// Throws std::domain_error naming the bad field: non-finite position, σ_p ≤ 0 or not
-// finite, |ω_i| ≥ 1 or not finite.
+// Physically meaningful ranges, refused outside (values far outside them underflow or
+// overflow to all-zero slices). Wavelength: extreme ultraviolet (13.5 nm lithography) to
+// the far infrared / terahertz (1 mm). Footprint σ_p: a picometre to a metre (the planner's
+// range, plan.h); the tile bounds it further (gabor.h).
+constexpr double k_min_lambda_um = 0.01;
+constexpr double k_max_lambda_um = 1000.0;
+constexpr double k_min_sigma_p_um = 1e-6;
+constexpr double k_max_sigma_p_um = 1e6;
+
+// Throws std::domain_error naming the bad field: non-finite position, σ_p not finite or
+// outside k_min_sigma_p_um … k_max_sigma_p_um, |ω_i| ≥ 1 or not finite.
 void validate(const Query& query);
-// Throws std::domain_error unless λ is finite and > 0 (µm).
+// Throws std::domain_error unless λ is finite and within k_min_lambda_um … k_max_lambda_um
+// (0.01 … 1000 µm).
 void validate_lambda(double lambda_um);
 // Throws std::domain_error unless 1 ≤ resolution ≤ 8192.
 void validate_resolution(int resolution);

@@ -7,6 +7,15 @@
 
 namespace wavebrdf {
 
+// The most epochs or iterations any run accepts (inversion, recovery stages, the thesis's
+// baseline): ten million, beyond a week at the fastest epoch (~50 ms), and far inside int
+// arithmetic (2147483647 epochs overflowed the progress total).
+constexpr int k_max_iterations = 10'000'000;
+
+// Throws std::invalid_argument "<name> <count> is out of range; expected 0 to 10000000"
+// unless 0 ≤ count ≤ k_max_iterations.
+void validate_iterations(long long count, const std::string& name);
+
 // Adam (Kingma and Ba 2015, Algorithm 1) with an exponential learning-rate decay per epoch:
 // lr_epoch = lr · exp(−decay · epoch). Defaults are the thesis's: 0.01, 0.9, 0.99, 0.005.
 // Each step t = 1, 2, ...: m ← β₁m + (1 − β₁)g, v ← β₂v + (1 − β₂)g², m̂ = m/(1 − β₁ᵗ),

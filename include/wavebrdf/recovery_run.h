@@ -52,9 +52,9 @@ struct RecoveryOptions {
     Noise noise;                      // simulated on the rendered observations (a truth only)
     std::optional<Loss> loss;         // none: recovery_loss's choice
     RecoveryMethod method = RecoveryMethod::Pipeline;
-    int field_iterations = -1;        // pipeline: per wavelength; < 0: RecoverSettings' default
-    int refine_iterations = -1;       // pipeline: L-BFGS on the heights; < 0: the default
-    int epochs = 1000;                // thesis: Adam epochs (≥ 0)
+    int field_iterations = -1;        // pipeline: per wavelength, ≤ 10^7; < 0: RecoverSettings' default
+    int refine_iterations = -1;       // pipeline: L-BFGS on the heights, ≤ 10^7; < 0: the default
+    int epochs = 1000;                // thesis: Adam epochs, 0 … 10^7 (k_max_iterations)
     std::uint64_t seed = 1;           // generated truth, jitter, noise, the thesis's draws
 };
 
@@ -98,8 +98,8 @@ struct PreparedRecovery {
 // size and height range (plan_acquisition) and the observations are simulated from it with
 // options.noise (simulate_observations, seed options.seed). `show_progress` draws a
 // "simulate" progress bar on a terminal. Throws std::invalid_argument when both a truth and
-// observations are given, when noise is asked for with given observations, or for the
-// thesis's epochs < 0 (before any work); the planner's, the generator's and the loss's exceptions
+// observations are given, when noise is asked for with given observations, or for epochs or
+// iteration counts above k_max_iterations (optim.h) or epochs < 0 (before any work); the planner's, the generator's and the loss's exceptions
 // otherwise.
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth = nullptr,
                                   std::vector<Observation> observations = {}, bool show_progress = false);

@@ -10,7 +10,10 @@ namespace wavebrdf {
 std::array<double, 3> cie1931_xyz(double lambda_um);
 
 // N wavelengths spread over the visible range the reference program uses,
-// λ_k = 0.36 + (k + ½) · 0.47 / N µm (N = 8 gives genBrdf's samples). N ≥ 1.
+// λ_k = 0.36 + (k + ½) · 0.47 / N µm (N = 8 gives genBrdf's samples), 1 ≤ N ≤
+// k_max_spectral_samples (256: 1.8 nm steps, as the CLI's --spectral allows); throws
+// std::invalid_argument otherwise.
+constexpr int k_max_spectral_samples = 256;
 std::vector<double> spectral_wavelengths_um(int count);
 
 // Per-wavelength weights (a 3 × N matrix, row-major: weights[c * N + k]) that map the

@@ -206,6 +206,42 @@ def test_bad_weights(weights, name):
     assert name in str(e.value)
 
 
+# Issue 9: values outside a physically meaningful range gave all-zero slices; they are refused
+# with the range. 4 x 4 texels of 1 um: sigma_p <= 10 periods = 40 um.
+OUT_OF_RANGE = [
+    (dict(lambda_um=1e-300), "0.01 to 1000 um"),
+    (dict(lambda_um=1e300), "0.01 to 1000 um"),
+    (dict(texel_um=1e-300), "0.0001 to 10000 um"),
+    (dict(texel_um=1e300), "0.0001 to 10000 um"),
+    (dict(vscale=1e-300), "1e-06 <= |vscale| <= 10000"),
+    (dict(vscale=-1e300), "1e-06 <= |vscale| <= 10000"),
+    (dict(sigma_p_um=1e-300), "1e-06 to 1000000 um"),
+    (dict(sigma_p_um=1e9), "1e-06 to 1000000 um"),
+    (dict(sigma_p_um=41.0), "10 x the longer tile period = 40 um"),
+]
+
+
+@pytest.mark.parametrize("bad,message", OUT_OF_RANGE, ids=[str(b) for b, _ in OUT_OF_RANGE])
+def test_out_of_range_values_name_the_range(bad, message):
+    kwargs = dict(resolution=8, x_um=2.0, y_um=2.0, sigma_p_um=1.0)
+    kwargs.update(bad)
+    with pytest.raises(ValueError, match=message.replace("|", r"\|")):
+        wb.render_slice(np.zeros((4, 4)), **kwargs)
+
+
+def test_positions_a_huge_multiple_of_the_period_away_give_the_same_slice(rng):
+    # Issue 9: x_um = 32 + 64e8 gave an all-zero slice (an int overflowed before the position
+    # was reduced to the tile). Periods here: 64 x 48 um; every shifted value is an exact double.
+    h = heights(rng, 64, 48)
+    opts = dict(resolution=16, sigma_p_um=4.0, light=(0.1, -0.2))
+    near = wb.render_slice(h, x_um=32.0, y_um=20.0, **opts)
+    assert near.max() > 0
+    for x, y in [(32 + 64e8, 20.0), (3000000032.0, 20 - 48e8), (32 - 64e13, 20 + 48e13)]:
+        np.testing.assert_array_equal(wb.render_slice(h, x_um=x, y_um=y, **opts), near)
+        np.testing.assert_array_equal(wb.render_slice(h, x_um=x, y_um=y, model="GHS", **opts),
+                                      wb.render_slice(h, x_um=32.0, y_um=20.0, model="GHS", **opts))
+
+
 def test_resolution_is_required():
     with pytest.raises(TypeError):
         wb.render_slice(np.zeros((4, 4)))

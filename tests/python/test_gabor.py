@@ -65,7 +65,7 @@ def test_inverse_transform(rng):
         rep.to_heightfield()
     with pytest.raises(ValueError, match="height_um has shape"):
         rep.to_heights(height_um=np.zeros(rep.size + 1))
-    whole = wb.GaborRep(hf, sigma_p_um=100.0)
+    whole = wb.GaborRep(hf, sigma_p_um=50.0)  # 3 sigma_p spans the tile; <= 10 periods (validate_footprint)
     np.testing.assert_allclose(whole.to_heightfield().values, v, rtol=1e-12)
     flat = wb.GaborRep(wb.Heightfield(v, vscale=0.0), sigma_p_um=1.0)
     with pytest.raises(ValueError, match="vscale"):

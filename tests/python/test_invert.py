@@ -119,6 +119,9 @@ def test_truth_inputs_and_observations(tmp_path):
     (dict(optimizer="sgd"), "optimizer"),
     (dict(optimizer="lbfgs", positions="random"), "random"),
     (dict(epochs=-1), "epochs"),
+    (dict(epochs=2**31 - 1), "epochs 2147483647 is out of range; expected 0 to 10000000"),
+    (dict(x_um=float("nan")), "x_um"),
+    (dict(sigma_p_um=1000.0), "160 um"),  # the default truth: 16 x 16 texels of 1 um
     (dict(lr=0.0), "lr"),
     (dict(size=0), "size"),
     (dict(size="big"), "size"),

@@ -274,6 +274,8 @@ def test_recover_callback_stops_early():
     (lambda: wb.recover(model="XYZ"), ["model", "XYZ"]),
     (lambda: wb.recover(field_iterations=-1), ["field_iterations"]),
     (lambda: wb.recover(epochs=-1, method="thesis"), ["epochs"]),
+    (lambda: wb.recover(epochs=2**31 - 1, method="thesis"), ["epochs 2147483647", "0 to 10000000"]),
+    (lambda: wb.recover(field_iterations=10**8), ["field iterations 100000000", "0 to 10000000"]),
     (lambda: wb.recover(resolution=-2), ["resolution"]),
     (lambda: wb.recover(callback=3), ["callback"]),
     (lambda: wb.recover(truth=np.zeros((4, 4)), observations="o.json"), ["truth", "observations"]),
