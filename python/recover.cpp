@@ -115,7 +115,7 @@ Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& 
     ReleasedCallback python_callback(callback);
     std::optional<Heightfield> estimate;
     {
-        py::gil_scoped_release release;
+        InterruptibleRelease release;
         estimate.emplace(work([&](const StageMetrics& m) {
             history.push_back(m);
             return python_callback.step([&](const py::object& f) { return f(metrics_row(m)); });
@@ -196,7 +196,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
 
     std::optional<PreparedRecovery> prepared;
     {
-        py::gil_scoped_release release;
+        InterruptibleRelease release;
         prepared = prepare_recovery(options, truth ? &*truth : nullptr, std::move(observations));
     }
     std::vector<StageMetrics> history;
@@ -339,7 +339,7 @@ A height range the wavelengths cannot unwrap is a ValueError naming the largest 
         "simulate_observations",
         [](const Heightfield& truth, const AcquisitionPlan& plan, const py::object& noise, std::uint64_t seed) {
             const Noise n = noise_argument(noise);
-            py::gil_scoped_release release;
+            InterruptibleRelease release;
             return simulate_observations(truth, plan, n, seed);
         },
         "truth"_a, "plan"_a, "noise"_a = "none", "seed"_a = 1, R"doc(
