@@ -13,7 +13,6 @@
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/interrupt.h"
-#include "wavebrdf/memory.h"
 
 namespace wavebrdf {
 namespace {
@@ -113,30 +112,6 @@ TEST(Interrupt, OutOfMemoryInsideRenderRegionIsAnError) {
         InterruptScope scope([]() -> bool { throw std::bad_alloc(); }, std::chrono::milliseconds(0));
         EXPECT_THROW(render_slice<double>(hf, interrupt_query(m), 0.5, 128), std::bad_alloc) << to_string(m);
     }
-}
-
-TEST(Memory, AllocatingNamesWhatFailed) {
-    try {
-        allocating("the 1024x1024 slice's factor matrices", 64.0 * (1 << 20), []() -> int { throw std::bad_alloc(); });
-        FAIL() << "expected OutOfMemory";
-    } catch (const OutOfMemory& e) {
-        EXPECT_EQ(std::string(e.what()), "out of memory allocating the 1024x1024 slice's factor matrices (64 MiB)");
-    }
-}
-
-TEST(Memory, RequireMemoryRefusesAboveTheLimitWithBothNumbers) {
-    const MemoryLimit limit = memory_limit(23.4);
-    EXPECT_NO_THROW(require_memory(23.3e9, limit, "recover"));
-    try {
-        require_memory(101e9, limit, "recover");
-        FAIL() << "expected OutOfMemory";
-    } catch (const OutOfMemory& e) {
-        EXPECT_EQ(std::string(e.what()),
-                  "recover needs about 101 GB; the limit is 23.4 GB (max-memory-gb); raise it with --max-memory-gb");
-    }
-    EXPECT_THROW(memory_limit(-1.0), std::invalid_argument);
-    EXPECT_GT(memory_limit(0.0).bytes, 1e8) << "the default is the physical memory";
-    EXPECT_EQ(memory_limit(0.0).source, "physical memory");
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // recovery_run.h: the memory estimate of a recovery and the limit prepare_recovery enforces.
 #include <gtest/gtest.h>
+#include <omp.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -67,6 +68,9 @@ TEST(RecoveryRun, EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
     const pid_t pid = ::fork();
     ASSERT_GE(pid, 0);
     if (pid == 0) {
+        // The parent's OpenMP threads do not survive fork (a team would wait for them
+        // forever): the child runs on one thread, which changes only per-thread buffers.
+        omp_set_num_threads(1);
         int code = 0;
         try {
             PreparedRecovery r = prepare_recovery(options);
