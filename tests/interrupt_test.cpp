@@ -17,10 +17,21 @@
 namespace wavebrdf {
 namespace {
 
+// Sets the OpenMP thread count for one test and restores it afterwards (other tests run with
+// the machine's count).
+class Threads {
+public:
+    explicit Threads(int count) : m_saved(omp_get_max_threads()) { omp_set_num_threads(count); }
+    ~Threads() { omp_set_num_threads(m_saved); }
+
+private:
+    int m_saved;
+};
+
 // An exception thrown by a worker thread inside the region reaches the caller after it
 // (before: std::terminate, SIGABRT).
 TEST(Parallel, ExceptionInColumnBlockIsRethrownAfterTheRegion) {
-    omp_set_num_threads(4);
+    const Threads threads(4);
     EXPECT_THROW(detail::for_column_blocks(1000, 1e9,
                                            [](long long first, long long) {
                                                if (first > 0) throw std::bad_alloc();
@@ -29,7 +40,7 @@ TEST(Parallel, ExceptionInColumnBlockIsRethrownAfterTheRegion) {
 }
 
 TEST(Parallel, ExceptionInOrderedSumIsRethrownAfterTheRegion) {
-    omp_set_num_threads(4);
+    const Threads threads(4);
     std::vector<double> total(3, 0.0);
     EXPECT_THROW(detail::ordered_parallel_sum(100, total, true,
                                               [](std::size_t i, std::vector<double>&) -> double {
@@ -40,7 +51,7 @@ TEST(Parallel, ExceptionInOrderedSumIsRethrownAfterTheRegion) {
 }
 
 TEST(Parallel, ExceptionInEveryThreadIsRethrownOnce) {
-    omp_set_num_threads(4);
+    const Threads threads(4);
     std::atomic<int> calls{0};
     EXPECT_THROW(detail::for_column_blocks(1000, 1e9,
                                            [&](long long, long long) {
@@ -65,7 +76,7 @@ Query interrupt_query(Model model) {
 // A poll that says stop ends a render with Interrupted on every path, the forward and the
 // gradient; polling every 0 ms means the first piece of work polls.
 TEST(Interrupt, PollThatSaysStopEndsRenderAndGradientWithInterrupted) {
-    omp_set_num_threads(2);
+    const Threads threads(2);
     const Heightfield hf = interrupt_heightfield();
     for (Model m : {Model::OHS, Model::GHS}) {
         int polls = 0;
@@ -106,7 +117,7 @@ TEST(Interrupt, ScopesNestAndRestore) {
 // An allocation failure inside a parallel region (here thrown by the poll, which runs inside
 // the region on the calling thread) reaches the caller as std::bad_alloc, not std::terminate.
 TEST(Interrupt, OutOfMemoryInsideRenderRegionIsAnError) {
-    omp_set_num_threads(2);
+    const Threads threads(2);
     const Heightfield hf = interrupt_heightfield();
     for (Model m : {Model::OHS, Model::GHS}) {
         InterruptScope scope([]() -> bool { throw std::bad_alloc(); }, std::chrono::milliseconds(0));
