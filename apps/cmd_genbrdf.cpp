@@ -22,6 +22,7 @@ struct GenbrdfArgs {
     std::string method = "Wave", model = "OHS";
     double lambda = 0.5, s = 0.0, t = 0.0;
     int resolution = 256;
+    double max_memory_gb = 0.0;  // 0: the physical memory
     bool quiet = false;
 };
 
@@ -64,6 +65,7 @@ void run(const GenbrdfArgs& a) {
     job.out_exr = a.output;
     job.with_alpha = true;
     job.quiet = a.quiet;
+    job.options.max_memory_gb = a.max_memory_gb;
     validate(q);
     validate_resolution(job.resolution);
     check_distinct_files({{"-i", a.input}, {"-o", a.output}});
@@ -89,6 +91,9 @@ void add_genbrdf_command(CLI::App& app) {
     cmd->add_option("-s", a->s, "light direction x (with z = 1, normalised)")->capture_default_str();
     cmd->add_option("-t", a->t, "light direction y (with z = 1, normalised)")->capture_default_str();
     cmd->add_option("-r", a->resolution, "output resolution")->capture_default_str();
+    cmd->add_option("--max-memory-gb", a->max_memory_gb,
+                    "refuse a render whose estimated peak memory exceeds this many GB (0: the physical memory)")
+        ->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
     cmd->callback([a] { run(*a); });
 }

@@ -42,6 +42,7 @@ struct RecoverArgs {
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
+    double max_memory_gb = 0.0;         // 0: the physical memory
     bool save_observations = false, quiet = false, no_plots = false, force = false;
 };
 
@@ -108,6 +109,7 @@ void run(const RecoverArgs& a) {
     options.refine_iterations = a.refine_iterations;
     options.epochs = a.epochs;
     options.seed = a.seed;
+    options.max_memory_gb = a.max_memory_gb;
 
     // Truth and observations (files read here; planned, simulated and checked by the library).
     std::unique_ptr<Heightfield> truth;
@@ -258,6 +260,9 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--refine-iterations", a->refine_iterations, "refinement L-BFGS iterations (default: the library's)");
     cmd->add_option("--epochs", a->epochs, "thesis method: Adam epochs")->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
+    cmd->add_option("--max-memory-gb", a->max_memory_gb,
+                    "refuse a run whose estimated peak memory exceeds this many GB (0: the physical memory)")
+        ->capture_default_str();
     cmd->add_option("--out", a->out, "output directory")->required();
     cmd->add_flag("--force", a->force,
                   "replace the earlier run in --out (only a directory that holds nothing but recover's outputs)");

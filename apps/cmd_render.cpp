@@ -81,6 +81,9 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--path", a->path, "auto, separable (OHS/ROHS) or direct")->capture_default_str();
     cmd->add_option("--prune-tolerance", a->job.options.prune_tolerance,
                     "direct path: pruning error bound relative to the slice peak (0-1e-6)")->capture_default_str();
+    cmd->add_option("--max-memory-gb", a->job.options.max_memory_gb,
+                    "refuse a render whose estimated peak memory exceeds this many GB (0: the physical memory)")
+        ->capture_default_str();
     cmd->add_flag("--quiet", a->job.quiet, "no progress bar or summary");
     cmd->callback([a, spectral] {
         a->given_spectral = spectral->count() > 0;

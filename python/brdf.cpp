@@ -22,7 +22,7 @@ template <typename Float>
 py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n) {
     std::vector<Float> rgb;
     {
-        py::gil_scoped_release release;
+        InterruptibleRelease release;
         rgb = render_rgb<Float>(hf, q.query, q.lambdas_um, n);
     }
     return owning_array(std::move(rgb), {n, n, 3});
@@ -31,7 +31,7 @@ py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n) {
 // ∂(Σ W · rgb)/∂h (rows·cols, texel units) for RGB weights W (n²·3), see the top of this file.
 template <typename Float>
 std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n, const std::vector<double>& weights) {
-    py::gil_scoped_release release;
+    InterruptibleRelease release;
     const std::size_t pixels = static_cast<std::size_t>(n) * n;
     const std::size_t count = q.lambdas_um.size();
     const std::vector<double> mix = count == 1 ? std::vector<double>{1.0, 1.0, 1.0} : spectral_to_srgb_weights(q.lambdas_um);
@@ -227,14 +227,14 @@ The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear 
               if (dbl) {
                   std::vector<double> rgb;
                   {
-                      py::gil_scoped_release release;
+                      InterruptibleRelease release;
                       rgb = render_kernels_rgb<double>(rep, q.query, q.lambdas_um, resolution);
                   }
                   return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
               }
               std::vector<float> rgb;
               {
-                  py::gil_scoped_release release;
+                  InterruptibleRelease release;
                   rgb = render_kernels_rgb<float>(rep, q.query, q.lambdas_um, resolution);
               }
               return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));

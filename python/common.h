@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "wavebrdf/heightfield.h"
+#include "wavebrdf/interrupt.h"
 #include "wavebrdf/model.h"
 
 namespace wavebrdf::python {
@@ -93,6 +94,24 @@ void bind_observation(py::module_& m);
 void bind_optim(py::module_& m);
 void bind_invert(py::module_& m);
 void bind_recover(py::module_& m);
+
+// For a long library call: releases the GIL and installs an InterruptScope whose poll takes the
+// GIL back (every 50 ms of work at most) and checks for signals. On Ctrl-C the handler's
+// KeyboardInterrupt is left pending, the library stops within one piece of work and throws
+// wavebrdf::Interrupted, and the module's translator (module.cpp) raises the pending
+// KeyboardInterrupt. Declare it where `py::gil_scoped_release` would go.
+class InterruptibleRelease {
+public:
+    InterruptibleRelease()
+        : m_scope([] {
+              py::gil_scoped_acquire acquire;
+              return PyErr_CheckSignals() != 0;
+          }) {}
+
+private:
+    py::gil_scoped_release m_release;  // released first, taken back last
+    InterruptScope m_scope;
+};
 
 // A Python callback for C++ work that runs without the GIL (long inversions and recoveries).
 // step(invoke) takes the GIL, notices Ctrl-C, and when a callback was given calls

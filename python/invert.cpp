@@ -159,7 +159,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
         if (position_list.empty())
             position_list.push_back({x_um.is_none() ? 0.5 * truth->period_x_um() : check_finite(x_um.cast<double>(), "x_um"),
                                      y_um.is_none() ? 0.5 * truth->period_y_um() : check_finite(y_um.cast<double>(), "y_um")});
-        py::gil_scoped_release release;
+        InterruptibleRelease release;
         observations = observe(*truth, base, position_list, settings.render);
     }
 
@@ -195,7 +195,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     std::vector<std::vector<double>> last_slices;
     ReleasedCallback python_callback(callback);
     {
-        py::gil_scoped_release release;
+        InterruptibleRelease release;
         inversion.run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>&,
                           const std::vector<std::vector<double>>& slices) {
             last_slices = slices;

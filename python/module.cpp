@@ -13,4 +13,14 @@ PYBIND11_MODULE(_core, m) {
     bind_optim(m);
     bind_invert(m);
     bind_recover(m);
+    // A long call stopped by Ctrl-C (InterruptibleRelease): its poll left the signal handler's
+    // exception (KeyboardInterrupt) pending; raise that, or KeyboardInterrupt if none is.
+    py::register_exception_translator([](std::exception_ptr p) {
+        if (!p) return;
+        try {
+            std::rethrow_exception(p);
+        } catch (const wavebrdf::Interrupted&) {
+            if (!PyErr_Occurred()) PyErr_SetNone(PyExc_KeyboardInterrupt);
+        }
+    });
 }

@@ -90,7 +90,7 @@ Observation(query, reference)
         .def("render", [](const Observation& o, const Heightfield& hf) {
             std::vector<double> v;
             {
-                py::gil_scoped_release release;
+                InterruptibleRelease release;
                 v = render_observation(hf, o);
             }
             return observation_array(std::move(v), o);
@@ -107,7 +107,7 @@ Observation(query, reference)
         std::vector<double> gradient;
         double value = 0.0;
         {
-            py::gil_scoped_release release;
+            InterruptibleRelease release;
             value = observation_loss(hf, list, l, &gradient);
         }
         return py::make_tuple(value, owning_array(std::move(gradient), {hf.rows(), hf.cols()}));

@@ -115,7 +115,7 @@ Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& 
     ReleasedCallback python_callback(callback);
     std::optional<Heightfield> estimate;
     {
-        py::gil_scoped_release release;
+        InterruptibleRelease release;
         estimate.emplace(work([&](const StageMetrics& m) {
             history.push_back(m);
             return python_callback.step([&](const py::object& f) { return f(metrics_row(m)); });
@@ -150,7 +150,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        double sigma_p_um, int resolution, const py::object& lambdas_um, double overlap, double jitter,
                        const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
-                       std::uint64_t seed, const py::object& callback) {
+                       std::uint64_t seed, const py::object& callback, double max_memory_gb) {
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
     options.method = parse_recovery_method(method, "method");
@@ -179,6 +179,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
     options.epochs = epochs;
     options.seed = seed;
+    if (!std::isfinite(max_memory_gb) || max_memory_gb < 0.0)
+        bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
+    options.max_memory_gb = max_memory_gb;
     check_callback(callback);
     if (!truth_arg.is_none() && !observations_arg.is_none())
         throw py::value_error("truth and observations exclude each other; expected one of them (or neither)");
@@ -196,7 +199,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
 
     std::optional<PreparedRecovery> prepared;
     {
-        py::gil_scoped_release release;
+        InterruptibleRelease release;
         prepared = prepare_recovery(options, truth ? &*truth : nullptr, std::move(observations));
     }
     std::vector<StageMetrics> history;
@@ -339,7 +342,7 @@ A height range the wavelengths cannot unwrap is a ValueError naming the largest 
         "simulate_observations",
         [](const Heightfield& truth, const AcquisitionPlan& plan, const py::object& noise, std::uint64_t seed) {
             const Noise n = noise_argument(noise);
-            py::gil_scoped_release release;
+            InterruptibleRelease release;
             return simulate_observations(truth, plan, n, seed);
         },
         "truth"_a, "plan"_a, "noise"_a = "none", "seed"_a = 1, R"doc(
@@ -554,7 +557,7 @@ without a truth or before heights exist).
           "lambdas_um"_a = py::none(), "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none",
           "loss"_a = py::none(), "method"_a = "pipeline", "field_iterations"_a = py::none(),
           "refine_iterations"_a = py::none(), "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(),
-          R"doc(
+          "max_memory_gb"_a = ro.max_memory_gb, R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -585,7 +588,9 @@ epochs        thesis method: Adam epochs (>= 0)
 seed          generated truth, position jitter, noise, the thesis's draws
 callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse)
               after every reported step; return False to stop early.
-The run releases the GIL; Ctrl-C stops it at the next step (KeyboardInterrupt).
+max_memory_gb refuse (MemoryError, before any work) a run whose estimated peak memory exceeds
+              this many GB; 0 (default): the physical memory
+The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 }
 

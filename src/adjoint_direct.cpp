@@ -43,16 +43,19 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
     const bool parallel = worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(total));
     const int threads = parallel ? omp_get_max_threads() : 1;
     std::vector<KernelGradient> partial(static_cast<std::size_t>(threads));
+    RegionGuard guard;
 #pragma omp parallel if (parallel) num_threads(threads)
     {
         KernelGradient& g = partial[static_cast<std::size_t>(omp_get_thread_num())];
-        g.height.assign(total, 0.0);
-        g.slope_x.assign(total, 0.0);
-        g.slope_y.assign(total, 0.0);
+        guard.run([&] {
+            g.height.assign(total, 0.0);
+            g.slope_x.assign(total, 0.0);
+            g.slope_y.assign(total, 0.0);
+        });
         // Static schedule: each thread always gets the same rows, so the per-thread sums and
         // their reduction are bitwise reproducible (resume relies on it).
 #pragma omp for schedule(static)
-        for (int p = 0; p < n; ++p) {
+        for (int p = 0; p < n; ++p) guard.run([&] {
             const double ox = slice_omega(p, n);
             for (int q = 0; q < n; ++q) {
                 const double oy = slice_omega(q, n);
@@ -69,8 +72,9 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
                                 g.slope_y[i] += std::real(b * dsy);
                             });
             }
-        }
+        });
     }
+    guard.rethrow();
     KernelGradient sum = partial[0];
     for (std::size_t t = 1; t < partial.size(); ++t)
         for (std::size_t i = 0; i < total; ++i) {
@@ -84,8 +88,9 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
 std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query, double lambda_um,
                                    int n, const DirectField& forward, const KernelGradient& dk) {
     std::vector<double> out(static_cast<std::size_t>(n) * n, 0.0);
+    RegionGuard guard;
 #pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
-    for (int p = 0; p < n; ++p) {
+    for (int p = 0; p < n; ++p) guard.run([&] {
         const double ox = slice_omega(p, n);
         for (int q = 0; q < n; ++q) {
             const double oy = slice_omega(q, n);
@@ -100,7 +105,8 @@ std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query
                         });
             out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
         }
-    }
+    });
+    guard.rethrow();
     return out;
 }
 

@@ -9,10 +9,12 @@
 // The factors are the forward's own when it kept them (one chunk), else rebuilt chunk by chunk.
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <optional>
 
 #include "separable.h"
 #include "wavebrdf/adjoint.h"
+#include "wavebrdf/memory.h"
 
 namespace wavebrdf::detail {
 
@@ -29,8 +31,9 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     using Complex = std::complex<Float>;
     const SliceGrid grid(query, lambda_um, n);
     ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
+    RegionGuard b_guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
-    for (int p = 0; p < n; ++p) {
+    for (int p = 0; p < n; ++p) b_guard.run([&] {
         const double ox = slice_omega(p, n);
         for (int q = 0; q < n; ++q) {
             const double oy = slice_omega(q, n);
@@ -41,7 +44,8 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
             if (!std::isfinite(scale * double(std::norm(field(p, q))))) continue;
             b(p, q) = Complex(Float(scale)) * std::conj(field(p, q));
         }
-    }
+    });
+    b_guard.rethrow();
 
     const std::size_t total = k.size();
     KernelGradient g;
@@ -52,14 +56,18 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     const std::optional<PhaseTables> phases = reuse ? std::nullopt : std::optional<PhaseTables>(std::in_place, k, grid);
     const Eigen::Index chunk = reuse ? Eigen::Index(total) : chunk_size(n, sizeof(Complex), 4, kAdjointChunkColumns);
     const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
-    ComplexMatrix<Float> built_xs, built_ys;
-    if (!reuse) {
-        built_xs.resize(n, cols);
-        built_ys.resize(n, cols);
-    }
+    ComplexMatrix<Float> built_xs, built_ys, z, v;
+    allocating("the " + std::to_string(n) + "x" + std::to_string(n) + " slice's adjoint factor matrices",
+               (reuse ? 2.0 : 4.0) * double(n) * double(cols) * sizeof(Complex), [&] {
+                   if (!reuse) {
+                       built_xs.resize(n, cols);
+                       built_ys.resize(n, cols);
+                   }
+                   z.resize(n, cols);
+                   v.resize(n, cols);
+               });
     const ComplexMatrix<Float>& xs = reuse ? kept->xs : built_xs;
     const ComplexMatrix<Float>& ys = reuse ? kept->ys : built_ys;
-    ComplexMatrix<Float> z(n, cols), v(n, cols);
     const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
     const double two_over_lambda = 2.0 / lambda_um;
     const std::complex<double> height_factor(0.0, -4.0 * kPi / lambda_um);
@@ -71,8 +79,9 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
             z.middleCols(first, cols).noalias() = b * ys.middleCols(first, cols);
             v.middleCols(first, cols).noalias() = b.transpose() * xs.middleCols(first, cols);
         });
+        RegionGuard guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(count) * n))
-        for (Eigen::Index c = 0; c < count; ++c) {
+        for (Eigen::Index c = 0; c < count; ++c) guard.run([&] {
             const std::size_t idx = static_cast<std::size_t>(k0 + c);
             const double ax = two_over_lambda * k.slope_x[idx];
             const double ay = two_over_lambda * k.slope_y[idx];
@@ -87,7 +96,8 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
             g.height[idx] = 2.0 * std::real(height_factor * t0);
             g.slope_x[idx] = 2.0 * std::real(two_over_lambda * t1);
             g.slope_y[idx] = 2.0 * std::real(two_over_lambda * t2);
-        }
+        });
+        guard.rethrow();
     }
     return g;
 }

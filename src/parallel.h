@@ -6,10 +6,52 @@
 // runs on the calling thread only.
 #include <omp.h>
 
+#include <atomic>
 #include <cstddef>
+#include <exception>
+#include <mutex>
 #include <vector>
 
+#include "wavebrdf/interrupt.h"
+
 namespace wavebrdf::detail {
+
+// Makes a parallel region safe to throw from. An exception escaping an OpenMP thread calls
+// std::terminate (an out-of-memory in one thread used to abort the program, and Python with
+// it), so every body in a region runs through `run`: the first exception of any thread is
+// kept, the other threads skip their remaining bodies, and `rethrow` raises it on the calling
+// thread after the region. `run` also polls check_interrupt() (only the calling thread has a
+// scope to poll), so an interrupt ends the region the same way, as Interrupted.
+//   RegionGuard guard;
+//   #pragma omp parallel for
+//   for (...) guard.run([&] { ...body... });
+//   guard.rethrow();
+class RegionGuard {
+public:
+    template <typename Body>
+    void run(Body&& body) noexcept {
+        if (m_failed.load(std::memory_order_relaxed)) return;
+        try {
+            check_interrupt();
+            body();
+        } catch (...) {
+            std::lock_guard<std::mutex> lock(m_mutex);
+            if (!m_error) m_error = std::current_exception();
+            m_failed.store(true, std::memory_order_relaxed);
+        }
+    }
+    // True once a body has thrown (the region is winding down).
+    bool failed() const { return m_failed.load(std::memory_order_relaxed); }
+    // After the region, on the calling thread: throws the first exception, if any.
+    void rethrow() const {
+        if (m_error) std::rethrow_exception(m_error);
+    }
+
+private:
+    std::atomic<bool> m_failed{false};
+    std::mutex m_mutex;
+    std::exception_ptr m_error;
+};
 
 constexpr long long kParallelWork = 1LL << 16;  // loop iterations × inner entries
 
@@ -24,11 +66,15 @@ constexpr double kParallelProduct = 4.0e6;
 template <typename Body>
 void for_column_blocks(long long columns, double multiply_adds, Body&& body) {
     const int blocks = multiply_adds >= kParallelProduct ? omp_get_max_threads() : 1;
+    RegionGuard guard;
 #pragma omp parallel for schedule(static) num_threads(blocks) if (blocks > 1)
     for (int b = 0; b < blocks; ++b) {
-        const long long first = columns * b / blocks, last = columns * (b + 1) / blocks;
-        if (last > first) body(first, last - first);
+        guard.run([&] {
+            const long long first = columns * b / blocks, last = columns * (b + 1) / blocks;
+            if (last > first) body(first, last - first);
+        });
     }
+    guard.rethrow();
 }
 
 // Σ_i body(i, local) over i = 0…count−1, and the sum of the vectors each call adds into
@@ -41,13 +87,15 @@ double ordered_parallel_sum(std::size_t count, std::vector<T>& total, bool paral
     const int threads = parallel ? omp_get_max_threads() : 1;
     std::vector<std::vector<T>> locals(static_cast<std::size_t>(threads));
     std::vector<double> values(static_cast<std::size_t>(threads), 0.0);
+    RegionGuard guard;
 #pragma omp parallel num_threads(threads) if (threads > 1)
     {
         const std::size_t t = static_cast<std::size_t>(omp_get_thread_num());
-        locals[t].assign(total.size(), T(0));
+        guard.run([&] { locals[t].assign(total.size(), T(0)); });
 #pragma omp for schedule(static)
-        for (std::size_t i = 0; i < count; ++i) values[t] += body(i, locals[t]);
+        for (std::size_t i = 0; i < count; ++i) guard.run([&] { values[t] += body(i, locals[t]); });
     }
+    guard.rethrow();
     double value = 0.0;
     for (std::size_t t = 0; t < locals.size(); ++t) {
         value += values[t];

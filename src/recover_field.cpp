@@ -220,8 +220,9 @@ std::vector<double> refined_heights(const Heightfield& hf, int refine) {
     std::vector<double> out(std::size_t(rows) * cols);
     // Kernels within 3 texels (≥ 6σ) of a sample contribute; the rest are below e^{-18}.
     constexpr int reach = 3;
+    detail::RegionGuard guard;
 #pragma omp parallel for schedule(static) if (std::size_t(rows) * cols > 4096)
-    for (int a = 0; a < rows; ++a)
+    for (int a = 0; a < rows; ++a) guard.run([&] {
         for (int b = 0; b < cols; ++b) {
             const int i0 = a / refine, j0 = b / refine;
             // Offset of the sample from its texel's centre (µm).
@@ -237,6 +238,8 @@ std::vector<double> refined_heights(const Heightfield& hf, int refine) {
                 }
             out[std::size_t(a) * cols + b] = num / den;
         }
+    });
+    guard.rethrow();
     return out;
 }
 

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "wavebrdf/generate.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/plan.h"
 #include "wavebrdf/progress.h"
@@ -25,6 +26,39 @@ Loss recovery_loss(const RecoveryOptions& options) {
     // The thesis's method is the baseline as the thesis ran it: its own loss on any data.
     if (options.method == RecoveryMethod::Thesis) return Loss{LossKind::CMSLE, 1.0};
     return matched_loss(options.noise, Loss{LossKind::Amplitude, 1.0});
+}
+
+double estimate_recovery_bytes(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
+                               RecoveryMethod method, const RecoverSettings& settings) {
+    const double texels = double(std::max(rows, 0)) * double(std::max(cols, 0));
+    double references = 0.0, lambda_min = 0.0;
+    // Per wavelength, the single-wavelength slices' pixels (the field stage works on one
+    // wavelength at a time, the blurred fit on the longest).
+    std::vector<std::pair<double, double>> pixels_per_lambda;
+    for (const Observation& o : observations) {
+        const double pixels = double(o.resolution) * double(o.resolution);
+        references += pixels * double(o.lambdas_um.size() == 1 ? 1 : 3) * sizeof(double);
+        for (double l : o.lambdas_um) lambda_min = lambda_min > 0.0 ? std::min(lambda_min, l) : l;
+        if (o.lambdas_um.size() != 1) continue;
+        auto it = std::find_if(pixels_per_lambda.begin(), pixels_per_lambda.end(),
+                               [&](const auto& p) { return p.first == o.lambdas_um[0]; });
+        if (it == pixels_per_lambda.end()) pixels_per_lambda.push_back({o.lambdas_um[0], pixels});
+        else it->second += pixels;
+    }
+    constexpr double base = 64e6;  // program, libraries, FFTW plans, per-thread slices
+    if (method == RecoveryMethod::Thesis) return base + references + texels * 16.0 * sizeof(double);
+    // Per slice of one wavelength: the blurred fit's two n × n matrices, then the field
+    // retrieval's √c1 (whole slice and its box) and √R (box). Counted together: the heap
+    // seldom hands the first stage's memory back before the second needs its own.
+    double largest_stage = 0.0;
+    for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, 5.0 * sizeof(double) * p.second);
+    int refine = settings.refine;
+    if (refine <= 0 && lambda_min > 0.0 && texel_um > 0.0) refine = auto_refine(texel_um, lambda_min);
+    const double samples = texels * double(std::max(refine, 1)) * double(std::max(refine, 1));
+    // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples doubles.
+    const double field_history = samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0);
+    const double refine_history = texels * sizeof(double) * (2.0 * settings.refine_history + 8.0);
+    return base + references + largest_stage + field_history + refine_history;
 }
 
 Heightfield generated_recovery_truth(const RecoveryOptions& options) {
@@ -50,6 +84,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
     if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
+    const MemoryLimit limit = memory_limit(options.max_memory_gb);
 
     PreparedRecovery r;
     r.method = options.method;
@@ -77,6 +112,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.observations = std::move(observations);
         r.rows = options.rows;
         r.cols = options.cols;
+        require_memory(estimate_recovery_bytes(r.observations, r.rows, r.cols, r.texel_um, options.method), limit,
+                       "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
+                           std::to_string(r.observations.size()) + " given observations)");
     } else {
         r.truth = truth != nullptr ? *truth : generated_recovery_truth(options);
         r.rows = r.truth->rows();
@@ -100,6 +138,11 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.resolution = options.resolution;
         const AcquisitionPlan plan = plan_acquisition(request);
         r.notes = plan.notes;
+        const std::vector<Observation> planned = planned_observations(plan);
+        require_memory(estimate_recovery_bytes(planned, r.rows, r.cols, r.texel_um, options.method),
+                       limit, "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
+                                  std::to_string(planned.size()) + " observations of " +
+                                  std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) + ")");
         Progress progress("simulate", static_cast<long long>(plan.positions_um.size() * plan.lambdas_um.size()),
                           show_progress);
         r.observations = simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);

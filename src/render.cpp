@@ -1,9 +1,11 @@
 // Entry points: validate, gather the footprint's kernels once, pick the path, and combine
 // wavelengths into RGB.
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
@@ -21,18 +23,48 @@ void validate_options(const RenderOptions& options, Model model) {
                                     to_string(model));
 }
 
+bool separable_path(const RenderOptions& options, Model model) {
+    return options.path == RenderPath::Separable || (options.path == RenderPath::Auto && is_separable(model));
+}
+
+// Refuses, before any work, what estimate_render_bytes says cannot fit options.max_memory_gb.
+void require_render_memory(const Heightfield& heightfield, const Query& query, int resolution,
+                           const RenderOptions& options, std::size_t float_bytes, bool rgb) {
+    const MemoryLimit limit = memory_limit(options.max_memory_gb);
+    const double needed = estimate_render_bytes(heightfield, query, resolution, options, float_bytes, rgb);
+    if (needed > limit.bytes)
+        require_memory(needed, limit, "render (" + std::to_string(resolution) + "x" + std::to_string(resolution) +
+                                          " slice, " + (float_bytes == 4 ? "float" : "double") + ")");
+}
+
 template <typename Float>
 std::vector<Float> render_kernels(const FootprintKernels& kernels, const Query& query,
                                   double lambda_um, int resolution, const RenderOptions& options) {
-    const bool separable = options.path == RenderPath::Separable ||
-                           (options.path == RenderPath::Auto && is_separable(query.model));
-    if (separable)
+    if (separable_path(options, query.model))
         return render_slice_separable<Float>(kernels, query, lambda_um, resolution, options.progress);
     return render_slice_direct<Float>(kernels, query, lambda_um, resolution,
                                       options.prune_tolerance, options.progress);
 }
 
 }  // namespace
+
+double estimate_render_bytes(const Heightfield& heightfield, const Query& query, int resolution,
+                             const RenderOptions& options, std::size_t float_bytes, bool rgb) {
+    const double pixels = double(resolution) * double(resolution), n = double(resolution);
+    // Kernels within 3σ_p of the centre: row, col and six doubles each.
+    const double reach = 3.0 * query.sigma_p_um / heightfield.texel_um() + 1.0;
+    const double kernels = std::min(double(heightfield.rows()) * double(heightfield.cols()), 3.14159265358979 * reach * reach);
+    double bytes = 32e6 + kernels * 56.0;
+    bytes += pixels * double(float_bytes) * (rgb ? 4.0 : 1.0);  // the slice (and the RGB result)
+    if (separable_path(options, query.model)) {
+        // Field n² complex, its factor matrices (≤ 32 MiB) and the phase tables.
+        bytes += pixels * 2.0 * double(float_bytes) + std::min(32.0 * (1 << 20), 4.0 * n * kernels * double(float_bytes));
+        bytes += n * 2.0 * std::min(kernels, 2.0 * reach + 1.0) * 16.0;
+    } else {
+        bytes += pixels * (16.0 + 8.0 + 8.0);  // field, c1 and value in double
+    }
+    return bytes;
+}
 
 template <typename Float>
 std::vector<Float> render_slice(const Heightfield& heightfield, const Query& query,
@@ -41,6 +73,7 @@ std::vector<Float> render_slice(const Heightfield& heightfield, const Query& que
     validate_lambda(lambda_um);
     validate_resolution(resolution);
     validate_options(options, query.model);
+    require_render_memory(heightfield, query, resolution, options, sizeof(Float), false);
     const FootprintKernels kernels =
         footprint_kernels(heightfield, query.x_um, query.y_um, query.sigma_p_um);
     return render_kernels<Float>(kernels, query, lambda_um, resolution, options);
@@ -56,6 +89,7 @@ std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query
     if (lambdas_um.empty())
         throw std::invalid_argument("no wavelengths given; expected at least one");
     for (double lambda : lambdas_um) validate_lambda(lambda);
+    require_render_memory(heightfield, query, resolution, options, sizeof(Float), true);
 
     const FootprintKernels kernels =
         footprint_kernels(heightfield, query.x_um, query.y_um, query.sigma_p_um);

@@ -5,10 +5,12 @@
 // otherwise) and u = (ω_i + ω_o)/λ.
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <complex>
 #include <limits>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/memory.h"
 #include "direct.h"
 #include "parallel.h"
 #include "wavebrdf/progress.h"
@@ -54,9 +56,12 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
                          double prune_tolerance, Progress* progress) {
     const std::size_t pixels = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
     DirectField out;
-    out.field.assign(pixels, 0.0);
-    out.c1.assign(pixels, 0.0);
-    out.value.assign(pixels, 0.0);
+    allocating("the " + std::to_string(n) + "x" + std::to_string(n) + " slice's field",
+               double(pixels) * (sizeof(std::complex<double>) + 2 * sizeof(double)), [&] {
+                   out.field.assign(pixels, 0.0);
+                   out.c1.assign(pixels, 0.0);
+                   out.value.assign(pixels, 0.0);
+               });
     const double bound = amplitude_bound(k, query.model);
     // Start by dropping terms below 1e-3 · tolerance of the bound; tighten if the a-posteriori
     // check below fails. No pruning at all when the tolerance is 0.
@@ -64,8 +69,9 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
                                           : std::numeric_limits<double>::infinity();
     const long long units = work_units(n);
     for (int attempt = 0;; ++attempt) {
+        detail::RegionGuard guard;
 #pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
-        for (int p = 0; p < n; ++p) {
+        for (int p = 0; p < n; ++p) guard.run([&] {
             const double ox = slice_omega(p, n);
             for (int q = 0; q < n; ++q) {
                 const double oy = slice_omega(q, n);
@@ -78,7 +84,8 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
                 out.value[at] = std::isfinite(v) ? v : 0.0;
             }
             if (progress && attempt == 0) progress->advance(units / n + (p < units % n ? 1 : 0));
-        }
+        });
+        guard.rethrow();
         if (!std::isfinite(cutoff)) break;
         // Error bound: each pixel's dropped amplitude ε ≤ e^{−cutoff} · bound, so
         // |f − f̃| ≤ c1 (2|Ĩ| + ε) ε. Accept when every pixel is within tolerance · (peak − err).

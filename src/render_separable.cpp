@@ -6,10 +6,12 @@
 // w² e^{−i(4π/λ)H_k} e^{−i2π u·μ_k}; μ_k = μ_p + δ_k and e^{−i2π u·μ_p} is a global phase.)
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <stdexcept>
 
 #include "separable.h"
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
 
 namespace wavebrdf {
@@ -24,9 +26,16 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& que
     const PhaseTables phases(k, grid);
     const Eigen::Index total = static_cast<Eigen::Index>(k.size());
     const Eigen::Index chunk = chunk_size(n, sizeof(std::complex<Float>), 2);
-    ComplexMatrix<Float> field = ComplexMatrix<Float>::Zero(n, n);
-    ComplexMatrix<Float> xs(n, std::min(chunk, std::max<Eigen::Index>(total, 1)));
-    ComplexMatrix<Float> ys(n, xs.cols());
+    const Eigen::Index cols = std::min(chunk, std::max<Eigen::Index>(total, 1));
+    const std::string size = std::to_string(n) + "x" + std::to_string(n);
+    ComplexMatrix<Float> field = allocating("the " + size + " slice's field", double(n) * n * sizeof(std::complex<Float>),
+                                            [&] { return ComplexMatrix<Float>(ComplexMatrix<Float>::Zero(n, n)); });
+    ComplexMatrix<Float> xs, ys;
+    allocating("the " + size + " slice's factor matrices", 2.0 * double(n) * double(cols) * sizeof(std::complex<Float>),
+               [&] {
+                   xs.resize(n, cols);
+                   ys.resize(n, cols);
+               });
     const long long units = work_units(n);
     long long reported = 0;
     for (Eigen::Index k0 = 0; k0 < total; k0 += chunk) {

@@ -122,11 +122,16 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
     const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;  // 2π²σ²
     const double two_over_lambda = 2.0 / lambda_um;
     const double du = 2.0 / (double(n) * lambda_um);                  // slice_omega's spacing / λ
+    RegionGuard guard;
 #pragma omp parallel if (worth_parallel(static_cast<long long>(count) * n))
     {
-        std::vector<double> gx(static_cast<std::size_t>(n)), gy(static_cast<std::size_t>(n));
+        std::vector<double> gx, gy;
+        guard.run([&] {
+            gx.resize(static_cast<std::size_t>(n));
+            gy.resize(static_cast<std::size_t>(n));
+        });
 #pragma omp for schedule(static)
-        for (Eigen::Index c = 0; c < count; ++c) {
+        for (Eigen::Index c = 0; c < count; ++c) guard.run([&] {
             const std::size_t idx = static_cast<std::size_t>(k0 + c);
             gaussian_samples(gauss, grid.ux[0] + two_over_lambda * k.slope_x[idx], du, n, gx.data());
             gaussian_samples(gauss, grid.uy[0] + two_over_lambda * k.slope_y[idx], du, n, gy.data());
@@ -137,8 +142,9 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
                 xs(p, c) = Complex(gx[static_cast<std::size_t>(p)] * px[p]);
                 ys(p, c) = Complex(gy[static_cast<std::size_t>(p)] * (w * py[p]));
             }
-        }
+        });
     }
+    guard.rethrow();
 }
 
 // f = c1 |I|² over the disk (0 outside it and where the value is not finite), row-major.
@@ -146,8 +152,9 @@ template <typename Float>
 std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Query& query,
                                    double lambda_um, int n) {
     std::vector<Float> slice(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Float(0));
+    RegionGuard guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
-    for (int p = 0; p < n; ++p) {
+    for (int p = 0; p < n; ++p) guard.run([&] {
         const double ox = slice_omega(p, n);
         for (int q = 0; q < n; ++q) {
             const double oy = slice_omega(q, n);
@@ -156,7 +163,8 @@ std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Quer
             const double value = f.c1 * static_cast<double>(std::norm(field(p, q)));
             slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(value) ? Float(value) : Float(0);
         }
-    }
+    });
+    guard.rethrow();
     return slice;
 }
 

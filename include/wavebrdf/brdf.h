@@ -27,7 +27,17 @@ struct RenderOptions {
     // 0 disables pruning (the plain reference sum).
     double prune_tolerance = 1e-7;
     Progress* progress = nullptr;        // advanced by `work_units` (below) per slice
+    // render_slice and render_rgb refuse (OutOfMemory, before any work) a render whose
+    // estimate_render_bytes exceeds this many GB; 0: the physical memory.
+    double max_memory_gb = 0.0;
 };
+
+// Estimated peak memory (bytes) of render_rgb (`rgb`) or render_slice of `heightfield` for
+// `query` at `resolution`, in float (`float_bytes` 4) or double (8): the footprint's kernels
+// (about π(3σ_p/w)², at most the heightfield's texels), the slice and the RGB result, and the
+// path's field (and factor matrices, at most 32 MiB). Arguments as render_slice (unchecked).
+double estimate_render_bytes(const Heightfield& heightfield, const Query& query, int resolution,
+                             const RenderOptions& options, std::size_t float_bytes, bool rgb);
 
 // Units of progress one slice reports (so callers can size a Progress bar).
 long long work_units(int resolution);

@@ -56,6 +56,9 @@ struct RecoveryOptions {
     int refine_iterations = -1;       // pipeline: L-BFGS on the heights, ≤ 10^7; < 0: the default
     int epochs = 1000;                // thesis: Adam epochs, 0 … 10^7 (k_max_iterations)
     std::uint64_t seed = 1;           // generated truth, jitter, noise, the thesis's draws
+    // Refuse (OutOfMemory, before simulating or recovering) a run whose estimated peak memory
+    // (estimate_recovery_bytes) exceeds this many GB; 0: the physical memory.
+    double max_memory_gb = 0.0;
 };
 
 // The loss the recovery fits: options.loss when given; else, for the pipeline, the one
@@ -89,6 +92,16 @@ struct PreparedRecovery {
     std::string metric_note;
 };
 
+// Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from
+// `observations` (their references counted at full size even when still empty, as
+// planned_observations leaves them) by `method` with `settings` (the pipeline's): the
+// references, the largest stage's working set (the field retrieval's per-slice operators of
+// one wavelength, or the blurred fit's matrices), the object grid's and the heights' L-BFGS
+// histories, and a fixed base. Within a factor of ~2 of the measured peak
+// (RecoveryRun.EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak).
+double estimate_recovery_bytes(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
+                               RecoveryMethod method, const RecoverSettings& settings = {});
+
 // For the pipeline, a model that is not separable (planned observations) or given
 // observations without a single-wavelength OHS / ROHS one are refused (std::invalid_argument)
 // before any work.
@@ -99,8 +112,10 @@ struct PreparedRecovery {
 // options.noise (simulate_observations, seed options.seed). `show_progress` draws a
 // "simulate" progress bar on a terminal. Throws std::invalid_argument when both a truth and
 // observations are given, when noise is asked for with given observations, or for epochs or
-// iteration counts above k_max_iterations (optim.h) or epochs < 0 (before any work); the planner's, the generator's and the loss's exceptions
-// otherwise.
+// iteration counts above k_max_iterations (optim.h) or epochs < 0 (before any work); the
+// planner's, the generator's and the loss's exceptions otherwise. Throws OutOfMemory
+// (memory.h), before simulating, when estimate_recovery_bytes exceeds options.max_memory_gb
+// (memory_limit).
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth = nullptr,
                                   std::vector<Observation> observations = {}, bool show_progress = false);
 

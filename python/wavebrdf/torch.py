@@ -62,4 +62,5 @@ def render_slice(heights, **options):
     """The BRDF slice of `heights` (a 2-D tensor in texel units) as a differentiable tensor
     (resolution, resolution, 3) of the same dtype and device. Keyword options as
     wavebrdf.render_slice; `resolution` is required."""
+    _numpy(heights, "heights")  # a ValueError naming the argument for what is not a float tensor
     return RenderSlice.apply(heights, options)

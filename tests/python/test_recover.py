@@ -260,6 +260,17 @@ def test_recover_callback_stops_early():
     assert r.loss == "poisson:10000" and r.noise == "poisson:10000" and len(r.metrics["stage"]) == 1
 
 
+def test_recover_refuses_what_cannot_fit_before_any_work():
+    # size=1000 planned 492075 slices of 160x160 and grew until the machine ran out of memory.
+    with pytest.raises(MemoryError, match=r"needs about .* GB; the limit is 2 GB \(max-memory-gb\)"):
+        wb.recover(size=1000, max_memory_gb=2)
+    if os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") < 200e9:  # the default limit
+        with pytest.raises(MemoryError, match=r"the limit is .* \(physical memory\)"):
+            wb.recover(size=1000)
+    with pytest.raises(ValueError, match="max_memory_gb"):
+        wb.recover(size=8, max_memory_gb=-1)
+
+
 @pytest.mark.parametrize("call,needles", [
     (lambda: wb.recover(method="adam"), ["method", "adam"]),
     (lambda: wb.recover(noise="loud"), ["noise", "loud"]),

@@ -90,3 +90,11 @@ def test_errors():
         wt.render_slice(torch.zeros(3, 3, dtype=torch.int64), **SMALL)
     with pytest.raises(ValueError, match="sigma_p_um"):
         wt.render_slice(torch.zeros(3, 3, dtype=torch.float64), **dict(SMALL, sigma_p_um=0))
+
+
+def test_numpy_array_is_a_value_error_naming_the_argument():
+    # It used to be AttributeError ('numpy.ndarray' object has no attribute 'dim').
+    with pytest.raises(ValueError, match="heights is a ndarray; expected a torch.Tensor"):
+        wt.render_slice(np.zeros((3, 3)), **SMALL)
+    with pytest.raises(ValueError, match="heights is a list"):
+        wt.render_slice([[0.0, 1.0], [1.0, 0.0]], **SMALL)

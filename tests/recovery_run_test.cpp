@@ -1,0 +1,98 @@
+// recovery_run.h: the memory estimate of a recovery and the limit prepare_recovery enforces.
+#include <gtest/gtest.h>
+#include <omp.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <string>
+
+#include "wavebrdf/memory.h"
+#include "wavebrdf/plan.h"
+#include "wavebrdf/recovery_run.h"
+
+#if defined(__SANITIZE_ADDRESS__)
+#define WAVEBRDF_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define WAVEBRDF_ASAN 1
+#endif
+#endif
+
+namespace wavebrdf {
+namespace {
+
+// `recover --size 1000` planned 492075 observations of 160x160 and grew until the machine ran
+// out; it is now refused before any work, with the estimate and the limit in the message.
+TEST(RecoveryRun, RefusesAPlanThatCannotFitBeforeSimulating) {
+    RecoveryOptions options;
+    options.rows = options.cols = 1000;
+    options.max_memory_gb = 8.0;
+    try {
+        prepare_recovery(options);
+        FAIL() << "expected OutOfMemory";
+    } catch (const OutOfMemory& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("recover (1000x1000 heights, 492075 observations of 160x160) needs about "),
+                  std::string::npos) << what;
+        EXPECT_NE(what.find("; the limit is 8 GB (max-memory-gb); raise it with --max-memory-gb"), std::string::npos)
+            << what;
+    }
+    // The default limit is the physical memory; 1000x1000 needs hundreds of GB.
+    options.max_memory_gb = 0.0;
+    if (physical_memory_bytes() < 200e9) EXPECT_THROW(prepare_recovery(options), OutOfMemory);
+    options.max_memory_gb = -2.0;
+    EXPECT_THROW(prepare_recovery(options), std::invalid_argument);
+}
+
+// The estimate against the peak resident memory of a real (shortened: one iteration per
+// stage, the same allocations) recovery in a child process, for a 24x24 heightfield (300
+// slices of 160x160): within a factor of two either way.
+TEST(RecoveryRun, EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
+#ifdef WAVEBRDF_ASAN
+    GTEST_SKIP() << "AddressSanitizer's shadow memory and quarantine inflate the resident size; "
+                    "the estimate is checked in the plain build";
+#endif
+    RecoveryOptions options;
+    options.rows = options.cols = 24;
+    PlanRequest request;
+    request.rows = request.cols = 24;
+    request.texel_um = options.texel_um;
+    request.height_range_um = options.height_range_um;
+    request.seed = options.seed;
+    const std::vector<Observation> planned = planned_observations(plan_acquisition(request));
+    const double estimate = estimate_recovery_bytes(planned, 24, 24, options.texel_um, RecoveryMethod::Pipeline);
+
+    std::fflush(nullptr);
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        // The parent's OpenMP threads do not survive fork (a team would wait for them
+        // forever): the child runs on one thread, which changes only per-thread buffers.
+        omp_set_num_threads(1);
+        int code = 0;
+        try {
+            PreparedRecovery r = prepare_recovery(options);
+            r.pipeline.blurred.iterations = 1;
+            r.pipeline.field.iterations = 1;
+            r.pipeline.refine_iterations = 1;
+            run_recovery(r);
+        } catch (...) {
+            code = 3;
+        }
+        ::_exit(code);
+    }
+    int status = 0;
+    struct rusage usage {};
+    ASSERT_EQ(::wait4(pid, &status, 0, &usage), pid);
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the recovery failed in the child";
+    const double measured = double(usage.ru_maxrss) * 1024.0;  // kB on Linux
+    EXPECT_GT(measured, 0.5 * estimate) << "estimate " << format_bytes(estimate) << ", measured " << format_bytes(measured);
+    EXPECT_LT(measured, 2.0 * estimate) << "estimate " << format_bytes(estimate) << ", measured " << format_bytes(measured);
+    std::printf("recover 24x24: estimate %s, measured peak %s\n", format_bytes(estimate).c_str(),
+                format_bytes(measured).c_str());
+}
+
+}  // namespace
+}  // namespace wavebrdf
