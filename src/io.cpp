@@ -11,6 +11,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -91,6 +92,54 @@ void check_image(const RgbImage& image) {
                                     " values; expected rows*cols*3 = " + std::to_string(expected));
 }
 
+// OpenEXR 3.1 allocates every header attribute at the size the file declares (up to 2 GB)
+// before reading it, so a few hundred bytes can ask for gigabytes (found by fuzz/exr_fuzz.cpp).
+// Walks the headers (name, type, int32 size, value; an empty name ends a header, and for a
+// multi-part file an empty header ends the list) and refuses an attribute larger than the rest
+// of the file. Anything else malformed is left to OpenEXR, which reports it.
+void check_attribute_sizes(const std::string& path) {
+    std::error_code ec;
+    const std::uintmax_t file_size = fs::file_size(path, ec);
+    if (ec) return;
+    std::ifstream in(path, std::ios::binary);
+    char version[8];
+    if (!in.read(version, sizeof version)) return;
+    const bool multi_part = (static_cast<unsigned char>(version[5]) & 0x10u) != 0;  // bit 12
+    const auto read_name = [&](std::string& name) {
+        name.clear();
+        for (char c; in.get(c);) {
+            if (c == '\0') return true;
+            if (name.size() >= 255) return false;  // longer than OpenEXR allows
+            name += c;
+        }
+        return false;
+    };
+    std::string name, type;
+    for (bool header_empty = true;;) {
+        if (!read_name(name)) return;
+        if (name.empty()) {
+            // End of a header; a multi-part file ends its list of headers with an empty one.
+            if (!multi_part || header_empty) return;
+            header_empty = true;
+            continue;
+        }
+        header_empty = false;
+        unsigned char size_bytes[4];
+        if (!read_name(type) || !in.read(reinterpret_cast<char*>(size_bytes), 4)) return;
+        const std::int32_t size = static_cast<std::int32_t>(
+            std::uint32_t(size_bytes[0]) | std::uint32_t(size_bytes[1]) << 8 |
+            std::uint32_t(size_bytes[2]) << 16 | std::uint32_t(size_bytes[3]) << 24);
+        const std::streamoff at = in.tellg();
+        if (at < 0) return;
+        const std::uintmax_t rest = file_size - std::min<std::uintmax_t>(file_size, std::uintmax_t(at));
+        if (size < 0 || std::uintmax_t(size) > rest)
+            fail(path, "header attribute '" + name + "' (type '" + type + "') declares " +
+                           std::to_string(size) + " bytes but only " + std::to_string(rest) +
+                           " follow; expected an OpenEXR file that is not corrupt or truncated");
+        in.seekg(size, std::ios::cur);
+    }
+}
+
 // An opened EXR file with the facts every reader needs; errors name the path.
 struct ExrSource {
     explicit ExrSource(const std::string& path) : m_path(path) {
@@ -100,6 +149,7 @@ struct ExrSource {
         // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
         if (!Imf::isOpenExrFile(path.c_str()))
             fail(path, "not an OpenEXR file (missing magic number or unreadable)");
+        check_attribute_sizes(path);
         try {
             m_file = std::make_unique<Imf::InputFile>(path.c_str());
         } catch (const std::exception& e) {

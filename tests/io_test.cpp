@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -229,6 +230,43 @@ TEST_F(IoTest, TruncatedExrThrowsNamingPath) {
     const auto size = fs::file_size(path);
     fs::resize_file(path, size / 2);
     expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+}
+
+// Found by fuzz/exr_fuzz.cpp: OpenEXR 3.1 allocates a header attribute at its declared size
+// (here 2 GB, from a 357-byte file) before reading it. The reader refuses it first, naming it.
+TEST_F(IoTest, ExrAttributeLargerThanTheFileIsRefusedBeforeAllocating) {
+    const std::string path = file("huge_attribute.exr");
+    wavebrdf::write_heightfield_exr(path, make_field(4, 4));
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    // pixelAspectRatio becomes an attribute OpenEXR does not know, "qixelAspectRatio" of type
+    // "xloat", declaring 2^31 - 1 bytes.
+    const std::string attribute("pixelAspectRatio\0float\0", 23);
+    const std::size_t at = bytes.find(attribute);
+    ASSERT_NE(at, std::string::npos);
+    bytes[at] = 'q';
+    bytes[at + 17] = 'x';
+    bytes.replace(at + attribute.size(), 4, std::string("\xff\xff\xff\x7f", 4));
+    {
+        std::ofstream out(path, std::ios::binary | std::ios::trunc);
+        out << bytes;
+    }
+    for (const auto& read : {+[](const std::string& p) { wavebrdf::read_heightfield_exr(p); },
+                             +[](const std::string& p) { wavebrdf::read_rgb_exr(p); }}) {
+        try {
+            read(path);
+            ADD_FAILURE() << "no exception";
+        } catch (const std::runtime_error& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find(path), std::string::npos) << message;
+            EXPECT_NE(message.find("'qixelAspectRatio' (type 'xloat') declares 2147483647 bytes"),
+                      std::string::npos)
+                << message;
+        }
+    }
 }
 
 TEST_F(IoTest, ExrWithoutRedOrLuminanceThrowsNamingPath) {
