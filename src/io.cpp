@@ -92,11 +92,13 @@ void check_image(const RgbImage& image) {
                                     " values; expected rows*cols*3 = " + std::to_string(expected));
 }
 
-// OpenEXR 3.1 allocates every header attribute at the size the file declares (up to 2 GB)
-// before reading it, so a few hundred bytes can ask for gigabytes (found by fuzz/exr_fuzz.cpp).
-// Walks the headers (name, type, int32 size, value; an empty name ends a header, and for a
-// multi-part file an empty header ends the list) and refuses an attribute larger than the rest
-// of the file. Anything else malformed is left to OpenEXR, which reports it.
+// OpenEXR 3.1 allocates a header attribute of a type it stores as bytes (a string, an unknown
+// type) at the size the file declares, up to 2 GB, before reading it, so a few hundred bytes
+// can ask for gigabytes (found by fuzz/exr_fuzz.cpp). Walks the headers the way OpenEXR reads
+// them (name, type, int32 size, value; fixed-size types and channel lists are read by their own
+// layout, whatever their declared size; an empty name ends a header, and in a multi-part file an
+// empty header ends the list) and refuses such an attribute larger than the rest of the file.
+// Anything else malformed is left to OpenEXR, which reports it.
 void check_attribute_sizes(const std::string& path) {
     std::error_code ec;
     const std::uintmax_t file_size = fs::file_size(path, ec);
@@ -114,6 +116,18 @@ void check_attribute_sizes(const std::string& path) {
         }
         return false;
     };
+    // Bytes OpenEXR 3.1 reads for the fixed-size attribute types (ImfStandardAttributes.h).
+    const auto fixed_size = [](const std::string& type) -> int {
+        static const std::pair<const char*, int> sizes[] = {
+            {"box2i", 16}, {"box2f", 16}, {"compression", 1}, {"deepImageState", 1},
+            {"double", 8}, {"envmap", 1}, {"float", 4}, {"int", 4}, {"keycode", 28},
+            {"lineOrder", 1}, {"m33f", 36}, {"m33d", 72}, {"m44f", 64}, {"m44d", 128},
+            {"rational", 8}, {"tiledesc", 9}, {"timecode", 8}, {"v2i", 8}, {"v2f", 8},
+            {"v2d", 16}, {"v3i", 12}, {"v3f", 12}, {"v3d", 24}, {"chromaticities", 32}};
+        for (const auto& [name, size] : sizes)
+            if (type == name) return size;
+        return -1;
+    };
     std::string name, type;
     for (bool header_empty = true;;) {
         if (!read_name(name)) return;
@@ -129,10 +143,24 @@ void check_attribute_sizes(const std::string& path) {
         const std::int32_t size = static_cast<std::int32_t>(
             std::uint32_t(size_bytes[0]) | std::uint32_t(size_bytes[1]) << 8 |
             std::uint32_t(size_bytes[2]) << 16 | std::uint32_t(size_bytes[3]) << 24);
+        if (size < 0) return;  // OpenEXR refuses it itself
+        if (type == "chlist") {
+            // Channels (name, then 16 bytes) up to an empty name.
+            std::string channel;
+            while (read_name(channel) && !channel.empty()) in.seekg(16, std::ios::cur);
+            if (!in) return;
+            continue;
+        }
+        if (type == "preview") return;  // width × height × 4 bytes; left to the pixel checks
+        const int fixed = fixed_size(type);
+        if (fixed >= 0) {
+            in.seekg(fixed, std::ios::cur);
+            continue;
+        }
         const std::streamoff at = in.tellg();
         if (at < 0) return;
         const std::uintmax_t rest = file_size - std::min<std::uintmax_t>(file_size, std::uintmax_t(at));
-        if (size < 0 || std::uintmax_t(size) > rest)
+        if (std::uintmax_t(size) > rest)
             fail(path, "header attribute '" + name + "' (type '" + type + "') declares " +
                            std::to_string(size) + " bytes but only " + std::to_string(rest) +
                            " follow; expected an OpenEXR file that is not corrupt or truncated");
