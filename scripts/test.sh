@@ -19,4 +19,4 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 
 echo "test: fuzzers (libFuzzer, ASan + UBSan, ${FUZZ_SECONDS:-60} s each)"
 unset ASAN_OPTIONS UBSAN_OPTIONS  # fuzz.sh sets its own; abort_on_error would hide libFuzzer's report
-bash scripts/fuzz.sh
+FUZZ_JOBS="$(nproc)" bash scripts/fuzz.sh
