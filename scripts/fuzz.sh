@@ -45,6 +45,9 @@ malloc_limit() {
 
 work="$(mktemp -d "${TMPDIR:-/tmp}/wavebrdf-fuzz.XXXXXX")"
 trap 'rm -rf "$work"' EXIT
+# The targets' scratch files (fuzz/fuzz_util.h) too: a crashed target cannot remove its own.
+mkdir -p "$work/tmp"
+export TMPDIR="$work/tmp"
 findings="$PWD/build-fuzz/findings"
 export ASAN_OPTIONS="detect_leaks=1:allocator_may_return_null=0${ASAN_OPTIONS:+:$ASAN_OPTIONS}"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1${UBSAN_OPTIONS:+:$UBSAN_OPTIONS}"
