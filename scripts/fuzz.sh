@@ -53,6 +53,7 @@ export ASAN_OPTIONS="detect_leaks=1:allocator_may_return_null=0${ASAN_OPTIONS:+:
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1${UBSAN_OPTIONS:+:$UBSAN_OPTIONS}"
 failed=()
 for t in "${targets[@]}"; do
+    rm -rf "${findings:?}/$t"
     mkdir -p "$work/$t" "$findings/$t"
     cp -R "fuzz/corpus/$t/." "$work/$t/"
     # Field names and tricky numbers (fuzz/dict/) get the mutations past the first checks sooner.
@@ -68,11 +69,13 @@ for t in "${targets[@]}"; do
     regressions=(fuzz/regressions/"$t"/*)
     if [ -e "${regressions[0]}" ]; then
         echo "fuzz: $t: ${#regressions[@]} regression input(s)"
-        if ! "build-fuzz/bin/${t}_fuzz" "${limits[@]}" "${regressions[@]}" </dev/null >"$work/$t.regressions.log" 2>&1; then
-            failed+=("$t (regressions)")
-            grep -E 'ERROR|runtime error|SUMMARY|^Running' "$work/$t.regressions.log" | tail -n 20
-            echo "fuzz: $t: a regression input fails again (log above)"
-        fi
+        for input in "${regressions[@]}"; do  # one at a time: libFuzzer stops at the first failure
+            if ! "build-fuzz/bin/${t}_fuzz" "${limits[@]}" "$input" </dev/null >"$work/$t.regression.log" 2>&1; then
+                failed+=("$input")
+                grep -E 'ERROR|runtime error|SUMMARY' "$work/$t.regression.log" | head -n 3
+                echo "fuzz: $t: $input fails again"
+            fi
+        done
     fi
     echo "fuzz: $t for ${seconds} s"
     # New corpus entries go to the copy; crash/leak/timeout/oom inputs to findings/<target>/.
