@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 packages=(build-essential cmake pkg-config libopenexr-dev libeigen3-dev libcli11-dev
           nlohmann-json3-dev libfftw3-dev libpng-dev libgtest-dev libbenchmark-dev
           python3 python3-numpy python3-matplotlib python3-pytest
-          python3-dev pybind11-dev python3-torch)
+          python3-dev pybind11-dev python3-torch
+          clang libclang-rt-dev libomp-dev)  # clang: the fuzzers (scripts/fuzz.sh)
 missing=()
 for p in "${packages[@]}"; do
     dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

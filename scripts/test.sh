@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up, builds and runs every test: the Release build, then the same suite built with
-# AddressSanitizer and UndefinedBehaviorSanitizer.
+# AddressSanitizer and UndefinedBehaviorSanitizer, then the fuzzers (scripts/fuzz.sh, FUZZ_SECONDS
+# each, default 60).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
@@ -15,3 +16,7 @@ cmake --build build-sanitize -j"$(nproc)"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 (cd build-sanitize && ctest --output-on-failure -j"$(nproc)")
+
+echo "test: fuzzers (libFuzzer, ASan + UBSan, ${FUZZ_SECONDS:-60} s each)"
+unset ASAN_OPTIONS UBSAN_OPTIONS  # fuzz.sh sets its own; abort_on_error would hide libFuzzer's report
+FUZZ_JOBS="$(nproc)" bash scripts/fuzz.sh

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -142,6 +143,119 @@ void check_image(const RgbImage& image) {
                                     " values; expected rows*cols*3 = " + std::to_string(expected));
 }
 
+// OpenEXR 3.1 allocates a header attribute of a type it stores as bytes (a string, an unknown
+// type) at the size the file declares, up to 2 GB, before reading it, so a few hundred bytes
+// can ask for gigabytes (found by fuzz/exr_fuzz.cpp). Walks the headers the way OpenEXR reads
+// them (name, type, int32 size, value; fixed-size types and channel lists are read by their own
+// layout, whatever their declared size; an empty name ends a header, and in a multi-part file an
+// empty header ends the list) and refuses such an attribute larger than the rest of the file.
+// It also refuses, from the same walk, a data window wider or taller than k_max_exr_side, more
+// than k_max_exr_channels channels and tiles above k_max_exr_tile_pixels: OpenEXR sizes its
+// line-offset tables and buffers from them when it opens the file (fuzz/regressions/exr/).
+// Anything else malformed is left to OpenEXR, which reports it.
+void check_attribute_sizes(const std::string& path) {
+    std::error_code ec;
+    const std::uintmax_t file_size = fs::file_size(path, ec);
+    if (ec) return;
+    std::ifstream in(path, std::ios::binary);
+    char version[8];
+    if (!in.read(version, sizeof version)) return;
+    const bool multi_part = (static_cast<unsigned char>(version[5]) & 0x10u) != 0;  // bit 12
+    const auto read_name = [&](std::string& name) {
+        name.clear();
+        for (char c; in.get(c);) {
+            if (c == '\0') return true;
+            if (name.size() >= 255) return false;  // longer than OpenEXR allows
+            name += c;
+        }
+        return false;
+    };
+    // Bytes OpenEXR 3.1 reads for the fixed-size attribute types (ImfStandardAttributes.h).
+    const auto fixed_size = [](const std::string& type) -> int {
+        static const std::pair<const char*, int> sizes[] = {
+            {"box2i", 16}, {"box2f", 16}, {"compression", 1}, {"deepImageState", 1},
+            {"double", 8}, {"envmap", 1}, {"float", 4}, {"int", 4}, {"keycode", 28},
+            {"lineOrder", 1}, {"m33f", 36}, {"m33d", 72}, {"m44f", 64}, {"m44d", 128},
+            {"rational", 8}, {"tiledesc", 9}, {"timecode", 8}, {"v2i", 8}, {"v2f", 8},
+            {"v2d", 16}, {"v3i", 12}, {"v3f", 12}, {"v3d", 24}, {"chromaticities", 32}};
+        for (const auto& [name, size] : sizes)
+            if (type == name) return size;
+        return -1;
+    };
+    std::string name, type;
+    for (bool header_empty = true;;) {
+        if (!read_name(name)) return;
+        if (name.empty()) {
+            // End of a header; a multi-part file ends its list of headers with an empty one.
+            if (!multi_part || header_empty) return;
+            header_empty = true;
+            continue;
+        }
+        header_empty = false;
+        unsigned char size_bytes[4];
+        if (!read_name(type) || !in.read(reinterpret_cast<char*>(size_bytes), 4)) return;
+        const std::int32_t size = static_cast<std::int32_t>(
+            std::uint32_t(size_bytes[0]) | std::uint32_t(size_bytes[1]) << 8 |
+            std::uint32_t(size_bytes[2]) << 16 | std::uint32_t(size_bytes[3]) << 24);
+        if (size < 0) return;  // OpenEXR refuses it itself
+        if (type == "chlist") {
+            // Channels (name, then 16 bytes) up to an empty name.
+            std::string channel;
+            int channels = 0;
+            while (read_name(channel) && !channel.empty()) {
+                in.seekg(16, std::ios::cur);
+                if (++channels > k_max_exr_channels)
+                    fail(path, "declares more than " + std::to_string(k_max_exr_channels) +
+                                   " channels; expected an image (R, G, B, A or Y)");
+            }
+            if (!in) return;
+            continue;
+        }
+        // The data window and the tile size decide what OpenEXR allocates when it opens the
+        // file (line-offset tables, compressor and tile buffers): bounded here, before it does.
+        if ((type == "box2i" && name == "dataWindow") || (type == "tiledesc" && name == "tiles")) {
+            unsigned char bytes[16] = {};
+            const int count = type == "box2i" ? 16 : 8;
+            if (!in.read(reinterpret_cast<char*>(bytes), count)) return;
+            if (type == "tiledesc") in.seekg(1, std::ios::cur);  // level and rounding modes
+            long long v[4] = {};
+            for (int k = 0; k < count / 4; ++k)
+                v[k] = static_cast<std::int32_t>(std::uint32_t(bytes[4 * k]) | std::uint32_t(bytes[4 * k + 1]) << 8 |
+                                                 std::uint32_t(bytes[4 * k + 2]) << 16 |
+                                                 std::uint32_t(bytes[4 * k + 3]) << 24);
+            if (type == "box2i") {
+                const long long width = v[2] - v[0] + 1, height = v[3] - v[1] + 1;
+                if (width > k_max_exr_side || height > k_max_exr_side)
+                    fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image (" +
+                                   std::to_string(width * height) + " pixels); the limit is " +
+                                   std::to_string(k_max_exr_pixels) + " pixels (" + std::to_string(k_max_exr_side) +
+                                   " per side)");
+            } else {
+                const long long tile_x = std::uint32_t(v[0]), tile_y = std::uint32_t(v[1]);
+                if (tile_x > k_max_exr_side || tile_y > k_max_exr_side || tile_x * tile_y > k_max_exr_tile_pixels)
+                    fail(path, "declares " + std::to_string(tile_x) + "x" + std::to_string(tile_y) +
+                                   " tiles; the limit is " + std::to_string(k_max_exr_tile_pixels) +
+                                   " pixels per tile");
+            }
+            continue;
+        }
+        if (type == "preview") return;  // width × height × 4 bytes; left to the pixel checks
+        const int fixed = fixed_size(type);
+        if (fixed >= 0) {
+            in.seekg(fixed, std::ios::cur);
+            continue;
+        }
+        const std::streamoff at = in.tellg();
+        if (at < 0) return;
+        const std::uintmax_t rest = file_size - std::min<std::uintmax_t>(file_size, std::uintmax_t(at));
+        if (std::uintmax_t(size) > rest)
+            fail(path, "header attribute '" + name + "' (type '" + type + "') declares " +
+                           std::to_string(size) + " bytes but only " + std::to_string(rest) +
+                           " follow; expected an OpenEXR file that is not corrupt or truncated");
+        in.seekg(size, std::ios::cur);
+    }
+}
+
 // An opened EXR file with the facts every reader needs; errors name the path.
 struct ExrSource {
     explicit ExrSource(const std::string& path) : m_path(path) {
@@ -151,6 +265,7 @@ struct ExrSource {
         // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
         if (!Imf::isOpenExrFile(path.c_str()))
             fail(path, "not an OpenEXR file (missing magic number or unreadable)");
+        check_attribute_sizes(path);  // first: opening the file is what allocates
         refuse_multi_part(path);
         try {
             m_file = std::make_unique<Imf::InputFile>(path.c_str());

@@ -272,6 +272,43 @@ TEST_F(IoTest, HugeDeclaredSizeIsRefusedBeforeAllocating) {
     }
 }
 
+// Found by fuzz/exr_fuzz.cpp: OpenEXR 3.1 allocates a header attribute at its declared size
+// (here 2 GB, from a 357-byte file) before reading it. The reader refuses it first, naming it.
+TEST_F(IoTest, ExrAttributeLargerThanTheFileIsRefusedBeforeAllocating) {
+    const std::string path = file("huge_attribute.exr");
+    wavebrdf::write_heightfield_exr(path, make_field(4, 4));
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    // pixelAspectRatio becomes an attribute OpenEXR does not know, "qixelAspectRatio" of type
+    // "xloat", declaring 2^31 - 1 bytes.
+    const std::string attribute("pixelAspectRatio\0float\0", 23);
+    const std::size_t at = bytes.find(attribute);
+    ASSERT_NE(at, std::string::npos);
+    bytes[at] = 'q';
+    bytes[at + 17] = 'x';
+    bytes.replace(at + attribute.size(), 4, std::string("\xff\xff\xff\x7f", 4));
+    {
+        std::ofstream out(path, std::ios::binary | std::ios::trunc);
+        out << bytes;
+    }
+    for (const auto& read : {+[](const std::string& p) { wavebrdf::read_heightfield_exr(p); },
+                             +[](const std::string& p) { wavebrdf::read_rgb_exr(p); }}) {
+        try {
+            read(path);
+            ADD_FAILURE() << "no exception";
+        } catch (const std::runtime_error& e) {
+            const std::string message = e.what();
+            EXPECT_NE(message.find(path), std::string::npos) << message;
+            EXPECT_NE(message.find("'qixelAspectRatio' (type 'xloat') declares 2147483647 bytes"),
+                      std::string::npos)
+                << message;
+        }
+    }
+}
+
 TEST_F(IoTest, ExrWithoutRedOrLuminanceThrowsNamingPath) {
     const std::string path = file("green.exr");
     write_exr_channel(path, "G", 2, 2, 0, 0, {1.0f, 2.0f, 3.0f, 4.0f});
@@ -661,3 +698,18 @@ TEST_F(IoTest, InvalidImageArgumentsThrow) {
 }
 
 }  // namespace
+
+// Found by fuzz/exr_fuzz.cpp: OpenEXR sizes line-offset tables, compressor and tile buffers from
+// the header when it opens a file (up to 1.2 GB from 133 bytes). Each saved input is refused
+// before it is opened, with a runtime_error naming the file.
+TEST_F(IoTest, FuzzerFoundExrHeadersAreRefusedBeforeOpening) {
+    const fs::path dir = fs::path(WAVEBRDF_SOURCE_DIR) / "fuzz" / "regressions" / "exr";
+    int seen = 0;
+    for (const auto& entry : fs::directory_iterator(dir)) {
+        const std::string path = entry.path().string();
+        ++seen;
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
+    }
+    EXPECT_GE(seen, 5);
+}

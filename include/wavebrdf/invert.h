@@ -53,6 +53,12 @@ std::vector<Observation> observe(const Heightfield& truth, const Observation& ba
                                  const std::vector<std::array<double, 2>>& positions_um,
                                  const RenderOptions& options = {});
 
+// Footprint positions (um) from a JSON file: either an array of [x_um, y_um] pairs or an object
+// {"positions": [[x_um, y_um], ...]} (`wavebrdf invert --positions FILE.json`). Throws
+// std::runtime_error naming the file when it cannot be opened, is not JSON, or is not a
+// non-empty list of number pairs.
+std::vector<std::array<double, 2>> read_positions_json(const std::string& path);
+
 // The truth's raw values plus uniform noise on an interval of width frac × their range
 // (`--init noisy:FRAC`), seeded. Throws std::domain_error for frac < 0 or not finite.
 std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed);

@@ -31,6 +31,12 @@ struct RgbImage {
 // so a small file declaring a huge data window fails with its size, not std::bad_alloc.
 // Not tied to the file size: compressed constant images are legitimately tiny.
 constexpr long long k_max_exr_pixels = 16384LL * 16384LL;
+// Per side, channels and tile size: what OpenEXR allocates when it opens a file (line-offset
+// tables, compressor and tile buffers) grows with these, so they are checked on the raw header
+// before OpenEXR reads it. OpenEXR's own default tile is 64x64.
+constexpr long long k_max_exr_side = 16384;
+constexpr int k_max_exr_channels = 64;
+constexpr long long k_max_exr_tile_pixels = 1024LL * 1024LL;
 
 // Reads the R channel of an OpenEXR file (half or float pixels, any size) as a heightfield in
 // the public release's convention (values in units of texel width; row i = image row).

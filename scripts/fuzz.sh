@@ -1,0 +1,96 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (fuzz/) with clang, ASan and UBSan into build-fuzz/ and runs each
+# for a bounded time over a copy of its seed corpus (fuzz/corpus/<target>/; the tree is never
+# written). First each target reruns its saved inputs (fuzz/regressions/<target>/). Fails when
+# one of those fails again or fuzzing finds a crash, leak, timeout or out-of-memory; new inputs
+# that did are kept in build-fuzz/findings/<target>/.
+# Usage: bash scripts/fuzz.sh [target...]     (default: every target)
+# Environment: FUZZ_SECONDS (per target, default 60), FUZZ_JOBS (build parallelism, default 2).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+seconds="${FUZZ_SECONDS:-60}"
+jobs="${FUZZ_JOBS:-2}"
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint)
+
+launcher=()
+if command -v ccache >/dev/null 2>&1; then
+    launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+fi
+CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DWAVEBRDF_BUILD_FUZZERS=ON -DWAVEBRDF_BUILD_TESTS=OFF -DWAVEBRDF_BUILD_BENCH=OFF \
+    -DWAVEBRDF_BUILD_PYTHON=OFF "${launcher[@]}" >/dev/null
+build_targets=()
+for t in "${targets[@]}"; do build_targets+=(--target "${t}_fuzz"); done
+cmake --build build-fuzz -j"$jobs" "${build_targets[@]}"
+
+# The largest input worth mutating: the seeds are under 3 kB; larger inputs mostly repeat.
+max_len() {
+    case "$1" in
+        exr|checkpoint) echo 16384 ;;
+        *) echo 8192 ;;
+    esac
+}
+
+# The largest single allocation allowed before libFuzzer reports out-of-memory. EXR: 256 MB, so
+# a small file declaring a huge image is reported at once (until the readers cap the pixel count
+# before allocating, issue 9 item 4; see fuzz/README.md) rather than grinding through gigabytes.
+malloc_limit() {
+    case "$1" in
+        exr) echo 256 ;;
+        *) echo 2048 ;;
+    esac
+}
+
+work="$(mktemp -d "${TMPDIR:-/tmp}/wavebrdf-fuzz.XXXXXX")"
+trap 'rm -rf "$work"' EXIT
+# The targets' scratch files (fuzz/fuzz_util.h) too: a crashed target cannot remove its own.
+mkdir -p "$work/tmp"
+export TMPDIR="$work/tmp"
+findings="$PWD/build-fuzz/findings"
+export ASAN_OPTIONS="detect_leaks=1:allocator_may_return_null=0${ASAN_OPTIONS:+:$ASAN_OPTIONS}"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1${UBSAN_OPTIONS:+:$UBSAN_OPTIONS}"
+failed=()
+for t in "${targets[@]}"; do
+    rm -rf "${findings:?}/$t"
+    mkdir -p "$work/$t" "$findings/$t"
+    cp -R "fuzz/corpus/$t/." "$work/$t/"
+    # Field names and tricky numbers (fuzz/dict/) get the mutations past the first checks sooner.
+    dict=()
+    if [ "$t" = exr ]; then
+        dict=(-dict=fuzz/dict/exr.dict)
+    elif [ -f "fuzz/dict/$t.dict" ]; then
+        cat fuzz/dict/json_common.dict "fuzz/dict/$t.dict" >"$work/$t.dict"
+        dict=(-dict="$work/$t.dict")
+    fi
+    limits=(-timeout=10 -rss_limit_mb=2048 -malloc_limit_mb="$(malloc_limit "$t")")
+    # Inputs that once failed (fuzz/regressions/<target>/, see fuzz/README.md) run first, once each.
+    regressions=(fuzz/regressions/"$t"/*)
+    if [ -e "${regressions[0]}" ]; then
+        echo "fuzz: $t: ${#regressions[@]} regression input(s)"
+        for input in "${regressions[@]}"; do  # one at a time: libFuzzer stops at the first failure
+            if ! "build-fuzz/bin/${t}_fuzz" "${limits[@]}" "$input" </dev/null >"$work/$t.regression.log" 2>&1; then
+                failed+=("$input")
+                grep -E 'ERROR|runtime error|SUMMARY' "$work/$t.regression.log" | head -n 3
+                echo "fuzz: $t: $input fails again"
+            fi
+        done
+    fi
+    echo "fuzz: $t for ${seconds} s"
+    # New corpus entries go to the copy; crash/leak/timeout/oom inputs to findings/<target>/.
+    if ! "build-fuzz/bin/${t}_fuzz" "$work/$t" "${dict[@]}" \
+            -max_total_time="$seconds" -max_len="$(max_len "$t")" "${limits[@]}" -print_final_stats=1 \
+            -artifact_prefix="$findings/$t/" </dev/null >"$work/$t.log" 2>&1; then
+        failed+=("$t")
+        tail -n 60 "$work/$t.log"
+        echo "fuzz: $t FAILED; inputs in $findings/$t/"
+    else
+        grep -E '^(Done|stat::number_of_executed_units|stat::new_units_added)' "$work/$t.log" || true
+    fi
+done
+if [ ${#failed[@]} -gt 0 ]; then
+    echo "fuzz: FAILED: ${failed[*]} (fuzz/README.md says how to reproduce and minimise)"
+    exit 1
+fi
+echo "fuzz: no findings in ${targets[*]}"

@@ -1,0 +1,93 @@
+// The fuzzers' seed corpus (fuzz/corpus/) stays valid input: each seed is accepted by the reader
+// it seeds, and the checkpoint seed matches the run the checkpoint fuzzer loads it into. A
+// format change that breaks a seed fails here rather than silently leaving the fuzzer at the
+// first rejection (fuzz/README.md says how to regenerate the seeds).
+#include <unistd.h>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "test_util.h"
+#include "wavebrdf/invert.h"
+#include "wavebrdf/io.h"
+#include "wavebrdf/observation.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const fs::path k_corpus = fs::path(WAVEBRDF_SOURCE_DIR) / "fuzz" / "corpus";
+
+std::vector<fs::path> seeds(const std::string& target) {
+    std::vector<fs::path> out;
+    for (const auto& entry : fs::directory_iterator(k_corpus / target)) out.push_back(entry.path());
+    return out;
+}
+
+TEST(FuzzCorpus, EverySeedEachExrReaderAccepts) {
+    const auto files = seeds("exr");
+    ASSERT_GE(files.size(), 4u);
+    for (const fs::path& file : files) {
+        int accepted = 0;
+        try {
+            const wavebrdf::Heightfield h = wavebrdf::read_heightfield_exr(file.string());
+            EXPECT_GE(h.rows(), 3) << file;
+            ++accepted;
+        } catch (const std::runtime_error&) {
+        }
+        try {
+            const wavebrdf::RgbImage image = wavebrdf::read_rgb_exr(file.string());
+            EXPECT_GE(image.rows, 3) << file;
+            ++accepted;
+        } catch (const std::runtime_error&) {
+        }
+        EXPECT_GE(accepted, 1) << file << " is rejected by both EXR readers";
+    }
+}
+
+TEST(FuzzCorpus, EveryPositionsSeedReads) {
+    for (const fs::path& file : seeds("positions_json"))
+        EXPECT_FALSE(wavebrdf::read_positions_json(file.string()).empty()) << file;
+}
+
+TEST(FuzzCorpus, EveryObservationsSeedReadsBesideTheFuzzersRefExr) {
+    // Like fuzz/observations_json_fuzz.cpp: the input beside a valid 4x4 RGB ref.exr.
+    const fs::path dir = fs::path(WAVEBRDF_TEST_TMP) / "fuzz_corpus" / std::to_string(::getpid());
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    wavebrdf::RgbImage image;
+    image.rows = image.cols = 4;
+    image.data.assign(4 * 4 * 3, 0.25f);
+    wavebrdf::write_rgb_exr((dir / "ref.exr").string(), image);
+    for (const fs::path& file : seeds("observations_json")) {
+        fs::copy_file(file, dir / "observations.json", fs::copy_options::overwrite_existing);
+        EXPECT_NO_THROW(wavebrdf::read_observations_json((dir / "observations.json").string())) << file;
+    }
+    fs::remove_all(dir);
+}
+
+// The inversion of fuzz/checkpoint_fuzz.cpp.
+wavebrdf::Inversion checkpoint_fuzzers_inversion() {
+    return wavebrdf::Inversion(
+        wavebrdf::read_observations_json((k_corpus / "observations_json" / "inline_mono.json").string()),
+        wavebrdf::Heightfield(4, 4, std::vector<double>(16, 0.0)), wavebrdf::InversionSettings{});
+}
+
+TEST(FuzzCorpus, CheckpointSeedLoadsIntoTheFuzzersRun) {
+    wavebrdf::Inversion inversion = checkpoint_fuzzers_inversion();
+    inversion.load_checkpoint((k_corpus / "checkpoint" / "invert_4x4.json").string());
+    EXPECT_EQ(inversion.epoch(), 3);
+}
+
+TEST(FuzzCorpus, OtherRunCheckpointSeedReachesTheDifferenceReport) {
+    wavebrdf::Inversion inversion = checkpoint_fuzzers_inversion();
+    wavebrdf::test::expect_throw_naming<std::runtime_error>(
+        [&] { inversion.load_checkpoint((k_corpus / "checkpoint" / "other_run.json").string()); },
+        "texel_um 2.0 in the checkpoint");
+}
+
+}  // namespace
