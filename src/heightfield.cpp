@@ -1,20 +1,12 @@
 #include "wavebrdf/heightfield.h"
 
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 
-namespace wavebrdf {
+#include "text.h"
 
-namespace {
-std::string fmt(double value) {
-    std::ostringstream out;
-    out.precision(10);
-    out << value;
-    return out.str();
-}
-}  // namespace
+namespace wavebrdf {
 
 Heightfield::Heightfield(int rows, int cols, std::vector<double> values, double texel_um,
                          double vscale)
@@ -31,14 +23,14 @@ Heightfield::Heightfield(int rows, int cols, std::vector<double> values, double 
         throw std::domain_error("texel width " + std::to_string(texel_um) +
                                 " um is invalid; expected a finite value > 0");
     if (texel_um < k_min_texel_um || texel_um > k_max_texel_um)
-        throw std::domain_error("texel width " + fmt(texel_um) + " um is out of range; expected " +
-                                fmt(k_min_texel_um) + " to " + fmt(k_max_texel_um) + " um");
+        throw std::domain_error("texel width " + detail::format_shortest(texel_um) + " um is out of range; expected " +
+                                detail::format_shortest(k_min_texel_um) + " to " + detail::format_shortest(k_max_texel_um) + " um");
     if (!std::isfinite(vscale))
         throw std::domain_error("vertical scale " + std::to_string(vscale) +
                                 " is invalid; expected a finite value");
     if (vscale != 0.0 && (std::abs(vscale) < k_min_vscale || std::abs(vscale) > k_max_vscale))
-        throw std::domain_error("vertical scale " + fmt(vscale) + " is out of range; expected 0 or " +
-                                fmt(k_min_vscale) + " <= |vscale| <= " + fmt(k_max_vscale));
+        throw std::domain_error("vertical scale " + detail::format_shortest(vscale) + " is out of range; expected 0 or " +
+                                detail::format_shortest(k_min_vscale) + " <= |vscale| <= " + detail::format_shortest(k_max_vscale));
     for (std::size_t k = 0; k < m_values.size(); ++k)
         if (!std::isfinite(m_values[k]))
             throw std::domain_error("heightfield value at row " +

@@ -2,7 +2,6 @@
 // render and recover check before any work (brdf.h, recovery_run.h), against measured peaks.
 #include <gtest/gtest.h>
 #include <omp.h>
-#include <omp.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -16,14 +15,6 @@
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define WAVEBRDF_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define WAVEBRDF_ASAN 1
-#endif
-#endif
 
 namespace wavebrdf {
 namespace {

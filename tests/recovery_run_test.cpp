@@ -8,17 +8,10 @@
 #include <cstdio>
 #include <string>
 
+#include "test_util.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/plan.h"
 #include "wavebrdf/recovery_run.h"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define WAVEBRDF_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define WAVEBRDF_ASAN 1
-#endif
-#endif
 
 namespace wavebrdf {
 namespace {

@@ -11,6 +11,16 @@
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/model.h"
 
+// WAVEBRDF_ASAN: defined under AddressSanitizer (gcc and clang), for tests whose measurement
+// it distorts (peak memory: its shadow memory counts).
+#if defined(__SANITIZE_ADDRESS__)
+#define WAVEBRDF_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define WAVEBRDF_ASAN 1
+#endif
+#endif
+
 namespace wavebrdf::test {
 
 // Expects `fn` to throw `Exception` with `text` inside its message.
