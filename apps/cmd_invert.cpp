@@ -23,6 +23,7 @@
 #include "wavebrdf/generate.h"
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/spectrum.h"
@@ -54,6 +55,7 @@ struct InvertArgs {
     std::string out, resume, snapshots = "0,10,30,100,300";
     int checkpoint_every = 50;
     bool quiet = false, no_plots = false;
+    double max_memory_gb = 0.0;  // 0: the physical memory; not in run.json (a resumed run may move it)
     // Not in run.json: --force (replace the run in --out) and the options given on the
     // command line ("--lr", ...), which --resume checks.
     bool force = false;
@@ -62,7 +64,7 @@ struct InvertArgs {
 };
 
 // The options a resumed run accepts: the rest come from its run.json.
-const std::set<std::string> kResumeOptions = {"--resume", "--epochs", "--quiet", "--no-plots"};
+const std::set<std::string> kResumeOptions = {"--resume", "--epochs", "--quiet", "--no-plots", "--max-memory-gb"};
 
 // `path` as stored in run.json: absolute, so that --resume finds it from any directory.
 std::string absolute_path(const std::string& path) {
@@ -157,12 +159,14 @@ void run(InvertArgs a) {
     const bool resuming = !a.resume.empty();
     const bool quiet = a.quiet;
     const bool no_plots = a.no_plots;
+    const double max_memory_gb = a.max_memory_gb;
+    const MemoryLimit memory = memory_limit(max_memory_gb);
     std::string dir = a.out;
     if (resuming) {
         for (const std::string& option : a.given)
             if (!kResumeOptions.count(option))
                 throw std::invalid_argument(option + " cannot be combined with --resume: a resumed run keeps the options in " +
-                                            a.resume + "/run.json; expected only --epochs (to extend it), --quiet or --no-plots");
+                                            a.resume + "/run.json; expected only --epochs (to extend it), --quiet, --no-plots or --max-memory-gb");
         const bool extend = std::find(a.given.begin(), a.given.end(), "--epochs") != a.given.end();
         const int epochs = a.epochs;
         dir = a.resume;
@@ -247,7 +251,7 @@ void run(InvertArgs a) {
     std::vector<Observation> observations;
     int rows = 0, cols = 0;
     if (!a.observations.empty()) {
-        observations = read_observations_json(a.observations);
+        observations = read_observations_json(a.observations, max_memory_gb);
         parse_size("--size", a.size, rows, cols);
         if (settings.positions == PositionMode::Random && observations.size() < 2)
             throw std::invalid_argument("--positions random with --observations needs at least two observations");
@@ -272,6 +276,16 @@ void run(InvertArgs a) {
         if (position_list.empty())
             position_list.push_back({a.given_x ? a.x_um : 0.5 * truth->period_x_um(),
                                      a.given_y ? a.y_um : 0.5 * truth->period_y_um()});
+        // Before the references are rendered: the whole inversion's estimate against the limit.
+        std::vector<Observation> planned(position_list.size(), base);
+        for (std::size_t i = 0; i < planned.size(); ++i) {
+            planned[i].query.x_um = position_list[i][0];
+            planned[i].query.y_um = position_list[i][1];
+        }
+        require_memory(estimate_inversion_bytes(*truth, planned, settings), memory,
+                       "invert (" + std::to_string(rows) + "x" + std::to_string(cols) + " heights, " +
+                           std::to_string(planned.size()) + " observation(s) of " + std::to_string(a.resolution) + "x" +
+                           std::to_string(a.resolution) + ")");
         observations = observe(*truth, base, position_list, settings.render);
     }
 
@@ -287,7 +301,12 @@ void run(InvertArgs a) {
                                         std::to_string(cols));
         init = file.values();
     }
-    Inversion inversion(observations, Heightfield(rows, cols, init, a.texel_um, a.vscale), settings, truth.get());
+    const Heightfield initial(rows, cols, init, a.texel_um, a.vscale);
+    if (!a.observations.empty())
+        require_memory(estimate_inversion_bytes(initial, observations, settings), memory,
+                       "invert (" + std::to_string(rows) + "x" + std::to_string(cols) + " heights, " +
+                           std::to_string(observations.size()) + " observation(s))");
+    Inversion inversion(observations, initial, settings, truth.get());
 
     // Output directory.
     if (!resuming) prepare_run_directory(RunKind::Invert, dir, a.force);
@@ -483,6 +502,9 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
+    cmd->add_option("--max-memory-gb", a->max_memory_gb,
+                    "refuse a run whose estimated peak memory exceeds this many GB (0: the physical memory)")
+        ->capture_default_str();
     cmd->callback([a, lambda, spectral, x_um, y_um] {
         a->given_x = x_um->count() > 0;
         a->given_y = y_um->count() > 0;

@@ -115,7 +115,7 @@ void run(const RecoverArgs& a) {
     std::unique_ptr<Heightfield> truth;
     std::vector<Observation> observations;
     if (!a.observations.empty()) {
-        observations = read_observations_json(a.observations);
+        observations = read_observations_json(a.observations, a.max_memory_gb);
         parse_size("--size", a.size, options.rows, options.cols);
     } else {
         if (a.truth.empty()) parse_size("--size", a.size, options.rows, options.cols);

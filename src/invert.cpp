@@ -120,6 +120,20 @@ Heightfield default_inversion_truth(int rows, int cols, double texel_um, double 
     return generate_heightfield(p).with_scale(texel_um, vscale);
 }
 
+double estimate_inversion_bytes(const Heightfield& heights, const std::vector<Observation>& observations,
+                                const InversionSettings& settings) {
+    double slices = 0.0, largest_render = 0.0;
+    for (const Observation& o : observations) {
+        const double n = o.resolution;
+        slices += 3.0 * n * n * o.channels() * 8.0;
+        largest_render = std::max(largest_render, estimate_render_bytes(heights, o.query, o.resolution, settings.render,
+                                                                        8, o.channels() == 3));
+    }
+    const double texels = double(heights.rows()) * double(heights.cols());
+    const double optimiser = settings.optimizer == OptimizerKind::Lbfgs ? 2.0 * settings.lbfgs.history + 6.0 : 6.0;
+    return slices + 2.0 * largest_render + texels * 8.0 * optimiser;
+}
+
 std::vector<Observation> observe(const Heightfield& truth, const Observation& base,
                                  const std::vector<std::array<double, 2>>& positions_um, const RenderOptions& options) {
     std::vector<Observation> out;

@@ -3,6 +3,7 @@
 // gradient mapped back through the spectral weights.
 #include "wavebrdf/observation.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
 #include "json_fields.h"
 
@@ -120,7 +122,7 @@ T field(const json& j, const char* name, const std::string& where) {
 
 }  // namespace
 
-std::vector<Observation> read_observations_json(const std::string& path) {
+std::vector<Observation> read_observations_json(const std::string& path, double max_memory_gb) {
     std::ifstream in(path);
     if (!in) throw std::runtime_error(path + ": cannot open the observations file");
     json doc;
@@ -131,6 +133,18 @@ std::vector<Observation> read_observations_json(const std::string& path) {
     }
     if (!doc.is_object() || !doc.contains("observations") || !doc["observations"].is_array())
         throw std::runtime_error(path + ": expected an object with an array 'observations'");
+    // The references' memory from the JSON alone, before any EXR is read: resolution and the
+    // channel count are all it takes (entries that are not valid fail in the pass below).
+    const MemoryLimit limit = memory_limit(max_memory_gb);
+    double reference_bytes = 0.0;
+    for (const json& j : doc["observations"]) {
+        if (!j.is_object() || !j.contains("resolution") || !j["resolution"].is_number()) continue;
+        const double n = std::min(std::fabs(j["resolution"].get<double>()), 8192.0);
+        const double channels = j.contains("lambda_um") ? 1.0 : 3.0;
+        reference_bytes += n * n * channels * 8.0 + (j.contains("reference") && j["reference"].is_string() ? n * n * 12.0 : 0.0);
+    }
+    require_memory(reference_bytes, limit,
+                   "reading the " + std::to_string(doc["observations"].size()) + " observations of " + path);
     std::vector<Observation> out;
     const std::string dir = directory_of(path);
     std::size_t index = 0;

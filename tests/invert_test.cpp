@@ -743,6 +743,9 @@ TEST_F(InvertTest, CliBadOptions) {
         {"--texel-um 0.01", {"sigma_p 2 um", "0.08 x 0.08 um", "0.8 um"}},  // kSmall: 8 x 8, sigma_p 2
         {"--texel-um 1e-300", {"texel width 1e-300 um", "0.0001 to 10000 um"}},
         {"--vscale 1e300", {"vertical scale 1e+300", "1e-06 <= |vscale| <= 10000"}},
+        // Issue 9: the inversion's memory is estimated before the references are rendered.
+        {"--max-memory-gb 0.0001", {"invert (8x8 heights, 1 observation(s) of 16x16) needs about", "(max-memory-gb)"}},
+        {"--max-memory-gb -1", {"max-memory-gb -1"}},
     };
     for (const auto& [extra, needles] : cases) {
         SCOPED_TRACE(extra);

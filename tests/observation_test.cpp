@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "test_util.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/spectrum.h"
 
@@ -143,4 +144,28 @@ TEST(ObservationTest, JsonIntegerFieldsMustBeIntegersInRange) {
     expect_error(R"("spectral": 4294967299, "resolution": 1)", "field 'spectral' is 4294967299");
     json_with(R"("lambda_um": 0.5, "resolution": 1.0)");
     EXPECT_EQ(read_observations_json(path).at(0).resolution, 1);
+}
+
+// Issue 9: an observation set is estimated from its JSON before any reference image is read;
+// 2000 references of 8192² RGB (3.2 TB) used to be read one by one until memory ran out.
+TEST(ObservationTest, ObservationSetThatCannotFitIsRefusedBeforeReadingReferences) {
+    const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test";
+    std::filesystem::create_directories(dir);
+    const std::string path = (dir / "huge_set.json").string();
+    {
+        std::ofstream out(path);
+        out << R"({"observations": [)";
+        for (int i = 0; i < 2000; ++i)
+            out << (i ? "," : "")
+                << R"({"x_um": 0, "y_um": 0, "sigma_p_um": 2, "spectral": 8, "resolution": 8192, "reference": "missing.exr"})";
+        out << "]}";
+    }
+    try {
+        read_observations_json(path, 1.0);
+        ADD_FAILURE() << "no error";
+    } catch (const OutOfMemory& e) {
+        const std::string message = e.what();
+        EXPECT_NE(message.find("reading the 2000 observations of " + path + " needs about"), std::string::npos) << message;
+        EXPECT_NE(message.find("(max-memory-gb)"), std::string::npos) << message;
+    }
 }

@@ -47,6 +47,14 @@ struct EpochMetrics {
 // release's isotropic.exr; texel width and vertical scale as given.
 Heightfield default_inversion_truth(int rows, int cols, double texel_um, double vscale, std::uint64_t seed);
 
+// Estimated peak memory (bytes) of an inversion of `heights` (its size and texel width) from
+// `observations` (their references counted at full size even while still empty, as before
+// observe() renders them) with `settings`: the references, the rendered slices and their loss
+// gradients (three slices per observation), the largest render's working set twice (forward and
+// adjoint, estimate_render_bytes), and the heights' optimiser state (Adam, or L-BFGS's history).
+double estimate_inversion_bytes(const Heightfield& heights, const std::vector<Observation>& observations,
+                                const InversionSettings& settings);
+
 // One observation of `truth` per position: `base` (query, wavelengths, resolution) with the
 // footprint moved to the position and the reference rendered. Validates every query.
 std::vector<Observation> observe(const Heightfield& truth, const Observation& base,

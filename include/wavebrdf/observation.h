@@ -42,7 +42,10 @@ double observation_loss(const Heightfield& heightfield, const std::vector<Observ
 //   "reference": "slice.exr" | [values…]}]}. A reference file is an EXR read with
 // read_rgb_exr (its R channel for one wavelength, RGB for several), relative to the JSON's
 // directory. Throws std::runtime_error naming the file and the field on any problem.
-std::vector<Observation> read_observations_json(const std::string& path);
+// Before any reference image is read, the references' memory (resolution² · channels doubles
+// each, and an EXR reference's float image while it is read) is estimated from the JSON and
+// refused (OutOfMemory, memory.h) above `max_memory_gb` GB (0: the physical memory).
+std::vector<Observation> read_observations_json(const std::string& path, double max_memory_gb = 0.0);
 // Writes observations with their references stored inline.
 void write_observations_json(const std::string& path, const std::vector<Observation>& observations);
 
