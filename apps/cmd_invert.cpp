@@ -27,7 +27,7 @@
 #include "wavebrdf/progress.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/spectrum.h"
-#include "../src/json_fields.h"
+#include "../src/core/json_fields.h"
 
 namespace wavebrdf::cli {
 

@@ -9,7 +9,7 @@
 #include "observation_arg.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/noise.h"
-#include "wavebrdf/plan.h"
+#include "wavebrdf/acquisition.h"
 #include "wavebrdf/recovery_run.h"
 
 namespace wavebrdf::python {

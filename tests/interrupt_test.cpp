@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "../src/parallel.h"
+#include "../src/core/parallel.h"
 #include "test_util.h"
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"

@@ -10,7 +10,7 @@
 
 #include "test_util.h"
 #include "wavebrdf/memory.h"
-#include "wavebrdf/plan.h"
+#include "wavebrdf/acquisition.h"
 #include "wavebrdf/recovery_run.h"
 
 namespace wavebrdf {

@@ -8,8 +8,8 @@
 #include <random>
 #include <stdexcept>
 
-#include "random.h"
-#include "text.h"
+#include "core/random.h"
+#include "core/text.h"
 #include "wavebrdf/observation.h"
 
 namespace wavebrdf {

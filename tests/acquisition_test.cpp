@@ -15,7 +15,7 @@
 #include "test_util.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
-#include "wavebrdf/plan.h"
+#include "wavebrdf/acquisition.h"
 
 using namespace wavebrdf;
 

@@ -7,7 +7,7 @@
 #include <complex>
 #include <vector>
 
-#include "parallel.h"
+#include "core/parallel.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/model.h"
 

@@ -18,7 +18,7 @@
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
-#include "parallel.h"
+#include "core/parallel.h"
 
 namespace wavebrdf {
 

@@ -1,4 +1,4 @@
-#include "wavebrdf/plan.h"
+#include "wavebrdf/acquisition.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,8 +9,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "random.h"
-#include "text.h"
+#include "core/random.h"
+#include "core/text.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/progress.h"

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "random.h"
+#include "core/random.h"
 
 namespace wavebrdf {
 

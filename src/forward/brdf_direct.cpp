@@ -11,8 +11,8 @@
 
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/memory.h"
-#include "direct.h"
-#include "parallel.h"
+#include "forward/direct.h"
+#include "core/parallel.h"
 #include "wavebrdf/progress.h"
 
 namespace wavebrdf {

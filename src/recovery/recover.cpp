@@ -12,7 +12,7 @@
 
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
-#include "parallel.h"
+#include "core/parallel.h"
 
 namespace wavebrdf {
 

@@ -7,8 +7,8 @@
 #include <complex>
 #include <omp.h>
 
-#include "direct.h"
-#include "parallel.h"
+#include "forward/direct.h"
+#include "core/parallel.h"
 #include "wavebrdf/adjoint.h"
 
 namespace wavebrdf::detail {

@@ -9,7 +9,7 @@
 #include <string>
 #include <stdexcept>
 
-#include "separable.h"
+#include "forward/separable.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"

@@ -14,7 +14,7 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
-#include "json_fields.h"
+#include "core/json_fields.h"
 
 namespace wavebrdf {
 

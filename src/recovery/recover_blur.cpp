@@ -19,7 +19,7 @@
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
 
-#include "parallel.h"
+#include "core/parallel.h"
 
 namespace wavebrdf {
 

@@ -12,7 +12,7 @@
 #include <string>
 #include <optional>
 
-#include "separable.h"
+#include "forward/separable.h"
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/memory.h"
 

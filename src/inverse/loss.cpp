@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "text.h"
+#include "core/text.h"
 
 namespace wavebrdf {
 

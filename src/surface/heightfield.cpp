@@ -4,7 +4,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "text.h"
+#include "core/text.h"
 
 namespace wavebrdf {
 

@@ -6,7 +6,7 @@
 #include "wavebrdf/generate.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/optim.h"
-#include "wavebrdf/plan.h"
+#include "wavebrdf/acquisition.h"
 #include "wavebrdf/progress.h"
 
 namespace wavebrdf {

@@ -17,7 +17,7 @@
 
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
-#include "json_fields.h"
+#include "core/json_fields.h"
 
 namespace wavebrdf {
 

@@ -4,8 +4,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "direct.h"
-#include "separable.h"
+#include "forward/direct.h"
+#include "forward/separable.h"
 #include "wavebrdf/adjoint.h"
 
 namespace wavebrdf {

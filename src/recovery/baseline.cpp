@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "random.h"
+#include "core/random.h"
 
 namespace wavebrdf {
 
