@@ -1,5 +1,5 @@
 // `wavebrdf recover`: the heightfield from slices at several overlapping positions and
-// wavelengths (recover.h), with the acquisition planned (plan.h) and, for studies, the
+// wavelengths (recover.h), with the acquisition planned (acquisition.h) and, for studies, the
 // observations simulated from a known truth with optional noise (noise.h). The thesis's
 // method (baseline.h) runs on the same data with --method thesis. The run itself is
 // recovery_run.h's (shared with Python's recover()); this file reads and writes files.

@@ -1,4 +1,4 @@
-// Heightfield recovery (recover.h, baseline.h), acquisition planning (plan.h), simulated noise
+// Heightfield recovery (recover.h, baseline.h), acquisition planning (acquisition.h), simulated noise
 // (noise.h), and recover(): `wavebrdf recover` without its output directory, through the same
 // library piece as the CLI (recovery_run.h), so the same options give the same run.
 #include <cmath>
@@ -309,7 +309,7 @@ into Observations (one per position and wavelength).
         "jitter"_a = pr.jitter, "lambda_um"_a = pr.lambda_um, "lambda_min_um"_a = pr.lambda_min_um,
         "lambda_max_um"_a = pr.lambda_max_um, "max_step_ratio"_a = pr.max_step_ratio, "lambdas_um"_a = py::none(),
         "resolution"_a = 0, "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "seed"_a = pr.seed, R"doc(
-An acquisition that determines the heights of a rows x cols tile (plan.h): returns an
+An acquisition that determines the heights of a rows x cols tile (acquisition.h): returns an
 AcquisitionPlan. Keyword arguments (PlanRequest's fields):
 
 rows, cols       heightfield size in texels (>= 1; cols defaults to rows); texel_um > 0 (um)

@@ -1,4 +1,4 @@
-// Exceptions and interrupts inside the library's parallel regions (src/parallel.h) and the
+// Exceptions and interrupts inside the library's parallel regions (src/core/parallel.h) and the
 // cancellation hook (wavebrdf/interrupt.h).
 #include <gtest/gtest.h>
 #include <omp.h>

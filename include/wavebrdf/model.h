@@ -34,7 +34,7 @@ struct Query {
 // Physically meaningful ranges, refused outside (values far outside them underflow or
 // overflow to all-zero slices). Wavelength: extreme ultraviolet (13.5 nm lithography) to
 // the far infrared / terahertz (1 mm). Footprint σ_p: a picometre to a metre (the planner's
-// range, plan.h); the tile bounds it further (gabor.h).
+// range, acquisition.h); the tile bounds it further (gabor.h).
 constexpr double k_min_lambda_um = 0.01;
 constexpr double k_max_lambda_um = 1000.0;
 constexpr double k_min_sigma_p_um = 1e-6;

@@ -1,7 +1,7 @@
 #pragma once
 // One heightfield recovery as `wavebrdf recover` and the Python module's recover() run it, so
 // that both share one implementation: the truth (given, or generated for a study), the
-// acquisition planned for it and its observations simulated with noise (plan.h, noise.h) or
+// acquisition planned for it and its observations simulated with noise (acquisition.h, noise.h) or
 // observations as given, the warnings of check_acquisition, the loss (given or matched to
 // the noise), and the recovery with the pipeline (recover.h) or the thesis's method
 // (baseline.h), both reporting through one StageMetrics stream. Writing files is the caller's.

@@ -1,4 +1,4 @@
-// Adjoint and tangent of the direct sum (forward: render_direct.cpp). Each term of pixel u is
+// Adjoint and tangent of the direct sum (forward: brdf_direct.cpp). Each term of pixel u is
 //   t_k = c_k w² K2_k exp(−E_k) e^{iΦ_k},  E_k = 2π²σ²|u + S a_k|²,  Φ_k = −(4π/λ) S H_k − 2π u·δ_k
 // so ∂t/∂H_k = −i (4π/λ) S t_k and ∂t/∂s_kx = −4π²σ² (u_x + S a_kx)(2S/λ) t_k − ω_hx base_k,
 // the last part only for Kirchhoff (K2 = cos θ_i + cos θ_o − (ω_i + ω_o)·s, base = t/K2).

@@ -1,4 +1,4 @@
-// Adjoint of the separable path (forward: render_separable.cpp). With the forward field I and
+// Adjoint of the separable path (forward: brdf_separable.cpp). With the forward field I and
 // B[p,q] = W[p,q] c1[p,q] conj(I[p,q]), a loss L = Σ W f has dL = 2 Re Σ_pq B dI, and
 //   dI[p,q] = Σ_k X[p,k] Y[q,k] dw_k + w_k (∂_a X[p,k] Y[q,k] da_kx + X[p,k] ∂_a Y[q,k] da_ky)
 // with dw_k = −i(4π/λ) w_k dH_k, ∂_a X[p,k] = −4π²σ²(u_x[p] + a_kx) X[p,k], da = (2/λ) ds.

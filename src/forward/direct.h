@@ -1,5 +1,5 @@
 #pragma once
-// Internal: the direct sum's per-pixel field, shared by the forward pass (render_direct.cpp)
+// Internal: the direct sum's per-pixel field, shared by the forward pass (brdf_direct.cpp)
 // and its adjoint and tangent (adjoint_direct.cpp).
 #include <cmath>
 #include <complex>

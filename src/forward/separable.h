@@ -1,6 +1,6 @@
 #pragma once
 // Internal: the factor matrices of the separable path, shared by the forward pass
-// (render_separable.cpp) and its adjoint (adjoint_separable.cpp).
+// (brdf_separable.cpp) and its adjoint (adjoint_separable.cpp).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>

@@ -2,7 +2,7 @@
 // phase retrieval of the object O = e^{−i(4π/λ)H} from the slices of overlapping footprints.
 //
 // For one footprint the model is a product of small matrices, as in the separable renderer
-// (render_separable.cpp), but per texel row / column instead of per kernel, because with
+// (brdf_separable.cpp), but per texel row / column instead of per kernel, because with
 // a_k = 0 the kernel factor X[p,k] depends on the kernel only through its row's offset δ_x:
 //   I = X · (P ⊙ O_fp) · Yᵀ,  X[p,r] = exp(−2π²σ²u_x[p]²) e^{−i2π u_x[p] δ_x[r]},
 // O_fp the object on the footprint's rows × columns and P the window c·w² (0 beyond 3σ_p).
