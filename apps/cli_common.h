@@ -20,11 +20,8 @@ void parse_size(const std::string& option, const std::string& text, int& rows, i
 // silently lose it. The message names both options and the path.
 void check_distinct_files(const std::vector<std::pair<std::string, std::string>>& files);
 
-// Heights in µm (v · w · h), row-major.
-std::vector<double> heights_um(const Heightfield& heightfield);
-
-// An n × n slice of `channels` (1 or 3) values per pixel as an RGB image (mono → grey).
-RgbImage to_image(const std::vector<double>& slice, int n, int channels);
+// (Heights in µm: wavebrdf::heights_um in heightfield.h; slices as images: wavebrdf::to_image
+// in io.h.)
 
 // Exposure (in stops) that maps the 99.9th percentile of `slice` to about 4 before Reinhard.
 double auto_exposure(const std::vector<double>& slice);

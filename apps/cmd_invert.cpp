@@ -19,7 +19,7 @@
 #include "cli_common.h"
 #include "cli_signals.h"
 #include "commands.h"
-#include "run_program.h"
+#include "report.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
@@ -440,13 +440,7 @@ void run(InvertArgs a) {
     }
     const int sig = stop->signal();
     stop.reset();
-    if (!no_plots) {
-        // No shell: the directory is one argument, whatever its characters; absolute, so a
-        // name starting with '-' is not taken for an option.
-        const std::string script = std::string(WAVEBRDF_SOURCE_DIR) + "/scripts/plot_inversion.py";
-        if (!fs::exists(script) || run_program({"/usr/bin/python3", script, fs::absolute(dir).string()}) != 0)
-            std::fprintf(stderr, "wavebrdf: warning: could not draw report.png and curves.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
-    }
+    if (!no_plots) draw_report(RunKind::Invert, dir);
     const auto& h = inversion.history();
     if (!quiet && !h.empty()) {
         const EpochMetrics& first = h.front();

@@ -2,30 +2,27 @@
 // wavelengths (recover.h), with the acquisition planned (acquisition.h) and, for studies, the
 // observations simulated from a known truth with optional noise (noise.h). The thesis's
 // method (baseline.h) runs on the same data with --method thesis. The run itself is
-// recovery_run.h's (shared with Python's recover()); this file reads and writes files.
+// recovery_run.h's (shared with Python's recover()), written to --out by recovery_directory.h;
+// this file reads the input files, reports progress and draws the report.
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
 #include "cli_common.h"
 #include "commands.h"
-#include "run_program.h"
+#include "report.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/progress.h"
+#include "wavebrdf/recovery_directory.h"
 #include "wavebrdf/recovery_run.h"
 #include "wavebrdf/run_directory.h"
 
 namespace wavebrdf::cli {
 
 namespace {
-
-namespace fs = std::filesystem;
 
 struct RecoverArgs {
     std::string truth, observations, size = "32", out;
@@ -61,27 +58,6 @@ std::vector<double> parse_list(const std::string& option, const std::string& tex
     }
     if (out.empty()) throw std::invalid_argument(option + " is empty; expected numbers like 0.55,0.5");
     return out;
-}
-
-// Observations as JSON whose references are EXR files beside it (read back by
-// read_observations_json).
-void save_observations(const std::string& dir, const std::vector<Observation>& observations) {
-    fs::create_directories(dir + "/observations");
-    nlohmann::json list = nlohmann::json::array();
-    for (std::size_t i = 0; i < observations.size(); ++i) {
-        const Observation& o = observations[i];
-        char name[64];
-        std::snprintf(name, sizeof name, "observations/slice_%04zu.exr", i);
-        write_rgb_exr(dir + "/" + name, to_image(o.reference, o.resolution, o.channels()));
-        nlohmann::json entry = {{"x_um", o.query.x_um}, {"y_um", o.query.y_um}, {"sigma_p_um", o.query.sigma_p_um},
-                                {"light", {o.query.omega_i[0], o.query.omega_i[1]}},
-                                {"model", to_string(o.query.model)}, {"resolution", o.resolution},
-                                {"reference", name}};
-        if (o.lambdas_um.size() == 1) entry["lambda_um"] = o.lambdas_um[0];
-        else entry["lambdas_um"] = o.lambdas_um;
-        list.push_back(entry);
-    }
-    write_text_atomically(dir + "/observations.json", nlohmann::json{{"observations", list}}.dump(1) + "\n");
 }
 
 void run(const RecoverArgs& a) {
@@ -124,34 +100,11 @@ void run(const RecoverArgs& a) {
         if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
     }
     const PreparedRecovery r = prepare_recovery(options, truth.get(), std::move(observations), !a.quiet);
-    const int rows = r.rows, cols = r.cols;
-    const std::vector<std::string>& notes = r.notes;
-    const std::vector<std::string>& warnings = r.warnings;
-
-    // Output directory: fail before the long work when it cannot be written.
-    prepare_run_directory(RunKind::Recover, a.out, a.force);
-    check_writable(a.out + "/metrics.csv");
-    nlohmann::json run = {{"method", a.method}, {"size", std::to_string(rows) + "x" + std::to_string(cols)},
-                          {"texel_um", a.texel_um}, {"vscale", a.vscale}, {"height_range_um", r.range_um},
-                          {"noise", to_string(r.noise)}, {"loss", to_string(r.loss)}, {"seed", a.seed},
-                          {"observations", r.observations.size()}, {"plan", notes}, {"warnings", warnings},
-                          {"truth", r.truth.has_value()}};
-    if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
-    write_text_atomically(a.out + "/run.json", run.dump(1) + "\n");
     if (!a.quiet) {
-        for (const auto& n : notes) std::fprintf(stderr, "plan: %s\n", n.c_str());
+        for (const auto& n : r.notes) std::fprintf(stderr, "plan: %s\n", n.c_str());
     }
-    for (const auto& w : warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
-    if (a.save_observations) save_observations(a.out, r.observations);
-    if (r.truth) {
-        write_heightfield_exr(a.out + "/truth.exr", *r.truth);
-        write_npy(a.out + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*r.truth));
-    }
+    for (const auto& w : r.warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
 
-    // Recovery, with a metrics row per reported step.
-    std::ostringstream csv;
-    csv.precision(10);
-    csv << "stage,iteration,loss,seconds,height_rel_rmse\n";
     // A progress bar per stage (drawn on terminals) and a one-line summary when a stage ends.
     std::unique_ptr<Progress> progress;
     StageMetrics last;
@@ -166,8 +119,6 @@ void run(const RecoverArgs& a) {
         }
     };
     auto on_step = [&](const StageMetrics& m) {
-        csv << m.stage << ',' << m.iteration << ',' << m.loss << ',' << m.seconds << ','
-            << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << '\n';
         if (!progress || m.stage != last.stage) {
             end_stage();
             const long long total = m.stage.rfind("field", 0) == 0 ? r.pipeline.field.iterations
@@ -186,40 +137,14 @@ void run(const RecoverArgs& a) {
         last = m;
         return true;
     };
-    // A failure midway keeps the metrics of the steps that finished.
-    const Heightfield estimate = [&] {
-        try {
-            return run_recovery(r, on_step);
-        } catch (const std::exception& e) {
-            bool saved = false;
-            try {
-                write_text_atomically(a.out + "/metrics.csv", csv.str());
-                saved = true;
-            } catch (const std::exception&) {
-            }
-            throw std::runtime_error(std::string(e.what()) + (saved ? "; the metrics so far are in " + a.out + "/metrics.csv"
-                                                                    : "; nothing more could be written to " + a.out));
-        }
-    }();
+    // The run and its files (recovery_directory.h), then the report drawn from them.
+    RecoveryDirectoryOptions out;
+    out.dir = a.out;
+    out.force = a.force;
+    out.save_observations = a.save_observations;
+    const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step);
     end_stage();
-
-    write_text_atomically(a.out + "/metrics.csv", csv.str());
-    write_heightfield_exr(a.out + "/estimate.exr", estimate);
-    write_heightfield_png(a.out + "/estimate.png", estimate);
-    write_npy(a.out + "/estimate_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(estimate));
-    // One observation and the estimate's slice for it, for the report.
-    const Observation& first = r.observations.front();
-    const std::vector<std::size_t> shape{std::size_t(first.resolution), std::size_t(first.resolution),
-                                         std::size_t(first.channels())};
-    write_npy(a.out + "/reference.npy", shape, first.reference);
-    write_npy(a.out + "/final.npy", shape, render_observation(estimate, first));
-    if (!a.no_plots) {
-        // No shell: the directory is one argument, whatever its characters; absolute, so a
-        // name starting with '-' is not taken for an option.
-        const std::string script = std::string(WAVEBRDF_SOURCE_DIR) + "/scripts/plot_recovery.py";
-        if (!fs::exists(script) || run_program({"/usr/bin/python3", script, fs::absolute(a.out).string()}) != 0)
-            std::fprintf(stderr, "wavebrdf: warning: could not draw report.png (needs /usr/bin/python3 with numpy and matplotlib)\n");
-    }
+    if (!a.no_plots) draw_report(RunKind::Recover, a.out);
     if (!a.quiet) {
         if (r.truth && !r.metric_note.empty())
             std::fprintf(stderr, "height_rel_rmse %s; results in %s\n", r.metric_note.c_str(), a.out.c_str());

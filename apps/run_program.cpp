@@ -12,7 +12,9 @@ extern char** environ;
 
 namespace wavebrdf::cli {
 
-int run_program(const std::vector<std::string>& argv) {
+namespace {
+
+int spawn_and_wait(const std::vector<std::string>& argv, char* const* environment) {
     if (argv.empty()) throw std::invalid_argument("run_program: empty argument vector; expected a program path");
     std::vector<char*> args;
     args.reserve(argv.size() + 1);
@@ -24,7 +26,7 @@ int run_program(const std::vector<std::string>& argv) {
     bool ok = posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0) == 0 &&
               posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0) == 0;
     pid_t pid = -1;
-    if (ok) ok = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ) == 0;
+    if (ok) ok = posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environment) == 0;
     posix_spawn_file_actions_destroy(&actions);
     if (!ok) return -1;
 
@@ -32,6 +34,18 @@ int run_program(const std::vector<std::string>& argv) {
     while (::waitpid(pid, &status, 0) < 0)
         if (errno != EINTR) return -1;
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace
+
+int run_program(const std::vector<std::string>& argv) { return spawn_and_wait(argv, environ); }
+
+int run_program(const std::vector<std::string>& argv, const std::vector<std::string>& environment) {
+    std::vector<char*> env;
+    env.reserve(environment.size() + 1);
+    for (const std::string& e : environment) env.push_back(const_cast<char*>(e.c_str()));
+    env.push_back(nullptr);
+    return spawn_and_wait(argv, env.data());
 }
 
 }  // namespace wavebrdf::cli

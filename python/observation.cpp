@@ -119,9 +119,19 @@ respect to the heightfield's values (texel units, float64 (rows, cols)), in doub
 
     m.def("read_observations", [](const std::string& path) { return read_observations_json(path); }, "path"_a,
           "Observations from JSON (the format of `wavebrdf invert --observations`).");
-    m.def("write_observations", [](const std::string& path, const py::object& observations) {
-        write_observations_json(path, observations_argument(observations));
-    }, "path"_a, "observations"_a, "Writes observations as JSON with inline references (atomically).");
+    m.def("write_observations", [](const std::string& path, const py::object& observations,
+                                   const std::string& references) {
+        ReferenceStorage storage = ReferenceStorage::Inline;
+        if (references == "exr") storage = ReferenceStorage::Exr;
+        else if (references != "inline")
+            bad_argument("references", "'" + references + "'", "'inline' or 'exr'");
+        write_observations_json(path, observations_argument(observations), storage);
+    }, "path"_a, "observations"_a, "references"_a = "inline", R"doc(
+Writes observations as JSON (the format read_observations and `wavebrdf invert|recover
+--observations` read), atomically. references: 'inline' (values in the JSON, exact) or 'exr'
+(float EXR files NAME/slice_0000.exr ... beside the JSON, NAME its file name without the
+extension: what `wavebrdf recover --save-observations` writes).
+)doc");
 }
 
 }  // namespace wavebrdf::python

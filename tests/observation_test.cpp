@@ -116,6 +116,49 @@ TEST(ObservationTest, JsonRoundTripAndErrors) {
 // Issue 9: integer fields were read with get<int>(): "resolution": 8.7 became 8 and 2^40 + 8
 // wrapped to 8; "spectral" had no upper bound (the CLI caps 256). Each is refused, naming the
 // file, the field and the range; an integral 1.0 (tools that only write doubles) is accepted.
+// write_observations_json writes what read_observations_json reads: every field, one and
+// several wavelengths, references inline (exact) or as EXR files in a folder beside the JSON
+// (float precision: values that are floats come back exactly). The EXR form is the one
+// `wavebrdf recover --save-observations` writes (it used to be written by the CLI itself).
+TEST(ObservationTest, WrittenObservationsReadBackTheSame) {
+    const Heightfield truth = random_heightfield(8, 8, 0.3, 11, 1.0, 1.0);
+    std::vector<Observation> obs = {make_observation(truth, 3, 4, {0.1, 0.2}, {0.55}, Model::OHS),
+                                    make_observation(truth, -1.5, 2.25, {0.0, -0.3}, spectral_wavelengths_um(3),
+                                                     Model::ROHS)};
+    obs[1].resolution = 8;
+    obs[1].reference = render_observation(truth, obs[1]);
+    for (Observation& o : obs)
+        for (double& v : o.reference) v = double(float(v));  // representable in an EXR
+    const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test" / "round_trip";
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    for (const ReferenceStorage storage : {ReferenceStorage::Inline, ReferenceStorage::Exr}) {
+        const bool exr = storage == ReferenceStorage::Exr;
+        SCOPED_TRACE(exr ? "exr" : "inline");
+        const std::string path = (dir / (exr ? "saved.json" : "inline.json")).string();
+        write_observations_json(path, obs, storage);
+        EXPECT_EQ(std::filesystem::exists(dir / "saved" / "slice_0001.exr"), exr);
+        const std::vector<Observation> back = read_observations_json(path);
+        ASSERT_EQ(back.size(), obs.size());
+        for (std::size_t i = 0; i < obs.size(); ++i) {
+            EXPECT_EQ(back[i].query.x_um, obs[i].query.x_um);
+            EXPECT_EQ(back[i].query.y_um, obs[i].query.y_um);
+            EXPECT_EQ(back[i].query.sigma_p_um, obs[i].query.sigma_p_um);
+            EXPECT_EQ(back[i].query.omega_i, obs[i].query.omega_i);
+            EXPECT_EQ(back[i].query.model, obs[i].query.model);
+            EXPECT_EQ(back[i].lambdas_um, obs[i].lambdas_um);
+            EXPECT_EQ(back[i].resolution, obs[i].resolution);
+            EXPECT_EQ(back[i].reference, obs[i].reference);
+        }
+    }
+    // Inline references keep every double, not only floats.
+    obs[0].reference[0] = 0.1;
+    write_observations_json((dir / "exact.json").string(), obs);
+    EXPECT_EQ(read_observations_json((dir / "exact.json").string())[0].reference[0], 0.1);
+    // No file name to name the folder after.
+    EXPECT_THROW(write_observations_json((dir / "..").string(), obs, ReferenceStorage::Exr), std::invalid_argument);
+}
+
 TEST(ObservationTest, JsonIntegerFieldsMustBeIntegersInRange) {
     const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test";
     std::filesystem::create_directories(dir);

@@ -104,7 +104,7 @@ TEST(RecoverCliTest, HostileOutNamesRunNoShellAndGetTheirReport) {
         EXPECT_TRUE(fs::exists(dir / name / "estimate.exr"));
         if (can_plot) {
             EXPECT_TRUE(fs::exists(dir / name / "report.png")) << r.err;
-            EXPECT_EQ(r.err.find("could not draw"), std::string::npos) << r.err;
+            EXPECT_EQ(r.err, "") << "no warning when the report is drawn";
         }
     }
     for (const auto& entry : fs::recursive_directory_iterator(dir))

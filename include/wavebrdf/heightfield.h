@@ -70,4 +70,7 @@ private:
     double m_vscale;
 };
 
+// Every height H = v · w · h in µm, row-major (rows · cols values).
+std::vector<double> heights_um(const Heightfield& heightfield);
+
 }  // namespace wavebrdf

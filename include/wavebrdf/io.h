@@ -54,6 +54,10 @@ void write_heightfield_exr(const std::string& path, const Heightfield& heightfie
 // Writes a grey PNG preview of a heightfield, min → black, max → white.
 void write_heightfield_png(const std::string& path, const Heightfield& heightfield);
 
+// An n × n slice of `channels` (1 or 3) values per pixel (row-major, interleaved, as
+// render_observation returns it) as an RGB float image: one channel becomes grey (R = G = B).
+RgbImage to_image(const std::vector<double>& slice, int n, int channels);
+
 // Writes an RGB float EXR (channels R, G, B). With `with_alpha`, also an A channel set to 1
 // (the layout of genBrdf's output).
 void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha = false);

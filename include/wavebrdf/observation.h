@@ -46,7 +46,21 @@ double observation_loss(const Heightfield& heightfield, const std::vector<Observ
 // each, and an EXR reference's float image while it is read) is estimated from the JSON and
 // refused (OutOfMemory, memory.h) above `max_memory_gb` GB (0: the physical memory).
 std::vector<Observation> read_observations_json(const std::string& path, double max_memory_gb = 0.0);
-// Writes observations with their references stored inline.
-void write_observations_json(const std::string& path, const std::vector<Observation>& observations);
+
+// Where write_observations_json puts the references.
+enum class ReferenceStorage {
+    Inline,  // "reference": [values…] in the JSON: exact (every double round-trips)
+    Exr,     // "reference": "NAME/slice_0000.exr" …, float EXR files in the folder NAME beside the
+             // JSON (NAME: the JSON's file name without its extension): float precision
+};
+
+// Writes `observations` in the schema read_observations_json reads (one wavelength as
+// "lambda_um", several as "lambdas_um"), atomically (each EXR reference too; the JSON last, so
+// it never names a file not yet written). With ReferenceStorage::Exr the folder is created
+// when missing. Throws std::runtime_error naming the file that cannot be written, and
+// std::invalid_argument for ReferenceStorage::Exr when `path` has no file name to name the
+// folder after.
+void write_observations_json(const std::string& path, const std::vector<Observation>& observations,
+                             ReferenceStorage references = ReferenceStorage::Inline);
 
 }  // namespace wavebrdf

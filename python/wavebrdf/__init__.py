@@ -16,7 +16,9 @@ and the objects of the thesis's listing 4.1: Heightfield, GaborRep, Query, rende
 lbfgs_minimize) and invert. Heightfield recovery: recover (``wavebrdf recover``), its parts
 plan_acquisition, planned_observations, simulate_observations, add_noise, check_acquisition,
 recover_heights, recover_heights_thesis, and height_rel_rmse, with_height_range. ``wavebrdf.torch`` wraps render_slice as a differentiable PyTorch
-function. Bad arguments raise ValueError naming the argument; unreadable files RuntimeError.
+function. ``python3 -m wavebrdf.report DIR`` (wavebrdf.report) draws the pictures of a
+`wavebrdf invert` or `wavebrdf recover` run directory (it needs matplotlib; importing wavebrdf
+does not). Bad arguments raise ValueError naming the argument; unreadable files RuntimeError.
 """
 from ._core import (  # noqa: F401
     AcquisitionPlan,

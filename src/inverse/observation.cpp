@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -199,19 +201,42 @@ std::vector<Observation> read_observations_json(const std::string& path, double 
     return out;
 }
 
-void write_observations_json(const std::string& path, const std::vector<Observation>& observations) {
+void write_observations_json(const std::string& path, const std::vector<Observation>& observations,
+                             ReferenceStorage references) {
+    // The EXR folder: the JSON's name without its extension, beside it.
+    std::string folder;
+    if (references == ReferenceStorage::Exr) {
+        const std::filesystem::path json_path(path);
+        folder = json_path.stem().string();
+        if (folder.empty() || folder == "." || folder == "..")
+            throw std::invalid_argument("observations file '" + path +
+                                        "' has no file name to name its reference folder after; expected e.g. "
+                                        "observations.json");
+        std::filesystem::create_directories(json_path.parent_path() / folder);
+    }
+    const std::string dir = directory_of(path);
     json doc;
     doc["observations"] = json::array();
-    for (const Observation& o : observations) {
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        const Observation& o = observations[i];
         json j;
         j["x_um"] = o.query.x_um;
         j["y_um"] = o.query.y_um;
         j["sigma_p_um"] = o.query.sigma_p_um;
         j["light"] = {o.query.omega_i[0], o.query.omega_i[1]};
         j["model"] = to_string(o.query.model);
-        j["lambdas_um"] = o.lambdas_um;
+        if (o.lambdas_um.size() == 1) j["lambda_um"] = o.lambdas_um[0];
+        else j["lambdas_um"] = o.lambdas_um;
         j["resolution"] = o.resolution;
-        j["reference"] = o.reference;
+        if (references == ReferenceStorage::Exr) {
+            char name[32];
+            std::snprintf(name, sizeof name, "/slice_%04zu.exr", i);
+            const std::string relative = folder + name;
+            write_rgb_exr(dir + relative, to_image(o.reference, o.resolution, o.channels()));
+            j["reference"] = relative;
+        } else {
+            j["reference"] = o.reference;
+        }
         doc["observations"].push_back(j);
     }
     write_text_atomically(path, doc.dump(1) + "\n");

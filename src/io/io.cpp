@@ -404,6 +404,15 @@ void write_heightfield_png(const std::string& path, const Heightfield& heightfie
     });
 }
 
+RgbImage to_image(const std::vector<double>& slice, int n, int channels) {
+    RgbImage image;
+    image.rows = image.cols = n;
+    image.data.resize(static_cast<std::size_t>(n) * n * 3);
+    for (std::size_t p = 0; p < static_cast<std::size_t>(n) * n; ++p)
+        for (int c = 0; c < 3; ++c) image.data[3 * p + c] = float(slice[p * channels + (channels == 3 ? c : 0)]);
+    return image;
+}
+
 void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha) {
     check_image(image);
     if (!with_alpha) {

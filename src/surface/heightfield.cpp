@@ -48,4 +48,10 @@ Heightfield Heightfield::with_scale(double texel_um, double vscale) const {
     return Heightfield(m_rows, m_cols, m_values, texel_um, vscale);
 }
 
+std::vector<double> heights_um(const Heightfield& heightfield) {
+    std::vector<double> v = heightfield.values();
+    for (double& x : v) x *= heightfield.vscale() * heightfield.texel_um();
+    return v;
+}
+
 }  // namespace wavebrdf

@@ -100,6 +100,23 @@ def test_json_round_trip(tmp_path, rng):
         wb.read_observations(str(tmp_path / "missing.json"))
 
 
+def test_json_round_trip_with_exr_references(tmp_path, rng):
+    # references='exr': float EXR files in obs/ beside obs.json (what `wavebrdf recover
+    # --save-observations` writes); values that are floats read back exactly.
+    _, _, _, observations = make_case(rng, 3)
+    observations = [wb.Observation(o.query, np.asarray(o.reference).astype(np.float32).astype(np.float64))
+                    for o in observations]
+    path = tmp_path / "obs.json"
+    wb.write_observations(str(path), observations, references="exr")
+    assert sorted(p.name for p in (tmp_path / "obs").iterdir()) == ["slice_0000.exr", "slice_0001.exr"]
+    back = wb.read_observations(str(path))
+    for a, b in zip(observations, back):
+        np.testing.assert_array_equal(a.reference, b.reference)
+        np.testing.assert_array_equal(a.lambdas_um, b.lambdas_um)
+    with pytest.raises(ValueError, match="references"):
+        wb.write_observations(str(path), observations, references="png")
+
+
 def test_write_observations_replaces_only_regular_files(tmp_path, rng):
     # A FIFO or a symbolic link is refused and stays what it was (the temp-and-rename write
     # used to replace it with a regular file); no temporary is left.

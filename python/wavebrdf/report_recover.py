@@ -1,23 +1,25 @@
-#!/usr/bin/env python3
-"""Draws report.png for a `wavebrdf recover --out DIR` run.
+"""Pictures of a heightfield recovery written by `wavebrdf recover --out DIR` (draw them with
+`python3 -m wavebrdf.report DIR`, see wavebrdf.report).
 
-Panels: the true heights (when known), the estimate, their difference after removing each
-one's mean (the mean height is invisible to every slice), one observation beside the
-estimate's slice for it, and the convergence of every stage (its loss, normalised to the
-stage's first value, and height_rel_rmse when the truth is known).
+make_report(DIR) writes DIR/report.png: the true heights (when known), the estimate, their
+difference after removing each one's mean (the mean height is invisible to every slice), one
+observation beside the estimate's slice for it, and the convergence of every stage (its loss,
+normalised to the stage's first value, and height_rel_rmse when the truth is known).
 
-Usage: /usr/bin/python3 scripts/plot_recovery.py DIR
+DIR layout (recovery_directory.h): run.json, metrics.csv, estimate_height.npy,
+truth_height.npy (optional), reference.npy, final.npy.
 """
 import csv
 import json
 import os
-import sys
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+from .report import save_figure  # noqa: E402
 
 
 def read_metrics(path):
@@ -49,7 +51,8 @@ def image(ax, data, title, cmap="viridis", vmin=None, vmax=None, unit="µm"):
         plt.colorbar(im, ax=ax, fraction=0.046, pad=0.04).set_label(unit, fontsize=8)
 
 
-def main(directory):
+def make_report(directory):
+    """Writes directory/report.png and returns its path."""
     with open(os.path.join(directory, "run.json")) as f:
         run = json.load(f)
     stages = read_metrics(os.path.join(directory, "metrics.csv"))
@@ -126,10 +129,7 @@ def main(directory):
     ax.text(0.0, 1.0, "\n".join(_wrap(l, 60) for l in lines), va="top", ha="left", fontsize=7, family="monospace")
 
     fig.tight_layout(rect=(0, 0, 1, 0.95))
-    out = os.path.join(directory, "report.png")
-    fig.savefig(out + ".tmp.png", dpi=110)
-    os.replace(out + ".tmp.png", out)
-    print(out)
+    return save_figure(fig, os.path.join(directory, "report.png"), 110)
 
 
 def _wrap(text, width):
@@ -143,8 +143,3 @@ def _wrap(text, width):
     lines.append(line)
     return "\n".join(lines)
 
-
-if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        sys.exit("usage: plot_recovery.py DIR")
-    main(sys.argv[1])

@@ -1,21 +1,19 @@
-#!/usr/bin/python3
-"""Pictures of an inversion written by `wavebrdf invert --out DIR`.
+"""Pictures of an inversion written by `wavebrdf invert --out DIR` (draw them with
+`python3 -m wavebrdf.report DIR`, see wavebrdf.report).
 
-    /usr/bin/python3 scripts/plot_inversion.py DIR
-
-writes DIR/report.png (like the thesis's Figure 5.1: truth, reference, and per snapshot epoch
-the estimated slice, its squared error, the heightfield hypothesis and the gradient) and
-DIR/curves.png (like Figure 5.3: every metric normalised by its epoch-0 value, log scale).
+make_report(DIR) writes DIR/report.png (like the thesis's Figure 5.1: truth, reference, and per
+snapshot epoch the estimated slice, its squared error, the heightfield hypothesis and the
+gradient); make_curves(DIR) writes DIR/curves.png (like Figure 5.3: every metric normalised by
+its epoch-0 value, log scale).
 
 DIR layout (see the C++ side): run.json, metrics.csv, reference.npy, truth_height.npy
 (optional), snapshots/{height,slice,gradient}_EEEE.npy. Missing or unreadable optional files
-leave an empty, labelled panel instead of failing. Exit status 2 when DIR or metrics.csv is
-missing.
+leave an empty, labelled panel instead of failing; make_curves raises FileNotFoundError when
+metrics.csv is missing.
 
 Slice pixel (row i, column j) is ω_o = ((i+½)/n·2−1, (j+½)/n·2−1): rows run down (ω_o,x),
 columns right (ω_o,y). Heightfield row i is the surface coordinate x, column j is y.
 """
-import argparse
 import csv
 import json
 import math
@@ -23,7 +21,6 @@ import os
 import textwrap
 import re
 import sys
-import tempfile
 
 import numpy as np
 import matplotlib
@@ -31,6 +28,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.colors import LogNorm, Normalize  # noqa: E402
+
+from .report import save_figure  # noqa: E402
 
 DPI = 110
 METRIC_LABELS = {
@@ -50,7 +49,7 @@ SNAPSHOT_RE = re.compile(r"^(height|slice|gradient)_(\d+)\.npy$")
 # Reading
 # ----------------------------------------------------------------------------------------------
 def _warn(msg):
-    print("plot_inversion: warning: " + msg, file=sys.stderr)
+    print("wavebrdf.report: warning: " + msg, file=sys.stderr)
 
 
 def _load_npy(path):
@@ -184,24 +183,7 @@ SLICE_EXTENT = [-1.0, 1.0, 1.0, -1.0]  # row i downward = ω_o,x from −1 to 1;
 # Output
 # ----------------------------------------------------------------------------------------------
 def _save_atomic(fig, path):
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=d)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            fig.savefig(f, format="png", dpi=DPI, pil_kwargs={"compress_level": 3})
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    finally:
-        plt.close(fig)
-    return path
+    return save_figure(fig, path, DPI)
 
 
 def make_report(d):
@@ -436,27 +418,3 @@ def make_curves(d):
         ax.set_yscale("linear")
     return _save_atomic(fig, os.path.join(d, "curves.png"))
 
-
-def main(argv=None):
-    p = argparse.ArgumentParser(prog="plot_inversion.py",
-                                description="Pictures of a `wavebrdf invert --out DIR` run.")
-    p.add_argument("dir", help="the inversion's output directory")
-    try:
-        args = p.parse_args(sys.argv[1:] if argv is None else argv)
-    except SystemExit as e:  # usage errors: argparse has printed the message
-        return e.code if isinstance(e.code, int) else 2
-    d = args.dir
-    if not os.path.isdir(d):
-        print("plot_inversion: error: no such directory: %s" % d, file=sys.stderr)
-        return 2
-    metrics = os.path.join(d, "metrics.csv")
-    if not os.path.isfile(metrics):
-        print("plot_inversion: error: missing %s" % metrics, file=sys.stderr)
-        return 2
-    for path in (make_report(d), make_curves(d)):
-        print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))

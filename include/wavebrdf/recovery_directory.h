@@ -1,0 +1,47 @@
+#pragma once
+// A recovery run written to its output directory (`wavebrdf recover --out DIR`): the run of
+// recovery_run.h with the files of RunKind::Recover (run_directory.h) around it, so that the
+// directory's layout lives in the library next to the run, not in a front end:
+//
+//   run.json             the run's settings and plan: method, size, texel_um, vscale,
+//                        height_range_um, noise, loss, seed, observations (count), plan (notes),
+//                        warnings, truth (bool), height_rel_rmse (only when undefined: why)
+//   metrics.csv          stage,iteration,loss,seconds,height_rel_rmse (one row per StageMetrics)
+//   truth.exr, truth_height.npy              the truth, when known (heights in µm in the .npy)
+//   estimate.exr, estimate.png, estimate_height.npy   the estimate
+//   reference.npy, final.npy                 observation 0 and the estimate's slice for it
+//                                            (resolution × resolution × channels)
+//   observations.json, observations/         with save_observations (EXR references)
+//
+// The report (report.png) is drawn from these files by the Python package (wavebrdf.report).
+#include <functional>
+#include <string>
+
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/recovery_run.h"
+
+namespace wavebrdf {
+
+// Where and how a recovery run is written.
+struct RecoveryDirectoryOptions {
+    std::string dir;                 // the output directory (created when missing)
+    bool force = false;              // replace an earlier recover run there (run_directory.h)
+    bool save_observations = false;  // also observations.json + observations/slice_NNNN.exr
+    std::string option = "--out";    // names `dir` in messages
+};
+
+// Runs `prepared` (prepare_recovery with `options`) into out.dir: prepares the directory
+// (prepare_run_directory: a new or empty one, or with out.force one of recover's own runs),
+// checks that metrics.csv can be written, writes run.json, the observations (when asked) and
+// the truth before the recovery, then runs it (run_recovery: on_step sees every StageMetrics,
+// returning false stops early and the estimate so far is written) and writes metrics.csv, the
+// estimate, reference.npy and final.npy. Returns the estimate. A failure of the recovery
+// itself is rethrown as std::runtime_error with its message and where the metrics so far
+// went ("…; the metrics so far are in DIR/metrics.csv"); the directory's and the writers'
+// own exceptions (std::invalid_argument for a directory that may not be used,
+// std::runtime_error for one that cannot be written) pass through.
+Heightfield run_recovery_in_directory(const PreparedRecovery& prepared, const RecoveryOptions& options,
+                                      const RecoveryDirectoryOptions& out,
+                                      const std::function<bool(const StageMetrics&)>& on_step = {});
+
+}  // namespace wavebrdf

@@ -1,0 +1,92 @@
+#include "wavebrdf/recovery_directory.h"
+
+#include <exception>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/io.h"
+#include "wavebrdf/observation.h"
+#include "wavebrdf/run_directory.h"
+
+namespace wavebrdf {
+
+namespace {
+
+// run.json: what the run was asked and what the plan made of it.
+nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& options) {
+    nlohmann::json run = {{"method", to_string(r.method)},
+                          {"size", std::to_string(r.rows) + "x" + std::to_string(r.cols)},
+                          {"texel_um", r.texel_um},
+                          {"vscale", r.vscale},
+                          {"height_range_um", r.range_um},
+                          {"noise", to_string(r.noise)},
+                          {"loss", to_string(r.loss)},
+                          {"seed", options.seed},
+                          {"observations", r.observations.size()},
+                          {"plan", r.notes},
+                          {"warnings", r.warnings},
+                          {"truth", r.truth.has_value()}};
+    if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
+    return run;
+}
+
+}  // namespace
+
+Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryOptions& options,
+                                      const RecoveryDirectoryOptions& out,
+                                      const std::function<bool(const StageMetrics&)>& on_step) {
+    const std::string& dir = out.dir;
+    // Fail before the long work when the directory cannot be used or written.
+    prepare_run_directory(RunKind::Recover, dir, out.force, out.option);
+    check_writable(dir + "/metrics.csv");
+    write_text_atomically(dir + "/run.json", run_json(r, options).dump(1) + "\n");
+    if (out.save_observations)
+        write_observations_json(dir + "/observations.json", r.observations, ReferenceStorage::Exr);
+    const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
+    if (r.truth) {
+        write_heightfield_exr(dir + "/truth.exr", *r.truth);
+        write_npy(dir + "/truth_height.npy", height_shape, heights_um(*r.truth));
+    }
+
+    // A metrics row per reported step.
+    std::ostringstream csv;
+    csv.precision(10);
+    csv << "stage,iteration,loss,seconds,height_rel_rmse\n";
+    auto record = [&](const StageMetrics& m) {
+        csv << m.stage << ',' << m.iteration << ',' << m.loss << ',' << m.seconds << ','
+            << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << '\n';
+        return on_step ? on_step(m) : true;
+    };
+    // A failure midway keeps the metrics of the steps that finished.
+    const Heightfield estimate = [&] {
+        try {
+            return run_recovery(r, record);
+        } catch (const std::exception& e) {
+            bool saved = false;
+            try {
+                write_text_atomically(dir + "/metrics.csv", csv.str());
+                saved = true;
+            } catch (const std::exception&) {
+            }
+            throw std::runtime_error(std::string(e.what()) + (saved ? "; the metrics so far are in " + dir + "/metrics.csv"
+                                                                    : "; nothing more could be written to " + dir));
+        }
+    }();
+
+    write_text_atomically(dir + "/metrics.csv", csv.str());
+    write_heightfield_exr(dir + "/estimate.exr", estimate);
+    write_heightfield_png(dir + "/estimate.png", estimate);
+    write_npy(dir + "/estimate_height.npy", height_shape, heights_um(estimate));
+    // One observation and the estimate's slice for it, for the report.
+    const Observation& first = r.observations.front();
+    const std::vector<std::size_t> slice_shape{std::size_t(first.resolution), std::size_t(first.resolution),
+                                               std::size_t(first.channels())};
+    write_npy(dir + "/reference.npy", slice_shape, first.reference);
+    write_npy(dir + "/final.npy", slice_shape, render_observation(estimate, first));
+    return estimate;
+}
+
+}  // namespace wavebrdf
