@@ -547,4 +547,27 @@ void check_writable(const std::string& path) {
     remove_quietly(tmp);
 }
 
+std::vector<double> heights_um(const Heightfield& hf) {
+    std::vector<double> v = hf.values();
+    for (double& x : v) x *= hf.vscale() * hf.texel_um();
+    return v;
+}
+
+RgbImage to_image(const std::vector<double>& slice, int n, int channels) {
+    RgbImage image;
+    image.rows = image.cols = n;
+    image.data.resize(static_cast<std::size_t>(n) * n * 3);
+    for (std::size_t p = 0; p < static_cast<std::size_t>(n) * n; ++p)
+        for (int c = 0; c < 3; ++c) image.data[3 * p + c] = float(slice[p * channels + (channels == 3 ? c : 0)]);
+    return image;
+}
+
+double auto_exposure(const std::vector<double>& slice) {
+    std::vector<double> v(slice.begin(), slice.end());
+    if (v.empty()) return 0.0;
+    const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(0.999 * double(v.size())));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k] > 0 ? -std::log2(v[k]) + 2.0 : 0.0;
+}
+
 }  // namespace wavebrdf
