@@ -83,6 +83,8 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     options.adam = AdamOptions{lr, beta1, beta2, options.adam.epsilon, decay};
     options.epochs = epochs;
     options.seed = seed;
+    if (!std::isfinite(max_memory_gb) || max_memory_gb < 0.0)
+        bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
     if (py::isinstance<py::str>(positions)) {
         options.positions = parse_positions_spec(positions.cast<std::string>(), "positions");

@@ -13,11 +13,12 @@
 #include "test_util.h"
 #include "wavebrdf/inversion_run.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/memory.h"
 
 namespace wavebrdf {
 namespace {
 
-using test::expect_throw_naming;
+using namespace test;
 
 // A small, fast inversion (the CLI tests' kSmall: 8 x 8 heights, sigma_p 2, 16 x 16 slices).
 InversionOptions small_options() {
