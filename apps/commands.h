@@ -4,6 +4,12 @@
 
 namespace wavebrdf::cli {
 
+// Thrown by a command (from its callback) to end the tool with `code` once its outputs are
+// written, e.g. 128 + SIGINT for a run stopped by a signal; main returns it.
+struct ExitStatus {
+    int code = 0;
+};
+
 void add_heightfield_command(CLI::App& app);  // wavebrdf heightfield: procedural surfaces
 void add_render_command(CLI::App& app);       // wavebrdf render: one BRDF slice
 void add_genbrdf_command(CLI::App& app);       // wavebrdf genbrdf: the reference's flags

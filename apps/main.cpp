@@ -29,6 +29,8 @@ int main(int argc, char** argv) {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
         return app.exit(e);
+    } catch (const wavebrdf::cli::ExitStatus& e) {
+        return e.code;
     } catch (const std::exception& e) {
         // Errors raised by the commands themselves (they run from parse callbacks).
         std::cerr << "wavebrdf: error: " << e.what() << "\n";

@@ -1,18 +1,14 @@
-// invert(): the inverse renderer with the options of `wavebrdf invert` (invert.h), returning
-// the estimate and the per-epoch metrics instead of writing a directory. The set-up (generated
-// default truth, noisy start, observations rendered from the truth) follows apps/cmd_invert.cpp
-// step for step, so the same options give the same run as the command line.
-#include <algorithm>
+// invert(): the inverse renderer with the options of `wavebrdf invert`, returning the estimate
+// and the per-epoch metrics instead of writing a directory. A converter: Python's arguments
+// become InversionOptions (inversion_run.h) and the library's prepare_inversion / InversionRun
+// run them, the same code as the command line, so the same options give the same run.
 #include <cmath>
-#include <fstream>
 #include <memory>
+#include <optional>
 
 #include "common.h"
 #include "observation_arg.h"
-#include "wavebrdf/generate.h"
-#include "wavebrdf/invert.h"
-#include "wavebrdf/io.h"
-#include "wavebrdf/spectrum.h"
+#include "wavebrdf/inversion_run.h"
 
 namespace wavebrdf::python {
 
@@ -26,22 +22,9 @@ struct InversionResult {
     bool stopped = false;
 };
 
+// A list of (x_um, y_um) pairs (a positions file is the library's: parse_positions_spec).
 std::vector<std::array<double, 2>> positions_argument(const py::object& positions) {
     std::vector<std::array<double, 2>> out;
-    if (py::isinstance<py::str>(positions)) {
-        // A JSON file as the CLI's --positions FILE.json: [[x_um, y_um], ...] or {"positions": [...]}.
-        py::object json = py::module_::import("json");
-        py::object data;
-        try {
-            py::object file = py::module_::import("builtins").attr("open")(positions);
-            data = json.attr("load")(file);
-            file.attr("close")();
-        } catch (py::error_already_set& e) {
-            throw std::runtime_error(positions.cast<std::string>() + ": cannot read positions (" + e.what() + ")");
-        }
-        if (py::isinstance<py::dict>(data) && data.contains("positions")) data = data["positions"];
-        return positions_argument(data);
-    }
     std::vector<std::vector<double>> list;
     try {
         list = positions.cast<std::vector<std::vector<double>>>();
@@ -90,114 +73,86 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
                        const py::object& lambda_um, const py::object& spectral, const py::object& light,
                        int resolution, const py::object& init, int epochs, const std::string& optimizer, double lr,
                        double beta1, double beta2, double decay, const py::object& loss, const py::object& positions,
-                       std::uint64_t seed, const py::object& callback) {
-    // Settings, checked before any work (the CLI's order).
-    InversionSettings settings;
-    settings.loss = loss_argument(loss);
-    if (optimizer == "adam") settings.optimizer = OptimizerKind::Adam;
-    else if (optimizer == "lbfgs") settings.optimizer = OptimizerKind::Lbfgs;
-    else bad_argument("optimizer", "'" + optimizer + "'", "'adam' or 'lbfgs'");
-    settings.adam = AdamOptions{lr, beta1, beta2, settings.adam.epsilon, decay};
-    { Adam check(1, settings.adam); }  // the Adam options, with the library's messages
-    if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
-    settings.epochs = epochs;
-    settings.seed = seed;
-    std::vector<std::array<double, 2>> position_list;
-    const bool positions_text = py::isinstance<py::str>(positions);
-    if (positions_text && positions.cast<std::string>() == "random") settings.positions = PositionMode::Random;
-    else if (!(positions_text && positions.cast<std::string>() == "fixed")) position_list = positions_argument(positions);
+                       std::uint64_t seed, const py::object& callback, double max_memory_gb) {
+    // Python's arguments → the library's options (inversion_run.h); the set-up and the run are
+    // the library's, the same code as `wavebrdf invert`.
+    InversionOptions options;
+    options.names = OptionStyle::Python;
+    options.loss = loss_argument(loss);
+    options.optimizer = parse_optimizer(optimizer, "optimizer");
+    options.adam = AdamOptions{lr, beta1, beta2, options.adam.epsilon, decay};
+    options.epochs = epochs;
+    options.seed = seed;
+    if (!std::isfinite(max_memory_gb) || max_memory_gb < 0.0)
+        bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
+    options.max_memory_gb = max_memory_gb;
+    if (py::isinstance<py::str>(positions)) {
+        options.positions = parse_positions_spec(positions.cast<std::string>(), "positions");
+    } else {
+        options.positions.kind = PositionsKind::List;
+        options.positions.positions_um = positions_argument(positions);
+    }
     if (!py::isinstance<py::function>(callback) && !callback.is_none())
         throw py::value_error("callback is not callable; expected callback(metrics, estimate) or None");
 
     // Scale: given, else the truth's when it is a Heightfield, else 1.
     const bool truth_object = py::isinstance<Heightfield>(truth_arg);
-    const double texel_um = texel_arg.is_none()
-                                ? (truth_object ? truth_arg.cast<const Heightfield&>().texel_um() : 1.0)
-                                : check_positive(texel_arg.cast<double>(), "texel_um");
-    const double vscale = vscale_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().vscale() : 1.0)
-                                               : check_finite(vscale_arg.cast<double>(), "vscale");
+    options.texel_um = texel_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().texel_um() : 1.0)
+                                           : check_positive(texel_arg.cast<double>(), "texel_um");
+    options.vscale = vscale_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().vscale() : 1.0)
+                                          : check_finite(vscale_arg.cast<double>(), "vscale");
 
-    // Wavelengths: the CLI's default is --spectral 8.
-    const std::vector<double> lambdas =
-        lambda_um.is_none() && spectral.is_none() ? spectral_wavelengths_um(8) : wavelengths(lambda_um, spectral);
-    check_resolution(resolution);
-    const Model parsed_model = model_from(model);
-    const std::array<double, 2> omega_i = light_direction(light);
-    check_positive(sigma_p_um, "sigma_p_um");
+    // Wavelengths (checked here with Python's names); none: the CLI's default, spectral 8.
+    if (!lambda_um.is_none() || !spectral.is_none()) {
+        const std::vector<double> lambdas = wavelengths(lambda_um, spectral);
+        if (!lambda_um.is_none()) options.lambda_um = lambdas[0];
+        else if (py::isinstance<py::int_>(spectral)) options.spectral = spectral.cast<int>();
+        else options.wavelengths_um = lambdas;
+    }
+    options.resolution = check_resolution(resolution);
+    options.model = model_from(model);
+    options.light = light_direction(light);
+    options.sigma_p_um = check_positive(sigma_p_um, "sigma_p_um");
+    if (!x_um.is_none()) options.x_um = check_finite(x_um.cast<double>(), "x_um");
+    if (!y_um.is_none()) options.y_um = check_finite(y_um.cast<double>(), "y_um");
 
-    // Truth, observations.
+    // Truth, observations, initial guess: paths for the library to read, or objects.
     if (!truth_arg.is_none() && !observations_arg.is_none())
         throw py::value_error("truth and observations exclude each other; expected one of them (or neither)");
-    std::unique_ptr<Heightfield> truth;
-    std::vector<Observation> observations;
-    std::array<int, 2> rc = size_argument(size);
+    const std::array<int, 2> rc = size_argument(size);
+    options.rows = rc[0];
+    options.cols = rc[1];
+    std::optional<Heightfield> truth;
+    std::optional<std::vector<Observation>> observations;
     if (!observations_arg.is_none()) {
-        observations = py::isinstance<py::str>(observations_arg)
-                           ? read_observations_json(observations_arg.cast<std::string>())
-                           : observations_argument(observations_arg);
-        if (settings.positions == PositionMode::Random && observations.size() < 2)
-            throw py::value_error("positions = 'random' with observations needs at least two observations");
-        if (py::isinstance<Heightfield>(init) || py::isinstance<py::array>(init)) {
-            const py::array shape = py::module_::import("numpy").attr("shape")(init);
-            rc = {py::cast<int>(shape[py::int_(0)]), py::cast<int>(shape[py::int_(1)])};
-        }
+        if (py::isinstance<py::str>(observations_arg)) options.observations_path = observations_arg.cast<std::string>();
+        else observations = observations_argument(observations_arg);
+    } else if (!truth_arg.is_none()) {
+        truth = heightfield_argument(truth_arg, "truth", options.texel_um, options.vscale,
+                                     !texel_arg.is_none() || !vscale_arg.is_none());
+    }
+    std::optional<Heightfield> initial;
+    if (py::isinstance<py::str>(init)) {
+        options.init = parse_init_spec(init.cast<std::string>(), "init");
     } else {
-        if (truth_arg.is_none()) {
-            // The CLI's built-in default: a generated isotropic surface, heights about ±1 texel.
-            truth = std::make_unique<Heightfield>(default_inversion_truth(rc[0], rc[1], texel_um, vscale, seed));
-        } else {
-            truth = std::make_unique<Heightfield>(
-                heightfield_argument(truth_arg, "truth", texel_um, vscale, !texel_arg.is_none() || !vscale_arg.is_none()));
-        }
-        rc = {truth->rows(), truth->cols()};
-        Observation base;
-        base.query.model = parsed_model;
-        base.query.sigma_p_um = sigma_p_um;
-        base.query.omega_i = omega_i;
-        base.lambdas_um = lambdas;
-        base.resolution = resolution;
-        if (position_list.empty())
-            position_list.push_back({x_um.is_none() ? 0.5 * truth->period_x_um() : check_finite(x_um.cast<double>(), "x_um"),
-                                     y_um.is_none() ? 0.5 * truth->period_y_um() : check_finite(y_um.cast<double>(), "y_um")});
+        options.init.kind = InitKind::Heights;
+        initial = heightfield_argument(init, "init", options.texel_um, options.vscale, false);
+    }
+
+    // Set-up and run without the GIL; each epoch takes it back to call `callback` and to
+    // notice Ctrl-C.
+    std::unique_ptr<InversionRun> run;
+    {
         InterruptibleRelease release;
-        observations = observe(*truth, base, position_list, settings.render);
+        run = std::make_unique<InversionRun>(
+            prepare_inversion(options, std::move(truth), std::move(observations), std::move(initial)));
     }
-
-    // Initial guess.
-    const std::size_t count = static_cast<std::size_t>(rc[0]) * rc[1];
-    std::vector<double> start(count, 0.0);
-    const bool init_text = py::isinstance<py::str>(init);
-    const std::string init_spec = init_text ? init.cast<std::string>() : std::string();
-    if (init_text && init_spec == "flat") {
-    } else if (init_text && init_spec.rfind("noisy:", 0) == 0) {
-        if (!truth) throw py::value_error("init = '" + init_spec + "' needs a truth (noise is added to the truth)");
-        double frac = 0.0;
-        try {
-            std::size_t used = 0;
-            frac = std::stod(init_spec.substr(6), &used);
-            if (used != init_spec.size() - 6) throw std::invalid_argument(init_spec);
-        } catch (const std::logic_error&) {
-            bad_argument("init", "'" + init_spec + "'", "'flat', 'noisy:FRAC', a Heightfield, an array or an EXR path");
-        }
-        if (!(frac >= 0.0) || !std::isfinite(frac)) bad_argument("init", "'" + init_spec + "'", "a noise fraction >= 0");
-        start = noisy_start(*truth, frac, seed);  // as the CLI
-    } else {
-        const Heightfield given = heightfield_argument(init, "init", texel_um, vscale, false);
-        if (given.rows() != rc[0] || given.cols() != rc[1])
-            throw py::value_error("init is " + std::to_string(given.rows()) + "x" + std::to_string(given.cols()) +
-                                  "; expected " + std::to_string(rc[0]) + "x" + std::to_string(rc[1]));
-        start = given.values();
-    }
-
-    Inversion inversion(observations, Heightfield(rc[0], rc[1], start, texel_um, vscale), settings, truth.get());
-
-    // Run without the GIL; each epoch takes it back to call `callback` and to notice Ctrl-C.
     std::vector<std::vector<double>> last_slices;
     ReleasedCallback python_callback(callback);
     {
         InterruptibleRelease release;
-        inversion.run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>&,
-                          const std::vector<std::vector<double>>& slices) {
+        run->run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>&,
+                     const std::vector<std::vector<double>>& slices) {
             last_slices = slices;
             return python_callback.step([&](const py::object& f) {
                 return f(epoch_dict(metrics),
@@ -207,14 +162,16 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     }
     python_callback.rethrow_if_failed();
 
+    const Inversion& inversion = run->inversion();
+    const PreparedInversion& prepared = run->prepared();
     InversionResult result;
     result.estimate = py::cast(inversion.estimate());
-    result.truth = truth ? py::cast(*truth) : py::none();
-    result.observations = py::cast(observations);
+    result.truth = prepared.truth ? py::cast(*prepared.truth) : py::none();
+    result.observations = py::cast(prepared.observations);
     result.metrics = metrics_dict(inversion.history());
     py::list finals;
-    for (std::size_t i = 0; i < last_slices.size() && i < observations.size(); ++i)
-        finals.append(observation_array(std::move(last_slices[i]), observations[i]));
+    for (std::size_t i = 0; i < last_slices.size() && i < prepared.observations.size(); ++i)
+        finals.append(observation_array(std::move(last_slices[i]), prepared.observations[i]));
     result.final_slices = finals;
     result.epochs = inversion.epoch();
     result.stopped = python_callback.stopped();
@@ -243,7 +200,8 @@ the mean; NaN without a truth), seconds.
           "sigma_p_um"_a = 4.0, "model"_a = "OHS", "lambda_um"_a = py::none(), "spectral"_a = py::none(),
           "light"_a = py::make_tuple(0.0, 0.0), "resolution"_a = 32, "init"_a = "flat", "epochs"_a = 300,
           "optimizer"_a = "adam", "lr"_a = 0.01, "beta1"_a = 0.9, "beta2"_a = 0.99, "decay"_a = 0.005,
-          "loss"_a = "cmsle:1", "positions"_a = "fixed", "seed"_a = 1, "callback"_a = py::none(), R"doc(
+          "loss"_a = "cmsle:1", "positions"_a = "fixed", "seed"_a = 1, "callback"_a = py::none(),
+          "max_memory_gb"_a = 0.0, R"doc(
 The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
 whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
 truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
@@ -271,6 +229,8 @@ positions     'fixed', 'random' (a new footprint position per epoch, Adam only),
 seed          generated truth, noise and random positions
 callback      callback(metrics: dict, estimate: (rows, cols) float64 heights in texel units)
               after each evaluated epoch (epoch 0 included); return False to stop early.
+max_memory_gb refuse (MemoryError, before the references are rendered) a run whose
+              estimated peak memory exceeds this many GB; 0 (default): the physical memory.
 The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
 )doc");
 }

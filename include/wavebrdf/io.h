@@ -76,6 +76,10 @@ void write_rgb_png(const std::string& path, const RgbImage& image, double exposu
 void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
                const std::vector<double>& data);
 
+// Exposure (in stops) that maps the 99.9th percentile of `slice` to about 4 before Reinhard
+// (write_rgb_png's previews of slices); 0 for an empty or non-positive slice.
+double auto_exposure(const std::vector<double>& slice);
+
 // Throws std::runtime_error when `path` cannot be created (missing directory, no permission)
 // or exists and is not a regular file (see the top of this header), without leaving a file
 // behind. Lets a command fail before long work, not after it.

@@ -556,4 +556,12 @@ void check_writable(const std::string& path) {
     remove_quietly(tmp);
 }
 
+double auto_exposure(const std::vector<double>& slice) {
+    std::vector<double> v(slice.begin(), slice.end());
+    if (v.empty()) return 0.0;
+    const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(0.999 * double(v.size())));
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+    return v[k] > 0 ? -std::log2(v[k]) + 2.0 : 0.0;
+}
+
 }  // namespace wavebrdf

@@ -142,3 +142,13 @@ def test_errors(kwargs, message):
     with pytest.raises((ValueError, RuntimeError)) as e:
         wb.invert(**kwargs)
     assert message in str(e.value)
+
+
+def test_invert_refuses_what_cannot_fit_before_any_work():
+    # The CLI's --max-memory-gb: the estimate is checked before the references are rendered.
+    with pytest.raises(MemoryError, match=r"invert \(16x16 heights, 1 observation\(s\) of 32x32\) needs about .*"
+                                          r"\(max-memory-gb\); raise it with max_memory_gb="):
+        wb.invert(epochs=1, max_memory_gb=1e-6)
+    with pytest.raises(ValueError, match="max_memory_gb"):
+        wb.invert(epochs=1, max_memory_gb=-1)
+    assert wb.invert(epochs=1, size=8, resolution=8, max_memory_gb=100).epochs == 1

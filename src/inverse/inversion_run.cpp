@@ -1,0 +1,619 @@
+#include "wavebrdf/inversion_run.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/json_fields.h"
+#include "wavebrdf/io.h"
+#include "wavebrdf/memory.h"
+#include "wavebrdf/progress.h"
+#include "wavebrdf/run_directory.h"
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf {
+
+namespace fs = std::filesystem;
+
+std::string option_name(OptionStyle style, const std::string& key) {
+    if (style == OptionStyle::Python) return key;
+    std::string name = "--" + key;
+    std::replace(name.begin(), name.end(), '_', '-');
+    return name;
+}
+
+PositionsSpec parse_positions_spec(const std::string& text, const std::string& /*name*/) {
+    PositionsSpec spec;
+    if (text == "fixed") return spec;
+    if (text == "random") {
+        spec.kind = PositionsKind::Random;
+        return spec;
+    }
+    spec.kind = PositionsKind::List;
+    spec.positions_um = read_positions_json(text);
+    spec.path = text;
+    return spec;
+}
+
+std::string to_string(const PositionsSpec& positions) {
+    switch (positions.kind) {
+        case PositionsKind::Fixed: return "fixed";
+        case PositionsKind::Random: return "random";
+        case PositionsKind::List: return positions.path.empty() ? "list" : positions.path;
+    }
+    return "fixed";
+}
+
+InitSpec parse_init_spec(const std::string& text, const std::string& name) {
+    InitSpec spec;
+    if (text == "flat") return spec;
+    if (text.rfind("noisy:", 0) == 0) {
+        spec.kind = InitKind::Noisy;
+        spec.text = text;
+        try {
+            std::size_t used = 0;
+            spec.noise_fraction = std::stod(text.substr(6), &used);
+            if (used != text.size() - 6) throw std::invalid_argument(text);
+        } catch (const std::logic_error&) {
+            throw std::invalid_argument(name + " '" + text + "' is invalid; expected flat, noisy:FRAC or FILE.exr");
+        }
+        try {
+            validate_noise_fraction(spec.noise_fraction);
+        } catch (const std::exception& e) {
+            throw std::domain_error(name + " " + text + ": " + e.what());
+        }
+        return spec;
+    }
+    spec.kind = InitKind::File;
+    spec.path = text;
+    return spec;
+}
+
+std::string to_string(const InitSpec& init) {
+    switch (init.kind) {
+        case InitKind::Flat: return "flat";
+        case InitKind::Noisy: {
+            if (!init.text.empty()) return init.text;
+            std::ostringstream out;
+            out.precision(17);
+            out << "noisy:" << init.noise_fraction;
+            return out.str();
+        }
+        case InitKind::File: return init.path;
+        case InitKind::Heights: return "heights";
+    }
+    return "flat";
+}
+
+std::set<int> parse_epoch_list(const std::string& text, const std::string& name) {
+    std::set<int> out;
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) {
+        try {
+            std::size_t used = 0;
+            const int e = std::stoi(item, &used);
+            if (used != item.size() || e < 0) throw std::invalid_argument(item);
+            out.insert(e);
+        } catch (const std::logic_error&) {
+            throw std::invalid_argument(name + " '" + text + "' is invalid; expected epochs like 0,10,30");
+        }
+    }
+    return out;
+}
+
+std::string format_epoch_list(const std::set<int>& epochs) {
+    std::string out;
+    for (int e : epochs) out += (out.empty() ? "" : ",") + std::to_string(e);
+    return out;
+}
+
+OptimizerKind parse_optimizer(const std::string& text, const std::string& name) {
+    if (text == "adam") return OptimizerKind::Adam;
+    if (text == "lbfgs") return OptimizerKind::Lbfgs;
+    throw std::invalid_argument(name + " '" + text + "' is unknown; expected adam or lbfgs");
+}
+
+const char* to_string(OptimizerKind optimizer) { return optimizer == OptimizerKind::Lbfgs ? "lbfgs" : "adam"; }
+
+void parse_size(const std::string& name, const std::string& text, int& rows, int& cols) {
+    const auto x = text.find_first_of("xX");
+    try {
+        std::size_t used = 0;
+        rows = std::stoi(text.substr(0, x), &used);
+        if (used != (x == std::string::npos ? text.size() : x)) throw std::invalid_argument(text);
+        cols = rows;
+        if (x != std::string::npos) {
+            cols = std::stoi(text.substr(x + 1), &used);
+            if (used != text.size() - x - 1) throw std::invalid_argument(text);
+        }
+    } catch (const std::logic_error&) {
+        throw std::invalid_argument(name + " '" + text + "' is invalid; expected N or NxM (e.g. 512 or 256x384)");
+    }
+    if (rows < 1 || cols < 1 || rows > 16384 || cols > 16384)
+        throw std::invalid_argument(name + " '" + text + "' is out of range; expected 1 to 16384 per side");
+}
+
+namespace {
+
+std::string grid(int rows, int cols) { return std::to_string(rows) + "x" + std::to_string(cols); }
+
+// The wavelengths of the options (spectral 8 when none is given).
+std::vector<double> option_wavelengths(const InversionOptions& o) {
+    const auto name = [&](const char* key) { return option_name(o.names, key); };
+    const int given = int(o.lambda_um.has_value()) + int(o.spectral.has_value()) + int(!o.wavelengths_um.empty());
+    if (given > 1) {
+        if (o.lambda_um && o.spectral) throw std::invalid_argument(name("lambda_um") + " and " + name("spectral") + " exclude each other");
+        throw std::invalid_argument(name("lambda_um") + ", " + name("spectral") + " and a list of wavelengths exclude each other");
+    }
+    if (o.lambda_um) {
+        try {
+            validate_lambda(*o.lambda_um);
+        } catch (const std::exception& e) {
+            throw std::domain_error(name("lambda_um") + ": " + std::string(e.what()));
+        }
+        return {*o.lambda_um};
+    }
+    if (!o.wavelengths_um.empty()) {
+        for (double l : o.wavelengths_um) validate_lambda(l);
+        return o.wavelengths_um;
+    }
+    const int count = o.spectral ? *o.spectral : 8;
+    if (count < 1 || count > k_max_spectral_samples)
+        throw std::domain_error(name("spectral") + " " + std::to_string(count) + " is out of range; expected 1 to " +
+                                std::to_string(k_max_spectral_samples));
+    return spectral_wavelengths_um(count);
+}
+
+}  // namespace
+
+PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Heightfield> truth,
+                                    std::optional<std::vector<Observation>> observations,
+                                    std::optional<Heightfield> initial) {
+    const auto name = [&](const char* key) { return option_name(o.names, key); };
+    const MemoryLimit memory = memory_limit(o.max_memory_gb);
+    const std::string hint = o.names == OptionStyle::Cli ? "--max-memory-gb" : "max_memory_gb=";
+
+    // Settings, checked before any work.
+    PreparedInversion p;
+    InversionSettings& settings = p.settings;
+    settings.loss = o.loss;
+    settings.optimizer = o.optimizer;
+    settings.adam = o.adam;
+    validate_iterations(o.epochs, name("epochs"));
+    settings.epochs = o.epochs;
+    settings.seed = o.seed;
+    if (o.positions.kind == PositionsKind::Random) settings.positions = PositionMode::Random;
+    if (o.positions.kind == PositionsKind::List && o.positions.positions_um.empty())
+        throw std::invalid_argument(name("positions") + " is an empty list; expected at least one (x_um, y_um)");
+    if (o.checkpoint_every < 1)
+        throw std::invalid_argument(name("checkpoint_every") + " " + std::to_string(o.checkpoint_every) +
+                                    " is invalid; expected >= 1");
+    validate(settings);  // the Adam options with their own messages, bounds, L-BFGS vs random positions
+    const bool given_observations = observations.has_value() || !o.observations_path.empty();
+    const bool given_truth = truth.has_value() || !o.truth_path.empty();
+    if (o.init.kind == InitKind::Noisy) {
+        if (given_observations)
+            throw std::invalid_argument(name("init") + " noisy:FRAC needs " + name("truth") +
+                                        " (noise is added to the truth)");
+        try {
+            validate_noise_fraction(o.init.noise_fraction);
+        } catch (const std::exception& e) {
+            throw std::domain_error(name("init") + " " + to_string(o.init) + ": " + e.what());
+        }
+    }
+    if (o.init.kind == InitKind::Heights && !initial)
+        throw std::invalid_argument(name("init") + " is given as heights but none were passed; expected the initial heights");
+    const std::vector<double> lambdas = option_wavelengths(o);
+    validate_resolution(o.resolution);
+
+    // Truth, observations.
+    if (given_truth && given_observations)
+        throw std::invalid_argument(name("truth") + " and " + name("observations") + " exclude each other");
+    int rows = 0, cols = 0;
+    if (given_observations) {
+        p.observations = observations ? std::move(*observations)
+                                      : read_observations_json(o.observations_path, o.max_memory_gb);
+        if (p.observations.empty())
+            throw std::invalid_argument(name("observations") + " is empty; expected at least one observation");
+        rows = initial && o.init.kind == InitKind::Heights ? initial->rows() : o.rows;
+        cols = initial && o.init.kind == InitKind::Heights ? initial->cols() : o.cols;
+        if (settings.positions == PositionMode::Random && p.observations.size() < 2)
+            throw std::invalid_argument(name("positions") + " random with " + name("observations") +
+                                        " needs at least two observations");
+    } else {
+        if (truth) p.truth = std::move(*truth);
+        else if (!o.truth_path.empty()) p.truth = read_heightfield_exr(o.truth_path, o.texel_um, o.vscale);
+        // The built-in default: a generated isotropic surface (heights about ±1 texel, like
+        // the thesis's crop of the release's isotropic.exr).
+        else p.truth = default_inversion_truth(o.rows, o.cols, o.texel_um, o.vscale, o.seed);
+        rows = p.truth->rows();
+        cols = p.truth->cols();
+        Observation base;
+        base.query.model = o.model;
+        base.query.sigma_p_um = o.sigma_p_um;
+        base.query.omega_i = o.light;
+        base.lambdas_um = lambdas;
+        base.resolution = o.resolution;
+        std::vector<std::array<double, 2>> positions;
+        if (o.positions.kind == PositionsKind::List) positions = o.positions.positions_um;
+        else positions.push_back({o.x_um ? *o.x_um : 0.5 * p.truth->period_x_um(),
+                                  o.y_um ? *o.y_um : 0.5 * p.truth->period_y_um()});
+        // Before the references are rendered: the whole inversion's estimate against the limit.
+        std::vector<Observation> planned(positions.size(), base);
+        for (std::size_t i = 0; i < planned.size(); ++i) {
+            planned[i].query.x_um = positions[i][0];
+            planned[i].query.y_um = positions[i][1];
+        }
+        require_memory(estimate_inversion_bytes(*p.truth, planned, settings), memory,
+                       "invert (" + grid(rows, cols) + " heights, " + std::to_string(planned.size()) +
+                           " observation(s) of " + grid(o.resolution, o.resolution) + ")",
+                       hint);
+        p.observations = observe(*p.truth, base, positions, settings.render);
+    }
+
+    // The initial guess.
+    std::vector<double> start(static_cast<std::size_t>(rows) * cols, 0.0);
+    switch (o.init.kind) {
+        case InitKind::Flat: break;
+        case InitKind::Noisy: start = noisy_start(*p.truth, o.init.noise_fraction, o.seed); break;
+        case InitKind::File:
+        case InitKind::Heights: {
+            const Heightfield given =
+                o.init.kind == InitKind::File ? read_heightfield_exr(o.init.path, o.texel_um, o.vscale) : *initial;
+            const std::string what = o.init.kind == InitKind::File ? name("init") + " " + o.init.path : name("init");
+            if (given.rows() != rows || given.cols() != cols)
+                throw std::invalid_argument(what + " is " + grid(given.rows(), given.cols()) + "; expected " +
+                                            grid(rows, cols));
+            start = given.values();
+            break;
+        }
+    }
+    p.initial = Heightfield(rows, cols, std::move(start), o.texel_um, o.vscale);
+    if (given_observations)
+        require_memory(estimate_inversion_bytes(p.initial, p.observations, settings), memory,
+                       "invert (" + grid(rows, cols) + " heights, " + std::to_string(p.observations.size()) +
+                           " observation(s))",
+                       hint);
+    return p;
+}
+
+InversionRun::InversionRun(PreparedInversion prepared)
+    : m_prepared(std::move(prepared)),
+      m_inversion(m_prepared.observations, m_prepared.initial, m_prepared.settings,
+                  m_prepared.truth ? &*m_prepared.truth : nullptr) {}
+
+InversionStatus InversionRun::run(const Inversion::Callback& on_epoch) {
+    bool stopped = false;
+    m_inversion.run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>& gradient,
+                        const std::vector<std::vector<double>>& slices) {
+        if (on_epoch && !on_epoch(metrics, estimate, gradient, slices)) {
+            stopped = true;
+            return false;
+        }
+        return true;
+    });
+    return stopped ? InversionStatus::Stopped : InversionStatus::Completed;
+}
+
+// --- run.json ---------------------------------------------------------------------------------
+
+namespace {
+
+// `path` as stored in run.json: absolute, so that --resume finds it from any directory.
+std::string absolute_path(const std::string& path) {
+    return path.empty() ? path : fs::absolute(path).lexically_normal().string();
+}
+
+std::string size_text(int rows, int cols) { return rows == cols ? std::to_string(rows) : grid(rows, cols); }
+
+nlohmann::json to_json(const InversionOptions& o) {
+    if (!o.wavelengths_um.empty())
+        throw std::invalid_argument("a list of wavelengths cannot be stored in run.json; expected lambda_um or spectral");
+    if (o.positions.kind == PositionsKind::List && o.positions.path.empty())
+        throw std::invalid_argument("positions given as values cannot be stored in run.json; expected a positions file");
+    if (o.init.kind == InitKind::Heights)
+        throw std::invalid_argument("initial heights given as values cannot be stored in run.json; expected an EXR file");
+    std::string init = to_string(o.init);
+    if (o.init.kind == InitKind::File) init = absolute_path(init);
+    std::string positions = to_string(o.positions);
+    if (o.positions.kind == PositionsKind::List) positions = absolute_path(positions);
+    return {{"truth", absolute_path(o.truth_path)},
+            {"observations", absolute_path(o.observations_path)},
+            {"init", init},
+            {"size", size_text(o.rows, o.cols)},
+            {"texel_um", o.texel_um},
+            {"vscale", o.vscale},
+            {"x_um", o.x_um ? nlohmann::json(*o.x_um) : nlohmann::json(nullptr)},
+            {"y_um", o.y_um ? nlohmann::json(*o.y_um) : nlohmann::json(nullptr)},
+            {"sigma_p_um", o.sigma_p_um},
+            {"model", to_string(o.model)},
+            // Not given: 0 (a stored run has a non-zero value exactly when given).
+            {"lambda_um", o.lambda_um ? *o.lambda_um : 0.0},
+            {"spectral", o.spectral ? *o.spectral : 0},
+            {"light_x", o.light[0]},
+            {"light_y", o.light[1]},
+            {"resolution", o.resolution},
+            {"epochs", o.epochs},
+            {"optimizer", to_string(o.optimizer)},
+            {"loss", to_string(o.loss)},
+            {"positions", positions},
+            {"lr", o.adam.lr},
+            {"beta1", o.adam.beta1},
+            {"beta2", o.adam.beta2},
+            {"decay", o.adam.decay},
+            {"seed", o.seed},
+            {"snapshots", format_epoch_list(o.snapshots)},
+            {"checkpoint_every", o.checkpoint_every}};
+}
+
+// Throws nlohmann's exceptions for missing fields and wrong types, std::runtime_error for an
+// integer field that is not one (json_fields.h), and the parsers' errors.
+InversionOptions from_json(const nlohmann::json& j) {
+    InversionOptions o;
+    o.truth_path = j.at("truth").get<std::string>();
+    o.observations_path = j.at("observations").get<std::string>();
+    o.init = parse_init_spec(j.at("init").get<std::string>(), "--init");
+    parse_size("--size", j.at("size").get<std::string>(), o.rows, o.cols);
+    o.texel_um = j.at("texel_um").get<double>();
+    o.vscale = j.at("vscale").get<double>();
+    if (!j.at("x_um").is_null()) o.x_um = j.at("x_um").get<double>();
+    if (!j.at("y_um").is_null()) o.y_um = j.at("y_um").get<double>();
+    o.sigma_p_um = j.at("sigma_p_um").get<double>();
+    o.model = parse_model(j.at("model").get<std::string>());
+    const double lambda_um = j.at("lambda_um").get<double>();
+    if (lambda_um != 0.0) o.lambda_um = lambda_um;
+    // Integers must be integers in range (get<int> would read 8.7 as 8 and wrap 2^40 + 8 to 8).
+    const int spectral = detail::json_int32(j, "spectral", 0, k_max_spectral_samples, "");
+    if (spectral != 0) o.spectral = spectral;
+    o.light = {j.at("light_x").get<double>(), j.at("light_y").get<double>()};
+    o.resolution = detail::json_int32(j, "resolution", 1, 8192, "");
+    o.epochs = detail::json_int32(j, "epochs", 0, k_max_iterations, "");
+    o.optimizer = parse_optimizer(j.at("optimizer").get<std::string>(), "--optimizer");
+    o.loss = parse_loss(j.at("loss").get<std::string>());
+    o.positions = parse_positions_spec(j.at("positions").get<std::string>(), "--positions");
+    o.adam.lr = j.at("lr").get<double>();
+    o.adam.beta1 = j.at("beta1").get<double>();
+    o.adam.beta2 = j.at("beta2").get<double>();
+    o.adam.decay = j.at("decay").get<double>();
+    // Seeds are 64-bit unsigned: the upper half is a JSON unsigned integer, the rest as checked.
+    o.seed = j.at("seed").is_number_unsigned()
+                 ? j.at("seed").get<std::uint64_t>()
+                 : static_cast<std::uint64_t>(
+                       detail::json_int(j, "seed", 0, std::numeric_limits<long long>::max(), ""));
+    o.snapshots = parse_epoch_list(j.at("snapshots").get<std::string>(), "--snapshots");
+    o.checkpoint_every = detail::json_int32(j, "checkpoint_every", 1, std::numeric_limits<int>::max(), "");
+    return o;
+}
+
+// from_json with the errors prefixed by `where` (a file).
+InversionOptions options_from_json(const nlohmann::json& args, const std::string& where) {
+    try {
+        return from_json(args);
+    } catch (const nlohmann::json::exception& e) {
+        throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
+    } catch (const std::runtime_error& e) {  // an integer field out of range
+        throw std::runtime_error(where + ": " + std::string(e.what()));
+    }
+}
+
+}  // namespace
+
+std::string inversion_options_to_json(const InversionOptions& options) { return to_json(options).dump(1); }
+
+InversionOptions inversion_options_from_json(const std::string& text, const std::string& where) {
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {
+        throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
+    }
+    return options_from_json(j, where);
+}
+
+std::string metrics_csv(const std::vector<EpochMetrics>& history) {
+    std::ostringstream out;
+    out.precision(10);
+    out << "epoch,loss,brdf_mse,cmsle_1,cmsle_0.001,rgb_mse,rgb_gamma_mse,height_mse,seconds\n";
+    for (const EpochMetrics& m : history)
+        out << m.epoch << ',' << m.loss << ',' << m.brdf_mse << ',' << m.cmsle_1 << ',' << m.cmsle_0_001 << ','
+            << m.rgb_mse << ',' << m.rgb_gamma_mse << ',' << (std::isnan(m.height_mse) ? std::string("nan") : [&] {
+                   std::ostringstream s;
+                   s.precision(10);
+                   s << m.height_mse;
+                   return s.str();
+               }()) << ',' << m.seconds << '\n';
+    return out.str();
+}
+
+// --- the run directory --------------------------------------------------------------------------
+
+namespace {
+
+// The epochs of `run` in `dir`: snapshots, checkpoints on options.checkpoint_every and on a
+// stop, the final checkpoint, metrics, estimate and renders.
+InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& options, const std::string& dir,
+                                    const InversionDirectoryControl& control) {
+    Inversion& inversion = run.inversion();
+    const std::vector<Observation>& observations = run.prepared().observations;
+    const InversionSettings& settings = run.prepared().settings;
+    const int rows = inversion.estimate().rows(), cols = inversion.estimate().cols();
+    const int channels = observations[0].channels();
+
+    Progress progress("invert", settings.epochs + 1, control.show_progress);
+    progress.advance(inversion.epoch());
+    int last_checkpoint = inversion.epoch();
+    auto checkpoint = [&] {
+        inversion.save_checkpoint(dir + "/checkpoint.json");
+        write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history()));
+    };
+    const auto on_epoch = [&](const EpochMetrics& m, const Heightfield& estimate, const std::vector<double>& gradient,
+                              const std::vector<std::vector<double>>& slices) {
+        if (options.snapshots.count(m.epoch)) {
+            char name[64];
+            std::snprintf(name, sizeof name, "%04d.npy", m.epoch);
+            const std::string base = dir + "/snapshots/";
+            write_npy(base + "height_" + name, {std::size_t(rows), std::size_t(cols)}, heights_um(estimate));
+            const int n = observations[0].resolution;
+            write_npy(base + "slice_" + name, {std::size_t(n), std::size_t(n), std::size_t(channels)}, slices[0]);
+            std::vector<double> g = gradient.empty() ? std::vector<double>(estimate.values().size(), 0.0) : gradient;
+            write_npy(base + "gradient_" + name, {std::size_t(rows), std::size_t(cols)}, g);
+        }
+        char message[96];
+        std::snprintf(message, sizeof message, "epoch %d loss %.4g", m.epoch, m.loss);
+        progress.set_message(message);
+        progress.advance(1);
+        if (control.stop && control.stop()) {
+            checkpoint();
+            return false;
+        }
+        if (m.epoch - last_checkpoint >= options.checkpoint_every) {
+            checkpoint();
+            last_checkpoint = m.epoch;
+        }
+        return true;
+    };
+    // A failure midway (an exception from the run or from writing its outputs) keeps what was
+    // finished: the checkpoint and metrics of the last completed epoch and its estimate, each
+    // written on its own so that one failing write does not lose the others.
+    InversionDirectoryResult result;
+    try {
+        result.status = run.run(on_epoch);
+    } catch (const std::exception& e) {
+        std::vector<std::string> saved;
+        const auto keep = [&](const char* what, auto&& write) {
+            try {
+                write();
+                saved.push_back(what);
+            } catch (const std::exception&) {
+            }
+        };
+        keep("checkpoint.json", [&] { inversion.save_checkpoint(dir + "/checkpoint.json"); });
+        keep("metrics.csv", [&] { write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history())); });
+        keep("estimate.exr", [&] { write_heightfield_exr(dir + "/estimate.exr", inversion.estimate()); });
+        std::string list;
+        for (const std::string& name : saved) list += (list.empty() ? "" : ", ") + name;
+        throw std::runtime_error(std::string(e.what()) + "; the run stopped at epoch " +
+                                 std::to_string(inversion.epoch()) + " and " +
+                                 (saved.empty() ? std::string("nothing more could be written to ") + dir
+                                                : "its " + list + " are in " + dir));
+    }
+    progress.finish();
+    checkpoint();
+
+    // Final outputs.
+    const Heightfield& estimate = inversion.estimate();
+    write_heightfield_exr(dir + "/estimate.exr", estimate);
+    write_heightfield_png(dir + "/estimate.png", estimate);
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        char name[64];
+        std::snprintf(name, sizeof name, "/final_%03zu", i);
+        const auto slice = render_observation(estimate, observations[i], settings.render);
+        const RgbImage image = to_image(slice, observations[i].resolution, channels);
+        write_rgb_exr(dir + name + ".exr", image);
+        write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
+    }
+    result.epoch = inversion.epoch();
+    result.history = inversion.history();
+    return result;
+}
+
+}  // namespace
+
+InversionDirectoryResult run_inversion_in_directory(const InversionOptions& options, const std::string& dir,
+                                                    const InversionDirectoryControl& control) {
+    if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
+    // A new run goes into a new or empty directory (or, with force, one of invert's own runs).
+    check_run_directory(RunKind::Invert, dir, control.force);
+    const nlohmann::json args = to_json(options);  // refuses what run.json cannot hold, before any work
+    InversionRun run(prepare_inversion(options));
+    const PreparedInversion& p = run.prepared();
+    const std::vector<Observation>& observations = p.observations;
+    const int rows = p.initial.rows(), cols = p.initial.cols();
+    const int channels = observations[0].channels();
+
+    prepare_run_directory(RunKind::Invert, dir, control.force);
+    fs::create_directories(dir + "/snapshots");
+    check_writable(dir + "/metrics.csv");
+    const nlohmann::json run_json = {
+        {"args", args},
+        {"title", "wavebrdf invert: " + to_string(options.loss) + ", " + to_string(options.optimizer) + ", " +
+                      grid(rows, cols) + " heights, " + std::to_string(options.resolution) + "^2 slices, " +
+                      std::to_string(observations.size()) + " observation(s), positions " +
+                      to_string(options.positions)},
+        {"snapshot_epochs", std::vector<int>(options.snapshots.begin(), options.snapshots.end())},
+        {"channels", channels},
+        {"resolution", observations[0].resolution},
+        {"texel_um", options.texel_um},
+        {"truth", p.truth.has_value()},
+        {"observations", observations.size()}};
+    write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
+    const Observation& o = observations[0];
+    write_npy(dir + "/reference.npy", {std::size_t(o.resolution), std::size_t(o.resolution), std::size_t(channels)},
+              o.reference);
+    if (p.truth) {
+        write_npy(dir + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*p.truth));
+        write_heightfield_exr(dir + "/truth.exr", *p.truth);
+    }
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        char name[64];
+        std::snprintf(name, sizeof name, "/reference_%03zu", i);
+        const RgbImage image = to_image(observations[i].reference, observations[i].resolution, channels);
+        write_rgb_exr(dir + name + ".exr", image);
+        write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
+    }
+    return run_epochs(run, options, dir, control);
+}
+
+InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, std::optional<int> epochs,
+                                                       double max_memory_gb,
+                                                       const InversionDirectoryControl& control) {
+    const std::string where = dir + "/run.json";
+    std::ifstream in(where);
+    if (!in) throw std::runtime_error(where + ": cannot open; expected a directory written by 'wavebrdf invert --out'");
+    nlohmann::json run_json;
+    try {
+        run_json = nlohmann::json::parse(in);
+    } catch (const nlohmann::json::exception& e) {
+        throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
+    }
+    in.close();
+    nlohmann::json args;
+    try {
+        args = run_json.at("args");
+    } catch (const nlohmann::json::exception& e) {
+        throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
+    }
+    InversionOptions options = options_from_json(args, where);
+    if (!fs::exists(dir + "/checkpoint.json"))
+        throw std::runtime_error(dir + "/checkpoint.json: missing; nothing to resume");
+    if (epochs) options.epochs = *epochs;
+    options.max_memory_gb = max_memory_gb;
+
+    InversionRun run(prepare_inversion(options));
+    fs::create_directories(dir + "/snapshots");
+    check_writable(dir + "/metrics.csv");
+    Inversion& inversion = run.inversion();
+    inversion.load_checkpoint(dir + "/checkpoint.json");
+    if (options.epochs < inversion.epoch())
+        throw std::invalid_argument(option_name(options.names, "epochs") + " " + std::to_string(options.epochs) +
+                                    " is below the checkpoint's epoch " + std::to_string(inversion.epoch()) +
+                                    "; expected at least that many");
+    // The new target, for a later resume.
+    if (run_json["args"]["epochs"] != options.epochs) {
+        run_json["args"]["epochs"] = options.epochs;
+        write_text_atomically(where, run_json.dump(1) + "\n");
+    }
+    return run_epochs(run, options, dir, control);
+}
+
+}  // namespace wavebrdf
