@@ -11,24 +11,21 @@
 namespace wavebrdf {
 
 namespace detail {
-template <typename Float>
-KernelGradient separable_backward(const FootprintKernels&, const Query&, double, int,
-                                  const ComplexMatrix<Float>&, const std::vector<Float>&,
-                                  const SeparableFactors<Float>*);
 KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int,
                                const DirectField&, const std::vector<double>&);
 std::vector<double> direct_tangent(const FootprintKernels&, const Query&, double, int,
                                    const DirectField&, const KernelGradient&);
 }  // namespace detail
 
-void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
+namespace detail {
+
+void scatter_to_heights(int rows, int cols, double texel_um, double vscale, const FootprintKernels& k,
                         const KernelGradient& g, std::vector<double>& gradient) {
-    const double v = hf.vscale(), w = hf.texel_um();
-    const int rows = hf.rows(), cols = hf.cols();
+    const double v = vscale, w = texel_um;
     auto at = [&](int i, int j) -> double& {
         i = ((i % rows) + rows) % rows;
         j = ((j % cols) + cols) % cols;
-        return gradient[hf.index(i, j)];
+        return gradient[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)];
     };
     for (std::size_t idx = 0; idx < k.size(); ++idx) {
         const int i = k.row[idx], j = k.col[idx];
@@ -38,6 +35,20 @@ void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
         at(i, j + 1) += 0.5 * v * g.slope_y[idx];     // s_y = v (h[i][j+1] − h[i][j−1]) / 2
         at(i, j - 1) -= 0.5 * v * g.slope_y[idx];
     }
+}
+
+void prepare_gradient(std::vector<double>& gradient, std::size_t cells) {
+    if (gradient.empty()) gradient.assign(cells, 0.0);
+    if (gradient.size() != cells)
+        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
+                                    " entries; expected rows*cols = " + std::to_string(cells));
+}
+
+}  // namespace detail
+
+void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
+                        const KernelGradient& g, std::vector<double>& gradient) {
+    detail::scatter_to_heights(hf.rows(), hf.cols(), hf.texel_um(), hf.vscale(), k, g, gradient);
 }
 
 namespace {
@@ -124,8 +135,9 @@ void SliceAdjoint<Float>::backward(const std::vector<Float>& weights, std::vecto
         throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
                                     " entries; expected rows*cols = " + std::to_string(cells));
     const KernelGradient g =
-        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, s.lambda_um, s.n, s.separable_field,
-                                                      weights, &s.factors)
+        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, s.lambda_um, s.n,
+                                                      detail::SliceGrid(s.query, s.lambda_um, s.n), nullptr,
+                                                      nullptr, s.separable_field, weights, &s.factors)
                     : detail::direct_backward(s.kernels, s.query, s.lambda_um, s.n, s.direct,
                                               std::vector<double>(weights.begin(), weights.end()));
     scatter_to_heights(*s.heightfield, s.kernels, g, gradient);
