@@ -1,15 +1,15 @@
 // Rendering slices and their vector-Jacobian products (brdf.h, adjoint.h), the Query, and the
 // spectral helpers (spectrum.h).
 //
-// RGB and the adjoint: a slice is always (n, n, 3). One wavelength λ gives R = G = B = f_λ, so
-// the gradient of Σ W·slice is that of Σ_p (W_R + W_G + W_B)[p] · f_λ[p]. Several wavelengths
-// give channel c = Σ_l M[c, l] f_l with M the library's CIE 1931 → linear sRGB weights
-// (spectral_to_srgb_weights, as render_rgb and observation_loss use), so the gradient is
-// Σ_l of the single-wavelength adjoint with weights w_l[p] = Σ_c M[c, l] W_c[p].
+// RGB and the adjoint: a slice is always (n, n, 3), the library's spectral mix
+// (spectral_mix_weights, spectrum.h): one wavelength λ gives R = G = B = f_λ, several give
+// channel c = Σ_l M[c, l] f_l (CIE 1931 → linear sRGB). The gradient is the library's
+// SlicePlan adjoint, which maps W back with mix_spectral_to_rgb_adjoint:
+// w_l[p] = Σ_c M[c, l] W_c[p]. This file only converts and validates.
 #include "common.h"
-#include "gabor_rep.h"
-#include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/slice_plan.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf::python {
@@ -28,21 +28,15 @@ py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n) {
     return owning_array(std::move(rgb), {n, n, 3});
 }
 
-// ∂(Σ W · rgb)/∂h (rows·cols, texel units) for RGB weights W (n²·3), see the top of this file.
+// ∂(Σ W · rgb)/∂h (rows·cols, texel units) for RGB weights W (n²·3): the library's SlicePlan
+// adjoint (its spectral mix adjoint, see the top of this file).
 template <typename Float>
 std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n, const std::vector<double>& weights) {
     InterruptibleRelease release;
-    const std::size_t pixels = static_cast<std::size_t>(n) * n;
-    const std::size_t count = q.lambdas_um.size();
-    const std::vector<double> mix = count == 1 ? std::vector<double>{1.0, 1.0, 1.0} : spectral_to_srgb_weights(q.lambdas_um);
+    SlicePlan<Float> plan(hf, q.query, q.lambdas_um, n, 3);
+    plan.forward();
     std::vector<double> gradient;
-    std::vector<Float> w(pixels);
-    for (std::size_t l = 0; l < count; ++l) {
-        for (std::size_t p = 0; p < pixels; ++p)
-            w[p] = Float(mix[l] * weights[3 * p] + mix[count + l] * weights[3 * p + 1] +
-                         mix[2 * count + l] * weights[3 * p + 2]);
-        slice_gradient<Float>(hf, q.query, q.lambdas_um[l], n, w, gradient);
-    }
+    plan.adjoint(weights, gradient);
     return gradient;
 }
 
@@ -214,28 +208,20 @@ The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear 
 (precision='double') or float32 ('float'); resolution 1...8192.
 )doc");
     m.def("render",
-          [](const GaborRep& rep, const PyQuery& q, int resolution, const std::string& precision) {
+          [](const GaborRepresentation& rep, const PyQuery& q, int resolution, const std::string& precision) {
               check_resolution(resolution);
-              if (q.query.x_um != rep.x_um || q.query.y_um != rep.y_um || q.query.sigma_p_um != rep.sigma_p_um)
-                  throw py::value_error("query footprint (" + format_number(q.query.x_um) + ", " +
-                                        format_number(q.query.y_um) + ", sigma_p " + format_number(q.query.sigma_p_um) +
-                                        ") differs from the GaborRep's (" + format_number(rep.x_um) + ", " +
-                                        format_number(rep.y_um) + ", sigma_p " + format_number(rep.sigma_p_um) +
-                                        "); expected the query the GaborRep was made for");
-              const bool dbl = double_precision(precision);
-              for (double l : q.lambdas_um) validate_lambda(l);
-              if (dbl) {
+              if (double_precision(precision)) {
                   std::vector<double> rgb;
                   {
                       InterruptibleRelease release;
-                      rgb = render_kernels_rgb<double>(rep, q.query, q.lambdas_um, resolution);
+                      rgb = render_rgb<double>(rep, q.query, q.lambdas_um, resolution);
                   }
                   return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
               }
               std::vector<float> rgb;
               {
                   InterruptibleRelease release;
-                  rgb = render_kernels_rgb<float>(rep, q.query, q.lambdas_um, resolution);
+                  rgb = render_rgb<float>(rep, q.query, q.lambdas_um, resolution);
               }
               return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
           },
