@@ -49,6 +49,7 @@ void prepare_gradient(std::vector<double>& gradient, std::size_t cells) {
 
 void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
                         const KernelGradient& g, std::vector<double>& gradient) {
+    detail::prepare_gradient(gradient, hf.values().size());
     detail::scatter_to_heights(hf.rows(), hf.cols(), hf.texel_um(), hf.vscale(), k, g, gradient);
 }
 

@@ -96,6 +96,7 @@ double observation_loss(const Heightfield& hf, const std::vector<Observation>& o
         total += scale * loss_value(loss, estimate, o.reference, o.channels(), gradient ? &d_estimate : nullptr);
         if (gradient) plan.adjoint(d_estimate, *gradient, scale);
         if (rendered) (*rendered)[oi] = estimate;
+        plan.release();  // a cached plan keeps only its height-independent tables between calls
     }
     return total;
 }

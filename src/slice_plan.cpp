@@ -236,6 +236,18 @@ void SlicePlan<Float>::adjoint(const std::vector<double>& weights, std::vector<d
 }
 
 template <typename Float>
+void SlicePlan<Float>::release() {
+    State& s = *m_state;
+    for (typename State::Band& b : s.bands) {
+        b.field = detail::ComplexMatrix<Float>();
+        b.factors = detail::SeparableFactors<Float>();
+        b.direct = detail::DirectField();
+        b.slice = std::vector<Float>();
+    }
+    s.forward_done = false;
+}
+
+template <typename Float>
 bool SlicePlan<Float>::matches(const Heightfield& hf, const Query& query, const std::vector<double>& lambdas_um,
                                int resolution, int channels, const RenderOptions& options) const {
     const State& s = *m_state;

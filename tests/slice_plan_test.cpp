@@ -167,6 +167,8 @@ TEST(SlicePlanTest, BadInputThrows) {
     std::vector<double> wrong(7);
     test::expect_throw_naming<std::invalid_argument>([&] { plan.adjoint(std::vector<double>(16 * 16 * 3), wrong); },
                                                      "gradient has 7 entries");
+    plan.release();
+    test::expect_throw_naming<std::logic_error>([&] { plan.slice(0); }, "forward() first");
     SlicePlan<double> forward_only(hf, q, {0.5}, 16, 3, {}, false);
     forward_only.forward();
     test::expect_throw_naming<std::logic_error>([&] { forward_only.slice(0); }, "differentiable");

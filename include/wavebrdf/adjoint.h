@@ -80,7 +80,8 @@ struct KernelGradient {
 };
 
 // Chains per-kernel gradients to the raw heights: H = v·w·h[i][j] and the central-difference
-// slope stencil, which scatters ∂L/∂s to the four neighbours.
+// slope stencil, which scatters ∂L/∂s to the four neighbours. Adds into `gradient` (rows·cols;
+// resized and zeroed when empty; std::invalid_argument for another size).
 void scatter_to_heights(const Heightfield& heightfield, const FootprintKernels& kernels,
                         const KernelGradient& kernel_gradient, std::vector<double>& gradient);
 

@@ -65,6 +65,10 @@ public:
     void adjoint_wavelength(std::size_t wavelength, const std::vector<Float>& weights,
                             std::vector<double>& gradient) const;
 
+    // Frees what forward kept for the adjoint (every wavelength's field, factors and slice);
+    // the height-independent tables stay. adjoint and slice need a new forward afterwards.
+    void release();
+
     // True when this plan serves exactly these arguments (geometry, query, wavelengths,
     // resolution, channels, path and prune tolerance), so a cache can reuse it.
     bool matches(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um,
