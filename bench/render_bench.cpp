@@ -10,6 +10,7 @@
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/generate.h"
+#include "wavebrdf/slice_plan.h"
 #include "wavebrdf/spectrum.h"
 
 using namespace wavebrdf;
@@ -136,5 +137,50 @@ BENCHMARK_CAPTURE(gradient_tile_float, thesis_16_sigma4_32_float, 16, 4.0, 32)->
 BENCHMARK_CAPTURE(gradient_tile_double, thesis_16_sigma4_32_double, 16, 4.0, 32)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(gradient_tile_float, tile_256_sigma10_128_float, 256, 10.0, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(gradient_tile_double, tile_256_sigma10_128_double, 256, 10.0, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The slice plan (slice_plan.h) against the one-call functions on the same case: one loss
+// evaluation = forward and adjoint of every wavelength of an RGB slice, as an inversion epoch
+// does. plan_*: the plan is built once before the loop and each iteration sets new heights;
+// onecall_*: every iteration rebuilds everything (kernels, grids, phase tables, c1, mix).
+namespace {
+
+template <typename Float>
+void run_plan_epoch(benchmark::State& state, int size, double sigma_p_um, int resolution, int wavelengths,
+                    bool planned) {
+    const Heightfield& hf = tile(size);
+    Query q;
+    q.model = Model::OHS;
+    q.x_um = q.y_um = 0.5 * size * hf.texel_um();
+    q.sigma_p_um = sigma_p_um;
+    const std::vector<double> lambdas = spectral_wavelengths_um(wavelengths);
+    const std::vector<double> weights(static_cast<std::size_t>(resolution) * resolution * 3, 1.0);
+    std::vector<double> heights = hf.values();
+    SlicePlan<Float> plan(hf, q, lambdas, resolution, 3);
+    std::vector<double> grad;
+    for (auto _ : state) {
+        heights[0] += 1e-9;  // new heights every evaluation
+        grad.clear();
+        if (planned) {
+            plan.set_heights(heights);
+            benchmark::DoNotOptimize(plan.forward().data());
+            plan.adjoint(weights, grad);
+        } else {
+            SlicePlan<Float> fresh(hf.with_values(heights), q, lambdas, resolution, 3);
+            benchmark::DoNotOptimize(fresh.forward().data());
+            fresh.adjoint(weights, grad);
+        }
+        benchmark::DoNotOptimize(grad.data());
+    }
+}
+
+void plan_epoch(benchmark::State& s, int size, double sigma, int n, int l) { run_plan_epoch<double>(s, size, sigma, n, l, true); }
+void onecall_epoch(benchmark::State& s, int size, double sigma, int n, int l) { run_plan_epoch<double>(s, size, sigma, n, l, false); }
+
+}  // namespace
+
+BENCHMARK_CAPTURE(plan_epoch, thesis_16_sigma4_32_spectral8, 16, 4.0, 32, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(onecall_epoch, thesis_16_sigma4_32_spectral8, 16, 4.0, 32, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(plan_epoch, tile_256_sigma10_128_spectral8, 256, 10.0, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(onecall_epoch, tile_256_sigma10_128_spectral8, 256, 10.0, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();

@@ -1,15 +1,17 @@
 // Rendering slices and their vector-Jacobian products (brdf.h, adjoint.h), the Query, and the
 // spectral helpers (spectrum.h).
 //
-// RGB and the adjoint: a slice is always (n, n, 3). One wavelength λ gives R = G = B = f_λ, so
-// the gradient of Σ W·slice is that of Σ_p (W_R + W_G + W_B)[p] · f_λ[p]. Several wavelengths
-// give channel c = Σ_l M[c, l] f_l with M the library's CIE 1931 → linear sRGB weights
-// (spectral_to_srgb_weights, as render_rgb and observation_loss use), so the gradient is
-// Σ_l of the single-wavelength adjoint with weights w_l[p] = Σ_c M[c, l] W_c[p].
+// RGB and the adjoint: a slice is always (n, n, 3), the library's spectral mix
+// (spectral_mix_weights, spectrum.h): one wavelength λ gives R = G = B = f_λ, several give
+// channel c = Σ_l M[c, l] f_l (CIE 1931 → linear sRGB). The gradient is the library's
+// SlicePlan adjoint, which maps W back with mix_spectral_to_rgb_adjoint:
+// w_l[p] = Σ_c M[c, l] W_c[p]. This file only converts and validates.
+#include <memory>
+
 #include "common.h"
-#include "gabor_rep.h"
-#include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/slice_plan.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf::python {
@@ -28,21 +30,15 @@ py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n) {
     return owning_array(std::move(rgb), {n, n, 3});
 }
 
-// ∂(Σ W · rgb)/∂h (rows·cols, texel units) for RGB weights W (n²·3), see the top of this file.
+// ∂(Σ W · rgb)/∂h (rows·cols, texel units) for RGB weights W (n²·3): the library's SlicePlan
+// adjoint (its spectral mix adjoint, see the top of this file).
 template <typename Float>
 std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n, const std::vector<double>& weights) {
     InterruptibleRelease release;
-    const std::size_t pixels = static_cast<std::size_t>(n) * n;
-    const std::size_t count = q.lambdas_um.size();
-    const std::vector<double> mix = count == 1 ? std::vector<double>{1.0, 1.0, 1.0} : spectral_to_srgb_weights(q.lambdas_um);
+    SlicePlan<Float> plan(hf, q.query, q.lambdas_um, n, 3);
+    plan.forward();
     std::vector<double> gradient;
-    std::vector<Float> w(pixels);
-    for (std::size_t l = 0; l < count; ++l) {
-        for (std::size_t p = 0; p < pixels; ++p)
-            w[p] = Float(mix[l] * weights[3 * p] + mix[count + l] * weights[3 * p + 1] +
-                         mix[2 * count + l] * weights[3 * p + 2]);
-        slice_gradient<Float>(hf, q.query, q.lambdas_um[l], n, w, gradient);
-    }
+    plan.adjoint(weights, gradient);
     return gradient;
 }
 
@@ -78,6 +74,24 @@ Plain plain_arguments(py::handle heights, double texel_um, double vscale, double
     Heightfield hf = heightfield_from_array(h, "heights", texel_um, vscale);
     check_resolution(resolution);
     return {std::move(hf), single, make_query(x_um, y_um, sigma_p_um, light, model, lambda_um, spectral)};
+}
+
+// A differentiable plan of the plain functions' arguments (wavebrdf.torch keeps one per
+// forward for its backward): float32 heights plan in single precision, float64 in double.
+struct PyPlan {
+    std::unique_ptr<SlicePlan<float>> single_plan;
+    std::unique_ptr<SlicePlan<double>> double_plan;
+    int n = 0, rows = 0, cols = 0;
+};
+
+template <typename Float>
+py::array plan_forward(SlicePlan<Float>& plan, int n) {
+    std::vector<Float> out;
+    {
+        InterruptibleRelease release;
+        out = plan.forward();
+    }
+    return owning_array(std::move(out), {n, n, 3});
 }
 
 std::string query_repr(const PyQuery& q) {
@@ -176,6 +190,46 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
                        "linear RGB. The same as `wavebrdf render` with the same options.\n") + kPlainArgs)
               .c_str());
 
+    py::class_<PyPlan>(m, "_SlicePlan", R"doc(
+Internal (wavebrdf.torch): the library's SlicePlan for render_slice's arguments, so that a
+backward pass reuses its forward. forward() -> the (n, n, 3) slice; adjoint(weights) -> the
+gradient of sum(weights * slice) (as slice_gradient, after forward()).
+)doc")
+        .def(py::init([](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
+                         double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
+                         const py::object& light, const std::string& model) {
+                 const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
+                                                 spectral, light, resolution, model);
+                 PyPlan p;
+                 p.n = resolution;
+                 p.rows = a.hf.rows();
+                 p.cols = a.hf.cols();
+                 if (a.single)
+                     p.single_plan = std::make_unique<SlicePlan<float>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3);
+                 else
+                     p.double_plan = std::make_unique<SlicePlan<double>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3);
+                 return p;
+             }),
+             "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
+             "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
+             "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS")
+        .def("forward", [](PyPlan& p) {
+            return p.single_plan ? plan_forward(*p.single_plan, p.n) : plan_forward(*p.double_plan, p.n);
+        })
+        .def("adjoint", [](const PyPlan& p, py::handle weights) {
+            const std::vector<double> w = weights_argument(weights, p.n);
+            std::vector<double> g;
+            {
+                InterruptibleRelease release;
+                if (p.single_plan)
+                    p.single_plan->adjoint(w, g);
+                else
+                    p.double_plan->adjoint(w, g);
+            }
+            if (!p.single_plan) return py::array(owning_array(std::move(g), {p.rows, p.cols}));
+            return py::array(owning_array(std::vector<float>(g.begin(), g.end()), {p.rows, p.cols}));
+        }, "weights"_a);
+
     m.def("slice_gradient",
           [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale, double x_um,
              double y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
@@ -214,28 +268,20 @@ The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear 
 (precision='double') or float32 ('float'); resolution 1...8192.
 )doc");
     m.def("render",
-          [](const GaborRep& rep, const PyQuery& q, int resolution, const std::string& precision) {
+          [](const GaborRepresentation& rep, const PyQuery& q, int resolution, const std::string& precision) {
               check_resolution(resolution);
-              if (q.query.x_um != rep.x_um || q.query.y_um != rep.y_um || q.query.sigma_p_um != rep.sigma_p_um)
-                  throw py::value_error("query footprint (" + format_number(q.query.x_um) + ", " +
-                                        format_number(q.query.y_um) + ", sigma_p " + format_number(q.query.sigma_p_um) +
-                                        ") differs from the GaborRep's (" + format_number(rep.x_um) + ", " +
-                                        format_number(rep.y_um) + ", sigma_p " + format_number(rep.sigma_p_um) +
-                                        "); expected the query the GaborRep was made for");
-              const bool dbl = double_precision(precision);
-              for (double l : q.lambdas_um) validate_lambda(l);
-              if (dbl) {
+              if (double_precision(precision)) {
                   std::vector<double> rgb;
                   {
                       InterruptibleRelease release;
-                      rgb = render_kernels_rgb<double>(rep, q.query, q.lambdas_um, resolution);
+                      rgb = render_rgb<double>(rep, q.query, q.lambdas_um, resolution);
                   }
                   return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
               }
               std::vector<float> rgb;
               {
                   InterruptibleRelease release;
-                  rgb = render_kernels_rgb<float>(rep, q.query, q.lambdas_um, resolution);
+                  rgb = render_rgb<float>(rep, q.query, q.lambdas_um, resolution);
               }
               return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
           },

@@ -1,50 +1,14 @@
-// GaborRep: the Gabor kernels of a heightfield within one footprint (gabor.h), and the inverse
-// transform from kernel heights back to heightfield values.
+// GaborRep: the binding of GaborRepresentation (gabor.h): the Gabor kernels of a heightfield
+// within one footprint and the inverse transform (heights_from_kernels); conversion only.
 #include <cmath>
 #include <limits>
 
 #include "common.h"
-#include "gabor_rep.h"
-#include "wavebrdf/brdf.h"
-#include "wavebrdf/spectrum.h"
+#include "wavebrdf/gabor.h"
 
 namespace wavebrdf::python {
 
 using namespace pybind11::literals;
-
-GaborRep::GaborRep(const Heightfield& hf, double x, double y, double sigma_p)
-    : kernels(footprint_kernels(hf, x, y, sigma_p)), rows(hf.rows()), cols(hf.cols()),
-      texel_um(hf.texel_um()), vscale(hf.vscale()), x_um(x), y_um(y), sigma_p_um(sigma_p) {}
-
-template <typename Float>
-std::vector<Float> render_kernels_rgb(const GaborRep& rep, const Query& query, const std::vector<double>& lambdas,
-                                      int n) {
-    // As render_rgb (brdf.h), from kernels gathered once: the separable path for OHS/ROHS, the
-    // direct sum with the default pruning bound otherwise.
-    const RenderOptions defaults;
-    auto one = [&](double lambda) {
-        return is_separable(query.model)
-                   ? render_slice_separable<Float>(rep.kernels, query, lambda, n)
-                   : render_slice_direct<Float>(rep.kernels, query, lambda, n, defaults.prune_tolerance);
-    };
-    const std::size_t pixels = static_cast<std::size_t>(n) * n;
-    std::vector<Float> rgb(3 * pixels, Float(0));
-    if (lambdas.size() == 1) {
-        const std::vector<Float> f = one(lambdas[0]);
-        for (std::size_t p = 0; p < pixels; ++p) rgb[3 * p] = rgb[3 * p + 1] = rgb[3 * p + 2] = f[p];
-        return rgb;
-    }
-    const std::vector<double> w = spectral_to_srgb_weights(lambdas);
-    const std::size_t count = lambdas.size();
-    for (std::size_t l = 0; l < count; ++l) {
-        const std::vector<Float> f = one(lambdas[l]);
-        for (std::size_t p = 0; p < pixels; ++p)
-            for (std::size_t c = 0; c < 3; ++c) rgb[3 * p + c] += Float(w[c * count + l]) * f[p];
-    }
-    return rgb;
-}
-template std::vector<float> render_kernels_rgb<float>(const GaborRep&, const Query&, const std::vector<double>&, int);
-template std::vector<double> render_kernels_rgb<double>(const GaborRep&, const Query&, const std::vector<double>&, int);
 
 namespace {
 
@@ -52,21 +16,7 @@ py::array_t<double> doubles(const std::vector<double>& v, py::handle owner) {
     return readonly_view<double>(v.data(), {static_cast<py::ssize_t>(v.size())}, owner);
 }
 
-// Heights in texel units from kernel heights H_k = v · w · h (µm) at each kernel's texel;
-// `fill` where no kernel lies.
-std::vector<double> kernel_heights_to_values(const GaborRep& rep, const std::vector<double>& height_um,
-                                             const std::vector<double>& fill) {
-    if (rep.vscale == 0.0)
-        throw py::value_error("GaborRep has vscale = 0: kernel heights H = v * w * h are all 0 and the heights "
-                              "cannot be recovered; expected vscale != 0");
-    std::vector<double> values = fill;
-    const double scale = 1.0 / (rep.vscale * rep.texel_um);
-    for (std::size_t k = 0; k < rep.kernels.size(); ++k)
-        values[static_cast<std::size_t>(rep.kernels.row[k]) * rep.cols + rep.kernels.col[k]] = height_um[k] * scale;
-    return values;
-}
-
-std::vector<double> kernel_heights_argument(const GaborRep& rep, py::handle height_um) {
+std::vector<double> kernel_heights_argument(const GaborRepresentation& rep, py::handle height_um) {
     if (height_um.is_none()) return rep.kernels.height_um;
     const py::array a = float_array(height_um, "height_um");
     check_shape(a, {static_cast<py::ssize_t>(rep.kernels.size())}, "height_um");
@@ -76,7 +26,7 @@ std::vector<double> kernel_heights_argument(const GaborRep& rep, py::handle heig
 }  // namespace
 
 void bind_gabor(py::module_& m) {
-    py::class_<GaborRep> cls(m, "GaborRep", R"doc(
+    py::class_<GaborRepresentation> cls(m, "GaborRep", R"doc(
 The Gabor kernels of a heightfield that fall within 3 sigma_p of a footprint centre (the
 model's cut; MODEL.md "Gabor kernels"), independent of wavelength and directions: one kernel
 per texel, at its nearest periodic image. Arrays are read-only float64 views (kernel order):
@@ -96,40 +46,40 @@ kernel heights (h = H / (vscale * texel_um)); slopes follow from the heights and
 independent parameters, so they are not used.
 )doc");
     cls.def(py::init([](const Heightfield& hf, const PyQuery& q) {
-                return GaborRep(hf, q.query.x_um, q.query.y_um, q.query.sigma_p_um);
+                return GaborRepresentation(hf, q.query.x_um, q.query.y_um, q.query.sigma_p_um);
             }),
             "heightfield"_a, "query"_a)
         .def(py::init([](const Heightfield& hf, py::object x_um, py::object y_um, double sigma_p_um) {
                  const double x = x_um.is_none() ? 0.5 * hf.period_x_um() : check_finite(x_um.cast<double>(), "x_um");
                  const double y = y_um.is_none() ? 0.5 * hf.period_y_um() : check_finite(y_um.cast<double>(), "y_um");
-                 return GaborRep(hf, x, y, check_positive(sigma_p_um, "sigma_p_um"));
+                 return GaborRepresentation(hf, x, y, check_positive(sigma_p_um, "sigma_p_um"));
              }),
              "heightfield"_a, "x_um"_a = py::none(), "y_um"_a = py::none(), "sigma_p_um"_a = 10.0)
-        .def("__len__", [](const GaborRep& r) { return r.kernels.size(); })
-        .def_property_readonly("size", [](const GaborRep& r) { return r.kernels.size(); }, "number of kernels")
-        .def_property_readonly("x_um", [](const GaborRep& r) { return r.x_um; }, "footprint centre along x, um")
-        .def_property_readonly("y_um", [](const GaborRep& r) { return r.y_um; }, "footprint centre along y, um")
-        .def_property_readonly("sigma_p_um", [](const GaborRep& r) { return r.sigma_p_um; }, "footprint sigma_p, um")
-        .def_property_readonly("sigma_um", [](const GaborRep& r) { return r.kernels.sigma_um; }, "kernel sigma = texel_um / 2, um")
-        .def_property_readonly("shape", [](const GaborRep& r) { return py::make_tuple(r.rows, r.cols); },
+        .def("__len__", [](const GaborRepresentation& r) { return r.kernels.size(); })
+        .def_property_readonly("size", [](const GaborRepresentation& r) { return r.kernels.size(); }, "number of kernels")
+        .def_property_readonly("x_um", [](const GaborRepresentation& r) { return r.x_um; }, "footprint centre along x, um")
+        .def_property_readonly("y_um", [](const GaborRepresentation& r) { return r.y_um; }, "footprint centre along y, um")
+        .def_property_readonly("sigma_p_um", [](const GaborRepresentation& r) { return r.sigma_p_um; }, "footprint sigma_p, um")
+        .def_property_readonly("sigma_um", [](const GaborRepresentation& r) { return r.kernels.sigma_um; }, "kernel sigma = texel_um / 2, um")
+        .def_property_readonly("shape", [](const GaborRepresentation& r) { return py::make_tuple(r.rows, r.cols); },
                                "(rows, cols) of the heightfield")
-        .def_property_readonly("texel_um", [](const GaborRep& r) { return r.texel_um; })
-        .def_property_readonly("vscale", [](const GaborRep& r) { return r.vscale; })
+        .def_property_readonly("texel_um", [](const GaborRepresentation& r) { return r.texel_um; })
+        .def_property_readonly("vscale", [](const GaborRepresentation& r) { return r.vscale; })
         .def_property_readonly("row", [](py::object self) {
-            const auto& r = self.cast<const GaborRep&>();
+            const auto& r = self.cast<const GaborRepresentation&>();
             return readonly_view<int>(r.kernels.row.data(), {static_cast<py::ssize_t>(r.kernels.size())}, self);
         })
         .def_property_readonly("col", [](py::object self) {
-            const auto& r = self.cast<const GaborRep&>();
+            const auto& r = self.cast<const GaborRepresentation&>();
             return readonly_view<int>(r.kernels.col.data(), {static_cast<py::ssize_t>(r.kernels.size())}, self);
         })
-        .def_property_readonly("dx_um", [](py::object self) { return doubles(self.cast<const GaborRep&>().kernels.dx_um, self); })
-        .def_property_readonly("dy_um", [](py::object self) { return doubles(self.cast<const GaborRep&>().kernels.dy_um, self); })
-        .def_property_readonly("weight", [](py::object self) { return doubles(self.cast<const GaborRep&>().kernels.weight, self); })
-        .def_property_readonly("height_um", [](py::object self) { return doubles(self.cast<const GaborRep&>().kernels.height_um, self); })
-        .def_property_readonly("slope_x", [](py::object self) { return doubles(self.cast<const GaborRep&>().kernels.slope_x, self); })
-        .def_property_readonly("slope_y", [](py::object self) { return doubles(self.cast<const GaborRep&>().kernels.slope_y, self); })
-        .def_property_readonly("positions_um", [](const GaborRep& r) {
+        .def_property_readonly("dx_um", [](py::object self) { return doubles(self.cast<const GaborRepresentation&>().kernels.dx_um, self); })
+        .def_property_readonly("dy_um", [](py::object self) { return doubles(self.cast<const GaborRepresentation&>().kernels.dy_um, self); })
+        .def_property_readonly("weight", [](py::object self) { return doubles(self.cast<const GaborRepresentation&>().kernels.weight, self); })
+        .def_property_readonly("height_um", [](py::object self) { return doubles(self.cast<const GaborRepresentation&>().kernels.height_um, self); })
+        .def_property_readonly("slope_x", [](py::object self) { return doubles(self.cast<const GaborRepresentation&>().kernels.slope_x, self); })
+        .def_property_readonly("slope_y", [](py::object self) { return doubles(self.cast<const GaborRepresentation&>().kernels.slope_y, self); })
+        .def_property_readonly("positions_um", [](const GaborRepresentation& r) {
             std::vector<double> p(2 * r.kernels.size());
             for (std::size_t k = 0; k < r.kernels.size(); ++k) {
                 p[2 * k] = r.x_um + r.kernels.dx_um[k];
@@ -137,24 +87,23 @@ independent parameters, so they are not used.
             }
             return owning_array(std::move(p), {static_cast<py::ssize_t>(r.kernels.size()), 2});
         }, "(size, 2) kernel centres mu_k = footprint centre + (dx_um, dy_um), um (a new array)")
-        .def_property_readonly("covered", [](const GaborRep& r) {
+        .def_property_readonly("covered", [](const GaborRepresentation& r) {
             py::array_t<bool> mask({r.rows, r.cols});
             std::fill(mask.mutable_data(), mask.mutable_data() + mask.size(), false);
             for (std::size_t k = 0; k < r.kernels.size(); ++k)
                 mask.mutable_data()[static_cast<std::size_t>(r.kernels.row[k]) * r.cols + r.kernels.col[k]] = true;
             return mask;
         }, "(rows, cols) bool mask of the texels that have a kernel")
-        .def("to_heights", [](const GaborRep& r, py::handle height_um, double fill) {
-            const std::vector<double> values = kernel_heights_to_values(
-                r, kernel_heights_argument(r, height_um),
-                std::vector<double>(static_cast<std::size_t>(r.rows) * r.cols, fill));
+        .def("to_heights", [](const GaborRepresentation& r, py::handle height_um, double fill) {
+            const std::vector<double> values = r.heights_from_kernels(
+                kernel_heights_argument(r, height_um), std::vector<double>(static_cast<std::size_t>(r.rows) * r.cols, fill));
             return owning_array(std::vector<double>(values), {r.rows, r.cols});
         }, "height_um"_a = py::none(), "fill"_a = std::numeric_limits<double>::quiet_NaN(), R"doc(
 The inverse transform: heightfield values in texel units, h = H_k / (vscale * texel_um), at
 each kernel's texel; ``fill`` (default NaN) where no kernel lies. ``height_um`` (length
 ``size``, um) replaces the kernel heights; default: this representation's own.
 )doc")
-        .def("to_heightfield", [](const GaborRep& r, py::handle height_um, const Heightfield* base) {
+        .def("to_heightfield", [](const GaborRepresentation& r, py::handle height_um, const Heightfield* base) {
             std::vector<double> fill;
             if (base) {
                 if (base->rows() != r.rows || base->cols() != r.cols)
@@ -164,7 +113,7 @@ each kernel's texel; ``fill`` (default NaN) where no kernel lies. ``height_um`` 
             } else {
                 fill.assign(static_cast<std::size_t>(r.rows) * r.cols, std::numeric_limits<double>::quiet_NaN());
             }
-            const std::vector<double> values = kernel_heights_to_values(r, kernel_heights_argument(r, height_um), fill);
+            const std::vector<double> values = r.heights_from_kernels(kernel_heights_argument(r, height_um), fill);
             if (!base)
                 for (double v : values)
                     if (std::isnan(v))
@@ -177,7 +126,7 @@ The inverse transform as a Heightfield (same texel_um and vscale): kernel height
 representation's, or ``height_um``) at the covered texels, ``base``'s values elsewhere
 (required unless every texel is covered).
 )doc")
-        .def("__repr__", [](const GaborRep& r) {
+        .def("__repr__", [](const GaborRepresentation& r) {
             return "GaborRep(" + std::to_string(r.kernels.size()) + " kernels of a " + std::to_string(r.rows) + "x" +
                    std::to_string(r.cols) + " heightfield, centre (" + format_number(r.x_um) + ", " +
                    format_number(r.y_um) + ") um, sigma_p " + format_number(r.sigma_p_um) + " um)";

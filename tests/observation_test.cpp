@@ -212,3 +212,36 @@ TEST(ObservationTest, ObservationSetThatCannotFitIsRefusedBeforeReadingReference
         EXPECT_NE(message.find("(max-memory-gb)"), std::string::npos) << message;
     }
 }
+
+// The plan cache gives the uncached loss and gradient bit for bit, builds each observation's
+// plan once however many epochs use it, and the gradient accumulates (adjoint.h).
+TEST(ObservationPlansTest, CachedLossEqualsUncachedAndBuildsEachPlanOnce) {
+    const Heightfield truth = random_heightfield(16, 16, 0.3, 21, 1.0, 1.0);
+    std::vector<Observation> obs(2);
+    obs[0].query = test::make_query(Model::OHS, 5.0, 6.0, 3.0, 0.1, 0.0);
+    obs[0].lambdas_um = spectral_wavelengths_um(3);
+    obs[0].resolution = 12;
+    obs[1].query = test::make_query(Model::OHS, 11.0, 2.0, 3.0);
+    obs[1].lambdas_um = {0.5};
+    obs[1].resolution = 10;
+    for (Observation& o : obs) o.reference = render_observation(truth, o);
+    const Loss loss{LossKind::CMSLE, 1.0};
+    ObservationPlans plans;
+    for (std::uint64_t seed : {22u, 23u, 24u}) {
+        const Heightfield estimate = random_heightfield(16, 16, 0.3, seed, 1.0, 1.0);
+        std::vector<double> g_plain, g_cached;
+        const double plain = observation_loss(estimate, obs, loss, &g_plain);
+        const double cached = observation_loss(estimate, obs, loss, &g_cached, {}, nullptr, &plans);
+        EXPECT_EQ(plain, cached);
+        EXPECT_EQ(g_plain, g_cached);
+        // A non-empty gradient is added to.
+        std::vector<double> twice = g_plain;
+        observation_loss(estimate, obs, loss, &twice, {}, nullptr, &plans);
+        for (std::size_t i = 0; i < twice.size(); ++i) EXPECT_NEAR(twice[i], 2.0 * g_plain[i], 1e-12 * test::max_abs(g_plain));
+    }
+    EXPECT_EQ(plans.built(), 2u);
+    EXPECT_EQ(plans.size(), 2u);
+    std::vector<double> wrong(3);
+    test::expect_throw_naming<std::invalid_argument>(
+        [&] { observation_loss(truth, obs, loss, &wrong); }, "gradient has 3 entries");
+}

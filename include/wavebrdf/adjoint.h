@@ -7,6 +7,16 @@
 // Separable path (OHS, ROHS): with B = W ⊙ c1 ⊙ conj(I), the gradient needs Z = B·Y and
 // V = Bᵀ·X, two more matrix products of the forward's size. Direct path (all models): every
 // pixel scatters into per-kernel accumulators.
+// For many evaluations of the same queries, build a SlicePlan (slice_plan.h) once: the
+// functions here are one-call conveniences on top of it.
+//
+// The gradient convention (every gradient of the forward / adjoint / observation code):
+// a gradient output ACCUMULATES. `std::vector<double>& gradient` (or, where the gradient is
+// optional, a non-null `std::vector<double>* gradient`) receives the gradient ADDED to what it
+// holds; an empty vector is first resized to the expected size and zeroed; a non-empty vector
+// of any other size is refused (std::invalid_argument). So gradients of sums (wavelengths,
+// observations, positions) are sums of calls, and a caller that wants one gradient alone
+// passes an empty (or clear()ed) vector.
 #include <functional>
 #include <memory>
 #include <vector>
@@ -39,8 +49,8 @@ std::vector<Float> slice_gradient(
 template <typename Float>
 class SliceAdjoint {
 public:
-    // Validates like render_slice and runs the forward pass. Keeps a reference to
-    // `heightfield` (for the backward pass): it must outlive this object.
+    // Validates like render_slice and runs the forward pass (a one-wavelength SlicePlan). Holds
+    // no reference to `heightfield`.
     SliceAdjoint(const Heightfield& heightfield, const Query& query, double lambda_um,
                  int resolution, const RenderOptions& options = {});
     ~SliceAdjoint();
@@ -70,7 +80,8 @@ struct KernelGradient {
 };
 
 // Chains per-kernel gradients to the raw heights: H = v·w·h[i][j] and the central-difference
-// slope stencil, which scatters ∂L/∂s to the four neighbours.
+// slope stencil, which scatters ∂L/∂s to the four neighbours. Adds into `gradient` (rows·cols;
+// resized and zeroed when empty; std::invalid_argument for another size).
 void scatter_to_heights(const Heightfield& heightfield, const FootprintKernels& kernels,
                         const KernelGradient& kernel_gradient, std::vector<double>& gradient);
 

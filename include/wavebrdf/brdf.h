@@ -71,4 +71,12 @@ std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query
                               const std::vector<double>& lambdas_um, int resolution,
                               const RenderOptions& options = {});
 
+// The same from a Gabor representation gathered once for `query`'s footprint (x, y and σ_p
+// must equal the representation's: std::invalid_argument otherwise), honouring options.path
+// and options.prune_tolerance as render_rgb does (bit for bit the same values).
+template <typename Float>
+std::vector<Float> render_rgb(const GaborRepresentation& representation, const Query& query,
+                              const std::vector<double>& lambdas_um, int resolution,
+                              const RenderOptions& options = {});
+
 }  // namespace wavebrdf

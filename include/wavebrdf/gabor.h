@@ -41,6 +41,26 @@ void validate_footprint(double sigma_p_um, double period_x_um, double period_y_u
 FootprintKernels footprint_kernels(const Heightfield& heightfield, double x_um, double y_um,
                                    double sigma_p_um);
 
+// The Gabor representation of a heightfield within one footprint: its kernels with the
+// geometry needed to map them back to texels (the Python GaborRep).
+struct GaborRepresentation {
+    // The kernels of `heightfield` within 3σ_p of (x_um, y_um), as footprint_kernels (which
+    // validates σ_p against the tile).
+    GaborRepresentation(const Heightfield& heightfield, double x_um, double y_um, double sigma_p_um);
+
+    // The inverse transform: heightfield values (rows·cols, texel units) with
+    // h = H_k / (vscale · texel_um) at each kernel's texel and `fill` (rows·cols values)
+    // elsewhere. `height_um`: one kernel height per kernel (µm). Throws std::invalid_argument
+    // on a size mismatch and std::domain_error when vscale = 0 (the heights cannot be recovered).
+    std::vector<double> heights_from_kernels(const std::vector<double>& height_um,
+                                             std::vector<double> fill) const;
+
+    FootprintKernels kernels;
+    int rows, cols;
+    double texel_um, vscale;
+    double x_um, y_um, sigma_p_um;  // the footprint the kernels were gathered for
+};
+
 // Footprint window weight c(d) = exp(−d² / (2σ_p²)) / (√π σ_p) (L2-normalised, ∫c² = 1).
 double window_weight(double distance_sq_um2, double sigma_p_um);
 

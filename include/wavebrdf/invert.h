@@ -130,6 +130,7 @@ private:
     const Heightfield* m_truth;
     Adam m_adam;
     LbfgsState m_lbfgs;  // L-BFGS's curvature history at m_epoch (checkpointed)
+    mutable ObservationPlans m_plans;  // each observation's slice plan, built once
     int m_epoch = 0;
     double m_seconds_before = 0.0;
     std::vector<EpochMetrics> m_history;

@@ -2,11 +2,14 @@
 // Observations: reference BRDF slices with the queries that produced them, and the loss of a
 // heightfield against a set of them, with its gradient (summed over wavelengths, positions,
 // light directions; spectral slices through the CIE → sRGB weights).
+#include <cstddef>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/loss.h"
+#include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf {
 
@@ -28,13 +31,55 @@ void validate(const Observation& observation, std::size_t index = 0);
 std::vector<double> render_observation(const Heightfield& heightfield, const Observation& observation,
                                        const RenderOptions& options = {});
 
+// A cache of slice plans (slice_plan.h) for observations, so that repeated losses of the same
+// observations (an inversion's epochs) build each plan once. A plan is found again when the
+// observation's query, wavelengths and resolution, the heightfield's geometry and the render
+// path and prune tolerance are the same. It keeps at most `capacity` plans (observation_loss
+// raises it to 2 · its observations + 2), dropping the least recently used. Not thread-safe:
+// one cache per thread. Copying gives an empty cache (plans are rebuilt on use).
+class ObservationPlans {
+public:
+    ObservationPlans() = default;
+    ObservationPlans(const ObservationPlans&) {}
+    ObservationPlans& operator=(const ObservationPlans&) {
+        m_entries.clear();
+        return *this;
+    }
+    ObservationPlans(ObservationPlans&&) noexcept = default;
+    ObservationPlans& operator=(ObservationPlans&&) noexcept = default;
+
+    // The plan for `observation` (double precision, differentiable) with `heightfield`'s
+    // heights set; built when none matches. Arguments are validated as render_rgb does.
+    SlicePlan<double>& plan(const Heightfield& heightfield, const Observation& observation,
+                            const RenderOptions& options);
+    // Keeps at least this many plans from now on.
+    void reserve(std::size_t capacity);
+    std::size_t size() const { return m_entries.size(); }
+    // Plans built so far (for tests and benchmarks: a cache that works builds each once).
+    std::size_t built() const { return m_built; }
+
+private:
+    struct Entry {
+        std::unique_ptr<SlicePlan<double>> plan;
+        unsigned long long last_use = 0;
+    };
+    std::vector<Entry> m_entries;
+    std::size_t m_capacity = 2;
+    unsigned long long m_clock = 0;
+    std::size_t m_built = 0;
+};
+
 // The mean over observations of loss(render(heightfield), reference) and, when `gradient` is
-// not null, its gradient with respect to the raw heights (rows·cols, texel units; overwritten).
-// `rendered`, when not null, receives each observation's rendered slice.
+// not null, its gradient with respect to the raw heights (rows·cols, texel units), ADDED into
+// `*gradient` (the convention of adjoint.h: pass an empty vector for the gradient alone).
+// `rendered`, when not null, receives each observation's rendered slice. `plans`, when not
+// null, keeps each observation's slice plan for the next call (an inversion passes the same
+// cache every epoch); without it, each call builds and drops its plans.
 double observation_loss(const Heightfield& heightfield, const std::vector<Observation>& observations,
                         const Loss& loss, std::vector<double>* gradient,
                         const RenderOptions& options = {},
-                        std::vector<std::vector<double>>* rendered = nullptr);
+                        std::vector<std::vector<double>>* rendered = nullptr,
+                        ObservationPlans* plans = nullptr);
 
 // Observations as JSON (so measured or rendered slices can be given to `invert`):
 // {"observations": [{"x_um":…, "y_um":…, "sigma_p_um":…, "light": [wx, wy], "model": "OHS",

@@ -1,6 +1,7 @@
 #pragma once
 // Wavelength sampling and the conversion of spectral BRDF values to linear sRGB.
 #include <array>
+#include <cstddef>
 #include <vector>
 
 namespace wavebrdf {
@@ -27,6 +28,29 @@ std::vector<double> spectral_wavelengths_um(int count);
 // Throws std::invalid_argument on an empty list, std::domain_error on a non-positive or
 // non-finite wavelength and when the sampled white has Y ≤ 0 (no sample inside 360–830 nm).
 std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_um);
+
+// The spectral mix of the renderer (render_rgb, SlicePlan, observation_loss and the Python
+// bindings all use these three): the 3 × N matrix M (row-major, M[c * N + l]) that maps the
+// slices f_l of N wavelengths to RGB, rgb_c = Σ_l M[c, l] f_l. N ≥ 2: spectral_to_srgb_weights;
+// one wavelength: (1, 1, 1), its slice in R, G and B. Throws as spectral_to_srgb_weights.
+std::vector<double> spectral_mix_weights(const std::vector<double>& lambdas_um);
+
+// Forward: adds wavelength `wavelength`'s slice (pixels values) into `rgb` (3 · pixels,
+// channel-interleaved): rgb[3p + c] += Float(mix[c · N + wavelength]) · slice[p], N =
+// mix.size() / 3. Called once per wavelength on a zeroed `rgb`, it is the whole mix. Throws
+// std::invalid_argument on a size mismatch or a wavelength ≥ N. Float: float or double.
+template <typename Float>
+void mix_spectral_to_rgb(const std::vector<double>& mix, std::size_t wavelength,
+                         const std::vector<Float>& slice, std::vector<Float>& rgb);
+
+// Adjoint: the weights of wavelength `wavelength`'s slice for RGB weights `rgb_weights`
+// (3 · pixels): weights[p] = Float(scale · Σ_c mix[c · N + wavelength] · rgb_weights[3p + c]),
+// overwritten (resized to pixels). So Σ_l weights_l · f_l = scale · Σ rgb_weights · rgb.
+// Throws std::invalid_argument on a size mismatch or a wavelength ≥ N.
+template <typename Float>
+void mix_spectral_to_rgb_adjoint(const std::vector<double>& mix, std::size_t wavelength,
+                                 const std::vector<double>& rgb_weights, std::vector<Float>& weights,
+                                 double scale = 1.0);
 
 // XYZ (D65-relative) → linear sRGB matrix (row-major), derived from the Rec. 709 primaries
 // and the D65 chromaticity (0.3127, 0.3290): D65 with Y = 1 maps to (1, 1, 1).

@@ -2,8 +2,8 @@
 
 ``render_slice(heights, **options)`` takes a 2-D tensor of heights (texel units, float32 or
 float64, any device; computed on the CPU) and returns the (n, n, 3) slice as a tensor of the
-same dtype and device. Its backward pass is the library's adjoint (wavebrdf.slice_gradient):
-no tape, exact, so heights can sit inside any PyTorch model, loss or optimiser. float64 runs
+same dtype and device. Its backward pass is the library's adjoint (wavebrdf.slice_gradient)
+on the slice plan its forward built (the forward is not run again): no tape, exact, so heights can sit inside any PyTorch model, loss or optimiser. float64 runs
 the library in double precision (use it for torch.autograd.gradcheck), float32 in single.
 
     import torch, wavebrdf.torch as wt
@@ -44,8 +44,10 @@ class RenderSlice(torch.autograd.Function):
     def forward(ctx, heights, options):
         if heights.dim() != 2:
             raise ValueError("heights has shape %s; expected (rows, cols)" % (tuple(heights.shape),))
-        out = _core.render_slice(_numpy(heights, "heights"), **options)
-        ctx.options = dict(options)
+        # One library SlicePlan: its forward now, its adjoint in backward.
+        plan = _core._SlicePlan(_numpy(heights, "heights"), **options)
+        out = plan.forward()
+        ctx.plan = plan
         ctx.save_for_backward(heights)
         return torch.from_numpy(out).to(heights.device)
 
@@ -54,7 +56,7 @@ class RenderSlice(torch.autograd.Function):
     def backward(ctx, grad_output):
         (heights,) = ctx.saved_tensors
         weights = _numpy(grad_output, "grad_output")
-        gradient = _core.slice_gradient(_numpy(heights, "heights"), weights, **ctx.options)
+        gradient = ctx.plan.adjoint(weights)
         return torch.from_numpy(np.asarray(gradient)).to(heights.device), None
 
 

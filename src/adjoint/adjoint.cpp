@@ -7,28 +7,26 @@
 #include "forward/direct.h"
 #include "forward/separable.h"
 #include "wavebrdf/adjoint.h"
+#include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf {
 
 namespace detail {
-template <typename Float>
-KernelGradient separable_backward(const FootprintKernels&, const Query&, double, int,
-                                  const ComplexMatrix<Float>&, const std::vector<Float>&,
-                                  const SeparableFactors<Float>*);
 KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int,
                                const DirectField&, const std::vector<double>&);
 std::vector<double> direct_tangent(const FootprintKernels&, const Query&, double, int,
                                    const DirectField&, const KernelGradient&);
 }  // namespace detail
 
-void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
+namespace detail {
+
+void scatter_to_heights(int rows, int cols, double texel_um, double vscale, const FootprintKernels& k,
                         const KernelGradient& g, std::vector<double>& gradient) {
-    const double v = hf.vscale(), w = hf.texel_um();
-    const int rows = hf.rows(), cols = hf.cols();
+    const double v = vscale, w = texel_um;
     auto at = [&](int i, int j) -> double& {
         i = ((i % rows) + rows) % rows;
         j = ((j % cols) + cols) % cols;
-        return gradient[hf.index(i, j)];
+        return gradient[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)];
     };
     for (std::size_t idx = 0; idx < k.size(); ++idx) {
         const int i = k.row[idx], j = k.col[idx];
@@ -40,18 +38,28 @@ void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
     }
 }
 
+void prepare_gradient(std::vector<double>& gradient, std::size_t cells) {
+    if (gradient.empty()) gradient.assign(cells, 0.0);
+    if (gradient.size() != cells)
+        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
+                                    " entries; expected rows*cols = " + std::to_string(cells));
+}
+
+}  // namespace detail
+
+void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
+                        const KernelGradient& g, std::vector<double>& gradient) {
+    detail::prepare_gradient(gradient, hf.values().size());
+    detail::scatter_to_heights(hf.rows(), hf.cols(), hf.texel_um(), hf.vscale(), k, g, gradient);
+}
+
 namespace {
 
 void validate_all(const Query& query, double lambda_um, int resolution, const RenderOptions& options) {
     validate(query);
     validate_lambda(lambda_um);
     validate_resolution(resolution);
-    if (!(options.prune_tolerance >= 0.0 && options.prune_tolerance <= 1e-6))
-        throw std::domain_error("prune tolerance " + std::to_string(options.prune_tolerance) +
-                                " is out of range; expected 0 to 1e-6 of the slice peak");
-    if (options.path == RenderPath::Separable && !is_separable(query.model))
-        throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") +
-                                    to_string(query.model));
+    validate(options, query.model);
 }
 
 template <typename Float>
@@ -64,42 +72,18 @@ void check_weights(const std::vector<Float>& weights, int resolution) {
 
 }  // namespace
 
+// A one-wavelength, one-channel SlicePlan whose forward has run.
 template <typename Float>
 struct SliceAdjoint<Float>::State {
-    const Heightfield* heightfield;
-    Query query;
-    double lambda_um;
-    int n;
-    FootprintKernels kernels;
-    bool separable;
-    detail::ComplexMatrix<Float> separable_field;  // separable path
-    detail::SeparableFactors<Float> factors;        // the forward's factors, when one chunk
-    detail::DirectField direct;                     // direct path
-    std::vector<Float> slice;
+    SlicePlan<Float> plan;
 };
 
 template <typename Float>
 SliceAdjoint<Float>::SliceAdjoint(const Heightfield& hf, const Query& query, double lambda_um,
-                                  int n, const RenderOptions& options)
-    : m_state(std::make_unique<State>()) {
+                                  int n, const RenderOptions& options) {
     validate_all(query, lambda_um, n, options);
-    State& s = *m_state;
-    s.heightfield = &hf;
-    s.query = query;
-    s.lambda_um = lambda_um;
-    s.n = n;
-    s.kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
-    s.separable = options.path == RenderPath::Separable ||
-                  (options.path == RenderPath::Auto && is_separable(query.model));
-    s.slice.assign(static_cast<std::size_t>(n) * n, Float(0));
-    if (s.separable) {
-        s.separable_field = detail::separable_field<Float>(s.kernels, query, lambda_um, n, options.progress,
-                                                           &s.factors);
-        s.slice = detail::separable_slice<Float>(s.separable_field, query, lambda_um, n);
-    } else {
-        s.direct = detail::direct_field(s.kernels, query, lambda_um, n, options.prune_tolerance, options.progress);
-        for (std::size_t at = 0; at < s.slice.size(); ++at) s.slice[at] = Float(s.direct.value[at]);
-    }
+    m_state = std::make_unique<State>(State{SlicePlan<Float>(hf, query, {lambda_um}, n, 1, options)});
+    m_state->plan.forward();
 }
 
 template <typename Float>
@@ -111,24 +95,12 @@ SliceAdjoint<Float>& SliceAdjoint<Float>::operator=(SliceAdjoint&&) noexcept = d
 
 template <typename Float>
 const std::vector<Float>& SliceAdjoint<Float>::slice() const {
-    return m_state->slice;
+    return m_state->plan.slice(0);
 }
 
 template <typename Float>
 void SliceAdjoint<Float>::backward(const std::vector<Float>& weights, std::vector<double>& gradient) const {
-    const State& s = *m_state;
-    check_weights(weights, s.n);
-    const std::size_t cells = static_cast<std::size_t>(s.heightfield->rows()) * s.heightfield->cols();
-    if (gradient.empty()) gradient.assign(cells, 0.0);
-    if (gradient.size() != cells)
-        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
-                                    " entries; expected rows*cols = " + std::to_string(cells));
-    const KernelGradient g =
-        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, s.lambda_um, s.n, s.separable_field,
-                                                      weights, &s.factors)
-                    : detail::direct_backward(s.kernels, s.query, s.lambda_um, s.n, s.direct,
-                                              std::vector<double>(weights.begin(), weights.end()));
-    scatter_to_heights(*s.heightfield, s.kernels, g, gradient);
+    m_state->plan.adjoint_wavelength(0, weights, gradient);
 }
 
 template class SliceAdjoint<float>;

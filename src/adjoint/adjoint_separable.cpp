@@ -25,11 +25,10 @@ constexpr Eigen::Index kAdjointChunkColumns = 512;
 
 template <typename Float>
 KernelGradient separable_backward(const FootprintKernels& k, const Query& query, double lambda_um,
-                                  int n, const ComplexMatrix<Float>& field,
-                                  const std::vector<Float>& weights,
-                                  const SeparableFactors<Float>* kept) {
+                                  int n, const SliceGrid& grid, const PhaseTables* given_phases,
+                                  const std::vector<double>* c1, const ComplexMatrix<Float>& field,
+                                  const std::vector<Float>& weights, const SeparableFactors<Float>* kept) {
     using Complex = std::complex<Float>;
-    const SliceGrid grid(query, lambda_um, n);
     ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
     RegionGuard b_guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
@@ -38,8 +37,10 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
         for (int q = 0; q < n; ++q) {
             const double oy = slice_omega(q, n);
             if (ox * ox + oy * oy > 1.0) continue;
-            const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
-            const double scale = double(weights[static_cast<std::size_t>(p) * n + q]) * f.c1;
+            const std::size_t at = static_cast<std::size_t>(p) * n + q;
+            const double factor =
+                c1 ? (*c1)[at] : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
+            const double scale = double(weights[at]) * factor;
             // The forward wrote non-finite pixels as 0: they carry no gradient.
             if (!std::isfinite(scale * double(std::norm(field(p, q))))) continue;
             b(p, q) = Complex(Float(scale)) * std::conj(field(p, q));
@@ -53,7 +54,9 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     g.slope_x.assign(total, 0.0);
     g.slope_y.assign(total, 0.0);
     const bool reuse = kept && !kept->empty() && kept->xs.cols() == Eigen::Index(total);
-    const std::optional<PhaseTables> phases = reuse ? std::nullopt : std::optional<PhaseTables>(std::in_place, k, grid);
+    std::optional<PhaseTables> built_phases;
+    if (!reuse && !given_phases) built_phases.emplace(k, grid);
+    const PhaseTables* phases = given_phases ? given_phases : (built_phases ? &*built_phases : nullptr);
     const Eigen::Index chunk = reuse ? Eigen::Index(total) : chunk_size(n, sizeof(Complex), 4, kAdjointChunkColumns);
     const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
     ComplexMatrix<Float> built_xs, built_ys, z, v;
@@ -103,9 +106,11 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
 }
 
 template KernelGradient separable_backward<float>(const FootprintKernels&, const Query&, double, int,
+                                                  const SliceGrid&, const PhaseTables*, const std::vector<double>*,
                                                   const ComplexMatrix<float>&, const std::vector<float>&,
                                                   const SeparableFactors<float>*);
 template KernelGradient separable_backward<double>(const FootprintKernels&, const Query&, double, int,
+                                                   const SliceGrid&, const PhaseTables*, const std::vector<double>*,
                                                    const ComplexMatrix<double>&, const std::vector<double>&,
                                                    const SeparableFactors<double>*);
 

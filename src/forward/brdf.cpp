@@ -1,27 +1,20 @@
-// Entry points: validate, gather the footprint's kernels once, pick the path, and combine
-// wavelengths into RGB.
+// Entry points: validate, check the memory, and render through a forward-only SlicePlan
+// (slice_plan.h), which gathers the kernels once, picks the path and mixes wavelengths to RGB.
 #include <algorithm>
 #include <stdexcept>
 #include <string>
 
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/memory.h"
+#include "wavebrdf/slice_plan.h"
 #include "wavebrdf/spectrum.h"
+#include "core/text.h"
 
 namespace wavebrdf {
 
 long long work_units(int resolution) { return resolution; }
 
 namespace {
-
-void validate_options(const RenderOptions& options, Model model) {
-    if (!(options.prune_tolerance >= 0.0 && options.prune_tolerance <= 1e-6))
-        throw std::domain_error("prune tolerance " + std::to_string(options.prune_tolerance) +
-                                " is out of range; expected 0 to 1e-6 of the slice peak");
-    if (options.path == RenderPath::Separable && !is_separable(model))
-        throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") +
-                                    to_string(model));
-}
 
 bool separable_path(const RenderOptions& options, Model model) {
     return options.path == RenderPath::Separable || (options.path == RenderPath::Auto && is_separable(model));
@@ -35,15 +28,6 @@ void require_render_memory(const Heightfield& heightfield, const Query& query, i
     if (needed > limit.bytes)
         require_memory(needed, limit, "render (" + std::to_string(resolution) + "x" + std::to_string(resolution) +
                                           " slice, " + (float_bytes == 4 ? "float" : "double") + ")");
-}
-
-template <typename Float>
-std::vector<Float> render_kernels(const FootprintKernels& kernels, const Query& query,
-                                  double lambda_um, int resolution, const RenderOptions& options) {
-    if (separable_path(options, query.model))
-        return render_slice_separable<Float>(kernels, query, lambda_um, resolution, options.progress);
-    return render_slice_direct<Float>(kernels, query, lambda_um, resolution,
-                                      options.prune_tolerance, options.progress);
 }
 
 }  // namespace
@@ -72,11 +56,10 @@ std::vector<Float> render_slice(const Heightfield& heightfield, const Query& que
     validate(query);
     validate_lambda(lambda_um);
     validate_resolution(resolution);
-    validate_options(options, query.model);
+    validate(options, query.model);
     require_render_memory(heightfield, query, resolution, options, sizeof(Float), false);
-    const FootprintKernels kernels =
-        footprint_kernels(heightfield, query.x_um, query.y_um, query.sigma_p_um);
-    return render_kernels<Float>(kernels, query, lambda_um, resolution, options);
+    SlicePlan<Float> plan(heightfield, query, {lambda_um}, resolution, 1, options, false);
+    return plan.forward();
 }
 
 template <typename Float>
@@ -85,39 +68,50 @@ std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query
                               const RenderOptions& options) {
     validate(query);
     validate_resolution(resolution);
-    validate_options(options, query.model);
+    validate(options, query.model);
     if (lambdas_um.empty())
         throw std::invalid_argument("no wavelengths given; expected at least one");
     for (double lambda : lambdas_um) validate_lambda(lambda);
     require_render_memory(heightfield, query, resolution, options, sizeof(Float), true);
+    SlicePlan<Float> plan(heightfield, query, lambdas_um, resolution, 3, options, false);
+    return plan.forward();
+}
 
-    const FootprintKernels kernels =
-        footprint_kernels(heightfield, query.x_um, query.y_um, query.sigma_p_um);
-    const std::size_t pixels = static_cast<std::size_t>(resolution) * resolution;
-    std::vector<Float> rgb(pixels * 3, Float(0));
-    if (lambdas_um.size() == 1) {
+template <typename Float>
+std::vector<Float> render_rgb(const GaborRepresentation& rep, const Query& query,
+                              const std::vector<double>& lambdas_um, int resolution,
+                              const RenderOptions& options) {
+    validate(query);
+    validate_resolution(resolution);
+    validate(options, query.model);
+    if (lambdas_um.empty())
+        throw std::invalid_argument("no wavelengths given; expected at least one");
+    for (double lambda : lambdas_um) validate_lambda(lambda);
+    if (query.x_um != rep.x_um || query.y_um != rep.y_um || query.sigma_p_um != rep.sigma_p_um)
+        throw std::invalid_argument("query footprint (" + detail::format_shortest(query.x_um) + ", " +
+                                    detail::format_shortest(query.y_um) + ", sigma_p " +
+                                    detail::format_shortest(query.sigma_p_um) + ") differs from the GaborRep's (" +
+                                    detail::format_shortest(rep.x_um) + ", " + detail::format_shortest(rep.y_um) +
+                                    ", sigma_p " + detail::format_shortest(rep.sigma_p_um) +
+                                    "); expected the query the GaborRep was made for");
+    const std::vector<double> mix = spectral_mix_weights(lambdas_um);
+    const std::size_t pixels = static_cast<std::size_t>(resolution) * static_cast<std::size_t>(resolution);
+    std::vector<Float> rgb(3 * pixels, Float(0));
+    for (std::size_t l = 0; l < lambdas_um.size(); ++l) {
         const std::vector<Float> slice =
-            render_kernels<Float>(kernels, query, lambdas_um[0], resolution, options);
-        for (std::size_t at = 0; at < pixels; ++at)
-            rgb[3 * at] = rgb[3 * at + 1] = rgb[3 * at + 2] = slice[at];
-        return rgb;
-    }
-    const std::vector<double> weights = spectral_to_srgb_weights(lambdas_um);
-    const std::size_t count = lambdas_um.size();
-    for (std::size_t l = 0; l < count; ++l) {
-        const std::vector<Float> slice =
-            render_kernels<Float>(kernels, query, lambdas_um[l], resolution, options);
-        const Float wr = Float(weights[l]), wg = Float(weights[count + l]),
-                    wb = Float(weights[2 * count + l]);
-        for (std::size_t at = 0; at < pixels; ++at) {
-            rgb[3 * at] += wr * slice[at];
-            rgb[3 * at + 1] += wg * slice[at];
-            rgb[3 * at + 2] += wb * slice[at];
-        }
+            separable_path(options, query.model)
+                ? render_slice_separable<Float>(rep.kernels, query, lambdas_um[l], resolution, options.progress)
+                : render_slice_direct<Float>(rep.kernels, query, lambdas_um[l], resolution, options.prune_tolerance,
+                                             options.progress);
+        mix_spectral_to_rgb<Float>(mix, l, slice, rgb);
     }
     return rgb;
 }
 
+template std::vector<float> render_rgb<float>(const GaborRepresentation&, const Query&, const std::vector<double>&,
+                                              int, const RenderOptions&);
+template std::vector<double> render_rgb<double>(const GaborRepresentation&, const Query&, const std::vector<double>&,
+                                                int, const RenderOptions&);
 template std::vector<float> render_slice<float>(const Heightfield&, const Query&, double, int,
                                                 const RenderOptions&);
 template std::vector<double> render_slice<double>(const Heightfield&, const Query&, double, int,

@@ -19,11 +19,9 @@ namespace wavebrdf {
 namespace detail {
 
 template <typename Float>
-ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& query,
-                                     double lambda_um, int n, Progress* progress,
-                                     SeparableFactors<Float>* keep) {
-    const SliceGrid grid(query, lambda_um, n);
-    const PhaseTables phases(k, grid);
+ComplexMatrix<Float> separable_field(const FootprintKernels& k, const SliceGrid& grid,
+                                     const PhaseTables& phases, double lambda_um, int n,
+                                     Progress* progress, SeparableFactors<Float>* keep) {
     const Eigen::Index total = static_cast<Eigen::Index>(k.size());
     const Eigen::Index chunk = chunk_size(n, sizeof(std::complex<Float>), 2);
     const Eigen::Index cols = std::min(chunk, std::max<Eigen::Index>(total, 1));
@@ -59,10 +57,12 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& k, const Query& que
     return field;
 }
 
-template ComplexMatrix<float> separable_field<float>(const FootprintKernels&, const Query&, double, int,
-                                                    Progress*, SeparableFactors<float>*);
-template ComplexMatrix<double> separable_field<double>(const FootprintKernels&, const Query&, double, int,
-                                                      Progress*, SeparableFactors<double>*);
+template ComplexMatrix<float> separable_field<float>(const FootprintKernels&, const SliceGrid&,
+                                                    const PhaseTables&, double, int, Progress*,
+                                                    SeparableFactors<float>*);
+template ComplexMatrix<double> separable_field<double>(const FootprintKernels&, const SliceGrid&,
+                                                      const PhaseTables&, double, int, Progress*,
+                                                      SeparableFactors<double>*);
 
 }  // namespace detail
 

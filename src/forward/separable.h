@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "wavebrdf/adjoint.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/model.h"
 
@@ -147,10 +148,27 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
     guard.rethrow();
 }
 
+// c1 of every pixel of the n × n slice inside the disk (0 outside), row-major: the height-
+// independent per-pixel factor of f = c1 |I|² (a plan computes it once per wavelength).
+inline std::vector<double> disk_c1(const Query& query, double lambda_um, int n) {
+    std::vector<double> c1(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), 0.0);
+    for (int p = 0; p < n; ++p) {
+        const double ox = slice_omega(p, n);
+        for (int q = 0; q < n; ++q) {
+            const double oy = slice_omega(q, n);
+            if (ox * ox + oy * oy > 1.0) continue;
+            c1[static_cast<std::size_t>(p) * n + q] =
+                direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
+        }
+    }
+    return c1;
+}
+
 // f = c1 |I|² over the disk (0 outside it and where the value is not finite), row-major.
+// `c1`: disk_c1's table, or null to compute each pixel's factor here (the same values).
 template <typename Float>
 std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Query& query,
-                                   double lambda_um, int n) {
+                                   double lambda_um, int n, const std::vector<double>* c1 = nullptr) {
     std::vector<Float> slice(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Float(0));
     RegionGuard guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
@@ -159,9 +177,11 @@ std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Quer
         for (int q = 0; q < n; ++q) {
             const double oy = slice_omega(q, n);
             if (ox * ox + oy * oy > 1.0) continue;
-            const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
-            const double value = f.c1 * static_cast<double>(std::norm(field(p, q)));
-            slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(value) ? Float(value) : Float(0);
+            const std::size_t at = static_cast<std::size_t>(p) * n + q;
+            const double factor =
+                c1 ? (*c1)[at] : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
+            const double value = factor * static_cast<double>(std::norm(field(p, q)));
+            slice[at] = std::isfinite(value) ? Float(value) : Float(0);
         }
     });
     guard.rethrow();
@@ -178,9 +198,29 @@ struct SeparableFactors {
 
 // The field I(u_x[p], u_y[q]) = Σ_k X[p,k] w_k Y[q,k] of the slice, n × n. When `keep` is not
 // null and the kernels fit one chunk, the factors are moved into it (else it is left empty).
+// `grid` and `phases` are the slice's (height-independent; a plan keeps them).
+template <typename Float>
+ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const SliceGrid& grid,
+                                     const PhaseTables& phases, double lambda_um, int n,
+                                     Progress* progress, SeparableFactors<Float>* keep = nullptr);
+
+// The same, building the grid and the phase tables first.
 template <typename Float>
 ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const Query& query,
                                      double lambda_um, int n, Progress* progress,
-                                     SeparableFactors<Float>* keep = nullptr);
+                                     SeparableFactors<Float>* keep = nullptr) {
+    const SliceGrid grid(query, lambda_um, n);
+    const PhaseTables phases(kernels, grid);
+    return separable_field<Float>(kernels, grid, phases, lambda_um, n, progress, keep);
+}
+
+// The adjoint of separable_field + separable_slice (adjoint_separable.cpp): per-kernel
+// gradients of Σ weights · slice. `phases` may be null when `kept` holds the forward's factors
+// of all kernels; `c1` as separable_slice.
+template <typename Float>
+KernelGradient separable_backward(const FootprintKernels& kernels, const Query& query, double lambda_um,
+                                  int n, const SliceGrid& grid, const PhaseTables* phases,
+                                  const std::vector<double>* c1, const ComplexMatrix<Float>& field,
+                                  const std::vector<Float>& weights, const SeparableFactors<Float>* kept);
 
 }  // namespace wavebrdf::detail

@@ -175,4 +175,68 @@ std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_
     return weights;
 }
 
+std::vector<double> spectral_mix_weights(const std::vector<double>& lambdas_um) {
+    if (lambdas_um.size() == 1) return {1.0, 1.0, 1.0};
+    return spectral_to_srgb_weights(lambdas_um);
+}
+
+namespace {
+
+std::size_t check_mix(const std::vector<double>& mix, std::size_t wavelength, std::size_t rgb_size,
+                      std::size_t pixels) {
+    const std::size_t count = mix.size() / 3;
+    if (count == 0 || mix.size() != 3 * count)
+        throw std::invalid_argument("spectral mix has " + std::to_string(mix.size()) +
+                                    " entries; expected 3 x the number of wavelengths");
+    if (wavelength >= count)
+        throw std::invalid_argument("wavelength index " + std::to_string(wavelength) +
+                                    " is out of range; expected below " + std::to_string(count));
+    if (rgb_size != 3 * pixels)
+        throw std::invalid_argument("RGB values have " + std::to_string(rgb_size) +
+                                    " entries; expected 3 x " + std::to_string(pixels) + " pixels");
+    return count;
+}
+
+}  // namespace
+
+template <typename Float>
+void mix_spectral_to_rgb(const std::vector<double>& mix, std::size_t wavelength,
+                         const std::vector<Float>& slice, std::vector<Float>& rgb) {
+    const std::size_t pixels = slice.size();
+    const std::size_t count = check_mix(mix, wavelength, rgb.size(), pixels);
+    const Float wr = Float(mix[wavelength]), wg = Float(mix[count + wavelength]),
+                wb = Float(mix[2 * count + wavelength]);
+    for (std::size_t at = 0; at < pixels; ++at) {
+        rgb[3 * at] += wr * slice[at];
+        rgb[3 * at + 1] += wg * slice[at];
+        rgb[3 * at + 2] += wb * slice[at];
+    }
+}
+
+template <typename Float>
+void mix_spectral_to_rgb_adjoint(const std::vector<double>& mix, std::size_t wavelength,
+                                 const std::vector<double>& rgb_weights, std::vector<Float>& weights,
+                                 double scale) {
+    const std::size_t pixels = rgb_weights.size() / 3;
+    const std::size_t count = check_mix(mix, wavelength, rgb_weights.size(), pixels);
+    const double wr = mix[wavelength], wg = mix[count + wavelength], wb = mix[2 * count + wavelength];
+    weights.resize(pixels);
+    for (std::size_t p = 0; p < pixels; ++p) {
+        double sum = 0.0;
+        sum += wr * rgb_weights[3 * p];
+        sum += wg * rgb_weights[3 * p + 1];
+        sum += wb * rgb_weights[3 * p + 2];
+        weights[p] = Float(scale * sum);
+    }
+}
+
+template void mix_spectral_to_rgb<float>(const std::vector<double>&, std::size_t, const std::vector<float>&,
+                                         std::vector<float>&);
+template void mix_spectral_to_rgb<double>(const std::vector<double>&, std::size_t, const std::vector<double>&,
+                                          std::vector<double>&);
+template void mix_spectral_to_rgb_adjoint<float>(const std::vector<double>&, std::size_t,
+                                                 const std::vector<double>&, std::vector<float>&, double);
+template void mix_spectral_to_rgb_adjoint<double>(const std::vector<double>&, std::size_t,
+                                                  const std::vector<double>&, std::vector<double>&, double);
+
 }  // namespace wavebrdf

@@ -213,7 +213,7 @@ EpochMetrics Inversion::evaluate(std::vector<double>* gradient,
                                  std::vector<std::vector<double>>* rendered) const {
     EpochMetrics m;
     std::vector<std::vector<double>> slices;
-    m.loss = observation_loss(m_estimate, m_observations, m_settings.loss, gradient, m_settings.render, &slices);
+    m.loss = observation_loss(m_estimate, m_observations, m_settings.loss, gradient, m_settings.render, &slices, &m_plans);
     const Loss mse{LossKind::MSE, 1.0}, cmsle1{LossKind::CMSLE, 1.0}, cmsle3{LossKind::CMSLE, 1e-3};
     const double scale = 1.0 / double(m_observations.size());
     for (std::size_t i = 0; i < m_observations.size(); ++i) {
@@ -257,7 +257,8 @@ void Inversion::run(const Callback& on_epoch) {
             std::vector<std::vector<double>> slices;
             EpochMetrics metrics = evaluate(fixed ? &gradient : nullptr, &slices);
             if (!fixed)
-                observation_loss(m_estimate, epoch_observations(m_epoch), m_settings.loss, &gradient, m_settings.render);
+                observation_loss(m_estimate, epoch_observations(m_epoch), m_settings.loss, &gradient, m_settings.render,
+                                 nullptr, &m_plans);
             if (!report(gradient, metrics, slices)) break;
             if (m_epoch >= m_settings.epochs) break;
             std::vector<double> x = m_estimate.values();
@@ -284,7 +285,9 @@ void Inversion::run(const Callback& on_epoch) {
     LbfgsOptions options = m_settings.lbfgs;
     options.max_iterations = m_settings.epochs - m_epoch;
     auto objective = [&](const std::vector<double>& v, std::vector<double>& g) {
-        return observation_loss(m_estimate.with_values(v), m_observations, m_settings.loss, &g, m_settings.render);
+        g.clear();  // observation_loss adds into its gradient (adjoint.h)
+        return observation_loss(m_estimate.with_values(v), m_observations, m_settings.loss, &g, m_settings.render,
+                                nullptr, &m_plans);
     };
     bool stopped = false;
     lbfgs_minimize(objective, x, options, [&](int, double) {

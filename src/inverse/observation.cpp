@@ -1,6 +1,6 @@
-// Observations and the multi-observation loss: forward every wavelength of every observation
-// (keeping each slice's field), form the loss, then run each slice's adjoint with the loss's
-// gradient mapped back through the spectral weights.
+// Observations and the multi-observation loss: each observation's SlicePlan forwards every
+// wavelength (keeping each slice's field), the loss is formed, then the plan's adjoint maps the
+// loss's gradient back through the spectral mix to every slice.
 #include "wavebrdf/observation.h"
 
 #include <algorithm>
@@ -51,54 +51,54 @@ std::vector<double> render_observation(const Heightfield& hf, const Observation&
     return mono;
 }
 
+SlicePlan<double>& ObservationPlans::plan(const Heightfield& hf, const Observation& o, const RenderOptions& options) {
+    ++m_clock;
+    for (Entry& e : m_entries)
+        if (e.plan->matches(hf, o.query, o.lambdas_um, o.resolution, o.channels(), options)) {
+            e.plan->set_heights(hf);
+            e.last_use = m_clock;
+            return *e.plan;
+        }
+    auto plan = std::make_unique<SlicePlan<double>>(hf, o.query, o.lambdas_um, o.resolution, o.channels(), options);
+    ++m_built;
+    if (m_entries.size() >= m_capacity) {
+        auto oldest = std::min_element(m_entries.begin(), m_entries.end(),
+                                       [](const Entry& a, const Entry& b) { return a.last_use < b.last_use; });
+        m_entries.erase(oldest);
+    }
+    m_entries.push_back({std::move(plan), m_clock});
+    return *m_entries.back().plan;
+}
+
+void ObservationPlans::reserve(std::size_t capacity) { m_capacity = std::max(m_capacity, capacity); }
+
 double observation_loss(const Heightfield& hf, const std::vector<Observation>& observations,
                         const Loss& loss, std::vector<double>* gradient, const RenderOptions& options,
-                        std::vector<std::vector<double>>* rendered) {
+                        std::vector<std::vector<double>>* rendered, ObservationPlans* plans) {
     if (observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
-    if (gradient) gradient->assign(hf.values().size(), 0.0);
+    const std::size_t cells = hf.values().size();
+    if (gradient && gradient->empty()) gradient->assign(cells, 0.0);
+    if (gradient && gradient->size() != cells)
+        throw std::invalid_argument("gradient has " + std::to_string(gradient->size()) +
+                                    " entries; expected rows*cols = " + std::to_string(cells));
     if (rendered) rendered->assign(observations.size(), {});
+    if (plans) plans->reserve(2 * observations.size() + 2);
     double total = 0.0;
     const double scale = 1.0 / static_cast<double>(observations.size());
     for (std::size_t oi = 0; oi < observations.size(); ++oi) {
         const Observation& o = observations[oi];
-        const std::size_t pixels = static_cast<std::size_t>(o.resolution) * o.resolution;
-        const int channels = o.channels();
-        const std::size_t count = o.lambdas_um.size();
-        // Forward every wavelength, keeping the fields for the backward pass.
-        std::vector<SliceAdjoint<double>> slices;
-        slices.reserve(count);
-        for (double lambda : o.lambdas_um) slices.emplace_back(hf, o.query, lambda, o.resolution, options);
-        std::vector<double> weights;  // 3 × count spectral weights (RGB only)
-        std::vector<double> estimate(pixels * channels, 0.0);
-        if (channels == 1) {
-            estimate = slices[0].slice();
-        } else {
-            weights = spectral_to_srgb_weights(o.lambdas_um);
-            for (std::size_t l = 0; l < count; ++l) {
-                const auto& f = slices[l].slice();
-                for (std::size_t p = 0; p < pixels; ++p)
-                    for (int c = 0; c < 3; ++c) estimate[3 * p + c] += weights[c * count + l] * f[p];
-            }
-        }
+        // Forward every wavelength (the plan keeps the fields for the backward pass), mixed to
+        // RGB by the plan when the observation has several.
+        std::unique_ptr<SlicePlan<double>> own;
+        if (!plans) own = std::make_unique<SlicePlan<double>>(hf, o.query, o.lambdas_um, o.resolution, o.channels(), options);
+        SlicePlan<double>& plan = plans ? plans->plan(hf, o, options) : *own;
+        const std::vector<double>& estimate = plan.forward();
         std::vector<double> d_estimate;
-        total += scale * loss_value(loss, estimate, o.reference, channels, gradient ? &d_estimate : nullptr);
-        if (gradient) {
-            for (std::size_t l = 0; l < count; ++l) {
-                std::vector<double> w(pixels);
-                for (std::size_t p = 0; p < pixels; ++p) {
-                    if (channels == 1) {
-                        w[p] = scale * d_estimate[p];
-                    } else {
-                        double sum = 0.0;
-                        for (int c = 0; c < 3; ++c) sum += weights[c * count + l] * d_estimate[3 * p + c];
-                        w[p] = scale * sum;
-                    }
-                }
-                slices[l].backward(w, *gradient);
-            }
-        }
-        if (rendered) (*rendered)[oi] = std::move(estimate);
+        total += scale * loss_value(loss, estimate, o.reference, o.channels(), gradient ? &d_estimate : nullptr);
+        if (gradient) plan.adjoint(d_estimate, *gradient, scale);
+        if (rendered) (*rendered)[oi] = estimate;
+        plan.release();  // a cached plan keeps only its height-independent tables between calls
     }
     return total;
 }

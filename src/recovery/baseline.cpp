@@ -25,6 +25,7 @@ Heightfield recover_heights_thesis(const std::vector<Observation>& observations,
     std::vector<double> gradient;
     for (int epoch = 0; epoch < settings.epochs; ++epoch) {
         const std::size_t pick = static_cast<std::size_t>(rng() % observations.size());
+        gradient.clear();  // observation_loss adds into its gradient (adjoint.h)
         const double loss = observation_loss(estimate, {observations[pick]}, settings.loss, &gradient);
         std::vector<double> x = estimate.values();
         adam.step(x, gradient, epoch);

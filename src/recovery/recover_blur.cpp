@@ -18,6 +18,7 @@
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
+#include "wavebrdf/slice_plan.h"
 
 #include "core/parallel.h"
 
@@ -66,6 +67,12 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
         if (!(b > 0.0) || !std::isfinite(b))
             throw std::domain_error("fit_blurred: blur width " + std::to_string(b) + " is invalid; expected > 0");
 
+    // One slice plan per observation for all stages and iterations (single precision: these
+    // stages only need the shape, and are the costliest); only the heights change.
+    std::vector<SlicePlan<float>> plans;
+    plans.reserve(used.size());
+    for (const Observation* o : used) plans.emplace_back(initial, o->query, o->lambdas_um, o->resolution, 1);
+
     std::vector<double> h = initial.values();
     for (std::size_t stage = 0; stage < settings.blur_widths.size(); ++stage) {
         // Per observation: coarse resolution, blur matrices and the blurred reference.
@@ -95,15 +102,13 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
 
         // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
-            const Heightfield hf = initial.with_values(x);
             grad.assign(x.size(), 0.0);
             return detail::ordered_parallel_sum(used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
-                const Observation& o = *used[i];
                 const Blurred& d = data[i];
                 const int n = d.n_coarse;
-                // Single precision: this stage only needs the shape (and is the costliest).
-                SliceAdjoint<float> slice(hf, o.query, o.lambdas_um[0], n);
-                const std::vector<float>& f = slice.slice();
+                SlicePlan<float>& plan = plans[i];
+                plan.set_heights(x);
+                const std::vector<float>& f = plan.forward();
                 const Eigen::MatrixXd m =
                     d.model_blur * as_matrix(std::vector<double>(f.begin(), f.end()), n) * d.model_blur.transpose();
                 Eigen::MatrixXd dm(n, n);
@@ -120,7 +125,7 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                 std::vector<float> weights(std::size_t(n) * n);
                 for (int p = 0; p < n; ++p)
                     for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = float(w(p, q));
-                slice.backward(weights, local);
+                plan.adjoint_wavelength(0, weights, local);
                 return term;
             });
         };

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 
 namespace wavebrdf {
 
@@ -104,6 +105,29 @@ FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double
         }
     }
     return k;
+}
+
+GaborRepresentation::GaborRepresentation(const Heightfield& hf, double x, double y, double sigma_p)
+    : kernels(footprint_kernels(hf, x, y, sigma_p)), rows(hf.rows()), cols(hf.cols()), texel_um(hf.texel_um()),
+      vscale(hf.vscale()), x_um(x), y_um(y), sigma_p_um(sigma_p) {}
+
+std::vector<double> GaborRepresentation::heights_from_kernels(const std::vector<double>& height_um,
+                                                              std::vector<double> fill) const {
+    if (height_um.size() != kernels.size())
+        throw std::invalid_argument("kernel heights have " + std::to_string(height_um.size()) +
+                                    " values; expected one per kernel (" + std::to_string(kernels.size()) + ")");
+    const std::size_t cells = static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols);
+    if (fill.size() != cells)
+        throw std::invalid_argument("fill has " + std::to_string(fill.size()) + " values; expected rows*cols = " +
+                                    std::to_string(cells));
+    if (vscale == 0.0)
+        throw std::domain_error("GaborRep has vscale = 0: kernel heights H = v * w * h are all 0 and the heights "
+                                "cannot be recovered; expected vscale != 0");
+    const double scale = 1.0 / (vscale * texel_um);
+    for (std::size_t k = 0; k < kernels.size(); ++k)
+        fill[static_cast<std::size_t>(kernels.row[k]) * static_cast<std::size_t>(cols) +
+             static_cast<std::size_t>(kernels.col[k])] = height_um[k] * scale;
+    return fill;
 }
 
 }  // namespace wavebrdf

@@ -294,3 +294,22 @@ def test_python_and_cli_render_the_same_slice(tmp_path, cli, precision, extra):
     q = wb.Query(x_um=7.0, y_um=11.5, sigma_p_um=3.0, light=extra.get("light", (0, 0)),
                  model=extra.get("model", "OHS"), lambda_um=extra.get("lambda_um"), spectral=extra.get("spectral"))
     np.testing.assert_allclose(wb.render(hf, q, 24, precision=precision), from_cli, rtol=0, atol=tol * peak)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_slice_plan_matches_render_slice_and_slice_gradient(dtype):
+    # The internal plan wavebrdf.torch uses: its forward is render_slice and its adjoint is
+    # slice_gradient, exactly.
+    rng = np.random.default_rng(3)
+    heights = (0.3 * rng.standard_normal((12, 12))).astype(dtype)
+    options = dict(resolution=10, sigma_p_um=3.0, x_um=5.0, y_um=6.0, spectral=3, light=(0.1, 0.0))
+    plan = wb._core._SlicePlan(heights, **options)
+    out = plan.forward()
+    assert out.dtype == dtype
+    np.testing.assert_array_equal(out, wb.render_slice(heights, **options))
+    weights = rng.standard_normal((10, 10, 3))
+    gradient = plan.adjoint(weights)
+    assert gradient.dtype == dtype and gradient.shape == heights.shape
+    np.testing.assert_array_equal(gradient, wb.slice_gradient(heights, weights, **options))
+    with pytest.raises(ValueError, match="weights"):
+        plan.adjoint(np.zeros((3, 3, 3)))

@@ -1,0 +1,273 @@
+// The slice plan (slice_plan.h): the height-independent part of a set of slice queries,
+// computed once; set_heights / forward / adjoint reuse it.
+#include "wavebrdf/slice_plan.h"
+
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "forward/direct.h"
+#include "forward/separable.h"
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf {
+
+namespace detail {
+KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int, const DirectField&,
+                               const std::vector<double>&);
+void scatter_to_heights(int rows, int cols, double texel_um, double vscale, const FootprintKernels& kernels,
+                        const KernelGradient& kernel_gradient, std::vector<double>& gradient);
+void prepare_gradient(std::vector<double>& gradient, std::size_t cells);
+}  // namespace detail
+
+void validate(const RenderOptions& options, Model model) {
+    if (!(options.prune_tolerance >= 0.0 && options.prune_tolerance <= 1e-6))
+        throw std::domain_error("prune tolerance " + std::to_string(options.prune_tolerance) +
+                                " is out of range; expected 0 to 1e-6 of the slice peak");
+    if (options.path == RenderPath::Separable && !is_separable(model))
+        throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") +
+                                    to_string(model));
+}
+
+template <typename Float>
+struct SlicePlan<Float>::State {
+    // One wavelength: its height-independent tables and, after forward, its field and slice.
+    struct Band {
+        double lambda_um = 0.0;
+        std::unique_ptr<detail::SliceGrid> grid;      // separable path
+        std::unique_ptr<detail::PhaseTables> phases;  // separable path
+        std::vector<double> c1;                       // separable path, differentiable plans
+        detail::ComplexMatrix<Float> field;           // separable path, kept for the adjoint
+        detail::SeparableFactors<Float> factors;      // the forward's factors, when one chunk
+        detail::DirectField direct;                   // direct path, kept for the adjoint
+        std::vector<Float> slice;
+    };
+
+    int rows = 0, cols = 0;
+    double texel_um = 0.0, vscale = 0.0;
+    Query query;
+    int n = 0;
+    int channels = 3;
+    RenderOptions options;
+    bool separable = false;
+    bool differentiable = true;
+    FootprintKernels kernels;   // geometry fixed; height_um and slopes follow set_heights
+    std::vector<double> lambdas_um;
+    std::vector<double> mix;    // 3 × N (channels 3)
+    std::vector<Band> bands;
+    std::vector<Float> output;
+    bool forward_done = false;
+
+    std::size_t cells() const { return static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols); }
+    double value(const std::vector<double>& h, int i, int j) const {
+        i %= rows;
+        if (i < 0) i += rows;
+        j %= cols;
+        if (j < 0) j += cols;
+        return h[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)];
+    }
+
+    void require_forward(const char* what) const {
+        if (!differentiable)
+            throw std::logic_error(std::string(what) + " needs a differentiable plan; this one is forward-only");
+        if (!forward_done) throw std::logic_error(std::string(what) + " needs forward() first");
+    }
+};
+
+template <typename Float>
+SlicePlan<Float>::SlicePlan(const Heightfield& hf, const Query& query, const std::vector<double>& lambdas_um,
+                            int resolution, int channels, const RenderOptions& options, bool differentiable)
+    : m_state(std::make_unique<State>()) {
+    validate(query);
+    validate_resolution(resolution);
+    validate(options, query.model);
+    if (lambdas_um.empty()) throw std::invalid_argument("no wavelengths given; expected at least one");
+    for (double lambda : lambdas_um) validate_lambda(lambda);
+    if (channels != 1 && channels != 3)
+        throw std::invalid_argument("channels " + std::to_string(channels) + " is invalid; expected 1 or 3");
+    if (channels == 1 && lambdas_um.size() != 1)
+        throw std::invalid_argument("one output channel needs one wavelength; " +
+                                    std::to_string(lambdas_um.size()) + " given");
+    State& s = *m_state;
+    s.rows = hf.rows();
+    s.cols = hf.cols();
+    s.texel_um = hf.texel_um();
+    s.vscale = hf.vscale();
+    s.query = query;
+    s.n = resolution;
+    s.channels = channels;
+    s.options = options;
+    s.separable = options.path == RenderPath::Separable || (options.path == RenderPath::Auto && is_separable(query.model));
+    s.differentiable = differentiable;
+    s.kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
+    s.lambdas_um = lambdas_um;
+    if (channels == 3) s.mix = spectral_mix_weights(lambdas_um);
+    s.bands.resize(lambdas_um.size());
+    for (std::size_t l = 0; l < lambdas_um.size(); ++l) {
+        typename State::Band& b = s.bands[l];
+        b.lambda_um = lambdas_um[l];
+        if (!s.separable) continue;
+        b.grid = std::make_unique<detail::SliceGrid>(query, b.lambda_um, resolution);
+        b.phases = std::make_unique<detail::PhaseTables>(s.kernels, *b.grid);
+        if (differentiable) b.c1 = detail::disk_c1(query, b.lambda_um, resolution);
+    }
+}
+
+template <typename Float>
+SlicePlan<Float>::~SlicePlan() = default;
+template <typename Float>
+SlicePlan<Float>::SlicePlan(SlicePlan&&) noexcept = default;
+template <typename Float>
+SlicePlan<Float>& SlicePlan<Float>::operator=(SlicePlan&&) noexcept = default;
+
+template <typename Float>
+void SlicePlan<Float>::set_heights(const std::vector<double>& values) {
+    State& s = *m_state;
+    if (values.size() != s.cells())
+        throw std::invalid_argument("heights have " + std::to_string(values.size()) +
+                                    " values; expected rows*cols = " + std::to_string(s.cells()));
+    for (std::size_t at = 0; at < values.size(); ++at)
+        if (!std::isfinite(values[at]))
+            throw std::domain_error("height value " + std::to_string(at) + " is not finite; expected finite heights");
+    FootprintKernels& k = s.kernels;
+    // As Heightfield::height_um and Heightfield::slope, term for term (so bit for bit).
+    for (std::size_t idx = 0; idx < k.size(); ++idx) {
+        const int i = k.row[idx], j = k.col[idx];
+        k.height_um[idx] = s.vscale * s.texel_um * s.value(values, i, j);
+        k.slope_x[idx] = 0.5 * s.vscale * (s.value(values, i + 1, j) - s.value(values, i - 1, j));
+        k.slope_y[idx] = 0.5 * s.vscale * (s.value(values, i, j + 1) - s.value(values, i, j - 1));
+    }
+    s.forward_done = false;
+}
+
+template <typename Float>
+void SlicePlan<Float>::set_heights(const Heightfield& hf) {
+    const State& s = *m_state;
+    if (hf.rows() != s.rows || hf.cols() != s.cols || hf.texel_um() != s.texel_um || hf.vscale() != s.vscale)
+        throw std::invalid_argument("heightfield " + std::to_string(hf.rows()) + "x" + std::to_string(hf.cols()) +
+                                    " does not have the plan's geometry (" + std::to_string(s.rows) + "x" +
+                                    std::to_string(s.cols) + ", same texel width and vertical scale)");
+    set_heights(hf.values());
+}
+
+template <typename Float>
+const std::vector<Float>& SlicePlan<Float>::forward() {
+    State& s = *m_state;
+    const std::size_t pixels = static_cast<std::size_t>(s.n) * static_cast<std::size_t>(s.n);
+    s.forward_done = false;
+    s.output.assign(pixels * static_cast<std::size_t>(s.channels), Float(0));
+    for (std::size_t l = 0; l < s.bands.size(); ++l) {
+        typename State::Band& b = s.bands[l];
+        std::vector<Float> slice;
+        if (s.separable) {
+            detail::ComplexMatrix<Float> field = detail::separable_field<Float>(
+                s.kernels, *b.grid, *b.phases, b.lambda_um, s.n, s.options.progress,
+                s.differentiable ? &b.factors : nullptr);
+            slice = detail::separable_slice<Float>(field, s.query, b.lambda_um, s.n,
+                                                   s.differentiable ? &b.c1 : nullptr);
+            if (s.differentiable) b.field = std::move(field);
+        } else {
+            detail::DirectField direct = detail::direct_field(s.kernels, s.query, b.lambda_um, s.n,
+                                                              s.options.prune_tolerance, s.options.progress);
+            slice.assign(direct.value.begin(), direct.value.end());
+            if (s.differentiable) b.direct = std::move(direct);
+        }
+        if (s.channels == 1)
+            s.output = slice;
+        else
+            mix_spectral_to_rgb<Float>(s.mix, l, slice, s.output);
+        if (s.differentiable) b.slice = std::move(slice);
+    }
+    s.forward_done = true;
+    return s.output;
+}
+
+template <typename Float>
+const std::vector<Float>& SlicePlan<Float>::slice(std::size_t wavelength) const {
+    const State& s = *m_state;
+    s.require_forward("SlicePlan::slice");
+    if (wavelength >= s.bands.size())
+        throw std::invalid_argument("wavelength index " + std::to_string(wavelength) + " is out of range; expected below " +
+                                    std::to_string(s.bands.size()));
+    return s.bands[wavelength].slice;
+}
+
+template <typename Float>
+void SlicePlan<Float>::adjoint_wavelength(std::size_t wavelength, const std::vector<Float>& weights,
+                                          std::vector<double>& gradient) const {
+    const State& s = *m_state;
+    s.require_forward("SlicePlan::adjoint");
+    if (wavelength >= s.bands.size())
+        throw std::invalid_argument("wavelength index " + std::to_string(wavelength) + " is out of range; expected below " +
+                                    std::to_string(s.bands.size()));
+    const std::size_t pixels = static_cast<std::size_t>(s.n) * static_cast<std::size_t>(s.n);
+    if (weights.size() != pixels)
+        throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
+                                    " entries; expected resolution^2 = " + std::to_string(pixels));
+    detail::prepare_gradient(gradient, s.cells());
+    const typename State::Band& b = s.bands[wavelength];
+    const KernelGradient g =
+        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, b.lambda_um, s.n, *b.grid,
+                                                        b.phases.get(), &b.c1, b.field, weights, &b.factors)
+                    : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
+                                              std::vector<double>(weights.begin(), weights.end()));
+    detail::scatter_to_heights(s.rows, s.cols, s.texel_um, s.vscale, s.kernels, g, gradient);
+}
+
+template <typename Float>
+void SlicePlan<Float>::adjoint(const std::vector<double>& weights, std::vector<double>& gradient, double scale) const {
+    const State& s = *m_state;
+    s.require_forward("SlicePlan::adjoint");
+    const std::size_t pixels = static_cast<std::size_t>(s.n) * static_cast<std::size_t>(s.n);
+    if (weights.size() != pixels * static_cast<std::size_t>(s.channels))
+        throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
+                                    " entries; expected resolution^2 * channels = " +
+                                    std::to_string(pixels * static_cast<std::size_t>(s.channels)));
+    detail::prepare_gradient(gradient, s.cells());
+    std::vector<Float> w(pixels);
+    for (std::size_t l = 0; l < s.bands.size(); ++l) {
+        if (s.channels == 1)
+            for (std::size_t p = 0; p < pixels; ++p) w[p] = Float(scale * weights[p]);
+        else
+            mix_spectral_to_rgb_adjoint<Float>(s.mix, l, weights, w, scale);
+        adjoint_wavelength(l, w, gradient);
+    }
+}
+
+template <typename Float>
+void SlicePlan<Float>::release() {
+    State& s = *m_state;
+    for (typename State::Band& b : s.bands) {
+        b.field = detail::ComplexMatrix<Float>();
+        b.factors = detail::SeparableFactors<Float>();
+        b.direct = detail::DirectField();
+        b.slice = std::vector<Float>();
+    }
+    s.forward_done = false;
+}
+
+template <typename Float>
+bool SlicePlan<Float>::matches(const Heightfield& hf, const Query& query, const std::vector<double>& lambdas_um,
+                               int resolution, int channels, const RenderOptions& options) const {
+    const State& s = *m_state;
+    return hf.rows() == s.rows && hf.cols() == s.cols && hf.texel_um() == s.texel_um && hf.vscale() == s.vscale &&
+           query.x_um == s.query.x_um && query.y_um == s.query.y_um && query.sigma_p_um == s.query.sigma_p_um &&
+           query.omega_i == s.query.omega_i && query.model == s.query.model && lambdas_um == s.lambdas_um &&
+           resolution == s.n && channels == s.channels && options.path == s.options.path &&
+           options.prune_tolerance == s.options.prune_tolerance && options.progress == s.options.progress;
+}
+
+template <typename Float>
+int SlicePlan<Float>::resolution() const { return m_state->n; }
+template <typename Float>
+int SlicePlan<Float>::channels() const { return m_state->channels; }
+template <typename Float>
+std::size_t SlicePlan<Float>::wavelengths() const { return m_state->bands.size(); }
+template <typename Float>
+std::size_t SlicePlan<Float>::kernels() const { return m_state->kernels.size(); }
+
+template class SlicePlan<float>;
+template class SlicePlan<double>;
+
+}  // namespace wavebrdf
