@@ -68,9 +68,9 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
                });
     const ComplexMatrix<Float>& xs = reuse ? kept->xs : built_xs;
     const ComplexMatrix<Float>& ys = reuse ? kept->ys : built_ys;
-    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
     const double two_over_lambda = 2.0 / lambda_um;
-    const std::complex<double> height_factor(0.0, -4.0 * kPi / lambda_um);
+    const std::complex<double> height_factor(0.0, -4.0 * k_pi / lambda_um);
     for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
         const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
         if (!reuse) build_factors<Float>(k, grid, *phases, lambda_um, k0, count, true, built_xs, built_ys);

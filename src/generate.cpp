@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "random.h"
+#include "wavebrdf/constants.h"
 
 namespace wavebrdf {
 
@@ -26,7 +27,6 @@ using detail::derive_seed;
 using detail::fill_standard_normal;
 using detail::uniform01;
 
-constexpr double k_pi = 3.14159265358979323846;
 constexpr int k_max_size = 16384;
 
 // ---------------------------------------------------------------------------------------------

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <random>
 
+#include "wavebrdf/constants.h"
+
 namespace wavebrdf::detail {
 
 // SplitMix64 finaliser: independent generator seeds for the parts of one computation.
@@ -23,7 +25,7 @@ inline double uniform01(std::mt19937_64& rng) {
 
 // Fills `out[0..n)` with independent standard normal samples (Box–Muller, both outputs used).
 inline void fill_standard_normal(double* out, std::size_t n, std::mt19937_64& rng) {
-    constexpr double two_pi = 6.28318530717958647692;
+    constexpr double two_pi = 2.0 * k_pi;
     for (std::size_t k = 0; k < n; k += 2) {
         // u1 in (0, 1] so that log(u1) is finite.
         const double u1 = static_cast<double>((rng() >> 11) + 1) * 0x1.0p-53;

@@ -15,6 +15,7 @@
 
 #include <fftw3.h>
 
+#include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
@@ -24,7 +25,6 @@ namespace wavebrdf {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // Slice rows / columns whose envelope is below this (relative to its peak 1) are left out of
 // the products: the model's field there is below 1e-16 of the footprint's.
 constexpr double kEnvelopeCut = 1e-16;
@@ -130,7 +130,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     for (std::size_t i = 0; i < k.size(); ++i) s.probe(slot_r[k.row[i]], slot_c[k.col[i]]) = k.weight[i];
 
     // Slice grid u = (ω_i + ω_o)/λ and the envelope exp(−2π²σ²u²) per row / column.
-    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
     const auto axis_box = [&](double omega_i, int& first, int& count) {
         first = resolution;
         int last = -1;
@@ -152,7 +152,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
             const double u = (omega_i + slice_omega(first + p, resolution)) / lambda_um;
             const double env = std::exp(-gauss * u * u);
             for (std::size_t r = 0; r < offsets.size(); ++r)
-                f(p, Eigen::Index(r)) = env * std::polar(1.0, -2.0 * kPi * u * offsets[r]);
+                f(p, Eigen::Index(r)) = env * std::polar(1.0, -2.0 * k_pi * u * offsets[r]);
         }
         return f;
     };
@@ -247,7 +247,7 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& hf, dou
     validate_lambda(lambda_um);
     const std::vector<double> h = refined_heights(hf, refine);
     std::vector<std::complex<double>> object(h.size());
-    for (std::size_t k = 0; k < h.size(); ++k) object[k] = std::polar(1.0, -4.0 * kPi / lambda_um * h[k]);
+    for (std::size_t k = 0; k < h.size(); ++k) object[k] = std::polar(1.0, -4.0 * k_pi / lambda_um * h[k]);
     return object;
 }
 
@@ -359,7 +359,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 const double nu_y = double(b < (obj_cols + 1) / 2 ? b : b - obj_cols) / period_y;
                 bool inside = false;
                 for (const Observation& o : observations) {
-                    const double reach = 1.0 / lambda_um + 3.0 / (2.0 * kPi * o.query.sigma_p_um);
+                    const double reach = 1.0 / lambda_um + 3.0 / (2.0 * k_pi * o.query.sigma_p_um);
                     const double cx = o.query.omega_i[0] / lambda_um, cy = o.query.omega_i[1] / lambda_um;
                     if ((nu_x - cx) * (nu_x - cx) + (nu_y - cy) * (nu_y - cy) <= reach * reach) {
                         inside = true;

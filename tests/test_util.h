@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "wavebrdf/constants.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/model.h"
 
@@ -41,7 +42,7 @@ inline Heightfield random_heightfield(int rows, int cols, double amplitude, std:
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     std::vector<double> v(static_cast<std::size_t>(rows) * cols, 0.0);
-    const double two_pi = 2.0 * std::acos(-1.0);
+    const double two_pi = 2.0 * k_pi;
     for (int m = 0; m < 6; ++m) {
         const int fx = static_cast<int>(uni(rng) * 4), fy = static_cast<int>(uni(rng) * 4);
         const double phase = uni(rng) * two_pi, a = amplitude * (0.5 + uni(rng));
