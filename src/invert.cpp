@@ -18,19 +18,14 @@
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
 #include "json_fields.h"
+#include "random.h"
 
 namespace wavebrdf {
 
 namespace {
 
-std::uint64_t splitmix64(std::uint64_t x) {
-    x += 0x9e3779b97f4a7c15ULL;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-    return x ^ (x >> 31);
-}
-
-double unit_interval(std::uint64_t bits) { return double(bits >> 11) * (1.0 / 9007199254740992.0); }
+using detail::splitmix64;
+using detail::unit_interval;
 
 // FNV-1a over the bytes of the values that define a run.
 struct Fingerprint {
