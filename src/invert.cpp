@@ -178,9 +178,8 @@ std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint
     const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
     const double width = frac * (*hi - *lo);
     std::mt19937_64 rng(seed ^ 0x5eedULL);
-    std::uniform_real_distribution<double> uni(-0.5 * width, 0.5 * width);
     std::vector<double> out(t.size());
-    for (std::size_t i = 0; i < t.size(); ++i) out[i] = t[i] + uni(rng);
+    for (std::size_t i = 0; i < t.size(); ++i) out[i] = t[i] + width * (detail::uniform01(rng) - 0.5);
     return out;
 }
 
