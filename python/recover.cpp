@@ -433,7 +433,7 @@ truth Heightfield) slopes that reflect light off the slice.
             if (refine < 0 || (refine > 0 && refine % 2 == 0) || refine > 63)
                 bad_argument("refine", std::to_string(refine), "0 (automatic) or an odd object-grid refinement 1...63");
             s.refine = refine;
-            s.max_range_um = check_positive(max_range_um, "max_range_um");
+            s.height_range_um = check_positive(max_range_um, "max_range_um");
             s.unwrap_from_blurred = unwrap_from_blurred;
             if (refine_iterations < 0) bad_argument("refine_iterations", std::to_string(refine_iterations), ">= 0");
             s.refine_iterations = refine_iterations;
@@ -452,7 +452,7 @@ truth Heightfield) slopes that reflect light off the slice.
         "blur_widths"_a = rs.blurred.blur_widths, "blur_iterations"_a = rs.blurred.iterations,
         "blur_wavelengths"_a = rs.blur_wavelengths, "blur_spacing_sigma"_a = rs.blur_spacing_sigma,
         "field_iterations"_a = rs.field.iterations, "field_passes"_a = rs.field_passes, "cascade"_a = rs.cascade,
-        "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.max_range_um,
+        "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss),
         "callback"_a = py::none(),
@@ -470,7 +470,7 @@ field_iterations    L-BFGS iterations of each field retrieval (>= 0); field_pass
                     cascade: each field starts from the heights of the fields before it;
                     band_limit: keep only the object's spectrum the slices see
 refine              odd object-grid refinement 1...63 (0: automatic)
-max_range_um        bound on the height range for unwrapping (um, > 0)
+max_range_um        bound on the height range for unwrapping (um, > 0; RecoverSettings::height_range_um)
 unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
 refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                     refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss

@@ -146,14 +146,14 @@ std::vector<double> spatial_heights(const std::vector<double>& lambdas_um,
 
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                                    const std::vector<std::vector<std::complex<double>>>& fields,
-                                   double max_range_um, int rows, int cols,
+                                   double height_range_um, int rows, int cols,
                                    const std::vector<double>* reference) {
     if (fields.empty() || fields.size() != lambdas_um.size())
         throw std::invalid_argument("unwrap_heights: " + std::to_string(fields.size()) + " fields for " +
                                     std::to_string(lambdas_um.size()) +
                                     " wavelengths; expected one field per wavelength, at least one");
-    if (!std::isfinite(max_range_um) || max_range_um <= 0.0)
-        throw std::domain_error("unwrap_heights: max_range_um " + std::to_string(max_range_um) +
+    if (!std::isfinite(height_range_um) || height_range_um <= 0.0)
+        throw std::domain_error("unwrap_heights: height_range_um " + std::to_string(height_range_um) +
                                 " is invalid; expected a finite value > 0");
     const std::size_t texels = fields[0].size();
     if (rows != 0 && (rows < 1 || cols < 1 || std::size_t(rows) * std::size_t(cols) != texels))
@@ -197,7 +197,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
         // add noise (their phase errors are scaled up by Λ/λ).
         std::size_t start = 0;
         for (std::size_t c = 0; c < channels.size(); ++c)
-            if (channels[c].lambda_um >= 2.0 * max_range_um) start = c;
+            if (channels[c].lambda_um >= 2.0 * height_range_um) start = c;
         h = coarse_heights(channels[start]);
         for (std::size_t c = start + 1; c < channels.size(); ++c) {
             const Channel& ch = channels[c];
