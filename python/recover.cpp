@@ -168,7 +168,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.height_range_um = check_positive(height_range_um, "height_range_um");
     options.correlation_texels = check_positive(correlation_texels, "correlation_texels");
     options.model = model_from(model);
-    options.light = light_direction(light);
+    options.omega_i = light_direction(light);
     options.sigma_p_um = check_finite(sigma_p_um, "sigma_p_um");
     options.resolution = planned_resolution(resolution);
     options.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
@@ -258,7 +258,7 @@ into Observations (one per position and wavelength).
                                "raster steps (x, y) in um")
         .def_readonly("overlap", &AcquisitionPlan::overlap,
                       "worst-case linear overlap 1 - d/D of neighbouring windows (D = 6 sigma_p), jitter included")
-        .def_property_readonly("light", [](const AcquisitionPlan& p) { return py::make_tuple(p.light[0], p.light[1]); },
+        .def_property_readonly("light", [](const AcquisitionPlan& p) { return py::make_tuple(p.omega_i[0], p.omega_i[1]); },
                                "projected light direction (wx, wy) of every observation")
         .def_property_readonly("model", [](const AcquisitionPlan& p) { return std::string(to_string(p.model)); })
         .def_readonly("notes", &AcquisitionPlan::notes, "the choices, one line each")
@@ -299,7 +299,7 @@ into Observations (one per position and wavelength).
             r.max_step_ratio = max_step_ratio;
             r.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
             r.resolution = planned_resolution(resolution);
-            r.light = light_direction(light);
+            r.omega_i = light_direction(light);
             r.model = model_from(model);
             r.seed = seed;
             return plan_acquisition(r);

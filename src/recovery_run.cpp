@@ -131,7 +131,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.sigma_p_um = options.sigma_p_um;
         request.overlap = options.overlap;
         request.jitter = options.jitter;
-        request.light = options.light;
+        request.omega_i = options.omega_i;
         request.model = options.model;
         request.seed = options.seed;
         request.lambdas_um = options.lambdas_um;
