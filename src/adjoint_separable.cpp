@@ -34,10 +34,7 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     RegionGuard b_guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
     for (int p = 0; p < n; ++p) b_guard.run([&] {
-        const double ox = slice_omega(p, n);
-        for (int q = 0; q < n; ++q) {
-            const double oy = slice_omega(q, n);
-            if (ox * ox + oy * oy > 1.0) continue;
+        for (const auto [q, ox, oy] : disk_row(p, n)) {
             const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
             const double scale = double(weights[static_cast<std::size_t>(p) * n + q]) * f.c1;
             // The forward wrote non-finite pixels as 0: they carry no gradient.

@@ -271,10 +271,7 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
     for (const Observation& o : observations) {
         int inside = 0;
         for (int p = 0; p < o.resolution; ++p)
-            for (int q = 0; q < o.resolution; ++q) {
-                const double ox = slice_omega(p, o.resolution), oy = slice_omega(q, o.resolution);
-                if (ox * ox + oy * oy <= 1.0) ++inside;
-            }
+            for ([[maybe_unused]] const DiskPixel pixel : disk_row(p, o.resolution)) ++inside;
         values += double(inside) * double(o.lambdas_um.size());
     }
     if (values < double(rows) * cols)

@@ -166,10 +166,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     // f = c1 |I|² inside the disk (MODEL.md, "BRDF"); the renderer writes non-finite values as 0.
     s.amp_full.assign(std::size_t(resolution) * resolution, 0.0);
     for (int p = 0; p < resolution; ++p) {
-        const double ox = slice_omega(p, resolution);
-        for (int q = 0; q < resolution; ++q) {
-            const double oy = slice_omega(q, resolution);
-            if (ox * ox + oy * oy > 1.0) continue;
+        for (const auto [q, ox, oy] : disk_row(p, resolution)) {
             const double c1 = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
             if (std::isfinite(c1) && c1 > 0.0) s.amp_full[std::size_t(p) * resolution + q] = std::sqrt(c1);
         }

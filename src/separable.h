@@ -154,10 +154,7 @@ std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Quer
     RegionGuard guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
     for (int p = 0; p < n; ++p) guard.run([&] {
-        const double ox = slice_omega(p, n);
-        for (int q = 0; q < n; ++q) {
-            const double oy = slice_omega(q, n);
-            if (ox * ox + oy * oy > 1.0) continue;
+        for (const auto [q, ox, oy] : disk_row(p, n)) {
             const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
             const double value = f.c1 * static_cast<double>(std::norm(field(p, q)));
             slice[static_cast<std::size_t>(p) * n + q] = std::isfinite(value) ? Float(value) : Float(0);
