@@ -10,13 +10,13 @@
 #include <memory>
 #include <mutex>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "random.h"
 #include "wavebrdf/constants.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf {
 
@@ -32,31 +32,24 @@ constexpr int k_max_size = 16384;
 // ---------------------------------------------------------------------------------------------
 // Validation
 
-std::string format_number(double value) {
-    std::ostringstream out;
-    out.precision(17);
-    out << value;
-    return out.str();
-}
-
 void require_finite(double value, const char* name) {
     if (!std::isfinite(value))
         throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_number(value) + " is not finite; expected a finite value");
+                                format_shortest(value) + " is not finite; expected a finite value");
 }
 
 void require_positive(double value, const char* name) {
     require_finite(value, name);
     if (!(value > 0.0))
         throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_number(value) + " is invalid; expected a value > 0");
+                                format_shortest(value) + " is invalid; expected a value > 0");
 }
 
 void require_non_negative(double value, const char* name) {
     require_finite(value, name);
     if (value < 0.0)
         throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_number(value) + " is invalid; expected a value >= 0");
+                                format_shortest(value) + " is invalid; expected a value >= 0");
 }
 
 void require_size(int value, const char* name) {
@@ -274,7 +267,7 @@ std::vector<double> correlated_surface(const SurfaceParams& p, double ell_x_um, 
             "a " + std::to_string(p.rows) + "x" + std::to_string(p.cols) +
             " grid admits no zero-mean " + (by_slope ? "slope" : "height") +
             " variation, so rms " + (by_slope ? "slope " : "height ") +
-            format_number(by_slope ? rms_slope : rms_height_um) + (by_slope ? "" : " um") +
+            format_shortest(by_slope ? rms_slope : rms_height_um) + (by_slope ? "" : " um") +
             " cannot be reached; expected a larger grid or a zero rms");
     const double scale = target / realised;
     for (double& v : h) v *= scale;

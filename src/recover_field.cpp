@@ -19,6 +19,7 @@
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
+#include "wavebrdf/text.h"
 #include "parallel.h"
 
 namespace wavebrdf {
@@ -28,12 +29,6 @@ namespace {
 // Slice rows / columns whose envelope is below this (relative to its peak 1) are left out of
 // the products: the model's field there is below 1e-16 of the footprint's.
 constexpr double kEnvelopeCut = 1e-16;
-
-std::string fmt(double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%g", v);
-    return buf;
-}
 
 }  // namespace
 
@@ -95,7 +90,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
         throw std::invalid_argument("tile of " + std::to_string(rows) + " x " + std::to_string(cols) +
                                     " texels; expected at least 1 x 1");
     if (!std::isfinite(texel_um) || texel_um <= 0.0)
-        throw std::domain_error("texel width " + fmt(texel_um) + " um is invalid; expected a finite value > 0");
+        throw std::domain_error("texel width " + format_shortest(texel_um) + " um is invalid; expected a finite value > 0");
     validate(query);
     validate_lambda(lambda_um);
     validate_resolution(resolution);
@@ -284,7 +279,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         validate(o, i);
         if (o.lambdas_um.size() != 1 || std::abs(o.lambdas_um[0] - lambda_um) > 1e-12 * lambda_um)
             throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
-                                        " is not a single-wavelength slice at " + fmt(lambda_um) + " um");
+                                        " is not a single-wavelength slice at " + format_shortest(lambda_um) + " um");
         Slice s{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0};
         const auto& impl = FieldAccess::impl(s.op);
         s.sqrt_ref.resize(impl.ma, impl.mb);

@@ -1,22 +1,14 @@
 #pragma once
 // Internal: numbers in option texts such as "cmsle:0.01" or "poisson:1e4".
 #include <cctype>
-#include <cstdio>
 #include <cstdlib>
 #include <string>
 
+#include "wavebrdf/text.h"
+
 namespace wavebrdf::detail {
 
-// Shortest "%.{15,16,17}g" text that reads back as the same double, so that a parsed option
-// prints as typed ("0.01", not "0.010000000000000000208") and round-trips exactly.
-inline std::string format_shortest(double v) {
-    char buf[40];
-    for (int precision = 15; precision <= 17; ++precision) {
-        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-        if (std::strtod(buf, nullptr) == v) break;
-    }
-    return buf;
-}
+using wavebrdf::format_shortest;  // wavebrdf/text.h
 
 // The number that fills `text` from position `start` on, or throws bad(). strtod accepts
 // leading blanks; we do not, so that "cmsle: 1" is not half-accepted.
