@@ -16,7 +16,7 @@
 
 #include "random.h"
 #include "wavebrdf/constants.h"
-#include "wavebrdf/text.h"
+#include "text.h"
 
 namespace wavebrdf {
 
@@ -353,26 +353,21 @@ std::vector<double> scratch_grooves(int rows, int cols, int count, double width,
 
 }  // namespace
 
+constexpr std::pair<SurfaceType, const char*> k_surface_type_names[] = {
+    {SurfaceType::Flat, "flat"},           {SurfaceType::Isotropic, "isotropic"}, {SurfaceType::Brushed, "brushed"},
+    {SurfaceType::Scratched, "scratched"}, {SurfaceType::Grating, "grating"}};
+
 SurfaceType parse_surface_type(const std::string& name) {
-    if (name == "flat") return SurfaceType::Flat;
-    if (name == "isotropic") return SurfaceType::Isotropic;
-    if (name == "brushed") return SurfaceType::Brushed;
-    if (name == "scratched") return SurfaceType::Scratched;
-    if (name == "grating") return SurfaceType::Grating;
+    SurfaceType type;
+    if (detail::value_named(k_surface_type_names, name, type)) return type;
     throw std::invalid_argument("surface type '" + name +
                                 "' is unknown; expected flat, isotropic, brushed, scratched or "
                                 "grating");
 }
 
 const char* to_string(SurfaceType type) {
-    switch (type) {
-    case SurfaceType::Flat: return "flat";
-    case SurfaceType::Isotropic: return "isotropic";
-    case SurfaceType::Brushed: return "brushed";
-    case SurfaceType::Scratched: return "scratched";
-    case SurfaceType::Grating: return "grating";
-    }
-    return "unknown";
+    const char* name = detail::name_of(k_surface_type_names, type);
+    return name ? name : "unknown";
 }
 
 Heightfield generate_heightfield(const SurfaceParams& p) {

@@ -3,29 +3,25 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "wavebrdf/text.h"
+#include "text.h"
 
 namespace wavebrdf {
 
+namespace {
+constexpr std::pair<Model, const char*> k_model_names[] = {
+    {Model::OHS, "OHS"}, {Model::GHS, "GHS"}, {Model::ROHS, "ROHS"}, {Model::RGHS, "RGHS"}, {Model::Kirchhoff, "Kirchhoff"}};
+}  // namespace
+
 Model parse_model(const std::string& name) {
-    if (name == "OHS") return Model::OHS;
-    if (name == "GHS") return Model::GHS;
-    if (name == "ROHS") return Model::ROHS;
-    if (name == "RGHS") return Model::RGHS;
-    if (name == "Kirchhoff") return Model::Kirchhoff;
+    Model model;
+    if (detail::value_named(k_model_names, name, model)) return model;
     throw std::invalid_argument("unknown diffraction model '" + name +
                                 "'; expected one of OHS, GHS, ROHS, RGHS, Kirchhoff");
 }
 
 const char* to_string(Model model) {
-    switch (model) {
-        case Model::OHS: return "OHS";
-        case Model::GHS: return "GHS";
-        case Model::ROHS: return "ROHS";
-        case Model::RGHS: return "RGHS";
-        case Model::Kirchhoff: return "Kirchhoff";
-    }
-    return "?";
+    const char* name = detail::name_of(k_model_names, model);
+    return name ? name : "?";
 }
 
 void validate(const Query& query) {

@@ -1,13 +1,22 @@
-// model.h: the slice pixels inside the unit disk (disk_row), against the plain loop over all
+// model.h: the models' names, and the slice pixels inside the unit disk (disk_row), against the plain loop over all
 // pixels that the renderers, their adjoints and the planner used to write each.
 #include "wavebrdf/model.h"
 
 #include <gtest/gtest.h>
 
+#include <stdexcept>
 #include <vector>
 
 namespace wavebrdf {
 namespace {
+
+// Every model's name parses back to it, and only those names (exact spelling) parse.
+TEST(ModelNames, EveryModelRoundTripsThroughItsName) {
+    for (Model m : {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff})
+        EXPECT_EQ(parse_model(to_string(m)), m) << to_string(m);
+    EXPECT_STREQ(to_string(Model::Kirchhoff), "Kirchhoff");
+    for (const char* bad : {"", "ohs", "Wave", "OHS "}) EXPECT_THROW(parse_model(bad), std::invalid_argument) << bad;
+}
 
 TEST(DiskRow, VisitsExactlyThePixelsInsideTheDiskInColumnOrder) {
     for (int n : {1, 2, 3, 7, 16, 33, 128}) {
