@@ -11,6 +11,7 @@
 #include "slice_job.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/spectrum.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf::cli {
 
@@ -29,12 +30,6 @@ struct GenbrdfArgs {
 // The steepest light genbrdf takes: tan θ_i = |(s, t)| ≤ 1e6.
 constexpr double k_max_tan_theta_i = 1e6;
 
-std::string format_number(double v) {
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "%.10g", v);
-    return buf;
-}
-
 void run(const GenbrdfArgs& a) {
     if (a.method != "Wave")
         throw std::invalid_argument("method '" + a.method + "' is not supported; expected Wave (-m Wave)");
@@ -48,7 +43,7 @@ void run(const GenbrdfArgs& a) {
     // |ω_i| stays below 1 in double (cos θ_i ≥ 1e-6, θ_i ≤ 89.99994°).
     const double tan_theta_i = std::hypot(a.s, a.t);
     if (!std::isfinite(a.s) || !std::isfinite(a.t) || tan_theta_i > k_max_tan_theta_i)
-        throw std::domain_error("light direction -s " + format_number(a.s) + " -t " + format_number(a.t) +
+        throw std::domain_error("light direction -s " + format_shortest(a.s) + " -t " + format_shortest(a.t) +
                                 " is invalid; expected finite values with sqrt(s^2 + t^2) <= 1e6 "
                                 "(the direction (s, t, 1), up to 89.99994 degrees from the normal)");
     const double norm = std::hypot(tan_theta_i, 1.0);

@@ -70,7 +70,7 @@ InversionOptions to_options(const InvertArgs& a) {
     o.model = parse_model(a.model);
     if (a.given_lambda) o.lambda_um = a.lambda_um;
     if (a.given_spectral) o.spectral = a.spectral;
-    o.light = {a.light_x, a.light_y};
+    o.omega_i = {a.light_x, a.light_y};
     o.resolution = a.resolution;
     o.epochs = a.epochs;
     o.optimizer = parse_optimizer(a.optimizer, "--optimizer");

@@ -76,7 +76,7 @@ void run(const RecoverArgs& a) {
     options.vscale = a.vscale;
     options.height_range_um = a.height_range_um;
     options.correlation_texels = a.correlation_texels;
-    options.light = {a.light_x, a.light_y};
+    options.omega_i = {a.light_x, a.light_y};
     options.sigma_p_um = a.sigma_p_um;
     options.resolution = a.resolution;
     options.overlap = a.overlap;

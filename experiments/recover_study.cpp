@@ -132,7 +132,7 @@ int main(int argc, char** argv) try {
     if (args.count("unwrap")) rs.unwrap_from_blurred = args["unwrap"] == "blurred";
     if (args.count("cascade")) rs.cascade = args["cascade"] == "1";
     if (args.count("blur_spacing")) rs.blur_spacing_sigma = std::stod(args["blur_spacing"]);
-    if (args.count("max_range_um")) rs.max_range_um = std::stod(args["max_range_um"]);
+    if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     double blur_s = 0, blur_rmse = -1, field_s = 0, unwrap_rmse = -1, field_end = 0;
     std::string last_stage;
     const Heightfield estimate = recover_heights(

@@ -1,21 +1,16 @@
 #include "common.h"
 
 #include <cmath>
-#include <sstream>
 
 #include "wavebrdf/io.h"
 #include "wavebrdf/spectrum.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf::python {
 
 using namespace pybind11::literals;
 
-std::string format_number(double value) {
-    std::ostringstream out;
-    out.precision(10);
-    out << value;
-    return out.str();
-}
+std::string format_number(double value) { return format_shortest(value); }
 
 void bad_argument(const std::string& name, const std::string& got, const std::string& expected) {
     throw py::value_error(name + " = " + got + " is invalid; expected " + expected);

@@ -24,7 +24,7 @@ namespace py = pybind11;
 
 // Throws py::value_error("NAME = GOT is invalid; expected EXPECTED").
 [[noreturn]] void bad_argument(const std::string& name, const std::string& got, const std::string& expected);
-std::string format_number(double value);
+std::string format_number(double value);  // wavebrdf::format_shortest (wavebrdf/text.h)
 
 // Scalar checks; each returns its value.
 double check_finite(double value, const char* name);

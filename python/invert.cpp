@@ -111,7 +111,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     }
     options.resolution = check_resolution(resolution);
     options.model = model_from(model);
-    options.light = light_direction(light);
+    options.omega_i = light_direction(light);
     options.sigma_p_um = check_positive(sigma_p_um, "sigma_p_um");
     if (!x_um.is_none()) options.x_um = check_finite(x_um.cast<double>(), "x_um");
     if (!y_um.is_none()) options.y_um = check_finite(y_um.cast<double>(), "y_um");

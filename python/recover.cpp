@@ -168,7 +168,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.height_range_um = check_positive(height_range_um, "height_range_um");
     options.correlation_texels = check_positive(correlation_texels, "correlation_texels");
     options.model = model_from(model);
-    options.light = light_direction(light);
+    options.omega_i = light_direction(light);
     options.sigma_p_um = check_finite(sigma_p_um, "sigma_p_um");
     options.resolution = planned_resolution(resolution);
     options.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
@@ -258,7 +258,7 @@ into Observations (one per position and wavelength).
                                "raster steps (x, y) in um")
         .def_readonly("overlap", &AcquisitionPlan::overlap,
                       "worst-case linear overlap 1 - d/D of neighbouring windows (D = 6 sigma_p), jitter included")
-        .def_property_readonly("light", [](const AcquisitionPlan& p) { return py::make_tuple(p.light[0], p.light[1]); },
+        .def_property_readonly("light", [](const AcquisitionPlan& p) { return py::make_tuple(p.omega_i[0], p.omega_i[1]); },
                                "projected light direction (wx, wy) of every observation")
         .def_property_readonly("model", [](const AcquisitionPlan& p) { return std::string(to_string(p.model)); })
         .def_readonly("notes", &AcquisitionPlan::notes, "the choices, one line each")
@@ -299,7 +299,7 @@ into Observations (one per position and wavelength).
             r.max_step_ratio = max_step_ratio;
             r.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
             r.resolution = planned_resolution(resolution);
-            r.light = light_direction(light);
+            r.omega_i = light_direction(light);
             r.model = model_from(model);
             r.seed = seed;
             return plan_acquisition(r);
@@ -433,7 +433,7 @@ truth Heightfield) slopes that reflect light off the slice.
             if (refine < 0 || (refine > 0 && refine % 2 == 0) || refine > 63)
                 bad_argument("refine", std::to_string(refine), "0 (automatic) or an odd object-grid refinement 1...63");
             s.refine = refine;
-            s.max_range_um = check_positive(max_range_um, "max_range_um");
+            s.height_range_um = check_positive(max_range_um, "max_range_um");
             s.unwrap_from_blurred = unwrap_from_blurred;
             if (refine_iterations < 0) bad_argument("refine_iterations", std::to_string(refine_iterations), ">= 0");
             s.refine_iterations = refine_iterations;
@@ -452,7 +452,7 @@ truth Heightfield) slopes that reflect light off the slice.
         "blur_widths"_a = rs.blurred.blur_widths, "blur_iterations"_a = rs.blurred.iterations,
         "blur_wavelengths"_a = rs.blur_wavelengths, "blur_spacing_sigma"_a = rs.blur_spacing_sigma,
         "field_iterations"_a = rs.field.iterations, "field_passes"_a = rs.field_passes, "cascade"_a = rs.cascade,
-        "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.max_range_um,
+        "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss),
         "callback"_a = py::none(),
@@ -470,7 +470,7 @@ field_iterations    L-BFGS iterations of each field retrieval (>= 0); field_pass
                     cascade: each field starts from the heights of the fields before it;
                     band_limit: keep only the object's spectrum the slices see
 refine              odd object-grid refinement 1...63 (0: automatic)
-max_range_um        bound on the height range for unwrapping (um, > 0)
+max_range_um        bound on the height range for unwrapping (um, > 0; RecoverSettings::height_range_um)
 unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
 refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                     refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss

@@ -21,7 +21,7 @@ using namespace wavebrdf;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using wavebrdf::k_pi;
 
 double periodic_distance(const std::array<double, 2>& a, const std::array<double, 2>& b, double px, double py) {
     double dx = std::fmod(std::abs(a[0] - b[0]), px), dy = std::fmod(std::abs(a[1] - b[1]), py);
@@ -116,11 +116,11 @@ TEST(PlanTest, LadderUnwrapsNoisyPhasesIntoHeights) {
     std::mt19937_64 rng(5);
     std::uniform_real_distribution<double> height(-0.5 * range, 0.5 * range);
     std::normal_distribution<double> noise(0.0, noise_rad);
-    const auto wrap = [](double phi) { return phi - 2.0 * kPi * std::floor(phi / (2.0 * kPi) + 0.5); };
+    const auto wrap = [](double phi) { return phi - 2.0 * k_pi * std::floor(phi / (2.0 * k_pi) + 0.5); };
     double worst = 0.0;
     for (int trial = 0; trial < 2000; ++trial) {
         const double h = height(rng);
-        const auto phase = [&](double lambda) { return wrap(4.0 * kPi * h / lambda + noise(rng)); };
+        const auto phase = [&](double lambda) { return wrap(4.0 * k_pi * h / lambda + noise(rng)); };
         const double phi0 = phase(lambda0);
         // Coarsest level: the pair's phase difference determines h modulo Λ/2 ⊇ the range.
         double estimate = 0.0;
@@ -129,15 +129,15 @@ TEST(PlanTest, LadderUnwrapsNoisyPhasesIntoHeights) {
             const double sign = partners[j] < lambda0 ? 1.0 : -1.0;  // 4πh(1/λj − 1/λ0) = ±4πh/Λ
             const double diff = wrap(sign * (phase(partners[j]) - phi0));
             // h = Λ (diff + 2πm) / 4π with m nearest the previous estimate.
-            const double base = big * diff / (4.0 * kPi), period = 0.5 * big;
+            const double base = big * diff / (4.0 * k_pi), period = 0.5 * big;
             estimate = j == 0 ? base : base + period * std::round((estimate - base) / period);
         }
-        const double base = lambda0 * phi0 / (4.0 * kPi), period = 0.5 * lambda0;
+        const double base = lambda0 * phi0 / (4.0 * k_pi), period = 0.5 * lambda0;
         estimate = partners.empty() ? base : base + period * std::round((estimate - base) / period);
         worst = std::max(worst, std::abs(estimate - h));
     }
     // Single-wavelength precision: λ0 · 5σ / 4π; a wrong integer would be ≥ λ0/2 = 0.275.
-    EXPECT_LT(worst, lambda0 * 5.0 * noise_rad / (4.0 * kPi));
+    EXPECT_LT(worst, lambda0 * 5.0 * noise_rad / (4.0 * k_pi));
 }
 
 TEST(PlanTest, CheckNamesSparseAndCoarseData) {

@@ -18,7 +18,7 @@ using wavebrdf::test::random_heightfield;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using wavebrdf::k_pi;
 const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
 
 
@@ -44,18 +44,18 @@ std::vector<double> literal_model(const Heightfield& hf, const Query& q, double 
                     const double d2 = (mx - q.x_um) * (mx - q.x_um) + (my - q.y_um) * (my - q.y_um);
                     if (d2 > 9 * q.sigma_p_um * q.sigma_p_um) continue;
                     const double c = std::exp(-d2 / (2 * q.sigma_p_um * q.sigma_p_um)) /
-                                     (std::sqrt(kPi) * q.sigma_p_um);
+                                     (std::sqrt(k_pi) * q.sigma_p_um);
                     const double H = hf.vscale() * w * hf.value(i, j);
                     const double sx = hf.vscale() * (hf.value(i + 1, j) - hf.value(i - 1, j)) / 2;
                     const double sy = hf.vscale() * (hf.value(i, j + 1) - hf.value(i, j - 1)) / 2;
                     const double cinfo = scale * (H - sx * mx - sy * my);
                     const double ax = scale * 2 * sx / lambda, ay = scale * 2 * sy / lambda;
-                    const std::complex<double> C = w * w * std::polar(1.0, -4 * kPi / lambda * cinfo);
+                    const std::complex<double> C = w * w * std::polar(1.0, -4 * k_pi / lambda * cinfo);
                     double c2 = 1.0;
                     if (q.model == Model::Kirchhoff) c2 = (ci + co) - (ox + q.omega_i[0]) * sx - (oy + q.omega_i[1]) * sy;
                     const double gx = ux + ax, gy = uy + ay;
-                    field += c * c2 * C * std::exp(-2 * kPi * kPi * sigma * sigma * (gx * gx + gy * gy)) *
-                             std::polar(1.0, -2 * kPi * (gx * mx + gy * my));
+                    field += c * c2 * C * std::exp(-2 * k_pi * k_pi * sigma * sigma * (gx * gx + gy * gy)) *
+                             std::polar(1.0, -2 * k_pi * (gx * mx + gy * my));
                 }
             double c1 = 0;
             switch (q.model) {
@@ -213,11 +213,11 @@ TEST(BrdfTest, SinusoidalGratingOrdersFollowBessel) {
     const int rows = 256, cols = 96;
     const double w = 1.0, period = 32.0, lambda = 2.0;
     for (double beta : {1.0, 2.4}) {  // 4πA/λ
-        const double amplitude = beta * lambda / (4 * kPi);
+        const double amplitude = beta * lambda / (4 * k_pi);
         std::vector<double> v(static_cast<std::size_t>(rows) * cols);
         for (int i = 0; i < rows; ++i)
             for (int j = 0; j < cols; ++j)
-                v[static_cast<std::size_t>(i) * cols + j] = amplitude * std::sin(2 * kPi * (i + 0.5) * w / period) / w;
+                v[static_cast<std::size_t>(i) * cols + j] = amplitude * std::sin(2 * k_pi * (i + 0.5) * w / period) / w;
         const Heightfield hf(rows, cols, v, w, 1.0);
         const int n = 192;
         std::vector<double> f(static_cast<std::size_t>(n) * n, 0.0);
@@ -355,7 +355,7 @@ TEST(BrdfTest, RoughSurfaceSpecularPeakFollowsBeckmannKirchhoff) {
     p.correlation_um = 4.0;
     p.seed = 21;
     const double lambda = 0.5, g_target = 0.5;  // g = (4πσ_h/λ)²
-    p.rms_height_um = std::sqrt(g_target) * lambda / (4 * kPi);
+    p.rms_height_um = std::sqrt(g_target) * lambda / (4 * k_pi);
     const Heightfield rough = generate_heightfield(p);
     const Heightfield flat(256, 256, std::vector<double>(256 * 256, 0.0), 1.0, 1.0);
     const int n = 11;  // odd: the slice has a pixel exactly at ω_o = −ω_i when ω_i = 0

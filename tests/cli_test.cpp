@@ -27,6 +27,7 @@
 
 #include "cli_util.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/text.h"
 
 namespace fs = std::filesystem;
 using namespace wavebrdf::test;
@@ -129,13 +130,6 @@ void expect_same_image(const wavebrdf::RgbImage& a, const wavebrdf::RgbImage& b,
     EXPECT_LE(worst, rel * peak) << "peak " << peak;
 }
 
-// %.17g: the shortest text that reads back as the same double.
-std::string exact(double value) {
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "%.17g", value);
-    return buf;
-}
-
 // ---------------------------------------------------------------------------------------------
 // Happy paths
 
@@ -206,7 +200,7 @@ TEST_F(CliTest, GenbrdfLightDirectionIsNormalised) {
     ASSERT_EQ(g.exit_code, 0) << g.err;
     const double light_x = 0.3 / std::sqrt(0.3 * 0.3 + 0.0 * 0.0 + 1.0);  // 0.3 / sqrt(1.09)
     const CliResult r = run("render --heightfield " + quote(hf) + " --lambda-um 0.5 --light-x " +
-                            exact(light_x) + " --light-y 0 --resolution 32 --out r.exr --quiet");
+                            wavebrdf::format_shortest(light_x) + " --light-y 0 --resolution 32 --out r.exr --quiet");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()),
                       wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);

@@ -1,4 +1,5 @@
 #include "wavebrdf/generate.h"
+#include "wavebrdf/constants.h"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +12,7 @@
 namespace wavebrdf {
 namespace {
 
-constexpr double k_pi = 3.14159265358979323846;
+using wavebrdf::k_pi;
 
 // Independent re-implementations of the statistics the generators promise, in µm.
 double rms_height_um(const Heightfield& hf) {

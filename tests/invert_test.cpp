@@ -17,6 +17,7 @@
 #include <iterator>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -370,6 +371,42 @@ TEST_F(InvertTest, CorruptCheckpointThrows) {
     expect_throw_naming<std::runtime_error>(
         [&] { Inversion(obs, flat(), settings, &truth).load_checkpoint((dir / "missing.json").string()); },
         {"missing.json"});
+}
+
+// --init noisy:FRAC: the truth plus noise uniform on [-w/2, w/2), w = FRAC x the truth's range,
+// drawn from the seed's std::mt19937_64 (specified bit for bit) through the library's own
+// transform of 53 bits, never a std:: distribution, so every standard library gives the same
+// start. Same seed, same start; another seed, another start; the noise fills its interval.
+TEST_F(InvertTest, NoisyStartIsTheSameOnEveryStandardLibrary) {
+    // Values from -1 to 1: the width 0.25 x 2 = 0.5 and every width x (u - 0.5) are exact, so
+    // the comparison below does not depend on how the compiler contracts a * b + c.
+    std::vector<double> values(256);
+    for (std::size_t i = 0; i < values.size(); ++i) values[i] = std::sin(0.37 * double(i));
+    values[0] = -1.0;
+    values[1] = 1.0;
+    const Heightfield truth(16, 16, values, 1.0, 1.0);
+    const std::vector<double>& t = truth.values();
+    const double frac = 0.25, width = 0.5;
+    const std::uint64_t seed = 42;
+    const std::vector<double> start = noisy_start(truth, frac, seed);
+    ASSERT_EQ(start.size(), t.size());
+    EXPECT_EQ(noisy_start(truth, frac, seed), start);
+    EXPECT_NE(noisy_start(truth, frac, seed + 1), start);
+
+    std::mt19937_64 rng(seed ^ 0x5eedULL);
+    double low = 0.0, high = 0.0;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+        const double u = static_cast<double>(rng() >> 11) * 0x1.0p-53;  // [0, 1), 53 bits
+        EXPECT_EQ(start[i], t[i] + width * (u - 0.5)) << "value " << i;
+        const double noise = start[i] - t[i];
+        EXPECT_GE(noise, -0.5 * width - 1e-15);
+        EXPECT_LE(noise, 0.5 * width + 1e-15);
+        low = std::min(low, noise);
+        high = std::max(high, noise);
+    }
+    EXPECT_LT(low, -0.4 * width) << "256 samples reach near both ends of the interval";
+    EXPECT_GT(high, 0.4 * width);
+    EXPECT_EQ(noisy_start(truth, 0.0, seed), t) << "no noise at FRAC 0";
 }
 
 TEST_F(InvertTest, RandomPositionsFollowTheSeed) {

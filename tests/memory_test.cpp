@@ -1,10 +1,6 @@
 // memory.h: out-of-memory errors that name what was allocated, limits, and the estimates that
 // render and recover check before any work (brdf.h, recovery_run.h), against measured peaks.
 #include <gtest/gtest.h>
-#include <omp.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <new>
@@ -77,32 +73,11 @@ TEST(Memory, RenderEstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
         q.model = model;
         const int n = model == Model::OHS ? 3072 : 1024;
         const double estimate = estimate_render_bytes(hf, q, n, RenderOptions{}, sizeof(double), true);
-        std::fflush(nullptr);
-        const pid_t pid = ::fork();
-        ASSERT_GE(pid, 0);
-        if (pid == 0) {
-            // The parent's OpenMP threads do not survive fork (a team would wait for them
-            // forever): the child runs on one thread, which changes only per-thread buffers.
-            omp_set_num_threads(1);
-            int code = 0;
-            try {
-                code = render_rgb<double>(hf, q, {0.5}, n).size() == std::size_t(n) * n * 3 ? 0 : 4;
-            } catch (...) {
-                code = 3;
-            }
-            ::_exit(code);
-        }
-        int status = 0;
-        struct rusage usage {};
-        ASSERT_EQ(::wait4(pid, &status, 0, &usage), pid);
-        ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the render failed in the child";
-        const double measured = double(usage.ru_maxrss) * 1024.0;  // kB on Linux
-        EXPECT_GT(measured, 0.5 * estimate) << to_string(model) << ": estimate " << format_bytes(estimate)
-                                            << ", measured " << format_bytes(measured);
-        EXPECT_LT(measured, 2.0 * estimate) << to_string(model) << ": estimate " << format_bytes(estimate)
-                                            << ", measured " << format_bytes(measured);
-        std::printf("render %s %dx%d: estimate %s, measured peak %s\n", to_string(model), n, n,
-                    format_bytes(estimate).c_str(), format_bytes(measured).c_str());
+        const double measured = test::child_peak_memory_bytes(
+            [&] { return render_rgb<double>(hf, q, {0.5}, n).size() == std::size_t(n) * n * 3; });
+        ASSERT_GT(measured, 0.0) << "the render failed in the child";
+        test::expect_estimate_within_factor_of_two(
+            estimate, measured, "render " + std::string(to_string(model)) + " " + std::to_string(n) + "x" + std::to_string(n));
     }
 }
 

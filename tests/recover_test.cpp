@@ -16,7 +16,7 @@ namespace wavebrdf {
 namespace {
 
 using Complex = std::complex<double>;
-constexpr double kPi = 3.14159265358979323846;
+using wavebrdf::k_pi;
 
 // A heightfield whose central-difference slopes all vanish: period 2 along both axes
 // (h[i+1] = h[i−1]), four free values. The Gabor model then has a_k = 0 for every kernel.
@@ -31,7 +31,7 @@ std::vector<Complex> object_of(const Heightfield& hf, double lambda_um) {
     std::vector<Complex> o(hf.values().size());
     for (int i = 0; i < hf.rows(); ++i)
         for (int j = 0; j < hf.cols(); ++j)
-            o[hf.index(i, j)] = std::polar(1.0, -4.0 * kPi / lambda_um * hf.height_um(i, j));
+            o[hf.index(i, j)] = std::polar(1.0, -4.0 * k_pi / lambda_um * hf.height_um(i, j));
     return o;
 }
 
@@ -211,7 +211,7 @@ TEST(UnwrapHeights, RecoversHeightsFromExactFieldsAtSeveralWavelengths) {
         for (int j = 0; j < cols; ++j)
             steepest = std::max({steepest, std::abs(hf.height_um(i + 1, j) - hf.height_um(i, j)),
                                  std::abs(hf.height_um(i, j + 1) - hf.height_um(i, j))});
-    ASSERT_LT(4.0 * kPi / 0.5 * steepest, kPi);
+    ASSERT_LT(4.0 * k_pi / 0.5 * steepest, k_pi);
     for (std::size_t l = 0; l < lambdas.size(); ++l) {
         auto f = object_of(hf, lambdas[l]);
         for (auto& z : f) z *= std::polar(0.8, 1.0 + 2.0 * double(l));  // global phase and amplitude
@@ -240,7 +240,7 @@ TEST(UnwrapHeights, SnapsToTheBranchNearestAReference) {
     std::vector<std::vector<Complex>> fields;
     for (double lambda : {0.5, 0.6}) {
         std::vector<Complex> f;
-        for (double h : truth) f.push_back(std::polar(1.0, -4.0 * kPi / lambda * h + 0.3));
+        for (double h : truth) f.push_back(std::polar(1.0, -4.0 * k_pi / lambda * h + 0.3));
         fields.push_back(f);
     }
     const auto h = unwrap_heights({0.5, 0.6}, fields, 3.0, 0, 0, &reference);
@@ -266,13 +266,13 @@ TEST(RefinedHeights, FollowsTheSurfaceBetweenTexelCentres) {
     const double w = 0.5, period = rows * w, amplitude = 0.3;
     std::vector<double> v(std::size_t(rows) * 2);
     for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < 2; ++j) v[std::size_t(i) * 2 + j] = amplitude * std::sin(2.0 * kPi * (i + 0.5) * w / period) / w;
+        for (int j = 0; j < 2; ++j) v[std::size_t(i) * 2 + j] = amplitude * std::sin(2.0 * k_pi * (i + 0.5) * w / period) / w;
     const Heightfield hf(rows, 2, v, w);
     const auto fine = refined_heights(hf, q);
     double worst = 0.0;
     for (int a = 0; a < rows * q; ++a) {
         const double x = (a + 0.5) * w / q;
-        worst = std::max(worst, std::abs(fine[std::size_t(a) * 2 * q] - amplitude * std::sin(2.0 * kPi * x / period)));
+        worst = std::max(worst, std::abs(fine[std::size_t(a) * 2 * q] - amplitude * std::sin(2.0 * k_pi * x / period)));
     }
     EXPECT_LT(worst, 2e-3 * amplitude);
     const auto flat = refined_heights(Heightfield(3, 3, std::vector<double>(9, 0.25), 2.0), 3);
@@ -379,7 +379,7 @@ TEST(AutoRefine, SamplesTheSliceBandAndTheField) {
     const auto heights = refined_heights(hf, 3);
     ASSERT_EQ(object.size(), heights.size());
     for (std::size_t k = 0; k < object.size(); ++k)
-        EXPECT_NEAR(std::arg(object[k] * std::polar(1.0, 4.0 * kPi / 0.6 * heights[k])), 0.0, 1e-12);
+        EXPECT_NEAR(std::arg(object[k] * std::polar(1.0, 4.0 * k_pi / 0.6 * heights[k])), 0.0, 1e-12);
 }
 
 // The stages sum over observations on all threads in a fixed order (ordered_parallel_sum):

@@ -1,11 +1,6 @@
 // recovery_run.h: the memory estimate of a recovery and the limit prepare_recovery enforces.
 #include <gtest/gtest.h>
-#include <omp.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <cstdio>
 #include <string>
 
 #include "test_util.h"
@@ -57,34 +52,16 @@ TEST(RecoveryRun, EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
     const std::vector<Observation> planned = planned_observations(plan_acquisition(request));
     const double estimate = estimate_recovery_bytes(planned, 24, 24, options.texel_um, RecoveryMethod::Pipeline);
 
-    std::fflush(nullptr);
-    const pid_t pid = ::fork();
-    ASSERT_GE(pid, 0);
-    if (pid == 0) {
-        // The parent's OpenMP threads do not survive fork (a team would wait for them
-        // forever): the child runs on one thread, which changes only per-thread buffers.
-        omp_set_num_threads(1);
-        int code = 0;
-        try {
-            PreparedRecovery r = prepare_recovery(options);
-            r.pipeline.blurred.iterations = 1;
-            r.pipeline.field.iterations = 1;
-            r.pipeline.refine_iterations = 1;
-            run_recovery(r);
-        } catch (...) {
-            code = 3;
-        }
-        ::_exit(code);
-    }
-    int status = 0;
-    struct rusage usage {};
-    ASSERT_EQ(::wait4(pid, &status, 0, &usage), pid);
-    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the recovery failed in the child";
-    const double measured = double(usage.ru_maxrss) * 1024.0;  // kB on Linux
-    EXPECT_GT(measured, 0.5 * estimate) << "estimate " << format_bytes(estimate) << ", measured " << format_bytes(measured);
-    EXPECT_LT(measured, 2.0 * estimate) << "estimate " << format_bytes(estimate) << ", measured " << format_bytes(measured);
-    std::printf("recover 24x24: estimate %s, measured peak %s\n", format_bytes(estimate).c_str(),
-                format_bytes(measured).c_str());
+    const double measured = test::child_peak_memory_bytes([&] {
+        PreparedRecovery r = prepare_recovery(options);
+        r.pipeline.blurred.iterations = 1;
+        r.pipeline.field.iterations = 1;
+        r.pipeline.refine_iterations = 1;
+        run_recovery(r);
+        return true;
+    });
+    ASSERT_GT(measured, 0.0) << "the recovery failed in the child";
+    test::expect_estimate_within_factor_of_two(estimate, measured, "recover 24x24");
 }
 
 }  // namespace

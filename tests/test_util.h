@@ -1,14 +1,23 @@
 #pragma once
-// Small helpers shared by the C++ tests: seeded random heightfields without the generators.
+// Small helpers shared by the C++ tests: seeded random heightfields without the generators,
+// and the peak memory of work run in a child process.
+#include <omp.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <random>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "wavebrdf/constants.h"
 #include "wavebrdf/heightfield.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/model.h"
 
 // WAVEBRDF_ASAN: defined under AddressSanitizer (gcc and clang), for tests whose measurement
@@ -35,13 +44,49 @@ void expect_throw_naming(Fn fn, const std::string& text) {
     }
 }
 
+// The peak resident memory (bytes) of a forked child process that runs `work` (returns true on
+// success), or -1 when the fork fails or the child does not succeed (false or an exception).
+// The parent's OpenMP threads do not survive fork (a team would wait for them forever): the
+// child runs on one thread, which changes only per-thread buffers.
+template <typename Work>
+double child_peak_memory_bytes(Work work) {
+    std::fflush(nullptr);
+    const pid_t pid = ::fork();
+    if (pid < 0) return -1.0;
+    if (pid == 0) {
+        omp_set_num_threads(1);
+        int code = 0;
+        try {
+            code = work() ? 0 : 4;
+        } catch (...) {
+            code = 3;
+        }
+        ::_exit(code);
+    }
+    int status = 0;
+    struct rusage usage {};
+    if (::wait4(pid, &status, 0, &usage) != pid || !WIFEXITED(status) || WEXITSTATUS(status) != 0) return -1.0;
+    return double(usage.ru_maxrss) * 1024.0;  // kB on Linux
+}
+
+// Expects a memory estimate within a factor of two of the measured peak, either way, and
+// prints both ("<what>: estimate …, measured peak …").
+inline void expect_estimate_within_factor_of_two(double estimate, double measured, const std::string& what) {
+    EXPECT_GT(measured, 0.5 * estimate) << what << ": estimate " << format_bytes(estimate) << ", measured "
+                                        << format_bytes(measured);
+    EXPECT_LT(measured, 2.0 * estimate) << what << ": estimate " << format_bytes(estimate) << ", measured "
+                                        << format_bytes(measured);
+    std::printf("%s: estimate %s, measured peak %s\n", what.c_str(), format_bytes(estimate).c_str(),
+                format_bytes(measured).c_str());
+}
+
 // Smooth random heights (sum of a few random periodic sinusoids), in texel units.
 inline Heightfield random_heightfield(int rows, int cols, double amplitude, std::uint64_t seed,
                                       double texel_um = 1.0, double vscale = 1.0) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     std::vector<double> v(static_cast<std::size_t>(rows) * cols, 0.0);
-    const double two_pi = 2.0 * std::acos(-1.0);
+    const double two_pi = 2.0 * k_pi;
     for (int m = 0; m < 6; ++m) {
         const int fx = static_cast<int>(uni(rng) * 4), fy = static_cast<int>(uni(rng) * 4);
         const double phase = uni(rng) * two_pi, a = amplitude * (0.5 + uni(rng));

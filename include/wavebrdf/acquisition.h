@@ -42,7 +42,7 @@ struct PlanRequest {
     double max_step_ratio = 4.0;    // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
     std::vector<double> lambdas_um; // given wavelengths (µm) instead of the ladder; empty: plan them
     int resolution = 0;             // given slice size instead of Nyquist's; 0: plan it
-    std::array<double, 2> light{{0.0, 0.0}};  // ω_i of every observation
+    std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i of every observation
     Model model = Model::OHS;
     std::uint64_t seed = 1;         // jitter
 };
@@ -55,7 +55,7 @@ struct AcquisitionPlan {
     std::vector<std::array<double, 2>> positions_um;  // footprint centres (x, y)
     double step_x_um = 0.0, step_y_um = 0.0;      // raster steps
     double overlap = 0.0;                         // worst-case linear overlap of neighbours
-    std::array<double, 2> light{{0.0, 0.0}};
+    std::array<double, 2> omega_i{{0.0, 0.0}};         // projected light direction ω_i
     Model model = Model::OHS;
     std::vector<std::string> notes;               // choices the caller should know about
 };

@@ -101,7 +101,7 @@ struct InversionOptions {
     std::optional<double> lambda_um;
     std::optional<int> spectral;
     std::vector<double> wavelengths_um;
-    std::array<double, 2> light{{0.0, 0.0}};  // projected light direction, |ω_i| < 1
+    std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (--light-x/-y), |ω_i| < 1
     int resolution = 32;                      // slice size n, 1 … 8192
     int epochs = 300;                         // 0 … k_max_iterations
     OptimizerKind optimizer = OptimizerKind::Adam;

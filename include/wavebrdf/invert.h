@@ -67,8 +67,10 @@ std::vector<Observation> observe(const Heightfield& truth, const Observation& ba
 // non-empty list of number pairs.
 std::vector<std::array<double, 2>> read_positions_json(const std::string& path);
 
-// The truth's raw values plus uniform noise on an interval of width frac × their range
-// (`--init noisy:FRAC`), seeded. Throws std::domain_error for frac < 0 or not finite.
+// The truth's raw values plus uniform noise on [−w/2, w/2), w = frac × their range
+// (`--init noisy:FRAC`), seeded: std::mt19937_64 and the library's own uniform transform, so
+// every standard library gives the same values. Throws std::domain_error for frac < 0 or not
+// finite.
 std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed);
 
 // The largest Adam learning rate (a step in texel units) and the largest noise fraction of

@@ -55,6 +55,52 @@ inline double slice_omega(int index, int resolution) {
     return (index + 0.5) / resolution * 2.0 - 1.0;
 }
 
+// One slice pixel inside the unit disk: column q of its row and its ω_o = (ox, oy).
+struct DiskPixel {
+    int q;
+    double ox, oy;
+};
+
+// The pixels of row p of an n × n slice with |ω_o|² ≤ 1 (the rendered ones), in column order:
+//   for (const auto [q, ox, oy] : disk_row(p, n)) { … }
+// The one copy of the loop "ω_o = (slice_omega(p, n), slice_omega(q, n)), skip outside the disk".
+class DiskRow {
+public:
+    DiskRow(int p, int n) : m_ox(slice_omega(p, n)), m_n(n) {}
+
+    class Iterator {
+    public:
+        Iterator(const DiskRow& row, int q) : m_row(&row), m_q(q) { skip_outside(); }
+        DiskPixel operator*() const { return {m_q, m_row->m_ox, m_oy}; }
+        Iterator& operator++() {
+            ++m_q;
+            skip_outside();
+            return *this;
+        }
+        bool operator!=(const Iterator& other) const { return m_q != other.m_q; }
+
+    private:
+        void skip_outside() {
+            for (; m_q < m_row->m_n; ++m_q) {
+                m_oy = slice_omega(m_q, m_row->m_n);
+                if (!(m_row->m_ox * m_row->m_ox + m_oy * m_oy > 1.0)) return;
+            }
+        }
+        const DiskRow* m_row;
+        int m_q;
+        double m_oy = 0.0;
+    };
+
+    Iterator begin() const { return Iterator(*this, 0); }
+    Iterator end() const { return Iterator(*this, m_n); }
+
+private:
+    double m_ox;
+    int m_n;
+};
+
+inline DiskRow disk_row(int p, int n) { return DiskRow(p, n); }
+
 // The per-direction factors of a model (MODEL.md, "BRDF"). cos θ = sqrt(|1 − |ω|²|) as in
 // the reference program.
 struct DirectionFactors {

@@ -142,7 +142,7 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& heightf
 //    neighbours differ by less than π in phase: the wrapped differences, averaged over the
 //    wavelengths, are integrated by least squares (spatial unwrapping);
 //  - rows = cols = 0: each sample on its own, by synthetic wavelengths λ1λ2/|λ1 − λ2|, coarse
-//    to fine, from the first whose half covers max_range_um (a bound on max H − min H).
+//    to fine, from the first whose half covers height_range_um (a bound on max H − min H).
 // Then, with two or more wavelengths and no spatial start, each sample takes the branch of the
 // shortest wavelength that fits all wavelengths best (this needs phase errors well below the
 // 2π(λ_b/λ_a − 1)/2 that separates branches; the spatial start is far more robust), and a joint
@@ -155,7 +155,7 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& heightf
 // wavelengths, within a quarter of the shortest synthetic wavelength and close on average.
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                                    const std::vector<std::vector<std::complex<double>>>& fields,
-                                   double max_range_um, int rows = 0, int cols = 0,
+                                   double height_range_um, int rows = 0, int cols = 0,
                                    const std::vector<double>* reference = nullptr);
 
 // ---- 3. The pipeline -----------------------------------------------------------------------
@@ -170,7 +170,7 @@ struct RecoverSettings {
     double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
     FieldRetrievalSettings field;  // stage 1, per wavelength (its refine is replaced by:)
     int refine = 0;                // object grid refinement; 0: auto_refine
-    double max_range_um = 4.0;     // bound on the height range, for unwrapping (stage 2)
+    double height_range_um = 4.0;  // bound on the height range, for unwrapping (stage 2)
     // Stage 2 starts from the spatially unwrapped fields (false) or from the estimate before it
     // (true: the blurred fit, or the fields so far when cascading).
     bool unwrap_from_blurred = false;

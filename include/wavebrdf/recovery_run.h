@@ -44,7 +44,7 @@ struct RecoveryOptions {
     double correlation_texels = 4.0;  // generated truth: correlation length, texels (> 0)
     // Acquisition, planned for a truth (PlanRequest's fields of the same names).
     Model model = Model::OHS;
-    std::array<double, 2> light{{0.0, 0.0}};
+    std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (|ω_i| < 1)
     double sigma_p_um = 0.0;          // 0: the planner's (1.5 texels)
     int resolution = 0;               // 0: the planner's Nyquist choice
     std::vector<double> lambdas_um;   // empty: the planner's ladder

@@ -56,11 +56,8 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
         // their reduction are bitwise reproducible (resume relies on it).
 #pragma omp for schedule(static)
         for (int p = 0; p < n; ++p) guard.run([&] {
-            const double ox = slice_omega(p, n);
-            for (int q = 0; q < n; ++q) {
-                const double oy = slice_omega(q, n);
+            for (const auto [q, ox, oy] : disk_row(p, n)) {
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
-                if (ox * ox + oy * oy > 1.0) continue;
                 const double v = forward.c1[at] * std::norm(forward.field[at]);
                 if (!std::isfinite(v) || weights[at] == 0.0) continue;
                 const std::complex<double> b = 2.0 * weights[at] * forward.c1[at] * std::conj(forward.field[at]);
@@ -91,11 +88,8 @@ std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query
     RegionGuard guard;
 #pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
     for (int p = 0; p < n; ++p) guard.run([&] {
-        const double ox = slice_omega(p, n);
-        for (int q = 0; q < n; ++q) {
-            const double oy = slice_omega(q, n);
+        for (const auto [q, ox, oy] : disk_row(p, n)) {
             const std::size_t at = static_cast<std::size_t>(p) * n + q;
-            if (ox * ox + oy * oy > 1.0) continue;
             if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) continue;
             std::complex<double> d_field = 0.0;
             visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,

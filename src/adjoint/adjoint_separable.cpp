@@ -33,10 +33,7 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
     RegionGuard b_guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
     for (int p = 0; p < n; ++p) b_guard.run([&] {
-        const double ox = slice_omega(p, n);
-        for (int q = 0; q < n; ++q) {
-            const double oy = slice_omega(q, n);
-            if (ox * ox + oy * oy > 1.0) continue;
+        for (const auto [q, ox, oy] : disk_row(p, n)) {
             const std::size_t at = static_cast<std::size_t>(p) * n + q;
             const double factor =
                 c1 ? (*c1)[at] : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
@@ -71,9 +68,9 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
                });
     const ComplexMatrix<Float>& xs = reuse ? kept->xs : built_xs;
     const ComplexMatrix<Float>& ys = reuse ? kept->ys : built_ys;
-    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
     const double two_over_lambda = 2.0 / lambda_um;
-    const std::complex<double> height_factor(0.0, -4.0 * kPi / lambda_um);
+    const std::complex<double> height_factor(0.0, -4.0 * k_pi / lambda_um);
     for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
         const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
         if (!reuse) build_factors<Float>(k, grid, *phases, lambda_um, k0, count, true, built_xs, built_ys);

@@ -6,24 +6,34 @@
 #include <cstdint>
 #include <random>
 
+#include "wavebrdf/constants.h"
+
 namespace wavebrdf::detail {
 
-// SplitMix64 finaliser: independent generator seeds for the parts of one computation.
-inline std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t stream) {
-    std::uint64_t z = seed + 0x9E3779B97F4A7C15ull * (stream + 1);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
+// SplitMix64 (Steele, Lea and Flood 2014): the generator's output after one step from state `x`,
+// a well-mixed 64-bit hash of x. The only copy in the library.
+inline std::uint64_t splitmix64(std::uint64_t x) {
+    x += 0x9E3779B97F4A7C15ull;
+    x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+    x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+    return x ^ (x >> 31);
 }
 
-// Uniform in [0, 1) with 53 random bits.
-inline double uniform01(std::mt19937_64& rng) {
-    return static_cast<double>(rng() >> 11) * 0x1.0p-53;
+// Independent generator seeds for the parts of one computation: SplitMix64's output number
+// stream + 1 from state `seed`.
+inline std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t stream) {
+    return splitmix64(seed + 0x9E3779B97F4A7C15ull * stream);
 }
+
+// [0, 1) from the top 53 bits of `bits`.
+inline double unit_interval(std::uint64_t bits) { return static_cast<double>(bits >> 11) * 0x1.0p-53; }
+
+// Uniform in [0, 1) with 53 random bits.
+inline double uniform01(std::mt19937_64& rng) { return unit_interval(rng()); }
 
 // Fills `out[0..n)` with independent standard normal samples (Box–Muller, both outputs used).
 inline void fill_standard_normal(double* out, std::size_t n, std::mt19937_64& rng) {
-    constexpr double two_pi = 6.28318530717958647692;
+    constexpr double two_pi = 2.0 * k_pi;
     for (std::size_t k = 0; k < n; k += 2) {
         // u1 in (0, 1] so that log(u1) is finite.
         const double u1 = static_cast<double>((rng() >> 11) + 1) * 0x1.0p-53;

@@ -1,21 +1,33 @@
 #pragma once
 // Internal: numbers in option texts such as "cmsle:0.01" or "poisson:1e4".
 #include <cctype>
-#include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <utility>
+
+#include "wavebrdf/text.h"
 
 namespace wavebrdf::detail {
 
-// Shortest "%.{15,16,17}g" text that reads back as the same double, so that a parsed option
-// prints as typed ("0.01", not "0.010000000000000000208") and round-trips exactly.
-inline std::string format_shortest(double v) {
-    char buf[40];
-    for (int precision = 15; precision <= 17; ++precision) {
-        std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-        if (std::strtod(buf, nullptr) == v) break;
-    }
-    return buf;
+using wavebrdf::format_shortest;  // wavebrdf/text.h
+
+// One enum's names, as a table of {value, name}: the value named `name` (false when none is),
+// and the name of `value` (nullptr when it has none). The one list that both parse_* and
+// to_string read, so a new value is named once.
+template <typename Enum, std::size_t N>
+bool value_named(const std::pair<Enum, const char*> (&table)[N], const std::string& name, Enum& value) {
+    for (const auto& entry : table)
+        if (name == entry.second) {
+            value = entry.first;
+            return true;
+        }
+    return false;
+}
+template <typename Enum, std::size_t N>
+const char* name_of(const std::pair<Enum, const char*> (&table)[N], Enum value) {
+    for (const auto& entry : table)
+        if (entry.first == value) return entry.second;
+    return nullptr;
 }
 
 // The number that fills `text` from position `start` on, or throws bad(). strtod accepts

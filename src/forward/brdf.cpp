@@ -5,6 +5,7 @@
 #include <string>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/constants.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/slice_plan.h"
 #include "wavebrdf/spectrum.h"
@@ -37,7 +38,7 @@ double estimate_render_bytes(const Heightfield& heightfield, const Query& query,
     const double pixels = double(resolution) * double(resolution), n = double(resolution);
     // Kernels within 3σ_p of the centre: row, col and six doubles each.
     const double reach = 3.0 * query.sigma_p_um / heightfield.texel_um() + 1.0;
-    const double kernels = std::min(double(heightfield.rows()) * double(heightfield.cols()), 3.14159265358979 * reach * reach);
+    const double kernels = std::min(double(heightfield.rows()) * double(heightfield.cols()), k_pi * reach * reach);
     double bytes = 32e6 + kernels * 56.0;
     bytes += pixels * double(float_bytes) * (rgb ? 4.0 : 1.0);  // the slice (and the RGB result)
     if (separable_path(options, query.model)) {

@@ -72,11 +72,8 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
         detail::RegionGuard guard;
 #pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
         for (int p = 0; p < n; ++p) guard.run([&] {
-            const double ox = slice_omega(p, n);
-            for (int q = 0; q < n; ++q) {
-                const double oy = slice_omega(q, n);
+            for (const auto [q, ox, oy] : disk_row(p, n)) {
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
-                if (ox * ox + oy * oy > 1.0) continue;
                 const PixelSum s = sum_pixel(k, query, lambda_um, ox, oy, cutoff);
                 out.field[at] = s.field;
                 out.c1[at] = s.c1;

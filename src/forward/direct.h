@@ -5,6 +5,7 @@
 #include <complex>
 #include <vector>
 
+#include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/model.h"
 
@@ -13,8 +14,6 @@ class Progress;
 }
 
 namespace wavebrdf::detail {
-
-constexpr double kDirectPi = 3.14159265358979323846;
 
 // One pixel of the direct sum (MODEL.md, "BRDF"), shared by the forward pass, its adjoint and
 // its tangent: the per-pixel constants, and each kernel's term
@@ -33,9 +32,9 @@ struct PixelTerms {
         : k(kernels), factors(direction_factors(query.model, query.omega_i, ox, oy, lambda_um)) {
         ux = (query.omega_i[0] + ox) / lambda_um;
         uy = (query.omega_i[1] + oy) / lambda_um;
-        gauss = 2.0 * kDirectPi * kDirectPi * k.sigma_um * k.sigma_um;
+        gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
         freq = factors.phase_scale * 2.0 / lambda_um;
-        height_phase = factors.phase_scale * 4.0 * kDirectPi / lambda_um;
+        height_phase = factors.phase_scale * 4.0 * k_pi / lambda_um;
         kirchhoff = query.model == Model::Kirchhoff;
         hx = query.omega_i[0] + ox;
         hy = query.omega_i[1] + oy;
@@ -49,7 +48,7 @@ struct PixelTerms {
         const double exponent = gauss * (vx * vx + vy * vy);
         if (exponent > cutoff) return false;
         const double phase =
-            -(height_phase * k.height_um[i] + 2.0 * kDirectPi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
+            -(height_phase * k.height_um[i] + 2.0 * k_pi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
         out.vx = vx;
         out.vy = vy;
         out.base = std::polar(k.weight[i] * std::exp(-exponent), phase);

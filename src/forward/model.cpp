@@ -1,64 +1,52 @@
 #include "wavebrdf/model.h"
 
 #include <cmath>
-#include <sstream>
 #include <stdexcept>
+
+#include "core/text.h"
 
 namespace wavebrdf {
 
 namespace {
-std::string fmt(double value) {
-    std::ostringstream out;
-    out.precision(10);
-    out << value;
-    return out.str();
-}
+constexpr std::pair<Model, const char*> k_model_names[] = {
+    {Model::OHS, "OHS"}, {Model::GHS, "GHS"}, {Model::ROHS, "ROHS"}, {Model::RGHS, "RGHS"}, {Model::Kirchhoff, "Kirchhoff"}};
 }  // namespace
 
 Model parse_model(const std::string& name) {
-    if (name == "OHS") return Model::OHS;
-    if (name == "GHS") return Model::GHS;
-    if (name == "ROHS") return Model::ROHS;
-    if (name == "RGHS") return Model::RGHS;
-    if (name == "Kirchhoff") return Model::Kirchhoff;
+    Model model;
+    if (detail::value_named(k_model_names, name, model)) return model;
     throw std::invalid_argument("unknown diffraction model '" + name +
                                 "'; expected one of OHS, GHS, ROHS, RGHS, Kirchhoff");
 }
 
 const char* to_string(Model model) {
-    switch (model) {
-        case Model::OHS: return "OHS";
-        case Model::GHS: return "GHS";
-        case Model::ROHS: return "ROHS";
-        case Model::RGHS: return "RGHS";
-        case Model::Kirchhoff: return "Kirchhoff";
-    }
-    return "?";
+    const char* name = detail::name_of(k_model_names, model);
+    return name ? name : "?";
 }
 
 void validate(const Query& query) {
     if (!std::isfinite(query.x_um) || !std::isfinite(query.y_um))
-        throw std::domain_error("query position (" + fmt(query.x_um) + ", " + fmt(query.y_um) +
+        throw std::domain_error("query position (" + format_shortest(query.x_um) + ", " + format_shortest(query.y_um) +
                                 ") um is not finite");
     if (!std::isfinite(query.sigma_p_um) || query.sigma_p_um <= 0.0)
-        throw std::domain_error("sigma_p " + fmt(query.sigma_p_um) +
+        throw std::domain_error("sigma_p " + format_shortest(query.sigma_p_um) +
                                 " um is invalid; expected a finite value > 0");
     if (query.sigma_p_um < k_min_sigma_p_um || query.sigma_p_um > k_max_sigma_p_um)
-        throw std::domain_error("sigma_p " + fmt(query.sigma_p_um) + " um is out of range; expected " +
-                                fmt(k_min_sigma_p_um) + " to " + fmt(k_max_sigma_p_um) + " um");
+        throw std::domain_error("sigma_p " + format_shortest(query.sigma_p_um) + " um is out of range; expected " +
+                                format_shortest(k_min_sigma_p_um) + " to " + format_shortest(k_max_sigma_p_um) + " um");
     const double wx = query.omega_i[0], wy = query.omega_i[1];
     if (!std::isfinite(wx) || !std::isfinite(wy) || wx * wx + wy * wy >= 1.0)
-        throw std::domain_error("light direction (" + fmt(wx) + ", " + fmt(wy) +
+        throw std::domain_error("light direction (" + format_shortest(wx) + ", " + format_shortest(wy) +
                                 ") is invalid; expected a projected direction with |omega_i| < 1");
 }
 
 void validate_lambda(double lambda_um) {
     if (!std::isfinite(lambda_um) || lambda_um <= 0.0)
-        throw std::domain_error("wavelength " + fmt(lambda_um) +
+        throw std::domain_error("wavelength " + format_shortest(lambda_um) +
                                 " um is invalid; expected a finite value > 0");
     if (lambda_um < k_min_lambda_um || lambda_um > k_max_lambda_um)
-        throw std::domain_error("wavelength " + fmt(lambda_um) + " um is out of range; expected " +
-                                fmt(k_min_lambda_um) + " to " + fmt(k_max_lambda_um) + " um");
+        throw std::domain_error("wavelength " + format_shortest(lambda_um) + " um is out of range; expected " +
+                                format_shortest(k_min_lambda_um) + " to " + format_shortest(k_max_lambda_um) + " um");
 }
 
 void validate_resolution(int resolution) {

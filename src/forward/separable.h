@@ -9,6 +9,7 @@
 
 #include "core/parallel.h"
 #include "wavebrdf/adjoint.h"
+#include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/model.h"
 
@@ -17,8 +18,6 @@ class Progress;
 }
 
 namespace wavebrdf::detail {
-
-constexpr double kPi = 3.14159265358979323846;
 
 template <typename Float>
 using ComplexMatrix = Eigen::Matrix<std::complex<Float>, Eigen::Dynamic, Eigen::Dynamic>;
@@ -46,7 +45,7 @@ inline Eigen::Index chunk_size(int n, std::size_t bytes_per_entry, int matrices,
 
 // w_k = c_k w² e^{−i(4π/λ) H_k}: the kernel's complex weight.
 inline std::complex<double> kernel_weight(const FootprintKernels& k, std::size_t idx, double lambda_um) {
-    return k.weight[idx] * std::polar(1.0, -4.0 * kPi / lambda_um * k.height_um[idx]);
+    return k.weight[idx] * std::polar(1.0, -4.0 * k_pi / lambda_um * k.height_um[idx]);
 }
 
 // The phase factors e^{−i2π u_x[p] δ_x} and e^{−i2π u_y[q] δ_y}. δ_x depends only on the
@@ -84,10 +83,10 @@ private:
         const double du = n > 1 ? u[1] - u[0] : 0.0;
         for (Eigen::Index c = 0; c < table.cols(); ++c) {
             const double delta = offsets[static_cast<std::size_t>(c)];
-            const std::complex<double> rotation = std::polar(1.0, -2.0 * kPi * du * delta);
+            const std::complex<double> rotation = std::polar(1.0, -2.0 * k_pi * du * delta);
             for (Eigen::Index p = 0; p < n; ++p)
                 table(p, c) = p % 32 == 0
-                                  ? std::polar(1.0, -2.0 * kPi * u[static_cast<std::size_t>(p)] * delta)
+                                  ? std::polar(1.0, -2.0 * k_pi * u[static_cast<std::size_t>(p)] * delta)
                                   : table(p - 1, c) * rotation;
         }
         return out;
@@ -120,7 +119,7 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
                    ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys) {
     using Complex = std::complex<Float>;
     const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
-    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;  // 2π²σ²
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;  // 2π²σ²
     const double two_over_lambda = 2.0 / lambda_um;
     const double du = 2.0 / (double(n) * lambda_um);                  // slice_omega's spacing / λ
     RegionGuard guard;
@@ -173,10 +172,7 @@ std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Quer
     RegionGuard guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
     for (int p = 0; p < n; ++p) guard.run([&] {
-        const double ox = slice_omega(p, n);
-        for (int q = 0; q < n; ++q) {
-            const double oy = slice_omega(q, n);
-            if (ox * ox + oy * oy > 1.0) continue;
+        for (const auto [q, ox, oy] : disk_row(p, n)) {
             const std::size_t at = static_cast<std::size_t>(p) * n + q;
             const double factor =
                 c1 ? (*c1)[at] : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;

@@ -9,6 +9,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "wavebrdf/text.h"
+
 namespace wavebrdf {
 
 namespace {
@@ -41,12 +43,6 @@ const Eigen::Matrix3d& bradford() {
 
 // XYZ with Y = 1 of the colour with chromaticity (x, y).
 Eigen::Vector3d xyz_from_xy(double x, double y) { return {x / y, 1.0, (1.0 - x - y) / y}; }
-
-std::string format_value(double v) {
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "%.17g", v);
-    return buf;
-}
 
 Eigen::Matrix3d xyz_to_srgb_matrix() {
     // Columns: the primaries' XYZ (Y = 1), scaled so that D65 (Y = 1) becomes RGB (1, 1, 1).
@@ -132,7 +128,7 @@ std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_
     for (std::size_t k = 0; k < lambdas_um.size(); ++k)
         if (!std::isfinite(lambdas_um[k]) || lambdas_um[k] <= 0.0)
             throw std::domain_error("wavelength " + std::to_string(k) + " is " +
-                                    format_value(lambdas_um[k]) +
+                                    format_shortest(lambdas_um[k]) +
                                     " um; expected a finite value > 0");
     const std::size_t n = lambdas_um.size();
     const std::vector<double> widths = wavelength_widths(lambdas_um);
@@ -147,7 +143,7 @@ std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_
     // Normalise so that a constant spectrum 1 has Y = 1.
     const double y_sum = xyz.row(1).sum();
     if (!(y_sum > 0.0))
-        throw std::domain_error("sampled white has Y = " + format_value(y_sum) +
+        throw std::domain_error("sampled white has Y = " + format_shortest(y_sum) +
                                 "; expected > 0 (are the wavelengths within 0.36-0.83 um?)");
     xyz /= y_sum;
 
@@ -160,8 +156,8 @@ std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_
     const Eigen::Vector3d cone_d65 = m * d65;
     for (int c = 0; c < 3; ++c)
         if (!(std::abs(cone_white(c)) > 1e-12 * std::abs(cone_d65(c))))
-            throw std::domain_error("sampled white XYZ (" + format_value(white(0)) + ", " +
-                                    format_value(white(1)) + ", " + format_value(white(2)) +
+            throw std::domain_error("sampled white XYZ (" + format_shortest(white(0)) + ", " +
+                                    format_shortest(white(1)) + ", " + format_shortest(white(2)) +
                                     ") has a zero Bradford cone response; expected a white "
                                     "that can be adapted to D65");
     const Eigen::Matrix3d adapt =

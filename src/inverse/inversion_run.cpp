@@ -241,7 +241,7 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
         Observation base;
         base.query.model = o.model;
         base.query.sigma_p_um = o.sigma_p_um;
-        base.query.omega_i = o.light;
+        base.query.omega_i = o.omega_i;
         base.lambdas_um = lambdas;
         base.resolution = o.resolution;
         std::vector<std::array<double, 2>> positions;
@@ -340,8 +340,8 @@ nlohmann::json to_json(const InversionOptions& o) {
             // Not given: 0 (a stored run has a non-zero value exactly when given).
             {"lambda_um", o.lambda_um ? *o.lambda_um : 0.0},
             {"spectral", o.spectral ? *o.spectral : 0},
-            {"light_x", o.light[0]},
-            {"light_y", o.light[1]},
+            {"light_x", o.omega_i[0]},
+            {"light_y", o.omega_i[1]},
             {"resolution", o.resolution},
             {"epochs", o.epochs},
             {"optimizer", to_string(o.optimizer)},
@@ -375,7 +375,7 @@ InversionOptions from_json(const nlohmann::json& j) {
     // Integers must be integers in range (get<int> would read 8.7 as 8 and wrap 2^40 + 8 to 8).
     const int spectral = detail::json_int32(j, "spectral", 0, k_max_spectral_samples, "");
     if (spectral != 0) o.spectral = spectral;
-    o.light = {j.at("light_x").get<double>(), j.at("light_y").get<double>()};
+    o.omega_i = {j.at("light_x").get<double>(), j.at("light_y").get<double>()};
     o.resolution = detail::json_int32(j, "resolution", 1, 8192, "");
     o.epochs = detail::json_int32(j, "epochs", 0, k_max_iterations, "");
     o.optimizer = parse_optimizer(j.at("optimizer").get<std::string>(), "--optimizer");

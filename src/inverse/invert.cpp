@@ -18,19 +18,14 @@
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
 #include "core/json_fields.h"
+#include "core/random.h"
 
 namespace wavebrdf {
 
 namespace {
 
-std::uint64_t splitmix64(std::uint64_t x) {
-    x += 0x9e3779b97f4a7c15ULL;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-    return x ^ (x >> 31);
-}
-
-double unit_interval(std::uint64_t bits) { return double(bits >> 11) * (1.0 / 9007199254740992.0); }
+using detail::splitmix64;
+using detail::unit_interval;
 
 // FNV-1a over the bytes of the values that define a run.
 struct Fingerprint {
@@ -183,9 +178,8 @@ std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint
     const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
     const double width = frac * (*hi - *lo);
     std::mt19937_64 rng(seed ^ 0x5eedULL);
-    std::uniform_real_distribution<double> uni(-0.5 * width, 0.5 * width);
     std::vector<double> out(t.size());
-    for (std::size_t i = 0; i < t.size(); ++i) out[i] = t[i] + uni(rng);
+    for (std::size_t i = 0; i < t.size(); ++i) out[i] = t[i] + width * (detail::uniform01(rng) - 0.5);
     return out;
 }
 

@@ -9,19 +9,15 @@
 #include <stdexcept>
 #include <string>
 
+#include "wavebrdf/text.h"
+
 namespace wavebrdf {
 
 namespace {
 
-std::string format_value(double v) {
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "%.17g", v);
-    return buf;
-}
-
 void require(bool ok, const char* option, double value, const char* expected) {
     if (!ok)
-        throw std::domain_error(std::string(option) + " must be " + expected + ", got " + format_value(value));
+        throw std::domain_error(std::string(option) + " must be " + expected + ", got " + format_shortest(value));
 }
 
 }  // namespace
@@ -65,7 +61,7 @@ void Adam::step(std::vector<double>& x, const std::vector<double>& gradient, int
     for (std::size_t i = 0; i < n; ++i)
         if (!std::isfinite(gradient[i]))
             throw std::domain_error("Adam::step: gradient[" + std::to_string(i) + "] is not finite (" +
-                                    format_value(gradient[i]) + ")");
+                                    format_shortest(gradient[i]) + ")");
     const double lr = learning_rate(epoch);
     const long long t = m_state.steps + 1;
     const double b1 = m_options.beta1, b2 = m_options.beta2, eps = m_options.epsilon;
@@ -94,8 +90,8 @@ void Adam::set_state(const State& state) {
     for (std::size_t i = 0; i < n; ++i)
         if (!std::isfinite(state.m[i]) || !std::isfinite(state.v[i]) || state.v[i] < 0.0)
             throw std::invalid_argument("Adam::set_state: moment " + std::to_string(i) +
-                                        " is not finite or v < 0 (m = " + format_value(state.m[i]) +
-                                        ", v = " + format_value(state.v[i]) + ")");
+                                        " is not finite or v < 0 (m = " + format_shortest(state.m[i]) +
+                                        ", v = " + format_shortest(state.v[i]) + ")");
     m_state = state;
 }
 
@@ -121,7 +117,7 @@ void validate_lbfgs_state(const LbfgsState& state, std::size_t size, int history
         };
         if (!finite(state.s[k]) || !finite(state.y[k]) || !std::isfinite(state.rho[k]) || !(state.rho[k] > 0.0))
             throw std::invalid_argument("L-BFGS state: pair " + std::to_string(k) +
-                                        " is not finite or its rho is not > 0 (rho = " + format_value(state.rho[k]) + ")");
+                                        " is not finite or its rho is not > 0 (rho = " + format_shortest(state.rho[k]) + ")");
     }
 }
 
@@ -163,7 +159,7 @@ LbfgsResult lbfgs_minimize(
     double f = evaluate(x, g_std);
     if (!std::isfinite(f) || !all_finite(g_std))
         throw std::domain_error("lbfgs_minimize: the objective or its gradient is not finite at the start (f = " +
-                                format_value(f) + ")");
+                                format_shortest(f) + ")");
     Vec xv = Eigen::Map<const Vec>(x.data(), en);
     Vec g = Eigen::Map<const Vec>(g_std.data(), en);
     result.value = f;

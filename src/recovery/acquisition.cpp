@@ -96,12 +96,12 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
     require_range(r.lambda_max_um, r.lambda_min_um, 100.0, "lambda_max_um");
     if (!(r.sigma_p_um == 0.0)) require_range(r.sigma_p_um, 1e-6, 1e6, "sigma_p_um");
     Query probe;
-    probe.omega_i = r.light;
+    probe.omega_i = r.omega_i;
     probe.model = r.model;
     validate(probe);
 
     AcquisitionPlan plan;
-    plan.light = r.light;
+    plan.omega_i = r.omega_i;
     plan.model = r.model;
     plan.sigma_p_um = r.sigma_p_um > 0.0 ? r.sigma_p_um : 1.5 * r.texel_um;
     const double d_um = support_um(plan.sigma_p_um);
@@ -176,7 +176,7 @@ std::vector<Observation> planned_observations(const AcquisitionPlan& plan) {
             o.query.x_um = p[0];
             o.query.y_um = p[1];
             o.query.sigma_p_um = plan.sigma_p_um;
-            o.query.omega_i = plan.light;
+            o.query.omega_i = plan.omega_i;
             o.query.model = plan.model;
             o.lambdas_um = {lambda};
             o.resolution = plan.resolution;
@@ -271,10 +271,7 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
     for (const Observation& o : observations) {
         int inside = 0;
         for (int p = 0; p < o.resolution; ++p)
-            for (int q = 0; q < o.resolution; ++q) {
-                const double ox = slice_omega(p, o.resolution), oy = slice_omega(q, o.resolution);
-                if (ox * ox + oy * oy <= 1.0) ++inside;
-            }
+            for ([[maybe_unused]] const DiskPixel pixel : disk_row(p, o.resolution)) ++inside;
         values += double(inside) * double(o.lambdas_um.size());
     }
     if (values < double(rows) * cols)

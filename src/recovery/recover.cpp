@@ -148,7 +148,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // at the texel centres (refine is odd: texel (i, j) is sample (i·q + q/2, j·q + q/2)).
     const auto unwrap_fields = [&] {
         const std::vector<double> reference = refined_heights(estimate, q);
-        const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.max_range_um, rows * q, obj_cols,
+        const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.height_range_um, rows * q, obj_cols,
                                                            settings.unwrap_from_blurred ? &reference : nullptr);
         std::vector<double> h(std::size_t(rows) * cols);
         for (int i = 0; i < rows; ++i)

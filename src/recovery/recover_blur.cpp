@@ -16,6 +16,7 @@
 #include <string>
 
 #include "wavebrdf/adjoint.h"
+#include "wavebrdf/constants.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/slice_plan.h"
@@ -26,14 +27,12 @@ namespace wavebrdf {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // B[p, f] = G_β(u'_p − u_f) Δu_f: the Gaussian of std β (cycles/µm) from a grid of n_from slice
 // pixels to one of n_to, both over the same disk at wavelength λ (u = (ω_i + ω_o)/λ; ω_i cancels).
 Eigen::MatrixXd blur_matrix(int n_to, int n_from, double lambda_um, double beta) {
     Eigen::MatrixXd b(n_to, n_from);
     const double du = 2.0 / (n_from * lambda_um);
-    const double norm = du / (std::sqrt(2.0 * kPi) * beta);
+    const double norm = du / (std::sqrt(2.0 * k_pi) * beta);
     for (int p = 0; p < n_to; ++p)
         for (int f = 0; f < n_from; ++f) {
             const double d = (slice_omega(p, n_to) - slice_omega(f, n_from)) / lambda_um;
@@ -88,7 +87,7 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
             const double lambda = o.lambdas_um[0];
             // The footprint's lobe: |c|² has std σ_p/√2, so its far field intensity has
             // std 1/(2√2 π σ_p) in u.
-            const double beta = settings.blur_widths[stage] / (2.0 * std::sqrt(2.0) * kPi * o.query.sigma_p_um);
+            const double beta = settings.blur_widths[stage] / (2.0 * std::sqrt(2.0) * k_pi * o.query.sigma_p_um);
             const int n_coarse = o.resolution;
             const Eigen::MatrixXd to_coarse = blur_matrix(n_coarse, o.resolution, lambda, beta);
             Blurred& d = data[i];

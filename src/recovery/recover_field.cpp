@@ -15,25 +15,20 @@
 
 #include <fftw3.h>
 
+#include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
+#include "wavebrdf/text.h"
 #include "core/parallel.h"
 
 namespace wavebrdf {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // Slice rows / columns whose envelope is below this (relative to its peak 1) are left out of
 // the products: the model's field there is below 1e-16 of the footprint's.
 constexpr double kEnvelopeCut = 1e-16;
-
-std::string fmt(double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%g", v);
-    return buf;
-}
 
 }  // namespace
 
@@ -95,7 +90,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
         throw std::invalid_argument("tile of " + std::to_string(rows) + " x " + std::to_string(cols) +
                                     " texels; expected at least 1 x 1");
     if (!std::isfinite(texel_um) || texel_um <= 0.0)
-        throw std::domain_error("texel width " + fmt(texel_um) + " um is invalid; expected a finite value > 0");
+        throw std::domain_error("texel width " + format_shortest(texel_um) + " um is invalid; expected a finite value > 0");
     validate(query);
     validate_lambda(lambda_um);
     validate_resolution(resolution);
@@ -130,7 +125,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     for (std::size_t i = 0; i < k.size(); ++i) s.probe(slot_r[k.row[i]], slot_c[k.col[i]]) = k.weight[i];
 
     // Slice grid u = (ω_i + ω_o)/λ and the envelope exp(−2π²σ²u²) per row / column.
-    const double gauss = 2.0 * kPi * kPi * k.sigma_um * k.sigma_um;
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
     const auto axis_box = [&](double omega_i, int& first, int& count) {
         first = resolution;
         int last = -1;
@@ -152,7 +147,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
             const double u = (omega_i + slice_omega(first + p, resolution)) / lambda_um;
             const double env = std::exp(-gauss * u * u);
             for (std::size_t r = 0; r < offsets.size(); ++r)
-                f(p, Eigen::Index(r)) = env * std::polar(1.0, -2.0 * kPi * u * offsets[r]);
+                f(p, Eigen::Index(r)) = env * std::polar(1.0, -2.0 * k_pi * u * offsets[r]);
         }
         return f;
     };
@@ -166,10 +161,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     // f = c1 |I|² inside the disk (MODEL.md, "BRDF"); the renderer writes non-finite values as 0.
     s.amp_full.assign(std::size_t(resolution) * resolution, 0.0);
     for (int p = 0; p < resolution; ++p) {
-        const double ox = slice_omega(p, resolution);
-        for (int q = 0; q < resolution; ++q) {
-            const double oy = slice_omega(q, resolution);
-            if (ox * ox + oy * oy > 1.0) continue;
+        for (const auto [q, ox, oy] : disk_row(p, resolution)) {
             const double c1 = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
             if (std::isfinite(c1) && c1 > 0.0) s.amp_full[std::size_t(p) * resolution + q] = std::sqrt(c1);
         }
@@ -247,7 +239,7 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& hf, dou
     validate_lambda(lambda_um);
     const std::vector<double> h = refined_heights(hf, refine);
     std::vector<std::complex<double>> object(h.size());
-    for (std::size_t k = 0; k < h.size(); ++k) object[k] = std::polar(1.0, -4.0 * kPi / lambda_um * h[k]);
+    for (std::size_t k = 0; k < h.size(); ++k) object[k] = std::polar(1.0, -4.0 * k_pi / lambda_um * h[k]);
     return object;
 }
 
@@ -287,7 +279,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         validate(o, i);
         if (o.lambdas_um.size() != 1 || std::abs(o.lambdas_um[0] - lambda_um) > 1e-12 * lambda_um)
             throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
-                                        " is not a single-wavelength slice at " + fmt(lambda_um) + " um");
+                                        " is not a single-wavelength slice at " + format_shortest(lambda_um) + " um");
         Slice s{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0};
         const auto& impl = FieldAccess::impl(s.op);
         s.sqrt_ref.resize(impl.ma, impl.mb);
@@ -359,7 +351,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 const double nu_y = double(b < (obj_cols + 1) / 2 ? b : b - obj_cols) / period_y;
                 bool inside = false;
                 for (const Observation& o : observations) {
-                    const double reach = 1.0 / lambda_um + 3.0 / (2.0 * kPi * o.query.sigma_p_um);
+                    const double reach = 1.0 / lambda_um + 3.0 / (2.0 * k_pi * o.query.sigma_p_um);
                     const double cx = o.query.omega_i[0] / lambda_um, cy = o.query.omega_i[1] / lambda_um;
                     if ((nu_x - cx) * (nu_x - cx) + (nu_y - cy) * (nu_y - cy) <= reach * reach) {
                         inside = true;

@@ -16,15 +16,14 @@
 
 #include <fftw3.h>
 
+#include "wavebrdf/constants.h"
 #include "wavebrdf/recover.h"
 
 namespace wavebrdf {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
-double wrap_phase(double a) { return a - 2.0 * kPi * std::floor(a / (2.0 * kPi) + 0.5); }
+double wrap_phase(double a) { return a - 2.0 * k_pi * std::floor(a / (2.0 * k_pi) + 0.5); }
 
 struct Channel {
     double lambda_um;                        // (synthetic) wavelength Λ
@@ -35,7 +34,7 @@ struct Channel {
 double align(const Channel& c, const std::vector<double>& heights) {
     std::complex<double> sum = 0.0;
     for (std::size_t k = 0; k < heights.size(); ++k)
-        sum += c.z[k] * std::polar(1.0, 4.0 * kPi / c.lambda_um * heights[k]);
+        sum += c.z[k] * std::polar(1.0, 4.0 * k_pi / c.lambda_um * heights[k]);
     return std::arg(sum);
 }
 
@@ -48,7 +47,7 @@ std::vector<double> coarse_heights(const Channel& c) {
     std::vector<double> heights(c.z.size(), 0.0);
     if (phases.empty()) return heights;
     std::sort(phases.begin(), phases.end());
-    double gap = phases.front() + 2.0 * kPi - phases.back(), cut = phases.back() + 0.5 * gap;
+    double gap = phases.front() + 2.0 * k_pi - phases.back(), cut = phases.back() + 0.5 * gap;
     for (std::size_t i = 1; i < phases.size(); ++i)
         if (phases[i] - phases[i - 1] > gap) {
             gap = phases[i] - phases[i - 1];
@@ -58,8 +57,8 @@ std::vector<double> coarse_heights(const Channel& c) {
     for (std::size_t k = 0; k < c.z.size(); ++k) {
         if (!(std::abs(c.z[k]) > 0.0)) continue;
         double a = std::arg(c.z[k]) - cut;
-        a -= 2.0 * kPi * std::floor(a / (2.0 * kPi));
-        heights[k] = -c.lambda_um / (4.0 * kPi) * a;
+        a -= 2.0 * k_pi * std::floor(a / (2.0 * k_pi));
+        heights[k] = -c.lambda_um / (4.0 * k_pi) * a;
     }
     return heights;
 }
@@ -99,7 +98,7 @@ std::vector<double> integrate_differences(int rows, int cols, const std::vector<
     for (int a = 0; a < rows; ++a)
         for (int b = 0; b < cols; ++b) {
             // Eigenvalue of the periodic 5-point Laplacian for the mode (a, b).
-            const double lap = 2.0 * std::cos(2.0 * kPi * a / rows) - 2.0 + 2.0 * std::cos(2.0 * kPi * b / cols) - 2.0;
+            const double lap = 2.0 * std::cos(2.0 * k_pi * a / rows) - 2.0 + 2.0 * std::cos(2.0 * k_pi * b / cols) - 2.0;
             div[at(a, b)] = (a == 0 && b == 0) || lap == 0.0 ? 0.0 : div[at(a, b)] / lap;
         }
     fftw_execute(backward);
@@ -128,7 +127,7 @@ std::vector<double> spatial_heights(const std::vector<double>& lambdas_um,
             const std::size_t k = at(i, j), kx = at((i + 1) % rows, j), ky = at(i, (j + 1) % cols);
             double sx = 0.0, wx = 0.0, sy = 0.0, wy = 0.0;
             for (std::size_t l = 0; l < fields.size(); ++l) {
-                const double kappa = 4.0 * kPi / lambdas_um[l];
+                const double kappa = 4.0 * k_pi / lambdas_um[l];
                 const auto& f = fields[l];
                 // H difference = −Δθ / κ; weight κ² |z||z'| (inverse variance of the estimate).
                 const double ax = std::abs(f[k]) * std::abs(f[kx]), ay = std::abs(f[k]) * std::abs(f[ky]);
@@ -147,14 +146,14 @@ std::vector<double> spatial_heights(const std::vector<double>& lambdas_um,
 
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                                    const std::vector<std::vector<std::complex<double>>>& fields,
-                                   double max_range_um, int rows, int cols,
+                                   double height_range_um, int rows, int cols,
                                    const std::vector<double>* reference) {
     if (fields.empty() || fields.size() != lambdas_um.size())
         throw std::invalid_argument("unwrap_heights: " + std::to_string(fields.size()) + " fields for " +
                                     std::to_string(lambdas_um.size()) +
                                     " wavelengths; expected one field per wavelength, at least one");
-    if (!std::isfinite(max_range_um) || max_range_um <= 0.0)
-        throw std::domain_error("unwrap_heights: max_range_um " + std::to_string(max_range_um) +
+    if (!std::isfinite(height_range_um) || height_range_um <= 0.0)
+        throw std::domain_error("unwrap_heights: height_range_um " + std::to_string(height_range_um) +
                                 " is invalid; expected a finite value > 0");
     const std::size_t texels = fields[0].size();
     if (rows != 0 && (rows < 1 || cols < 1 || std::size_t(rows) * std::size_t(cols) != texels))
@@ -198,7 +197,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
         // add noise (their phase errors are scaled up by Λ/λ).
         std::size_t start = 0;
         for (std::size_t c = 0; c < channels.size(); ++c)
-            if (channels[c].lambda_um >= 2.0 * max_range_um) start = c;
+            if (channels[c].lambda_um >= 2.0 * height_range_um) start = c;
         h = coarse_heights(channels[start]);
         for (std::size_t c = start + 1; c < channels.size(); ++c) {
             const Channel& ch = channels[c];
@@ -207,8 +206,8 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                 if (!(std::abs(ch.z[k]) > 0.0)) continue;
                 // Residual phase of this channel at the current estimate, in (−π, π]: the
                 // branch nearest the estimate.
-                const double r = wrap_phase(std::arg(ch.z[k]) - psi + 4.0 * kPi / ch.lambda_um * h[k]);
-                h[k] -= ch.lambda_um / (4.0 * kPi) * r;
+                const double r = wrap_phase(std::arg(ch.z[k]) - psi + 4.0 * k_pi / ch.lambda_um * h[k]);
+                h[k] -= ch.lambda_um / (4.0 * k_pi) * r;
             }
         }
     }
@@ -233,7 +232,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
         for (std::size_t l = 0; l < fields.size(); ++l) phi[l] = align({lambdas_um[l], fields[l]}, h);
         const double half_step = 0.5 * lambdas_um[shortest];  // the shortest λ's branches: H + m λ/2
         const int branches = std::max(0, int(std::floor(0.25 * min_synthetic / half_step)));
-        const double kappa0 = 4.0 * kPi / lambdas_um[shortest];
+        const double kappa0 = 4.0 * k_pi / lambdas_um[shortest];
         for (std::size_t k = 0; k < texels; ++k) {
             if (!(std::abs(fields[shortest][k]) > 0.0)) continue;
             const double base = h[k] - wrap_phase(std::arg(fields[shortest][k]) - phi[shortest] + kappa0 * h[k]) / kappa0;
@@ -243,7 +242,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
                 double j_value = 0.0;
                 for (std::size_t l = 0; l < fields.size(); ++l)
                     j_value += std::abs(fields[l][k]) *
-                               std::cos(std::arg(fields[l][k]) - phi[l] + 4.0 * kPi / lambdas_um[l] * cand);
+                               std::cos(std::arg(fields[l][k]) - phi[l] + 4.0 * k_pi / lambdas_um[l] * cand);
                 if (j_value > best) {
                     best = j_value;
                     best_h = cand;
@@ -263,7 +262,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
             for (std::size_t l = 0; l < fields.size(); ++l) {
                 const double w = std::abs(fields[l][k]);
                 if (!(w > 0.0)) continue;
-                const double kappa = 4.0 * kPi / lambdas_um[l];
+                const double kappa = 4.0 * k_pi / lambdas_um[l];
                 const double r = wrap_phase(std::arg(fields[l][k]) - phi[l] + kappa * h[k]);
                 num += w * kappa * r;
                 den += w * kappa * kappa;

@@ -131,7 +131,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.sigma_p_um = options.sigma_p_um;
         request.overlap = options.overlap;
         request.jitter = options.jitter;
-        request.light = options.light;
+        request.omega_i = options.omega_i;
         request.model = options.model;
         request.seed = options.seed;
         request.lambdas_um = options.lambdas_um;
@@ -157,7 +157,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.warnings.push_back("height_rel_rmse is " + r.metric_note + " (its height range is 0); the metrics give nan");
 
     r.pipeline.refine_loss = r.loss;
-    r.pipeline.max_range_um = std::max(r.range_um, 1e-3);
+    r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
     r.thesis.epochs = options.epochs;

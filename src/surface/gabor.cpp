@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "wavebrdf/constants.h"
+
 namespace wavebrdf {
 
 namespace {
@@ -51,7 +53,7 @@ double reduce_periodic(double x, double period) {
 }  // namespace
 
 double window_weight(double distance_sq_um2, double sigma_p_um) {
-    static const double inv_sqrt_pi = 1.0 / std::sqrt(std::acos(-1.0));
+    static const double inv_sqrt_pi = 1.0 / std::sqrt(k_pi);
     return inv_sqrt_pi / sigma_p_um * std::exp(-distance_sq_um2 / (2.0 * sigma_p_um * sigma_p_um));
 }
 

@@ -10,12 +10,13 @@
 #include <memory>
 #include <mutex>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "core/random.h"
+#include "wavebrdf/constants.h"
+#include "core/text.h"
 
 namespace wavebrdf {
 
@@ -26,37 +27,29 @@ using detail::derive_seed;
 using detail::fill_standard_normal;
 using detail::uniform01;
 
-constexpr double k_pi = 3.14159265358979323846;
 constexpr int k_max_size = 16384;
 
 // ---------------------------------------------------------------------------------------------
 // Validation
 
-std::string format_number(double value) {
-    std::ostringstream out;
-    out.precision(17);
-    out << value;
-    return out.str();
-}
-
 void require_finite(double value, const char* name) {
     if (!std::isfinite(value))
         throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_number(value) + " is not finite; expected a finite value");
+                                format_shortest(value) + " is not finite; expected a finite value");
 }
 
 void require_positive(double value, const char* name) {
     require_finite(value, name);
     if (!(value > 0.0))
         throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_number(value) + " is invalid; expected a value > 0");
+                                format_shortest(value) + " is invalid; expected a value > 0");
 }
 
 void require_non_negative(double value, const char* name) {
     require_finite(value, name);
     if (value < 0.0)
         throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_number(value) + " is invalid; expected a value >= 0");
+                                format_shortest(value) + " is invalid; expected a value >= 0");
 }
 
 void require_size(int value, const char* name) {
@@ -274,7 +267,7 @@ std::vector<double> correlated_surface(const SurfaceParams& p, double ell_x_um, 
             "a " + std::to_string(p.rows) + "x" + std::to_string(p.cols) +
             " grid admits no zero-mean " + (by_slope ? "slope" : "height") +
             " variation, so rms " + (by_slope ? "slope " : "height ") +
-            format_number(by_slope ? rms_slope : rms_height_um) + (by_slope ? "" : " um") +
+            format_shortest(by_slope ? rms_slope : rms_height_um) + (by_slope ? "" : " um") +
             " cannot be reached; expected a larger grid or a zero rms");
     const double scale = target / realised;
     for (double& v : h) v *= scale;
@@ -360,26 +353,21 @@ std::vector<double> scratch_grooves(int rows, int cols, int count, double width,
 
 }  // namespace
 
+constexpr std::pair<SurfaceType, const char*> k_surface_type_names[] = {
+    {SurfaceType::Flat, "flat"},           {SurfaceType::Isotropic, "isotropic"}, {SurfaceType::Brushed, "brushed"},
+    {SurfaceType::Scratched, "scratched"}, {SurfaceType::Grating, "grating"}};
+
 SurfaceType parse_surface_type(const std::string& name) {
-    if (name == "flat") return SurfaceType::Flat;
-    if (name == "isotropic") return SurfaceType::Isotropic;
-    if (name == "brushed") return SurfaceType::Brushed;
-    if (name == "scratched") return SurfaceType::Scratched;
-    if (name == "grating") return SurfaceType::Grating;
+    SurfaceType type;
+    if (detail::value_named(k_surface_type_names, name, type)) return type;
     throw std::invalid_argument("surface type '" + name +
                                 "' is unknown; expected flat, isotropic, brushed, scratched or "
                                 "grating");
 }
 
 const char* to_string(SurfaceType type) {
-    switch (type) {
-    case SurfaceType::Flat: return "flat";
-    case SurfaceType::Isotropic: return "isotropic";
-    case SurfaceType::Brushed: return "brushed";
-    case SurfaceType::Scratched: return "scratched";
-    case SurfaceType::Grating: return "grating";
-    }
-    return "unknown";
+    const char* name = detail::name_of(k_surface_type_names, type);
+    return name ? name : "unknown";
 }
 
 Heightfield generate_heightfield(const SurfaceParams& p) {
