@@ -116,7 +116,7 @@ TEST(InversionRun, RunJsonRoundTrip) {
     o.x_um = 1.5;
     o.lambda_um.reset();
     o.spectral = 3;
-    o.light = {0.1, -0.2};
+    o.omega_i = {0.1, -0.2};
     o.optimizer = OptimizerKind::Adam;
     o.adam.lr = 0.005;
     o.adam.decay = 0.01;
