@@ -72,7 +72,8 @@ void run(const GenbrdfArgs& a) {
 
 void add_genbrdf_command(CLI::App& app) {
     auto a = std::make_shared<GenbrdfArgs>();
-    CLI::App* cmd = app.add_subcommand("genbrdf", "Drop-in for the reference program genBrdf (same flags and defaults)");
+    CLI::App* cmd = app.add_subcommand("genbrdf",
+                                       "Drop-in for the reference program genBrdf (same flags and defaults)");
     cmd->add_option("-i", a->input, "heightfield EXR")->required();
     cmd->add_option("-o", a->output, "output EXR (RGBA)")->required();
     cmd->add_option("-w", a->texel, "texel width in um")->capture_default_str();

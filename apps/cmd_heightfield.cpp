@@ -25,8 +25,7 @@ struct HeightfieldArgs {
 std::string default_png(const std::string& exr) {
     const auto dot = exr.rfind('.');
     const auto slash = exr.rfind('/');
-    if (dot != std::string::npos && (slash == std::string::npos || dot > slash))
-        return exr.substr(0, dot) + ".png";
+    if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) return exr.substr(0, dot) + ".png";
     return exr + ".png";
 }
 
@@ -45,8 +44,8 @@ void run(const HeightfieldArgs& a) {
     if (!a.quiet) {
         const HeightStats s = height_stats(hf);
         std::printf("%s: %s %dx%d, texel %.4g um, rms height %.4g um, range [%.4g, %.4g] um, rms slope %.4g\n",
-                    a.out.c_str(), to_string(p.type), hf.rows(), hf.cols(), hf.texel_um(),
-                    s.rms_height_um, s.min_um, s.max_um, s.rms_slope);
+                    a.out.c_str(), to_string(p.type), hf.rows(), hf.cols(), hf.texel_um(), s.rms_height_um, s.min_um,
+                    s.max_um, s.rms_slope);
     }
 }
 
@@ -64,7 +63,9 @@ void add_heightfield_command(CLI::App& app) {
     cmd->add_flag("--no-png", args->no_png, "do not write a preview");
     cmd->add_option("--texel-um", p.texel_um, "texel width w in um")->capture_default_str();
     cmd->add_option("--rms-height-um", p.rms_height_um, "isotropic/brushed: rms height in um")->capture_default_str();
-    cmd->add_option("--rms-slope", p.rms_slope, "isotropic/brushed: rms slope per axis (overrides --rms-height-um when > 0)")->capture_default_str();
+    cmd->add_option("--rms-slope", p.rms_slope,
+                    "isotropic/brushed: rms slope per axis (overrides --rms-height-um when > 0)")
+        ->capture_default_str();
     cmd->add_option("--correlation-um", p.correlation_um, "correlation length in um")->capture_default_str();
     cmd->add_option("--anisotropy", p.anisotropy, "brushed: correlation along y / along x")->capture_default_str();
     cmd->add_option("--scratches", p.scratch_count, "scratched: number of scratches")->capture_default_str();

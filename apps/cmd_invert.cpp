@@ -94,8 +94,9 @@ void run(const InvertArgs& a) {
     if (resuming)
         for (const std::string& option : a.given)
             if (!kResumeOptions.count(option))
-                throw std::invalid_argument(option + " cannot be combined with --resume: a resumed run keeps the options in " +
-                                            a.resume + "/run.json; expected only --epochs (to extend it), --quiet, --no-plots or --max-memory-gb");
+                throw std::invalid_argument(
+                    option + " cannot be combined with --resume: a resumed run keeps the options in " + a.resume +
+                    "/run.json; expected only --epochs (to extend it), --quiet, --no-plots or --max-memory-gb");
     const std::string dir = resuming ? a.resume : a.out;
     if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
     InversionDirectoryResult result;
@@ -128,8 +129,10 @@ void run(const InvertArgs& a) {
         std::fprintf(stderr, ", %.1f s; results in %s\n", last.seconds, dir.c_str());
     }
     if (result.status == InversionStatus::Stopped && sig != 0) {
-        std::fprintf(stderr, "wavebrdf: interrupted at epoch %d; checkpoint written, continue with: wavebrdf invert --resume %s\n",
-                     result.epoch, dir.c_str());
+        std::fprintf(
+            stderr,
+            "wavebrdf: interrupted at epoch %d; checkpoint written, continue with: wavebrdf invert --resume %s\n",
+            result.epoch, dir.c_str());
         throw ExitStatus{128 + sig};
     }
 }
@@ -138,15 +141,20 @@ void run(const InvertArgs& a) {
 
 void add_invert_command(CLI::App& app) {
     auto a = std::make_shared<InvertArgs>();
-    CLI::App* cmd = app.add_subcommand("invert", "Recover heights whose BRDF slices match references (the thesis's inverse renderer)");
+    CLI::App* cmd = app.add_subcommand(
+        "invert", "Recover heights whose BRDF slices match references (the thesis's inverse renderer)");
     a->command = cmd;
-    cmd->add_option("--truth", a->truth, "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");
+    cmd->add_option("--truth", a->truth,
+                    "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");
     cmd->add_option("--observations", a->observations, "reference slices with their query parameters (JSON)");
-    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")->capture_default_str();
+    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
+        ->capture_default_str();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
     cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
-    auto* x_um = cmd->add_option("--x-um", a->x_um, "footprint centre x in um, any finite value (periodic; default: tile centre)");
-    auto* y_um = cmd->add_option("--y-um", a->y_um, "footprint centre y in um, any finite value (periodic; default: tile centre)");
+    auto* x_um = cmd->add_option("--x-um", a->x_um,
+                                 "footprint centre x in um, any finite value (periodic; default: tile centre)");
+    auto* y_um = cmd->add_option("--y-um", a->y_um,
+                                 "footprint centre y in um, any finite value (periodic; default: tile centre)");
     cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um")->capture_default_str();
     cmd->add_option("--model", a->model, "OHS, GHS, ROHS, RGHS or Kirchhoff")->capture_default_str();
     auto* lambda = cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default: --spectral 8)");
@@ -154,22 +162,30 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
     cmd->add_option("--resolution", a->resolution, "slice size n")->capture_default_str();
-    cmd->add_option("--init", a->init, "flat, noisy:FRAC (truth + uniform noise of width FRAC x height range) or FILE.exr")->capture_default_str();
-    cmd->add_option("--epochs", a->epochs, "epochs (Adam steps or L-BFGS iterations), 0 to 10^7")->capture_default_str();
+    cmd->add_option("--init", a->init,
+                    "flat, noisy:FRAC (truth + uniform noise of width FRAC x height range) or FILE.exr")
+        ->capture_default_str();
+    cmd->add_option("--epochs", a->epochs, "epochs (Adam steps or L-BFGS iterations), 0 to 10^7")
+        ->capture_default_str();
     cmd->add_option("--optimizer", a->optimizer, "adam or lbfgs")->capture_default_str();
     cmd->add_option("--lr", a->lr, "Adam learning rate (heights in texel units)")->capture_default_str();
     cmd->add_option("--beta1", a->beta1, "Adam beta1")->capture_default_str();
     cmd->add_option("--beta2", a->beta2, "Adam beta2")->capture_default_str();
-    cmd->add_option("--decay", a->decay, "learning-rate decay per epoch: lr * exp(-decay * epoch)")->capture_default_str();
-    cmd->add_option("--loss", a->loss, "cmsle:EPS, mse, amplitude or poisson:N (N photons per slice)")->capture_default_str();
-    cmd->add_option("--positions", a->positions, "fixed, random (a new position per epoch) or FILE.json ([[x_um, y_um], ...])")->capture_default_str();
+    cmd->add_option("--decay", a->decay, "learning-rate decay per epoch: lr * exp(-decay * epoch)")
+        ->capture_default_str();
+    cmd->add_option("--loss", a->loss, "cmsle:EPS, mse, amplitude or poisson:N (N photons per slice)")
+        ->capture_default_str();
+    cmd->add_option("--positions", a->positions,
+                    "fixed, random (a new position per epoch) or FILE.json ([[x_um, y_um], ...])")
+        ->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, noise, random positions)")->capture_default_str();
     cmd->add_option("--out", a->out, "output directory");
     cmd->add_option("--resume", a->resume,
                     "continue the run in this directory with its own options (--epochs N extends it to N epochs)");
     cmd->add_flag("--force", a->force,
                   "replace the earlier run in --out (only a directory that holds nothing but invert's outputs)");
-    cmd->add_option("--snapshots", a->snapshots, "epochs to keep heights, slices and gradients for the report")->capture_default_str();
+    cmd->add_option("--snapshots", a->snapshots, "epochs to keep heights, slices and gradients for the report")
+        ->capture_default_str();
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");

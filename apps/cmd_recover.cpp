@@ -27,19 +27,19 @@ namespace {
 struct RecoverArgs {
     std::string truth, observations, size = "32", out;
     double texel_um = 2.0, vscale = 1.0;
-    double height_range_um = 2.0;       // generated truth: peak-to-valley; else the planner's bound
-    double correlation_texels = 4.0;    // generated truth
+    double height_range_um = 2.0;     // generated truth: peak-to-valley; else the planner's bound
+    double correlation_texels = 4.0;  // generated truth
     std::string model = "OHS";
     double light_x = 0.0, light_y = 0.0;
-    double sigma_p_um = 0.0;            // 0: the planner's
-    int resolution = 0;                 // 0: the planner's
-    std::string lambdas;                // "": the planner's
+    double sigma_p_um = 0.0;  // 0: the planner's
+    int resolution = 0;       // 0: the planner's
+    std::string lambdas;      // "": the planner's
     double overlap = 0.6, jitter = 0.2;
-    std::string noise = "none", loss;   // loss "": matched to the noise
+    std::string noise = "none", loss;  // loss "": matched to the noise
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
-    double max_memory_gb = 0.0;         // 0: the physical memory
+    double max_memory_gb = 0.0;  // 0: the physical memory
     bool save_observations = false, quiet = false, no_plots = false, force = false;
 };
 
@@ -71,7 +71,9 @@ void run(const RecoverArgs& a) {
     options.noise = parse_noise(a.noise);
     if (!a.loss.empty()) options.loss = parse_loss(a.loss);
     if (options.noise.kind != NoiseKind::None && !a.observations.empty())
-        throw std::invalid_argument("--noise simulates noise on rendered observations; it needs --truth (or the generated default), not --observations");
+        throw std::invalid_argument(
+            "--noise simulates noise on rendered observations; it needs --truth (or the generated default), not "
+            "--observations");
     options.texel_um = a.texel_um;
     options.vscale = a.vscale;
     options.height_range_um = a.height_range_um;
@@ -94,8 +96,10 @@ void run(const RecoverArgs& a) {
         observations = read_observations_json(a.observations, a.max_memory_gb);
         parse_size("--size", a.size, options.rows, options.cols);
     } else {
-        if (a.truth.empty()) parse_size("--size", a.size, options.rows, options.cols);
-        else truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
+        if (a.truth.empty())
+            parse_size("--size", a.size, options.rows, options.cols);
+        else
+            truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
         options.model = parse_model(a.model);
         if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
     }
@@ -114,7 +118,8 @@ void run(const RecoverArgs& a) {
         progress.reset();
         if (!a.quiet) {
             std::fprintf(stderr, "%s: %d iterations, loss %.4g", last.stage.c_str(), last.iteration, last.loss);
-            if (last.height_rel_rmse >= 0.0) std::fprintf(stderr, ", height_rel_rmse %.3f%%", 100.0 * last.height_rel_rmse);
+            if (last.height_rel_rmse >= 0.0)
+                std::fprintf(stderr, ", height_rel_rmse %.3f%%", 100.0 * last.height_rel_rmse);
             std::fprintf(stderr, " (%.1f s)\n", last.seconds);
         }
     };
@@ -162,27 +167,43 @@ void add_recover_command(CLI::App& app) {
     auto a = std::make_shared<RecoverArgs>();
     CLI::App* cmd = app.add_subcommand(
         "recover", "Recover the true heightfield from slices at overlapping positions and several wavelengths");
-    cmd->add_option("--truth", a->truth, "true heightfield EXR: observations are planned and rendered from it (default: a generated one)");
-    cmd->add_option("--observations", a->observations, "measured or rendered slices with their query parameters (JSON)");
-    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")->capture_default_str();
+    cmd->add_option("--truth", a->truth,
+                    "true heightfield EXR: observations are planned and rendered from it (default: a generated one)");
+    cmd->add_option("--observations", a->observations,
+                    "measured or rendered slices with their query parameters (JSON)");
+    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
+        ->capture_default_str();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
     cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
     cmd->add_option("--height-range-um", a->height_range_um,
-                    "generated truth: peak-to-valley height in um; with --observations: a bound for unwrapping")->capture_default_str();
-    cmd->add_option("--correlation-texels", a->correlation_texels, "generated truth: correlation length in texels")->capture_default_str();
+                    "generated truth: peak-to-valley height in um; with --observations: a bound for unwrapping")
+        ->capture_default_str();
+    cmd->add_option("--correlation-texels", a->correlation_texels, "generated truth: correlation length in texels")
+        ->capture_default_str();
     cmd->add_option("--model", a->model, "OHS or ROHS (the field retrieval is separable)")->capture_default_str();
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
-    cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um (0: the planner's, 1.5 texels)")->capture_default_str();
-    cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's Nyquist choice)")->capture_default_str();
+    cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um (0: the planner's, 1.5 texels)")
+        ->capture_default_str();
+    cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's Nyquist choice)")
+        ->capture_default_str();
     cmd->add_option("--lambdas-um", a->lambdas, "wavelengths in um, comma-separated (default: the planner's ladder)");
-    cmd->add_option("--overlap", a->overlap, "worst-case linear overlap of neighbouring windows (jitter included), 0.6 to 0.95")->capture_default_str();
-    cmd->add_option("--jitter", a->jitter, "position jitter, fraction of the raster step, 0 to 0.3")->capture_default_str();
-    cmd->add_option("--noise", a->noise, "simulated noise: none, poisson:N (photons per slice) or gaussian:REL")->capture_default_str();
-    cmd->add_option("--loss", a->loss, "loss (default: matched to the noise; amplitude without noise, thesis: cmsle:1)");
-    cmd->add_option("--method", a->method, "pipeline (field retrieval, unwrapping, refinement) or thesis (Adam, one observation per epoch)")->capture_default_str();
-    cmd->add_option("--field-iterations", a->field_iterations, "field retrieval iterations per wavelength (default: the library's)");
-    cmd->add_option("--refine-iterations", a->refine_iterations, "refinement L-BFGS iterations (default: the library's)");
+    cmd->add_option("--overlap", a->overlap,
+                    "worst-case linear overlap of neighbouring windows (jitter included), 0.6 to 0.95")
+        ->capture_default_str();
+    cmd->add_option("--jitter", a->jitter, "position jitter, fraction of the raster step, 0 to 0.3")
+        ->capture_default_str();
+    cmd->add_option("--noise", a->noise, "simulated noise: none, poisson:N (photons per slice) or gaussian:REL")
+        ->capture_default_str();
+    cmd->add_option("--loss", a->loss,
+                    "loss (default: matched to the noise; amplitude without noise, thesis: cmsle:1)");
+    cmd->add_option("--method", a->method,
+                    "pipeline (field retrieval, unwrapping, refinement) or thesis (Adam, one observation per epoch)")
+        ->capture_default_str();
+    cmd->add_option("--field-iterations", a->field_iterations,
+                    "field retrieval iterations per wavelength (default: the library's)");
+    cmd->add_option("--refine-iterations", a->refine_iterations,
+                    "refinement L-BFGS iterations (default: the library's)");
     cmd->add_option("--epochs", a->epochs, "thesis method: Adam epochs")->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
     cmd->add_option("--max-memory-gb", a->max_memory_gb,
@@ -191,7 +212,8 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--out", a->out, "output directory")->required();
     cmd->add_flag("--force", a->force,
                   "replace the earlier run in --out (only a directory that holds nothing but recover's outputs)");
-    cmd->add_flag("--save-observations", a->save_observations, "also write the observations (observations.json + EXR slices)");
+    cmd->add_flag("--save-observations", a->save_observations,
+                  "also write the observations (observations.json + EXR slices)");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
     cmd->callback([a] { run(*a); });

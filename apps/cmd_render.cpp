@@ -19,7 +19,7 @@ struct RenderArgs {
     Query query;
     std::string model = "OHS";
     double lambda_um = 0.5;
-    int spectral = 0;         // used only when given_spectral
+    int spectral = 0;  // used only when given_spectral
     bool given_spectral = false;
     std::string precision = "float";
     std::string path = "auto";
@@ -42,7 +42,8 @@ void run(RenderArgs a) {
     // Whether --spectral was given, not its value: --spectral 0 is an error, not "absent".
     if (a.given_spectral) {
         if (a.spectral < 1 || a.spectral > 256)
-            throw std::domain_error("--spectral " + std::to_string(a.spectral) + " is out of range; expected 1 to 256 samples");
+            throw std::domain_error("--spectral " + std::to_string(a.spectral) +
+                                    " is out of range; expected 1 to 256 samples");
         a.job.lambdas_um = spectral_wavelengths_um(a.spectral);
     } else {
         validate_lambda(a.lambda_um);
@@ -60,15 +61,18 @@ void run(RenderArgs a) {
 void add_render_command(CLI::App& app) {
     auto a = std::make_shared<RenderArgs>();
     CLI::App* cmd = app.add_subcommand("render", "Render one BRDF slice of a heightfield (MODEL.md)");
-    cmd->add_option("--heightfield", a->heightfield, "heightfield EXR (R channel, heights in texel widths)")->required();
+    cmd->add_option("--heightfield", a->heightfield, "heightfield EXR (R channel, heights in texel widths)")
+        ->required();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
     cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
     cmd->add_option("--x-um", a->query.x_um, "footprint centre along x (rows) in um")->capture_default_str();
     cmd->add_option("--y-um", a->query.y_um, "footprint centre along y (columns) in um")->capture_default_str();
-    cmd->add_option("--sigma-p-um", a->query.sigma_p_um, "footprint (coherence) size sigma_p in um")->capture_default_str();
+    cmd->add_option("--sigma-p-um", a->query.sigma_p_um, "footprint (coherence) size sigma_p in um")
+        ->capture_default_str();
     cmd->add_option("--model", a->model, "OHS, GHS, ROHS, RGHS or Kirchhoff")->capture_default_str();
     auto* lambda = cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default 0.5)");
-    auto* spectral = cmd->add_option("--spectral", a->spectral, "N wavelengths over 0.36-0.83 um, CIE 1931 to linear sRGB");
+    auto* spectral = cmd->add_option("--spectral", a->spectral,
+                                     "N wavelengths over 0.36-0.83 um, CIE 1931 to linear sRGB");
     lambda->excludes(spectral);
     cmd->add_option("--light-x", a->query.omega_i[0], "projected light direction, x")->capture_default_str();
     cmd->add_option("--light-y", a->query.omega_i[1], "projected light direction, y")->capture_default_str();
@@ -80,7 +84,8 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--precision", a->precision, "float or double")->capture_default_str();
     cmd->add_option("--path", a->path, "auto, separable (OHS/ROHS) or direct")->capture_default_str();
     cmd->add_option("--prune-tolerance", a->job.options.prune_tolerance,
-                    "direct path: pruning error bound relative to the slice peak (0-1e-6)")->capture_default_str();
+                    "direct path: pruning error bound relative to the slice peak (0-1e-6)")
+        ->capture_default_str();
     cmd->add_option("--max-memory-gb", a->job.options.max_memory_gb,
                     "refuse a render whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();

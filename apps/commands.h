@@ -12,7 +12,7 @@ struct ExitStatus {
 
 void add_heightfield_command(CLI::App& app);  // wavebrdf heightfield: procedural surfaces
 void add_render_command(CLI::App& app);       // wavebrdf render: one BRDF slice
-void add_genbrdf_command(CLI::App& app);       // wavebrdf genbrdf: the reference's flags
+void add_genbrdf_command(CLI::App& app);      // wavebrdf genbrdf: the reference's flags
 void add_invert_command(CLI::App& app);       // wavebrdf invert: the inverse renderer
 void add_recover_command(CLI::App& app);      // wavebrdf recover: heights from overlapping slices
 

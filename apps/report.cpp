@@ -73,8 +73,10 @@ std::vector<std::string> child_environment(const std::string& python_dir) {
     for (char** e = environ; *e != nullptr; ++e) {
         if (std::strncmp(*e, "PYTHONPATH=", 11) == 0) {
             const std::string old = *e + 11;
-            if (python_dir.empty()) pythonpath = old;
-            else if (!old.empty()) pythonpath += ":" + old;
+            if (python_dir.empty())
+                pythonpath = old;
+            else if (!old.empty())
+                pythonpath += ":" + old;
             continue;
         }
         if (std::strncmp(*e, "PYTHONSAFEPATH=", 15) == 0) continue;
@@ -104,10 +106,14 @@ bool draw_report(RunKind kind, const std::string& dir) {
             const int status = run_program({python, "-m", "wavebrdf.report", "--quiet", fs::absolute(dir).string()},
                                            child_environment(beside ? expected : ""));
             if (status == 0) return true;
-            if (status == k_status_no_numpy) why = "numpy is not installed for " + python;
-            else if (status == k_status_no_matplotlib) why = "matplotlib is not installed for " + python;
-            else if (status < 0) why = python + " -m wavebrdf.report could not be started or was killed";
-            else why = python + " -m wavebrdf.report failed (exit status " + std::to_string(status) + ")";
+            if (status == k_status_no_numpy)
+                why = "numpy is not installed for " + python;
+            else if (status == k_status_no_matplotlib)
+                why = "matplotlib is not installed for " + python;
+            else if (status < 0)
+                why = python + " -m wavebrdf.report could not be started or was killed";
+            else
+                why = python + " -m wavebrdf.report failed (exit status " + std::to_string(status) + ")";
             if (!beside && status != k_status_no_numpy && status != k_status_no_matplotlib)
                 why += "; the wavebrdf Python package is not beside the executable (" +
                        (expected.empty() ? std::string("<bin>/../python") : expected) + ")";

@@ -23,8 +23,7 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
         throw std::domain_error("--exposure " + std::to_string(job.exposure) +
                                 " is invalid; expected a finite number of stops");
 
-    Progress progress("render", work_units(job.resolution) * static_cast<long long>(job.lambdas_um.size()),
-                      !job.quiet);
+    Progress progress("render", work_units(job.resolution) * static_cast<long long>(job.lambdas_um.size()), !job.quiet);
     job.options.progress = &progress;
     const auto start = std::chrono::steady_clock::now();
     RgbImage image;
@@ -37,8 +36,7 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
         image.data = render_rgb<float>(heightfield, query, job.lambdas_um, job.resolution, job.options);
     }
     progress.finish();
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
     const auto ends_with = [](const std::string& s, const std::string& tail) {
         return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
@@ -54,9 +52,9 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     if (!job.quiet) {
         float peak = 0.0f;
         for (float v : image.data) peak = std::max(peak, v);
-        std::fprintf(stderr, "rendered %dx%d slice, %zu wavelength%s, model %s, peak %.4g, %.3f s\n",
-                     job.resolution, job.resolution, job.lambdas_um.size(),
-                     job.lambdas_um.size() == 1 ? "" : "s", to_string(query.model), double(peak), seconds);
+        std::fprintf(stderr, "rendered %dx%d slice, %zu wavelength%s, model %s, peak %.4g, %.3f s\n", job.resolution,
+                     job.resolution, job.lambdas_um.size(), job.lambdas_um.size() == 1 ? "" : "s",
+                     to_string(query.model), double(peak), seconds);
     }
 }
 

@@ -13,8 +13,8 @@ struct SliceJob {
     int resolution = 256;
     RenderOptions options;
     bool use_double = false;
-    std::string out_exr;             // may be empty when png is given
-    bool with_alpha = false;         // genBrdf's RGBA layout
+    std::string out_exr;      // may be empty when png is given
+    bool with_alpha = false;  // genBrdf's RGBA layout
     std::string png;
     double exposure = 0.0;
     bool tonemap = false;

@@ -42,8 +42,8 @@ Query query(Model model) {
 template <typename Float>
 void run_slice(benchmark::State& state, Model model, int resolution, int wavelengths) {
     const Query q = query(model);
-    const std::vector<double> lambdas =
-        wavelengths == 1 ? std::vector<double>{0.5} : spectral_wavelengths_um(wavelengths);
+    const std::vector<double> lambdas = wavelengths == 1 ? std::vector<double>{0.5}
+                                                         : spectral_wavelengths_um(wavelengths);
     const auto kernels = footprint_kernels(surface(), q.x_um, q.y_um, q.sigma_p_um).size();
     for (auto _ : state) {
         auto rgb = render_rgb<Float>(surface(), q, lambdas, resolution);
@@ -59,15 +59,24 @@ void slice_double(benchmark::State& s, Model m, int n, int l) { run_slice<double
 
 }  // namespace
 
-BENCHMARK_CAPTURE(slice_float, ohs_128_spectral8_float, Model::OHS, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(slice_double, ohs_128_spectral8_double, Model::OHS, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, ohs_128_spectral8_float, Model::OHS, 128, 8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(slice_double, ohs_128_spectral8_double, Model::OHS, 128, 8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(slice_float, ohs_256_mono_float, Model::OHS, 256, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_CAPTURE(slice_double, ohs_256_mono_double, Model::OHS, 256, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(slice_float, rohs_128_spectral8_float, Model::ROHS, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, rohs_128_spectral8_float, Model::ROHS, 128, 8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(slice_float, ohs_1024_mono_float, Model::OHS, 1024, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(slice_float, ghs_direct_128_mono_float, Model::GHS, 128, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(slice_float, kirchhoff_direct_64_mono_float, Model::Kirchhoff, 64, 1)->Unit(benchmark::kMillisecond)->UseRealTime();
-
+BENCHMARK_CAPTURE(slice_float, ghs_direct_128_mono_float, Model::GHS, 128, 1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(slice_float, kirchhoff_direct_64_mono_float, Model::Kirchhoff, 64, 1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // Gradient of Σ W·f for one slice against the forward alone (issue: at most 3× the forward).
 static void gradient_float(benchmark::State& state, Model model, int resolution) {
@@ -133,10 +142,18 @@ void gradient_tile_double(benchmark::State& s, int size, double sigma_p_um, int 
 
 }  // namespace
 
-BENCHMARK_CAPTURE(gradient_tile_float, thesis_16_sigma4_32_float, 16, 4.0, 32)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(gradient_tile_double, thesis_16_sigma4_32_double, 16, 4.0, 32)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(gradient_tile_float, tile_256_sigma10_128_float, 256, 10.0, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(gradient_tile_double, tile_256_sigma10_128_double, 256, 10.0, 128)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(gradient_tile_float, thesis_16_sigma4_32_float, 16, 4.0, 32)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(gradient_tile_double, thesis_16_sigma4_32_double, 16, 4.0, 32)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(gradient_tile_float, tile_256_sigma10_128_float, 256, 10.0, 128)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(gradient_tile_double, tile_256_sigma10_128_double, 256, 10.0, 128)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // The slice plan (slice_plan.h) against the one-call functions on the same case: one loss
 // evaluation = forward and adjoint of every wavelength of an RGB slice, as an inversion epoch
@@ -173,14 +190,26 @@ void run_plan_epoch(benchmark::State& state, int size, double sigma_p_um, int re
     }
 }
 
-void plan_epoch(benchmark::State& s, int size, double sigma, int n, int l) { run_plan_epoch<double>(s, size, sigma, n, l, true); }
-void onecall_epoch(benchmark::State& s, int size, double sigma, int n, int l) { run_plan_epoch<double>(s, size, sigma, n, l, false); }
+void plan_epoch(benchmark::State& s, int size, double sigma, int n, int l) {
+    run_plan_epoch<double>(s, size, sigma, n, l, true);
+}
+void onecall_epoch(benchmark::State& s, int size, double sigma, int n, int l) {
+    run_plan_epoch<double>(s, size, sigma, n, l, false);
+}
 
 }  // namespace
 
-BENCHMARK_CAPTURE(plan_epoch, thesis_16_sigma4_32_spectral8, 16, 4.0, 32, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(onecall_epoch, thesis_16_sigma4_32_spectral8, 16, 4.0, 32, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(plan_epoch, tile_256_sigma10_128_spectral8, 256, 10.0, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(onecall_epoch, tile_256_sigma10_128_spectral8, 256, 10.0, 128, 8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(plan_epoch, thesis_16_sigma4_32_spectral8, 16, 4.0, 32, 8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(onecall_epoch, thesis_16_sigma4_32_spectral8, 16, 4.0, 32, 8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(plan_epoch, tile_256_sigma10_128_spectral8, 256, 10.0, 128, 8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(onecall_epoch, tile_256_sigma10_128_spectral8, 256, 10.0, 128, 8)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 BENCHMARK_MAIN();

@@ -96,7 +96,8 @@ int main(int argc, char** argv) try {
     std::vector<std::array<double, 2>> positions;
     for (int a = 0; a < steps; ++a)
         for (int b = 0; b < steps; ++b)
-            positions.push_back({(a + 0.5) * step + jitter * step * uni(rng), (b + 0.5) * step + jitter * step * uni(rng)});
+            positions.push_back(
+                {(a + 0.5) * step + jitter * step * uni(rng), (b + 0.5) * step + jitter * step * uni(rng)});
     const auto t_render = std::chrono::steady_clock::now();
     for (double lambda : lambdas)
         for (const auto& p : positions) {
@@ -109,13 +110,13 @@ int main(int argc, char** argv) try {
             o.reference = render_observation(truth, o);
             observations.push_back(std::move(o));
         }
-    const double render_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_render).count();
+    const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_render).count();
     if (!quiet)
-        std::printf("truth %dx%d texel %g um: rms %.3f um, range [%.3f, %.3f] um, rms slope %.3f; %zu positions "
-                    "(step %.2f um), %zu observations rendered in %.1f s\n",
-                    size, size, texel_um, stats.rms_height_um, stats.min_um, stats.max_um, stats.rms_slope,
-                    positions.size(), step, observations.size(), render_s);
+        std::printf(
+            "truth %dx%d texel %g um: rms %.3f um, range [%.3f, %.3f] um, rms slope %.3f; %zu positions "
+            "(step %.2f um), %zu observations rendered in %.1f s\n",
+            size, size, texel_um, stats.rms_height_um, stats.min_um, stats.max_um, stats.rms_slope, positions.size(),
+            step, observations.size(), render_s);
 
     // The library's defaults unless a key overrides them.
     RecoverSettings rs;
@@ -155,11 +156,12 @@ int main(int argc, char** argv) try {
         },
         &truth);
     const double rel = height_rel_rmse(estimate, truth);
-    std::printf("RESULT size=%d texel_um=%g corr_texels=%g sigma_p_um=%g step_um=%.3f positions=%zu resolution=%d "
-                "lambdas=%s blur_rel_rmse=%.5f blur_s=%.1f unwrap_rel_rmse=%.5f field_unwrap_s=%.1f total_s=%.1f "
-                "rel_rmse=%.5f\n",
-                size, texel_um, corr_texels, sigma_p_um, step, positions.size(), resolution,
-                get("lambdas", "0.5,0.55,0.65").c_str(), blur_rmse, blur_s, unwrap_rmse, field_s, field_end, rel);
+    std::printf(
+        "RESULT size=%d texel_um=%g corr_texels=%g sigma_p_um=%g step_um=%.3f positions=%zu resolution=%d "
+        "lambdas=%s blur_rel_rmse=%.5f blur_s=%.1f unwrap_rel_rmse=%.5f field_unwrap_s=%.1f total_s=%.1f "
+        "rel_rmse=%.5f\n",
+        size, texel_um, corr_texels, sigma_p_um, step, positions.size(), resolution,
+        get("lambdas", "0.5,0.55,0.65").c_str(), blur_rmse, blur_s, unwrap_rmse, field_s, field_end, rel);
 
     if (baseline_epochs > 0) {
         // The thesis's method on the same observations (baseline.h): Adam (lr 0.01, β 0.9/0.99,
@@ -170,11 +172,13 @@ int main(int argc, char** argv) try {
         settings.report_every = 100;
         const auto t0 = std::chrono::steady_clock::now();
         double best = INFINITY;
-        const Heightfield h = recover_heights_thesis(observations, truth.rows(), truth.cols(), truth.texel_um(),
-                                                     truth.vscale(), settings, [&](const StageMetrics& m) {
-                                                         best = std::min(best, m.height_rel_rmse);
-                                                         return true;
-                                                     }, &truth);
+        const Heightfield h = recover_heights_thesis(
+            observations, truth.rows(), truth.cols(), truth.texel_um(), truth.vscale(), settings,
+            [&](const StageMetrics& m) {
+                best = std::min(best, m.height_rel_rmse);
+                return true;
+            },
+            &truth);
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         std::printf("BASELINE thesis-adam-cmsle epochs=%d seconds=%.1f rel_rmse=%.5f best_every_100=%.5f\n",
                     baseline_epochs, s, height_rel_rmse(h, truth), best);
@@ -190,9 +194,11 @@ int main(int argc, char** argv) try {
         lo.history = 20;
         lo.gradient_tolerance = 0.0;
         const auto t0 = std::chrono::steady_clock::now();
-        lbfgs_minimize([&](const std::vector<double>& x, std::vector<double>& g) {
-            return observation_loss(truth.with_values(x), observations, amplitude, &g);
-        }, h, lo);
+        lbfgs_minimize(
+            [&](const std::vector<double>& x, std::vector<double>& g) {
+                return observation_loss(truth.with_values(x), observations, amplitude, &g);
+            },
+            h, lo);
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         std::printf("BASELINE lbfgs-amplitude-from-flat iterations=%d seconds=%.1f rel_rmse=%.5f\n", direct_iters, s,
                     height_rel_rmse(truth.with_values(h), truth));

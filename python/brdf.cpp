@@ -147,48 +147,64 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
         .def(py::init(&make_query), "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0,
              "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "lambda_um"_a = py::none(),
              "spectral"_a = py::none())
-        .def_property("x_um", [](const PyQuery& q) { return q.query.x_um; },
-                      [](PyQuery& q, double v) { q.query.x_um = check_finite(v, "x_um"); })
-        .def_property("y_um", [](const PyQuery& q) { return q.query.y_um; },
-                      [](PyQuery& q, double v) { q.query.y_um = check_finite(v, "y_um"); })
-        .def_property("sigma_p_um", [](const PyQuery& q) { return q.query.sigma_p_um; },
-                      [](PyQuery& q, double v) { q.query.sigma_p_um = check_positive(v, "sigma_p_um"); })
-        .def_property("light", [](const PyQuery& q) { return py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]); },
-                      [](PyQuery& q, py::object v) { q.query.omega_i = light_direction(v); })
-        .def_property("model", [](const PyQuery& q) { return std::string(to_string(q.query.model)); },
-                      [](PyQuery& q, const std::string& v) { q.query.model = model_from(v); })
-        .def_property_readonly("lambdas_um", [](const PyQuery& q) { return q.lambdas_um; }, "the wavelengths in um")
-        .def_property_readonly("spectral", [](const PyQuery& q) { return q.spectral; },
-                               "True when the slice is spectral (RGB through CIE 1931)")
-        .def("kwargs", [](const PyQuery& q) {
-            py::dict d("x_um"_a = q.query.x_um, "y_um"_a = q.query.y_um, "sigma_p_um"_a = q.query.sigma_p_um,
-                       "light"_a = py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]),
-                       "model"_a = to_string(q.query.model));
-            if (q.spectral) d["spectral"] = q.lambdas_um; else d["lambda_um"] = q.lambdas_um[0];
-            return d;
-        }, "The query as keyword arguments of render_slice and slice_gradient.")
+        .def_property(
+            "x_um", [](const PyQuery& q) { return q.query.x_um; },
+            [](PyQuery& q, double v) { q.query.x_um = check_finite(v, "x_um"); })
+        .def_property(
+            "y_um", [](const PyQuery& q) { return q.query.y_um; },
+            [](PyQuery& q, double v) { q.query.y_um = check_finite(v, "y_um"); })
+        .def_property(
+            "sigma_p_um", [](const PyQuery& q) { return q.query.sigma_p_um; },
+            [](PyQuery& q, double v) { q.query.sigma_p_um = check_positive(v, "sigma_p_um"); })
+        .def_property(
+            "light", [](const PyQuery& q) { return py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]); },
+            [](PyQuery& q, py::object v) { q.query.omega_i = light_direction(v); })
+        .def_property(
+            "model", [](const PyQuery& q) { return std::string(to_string(q.query.model)); },
+            [](PyQuery& q, const std::string& v) { q.query.model = model_from(v); })
+        .def_property_readonly(
+            "lambdas_um", [](const PyQuery& q) { return q.lambdas_um; }, "the wavelengths in um")
+        .def_property_readonly(
+            "spectral", [](const PyQuery& q) { return q.spectral; },
+            "True when the slice is spectral (RGB through CIE 1931)")
+        .def(
+            "kwargs",
+            [](const PyQuery& q) {
+                py::dict d("x_um"_a = q.query.x_um, "y_um"_a = q.query.y_um, "sigma_p_um"_a = q.query.sigma_p_um,
+                           "light"_a = py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]),
+                           "model"_a = to_string(q.query.model));
+                if (q.spectral)
+                    d["spectral"] = q.lambdas_um;
+                else
+                    d["lambda_um"] = q.lambdas_um[0];
+                return d;
+            },
+            "The query as keyword arguments of render_slice and slice_gradient.")
         .def("copy", [](const PyQuery& q) { return PyQuery(q); })
         .def("__copy__", [](const PyQuery& q) { return PyQuery(q); })
-        .def("__deepcopy__", [](const PyQuery& q, py::dict) { return PyQuery(q); }, "memo"_a)
+        .def(
+            "__deepcopy__", [](const PyQuery& q, py::dict) { return PyQuery(q); }, "memo"_a)
         .def("__repr__", &query_repr);
 
-    m.def("render_slice",
-          [](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
-             double sigma_p_um, const py::object& lambda_um, const py::object& spectral, const py::object& light,
-             const std::string& model) {
-              const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
-                                              light, resolution, model);
-              return a.single ? render_rgb_array<float>(a.hf, a.q, resolution)
-                              : render_rgb_array<double>(a.hf, a.q, resolution);
-          },
-          "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
-          "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
-          "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
-          (std::string("render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, "
-                       "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')\n\n"
-                       "One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),\n"
-                       "linear RGB. The same as `wavebrdf render` with the same options.\n") + kPlainArgs)
-              .c_str());
+    m.def(
+        "render_slice",
+        [](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
+           double sigma_p_um, const py::object& lambda_um, const py::object& spectral, const py::object& light,
+           const std::string& model) {
+            const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
+                                            light, resolution, model);
+            return a.single ? render_rgb_array<float>(a.hf, a.q, resolution)
+                            : render_rgb_array<double>(a.hf, a.q, resolution);
+        },
+        "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
+        "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
+        "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
+        (std::string("render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, "
+                     "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')\n\n"
+                     "One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),\n"
+                     "linear RGB. The same as `wavebrdf render` with the same options.\n") +
+         kPlainArgs)
+            .c_str());
 
     py::class_<PyPlan>(m, "_SlicePlan", R"doc(
 Internal (wavebrdf.torch): the library's SlicePlan for render_slice's arguments, so that a
@@ -198,8 +214,8 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
         .def(py::init([](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
                          double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
                          const py::object& light, const std::string& model) {
-                 const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
-                                                 spectral, light, resolution, model);
+                 const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
+                                                 light, resolution, model);
                  PyPlan p;
                  p.n = resolution;
                  p.rows = a.hf.rows();
@@ -207,121 +223,138 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
                  if (a.single)
                      p.single_plan = std::make_unique<SlicePlan<float>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3);
                  else
-                     p.double_plan = std::make_unique<SlicePlan<double>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3);
+                     p.double_plan = std::make_unique<SlicePlan<double>>(a.hf, a.q.query, a.q.lambdas_um, resolution,
+                                                                         3);
                  return p;
              }),
              "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
              "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
              "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS")
-        .def("forward", [](PyPlan& p) {
-            return p.single_plan ? plan_forward(*p.single_plan, p.n) : plan_forward(*p.double_plan, p.n);
-        })
-        .def("adjoint", [](const PyPlan& p, py::handle weights) {
-            const std::vector<double> w = weights_argument(weights, p.n);
-            std::vector<double> g;
-            {
-                InterruptibleRelease release;
-                if (p.single_plan)
-                    p.single_plan->adjoint(w, g);
-                else
-                    p.double_plan->adjoint(w, g);
-            }
-            if (!p.single_plan) return py::array(owning_array(std::move(g), {p.rows, p.cols}));
-            return py::array(owning_array(std::vector<float>(g.begin(), g.end()), {p.rows, p.cols}));
-        }, "weights"_a);
+        .def("forward",
+             [](PyPlan& p) {
+                 return p.single_plan ? plan_forward(*p.single_plan, p.n) : plan_forward(*p.double_plan, p.n);
+             })
+        .def(
+            "adjoint",
+            [](const PyPlan& p, py::handle weights) {
+                const std::vector<double> w = weights_argument(weights, p.n);
+                std::vector<double> g;
+                {
+                    InterruptibleRelease release;
+                    if (p.single_plan)
+                        p.single_plan->adjoint(w, g);
+                    else
+                        p.double_plan->adjoint(w, g);
+                }
+                if (!p.single_plan) return py::array(owning_array(std::move(g), {p.rows, p.cols}));
+                return py::array(owning_array(std::vector<float>(g.begin(), g.end()), {p.rows, p.cols}));
+            },
+            "weights"_a);
 
-    m.def("slice_gradient",
-          [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale, double x_um,
-             double y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
-             const py::object& light, const std::string& model) {
-              const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
-                                              light, resolution, model);
-              const std::vector<double> w = weights_argument(weights, resolution);
-              std::vector<double> g = a.single ? rgb_gradient<float>(a.hf, a.q, resolution, w)
-                                               : rgb_gradient<double>(a.hf, a.q, resolution, w);
-              return gradient_array(std::move(g), a.hf, a.single);
-          },
-          "heights"_a, "weights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0,
-          "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(),
-          "spectral"_a = py::none(), "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
-          (std::string("slice_gradient(heights, weights, *, resolution, **the options of render_slice)\n\n"
-                       "The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`\n"
-                       "(texel units), a vector-Jacobian product by the library's adjoint: an array shaped\n"
-                       "and typed like `heights`. For a loss L of the slice, weights = dL/dslice gives\n"
-                       "dL/dheights.\n\n"
-                       "weights     float32/float64 array (resolution, resolution, 3), finite; one weight per\n"
-                       "            pixel and channel. One wavelength: R = G = B, so the three channels'\n"
-                       "            weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]\n"
-                       "            with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk\n"
-                       "            are ignored.\n") +
-           kPlainArgs)
-              .c_str());
+    m.def(
+        "slice_gradient",
+        [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale, double x_um,
+           double y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
+           const py::object& light, const std::string& model) {
+            const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
+                                            light, resolution, model);
+            const std::vector<double> w = weights_argument(weights, resolution);
+            std::vector<double> g = a.single ? rgb_gradient<float>(a.hf, a.q, resolution, w)
+                                             : rgb_gradient<double>(a.hf, a.q, resolution, w);
+            return gradient_array(std::move(g), a.hf, a.single);
+        },
+        "heights"_a, "weights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
+        "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
+        "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
+        (std::string("slice_gradient(heights, weights, *, resolution, **the options of render_slice)\n\n"
+                     "The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`\n"
+                     "(texel units), a vector-Jacobian product by the library's adjoint: an array shaped\n"
+                     "and typed like `heights`. For a loss L of the slice, weights = dL/dslice gives\n"
+                     "dL/dheights.\n\n"
+                     "weights     float32/float64 array (resolution, resolution, 3), finite; one weight per\n"
+                     "            pixel and channel. One wavelength: R = G = B, so the three channels'\n"
+                     "            weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]\n"
+                     "            with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk\n"
+                     "            are ignored.\n") +
+         kPlainArgs)
+            .c_str());
 
-    m.def("render",
-          [](const Heightfield& hf, const PyQuery& q, int resolution, const std::string& precision) {
-              check_resolution(resolution);
-              return double_precision(precision) ? render_rgb_array<double>(hf, q, resolution)
-                                                 : render_rgb_array<float>(hf, q, resolution);
-          },
-          "heightfield"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double", R"doc(
+    m.def(
+        "render",
+        [](const Heightfield& hf, const PyQuery& q, int resolution, const std::string& precision) {
+            check_resolution(resolution);
+            return double_precision(precision) ? render_rgb_array<double>(hf, q, resolution)
+                                               : render_rgb_array<float>(hf, q, resolution);
+        },
+        "heightfield"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double", R"doc(
 The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear RGB, float64
 (precision='double') or float32 ('float'); resolution 1...8192.
 )doc");
-    m.def("render",
-          [](const GaborRepresentation& rep, const PyQuery& q, int resolution, const std::string& precision) {
-              check_resolution(resolution);
-              if (double_precision(precision)) {
-                  std::vector<double> rgb;
-                  {
-                      InterruptibleRelease release;
-                      rgb = render_rgb<double>(rep, q.query, q.lambdas_um, resolution);
-                  }
-                  return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
-              }
-              std::vector<float> rgb;
-              {
-                  InterruptibleRelease release;
-                  rgb = render_rgb<float>(rep, q.query, q.lambdas_um, resolution);
-              }
-              return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
-          },
-          "gabor"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double",
-          "The same from a GaborRep made for this query's footprint (the kernels are not gathered again).");
+    m.def(
+        "render",
+        [](const GaborRepresentation& rep, const PyQuery& q, int resolution, const std::string& precision) {
+            check_resolution(resolution);
+            if (double_precision(precision)) {
+                std::vector<double> rgb;
+                {
+                    InterruptibleRelease release;
+                    rgb = render_rgb<double>(rep, q.query, q.lambdas_um, resolution);
+                }
+                return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
+            }
+            std::vector<float> rgb;
+            {
+                InterruptibleRelease release;
+                rgb = render_rgb<float>(rep, q.query, q.lambdas_um, resolution);
+            }
+            return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
+        },
+        "gabor"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double",
+        "The same from a GaborRep made for this query's footprint (the kernels are not gathered again).");
 
-    m.def("gradient",
-          [](const Heightfield& hf, const PyQuery& q, py::handle weights, const std::string& precision) {
-              const py::array wa = float_array(weights, "weights");
-              if (wa.ndim() != 3 || wa.shape(0) != wa.shape(1) || wa.shape(2) != 3)
-                  throw py::value_error("weights has shape " + shape_string(wa) + "; expected (n, n, 3)");
-              const int n = check_resolution(static_cast<int>(wa.shape(0)), "weights.shape[0]");
-              const std::vector<double> w = to_doubles(wa, "weights");
-              std::vector<double> g = double_precision(precision) ? rgb_gradient<double>(hf, q, n, w)
-                                                                  : rgb_gradient<float>(hf, q, n, w);
-              return owning_array(std::move(g), {hf.rows(), hf.cols()});
-          },
-          "heightfield"_a, "query"_a, "weights"_a, "precision"_a = "double", R"doc(
+    m.def(
+        "gradient",
+        [](const Heightfield& hf, const PyQuery& q, py::handle weights, const std::string& precision) {
+            const py::array wa = float_array(weights, "weights");
+            if (wa.ndim() != 3 || wa.shape(0) != wa.shape(1) || wa.shape(2) != 3)
+                throw py::value_error("weights has shape " + shape_string(wa) + "; expected (n, n, 3)");
+            const int n = check_resolution(static_cast<int>(wa.shape(0)), "weights.shape[0]");
+            const std::vector<double> w = to_doubles(wa, "weights");
+            std::vector<double> g = double_precision(precision) ? rgb_gradient<double>(hf, q, n, w)
+                                                                : rgb_gradient<float>(hf, q, n, w);
+            return owning_array(std::move(g), {hf.rows(), hf.cols()});
+        },
+        "heightfield"_a, "query"_a, "weights"_a, "precision"_a = "double", R"doc(
 The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
 values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss
 (Loss.value_and_gradient); see slice_gradient for how channels map to wavelengths.
 )doc");
 
-    m.def("spectral_wavelengths_um", [](int count) {
-              if (count < 1 || count > 256) bad_argument("count", std::to_string(count), "1 to 256");
-              return spectral_wavelengths_um(count);
-          }, "count"_a,
-          "The library's N wavelengths in um: 0.36 + (k + 1/2) * 0.47 / N (N = 8: genBrdf's samples).");
-    m.def("spectral_to_srgb_weights", [](const std::vector<double>& lambdas_um) {
-              std::vector<double> w = spectral_to_srgb_weights(lambdas_um);
-              const auto n = static_cast<py::ssize_t>(lambdas_um.size());
-              return owning_array(std::move(w), {3, n});
-          }, "lambdas_um"_a, R"doc(
+    m.def(
+        "spectral_wavelengths_um",
+        [](int count) {
+            if (count < 1 || count > 256) bad_argument("count", std::to_string(count), "1 to 256");
+            return spectral_wavelengths_um(count);
+        },
+        "count"_a, "The library's N wavelengths in um: 0.36 + (k + 1/2) * 0.47 / N (N = 8: genBrdf's samples).");
+    m.def(
+        "spectral_to_srgb_weights",
+        [](const std::vector<double>& lambdas_um) {
+            std::vector<double> w = spectral_to_srgb_weights(lambdas_um);
+            const auto n = static_cast<py::ssize_t>(lambdas_um.size());
+            return owning_array(std::move(w), {3, n});
+        },
+        "lambdas_um"_a, R"doc(
 The (3, N) matrix M mapping values at the N wavelengths (um) to linear sRGB (CIE 1931,
 Bradford to D65): rgb[c] = sum_l M[c, l] f(lambda_l). A constant spectrum maps to grey.
 )doc");
-    m.def("cie1931_xyz", [](double lambda_um) {
-              const auto v = cie1931_xyz(check_finite(lambda_um, "lambda_um"));
-              return py::make_tuple(v[0], v[1], v[2]);
-          }, "lambda_um"_a, "CIE 1931 2-degree colour-matching functions (x, y, z) at a wavelength in um.");
+    m.def(
+        "cie1931_xyz",
+        [](double lambda_um) {
+            const auto v = cie1931_xyz(check_finite(lambda_um, "lambda_um"));
+            return py::make_tuple(v[0], v[1], v[2]);
+        },
+        "lambda_um"_a, "CIE 1931 2-degree colour-matching functions (x, y, z) at a wavelength in um.");
 }
 
 }  // namespace wavebrdf::python

@@ -80,8 +80,7 @@ void check_shape(const py::array& array, const std::vector<py::ssize_t>& shape, 
 namespace {
 
 template <typename T>
-void gather(const char* base, const py::ssize_t* shape, const py::ssize_t* strides, py::ssize_t ndim,
-            double*& out) {
+void gather(const char* base, const py::ssize_t* shape, const py::ssize_t* strides, py::ssize_t ndim, double*& out) {
     if (ndim == 0) {
         *out++ = static_cast<double>(*reinterpret_cast<const T*>(base));
         return;
@@ -168,7 +167,8 @@ std::vector<double> wavelengths(const py::object& lambda_um, const py::object& s
         if (py::isinstance<py::int_>(spectral) && !py::isinstance<py::bool_>(spectral)) {
             const long long count = spectral.cast<long long>();
             if (count < 1 || count > 256)
-                bad_argument("spectral", std::to_string(count), "1 to 256 wavelength samples, or a list of wavelengths in um");
+                bad_argument("spectral", std::to_string(count),
+                             "1 to 256 wavelength samples, or a list of wavelengths in um");
             return spectral_wavelengths_um(static_cast<int>(count));
         }
         std::vector<double> list;
@@ -189,7 +189,8 @@ std::vector<double> wavelengths(const py::object& lambda_um, const py::object& s
         try {
             l = lambda_um.cast<double>();
         } catch (const py::cast_error&) {
-            throw py::value_error("lambda_um = " + std::string(py::repr(lambda_um)) + " is invalid; expected a wavelength in um");
+            throw py::value_error("lambda_um = " + std::string(py::repr(lambda_um)) +
+                                  " is invalid; expected a wavelength in um");
         }
         check_positive(l, "lambda_um");
         return {l};
@@ -222,8 +223,8 @@ Model model_from(const std::string& name, const char* argument) {
     }
 }
 
-PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object& light,
-                   const std::string& model, const py::object& lambda_um, const py::object& spectral) {
+PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object& light, const std::string& model,
+                   const py::object& lambda_um, const py::object& spectral) {
     PyQuery q;
     q.query.x_um = check_finite(x_um, "x_um");
     q.query.y_um = check_finite(y_um, "y_um");

@@ -28,7 +28,7 @@ std::string format_number(double value);  // wavebrdf::format_shortest (wavebrdf
 
 // Scalar checks; each returns its value.
 double check_finite(double value, const char* name);
-double check_positive(double value, const char* name);  // finite and > 0
+double check_positive(double value, const char* name);                  // finite and > 0
 int check_resolution(int resolution, const char* name = "resolution");  // 1 ... 8192
 
 // A float32 or float64 NumPy array (native byte order). Lists and other array-likes (not
@@ -82,8 +82,8 @@ struct PyQuery {
     std::vector<double> lambdas_um;
     bool spectral = false;  // given as `spectral` (RGB through CIE 1931) rather than `lambda_um`
 };
-PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object& light,
-                   const std::string& model, const py::object& lambda_um, const py::object& spectral);
+PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object& light, const std::string& model,
+                   const py::object& lambda_um, const py::object& spectral);
 
 // Registration, one function per binding file.
 void bind_heightfield(py::module_& m);
@@ -138,7 +138,8 @@ public:
             e.restore();  // raised again once the work has stopped
             return fail();
         } catch (const py::cast_error&) {
-            PyErr_SetString(PyExc_ValueError, "callback returned a value that is not a bool; expected True, False or None");
+            PyErr_SetString(PyExc_ValueError,
+                            "callback returned a value that is not a bool; expected True, False or None");
             return fail();
         }
         return true;

@@ -60,9 +60,8 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
         .def_static(
             "generate",
             [](const std::string& type, int rows, std::optional<int> cols, double texel_um, std::uint64_t seed,
-               double rms_height_um, double rms_slope, double correlation_um, double anisotropy,
-               int scratch_count, double scratch_depth_um, double scratch_width_um, double amplitude_um,
-               double period_um) {
+               double rms_height_um, double rms_slope, double correlation_um, double anisotropy, int scratch_count,
+               double scratch_depth_um, double scratch_width_um, double amplitude_um, double period_um) {
                 SurfaceParams p;
                 p.type = parse_surface_type(type);
                 p.rows = rows;
@@ -83,8 +82,8 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             },
             "type"_a = "isotropic", "rows"_a = 256, "cols"_a = py::none(), "texel_um"_a = 1.0, "seed"_a = 1,
             "rms_height_um"_a = 0.1, "rms_slope"_a = 0.0, "correlation_um"_a = 4.0, "anisotropy"_a = 8.0,
-            "scratch_count"_a = 40, "scratch_depth_um"_a = 0.05, "scratch_width_um"_a = 1.5,
-            "amplitude_um"_a = 0.1, "period_um"_a = 32.0, R"doc(
+            "scratch_count"_a = 40, "scratch_depth_um"_a = 0.05, "scratch_width_um"_a = 1.5, "amplitude_um"_a = 0.1,
+            "period_um"_a = 32.0, R"doc(
 A procedural periodic surface, deterministic in ``seed`` (as ``wavebrdf heightfield``).
 
 type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_um, or rms
@@ -96,8 +95,8 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
 )doc")
         .def_property_readonly("rows", &Heightfield::rows)
         .def_property_readonly("cols", &Heightfield::cols)
-        .def_property_readonly("shape", [](const Heightfield& hf) { return py::make_tuple(hf.rows(), hf.cols()); },
-                               "(rows, cols)")
+        .def_property_readonly(
+            "shape", [](const Heightfield& hf) { return py::make_tuple(hf.rows(), hf.cols()); }, "(rows, cols)")
         .def_property_readonly("texel_um", &Heightfield::texel_um, "texel width w in um")
         .def_property_readonly("vscale", &Heightfield::vscale, "vertical scale v")
         .def_property_readonly("period_x_um", &Heightfield::period_x_um, "tile period along x (rows), um")
@@ -107,43 +106,74 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             [](Heightfield& hf, py::handle v) { set_values(hf, v); },
             "The heights in texel units, a read-only float64 view (rows, cols) of this heightfield's\n"
             "memory (no copy). Assigning an array of the same shape overwrites them in place.")
-        .def("to_numpy", [](const Heightfield& hf) { return owning_array(std::vector<double>(hf.values()), {hf.rows(), hf.cols()}); },
-             "A writable float64 copy of the values (rows, cols), in texel units.")
-        .def("__array__", [](py::object self, py::object dtype) {
-                 py::array v = values_view(self.cast<const Heightfield&>(), self);
-                 return dtype.is_none() ? v : py::array(v.attr("astype")(dtype));
-             }, "dtype"_a = py::none())
-        .def("heights_um", [](const Heightfield& hf) {
-                 std::vector<double> v = hf.values();
-                 for (double& x : v) x *= hf.vscale() * hf.texel_um();
-                 return owning_array(std::move(v), {hf.rows(), hf.cols()});
-             }, "Heights in um, vscale * texel_um * values (a new float64 array).")
-        .def("slope", [](const Heightfield& hf, int i, int j) { const auto s = hf.slope(i, j); return py::make_tuple(s[0], s[1]); },
-             "i"_a, "j"_a, "Dimensionless slope (s_x, s_y) at texel (i, j) by periodic central differences.")
-        .def("with_values", [](const Heightfield& hf, py::handle values) {
-                 const py::array a = float_array(values, "values");
-                 check_shape(a, {hf.rows(), hf.cols()}, "values");
-                 return hf.with_values(to_doubles(a, "values"));
-             }, "values"_a, "The same geometry with other values (same shape).")
-        .def("with_scale", [](const Heightfield& hf, double texel_um, double vscale) {
-                 return hf.with_scale(check_positive(texel_um, "texel_um"), check_finite(vscale, "vscale"));
-             }, "texel_um"_a, "vscale"_a, "The same values with another texel width (um) and vertical scale.")
-        .def("stats", [](const Heightfield& hf) {
-                 const HeightStats s = height_stats(hf);
-                 return py::dict("mean_um"_a = s.mean_um, "rms_height_um"_a = s.rms_height_um, "min_um"_a = s.min_um,
-                                 "max_um"_a = s.max_um, "rms_slope"_a = s.rms_slope);
-             }, "Mean, rms height, min and max in um (vscale included) and rms slope.")
-        .def("save_exr", [](const Heightfield& hf, const std::string& path) {
-                 py::gil_scoped_release release;
-                 write_heightfield_exr(path, hf);
-             }, "path"_a, "Writes the values (texel units) as a single-channel float EXR (atomically).")
-        .def("save_png", [](const Heightfield& hf, const std::string& path) {
-                 py::gil_scoped_release release;
-                 write_heightfield_png(path, hf);
-             }, "path"_a, "Writes a grey PNG preview, min black, max white.")
+        .def(
+            "to_numpy",
+            [](const Heightfield& hf) {
+                return owning_array(std::vector<double>(hf.values()), {hf.rows(), hf.cols()});
+            },
+            "A writable float64 copy of the values (rows, cols), in texel units.")
+        .def(
+            "__array__",
+            [](py::object self, py::object dtype) {
+                py::array v = values_view(self.cast<const Heightfield&>(), self);
+                return dtype.is_none() ? v : py::array(v.attr("astype")(dtype));
+            },
+            "dtype"_a = py::none())
+        .def(
+            "heights_um",
+            [](const Heightfield& hf) {
+                std::vector<double> v = hf.values();
+                for (double& x : v) x *= hf.vscale() * hf.texel_um();
+                return owning_array(std::move(v), {hf.rows(), hf.cols()});
+            },
+            "Heights in um, vscale * texel_um * values (a new float64 array).")
+        .def(
+            "slope",
+            [](const Heightfield& hf, int i, int j) {
+                const auto s = hf.slope(i, j);
+                return py::make_tuple(s[0], s[1]);
+            },
+            "i"_a, "j"_a, "Dimensionless slope (s_x, s_y) at texel (i, j) by periodic central differences.")
+        .def(
+            "with_values",
+            [](const Heightfield& hf, py::handle values) {
+                const py::array a = float_array(values, "values");
+                check_shape(a, {hf.rows(), hf.cols()}, "values");
+                return hf.with_values(to_doubles(a, "values"));
+            },
+            "values"_a, "The same geometry with other values (same shape).")
+        .def(
+            "with_scale",
+            [](const Heightfield& hf, double texel_um, double vscale) {
+                return hf.with_scale(check_positive(texel_um, "texel_um"), check_finite(vscale, "vscale"));
+            },
+            "texel_um"_a, "vscale"_a, "The same values with another texel width (um) and vertical scale.")
+        .def(
+            "stats",
+            [](const Heightfield& hf) {
+                const HeightStats s = height_stats(hf);
+                return py::dict("mean_um"_a = s.mean_um, "rms_height_um"_a = s.rms_height_um, "min_um"_a = s.min_um,
+                                "max_um"_a = s.max_um, "rms_slope"_a = s.rms_slope);
+            },
+            "Mean, rms height, min and max in um (vscale included) and rms slope.")
+        .def(
+            "save_exr",
+            [](const Heightfield& hf, const std::string& path) {
+                py::gil_scoped_release release;
+                write_heightfield_exr(path, hf);
+            },
+            "path"_a, "Writes the values (texel units) as a single-channel float EXR (atomically).")
+        .def(
+            "save_png",
+            [](const Heightfield& hf, const std::string& path) {
+                py::gil_scoped_release release;
+                write_heightfield_png(path, hf);
+            },
+            "path"_a, "Writes a grey PNG preview, min black, max white.")
         .def("copy", [](const Heightfield& hf) { return Heightfield(hf); })
         .def("__copy__", [](const Heightfield& hf) { return Heightfield(hf); })
-        .def("__deepcopy__", [](const Heightfield& hf, py::dict) { return Heightfield(hf); }, "memo"_a)
+        .def(
+            "__deepcopy__", [](const Heightfield& hf, py::dict) { return Heightfield(hf); }, "memo"_a)
         .def("__repr__", [](const Heightfield& hf) {
             return "Heightfield(" + std::to_string(hf.rows()) + "x" + std::to_string(hf.cols()) +
                    ", texel_um=" + format_number(hf.texel_um()) + ", vscale=" + format_number(hf.vscale()) + ")";

@@ -69,11 +69,11 @@ py::dict epoch_dict(const EpochMetrics& m) {
 
 InversionResult invert(const py::object& truth_arg, const py::object& observations_arg, const py::object& size,
                        const py::object& texel_arg, const py::object& vscale_arg, const py::object& x_um,
-                       const py::object& y_um, double sigma_p_um, const std::string& model,
-                       const py::object& lambda_um, const py::object& spectral, const py::object& light,
-                       int resolution, const py::object& init, int epochs, const std::string& optimizer, double lr,
-                       double beta1, double beta2, double decay, const py::object& loss, const py::object& positions,
-                       std::uint64_t seed, const py::object& callback, double max_memory_gb) {
+                       const py::object& y_um, double sigma_p_um, const std::string& model, const py::object& lambda_um,
+                       const py::object& spectral, const py::object& light, int resolution, const py::object& init,
+                       int epochs, const std::string& optimizer, double lr, double beta1, double beta2, double decay,
+                       const py::object& loss, const py::object& positions, std::uint64_t seed,
+                       const py::object& callback, double max_memory_gb) {
     // Python's arguments → the library's options (inversion_run.h); the set-up and the run are
     // the library's, the same code as `wavebrdf invert`.
     InversionOptions options;
@@ -105,9 +105,12 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     // Wavelengths (checked here with Python's names); none: the CLI's default, spectral 8.
     if (!lambda_um.is_none() || !spectral.is_none()) {
         const std::vector<double> lambdas = wavelengths(lambda_um, spectral);
-        if (!lambda_um.is_none()) options.lambda_um = lambdas[0];
-        else if (py::isinstance<py::int_>(spectral)) options.spectral = spectral.cast<int>();
-        else options.wavelengths_um = lambdas;
+        if (!lambda_um.is_none())
+            options.lambda_um = lambdas[0];
+        else if (py::isinstance<py::int_>(spectral))
+            options.spectral = spectral.cast<int>();
+        else
+            options.wavelengths_um = lambdas;
     }
     options.resolution = check_resolution(resolution);
     options.model = model_from(model);
@@ -125,8 +128,10 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     std::optional<Heightfield> truth;
     std::optional<std::vector<Observation>> observations;
     if (!observations_arg.is_none()) {
-        if (py::isinstance<py::str>(observations_arg)) options.observations_path = observations_arg.cast<std::string>();
-        else observations = observations_argument(observations_arg);
+        if (py::isinstance<py::str>(observations_arg))
+            options.observations_path = observations_arg.cast<std::string>();
+        else
+            observations = observations_argument(observations_arg);
     } else if (!truth_arg.is_none()) {
         truth = heightfield_argument(truth_arg, "truth", options.texel_um, options.vscale,
                                      !texel_arg.is_none() || !vscale_arg.is_none());

@@ -3,8 +3,9 @@
 
 PYBIND11_MODULE(_core, m) {
     using namespace wavebrdf::python;
-    m.doc() = "wavebrdf's C++ library: wave-optical BRDF slices of heightfields, their gradients, "
-              "losses, optimisers, the inverse renderer and heightfield recovery";
+    m.doc() =
+        "wavebrdf's C++ library: wave-optical BRDF slices of heightfields, their gradients, "
+        "losses, optimisers, the inverse renderer and heightfield recovery";
     bind_heightfield(m);
     bind_brdf(m);
     bind_gabor(m);

@@ -44,9 +44,9 @@ Observation make_observation(const PyQuery& q, py::handle reference) {
     const bool rgb = q.lambdas_um.size() > 1;
     const bool ok = rgb ? (r.ndim() == 3 && r.shape(2) == 3) : r.ndim() == 2;
     if (!ok || r.shape(0) != r.shape(1) || r.shape(0) < 1)
-        throw py::value_error("reference has shape " + shape_string(r) + "; expected " +
-                              (rgb ? "(n, n, 3) for a spectral query" :
-                                     "(n, n) for a single-wavelength query (e.g. slice[..., 0])"));
+        throw py::value_error(
+            "reference has shape " + shape_string(r) + "; expected " +
+            (rgb ? "(n, n, 3) for a spectral query" : "(n, n) for a single-wavelength query (e.g. slice[..., 0])"));
     Observation o;
     o.query = q.query;
     o.lambdas_um = q.lambdas_um;
@@ -81,52 +81,65 @@ Observation(query, reference)
         .def_property_readonly("resolution", [](const Observation& o) { return o.resolution; })
         .def_property_readonly("channels", &Observation::channels, "1 (one wavelength) or 3 (RGB)")
         .def_property_readonly("lambdas_um", [](const Observation& o) { return o.lambdas_um; })
-        .def_property_readonly("reference", [](py::object self) {
-            const auto& o = self.cast<const Observation&>();
-            const py::ssize_t n = o.resolution;
-            return o.channels() == 1 ? readonly_view<double>(o.reference.data(), {n, n}, self)
-                                     : readonly_view<double>(o.reference.data(), {n, n, 3}, self);
-        }, "the reference slice, a read-only float64 view")
-        .def("render", [](const Observation& o, const Heightfield& hf) {
-            std::vector<double> v;
-            {
-                InterruptibleRelease release;
-                v = render_observation(hf, o);
-            }
-            return observation_array(std::move(v), o);
-        }, "heightfield"_a, "What this observation would see of `heightfield`, shaped like the reference (float64).")
+        .def_property_readonly(
+            "reference",
+            [](py::object self) {
+                const auto& o = self.cast<const Observation&>();
+                const py::ssize_t n = o.resolution;
+                return o.channels() == 1 ? readonly_view<double>(o.reference.data(), {n, n}, self)
+                                         : readonly_view<double>(o.reference.data(), {n, n, 3}, self);
+            },
+            "the reference slice, a read-only float64 view")
+        .def(
+            "render",
+            [](const Observation& o, const Heightfield& hf) {
+                std::vector<double> v;
+                {
+                    InterruptibleRelease release;
+                    v = render_observation(hf, o);
+                }
+                return observation_array(std::move(v), o);
+            },
+            "heightfield"_a, "What this observation would see of `heightfield`, shaped like the reference (float64).")
         .def("__repr__", [](const Observation& o) {
             return "Observation(" + std::to_string(o.resolution) + "x" + std::to_string(o.resolution) + "x" +
                    std::to_string(o.channels()) + ", " + std::to_string(o.lambdas_um.size()) + " wavelength(s), at (" +
                    format_number(o.query.x_um) + ", " + format_number(o.query.y_um) + ") um)";
         });
 
-    m.def("observation_loss", [](const Heightfield& hf, const py::object& observations, const py::object& loss) {
-        const std::vector<Observation> list = observations_argument(observations);
-        const Loss l = loss_argument(loss);
-        std::vector<double> gradient;
-        double value = 0.0;
-        {
-            InterruptibleRelease release;
-            value = observation_loss(hf, list, l, &gradient);
-        }
-        return py::make_tuple(value, owning_array(std::move(gradient), {hf.rows(), hf.cols()}));
-    }, "heightfield"_a, "observations"_a, "loss"_a = "cmsle:1", R"doc(
+    m.def(
+        "observation_loss",
+        [](const Heightfield& hf, const py::object& observations, const py::object& loss) {
+            const std::vector<Observation> list = observations_argument(observations);
+            const Loss l = loss_argument(loss);
+            std::vector<double> gradient;
+            double value = 0.0;
+            {
+                InterruptibleRelease release;
+                value = observation_loss(hf, list, l, &gradient);
+            }
+            return py::make_tuple(value, owning_array(std::move(gradient), {hf.rows(), hf.cols()}));
+        },
+        "heightfield"_a, "observations"_a, "loss"_a = "cmsle:1", R"doc(
 The mean over observations of loss(render(heightfield), reference) and its gradient with
 respect to the heightfield's values (texel units, float64 (rows, cols)), in double precision:
 (value, gradient). loss: a Loss or its spec ('cmsle:EPS', 'mse', 'amplitude', 'poisson:N').
 )doc");
 
-    m.def("read_observations", [](const std::string& path) { return read_observations_json(path); }, "path"_a,
-          "Observations from JSON (the format of `wavebrdf invert --observations`).");
-    m.def("write_observations", [](const std::string& path, const py::object& observations,
-                                   const std::string& references) {
-        ReferenceStorage storage = ReferenceStorage::Inline;
-        if (references == "exr") storage = ReferenceStorage::Exr;
-        else if (references != "inline")
-            bad_argument("references", "'" + references + "'", "'inline' or 'exr'");
-        write_observations_json(path, observations_argument(observations), storage);
-    }, "path"_a, "observations"_a, "references"_a = "inline", R"doc(
+    m.def(
+        "read_observations", [](const std::string& path) { return read_observations_json(path); }, "path"_a,
+        "Observations from JSON (the format of `wavebrdf invert --observations`).");
+    m.def(
+        "write_observations",
+        [](const std::string& path, const py::object& observations, const std::string& references) {
+            ReferenceStorage storage = ReferenceStorage::Inline;
+            if (references == "exr")
+                storage = ReferenceStorage::Exr;
+            else if (references != "inline")
+                bad_argument("references", "'" + references + "'", "'inline' or 'exr'");
+            write_observations_json(path, observations_argument(observations), storage);
+        },
+        "path"_a, "observations"_a, "references"_a = "inline", R"doc(
 Writes observations as JSON (the format read_observations and `wavebrdf invert|recover
 --observations` read), atomically. references: 'inline' (values in the JSON, exact) or 'exr'
 (float EXR files NAME/slice_0000.exr ... beside the JSON, NAME its file name without the

@@ -110,8 +110,7 @@ py::dict metrics_columns(const std::vector<StageMetrics>& history) {
 // taken back, handed to `callback` (returning False stops: `stopped`); Ctrl-C and an exception
 // in the callback stop the run and are raised once it has returned.
 template <typename Work>
-Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& history, bool& stopped,
-                         Work&& work) {
+Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& history, bool& stopped, Work&& work) {
     ReleasedCallback python_callback(callback);
     std::optional<Heightfield> estimate;
     {
@@ -146,8 +145,8 @@ struct RecoveryResult {
 
 RecoveryResult recover(const py::object& truth_arg, const py::object& observations_arg, const py::object& size,
                        const py::object& texel_arg, const py::object& vscale_arg, double height_range_um,
-                       double correlation_texels, const std::string& model, const py::object& light,
-                       double sigma_p_um, int resolution, const py::object& lambdas_um, double overlap, double jitter,
+                       double correlation_texels, const std::string& model, const py::object& light, double sigma_p_um,
+                       int resolution, const py::object& lambdas_um, double overlap, double jitter,
                        const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
                        std::uint64_t seed, const py::object& callback, double max_memory_gb) {
@@ -192,7 +191,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
 
     std::optional<Heightfield> truth;
     std::vector<Observation> observations;
-    if (!observations_arg.is_none()) observations = observations_or_file(observations_arg);
+    if (!observations_arg.is_none())
+        observations = observations_or_file(observations_arg);
     else if (!truth_arg.is_none())
         truth = heightfield_argument(truth_arg, "truth", options.texel_um, options.vscale,
                                      !texel_arg.is_none() || !vscale_arg.is_none());
@@ -204,9 +204,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     }
     std::vector<StageMetrics> history;
     RecoveryResult result;
-    const Heightfield estimate = run_released(callback, history, result.stopped, [&](const auto& on_step) {
-        return run_recovery(*prepared, on_step);
-    });
+    const Heightfield estimate = run_released(callback, history, result.stopped,
+                                              [&](const auto& on_step) { return run_recovery(*prepared, on_step); });
     result.estimate = py::cast(estimate);
     result.truth = prepared->truth ? py::cast(*prepared->truth) : py::none();
     result.observations = py::cast(prepared->observations);
@@ -254,12 +253,14 @@ into Observations (one per position and wavelength).
                       "the synthetic wavelengths lambda_a lambda_b / |lambda_a - lambda_b| in um, coarsest first")
         .def_property_readonly("positions_um", &positions_array,
                                "footprint centres (x_um, y_um), a float64 array (N, 2) (a copy)")
-        .def_property_readonly("step_um", [](const AcquisitionPlan& p) { return py::make_tuple(p.step_x_um, p.step_y_um); },
-                               "raster steps (x, y) in um")
+        .def_property_readonly(
+            "step_um", [](const AcquisitionPlan& p) { return py::make_tuple(p.step_x_um, p.step_y_um); },
+            "raster steps (x, y) in um")
         .def_readonly("overlap", &AcquisitionPlan::overlap,
                       "worst-case linear overlap 1 - d/D of neighbouring windows (D = 6 sigma_p), jitter included")
-        .def_property_readonly("light", [](const AcquisitionPlan& p) { return py::make_tuple(p.omega_i[0], p.omega_i[1]); },
-                               "projected light direction (wx, wy) of every observation")
+        .def_property_readonly(
+            "light", [](const AcquisitionPlan& p) { return py::make_tuple(p.omega_i[0], p.omega_i[1]); },
+            "projected light direction (wx, wy) of every observation")
         .def_property_readonly("model", [](const AcquisitionPlan& p) { return std::string(to_string(p.model)); })
         .def_readonly("notes", &AcquisitionPlan::notes, "the choices, one line each")
         .def("__repr__", [](const AcquisitionPlan& p) {
@@ -271,10 +272,10 @@ into Observations (one per position and wavelength).
     const PlanRequest pr;
     m.def(
         "plan_acquisition",
-        [](int rows, const py::object& cols, double texel_um, double height_range_um, double sigma_p_um,
-           double overlap, double jitter, double lambda_um, double lambda_min_um, double lambda_max_um,
-           double max_step_ratio, const py::object& lambdas_um, int resolution, const py::object& light,
-           const std::string& model, std::uint64_t seed) {
+        [](int rows, const py::object& cols, double texel_um, double height_range_um, double sigma_p_um, double overlap,
+           double jitter, double lambda_um, double lambda_min_um, double lambda_max_um, double max_step_ratio,
+           const py::object& lambdas_um, int resolution, const py::object& light, const std::string& model,
+           std::uint64_t seed) {
             PlanRequest r;
             if (rows < 1) bad_argument("rows", std::to_string(rows), "at least 1 texel");
             r.rows = rows;
@@ -289,8 +290,8 @@ into Observations (one per position and wavelength).
             r.jitter = jitter;
             if (!std::isfinite(lambda_um) || !(lambda_um >= lambda_min_um && lambda_um <= lambda_max_um))
                 bad_argument("lambda_um", format_number(lambda_um),
-                             "a base wavelength within lambda_min_um ... lambda_max_um (" + format_number(lambda_min_um) +
-                                 " to " + format_number(lambda_max_um) + " um)");
+                             "a base wavelength within lambda_min_um ... lambda_max_um (" +
+                                 format_number(lambda_min_um) + " to " + format_number(lambda_max_um) + " um)");
             r.lambda_um = lambda_um;
             r.lambda_min_um = lambda_min_um;
             r.lambda_max_um = lambda_max_um;
@@ -336,8 +337,8 @@ A height range the wavelengths cannot unwrap is a ValueError naming the largest 
             return list;
         },
         "plan"_a,
-          "One Observation per (position, wavelength) of `plan`, with zero references (fill them with\n"
-          "measurements, or use simulate_observations).");
+        "One Observation per (position, wavelength) of `plan`, with zero references (fill them with\n"
+        "measurements, or use simulate_observations).");
     m.def(
         "simulate_observations",
         [](const Heightfield& truth, const AcquisitionPlan& plan, const py::object& noise, std::uint64_t seed) {
@@ -404,8 +405,8 @@ truth Heightfield) slopes that reflect light off the slice.
         "recover_heights",
         [](const py::object& observations, const py::object& size, double texel_um, double vscale,
            const py::object& truth, const std::vector<double>& blur_widths, int blur_iterations, int blur_wavelengths,
-           double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit,
-           int refine, double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
+           double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
+           double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
            const py::object& refine_loss, const py::object& callback) {
             const std::vector<Observation> list = observations_or_file(observations);
             const std::array<int, 2> rc = size_argument(size);
@@ -419,7 +420,8 @@ truth Heightfield) slopes that reflect light off the slice.
             s.blurred.blur_widths = blur_widths;
             if (blur_iterations < 0) bad_argument("blur_iterations", std::to_string(blur_iterations), ">= 0");
             s.blurred.iterations = blur_iterations;
-            if (blur_wavelengths < 0) bad_argument("blur_wavelengths", std::to_string(blur_wavelengths), ">= 0 (0: all)");
+            if (blur_wavelengths < 0)
+                bad_argument("blur_wavelengths", std::to_string(blur_wavelengths), ">= 0 (0: all)");
             s.blur_wavelengths = blur_wavelengths;
             if (!std::isfinite(blur_spacing_sigma) || blur_spacing_sigma < 0.0)
                 bad_argument("blur_spacing_sigma", format_number(blur_spacing_sigma), ">= 0 (0: all positions)");
@@ -454,8 +456,7 @@ truth Heightfield) slopes that reflect light off the slice.
         "field_iterations"_a = rs.field.iterations, "field_passes"_a = rs.field_passes, "cascade"_a = rs.cascade,
         "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
-        "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss),
-        "callback"_a = py::none(),
+        "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
         (std::string(R"doc(
 The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
 phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
@@ -475,7 +476,8 @@ unwrap_from_blurred start unwrapping from the estimate before it rather than the
 refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                     refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
 Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
-)doc") + kSettingsDoc).c_str());
+)doc") + kSettingsDoc)
+            .c_str());
 
     const BaselineSettings bs;
     m.def(
@@ -513,7 +515,8 @@ The thesis's method as a baseline (baseline.h): Adam on `loss` (default cmsle:1)
 observation drawn at random (from `seed`) per epoch, from a flat start. Returns a Heightfield.
 epochs >= 0; lr > 0, beta1 and beta2 in [0, 1), decay >= 0 per epoch (the thesis's 0.01, 0.9,
 0.99, 0.005); the callback sees stage 'thesis' every report_every (>= 1) epochs and the last.
-)doc") + kSettingsDoc).c_str());
+)doc") + kSettingsDoc)
+            .c_str());
 
     m.def(
         "height_rel_rmse",
@@ -533,8 +536,10 @@ epochs >= 0; lr > 0, beta1 and beta2 in [0, 1), decay >= 0 per epoch (the thesis
     // ---- the CLI's run -----------------------------------------------------------------------
     py::class_<RecoveryResult>(m, "RecoveryResult", "What recover() returns.")
         .def_readonly("estimate", &RecoveryResult::estimate, "the recovered Heightfield")
-        .def_readonly("truth", &RecoveryResult::truth, "the truth Heightfield (given or generated; None with observations)")
-        .def_readonly("observations", &RecoveryResult::observations, "the Observations recovered from (simulated or given)")
+        .def_readonly("truth", &RecoveryResult::truth,
+                      "the truth Heightfield (given or generated; None with observations)")
+        .def_readonly("observations", &RecoveryResult::observations,
+                      "the Observations recovered from (simulated or given)")
         .def_readonly("notes", &RecoveryResult::notes, "the plan's choices, one line each (empty with observations)")
         .def_readonly("warnings", &RecoveryResult::warnings, "check_acquisition's warnings")
         .def_readonly("metrics", &RecoveryResult::metrics, R"doc(
@@ -550,14 +555,14 @@ without a truth or before heights exist).
         .def_readonly("stopped", &RecoveryResult::stopped, "True when the callback stopped the run early");
 
     const RecoveryOptions ro;
-    m.def("recover", &recover, "truth"_a = py::none(), "observations"_a = py::none(), py::kw_only(),
-          "size"_a = ro.rows, "texel_um"_a = py::none(), "vscale"_a = py::none(),
-          "height_range_um"_a = ro.height_range_um, "correlation_texels"_a = ro.correlation_texels, "model"_a = "OHS",
-          "light"_a = py::make_tuple(0.0, 0.0), "sigma_p_um"_a = ro.sigma_p_um, "resolution"_a = ro.resolution,
-          "lambdas_um"_a = py::none(), "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none",
-          "loss"_a = py::none(), "method"_a = "pipeline", "field_iterations"_a = py::none(),
-          "refine_iterations"_a = py::none(), "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(),
-          "max_memory_gb"_a = ro.max_memory_gb, R"doc(
+    m.def("recover", &recover, "truth"_a = py::none(), "observations"_a = py::none(), py::kw_only(), "size"_a = ro.rows,
+          "texel_um"_a = py::none(), "vscale"_a = py::none(), "height_range_um"_a = ro.height_range_um,
+          "correlation_texels"_a = ro.correlation_texels, "model"_a = "OHS", "light"_a = py::make_tuple(0.0, 0.0),
+          "sigma_p_um"_a = ro.sigma_p_um, "resolution"_a = ro.resolution, "lambdas_um"_a = py::none(),
+          "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
+          "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
+          "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
+          R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
 

@@ -58,7 +58,8 @@ TEST(PlanTest, PositionsOverlapAsRequestedAndCoverTheTile) {
         for (std::size_t a = 0; a < plan.positions_um.size(); ++a) {
             double nearest = INFINITY;
             for (std::size_t b = 0; b < plan.positions_um.size(); ++b)
-                if (a != b) nearest = std::min(nearest, periodic_distance(plan.positions_um[a], plan.positions_um[b], px, py));
+                if (a != b)
+                    nearest = std::min(nearest, periodic_distance(plan.positions_um[a], plan.positions_um[b], px, py));
             worst = std::max(worst, nearest);
         }
         EXPECT_GE(1.0 - worst / d, overlap) << "overlap " << overlap;
@@ -66,8 +67,10 @@ TEST(PlanTest, PositionsOverlapAsRequestedAndCoverTheTile) {
         // Jittered: not all on one raster line.
         std::vector<double> xs;
         for (const auto& p : plan.positions_um) xs.push_back(std::fmod(p[0], plan.step_x_um));
-        EXPECT_GT(*std::max_element(xs.begin(), xs.end()) - *std::min_element(xs.begin(), xs.end()), 0.01 * plan.step_x_um);
-        EXPECT_TRUE(check_acquisition(with_flat_references(planned_observations(plan)), r.rows, r.cols, r.texel_um).empty());
+        EXPECT_GT(*std::max_element(xs.begin(), xs.end()) - *std::min_element(xs.begin(), xs.end()),
+                  0.01 * plan.step_x_um);
+        EXPECT_TRUE(
+            check_acquisition(with_flat_references(planned_observations(plan)), r.rows, r.cols, r.texel_um).empty());
     }
 }
 
@@ -240,14 +243,17 @@ TEST(PlanTest, RasterNeighboursOverlapAtTheLargestJitter) {
         r.seed = seed;
         const AcquisitionPlan plan = plan_acquisition(r);
         const double px = r.rows * r.texel_um, py = r.cols * r.texel_um, d = 6.0 * plan.sigma_p_um;
-        const int nx = static_cast<int>(std::lround(px / plan.step_x_um)), ny = static_cast<int>(std::lround(py / plan.step_y_um));
+        const int nx = static_cast<int>(std::lround(px / plan.step_x_um)),
+                  ny = static_cast<int>(std::lround(py / plan.step_y_um));
         ASSERT_EQ(std::size_t(nx) * ny, plan.positions_um.size());
         double worst = 0.0;
         for (int i = 0; i < nx; ++i)
             for (int j = 0; j < ny; ++j) {
                 const auto& p = plan.positions_um[std::size_t(i) * ny + j];
-                worst = std::max(worst, periodic_distance(p, plan.positions_um[std::size_t((i + 1) % nx) * ny + j], px, py));
-                worst = std::max(worst, periodic_distance(p, plan.positions_um[std::size_t(i) * ny + (j + 1) % ny], px, py));
+                worst = std::max(worst,
+                                 periodic_distance(p, plan.positions_um[std::size_t((i + 1) % nx) * ny + j], px, py));
+                worst = std::max(worst,
+                                 periodic_distance(p, plan.positions_um[std::size_t(i) * ny + (j + 1) % ny], px, py));
             }
         EXPECT_GE(1.0 - worst / d, r.overlap) << "seed " << seed;
     }

@@ -9,13 +9,12 @@
 
 using namespace wavebrdf;
 using wavebrdf::test::make_query;
-using wavebrdf::test::uniform_vector;
 using wavebrdf::test::random_heightfield;
+using wavebrdf::test::uniform_vector;
 
 namespace {
 
 const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
-
 
 RenderOptions with_path(RenderPath path) {
     RenderOptions o;
@@ -58,7 +57,8 @@ TEST(AdjointTest, GradientMatchesFiniteDifferences) {
                 plus[cell] += h;
                 minus[cell] -= h;
                 const double fd = (loss(hf.with_values(plus), q, lambda, n, weights, path) -
-                                   loss(hf.with_values(minus), q, lambda, n, weights, path)) / (2 * h);
+                                   loss(hf.with_values(minus), q, lambda, n, weights, path)) /
+                                  (2 * h);
                 EXPECT_LE(std::abs(fd - grad[cell]), 1e-6 * scale)
                     << to_string(m) << " path " << int(path) << " cell " << cell;
             }

@@ -11,16 +11,15 @@
 #include "wavebrdf/generate.h"
 
 using namespace wavebrdf;
+using wavebrdf::test::make_query;
 using wavebrdf::test::max_abs;
 using wavebrdf::test::max_abs_diff;
-using wavebrdf::test::make_query;
 using wavebrdf::test::random_heightfield;
 
 namespace {
 
 using wavebrdf::k_pi;
 const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
-
 
 // MODEL.md written out literally: absolute kernel positions μ_k, C_k and a_k as stated,
 // ĝ_k(u) = C_k exp(−2π²σ²|u + a_k|²) e^{−i2π(u + a_k)·μ_k}, no algebraic shortcut. Only valid
@@ -52,15 +51,18 @@ std::vector<double> literal_model(const Heightfield& hf, const Query& q, double 
                     const double ax = scale * 2 * sx / lambda, ay = scale * 2 * sy / lambda;
                     const std::complex<double> C = w * w * std::polar(1.0, -4 * k_pi / lambda * cinfo);
                     double c2 = 1.0;
-                    if (q.model == Model::Kirchhoff) c2 = (ci + co) - (ox + q.omega_i[0]) * sx - (oy + q.omega_i[1]) * sy;
+                    if (q.model == Model::Kirchhoff)
+                        c2 = (ci + co) - (ox + q.omega_i[0]) * sx - (oy + q.omega_i[1]) * sy;
                     const double gx = ux + ax, gy = uy + ay;
                     field += c * c2 * C * std::exp(-2 * k_pi * k_pi * sigma * sigma * (gx * gx + gy * gy)) *
                              std::polar(1.0, -2 * k_pi * (gx * mx + gy * my));
                 }
             double c1 = 0;
             switch (q.model) {
-                case Model::OHS: case Model::GHS: c1 = co / (lambda * lambda * ci); break;
-                case Model::ROHS: case Model::RGHS: c1 = (ci + co) * (ci + co) / (4 * lambda * lambda * ci * co); break;
+                case Model::OHS:
+                case Model::GHS: c1 = co / (lambda * lambda * ci); break;
+                case Model::ROHS:
+                case Model::RGHS: c1 = (ci + co) * (ci + co) / (4 * lambda * lambda * ci * co); break;
                 case Model::Kirchhoff: c1 = 1 / (4 * lambda * lambda * ci * co); break;
             }
             out[static_cast<std::size_t>(p) * n + r] = c1 * std::norm(field);
@@ -155,7 +157,8 @@ TEST(BrdfTest, TranslatingHeightfieldAndQueryTogetherChangesNothing) {
     const int di = 7, dj = -11;
     std::vector<double> rolled(hf.values().size());
     for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < cols; ++j) rolled[hf.index(((i + di) % rows + rows) % rows, ((j + dj) % cols + cols) % cols)] = hf.value(i, j);
+        for (int j = 0; j < cols; ++j)
+            rolled[hf.index(((i + di) % rows + rows) % rows, ((j + dj) % cols + cols) % cols)] = hf.value(i, j);
     const Heightfield moved = hf.with_values(rolled);
     for (Model m : kModels) {
         const Query q = make_query(m, 5.0, 30.0, 3.5, -0.2, 0.3);
@@ -312,14 +315,15 @@ TEST(BrdfTest, FootprintFarLargerThanTheTileIsRefusedWithTheRange) {
     const Heightfield hf = random_heightfield(16, 8, 0.2, 1);  // 16 x 8 um: sigma_p <= 160 um
     using wavebrdf::test::expect_throw_naming;
     expect_throw_naming<std::domain_error>(
-        [&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 161.0), 0.5, 8); }, "sigma_p <= 10 x the longer tile period = 160 um");
-    expect_throw_naming<std::domain_error>(
-        [&] { render_slice<double>(hf, make_query(Model::GHS, 0, 0, 1e5), 0.5, 8); }, "160 um");
+        [&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 161.0), 0.5, 8); },
+        "sigma_p <= 10 x the longer tile period = 160 um");
+    expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, make_query(Model::GHS, 0, 0, 1e5), 0.5, 8); },
+                                           "160 um");
     expect_throw_naming<std::domain_error>([&] { footprint_kernels(hf, 0, 0, 1e3); }, "160 um");
-    expect_throw_naming<std::domain_error>(
-        [&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 7e8), 0.5, 8); }, "1e-06 to 1000000 um");
-    expect_throw_naming<std::domain_error>(
-        [&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 1e9), 0.5, 8); }, "1e-06 to 1000000 um");
+    expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 7e8), 0.5, 8); },
+                                           "1e-06 to 1000000 um");
+    expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, make_query(Model::OHS, 0, 0, 1e9), 0.5, 8); },
+                                           "1e-06 to 1000000 um");
     const auto at_limit = render_slice<double>(hf, make_query(Model::OHS, 0, 0, 160.0), 0.5, 8);
     EXPECT_GT(max_abs(at_limit), 0.0);
 }
@@ -331,17 +335,20 @@ TEST(BrdfTest, MeaninglessScalesAreRefusedWithTheRange) {
     const Heightfield hf = random_heightfield(16, 16, 0.2, 1);
     const Query q = make_query(Model::OHS, 8, 8, 3.0);
     for (double lambda : {1e-300, 1e-3, 2e3, 1e300})
-        expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, q, lambda, 8); }, "expected 0.01 to 1000 um");
+        expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, q, lambda, 8); },
+                                               "expected 0.01 to 1000 um");
     EXPECT_GT(max_abs(render_slice<double>(hf, q, 0.01, 8)), 0.0);
     EXPECT_GT(max_abs(render_slice<double>(hf, q, 1000.0, 8)), 0.0);
     for (double texel : {1e-300, 1e-5, 2e4, 1e300})
         expect_throw_naming<std::domain_error>([&] { hf.with_scale(texel, 1.0); }, "expected 0.0001 to 10000 um");
     for (double vscale : {1e-300, -1e-300, 1e-7, 2e4, -1e300})
-        expect_throw_naming<std::domain_error>([&] { hf.with_scale(1.0, vscale); }, "expected 0 or 1e-06 <= |vscale| <= 10000");
+        expect_throw_naming<std::domain_error>([&] { hf.with_scale(1.0, vscale); },
+                                               "expected 0 or 1e-06 <= |vscale| <= 10000");
     for (double vscale : {0.0, -0.5, 1e-6, 1e4}) EXPECT_NO_THROW(hf.with_scale(1.0, vscale));
     Query tiny = q;
     tiny.sigma_p_um = 1e-300;
-    expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, tiny, 0.5, 8); }, "expected 1e-06 to 1000000 um");
+    expect_throw_naming<std::domain_error>([&] { render_slice<double>(hf, tiny, 0.5, 8); },
+                                           "expected 1e-06 to 1000000 um");
 }
 
 // Gaussian random surface, rms height σ_h: averaged over positions, the specular peak drops by
@@ -370,13 +377,15 @@ TEST(BrdfTest, RoughSurfaceSpecularPeakFollowsBeckmannKirchhoff) {
             double mean = 0.0;
             for (int a = 0; a < 4; ++a)
                 for (int b = 0; b < 4; ++b)
-                    mean += render_slice<double>(rough, make_query(m, 32 + 64 * a, 32 + 64 * b, 14.0, wx, 0.0),
-                                                 lambda, n)[peak] / 16.0;
+                    mean += render_slice<double>(rough, make_query(m, 32 + 64 * a, 32 + 64 * b, 14.0, wx, 0.0), lambda,
+                                                 n)[peak] /
+                            16.0;
             const double cos_i = std::sqrt(1 - wx * wx);
             const double phase_cos = is_separable(m) ? 1.0 : cos_i;
             const double expected = std::exp(-g_target * phase_cos * phase_cos);
             EXPECT_NEAR(mean / mirror, expected, 0.05 * expected) << to_string(m) << " tilt " << tilt;
-            RecordProperty(std::string(to_string(m)) + "_tilt" + std::to_string(tilt), std::to_string(mean / mirror / expected));
+            RecordProperty(std::string(to_string(m)) + "_tilt" + std::to_string(tilt),
+                           std::to_string(mean / mirror / expected));
             // And the attenuation is real: far below the mirror's peak.
             EXPECT_LT(mean / mirror, 0.85) << to_string(m);
         }

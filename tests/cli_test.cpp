@@ -50,8 +50,7 @@ protected:
 
     // A small random heightfield written by the tool itself; returns its path.
     std::string make_heightfield(const std::string& name = "h.exr", const std::string& size = "64") {
-        const CliResult r = run("heightfield --size " + size + " --seed 7 --out " + qpath(name) +
-                                " --no-png --quiet");
+        const CliResult r = run("heightfield --size " + size + " --seed 7 --out " + qpath(name) + " --no-png --quiet");
         EXPECT_EQ(r.exit_code, 0) << r.err;
         EXPECT_TRUE(fs::exists(path(name)));
         return path(name).string();
@@ -92,8 +91,8 @@ void write_raw_exr(const std::string& file, int rows, int cols, const std::vecto
     Imf::Header header(cols, rows);
     header.channels().insert("R", Imf::Channel(Imf::FLOAT));
     Imf::FrameBuffer frame;
-    frame.insert("R", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(values.data())),
-                                 sizeof(float), sizeof(float) * static_cast<std::size_t>(cols)));
+    frame.insert("R", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(values.data())), sizeof(float),
+                                 sizeof(float) * static_cast<std::size_t>(cols)));
     Imf::OutputFile out(file.c_str(), header);
     out.setFrameBuffer(frame);
     out.writePixels(rows);
@@ -168,8 +167,7 @@ TEST_F(CliTest, RenderWritesExrAndPngQuietly) {
 // one-line summary.
 TEST_F(CliTest, RenderWithoutQuietPrintsOnlyASummaryWhenNotATerminal) {
     const std::string hf = make_heightfield();
-    const CliResult r =
-        run("render --heightfield " + quote(hf) + " --resolution 16 --out a.exr");
+    const CliResult r = run("render --heightfield " + quote(hf) + " --resolution 16 --out a.exr");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
     const std::vector<std::string> lines = lines_of(r.err);
@@ -189,8 +187,8 @@ TEST_F(CliTest, GenbrdfMatchesRender) {
     const std::vector<float> alpha = read_alpha(path("g.exr").string());
     ASSERT_EQ(alpha.size(), 32u * 32u) << "genbrdf writes RGBA";
     for (float a : alpha) ASSERT_EQ(a, 1.0f);
-    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()),
-                      wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);
+    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()), wavebrdf::read_rgb_exr(path("r.exr").string()),
+                      1e-6);
 }
 
 // genBrdf's -s S -t T is the light (S, T, 1) normalised; its projection is render's --light-*.
@@ -202,8 +200,8 @@ TEST_F(CliTest, GenbrdfLightDirectionIsNormalised) {
     const CliResult r = run("render --heightfield " + quote(hf) + " --lambda-um 0.5 --light-x " +
                             wavebrdf::format_shortest(light_x) + " --light-y 0 --resolution 32 --out r.exr --quiet");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()),
-                      wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);
+    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()), wavebrdf::read_rgb_exr(path("r.exr").string()),
+                      1e-6);
     // And it is not the unnormalised direction (0.3, 0): the check above has teeth.
     const CliResult u = run("render --heightfield " + quote(hf) +
                             " --lambda-um 0.5 --light-x 0.3 --resolution 32 --out u.exr --quiet");
@@ -219,11 +217,10 @@ TEST_F(CliTest, GenbrdfLambdaZeroIsSpectral) {
     const CliResult g = run("genbrdf -i " + quote(hf) + " -o g.exr -r 16 -l 0 --quiet");
     ASSERT_EQ(g.exit_code, 0) << g.err;
     EXPECT_EQ(g.err, "");
-    const CliResult r = run("render --heightfield " + quote(hf) +
-                            " --spectral 8 --resolution 16 --out r.exr --quiet");
+    const CliResult r = run("render --heightfield " + quote(hf) + " --spectral 8 --resolution 16 --out r.exr --quiet");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()),
-                      wavebrdf::read_rgb_exr(path("r.exr").string()), 1e-6);
+    expect_same_image(wavebrdf::read_rgb_exr(path("g.exr").string()), wavebrdf::read_rgb_exr(path("r.exr").string()),
+                      1e-6);
 }
 
 // Issue 9: --x-um 3000000032 gave an all-zero slice (the centre overflowed an int before it was
@@ -272,8 +269,7 @@ TEST_F(CliTest, OutOfRangeValuesNameTheRange) {
 // Bad heightfield inputs
 
 TEST_F(CliTest, MissingHeightfield) {
-    const CliResult r =
-        run("render --heightfield missing.exr --resolution 16 --out a.exr --png a.png");
+    const CliResult r = run("render --heightfield missing.exr --resolution 16 --out a.exr --png a.png");
     expect_clean_failure(r, {"missing.exr", "does not exist"}, {path("a.exr"), path("a.png")});
     const CliResult g = run("genbrdf -i missing.exr -o g.exr -r 16");
     expect_clean_failure(g, {"missing.exr", "does not exist"}, {path("g.exr")});
@@ -320,69 +316,59 @@ TEST_F(CliTest, NonPositiveWavelength) {
     // --lambda-um 0 is an explicit bad value, not "use the default".
     expect_clean_failure(run(base + " --lambda-um 0"), {"wavelength 0 "}, {path("a.exr")});
     expect_clean_failure(run(base + " --lambda-um -1"), {"wavelength -1"}, {path("a.exr")});
-    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -l -0.5"), {"wavelength -0.5"},
-                         {path("g.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -l -0.5"), {"wavelength -0.5"}, {path("g.exr")});
 }
 
 TEST_F(CliTest, LightDirectionOutsideUnitDisk) {
     const std::string hf = quote(make_heightfield());
-    expect_clean_failure(run("render --heightfield " + hf +
-                             " --light-x 0.8 --light-y 0.7 --resolution 16 --out a.exr"),
+    expect_clean_failure(run("render --heightfield " + hf + " --light-x 0.8 --light-y 0.7 --resolution 16 --out a.exr"),
                          {"light direction (0.8, 0.7)"}, {path("a.exr")});
     // Exactly on the unit circle is out too (cos θ_i = 0).
-    expect_clean_failure(
-        run("render --heightfield " + hf + " --light-x 1 --resolution 16 --out a.exr"),
-        {"light direction (1, 0)"}, {path("a.exr")});
+    expect_clean_failure(run("render --heightfield " + hf + " --light-x 1 --resolution 16 --out a.exr"),
+                         {"light direction (1, 0)"}, {path("a.exr")});
 }
 
 TEST_F(CliTest, NonPositiveSigmaP) {
     const std::string hf = quote(make_heightfield());
-    expect_clean_failure(
-        run("render --heightfield " + hf + " --sigma-p-um 0 --resolution 16 --out a.exr"),
-        {"sigma_p 0 "}, {path("a.exr")});
-    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -p -1"), {"sigma_p -1"},
-                         {path("g.exr")});
+    expect_clean_failure(run("render --heightfield " + hf + " --sigma-p-um 0 --resolution 16 --out a.exr"),
+                         {"sigma_p 0 "}, {path("a.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -p -1"), {"sigma_p -1"}, {path("g.exr")});
 }
 
 TEST_F(CliTest, ResolutionOutOfRange) {
     const std::string hf = quote(make_heightfield());
     for (const char* n : {"0", "8193", "-4"}) {
         SCOPED_TRACE(n);
-        expect_clean_failure(run("render --heightfield " + hf + " --resolution " + n +
-                                 " --out a.exr --png a.png"),
+        expect_clean_failure(run("render --heightfield " + hf + " --resolution " + n + " --out a.exr --png a.png"),
                              {std::string("resolution ") + n + " "}, {path("a.exr"), path("a.png")});
-        expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r " + n),
-                             {std::string("resolution ") + n + " "}, {path("g.exr")});
+        expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r " + n), {std::string("resolution ") + n + " "},
+                             {path("g.exr")});
     }
 }
 
 TEST_F(CliTest, UnknownModel) {
     const std::string hf = quote(make_heightfield());
-    expect_clean_failure(
-        run("render --heightfield " + hf + " --model Foo --resolution 16 --out a.exr"), {"'Foo'"},
-        {path("a.exr")});
-    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -d Foo"), {"'Foo'"},
-                         {path("g.exr")});
+    expect_clean_failure(run("render --heightfield " + hf + " --model Foo --resolution 16 --out a.exr"), {"'Foo'"},
+                         {path("a.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -d Foo"), {"'Foo'"}, {path("g.exr")});
 }
 
 TEST_F(CliTest, UnwritableOutput) {
     const std::string hf = quote(make_heightfield());
     // A missing directory.
-    expect_clean_failure(
-        run("render --heightfield " + hf + " --resolution 16 --out /nonexistent_dir/x.exr"),
-        {"/nonexistent_dir/x.exr"}, {"/nonexistent_dir/x.exr"});
-    expect_clean_failure(run("genbrdf -i " + hf + " -o /nonexistent_dir/g.exr -r 16"),
-                         {"/nonexistent_dir/g.exr"}, {"/nonexistent_dir/g.exr"});
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out /nonexistent_dir/x.exr"),
+                         {"/nonexistent_dir/x.exr"}, {"/nonexistent_dir/x.exr"});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o /nonexistent_dir/g.exr -r 16"), {"/nonexistent_dir/g.exr"},
+                         {"/nonexistent_dir/g.exr"});
     // A "directory" that is a regular file.
     std::ofstream(path("plain")) << "a regular file\n";
     const std::string under_file = (path("plain") / "x.exr").string();
-    expect_clean_failure(
-        run("render --heightfield " + hf + " --resolution 16 --out " + quote(under_file)),
-        {under_file}, {under_file});
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out " + quote(under_file)),
+                         {under_file}, {under_file});
     // A good EXR but an unwritable PNG: neither is written.
-    expect_clean_failure(run("render --heightfield " + hf +
-                             " --resolution 16 --out a.exr --png /nonexistent_dir/a.png"),
-                         {"/nonexistent_dir/a.png"}, {path("a.exr"), "/nonexistent_dir/a.png"});
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --resolution 16 --out a.exr --png /nonexistent_dir/a.png"),
+        {"/nonexistent_dir/a.png"}, {path("a.exr"), "/nonexistent_dir/a.png"});
     // The output is a directory.
     fs::create_directory(path("dir.exr"));
     expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out dir.exr"),
@@ -408,8 +394,7 @@ TEST_F(CliTest, OutputsThatAreNotRegularFilesAreRefused) {
         for (const std::string& args :
              {"render --heightfield " + hf + " --resolution 16 --out " + qpath(name),
               "render --heightfield " + hf + " --resolution 16 --out a.exr --png " + qpath(name),
-              "genbrdf -i " + hf + " -r 16 -o " + qpath(name),
-              "heightfield --size 16 --no-png --out " + qpath(name)}) {
+              "genbrdf -i " + hf + " -r 16 -o " + qpath(name), "heightfield --size 16 --no-png --out " + qpath(name)}) {
             SCOPED_TRACE(args);
             expect_clean_failure(run(args), {path(name).string(), "not a regular file; refusing to replace it"},
                                  {path("a.exr")});
@@ -495,22 +480,20 @@ TEST_F(CliTest, BadExposureLeavesNoExr) {
     const std::string hf = quote(make_heightfield());
     for (const char* e : {"nan", "1e999"}) {
         SCOPED_TRACE(e);
-        expect_clean_failure(run("render --heightfield " + hf +
-                                 " --resolution 16 --out a.exr --png a.png --exposure " + e),
-                             {"--exposure"}, {path("a.exr"), path("a.png")});
+        expect_clean_failure(
+            run("render --heightfield " + hf + " --resolution 16 --out a.exr --png a.png --exposure " + e),
+            {"--exposure"}, {path("a.exr"), path("a.png")});
     }
 }
 
 TEST_F(CliTest, NoOutputGiven) {
     const std::string hf = quote(make_heightfield());
-    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16"),
-                         {"no output given"}, {});
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16"), {"no output given"}, {});
 }
 
 TEST_F(CliTest, UnsupportedGenbrdfMethod) {
     const std::string hf = quote(make_heightfield());
-    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -m Geometric"),
-                         {"'Geometric'"}, {path("g.exr")});
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -m Geometric"), {"'Geometric'"}, {path("g.exr")});
 }
 
 TEST_F(CliTest, BadHeightfieldArguments) {
@@ -519,8 +502,8 @@ TEST_F(CliTest, BadHeightfieldArguments) {
     expect_clean_failure(run("heightfield --size 0 --out h.exr"), {"--size '0'", "1 to 16384"}, outputs);
     expect_clean_failure(run("heightfield --size 12xq --out h.exr"), {"'12xq'"}, outputs);
     expect_clean_failure(run("heightfield --size 16x --out h.exr"), {"'16x'"}, outputs);
-    expect_clean_failure(run("heightfield --size 16 --out /nonexistent_dir/h.exr"),
-                         {"/nonexistent_dir/h.exr"}, {"/nonexistent_dir/h.exr"});
+    expect_clean_failure(run("heightfield --size 16 --out /nonexistent_dir/h.exr"), {"/nonexistent_dir/h.exr"},
+                         {"/nonexistent_dir/h.exr"});
     // A writable EXR but an unwritable preview: neither is written.
     expect_clean_failure(run("heightfield --size 16 --out h.exr --png /nonexistent_dir/h.png"),
                          {"/nonexistent_dir/h.png"}, outputs);
@@ -529,17 +512,15 @@ TEST_F(CliTest, BadHeightfieldArguments) {
 // CLI11's own parse errors come out in the same one-line form as the commands' errors.
 TEST_F(CliTest, ParseErrorsAreOneLine) {
     const std::string hf = quote(make_heightfield());
-    expect_clean_failure(
-        run("render --heightfield " + hf + " --resolution abc --out a.exr"),
-        {"--resolution", "abc"}, {path("a.exr")});
-    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out a.exr --bogus"),
-                         {"--bogus"}, {path("a.exr")});
-    expect_clean_failure(run("render --resolution 16 --out a.exr"), {"--heightfield"},
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution abc --out a.exr"), {"--resolution", "abc"},
                          {path("a.exr")});
+    expect_clean_failure(run("render --heightfield " + hf + " --resolution 16 --out a.exr --bogus"), {"--bogus"},
+                         {path("a.exr")});
+    expect_clean_failure(run("render --resolution 16 --out a.exr"), {"--heightfield"}, {path("a.exr")});
     expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr -r 16 -l"), {"-l"}, {path("g.exr")});
-    expect_clean_failure(run("render --heightfield " + hf +
-                             " --lambda-um 0.5 --spectral 8 --resolution 16 --out a.exr"),
-                         {"--lambda-um", "--spectral"}, {path("a.exr")});
+    expect_clean_failure(
+        run("render --heightfield " + hf + " --lambda-um 0.5 --spectral 8 --resolution 16 --out a.exr"),
+        {"--lambda-um", "--spectral"}, {path("a.exr")});
     expect_clean_failure(run(""), {"subcommand"}, {});
     // CLI11 checks for a missing subcommand before unknown arguments, so an unknown subcommand
     // is reported as a missing one.

@@ -67,8 +67,8 @@ inline fs::path fresh_dir(const std::string& group) {
 // a script), stdin from /dev/null.
 inline CliResult run_cli(const fs::path& dir, const std::string& args) {
     const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-    const std::string command = "cd " + quote(dir.string()) + " && " + quote(WAVEBRDF_CLI) + " " + args +
-                                " > " + quote(out.string()) + " 2> " + quote(err.string()) + " < /dev/null";
+    const std::string command = "cd " + quote(dir.string()) + " && " + quote(WAVEBRDF_CLI) + " " + args + " > " +
+                                quote(out.string()) + " 2> " + quote(err.string()) + " < /dev/null";
     const int status = std::system(command.c_str());
     CliResult r;
     r.exit_code = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
@@ -88,8 +88,7 @@ inline bool expect_one_line_naming(const CliResult& r, const std::vector<std::st
     EXPECT_EQ(lines.size(), 1u) << "stderr:\n" << r.err;
     if (lines.size() != 1) return false;
     for (const std::string& needle : needles)
-        EXPECT_NE(lines[0].find(needle), std::string::npos)
-            << "message does not name '" << needle << "': " << lines[0];
+        EXPECT_NE(lines[0].find(needle), std::string::npos) << "message does not name '" << needle << "': " << lines[0];
     return true;
 }
 

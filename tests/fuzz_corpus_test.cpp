@@ -37,14 +37,12 @@ TEST(FuzzCorpus, EverySeedEachExrReaderAccepts) {
             const wavebrdf::Heightfield h = wavebrdf::read_heightfield_exr(file.string());
             EXPECT_GE(h.rows(), 3) << file;
             ++accepted;
-        } catch (const std::runtime_error&) {
-        }
+        } catch (const std::runtime_error&) {}
         try {
             const wavebrdf::RgbImage image = wavebrdf::read_rgb_exr(file.string());
             EXPECT_GE(image.rows, 3) << file;
             ++accepted;
-        } catch (const std::runtime_error&) {
-        }
+        } catch (const std::runtime_error&) {}
         EXPECT_GE(accepted, 1) << file << " is rejected by both EXR readers";
     }
 }

@@ -13,8 +13,8 @@ TEST(GaborRepresentationTest, HeightsFromKernelsInvertsTheKernelHeights) {
     const Heightfield hf = test::random_heightfield(12, 10, 0.3, 3, 0.8, 1.7);
     const GaborRepresentation rep(hf, 4.0, 4.0, 1.0);
     ASSERT_GT(rep.kernels.size(), 0u);
-    const std::vector<double> values =
-        rep.heights_from_kernels(rep.kernels.height_um, std::vector<double>(hf.values().size(), -9.0));
+    const std::vector<double> values = rep.heights_from_kernels(rep.kernels.height_um,
+                                                                std::vector<double>(hf.values().size(), -9.0));
     for (std::size_t k = 0; k < rep.kernels.size(); ++k)
         EXPECT_NEAR(values[hf.index(rep.kernels.row[k], rep.kernels.col[k])],
                     hf.value(rep.kernels.row[k], rep.kernels.col[k]), 1e-12);

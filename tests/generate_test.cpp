@@ -68,8 +68,8 @@ SurfaceParams isotropic(int rows, int cols, std::uint64_t seed = 7) {
 }
 
 TEST(GenerateTest, ParsesAndNamesEveryType) {
-    for (const SurfaceType t : {SurfaceType::Flat, SurfaceType::Isotropic, SurfaceType::Brushed,
-                                SurfaceType::Scratched, SurfaceType::Grating})
+    for (const SurfaceType t : {SurfaceType::Flat, SurfaceType::Isotropic, SurfaceType::Brushed, SurfaceType::Scratched,
+                                SurfaceType::Grating})
         EXPECT_EQ(parse_surface_type(to_string(t)), t);
     EXPECT_THROW(parse_surface_type("wavy"), std::invalid_argument);
     EXPECT_THROW(parse_surface_type(""), std::invalid_argument);
@@ -146,8 +146,7 @@ TEST(GenerateTest, BrushedIsLongerAlongColumns) {
 }
 
 TEST(GenerateTest, SameSeedSameFieldOtherSeedOtherField) {
-    for (const SurfaceType t : {SurfaceType::Isotropic, SurfaceType::Brushed,
-                                SurfaceType::Scratched}) {
+    for (const SurfaceType t : {SurfaceType::Isotropic, SurfaceType::Brushed, SurfaceType::Scratched}) {
         SurfaceParams p = isotropic(64, 80, 42);
         p.type = t;
         const Heightfield a = generate_heightfield(p);
@@ -261,10 +260,8 @@ TEST(GenerateTest, ScratchesAreContinuousAcrossTheTileBorder) {
             interior = std::max({interior, std::abs(hf.value(i, j) - hf.value(i - 1, j)),
                                  std::abs(hf.value(i, j) - hf.value(i, j - 1))});
     double wrap = 0.0;
-    for (int j = 0; j < hf.cols(); ++j)
-        wrap = std::max(wrap, std::abs(hf.value(0, j) - hf.value(-1, j)));
-    for (int i = 0; i < hf.rows(); ++i)
-        wrap = std::max(wrap, std::abs(hf.value(i, 0) - hf.value(i, -1)));
+    for (int j = 0; j < hf.cols(); ++j) wrap = std::max(wrap, std::abs(hf.value(0, j) - hf.value(-1, j)));
+    for (int i = 0; i < hf.rows(); ++i) wrap = std::max(wrap, std::abs(hf.value(i, 0) - hf.value(i, -1)));
     EXPECT_LE(wrap, interior * 1.05);
 }
 
@@ -294,8 +291,8 @@ TEST(GenerateTest, ScratchSpansOnePeriodAlongItsDominantAxis) {
 }
 
 TEST(GenerateTest, NonSquareWorksForEveryType) {
-    for (const SurfaceType t : {SurfaceType::Flat, SurfaceType::Isotropic, SurfaceType::Brushed,
-                                SurfaceType::Scratched, SurfaceType::Grating}) {
+    for (const SurfaceType t : {SurfaceType::Flat, SurfaceType::Isotropic, SurfaceType::Brushed, SurfaceType::Scratched,
+                                SurfaceType::Grating}) {
         SurfaceParams p = isotropic(48, 80, 2);
         p.type = t;
         p.period_um = 16.0;
@@ -389,28 +386,23 @@ TEST(GenerateTest, HeightStatsMatchesHandComputedValues) {
 TEST(GenerateTest, BadParametersThrowTheRightException) {
     constexpr double nan = std::numeric_limits<double>::quiet_NaN();
     constexpr double inf = std::numeric_limits<double>::infinity();
-    const auto expect_throws = [](const std::function<void(SurfaceParams&)>& edit,
-                                  bool domain, const char* what) {
-        for (const SurfaceType t : {SurfaceType::Flat, SurfaceType::Isotropic,
-                                    SurfaceType::Brushed, SurfaceType::Scratched,
-                                    SurfaceType::Grating}) {
+    const auto expect_throws = [](const std::function<void(SurfaceParams&)>& edit, bool domain, const char* what) {
+        for (const SurfaceType t : {SurfaceType::Flat, SurfaceType::Isotropic, SurfaceType::Brushed,
+                                    SurfaceType::Scratched, SurfaceType::Grating}) {
             SurfaceParams p = isotropic(8, 8);
             p.type = t;
             edit(p);
             if (domain) {
-                EXPECT_THROW(generate_heightfield(p), std::domain_error)
-                    << what << " " << to_string(t);
+                EXPECT_THROW(generate_heightfield(p), std::domain_error) << what << " " << to_string(t);
             } else {
-                EXPECT_THROW(generate_heightfield(p), std::invalid_argument)
-                    << what << " " << to_string(t);
+                EXPECT_THROW(generate_heightfield(p), std::invalid_argument) << what << " " << to_string(t);
             }
         }
     };
     expect_throws([](SurfaceParams& p) { p.rows = 0; }, false, "rows 0");
     expect_throws([](SurfaceParams& p) { p.cols = -3; }, false, "cols -3");
     expect_throws([](SurfaceParams& p) { p.rows = 16385; }, false, "rows 16385");
-    expect_throws([](SurfaceParams& p) { p.type = static_cast<SurfaceType>(99); }, false,
-                  "unknown type");
+    expect_throws([](SurfaceParams& p) { p.type = static_cast<SurfaceType>(99); }, false, "unknown type");
     expect_throws([](SurfaceParams& p) { p.texel_um = 0.0; }, true, "texel 0");
     expect_throws([](SurfaceParams& p) { p.texel_um = -1.0; }, true, "texel -1");
     expect_throws([](SurfaceParams& p) { p.texel_um = nan; }, true, "texel nan");

@@ -84,9 +84,9 @@ TEST(Interrupt, PollThatSaysStopEndsRenderAndGradientWithInterrupted) {
         EXPECT_THROW(render_slice<double>(hf, interrupt_query(m), 0.5, 128), Interrupted) << to_string(m);
         EXPECT_EQ(polls, 2) << "the poll is not asked again once it said stop";
         std::vector<double> gradient;
-        EXPECT_THROW(slice_gradient<double>(hf, interrupt_query(m), 0.5, 128,
-                                            std::vector<double>(128 * 128, 1.0), gradient),
-                     Interrupted)
+        EXPECT_THROW(
+            slice_gradient<double>(hf, interrupt_query(m), 0.5, 128, std::vector<double>(128 * 128, 1.0), gradient),
+            Interrupted)
             << to_string(m);
     }
 }
@@ -105,7 +105,12 @@ TEST(Interrupt, ScopesNestAndRestore) {
     int outer = 0, inner = 0;
     InterruptScope a([&] { return ++outer > 100; }, std::chrono::milliseconds(0));
     {
-        InterruptScope b([&] { ++inner; return true; }, std::chrono::milliseconds(0));
+        InterruptScope b(
+            [&] {
+                ++inner;
+                return true;
+            },
+            std::chrono::milliseconds(0));
         EXPECT_THROW(check_interrupt(), Interrupted);
         EXPECT_THROW(check_interrupt(), Interrupted);
         EXPECT_EQ(inner, 1);

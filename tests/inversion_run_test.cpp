@@ -87,8 +87,8 @@ TEST(InversionRun, PrepareChecksEveryOptionInTheFrontEndsStyle) {
     expect_throw_naming<std::invalid_argument>([&] { prepare_inversion(o); }, "--checkpoint-every 0");
     o = small_options();
     o.init = parse_init_spec("noisy:0.1");
-    expect_throw_naming<std::invalid_argument>(
-        [&] { prepare_inversion(o, std::nullopt, std::vector<Observation>{}); }, "--init noisy:FRAC needs --truth");
+    expect_throw_naming<std::invalid_argument>([&] { prepare_inversion(o, std::nullopt, std::vector<Observation>{}); },
+                                               "--init noisy:FRAC needs --truth");
     o = small_options();
     o.max_memory_gb = 0.0001;
     expect_throw_naming<OutOfMemory>([&] { prepare_inversion(o); },
@@ -163,8 +163,9 @@ TEST(InversionRun, RunJsonRoundTrip) {
 // run_inversion_in_directory (its own code path).
 TEST(InversionRun, CliLibraryAndDirectoryRunAreOneRun) {
     const fs::path dir = fresh_dir("inversion_run");
-    const CliResult cli = run_cli(dir, "invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 6 "
-                                       "--init noisy:0.2 --seed 5 --lr 0.02 --loss cmsle:0.1 --no-plots --quiet --out cli");
+    const CliResult cli = run_cli(dir,
+                                  "invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 6 "
+                                  "--init noisy:0.2 --seed 5 --lr 0.02 --loss cmsle:0.1 --no-plots --quiet --out cli");
     ASSERT_EQ(cli.exit_code, 0) << cli.err;
 
     InversionOptions o = small_options();
@@ -179,7 +180,8 @@ TEST(InversionRun, CliLibraryAndDirectoryRunAreOneRun) {
               InversionStatus::Completed);
     EXPECT_EQ(calls, 7);
     EXPECT_EQ(run.inversion().epoch(), 6);
-    EXPECT_EQ(without_seconds(metrics_csv(run.inversion().history())), without_seconds(read_text(dir / "cli/metrics.csv")));
+    EXPECT_EQ(without_seconds(metrics_csv(run.inversion().history())),
+              without_seconds(read_text(dir / "cli/metrics.csv")));
 
     const InversionDirectoryResult direct = run_inversion_in_directory(o, (dir / "lib").string());
     EXPECT_EQ(direct.status, InversionStatus::Completed);
@@ -212,12 +214,13 @@ TEST(InversionRun, StoppedStatusAndResume) {
     EXPECT_EQ(part.epoch, 2);
     EXPECT_TRUE(fs::exists(dir / "part/checkpoint.json"));
     EXPECT_THROW(run_inversion_in_directory(o, (dir / "part").string()), std::invalid_argument) << "not empty";
-    expect_throw_naming<std::invalid_argument>(
-        [&] { resume_inversion_in_directory((dir / "part").string(), 1, 0.0); }, "--epochs 1 is below");
+    expect_throw_naming<std::invalid_argument>([&] { resume_inversion_in_directory((dir / "part").string(), 1, 0.0); },
+                                               "--epochs 1 is below");
     const InversionDirectoryResult rest = resume_inversion_in_directory((dir / "part").string(), std::nullopt, 0.0);
     EXPECT_EQ(rest.status, InversionStatus::Completed);
     EXPECT_EQ(rest.epoch, 6);
-    EXPECT_EQ(without_seconds(read_text(dir / "part/metrics.csv")), without_seconds(read_text(dir / "whole/metrics.csv")));
+    EXPECT_EQ(without_seconds(read_text(dir / "part/metrics.csv")),
+              without_seconds(read_text(dir / "whole/metrics.csv")));
     EXPECT_EQ(read_text(dir / "part/estimate.exr"), read_text(dir / "whole/estimate.exr"));
     expect_throw_naming<std::runtime_error>([&] { resume_inversion_in_directory((dir / "none").string(), 3, 0.0); },
                                             "none/run.json: cannot open");

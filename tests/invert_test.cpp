@@ -180,8 +180,7 @@ TEST_F(InvertTest, AdamReducesTheLossAndEpochZeroIsTheInitialGuess) {
 
     EXPECT_GT(initial, 0.0);
     EXPECT_LT(seen.back().loss, 0.5 * initial) << "Adam did not reduce the loss";
-    EXPECT_EQ(seen.back().loss,
-              observation_loss(inversion.estimate(), obs, settings.loss, nullptr, settings.render))
+    EXPECT_EQ(seen.back().loss, observation_loss(inversion.estimate(), obs, settings.loss, nullptr, settings.render))
         << "the last metrics are those of the final estimate";
 }
 
@@ -301,7 +300,10 @@ TEST_F(InvertTest, CheckpointOfAnotherRunIsRefused) {
         run.save_checkpoint(checkpoint);
     }
     // The same run loads it.
-    { Inversion same(obs, flat(), settings, &truth); EXPECT_NO_THROW(same.load_checkpoint(checkpoint)); }
+    {
+        Inversion same(obs, flat(), settings, &truth);
+        EXPECT_NO_THROW(same.load_checkpoint(checkpoint));
+    }
 
     InversionSettings other_lr = settings;
     other_lr.adam.lr = 0.02;
@@ -312,8 +314,7 @@ TEST_F(InvertTest, CheckpointOfAnotherRunIsRefused) {
     InversionSettings other_seed = settings;
     other_seed.seed = 2;
     expect_throw_naming<std::runtime_error>(
-        [&] { Inversion(obs, flat(), other_seed, &truth).load_checkpoint(checkpoint); },
-        {"different run", "seed"});
+        [&] { Inversion(obs, flat(), other_seed, &truth).load_checkpoint(checkpoint); }, {"different run", "seed"});
 
     const std::vector<Observation> other_obs = {tiny_observation(truth, 3.0, 4.0)};
     expect_throw_naming<std::runtime_error>(
@@ -322,8 +323,8 @@ TEST_F(InvertTest, CheckpointOfAnotherRunIsRefused) {
 
     // Another size is another run too.
     const Heightfield big(8, 9, std::vector<double>(72, 0.0));
-    expect_throw_naming<std::runtime_error>(
-        [&] { Inversion(obs, big, settings).load_checkpoint(checkpoint); }, {"different run", "size"});
+    expect_throw_naming<std::runtime_error>([&] { Inversion(obs, big, settings).load_checkpoint(checkpoint); },
+                                            {"different run", "size"});
 }
 
 TEST_F(InvertTest, CorruptCheckpointThrows) {
@@ -456,8 +457,7 @@ TEST_F(InvertTest, InvalidSettingsThrow) {
     expect_throw_naming<std::invalid_argument>([&] { Inversion({}, flat(), tiny_settings(3), &truth); },
                                                {"no observations"});
     const Heightfield other(8, 9, std::vector<double>(72, 0.0));
-    expect_throw_naming<std::invalid_argument>([&] { Inversion(obs, flat(), tiny_settings(3), &other); },
-                                               {"8x9"});
+    expect_throw_naming<std::invalid_argument>([&] { Inversion(obs, flat(), tiny_settings(3), &other); }, {"8x9"});
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -494,10 +494,10 @@ TEST_F(InvertTest, CliWritesMetricsImagesCheckpointAndSnapshots) {
         for (const std::string& field : rows[e]) EXPECT_TRUE(std::isfinite(std::stod(field))) << field;
     }
     EXPECT_LT(std::stod(rows.back()[1]), std::stod(rows[1][1])) << "the loss went down";
-    for (const char* name : {"estimate.exr", "estimate.png", "reference_000.exr", "reference_000.png",
-                             "final_000.exr", "final_000.png", "checkpoint.json", "run.json", "truth.exr",
-                             "reference.npy", "snapshots/height_0000.npy", "snapshots/slice_0000.npy",
-                             "snapshots/gradient_0000.npy", "snapshots/height_0010.npy"})
+    for (const char* name :
+         {"estimate.exr", "estimate.png", "reference_000.exr", "reference_000.png", "final_000.exr", "final_000.png",
+          "checkpoint.json", "run.json", "truth.exr", "reference.npy", "snapshots/height_0000.npy",
+          "snapshots/slice_0000.npy", "snapshots/gradient_0000.npy", "snapshots/height_0010.npy"})
         EXPECT_TRUE(fs::exists(path("run") / name)) << name;
     EXPECT_FALSE(fs::exists(path("run/snapshots/height_0030.npy"))) << "only 20 epochs";
     EXPECT_FALSE(fs::exists(path("run/report.png"))) << "--no-plots";
@@ -584,8 +584,8 @@ TEST_F(InvertTest, CliHostileOutNamesRunNoShellAndGetTheirReport) {
     const bool can_plot = python_can_plot();
     for (const std::string name : {"x'; touch PWNED; echo '", "bob's run $(touch PWNED2)"}) {
         SCOPED_TRACE(name);
-        const CliResult r = run("invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 2 --quiet --out " +
-                                quote(name));
+        const CliResult r = run(
+            "invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 2 --quiet --out " + quote(name));
         ASSERT_EQ(r.exit_code, 0) << r.err;
         EXPECT_TRUE(fs::exists(path(name) / "estimate.exr"));
         if (can_plot) {
@@ -606,9 +606,9 @@ TEST_F(InvertTest, CliSignalsLeaveNoTemporaryFiles) {
     bool caught = false;
     for (const char* resolution : {"1024", "2048"}) {
         fs::remove_all(path("early"));
-        const pid_t pid = start_cli(m_dir, {"invert", "--size", "8", "--sigma-p-um", "2", "--lambda-um", "0.5",
-                                            "--resolution", resolution, "--epochs", "3", "--no-plots", "--quiet",
-                                            "--out", "early"});
+        const pid_t pid = start_cli(
+            m_dir, {"invert", "--size", "8", "--sigma-p-um", "2", "--lambda-um", "0.5", "--resolution", resolution,
+                    "--epochs", "3", "--no-plots", "--quiet", "--out", "early"});
         ASSERT_GT(pid, 0);
         int status = 0;
         for (;;) {
@@ -621,16 +621,17 @@ TEST_F(InvertTest, CliSignalsLeaveNoTemporaryFiles) {
         }
         if (!caught) continue;
         ASSERT_EQ(::waitpid(pid, &status, 0), pid);
-        EXPECT_TRUE((WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) || (WIFEXITED(status) && WEXITSTATUS(status) == 143))
+        EXPECT_TRUE((WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM) ||
+                    (WIFEXITED(status) && WEXITSTATUS(status) == 143))
             << "status " << status;
         EXPECT_EQ(temporaries_under(path("early")), std::vector<std::string>{});
         break;
     }
     EXPECT_TRUE(caught) << "never saw a write in progress";
 
-    const pid_t pid = start_cli(m_dir, {"invert", "--size", "8", "--sigma-p-um", "2", "--lambda-um", "0.5",
-                                        "--resolution", "16", "--epochs", "1000000", "--checkpoint-every", "1",
-                                        "--no-plots", "--quiet", "--out", "late"});
+    const pid_t pid = start_cli(
+        m_dir, {"invert", "--size", "8", "--sigma-p-um", "2", "--lambda-um", "0.5", "--resolution", "16", "--epochs",
+                "1000000", "--checkpoint-every", "1", "--no-plots", "--quiet", "--out", "late"});
     ASSERT_GT(pid, 0);
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
     while (!fs::exists(path("late/checkpoint.json")) && std::chrono::steady_clock::now() < deadline)
@@ -709,8 +710,9 @@ TEST_F(InvertTest, CliResumeRefusesNonIntegerFieldsInRunJson) {
     ASSERT_EQ(first.exit_code, 0) << first.err;
     const std::string original = read_text(path("run/run.json"));
     const std::vector<std::pair<const char*, nlohmann::json>> cases = {
-        {"resolution", 8.7}, {"resolution", 1099511627784LL}, {"epochs", 2147483647LL},
-        {"spectral", 100000}, {"checkpoint_every", 0}, {"seed", -1}, {"epochs", "3"}};
+        {"resolution", 8.7},  {"resolution", 1099511627784LL}, {"epochs", 2147483647LL},
+        {"spectral", 100000}, {"checkpoint_every", 0},         {"seed", -1},
+        {"epochs", "3"}};
     for (const auto& [field, value] : cases) {
         SCOPED_TRACE(std::string(field) + " = " + value.dump());
         nlohmann::json run_json = nlohmann::json::parse(original);
@@ -815,7 +817,8 @@ TEST_F(InvertTest, CliResumeExtendsARunBitForBitFromAnyDirectory) {
     std::ofstream(path("pos.json")) << "[[4, 4], [2, 6]]";
     fs::create_directory(path("elsewhere"));
     for (const std::string& variant :
-         {std::string("--truth truth.exr"), std::string("--truth truth.exr --optimizer lbfgs --positions pos.json --init init.exr"),
+         {std::string("--truth truth.exr"),
+          std::string("--truth truth.exr --optimizer lbfgs --positions pos.json --init init.exr"),
           std::string("--truth truth.exr --positions random --init noisy:0.5")}) {
         SCOPED_TRACE(variant);
         fs::remove_all(path("whole"));
@@ -844,9 +847,12 @@ TEST_F(InvertTest, CliResumeRefusesOtherOptions) {
     const CliResult first = invert("--epochs 3 --out run");
     ASSERT_EQ(first.exit_code, 0) << first.err;
     const std::string metrics_before = read_text(path("run/metrics.csv"));
-    for (const auto& [extra, option] : std::vector<std::pair<std::string, std::string>>{
-             {"--lr 0.5", "--lr"}, {"--out other", "--out"}, {"--optimizer lbfgs", "--optimizer"},
-             {"--force", "--force"}, {"--truth t.exr", "--truth"}}) {
+    for (const auto& [extra, option] :
+         std::vector<std::pair<std::string, std::string>>{{"--lr 0.5", "--lr"},
+                                                          {"--out other", "--out"},
+                                                          {"--optimizer lbfgs", "--optimizer"},
+                                                          {"--force", "--force"},
+                                                          {"--truth t.exr", "--truth"}}) {
         SCOPED_TRACE(extra);
         expect_clean_failure(run("invert --resume run --epochs 6 " + extra), {option, "--resume"}, {path("other")});
     }

@@ -46,8 +46,7 @@ class IoTest : public ::testing::Test {
 protected:
     void SetUp() override {
         const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-        m_dir = fs::path(WAVEBRDF_TEST_TMP) / "io" /
-                (std::string(info->name()) + "-" + std::to_string(::getpid()));
+        m_dir = fs::path(WAVEBRDF_TEST_TMP) / "io" / (std::string(info->name()) + "-" + std::to_string(::getpid()));
         fs::remove_all(m_dir);
         fs::create_directories(m_dir);
     }
@@ -58,8 +57,7 @@ protected:
     std::string file(const std::string& name) const { return (m_dir / name).string(); }
     std::vector<std::string> listing() const {
         std::vector<std::string> names;
-        for (const auto& entry : fs::directory_iterator(m_dir))
-            names.push_back(entry.path().filename().string());
+        for (const auto& entry : fs::directory_iterator(m_dir)) names.push_back(entry.path().filename().string());
         return names;
     }
 
@@ -70,8 +68,7 @@ protected:
 Heightfield make_field(int rows, int cols) {
     std::vector<double> values(static_cast<std::size_t>(rows) * cols);
     for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < cols; ++j)
-            values[static_cast<std::size_t>(i) * cols + j] = 0.125 * (i * 17 - j * 5) - 3.0;
+        for (int j = 0; j < cols; ++j) values[static_cast<std::size_t>(i) * cols + j] = 0.125 * (i * 17 - j * 5) - 3.0;
     return Heightfield(rows, cols, values);
 }
 
@@ -113,8 +110,8 @@ Png read_png(const std::string& path, bool rgb) {
 }
 
 // Writes a single float channel `channel` with the given data window (x = column, y = row).
-void write_exr_channel(const std::string& path, const char* channel, int rows, int cols, int x0,
-                       int y0, const std::vector<float>& data) {
+void write_exr_channel(const std::string& path, const char* channel, int rows, int cols, int x0, int y0,
+                       const std::vector<float>& data) {
     Imf::Header header(Imath::Box2i({0, 0}, {x0 + cols + 2, y0 + rows + 2}),
                        Imath::Box2i({x0, y0}, {x0 + cols - 1, y0 + rows - 1}));
     header.channels().insert(channel, Imf::Channel(Imf::FLOAT));
@@ -144,9 +141,8 @@ TEST_F(IoTest, ReadsHalfExrWrittenWithRgbaApi) {
     std::vector<Imf::Rgba> pixels(rows * cols);
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j)
-            pixels[i * cols + j] =
-                Imf::Rgba(half(0.25f * static_cast<float>(i) - 0.5f * static_cast<float>(j)),
-                          half(1.0f), half(2.0f), half(1.0f));
+            pixels[i * cols + j] = Imf::Rgba(half(0.25f * static_cast<float>(i) - 0.5f * static_cast<float>(j)),
+                                             half(1.0f), half(2.0f), half(1.0f));
     const std::string path = file("half.exr");
     {
         Imf::RgbaOutputFile out(path.c_str(), cols, rows, Imf::WRITE_RGBA);
@@ -157,8 +153,7 @@ TEST_F(IoTest, ReadsHalfExrWrittenWithRgbaApi) {
     ASSERT_EQ(field.rows(), rows);
     ASSERT_EQ(field.cols(), cols);
     for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < cols; ++j)
-            EXPECT_EQ(field.value(i, j), 0.25 * i - 0.5 * j) << i << "," << j;
+        for (int j = 0; j < cols; ++j) EXPECT_EQ(field.value(i, j), 0.25 * i - 0.5 * j) << i << "," << j;
 
     const RgbImage image = wavebrdf::read_rgb_exr(path);
     ASSERT_EQ(image.rows, rows);
@@ -302,8 +297,7 @@ TEST_F(IoTest, ExrAttributeLargerThanTheFileIsRefusedBeforeAllocating) {
         } catch (const std::runtime_error& e) {
             const std::string message = e.what();
             EXPECT_NE(message.find(path), std::string::npos) << message;
-            EXPECT_NE(message.find("'qixelAspectRatio' (type 'xloat') declares 2147483647 bytes"),
-                      std::string::npos)
+            EXPECT_NE(message.find("'qixelAspectRatio' (type 'xloat') declares 2147483647 bytes"), std::string::npos)
                 << message;
         }
     }
@@ -318,8 +312,7 @@ TEST_F(IoTest, ExrWithoutRedOrLuminanceThrowsNamingPath) {
 
 TEST_F(IoTest, NonFiniteValueThrowsDomainErrorNamingPath) {
     const std::string path = file("nan.exr");
-    write_exr_channel(path, "R", 2, 2, 0, 0,
-                      {1.0f, std::numeric_limits<float>::quiet_NaN(), 3.0f, 4.0f});
+    write_exr_channel(path, "R", 2, 2, 0, 0, {1.0f, std::numeric_limits<float>::quiet_NaN(), 3.0f, 4.0f});
     expect_throw_naming<std::domain_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
 }
 
@@ -330,16 +323,14 @@ TEST_F(IoTest, FailedWritesLeaveNoFileBehind) {
     std::ofstream(file("plain")) << "x";
     for (const std::string& dir : {file("missing"), file("plain")}) {
         const std::string path = dir + "/out";
-        expect_throw_naming<std::runtime_error>(
-            [&] { wavebrdf::write_heightfield_exr(path + ".exr", field); }, path + ".exr");
-        expect_throw_naming<std::runtime_error>(
-            [&] { wavebrdf::write_heightfield_png(path + ".png", field); }, path + ".png");
-        expect_throw_naming<std::runtime_error>(
-            [&] { wavebrdf::write_rgb_exr(path + ".exr", image, true); }, path + ".exr");
-        expect_throw_naming<std::runtime_error>(
-            [&] { wavebrdf::write_rgb_png(path + ".png", image); }, path + ".png");
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::check_writable(path + ".exr"); },
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_heightfield_exr(path + ".exr", field); },
                                                 path + ".exr");
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_heightfield_png(path + ".png", field); },
+                                                path + ".png");
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_rgb_exr(path + ".exr", image, true); },
+                                                path + ".exr");
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_rgb_png(path + ".png", image); }, path + ".png");
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::check_writable(path + ".exr"); }, path + ".exr");
     }
     EXPECT_FALSE(fs::exists(file("missing")));
     EXPECT_EQ(listing(), std::vector<std::string>{"plain"});
@@ -350,8 +341,7 @@ TEST_F(IoTest, RenameOntoDirectoryFailsAndRemovesTemporary) {
     fs::create_directory(file("taken.exr"));
     fs::create_directory(file("taken.exr") + "/inside");
     expect_throw_naming<std::runtime_error>(
-        [&] { wavebrdf::write_heightfield_exr(file("taken.exr"), make_field(2, 2)); },
-        file("taken.exr"));
+        [&] { wavebrdf::write_heightfield_exr(file("taken.exr"), make_field(2, 2)); }, file("taken.exr"));
     EXPECT_EQ(listing(), std::vector<std::string>{"taken.exr"});
 }
 
@@ -380,7 +370,9 @@ void expect_every_writer_refuses(const std::string& path) {
         [&] { wavebrdf::write_heightfield_png(path, field); },
         [&] { wavebrdf::write_rgb_exr(path, image, true); },
         [&] { wavebrdf::write_rgb_png(path, image); },
-        [&] { wavebrdf::write_npy(path, {2}, {1.0, 2.0}); },
+        [&] {
+            wavebrdf::write_npy(path, {2}, {1.0, 2.0});
+        },
         [&] { wavebrdf::check_writable(path); },
     };
     for (std::size_t k = 0; k < writers.size(); ++k) {
@@ -574,8 +566,7 @@ TEST_F(IoTest, SignalHandlerRemovesTheTemporaryOfAWriteInProgress) {
                 if (::write(ready[1], &byte, 1) != 1) std::_Exit(1);
                 for (;;) ::pause();  // "still writing" until the signal comes
             });
-        } catch (...) {
-        }
+        } catch (...) {}
         std::_Exit(2);
     }
     ::close(ready[1]);
@@ -621,8 +612,10 @@ TEST_F(IoTest, MultiPartExrIsRefused) {
     write_multi_part_exr(path, 2);
     for (int reader = 0; reader < 2; ++reader) {
         try {
-            if (reader == 0) wavebrdf::read_heightfield_exr(path);
-            else wavebrdf::read_rgb_exr(path);
+            if (reader == 0)
+                wavebrdf::read_heightfield_exr(path);
+            else
+                wavebrdf::read_rgb_exr(path);
             ADD_FAILURE() << "a multi-part file was read";
         } catch (const std::runtime_error& e) {
             const std::string message = e.what();
@@ -652,9 +645,7 @@ TEST_F(IoTest, RgbPngHasSizeAndSrgbValues) {
     Png png = read_png(path, true);
     ASSERT_EQ(png.rows, 2);
     ASSERT_EQ(png.cols, 3);
-    auto at = [&](int i, int j, int c) {
-        return static_cast<int>(png.pixels[(i * 3 + j) * 3 + c]);
-    };
+    auto at = [&](int i, int j, int c) { return static_cast<int>(png.pixels[(i * 3 + j) * 3 + c]); };
     EXPECT_EQ(at(0, 0, 0), 188);
     EXPECT_EQ(at(0, 0, 1), 3);
     EXPECT_EQ(at(0, 0, 2), 255);
@@ -688,12 +679,9 @@ TEST_F(IoTest, HeightfieldPngStretchesMinToMax) {
 
 TEST_F(IoTest, InvalidImageArgumentsThrow) {
     const std::string path = file("bad.png");
-    EXPECT_THROW(wavebrdf::write_rgb_png(path, RgbImage{2, 2, std::vector<float>(5)}),
-                 std::invalid_argument);
-    EXPECT_THROW(wavebrdf::write_rgb_exr(file("bad.exr"), RgbImage{0, 2, {}}),
-                 std::invalid_argument);
-    EXPECT_THROW(wavebrdf::write_rgb_png(path, RgbImage{1, 1, {0.f, 0.f, 0.f}}, std::nan("")),
-                 std::domain_error);
+    EXPECT_THROW(wavebrdf::write_rgb_png(path, RgbImage{2, 2, std::vector<float>(5)}), std::invalid_argument);
+    EXPECT_THROW(wavebrdf::write_rgb_exr(file("bad.exr"), RgbImage{0, 2, {}}), std::invalid_argument);
+    EXPECT_THROW(wavebrdf::write_rgb_png(path, RgbImage{1, 1, {0.f, 0.f, 0.f}}, std::nan("")), std::domain_error);
     EXPECT_TRUE(listing().empty());
 }
 

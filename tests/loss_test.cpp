@@ -13,8 +13,8 @@
 #include "wavebrdf/loss.h"
 
 using namespace wavebrdf;
-using wavebrdf::test::uniform_vector;
 using wavebrdf::test::expect_throw_naming;
+using wavebrdf::test::uniform_vector;
 
 namespace {
 
@@ -34,7 +34,6 @@ double finite_difference(const Loss& loss, std::vector<double> estimate, const s
     const double d_h = central(h), d_half = central(0.5 * h);
     return (4.0 * d_half - d_h) / 3.0;
 }
-
 
 const Loss kLosses[] = {{LossKind::CMSLE, 1.0},
                         {LossKind::CMSLE, 0.01},
@@ -71,11 +70,11 @@ TEST(LossTest, ToStringRoundTrips) {
 }
 
 TEST(LossTest, ParseErrorsNameTheText) {
-    for (const char* text : {"cmsle:0", "cmsle:-1", "cmsle:-0", "cmsle:inf", "cmsle:nan", "poisson:0",
-                             "poisson:-5", "poisson:inf"})
+    for (const char* text :
+         {"cmsle:0", "cmsle:-1", "cmsle:-0", "cmsle:inf", "cmsle:nan", "poisson:0", "poisson:-5", "poisson:inf"})
         expect_throw_naming<std::domain_error>([&] { parse_loss(text); }, text);
-    for (const char* text : {"cmsle:abc", "foo", "", "cmsle:", "cmsle:1x", "cmsle: 1", "CMSLE", "mse:1",
-                             "cmsle0.1", "poisson", "poisson:", "poisson:1e4x"})
+    for (const char* text : {"cmsle:abc", "foo", "", "cmsle:", "cmsle:1x", "cmsle: 1", "CMSLE", "mse:1", "cmsle0.1",
+                             "poisson", "poisson:", "poisson:1e4x"})
         expect_throw_naming<std::invalid_argument>([&] { parse_loss(text); }, std::string("'") + text + "'");
 }
 
@@ -167,7 +166,10 @@ TEST(LossTest, SizeAndChannelErrorsThrow) {
     EXPECT_THROW(loss_value(Loss{LossKind::CMSLE, std::nan("")}, a, a, 1), std::domain_error);
     EXPECT_THROW(loss_value(Loss{LossKind::Poisson, 1.0, 0.0}, a, a, 1), std::domain_error);
     expect_throw_naming<std::invalid_argument>(
-        [&] { loss_value(Loss{LossKind::Poisson, 1.0, 1e4}, a, std::vector<double>(6, 0.0), 1); }, "positive sum");
+        [&] {
+            loss_value(Loss{LossKind::Poisson, 1.0, 1e4}, a, std::vector<double>(6, 0.0), 1);
+        },
+        "positive sum");
     EXPECT_THROW(rgb_mse(a, b, 3), std::invalid_argument);
     EXPECT_THROW(rgb_mse(a, a, 2), std::invalid_argument);
     EXPECT_THROW(rgb_gamma_mse(a, b, 1), std::invalid_argument);

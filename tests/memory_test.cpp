@@ -77,7 +77,8 @@ TEST(Memory, RenderEstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
             [&] { return render_rgb<double>(hf, q, {0.5}, n).size() == std::size_t(n) * n * 3; });
         ASSERT_GT(measured, 0.0) << "the render failed in the child";
         test::expect_estimate_within_factor_of_two(
-            estimate, measured, "render " + std::string(to_string(model)) + " " + std::to_string(n) + "x" + std::to_string(n));
+            estimate, measured,
+            "render " + std::string(to_string(model)) + " " + std::to_string(n) + "x" + std::to_string(n));
     }
 }
 
@@ -99,9 +100,8 @@ TEST(Memory, CliRefusesRunsThatCannotFit) {
         test::run_cli(dir, "render --heightfield h.exr --resolution 4096 --max-memory-gb 0.05 --out s.exr --quiet"),
         {"render (4096x4096 slice, float) needs about", "the limit is 50 MB (max-memory-gb)"});
     EXPECT_FALSE(test::fs::exists(dir / "s.exr"));
-    test::expect_one_line_naming(
-        test::run_cli(dir, "genbrdf -i h.exr -o g.exr -r 4096 --max-memory-gb 0.05 --quiet"),
-        {"render (4096x4096 slice, float) needs about"});
+    test::expect_one_line_naming(test::run_cli(dir, "genbrdf -i h.exr -o g.exr -r 4096 --max-memory-gb 0.05 --quiet"),
+                                 {"render (4096x4096 slice, float) needs about"});
     test::expect_one_line_naming(test::run_cli(dir, "render --heightfield h.exr --max-memory-gb -1 --out s.exr"),
                                  {"max-memory-gb", "-1"});
 }

@@ -52,10 +52,9 @@ TEST(ObservationTest, LossIsZeroAtTheTruth) {
 TEST(ObservationTest, GradientMatchesFiniteDifferences) {
     const Heightfield truth = random_heightfield(12, 10, 0.3, 5, 1.0, 1.0);
     const Heightfield guess = random_heightfield(12, 10, 0.3, 6, 1.0, 1.0);
-    const std::vector<Observation> obs = {
-        make_observation(truth, 6, 5, {0.0, 0.0}, {0.5}),
-        make_observation(truth, 1, 8, {0.2, -0.1}, spectral_wavelengths_um(3)),
-        make_observation(truth, 9, 2, {-0.1, 0.3}, {0.6}, Model::GHS)};
+    const std::vector<Observation> obs = {make_observation(truth, 6, 5, {0.0, 0.0}, {0.5}),
+                                          make_observation(truth, 1, 8, {0.2, -0.1}, spectral_wavelengths_um(3)),
+                                          make_observation(truth, 9, 2, {-0.1, 0.3}, {0.6}, Model::GHS)};
     for (const char* name : {"cmsle:1", "cmsle:0.01", "mse", "amplitude"}) {
         const Loss loss = parse_loss(name);
         std::vector<double> grad;
@@ -69,7 +68,8 @@ TEST(ObservationTest, GradientMatchesFiniteDifferences) {
             plus[cell] += h;
             minus[cell] -= h;
             return (observation_loss(guess.with_values(plus), obs, loss, nullptr, exact()) -
-                    observation_loss(guess.with_values(minus), obs, loss, nullptr, exact())) / (2 * h);
+                    observation_loss(guess.with_values(minus), obs, loss, nullptr, exact())) /
+                   (2 * h);
         };
         for (std::size_t cell = 0; cell < grad.size(); cell += 13) {
             const double fd = (4 * central(cell, 5e-6) - central(cell, 1e-5)) / 3;
@@ -80,7 +80,8 @@ TEST(ObservationTest, GradientMatchesFiniteDifferences) {
 
 TEST(ObservationTest, JsonRoundTripAndErrors) {
     const Heightfield truth = random_heightfield(8, 8, 0.3, 7, 1.0, 1.0);
-    const std::vector<Observation> obs = {make_observation(truth, 3, 4, {0.1, 0.2}, spectral_wavelengths_um(3), Model::ROHS)};
+    const std::vector<Observation> obs = {
+        make_observation(truth, 3, 4, {0.1, 0.2}, spectral_wavelengths_um(3), Model::ROHS)};
     const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test";
     std::filesystem::create_directories(dir);
     const std::string path = (dir / "obs.json").string();
@@ -106,11 +107,21 @@ TEST(ObservationTest, JsonRoundTripAndErrors) {
     };
     expect_error("{", "not valid JSON");
     expect_error(R"({"observations": []})", "empty");
-    expect_error(R"({"observations": [{"y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "'x_um'");
-    expect_error(R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 2, "reference": [1, 2]}]})", "reference has 2 values");
-    expect_error(R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "spectral": 3, "resolution": 1, "reference": [1]}]})", "exactly one");
-    expect_error(R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": -2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "sigma_p");
-    expect_error(R"({"observations": [{"x_um": "a", "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})", "wrong type");
+    expect_error(
+        R"({"observations": [{"y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})",
+        "'x_um'");
+    expect_error(
+        R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 2, "reference": [1, 2]}]})",
+        "reference has 2 values");
+    expect_error(
+        R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "spectral": 3, "resolution": 1, "reference": [1]}]})",
+        "exactly one");
+    expect_error(
+        R"({"observations": [{"x_um": 0, "y_um": 0, "sigma_p_um": -2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})",
+        "sigma_p");
+    expect_error(
+        R"({"observations": [{"x_um": "a", "y_um": 0, "sigma_p_um": 2, "lambda_um": 0.5, "resolution": 1, "reference": [1]}]})",
+        "wrong type");
 }
 
 // Issue 9: integer fields were read with get<int>(): "resolution": 8.7 became 8 and 2^40 + 8
@@ -122,9 +133,9 @@ TEST(ObservationTest, JsonRoundTripAndErrors) {
 // `wavebrdf recover --save-observations` writes (it used to be written by the CLI itself).
 TEST(ObservationTest, WrittenObservationsReadBackTheSame) {
     const Heightfield truth = random_heightfield(8, 8, 0.3, 11, 1.0, 1.0);
-    std::vector<Observation> obs = {make_observation(truth, 3, 4, {0.1, 0.2}, {0.55}, Model::OHS),
-                                    make_observation(truth, -1.5, 2.25, {0.0, -0.3}, spectral_wavelengths_um(3),
-                                                     Model::ROHS)};
+    std::vector<Observation> obs = {
+        make_observation(truth, 3, 4, {0.1, 0.2}, {0.55}, Model::OHS),
+        make_observation(truth, -1.5, 2.25, {0.0, -0.3}, spectral_wavelengths_um(3), Model::ROHS)};
     obs[1].resolution = 8;
     obs[1].reference = render_observation(truth, obs[1]);
     for (Observation& o : obs)
@@ -178,11 +189,14 @@ TEST(ObservationTest, JsonIntegerFieldsMustBeIntegersInRange) {
             EXPECT_NE(message.find(needle), std::string::npos) << message;
         }
     };
-    expect_error(R"("lambda_um": 0.5, "resolution": 8.7)", "field 'resolution' is 8.7; expected an integer from 1 to 8192");
-    expect_error(R"("lambda_um": 0.5, "resolution": 1099511627784)", "field 'resolution' is 1099511627784; expected an integer from 1 to 8192");
+    expect_error(R"("lambda_um": 0.5, "resolution": 8.7)",
+                 "field 'resolution' is 8.7; expected an integer from 1 to 8192");
+    expect_error(R"("lambda_um": 0.5, "resolution": 1099511627784)",
+                 "field 'resolution' is 1099511627784; expected an integer from 1 to 8192");
     expect_error(R"("lambda_um": 0.5, "resolution": -1)", "from 1 to 8192");
     expect_error(R"("lambda_um": 0.5, "resolution": "1")", "field 'resolution'");
-    expect_error(R"("spectral": 100000, "resolution": 1)", "field 'spectral' is 100000; expected an integer from 1 to 256");
+    expect_error(R"("spectral": 100000, "resolution": 1)",
+                 "field 'spectral' is 100000; expected an integer from 1 to 256");
     expect_error(R"("spectral": 2.5, "resolution": 1)", "field 'spectral' is 2.5");
     expect_error(R"("spectral": 4294967299, "resolution": 1)", "field 'spectral' is 4294967299");
     json_with(R"("lambda_um": 0.5, "resolution": 1.0)");
@@ -208,7 +222,8 @@ TEST(ObservationTest, ObservationSetThatCannotFitIsRefusedBeforeReadingReference
         ADD_FAILURE() << "no error";
     } catch (const OutOfMemory& e) {
         const std::string message = e.what();
-        EXPECT_NE(message.find("reading the 2000 observations of " + path + " needs about"), std::string::npos) << message;
+        EXPECT_NE(message.find("reading the 2000 observations of " + path + " needs about"), std::string::npos)
+            << message;
         EXPECT_NE(message.find("(max-memory-gb)"), std::string::npos) << message;
     }
 }
@@ -237,11 +252,12 @@ TEST(ObservationPlansTest, CachedLossEqualsUncachedAndBuildsEachPlanOnce) {
         // A non-empty gradient is added to.
         std::vector<double> twice = g_plain;
         observation_loss(estimate, obs, loss, &twice, {}, nullptr, &plans);
-        for (std::size_t i = 0; i < twice.size(); ++i) EXPECT_NEAR(twice[i], 2.0 * g_plain[i], 1e-12 * test::max_abs(g_plain));
+        for (std::size_t i = 0; i < twice.size(); ++i)
+            EXPECT_NEAR(twice[i], 2.0 * g_plain[i], 1e-12 * test::max_abs(g_plain));
     }
     EXPECT_EQ(plans.built(), 2u);
     EXPECT_EQ(plans.size(), 2u);
     std::vector<double> wrong(3);
-    test::expect_throw_naming<std::invalid_argument>(
-        [&] { observation_loss(truth, obs, loss, &wrong); }, "gradient has 3 entries");
+    test::expect_throw_naming<std::invalid_argument>([&] { observation_loss(truth, obs, loss, &wrong); },
+                                                     "gradient has 3 entries");
 }

@@ -17,8 +17,8 @@
 #include "wavebrdf/optim.h"
 
 using namespace wavebrdf;
-using wavebrdf::test::uniform_vector;
 using wavebrdf::test::expect_throw_naming;
+using wavebrdf::test::uniform_vector;
 
 namespace {
 
@@ -205,8 +205,7 @@ TEST(OptimTest, LbfgsMinimisesRosenbrock) {
     EXPECT_NEAR(x[1], 1.0, 1e-6);
     EXPECT_LT(r.value, 1e-12);
     EXPECT_TRUE(r.converged);
-    std::cout << "[ info     ] Rosenbrock: " << r.iterations << " iterations, " << r.evaluations
-              << " evaluations\n";
+    std::cout << "[ info     ] Rosenbrock: " << r.iterations << " iterations, " << r.evaluations << " evaluations\n";
 }
 
 TEST(OptimTest, LbfgsMinimisesIllConditionedQuadratic) {
@@ -325,8 +324,7 @@ TEST(OptimTest, LbfgsEdgeCasesAndValidation) {
     std::vector<double> empty;
     EXPECT_THROW(lbfgs_minimize(q, empty), std::invalid_argument);
     std::vector<double> start = {0.0, 0.0};
-    EXPECT_THROW(lbfgs_minimize([](const std::vector<double>&, std::vector<double>&) { return std::nan(""); },
-                                start),
+    EXPECT_THROW(lbfgs_minimize([](const std::vector<double>&, std::vector<double>&) { return std::nan(""); }, start),
                  std::domain_error);
 }
 

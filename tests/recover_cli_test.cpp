@@ -71,9 +71,9 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
     const fs::path dir = fresh_dir("recover");
     const CliResult r = run_cli(dir, "recover " + kSmall + " --save-observations --out run");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    for (const char* name : {"estimate.exr", "estimate.png", "truth.exr", "metrics.csv", "run.json",
-                             "estimate_height.npy", "truth_height.npy", "reference.npy", "final.npy",
-                             "observations.json"})
+    for (const char* name :
+         {"estimate.exr", "estimate.png", "truth.exr", "metrics.csv", "run.json", "estimate_height.npy",
+          "truth_height.npy", "reference.npy", "final.npy", "observations.json"})
         EXPECT_TRUE(fs::exists(dir / "run" / name)) << name;
     EXPECT_EQ(lines_of(read_text(dir / "run" / "metrics.csv"))[0], "stage,iteration,loss,seconds,height_rel_rmse");
     // The estimate, read back from its file, against the truth (an evaluation independent of
@@ -98,8 +98,10 @@ TEST(RecoverCliTest, HostileOutNamesRunNoShellAndGetTheirReport) {
     const bool can_plot = python_can_plot();
     for (const std::string name : {"x'; touch PWNED; echo '", "bob's run $(touch PWNED2)"}) {
         SCOPED_TRACE(name);
-        const CliResult r = run_cli(dir, "recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 "
-                                         "--method thesis --epochs 2 --quiet --out " + quote(name));
+        const CliResult r = run_cli(dir,
+                                    "recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 "
+                                    "--method thesis --epochs 2 --quiet --out " +
+                                        quote(name));
         ASSERT_EQ(r.exit_code, 0) << r.err;
         EXPECT_TRUE(fs::exists(dir / name / "estimate.exr"));
         if (can_plot) {
@@ -130,8 +132,10 @@ TEST(RecoverCliTest, FlatTruthReportsTheMetricAsUndefinedAndWritesTheEstimate) {
     write_heightfield_exr((dir / "one.exr").string(), Heightfield(1, 1, std::vector<double>(1, 0.0), 2.0));
     for (const std::string name : {"flat", "one"}) {
         SCOPED_TRACE(name);
-        const CliResult r = run_cli(dir, "recover --truth " + name + ".exr --texel-um 2 --sigma-p-um 3 "
-                                         "--field-iterations 3 --refine-iterations 2 --no-plots --quiet --out " + name);
+        const CliResult r = run_cli(dir, "recover --truth " + name +
+                                             ".exr --texel-um 2 --sigma-p-um 3 "
+                                             "--field-iterations 3 --refine-iterations 2 --no-plots --quiet --out " +
+                                             name);
         ASSERT_EQ(r.exit_code, 0) << r.err;
         EXPECT_NE(r.err.find("undefined: the truth is flat"), std::string::npos) << r.err;
         EXPECT_TRUE(fs::exists(dir / name / "estimate.exr"));

@@ -126,8 +126,7 @@ TEST(FieldOperator, RejectsBadArguments) {
     EXPECT_THROW(FieldOperator(0, 4, 1.0, q, 0.5, 16), std::invalid_argument);
     EXPECT_THROW(FieldOperator(4, 4, -1.0, q, 0.5, 16), std::domain_error);
     EXPECT_THROW(FieldOperator(4, 4, 1.0, q, 0.5, 16, 0), std::invalid_argument);
-    EXPECT_THROW(FieldOperator(4, 4, 1.0, test::make_query(Model::GHS, 0.0, 0.0, 2.0), 0.5, 16),
-                 std::invalid_argument);
+    EXPECT_THROW(FieldOperator(4, 4, 1.0, test::make_query(Model::GHS, 0.0, 0.0, 2.0), 0.5, 16), std::invalid_argument);
     const FieldOperator op(4, 4, 1.0, q, 0.5, 16);
     EXPECT_THROW(op.forward(std::vector<Complex>(15)), std::invalid_argument);
     EXPECT_THROW(op.adjoint(std::vector<Complex>(17)), std::invalid_argument);
@@ -266,7 +265,8 @@ TEST(RefinedHeights, FollowsTheSurfaceBetweenTexelCentres) {
     const double w = 0.5, period = rows * w, amplitude = 0.3;
     std::vector<double> v(std::size_t(rows) * 2);
     for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < 2; ++j) v[std::size_t(i) * 2 + j] = amplitude * std::sin(2.0 * k_pi * (i + 0.5) * w / period) / w;
+        for (int j = 0; j < 2; ++j)
+            v[std::size_t(i) * 2 + j] = amplitude * std::sin(2.0 * k_pi * (i + 0.5) * w / period) / w;
     const Heightfield hf(rows, 2, v, w);
     const auto fine = refined_heights(hf, q);
     double worst = 0.0;
@@ -307,7 +307,8 @@ SmallCase small_case(std::uint64_t seed) {
         for (int a = 0; a < 6; ++a)
             for (int b = 0; b < 6; ++b) {
                 Observation o;
-                o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step, 3.0);
+                o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step,
+                                           3.0);
                 o.lambdas_um = {lambda};
                 o.resolution = 64;
                 o.reference = render_observation(c.truth, o);
@@ -370,9 +371,9 @@ TEST(FitBlurred, FindsTheShapeFromFlat) {
 
 TEST(AutoRefine, SamplesTheSliceBandAndTheField) {
     // d = w/q < λ / (2(1 + |ω_i|)), q odd.
-    EXPECT_EQ(auto_refine(2.0, 0.5), 9);   // 2·2/0.5 = 8 → 9
-    EXPECT_EQ(auto_refine(1.0, 0.5), 5);   // 4 → 5
-    EXPECT_EQ(auto_refine(0.2, 0.5), 1);   // 0.8 → 1
+    EXPECT_EQ(auto_refine(2.0, 0.5), 9);        // 2·2/0.5 = 8 → 9
+    EXPECT_EQ(auto_refine(1.0, 0.5), 5);        // 4 → 5
+    EXPECT_EQ(auto_refine(0.2, 0.5), 1);        // 0.8 → 1
     EXPECT_EQ(auto_refine(2.0, 0.5, 0.3), 11);  // 10.4 → 11
     const Heightfield hf = test::random_heightfield(4, 5, 0.2, 9, 1.5);
     const auto object = object_from_heights(hf, 0.6, 3);
@@ -412,8 +413,8 @@ TEST(RecoverHeights, RejectsObservationsWithoutASingleWavelengthSlice) {
 }
 
 TEST(HeightRelRmse, IsTheRmsAfterRemovingMeansOverTheRange) {
-    const Heightfield truth(1, 4, {0.0, 1.0, 2.0, 3.0}, 0.5, 2.0);      // heights 0, 1, 2, 3 µm
-    const Heightfield estimate(1, 4, {5.0, 6.5, 7.0, 7.5}, 1.0, 1.0);   // minus mean: −1.5, 0, 0.5, 1
+    const Heightfield truth(1, 4, {0.0, 1.0, 2.0, 3.0}, 0.5, 2.0);     // heights 0, 1, 2, 3 µm
+    const Heightfield estimate(1, 4, {5.0, 6.5, 7.0, 7.5}, 1.0, 1.0);  // minus mean: −1.5, 0, 0.5, 1
     // Truth minus its mean: −1.5, −0.5, 0.5, 1.5. Differences 0, 0.5, 0, −0.5 → rms √(0.5/4);
     // range 3.
     EXPECT_NEAR(height_rel_rmse(estimate, truth), std::sqrt(0.5 / 4.0) / 3.0, 1e-15);

@@ -23,7 +23,8 @@ TEST(RecoveryRun, RefusesAPlanThatCannotFitBeforeSimulating) {
     } catch (const OutOfMemory& e) {
         const std::string what = e.what();
         EXPECT_NE(what.find("recover (1000x1000 heights, 492075 observations of 160x160) needs about "),
-                  std::string::npos) << what;
+                  std::string::npos)
+            << what;
         EXPECT_NE(what.find("; the limit is 8 GB (max-memory-gb); raise it with --max-memory-gb"), std::string::npos)
             << what;
     }

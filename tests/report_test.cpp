@@ -19,14 +19,13 @@ namespace {
 
 // The small runs of invert_test.cpp and recover_cli_test.cpp (seconds each).
 const std::string kInvert = "invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 2 --quiet";
-const std::string kRecover = "recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 "
-                             "--method thesis --epochs 2 --quiet";
+const std::string kRecover =
+    "recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 "
+    "--method thesis --epochs 2 --quiet";
 
 const fs::path k_build_python = WAVEBRDF_BUILD_PYTHON_DIR;
 
-bool is_png(const fs::path& path) {
-    return read_text(path).rfind("\x89PNG\r\n\x1a\n", 0) == 0;
-}
+bool is_png(const fs::path& path) { return read_text(path).rfind("\x89PNG\r\n\x1a\n", 0) == 0; }
 
 // <root>/bin/wavebrdf and <root>/python/ (a copy of the build's package); with `broken`, a
 // package of that name in <root>/python that cannot be imported (it shadows the real one).
@@ -60,9 +59,7 @@ CliResult run_moved(const fs::path& dir, const fs::path& exe, const std::string&
     return r;
 }
 
-bool have_package() {
-    return fs::is_regular_file(k_build_python / "wavebrdf" / "report.py");
-}
+bool have_package() { return fs::is_regular_file(k_build_python / "wavebrdf" / "report.py"); }
 
 }  // namespace
 

@@ -19,10 +19,10 @@ using namespace wavebrdf;
 using namespace wavebrdf::test;
 
 TEST(RunDirectoryTest, OwnNames) {
-    for (const char* name : {"run.json", "metrics.csv", "checkpoint.json", "checkpoint.json.tmp",
-                             "metrics.csv.tmp-1234", "report.png", "curves.png", ".report.png.ab12_x.tmp",
-                             "reference_000.exr", "final_1234.png", "snapshots", "snapshots/height_0010.npy",
-                             "snapshots/gradient_10000.npy", "estimate.exr", "truth.exr", "truth_height.npy"})
+    for (const char* name :
+         {"run.json", "metrics.csv", "checkpoint.json", "checkpoint.json.tmp", "metrics.csv.tmp-1234", "report.png",
+          "curves.png", ".report.png.ab12_x.tmp", "reference_000.exr", "final_1234.png", "snapshots",
+          "snapshots/height_0010.npy", "snapshots/gradient_10000.npy", "estimate.exr", "truth.exr", "truth_height.npy"})
         EXPECT_TRUE(is_run_output(RunKind::Invert, name)) << name;
     for (const char* name : {"notes.txt", "run.json.bak", "reference_0.exr", "snapshots/notes.txt", "snapshots/x/y",
                              "observations.json", "final.npy", "sub/run.json"})
@@ -72,7 +72,7 @@ TEST(RunDirectoryTest, ForceDeletesOnlyOwnOutputs) {
     EXPECT_TRUE(fs::exists(dir / "elsewhere" / "height_0000.npy"));
 
     std::ofstream(dir / "file") << "x";
-    expect_throw_naming<std::invalid_argument>([&] { check_run_directory(RunKind::Invert, (dir / "file").string(), true); },
-                                               "not a directory");
+    expect_throw_naming<std::invalid_argument>(
+        [&] { check_run_directory(RunKind::Invert, (dir / "file").string(), true); }, "not a directory");
     fs::remove_all(dir);
 }

@@ -142,8 +142,11 @@ TEST(SlicePlanTest, MatchesReportsItsArguments) {
 TEST(SlicePlanTest, BadInputThrows) {
     const Heightfield hf = random_heightfield(16, 16, 0.3, 1, 1.0, 1.0);
     const Query q = make_query(Model::OHS, 8.0, 8.0, 4.0);
-    test::expect_throw_naming<std::invalid_argument>([&] { SlicePlan<double>(hf, q, {0.5, 0.6}, 16, 1); },
-                                                     "one output channel needs one wavelength");
+    test::expect_throw_naming<std::invalid_argument>(
+        [&] {
+            SlicePlan<double>(hf, q, {0.5, 0.6}, 16, 1);
+        },
+        "one output channel needs one wavelength");
     test::expect_throw_naming<std::invalid_argument>([&] { SlicePlan<double>(hf, q, {0.5}, 16, 2); }, "channels 2");
     test::expect_throw_naming<std::invalid_argument>([&] { SlicePlan<double>(hf, q, {}, 16, 3); }, "no wavelengths");
     test::expect_throw_naming<std::domain_error>([&] { SlicePlan<double>(hf, q, {0.5}, 0, 3); }, "resolution 0");
@@ -159,8 +162,7 @@ TEST(SlicePlanTest, BadInputThrows) {
     std::vector<double> bad = hf.values();
     bad[7] = std::nan("");
     test::expect_throw_naming<std::domain_error>([&] { plan.set_heights(bad); }, "height value 7");
-    test::expect_throw_naming<std::invalid_argument>([&] { plan.set_heights(hf.with_scale(2.0, 1.0)); },
-                                                     "geometry");
+    test::expect_throw_naming<std::invalid_argument>([&] { plan.set_heights(hf.with_scale(2.0, 1.0)); }, "geometry");
     plan.forward();
     test::expect_throw_naming<std::invalid_argument>([&] { plan.adjoint(std::vector<double>(5), g); },
                                                      "weights have 5 entries");
@@ -205,7 +207,13 @@ TEST(SpectralMixTest, OneWavelengthIsGreyAndSizesAreChecked) {
     EXPECT_EQ(rgb, (std::vector<float>{1, 1, 1, 2, 2, 2}));
     std::vector<float> short_rgb(5);
     test::expect_throw_naming<std::invalid_argument>(
-        [&] { mix_spectral_to_rgb<float>({1.0, 1.0, 1.0}, 0, slice, short_rgb); }, "RGB values have 5");
+        [&] {
+            mix_spectral_to_rgb<float>({1.0, 1.0, 1.0}, 0, slice, short_rgb);
+        },
+        "RGB values have 5");
     test::expect_throw_naming<std::invalid_argument>(
-        [&] { mix_spectral_to_rgb<float>({1.0, 1.0, 1.0}, 1, slice, rgb); }, "wavelength index 1");
+        [&] {
+            mix_spectral_to_rgb<float>({1.0, 1.0, 1.0}, 1, slice, rgb);
+        },
+        "wavelength index 1");
 }

@@ -51,8 +51,7 @@ TEST(SpectrumTest, TableSpotValues) {
     EXPECT_NEAR(cie1931_xyz(0.360)[0], 0.0001299, 1e-12);
     EXPECT_NEAR(cie1931_xyz(0.830)[1], 4.5181e-07, 1e-12);
     // ȳ peaks at 555 nm.
-    for (double nm = 360.0; nm <= 830.0; nm += 1.0)
-        EXPECT_LE(cie1931_xyz(nm / 1000.0)[1], 1.0 + 1e-12) << nm;
+    for (double nm = 360.0; nm <= 830.0; nm += 1.0) EXPECT_LE(cie1931_xyz(nm / 1000.0)[1], 1.0 + 1e-12) << nm;
 }
 
 TEST(SpectrumTest, TableIsEqualEnergyBalanced) {
@@ -172,8 +171,7 @@ TEST(SpectrumTest, OrderAndSpacingOfArbitraryLists) {
     const auto ws = spectral_to_srgb_weights(sorted);
     const auto wp = spectral_to_srgb_weights(permuted);
     for (std::size_t c = 0; c < 3; ++c)
-        for (std::size_t k = 0; k < 5; ++k)
-            EXPECT_NEAR(wp[c * 5 + k], ws[c * 5 + where[k]], 1e-14);
+        for (std::size_t k = 0; k < 5; ++k) EXPECT_NEAR(wp[c * 5 + k], ws[c * 5 + where[k]], 1e-14);
     // Unequal spacing still maps a constant to white.
     const auto rgb = apply_weights(ws, std::vector<double>(5, 2.0));
     for (double v : rgb) EXPECT_NEAR(v, 2.0, 1e-12);
@@ -197,8 +195,7 @@ TEST(SpectrumTest, BadInputsThrow) {
     EXPECT_THROW(spectral_to_srgb_weights({0.5, 0.0}), std::domain_error);
     EXPECT_THROW(spectral_to_srgb_weights({-0.5}), std::domain_error);
     EXPECT_THROW(spectral_to_srgb_weights({0.5, std::nan("")}), std::domain_error);
-    EXPECT_THROW(spectral_to_srgb_weights({std::numeric_limits<double>::infinity()}),
-                 std::domain_error);
+    EXPECT_THROW(spectral_to_srgb_weights({std::numeric_limits<double>::infinity()}), std::domain_error);
     // No sample where the eye sees anything: the sampled white is black.
     EXPECT_THROW(spectral_to_srgb_weights({0.2, 0.3, 1.0}), std::domain_error);
     try {

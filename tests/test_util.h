@@ -81,8 +81,8 @@ inline void expect_estimate_within_factor_of_two(double estimate, double measure
 }
 
 // Smooth random heights (sum of a few random periodic sinusoids), in texel units.
-inline Heightfield random_heightfield(int rows, int cols, double amplitude, std::uint64_t seed,
-                                      double texel_um = 1.0, double vscale = 1.0) {
+inline Heightfield random_heightfield(int rows, int cols, double amplitude, std::uint64_t seed, double texel_um = 1.0,
+                                      double vscale = 1.0) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> uni(0.0, 1.0);
     std::vector<double> v(static_cast<std::size_t>(rows) * cols, 0.0);
@@ -100,8 +100,7 @@ inline Heightfield random_heightfield(int rows, int cols, double amplitude, std:
     return Heightfield(rows, cols, std::move(v), texel_um, vscale);
 }
 
-inline Query make_query(Model model, double x, double y, double sigma_p, double wx = 0.0,
-                        double wy = 0.0) {
+inline Query make_query(Model model, double x, double y, double sigma_p, double wx = 0.0, double wy = 0.0) {
     Query q;
     q.model = model;
     q.x_um = x;

@@ -30,34 +30,34 @@ class Progress;
 struct Observation;
 
 struct PlanRequest {
-    int rows = 32, cols = 32;       // heightfield size (texels)
-    double texel_um = 1.0;          // texel width w, µm
-    double height_range_um = 0.0;   // expected peak-to-valley of the heights, µm (≥ 0)
-    double sigma_p_um = 0.0;        // footprint σ_p, µm; 0: 1.5 texels
-    double overlap = 0.6;           // worst-case linear overlap of neighbouring windows, 0.6 … 0.95
-    double jitter = 0.2;            // position jitter, fraction of the raster step, 0 … 0.3
-    double lambda_um = 0.5;         // base wavelength λ0, µm
-    double lambda_min_um = 0.45;    // wavelengths available to the ladder, µm
+    int rows = 32, cols = 32;      // heightfield size (texels)
+    double texel_um = 1.0;         // texel width w, µm
+    double height_range_um = 0.0;  // expected peak-to-valley of the heights, µm (≥ 0)
+    double sigma_p_um = 0.0;       // footprint σ_p, µm; 0: 1.5 texels
+    double overlap = 0.6;          // worst-case linear overlap of neighbouring windows, 0.6 … 0.95
+    double jitter = 0.2;           // position jitter, fraction of the raster step, 0 … 0.3
+    double lambda_um = 0.5;        // base wavelength λ0, µm
+    double lambda_min_um = 0.45;   // wavelengths available to the ladder, µm
     double lambda_max_um = 0.70;
-    double max_step_ratio = 4.0;    // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
-    std::vector<double> lambdas_um; // given wavelengths (µm) instead of the ladder; empty: plan them
-    int resolution = 0;             // given slice size instead of Nyquist's; 0: plan it
+    double max_step_ratio = 4.0;                // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
+    std::vector<double> lambdas_um;             // given wavelengths (µm) instead of the ladder; empty: plan them
+    int resolution = 0;                         // given slice size instead of Nyquist's; 0: plan it
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i of every observation
     Model model = Model::OHS;
-    std::uint64_t seed = 1;         // jitter
+    std::uint64_t seed = 1;  // jitter
 };
 
 struct AcquisitionPlan {
     double sigma_p_um = 0.0;
-    int resolution = 0;                           // slice pixels per side
-    std::vector<double> lambdas_um;               // λ0 first, then the ladder's partners
-    std::vector<double> synthetic_um;             // the ladder Λ_1 > Λ_2 > … (λ0 excluded)
+    int resolution = 0;                               // slice pixels per side
+    std::vector<double> lambdas_um;                   // λ0 first, then the ladder's partners
+    std::vector<double> synthetic_um;                 // the ladder Λ_1 > Λ_2 > … (λ0 excluded)
     std::vector<std::array<double, 2>> positions_um;  // footprint centres (x, y)
-    double step_x_um = 0.0, step_y_um = 0.0;      // raster steps
-    double overlap = 0.0;                         // worst-case linear overlap of neighbours
-    std::array<double, 2> omega_i{{0.0, 0.0}};         // projected light direction ω_i
+    double step_x_um = 0.0, step_y_um = 0.0;          // raster steps
+    double overlap = 0.0;                             // worst-case linear overlap of neighbours
+    std::array<double, 2> omega_i{{0.0, 0.0}};        // projected light direction ω_i
     Model model = Model::OHS;
-    std::vector<std::string> notes;               // choices the caller should know about
+    std::vector<std::string> notes;  // choices the caller should know about
 };
 
 // Throws std::invalid_argument / std::domain_error naming the field for sizes < 1, texel_um,
@@ -73,8 +73,7 @@ std::vector<Observation> planned_observations(const AcquisitionPlan& plan);
 // The planned observations of `truth`, rendered, with `noise` added (seeded per observation,
 // noise.h). `progress`, when given, advances by one per observation.
 std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
-                                               const Noise& noise, std::uint64_t seed,
-                                               Progress* progress = nullptr);
+                                               const Noise& noise, std::uint64_t seed, Progress* progress = nullptr);
 
 // The synthetic-wavelength ladder for heights spanning `height_range_um` (see above): the
 // partner wavelengths of λ0, coarsest first. Empty when λ0 alone suffices (range < λ0/4).

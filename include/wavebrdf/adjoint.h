@@ -30,18 +30,16 @@ namespace wavebrdf {
 // into `gradient` (rows·cols, row-major; resized and zeroed when empty). Returns the slice.
 // `weights` has resolution² entries; entries outside the disk are ignored.
 template <typename Float>
-std::vector<Float> slice_gradient(const Heightfield& heightfield, const Query& query,
-                                  double lambda_um, int resolution,
+std::vector<Float> slice_gradient(const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
                                   const std::vector<Float>& weights, std::vector<double>& gradient,
                                   const RenderOptions& options = {});
 
 // The same, with the weights computed from the slice after the forward pass (for a loss L(f):
 // weights = ∂L/∂f). The callback receives the slice and returns the weights.
 template <typename Float>
-std::vector<Float> slice_gradient(
-    const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
-    const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
-    std::vector<double>& gradient, const RenderOptions& options = {});
+std::vector<Float> slice_gradient(const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
+                                  const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
+                                  std::vector<double>& gradient, const RenderOptions& options = {});
 
 // A slice whose forward pass has run and whose backward pass can be called later, any number
 // of times (e.g. once per loss, or after the slices of other wavelengths are known, as a
@@ -51,8 +49,8 @@ class SliceAdjoint {
 public:
     // Validates like render_slice and runs the forward pass (a one-wavelength SlicePlan). Holds
     // no reference to `heightfield`.
-    SliceAdjoint(const Heightfield& heightfield, const Query& query, double lambda_um,
-                 int resolution, const RenderOptions& options = {});
+    SliceAdjoint(const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
+                 const RenderOptions& options = {});
     ~SliceAdjoint();
     SliceAdjoint(SliceAdjoint&&) noexcept;
     SliceAdjoint& operator=(SliceAdjoint&&) noexcept;
@@ -68,9 +66,8 @@ private:
 
 // The tangent (Jacobian-vector product) of the direct sum: d slice for a height perturbation
 // `direction` (rows·cols, texel units). The reference for the adjoint's dot-product test.
-std::vector<double> slice_tangent_direct(const Heightfield& heightfield, const Query& query,
-                                         double lambda_um, int resolution,
-                                         const std::vector<double>& direction);
+std::vector<double> slice_tangent_direct(const Heightfield& heightfield, const Query& query, double lambda_um,
+                                         int resolution, const std::vector<double>& direction);
 
 // --- building blocks (per-kernel gradients) -----------------------------------------------
 

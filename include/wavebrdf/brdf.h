@@ -26,7 +26,7 @@ struct RenderOptions {
     // Direct path: bound on the pruning error relative to the slice's peak; at most 1e-6.
     // 0 disables pruning (the plain reference sum).
     double prune_tolerance = 1e-7;
-    Progress* progress = nullptr;        // advanced by `work_units` (below) per slice
+    Progress* progress = nullptr;  // advanced by `work_units` (below) per slice
     // render_slice and render_rgb refuse (OutOfMemory, before any work) a render whose
     // estimate_render_bytes exceeds this many GB; 0: the physical memory.
     double max_memory_gb = 0.0;
@@ -46,37 +46,32 @@ long long work_units(int resolution);
 // resolution × resolution pixels (1…8192). Validates every argument (std::domain_error /
 // std::invalid_argument naming the value). Float is float or double.
 template <typename Float>
-std::vector<Float> render_slice(const Heightfield& heightfield, const Query& query,
-                                double lambda_um, int resolution, const RenderOptions& options = {});
+std::vector<Float> render_slice(const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
+                                const RenderOptions& options = {});
 
 // The separable matrix-product path (OHS and ROHS only; throws std::invalid_argument for the
 // other models). Arguments are assumed valid.
 template <typename Float>
-std::vector<Float> render_slice_separable(const FootprintKernels& kernels, const Query& query,
-                                          double lambda_um, int resolution,
-                                          Progress* progress = nullptr);
+std::vector<Float> render_slice_separable(const FootprintKernels& kernels, const Query& query, double lambda_um,
+                                          int resolution, Progress* progress = nullptr);
 
 // The direct sum, the slow reference for every model. `prune_tolerance` as in RenderOptions.
 template <typename Float>
-std::vector<Float> render_slice_direct(const FootprintKernels& kernels, const Query& query,
-                                       double lambda_um, int resolution,
-                                       double prune_tolerance = 0.0,
-                                       Progress* progress = nullptr);
+std::vector<Float> render_slice_direct(const FootprintKernels& kernels, const Query& query, double lambda_um,
+                                       int resolution, double prune_tolerance = 0.0, Progress* progress = nullptr);
 
 // An RGB slice (resolution² × 3, row-major, channel-interleaved). One wavelength: its slice in
 // R, G and B. Several: each wavelength's slice weighted to linear sRGB with
 // spectral_to_srgb_weights (spectrum.h).
 template <typename Float>
-std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query,
-                              const std::vector<double>& lambdas_um, int resolution,
-                              const RenderOptions& options = {});
+std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um,
+                              int resolution, const RenderOptions& options = {});
 
 // The same from a Gabor representation gathered once for `query`'s footprint (x, y and σ_p
 // must equal the representation's: std::invalid_argument otherwise), honouring options.path
 // and options.prune_tolerance as render_rgb does (bit for bit the same values).
 template <typename Float>
 std::vector<Float> render_rgb(const GaborRepresentation& representation, const Query& query,
-                              const std::vector<double>& lambdas_um, int resolution,
-                              const RenderOptions& options = {});
+                              const std::vector<double>& lambdas_um, int resolution, const RenderOptions& options = {});
 
 }  // namespace wavebrdf

@@ -14,12 +14,12 @@ namespace wavebrdf {
 // image; positions are stored relative to the footprint centre, which changes every slice
 // only by a global phase per direction (so |I|² is unchanged) and keeps phases small.
 struct FootprintKernels {
-    std::vector<int> row, col;          // texel (i, j), for scattering gradients back
-    std::vector<double> dx_um, dy_um;   // δ_k = μ_k − μ_p (nearest periodic image), µm
-    std::vector<double> weight;         // c_k · w²: window weight times kernel area, µm
-    std::vector<double> height_um;      // H_k = v · w · h[i][j]
+    std::vector<int> row, col;             // texel (i, j), for scattering gradients back
+    std::vector<double> dx_um, dy_um;      // δ_k = μ_k − μ_p (nearest periodic image), µm
+    std::vector<double> weight;            // c_k · w²: window weight times kernel area, µm
+    std::vector<double> height_um;         // H_k = v · w · h[i][j]
     std::vector<double> slope_x, slope_y;  // s_k (dimensionless)
-    double sigma_um = 0.0;              // kernel σ = w / 2
+    double sigma_um = 0.0;                 // kernel σ = w / 2
     std::size_t size() const { return weight.size(); }
 };
 
@@ -38,8 +38,7 @@ void validate_footprint(double sigma_p_um, double period_x_um, double period_y_u
 // value: it is reduced modulo the tile period in floating point first (exactly, std::fmod),
 // so x_um and x_um + k · period_x_um give the same kernels. σ_p > 0 (validate the Query
 // first); throws std::domain_error when σ_p is too large for the tile (validate_footprint).
-FootprintKernels footprint_kernels(const Heightfield& heightfield, double x_um, double y_um,
-                                   double sigma_p_um);
+FootprintKernels footprint_kernels(const Heightfield& heightfield, double x_um, double y_um, double sigma_p_um);
 
 // The Gabor representation of a heightfield within one footprint: its kernels with the
 // geometry needed to map them back to texels (the Python GaborRep).
@@ -52,8 +51,7 @@ struct GaborRepresentation {
     // h = H_k / (vscale · texel_um) at each kernel's texel and `fill` (rows·cols values)
     // elsewhere. `height_um`: one kernel height per kernel (µm). Throws std::invalid_argument
     // on a size mismatch and std::domain_error when vscale = 0 (the heights cannot be recovered).
-    std::vector<double> heights_from_kernels(const std::vector<double>& height_um,
-                                             std::vector<double> fill) const;
+    std::vector<double> heights_from_kernels(const std::vector<double>& height_um, std::vector<double> fill) const;
 
     FootprintKernels kernels;
     int rows, cols;

@@ -20,16 +20,16 @@ struct SurfaceParams {
     SurfaceType type = SurfaceType::Isotropic;
     int rows = 256;
     int cols = 256;
-    double texel_um = 1.0;          // texel width w of the result
+    double texel_um = 1.0;  // texel width w of the result
     std::uint64_t seed = 1;
     // Isotropic / brushed: Gaussian-correlated noise. Exactly one of rms_height_um or
     // rms_slope is used: rms_slope when it is > 0, else rms_height_um.
     double rms_height_um = 0.1;
-    double rms_slope = 0.0;         // rms of the slope magnitude per axis (dimensionless)
-    double correlation_um = 4.0;    // correlation length (Gaussian autocorrelation 1/e radius)
-    double anisotropy = 8.0;        // brushed: correlation along y is this many times longer
+    double rms_slope = 0.0;       // rms of the slope magnitude per axis (dimensionless)
+    double correlation_um = 4.0;  // correlation length (Gaussian autocorrelation 1/e radius)
+    double anisotropy = 8.0;      // brushed: correlation along y is this many times longer
     // Scratched: random straight scratches (periodic lines) on a smooth base.
-    int scratch_count = 40;         // 0 … k_max_scratches
+    int scratch_count = 40;  // 0 … k_max_scratches
     double scratch_depth_um = 0.05;
     double scratch_width_um = 1.5;
     // Grating: H(x) = amplitude · sin(2π x / period), x along rows.
@@ -84,7 +84,7 @@ struct HeightStats {
     double rms_height_um = 0.0;  // rms deviation from the mean height (R_q)
     double min_um = 0.0;
     double max_um = 0.0;
-    double rms_slope = 0.0;      // sqrt(mean(s_x² + s_y²) / 2), s from Heightfield::slope()
+    double rms_slope = 0.0;  // sqrt(mean(s_x² + s_y²) / 2), s from Heightfield::slope()
 };
 
 // Statistics of `heightfield` as above; never throws (a Heightfield is never empty).

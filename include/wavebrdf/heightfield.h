@@ -25,8 +25,7 @@ public:
     //             (1e-6 … 1e4)
     // Throws std::invalid_argument on an empty grid or a size mismatch and
     // std::domain_error on a non-finite value or a parameter outside its range.
-    Heightfield(int rows, int cols, std::vector<double> values, double texel_um = 1.0,
-                double vscale = 1.0);
+    Heightfield(int rows, int cols, std::vector<double> values, double texel_um = 1.0, double vscale = 1.0);
 
     int rows() const { return m_rows; }
     int cols() const { return m_cols; }
@@ -49,8 +48,7 @@ public:
 
     const std::vector<double>& values() const { return m_values; }
     std::size_t index(int i, int j) const {
-        return static_cast<std::size_t>(i) * static_cast<std::size_t>(m_cols) +
-               static_cast<std::size_t>(j);
+        return static_cast<std::size_t>(i) * static_cast<std::size_t>(m_cols) + static_cast<std::size_t>(j);
     }
 
     // The same geometry with other values / parameters (validated like the constructor).

@@ -102,14 +102,14 @@ struct InversionOptions {
     std::optional<int> spectral;
     std::vector<double> wavelengths_um;
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (--light-x/-y), |ω_i| < 1
-    int resolution = 32;                      // slice size n, 1 … 8192
-    int epochs = 300;                         // 0 … k_max_iterations
+    int resolution = 32;                        // slice size n, 1 … 8192
+    int epochs = 300;                           // 0 … k_max_iterations
     OptimizerKind optimizer = OptimizerKind::Adam;
-    AdamOptions adam;                         // lr, beta1, beta2, decay (epsilon is Adam's)
-    Loss loss;                                // cmsle:1
+    AdamOptions adam;  // lr, beta1, beta2, decay (epsilon is Adam's)
+    Loss loss;         // cmsle:1
     PositionsSpec positions;
     InitSpec init;
-    std::uint64_t seed = 1;                   // generated truth, noise, random positions
+    std::uint64_t seed = 1;  // generated truth, noise, random positions
     // Run directory only: epochs whose heights, slices and gradients are kept, and the epochs
     // between checkpoints (≥ 1).
     std::set<int> snapshots{0, 10, 30, 100, 300};
@@ -117,14 +117,14 @@ struct InversionOptions {
     // Refuse (OutOfMemory, before rendering) a run whose estimated peak memory exceeds this
     // many GB; 0: the physical memory. Not stored in run.json (a resumed run may change it).
     double max_memory_gb = 0.0;
-    OptionStyle names = OptionStyle::Cli;     // how messages name the options
+    OptionStyle names = OptionStyle::Cli;  // how messages name the options
 };
 
 // Everything an inversion needs, resolved.
 struct PreparedInversion {
-    std::optional<Heightfield> truth;      // given, read or generated; none with observations
-    std::vector<Observation> observations; // given, read, or rendered from the truth
-    Heightfield initial{1, 1, {0.0}};      // the initial guess (texel width and vscale of the estimate)
+    std::optional<Heightfield> truth;       // given, read or generated; none with observations
+    std::vector<Observation> observations;  // given, read, or rendered from the truth
+    Heightfield initial{1, 1, {0.0}};       // the initial guess (texel width and vscale of the estimate)
     InversionSettings settings;
 };
 
@@ -188,8 +188,8 @@ struct InversionDirectoryControl {
 
 struct InversionDirectoryResult {
     InversionStatus status = InversionStatus::Completed;
-    int epoch = 0;                       // the last epoch reached
-    std::vector<EpochMetrics> history;   // metrics.csv's rows
+    int epoch = 0;                      // the last epoch reached
+    std::vector<EpochMetrics> history;  // metrics.csv's rows
 };
 
 // A new run in `dir` (check_run_directory's rule, `force` from control): prepare_inversion,

@@ -21,7 +21,7 @@ enum class OptimizerKind { Adam, Lbfgs };
 enum class PositionMode { Fixed, Random };
 
 struct InversionSettings {
-    Loss loss;                        // default CMSLE, ε = 1 (the thesis's first experiment)
+    Loss loss;  // default CMSLE, ε = 1 (the thesis's first experiment)
     OptimizerKind optimizer = OptimizerKind::Adam;
     AdamOptions adam;
     LbfgsOptions lbfgs;
@@ -131,7 +131,7 @@ private:
     InversionSettings m_settings;
     const Heightfield* m_truth;
     Adam m_adam;
-    LbfgsState m_lbfgs;  // L-BFGS's curvature history at m_epoch (checkpointed)
+    LbfgsState m_lbfgs;                // L-BFGS's curvature history at m_epoch (checkpointed)
     mutable ObservationPlans m_plans;  // each observation's slice plan, built once
     int m_epoch = 0;
     double m_seconds_before = 0.0;

@@ -45,8 +45,7 @@ constexpr long long k_max_exr_tile_pixels = 1024LL * 1024LL;
 // is accepted too), or is a multi-part file of two or more parts (refused rather than silently
 // reading part 0; a one-part file written through the multi-part API is read);
 // std::domain_error when a value is not finite.
-Heightfield read_heightfield_exr(const std::string& path, double texel_um = 1.0,
-                                 double vscale = 1.0);
+Heightfield read_heightfield_exr(const std::string& path, double texel_um = 1.0, double vscale = 1.0);
 
 // Writes the heightfield's raw values (texel units) as a single-channel float EXR (channel R).
 void write_heightfield_exr(const std::string& path, const Heightfield& heightfield);
@@ -68,13 +67,11 @@ RgbImage read_rgb_exr(const std::string& path);
 
 // Writes an 8-bit sRGB PNG preview: value · 2^exposure, Reinhard-free clamp to [0, 1], sRGB
 // transfer curve. With `tonemap`, x/(1+x) (Reinhard) is applied before the transfer curve.
-void write_rgb_png(const std::string& path, const RgbImage& image, double exposure = 0.0,
-                   bool tonemap = false);
+void write_rgb_png(const std::string& path, const RgbImage& image, double exposure = 0.0, bool tonemap = false);
 
 // Writes a little-endian float64 NumPy .npy array of the given shape (C order), for the
 // Python plotting scripts. Atomic like every writer here.
-void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
-               const std::vector<double>& data);
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape, const std::vector<double>& data);
 
 // Exposure (in stops) that maps the 99.9th percentile of `slice` to about 4 before Reinhard
 // (write_rgb_png's previews of slices); 0 for an empty or non-positive slice.

@@ -43,9 +43,8 @@ std::string to_string(const Loss& loss);
 // Throws std::invalid_argument on a size mismatch, a size that is not a multiple of
 // `channels`, channels < 1, empty slices (the mean over no pixels is undefined), or a Poisson
 // reference that sums to 0; std::domain_error for a CMSLE ε or Poisson N ≤ 0 or not finite.
-double loss_value(const Loss& loss, const std::vector<double>& estimate,
-                  const std::vector<double>& reference, int channels,
-                  std::vector<double>* gradient = nullptr);
+double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
+                  int channels, std::vector<double>* gradient = nullptr);
 
 // Reporting metrics (no gradients). Mono slices (channels = 1) are treated as grey RGB, which
 // makes both a plain mean over all values; negative values are clamped to 0 first (as above).

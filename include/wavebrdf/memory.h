@@ -13,8 +13,7 @@ namespace wavebrdf {
 // Python sees MemoryError with this message; the CLI prints it.
 class OutOfMemory : public std::bad_alloc {
 public:
-    explicit OutOfMemory(const std::string& message)
-        : m_message(std::make_shared<const std::string>(message)) {}
+    explicit OutOfMemory(const std::string& message) : m_message(std::make_shared<const std::string>(message)) {}
     const char* what() const noexcept override { return m_message->c_str(); }
 
 private:

@@ -51,9 +51,7 @@ void validate_resolution(int resolution);
 
 // The projected outgoing direction of slice pixel (row i, column j) of an n × n slice:
 // ω_o = ((i + ½)/n · 2 − 1, (j + ½)/n · 2 − 1). Pixels with |ω_o| > 1 are not rendered.
-inline double slice_omega(int index, int resolution) {
-    return (index + 0.5) / resolution * 2.0 - 1.0;
-}
+inline double slice_omega(int index, int resolution) { return (index + 0.5) / resolution * 2.0 - 1.0; }
 
 // One slice pixel inside the unit disk: column q of its row and its ω_o = (ox, oy).
 struct DiskPixel {
@@ -109,7 +107,7 @@ struct DirectionFactors {
     double c1;           // f_r = c1 · |I|²  (includes 1/λ²)
     double phase_scale;  // C3/2: scales H − s·μ and s for GHS, RGHS, Kirchhoff; 1 otherwise
 };
-DirectionFactors direction_factors(Model model, const std::array<double, 2>& omega_i,
-                                   double omega_o_x, double omega_o_y, double lambda_um);
+DirectionFactors direction_factors(Model model, const std::array<double, 2>& omega_i, double omega_o_x,
+                                   double omega_o_y, double lambda_um);
 
 }  // namespace wavebrdf

@@ -17,7 +17,7 @@ struct Observation {
     Query query;
     std::vector<double> lambdas_um;  // one: single wavelength (1 channel); several: RGB (3)
     int resolution = 32;
-    std::vector<double> reference;   // resolution² · channels(), row-major, interleaved
+    std::vector<double> reference;  // resolution² · channels(), row-major, interleaved
     int channels() const { return lambdas_um.size() == 1 ? 1 : 3; }
 };
 
@@ -75,11 +75,9 @@ private:
 // `rendered`, when not null, receives each observation's rendered slice. `plans`, when not
 // null, keeps each observation's slice plan for the next call (an inversion passes the same
 // cache every epoch); without it, each call builds and drops its plans.
-double observation_loss(const Heightfield& heightfield, const std::vector<Observation>& observations,
-                        const Loss& loss, std::vector<double>* gradient,
-                        const RenderOptions& options = {},
-                        std::vector<std::vector<double>>* rendered = nullptr,
-                        ObservationPlans* plans = nullptr);
+double observation_loss(const Heightfield& heightfield, const std::vector<Observation>& observations, const Loss& loss,
+                        std::vector<double>* gradient, const RenderOptions& options = {},
+                        std::vector<std::vector<double>>* rendered = nullptr, ObservationPlans* plans = nullptr);
 
 // Observations as JSON (so measured or rendered slices can be given to `invert`):
 // {"observations": [{"x_um":…, "y_um":…, "sigma_p_um":…, "light": [wx, wy], "model": "OHS",

@@ -65,7 +65,7 @@ private:
 // as a failed trial. Options are validated with std::domain_error naming the option
 // (history ≥ 1, max_iterations ≥ 0, gradient_tolerance finite and ≥ 0, max_line_search ≥ 1).
 struct LbfgsOptions {
-    int history = 10;            // pairs kept (m)
+    int history = 10;  // pairs kept (m)
     int max_iterations = 100;
     double gradient_tolerance = 1e-10;  // stop when ‖g‖∞ ≤ this
     int max_line_search = 20;
@@ -105,9 +105,8 @@ void validate_lbfgs_state(const LbfgsState& state, std::size_t size, int history
 // stopped there and started again from the same x and *state takes exactly the steps the
 // uninterrupted run takes (bit for bit, for a deterministic objective). iteration counts
 // this call's steps only.
-LbfgsResult lbfgs_minimize(
-    const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
-    std::vector<double>& x, const LbfgsOptions& options = {},
-    const std::function<bool(int, double)>& on_iteration = {}, LbfgsState* state = nullptr);
+LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
+                           std::vector<double>& x, const LbfgsOptions& options = {},
+                           const std::function<bool(int, double)>& on_iteration = {}, LbfgsState* state = nullptr);
 
 }  // namespace wavebrdf

@@ -70,8 +70,8 @@ public:
     // rows, cols ≥ 1 texels of width texel_um (> 0, µm); query and λ as for render_slice
     // (OHS or ROHS: the other models are not separable); resolution 1…8192; refine 1…64.
     // Throws std::invalid_argument / std::domain_error naming the bad value.
-    FieldOperator(int rows, int cols, double texel_um, const Query& query, double lambda_um,
-                  int resolution, int refine = 1);
+    FieldOperator(int rows, int cols, double texel_um, const Query& query, double lambda_um, int resolution,
+                  int refine = 1);
     ~FieldOperator();
     FieldOperator(FieldOperator&&) noexcept;
     FieldOperator& operator=(FieldOperator&&) noexcept;
@@ -94,7 +94,7 @@ struct FieldRetrievalSettings {
     // The object grid is this many times finer than the texels (odd, so that every texel
     // centre is an object sample: texel (i, j) is sample (i·refine + refine/2, …)).
     int refine = 1;
-    int iterations = 50;                // L-BFGS iterations (accepted steps)
+    int iterations = 50;  // L-BFGS iterations (accepted steps)
     // Keep only the object's spectrum inside the band the slices see: the union of their disks
     // |u − ω_i/λ| ≤ 1/λ widened by the window's spectral reach 3/(2πσ_p). What lies outside
     // reaches no pixel; left free it drifts and corrupts the phases.
@@ -105,7 +105,7 @@ struct FieldRetrievalSettings {
 
 struct FieldRetrievalResult {
     std::vector<std::complex<double>> object;  // (rows·refine)·(cols·refine), up to a global phase
-    double relative_loss = 0.0;  // Σ(√c1|I| − √R)² / Σ R over the observations
+    double relative_loss = 0.0;                // Σ(√c1|I| − √R)² / Σ R over the observations
     int iterations = 0;
 };
 
@@ -117,9 +117,8 @@ struct FieldRetrievalResult {
 // object_from_heights. on_iteration(iteration, relative_loss), when given, is called after
 // each step; returning false stops. Throws std::invalid_argument naming the observation that
 // does not fit or a size mismatch, std::domain_error for iterations < 0 or history < 1.
-FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um,
-                                    int rows, int cols, double texel_um,
-                                    const std::vector<std::complex<double>>& initial = {},
+FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um, int rows, int cols,
+                                    double texel_um, const std::vector<std::complex<double>>& initial = {},
                                     const FieldRetrievalSettings& settings = {},
                                     const std::function<bool(int, double)>& on_iteration = {});
 
@@ -130,8 +129,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
 std::vector<double> refined_heights(const Heightfield& heightfield, int refine);
 
 // The object e^{−i(4π/λ)H} of refined_heights, the field stage's starting point.
-std::vector<std::complex<double>> object_from_heights(const Heightfield& heightfield, double lambda_um,
-                                                      int refine);
+std::vector<std::complex<double>> object_from_heights(const Heightfield& heightfield, double lambda_um, int refine);
 
 // ---- 2. Multi-wavelength unwrapping --------------------------------------------------------
 
@@ -154,9 +152,8 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& heightf
 // at the shortest wavelength (the global phases are aligned to it), or, with two or more
 // wavelengths, within a quarter of the shortest synthetic wavelength and close on average.
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
-                                   const std::vector<std::vector<std::complex<double>>>& fields,
-                                   double height_range_um, int rows = 0, int cols = 0,
-                                   const std::vector<double>* reference = nullptr);
+                                   const std::vector<std::vector<std::complex<double>>>& fields, double height_range_um,
+                                   int rows = 0, int cols = 0, const std::vector<double>* reference = nullptr);
 
 // ---- 3. The pipeline -----------------------------------------------------------------------
 
@@ -165,12 +162,12 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
 int auto_refine(double texel_um, double lambda_min_um, double max_omega_i = 0.0);
 
 struct RecoverSettings {
-    BlurredFitSettings blurred;    // stage 0 (empty blur_widths: start the field stage from flat)
-    int blur_wavelengths = 1;      // stage 0 uses the slices of this many longest wavelengths (0: all)
+    BlurredFitSettings blurred;       // stage 0 (empty blur_widths: start the field stage from flat)
+    int blur_wavelengths = 1;         // stage 0 uses the slices of this many longest wavelengths (0: all)
     double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
-    FieldRetrievalSettings field;  // stage 1, per wavelength (its refine is replaced by:)
-    int refine = 0;                // object grid refinement; 0: auto_refine
-    double height_range_um = 4.0;  // bound on the height range, for unwrapping (stage 2)
+    FieldRetrievalSettings field;     // stage 1, per wavelength (its refine is replaced by:)
+    int refine = 0;                   // object grid refinement; 0: auto_refine
+    double height_range_um = 4.0;     // bound on the height range, for unwrapping (stage 2)
     // Stage 2 starts from the spatially unwrapped fields (false) or from the estimate before it
     // (true: the blurred fit, or the fields so far when cascading).
     bool unwrap_from_blurred = false;
@@ -193,8 +190,8 @@ struct RecoverSettings {
 struct StageMetrics {
     std::string stage;
     int iteration = 0;
-    double loss = 0.0;      // the stage's own loss (relative for the blur and field stages; 0 for results)
-    double seconds = 0.0;   // since recover_heights started
+    double loss = 0.0;              // the stage's own loss (relative for the blur and field stages; 0 for results)
+    double seconds = 0.0;           // since recover_heights started
     double height_rel_rmse = -1.0;  // when a truth is given and heights exist (else −1)
 };
 
@@ -207,8 +204,8 @@ struct StageMetrics {
 // only feeds height_rel_rmse in the metrics. Throws std::invalid_argument when the observations
 // are empty or have no single-wavelength OHS / ROHS slice, or the truth's size differs;
 // std::domain_error for vscale 0.
-Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols,
-                            double texel_um, double vscale, const RecoverSettings& settings = {},
+Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
+                            double vscale, const RecoverSettings& settings = {},
                             const std::function<bool(const StageMetrics&)>& on_step = {},
                             const Heightfield* truth = nullptr);
 

@@ -36,8 +36,8 @@ const char* to_string(RecoveryMethod method);
 struct RecoveryOptions {
     // Grid of the generated truth, and of the estimate with given observations (≥ 1 each).
     int rows = 32, cols = 32;
-    double texel_um = 2.0;            // texel width w, µm (> 0); a given truth brings its own
-    double vscale = 1.0;              // vertical scale v; a given truth brings its own
+    double texel_um = 2.0;  // texel width w, µm (> 0); a given truth brings its own
+    double vscale = 1.0;    // vertical scale v; a given truth brings its own
     // Generated truth: peak-to-valley height, µm (> 0). With given observations: the bound on
     // the height range for unwrapping. (With a given truth its own range is used.)
     double height_range_um = 2.0;
@@ -45,17 +45,17 @@ struct RecoveryOptions {
     // Acquisition, planned for a truth (PlanRequest's fields of the same names).
     Model model = Model::OHS;
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (|ω_i| < 1)
-    double sigma_p_um = 0.0;          // 0: the planner's (1.5 texels)
-    int resolution = 0;               // 0: the planner's Nyquist choice
-    std::vector<double> lambdas_um;   // empty: the planner's ladder
+    double sigma_p_um = 0.0;                    // 0: the planner's (1.5 texels)
+    int resolution = 0;                         // 0: the planner's Nyquist choice
+    std::vector<double> lambdas_um;             // empty: the planner's ladder
     double overlap = 0.6, jitter = 0.2;
-    Noise noise;                      // simulated on the rendered observations (a truth only)
-    std::optional<Loss> loss;         // none: recovery_loss's choice
+    Noise noise;               // simulated on the rendered observations (a truth only)
+    std::optional<Loss> loss;  // none: recovery_loss's choice
     RecoveryMethod method = RecoveryMethod::Pipeline;
-    int field_iterations = -1;        // pipeline: per wavelength, ≤ 10^7; < 0: RecoverSettings' default
-    int refine_iterations = -1;       // pipeline: L-BFGS on the heights, ≤ 10^7; < 0: the default
-    int epochs = 1000;                // thesis: Adam epochs, 0 … 10^7 (k_max_iterations)
-    std::uint64_t seed = 1;           // generated truth, jitter, noise, the thesis's draws
+    int field_iterations = -1;   // pipeline: per wavelength, ≤ 10^7; < 0: RecoverSettings' default
+    int refine_iterations = -1;  // pipeline: L-BFGS on the heights, ≤ 10^7; < 0: the default
+    int epochs = 1000;           // thesis: Adam epochs, 0 … 10^7 (k_max_iterations)
+    std::uint64_t seed = 1;      // generated truth, jitter, noise, the thesis's draws
     // Refuse (OutOfMemory, before simulating or recovering) a run whose estimated peak memory
     // (estimate_recovery_bytes) exceeds this many GB; 0: the physical memory.
     double max_memory_gb = 0.0;
@@ -74,7 +74,7 @@ Heightfield generated_recovery_truth(const RecoveryOptions& options);
 
 // Everything a recovery needs, resolved: what run_recovery runs and what a caller reports.
 struct PreparedRecovery {
-    std::optional<Heightfield> truth;     // given or generated; none with given observations
+    std::optional<Heightfield> truth;  // given or generated; none with given observations
     std::vector<Observation> observations;
     int rows = 0, cols = 0;               // of the estimate
     double texel_um = 0.0, vscale = 1.0;  // of the estimate
@@ -82,10 +82,10 @@ struct PreparedRecovery {
     RecoveryMethod method = RecoveryMethod::Pipeline;
     Noise noise;
     Loss loss;
-    RecoverSettings pipeline;             // used when method is Pipeline
-    BaselineSettings thesis;              // used when method is Thesis
-    std::vector<std::string> notes;       // the plan's (none with given observations)
-    std::vector<std::string> warnings;    // check_acquisition's
+    RecoverSettings pipeline;           // used when method is Pipeline
+    BaselineSettings thesis;            // used when method is Thesis
+    std::vector<std::string> notes;     // the plan's (none with given observations)
+    std::vector<std::string> warnings;  // check_acquisition's
     // Why height_rel_rmse is undefined although a truth is known ("undefined: the truth is
     // flat", e.g. a 1×1 truth: its height range is 0); empty when it is defined or no truth.
     // The recovery runs all the same, with height_rel_rmse −1 (as without a truth).

@@ -37,9 +37,8 @@ public:
     // std::invalid_argument for channels other than 1 or 3, or 1 with several wavelengths).
     // options.progress is advanced by every forward; options.max_memory_gb is not checked here
     // (render_slice and render_rgb check it before building their plan).
-    SlicePlan(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um,
-              int resolution, int channels = 3, const RenderOptions& options = {},
-              bool differentiable = true);
+    SlicePlan(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um, int resolution,
+              int channels = 3, const RenderOptions& options = {}, bool differentiable = true);
     ~SlicePlan();
     SlicePlan(SlicePlan&&) noexcept;
     SlicePlan& operator=(SlicePlan&&) noexcept;

@@ -40,8 +40,8 @@ std::vector<double> spectral_mix_weights(const std::vector<double>& lambdas_um);
 // mix.size() / 3. Called once per wavelength on a zeroed `rgb`, it is the whole mix. Throws
 // std::invalid_argument on a size mismatch or a wavelength ≥ N. Float: float or double.
 template <typename Float>
-void mix_spectral_to_rgb(const std::vector<double>& mix, std::size_t wavelength,
-                         const std::vector<Float>& slice, std::vector<Float>& rgb);
+void mix_spectral_to_rgb(const std::vector<double>& mix, std::size_t wavelength, const std::vector<Float>& slice,
+                         std::vector<Float>& rgb);
 
 // Adjoint: the weights of wavelength `wavelength`'s slice for RGB weights `rgb_weights`
 // (3 · pixels): weights[p] = Float(scale · Σ_c mix[c · N + wavelength] · rgb_weights[3p + c]),

@@ -12,10 +12,10 @@
 namespace wavebrdf {
 
 namespace detail {
-KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int,
-                               const DirectField&, const std::vector<double>&);
-std::vector<double> direct_tangent(const FootprintKernels&, const Query&, double, int,
-                                   const DirectField&, const KernelGradient&);
+KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int, const DirectField&,
+                               const std::vector<double>&);
+std::vector<double> direct_tangent(const FootprintKernels&, const Query&, double, int, const DirectField&,
+                                   const KernelGradient&);
 }  // namespace detail
 
 namespace detail {
@@ -30,10 +30,10 @@ void scatter_to_heights(int rows, int cols, double texel_um, double vscale, cons
     };
     for (std::size_t idx = 0; idx < k.size(); ++idx) {
         const int i = k.row[idx], j = k.col[idx];
-        at(i, j) += v * w * g.height[idx];            // H = v·w·h[i][j]
-        at(i + 1, j) += 0.5 * v * g.slope_x[idx];     // s_x = v (h[i+1][j] − h[i−1][j]) / 2
+        at(i, j) += v * w * g.height[idx];         // H = v·w·h[i][j]
+        at(i + 1, j) += 0.5 * v * g.slope_x[idx];  // s_x = v (h[i+1][j] − h[i−1][j]) / 2
         at(i - 1, j) -= 0.5 * v * g.slope_x[idx];
-        at(i, j + 1) += 0.5 * v * g.slope_y[idx];     // s_y = v (h[i][j+1] − h[i][j−1]) / 2
+        at(i, j + 1) += 0.5 * v * g.slope_y[idx];  // s_y = v (h[i][j+1] − h[i][j−1]) / 2
         at(i, j - 1) -= 0.5 * v * g.slope_y[idx];
     }
 }
@@ -47,8 +47,8 @@ void prepare_gradient(std::vector<double>& gradient, std::size_t cells) {
 
 }  // namespace detail
 
-void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k,
-                        const KernelGradient& g, std::vector<double>& gradient) {
+void scatter_to_heights(const Heightfield& hf, const FootprintKernels& k, const KernelGradient& g,
+                        std::vector<double>& gradient) {
     detail::prepare_gradient(gradient, hf.values().size());
     detail::scatter_to_heights(hf.rows(), hf.cols(), hf.texel_um(), hf.vscale(), k, g, gradient);
 }
@@ -65,9 +65,9 @@ void validate_all(const Query& query, double lambda_um, int resolution, const Re
 template <typename Float>
 void check_weights(const std::vector<Float>& weights, int resolution) {
     if (weights.size() != static_cast<std::size_t>(resolution) * resolution)
-        throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
-                                    " entries; expected resolution^2 = " +
-                                    std::to_string(static_cast<long long>(resolution) * resolution));
+        throw std::invalid_argument(
+            "weights have " + std::to_string(weights.size()) +
+            " entries; expected resolution^2 = " + std::to_string(static_cast<long long>(resolution) * resolution));
 }
 
 }  // namespace
@@ -79,8 +79,8 @@ struct SliceAdjoint<Float>::State {
 };
 
 template <typename Float>
-SliceAdjoint<Float>::SliceAdjoint(const Heightfield& hf, const Query& query, double lambda_um,
-                                  int n, const RenderOptions& options) {
+SliceAdjoint<Float>::SliceAdjoint(const Heightfield& hf, const Query& query, double lambda_um, int n,
+                                  const RenderOptions& options) {
     validate_all(query, lambda_um, n, options);
     m_state = std::make_unique<State>(State{SlicePlan<Float>(hf, query, {lambda_um}, n, 1, options)});
     m_state->plan.forward();
@@ -107,10 +107,9 @@ template class SliceAdjoint<float>;
 template class SliceAdjoint<double>;
 
 template <typename Float>
-std::vector<Float> slice_gradient(
-    const Heightfield& hf, const Query& query, double lambda_um, int n,
-    const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
-    std::vector<double>& gradient, const RenderOptions& options) {
+std::vector<Float> slice_gradient(const Heightfield& hf, const Query& query, double lambda_um, int n,
+                                  const std::function<std::vector<Float>(const std::vector<Float>&)>& weights_of_slice,
+                                  std::vector<double>& gradient, const RenderOptions& options) {
     const std::size_t cells = static_cast<std::size_t>(hf.rows()) * hf.cols();
     if (!gradient.empty() && gradient.size() != cells)
         throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
@@ -121,19 +120,18 @@ std::vector<Float> slice_gradient(
 }
 
 template <typename Float>
-std::vector<Float> slice_gradient(const Heightfield& hf, const Query& query, double lambda_um,
-                                  int n, const std::vector<Float>& weights,
-                                  std::vector<double>& gradient, const RenderOptions& options) {
+std::vector<Float> slice_gradient(const Heightfield& hf, const Query& query, double lambda_um, int n,
+                                  const std::vector<Float>& weights, std::vector<double>& gradient,
+                                  const RenderOptions& options) {
     check_weights(weights, n);
-    return slice_gradient<Float>(
-        hf, query, lambda_um, n,
-        std::function<std::vector<Float>(const std::vector<Float>&)>(
-            [&weights](const std::vector<Float>&) { return weights; }),
-        gradient, options);
+    return slice_gradient<Float>(hf, query, lambda_um, n,
+                                 std::function<std::vector<Float>(const std::vector<Float>&)>(
+                                     [&weights](const std::vector<Float>&) { return weights; }),
+                                 gradient, options);
 }
 
-std::vector<double> slice_tangent_direct(const Heightfield& hf, const Query& query, double lambda_um,
-                                         int n, const std::vector<double>& direction) {
+std::vector<double> slice_tangent_direct(const Heightfield& hf, const Query& query, double lambda_um, int n,
+                                         const std::vector<double>& direction) {
     validate_all(query, lambda_um, n, RenderOptions{});
     if (direction.size() != static_cast<std::size_t>(hf.rows()) * hf.cols())
         throw std::invalid_argument("direction has " + std::to_string(direction.size()) +
@@ -158,13 +156,11 @@ template std::vector<float> slice_gradient<float>(const Heightfield&, const Quer
 template std::vector<double> slice_gradient<double>(const Heightfield&, const Query&, double, int,
                                                     const std::vector<double>&, std::vector<double>&,
                                                     const RenderOptions&);
-template std::vector<float> slice_gradient<float>(
-    const Heightfield&, const Query&, double, int,
-    const std::function<std::vector<float>(const std::vector<float>&)>&, std::vector<double>&,
-    const RenderOptions&);
+template std::vector<float> slice_gradient<float>(const Heightfield&, const Query&, double, int,
+                                                  const std::function<std::vector<float>(const std::vector<float>&)>&,
+                                                  std::vector<double>&, const RenderOptions&);
 template std::vector<double> slice_gradient<double>(
     const Heightfield&, const Query&, double, int,
-    const std::function<std::vector<double>(const std::vector<double>&)>&, std::vector<double>&,
-    const RenderOptions&);
+    const std::function<std::vector<double>(const std::vector<double>&)>&, std::vector<double>&, const RenderOptions&);
 
 }  // namespace wavebrdf

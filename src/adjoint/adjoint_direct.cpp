@@ -17,8 +17,8 @@ namespace {
 
 // Calls visit(k, dt_dH, dt_dsx, dt_dsy) for every kernel term of pixel (ox, oy).
 template <typename Visit>
-void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um, double ox,
-                 double oy, double cutoff, Visit&& visit) {
+void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um, double ox, double oy, double cutoff,
+                 Visit&& visit) {
     const PixelTerms terms(k, query, lambda_um, ox, oy);
     PixelTerms::Term term;
     for (std::size_t i = 0; i < k.size(); ++i) {
@@ -37,8 +37,8 @@ void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um
 
 }  // namespace
 
-KernelGradient direct_backward(const FootprintKernels& k, const Query& query, double lambda_um,
-                               int n, const DirectField& forward, const std::vector<double>& weights) {
+KernelGradient direct_backward(const FootprintKernels& k, const Query& query, double lambda_um, int n,
+                               const DirectField& forward, const std::vector<double>& weights) {
     const std::size_t total = k.size();
     const bool parallel = worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(total));
     const int threads = parallel ? omp_get_max_threads() : 1;
@@ -55,21 +55,22 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
         // Static schedule: each thread always gets the same rows, so the per-thread sums and
         // their reduction are bitwise reproducible (resume relies on it).
 #pragma omp for schedule(static)
-        for (int p = 0; p < n; ++p) guard.run([&] {
-            for (const auto [q, ox, oy] : disk_row(p, n)) {
-                const std::size_t at = static_cast<std::size_t>(p) * n + q;
-                const double v = forward.c1[at] * std::norm(forward.field[at]);
-                if (!std::isfinite(v) || weights[at] == 0.0) continue;
-                const std::complex<double> b = 2.0 * weights[at] * forward.c1[at] * std::conj(forward.field[at]);
-                visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
-                            [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
-                                std::complex<double> dsy) {
-                                g.height[i] += std::real(b * dh);
-                                g.slope_x[i] += std::real(b * dsx);
-                                g.slope_y[i] += std::real(b * dsy);
-                            });
-            }
-        });
+        for (int p = 0; p < n; ++p)
+            guard.run([&] {
+                for (const auto [q, ox, oy] : disk_row(p, n)) {
+                    const std::size_t at = static_cast<std::size_t>(p) * n + q;
+                    const double v = forward.c1[at] * std::norm(forward.field[at]);
+                    if (!std::isfinite(v) || weights[at] == 0.0) continue;
+                    const std::complex<double> b = 2.0 * weights[at] * forward.c1[at] * std::conj(forward.field[at]);
+                    visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
+                                [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
+                                    std::complex<double> dsy) {
+                                    g.height[i] += std::real(b * dh);
+                                    g.slope_x[i] += std::real(b * dsx);
+                                    g.slope_y[i] += std::real(b * dsy);
+                                });
+                }
+            });
     }
     guard.rethrow();
     KernelGradient sum = partial[0];
@@ -82,24 +83,26 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
     return sum;
 }
 
-std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query, double lambda_um,
-                                   int n, const DirectField& forward, const KernelGradient& dk) {
+std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query, double lambda_um, int n,
+                                   const DirectField& forward, const KernelGradient& dk) {
     std::vector<double> out(static_cast<std::size_t>(n) * n, 0.0);
     RegionGuard guard;
-#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
-    for (int p = 0; p < n; ++p) guard.run([&] {
-        for (const auto [q, ox, oy] : disk_row(p, n)) {
-            const std::size_t at = static_cast<std::size_t>(p) * n + q;
-            if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) continue;
-            std::complex<double> d_field = 0.0;
-            visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
-                        [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
-                            std::complex<double> dsy) {
-                            d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
-                        });
-            out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
-        }
-    });
+#pragma omp parallel for schedule( \
+    dynamic, 1) if (worth_parallel(static_cast <long long>(n) * n * static_cast <long long>(k.size())))
+    for (int p = 0; p < n; ++p)
+        guard.run([&] {
+            for (const auto [q, ox, oy] : disk_row(p, n)) {
+                const std::size_t at = static_cast<std::size_t>(p) * n + q;
+                if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) continue;
+                std::complex<double> d_field = 0.0;
+                visit_terms(
+                    k, query, lambda_um, ox, oy, forward.cutoff,
+                    [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx, std::complex<double> dsy) {
+                        d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
+                    });
+                out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
+            }
+        });
     guard.rethrow();
     return out;
 }

@@ -24,25 +24,26 @@ namespace wavebrdf::detail {
 constexpr Eigen::Index kAdjointChunkColumns = 512;
 
 template <typename Float>
-KernelGradient separable_backward(const FootprintKernels& k, const Query& query, double lambda_um,
-                                  int n, const SliceGrid& grid, const PhaseTables* given_phases,
-                                  const std::vector<double>* c1, const ComplexMatrix<Float>& field,
-                                  const std::vector<Float>& weights, const SeparableFactors<Float>* kept) {
+KernelGradient separable_backward(const FootprintKernels& k, const Query& query, double lambda_um, int n,
+                                  const SliceGrid& grid, const PhaseTables* given_phases, const std::vector<double>* c1,
+                                  const ComplexMatrix<Float>& field, const std::vector<Float>& weights,
+                                  const SeparableFactors<Float>* kept) {
     using Complex = std::complex<Float>;
     ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
     RegionGuard b_guard;
-#pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
-    for (int p = 0; p < n; ++p) b_guard.run([&] {
-        for (const auto [q, ox, oy] : disk_row(p, n)) {
-            const std::size_t at = static_cast<std::size_t>(p) * n + q;
-            const double factor =
-                c1 ? (*c1)[at] : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
-            const double scale = double(weights[at]) * factor;
-            // The forward wrote non-finite pixels as 0: they carry no gradient.
-            if (!std::isfinite(scale * double(std::norm(field(p, q))))) continue;
-            b(p, q) = Complex(Float(scale)) * std::conj(field(p, q));
-        }
-    });
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(n) * n))
+    for (int p = 0; p < n; ++p)
+        b_guard.run([&] {
+            for (const auto [q, ox, oy] : disk_row(p, n)) {
+                const std::size_t at = static_cast<std::size_t>(p) * n + q;
+                const double factor = c1 ? (*c1)[at]
+                                         : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
+                const double scale = double(weights[at]) * factor;
+                // The forward wrote non-finite pixels as 0: they carry no gradient.
+                if (!std::isfinite(scale * double(std::norm(field(p, q))))) continue;
+                b(p, q) = Complex(Float(scale)) * std::conj(field(p, q));
+            }
+        });
     b_guard.rethrow();
 
     const std::size_t total = k.size();
@@ -80,34 +81,35 @@ KernelGradient separable_backward(const FootprintKernels& k, const Query& query,
             v.middleCols(first, cols).noalias() = b.transpose() * xs.middleCols(first, cols);
         });
         RegionGuard guard;
-#pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(count) * n))
-        for (Eigen::Index c = 0; c < count; ++c) guard.run([&] {
-            const std::size_t idx = static_cast<std::size_t>(k0 + c);
-            const double ax = two_over_lambda * k.slope_x[idx];
-            const double ay = two_over_lambda * k.slope_y[idx];
-            std::complex<double> t0 = 0.0, t1 = 0.0, t2 = 0.0;
-            for (Eigen::Index p = 0; p < n; ++p) {
-                const std::complex<double> xz = std::complex<double>(xs(p, c)) * std::complex<double>(z(p, c));
-                t0 += xz;
-                t1 += -2.0 * gauss * (grid.ux[p] + ax) * xz;
-                t2 += -2.0 * gauss * (grid.uy[p] + ay) * std::complex<double>(ys(p, c)) *
-                      std::complex<double>(v(p, c));
-            }
-            g.height[idx] = 2.0 * std::real(height_factor * t0);
-            g.slope_x[idx] = 2.0 * std::real(two_over_lambda * t1);
-            g.slope_y[idx] = 2.0 * std::real(two_over_lambda * t2);
-        });
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(count) * n))
+        for (Eigen::Index c = 0; c < count; ++c)
+            guard.run([&] {
+                const std::size_t idx = static_cast<std::size_t>(k0 + c);
+                const double ax = two_over_lambda * k.slope_x[idx];
+                const double ay = two_over_lambda * k.slope_y[idx];
+                std::complex<double> t0 = 0.0, t1 = 0.0, t2 = 0.0;
+                for (Eigen::Index p = 0; p < n; ++p) {
+                    const std::complex<double> xz = std::complex<double>(xs(p, c)) * std::complex<double>(z(p, c));
+                    t0 += xz;
+                    t1 += -2.0 * gauss * (grid.ux[p] + ax) * xz;
+                    t2 += -2.0 * gauss * (grid.uy[p] + ay) * std::complex<double>(ys(p, c)) *
+                          std::complex<double>(v(p, c));
+                }
+                g.height[idx] = 2.0 * std::real(height_factor * t0);
+                g.slope_x[idx] = 2.0 * std::real(two_over_lambda * t1);
+                g.slope_y[idx] = 2.0 * std::real(two_over_lambda * t2);
+            });
         guard.rethrow();
     }
     return g;
 }
 
-template KernelGradient separable_backward<float>(const FootprintKernels&, const Query&, double, int,
-                                                  const SliceGrid&, const PhaseTables*, const std::vector<double>*,
+template KernelGradient separable_backward<float>(const FootprintKernels&, const Query&, double, int, const SliceGrid&,
+                                                  const PhaseTables*, const std::vector<double>*,
                                                   const ComplexMatrix<float>&, const std::vector<float>&,
                                                   const SeparableFactors<float>*);
-template KernelGradient separable_backward<double>(const FootprintKernels&, const Query&, double, int,
-                                                   const SliceGrid&, const PhaseTables*, const std::vector<double>*,
+template KernelGradient separable_backward<double>(const FootprintKernels&, const Query&, double, int, const SliceGrid&,
+                                                   const PhaseTables*, const std::vector<double>*,
                                                    const ComplexMatrix<double>&, const std::vector<double>&,
                                                    const SeparableFactors<double>*);
 

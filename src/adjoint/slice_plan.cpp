@@ -26,8 +26,7 @@ void validate(const RenderOptions& options, Model model) {
         throw std::domain_error("prune tolerance " + std::to_string(options.prune_tolerance) +
                                 " is out of range; expected 0 to 1e-6 of the slice peak");
     if (options.path == RenderPath::Separable && !is_separable(model))
-        throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") +
-                                    to_string(model));
+        throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") + to_string(model));
 }
 
 template <typename Float>
@@ -52,9 +51,9 @@ struct SlicePlan<Float>::State {
     RenderOptions options;
     bool separable = false;
     bool differentiable = true;
-    FootprintKernels kernels;   // geometry fixed; height_um and slopes follow set_heights
+    FootprintKernels kernels;  // geometry fixed; height_um and slopes follow set_heights
     std::vector<double> lambdas_um;
-    std::vector<double> mix;    // 3 × N (channels 3)
+    std::vector<double> mix;  // 3 × N (channels 3)
     std::vector<Band> bands;
     std::vector<Float> output;
     bool forward_done = false;
@@ -87,8 +86,8 @@ SlicePlan<Float>::SlicePlan(const Heightfield& hf, const Query& query, const std
     if (channels != 1 && channels != 3)
         throw std::invalid_argument("channels " + std::to_string(channels) + " is invalid; expected 1 or 3");
     if (channels == 1 && lambdas_um.size() != 1)
-        throw std::invalid_argument("one output channel needs one wavelength; " +
-                                    std::to_string(lambdas_um.size()) + " given");
+        throw std::invalid_argument("one output channel needs one wavelength; " + std::to_string(lambdas_um.size()) +
+                                    " given");
     State& s = *m_state;
     s.rows = hf.rows();
     s.cols = hf.cols();
@@ -98,7 +97,8 @@ SlicePlan<Float>::SlicePlan(const Heightfield& hf, const Query& query, const std
     s.n = resolution;
     s.channels = channels;
     s.options = options;
-    s.separable = options.path == RenderPath::Separable || (options.path == RenderPath::Auto && is_separable(query.model));
+    s.separable = options.path == RenderPath::Separable ||
+                  (options.path == RenderPath::Auto && is_separable(query.model));
     s.differentiable = differentiable;
     s.kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
     s.lambdas_um = lambdas_um;
@@ -188,8 +188,8 @@ const std::vector<Float>& SlicePlan<Float>::slice(std::size_t wavelength) const 
     const State& s = *m_state;
     s.require_forward("SlicePlan::slice");
     if (wavelength >= s.bands.size())
-        throw std::invalid_argument("wavelength index " + std::to_string(wavelength) + " is out of range; expected below " +
-                                    std::to_string(s.bands.size()));
+        throw std::invalid_argument("wavelength index " + std::to_string(wavelength) +
+                                    " is out of range; expected below " + std::to_string(s.bands.size()));
     return s.bands[wavelength].slice;
 }
 
@@ -199,19 +199,19 @@ void SlicePlan<Float>::adjoint_wavelength(std::size_t wavelength, const std::vec
     const State& s = *m_state;
     s.require_forward("SlicePlan::adjoint");
     if (wavelength >= s.bands.size())
-        throw std::invalid_argument("wavelength index " + std::to_string(wavelength) + " is out of range; expected below " +
-                                    std::to_string(s.bands.size()));
+        throw std::invalid_argument("wavelength index " + std::to_string(wavelength) +
+                                    " is out of range; expected below " + std::to_string(s.bands.size()));
     const std::size_t pixels = static_cast<std::size_t>(s.n) * static_cast<std::size_t>(s.n);
     if (weights.size() != pixels)
         throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
                                     " entries; expected resolution^2 = " + std::to_string(pixels));
     detail::prepare_gradient(gradient, s.cells());
     const typename State::Band& b = s.bands[wavelength];
-    const KernelGradient g =
-        s.separable ? detail::separable_backward<Float>(s.kernels, s.query, b.lambda_um, s.n, *b.grid,
-                                                        b.phases.get(), &b.c1, b.field, weights, &b.factors)
-                    : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
-                                              std::vector<double>(weights.begin(), weights.end()));
+    const KernelGradient g = s.separable ? detail::separable_backward<Float>(s.kernels, s.query, b.lambda_um, s.n,
+                                                                             *b.grid, b.phases.get(), &b.c1, b.field,
+                                                                             weights, &b.factors)
+                                         : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
+                                                                   std::vector<double>(weights.begin(), weights.end()));
     detail::scatter_to_heights(s.rows, s.cols, s.texel_um, s.vscale, s.kernels, g, gradient);
 }
 
@@ -259,13 +259,21 @@ bool SlicePlan<Float>::matches(const Heightfield& hf, const Query& query, const 
 }
 
 template <typename Float>
-int SlicePlan<Float>::resolution() const { return m_state->n; }
+int SlicePlan<Float>::resolution() const {
+    return m_state->n;
+}
 template <typename Float>
-int SlicePlan<Float>::channels() const { return m_state->channels; }
+int SlicePlan<Float>::channels() const {
+    return m_state->channels;
+}
 template <typename Float>
-std::size_t SlicePlan<Float>::wavelengths() const { return m_state->bands.size(); }
+std::size_t SlicePlan<Float>::wavelengths() const {
+    return m_state->bands.size();
+}
 template <typename Float>
-std::size_t SlicePlan<Float>::kernels() const { return m_state->kernels.size(); }
+std::size_t SlicePlan<Float>::kernels() const {
+    return m_state->kernels.size();
+}
 
 template class SlicePlan<float>;
 template class SlicePlan<double>;

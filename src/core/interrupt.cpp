@@ -11,8 +11,10 @@ thread_local InterruptScope* t_scope = nullptr;
 }  // namespace
 
 InterruptScope::InterruptScope(std::function<bool()> poll, std::chrono::milliseconds interval)
-    : m_poll(std::move(poll)), m_interval(std::chrono::milliseconds(interval.count() < 0 ? 0 : interval.count())),
-      m_last(std::chrono::steady_clock::now()), m_outer(t_scope) {
+    : m_poll(std::move(poll)),
+      m_interval(std::chrono::milliseconds(interval.count() < 0 ? 0 : interval.count())),
+      m_last(std::chrono::steady_clock::now()),
+      m_outer(t_scope) {
     t_scope = this;
 }
 

@@ -13,11 +13,10 @@ namespace wavebrdf::detail {
 // The integer `value` (called `what` in messages) if it is a JSON integer, or a number with no
 // fractional part, within [min, max]; otherwise throws std::runtime_error
 // "<what> is <value>; expected an integer from <min> to <max>".
-inline long long json_int_value(const nlohmann::json& value, const std::string& what, long long min,
-                                long long max) {
+inline long long json_int_value(const nlohmann::json& value, const std::string& what, long long min, long long max) {
     const auto bad = [&] {
-        return std::runtime_error(what + " is " + value.dump() + "; expected an integer from " +
-                                  std::to_string(min) + " to " + std::to_string(max));
+        return std::runtime_error(what + " is " + value.dump() + "; expected an integer from " + std::to_string(min) +
+                                  " to " + std::to_string(max));
     };
     if (value.is_number_unsigned()) {
         const auto v = value.get<std::uint64_t>();
@@ -34,8 +33,7 @@ inline long long json_int_value(const nlohmann::json& value, const std::string& 
     if (value.is_number_float()) {
         // 32.0 is an integer written by a tool that only has doubles; 8.7 is not.
         const double v = value.get<double>();
-        if (!std::isfinite(v) || std::floor(v) != v || v < static_cast<double>(min) ||
-            v > static_cast<double>(max))
+        if (!std::isfinite(v) || std::floor(v) != v || v < static_cast<double>(min) || v > static_cast<double>(max))
             throw bad();
         return static_cast<long long>(v);
     }
@@ -46,14 +44,12 @@ inline long long json_int_value(const nlohmann::json& value, const std::string& 
 // prefixes the message, which also names a missing field.
 inline long long json_int(const nlohmann::json& j, const char* key, long long min, long long max,
                           const std::string& where) {
-    if (!j.is_object() || !j.contains(key))
-        throw std::runtime_error(where + "missing field '" + key + "'");
+    if (!j.is_object() || !j.contains(key)) throw std::runtime_error(where + "missing field '" + key + "'");
     return json_int_value(j.at(key), where + "field '" + key + "'", min, max);
 }
 
 // The same for an int-sized field (min and max within int).
-inline int json_int32(const nlohmann::json& j, const char* key, int min, int max,
-                      const std::string& where) {
+inline int json_int32(const nlohmann::json& j, const char* key, int min, int max, const std::string& where) {
     return static_cast<int>(json_int(j, key, min, max, where));
 }
 

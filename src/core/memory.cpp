@@ -44,8 +44,7 @@ std::string format_bytes(double bytes) {
     return buf;
 }
 
-void require_memory(double needed_bytes, const MemoryLimit& limit, const std::string& what,
-                    const std::string& hint) {
+void require_memory(double needed_bytes, const MemoryLimit& limit, const std::string& what, const std::string& hint) {
     if (!(needed_bytes > limit.bytes)) return;
     throw OutOfMemory(what + " needs about " + format_bytes(needed_bytes) + "; the limit is " +
                       format_bytes(limit.bytes) + " (" + limit.source + "); raise it with " + hint);

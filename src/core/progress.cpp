@@ -28,8 +28,11 @@ std::string format_duration(double seconds) {
 }  // namespace
 
 Progress::Progress(std::string label, long long total, bool enabled)
-    : m_label(std::move(label)), m_total(total), m_active(enabled && stderr_is_terminal()),
-      m_start(std::chrono::steady_clock::now()), m_last_draw(m_start) {
+    : m_label(std::move(label)),
+      m_total(total),
+      m_active(enabled && stderr_is_terminal()),
+      m_start(std::chrono::steady_clock::now()),
+      m_last_draw(m_start) {
     if (total < 0)
         throw std::invalid_argument("progress total " + std::to_string(total) +
                                     " is negative; expected >= 0 units of work");
@@ -57,8 +60,7 @@ void Progress::set_message(const std::string& message) {
     if (!m_active) return;
     std::lock_guard<std::mutex> lock(m_mutex);
     m_message = message;
-    if (!m_finished && std::chrono::steady_clock::now() - m_last_draw >= k_redraw_interval)
-        draw(false);
+    if (!m_finished && std::chrono::steady_clock::now() - m_last_draw >= k_redraw_interval) draw(false);
 }
 
 void Progress::finish() {
@@ -72,9 +74,7 @@ void Progress::draw(bool final_draw) {
     const auto now = std::chrono::steady_clock::now();
     m_last_draw = now;
     const long long done = std::min(m_done.load(std::memory_order_relaxed), m_total);
-    const double fraction =
-        m_total > 0 ? static_cast<double>(std::max(done, 0LL)) / static_cast<double>(m_total)
-                    : 1.0;
+    const double fraction = m_total > 0 ? static_cast<double>(std::max(done, 0LL)) / static_cast<double>(m_total) : 1.0;
     const int filled = std::clamp(static_cast<int>(fraction * k_bar_width), 0, k_bar_width);
     const double elapsed = std::chrono::duration<double>(now - m_start).count();
 
@@ -82,15 +82,13 @@ void Progress::draw(bool final_draw) {
     line.append(static_cast<std::size_t>(filled), '#');
     line.append(static_cast<std::size_t>(k_bar_width - filled), '.');
     char buf[96];
-    std::snprintf(buf, sizeof buf, "] %3d%%  %lld/%lld  ", static_cast<int>(fraction * 100.0),
-                  done, m_total);
+    std::snprintf(buf, sizeof buf, "] %3d%%  %lld/%lld  ", static_cast<int>(fraction * 100.0), done, m_total);
     line += buf;
     line += format_duration(elapsed);
     // Remaining time from the mean rate so far; unknown before the first unit is done.
     if (!final_draw) {
         line += " eta ";
-        line += done > 0 ? format_duration(elapsed * static_cast<double>(m_total - done) /
-                                           static_cast<double>(done))
+        line += done > 0 ? format_duration(elapsed * static_cast<double>(m_total - done) / static_cast<double>(done))
                          : std::string("-:--");
     }
     if (!m_message.empty()) line += "  " + m_message;

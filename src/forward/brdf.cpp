@@ -27,8 +27,9 @@ void require_render_memory(const Heightfield& heightfield, const Query& query, i
     const MemoryLimit limit = memory_limit(options.max_memory_gb);
     const double needed = estimate_render_bytes(heightfield, query, resolution, options, float_bytes, rgb);
     if (needed > limit.bytes)
-        require_memory(needed, limit, "render (" + std::to_string(resolution) + "x" + std::to_string(resolution) +
-                                          " slice, " + (float_bytes == 4 ? "float" : "double") + ")");
+        require_memory(needed, limit,
+                       "render (" + std::to_string(resolution) + "x" + std::to_string(resolution) + " slice, " +
+                           (float_bytes == 4 ? "float" : "double") + ")");
 }
 
 }  // namespace
@@ -43,7 +44,8 @@ double estimate_render_bytes(const Heightfield& heightfield, const Query& query,
     bytes += pixels * double(float_bytes) * (rgb ? 4.0 : 1.0);  // the slice (and the RGB result)
     if (separable_path(options, query.model)) {
         // Field n² complex, its factor matrices (≤ 32 MiB) and the phase tables.
-        bytes += pixels * 2.0 * double(float_bytes) + std::min(32.0 * (1 << 20), 4.0 * n * kernels * double(float_bytes));
+        bytes += pixels * 2.0 * double(float_bytes) +
+                 std::min(32.0 * (1 << 20), 4.0 * n * kernels * double(float_bytes));
         bytes += n * 2.0 * std::min(kernels, 2.0 * reach + 1.0) * 16.0;
     } else {
         bytes += pixels * (16.0 + 8.0 + 8.0);  // field, c1 and value in double
@@ -52,8 +54,8 @@ double estimate_render_bytes(const Heightfield& heightfield, const Query& query,
 }
 
 template <typename Float>
-std::vector<Float> render_slice(const Heightfield& heightfield, const Query& query,
-                                double lambda_um, int resolution, const RenderOptions& options) {
+std::vector<Float> render_slice(const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
+                                const RenderOptions& options) {
     validate(query);
     validate_lambda(lambda_um);
     validate_resolution(resolution);
@@ -64,14 +66,12 @@ std::vector<Float> render_slice(const Heightfield& heightfield, const Query& que
 }
 
 template <typename Float>
-std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query,
-                              const std::vector<double>& lambdas_um, int resolution,
-                              const RenderOptions& options) {
+std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um,
+                              int resolution, const RenderOptions& options) {
     validate(query);
     validate_resolution(resolution);
     validate(options, query.model);
-    if (lambdas_um.empty())
-        throw std::invalid_argument("no wavelengths given; expected at least one");
+    if (lambdas_um.empty()) throw std::invalid_argument("no wavelengths given; expected at least one");
     for (double lambda : lambdas_um) validate_lambda(lambda);
     require_render_memory(heightfield, query, resolution, options, sizeof(Float), true);
     SlicePlan<Float> plan(heightfield, query, lambdas_um, resolution, 3, options, false);
@@ -79,47 +79,42 @@ std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query
 }
 
 template <typename Float>
-std::vector<Float> render_rgb(const GaborRepresentation& rep, const Query& query,
-                              const std::vector<double>& lambdas_um, int resolution,
-                              const RenderOptions& options) {
+std::vector<Float> render_rgb(const GaborRepresentation& rep, const Query& query, const std::vector<double>& lambdas_um,
+                              int resolution, const RenderOptions& options) {
     validate(query);
     validate_resolution(resolution);
     validate(options, query.model);
-    if (lambdas_um.empty())
-        throw std::invalid_argument("no wavelengths given; expected at least one");
+    if (lambdas_um.empty()) throw std::invalid_argument("no wavelengths given; expected at least one");
     for (double lambda : lambdas_um) validate_lambda(lambda);
     if (query.x_um != rep.x_um || query.y_um != rep.y_um || query.sigma_p_um != rep.sigma_p_um)
-        throw std::invalid_argument("query footprint (" + detail::format_shortest(query.x_um) + ", " +
-                                    detail::format_shortest(query.y_um) + ", sigma_p " +
-                                    detail::format_shortest(query.sigma_p_um) + ") differs from the GaborRep's (" +
-                                    detail::format_shortest(rep.x_um) + ", " + detail::format_shortest(rep.y_um) +
-                                    ", sigma_p " + detail::format_shortest(rep.sigma_p_um) +
-                                    "); expected the query the GaborRep was made for");
+        throw std::invalid_argument(
+            "query footprint (" + detail::format_shortest(query.x_um) + ", " + detail::format_shortest(query.y_um) +
+            ", sigma_p " + detail::format_shortest(query.sigma_p_um) + ") differs from the GaborRep's (" +
+            detail::format_shortest(rep.x_um) + ", " + detail::format_shortest(rep.y_um) + ", sigma_p " +
+            detail::format_shortest(rep.sigma_p_um) + "); expected the query the GaborRep was made for");
     const std::vector<double> mix = spectral_mix_weights(lambdas_um);
     const std::size_t pixels = static_cast<std::size_t>(resolution) * static_cast<std::size_t>(resolution);
     std::vector<Float> rgb(3 * pixels, Float(0));
     for (std::size_t l = 0; l < lambdas_um.size(); ++l) {
-        const std::vector<Float> slice =
-            separable_path(options, query.model)
-                ? render_slice_separable<Float>(rep.kernels, query, lambdas_um[l], resolution, options.progress)
-                : render_slice_direct<Float>(rep.kernels, query, lambdas_um[l], resolution, options.prune_tolerance,
-                                             options.progress);
+        const std::vector<Float> slice = separable_path(options, query.model)
+                                             ? render_slice_separable<Float>(rep.kernels, query, lambdas_um[l],
+                                                                             resolution, options.progress)
+                                             : render_slice_direct<Float>(rep.kernels, query, lambdas_um[l], resolution,
+                                                                          options.prune_tolerance, options.progress);
         mix_spectral_to_rgb<Float>(mix, l, slice, rgb);
     }
     return rgb;
 }
 
-template std::vector<float> render_rgb<float>(const GaborRepresentation&, const Query&, const std::vector<double>&,
-                                              int, const RenderOptions&);
+template std::vector<float> render_rgb<float>(const GaborRepresentation&, const Query&, const std::vector<double>&, int,
+                                              const RenderOptions&);
 template std::vector<double> render_rgb<double>(const GaborRepresentation&, const Query&, const std::vector<double>&,
                                                 int, const RenderOptions&);
-template std::vector<float> render_slice<float>(const Heightfield&, const Query&, double, int,
+template std::vector<float> render_slice<float>(const Heightfield&, const Query&, double, int, const RenderOptions&);
+template std::vector<double> render_slice<double>(const Heightfield&, const Query&, double, int, const RenderOptions&);
+template std::vector<float> render_rgb<float>(const Heightfield&, const Query&, const std::vector<double>&, int,
+                                              const RenderOptions&);
+template std::vector<double> render_rgb<double>(const Heightfield&, const Query&, const std::vector<double>&, int,
                                                 const RenderOptions&);
-template std::vector<double> render_slice<double>(const Heightfield&, const Query&, double, int,
-                                                  const RenderOptions&);
-template std::vector<float> render_rgb<float>(const Heightfield&, const Query&,
-                                              const std::vector<double>&, int, const RenderOptions&);
-template std::vector<double> render_rgb<double>(const Heightfield&, const Query&,
-                                                const std::vector<double>&, int, const RenderOptions&);
 
 }  // namespace wavebrdf

@@ -25,8 +25,8 @@ struct PixelSum {
 };
 
 // The sum at one pixel, skipping kernels whose Gaussian exponent exceeds `cutoff`.
-PixelSum sum_pixel(const FootprintKernels& k, const Query& query, double lambda_um, double ox,
-                   double oy, double cutoff) {
+PixelSum sum_pixel(const FootprintKernels& k, const Query& query, double lambda_um, double ox, double oy,
+                   double cutoff) {
     const detail::PixelTerms terms(k, query, lambda_um, ox, oy);
     detail::PixelTerms::Term t;
     std::complex<double> sum = 0.0;
@@ -52,8 +52,8 @@ double amplitude_bound(const FootprintKernels& k, Model model) {
 
 namespace detail {
 
-DirectField direct_field(const FootprintKernels& k, const Query& query, double lambda_um, int n,
-                         double prune_tolerance, Progress* progress) {
+DirectField direct_field(const FootprintKernels& k, const Query& query, double lambda_um, int n, double prune_tolerance,
+                         Progress* progress) {
     const std::size_t pixels = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
     DirectField out;
     allocating("the " + std::to_string(n) + "x" + std::to_string(n) + " slice's field",
@@ -65,23 +65,24 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
     const double bound = amplitude_bound(k, query.model);
     // Start by dropping terms below 1e-3 · tolerance of the bound; tighten if the a-posteriori
     // check below fails. No pruning at all when the tolerance is 0.
-    double cutoff = prune_tolerance > 0.0 ? std::log(1e3 / prune_tolerance)
-                                          : std::numeric_limits<double>::infinity();
+    double cutoff = prune_tolerance > 0.0 ? std::log(1e3 / prune_tolerance) : std::numeric_limits<double>::infinity();
     const long long units = work_units(n);
     for (int attempt = 0;; ++attempt) {
         detail::RegionGuard guard;
-#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(static_cast<long long>(n) * n * static_cast<long long>(k.size())))
-        for (int p = 0; p < n; ++p) guard.run([&] {
-            for (const auto [q, ox, oy] : disk_row(p, n)) {
-                const std::size_t at = static_cast<std::size_t>(p) * n + q;
-                const PixelSum s = sum_pixel(k, query, lambda_um, ox, oy, cutoff);
-                out.field[at] = s.field;
-                out.c1[at] = s.c1;
-                const double v = s.c1 * std::norm(s.field);
-                out.value[at] = std::isfinite(v) ? v : 0.0;
-            }
-            if (progress && attempt == 0) progress->advance(units / n + (p < units % n ? 1 : 0));
-        });
+#pragma omp parallel for schedule( \
+    dynamic, 1) if (worth_parallel(static_cast <long long>(n) * n * static_cast <long long>(k.size())))
+        for (int p = 0; p < n; ++p)
+            guard.run([&] {
+                for (const auto [q, ox, oy] : disk_row(p, n)) {
+                    const std::size_t at = static_cast<std::size_t>(p) * n + q;
+                    const PixelSum s = sum_pixel(k, query, lambda_um, ox, oy, cutoff);
+                    out.field[at] = s.field;
+                    out.c1[at] = s.c1;
+                    const double v = s.c1 * std::norm(s.field);
+                    out.value[at] = std::isfinite(v) ? v : 0.0;
+                }
+                if (progress && attempt == 0) progress->advance(units / n + (p < units % n ? 1 : 0));
+            });
         guard.rethrow();
         if (!std::isfinite(cutoff)) break;
         // Error bound: each pixel's dropped amplitude ε ≤ e^{−cutoff} · bound, so
@@ -104,16 +105,15 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
 }  // namespace detail
 
 template <typename Float>
-std::vector<Float> render_slice_direct(const FootprintKernels& k, const Query& query,
-                                       double lambda_um, int n, double prune_tolerance,
-                                       Progress* progress) {
+std::vector<Float> render_slice_direct(const FootprintKernels& k, const Query& query, double lambda_um, int n,
+                                       double prune_tolerance, Progress* progress) {
     const detail::DirectField f = detail::direct_field(k, query, lambda_um, n, prune_tolerance, progress);
     return std::vector<Float>(f.value.begin(), f.value.end());
 }
 
-template std::vector<float> render_slice_direct<float>(const FootprintKernels&, const Query&,
-                                                       double, int, double, Progress*);
-template std::vector<double> render_slice_direct<double>(const FootprintKernels&, const Query&,
-                                                         double, int, double, Progress*);
+template std::vector<float> render_slice_direct<float>(const FootprintKernels&, const Query&, double, int, double,
+                                                       Progress*);
+template std::vector<double> render_slice_direct<double>(const FootprintKernels&, const Query&, double, int, double,
+                                                         Progress*);
 
 }  // namespace wavebrdf

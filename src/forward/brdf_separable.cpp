@@ -19,14 +19,14 @@ namespace wavebrdf {
 namespace detail {
 
 template <typename Float>
-ComplexMatrix<Float> separable_field(const FootprintKernels& k, const SliceGrid& grid,
-                                     const PhaseTables& phases, double lambda_um, int n,
-                                     Progress* progress, SeparableFactors<Float>* keep) {
+ComplexMatrix<Float> separable_field(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
+                                     double lambda_um, int n, Progress* progress, SeparableFactors<Float>* keep) {
     const Eigen::Index total = static_cast<Eigen::Index>(k.size());
     const Eigen::Index chunk = chunk_size(n, sizeof(std::complex<Float>), 2);
     const Eigen::Index cols = std::min(chunk, std::max<Eigen::Index>(total, 1));
     const std::string size = std::to_string(n) + "x" + std::to_string(n);
-    ComplexMatrix<Float> field = allocating("the " + size + " slice's field", double(n) * n * sizeof(std::complex<Float>),
+    ComplexMatrix<Float> field = allocating("the " + size + " slice's field",
+                                            double(n) * n * sizeof(std::complex<Float>),
                                             [&] { return ComplexMatrix<Float>(ComplexMatrix<Float>::Zero(n, n)); });
     ComplexMatrix<Float> xs, ys;
     allocating("the " + size + " slice's factor matrices", 2.0 * double(n) * double(cols) * sizeof(std::complex<Float>),
@@ -40,8 +40,8 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& k, const SliceGrid&
         const Eigen::Index count = std::min(chunk, total - k0);
         build_factors<Float>(k, grid, phases, lambda_um, k0, count, true, xs, ys);
         for_column_blocks(n, double(n) * n * double(count), [&](long long first, long long cols) {
-            field.middleCols(first, cols).noalias() +=
-                xs.leftCols(count) * ys.leftCols(count).middleRows(first, cols).transpose();
+            field.middleCols(first, cols).noalias() += xs.leftCols(count) *
+                                                       ys.leftCols(count).middleRows(first, cols).transpose();
         });
         if (progress) {
             const long long target = units * (k0 + count) / total;
@@ -57,18 +57,16 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& k, const SliceGrid&
     return field;
 }
 
-template ComplexMatrix<float> separable_field<float>(const FootprintKernels&, const SliceGrid&,
-                                                    const PhaseTables&, double, int, Progress*,
-                                                    SeparableFactors<float>*);
-template ComplexMatrix<double> separable_field<double>(const FootprintKernels&, const SliceGrid&,
-                                                      const PhaseTables&, double, int, Progress*,
-                                                      SeparableFactors<double>*);
+template ComplexMatrix<float> separable_field<float>(const FootprintKernels&, const SliceGrid&, const PhaseTables&,
+                                                     double, int, Progress*, SeparableFactors<float>*);
+template ComplexMatrix<double> separable_field<double>(const FootprintKernels&, const SliceGrid&, const PhaseTables&,
+                                                       double, int, Progress*, SeparableFactors<double>*);
 
 }  // namespace detail
 
 template <typename Float>
-std::vector<Float> render_slice_separable(const FootprintKernels& k, const Query& query,
-                                          double lambda_um, int n, Progress* progress) {
+std::vector<Float> render_slice_separable(const FootprintKernels& k, const Query& query, double lambda_um, int n,
+                                          Progress* progress) {
     if (!is_separable(query.model))
         throw std::invalid_argument(std::string("model ") + to_string(query.model) +
                                     " is not separable; expected OHS or ROHS");
@@ -76,9 +74,9 @@ std::vector<Float> render_slice_separable(const FootprintKernels& k, const Query
     return detail::separable_slice<Float>(field, query, lambda_um, n);
 }
 
-template std::vector<float> render_slice_separable<float>(const FootprintKernels&, const Query&,
-                                                          double, int, Progress*);
-template std::vector<double> render_slice_separable<double>(const FootprintKernels&, const Query&,
-                                                            double, int, Progress*);
+template std::vector<float> render_slice_separable<float>(const FootprintKernels&, const Query&, double, int,
+                                                          Progress*);
+template std::vector<double> render_slice_separable<double>(const FootprintKernels&, const Query&, double, int,
+                                                            Progress*);
 
 }  // namespace wavebrdf

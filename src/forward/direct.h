@@ -27,8 +27,7 @@ struct PixelTerms {
         double c2;                  // Kirchhoff's C2, else 1
     };
 
-    PixelTerms(const FootprintKernels& kernels, const Query& query, double lambda_um, double ox,
-               double oy)
+    PixelTerms(const FootprintKernels& kernels, const Query& query, double lambda_um, double ox, double oy)
         : k(kernels), factors(direction_factors(query.model, query.omega_i, ox, oy, lambda_um)) {
         ux = (query.omega_i[0] + ox) / lambda_um;
         uy = (query.omega_i[1] + oy) / lambda_um;
@@ -47,8 +46,7 @@ struct PixelTerms {
         const double vy = uy + freq * k.slope_y[i];
         const double exponent = gauss * (vx * vx + vy * vy);
         if (exponent > cutoff) return false;
-        const double phase =
-            -(height_phase * k.height_um[i] + 2.0 * k_pi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
+        const double phase = -(height_phase * k.height_um[i] + 2.0 * k_pi * (ux * k.dx_um[i] + uy * k.dy_um[i]));
         out.vx = vx;
         out.vy = vy;
         out.base = std::polar(k.weight[i] * std::exp(-exponent), phase);
@@ -71,7 +69,7 @@ struct DirectField {
 };
 
 // The direct sum with the pruning bound of RenderOptions::prune_tolerance (0: none).
-DirectField direct_field(const FootprintKernels& kernels, const Query& query, double lambda_um,
-                         int n, double prune_tolerance, Progress* progress);
+DirectField direct_field(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
+                         double prune_tolerance, Progress* progress);
 
 }  // namespace wavebrdf::detail

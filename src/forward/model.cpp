@@ -8,8 +8,11 @@
 namespace wavebrdf {
 
 namespace {
-constexpr std::pair<Model, const char*> k_model_names[] = {
-    {Model::OHS, "OHS"}, {Model::GHS, "GHS"}, {Model::ROHS, "ROHS"}, {Model::RGHS, "RGHS"}, {Model::Kirchhoff, "Kirchhoff"}};
+constexpr std::pair<Model, const char*> k_model_names[] = {{Model::OHS, "OHS"},
+                                                           {Model::GHS, "GHS"},
+                                                           {Model::ROHS, "ROHS"},
+                                                           {Model::RGHS, "RGHS"},
+                                                           {Model::Kirchhoff, "Kirchhoff"}};
 }  // namespace
 
 Model parse_model(const std::string& name) {
@@ -51,12 +54,11 @@ void validate_lambda(double lambda_um) {
 
 void validate_resolution(int resolution) {
     if (resolution < 1 || resolution > 8192)
-        throw std::domain_error("resolution " + std::to_string(resolution) +
-                                " is out of range; expected 1 to 8192");
+        throw std::domain_error("resolution " + std::to_string(resolution) + " is out of range; expected 1 to 8192");
 }
 
-DirectionFactors direction_factors(Model model, const std::array<double, 2>& omega_i,
-                                   double omega_o_x, double omega_o_y, double lambda_um) {
+DirectionFactors direction_factors(Model model, const std::array<double, 2>& omega_i, double omega_o_x,
+                                   double omega_o_y, double lambda_um) {
     DirectionFactors f{};
     f.cos_theta_i = std::sqrt(std::abs(1.0 - omega_i[0] * omega_i[0] - omega_i[1] * omega_i[1]));
     f.cos_theta_o = std::sqrt(std::abs(1.0 - omega_o_x * omega_o_x - omega_o_y * omega_o_y));

@@ -36,10 +36,8 @@ struct SliceGrid {
 // Kernels per chunk: long enough for an efficient matrix product (at least 64, at most
 // `max_columns`), small enough that the factor matrices (`matrices` of them, n × chunk complex)
 // stay within ~32 MiB.
-inline Eigen::Index chunk_size(int n, std::size_t bytes_per_entry, int matrices,
-                               Eigen::Index max_columns = 2048) {
-    const Eigen::Index budget = (Eigen::Index(32) << 20) /
-                                (Eigen::Index(matrices) * n * Eigen::Index(bytes_per_entry));
+inline Eigen::Index chunk_size(int n, std::size_t bytes_per_entry, int matrices, Eigen::Index max_columns = 2048) {
+    const Eigen::Index budget = (Eigen::Index(32) << 20) / (Eigen::Index(matrices) * n * Eigen::Index(bytes_per_entry));
     return std::max<Eigen::Index>(64, std::min<Eigen::Index>(max_columns, budget));
 }
 
@@ -53,8 +51,8 @@ inline std::complex<double> kernel_weight(const FootprintKernels& k, std::size_t
 // rows (columns) the footprint spans: tabulating them once per wavelength replaces a sincos per
 // matrix entry by a table lookup.
 struct PhaseTables {
-    std::vector<int> slot_x, slot_y;                 // per kernel: column of phase_x / phase_y
-    Eigen::MatrixXcd phase_x, phase_y;               // n × (distinct rows / columns)
+    std::vector<int> slot_x, slot_y;    // per kernel: column of phase_x / phase_y
+    Eigen::MatrixXcd phase_x, phase_y;  // n × (distinct rows / columns)
 
     PhaseTables(const FootprintKernels& k, const SliceGrid& grid) {
         const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
@@ -85,9 +83,8 @@ private:
             const double delta = offsets[static_cast<std::size_t>(c)];
             const std::complex<double> rotation = std::polar(1.0, -2.0 * k_pi * du * delta);
             for (Eigen::Index p = 0; p < n; ++p)
-                table(p, c) = p % 32 == 0
-                                  ? std::polar(1.0, -2.0 * k_pi * u[static_cast<std::size_t>(p)] * delta)
-                                  : table(p - 1, c) * rotation;
+                table(p, c) = p % 32 == 0 ? std::polar(1.0, -2.0 * k_pi * u[static_cast<std::size_t>(p)] * delta)
+                                          : table(p - 1, c) * rotation;
         }
         return out;
     }
@@ -105,7 +102,7 @@ inline void gaussian_samples(double gauss, double v0, double dv, Eigen::Index n,
     g[peak] = std::exp(-gauss * vp * vp);
     double ratio = std::exp(-gauss * dv * (2.0 * vp + dv));  // g[p+1] / g[p] at p = peak
     for (Eigen::Index p = peak + 1; p < n; ++p, ratio *= step) g[p] = g[p - 1] * ratio;
-    ratio = std::exp(gauss * dv * (2.0 * vp - dv));          // g[p−1] / g[p] at p = peak
+    ratio = std::exp(gauss * dv * (2.0 * vp - dv));  // g[p−1] / g[p] at p = peak
     for (Eigen::Index p = peak - 1; p >= 0; --p, ratio *= step) g[p] = g[p + 1] * ratio;
 }
 
@@ -114,16 +111,16 @@ inline void gaussian_samples(double gauss, double v0, double dv, Eigen::Index n,
 // with Y multiplied by the kernel weight when `weighted`. The grid is uniform
 // (u[p] = u[0] + p·du), so the Gaussians come from gaussian_samples.
 template <typename Float>
-void build_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
-                   double lambda_um, Eigen::Index k0, Eigen::Index count, bool weighted,
-                   ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys) {
+void build_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases, double lambda_um,
+                   Eigen::Index k0, Eigen::Index count, bool weighted, ComplexMatrix<Float>& xs,
+                   ComplexMatrix<Float>& ys) {
     using Complex = std::complex<Float>;
     const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
     const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;  // 2π²σ²
     const double two_over_lambda = 2.0 / lambda_um;
-    const double du = 2.0 / (double(n) * lambda_um);                  // slice_omega's spacing / λ
+    const double du = 2.0 / (double(n) * lambda_um);  // slice_omega's spacing / λ
     RegionGuard guard;
-#pragma omp parallel if (worth_parallel(static_cast<long long>(count) * n))
+#pragma omp parallel if (worth_parallel(static_cast <long long>(count) * n))
     {
         std::vector<double> gx, gy;
         guard.run([&] {
@@ -131,18 +128,19 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
             gy.resize(static_cast<std::size_t>(n));
         });
 #pragma omp for schedule(static)
-        for (Eigen::Index c = 0; c < count; ++c) guard.run([&] {
-            const std::size_t idx = static_cast<std::size_t>(k0 + c);
-            gaussian_samples(gauss, grid.ux[0] + two_over_lambda * k.slope_x[idx], du, n, gx.data());
-            gaussian_samples(gauss, grid.uy[0] + two_over_lambda * k.slope_y[idx], du, n, gy.data());
-            const std::complex<double> w = weighted ? kernel_weight(k, idx, lambda_um) : 1.0;
-            const std::complex<double>* px = &phases.phase_x(0, phases.slot_x[idx]);
-            const std::complex<double>* py = &phases.phase_y(0, phases.slot_y[idx]);
-            for (Eigen::Index p = 0; p < n; ++p) {
-                xs(p, c) = Complex(gx[static_cast<std::size_t>(p)] * px[p]);
-                ys(p, c) = Complex(gy[static_cast<std::size_t>(p)] * (w * py[p]));
-            }
-        });
+        for (Eigen::Index c = 0; c < count; ++c)
+            guard.run([&] {
+                const std::size_t idx = static_cast<std::size_t>(k0 + c);
+                gaussian_samples(gauss, grid.ux[0] + two_over_lambda * k.slope_x[idx], du, n, gx.data());
+                gaussian_samples(gauss, grid.uy[0] + two_over_lambda * k.slope_y[idx], du, n, gy.data());
+                const std::complex<double> w = weighted ? kernel_weight(k, idx, lambda_um) : 1.0;
+                const std::complex<double>* px = &phases.phase_x(0, phases.slot_x[idx]);
+                const std::complex<double>* py = &phases.phase_y(0, phases.slot_y[idx]);
+                for (Eigen::Index p = 0; p < n; ++p) {
+                    xs(p, c) = Complex(gx[static_cast<std::size_t>(p)] * px[p]);
+                    ys(p, c) = Complex(gy[static_cast<std::size_t>(p)] * (w * py[p]));
+                }
+            });
     }
     guard.rethrow();
 }
@@ -166,20 +164,21 @@ inline std::vector<double> disk_c1(const Query& query, double lambda_um, int n) 
 // f = c1 |I|² over the disk (0 outside it and where the value is not finite), row-major.
 // `c1`: disk_c1's table, or null to compute each pixel's factor here (the same values).
 template <typename Float>
-std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Query& query,
-                                   double lambda_um, int n, const std::vector<double>* c1 = nullptr) {
+std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Query& query, double lambda_um, int n,
+                                   const std::vector<double>* c1 = nullptr) {
     std::vector<Float> slice(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Float(0));
     RegionGuard guard;
-#pragma omp parallel for schedule(static) if (worth_parallel(static_cast<long long>(n) * n))
-    for (int p = 0; p < n; ++p) guard.run([&] {
-        for (const auto [q, ox, oy] : disk_row(p, n)) {
-            const std::size_t at = static_cast<std::size_t>(p) * n + q;
-            const double factor =
-                c1 ? (*c1)[at] : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
-            const double value = factor * static_cast<double>(std::norm(field(p, q)));
-            slice[at] = std::isfinite(value) ? Float(value) : Float(0);
-        }
-    });
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(n) * n))
+    for (int p = 0; p < n; ++p)
+        guard.run([&] {
+            for (const auto [q, ox, oy] : disk_row(p, n)) {
+                const std::size_t at = static_cast<std::size_t>(p) * n + q;
+                const double factor = c1 ? (*c1)[at]
+                                         : direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
+                const double value = factor * static_cast<double>(std::norm(field(p, q)));
+                slice[at] = std::isfinite(value) ? Float(value) : Float(0);
+            }
+        });
     guard.rethrow();
     return slice;
 }
@@ -196,15 +195,14 @@ struct SeparableFactors {
 // null and the kernels fit one chunk, the factors are moved into it (else it is left empty).
 // `grid` and `phases` are the slice's (height-independent; a plan keeps them).
 template <typename Float>
-ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const SliceGrid& grid,
-                                     const PhaseTables& phases, double lambda_um, int n,
-                                     Progress* progress, SeparableFactors<Float>* keep = nullptr);
+ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const SliceGrid& grid, const PhaseTables& phases,
+                                     double lambda_um, int n, Progress* progress,
+                                     SeparableFactors<Float>* keep = nullptr);
 
 // The same, building the grid and the phase tables first.
 template <typename Float>
-ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const Query& query,
-                                     double lambda_um, int n, Progress* progress,
-                                     SeparableFactors<Float>* keep = nullptr) {
+ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
+                                     Progress* progress, SeparableFactors<Float>* keep = nullptr) {
     const SliceGrid grid(query, lambda_um, n);
     const PhaseTables phases(kernels, grid);
     return separable_field<Float>(kernels, grid, phases, lambda_um, n, progress, keep);
@@ -214,9 +212,9 @@ ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const Quer
 // gradients of Σ weights · slice. `phases` may be null when `kept` holds the forward's factors
 // of all kernels; `c1` as separable_slice.
 template <typename Float>
-KernelGradient separable_backward(const FootprintKernels& kernels, const Query& query, double lambda_um,
-                                  int n, const SliceGrid& grid, const PhaseTables* phases,
-                                  const std::vector<double>* c1, const ComplexMatrix<Float>& field,
-                                  const std::vector<Float>& weights, const SeparableFactors<Float>* kept);
+KernelGradient separable_backward(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
+                                  const SliceGrid& grid, const PhaseTables* phases, const std::vector<double>* c1,
+                                  const ComplexMatrix<Float>& field, const std::vector<Float>& weights,
+                                  const SeparableFactors<Float>* kept);
 
 }  // namespace wavebrdf::detail

@@ -47,8 +47,7 @@ Eigen::Vector3d xyz_from_xy(double x, double y) { return {x / y, 1.0, (1.0 - x -
 Eigen::Matrix3d xyz_to_srgb_matrix() {
     // Columns: the primaries' XYZ (Y = 1), scaled so that D65 (Y = 1) becomes RGB (1, 1, 1).
     Eigen::Matrix3d primaries;
-    for (int c = 0; c < 3; ++c)
-        primaries.col(c) = xyz_from_xy(k_primaries_xy[c][0], k_primaries_xy[c][1]);
+    for (int c = 0; c < 3; ++c) primaries.col(c) = xyz_from_xy(k_primaries_xy[c][0], k_primaries_xy[c][1]);
     const Eigen::Vector3d white = xyz_from_xy(k_d65_xy[0], k_d65_xy[1]);
     const Eigen::Vector3d scale = primaries.partialPivLu().solve(white);
     const Eigen::Matrix3d rgb_to_xyz = primaries * scale.asDiagonal();
@@ -63,8 +62,7 @@ std::vector<double> wavelength_widths(const std::vector<double>& lambdas) {
     std::vector<double> widths(n, 1.0);
     std::vector<std::size_t> order(n);
     std::iota(order.begin(), order.end(), std::size_t{0});
-    std::sort(order.begin(), order.end(),
-              [&](std::size_t a, std::size_t b) { return lambdas[a] < lambdas[b]; });
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return lambdas[a] < lambdas[b]; });
     // Groups of equal wavelengths, in increasing order: [group_start[g], group_start[g + 1]).
     std::vector<std::size_t> group_start;
     for (std::size_t i = 0; i < n; ++i)
@@ -105,12 +103,10 @@ std::array<double, 3> cie1931_xyz(double lambda_um) {
 std::vector<double> spectral_wavelengths_um(int count) {
     if (count < 1 || count > k_max_spectral_samples)
         throw std::invalid_argument("spectral sample count " + std::to_string(count) +
-                                    " is out of range; expected 1 to " +
-                                    std::to_string(k_max_spectral_samples));
+                                    " is out of range; expected 1 to " + std::to_string(k_max_spectral_samples));
     std::vector<double> lambdas(static_cast<std::size_t>(count));
     const double step = 0.47 / static_cast<double>(count);
-    for (int k = 0; k < count; ++k)
-        lambdas[static_cast<std::size_t>(k)] = 0.36 + (static_cast<double>(k) + 0.5) * step;
+    for (int k = 0; k < count; ++k) lambdas[static_cast<std::size_t>(k)] = 0.36 + (static_cast<double>(k) + 0.5) * step;
     return lambdas;
 }
 
@@ -123,12 +119,10 @@ std::array<double, 9> xyz_to_linear_srgb() {
 }
 
 std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_um) {
-    if (lambdas_um.empty())
-        throw std::invalid_argument("spectral wavelength list is empty; expected at least one");
+    if (lambdas_um.empty()) throw std::invalid_argument("spectral wavelength list is empty; expected at least one");
     for (std::size_t k = 0; k < lambdas_um.size(); ++k)
         if (!std::isfinite(lambdas_um[k]) || lambdas_um[k] <= 0.0)
-            throw std::domain_error("wavelength " + std::to_string(k) + " is " +
-                                    format_shortest(lambdas_um[k]) +
+            throw std::domain_error("wavelength " + std::to_string(k) + " is " + format_shortest(lambdas_um[k]) +
                                     " um; expected a finite value > 0");
     const std::size_t n = lambdas_um.size();
     const std::vector<double> widths = wavelength_widths(lambdas_um);
@@ -137,8 +131,7 @@ std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_
     Eigen::Matrix3Xd xyz(3, static_cast<Eigen::Index>(n));
     for (std::size_t k = 0; k < n; ++k) {
         const std::array<double, 3> cmf = cie1931_xyz(lambdas_um[k]);
-        for (int c = 0; c < 3; ++c)
-            xyz(c, static_cast<Eigen::Index>(k)) = cmf[static_cast<std::size_t>(c)] * widths[k];
+        for (int c = 0; c < 3; ++c) xyz(c, static_cast<Eigen::Index>(k)) = cmf[static_cast<std::size_t>(c)] * widths[k];
     }
     // Normalise so that a constant spectrum 1 has Y = 1.
     const double y_sum = xyz.row(1).sum();
@@ -160,8 +153,7 @@ std::vector<double> spectral_to_srgb_weights(const std::vector<double>& lambdas_
                                     format_shortest(white(1)) + ", " + format_shortest(white(2)) +
                                     ") has a zero Bradford cone response; expected a white "
                                     "that can be adapted to D65");
-    const Eigen::Matrix3d adapt =
-        m.inverse() * cone_d65.cwiseQuotient(cone_white).asDiagonal() * m;
+    const Eigen::Matrix3d adapt = m.inverse() * cone_d65.cwiseQuotient(cone_white).asDiagonal() * m;
 
     const Eigen::Matrix3Xd rgb = xyz_to_srgb_matrix() * adapt * xyz;
     std::vector<double> weights(3 * n);
@@ -188,16 +180,16 @@ std::size_t check_mix(const std::vector<double>& mix, std::size_t wavelength, st
         throw std::invalid_argument("wavelength index " + std::to_string(wavelength) +
                                     " is out of range; expected below " + std::to_string(count));
     if (rgb_size != 3 * pixels)
-        throw std::invalid_argument("RGB values have " + std::to_string(rgb_size) +
-                                    " entries; expected 3 x " + std::to_string(pixels) + " pixels");
+        throw std::invalid_argument("RGB values have " + std::to_string(rgb_size) + " entries; expected 3 x " +
+                                    std::to_string(pixels) + " pixels");
     return count;
 }
 
 }  // namespace
 
 template <typename Float>
-void mix_spectral_to_rgb(const std::vector<double>& mix, std::size_t wavelength,
-                         const std::vector<Float>& slice, std::vector<Float>& rgb) {
+void mix_spectral_to_rgb(const std::vector<double>& mix, std::size_t wavelength, const std::vector<Float>& slice,
+                         std::vector<Float>& rgb) {
     const std::size_t pixels = slice.size();
     const std::size_t count = check_mix(mix, wavelength, rgb.size(), pixels);
     const Float wr = Float(mix[wavelength]), wg = Float(mix[count + wavelength]),
@@ -211,8 +203,7 @@ void mix_spectral_to_rgb(const std::vector<double>& mix, std::size_t wavelength,
 
 template <typename Float>
 void mix_spectral_to_rgb_adjoint(const std::vector<double>& mix, std::size_t wavelength,
-                                 const std::vector<double>& rgb_weights, std::vector<Float>& weights,
-                                 double scale) {
+                                 const std::vector<double>& rgb_weights, std::vector<Float>& weights, double scale) {
     const std::size_t pixels = rgb_weights.size() / 3;
     const std::size_t count = check_mix(mix, wavelength, rgb_weights.size(), pixels);
     const double wr = mix[wavelength], wg = mix[count + wavelength], wb = mix[2 * count + wavelength];
@@ -230,9 +221,9 @@ template void mix_spectral_to_rgb<float>(const std::vector<double>&, std::size_t
                                          std::vector<float>&);
 template void mix_spectral_to_rgb<double>(const std::vector<double>&, std::size_t, const std::vector<double>&,
                                           std::vector<double>&);
-template void mix_spectral_to_rgb_adjoint<float>(const std::vector<double>&, std::size_t,
-                                                 const std::vector<double>&, std::vector<float>&, double);
-template void mix_spectral_to_rgb_adjoint<double>(const std::vector<double>&, std::size_t,
-                                                  const std::vector<double>&, std::vector<double>&, double);
+template void mix_spectral_to_rgb_adjoint<float>(const std::vector<double>&, std::size_t, const std::vector<double>&,
+                                                 std::vector<float>&, double);
+template void mix_spectral_to_rgb_adjoint<double>(const std::vector<double>&, std::size_t, const std::vector<double>&,
+                                                  std::vector<double>&, double);
 
 }  // namespace wavebrdf

@@ -152,8 +152,10 @@ std::vector<double> option_wavelengths(const InversionOptions& o) {
     const auto name = [&](const char* key) { return option_name(o.names, key); };
     const int given = int(o.lambda_um.has_value()) + int(o.spectral.has_value()) + int(!o.wavelengths_um.empty());
     if (given > 1) {
-        if (o.lambda_um && o.spectral) throw std::invalid_argument(name("lambda_um") + " and " + name("spectral") + " exclude each other");
-        throw std::invalid_argument(name("lambda_um") + ", " + name("spectral") + " and a list of wavelengths exclude each other");
+        if (o.lambda_um && o.spectral)
+            throw std::invalid_argument(name("lambda_um") + " and " + name("spectral") + " exclude each other");
+        throw std::invalid_argument(name("lambda_um") + ", " + name("spectral") +
+                                    " and a list of wavelengths exclude each other");
     }
     if (o.lambda_um) {
         try {
@@ -212,7 +214,8 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
         }
     }
     if (o.init.kind == InitKind::Heights && !initial)
-        throw std::invalid_argument(name("init") + " is given as heights but none were passed; expected the initial heights");
+        throw std::invalid_argument(name("init") +
+                                    " is given as heights but none were passed; expected the initial heights");
     const std::vector<double> lambdas = option_wavelengths(o);
     validate_resolution(o.resolution);
 
@@ -231,11 +234,14 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
             throw std::invalid_argument(name("positions") + " random with " + name("observations") +
                                         " needs at least two observations");
     } else {
-        if (truth) p.truth = std::move(*truth);
-        else if (!o.truth_path.empty()) p.truth = read_heightfield_exr(o.truth_path, o.texel_um, o.vscale);
+        if (truth)
+            p.truth = std::move(*truth);
+        else if (!o.truth_path.empty())
+            p.truth = read_heightfield_exr(o.truth_path, o.texel_um, o.vscale);
         // The built-in default: a generated isotropic surface (heights about ±1 texel, like
         // the thesis's crop of the release's isotropic.exr).
-        else p.truth = default_inversion_truth(o.rows, o.cols, o.texel_um, o.vscale, o.seed);
+        else
+            p.truth = default_inversion_truth(o.rows, o.cols, o.texel_um, o.vscale, o.seed);
         rows = p.truth->rows();
         cols = p.truth->cols();
         Observation base;
@@ -245,9 +251,11 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
         base.lambdas_um = lambdas;
         base.resolution = o.resolution;
         std::vector<std::array<double, 2>> positions;
-        if (o.positions.kind == PositionsKind::List) positions = o.positions.positions_um;
-        else positions.push_back({o.x_um ? *o.x_um : 0.5 * p.truth->period_x_um(),
-                                  o.y_um ? *o.y_um : 0.5 * p.truth->period_y_um()});
+        if (o.positions.kind == PositionsKind::List)
+            positions = o.positions.positions_um;
+        else
+            positions.push_back(
+                {o.x_um ? *o.x_um : 0.5 * p.truth->period_x_um(), o.y_um ? *o.y_um : 0.5 * p.truth->period_y_um()});
         // Before the references are rendered: the whole inversion's estimate against the limit.
         std::vector<Observation> planned(positions.size(), base);
         for (std::size_t i = 0; i < planned.size(); ++i) {
@@ -268,8 +276,9 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
         case InitKind::Noisy: start = noisy_start(*p.truth, o.init.noise_fraction, o.seed); break;
         case InitKind::File:
         case InitKind::Heights: {
-            const Heightfield given =
-                o.init.kind == InitKind::File ? read_heightfield_exr(o.init.path, o.texel_um, o.vscale) : *initial;
+            const Heightfield given = o.init.kind == InitKind::File
+                                          ? read_heightfield_exr(o.init.path, o.texel_um, o.vscale)
+                                          : *initial;
             const std::string what = o.init.kind == InitKind::File ? name("init") + " " + o.init.path : name("init");
             if (given.rows() != rows || given.cols() != cols)
                 throw std::invalid_argument(what + " is " + grid(given.rows(), given.cols()) + "; expected " +
@@ -280,10 +289,10 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
     }
     p.initial = Heightfield(rows, cols, std::move(start), o.texel_um, o.vscale);
     if (given_observations)
-        require_memory(estimate_inversion_bytes(p.initial, p.observations, settings), memory,
-                       "invert (" + grid(rows, cols) + " heights, " + std::to_string(p.observations.size()) +
-                           " observation(s))",
-                       hint);
+        require_memory(
+            estimate_inversion_bytes(p.initial, p.observations, settings), memory,
+            "invert (" + grid(rows, cols) + " heights, " + std::to_string(p.observations.size()) + " observation(s))",
+            hint);
     return p;
 }
 
@@ -318,11 +327,14 @@ std::string size_text(int rows, int cols) { return rows == cols ? std::to_string
 
 nlohmann::json to_json(const InversionOptions& o) {
     if (!o.wavelengths_um.empty())
-        throw std::invalid_argument("a list of wavelengths cannot be stored in run.json; expected lambda_um or spectral");
+        throw std::invalid_argument(
+            "a list of wavelengths cannot be stored in run.json; expected lambda_um or spectral");
     if (o.positions.kind == PositionsKind::List && o.positions.path.empty())
-        throw std::invalid_argument("positions given as values cannot be stored in run.json; expected a positions file");
+        throw std::invalid_argument(
+            "positions given as values cannot be stored in run.json; expected a positions file");
     if (o.init.kind == InitKind::Heights)
-        throw std::invalid_argument("initial heights given as values cannot be stored in run.json; expected an EXR file");
+        throw std::invalid_argument(
+            "initial heights given as values cannot be stored in run.json; expected an EXR file");
     std::string init = to_string(o.init);
     if (o.init.kind == InitKind::File) init = absolute_path(init);
     std::string positions = to_string(o.positions);
@@ -386,10 +398,9 @@ InversionOptions from_json(const nlohmann::json& j) {
     o.adam.beta2 = j.at("beta2").get<double>();
     o.adam.decay = j.at("decay").get<double>();
     // Seeds are 64-bit unsigned: the upper half is a JSON unsigned integer, the rest as checked.
-    o.seed = j.at("seed").is_number_unsigned()
-                 ? j.at("seed").get<std::uint64_t>()
-                 : static_cast<std::uint64_t>(
-                       detail::json_int(j, "seed", 0, std::numeric_limits<long long>::max(), ""));
+    o.seed = j.at("seed").is_number_unsigned() ? j.at("seed").get<std::uint64_t>()
+                                               : static_cast<std::uint64_t>(detail::json_int(
+                                                     j, "seed", 0, std::numeric_limits<long long>::max(), ""));
     o.snapshots = parse_epoch_list(j.at("snapshots").get<std::string>(), "--snapshots");
     o.checkpoint_every = detail::json_int32(j, "checkpoint_every", 1, std::numeric_limits<int>::max(), "");
     return o;
@@ -494,8 +505,7 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
             try {
                 write();
                 saved.push_back(what);
-            } catch (const std::exception&) {
-            }
+            } catch (const std::exception&) {}
         };
         keep("checkpoint.json", [&] { inversion.save_checkpoint(dir + "/checkpoint.json"); });
         keep("metrics.csv", [&] { write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history())); });
@@ -575,8 +585,7 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
 }
 
 InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, std::optional<int> epochs,
-                                                       double max_memory_gb,
-                                                       const InversionDirectoryControl& control) {
+                                                       double max_memory_gb, const InversionDirectoryControl& control) {
     const std::string where = dir + "/run.json";
     std::ifstream in(where);
     if (!in) throw std::runtime_error(where + ": cannot open; expected a directory written by 'wavebrdf invert --out'");

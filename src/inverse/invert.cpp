@@ -63,11 +63,19 @@ nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings&
     std::ostringstream hash;
     hash << std::hex << f.h;
     return {{"size", std::to_string(estimate.rows()) + "x" + std::to_string(estimate.cols())},
-            {"texel_um", estimate.texel_um()}, {"vscale", estimate.vscale()}, {"loss", to_string(s.loss)},
-            {"optimizer", s.optimizer == OptimizerKind::Adam ? "adam" : "lbfgs"}, {"lr", s.adam.lr},
-            {"beta1", s.adam.beta1}, {"beta2", s.adam.beta2}, {"adam_epsilon", s.adam.epsilon},
-            {"decay", s.adam.decay}, {"positions", s.positions == PositionMode::Fixed ? "fixed" : "random"},
-            {"seed", s.seed}, {"observations", observations.size()}, {"observations_hash", hash.str()}};
+            {"texel_um", estimate.texel_um()},
+            {"vscale", estimate.vscale()},
+            {"loss", to_string(s.loss)},
+            {"optimizer", s.optimizer == OptimizerKind::Adam ? "adam" : "lbfgs"},
+            {"lr", s.adam.lr},
+            {"beta1", s.adam.beta1},
+            {"beta2", s.adam.beta2},
+            {"adam_epsilon", s.adam.epsilon},
+            {"decay", s.adam.decay},
+            {"positions", s.positions == PositionMode::Fixed ? "fixed" : "random"},
+            {"seed", s.seed},
+            {"observations", observations.size()},
+            {"observations_hash", hash.str()}};
 }
 
 // "lr 0.01 in the checkpoint, 0.02 now; …" for the entries of `now` that differ in `saved`.
@@ -77,18 +85,21 @@ std::string describe_differences(const nlohmann::json& saved, const nlohmann::js
     for (const auto& [key, value] : now.items()) {
         if (saved.contains(key) && saved[key] == value) continue;
         if (!out.empty()) out += "; ";
-        out += key + " " + (saved.contains(key) ? text(saved[key]) : std::string("(absent)")) +
-               " in the checkpoint, " + text(value) + " now";
+        out += key + " " + (saved.contains(key) ? text(saved[key]) : std::string("(absent)")) + " in the checkpoint, " +
+               text(value) + " now";
     }
     return out;
 }
 
 }  // namespace
 
-Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
-                     InversionSettings settings, const Heightfield* truth)
-    : m_observations(std::move(observations)), m_estimate(std::move(initial)),
-      m_settings(settings), m_truth(truth), m_adam(m_estimate.values().size(), settings.adam) {
+Inversion::Inversion(std::vector<Observation> observations, Heightfield initial, InversionSettings settings,
+                     const Heightfield* truth)
+    : m_observations(std::move(observations)),
+      m_estimate(std::move(initial)),
+      m_settings(settings),
+      m_truth(truth),
+      m_adam(m_estimate.values().size(), settings.adam) {
     validate(m_settings);
     if (m_observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     for (std::size_t i = 0; i < m_observations.size(); ++i) validate(m_observations[i], i);
@@ -96,7 +107,8 @@ Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
     for (const Observation& o : m_observations)
         validate_footprint(o.query.sigma_p_um, m_estimate.period_x_um(), m_estimate.period_y_um());
     if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
-        throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
+        throw std::invalid_argument(
+            "L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
     if (truth && (truth->rows() != m_estimate.rows() || truth->cols() != m_estimate.cols()))
         throw std::invalid_argument("truth is " + std::to_string(truth->rows()) + "x" + std::to_string(truth->cols()) +
                                     " but the estimate is " + std::to_string(m_estimate.rows()) + "x" +
@@ -156,20 +168,25 @@ void validate(const InversionSettings& settings) {
     { Adam check(0, settings.adam); }  // its own messages
     if (!(settings.adam.lr <= kMaxInversionLr)) {
         char text[200];
-        std::snprintf(text, sizeof text,
-                      "Adam lr %g is too large; expected at most %g (a step in texel units)", settings.adam.lr,
-                      kMaxInversionLr);
+        std::snprintf(text, sizeof text, "Adam lr %g is too large; expected at most %g (a step in texel units)",
+                      settings.adam.lr, kMaxInversionLr);
         throw std::domain_error(text);
     }
     std::vector<double> x(1, 0.0);
     LbfgsOptions lbfgs = settings.lbfgs;
     lbfgs.max_iterations = 0;
-    lbfgs_minimize([](const std::vector<double>&, std::vector<double>& g) { g.assign(1, 0.0); return 0.0; }, x,
-                   lbfgs);  // validates the options (no step with 0 iterations)
+    lbfgs_minimize(
+        [](const std::vector<double>&, std::vector<double>& g) {
+            g.assign(1, 0.0);
+            return 0.0;
+        },
+        x,
+        lbfgs);  // validates the options (no step with 0 iterations)
     if (settings.epochs < 0)
         throw std::invalid_argument("epochs " + std::to_string(settings.epochs) + " is negative; expected >= 0");
     if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
-        throw std::invalid_argument("L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
+        throw std::invalid_argument(
+            "L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
 }
 
 std::vector<double> noisy_start(const Heightfield& truth, double frac, std::uint64_t seed) {
@@ -203,11 +220,11 @@ std::vector<Observation> Inversion::epoch_observations(int epoch) const {
     return {m_observations[pick % m_observations.size()]};
 }
 
-EpochMetrics Inversion::evaluate(std::vector<double>* gradient,
-                                 std::vector<std::vector<double>>* rendered) const {
+EpochMetrics Inversion::evaluate(std::vector<double>* gradient, std::vector<std::vector<double>>* rendered) const {
     EpochMetrics m;
     std::vector<std::vector<double>> slices;
-    m.loss = observation_loss(m_estimate, m_observations, m_settings.loss, gradient, m_settings.render, &slices, &m_plans);
+    m.loss = observation_loss(m_estimate, m_observations, m_settings.loss, gradient, m_settings.render, &slices,
+                              &m_plans);
     const Loss mse{LossKind::MSE, 1.0}, cmsle1{LossKind::CMSLE, 1.0}, cmsle3{LossKind::CMSLE, 1e-3};
     const double scale = 1.0 / double(m_observations.size());
     for (std::size_t i = 0; i < m_observations.size(); ++i) {
@@ -284,18 +301,21 @@ void Inversion::run(const Callback& on_epoch) {
                                 nullptr, &m_plans);
     };
     bool stopped = false;
-    lbfgs_minimize(objective, x, options, [&](int, double) {
-        m_estimate = m_estimate.with_values(x);
-        ++m_epoch;
-        std::vector<double> gradient;
-        std::vector<std::vector<double>> slices;
-        EpochMetrics metrics = evaluate(&gradient, &slices);
-        if (!report(gradient, metrics, slices)) {
-            stopped = true;
-            return false;
-        }
-        return m_epoch < m_settings.epochs;
-    }, &m_lbfgs);
+    lbfgs_minimize(
+        objective, x, options,
+        [&](int, double) {
+            m_estimate = m_estimate.with_values(x);
+            ++m_epoch;
+            std::vector<double> gradient;
+            std::vector<std::vector<double>> slices;
+            EpochMetrics metrics = evaluate(&gradient, &slices);
+            if (!report(gradient, metrics, slices)) {
+                stopped = true;
+                return false;
+            }
+            return m_epoch < m_settings.epochs;
+        },
+        &m_lbfgs);
     if (!stopped) m_estimate = m_estimate.with_values(x);
     m_seconds_before = seconds();
 }
@@ -358,9 +378,10 @@ void Inversion::load_checkpoint(const std::string& path) {
         if (j.at("format").get<std::string>() != "wavebrdf-checkpoint-1")
             throw std::runtime_error(path + ": unknown checkpoint format");
         if (j.at("fingerprint").get<std::string>() != fingerprint()) {
-            const std::string differences =
-                j.contains("run") ? describe_differences(j["run"], run_summary(m_estimate, m_settings, m_observations))
-                                  : std::string();
+            const std::string differences = j.contains("run")
+                                                ? describe_differences(
+                                                      j["run"], run_summary(m_estimate, m_settings, m_observations))
+                                                : std::string();
             throw std::runtime_error(path + ": the checkpoint belongs to a different run (" +
                                      (differences.empty() ? "settings, observations or seed differ" : differences) +
                                      "); expected the same options as the run it came from");

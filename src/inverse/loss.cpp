@@ -28,8 +28,7 @@ void check_photons(double photons, const std::string& what) {
 std::size_t check_slices(const char* function, const std::vector<double>& estimate,
                          const std::vector<double>& reference, int channels) {
     const std::string where = std::string(function) + ": ";
-    if (channels < 1)
-        throw std::invalid_argument(where + "channels must be >= 1, got " + std::to_string(channels));
+    if (channels < 1) throw std::invalid_argument(where + "channels must be >= 1, got " + std::to_string(channels));
     if (estimate.size() != reference.size())
         throw std::invalid_argument(where + "estimate has " + std::to_string(estimate.size()) +
                                     " values but reference has " + std::to_string(reference.size()));
@@ -43,8 +42,8 @@ std::size_t check_slices(const char* function, const std::vector<double>& estima
 
 // Shared body of rgb_mse and rgb_gamma_mse: mean over all values of (T(I) − T(R))².
 template <typename ToneMap>
-double tone_mapped_mse(const char* function, const std::vector<double>& estimate,
-                       const std::vector<double>& reference, int channels, ToneMap tone_map) {
+double tone_mapped_mse(const char* function, const std::vector<double>& estimate, const std::vector<double>& reference,
+                       int channels, ToneMap tone_map) {
     check_slices(function, estimate, reference, channels);
     if (channels != 1 && channels != 3)
         throw std::invalid_argument(std::string(function) + ": channels must be 1 (mono) or 3 (RGB), got " +
@@ -64,9 +63,8 @@ double tone_mapped_mse(const char* function, const std::vector<double>& estimate
 // so that the value is bit-for-bit the same whether or not the gradient is asked for (one
 // fused loop lets the compiler contract and vectorise the sum differently in each case).
 template <typename Residual, typename Derivative>
-double mean_over_pixels(const std::vector<double>& estimate, const std::vector<double>& reference,
-                        double inv_pixels, std::vector<double>* gradient, Residual residual,
-                        Derivative derivative) {
+double mean_over_pixels(const std::vector<double>& estimate, const std::vector<double>& reference, double inv_pixels,
+                        std::vector<double>* gradient, Residual residual, Derivative derivative) {
     const std::size_t n = estimate.size();
     double sum = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
@@ -161,8 +159,10 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
             double total = 0.0;
             for (double r : reference) total += std::max(r, 0.0);
             if (!(total > 0.0))
-                throw std::invalid_argument("loss_value: the Poisson loss needs a reference with a positive sum "
-                                            "(its photon scale N / sum), got sum " + detail::format_shortest(total));
+                throw std::invalid_argument(
+                    "loss_value: the Poisson loss needs a reference with a positive sum "
+                    "(its photon scale N / sum), got sum " +
+                    detail::format_shortest(total));
             const double s = loss.photons / total;
             // 1e-9 counts added to both k and μ keep log μ and 1/μ finite where I = 0 and the
             // loss exactly 0 where I = R.

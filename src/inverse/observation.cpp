@@ -42,8 +42,7 @@ void validate(const Observation& o, std::size_t index) {
                                     " is not finite; expected finite values");
 }
 
-std::vector<double> render_observation(const Heightfield& hf, const Observation& o,
-                                       const RenderOptions& options) {
+std::vector<double> render_observation(const Heightfield& hf, const Observation& o, const RenderOptions& options) {
     std::vector<double> rgb = render_rgb<double>(hf, o.query, o.lambdas_um, o.resolution, options);
     if (o.channels() == 3) return rgb;
     std::vector<double> mono(rgb.size() / 3);
@@ -72,8 +71,8 @@ SlicePlan<double>& ObservationPlans::plan(const Heightfield& hf, const Observati
 
 void ObservationPlans::reserve(std::size_t capacity) { m_capacity = std::max(m_capacity, capacity); }
 
-double observation_loss(const Heightfield& hf, const std::vector<Observation>& observations,
-                        const Loss& loss, std::vector<double>* gradient, const RenderOptions& options,
+double observation_loss(const Heightfield& hf, const std::vector<Observation>& observations, const Loss& loss,
+                        std::vector<double>* gradient, const RenderOptions& options,
                         std::vector<std::vector<double>>* rendered, ObservationPlans* plans) {
     if (observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
@@ -91,7 +90,8 @@ double observation_loss(const Heightfield& hf, const std::vector<Observation>& o
         // Forward every wavelength (the plan keeps the fields for the backward pass), mixed to
         // RGB by the plan when the observation has several.
         std::unique_ptr<SlicePlan<double>> own;
-        if (!plans) own = std::make_unique<SlicePlan<double>>(hf, o.query, o.lambdas_um, o.resolution, o.channels(), options);
+        if (!plans)
+            own = std::make_unique<SlicePlan<double>>(hf, o.query, o.lambdas_um, o.resolution, o.channels(), options);
         SlicePlan<double>& plan = plans ? plans->plan(hf, o, options) : *own;
         const std::vector<double>& estimate = plan.forward();
         std::vector<double> d_estimate;
@@ -143,7 +143,8 @@ std::vector<Observation> read_observations_json(const std::string& path, double 
         if (!j.is_object() || !j.contains("resolution") || !j["resolution"].is_number()) continue;
         const double n = std::min(std::fabs(j["resolution"].get<double>()), 8192.0);
         const double channels = j.contains("lambda_um") ? 1.0 : 3.0;
-        reference_bytes += n * n * channels * 8.0 + (j.contains("reference") && j["reference"].is_string() ? n * n * 12.0 : 0.0);
+        reference_bytes += n * n * channels * 8.0 +
+                           (j.contains("reference") && j["reference"].is_string() ? n * n * 12.0 : 0.0);
     }
     require_memory(reference_bytes, limit,
                    "reading the " + std::to_string(doc["observations"].size()) + " observations of " + path);
@@ -168,8 +169,7 @@ std::vector<Observation> read_observations_json(const std::string& path, double 
             throw std::runtime_error(where + "expected exactly one of 'lambda_um', 'spectral', 'lambdas_um'");
         if (j.contains("lambda_um")) o.lambdas_um = {field<double>(j, "lambda_um", where)};
         if (j.contains("spectral"))
-            o.lambdas_um = spectral_wavelengths_um(
-                detail::json_int32(j, "spectral", 1, k_max_spectral_samples, where));
+            o.lambdas_um = spectral_wavelengths_um(detail::json_int32(j, "spectral", 1, k_max_spectral_samples, where));
         if (j.contains("lambdas_um")) o.lambdas_um = field<std::vector<double>>(j, "lambdas_um", where);
         o.resolution = detail::json_int32(j, "resolution", 1, 8192, where);
         if (!j.contains("reference")) throw std::runtime_error(where + "missing field 'reference'");
@@ -225,8 +225,10 @@ void write_observations_json(const std::string& path, const std::vector<Observat
         j["sigma_p_um"] = o.query.sigma_p_um;
         j["light"] = {o.query.omega_i[0], o.query.omega_i[1]};
         j["model"] = to_string(o.query.model);
-        if (o.lambdas_um.size() == 1) j["lambda_um"] = o.lambdas_um[0];
-        else j["lambdas_um"] = o.lambdas_um;
+        if (o.lambdas_um.size() == 1)
+            j["lambda_um"] = o.lambdas_um[0];
+        else
+            j["lambdas_um"] = o.lambdas_um;
         j["resolution"] = o.resolution;
         if (references == ReferenceStorage::Exr) {
             char name[32];

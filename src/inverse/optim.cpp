@@ -16,8 +16,7 @@ namespace wavebrdf {
 namespace {
 
 void require(bool ok, const char* option, double value, const char* expected) {
-    if (!ok)
-        throw std::domain_error(std::string(option) + " must be " + expected + ", got " + format_shortest(value));
+    if (!ok) throw std::domain_error(std::string(option) + " must be " + expected + ", got " + format_shortest(value));
 }
 
 }  // namespace
@@ -34,12 +33,11 @@ void validate_iterations(long long count, const std::string& name) {
 Adam::Adam(std::size_t size, const AdamOptions& options) : m_options(options) {
     const auto finite = [](double v) { return std::isfinite(v); };
     require(finite(options.lr) && options.lr > 0.0, "Adam lr", options.lr, "finite and > 0");
-    require(finite(options.beta1) && options.beta1 >= 0.0 && options.beta1 < 1.0, "Adam beta1",
-            options.beta1, "in [0, 1)");
-    require(finite(options.beta2) && options.beta2 >= 0.0 && options.beta2 < 1.0, "Adam beta2",
-            options.beta2, "in [0, 1)");
-    require(finite(options.epsilon) && options.epsilon > 0.0, "Adam epsilon", options.epsilon,
-            "finite and > 0");
+    require(finite(options.beta1) && options.beta1 >= 0.0 && options.beta1 < 1.0, "Adam beta1", options.beta1,
+            "in [0, 1)");
+    require(finite(options.beta2) && options.beta2 >= 0.0 && options.beta2 < 1.0, "Adam beta2", options.beta2,
+            "in [0, 1)");
+    require(finite(options.epsilon) && options.epsilon > 0.0, "Adam epsilon", options.epsilon, "finite and > 0");
     require(finite(options.decay) && options.decay >= 0.0, "Adam decay", options.decay, "finite and >= 0");
     m_state.m.assign(size, 0.0);
     m_state.v.assign(size, 0.0);
@@ -109,26 +107,26 @@ void validate_lbfgs_state(const LbfgsState& state, std::size_t size, int history
                                     std::to_string(history) + " (the history kept)");
     for (std::size_t k = 0; k < pairs; ++k) {
         if (state.s[k].size() != size || state.y[k].size() != size)
-            throw std::invalid_argument("L-BFGS state: pair " + std::to_string(k) + " has " +
-                                        std::to_string(state.s[k].size()) + " and " + std::to_string(state.y[k].size()) +
-                                        " values; expected " + std::to_string(size));
+            throw std::invalid_argument(
+                "L-BFGS state: pair " + std::to_string(k) + " has " + std::to_string(state.s[k].size()) + " and " +
+                std::to_string(state.y[k].size()) + " values; expected " + std::to_string(size));
         const auto finite = [](const std::vector<double>& v) {
             return std::all_of(v.begin(), v.end(), [](double a) { return std::isfinite(a); });
         };
         if (!finite(state.s[k]) || !finite(state.y[k]) || !std::isfinite(state.rho[k]) || !(state.rho[k] > 0.0))
             throw std::invalid_argument("L-BFGS state: pair " + std::to_string(k) +
-                                        " is not finite or its rho is not > 0 (rho = " + format_shortest(state.rho[k]) + ")");
+                                        " is not finite or its rho is not > 0 (rho = " + format_shortest(state.rho[k]) +
+                                        ")");
     }
 }
 
-LbfgsResult lbfgs_minimize(
-    const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
-    std::vector<double>& x, const LbfgsOptions& options, const std::function<bool(int, double)>& on_iteration,
-    LbfgsState* state) {
+LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&, std::vector<double>&)>& objective,
+                           std::vector<double>& x, const LbfgsOptions& options,
+                           const std::function<bool(int, double)>& on_iteration, LbfgsState* state) {
     require(options.history >= 1, "L-BFGS history", options.history, ">= 1");
     require(options.max_iterations >= 0, "L-BFGS max_iterations", options.max_iterations, ">= 0");
-    require(std::isfinite(options.gradient_tolerance) && options.gradient_tolerance >= 0.0,
-            "L-BFGS gradient_tolerance", options.gradient_tolerance, "finite and >= 0");
+    require(std::isfinite(options.gradient_tolerance) && options.gradient_tolerance >= 0.0, "L-BFGS gradient_tolerance",
+            options.gradient_tolerance, "finite and >= 0");
     require(options.max_line_search >= 1, "L-BFGS max_line_search", options.max_line_search, ">= 1");
     if (!objective) throw std::invalid_argument("lbfgs_minimize: the objective is empty");
     if (x.empty()) throw std::invalid_argument("lbfgs_minimize: x is empty");

@@ -133,11 +133,9 @@ void refuse_multi_part(const std::string& path) {
 
 void check_image(const RgbImage& image) {
     if (image.rows < 1 || image.cols < 1)
-        throw std::invalid_argument("image size " + std::to_string(image.rows) + "x" +
-                                    std::to_string(image.cols) +
+        throw std::invalid_argument("image size " + std::to_string(image.rows) + "x" + std::to_string(image.cols) +
                                     " is empty; expected at least 1x1");
-    const std::size_t expected =
-        static_cast<std::size_t>(image.rows) * static_cast<std::size_t>(image.cols) * 3u;
+    const std::size_t expected = static_cast<std::size_t>(image.rows) * static_cast<std::size_t>(image.cols) * 3u;
     if (image.data.size() != expected)
         throw std::invalid_argument("image has " + std::to_string(image.data.size()) +
                                     " values; expected rows*cols*3 = " + std::to_string(expected));
@@ -173,11 +171,12 @@ void check_attribute_sizes(const std::string& path) {
     // Bytes OpenEXR 3.1 reads for the fixed-size attribute types (ImfStandardAttributes.h).
     const auto fixed_size = [](const std::string& type) -> int {
         static const std::pair<const char*, int> sizes[] = {
-            {"box2i", 16}, {"box2f", 16}, {"compression", 1}, {"deepImageState", 1},
-            {"double", 8}, {"envmap", 1}, {"float", 4}, {"int", 4}, {"keycode", 28},
-            {"lineOrder", 1}, {"m33f", 36}, {"m33d", 72}, {"m44f", 64}, {"m44d", 128},
-            {"rational", 8}, {"tiledesc", 9}, {"timecode", 8}, {"v2i", 8}, {"v2f", 8},
-            {"v2d", 16}, {"v3i", 12}, {"v3f", 12}, {"v3d", 24}, {"chromaticities", 32}};
+            {"box2i", 16},   {"box2f", 16},    {"compression", 1}, {"deepImageState", 1},
+            {"double", 8},   {"envmap", 1},    {"float", 4},       {"int", 4},
+            {"keycode", 28}, {"lineOrder", 1}, {"m33f", 36},       {"m33d", 72},
+            {"m44f", 64},    {"m44d", 128},    {"rational", 8},    {"tiledesc", 9},
+            {"timecode", 8}, {"v2i", 8},       {"v2f", 8},         {"v2d", 16},
+            {"v3i", 12},     {"v3f", 12},      {"v3d", 24},        {"chromaticities", 32}};
         for (const auto& [name, size] : sizes)
             if (type == name) return size;
         return -1;
@@ -195,8 +194,8 @@ void check_attribute_sizes(const std::string& path) {
         unsigned char size_bytes[4];
         if (!read_name(type) || !in.read(reinterpret_cast<char*>(size_bytes), 4)) return;
         const std::int32_t size = static_cast<std::int32_t>(
-            std::uint32_t(size_bytes[0]) | std::uint32_t(size_bytes[1]) << 8 |
-            std::uint32_t(size_bytes[2]) << 16 | std::uint32_t(size_bytes[3]) << 24);
+            std::uint32_t(size_bytes[0]) | std::uint32_t(size_bytes[1]) << 8 | std::uint32_t(size_bytes[2]) << 16 |
+            std::uint32_t(size_bytes[3]) << 24);
         if (size < 0) return;  // OpenEXR refuses it itself
         if (type == "chlist") {
             // Channels (name, then 16 bytes) up to an empty name.
@@ -249,8 +248,8 @@ void check_attribute_sizes(const std::string& path) {
         if (at < 0) return;
         const std::uintmax_t rest = file_size - std::min<std::uintmax_t>(file_size, std::uintmax_t(at));
         if (std::uintmax_t(size) > rest)
-            fail(path, "header attribute '" + name + "' (type '" + type + "') declares " +
-                           std::to_string(size) + " bytes but only " + std::to_string(rest) +
+            fail(path, "header attribute '" + name + "' (type '" + type + "') declares " + std::to_string(size) +
+                           " bytes but only " + std::to_string(rest) +
                            " follow; expected an OpenEXR file that is not corrupt or truncated");
         in.seekg(size, std::ios::cur);
     }
@@ -263,8 +262,7 @@ struct ExrSource {
         if (!fs::exists(path, ec)) fail(path, "file does not exist");
         if (fs::is_directory(path, ec)) fail(path, "is a directory; expected an OpenEXR file");
         // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
-        if (!Imf::isOpenExrFile(path.c_str()))
-            fail(path, "not an OpenEXR file (missing magic number or unreadable)");
+        if (!Imf::isOpenExrFile(path.c_str())) fail(path, "not an OpenEXR file (missing magic number or unreadable)");
         check_attribute_sizes(path);  // first: opening the file is what allocates
         refuse_multi_part(path);
         try {
@@ -281,39 +279,32 @@ struct ExrSource {
                            " is invalid; expected a non-empty image");
         // Before any pixel is allocated: a small file may declare a huge image.
         if (width * height > k_max_exr_pixels)
-            fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) +
-                           " image (" + std::to_string(width * height) +
-                           " pixels); the limit is " + std::to_string(k_max_exr_pixels) +
-                           " pixels (16384x16384)");
+            fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image (" +
+                           std::to_string(width * height) + " pixels); the limit is " +
+                           std::to_string(k_max_exr_pixels) + " pixels (16384x16384)");
         m_rows = static_cast<int>(height);
         m_cols = static_cast<int>(width);
     }
 
-    bool has_channel(const char* name) const {
-        return m_file->header().channels().findChannel(name) != nullptr;
-    }
+    bool has_channel(const char* name) const { return m_file->header().channels().findChannel(name) != nullptr; }
 
     // Reads channels[c] into data[k * stride + c] (float, whatever the stored type), row-major
     // from the data window's top-left corner, which Slice::Make maps to element 0.
     void read(const std::vector<std::string>& channels, std::vector<float>& data) const {
         const std::size_t stride = channels.size();
-        const std::size_t count =
-            static_cast<std::size_t>(m_rows) * static_cast<std::size_t>(m_cols) * stride;
+        const std::size_t count = static_cast<std::size_t>(m_rows) * static_cast<std::size_t>(m_cols) * stride;
         const Imath::Box2i dw = m_file->header().dataWindow();
         try {
             data.assign(count, 0.0f);
             Imf::FrameBuffer frame;
             for (std::size_t c = 0; c < stride; ++c)
-                frame.insert(
-                    channels[c],
-                    Imf::Slice::Make(Imf::FLOAT, data.data() + c, dw, stride * sizeof(float),
-                                     stride * sizeof(float) * static_cast<std::size_t>(m_cols)));
+                frame.insert(channels[c], Imf::Slice::Make(Imf::FLOAT, data.data() + c, dw, stride * sizeof(float),
+                                                           stride * sizeof(float) * static_cast<std::size_t>(m_cols)));
             m_file->setFrameBuffer(frame);
             m_file->readPixels(dw.min.y, dw.max.y);
         } catch (const std::exception& e) {
             // A truncated file usually opens fine and only fails here.
-            fail(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") +
-                             e.what() + ")");
+            fail(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") + e.what() + ")");
         }
     }
 
@@ -324,18 +315,16 @@ struct ExrSource {
 };
 
 // Writes float channels interleaved in `data` (stride = channels.size()) as a ZIP EXR.
-void write_float_exr(const std::string& file, int rows, int cols,
-                     const std::vector<std::string>& channels, const float* data) {
+void write_float_exr(const std::string& file, int rows, int cols, const std::vector<std::string>& channels,
+                     const float* data) {
     const std::size_t stride = channels.size();
     Imf::Header header(cols, rows);  // width = columns, height = rows
-    for (const std::string& name : channels)
-        header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+    for (const std::string& name : channels) header.channels().insert(name, Imf::Channel(Imf::FLOAT));
     Imf::FrameBuffer frame;
     for (std::size_t c = 0; c < stride; ++c)
         frame.insert(channels[c],
                      Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(data + c)),
-                                stride * sizeof(float),
-                                stride * sizeof(float) * static_cast<std::size_t>(cols)));
+                                stride * sizeof(float), stride * sizeof(float) * static_cast<std::size_t>(cols)));
     Imf::OutputFile out(file.c_str(), header);
     out.setFrameBuffer(frame);
     out.writePixels(rows);
@@ -343,8 +332,7 @@ void write_float_exr(const std::string& file, int rows, int cols,
 
 // Writes 8-bit pixels (1 or 3 channels) with libpng's simplified API, which reports errors
 // through its return value instead of longjmp, so no C++ frame is skipped.
-void write_png8(const std::string& file, int rows, int cols, bool rgb,
-                const std::vector<std::uint8_t>& pixels) {
+void write_png8(const std::string& file, int rows, int cols, bool rgb, const std::vector<std::uint8_t>& pixels) {
     png_image image;
     std::memset(&image, 0, sizeof image);
     image.version = PNG_IMAGE_VERSION;
@@ -359,9 +347,7 @@ void write_png8(const std::string& file, int rows, int cols, bool rgb,
 }
 
 // sRGB transfer curve (IEC 61966-2-1) on a linear value already clamped to [0, 1].
-double srgb_encode(double x) {
-    return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055;
-}
+double srgb_encode(double x) { return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055; }
 
 }  // namespace
 
@@ -399,9 +385,8 @@ void write_heightfield_png(const std::string& path, const Heightfield& heightfie
         const double t = range > 0.0 ? (values[k] - min) / range : 128.0 / 255.0;
         pixels[k] = static_cast<std::uint8_t>(std::lround(std::clamp(t, 0.0, 1.0) * 255.0));
     }
-    write_file_atomically(path, [&](const std::string& tmp) {
-        write_png8(tmp, heightfield.rows(), heightfield.cols(), false, pixels);
-    });
+    write_file_atomically(
+        path, [&](const std::string& tmp) { write_png8(tmp, heightfield.rows(), heightfield.cols(), false, pixels); });
 }
 
 RgbImage to_image(const std::vector<double>& slice, int n, int channels) {
@@ -421,8 +406,7 @@ void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alp
         });
         return;
     }
-    const std::size_t count =
-        static_cast<std::size_t>(image.rows) * static_cast<std::size_t>(image.cols);
+    const std::size_t count = static_cast<std::size_t>(image.rows) * static_cast<std::size_t>(image.cols);
     std::vector<float> rgba(count * 4u, 1.0f);
     for (std::size_t k = 0; k < count; ++k)
         for (std::size_t c = 0; c < 3; ++c) rgba[k * 4u + c] = image.data[k * 3u + c];
@@ -441,8 +425,7 @@ RgbImage read_rgb_exr(const std::string& path) {
         return image;
     }
     // A luminance-only file is grey: replicate Y so callers always get three channels.
-    if (!source.has_channel("Y"))
-        fail(path, "has no R, G, B channels (nor Y); expected an RGB image");
+    if (!source.has_channel("Y")) fail(path, "has no R, G, B channels (nor Y); expected an RGB image");
     std::vector<float> grey;
     source.read({"Y"}, grey);
     image.data.resize(grey.size() * 3u);
@@ -467,13 +450,10 @@ void write_rgb_png(const std::string& path, const RgbImage& image, double exposu
         x = std::min(x, 1.0);
         pixels[k] = static_cast<std::uint8_t>(std::lround(srgb_encode(x) * 255.0));
     }
-    write_file_atomically(path, [&](const std::string& tmp) {
-        write_png8(tmp, image.rows, image.cols, true, pixels);
-    });
+    write_file_atomically(path, [&](const std::string& tmp) { write_png8(tmp, image.rows, image.cols, true, pixels); });
 }
 
-void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
-               const std::vector<double>& data) {
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape, const std::vector<double>& data) {
     std::size_t count = 1;
     for (std::size_t d : shape) count *= d;
     if (count != data.size())
@@ -492,11 +472,17 @@ void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
         std::FILE* f = std::fopen(tmp.c_str(), "wb");
         if (!f) throw std::runtime_error("cannot create the file");
         const unsigned short length = static_cast<unsigned short>(dict.size());
-        const unsigned char head[10] = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0,
+        const unsigned char head[10] = {0x93,
+                                        'N',
+                                        'U',
+                                        'M',
+                                        'P',
+                                        'Y',
+                                        1,
+                                        0,
                                         static_cast<unsigned char>(length & 0xff),
                                         static_cast<unsigned char>(length >> 8)};
-        bool ok = std::fwrite(head, 1, 10, f) == 10 &&
-                  std::fwrite(dict.data(), 1, dict.size(), f) == dict.size() &&
+        bool ok = std::fwrite(head, 1, 10, f) == 10 && std::fwrite(dict.data(), 1, dict.size(), f) == dict.size() &&
                   std::fwrite(data.data(), sizeof(double), data.size(), f) == data.size();
         ok = (std::fclose(f) == 0) && ok;
         if (!ok) throw std::runtime_error("write failed");
@@ -520,8 +506,7 @@ void write_file_atomically(const std::string& path,
     if (std::rename(tmp.c_str(), path.c_str()) != 0) {
         const int err = errno;
         remove_quietly(tmp);
-        fail(path,
-             std::string("cannot move the finished file into place (") + std::strerror(err) + ")");
+        fail(path, std::string("cannot move the finished file into place (") + std::strerror(err) + ")");
     }
 }
 

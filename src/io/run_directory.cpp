@@ -64,19 +64,22 @@ void check_run_directory(RunKind kind, const std::string& dir, bool force, const
     const fs::file_status status = fs::symlink_status(dir, ec);
     if (!fs::exists(status)) return;
     if (!fs::is_directory(fs::status(dir, ec)))
-        throw std::invalid_argument(option + " " + dir + " exists and is not a directory; expected a directory for the run");
+        throw std::invalid_argument(option + " " + dir +
+                                    " exists and is not a directory; expected a directory for the run");
     if (fs::is_empty(dir, ec)) return;
     const std::vector<std::string> foreign = foreign_files(kind, dir);
     if (!foreign.empty())
         throw std::invalid_argument(
             option + " " + dir + " is not empty and holds '" + foreign.front() + "'" +
-            (foreign.size() > 1 ? " and " + std::to_string(foreign.size() - 1) + " more" : std::string()) +
-            ", which " + to_string(kind) + " does not write; expected a new or empty directory (--force replaces only a directory of " +
+            (foreign.size() > 1 ? " and " + std::to_string(foreign.size() - 1) + " more" : std::string()) + ", which " +
+            to_string(kind) +
+            " does not write; expected a new or empty directory (--force replaces only a directory of " +
             to_string(kind) + "'s own outputs)");
     if (!force)
-        throw std::invalid_argument(option + " " + dir + " holds the outputs of another run; expected a new or empty directory, " +
-                                    (kind == RunKind::Invert ? std::string("--resume DIR to continue that run, ") : std::string()) +
-                                    "or --force to replace that run");
+        throw std::invalid_argument(
+            option + " " + dir + " holds the outputs of another run; expected a new or empty directory, " +
+            (kind == RunKind::Invert ? std::string("--resume DIR to continue that run, ") : std::string()) +
+            "or --force to replace that run");
 }
 
 void prepare_run_directory(RunKind kind, const std::string& dir, bool force, const std::string& option) {

@@ -60,8 +60,9 @@ std::vector<double> plan_wavelengths(double range_um, double lambda0, double lam
     // One wavelength determines heights modulo λ0/2; keep the range within half of that.
     if (range_um >= 0.25 * lambda0) {
         // Finest synthetic wavelength the range [λ_min, λ_max] offers: the partner farthest from λ0.
-        const double shortest = std::min(lambda_min < lambda0 ? lambda0 * lambda_min / (lambda0 - lambda_min) : kInfinity,
-                                         lambda_max > lambda0 ? lambda0 * lambda_max / (lambda_max - lambda0) : kInfinity);
+        const double shortest = std::min(
+            lambda_min < lambda0 ? lambda0 * lambda_min / (lambda0 - lambda_min) : kInfinity,
+            lambda_max > lambda0 ? lambda0 * lambda_max / (lambda_max - lambda0) : kInfinity);
         if (!(shortest <= max_ratio * lambda0))
             throw std::domain_error(
                 "wavelengths " + format_shortest(lambda_min) + " to " + format_shortest(lambda_max) +
@@ -147,24 +148,25 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
     plan.resolution = r.resolution != 0 ? r.resolution : nyquist_resolution(plan.sigma_p_um, lambda_short);
     validate_resolution(plan.resolution);
 
-    plan.notes.push_back("footprint sigma_p = " + format_shortest(plan.sigma_p_um) + " um (window support D = " +
-                         format_shortest(d_um) + " um)");
+    plan.notes.push_back("footprint sigma_p = " + format_shortest(plan.sigma_p_um) +
+                         " um (window support D = " + format_shortest(d_um) + " um)");
     plan.notes.push_back(std::to_string(plan.positions_um.size()) + " positions on a " + std::to_string(nx) + "x" +
                          std::to_string(ny) + " raster, steps " + fixed(plan.step_x_um, 2) + " x " +
                          fixed(plan.step_y_um, 2) + " um, jitter +-" + fixed(100.0 * r.jitter, 0) +
                          " % of a step: neighbours overlap by at least " + fixed(100.0 * plan.overlap, 0) + " %");
     const double du = 2.0 / (plan.resolution * lambda_short);
     plan.notes.push_back(std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) +
-                         " slices: du = " + fixed(du, 4) + " 1/um at lambda = " + fixed(lambda_short, 4) +
-                         " um, " + (du <= 0.5 / d_um ? "<= " : "coarser than ") + "1/(2D) = " + fixed(0.5 / d_um, 4));
+                         " slices: du = " + fixed(du, 4) + " 1/um at lambda = " + fixed(lambda_short, 4) + " um, " +
+                         (du <= 0.5 / d_um ? "<= " : "coarser than ") + "1/(2D) = " + fixed(0.5 / d_um, 4));
     std::string lambdas;
     for (double l : plan.lambdas_um) lambdas += (lambdas.empty() ? "" : ", ") + fixed(l, 4);
     std::string synthetic;
     for (double s : plan.synthetic_um) synthetic += (synthetic.empty() ? "" : ", ") + fixed(s, 3);
     plan.notes.push_back("wavelengths " + lambdas + " um" +
-                         (synthetic.empty() ? std::string(r.lambdas_um.empty() ? " (one suffices for the height range)" : "")
-                                            : " (synthetic " + synthetic + " um; heights unwrap up to " +
-                                                  fixed(0.5 * plan.synthetic_um.front(), 3) + " um)"));
+                         (synthetic.empty()
+                              ? std::string(r.lambdas_um.empty() ? " (one suffices for the height range)" : "")
+                              : " (synthetic " + synthetic + " um; heights unwrap up to " +
+                                    fixed(0.5 * plan.synthetic_um.front(), 3) + " um)"));
     return plan;
 }
 
@@ -259,9 +261,10 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
             const int needed = static_cast<int>(std::ceil(nyquist_resolution(o.query.sigma_p_um, lambda) / 4.0));
             const std::string w = std::to_string(o.resolution) + "x" + std::to_string(o.resolution) +
                                   " slices at lambda = " + format_shortest(lambda) + " um sample u every " +
-                                  fixed(du, 4) + " 1/um, more than 4x the Nyquist spacing 1/(2D) = " +
-                                  fixed(0.5 / d_um, 4) + " for sigma_p = " + format_shortest(o.query.sigma_p_um) +
-                                  " um; expected at least " + std::to_string(needed) + " pixels";
+                                  fixed(du, 4) +
+                                  " 1/um, more than 4x the Nyquist spacing 1/(2D) = " + fixed(0.5 / d_um, 4) +
+                                  " for sigma_p = " + format_shortest(o.query.sigma_p_um) + " um; expected at least " +
+                                  std::to_string(needed) + " pixels";
             if (seen.insert(w).second) warnings.push_back(w);
         }
     }
@@ -287,7 +290,8 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
                 max_slope = std::max(max_slope, std::hypot(s[0], s[1]));
             }
         double light = 0.0;
-        for (const Observation& o : observations) light = std::max(light, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
+        for (const Observation& o : observations)
+            light = std::max(light, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
         if (light + 2.0 * max_slope > 0.9)
             warnings.push_back("slopes up to " + fixed(max_slope, 3) + " reflect light towards |omega_o| up to " +
                                fixed(light + 2.0 * max_slope, 2) +

@@ -9,14 +9,14 @@
 
 namespace wavebrdf {
 
-Heightfield recover_heights_thesis(const std::vector<Observation>& observations, int rows, int cols,
-                                   double texel_um, double vscale, const BaselineSettings& settings,
-                                   const std::function<bool(const StageMetrics&)>& on_step,
-                                   const Heightfield* truth) {
+Heightfield recover_heights_thesis(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
+                                   double vscale, const BaselineSettings& settings,
+                                   const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth) {
     if (observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
     validate_iterations(settings.epochs, "epochs");
     if (settings.report_every < 1)
-        throw std::invalid_argument("report_every " + std::to_string(settings.report_every) + " is invalid; expected >= 1");
+        throw std::invalid_argument("report_every " + std::to_string(settings.report_every) +
+                                    " is invalid; expected >= 1");
     for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
     const auto start = std::chrono::steady_clock::now();
     Heightfield estimate(rows, cols, std::vector<double>(static_cast<std::size_t>(rows) * cols, 0.0), texel_um, vscale);

@@ -63,8 +63,7 @@ std::vector<double> add_noise(const std::vector<double>& slice, const Noise& noi
             for (double v : slice) peak = std::max(peak, v);
             std::vector<double> z(slice.size());
             detail::fill_standard_normal(z.data(), z.size(), rng);
-            for (std::size_t i = 0; i < out.size(); ++i)
-                out[i] = std::max(0.0, out[i] + noise.level * peak * z[i]);
+            for (std::size_t i = 0; i < out.size(); ++i) out[i] = std::max(0.0, out[i] + noise.level * peak * z[i]);
             break;
         }
     }

@@ -19,8 +19,8 @@ namespace wavebrdf {
 double height_rel_rmse(const Heightfield& estimate, const Heightfield& truth) {
     if (estimate.rows() != truth.rows() || estimate.cols() != truth.cols())
         throw std::invalid_argument("height_rel_rmse: estimate is " + std::to_string(estimate.rows()) + " x " +
-                                    std::to_string(estimate.cols()) + " but truth is " +
-                                    std::to_string(truth.rows()) + " x " + std::to_string(truth.cols()));
+                                    std::to_string(estimate.cols()) + " but truth is " + std::to_string(truth.rows()) +
+                                    " x " + std::to_string(truth.cols()));
     const double n = double(truth.values().size());
     double mean_e = 0.0, mean_t = 0.0, lo = INFINITY, hi = -INFINITY;
     for (int i = 0; i < truth.rows(); ++i)
@@ -50,18 +50,17 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i) {
     return std::max(q, 1);
 }
 
-Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols,
-                            double texel_um, double vscale, const RecoverSettings& settings,
-                            const std::function<bool(const StageMetrics&)>& on_step,
-                            const Heightfield* truth) {
+Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
+                            double vscale, const RecoverSettings& settings,
+                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth) {
     if (observations.empty()) throw std::invalid_argument("recover_heights: no observations given");
     for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
-    const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0),
-                           texel_um, vscale);
+    const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0), texel_um,
+                           vscale);
     if (truth && (truth->rows() != rows || truth->cols() != cols))
         throw std::invalid_argument("recover_heights: truth is " + std::to_string(truth->rows()) + " x " +
-                                    std::to_string(truth->cols()) + "; expected " + std::to_string(rows) +
-                                    " x " + std::to_string(cols));
+                                    std::to_string(truth->cols()) + "; expected " + std::to_string(rows) + " x " +
+                                    std::to_string(cols));
     if (vscale == 0.0) throw std::domain_error("recover_heights: vscale 0 maps every height to 0; expected != 0");
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
@@ -115,7 +114,8 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             for (std::size_t k = first; k < blur_set.size() && !close; ++k) {
                 const double dx = periodic(o.query.x_um - blur_set[k].query.x_um, period_x);
                 const double dy = periodic(o.query.y_um - blur_set[k].query.y_um, period_y);
-                const double spacing = settings.blur_spacing_sigma * std::min(o.query.sigma_p_um, blur_set[k].query.sigma_p_um);
+                const double spacing = settings.blur_spacing_sigma *
+                                       std::min(o.query.sigma_p_um, blur_set[k].query.sigma_p_um);
                 close = dx * dx + dy * dy < spacing * spacing;
             }
             if (!close) blur_set.push_back(o);
@@ -131,9 +131,9 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
 
     // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.
     double max_omega_i = 0.0;
-    for (const Observation& o : mono) max_omega_i = std::max(max_omega_i, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
-    const int q = settings.refine > 0 ? settings.refine
-                                            : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
+    for (const Observation& o : mono)
+        max_omega_i = std::max(max_omega_i, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
+    const int q = settings.refine > 0 ? settings.refine : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
     if (q % 2 == 0 || q > 63)
         throw std::invalid_argument("recover_heights: refine " + std::to_string(q) +
                                     " is invalid; expected an odd value up to 63 (texel centres must be samples)");
@@ -148,12 +148,14 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // at the texel centres (refine is odd: texel (i, j) is sample (i·q + q/2, j·q + q/2)).
     const auto unwrap_fields = [&] {
         const std::vector<double> reference = refined_heights(estimate, q);
-        const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.height_range_um, rows * q, obj_cols,
+        const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.height_range_um, rows * q,
+                                                           obj_cols,
                                                            settings.unwrap_from_blurred ? &reference : nullptr);
         std::vector<double> h(std::size_t(rows) * cols);
         for (int i = 0; i < rows; ++i)
             for (int j = 0; j < cols; ++j)
-                h[std::size_t(i) * cols + j] = fine_um[std::size_t(i * q + q / 2) * obj_cols + (j * q + q / 2)] * to_texel;
+                h[std::size_t(i) * cols + j] = fine_um[std::size_t(i * q + q / 2) * obj_cols + (j * q + q / 2)] *
+                                               to_texel;
         estimate = flat.with_values(h);
     };
     // Longest wavelength first: its phases are the least wrapped, so it converges from the
@@ -167,10 +169,9 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             const double lambda = it->first;
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
-            const FieldRetrievalResult r =
-                retrieve_field(it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
-                               field_settings,
-                               [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
+            const FieldRetrievalResult r = retrieve_field(
+                it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
+                [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
             if (stopped) return estimate;
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
@@ -197,12 +198,13 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             const Heightfield hf = flat.with_values(x);
             g.assign(x.size(), 0.0);
             const double scale = 1.0 / double(observations.size());
-            return detail::ordered_parallel_sum(observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
-                std::vector<double> one;
-                const double v = scale * observation_loss(hf, {observations[i]}, settings.refine_loss, &one);
-                for (std::size_t k = 0; k < one.size(); ++k) local[k] += scale * one[k];
-                return v;
-            });
+            return detail::ordered_parallel_sum(
+                observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
+                    std::vector<double> one;
+                    const double v = scale * observation_loss(hf, {observations[i]}, settings.refine_loss, &one);
+                    for (std::size_t k = 0; k < one.size(); ++k) local[k] += scale * one[k];
+                    return v;
+                });
         };
         LbfgsOptions lo;
         lo.history = settings.refine_history;

@@ -51,8 +51,7 @@ Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n) {
 }  // namespace
 
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
-                        const BlurredFitSettings& settings,
-                        const std::function<bool(int, int, double)>& on_iteration) {
+                        const BlurredFitSettings& settings, const std::function<bool(int, int, double)>& on_iteration) {
     std::vector<const Observation*> used;
     for (std::size_t i = 0; i < observations.size(); ++i) {
         validate(observations[i], i);
@@ -102,31 +101,32 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
         // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
             grad.assign(x.size(), 0.0);
-            return detail::ordered_parallel_sum(used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
-                const Blurred& d = data[i];
-                const int n = d.n_coarse;
-                SlicePlan<float>& plan = plans[i];
-                plan.set_heights(x);
-                const std::vector<float>& f = plan.forward();
-                const Eigen::MatrixXd m =
-                    d.model_blur * as_matrix(std::vector<double>(f.begin(), f.end()), n) * d.model_blur.transpose();
-                Eigen::MatrixXd dm(n, n);
-                double v = 0.0;
-                for (int p = 0; p < n; ++p)
-                    for (int q = 0; q < n; ++q) {
-                        const double a = std::sqrt(std::max(m(p, q), 0.0) + 1e-300);
-                        const double diff = a - std::sqrt(d.reference(p, q));
-                        v += diff * diff;
-                        dm(p, q) = m(p, q) > 0.0 ? inv_total * diff / a : 0.0;
-                    }
-                const double term = v * inv_total;
-                const Eigen::MatrixXd w = d.model_blur.transpose() * dm * d.model_blur;
-                std::vector<float> weights(std::size_t(n) * n);
-                for (int p = 0; p < n; ++p)
-                    for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = float(w(p, q));
-                plan.adjoint_wavelength(0, weights, local);
-                return term;
-            });
+            return detail::ordered_parallel_sum(
+                used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
+                    const Blurred& d = data[i];
+                    const int n = d.n_coarse;
+                    SlicePlan<float>& plan = plans[i];
+                    plan.set_heights(x);
+                    const std::vector<float>& f = plan.forward();
+                    const Eigen::MatrixXd m = d.model_blur * as_matrix(std::vector<double>(f.begin(), f.end()), n) *
+                                              d.model_blur.transpose();
+                    Eigen::MatrixXd dm(n, n);
+                    double v = 0.0;
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) {
+                            const double a = std::sqrt(std::max(m(p, q), 0.0) + 1e-300);
+                            const double diff = a - std::sqrt(d.reference(p, q));
+                            v += diff * diff;
+                            dm(p, q) = m(p, q) > 0.0 ? inv_total * diff / a : 0.0;
+                        }
+                    const double term = v * inv_total;
+                    const Eigen::MatrixXd w = d.model_blur.transpose() * dm * d.model_blur;
+                    std::vector<float> weights(std::size_t(n) * n);
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = float(w(p, q));
+                    plan.adjoint_wavelength(0, weights, local);
+                    return term;
+                });
         };
         LbfgsOptions lo;
         lo.history = settings.history;

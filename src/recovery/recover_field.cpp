@@ -71,8 +71,7 @@ struct FieldOperator::Impl {
         const Eigen::MatrixXcf m = (xf_adjoint * g) * yf_conjugate;
         for (Eigen::Index r = 0; r < probe.rows(); ++r)
             for (Eigen::Index c = 0; c < probe.cols(); ++c)
-                object[std::size_t(row_index[r]) * cols + col_index[c]] +=
-                    probe(r, c) * std::complex<double>(m(r, c));
+                object[std::size_t(row_index[r]) * cols + col_index[c]] += probe(r, c) * std::complex<double>(m(r, c));
     }
 };
 
@@ -81,16 +80,18 @@ struct FieldAccess {
     static const FieldOperator::Impl& impl(const FieldOperator& op) { return *op.m_impl; }
 };
 
-FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& query,
-                             double lambda_um, int resolution, int refine)
+FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& query, double lambda_um, int resolution,
+                             int refine)
     : m_impl(std::make_unique<Impl>()) {
     if (refine < 1 || refine > 64)
-        throw std::invalid_argument("object grid refinement " + std::to_string(refine) + " is invalid; expected 1 to 64");
+        throw std::invalid_argument("object grid refinement " + std::to_string(refine) +
+                                    " is invalid; expected 1 to 64");
     if (rows < 1 || cols < 1)
         throw std::invalid_argument("tile of " + std::to_string(rows) + " x " + std::to_string(cols) +
                                     " texels; expected at least 1 x 1");
     if (!std::isfinite(texel_um) || texel_um <= 0.0)
-        throw std::domain_error("texel width " + format_shortest(texel_um) + " um is invalid; expected a finite value > 0");
+        throw std::domain_error("texel width " + format_shortest(texel_um) +
+                                " um is invalid; expected a finite value > 0");
     validate(query);
     validate_lambda(lambda_um);
     validate_resolution(resolution);
@@ -104,8 +105,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
 
     // The footprint exactly as the renderer sees it on a grid `refine` times finer: the same
     // kernels, offsets and weights.
-    const Heightfield flat(s.rows, s.cols, std::vector<double>(std::size_t(s.rows) * s.cols, 0.0),
-                           texel_um / refine);
+    const Heightfield flat(s.rows, s.cols, std::vector<double>(std::size_t(s.rows) * s.cols, 0.0), texel_um / refine);
     const FootprintKernels k = footprint_kernels(flat, query.x_um, query.y_um, query.sigma_p_um);
     std::vector<int> slot_r(s.rows, -1), slot_c(s.cols, -1);
     std::vector<double> dx, dy;
@@ -178,8 +178,8 @@ FieldOperator& FieldOperator::operator=(FieldOperator&&) noexcept = default;
 std::vector<std::complex<double>> FieldOperator::forward(const std::vector<std::complex<double>>& object) const {
     const Impl& s = *m_impl;
     if (object.size() != std::size_t(s.rows) * s.cols)
-        throw std::invalid_argument("object has " + std::to_string(object.size()) + " values; expected rows * cols = " +
-                                    std::to_string(std::size_t(s.rows) * s.cols));
+        throw std::invalid_argument("object has " + std::to_string(object.size()) +
+                                    " values; expected rows * cols = " + std::to_string(std::size_t(s.rows) * s.cols));
     Eigen::MatrixXcd psi;
     s.forward(object.data(), psi);
     std::vector<std::complex<double>> field(std::size_t(s.n) * s.n, 0.0);
@@ -191,8 +191,8 @@ std::vector<std::complex<double>> FieldOperator::forward(const std::vector<std::
 std::vector<std::complex<double>> FieldOperator::adjoint(const std::vector<std::complex<double>>& field) const {
     const Impl& s = *m_impl;
     if (field.size() != std::size_t(s.n) * s.n)
-        throw std::invalid_argument("field has " + std::to_string(field.size()) + " values; expected resolution^2 = " +
-                                    std::to_string(std::size_t(s.n) * s.n));
+        throw std::invalid_argument("field has " + std::to_string(field.size()) +
+                                    " values; expected resolution^2 = " + std::to_string(std::size_t(s.n) * s.n));
     Eigen::MatrixXcd g(s.ma, s.mb);
     for (int p = 0; p < s.ma; ++p)
         for (int q = 0; q < s.mb; ++q) g(p, q) = field[std::size_t(s.a0 + p) * s.n + s.b0 + q];
@@ -214,23 +214,24 @@ std::vector<double> refined_heights(const Heightfield& hf, int refine) {
     constexpr int reach = 3;
     detail::RegionGuard guard;
 #pragma omp parallel for schedule(static) if (std::size_t(rows) * cols > 4096)
-    for (int a = 0; a < rows; ++a) guard.run([&] {
-        for (int b = 0; b < cols; ++b) {
-            const int i0 = a / refine, j0 = b / refine;
-            // Offset of the sample from its texel's centre (µm).
-            const double ox = (a - i0 * refine - refine / 2) * d, oy = (b - j0 * refine - refine / 2) * d;
-            double num = 0.0, den = 0.0;
-            for (int di = -reach; di <= reach; ++di)
-                for (int dj = -reach; dj <= reach; ++dj) {
-                    const double dx = ox - di * w, dy = oy - dj * w;  // x − μ_k
-                    const double g = std::exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma));
-                    const auto s = hf.slope(i0 + di, j0 + dj);
-                    num += g * (hf.height_um(i0 + di, j0 + dj) + s[0] * dx + s[1] * dy);
-                    den += g;
-                }
-            out[std::size_t(a) * cols + b] = num / den;
-        }
-    });
+    for (int a = 0; a < rows; ++a)
+        guard.run([&] {
+            for (int b = 0; b < cols; ++b) {
+                const int i0 = a / refine, j0 = b / refine;
+                // Offset of the sample from its texel's centre (µm).
+                const double ox = (a - i0 * refine - refine / 2) * d, oy = (b - j0 * refine - refine / 2) * d;
+                double num = 0.0, den = 0.0;
+                for (int di = -reach; di <= reach; ++di)
+                    for (int dj = -reach; dj <= reach; ++dj) {
+                        const double dx = ox - di * w, dy = oy - dj * w;  // x − μ_k
+                        const double g = std::exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma));
+                        const auto s = hf.slope(i0 + di, j0 + dj);
+                        num += g * (hf.height_um(i0 + di, j0 + dj) + s[0] * dx + s[1] * dy);
+                        den += g;
+                    }
+                out[std::size_t(a) * cols + b] = num / den;
+            }
+        });
     guard.rethrow();
     return out;
 }
@@ -245,9 +246,8 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& hf, dou
 
 // ---- phase retrieval -------------------------------------------------------------------------
 
-FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um,
-                                    int rows, int cols, double texel_um,
-                                    const std::vector<std::complex<double>>& initial,
+FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um, int rows, int cols,
+                                    double texel_um, const std::vector<std::complex<double>>& initial,
                                     const FieldRetrievalSettings& settings,
                                     const std::function<bool(int, double)>& on_iteration) {
     if (observations.empty()) throw std::invalid_argument("retrieve_field: no observations given");
@@ -289,8 +289,10 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
                 total += r;
                 const int a = p - impl.a0, b = c - impl.b0;
-                if (a >= 0 && a < impl.ma && b >= 0 && b < impl.mb) s.sqrt_ref(a, b) = std::sqrt(r);
-                else s.outside += r;
+                if (a >= 0 && a < impl.ma && b >= 0 && b < impl.mb)
+                    s.sqrt_ref(a, b) = std::sqrt(r);
+                else
+                    s.outside += r;
             }
         slices.push_back(std::move(s));
     }
@@ -301,7 +303,8 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         const auto& impl = FieldAccess::impl(s.op);
         for (Eigen::Index r = 0; r < impl.probe.rows(); ++r)
             for (Eigen::Index c = 0; c < impl.probe.cols(); ++c)
-                coverage[std::size_t(impl.row_index[r]) * obj_cols + impl.col_index[c]] += impl.probe(r, c) * impl.probe(r, c);
+                coverage[std::size_t(impl.row_index[r]) * obj_cols + impl.col_index[c]] += impl.probe(r, c) *
+                                                                                           impl.probe(r, c);
     }
     const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
 

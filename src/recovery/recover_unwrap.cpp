@@ -26,8 +26,8 @@ namespace {
 double wrap_phase(double a) { return a - 2.0 * k_pi * std::floor(a / (2.0 * k_pi) + 0.5); }
 
 struct Channel {
-    double lambda_um;                        // (synthetic) wavelength Λ
-    std::vector<std::complex<double>> z;     // phase −(4π/Λ)H + const
+    double lambda_um;                     // (synthetic) wavelength Λ
+    std::vector<std::complex<double>> z;  // phase −(4π/Λ)H + const
 };
 
 // Phase offset ψ that best aligns channel z with heights H: arg Σ_k z_k e^{+i(4π/Λ)H_k}.
@@ -98,7 +98,8 @@ std::vector<double> integrate_differences(int rows, int cols, const std::vector<
     for (int a = 0; a < rows; ++a)
         for (int b = 0; b < cols; ++b) {
             // Eigenvalue of the periodic 5-point Laplacian for the mode (a, b).
-            const double lap = 2.0 * std::cos(2.0 * k_pi * a / rows) - 2.0 + 2.0 * std::cos(2.0 * k_pi * b / cols) - 2.0;
+            const double lap = 2.0 * std::cos(2.0 * k_pi * a / rows) - 2.0 + 2.0 * std::cos(2.0 * k_pi * b / cols) -
+                               2.0;
             div[at(a, b)] = (a == 0 && b == 0) || lap == 0.0 ? 0.0 : div[at(a, b)] / lap;
         }
     fftw_execute(backward);
@@ -117,8 +118,7 @@ std::vector<double> integrate_differences(int rows, int cols, const std::vector<
 // each wavelength's height resolution) and integrated in the least-squares sense. Valid where
 // neighbouring samples differ by less than π in phase at every wavelength.
 std::vector<double> spatial_heights(const std::vector<double>& lambdas_um,
-                                    const std::vector<std::vector<std::complex<double>>>& fields,
-                                    int rows, int cols) {
+                                    const std::vector<std::vector<std::complex<double>>>& fields, int rows, int cols) {
     const std::size_t total = std::size_t(rows) * cols;
     std::vector<double> gx(total, 0.0), gy(total, 0.0);
     const auto at = [cols](int i, int j) { return std::size_t(i) * cols + j; };
@@ -145,9 +145,8 @@ std::vector<double> spatial_heights(const std::vector<double>& lambdas_um,
 }  // namespace
 
 std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
-                                   const std::vector<std::vector<std::complex<double>>>& fields,
-                                   double height_range_um, int rows, int cols,
-                                   const std::vector<double>* reference) {
+                                   const std::vector<std::vector<std::complex<double>>>& fields, double height_range_um,
+                                   int rows, int cols, const std::vector<double>* reference) {
     if (fields.empty() || fields.size() != lambdas_um.size())
         throw std::invalid_argument("unwrap_heights: " + std::to_string(fields.size()) + " fields for " +
                                     std::to_string(lambdas_um.size()) +
@@ -226,7 +225,8 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
             if (lambdas_um[a] < lambdas_um[shortest]) shortest = a;
             for (std::size_t b = 0; b < fields.size(); ++b)
                 if (lambdas_um[a] < lambdas_um[b])
-                    min_synthetic = std::min(min_synthetic, lambdas_um[a] * lambdas_um[b] / (lambdas_um[b] - lambdas_um[a]));
+                    min_synthetic = std::min(min_synthetic,
+                                             lambdas_um[a] * lambdas_um[b] / (lambdas_um[b] - lambdas_um[a]));
         }
         std::vector<double> phi(fields.size());
         for (std::size_t l = 0; l < fields.size(); ++l) phi[l] = align({lambdas_um[l], fields[l]}, h);
@@ -235,7 +235,8 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
         const double kappa0 = 4.0 * k_pi / lambdas_um[shortest];
         for (std::size_t k = 0; k < texels; ++k) {
             if (!(std::abs(fields[shortest][k]) > 0.0)) continue;
-            const double base = h[k] - wrap_phase(std::arg(fields[shortest][k]) - phi[shortest] + kappa0 * h[k]) / kappa0;
+            const double base = h[k] -
+                                wrap_phase(std::arg(fields[shortest][k]) - phi[shortest] + kappa0 * h[k]) / kappa0;
             double best = -INFINITY, best_h = h[k];
             for (int m = -branches; m <= branches; ++m) {
                 const double cand = base + m * half_step;

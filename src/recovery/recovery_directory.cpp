@@ -69,10 +69,10 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
             try {
                 write_text_atomically(dir + "/metrics.csv", csv.str());
                 saved = true;
-            } catch (const std::exception&) {
-            }
-            throw std::runtime_error(std::string(e.what()) + (saved ? "; the metrics so far are in " + dir + "/metrics.csv"
-                                                                    : "; nothing more could be written to " + dir));
+            } catch (const std::exception&) {}
+            throw std::runtime_error(std::string(e.what()) +
+                                     (saved ? "; the metrics so far are in " + dir + "/metrics.csv"
+                                            : "; nothing more could be written to " + dir));
         }
     }();
 

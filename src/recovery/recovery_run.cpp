@@ -17,9 +17,7 @@ RecoveryMethod parse_recovery_method(const std::string& text, const std::string&
     throw std::invalid_argument(name + " '" + text + "' is unknown; expected pipeline or thesis");
 }
 
-const char* to_string(RecoveryMethod method) {
-    return method == RecoveryMethod::Thesis ? "thesis" : "pipeline";
-}
+const char* to_string(RecoveryMethod method) { return method == RecoveryMethod::Thesis ? "thesis" : "pipeline"; }
 
 Loss recovery_loss(const RecoveryOptions& options) {
     if (options.loss) return *options.loss;
@@ -42,8 +40,10 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
         if (o.lambdas_um.size() != 1) continue;
         auto it = std::find_if(pixels_per_lambda.begin(), pixels_per_lambda.end(),
                                [&](const auto& p) { return p.first == o.lambdas_um[0]; });
-        if (it == pixels_per_lambda.end()) pixels_per_lambda.push_back({o.lambdas_um[0], pixels});
-        else it->second += pixels;
+        if (it == pixels_per_lambda.end())
+            pixels_per_lambda.push_back({o.lambdas_um[0], pixels});
+        else
+            it->second += pixels;
     }
     constexpr double base = 64e6;  // program, libraries, FFTW plans, per-thread slices
     if (method == RecoveryMethod::Thesis) return base + references + texels * 16.0 * sizeof(double);
@@ -78,8 +78,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (truth != nullptr && !observations.empty())
         throw std::invalid_argument("a truth and observations exclude each other; expected one of them (or neither)");
     if (options.noise.kind != NoiseKind::None && !observations.empty())
-        throw std::invalid_argument("noise '" + to_string(options.noise) +
-                                    "' is simulated on rendered observations; it needs a truth, not given observations");
+        throw std::invalid_argument(
+            "noise '" + to_string(options.noise) +
+            "' is simulated on rendered observations; it needs a truth, not given observations");
     // Counts first, before the observations are planned and rendered (negative iteration counts: the library's default).
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
@@ -100,8 +101,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
             throw std::invalid_argument(std::string("model ") + to_string(options.model) +
                                         " is not separable; the pipeline's field retrieval expects OHS or ROHS "
                                         "(or the thesis's method)");
-        if (!observations.empty() &&
-            std::none_of(observations.begin(), observations.end(), [](const Observation& o) {
+        if (!observations.empty() && std::none_of(observations.begin(), observations.end(), [](const Observation& o) {
                 return o.lambdas_um.size() == 1 && is_separable(o.query.model);
             }))
             throw std::invalid_argument(
@@ -139,10 +139,10 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         const AcquisitionPlan plan = plan_acquisition(request);
         r.notes = plan.notes;
         const std::vector<Observation> planned = planned_observations(plan);
-        require_memory(estimate_recovery_bytes(planned, r.rows, r.cols, r.texel_um, options.method),
-                       limit, "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
-                                  std::to_string(planned.size()) + " observations of " +
-                                  std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) + ")");
+        require_memory(estimate_recovery_bytes(planned, r.rows, r.cols, r.texel_um, options.method), limit,
+                       "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
+                           std::to_string(planned.size()) + " observations of " + std::to_string(plan.resolution) +
+                           "x" + std::to_string(plan.resolution) + ")");
         Progress progress("simulate", static_cast<long long>(plan.positions_um.size() * plan.lambdas_um.size()),
                           show_progress);
         r.observations = simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);

@@ -63,16 +63,14 @@ void validate_footprint(double sigma_p_um, double period_x_um, double period_y_u
     if (!(sigma_p_um > 0.0) || !(sigma_p_um <= limit)) {
         std::ostringstream out;
         out.precision(10);
-        out << "sigma_p " << sigma_p_um << " um is too large for the tile (" << period_x_um << " x "
-            << period_y_um << " um); expected 0 < sigma_p <= " << k_max_sigma_p_periods
-            << " x the longer tile period = " << limit
+        out << "sigma_p " << sigma_p_um << " um is too large for the tile (" << period_x_um << " x " << period_y_um
+            << " um); expected 0 < sigma_p <= " << k_max_sigma_p_periods << " x the longer tile period = " << limit
             << " um (the window is cut to one periodic tile: a wider one only fades the slice)";
         throw std::domain_error(out.str());
     }
 }
 
-FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double y_in_um,
-                                   double sigma_p_um) {
+FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double y_in_um, double sigma_p_um) {
     validate_footprint(sigma_p_um, hf.period_x_um(), hf.period_y_um());
     const double x_um = reduce_periodic(x_in_um, hf.period_x_um());
     const double y_um = reduce_periodic(y_in_um, hf.period_y_um());
@@ -84,8 +82,7 @@ FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double
     FootprintKernels k;
     k.sigma_um = 0.5 * w;
     const std::size_t reserve = rows.size() * cols.size();
-    for (auto* v : {&k.dx_um, &k.dy_um, &k.weight, &k.height_um, &k.slope_x, &k.slope_y})
-        v->reserve(reserve);
+    for (auto* v : {&k.dx_um, &k.dy_um, &k.weight, &k.height_um, &k.slope_x, &k.slope_y}) v->reserve(reserve);
     k.row.reserve(reserve);
     k.col.reserve(reserve);
     for (int i : rows) {
@@ -110,8 +107,14 @@ FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double
 }
 
 GaborRepresentation::GaborRepresentation(const Heightfield& hf, double x, double y, double sigma_p)
-    : kernels(footprint_kernels(hf, x, y, sigma_p)), rows(hf.rows()), cols(hf.cols()), texel_um(hf.texel_um()),
-      vscale(hf.vscale()), x_um(x), y_um(y), sigma_p_um(sigma_p) {}
+    : kernels(footprint_kernels(hf, x, y, sigma_p)),
+      rows(hf.rows()),
+      cols(hf.cols()),
+      texel_um(hf.texel_um()),
+      vscale(hf.vscale()),
+      x_um(x),
+      y_um(y),
+      sigma_p_um(sigma_p) {}
 
 std::vector<double> GaborRepresentation::heights_from_kernels(const std::vector<double>& height_um,
                                                               std::vector<double> fill) const {
@@ -120,11 +123,12 @@ std::vector<double> GaborRepresentation::heights_from_kernels(const std::vector<
                                     " values; expected one per kernel (" + std::to_string(kernels.size()) + ")");
     const std::size_t cells = static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols);
     if (fill.size() != cells)
-        throw std::invalid_argument("fill has " + std::to_string(fill.size()) + " values; expected rows*cols = " +
-                                    std::to_string(cells));
+        throw std::invalid_argument("fill has " + std::to_string(fill.size()) +
+                                    " values; expected rows*cols = " + std::to_string(cells));
     if (vscale == 0.0)
-        throw std::domain_error("GaborRep has vscale = 0: kernel heights H = v * w * h are all 0 and the heights "
-                                "cannot be recovered; expected vscale != 0");
+        throw std::domain_error(
+            "GaborRep has vscale = 0: kernel heights H = v * w * h are all 0 and the heights "
+            "cannot be recovered; expected vscale != 0");
     const double scale = 1.0 / (vscale * texel_um);
     for (std::size_t k = 0; k < kernels.size(); ++k)
         fill[static_cast<std::size_t>(kernels.row[k]) * static_cast<std::size_t>(cols) +

@@ -34,43 +34,41 @@ constexpr int k_max_size = 16384;
 
 void require_finite(double value, const char* name) {
     if (!std::isfinite(value))
-        throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_shortest(value) + " is not finite; expected a finite value");
+        throw std::domain_error(std::string("surface parameter ") + name + " = " + format_shortest(value) +
+                                " is not finite; expected a finite value");
 }
 
 void require_positive(double value, const char* name) {
     require_finite(value, name);
     if (!(value > 0.0))
-        throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_shortest(value) + " is invalid; expected a value > 0");
+        throw std::domain_error(std::string("surface parameter ") + name + " = " + format_shortest(value) +
+                                " is invalid; expected a value > 0");
 }
 
 void require_non_negative(double value, const char* name) {
     require_finite(value, name);
     if (value < 0.0)
-        throw std::domain_error(std::string("surface parameter ") + name + " = " +
-                                format_shortest(value) + " is invalid; expected a value >= 0");
+        throw std::domain_error(std::string("surface parameter ") + name + " = " + format_shortest(value) +
+                                " is invalid; expected a value >= 0");
 }
 
 void require_size(int value, const char* name) {
     if (value < 1 || value > k_max_size)
-        throw std::invalid_argument(std::string("surface ") + name + " = " +
-                                    std::to_string(value) + " is invalid; expected 1 to " +
-                                    std::to_string(k_max_size));
+        throw std::invalid_argument(std::string("surface ") + name + " = " + std::to_string(value) +
+                                    " is invalid; expected 1 to " + std::to_string(k_max_size));
 }
 
 void validate(const SurfaceParams& p) {
     switch (p.type) {
-    case SurfaceType::Flat:
-    case SurfaceType::Isotropic:
-    case SurfaceType::Brushed:
-    case SurfaceType::Scratched:
-    case SurfaceType::Grating:
-        break;
-    default:
-        throw std::invalid_argument("surface type " + std::to_string(static_cast<int>(p.type)) +
-                                    " is unknown; expected flat, isotropic, brushed, scratched "
-                                    "or grating");
+        case SurfaceType::Flat:
+        case SurfaceType::Isotropic:
+        case SurfaceType::Brushed:
+        case SurfaceType::Scratched:
+        case SurfaceType::Grating: break;
+        default:
+            throw std::invalid_argument("surface type " + std::to_string(static_cast<int>(p.type)) +
+                                        " is unknown; expected flat, isotropic, brushed, scratched "
+                                        "or grating");
     }
     require_size(p.rows, "rows");
     require_size(p.cols, "cols");
@@ -82,10 +80,8 @@ void validate(const SurfaceParams& p) {
     require_positive(p.correlation_um, "correlation_um");
     require_positive(p.anisotropy, "anisotropy");
     if (p.scratch_count < 0 || p.scratch_count > k_max_scratches)
-        throw std::domain_error("surface parameter scratch_count = " +
-                                std::to_string(p.scratch_count) +
-                                " is invalid; expected a count from 0 to " +
-                                std::to_string(k_max_scratches));
+        throw std::domain_error("surface parameter scratch_count = " + std::to_string(p.scratch_count) +
+                                " is invalid; expected a count from 0 to " + std::to_string(k_max_scratches));
     require_non_negative(p.scratch_depth_um, "scratch_depth_um");
     require_positive(p.scratch_width_um, "scratch_width_um");
     require_finite(p.amplitude_um, "amplitude_um");
@@ -151,8 +147,7 @@ std::vector<double> log_gaussian_spectrum(int n, double ell) {
         } else {
             // exp(−m²/ℓ²) < e^-64 for m ≥ 8 when ℓ < 1; Ĉ ≥ 1 − 2Σ e^{−m²} > 0.2 here.
             double sum = 1.0;
-            for (int m = 1; m <= 8; ++m)
-                sum += 2.0 * std::exp(-(m * m) / (ell * ell)) * std::cos(2.0 * k_pi * f * m);
+            for (int m = 1; m <= 8; ++m) sum += 2.0 * std::exp(-(m * m) / (ell * ell)) * std::cos(2.0 * k_pi * f * m);
             log_c[static_cast<std::size_t>(k)] = std::log(sum);
         }
     }
@@ -163,15 +158,13 @@ std::vector<double> log_gaussian_spectrum(int n, double ell) {
 // proportional to exp(−Δx²/ℓx² − Δy²/ℓy²) (lengths in texels), with an arbitrary overall scale
 // (the caller rescales). White noise is filtered by sqrt(Ĉx(kx) Ĉy(ky)) in the Fourier domain;
 // the DC bin is zeroed. All zeros when the grid has no non-DC bin (1×1).
-std::vector<double> gaussian_correlated_noise(int rows, int cols, double ell_x, double ell_y,
-                                              std::uint64_t seed) {
+std::vector<double> gaussian_correlated_noise(int rows, int cols, double ell_x, double ell_y, std::uint64_t seed) {
     const std::size_t n_real = static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols);
     std::vector<double> result(n_real, 0.0);
     if (n_real == 1) return result;
 
     const int half_cols = cols / 2 + 1;
-    const std::size_t n_complex =
-        static_cast<std::size_t>(rows) * static_cast<std::size_t>(half_cols);
+    const std::size_t n_complex = static_cast<std::size_t>(rows) * static_cast<std::size_t>(half_cols);
     FftwBuffer<double> real = fftw_buffer<double>(n_real);
     FftwBuffer<fftw_complex> spectrum = fftw_buffer<fftw_complex>(n_complex);
 
@@ -181,8 +174,8 @@ std::vector<double> gaussian_correlated_noise(int rows, int cols, double ell_x, 
         std::lock_guard<std::mutex> lock(fftw_planner_mutex());
         // FFTW_ESTIMATE does not touch the arrays, so planning before filling them is safe.
         forward.reset(fftw_plan_dft_r2c_2d(rows, cols, real.get(), spectrum.get(), FFTW_ESTIMATE));
-        backward.reset(fftw_plan_dft_c2r_2d(rows, cols, spectrum.get(), real.get(),
-                                            FFTW_ESTIMATE | FFTW_DESTROY_INPUT));
+        backward.reset(
+            fftw_plan_dft_c2r_2d(rows, cols, spectrum.get(), real.get(), FFTW_ESTIMATE | FFTW_DESTROY_INPUT));
     }
     if (!forward || !backward) throw std::runtime_error("FFTW could not plan the noise filter");
 
@@ -233,8 +226,7 @@ double rms_of(const std::vector<double>& values) {
 // sqrt(mean(s_x² + s_y²) / 2) for periodic central differences of values in texel units.
 double rms_slope_of(const std::vector<double>& h, int rows, int cols) {
     const auto at = [&](int i, int j) {
-        return h[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) +
-                 static_cast<std::size_t>(j)];
+        return h[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)];
     };
     double sum = 0.0;
     for (int i = 0; i < rows; ++i) {
@@ -253,22 +245,20 @@ double rms_slope_of(const std::vector<double>& h, int rows, int cols) {
 
 // Gaussian-correlated surface with the realised rms height (or, when rms_slope > 0, rms slope)
 // of the request; values in texel units. ell_x_um / ell_y_um along rows / columns.
-std::vector<double> correlated_surface(const SurfaceParams& p, double ell_x_um, double ell_y_um,
-                                       double rms_height_um, double rms_slope,
-                                       std::uint64_t seed) {
-    std::vector<double> h = gaussian_correlated_noise(p.rows, p.cols, ell_x_um / p.texel_um,
-                                                      ell_y_um / p.texel_um, seed);
+std::vector<double> correlated_surface(const SurfaceParams& p, double ell_x_um, double ell_y_um, double rms_height_um,
+                                       double rms_slope, std::uint64_t seed) {
+    std::vector<double> h = gaussian_correlated_noise(p.rows, p.cols, ell_x_um / p.texel_um, ell_y_um / p.texel_um,
+                                                      seed);
     const bool by_slope = rms_slope > 0.0;
     const double target = by_slope ? rms_slope : rms_height_um / p.texel_um;
     if (target == 0.0) return std::vector<double>(h.size(), 0.0);
     const double realised = by_slope ? rms_slope_of(h, p.rows, p.cols) : rms_of(h);
     if (!(realised > 0.0) || !std::isfinite(target / realised))
-        throw std::invalid_argument(
-            "a " + std::to_string(p.rows) + "x" + std::to_string(p.cols) +
-            " grid admits no zero-mean " + (by_slope ? "slope" : "height") +
-            " variation, so rms " + (by_slope ? "slope " : "height ") +
-            format_shortest(by_slope ? rms_slope : rms_height_um) + (by_slope ? "" : " um") +
-            " cannot be reached; expected a larger grid or a zero rms");
+        throw std::invalid_argument("a " + std::to_string(p.rows) + "x" + std::to_string(p.cols) +
+                                    " grid admits no zero-mean " + (by_slope ? "slope" : "height") +
+                                    " variation, so rms " + (by_slope ? "slope " : "height ") +
+                                    format_shortest(by_slope ? rms_slope : rms_height_um) + (by_slope ? "" : " um") +
+                                    " cannot be reached; expected a larger grid or a zero rms");
     const double scale = target / realised;
     for (double& v : h) v *= scale;
     return h;
@@ -283,9 +273,8 @@ std::vector<double> correlated_surface(const SurfaceParams& p, double ell_x_um, 
 // band per row, and wraps their indices: an unwrapped texel is a torus texel seen against one
 // lattice image of the scratch, so the maximum over them is the groove at the periodic distance.
 // `transpose` swaps the roles of x and y when writing (for scratches closer to the y axis).
-void rasterise_scratch(std::vector<double>& groove, int rows, int cols, double px, double py,
-                       double c, double s, double length, double sigma, double reach,
-                       bool transpose) {
+void rasterise_scratch(std::vector<double>& groove, int rows, int cols, double px, double py, double c, double s,
+                       double length, double sigma, double reach, bool transpose) {
     assert(std::abs(c) >= std::abs(s));
     const int rows_u = transpose ? cols : rows;  // extent along the dominant axis u
     const int cols_u = transpose ? rows : cols;
@@ -315,18 +304,16 @@ void rasterise_scratch(std::vector<double>& groove, int rows, int cols, double p
             const long j_wrapped = ((ju % cols_u) + cols_u) % cols_u;
             const long i = transpose ? j_wrapped : i_wrapped;
             const long j = transpose ? i_wrapped : j_wrapped;
-            double& g = groove[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) +
-                               static_cast<std::size_t>(j)];
+            double& g =
+                groove[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)];
             g = std::max(g, std::exp(-d2 * inv_two_sigma2));
         }
     }
 }
 
 // Normalised groove depth map (0 … 1) of `count` random scratches; lengths in texels.
-std::vector<double> scratch_grooves(int rows, int cols, int count, double width,
-                                    std::uint64_t seed) {
-    std::vector<double> groove(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols),
-                               0.0);
+std::vector<double> scratch_grooves(int rows, int cols, int count, double width, std::uint64_t seed) {
+    std::vector<double> groove(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols), 0.0);
     const double sigma = 0.5 * width;
     // exp(−d²/2σ²) < e^-32 beyond 8σ. No point of the torus is farther than half the tile
     // diagonal from the nearest image of a scratch's centre, so a longer reach adds nothing.
@@ -353,9 +340,11 @@ std::vector<double> scratch_grooves(int rows, int cols, int count, double width,
 
 }  // namespace
 
-constexpr std::pair<SurfaceType, const char*> k_surface_type_names[] = {
-    {SurfaceType::Flat, "flat"},           {SurfaceType::Isotropic, "isotropic"}, {SurfaceType::Brushed, "brushed"},
-    {SurfaceType::Scratched, "scratched"}, {SurfaceType::Grating, "grating"}};
+constexpr std::pair<SurfaceType, const char*> k_surface_type_names[] = {{SurfaceType::Flat, "flat"},
+                                                                        {SurfaceType::Isotropic, "isotropic"},
+                                                                        {SurfaceType::Brushed, "brushed"},
+                                                                        {SurfaceType::Scratched, "scratched"},
+                                                                        {SurfaceType::Grating, "grating"}};
 
 SurfaceType parse_surface_type(const std::string& name) {
     SurfaceType type;
@@ -375,42 +364,38 @@ Heightfield generate_heightfield(const SurfaceParams& p) {
     const std::size_t n = static_cast<std::size_t>(p.rows) * static_cast<std::size_t>(p.cols);
     std::vector<double> h;
     switch (p.type) {
-    case SurfaceType::Flat:
-        h.assign(n, 0.0);
-        break;
-    case SurfaceType::Isotropic:
-        h = correlated_surface(p, p.correlation_um, p.correlation_um, p.rms_height_um,
-                               p.rms_slope, derive_seed(p.seed, 0));
-        break;
-    case SurfaceType::Brushed:
-        h = correlated_surface(p, p.correlation_um, p.anisotropy * p.correlation_um,
-                               p.rms_height_um, p.rms_slope, derive_seed(p.seed, 0));
-        break;
-    case SurfaceType::Scratched: {
-        // Smooth base; a 1×1 grid has none (there is no zero-mean variation to scale).
-        const double base_rms_um = 0.1 * p.scratch_depth_um;
-        if (n > 1)
-            h = correlated_surface(p, 8.0 * p.correlation_um, 8.0 * p.correlation_um,
-                                   base_rms_um, 0.0, derive_seed(p.seed, 1));
-        else
-            h.assign(n, 0.0);
-        const std::vector<double> groove =
-            scratch_grooves(p.rows, p.cols, p.scratch_count, p.scratch_width_um / p.texel_um,
-                            derive_seed(p.seed, 2));
-        const double depth = p.scratch_depth_um / p.texel_um;
-        for (std::size_t k = 0; k < n; ++k) h[k] -= depth * groove[k];
-        break;
-    }
-    case SurfaceType::Grating: {
-        h.resize(n);
-        for (int i = 0; i < p.rows; ++i) {
-            const double x_um = (i + 0.5) * p.texel_um;
-            const double value = p.amplitude_um * std::sin(2.0 * k_pi * x_um / p.period_um) /
-                                 p.texel_um;
-            std::fill_n(h.begin() + static_cast<std::ptrdiff_t>(i) * p.cols, p.cols, value);
+        case SurfaceType::Flat: h.assign(n, 0.0); break;
+        case SurfaceType::Isotropic:
+            h = correlated_surface(p, p.correlation_um, p.correlation_um, p.rms_height_um, p.rms_slope,
+                                   derive_seed(p.seed, 0));
+            break;
+        case SurfaceType::Brushed:
+            h = correlated_surface(p, p.correlation_um, p.anisotropy * p.correlation_um, p.rms_height_um, p.rms_slope,
+                                   derive_seed(p.seed, 0));
+            break;
+        case SurfaceType::Scratched: {
+            // Smooth base; a 1×1 grid has none (there is no zero-mean variation to scale).
+            const double base_rms_um = 0.1 * p.scratch_depth_um;
+            if (n > 1)
+                h = correlated_surface(p, 8.0 * p.correlation_um, 8.0 * p.correlation_um, base_rms_um, 0.0,
+                                       derive_seed(p.seed, 1));
+            else
+                h.assign(n, 0.0);
+            const std::vector<double> groove = scratch_grooves(p.rows, p.cols, p.scratch_count,
+                                                               p.scratch_width_um / p.texel_um, derive_seed(p.seed, 2));
+            const double depth = p.scratch_depth_um / p.texel_um;
+            for (std::size_t k = 0; k < n; ++k) h[k] -= depth * groove[k];
+            break;
         }
-        break;
-    }
+        case SurfaceType::Grating: {
+            h.resize(n);
+            for (int i = 0; i < p.rows; ++i) {
+                const double x_um = (i + 0.5) * p.texel_um;
+                const double value = p.amplitude_um * std::sin(2.0 * k_pi * x_um / p.period_um) / p.texel_um;
+                std::fill_n(h.begin() + static_cast<std::ptrdiff_t>(i) * p.cols, p.cols, value);
+            }
+            break;
+        }
     }
     return Heightfield(p.rows, p.cols, std::move(h), p.texel_um, 1.0);
 }
