@@ -40,7 +40,9 @@ TEST(DiskRow, VisitsExactlyThePixelsInsideTheDiskInColumnOrder) {
             total += int(visited.size());
         }
         // The disk covers π/4 of the square: every pixel for n ≤ 2, about 79% for large n.
-        if (n <= 2) EXPECT_EQ(total, n * n);
+        if (n <= 2) {
+            EXPECT_EQ(total, n * n);
+        }
         if (n >= 33) {
             EXPECT_GT(total, int(0.75 * n * n));
             EXPECT_LT(total, int(0.82 * n * n));

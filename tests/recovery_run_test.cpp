@@ -30,7 +30,9 @@ TEST(RecoveryRun, RefusesAPlanThatCannotFitBeforeSimulating) {
     }
     // The default limit is the physical memory; 1000x1000 needs hundreds of GB.
     options.max_memory_gb = 0.0;
-    if (physical_memory_bytes() < 200e9) EXPECT_THROW(prepare_recovery(options), OutOfMemory);
+    if (double(physical_memory_bytes()) < 200e9) {
+        EXPECT_THROW(prepare_recovery(options), OutOfMemory);
+    }
     options.max_memory_gb = -2.0;
     EXPECT_THROW(prepare_recovery(options), std::invalid_argument);
 }
