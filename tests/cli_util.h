@@ -63,13 +63,13 @@ inline fs::path fresh_dir(const std::string& group) {
     return dir;
 }
 
-// Runs `wavebrdf args` in `dir`, stdout and stderr to files (so stderr is not a terminal, as in
-// a script), stdin from /dev/null.
-inline CliResult run_cli(const fs::path& dir, const std::string& args) {
+// Runs the shell command `command` (the tests' own text; quote paths with quote()) in `dir`,
+// stdout and stderr to files (so stderr is not a terminal, as in a script), stdin from /dev/null.
+inline CliResult run_in(const fs::path& dir, const std::string& command) {
     const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-    const std::string command = "cd " + quote(dir.string()) + " && " + quote(WAVEBRDF_CLI) + " " + args + " > " +
-                                quote(out.string()) + " 2> " + quote(err.string()) + " < /dev/null";
-    const int status = std::system(command.c_str());
+    const std::string line = "cd " + quote(dir.string()) + " && " + command + " > " + quote(out.string()) + " 2> " +
+                             quote(err.string()) + " < /dev/null";
+    const int status = std::system(line.c_str());
     CliResult r;
     r.exit_code = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
     r.out = read_text(out);
@@ -77,6 +77,11 @@ inline CliResult run_cli(const fs::path& dir, const std::string& args) {
     fs::remove(out);
     fs::remove(err);
     return r;
+}
+
+// Runs `wavebrdf args` in `dir` as run_in does.
+inline CliResult run_cli(const fs::path& dir, const std::string& args) {
+    return run_in(dir, quote(WAVEBRDF_CLI) + " " + args);
 }
 
 // A failed run: non-zero exit (not a crash) and exactly one line on stderr (a trailing newline

@@ -45,18 +45,7 @@ fs::path moved_layout(const fs::path& root, const std::string& broken = "") {
 // Runs `env -u PYTHONPATH [ENV...] EXE args` in `dir` (no PYTHONPATH of the caller's: the
 // package must be found from the executable's place alone).
 CliResult run_moved(const fs::path& dir, const fs::path& exe, const std::string& args, const std::string& env = "") {
-    const fs::path out = dir / "stdout.txt", err = dir / "stderr.txt";
-    const std::string command = "cd " + quote(dir.string()) + " && env -u PYTHONPATH " + env + " " +
-                                quote(exe.string()) + " " + args + " > " + quote(out.string()) + " 2> " +
-                                quote(err.string()) + " < /dev/null";
-    const int status = std::system(command.c_str());
-    CliResult r;
-    r.exit_code = status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = read_text(out);
-    r.err = read_text(err);
-    fs::remove(out);
-    fs::remove(err);
-    return r;
+    return run_in(dir, "env -u PYTHONPATH " + env + " " + quote(exe.string()) + " " + args);
 }
 
 bool have_package() { return fs::is_regular_file(k_build_python / "wavebrdf" / "report.py"); }

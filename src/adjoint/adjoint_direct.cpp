@@ -87,8 +87,8 @@ std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query
                                    const DirectField& forward, const KernelGradient& dk) {
     std::vector<double> out(static_cast<std::size_t>(n) * n, 0.0);
     RegionGuard guard;
-#pragma omp parallel for schedule( \
-    dynamic, 1) if (worth_parallel(static_cast <long long>(n) * n * static_cast <long long>(k.size())))
+    const long long work = static_cast<long long>(n) * n * static_cast<long long>(k.size());
+#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(work))
     for (int p = 0; p < n; ++p)
         guard.run([&] {
             for (const auto [q, ox, oy] : disk_row(p, n)) {

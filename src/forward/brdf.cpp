@@ -65,14 +65,24 @@ std::vector<Float> render_slice(const Heightfield& heightfield, const Query& que
     return plan.forward();
 }
 
-template <typename Float>
-std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um,
-                              int resolution, const RenderOptions& options) {
+namespace {
+
+// The checks render_rgb makes of its arguments, from a heightfield or a Gabor representation.
+void validate_rgb_arguments(const Query& query, const std::vector<double>& lambdas_um, int resolution,
+                            const RenderOptions& options) {
     validate(query);
     validate_resolution(resolution);
     validate(options, query.model);
     if (lambdas_um.empty()) throw std::invalid_argument("no wavelengths given; expected at least one");
     for (double lambda : lambdas_um) validate_lambda(lambda);
+}
+
+}  // namespace
+
+template <typename Float>
+std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um,
+                              int resolution, const RenderOptions& options) {
+    validate_rgb_arguments(query, lambdas_um, resolution, options);
     require_render_memory(heightfield, query, resolution, options, sizeof(Float), true);
     SlicePlan<Float> plan(heightfield, query, lambdas_um, resolution, 3, options, false);
     return plan.forward();
@@ -81,11 +91,7 @@ std::vector<Float> render_rgb(const Heightfield& heightfield, const Query& query
 template <typename Float>
 std::vector<Float> render_rgb(const GaborRepresentation& rep, const Query& query, const std::vector<double>& lambdas_um,
                               int resolution, const RenderOptions& options) {
-    validate(query);
-    validate_resolution(resolution);
-    validate(options, query.model);
-    if (lambdas_um.empty()) throw std::invalid_argument("no wavelengths given; expected at least one");
-    for (double lambda : lambdas_um) validate_lambda(lambda);
+    validate_rgb_arguments(query, lambdas_um, resolution, options);
     if (query.x_um != rep.x_um || query.y_um != rep.y_um || query.sigma_p_um != rep.sigma_p_um)
         throw std::invalid_argument(
             "query footprint (" + detail::format_shortest(query.x_um) + ", " + detail::format_shortest(query.y_um) +

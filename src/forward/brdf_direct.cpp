@@ -69,8 +69,8 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
     const long long units = work_units(n);
     for (int attempt = 0;; ++attempt) {
         detail::RegionGuard guard;
-#pragma omp parallel for schedule( \
-    dynamic, 1) if (worth_parallel(static_cast <long long>(n) * n * static_cast <long long>(k.size())))
+        const long long work = static_cast<long long>(n) * n * static_cast<long long>(k.size());
+#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(work))
         for (int p = 0; p < n; ++p)
             guard.run([&] {
                 for (const auto [q, ox, oy] : disk_row(p, n)) {
