@@ -118,6 +118,10 @@ inline pid_t start_cli(const fs::path& dir, const std::vector<std::string>& args
 
 // Whether /usr/bin/python3 can import numpy and matplotlib (what the report plotters need).
 inline bool python_can_plot() {
+    // The CLI finds the package beside its executable (<bin>/../python); a sanitizer build has
+    // no Python package there.
+    if (!fs::is_regular_file(fs::path(WAVEBRDF_CLI).parent_path().parent_path() / "python" / "wavebrdf" / "report.py"))
+        return false;
     const pid_t pid = ::fork();
     if (pid < 0) return false;
     if (pid == 0) {
