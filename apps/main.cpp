@@ -8,13 +8,14 @@
 
 #include "cli_signals.h"
 #include "commands.h"
+#include "wavebrdf/version.h"
 
 int main(int argc, char** argv) {
     // Before any output is written: a signal must not leave temporary files behind.
     wavebrdf::cli::install_signal_cleanup();
     CLI::App app{"wavebrdf: wave-optical BRDFs of microscale heightfields"};
     app.require_subcommand(1);
-    app.set_version_flag("--version", "wavebrdf 0.1.0");
+    app.set_version_flag("--version", std::string("wavebrdf ") + wavebrdf::k_version);
     wavebrdf::cli::add_heightfield_command(app);
     wavebrdf::cli::add_render_command(app);
     wavebrdf::cli::add_genbrdf_command(app);

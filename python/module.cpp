@@ -1,11 +1,13 @@
 // The compiled part of the Python package: wavebrdf._core (re-exported by wavebrdf/__init__.py).
 #include "common.h"
+#include "wavebrdf/version.h"
 
 PYBIND11_MODULE(_core, m) {
     using namespace wavebrdf::python;
     m.doc() =
         "wavebrdf's C++ library: wave-optical BRDF slices of heightfields, their gradients, "
         "losses, optimisers, the inverse renderer and heightfield recovery";
+    m.attr("__version__") = wavebrdf::k_version;
     bind_heightfield(m);
     bind_brdf(m);
     bind_gabor(m);

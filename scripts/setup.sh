@@ -8,6 +8,7 @@ packages=(build-essential cmake pkg-config libopenexr-dev libeigen3-dev libcli11
           nlohmann-json3-dev libfftw3-dev libpng-dev libgtest-dev libbenchmark-dev
           python3 python3-numpy python3-matplotlib python3-pytest
           python3-dev pybind11-dev python3-torch
+          python3-venv python3-setuptools python3-pip python3-wheel python3-tqdm doxygen
           clang libclang-rt-dev libomp-dev)  # clang: the fuzzers (scripts/fuzz.sh)
 missing=()
 for p in "${packages[@]}"; do

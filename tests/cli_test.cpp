@@ -132,6 +132,16 @@ void expect_same_image(const wavebrdf::RgbImage& a, const wavebrdf::RgbImage& b,
 // ---------------------------------------------------------------------------------------------
 // Happy paths
 
+TEST_F(CliTest, VersionIsTheOneInTheFileVersion) {
+    std::ifstream in(fs::path(WAVEBRDF_SOURCE_DIR) / "VERSION");
+    std::string version;
+    ASSERT_TRUE(std::getline(in, version));
+    ASSERT_FALSE(version.empty());
+    const CliResult r = run("--version");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.out, "wavebrdf " + version + "\n");
+}
+
 TEST_F(CliTest, HeightfieldWritesExrAndPng) {
     const CliResult r = run("heightfield --size 32x48 --out h.exr --quiet");
     ASSERT_EQ(r.exit_code, 0) << r.err;

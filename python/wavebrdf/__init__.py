@@ -61,7 +61,7 @@ from ._core import (  # noqa: F401
     write_observations,
 )
 
-__version__ = "0.1.0"
+from ._core import __version__  # from the file VERSION, through the extension
 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",

@@ -128,3 +128,9 @@ def test_generate_matches_the_cli(tmp_path, cli):
         wb.Heightfield.generate("wavy")
     with pytest.raises(ValueError):
         wb.Heightfield.generate("isotropic", rows=0)
+
+
+def test_version_is_the_one_in_the_file_version():
+    import pathlib
+    version = (pathlib.Path(__file__).resolve().parents[2] / "VERSION").read_text().strip()
+    assert wb.__version__ == version
