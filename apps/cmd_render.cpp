@@ -60,7 +60,7 @@ void run(RenderArgs a) {
 
 void add_render_command(CLI::App& app) {
     auto a = std::make_shared<RenderArgs>();
-    CLI::App* cmd = app.add_subcommand("render", "Render one BRDF slice of a heightfield (MODEL.md)");
+    CLI::App* cmd = app.add_subcommand("render", "Render one BRDF slice of a heightfield (docs/model.md)");
     cmd->add_option("--heightfield", a->heightfield, "heightfield EXR (R channel, heights in texel widths)")
         ->required();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();

@@ -7,7 +7,7 @@ Run: /usr/bin/python3 bench/torch_reference.py [--check] [--cases thesis,256]
 Prints the torch rows of bench/results/2026-11-21-torch-baseline.md.
 
 What is computed
-  Exactly the sum of docs/conventions.md ("The sum that is computed") for OHS at one
+  Exactly the sum of docs/model.md (§10, "The sum as computed") for OHS at one
   wavelength, λ = 0.5 µm, normal incidence:
       I(u) = Σ_k c_k w² exp(−2π²σ²|u + a_k|²) e^{−i[(4π/λ) H_k + 2π u·δ_k]},
       f = c1 |I|²,  c1 = cos θ_o / (λ² cos θ_i),  f = 0 outside the unit disk,

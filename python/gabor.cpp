@@ -28,7 +28,7 @@ std::vector<double> kernel_heights_argument(const GaborRepresentation& rep, py::
 void bind_gabor(py::module_& m) {
     py::class_<GaborRepresentation> cls(m, "GaborRep", R"doc(
 The Gabor kernels of a heightfield that fall within 3 sigma_p of a footprint centre (the
-model's cut; MODEL.md "Gabor kernels"), independent of wavelength and directions: one kernel
+model's cut; docs/model.md §3-4), independent of wavelength and directions: one kernel
 per texel, at its nearest periodic image. Arrays are read-only float64 views (kernel order):
 
     row, col        texel (i, j) of each kernel (int32)

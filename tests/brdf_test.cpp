@@ -1,5 +1,5 @@
 // Tests of the forward renderer: fast path against the direct sum, the direct sum against an
-// independent transcription of MODEL.md, invariances, physics, and bad input.
+// independent transcription of docs/model.md §3-5, invariances, physics, and bad input.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -21,7 +21,7 @@ namespace {
 using wavebrdf::k_pi;
 const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
 
-// MODEL.md written out literally: absolute kernel positions μ_k, C_k and a_k as stated,
+// docs/model.md §3-5 written out literally: absolute kernel positions μ_k, C_k and a_k as stated,
 // ĝ_k(u) = C_k exp(−2π²σ²|u + a_k|²) e^{−i2π(u + a_k)·μ_k}, no algebraic shortcut. Only valid
 // when the footprint does not wrap around the tile (then the periodic image is the texel).
 std::vector<double> literal_model(const Heightfield& hf, const Query& q, double lambda, int n) {
@@ -171,7 +171,7 @@ TEST(BrdfTest, TranslatingHeightfieldAndQueryTogetherChangesNothing) {
     }
 }
 
-// Σ f · (2/n)² over the disk is ∫ f_r cos θ_o dω_o, ≈ 1 for a mirror (MODEL.md). The Gabor
+// Σ f · (2/n)² over the disk is ∫ f_r cos θ_o dω_o, ≈ 1 for a mirror (docs/model.md §13). The Gabor
 // kernels blur the window by σ = w/2 in each axis, so the exact value is σ_p² / (σ_p² + σ²)
 // (Parseval on the blurred Gaussian window), 0.9975 here; both are checked.
 TEST(BrdfTest, FlatMirrorAlbedoIsOne) {
@@ -208,7 +208,7 @@ TEST(BrdfTest, MirrorLobeIsAtTheMirrorDirection) {
     }
 }
 
-// H(x) = A sin(2π x/Λ): orders at ω_o,x = mλ/Λ with power J_m(4πA/λ)² (MODEL.md). The
+// H(x) = A sin(2π x/Λ): orders at ω_o,x = mλ/Λ with power J_m(4πA/λ)² (docs/model.md §13). The
 // window is only a few periods wide, so neighbouring orders overlap and interfere with a phase
 // that depends on the window's position against the grating; averaging the slice over eight
 // positions one eighth of a period apart cancels those cross terms exactly.
@@ -352,7 +352,7 @@ TEST(BrdfTest, MeaninglessScalesAreRefusedWithTheRange) {
 }
 
 // Gaussian random surface, rms height σ_h: averaged over positions, the specular peak drops by
-// exp(−(4π σ_h cos θ_i / λ)²) relative to a mirror (MODEL.md). The cos θ_i comes from the
+// exp(−(4π σ_h cos θ_i / λ)²) relative to a mirror (docs/model.md §13). The cos θ_i comes from the
 // GHS-type models' phase scale (cos θ_i + cos θ_o)/2 = cos θ_i at the mirror direction; OHS and
 // ROHS keep the full phase 4πH/λ, so their attenuation has no cos θ_i at oblique light.
 TEST(BrdfTest, RoughSurfaceSpecularPeakFollowsBeckmannKirchhoff) {

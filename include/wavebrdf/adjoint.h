@@ -1,6 +1,6 @@
 #pragma once
 // Gradients of BRDF slices with respect to the heights, by hand-derived adjoints of the
-// model (MODEL.md, "Differentiation"): h → (H_k, s_k) → (C_k, a_k) → I(u) → f_r → loss.
+// model (docs/model.md §12): h → (H_k, s_k) → (C_k, a_k) → I(u) → f_r → loss.
 // No tape: the backward pass keeps only the forward's field I (n² complex values) and
 // rebuilds the kernel factors chunk by chunk, so memory is that of the forward pass.
 //

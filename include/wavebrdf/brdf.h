@@ -1,5 +1,5 @@
 #pragma once
-// Rendering BRDF slices (MODEL.md, "BRDF slice"): f_r over the projected outgoing disk.
+// Rendering BRDF slices (docs/model.md §1, §6): f_r over the projected outgoing disk.
 //
 // Two paths compute the same sum over the footprint's kernels:
 //  - separable: for OHS and ROHS, I = X · diag(c_k C_k) · Yᵀ on the slice's regular grid, a

@@ -1,6 +1,6 @@
 #pragma once
-// The Gabor kernels of a heightfield that fall inside one coherence window (MODEL.md,
-// "Gabor kernels" and "Coherence area"). Everything here is independent of the wavelength
+// The Gabor kernels of a heightfield that fall inside one coherence window (docs/model.md,
+// §3 and §4). Everything here is independent of the wavelength
 // and of the outgoing direction; the renderers combine it with λ and u.
 #include <cstddef>
 #include <vector>

@@ -18,7 +18,7 @@ constexpr double k_max_vscale = 1e4;
 class Heightfield {
 public:
     // rows × cols values, row-major (`values[i * cols + j]` is h[i][j]); row index i runs
-    // along the first surface coordinate x, column index j along y (MODEL.md).
+    // along the first surface coordinate x, column index j along y (docs/model.md §2).
     //   values    heights in units of texel width, finite
     //   texel_um  texel width w in µm, k_min_texel_um … k_max_texel_um (1e-4 … 1e4)
     //   vscale    vertical scale v (dimensionless): 0, or k_min_vscale ≤ |v| ≤ k_max_vscale
@@ -39,7 +39,7 @@ public:
     double value(int i, int j) const { return m_values[index(wrap(i, m_rows), wrap(j, m_cols))]; }
     // Height H = v · w · h[i][j] in µm.
     double height_um(int i, int j) const { return m_vscale * m_texel_um * value(i, j); }
-    // Dimensionless slope by periodic central differences (MODEL.md):
+    // Dimensionless slope by periodic central differences (docs/model.md §2):
     // s = v · ((h[i+1][j] − h[i−1][j]) / 2, (h[i][j+1] − h[i][j−1]) / 2).
     std::array<double, 2> slope(int i, int j) const {
         return {0.5 * m_vscale * (value(i + 1, j) - value(i - 1, j)),

@@ -1,5 +1,5 @@
 #pragma once
-// The diffraction models of MODEL.md and the query (pixel footprint and light direction)
+// The diffraction models of docs/model.md §5 and the query (pixel footprint and light direction)
 // that selects one BRDF slice of a heightfield.
 #include <array>
 #include <string>
@@ -99,7 +99,7 @@ private:
 
 inline DiskRow disk_row(int p, int n) { return DiskRow(p, n); }
 
-// The per-direction factors of a model (MODEL.md, "BRDF"). cos θ = sqrt(|1 − |ω|²|) as in
+// The per-direction factors of a model (docs/model.md §5). cos θ = sqrt(|1 − |ω|²|) as in
 // the reference program.
 struct DirectionFactors {
     double cos_theta_i;

@@ -1,6 +1,6 @@
 #pragma once
 // Recovering the true heightfield from BRDF slices at several overlapping footprint positions
-// and several wavelengths (MODEL.md, last section): the fields first, the heights from them.
+// and several wavelengths (docs/model.md §14): the fields first, the heights from them.
 //
 //  0. Blurred fit (fit_blurred). From a flat start the phase retrieval has no useful gradient
 //     (the flat object's field is a specular lobe; the data lie elsewhere). Slices blurred in u
@@ -23,7 +23,7 @@
 //
 // Conventions: objects and fields are complex, row-major (object: (rows·refine) ×
 // (cols·refine) samples, sample a at x = (a + ½) w/refine; field: resolution² slice pixels);
-// e^{−ix} phase convention of MODEL.md. Heights in µm unless named otherwise.
+// e^{−ix} phase convention of docs/model.md §8. Heights in µm unless named otherwise.
 #include <complex>
 #include <functional>
 #include <memory>

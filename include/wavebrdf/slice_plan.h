@@ -1,7 +1,7 @@
 #pragma once
 // A slice plan (in the manner of FINUFFT's plans): everything of a set of slice queries that
 // does not depend on the heights, computed once; then set_heights / forward / adjoint any
-// number of times. Of the model (MODEL.md, "BRDF"), only the kernels' C_k (through H_k) and
+// number of times. Of the model (docs/model.md §10), only the kernels' C_k (through H_k) and
 // a_k (through the slopes s_k) depend on the heights. The plan keeps the rest:
 //  - the heightfield's geometry (rows, cols, texel width, vertical scale);
 //  - the footprint (x, y, σ_p): its kernels' texels, window weights c_k w² and offsets δ_k;

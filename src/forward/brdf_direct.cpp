@@ -1,5 +1,5 @@
 // The direct sum: every slice pixel sums the analytic transforms of every footprint kernel
-// (MODEL.md, "BRDF"), for all five models. It is the reference the fast path is tested on.
+// (docs/model.md §5), for all five models. It is the reference the fast path is tested on.
 //   I(u) = Σ_k c_k w² K2_k exp(−2π²σ²|u + S a_k|²) e^{−i[(4π/λ) S H_k + 2π u·δ_k]}
 // with S = C3/2 for GHS, RGHS and Kirchhoff (1 otherwise), K2_k = C2 for Kirchhoff (1
 // otherwise) and u = (ω_i + ω_o)/λ.

@@ -1,5 +1,5 @@
 // The separable path: for OHS and ROHS, ĝ_k(u) factorises into a function of u_x and one
-// of u_y (MODEL.md, "What makes it fast"), so on the slice's grid
+// of u_y (docs/model.md §10), so on the slice's grid
 //   I(u_x[p], u_y[q]) = Σ_k X[p,k] · w_k · Y[q,k]  =  (X · diag(w) · Yᵀ)[p,q]
 // with X[p,k] = exp(−2π²σ²(u_x[p] + a_kx)²) e^{−i2π u_x[p] δ_kx}, the same in y, and
 // w_k = c_k w² e^{−i(4π/λ) H_k}. (The kernel's C_k e^{−i2π(u+a)·μ} collapses to

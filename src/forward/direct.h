@@ -15,7 +15,7 @@ class Progress;
 
 namespace wavebrdf::detail {
 
-// One pixel of the direct sum (MODEL.md, "BRDF"), shared by the forward pass, its adjoint and
+// One pixel of the direct sum (docs/model.md §10), shared by the forward pass, its adjoint and
 // its tangent: the per-pixel constants, and each kernel's term
 //   t_k = base_k · c2_k,  base_k = c_k w² exp(−E_k) e^{iΦ_k},  E_k = 2π²σ²|u + S a_k|²,
 //   Φ_k = −(4π/λ) S H_k − 2π u·δ_k,  c2_k = C2 for Kirchhoff (1 otherwise)

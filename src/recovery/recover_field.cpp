@@ -158,7 +158,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     s.xf_adjoint = s.xf.adjoint();
     s.yf_conjugate = s.yf.conjugate();
 
-    // f = c1 |I|² inside the disk (MODEL.md, "BRDF"); the renderer writes non-finite values as 0.
+    // f = c1 |I|² inside the disk (docs/model.md §5); the renderer writes non-finite values as 0.
     s.amp_full.assign(std::size_t(resolution) * resolution, 0.0);
     for (int p = 0; p < resolution; ++p) {
         for (const auto [q, ox, oy] : disk_row(p, resolution)) {

@@ -1,4 +1,4 @@
-"""GaborRep: the kernels of a footprint against MODEL.md's definitions computed here in NumPy,
+"""GaborRep: the kernels of a footprint against the definitions of docs/model.md §3-4 computed here in NumPy,
 the inverse transform back to heights, and rendering from kernels."""
 import numpy as np
 import pytest
