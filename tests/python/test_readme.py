@@ -14,7 +14,7 @@ outputs must exist for the commands after them; only the size of the run differs
 block runs the same way: as written, with `wb.recover` calls given the same cost cuts. The
 `bash scripts/...` commands of the opening block (a build and the whole test suite) are checked
 to exist and to parse (`bash -n`), not run. Any other command fails the test: teach it here.
-Takes about 20 s on 2 cores."""
+Takes about 20 s on 2 cores. Also: no tracked file cites a file outside the repository."""
 import os
 import re
 import shlex
@@ -157,3 +157,25 @@ def test_readme_python_example_runs_as_written(fresh_dir, monkeypatch):
     )[0]
     assert namespace["h"].grad is not None and namespace["h"].grad.shape == (16, 16)
     assert namespace["r2"].estimate.shape == namespace["r"].estimate.shape
+
+
+def test_repository_cites_no_file_outside_it():
+    """Code, docs, scripts and tests cite docs/model.md or a paper's title, never the specification,
+    notes or thesis files the project was developed from (outside the repository)."""
+    listed = subprocess.run(["git", "ls-files", "-z"], cwd=ROOT, capture_output=True)
+    if listed.returncode != 0:
+        pytest.skip("not a git checkout")
+    outside = re.compile("|".join([r"MODEL" + r"\.md", r"\.\./shared", r"/work" + "/", r"\bseeds" + "/"]))
+    found = []
+    for name in listed.stdout.decode().split("\0"):
+        path = os.path.join(ROOT, name)
+        if not name or not os.path.isfile(path):
+            continue
+        with open(path, "rb") as f:
+            data = f.read()
+        if b"\0" in data[:8192]:
+            continue  # binary
+        for number, line in enumerate(data.decode("utf-8", errors="replace").splitlines(), 1):
+            if outside.search(line):
+                found.append("%s:%d: %s" % (name, number, line.strip()))
+    assert not found, "citations of files outside the repository:\n" + "\n".join(found)
