@@ -186,7 +186,7 @@ Shape with(Shape shape, std::initializer_list<py::ssize_t> tail) {
 template <typename Float>
 py::array render(const Batched& a) {
     std::vector<Float> out;
-    {
+    if (!a.batch.items.empty()) {
         InterruptibleRelease release;
         out = render_batch<Float>(a.heightfields, a.batch);
     }
@@ -196,15 +196,15 @@ py::array render(const Batched& a) {
 
 template <typename Float>
 py::array gradient_of(const Batched& a, const std::vector<double>& weights) {
-    std::vector<std::vector<double>> gradients;
-    {
+    std::vector<std::vector<double>> gradients(a.heightfields.size());
+    if (!a.batch.items.empty()) {
         InterruptibleRelease release;
         batch_gradient<Float>(a.heightfields, a.batch, weights, gradients);
     }
     const std::size_t cells = static_cast<std::size_t>(a.rows) * static_cast<std::size_t>(a.cols);
     std::vector<Float> out(gradients.size() * cells);
     for (std::size_t k = 0; k < gradients.size(); ++k)
-        for (std::size_t c = 0; c < cells; ++c) out[k * cells + c] = static_cast<Float>(gradients[k][c]);
+        for (std::size_t c = 0; c < gradients[k].size(); ++c) out[k * cells + c] = static_cast<Float>(gradients[k][c]);
     return owning_array(std::move(out), shape_of(a.heights));
 }
 
