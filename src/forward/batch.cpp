@@ -100,7 +100,8 @@ double estimate_batch_bytes(const Heightfield& geometry, const SliceBatch& batch
     // every wavelength's field and slice.
     double plan = 0.0;
     for (const BatchItem& item : batch.items) {
-        const double wavelengths = gradients ? double(batch.bands[item.band].size()) : 1.0;
+        const double wavelengths = gradients && item.band < batch.bands.size() ? double(batch.bands[item.band].size())
+                                                                               : 1.0;
         plan = std::max(plan, wavelengths * estimate_render_bytes(geometry, item.query, batch.resolution, options,
                                                                   float_bytes, batch.channels == 3));
     }
