@@ -6,8 +6,13 @@
 //   GFLOP/s   8·n²·K flops per wavelength (one complex multiply-add per pixel and kernel,
 //             the matrix product that dominates the separable path)
 #include <benchmark/benchmark.h>
+#include <omp.h>
+
+#include <array>
+#include <cmath>
 
 #include "wavebrdf/adjoint.h"
+#include "wavebrdf/batch.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/slice_plan.h"
@@ -213,3 +218,64 @@ BENCHMARK_CAPTURE(onecall_epoch, tile_256_sigma10_128_spectral8, 256, 10.0, 128,
     ->UseRealTime();
 
 BENCHMARK_MAIN();
+
+// Batches (batch.h): many small slices, 64×64 of a 64×64 tile (σ_p = 10 µm at its centre, OHS,
+// λ = 0.5 µm, RGB, float), by the single-slice library call (render_rgb, its matrix products
+// over all threads) one at a time, and 1024 of them (32×32 lights) by one render_batch call
+// (threaded across the items). Counter slices/s: slices per second of wall time.
+namespace {
+
+const Heightfield& small_tile() {
+    static const Heightfield hf = isotropic_tile(64);
+    return hf;
+}
+
+Query small_query() {
+    Query q;
+    q.model = Model::OHS;
+    q.x_um = q.y_um = 32.0;
+    q.sigma_p_um = 10.0;
+    return q;
+}
+
+// 32 × 32 lights on a grid over |ω_i| ≤ 0.7 (corners pulled onto the circle).
+std::vector<std::array<double, 2>> light_grid(int side) {
+    std::vector<std::array<double, 2>> lights;
+    for (int i = 0; i < side; ++i)
+        for (int j = 0; j < side; ++j) {
+            double x = -0.7 + 1.4 * i / (side - 1), y = -0.7 + 1.4 * j / (side - 1);
+            const double r = std::sqrt(x * x + y * y);
+            if (r > 0.7) x *= 0.7 / r, y *= 0.7 / r;
+            lights.push_back({x, y});
+        }
+    return lights;
+}
+
+void small_slice_single(benchmark::State& state) {
+    const std::vector<std::array<double, 2>> lights = light_grid(32);
+    Query q = small_query();
+    std::size_t l = 0;
+    for (auto _ : state) {
+        q.omega_i = lights[l++ % lights.size()];
+        auto rgb = render_rgb<float>(small_tile(), q, {0.5}, 64);
+        benchmark::DoNotOptimize(rgb.data());
+    }
+    state.counters["slices/s"] = benchmark::Counter(1.0, benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["threads"] = omp_get_max_threads();
+}
+
+void small_slice_batch(benchmark::State& state) {
+    const SliceBatch batch = batch_product(small_query(), light_grid(32), {{32.0, 32.0}}, {{0.5}}, 64);
+    for (auto _ : state) {
+        auto rgb = render_batch<float>(small_tile(), batch);
+        benchmark::DoNotOptimize(rgb.data());
+    }
+    state.counters["slices/s"] = benchmark::Counter(double(batch.items.size()),
+                                                    benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["threads"] = omp_get_max_threads();
+}
+
+}  // namespace
+
+BENCHMARK(small_slice_single)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(small_slice_batch)->Unit(benchmark::kMillisecond)->UseRealTime();

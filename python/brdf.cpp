@@ -8,6 +8,7 @@
 // w_l[p] = Σ_c M[c, l] W_c[p]. This file only converts and validates.
 #include <memory>
 
+#include "batch.h"
 #include "common.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/gabor.h"
@@ -94,6 +95,17 @@ py::array plan_forward(SlicePlan<Float>& plan, int n) {
     return owning_array(std::move(out), {n, n, 3});
 }
 
+// A scalar x_um / y_um of a single query (a Python number or a 0-d array) as a double.
+double scalar(py::handle value, const char* name) {
+    try {
+        return py::module_::import("numpy").attr("asarray")(value, "dtype"_a = "float64").attr("item")().cast<double>();
+    } catch (py::error_already_set& e) {
+        if (!e.matches(PyExc_TypeError) && !e.matches(PyExc_ValueError)) throw;
+    } catch (const py::cast_error&) {}
+    throw py::value_error(std::string(name) + " = " + std::string(py::repr(value)) +
+                          " is invalid; expected a number or an array of numbers");
+}
+
 std::string query_repr(const PyQuery& q) {
     std::string s = "Query(x_um=" + format_number(q.query.x_um) + ", y_um=" + format_number(q.query.y_um) +
                     ", sigma_p_um=" + format_number(q.query.sigma_p_um) + ", light=(" +
@@ -106,21 +118,23 @@ std::string query_repr(const PyQuery& q) {
 }
 
 const char* kPlainArgs = R"doc(
-heights     2-D float32 or float64 array (rows, cols), finite, in texel units. float64 renders
+heights     float32 or float64 array (rows, cols), or (..., rows, cols) for a batch (below),
+            finite, in texel units. float64 renders
             in double precision, float32 in single (the CLI's --precision); the result has the
             same dtype.
 texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
 vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
             vscale * texel_um * heights
 x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
-            default 0)
+            default 0); arrays for a batch (below)
 sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
             10 times the longer tile period (default 10)
 lambda_um   one wavelength in um, 0.01 to 1000: R = G = B = its slice. Default 0.5 when spectral is None.
 spectral    N (1...256): the library's N wavelengths over 0.36-0.83 um (the CLI's --spectral N),
             or a list of wavelengths in um; mapped to linear sRGB through the CIE 1931 curves.
             Excludes lambda_um.
-light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0))
+light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0));
+            an array (..., 2) for a batch (below)
 resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
             ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
 model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
@@ -188,11 +202,14 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
 
     m.def(
         "render_slice",
-        [](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
-           double sigma_p_um, const py::object& lambda_um, const py::object& spectral, const py::object& light,
-           const std::string& model) {
-            const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
-                                            light, resolution, model);
+        [](py::handle heights, int resolution, double texel_um, double vscale, const py::object& x_um,
+           const py::object& y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
+           const py::object& light, const std::string& model) {
+            if (!single_query(heights, x_um, y_um, light))
+                return render_slice_batch(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
+                                          spectral, light, model);
+            const Plain a = plain_arguments(heights, texel_um, vscale, scalar(x_um, "x_um"), scalar(y_um, "y_um"),
+                                            sigma_p_um, lambda_um, spectral, light, resolution, model);
             return a.single ? render_rgb_array<float>(a.hf, a.q, resolution)
                             : render_rgb_array<double>(a.hf, a.q, resolution);
         },
@@ -202,8 +219,9 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
         (std::string("render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, "
                      "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')\n\n"
                      "One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),\n"
-                     "linear RGB. The same as `wavebrdf render` with the same options.\n") +
-         kPlainArgs)
+                     "linear RGB. The same as `wavebrdf render` with the same options. With batch axes\n"
+                     "(below): (batch..., resolution, resolution, 3), one slice per item.\n") +
+         kPlainArgs + kBatchDoc)
             .c_str());
 
     py::class_<PyPlan>(m, "_SlicePlan", R"doc(
@@ -253,11 +271,14 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
 
     m.def(
         "slice_gradient",
-        [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale, double x_um,
-           double y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
-           const py::object& light, const std::string& model) {
-            const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
-                                            light, resolution, model);
+        [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,
+           const py::object& x_um, const py::object& y_um, double sigma_p_um, const py::object& lambda_um,
+           const py::object& spectral, const py::object& light, const std::string& model) {
+            if (!single_query(heights, x_um, y_um, light))
+                return slice_gradient_batch(heights, weights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um,
+                                            lambda_um, spectral, light, model);
+            const Plain a = plain_arguments(heights, texel_um, vscale, scalar(x_um, "x_um"), scalar(y_um, "y_um"),
+                                            sigma_p_um, lambda_um, spectral, light, resolution, model);
             const std::vector<double> w = weights_argument(weights, resolution);
             std::vector<double> g = a.single ? rgb_gradient<float>(a.hf, a.q, resolution, w)
                                              : rgb_gradient<double>(a.hf, a.q, resolution, w);
@@ -271,12 +292,13 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
                      "(texel units), a vector-Jacobian product by the library's adjoint: an array shaped\n"
                      "and typed like `heights`. For a loss L of the slice, weights = dL/dslice gives\n"
                      "dL/dheights.\n\n"
-                     "weights     float32/float64 array (resolution, resolution, 3), finite; one weight per\n"
+                     "weights     float32/float64 array (resolution, resolution, 3), or (batch..., resolution,\n"
+                     "            resolution, 3) for a batch (below), finite; one weight per\n"
                      "            pixel and channel. One wavelength: R = G = B, so the three channels'\n"
                      "            weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]\n"
                      "            with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk\n"
                      "            are ignored.\n") +
-         kPlainArgs)
+         kPlainArgs + kBatchDoc)
             .c_str());
 
     m.def(

@@ -18,6 +18,12 @@ the library in double precision (use it for torch.autograd.gradcheck), float32 i
 
 Options are those of wavebrdf.render_slice (resolution, texel_um, vscale, x_um, y_um,
 sigma_p_um, lambda_um, spectral, light, model); they are not differentiated.
+
+Batches: heights (..., rows, cols), light (2,) or (..., 2) and x_um, y_um as numbers or arrays
+(NumPy arrays or tensors) broadcast as in wavebrdf.render_slice; the result is
+(batch..., n, n, 3), one slice per item, rendered by one library call threaded across the batch,
+and the backward pass is wavebrdf.slice_gradient of the same batch (it renders the batch again:
+a batch keeps no plan per item), which sums the gradients of the items that share heights.
 """
 import numpy as np
 import torch
@@ -37,18 +43,36 @@ def _numpy(tensor, name):
     return tensor.detach().cpu().numpy()
 
 
+def _plain_options(options):
+    """The options with tensors (light, x_um, y_um) as NumPy arrays; they are not differentiated."""
+    return {k: (v.detach().cpu().numpy() if isinstance(v, torch.Tensor) else v) for k, v in options.items()}
+
+
+def _is_single(heights, options):
+    """A single query as before batches: 2-D heights, one light pair, scalar positions."""
+    return (heights.dim() == 2 and np.ndim(options.get("light", (0.0, 0.0))) <= 1
+            and np.ndim(options.get("x_um", 0.0)) == 0 and np.ndim(options.get("y_um", 0.0)) == 0)
+
+
 class RenderSlice(torch.autograd.Function):
-    """heights (rows, cols) -> slice (n, n, 3); backward by wavebrdf.slice_gradient."""
+    """heights (..., rows, cols) -> slices (..., n, n, 3); backward by wavebrdf.slice_gradient."""
 
     @staticmethod
     def forward(ctx, heights, options):
-        if heights.dim() != 2:
-            raise ValueError("heights has shape %s; expected (rows, cols)" % (tuple(heights.shape),))
-        # One library SlicePlan: its forward now, its adjoint in backward.
-        plan = _core._SlicePlan(_numpy(heights, "heights"), **options)
-        out = plan.forward()
-        ctx.plan = plan
+        if heights.dim() < 2:
+            raise ValueError("heights has shape %s; expected (rows, cols) or (..., rows, cols)" % (tuple(heights.shape),))
+        options = _plain_options(options)
+        h = _numpy(heights, "heights")
         ctx.save_for_backward(heights)
+        if _is_single(heights, options):
+            # One library SlicePlan: its forward now, its adjoint in backward.
+            ctx.plan = _core._SlicePlan(h, **options)
+            out = ctx.plan.forward()
+        else:
+            # One batch call (threaded across the batch); backward runs the batch gradient.
+            ctx.plan = None
+            ctx.options = options
+            out = _core.render_slice(h, **options)
         return torch.from_numpy(out).to(heights.device)
 
     @staticmethod
@@ -56,13 +80,18 @@ class RenderSlice(torch.autograd.Function):
     def backward(ctx, grad_output):
         (heights,) = ctx.saved_tensors
         weights = _numpy(grad_output, "grad_output")
-        gradient = ctx.plan.adjoint(weights)
+        if ctx.plan is not None:
+            gradient = ctx.plan.adjoint(weights)
+        else:
+            gradient = _core.slice_gradient(_numpy(heights, "heights"), weights, **ctx.options)
         return torch.from_numpy(np.asarray(gradient)).to(heights.device), None
 
 
 def render_slice(heights, **options):
     """The BRDF slice of `heights` (a 2-D tensor in texel units) as a differentiable tensor
-    (resolution, resolution, 3) of the same dtype and device. Keyword options as
+    (resolution, resolution, 3) of the same dtype and device; with batch axes (heights
+    (..., rows, cols), light (..., 2), x_um / y_um arrays, broadcast as wavebrdf.render_slice
+    does) the slices (batch..., resolution, resolution, 3). Keyword options as
     wavebrdf.render_slice; `resolution` is required."""
     _numpy(heights, "heights")  # a ValueError naming the argument for what is not a float tensor
     return RenderSlice.apply(heights, options)

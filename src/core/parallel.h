@@ -55,7 +55,12 @@ private:
 
 constexpr long long kParallelWork = 1LL << 16;  // loop iterations × inner entries
 
-inline bool worth_parallel(long long work) { return work >= kParallelWork; }
+// True inside an active parallel region (a batch spreading its items over the threads, batch.h):
+// there every loop below runs on its own thread, so an item does not spawn (or wait for) a
+// nested team of its own.
+inline bool in_parallel_region() { return omp_in_parallel() != 0; }
+
+inline bool worth_parallel(long long work) { return work >= kParallelWork && !in_parallel_region(); }
 
 // Matrix products: Eigen's own OpenMP splitting starts at ~1e5 multiply-adds and has no way to
 // stay serial below a size we choose, so the library builds with EIGEN_DONT_PARALLELIZE and
@@ -65,7 +70,7 @@ constexpr double kParallelProduct = 4.0e6;
 
 template <typename Body>
 void for_column_blocks(long long columns, double multiply_adds, Body&& body) {
-    const int blocks = multiply_adds >= kParallelProduct ? omp_get_max_threads() : 1;
+    const int blocks = multiply_adds >= kParallelProduct && !in_parallel_region() ? omp_get_max_threads() : 1;
     RegionGuard guard;
 #pragma omp parallel for schedule(static) num_threads(blocks) if (blocks > 1)
     for (int b = 0; b < blocks; ++b) {
@@ -84,7 +89,7 @@ void for_column_blocks(long long columns, double multiply_adds, Body&& body) {
 // OpenMP reduction or a critical section combines them in whatever order threads finish).
 template <typename T, typename Body>
 double ordered_parallel_sum(std::size_t count, std::vector<T>& total, bool parallel, Body&& body) {
-    const int threads = parallel ? omp_get_max_threads() : 1;
+    const int threads = parallel && !in_parallel_region() ? omp_get_max_threads() : 1;
     std::vector<std::vector<T>> locals(static_cast<std::size_t>(threads));
     std::vector<double> values(static_cast<std::size_t>(threads), 0.0);
     RegionGuard guard;

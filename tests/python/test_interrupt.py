@@ -43,6 +43,10 @@ CASES = {
     "slice_gradient": ("h = rng.standard_normal((128, 128)) * 0.3\n"
                        "w = np.ones((320, 320, 3))",
                        "wb.slice_gradient(h, w, resolution=320, sigma_p_um=30.0, x_um=64, y_um=64, model='GHS')"),
+    # A batch (4096 small slices over a grid of lights): polled between items.
+    "render_slice_batch": ("h = rng.standard_normal((64, 64)) * 0.3\n"
+                           "lights = np.stack(np.meshgrid(np.linspace(-0.6, 0.6, 64), np.linspace(-0.6, 0.6, 64)), -1)",
+                           "wb.render_slice(h, resolution=64, sigma_p_um=10.0, x_um=32, y_um=32, light=lights)"),
     # GaborRep's render.
     "gabor_render": ("h = rng.standard_normal((128, 128)) * 0.3\n"
                      "hf = wb.Heightfield(h)\n"

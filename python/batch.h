@@ -1,0 +1,26 @@
+#pragma once
+// render_slice and slice_gradient over NumPy leading batch axes (batch.cpp), through the
+// library's batch API (wavebrdf/batch.h). brdf.cpp sends a single query (2-D heights, one
+// light pair, scalar x_um and y_um) down its own path, everything else here.
+#include "common.h"
+
+namespace wavebrdf::python {
+
+// True when the arguments are one query as before batches: heights 2-D (or not an array of
+// at least 3 dimensions), light of at most one dimension, x_um and y_um scalars.
+bool single_query(py::handle heights, py::handle x_um, py::handle y_um, py::handle light);
+
+// The slices (batch…, n, n, 3) of the broadcast batch; dtype of heights.
+py::array render_slice_batch(py::handle heights, int resolution, double texel_um, double vscale, py::handle x_um,
+                             py::handle y_um, double sigma_p_um, const py::object& lambda_um,
+                             const py::object& spectral, py::handle light, const std::string& model);
+
+// d(sum(weights * slices))/d(heights): shaped and typed like heights; weights (batch…, n, n, 3).
+py::array slice_gradient_batch(py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,
+                               py::handle x_um, py::handle y_um, double sigma_p_um, const py::object& lambda_um,
+                               const py::object& spectral, py::handle light, const std::string& model);
+
+// The docstring paragraph on batch axes and broadcasting (render_slice, slice_gradient).
+extern const char* const kBatchDoc;
+
+}  // namespace wavebrdf::python
