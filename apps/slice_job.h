@@ -26,7 +26,7 @@ struct SliceJob {
 // The preview options as given on a command line (add_preview_options fills them).
 struct PreviewArgs {
     bool log = false;
-    double log_decades = 5.0;  // a grating's first orders (3-4 decades down) show at a third of full scale
+    double log_decades = 5.0;  // a grating's orders (down to 3.3 decades) at a third of full scale, docs/cli.md
     double exposure = 0.0;
     bool reinhard = false;
     bool false_colour = false;

@@ -217,14 +217,15 @@ Preview8 make_slice_preview(const RgbImage& image, const PreviewOptions& options
     if (image.data.size() != count * 3u)
         throw std::invalid_argument("preview image holds " + std::to_string(image.data.size()) +
                                     " values; expected rows * cols * 3 = " + std::to_string(count * 3u));
-    // The value each pixel's level comes from: a grey pixel's own value, else the luminance.
-    std::vector<double> value(count);
-    double peak = 0.0;
-    for (std::size_t p = 0; p < count; ++p) {
+    // The value each pixel's level comes from: a grey pixel's own value, else the luminance
+    // (computed twice rather than stored: an 8192² slice would need 512 MiB more).
+    const auto value = [&](std::size_t p) {
         const double r = image.data[3 * p], g = image.data[3 * p + 1], b = image.data[3 * p + 2];
-        value[p] = r == g && g == b ? r : 0.2126 * r + 0.7152 * g + 0.0722 * b;
-        if (std::isfinite(value[p])) peak = std::max(peak, value[p]);
-    }
+        return r == g && g == b ? r : 0.2126 * r + 0.7152 * g + 0.0722 * b;
+    };
+    double peak = 0.0;
+    for (std::size_t p = 0; p < count; ++p)
+        if (std::isfinite(value(p))) peak = std::max(peak, value(p));
     Preview8 out;
     out.rows = image.rows;
     out.cols = image.cols;
@@ -240,13 +241,13 @@ Preview8 make_slice_preview(const RgbImage& image, const PreviewOptions& options
         std::uint8_t* pixel = &out.rgb[3 * p];
         if (options.scale == PreviewScale::Linear) {
             if (options.false_colour) {
-                put_level(pixel, linear(value[p]), true);
+                put_level(pixel, linear(value(p)), true);
             } else {
                 for (std::size_t c = 0; c < 3; ++c) pixel[c] = to_byte(linear(double(image.data[3 * p + c])));
             }
             continue;
         }
-        const double t = log_level(value[p], peak, options.log_decades);
+        const double t = log_level(value(p), peak, options.log_decades);
         if (options.false_colour) {
             put_level(pixel, t, true);
             continue;
