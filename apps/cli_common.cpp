@@ -7,7 +7,33 @@
 #include <system_error>
 #include <stdexcept>
 
+#include "wavebrdf/threads.h"
+
 namespace wavebrdf::cli {
+
+int parse_threads(const std::string& text) {
+    const auto bad = [&] {
+        return std::invalid_argument("--threads " + text + " is invalid; expected an integer from 1 to " +
+                                     std::to_string(k_max_thread_count));
+    };
+    const std::size_t first = text.find_first_not_of(" \t"), last = text.find_last_not_of(" \t");
+    if (first == std::string::npos || last - first + 1 > 4) throw bad();
+    int value = 0;
+    for (std::size_t k = first; k <= last; ++k) {
+        if (text[k] < '0' || text[k] > '9') throw bad();
+        value = value * 10 + (text[k] - '0');
+    }
+    if (value < 1 || value > k_max_thread_count) throw bad();
+    return value;
+}
+
+void add_threads_option(CLI::App* cmd) {
+    // Applied while the option is processed, which CLI11 does before the command's callback runs.
+    cmd->add_option("--threads")
+        ->description("threads for this command, 1 to 1024 (default: OMP_NUM_THREADS, else all cores)")
+        ->type_name("N")
+        ->each([](const std::string& text) { set_thread_count(parse_threads(text)); });
+}
 
 void check_distinct_files(const std::vector<std::pair<std::string, std::string>>& files) {
     namespace fs = std::filesystem;

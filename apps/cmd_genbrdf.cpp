@@ -25,6 +25,8 @@ struct GenbrdfArgs {
     int resolution = 256;
     double max_memory_gb = 0.0;  // 0: the physical memory
     bool quiet = false;
+    std::string png;
+    PreviewArgs preview;
 };
 
 // The steepest light genbrdf takes: tan θ_i = |(s, t)| ≤ 1e6.
@@ -58,12 +60,14 @@ void run(const GenbrdfArgs& a) {
     }
     job.resolution = a.resolution;
     job.out_exr = a.output;
+    job.png = a.png;
+    job.preview = to_preview_options(a.preview);
     job.with_alpha = true;
     job.quiet = a.quiet;
     job.options.max_memory_gb = a.max_memory_gb;
     validate(q);
     validate_resolution(job.resolution);
-    check_distinct_files({{"-i", a.input}, {"-o", a.output}});
+    check_distinct_files({{"-i", a.input}, {"-o", a.output}, {"--png", a.png}});
     const Heightfield hf = read_heightfield_exr(a.input, a.texel, a.vscale);
     run_slice_job(hf, q, job);
 }
@@ -74,8 +78,9 @@ void add_genbrdf_command(CLI::App& app) {
     auto a = std::make_shared<GenbrdfArgs>();
     CLI::App* cmd = app.add_subcommand("genbrdf",
                                        "Drop-in for the reference program genBrdf (same flags and defaults)");
+    cmd->footer(k_slice_unit_help);
     cmd->add_option("-i", a->input, "heightfield EXR")->required();
-    cmd->add_option("-o", a->output, "output EXR (RGBA)")->required();
+    cmd->add_option("-o", a->output, "output EXR (RGBA, f_r in 1/sr)")->required();
     cmd->add_option("-w", a->texel, "texel width in um")->capture_default_str();
     cmd->add_option("-v", a->vscale, "vertical scale")->capture_default_str();
     cmd->add_option("-x", a->mu_x, "footprint centre x in um")->capture_default_str();
@@ -90,6 +95,8 @@ void add_genbrdf_command(CLI::App& app) {
     cmd->add_option("--max-memory-gb", a->max_memory_gb,
                     "refuse a render whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();
+    cmd->add_option("--png", a->png, "also an 8-bit preview (default: log scale, --log-decades below the peak)");
+    add_preview_options(cmd, a->preview);
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
     cmd->callback([a] { run(*a); });
 }

@@ -7,6 +7,7 @@
 #include "commands.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/preview.h"
 
 namespace wavebrdf::cli {
 
@@ -19,6 +20,8 @@ struct HeightfieldArgs {
     std::string png;
     bool no_png = false;
     bool quiet = false;
+    bool false_colour = false;
+    bool colour_bar = false;
     SurfaceParams params;
 };
 
@@ -40,12 +43,19 @@ void run(const HeightfieldArgs& a) {
     if (!png.empty()) check_writable(png);
     const Heightfield hf = generate_heightfield(p);
     write_heightfield_exr(a.out, hf);
-    if (!png.empty()) write_heightfield_png(png, hf);
+    if (!png.empty()) {
+        // The grey one-channel preview as before unless a colour option asks for more.
+        if (a.false_colour || a.colour_bar)
+            write_preview_png(png, make_heightfield_preview(hf, a.false_colour, a.colour_bar));
+        else
+            write_heightfield_png(png, hf);
+    }
+    // The summary on stderr like every command's, so stdout stays free for data.
     if (!a.quiet) {
         const HeightStats s = height_stats(hf);
-        std::printf("%s: %s %dx%d, texel %.4g um, rms height %.4g um, range [%.4g, %.4g] um, rms slope %.4g\n",
-                    a.out.c_str(), to_string(p.type), hf.rows(), hf.cols(), hf.texel_um(), s.rms_height_um, s.min_um,
-                    s.max_um, s.rms_slope);
+        std::fprintf(stderr, "%s: %s %dx%d, texel %.4g um, rms height %.4g um, range [%.4g, %.4g] um, rms slope %.4g\n",
+                     a.out.c_str(), to_string(p.type), hf.rows(), hf.cols(), hf.texel_um(), s.rms_height_um, s.min_um,
+                     s.max_um, s.rms_slope);
     }
 }
 
@@ -61,6 +71,9 @@ void add_heightfield_command(CLI::App& app) {
     cmd->add_option("--out", args->out, "output EXR (heights in units of texel width, R channel)")->required();
     cmd->add_option("--png", args->png, "preview PNG (default: the EXR name with .png)");
     cmd->add_flag("--no-png", args->no_png, "do not write a preview");
+    cmd->add_flag("--false-colour,--false-color", args->false_colour,
+                  "preview: heights in false colour (viridis) instead of grey");
+    cmd->add_flag("--colour-bar,--color-bar", args->colour_bar, "preview: append a colour bar labelled in um");
     cmd->add_option("--texel-um", p.texel_um, "texel width w in um")->capture_default_str();
     cmd->add_option("--rms-height-um", p.rms_height_um, "isotropic/brushed: rms height in um")->capture_default_str();
     cmd->add_option("--rms-slope", p.rms_slope,

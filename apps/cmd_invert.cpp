@@ -53,7 +53,8 @@ struct InvertArgs {
 };
 
 // The options a resumed run accepts: the rest come from its run.json.
-const std::set<std::string> kResumeOptions = {"--resume", "--epochs", "--quiet", "--no-plots", "--max-memory-gb"};
+const std::set<std::string> kResumeOptions = {"--resume",   "--epochs",        "--quiet",
+                                              "--no-plots", "--max-memory-gb", "--threads"};
 
 // The flags as the library's options; every text parsed here, once.
 InversionOptions to_options(const InvertArgs& a) {
@@ -96,7 +97,8 @@ void run(const InvertArgs& a) {
             if (!kResumeOptions.count(option))
                 throw std::invalid_argument(
                     option + " cannot be combined with --resume: a resumed run keeps the options in " + a.resume +
-                    "/run.json; expected only --epochs (to extend it), --quiet, --no-plots or --max-memory-gb");
+                    "/run.json; expected only --epochs (to extend it), --quiet, --no-plots, --max-memory-gb or "
+                    "--threads");
     const std::string dir = resuming ? a.resume : a.out;
     if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
     InversionDirectoryResult result;
@@ -143,6 +145,7 @@ void add_invert_command(CLI::App& app) {
     auto a = std::make_shared<InvertArgs>();
     CLI::App* cmd = app.add_subcommand(
         "invert", "Recover heights whose BRDF slices match references (the thesis's inverse renderer)");
+    cmd->footer(k_slice_unit_help);
     a->command = cmd;
     cmd->add_option("--truth", a->truth,
                     "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");

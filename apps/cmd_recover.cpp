@@ -167,6 +167,7 @@ void add_recover_command(CLI::App& app) {
     auto a = std::make_shared<RecoverArgs>();
     CLI::App* cmd = app.add_subcommand(
         "recover", "Recover the true heightfield from slices at overlapping positions and several wavelengths");
+    cmd->footer(k_slice_unit_help);
     cmd->add_option("--truth", a->truth,
                     "true heightfield EXR: observations are planned and rendered from it (default: a generated one)");
     cmd->add_option("--observations", a->observations,

@@ -24,6 +24,7 @@ struct RenderArgs {
     std::string precision = "float";
     std::string path = "auto";
     SliceJob job;
+    PreviewArgs preview;
 };
 
 RenderPath parse_path(const std::string& name) {
@@ -51,6 +52,7 @@ void run(RenderArgs a) {
     }
     validate(a.query);
     validate_resolution(a.job.resolution);
+    a.job.preview = to_preview_options(a.preview);
     check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.job.out_exr}, {"--png", a.job.png}});
     const Heightfield hf = read_heightfield_exr(a.heightfield, a.texel_um, a.vscale);
     run_slice_job(hf, a.query, a.job);
@@ -61,6 +63,7 @@ void run(RenderArgs a) {
 void add_render_command(CLI::App& app) {
     auto a = std::make_shared<RenderArgs>();
     CLI::App* cmd = app.add_subcommand("render", "Render one BRDF slice of a heightfield (docs/model.md)");
+    cmd->footer(k_slice_unit_help);
     cmd->add_option("--heightfield", a->heightfield, "heightfield EXR (R channel, heights in texel widths)")
         ->required();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
@@ -77,10 +80,9 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--light-x", a->query.omega_i[0], "projected light direction, x")->capture_default_str();
     cmd->add_option("--light-y", a->query.omega_i[1], "projected light direction, y")->capture_default_str();
     cmd->add_option("--resolution", a->job.resolution, "slice size n (n x n pixels, 1-8192)")->capture_default_str();
-    cmd->add_option("--out", a->job.out_exr, "output EXR (float RGB), or .npy (n x n x 3 float64)");
-    cmd->add_option("--png", a->job.png, "tonemapped 8-bit sRGB preview");
-    cmd->add_option("--exposure", a->job.exposure, "preview exposure in stops")->capture_default_str();
-    cmd->add_flag("--reinhard", a->job.tonemap, "preview: Reinhard x/(1+x) before the sRGB curve");
+    cmd->add_option("--out", a->job.out_exr, "output EXR (float RGB, f_r in 1/sr), or .npy (n x n x 3 float64)");
+    cmd->add_option("--png", a->job.png, "8-bit preview (default: log scale, --log-decades below the peak)");
+    add_preview_options(cmd, a->preview);
     cmd->add_option("--precision", a->precision, "float or double")->capture_default_str();
     cmd->add_option("--path", a->path, "auto, separable (OHS/ROHS) or direct")->capture_default_str();
     cmd->add_option("--prune-tolerance", a->job.options.prune_tolerance,

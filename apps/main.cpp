@@ -6,6 +6,7 @@
 #include <iostream>
 #include <string>
 
+#include "cli_common.h"
 #include "cli_signals.h"
 #include "commands.h"
 #include "wavebrdf/version.h"
@@ -21,6 +22,14 @@ int main(int argc, char** argv) {
     wavebrdf::cli::add_genbrdf_command(app);
     wavebrdf::cli::add_invert_command(app);
     wavebrdf::cli::add_recover_command(app);
+    app.footer(wavebrdf::cli::k_common_help);
+    // What every command shares: --threads, and the help's last lines (after the command's own).
+    for (CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) {
+        wavebrdf::cli::add_threads_option(command);
+        const std::string own = command->get_footer();
+        command->footer(own.empty() ? std::string(wavebrdf::cli::k_common_help)
+                                    : own + "\n" + wavebrdf::cli::k_common_help);
+    }
     // CLI11's own errors (unknown option, bad number, missing value) in the same one-line form
     // as the commands' errors; --help and --version are not failures and print as usual.
     app.failure_message([](const CLI::App*, const CLI::Error& e) {

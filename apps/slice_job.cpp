@@ -6,8 +6,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "cli_common.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/preview.h"
 #include "wavebrdf/progress.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf::cli {
 
@@ -18,10 +21,8 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     validate_resolution(job.resolution);
     if (!job.out_exr.empty()) check_writable(job.out_exr);
     if (!job.png.empty()) check_writable(job.png);
-    // write_rgb_png would reject it too, but only after the EXR is written: check up front.
-    if (!job.png.empty() && !std::isfinite(job.exposure))
-        throw std::domain_error("--exposure " + std::to_string(job.exposure) +
-                                " is invalid; expected a finite number of stops");
+    // make_slice_preview would reject them too, but only after the EXR is written: check up front.
+    if (!job.png.empty()) validate_preview_options(job.preview);
 
     Progress progress("render", work_units(job.resolution) * static_cast<long long>(job.lambdas_um.size()), !job.quiet);
     job.options.progress = &progress;
@@ -48,7 +49,7 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     } else if (!job.out_exr.empty()) {
         write_rgb_exr(job.out_exr, image, job.with_alpha);
     }
-    if (!job.png.empty()) write_rgb_png(job.png, image, job.exposure, job.tonemap);
+    if (!job.png.empty()) write_preview_png(job.png, make_slice_preview(image, job.preview));
     if (!job.quiet) {
         float peak = 0.0f;
         for (float v : image.data) peak = std::max(peak, v);
@@ -56,6 +57,46 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
                      job.resolution, job.lambdas_um.size(), job.lambdas_um.size() == 1 ? "" : "s",
                      to_string(query.model), double(peak), seconds);
     }
+}
+
+void add_preview_options(CLI::App* cmd, PreviewArgs& args) {
+    auto* log = cmd->add_flag("--log", args.log, "preview: log scale (the default), the peak white");
+    args.log_decades_option = cmd->add_option("--log-decades", args.log_decades,
+                                              "preview, log scale: decades below the peak shown (0-30]")
+                                  ->capture_default_str();
+    args.exposure_option =
+        cmd->add_option("--exposure", args.exposure,
+                        "preview: linear scale instead of log, value * 2^exposure clipped to 1 (stops), sRGB curve")
+            ->capture_default_str();
+    args.reinhard_option = cmd->add_flag("--reinhard", args.reinhard,
+                                         "preview: linear scale, Reinhard x/(1+x) before the sRGB curve");
+    for (CLI::Option* linear : {args.exposure_option, args.reinhard_option}) {
+        linear->excludes(log);
+        linear->excludes(args.log_decades_option);
+    }
+    cmd->add_flag("--false-colour,--false-color", args.false_colour,
+                  "preview: the luminance in false colour (viridis) instead of grey/colour");
+    cmd->add_flag("--colour-bar,--color-bar", args.colour_bar,
+                  "preview: append a colour bar with tick labels in 1/sr (log: powers of ten)");
+}
+
+PreviewOptions to_preview_options(const PreviewArgs& args) {
+    PreviewOptions o;
+    const bool linear = args.exposure_option->count() > 0 || args.reinhard_option->count() > 0;
+    o.scale = linear ? PreviewScale::Linear : PreviewScale::Log;
+    o.log_decades = args.log_decades;
+    o.exposure_stops = args.exposure;
+    o.reinhard = args.reinhard;
+    o.false_colour = args.false_colour;
+    o.colour_bar = args.colour_bar;
+    o.unit = k_slice_unit;
+    if (!(o.log_decades > 0.0 && o.log_decades <= 30.0))
+        throw std::domain_error("--log-decades " + format_shortest(o.log_decades) +
+                                " is out of range; expected more than 0 and at most 30");
+    if (!std::isfinite(o.exposure_stops))
+        throw std::domain_error("--exposure " + format_shortest(o.exposure_stops) +
+                                " is invalid; expected a finite number of stops");
+    return o;
 }
 
 }  // namespace wavebrdf::cli

@@ -1,10 +1,13 @@
 #pragma once
 // The work shared by `render` and `genbrdf`: render an RGB slice with a progress bar and
-// write it (EXR and/or PNG), failing before the long work when an output is unwritable.
+// write it (EXR and/or PNG), failing before the long work when an output is unwritable; and
+// the preview options the two share.
+#include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/preview.h"
 
 namespace wavebrdf::cli {
 
@@ -16,10 +19,31 @@ struct SliceJob {
     std::string out_exr;      // may be empty when png is given
     bool with_alpha = false;  // genBrdf's RGBA layout
     std::string png;
-    double exposure = 0.0;
-    bool tonemap = false;
+    PreviewOptions preview;  // checked before the render
     bool quiet = false;
 };
+
+// The preview options as given on a command line (add_preview_options fills them).
+struct PreviewArgs {
+    bool log = false;
+    double log_decades = 5.0;  // a grating's orders (down to 3.3 decades) at a third of full scale, docs/cli.md
+    double exposure = 0.0;
+    bool reinhard = false;
+    bool false_colour = false;
+    bool colour_bar = false;
+    CLI::Option* log_decades_option = nullptr;
+    CLI::Option* exposure_option = nullptr;
+    CLI::Option* reinhard_option = nullptr;
+};
+
+// Adds --log, --log-decades, --exposure, --reinhard, --false-colour and --colour-bar to `cmd`;
+// `args` must outlive the parse (keep it in the command's shared arguments).
+void add_preview_options(CLI::App* cmd, PreviewArgs& args);
+
+// The options for the library: the log scale unless --exposure or --reinhard asks for the linear
+// one (they exclude --log and --log-decades); the bar labelled with the slice unit. Throws
+// std::domain_error naming the flag for a bad --log-decades or --exposure.
+PreviewOptions to_preview_options(const PreviewArgs& args);
 
 void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob job);
 

@@ -26,7 +26,9 @@
 #include <gtest/gtest.h>
 
 #include "cli_util.h"
+#include "png_util.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/preview.h"
 #include "wavebrdf/text.h"
 
 namespace fs = std::filesystem;
@@ -539,6 +541,150 @@ TEST_F(CliTest, ParseErrorsAreOneLine) {
     const CliResult help = run("render --help");
     EXPECT_EQ(help.exit_code, 0);
     EXPECT_NE(help.out.find("--lambda-um"), std::string::npos);
+}
+
+// Every command's --help names the model document, --threads and OMP_NUM_THREADS; those
+// that read or write slices state their unit.
+TEST_F(CliTest, HelpStatesUnitsModelAndThreads) {
+    for (const std::string command : {"heightfield", "render", "genbrdf", "invert", "recover"}) {
+        SCOPED_TRACE(command);
+        const CliResult r = run(command + " --help");
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        for (const char* needle : {"docs/model.md", "--threads", "OMP_NUM_THREADS", "stderr"})
+            EXPECT_NE(r.out.find(needle), std::string::npos) << needle << " missing from:\n" << r.out;
+        if (command != "heightfield") {
+            EXPECT_NE(r.out.find("f_r in 1/sr"), std::string::npos) << r.out;
+        }
+    }
+    const CliResult top = run("--help");
+    EXPECT_NE(top.out.find("docs/model.md"), std::string::npos) << top.out;
+}
+
+// The slice image decoded from the EXR a run wrote.
+wavebrdf::RgbImage slice_of(const fs::path& exr) { return wavebrdf::read_rgb_exr(exr.string()); }
+
+// The default preview is the log scale (5 decades) of the very slice written; the options
+// reach the library (false colour, colour bar widen the picture); linear on --exposure.
+TEST_F(CliTest, RenderPreviewOptions) {
+    const std::string hf = quote(make_heightfield());
+    const std::string base = "render --heightfield " + hf + " --resolution 32 --out a.exr --quiet --png ";
+    ASSERT_EQ(run(base + "a.png").exit_code, 0);
+    wavebrdf::test::DecodedPng png = wavebrdf::test::read_png_rgb(path("a.png").string());
+    ASSERT_EQ(png.rows, 32);
+    ASSERT_EQ(png.cols, 32);
+    wavebrdf::PreviewOptions log;
+    log.log_decades = 5.0;
+    EXPECT_EQ(png.rgb, wavebrdf::make_slice_preview(slice_of(path("a.exr")), log).rgb);
+
+    ASSERT_EQ(run(base + "b.png --log-decades 2 --false-colour --colour-bar").exit_code, 0);
+    png = wavebrdf::test::read_png_rgb(path("b.png").string());
+    log.log_decades = 2.0;
+    log.false_colour = log.colour_bar = true;
+    log.unit = "1/sr";
+    const wavebrdf::Preview8 expected = wavebrdf::make_slice_preview(slice_of(path("a.exr")), log);
+    EXPECT_GT(png.cols, 32);
+    EXPECT_EQ(png.rows, expected.rows);
+    EXPECT_EQ(png.cols, expected.cols);
+    EXPECT_EQ(png.rgb, expected.rgb);
+
+    ASSERT_EQ(run(base + "c.png --exposure -2 --reinhard").exit_code, 0);
+    wavebrdf::write_rgb_png(path("c-ref.png").string(), slice_of(path("a.exr")), -2.0, true);
+    EXPECT_EQ(wavebrdf::test::read_png_rgb(path("c.png").string()).rgb,
+              wavebrdf::test::read_png_rgb(path("c-ref.png").string()).rgb);
+
+    for (const char* bad : {"0", "-1", "31", "nan"})
+        expect_clean_failure(run(base + "d.png --log-decades " + bad), {"--log-decades"}, {path("d.png")});
+    expect_clean_failure(run(base + "d.png --log --exposure 1"), {"--log", "--exposure"}, {path("d.png")});
+    expect_clean_failure(run(base + "d.png --log-decades 3 --reinhard"), {"--log-decades", "--reinhard"},
+                         {path("d.png")});
+}
+
+TEST_F(CliTest, GenbrdfWritesAPreview) {
+    const std::string hf = quote(make_heightfield());
+    const CliResult r = run("genbrdf -i " + hf + " -o g.exr -r 24 --png g.png --colour-bar --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const wavebrdf::test::DecodedPng png = wavebrdf::test::read_png_rgb(path("g.png").string());
+    EXPECT_GT(png.cols, 24);
+    EXPECT_GE(png.rows, 24);
+    expect_clean_failure(run("genbrdf -i " + hf + " -o g.exr --png g.exr"), {"-o", "--png"}, {});
+}
+
+TEST_F(CliTest, HeightfieldPreviewInFalseColourWithABar) {
+    const CliResult r = run("heightfield --size 40x30 --out h.exr --false-colour --colour-bar --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const wavebrdf::test::DecodedPng png = wavebrdf::test::read_png_rgb(path("h.png").string());
+    const wavebrdf::Preview8 expected = wavebrdf::make_heightfield_preview(
+        wavebrdf::read_heightfield_exr(path("h.exr").string()), true, true);
+    EXPECT_EQ(png.rows, expected.rows);
+    EXPECT_EQ(png.cols, expected.cols);
+    EXPECT_GT(png.cols, 30);
+    EXPECT_EQ(png.rgb, expected.rgb);
+}
+
+// Raw float pixels of an RGB EXR, to compare two runs bit for bit.
+std::vector<float> pixels_of(const fs::path& exr) { return wavebrdf::read_rgb_exr(exr.string()).data; }
+
+// --threads N: the slice is the same bit for bit on 1 and 2 threads (each pixel and each
+// column block of the products is computed by one thread in a fixed order), on both paths;
+// bad counts are one line naming the value; every command takes the option.
+TEST_F(CliTest, ThreadsOptionGivesTheSameSliceAndIsBounded) {
+    const std::string hf = quote(make_heightfield("h.exr", "96"));
+    for (const std::string path_name : {"separable", "direct"}) {
+        SCOPED_TRACE(path_name);
+        const std::string base = "render --heightfield " + hf + " --resolution 96 --quiet --path " + path_name;
+        ASSERT_EQ(run(base + " --threads 1 --out t1.exr").exit_code, 0);
+        ASSERT_EQ(run(base + " --threads 2 --out t2.exr").exit_code, 0);
+        const std::vector<float> one = pixels_of(path("t1.exr")), two = pixels_of(path("t2.exr"));
+        ASSERT_EQ(one.size(), two.size());
+        EXPECT_TRUE(std::equal(one.begin(), one.end(), two.begin())) << "the slice depends on the thread count";
+    }
+    for (const char* bad : {"0", "abc", "1025", "-1", "2.5", ""}) {
+        SCOPED_TRACE(bad);
+        expect_clean_failure(
+            run("render --heightfield " + hf + " --resolution 8 --out x.exr --threads '" + std::string(bad) + "'"),
+            {"--threads"}, {path("x.exr")});
+    }
+    EXPECT_EQ(run("heightfield --size 8 --out t.exr --no-png --quiet --threads 2").exit_code, 0);
+    EXPECT_EQ(run("genbrdf -i " + hf + " -o g.exr -r 8 --quiet --threads 2").exit_code, 0);
+    EXPECT_EQ(run("invert --size 8 --sigma-p-um 2 --resolution 8 --lambda-um 0.5 --epochs 1 --no-plots --quiet "
+                  "--threads 2 --out inv")
+                  .exit_code,
+              0);
+    EXPECT_EQ(run("invert --resume inv --epochs 2 --no-plots --quiet --threads 1").exit_code, 0);
+    EXPECT_EQ(run("recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 --method thesis "
+                  "--epochs 1 --no-plots --quiet --threads 2 --out rec")
+                  .exit_code,
+              0);
+}
+
+// Every command: its summary (and progress, which a file never gets) on stderr, nothing on
+// stdout; --quiet: nothing at all.
+TEST_F(CliTest, EveryCommandSummarisesOnStderrOnly) {
+    const std::string hf = quote(make_heightfield("h.exr", "32"));
+    struct Case {
+        std::string args, summary;
+    };
+    const std::vector<Case> cases = {
+        {"heightfield --size 16 --out s.exr --no-png", "s.exr: isotropic 16x16"},
+        {"render --heightfield " + hf + " --resolution 8 --out r.exr", "rendered 8x8 slice"},
+        {"genbrdf -i " + hf + " -o g.exr -r 8", "rendered 8x8 slice"},
+        {"invert --size 8 --sigma-p-um 2 --resolution 8 --lambda-um 0.5 --epochs 1 --no-plots --force --out inv",
+         "results in inv"},
+        {"recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 --method thesis --epochs 1 "
+         "--no-plots --force --out rec",
+         "results in rec"},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.args);
+        const CliResult loud = run(c.args);
+        ASSERT_EQ(loud.exit_code, 0) << loud.err;
+        EXPECT_EQ(loud.out, "");
+        EXPECT_NE(loud.err.find(c.summary), std::string::npos) << loud.err;
+        const CliResult quiet = run(c.args + " --quiet");
+        ASSERT_EQ(quiet.exit_code, 0) << quiet.err;
+        EXPECT_EQ(quiet.out, "");
+        EXPECT_EQ(quiet.err, "");
+    }
 }
 
 }  // namespace
