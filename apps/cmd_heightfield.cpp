@@ -39,7 +39,7 @@ void run(const HeightfieldArgs& a) {
     check_writable(a.out);
     if (!png.empty()) check_writable(png);
     const Heightfield hf = generate_heightfield(p);
-    write_heightfield_exr(a.out, hf);
+    write_heightfield_exr(a.out, hf, "wavebrdf heightfield: " + describe_surface(p));
     if (!png.empty()) write_heightfield_png(png, hf);
     if (!a.quiet) {
         const HeightStats s = height_stats(hf);

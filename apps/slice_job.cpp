@@ -46,7 +46,18 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
         write_npy(job.out_exr, {std::size_t(image.rows), std::size_t(image.cols), 3},
                   job.use_double ? full : std::vector<double>(image.data.begin(), image.data.end()));
     } else if (!job.out_exr.empty()) {
-        write_rgb_exr(job.out_exr, image, job.with_alpha);
+        SliceAttributes attributes;
+        attributes.query = query;
+        attributes.lambdas_um = job.lambdas_um;
+        attributes.resolution = job.resolution;
+        attributes.channels = job.lambdas_um.size() == 1 ? 1 : 3;
+        attributes.texel_um = heightfield.texel_um();
+        attributes.vscale = heightfield.vscale();
+        attributes.heightfield_rows = heightfield.rows();
+        attributes.heightfield_cols = heightfield.cols();
+        attributes.heightfield_file = job.heightfield_file;
+        attributes.made_by = job.made_by;
+        write_slice_exr(job.out_exr, image, attributes, job.with_alpha);
     }
     if (!job.png.empty()) write_rgb_png(job.png, image, job.exposure, job.tonemap);
     if (!job.quiet) {

@@ -19,6 +19,9 @@ struct SliceJob {
     double exposure = 0.0;
     bool tonemap = false;
     bool quiet = false;
+    // Recorded in the slice EXR's attributes (io.h SliceAttributes).
+    std::string heightfield_file;  // "" when none
+    std::string made_by;           // "wavebrdf render", "wavebrdf genbrdf"
 };
 
 void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob job);

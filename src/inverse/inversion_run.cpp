@@ -509,7 +509,8 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
         };
         keep("checkpoint.json", [&] { inversion.save_checkpoint(dir + "/checkpoint.json"); });
         keep("metrics.csv", [&] { write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history())); });
-        keep("estimate.exr", [&] { write_heightfield_exr(dir + "/estimate.exr", inversion.estimate()); });
+        keep("estimate.exr",
+             [&] { write_heightfield_exr(dir + "/estimate.exr", inversion.estimate(), "wavebrdf invert: estimate"); });
         std::string list;
         for (const std::string& name : saved) list += (list.empty() ? "" : ", ") + name;
         throw std::runtime_error(std::string(e.what()) + "; the run stopped at epoch " +
@@ -522,14 +523,15 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
 
     // Final outputs.
     const Heightfield& estimate = inversion.estimate();
-    write_heightfield_exr(dir + "/estimate.exr", estimate);
+    write_heightfield_exr(dir + "/estimate.exr", estimate, "wavebrdf invert: estimate");
     write_heightfield_png(dir + "/estimate.png", estimate);
     for (std::size_t i = 0; i < observations.size(); ++i) {
         char name[64];
         std::snprintf(name, sizeof name, "/final_%03zu", i);
         const auto slice = render_observation(estimate, observations[i], settings.render);
         const RgbImage image = to_image(slice, observations[i].resolution, channels);
-        write_rgb_exr(dir + name + ".exr", image);
+        write_slice_exr(dir + name + ".exr", image,
+                        slice_attributes(observations[i], &estimate, "wavebrdf invert: the estimate's slice"));
         write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
     }
     result.epoch = inversion.epoch();
@@ -572,13 +574,16 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
               o.reference);
     if (p.truth) {
         write_npy(dir + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*p.truth));
-        write_heightfield_exr(dir + "/truth.exr", *p.truth);
+        write_heightfield_exr(dir + "/truth.exr", *p.truth, "wavebrdf invert: truth");
     }
     for (std::size_t i = 0; i < observations.size(); ++i) {
         char name[64];
         std::snprintf(name, sizeof name, "/reference_%03zu", i);
         const RgbImage image = to_image(observations[i].reference, observations[i].resolution, channels);
-        write_rgb_exr(dir + name + ".exr", image);
+        // Rendered from the truth when there is one; given observations have no heightfield.
+        const Heightfield* from = p.truth ? &*p.truth : nullptr;
+        write_slice_exr(dir + name + ".exr", image,
+                        slice_attributes(observations[i], from, "wavebrdf invert: reference"));
         write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
     }
     return run_epochs(run, options, dir, control);

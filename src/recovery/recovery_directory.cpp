@@ -47,7 +47,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         write_observations_json(dir + "/observations.json", r.observations, ReferenceStorage::Exr);
     const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
     if (r.truth) {
-        write_heightfield_exr(dir + "/truth.exr", *r.truth);
+        write_heightfield_exr(dir + "/truth.exr", *r.truth, "wavebrdf recover: truth");
         write_npy(dir + "/truth_height.npy", height_shape, heights_um(*r.truth));
     }
 
@@ -77,7 +77,8 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     }();
 
     write_text_atomically(dir + "/metrics.csv", csv.str());
-    write_heightfield_exr(dir + "/estimate.exr", estimate);
+    write_heightfield_exr(dir + "/estimate.exr", estimate,
+                          std::string("wavebrdf recover: estimate (") + to_string(r.method) + ")");
     write_heightfield_png(dir + "/estimate.png", estimate);
     write_npy(dir + "/estimate_height.npy", height_shape, heights_um(estimate));
     // One observation and the estimate's slice for it, for the report.
