@@ -10,6 +10,7 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/run_directory.h"
+#include "wavebrdf/version.h"
 
 namespace wavebrdf {
 
@@ -28,7 +29,17 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                           {"observations", r.observations.size()},
                           {"plan", r.notes},
                           {"warnings", r.warnings},
-                          {"truth", r.truth.has_value()}};
+                          {"truth", r.truth.has_value()},
+                          {"version", k_version},
+                          {"threads", run_threads()}};
+    // What the plan chose (the options' 0 / "" mean "the planner's"): the actual values.
+    std::vector<std::vector<double>> lambdas;
+    for (const Observation& o : r.observations) lambdas.push_back(o.lambdas_um);
+    run["wavelengths_um"] = distinct_wavelengths_um(lambdas);
+    if (!r.observations.empty()) {
+        run["sigma_p_um"] = r.observations.front().query.sigma_p_um;
+        run["resolution"] = r.observations.front().resolution;
+    }
     if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
     return run;
 }
