@@ -238,8 +238,8 @@ TEST_F(CliTest, GenbrdfLambdaZeroIsSpectral) {
 // one of --texel-um 0.5, bit for bit, and not the one of 1 um texels; a disagreeing option wins
 // with one warning line naming both values. genbrdf (-w, -v) does the same.
 TEST_F(CliTest, RenderAndGenbrdfUseTheHeightfieldFilesTexelSize) {
-    const CliResult h =
-        run("heightfield --type grating --period-um 8 --amplitude-um 0.2 --size 64 --texel-um 0.5 --out g.exr --no-png");
+    const CliResult h = run(
+        "heightfield --type grating --period-um 8 --amplitude-um 0.2 --size 64 --texel-um 0.5 --out g.exr --no-png");
     ASSERT_EQ(h.exit_code, 0) << h.err;
     const wavebrdf::HeightfieldAttributes attributes = wavebrdf::read_heightfield_attributes(path("g.exr").string());
     ASSERT_TRUE(attributes.texel_um.has_value());
@@ -283,8 +283,8 @@ TEST_F(CliTest, RenderAndGenbrdfUseTheHeightfieldFilesTexelSize) {
     const CliResult g1 = run("genbrdf -i g.exr -o gen1.exr -p 6 -r 32 -l 0.5 -w 1 --quiet");
     ASSERT_EQ(g1.exit_code, 0) << g1.err;
     EXPECT_EQ(g1.err, "wavebrdf: warning: -w 1 disagrees with g.exr's texel_um 0.5; using 1\n");
-    expect_same_image(wavebrdf::read_rgb_exr(path("gen1.exr").string()), wavebrdf::read_rgb_exr(path("one.exr").string()),
-                      1e-6);
+    expect_same_image(wavebrdf::read_rgb_exr(path("gen1.exr").string()),
+                      wavebrdf::read_rgb_exr(path("one.exr").string()), 1e-6);
 }
 
 // A heightfield file without attributes (genBrdf's, wavebrdf 0.1's) renders with the defaults.
@@ -297,8 +297,8 @@ TEST_F(CliTest, RenderOfAFileWithoutAttributesUsesTheDefaults) {
         header.channels().insert("R", Imf::Channel(Imf::FLOAT));
         std::vector<float> data(field.values().begin(), field.values().end());
         Imf::FrameBuffer frame;
-        frame.insert("R", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data()), sizeof(float),
-                                     32 * sizeof(float)));
+        frame.insert("R",
+                     Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data()), sizeof(float), 32 * sizeof(float)));
         Imf::OutputFile out(path("plain.exr").string().c_str(), header);
         out.setFrameBuffer(frame);
         out.writePixels(32);

@@ -851,18 +851,17 @@ TEST_F(InvertTest, CliResumeExtendsARunBitForBitFromAnyDirectory) {
 TEST_F(InvertTest, CliRunJsonRecordsVersionThreadsWavelengthsAndOldOnesResume) {
     write_heightfield_exr(path("truth.exr").string(), tiny_truth().with_scale(0.5, 1.0));
     ASSERT_EQ(invert("--truth truth.exr --spectral 3 --epochs 4 --out run").exit_code, 0);
-    const nlohmann::json run = nlohmann::json::parse(read_text(path("run/run.json")));
-    EXPECT_EQ(run.at("version"), k_version);
-    EXPECT_EQ(run.at("threads"), run_threads());
-    EXPECT_GE(run.at("threads").get<int>(), 1);
-    EXPECT_EQ(run.at("wavelengths_um").get<std::vector<double>>(), spectral_wavelengths_um(3));
-    EXPECT_TRUE(run.at("args").at("lambda_um").is_null());
-    EXPECT_EQ(run.at("args").at("spectral"), 3);
-    EXPECT_EQ(run.at("args").at("texel_um"), 0.5) << "the truth file's texel width";
-    EXPECT_EQ(run.at("texel_um"), 0.5);
+    const nlohmann::json written = nlohmann::json::parse(read_text(path("run/run.json")));
+    EXPECT_EQ(written.at("version"), k_version);
+    EXPECT_EQ(written.at("threads"), run_threads());
+    EXPECT_GE(written.at("threads").get<int>(), 1);
+    EXPECT_EQ(written.at("wavelengths_um").get<std::vector<double>>(), spectral_wavelengths_um(3));
+    EXPECT_TRUE(written.at("args").at("lambda_um").is_null());
+    EXPECT_EQ(written.at("args").at("spectral"), 3);
+    EXPECT_EQ(written.at("args").at("texel_um"), 0.5) << "the truth file's texel width";
+    EXPECT_EQ(written.at("texel_um"), 0.5);
     EXPECT_EQ(read_heightfield_exr(path("run/estimate.exr").string()).texel_um(), 0.5);
-    EXPECT_NE(read_heightfield_attributes(path("run/estimate.exr").string()).made_by.find("invert"),
-              std::string::npos);
+    EXPECT_NE(read_heightfield_attributes(path("run/estimate.exr").string()).made_by.find("invert"), std::string::npos);
     const SliceFile reference = read_slice_exr(path("run/reference_000.exr").string());
     ASSERT_TRUE(reference.attributes.has_value());
     EXPECT_EQ(reference.attributes->lambdas_um, spectral_wavelengths_um(3));
@@ -886,7 +885,7 @@ TEST_F(InvertTest, CliRunJsonRecordsVersionThreadsWavelengthsAndOldOnesResume) {
     EXPECT_EQ(nlohmann::json::parse(read_text(path("one/run.json"))).at("args").at("texel_um"), 1.0);
 
     // A run.json as 0.1 wrote it: 0 for "not given", no version, threads or wavelengths.
-    nlohmann::json old = run;
+    nlohmann::json old = written;
     old["args"]["lambda_um"] = 0.0;
     old.erase("version");
     old.erase("threads");

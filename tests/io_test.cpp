@@ -185,8 +185,8 @@ TEST_F(IoTest, HeightfieldWithoutAttributesReadsWithDefaults) {
     EXPECT_EQ(h.vscale(), 1.0);
     EXPECT_EQ(wavebrdf::read_heightfield_exr(path, 0.37, 2.0).texel_um(), 0.37);
     // No file value: nothing to disagree with, no warning; the caller's default applies.
-    const wavebrdf::HeightfieldScale s =
-        wavebrdf::resolve_heightfield_scale(path, a, std::nullopt, 0.5, "--texel-um", "--vscale", 2.0, 1.0);
+    const wavebrdf::HeightfieldScale s = wavebrdf::resolve_heightfield_scale(path, a, std::nullopt, 0.5, "--texel-um",
+                                                                             "--vscale", 2.0, 1.0);
     EXPECT_EQ(s.texel_um, 2.0);
     EXPECT_EQ(s.vscale, 0.5);
     EXPECT_TRUE(s.warnings.empty());
@@ -221,8 +221,8 @@ TEST_F(IoTest, HostileHeightfieldAttributesAreRefused) {
         add(header);
         std::vector<float> data(6, 0.0f);
         Imf::FrameBuffer frame;
-        frame.insert("R", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data()), sizeof(float),
-                                     3 * sizeof(float)));
+        frame.insert("R",
+                     Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data()), sizeof(float), 3 * sizeof(float)));
         Imf::OutputFile out(path.c_str(), header);
         out.setFrameBuffer(frame);
         out.writePixels(2);
@@ -356,16 +356,13 @@ TEST_F(IoTest, HostileSliceAttributesAreRefused) {
     const auto rewrite = [&](const std::string& name, const std::string& attribute, const Imf::Attribute* value) {
         Imf::InputFile in(good.c_str());
         Imf::Header header = in.header();
-        if (value != nullptr)
-            header.insert(attribute, *value);
-        else
-            header.erase(attribute);
+        header.erase(attribute);  // insert cannot change an attribute's type
+        if (value != nullptr) header.insert(attribute, *value);
         std::vector<float> data(12, 1.0f);
         Imf::FrameBuffer frame;
         for (int c = 0; c < 3; ++c)
-            frame.insert(std::string(1, "RGB"[c]),
-                         Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data() + c), 3 * sizeof(float),
-                                    6 * sizeof(float)));
+            frame.insert(std::string(1, "RGB"[c]), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data() + c),
+                                                              3 * sizeof(float), 6 * sizeof(float)));
         const std::string path = file(name);
         Imf::OutputFile out(path.c_str(), header);
         out.setFrameBuffer(frame);
@@ -376,13 +373,17 @@ TEST_F(IoTest, HostileSliceAttributesAreRefused) {
     const Imf::DoubleAttribute negative_sigma(-1.0), nan_x(std::numeric_limits<double>::quiet_NaN());
     const Imf::IntAttribute big_resolution(1 << 30), two_channels(2);
     const Imf::V2dAttribute outside({0.9, 0.9});
-    const std::vector<std::pair<std::string, const Imf::Attribute*>> cases = {
-        {"wavebrdf:lambdas_um", &bad_lambdas},   {"wavebrdf:model", &bad_model},
-        {"wavebrdf:unit", &many},                {"wavebrdf:sigma_p_um", &negative_sigma},
-        {"wavebrdf:x_um", &nan_x},               {"wavebrdf:resolution", &big_resolution},
-        {"wavebrdf:channels", &two_channels},    {"wavebrdf:omega_i", &outside},
-        {"wavebrdf:model", nullptr},             {"wavebrdf:resolution", nullptr},
-        {"wavebrdf:lambdas_um", &negative_sigma}};
+    const std::vector<std::pair<std::string, const Imf::Attribute*>> cases = {{"wavebrdf:lambdas_um", &bad_lambdas},
+                                                                              {"wavebrdf:model", &bad_model},
+                                                                              {"wavebrdf:unit", &many},
+                                                                              {"wavebrdf:sigma_p_um", &negative_sigma},
+                                                                              {"wavebrdf:x_um", &nan_x},
+                                                                              {"wavebrdf:resolution", &big_resolution},
+                                                                              {"wavebrdf:channels", &two_channels},
+                                                                              {"wavebrdf:omega_i", &outside},
+                                                                              {"wavebrdf:model", nullptr},
+                                                                              {"wavebrdf:resolution", nullptr},
+                                                                              {"wavebrdf:lambdas_um", &negative_sigma}};
     for (std::size_t k = 0; k < cases.size(); ++k) {
         const std::string path = rewrite("bad" + std::to_string(k) + ".exr", cases[k].first, cases[k].second);
         expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_slice_exr(path); }, path);

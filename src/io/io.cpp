@@ -613,9 +613,13 @@ SliceFile read_slice_exr(const std::string& path) {
     const std::string model = r.required("model", r.string("model"));
     try {
         a.query.model = parse_model(model);
-        validate(a.query);
     } catch (const std::exception& e) {
-        r.bad("omega_i", std::string("or another part of the query is invalid (") + e.what() + ")");
+        r.bad("model", std::string("is invalid (") + e.what() + ")");
+    }
+    try {
+        validate(a.query);  // x, y and sigma_p are checked above: what is left is the light
+    } catch (const std::exception& e) {
+        r.bad("omega_i", std::string("is invalid (") + e.what() + ")");
     }
     const std::string lambdas = r.required("lambdas_um", r.string("lambdas_um"));
     try {
