@@ -209,6 +209,9 @@ TEST_F(IoTest, ResolveHeightfieldScaleWarnsNamingBothValues) {
     ASSERT_EQ(differ.warnings.size(), 2u);
     EXPECT_EQ(differ.warnings[0], "--texel-um 1 disagrees with " + path + "'s texel_um 0.5; using 1");
     EXPECT_EQ(differ.warnings[1], "--vscale 3 disagrees with " + path + "'s vscale 1; using 3");
+    // Out of range is an error naming the file, not a disagreement.
+    expect_throw_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 1e-300, 1.0); }, path);
+    expect_throw_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 0.5, 1e300); }, path);
 }
 
 // A hostile attribute (not finite, out of range, the wrong type, a huge string) is refused

@@ -90,6 +90,8 @@ HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional
 // has one line per given value that differs from the file's, naming both, e.g.
 // "--texel-um 1 disagrees with g.exr's texel_um 0.5; using 1" (`texel_option` and
 // `vscale_option` are the names the caller's user knows: "--texel-um", "-w", "texel_um").
+// Throws std::domain_error naming `path` when the chosen texel_um or vscale is out of the
+// Heightfield's range (then there are no warnings to show).
 struct HeightfieldScale {
     double texel_um = 1.0;
     double vscale = 1.0;

@@ -502,6 +502,13 @@ HeightfieldScale resolve_heightfield_scale(const std::string& path, const Height
     };
     scale.texel_um = pick(texel_um, file.texel_um, default_texel_um, texel_option, "texel_um");
     scale.vscale = pick(vscale, file.vscale, default_vscale, vscale_option, "vscale");
+    // A given value out of range is an error, not a disagreement: checked as the Heightfield
+    // read with it would, before any warning is shown.
+    try {
+        Heightfield(1, 1, {0.0}, scale.texel_um, scale.vscale);
+    } catch (const std::domain_error& e) {
+        throw std::domain_error(path + ": " + e.what());
+    }
     return scale;
 }
 
