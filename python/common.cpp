@@ -173,7 +173,8 @@ HeightfieldScale heightfield_file_scale(const std::string& path, const py::objec
     HeightfieldScale scale = resolve_heightfield_scale(path, attributes, texel_um, vscale, "texel_um", "vscale",
                                                        default_texel_um, default_vscale);
     const py::object warn = py::module_::import("warnings").attr("warn");
-    for (const std::string& w : scale.warnings) warn(w, py::module_::import("builtins").attr("UserWarning"), 2);
+    for (const std::string& w : scale.warnings)
+        warn(w, py::module_::import("builtins").attr("UserWarning"), 1);  // 1: the Python line that called us
     return scale;
 }
 
