@@ -52,4 +52,14 @@ void check_distinct_files(const std::vector<std::pair<std::string, std::string>>
     }
 }
 
+HeightfieldScale resolve_scale_with_warnings(const std::string& path, std::optional<double> texel_um,
+                                             std::optional<double> vscale, const std::string& texel_option,
+                                             const std::string& vscale_option, double default_texel_um,
+                                             double default_vscale) {
+    HeightfieldScale scale = resolve_heightfield_scale(path, read_heightfield_attributes(path), texel_um, vscale,
+                                                       texel_option, vscale_option, default_texel_um, default_vscale);
+    for (const std::string& w : scale.warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
+    return scale;
+}
+
 }  // namespace wavebrdf::cli

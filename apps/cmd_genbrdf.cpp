@@ -27,6 +27,9 @@ struct GenbrdfArgs {
     bool quiet = false;
     std::string png;
     PreviewArgs preview;
+    // Whether -w / -v were given. When not, a heightfield file's own attributes apply (files
+    // written by wavebrdf carry them); genBrdf's files carry none and get genBrdf's defaults.
+    bool given_texel = false, given_vscale = false;
 };
 
 // The steepest light genbrdf takes: tan θ_i = |(s, t)| ≤ 1e6.
@@ -68,7 +71,11 @@ void run(const GenbrdfArgs& a) {
     validate(q);
     validate_resolution(job.resolution);
     check_distinct_files({{"-i", a.input}, {"-o", a.output}, {"--png", a.png}});
-    const Heightfield hf = read_heightfield_exr(a.input, a.texel, a.vscale);
+    const HeightfieldScale scale = resolve_scale_with_warnings(a.input, if_given(a.given_texel, a.texel),
+                                                               if_given(a.given_vscale, a.vscale), "-w", "-v");
+    const Heightfield hf = read_heightfield_exr(a.input, scale.texel_um, scale.vscale);
+    job.heightfield_file = a.input;
+    job.made_by = "wavebrdf genbrdf";
     run_slice_job(hf, q, job);
 }
 
@@ -81,8 +88,8 @@ void add_genbrdf_command(CLI::App& app) {
     cmd->footer(k_slice_unit_help);
     cmd->add_option("-i", a->input, "heightfield EXR")->required();
     cmd->add_option("-o", a->output, "output EXR (RGBA, f_r in 1/sr)")->required();
-    cmd->add_option("-w", a->texel, "texel width in um")->capture_default_str();
-    cmd->add_option("-v", a->vscale, "vertical scale")->capture_default_str();
+    auto* texel = cmd->add_option("-w", a->texel, "texel width in um (default: the file's, else 1)");
+    auto* vscale = cmd->add_option("-v", a->vscale, "vertical scale (default: the file's, else 1)");
     cmd->add_option("-x", a->mu_x, "footprint centre x in um")->capture_default_str();
     cmd->add_option("-y", a->mu_y, "footprint centre y in um")->capture_default_str();
     cmd->add_option("-p", a->sigma_p, "footprint sigma_p in um")->capture_default_str();
@@ -98,7 +105,11 @@ void add_genbrdf_command(CLI::App& app) {
     cmd->add_option("--png", a->png, "also an 8-bit preview (default: log scale, --log-decades below the peak)");
     add_preview_options(cmd, a->preview);
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
-    cmd->callback([a] { run(*a); });
+    cmd->callback([a, texel, vscale] {
+        a->given_texel = texel->count() > 0;
+        a->given_vscale = vscale->count() > 0;
+        run(*a);
+    });
 }
 
 }  // namespace wavebrdf::cli

@@ -42,7 +42,7 @@ void run(const HeightfieldArgs& a) {
     check_writable(a.out);
     if (!png.empty()) check_writable(png);
     const Heightfield hf = generate_heightfield(p);
-    write_heightfield_exr(a.out, hf);
+    write_heightfield_exr(a.out, hf, "wavebrdf heightfield: " + describe_surface(p));
     if (!png.empty()) {
         // The grey one-channel preview as before unless a colour option asks for more.
         if (a.false_colour || a.colour_bar)

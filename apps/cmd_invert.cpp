@@ -65,6 +65,17 @@ InversionOptions to_options(const InvertArgs& a) {
     if (a.truth.empty()) parse_size("--size", a.size, o.rows, o.cols);
     o.texel_um = a.texel_um;
     o.vscale = a.vscale;
+    if (!a.truth.empty()) {
+        // A truth file's attributes apply where --texel-um / --vscale are not given.
+        const auto given = [&](const char* option) {
+            return std::find(a.given.begin(), a.given.end(), option) != a.given.end();
+        };
+        const HeightfieldScale scale = resolve_scale_with_warnings(a.truth, if_given(given("--texel-um"), a.texel_um),
+                                                                   if_given(given("--vscale"), a.vscale), "--texel-um",
+                                                                   "--vscale");
+        o.texel_um = scale.texel_um;
+        o.vscale = scale.vscale;
+    }
     if (a.given_x) o.x_um = a.x_um;
     if (a.given_y) o.y_um = a.y_um;
     o.sigma_p_um = a.sigma_p_um;
@@ -152,8 +163,10 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--observations", a->observations, "reference slices with their query parameters (JSON)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
         ->capture_default_str();
-    cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
-    cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
+    cmd->add_option("--texel-um", a->texel_um, "texel width w in um (with --truth: the file's if it says)")
+        ->capture_default_str();
+    cmd->add_option("--vscale", a->vscale, "vertical scale v (with --truth: the file's if it says)")
+        ->capture_default_str();
     auto* x_um = cmd->add_option("--x-um", a->x_um,
                                  "footprint centre x in um, any finite value (periodic; default: tile centre)");
     auto* y_um = cmd->add_option("--y-um", a->y_um,

@@ -41,6 +41,8 @@ struct RecoverArgs {
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;  // 0: the physical memory
     bool save_observations = false, quiet = false, no_plots = false, force = false;
+    // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
+    bool given_texel = false, given_vscale = false;
 };
 
 std::vector<double> parse_list(const std::string& option, const std::string& text) {
@@ -98,8 +100,14 @@ void run(const RecoverArgs& a) {
     } else {
         if (a.truth.empty())
             parse_size("--size", a.size, options.rows, options.cols);
-        else
-            truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, a.texel_um, a.vscale));
+        else {
+            const HeightfieldScale scale = resolve_scale_with_warnings(a.truth, if_given(a.given_texel, a.texel_um),
+                                                                       if_given(a.given_vscale, a.vscale), "--texel-um",
+                                                                       "--vscale", 2.0, 1.0);
+            options.texel_um = scale.texel_um;
+            options.vscale = scale.vscale;
+            truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, scale.texel_um, scale.vscale));
+        }
         options.model = parse_model(a.model);
         if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
     }
@@ -174,8 +182,11 @@ void add_recover_command(CLI::App& app) {
                     "measured or rendered slices with their query parameters (JSON)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
         ->capture_default_str();
-    cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
-    cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
+    auto* texel = cmd->add_option("--texel-um", a->texel_um,
+                                  "texel width w in um (with --truth: the file's if it says)")
+                      ->capture_default_str();
+    auto* vscale = cmd->add_option("--vscale", a->vscale, "vertical scale v (with --truth: the file's if it says)")
+                       ->capture_default_str();
     cmd->add_option("--height-range-um", a->height_range_um,
                     "generated truth: peak-to-valley height in um; with --observations: a bound for unwrapping")
         ->capture_default_str();
@@ -217,7 +228,11 @@ void add_recover_command(CLI::App& app) {
                   "also write the observations (observations.json + EXR slices)");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
-    cmd->callback([a] { run(*a); });
+    cmd->callback([a, texel, vscale] {
+        a->given_texel = texel->count() > 0;
+        a->given_vscale = vscale->count() > 0;
+        run(*a);
+    });
 }
 
 }  // namespace wavebrdf::cli

@@ -16,6 +16,8 @@ struct RenderArgs {
     std::string heightfield;
     double texel_um = 1.0;
     double vscale = 1.0;
+    // Whether --texel-um / --vscale were given: when not, the heightfield file's attributes apply.
+    bool given_texel = false, given_vscale = false;
     Query query;
     std::string model = "OHS";
     double lambda_um = 0.5;
@@ -54,7 +56,12 @@ void run(RenderArgs a) {
     validate_resolution(a.job.resolution);
     a.job.preview = to_preview_options(a.preview);
     check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.job.out_exr}, {"--png", a.job.png}});
-    const Heightfield hf = read_heightfield_exr(a.heightfield, a.texel_um, a.vscale);
+    const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
+                                                               if_given(a.given_vscale, a.vscale), "--texel-um",
+                                                               "--vscale");
+    const Heightfield hf = read_heightfield_exr(a.heightfield, scale.texel_um, scale.vscale);
+    a.job.heightfield_file = a.heightfield;
+    a.job.made_by = "wavebrdf render";
     run_slice_job(hf, a.query, a.job);
 }
 
@@ -66,8 +73,9 @@ void add_render_command(CLI::App& app) {
     cmd->footer(k_slice_unit_help);
     cmd->add_option("--heightfield", a->heightfield, "heightfield EXR (R channel, heights in texel widths)")
         ->required();
-    cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
-    cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
+    auto* texel = cmd->add_option("--texel-um", a->texel_um,
+                                  "texel width w in um (default: the heightfield file's, else 1)");
+    auto* vscale = cmd->add_option("--vscale", a->vscale, "vertical scale v (default: the heightfield file's, else 1)");
     cmd->add_option("--x-um", a->query.x_um, "footprint centre along x (rows) in um")->capture_default_str();
     cmd->add_option("--y-um", a->query.y_um, "footprint centre along y (columns) in um")->capture_default_str();
     cmd->add_option("--sigma-p-um", a->query.sigma_p_um, "footprint (coherence) size sigma_p in um")
@@ -92,8 +100,10 @@ void add_render_command(CLI::App& app) {
                     "refuse a render whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();
     cmd->add_flag("--quiet", a->job.quiet, "no progress bar or summary");
-    cmd->callback([a, spectral] {
+    cmd->callback([a, spectral, texel, vscale] {
         a->given_spectral = spectral->count() > 0;
+        a->given_texel = texel->count() > 0;
+        a->given_vscale = vscale->count() > 0;
         run(*a);
     });
 }

@@ -47,7 +47,18 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
         write_npy(job.out_exr, {std::size_t(image.rows), std::size_t(image.cols), 3},
                   job.use_double ? full : std::vector<double>(image.data.begin(), image.data.end()));
     } else if (!job.out_exr.empty()) {
-        write_rgb_exr(job.out_exr, image, job.with_alpha);
+        SliceAttributes attributes;
+        attributes.query = query;
+        attributes.lambdas_um = job.lambdas_um;
+        attributes.resolution = job.resolution;
+        attributes.channels = job.lambdas_um.size() == 1 ? 1 : 3;
+        attributes.texel_um = heightfield.texel_um();
+        attributes.vscale = heightfield.vscale();
+        attributes.heightfield_rows = heightfield.rows();
+        attributes.heightfield_cols = heightfield.cols();
+        attributes.heightfield_file = job.heightfield_file;
+        attributes.made_by = job.made_by;
+        write_slice_exr(job.out_exr, image, attributes, job.with_alpha);
     }
     if (!job.png.empty()) write_preview_png(job.png, make_slice_preview(image, job.preview));
     if (!job.quiet) {
@@ -89,7 +100,7 @@ PreviewOptions to_preview_options(const PreviewArgs& args) {
     o.reinhard = args.reinhard;
     o.false_colour = args.false_colour;
     o.colour_bar = args.colour_bar;
-    o.unit = k_slice_unit;
+    o.unit = k_slice_unit_label;
     if (!(o.log_decades > 0.0 && o.log_decades <= 30.0))
         throw std::domain_error("--log-decades " + format_shortest(o.log_decades) +
                                 " is out of range; expected more than 0 and at most 30");

@@ -21,6 +21,9 @@ struct SliceJob {
     std::string png;
     PreviewOptions preview;  // checked before the render
     bool quiet = false;
+    // Recorded in the slice EXR's attributes (io.h SliceAttributes).
+    std::string heightfield_file;  // "" when none
+    std::string made_by;           // "wavebrdf render", "wavebrdf genbrdf"
 };
 
 // The preview options as given on a command line (add_preview_options fills them).

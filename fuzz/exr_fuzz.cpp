@@ -1,5 +1,6 @@
-// libFuzzer target: the OpenEXR readers (read_heightfield_exr, read_rgb_exr) on arbitrary
-// bytes. Seeds: fuzz/corpus/exr/.
+// libFuzzer target: the OpenEXR readers (read_heightfield_exr, read_rgb_exr, and the readers of
+// wavebrdf's attributes, read_heightfield_attributes and read_slice_exr) on arbitrary bytes.
+// Seeds: fuzz/corpus/exr/.
 #include <cstdint>
 #include <cstdlib>
 
@@ -18,6 +19,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const wavebrdf::RgbImage image = wavebrdf::read_rgb_exr(path);
         if (image.rows < 1 || image.cols < 1 ||
             image.data.size() != static_cast<std::size_t>(image.rows) * static_cast<std::size_t>(image.cols) * 3u)
+            std::abort();
+    });
+    wavebrdf::fuzz::expect_clean([&] { wavebrdf::read_heightfield_attributes(path); });
+    wavebrdf::fuzz::expect_clean([&] {
+        const wavebrdf::SliceFile slice = wavebrdf::read_slice_exr(path);
+        if (slice.attributes && (slice.attributes->lambdas_um.empty() || slice.attributes->resolution < 1))
             std::abort();
     });
     return 0;

@@ -160,6 +160,24 @@ Heightfield heightfield_argument(const py::object& object, const char* name, dou
     return heightfield_from_array(object, name, texel_um, vscale);
 }
 
+HeightfieldScale heightfield_file_scale(const std::string& path, const py::object& texel_arg,
+                                        const py::object& vscale_arg, double default_texel_um, double default_vscale) {
+    std::optional<double> texel_um, vscale;
+    if (!texel_arg.is_none()) texel_um = check_positive(texel_arg.cast<double>(), "texel_um");
+    if (!vscale_arg.is_none()) vscale = check_finite(vscale_arg.cast<double>(), "vscale");
+    HeightfieldAttributes attributes;
+    {
+        py::gil_scoped_release release;
+        attributes = read_heightfield_attributes(path);
+    }
+    HeightfieldScale scale = resolve_heightfield_scale(path, attributes, texel_um, vscale, "texel_um", "vscale",
+                                                       default_texel_um, default_vscale);
+    const py::object warn = py::module_::import("warnings").attr("warn");
+    for (const std::string& w : scale.warnings)
+        warn(w, py::module_::import("builtins").attr("UserWarning"), 1);  // 1: the Python line that called us
+    return scale;
+}
+
 std::vector<double> wavelengths(const py::object& lambda_um, const py::object& spectral) {
     if (!lambda_um.is_none() && !spectral.is_none())
         throw py::value_error("lambda_um and spectral exclude each other; expected one of them (or neither: 0.5 um)");

@@ -16,6 +16,7 @@
 
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/interrupt.h"
+#include "wavebrdf/io.h"
 #include "wavebrdf/model.h"
 
 namespace wavebrdf::python {
@@ -53,6 +54,13 @@ std::array<int, 2> size_argument(const py::object& size, const char* name = "siz
 // texel_um and vscale; without the GIL) or a 2-D array of heights in texel units.
 Heightfield heightfield_argument(const py::object& object, const char* name, double texel_um, double vscale,
                                  bool rescale);
+
+// The texel width and vertical scale for the heightfield file at `path`: `texel_arg` /
+// `vscale_arg` when not None (checked; a Python UserWarning naming both values when the file
+// says otherwise), else the file's attributes, else the defaults. Reads the header only.
+HeightfieldScale heightfield_file_scale(const std::string& path, const py::object& texel_arg,
+                                        const py::object& vscale_arg, double default_texel_um = 1.0,
+                                        double default_vscale = 1.0);
 
 // A NumPy array that owns `values` (moved, not copied), of the given C-order shape.
 template <typename T>

@@ -25,6 +25,16 @@ void set_values(Heightfield& hf, py::handle object) {
     std::memcpy(const_cast<double*>(hf.values().data()), v.data(), v.size() * sizeof(double));
 }
 
+py::dict attributes_dict(const HeightfieldAttributes& a) {
+    py::dict d;
+    d["texel_um"] = a.texel_um ? py::object(py::float_(*a.texel_um)) : py::none();
+    d["vscale"] = a.vscale ? py::object(py::float_(*a.vscale)) : py::none();
+    d["units"] = a.units;
+    d["made_by"] = a.made_by;
+    d["version"] = a.version;
+    return d;
+}
+
 }  // namespace
 
 void bind_heightfield(py::module_& m) {
@@ -47,16 +57,30 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             "values"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0)
         .def_static(
             "from_exr",
-            [](const std::string& path, double texel_um, double vscale) {
-                check_positive(texel_um, "texel_um");
-                check_finite(vscale, "vscale");
+            [](const std::string& path, const py::object& texel_um, const py::object& vscale) {
+                const HeightfieldScale scale = heightfield_file_scale(path, texel_um, vscale);
                 py::gil_scoped_release release;
-                return read_heightfield_exr(path, texel_um, vscale);
+                return read_heightfield_exr(path, scale.texel_um, scale.vscale);
             },
-            "path"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0,
+            "path"_a, "texel_um"_a = py::none(), "vscale"_a = py::none(),
             "Reads the R (or Y) channel of an OpenEXR file (half or float) as heights in texel units.\n"
-            "RuntimeError names the file when it is missing, unreadable or corrupt; ValueError on a\n"
-            "non-finite value.")
+            "texel_um (um) and vscale: when None (default), the file's own (written by save_exr and the\n"
+            "CLI), else 1.0; a given value that differs from the file's wins, with a UserWarning naming\n"
+            "both. RuntimeError names the file when it is missing, unreadable or corrupt, or has a\n"
+            "hostile wavebrdf attribute; ValueError on a non-finite value.")
+        .def_static(
+            "exr_attributes",
+            [](const std::string& path) {
+                HeightfieldAttributes a;
+                {
+                    py::gil_scoped_release release;
+                    a = read_heightfield_attributes(path);
+                }
+                return attributes_dict(a);
+            },
+            "path"_a,
+            "What a heightfield EXR says about itself (no pixels read): a dict with texel_um, vscale\n"
+            "(None when the file does not say), units, made_by and version ('' when absent).")
         .def_static(
             "generate",
             [](const std::string& type, int rows, std::optional<int> cols, double texel_um, std::uint64_t seed,
@@ -158,11 +182,14 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             "Mean, rms height, min and max in um (vscale included) and rms slope.")
         .def(
             "save_exr",
-            [](const Heightfield& hf, const std::string& path) {
+            [](const Heightfield& hf, const std::string& path, const std::string& made_by) {
                 py::gil_scoped_release release;
-                write_heightfield_exr(path, hf);
+                write_heightfield_exr(path, hf, made_by);
             },
-            "path"_a, "Writes the values (texel units) as a single-channel float EXR (atomically).")
+            "path"_a, "made_by"_a = "python",
+            "Writes the values (texel units) as a single-channel float EXR (atomically), with the\n"
+            "attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,\n"
+            "\"Files\"), so that from_exr reads the same scale back.")
         .def(
             "save_png",
             [](const Heightfield& hf, const std::string& path) {
@@ -178,6 +205,51 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             return "Heightfield(" + std::to_string(hf.rows()) + "x" + std::to_string(hf.cols()) +
                    ", texel_um=" + format_number(hf.texel_um()) + ", vscale=" + format_number(hf.vscale()) + ")";
         });
+
+    m.def(
+        "read_slice",
+        [](const std::string& path) {
+            SliceFile file;
+            {
+                py::gil_scoped_release release;
+                file = read_slice_exr(path);
+            }
+            const py::ssize_t rows = file.image.rows, cols = file.image.cols;
+            py::array_t<float> image = owning_array(std::move(file.image.data), {rows, cols, 3});
+            py::dict d;
+            if (file.attributes) {
+                const SliceAttributes& a = *file.attributes;
+                d["x_um"] = a.query.x_um;
+                d["y_um"] = a.query.y_um;
+                d["sigma_p_um"] = a.query.sigma_p_um;
+                d["light"] = py::make_tuple(a.query.omega_i[0], a.query.omega_i[1]);
+                d["model"] = std::string(to_string(a.query.model));
+                d["lambdas_um"] = a.lambdas_um;
+                d["resolution"] = a.resolution;
+                d["channels"] = a.channels;
+                if (a.heightfield_rows > 0) {
+                    d["texel_um"] = a.texel_um;
+                    d["vscale"] = a.vscale;
+                    d["heightfield_size"] = py::make_tuple(a.heightfield_rows, a.heightfield_cols);
+                    d["heightfield_file"] = a.heightfield_file;
+                }
+                d["unit"] = a.unit;
+                d["made_by"] = a.made_by;
+                d["version"] = a.version;
+            }
+            return py::make_tuple(image, d);
+        },
+        "path"_a, R"doc(
+Reads a slice EXR written by wavebrdf (render --out, genbrdf -o, a run's reference_/final_
+slices, observation files) or any RGB EXR.
+
+Returns (image, info): image a float32 array (n, n, 3), linear, in the slice's unit; info a dict
+of what the file says about itself: x_um, y_um, sigma_p_um (um), light (omega_i x, y), model,
+lambdas_um (list, um), resolution, channels (1: one wavelength, stored R = G = B; 3: sRGB),
+the heightfield's texel_um, vscale, heightfield_size (rows, cols) and heightfield_file (when
+known), unit (f_r, the BRDF, in 1/sr), made_by and version. An empty dict for a file without
+wavebrdf's attributes. RuntimeError names the file when it is unreadable or an attribute is
+hostile.)doc");
 }
 
 }  // namespace wavebrdf::python

@@ -164,6 +164,13 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                            : check_positive(texel_arg.cast<double>(), "texel_um");
     options.vscale = vscale_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().vscale() : 1.0)
                                           : check_finite(vscale_arg.cast<double>(), "vscale");
+    // A truth file: its own attributes where texel_um / vscale are not given.
+    if (py::isinstance<py::str>(truth_arg)) {
+        const HeightfieldScale scale = heightfield_file_scale(truth_arg.cast<std::string>(), texel_arg, vscale_arg,
+                                                              options.texel_um, options.vscale);
+        options.texel_um = scale.texel_um;
+        options.vscale = scale.vscale;
+    }
     options.height_range_um = check_positive(height_range_um, "height_range_um");
     options.correlation_texels = check_positive(correlation_texels, "correlation_texels");
     options.model = model_from(model);

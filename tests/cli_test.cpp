@@ -235,6 +235,87 @@ TEST_F(CliTest, GenbrdfLambdaZeroIsSpectral) {
                       1e-6);
 }
 
+// Issue 11: `heightfield --texel-um 0.5` then `render` without --texel-um rendered with 1 um
+// texels (a silent 2x error). The file now says 0.5 and every reader uses it: the slice is the
+// one of --texel-um 0.5, bit for bit, and not the one of 1 um texels; a disagreeing option wins
+// with one warning line naming both values. genbrdf (-w, -v) does the same.
+TEST_F(CliTest, RenderAndGenbrdfUseTheHeightfieldFilesTexelSize) {
+    const CliResult h = run(
+        "heightfield --type grating --period-um 8 --amplitude-um 0.2 --size 64 --texel-um 0.5 --out g.exr --no-png");
+    ASSERT_EQ(h.exit_code, 0) << h.err;
+    const wavebrdf::HeightfieldAttributes attributes = wavebrdf::read_heightfield_attributes(path("g.exr").string());
+    ASSERT_TRUE(attributes.texel_um.has_value());
+    EXPECT_EQ(*attributes.texel_um, 0.5);
+    EXPECT_NE(attributes.made_by.find("type=grating"), std::string::npos) << attributes.made_by;
+    EXPECT_NE(attributes.made_by.find("seed=1"), std::string::npos) << attributes.made_by;
+    EXPECT_NE(attributes.made_by.find("period_um=8"), std::string::npos) << attributes.made_by;
+
+    const std::string render = "render --heightfield g.exr --sigma-p-um 6 --resolution 32 --quiet";
+    const CliResult from_file = run(render + " --out file.exr");
+    ASSERT_EQ(from_file.exit_code, 0) << from_file.err;
+    EXPECT_EQ(from_file.err, "") << "no option given: nothing to disagree with";
+    const CliResult explicit_half = run(render + " --texel-um 0.5 --out half.exr");
+    ASSERT_EQ(explicit_half.exit_code, 0) << explicit_half.err;
+    EXPECT_EQ(explicit_half.err, "") << "an option that agrees with the file is no warning";
+    const CliResult one = run(render + " --texel-um 1 --out one.exr");
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    EXPECT_EQ(one.err, "wavebrdf: warning: --texel-um 1 disagrees with g.exr's texel_um 0.5; using 1\n");
+    const auto file_image = wavebrdf::read_rgb_exr(path("file.exr").string());
+    expect_same_image(file_image, wavebrdf::read_rgb_exr(path("half.exr").string()), 0.0);
+    // The 8 um grating at 0.5 um texels is 16 texels; at 1 um, 16 um: other diffraction orders.
+    EXPECT_NE(file_image.data, wavebrdf::read_rgb_exr(path("one.exr").string()).data);
+    const wavebrdf::SliceFile slice = wavebrdf::read_slice_exr(path("file.exr").string());
+    ASSERT_TRUE(slice.attributes.has_value());
+    EXPECT_EQ(slice.attributes->texel_um, 0.5);
+    EXPECT_EQ(slice.attributes->heightfield_file, "g.exr");
+    EXPECT_EQ(slice.attributes->query.sigma_p_um, 6.0);
+    EXPECT_EQ(slice.attributes->lambdas_um, std::vector<double>{0.5});
+    EXPECT_EQ(wavebrdf::read_slice_exr(path("one.exr").string()).attributes->texel_um, 1.0);
+    // --vscale too.
+    const CliResult vscale = run(render + " --vscale 2 --out v.exr");
+    ASSERT_EQ(vscale.exit_code, 0) << vscale.err;
+    EXPECT_EQ(vscale.err, "wavebrdf: warning: --vscale 2 disagrees with g.exr's vscale 1; using 2\n");
+
+    // genbrdf: the file's values where -w / -v are not given (genBrdf's own files carry none
+    // and keep its defaults of 1).
+    const CliResult g = run("genbrdf -i g.exr -o gen.exr -p 6 -r 32 -l 0.5 --quiet");
+    ASSERT_EQ(g.exit_code, 0) << g.err;
+    EXPECT_EQ(g.err, "");
+    expect_same_image(wavebrdf::read_rgb_exr(path("gen.exr").string()), file_image, 1e-6);
+    const CliResult g1 = run("genbrdf -i g.exr -o gen1.exr -p 6 -r 32 -l 0.5 -w 1 --quiet");
+    ASSERT_EQ(g1.exit_code, 0) << g1.err;
+    EXPECT_EQ(g1.err, "wavebrdf: warning: -w 1 disagrees with g.exr's texel_um 0.5; using 1\n");
+    expect_same_image(wavebrdf::read_rgb_exr(path("gen1.exr").string()),
+                      wavebrdf::read_rgb_exr(path("one.exr").string()), 1e-6);
+}
+
+// A heightfield file without attributes (genBrdf's, wavebrdf 0.1's) renders with the defaults.
+TEST_F(CliTest, RenderOfAFileWithoutAttributesUsesTheDefaults) {
+    const std::string hf = make_heightfield("h.exr", "32");
+    // The same values with no attributes: rewritten through the plain RGB writer's channel R.
+    const wavebrdf::Heightfield field = wavebrdf::read_heightfield_exr(hf);
+    {
+        Imf::Header header(32, 32);
+        header.channels().insert("R", Imf::Channel(Imf::FLOAT));
+        std::vector<float> data(field.values().begin(), field.values().end());
+        Imf::FrameBuffer frame;
+        frame.insert("R",
+                     Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data()), sizeof(float), 32 * sizeof(float)));
+        Imf::OutputFile out(path("plain.exr").string().c_str(), header);
+        out.setFrameBuffer(frame);
+        out.writePixels(32);
+    }
+    EXPECT_FALSE(wavebrdf::read_heightfield_attributes(path("plain.exr").string()).texel_um.has_value());
+    const CliResult a = run("render --heightfield plain.exr --resolution 16 --out a.exr --quiet");
+    ASSERT_EQ(a.exit_code, 0) << a.err;
+    EXPECT_EQ(a.err, "");
+    const CliResult b = run("render --heightfield " + quote(hf) + " --texel-um 1 --resolution 16 --out b.exr --quiet");
+    ASSERT_EQ(b.exit_code, 0) << b.err;
+    expect_same_image(wavebrdf::read_rgb_exr(path("a.exr").string()), wavebrdf::read_rgb_exr(path("b.exr").string()),
+                      0.0);
+    EXPECT_EQ(wavebrdf::read_slice_exr(path("a.exr").string()).attributes->texel_um, 1.0);
+}
+
 // Issue 9: --x-um 3000000032 gave an all-zero slice (the centre overflowed an int before it was
 // reduced to the tile); any finite position is periodic, so a whole number of 64 um periods
 // away gives the very same slice.

@@ -36,6 +36,9 @@
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/run_directory.h"
+#include "wavebrdf/spectrum.h"
+#include "wavebrdf/version.h"
 
 namespace fs = std::filesystem;
 using namespace wavebrdf;
@@ -839,6 +842,63 @@ TEST_F(InvertTest, CliResumeExtendsARunBitForBitFromAnyDirectory) {
     }
     // --epochs below the checkpoint's epoch is refused.
     expect_clean_failure(invert("--resume part --epochs 3"), {"--epochs 3", "12"}, {});
+}
+
+// Issue 11: run.json records the version, the threads and the actual wavelengths (the options'
+// lambda_um / spectral not given are null, not 0); a run.json of 0.1 (0 for "not given", no
+// version) still resumes; a truth file's texel width applies without --texel-um, and the run's
+// heightfields and slices say what they are.
+TEST_F(InvertTest, CliRunJsonRecordsVersionThreadsWavelengthsAndOldOnesResume) {
+    write_heightfield_exr(path("truth.exr").string(), tiny_truth().with_scale(0.5, 1.0));
+    ASSERT_EQ(invert("--truth truth.exr --spectral 3 --epochs 4 --out run").exit_code, 0);
+    const nlohmann::json written = nlohmann::json::parse(read_text(path("run/run.json")));
+    EXPECT_EQ(written.at("version"), k_version);
+    EXPECT_EQ(written.at("threads"), run_threads());
+    EXPECT_GE(written.at("threads").get<int>(), 1);
+    EXPECT_EQ(written.at("wavelengths_um").get<std::vector<double>>(), spectral_wavelengths_um(3));
+    EXPECT_TRUE(written.at("args").at("lambda_um").is_null());
+    EXPECT_EQ(written.at("args").at("spectral"), 3);
+    EXPECT_EQ(written.at("args").at("texel_um"), 0.5) << "the truth file's texel width";
+    EXPECT_EQ(written.at("texel_um"), 0.5);
+    EXPECT_EQ(read_heightfield_exr(path("run/estimate.exr").string()).texel_um(), 0.5);
+    EXPECT_NE(read_heightfield_attributes(path("run/estimate.exr").string()).made_by.find("invert"), std::string::npos);
+    const SliceFile reference = read_slice_exr(path("run/reference_000.exr").string());
+    ASSERT_TRUE(reference.attributes.has_value());
+    EXPECT_EQ(reference.attributes->lambdas_um, spectral_wavelengths_um(3));
+    EXPECT_EQ(reference.attributes->texel_um, 0.5);
+    EXPECT_EQ(reference.attributes->heightfield_rows, 8);
+    EXPECT_EQ(reference.attributes->query.sigma_p_um, 2.0);
+    EXPECT_EQ(reference.attributes->unit, k_slice_unit);
+    ASSERT_TRUE(read_slice_exr(path("run/final_000.exr").string()).attributes.has_value());
+
+    // One wavelength: lambda_um given, spectral null; the list has it.
+    ASSERT_EQ(invert("--truth truth.exr --epochs 4 --out mono").exit_code, 0);
+    const nlohmann::json mono = nlohmann::json::parse(read_text(path("mono/run.json")));
+    EXPECT_EQ(mono.at("wavelengths_um").get<std::vector<double>>(), std::vector<double>{0.5});
+    EXPECT_EQ(mono.at("args").at("lambda_um"), 0.5);
+    EXPECT_TRUE(mono.at("args").at("spectral").is_null());
+
+    // --texel-um given and different: it wins, with one warning line naming both values.
+    const CliResult r = run("invert" + kSmall + " --truth truth.exr --epochs 2 --lambda-um 0.5 --texel-um 1 --out one");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err, "wavebrdf: warning: --texel-um 1 disagrees with truth.exr's texel_um 0.5; using 1\n");
+    EXPECT_EQ(nlohmann::json::parse(read_text(path("one/run.json"))).at("args").at("texel_um"), 1.0);
+
+    // A run.json as 0.1 wrote it: 0 for "not given", no version, threads or wavelengths.
+    nlohmann::json old = written;
+    old["args"]["lambda_um"] = 0.0;
+    old.erase("version");
+    old.erase("threads");
+    old.erase("wavelengths_um");
+    std::ofstream(path("run/run.json")) << old.dump(1);
+    const CliResult resumed = invert("--resume run --epochs 6");
+    ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+    EXPECT_EQ(nlohmann::json::parse(read_text(path("run/checkpoint.json"))).at("epoch"), 6);
+    nlohmann::json old_mono = mono;
+    old_mono["args"]["spectral"] = 0;
+    std::ofstream(path("mono/run.json")) << old_mono.dump(1);
+    const CliResult resumed_mono = invert("--resume mono --epochs 6");
+    ASSERT_EQ(resumed_mono.exit_code, 0) << resumed_mono.err;
 }
 
 // --resume with any option but --epochs, --quiet and --no-plots is refused by name, before

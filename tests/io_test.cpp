@@ -24,16 +24,22 @@
 #include <vector>
 
 #include <ImfChannelList.h>
+#include <ImfDoubleAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfIntAttribute.h>
 #include <ImfMultiPartOutputFile.h>
 #include <ImfOutputFile.h>
 #include <ImfOutputPart.h>
 #include <ImfPartType.h>
 #include <ImfRgbaFile.h>
+#include <ImfStringAttribute.h>
+#include <ImfVecAttribute.h>
 #include <gtest/gtest.h>
 #include <png.h>
+
+#include "wavebrdf/version.h"
 
 namespace fs = std::filesystem;
 using wavebrdf::Heightfield;
@@ -134,6 +140,262 @@ TEST_F(IoTest, HeightfieldFloatExrRoundTripsNonSquare) {
     EXPECT_EQ(back.vscale(), 0.5);
     // Only the target remains: the temporary was renamed, not copied.
     EXPECT_EQ(listing(), std::vector<std::string>{"field.exr"});
+}
+
+// Issue 11: a heightfield written with any texel size reads back with that size (and its
+// vertical scale), with no option given; the file says how it was made and by which version.
+TEST_F(IoTest, HeightfieldAttributesRoundTripForSeveralTexelSizes) {
+    const double texels[] = {0.37, 2.5, 0.5, 1e-4, 1e4, 1.0 / 3.0};
+    const double vscales[] = {1.0, 0.0, -0.3, 1e-6, 1e4, 2.0 / 7.0};
+    for (int k = 0; k < 6; ++k) {
+        const std::string path = file("field" + std::to_string(k) + ".exr");
+        const Heightfield field = make_field(5, 3).with_scale(texels[k], vscales[k]);
+        wavebrdf::write_heightfield_exr(path, field, "made by test " + std::to_string(k));
+        const Heightfield back = wavebrdf::read_heightfield_exr(path);
+        EXPECT_EQ(back.texel_um(), texels[k]);
+        EXPECT_EQ(back.vscale(), vscales[k]);
+        EXPECT_EQ(back.values(), field.values());
+        const wavebrdf::HeightfieldAttributes a = wavebrdf::read_heightfield_attributes(path);
+        ASSERT_TRUE(a.texel_um && a.vscale);
+        EXPECT_EQ(*a.texel_um, texels[k]);
+        EXPECT_EQ(*a.vscale, vscales[k]);
+        EXPECT_EQ(a.units, wavebrdf::k_heightfield_units);
+        EXPECT_EQ(a.made_by, "made by test " + std::to_string(k));
+        EXPECT_EQ(a.version, wavebrdf::k_version);
+        // An explicit value still wins over the file's.
+        EXPECT_EQ(wavebrdf::read_heightfield_exr(path, 0.25).texel_um(), 0.25);
+        EXPECT_EQ(wavebrdf::read_heightfield_exr(path, 0.25).vscale(), vscales[k]);
+        EXPECT_EQ(wavebrdf::read_heightfield_exr(path, std::nullopt, 3.0).texel_um(), texels[k]);
+    }
+}
+
+// Files of genBrdf and of wavebrdf before 0.2 carry no attributes: the defaults (1, 1) apply,
+// and the attributes say nothing (not "1").
+TEST_F(IoTest, HeightfieldWithoutAttributesReadsWithDefaults) {
+    const std::string path = file("plain.exr");
+    write_exr_channel(path, "R", 4, 6, 0, 0, std::vector<float>(24, 0.5f));
+    const wavebrdf::HeightfieldAttributes a = wavebrdf::read_heightfield_attributes(path);
+    EXPECT_FALSE(a.texel_um.has_value());
+    EXPECT_FALSE(a.vscale.has_value());
+    EXPECT_EQ(a.units, "");
+    EXPECT_EQ(a.made_by, "");
+    EXPECT_EQ(a.version, "");
+    const Heightfield h = wavebrdf::read_heightfield_exr(path);
+    EXPECT_EQ(h.texel_um(), 1.0);
+    EXPECT_EQ(h.vscale(), 1.0);
+    EXPECT_EQ(wavebrdf::read_heightfield_exr(path, 0.37, 2.0).texel_um(), 0.37);
+    // No file value: nothing to disagree with, no warning; the caller's default applies.
+    const wavebrdf::HeightfieldScale s = wavebrdf::resolve_heightfield_scale(path, a, std::nullopt, 0.5, "--texel-um",
+                                                                             "--vscale", 2.0, 1.0);
+    EXPECT_EQ(s.texel_um, 2.0);
+    EXPECT_EQ(s.vscale, 0.5);
+    EXPECT_TRUE(s.warnings.empty());
+}
+
+// A given value that differs from the file's wins, with one warning line naming both.
+TEST_F(IoTest, ResolveHeightfieldScaleWarnsNamingBothValues) {
+    const std::string path = file("g.exr");
+    wavebrdf::write_heightfield_exr(path, make_field(2, 2).with_scale(0.5, 1.0));
+    const wavebrdf::HeightfieldAttributes a = wavebrdf::read_heightfield_attributes(path);
+    const wavebrdf::HeightfieldScale agree = wavebrdf::resolve_heightfield_scale(path, a, 0.5, 1.0);
+    EXPECT_EQ(agree.texel_um, 0.5);
+    EXPECT_TRUE(agree.warnings.empty());
+    const wavebrdf::HeightfieldScale none = wavebrdf::resolve_heightfield_scale(path, a, std::nullopt, std::nullopt);
+    EXPECT_EQ(none.texel_um, 0.5);
+    EXPECT_TRUE(none.warnings.empty());
+    const wavebrdf::HeightfieldScale differ = wavebrdf::resolve_heightfield_scale(path, a, 1.0, 3.0);
+    EXPECT_EQ(differ.texel_um, 1.0);
+    EXPECT_EQ(differ.vscale, 3.0);
+    ASSERT_EQ(differ.warnings.size(), 2u);
+    EXPECT_EQ(differ.warnings[0], "--texel-um 1 disagrees with " + path + "'s texel_um 0.5; using 1");
+    EXPECT_EQ(differ.warnings[1], "--vscale 3 disagrees with " + path + "'s vscale 1; using 3");
+    // Out of range is an error naming the file, not a disagreement.
+    expect_throw_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 1e-300, 1.0); }, path);
+    expect_throw_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 0.5, 1e300); }, path);
+}
+
+// A hostile attribute (not finite, out of range, the wrong type, a huge string) is refused
+// with an error naming the file and the attribute, by every reader of heightfields.
+TEST_F(IoTest, HostileHeightfieldAttributesAreRefused) {
+    const auto write_with = [&](const std::string& name, const std::function<void(Imf::Header&)>& add) {
+        const std::string path = file(name);
+        Imf::Header header(3, 2);
+        header.channels().insert("R", Imf::Channel(Imf::FLOAT));
+        add(header);
+        std::vector<float> data(6, 0.0f);
+        Imf::FrameBuffer frame;
+        frame.insert("R",
+                     Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data()), sizeof(float), 3 * sizeof(float)));
+        Imf::OutputFile out(path.c_str(), header);
+        out.setFrameBuffer(frame);
+        out.writePixels(2);
+        return path;
+    };
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double inf = std::numeric_limits<double>::infinity();
+    struct Case {
+        const char* attribute;
+        std::function<void(Imf::Header&)> add;
+    };
+    const std::vector<Case> cases = {
+        {"wavebrdf:texel_um", [&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::DoubleAttribute(nan)); }},
+        {"wavebrdf:texel_um", [&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::DoubleAttribute(inf)); }},
+        {"wavebrdf:texel_um", [&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::DoubleAttribute(-1.0)); }},
+        {"wavebrdf:texel_um", [&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::DoubleAttribute(0.0)); }},
+        {"wavebrdf:texel_um", [&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::DoubleAttribute(1e300)); }},
+        {"wavebrdf:texel_um", [&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::StringAttribute("0.5")); }},
+        {"wavebrdf:vscale", [&](Imf::Header& h) { h.insert("wavebrdf:vscale", Imf::DoubleAttribute(nan)); }},
+        {"wavebrdf:vscale", [&](Imf::Header& h) { h.insert("wavebrdf:vscale", Imf::DoubleAttribute(-1e9)); }},
+        {"wavebrdf:vscale", [&](Imf::Header& h) { h.insert("wavebrdf:vscale", Imf::DoubleAttribute(1e-300)); }},
+        {"wavebrdf:units",
+         [&](Imf::Header& h) { h.insert("wavebrdf:units", Imf::StringAttribute(std::string(100000, 'x'))); }},
+        {"wavebrdf:made_by", [&](Imf::Header& h) { h.insert("wavebrdf:made_by", Imf::DoubleAttribute(1.0)); }},
+    };
+    for (std::size_t k = 0; k < cases.size(); ++k) {
+        const std::string path = write_with("hostile" + std::to_string(k) + ".exr", cases[k].add);
+        for (const auto& read : {std::function<void()>([&] { wavebrdf::read_heightfield_exr(path); }),
+                                 std::function<void()>([&] { wavebrdf::read_heightfield_attributes(path); }),
+                                 std::function<void()>([&] { wavebrdf::read_heightfield_exr(path, 1.0, 1.0); })}) {
+            expect_throw_naming<std::runtime_error>(read, path);
+            try {
+                read();
+            } catch (const std::runtime_error& e) {
+                EXPECT_NE(std::string(e.what()).find(cases[k].attribute), std::string::npos) << e.what();
+            }
+        }
+    }
+}
+
+// A corrupted attribute, as a fuzzer would make it: the file's texel_um bytes overwritten with
+// those of NaN. Refused by name, not read as NaN (which the Heightfield would refuse less clearly).
+TEST_F(IoTest, CorruptedTexelAttributeBytesAreRefused) {
+    const std::string path = file("corrupt.exr");
+    wavebrdf::write_heightfield_exr(path, make_field(3, 3).with_scale(0.37, 1.0));
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    double value = 0.37;
+    const std::string needle(reinterpret_cast<const char*>(&value), sizeof value);  // little-endian, as EXR
+    const std::size_t at = bytes.find(needle);
+    ASSERT_NE(at, std::string::npos);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    std::memcpy(&bytes[at], &nan, sizeof nan);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    try {
+        wavebrdf::read_heightfield_exr(path);
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("wavebrdf:texel_um"), std::string::npos) << e.what();
+    }
+}
+
+// Slices carry the query that rendered them, the heightfield, the unit and the version.
+TEST_F(IoTest, SliceAttributesRoundTrip) {
+    RgbImage image{4, 4, std::vector<float>(48, 0.25f)};
+    wavebrdf::SliceAttributes a;
+    a.query.x_um = -12.5;
+    a.query.y_um = 3.0e6;
+    a.query.sigma_p_um = 0.37;
+    a.query.omega_i = {0.3, -0.2};
+    a.query.model = wavebrdf::Model::RGHS;
+    a.lambdas_um = {0.4, 0.55, 1.0 / 3.0};
+    a.resolution = 4;
+    a.channels = 3;
+    a.heightfield_rows = 64;
+    a.heightfield_cols = 32;
+    a.texel_um = 0.37;
+    a.vscale = -2.5;
+    a.heightfield_file = "dir/g.exr";
+    a.made_by = "test";
+    for (bool alpha : {false, true}) {
+        const std::string path = file(alpha ? "rgba.exr" : "rgb.exr");
+        wavebrdf::write_slice_exr(path, image, a, alpha);
+        const wavebrdf::SliceFile back = wavebrdf::read_slice_exr(path);
+        EXPECT_EQ(back.image.data, image.data);
+        ASSERT_TRUE(back.attributes.has_value());
+        const wavebrdf::SliceAttributes& b = *back.attributes;
+        EXPECT_EQ(b.query.x_um, a.query.x_um);
+        EXPECT_EQ(b.query.y_um, a.query.y_um);
+        EXPECT_EQ(b.query.sigma_p_um, a.query.sigma_p_um);
+        EXPECT_EQ(b.query.omega_i, a.query.omega_i);
+        EXPECT_EQ(b.query.model, a.query.model);
+        EXPECT_EQ(b.lambdas_um, a.lambdas_um);  // exactly: shortest round-trip text
+        EXPECT_EQ(b.resolution, 4);
+        EXPECT_EQ(b.channels, 3);
+        EXPECT_EQ(b.heightfield_rows, 64);
+        EXPECT_EQ(b.heightfield_cols, 32);
+        EXPECT_EQ(b.texel_um, 0.37);
+        EXPECT_EQ(b.vscale, -2.5);
+        EXPECT_EQ(b.heightfield_file, "dir/g.exr");
+        EXPECT_EQ(b.unit, wavebrdf::k_slice_unit);
+        EXPECT_EQ(b.made_by, "test");
+        EXPECT_EQ(b.version, wavebrdf::k_version);
+    }
+    // No heightfield known (observations given as a list): none stored, none read.
+    a.heightfield_rows = a.heightfield_cols = 0;
+    wavebrdf::write_slice_exr(file("observed.exr"), image, a);
+    const wavebrdf::SliceFile observed = wavebrdf::read_slice_exr(file("observed.exr"));
+    ASSERT_TRUE(observed.attributes.has_value());
+    EXPECT_EQ(observed.attributes->heightfield_rows, 0);
+    EXPECT_EQ(observed.attributes->lambdas_um, a.lambdas_um);
+    // A plain RGB EXR says nothing.
+    wavebrdf::write_rgb_exr(file("plain.exr"), image);
+    EXPECT_FALSE(wavebrdf::read_slice_exr(file("plain.exr")).attributes.has_value());
+}
+
+// A file that says it is a slice must say all of it, and say it in range.
+TEST_F(IoTest, HostileSliceAttributesAreRefused) {
+    RgbImage image{2, 2, std::vector<float>(12, 1.0f)};
+    wavebrdf::SliceAttributes a;
+    a.lambdas_um = {0.5};
+    a.resolution = 2;
+    a.channels = 1;
+    const std::string good = file("good.exr");
+    wavebrdf::write_slice_exr(good, image, a);
+    ASSERT_TRUE(wavebrdf::read_slice_exr(good).attributes.has_value());
+    // Rewrites the file's header with one attribute replaced (or removed: `value` null).
+    const auto rewrite = [&](const std::string& name, const std::string& attribute, const Imf::Attribute* value) {
+        Imf::InputFile in(good.c_str());
+        Imf::Header header = in.header();
+        header.erase(attribute);  // insert cannot change an attribute's type
+        if (value != nullptr) header.insert(attribute, *value);
+        std::vector<float> data(12, 1.0f);
+        Imf::FrameBuffer frame;
+        for (int c = 0; c < 3; ++c)
+            frame.insert(std::string(1, "RGB"[c]), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(data.data() + c),
+                                                              3 * sizeof(float), 6 * sizeof(float)));
+        const std::string path = file(name);
+        Imf::OutputFile out(path.c_str(), header);
+        out.setFrameBuffer(frame);
+        out.writePixels(2);
+        return path;
+    };
+    const Imf::StringAttribute bad_lambdas("0.5,abc"), bad_model("Phong"), many(std::string(5000, '1'));
+    const Imf::DoubleAttribute negative_sigma(-1.0), nan_x(std::numeric_limits<double>::quiet_NaN());
+    const Imf::IntAttribute big_resolution(1 << 30), two_channels(2);
+    const Imf::V2dAttribute outside({0.9, 0.9});
+    const std::vector<std::pair<std::string, const Imf::Attribute*>> cases = {{"wavebrdf:lambdas_um", &bad_lambdas},
+                                                                              {"wavebrdf:model", &bad_model},
+                                                                              {"wavebrdf:unit", &many},
+                                                                              {"wavebrdf:sigma_p_um", &negative_sigma},
+                                                                              {"wavebrdf:x_um", &nan_x},
+                                                                              {"wavebrdf:resolution", &big_resolution},
+                                                                              {"wavebrdf:channels", &two_channels},
+                                                                              {"wavebrdf:omega_i", &outside},
+                                                                              {"wavebrdf:model", nullptr},
+                                                                              {"wavebrdf:resolution", nullptr},
+                                                                              {"wavebrdf:lambdas_um", &negative_sigma}};
+    for (std::size_t k = 0; k < cases.size(); ++k) {
+        const std::string path = rewrite("bad" + std::to_string(k) + ".exr", cases[k].first, cases[k].second);
+        expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_slice_exr(path); }, path);
+        try {
+            wavebrdf::read_slice_exr(path);
+        } catch (const std::runtime_error& e) {
+            EXPECT_NE(std::string(e.what()).find(cases[k].first), std::string::npos) << e.what();
+        }
+    }
 }
 
 TEST_F(IoTest, ReadsHalfExrWrittenWithRgbaApi) {

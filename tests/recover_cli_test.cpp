@@ -145,6 +145,26 @@ TEST(RecoverCliTest, FlatTruthReportsTheMetricAsUndefinedAndWritesTheEstimate) {
     }
 }
 
+// Issue 11: a --truth file's texel width applies without --texel-um (recover's default is 2);
+// a given one that differs wins, with one warning line naming both values.
+TEST(RecoverCliTest, TruthFilesTexelWidthAppliesUnlessGiven) {
+    const fs::path dir = fresh_dir("recover");
+    write_heightfield_exr((dir / "flat.exr").string(), Heightfield(8, 8, std::vector<double>(64, 0.25), 0.5));
+    const std::string common = " --sigma-p-um 1 --field-iterations 3 --refine-iterations 2 --no-plots --quiet --out ";
+    const CliResult from_file = run_cli(dir, "recover --truth flat.exr" + common + "file");
+    ASSERT_EQ(from_file.exit_code, 0) << from_file.err;
+    EXPECT_EQ(from_file.err.find("disagrees"), std::string::npos) << from_file.err;
+    const nlohmann::json run = nlohmann::json::parse(read_text(dir / "file" / "run.json"));
+    EXPECT_EQ(run.at("texel_um"), 0.5);
+    EXPECT_EQ(read_heightfield_exr((dir / "file" / "estimate.exr").string()).texel_um(), 0.5);
+    const CliResult given = run_cli(dir, "recover --truth flat.exr --texel-um 2" + common + "given");
+    ASSERT_EQ(given.exit_code, 0) << given.err;
+    const std::string warning = "wavebrdf: warning: --texel-um 2 disagrees with flat.exr's texel_um 0.5; using 2\n";
+    EXPECT_NE(given.err.find(warning), std::string::npos) << given.err;
+    EXPECT_EQ(given.err.find("disagrees"), given.err.rfind("disagrees")) << "one warning line: " << given.err;
+    EXPECT_EQ(nlohmann::json::parse(read_text(dir / "given" / "run.json")).at("texel_um"), 2.0);
+}
+
 // A new run into a non-empty --out is refused; --force replaces a directory of recover's own
 // outputs and nothing else.
 TEST(RecoverCliTest, OutMustBeNewOrEmptyUnlessForced) {

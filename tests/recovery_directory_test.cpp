@@ -15,6 +15,8 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recovery_directory.h"
+#include "wavebrdf/run_directory.h"
+#include "wavebrdf/version.h"
 
 namespace wavebrdf {
 namespace {
@@ -73,6 +75,24 @@ TEST(RecoveryDirectory, WritesEveryFileOfTheLayout) {
     EXPECT_EQ(run.at("loss"), to_string(prepared.loss));
     EXPECT_EQ(run.at("truth"), true);
     EXPECT_FALSE(run.contains("height_rel_rmse"));
+    // Issue 11: the version, the threads and the actual wavelengths, footprint and resolution.
+    EXPECT_EQ(run.at("version"), k_version);
+    EXPECT_EQ(run.at("threads"), run_threads());
+    std::vector<double> lambdas;
+    for (const Observation& o : prepared.observations)
+        for (double l : o.lambdas_um)
+            if (std::find(lambdas.begin(), lambdas.end(), l) == lambdas.end()) lambdas.push_back(l);
+    ASSERT_FALSE(lambdas.empty());
+    EXPECT_EQ(run.at("wavelengths_um").get<std::vector<double>>(), lambdas);
+    EXPECT_EQ(run.at("sigma_p_um"), 3.0);
+    EXPECT_EQ(run.at("resolution"), prepared.observations.front().resolution);
+    // The heightfields say their scale; the saved observations their query.
+    EXPECT_EQ(read_heightfield_exr((dir / "estimate.exr").string()).texel_um(), 2.0);
+    EXPECT_EQ(read_heightfield_exr((dir / "truth.exr").string()).texel_um(), 2.0);
+    const SliceFile slice = read_slice_exr((dir / "observations" / "slice_0000.exr").string());
+    ASSERT_TRUE(slice.attributes.has_value());
+    EXPECT_EQ(slice.attributes->query.x_um, prepared.observations.front().query.x_um);
+    EXPECT_EQ(slice.attributes->lambdas_um, prepared.observations.front().lambdas_um);
 
     // One row per step the callback saw, in the order it saw them.
     const std::string csv = read_text(dir / "metrics.csv");

@@ -77,6 +77,11 @@ const char* to_string(SurfaceType type);
 //                          k_max_scratches.
 Heightfield generate_heightfield(const SurfaceParams& params);
 
+// One line saying how generate_heightfield(params) was made, for a file's "made_by" attribute:
+// the type, size, seed, texel width and the parameters the type uses, e.g.
+// "generate_heightfield type=grating size=256x256 seed=1 texel_um=0.5 amplitude_um=0.1 period_um=32".
+std::string describe_surface(const SurfaceParams& params);
+
 // Summary statistics of a heightfield, in µm where dimensional (heights include vscale).
 struct HeightStats {
     double mean_um = 0.0;        // mean height (added so the CLI can show the offset of

@@ -12,10 +12,12 @@
 // Temporary files in progress are listed in a fixed-size table that a signal handler may empty
 // with remove_temporary_files(), so a process killed by a handled signal leaves none behind.
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "wavebrdf/heightfield.h"
+#include "wavebrdf/model.h"
 
 namespace wavebrdf {
 
@@ -38,17 +40,75 @@ constexpr long long k_max_exr_side = 16384;
 constexpr int k_max_exr_channels = 64;
 constexpr long long k_max_exr_tile_pixels = 1024LL * 1024LL;
 
+// Self-describing files (docs/conventions.md, "Files"): the header attributes wavebrdf writes,
+// all named with the prefix "wavebrdf:". Strings read back are at most k_max_attribute_chars
+// bytes; a longer one, a value of the wrong type or out of range is refused with
+// std::runtime_error naming the file and the attribute.
+constexpr std::size_t k_max_attribute_chars = 4096;
+
+// What a heightfield EXR says about itself; an absent field means the file does not say (files
+// of genBrdf and of wavebrdf before 0.2 say nothing; readers then use their defaults).
+struct HeightfieldAttributes {
+    std::optional<double> texel_um;  // "wavebrdf:texel_um" (double): texel width w, µm
+    std::optional<double> vscale;    // "wavebrdf:vscale" (double): vertical scale v
+    std::string units;               // "wavebrdf:units" (string): how to read the values
+    std::string made_by;             // "wavebrdf:made_by" (string): generator and parameters
+    std::string version;             // "wavebrdf:version" (string): the writer's wavebrdf version
+};
+
+// The text every heightfield EXR carries in "wavebrdf:units".
+constexpr const char* k_heightfield_units = "height in um = value * vscale * texel_um (values in texel widths)";
+
+// Reads only the header attributes of a heightfield EXR (no pixels). texel_um is checked against
+// k_min_texel_um … k_max_texel_um, vscale against the Heightfield's range (0, or 1e-6 … 1e4 in
+// magnitude). Errors as read_heightfield_exr's, and std::runtime_error "<path>: attribute
+// 'wavebrdf:texel_um' ..." for a hostile attribute.
+HeightfieldAttributes read_heightfield_attributes(const std::string& path);
+
 // Reads the R channel of an OpenEXR file (half or float pixels, any size) as a heightfield in
 // the public release's convention (values in units of texel width; row i = image row).
+// texel_um (µm) and vscale: the caller's values when given, else the file's attributes, else
+// 1.0 (use resolve_heightfield_scale to warn when a given value disagrees with the file).
 // Throws std::runtime_error naming the file when it is missing, unreadable, corrupt or
 // truncated, declares more than k_max_exr_pixels pixels, has no R channel (a single Y channel
-// is accepted too), or is a multi-part file of two or more parts (refused rather than silently
-// reading part 0; a one-part file written through the multi-part API is read);
-// std::domain_error when a value is not finite.
-Heightfield read_heightfield_exr(const std::string& path, double texel_um = 1.0, double vscale = 1.0);
+// is accepted too), is a multi-part file of two or more parts (refused rather than silently
+// reading part 0; a one-part file written through the multi-part API is read), or has a
+// hostile wavebrdf attribute; std::domain_error when a value is not finite.
+Heightfield read_heightfield_exr(const std::string& path, std::optional<double> texel_um = std::nullopt,
+                                 std::optional<double> vscale = std::nullopt);
 
-// Writes the heightfield's raw values (texel units) as a single-channel float EXR (channel R).
-void write_heightfield_exr(const std::string& path, const Heightfield& heightfield);
+// The heightfield, the scale it was read with and what the file said, in one read.
+struct HeightfieldFile {
+    Heightfield heightfield;
+    HeightfieldAttributes attributes;
+};
+HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional<double> texel_um = std::nullopt,
+                                          std::optional<double> vscale = std::nullopt);
+
+// Which texel width and vertical scale to use for the file at `path` whose attributes are
+// `file`: the given value when there is one, else the file's, else the default. `warnings`
+// has one line per given value that differs from the file's, naming both, e.g.
+// "--texel-um 1 disagrees with g.exr's texel_um 0.5; using 1" (`texel_option` and
+// `vscale_option` are the names the caller's user knows: "--texel-um", "-w", "texel_um").
+// Throws std::domain_error naming `path` when the chosen texel_um or vscale is out of the
+// Heightfield's range (then there are no warnings to show).
+struct HeightfieldScale {
+    double texel_um = 1.0;
+    double vscale = 1.0;
+    std::vector<std::string> warnings;
+};
+HeightfieldScale resolve_heightfield_scale(const std::string& path, const HeightfieldAttributes& file,
+                                           std::optional<double> texel_um, std::optional<double> vscale,
+                                           const std::string& texel_option = "--texel-um",
+                                           const std::string& vscale_option = "--vscale", double default_texel_um = 1.0,
+                                           double default_vscale = 1.0);
+
+// Writes the heightfield's raw values (texel units) as a single-channel float EXR (channel R),
+// with the attributes: its texel_um and vscale, k_heightfield_units, `made_by` (how it was
+// made: a generator and its parameters, "python", "library"; at most k_max_attribute_chars
+// bytes, longer is cut) and the wavebrdf version.
+void write_heightfield_exr(const std::string& path, const Heightfield& heightfield,
+                           const std::string& made_by = "library");
 
 // Writes a grey PNG preview of a heightfield, min → black, max → white.
 void write_heightfield_png(const std::string& path, const Heightfield& heightfield);
@@ -64,6 +124,44 @@ void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alp
 // Reads the R, G, B channels of an EXR (half or float) as linear float. Errors as
 // read_heightfield_exr's (k_max_exr_pixels, multi-part files of two or more parts refused).
 RgbImage read_rgb_exr(const std::string& path);
+
+// The unit of every slice wavebrdf renders (render_rgb, brdf.h; docs/conventions.md): the BRDF.
+constexpr const char* k_slice_unit =
+    "f_r (BRDF) in 1/sr; one wavelength: R = G = B = f_r; several: linear sRGB (D65) of f_r(lambda), "
+    "a constant f_r = c giving (c, c, c)";
+
+// What a slice EXR says about itself: the query that rendered it, the heightfield it came from
+// and its unit. Stored as "wavebrdf:" attributes (docs/conventions.md, "Files").
+struct SliceAttributes {
+    Query query;                     // x_um, y_um, sigma_p_um (µm), omega_i, model
+    std::vector<double> lambdas_um;  // the wavelengths, µm (one: monochrome)
+    int resolution = 0;              // n of the n × n slice
+    int channels = 3;                // 1 (one wavelength, stored as R = G = B) or 3
+    // The heightfield it was rendered from: rows 0 when none is known (an observation given
+    // as a list or measured), and then texel_um, vscale and heightfield_file are not stored.
+    int heightfield_rows = 0, heightfield_cols = 0;
+    double texel_um = 1.0;         // its texel width, µm
+    double vscale = 1.0;           // and vertical scale
+    std::string heightfield_file;  // "" when it came from no file
+    std::string unit = k_slice_unit;
+    std::string made_by;  // the program that wrote it ("wavebrdf render", ...)
+    std::string version;  // set by write_slice_exr to this wavebrdf's; read back as stored
+};
+
+// Writes an RGB slice as write_rgb_exr does, with `attributes` in its header (the version is
+// this build's). Strings longer than k_max_attribute_chars are cut.
+void write_slice_exr(const std::string& path, const RgbImage& image, const SliceAttributes& attributes,
+                     bool with_alpha = false);
+
+// Reads a slice EXR: the image (read_rgb_exr) and, when the file carries wavebrdf's slice
+// attributes, what they say (std::nullopt for a file without them). A file that has some of
+// them must have all, of the right types and in range (std::runtime_error naming the file and
+// the attribute otherwise).
+struct SliceFile {
+    RgbImage image;
+    std::optional<SliceAttributes> attributes;
+};
+SliceFile read_slice_exr(const std::string& path);
 
 // Writes an 8-bit sRGB PNG preview: value · 2^exposure, Reinhard-free clamp to [0, 1], sRGB
 // transfer curve. With `tonemap`, x/(1+x) (Reinhard) is applied before the transfer curve.

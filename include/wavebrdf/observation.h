@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/io.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/slice_plan.h"
@@ -20,6 +21,11 @@ struct Observation {
     std::vector<double> reference;  // resolution² · channels(), row-major, interleaved
     int channels() const { return lambdas_um.size() == 1 ? 1 : 3; }
 };
+
+// The attributes of a slice EXR of `observation` (io.h write_slice_exr): its query, wavelengths
+// and resolution; the heightfield's scale and size when `heightfield` is not null.
+SliceAttributes slice_attributes(const Observation& observation, const Heightfield* heightfield,
+                                 const std::string& made_by);
 
 // Throws std::invalid_argument / std::domain_error naming the observation (by index) and the
 // field: invalid query, wavelength or resolution; reference of the wrong size; non-finite

@@ -62,6 +62,7 @@ from ._core import (  # noqa: F401
 )
 
 from ._core import __version__  # from the file VERSION, through the extension
+from ._core import read_slice  # noqa: F401  (a slice EXR and what it says about itself)
 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
@@ -71,3 +72,4 @@ __all__ = [
     "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",
     "spectral_to_srgb_weights", "spectral_wavelengths_um", "with_height_range", "write_observations",
 ]
+__all__ += ["read_slice"]

@@ -19,6 +19,7 @@
 #include "wavebrdf/progress.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/spectrum.h"
+#include "wavebrdf/version.h"
 
 namespace wavebrdf {
 
@@ -323,6 +324,12 @@ std::string absolute_path(const std::string& path) {
     return path.empty() ? path : fs::absolute(path).lexically_normal().string();
 }
 
+std::vector<std::vector<double>> wavelength_lists(const std::vector<Observation>& observations) {
+    std::vector<std::vector<double>> lists;
+    for (const Observation& o : observations) lists.push_back(o.lambdas_um);
+    return lists;
+}
+
 std::string size_text(int rows, int cols) { return rows == cols ? std::to_string(rows) : grid(rows, cols); }
 
 nlohmann::json to_json(const InversionOptions& o) {
@@ -349,9 +356,9 @@ nlohmann::json to_json(const InversionOptions& o) {
             {"y_um", o.y_um ? nlohmann::json(*o.y_um) : nlohmann::json(nullptr)},
             {"sigma_p_um", o.sigma_p_um},
             {"model", to_string(o.model)},
-            // Not given: 0 (a stored run has a non-zero value exactly when given).
-            {"lambda_um", o.lambda_um ? *o.lambda_um : 0.0},
-            {"spectral", o.spectral ? *o.spectral : 0},
+            // Not given: null (files written before 0.2 said 0; both read back as not given).
+            {"lambda_um", o.lambda_um ? nlohmann::json(*o.lambda_um) : nlohmann::json(nullptr)},
+            {"spectral", o.spectral ? nlohmann::json(*o.spectral) : nlohmann::json(nullptr)},
             {"light_x", o.omega_i[0]},
             {"light_y", o.omega_i[1]},
             {"resolution", o.resolution},
@@ -382,11 +389,16 @@ InversionOptions from_json(const nlohmann::json& j) {
     if (!j.at("y_um").is_null()) o.y_um = j.at("y_um").get<double>();
     o.sigma_p_um = j.at("sigma_p_um").get<double>();
     o.model = parse_model(j.at("model").get<std::string>());
-    const double lambda_um = j.at("lambda_um").get<double>();
-    if (lambda_um != 0.0) o.lambda_um = lambda_um;
+    // Not given: null, or 0 in a run.json written before 0.2.
+    if (!j.at("lambda_um").is_null()) {
+        const double lambda_um = j.at("lambda_um").get<double>();
+        if (lambda_um != 0.0) o.lambda_um = lambda_um;
+    }
     // Integers must be integers in range (get<int> would read 8.7 as 8 and wrap 2^40 + 8 to 8).
-    const int spectral = detail::json_int32(j, "spectral", 0, k_max_spectral_samples, "");
-    if (spectral != 0) o.spectral = spectral;
+    if (!j.at("spectral").is_null()) {
+        const int spectral = detail::json_int32(j, "spectral", 0, k_max_spectral_samples, "");
+        if (spectral != 0) o.spectral = spectral;
+    }
     o.omega_i = {j.at("light_x").get<double>(), j.at("light_y").get<double>()};
     o.resolution = detail::json_int32(j, "resolution", 1, 8192, "");
     o.epochs = detail::json_int32(j, "epochs", 0, k_max_iterations, "");
@@ -509,7 +521,8 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
         };
         keep("checkpoint.json", [&] { inversion.save_checkpoint(dir + "/checkpoint.json"); });
         keep("metrics.csv", [&] { write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history())); });
-        keep("estimate.exr", [&] { write_heightfield_exr(dir + "/estimate.exr", inversion.estimate()); });
+        keep("estimate.exr",
+             [&] { write_heightfield_exr(dir + "/estimate.exr", inversion.estimate(), "wavebrdf invert: estimate"); });
         std::string list;
         for (const std::string& name : saved) list += (list.empty() ? "" : ", ") + name;
         throw std::runtime_error(std::string(e.what()) + "; the run stopped at epoch " +
@@ -522,14 +535,15 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
 
     // Final outputs.
     const Heightfield& estimate = inversion.estimate();
-    write_heightfield_exr(dir + "/estimate.exr", estimate);
+    write_heightfield_exr(dir + "/estimate.exr", estimate, "wavebrdf invert: estimate");
     write_heightfield_png(dir + "/estimate.png", estimate);
     for (std::size_t i = 0; i < observations.size(); ++i) {
         char name[64];
         std::snprintf(name, sizeof name, "/final_%03zu", i);
         const auto slice = render_observation(estimate, observations[i], settings.render);
         const RgbImage image = to_image(slice, observations[i].resolution, channels);
-        write_rgb_exr(dir + name + ".exr", image);
+        write_slice_exr(dir + name + ".exr", image,
+                        slice_attributes(observations[i], &estimate, "wavebrdf invert: the estimate's slice"));
         write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
     }
     result.epoch = inversion.epoch();
@@ -565,20 +579,26 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
         {"resolution", observations[0].resolution},
         {"texel_um", options.texel_um},
         {"truth", p.truth.has_value()},
-        {"observations", observations.size()}};
+        {"observations", observations.size()},
+        {"version", k_version},
+        {"threads", run_threads()},
+        {"wavelengths_um", distinct_wavelengths_um(wavelength_lists(observations))}};
     write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
     const Observation& o = observations[0];
     write_npy(dir + "/reference.npy", {std::size_t(o.resolution), std::size_t(o.resolution), std::size_t(channels)},
               o.reference);
     if (p.truth) {
         write_npy(dir + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*p.truth));
-        write_heightfield_exr(dir + "/truth.exr", *p.truth);
+        write_heightfield_exr(dir + "/truth.exr", *p.truth, "wavebrdf invert: truth");
     }
     for (std::size_t i = 0; i < observations.size(); ++i) {
         char name[64];
         std::snprintf(name, sizeof name, "/reference_%03zu", i);
         const RgbImage image = to_image(observations[i].reference, observations[i].resolution, channels);
-        write_rgb_exr(dir + name + ".exr", image);
+        // Rendered from the truth when there is one; given observations have no heightfield.
+        const Heightfield* from = p.truth ? &*p.truth : nullptr;
+        write_slice_exr(dir + name + ".exr", image,
+                        slice_attributes(observations[i], from, "wavebrdf invert: reference"));
         write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
     }
     return run_epochs(run, options, dir, control);

@@ -20,6 +20,23 @@
 
 namespace wavebrdf {
 
+SliceAttributes slice_attributes(const Observation& observation, const Heightfield* heightfield,
+                                 const std::string& made_by) {
+    SliceAttributes a;
+    a.query = observation.query;
+    a.lambdas_um = observation.lambdas_um;
+    a.resolution = observation.resolution;
+    a.channels = observation.channels();
+    if (heightfield != nullptr) {
+        a.heightfield_rows = heightfield->rows();
+        a.heightfield_cols = heightfield->cols();
+        a.texel_um = heightfield->texel_um();
+        a.vscale = heightfield->vscale();
+    }
+    a.made_by = made_by;
+    return a;
+}
+
 void validate(const Observation& o, std::size_t index) {
     const std::string where = "observation " + std::to_string(index) + ": ";
     try {
@@ -234,7 +251,8 @@ void write_observations_json(const std::string& path, const std::vector<Observat
             char name[32];
             std::snprintf(name, sizeof name, "/slice_%04zu.exr", i);
             const std::string relative = folder + name;
-            write_rgb_exr(dir + relative, to_image(o.reference, o.resolution, o.channels()));
+            write_slice_exr(dir + relative, to_image(o.reference, o.resolution, o.channels()),
+                            slice_attributes(o, nullptr, "observations"));
             j["reference"] = relative;
         } else {
             j["reference"] = o.reference;

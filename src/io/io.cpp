@@ -22,13 +22,21 @@
 #include <vector>
 
 #include <ImfChannelList.h>
+#include <ImfDoubleAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfIntAttribute.h>
 #include <ImfMultiPartInputFile.h>
 #include <ImfOutputFile.h>
+#include <ImfStringAttribute.h>
 #include <ImfTestFile.h>
+#include <ImfVecAttribute.h>
 #include <png.h>
+
+#include "wavebrdf/spectrum.h"
+#include "wavebrdf/text.h"
+#include "wavebrdf/version.h"
 
 namespace wavebrdf {
 namespace {
@@ -314,11 +322,13 @@ struct ExrSource {
     int m_cols = 0;
 };
 
-// Writes float channels interleaved in `data` (stride = channels.size()) as a ZIP EXR.
+// Writes float channels interleaved in `data` (stride = channels.size()) as a ZIP EXR;
+// `describe` adds header attributes.
 void write_float_exr(const std::string& file, int rows, int cols, const std::vector<std::string>& channels,
-                     const float* data) {
+                     const float* data, const std::function<void(Imf::Header&)>& describe = {}) {
     const std::size_t stride = channels.size();
     Imf::Header header(cols, rows);  // width = columns, height = rows
+    if (describe) describe(header);
     for (const std::string& name : channels) header.channels().insert(name, Imf::Channel(Imf::FLOAT));
     Imf::FrameBuffer frame;
     for (std::size_t c = 0; c < stride; ++c)
@@ -346,13 +356,116 @@ void write_png8(const std::string& file, int rows, int cols, bool rgb, const std
     }
 }
 
+// --- wavebrdf header attributes (docs/conventions.md, "Files") --------------------------------
+
+const std::string k_prefix = "wavebrdf:";
+
+void put_string(Imf::Header& header, const std::string& name, const std::string& value) {
+    header.insert(k_prefix + name, Imf::StringAttribute(value.substr(0, k_max_attribute_chars)));
+}
+void put_double(Imf::Header& header, const std::string& name, double value) {
+    header.insert(k_prefix + name, Imf::DoubleAttribute(value));
+}
+void put_int(Imf::Header& header, const std::string& name, int value) {
+    header.insert(k_prefix + name, Imf::IntAttribute(value));
+}
+
+// One attribute of a file, read with the checks every value from a file needs: the expected
+// type, a bounded length, finite numbers. Errors name the file and the attribute.
+class AttributeReader {
+public:
+    AttributeReader(const std::string& path, const Imf::Header& header) : m_path(path), m_header(header) {}
+
+    bool has(const std::string& name) const { return m_header.find(k_prefix + name) != m_header.end(); }
+
+    [[noreturn]] void bad(const std::string& name, const std::string& what) const {
+        fail(m_path, "attribute '" + k_prefix + name + "' " + what);
+    }
+
+    template <typename Attribute>
+    const Attribute* typed(const std::string& name, const char* type) const {
+        const auto it = m_header.find(k_prefix + name);
+        if (it == m_header.end()) return nullptr;
+        const auto* a = dynamic_cast<const Attribute*>(&it.attribute());
+        if (a == nullptr) bad(name, std::string("has type '") + it.attribute().typeName() + "'; expected " + type);
+        return a;
+    }
+
+    std::optional<std::string> string(const std::string& name) const {
+        const auto* a = typed<Imf::StringAttribute>(name, "string");
+        if (a == nullptr) return std::nullopt;
+        const std::string& v = a->value();
+        if (v.size() > k_max_attribute_chars)
+            bad(name, "is " + std::to_string(v.size()) + " bytes long; expected at most " +
+                          std::to_string(k_max_attribute_chars));
+        return v;
+    }
+
+    // A finite double within [lo, hi] (or 0 when zero_ok).
+    std::optional<double> number(const std::string& name, double lo, double hi, bool zero_ok = false,
+                                 bool signed_ok = false) const {
+        const auto* a = typed<Imf::DoubleAttribute>(name, "double");
+        if (a == nullptr) return std::nullopt;
+        const double v = a->value();
+        const double m = signed_ok ? std::abs(v) : v;
+        if (!std::isfinite(v) || !((zero_ok && v == 0.0) || (m >= lo && m <= hi)))
+            bad(name, "is " + format_shortest(v) + "; expected a finite value " + (zero_ok ? "0 or " : "") +
+                          (signed_ok ? "of magnitude " : "") + format_shortest(lo) + " to " + format_shortest(hi));
+        return v;
+    }
+
+    std::optional<int> integer(const std::string& name, int lo, int hi) const {
+        const auto* a = typed<Imf::IntAttribute>(name, "int");
+        if (a == nullptr) return std::nullopt;
+        const int v = a->value();
+        if (v < lo || v > hi)
+            bad(name, "is " + std::to_string(v) + "; expected " + std::to_string(lo) + " to " + std::to_string(hi));
+        return v;
+    }
+
+    // For a file that must carry `name`.
+    template <typename T>
+    T required(const std::string& name, std::optional<T> value) const {
+        if (!value) bad(name, "is missing; a wavebrdf slice file carries every slice attribute");
+        return *value;
+    }
+
+private:
+    std::string m_path;
+    const Imf::Header& m_header;
+};
+
+HeightfieldAttributes heightfield_attributes(const std::string& path, const Imf::Header& header) {
+    const AttributeReader r(path, header);
+    HeightfieldAttributes a;
+    a.texel_um = r.number("texel_um", k_min_texel_um, k_max_texel_um);
+    a.vscale = r.number("vscale", k_min_vscale, k_max_vscale, true, true);
+    a.units = r.string("units").value_or("");
+    a.made_by = r.string("made_by").value_or("");
+    a.version = r.string("version").value_or("");
+    return a;
+}
+
+std::string join_numbers(const std::vector<double>& values) {
+    std::string text;
+    for (double v : values) text += (text.empty() ? "" : ",") + format_shortest(v);
+    return text;
+}
+
 // sRGB transfer curve (IEC 61966-2-1) on a linear value already clamped to [0, 1].
 double srgb_encode(double x) { return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055; }
 
 }  // namespace
 
-Heightfield read_heightfield_exr(const std::string& path, double texel_um, double vscale) {
+HeightfieldAttributes read_heightfield_attributes(const std::string& path) {
+    const ExrSource source(path);
+    return heightfield_attributes(path, source.m_file->header());
+}
+
+HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional<double> texel_um,
+                                          std::optional<double> vscale) {
     ExrSource source(path);
+    HeightfieldAttributes attributes = heightfield_attributes(path, source.m_file->header());
     // A single-channel luminance file is as good a heightfield as an R channel.
     const char* channel = source.has_channel("R") ? "R" : source.has_channel("Y") ? "Y" : nullptr;
     if (channel == nullptr) fail(path, "has no R or Y channel; expected a heightfield in R");
@@ -360,17 +473,58 @@ Heightfield read_heightfield_exr(const std::string& path, double texel_um, doubl
     source.read({channel}, pixels);
     std::vector<double> values(pixels.begin(), pixels.end());
     try {
-        return Heightfield(source.m_rows, source.m_cols, std::move(values), texel_um, vscale);
+        Heightfield heightfield(source.m_rows, source.m_cols, std::move(values),
+                                texel_um.value_or(attributes.texel_um.value_or(1.0)),
+                                vscale.value_or(attributes.vscale.value_or(1.0)));
+        return {std::move(heightfield), std::move(attributes)};
     } catch (const std::domain_error& e) {
         throw std::domain_error(path + ": " + e.what());
     }
 }
 
-void write_heightfield_exr(const std::string& path, const Heightfield& heightfield) {
+Heightfield read_heightfield_exr(const std::string& path, std::optional<double> texel_um,
+                                 std::optional<double> vscale) {
+    return read_heightfield_exr_file(path, texel_um, vscale).heightfield;
+}
+
+HeightfieldScale resolve_heightfield_scale(const std::string& path, const HeightfieldAttributes& file,
+                                           std::optional<double> texel_um, std::optional<double> vscale,
+                                           const std::string& texel_option, const std::string& vscale_option,
+                                           double default_texel_um, double default_vscale) {
+    HeightfieldScale scale;
+    const auto pick = [&](std::optional<double> given, std::optional<double> in_file, double fallback,
+                          const std::string& option, const char* attribute) {
+        if (given && in_file && *given != *in_file)
+            scale.warnings.push_back(option + " " + format_shortest(*given) + " disagrees with " + path + "'s " +
+                                     attribute + " " + format_shortest(*in_file) + "; using " +
+                                     format_shortest(*given));
+        return given ? *given : in_file ? *in_file : fallback;
+    };
+    scale.texel_um = pick(texel_um, file.texel_um, default_texel_um, texel_option, "texel_um");
+    scale.vscale = pick(vscale, file.vscale, default_vscale, vscale_option, "vscale");
+    // A given value out of range is an error, not a disagreement: checked as the Heightfield
+    // read with it would, before any warning is shown.
+    try {
+        Heightfield(1, 1, {0.0}, scale.texel_um, scale.vscale);
+    } catch (const std::domain_error& e) {
+        throw std::domain_error(path + ": " + e.what());
+    }
+    return scale;
+}
+
+void write_heightfield_exr(const std::string& path, const Heightfield& heightfield, const std::string& made_by) {
     const std::vector<double>& values = heightfield.values();
     const std::vector<float> data(values.begin(), values.end());
+    const auto describe = [&](Imf::Header& header) {
+        put_string(header, "kind", "heightfield");
+        put_double(header, "texel_um", heightfield.texel_um());
+        put_double(header, "vscale", heightfield.vscale());
+        put_string(header, "units", k_heightfield_units);
+        put_string(header, "made_by", made_by);
+        put_string(header, "version", k_version);
+    };
     write_file_atomically(path, [&](const std::string& tmp) {
-        write_float_exr(tmp, heightfield.rows(), heightfield.cols(), {"R"}, data.data());
+        write_float_exr(tmp, heightfield.rows(), heightfield.cols(), {"R"}, data.data(), describe);
     });
 }
 
@@ -398,11 +552,14 @@ RgbImage to_image(const std::vector<double>& slice, int n, int channels) {
     return image;
 }
 
-void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha) {
+namespace {
+
+void write_rgb_exr_described(const std::string& path, const RgbImage& image, bool with_alpha,
+                             const std::function<void(Imf::Header&)>& describe) {
     check_image(image);
     if (!with_alpha) {
         write_file_atomically(path, [&](const std::string& tmp) {
-            write_float_exr(tmp, image.rows, image.cols, {"R", "G", "B"}, image.data.data());
+            write_float_exr(tmp, image.rows, image.cols, {"R", "G", "B"}, image.data.data(), describe);
         });
         return;
     }
@@ -411,8 +568,105 @@ void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alp
     for (std::size_t k = 0; k < count; ++k)
         for (std::size_t c = 0; c < 3; ++c) rgba[k * 4u + c] = image.data[k * 3u + c];
     write_file_atomically(path, [&](const std::string& tmp) {
-        write_float_exr(tmp, image.rows, image.cols, {"R", "G", "B", "A"}, rgba.data());
+        write_float_exr(tmp, image.rows, image.cols, {"R", "G", "B", "A"}, rgba.data(), describe);
     });
+}
+
+}  // namespace
+
+void write_rgb_exr(const std::string& path, const RgbImage& image, bool with_alpha) {
+    write_rgb_exr_described(path, image, with_alpha, {});
+}
+
+void write_slice_exr(const std::string& path, const RgbImage& image, const SliceAttributes& a, bool with_alpha) {
+    const auto describe = [&](Imf::Header& header) {
+        put_string(header, "kind", "slice");
+        put_double(header, "x_um", a.query.x_um);
+        put_double(header, "y_um", a.query.y_um);
+        put_double(header, "sigma_p_um", a.query.sigma_p_um);
+        header.insert(k_prefix + "omega_i", Imf::V2dAttribute(Imath::V2d(a.query.omega_i[0], a.query.omega_i[1])));
+        put_string(header, "model", to_string(a.query.model));
+        put_string(header, "lambdas_um", join_numbers(a.lambdas_um));
+        put_int(header, "resolution", a.resolution);
+        put_int(header, "channels", a.channels);
+        if (a.heightfield_rows > 0) {  // 0: no heightfield known (measured or listed observations)
+            put_double(header, "heightfield_texel_um", a.texel_um);
+            put_double(header, "heightfield_vscale", a.vscale);
+            header.insert(k_prefix + "heightfield_size",
+                          Imf::V2iAttribute(Imath::V2i(a.heightfield_rows, a.heightfield_cols)));
+            put_string(header, "heightfield_file", a.heightfield_file);
+        }
+        put_string(header, "unit", a.unit);
+        put_string(header, "made_by", a.made_by);
+        put_string(header, "version", k_version);
+    };
+    write_rgb_exr_described(path, image, with_alpha, describe);
+}
+
+SliceFile read_slice_exr(const std::string& path) {
+    SliceFile file;
+    file.image = read_rgb_exr(path);
+    ExrSource source(path);  // the header again (read_rgb_exr keeps none): cheap, no pixels
+    const AttributeReader r(path, source.m_file->header());
+    const std::optional<std::string> kind = r.string("kind");
+    if (!kind || *kind != "slice") return file;
+    SliceAttributes a;
+    a.query.x_um = r.required("x_um", r.number("x_um", 0.0, std::numeric_limits<double>::max(), true, true));
+    a.query.y_um = r.required("y_um", r.number("y_um", 0.0, std::numeric_limits<double>::max(), true, true));
+    a.query.sigma_p_um = r.required("sigma_p_um", r.number("sigma_p_um", k_min_sigma_p_um, k_max_sigma_p_um));
+    const auto* omega = r.typed<Imf::V2dAttribute>("omega_i", "v2d");
+    if (omega == nullptr) r.bad("omega_i", "is missing; a wavebrdf slice file carries every slice attribute");
+    a.query.omega_i = {omega->value().x, omega->value().y};
+    const std::string model = r.required("model", r.string("model"));
+    try {
+        a.query.model = parse_model(model);
+    } catch (const std::exception& e) {
+        r.bad("model", std::string("is invalid (") + e.what() + ")");
+    }
+    try {
+        validate(a.query);  // x, y and sigma_p are checked above: what is left is the light
+    } catch (const std::exception& e) {
+        r.bad("omega_i", std::string("is invalid (") + e.what() + ")");
+    }
+    const std::string lambdas = r.required("lambdas_um", r.string("lambdas_um"));
+    try {
+        std::size_t at = 0;
+        while (at <= lambdas.size()) {
+            const std::size_t comma = std::min(lambdas.find(',', at), lambdas.size());
+            const std::string item = lambdas.substr(at, comma - at);
+            std::size_t used = 0;
+            const double l = std::stod(item, &used);
+            if (used != item.size()) throw std::invalid_argument(item);
+            validate_lambda(l);
+            a.lambdas_um.push_back(l);
+            if (a.lambdas_um.size() > std::size_t(k_max_spectral_samples)) throw std::invalid_argument("too many");
+            at = comma + 1;
+        }
+    } catch (const std::exception&) {
+        r.bad("lambdas_um", "is '" + lambdas.substr(0, 80) + "'; expected 1 to " +
+                                std::to_string(k_max_spectral_samples) + " wavelengths in um, comma-separated");
+    }
+    a.resolution = r.required("resolution", r.integer("resolution", 1, 8192));
+    a.channels = r.required("channels", r.integer("channels", 1, 3));
+    if (a.channels == 2) r.bad("channels", "is 2; expected 1 or 3");
+    if (const auto* size = r.typed<Imf::V2iAttribute>("heightfield_size", "v2i")) {
+        a.heightfield_rows = size->value().x;
+        a.heightfield_cols = size->value().y;
+        if (a.heightfield_rows < 1 || a.heightfield_cols < 1 || a.heightfield_rows > k_max_exr_side ||
+            a.heightfield_cols > k_max_exr_side)
+            r.bad("heightfield_size", "is " + std::to_string(a.heightfield_rows) + "x" +
+                                          std::to_string(a.heightfield_cols) + "; expected 1 to 16384 per side");
+        a.texel_um = r.required("heightfield_texel_um",
+                                r.number("heightfield_texel_um", k_min_texel_um, k_max_texel_um));
+        a.vscale = r.required("heightfield_vscale",
+                              r.number("heightfield_vscale", k_min_vscale, k_max_vscale, true, true));
+    }
+    a.heightfield_file = r.string("heightfield_file").value_or("");
+    a.unit = r.required("unit", r.string("unit"));
+    a.made_by = r.string("made_by").value_or("");
+    a.version = r.required("version", r.string("version"));
+    file.attributes = std::move(a);
+    return file;
 }
 
 RgbImage read_rgb_exr(const std::string& path) {

@@ -1,5 +1,7 @@
 #include "wavebrdf/run_directory.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <regex>
@@ -96,6 +98,16 @@ void prepare_run_directory(RunKind kind, const std::string& dir, bool force, con
         for (auto d = dirs.rbegin(); d != dirs.rend(); ++d) fs::remove(*d, ec);
     }
     fs::create_directories(dir);
+}
+
+int run_threads() { return omp_get_max_threads(); }
+
+std::vector<double> distinct_wavelengths_um(const std::vector<std::vector<double>>& per_observation) {
+    std::vector<double> out;
+    for (const auto& lambdas : per_observation)
+        for (double l : lambdas)
+            if (std::find(out.begin(), out.end(), l) == out.end()) out.push_back(l);
+    return out;
 }
 
 }  // namespace wavebrdf

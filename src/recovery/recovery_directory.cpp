@@ -10,6 +10,7 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/run_directory.h"
+#include "wavebrdf/version.h"
 
 namespace wavebrdf {
 
@@ -28,7 +29,17 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                           {"observations", r.observations.size()},
                           {"plan", r.notes},
                           {"warnings", r.warnings},
-                          {"truth", r.truth.has_value()}};
+                          {"truth", r.truth.has_value()},
+                          {"version", k_version},
+                          {"threads", run_threads()}};
+    // What the plan chose (the options' 0 / "" mean "the planner's"): the actual values.
+    std::vector<std::vector<double>> lambdas;
+    for (const Observation& o : r.observations) lambdas.push_back(o.lambdas_um);
+    run["wavelengths_um"] = distinct_wavelengths_um(lambdas);
+    if (!r.observations.empty()) {
+        run["sigma_p_um"] = r.observations.front().query.sigma_p_um;
+        run["resolution"] = r.observations.front().resolution;
+    }
     if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
     return run;
 }
@@ -47,7 +58,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         write_observations_json(dir + "/observations.json", r.observations, ReferenceStorage::Exr);
     const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
     if (r.truth) {
-        write_heightfield_exr(dir + "/truth.exr", *r.truth);
+        write_heightfield_exr(dir + "/truth.exr", *r.truth, "wavebrdf recover: truth");
         write_npy(dir + "/truth_height.npy", height_shape, heights_um(*r.truth));
     }
 
@@ -77,7 +88,8 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     }();
 
     write_text_atomically(dir + "/metrics.csv", csv.str());
-    write_heightfield_exr(dir + "/estimate.exr", estimate);
+    write_heightfield_exr(dir + "/estimate.exr", estimate,
+                          std::string("wavebrdf recover: estimate (") + to_string(r.method) + ")");
     write_heightfield_png(dir + "/estimate.png", estimate);
     write_npy(dir + "/estimate_height.npy", height_shape, heights_um(estimate));
     // One observation and the estimate's slice for it, for the report.

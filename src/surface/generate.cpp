@@ -443,4 +443,33 @@ Heightfield with_height_range(const Heightfield& hf, double range_um) {
     return hf.with_values(std::move(v));
 }
 
+std::string describe_surface(const SurfaceParams& p) {
+    std::string text = std::string("generate_heightfield type=") + to_string(p.type) +
+                       " size=" + std::to_string(p.rows) + "x" + std::to_string(p.cols) +
+                       " seed=" + std::to_string(p.seed) + " texel_um=" + format_shortest(p.texel_um);
+    const auto add = [&](const char* name, double v) { text += std::string(" ") + name + "=" + format_shortest(v); };
+    switch (p.type) {
+        case SurfaceType::Flat: break;
+        case SurfaceType::Isotropic:
+        case SurfaceType::Brushed:
+            if (p.rms_slope > 0.0)
+                add("rms_slope", p.rms_slope);
+            else
+                add("rms_height_um", p.rms_height_um);
+            add("correlation_um", p.correlation_um);
+            if (p.type == SurfaceType::Brushed) add("anisotropy", p.anisotropy);
+            break;
+        case SurfaceType::Scratched:
+            add("scratches", p.scratch_count);
+            add("scratch_depth_um", p.scratch_depth_um);
+            add("scratch_width_um", p.scratch_width_um);
+            break;
+        case SurfaceType::Grating:
+            add("amplitude_um", p.amplitude_um);
+            add("period_um", p.period_um);
+            break;
+    }
+    return text;
+}
+
 }  // namespace wavebrdf

@@ -2,6 +2,7 @@
 generators, and errors."""
 import copy
 import subprocess
+import warnings
 
 import numpy as np
 import pytest
@@ -88,7 +89,9 @@ def test_exr_round_trip(tmp_path, rng):
     hf = wb.Heightfield(v)
     path = str(tmp_path / "h.exr")
     hf.save_exr(path)
-    back = wb.Heightfield.from_exr(path, texel_um=0.25, vscale=3.0)
+    # Given values that differ from the file's (1, 1) win, with a warning naming both.
+    with pytest.warns(UserWarning, match="texel_um 0.25 disagrees"):
+        back = wb.Heightfield.from_exr(path, texel_um=0.25, vscale=3.0)
     assert back.shape == (6, 9) and back.texel_um == 0.25 and back.vscale == 3.0
     np.testing.assert_array_equal(back.values, v)
     hf.save_png(str(tmp_path / "h.png"))
@@ -119,7 +122,8 @@ def test_generate_matches_the_cli(tmp_path, cli):
     subprocess.run([cli, "heightfield", "--type", "isotropic", "--size", "32x24", "--texel-um", "0.5",
                     "--rms-height-um", "0.2", "--correlation-um", "2", "--seed", "7", "--no-png", "--quiet",
                     "--out", str(exr)], check=True)
-    from_cli = wb.Heightfield.from_exr(str(exr), texel_um=0.5)
+    from_cli = wb.Heightfield.from_exr(str(exr))
+    assert from_cli.texel_um == 0.5  # the file's own
     np.testing.assert_allclose(from_cli.values, hf.values, rtol=1e-6, atol=1e-6 * np.abs(hf.values).max())
     grating = wb.Heightfield.generate("grating", rows=16, cols=4, amplitude_um=0.1, period_um=8.0)
     x = (np.arange(16) + 0.5) * 1.0
@@ -128,6 +132,68 @@ def test_generate_matches_the_cli(tmp_path, cli):
         wb.Heightfield.generate("wavy")
     with pytest.raises(ValueError):
         wb.Heightfield.generate("isotropic", rows=0)
+
+
+# Issue 11: `wavebrdf heightfield --texel-um 0.5`, then from_exr, gave texel_um 1.0 (a silent
+# 2x error). The file now says 0.5, and from_exr uses it; a disagreeing value wins with a warning.
+def test_from_exr_reads_the_texel_size_the_cli_wrote(tmp_path, cli):
+    exr = tmp_path / "g.exr"
+    subprocess.run([cli, "heightfield", "--size", "32", "--texel-um", "0.5", "--seed", "3", "--no-png", "--quiet",
+                    "--out", str(exr)], check=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no option given: nothing to warn about
+        hf = wb.Heightfield.from_exr(str(exr))
+        assert wb.Heightfield.from_exr(str(exr), texel_um=0.5).texel_um == 0.5  # agrees: no warning
+    assert hf.texel_um == 0.5 and hf.vscale == 1.0
+    info = wb.Heightfield.exr_attributes(str(exr))
+    assert info["texel_um"] == 0.5 and info["vscale"] == 1.0
+    assert "seed=3" in info["made_by"] and info["version"] == wb.__version__
+    assert "texel_um" in info["units"]
+    with pytest.warns(UserWarning) as record:
+        hf1 = wb.Heightfield.from_exr(str(exr), texel_um=1.0)
+    assert hf1.texel_um == 1.0
+    assert len(record) == 1
+    assert str(record[0].message) == "texel_um 1 disagrees with %s's texel_um 0.5; using 1" % exr
+
+
+@pytest.mark.parametrize("texel_um, vscale", [(0.37, 1.0), (2.5, -0.5), (0.5, 0.0), (1e-4, 1e4)])
+def test_save_exr_from_exr_round_trip_keeps_the_scale(tmp_path, rng, texel_um, vscale):
+    v = rng.normal(size=(5, 7)).astype(np.float32)
+    path = str(tmp_path / "h.exr")
+    wb.Heightfield(v, texel_um=texel_um, vscale=vscale).save_exr(path)
+    back = wb.Heightfield.from_exr(path)
+    assert back.texel_um == texel_um and back.vscale == vscale
+    np.testing.assert_array_equal(back.values, v)
+    info = wb.Heightfield.exr_attributes(path)
+    assert info["made_by"] == "python" and info["texel_um"] == texel_um
+
+
+# A slice the CLI rendered says which query rendered it: rendering that query again from Python
+# gives the same slice, and the unit is f_r in 1/sr.
+def test_read_slice_returns_the_query_that_rendered_it(tmp_path, cli):
+    hf_path = tmp_path / "g.exr"
+    subprocess.run([cli, "heightfield", "--size", "32", "--texel-um", "0.5", "--rms-height-um", "0.05",
+                    "--no-png", "--quiet", "--out", str(hf_path)], check=True)
+    out = tmp_path / "s.exr"
+    subprocess.run([cli, "render", "--heightfield", str(hf_path), "--x-um", "3", "--y-um", "-2", "--sigma-p-um", "4",
+                    "--light-x", "0.2", "--light-y", "-0.1", "--spectral", "3", "--model", "GHS",
+                    "--resolution", "24", "--quiet", "--out", str(out)], check=True)
+    image, info = wb.read_slice(str(out))
+    assert image.shape == (24, 24, 3) and image.dtype == np.float32
+    assert info["x_um"] == 3.0 and info["y_um"] == -2.0 and info["sigma_p_um"] == 4.0
+    assert info["light"] == (0.2, -0.1) and info["model"] == "GHS"
+    assert info["lambdas_um"] == list(wb.spectral_wavelengths_um(3))
+    assert info["resolution"] == 24 and info["channels"] == 3
+    assert info["texel_um"] == 0.5 and info["vscale"] == 1.0 and info["heightfield_size"] == (32, 32)
+    assert info["heightfield_file"] == str(hf_path)
+    assert info["unit"].startswith("f_r (BRDF) in 1/sr")
+    assert info["version"] == wb.__version__ and info["made_by"] == "wavebrdf render"
+    hf = wb.Heightfield.from_exr(info["heightfield_file"])
+    again = wb.render_slice(hf.values.astype(np.float32), resolution=info["resolution"], texel_um=info["texel_um"],
+                            vscale=info["vscale"], x_um=info["x_um"], y_um=info["y_um"],
+                            sigma_p_um=info["sigma_p_um"], spectral=info["lambdas_um"], light=info["light"],
+                            model=info["model"])
+    np.testing.assert_allclose(again, image, rtol=1e-5, atol=1e-6 * float(np.abs(image).max()))
 
 
 def test_version_is_the_one_in_the_file_version():
