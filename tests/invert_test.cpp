@@ -33,6 +33,7 @@
 
 #include "cli_util.h"
 #include "test_util.h"
+#include "wavebrdf/threads.h"
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
@@ -853,7 +854,7 @@ TEST_F(InvertTest, CliRunJsonRecordsVersionThreadsWavelengthsAndOldOnesResume) {
     ASSERT_EQ(invert("--truth truth.exr --spectral 3 --epochs 4 --out run").exit_code, 0);
     const nlohmann::json written = nlohmann::json::parse(read_text(path("run/run.json")));
     EXPECT_EQ(written.at("version"), k_version);
-    EXPECT_EQ(written.at("threads"), run_threads());
+    EXPECT_EQ(written.at("threads"), thread_count());
     EXPECT_GE(written.at("threads").get<int>(), 1);
     EXPECT_EQ(written.at("wavelengths_um").get<std::vector<double>>(), spectral_wavelengths_um(3));
     EXPECT_TRUE(written.at("args").at("lambda_um").is_null());

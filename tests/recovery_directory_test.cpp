@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/threads.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recovery_directory.h"
@@ -77,7 +78,7 @@ TEST(RecoveryDirectory, WritesEveryFileOfTheLayout) {
     EXPECT_FALSE(run.contains("height_rel_rmse"));
     // Issue 11: the version, the threads and the actual wavelengths, footprint and resolution.
     EXPECT_EQ(run.at("version"), k_version);
-    EXPECT_EQ(run.at("threads"), run_threads());
+    EXPECT_EQ(run.at("threads"), thread_count());
     std::vector<double> lambdas;
     for (const Observation& o : prepared.observations)
         for (double l : o.lambdas_um)

@@ -37,9 +37,6 @@ void check_run_directory(RunKind kind, const std::string& dir, bool force, const
 // file cannot be deleted.
 void prepare_run_directory(RunKind kind, const std::string& dir, bool force, const std::string& option = "--out");
 
-// The number of threads a run started now uses (OpenMP's maximum: --threads, the environment's
-// OMP_NUM_THREADS, else the cores), recorded in run.json as "threads".
-int run_threads();
 
 // The distinct wavelengths (µm) of `per_observation` (each observation's list), in the order
 // they first appear: what run.json records as "wavelengths_um".

@@ -1,3 +1,4 @@
+#include "wavebrdf/threads.h"
 #include "wavebrdf/inversion_run.h"
 
 #include <algorithm>
@@ -581,7 +582,7 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
         {"truth", p.truth.has_value()},
         {"observations", observations.size()},
         {"version", k_version},
-        {"threads", run_threads()},
+        {"threads", thread_count()},
         {"wavelengths_um", distinct_wavelengths_um(wavelength_lists(observations))}};
     write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
     const Observation& o = observations[0];

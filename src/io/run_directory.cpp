@@ -1,6 +1,5 @@
 #include "wavebrdf/run_directory.h"
 
-#include <omp.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -100,7 +99,6 @@ void prepare_run_directory(RunKind kind, const std::string& dir, bool force, con
     fs::create_directories(dir);
 }
 
-int run_threads() { return omp_get_max_threads(); }
 
 std::vector<double> distinct_wavelengths_um(const std::vector<std::vector<double>>& per_observation) {
     std::vector<double> out;

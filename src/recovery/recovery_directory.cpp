@@ -1,3 +1,4 @@
+#include "wavebrdf/threads.h"
 #include "wavebrdf/recovery_directory.h"
 
 #include <exception>
@@ -31,7 +32,7 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                           {"warnings", r.warnings},
                           {"truth", r.truth.has_value()},
                           {"version", k_version},
-                          {"threads", run_threads()}};
+                          {"threads", thread_count()}};
     // What the plan chose (the options' 0 / "" mean "the planner's"): the actual values.
     std::vector<std::vector<double>> lambdas;
     for (const Observation& o : r.observations) lambdas.push_back(o.lambdas_um);
