@@ -1,6 +1,5 @@
 #include "wavebrdf/run_directory.h"
 
-
 #include <algorithm>
 #include <filesystem>
 #include <regex>
