@@ -61,7 +61,7 @@ for version in 0.3 1.0 0.1; do
         echo "test_consumer: FAILED: find_package(wavebrdf $version) found $(cat VERSION)"
         exit 1
     fi
-    grep -q "wavebrdfConfigVersion.cmake" "$work/v$version.log" || { cat "$work/v$version.log"; exit 1; }
+    grep -q "compatible with requested version \"$version\"" "$work/v$version.log" || { cat "$work/v$version.log"; exit 1; }
 done
 echo "test_consumer: find_package(wavebrdf 0.3 / 1.0 / 0.1) refused, as they should be"
 
