@@ -55,13 +55,22 @@ std::string find_python(std::string& why) {
     return "";
 }
 
-// <directory of the running executable>/../python: where the build puts the package
-// (build/bin/wavebrdf, build/python/wavebrdf); "" when the executable's path is unknown.
-std::string expected_package_dir() {
+#ifndef WAVEBRDF_INSTALLED_PYTHON_DIR
+#define WAVEBRDF_INSTALLED_PYTHON_DIR "../lib/wavebrdf/python"
+#endif
+
+// The folders that may hold the package, relative to the running executable's directory, in
+// the order they are tried: ../python (the build tree: build/bin/wavebrdf, build/python/wavebrdf),
+// then where `cmake --install` puts it (bin/wavebrdf, lib/wavebrdf/python/wavebrdf; CMake
+// passes the path from the install's bin to its Python folder). Empty when the executable's path
+// is unknown.
+std::vector<std::string> package_dirs() {
     std::error_code ec;
     const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (ec) return "";
-    return (exe.parent_path().parent_path() / "python").lexically_normal().string();
+    if (ec) return {};
+    const fs::path bin = exe.parent_path();
+    return {(bin.parent_path() / "python").lexically_normal().string(),
+            (bin / WAVEBRDF_INSTALLED_PYTHON_DIR).lexically_normal().string()};
 }
 
 // This process's environment with `python_dir` first on PYTHONPATH (when not empty) and
@@ -98,13 +107,21 @@ bool draw_report(RunKind kind, const std::string& dir) {
         if (python.empty()) {
             why = found;
         } else {
+            // The first folder that holds the package, else "" (the interpreter's own path:
+            // a pip-installed wavebrdf).
+            const std::vector<std::string> candidates = package_dirs();
+            std::string beside;
+            for (const std::string& candidate : candidates) {
+                std::error_code ec;
+                if (fs::is_regular_file(candidate + "/wavebrdf/report.py", ec)) {
+                    beside = candidate;
+                    break;
+                }
+            }
             // No shell: the directory is one argument, whatever its characters; absolute, so a
             // name starting with '-' is not taken for an option.
-            const std::string expected = expected_package_dir();
-            std::error_code ec;
-            const bool beside = !expected.empty() && fs::is_regular_file(expected + "/wavebrdf/report.py", ec);
             const int status = run_program({python, "-m", "wavebrdf.report", "--quiet", fs::absolute(dir).string()},
-                                           child_environment(beside ? expected : ""));
+                                           child_environment(beside));
             if (status == 0) return true;
             if (status == k_status_no_numpy)
                 why = "numpy is not installed for " + python;
@@ -114,9 +131,12 @@ bool draw_report(RunKind kind, const std::string& dir) {
                 why = python + " -m wavebrdf.report could not be started or was killed";
             else
                 why = python + " -m wavebrdf.report failed (exit status " + std::to_string(status) + ")";
-            if (!beside && status != k_status_no_numpy && status != k_status_no_matplotlib)
-                why += "; the wavebrdf Python package is not beside the executable (" +
-                       (expected.empty() ? std::string("<bin>/../python") : expected) + ")";
+            if (beside.empty() && status != k_status_no_numpy && status != k_status_no_matplotlib)
+                why += "; the wavebrdf Python package is neither beside the executable (" +
+                       (candidates.empty() ? std::string("<bin>/../python") : candidates[0]) +
+                       ") nor installed with it (" +
+                       (candidates.size() < 2 ? std::string("<bin>/" WAVEBRDF_INSTALLED_PYTHON_DIR) : candidates[1]) +
+                       ") nor importable by " + python;
         }
     } catch (const std::exception& e) {
         why = e.what();

@@ -9,6 +9,7 @@ bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ ma
 echo "test: Python (pytest)"
 /usr/bin/python3 -m pytest -q tests/python
 bash scripts/docs.sh  # the API reference (Doxygen + pydoc) builds without warnings
+JOBS="$(nproc)" bash scripts/test_consumer.sh  # the C++ package: find_package against an install, and add_subdirectory
 
 echo "test: sanitizer build (ASan + UBSan)"
 cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWAVEBRDF_SANITIZE=ON \

@@ -1,7 +1,7 @@
 // The reports of `wavebrdf invert` and `wavebrdf recover` (apps/report.h) without the source
 // tree: the built executable and the built Python package copied into another directory
-// (<tmp>/bin/wavebrdf, <tmp>/python/wavebrdf), run from a third one, draw report.png (and
-// curves.png); without Python, NumPy or matplotlib the run writes its data, exits 0 and says
+// (<tmp>/bin/wavebrdf, <tmp>/python/wavebrdf; or as installed, <tmp>/lib/wavebrdf/python/wavebrdf;
+// or on PYTHONPATH), run from a third one, draw report.png (and curves.png); without Python, NumPy or matplotlib the run writes its data, exits 0 and says
 // in one line what is missing.
 #include <gtest/gtest.h>
 
@@ -48,6 +48,17 @@ CliResult run_moved(const fs::path& dir, const fs::path& exe, const std::string&
     return run_in(dir, "env -u PYTHONPATH " + env + " " + quote(exe.string()) + " " + args);
 }
 
+// The layout of `cmake --install`: <root>/bin/wavebrdf and the package in the install's Python
+// folder (<root>/lib/wavebrdf/python/wavebrdf; WAVEBRDF_INSTALLED_PYTHON_DIR from bin/).
+fs::path installed_layout(const fs::path& root) {
+    fs::create_directories(root / "bin");
+    fs::copy_file(WAVEBRDF_CLI, root / "bin" / "wavebrdf");
+    const fs::path python_dir = (root / "bin" / WAVEBRDF_INSTALLED_PYTHON_DIR).lexically_normal();
+    fs::create_directories(python_dir);
+    fs::copy(k_build_python / "wavebrdf", python_dir / "wavebrdf", fs::copy_options::recursive);
+    return root / "bin" / "wavebrdf";
+}
+
 bool have_package() { return fs::is_regular_file(k_build_python / "wavebrdf" / "report.py"); }
 
 }  // namespace
@@ -69,6 +80,39 @@ TEST(ReportTest, DrawsReportsWithoutTheSourceTree) {
     EXPECT_TRUE(is_png(dir / "work" / "rec" / "report.png"));
     EXPECT_FALSE(fs::exists(dir / "work" / "rec" / "curves.png"));
     EXPECT_EQ(temporaries_under(dir / "work"), std::vector<std::string>{});
+}
+
+// The installed CLI finds the installed package (apps/report.cpp), from another directory.
+TEST(ReportTest, InstalledCliDrawsReportsWithTheInstalledPackage) {
+    if (!have_package()) GTEST_SKIP() << "no Python package in " << k_build_python << " (WAVEBRDF_BUILD_PYTHON off)";
+    if (!python_can_plot()) GTEST_SKIP() << "/usr/bin/python3 cannot import numpy and matplotlib";
+    const fs::path dir = fresh_dir("report");
+    const fs::path exe = installed_layout(dir / "prefix");
+    EXPECT_FALSE(fs::exists(dir / "prefix" / "python")) << "the build tree's place is not the one used";
+    fs::create_directories(dir / "work");
+    const CliResult invert = run_moved(dir / "work", exe, kInvert + " --out inv");
+    ASSERT_EQ(invert.exit_code, 0) << invert.err;
+    EXPECT_EQ(invert.err, "") << "no warning when the report is drawn";
+    EXPECT_TRUE(is_png(dir / "work" / "inv" / "report.png"));
+    EXPECT_TRUE(is_png(dir / "work" / "inv" / "curves.png"));
+}
+
+// Neither beside nor installed with the executable: the interpreter's own path (a pip-installed
+// package; here PYTHONPATH) is used.
+TEST(ReportTest, PackageOnTheInterpretersPathDrawsReports) {
+    if (!have_package()) GTEST_SKIP() << "no Python package in " << k_build_python << " (WAVEBRDF_BUILD_PYTHON off)";
+    if (!python_can_plot()) GTEST_SKIP() << "/usr/bin/python3 cannot import numpy and matplotlib";
+    const fs::path dir = fresh_dir("report");
+    fs::create_directories(dir / "alone" / "bin");
+    fs::copy_file(WAVEBRDF_CLI, dir / "alone" / "bin" / "wavebrdf");
+    fs::create_directories(dir / "site");
+    fs::copy(k_build_python / "wavebrdf", dir / "site" / "wavebrdf", fs::copy_options::recursive);
+    fs::create_directories(dir / "work");
+    const CliResult r = run_moved(dir / "work", dir / "alone" / "bin" / "wavebrdf", kRecover + " --out rec",
+                                  "PYTHONPATH=" + quote((dir / "site").string()));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err, "") << "no warning when the report is drawn";
+    EXPECT_TRUE(is_png(dir / "work" / "rec" / "report.png"));
 }
 
 // Without Python, NumPy or matplotlib: the data are written, exit 0, one line naming what
@@ -119,6 +163,8 @@ TEST(ReportTest, PackageNotBesideTheExecutableIsNamed) {
     EXPECT_NE(lines.back().find("report.png not drawn"), std::string::npos) << r.err;
     if (fs::exists("/usr/bin/python3")) {
         EXPECT_NE(lines.back().find((dir / "alone" / "python").string()), std::string::npos) << r.err;
+        const fs::path installed = (dir / "alone" / "bin" / WAVEBRDF_INSTALLED_PYTHON_DIR).lexically_normal();
+        EXPECT_NE(lines.back().find(installed.string()), std::string::npos) << r.err;
     }
     EXPECT_TRUE(fs::exists(dir / "work" / "run" / "estimate.exr"));
 }
