@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
     wavebrdf::cli::add_genbrdf_command(app);
     wavebrdf::cli::add_invert_command(app);
     wavebrdf::cli::add_recover_command(app);
+    wavebrdf::cli::add_table_command(app);
     // CLI11's own errors (unknown option, bad number, missing value) in the same one-line form
     // as the commands' errors; --help and --version are not failures and print as usual.
     app.failure_message([](const CLI::App*, const CLI::Error& e) {
