@@ -11,6 +11,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/table.h"
@@ -59,6 +60,12 @@ void run(TableArgs a) {
     check_writable(a.out);
     if (!a.png.empty()) check_writable(a.png);
     const Heightfield hf = read_heightfield_exr(a.heightfield, a.texel_um, a.vscale);
+    if (!a.png.empty()) {
+        // The preview's copies (its mosaic in float, the exposure's in double) on top of the table.
+        const double values = 3.0 * spec.lights.rows * spec.lights.cols * double(spec.resolution) * spec.resolution;
+        require_memory(estimate_table_bytes(hf, spec, a.options) + 12.0 * values, memory_limit(a.options.max_memory_gb),
+                       "table with its --png preview");
+    }
 
     Progress progress("table", table_work_units(spec), !a.quiet);
     a.options.progress = &progress;
