@@ -15,5 +15,6 @@ void add_render_command(CLI::App& app);       // wavebrdf render: one BRDF slice
 void add_genbrdf_command(CLI::App& app);      // wavebrdf genbrdf: the reference's flags
 void add_invert_command(CLI::App& app);       // wavebrdf invert: the inverse renderer
 void add_recover_command(CLI::App& app);      // wavebrdf recover: heights from overlapping slices
+void add_table_command(CLI::App& app);        // wavebrdf table: slices over a grid of lights
 
 }  // namespace wavebrdf::cli

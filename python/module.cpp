@@ -16,6 +16,7 @@ PYBIND11_MODULE(_core, m) {
     bind_optim(m);
     bind_invert(m);
     bind_recover(m);
+    bind_table(m);
     // A long call stopped by Ctrl-C (InterruptibleRelease): its poll left the signal handler's
     // exception (KeyboardInterrupt) pending; raise that, or KeyboardInterrupt if none is.
     py::register_exception_translator([](std::exception_ptr p) {

@@ -63,6 +63,7 @@ from ._core import (  # noqa: F401
 
 from ._core import __version__  # from the file VERSION, through the extension
 from ._core import read_slice  # noqa: F401  (a slice EXR and what it says about itself)
+from .table import BrdfTable, read_table, render_table  # noqa: F401  (wavebrdf table, docs/table.md)
 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
@@ -71,5 +72,6 @@ __all__ = [
     "planned_observations", "read_observations", "recover", "recover_heights", "recover_heights_thesis", "render",
     "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",
     "spectral_to_srgb_weights", "spectral_wavelengths_um", "with_height_range", "write_observations",
+    "BrdfTable", "read_table", "render_table",
 ]
 __all__ += ["read_slice"]

@@ -1,0 +1,84 @@
+"""BRDF tables: the slices of one footprint over a regular grid of light directions
+(``wavebrdf table``, docs/table.md).
+
+The light grid is the slice convention applied to the light, scaled by ``max_light_sin``
+(sin theta_i at the grid's edge): light (a, b) of a rows x cols grid is
+
+    omega_i = (max_light_sin * ((a + 1/2) / rows * 2 - 1), max_light_sin * ((b + 1/2) / cols * 2 - 1)),
+
+a along x (``light_x``), b along y (``light_y``); only lights with |omega_i| <= max_light_sin are
+rendered (``rendered``), the others are all zero. Each entry is an n x n RGB slice over the
+projected outgoing direction, pixel (p, q) at omega_o = ((p + 1/2) / n * 2 - 1, (q + 1/2) / n * 2 - 1),
+zero outside the unit disk: f_r in 1/sr (one wavelength: R = G = B; several: CIE 1931 to linear
+sRGB), exactly what ``wavebrdf.render`` returns for that light (in float32).
+"""
+from . import _core
+
+__all__ = ["BrdfTable", "read_table", "render_table"]
+
+
+class BrdfTable:
+    """A BRDF table and its axes.
+
+    values          float32 array (rows, cols, n, n, 3): values[a, b, p, q, c] is f_r in 1/sr for
+                    light (light_x[a], light_y[b]) at omega_o = (omega_o[p], omega_o[q]), channel c
+    light_x         float64 (rows,): omega_i,x of each light row (projected, dimensionless)
+    light_y         float64 (cols,): omega_i,y of each light column
+    rendered        bool (rows, cols): True where |omega_i| <= max_light_sin (the others are 0)
+    omega_o         float64 (n,): the projected outgoing direction of slice row / column p
+    max_light_sin   sin theta_i at the light grid's edge, 0 < s < 1
+    resolution      n
+    query           wavebrdf.Query: footprint (x_um, y_um, sigma_p_um in um), model and
+                    wavelengths; its light is (0, 0) (each entry has its own)
+    lambdas_um      the wavelengths in um; spectral: True when mixed to linear sRGB (CIE 1931)
+    precision       'float' or 'double': the precision each slice was rendered in
+    heightfield_size, texel_um, vscale   the surface: (rows, cols) texels, texel width in um,
+                    vertical scale
+    version         the wavebrdf version that rendered it
+    """
+
+    def __init__(self, fields):
+        import numpy as np
+
+        for name, value in fields.items():
+            setattr(self, name, value)
+        n = self.resolution
+        self.omega_o = (np.arange(n) + 0.5) / n * 2.0 - 1.0
+
+    def light(self, a, b):
+        """The projected light direction (wx, wy) of entry (a, b)."""
+        return (float(self.light_x[a]), float(self.light_y[b]))
+
+    def __repr__(self):
+        rows, cols = self.values.shape[:2]
+        return (f"BrdfTable({rows}x{cols} lights within sin {self.max_light_sin:g}, "
+                f"{self.resolution}x{self.resolution} slices, {self.query!r})")
+
+
+def read_table(path):
+    """Reads a table file written by ``wavebrdf table`` (or render_table(out=...)) into a
+    BrdfTable. RuntimeError naming the file when it is not such a table (missing or
+    inconsistent attributes, a mosaic whose size disagrees with them, non-finite values)."""
+    return BrdfTable(_core._read_table(str(path)))
+
+
+def render_table(heightfield, query, *, lights=(32, 32), max_light_sin=0.9, resolution=64, precision="float",
+                 max_memory_gb=0.0, out=None):
+    """Renders the BRDF table of one footprint over a grid of lights (``wavebrdf table``).
+
+    heightfield     a wavebrdf.Heightfield, an EXR path, or a 2-D array of heights in texel
+                    units (texel_um 1, vscale 1; build a Heightfield for other scales)
+    query           wavebrdf.Query: footprint, model and wavelengths (its light is ignored)
+    lights          N or (rows, cols): lights along omega_i,x and omega_i,y, 1...16384, with
+                    rows * resolution and cols * resolution at most 16384
+    max_light_sin   sin theta_i at the grid's edge, 0 < s < 1 (default 0.9)
+    resolution      n of each n x n slice, 1...8192 (default 64)
+    precision       'float' or 'double': each slice rendered in that precision (values float32)
+    max_memory_gb   refuse (MemoryError) a table whose estimate exceeds this many GB; 0: the
+                    physical memory
+    out             optional path: also write the table file there (atomically)
+    Returns a BrdfTable; each entry equals wavebrdf.render(heightfield, query with that light,
+    resolution, precision) rounded to float32. Ctrl-C stops it (KeyboardInterrupt).
+    """
+    return BrdfTable(_core._render_table(heightfield, query, lights, max_light_sin, resolution, precision,
+                                         max_memory_gb, "" if out is None else str(out)))
