@@ -593,7 +593,7 @@ def height_rel_rmse(estimate: Heightfield, truth: Heightfield) -> float:
     """
     ...
 
-def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ...) -> InversionResult:
+def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ...) -> InversionResult:
     """The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
     whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
     truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
@@ -623,6 +623,8 @@ def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_
                   after each evaluated epoch (epoch 0 included); return False to stop early.
     max_memory_gb refuse (MemoryError, before the references are rendered) a run whose
                   estimated peak memory exceeds this many GB; 0 (default): the physical memory.
+    quiet         progress (a tqdm bar if tqdm is installed, else a line on stderr): None (default)
+                  shows it when stderr is a terminal or in Jupyter, False always, True never
     The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
     """
     ...
@@ -680,7 +682,7 @@ def read_observations(path: str) -> List[Observation]:
     """Observations from JSON (the format of `wavebrdf invert --observations`)."""
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -713,6 +715,8 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   after every reported step; return False to stop early.
     max_memory_gb refuse (MemoryError, before any work) a run whose estimated peak memory exceeds
                   this many GB; 0 (default): the physical memory
+    quiet         progress (a tqdm bar per stage if tqdm is installed, else a line on stderr): None
+                  (default) shows it when stderr is a terminal or in Jupyter, False always, True never
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...
