@@ -9,8 +9,8 @@ the version (the file VERSION) are in pyproject.toml.
 Environment: CMAKE_ARGS (extra CMake arguments, shell-quoted, given after ours so they win,
 e.g. CMAKE_ARGS="-DWAVEBRDF_NATIVE=OFF" for a wheel meant for other machines),
 CMAKE_BUILD_PARALLEL_LEVEL (build jobs; default: the cores this process may use). ccache is
-used when it is on PATH. setuptools' own build directory is build-pip/ (not build/, which is
-the CMake build tree of docs/architecture.md).
+used when it is on PATH. WAVEBRDF_PIP_BUILD_DIR: setuptools' build directory (default
+build-pip/; not build/, which is the CMake build tree of docs/architecture.md).
 """
 import glob
 import os
@@ -93,11 +93,12 @@ class cmake_build_ext(build_ext):
 
 
 class build_outside_cmake_tree(build):
-    """setuptools' build directory defaults to build-pip/ (build/ is the CMake build tree)."""
+    """setuptools' build directory: $WAVEBRDF_PIP_BUILD_DIR, else build-pip/ (not build/, the
+    CMake build tree). The CMake build inside it is reused by the next install."""
 
     def initialize_options(self):
         super().initialize_options()
-        self.build_base = "build-pip"
+        self.build_base = os.environ.get("WAVEBRDF_PIP_BUILD_DIR") or "build-pip"
 
 
 setup(

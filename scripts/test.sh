@@ -8,6 +8,7 @@ bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ ma
 (cd build && ctest --output-on-failure -j"$(nproc)")
 echo "test: Python (pytest)"
 /usr/bin/python3 -m pytest -q tests/python
+bash scripts/test_pip.sh  # pip install in a fresh venv, smoke test outside the tree
 
 echo "test: sanitizer build (ASan + UBSan)"
 cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWAVEBRDF_SANITIZE=ON \
