@@ -42,8 +42,10 @@ for name in ("_core.pyi", "py.typed"):
     assert os.path.isfile(os.path.join(package, name)), name + " is not installed"
 
 h = np.random.default_rng(1).standard_normal((16, 16)) * 0.3
-s = wb.render_slice(h, resolution=16, sigma_p_um=4.0, x_um=8.0, y_um=8.0, spectral=4)
-assert s.shape == (16, 16, 3) and np.isfinite(s).all() and (s >= 0).all() and s.sum() > 0, "bad slice"
+# One wavelength: f_r itself (1/sr), never negative (a spectral slice's linear sRGB can be, out of gamut).
+s = wb.render_slice(h, resolution=16, sigma_p_um=4.0, x_um=8.0, y_um=8.0, lambda_um=0.5)
+assert s.shape == (16, 16, 3) and np.isfinite(s).all(), "slice not finite"
+assert (s >= 0).all() and s.sum() > 0, "slice has f_r < 0 or is black: min %g, sum %g" % (s.min(), s.sum())
 
 import torch
 import wavebrdf.torch as wt
