@@ -8,6 +8,7 @@
 
 #include "common.h"
 #include "observation_arg.h"
+#include "progress.h"
 #include "wavebrdf/inversion_run.h"
 
 namespace wavebrdf::python {
@@ -73,7 +74,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
                        const py::object& spectral, const py::object& light, int resolution, const py::object& init,
                        int epochs, const std::string& optimizer, double lr, double beta1, double beta2, double decay,
                        const py::object& loss, const py::object& positions, std::uint64_t seed,
-                       const py::object& callback, double max_memory_gb) {
+                       const py::object& callback, double max_memory_gb, const py::object& quiet) {
     // Python's arguments → the library's options (inversion_run.h); the set-up and the run are
     // the library's, the same code as `wavebrdf invert`.
     InversionOptions options;
@@ -94,6 +95,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     }
     if (!py::isinstance<py::function>(callback) && !callback.is_none())
         throw py::value_error("callback is not callable; expected callback(metrics, estimate) or None");
+    check_quiet(quiet);
 
     // Scale: given, else the truth's when it is a Heightfield, else 1.
     const bool truth_object = py::isinstance<Heightfield>(truth_arg);
@@ -160,7 +162,9 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
             prepare_inversion(options, std::move(truth), std::move(observations), std::move(initial)));
     }
     std::vector<std::vector<double>> last_slices;
-    ReleasedCallback python_callback(callback);
+    // Progress (progress.h): epochs 0 ... epochs, closed however the run ends.
+    PythonProgress progress("wrap_invert", callback, quiet, py::int_(run->prepared().settings.epochs + 1));
+    ReleasedCallback python_callback(progress.callback());
     {
         InterruptibleRelease release;
         run->run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>&,
@@ -172,6 +176,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
             });
         });
     }
+    progress.close();
     python_callback.rethrow_if_failed();
 
     const Inversion& inversion = run->inversion();
@@ -213,7 +218,7 @@ the mean; NaN without a truth), seconds.
           "light"_a = py::make_tuple(0.0, 0.0), "resolution"_a = 32, "init"_a = "flat", "epochs"_a = 300,
           "optimizer"_a = "adam", "lr"_a = 0.01, "beta1"_a = 0.9, "beta2"_a = 0.99, "decay"_a = 0.005,
           "loss"_a = "cmsle:1", "positions"_a = "fixed", "seed"_a = 1, "callback"_a = py::none(),
-          "max_memory_gb"_a = 0.0, R"doc(
+          "max_memory_gb"_a = 0.0, "quiet"_a = py::none(), R"doc(
 The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
 whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
 truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
@@ -243,6 +248,8 @@ callback      callback(metrics: dict, estimate: (rows, cols) float64 heights in 
               after each evaluated epoch (epoch 0 included); return False to stop early.
 max_memory_gb refuse (MemoryError, before the references are rendered) a run whose
               estimated peak memory exceeds this many GB; 0 (default): the physical memory.
+quiet         progress (a tqdm bar if tqdm is installed, else a line on stderr): None (default)
+              shows it when stderr is a terminal or in Jupyter, False always, True never
 The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
 )doc");
 }

@@ -7,6 +7,7 @@
 
 #include "common.h"
 #include "observation_arg.h"
+#include "progress.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/noise.h"
 #include "wavebrdf/acquisition.h"
@@ -110,7 +111,8 @@ py::dict metrics_columns(const std::vector<StageMetrics>& history) {
 // taken back, handed to `callback` (returning False stops: `stopped`); Ctrl-C and an exception
 // in the callback stop the run and are raised once it has returned.
 template <typename Work>
-Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& history, bool& stopped, Work&& work) {
+Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& history, bool& stopped, Work&& work,
+                         PythonProgress* progress = nullptr) {
     ReleasedCallback python_callback(callback);
     std::optional<Heightfield> estimate;
     {
@@ -120,6 +122,7 @@ Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& 
             return python_callback.step([&](const py::object& f) { return f(metrics_row(m)); });
         }));
     }
+    if (progress) progress->close();  // its line ends before an error is raised
     python_callback.rethrow_if_failed();
     stopped = python_callback.stopped();
     return std::move(*estimate);
@@ -149,7 +152,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        int resolution, const py::object& lambdas_um, double overlap, double jitter,
                        const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
-                       std::uint64_t seed, const py::object& callback, double max_memory_gb) {
+                       std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet) {
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
     options.method = parse_recovery_method(method, "method");
@@ -189,6 +192,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
         bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
     check_callback(callback);
+    check_quiet(quiet);
     if (!truth_arg.is_none() && !observations_arg.is_none())
         throw py::value_error("truth and observations exclude each other; expected one of them (or neither)");
     if (options.noise.kind != NoiseKind::None && !observations_arg.is_none())
@@ -211,8 +215,16 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     }
     std::vector<StageMetrics> history;
     RecoveryResult result;
-    const Heightfield estimate = run_released(callback, history, result.stopped,
-                                              [&](const auto& on_step) { return run_recovery(*prepared, on_step); });
+    // Progress (progress.h): a bar per stage of known length, closed however the run ends.
+    py::dict totals;
+    totals["blur:"] = prepared->pipeline.blurred.iterations;
+    totals["field:"] = prepared->pipeline.field.iterations;
+    totals["refine"] = prepared->pipeline.refine_iterations;
+    totals["thesis"] = prepared->thesis.epochs;
+    PythonProgress progress("wrap_recover", callback, quiet, totals);
+    const Heightfield estimate = run_released(
+        progress.callback(), history, result.stopped,
+        [&](const auto& on_step) { return run_recovery(*prepared, on_step); }, &progress);
     result.estimate = py::cast(estimate);
     result.truth = prepared->truth ? py::cast(*prepared->truth) : py::none();
     result.observations = py::cast(prepared->observations);
@@ -569,6 +581,7 @@ without a truth or before heights exist).
           "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
+          "quiet"_a = py::none(),
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -602,6 +615,8 @@ callback      callback(metrics: dict with stage, iteration, loss, seconds, heigh
               after every reported step; return False to stop early.
 max_memory_gb refuse (MemoryError, before any work) a run whose estimated peak memory exceeds
               this many GB; 0 (default): the physical memory
+quiet         progress (a tqdm bar per stage if tqdm is installed, else a line on stderr): None
+              (default) shows it when stderr is a terminal or in Jupyter, False always, True never
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 }

@@ -10,6 +10,7 @@ echo "test: Python (pytest)"
 /usr/bin/python3 -m pytest -q tests/python
 bash scripts/docs.sh  # the API reference (Doxygen + pydoc) builds without warnings
 JOBS="$(nproc)" bash scripts/test_consumer.sh  # the C++ package: find_package against an install, and add_subdirectory
+bash scripts/test_pip.sh  # pip install in a fresh venv, smoke test outside the tree
 
 echo "test: sanitizer build (ASan + UBSan)"
 cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWAVEBRDF_SANITIZE=ON \

@@ -1,6 +1,6 @@
 """pytest set-up for tests/python: the module and the CLI come from one build directory,
 build/ by default (what scripts/setup.sh builds) or $WAVEBRDF_BUILD_DIR (relative to the
-repository root, or absolute)."""
+repository root, or absolute); with WAVEBRDF_TEST_INSTALLED=1 the module is the installed one."""
 import os
 import sys
 
@@ -9,7 +9,11 @@ import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 BUILD = os.path.join(ROOT, os.environ.get("WAVEBRDF_BUILD_DIR", "build"))
-sys.path.insert(0, os.path.join(BUILD, "python"))
+# WAVEBRDF_TEST_INSTALLED=1: the tests import the installed package (pip install, docs/install.md)
+# instead of the build's; those that start the CLI or a child interpreter still use BUILD.
+INSTALLED = os.environ.get("WAVEBRDF_TEST_INSTALLED") == "1"
+if not INSTALLED:
+    sys.path.insert(0, os.path.join(BUILD, "python"))
 
 
 @pytest.fixture

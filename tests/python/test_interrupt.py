@@ -53,6 +53,10 @@ CASES = {
                      "q = wb.Query(x_um=64, y_um=64, sigma_p_um=30.0, model='GHS')\n"
                      "rep = wb.GaborRep(hf, q)",
                      "wb.render(rep, q, resolution=320)"),
+    # The runs with their progress shown (wavebrdf/_progress.py wraps the callback; the display
+    # is closed on the way out).
+    "invert_progress": ("", "wb.invert(size=32, resolution=64, epochs=100000, quiet=False)"),
+    "recover_progress": ("", "wb.recover(size=32, quiet=False)"),
 }
 
 

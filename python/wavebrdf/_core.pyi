@@ -1,0 +1,889 @@
+"""Type stubs of wavebrdf._core, written by scripts/gen_stubs.py from the module's signatures and
+docstrings (run it again after changing a binding; tests/python/test_stubs.py checks them)."""
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Sequence, Set, Tuple, Union, overload
+
+import numpy
+
+__version__: str
+
+class AcquisitionPlan:
+    """What plan_acquisition proposes: footprint centres on a jittered raster over the periodic tile,
+    a slice resolution that samples the window (Nyquist), and wavelengths whose synthetic
+    wavelengths unwrap the height range. planned_observations / simulate_observations turn it
+    into Observations (one per position and wavelength).
+    """
+    @property
+    def sigma_p_um(self) -> float:
+        """footprint sigma_p, um"""
+        ...
+    @property
+    def resolution(self) -> int:
+        """slice pixels per side"""
+        ...
+    @property
+    def lambdas_um(self) -> List[float]:
+        """wavelengths in um, lambda0 first"""
+        ...
+    @property
+    def synthetic_um(self) -> List[float]:
+        """the synthetic wavelengths lambda_a lambda_b / |lambda_a - lambda_b| in um, coarsest first"""
+        ...
+    @property
+    def positions_um(self) -> numpy.ndarray:
+        """footprint centres (x_um, y_um), a float64 array (N, 2) (a copy)"""
+        ...
+    @property
+    def step_um(self) -> tuple:
+        """raster steps (x, y) in um"""
+        ...
+    @property
+    def overlap(self) -> float:
+        """worst-case linear overlap 1 - d/D of neighbouring windows (D = 6 sigma_p), jitter included"""
+        ...
+    @property
+    def light(self) -> tuple:
+        """projected light direction (wx, wy) of every observation"""
+        ...
+    @property
+    def model(self) -> str:
+        ...
+    @property
+    def notes(self) -> List[str]:
+        """the choices, one line each"""
+        ...
+    def __repr__(self) -> str:
+        ...
+
+class Adam:
+    """Adam (Kingma and Ba 2015) with an exponential learning-rate decay per epoch:
+    lr_epoch = lr * exp(-decay * epoch). Defaults are the thesis's.
+
+    Adam(size, lr=0.01, beta1=0.9, beta2=0.99, epsilon=1e-8, decay=0.005)
+        size    number of parameters (e.g. rows * cols heights), >= 1
+        lr > 0; beta1, beta2 in [0, 1); epsilon > 0; decay >= 0 (per epoch)
+    """
+    def __init__(self, size: int, lr: float = ..., beta1: float = ..., beta2: float = ..., epsilon: float = ..., decay: float = ...) -> None:
+        ...
+    def step(self, x: Any, gradient: Any, epoch: int = ...) -> numpy.ndarray:
+        """One update of x (a writable C-contiguous float64 array of `size` values, any shape, changed in
+        place and returned) against `gradient` (same number of finite values), at the learning rate
+        of `epoch` (0-based).
+        """
+        ...
+    def learning_rate(self, epoch: int) -> float:
+        """lr * exp(-decay * epoch)"""
+        ...
+    @property
+    def size(self) -> int:
+        ...
+    @property
+    def steps(self) -> int:
+        """steps taken (bias correction)"""
+        ...
+    @property
+    def m(self) -> numpy.ndarray:
+        """first moment (a copy)"""
+        ...
+    @property
+    def v(self) -> numpy.ndarray:
+        """second moment (a copy)"""
+        ...
+    def set_state(self, m: Any, v: Any, steps: int) -> None:
+        """Restores moments and step count (e.g. from a checkpoint)."""
+        ...
+
+class GaborRep:
+    """The Gabor kernels of a heightfield that fall within 3 sigma_p of a footprint centre (the
+    model's cut; MODEL.md "Gabor kernels"), independent of wavelength and directions: one kernel
+    per texel, at its nearest periodic image. Arrays are read-only float64 views (kernel order):
+
+        row, col        texel (i, j) of each kernel (int32)
+        dx_um, dy_um    kernel centre minus footprint centre, um
+        weight          footprint window weight times kernel area c_k w^2, um
+        height_um       kernel height H_k = vscale * texel_um * h[i, j], um
+        slope_x/_y      dimensionless slope s_k (periodic central differences of h, times vscale)
+
+    GaborRep(heightfield, query)  or
+    GaborRep(heightfield, x_um=None, y_um=None, sigma_p_um=10.0)
+        x_um, y_um default to the tile centre; sigma_p_um > 0 in um.
+
+    The inverse transform ``to_heights`` / ``to_heightfield`` recovers heightfield values from
+    kernel heights (h = H / (vscale * texel_um)); slopes follow from the heights and are not
+    independent parameters, so they are not used.
+    """
+    @overload
+    def __init__(self, heightfield: Heightfield, query: Query) -> None:
+        ...
+    @overload
+    def __init__(self, heightfield: Heightfield, x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ...) -> None:
+        ...
+    def __len__(self) -> int:
+        ...
+    @property
+    def size(self) -> int:
+        """number of kernels"""
+        ...
+    @property
+    def x_um(self) -> float:
+        """footprint centre along x, um"""
+        ...
+    @property
+    def y_um(self) -> float:
+        """footprint centre along y, um"""
+        ...
+    @property
+    def sigma_p_um(self) -> float:
+        """footprint sigma_p, um"""
+        ...
+    @property
+    def sigma_um(self) -> float:
+        """kernel sigma = texel_um / 2, um"""
+        ...
+    @property
+    def shape(self) -> tuple:
+        """(rows, cols) of the heightfield"""
+        ...
+    @property
+    def texel_um(self) -> float:
+        ...
+    @property
+    def vscale(self) -> float:
+        ...
+    @property
+    def row(self) -> numpy.ndarray:
+        ...
+    @property
+    def col(self) -> numpy.ndarray:
+        ...
+    @property
+    def dx_um(self) -> numpy.ndarray:
+        ...
+    @property
+    def dy_um(self) -> numpy.ndarray:
+        ...
+    @property
+    def weight(self) -> numpy.ndarray:
+        ...
+    @property
+    def height_um(self) -> numpy.ndarray:
+        ...
+    @property
+    def slope_x(self) -> numpy.ndarray:
+        ...
+    @property
+    def slope_y(self) -> numpy.ndarray:
+        ...
+    @property
+    def positions_um(self) -> numpy.ndarray:
+        """(size, 2) kernel centres mu_k = footprint centre + (dx_um, dy_um), um (a new array)"""
+        ...
+    @property
+    def covered(self) -> numpy.ndarray:
+        """(rows, cols) bool mask of the texels that have a kernel"""
+        ...
+    def to_heights(self, height_um: Any = ..., fill: float = ...) -> numpy.ndarray:
+        """The inverse transform: heightfield values in texel units, h = H_k / (vscale * texel_um), at
+        each kernel's texel; ``fill`` (default NaN) where no kernel lies. ``height_um`` (length
+        ``size``, um) replaces the kernel heights; default: this representation's own.
+        """
+        ...
+    def to_heightfield(self, height_um: Any = ..., base: Heightfield = ...) -> Heightfield:
+        """The inverse transform as a Heightfield (same texel_um and vscale): kernel heights (this
+        representation's, or ``height_um``) at the covered texels, ``base``'s values elsewhere
+        (required unless every texel is covered).
+        """
+        ...
+    def __repr__(self) -> str:
+        ...
+
+class Heightfield:
+    """A periodic heightfield on a grid of square texels (the public release's convention).
+
+    Values are heights in units of the texel width: the height in um is
+    ``vscale * texel_um * value``. Row index i runs along the surface coordinate x, column j
+    along y; the surface tiles the plane.
+
+    Heightfield(values, texel_um=1.0, vscale=1.0)
+        values    2-D float32/float64 array (rows, cols) of finite heights in texel units
+                  (copied once into the heightfield, as float64)
+        texel_um  texel width w in um, finite and > 0
+        vscale    vertical scale v (dimensionless), finite
+    """
+    def __init__(self, values: Any, texel_um: float = ..., vscale: float = ...) -> None:
+        ...
+    @staticmethod
+    def from_exr(path: str, texel_um: float = ..., vscale: float = ...) -> Heightfield:
+        """Reads the R (or Y) channel of an OpenEXR file (half or float) as heights in texel units.
+        RuntimeError names the file when it is missing, unreadable or corrupt; ValueError on a
+        non-finite value.
+        """
+        ...
+    @staticmethod
+    def generate(type: str = ..., rows: int = ..., cols: Optional[int] = ..., texel_um: float = ..., seed: int = ..., rms_height_um: float = ..., rms_slope: float = ..., correlation_um: float = ..., anisotropy: float = ..., scratch_count: int = ..., scratch_depth_um: float = ..., scratch_width_um: float = ..., amplitude_um: float = ..., period_um: float = ...) -> Heightfield:
+        """A procedural periodic surface, deterministic in ``seed`` (as ``wavebrdf heightfield``).
+
+        type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_um, or rms
+              slope rms_slope when > 0, correlation length correlation_um), 'brushed' (the same,
+              anisotropy times longer along y), 'scratched' (scratch_count Gaussian grooves of depth
+              scratch_depth_um and width scratch_width_um on a smooth base) or 'grating'
+              (amplitude_um * sin(2 pi x / period_um)). Lengths in um; rows, cols in 1...16384
+              (cols defaults to rows). The result has vscale 1 and texel width texel_um.
+        """
+        ...
+    @property
+    def rows(self) -> int:
+        ...
+    @property
+    def cols(self) -> int:
+        ...
+    @property
+    def shape(self) -> tuple:
+        """(rows, cols)"""
+        ...
+    @property
+    def texel_um(self) -> float:
+        """texel width w in um"""
+        ...
+    @property
+    def vscale(self) -> float:
+        """vertical scale v"""
+        ...
+    @property
+    def period_x_um(self) -> float:
+        """tile period along x (rows), um"""
+        ...
+    @property
+    def period_y_um(self) -> float:
+        """tile period along y (columns), um"""
+        ...
+    @property
+    def values(self) -> numpy.ndarray:
+        """The heights in texel units, a read-only float64 view (rows, cols) of this heightfield's
+        memory (no copy). Assigning an array of the same shape overwrites them in place.
+        """
+        ...
+    @values.setter
+    def values(self, value: numpy.ndarray) -> None: ...
+    def to_numpy(self) -> numpy.ndarray:
+        """A writable float64 copy of the values (rows, cols), in texel units."""
+        ...
+    def __array__(self, dtype: Any = ...) -> numpy.ndarray:
+        ...
+    def heights_um(self) -> numpy.ndarray:
+        """Heights in um, vscale * texel_um * values (a new float64 array)."""
+        ...
+    def slope(self, i: int, j: int) -> tuple:
+        """Dimensionless slope (s_x, s_y) at texel (i, j) by periodic central differences."""
+        ...
+    def with_values(self, values: Any) -> Heightfield:
+        """The same geometry with other values (same shape)."""
+        ...
+    def with_scale(self, texel_um: float, vscale: float) -> Heightfield:
+        """The same values with another texel width (um) and vertical scale."""
+        ...
+    def stats(self) -> dict:
+        """Mean, rms height, min and max in um (vscale included) and rms slope."""
+        ...
+    def save_exr(self, path: str) -> None:
+        """Writes the values (texel units) as a single-channel float EXR (atomically)."""
+        ...
+    def save_png(self, path: str) -> None:
+        """Writes a grey PNG preview, min black, max white."""
+        ...
+    def copy(self) -> Heightfield:
+        ...
+    def __copy__(self) -> Heightfield:
+        ...
+    def __deepcopy__(self, memo: dict) -> Heightfield:
+        ...
+    def __repr__(self) -> str:
+        ...
+
+class InversionResult:
+    """What invert() returns."""
+    @property
+    def estimate(self) -> Any:
+        """the recovered Heightfield"""
+        ...
+    @property
+    def truth(self) -> Any:
+        """the truth Heightfield (None with observations)"""
+        ...
+    @property
+    def observations(self) -> Any:
+        """the Observations fitted"""
+        ...
+    @property
+    def metrics(self) -> Any:
+        """dict of float64 arrays, one entry per evaluated epoch (the CLI's metrics.csv columns): epoch,
+        loss, brdf_mse, cmsle_1, cmsle_0.001, rgb_mse, rgb_gamma_mse, height_mse (um^2 after removing
+        the mean; NaN without a truth), seconds.
+        """
+        ...
+    @property
+    def final_slices(self) -> Any:
+        """the observations' slices rendered from the estimate, shaped like their references"""
+        ...
+    @property
+    def epochs(self) -> int:
+        """the last epoch reached"""
+        ...
+    @property
+    def stopped(self) -> bool:
+        """True when the callback stopped the run early"""
+        ...
+
+class LbfgsResult:
+    """The outcome of lbfgs_minimize."""
+    @property
+    def iterations(self) -> int:
+        """accepted steps"""
+        ...
+    @property
+    def evaluations(self) -> int:
+        """objective calls, the first included"""
+        ...
+    @property
+    def value(self) -> float:
+        """objective at the returned x"""
+        ...
+    @property
+    def converged(self) -> bool:
+        """max |gradient| <= gradient_tolerance"""
+        ...
+    def __repr__(self) -> str:
+        ...
+
+class Loss:
+    """A loss between an estimated and a reference slice (the thesis's Definition 3.2):
+        'cmsle:EPS'  1/|P| sum_p sum_c (log(I + EPS) - log(R + EPS))^2, EPS > 0 ('cmsle' = 'cmsle:1')
+        'mse'        1/|P| sum_p sum_c (I - R)^2
+        'amplitude'  1/|P| sum_p sum_c (sqrt(I) - sqrt(R))^2
+        'poisson:N'  1/|P| sum_p sum_c 2 (k log(k / mu) - (k - mu)), k = s R, mu = s I, s = N / sum(R):
+                     the Poisson deviance of a slice measured with N photons (N > 0)
+    Negative values are clamped to 0 for the log and square root (and get gradient 0).
+    Loss(spec='cmsle:1'); loss(estimate, reference) -> float;
+    loss.value_and_gradient(estimate, reference) -> (float, dloss/destimate shaped like estimate).
+    estimate, reference: float arrays of the same shape, finite; an (n, n, c) array has c
+    channels per pixel, any other shape one. The loss is a mean over pixels of a sum over channels.
+    """
+    def __init__(self, spec: str = ...) -> None:
+        ...
+    @property
+    def kind(self) -> str:
+        """'cmsle', 'mse', 'amplitude' or 'poisson'"""
+        ...
+    @property
+    def epsilon(self) -> float:
+        """CMSLE's epsilon"""
+        ...
+    @property
+    def photons(self) -> float:
+        """Poisson's photons per slice N"""
+        ...
+    def __call__(self, estimate: Any, reference: Any) -> float:
+        ...
+    def value_and_gradient(self, estimate: Any, reference: Any) -> tuple:
+        ...
+    def __str__(self) -> str:
+        ...
+    def __repr__(self) -> str:
+        ...
+
+class Observation:
+    """A reference slice with the query that produced it (an input of observation_loss and invert).
+
+    Observation(query, reference)
+        query      a Query
+        reference  the slice, finite: (n, n) for one wavelength, (n, n, 3) linear sRGB for a
+                   spectral query (may be slightly negative: out-of-gamut colours); n = the
+                   resolution (1...8192)
+    """
+    def __init__(self, query: Query, reference: Any) -> None:
+        ...
+    @property
+    def query(self) -> Query:
+        ...
+    @property
+    def resolution(self) -> int:
+        ...
+    @property
+    def channels(self) -> int:
+        """1 (one wavelength) or 3 (RGB)"""
+        ...
+    @property
+    def lambdas_um(self) -> List[float]:
+        ...
+    @property
+    def reference(self) -> numpy.ndarray:
+        """the reference slice, a read-only float64 view"""
+        ...
+    def render(self, heightfield: Heightfield) -> numpy.ndarray:
+        """What this observation would see of `heightfield`, shaped like the reference (float64)."""
+        ...
+    def __repr__(self) -> str:
+        ...
+
+class Query:
+    """One BRDF query: a Gaussian footprint on the surface, a light direction, a diffraction model
+    and the wavelength(s).
+
+    Query(x_um=0.0, y_um=0.0, sigma_p_um=10.0, light=(0.0, 0.0), model='OHS', lambda_um=None,
+          spectral=None)
+        x_um, y_um   footprint centre in um (x along rows, y along columns); finite, periodic
+        sigma_p_um   footprint standard deviation in um, 1e-6 to 1e6 (and <= 10 tile periods)
+        light        projected direction towards the light (wx, wy), wx^2 + wy^2 < 1
+        model        'OHS', 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+        lambda_um    one wavelength in um (0.01 to 1000); default 0.5 when spectral is None
+        spectral     N samples over 0.36-0.83 um (1...256) or a list of wavelengths in um, to
+                     linear sRGB (CIE 1931); excludes lambda_um
+    Position, sigma_p, light and model can be set later (validated); the wavelengths are fixed.
+    """
+    def __init__(self, x_um: float = ..., y_um: float = ..., sigma_p_um: float = ..., light: Any = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ...) -> None:
+        ...
+    @property
+    def x_um(self) -> float:
+        ...
+    @x_um.setter
+    def x_um(self, value: float) -> None: ...
+    @property
+    def y_um(self) -> float:
+        ...
+    @y_um.setter
+    def y_um(self, value: float) -> None: ...
+    @property
+    def sigma_p_um(self) -> float:
+        ...
+    @sigma_p_um.setter
+    def sigma_p_um(self, value: float) -> None: ...
+    @property
+    def light(self) -> tuple:
+        ...
+    @light.setter
+    def light(self, value: tuple) -> None: ...
+    @property
+    def model(self) -> str:
+        ...
+    @model.setter
+    def model(self, value: str) -> None: ...
+    @property
+    def lambdas_um(self) -> List[float]:
+        """the wavelengths in um"""
+        ...
+    @property
+    def spectral(self) -> bool:
+        """True when the slice is spectral (RGB through CIE 1931)"""
+        ...
+    def kwargs(self) -> dict:
+        """The query as keyword arguments of render_slice and slice_gradient."""
+        ...
+    def copy(self) -> Query:
+        ...
+    def __copy__(self) -> Query:
+        ...
+    def __deepcopy__(self, memo: dict) -> Query:
+        ...
+    def __repr__(self) -> str:
+        ...
+
+class RecoveryResult:
+    """What recover() returns."""
+    @property
+    def estimate(self) -> Any:
+        """the recovered Heightfield"""
+        ...
+    @property
+    def truth(self) -> Any:
+        """the truth Heightfield (given or generated; None with observations)"""
+        ...
+    @property
+    def observations(self) -> Any:
+        """the Observations recovered from (simulated or given)"""
+        ...
+    @property
+    def notes(self) -> List[str]:
+        """the plan's choices, one line each (empty with observations)"""
+        ...
+    @property
+    def warnings(self) -> List[str]:
+        """check_acquisition's warnings"""
+        ...
+    @property
+    def metrics(self) -> Any:
+        """dict of arrays, one entry per reported step (the CLI's metrics.csv columns): stage (str),
+        iteration (int64), loss, seconds (since the recovery started), height_rel_rmse (float64; NaN
+        without a truth or before heights exist).
+        """
+        ...
+    @property
+    def method(self) -> str:
+        """'pipeline' or 'thesis'"""
+        ...
+    @property
+    def loss(self) -> str:
+        """the loss fitted, as a spec"""
+        ...
+    @property
+    def noise(self) -> str:
+        """the simulated noise, as a spec"""
+        ...
+    @property
+    def height_range_um(self) -> float:
+        """the truth's peak-to-valley (um), or the bound given with observations"""
+        ...
+    @property
+    def stopped(self) -> bool:
+        """True when the callback stopped the run early"""
+        ...
+
+def add_noise(values: Any, noise: Any, seed: int = ...) -> Any:
+    """Simulated measurement noise (noise.h), deterministic in `seed`.
+
+    values  a slice (float array of non-negative values, any shape: one slice) -> a new float64
+            array of that shape; or Observation(s) -> a new list with noisy references, observation
+            i seeded from (seed, i)
+    noise   'none', 'poisson:N' (photon noise, N photons expected per slice, > 0; a slice summing to
+            0 is unchanged) or 'gaussian:REL' (additive, sigma = REL x max, REL >= 0, clamped at 0)
+    """
+    ...
+
+def amplitude(estimate: Any, reference: Any) -> float:
+    """Squared error of amplitudes sqrt(I) (see Loss).
+    estimate, reference: float arrays of the same shape, finite; an (n, n, c) array has c
+    channels per pixel, any other shape one. The loss is a mean over pixels of a sum over channels.
+    """
+    ...
+
+def check_acquisition(observations: Any, size: Any, texel_um: float, truth: Any = ...) -> List[str]:
+    """Warnings (a list of str, empty when all is well) for observations too coarse or too sparse to
+    determine the heights of a tile of `size` = N or (rows, cols) texels of texel_um (um):
+    neighbouring windows overlapping < 60 %, texels farther than 2 sigma_p from every footprint,
+    slices sampling u more than 4x as coarsely as Nyquist, fewer values than heights, and (with a
+    truth Heightfield) slopes that reflect light off the slice.
+    """
+    ...
+
+def cie1931_xyz(lambda_um: float) -> tuple:
+    """CIE 1931 2-degree colour-matching functions (x, y, z) at a wavelength in um."""
+    ...
+
+def cmsle(estimate: Any, reference: Any, epsilon: float = ...) -> float:
+    """Corrected mean squared log error with epsilon > 0 (see Loss).
+    estimate, reference: float arrays of the same shape, finite; an (n, n, c) array has c
+    channels per pixel, any other shape one. The loss is a mean over pixels of a sum over channels.
+    """
+    ...
+
+def gradient(heightfield: Heightfield, query: Query, weights: Any, precision: str = ...) -> numpy.ndarray:
+    """The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
+    values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss
+    (Loss.value_and_gradient); see slice_gradient for how channels map to wavelengths.
+    """
+    ...
+
+def height_mse(estimate: Any, truth: Any) -> float:
+    """Mean squared difference of two heightfields (same shape) after removing each one's mean,
+    which no slice can see; in the squared units of the inputs.
+    """
+    ...
+
+def height_rel_rmse(estimate: Heightfield, truth: Heightfield) -> float:
+    """RMS of (estimate - truth) in um after removing each one's mean, divided by the truth's
+    peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat.
+    """
+    ...
+
+def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ...) -> InversionResult:
+    """The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
+    whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
+    truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
+    0.005, 300 epochs, CMSLE epsilon 1). Returns an InversionResult.
+
+    truth         Heightfield, 2-D array (texel units) or EXR path; references are rendered from
+                  it. Default: generated isotropic surface of `size` (rms 0.35 texel, correlation
+                  2 texels, `seed`). Excludes `observations`.
+    observations  Observation, list of them, or a JSON path (the CLI's --observations)
+    size          N or (rows, cols), 1...16384: the generated truth, or the estimate with observations
+    texel_um      texel width in um (> 0), vscale: vertical scale; default the truth
+                  Heightfield's, else 1. Given, they apply to the truth and the estimate.
+    x_um, y_um    footprint centre in um, any finite value, periodic (default: tile centre);
+                  sigma_p_um 1e-6 to 1e6 and <= 10 tile periods (default 4)
+    model         'OHS', 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+    lambda_um     one wavelength in um, or spectral: N (1...256) or a list in um; default spectral 8
+    light         projected light direction (wx, wy), wx^2 + wy^2 < 1; resolution: slice size n
+    init          'flat', 'noisy:FRAC' (truth + uniform noise of width FRAC x its height range),
+                  a Heightfield, a 2-D array or an EXR path
+    epochs        0 to 10^7 (Adam steps or L-BFGS iterations); optimizer 'adam' or 'lbfgs'
+    lr, beta1, beta2, decay   Adam's options (lr > 0, betas in [0, 1), decay >= 0 per epoch)
+    loss          'cmsle:EPS', 'mse', 'amplitude', 'poisson:N' or a Loss
+    positions     'fixed', 'random' (a new footprint position per epoch, Adam only), a list of
+                  (x_um, y_um), or a JSON path ([[x_um, y_um], ...])
+    seed          generated truth, noise and random positions
+    callback      callback(metrics: dict, estimate: (rows, cols) float64 heights in texel units)
+                  after each evaluated epoch (epoch 0 included); return False to stop early.
+    max_memory_gb refuse (MemoryError, before the references are rendered) a run whose
+                  estimated peak memory exceeds this many GB; 0 (default): the physical memory.
+    quiet         progress (a tqdm bar if tqdm is installed, else a line on stderr): None (default)
+                  shows it when stderr is a terminal or in Jupyter, False always, True never
+    The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
+    """
+    ...
+
+def lbfgs_minimize(objective: Callable[..., Any], x0: Any, *, history: int = ..., max_iterations: int = ..., gradient_tolerance: float = ..., max_line_search: int = ..., callback: Any = ...) -> tuple:
+    """Minimises objective(x) -> (value, gradient) from x0 by L-BFGS with a backtracking (Armijo)
+    line search (Nocedal and Wright, Algorithms 7.4, 7.5, 3.1). x is passed as a new float64 array
+    shaped like x0; gradient: any float array with as many values. Options: history >= 1 pairs,
+    max_iterations >= 0, gradient_tolerance >= 0 (stop when max |g| <= it), max_line_search >= 1
+    trials. callback(iteration, value), after each accepted step, may return False to stop.
+    Returns (x, LbfgsResult). ValueError when f or its gradient at x0 is not finite.
+    """
+    ...
+
+def mse(estimate: Any, reference: Any) -> float:
+    """Mean squared error (see Loss).
+    estimate, reference: float arrays of the same shape, finite; an (n, n, c) array has c
+    channels per pixel, any other shape one. The loss is a mean over pixels of a sum over channels.
+    """
+    ...
+
+def observation_loss(heightfield: Heightfield, observations: Any, loss: Any = ...) -> tuple:
+    """The mean over observations of loss(render(heightfield), reference) and its gradient with
+    respect to the heightfield's values (texel units, float64 (rows, cols)), in double precision:
+    (value, gradient). loss: a Loss or its spec ('cmsle:EPS', 'mse', 'amplitude', 'poisson:N').
+    """
+    ...
+
+def plan_acquisition(*, rows: int = ..., cols: Any = ..., texel_um: float = ..., height_range_um: float = ..., sigma_p_um: float = ..., overlap: float = ..., jitter: float = ..., lambda_um: float = ..., lambda_min_um: float = ..., lambda_max_um: float = ..., max_step_ratio: float = ..., lambdas_um: Any = ..., resolution: int = ..., light: Any = ..., model: str = ..., seed: int = ...) -> AcquisitionPlan:
+    """An acquisition that determines the heights of a rows x cols tile (acquisition.h): returns an
+    AcquisitionPlan. Keyword arguments (PlanRequest's fields):
+
+    rows, cols       heightfield size in texels (>= 1; cols defaults to rows); texel_um > 0 (um)
+    height_range_um  expected peak-to-valley of the heights, um (>= 0): sets the wavelength ladder
+    sigma_p_um       footprint sigma_p, um (> 0; 0: 1.5 texels). Window support D = 6 sigma_p.
+    overlap          worst-case linear overlap 1 - d/D of neighbouring windows, 0.6 ... 0.95
+    jitter           position jitter, fraction of the raster step, 0 ... 0.3
+    lambda_um        base wavelength lambda0 (um), within lambda_min_um ... lambda_max_um (the
+                     wavelengths the ladder may use); max_step_ratio: ladder step, 1.5 ... 100
+    lambdas_um       given wavelengths (um) instead of the ladder; None: planned
+    resolution       given slice size n (1...8192) instead of Nyquist's n >= 4D/lambda; 0: planned
+    light            projected light direction (wx, wy), wx^2 + wy^2 < 1; model: 'OHS', 'ROHS', ...
+    seed             the jitter
+    A height range the wavelengths cannot unwrap is a ValueError naming the largest they can.
+    """
+    ...
+
+def planned_observations(plan: AcquisitionPlan) -> List[Observation]:
+    """One Observation per (position, wavelength) of `plan`, with zero references (fill them with
+    measurements, or use simulate_observations).
+    """
+    ...
+
+def read_observations(path: str) -> List[Observation]:
+    """Observations from JSON (the format of `wavebrdf invert --observations`)."""
+    ...
+
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ...) -> RecoveryResult:
+    """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
+    options and seed give the same estimate. Returns a RecoveryResult.
+
+    truth         Heightfield, 2-D array (texel units) or EXR path: the acquisition is planned for
+                  it and its observations simulated. Default: a generated isotropic surface of
+                  `size` (correlation_texels, peak-to-valley height_range_um, `seed`). Excludes
+                  `observations`.
+    observations  Observation(s) or a JSON path (the CLI's --observations): recovered as given, on
+                  a `size` grid, with height_range_um as the bound for unwrapping
+    size          N or (rows, cols), 1...16384 (default 32)
+    texel_um      texel width in um (> 0), vscale: vertical scale; default the truth Heightfield's,
+                  else 2 um and 1. Given, they apply to the truth and the estimate.
+    height_range_um  generated truth: peak-to-valley in um (> 0, default 2: +-1 um); with
+                  observations: bound on the height range
+    correlation_texels  generated truth: correlation length in texels (> 0)
+    model         'OHS' or 'ROHS' (the field retrieval is separable); light: (wx, wy), |w| < 1
+    sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
+    resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
+    lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
+    overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95; jitter 0 ... 0.3
+    noise         simulated noise: 'none', 'poisson:N' (photons per slice) or 'gaussian:REL'
+    loss          a spec or Loss; None: matched to the noise for the pipeline (amplitude without
+                  noise, poisson:N, mse), cmsle:1 for the thesis's method
+    method        'pipeline' (blurred fit, field retrieval, unwrapping, refinement) or 'thesis'
+                  (Adam, one observation per epoch)
+    field_iterations, refine_iterations  pipeline iterations (>= 0; None: the library's)
+    epochs        thesis method: Adam epochs (>= 0)
+    seed          generated truth, position jitter, noise, the thesis's draws
+    callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse)
+                  after every reported step; return False to stop early.
+    max_memory_gb refuse (MemoryError, before any work) a run whose estimated peak memory exceeds
+                  this many GB; 0 (default): the physical memory
+    quiet         progress (a tqdm bar per stage if tqdm is installed, else a line on stderr): None
+                  (default) shows it when stderr is a terminal or in Jupyter, False always, True never
+    The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
+    """
+    ...
+
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ...) -> Heightfield:
+    """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
+    phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
+    on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
+    vscale). Settings (defaults: the library's, in the signature):
+
+    blur_widths         blurred fit: blur widths in footprint lobes, widest first ([] : start the
+                        fields from flat); blur_iterations: L-BFGS per width (>= 0)
+    blur_wavelengths    the blurred fit uses this many longest wavelengths (0: all), at positions
+                        at least blur_spacing_sigma sigma_p apart (0: all)
+    field_iterations    L-BFGS iterations of each field retrieval (>= 0); field_passes >= 1;
+                        cascade: each field starts from the heights of the fields before it;
+                        band_limit: keep only the object's spectrum the slices see
+    refine              odd object-grid refinement 1...63 (0: automatic)
+    max_range_um        bound on the height range for unwrapping (um, > 0; RecoverSettings::height_range_um)
+    unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
+    refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
+                        refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
+    Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
+
+    observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
+                  ones feed the blurred fit and the fields; all feed the refinement and Adam)
+    size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
+    truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
+    callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse
+                  (NaN without a truth)) after every reported step; return False to stop early
+                  (the estimate so far is returned). The run releases the GIL; Ctrl-C stops it
+                  at the next step (KeyboardInterrupt).
+    """
+    ...
+
+def recover_heights_thesis(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., epochs: int = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., seed: int = ..., report_every: int = ..., callback: Any = ...) -> Heightfield:
+    """The thesis's method as a baseline (baseline.h): Adam on `loss` (default cmsle:1), one
+    observation drawn at random (from `seed`) per epoch, from a flat start. Returns a Heightfield.
+    epochs >= 0; lr > 0, beta1 and beta2 in [0, 1), decay >= 0 per epoch (the thesis's 0.01, 0.9,
+    0.99, 0.005); the callback sees stage 'thesis' every report_every (>= 1) epochs and the last.
+
+    observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
+                  ones feed the blurred fit and the fields; all feed the refinement and Adam)
+    size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
+    truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
+    callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse
+                  (NaN without a truth)) after every reported step; return False to stop early
+                  (the estimate so far is returned). The run releases the GIL; Ctrl-C stops it
+                  at the next step (KeyboardInterrupt).
+    """
+    ...
+
+@overload
+def render(heightfield: Heightfield, query: Query, resolution: int = ..., precision: str = ...) -> numpy.ndarray:
+    """The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear RGB, float64
+    (precision='double') or float32 ('float'); resolution 1...8192.
+    """
+    ...
+@overload
+def render(gabor: GaborRep, query: Query, resolution: int = ..., precision: str = ...) -> numpy.ndarray:
+    """The same from a GaborRep made for this query's footprint (the kernels are not gathered again)."""
+    ...
+
+def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: float = ..., y_um: float = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
+    """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')
+
+    One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),
+    linear RGB. The same as `wavebrdf render` with the same options.
+
+    heights     2-D float32 or float64 array (rows, cols), finite, in texel units. float64 renders
+                in double precision, float32 in single (the CLI's --precision); the result has the
+                same dtype.
+    texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
+    vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
+                vscale * texel_um * heights
+    x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
+                default 0)
+    sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
+                10 times the longer tile period (default 10)
+    lambda_um   one wavelength in um, 0.01 to 1000: R = G = B = its slice. Default 0.5 when spectral is None.
+    spectral    N (1...256): the library's N wavelengths over 0.36-0.83 um (the CLI's --spectral N),
+                or a list of wavelengths in um; mapped to linear sRGB through the CIE 1931 curves.
+                Excludes lambda_um.
+    light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0))
+    resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
+                ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
+    model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+    """
+    ...
+
+def rgb_gamma_mse(estimate: Any, reference: Any) -> float:
+    """Reporting metric of the thesis (Fig. 5.3), mean over pixels and channels of
+    (T(I) - T(R))^2 with T(x) = x / (1 + x) (rgb_mse) or (x / (1 + x))^(1/2.2)
+    (rgb_gamma_mse). (n, n, 3) RGB or (n, n) / (n, n, 1) grey slices.
+    """
+    ...
+
+def rgb_mse(estimate: Any, reference: Any) -> float:
+    """Reporting metric of the thesis (Fig. 5.3), mean over pixels and channels of
+    (T(I) - T(R))^2 with T(x) = x / (1 + x) (rgb_mse) or (x / (1 + x))^(1/2.2)
+    (rgb_gamma_mse). (n, n, 3) RGB or (n, n) / (n, n, 1) grey slices.
+    """
+    ...
+
+def simulate_observations(truth: Heightfield, plan: AcquisitionPlan, noise: Any = ..., seed: int = ...) -> List[Observation]:
+    """The planned observations of `truth` (a Heightfield), rendered in double precision, with
+    `noise` added: 'none', 'poisson:N' (N photons expected per slice, > 0) or 'gaussian:REL'
+    (sigma REL x the slice's peak, >= 0, clamped at 0). Observation i's noise is drawn from
+    (seed, i). Returns a list of Observations.
+    """
+    ...
+
+def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: float = ..., y_um: float = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
+    """slice_gradient(heights, weights, *, resolution, **the options of render_slice)
+
+    The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`
+    (texel units), a vector-Jacobian product by the library's adjoint: an array shaped
+    and typed like `heights`. For a loss L of the slice, weights = dL/dslice gives
+    dL/dheights.
+
+    weights     float32/float64 array (resolution, resolution, 3), finite; one weight per
+                pixel and channel. One wavelength: R = G = B, so the three channels'
+                weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]
+                with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk
+                are ignored.
+
+    heights     2-D float32 or float64 array (rows, cols), finite, in texel units. float64 renders
+                in double precision, float32 in single (the CLI's --precision); the result has the
+                same dtype.
+    texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
+    vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
+                vscale * texel_um * heights
+    x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
+                default 0)
+    sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
+                10 times the longer tile period (default 10)
+    lambda_um   one wavelength in um, 0.01 to 1000: R = G = B = its slice. Default 0.5 when spectral is None.
+    spectral    N (1...256): the library's N wavelengths over 0.36-0.83 um (the CLI's --spectral N),
+                or a list of wavelengths in um; mapped to linear sRGB through the CIE 1931 curves.
+                Excludes lambda_um.
+    light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0))
+    resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
+                ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
+    model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+    """
+    ...
+
+def spectral_to_srgb_weights(lambdas_um: List[float]) -> numpy.ndarray:
+    """The (3, N) matrix M mapping values at the N wavelengths (um) to linear sRGB (CIE 1931,
+    Bradford to D65): rgb[c] = sum_l M[c, l] f(lambda_l). A constant spectrum maps to grey.
+    """
+    ...
+
+def spectral_wavelengths_um(count: int) -> List[float]:
+    """The library's N wavelengths in um: 0.36 + (k + 1/2) * 0.47 / N (N = 8: genBrdf's samples)."""
+    ...
+
+def with_height_range(heightfield: Heightfield, range_um: float) -> Heightfield:
+    """`heightfield` scaled about its mean to the peak-to-valley height range_um (um, > 0); texel
+    width and vscale unchanged. A flat heightfield is a ValueError.
+    """
+    ...
+
+def write_observations(path: str, observations: Any, references: str = ...) -> None:
+    """Writes observations as JSON (the format read_observations and `wavebrdf invert|recover
+    --observations` read), atomically. references: 'inline' (values in the JSON, exact) or 'exr'
+    (float EXR files NAME/slice_0000.exr ... beside the JSON, NAME its file name without the
+    extension: what `wavebrdf recover --save-observations` writes).
+    """
+    ...
