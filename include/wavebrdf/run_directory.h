@@ -37,7 +37,6 @@ void check_run_directory(RunKind kind, const std::string& dir, bool force, const
 // file cannot be deleted.
 void prepare_run_directory(RunKind kind, const std::string& dir, bool force, const std::string& option = "--out");
 
-
 // The distinct wavelengths (µm) of `per_observation` (each observation's list), in the order
 // they first appear: what run.json records as "wavelengths_um".
 std::vector<double> distinct_wavelengths_um(const std::vector<std::vector<double>>& per_observation);

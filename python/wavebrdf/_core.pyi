@@ -94,7 +94,7 @@ class Adam:
 
 class GaborRep:
     """The Gabor kernels of a heightfield that fall within 3 sigma_p of a footprint centre (the
-    model's cut; MODEL.md "Gabor kernels"), independent of wavelength and directions: one kernel
+    model's cut; docs/model.md §3-4), independent of wavelength and directions: one kernel
     per texel, at its nearest periodic image. Arrays are read-only float64 views (kernel order):
 
         row, col        texel (i, j) of each kernel (int32)
@@ -212,10 +212,18 @@ class Heightfield:
     def __init__(self, values: Any, texel_um: float = ..., vscale: float = ...) -> None:
         ...
     @staticmethod
-    def from_exr(path: str, texel_um: float = ..., vscale: float = ...) -> Heightfield:
+    def from_exr(path: str, texel_um: Any = ..., vscale: Any = ...) -> Heightfield:
         """Reads the R (or Y) channel of an OpenEXR file (half or float) as heights in texel units.
-        RuntimeError names the file when it is missing, unreadable or corrupt; ValueError on a
-        non-finite value.
+        texel_um (um) and vscale: when None (default), the file's own (written by save_exr and the
+        CLI), else 1.0; a given value that differs from the file's wins, with a UserWarning naming
+        both. RuntimeError names the file when it is missing, unreadable or corrupt, or has a
+        hostile wavebrdf attribute; ValueError on a non-finite value.
+        """
+        ...
+    @staticmethod
+    def exr_attributes(path: str) -> dict:
+        """What a heightfield EXR says about itself (no pixels read): a dict with texel_um, vscale
+        (None when the file does not say), units, made_by and version ('' when absent).
         """
         ...
     @staticmethod
@@ -284,8 +292,11 @@ class Heightfield:
     def stats(self) -> dict:
         """Mean, rms height, min and max in um (vscale included) and rms slope."""
         ...
-    def save_exr(self, path: str) -> None:
-        """Writes the values (texel units) as a single-channel float EXR (atomically)."""
+    def save_exr(self, path: str, made_by: str = ...) -> None:
+        """Writes the values (texel units) as a single-channel float EXR (atomically), with the
+        attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,
+        "Files"), so that from_exr reads the same scale back.
+        """
         ...
     def save_png(self, path: str) -> None:
         """Writes a grey PNG preview, min black, max white."""
@@ -682,6 +693,20 @@ def read_observations(path: str) -> List[Observation]:
     """Observations from JSON (the format of `wavebrdf invert --observations`)."""
     ...
 
+def read_slice(path: str) -> tuple:
+    """Reads a slice EXR written by wavebrdf (render --out, genbrdf -o, a run's reference_/final_
+    slices, observation files) or any RGB EXR.
+
+    Returns (image, info): image a float32 array (n, n, 3), linear, in the slice's unit; info a dict
+    of what the file says about itself: x_um, y_um, sigma_p_um (um), light (omega_i x, y), model,
+    lambdas_um (list, um), resolution, channels (1: one wavelength, stored R = G = B; 3: sRGB),
+    the heightfield's texel_um, vscale, heightfield_size (rows, cols) and heightfield_file (when
+    known), unit (f_r, the BRDF, in 1/sr), made_by and version. An empty dict for a file without
+    wavebrdf's attributes. RuntimeError names the file when it is unreadable or an attribute is
+    hostile.
+    """
+    ...
+
 def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
@@ -780,30 +805,45 @@ def render(gabor: GaborRep, query: Query, resolution: int = ..., precision: str 
     """The same from a GaborRep made for this query's footprint (the kernels are not gathered again)."""
     ...
 
-def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: float = ..., y_um: float = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
+def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
     """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')
 
     One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),
-    linear RGB. The same as `wavebrdf render` with the same options.
+    linear RGB. The same as `wavebrdf render` with the same options. With batch axes
+    (below): (batch..., resolution, resolution, 3), one slice per item.
 
-    heights     2-D float32 or float64 array (rows, cols), finite, in texel units. float64 renders
+    heights     float32 or float64 array (rows, cols), or (..., rows, cols) for a batch (below),
+                finite, in texel units. float64 renders
                 in double precision, float32 in single (the CLI's --precision); the result has the
                 same dtype.
     texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
     vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
                 vscale * texel_um * heights
     x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
-                default 0)
+                default 0); arrays for a batch (below)
     sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
                 10 times the longer tile period (default 10)
     lambda_um   one wavelength in um, 0.01 to 1000: R = G = B = its slice. Default 0.5 when spectral is None.
     spectral    N (1...256): the library's N wavelengths over 0.36-0.83 um (the CLI's --spectral N),
                 or a list of wavelengths in um; mapped to linear sRGB through the CIE 1931 curves.
                 Excludes lambda_um.
-    light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0))
+    light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0));
+                an array (..., 2) for a batch (below)
     resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
                 ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
     model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+
+    Batches: heights may have leading batch axes (..., rows, cols); light may be (2,) or (..., 2);
+    x_um and y_um may be scalars or arrays. The batch shape is the NumPy broadcast of
+    heights.shape[:-2], light.shape[:-1], numpy.shape(x_um) and numpy.shape(y_um) (right-aligned;
+    each axis equal or 1), and item [i...] renders heights[i...], light[i...], x_um[i...], y_um[i...]
+    with each argument indexed as broadcasting repeats it. render_slice returns (batch..., n, n, 3);
+    slice_gradient takes weights of exactly that shape and returns an array shaped like heights
+    whose entries sum the gradients of every item that read them (so heights broadcast over lights
+    get the sum over the lights). sigma_p_um, the wavelengths and the model are shared. The items
+    run in one library call spread over the threads (wavebrdf/batch.h); each equals the single call
+    (to rounding of a parallel sum, ~1e-12 relative in float64). A single query (2-D heights, one
+    light pair, scalar positions) keeps the shapes (n, n, 3) and (rows, cols).
     """
     ...
 
@@ -829,7 +869,7 @@ def simulate_observations(truth: Heightfield, plan: AcquisitionPlan, noise: Any 
     """
     ...
 
-def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: float = ..., y_um: float = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
+def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
     """slice_gradient(heights, weights, *, resolution, **the options of render_slice)
 
     The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`
@@ -837,30 +877,45 @@ def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: flo
     and typed like `heights`. For a loss L of the slice, weights = dL/dslice gives
     dL/dheights.
 
-    weights     float32/float64 array (resolution, resolution, 3), finite; one weight per
+    weights     float32/float64 array (resolution, resolution, 3), or (batch..., resolution,
+                resolution, 3) for a batch (below), finite; one weight per
                 pixel and channel. One wavelength: R = G = B, so the three channels'
                 weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]
                 with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk
                 are ignored.
 
-    heights     2-D float32 or float64 array (rows, cols), finite, in texel units. float64 renders
+    heights     float32 or float64 array (rows, cols), or (..., rows, cols) for a batch (below),
+                finite, in texel units. float64 renders
                 in double precision, float32 in single (the CLI's --precision); the result has the
                 same dtype.
     texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
     vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
                 vscale * texel_um * heights
     x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
-                default 0)
+                default 0); arrays for a batch (below)
     sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
                 10 times the longer tile period (default 10)
     lambda_um   one wavelength in um, 0.01 to 1000: R = G = B = its slice. Default 0.5 when spectral is None.
     spectral    N (1...256): the library's N wavelengths over 0.36-0.83 um (the CLI's --spectral N),
                 or a list of wavelengths in um; mapped to linear sRGB through the CIE 1931 curves.
                 Excludes lambda_um.
-    light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0))
+    light       projected direction towards the light (wx, wy), wx^2 + wy^2 < 1 (default (0, 0));
+                an array (..., 2) for a batch (below)
     resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
                 ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
     model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+
+    Batches: heights may have leading batch axes (..., rows, cols); light may be (2,) or (..., 2);
+    x_um and y_um may be scalars or arrays. The batch shape is the NumPy broadcast of
+    heights.shape[:-2], light.shape[:-1], numpy.shape(x_um) and numpy.shape(y_um) (right-aligned;
+    each axis equal or 1), and item [i...] renders heights[i...], light[i...], x_um[i...], y_um[i...]
+    with each argument indexed as broadcasting repeats it. render_slice returns (batch..., n, n, 3);
+    slice_gradient takes weights of exactly that shape and returns an array shaped like heights
+    whose entries sum the gradients of every item that read them (so heights broadcast over lights
+    get the sum over the lights). sigma_p_um, the wavelengths and the model are shared. The items
+    run in one library call spread over the threads (wavebrdf/batch.h); each equals the single call
+    (to rounding of a parallel sum, ~1e-12 relative in float64). A single query (2-D heights, one
+    light pair, scalar positions) keeps the shapes (n, n, 3) and (rows, cols).
     """
     ...
 

@@ -98,7 +98,6 @@ void prepare_run_directory(RunKind kind, const std::string& dir, bool force, con
     fs::create_directories(dir);
 }
 
-
 std::vector<double> distinct_wavelengths_um(const std::vector<std::vector<double>>& per_observation) {
     std::vector<double> out;
     for (const auto& lambdas : per_observation)
