@@ -24,6 +24,8 @@ struct TableArgs {
     std::string heightfield;
     double texel_um = 1.0;
     double vscale = 1.0;
+    // Whether --texel-um / --vscale were given: when not, the heightfield file's attributes apply.
+    bool given_texel = false, given_vscale = false;
     std::string model = "OHS";
     double lambda_um = 0.5;
     int spectral = 0;  // used only when given_spectral
@@ -59,7 +61,10 @@ void run(TableArgs a) {
     check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.out}, {"--png", a.png}});
     check_writable(a.out);
     if (!a.png.empty()) check_writable(a.png);
-    const Heightfield hf = read_heightfield_exr(a.heightfield, a.texel_um, a.vscale);
+    const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
+                                                               if_given(a.given_vscale, a.vscale), "--texel-um",
+                                                               "--vscale");
+    const Heightfield hf = read_heightfield_exr(a.heightfield, scale.texel_um, scale.vscale);
     if (!a.png.empty()) {
         // The preview's copies (its mosaic in float, the exposure's in double) on top of the table.
         const double values = 3.0 * spec.lights.rows * spec.lights.cols * double(spec.resolution) * spec.resolution;
@@ -103,8 +108,9 @@ void add_table_command(CLI::App& app) {
         "table", "Tabulate the BRDF of one footprint over a grid of light directions into one EXR (docs/table.md)");
     cmd->add_option("--heightfield", a->heightfield, "heightfield EXR (R channel, heights in texel widths)")
         ->required();
-    cmd->add_option("--texel-um", a->texel_um, "texel width w in um")->capture_default_str();
-    cmd->add_option("--vscale", a->vscale, "vertical scale v")->capture_default_str();
+    auto* texel = cmd->add_option("--texel-um", a->texel_um,
+                                  "texel width w in um (default: the heightfield file's, else 1)");
+    auto* vscale = cmd->add_option("--vscale", a->vscale, "vertical scale v (default: the heightfield file's, else 1)");
     cmd->add_option("--x-um", a->spec.query.x_um, "footprint centre along x (rows) in um")->capture_default_str();
     cmd->add_option("--y-um", a->spec.query.y_um, "footprint centre along y (columns) in um")->capture_default_str();
     cmd->add_option("--sigma-p-um", a->spec.query.sigma_p_um, "footprint (coherence) size sigma_p in um")
@@ -134,8 +140,10 @@ void add_table_command(CLI::App& app) {
                     "refuse a table whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
-    cmd->callback([a, spectral] {
+    cmd->callback([a, spectral, texel, vscale] {
         a->given_spectral = spectral->count() > 0;
+        a->given_texel = texel->count() > 0;
+        a->given_vscale = vscale->count() > 0;
         run(*a);
     });
 }

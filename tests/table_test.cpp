@@ -330,6 +330,20 @@ TEST(TableCli, EntryEqualsRenderOfThatLight) {
     }
 }
 
+TEST(TableCli, UsesTheHeightfieldFilesTexelSizeUnlessGiven) {
+    const fs::path dir = test::fresh_dir("table_cli_texel");
+    ASSERT_EQ(test::run_cli(dir, "heightfield --size 32 --texel-um 0.5 --out h.exr --no-png --quiet").exit_code, 0);
+    const std::string common = "table --heightfield h.exr --sigma-p-um 3 --resolution 8 --lights 2x2 --quiet";
+    const test::CliResult from_file = test::run_cli(dir, common + " --out a.exr");
+    ASSERT_EQ(from_file.exit_code, 0) << from_file.err;
+    EXPECT_EQ(from_file.err, "");
+    EXPECT_EQ(read_brdf_table((dir / "a.exr").string()).texel_um, 0.5);
+    const test::CliResult given = test::run_cli(dir, common + " --texel-um 1 --out b.exr");
+    ASSERT_EQ(given.exit_code, 0) << given.err;
+    EXPECT_EQ(read_brdf_table((dir / "b.exr").string()).texel_um, 1.0);
+    EXPECT_NE(given.err.find("--texel-um 1 disagrees with"), std::string::npos) << given.err;
+}
+
 TEST(TableCli, ErrorsAreOneLine) {
     const fs::path dir = test::fresh_dir("table_cli");
     ASSERT_EQ(test::run_cli(dir, "heightfield --size 16 --out h.exr --no-png --quiet").exit_code, 0);
