@@ -1,6 +1,7 @@
 // BRDF tables (table.h): rendering one and reading its file, as dicts of NumPy arrays and
 // numbers that wavebrdf/table.py wraps into a BrdfTable. This file only converts and validates.
 #include "common.h"
+#include "wavebrdf/io.h"
 #include "wavebrdf/table.h"
 
 namespace wavebrdf::python {
@@ -47,7 +48,14 @@ void bind_table(py::module_& m) {
         "_render_table",
         [](const py::object& heightfield, const PyQuery& q, const py::object& lights, double max_light_sin,
            int resolution, const std::string& precision, double max_memory_gb, const std::string& out) {
-            const Heightfield hf = heightfield_argument(heightfield, "heightfield", 1.0, 1.0, false);
+            // A file path: the file's own texel width and vertical scale (else 1, 1), as in the CLI.
+            const Heightfield hf = [&] {
+                if (!py::isinstance<py::str>(heightfield))
+                    return heightfield_argument(heightfield, "heightfield", 1.0, 1.0, false);
+                const std::string path = heightfield.cast<std::string>();
+                py::gil_scoped_release release;
+                return read_heightfield_exr(path);
+            }();
             check_resolution(resolution);
             if (precision != "float" && precision != "double")
                 bad_argument("precision", "'" + precision + "'", "'float' or 'double'");

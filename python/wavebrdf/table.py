@@ -12,6 +12,8 @@ projected outgoing direction, pixel (p, q) at omega_o = ((p + 1/2) / n * 2 - 1, 
 zero outside the unit disk: f_r in 1/sr (one wavelength: R = G = B; several: CIE 1931 to linear
 sRGB), exactly what ``wavebrdf.render`` returns for that light (in float32).
 """
+import os
+
 from . import _core
 
 __all__ = ["BrdfTable", "read_table", "render_table"]
@@ -66,7 +68,8 @@ def render_table(heightfield, query, *, lights=(32, 32), max_light_sin=0.9, reso
                  max_memory_gb=0.0, out=None):
     """Renders the BRDF table of one footprint over a grid of lights (``wavebrdf table``).
 
-    heightfield     a wavebrdf.Heightfield, an EXR path, or a 2-D array of heights in texel
+    heightfield     a wavebrdf.Heightfield, an EXR path (its own texel_um and vscale, else 1),
+                    or a 2-D array of heights in texel
                     units (texel_um 1, vscale 1; build a Heightfield for other scales)
     query           wavebrdf.Query: footprint, model and wavelengths (its light is ignored)
     lights          N or (rows, cols): lights along omega_i,x and omega_i,y, 1...16384, with
@@ -80,5 +83,7 @@ def render_table(heightfield, query, *, lights=(32, 32), max_light_sin=0.9, reso
     Returns a BrdfTable; each entry equals wavebrdf.render(heightfield, query with that light,
     resolution, precision) rounded to float32. Ctrl-C stops it (KeyboardInterrupt).
     """
+    if isinstance(heightfield, os.PathLike):
+        heightfield = os.fspath(heightfield)
     return BrdfTable(_core._render_table(heightfield, query, lights, max_light_sin, resolution, precision,
                                          max_memory_gb, "" if out is None else str(out)))

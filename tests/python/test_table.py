@@ -85,3 +85,11 @@ def test_bad_arguments(rng):
         wb.render_table(hf, q, lights=2, resolution=4, precision="half")
     with pytest.raises(MemoryError, match="table"):
         wb.render_table(hf, q, lights=32, resolution=512, max_memory_gb=0.01)
+
+
+def test_render_table_of_a_file_uses_its_texel_size(cli, tmp_path):
+    subprocess.run([cli, "heightfield", "--size", "32", "--texel-um", "0.5", "--out", "h.exr", "--no-png",
+                    "--quiet"], cwd=tmp_path, check=True)
+    q = wb.Query(sigma_p_um=3.0)
+    assert wb.render_table(str(tmp_path / "h.exr"), q, lights=(2, 2), resolution=8).texel_um == 0.5
+    assert wb.render_table(tmp_path / "h.exr", q, lights=(2, 2), resolution=8).texel_um == 0.5
