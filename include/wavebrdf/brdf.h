@@ -19,10 +19,16 @@ namespace wavebrdf {
 
 class Progress;
 
-enum class RenderPath { Auto, Separable, Direct };
+// Separable: the field as complex matrix products (GHS, RGHS and Kirchhoff: one product per
+// Chebyshev node in C3); Fft: the kernels spread onto a fine grid, folded and Fourier
+// transformed (the same nodes); Direct: every pixel sums every kernel. Auto picks by cost.
+enum class RenderPath { Auto, Separable, Direct, Fft };
 
 struct RenderOptions {
-    RenderPath path = RenderPath::Auto;  // Auto: separable for OHS/ROHS, direct otherwise
+    RenderPath path = RenderPath::Auto;
+    // Separable (GHS-type models) and Fft paths: bound on their error relative to the slice's
+    // peak, which sets the number of C3 nodes and the FFT grid; 1e-12 … 1e-2.
+    double tolerance = 1e-6;
     // Direct path: bound on the pruning error relative to the slice's peak; at most 1e-6.
     // 0 disables pruning (the plain reference sum).
     double prune_tolerance = 1e-7;

@@ -27,6 +27,11 @@ void validate(const RenderOptions& options, Model model) {
                                 " is out of range; expected 0 to 1e-6 of the slice peak");
     if (options.path == RenderPath::Separable && !is_separable(model))
         throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") + to_string(model));
+    if (!(options.tolerance >= 1e-12 && options.tolerance <= 1e-2))
+        throw std::domain_error("tolerance " + std::to_string(options.tolerance) +
+                                " is out of range; expected 1e-12 to 1e-2 of the slice peak");
+    if (options.path == RenderPath::Fft)
+        throw std::invalid_argument("the fft path is not available yet; expected auto, separable or direct");
 }
 
 template <typename Float>
@@ -255,7 +260,8 @@ bool SlicePlan<Float>::matches(const Heightfield& hf, const Query& query, const 
            query.x_um == s.query.x_um && query.y_um == s.query.y_um && query.sigma_p_um == s.query.sigma_p_um &&
            query.omega_i == s.query.omega_i && query.model == s.query.model && lambdas_um == s.lambdas_um &&
            resolution == s.n && channels == s.channels && options.path == s.options.path &&
-           options.prune_tolerance == s.options.prune_tolerance && options.progress == s.options.progress;
+           options.prune_tolerance == s.options.prune_tolerance && options.tolerance == s.options.tolerance &&
+           options.progress == s.options.progress;
 }
 
 template <typename Float>
