@@ -1,0 +1,581 @@
+// The FFT engine: spread / fold / FFT forward, FFT / gather adjoint (forward/fft_engine.h).
+#include "forward/fft_engine.h"
+
+#include <fftw3.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+#include "core/parallel.h"
+#include "wavebrdf/constants.h"
+#include "wavebrdf/memory.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+
+// FFTW's planner is not thread-safe: every plan is made and destroyed under this lock
+// (executing a plan is thread-safe).
+std::mutex& planner_mutex() {
+    static std::mutex mutex;
+    return mutex;
+}
+
+template <typename Float>
+struct Fftw;
+
+template <>
+struct Fftw<double> {
+    using Plan = fftw_plan;
+    using Complex = fftw_complex;
+    static Plan many(int size, int count, std::complex<double>* data, int stride, int dist) {
+        Complex* p = reinterpret_cast<Complex*>(data);
+        return fftw_plan_many_dft(1, &size, count, p, nullptr, stride, dist, p, nullptr, stride, dist, FFTW_FORWARD,
+                                  FFTW_ESTIMATE);
+    }
+    static void execute(Plan plan, std::complex<double>* data) {
+        Complex* p = reinterpret_cast<Complex*>(data);
+        fftw_execute_dft(plan, p, p);
+    }
+    static void destroy(Plan plan) { fftw_destroy_plan(plan); }
+    static void* malloc(std::size_t bytes) { return fftw_malloc(bytes); }
+    static void free(void* p) { fftw_free(p); }
+};
+
+template <>
+struct Fftw<float> {
+    using Plan = fftwf_plan;
+    using Complex = fftwf_complex;
+    static Plan many(int size, int count, std::complex<float>* data, int stride, int dist) {
+        Complex* p = reinterpret_cast<Complex*>(data);
+        return fftwf_plan_many_dft(1, &size, count, p, nullptr, stride, dist, p, nullptr, stride, dist, FFTW_FORWARD,
+                                   FFTW_ESTIMATE);
+    }
+    static void execute(Plan plan, std::complex<float>* data) {
+        Complex* p = reinterpret_cast<Complex*>(data);
+        fftwf_execute_dft(plan, p, p);
+    }
+    static void destroy(Plan plan) { fftwf_destroy_plan(plan); }
+    static void* malloc(std::size_t bytes) { return fftwf_malloc(bytes); }
+    static void free(void* p) { fftwf_free(p); }
+};
+
+long long wrap(long long m, long long size) {
+    const long long r = m % size;
+    return r < 0 ? r + size : r;
+}
+
+// v[j] = G1(x_j − δ) · e^{−i2π(β x_j − b δ)}, x_j = (m0 + j)·h, j = 0…count−1: the kernel's
+// 1-D factor (normalised Gaussian of σ, its slope's linear phase, the demodulation β = b + U0).
+// Gaussians by gaussian_samples' recurrence, the phase by a rotation restarted every 32 steps.
+void kernel_vector(long long m0, int count, double h, double delta, double sigma, double beta, double b,
+                   std::complex<double>* v, double* g) {
+    gaussian_samples(0.5 / (sigma * sigma), double(m0) * h - delta, h, count, g);
+    const double norm = 1.0 / (std::sqrt(2.0 * k_pi) * sigma);
+    const std::complex<double> rotation = std::polar(1.0, -2.0 * k_pi * beta * h);
+    std::complex<double> phase;
+    for (int j = 0; j < count; ++j) {
+        if (j % 32 == 0)
+            phase = std::polar(1.0, -2.0 * k_pi * (beta * double(m0 + j) * h - b * delta));
+        else
+            phase *= rotation;
+        v[j] = (norm * g[j]) * phase;
+    }
+}
+
+// The kernel's y vector folded modulo `size`: out[i] ↔ column wrap(first + i); `length`
+// entries (≤ size). Returns the first column.
+template <typename Float>
+long long fold(const std::complex<double>* v, int count, long long m0, long long size, std::complex<Float>* out,
+               int& length) {
+    if (count <= size) {
+        for (int j = 0; j < count; ++j) out[j] = std::complex<Float>(v[j]);
+        length = count;
+        return wrap(m0, size);
+    }
+    std::fill(out, out + size, std::complex<Float>(0));
+    for (int j = 0; j < count; ++j) out[wrap(m0 + j, size)] += std::complex<Float>(v[j]);
+    length = static_cast<int>(size);
+    return 0;
+}
+
+}  // namespace
+
+long long good_fft_size(long long at_least) {
+    long long best = std::numeric_limits<long long>::max();
+    const long long target = std::max<long long>(at_least, 1);
+    for (long long a = 1; a < best && a / 2 < target; a *= 2)
+        for (long long b = a; b < best && b / 3 < target; b *= 3)
+            for (long long c = b; c < best; c *= 5)
+                if (c >= target) {
+                    best = std::min(best, c);
+                    break;
+                }
+    return best;
+}
+
+// The kernels a call spreads and the grid it spreads them on.
+template <typename Float>
+struct FftEngine<Float>::Layout {
+    FftGridInfo info;
+    std::vector<std::size_t> kept;  // kernel indices
+    std::vector<long long> x0, y0;  // first spread index per kept kernel (unwrapped)
+    std::vector<double> bx, by;     // b_k per kept kernel (cycles/µm)
+};
+
+// The grids (one per weight vector) and their FFTW plans: rows (length my, all mx of them) and
+// columns (length mx, the first n), each split into one block per thread.
+template <typename Float>
+struct FftEngine<Float>::Workspace {
+    using Traits = Fftw<Float>;
+    int mx = 0, my = 0, threads = 0;
+    std::vector<std::complex<Float>*> grids;
+    std::vector<std::pair<int, typename Traits::Plan>> row_plans, col_plans;  // (first row/column, plan)
+    ~Workspace() { clear(); }
+    void clear() {
+        std::lock_guard<std::mutex> lock(planner_mutex());
+        for (auto& p : row_plans) Traits::destroy(p.second);
+        for (auto& p : col_plans) Traits::destroy(p.second);
+        row_plans.clear();
+        col_plans.clear();
+        for (auto* g : grids) Traits::free(g);
+        grids.clear();
+        mx = my = threads = 0;
+    }
+};
+
+template <typename Float>
+FftEngine<Float>::FftEngine(const FootprintKernels& kernels, const SliceGrid& grid, double lambda_um, int n,
+                            double tolerance)
+    : m_kernels(kernels), m_n(n), m_lambda_um(lambda_um), m_tolerance(tolerance), m_work(new Workspace) {
+    if (!(lambda_um > 0.0) || !std::isfinite(lambda_um))
+        throw std::domain_error("FFT engine: wavelength " + std::to_string(lambda_um) + " µm; expected > 0");
+    if (n < 1 || n > 65536)
+        throw std::invalid_argument("FFT engine: slice size " + std::to_string(n) + "; expected 1…65536");
+    if (!(tolerance >= 1e-12 && tolerance <= 1e-2))
+        throw std::domain_error("FFT engine: tolerance " + std::to_string(tolerance) + "; expected 1e-12…1e-2");
+    if (grid.ux.size() != std::size_t(n) || grid.uy.size() != std::size_t(n))
+        throw std::invalid_argument("FFT engine: the slice grid has " + std::to_string(grid.ux.size()) +
+                                    " entries; expected n = " + std::to_string(n));
+    const double sigma = kernels.sigma_um;
+    if (!(sigma > 0.0) || !std::isfinite(sigma))
+        throw std::domain_error("FFT engine: kernel sigma " + std::to_string(sigma) + " µm; expected > 0");
+    const std::size_t count = kernels.size();
+    if (kernels.dx_um.size() != count || kernels.dy_um.size() != count || kernels.slope_x.size() != count ||
+        kernels.slope_y.size() != count)
+        throw std::invalid_argument("FFT engine: the kernels' arrays differ in length; expected " +
+                                    std::to_string(count) + " each");
+    for (std::size_t k = 0; k < count; ++k)
+        if (!std::isfinite(kernels.dx_um[k]) || !std::isfinite(kernels.dy_um[k]))
+            throw std::domain_error("FFT engine: kernel " + std::to_string(k) + " has a non-finite position");
+    m_du = 2.0 / (double(n) * lambda_um);
+    m_u0x = grid.ux[0];
+    m_u0y = grid.uy[0];
+    // The per-kernel bound: errors of many kernels add incoherently on a rough surface and
+    // coherently on a smooth one, where the peak grows the same way. With t = tolerance the
+    // tests measured errors of 0.1–0.2 · tolerance; t = tolerance / 4 keeps a margin of ~20.
+    const double t = tolerance / 4.0;
+    const double log_t = std::log(1.0 / t);
+    m_radius_x_um = sigma * std::sqrt(2.0 * log_t);
+    m_radius_u = std::sqrt(log_t / (2.0 * k_pi * k_pi * sigma * sigma));
+}
+
+template <typename Float>
+FftEngine<Float>::~FftEngine() = default;
+
+template <typename Float>
+typename FftEngine<Float>::Layout FftEngine<Float>::layout(double shift_scale) const {
+    if (!std::isfinite(shift_scale))
+        throw std::domain_error("FFT engine: shift scale " + std::to_string(shift_scale) + "; expected finite");
+    Layout out;
+    const std::size_t count = m_kernels.size();
+    const double scale = shift_scale * 2.0 / m_lambda_um;
+    const double u1x = m_u0x + double(m_n - 1) * m_du, u1y = m_u0y + double(m_n - 1) * m_du;
+    const double r = m_radius_u / m_du;  // spectral radius in grid steps
+    double hi_x = double(m_n - 1), lo_x = 0.0, hi_y = double(m_n - 1), lo_y = 0.0;
+    out.kept.reserve(count);
+    for (std::size_t k = 0; k < count; ++k) {
+        const double bx = scale * m_kernels.slope_x[k], by = scale * m_kernels.slope_y[k];
+        if (!std::isfinite(bx) || !std::isfinite(by))
+            throw std::domain_error("FFT engine: kernel " + std::to_string(k) + " has a non-finite slope");
+        // Distance of the spectrum's centre −b from the window, per axis.
+        const double dx = std::max({0.0, m_u0x + bx, -bx - u1x}), dy = std::max({0.0, m_u0y + by, -by - u1y});
+        if (dx * dx + dy * dy > m_radius_u * m_radius_u) continue;
+        out.kept.push_back(k);
+        out.bx.push_back(bx);
+        out.by.push_back(by);
+        const double cx = (-bx - m_u0x) / m_du, cy = (-by - m_u0y) / m_du;
+        hi_x = std::max(hi_x, cx + r);
+        lo_x = std::min(lo_x, cx - r);
+        hi_y = std::max(hi_y, cy + r);
+        lo_y = std::min(lo_y, cy - r);
+    }
+    // No alias of any kept spectrum may reach the window: M > hi and M > n − 1 − lo.
+    const double need_x = std::max(hi_x, double(m_n - 1) - lo_x), need_y = std::max(hi_y, double(m_n - 1) - lo_y);
+    const double limit = 1e9;  // far beyond any memory; keeps the integer arithmetic exact
+    if (!(need_x < limit && need_y < limit))
+        throw_out_of_memory("the FFT engine's grid (more than 1e9 points per axis)", 1e18);
+    long long mx = good_fft_size(static_cast<long long>(std::floor(need_x)) + 1);
+    long long my = good_fft_size(static_cast<long long>(std::floor(need_y)) + 1);
+    // Reuse the current grid while it is not much larger than needed (no re-planning when the
+    // slopes change a little between calls).
+    if (m_work->mx >= mx && m_work->my >= my && m_work->mx <= mx + mx / 4 && m_work->my <= my + my / 4) {
+        mx = m_work->mx;
+        my = m_work->my;
+    }
+    if (mx > std::numeric_limits<int>::max() / 2 || my > std::numeric_limits<int>::max() / 2)
+        throw_out_of_memory("the FFT engine's grid", double(mx) * double(my) * sizeof(std::complex<Float>));
+    const double period = 1.0 / m_du;
+    out.info.mx = static_cast<int>(mx);
+    out.info.my = static_cast<int>(my);
+    out.info.hx_um = period / double(mx);
+    out.info.hy_um = period / double(my);
+    out.info.kept = out.kept.size();
+    const double hx = out.info.hx_um, hy = out.info.hy_um;
+    out.x0.resize(out.kept.size());
+    out.y0.resize(out.kept.size());
+    out.info.span_x = static_cast<int>(std::floor(2.0 * m_radius_x_um / hx)) + 1;
+    out.info.span_y = static_cast<int>(std::floor(2.0 * m_radius_x_um / hy)) + 1;
+    for (std::size_t i = 0; i < out.kept.size(); ++i) {
+        const std::size_t k = out.kept[i];
+        out.x0[i] = static_cast<long long>(std::ceil((m_kernels.dx_um[k] - m_radius_x_um) / hx));
+        out.y0[i] = static_cast<long long>(std::ceil((m_kernels.dy_um[k] - m_radius_x_um) / hy));
+    }
+    return out;
+}
+
+template <typename Float>
+FftGridInfo FftEngine<Float>::plan_grid(double shift_scale) const {
+    return layout(shift_scale).info;
+}
+
+template <typename Float>
+void FftEngine<Float>::prepare(const Layout& layout, std::size_t grids) {
+    using Traits = Fftw<Float>;
+    const int mx = layout.info.mx, my = layout.info.my;
+    const double entries = double(mx) * double(my);
+    const int threads = worth_parallel(static_cast<long long>(entries)) ? omp_get_max_threads() : 1;
+    Workspace& w = *m_work;
+    if (w.mx != mx || w.my != my || w.threads != threads || w.grids.size() < grids) {
+        const double bytes = entries * double(std::max(grids, w.grids.size())) * sizeof(std::complex<Float>);
+        const std::string what = "the FFT engine's " + std::to_string(mx) + "x" + std::to_string(my) + " grids";
+        const std::uint64_t physical = physical_memory_bytes();
+        if (physical > 0 && bytes > double(physical)) throw_out_of_memory(what, bytes);
+        const std::size_t keep = std::max(grids, w.grids.size());
+        w.clear();
+        allocating(what, bytes, [&] {
+            for (std::size_t v = 0; v < keep; ++v) {
+                void* p = Traits::malloc(static_cast<std::size_t>(entries) * sizeof(std::complex<Float>));
+                if (!p) throw std::bad_alloc();
+                w.grids.push_back(static_cast<std::complex<Float>*>(p));
+            }
+        });
+        std::lock_guard<std::mutex> lock(planner_mutex());
+        for (int t = 0; t < threads; ++t) {
+            const int r0 = int(static_cast<long long>(mx) * t / threads),
+                      r1 = int(static_cast<long long>(mx) * (t + 1) / threads);
+            if (r1 > r0)
+                w.row_plans.emplace_back(r0, Traits::many(my, r1 - r0, w.grids[0] + std::size_t(r0) * my, 1, my));
+            const int c0 = int(static_cast<long long>(m_n) * t / threads),
+                      c1 = int(static_cast<long long>(m_n) * (t + 1) / threads);
+            if (c1 > c0) w.col_plans.emplace_back(c0, Traits::many(mx, c1 - c0, w.grids[0] + c0, my, 1));
+        }
+        for (auto& p : w.row_plans)
+            if (!p.second)
+                throw std::runtime_error("FFT engine: FFTW could not plan a transform of " + std::to_string(my));
+        for (auto& p : w.col_plans)
+            if (!p.second)
+                throw std::runtime_error("FFT engine: FFTW could not plan a transform of " + std::to_string(mx));
+        w.mx = mx;
+        w.my = my;
+        w.threads = threads;
+    }
+}
+
+template <typename Float>
+void FftEngine<Float>::check_weights(const KernelWeights& weights) const {
+    if (weights.empty()) throw std::invalid_argument("FFT engine: no weight vectors; expected at least one");
+    for (std::size_t v = 0; v < weights.size(); ++v)
+        if (weights[v].size() != m_kernels.size())
+            throw std::invalid_argument("FFT engine: weight vector " + std::to_string(v) + " has " +
+                                        std::to_string(weights[v].size()) + " entries; expected " +
+                                        std::to_string(m_kernels.size()));
+}
+
+namespace {
+
+// The thread's share of the rows [first, last) of the grid: rows balanced by the number of
+// kernel rows that land on them (kernels concentrate where the footprint is).
+std::vector<int> row_bands(const std::vector<long long>& x0, int span, int mx, int threads) {
+    std::vector<long long> load(std::size_t(mx) + 1, 0);
+    for (long long first : x0) {
+        if (span >= mx) {
+            load[0] += span / mx + 1;
+            continue;
+        }
+        const long long a = wrap(first, mx), b = a + span;
+        load[std::size_t(a)] += 1;
+        if (b <= mx)
+            load[std::size_t(b)] -= 1;
+        else {
+            load[std::size_t(mx)] -= 1;
+            load[0] += 1;
+            load[std::size_t(b - mx)] -= 1;
+        }
+    }
+    std::vector<long long> cumulative(std::size_t(mx) + 1, 0);
+    long long running = 0;
+    for (int r = 0; r < mx; ++r) {
+        running += load[std::size_t(r)];
+        cumulative[std::size_t(r) + 1] = cumulative[std::size_t(r)] + running + 1;  // +1: zeroing
+    }
+    std::vector<int> bands(std::size_t(threads) + 1, 0);
+    bands[std::size_t(threads)] = mx;
+    for (int t = 1; t < threads; ++t) {
+        const long long target = cumulative[std::size_t(mx)] * t / threads;
+        bands[std::size_t(t)] = static_cast<int>(std::lower_bound(cumulative.begin(), cumulative.end(), target) -
+                                                 cumulative.begin());
+        bands[std::size_t(t)] = std::clamp(bands[std::size_t(t)], bands[std::size_t(t) - 1], mx);
+    }
+    return bands;
+}
+
+}  // namespace
+
+template <typename Float>
+void FftEngine<Float>::forward(const KernelWeights& weights, double shift_scale,
+                               std::vector<ComplexMatrix<Float>>& fields) {
+    using Complex = std::complex<Float>;
+    using Traits = Fftw<Float>;
+    check_weights(weights);
+    const Layout lay = layout(shift_scale);
+    const std::size_t views = weights.size();
+    prepare(lay, views);
+    m_info = lay.info;
+    Workspace& w = *m_work;
+    const int mx = w.mx, my = w.my, threads = w.threads, n = m_n;
+    const double hx = lay.info.hx_um, hy = lay.info.hy_um, area = hx * hy;
+    const int span_x = lay.info.span_x, span_y = lay.info.span_y;
+    const std::vector<int> bands = row_bands(lay.x0, span_x, mx, threads);
+    const double sigma = m_kernels.sigma_um;
+    RegionGuard guard;
+#pragma omp parallel num_threads(threads) if (threads > 1)
+    {
+        // Every phase loops over the blocks, should the team be smaller than asked for.
+        const int first_block = omp_get_thread_num(), stride = omp_get_num_threads();
+        std::vector<std::complex<double>> vx, vy;
+        std::vector<double> gauss;
+        std::vector<Complex> yf;
+        std::vector<std::complex<double>> coef(views);
+        guard.run([&] {
+            vx.resize(std::size_t(span_x));
+            vy.resize(std::size_t(span_y));
+            gauss.resize(std::size_t(std::max(span_x, span_y)));
+            yf.resize(std::size_t(std::max(span_y, my)));
+            for (int t = first_block; t < threads; t += stride) {
+                const int r0 = bands[std::size_t(t)], r1 = bands[std::size_t(t) + 1];
+                for (std::size_t v = 0; v < views; ++v)
+                    std::fill(w.grids[v] + std::size_t(r0) * my, w.grids[v] + std::size_t(r1) * my, Complex(0));
+            }
+        });
+#pragma omp barrier
+        for (int t = first_block; t < threads; t += stride)
+            guard.run([&] {
+                const int r0 = bands[std::size_t(t)], r1 = bands[std::size_t(t) + 1];
+                if (r1 <= r0) return;
+                for (std::size_t i = 0; i < lay.kept.size(); ++i) {
+                    // Does any of this kernel's rows fall in the band?
+                    bool any = span_x >= mx;
+                    for (int j = 0; j < span_x && !any; ++j) {
+                        const long long row = wrap(lay.x0[i] + j, mx);
+                        any = row >= r0 && row < r1;
+                    }
+                    if (!any) continue;
+                    const std::size_t k = lay.kept[i];
+                    kernel_vector(lay.x0[i], span_x, hx, m_kernels.dx_um[k], sigma, lay.bx[i] + m_u0x, lay.bx[i],
+                                  vx.data(), gauss.data());
+                    kernel_vector(lay.y0[i], span_y, hy, m_kernels.dy_um[k], sigma, lay.by[i] + m_u0y, lay.by[i],
+                                  vy.data(), gauss.data());
+                    int length = 0;
+                    const long long c0 = fold(vy.data(), span_y, lay.y0[i], my, yf.data(), length);
+                    const int first_run = static_cast<int>(std::min<long long>(length, my - c0));
+                    for (std::size_t v = 0; v < views; ++v) coef[v] = weights[v][k] * area;
+                    for (int j = 0; j < span_x; ++j) {
+                        const long long row = wrap(lay.x0[i] + j, mx);
+                        if (row < r0 || row >= r1) continue;
+                        for (std::size_t v = 0; v < views; ++v) {
+                            const Complex c(coef[v] * vx[std::size_t(j)]);
+                            Complex* out = w.grids[v] + std::size_t(row) * my;
+                            Complex* a = out + c0;
+                            for (int q = 0; q < first_run; ++q) a[q] += c * yf[std::size_t(q)];
+                            for (int q = first_run; q < length; ++q) out[q - first_run] += c * yf[std::size_t(q)];
+                        }
+                    }
+                }
+            });
+#pragma omp barrier
+        // FFT along y (all rows), then along x (the first n columns only).
+        for (int t = first_block; t < threads; t += stride)
+            guard.run([&] {
+                if (std::size_t(t) < w.row_plans.size())
+                    for (std::size_t v = 0; v < views; ++v)
+                        Traits::execute(w.row_plans[std::size_t(t)].second,
+                                        w.grids[v] + std::size_t(w.row_plans[std::size_t(t)].first) * my);
+            });
+#pragma omp barrier
+        for (int t = first_block; t < threads; t += stride)
+            guard.run([&] {
+                if (std::size_t(t) < w.col_plans.size())
+                    for (std::size_t v = 0; v < views; ++v)
+                        Traits::execute(w.col_plans[std::size_t(t)].second,
+                                        w.grids[v] + w.col_plans[std::size_t(t)].first);
+            });
+    }
+    guard.rethrow();
+    fields.resize(views);
+    for (std::size_t v = 0; v < views; ++v) {
+        ComplexMatrix<Float>& f = fields[v];
+        allocating("the " + std::to_string(n) + "x" + std::to_string(n) + " slice's field",
+                   double(n) * n * sizeof(Complex), [&] { f.resize(n, n); });
+        const Complex* g = w.grids[v];
+#pragma omp parallel for schedule(static) num_threads(threads) if (threads > 1)
+        for (int q = 0; q < n; ++q)
+            for (int p = 0; p < n; ++p) f(p, q) = g[std::size_t(p) * my + std::size_t(q)];
+    }
+}
+
+template <typename Float>
+void FftEngine<Float>::adjoint(const KernelWeights& weights, double shift_scale,
+                               const std::vector<ComplexMatrix<Float>>& cotangents, FieldGradient& gradient) {
+    using Complex = std::complex<Float>;
+    using Traits = Fftw<Float>;
+    check_weights(weights);
+    const std::size_t views = weights.size();
+    if (cotangents.size() != views)
+        throw std::invalid_argument("FFT engine: " + std::to_string(cotangents.size()) +
+                                    " cotangents; expected one per weight vector (" + std::to_string(views) + ")");
+    for (const auto& b : cotangents)
+        if (b.rows() != m_n || b.cols() != m_n)
+            throw std::invalid_argument("FFT engine: a cotangent of " + std::to_string(b.rows()) + "x" +
+                                        std::to_string(b.cols()) + "; expected " + std::to_string(m_n) + "x" +
+                                        std::to_string(m_n));
+    const Layout lay = layout(shift_scale);
+    prepare(lay, views);
+    m_info = lay.info;
+    Workspace& w = *m_work;
+    const int mx = w.mx, my = w.my, threads = w.threads, n = m_n;
+    const double hx = lay.info.hx_um, hy = lay.info.hy_um, area = hx * hy;
+    const int span_x = lay.info.span_x, span_y = lay.info.span_y;
+    const std::size_t count = m_kernels.size();
+    gradient.weight.assign(views, std::vector<std::complex<double>>(count, 0.0));
+    gradient.shift_x.assign(count, 0.0);
+    gradient.shift_y.assign(count, 0.0);
+    const double sigma = m_kernels.sigma_um;
+    RegionGuard guard;
+#pragma omp parallel num_threads(threads) if (threads > 1)
+    {
+        const int first_block = omp_get_thread_num(), stride = omp_get_num_threads();
+        // Embed B_v in the grid (zero elsewhere), FFT along x (the first n columns), then y.
+        for (int t = first_block; t < threads; t += stride)
+            guard.run([&] {
+                const int r0 = int(static_cast<long long>(mx) * t / threads),
+                          r1 = int(static_cast<long long>(mx) * (t + 1) / threads);
+                for (std::size_t v = 0; v < views; ++v)
+                    for (int row = r0; row < r1; ++row) {
+                        Complex* g = w.grids[v] + std::size_t(row) * my;
+                        std::fill(g, g + my, Complex(0));
+                        if (row < n)
+                            for (int q = 0; q < n; ++q) g[q] = cotangents[v](row, q);
+                    }
+            });
+#pragma omp barrier
+        for (int t = first_block; t < threads; t += stride)
+            guard.run([&] {
+                if (std::size_t(t) < w.col_plans.size())
+                    for (std::size_t v = 0; v < views; ++v)
+                        Traits::execute(w.col_plans[std::size_t(t)].second,
+                                        w.grids[v] + w.col_plans[std::size_t(t)].first);
+            });
+#pragma omp barrier
+        for (int t = first_block; t < threads; t += stride)
+            guard.run([&] {
+                if (std::size_t(t) < w.row_plans.size())
+                    for (std::size_t v = 0; v < views; ++v)
+                        Traits::execute(w.row_plans[std::size_t(t)].second,
+                                        w.grids[v] + std::size_t(w.row_plans[std::size_t(t)].first) * my);
+            });
+#pragma omp barrier
+        std::vector<std::complex<double>> vx, vy, vyd, sum(views), sum_x(views), sum_y(views);
+        std::vector<double> gauss;
+        std::vector<Complex> yf, yfd;
+        guard.run([&] {
+            vx.resize(std::size_t(span_x));
+            vy.resize(std::size_t(span_y));
+            vyd.resize(std::size_t(span_y));
+            gauss.resize(std::size_t(std::max(span_x, span_y)));
+            yf.resize(std::size_t(std::max(span_y, my)));
+            yfd.resize(std::size_t(std::max(span_y, my)));
+        });
+#pragma omp for schedule(dynamic, 64)
+        for (std::size_t i = 0; i < lay.kept.size(); ++i)
+            guard.run([&] {
+                const std::size_t k = lay.kept[i];
+                const double dx = m_kernels.dx_um[k], dy = m_kernels.dy_um[k];
+                kernel_vector(lay.x0[i], span_x, hx, dx, sigma, lay.bx[i] + m_u0x, lay.bx[i], vx.data(), gauss.data());
+                kernel_vector(lay.y0[i], span_y, hy, dy, sigma, lay.by[i] + m_u0y, lay.by[i], vy.data(), gauss.data());
+                for (int j = 0; j < span_y; ++j)
+                    vyd[std::size_t(j)] = (double(lay.y0[i] + j) * hy - dy) * vy[std::size_t(j)];
+                int length = 0;
+                const long long c0 = fold(vy.data(), span_y, lay.y0[i], my, yf.data(), length);
+                fold(vyd.data(), span_y, lay.y0[i], my, yfd.data(), length);
+                const int first_run = static_cast<int>(std::min<long long>(length, my - c0));
+                std::fill(sum.begin(), sum.end(), 0.0);
+                std::fill(sum_x.begin(), sum_x.end(), 0.0);
+                std::fill(sum_y.begin(), sum_y.end(), 0.0);
+                for (int j = 0; j < span_x; ++j) {
+                    const long long row = wrap(lay.x0[i] + j, mx);
+                    const std::complex<double> ax = vx[std::size_t(j)];
+                    const double x = double(lay.x0[i] + j) * hx - dx;
+                    for (std::size_t v = 0; v < views; ++v) {
+                        const Complex* in = w.grids[v] + std::size_t(row) * my;
+                        const Complex* a = in + c0;
+                        Complex s(0), sd(0);
+                        for (int q = 0; q < first_run; ++q) {
+                            s += yf[std::size_t(q)] * a[q];
+                            sd += yfd[std::size_t(q)] * a[q];
+                        }
+                        for (int q = first_run; q < length; ++q) {
+                            s += yf[std::size_t(q)] * in[q - first_run];
+                            sd += yfd[std::size_t(q)] * in[q - first_run];
+                        }
+                        const std::complex<double> s_row(s), sd_row(sd);
+                        sum[v] += ax * s_row;
+                        sum_x[v] += (x * ax) * s_row;
+                        sum_y[v] += ax * sd_row;
+                    }
+                }
+                // ∂G/∂b_x ↔ −i2π(x − δ_x) · kernel.
+                const std::complex<double> minus_i2pi(0.0, -2.0 * k_pi);
+                double gx = 0.0, gy = 0.0;
+                for (std::size_t v = 0; v < views; ++v) {
+                    gradient.weight[v][k] = area * sum[v];
+                    gx += 2.0 * std::real(weights[v][k] * area * minus_i2pi * sum_x[v]);
+                    gy += 2.0 * std::real(weights[v][k] * area * minus_i2pi * sum_y[v]);
+                }
+                gradient.shift_x[k] = gx;
+                gradient.shift_y[k] = gy;
+            });
+    }
+    guard.rethrow();
+}
+
+template class FftEngine<float>;
+template class FftEngine<double>;
+
+}  // namespace wavebrdf::detail
