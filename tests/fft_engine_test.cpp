@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "forward/fft_engine.h"
+#include "forward/path_cost.h"
 #include "forward/separable.h"
 #include "test_util.h"
 #include "wavebrdf/gabor.h"
@@ -324,6 +325,43 @@ TEST(FftEngineTest, GoodFftSizes) {
     EXPECT_EQ(detail::good_fft_size(1025), 1080);
     EXPECT_EQ(detail::good_fft_size(1024), 1024);
     EXPECT_EQ(detail::good_fft_size(121), 125);
+}
+
+// The cost model's grid bounds the engine's (it assumes the steepest slope on both axes), and
+// its choice follows the costs: the product for small slices, the FFT for large footprints.
+TEST(FftEngineTest, CostModelGridBoundsTheEnginesAndPicksByCost) {
+    for (const double amplitude : {0.3, 3.0}) {
+        Case c;
+        c.amplitude = amplitude;
+        c.wx = 0.3;
+        const Fixture s = make_setup(c);
+        const SliceGrid grid(s.query, c.lambda_um, c.n);
+        FftEngine<double> engine(s.kernels, grid, c.lambda_um, c.n, 1e-6);
+        const detail::FftGridInfo info = engine.plan_grid(1.0);
+        detail::FieldPathInputs in;
+        in.n = c.n;
+        in.lambda_um = c.lambda_um;
+        in.kernels = s.kernels.size();
+        in.texel_um = 1.0;
+        for (std::size_t k = 0; k < s.kernels.size(); ++k)
+            in.max_slope = std::max({in.max_slope, std::abs(s.kernels.slope_x[k]), std::abs(s.kernels.slope_y[k])});
+        in.omega_ix = c.wx;
+        const detail::FieldPathCost cost = detail::field_path_cost(in);
+        EXPECT_GE(cost.fft_grid, std::max(info.mx, info.my)) << amplitude;
+        EXPECT_LE(cost.fft_grid, 2 * std::max(info.mx, info.my)) << amplitude;
+        EXPECT_GE(cost.fft_span, info.span_x);
+    }
+    detail::FieldPathInputs small;
+    small.n = 16;
+    small.kernels = 10;
+    small.max_slope = 0.1;
+    EXPECT_EQ(detail::choose_field_path(small), RenderPath::Separable);
+    detail::FieldPathInputs large = small;
+    large.n = 1024;
+    large.kernels = 70000;
+    EXPECT_EQ(detail::choose_field_path(large), RenderPath::Fft);
+    large.n = 0;
+    EXPECT_THROW(detail::field_path_cost(large), std::invalid_argument);
 }
 
 }  // namespace
