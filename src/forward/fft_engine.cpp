@@ -100,9 +100,46 @@ long long fold(const std::complex<double>* v, int count, long long m0, long long
         return wrap(m0, size);
     }
     std::fill(out, out + size, std::complex<Float>(0));
-    for (int j = 0; j < count; ++j) out[wrap(m0 + j, size)] += std::complex<Float>(v[j]);
+    for (long long j = 0, at = wrap(m0, size); j < count; ++j, at = at + 1 == size ? 0 : at + 1)
+        out[at] += std::complex<Float>(v[j]);
     length = static_cast<int>(size);
     return 0;
+}
+
+// a[q] += c · y[q], q < count (interleaved real/imaginary parts, so that it vectorises).
+template <typename Float>
+inline void add_scaled(std::complex<Float>* a, std::complex<Float> c, const std::complex<Float>* y, int count) {
+    Float* af = reinterpret_cast<Float*>(a);
+    const Float* yf = reinterpret_cast<const Float*>(y);
+    const Float cr = c.real(), ci = c.imag();
+#pragma omp simd
+    for (int q = 0; q < count; ++q) {
+        const Float yr = yf[2 * q], yi = yf[2 * q + 1];
+        af[2 * q] += cr * yr - ci * yi;
+        af[2 * q + 1] += cr * yi + ci * yr;
+    }
+}
+
+// Σ_q y[q] · a[q] and Σ_q z[q] · a[q], q < count (no conjugate), added into s and sz.
+template <typename Float>
+inline void add_dots(const std::complex<Float>* y, const std::complex<Float>* z, const std::complex<Float>* a,
+                     int count, Float* s, Float* sz) {
+    const Float* yf = reinterpret_cast<const Float*>(y);
+    const Float* zf = reinterpret_cast<const Float*>(z);
+    const Float* af = reinterpret_cast<const Float*>(a);
+    Float sr = 0, si = 0, zr = 0, zi = 0;
+#pragma omp simd reduction(+ : sr, si, zr, zi)
+    for (int q = 0; q < count; ++q) {
+        const Float ar = af[2 * q], ai = af[2 * q + 1];
+        sr += yf[2 * q] * ar - yf[2 * q + 1] * ai;
+        si += yf[2 * q] * ai + yf[2 * q + 1] * ar;
+        zr += zf[2 * q] * ar - zf[2 * q + 1] * ai;
+        zi += zf[2 * q] * ai + zf[2 * q + 1] * ar;
+    }
+    s[0] += sr;
+    s[1] += si;
+    sz[0] += zr;
+    sz[1] += zi;
 }
 
 }  // namespace
@@ -406,11 +443,11 @@ void FftEngine<Float>::forward(const KernelWeights& weights, double shift_scale,
                 if (r1 <= r0) return;
                 for (std::size_t i = 0; i < lay.kept.size(); ++i) {
                     // Does any of this kernel's rows fall in the band?
+                    // (Rows advance with a wrap test, not a division: this runs per kernel and row.)
+                    const long long row0 = wrap(lay.x0[i], mx);
                     bool any = span_x >= mx;
-                    for (int j = 0; j < span_x && !any; ++j) {
-                        const long long row = wrap(lay.x0[i] + j, mx);
+                    for (long long j = 0, row = row0; j < span_x && !any; ++j, row = row + 1 == mx ? 0 : row + 1)
                         any = row >= r0 && row < r1;
-                    }
                     if (!any) continue;
                     const std::size_t k = lay.kept[i];
                     kernel_vector(lay.x0[i], span_x, hx, m_kernels.dx_um[k], sigma, lay.bx[i] + m_u0x, lay.bx[i],
@@ -421,15 +458,13 @@ void FftEngine<Float>::forward(const KernelWeights& weights, double shift_scale,
                     const long long c0 = fold(vy.data(), span_y, lay.y0[i], my, yf.data(), length);
                     const int first_run = static_cast<int>(std::min<long long>(length, my - c0));
                     for (std::size_t v = 0; v < views; ++v) coef[v] = weights[v][k] * area;
-                    for (int j = 0; j < span_x; ++j) {
-                        const long long row = wrap(lay.x0[i] + j, mx);
+                    for (long long j = 0, row = row0; j < span_x; ++j, row = row + 1 == mx ? 0 : row + 1) {
                         if (row < r0 || row >= r1) continue;
                         for (std::size_t v = 0; v < views; ++v) {
                             const Complex c(coef[v] * vx[std::size_t(j)]);
                             Complex* out = w.grids[v] + std::size_t(row) * my;
-                            Complex* a = out + c0;
-                            for (int q = 0; q < first_run; ++q) a[q] += c * yf[std::size_t(q)];
-                            for (int q = first_run; q < length; ++q) out[q - first_run] += c * yf[std::size_t(q)];
+                            add_scaled(out + c0, c, yf.data(), first_run);
+                            add_scaled(out, c, yf.data() + first_run, length - first_run);
                         }
                     }
                 }
@@ -563,23 +598,16 @@ void FftEngine<Float>::adjoint(const KernelWeights& weights, double shift_scale,
                 std::fill(sum.begin(), sum.end(), 0.0);
                 std::fill(sum_x.begin(), sum_x.end(), 0.0);
                 std::fill(sum_y.begin(), sum_y.end(), 0.0);
-                for (int j = 0; j < span_x; ++j) {
-                    const long long row = wrap(lay.x0[i] + j, mx);
+                for (long long j = 0, row = wrap(lay.x0[i], mx); j < span_x; ++j, row = row + 1 == mx ? 0 : row + 1) {
                     const std::complex<double> ax = vx[std::size_t(j)];
                     const double x = double(lay.x0[i] + j) * hx - dx;
                     for (std::size_t v = 0; v < views; ++v) {
                         const Complex* in = w.grids[v] + std::size_t(row) * my;
                         const Complex* a = in + c0;
-                        Complex s(0), sd(0);
-                        for (int q = 0; q < first_run; ++q) {
-                            s += yf[std::size_t(q)] * a[q];
-                            sd += yfd[std::size_t(q)] * a[q];
-                        }
-                        for (int q = first_run; q < length; ++q) {
-                            s += yf[std::size_t(q)] * in[q - first_run];
-                            sd += yfd[std::size_t(q)] * in[q - first_run];
-                        }
-                        const std::complex<double> s_row(s), sd_row(sd);
+                        Float s[2] = {0, 0}, sd[2] = {0, 0};
+                        add_dots(yf.data(), yfd.data(), a, first_run, s, sd);
+                        add_dots(yf.data() + first_run, yfd.data() + first_run, in, length - first_run, s, sd);
+                        const std::complex<double> s_row(s[0], s[1]), sd_row(sd[0], sd[1]);
                         sum[v] += ax * s_row;
                         sum_x[v] += (x * ax) * s_row;
                         sum_y[v] += ax * sd_row;
