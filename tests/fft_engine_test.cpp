@@ -317,6 +317,11 @@ TEST(FftEngineTest, RefusesBadArgumentsAndHostileSizesBeforeAllocating) {
     const SliceGrid big(s.query, c.lambda_um, n);
     FftEngine<double> hostile(s.kernels, big, c.lambda_um, n, 1e-6);
     EXPECT_THROW(hostile.forward(s.weights, 1.0, fields), OutOfMemory);
+    // A huge σ against a tiny period: kernel vectors of ~1e9 points are refused too.
+    s.kernels.sigma_um = 1e6;
+    const SliceGrid one(s.query, 0.01, 1);
+    FftEngine<double> wide(s.kernels, one, 0.01, 1, 1e-6);
+    EXPECT_THROW(wide.forward(s.weights, 1.0, fields), OutOfMemory);
 }
 
 TEST(FftEngineTest, GoodFftSizes) {

@@ -285,6 +285,12 @@ typename FftEngine<Float>::Layout FftEngine<Float>::layout(double shift_scale) c
     const double hx = out.info.hx_um, hy = out.info.hy_um;
     out.x0.resize(out.kept.size());
     out.y0.resize(out.kept.size());
+    // A kernel far wider than the period (σ ≫ nλ/2) would need vectors of many periods: refused
+    // before allocating them (the separable path serves such slices; the cost model says so).
+    const double widest = 2.0 * m_radius_x_um / std::min(hx, hy) + 1.0;
+    if (widest > 1e8)
+        throw_out_of_memory("the FFT engine's kernel vectors (" + std::to_string(widest) + " points)",
+                            widest * 4.0 * sizeof(std::complex<double>));
     out.info.span_x = static_cast<int>(std::floor(2.0 * m_radius_x_um / hx)) + 1;
     out.info.span_y = static_cast<int>(std::floor(2.0 * m_radius_x_um / hy)) + 1;
     for (std::size_t i = 0; i < out.kept.size(); ++i) {
