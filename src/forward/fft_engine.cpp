@@ -120,28 +120,6 @@ inline void add_scaled(std::complex<Float>* a, std::complex<Float> c, const std:
     }
 }
 
-// Σ_q y[q] · a[q] and Σ_q z[q] · a[q], q < count (no conjugate), added into s and sz.
-template <typename Float>
-inline void add_dots(const std::complex<Float>* y, const std::complex<Float>* z, const std::complex<Float>* a,
-                     int count, Float* s, Float* sz) {
-    const Float* yf = reinterpret_cast<const Float*>(y);
-    const Float* zf = reinterpret_cast<const Float*>(z);
-    const Float* af = reinterpret_cast<const Float*>(a);
-    Float sr = 0, si = 0, zr = 0, zi = 0;
-#pragma omp simd reduction(+ : sr, si, zr, zi)
-    for (int q = 0; q < count; ++q) {
-        const Float ar = af[2 * q], ai = af[2 * q + 1];
-        sr += yf[2 * q] * ar - yf[2 * q + 1] * ai;
-        si += yf[2 * q] * ai + yf[2 * q + 1] * ar;
-        zr += zf[2 * q] * ar - zf[2 * q + 1] * ai;
-        zi += zf[2 * q] * ai + zf[2 * q + 1] * ar;
-    }
-    s[0] += sr;
-    s[1] += si;
-    sz[0] += zr;
-    sz[1] += zi;
-}
-
 }  // namespace
 
 long long good_fft_size(long long at_least) {
@@ -579,7 +557,7 @@ void FftEngine<Float>::adjoint(const KernelWeights& weights, double shift_scale,
 #pragma omp barrier
         std::vector<std::complex<double>> vx, vy, vyd, sum(views), sum_x(views), sum_y(views);
         std::vector<double> gauss;
-        std::vector<Complex> yf, yfd;
+        std::vector<Complex> yf, yfd, acc;
         guard.run([&] {
             vx.resize(std::size_t(span_x));
             vy.resize(std::size_t(span_y));
@@ -587,6 +565,7 @@ void FftEngine<Float>::adjoint(const KernelWeights& weights, double shift_scale,
             gauss.resize(std::size_t(std::max(span_x, span_y)));
             yf.resize(std::size_t(std::max(span_y, my)));
             yfd.resize(std::size_t(std::max(span_y, my)));
+            acc.resize(2 * views * std::size_t(std::max(span_y, my)));
         });
 #pragma omp for schedule(dynamic, 64)
         for (std::size_t i = 0; i < lay.kept.size(); ++i)
@@ -601,23 +580,40 @@ void FftEngine<Float>::adjoint(const KernelWeights& weights, double shift_scale,
                 const long long c0 = fold(vy.data(), span_y, lay.y0[i], my, yf.data(), length);
                 fold(vyd.data(), span_y, lay.y0[i], my, yfd.data(), length);
                 const int first_run = static_cast<int>(std::min<long long>(length, my - c0));
-                std::fill(sum.begin(), sum.end(), 0.0);
-                std::fill(sum_x.begin(), sum_x.end(), 0.0);
-                std::fill(sum_y.begin(), sum_y.end(), 0.0);
+                // Rows first: t_v = Σ_rows vx · A_v[row] and tx_v = Σ_rows (x − δ_x) vx · A_v[row]
+                // over the kernel's columns (vectorised like the forward's spread), then one dot
+                // product per sum with the y vectors.
+                for (std::size_t v = 0; v < views; ++v) {
+                    Complex* t = acc.data() + 2 * std::size_t(v) * std::size_t(length);
+                    std::fill(t, t + 2 * std::size_t(length), Complex(0));
+                }
                 for (long long j = 0, row = wrap(lay.x0[i], mx); j < span_x; ++j, row = row + 1 == mx ? 0 : row + 1) {
                     const std::complex<double> ax = vx[std::size_t(j)];
                     const double x = double(lay.x0[i] + j) * hx - dx;
+                    const Complex cx(ax), cxx(x * ax);
                     for (std::size_t v = 0; v < views; ++v) {
                         const Complex* in = w.grids[v] + std::size_t(row) * my;
-                        const Complex* a = in + c0;
-                        Float s[2] = {0, 0}, sd[2] = {0, 0};
-                        add_dots(yf.data(), yfd.data(), a, first_run, s, sd);
-                        add_dots(yf.data() + first_run, yfd.data() + first_run, in, length - first_run, s, sd);
-                        const std::complex<double> s_row(s[0], s[1]), sd_row(sd[0], sd[1]);
-                        sum[v] += ax * s_row;
-                        sum_x[v] += (x * ax) * s_row;
-                        sum_y[v] += ax * sd_row;
+                        Complex* t = acc.data() + 2 * std::size_t(v) * std::size_t(length);
+                        Complex* tx = t + length;
+                        add_scaled(t, cx, in + c0, first_run);
+                        add_scaled(t + first_run, cx, in, length - first_run);
+                        add_scaled(tx, cxx, in + c0, first_run);
+                        add_scaled(tx + first_run, cxx, in, length - first_run);
                     }
+                }
+                for (std::size_t v = 0; v < views; ++v) {
+                    const Complex* t = acc.data() + 2 * std::size_t(v) * std::size_t(length);
+                    const Complex* tx = t + length;
+                    std::complex<double> s0 = 0.0, sx = 0.0, sy = 0.0;
+                    for (int q = 0; q < length; ++q) {
+                        const std::complex<double> tq(t[q]);
+                        s0 += std::complex<double>(yf[std::size_t(q)]) * tq;
+                        sy += std::complex<double>(yfd[std::size_t(q)]) * tq;
+                        sx += std::complex<double>(yf[std::size_t(q)]) * std::complex<double>(tx[q]);
+                    }
+                    sum[v] = s0;
+                    sum_x[v] = sx;
+                    sum_y[v] = sy;
                 }
                 // ∂G/∂b_x ↔ −i2π(x − δ_x) · kernel.
                 const std::complex<double> minus_i2pi(0.0, -2.0 * k_pi);
