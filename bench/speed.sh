@@ -211,3 +211,6 @@ if want recovery; then
         echo "| $seed | $(fmt "$t" 1) | $err |"
     done
 fi
+
+echo
+echo "load at the end: $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min)"
