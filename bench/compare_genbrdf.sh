@@ -1,36 +1,9 @@
 #!/usr/bin/env bash
 # Times `wavebrdf genbrdf` against the reference program genBrdf (Yan et al. 2018's public
-# release, built separately by the user; none of its code is in this repository) on the same
-# inputs in the same run. Usage:
+# release, built separately by the user; none of its code is in this repository): now the
+# `table` part of bench/speed.sh (all five models and the README example, footprint at the
+# centre). Usage:
 #   GENBRDF=/path/to/genBrdf bash bench/compare_genbrdf.sh [runs]
-# Without GENBRDF only wavebrdf is timed. Prints the median wall time of each case.
+# The cases of bench/results/2026-11-21-epyc-2core.md are this script as of commit 9fbfbb6.
 set -euo pipefail
-cd "$(dirname "$0")/.."
-runs=${1:-5}
-W=build/bin/wavebrdf
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-$W heightfield --type isotropic --size 1024 --rms-height-um 0.05 --correlation-um 4 --seed 1 \
-    --out "$work/iso1024.exr" --no-png --quiet
-
-median() { sort -g | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
-time_runs() {  # program args...: one warm-up, then $runs timed runs
-    "$@" >/dev/null 2>&1
-    for _ in $(seq "$runs"); do
-        local s e
-        s=$(date +%s.%N); "$@" >/dev/null 2>&1; e=$(date +%s.%N)
-        echo "$e - $s" | bc
-    done | median
-}
-
-printf "%-34s %12s %12s %8s\n" case "genBrdf [s]" "wavebrdf [s]" ratio
-for args in "-r 128 -l 0 -p 10" "-r 256 -l 0.5 -p 10" "-r 128 -l 0.5 -p 10 -d GHS"; do
-    ours=$(time_runs $W genbrdf -i "$work/iso1024.exr" -o "$work/ours.exr" $args --quiet)
-    if [ -n "${GENBRDF:-}" ]; then
-        ref=$(time_runs "$GENBRDF" -i "$work/iso1024.exr" -o "$work/ref.exr" $args)
-        ratio=$(echo "scale=1; $ref / $ours" | bc)
-    else
-        ref="-"; ratio="-"
-    fi
-    printf "%-34s %12s %12s %8s\n" "$args" "$ref" "$ours" "$ratio"
-done
+exec bash "$(dirname "$0")/speed.sh" --part table --runs "${1:-5}"
