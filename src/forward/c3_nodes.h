@@ -12,9 +12,10 @@
 //   |I − I_m| ≤ 4 ρ^{−(m−1)}/(ρ−1) · exp(α ε + β ε²) · W,  ε = (ρ − 1/ρ)/2,
 //   α = (4π/λ) r max|H_k − H̄|,  β = 2π²σ² r² max|a_k|²,  r = half the S range,
 //   W = Σ_k |c_k w²| (Kirchhoff: × (2 S_max + max|λu_x| |s_kx| + max|λu_y| |s_ky|))
-// minimised over ρ, a priori for an error of tolerance × (an incoherent estimate of |I|), then
-// checked against the computed slice: if max c1 E (2|I| + E) exceeds tolerance × the peak, the
-// slice is computed again with the nodes that bound needs (docs/c3_nodes.md).
+// (summed per kernel, in cells of |H_k − H̄| and |a_k|²) minimised over ρ; a priori for the error
+// the field at the middle node S_c suggests, then checked against the computed slice: if
+// max c1 E (2|I| + E) exceeds tolerance × the peak, the slice is computed again with the nodes
+// that bound needs (docs/c3_nodes.md).
 #include <vector>
 
 #include "forward/field_engine.h"
@@ -32,12 +33,23 @@ namespace wavebrdf::detail {
 // and kernel is an exp and a sincos, a node's a few multiply-adds per weight vector.
 constexpr int k_max_c3_nodes = 32;
 
-// min over ρ > 1 of 4 ρ^{−(nodes−1)}/(ρ−1) · exp(α ε + β ε²), ε = (ρ − 1/ρ)/2: the factor of W
-// in the interpolation bound above for `nodes` ≥ 2 Chebyshev points; α, β ≥ 0.
+// The kernels grouped for the bound: cell c holds kernels of total weight weight[c] (Σ|c_k w²|,
+// Kirchhoff × its c2 bound) whose α_k ≤ alpha[c] and β_k ≤ beta[c] (α_k, β_k as α, β above
+// with kernel k's own |H_k − H̄| and |a_k|²).
+struct C3BoundCells {
+    std::vector<double> weight, alpha, beta;
+};
+
+// min over ρ > 1 of 4 ρ^{−(nodes−1)}/(ρ−1) · Σ_c weight[c] exp(α_c ε + β_c ε²), ε = (ρ − 1/ρ)/2:
+// the bound on |I − I_nodes| for `nodes` ≥ 2 Chebyshev points (second kind) in S.
+double chebyshev_error_bound(int nodes, const C3BoundCells& cells);
+
+// The same for one cell of weight 1: the factor of W in the bound above; α, β ≥ 0.
 double chebyshev_error_factor(int nodes, double alpha, double beta);
 
-// The fewest nodes (2 … k_max_c3_nodes) whose bound chebyshev_error_factor · weight_sum is at
-// most `target_error` (k_max_c3_nodes when none is).
+// The fewest nodes (2 … k_max_c3_nodes) whose bound is at most `target_error`
+// (k_max_c3_nodes + 1 when none is).
+int chebyshev_node_count(const C3BoundCells& cells, double target_error);
 int chebyshev_node_count(double alpha, double beta, double weight_sum, double target_error);
 
 template <typename Float>
@@ -68,8 +80,9 @@ private:
     KernelWeights node_weights(const FootprintKernels& kernels, double s) const;
     // ℓ_j at pixel (p,q), j = 0 … nodes()−1, into `ell`.
     void lagrange(std::size_t at, double* ell) const;
+    // `middle`: the engine's fields at the middle node (t = 0, odd node counts), or null.
     void compute_field(FieldEngine<Float>& engine, const FootprintKernels& kernels, ComplexMatrix<Float>& field,
-                       Progress* progress, bool report);
+                       Progress* progress, bool report, const std::vector<ComplexMatrix<Float>>* middle);
 
     Query m_query;
     SliceGrid m_grid;
