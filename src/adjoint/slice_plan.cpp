@@ -41,12 +41,13 @@ struct SlicePlan<Float>::State {
     // One wavelength: its height-independent tables and, after forward, its field and slice.
     struct Band {
         double lambda_um = 0.0;
-        std::unique_ptr<detail::SliceGrid> grid;                // engine paths
-        std::unique_ptr<detail::FieldEngine<Float>> engine;     // engine paths
-        std::unique_ptr<detail::C3Nodes<Float>> nodes;          // engine paths, differentiable plans
-        detail::ComplexMatrix<Float> field;                     // engine paths, kept for the adjoint
-        detail::DirectField direct;                             // direct path, kept for the adjoint
-        bool direct_used = false;  // the last forward took the direct sum (too many C3 nodes)
+        std::unique_ptr<detail::SliceGrid> grid;             // engine paths
+        std::unique_ptr<detail::FieldEngine<Float>> engine;  // engine paths
+        std::unique_ptr<detail::C3Nodes<Float>> nodes;       // engine paths, differentiable plans
+        detail::ComplexMatrix<Float> field;                  // engine paths, kept for the adjoint
+        detail::DirectField direct;                          // direct path, kept for the adjoint
+        // The last forward took the direct sum (its tolerance needed too many C3 nodes).
+        bool direct_used = false;
         std::vector<Float> slice;
     };
 
@@ -182,8 +183,10 @@ const std::vector<Float>& SlicePlan<Float>::forward() {
             slice = nodes.forward(*b.engine, s.kernels, field, s.options.progress);
             b.direct_used = slice.empty();
             if (s.differentiable && !b.direct_used) b.field = std::move(field);
-            if (b.direct_used) b.field = detail::ComplexMatrix<Float>();
-            else b.direct = detail::DirectField();
+            if (b.direct_used)
+                b.field = detail::ComplexMatrix<Float>();
+            else
+                b.direct = detail::DirectField();
         }
         // The direct path, or the separable one when its tolerance needs more C3 nodes than
         // the direct sum costs (c3_nodes.h).
@@ -227,9 +230,10 @@ void SlicePlan<Float>::adjoint_wavelength(std::size_t wavelength, const std::vec
                                     " entries; expected resolution^2 = " + std::to_string(pixels));
     detail::prepare_gradient(gradient, s.cells());
     const typename State::Band& b = s.bands[wavelength];
-    const KernelGradient g = s.separable && !b.direct_used ? b.nodes->adjoint(*b.engine, s.kernels, b.field, weights)
-                                         : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
-                                                                   std::vector<double>(weights.begin(), weights.end()));
+    const KernelGradient g = s.separable && !b.direct_used
+                                 ? b.nodes->adjoint(*b.engine, s.kernels, b.field, weights)
+                                 : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
+                                                           std::vector<double>(weights.begin(), weights.end()));
     detail::scatter_to_heights(s.rows, s.cols, s.texel_um, s.vscale, s.kernels, g, gradient);
 }
 
