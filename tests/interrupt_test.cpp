@@ -7,6 +7,7 @@
 #include <new>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "../src/core/parallel.h"
 #include "test_util.h"
@@ -62,7 +63,8 @@ TEST(Parallel, ExceptionInEveryThreadIsRethrownOnce) {
     EXPECT_GE(calls.load(), 1);
 }
 
-// A slice big enough to take many polls: OHS goes the separable path, GHS the direct one.
+// A slice big enough to take many polls (every model takes the separable path by default; the
+// direct one is asked for by name).
 Heightfield interrupt_heightfield() { return test::random_heightfield(96, 96, 0.4, 3, 1.0, 1.0); }
 Query interrupt_query(Model model) {
     Query q;
@@ -78,15 +80,18 @@ Query interrupt_query(Model model) {
 TEST(Interrupt, PollThatSaysStopEndsRenderAndGradientWithInterrupted) {
     const Threads threads(2);
     const Heightfield hf = interrupt_heightfield();
-    for (Model m : {Model::OHS, Model::GHS}) {
+    for (const auto& [m, path] : {std::pair{Model::OHS, RenderPath::Auto}, std::pair{Model::GHS, RenderPath::Auto},
+                                  std::pair{Model::GHS, RenderPath::Direct}}) {
+        RenderOptions options;
+        options.path = path;
         int polls = 0;
         InterruptScope scope([&] { return ++polls >= 2; }, std::chrono::milliseconds(0));
-        EXPECT_THROW(render_slice<double>(hf, interrupt_query(m), 0.5, 128), Interrupted) << to_string(m);
+        EXPECT_THROW(render_slice<double>(hf, interrupt_query(m), 0.5, 128, options), Interrupted) << to_string(m);
         EXPECT_EQ(polls, 2) << "the poll is not asked again once it said stop";
         std::vector<double> gradient;
-        EXPECT_THROW(
-            slice_gradient<double>(hf, interrupt_query(m), 0.5, 128, std::vector<double>(128 * 128, 1.0), gradient),
-            Interrupted)
+        EXPECT_THROW(slice_gradient<double>(hf, interrupt_query(m), 0.5, 128, std::vector<double>(128 * 128, 1.0),
+                                            gradient, options),
+                     Interrupted)
             << to_string(m);
     }
 }

@@ -3,7 +3,9 @@
 //
 // Two paths compute the same sum over the footprint's kernels:
 //  - separable: for OHS and ROHS, I = X · diag(c_k C_k) · Yᵀ on the slice's regular grid, a
-//    complex matrix product (exact: no pruning beyond the model's 3σ_p cut);
+//    complex matrix product (exact: no pruning beyond the model's 3σ_p cut); for GHS, RGHS
+//    and Kirchhoff one such product per Chebyshev node in C3, interpolated per pixel (error
+//    within RenderOptions::tolerance of the slice's peak);
 //  - direct: every pixel sums every kernel (all five models), optionally skipping kernels
 //    whose Gaussian factor is so small that the total error stays below `prune_tolerance`
 //    times the slice's peak (checked after rendering; re-rendered tighter if not met).
@@ -55,11 +57,12 @@ template <typename Float>
 std::vector<Float> render_slice(const Heightfield& heightfield, const Query& query, double lambda_um, int resolution,
                                 const RenderOptions& options = {});
 
-// The separable matrix-product path (OHS and ROHS only; throws std::invalid_argument for the
-// other models). Arguments are assumed valid.
+// The separable matrix-product path, every model (GHS, RGHS and Kirchhoff: one product per
+// Chebyshev node in C3, as many as keep the error within `tolerance` of the slice's peak,
+// 1e-12 … 1e-2). Arguments are assumed valid.
 template <typename Float>
 std::vector<Float> render_slice_separable(const FootprintKernels& kernels, const Query& query, double lambda_um,
-                                          int resolution, Progress* progress = nullptr);
+                                          int resolution, Progress* progress = nullptr, double tolerance = 1e-6);
 
 // The direct sum, the slow reference for every model. `prune_tolerance` as in RenderOptions.
 template <typename Float>

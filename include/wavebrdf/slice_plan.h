@@ -7,7 +7,7 @@
 //  - the footprint (x, y, σ_p): its kernels' texels, window weights c_k w² and offsets δ_k;
 //  - the directions and wavelengths: the slice grid u = (ω_i + ω_o)/λ per wavelength, the
 //    separable path's phase tables e^{−i2π u δ} (they depend only on δ and u), and the
-//    per-pixel factor c1 over the disk;
+//    per-pixel factors c1 and C3 over the disk (differentiable plans);
 //  - the spectral mix (spectral_mix_weights), the model and the RenderOptions (path, pruning).
 // render_slice, render_rgb, slice_gradient and SliceAdjoint are one-call conveniences on top.
 //
@@ -20,8 +20,9 @@
 
 namespace wavebrdf {
 
-// Throws std::domain_error when options.prune_tolerance is outside 0 … 1e-6 and
-// std::invalid_argument when options.path is Separable for a model other than OHS / ROHS.
+// Throws std::domain_error when options.prune_tolerance is outside 0 … 1e-6 or
+// options.tolerance outside 1e-12 … 1e-2, and std::invalid_argument when options.path is Fft
+// (not available yet). Every model has the separable and direct paths.
 void validate(const RenderOptions& options, Model model);
 
 template <typename Float>

@@ -7,8 +7,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "forward/c3_nodes.h"
 #include "forward/direct.h"
+#include "forward/field_engine.h"
 #include "forward/separable.h"
+#include "forward/separable_engine.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
@@ -25,8 +28,7 @@ void validate(const RenderOptions& options, Model model) {
     if (!(options.prune_tolerance >= 0.0 && options.prune_tolerance <= 1e-6))
         throw std::domain_error("prune tolerance " + std::to_string(options.prune_tolerance) +
                                 " is out of range; expected 0 to 1e-6 of the slice peak");
-    if (options.path == RenderPath::Separable && !is_separable(model))
-        throw std::invalid_argument(std::string("the separable path needs OHS or ROHS; model is ") + to_string(model));
+    (void)model;  // every model has every path
     if (!(options.tolerance >= 1e-12 && options.tolerance <= 1e-2))
         throw std::domain_error("tolerance " + std::to_string(options.tolerance) +
                                 " is out of range; expected 1e-12 to 1e-2 of the slice peak");
@@ -39,12 +41,13 @@ struct SlicePlan<Float>::State {
     // One wavelength: its height-independent tables and, after forward, its field and slice.
     struct Band {
         double lambda_um = 0.0;
-        std::unique_ptr<detail::SliceGrid> grid;      // separable path
-        std::unique_ptr<detail::PhaseTables> phases;  // separable path
-        std::vector<double> c1;                       // separable path, differentiable plans
-        detail::ComplexMatrix<Float> field;           // separable path, kept for the adjoint
-        detail::SeparableFactors<Float> factors;      // the forward's factors, when one chunk
-        detail::DirectField direct;                   // direct path, kept for the adjoint
+        std::unique_ptr<detail::SliceGrid> grid;             // engine paths
+        std::unique_ptr<detail::FieldEngine<Float>> engine;  // engine paths
+        std::unique_ptr<detail::C3Nodes<Float>> nodes;       // engine paths, differentiable plans
+        detail::ComplexMatrix<Float> field;                  // engine paths, kept for the adjoint
+        detail::DirectField direct;                          // direct path, kept for the adjoint
+        // The last forward took the direct sum (its tolerance needed too many C3 nodes).
+        bool direct_used = false;
         std::vector<Float> slice;
     };
 
@@ -102,8 +105,9 @@ SlicePlan<Float>::SlicePlan(const Heightfield& hf, const Query& query, const std
     s.n = resolution;
     s.channels = channels;
     s.options = options;
-    s.separable = options.path == RenderPath::Separable ||
-                  (options.path == RenderPath::Auto && is_separable(query.model));
+    // Auto: the separable engine for every model (the cost model's choice of the FFT engine
+    // comes with it).
+    s.separable = options.path != RenderPath::Direct;
     s.differentiable = differentiable;
     s.kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
     s.lambdas_um = lambdas_um;
@@ -114,8 +118,11 @@ SlicePlan<Float>::SlicePlan(const Heightfield& hf, const Query& query, const std
         b.lambda_um = lambdas_um[l];
         if (!s.separable) continue;
         b.grid = std::make_unique<detail::SliceGrid>(query, b.lambda_um, resolution);
-        b.phases = std::make_unique<detail::PhaseTables>(s.kernels, *b.grid);
-        if (differentiable) b.c1 = detail::disk_c1(query, b.lambda_um, resolution);
+        b.engine = detail::make_field_engine<Float>(options.path, s.kernels, *b.grid, b.lambda_um, resolution,
+                                                    options.tolerance, differentiable);
+        if (differentiable)
+            b.nodes = std::make_unique<detail::C3Nodes<Float>>(query, *b.grid, b.lambda_um, resolution,
+                                                               options.tolerance);
     }
 }
 
@@ -166,13 +173,24 @@ const std::vector<Float>& SlicePlan<Float>::forward() {
         typename State::Band& b = s.bands[l];
         std::vector<Float> slice;
         if (s.separable) {
-            detail::ComplexMatrix<Float> field = detail::separable_field<Float>(
-                s.kernels, *b.grid, *b.phases, b.lambda_um, s.n, s.options.progress,
-                s.differentiable ? &b.factors : nullptr);
-            slice = detail::separable_slice<Float>(field, s.query, b.lambda_um, s.n,
-                                                   s.differentiable ? &b.c1 : nullptr);
-            if (s.differentiable) b.field = std::move(field);
-        } else {
+            // Forward-only plans make the per-pixel tables for each call (as many as the
+            // direct path computes anyway) instead of keeping one pair per wavelength.
+            std::unique_ptr<detail::C3Nodes<Float>> own;
+            if (!b.nodes)
+                own = std::make_unique<detail::C3Nodes<Float>>(s.query, *b.grid, b.lambda_um, s.n, s.options.tolerance);
+            detail::C3Nodes<Float>& nodes = b.nodes ? *b.nodes : *own;
+            detail::ComplexMatrix<Float> field;
+            slice = nodes.forward(*b.engine, s.kernels, field, s.options.progress);
+            b.direct_used = slice.empty();
+            if (s.differentiable && !b.direct_used) b.field = std::move(field);
+            if (b.direct_used)
+                b.field = detail::ComplexMatrix<Float>();
+            else
+                b.direct = detail::DirectField();
+        }
+        // The direct path, or the separable one when its tolerance needs more C3 nodes than
+        // the direct sum costs (c3_nodes.h).
+        if (!s.separable || b.direct_used) {
             detail::DirectField direct = detail::direct_field(s.kernels, s.query, b.lambda_um, s.n,
                                                               s.options.prune_tolerance, s.options.progress);
             slice.assign(direct.value.begin(), direct.value.end());
@@ -212,11 +230,10 @@ void SlicePlan<Float>::adjoint_wavelength(std::size_t wavelength, const std::vec
                                     " entries; expected resolution^2 = " + std::to_string(pixels));
     detail::prepare_gradient(gradient, s.cells());
     const typename State::Band& b = s.bands[wavelength];
-    const KernelGradient g = s.separable ? detail::separable_backward<Float>(s.kernels, s.query, b.lambda_um, s.n,
-                                                                             *b.grid, b.phases.get(), &b.c1, b.field,
-                                                                             weights, &b.factors)
-                                         : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
-                                                                   std::vector<double>(weights.begin(), weights.end()));
+    const KernelGradient g = s.separable && !b.direct_used
+                                 ? b.nodes->adjoint(*b.engine, s.kernels, b.field, weights)
+                                 : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
+                                                           std::vector<double>(weights.begin(), weights.end()));
     detail::scatter_to_heights(s.rows, s.cols, s.texel_um, s.vscale, s.kernels, g, gradient);
 }
 
@@ -245,7 +262,10 @@ void SlicePlan<Float>::release() {
     State& s = *m_state;
     for (typename State::Band& b : s.bands) {
         b.field = detail::ComplexMatrix<Float>();
-        b.factors = detail::SeparableFactors<Float>();
+        if (auto* engine = dynamic_cast<detail::SeparableEngine<Float>*>(b.engine.get())) {
+            engine->keep_factors(false);  // drops the kept factors
+            engine->keep_factors(s.differentiable);
+        }
         b.direct = detail::DirectField();
         b.slice = std::vector<Float>();
     }

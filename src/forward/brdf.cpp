@@ -17,9 +17,8 @@ long long work_units(int resolution) { return resolution; }
 
 namespace {
 
-bool separable_path(const RenderOptions& options, Model model) {
-    return options.path == RenderPath::Separable || (options.path == RenderPath::Auto && is_separable(model));
-}
+// Auto: the separable engine for every model.
+bool separable_path(const RenderOptions& options, Model) { return options.path != RenderPath::Direct; }
 
 // Refuses, before any work, what estimate_render_bytes says cannot fit options.max_memory_gb.
 void require_render_memory(const Heightfield& heightfield, const Query& query, int resolution,
@@ -43,9 +42,11 @@ double estimate_render_bytes(const Heightfield& heightfield, const Query& query,
     double bytes = 32e6 + kernels * 56.0;
     bytes += pixels * double(float_bytes) * (rgb ? 4.0 : 1.0);  // the slice (and the RGB result)
     if (separable_path(options, query.model)) {
-        // Field n² complex, its factor matrices (≤ 32 MiB) and the phase tables.
-        bytes += pixels * 2.0 * double(float_bytes) +
-                 std::min(32.0 * (1 << 20), 4.0 * n * kernels * double(float_bytes));
+        // The field I and the engine's fields n² complex (Kirchhoff: three), the per-pixel c1
+        // and S, the factor matrices (≤ 32 MiB) and the phase tables.
+        const double fields = query.model == Model::Kirchhoff ? 4.0 : (is_separable(query.model) ? 1.0 : 2.0);
+        bytes += pixels * (fields * 2.0 * double(float_bytes) + 16.0) +
+                 std::min(32.0 * (1 << 20), 6.0 * n * kernels * double(float_bytes));
         bytes += n * 2.0 * std::min(kernels, 2.0 * reach + 1.0) * 16.0;
     } else {
         bytes += pixels * (16.0 + 8.0 + 8.0);  // field, c1 and value in double
@@ -104,7 +105,8 @@ std::vector<Float> render_rgb(const GaborRepresentation& rep, const Query& query
     for (std::size_t l = 0; l < lambdas_um.size(); ++l) {
         const std::vector<Float> slice = separable_path(options, query.model)
                                              ? render_slice_separable<Float>(rep.kernels, query, lambdas_um[l],
-                                                                             resolution, options.progress)
+                                                                             resolution, options.progress,
+                                                                             options.tolerance)
                                              : render_slice_direct<Float>(rep.kernels, query, lambdas_um[l], resolution,
                                                                           options.prune_tolerance, options.progress);
         mix_spectral_to_rgb<Float>(mix, l, slice, rgb);

@@ -23,9 +23,11 @@
 //   weight[v][k] = Σ_pq B_v[p,q] · G_k(u_pq)      so that  dL = 2 Re Σ_vk weight[v][k] · dweights[v][k],
 //   shift_x[k]   = 2 Re Σ_v Σ_pq B_v[p,q] · weights[v][k] · ∂G_k/∂b_kx   (= ∂L/∂b_kx; likewise y).
 #include <complex>
+#include <memory>
 #include <vector>
 
 #include "forward/separable.h"
+#include "wavebrdf/brdf.h"
 
 namespace wavebrdf::detail {
 
@@ -48,5 +50,15 @@ public:
     virtual void adjoint(const KernelWeights& weights, double shift_scale,
                          const std::vector<ComplexMatrix<Float>>& cotangents, FieldGradient& gradient) = 0;
 };
+
+// The engine of `path` for one slice (field_engine.cpp): SeparableEngine for Separable and Auto
+// (keep_factors as SeparableEngine::keep_factors: differentiable plans); throws
+// std::invalid_argument for Direct (no engine) and for Fft until the FFT engine is wired in.
+// `kernels` must outlive the engine; `tolerance` is RenderOptions::tolerance (for engines that
+// approximate).
+template <typename Float>
+std::unique_ptr<FieldEngine<Float>> make_field_engine(RenderPath path, const FootprintKernels& kernels,
+                                                      const SliceGrid& grid, double lambda_um, int n, double tolerance,
+                                                      bool keep_factors);
 
 }  // namespace wavebrdf::detail

@@ -1,6 +1,6 @@
 #pragma once
-// Internal: the factor matrices of the separable path, shared by the forward pass
-// (brdf_separable.cpp) and its adjoint (adjoint_separable.cpp).
+// Internal: the slice grid, phase tables and factor matrices of the separable path
+// (SeparableEngine, forward/separable_engine.h), and the slice f = c1 |I|² of a field.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -107,17 +107,17 @@ inline void gaussian_samples(double gauss, double v0, double dv, Eigen::Index n,
 }
 
 // Columns c = 0…count−1 of X and Y for kernels k0…k0+count−1:
-//   X[p,c] = exp(−2π²σ²(u_x[p] + a_x)²) e^{−i2π u_x[p] δ_x}, Y likewise in y,
-// with Y multiplied by the kernel weight when `weighted`. The grid is uniform
-// (u[p] = u[0] + p·du), so the Gaussians come from gaussian_samples.
+//   X[p,c] = exp(−2π²σ²(u_x[p] + b_x)²) e^{−i2π u_x[p] δ_x}, Y likewise in y,
+// with b = shift_scale·(2/λ)·s_k (field_engine.h). The grid is uniform (u[p] = u[0] + p·du),
+// so the Gaussians come from gaussian_samples. Weights are applied by the caller.
 template <typename Float>
 void build_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases, double lambda_um,
-                   Eigen::Index k0, Eigen::Index count, bool weighted, ComplexMatrix<Float>& xs,
+                   double shift_scale, Eigen::Index k0, Eigen::Index count, ComplexMatrix<Float>& xs,
                    ComplexMatrix<Float>& ys) {
     using Complex = std::complex<Float>;
     const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
     const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;  // 2π²σ²
-    const double two_over_lambda = 2.0 / lambda_um;
+    const double shift = shift_scale * 2.0 / lambda_um;
     const double du = 2.0 / (double(n) * lambda_um);  // slice_omega's spacing / λ
     RegionGuard guard;
 #pragma omp parallel if (worth_parallel(static_cast <long long>(count) * n))
@@ -131,14 +131,13 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
         for (Eigen::Index c = 0; c < count; ++c)
             guard.run([&] {
                 const std::size_t idx = static_cast<std::size_t>(k0 + c);
-                gaussian_samples(gauss, grid.ux[0] + two_over_lambda * k.slope_x[idx], du, n, gx.data());
-                gaussian_samples(gauss, grid.uy[0] + two_over_lambda * k.slope_y[idx], du, n, gy.data());
-                const std::complex<double> w = weighted ? kernel_weight(k, idx, lambda_um) : 1.0;
+                gaussian_samples(gauss, grid.ux[0] + shift * k.slope_x[idx], du, n, gx.data());
+                gaussian_samples(gauss, grid.uy[0] + shift * k.slope_y[idx], du, n, gy.data());
                 const std::complex<double>* px = &phases.phase_x(0, phases.slot_x[idx]);
                 const std::complex<double>* py = &phases.phase_y(0, phases.slot_y[idx]);
                 for (Eigen::Index p = 0; p < n; ++p) {
                     xs(p, c) = Complex(gx[static_cast<std::size_t>(p)] * px[p]);
-                    ys(p, c) = Complex(gy[static_cast<std::size_t>(p)] * (w * py[p]));
+                    ys(p, c) = Complex(gy[static_cast<std::size_t>(p)] * py[p]);
                 }
             });
     }
@@ -182,39 +181,5 @@ std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Quer
     guard.rethrow();
     return slice;
 }
-
-// The factor matrices X and Y·diag(w) of all kernels, n × K each, when the forward built them
-// in one chunk: the adjoint then reuses them instead of building them again.
-template <typename Float>
-struct SeparableFactors {
-    ComplexMatrix<Float> xs, ys;
-    bool empty() const { return xs.size() == 0; }
-};
-
-// The field I(u_x[p], u_y[q]) = Σ_k X[p,k] w_k Y[q,k] of the slice, n × n. When `keep` is not
-// null and the kernels fit one chunk, the factors are moved into it (else it is left empty).
-// `grid` and `phases` are the slice's (height-independent; a plan keeps them).
-template <typename Float>
-ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const SliceGrid& grid, const PhaseTables& phases,
-                                     double lambda_um, int n, Progress* progress,
-                                     SeparableFactors<Float>* keep = nullptr);
-
-// The same, building the grid and the phase tables first.
-template <typename Float>
-ComplexMatrix<Float> separable_field(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
-                                     Progress* progress, SeparableFactors<Float>* keep = nullptr) {
-    const SliceGrid grid(query, lambda_um, n);
-    const PhaseTables phases(kernels, grid);
-    return separable_field<Float>(kernels, grid, phases, lambda_um, n, progress, keep);
-}
-
-// The adjoint of separable_field + separable_slice (adjoint_separable.cpp): per-kernel
-// gradients of Σ weights · slice. `phases` may be null when `kept` holds the forward's factors
-// of all kernels; `c1` as separable_slice.
-template <typename Float>
-KernelGradient separable_backward(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
-                                  const SliceGrid& grid, const PhaseTables* phases, const std::vector<double>* c1,
-                                  const ComplexMatrix<Float>& field, const std::vector<Float>& weights,
-                                  const SeparableFactors<Float>* kept);
 
 }  // namespace wavebrdf::detail

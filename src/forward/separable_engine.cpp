@@ -1,0 +1,206 @@
+// The separable engine (separable_engine.h). Forward: per chunk of kernels, X and Y once, then
+// for each weight vector F_v += X · (Y·diag(w_v))ᵀ. Adjoint (field_engine.h's convention), with
+// Z_v = B_v·Y and V_v = B_vᵀ·X (two products of the forward's size per vector):
+//   weight[v][k] = Σ_p X[p,k] Z_v[p,k]
+//   shift_x[k]   = 2 Re Σ_v w_vk Σ_p ∂_b X[p,k] Z_v[p,k],  ∂_b X = −4π²σ²(u_x + b_x) X
+//   shift_y[k]   = 2 Re Σ_v w_vk Σ_q ∂_b Y[q,k] V_v[q,k].
+#include "forward/separable_engine.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "wavebrdf/memory.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+
+// When the adjoint rebuilds factors it holds four n × chunk matrices (X, Y, Z, V): 512 kernels
+// keep its peak below the forward's at no measurable cost in the products.
+constexpr Eigen::Index kAdjointChunkColumns = 512;
+// Factors kept for the adjoint beyond the first shift_scale's.
+constexpr double kKeptBytes = 64.0 * (1 << 20);
+
+void check_weights(const KernelWeights& weights, std::size_t kernels) {
+    for (std::size_t v = 0; v < weights.size(); ++v)
+        if (weights[v].size() != kernels)
+            throw std::invalid_argument("weight vector " + std::to_string(v) + " has " +
+                                        std::to_string(weights[v].size()) + " entries; expected one per kernel (" +
+                                        std::to_string(kernels) + ")");
+}
+
+}  // namespace
+
+template <typename Float>
+SeparableEngine<Float>::SeparableEngine(const FootprintKernels& kernels, const SliceGrid& grid, double lambda_um, int n)
+    : m_kernels(kernels), m_grid(grid), m_phases(kernels, grid), m_lambda_um(lambda_um), m_n(n) {}
+
+template <typename Float>
+void SeparableEngine<Float>::keep_factors(bool keep) {
+    m_keep = keep;
+    if (!keep) {
+        m_kept.clear();
+        m_kept_bytes = 0.0;
+    }
+}
+
+template <typename Float>
+const typename SeparableEngine<Float>::Kept* SeparableEngine<Float>::kept(double shift_scale) {
+    if (m_kept.empty()) return nullptr;
+    if (m_kept_slope_x != m_kernels.slope_x || m_kept_slope_y != m_kernels.slope_y) {
+        m_kept.clear();
+        m_kept_bytes = 0.0;
+        return nullptr;
+    }
+    for (const Kept& k : m_kept)
+        if (k.shift_scale == shift_scale) return &k;
+    return nullptr;
+}
+
+template <typename Float>
+void SeparableEngine<Float>::keep(double shift_scale, ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys) {
+    const double bytes = 2.0 * double(xs.size()) * sizeof(std::complex<Float>);
+    if (!m_kept.empty() && m_kept_bytes + bytes > kKeptBytes) return;
+    if (m_kept.empty()) {
+        m_kept_slope_x = m_kernels.slope_x;
+        m_kept_slope_y = m_kernels.slope_y;
+    }
+    m_kept.push_back(Kept{shift_scale, std::move(xs), std::move(ys)});
+    m_kept_bytes += bytes;
+}
+
+template <typename Float>
+void SeparableEngine<Float>::forward(const KernelWeights& weights, double shift_scale,
+                                     std::vector<ComplexMatrix<Float>>& fields) {
+    using Complex = std::complex<Float>;
+    const int n = m_n;
+    const Eigen::Index total = static_cast<Eigen::Index>(m_kernels.size());
+    check_weights(weights, m_kernels.size());
+    const std::string size = std::to_string(n) + "x" + std::to_string(n);
+    fields.resize(weights.size());
+    allocating("the " + size + " slice's " + std::to_string(weights.size()) + " field(s)",
+               double(weights.size()) * double(n) * n * sizeof(Complex), [&] {
+                   for (ComplexMatrix<Float>& f : fields) f.setZero(n, n);
+               });
+    const Kept* cached = kept(shift_scale);
+    const Eigen::Index chunk = cached ? std::max<Eigen::Index>(total, 1) : chunk_size(n, sizeof(Complex), 3);
+    const Eigen::Index cols = std::min(chunk, std::max<Eigen::Index>(total, 1));
+    ComplexMatrix<Float> built_xs, built_ys, yw;
+    allocating("the " + size + " slice's factor matrices",
+               (cached ? 1.0 : 3.0) * double(n) * double(cols) * sizeof(Complex), [&] {
+                   if (!cached) {
+                       built_xs.resize(n, cols);
+                       built_ys.resize(n, cols);
+                   }
+                   yw.resize(n, cols);
+               });
+    const ComplexMatrix<Float>& xs = cached ? cached->xs : built_xs;
+    const ComplexMatrix<Float>& ys = cached ? cached->ys : built_ys;
+    for (Eigen::Index k0 = 0; k0 < total; k0 += chunk) {
+        const Eigen::Index count = std::min(chunk, total - k0);
+        const Eigen::Index base = cached ? k0 : 0;
+        if (!cached)
+            build_factors<Float>(m_kernels, m_grid, m_phases, m_lambda_um, shift_scale, k0, count, built_xs, built_ys);
+        for (std::size_t v = 0; v < weights.size(); ++v) {
+            // Y·diag(w_v): the weights enter the smaller factor.
+            for (Eigen::Index c = 0; c < count; ++c) {
+                const std::complex<double> w = weights[v][static_cast<std::size_t>(k0 + c)];
+                yw.col(c) = ys.col(base + c) * Complex(Float(w.real()), Float(w.imag()));
+            }
+            ComplexMatrix<Float>& field = fields[v];
+            for_column_blocks(n, double(n) * n * double(count), [&](long long first, long long block) {
+                field.middleCols(first, block).noalias() += xs.middleCols(base, count) *
+                                                            yw.leftCols(count).middleRows(first, block).transpose();
+            });
+        }
+    }
+    if (m_keep && !cached && total > 0 && total <= chunk) keep(shift_scale, built_xs, built_ys);
+}
+
+template <typename Float>
+void SeparableEngine<Float>::adjoint(const KernelWeights& weights, double shift_scale,
+                                     const std::vector<ComplexMatrix<Float>>& cotangents, FieldGradient& gradient) {
+    using Complex = std::complex<Float>;
+    const int n = m_n;
+    const std::size_t total = m_kernels.size();
+    check_weights(weights, total);
+    if (cotangents.size() != weights.size())
+        throw std::invalid_argument("cotangents are " + std::to_string(cotangents.size()) +
+                                    " matrices; expected one per weight vector (" + std::to_string(weights.size()) +
+                                    ")");
+    for (const ComplexMatrix<Float>& b : cotangents)
+        if (b.rows() != n || b.cols() != n)
+            throw std::invalid_argument("a cotangent is " + std::to_string(b.rows()) + "x" + std::to_string(b.cols()) +
+                                        "; expected the slice's " + std::to_string(n) + "x" + std::to_string(n));
+    gradient.weight.assign(weights.size(), std::vector<std::complex<double>>(total, 0.0));
+    gradient.shift_x.assign(total, 0.0);
+    gradient.shift_y.assign(total, 0.0);
+    const Kept* cached = kept(shift_scale);
+    const Eigen::Index chunk = cached ? std::max<Eigen::Index>(Eigen::Index(total), 1)
+                                      : chunk_size(n, sizeof(Complex), 4, kAdjointChunkColumns);
+    const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
+    ComplexMatrix<Float> built_xs, built_ys, z, v;
+    allocating("the " + std::to_string(n) + "x" + std::to_string(n) + " slice's adjoint factor matrices",
+               (cached ? 2.0 : 4.0) * double(n) * double(cols) * sizeof(Complex), [&] {
+                   if (!cached) {
+                       built_xs.resize(n, cols);
+                       built_ys.resize(n, cols);
+                   }
+                   z.resize(n, cols);
+                   v.resize(n, cols);
+               });
+    const ComplexMatrix<Float>& xs = cached ? cached->xs : built_xs;
+    const ComplexMatrix<Float>& ys = cached ? cached->ys : built_ys;
+    const double gauss = 2.0 * k_pi * k_pi * m_kernels.sigma_um * m_kernels.sigma_um;
+    const double shift = shift_scale * 2.0 / m_lambda_um;
+    std::vector<std::complex<double>> tx(static_cast<std::size_t>(cols)), ty(static_cast<std::size_t>(cols));
+    for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
+        const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
+        const Eigen::Index base = cached ? k0 : 0;
+        if (!cached)
+            build_factors<Float>(m_kernels, m_grid, m_phases, m_lambda_um, shift_scale, k0, count, built_xs, built_ys);
+        std::fill(tx.begin(), tx.end(), 0.0);
+        std::fill(ty.begin(), ty.end(), 0.0);
+        for (std::size_t vec = 0; vec < weights.size(); ++vec) {
+            const ComplexMatrix<Float>& b = cotangents[vec];
+            // Z = B·Y and V = Bᵀ·X, split over kernels (columns).
+            for_column_blocks(count, 2.0 * double(n) * n * double(count), [&](long long first, long long block) {
+                z.middleCols(first, block).noalias() = b * ys.middleCols(base + first, block);
+                v.middleCols(first, block).noalias() = b.transpose() * xs.middleCols(base + first, block);
+            });
+            RegionGuard guard;
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(count) * n))
+            for (Eigen::Index c = 0; c < count; ++c)
+                guard.run([&] {
+                    const std::size_t idx = static_cast<std::size_t>(k0 + c);
+                    const double bx = shift * m_kernels.slope_x[idx];
+                    const double by = shift * m_kernels.slope_y[idx];
+                    std::complex<double> t0 = 0.0, t1 = 0.0, t2 = 0.0;
+                    for (Eigen::Index p = 0; p < n; ++p) {
+                        const std::complex<double> xz = std::complex<double>(xs(p, base + c)) *
+                                                        std::complex<double>(z(p, c));
+                        t0 += xz;
+                        t1 += -2.0 * gauss * (m_grid.ux[static_cast<std::size_t>(p)] + bx) * xz;
+                        t2 += -2.0 * gauss * (m_grid.uy[static_cast<std::size_t>(p)] + by) *
+                              (std::complex<double>(ys(p, base + c)) * std::complex<double>(v(p, c)));
+                    }
+                    const std::complex<double> w = weights[vec][idx];
+                    gradient.weight[vec][idx] = t0;
+                    tx[static_cast<std::size_t>(c)] += w * t1;
+                    ty[static_cast<std::size_t>(c)] += w * t2;
+                });
+            guard.rethrow();
+        }
+        for (Eigen::Index c = 0; c < count; ++c) {
+            const std::size_t idx = static_cast<std::size_t>(k0 + c);
+            gradient.shift_x[idx] = 2.0 * std::real(tx[static_cast<std::size_t>(c)]);
+            gradient.shift_y[idx] = 2.0 * std::real(ty[static_cast<std::size_t>(c)]);
+        }
+    }
+}
+
+template class SeparableEngine<float>;
+template class SeparableEngine<double>;
+
+}  // namespace wavebrdf::detail
