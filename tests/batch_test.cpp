@@ -26,11 +26,8 @@ struct Case {
 };
 
 std::vector<Case> cases() {
-    return {{Model::OHS, RenderPath::Auto},
-            {Model::ROHS, RenderPath::Separable},
-            {Model::OHS, RenderPath::Direct},
-            {Model::GHS, RenderPath::Auto},
-            {Model::Kirchhoff, RenderPath::Auto}};
+    return {{Model::OHS, RenderPath::Auto}, {Model::ROHS, RenderPath::Separable}, {Model::OHS, RenderPath::Direct},
+            {Model::GHS, RenderPath::Auto}, {Model::Kirchhoff, RenderPath::Auto}, {Model::GHS, RenderPath::Fft}};
 }
 
 RenderOptions with_path(RenderPath path) {

@@ -83,11 +83,12 @@ std::vector<double> node_slice(const FootprintKernels& k, const Query& q, double
 
 }  // namespace
 
-// The slices of every GHS-type model match the direct sum (no pruning) to 1e-6 of the peak, on
-// steep, rough and smooth surfaces, normal and oblique light, several λ and resolutions.
+// The slices of every model match the direct sum (no pruning) to 1e-6 of the peak on both
+// engine paths (separable products and the FFT engine, each with its C3 nodes), on steep, rough
+// and smooth surfaces, normal and oblique light, several λ and resolutions.
 TEST(C3Nodes, SeparableMatchesDirectSumWithinTolerance) {
     for (const Surface& s : surfaces())
-        for (Model model : {Model::GHS, Model::RGHS, Model::Kirchhoff})
+        for (Model model : {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff})
             for (const auto& [wx, wy, lambda, n] : std::vector<std::tuple<double, double, double, int>>{
                      {0.0, 0.0, 0.5, 24}, {0.5, -0.5, 0.4, 17}, {-0.2, 0.65, 0.7, 32}}) {
                 SCOPED_TRACE(std::string(s.name) + " " + to_string(model) + " light " + std::to_string(wx) + "," +
@@ -95,13 +96,13 @@ TEST(C3Nodes, SeparableMatchesDirectSumWithinTolerance) {
                 const Query q = make_query(model, 12.0, 11.0, 3.5, wx, wy);
                 const std::vector<double> direct = render_slice<double>(s.hf, q, lambda, n,
                                                                         options_for(RenderPath::Direct));
-                const std::vector<double> separable = render_slice<double>(s.hf, q, lambda, n,
-                                                                           options_for(RenderPath::Separable));
                 const double p = peak(direct);
                 ASSERT_GT(p, 0.0);
-                EXPECT_LE(test::max_abs_diff(direct, separable), 1e-6 * p);
-                // Auto takes the same path.
-                EXPECT_EQ(render_slice<double>(s.hf, q, lambda, n, options_for(RenderPath::Auto)), separable);
+                for (RenderPath path : {RenderPath::Separable, RenderPath::Fft, RenderPath::Auto}) {
+                    SCOPED_TRACE(path == RenderPath::Fft ? "fft" : path == RenderPath::Auto ? "auto" : "separable");
+                    EXPECT_LE(test::max_abs_diff(direct, render_slice<double>(s.hf, q, lambda, n, options_for(path))),
+                              1e-6 * p);
+                }
             }
     // The steep surface is steep, the rough one rough.
     EXPECT_GT(max_slope(footprint_kernels(surfaces()[0].hf, 12.0, 11.0, 3.5)), 0.7);
@@ -246,37 +247,39 @@ TEST(C3Nodes, SeparableEngineAdjointIdentityAndShiftGradient) {
     }
 }
 
-// The separable path's gradient (tight tolerance) equals the direct path's, and matches
-// central differences of the separable slice.
+// The separable and FFT paths' gradients (tight tolerance) equal the direct path's, and match
+// central differences of their own slices.
 TEST(C3Nodes, GradientMatchesDirectPathAndFiniteDifferences) {
     const Heightfield hf = random_heightfield(20, 20, 0.5, 41, 1.0, 1.0);
     const int n = 18;
     const double lambda = 0.5;
     const std::vector<double> weights = test::uniform_vector(std::size_t(n) * n, -1.0, 1.0, 7);
-    for (Model model : {Model::GHS, Model::RGHS, Model::Kirchhoff}) {
-        SCOPED_TRACE(to_string(model));
-        const Query q = make_query(model, 10.0, 9.0, 3.0, 0.4, -0.3);
-        const RenderOptions separable = options_for(RenderPath::Separable, 1e-10);
-        std::vector<double> g_sep, g_dir;
-        slice_gradient<double>(hf, q, lambda, n, weights, g_sep, separable);
-        slice_gradient<double>(hf, q, lambda, n, weights, g_dir, options_for(RenderPath::Direct));
-        EXPECT_LE(test::max_abs_diff(g_sep, g_dir), 1e-6 * test::max_abs(g_dir));
-        auto loss = [&](const Heightfield& h) {
-            const std::vector<double> s = render_slice<double>(h, q, lambda, n, separable);
-            double l = 0.0;
-            for (std::size_t i = 0; i < s.size(); ++i) l += weights[i] * s[i];
-            return l;
-        };
-        for (std::size_t cell : {std::size_t(9 * 20 + 9), std::size_t(11 * 20 + 8)}) {
-            std::vector<double> plus = hf.values(), minus = hf.values();
-            const double h = 1e-5;
-            plus[cell] += h;
-            minus[cell] -= h;
-            const double fd = (loss(Heightfield(20, 20, plus, 1.0, 1.0)) - loss(Heightfield(20, 20, minus, 1.0, 1.0))) /
-                              (2 * h);
-            EXPECT_NEAR(fd, g_sep[cell], 1e-5 * test::max_abs(g_sep));
+    for (Model model : {Model::GHS, Model::RGHS, Model::Kirchhoff})
+        for (RenderPath path : {RenderPath::Separable, RenderPath::Fft}) {
+            SCOPED_TRACE(std::string(to_string(model)) + (path == RenderPath::Fft ? " fft" : " separable"));
+            const Query q = make_query(model, 10.0, 9.0, 3.0, 0.4, -0.3);
+            const RenderOptions separable = options_for(path, 1e-10);
+            std::vector<double> g_sep, g_dir;
+            slice_gradient<double>(hf, q, lambda, n, weights, g_sep, separable);
+            slice_gradient<double>(hf, q, lambda, n, weights, g_dir, options_for(RenderPath::Direct));
+            EXPECT_LE(test::max_abs_diff(g_sep, g_dir), 1e-6 * test::max_abs(g_dir));
+            auto loss = [&](const Heightfield& h) {
+                const std::vector<double> s = render_slice<double>(h, q, lambda, n, separable);
+                double l = 0.0;
+                for (std::size_t i = 0; i < s.size(); ++i) l += weights[i] * s[i];
+                return l;
+            };
+            for (std::size_t cell : {std::size_t(9 * 20 + 9), std::size_t(11 * 20 + 8)}) {
+                std::vector<double> plus = hf.values(), minus = hf.values();
+                const double h = 1e-5;
+                plus[cell] += h;
+                minus[cell] -= h;
+                const double fd = (loss(Heightfield(20, 20, plus, 1.0, 1.0)) -
+                                   loss(Heightfield(20, 20, minus, 1.0, 1.0))) /
+                                  (2 * h);
+                EXPECT_NEAR(fd, g_sep[cell], 1e-5 * test::max_abs(g_sep));
+            }
         }
-    }
 }
 
 // The separable float path stays within float rounding of the double one for GHS-type models.

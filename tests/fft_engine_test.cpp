@@ -1,7 +1,7 @@
 // The FFT engine (src/forward/fft_engine.h) against an independent slow evaluation of the sum
 //   F_v[p,q] = Σ_k w_vk exp(−2π²σ²|u + b_k|²) e^{−i2π u·δ_k},  b_k = shift_scale (2/λ) s_k,
 // its adjoint against the transpose of that sum and against finite differences, and the
-// separable path (detail::separable_field) for OHS.
+// separable path (detail::SeparableEngine) for OHS.
 #include <cmath>
 #include <complex>
 #include <limits>
@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "forward/fft_engine.h"
+#include "forward/separable_engine.h"
 #include "forward/path_cost.h"
 #include "forward/separable.h"
 #include "test_util.h"
@@ -170,9 +171,10 @@ TEST(FftEngineTest, MatchesTheSeparablePathForOhs) {
         c.wx = wx;
         const Fixture s = make_setup(c);
         const SliceGrid grid(s.query, c.lambda_um, c.n);
-        const detail::PhaseTables phases(s.kernels, grid);
-        const ComplexMatrix<double> separable = detail::separable_field<double>(s.kernels, grid, phases, c.lambda_um,
-                                                                                c.n, nullptr);
+        detail::SeparableEngine<double> product(s.kernels, grid, c.lambda_um, c.n);
+        std::vector<ComplexMatrix<double>> products;
+        product.forward(s.weights, 1.0, products);
+        const ComplexMatrix<double>& separable = products[0];
         FftEngine<double> engine(s.kernels, grid, c.lambda_um, c.n, 1e-6);
         std::vector<ComplexMatrix<double>> fields;
         engine.forward(s.weights, 1.0, fields);

@@ -38,7 +38,10 @@ std::vector<Case> cases() {
             {Model::ROHS, RenderPath::Separable, {0.45, 0.61}},
             {Model::OHS, RenderPath::Direct, {0.55}},
             {Model::GHS, RenderPath::Auto, {0.5}},
-            {Model::Kirchhoff, RenderPath::Auto, spectral_wavelengths_um(3)}};
+            {Model::Kirchhoff, RenderPath::Auto, spectral_wavelengths_um(3)},
+            {Model::OHS, RenderPath::Fft, {0.5, 0.6}},
+            {Model::RGHS, RenderPath::Fft, {0.5}},
+            {Model::Kirchhoff, RenderPath::Fft, {0.45}}};
 }
 
 // The plan, built on `first` and then given `second`'s heights, renders and differentiates
@@ -150,12 +153,10 @@ TEST(SlicePlanTest, BadInputThrows) {
     test::expect_throw_naming<std::invalid_argument>([&] { SlicePlan<double>(hf, q, {0.5}, 16, 2); }, "channels 2");
     test::expect_throw_naming<std::invalid_argument>([&] { SlicePlan<double>(hf, q, {}, 16, 3); }, "no wavelengths");
     test::expect_throw_naming<std::domain_error>([&] { SlicePlan<double>(hf, q, {0.5}, 0, 3); }, "resolution 0");
-    // Every model has the separable path now (c3_nodes_test); the fft path is not wired in yet.
+    // Every model has the separable and fft paths (c3_nodes_test).
     EXPECT_NO_THROW(
         SlicePlan<double>(hf, make_query(Model::GHS, 8, 8, 4), {0.5}, 16, 3, with_path(RenderPath::Separable)));
-    test::expect_throw_naming<std::invalid_argument>(
-        [&] { SlicePlan<double>(hf, make_query(Model::GHS, 8, 8, 4), {0.5}, 16, 3, with_path(RenderPath::Fft)); },
-        "fft path");
+    EXPECT_NO_THROW(SlicePlan<double>(hf, make_query(Model::GHS, 8, 8, 4), {0.5}, 16, 3, with_path(RenderPath::Fft)));
     SlicePlan<double> plan(hf, q, {0.5}, 16, 3);
     std::vector<double> g;
     test::expect_throw_naming<std::logic_error>([&] { plan.adjoint(std::vector<double>(16 * 16 * 3), g); },

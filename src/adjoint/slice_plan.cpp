@@ -2,6 +2,7 @@
 // computed once; set_heights / forward / adjoint reuse it.
 #include "wavebrdf/slice_plan.h"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
@@ -10,6 +11,7 @@
 #include "forward/c3_nodes.h"
 #include "forward/direct.h"
 #include "forward/field_engine.h"
+#include "forward/path_cost.h"
 #include "forward/separable.h"
 #include "forward/separable_engine.h"
 #include "wavebrdf/spectrum.h"
@@ -32,8 +34,6 @@ void validate(const RenderOptions& options, Model model) {
     if (!(options.tolerance >= 1e-12 && options.tolerance <= 1e-2))
         throw std::domain_error("tolerance " + std::to_string(options.tolerance) +
                                 " is out of range; expected 1e-12 to 1e-2 of the slice peak");
-    if (options.path == RenderPath::Fft)
-        throw std::invalid_argument("the fft path is not available yet; expected auto, separable or direct");
 }
 
 template <typename Float>
@@ -65,6 +65,24 @@ struct SlicePlan<Float>::State {
     std::vector<Band> bands;
     std::vector<Float> output;
     bool forward_done = false;
+
+    // The engine for wavelength λ: the path asked for, or Auto resolved by the cost model from
+    // the footprint's current kernels (the steepest slope sets the FFT grid).
+    RenderPath engine_path(double lambda_um) const {
+        if (options.path != RenderPath::Auto) return options.path;
+        detail::FieldPathInputs in;
+        in.n = n;
+        in.lambda_um = lambda_um;
+        in.kernels = kernels.size();
+        in.texel_um = texel_um;
+        for (std::size_t k = 0; k < kernels.size(); ++k)
+            in.max_slope = std::max({in.max_slope, std::abs(kernels.slope_x[k]), std::abs(kernels.slope_y[k])});
+        in.tolerance = options.tolerance;
+        in.omega_ix = query.omega_i[0];
+        in.omega_iy = query.omega_i[1];
+        in.views = query.model == Model::Kirchhoff ? 3 : 1;
+        return detail::choose_field_path(in);
+    }
 
     std::size_t cells() const { return static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols); }
     double value(const std::vector<double>& h, int i, int j) const {
@@ -105,8 +123,8 @@ SlicePlan<Float>::SlicePlan(const Heightfield& hf, const Query& query, const std
     s.n = resolution;
     s.channels = channels;
     s.options = options;
-    // Auto: the separable engine for every model (the cost model's choice of the FFT engine
-    // comes with it).
+    // Auto: the separable or the FFT engine for every model, whichever the cost model
+    // (path_cost.h) says is cheaper for this slice size, wavelength and footprint.
     s.separable = options.path != RenderPath::Direct;
     s.differentiable = differentiable;
     s.kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
@@ -118,8 +136,8 @@ SlicePlan<Float>::SlicePlan(const Heightfield& hf, const Query& query, const std
         b.lambda_um = lambdas_um[l];
         if (!s.separable) continue;
         b.grid = std::make_unique<detail::SliceGrid>(query, b.lambda_um, resolution);
-        b.engine = detail::make_field_engine<Float>(options.path, s.kernels, *b.grid, b.lambda_um, resolution,
-                                                    options.tolerance, differentiable);
+        b.engine = detail::make_field_engine<Float>(s.engine_path(b.lambda_um), s.kernels, *b.grid, b.lambda_um,
+                                                    resolution, options.tolerance, differentiable);
         if (differentiable)
             b.nodes = std::make_unique<detail::C3Nodes<Float>>(query, *b.grid, b.lambda_um, resolution,
                                                                options.tolerance);

@@ -246,12 +246,9 @@ typename FftEngine<Float>::Layout FftEngine<Float>::layout(double shift_scale) c
         throw_out_of_memory("the FFT engine's grid (more than 1e9 points per axis)", 1e18);
     long long mx = good_fft_size(static_cast<long long>(std::floor(need_x)) + 1);
     long long my = good_fft_size(static_cast<long long>(std::floor(need_y)) + 1);
-    // Reuse the current grid while it is not much larger than needed (no re-planning when the
-    // slopes change a little between calls).
-    if (m_work->mx >= mx && m_work->my >= my && m_work->mx <= mx + mx / 4 && m_work->my <= my + my / 4) {
-        mx = m_work->mx;
-        my = m_work->my;
-    }
+    // The grid is a function of the current slopes only (not of earlier calls), so a plan reused
+    // across heights gives the very values a fresh one does; the workspace is re-planned when
+    // the size changes (FFTW_ESTIMATE plans take well under a millisecond).
     if (mx > std::numeric_limits<int>::max() / 2 || my > std::numeric_limits<int>::max() / 2)
         throw_out_of_memory("the FFT engine's grid", double(mx) * double(my) * sizeof(std::complex<Float>));
     const double period = 1.0 / m_du;

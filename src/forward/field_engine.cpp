@@ -3,6 +3,7 @@
 
 #include <stdexcept>
 
+#include "forward/fft_engine.h"
 #include "forward/separable_engine.h"
 
 namespace wavebrdf::detail {
@@ -11,7 +12,6 @@ template <typename Float>
 std::unique_ptr<FieldEngine<Float>> make_field_engine(RenderPath path, const FootprintKernels& kernels,
                                                       const SliceGrid& grid, double lambda_um, int n, double tolerance,
                                                       bool keep_factors) {
-    (void)tolerance;  // the separable engine is exact; the FFT engine will use it
     switch (path) {
         case RenderPath::Auto:
         case RenderPath::Separable: {
@@ -19,8 +19,7 @@ std::unique_ptr<FieldEngine<Float>> make_field_engine(RenderPath path, const Foo
             engine->keep_factors(keep_factors);
             return engine;
         }
-        case RenderPath::Fft:
-            throw std::invalid_argument("the fft path is not available yet; expected auto, separable or direct");
+        case RenderPath::Fft: return std::make_unique<FftEngine<Float>>(kernels, grid, lambda_um, n, tolerance);
         case RenderPath::Direct: break;
     }
     throw std::invalid_argument("the direct path has no field engine; expected auto, separable or fft");

@@ -52,8 +52,9 @@ public:
 };
 
 // The engine of `path` for one slice (field_engine.cpp): SeparableEngine for Separable and Auto
-// (keep_factors as SeparableEngine::keep_factors: differentiable plans); throws
-// std::invalid_argument for Direct (no engine) and for Fft until the FFT engine is wired in.
+// (keep_factors as SeparableEngine::keep_factors: differentiable plans), FftEngine for Fft;
+// throws std::invalid_argument for Direct (no engine). Callers resolve Auto first
+// (choose_field_path, path_cost.h) where the FFT engine may be cheaper.
 // `kernels` must outlive the engine; `tolerance` is RenderOptions::tolerance (for engines that
 // approximate).
 template <typename Float>
