@@ -73,7 +73,9 @@ void run(const GenbrdfArgs& a) {
     check_distinct_files({{"-i", a.input}, {"-o", a.output}, {"--png", a.png}});
     const HeightfieldScale scale = resolve_scale_with_warnings(a.input, if_given(a.given_texel, a.texel),
                                                                if_given(a.given_vscale, a.vscale), "-w", "-v");
-    const Heightfield hf = read_heightfield_exr(a.input, scale.texel_um, scale.vscale);
+    // One footprint: only its rows are read (bit for bit the slice of the whole file).
+    const Heightfield hf =
+        read_heightfield_exr_footprint(a.input, q.x_um, q.sigma_p_um, scale.texel_um, scale.vscale).heightfield;
     job.heightfield_file = a.input;
     job.made_by = "wavebrdf genbrdf";
     run_slice_job(hf, q, job);

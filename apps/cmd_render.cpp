@@ -59,7 +59,10 @@ void run(RenderArgs a) {
     const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
                                                                if_given(a.given_vscale, a.vscale), "--texel-um",
                                                                "--vscale");
-    const Heightfield hf = read_heightfield_exr(a.heightfield, scale.texel_um, scale.vscale);
+    // One footprint: only its rows are read (bit for bit the slice of the whole file).
+    const Heightfield hf =
+        read_heightfield_exr_footprint(a.heightfield, a.query.x_um, a.query.sigma_p_um, scale.texel_um, scale.vscale)
+            .heightfield;
     a.job.heightfield_file = a.heightfield;
     a.job.made_by = "wavebrdf render";
     run_slice_job(hf, a.query, a.job);
