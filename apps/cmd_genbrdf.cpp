@@ -27,6 +27,7 @@ struct GenbrdfArgs {
     bool quiet = false;
     std::string png;
     PreviewArgs preview;
+    RenderPathArgs path;
     // Whether -w / -v were given. When not, a heightfield file's own attributes apply (files
     // written by wavebrdf carry them); genBrdf's files carry none and get genBrdf's defaults.
     bool given_texel = false, given_vscale = false;
@@ -68,6 +69,7 @@ void run(const GenbrdfArgs& a) {
     job.with_alpha = true;
     job.quiet = a.quiet;
     job.options.max_memory_gb = a.max_memory_gb;
+    apply_render_path_options(a.path, job.options);
     validate(q);
     validate_resolution(job.resolution);
     check_distinct_files({{"-i", a.input}, {"-o", a.output}, {"--png", a.png}});
@@ -104,6 +106,7 @@ void add_genbrdf_command(CLI::App& app) {
     cmd->add_option("--max-memory-gb", a->max_memory_gb,
                     "refuse a render whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();
+    add_render_path_options(cmd, a->path);
     cmd->add_option("--png", a->png, "also an 8-bit preview (default: log scale, --log-decades below the peak)");
     add_preview_options(cmd, a->preview);
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");

@@ -493,8 +493,8 @@ constexpr int k_rows_per_read = 256;
 
 // Appends rows first_row … last_row of `channel` to `values` as double, read block by block
 // through one small float buffer (no full-size float copy, no zero-fill of `values`).
-void append_rows(const ExrSource& source, const char* channel, int first_row, int last_row,
-                 std::vector<double>& values, std::vector<float>& buffer) {
+void append_rows(const ExrSource& source, const char* channel, int first_row, int last_row, std::vector<double>& values,
+                 std::vector<float>& buffer) {
     const std::size_t cols = static_cast<std::size_t>(source.m_cols);
     for (int row = first_row; row <= last_row; row += k_rows_per_read) {
         const int last = std::min(last_row, row + k_rows_per_read - 1);
@@ -546,8 +546,8 @@ HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional
 HeightfieldFile read_heightfield_exr_footprint(const std::string& path, double x_um, double sigma_p_um,
                                                std::optional<double> texel_um, std::optional<double> vscale) {
     if (!std::isfinite(x_um) || !std::isfinite(sigma_p_um) || !(sigma_p_um > 0.0))
-        throw std::domain_error("footprint x " + format_shortest(x_um) + " um, sigma_p " +
-                                format_shortest(sigma_p_um) + " um is invalid; expected finite x and sigma_p > 0");
+        throw std::domain_error("footprint x " + format_shortest(x_um) + " um, sigma_p " + format_shortest(sigma_p_um) +
+                                " um is invalid; expected finite x and sigma_p > 0");
     // Kernels lie within 3σ_p of the centre (gabor.cpp footprint_kernels), their slopes one row
     // further; 3 rows more absorb any rounding of the centre. In rows of texels, with the centre
     // reduced to one period as the kernels' is; distances are periodic, across the tile's seam.
