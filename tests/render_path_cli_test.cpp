@@ -16,6 +16,7 @@
 #include "wavebrdf/inversion_run.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/render_options.h"
+#include "wavebrdf/table.h"
 
 namespace fs = std::filesystem;
 using namespace wavebrdf;
@@ -108,6 +109,28 @@ TEST_F(RenderPathCliTest, PathAndToleranceReachTheRender) {
     // The separable path needs OHS or ROHS (the library's check, one line).
     const CliResult s = run("render --heightfield h.exr --resolution 8 --model Kirchhoff --path separable --out s.exr");
     expect_one_line_naming(s, {"separable"});
+}
+
+// `table` reads only its footprint's rows too: its values equal the library's table of the whole
+// file, for a footprint across the tile's seam (y too) and on the direct path for GHS.
+TEST_F(RenderPathCliTest, TableOfTheFootprintRowsEqualsTheWholeFile) {
+    const std::string hf = make_heightfield();
+    const CliResult r = run(
+        "table --heightfield h.exr --x-um 23.8 --y-um 0.2 --sigma-p-um 1.5 --model GHS "
+        "--path direct --lights 2x3 --max-light-sin 0.5 --resolution 8 --out t.exr --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    TableSpec spec;
+    spec.query.x_um = 23.8;
+    spec.query.y_um = 0.2;
+    spec.query.sigma_p_um = 1.5;
+    spec.query.model = Model::GHS;
+    spec.lambdas_um = {0.5};
+    spec.resolution = 8;
+    spec.lights = {2, 3, 0.5};
+    RenderOptions options;
+    options.path = RenderPath::Direct;
+    const BrdfTable expected = render_brdf_table(read_heightfield_exr(hf), spec, options);
+    EXPECT_EQ(read_brdf_table(path("t.exr").string()).values, expected.values);
 }
 
 TEST_F(RenderPathCliTest, HelpListsPathAndTolerance) {

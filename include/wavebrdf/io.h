@@ -86,8 +86,9 @@ HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional
                                           std::optional<double> vscale = std::nullopt);
 
 // Reads only what one footprint's slice needs: the rows of the heightfield EXR within
-// 3 sigma_p_um + 4 texels of the footprint centre's row x_um (µm along the rows, any value: it is
-// reduced to one period; the distance wraps across the tile's edge), i.e. the rows of every kernel
+// ceil(3 sigma_p_um / w) + 3 rows (w the texel width used) of the footprint centre x_um (µm along
+// the rows, any value: it is reduced to one period; the distance wraps across the tile's edge),
+// a superset of the rows of every kernel
 // within 3 sigma_p (gabor.h footprint_kernels) and of the neighbours its slope uses. Every other
 // value of the returned full-size heightfield is 0, so it renders that footprint (x_um,
 // sigma_p_um and any y_um) bit for bit as the whole file does, and nothing else. A footprint
