@@ -7,6 +7,7 @@
 #include <system_error>
 #include <stdexcept>
 
+#include "wavebrdf/render_options.h"
 #include "wavebrdf/threads.h"
 
 namespace wavebrdf::cli {
@@ -60,6 +61,23 @@ HeightfieldScale resolve_scale_with_warnings(const std::string& path, std::optio
                                                        texel_option, vscale_option, default_texel_um, default_vscale);
     for (const std::string& w : scale.warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
     return scale;
+}
+
+void add_render_path_options(CLI::App* cmd, RenderPathArgs& args) {
+    cmd->add_option("--path", args.path,
+                    "rendering path: auto (chosen by cost), separable (matrix products), fft (the FFT engine) or "
+                    "direct (every pixel sums every kernel)")
+        ->capture_default_str();
+    cmd->add_option("--tolerance", args.tolerance,
+                    "separable (GHS, RGHS, Kirchhoff) and fft paths: error bound relative to the slice peak, "
+                    "1e-12 to 1e-2")
+        ->capture_default_str();
+}
+
+void apply_render_path_options(const RenderPathArgs& args, RenderOptions& options) {
+    options.path = parse_render_path(args.path, "--path");
+    validate_render_tolerance(args.tolerance, "--tolerance");
+    options.tolerance = args.tolerance;
 }
 
 }  // namespace wavebrdf::cli

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "wavebrdf/brdf.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/inversion_run.h"
 #include "wavebrdf/io.h"
@@ -50,6 +51,22 @@ HeightfieldScale resolve_scale_with_warnings(const std::string& path, std::optio
                                              std::optional<double> vscale, const std::string& texel_option,
                                              const std::string& vscale_option, double default_texel_um = 1.0,
                                              double default_vscale = 1.0);
+
+// The rendering path and its error bound as given on a command line (add_render_path_options
+// fills them; apply_render_path_options checks them into RenderOptions).
+struct RenderPathArgs {
+    std::string path = "auto";
+    double tolerance = 1e-6;  // RenderOptions' default
+};
+
+// Adds --path auto|separable|fft|direct and --tolerance X to `cmd`; `args` must outlive the parse.
+void add_render_path_options(CLI::App* cmd, RenderPathArgs& args);
+
+// Sets options.path and options.tolerance from `args`. Throws std::invalid_argument
+// "--path 'X' is unknown; expected auto, separable, fft or direct" or std::domain_error
+// "--tolerance X is out of range; expected 1e-12 to 1e-2 ..." (whether the path suits the model
+// is the library's check, when it renders).
+void apply_render_path_options(const RenderPathArgs& args, RenderOptions& options);
 
 // `value` when `given`, else std::nullopt (for the options above).
 inline std::optional<double> if_given(bool given, double value) {

@@ -27,6 +27,7 @@ struct GenbrdfArgs {
     bool quiet = false;
     std::string png;
     PreviewArgs preview;
+    RenderPathArgs path;
     // Whether -w / -v were given. When not, a heightfield file's own attributes apply (files
     // written by wavebrdf carry them); genBrdf's files carry none and get genBrdf's defaults.
     bool given_texel = false, given_vscale = false;
@@ -68,12 +69,15 @@ void run(const GenbrdfArgs& a) {
     job.with_alpha = true;
     job.quiet = a.quiet;
     job.options.max_memory_gb = a.max_memory_gb;
+    apply_render_path_options(a.path, job.options);
     validate(q);
     validate_resolution(job.resolution);
     check_distinct_files({{"-i", a.input}, {"-o", a.output}, {"--png", a.png}});
     const HeightfieldScale scale = resolve_scale_with_warnings(a.input, if_given(a.given_texel, a.texel),
                                                                if_given(a.given_vscale, a.vscale), "-w", "-v");
-    const Heightfield hf = read_heightfield_exr(a.input, scale.texel_um, scale.vscale);
+    // One footprint: only its rows are read (bit for bit the slice of the whole file).
+    const Heightfield hf =
+        read_heightfield_exr_footprint(a.input, q.x_um, q.sigma_p_um, scale.texel_um, scale.vscale).heightfield;
     job.heightfield_file = a.input;
     job.made_by = "wavebrdf genbrdf";
     run_slice_job(hf, q, job);
@@ -102,6 +106,7 @@ void add_genbrdf_command(CLI::App& app) {
     cmd->add_option("--max-memory-gb", a->max_memory_gb,
                     "refuse a render whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();
+    add_render_path_options(cmd, a->path);
     cmd->add_option("--png", a->png, "also an 8-bit preview (default: log scale, --log-decades below the peak)");
     add_preview_options(cmd, a->preview);
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");

@@ -17,6 +17,7 @@
 #include "commands.h"
 #include "report.h"
 #include "wavebrdf/inversion_run.h"
+#include "wavebrdf/render_options.h"
 
 namespace wavebrdf::cli {
 
@@ -40,6 +41,7 @@ struct InvertArgs {
     int resolution = 32, epochs = 300;
     std::string optimizer = "adam", loss = "cmsle:1", positions = "fixed";
     double lr = 0.01, beta1 = 0.9, beta2 = 0.99, decay = 0.005;
+    RenderPathArgs render;  // --path, --tolerance
     std::uint64_t seed = 1;
     std::string out, resume, snapshots = "0,10,30,100,300";
     int checkpoint_every = 50;
@@ -94,6 +96,8 @@ InversionOptions to_options(const InvertArgs& a) {
     o.positions = parse_positions_spec(a.positions, "--positions");
     o.init = parse_init_spec(a.init, "--init");
     o.seed = a.seed;
+    o.path = parse_render_path(a.render.path, "--path");
+    o.tolerance = a.render.tolerance;  // checked by prepare_inversion, named --tolerance
     o.snapshots = parse_epoch_list(a.snapshots, "--snapshots");
     o.checkpoint_every = a.checkpoint_every;
     o.max_memory_gb = a.max_memory_gb;
@@ -194,6 +198,7 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--positions", a->positions,
                     "fixed, random (a new position per epoch) or FILE.json ([[x_um, y_um], ...])")
         ->capture_default_str();
+    add_render_path_options(cmd, a->render);
     cmd->add_option("--seed", a->seed, "seed (generated truth, noise, random positions)")->capture_default_str();
     cmd->add_option("--out", a->out, "output directory");
     cmd->add_option("--resume", a->resume,

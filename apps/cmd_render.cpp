@@ -24,21 +24,14 @@ struct RenderArgs {
     int spectral = 0;  // used only when given_spectral
     bool given_spectral = false;
     std::string precision = "float";
-    std::string path = "auto";
+    RenderPathArgs path;
     SliceJob job;
     PreviewArgs preview;
 };
 
-RenderPath parse_path(const std::string& name) {
-    if (name == "auto") return RenderPath::Auto;
-    if (name == "separable") return RenderPath::Separable;
-    if (name == "direct") return RenderPath::Direct;
-    throw std::invalid_argument("render path '" + name + "' is unknown; expected auto, separable or direct");
-}
-
 void run(RenderArgs a) {
     a.query.model = parse_model(a.model);
-    a.job.options.path = parse_path(a.path);
+    apply_render_path_options(a.path, a.job.options);
     if (a.precision != "float" && a.precision != "double")
         throw std::invalid_argument("precision '" + a.precision + "' is unknown; expected float or double");
     a.job.use_double = a.precision == "double";
@@ -59,7 +52,10 @@ void run(RenderArgs a) {
     const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
                                                                if_given(a.given_vscale, a.vscale), "--texel-um",
                                                                "--vscale");
-    const Heightfield hf = read_heightfield_exr(a.heightfield, scale.texel_um, scale.vscale);
+    // One footprint: only its rows are read (bit for bit the slice of the whole file).
+    const Heightfield hf = read_heightfield_exr_footprint(a.heightfield, a.query.x_um, a.query.sigma_p_um,
+                                                          scale.texel_um, scale.vscale)
+                               .heightfield;
     a.job.heightfield_file = a.heightfield;
     a.job.made_by = "wavebrdf render";
     run_slice_job(hf, a.query, a.job);
@@ -92,7 +88,7 @@ void add_render_command(CLI::App& app) {
     cmd->add_option("--png", a->job.png, "8-bit preview (default: log scale, --log-decades below the peak)");
     add_preview_options(cmd, a->preview);
     cmd->add_option("--precision", a->precision, "float or double")->capture_default_str();
-    cmd->add_option("--path", a->path, "auto, separable (OHS/ROHS) or direct")->capture_default_str();
+    add_render_path_options(cmd, a->path);
     cmd->add_option("--prune-tolerance", a->job.options.prune_tolerance,
                     "direct path: pruning error bound relative to the slice peak (0-1e-6)")
         ->capture_default_str();

@@ -34,6 +34,7 @@ struct TableArgs {
     std::string lights = "32x32";
     TableSpec spec;
     RenderOptions options;
+    RenderPathArgs path;
     std::string out;
     std::string png;
     bool quiet = false;
@@ -56,6 +57,7 @@ void run(TableArgs a) {
         spec.lambdas_um = {a.lambda_um};
     }
     parse_size("--lights", a.lights, spec.lights.rows, spec.lights.cols);
+    apply_render_path_options(a.path, a.options);
     validate(spec);
     if (a.out.empty()) throw std::invalid_argument("no output given; expected --out F.exr");
     check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.out}, {"--png", a.png}});
@@ -64,7 +66,10 @@ void run(TableArgs a) {
     const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
                                                                if_given(a.given_vscale, a.vscale), "--texel-um",
                                                                "--vscale");
-    const Heightfield hf = read_heightfield_exr(a.heightfield, scale.texel_um, scale.vscale);
+    // Every light of the table shares one footprint: only its rows are read (bit for bit as the whole file).
+    const Heightfield hf = read_heightfield_exr_footprint(a.heightfield, spec.query.x_um, spec.query.sigma_p_um,
+                                                          scale.texel_um, scale.vscale)
+                               .heightfield;
     if (!a.png.empty()) {
         // The preview's copies (its mosaic in float, the exposure's in double) on top of the table.
         const double values = 3.0 * spec.lights.rows * spec.lights.cols * double(spec.resolution) * spec.resolution;
@@ -136,6 +141,7 @@ void add_table_command(CLI::App& app) {
         ->required();
     cmd->add_option("--png", a->png, "tonemapped 8-bit sRGB preview of the mosaic (auto exposure, Reinhard)");
     cmd->add_option("--precision", a->precision, "float or double (values are stored as float)")->capture_default_str();
+    add_render_path_options(cmd, a->path);
     cmd->add_option("--max-memory-gb", a->options.max_memory_gb,
                     "refuse a table whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();

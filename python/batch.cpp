@@ -184,22 +184,22 @@ Shape with(Shape shape, std::initializer_list<py::ssize_t> tail) {
 }
 
 template <typename Float>
-py::array render(const Batched& a) {
+py::array render(const Batched& a, const RenderOptions& options) {
     std::vector<Float> out;
     if (!a.batch.items.empty()) {
         InterruptibleRelease release;
-        out = render_batch<Float>(a.heightfields, a.batch);
+        out = render_batch<Float>(a.heightfields, a.batch, options);
     }
     const py::ssize_t n = a.batch.resolution;
     return owning_array(std::move(out), with(a.batch_shape, {n, n, 3}));
 }
 
 template <typename Float>
-py::array gradient_of(const Batched& a, const std::vector<double>& weights) {
+py::array gradient_of(const Batched& a, const std::vector<double>& weights, const RenderOptions& options) {
     std::vector<std::vector<double>> gradients(a.heightfields.size());
     if (!a.batch.items.empty()) {
         InterruptibleRelease release;
-        batch_gradient<Float>(a.heightfields, a.batch, weights, gradients);
+        batch_gradient<Float>(a.heightfields, a.batch, weights, gradients, options);
     }
     const std::size_t cells = static_cast<std::size_t>(a.rows) * static_cast<std::size_t>(a.cols);
     std::vector<Float> out(gradients.size() * cells);
@@ -224,15 +224,17 @@ bool single_query(py::handle heights, py::handle x_um, py::handle y_um, py::hand
 
 py::array render_slice_batch(py::handle heights, int resolution, double texel_um, double vscale, py::handle x_um,
                              py::handle y_um, double sigma_p_um, const py::object& lambda_um,
-                             const py::object& spectral, py::handle light, const std::string& model) {
+                             const py::object& spectral, py::handle light, const std::string& model,
+                             const RenderOptions& options) {
     const Batched a = batched_arguments(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
                                         spectral, light, model, false);
-    return a.single ? render<float>(a) : render<double>(a);
+    return a.single ? render<float>(a, options) : render<double>(a, options);
 }
 
 py::array slice_gradient_batch(py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,
                                py::handle x_um, py::handle y_um, double sigma_p_um, const py::object& lambda_um,
-                               const py::object& spectral, py::handle light, const std::string& model) {
+                               const py::object& spectral, py::handle light, const std::string& model,
+                               const RenderOptions& options) {
     const Batched a = batched_arguments(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
                                         spectral, light, model, true);
     const py::array w = float_array(weights, "weights");
@@ -240,7 +242,7 @@ py::array slice_gradient_batch(py::handle heights, py::handle weights, int resol
     const Shape expected = with(a.batch_shape, {n, n, 3});
     check_shape(w, expected, "weights");
     const std::vector<double> values = to_doubles(w, "weights");
-    return a.single ? gradient_of<float>(a, values) : gradient_of<double>(a, values);
+    return a.single ? gradient_of<float>(a, values, options) : gradient_of<double>(a, values, options);
 }
 
 }  // namespace wavebrdf::python

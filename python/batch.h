@@ -13,12 +13,14 @@ bool single_query(py::handle heights, py::handle x_um, py::handle y_um, py::hand
 // The slices (batch…, n, n, 3) of the broadcast batch; dtype of heights.
 py::array render_slice_batch(py::handle heights, int resolution, double texel_um, double vscale, py::handle x_um,
                              py::handle y_um, double sigma_p_um, const py::object& lambda_um,
-                             const py::object& spectral, py::handle light, const std::string& model);
+                             const py::object& spectral, py::handle light, const std::string& model,
+                             const RenderOptions& options);
 
 // d(sum(weights * slices))/d(heights): shaped and typed like heights; weights (batch…, n, n, 3).
 py::array slice_gradient_batch(py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,
                                py::handle x_um, py::handle y_um, double sigma_p_um, const py::object& lambda_um,
-                               const py::object& spectral, py::handle light, const std::string& model);
+                               const py::object& spectral, py::handle light, const std::string& model,
+                               const RenderOptions& options);
 
 // The docstring paragraph on batch axes and broadcasting (render_slice, slice_gradient).
 extern const char* const kBatchDoc;

@@ -22,11 +22,11 @@ using namespace pybind11::literals;
 namespace {
 
 template <typename Float>
-py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n) {
+py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n, const RenderOptions& options) {
     std::vector<Float> rgb;
     {
         InterruptibleRelease release;
-        rgb = render_rgb<Float>(hf, q.query, q.lambdas_um, n);
+        rgb = render_rgb<Float>(hf, q.query, q.lambdas_um, n, options);
     }
     return owning_array(std::move(rgb), {n, n, 3});
 }
@@ -34,9 +34,10 @@ py::array render_rgb_array(const Heightfield& hf, const PyQuery& q, int n) {
 // ∂(Σ W · rgb)/∂h (rows·cols, texel units) for RGB weights W (n²·3): the library's SlicePlan
 // adjoint (its spectral mix adjoint, see the top of this file).
 template <typename Float>
-std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n, const std::vector<double>& weights) {
+std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n, const std::vector<double>& weights,
+                                 const RenderOptions& options) {
     InterruptibleRelease release;
-    SlicePlan<Float> plan(hf, q.query, q.lambdas_um, n, 3);
+    SlicePlan<Float> plan(hf, q.query, q.lambdas_um, n, 3, options);
     plan.forward();
     std::vector<double> gradient;
     plan.adjoint(weights, gradient);
@@ -140,6 +141,9 @@ resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
 model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
 )doc";
 
+// render_slice's and slice_gradient's keywords: the plain arguments, then the render options.
+const std::string kPlainDoc = std::string(kPlainArgs) + kRenderOptionsDoc;
+
 }  // namespace
 
 void bind_brdf(py::module_& m) {
@@ -204,24 +208,26 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
         "render_slice",
         [](py::handle heights, int resolution, double texel_um, double vscale, const py::object& x_um,
            const py::object& y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
-           const py::object& light, const std::string& model) {
+           const py::object& light, const std::string& model, const std::string& path, double tolerance) {
+            const RenderOptions options = render_options(path, tolerance);
             if (!single_query(heights, x_um, y_um, light))
                 return render_slice_batch(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
-                                          spectral, light, model);
+                                          spectral, light, model, options);
             const Plain a = plain_arguments(heights, texel_um, vscale, scalar(x_um, "x_um"), scalar(y_um, "y_um"),
                                             sigma_p_um, lambda_um, spectral, light, resolution, model);
-            return a.single ? render_rgb_array<float>(a.hf, a.q, resolution)
-                            : render_rgb_array<double>(a.hf, a.q, resolution);
+            return a.single ? render_rgb_array<float>(a.hf, a.q, resolution, options)
+                            : render_rgb_array<double>(a.hf, a.q, resolution, options);
         },
         "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
         "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
-        "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
+        "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto", "tolerance"_a = 1e-6,
         (std::string("render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, "
-                     "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')\n\n"
+                     "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', "
+                     "tolerance=1e-06)\n\n"
                      "One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),\n"
                      "linear RGB. The same as `wavebrdf render` with the same options. With batch axes\n"
                      "(below): (batch..., resolution, resolution, 3), one slice per item.\n") +
-         kPlainArgs + kBatchDoc)
+         kPlainDoc + kBatchDoc)
             .c_str());
 
     py::class_<PyPlan>(m, "_SlicePlan", R"doc(
@@ -231,7 +237,8 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
 )doc")
         .def(py::init([](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
                          double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
-                         const py::object& light, const std::string& model) {
+                         const py::object& light, const std::string& model, const std::string& path, double tolerance) {
+                 const RenderOptions options = render_options(path, tolerance);
                  const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
                                                  light, resolution, model);
                  PyPlan p;
@@ -239,15 +246,16 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
                  p.rows = a.hf.rows();
                  p.cols = a.hf.cols();
                  if (a.single)
-                     p.single_plan = std::make_unique<SlicePlan<float>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3);
+                     p.single_plan = std::make_unique<SlicePlan<float>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3,
+                                                                        options);
                  else
-                     p.double_plan = std::make_unique<SlicePlan<double>>(a.hf, a.q.query, a.q.lambdas_um, resolution,
-                                                                         3);
+                     p.double_plan = std::make_unique<SlicePlan<double>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3,
+                                                                         options);
                  return p;
              }),
              "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
              "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
-             "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS")
+             "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto", "tolerance"_a = 1e-6)
         .def("forward",
              [](PyPlan& p) {
                  return p.single_plan ? plan_forward(*p.single_plan, p.n) : plan_forward(*p.double_plan, p.n);
@@ -273,20 +281,22 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
         "slice_gradient",
         [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,
            const py::object& x_um, const py::object& y_um, double sigma_p_um, const py::object& lambda_um,
-           const py::object& spectral, const py::object& light, const std::string& model) {
+           const py::object& spectral, const py::object& light, const std::string& model, const std::string& path,
+           double tolerance) {
+            const RenderOptions options = render_options(path, tolerance);
             if (!single_query(heights, x_um, y_um, light))
                 return slice_gradient_batch(heights, weights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um,
-                                            lambda_um, spectral, light, model);
+                                            lambda_um, spectral, light, model, options);
             const Plain a = plain_arguments(heights, texel_um, vscale, scalar(x_um, "x_um"), scalar(y_um, "y_um"),
                                             sigma_p_um, lambda_um, spectral, light, resolution, model);
             const std::vector<double> w = weights_argument(weights, resolution);
-            std::vector<double> g = a.single ? rgb_gradient<float>(a.hf, a.q, resolution, w)
-                                             : rgb_gradient<double>(a.hf, a.q, resolution, w);
+            std::vector<double> g = a.single ? rgb_gradient<float>(a.hf, a.q, resolution, w, options)
+                                             : rgb_gradient<double>(a.hf, a.q, resolution, w, options);
             return gradient_array(std::move(g), a.hf, a.single);
         },
         "heights"_a, "weights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
         "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
-        "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS",
+        "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto", "tolerance"_a = 1e-6,
         (std::string("slice_gradient(heights, weights, *, resolution, **the options of render_slice)\n\n"
                      "The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`\n"
                      "(texel units), a vector-Jacobian product by the library's adjoint: an array shaped\n"
@@ -298,58 +308,73 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
                      "            weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]\n"
                      "            with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk\n"
                      "            are ignored.\n") +
-         kPlainArgs + kBatchDoc)
+         kPlainDoc + kBatchDoc)
             .c_str());
 
     m.def(
         "render",
-        [](const Heightfield& hf, const PyQuery& q, int resolution, const std::string& precision) {
+        [](const Heightfield& hf, const PyQuery& q, int resolution, const std::string& precision,
+           const std::string& path, double tolerance) {
             check_resolution(resolution);
-            return double_precision(precision) ? render_rgb_array<double>(hf, q, resolution)
-                                               : render_rgb_array<float>(hf, q, resolution);
+            const bool in_double = double_precision(precision);
+            const RenderOptions options = render_options(path, tolerance);
+            return in_double ? render_rgb_array<double>(hf, q, resolution, options)
+                             : render_rgb_array<float>(hf, q, resolution, options);
         },
-        "heightfield"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double", R"doc(
+        "heightfield"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double", py::kw_only(), "path"_a = "auto",
+        "tolerance"_a = 1e-6,
+        (std::string(R"doc(
 The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear RGB, float64
 (precision='double') or float32 ('float'); resolution 1...8192.
-)doc");
+)doc") + kRenderOptionsDoc)
+            .c_str());
     m.def(
         "render",
-        [](const GaborRepresentation& rep, const PyQuery& q, int resolution, const std::string& precision) {
+        [](const GaborRepresentation& rep, const PyQuery& q, int resolution, const std::string& precision,
+           const std::string& path, double tolerance) {
             check_resolution(resolution);
-            if (double_precision(precision)) {
+            const bool in_double = double_precision(precision);
+            const RenderOptions options = render_options(path, tolerance);
+            if (in_double) {
                 std::vector<double> rgb;
                 {
                     InterruptibleRelease release;
-                    rgb = render_rgb<double>(rep, q.query, q.lambdas_um, resolution);
+                    rgb = render_rgb<double>(rep, q.query, q.lambdas_um, resolution, options);
                 }
                 return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
             }
             std::vector<float> rgb;
             {
                 InterruptibleRelease release;
-                rgb = render_rgb<float>(rep, q.query, q.lambdas_um, resolution);
+                rgb = render_rgb<float>(rep, q.query, q.lambdas_um, resolution, options);
             }
             return py::array(owning_array(std::move(rgb), {resolution, resolution, 3}));
         },
-        "gabor"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double",
-        "The same from a GaborRep made for this query's footprint (the kernels are not gathered again).");
+        "gabor"_a, "query"_a, "resolution"_a = 32, "precision"_a = "double", py::kw_only(), "path"_a = "auto",
+        "tolerance"_a = 1e-6,
+        "The same from a GaborRep made for this query's footprint (the kernels are not gathered again); path and\n"
+        "tolerance as above.");
 
     m.def(
         "gradient",
-        [](const Heightfield& hf, const PyQuery& q, py::handle weights, const std::string& precision) {
+        [](const Heightfield& hf, const PyQuery& q, py::handle weights, const std::string& precision,
+           const std::string& path, double tolerance) {
+            const RenderOptions options = render_options(path, tolerance);
             const py::array wa = float_array(weights, "weights");
             if (wa.ndim() != 3 || wa.shape(0) != wa.shape(1) || wa.shape(2) != 3)
                 throw py::value_error("weights has shape " + shape_string(wa) + "; expected (n, n, 3)");
             const int n = check_resolution(static_cast<int>(wa.shape(0)), "weights.shape[0]");
             const std::vector<double> w = to_doubles(wa, "weights");
-            std::vector<double> g = double_precision(precision) ? rgb_gradient<double>(hf, q, n, w)
-                                                                : rgb_gradient<float>(hf, q, n, w);
+            std::vector<double> g = double_precision(precision) ? rgb_gradient<double>(hf, q, n, w, options)
+                                                                : rgb_gradient<float>(hf, q, n, w, options);
             return owning_array(std::move(g), {hf.rows(), hf.cols()});
         },
-        "heightfield"_a, "query"_a, "weights"_a, "precision"_a = "double", R"doc(
+        "heightfield"_a, "query"_a, "weights"_a, "precision"_a = "double", py::kw_only(), "path"_a = "auto",
+        "tolerance"_a = 1e-6, R"doc(
 The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
 values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss
-(Loss.value_and_gradient); see slice_gradient for how channels map to wavelengths.
+(Loss.value_and_gradient); see slice_gradient for how channels map to wavelengths. path and
+tolerance as render's.
 )doc");
 
     m.def(

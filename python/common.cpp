@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "wavebrdf/io.h"
+#include "wavebrdf/render_options.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/text.h"
 
@@ -15,6 +16,21 @@ std::string format_number(double value) { return format_shortest(value); }
 void bad_argument(const std::string& name, const std::string& got, const std::string& expected) {
     throw py::value_error(name + " = " + got + " is invalid; expected " + expected);
 }
+
+RenderOptions render_options(const std::string& path, double tolerance) {
+    RenderOptions options;
+    options.path = parse_render_path(path, "path");  // std::invalid_argument: ValueError
+    validate_render_tolerance(tolerance, "tolerance");
+    options.tolerance = tolerance;
+    return options;
+}
+
+const char* const kRenderOptionsDoc =
+    R"doc(path        'auto' (chosen by cost), 'separable' (matrix products), 'fft' (the FFT engine) or
+            'direct' (every pixel sums every kernel); a path the model has not is a ValueError
+tolerance   separable (GHS, RGHS, Kirchhoff) and fft paths: error bound relative to the slice
+            peak, 1e-12 to 1e-2 (default 1e-6)
+)doc";
 
 double check_finite(double value, const char* name) {
     if (!std::isfinite(value)) bad_argument(name, format_number(value), "a finite number");

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/brdf.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/interrupt.h"
 #include "wavebrdf/io.h"
@@ -26,6 +27,12 @@ namespace py = pybind11;
 // Throws py::value_error("NAME = GOT is invalid; expected EXPECTED").
 [[noreturn]] void bad_argument(const std::string& name, const std::string& got, const std::string& expected);
 std::string format_number(double value);  // wavebrdf::format_shortest (wavebrdf/text.h)
+
+// The RenderOptions of the path= ('auto', 'separable', 'fft', 'direct') and tolerance= (1e-12 …
+// 1e-2, relative to the slice peak) keywords; ValueError naming the keyword otherwise.
+RenderOptions render_options(const std::string& path, double tolerance);
+// Their docstring lines.
+extern const char* const kRenderOptionsDoc;
 
 // Scalar checks; each returns its value.
 double check_finite(double value, const char* name);

@@ -10,6 +10,7 @@
 #include "observation_arg.h"
 #include "progress.h"
 #include "wavebrdf/inversion_run.h"
+#include "wavebrdf/render_options.h"
 
 namespace wavebrdf::python {
 
@@ -74,7 +75,8 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
                        const py::object& spectral, const py::object& light, int resolution, const py::object& init,
                        int epochs, const std::string& optimizer, double lr, double beta1, double beta2, double decay,
                        const py::object& loss, const py::object& positions, std::uint64_t seed,
-                       const py::object& callback, double max_memory_gb, const py::object& quiet) {
+                       const py::object& callback, double max_memory_gb, const py::object& quiet,
+                       const std::string& path, double tolerance) {
     // Python's arguments → the library's options (inversion_run.h); the set-up and the run are
     // the library's, the same code as `wavebrdf invert`.
     InversionOptions options;
@@ -84,6 +86,8 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     options.adam = AdamOptions{lr, beta1, beta2, options.adam.epsilon, decay};
     options.epochs = epochs;
     options.seed = seed;
+    options.path = parse_render_path(path, "path");
+    options.tolerance = tolerance;  // checked by prepare_inversion, named tolerance
     if (!std::isfinite(max_memory_gb) || max_memory_gb < 0.0)
         bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
@@ -218,7 +222,7 @@ the mean; NaN without a truth), seconds.
           "light"_a = py::make_tuple(0.0, 0.0), "resolution"_a = 32, "init"_a = "flat", "epochs"_a = 300,
           "optimizer"_a = "adam", "lr"_a = 0.01, "beta1"_a = 0.9, "beta2"_a = 0.99, "decay"_a = 0.005,
           "loss"_a = "cmsle:1", "positions"_a = "fixed", "seed"_a = 1, "callback"_a = py::none(),
-          "max_memory_gb"_a = 0.0, "quiet"_a = py::none(), R"doc(
+          "max_memory_gb"_a = 0.0, "quiet"_a = py::none(), "path"_a = "auto", "tolerance"_a = 1e-6, R"doc(
 The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
 whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
 truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
@@ -250,6 +254,9 @@ max_memory_gb refuse (MemoryError, before the references are rendered) a run who
               estimated peak memory exceeds this many GB; 0 (default): the physical memory.
 quiet         progress (a tqdm bar if tqdm is installed, else a line on stderr): None (default)
               shows it when stderr is a terminal or in Jupyter, False always, True never
+path          'auto', 'separable', 'fft' or 'direct': the path of every render and gradient
+tolerance     separable (GHS-type models) and fft paths: error bound relative to the slice
+              peak, 1e-12 to 1e-2 (default 1e-6)
 The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
 )doc");
 }

@@ -92,15 +92,18 @@ Observation(query, reference)
             "the reference slice, a read-only float64 view")
         .def(
             "render",
-            [](const Observation& o, const Heightfield& hf) {
+            [](const Observation& o, const Heightfield& hf, const std::string& path, double tolerance) {
+                const RenderOptions options = render_options(path, tolerance);
                 std::vector<double> v;
                 {
                     InterruptibleRelease release;
-                    v = render_observation(hf, o);
+                    v = render_observation(hf, o, options);
                 }
                 return observation_array(std::move(v), o);
             },
-            "heightfield"_a, "What this observation would see of `heightfield`, shaped like the reference (float64).")
+            "heightfield"_a, py::kw_only(), "path"_a = "auto", "tolerance"_a = 1e-6,
+            "What this observation would see of `heightfield`, shaped like the reference (float64); path and\n"
+            "tolerance as wavebrdf.render_slice's.")
         .def("__repr__", [](const Observation& o) {
             return "Observation(" + std::to_string(o.resolution) + "x" + std::to_string(o.resolution) + "x" +
                    std::to_string(o.channels()) + ", " + std::to_string(o.lambdas_um.size()) + " wavelength(s), at (" +
@@ -109,21 +112,25 @@ Observation(query, reference)
 
     m.def(
         "observation_loss",
-        [](const Heightfield& hf, const py::object& observations, const py::object& loss) {
+        [](const Heightfield& hf, const py::object& observations, const py::object& loss, const std::string& path,
+           double tolerance) {
             const std::vector<Observation> list = observations_argument(observations);
             const Loss l = loss_argument(loss);
+            const RenderOptions options = render_options(path, tolerance);
             std::vector<double> gradient;
             double value = 0.0;
             {
                 InterruptibleRelease release;
-                value = observation_loss(hf, list, l, &gradient);
+                value = observation_loss(hf, list, l, &gradient, options);
             }
             return py::make_tuple(value, owning_array(std::move(gradient), {hf.rows(), hf.cols()}));
         },
-        "heightfield"_a, "observations"_a, "loss"_a = "cmsle:1", R"doc(
+        "heightfield"_a, "observations"_a, "loss"_a = "cmsle:1", py::kw_only(), "path"_a = "auto", "tolerance"_a = 1e-6,
+        R"doc(
 The mean over observations of loss(render(heightfield), reference) and its gradient with
 respect to the heightfield's values (texel units, float64 (rows, cols)), in double precision:
 (value, gradient). loss: a Loss or its spec ('cmsle:EPS', 'mse', 'amplitude', 'poisson:N').
+path and tolerance as wavebrdf.render_slice's.
 )doc");
 
     m.def(

@@ -47,7 +47,9 @@ void bind_table(py::module_& m) {
     m.def(
         "_render_table",
         [](const py::object& heightfield, const PyQuery& q, const py::object& lights, double max_light_sin,
-           int resolution, const std::string& precision, double max_memory_gb, const std::string& out) {
+           int resolution, const std::string& precision, double max_memory_gb, const std::string& out,
+           const std::string& path, double tolerance) {
+            RenderOptions options = render_options(path, tolerance);
             // A file path: the file's own texel width and vertical scale (else 1, 1), as in the CLI.
             const Heightfield hf = [&] {
                 if (!py::isinstance<py::str>(heightfield))
@@ -67,7 +69,6 @@ void bind_table(py::module_& m) {
             spec.resolution = resolution;
             spec.lights = {grid[0], grid[1], check_finite(max_light_sin, "max_light_sin")};
             spec.double_precision = precision == "double";
-            RenderOptions options;
             options.max_memory_gb = max_memory_gb;
             BrdfTable t;
             {
@@ -78,7 +79,8 @@ void bind_table(py::module_& m) {
             return table_dict(std::move(t));
         },
         "heightfield"_a, "query"_a, "lights"_a, "max_light_sin"_a, "resolution"_a, "precision"_a, "max_memory_gb"_a,
-        "out"_a, "render_brdf_table (and write_brdf_table when out is not empty) as a dict (wavebrdf.render_table).");
+        "out"_a, "path"_a, "tolerance"_a,
+        "render_brdf_table (and write_brdf_table when out is not empty) as a dict (wavebrdf.render_table).");
 }
 
 }  // namespace wavebrdf::python

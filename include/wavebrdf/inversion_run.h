@@ -110,6 +110,11 @@ struct InversionOptions {
     PositionsSpec positions;
     InitSpec init;
     std::uint64_t seed = 1;  // generated truth, noise, random positions
+    // The rendering path and its error bound (RenderOptions' path and tolerance, 1e-12 … 1e-2),
+    // for every forward and gradient; in run.json as "path" ("auto", ...) and "tolerance"
+    // (an older run.json without them reads back as auto and 1e-6).
+    RenderPath path = RenderPath::Auto;
+    double tolerance = 1e-6;
     // Run directory only: epochs whose heights, slices and gradients are kept, and the epochs
     // between checkpoints (≥ 1).
     std::set<int> snapshots{0, 10, 30, 100, 300};

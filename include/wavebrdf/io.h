@@ -85,6 +85,21 @@ struct HeightfieldFile {
 HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional<double> texel_um = std::nullopt,
                                           std::optional<double> vscale = std::nullopt);
 
+// Reads only what one footprint's slice needs: the rows of the heightfield EXR within
+// ceil(3 sigma_p_um / w) + 3 rows (w the texel width used) of the footprint centre x_um (µm along
+// the rows, any value: it is reduced to one period; the distance wraps across the tile's edge),
+// a superset of the rows of every kernel
+// within 3 sigma_p (gabor.h footprint_kernels) and of the neighbours its slope uses. Every other
+// value of the returned full-size heightfield is 0, so it renders that footprint (x_um,
+// sigma_p_um and any y_um) bit for bit as the whole file does, and nothing else. A footprint
+// covering every row reads the whole file. Decompresses only the chunks of those rows, so damage
+// elsewhere in the pixels (a truncated tail, a non-finite value) goes unnoticed; the header is
+// checked as read_heightfield_exr_file checks it, with its errors. texel_um / vscale as there.
+// Throws std::domain_error for a non-finite x_um or a sigma_p_um that is not finite and > 0.
+HeightfieldFile read_heightfield_exr_footprint(const std::string& path, double x_um, double sigma_p_um,
+                                               std::optional<double> texel_um = std::nullopt,
+                                               std::optional<double> vscale = std::nullopt);
+
 // Which texel width and vertical scale to use for the file at `path` whose attributes are
 // `file`: the given value when there is one, else the file's, else the default. `warnings`
 // has one line per given value that differs from the file's, naming both, e.g.

@@ -429,8 +429,10 @@ class Observation:
     def reference(self) -> numpy.ndarray:
         """the reference slice, a read-only float64 view"""
         ...
-    def render(self, heightfield: Heightfield) -> numpy.ndarray:
-        """What this observation would see of `heightfield`, shaped like the reference (float64)."""
+    def render(self, heightfield: Heightfield, *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
+        """What this observation would see of `heightfield`, shaped like the reference (float64); path and
+        tolerance as wavebrdf.render_slice's.
+        """
         ...
     def __repr__(self) -> str:
         ...
@@ -585,10 +587,11 @@ def cmsle(estimate: Any, reference: Any, epsilon: float = ...) -> float:
     """
     ...
 
-def gradient(heightfield: Heightfield, query: Query, weights: Any, precision: str = ...) -> numpy.ndarray:
+def gradient(heightfield: Heightfield, query: Query, weights: Any, precision: str = ..., *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
     """The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
     values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss
-    (Loss.value_and_gradient); see slice_gradient for how channels map to wavelengths.
+    (Loss.value_and_gradient); see slice_gradient for how channels map to wavelengths. path and
+    tolerance as render's.
     """
     ...
 
@@ -604,7 +607,7 @@ def height_rel_rmse(estimate: Heightfield, truth: Heightfield) -> float:
     """
     ...
 
-def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ...) -> InversionResult:
+def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., path: str = ..., tolerance: float = ...) -> InversionResult:
     """The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
     whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
     truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
@@ -636,6 +639,9 @@ def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_
                   estimated peak memory exceeds this many GB; 0 (default): the physical memory.
     quiet         progress (a tqdm bar if tqdm is installed, else a line on stderr): None (default)
                   shows it when stderr is a terminal or in Jupyter, False always, True never
+    path          'auto', 'separable', 'fft' or 'direct': the path of every render and gradient
+    tolerance     separable (GHS-type models) and fft paths: error bound relative to the slice
+                  peak, 1e-12 to 1e-2 (default 1e-6)
     The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
     """
     ...
@@ -657,10 +663,11 @@ def mse(estimate: Any, reference: Any) -> float:
     """
     ...
 
-def observation_loss(heightfield: Heightfield, observations: Any, loss: Any = ...) -> tuple:
+def observation_loss(heightfield: Heightfield, observations: Any, loss: Any = ..., *, path: str = ..., tolerance: float = ...) -> tuple:
     """The mean over observations of loss(render(heightfield), reference) and its gradient with
     respect to the heightfield's values (texel units, float64 (rows, cols)), in double precision:
     (value, gradient). loss: a Loss or its spec ('cmsle:EPS', 'mse', 'amplitude', 'poisson:N').
+    path and tolerance as wavebrdf.render_slice's.
     """
     ...
 
@@ -795,18 +802,24 @@ def recover_heights_thesis(observations: Any, size: Any, texel_um: float, vscale
     ...
 
 @overload
-def render(heightfield: Heightfield, query: Query, resolution: int = ..., precision: str = ...) -> numpy.ndarray:
+def render(heightfield: Heightfield, query: Query, resolution: int = ..., precision: str = ..., *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
     """The BRDF slice of a Heightfield for a Query: (resolution, resolution, 3) linear RGB, float64
     (precision='double') or float32 ('float'); resolution 1...8192.
+    path        'auto' (chosen by cost), 'separable' (matrix products), 'fft' (the FFT engine) or
+                'direct' (every pixel sums every kernel); a path the model has not is a ValueError
+    tolerance   separable (GHS, RGHS, Kirchhoff) and fft paths: error bound relative to the slice
+                peak, 1e-12 to 1e-2 (default 1e-6)
     """
     ...
 @overload
-def render(gabor: GaborRep, query: Query, resolution: int = ..., precision: str = ...) -> numpy.ndarray:
-    """The same from a GaborRep made for this query's footprint (the kernels are not gathered again)."""
+def render(gabor: GaborRep, query: Query, resolution: int = ..., precision: str = ..., *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
+    """The same from a GaborRep made for this query's footprint (the kernels are not gathered again); path and
+    tolerance as above.
+    """
     ...
 
-def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
-    """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS')
+def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ...) -> numpy.ndarray:
+    """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', tolerance=1e-06)
 
     One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),
     linear RGB. The same as `wavebrdf render` with the same options. With batch axes
@@ -832,6 +845,10 @@ def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale
     resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
                 ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
     model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+    path        'auto' (chosen by cost), 'separable' (matrix products), 'fft' (the FFT engine) or
+                'direct' (every pixel sums every kernel); a path the model has not is a ValueError
+    tolerance   separable (GHS, RGHS, Kirchhoff) and fft paths: error bound relative to the slice
+                peak, 1e-12 to 1e-2 (default 1e-6)
 
     Batches: heights may have leading batch axes (..., rows, cols); light may be (2,) or (..., 2);
     x_um and y_um may be scalars or arrays. The batch shape is the NumPy broadcast of
@@ -869,7 +886,7 @@ def simulate_observations(truth: Heightfield, plan: AcquisitionPlan, noise: Any 
     """
     ...
 
-def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ...) -> numpy.ndarray:
+def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ...) -> numpy.ndarray:
     """slice_gradient(heights, weights, *, resolution, **the options of render_slice)
 
     The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`
@@ -904,6 +921,10 @@ def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: flo
     resolution  slice size n, 1...8192 (required); pixel (i, j) is omega_o =
                 ((i + 1/2) / n * 2 - 1, (j + 1/2) / n * 2 - 1), zero outside the unit disk
     model       'OHS' (default), 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
+    path        'auto' (chosen by cost), 'separable' (matrix products), 'fft' (the FFT engine) or
+                'direct' (every pixel sums every kernel); a path the model has not is a ValueError
+    tolerance   separable (GHS, RGHS, Kirchhoff) and fft paths: error bound relative to the slice
+                peak, 1e-12 to 1e-2 (default 1e-6)
 
     Batches: heights may have leading batch axes (..., rows, cols); light may be (2,) or (..., 2);
     x_um and y_um may be scalars or arrays. The batch shape is the NumPy broadcast of

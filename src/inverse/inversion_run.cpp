@@ -18,6 +18,7 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
+#include "wavebrdf/render_options.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/version.h"
@@ -203,6 +204,10 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
         throw std::invalid_argument(name("checkpoint_every") + " " + std::to_string(o.checkpoint_every) +
                                     " is invalid; expected >= 1");
     validate(settings);  // the Adam options with their own messages, bounds, L-BFGS vs random positions
+    validate_render_tolerance(o.tolerance, name("tolerance"));
+    settings.render.path = o.path;
+    settings.render.tolerance = o.tolerance;
+    validate(settings.render, o.model);  // a path the model has not (or not yet): before any work
     const bool given_observations = observations.has_value() || !o.observations_path.empty();
     const bool given_truth = truth.has_value() || !o.truth_path.empty();
     if (o.init.kind == InitKind::Noisy) {
@@ -373,7 +378,9 @@ nlohmann::json to_json(const InversionOptions& o) {
             {"decay", o.adam.decay},
             {"seed", o.seed},
             {"snapshots", format_epoch_list(o.snapshots)},
-            {"checkpoint_every", o.checkpoint_every}};
+            {"checkpoint_every", o.checkpoint_every},
+            {"path", to_string(o.path)},
+            {"tolerance", o.tolerance}};
 }
 
 // Throws nlohmann's exceptions for missing fields and wrong types, std::runtime_error for an
@@ -416,6 +423,12 @@ InversionOptions from_json(const nlohmann::json& j) {
                                                      j, "seed", 0, std::numeric_limits<long long>::max(), ""));
     o.snapshots = parse_epoch_list(j.at("snapshots").get<std::string>(), "--snapshots");
     o.checkpoint_every = detail::json_int32(j, "checkpoint_every", 1, std::numeric_limits<int>::max(), "");
+    // Absent in an older run.json: the defaults, which those runs used.
+    if (j.contains("path")) o.path = parse_render_path(j.at("path").get<std::string>(), "path");
+    if (j.contains("tolerance")) {
+        o.tolerance = j.at("tolerance").get<double>();
+        validate_render_tolerance(o.tolerance, "tolerance");
+    }
     return o;
 }
 

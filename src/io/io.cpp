@@ -316,6 +316,22 @@ struct ExrSource {
         }
     }
 
+    // Reads rows first_row … last_row (0-based from the data window's top, inclusive) of one
+    // channel as float into out[(r - first_row) * m_cols + j]; `out` holds that many values.
+    void read_rows(const char* channel, int first_row, int last_row, float* out) const {
+        const Imath::Box2i dw = m_file->header().dataWindow();
+        const Imath::Box2i rows(Imath::V2i(dw.min.x, dw.min.y + first_row), Imath::V2i(dw.max.x, dw.min.y + last_row));
+        try {
+            Imf::FrameBuffer frame;
+            frame.insert(channel, Imf::Slice::Make(Imf::FLOAT, out, rows, sizeof(float),
+                                                   sizeof(float) * static_cast<std::size_t>(m_cols)));
+            m_file->setFrameBuffer(frame);
+            m_file->readPixels(rows.min.y, rows.max.y);
+        } catch (const std::exception& e) {
+            fail(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") + e.what() + ")");
+        }
+    }
+
     std::string m_path;
     std::unique_ptr<Imf::InputFile> m_file;
     int m_rows = 0;
@@ -462,26 +478,90 @@ HeightfieldAttributes read_heightfield_attributes(const std::string& path) {
     return heightfield_attributes(path, source.m_file->header());
 }
 
-HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional<double> texel_um,
-                                          std::optional<double> vscale) {
+namespace {
+
+// The heightfield channel of `source`: R, else a single luminance channel Y.
+const char* height_channel(const ExrSource& source) {
+    const char* channel = source.has_channel("R") ? "R" : source.has_channel("Y") ? "Y" : nullptr;
+    if (channel == nullptr) fail(source.m_path, "has no R or Y channel; expected a heightfield in R");
+    return channel;
+}
+
+// Rows per readPixels call: a multiple of every OpenEXR chunk height (1, 16, 32, 256 lines),
+// so no chunk is decompressed twice; the float buffer is at most 256 × 16384 values (16 MiB).
+constexpr int k_rows_per_read = 256;
+
+// Appends rows first_row … last_row of `channel` to `values` as double, read block by block
+// through one small float buffer (no full-size float copy, no zero-fill of `values`).
+void append_rows(const ExrSource& source, const char* channel, int first_row, int last_row, std::vector<double>& values,
+                 std::vector<float>& buffer) {
+    const std::size_t cols = static_cast<std::size_t>(source.m_cols);
+    for (int row = first_row; row <= last_row; row += k_rows_per_read) {
+        const int last = std::min(last_row, row + k_rows_per_read - 1);
+        const std::size_t count = static_cast<std::size_t>(last - row + 1) * cols;
+        if (buffer.size() < count) buffer.resize(count);
+        source.read_rows(channel, row, last, buffer.data());
+        values.insert(values.end(), buffer.begin(), buffer.begin() + static_cast<std::ptrdiff_t>(count));
+    }
+}
+
+// Reads the rows i of the file that rows_needed(i, rows, texel_um) asks for (others are 0) into a Heightfield.
+template <typename RowsNeeded>
+HeightfieldFile read_heightfield_rows(const std::string& path, std::optional<double> texel_um,
+                                      std::optional<double> vscale, const RowsNeeded& rows_needed) {
     ExrSource source(path);
     HeightfieldAttributes attributes = heightfield_attributes(path, source.m_file->header());
-    // A single-channel luminance file is as good a heightfield as an R channel.
-    const char* channel = source.has_channel("R") ? "R" : source.has_channel("Y") ? "Y" : nullptr;
-    if (channel == nullptr) fail(path, "has no R or Y channel; expected a heightfield in R");
-    std::vector<float> pixels;
-    source.read({channel}, pixels);
-    std::vector<double> values(pixels.begin(), pixels.end());
+    const char* channel = height_channel(source);
+    const double texel = texel_um.value_or(attributes.texel_um.value_or(1.0));
+    const double scale = vscale.value_or(attributes.vscale.value_or(1.0));
+    std::vector<double> values;
+    values.reserve(static_cast<std::size_t>(source.m_rows) * static_cast<std::size_t>(source.m_cols));
+    std::vector<float> buffer;
+    // Runs of needed rows are read, runs of others filled with 0, in row order.
+    for (int row = 0; row < source.m_rows;) {
+        const bool needed = rows_needed(row, source.m_rows, texel);
+        int end = row + 1;
+        while (end < source.m_rows && rows_needed(end, source.m_rows, texel) == needed) ++end;
+        if (needed)
+            append_rows(source, channel, row, end - 1, values, buffer);
+        else
+            values.insert(values.end(), static_cast<std::size_t>(end - row) * std::size_t(source.m_cols), 0.0);
+        row = end;
+    }
     try {
-        Heightfield heightfield(source.m_rows, source.m_cols, std::move(values),
-                                texel_um.value_or(attributes.texel_um.value_or(1.0)),
-                                vscale.value_or(attributes.vscale.value_or(1.0)));
+        Heightfield heightfield(source.m_rows, source.m_cols, std::move(values), texel, scale);
         return {std::move(heightfield), std::move(attributes)};
     } catch (const std::domain_error& e) {
         throw std::domain_error(path + ": " + e.what());
     }
 }
 
+}  // namespace
+
+HeightfieldFile read_heightfield_exr_file(const std::string& path, std::optional<double> texel_um,
+                                          std::optional<double> vscale) {
+    return read_heightfield_rows(path, texel_um, vscale, [](int, int, double) { return true; });
+}
+
+HeightfieldFile read_heightfield_exr_footprint(const std::string& path, double x_um, double sigma_p_um,
+                                               std::optional<double> texel_um, std::optional<double> vscale) {
+    if (!std::isfinite(x_um) || !std::isfinite(sigma_p_um) || !(sigma_p_um > 0.0))
+        throw std::domain_error("footprint x " + format_shortest(x_um) + " um, sigma_p " + format_shortest(sigma_p_um) +
+                                " um is invalid; expected finite x and sigma_p > 0");
+    // Kernels lie within 3σ_p of the centre (gabor.cpp footprint_kernels), their slopes one row
+    // further; 3 rows more absorb any rounding of the centre. In rows of texels, with the centre
+    // reduced to one period as the kernels' is; distances are periodic, across the tile's seam.
+    return read_heightfield_rows(path, texel_um, vscale, [&](int row, int rows, double texel) {
+        const double reach = std::ceil(3.0 * sigma_p_um / texel) + 3.0;
+        if (2.0 * reach + 1.0 >= double(rows)) return true;  // the footprint covers every row
+        const double period = double(rows) * texel;
+        double x = std::fmod(x_um, period);
+        if (x < 0.0) x += period;
+        double d = std::abs((double(row) + 0.5) - x / texel);
+        d = std::min(d, double(rows) - d);
+        return d <= reach;
+    });
+}
 Heightfield read_heightfield_exr(const std::string& path, std::optional<double> texel_um,
                                  std::optional<double> vscale) {
     return read_heightfield_exr_file(path, texel_um, vscale).heightfield;
