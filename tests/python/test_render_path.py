@@ -1,7 +1,6 @@
-"""path= and tolerance= wherever render options are taken: they reach the library (the fft path,
-refused by the library until its engine is merged, is refused naming it; the direct and separable
-paths give the library's slices), and bad values are refused with a ValueError naming the keyword.
-(The lead flips the fft checks when the engine lands.)"""
+"""path= and tolerance= wherever render options are taken: they reach the library (the fft path
+gives the direct sum's values within its tolerance; the direct and separable paths give the
+library's slices), and bad values are refused with a ValueError naming the keyword."""
 import numpy as np
 import pytest
 
@@ -12,29 +11,35 @@ def heights(rng, n=12):
     return rng.normal(0.0, 0.4, (n, n))
 
 
-def fft_refused(call):
-    with pytest.raises(ValueError, match="fft path"):
-        call()
+def fft_matches_direct(call):
+    """call(**options) on the fft path (tolerance 1e-4) and on the direct path (no pruning): the
+    same result within the tolerance, relative to the largest value."""
+    fft = call(path="fft", tolerance=1e-4)
+    direct = call(path="direct")
+    if isinstance(fft, tuple):
+        fft, direct = fft[0], direct[0]
+    fft, direct = np.asarray(fft, dtype=float), np.asarray(direct, dtype=float)
+    assert fft.shape == direct.shape
+    assert np.max(np.abs(fft - direct)) <= 2e-4 * np.max(np.abs(direct))
 
 
-def test_every_function_passes_the_path_and_tolerance_on(rng):
+def test_every_function_takes_the_fft_path(rng):
     h = heights(rng)
     hf = wb.Heightfield(h, texel_um=0.5)
     q = wb.Query(x_um=2.0, sigma_p_um=1.5, light=(0.1, 0.2))
     w = rng.normal(size=(8, 8, 3))
     o = wb.Observation(q, wb.render(hf, q, 8)[..., 0])
-    kw = dict(path="fft", tolerance=1e-4)
-    fft_refused(lambda: wb.render_slice(h, resolution=8, texel_um=0.5, **kw))
-    fft_refused(lambda: wb.render_slice(np.stack([h, h]), resolution=8, **kw))  # the batch path
-    fft_refused(lambda: wb.slice_gradient(h, w, resolution=8, **kw))
-    fft_refused(lambda: wb.slice_gradient(np.stack([h, h]), np.stack([w, w]), resolution=8, **kw))
-    fft_refused(lambda: wb.render(hf, q, 8, **kw))
-    fft_refused(lambda: wb.render(wb.GaborRep(hf, q.x_um, q.y_um, q.sigma_p_um), q, 8, **kw))
-    fft_refused(lambda: wb.gradient(hf, q, w, **kw))
-    fft_refused(lambda: o.render(hf, **kw))
-    fft_refused(lambda: wb.observation_loss(hf, [o], **kw))
-    fft_refused(lambda: wb.render_table(hf, q, lights=2, resolution=8, **kw))
-    fft_refused(lambda: wb.invert(size=4, resolution=8, epochs=0, quiet=True, **kw))
+    fft_matches_direct(lambda **kw: wb.render_slice(h, resolution=8, texel_um=0.5, **kw))
+    fft_matches_direct(lambda **kw: wb.render_slice(np.stack([h, h]), resolution=8, **kw))  # the batch path
+    fft_matches_direct(lambda **kw: wb.slice_gradient(h, w, resolution=8, **kw))
+    fft_matches_direct(lambda **kw: wb.slice_gradient(np.stack([h, h]), np.stack([w, w]), resolution=8, **kw))
+    fft_matches_direct(lambda **kw: wb.render(hf, q, 8, **kw))
+    fft_matches_direct(lambda **kw: wb.render(wb.GaborRep(hf, q.x_um, q.y_um, q.sigma_p_um), q, 8, **kw))
+    fft_matches_direct(lambda **kw: wb.gradient(hf, q, w, **kw))
+    fft_matches_direct(lambda **kw: o.render(hf, **kw))
+    fft_matches_direct(lambda **kw: wb.observation_loss(hf, [o], **kw))
+    fft_matches_direct(lambda **kw: wb.render_table(hf, q, lights=2, resolution=8, **kw).values)
+    wb.invert(size=4, resolution=8, epochs=0, quiet=True, path="fft", tolerance=1e-4)
 
 
 @pytest.mark.parametrize("bad, message", [
