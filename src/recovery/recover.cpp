@@ -200,7 +200,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         // every iteration (built on the first call, on the thread that owns it): only the
         // heights change (slice_plan.h), so rebuilding the tables each time was wasted work.
         // A plan keeps only its height-independent tables between calls (release below).
-        std::vector<std::unique_ptr<SlicePlan<double>>> plans(observations.size());
+        std::vector<std::unique_ptr<SlicePlan<float>>> plans(observations.size());
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             g.assign(x.size(), 0.0);
             const double scale = 1.0 / double(observations.size());
@@ -208,14 +208,15 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                 observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
                     const Observation& o = observations[i];
                     if (!plans[i])
-                        plans[i] = std::make_unique<SlicePlan<double>>(flat.with_values(x), o.query, o.lambdas_um,
-                                                                       o.resolution, o.channels());
+                        plans[i] = std::make_unique<SlicePlan<float>>(flat.with_values(x), o.query, o.lambdas_um,
+                                                                      o.resolution, o.channels());
                     else
                         plans[i]->set_heights(x);
-                    SlicePlan<double>& plan = *plans[i];
+                    SlicePlan<float>& plan = *plans[i];
+                    const std::vector<float>& f = plan.forward();
                     std::vector<double> d_estimate;
-                    const double v = loss_value(settings.refine_loss, plan.forward(), o.reference, o.channels(),
-                                                &d_estimate);
+                    const double v = loss_value(settings.refine_loss, std::vector<double>(f.begin(), f.end()),
+                                                o.reference, o.channels(), &d_estimate);
                     plan.adjoint(d_estimate, local, scale);
                     plan.release();
                     return scale * v;

@@ -313,6 +313,10 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     if (settings.iterations < 0 || settings.history < 1)
         throw std::domain_error("retrieve_field: iterations " + std::to_string(settings.iterations) + " / history " +
                                 std::to_string(settings.history) + " invalid; expected >= 0 / >= 1");
+    if (settings.stall_window < 0 || !(settings.stall_tolerance >= 0.0) || !std::isfinite(settings.stall_tolerance))
+        throw std::domain_error("retrieve_field: stall window " + std::to_string(settings.stall_window) +
+                                " / tolerance " + format_shortest(settings.stall_tolerance) +
+                                " invalid; expected >= 0 / finite >= 0");
 
     struct Slice {
         FieldOperator op;
@@ -528,9 +532,14 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     lo.history = settings.history;
     lo.max_iterations = settings.iterations;
     lo.gradient_tolerance = 0.0;
+    std::vector<double> history{};  // the relative loss after each iteration
     const LbfgsResult r = lbfgs_minimize(objective, xv, lo, [&](int it, double value) {
         result.iterations = it;
         if (on_iteration && !on_iteration(it, value)) return false;
+        history.push_back(value);
+        const std::size_t w = std::size_t(std::max(0, settings.stall_window));
+        if (w > 0 && history.size() > w && history[history.size() - 1 - w] - value < settings.stall_tolerance * value)
+            return false;
         return value > settings.relative_tolerance;
     });
     result.relative_loss = r.value;
