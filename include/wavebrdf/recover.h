@@ -41,7 +41,7 @@ struct BlurredFitSettings {
     // Blur widths, widest first, in units of the footprint's own far-field lobe (intensity std
     // 1/(2√2 π σ_p) in u): each stage fits slices blurred by a Gaussian this many lobes wide.
     std::vector<double> blur_widths{16.0, 8.0, 4.0, 2.0};
-    int iterations = 80;  // L-BFGS iterations per stage
+    int iterations = 40;  // L-BFGS iterations per stage
     int history = 20;
 };
 
