@@ -108,8 +108,8 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                     SlicePlan<float>& plan = plans[i];
                     plan.set_heights(x);
                     const std::vector<float>& f = plan.forward();
-                    const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>
-                        slice(f.data(), n, n);
+                    const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
+                        f.data(), n, n);
                     const Eigen::MatrixXf m = d.model_blur * slice * d.model_blur.transpose();
                     Eigen::MatrixXf dm(n, n);
                     double v = 0.0;

@@ -394,8 +394,8 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     // partial sums combined in thread order: reproducible for a given thread count), but the
     // per-thread gradients (one object grid each) are kept from call to call instead of being
     // allocated (and page-faulted) on every evaluation, and combined on all threads.
-    const int loss_threads =
-        slices.size() > 1 && !detail::in_parallel_region() ? std::max(1, omp_get_max_threads()) : 1;
+    const int loss_threads = slices.size() > 1 && !detail::in_parallel_region() ? std::max(1, omp_get_max_threads())
+                                                                                : 1;
     std::vector<std::vector<std::complex<double>>> locals(static_cast<std::size_t>(loss_threads));
     std::vector<double> partial(static_cast<std::size_t>(loss_threads));
     const auto loss = [&](const std::complex<double>* obj, std::vector<std::complex<double>>& grad) {
@@ -433,7 +433,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                     impl.adjoint_add(g, locals[t].data());
                     partial[t] += v * inv_total;
                 });
-            // Every thread's partial gradient is complete here (the for's barrier).
+                // Every thread's partial gradient is complete here (the for's barrier).
 #pragma omp for schedule(static)
             for (std::size_t k = 0; k < texels; ++k) {
                 std::complex<double> sum = 0.0;
