@@ -5,12 +5,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <map>
 #include <random>
 
 #include "test_util.h"
 #include "wavebrdf/generate.h"
+#include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf {
 namespace {
@@ -174,6 +176,43 @@ TEST(RetrieveField, RecoversKnownObjectUpToGlobalPhase) {
     EXPECT_LT(distance_up_to_phase(truth, r.object), 1e-4);
 }
 
+// The stopping rule (stall_window / stall_tolerance): with noisy slices the loss has a floor;
+// the retrieval stops once it stalls there, in fewer iterations than the full run, with the
+// object as close to the truth as the full run gets (and far closer than the start).
+TEST(RetrieveField, StallStopEndsEarlyWithTheFullRunsAccuracy) {
+    const int rows = 10, cols = 10;
+    const double texel = 1.0, lambda = 0.5;
+    const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
+    const std::vector<Complex> truth = object_of(hf, lambda);
+    auto observations = model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0);
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> noise(0.0, 0.02);  // 2 % multiplicative noise: a floor
+    for (Observation& o : observations)
+        for (double& r : o.reference) r *= std::max(0.0, 1.0 + noise(rng));
+    std::normal_distribution<double> phase(0.0, 0.6);
+    std::vector<Complex> start(truth.size());
+    for (std::size_t k = 0; k < truth.size(); ++k) start[k] = truth[k] * std::polar(1.0, phase(rng));
+    FieldRetrievalSettings full;
+    full.iterations = 300;
+    full.stall_window = 0;
+    FieldRetrievalSettings stalled = full;
+    stalled.stall_window = 5;
+    stalled.stall_tolerance = 0.005;
+    const FieldRetrievalResult a = retrieve_field(observations, lambda, rows, cols, texel, start, full);
+    const FieldRetrievalResult b = retrieve_field(observations, lambda, rows, cols, texel, start, stalled);
+    // The full run ends where its line search finds no descent any more (at the floor).
+    EXPECT_LT(b.iterations, a.iterations);
+    EXPECT_LT(b.relative_loss, 1.02 * a.relative_loss);
+    const double d_full = distance_up_to_phase(truth, a.object), d_stall = distance_up_to_phase(truth, b.object);
+    EXPECT_LT(d_stall, 0.1 * distance_up_to_phase(truth, start));
+    EXPECT_LT(d_stall, 1.5 * d_full + 1e-3);
+    std::printf("stall: %d iterations (full %d), loss %.4g (%.4g), distance %.3g (%.3g)\n", b.iterations, a.iterations,
+                b.relative_loss, a.relative_loss, d_stall, d_full);
+    FieldRetrievalSettings bad;
+    bad.stall_window = -1;
+    EXPECT_THROW(retrieve_field(observations, lambda, rows, cols, texel, start, bad), std::domain_error);
+}
+
 TEST(RetrieveField, RejectsObservationsAtAnotherWavelength) {
     Observation o;
     o.query = test::make_query(Model::OHS, 1.0, 1.0, 1.0);
@@ -315,6 +354,33 @@ SmallCase small_case(std::uint64_t seed) {
                 c.observations.push_back(std::move(o));
             }
     return c;
+}
+
+// The refinement keeps one single-precision slice plan per observation across its iterations
+// (set_heights, forward, adjoint, release per evaluation): every cycle gives exactly what a
+// plan built fresh on those heights gives, so the cache changes the time, not the values.
+TEST(RecoverHeights, RefinementPlanCycleMatchesFreshPlans) {
+    const Heightfield first = test::random_heightfield(12, 12, 0.4, 31, 2.0);
+    const Query q = test::make_query(Model::OHS, 11.0, 13.0, 3.0);
+    const std::vector<double> lambdas{0.5};
+    const int n = 24;
+    SlicePlan<float> cached(first, q, lambdas, n, 1);
+    for (unsigned seed : {32u, 33u, 34u}) {
+        const Heightfield hf = test::random_heightfield(12, 12, 0.4, seed, 2.0);
+        cached.set_heights(hf.values());
+        const std::vector<float> slice = cached.forward();
+        std::vector<double> weights(slice.size());
+        for (std::size_t p = 0; p < slice.size(); ++p) weights[p] = std::sin(0.37 * double(p) + seed);
+        std::vector<double> g_cached;
+        cached.adjoint(weights, g_cached, 0.25);
+        cached.release();
+
+        SlicePlan<float> fresh(hf, q, lambdas, n, 1);
+        EXPECT_EQ(slice, fresh.forward());
+        std::vector<double> g_fresh;
+        fresh.adjoint(weights, g_fresh, 0.25);
+        EXPECT_EQ(g_cached, g_fresh);
+    }
 }
 
 RecoverSettings quick_settings() {

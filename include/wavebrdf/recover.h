@@ -41,7 +41,7 @@ struct BlurredFitSettings {
     // Blur widths, widest first, in units of the footprint's own far-field lobe (intensity std
     // 1/(2√2 π σ_p) in u): each stage fits slices blurred by a Gaussian this many lobes wide.
     std::vector<double> blur_widths{16.0, 8.0, 4.0, 2.0};
-    int iterations = 80;  // L-BFGS iterations per stage
+    int iterations = 40;  // L-BFGS iterations per stage
     int history = 20;
 };
 
@@ -101,6 +101,13 @@ struct FieldRetrievalSettings {
     bool band_limit = true;
     int history = 20;                   // L-BFGS pairs
     double relative_tolerance = 1e-12;  // stop when the relative loss drops below this
+    // Stopping rule: stop when the relative loss fell by less than stall_tolerance (a fraction
+    // of its value) over the last stall_window iterations (0: run all `iterations`). The loss
+    // has a floor (the zero-slope model's error, ~1e-3 of the slices' amplitude); once near it
+    // further iterations move the heights by far less than the refinement corrects (measured:
+    // docs/recovery.md, Speed).
+    int stall_window = 5;
+    double stall_tolerance = 0.005;
 };
 
 struct FieldRetrievalResult {
@@ -178,7 +185,7 @@ struct RecoverSettings {
     // heights of all fields of the pass before.
     int field_passes = 1;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
-    int refine_iterations = 30;
+    int refine_iterations = 40;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     Loss refine_loss{LossKind::Amplitude, 1.0};

@@ -7,11 +7,14 @@
 #include <iterator>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
 #include "wavebrdf/gabor.h"
+#include "wavebrdf/loss.h"
 #include "wavebrdf/optim.h"
+#include "wavebrdf/slice_plan.h"
 #include "core/parallel.h"
 
 namespace wavebrdf {
@@ -193,17 +196,30 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();
         // observation_loss's mean, split over the observations on all threads (each slice alone
-        // is too small for the renderer to split).
+        // is too small for the renderer to split). Each observation keeps its slice plan for
+        // every iteration (built on the first call, on the thread that owns it): only the
+        // heights change (slice_plan.h), so rebuilding the tables each time was wasted work.
+        // A plan keeps only its height-independent tables between calls (release below).
+        std::vector<std::unique_ptr<SlicePlan<float>>> plans(observations.size());
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
-            const Heightfield hf = flat.with_values(x);
             g.assign(x.size(), 0.0);
             const double scale = 1.0 / double(observations.size());
             return detail::ordered_parallel_sum(
                 observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
-                    std::vector<double> one;
-                    const double v = scale * observation_loss(hf, {observations[i]}, settings.refine_loss, &one);
-                    for (std::size_t k = 0; k < one.size(); ++k) local[k] += scale * one[k];
-                    return v;
+                    const Observation& o = observations[i];
+                    if (!plans[i])
+                        plans[i] = std::make_unique<SlicePlan<float>>(flat.with_values(x), o.query, o.lambdas_um,
+                                                                      o.resolution, o.channels());
+                    else
+                        plans[i]->set_heights(x);
+                    SlicePlan<float>& plan = *plans[i];
+                    const std::vector<float>& f = plan.forward();
+                    std::vector<double> d_estimate;
+                    const double v = loss_value(settings.refine_loss, std::vector<double>(f.begin(), f.end()),
+                                                o.reference, o.channels(), &d_estimate);
+                    plan.adjoint(d_estimate, local, scale);
+                    plan.release();
+                    return scale * v;
                 });
         };
         LbfgsOptions lo;

@@ -76,7 +76,7 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
         // Per observation: coarse resolution, blur matrices and the blurred reference.
         struct Blurred {
             int n_coarse;
-            Eigen::MatrixXd model_blur;  // n' × n'
+            Eigen::MatrixXf model_blur;  // n' × n' (single precision: the products are half an evaluation)
             Eigen::MatrixXd reference;   // n' × n' (blurred, on the coarse pixels)
         };
         std::vector<Blurred> data(used.size());
@@ -91,7 +91,7 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
             const Eigen::MatrixXd to_coarse = blur_matrix(n_coarse, o.resolution, lambda, beta);
             Blurred& d = data[i];
             d.n_coarse = n_coarse;
-            d.model_blur = blur_matrix(n_coarse, n_coarse, lambda, beta);
+            d.model_blur = blur_matrix(n_coarse, n_coarse, lambda, beta).cast<float>();
             d.reference = to_coarse * as_matrix(o.reference, o.resolution).cwiseMax(0.0) * to_coarse.transpose();
             total += d.reference.sum();
         }
@@ -108,22 +108,24 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                     SlicePlan<float>& plan = plans[i];
                     plan.set_heights(x);
                     const std::vector<float>& f = plan.forward();
-                    const Eigen::MatrixXd m = d.model_blur * as_matrix(std::vector<double>(f.begin(), f.end()), n) *
-                                              d.model_blur.transpose();
-                    Eigen::MatrixXd dm(n, n);
+                    const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
+                        f.data(), n, n);
+                    const Eigen::MatrixXf m = d.model_blur * slice * d.model_blur.transpose();
+                    Eigen::MatrixXf dm(n, n);
                     double v = 0.0;
                     for (int p = 0; p < n; ++p)
                         for (int q = 0; q < n; ++q) {
-                            const double a = std::sqrt(std::max(m(p, q), 0.0) + 1e-300);
+                            const double mpq = double(m(p, q));
+                            const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
                             const double diff = a - std::sqrt(d.reference(p, q));
                             v += diff * diff;
-                            dm(p, q) = m(p, q) > 0.0 ? inv_total * diff / a : 0.0;
+                            dm(p, q) = mpq > 0.0 ? float(inv_total * diff / a) : 0.0f;
                         }
                     const double term = v * inv_total;
-                    const Eigen::MatrixXd w = d.model_blur.transpose() * dm * d.model_blur;
+                    const Eigen::MatrixXf w = d.model_blur.transpose() * dm * d.model_blur;
                     std::vector<float> weights(std::size_t(n) * n);
                     for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = float(w(p, q));
+                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
                     plan.adjoint_wavelength(0, weights, local);
                     return term;
                 });

@@ -10,10 +10,12 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <string>
 
 #include <fftw3.h>
+#include <omp.h>
 
 #include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
@@ -29,6 +31,52 @@ namespace {
 // Slice rows / columns whose envelope is below this (relative to its peak 1) are left out of
 // the products: the model's field there is below 1e-16 of the footprint's.
 constexpr double kEnvelopeCut = 1e-16;
+
+// A 2-D complex FFT in place on a rows × cols row-major array, as row FFTs then column FFTs,
+// each pass split over the threads (one FFTW plan per thread block; FFTW plans of disjoint
+// blocks run concurrently). The retrieval runs two per evaluation on a grid of ~3e5 samples:
+// on one thread they held the other core idle for a third of the field stage.
+class SplitFft2d {
+public:
+    SplitFft2d(int rows, int cols, std::complex<double>* data, int sign) {
+        const int threads = detail::in_parallel_region() ? 1 : std::max(1, omp_get_max_threads());
+        auto* d = reinterpret_cast<fftw_complex*>(data);
+#pragma omp critical(wavebrdf_fftw_plan)
+        for (int t = 0; t < threads; ++t) {
+            const int r0 = rows * t / threads, r1 = rows * (t + 1) / threads;
+            const int c0 = cols * t / threads, c1 = cols * (t + 1) / threads;
+            if (r1 > r0)
+                m_plans.push_back(fftw_plan_many_dft(1, &cols, r1 - r0, d + std::size_t(r0) * cols, nullptr, 1, cols,
+                                                     d + std::size_t(r0) * cols, nullptr, 1, cols, sign,
+                                                     FFTW_ESTIMATE));
+            if (c1 > c0)
+                m_column_plans.push_back(fftw_plan_many_dft(1, &rows, c1 - c0, d + c0, nullptr, cols, 1, d + c0,
+                                                            nullptr, cols, 1, sign, FFTW_ESTIMATE));
+        }
+    }
+    ~SplitFft2d() {
+#pragma omp critical(wavebrdf_fftw_plan)
+        {
+            for (fftw_plan p : m_plans) fftw_destroy_plan(p);
+            for (fftw_plan p : m_column_plans) fftw_destroy_plan(p);
+        }
+    }
+    SplitFft2d(const SplitFft2d&) = delete;
+    SplitFft2d& operator=(const SplitFft2d&) = delete;
+
+    void execute() const {
+        run(m_plans);
+        run(m_column_plans);
+    }
+
+private:
+    static void run(const std::vector<fftw_plan>& plans) {
+        const int n = int(plans.size());
+#pragma omp parallel for schedule(static) num_threads(n) if (n > 1)
+        for (int t = 0; t < n; ++t) fftw_execute(plans[std::size_t(t)]);
+    }
+    std::vector<fftw_plan> m_plans, m_column_plans;
+};
 
 }  // namespace
 
@@ -265,36 +313,61 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     if (settings.iterations < 0 || settings.history < 1)
         throw std::domain_error("retrieve_field: iterations " + std::to_string(settings.iterations) + " / history " +
                                 std::to_string(settings.history) + " invalid; expected >= 0 / >= 1");
+    if (settings.stall_window < 0 || !(settings.stall_tolerance >= 0.0) || !std::isfinite(settings.stall_tolerance))
+        throw std::domain_error("retrieve_field: stall window " + std::to_string(settings.stall_window) +
+                                " / tolerance " + format_shortest(settings.stall_tolerance) +
+                                " invalid; expected >= 0 / finite >= 0");
 
     struct Slice {
         FieldOperator op;
         Eigen::MatrixXd sqrt_ref;  // √R on the operator's box
         double outside = 0.0;      // Σ R beyond the box (the model is 0 there)
     };
-    std::vector<Slice> slices;
-    slices.reserve(observations.size());
-    double total = 0.0;
+    // The operators are independent of each other: built on all threads (each builds its
+    // footprint on the fine grid, the costliest set-up step), summed in order afterwards.
     for (std::size_t i = 0; i < observations.size(); ++i) {
         const Observation& o = observations[i];
         validate(o, i);
         if (o.lambdas_um.size() != 1 || std::abs(o.lambdas_um[0] - lambda_um) > 1e-12 * lambda_um)
             throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
                                         " is not a single-wavelength slice at " + format_shortest(lambda_um) + " um");
-        Slice s{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0};
-        const auto& impl = FieldAccess::impl(s.op);
-        s.sqrt_ref.resize(impl.ma, impl.mb);
-        const int n = o.resolution;
-        for (int p = 0; p < n; ++p)
-            for (int c = 0; c < n; ++c) {
-                const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
-                total += r;
-                const int a = p - impl.a0, b = c - impl.b0;
-                if (a >= 0 && a < impl.ma && b >= 0 && b < impl.mb)
-                    s.sqrt_ref(a, b) = std::sqrt(r);
-                else
-                    s.outside += r;
-            }
-        slices.push_back(std::move(s));
+    }
+    std::vector<std::unique_ptr<Slice>> built(observations.size());
+    std::vector<double> totals(observations.size(), 0.0);
+    {
+        detail::RegionGuard guard;
+#pragma omp parallel for schedule(dynamic) if (observations.size() > 1 && !detail::in_parallel_region())
+        for (std::size_t i = 0; i < observations.size(); ++i)
+            guard.run([&] {
+                const Observation& o = observations[i];
+                auto s = std::make_unique<Slice>(
+                    Slice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0});
+                const auto& impl = FieldAccess::impl(s->op);
+                s->sqrt_ref.resize(impl.ma, impl.mb);
+                const int n = o.resolution;
+                double sum = 0.0;
+                for (int p = 0; p < n; ++p)
+                    for (int c = 0; c < n; ++c) {
+                        const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
+                        sum += r;
+                        const int a = p - impl.a0, b = c - impl.b0;
+                        if (a >= 0 && a < impl.ma && b >= 0 && b < impl.mb)
+                            s->sqrt_ref(a, b) = std::sqrt(r);
+                        else
+                            s->outside += r;
+                    }
+                totals[i] = sum;
+                built[i] = std::move(s);
+            });
+        guard.rethrow();
+    }
+    std::vector<Slice> slices;
+    slices.reserve(observations.size());
+    double total = 0.0;
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        total += totals[i];
+        slices.push_back(std::move(*built[i]));
+        built[i].reset();
     }
     if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
 
@@ -317,27 +390,61 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     // L(O) = Σ_slices [Σ_box (√c1|Ψ| − √R)² + Σ_outside R] / Σ R. With g = ∂L/∂Re Ψ + i ∂L/∂Im Ψ
     // = 2(√c1|Ψ| − √R) √c1 Ψ/|Ψ| / ΣR, the gradient G = ∂L/∂Re O + i ∂L/∂Im O is Aᴴ g.
     const double inv_total = 1.0 / total;
+    // Σ over the slices on all threads, as detail::ordered_parallel_sum (static schedule,
+    // partial sums combined in thread order: reproducible for a given thread count), but the
+    // per-thread gradients (one object grid each) are kept from call to call instead of being
+    // allocated (and page-faulted) on every evaluation, and combined on all threads.
+    const int loss_threads = slices.size() > 1 && !detail::in_parallel_region() ? std::max(1, omp_get_max_threads())
+                                                                                : 1;
+    std::vector<std::vector<std::complex<double>>> locals(static_cast<std::size_t>(loss_threads));
+    std::vector<double> partial(static_cast<std::size_t>(loss_threads));
     const auto loss = [&](const std::complex<double>* obj, std::vector<std::complex<double>>& grad) {
-        grad.assign(texels, 0.0);
-        return detail::ordered_parallel_sum(
-            slices.size(), grad, slices.size() > 1, [&](std::size_t i, std::vector<std::complex<double>>& local) {
-                Eigen::MatrixXcf psi, g;
-                const Slice& s = slices[i];
-                const auto& impl = FieldAccess::impl(s.op);
-                impl.forward(obj, psi);
-                g.resize(psi.rows(), psi.cols());
-                double v = s.outside;
-                for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                    for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                        const double mag = std::abs(std::complex<double>(psi(a, b)));
-                        const double amp = impl.amp(a, b);
-                        const double diff = amp * mag - s.sqrt_ref(a, b);
-                        v += diff * diff;
-                        g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
-                    }
-                impl.adjoint_add(g, local.data());
-                return v * inv_total;
-            });
+        grad.resize(texels);
+        std::fill(partial.begin(), partial.end(), 0.0);
+        for (auto& l : locals) l.resize(texels);  // allocates on the first call only
+        detail::RegionGuard guard;
+#pragma omp parallel num_threads(loss_threads) if (loss_threads > 1)
+        {
+            const std::size_t t = std::size_t(omp_get_thread_num());
+            std::fill(locals[t].begin(), locals[t].end(), 0.0);
+            Eigen::MatrixXcf psi, g;
+#pragma omp for schedule(static)
+            for (std::size_t i = 0; i < slices.size(); ++i)
+                guard.run([&] {
+                    const Slice& s = slices[i];
+                    const auto& impl = FieldAccess::impl(s.op);
+                    impl.forward(obj, psi);
+                    g.resize(psi.rows(), psi.cols());
+                    double v = s.outside;
+                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                        for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                            const double amp = impl.amp(a, b);
+                            if (amp == 0.0) {  // outside the disk: no model value, no gradient
+                                const double r = s.sqrt_ref(a, b);
+                                v += r * r;
+                                g(a, b) = 0.0f;
+                                continue;
+                            }
+                            const double mag = std::abs(std::complex<double>(psi(a, b)));
+                            const double diff = amp * mag - s.sqrt_ref(a, b);
+                            v += diff * diff;
+                            g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
+                        }
+                    impl.adjoint_add(g, locals[t].data());
+                    partial[t] += v * inv_total;
+                });
+                // Every thread's partial gradient is complete here (the for's barrier).
+#pragma omp for schedule(static)
+            for (std::size_t k = 0; k < texels; ++k) {
+                std::complex<double> sum = 0.0;
+                for (int u = 0; u < loss_threads; ++u) sum += locals[std::size_t(u)][k];
+                grad[k] = sum;
+            }
+        }
+        guard.rethrow();
+        double value = 0.0;
+        for (double p : partial) value += p;
+        return value;
     };
 
     // Unknowns: the object's spectrum inside the band the slices see (unitary DFT of the
@@ -365,28 +472,27 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
             }
     }
     std::vector<std::complex<double>> spectrum(texels);
-    fftw_plan to_spectrum = nullptr, to_object = nullptr;
+    std::unique_ptr<SplitFft2d> to_spectrum, to_object;
     if (settings.band_limit) {
-#pragma omp critical(wavebrdf_fftw_plan)
-        {
-            auto* data = reinterpret_cast<fftw_complex*>(spectrum.data());
-            to_spectrum = fftw_plan_dft_2d(obj_rows, obj_cols, data, data, FFTW_FORWARD, FFTW_ESTIMATE);
-            to_object = fftw_plan_dft_2d(obj_rows, obj_cols, data, data, FFTW_BACKWARD, FFTW_ESTIMATE);
-        }
+        to_spectrum = std::make_unique<SplitFft2d>(obj_rows, obj_cols, spectrum.data(), FFTW_FORWARD);
+        to_object = std::make_unique<SplitFft2d>(obj_rows, obj_cols, spectrum.data(), FFTW_BACKWARD);
     }
     const double unitary = 1.0 / std::sqrt(double(texels));
+    const bool parallel_grid = detail::worth_parallel((long long)texels);
     // x (interleaved re/im of the kept spectrum) → object; object gradient → x gradient (the
     // adjoint of a unitary inverse DFT followed by a restriction is the DFT then the gather).
     const auto to_grid = [&](const std::vector<double>& x, std::vector<std::complex<double>>& obj) {
         std::fill(spectrum.begin(), spectrum.end(), 0.0);
         for (std::size_t k = 0; k < band.size(); ++k) spectrum[band[k]] = {x[2 * k], x[2 * k + 1]};
-        fftw_execute(to_object);
+        to_object->execute();
         obj.resize(texels);
+#pragma omp parallel for schedule(static) if (parallel_grid)
         for (std::size_t t = 0; t < texels; ++t) obj[t] = unitary * mask[t] * spectrum[t];
     };
     const auto from_grid = [&](const std::vector<std::complex<double>>& g, std::vector<double>& x) {
+#pragma omp parallel for schedule(static) if (parallel_grid)
         for (std::size_t t = 0; t < texels; ++t) spectrum[t] = unitary * mask[t] * g[t];
-        fftw_execute(to_spectrum);
+        to_spectrum->execute();
         x.resize(2 * band.size());
         for (std::size_t k = 0; k < band.size(); ++k) {
             x[2 * k] = spectrum[band[k]].real();
@@ -426,20 +532,20 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     lo.history = settings.history;
     lo.max_iterations = settings.iterations;
     lo.gradient_tolerance = 0.0;
+    std::vector<double> history{};  // the relative loss after each iteration
     const LbfgsResult r = lbfgs_minimize(objective, xv, lo, [&](int it, double value) {
         result.iterations = it;
         if (on_iteration && !on_iteration(it, value)) return false;
+        history.push_back(value);
+        const std::size_t w = std::size_t(std::max(0, settings.stall_window));
+        if (w > 0 && history.size() > w && history[history.size() - 1 - w] - value < settings.stall_tolerance * value)
+            return false;
         return value > settings.relative_tolerance;
     });
     result.relative_loss = r.value;
     result.iterations = r.iterations;
     if (settings.band_limit) {
         to_grid(xv, result.object);
-#pragma omp critical(wavebrdf_fftw_plan)
-        {
-            fftw_destroy_plan(to_spectrum);
-            fftw_destroy_plan(to_object);
-        }
     } else {
         result.object.resize(texels);
         for (std::size_t t = 0; t < texels; ++t) result.object[t] = {xv[2 * t], xv[2 * t + 1]};
