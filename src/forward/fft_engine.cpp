@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/fftw_planner.h"
 #include "core/parallel.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/memory.h"
@@ -22,10 +23,6 @@ namespace {
 
 // FFTW's planner is not thread-safe: every plan is made and destroyed under this lock
 // (executing a plan is thread-safe).
-std::mutex& planner_mutex() {
-    static std::mutex mutex;
-    return mutex;
-}
 
 template <typename Float>
 struct Fftw;
@@ -160,7 +157,7 @@ struct FftEngine<Float>::Workspace {
     typename Traits::Plan col_plan = nullptr;
     ~Workspace() { clear(); }
     void clear() {
-        std::lock_guard<std::mutex> lock(planner_mutex());
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         for (auto& p : row_plans) Traits::destroy(p.second);
         if (col_plan) Traits::destroy(col_plan);
         col_plan = nullptr;
@@ -308,7 +305,7 @@ void FftEngine<Float>::prepare(const Layout& layout, std::size_t grids) {
                 w.buffers.push_back(static_cast<std::complex<Float>*>(p));
             }
         });
-        std::lock_guard<std::mutex> lock(planner_mutex());
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         for (int t = 0; t < threads; ++t) {
             const int r0 = int(static_cast<long long>(mx) * t / threads),
                       r1 = int(static_cast<long long>(mx) * (t + 1) / threads);

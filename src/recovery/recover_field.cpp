@@ -17,6 +17,7 @@
 #include <fftw3.h>
 #include <omp.h>
 
+#include "core/fftw_planner.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/optim.h"
@@ -41,7 +42,7 @@ public:
     SplitFft2d(int rows, int cols, std::complex<double>* data, int sign) {
         const int threads = detail::in_parallel_region() ? 1 : std::max(1, omp_get_max_threads());
         auto* d = reinterpret_cast<fftw_complex*>(data);
-#pragma omp critical(wavebrdf_fftw_plan)
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         for (int t = 0; t < threads; ++t) {
             const int r0 = rows * t / threads, r1 = rows * (t + 1) / threads;
             const int c0 = cols * t / threads, c1 = cols * (t + 1) / threads;
@@ -55,11 +56,9 @@ public:
         }
     }
     ~SplitFft2d() {
-#pragma omp critical(wavebrdf_fftw_plan)
-        {
-            for (fftw_plan p : m_plans) fftw_destroy_plan(p);
-            for (fftw_plan p : m_column_plans) fftw_destroy_plan(p);
-        }
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
+        for (fftw_plan p : m_plans) fftw_destroy_plan(p);
+        for (fftw_plan p : m_column_plans) fftw_destroy_plan(p);
     }
     SplitFft2d(const SplitFft2d&) = delete;
     SplitFft2d& operator=(const SplitFft2d&) = delete;

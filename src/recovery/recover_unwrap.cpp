@@ -16,6 +16,7 @@
 
 #include <fftw3.h>
 
+#include "core/fftw_planner.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/recover.h"
 
@@ -86,8 +87,7 @@ std::vector<double> integrate_differences(int rows, int cols, const std::vector<
         }
     fftw_plan forward = nullptr, backward = nullptr;
     {
-        // FFTW's planner is not thread-safe.
-#pragma omp critical(wavebrdf_fftw_plan)
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         {
             auto* data = reinterpret_cast<fftw_complex*>(div.data());
             forward = fftw_plan_dft_2d(rows, cols, data, data, FFTW_FORWARD, FFTW_ESTIMATE);
@@ -103,8 +103,8 @@ std::vector<double> integrate_differences(int rows, int cols, const std::vector<
             div[at(a, b)] = (a == 0 && b == 0) || lap == 0.0 ? 0.0 : div[at(a, b)] / lap;
         }
     fftw_execute(backward);
-#pragma omp critical(wavebrdf_fftw_plan)
     {
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         fftw_destroy_plan(forward);
         fftw_destroy_plan(backward);
     }

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "core/fftw_planner.h"
 #include "core/random.h"
 #include "wavebrdf/constants.h"
 #include "core/text.h"
@@ -89,15 +90,8 @@ void validate(const SurfaceParams& p) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// FFTW: the planner is not thread-safe (only fftw_execute* is), so planning and destruction go
-// through one lock. FFTW_ESTIMATE plans without timing, hence the same plan (and the same
-// rounding) on every call.
-
-std::mutex& fftw_planner_mutex() {
-    static std::mutex mutex;
-    return mutex;
-}
-
+// FFTW: plans are made and destroyed under detail::fftw_planner_mutex (core/fftw_planner.h).
+// FFTW_ESTIMATE plans without timing, hence the same plan (and the same rounding) on every call.
 struct FftwFree {
     void operator()(void* p) const { fftw_free(p); }
 };
@@ -113,7 +107,7 @@ FftwBuffer<T> fftw_buffer(std::size_t count) {
 
 struct PlanDeleter {
     void operator()(fftw_plan_s* plan) const {
-        std::lock_guard<std::mutex> lock(fftw_planner_mutex());
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         fftw_destroy_plan(plan);
     }
 };
@@ -171,7 +165,7 @@ std::vector<double> gaussian_correlated_noise(int rows, int cols, double ell_x, 
     Plan forward;
     Plan backward;
     {
-        std::lock_guard<std::mutex> lock(fftw_planner_mutex());
+        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         // FFTW_ESTIMATE does not touch the arrays, so planning before filling them is safe.
         forward.reset(fftw_plan_dft_r2c_2d(rows, cols, real.get(), spectrum.get(), FFTW_ESTIMATE));
         backward.reset(
