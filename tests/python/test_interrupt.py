@@ -35,14 +35,14 @@ CHILD = textwrap.dedent("""
 CASES = {
     # The direct path (GHS): every pixel sums every kernel; polled per row of the slice.
     "render_slice_direct": ("h = rng.standard_normal((128, 128)) * 0.3",
-                            "wb.render_slice(h, resolution=320, sigma_p_um=30.0, x_um=64, y_um=64, model='GHS')"),
+                            "wb.render_slice(h, resolution=320, sigma_p_um=30.0, x_um=64, y_um=64, model='GHS', path='direct')"),
     # The separable path (OHS): a 2048^2 slice, polled per kernel chunk and column block.
     "render_slice_separable": ("h = rng.standard_normal((256, 256)) * 0.3",
-                               "wb.render_slice(h, resolution=2048, sigma_p_um=40.0, x_um=128, y_um=128)"),
+                               "wb.render_slice(h, resolution=2048, sigma_p_um=40.0, x_um=128, y_um=128, path='separable')"),
     # The gradient (forward and adjoint), direct path.
     "slice_gradient": ("h = rng.standard_normal((128, 128)) * 0.3\n"
                        "w = np.ones((320, 320, 3))",
-                       "wb.slice_gradient(h, w, resolution=320, sigma_p_um=30.0, x_um=64, y_um=64, model='GHS')"),
+                       "wb.slice_gradient(h, w, resolution=320, sigma_p_um=30.0, x_um=64, y_um=64, model='GHS', path='direct')"),
     # A batch (4096 small slices over a grid of lights): polled between items.
     "render_slice_batch": ("h = rng.standard_normal((64, 64)) * 0.3\n"
                            "lights = np.stack(np.meshgrid(np.linspace(-0.6, 0.6, 64), np.linspace(-0.6, 0.6, 64)), -1)",
@@ -52,7 +52,7 @@ CASES = {
                      "hf = wb.Heightfield(h)\n"
                      "q = wb.Query(x_um=64, y_um=64, sigma_p_um=30.0, model='GHS')\n"
                      "rep = wb.GaborRep(hf, q)",
-                     "wb.render(rep, q, resolution=320)"),
+                     "wb.render(rep, q, resolution=320, path='direct')"),
     # The runs with their progress shown (wavebrdf/_progress.py wraps the callback; the display
     # is closed on the way out).
     "invert_progress": ("", "wb.invert(size=32, resolution=64, epochs=100000, quiet=False)"),
