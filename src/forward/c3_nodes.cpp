@@ -13,6 +13,7 @@
 
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/constants.h"
+#include "wavebrdf/interrupt.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
 
@@ -143,6 +144,7 @@ void C3Nodes<Float>::compute_field(FieldEngine<Float>& engine, const FootprintKe
     }
     field.setZero(n, n);
     for (std::size_t j = 0; j < m; ++j) {
+        check_interrupt();  // between nodes (the engines' own loops do not poll)
         const bool reuse = middle && 2 * j + 1 == m;
         if (!reuse) engine.forward(node_weights(kernels, m_node_s[j]), m_node_s[j], fields);
         const std::vector<ComplexMatrix<Float>>& node = reuse ? *middle : fields;
