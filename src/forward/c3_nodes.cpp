@@ -38,6 +38,35 @@ double chebyshev_error_bound(int nodes, const C3BoundCells& cells) {
     return std::exp(best);
 }
 
+double chebyshev_hermite_bound(int nodes, const C3BoundCells& cells) {
+    // Hermite's formula f(x) − p(x) = (1/2πi) ∮ ℓ(x) f(z) / (ℓ(z) (z − x)) dz on E_ρ, with the node
+    // polynomial of the second-kind points ℓ(x) ∝ (x² − 1) U_{n−1}(x), n = nodes − 1; at
+    // z = (w + 1/w)/2, |w| = ρ: |(z² − 1) U_{n−1}(z)| = |w − 1/w| |w^n − w^{−n}| / 4 ≥ (ρ − 1/ρ)(ρ^n − ρ^{−n})/4,
+    // the perimeter is at most 2πa and the distance to [−1, 1] at least a − 1, a = (ρ + 1/ρ)/2.
+    const int n = nodes - 1;
+    double best = std::numeric_limits<double>::infinity();
+    for (int i = 0; i <= 70; ++i) {
+        const double rho = 1.0 + std::pow(10.0, -3.0 + i / 10.0);
+        const double eps = 0.5 * (rho - 1.0 / rho);
+        double sum = 0.0, top = -std::numeric_limits<double>::infinity();
+        for (std::size_t c = 0; c < cells.weight.size(); ++c)
+            top = std::max(top, cells.alpha[c] * eps + cells.beta[c] * eps * eps);
+        for (std::size_t c = 0; c < cells.weight.size(); ++c)
+            sum += cells.weight[c] * std::exp(cells.alpha[c] * eps + cells.beta[c] * eps * eps - top);
+        if (!(sum > 0.0)) return 0.0;
+        const double log_rn = double(n) * std::log(rho) + std::log1p(-std::pow(rho, -2.0 * n));
+        const double log_bound = std::log(0.5 * (rho + 1.0 / rho)) + std::log(4.0) - std::log(rho - 1.0 / rho) -
+                                 log_rn + std::log(2.0 * rho) - 2.0 * std::log(rho - 1.0) + top + std::log(sum);
+        best = std::min(best, log_bound);
+    }
+    return std::exp(best);
+}
+
+double chebyshev_node_factor(int nodes, double t) {
+    const double theta = std::acos(std::clamp(t, -1.0, 1.0));
+    return std::min(1.0, std::abs(std::sin(theta) * std::sin(double(nodes - 1) * theta)));
+}
+
 double chebyshev_error_factor(int nodes, double alpha, double beta) {
     return chebyshev_error_bound(nodes, C3BoundCells{{1.0}, {alpha}, {beta}});
 }
@@ -168,6 +197,22 @@ void C3Nodes<Float>::compute_field(FieldEngine<Float>& engine, const FootprintKe
 }
 
 template <typename Float>
+double C3Nodes<Float>::pixel_error(int m, const C3BoundCells& cells, const std::vector<double>& amp) const {
+    // E_pq = min(uniform bound, |ℓ(t_pq)| × Hermite bound): small near the nodes, in particular
+    // at the ends of the S range (normal light's specular peak sits at S = 1, a node).
+    const double uniform = chebyshev_error_bound(m, cells), hermite = chebyshev_hermite_bound(m, cells);
+    const double r = 0.5 * (m_s_hi - m_s_lo), s_mid = 0.5 * (m_s_hi + m_s_lo);
+    double worst = 0.0;
+    for (int p = 0; p < m_n; ++p)
+        for (const auto [q, ox, oy] : disk_row(p, m_n)) {
+            const std::size_t at = static_cast<std::size_t>(p) * m_n + q;
+            const double e = std::min(uniform, hermite * chebyshev_node_factor(m, (m_s[at] - s_mid) / r));
+            worst = std::max(worst, m_c1[at] * e * (2.0 * amp[at] + e));
+        }
+    return worst;
+}
+
+template <typename Float>
 std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const FootprintKernels& k,
                                            ComplexMatrix<Float>& field, Progress* progress) {
     const int n = m_n;
@@ -233,7 +278,8 @@ std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const Foo
     std::vector<ComplexMatrix<Float>> middle;
     if (r > 0.0) {
         engine.forward(node_weights(k, s_mid), s_mid, middle);
-        double peak = 0.0, slope = 0.0;
+        double peak = 0.0;
+        std::vector<double> amp(static_cast<std::size_t>(n) * n, 0.0);
         for (int p = 0; p < n; ++p)
             for (const auto [q, ox, oy] : disk_row(p, n)) {
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
@@ -242,15 +288,27 @@ std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const Foo
                     value = 2.0 * m_s[at] * value -
                             m_lambda_um * m_grid.ux[std::size_t(p)] * std::complex<double>(middle[1](p, q)) -
                             m_lambda_um * m_grid.uy[std::size_t(q)] * std::complex<double>(middle[2](p, q));
-                const double a = std::abs(value);
-                peak = std::max(peak, m_c1[at] * a * a);
-                slope = std::max(slope, 2.0 * m_c1[at] * a);
+                amp[at] = std::abs(value);
+                peak = std::max(peak, m_c1[at] * amp[at] * amp[at]);
             }
-        // No estimate (an all-dark middle node): the incoherent level √Σ|c_k w²|².
-        const double target = peak > 0.0 && slope > 0.0 ? 0.25 * m_tolerance * peak / slope
-                                                        : 0.25 * m_tolerance * std::sqrt(w_sq);
-        m = chebyshev_node_count(cells, target);
-        if (m % 2 == 0) ++m;
+        // The fewest (odd, so the middle node is one of them and is not computed again) nodes
+        // whose per-pixel bound keeps c1 E (2|I| + E) within a quarter of tolerance × peak with
+        // the middle node's |I| and peak; no estimate (an all-dark middle node): the field bound
+        // against a quarter of the tolerance times the incoherent level √Σ|c_k w²|².
+        m = k_max_c3_nodes + 1;
+        for (int mm = 3; mm <= k_max_c3_nodes; mm += 2) {
+            if (!(peak > 0.0)) {
+                if (chebyshev_error_bound(mm, cells) <= 0.25 * m_tolerance * std::sqrt(w_sq)) {
+                    m = mm;
+                    break;
+                }
+                continue;
+            }
+            if (pixel_error(mm, cells, amp) <= 0.25 * m_tolerance * peak) {
+                m = mm;
+                break;
+            }
+        }
     }
     bool report = true;
     while (true) {
@@ -274,15 +332,17 @@ std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const Foo
         report = false;
         std::vector<Float> slice = separable_slice<Float>(field, m_query, m_lambda_um, n, &m_c1);
         if (m_error == 0.0) return slice;
-        // A posteriori: |Δf| ≤ c1 E (2|I| + E) = D at every pixel; accept when D ≤ tol (peak − D).
-        double peak = 0.0, worst = 0.0;
+        // A posteriori: |Δf| ≤ c1 E_pq (2|I| + E_pq) = D at every pixel (E_pq the pointwise
+        // bound); accept when D ≤ tol (peak − D).
+        double peak = 0.0;
+        std::vector<double> amp(static_cast<std::size_t>(n) * n, 0.0);
         for (int p = 0; p < n; ++p)
             for (const auto [q, ox, oy] : disk_row(p, n)) {
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
                 peak = std::max(peak, double(slice[at]));
-                worst = std::max(worst,
-                                 m_c1[at] * m_error * (2.0 * std::abs(std::complex<double>(field(p, q))) + m_error));
+                amp[at] = std::abs(std::complex<double>(field(p, q)));
             }
+        const double worst = pixel_error(m, cells, amp);
         if (worst * (1.0 + m_tolerance) <= m_tolerance * peak) return slice;
         const double target = peak > 0.0 ? 0.5 * m_error * m_tolerance * peak / (worst * (1.0 + m_tolerance)) : 0.0;
         m = std::max(m + 2, chebyshev_node_count(cells, target));

@@ -44,6 +44,13 @@ struct C3BoundCells {
 // the bound on |I − I_nodes| for `nodes` ≥ 2 Chebyshev points (second kind) in S.
 double chebyshev_error_bound(int nodes, const C3BoundCells& cells);
 
+// The pointwise form (Hermite's contour formula on E_ρ, minimised over ρ): at t ∈ [−1, 1],
+// |I − I_nodes| ≤ chebyshev_node_factor(nodes, t) · chebyshev_hermite_bound(nodes, cells).
+double chebyshev_hermite_bound(int nodes, const C3BoundCells& cells);
+// |(1 − t²) U_{nodes−2}(t)| = |sin θ sin((nodes − 1) θ)|, t = cos θ: the normalised node polynomial
+// of the second-kind points, 0 at the nodes (in [0, 1]).
+double chebyshev_node_factor(int nodes, double t);
+
 // The same for one cell of weight 1: the factor of W in the bound above; α, β ≥ 0.
 double chebyshev_error_factor(int nodes, double alpha, double beta);
 
@@ -77,6 +84,8 @@ public:
     const std::vector<double>& c1() const { return m_c1; }           // per pixel, row-major
 
 private:
+    // max over the disk of c1 E_pq (2 amp + E_pq), E_pq the pointwise bound with m nodes.
+    double pixel_error(int m, const C3BoundCells& cells, const std::vector<double>& amp) const;
     KernelWeights node_weights(const FootprintKernels& kernels, double s) const;
     // ℓ_j at pixel (p,q), j = 0 … nodes()−1, into `ell`.
     void lagrange(std::size_t at, double* ell) const;
