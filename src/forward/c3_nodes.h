@@ -12,10 +12,11 @@
 //   |I − I_m| ≤ 4 ρ^{−(m−1)}/(ρ−1) · exp(α ε + β ε²) · W,  ε = (ρ − 1/ρ)/2,
 //   α = (4π/λ) r max|H_k − H̄|,  β = 2π²σ² r² max|a_k|²,  r = half the S range,
 //   W = Σ_k |c_k w²| (Kirchhoff: × (2 S_max + max|λu_x| |s_kx| + max|λu_y| |s_ky|))
-// (summed per kernel, in cells of |H_k − H̄| and |a_k|²) minimised over ρ; a priori for the error
-// the field at the middle node S_c suggests, then checked against the computed slice: if
-// max c1 E (2|I| + E) exceeds tolerance × the peak, the slice is computed again with the nodes
-// that bound needs (docs/c3_nodes.md).
+// (summed per kernel, in cells of |H_k − H̄| and |a_k|²) minimised over ρ, and per pixel the
+// pointwise form min(E, |sin θ sin((m−1)θ)| · Hermite bound), t = cos θ the pixel's S in [−1, 1]
+// (0 at the nodes, e.g. normal light's specular peak at S = 1); a priori with the field at the
+// middle node S_c, then checked against the computed slice: if max c1 E_pq (2|I| + E_pq) exceeds
+// tolerance × the peak, the slice is computed again with more nodes (docs/c3_nodes.md).
 #include <vector>
 
 #include "forward/field_engine.h"
