@@ -85,8 +85,9 @@ public:
     const std::vector<double>& c1() const { return m_c1; }           // per pixel, row-major
 
 private:
-    // max over the disk of c1 E_pq (2 amp + E_pq), E_pq the pointwise bound with m nodes.
-    double pixel_error(int m, const C3BoundCells& cells, const std::vector<double>& amp) const;
+    // max over the disk of c1 E_pq (2 amp + E_pq), E_pq the pointwise bound with m nodes (log_sums:
+    // the cells' ρ-dependent sums, c3_nodes.cpp).
+    double pixel_error(int m, const std::vector<double>& log_sums, const std::vector<double>& amp) const;
     KernelWeights node_weights(const FootprintKernels& kernels, double s) const;
     // ℓ_j at pixel (p,q), j = 0 … nodes()−1, into `ell`.
     void lagrange(std::size_t at, double* ell) const;
