@@ -12,6 +12,7 @@
 #include "test_util.h"
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/constants.h"
 
 using namespace wavebrdf;
 using test::make_query;
@@ -289,4 +290,80 @@ TEST(C3Nodes, FloatPathAgreesWithDouble) {
     const std::vector<double> d = render_slice<double>(hf, q, 0.5, 24, options_for(RenderPath::Separable));
     const std::vector<float> f = render_slice<float>(hf, q, 0.5, 24, options_for(RenderPath::Separable));
     EXPECT_LE(test::max_abs_diff(d, std::vector<double>(f.begin(), f.end())), 1e-4 * peak(d));
+}
+
+// The pointwise bound (Hermite's formula): interpolating f(t) = Σ w e^{iαt} e^{−β(t + t0)²} (|f| on
+// E_ρ at most Σ w exp(α ε + β ε²), the cells' model) in m second-kind Chebyshev points, computed
+// here independently, errs at every t by at most chebyshev_node_factor(m, t) × the Hermite
+// bound, and by at most the uniform bound; the factor vanishes at the nodes.
+TEST(C3Nodes, PointwiseBoundHoldsForAnIndependentInterpolant) {
+    const std::vector<std::tuple<double, double, double, double>> terms = {
+        {1.0, 3.0, 0.4, 0.3}, {0.5, 1.0, 0.1, -1.2}, {0.25, 5.0, 1.5, 0.0}};
+    detail::C3BoundCells cells;
+    for (const auto& [w, a, b, t0] : terms) {
+        cells.weight.push_back(w);
+        cells.alpha.push_back(a);
+        cells.beta.push_back(b);
+    }
+    auto f = [&](double t) {
+        std::complex<double> sum = 0.0;
+        for (const auto& [w, a, b, t0] : terms) sum += w * std::polar(std::exp(-b * (t + t0) * (t + t0)), a * t);
+        return sum;
+    };
+    for (int m : {3, 5, 7, 9, 12, 15}) {
+        SCOPED_TRACE("nodes " + std::to_string(m));
+        std::vector<double> x(static_cast<std::size_t>(m)), bary(static_cast<std::size_t>(m));
+        std::vector<std::complex<double>> fx(static_cast<std::size_t>(m));
+        for (int j = 0; j < m; ++j) {
+            x[std::size_t(j)] = std::cos(k_pi * j / (m - 1));
+            bary[std::size_t(j)] = (j % 2 ? -1.0 : 1.0) * (j == 0 || j == m - 1 ? 0.5 : 1.0);
+            fx[std::size_t(j)] = f(x[std::size_t(j)]);
+            EXPECT_LT(detail::chebyshev_node_factor(m, x[std::size_t(j)]), 1e-12);
+        }
+        const double uniform = detail::chebyshev_error_bound(m, cells);
+        const double hermite = detail::chebyshev_hermite_bound(m, cells);
+        double worst_ratio = 0.0;
+        for (int i = 1; i < 2000; ++i) {
+            const double t = -1.0 + 2.0 * i / 2000.0 + 1e-7;
+            std::complex<double> num = 0.0;
+            double den = 0.0;
+            for (int j = 0; j < m; ++j) {
+                const double c = bary[std::size_t(j)] / (t - x[std::size_t(j)]);
+                num += c * fx[std::size_t(j)];
+                den += c;
+            }
+            const double err = std::abs(num / den - f(t));
+            EXPECT_LE(err, uniform * (1.0 + 1e-9) + 1e-13);
+            const double pointwise = detail::chebyshev_node_factor(m, t) * hermite;
+            EXPECT_LE(err, pointwise * (1.0 + 1e-9) + 1e-13) << "t " << t;
+            worst_ratio = std::max(worst_ratio, err / std::max(pointwise, 1e-300));
+        }
+        std::printf("%d nodes: uniform %.3g, Hermite %.3g, worst error / pointwise bound %.3g\n", m, uniform, hermite,
+                    worst_ratio);
+    }
+}
+
+// Normal light puts the specular peak at S = 1, a node, where the pointwise bound vanishes;
+// the per-pixel check must still hold the slice to the tolerance there and everywhere else,
+// from loose tolerances (few nodes, large errors between the nodes) to tight ones.
+TEST(C3Nodes, NormalLightPointwiseBoundKeepsTheTolerance) {
+    const Heightfield hf = random_heightfield(32, 32, 0.04, 17, 1.0, 1.0);
+    for (Model model : {Model::GHS, Model::RGHS, Model::Kirchhoff}) {
+        const Query q = make_query(model, 16.0, 16.0, 5.0);
+        const FootprintKernels k = footprint_kernels(hf, q.x_um, q.y_um, q.sigma_p_um);
+        const int n = 32;
+        const double lambda = 0.5;
+        const std::vector<double> direct = detail::direct_field(k, q, lambda, n, 0.0, nullptr).value;
+        const double p = peak(direct);
+        ASSERT_GT(p, 0.0);
+        for (double tolerance : {1e-2, 1e-3, 1e-4, 1e-6, 1e-8}) {
+            SCOPED_TRACE(std::string(to_string(model)) + " tolerance " + std::to_string(tolerance));
+            int nodes = 0;
+            const std::vector<double> slice = node_slice(k, q, lambda, n, tolerance, &nodes);
+            ASSERT_FALSE(slice.empty());
+            EXPECT_LE(test::max_abs_diff(slice, direct), tolerance * p);
+            std::printf("%s normal light, tolerance %g: %d nodes, error / peak %.3g\n", to_string(model), tolerance,
+                        nodes, test::max_abs_diff(slice, direct) / p);
+        }
+    }
 }

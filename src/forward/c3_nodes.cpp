@@ -19,24 +19,70 @@
 
 namespace wavebrdf::detail {
 
-double chebyshev_error_bound(int nodes, const C3BoundCells& cells) {
-    // The bound on a log-spaced grid of ρ − 1 (1e-3 … 1e4, ten points a decade): it holds at
-    // every ρ, and its minimum is broad, so the grid loses little.
-    double best = std::numeric_limits<double>::infinity();
-    for (int i = 0; i <= 70; ++i) {
-        const double rho = 1.0 + std::pow(10.0, -3.0 + i / 10.0);
+namespace {
+
+// The bounds are taken on a log-spaced grid of ρ − 1 (1e-3 … 1e4, ten points a decade): they
+// hold at every ρ, and their minimum is broad, so the grid loses little.
+constexpr int k_rho_points = 71;
+double rho_at(int i) { return 1.0 + std::pow(10.0, -3.0 + i / 10.0); }
+
+// log Σ_c w_c exp(α_c ε + β_c ε²) at each grid ρ (−∞ for an empty or zero sum): the part of
+// both bounds that does not depend on the node count, computed once per slice.
+std::vector<double> cell_log_sums(const C3BoundCells& cells) {
+    std::vector<double> out(k_rho_points, -std::numeric_limits<double>::infinity());
+    for (int i = 0; i < k_rho_points; ++i) {
+        const double rho = rho_at(i);
         const double eps = 0.5 * (rho - 1.0 / rho);
         double sum = 0.0, top = -std::numeric_limits<double>::infinity();
         for (std::size_t c = 0; c < cells.weight.size(); ++c)
             top = std::max(top, cells.alpha[c] * eps + cells.beta[c] * eps * eps);
         for (std::size_t c = 0; c < cells.weight.size(); ++c)
             sum += cells.weight[c] * std::exp(cells.alpha[c] * eps + cells.beta[c] * eps * eps - top);
-        if (!(sum > 0.0)) return 0.0;
-        const double log_bound = std::log(4.0) - double(nodes - 1) * std::log(rho) - std::log(rho - 1.0) + top +
-                                 std::log(sum);
-        best = std::min(best, log_bound);
+        if (sum > 0.0) out[std::size_t(i)] = top + std::log(sum);
+    }
+    return out;
+}
+
+// Thm 8.2 of Trefethen's ATAP: 4 M ρ^{−(nodes−1)}/(ρ − 1), minimised over the grid.
+double uniform_bound(int nodes, const std::vector<double>& log_sums) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < k_rho_points; ++i) {
+        const double rho = rho_at(i);
+        best = std::min(
+            best, std::log(4.0) - double(nodes - 1) * std::log(rho) - std::log(rho - 1.0) + log_sums[std::size_t(i)]);
     }
     return std::exp(best);
+}
+
+// Hermite's formula f(x) − p(x) = (1/2πi) ∮ ℓ(x) f(z) / (ℓ(z) (z − x)) dz on E_ρ, with the node
+// polynomial of the second-kind points ℓ(x) ∝ (x² − 1) U_{n−1}(x), n = nodes − 1; at
+// z = (w + 1/w)/2, |w| = ρ: |(z² − 1) U_{n−1}(z)| = |w − 1/w| |w^n − w^{−n}| / 4 ≥ (ρ − 1/ρ)(ρ^n − ρ^{−n})/4,
+// the perimeter is at most 2πa and the distance to [−1, 1] at least a − 1, a = (ρ + 1/ρ)/2.
+double hermite_bound(int nodes, const std::vector<double>& log_sums) {
+    const int n = nodes - 1;
+    double best = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < k_rho_points; ++i) {
+        const double rho = rho_at(i);
+        const double log_rn = double(n) * std::log(rho) + std::log1p(-std::pow(rho, -2.0 * n));
+        best = std::min(best, std::log(0.5 * (rho + 1.0 / rho)) + std::log(4.0) - std::log(rho - 1.0 / rho) - log_rn +
+                                  std::log(2.0 * rho) - 2.0 * std::log(rho - 1.0) + log_sums[std::size_t(i)]);
+    }
+    return std::exp(best);
+}
+
+}  // namespace
+
+double chebyshev_error_bound(int nodes, const C3BoundCells& cells) {
+    return uniform_bound(nodes, cell_log_sums(cells));
+}
+
+double chebyshev_hermite_bound(int nodes, const C3BoundCells& cells) {
+    return hermite_bound(nodes, cell_log_sums(cells));
+}
+
+double chebyshev_node_factor(int nodes, double t) {
+    const double theta = std::acos(std::clamp(t, -1.0, 1.0));
+    return std::min(1.0, std::abs(std::sin(theta) * std::sin(double(nodes - 1) * theta)));
 }
 
 double chebyshev_error_factor(int nodes, double alpha, double beta) {
@@ -44,8 +90,9 @@ double chebyshev_error_factor(int nodes, double alpha, double beta) {
 }
 
 int chebyshev_node_count(const C3BoundCells& cells, double target_error) {
+    const std::vector<double> log_sums = cell_log_sums(cells);
     for (int m = 2; m <= k_max_c3_nodes; ++m)
-        if (chebyshev_error_bound(m, cells) <= target_error) return m;
+        if (uniform_bound(m, log_sums) <= target_error) return m;
     return k_max_c3_nodes + 1;
 }
 
@@ -177,6 +224,24 @@ void C3Nodes<Float>::compute_field(FieldEngine<Float>& engine, const FootprintKe
 }
 
 template <typename Float>
+double C3Nodes<Float>::pixel_error(int m, const std::vector<double>& log_sums, const std::vector<double>& amp) const {
+    // E_pq = min(uniform bound, |ℓ(t_pq)| × Hermite bound): small near the nodes, in particular
+    // at the ends of the S range (normal light's specular peak sits at S = 1, a node). A pixel
+    // whose uniform bound cannot raise the maximum skips the node factor.
+    const double uniform = uniform_bound(m, log_sums), hermite = hermite_bound(m, log_sums);
+    const double r = 0.5 * (m_s_hi - m_s_lo), s_mid = 0.5 * (m_s_hi + m_s_lo);
+    double worst = 0.0;
+    for (int p = 0; p < m_n; ++p)
+        for (const auto [q, ox, oy] : disk_row(p, m_n)) {
+            const std::size_t at = static_cast<std::size_t>(p) * m_n + q;
+            if (!(m_c1[at] * uniform * (2.0 * amp[at] + uniform) > worst)) continue;
+            const double e = std::min(uniform, hermite * chebyshev_node_factor(m, (m_s[at] - s_mid) / r));
+            worst = std::max(worst, m_c1[at] * e * (2.0 * amp[at] + e));
+        }
+    return worst;
+}
+
+template <typename Float>
 std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const FootprintKernels& k,
                                            ComplexMatrix<Float>& field, Progress* progress) {
     const int n = m_n;
@@ -234,15 +299,16 @@ std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const Foo
                 cells.beta.push_back(gauss_r2 * a2_max * (sc + 1) / kSlopeCells);
             }
     }
-    // A priori: the field at the middle node S_c estimates the slice's peak and |I| there; the
-    // node count aims at a quarter of the error that estimate allows, and is odd so that the
-    // middle node is one of the nodes (its field is not computed twice).
+    const std::vector<double> log_sums = cell_log_sums(cells);
+    // A priori: the field at the middle node S_c estimates the slice's peak and |I| per pixel
+    // (the node count below).
     const double s_mid = 0.5 * (m_s_lo + m_s_hi);
     int m = 1;
     std::vector<ComplexMatrix<Float>> middle;
     if (r > 0.0) {
         engine.forward(node_weights(k, s_mid), s_mid, middle);
-        double peak = 0.0, slope = 0.0;
+        double peak = 0.0;
+        std::vector<double> amp(static_cast<std::size_t>(n) * n, 0.0);
         for (int p = 0; p < n; ++p)
             for (const auto [q, ox, oy] : disk_row(p, n)) {
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
@@ -251,15 +317,27 @@ std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const Foo
                     value = 2.0 * m_s[at] * value -
                             m_lambda_um * m_grid.ux[std::size_t(p)] * std::complex<double>(middle[1](p, q)) -
                             m_lambda_um * m_grid.uy[std::size_t(q)] * std::complex<double>(middle[2](p, q));
-                const double a = std::abs(value);
-                peak = std::max(peak, m_c1[at] * a * a);
-                slope = std::max(slope, 2.0 * m_c1[at] * a);
+                amp[at] = std::abs(value);
+                peak = std::max(peak, m_c1[at] * amp[at] * amp[at]);
             }
-        // No estimate (an all-dark middle node): the incoherent level √Σ|c_k w²|².
-        const double target = peak > 0.0 && slope > 0.0 ? 0.25 * m_tolerance * peak / slope
-                                                        : 0.25 * m_tolerance * std::sqrt(w_sq);
-        m = chebyshev_node_count(cells, target);
-        if (m % 2 == 0) ++m;
+        // The fewest (odd, so the middle node is one of them and is not computed again) nodes
+        // whose per-pixel bound keeps c1 E (2|I| + E) within a quarter of tolerance × peak with
+        // the middle node's |I| and peak; no estimate (an all-dark middle node): the field bound
+        // against a quarter of the tolerance times the incoherent level √Σ|c_k w²|².
+        m = k_max_c3_nodes + 1;
+        for (int mm = 3; mm <= k_max_c3_nodes; mm += 2) {
+            if (!(peak > 0.0)) {
+                if (uniform_bound(mm, log_sums) <= 0.25 * m_tolerance * std::sqrt(w_sq)) {
+                    m = mm;
+                    break;
+                }
+                continue;
+            }
+            if (pixel_error(mm, log_sums, amp) <= 0.25 * m_tolerance * peak) {
+                m = mm;
+                break;
+            }
+        }
     }
     bool report = true;
     while (true) {
@@ -278,20 +356,22 @@ std::vector<Float> C3Nodes<Float>::forward(FieldEngine<Float>& engine, const Foo
             m_node_s[static_cast<std::size_t>(j)] = s_mid + r * m_node_t[static_cast<std::size_t>(j)];
             m_bary[static_cast<std::size_t>(j)] = (j % 2 ? -1.0 : 1.0) * (j == 0 || j == m - 1 ? 0.5 : 1.0);
         }
-        m_error = m > 1 ? chebyshev_error_bound(m, cells) : 0.0;
+        m_error = m > 1 ? uniform_bound(m, log_sums) : 0.0;
         compute_field(engine, k, field, progress, report, m % 2 == 1 && !middle.empty() ? &middle : nullptr);
         report = false;
         std::vector<Float> slice = separable_slice<Float>(field, m_query, m_lambda_um, n, &m_c1);
         if (m_error == 0.0) return slice;
-        // A posteriori: |Δf| ≤ c1 E (2|I| + E) = D at every pixel; accept when D ≤ tol (peak − D).
-        double peak = 0.0, worst = 0.0;
+        // A posteriori: |Δf| ≤ c1 E_pq (2|I| + E_pq) = D at every pixel (E_pq the pointwise
+        // bound); accept when D ≤ tol (peak − D).
+        double peak = 0.0;
+        std::vector<double> amp(static_cast<std::size_t>(n) * n, 0.0);
         for (int p = 0; p < n; ++p)
             for (const auto [q, ox, oy] : disk_row(p, n)) {
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
                 peak = std::max(peak, double(slice[at]));
-                worst = std::max(worst,
-                                 m_c1[at] * m_error * (2.0 * std::abs(std::complex<double>(field(p, q))) + m_error));
+                amp[at] = std::abs(std::complex<double>(field(p, q)));
             }
+        const double worst = pixel_error(m, log_sums, amp);
         if (worst * (1.0 + m_tolerance) <= m_tolerance * peak) return slice;
         const double target = peak > 0.0 ? 0.5 * m_error * m_tolerance * peak / (worst * (1.0 + m_tolerance)) : 0.0;
         m = std::max(m + 2, chebyshev_node_count(cells, target));

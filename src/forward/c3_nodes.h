@@ -12,10 +12,11 @@
 //   |I − I_m| ≤ 4 ρ^{−(m−1)}/(ρ−1) · exp(α ε + β ε²) · W,  ε = (ρ − 1/ρ)/2,
 //   α = (4π/λ) r max|H_k − H̄|,  β = 2π²σ² r² max|a_k|²,  r = half the S range,
 //   W = Σ_k |c_k w²| (Kirchhoff: × (2 S_max + max|λu_x| |s_kx| + max|λu_y| |s_ky|))
-// (summed per kernel, in cells of |H_k − H̄| and |a_k|²) minimised over ρ; a priori for the error
-// the field at the middle node S_c suggests, then checked against the computed slice: if
-// max c1 E (2|I| + E) exceeds tolerance × the peak, the slice is computed again with the nodes
-// that bound needs (docs/c3_nodes.md).
+// (summed per kernel, in cells of |H_k − H̄| and |a_k|²) minimised over ρ, and per pixel the
+// pointwise form min(E, |sin θ sin((m−1)θ)| · Hermite bound), t = cos θ the pixel's S in [−1, 1]
+// (0 at the nodes, e.g. normal light's specular peak at S = 1); a priori with the field at the
+// middle node S_c, then checked against the computed slice: if max c1 E_pq (2|I| + E_pq) exceeds
+// tolerance × the peak, the slice is computed again with more nodes (docs/c3_nodes.md).
 #include <vector>
 
 #include "forward/field_engine.h"
@@ -43,6 +44,13 @@ struct C3BoundCells {
 // min over ρ > 1 of 4 ρ^{−(nodes−1)}/(ρ−1) · Σ_c weight[c] exp(α_c ε + β_c ε²), ε = (ρ − 1/ρ)/2:
 // the bound on |I − I_nodes| for `nodes` ≥ 2 Chebyshev points (second kind) in S.
 double chebyshev_error_bound(int nodes, const C3BoundCells& cells);
+
+// The pointwise form (Hermite's contour formula on E_ρ, minimised over ρ): at t ∈ [−1, 1],
+// |I − I_nodes| ≤ chebyshev_node_factor(nodes, t) · chebyshev_hermite_bound(nodes, cells).
+double chebyshev_hermite_bound(int nodes, const C3BoundCells& cells);
+// |(1 − t²) U_{nodes−2}(t)| = |sin θ sin((nodes − 1) θ)|, t = cos θ: the normalised node polynomial
+// of the second-kind points, 0 at the nodes (in [0, 1]).
+double chebyshev_node_factor(int nodes, double t);
 
 // The same for one cell of weight 1: the factor of W in the bound above; α, β ≥ 0.
 double chebyshev_error_factor(int nodes, double alpha, double beta);
@@ -77,6 +85,9 @@ public:
     const std::vector<double>& c1() const { return m_c1; }           // per pixel, row-major
 
 private:
+    // max over the disk of c1 E_pq (2 amp + E_pq), E_pq the pointwise bound with m nodes (log_sums:
+    // the cells' ρ-dependent sums, c3_nodes.cpp).
+    double pixel_error(int m, const std::vector<double>& log_sums, const std::vector<double>& amp) const;
     KernelWeights node_weights(const FootprintKernels& kernels, double s) const;
     // ℓ_j at pixel (p,q), j = 0 … nodes()−1, into `ell`.
     void lagrange(std::size_t at, double* ell) const;
