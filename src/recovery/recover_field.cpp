@@ -9,6 +9,7 @@
 // Its adjoint is Xᴴ · G · conj(Y), masked by P and scattered back onto the tile.
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <stdexcept>
@@ -424,7 +425,10 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                                 g(a, b) = 0.0f;
                                 continue;
                             }
-                            const double mag = std::abs(std::complex<double>(psi(a, b)));
+                            // |Ψ| as √(re² + im²): std::abs calls hypot, ~5× slower, and Ψ
+                            // is far from its overflow / underflow range.
+                            const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
+                            const double mag = std::sqrt(re * re + im * im);
                             const double diff = amp * mag - s.sqrt_ref(a, b);
                             v += diff * diff;
                             g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
@@ -454,14 +458,21 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     std::vector<std::size_t> band;  // indices of the spectrum kept, row-major
     if (settings.band_limit) {
         const double period_x = rows * texel_um, period_y = cols * texel_um;
+        // The distinct disks (centre ω_i/λ, reach): observations of one acquisition share one
+        // ω_i and σ_p, and testing each of the ~700 slices' copies of it at each of the ~3e5
+        // frequencies took ~0.5 s per wavelength.
+        std::vector<std::array<double, 3>> disks;
+        for (const Observation& o : observations) {
+            const double reach = 1.0 / lambda_um + 3.0 / (2.0 * k_pi * o.query.sigma_p_um);
+            const std::array<double, 3> d{{o.query.omega_i[0] / lambda_um, o.query.omega_i[1] / lambda_um, reach}};
+            if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);
+        }
         for (int a = 0; a < obj_rows; ++a)
             for (int b = 0; b < obj_cols; ++b) {
                 const double nu_x = double(a < (obj_rows + 1) / 2 ? a : a - obj_rows) / period_x;
                 const double nu_y = double(b < (obj_cols + 1) / 2 ? b : b - obj_cols) / period_y;
                 bool inside = false;
-                for (const Observation& o : observations) {
-                    const double reach = 1.0 / lambda_um + 3.0 / (2.0 * k_pi * o.query.sigma_p_um);
-                    const double cx = o.query.omega_i[0] / lambda_um, cy = o.query.omega_i[1] / lambda_um;
+                for (const auto& [cx, cy, reach] : disks) {
                     if ((nu_x - cx) * (nu_x - cx) + (nu_y - cy) * (nu_y - cy) <= reach * reach) {
                         inside = true;
                         break;
