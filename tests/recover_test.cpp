@@ -124,9 +124,9 @@ TEST(FieldOperator, AdjointDotProductIdentity) {
     }
 }
 
-// The flat fine grid is kept per thread and tile: an operator built after operators of other
-// tiles (another size, the same size with another texel width) equals one built on a fresh
-// thread, which has nothing kept.
+// The flat fine grid is shared while held: an operator built after (and while holding)
+// operators of other tiles (another size, the same size with another texel width) equals one
+// built on its own on another thread.
 TEST(FieldOperator, SameAfterOperatorsOfOtherTiles) {
     const Query q = test::make_query(Model::OHS, 0.4, 5.3, 4.1, 0.1, -0.05);
     const auto x = random_complex(std::size_t(7 * 3) * (5 * 3), 5);

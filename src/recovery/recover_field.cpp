@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 
@@ -77,6 +78,22 @@ private:
     }
     std::vector<fftw_plan> m_plans, m_column_plans;
 };
+
+// The flat grid (rows × cols zeros, texels of texel_um) a footprint is taken on: the same for
+// every footprint of a tile, so the last one built is shared for as long as someone holds it
+// (retrieve_field holds it while it builds a wavelength's ~700 operators; building it per
+// operator, 2.6 MB validated and page-faulted each, was most of the ~0.4 s that took).
+std::shared_ptr<const Heightfield> shared_flat_grid(int rows, int cols, double texel_um) {
+    static std::mutex mutex;
+    static std::weak_ptr<const Heightfield> last;
+    std::lock_guard<std::mutex> lock(mutex);
+    std::shared_ptr<const Heightfield> kept = last.lock();
+    if (kept && kept->rows() == rows && kept->cols() == cols && kept->texel_um() == texel_um) return kept;
+    kept = std::make_shared<const Heightfield>(rows, cols, std::vector<double>(std::size_t(rows) * cols, 0.0),
+                                               texel_um);
+    last = kept;
+    return kept;
+}
 
 }  // namespace
 
@@ -153,15 +170,8 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
 
     // The footprint exactly as the renderer sees it on a grid `refine` times finer: the same
     // kernels, offsets and weights.
-    // The flat fine grid is the same for every footprint of a tile: one per thread, kept while
-    // the tile stays the same (building it, 2.6 MB validated and page-faulted, was most of the
-    // ~0.4 s it took to build a wavelength's ~700 operators).
-    thread_local std::unique_ptr<Heightfield> flat_cache;
-    if (!flat_cache || flat_cache->rows() != s.rows || flat_cache->cols() != s.cols ||
-        flat_cache->texel_um() != texel_um / refine)
-        flat_cache = std::make_unique<Heightfield>(
-            s.rows, s.cols, std::vector<double>(std::size_t(s.rows) * s.cols, 0.0), texel_um / refine);
-    const Heightfield& flat = *flat_cache;
+    const std::shared_ptr<const Heightfield> flat_grid = shared_flat_grid(s.rows, s.cols, texel_um / refine);
+    const Heightfield& flat = *flat_grid;
     const FootprintKernels k = footprint_kernels(flat, query.x_um, query.y_um, query.sigma_p_um);
     std::vector<int> slot_r(s.rows, -1), slot_c(s.cols, -1);
     std::vector<double> dx, dy;
@@ -340,6 +350,10 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
             throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
                                         " is not a single-wavelength slice at " + format_shortest(lambda_um) + " um");
     }
+    // One flat fine grid for all the operators, released when the retrieval ends.
+    std::shared_ptr<const Heightfield> flat_grid;
+    if (rows >= 1 && cols >= 1 && std::isfinite(texel_um) && texel_um > 0.0)
+        flat_grid = shared_flat_grid(rows * q, cols * q, texel_um / q);
     std::vector<std::unique_ptr<Slice>> built(observations.size());
     std::vector<double> totals(observations.size(), 0.0);
     {
