@@ -9,6 +9,7 @@
 #include <complex>
 #include <map>
 #include <random>
+#include <thread>
 
 #include "test_util.h"
 #include "wavebrdf/generate.h"
@@ -121,6 +122,25 @@ TEST(FieldOperator, AdjointDotProductIdentity) {
         EXPECT_NEAR(lhs.real(), rhs.real(), 1e-11 * std::abs(lhs)) << "refine " << refine;
         EXPECT_NEAR(lhs.imag(), rhs.imag(), 1e-11 * std::abs(lhs)) << "refine " << refine;
     }
+}
+
+// The flat fine grid is shared while held: an operator built after (and while holding)
+// operators of other tiles (another size, the same size with another texel width) equals one
+// built on its own on another thread.
+TEST(FieldOperator, SameAfterOperatorsOfOtherTiles) {
+    const Query q = test::make_query(Model::OHS, 0.4, 5.3, 4.1, 0.1, -0.05);
+    const auto x = random_complex(std::size_t(7 * 3) * (5 * 3), 5);
+    std::vector<Complex> fresh;
+    std::thread([&] { fresh = FieldOperator(7, 5, 2.0, q, 0.6, 24, 3).forward(x); }).join();
+    const FieldOperator other_size(9, 4, 2.0, q, 0.6, 24, 3);
+    const FieldOperator other_texel(7, 5, 1.5, q, 0.6, 24, 3);
+    const FieldOperator op(7, 5, 2.0, q, 0.6, 24, 3);
+    const auto field = op.forward(x);
+    ASSERT_EQ(field.size(), fresh.size());
+    double peak = 0.0;
+    for (const Complex& v : fresh) peak = std::max(peak, std::abs(v));
+    EXPECT_GT(peak, 1e-3);
+    for (std::size_t k = 0; k < field.size(); ++k) EXPECT_EQ(field[k], fresh[k]) << "pixel " << k;
 }
 
 TEST(FieldOperator, RejectsBadArguments) {
