@@ -84,6 +84,9 @@ struct SlicePlan<Float>::State {
         return detail::choose_field_path(in);
     }
 
+    // One wavelength's slice for the current heights (forward's body; bands are independent).
+    std::vector<Float> band_forward(Band& b);
+
     std::size_t cells() const { return static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols); }
     double value(const std::vector<double>& h, int i, int j) const {
         i %= rows;
@@ -187,8 +190,31 @@ const std::vector<Float>& SlicePlan<Float>::forward() {
     const std::size_t pixels = static_cast<std::size_t>(s.n) * static_cast<std::size_t>(s.n);
     s.forward_done = false;
     s.output.assign(pixels * static_cast<std::size_t>(s.channels), Float(0));
+    // Several wavelengths: one band per thread (each band's engine then runs serially inside
+    // the region, core/parallel.h), which keeps both cores busy on small slices where a single
+    // band's engine is too small to split; the mix below stays in band order.
+    std::vector<std::vector<Float>> slices(s.bands.size());
+    detail::RegionGuard guard;
+#pragma omp parallel for schedule(dynamic, 1) if (s.bands.size() > 1 && !detail::in_parallel_region())
+    for (std::size_t l = 0; l < s.bands.size(); ++l) guard.run([&] { slices[l] = s.band_forward(s.bands[l]); });
+    guard.rethrow();
     for (std::size_t l = 0; l < s.bands.size(); ++l) {
         typename State::Band& b = s.bands[l];
+        std::vector<Float>& slice = slices[l];
+        if (s.channels == 1)
+            s.output = slice;
+        else
+            mix_spectral_to_rgb<Float>(s.mix, l, slice, s.output);
+        if (s.differentiable) b.slice = std::move(slice);
+    }
+    s.forward_done = true;
+    return s.output;
+}
+
+template <typename Float>
+std::vector<Float> SlicePlan<Float>::State::band_forward(Band& b) {
+    State& s = *this;
+    {
         std::vector<Float> slice;
         if (s.separable) {
             // Forward-only plans make the per-pixel tables for each call (as many as the
@@ -214,14 +240,8 @@ const std::vector<Float>& SlicePlan<Float>::forward() {
             slice.assign(direct.value.begin(), direct.value.end());
             if (s.differentiable) b.direct = std::move(direct);
         }
-        if (s.channels == 1)
-            s.output = slice;
-        else
-            mix_spectral_to_rgb<Float>(s.mix, l, slice, s.output);
-        if (s.differentiable) b.slice = std::move(slice);
+        return slice;
     }
-    s.forward_done = true;
-    return s.output;
 }
 
 template <typename Float>
