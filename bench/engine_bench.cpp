@@ -15,28 +15,17 @@
 #include <random>
 #include <vector>
 
+#include "bench_surface.h"
 #include "forward/fft_engine.h"
 #include "forward/separable.h"
 #include "forward/separable_engine.h"
 #include "wavebrdf/adjoint.h"
-#include "wavebrdf/generate.h"
 
 using namespace wavebrdf;
 
 namespace {
 
-const Heightfield& surface() {
-    static const Heightfield hf = [] {
-        SurfaceParams p;
-        p.type = SurfaceType::Isotropic;
-        p.rows = p.cols = 1024;
-        p.rms_height_um = 0.05;
-        p.correlation_um = 4.0;
-        p.seed = 1;
-        return generate_heightfield(p);
-    }();
-    return hf;
-}
+using bench::surface;  // bench_surface.h
 
 constexpr double k_lambda_um = 0.5;
 

@@ -29,26 +29,15 @@
 #include <string>
 #include <vector>
 
+#include "bench_surface.h"
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/brdf.h"
-#include "wavebrdf/generate.h"
 
 using namespace wavebrdf;
 
 namespace {
 
-const Heightfield& surface() {
-    static const Heightfield hf = [] {
-        SurfaceParams p;
-        p.type = SurfaceType::Isotropic;
-        p.rows = p.cols = 1024;
-        p.rms_height_um = 0.05;
-        p.correlation_um = 4.0;
-        p.seed = 1;
-        return generate_heightfield(p);
-    }();
-    return hf;
-}
+using bench::surface;  // bench_surface.h
 
 Query centre_query(Model model, double sigma_p_um) {
     Query q;

@@ -11,6 +11,7 @@
 #include <array>
 #include <cmath>
 
+#include "bench_surface.h"
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/batch.h"
 #include "wavebrdf/brdf.h"
@@ -22,18 +23,7 @@ using namespace wavebrdf;
 
 namespace {
 
-const Heightfield& surface() {
-    static const Heightfield hf = [] {
-        SurfaceParams p;
-        p.type = SurfaceType::Isotropic;
-        p.rows = p.cols = 1024;
-        p.rms_height_um = 0.05;
-        p.correlation_um = 4.0;
-        p.seed = 1;
-        return generate_heightfield(p);
-    }();
-    return hf;
-}
+using bench::surface;  // bench_surface.h
 
 Query query(Model model) {
     Query q;
