@@ -1,0 +1,75 @@
+#pragma once
+// The processes one run is split over (MPI ranks, docs/scale.md) and the few collective
+// operations the library needs. Every rank holds a share of the observations (the data) and a
+// copy of the unknowns (heights, object); the losses and gradients of the shares are summed
+// with allreduce_sum, in rank order, so a run is the same bit for bit for a given number of
+// ranks, and differs from the one-process run only by the order of a few sums.
+//
+// Without MPI (a build without it, or a program not started by mpirun) the communicator is
+// serial_communicator(): one rank, every operation a copy or nothing. Collective calls must be
+// made by every rank, in the same order, from the thread that created the communicator.
+#include <array>
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace wavebrdf {
+
+class Communicator {
+public:
+    virtual ~Communicator() = default;
+    virtual int rank() const = 0;  // 0 … size() − 1
+    virtual int size() const = 0;  // ≥ 1
+
+    // values[i] ← Σ_r values_r[i] on every rank, summed in rank order 0, 1, …, size() − 1
+    // (reproducible for a given size, the same bits on every rank).
+    virtual void allreduce_sum(double* values, std::size_t count) const = 0;
+    // values ← root's values on every rank.
+    virtual void broadcast(double* values, std::size_t count, int root = 0) const = 0;
+    // The concatenation of every rank's `local`, in rank order, on `root` (empty elsewhere).
+    virtual std::vector<double> gather(const std::vector<double>& local, int root = 0) const = 0;
+    // True on every rank when `flag` is true on any rank (e.g. one rank was interrupted).
+    virtual bool any(bool flag) const = 0;
+    virtual void barrier() const = 0;
+
+    void allreduce_sum(std::vector<double>& values) const { allreduce_sum(values.data(), values.size()); }
+    void broadcast(std::vector<double>& values, int root = 0) const { broadcast(values.data(), values.size(), root); }
+    bool is_root() const { return rank() == 0; }
+};
+
+// The one-rank communicator (rank 0 of 1).
+const Communicator& serial_communicator();
+
+// True when the library was built with MPI (CMake option WAVEBRDF_MPI, on when MPI is found).
+bool built_with_mpi();
+
+// The world of the processes mpirun started, as a communicator: MPI_COMM_WORLD when the
+// library was built with MPI and this process was started by an MPI launcher (its environment
+// says so: OMPI_COMM_WORLD_SIZE, PMI_SIZE or PMIX_RANK) or MPI is already initialised (e.g. by
+// mpi4py); else the serial communicator. The first call initialises MPI when needed (and
+// finalises it at exit); later calls return the same object. Throws std::runtime_error when
+// MPI's initialisation fails.
+std::shared_ptr<const Communicator> world_communicator();
+
+// A communicator from an MPI communicator's Fortran handle (mpi4py: comm.py2f()), for the
+// Python module. Throws std::runtime_error when the library was built without MPI or MPI is
+// not initialised.
+std::shared_ptr<const Communicator> communicator_from_fortran_handle(long long handle);
+
+// The contiguous block [begin, end) of `count` items that rank `rank` of `size` holds: balanced
+// (sizes differ by at most one, the larger blocks first), in order, together covering
+// 0 … count − 1. Throws std::invalid_argument unless 0 ≤ rank < size.
+struct Share {
+    std::size_t begin = 0, end = 0;
+    std::size_t size() const { return end - begin; }
+};
+Share share_of(std::size_t count, int rank, int size);
+
+// The observations a rank holds: the distinct footprint centres (positions_um[i] of
+// observation i, in order of first appearance) are split into contiguous blocks (share_of),
+// and a rank holds every observation at the centres of its block (all their wavelengths and
+// light directions), so its footprints cover one region of the tile. Returns the indices of
+// its observations, ascending. Throws std::invalid_argument unless 0 ≤ rank < size.
+std::vector<std::size_t> observation_share(const std::vector<std::array<double, 2>>& positions_um, int rank, int size);
+
+}  // namespace wavebrdf

@@ -1,0 +1,236 @@
+// The serial communicator, the shares, and (built with MPI) the MPI communicator
+// (include/wavebrdf/communicator.h).
+#include "wavebrdf/communicator.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#ifdef WAVEBRDF_HAS_MPI
+// MPI's C interface only (not the deprecated C++ bindings, which need libmpi_cxx).
+#define OMPI_SKIP_MPICXX 1
+#define MPICH_SKIP_MPICXX 1
+#include <mpi.h>
+#endif
+
+namespace wavebrdf {
+
+namespace {
+
+class SerialCommunicator final : public Communicator {
+public:
+    int rank() const override { return 0; }
+    int size() const override { return 1; }
+    void allreduce_sum(double*, std::size_t) const override {}
+    void broadcast(double*, std::size_t, int root) const override { check_root(root); }
+    std::vector<double> gather(const std::vector<double>& local, int root) const override {
+        check_root(root);
+        return local;
+    }
+    bool any(bool flag) const override { return flag; }
+    void barrier() const override {}
+
+private:
+    static void check_root(int root) {
+        if (root != 0)
+            throw std::invalid_argument("root rank " + std::to_string(root) + " is out of range; expected 0");
+    }
+};
+
+#ifdef WAVEBRDF_HAS_MPI
+
+// MPI counts are int: long arrays go in pieces of this many values.
+constexpr std::size_t k_chunk = std::size_t(1) << 24;
+
+void check_mpi(int code, const char* what) {
+    if (code == MPI_SUCCESS) return;
+    char message[MPI_MAX_ERROR_STRING];
+    int length = 0;
+    MPI_Error_string(code, message, &length);
+    throw std::runtime_error(std::string("MPI: ") + what + " failed: " + std::string(message, std::size_t(length)));
+}
+
+class MpiCommunicator final : public Communicator {
+public:
+    explicit MpiCommunicator(MPI_Comm comm) : m_comm(comm) {
+        check_mpi(MPI_Comm_rank(comm, &m_rank), "MPI_Comm_rank");
+        check_mpi(MPI_Comm_size(comm, &m_size), "MPI_Comm_size");
+    }
+    int rank() const override { return m_rank; }
+    int size() const override { return m_size; }
+
+    // Gather to rank 0, sum there in rank order, broadcast: the same bits on every rank and for
+    // every run with this many ranks (MPI_Allreduce may sum in any order).
+    void allreduce_sum(double* values, std::size_t count) const override {
+        if (m_size == 1) return;
+        std::vector<double> all;
+        for (std::size_t start = 0; start < count; start += k_chunk) {
+            const std::size_t n = std::min(k_chunk, count - start);
+            if (m_rank == 0) all.resize(n * std::size_t(m_size));
+            check_mpi(MPI_Gather(values + start, int(n), MPI_DOUBLE, m_rank == 0 ? all.data() : nullptr, int(n),
+                                 MPI_DOUBLE, 0, m_comm),
+                      "MPI_Gather");
+            if (m_rank == 0) {
+                for (std::size_t i = 0; i < n; ++i) {
+                    double sum = all[i];
+                    for (int r = 1; r < m_size; ++r) sum += all[std::size_t(r) * n + i];
+                    values[start + i] = sum;
+                }
+            }
+            check_mpi(MPI_Bcast(values + start, int(n), MPI_DOUBLE, 0, m_comm), "MPI_Bcast");
+        }
+    }
+    void broadcast(double* values, std::size_t count, int root) const override {
+        check_root(root);
+        for (std::size_t start = 0; start < count; start += k_chunk) {
+            const std::size_t n = std::min(k_chunk, count - start);
+            check_mpi(MPI_Bcast(values + start, int(n), MPI_DOUBLE, root, m_comm), "MPI_Bcast");
+        }
+    }
+    std::vector<double> gather(const std::vector<double>& local, int root) const override {
+        check_root(root);
+        if (local.size() > std::size_t(1) << 30)
+            throw std::invalid_argument("gather of " + std::to_string(local.size()) +
+                                        " values per rank; expected at most 2^30");
+        int mine = int(local.size());
+        std::vector<int> counts(static_cast<std::size_t>(m_size)), offsets(static_cast<std::size_t>(m_size));
+        check_mpi(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, root, m_comm), "MPI_Gather");
+        std::vector<double> all;
+        if (m_rank == root) {
+            long long total = 0;
+            for (int r = 0; r < m_size; ++r) {
+                offsets[std::size_t(r)] = int(total);
+                total += counts[std::size_t(r)];
+            }
+            if (total > (1LL << 31) - 1)
+                throw std::invalid_argument("gather of " + std::to_string(total) + " values; expected below 2^31");
+            all.resize(std::size_t(total));
+        }
+        check_mpi(MPI_Gatherv(local.data(), mine, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE,
+                              root, m_comm),
+                  "MPI_Gatherv");
+        return all;
+    }
+    bool any(bool flag) const override {
+        int mine = flag ? 1 : 0, result = 0;
+        check_mpi(MPI_Allreduce(&mine, &result, 1, MPI_INT, MPI_LOR, m_comm), "MPI_Allreduce");
+        return result != 0;
+    }
+    void barrier() const override { check_mpi(MPI_Barrier(m_comm), "MPI_Barrier"); }
+
+private:
+    void check_root(int root) const {
+        if (root < 0 || root >= m_size)
+            throw std::invalid_argument("root rank " + std::to_string(root) + " is out of range; expected 0 … " +
+                                        std::to_string(m_size - 1));
+    }
+    MPI_Comm m_comm;
+    int m_rank = 0, m_size = 1;
+};
+
+bool launched_by_mpi() {
+    for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
+        if (std::getenv(name) != nullptr) return true;
+    return false;
+}
+
+// Finalises MPI at exit when this library initialised it.
+struct MpiLifetime {
+    bool initialised_here = false;
+    ~MpiLifetime() {
+        int finalized = 0;
+        MPI_Finalized(&finalized);
+        if (initialised_here && !finalized) MPI_Finalize();
+    }
+};
+
+#endif
+
+}  // namespace
+
+const Communicator& serial_communicator() {
+    static const SerialCommunicator serial;
+    return serial;
+}
+
+bool built_with_mpi() {
+#ifdef WAVEBRDF_HAS_MPI
+    return true;
+#else
+    return false;
+#endif
+}
+
+std::shared_ptr<const Communicator> world_communicator() {
+    static std::mutex mutex;
+    static std::shared_ptr<const Communicator> world;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (world) return world;
+#ifdef WAVEBRDF_HAS_MPI
+    static MpiLifetime lifetime;
+    int initialised = 0;
+    MPI_Initialized(&initialised);
+    if (!initialised && launched_by_mpi()) {
+        int provided = 0;
+        check_mpi(MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided), "MPI_Init_thread");
+        lifetime.initialised_here = true;
+        initialised = 1;
+    }
+    if (initialised) {
+        world = std::make_shared<MpiCommunicator>(MPI_COMM_WORLD);
+        return world;
+    }
+#endif
+    // Not owned: the serial communicator lives for the whole program.
+    world = std::shared_ptr<const Communicator>(&serial_communicator(), [](const Communicator*) {});
+    return world;
+}
+
+std::shared_ptr<const Communicator> communicator_from_fortran_handle(long long handle) {
+#ifdef WAVEBRDF_HAS_MPI
+    int initialised = 0;
+    MPI_Initialized(&initialised);
+    if (!initialised)
+        throw std::runtime_error("an MPI communicator was given but MPI is not initialised (import mpi4py.MPI first)");
+    return std::make_shared<MpiCommunicator>(MPI_Comm_f2c(MPI_Fint(handle)));
+#else
+    (void)handle;
+    throw std::runtime_error(
+        "an MPI communicator was given but wavebrdf was built without MPI "
+        "(Debian: libopenmpi-dev; CMake option WAVEBRDF_MPI)");
+#endif
+}
+
+Share share_of(std::size_t count, int rank, int size) {
+    if (size < 1 || rank < 0 || rank >= size)
+        throw std::invalid_argument("rank " + std::to_string(rank) + " of " + std::to_string(size) +
+                                    " is out of range; expected 0 <= rank < size");
+    const std::size_t k = std::size_t(size), r = std::size_t(rank);
+    const std::size_t base = count / k, extra = count % k;
+    Share share;
+    share.begin = r * base + std::min(r, extra);
+    share.end = share.begin + base + (r < extra ? 1 : 0);
+    return share;
+}
+
+std::vector<std::size_t> observation_share(const std::vector<std::array<double, 2>>& positions_um, int rank, int size) {
+    std::map<std::pair<double, double>, std::size_t> index_of;
+    std::vector<std::size_t> position_of(positions_um.size());
+    for (std::size_t i = 0; i < positions_um.size(); ++i) {
+        const auto key = std::make_pair(positions_um[i][0], positions_um[i][1]);
+        const auto found = index_of.emplace(key, index_of.size()).first;
+        position_of[i] = found->second;
+    }
+    const Share block = share_of(index_of.size(), rank, size);
+    std::vector<std::size_t> mine;
+    for (std::size_t i = 0; i < positions_um.size(); ++i)
+        if (position_of[i] >= block.begin && position_of[i] < block.end) mine.push_back(i);
+    return mine;
+}
+
+}  // namespace wavebrdf
