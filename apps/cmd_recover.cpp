@@ -14,6 +14,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "report.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/recovery_directory.h"
@@ -62,10 +63,19 @@ std::vector<double> parse_list(const std::string& option, const std::string& tex
     return out;
 }
 
-void run(const RecoverArgs& a) {
+// The observations of --observations. Every rank reads them all (prepare_recovery keeps its
+// share): the one place to read only a rank's share instead.
+std::vector<Observation> read_given_observations(const std::string& path, double max_memory_gb, const Communicator&) {
+    return read_observations_json(path, max_memory_gb);
+}
+
+// Under MPI (mpiexec -n K wavebrdf recover …, docs/scale.md) every rank runs this with its
+// share of the observations; rank 0 alone prints and writes.
+void run(const RecoverArgs& a, const Communicator& comm) {
+    const bool quiet = a.quiet || !comm.is_root();
     if (a.out.empty()) throw std::invalid_argument("no output directory; expected --out DIR");
     // A new or empty directory (or, with --force, one of recover's own runs), before any work.
-    check_run_directory(RunKind::Recover, a.out, a.force);
+    if (comm.is_root()) check_run_directory(RunKind::Recover, a.out, a.force);
     if (!a.truth.empty() && !a.observations.empty())
         throw std::invalid_argument("--truth and --observations exclude each other");
     RecoveryOptions options;
@@ -95,7 +105,7 @@ void run(const RecoverArgs& a) {
     std::unique_ptr<Heightfield> truth;
     std::vector<Observation> observations;
     if (!a.observations.empty()) {
-        observations = read_observations_json(a.observations, a.max_memory_gb);
+        observations = read_given_observations(a.observations, a.max_memory_gb, comm);
         parse_size("--size", a.size, options.rows, options.cols);
     } else {
         if (a.truth.empty())
@@ -111,11 +121,14 @@ void run(const RecoverArgs& a) {
         options.model = parse_model(a.model);
         if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
     }
-    const PreparedRecovery r = prepare_recovery(options, truth.get(), std::move(observations), !a.quiet);
-    if (!a.quiet) {
+    PreparedRecovery r;
+    // Each rank's share may fail alone (its memory check): agreed before the recovery starts.
+    run_agreed(comm, [&] { r = prepare_recovery(options, truth.get(), std::move(observations), !quiet, comm); });
+    if (!quiet) {
         for (const auto& n : r.notes) std::fprintf(stderr, "plan: %s\n", n.c_str());
     }
-    for (const auto& w : r.warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
+    if (comm.is_root())
+        for (const auto& w : r.warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
 
     // A progress bar per stage (drawn on terminals) and a one-line summary when a stage ends.
     std::unique_ptr<Progress> progress;
@@ -124,7 +137,7 @@ void run(const RecoverArgs& a) {
         if (!progress) return;
         progress->finish();
         progress.reset();
-        if (!a.quiet) {
+        if (!quiet) {
             std::fprintf(stderr, "%s: %d iterations, loss %.4g", last.stage.c_str(), last.iteration, last.loss);
             if (last.height_rel_rmse >= 0.0)
                 std::fprintf(stderr, ", height_rel_rmse %.3f%%", 100.0 * last.height_rel_rmse);
@@ -138,7 +151,7 @@ void run(const RecoverArgs& a) {
                                     : m.stage == "refine"          ? r.pipeline.refine_iterations
                                     : m.stage == "thesis"          ? r.thesis.epochs
                                                                    : 1;
-            progress = std::make_unique<Progress>(m.stage, std::max<long long>(total, 1), !a.quiet);
+            progress = std::make_unique<Progress>(m.stage, std::max<long long>(total, 1), !quiet);
         }
         char message[96];
         if (m.height_rel_rmse >= 0.0)
@@ -155,10 +168,11 @@ void run(const RecoverArgs& a) {
     out.dir = a.out;
     out.force = a.force;
     out.save_observations = a.save_observations;
-    const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step);
+    const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step, comm);
     end_stage();
+    if (!comm.is_root()) return;
     if (!a.no_plots) draw_report(RunKind::Recover, a.out);
-    if (!a.quiet) {
+    if (!quiet) {
         if (r.truth && !r.metric_note.empty())
             std::fprintf(stderr, "height_rel_rmse %s; results in %s\n", r.metric_note.c_str(), a.out.c_str());
         else if (r.truth)
@@ -231,7 +245,10 @@ void add_recover_command(CLI::App& app) {
     cmd->callback([a, texel, vscale] {
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
-        run(*a);
+        // Under mpiexec, every rank; an error all raise alike is printed once (rank 0's), one
+        // that only some raise by the lowest of them (run_agreed), the others exit quietly.
+        const std::shared_ptr<const Communicator> world = world_communicator();
+        run_agreed(*world, [&] { run(*a, *world); });
     });
 }
 

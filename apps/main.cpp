@@ -9,6 +9,7 @@
 #include "cli_common.h"
 #include "cli_signals.h"
 #include "commands.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/version.h"
 
 int main(int argc, char** argv) {
@@ -36,10 +37,16 @@ int main(int argc, char** argv) {
     app.failure_message([](const CLI::App*, const CLI::Error& e) {
         return "wavebrdf: error: " + std::string(e.what()) + " (see --help)\n";
     });
+    // Started by mpiexec (docs/scale.md): every rank parses the same arguments and fails alike;
+    // rank 0 alone prints (help, version, errors).
+    const bool quiet_rank = wavebrdf::world_communicator()->rank() != 0;
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
+        if (quiet_rank) return e.get_exit_code();
         return app.exit(e);
+    } catch (const wavebrdf::RankFailed&) {
+        return 1;  // the rank that failed printed why
     } catch (const wavebrdf::cli::ExitStatus& e) {
         return e.code;
     } catch (const std::exception& e) {

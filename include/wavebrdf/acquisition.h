@@ -16,6 +16,7 @@
 //    each step at most `max_step_ratio` finer than the previous (each level's height estimate
 //    must be good to a fraction of the next level's ambiguity).
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -74,6 +75,13 @@ std::vector<Observation> planned_observations(const AcquisitionPlan& plan);
 // noise.h). `progress`, when given, advances by one per observation.
 std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
                                                const Noise& noise, std::uint64_t seed, Progress* progress = nullptr);
+
+// Only the planned observations `indices` (ascending indices into planned_observations(plan),
+// e.g. a rank's observation_share), with the same references and noise they have in the
+// full set. Throws std::invalid_argument for an index out of range.
+std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
+                                               const Noise& noise, std::uint64_t seed,
+                                               const std::vector<std::size_t>& indices, Progress* progress = nullptr);
 
 // The synthetic-wavelength ladder for heights spanning `height_range_um` (see above): the
 // partner wavelengths of λ0, coarsest first. Empty when λ0 alone suffices (range < λ0/4).

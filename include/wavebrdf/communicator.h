@@ -10,7 +10,9 @@
 // made by every rank, in the same order, from the thread that created the communicator.
 #include <array>
 #include <cstddef>
+#include <functional>
 #include <memory>
+#include <stdexcept>
 #include <vector>
 
 namespace wavebrdf {
@@ -31,11 +33,48 @@ public:
     // True on every rank when `flag` is true on any rank (e.g. one rank was interrupted).
     virtual bool any(bool flag) const = 0;
     virtual void barrier() const = 0;
+    // Ends every rank's process with exit status `code` (MPI_Abort; serial: std::exit): the way
+    // out when one rank fails while the others may wait in a collective call for it.
+    [[noreturn]] virtual void abort(int code) const = 0;
 
     void allreduce_sum(std::vector<double>& values) const { allreduce_sum(values.data(), values.size()); }
     void broadcast(std::vector<double>& values, int root = 0) const { broadcast(values.data(), values.size(), root); }
     bool is_root() const { return rank() == 0; }
 };
+
+// The concatenation of every rank's `local`, in rank order, on every rank (gather to rank 0,
+// then broadcast). `counts`, when given, receives each rank's count. Collective.
+std::vector<double> all_gather(const Communicator& comm, const std::vector<double>& local,
+                               std::vector<std::size_t>* counts = nullptr);
+
+// Thrown by run_agreed on the ranks whose own work did not fail when another rank's did; what()
+// names the lowest failing rank (whose own exception carries the message). A front end prints
+// nothing for it: the failing rank prints its own line.
+class RankFailed : public std::runtime_error {
+public:
+    explicit RankFailed(int rank);
+    int failed_rank() const { return m_rank; }
+
+private:
+    int m_rank;
+};
+
+// Runs `work` on every rank and agrees on the outcome (one collective call after it): when it
+// threw on any rank, every rank throws: the lowest rank that failed by itself (not with
+// RankFailed) its own exception, the others RankFailed, so that no rank goes on into a
+// collective call the failing one never makes. Use it for checks whose outcome may differ
+// between ranks (a rank's share, files only rank 0 touches), and around a whole command (then
+// an error every rank raises alike is printed once, by rank 0). `work` may make collective
+// calls only where every rank makes them alike; a failure of one rank amid them must end all
+// ranks (run_or_abort).
+void run_agreed(const Communicator& comm, const std::function<void()>& work);
+
+// Runs `work` (which makes collective calls) and, when it throws on a run of more than one
+// rank, prints "wavebrdf: error: rank R: WHAT" on stderr and ends every rank
+// (Communicator::abort(1)): the others may be waiting in a collective call for this one. On
+// one rank the exception passes through.
+template <typename Work>
+auto run_or_abort(const Communicator& comm, Work&& work) -> decltype(work());
 
 // The one-rank communicator (rank 0 of 1).
 const Communicator& serial_communicator();
@@ -71,5 +110,21 @@ Share share_of(std::size_t count, int rank, int size);
 // light directions), so its footprints cover one region of the tile. Returns the indices of
 // its observations, ascending. Throws std::invalid_argument unless 0 ≤ rank < size.
 std::vector<std::size_t> observation_share(const std::vector<std::array<double, 2>>& positions_um, int rank, int size);
+
+namespace detail {
+[[noreturn]] void abort_after(const Communicator& comm, const char* what);
+}
+
+template <typename Work>
+auto run_or_abort(const Communicator& comm, Work&& work) -> decltype(work()) {
+    if (comm.size() == 1) return work();
+    try {
+        return work();
+    } catch (const std::exception& e) {
+        detail::abort_after(comm, e.what());
+    } catch (...) {
+        detail::abort_after(comm, "unknown error");
+    }
+}
 
 }  // namespace wavebrdf

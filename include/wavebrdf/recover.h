@@ -21,6 +21,13 @@
 //  3. Refinement of the heights in the full Gabor model (slopes included) with L-BFGS on the
 //     observations' amplitude loss and the model's analytic gradient.
 //
+// Under MPI (communicator.h, docs/scale.md) every function below that takes a Communicator is
+// collective: each rank passes its share of the observations (any split; observation_share
+// keeps each region's footprints on one rank) and the same settings and starting point; every
+// sum over the observations (losses, gradients, normalisations, the band and the coverage) is
+// allreduced in rank order, so every rank returns the same result, the same bits for a given
+// number of ranks, and it equals the one-process result up to the order of those sums.
+//
 // Conventions: objects and fields are complex, row-major (object: (rows·refine) ×
 // (cols·refine) samples, sample a at x = (a + ½) w/refine; field: resolution² slice pixels);
 // e^{−ix} phase convention of docs/model.md §8. Heights in µm unless named otherwise.
@@ -30,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 
@@ -50,10 +58,12 @@ struct BlurredFitSettings {
 // L-BFGS on Σ(√(B f Bᵀ) − √(B R Bᵀ))² / Σ B R Bᵀ in the full model (slices in single
 // precision), B the Gaussian blur over the slice pixels. on_iteration(stage, iteration, loss)
 // returning false stops. Throws std::invalid_argument when no single-wavelength observation
-// is given, std::domain_error for a blur width ≤ 0 or iterations < 0.
+// is given (on any rank), std::domain_error for a blur width ≤ 0 or iterations < 0. `comm`:
+// the ranks the observations are split over (collective; on_iteration's stop is agreed).
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
                         const BlurredFitSettings& settings = {},
-                        const std::function<bool(int, int, double)>& on_iteration = {});
+                        const std::function<bool(int, int, double)>& on_iteration = {},
+                        const Communicator& comm = serial_communicator());
 
 // ---- 1. The ptychographic field model ------------------------------------------------------
 
@@ -124,10 +134,13 @@ struct FieldRetrievalResult {
 // object_from_heights. on_iteration(iteration, relative_loss), when given, is called after
 // each step; returning false stops. Throws std::invalid_argument naming the observation that
 // does not fit or a size mismatch, std::domain_error for iterations < 0 or history < 1.
+// `comm`: the ranks the observations are split over (collective; a rank's share may be
+// empty, not all of them; on_iteration's stop is agreed).
 FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um, int rows, int cols,
                                     double texel_um, const std::vector<std::complex<double>>& initial = {},
                                     const FieldRetrievalSettings& settings = {},
-                                    const std::function<bool(int, double)>& on_iteration = {});
+                                    const std::function<bool(int, double)>& on_iteration = {},
+                                    const Communicator& comm = serial_communicator());
 
 // Heights (µm) of `heightfield` on the grid `refine` times finer than its texels (odd refine;
 // (rows·refine) × (cols·refine), row-major): the blend of the Gabor kernels' tangent planes
@@ -211,10 +224,17 @@ struct StageMetrics {
 // only feeds height_rel_rmse in the metrics. Throws std::invalid_argument when the observations
 // are empty or have no single-wavelength OHS / ROHS slice, or the truth's size differs;
 // std::domain_error for vscale 0.
+// `comm`: the ranks the observations are split over (collective; a rank's share may be
+// empty). on_step is called on every rank and its stop is agreed (any rank's false stops all
+// at the same step); the heights are the same bits on every rank. Equal to the one-process run
+// (up to the order of the sums) when each wavelength's observations are in the order of their
+// positions' first appearance (planned acquisitions are), as observation_share splits them.
+// After the first collective step, an exception on one rank of several ends every rank
+// (run_or_abort), since the others would wait for it.
 Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
                             double vscale, const RecoverSettings& settings = {},
                             const std::function<bool(const StageMetrics&)>& on_step = {},
-                            const Heightfield* truth = nullptr);
+                            const Heightfield* truth = nullptr, const Communicator& comm = serial_communicator());
 
 // RMS of (estimate − truth) in µm after removing each one's mean, divided by the truth's
 // height range max − min (µm). Throws std::invalid_argument on a size mismatch and

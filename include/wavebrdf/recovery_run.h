@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "wavebrdf/baseline.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/model.h"
@@ -90,6 +91,16 @@ struct PreparedRecovery {
     // flat", e.g. a 1×1 truth: its height range is 0); empty when it is defined or no truth.
     // The recovery runs all the same, with height_rel_rmse −1 (as without a truth).
     std::string metric_note;
+    // Under MPI (prepared for a communicator of several ranks, docs/scale.md): `observations`
+    // is this rank's share (observation_share: a block of footprint positions, all their
+    // wavelengths); `share` holds their indices among all the run's observations (ascending;
+    // 0 … N − 1 on one rank), total_observations is N and `ranks` the communicator's size.
+    // `catalogue`: every observation of the run without its reference (metadata, for saving
+    // them on rank 0); kept only on several ranks.
+    std::vector<std::size_t> share;
+    std::size_t total_observations = 0;
+    int ranks = 1;
+    std::vector<Observation> catalogue;
 };
 
 // Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from
@@ -116,15 +127,27 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
 // planner's, the generator's and the loss's exceptions otherwise. Throws OutOfMemory
 // (memory.h), before simulating, when estimate_recovery_bytes exceeds options.max_memory_gb
 // (memory_limit).
+// `comm`: the ranks the run is split over. Every rank passes the same options, truth and
+// (all the) given observations; each keeps its share (observation_share), and with a truth
+// every rank plans the same acquisition and simulates only its share (the same references
+// and noise as the one-process run: noise is seeded per observation). check_acquisition sees
+// all the observations' metadata on every rank; the memory check counts this rank's share.
+// Rank-local work only (no collective call): wrap it in run_agreed. The thesis's method runs
+// on one rank only (std::invalid_argument on several).
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth = nullptr,
-                                  std::vector<Observation> observations = {}, bool show_progress = false);
+                                  std::vector<Observation> observations = {}, bool show_progress = false,
+                                  const Communicator& comm = serial_communicator());
 
 // The estimate (prepared.rows × prepared.cols, texel units with prepared.texel_um and
 // vscale) from a flat start, by prepared.method. on_step receives every StageMetrics of the
 // method ("blur:S", "blur", "field:λ", "unwrap", "refine" for the pipeline; "thesis" every
 // report_every epochs), with height_rel_rmse when a truth is known and not flat (else −1);
 // returning false stops and returns the estimate so far.
+// `comm`: the ranks prepared.observations are split over (prepared with a communicator of the
+// same size, else std::invalid_argument); collective, the estimate the same on every rank,
+// on_step called on every rank (recover_heights).
 Heightfield run_recovery(const PreparedRecovery& prepared,
-                         const std::function<bool(const StageMetrics&)>& on_step = {});
+                         const std::function<bool(const StageMetrics&)>& on_step = {},
+                         const Communicator& comm = serial_communicator());
 
 }  // namespace wavebrdf

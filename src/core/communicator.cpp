@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <cstdio>
 #include <cstring>
+#include <exception>
 #include <map>
 #include <mutex>
 #include <stdexcept>
@@ -34,6 +36,10 @@ public:
     }
     bool any(bool flag) const override { return flag; }
     void barrier() const override {}
+    [[noreturn]] void abort(int code) const override {
+        std::fflush(nullptr);
+        std::exit(code);
+    }
 
 private:
     static void check_root(int root) {
@@ -122,6 +128,11 @@ public:
         return result != 0;
     }
     void barrier() const override { check_mpi(MPI_Barrier(m_comm), "MPI_Barrier"); }
+    [[noreturn]] void abort(int code) const override {
+        std::fflush(nullptr);
+        MPI_Abort(m_comm, code);
+        std::_Exit(code);  // MPI_Abort does not return; should it, end this rank at least
+    }
 
 private:
     void check_root(int root) const {
@@ -205,6 +216,64 @@ std::shared_ptr<const Communicator> communicator_from_fortran_handle(long long h
         "(Debian: libopenmpi-dev; CMake option WAVEBRDF_MPI)");
 #endif
 }
+
+std::vector<double> all_gather(const Communicator& comm, const std::vector<double>& local,
+                               std::vector<std::size_t>* counts) {
+    if (comm.size() == 1) {
+        if (counts) *counts = {local.size()};
+        return local;
+    }
+    std::vector<double> sizes = comm.gather({double(local.size())});
+    sizes.resize(std::size_t(comm.size()));
+    comm.broadcast(sizes);
+    std::vector<double> all = comm.gather(local);
+    std::size_t total = 0;
+    for (double n : sizes) total += std::size_t(n);
+    all.resize(total);
+    comm.broadcast(all);
+    if (counts) {
+        counts->clear();
+        for (double n : sizes) counts->push_back(std::size_t(n));
+    }
+    return all;
+}
+
+RankFailed::RankFailed(int rank)
+    : std::runtime_error("rank " + std::to_string(rank) + " failed (its own message says why)"), m_rank(rank) {}
+
+void run_agreed(const Communicator& comm, const std::function<void()>& work) {
+    std::exception_ptr error;
+    bool own = false;  // failed by itself, not because another rank did (RankFailed)
+    try {
+        work();
+    } catch (const RankFailed&) {
+        error = std::current_exception();
+    } catch (...) {
+        error = std::current_exception();
+        own = true;
+    }
+    if (comm.size() == 1) {
+        if (error) std::rethrow_exception(error);
+        return;
+    }
+    // 2: this rank failed by itself, 1: it saw another rank fail, 0: it did not fail.
+    std::vector<double> failed(std::size_t(comm.size()), 0.0);
+    failed[std::size_t(comm.rank())] = own ? 2.0 : error ? 1.0 : 0.0;
+    comm.allreduce_sum(failed);
+    const double worst = *std::max_element(failed.begin(), failed.end());
+    if (worst == 0.0) return;
+    const int first = int(std::find(failed.begin(), failed.end(), worst) - failed.begin());
+    if (first == comm.rank()) std::rethrow_exception(error);
+    throw RankFailed(first);
+}
+
+namespace detail {
+void abort_after(const Communicator& comm, const char* what) {
+    std::fprintf(stderr, "wavebrdf: error: rank %d: %s\n", comm.rank(), what);
+    comm.abort(1);
+    std::abort();  // not reached (abort is noreturn; said again for the compiler)
+}
+}  // namespace detail
 
 Share share_of(std::size_t count, int rank, int size) {
     if (size < 1 || rank < 0 || rank >= size)

@@ -198,6 +198,26 @@ std::vector<Observation> simulate_observations(const Heightfield& truth, const A
     return observations;
 }
 
+std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
+                                               const Noise& noise, std::uint64_t seed,
+                                               const std::vector<std::size_t>& indices, Progress* progress) {
+    const std::vector<Observation> planned = planned_observations(plan);
+    std::vector<Observation> observations;
+    observations.reserve(indices.size());
+    for (std::size_t i : indices) {
+        if (i >= planned.size())
+            throw std::invalid_argument("simulate_observations: index " + std::to_string(i) +
+                                        " is out of range; the plan has " + std::to_string(planned.size()) +
+                                        " observations");
+        Observation o = planned[i];
+        o.reference = add_noise(render_observation(truth, o), noise,
+                                detail::derive_seed(seed, 1 + i));  // as add_noise does for all
+        observations.push_back(std::move(o));
+        if (progress) progress->advance(1);
+    }
+    return observations;
+}
+
 std::vector<std::string> check_acquisition(const std::vector<Observation>& observations, int rows, int cols,
                                            double texel_um, const Heightfield* truth) {
     std::vector<std::string> warnings;

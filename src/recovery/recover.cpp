@@ -16,6 +16,7 @@
 #include "wavebrdf/optim.h"
 #include "wavebrdf/slice_plan.h"
 #include "core/parallel.h"
+#include "recovery/sharded.h"
 
 namespace wavebrdf {
 
@@ -53,47 +54,33 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i) {
     return std::max(q, 1);
 }
 
-Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
-                            double vscale, const RecoverSettings& settings,
-                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth) {
-    if (observations.empty()) throw std::invalid_argument("recover_heights: no observations given");
-    for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
-    const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0), texel_um,
-                           vscale);
-    if (truth && (truth->rows() != rows || truth->cols() != cols))
-        throw std::invalid_argument("recover_heights: truth is " + std::to_string(truth->rows()) + " x " +
-                                    std::to_string(truth->cols()) + "; expected " + std::to_string(rows) + " x " +
-                                    std::to_string(cols));
-    if (vscale == 0.0) throw std::domain_error("recover_heights: vscale 0 maps every height to 0; expected != 0");
-    validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
-    validate_iterations(settings.field.iterations, "recover_heights: field iterations");
-    validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
-    // Here, not only in the renderer: the stages render inside parallel regions.
-    for (const Observation& o : observations)
-        validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());
+namespace {
 
-    // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
-    std::map<double, std::vector<Observation>> by_lambda;
-    for (const Observation& o : observations)
-        if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(o);
-    if (by_lambda.empty())
-        throw std::invalid_argument(
-            "recover_heights: no single-wavelength OHS or ROHS observation; the field stage needs some");
-
+// recover_heights' stages, after its checks: `by_lambda` holds this rank's single-wavelength
+// separable observations, with an entry (maybe empty) for every rank's wavelengths;
+// `observations_total` counts all ranks' observations.
+Heightfield recover_stages(const std::vector<Observation>& observations,
+                           const std::map<double, std::vector<Observation>>& by_lambda, double observations_total,
+                           const Heightfield& flat, int rows, int cols, double texel_um, double vscale,
+                           const RecoverSettings& settings, const std::function<bool(const StageMetrics&)>& on_step,
+                           const Heightfield* truth, const Communicator& comm) {
     const auto start = std::chrono::steady_clock::now();
     const auto seconds = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
     bool stopped = false;
     const auto report = [&](const std::string& stage, int iteration, double loss, const Heightfield* hf) {
-        if (!on_step) return true;
-        StageMetrics m;
-        m.stage = stage;
-        m.iteration = iteration;
-        m.loss = loss;
-        m.seconds = seconds();
-        if (truth && hf) m.height_rel_rmse = height_rel_rmse(*hf, *truth);
-        const bool go_on = on_step(m);
+        bool go_on = true;
+        if (on_step) {
+            StageMetrics m;
+            m.stage = stage;
+            m.iteration = iteration;
+            m.loss = loss;
+            m.seconds = seconds();
+            if (truth && hf) m.height_rel_rmse = height_rel_rmse(*hf, *truth);
+            go_on = on_step(m);
+        }
+        go_on = !comm.any(!go_on);  // one rank's stop stops all, at the same step
         if (!go_on) stopped = true;
         return go_on;
     };
@@ -106,29 +93,42 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // It needs the slope distribution everywhere, not the overlap that pins phases down: positions
     // closer than blur_spacing_sigma · σ_p to one already taken are left out (greedy, periodic
     // distance), which buys more iterations for the same time.
+    // The choice is made on every rank's positions (x, y, σ_p per observation, in rank order,
+    // the one-process order when each rank holds a block of positions), and each rank keeps
+    // those of its own observations that were taken.
     const double period_x = rows * texel_um, period_y = cols * texel_um;
     const auto periodic = [](double d, double period) { return d - period * std::floor(d / period + 0.5); };
     int taken = 0;
     for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it, ++taken) {
         if (settings.blur_wavelengths > 0 && taken >= settings.blur_wavelengths) break;
-        const std::size_t first = blur_set.size();
-        for (const Observation& o : it->second) {
+        std::vector<double> mine;
+        for (const Observation& o : it->second)
+            mine.insert(mine.end(), {o.query.x_um, o.query.y_um, o.query.sigma_p_um});
+        std::vector<std::size_t> counts;
+        const std::vector<double> all = all_gather(comm, mine, &counts);
+        std::size_t first_mine = 0;
+        for (int r = 0; r < comm.rank(); ++r) first_mine += counts[std::size_t(r)] / 3;
+        std::vector<std::size_t> chosen;  // indices of observations in `all`
+        for (std::size_t k = 0; 3 * k + 2 < all.size(); ++k) {
             bool close = false;
-            for (std::size_t k = first; k < blur_set.size() && !close; ++k) {
-                const double dx = periodic(o.query.x_um - blur_set[k].query.x_um, period_x);
-                const double dy = periodic(o.query.y_um - blur_set[k].query.y_um, period_y);
-                const double spacing = settings.blur_spacing_sigma *
-                                       std::min(o.query.sigma_p_um, blur_set[k].query.sigma_p_um);
+            for (std::size_t c = 0; c < chosen.size() && !close; ++c) {
+                const std::size_t j = chosen[c];
+                const double dx = periodic(all[3 * k] - all[3 * j], period_x);
+                const double dy = periodic(all[3 * k + 1] - all[3 * j + 1], period_y);
+                const double spacing = settings.blur_spacing_sigma * std::min(all[3 * k + 2], all[3 * j + 2]);
                 close = dx * dx + dy * dy < spacing * spacing;
             }
-            if (!close) blur_set.push_back(o);
+            if (!close) chosen.push_back(k);
         }
+        for (std::size_t k : chosen)
+            if (k >= first_mine && k < first_mine + it->second.size()) blur_set.push_back(it->second[k - first_mine]);
     }
     Heightfield estimate = flat;
     if (!settings.blurred.blur_widths.empty() && settings.blurred.iterations > 0) {
-        estimate = fit_blurred(blur_set, flat, settings.blurred, [&](int stage, int it, double loss) {
-            return report("blur:" + std::to_string(stage), it, loss, nullptr);
-        });
+        estimate = fit_blurred(
+            blur_set, flat, settings.blurred,
+            [&](int stage, int it, double loss) { return report("blur:" + std::to_string(stage), it, loss, nullptr); },
+            comm);
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
     }
 
@@ -136,6 +136,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     double max_omega_i = 0.0;
     for (const Observation& o : mono)
         max_omega_i = std::max(max_omega_i, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
+    for (double w : all_gather(comm, {max_omega_i})) max_omega_i = std::max(max_omega_i, w);  // every rank's
     const int q = settings.refine > 0 ? settings.refine : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
     if (q % 2 == 0 || q > 63)
         throw std::invalid_argument("recover_heights: refine " + std::to_string(q) +
@@ -174,7 +175,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             std::snprintf(name, sizeof name, "field:%g", lambda);
             const FieldRetrievalResult r = retrieve_field(
                 it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
-                [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
+                [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
             if (stopped) return estimate;
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
@@ -203,8 +204,8 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         std::vector<std::unique_ptr<SlicePlan<float>>> plans(observations.size());
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             g.assign(x.size(), 0.0);
-            const double scale = 1.0 / double(observations.size());
-            return detail::ordered_parallel_sum(
+            const double scale = 1.0 / observations_total;  // all ranks' observations
+            return detail::allreduced(comm, g, detail::ordered_parallel_sum(
                 observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
                     const Observation& o = observations[i];
                     if (!plans[i])
@@ -220,13 +221,19 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                     plan.adjoint(d_estimate, local, scale);
                     plan.release();
                     return scale * v;
-                });
+                }));
         };
         LbfgsOptions lo;
         lo.history = settings.refine_history;
         lo.max_iterations = settings.refine_iterations;
         lo.gradient_tolerance = 0.0;
-        const double reference_loss = observation_loss(flat, observations, settings.refine_loss, nullptr);
+        // observation_loss's mean over all ranks' observations.
+        std::vector<double> reference_sum{
+            observations.empty()
+                ? 0.0
+                : observation_loss(flat, observations, settings.refine_loss, nullptr) * double(observations.size())};
+        comm.allreduce_sum(reference_sum);
+        const double reference_loss = reference_sum[0] / observations_total;
         lbfgs_minimize(objective, h, lo, [&](int it, double value) {
             const Heightfield current = flat.with_values(h);
             if (!report("refine", it, value, &current)) return false;
@@ -235,6 +242,50 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         estimate = flat.with_values(h);
     }
     return estimate;
+}
+
+}  // namespace
+
+Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
+                            double vscale, const RecoverSettings& settings,
+                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
+                            const Communicator& comm) {
+    // Checks of what every rank is given alike first, then of each rank's share, agreed.
+    const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0), texel_um,
+                           vscale);
+    if (truth && (truth->rows() != rows || truth->cols() != cols))
+        throw std::invalid_argument("recover_heights: truth is " + std::to_string(truth->rows()) + " x " +
+                                    std::to_string(truth->cols()) + "; expected " + std::to_string(rows) + " x " +
+                                    std::to_string(cols));
+    if (vscale == 0.0) throw std::domain_error("recover_heights: vscale 0 maps every height to 0; expected != 0");
+    validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
+    validate_iterations(settings.field.iterations, "recover_heights: field iterations");
+    validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
+    // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
+    std::map<double, std::vector<Observation>> by_lambda;
+    run_agreed(comm, [&] {
+        for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
+        // Here, not only in the renderer: the stages render inside parallel regions.
+        for (const Observation& o : observations)
+            validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());
+        for (const Observation& o : observations)
+            if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(o);
+    });
+    // Every rank runs every rank's wavelengths (its share of one may be empty).
+    std::vector<double> lambdas_here;
+    for (const auto& entry : by_lambda) lambdas_here.push_back(entry.first);
+    for (double lambda : all_gather(comm, lambdas_here)) by_lambda[lambda];
+    std::vector<double> total{double(observations.size())};
+    comm.allreduce_sum(total);
+    if (total[0] == 0.0) throw std::invalid_argument("recover_heights: no observations given");
+    if (by_lambda.empty())
+        throw std::invalid_argument(
+            "recover_heights: no single-wavelength OHS or ROHS observation; the field stage needs some");
+    // From here on the ranks meet in collective calls: one rank's failure ends them all.
+    return run_or_abort(comm, [&] {
+        return recover_stages(observations, by_lambda, total[0], flat, rows, cols, texel_um, vscale, settings,
+                              on_step, truth, comm);
+    });
 }
 
 }  // namespace wavebrdf

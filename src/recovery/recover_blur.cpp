@@ -22,6 +22,7 @@
 #include "wavebrdf/slice_plan.h"
 
 #include "core/parallel.h"
+#include "recovery/sharded.h"
 
 namespace wavebrdf {
 
@@ -51,19 +52,25 @@ Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n) {
 }  // namespace
 
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
-                        const BlurredFitSettings& settings, const std::function<bool(int, int, double)>& on_iteration) {
-    std::vector<const Observation*> used;
-    for (std::size_t i = 0; i < observations.size(); ++i) {
-        validate(observations[i], i);
-        if (observations[i].lambdas_um.size() == 1) used.push_back(&observations[i]);
-    }
-    if (used.empty()) throw std::invalid_argument("fit_blurred: no single-wavelength observation given");
+                        const BlurredFitSettings& settings, const std::function<bool(int, int, double)>& on_iteration,
+                        const Communicator& comm) {
     if (settings.iterations < 0 || settings.history < 1)
         throw std::domain_error("fit_blurred: iterations " + std::to_string(settings.iterations) + " / history " +
                                 std::to_string(settings.history) + " invalid; expected >= 0 / >= 1");
     for (double b : settings.blur_widths)
         if (!(b > 0.0) || !std::isfinite(b))
             throw std::domain_error("fit_blurred: blur width " + std::to_string(b) + " is invalid; expected > 0");
+    // This rank's observations (its share under MPI: every sum below is allreduced).
+    std::vector<const Observation*> used;
+    run_agreed(comm, [&] {
+        for (std::size_t i = 0; i < observations.size(); ++i) {
+            validate(observations[i], i);
+            if (observations[i].lambdas_um.size() == 1) used.push_back(&observations[i]);
+        }
+    });
+    std::vector<double> used_count{double(used.size())};
+    comm.allreduce_sum(used_count);
+    if (used_count[0] == 0.0) throw std::invalid_argument("fit_blurred: no single-wavelength observation given");
 
     // One slice plan per observation for all stages and iterations (single precision: these
     // stages only need the shape, and are the costliest); only the heights change.
@@ -95,13 +102,16 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
             d.reference = to_coarse * as_matrix(o.reference, o.resolution).cwiseMax(0.0) * to_coarse.transpose();
             total += d.reference.sum();
         }
+        std::vector<double> total_all{total};
+        comm.allreduce_sum(total_all);
+        total = total_all[0];
         if (!(total > 0.0)) throw std::invalid_argument("fit_blurred: every reference slice is zero");
         const double inv_total = 1.0 / total;
 
         // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
             grad.assign(x.size(), 0.0);
-            return detail::ordered_parallel_sum(
+            return detail::allreduced(comm, grad, detail::ordered_parallel_sum(
                 used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
                     const Blurred& d = data[i];
                     const int n = d.n_coarse;
@@ -128,7 +138,7 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                         for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
                     plan.adjoint_wavelength(0, weights, local);
                     return term;
-                });
+                }));
         };
         LbfgsOptions lo;
         lo.history = settings.history;
@@ -137,6 +147,7 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
         bool go_on = true;
         lbfgs_minimize(objective, h, lo, [&](int it, double value) {
             if (on_iteration && !on_iteration(int(stage), it, value)) go_on = false;
+            go_on = !comm.any(!go_on);  // every rank stops at the same iteration
             return go_on;
         });
         if (!go_on) break;

@@ -26,6 +26,7 @@
 #include "wavebrdf/recover.h"
 #include "wavebrdf/text.h"
 #include "core/parallel.h"
+#include "recovery/sharded.h"
 
 namespace wavebrdf {
 
@@ -315,8 +316,14 @@ std::vector<std::complex<double>> object_from_heights(const Heightfield& hf, dou
 FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations, double lambda_um, int rows, int cols,
                                     double texel_um, const std::vector<std::complex<double>>& initial,
                                     const FieldRetrievalSettings& settings,
-                                    const std::function<bool(int, double)>& on_iteration) {
-    if (observations.empty()) throw std::invalid_argument("retrieve_field: no observations given");
+                                    const std::function<bool(int, double)>& on_iteration, const Communicator& comm) {
+    // Under MPI `observations` is this rank's share (it may be empty); every sum over the
+    // observations below is allreduced.
+    {
+        std::vector<double> count{double(observations.size())};
+        if (comm.size() > 1) comm.allreduce_sum(count);
+        if (count[0] == 0.0) throw std::invalid_argument("retrieve_field: no observations given");
+    }
     validate_lambda(lambda_um);
     if (settings.refine < 1 || settings.refine > 64)
         throw std::invalid_argument("retrieve_field: refine " + std::to_string(settings.refine) +
@@ -343,13 +350,16 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     };
     // The operators are independent of each other: built on all threads (each builds its
     // footprint on the fine grid, the costliest set-up step), summed in order afterwards.
-    for (std::size_t i = 0; i < observations.size(); ++i) {
-        const Observation& o = observations[i];
-        validate(o, i);
-        if (o.lambdas_um.size() != 1 || std::abs(o.lambdas_um[0] - lambda_um) > 1e-12 * lambda_um)
-            throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
-                                        " is not a single-wavelength slice at " + format_shortest(lambda_um) + " um");
-    }
+    run_agreed(comm, [&] {
+        for (std::size_t i = 0; i < observations.size(); ++i) {
+            const Observation& o = observations[i];
+            validate(o, i);
+            if (o.lambdas_um.size() != 1 || std::abs(o.lambdas_um[0] - lambda_um) > 1e-12 * lambda_um)
+                throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
+                                            " is not a single-wavelength slice at " + format_shortest(lambda_um) +
+                                            " um");
+        }
+    });
     // One flat fine grid for all the operators, released when the retrieval ends.
     std::shared_ptr<const Heightfield> flat_grid;
     if (rows >= 1 && cols >= 1 && std::isfinite(texel_um) && texel_um > 0.0)
@@ -391,6 +401,11 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         slices.push_back(std::move(*built[i]));
         built[i].reset();
     }
+    {
+        std::vector<double> sum{total};
+        comm.allreduce_sum(sum);
+        total = sum[0];
+    }
     if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
 
     std::vector<double> coverage(texels, 0.0);
@@ -401,6 +416,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 coverage[std::size_t(impl.row_index[r]) * obj_cols + impl.col_index[c]] += impl.probe(r, c) *
                                                                                            impl.probe(r, c);
     }
+    comm.allreduce_sum(coverage);  // every rank's footprints
     const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
 
     // Texels no footprint sees carry no information: they stay 0.
@@ -489,6 +505,16 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
             const std::array<double, 3> d{{o.query.omega_i[0] / lambda_um, o.query.omega_i[1] / lambda_um, reach}};
             if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);
         }
+        if (comm.size() > 1) {  // the union of every rank's disks, in rank order
+            std::vector<double> mine;
+            for (const auto& d : disks) mine.insert(mine.end(), d.begin(), d.end());
+            const std::vector<double> all = all_gather(comm, mine);
+            disks.clear();
+            for (std::size_t k = 0; k + 2 < all.size(); k += 3) {
+                const std::array<double, 3> d{{all[k], all[k + 1], all[k + 2]}};
+                if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);
+            }
+        }
         for (int a = 0; a < obj_rows; ++a)
             for (int b = 0; b < obj_cols; ++b) {
                 const double nu_x = double(a < (obj_rows + 1) / 2 ? a : a - obj_rows) / period_x;
@@ -558,7 +584,8 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 g[2 * t + 1] = grad[t].imag();
             }
         }
-        return value;
+        // The shares' sums (the unknowns' gradient: the band's, smaller than the grid's).
+        return detail::allreduced(comm, g, value);
     };
     LbfgsOptions lo;
     lo.history = settings.history;
@@ -567,7 +594,8 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     std::vector<double> history{};  // the relative loss after each iteration
     const LbfgsResult r = lbfgs_minimize(objective, xv, lo, [&](int it, double value) {
         result.iterations = it;
-        if (on_iteration && !on_iteration(it, value)) return false;
+        // Every rank stops at the same iteration (the rest of the rule is on replicated values).
+        if (comm.any(on_iteration && !on_iteration(it, value))) return false;
         history.push_back(value);
         const std::size_t w = std::size_t(std::max(0, settings.stall_window));
         if (w > 0 && history.size() > w && history[history.size() - 1 - w] - value < settings.stall_tolerance * value)

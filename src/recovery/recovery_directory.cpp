@@ -27,7 +27,7 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                           {"noise", to_string(r.noise)},
                           {"loss", to_string(r.loss)},
                           {"seed", options.seed},
-                          {"observations", r.observations.size()},
+                          {"observations", r.total_observations},
                           {"plan", r.notes},
                           {"warnings", r.warnings},
                           {"truth", r.truth.has_value()},
@@ -35,7 +35,7 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                           {"threads", thread_count()}};
     // What the plan chose (the options' 0 / "" mean "the planner's"): the actual values.
     std::vector<std::vector<double>> lambdas;
-    for (const Observation& o : r.observations) lambdas.push_back(o.lambdas_um);
+    for (const Observation& o : r.catalogue.empty() ? r.observations : r.catalogue) lambdas.push_back(o.lambdas_um);
     run["wavelengths_um"] = distinct_wavelengths_um(lambdas);
     if (!r.observations.empty()) {
         run["sigma_p_um"] = r.observations.front().query.sigma_p_um;
@@ -45,23 +45,56 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
     return run;
 }
 
+// Every rank's observations on rank 0 (the catalogue with the gathered references, in the
+// run's order); empty elsewhere. Collective.
+std::vector<Observation> gathered_observations(const PreparedRecovery& r, const Communicator& comm) {
+    if (comm.size() == 1) return r.observations;
+    std::vector<double> mine;
+    for (std::size_t k = 0; k < r.observations.size(); ++k) {
+        mine.push_back(double(r.share[k]));
+        mine.push_back(double(r.observations[k].reference.size()));
+        mine.insert(mine.end(), r.observations[k].reference.begin(), r.observations[k].reference.end());
+    }
+    const std::vector<double> all = comm.gather(mine);
+    if (!comm.is_root()) return {};
+    std::vector<Observation> out = r.catalogue;
+    for (std::size_t at = 0; at + 1 < all.size();) {
+        const std::size_t index = std::size_t(all[at]), count = std::size_t(all[at + 1]);
+        out.at(index).reference.assign(all.begin() + std::ptrdiff_t(at + 2),
+                                       all.begin() + std::ptrdiff_t(at + 2 + count));
+        at += 2 + count;
+    }
+    return out;
+}
+
 }  // namespace
 
 Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
-                                      const std::function<bool(const StageMetrics&)>& on_step) {
+                                      const std::function<bool(const StageMetrics&)>& on_step,
+                                      const Communicator& comm) {
     const std::string& dir = out.dir;
-    // Fail before the long work when the directory cannot be used or written.
-    prepare_run_directory(RunKind::Recover, dir, out.force, out.option);
-    check_writable(dir + "/metrics.csv");
-    write_text_atomically(dir + "/run.json", run_json(r, options).dump(1) + "\n");
-    if (out.save_observations)
-        write_observations_json(dir + "/observations.json", r.observations, ReferenceStorage::Exr);
+    const bool root = comm.is_root();
     const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
-    if (r.truth) {
-        write_heightfield_exr(dir + "/truth.exr", *r.truth, "wavebrdf recover: truth");
-        write_npy(dir + "/truth_height.npy", height_shape, heights_um(*r.truth));
+    // Fail before the long work when the directory cannot be used or written (rank 0's).
+    run_agreed(comm, [&] {
+        if (!root) return;
+        prepare_run_directory(RunKind::Recover, dir, out.force, out.option);
+        check_writable(dir + "/metrics.csv");
+        write_text_atomically(dir + "/run.json", run_json(r, options).dump(1) + "\n");
+    });
+    if (out.save_observations) {
+        const std::vector<Observation> all = gathered_observations(r, comm);
+        run_agreed(comm, [&] {
+            if (root) write_observations_json(dir + "/observations.json", all, ReferenceStorage::Exr);
+        });
     }
+    run_agreed(comm, [&] {
+        if (root && r.truth) {
+            write_heightfield_exr(dir + "/truth.exr", *r.truth, "wavebrdf recover: truth");
+            write_npy(dir + "/truth_height.npy", height_shape, heights_um(*r.truth));
+        }
+    });
 
     // A metrics row per reported step.
     std::ostringstream csv;
@@ -75,8 +108,11 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     // A failure midway keeps the metrics of the steps that finished.
     const Heightfield estimate = [&] {
         try {
-            return run_recovery(r, record);
+            return run_recovery(r, record, comm);
+        } catch (const RankFailed&) {
+            throw;  // the failing rank says why
         } catch (const std::exception& e) {
+            if (!root) throw;
             bool saved = false;
             try {
                 write_text_atomically(dir + "/metrics.csv", csv.str());
@@ -88,12 +124,14 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         }
     }();
 
+    if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
     write_heightfield_exr(dir + "/estimate.exr", estimate,
                           std::string("wavebrdf recover: estimate (") + to_string(r.method) + ")");
     write_heightfield_png(dir + "/estimate.png", estimate);
     write_npy(dir + "/estimate_height.npy", height_shape, heights_um(estimate));
-    // One observation and the estimate's slice for it, for the report.
+    // One observation and the estimate's slice for it, for the report (observation 0 is the
+    // first of rank 0's share).
     const Observation& first = r.observations.front();
     const std::vector<std::size_t> slice_shape{std::size_t(first.resolution), std::size_t(first.resolution),
                                                std::size_t(first.channels())};

@@ -73,8 +73,34 @@ Heightfield generated_recovery_truth(const RecoveryOptions& options) {
                              options.height_range_um);
 }
 
+namespace {
+
+// The footprint centre of every observation, for observation_share.
+std::vector<std::array<double, 2>> positions_of(const std::vector<Observation>& observations) {
+    std::vector<std::array<double, 2>> positions;
+    positions.reserve(observations.size());
+    for (const Observation& o : observations) positions.push_back({{o.query.x_um, o.query.y_um}});
+    return positions;
+}
+
+// The observations without their references.
+std::vector<Observation> metadata_of(const std::vector<Observation>& observations) {
+    std::vector<Observation> out;
+    out.reserve(observations.size());
+    for (const Observation& o : observations) {
+        Observation m;
+        m.query = o.query;
+        m.lambdas_um = o.lambdas_um;
+        m.resolution = o.resolution;
+        out.push_back(std::move(m));
+    }
+    return out;
+}
+
+}  // namespace
+
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth,
-                                  std::vector<Observation> observations, bool show_progress) {
+                                  std::vector<Observation> observations, bool show_progress, const Communicator& comm) {
     if (truth != nullptr && !observations.empty())
         throw std::invalid_argument("a truth and observations exclude each other; expected one of them (or neither)");
     if (options.noise.kind != NoiseKind::None && !observations.empty())
@@ -86,8 +112,14 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
     if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
     const MemoryLimit limit = memory_limit(options.max_memory_gb);
+    if (comm.size() > 1 && options.method == RecoveryMethod::Thesis)
+        throw std::invalid_argument(
+            "method thesis runs on one process (Adam draws one observation at a time); "
+            "expected the pipeline under MPI (" +
+            std::to_string(comm.size()) + " ranks)");
 
     PreparedRecovery r;
+    r.ranks = comm.size();
     r.method = options.method;
     r.noise = options.noise;
     r.loss = recovery_loss(options);
@@ -108,8 +140,20 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                 "no single-wavelength OHS or ROHS observation given; the pipeline's field retrieval needs some "
                 "(or the thesis's method)");
     }
+    // Every observation's metadata (check_acquisition needs them all), and this rank's share.
+    std::vector<Observation> catalogue;
     if (!observations.empty()) {
-        r.observations = std::move(observations);
+        r.total_observations = observations.size();
+        r.share = observation_share(positions_of(observations), comm.rank(), comm.size());
+        if (comm.size() > 1) {
+            catalogue = metadata_of(observations);
+            for (std::size_t k = 0; k < r.share.size(); ++k)
+                r.observations.push_back(std::move(observations[r.share[k]]));
+            observations.clear();
+            observations.shrink_to_fit();
+        } else {
+            r.observations = std::move(observations);
+        }
         r.rows = options.rows;
         r.cols = options.cols;
         require_memory(estimate_recovery_bytes(r.observations, r.rows, r.cols, r.texel_um, options.method), limit,
@@ -138,21 +182,29 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.resolution = options.resolution;
         const AcquisitionPlan plan = plan_acquisition(request);
         r.notes = plan.notes;
-        const std::vector<Observation> planned = planned_observations(plan);
-        require_memory(estimate_recovery_bytes(planned, r.rows, r.cols, r.texel_um, options.method), limit,
+        std::vector<Observation> planned = planned_observations(plan);
+        r.total_observations = planned.size();
+        r.share = observation_share(positions_of(planned), comm.rank(), comm.size());
+        std::vector<Observation> mine;
+        for (std::size_t i : r.share) mine.push_back(planned[i]);
+        require_memory(estimate_recovery_bytes(mine, r.rows, r.cols, r.texel_um, options.method), limit,
                        "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
-                           std::to_string(planned.size()) + " observations of " + std::to_string(plan.resolution) +
-                           "x" + std::to_string(plan.resolution) + ")");
-        Progress progress("simulate", static_cast<long long>(plan.positions_um.size() * plan.lambdas_um.size()),
-                          show_progress);
-        r.observations = simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
+                           std::to_string(mine.size()) + " observations of " + std::to_string(plan.resolution) + "x" +
+                           std::to_string(plan.resolution) + ")");
+        Progress progress("simulate", static_cast<long long>(r.share.size()), show_progress && comm.is_root());
+        r.observations = comm.size() > 1
+                             ? simulate_observations(*r.truth, plan, options.noise, options.seed, r.share, &progress)
+                             : simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
         progress.finish();
+        if (comm.size() > 1) catalogue = std::move(planned);
     }
     if (r.truth) {
         const HeightStats stats = height_stats(*r.truth);
         if (!(stats.max_um > stats.min_um)) r.metric_note = "undefined: the truth is flat";
     }
-    r.warnings = check_acquisition(r.observations, r.rows, r.cols, r.texel_um, r.truth ? &*r.truth : nullptr);
+    r.warnings = check_acquisition(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um,
+                                   r.truth ? &*r.truth : nullptr);
+    if (comm.size() > 1) r.catalogue = std::move(catalogue);
     if (!r.metric_note.empty())
         r.warnings.push_back("height_rel_rmse is " + r.metric_note + " (its height range is 0); the metrics give nan");
 
@@ -166,11 +218,16 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     return r;
 }
 
-Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(const StageMetrics&)>& on_step) {
+Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(const StageMetrics&)>& on_step,
+                         const Communicator& comm) {
+    if (comm.size() != r.ranks)
+        throw std::invalid_argument("run_recovery: the recovery was prepared for " + std::to_string(r.ranks) +
+                                    " ranks but runs on " + std::to_string(comm.size()) +
+                                    "; expected the communicator given to prepare_recovery");
     // A flat truth has no relative height error (its range is 0): the recovery runs without it.
     const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
     if (r.method == RecoveryMethod::Pipeline)
-        return recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.pipeline, on_step, truth);
+        return recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.pipeline, on_step, truth, comm);
     return recover_heights_thesis(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.thesis, on_step, truth);
 }
 
