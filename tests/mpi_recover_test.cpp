@@ -1,0 +1,179 @@
+// `mpiexec -n K wavebrdf recover …` (docs/scale.md): the observations sharded over K ranks, the
+// sums allreduced in rank order. Compared with the one-process run of the same arguments: the
+// same bits for two runs with the same K, the one-process heights within the bound the
+// single-precision stages allow (docs/scale.md, "Equality with one process"), rank 0 alone
+// writing and printing. Compiled only when the library is built with MPI.
+#ifdef WAVEBRDF_HAS_MPI
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "cli_util.h"
+
+namespace wavebrdf::test {
+namespace {
+
+// The child's environment: ours, plus what running OpenMPI as root here needs, one thread per
+// rank (ranks are oversubscribed on 2 cores) and no leak check (OpenMPI's init leaks by design).
+std::vector<std::string> mpi_environment() {
+    std::vector<std::string> env;
+    for (char** e = environ; *e != nullptr; ++e) {
+        const std::string entry(*e);
+        if (entry.rfind("OMP_NUM_THREADS=", 0) == 0 || entry.rfind("ASAN_OPTIONS=", 0) == 0) continue;
+        env.push_back(entry);
+    }
+    for (const char* extra : {"OMPI_ALLOW_RUN_AS_ROOT=1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1", "OMP_NUM_THREADS=1",
+                              "ASAN_OPTIONS=detect_leaks=0", "OMPI_MCA_rmaps_base_oversubscribe=1"})
+        env.emplace_back(extra);
+    return env;
+}
+
+// Runs `argv` (argv[0] a path) in `dir` without a shell, stdout and stderr captured.
+CliResult spawn(const fs::path& dir, std::vector<std::string> argv) {
+    const fs::path out = dir / "spawn.out", err = dir / "spawn.err";
+    std::vector<std::string> env = mpi_environment();
+    std::vector<char*> args, envp;
+    for (std::string& a : argv) args.push_back(a.data());
+    args.push_back(nullptr);
+    for (std::string& e : env) envp.push_back(e.data());
+    envp.push_back(nullptr);
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+        const int in = ::open("/dev/null", O_RDONLY);
+        const int o = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (in < 0 || o < 0 || e < 0 || ::chdir(dir.c_str()) != 0) std::_Exit(127);
+        ::dup2(in, 0);
+        ::dup2(o, 1);
+        ::dup2(e, 2);
+        ::execve(args[0], args.data(), envp.data());
+        std::_Exit(127);
+    }
+    CliResult r;
+    int status = 0;
+    if (pid > 0 && ::waitpid(pid, &status, 0) == pid && WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
+    r.out = read_text(out);
+    r.err = read_text(err);
+    return r;
+}
+
+// `wavebrdf args` on `ranks` ranks (0: without mpiexec) in `dir`.
+CliResult run_ranks(const fs::path& dir, int ranks, const std::vector<std::string>& args) {
+    std::vector<std::string> argv;
+    if (ranks > 0) argv = {WAVEBRDF_MPIEXEC, "-q", "-n", std::to_string(ranks), "--oversubscribe", "--bind-to", "none"};
+    argv.emplace_back(WAVEBRDF_CLI);
+    argv.insert(argv.end(), args.begin(), args.end());
+    return spawn(dir, argv);
+}
+
+// The float64 values of a .npy file written by the library (little-endian '<f8', C order).
+std::vector<double> read_npy(const fs::path& path) {
+    const std::string bytes = read_text(path);
+    if (bytes.size() < 10 || bytes.compare(0, 6, "\x93NUMPY") != 0) return {};
+    const std::size_t header = std::size_t(std::uint8_t(bytes[8])) | std::size_t(std::uint8_t(bytes[9])) << 8;
+    const std::size_t start = 10 + header;
+    std::vector<double> values((bytes.size() - start) / sizeof(double));
+    std::memcpy(values.data(), bytes.data() + start, values.size() * sizeof(double));
+    return values;
+}
+
+// A small recovery: 12², one wavelength, few iterations (a few seconds on 2 cores).
+std::vector<std::string> recover_args(const std::string& out) {
+    return {"recover", "--size",
+            "12",      "--seed",
+            "3",       "--lambdas-um",
+            "0.6",     "--height-range-um",
+            "0.2",     "--field-iterations",
+            "10",      "--refine-iterations",
+            "5",       "--no-plots",
+            "--quiet", "--out",
+            out};
+}
+
+double max_relative_difference(const std::vector<double>& a, const std::vector<double>& b) {
+    double diff = 0.0, scale = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        diff = std::max(diff, std::abs(a[i] - b[i]));
+        scale = std::max(scale, std::abs(a[i]));
+    }
+    return diff / scale;
+}
+
+TEST(MpiRecover, ShardedRunsAreReproducibleAndMatchTheOneProcessRun) {
+    const fs::path dir = fresh_dir("mpi_recover");
+    const CliResult one = run_ranks(dir, 0, recover_args("one"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const std::vector<double> reference = read_npy(dir / "one" / "estimate_height.npy");
+    ASSERT_EQ(reference.size(), 144u);
+    for (int ranks : {2, 3}) {
+        const std::string a = "k" + std::to_string(ranks) + "a", b = "k" + std::to_string(ranks) + "b";
+        const CliResult first = run_ranks(dir, ranks, recover_args(a));
+        ASSERT_EQ(first.exit_code, 0) << first.err;
+        const CliResult second = run_ranks(dir, ranks, recover_args(b));
+        ASSERT_EQ(second.exit_code, 0) << second.err;
+        const std::vector<double> x = read_npy(dir / a / "estimate_height.npy");
+        const std::vector<double> y = read_npy(dir / b / "estimate_height.npy");
+        ASSERT_EQ(x.size(), reference.size());
+        // The same bits for the same number of ranks.
+        EXPECT_EQ(x, y) << ranks << " ranks";
+        // The one-process heights, up to the order of the sums: a last-bit difference in a sum
+        // grows through the single-precision slices and L-BFGS (measured ~1e-4 here).
+        EXPECT_LT(max_relative_difference(reference, x), 2e-3) << ranks << " ranks";
+        // Only rank 0 wrote: the run's files once, no other file beside them.
+        EXPECT_NE(read_text(dir / a / "run.json").find("\"observations\": 25"), std::string::npos)
+            << "run.json counts every rank's observations";
+        EXPECT_TRUE(temporaries_under(dir / a).empty());
+        EXPECT_EQ(first.err, "") << "--quiet: no rank prints";
+    }
+}
+
+TEST(MpiRecover, SavedObservationsAreEveryRanksGatheredOnRankZero) {
+    const fs::path dir = fresh_dir("mpi_recover");
+    std::vector<std::string> one = recover_args("one"), two = recover_args("two");
+    for (auto* args : {&one, &two}) {
+        args->push_back("--save-observations");
+        // No iterations: only the observations matter here.
+        for (std::size_t i = 0; i + 1 < args->size(); ++i)
+            if ((*args)[i] == "--field-iterations" || (*args)[i] == "--refine-iterations") (*args)[i + 1] = "0";
+    }
+    ASSERT_EQ(run_ranks(dir, 0, one).exit_code, 0);
+    const CliResult r = run_ranks(dir, 2, two);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    // The same observations (their noise-free references: rendered per observation, the same
+    // bits whichever rank rendered them) in the same order.
+    EXPECT_EQ(read_text(dir / "one" / "observations.json"), read_text(dir / "two" / "observations.json"));
+    for (const auto& entry : fs::directory_iterator(dir / "one" / "observations"))
+        EXPECT_EQ(read_text(entry.path()), read_text(dir / "two" / "observations" / entry.path().filename()))
+            << entry.path().filename();
+}
+
+TEST(MpiRecover, ABadOptionFailsWithOneLineNotOnePerRank) {
+    const fs::path dir = fresh_dir("mpi_recover");
+    const CliResult bad = run_ranks(dir, 2, {"recover", "--size", "12", "--no-such-option", "--out", "x"});
+    EXPECT_NE(bad.exit_code, 0);
+    EXPECT_EQ(lines_of(bad.err).size(), 1u) << bad.err;
+    // An error the command raises (every rank alike): printed once too.
+    const CliResult noise = run_ranks(dir, 2, {"recover", "--size", "12", "--noise", "loud", "--out", "y"});
+    EXPECT_NE(noise.exit_code, 0);
+    ASSERT_EQ(lines_of(noise.err).size(), 1u) << noise.err;
+    EXPECT_NE(noise.err.find("loud"), std::string::npos) << noise.err;
+    // The thesis's method runs on one process: refused, once.
+    const CliResult thesis = run_ranks(dir, 2, {"recover", "--size", "12", "--method", "thesis", "--out", "z"});
+    EXPECT_NE(thesis.exit_code, 0);
+    ASSERT_EQ(lines_of(thesis.err).size(), 1u) << thesis.err;
+    EXPECT_NE(thesis.err.find("one process"), std::string::npos) << thesis.err;
+}
+
+}  // namespace
+}  // namespace wavebrdf::test
+
+#endif  // WAVEBRDF_HAS_MPI
