@@ -11,6 +11,7 @@
 #include "wavebrdf/generate.h"
 #include "wavebrdf/noise.h"
 #include "wavebrdf/acquisition.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/recovery_run.h"
 
 namespace wavebrdf::python {
@@ -107,16 +108,34 @@ py::dict metrics_columns(const std::vector<StageMetrics>& history) {
     return d;
 }
 
+// The communicator of a `comm` argument: None → the serial one (a Python user opts in to MPI);
+// an mpi4py communicator → its MPI communicator (comm.py2f()).
+std::shared_ptr<const Communicator> communicator_argument(const py::object& comm) {
+    if (comm.is_none()) return std::shared_ptr<const Communicator>(&serial_communicator(), [](const Communicator*) {});
+    if (!py::hasattr(comm, "py2f"))
+        throw py::value_error("comm = " + std::string(py::repr(comm)) +
+                              " is invalid; expected an mpi4py communicator (e.g. MPI.COMM_WORLD) or None");
+    const long long handle = comm.attr("py2f")().cast<long long>();
+    return communicator_from_fortran_handle(handle);
+}
+
 // Runs `work(on_step)` without the GIL. Every step is kept in `history` and, with the GIL
 // taken back, handed to `callback` (returning False stops: `stopped`); Ctrl-C and an exception
 // in the callback stop the run and are raised once it has returned.
+// On several ranks (MPI) Ctrl-C is seen only at the steps (a poll amid a collective call
+// would leave the other ranks waiting there), and the stop is agreed by the library.
 template <typename Work>
 Heightfield run_released(const py::object& callback, std::vector<StageMetrics>& history, bool& stopped, Work&& work,
-                         PythonProgress* progress = nullptr) {
+                         PythonProgress* progress = nullptr, bool several_ranks = false) {
     ReleasedCallback python_callback(callback);
     std::optional<Heightfield> estimate;
     {
-        InterruptibleRelease release;
+        std::optional<InterruptibleRelease> interruptible;
+        std::optional<py::gil_scoped_release> plain;
+        if (several_ranks)
+            plain.emplace();
+        else
+            interruptible.emplace();
         estimate.emplace(work([&](const StageMetrics& m) {
             history.push_back(m);
             return python_callback.step([&](const py::object& f) { return f(metrics_row(m)); });
@@ -152,7 +171,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        int resolution, const py::object& lambdas_um, double overlap, double jitter,
                        const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
-                       std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet) {
+                       std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
+                       const py::object& comm_arg) {
+    const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
     options.method = parse_recovery_method(method, "method");
@@ -210,8 +231,10 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
 
     std::optional<PreparedRecovery> prepared;
     {
-        InterruptibleRelease release;
-        prepared = prepare_recovery(options, truth ? &*truth : nullptr, std::move(observations));
+        InterruptibleRelease release;  // rank-local work: agreed below
+        run_agreed(*comm, [&] {
+            prepared = prepare_recovery(options, truth ? &*truth : nullptr, std::move(observations), false, *comm);
+        });
     }
     std::vector<StageMetrics> history;
     RecoveryResult result;
@@ -221,10 +244,11 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     totals["field:"] = prepared->pipeline.field.iterations;
     totals["refine"] = prepared->pipeline.refine_iterations;
     totals["thesis"] = prepared->thesis.epochs;
-    PythonProgress progress("wrap_recover", callback, quiet, totals);
+    // Under MPI only rank 0 shows progress.
+    PythonProgress progress("wrap_recover", callback, comm->is_root() ? quiet : py::object(py::bool_(true)), totals);
     const Heightfield estimate = run_released(
         progress.callback(), history, result.stopped,
-        [&](const auto& on_step) { return run_recovery(*prepared, on_step); }, &progress);
+        [&](const auto& on_step) { return run_recovery(*prepared, on_step, *comm); }, &progress, comm->size() > 1);
     result.estimate = py::cast(estimate);
     result.truth = prepared->truth ? py::cast(*prepared->truth) : py::none();
     result.observations = py::cast(prepared->observations);
@@ -426,7 +450,8 @@ truth Heightfield) slopes that reflect light off the slice.
            const py::object& truth, const std::vector<double>& blur_widths, int blur_iterations, int blur_wavelengths,
            double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
            double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
-           const py::object& refine_loss, const py::object& callback) {
+           const py::object& refine_loss, const py::object& callback, const py::object& comm_arg) {
+            const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
             const std::vector<Observation> list = observations_or_file(observations);
             const std::array<int, 2> rc = size_argument(size);
             check_positive(texel_um, "texel_um");
@@ -465,9 +490,12 @@ truth Heightfield) slopes that reflect light off the slice.
             check_callback(callback);
             std::vector<StageMetrics> history;
             bool stopped = false;
-            return run_released(callback, history, stopped, [&](const auto& on_step) {
-                return recover_heights(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr);
-            });
+            return run_released(
+                callback, history, stopped,
+                [&](const auto& on_step) {
+                    return recover_heights(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr, *comm);
+                },
+                nullptr, comm->size() > 1);
         },
         "observations"_a, "size"_a, "texel_um"_a, "vscale"_a = 1.0, py::kw_only(), "truth"_a = py::none(),
         "blur_widths"_a = rs.blurred.blur_widths, "blur_iterations"_a = rs.blurred.iterations,
@@ -476,6 +504,7 @@ truth Heightfield) slopes that reflect light off the slice.
         "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
+        "comm"_a = py::none(),
         (std::string(R"doc(
 The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
 phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
@@ -495,6 +524,9 @@ unwrap_from_blurred start unwrapping from the estimate before it rather than the
 refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                     refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
 Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
+comm                None (one process) or an mpi4py communicator: `observations` is then this
+                    rank's share (every rank calls with its own; docs/scale.md), the sums are
+                    allreduced and every rank returns the same heights.
 )doc") + kSettingsDoc)
             .c_str());
 
@@ -581,7 +613,7 @@ without a truth or before heights exist).
           "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
-          "quiet"_a = py::none(),
+          "quiet"_a = py::none(), "comm"_a = py::none(),
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -617,6 +649,11 @@ max_memory_gb refuse (MemoryError, before any work) a run whose estimated peak m
               this many GB; 0 (default): the physical memory
 quiet         progress (a tqdm bar per stage if tqdm is installed, else a line on stderr): None
               (default) shows it when stderr is a terminal or in Jupyter, False always, True never
+comm          None (default: one process) or an mpi4py communicator (e.g. MPI.COMM_WORLD, under
+              mpiexec): every rank passes the same arguments and keeps its share of the
+              observations (result.observations: this rank's); the sums are allreduced, every
+              rank gets the same estimate, only rank 0 shows progress (docs/scale.md). The
+              thesis's method runs on one process only.
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 }

@@ -714,7 +714,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -749,11 +749,16 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   this many GB; 0 (default): the physical memory
     quiet         progress (a tqdm bar per stage if tqdm is installed, else a line on stderr): None
                   (default) shows it when stderr is a terminal or in Jupyter, False always, True never
+    comm          None (default: one process) or an mpi4py communicator (e.g. MPI.COMM_WORLD, under
+                  mpiexec): every rank passes the same arguments and keeps its share of the
+                  observations (result.observations: this rank's); the sums are allreduced, every
+                  rank gets the same estimate, only rank 0 shows progress (docs/scale.md). The
+                  thesis's method runs on one process only.
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...
 
-def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ...) -> Heightfield:
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ...) -> Heightfield:
     """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
     phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
     on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
@@ -772,6 +777,9 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
     refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                         refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
     Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
+    comm                None (one process) or an mpi4py communicator: `observations` is then this
+                        rank's share (every rank calls with its own; docs/scale.md), the sums are
+                        allreduced and every rank returns the same heights.
 
     observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
                   ones feed the blurred fit and the fields; all feed the refinement and Adam)

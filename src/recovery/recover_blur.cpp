@@ -111,8 +111,9 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
         // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
             grad.assign(x.size(), 0.0);
-            return detail::allreduced(comm, grad, detail::ordered_parallel_sum(
-                used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
+            return detail::allreduced(
+                comm, grad,
+                detail::ordered_parallel_sum(used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
                     const Blurred& d = data[i];
                     const int n = d.n_coarse;
                     SlicePlan<float>& plan = plans[i];
