@@ -15,6 +15,7 @@
 #include "commands.h"
 #include "report.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/observation_file.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/recovery_directory.h"
 #include "wavebrdf/recovery_run.h"
@@ -39,7 +40,8 @@ struct RecoverArgs {
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
-    double max_memory_gb = 0.0;  // 0: the physical memory
+    double max_memory_gb = 0.0;          // 0: the physical memory
+    std::string save_observations_path;  // --save-observations FILE ("": observations.json in --out)
     bool save_observations = false, quiet = false, no_plots = false, force = false;
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
@@ -95,7 +97,7 @@ void run(const RecoverArgs& a) {
     std::unique_ptr<Heightfield> truth;
     std::vector<Observation> observations;
     if (!a.observations.empty()) {
-        observations = read_observations_json(a.observations, a.max_memory_gb);
+        observations = read_observations_file(a.observations, 0, 1, a.max_memory_gb);
         parse_size("--size", a.size, options.rows, options.cols);
     } else {
         if (a.truth.empty())
@@ -155,6 +157,7 @@ void run(const RecoverArgs& a) {
     out.dir = a.out;
     out.force = a.force;
     out.save_observations = a.save_observations;
+    out.observations_path = a.save_observations_path;
     const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step);
     end_stage();
     if (!a.no_plots) draw_report(RunKind::Recover, a.out);
@@ -179,7 +182,7 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--truth", a->truth,
                     "true heightfield EXR: observations are planned and rendered from it (default: a generated one)");
     cmd->add_option("--observations", a->observations,
-                    "measured or rendered slices with their query parameters (JSON)");
+                    "measured or rendered slices with their query parameters (JSON, or HDF5: .h5 .hdf5 .cxi)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
         ->capture_default_str();
     auto* texel = cmd->add_option("--texel-um", a->texel_um,
@@ -224,11 +227,15 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--out", a->out, "output directory")->required();
     cmd->add_flag("--force", a->force,
                   "replace the earlier run in --out (only a directory that holds nothing but recover's outputs)");
-    cmd->add_flag("--save-observations", a->save_observations,
-                  "also write the observations (observations.json + EXR slices)");
+    auto* save = cmd->add_option("--save-observations", a->save_observations_path,
+                                 "also write the observations: observations.json + EXR slices in --out, or to FILE "
+                                 "(.h5 .hdf5 .cxi: one HDF5 file; else JSON + EXR slices)")
+                     ->expected(0, 1)
+                     ->type_name("[FILE]");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
-    cmd->callback([a, texel, vscale] {
+    cmd->callback([a, texel, vscale, save] {
+        a->save_observations = save->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
         run(*a);

@@ -10,6 +10,7 @@
 
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/observation_file.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/version.h"
 
@@ -56,7 +57,8 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     check_writable(dir + "/metrics.csv");
     write_text_atomically(dir + "/run.json", run_json(r, options).dump(1) + "\n");
     if (out.save_observations)
-        write_observations_json(dir + "/observations.json", r.observations, ReferenceStorage::Exr);
+        write_observations_file(out.observations_path.empty() ? dir + "/observations.json" : out.observations_path,
+                                r.observations, ReferenceStorage::Exr);
     const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
     if (r.truth) {
         write_heightfield_exr(dir + "/truth.exr", *r.truth, "wavebrdf recover: truth");
