@@ -40,11 +40,12 @@ struct RecoverArgs {
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
-    double max_memory_gb = 0.0;          // 0: the physical memory
-    std::string save_observations_path;  // --save-observations FILE ("": observations.json in --out)
+    double max_memory_gb = 0.0;  // 0: the physical memory
     bool save_observations = false, quiet = false, no_plots = false, force = false;
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
+    // --save-observations FILE ("": observations.json in --out).
+    std::string save_observations_path;
 };
 
 std::vector<double> parse_list(const std::string& option, const std::string& text) {
