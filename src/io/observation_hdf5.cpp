@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -212,11 +213,8 @@ void write_file(const std::string& path, const std::string& tmp, const std::vect
             // Interleaved (pixel-major, channel fastest) in memory; channel planes in the file.
             for (std::size_t p = 0; p < plane; ++p)
                 for (int c = 0; c < channels; ++c) {
-                    const double v = r[p * std::size_t(channels) + std::size_t(c)];
-                    if (std::fabs(v) > double(std::numeric_limits<float>::max()))
-                        throw std::invalid_argument("observation " + std::to_string(i) + ": reference value " +
-                                                    std::to_string(v) + " overflows float32; expected |v| < 3.4e38");
-                    slice[std::size_t(c) * plane + p] = static_cast<float>(v);
+                    slice[std::size_t(c) * plane + p] = static_cast<float>(
+                        r[p * std::size_t(channels) + std::size_t(c)]);
                 }
             const hsize_t start[4] = {i, 0, 0, 0};
             check(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, block, nullptr), path, k_data);
@@ -352,6 +350,19 @@ std::vector<T> read_checked(hid_t file, const std::string& path, const char* nam
             fail(path, name, "has dims " + got + "; expected " + want);
         }
         count *= std::size_t(dims[k]);
+    }
+    // Contiguous data must all be in the file: a few bytes may not declare gigabytes of values
+    // that were never written (chunked data is bounded by the memory limit checked before).
+    Id dcpl(H5Dget_create_plist(dataset.get()), H5Pclose);
+    if (!dcpl.valid()) fail(path, name, "cannot read its layout");
+    if (H5Pget_layout(dcpl.get()) == H5D_CONTIGUOUS) {
+        Id type(H5Dget_type(dataset.get()), H5Tclose);
+        const double expected = double(count) * double(H5Tget_size(type.get()));
+        const double stored = double(H5Dget_storage_size(dataset.get()));
+        if (stored < expected)
+            fail(path, name,
+                 "holds " + std::to_string(static_cast<long long>(stored)) + " of its " +
+                     std::to_string(static_cast<long long>(expected)) + " bytes (never written, or damaged)");
     }
     return read_whole<T>(dataset.get(), memory_type, count, path, name);
 }
@@ -507,6 +518,13 @@ void write_observations_hdf5(const std::string& path, const std::vector<Observat
                 std::to_string(o.channels()) + " channel(s), observation 0 " + std::to_string(first.resolution) +
                 " and " + std::to_string(first.channels()) +
                 "; an HDF5 observation file holds one resolution and channel count (use JSON for mixed sets)");
+        for (double v : o.reference)
+            if (std::fabs(v) > double(std::numeric_limits<float>::max())) {
+                char text[32];
+                std::snprintf(text, sizeof text, "%.3g", v);
+                throw std::invalid_argument("observation " + std::to_string(i) + ": reference value " + text +
+                                            " overflows float32; expected |v| < 3.4e38");
+            }
     }
     write_file_atomically(path, [&](const std::string& tmp) {
         const Hdf5Session session;
