@@ -41,6 +41,10 @@ bool built_with_hdf5();
 // Whether `path` names an HDF5 observation file by its extension (.h5, .hdf5, .cxi; any case).
 bool is_hdf5_path(const std::string& path);
 
+// Whether read_observations_file reads `path` as HDF5: is_hdf5_path, or a file that starts with
+// the HDF5 signature (false when it cannot be read).
+bool is_hdf5_file(const std::string& path);
+
 // Writes `observations` to the HDF5 file `path` (layout: docs/observations_hdf5.md), slices as
 // float32 (the references are rounded to float), everything else exact. Atomic like every
 // writer of io.h: written to a temporary file beside `path` and renamed onto it, so an existing

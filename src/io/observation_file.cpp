@@ -27,8 +27,6 @@ bool has_hdf5_signature(const std::string& path) {
     return std::memcmp(head, "\x89HDF\r\n\x1a\n", 8) == 0;
 }
 
-bool is_hdf5(const std::string& path) { return is_hdf5_path(path) || has_hdf5_signature(path); }
-
 void check_rank(int rank, int size) {
     if (size < 1 || rank < 0 || rank >= size)
         throw std::invalid_argument("rank " + std::to_string(rank) + " of " + std::to_string(size) +
@@ -51,8 +49,10 @@ bool is_hdf5_path(const std::string& path) {
     return ext == "h5" || ext == "hdf5" || ext == "cxi";
 }
 
+bool is_hdf5_file(const std::string& path) { return is_hdf5_path(path) || has_hdf5_signature(path); }
+
 ObservationIndex read_observation_index(const std::string& path, double max_memory_gb) {
-    if (is_hdf5(path)) return detail::read_observation_index_hdf5(path, max_memory_gb);
+    if (is_hdf5_file(path)) return detail::read_observation_index_hdf5(path, max_memory_gb);
     // JSON: read whole (its references are needed to know nothing more, but a JSON set is small).
     std::vector<Observation> all = read_observations_json(path, max_memory_gb);
     ObservationIndex index;
@@ -74,7 +74,7 @@ std::vector<Observation> read_observations_file(const std::string& path, int ran
     check_rank(rank, size);
     std::vector<std::size_t> share;
     std::vector<Observation> out;
-    if (is_hdf5(path)) {
+    if (is_hdf5_file(path)) {
         const ObservationIndex index = detail::read_observation_index_hdf5(path, max_memory_gb);
         share = observation_share(index.positions_um(), rank, size);
         out = read_observations_hdf5(path, share, max_memory_gb);
