@@ -414,7 +414,15 @@ struct OpenFile {
 
 OpenFile open_observation_file(const std::string& path, double max_memory_gb) {
     OpenFile f;
-    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    // Read-only and without file locks: the ranks of a run open one file at once, on file
+    // systems (NFS, Lustre) where flock may fail; our writer renames complete files into
+    // place, so no reader ever sees one being written.
+    Id fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+    if (!fapl.valid()) throw std::runtime_error(path + ": cannot open it (HDF5 property list)");
+#if H5_VERSION_GE(1, 10, 7)
+    H5Pset_file_locking(fapl.get(), 0, 1);
+#endif
+    const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl.get());
     if (file < 0) throw std::runtime_error(path + ": cannot open it as HDF5 (missing, not HDF5, or truncated)");
     f.file = Id(file, H5Fclose);
     const std::string format = read_root_string(file, path, "wavebrdf_format");

@@ -2,6 +2,7 @@
 dispatch on the extension; the round trip is exact but for the slices' rounding to float32 (checked
 against NumPy's own rounding); indices read a subset; the shares of 1..4 ranks partition a file;
 read_observation_index gives the queries without the slices; bad files raise one-line errors."""
+import ast
 import os
 
 import numpy as np
@@ -97,3 +98,52 @@ def test_cli_reads_what_python_wrote(tmp_path, rng, cli):
                         "--no-plots", "--quiet"], cwd=tmp_path, capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert os.path.exists(tmp_path / "run" / "estimate.exr")
+
+
+MPI_SCRIPT = r"""
+import sys
+import numpy as np
+from mpi4py import MPI
+import wavebrdf as wb
+comm = MPI.COMM_WORLD
+path = sys.argv[1]
+share = wb.read_observations(path, rank=comm.Get_rank(), size=comm.Get_size())
+rows = [(o.query.x_um, o.query.y_um, o.query.sigma_p_um, float(np.sum(o.reference))) for o in share]
+everything = comm.gather(rows, root=0)
+if comm.Get_rank() == 0:
+    with open(sys.argv[2], "w") as out:
+        out.write(repr([sorted(r) for r in everything]))
+"""
+
+
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_ranks_read_their_shares_at_once_under_mpiexec(tmp_path, rng, ranks):
+    """Every rank of an MPI run opens the file at once and reads its share: together the whole file."""
+    import shutil
+    import subprocess
+    import sys
+    mpiexec = shutil.which("mpiexec")
+    try:
+        import mpi4py  # noqa: F401
+    except ImportError:
+        mpiexec = None
+    if mpiexec is None:
+        pytest.skip("no mpiexec or mpi4py")
+    written = make_observations(rng, 12, None)
+    path = str(tmp_path / "o.h5")
+    wb.write_observations(path, written)
+    full = wb.read_observations(path)
+    script = tmp_path / "read_share.py"
+    script.write_text(MPI_SCRIPT)
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1",
+               PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
+    r = subprocess.run([mpiexec, "-n", str(ranks), "--oversubscribe", "--bind-to", "none", sys.executable,
+                        str(script), path, str(tmp_path / "shares.txt")], env=env, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    shares = ast.literal_eval((tmp_path / "shares.txt").read_text())
+    assert len(shares) == ranks
+    together = sorted(row for share in shares for row in share)
+    assert together == sorted((o.query.x_um, o.query.y_um, o.query.sigma_p_um, float(np.sum(o.reference)))
+                              for o in full)
+    assert all(len(s) > 0 for s in shares)
