@@ -63,7 +63,8 @@ def test_subsets_and_rank_shares(tmp_path, rng):
         seen = []
         for rank in range(size):
             share = wb.read_observations(h5, rank=rank, size=size)
-            assert [o.query.x_um for o in share] == [o.query.x_um for o in wb.read_observations(js, rank=rank, size=size)]
+            from_json = wb.read_observations(js, rank=rank, size=size)
+            assert [o.query.x_um for o in share] == [o.query.x_um for o in from_json]
             seen += [o.query.sigma_p_um for o in share]  # distinct per observation here
         assert sorted(seen) == sorted(o.query.sigma_p_um for o in full)
 
