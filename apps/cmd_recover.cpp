@@ -16,6 +16,7 @@
 #include "report.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/observation_file.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/recovery_directory.h"
 #include "wavebrdf/recovery_run.h"
@@ -44,6 +45,8 @@ struct RecoverArgs {
     bool save_observations = false, quiet = false, no_plots = false, force = false;
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
+    // --save-observations FILE ("": observations.json in --out).
+    std::string save_observations_path;
 };
 
 std::vector<double> parse_list(const std::string& option, const std::string& text) {
@@ -65,8 +68,23 @@ std::vector<double> parse_list(const std::string& option, const std::string& tex
 
 // The observations of --observations. Every rank reads them all (prepare_recovery keeps its
 // share): the one place to read only a rank's share instead.
-std::vector<Observation> read_given_observations(const std::string& path, double max_memory_gb, const Communicator&) {
-    return read_observations_json(path, max_memory_gb);
+std::vector<Observation> read_given_observations(const std::string& path, double max_memory_gb,
+                                                 const Communicator& comm) {
+    if (comm.size() == 1 || !is_hdf5_file(path)) return read_observations_file(path, 0, 1, max_memory_gb);
+    // HDF5 under MPI: every observation's metadata (the index), but only this rank's slices;
+    // prepare_recovery keeps the same share (observation_share of the same positions), and the
+    // other ranks' observations, whose references stay empty, only as metadata.
+    const ObservationIndex index = read_observation_index(path, max_memory_gb);
+    std::vector<std::size_t> mine;
+    std::vector<Observation> share = read_observations_file(path, comm.rank(), comm.size(), max_memory_gb, &mine);
+    std::vector<Observation> all(index.size());
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        all[i].query = index.queries[i];
+        all[i].lambdas_um = index.lambdas_um[i];
+        all[i].resolution = index.resolution;
+    }
+    for (std::size_t k = 0; k < mine.size(); ++k) all[mine[k]] = std::move(share[k]);
+    return all;
 }
 
 // Under MPI (mpiexec -n K wavebrdf recover …, docs/scale.md) every rank runs this with its
@@ -168,6 +186,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     out.dir = a.out;
     out.force = a.force;
     out.save_observations = a.save_observations;
+    out.observations_path = a.save_observations_path;
     const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step, comm);
     end_stage();
     if (!comm.is_root()) return;
@@ -193,7 +212,7 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--truth", a->truth,
                     "true heightfield EXR: observations are planned and rendered from it (default: a generated one)");
     cmd->add_option("--observations", a->observations,
-                    "measured or rendered slices with their query parameters (JSON)");
+                    "measured or rendered slices with their query parameters (JSON, or HDF5: .h5 .hdf5 .cxi)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
         ->capture_default_str();
     auto* texel = cmd->add_option("--texel-um", a->texel_um,
@@ -238,11 +257,15 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--out", a->out, "output directory")->required();
     cmd->add_flag("--force", a->force,
                   "replace the earlier run in --out (only a directory that holds nothing but recover's outputs)");
-    cmd->add_flag("--save-observations", a->save_observations,
-                  "also write the observations (observations.json + EXR slices)");
+    auto* save = cmd->add_option("--save-observations", a->save_observations_path,
+                                 "also write the observations: observations.json + EXR slices in --out, or to FILE "
+                                 "(.h5 .hdf5 .cxi: one HDF5 file; else JSON + EXR slices)")
+                     ->expected(0, 1)
+                     ->type_name("[FILE]");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
-    cmd->callback([a, texel, vscale] {
+    cmd->callback([a, texel, vscale, save] {
+        a->save_observations = save->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
         // Under mpiexec, every rank; an error all raise alike is printed once (rank 0's), one

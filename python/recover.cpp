@@ -10,6 +10,7 @@
 #include "progress.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/noise.h"
+#include "wavebrdf/observation_file.h"
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/recovery_run.h"
@@ -30,12 +31,12 @@ Noise noise_argument(const py::object& noise) {
     return parse_noise(noise.cast<std::string>());  // its messages name the noise text
 }
 
-// Observations as given (Observation, list) or read from a JSON path.
+// Observations as given (Observation, list) or read from a path (JSON, or HDF5: observation_file.h).
 std::vector<Observation> observations_or_file(const py::object& observations) {
     if (py::isinstance<py::str>(observations)) {
         const std::string path = observations.cast<std::string>();
         py::gil_scoped_release release;
-        return read_observations_json(path);
+        return read_observations_file(path);
     }
     return observations_argument(observations);
 }

@@ -88,7 +88,7 @@ void parse_size(const std::string& name, const std::string& text, int& rows, int
 // Every option of `wavebrdf invert` (its defaults), as values.
 struct InversionOptions {
     std::string truth_path;         // EXR of the truth; empty: given to prepare_inversion, or generated
-    std::string observations_path;  // observations JSON; empty: none (or given to prepare_inversion)
+    std::string observations_path;  // observations JSON or HDF5 (observation_file.h); empty: none (or given)
     // The generated truth's grid (default_inversion_truth), and the estimate's with observations.
     int rows = 16, cols = 16;
     double texel_um = 1.0, vscale = 1.0;  // of the truth read or generated, and of the estimate

@@ -11,7 +11,8 @@
 //   estimate.exr, estimate.png, estimate_height.npy   the estimate
 //   reference.npy, final.npy                 observation 0 and the estimate's slice for it
 //                                            (resolution × resolution × channels)
-//   observations.json, observations/         with save_observations (EXR references)
+//   observations.json, observations/         with save_observations (EXR references), unless
+//                                            observations_path names another file
 //
 // The report (report.png) is drawn from these files by the Python package (wavebrdf.report).
 #include <functional>
@@ -27,6 +28,10 @@ struct RecoveryDirectoryOptions {
     std::string dir;                 // the output directory (created when missing)
     bool force = false;              // replace an earlier recover run there (run_directory.h)
     bool save_observations = false;  // also observations.json + observations/slice_NNNN.exr
+    // With save_observations: where they go instead ("": DIR/observations.json); an HDF5
+    // extension (.h5 .hdf5 .cxi) writes one HDF5 file, any other JSON with EXR slices
+    // beside it (write_observations_file, observation_file.h).
+    std::string observations_path;
     std::string option = "--out";    // names `dir` in messages
 };
 

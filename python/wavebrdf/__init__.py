@@ -75,3 +75,6 @@ __all__ = [
     "BrdfTable", "read_table", "render_table",
 ]
 __all__ += ["read_slice"]
+# Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.
+from ._core import built_with_hdf5, read_observation_index  # noqa: F401
+__all__ += ["built_with_hdf5", "read_observation_index"]

@@ -567,6 +567,10 @@ def amplitude(estimate: Any, reference: Any) -> float:
     """
     ...
 
+def built_with_hdf5() -> bool:
+    """Whether this build reads and writes HDF5 observation files (CMake option WAVEBRDF_HDF5)."""
+    ...
+
 def check_acquisition(observations: Any, size: Any, texel_um: float, truth: Any = ...) -> List[str]:
     """Warnings (a list of str, empty when all is well) for observations too coarse or too sparse to
     determine the heights of a tile of `size` = N or (rows, cols) texels of texel_um (um):
@@ -696,8 +700,22 @@ def planned_observations(plan: AcquisitionPlan) -> List[Observation]:
     """
     ...
 
-def read_observations(path: str) -> List[Observation]:
-    """Observations from JSON (the format of `wavebrdf invert --observations`)."""
+def read_observation_index(path: str, max_memory_gb: float = ...) -> dict:
+    """What an observation file holds, without its slices: a dict with 'queries' (a Query per
+    observation, with its wavelengths), 'positions_um' (float64 (N, 2): x_um, y_um), 'resolution'
+    and 'channels' (1 or 3). An HDF5 file reads its metadata only; a JSON file is read whole.
+    """
+    ...
+
+def read_observations(path: str, indices: Any = ..., *, rank: int = ..., size: int = ..., max_memory_gb: float = ...) -> List[Observation]:
+    """Observations from a file (what `wavebrdf invert|recover --observations` read): HDF5 (.h5,
+    .hdf5, .cxi, or any file with the HDF5 signature; docs/observations_hdf5.md) or JSON.
+    indices        positions in an HDF5 file to read (only their slices are read), in the order
+                   given; None: all
+    rank, size     only the observations rank `rank` of `size` holds (split by footprint position,
+                   as the MPI runs split them: wavebrdf.observation_share), in file order
+    max_memory_gb  refuse (MemoryError) a read needing more than this many GB (0: physical memory)
+    """
     ...
 
 def read_slice(path: str) -> tuple:
@@ -965,9 +983,11 @@ def with_height_range(heightfield: Heightfield, range_um: float) -> Heightfield:
     ...
 
 def write_observations(path: str, observations: Any, references: str = ...) -> None:
-    """Writes observations as JSON (the format read_observations and `wavebrdf invert|recover
-    --observations` read), atomically. references: 'inline' (values in the JSON, exact) or 'exr'
-    (float EXR files NAME/slice_0000.exr ... beside the JSON, NAME its file name without the
-    extension: what `wavebrdf recover --save-observations` writes).
+    """Writes observations (the formats read_observations and `wavebrdf invert|recover
+    --observations` read), atomically: one HDF5 file for a path ending in .h5, .hdf5 or .cxi
+    (slices as float32, one resolution and channel count for all; docs/observations_hdf5.md),
+    else JSON. references (JSON only): 'inline' (values in the JSON, exact) or 'exr' (float EXR
+    files NAME/slice_0000.exr ... beside the JSON, NAME its file name without the extension: what
+    `wavebrdf recover --save-observations` writes).
     """
     ...

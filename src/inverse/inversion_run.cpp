@@ -17,6 +17,7 @@
 #include "core/json_fields.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
+#include "wavebrdf/observation_file.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/render_options.h"
 #include "wavebrdf/run_directory.h"
@@ -232,7 +233,7 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
     int rows = 0, cols = 0;
     if (given_observations) {
         p.observations = observations ? std::move(*observations)
-                                      : read_observations_json(o.observations_path, o.max_memory_gb);
+                                      : read_observations_file(o.observations_path, 0, 1, o.max_memory_gb);
         if (p.observations.empty())
             throw std::invalid_argument(name("observations") + " is empty; expected at least one observation");
         rows = initial && o.init.kind == InitKind::Heights ? initial->rows() : o.rows;

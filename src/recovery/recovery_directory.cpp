@@ -10,6 +10,7 @@
 
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/observation_file.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/version.h"
 
@@ -84,10 +85,15 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         write_text_atomically(dir + "/run.json", run_json(r, options).dump(1) + "\n");
     });
     if (out.save_observations) {
-        const std::vector<Observation> all = gathered_observations(r, comm);
-        run_agreed(comm, [&] {
-            if (root) write_observations_json(dir + "/observations.json", all, ReferenceStorage::Exr);
-        });
+        const std::string path = out.observations_path.empty() ? dir + "/observations.json" : out.observations_path;
+        if (comm.size() == 1) {  // no copy: the observations as they are
+            write_observations_file(path, r.observations, ReferenceStorage::Exr);
+        } else {
+            const std::vector<Observation> all = gathered_observations(r, comm);
+            run_agreed(comm, [&] {
+                if (root) write_observations_file(path, all, ReferenceStorage::Exr);
+            });
+        }
     }
     run_agreed(comm, [&] {
         if (root && r.truth) {
