@@ -209,7 +209,8 @@ std::shared_ptr<const SliceAmplitude> slice_amplitude(const Query& query, double
             }
             s.box.resize(ax.m, ay.m);
             for (int p = 0; p < ax.m; ++p)
-                for (int q = 0; q < ay.m; ++q) s.box(p, q) = s.full[std::size_t(ax.first + p) * resolution + ay.first + q];
+                for (int q = 0; q < ay.m; ++q)
+                    s.box(p, q) = s.full[std::size_t(ax.first + p) * resolution + ay.first + q];
             return s;
         });
 }
@@ -224,10 +225,10 @@ std::shared_ptr<const SliceAmplitude> slice_amplitude(const Query& query, double
 // (its gradient is a real weight times Ψ).
 struct FieldOperator::Impl {
     int rows = 0, cols = 0, n = 0;
-    std::vector<int> row_index, col_index;  // footprint texel rows / columns on the tile
-    std::vector<double> wx, wy;             // the separable window
-    std::vector<int> lo, hi;                // columns of row r inside the 3σ_p cut
-    std::vector<std::complex<double>> px, py;          // wx·ψx, wy·ψy
+    std::vector<int> row_index, col_index;               // footprint texel rows / columns on the tile
+    std::vector<double> wx, wy;                          // the separable window
+    std::vector<int> lo, hi;                             // columns of row r inside the 3σ_p cut
+    std::vector<std::complex<double>> px, py;            // wx·ψx, wy·ψy
     std::vector<std::complex<double>> phase_x, phase_y;  // φ on the box rows / columns
     std::shared_ptr<const AxisFactors> ax, ay;
     std::shared_ptr<const SliceAmplitude> amp;
@@ -421,8 +422,8 @@ std::vector<std::complex<double>> FieldOperator::forward(const std::vector<std::
     std::vector<std::complex<double>> field(std::size_t(s.n) * s.n, 0.0);
     for (int p = 0; p < s.ma(); ++p)
         for (int q = 0; q < s.mb(); ++q)
-            field[std::size_t(s.a0() + p) * s.n + s.b0() + q] =
-                s.phase_x[std::size_t(p)] * s.phase_y[std::size_t(q)] * psi(p, q);
+            field[std::size_t(s.a0() + p) * s.n + s.b0() + q] = s.phase_x[std::size_t(p)] * s.phase_y[std::size_t(q)] *
+                                                                psi(p, q);
     return field;
 }
 
