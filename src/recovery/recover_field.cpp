@@ -225,9 +225,10 @@ std::shared_ptr<const SliceAmplitude> slice_amplitude(const Query& query, double
 // (its gradient is a real weight times Ψ).
 struct FieldOperator::Impl {
     int rows = 0, cols = 0, n = 0;
-    std::vector<int> row_index, col_index;               // footprint texel rows / columns on the tile
-    std::vector<double> wx, wy;                          // the separable window
-    std::vector<int> lo, hi;                             // columns of row r inside the 3σ_p cut
+    std::vector<int> row_index, col_index;  // footprint texel rows / columns on the tile
+    std::vector<double> wx, wy;             // the separable window
+    std::vector<int> lo, hi;                // columns of row r inside the 3σ_p cut
+    int col_wrap = 0;                       // first footprint column whose tile column wrapped to 0 (else their count)
     std::vector<std::complex<double>> px, py;            // wx·ψx, wy·ψy
     std::vector<std::complex<double>> phase_x, phase_y;  // φ on the box rows / columns
     std::shared_ptr<const AxisFactors> ax, ay;
@@ -239,35 +240,58 @@ struct FieldOperator::Impl {
     int mb() const { return ay->m; }
     const Eigen::MatrixXd& amp_box() const { return amp->box; }
 
+    template <class T>
+    using RowMajor = Eigen::Matrix<std::complex<T>, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+    // Calls body(c, l, t, len) for the runs of row r's columns [lo, hi) along which the column
+    // c, its fold slot l = c mod qy and its tile column t all step by one.
+    template <class Body>
+    void for_runs(std::size_t r, Body body) const {
+        const int qy = ay->q;
+        int c = lo[r], l = c % qy;
+        while (c < hi[r]) {
+            int len = std::min(hi[r] - c, qy - l);
+            if (c < col_wrap) len = std::min(len, col_wrap - c);
+            body(c, l, col_index[std::size_t(c)], len);
+            c += len;
+            l += len;
+            if (l == qy) l = 0;
+        }
+    }
+
     // F (qx × qy) from the object (rows × cols, row-major).
-    void fold(const std::complex<double>* object, Eigen::MatrixXcd& f) const {
+    void fold(const std::complex<double>* object, RowMajor<double>& f) const {
         const int qx = ax->q, qy = ay->q;
         f.setZero(qx, qy);
-        Eigen::VectorXcd line(qy);
-        for (int r = 0; r < int(row_index.size()); ++r) {
-            line.setZero();
-            const std::complex<double>* o = object + std::size_t(row_index[std::size_t(r)]) * cols;
-            int l = lo[std::size_t(r)] % qy;
-            for (int c = lo[std::size_t(r)]; c < hi[std::size_t(r)]; ++c) {
-                line(l) += o[col_index[std::size_t(c)]] * py[std::size_t(c)];
-                if (++l == qy) l = 0;
-            }
-            f.row(r % qx) += px[std::size_t(r)] * line.transpose();
+        std::vector<std::complex<double>> line(std::size_t(std::max(qy, 0)));
+        for (std::size_t r = 0; r < row_index.size(); ++r) {
+            std::fill(line.begin(), line.end(), 0.0);
+            const std::complex<double>* o = object + std::size_t(row_index[r]) * cols;
+            for_runs(r, [&](int c, int l, int t, int len) {
+                std::complex<double>* out = line.data() + l;
+                const std::complex<double>* in = o + t;
+                const std::complex<double>* w = py.data() + c;
+                for (int k = 0; k < len; ++k) out[k] += in[k] * w[k];
+            });
+            std::complex<double>* row = f.data() + std::size_t(int(r) % qx) * std::size_t(qy);
+            const std::complex<double> s = px[r];
+            for (int l = 0; l < qy; ++l) row[l] += s * line[std::size_t(l)];
         }
     }
     // object += the adjoint of fold applied to B (qx × qy).
-    template <class Matrix>
-    void unfold_add(const Matrix& b, std::complex<double>* object) const {
-        const int qy = ay->q;
-        for (int r = 0; r < int(row_index.size()); ++r) {
-            std::complex<double>* o = object + std::size_t(row_index[std::size_t(r)]) * cols;
-            const std::complex<double> s = std::conj(px[std::size_t(r)]);
-            const int j = r % ax->q;
-            int l = lo[std::size_t(r)] % qy;
-            for (int c = lo[std::size_t(r)]; c < hi[std::size_t(r)]; ++c) {
-                o[col_index[std::size_t(c)]] += s * std::conj(py[std::size_t(c)]) * std::complex<double>(b(j, l));
-                if (++l == qy) l = 0;
-            }
+    template <class T>
+    void unfold_add(const RowMajor<T>& b, std::complex<double>* object) const {
+        const int qx = ax->q, qy = ay->q;
+        for (std::size_t r = 0; r < row_index.size(); ++r) {
+            std::complex<double>* o = object + std::size_t(row_index[r]) * cols;
+            const std::complex<double> s = std::conj(px[r]);
+            const std::complex<T>* row = b.data() + std::size_t(int(r) % qx) * std::size_t(qy);
+            for_runs(r, [&](int c, int l, int t, int len) {
+                std::complex<double>* out = o + t;
+                const std::complex<T>* in = row + l;
+                const std::complex<double>* w = py.data() + c;
+                for (int k = 0; k < len; ++k) out[k] += s * (std::conj(w[k]) * std::complex<double>(in[k]));
+            });
         }
     }
     // Whether Ex·(F·Eyᵀ) costs less than (Ex·F)·Eyᵀ (and likewise for the adjoint).
@@ -279,9 +303,9 @@ struct FieldOperator::Impl {
     // Ψ without the diagonal phases Φx, Φy, on the box, in single precision (the retrieval's
     // inner loop; its phases need nowhere near double precision).
     void forward_unphased(const std::complex<double>* object, Eigen::MatrixXcf& psi) const {
-        Eigen::MatrixXcd f;
+        RowMajor<double> f;
         fold(object, f);
-        const Eigen::MatrixXcf ff = f.cast<std::complex<float>>();
+        const RowMajor<float> ff = f.cast<std::complex<float>>();
         if (right_first())
             psi.noalias() = ax->ef * (ff * ay->ef_transpose);
         else
@@ -289,7 +313,7 @@ struct FieldOperator::Impl {
     }
     // object += the adjoint of forward_unphased applied to G (on the box).
     void adjoint_unphased_add(const Eigen::MatrixXcf& g, std::complex<double>* object) const {
-        Eigen::MatrixXcf b;
+        RowMajor<float> b;
         if (right_first())
             b.noalias() = (ax->ef_adjoint * g) * ay->ef_conjugate;
         else
@@ -367,6 +391,14 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     axis(k.row, k.dx_um, s.rows, s.row_index, dx, slot_r);
     axis(k.col, k.dy_um, s.cols, s.col_index, dy, slot_c);
     const std::size_t nr = s.row_index.size(), nc = s.col_index.size();
+    // Tile columns step by one along the footprint's columns, wrapping once at the border.
+    s.col_wrap = int(nc);
+    for (std::size_t c = 1; c < nc; ++c) {
+        const int expected = (s.col_index[c - 1] + 1) % s.cols;
+        if (s.col_index[c] != expected)
+            throw std::logic_error("FieldOperator: the footprint's columns are not consecutive on the tile");
+        if (s.col_index[c] == 0) s.col_wrap = int(c);
+    }
     // The window c(δ) w² = c_x(δx) c_y(δy) (Gaussian), cut where |δ| > 3σ_p: on each row a run
     // of columns (the cut is a disk).
     s.lo.assign(nr, int(nc));
@@ -416,7 +448,7 @@ std::vector<std::complex<double>> FieldOperator::forward(const std::vector<std::
     if (object.size() != std::size_t(s.rows) * s.cols)
         throw std::invalid_argument("object has " + std::to_string(object.size()) +
                                     " values; expected rows * cols = " + std::to_string(std::size_t(s.rows) * s.cols));
-    Eigen::MatrixXcd f;
+    Impl::RowMajor<double> f;
     s.fold(object.data(), f);
     const Eigen::MatrixXcd psi = s.ax->e * f * s.ay->e.transpose();
     std::vector<std::complex<double>> field(std::size_t(s.n) * s.n, 0.0);
@@ -437,7 +469,7 @@ std::vector<std::complex<double>> FieldOperator::adjoint(const std::vector<std::
         for (int q = 0; q < s.mb(); ++q)
             g(p, q) = std::conj(s.phase_x[std::size_t(p)] * s.phase_y[std::size_t(q)]) *
                       field[std::size_t(s.a0() + p) * s.n + s.b0() + q];
-    const Eigen::MatrixXcd b = s.ax->e.adjoint() * g * s.ay->e.conjugate();
+    const Impl::RowMajor<double> b = s.ax->e.adjoint() * g * s.ay->e.conjugate();
     std::vector<std::complex<double>> object(std::size_t(s.rows) * s.cols, 0.0);
     s.unfold_add(b, object.data());
     return object;
