@@ -7,6 +7,16 @@
 //   I = X · (P ⊙ O_fp) · Yᵀ,  X[p,r] = exp(−2π²σ²u_x[p]²) e^{−i2π u_x[p] δ_x[r]},
 // O_fp the object on the footprint's rows × columns and P the window c·w² (0 beyond 3σ_p).
 // Its adjoint is Xᴴ · G · conj(Y), masked by P and scattered back onto the tile.
+//
+// X itself is not stored per footprint: with the footprint's rows in offset order (δ_r = δ_0 +
+// r·d) and u_p = u_first + p·du, X[p, r] = φ_p E[p, r mod q] ψ_r with the footprint's own
+// phase φ_p = e^{−i2π u_p δ_0}, E[p, j] = env(u_p) e^{−i2π p j du d} and ψ_r =
+// e^{−i2π u_first r d}; E and ψ depend only on the u grid, d and the row count, and are shared
+// by the ~700 footprints of a wavelength (AxisFactors). When q·du·d is an integer for some
+// q < rows, rows q apart see the same phase at every pixel: they are summed first ("folded")
+// and E has q columns. The window is separable (a Gaussian) cut to a disk: per footprint two
+// vectors and each row's run of columns. The retrieval drops Φ: it changes no |Ψ| and cancels
+// in the adjoint of an amplitude loss.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
