@@ -611,13 +611,14 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     }
     if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
 
-    std::vector<double> coverage(texels, 0.0);
-    for (const Slice& s : slices) FieldAccess::impl(s.op).add_coverage(coverage);
-    const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
-
     // Texels no footprint sees carry no information: they stay 0.
     std::vector<double> mask(texels);
-    for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
+    {
+        std::vector<double> coverage(texels, 0.0);  // released here: the grid is ~80 samples per texel
+        for (const Slice& s : slices) FieldAccess::impl(s.op).add_coverage(coverage);
+        const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
+        for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
+    }
     std::vector<std::complex<double>> object(texels);
     for (std::size_t t = 0; t < texels; ++t) object[t] = mask[t] * (initial.empty() ? 1.0 : initial[t]);
 
@@ -755,6 +756,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
             xv[2 * t + 1] = object[t].imag();
         }
     }
+    std::vector<std::complex<double>>().swap(object);  // the start is in xv now
     std::vector<std::complex<double>> grad, trial;
     const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
         double value;
