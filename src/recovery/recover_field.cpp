@@ -7,14 +7,27 @@
 //   I = X · (P ⊙ O_fp) · Yᵀ,  X[p,r] = exp(−2π²σ²u_x[p]²) e^{−i2π u_x[p] δ_x[r]},
 // O_fp the object on the footprint's rows × columns and P the window c·w² (0 beyond 3σ_p).
 // Its adjoint is Xᴴ · G · conj(Y), masked by P and scattered back onto the tile.
+//
+// X itself is not stored per footprint: with the footprint's rows in offset order (δ_r = δ_0 +
+// r·d) and u_p = u_first + p·du, X[p, r] = φ_p E[p, r mod q] ψ_r with the footprint's own
+// phase φ_p = e^{−i2π u_p δ_0}, E[p, j] = env(u_p) e^{−i2π p j du d} and ψ_r =
+// e^{−i2π u_first r d}; E and ψ depend only on the u grid, d and the row count, and are shared
+// by the ~700 footprints of a wavelength (AxisFactors). When q·du·d is an integer for some
+// q < rows, rows q apart see the same phase at every pixel: they are summed first ("folded")
+// and E has q columns. The window is separable (a Gaussian) cut to a disk: per footprint two
+// vectors and each row's run of columns. The retrieval drops Φ: it changes no |Ψ| and cancels
+// in the adjoint of an amplitude loss.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include <fftw3.h>
 #include <omp.h>
@@ -98,46 +111,233 @@ std::shared_ptr<const Heightfield> shared_flat_grid(int rows, int cols, double t
 
 }  // namespace
 
+namespace {
+
+// One axis (slice rows, or columns) of the field model, shared by every footprint with the
+// same u grid (ω_i, λ, resolution, envelope), fine-grid spacing d and footprint row count.
+// With the footprint's rows in offset order, δ_r = δ_0 + r·d, and u_p = u_first + p·du:
+//   X[p, r] = env(u_p) e^{−i2π u_p δ_r} = φ_p · E[p, r mod q] · ψ_r,
+//   φ_p = e^{−i2π u_p δ_0} (the footprint's own diagonal phase), ψ_r = e^{−i2π u_first r d},
+//   E[p, j] = env(u_p) e^{−i2π p j α},  α = du·d,
+// exact when q·α is an integer: rows q apart then see the same phase at every pixel and are
+// summed ("folded") before the product. The smallest such q ≤ count is used; q = count
+// (nothing folded) when there is none.
+struct AxisFactors {
+    int first = 0, m = 0;                   // slice rows [first, first + m) in use
+    int count = 0, q = 0;                   // footprint rows, fold period
+    std::vector<double> u;                  // u_p (1/µm), p < m
+    std::vector<std::complex<double>> psi;  // ψ_r, r < count
+    Eigen::MatrixXcd e;                     // E: m × q
+    Eigen::MatrixXcf ef, ef_adjoint, ef_transpose, ef_conjugate;
+};
+
+// √c1 per slice pixel for one slice family (model, ω_i, λ, resolution), on the whole slice
+// and on the pixel box the operators use.
+struct SliceAmplitude {
+    std::vector<double> full;
+    Eigen::MatrixXd box;
+};
+
+// The last value made for `key`, shared for as long as someone holds it (the ~700 operators
+// of a wavelength share a few); expired entries are dropped when a new one is made.
+template <class Key, class Value, class Make>
+std::shared_ptr<const Value> shared_value(const Key& key, Make make) {
+    static std::mutex mutex;
+    static std::map<Key, std::weak_ptr<const Value>> cache;
+    std::lock_guard<std::mutex> lock(mutex);
+    const auto found = cache.find(key);
+    if (found != cache.end())
+        if (std::shared_ptr<const Value> kept = found->second.lock()) return kept;
+    for (auto it = cache.begin(); it != cache.end();) it = it->second.expired() ? cache.erase(it) : std::next(it);
+    std::shared_ptr<const Value> made = std::make_shared<const Value>(make());
+    cache[key] = made;
+    return made;
+}
+
+std::shared_ptr<const AxisFactors> axis_factors(double omega_i, double lambda_um, int resolution, double sigma_um,
+                                                double spacing_um, int count) {
+    using Key = std::tuple<double, double, int, double, double, int>;
+    return shared_value<Key, AxisFactors>(Key{omega_i, lambda_um, resolution, sigma_um, spacing_um, count}, [&] {
+        AxisFactors a;
+        // Slice rows whose envelope exp(−2π²σ²u²) reaches kEnvelopeCut of its peak.
+        const double gauss = 2.0 * k_pi * k_pi * sigma_um * sigma_um;
+        a.first = resolution;
+        int last = -1;
+        for (int p = 0; p < resolution; ++p) {
+            const double u = (omega_i + slice_omega(p, resolution)) / lambda_um;
+            if (std::exp(-gauss * u * u) >= kEnvelopeCut) {
+                a.first = std::min(a.first, p);
+                last = p;
+            }
+        }
+        a.m = std::max(0, last - a.first + 1);
+        if (a.m == 0) a.first = 0;
+        a.count = count;
+        const double u_first = (omega_i + slice_omega(a.first, resolution)) / lambda_um;
+        const double alpha = 2.0 / (resolution * lambda_um) * spacing_um;  // du·d
+        a.q = count;
+        for (int t = 1; t < count; ++t) {
+            const double v = t * alpha;
+            if (std::abs(v - std::round(v)) <= 1e-12 * std::max(1.0, v)) {
+                a.q = t;
+                break;
+            }
+        }
+        a.psi.resize(std::size_t(count));
+        for (int r = 0; r < count; ++r) a.psi[std::size_t(r)] = std::polar(1.0, -2.0 * k_pi * u_first * r * spacing_um);
+        a.u.resize(std::size_t(a.m));
+        a.e.resize(a.m, a.q);
+        for (int p = 0; p < a.m; ++p) {
+            const double u = (omega_i + slice_omega(a.first + p, resolution)) / lambda_um;
+            a.u[std::size_t(p)] = u;
+            const double env = std::exp(-gauss * u * u);
+            for (int j = 0; j < a.q; ++j) a.e(p, j) = env * std::polar(1.0, -2.0 * k_pi * alpha * (double(p) * j));
+        }
+        a.ef = a.e.cast<std::complex<float>>();
+        a.ef_adjoint = a.ef.adjoint();
+        a.ef_transpose = a.ef.transpose();
+        a.ef_conjugate = a.ef.conjugate();
+        return a;
+    });
+}
+
+std::shared_ptr<const SliceAmplitude> slice_amplitude(const Query& query, double lambda_um, int resolution,
+                                                      const AxisFactors& ax, const AxisFactors& ay) {
+    using Key = std::tuple<int, double, double, double, int, int, int, int, int>;
+    return shared_value<Key, SliceAmplitude>(
+        Key{int(query.model), query.omega_i[0], query.omega_i[1], lambda_um, resolution, ax.first, ax.m, ay.first,
+            ay.m},
+        [&] {
+            // f = c1 |I|² inside the disk (docs/model.md §5); the renderer writes non-finite
+            // values as 0.
+            SliceAmplitude s;
+            s.full.assign(std::size_t(resolution) * resolution, 0.0);
+            for (int p = 0; p < resolution; ++p) {
+                for (const auto [q, ox, oy] : disk_row(p, resolution)) {
+                    const double c1 = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
+                    if (std::isfinite(c1) && c1 > 0.0) s.full[std::size_t(p) * resolution + q] = std::sqrt(c1);
+                }
+            }
+            s.box.resize(ax.m, ay.m);
+            for (int p = 0; p < ax.m; ++p)
+                for (int q = 0; q < ay.m; ++q)
+                    s.box(p, q) = s.full[std::size_t(ax.first + p) * resolution + ay.first + q];
+            return s;
+        });
+}
+
+}  // namespace
+
+// Per footprint: its rows / columns on the tile (in offset order), the window as a separable
+// product cut to the 3σ_p disk (P[r, c] = wx[r]·wy[c] for c in [lo[r], hi[r]), else 0), the
+// diagonal phases φ; the factor matrices are shared (AxisFactors). The forward map is
+//   Ψ = Φx · Ex · F · Eyᵀ · Φy,  F[j, l] = Σ_{r ≡ j (qx), c ≡ l (qy)} ψx_r ψy_c P[r, c] O[r, c],
+// and the retrieval drops Φx, Φy: they change no |Ψ| and cancel in the adjoint of a loss of |Ψ|
+// (its gradient is a real weight times Ψ).
 struct FieldOperator::Impl {
     int rows = 0, cols = 0, n = 0;
     std::vector<int> row_index, col_index;  // footprint texel rows / columns on the tile
-    Eigen::MatrixXd probe;                  // P[r,c] = c_k w² (0 beyond the 3σ_p cut)
-    int a0 = 0, ma = 0, b0 = 0, mb = 0;     // pixel box [a0, a0+ma) × [b0, b0+mb) in use
-    Eigen::MatrixXcd x, y;                  // ma × rows_fp, mb × cols_fp
-    Eigen::MatrixXd amp;                    // √c1 on the box (0 outside the disk)
-    std::vector<double> amp_full;           // √c1 on the whole slice
+    std::vector<double> wx, wy;             // the separable window
+    std::vector<int> lo, hi;                // columns of row r inside the 3σ_p cut
+    int col_wrap = 0;                       // first footprint column whose tile column wrapped to 0 (else their count)
+    std::vector<std::complex<double>> px, py;            // wx·ψx, wy·ψy
+    std::vector<std::complex<double>> phase_x, phase_y;  // φ on the box rows / columns
+    std::shared_ptr<const AxisFactors> ax, ay;
+    std::shared_ptr<const SliceAmplitude> amp;
 
-    // Ψ = X (P ⊙ O_fp) Yᵀ on the box; `object` is rows × cols, row-major.
-    void forward(const std::complex<double>* object, Eigen::MatrixXcd& psi) const {
-        Eigen::MatrixXcd m(probe.rows(), probe.cols());
-        for (Eigen::Index r = 0; r < probe.rows(); ++r)
-            for (Eigen::Index c = 0; c < probe.cols(); ++c)
-                m(r, c) = probe(r, c) * object[std::size_t(row_index[r]) * cols + col_index[c]];
-        psi.noalias() = x * (m * y.transpose());
-    }
-    // object += P ⊙ (Xᴴ G conj(Y)) scattered onto the tile; G on the box.
-    void adjoint_add(const Eigen::MatrixXcd& g, std::complex<double>* object) const {
-        const Eigen::MatrixXcd m = (x.adjoint() * g) * y.conjugate();
-        for (Eigen::Index r = 0; r < probe.rows(); ++r)
-            for (Eigen::Index c = 0; c < probe.cols(); ++c)
-                object[std::size_t(row_index[r]) * cols + col_index[c]] += probe(r, c) * m(r, c);
+    int a0() const { return ax->first; }
+    int ma() const { return ax->m; }
+    int b0() const { return ay->first; }
+    int mb() const { return ay->m; }
+    const Eigen::MatrixXd& amp_box() const { return amp->box; }
+
+    template <class T>
+    using RowMajor = Eigen::Matrix<std::complex<T>, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+    // Calls body(c, l, t, len) for the runs of row r's columns [lo, hi) along which the column
+    // c, its fold slot l = c mod qy and its tile column t all step by one.
+    template <class Body>
+    void for_runs(std::size_t r, Body body) const {
+        const int qy = ay->q;
+        int c = lo[r], l = c % qy;
+        while (c < hi[r]) {
+            int len = std::min(hi[r] - c, qy - l);
+            if (c < col_wrap) len = std::min(len, col_wrap - c);
+            body(c, l, col_index[std::size_t(c)], len);
+            c += len;
+            l += len;
+            if (l == qy) l = 0;
+        }
     }
 
-    // The same in single precision (the retrieval's inner loop: half the time; its phases
-    // need nowhere near double precision).
-    Eigen::MatrixXcf xf, yf, xf_adjoint, yf_conjugate;
-    void forward(const std::complex<double>* object, Eigen::MatrixXcf& psi) const {
-        Eigen::MatrixXcf m(probe.rows(), probe.cols());
-        for (Eigen::Index r = 0; r < probe.rows(); ++r)
-            for (Eigen::Index c = 0; c < probe.cols(); ++c)
-                m(r, c) = std::complex<float>(probe(r, c) * object[std::size_t(row_index[r]) * cols + col_index[c]]);
-        psi.noalias() = xf * (m * yf.transpose());
+    // F (qx × qy) from the object (rows × cols, row-major).
+    void fold(const std::complex<double>* object, RowMajor<double>& f) const {
+        const int qx = ax->q, qy = ay->q;
+        f.setZero(qx, qy);
+        std::vector<std::complex<double>> line(std::size_t(std::max(qy, 0)));
+        for (std::size_t r = 0; r < row_index.size(); ++r) {
+            std::fill(line.begin(), line.end(), 0.0);
+            const std::complex<double>* o = object + std::size_t(row_index[r]) * cols;
+            for_runs(r, [&](int c, int l, int t, int len) {
+                std::complex<double>* out = line.data() + l;
+                const std::complex<double>* in = o + t;
+                const std::complex<double>* w = py.data() + c;
+                for (int k = 0; k < len; ++k) out[k] += in[k] * w[k];
+            });
+            std::complex<double>* row = f.data() + std::size_t(int(r) % qx) * std::size_t(qy);
+            const std::complex<double> s = px[r];
+            for (int l = 0; l < qy; ++l) row[l] += s * line[std::size_t(l)];
+        }
     }
-    void adjoint_add(const Eigen::MatrixXcf& g, std::complex<double>* object) const {
-        const Eigen::MatrixXcf m = (xf_adjoint * g) * yf_conjugate;
-        for (Eigen::Index r = 0; r < probe.rows(); ++r)
-            for (Eigen::Index c = 0; c < probe.cols(); ++c)
-                object[std::size_t(row_index[r]) * cols + col_index[c]] += probe(r, c) * std::complex<double>(m(r, c));
+    // object += the adjoint of fold applied to B (qx × qy).
+    template <class T>
+    void unfold_add(const RowMajor<T>& b, std::complex<double>* object) const {
+        const int qx = ax->q, qy = ay->q;
+        for (std::size_t r = 0; r < row_index.size(); ++r) {
+            std::complex<double>* o = object + std::size_t(row_index[r]) * cols;
+            const std::complex<double> s = std::conj(px[r]);
+            const std::complex<T>* row = b.data() + std::size_t(int(r) % qx) * std::size_t(qy);
+            for_runs(r, [&](int c, int l, int t, int len) {
+                std::complex<double>* out = o + t;
+                const std::complex<T>* in = row + l;
+                const std::complex<double>* w = py.data() + c;
+                for (int k = 0; k < len; ++k) out[k] += s * (std::conj(w[k]) * std::complex<double>(in[k]));
+            });
+        }
+    }
+    // Whether Ex·(F·Eyᵀ) costs less than (Ex·F)·Eyᵀ (and likewise for the adjoint).
+    bool right_first() const {
+        const double qx = ax->q, qy = ay->q, mx = ax->m, my = ay->m;
+        return qx * qy * my + mx * qx * my <= mx * qx * qy + mx * qy * my;
+    }
+
+    // Ψ without the diagonal phases Φx, Φy, on the box, in single precision (the retrieval's
+    // inner loop; its phases need nowhere near double precision).
+    void forward_unphased(const std::complex<double>* object, Eigen::MatrixXcf& psi) const {
+        RowMajor<double> f;
+        fold(object, f);
+        const RowMajor<float> ff = f.cast<std::complex<float>>();
+        if (right_first())
+            psi.noalias() = ax->ef * (ff * ay->ef_transpose);
+        else
+            psi.noalias() = (ax->ef * ff) * ay->ef_transpose;
+    }
+    // object += the adjoint of forward_unphased applied to G (on the box).
+    void adjoint_unphased_add(const Eigen::MatrixXcf& g, std::complex<double>* object) const {
+        RowMajor<float> b;
+        if (right_first())
+            b.noalias() = (ax->ef_adjoint * g) * ay->ef_conjugate;
+        else
+            b.noalias() = ax->ef_adjoint * (g * ay->ef_conjugate);
+        unfold_add(b, object);
+    }
+    // Σ |P|² per object sample, added to `coverage` (rows × cols).
+    void add_coverage(std::vector<double>& coverage) const {
+        for (std::size_t r = 0; r < row_index.size(); ++r)
+            for (int c = lo[r]; c < hi[r]; ++c) {
+                const double p = wx[r] * wy[std::size_t(c)];
+                coverage[std::size_t(row_index[r]) * cols + col_index[std::size_t(c)]] += p * p;
+            }
     }
 };
 
@@ -173,69 +373,81 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     // kernels, offsets and weights.
     const std::shared_ptr<const Heightfield> flat_grid = shared_flat_grid(s.rows, s.cols, texel_um / refine);
     const Heightfield& flat = *flat_grid;
+    const double d = flat.texel_um();
     const FootprintKernels k = footprint_kernels(flat, query.x_um, query.y_um, query.sigma_p_um);
-    std::vector<int> slot_r(s.rows, -1), slot_c(s.cols, -1);
-    std::vector<double> dx, dy;
-    for (std::size_t i = 0; i < k.size(); ++i) {
-        if (slot_r[k.row[i]] < 0) {
-            slot_r[k.row[i]] = int(s.row_index.size());
-            s.row_index.push_back(k.row[i]);
-            dx.push_back(k.dx_um[i]);
-        }
-        if (slot_c[k.col[i]] < 0) {
-            slot_c[k.col[i]] = int(s.col_index.size());
-            s.col_index.push_back(k.col[i]);
-            dy.push_back(k.dy_um[i]);
-        }
-    }
-    s.probe = Eigen::MatrixXd::Zero(Eigen::Index(s.row_index.size()), Eigen::Index(s.col_index.size()));
-    for (std::size_t i = 0; i < k.size(); ++i) s.probe(slot_r[k.row[i]], slot_c[k.col[i]]) = k.weight[i];
-
-    // Slice grid u = (ω_i + ω_o)/λ and the envelope exp(−2π²σ²u²) per row / column.
-    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
-    const auto axis_box = [&](double omega_i, int& first, int& count) {
-        first = resolution;
-        int last = -1;
-        for (int p = 0; p < resolution; ++p) {
-            const double u = (omega_i + slice_omega(p, resolution)) / lambda_um;
-            if (std::exp(-gauss * u * u) >= kEnvelopeCut) {
-                first = std::min(first, p);
-                last = p;
+    // The footprint's rows (columns) in offset order: the minimal periodic images of a regular
+    // grid, so offset r is δ_0 + r·d.
+    const auto axis = [&](const std::vector<int>& index, const std::vector<double>& offset, int size,
+                          std::vector<int>& tile_index, std::vector<double>& sorted_offset, std::vector<int>& slot) {
+        std::vector<std::pair<double, int>> seen;
+        std::vector<char> taken(std::size_t(size), 0);
+        for (std::size_t i = 0; i < index.size(); ++i)
+            if (!taken[std::size_t(index[i])]) {
+                taken[std::size_t(index[i])] = 1;
+                seen.emplace_back(offset[i], index[i]);
             }
+        std::sort(seen.begin(), seen.end());
+        slot.assign(std::size_t(size), -1);
+        for (std::size_t r = 0; r < seen.size(); ++r) {
+            if (std::abs(seen[r].first - (seen[0].first + double(r) * d)) > 1e-9 * (d + std::abs(seen[r].first)))
+                throw std::logic_error("FieldOperator: footprint offsets are not evenly spaced by the grid's " +
+                                       format_shortest(d) + " um");
+            sorted_offset.push_back(seen[r].first);
+            tile_index.push_back(seen[r].second);
+            slot[std::size_t(seen[r].second)] = int(r);
         }
-        count = std::max(0, last - first + 1);
-        if (count == 0) first = 0;
     };
-    axis_box(query.omega_i[0], s.a0, s.ma);
-    axis_box(query.omega_i[1], s.b0, s.mb);
-    const auto factor = [&](double omega_i, int first, int count, const std::vector<double>& offsets) {
-        Eigen::MatrixXcd f(count, Eigen::Index(offsets.size()));
-        for (int p = 0; p < count; ++p) {
-            const double u = (omega_i + slice_omega(first + p, resolution)) / lambda_um;
-            const double env = std::exp(-gauss * u * u);
-            for (std::size_t r = 0; r < offsets.size(); ++r)
-                f(p, Eigen::Index(r)) = env * std::polar(1.0, -2.0 * k_pi * u * offsets[r]);
-        }
-        return f;
-    };
-    s.x = factor(query.omega_i[0], s.a0, s.ma, dx);
-    s.y = factor(query.omega_i[1], s.b0, s.mb, dy);
-    s.xf = s.x.cast<std::complex<float>>();
-    s.yf = s.y.cast<std::complex<float>>();
-    s.xf_adjoint = s.xf.adjoint();
-    s.yf_conjugate = s.yf.conjugate();
-
-    // f = c1 |I|² inside the disk (docs/model.md §5); the renderer writes non-finite values as 0.
-    s.amp_full.assign(std::size_t(resolution) * resolution, 0.0);
-    for (int p = 0; p < resolution; ++p) {
-        for (const auto [q, ox, oy] : disk_row(p, resolution)) {
-            const double c1 = direction_factors(query.model, query.omega_i, ox, oy, lambda_um).c1;
-            if (std::isfinite(c1) && c1 > 0.0) s.amp_full[std::size_t(p) * resolution + q] = std::sqrt(c1);
-        }
+    std::vector<double> dx, dy;
+    std::vector<int> slot_r, slot_c;
+    axis(k.row, k.dx_um, s.rows, s.row_index, dx, slot_r);
+    axis(k.col, k.dy_um, s.cols, s.col_index, dy, slot_c);
+    const std::size_t nr = s.row_index.size(), nc = s.col_index.size();
+    // Tile columns step by one along the footprint's columns, wrapping once at the border.
+    s.col_wrap = int(nc);
+    for (std::size_t c = 1; c < nc; ++c) {
+        const int expected = (s.col_index[c - 1] + 1) % s.cols;
+        if (s.col_index[c] != expected)
+            throw std::logic_error("FieldOperator: the footprint's columns are not consecutive on the tile");
+        if (s.col_index[c] == 0) s.col_wrap = int(c);
     }
-    s.amp.resize(s.ma, s.mb);
-    for (int p = 0; p < s.ma; ++p)
-        for (int q = 0; q < s.mb; ++q) s.amp(p, q) = s.amp_full[std::size_t(s.a0 + p) * resolution + s.b0 + q];
+    // The window c(δ) w² = c_x(δx) c_y(δy) (Gaussian), cut where |δ| > 3σ_p: on each row a run
+    // of columns (the cut is a disk).
+    s.lo.assign(nr, int(nc));
+    s.hi.assign(nr, 0);
+    std::vector<int> in_row(nr, 0);
+    for (std::size_t i = 0; i < k.size(); ++i) {
+        const std::size_t r = std::size_t(slot_r[std::size_t(k.row[i])]);
+        const int c = slot_c[std::size_t(k.col[i])];
+        s.lo[r] = std::min(s.lo[r], c);
+        s.hi[r] = std::max(s.hi[r], c + 1);
+        ++in_row[r];
+    }
+    for (std::size_t r = 0; r < nr; ++r) {
+        if (in_row[r] != s.hi[r] - s.lo[r])
+            throw std::logic_error("FieldOperator: the footprint's row " + std::to_string(r) +
+                                   " is not one run of columns");
+    }
+    const double sp2 = 2.0 * query.sigma_p_um * query.sigma_p_um;
+    s.wx.resize(nr);
+    s.wy.resize(nc);
+    for (std::size_t r = 0; r < nr; ++r) s.wx[r] = window_weight(dx[r] * dx[r], query.sigma_p_um) * d * d;
+    for (std::size_t c = 0; c < nc; ++c) s.wy[c] = std::exp(-dy[c] * dy[c] / sp2);
+
+    s.ax = axis_factors(query.omega_i[0], lambda_um, resolution, k.sigma_um, d, int(nr));
+    s.ay = axis_factors(query.omega_i[1], lambda_um, resolution, k.sigma_um, d, int(nc));
+    s.px.resize(nr);
+    s.py.resize(nc);
+    for (std::size_t r = 0; r < nr; ++r) s.px[r] = s.wx[r] * s.ax->psi[r];
+    for (std::size_t c = 0; c < nc; ++c) s.py[c] = s.wy[c] * s.ay->psi[c];
+    const auto phases = [](const AxisFactors& a, const std::vector<double>& offset) {
+        std::vector<std::complex<double>> out(a.u.size(), 1.0);
+        if (!offset.empty())
+            for (std::size_t p = 0; p < a.u.size(); ++p) out[p] = std::polar(1.0, -2.0 * k_pi * a.u[p] * offset[0]);
+        return out;
+    };
+    s.phase_x = phases(*s.ax, dx);
+    s.phase_y = phases(*s.ay, dy);
+    s.amp = slice_amplitude(query, lambda_um, resolution, *s.ax, *s.ay);
 }
 
 FieldOperator::~FieldOperator() = default;
@@ -247,11 +459,14 @@ std::vector<std::complex<double>> FieldOperator::forward(const std::vector<std::
     if (object.size() != std::size_t(s.rows) * s.cols)
         throw std::invalid_argument("object has " + std::to_string(object.size()) +
                                     " values; expected rows * cols = " + std::to_string(std::size_t(s.rows) * s.cols));
-    Eigen::MatrixXcd psi;
-    s.forward(object.data(), psi);
+    Impl::RowMajor<double> f;
+    s.fold(object.data(), f);
+    const Eigen::MatrixXcd psi = s.ax->e * f * s.ay->e.transpose();
     std::vector<std::complex<double>> field(std::size_t(s.n) * s.n, 0.0);
-    for (int p = 0; p < s.ma; ++p)
-        for (int q = 0; q < s.mb; ++q) field[std::size_t(s.a0 + p) * s.n + s.b0 + q] = psi(p, q);
+    for (int p = 0; p < s.ma(); ++p)
+        for (int q = 0; q < s.mb(); ++q)
+            field[std::size_t(s.a0() + p) * s.n + s.b0() + q] = s.phase_x[std::size_t(p)] * s.phase_y[std::size_t(q)] *
+                                                                psi(p, q);
     return field;
 }
 
@@ -260,15 +475,18 @@ std::vector<std::complex<double>> FieldOperator::adjoint(const std::vector<std::
     if (field.size() != std::size_t(s.n) * s.n)
         throw std::invalid_argument("field has " + std::to_string(field.size()) +
                                     " values; expected resolution^2 = " + std::to_string(std::size_t(s.n) * s.n));
-    Eigen::MatrixXcd g(s.ma, s.mb);
-    for (int p = 0; p < s.ma; ++p)
-        for (int q = 0; q < s.mb; ++q) g(p, q) = field[std::size_t(s.a0 + p) * s.n + s.b0 + q];
+    Eigen::MatrixXcd g(s.ma(), s.mb());
+    for (int p = 0; p < s.ma(); ++p)
+        for (int q = 0; q < s.mb(); ++q)
+            g(p, q) = std::conj(s.phase_x[std::size_t(p)] * s.phase_y[std::size_t(q)]) *
+                      field[std::size_t(s.a0() + p) * s.n + s.b0() + q];
+    const Impl::RowMajor<double> b = s.ax->e.adjoint() * g * s.ay->e.conjugate();
     std::vector<std::complex<double>> object(std::size_t(s.rows) * s.cols, 0.0);
-    s.adjoint_add(g, object.data());
+    s.unfold_add(b, object.data());
     return object;
 }
 
-const std::vector<double>& FieldOperator::amplitude_factor() const { return m_impl->amp_full; }
+const std::vector<double>& FieldOperator::amplitude_factor() const { return m_impl->amp->full; }
 int FieldOperator::resolution() const { return m_impl->n; }
 
 std::vector<double> refined_heights(const Heightfield& hf, int refine) {
@@ -345,7 +563,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
 
     struct Slice {
         FieldOperator op;
-        Eigen::MatrixXd sqrt_ref;  // √R on the operator's box
+        Eigen::MatrixXf sqrt_ref;  // √R on the operator's box
         double outside = 0.0;      // Σ R beyond the box (the model is 0 there)
     };
     // The operators are independent of each other: built on all threads (each builds its
@@ -375,16 +593,16 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 auto s = std::make_unique<Slice>(
                     Slice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0});
                 const auto& impl = FieldAccess::impl(s->op);
-                s->sqrt_ref.resize(impl.ma, impl.mb);
+                s->sqrt_ref.resize(impl.ma(), impl.mb());
                 const int n = o.resolution;
                 double sum = 0.0;
                 for (int p = 0; p < n; ++p)
                     for (int c = 0; c < n; ++c) {
                         const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
                         sum += r;
-                        const int a = p - impl.a0, b = c - impl.b0;
-                        if (a >= 0 && a < impl.ma && b >= 0 && b < impl.mb)
-                            s->sqrt_ref(a, b) = std::sqrt(r);
+                        const int a = p - impl.a0(), b = c - impl.b0();
+                        if (a >= 0 && a < impl.ma() && b >= 0 && b < impl.mb())
+                            s->sqrt_ref(a, b) = float(std::sqrt(r));
                         else
                             s->outside += r;
                     }
@@ -408,20 +626,15 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     }
     if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
 
-    std::vector<double> coverage(texels, 0.0);
-    for (const Slice& s : slices) {
-        const auto& impl = FieldAccess::impl(s.op);
-        for (Eigen::Index r = 0; r < impl.probe.rows(); ++r)
-            for (Eigen::Index c = 0; c < impl.probe.cols(); ++c)
-                coverage[std::size_t(impl.row_index[r]) * obj_cols + impl.col_index[c]] += impl.probe(r, c) *
-                                                                                           impl.probe(r, c);
-    }
-    comm.allreduce_sum(coverage);  // every rank's footprints
-    const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
-
     // Texels no footprint sees carry no information: they stay 0.
     std::vector<double> mask(texels);
-    for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
+    {
+        std::vector<double> coverage(texels, 0.0);  // released here: the grid is ~80 samples per texel
+        for (const Slice& s : slices) FieldAccess::impl(s.op).add_coverage(coverage);
+        comm.allreduce_sum(coverage);  // every rank's footprints
+        const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
+        for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
+    }
     std::vector<std::complex<double>> object(texels);
     for (std::size_t t = 0; t < texels; ++t) object[t] = mask[t] * (initial.empty() ? 1.0 : initial[t]);
 
@@ -451,14 +664,14 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 guard.run([&] {
                     const Slice& s = slices[i];
                     const auto& impl = FieldAccess::impl(s.op);
-                    impl.forward(obj, psi);
+                    impl.forward_unphased(obj, psi);
                     g.resize(psi.rows(), psi.cols());
                     double v = s.outside;
                     for (Eigen::Index b = 0; b < psi.cols(); ++b)
                         for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                            const double amp = impl.amp(a, b);
+                            const double amp = impl.amp_box()(a, b);
                             if (amp == 0.0) {  // outside the disk: no model value, no gradient
-                                const double r = s.sqrt_ref(a, b);
+                                const double r = double(s.sqrt_ref(a, b));
                                 v += r * r;
                                 g(a, b) = 0.0f;
                                 continue;
@@ -467,11 +680,11 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                             // is far from its overflow / underflow range.
                             const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
                             const double mag = std::sqrt(re * re + im * im);
-                            const double diff = amp * mag - s.sqrt_ref(a, b);
+                            const double diff = amp * mag - double(s.sqrt_ref(a, b));
                             v += diff * diff;
                             g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
                         }
-                    impl.adjoint_add(g, locals[t].data());
+                    impl.adjoint_unphased_add(g, locals[t].data());
                     partial[t] += v * inv_total;
                 });
                 // Every thread's partial gradient is complete here (the for's barrier).
@@ -569,6 +782,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
             xv[2 * t + 1] = object[t].imag();
         }
     }
+    std::vector<std::complex<double>>().swap(object);  // the start is in xv now
     std::vector<std::complex<double>> grad, trial;
     const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
         double value;
