@@ -95,6 +95,12 @@ std::mutex& hdf5_mutex() {
 class Hdf5Session {
 public:
     Hdf5Session() : m_lock(hdf5_mutex()) {
+        // No library shutdown at exit (before HDF5's first call initialises it): after a failed
+        // open of a damaged file HDF5 1.10 keeps internal objects it cannot free and would print
+        // "HDF5: infinite loop closing library" and a trace after our one-line error. Every
+        // file we open is closed by us; the process's exit frees the rest.
+        static const bool no_shutdown_at_exit = (H5dont_atexit(), true);
+        (void)no_shutdown_at_exit;
         H5Eget_auto2(H5E_DEFAULT, &m_function, &m_data);
         H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
     }
