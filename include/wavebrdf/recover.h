@@ -54,6 +54,11 @@ struct BlurredFitSettings {
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
                         const BlurredFitSettings& settings = {},
                         const std::function<bool(int, int, double)>& on_iteration = {});
+// The same over observations held elsewhere (none null; recover_heights passes a subset
+// without copying its slices).
+Heightfield fit_blurred(const std::vector<const Observation*>& observations, const Heightfield& initial,
+                        const BlurredFitSettings& settings = {},
+                        const std::function<bool(int, int, double)>& on_iteration = {});
 
 // ---- 1. The ptychographic field model ------------------------------------------------------
 

@@ -73,9 +73,10 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());
 
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
-    std::map<double, std::vector<Observation>> by_lambda;
+    // (Pointers, not copies: the references are most of the memory a run holds.)
+    std::map<double, std::vector<const Observation*>> by_lambda;
     for (const Observation& o : observations)
-        if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(o);
+        if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(&o);
     if (by_lambda.empty())
         throw std::invalid_argument(
             "recover_heights: no single-wavelength OHS or ROHS observation; the field stage needs some");
@@ -99,8 +100,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     };
 
     // Stage 0: the surface's shape from blurred slices, from flat.
-    std::vector<Observation> mono, blur_set;
-    for (const auto& [lambda, group] : by_lambda) mono.insert(mono.end(), group.begin(), group.end());
+    std::vector<const Observation*> blur_set;
     // The blurred fit sees the slope distribution, nearly the same at every wavelength: the
     // longest ones (smoothest) suffice.
     // It needs the slope distribution everywhere, not the overlap that pins phases down: positions
@@ -112,13 +112,13 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it, ++taken) {
         if (settings.blur_wavelengths > 0 && taken >= settings.blur_wavelengths) break;
         const std::size_t first = blur_set.size();
-        for (const Observation& o : it->second) {
+        for (const Observation* o : it->second) {
             bool close = false;
             for (std::size_t k = first; k < blur_set.size() && !close; ++k) {
-                const double dx = periodic(o.query.x_um - blur_set[k].query.x_um, period_x);
-                const double dy = periodic(o.query.y_um - blur_set[k].query.y_um, period_y);
+                const double dx = periodic(o->query.x_um - blur_set[k]->query.x_um, period_x);
+                const double dy = periodic(o->query.y_um - blur_set[k]->query.y_um, period_y);
                 const double spacing = settings.blur_spacing_sigma *
-                                       std::min(o.query.sigma_p_um, blur_set[k].query.sigma_p_um);
+                                       std::min(o->query.sigma_p_um, blur_set[k]->query.sigma_p_um);
                 close = dx * dx + dy * dy < spacing * spacing;
             }
             if (!close) blur_set.push_back(o);
@@ -134,8 +134,9 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
 
     // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.
     double max_omega_i = 0.0;
-    for (const Observation& o : mono)
-        max_omega_i = std::max(max_omega_i, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
+    for (const auto& [lambda, group] : by_lambda)
+        for (const Observation* o : group)
+            max_omega_i = std::max(max_omega_i, std::hypot(o->query.omega_i[0], o->query.omega_i[1]));
     const int q = settings.refine > 0 ? settings.refine : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
     if (q % 2 == 0 || q > 63)
         throw std::invalid_argument("recover_heights: refine " + std::to_string(q) +
@@ -172,16 +173,22 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             const double lambda = it->first;
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
-            const FieldRetrievalResult r = retrieve_field(
-                it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
-                [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
+            // A copy of this wavelength's observations only while its field is retrieved.
+            FieldRetrievalResult r = [&] {
+                std::vector<Observation> group;
+                group.reserve(it->second.size());
+                for (const Observation* o : it->second) group.push_back(*o);
+                return retrieve_field(
+                    group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
+                    [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); });
+            }();
             if (stopped) return estimate;
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
                 lambdas.push_back(lambda);
-                fields.push_back(r.object);
+                fields.push_back(std::move(r.object));
             } else {
-                fields[std::size_t(at - lambdas.begin())] = r.object;
+                fields[std::size_t(at - lambdas.begin())] = std::move(r.object);
             }
             const bool last = pass + 1 == passes && std::next(it) == by_lambda.rend();
             if (settings.cascade && !last) {
