@@ -65,8 +65,11 @@ public:
     void adjoint_wavelength(std::size_t wavelength, const std::vector<Float>& weights,
                             std::vector<double>& gradient) const;
 
-    // Frees what forward kept for the adjoint (every wavelength's field, factors and slice);
-    // the height-independent tables stay. adjoint and slice need a new forward afterwards.
+    // Frees what forward kept for the adjoint (every wavelength's field, factors and slice),
+    // forward's output (its reference is then empty) and the phase tables the next call
+    // rebuilds bit for bit; the kernels and the per-pixel factors (shared by every plan of the
+    // same wavelength, direction and resolution) stay. adjoint and slice need a new forward
+    // afterwards. A plan kept this way between calls holds ~10 KB (48² slices, σ_p 1.5 texels).
     void release();
 
     // True when this plan serves exactly these arguments (geometry, query, wavelengths,

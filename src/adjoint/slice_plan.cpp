@@ -300,13 +300,12 @@ void SlicePlan<Float>::release() {
     State& s = *m_state;
     for (typename State::Band& b : s.bands) {
         b.field = detail::ComplexMatrix<Float>();
-        if (auto* engine = dynamic_cast<detail::SeparableEngine<Float>*>(b.engine.get())) {
-            engine->keep_factors(false);  // drops the kept factors
-            engine->keep_factors(s.differentiable);
-        }
+        if (auto* engine = dynamic_cast<detail::SeparableEngine<Float>*>(b.engine.get()))
+            engine->release_tables();  // kept factors and phase tables (rebuilt by the next call)
         b.direct = detail::DirectField();
         b.slice = std::vector<Float>();
     }
+    s.output = std::vector<Float>();
     s.forward_done = false;
 }
 
