@@ -45,8 +45,9 @@ public:
     SlicePlan& operator=(SlicePlan&&) noexcept;
 
     // New heights: rows·cols raw values h[i][j] (texel units, row-major). Recomputes the
-    // kernels' H_k and slopes only. Throws std::invalid_argument on a size mismatch and
-    // std::domain_error on a non-finite value. Invalidates the last forward.
+    // kernels' H_k and slopes only (cost: the footprint's kernels, not rows·cols). Throws
+    // std::invalid_argument on a size mismatch and std::domain_error on a non-finite value among
+    // those the footprint reads (the others cannot change the slice). Invalidates the last forward.
     void set_heights(const std::vector<double>& values);
     // The same from a heightfield of this plan's geometry (std::invalid_argument otherwise).
     void set_heights(const Heightfield& heightfield);

@@ -214,11 +214,12 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             return detail::ordered_parallel_sum(
                 observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
                     const Observation& o = observations[i];
+                    // Built on the flat surface's geometry (no copy of the heights per
+                    // observation), then given the heights like every later call.
                     if (!plans[i])
-                        plans[i] = std::make_unique<SlicePlan<float>>(flat.with_values(x), o.query, o.lambdas_um,
-                                                                      o.resolution, o.channels());
-                    else
-                        plans[i]->set_heights(x);
+                        plans[i] = std::make_unique<SlicePlan<float>>(flat, o.query, o.lambdas_um, o.resolution,
+                                                                      o.channels());
+                    plans[i]->set_heights(x);
                     SlicePlan<float>& plan = *plans[i];
                     const std::vector<float>& f = plan.forward();
                     std::vector<double> d_estimate;
