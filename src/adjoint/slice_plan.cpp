@@ -169,7 +169,8 @@ void SlicePlan<Float>::set_heights(const std::vector<double>& values) {
         if (i < 0) i += s.rows;
         j %= s.cols;
         if (j < 0) j += s.cols;
-        const std::size_t at = static_cast<std::size_t>(i) * static_cast<std::size_t>(s.cols) + static_cast<std::size_t>(j);
+        const std::size_t at = static_cast<std::size_t>(i) * static_cast<std::size_t>(s.cols) +
+                               static_cast<std::size_t>(j);
         if (!std::isfinite(values[at]))
             throw std::domain_error("height value " + std::to_string(at) + " is not finite; expected finite heights");
     };

@@ -104,7 +104,7 @@ int chebyshev_node_count(double alpha, double beta, double weight_sum, double ta
 
 template <typename Float>
 std::shared_ptr<const typename C3Nodes<Float>::PixelFactors> C3Nodes<Float>::pixel_factors(const Query& query,
-                                                                                         double lambda_um, int n) {
+                                                                                           double lambda_um, int n) {
     // The cache holds weak references: an entry lives as long as some plan uses it.
     struct Entry {
         Model model;

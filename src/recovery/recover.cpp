@@ -17,9 +17,6 @@
 #include "wavebrdf/slice_plan.h"
 #include "core/parallel.h"
 
-#include <malloc.h>
-#include <sys/resource.h>
-#include <cstdio>
 namespace wavebrdf {
 
 double height_rel_rmse(const Heightfield& estimate, const Heightfield& truth) {

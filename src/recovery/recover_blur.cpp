@@ -90,7 +90,7 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
             Eigen::MatrixXf blur_float;  // the same in single precision (the products are half an evaluation)
         };
         struct Blurred {
-            std::size_t matrix;               // into `matrices`
+            std::size_t matrix;              // into `matrices`
             Eigen::MatrixXd sqrt_reference;  // n × n: √(B R Bᵀ)
         };
         std::vector<BlurMatrix> matrices;
