@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <complex>
 #include <map>
+#include <malloc.h>
 #include <random>
 #include <thread>
 
@@ -509,6 +510,48 @@ TEST(FitBlurred, FindsTheShapeFromFlat) {
     EXPECT_LT(height_rel_rmse(narrow, c.truth), height_rel_rmse(wide, c.truth));
     s.blur_widths = {-1.0};
     EXPECT_THROW(fit_blurred(c.observations, flat, s), std::domain_error);
+}
+
+// The blurred fit and the refinement hold no more memory at their last iteration than at their
+// third (only the L-BFGS history, 2·history vectors of rows·cols doubles, may still fill), and
+// the refinement's plans, kept between iterations, stay light: under 16 KB per observation
+// (a plan used to keep its per-pixel factors, phase tables and output: ~70 KB at 64² slices).
+// Measured in a child on one thread, where every allocation is in glibc's main arena.
+TEST(RecoverHeights, HeapDoesNotGrowWithIterations) {
+    const SmallCase c = small_case(21);
+    RecoverSettings s = quick_settings();
+    s.blurred.blur_widths = {8.0};
+    s.blurred.iterations = 10;
+    s.field.iterations = 3;
+    s.refine_iterations = 10;
+    const double history_bytes = 2.0 * std::max(s.blurred.history, s.refine_history) * 144 * sizeof(double);
+    const double observations = double(c.observations.size());
+    const double measured = test::child_peak_memory_bytes([&] {
+        std::map<std::string, std::vector<double>> heap;  // by stage, per report
+        const auto in_use = [] { return double(mallinfo2().uordblks); };
+        double before_refine = -1.0;
+        recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
+            if (m.stage == "unwrap") before_refine = in_use();
+            heap[m.stage].push_back(in_use());
+            return true;
+        });
+        bool ok = before_refine > 0.0;
+        for (const char* stage : {"blur:0", "refine"}) {
+            const std::vector<double>& h = heap[stage];
+            if (h.size() < 8) return false;
+            if (h.back() > h[2] + history_bytes + 16384.0) {
+                std::fprintf(stderr, "%s: heap %.0f at iteration 3, %.0f at the last\n", stage, h[2], h.back());
+                ok = false;
+            }
+        }
+        const double plans = heap["refine"].front() - before_refine;
+        if (plans > 16384.0 * observations + history_bytes) {
+            std::fprintf(stderr, "refinement plans: %.0f bytes for %.0f observations\n", plans, observations);
+            ok = false;
+        }
+        return ok;
+    });
+    EXPECT_GT(measured, 0.0) << "the heap grew with the iterations, or the plans are heavy (see stderr)";
 }
 
 TEST(AutoRefine, SamplesTheSliceBandAndTheField) {

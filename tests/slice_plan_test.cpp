@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "test_util.h"
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/spectrum.h"
@@ -181,6 +183,39 @@ TEST(SlicePlanTest, BadInputThrows) {
 }
 
 // The mix pair is a forward / adjoint pair: Σ W · mix(f) = Σ_l adjoint_l(W) · f_l.
+// A plan reads only its footprint's texels and their neighbours: a NaN elsewhere is not
+// checked (set_heights costs the footprint, not rows·cols) and cannot change the slice or the
+// gradient; a NaN the footprint reads is refused. Plans released between cycles (their phase
+// tables dropped, the per-pixel factors shared with a second plan) give the same bits as a
+// plan that never released.
+TEST(SlicePlanTest, ReadsOnlyItsFootprintAndReleasesWithoutChangingResults) {
+    const Heightfield hf = random_heightfield(32, 32, 0.3, 21, 1.0, 1.0);
+    const Query q = make_query(Model::OHS, 8.0, 8.0, 1.0);  // kernels within 3 texels of (8, 8)
+    SlicePlan<float> kept(hf, q, {0.5}, 24, 1), released(hf, q, {0.5}, 24, 1);
+    const SlicePlan<float> other(hf, make_query(Model::OHS, 20.0, 20.0, 1.0), {0.5}, 24, 1);
+    std::vector<double> far = hf.values();
+    far[std::size_t(25) * 32 + 25] = std::nan("");
+    for (int cycle = 0; cycle < 2; ++cycle) {
+        kept.set_heights(hf.values());
+        released.set_heights(far);
+        const std::vector<float> a = kept.forward();
+        const std::vector<float> b = released.forward();
+        EXPECT_EQ(a, b);
+        std::vector<double> weights(a.size());
+        for (std::size_t p = 0; p < a.size(); ++p) weights[p] = std::cos(0.11 * double(p));
+        std::vector<double> ga, gb;
+        kept.adjoint(weights, ga);
+        released.adjoint(weights, gb);
+        EXPECT_EQ(ga, gb);
+        released.release();
+        EXPECT_TRUE(std::isnan(far[std::size_t(25) * 32 + 25]));
+    }
+    std::vector<double> near = hf.values();
+    near[std::size_t(9) * 32 + 8] = std::nan("");
+    test::expect_throw_naming<std::domain_error>([&] { released.set_heights(near); },
+                                                 "height value " + std::to_string(9 * 32 + 8));
+}
+
 TEST(SpectralMixTest, AdjointIsTheTransposeOfTheMix) {
     const std::vector<double> lambdas = spectral_wavelengths_um(5);
     const std::vector<double> mix = spectral_mix_weights(lambdas);

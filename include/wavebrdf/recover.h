@@ -64,6 +64,12 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                         const BlurredFitSettings& settings = {},
                         const std::function<bool(int, int, double)>& on_iteration = {},
                         const Communicator& comm = serial_communicator());
+// The same over observations held elsewhere (none null; recover_heights passes a subset
+// without copying its slices).
+Heightfield fit_blurred(const std::vector<const Observation*>& observations, const Heightfield& initial,
+                        const BlurredFitSettings& settings = {},
+                        const std::function<bool(int, int, double)>& on_iteration = {},
+                        const Communicator& comm = serial_communicator());
 
 // ---- 1. The ptychographic field model ------------------------------------------------------
 

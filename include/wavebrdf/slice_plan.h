@@ -45,8 +45,9 @@ public:
     SlicePlan& operator=(SlicePlan&&) noexcept;
 
     // New heights: rows·cols raw values h[i][j] (texel units, row-major). Recomputes the
-    // kernels' H_k and slopes only. Throws std::invalid_argument on a size mismatch and
-    // std::domain_error on a non-finite value. Invalidates the last forward.
+    // kernels' H_k and slopes only (cost: the footprint's kernels, not rows·cols). Throws
+    // std::invalid_argument on a size mismatch and std::domain_error on a non-finite value among
+    // those the footprint reads (the others cannot change the slice). Invalidates the last forward.
     void set_heights(const std::vector<double>& values);
     // The same from a heightfield of this plan's geometry (std::invalid_argument otherwise).
     void set_heights(const Heightfield& heightfield);
@@ -65,8 +66,11 @@ public:
     void adjoint_wavelength(std::size_t wavelength, const std::vector<Float>& weights,
                             std::vector<double>& gradient) const;
 
-    // Frees what forward kept for the adjoint (every wavelength's field, factors and slice);
-    // the height-independent tables stay. adjoint and slice need a new forward afterwards.
+    // Frees what forward kept for the adjoint (every wavelength's field, factors and slice),
+    // forward's output (its reference is then empty) and the phase tables the next call
+    // rebuilds bit for bit; the kernels and the per-pixel factors (shared by every plan of the
+    // same wavelength, direction and resolution) stay. adjoint and slice need a new forward
+    // afterwards. A plan kept this way between calls holds ~10 KB (48² slices, σ_p 1.5 texels).
     void release();
 
     // True when this plan serves exactly these arguments (geometry, query, wavelengths,

@@ -160,10 +160,28 @@ void SlicePlan<Float>::set_heights(const std::vector<double>& values) {
     if (values.size() != s.cells())
         throw std::invalid_argument("heights have " + std::to_string(values.size()) +
                                     " values; expected rows*cols = " + std::to_string(s.cells()));
-    for (std::size_t at = 0; at < values.size(); ++at)
+    // Only the values the footprint reads (its kernels' texels and their neighbours) are
+    // checked: the others cannot change the slice, and checking all rows·cols per plan made a
+    // recovery's iteration quadratic in the area (one plan per observation).
+    FootprintKernels& k = s.kernels;
+    const auto check = [&](int i, int j) {
+        i %= s.rows;
+        if (i < 0) i += s.rows;
+        j %= s.cols;
+        if (j < 0) j += s.cols;
+        const std::size_t at = static_cast<std::size_t>(i) * static_cast<std::size_t>(s.cols) +
+                               static_cast<std::size_t>(j);
         if (!std::isfinite(values[at]))
             throw std::domain_error("height value " + std::to_string(at) + " is not finite; expected finite heights");
-    FootprintKernels& k = s.kernels;
+    };
+    for (std::size_t idx = 0; idx < k.size(); ++idx) {
+        const int i = k.row[idx], j = k.col[idx];
+        check(i, j);
+        check(i + 1, j);
+        check(i - 1, j);
+        check(i, j + 1);
+        check(i, j - 1);
+    }
     // As Heightfield::height_um and Heightfield::slope, term for term (so bit for bit).
     for (std::size_t idx = 0; idx < k.size(); ++idx) {
         const int i = k.row[idx], j = k.col[idx];
@@ -300,13 +318,12 @@ void SlicePlan<Float>::release() {
     State& s = *m_state;
     for (typename State::Band& b : s.bands) {
         b.field = detail::ComplexMatrix<Float>();
-        if (auto* engine = dynamic_cast<detail::SeparableEngine<Float>*>(b.engine.get())) {
-            engine->keep_factors(false);  // drops the kept factors
-            engine->keep_factors(s.differentiable);
-        }
+        if (auto* engine = dynamic_cast<detail::SeparableEngine<Float>*>(b.engine.get()))
+            engine->release_tables();  // kept factors and phase tables (rebuilt by the next call)
         b.direct = detail::DirectField();
         b.slice = std::vector<Float>();
     }
+    s.output = std::vector<Float>();
     s.forward_done = false;
 }
 

@@ -8,8 +8,10 @@
 #include "forward/c3_nodes.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
+#include <mutex>
 
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/constants.h"
@@ -101,19 +103,36 @@ int chebyshev_node_count(double alpha, double beta, double weight_sum, double ta
 }
 
 template <typename Float>
-C3Nodes<Float>::C3Nodes(const Query& query, const SliceGrid& grid, double lambda_um, int n, double tolerance)
-    : m_query(query),
-      m_grid(grid),
-      m_lambda_um(lambda_um),
-      m_n(n),
-      m_tolerance(tolerance),
-      m_scaled(!is_separable(query.model)),
-      m_kirchhoff(query.model == Model::Kirchhoff) {
+std::shared_ptr<const typename C3Nodes<Float>::PixelFactors> C3Nodes<Float>::pixel_factors(const Query& query,
+                                                                                           double lambda_um, int n) {
+    // The cache holds weak references: an entry lives as long as some plan uses it.
+    struct Entry {
+        Model model;
+        std::array<double, 2> omega_i;
+        double lambda_um;
+        int n;
+        std::weak_ptr<const PixelFactors> factors;
+    };
+    static std::mutex mutex;
+    static std::vector<Entry> cache;
+    const auto find = [&]() -> std::shared_ptr<const PixelFactors> {
+        for (const Entry& e : cache)
+            if (e.model == query.model && e.omega_i == query.omega_i && e.lambda_um == lambda_um && e.n == n)
+                if (auto f = e.factors.lock()) return f;
+        return nullptr;
+    };
+    {
+        const std::lock_guard<std::mutex> lock(mutex);
+        if (auto f = find()) return f;
+    }
+    auto made = std::make_shared<PixelFactors>();
+    PixelFactors& f = *made;
+    const bool scaled = !is_separable(query.model);
     const std::size_t pixels = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
     allocating("the " + std::to_string(n) + "x" + std::to_string(n) + " slice's per-pixel factors",
-               (m_scaled ? 16.0 : 8.0) * double(pixels), [&] {
-                   m_c1.assign(pixels, 0.0);
-                   if (m_scaled) m_s.assign(pixels, 0.0);
+               (scaled ? 16.0 : 8.0) * double(pixels), [&] {
+                   f.c1.assign(pixels, 0.0);
+                   if (scaled) f.s.assign(pixels, 0.0);
                });
     // Rows in parallel (a 1024² slice has a million pixels, each two square roots).
     double s_lo = std::numeric_limits<double>::infinity();
@@ -124,18 +143,39 @@ C3Nodes<Float>::C3Nodes(const Query& query, const SliceGrid& grid, double lambda
               : s_hi) if (worth_parallel(static_cast <long long>(n) * n))
     for (int p = 0; p < n; ++p)
         for (const auto [q, ox, oy] : disk_row(p, n)) {
-            const DirectionFactors f = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
+            const DirectionFactors d = direction_factors(query.model, query.omega_i, ox, oy, lambda_um);
             const std::size_t at = static_cast<std::size_t>(p) * n + q;
-            m_c1[at] = f.c1;
-            if (!m_scaled) continue;
-            m_s[at] = f.phase_scale;
-            s_lo = std::min(s_lo, f.phase_scale);
-            s_hi = std::max(s_hi, f.phase_scale);
+            f.c1[at] = d.c1;
+            if (!scaled) continue;
+            f.s[at] = d.phase_scale;
+            s_lo = std::min(s_lo, d.phase_scale);
+            s_hi = std::max(s_hi, d.phase_scale);
         }
-    m_s_lo = s_lo;
-    m_s_hi = s_hi;
-    if (!m_scaled || !(m_s_lo <= m_s_hi)) m_s_lo = m_s_hi = 1.0;
+    f.s_lo = s_lo;
+    f.s_hi = s_hi;
+    if (!scaled || !(f.s_lo <= f.s_hi)) f.s_lo = f.s_hi = 1.0;
+    const std::lock_guard<std::mutex> lock(mutex);
+    if (auto other = find()) return other;  // made by another thread meanwhile (the same values)
+    cache.erase(std::remove_if(cache.begin(), cache.end(), [](const Entry& e) { return e.factors.expired(); }),
+                cache.end());
+    cache.push_back(Entry{query.model, query.omega_i, lambda_um, n, made});
+    return made;
 }
+
+template <typename Float>
+C3Nodes<Float>::C3Nodes(const Query& query, const SliceGrid& grid, double lambda_um, int n, double tolerance)
+    : m_query(query),
+      m_grid(grid),
+      m_lambda_um(lambda_um),
+      m_n(n),
+      m_tolerance(tolerance),
+      m_scaled(!is_separable(query.model)),
+      m_kirchhoff(query.model == Model::Kirchhoff),
+      m_pixels(pixel_factors(query, lambda_um, n)),
+      m_c1(m_pixels->c1),
+      m_s(m_pixels->s),
+      m_s_lo(m_pixels->s_lo),
+      m_s_hi(m_pixels->s_hi) {}
 
 template <typename Float>
 KernelWeights C3Nodes<Float>::node_weights(const FootprintKernels& k, double s) const {

@@ -17,6 +17,7 @@
 // (0 at the nodes, e.g. normal light's specular peak at S = 1); a priori with the field at the
 // middle node S_c, then checked against the computed slice: if max c1 E_pq (2|I| + E_pq) exceeds
 // tolerance × the peak, the slice is computed again with more nodes (docs/c3_nodes.md).
+#include <memory>
 #include <vector>
 
 #include "forward/field_engine.h"
@@ -102,7 +103,16 @@ private:
     double m_tolerance;
     bool m_scaled;  // GHS, RGHS, Kirchhoff
     bool m_kirchhoff;
-    std::vector<double> m_c1, m_s;  // per pixel, row-major (m_s only when scaled)
+    // c1 and S of every pixel depend only on the model, ω_i, λ and n, so every plan of the same
+    // wavelength and direction shares one copy (a recovery holds thousands of plans).
+    struct PixelFactors {
+        std::vector<double> c1, s;  // per pixel, row-major (s only when scaled)
+        double s_lo = 1.0, s_hi = 1.0;
+    };
+    static std::shared_ptr<const PixelFactors> pixel_factors(const Query& query, double lambda_um, int n);
+    std::shared_ptr<const PixelFactors> m_pixels;
+    const std::vector<double>& m_c1;
+    const std::vector<double>& m_s;
     double m_s_lo = 1.0, m_s_hi = 1.0;
     std::vector<double> m_node_t, m_node_s, m_bary;  // nodes in [−1, 1], in S, barycentric weights
     double m_h_ref = 0.0;

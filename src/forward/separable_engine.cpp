@@ -34,7 +34,22 @@ void check_weights(const KernelWeights& weights, std::size_t kernels) {
 
 template <typename Float>
 SeparableEngine<Float>::SeparableEngine(const FootprintKernels& kernels, const SliceGrid& grid, double lambda_um, int n)
-    : m_kernels(kernels), m_grid(grid), m_phases(kernels, grid), m_lambda_um(lambda_um), m_n(n) {}
+    : m_kernels(kernels), m_grid(grid), m_lambda_um(lambda_um), m_n(n) {}
+
+template <typename Float>
+const PhaseTables& SeparableEngine<Float>::phases() {
+    if (!m_phases) m_phases = std::make_unique<PhaseTables>(m_kernels, m_grid);
+    return *m_phases;
+}
+
+template <typename Float>
+void SeparableEngine<Float>::release_tables() {
+    m_phases.reset();
+    m_kept.clear();
+    m_kept_bytes = 0.0;
+    m_kept_slope_x = std::vector<double>();
+    m_kept_slope_y = std::vector<double>();
+}
 
 template <typename Float>
 void SeparableEngine<Float>::keep_factors(bool keep) {
@@ -101,7 +116,7 @@ void SeparableEngine<Float>::forward(const KernelWeights& weights, double shift_
         const Eigen::Index count = std::min(chunk, total - k0);
         const Eigen::Index base = cached ? k0 : 0;
         if (!cached)
-            build_factors<Float>(m_kernels, m_grid, m_phases, m_lambda_um, shift_scale, k0, count, built_xs, built_ys);
+            build_factors<Float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, built_xs, built_ys);
         for (std::size_t v = 0; v < weights.size(); ++v) {
             // Y·diag(w_v): the weights enter the smaller factor.
             for (Eigen::Index c = 0; c < count; ++c) {
@@ -159,7 +174,7 @@ void SeparableEngine<Float>::adjoint(const KernelWeights& weights, double shift_
         const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
         const Eigen::Index base = cached ? k0 : 0;
         if (!cached)
-            build_factors<Float>(m_kernels, m_grid, m_phases, m_lambda_um, shift_scale, k0, count, built_xs, built_ys);
+            build_factors<Float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, built_xs, built_ys);
         std::fill(tx.begin(), tx.end(), 0.0);
         std::fill(ty.begin(), ty.end(), 0.0);
         for (std::size_t vec = 0; vec < weights.size(); ++vec) {

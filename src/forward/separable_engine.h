@@ -23,6 +23,9 @@ public:
 
     // Keep the factor matrices built by forward for the adjoint (differentiable plans).
     void keep_factors(bool keep);
+    // Frees the phase tables and the kept factors (the next call rebuilds the tables, with the
+    // same values): what a plan kept between calls is then only the kernels.
+    void release_tables();
 
     void forward(const KernelWeights& weights, double shift_scale, std::vector<ComplexMatrix<Float>>& fields) override;
     void adjoint(const KernelWeights& weights, double shift_scale, const std::vector<ComplexMatrix<Float>>& cotangents,
@@ -39,7 +42,8 @@ private:
 
     const FootprintKernels& m_kernels;
     SliceGrid m_grid;
-    PhaseTables m_phases;
+    std::unique_ptr<PhaseTables> m_phases;  // built on first use (phases())
+    const PhaseTables& phases();
     double m_lambda_um;
     int m_n;
     bool m_keep = false;

@@ -60,7 +60,8 @@ namespace {
 // separable observations, with an entry (maybe empty) for every rank's wavelengths;
 // `observations_total` counts all ranks' observations.
 Heightfield recover_stages(const std::vector<Observation>& observations,
-                           const std::map<double, std::vector<Observation>>& by_lambda, double observations_total,
+                           const std::map<double, std::vector<const Observation*>>& by_lambda,
+                           double observations_total,
                            const Heightfield& flat, int rows, int cols, double texel_um, double vscale,
                            const RecoverSettings& settings, const std::function<bool(const StageMetrics&)>& on_step,
                            const Heightfield* truth, const Communicator& comm) {
@@ -86,8 +87,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     };
 
     // Stage 0: the surface's shape from blurred slices, from flat.
-    std::vector<Observation> mono, blur_set;
-    for (const auto& [lambda, group] : by_lambda) mono.insert(mono.end(), group.begin(), group.end());
+    // (Pointers, not copies: the references are most of the memory a run holds.)
+    std::vector<const Observation*> blur_set;
     // The blurred fit sees the slope distribution, nearly the same at every wavelength: the
     // longest ones (smoothest) suffice.
     // It needs the slope distribution everywhere, not the overlap that pins phases down: positions
@@ -102,8 +103,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it, ++taken) {
         if (settings.blur_wavelengths > 0 && taken >= settings.blur_wavelengths) break;
         std::vector<double> mine;
-        for (const Observation& o : it->second)
-            mine.insert(mine.end(), {o.query.x_um, o.query.y_um, o.query.sigma_p_um});
+        for (const Observation* o : it->second)
+            mine.insert(mine.end(), {o->query.x_um, o->query.y_um, o->query.sigma_p_um});
         std::vector<std::size_t> counts;
         const std::vector<double> all = all_gather(comm, mine, &counts);
         std::size_t first_mine = 0;
@@ -134,8 +135,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
 
     // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.
     double max_omega_i = 0.0;
-    for (const Observation& o : mono)
-        max_omega_i = std::max(max_omega_i, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
+    for (const auto& [lambda, group] : by_lambda)
+        for (const Observation* o : group)
+            max_omega_i = std::max(max_omega_i, std::hypot(o->query.omega_i[0], o->query.omega_i[1]));
     for (double w : all_gather(comm, {max_omega_i})) max_omega_i = std::max(max_omega_i, w);  // every rank's
     const int q = settings.refine > 0 ? settings.refine : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
     if (q % 2 == 0 || q > 63)
@@ -173,16 +175,22 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             const double lambda = it->first;
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
-            const FieldRetrievalResult r = retrieve_field(
-                it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
-                [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
+            // A copy of this wavelength's observations only while its field is retrieved.
+            FieldRetrievalResult r = [&] {
+                std::vector<Observation> group;
+                group.reserve(it->second.size());
+                for (const Observation* o : it->second) group.push_back(*o);
+                return retrieve_field(
+                    group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
+                    [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
+            }();
             if (stopped) return estimate;
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
                 lambdas.push_back(lambda);
-                fields.push_back(r.object);
+                fields.push_back(std::move(r.object));
             } else {
-                fields[std::size_t(at - lambdas.begin())] = r.object;
+                fields[std::size_t(at - lambdas.begin())] = std::move(r.object);
             }
             const bool last = pass + 1 == passes && std::next(it) == by_lambda.rend();
             if (settings.cascade && !last) {
@@ -208,11 +216,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             return detail::allreduced(comm, g, detail::ordered_parallel_sum(
                 observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
                     const Observation& o = observations[i];
+                    // Built on the flat surface's geometry (no copy of the heights per
+                    // observation), then given the heights like every later call.
                     if (!plans[i])
-                        plans[i] = std::make_unique<SlicePlan<float>>(flat.with_values(x), o.query, o.lambdas_um,
-                                                                      o.resolution, o.channels());
-                    else
-                        plans[i]->set_heights(x);
+                        plans[i] = std::make_unique<SlicePlan<float>>(flat, o.query, o.lambdas_um, o.resolution,
+                                                                      o.channels());
+                    plans[i]->set_heights(x);
                     SlicePlan<float>& plan = *plans[i];
                     const std::vector<float>& f = plan.forward();
                     std::vector<double> d_estimate;
@@ -262,14 +271,15 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
-    std::map<double, std::vector<Observation>> by_lambda;
+    // (Pointers, not copies: the references are most of the memory a run holds.)
+    std::map<double, std::vector<const Observation*>> by_lambda;
     run_agreed(comm, [&] {
         for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
         // Here, not only in the renderer: the stages render inside parallel regions.
         for (const Observation& o : observations)
             validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());
         for (const Observation& o : observations)
-            if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(o);
+            if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(&o);
     });
     // Every rank runs every rank's wavelengths (its share of one may be empty).
     std::vector<double> lambdas_here;

@@ -54,6 +54,14 @@ Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n) {
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
                         const BlurredFitSettings& settings, const std::function<bool(int, int, double)>& on_iteration,
                         const Communicator& comm) {
+    std::vector<const Observation*> all(observations.size());
+    for (std::size_t i = 0; i < observations.size(); ++i) all[i] = &observations[i];
+    return fit_blurred(all, initial, settings, on_iteration, comm);
+}
+
+Heightfield fit_blurred(const std::vector<const Observation*>& observations, const Heightfield& initial,
+                        const BlurredFitSettings& settings, const std::function<bool(int, int, double)>& on_iteration,
+                        const Communicator& comm) {
     if (settings.iterations < 0 || settings.history < 1)
         throw std::domain_error("fit_blurred: iterations " + std::to_string(settings.iterations) + " / history " +
                                 std::to_string(settings.history) + " invalid; expected >= 0 / >= 1");
@@ -64,8 +72,10 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
     std::vector<const Observation*> used;
     run_agreed(comm, [&] {
         for (std::size_t i = 0; i < observations.size(); ++i) {
-            validate(observations[i], i);
-            if (observations[i].lambdas_um.size() == 1) used.push_back(&observations[i]);
+            if (!observations[i])
+                throw std::invalid_argument("fit_blurred: observation " + std::to_string(i) + " is null");
+            validate(*observations[i], i);
+            if (observations[i]->lambdas_um.size() == 1) used.push_back(observations[i]);
         }
     });
     std::vector<double> used_count{double(used.size())};
@@ -80,12 +90,19 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
 
     std::vector<double> h = initial.values();
     for (std::size_t stage = 0; stage < settings.blur_widths.size(); ++stage) {
-        // Per observation: coarse resolution, blur matrices and the blurred reference.
-        struct Blurred {
-            int n_coarse;
-            Eigen::MatrixXf model_blur;  // n' × n' (single precision: the products are half an evaluation)
-            Eigen::MatrixXd reference;   // n' × n' (blurred, on the coarse pixels)
+        // Per observation: its blur matrix (shared by every observation of the same resolution,
+        // wavelength and blur width) and the square root of its blurred reference.
+        struct BlurMatrix {
+            int n;
+            double lambda_um, beta;
+            Eigen::MatrixXd blur;        // n × n
+            Eigen::MatrixXf blur_float;  // the same in single precision (the products are half an evaluation)
         };
+        struct Blurred {
+            std::size_t matrix;              // into `matrices`
+            Eigen::MatrixXd sqrt_reference;  // n × n: √(B R Bᵀ)
+        };
+        std::vector<BlurMatrix> matrices;
         std::vector<Blurred> data(used.size());
         double total = 0.0;
         for (std::size_t i = 0; i < used.size(); ++i) {
@@ -94,13 +111,22 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
             // The footprint's lobe: |c|² has std σ_p/√2, so its far field intensity has
             // std 1/(2√2 π σ_p) in u.
             const double beta = settings.blur_widths[stage] / (2.0 * std::sqrt(2.0) * k_pi * o.query.sigma_p_um);
-            const int n_coarse = o.resolution;
-            const Eigen::MatrixXd to_coarse = blur_matrix(n_coarse, o.resolution, lambda, beta);
+            const int n = o.resolution;
+            std::size_t m = 0;
+            while (m < matrices.size() &&
+                   !(matrices[m].n == n && matrices[m].lambda_um == lambda && matrices[m].beta == beta))
+                ++m;
+            if (m == matrices.size()) {
+                Eigen::MatrixXd b = blur_matrix(n, n, lambda, beta);
+                Eigen::MatrixXf bf = b.cast<float>();
+                matrices.push_back(BlurMatrix{n, lambda, beta, std::move(b), std::move(bf)});
+            }
+            const Eigen::MatrixXd& to_coarse = matrices[m].blur;
             Blurred& d = data[i];
-            d.n_coarse = n_coarse;
-            d.model_blur = blur_matrix(n_coarse, n_coarse, lambda, beta).cast<float>();
-            d.reference = to_coarse * as_matrix(o.reference, o.resolution).cwiseMax(0.0) * to_coarse.transpose();
-            total += d.reference.sum();
+            d.matrix = m;
+            d.sqrt_reference = to_coarse * as_matrix(o.reference, n).cwiseMax(0.0) * to_coarse.transpose();
+            total += d.sqrt_reference.sum();
+            d.sqrt_reference = d.sqrt_reference.cwiseSqrt();
         }
         std::vector<double> total_all{total};
         comm.allreduce_sum(total_all);
@@ -115,29 +141,32 @@ Heightfield fit_blurred(const std::vector<Observation>& observations, const Heig
                 comm, grad,
                 detail::ordered_parallel_sum(used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
                     const Blurred& d = data[i];
-                    const int n = d.n_coarse;
+                    const Eigen::MatrixXf& blur = matrices[d.matrix].blur_float;
+                    const int n = int(blur.rows());
                     SlicePlan<float>& plan = plans[i];
                     plan.set_heights(x);
                     const std::vector<float>& f = plan.forward();
                     const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
                         f.data(), n, n);
-                    const Eigen::MatrixXf m = d.model_blur * slice * d.model_blur.transpose();
+                    const Eigen::MatrixXf m = blur * slice * blur.transpose();
                     Eigen::MatrixXf dm(n, n);
                     double v = 0.0;
                     for (int p = 0; p < n; ++p)
                         for (int q = 0; q < n; ++q) {
                             const double mpq = double(m(p, q));
                             const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
-                            const double diff = a - std::sqrt(d.reference(p, q));
+                            const double diff = a - d.sqrt_reference(p, q);
                             v += diff * diff;
                             dm(p, q) = mpq > 0.0 ? float(inv_total * diff / a) : 0.0f;
                         }
                     const double term = v * inv_total;
-                    const Eigen::MatrixXf w = d.model_blur.transpose() * dm * d.model_blur;
+                    const Eigen::MatrixXf w = blur.transpose() * dm * blur;
                     std::vector<float> weights(std::size_t(n) * n);
                     for (int p = 0; p < n; ++p)
                         for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
                     plan.adjoint_wavelength(0, weights, local);
+                    // Only the height-independent tables stay between iterations.
+                    plan.release();
                     return term;
                 }));
         };

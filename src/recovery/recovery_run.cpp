@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "wavebrdf/constants.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/optim.h"
@@ -51,14 +52,25 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     // retrieval's √c1 (whole slice and its box) and √R (box). Counted together: the heap
     // seldom hands the first stage's memory back before the second needs its own.
     double largest_stage = 0.0;
-    for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, 5.0 * sizeof(double) * p.second);
+    // (+1: the copy of that wavelength's references the field stage holds.)
+    for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, 6.0 * sizeof(double) * p.second);
     int refine = settings.refine;
     if (refine <= 0 && lambda_min > 0.0 && texel_um > 0.0) refine = auto_refine(texel_um, lambda_min);
     const double samples = texels * double(std::max(refine, 1)) * double(std::max(refine, 1));
     // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples doubles.
     const double field_history = samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0);
     const double refine_history = texels * sizeof(double) * (2.0 * settings.refine_history + 8.0);
-    return base + references + largest_stage + field_history + refine_history;
+    // The refinement keeps one plan per observation between iterations: its footprint's
+    // kernels (two ints, seven doubles each, within 3σ_p) and ~2 KB of grids and bookkeeping;
+    // the per-pixel factors are shared (slice_plan.h, release). The field stage holds a copy of
+    // one wavelength's observations (counted in largest_stage's share of references).
+    double refine_plans = 0.0;
+    for (const Observation& o : observations) {
+        const double radius_texels = texel_um > 0.0 ? 3.0 * o.query.sigma_p_um / texel_um : 0.0;
+        const double kernels = std::min(texels, k_pi * (radius_texels + 1.0) * (radius_texels + 1.0));
+        refine_plans += 2048.0 + kernels * (2.0 * sizeof(int) + 7.0 * sizeof(double));
+    }
+    return base + references + largest_stage + field_history + refine_history + refine_plans;
 }
 
 Heightfield generated_recovery_truth(const RecoveryOptions& options) {
