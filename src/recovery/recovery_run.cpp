@@ -48,12 +48,12 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     }
     constexpr double base = 64e6;  // program, libraries, FFTW plans, per-thread slices
     if (method == RecoveryMethod::Thesis) return base + references + texels * 16.0 * sizeof(double);
-    // Per slice of one wavelength: the blurred fit's two n × n matrices, then the field
-    // retrieval's √c1 (whole slice and its box) and √R (box). Counted together: the heap
-    // seldom hands the first stage's memory back before the second needs its own.
+    // Per slice pixel of one wavelength: the field stage's copy of that wavelength's references
+    // (a double), its footprint's float √R and share of the √c1 maps and factor matrices
+    // (shared by the footprints of a u grid: ~16 KB per 48² footprint, about a double per
+    // pixel). The blurred fit's matrices are shared per wavelength and width (small).
     double largest_stage = 0.0;
-    // (+1: the copy of that wavelength's references the field stage holds.)
-    for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, 6.0 * sizeof(double) * p.second);
+    for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, 2.0 * sizeof(double) * p.second);
     int refine = settings.refine;
     if (refine <= 0 && lambda_min > 0.0 && texel_um > 0.0) refine = auto_refine(texel_um, lambda_min);
     const double samples = texels * double(std::max(refine, 1)) * double(std::max(refine, 1));
