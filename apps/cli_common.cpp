@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <system_error>
 #include <stdexcept>
@@ -78,6 +79,12 @@ void apply_render_path_options(const RenderPathArgs& args, RenderOptions& option
     options.path = parse_render_path(args.path, "--path");
     validate_render_tolerance(args.tolerance, "--tolerance");
     options.tolerance = args.tolerance;
+}
+
+int launcher_rank() {
+    for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK"})
+        if (const char* text = std::getenv(name)) return std::atoi(text);
+    return 0;
 }
 
 }  // namespace wavebrdf::cli

@@ -73,4 +73,8 @@ inline std::optional<double> if_given(bool given, double value) {
     return given ? std::optional<double>(value) : std::nullopt;
 }
 
+// This process's rank as an MPI launcher's environment says (OMPI_COMM_WORLD_RANK, PMI_RANK or
+// PMIX_RANK), without initialising MPI; 0 when not started by one.
+int launcher_rank();
+
 }  // namespace wavebrdf::cli

@@ -39,6 +39,8 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
+        // Under mpirun every rank parses the same arguments: rank 0 alone reports a bad one.
+        if (wavebrdf::cli::launcher_rank() > 0) return e.get_exit_code();
         return app.exit(e);
     } catch (const wavebrdf::cli::ExitStatus& e) {
         return e.code;

@@ -10,7 +10,10 @@
 // made by every rank, in the same order, from the thread that created the communicator.
 #include <array>
 #include <cstddef>
+#include <functional>
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace wavebrdf {
@@ -31,6 +34,9 @@ public:
     // True on every rank when `flag` is true on any rank (e.g. one rank was interrupted).
     virtual bool any(bool flag) const = 0;
     virtual void barrier() const = 0;
+    // Ends every rank's process with `exit_code` (MPI_Abort; serial: std::exit), for a failure
+    // on one rank that the others cannot learn of (they would wait in their next collective).
+    [[noreturn]] virtual void abort(int exit_code) const = 0;
 
     void allreduce_sum(std::vector<double>& values) const { allreduce_sum(values.data(), values.size()); }
     void broadcast(std::vector<double>& values, int root = 0) const { broadcast(values.data(), values.size(), root); }
@@ -71,5 +77,24 @@ Share share_of(std::size_t count, int rank, int size);
 // light directions), so its footprints cover one region of the tile. Returns the indices of
 // its observations, ascending. Throws std::invalid_argument unless 0 ≤ rank < size.
 std::vector<std::size_t> observation_share(const std::vector<std::array<double, 2>>& positions_um, int rank, int size);
+
+// Thrown on every rank by agree() when its work failed on some rank: the message of the lowest
+// failing rank's exception ("rank R: …" when R ≠ 0), the same on every rank.
+class CollectiveFailure : public std::runtime_error {
+public:
+    CollectiveFailure(const std::string& message, int failed_rank)
+        : std::runtime_error(message), m_failed_rank(failed_rank) {}
+    int failed_rank() const { return m_failed_rank; }
+
+private:
+    int m_failed_rank;
+};
+
+// Runs `work` (the same step on every rank, e.g. a set-up that reads files or checks options)
+// and agrees on its outcome, so that a failure on one rank does not leave the others waiting in
+// their next collective: with one rank, `work`'s exceptions propagate unchanged; with several,
+// when `work` threw on any rank, every rank throws CollectiveFailure with the lowest failing
+// rank's message. Collective (two or three calls per rank).
+void agree(const Communicator& comm, const std::function<void()>& work);
 
 }  // namespace wavebrdf
