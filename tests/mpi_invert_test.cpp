@@ -196,6 +196,33 @@ TEST(MpiInvertTest, ABadOptionFailsEveryRankWithOneMessage) {
     fs::remove_all(dir);
 }
 
+TEST(MpiTableTest, RanksWriteTheOneProcessTableBitForBit) {
+    // Each light's slice does not depend on which others are rendered with it: the table of K
+    // ranks (rendered lights split in blocks, gathered by rank 0) is the same file.
+    const fs::path dir = fresh_dir("mpi_table");
+    ASSERT_EQ(wavebrdf_on(1, dir, {"heightfield", "--size", "16", "--no-png", "--quiet", "--out", "h.exr"}).exit_code,
+              0);
+    const std::vector<std::string> args = {"table", "--heightfield", "h.exr", "--x-um",   "7",   "--y-um",
+                                           "9",     "--sigma-p-um",  "3",     "--lights", "5x4", "--resolution",
+                                           "12",    "--spectral",    "3"};
+    for (const char* precision : {"float", "double"}) {
+        const std::string one = std::string("one_") + precision + ".exr";
+        ASSERT_EQ(wavebrdf_on(1, dir, with(args, {"--precision", precision, "--quiet", "--out", one})).exit_code, 0);
+        const int ranks = std::string(precision) == "float" ? 2 : 3;
+        const std::string many = std::string("many_") + precision + ".exr";
+        const Ran r = wavebrdf_on(ranks, dir, with(args, {"--precision", precision, "--out", many}));
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_EQ(count_of(r.err, "rendered 5x4 lights"), 1u) << r.err;  // rank 0's summary only
+        const std::string expected = read_text(dir / one);
+        EXPECT_GT(expected.size(), 1000u);
+        EXPECT_TRUE(expected == read_text(dir / many)) << precision << " on " << ranks << " ranks";
+    }
+    const Ran bad = wavebrdf_on(2, dir, with(args, {"--lights", "0x4", "--out", "bad.exr"}));
+    EXPECT_NE(bad.exit_code, 0);
+    EXPECT_EQ(count_of(bad.err, "wavebrdf: error"), 1u) << bad.err;
+    fs::remove_all(dir);
+}
+
 }  // namespace
 
 #endif  // WAVEBRDF_HAS_MPI
