@@ -167,7 +167,8 @@ public:
     InversionRun& operator=(const InversionRun&) = delete;
 
     // Runs to settings.epochs (or from a loaded checkpoint on). on_epoch as Inversion::run's;
-    // returning false stops: Stopped. Exceptions of the run and the callback propagate.
+    // returning false stops: Stopped (split over ranks: false on any rank stops every rank at
+    // that epoch). Exceptions of the run and the callback propagate.
     InversionStatus run(const Inversion::Callback& on_epoch = {});
 
     const PreparedInversion& prepared() const { return m_prepared; }

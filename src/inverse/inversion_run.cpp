@@ -350,9 +350,12 @@ InversionRun::InversionRun(PreparedInversion prepared)
 
 InversionStatus InversionRun::run(const Inversion::Callback& on_epoch) {
     bool stopped = false;
+    const Communicator& comm = m_inversion.communicator();
     m_inversion.run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>& gradient,
                         const std::vector<std::vector<double>>& slices) {
-        if (on_epoch && !on_epoch(metrics, estimate, gradient, slices)) {
+        // Split over ranks, a stop on any rank stops them all at this epoch.
+        const bool stop = on_epoch && !on_epoch(metrics, estimate, gradient, slices);
+        if (comm.size() > 1 ? comm.any(stop) : stop) {
             stopped = true;
             return false;
         }
