@@ -42,17 +42,15 @@ struct Fingerprint {
 
 // Everything about an observation that defines a run, reference included.
 void add_observation(Fingerprint& f, const Observation& o) {
-    {
-        f.add(o.query.x_um);
-        f.add(o.query.y_um);
-        f.add(o.query.sigma_p_um);
-        f.add(o.query.omega_i[0]);
-        f.add(o.query.omega_i[1]);
-        f.add(int(o.query.model));
-        f.add(o.resolution);
-        for (double l : o.lambdas_um) f.add(l);
-        for (double r : o.reference) f.add(r);
-    }
+    f.add(o.query.x_um);
+    f.add(o.query.y_um);
+    f.add(o.query.sigma_p_um);
+    f.add(o.query.omega_i[0]);
+    f.add(o.query.omega_i[1]);
+    f.add(int(o.query.model));
+    f.add(o.resolution);
+    for (double l : o.lambdas_um) f.add(l);
+    for (double r : o.reference) f.add(r);
 }
 
 std::string hex(std::uint64_t h) {
