@@ -1,6 +1,8 @@
 // `wavebrdf invert`: the inverse renderer from the command line. Defaults are the thesis's
 // first experiment (16×16 heights, normal incidence, 32×32 spectral slice, flat start, Adam
 // 0.01/0.9/0.99 with decay 0.005, 300 epochs, CMSLE ε = 1) on a generated truth.
+#include <signal.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -16,6 +18,7 @@
 #include "cli_signals.h"
 #include "commands.h"
 #include "report.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/inversion_run.h"
 #include "wavebrdf/render_options.h"
 
@@ -105,17 +108,24 @@ InversionOptions to_options(const InvertArgs& a) {
     return o;
 }
 
-void run(const InvertArgs& a) {
+void run_on(const InvertArgs& a, const Communicator* comm) {
+    const bool root = comm == nullptr || comm->is_root();
     const bool resuming = !a.resume.empty();
-    if (resuming)
-        for (const std::string& option : a.given)
-            if (!kResumeOptions.count(option))
-                throw std::invalid_argument(
-                    option + " cannot be combined with --resume: a resumed run keeps the options in " + a.resume +
-                    "/run.json; expected only --epochs (to extend it), --quiet, --no-plots, --max-memory-gb or "
-                    "--threads");
     const std::string dir = resuming ? a.resume : a.out;
-    if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
+    InversionOptions options;
+    // The options, checked on every rank alike (a bad one fails every rank, reported once).
+    agree(comm ? *comm : serial_communicator(), [&] {
+        if (resuming)
+            for (const std::string& option : a.given)
+                if (!kResumeOptions.count(option))
+                    throw std::invalid_argument(
+                        option + " cannot be combined with --resume: a resumed run keeps the options in " + a.resume +
+                        "/run.json; expected only --epochs (to extend it), --quiet, --no-plots, --max-memory-gb or "
+                        "--threads");
+        if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
+        if (!resuming) options = to_options(a);
+    });
+    options.communicator = comm;
     InversionDirectoryResult result;
     int sig = 0;
     {
@@ -124,16 +134,21 @@ void run(const InvertArgs& a) {
         GracefulStop stop;
         InversionDirectoryControl control;
         control.force = a.force;
-        control.show_progress = !a.quiet;
+        control.show_progress = !a.quiet;  // rank 0's only
         control.stop = [&stop] { return stop.signal() != 0; };
+        control.communicator = comm;
         if (resuming) {
             const bool extend = std::find(a.given.begin(), a.given.end(), "--epochs") != a.given.end();
             result = resume_inversion_in_directory(dir, extend ? std::optional<int>(a.epochs) : std::nullopt,
                                                    a.max_memory_gb, control);
         } else {
-            result = run_inversion_in_directory(to_options(a), dir, control);
+            result = run_inversion_in_directory(options, dir, control);
         }
         sig = stop.signal();
+    }
+    if (!root) {  // rank 0 reports; the others end as it does
+        if (result.status == InversionStatus::Stopped) throw ExitStatus{128 + (sig != 0 ? sig : SIGINT)};
+        return;
     }
     if (!a.no_plots) draw_report(RunKind::Invert, dir);
     const auto& h = result.history;
@@ -145,12 +160,37 @@ void run(const InvertArgs& a) {
         if (!std::isnan(last.height_mse)) std::fprintf(stderr, ", height MSE %.4g um^2", last.height_mse);
         std::fprintf(stderr, ", %.1f s; results in %s\n", last.seconds, dir.c_str());
     }
+    // Split over ranks, a signal to any rank stops the run: rank 0 reports it (SIGINT when it
+    // was another rank's).
+    if (comm != nullptr && result.status == InversionStatus::Stopped && sig == 0) sig = SIGINT;
     if (result.status == InversionStatus::Stopped && sig != 0) {
         std::fprintf(
             stderr,
             "wavebrdf: interrupted at epoch %d; checkpoint written, continue with: wavebrdf invert --resume %s\n",
             result.epoch, dir.c_str());
         throw ExitStatus{128 + sig};
+    }
+}
+
+// Under mpirun (world_communicator of several ranks) the run is split over the ranks
+// (inversion_run.h): a failure every rank agreed on is reported once, by rank 0; one that only
+// this rank knows of is reported with its rank and ends every rank (Communicator::abort), since
+// the others would wait for it in their next collective call.
+void run(const InvertArgs& a) {
+    const std::shared_ptr<const Communicator> world = world_communicator();
+    if (world->size() == 1) {
+        run_on(a, nullptr);
+        return;
+    }
+    try {
+        run_on(a, world.get());
+    } catch (const CollectiveFailure& e) {
+        if (world->is_root()) std::fprintf(stderr, "wavebrdf: error: %s\n", e.what());
+        throw ExitStatus{1};
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "wavebrdf: error: rank %d of %d: %s\n", world->rank(), world->size(), e.what());
+        std::fflush(stderr);
+        world->abort(1);
     }
 }
 

@@ -10,6 +10,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
@@ -40,49 +41,60 @@ struct TableArgs {
     bool quiet = false;
 };
 
-void run(TableArgs a) {
+// The table on `comm`'s ranks (null: this process alone): every rank checks the options and
+// reads the heightfield, renders its block of the lights, rank 0 writes.
+void run_on(TableArgs a, const Communicator* comm) {
+    const Communicator& ranks = comm ? *comm : serial_communicator();
     TableSpec& spec = a.spec;
-    spec.query.model = parse_model(a.model);
-    if (a.precision != "float" && a.precision != "double")
-        throw std::invalid_argument("precision '" + a.precision + "' is unknown; expected float or double");
-    spec.double_precision = a.precision == "double";
-    if (a.given_spectral) {
-        if (a.spectral < 1 || a.spectral > 256)
-            throw std::domain_error("--spectral " + std::to_string(a.spectral) +
-                                    " is out of range; expected 1 to 256 samples");
-        spec.lambdas_um = spectral_wavelengths_um(a.spectral);
-        spec.spectral = true;
-    } else {
-        validate_lambda(a.lambda_um);
-        spec.lambdas_um = {a.lambda_um};
-    }
-    parse_size("--lights", a.lights, spec.lights.rows, spec.lights.cols);
-    apply_render_path_options(a.path, a.options);
-    validate(spec);
-    if (a.out.empty()) throw std::invalid_argument("no output given; expected --out F.exr");
-    check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.out}, {"--png", a.png}});
-    check_writable(a.out);
-    if (!a.png.empty()) check_writable(a.png);
-    const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
-                                                               if_given(a.given_vscale, a.vscale), "--texel-um",
-                                                               "--vscale");
-    // Every light of the table shares one footprint: only its rows are read (bit for bit as the whole file).
-    const Heightfield hf = read_heightfield_exr_footprint(a.heightfield, spec.query.x_um, spec.query.sigma_p_um,
-                                                          scale.texel_um, scale.vscale)
-                               .heightfield;
-    if (!a.png.empty()) {
-        // The preview's copies (its mosaic in float, the exposure's in double) on top of the table.
-        const double values = 3.0 * spec.lights.rows * spec.lights.cols * double(spec.resolution) * spec.resolution;
-        require_memory(estimate_table_bytes(hf, spec, a.options) + 12.0 * values, memory_limit(a.options.max_memory_gb),
-                       "table with its --png preview");
-    }
+    Heightfield hf(1, 1, {0.0});
+    // The options, checked on every rank alike (a bad one fails every rank, reported once).
+    agree(ranks, [&] {
+        spec.query.model = parse_model(a.model);
+        if (a.precision != "float" && a.precision != "double")
+            throw std::invalid_argument("precision '" + a.precision + "' is unknown; expected float or double");
+        spec.double_precision = a.precision == "double";
+        if (a.given_spectral) {
+            if (a.spectral < 1 || a.spectral > 256)
+                throw std::domain_error("--spectral " + std::to_string(a.spectral) +
+                                        " is out of range; expected 1 to 256 samples");
+            spec.lambdas_um = spectral_wavelengths_um(a.spectral);
+            spec.spectral = true;
+        } else {
+            validate_lambda(a.lambda_um);
+            spec.lambdas_um = {a.lambda_um};
+        }
+        parse_size("--lights", a.lights, spec.lights.rows, spec.lights.cols);
+        apply_render_path_options(a.path, a.options);
+        validate(spec);
+        if (a.out.empty()) throw std::invalid_argument("no output given; expected --out F.exr");
+        check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.out}, {"--png", a.png}});
+        if (ranks.is_root()) {
+            check_writable(a.out);
+            if (!a.png.empty()) check_writable(a.png);
+        }
+        const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
+                                                                   if_given(a.given_vscale, a.vscale), "--texel-um",
+                                                                   "--vscale");
+        // Every light of the table shares one footprint: only its rows are read (bit for bit as the whole file).
+        hf = read_heightfield_exr_footprint(a.heightfield, spec.query.x_um, spec.query.sigma_p_um, scale.texel_um,
+                                            scale.vscale)
+                 .heightfield;
+        if (!a.png.empty() && ranks.is_root()) {
+            // The preview's copies (its mosaic in float, the exposure's in double) on top of the table.
+            const double values = 3.0 * spec.lights.rows * spec.lights.cols * double(spec.resolution) * spec.resolution;
+            require_memory(estimate_table_bytes(hf, spec, a.options) + 12.0 * values,
+                           memory_limit(a.options.max_memory_gb), "table with its --png preview");
+        }
+    });
 
-    Progress progress("table", table_work_units(spec), !a.quiet);
+    // Split over ranks, the bar is rank 0's own block (the others' run alongside).
+    Progress progress("table", table_work_units(spec, ranks), !a.quiet && ranks.is_root());
     a.options.progress = &progress;
     const auto start = std::chrono::steady_clock::now();
-    const BrdfTable table = render_brdf_table(hf, spec, a.options);
+    const BrdfTable table = render_brdf_table(hf, spec, a.options, ranks);
     progress.finish();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (!ranks.is_root()) return;
     write_brdf_table(a.out, table);
     if (!a.png.empty()) {
         RgbImage image;
@@ -102,6 +114,23 @@ void run(TableArgs a) {
                      spec.lights.rows, spec.lights.cols, lights, spec.lights.max_sin, spec.resolution, spec.resolution,
                      spec.lambdas_um.size(), spec.lambdas_um.size() == 1 ? "" : "s", to_string(spec.query.model),
                      seconds);
+    }
+}
+
+// Under mpirun (world_communicator of several ranks) the lights are split over the ranks: a
+// failure every rank agreed on is reported once, by rank 0; one only this rank knows of (rank
+// 0's write, after the last collective) is reported with its rank.
+void run(const TableArgs& a) {
+    const std::shared_ptr<const Communicator> world = world_communicator();
+    if (world->size() == 1) {
+        run_on(a, nullptr);
+        return;
+    }
+    try {
+        run_on(a, world.get());
+    } catch (const CollectiveFailure& e) {
+        if (world->is_root()) std::fprintf(stderr, "wavebrdf: error: %s\n", e.what());
+        throw ExitStatus{1};
     }
 }
 

@@ -184,9 +184,15 @@ Shape with(Shape shape, std::initializer_list<py::ssize_t> tail) {
 }
 
 template <typename Float>
-py::array render(const Batched& a, const RenderOptions& options) {
+py::object render(const Batched& a, const RenderOptions& options, const Communicator* comm) {
     std::vector<Float> out;
-    if (!a.batch.items.empty()) {
+    if (comm != nullptr) {
+        {
+            InterruptibleRelease release;
+            out = render_batch_over_ranks<Float>(a.heightfields, a.batch, *comm, options);
+        }
+        if (!comm->is_root()) return py::none();  // rank 0 gathers the slices
+    } else if (!a.batch.items.empty()) {
         InterruptibleRelease release;
         out = render_batch<Float>(a.heightfields, a.batch, options);
     }
@@ -222,13 +228,13 @@ bool single_query(py::handle heights, py::handle x_um, py::handle y_um, py::hand
     return ndim(heights) <= 2 && ndim(light) <= 1 && ndim(x_um) == 0 && ndim(y_um) == 0;
 }
 
-py::array render_slice_batch(py::handle heights, int resolution, double texel_um, double vscale, py::handle x_um,
-                             py::handle y_um, double sigma_p_um, const py::object& lambda_um,
-                             const py::object& spectral, py::handle light, const std::string& model,
-                             const RenderOptions& options) {
+py::object render_slice_batch(py::handle heights, int resolution, double texel_um, double vscale, py::handle x_um,
+                              py::handle y_um, double sigma_p_um, const py::object& lambda_um,
+                              const py::object& spectral, py::handle light, const std::string& model,
+                              const RenderOptions& options, const Communicator* comm) {
     const Batched a = batched_arguments(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
                                         spectral, light, model, false);
-    return a.single ? render<float>(a, options) : render<double>(a, options);
+    return a.single ? render<float>(a, options, comm) : render<double>(a, options, comm);
 }
 
 py::array slice_gradient_batch(py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,

@@ -10,11 +10,13 @@ namespace wavebrdf::python {
 // at least 3 dimensions), light of at most one dimension, x_um and y_um scalars.
 bool single_query(py::handle heights, py::handle x_um, py::handle y_um, py::handle light);
 
-// The slices (batch…, n, n, 3) of the broadcast batch; dtype of heights.
-py::array render_slice_batch(py::handle heights, int resolution, double texel_um, double vscale, py::handle x_um,
-                             py::handle y_um, double sigma_p_um, const py::object& lambda_um,
-                             const py::object& spectral, py::handle light, const std::string& model,
-                             const RenderOptions& options);
+// The slices (batch…, n, n, 3) of the broadcast batch; dtype of heights. With `comm` (not
+// null): the items split over its ranks (render_batch_over_ranks), the array on rank 0, None on
+// the others.
+py::object render_slice_batch(py::handle heights, int resolution, double texel_um, double vscale, py::handle x_um,
+                              py::handle y_um, double sigma_p_um, const py::object& lambda_um,
+                              const py::object& spectral, py::handle light, const std::string& model,
+                              const RenderOptions& options, const Communicator* comm = nullptr);
 
 // d(sum(weights * slices))/d(heights): shaped and typed like heights; weights (batch…, n, n, 3).
 py::array slice_gradient_batch(py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,

@@ -208,11 +208,13 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
         "render_slice",
         [](py::handle heights, int resolution, double texel_um, double vscale, const py::object& x_um,
            const py::object& y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
-           const py::object& light, const std::string& model, const std::string& path, double tolerance) {
+           const py::object& light, const std::string& model, const std::string& path, double tolerance,
+           const py::object& comm_arg) -> py::object {
             const RenderOptions options = render_options(path, tolerance);
-            if (!single_query(heights, x_um, y_um, light))
+            const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
+            if (comm || !single_query(heights, x_um, y_um, light))
                 return render_slice_batch(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
-                                          spectral, light, model, options);
+                                          spectral, light, model, options, comm.get());
             const Plain a = plain_arguments(heights, texel_um, vscale, scalar(x_um, "x_um"), scalar(y_um, "y_um"),
                                             sigma_p_um, lambda_um, spectral, light, resolution, model);
             return a.single ? render_rgb_array<float>(a.hf, a.q, resolution, options)
@@ -221,12 +223,15 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
         "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
         "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
         "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto", "tolerance"_a = 1e-6,
+        "comm"_a = py::none(),
         (std::string("render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, "
                      "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', "
-                     "tolerance=1e-06)\n\n"
+                     "tolerance=1e-06, comm=None)\n\n"
                      "One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),\n"
                      "linear RGB. The same as `wavebrdf render` with the same options. With batch axes\n"
-                     "(below): (batch..., resolution, resolution, 3), one slice per item.\n") +
+                     "(below): (batch..., resolution, resolution, 3), one slice per item.\n"
+                     "With comm (an mpi4py communicator; every rank makes the same call): the items are split\n"
+                     "over its ranks, rank 0 gets the whole array (equal to one process's), the others None.\n") +
          kPlainDoc + kBatchDoc)
             .c_str());
 

@@ -9,6 +9,18 @@
 
 namespace wavebrdf::python {
 
+std::shared_ptr<const Communicator> communicator_argument(const py::object& comm) {
+    if (comm.is_none()) return nullptr;
+    if (!py::hasattr(comm, "py2f"))
+        bad_argument("comm", std::string(py::repr(comm)), "None or an mpi4py communicator (mpi4py.MPI.Comm)");
+    return communicator_from_fortran_handle(comm.attr("py2f")().cast<long long>());
+}
+
+const char* const kCommDoc =
+    "comm          None (default: this process alone) or an mpi4py communicator (e.g.\n"
+    "              mpi4py.MPI.COMM_WORLD): the work is split over its ranks (docs/scale.md);\n"
+    "              every rank must make the same call.\n";
+
 using namespace pybind11::literals;
 
 std::string format_number(double value) { return format_shortest(value); }

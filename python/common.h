@@ -11,10 +11,12 @@
 #include <pybind11/stl.h>
 
 #include <array>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/interrupt.h"
 #include "wavebrdf/io.h"
@@ -23,6 +25,13 @@
 namespace wavebrdf::python {
 
 namespace py = pybind11;
+
+// The library's communicator for an mpi4py communicator `comm` (through comm.py2f(),
+// communicator_from_fortran_handle); None: null (serial). ValueError for an object without
+// py2f(); RuntimeError when the module was built without MPI or MPI is not initialised.
+std::shared_ptr<const Communicator> communicator_argument(const py::object& comm);
+// The keyword's docstring lines.
+extern const char* const kCommDoc;
 
 // Throws py::value_error("NAME = GOT is invalid; expected EXPECTED").
 [[noreturn]] void bad_argument(const std::string& name, const std::string& got, const std::string& expected);

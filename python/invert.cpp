@@ -76,7 +76,8 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
                        int epochs, const std::string& optimizer, double lr, double beta1, double beta2, double decay,
                        const py::object& loss, const py::object& positions, std::uint64_t seed,
                        const py::object& callback, double max_memory_gb, const py::object& quiet,
-                       const std::string& path, double tolerance) {
+                       const std::string& path, double tolerance, const py::object& comm_arg) {
+    const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
     // Python's arguments → the library's options (inversion_run.h); the set-up and the run are
     // the library's, the same code as `wavebrdf invert`.
     InversionOptions options;
@@ -159,6 +160,7 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
 
     // Set-up and run without the GIL; each epoch takes it back to call `callback` and to
     // notice Ctrl-C.
+    options.communicator = comm.get();
     std::unique_ptr<InversionRun> run;
     {
         InterruptibleRelease release;
@@ -222,7 +224,9 @@ the mean; NaN without a truth), seconds.
           "light"_a = py::make_tuple(0.0, 0.0), "resolution"_a = 32, "init"_a = "flat", "epochs"_a = 300,
           "optimizer"_a = "adam", "lr"_a = 0.01, "beta1"_a = 0.9, "beta2"_a = 0.99, "decay"_a = 0.005,
           "loss"_a = "cmsle:1", "positions"_a = "fixed", "seed"_a = 1, "callback"_a = py::none(),
-          "max_memory_gb"_a = 0.0, "quiet"_a = py::none(), "path"_a = "auto", "tolerance"_a = 1e-6, R"doc(
+          "max_memory_gb"_a = 0.0, "quiet"_a = py::none(), "path"_a = "auto", "tolerance"_a = 1e-6,
+          "comm"_a = py::none(),
+          R"doc(
 The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
 whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
 truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
@@ -257,6 +261,12 @@ quiet         progress (a tqdm bar if tqdm is installed, else a line on stderr):
 path          'auto', 'separable', 'fft' or 'direct': the path of every render and gradient
 tolerance     separable (GHS-type models) and fft paths: error bound relative to the slice
               peak, 1e-12 to 1e-2 (default 1e-6)
+comm          None, or an mpi4py communicator: the observations are split over its ranks (each
+              renders or keeps its share, by footprint position) and the losses and gradients
+              summed over them (the same run as one process's up to the order of the sums);
+              every rank calls invert() with the same arguments and gets the same estimate and
+              metrics, while `observations` and `final_slices` are its own share; a callback's
+              False on any rank stops every rank.
 The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
 )doc");
 }

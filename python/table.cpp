@@ -48,7 +48,9 @@ void bind_table(py::module_& m) {
         "_render_table",
         [](const py::object& heightfield, const PyQuery& q, const py::object& lights, double max_light_sin,
            int resolution, const std::string& precision, double max_memory_gb, const std::string& out,
-           const std::string& path, double tolerance) {
+           const std::string& path, double tolerance, const py::object& comm_arg) -> py::object {
+            const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
+            const Communicator& ranks = comm ? *comm : serial_communicator();
             RenderOptions options = render_options(path, tolerance);
             // A file path: the file's own texel width and vertical scale (else 1, 1), as in the CLI.
             const Heightfield hf = [&] {
@@ -73,13 +75,14 @@ void bind_table(py::module_& m) {
             BrdfTable t;
             {
                 InterruptibleRelease release;
-                t = render_brdf_table(hf, spec, options);
-                if (!out.empty()) write_brdf_table(out, t);
+                t = render_brdf_table(hf, spec, options, ranks);
+                if (!out.empty() && ranks.is_root()) write_brdf_table(out, t);
             }
+            if (!ranks.is_root()) return py::none();  // rank 0 holds the table
             return table_dict(std::move(t));
         },
         "heightfield"_a, "query"_a, "lights"_a, "max_light_sin"_a, "resolution"_a, "precision"_a, "max_memory_gb"_a,
-        "out"_a, "path"_a, "tolerance"_a,
+        "out"_a, "path"_a, "tolerance"_a, "comm"_a = py::none(),
         "render_brdf_table (and write_brdf_table when out is not empty) as a dict (wavebrdf.render_table).");
 }
 

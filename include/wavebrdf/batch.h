@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/communicator.h"
 
 namespace wavebrdf {
 
@@ -86,6 +87,18 @@ std::vector<Float> render_batch(const std::vector<Heightfield>& heightfields, co
 template <typename Float>
 std::vector<Float> render_batch(const Heightfield& heightfield, const SliceBatch& batch,
                                 const RenderOptions& options = {});
+
+// render_batch split over the ranks of `comm` (communicator.h, docs/scale.md): the items in
+// contiguous blocks (share_of), each rank renders its block, and rank 0 gathers them (in rounds
+// of at most about 2^24 values) into the whole output, equal bit for bit to render_batch's (an
+// item's slice does not depend on the other items of its batch); the other ranks return an
+// empty vector. Every rank checks the whole batch and its own block's memory; a failure on any
+// rank (a bad item, OutOfMemory, an interrupt) is agreed: CollectiveFailure on every rank
+// (with one rank: render_batch's own exceptions). options.progress advances by this rank's
+// block. Collective: every rank calls it with the same batch.
+template <typename Float>
+std::vector<Float> render_batch_over_ranks(const std::vector<Heightfield>& heightfields, const SliceBatch& batch,
+                                           const Communicator& comm, const RenderOptions& options = {});
 
 // The batch's vector-Jacobian product: for weights W (items · n² · channels, the layout of
 // render_batch's output; e.g. dL/dslices), adds ∂(Σ_b Σ_p W_b[p] · slice_b[p])/∂h_k into

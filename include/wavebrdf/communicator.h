@@ -13,6 +13,7 @@
 #include <functional>
 #include <memory>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace wavebrdf {
@@ -126,5 +127,23 @@ auto run_or_abort(const Communicator& comm, Work&& work) -> decltype(work()) {
         detail::abort_after(comm, "unknown error");
     }
 }
+// Thrown on every rank by agree() when its work failed on some rank: the message of the lowest
+// failing rank's exception ("rank R: …" when R ≠ 0), the same on every rank.
+class CollectiveFailure : public std::runtime_error {
+public:
+    CollectiveFailure(const std::string& message, int failed_rank)
+        : std::runtime_error(message), m_failed_rank(failed_rank) {}
+    int failed_rank() const { return m_failed_rank; }
+
+private:
+    int m_failed_rank;
+};
+
+// Runs `work` (the same step on every rank, e.g. a set-up that reads files or checks options)
+// and agrees on its outcome, so that a failure on one rank does not leave the others waiting in
+// their next collective: with one rank, `work`'s exceptions propagate unchanged; with several,
+// when `work` threw on any rank, every rank throws CollectiveFailure with the lowest failing
+// rank's message. Collective (two or three calls per rank).
+void agree(const Communicator& comm, const std::function<void()>& work);
 
 }  // namespace wavebrdf

@@ -123,6 +123,10 @@ struct InversionOptions {
     // many GB; 0: the physical memory. Not stored in run.json (a resumed run may change it).
     double max_memory_gb = 0.0;
     OptionStyle names = OptionStyle::Cli;  // how messages name the options
+    // The ranks the run is split over (communicator.h; not in run.json): null, serial. Each rank
+    // renders (or, given, keeps) only its share of the observations (observation_share by
+    // footprint position); every function below that takes these options is then collective.
+    const Communicator* communicator = nullptr;
 };
 
 // Everything an inversion needs, resolved.
@@ -131,6 +135,8 @@ struct PreparedInversion {
     std::vector<Observation> observations;  // given, read, or rendered from the truth
     Heightfield initial{1, 1, {0.0}};       // the initial guess (texel width and vscale of the estimate)
     InversionSettings settings;
+    // Which of all the observations `observations` are (this rank's share; serial: all of them).
+    ObservationShard shard;
 };
 
 // The set-up, all options checked before any work (bad values throw std::invalid_argument or
@@ -140,7 +146,10 @@ struct PreparedInversion {
 // observations of a truth are rendered at the positions (observe), after the memory check
 // (estimate_inversion_bytes against options.max_memory_gb: OutOfMemory); the initial guess is
 // options.init (`initial` for InitKind::Heights, same size as the estimate). Throws
-// std::invalid_argument when a truth and observations are both given.
+// std::invalid_argument when a truth and observations are both given. With options.communicator
+// of several ranks: `observations` (given whole) are cut to this rank's share, a truth's are
+// rendered for the share only, the memory check counts the share, and errors are agreed
+// (CollectiveFailure, communicator.h).
 PreparedInversion prepare_inversion(const InversionOptions& options, std::optional<Heightfield> truth = {},
                                     std::optional<std::vector<Observation>> observations = {},
                                     std::optional<Heightfield> initial = {});
@@ -158,7 +167,8 @@ public:
     InversionRun& operator=(const InversionRun&) = delete;
 
     // Runs to settings.epochs (or from a loaded checkpoint on). on_epoch as Inversion::run's;
-    // returning false stops: Stopped. Exceptions of the run and the callback propagate.
+    // returning false stops: Stopped (split over ranks: false on any rank stops every rank at
+    // that epoch). Exceptions of the run and the callback propagate.
     InversionStatus run(const Inversion::Callback& on_epoch = {});
 
     const PreparedInversion& prepared() const { return m_prepared; }
@@ -187,8 +197,11 @@ std::string metrics_csv(const std::vector<EpochMetrics>& history);
 struct InversionDirectoryControl {
     bool force = false;          // a new run may replace an earlier one of invert's (run_directory.h)
     bool show_progress = false;  // an "invert" progress bar on a terminal
-    // Polled after each epoch's outputs: true stops the run with a checkpoint (Stopped).
+    // Polled after each epoch's outputs: true stops the run with a checkpoint (Stopped). Split
+    // over ranks: the run stops when it is true on any rank (Communicator::any, every epoch).
     std::function<bool()> stop;
+    // resume_inversion_in_directory's ranks (a new run takes options.communicator); null: serial.
+    const Communicator* communicator = nullptr;
 };
 
 struct InversionDirectoryResult {
@@ -205,6 +218,10 @@ struct InversionDirectoryResult {
 // before every option is checked and the set-up succeeded. A failure midway keeps what was
 // finished (checkpoint.json, metrics.csv, estimate.exr, each written on its own) and throws
 // std::runtime_error "<cause>; the run stopped at epoch E and its ... are in DIR".
+// Split over ranks (options.communicator): rank 0 alone writes `dir` (the references and final
+// renders gathered from their ranks, one observation at a time) and shows progress; every rank
+// returns the same result; errors in the set-up and in rank 0's writes are agreed
+// (CollectiveFailure).
 InversionDirectoryResult run_inversion_in_directory(const InversionOptions& options, const std::string& dir,
                                                     const InversionDirectoryControl& control = {});
 
@@ -212,7 +229,9 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
 // below the checkpoint's epoch; stored in run.json for a later resume), with max_memory_gb.
 // Throws std::runtime_error "DIR/run.json: cannot open; ..." / "...: corrupt (...)" /
 // "DIR/checkpoint.json: missing; nothing to resume", and load_checkpoint's errors for a
-// checkpoint of another run, before anything in `dir` changes.
+// checkpoint of another run, before anything in `dir` changes. Split over ranks
+// (control.communicator): every rank reads run.json and checkpoint.json (`dir` must be visible
+// to all of them, e.g. on one machine or a shared file system), rank 0 writes.
 InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, std::optional<int> epochs,
                                                        double max_memory_gb,
                                                        const InversionDirectoryControl& control = {});

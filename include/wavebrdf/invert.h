@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/optim.h"
 
@@ -88,6 +89,17 @@ void validate_noise_fraction(double frac);
 // L-BFGS with random positions (std::invalid_argument; std::domain_error for the values).
 void validate(const InversionSettings& settings);
 
+// The share of the observations one rank holds when an inversion is split over ranks
+// (communicator.h, docs/scale.md): the heights and the optimiser's state are on every rank, the
+// observations are not.
+struct ObservationShard {
+    const Communicator* communicator = nullptr;  // null: serial (one rank, every observation)
+    // The global index of each of this rank's observations, ascending (observation_share);
+    // empty with a null communicator or one rank: 0 … n − 1.
+    std::vector<std::size_t> indices;
+    std::size_t count = 0;  // observations over all ranks; 0: this rank's count (serial)
+};
+
 // Inversion validates its settings as validate(settings) does.
 class Inversion {
 public:
@@ -95,8 +107,16 @@ public:
     // Throws std::invalid_argument on empty observations, a size mismatch, L-BFGS with random
     // positions, epochs outside 0 … k_max_iterations (10^7, optim.h), or a footprint too large
     // for the heightfield (std::domain_error, validate_footprint in gabor.h).
+    //
+    // With a shard of several ranks (collective: every rank constructs its Inversion, runs and
+    // checkpoints it in step), `observations` are this rank's share (possibly none) and every
+    // loss, gradient and metric is that of all the observations (allreduce_sum in rank order:
+    // every rank takes the same steps, and the run equals the one-process run up to the order
+    // of the sums); random positions: every rank draws the same position (or global observation)
+    // and its owner evaluates it; on_epoch's slices are this rank's. Errors in the checks are
+    // agreed over the ranks (CollectiveFailure, communicator.h).
     Inversion(std::vector<Observation> observations, Heightfield initial, InversionSettings settings,
-              const Heightfield* truth = nullptr);
+              const Heightfield* truth = nullptr, ObservationShard shard = {});
 
     // Runs until settings.epochs. After each evaluated epoch (including epoch 0) calls
     // on_epoch(metrics, estimate, gradient, rendered slices of the observations); returning
@@ -121,6 +141,10 @@ public:
     // The footprint position drawn for `epoch` in random mode (deterministic in the seed).
     static std::array<double, 2> random_position(std::uint64_t seed, int epoch, const Heightfield& tile);
 
+    // The communicator (serial_communicator() without a shard) and the observations over all ranks.
+    const Communicator& communicator() const { return *m_comm; }
+    std::size_t observation_count() const { return m_count; }
+
 private:
     EpochMetrics evaluate(std::vector<double>* gradient, std::vector<std::vector<double>>* rendered) const;
     std::vector<Observation> epoch_observations(int epoch) const;
@@ -136,6 +160,10 @@ private:
     int m_epoch = 0;
     double m_seconds_before = 0.0;
     std::vector<EpochMetrics> m_history;
+    const Communicator* m_comm;
+    std::vector<std::size_t> m_indices;              // global index of each of m_observations
+    std::size_t m_count = 0;                         // observations over all ranks
+    std::string m_fingerprint, m_observations_hash;  // over all ranks' observations, in order
 };
 
 }  // namespace wavebrdf

@@ -9,6 +9,7 @@
 
 #include "wavebrdf/io.h"
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/slice_plan.h"
 
@@ -81,9 +82,14 @@ private:
 // `rendered`, when not null, receives each observation's rendered slice. `plans`, when not
 // null, keeps each observation's slice plan for the next call (an inversion passes the same
 // cache every epoch); without it, each call builds and drops its plans.
+// With a communicator of several ranks (communicator.h), `observations` are this rank's share
+// (possibly none) and the loss and gradient are those of all ranks' observations together: the
+// mean over their total count, the shares' sums combined by allreduce_sum (the same bits on
+// every rank); `rendered` holds this rank's slices only. Collective: every rank calls it.
 double observation_loss(const Heightfield& heightfield, const std::vector<Observation>& observations, const Loss& loss,
                         std::vector<double>* gradient, const RenderOptions& options = {},
-                        std::vector<std::vector<double>>* rendered = nullptr, ObservationPlans* plans = nullptr);
+                        std::vector<std::vector<double>>* rendered = nullptr, ObservationPlans* plans = nullptr,
+                        const Communicator& comm = serial_communicator());
 
 // Observations as JSON (so measured or rendered slices can be given to `invert`):
 // {"observations": [{"x_um":…, "y_um":…, "sigma_p_um":…, "light": [wx, wy], "model": "OHS",

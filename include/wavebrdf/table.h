@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/model.h"
 
@@ -87,10 +88,17 @@ double estimate_table_bytes(const Heightfield& heightfield, const TableSpec& spe
 // work_units(n) · wavelengths per light (size it with table_work_units); check_interrupt is
 // polled between lights (Interrupted; render_batch polls between its items). Each entry equals render_rgb's slice for that light bit
 // for bit (in float, or double rounded to float).
-BrdfTable render_brdf_table(const Heightfield& heightfield, const TableSpec& spec, const RenderOptions& options = {});
+//
+// With `comm` of several ranks (docs/scale.md): the rendered lights, in row-major order, are
+// split into contiguous blocks (render_batch_over_ranks), each rank renders its block and rank 0
+// gathers them: rank 0's table equals the one-process table bit for bit; the other ranks get
+// the table's description with `values` empty. Failures are agreed (CollectiveFailure);
+// options.progress advances by this rank's block (table_work_units(spec, comm)). Collective.
+BrdfTable render_brdf_table(const Heightfield& heightfield, const TableSpec& spec, const RenderOptions& options = {},
+                            const Communicator& comm = serial_communicator());
 
-// Units of progress render_brdf_table reports for `spec`.
-long long table_work_units(const TableSpec& spec);
+// Units of progress render_brdf_table reports for `spec` (on `comm`'s rank: its block's).
+long long table_work_units(const TableSpec& spec, const Communicator& comm = serial_communicator());
 
 // Writes `table` as the mosaic EXR described at the top (atomically, write_file_atomically).
 // Throws std::invalid_argument when its sizes disagree with its spec.

@@ -611,7 +611,7 @@ def height_rel_rmse(estimate: Heightfield, truth: Heightfield) -> float:
     """
     ...
 
-def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., path: str = ..., tolerance: float = ...) -> InversionResult:
+def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., path: str = ..., tolerance: float = ..., comm: Any = ...) -> InversionResult:
     """The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
     whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
     truth, normal incidence, 32x32 spectral slice, flat start, Adam 0.01/0.9/0.99 with decay
@@ -646,6 +646,12 @@ def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_
     path          'auto', 'separable', 'fft' or 'direct': the path of every render and gradient
     tolerance     separable (GHS-type models) and fft paths: error bound relative to the slice
                   peak, 1e-12 to 1e-2 (default 1e-6)
+    comm          None, or an mpi4py communicator: the observations are split over its ranks (each
+                  renders or keeps its share, by footprint position) and the losses and gradients
+                  summed over them (the same run as one process's up to the order of the sums);
+                  every rank calls invert() with the same arguments and gets the same estimate and
+                  metrics, while `observations` and `final_slices` are its own share; a callback's
+                  False on any rank stops every rank.
     The run releases the GIL; Ctrl-C stops it at the end of an epoch (KeyboardInterrupt).
     """
     ...
@@ -844,12 +850,14 @@ def render(gabor: GaborRep, query: Query, resolution: int = ..., precision: str 
     """
     ...
 
-def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ...) -> numpy.ndarray:
-    """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', tolerance=1e-06)
+def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ..., comm: Any = ...) -> Any:
+    """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', tolerance=1e-06, comm=None)
 
     One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),
     linear RGB. The same as `wavebrdf render` with the same options. With batch axes
     (below): (batch..., resolution, resolution, 3), one slice per item.
+    With comm (an mpi4py communicator; every rank makes the same call): the items are split
+    over its ranks, rank 0 gets the whole array (equal to one process's), the others None.
 
     heights     float32 or float64 array (rows, cols), or (..., rows, cols) for a batch (below),
                 finite, in texel units. float64 renders

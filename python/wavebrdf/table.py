@@ -65,7 +65,7 @@ def read_table(path):
 
 
 def render_table(heightfield, query, *, lights=(32, 32), max_light_sin=0.9, resolution=64, precision="float",
-                 max_memory_gb=0.0, out=None, path="auto", tolerance=1e-6):
+                 max_memory_gb=0.0, out=None, path="auto", tolerance=1e-6, comm=None):
     """Renders the BRDF table of one footprint over a grid of lights (``wavebrdf table``).
 
     heightfield     a wavebrdf.Heightfield, an EXR path (its own texel_um and vscale, else 1),
@@ -83,10 +83,14 @@ def render_table(heightfield, query, *, lights=(32, 32), max_light_sin=0.9, reso
     path            'auto', 'separable', 'fft' or 'direct' (as wavebrdf.render_slice's)
     tolerance       separable (GHS-type models) and fft paths: error bound relative to each
                     slice's peak, 1e-12 to 1e-2 (default 1e-6)
+    comm            None, or an mpi4py communicator: the lights are split over its ranks (every
+                    rank makes the same call), rank 0 gathers them and writes `out`; rank 0 gets
+                    the BrdfTable (equal bit for bit to one process's), the other ranks None
     Returns a BrdfTable; each entry equals wavebrdf.render(heightfield, query with that light,
     resolution, precision) rounded to float32. Ctrl-C stops it (KeyboardInterrupt).
     """
     if isinstance(heightfield, os.PathLike):
         heightfield = os.fspath(heightfield)
-    return BrdfTable(_core._render_table(heightfield, query, lights, max_light_sin, resolution, precision,
-                                         max_memory_gb, "" if out is None else str(out), path, tolerance))
+    table = _core._render_table(heightfield, query, lights, max_light_sin, resolution, precision,
+                                max_memory_gb, "" if out is None else str(out), path, tolerance, comm)
+    return None if table is None else BrdfTable(table)

@@ -275,6 +275,41 @@ void abort_after(const Communicator& comm, const char* what) {
 }
 }  // namespace detail
 
+void agree(const Communicator& comm, const std::function<void()>& work) {
+    if (comm.size() == 1) {
+        work();
+        return;
+    }
+    std::string message;
+    bool failed = false;
+    try {
+        work();
+    } catch (const std::exception& e) {
+        failed = true;
+        message = e.what();
+    } catch (...) {
+        failed = true;
+        message = "unknown error";
+    }
+    std::vector<double> flags(static_cast<std::size_t>(comm.size()), 0.0);
+    flags[static_cast<std::size_t>(comm.rank())] = failed ? 1.0 : 0.0;
+    comm.allreduce_sum(flags);
+    int first = -1;
+    for (int r = 0; r < comm.size() && first < 0; ++r)
+        if (flags[static_cast<std::size_t>(r)] != 0.0) first = r;
+    if (first < 0) return;
+    // The first failing rank's message, as bytes in doubles (a broadcast copies bits).
+    double length = comm.rank() == first ? double(message.size()) : 0.0;
+    comm.broadcast(&length, 1, first);
+    const std::size_t bytes = static_cast<std::size_t>(length);
+    std::vector<double> packed((bytes + sizeof(double) - 1) / sizeof(double), 0.0);
+    if (comm.rank() == first) std::memcpy(packed.data(), message.data(), bytes);
+    comm.broadcast(packed, first);
+    std::string text(bytes, '\0');
+    std::memcpy(&text[0], packed.data(), bytes);
+    throw CollectiveFailure(first == 0 ? text : "rank " + std::to_string(first) + ": " + text, first);
+}
+
 Share share_of(std::size_t count, int rank, int size) {
     if (size < 1 || rank < 0 || rank >= size)
         throw std::invalid_argument("rank " + std::to_string(rank) + " of " + std::to_string(size) +

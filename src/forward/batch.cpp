@@ -192,4 +192,51 @@ template std::vector<double> render_batch<double>(const std::vector<Heightfield>
 template std::vector<float> render_batch<float>(const Heightfield&, const SliceBatch&, const RenderOptions&);
 template std::vector<double> render_batch<double>(const Heightfield&, const SliceBatch&, const RenderOptions&);
 
+template <typename Float>
+std::vector<Float> render_batch_over_ranks(const std::vector<Heightfield>& heightfields, const SliceBatch& batch,
+                                           const Communicator& comm, const RenderOptions& options) {
+    if (comm.size() == 1) return render_batch<Float>(heightfields, batch, options);
+    const std::size_t count = batch.items.size(), ranks = static_cast<std::size_t>(comm.size());
+    const Share mine = share_of(count, comm.rank(), comm.size());
+    SliceBatch part = batch;
+    part.items.assign(batch.items.begin() + std::ptrdiff_t(mine.begin), batch.items.begin() + std::ptrdiff_t(mine.end));
+    const std::size_t values = static_cast<std::size_t>(batch.resolution) * static_cast<std::size_t>(batch.resolution) *
+                               static_cast<std::size_t>(batch.channels);
+    std::vector<Float> local, out;
+    agree(comm, [&] {
+        if (heightfields.empty()) throw std::invalid_argument("no heightfields given; expected at least one");
+        validate(batch, heightfields.size(), options);
+        if (comm.is_root())
+            out = allocating("the batch's output", double(values) * double(count) * sizeof(Float),
+                             [&] { return std::vector<Float>(values * count); });
+        local = render_batch<Float>(heightfields, part, options);
+    });
+    // Rounds of `chunk` items per rank (the gather's buffer on rank 0 at most ~2^24 values).
+    const std::size_t chunk = std::max<std::size_t>(1,
+                                                    (std::size_t(1) << 24) / std::max<std::size_t>(1, values * ranks));
+    const std::size_t largest = share_of(count, 0, comm.size()).size();  // rank 0's block is the largest
+    for (std::size_t start = 0; start < largest; start += chunk) {
+        const std::size_t from = std::min(start, mine.size()), to = std::min(start + chunk, mine.size());
+        const std::vector<double> piece(local.begin() + std::ptrdiff_t(from * values),
+                                        local.begin() + std::ptrdiff_t(to * values));
+        const std::vector<double> all = comm.gather(piece);
+        if (!comm.is_root()) continue;
+        std::size_t at = 0;
+        for (int r = 0; r < comm.size(); ++r) {
+            const Share block = share_of(count, r, comm.size());
+            const std::size_t items = std::min(start + chunk, block.size()) - std::min(start, block.size());
+            if (items == 0) continue;
+            std::copy(all.begin() + std::ptrdiff_t(at), all.begin() + std::ptrdiff_t(at + items * values),
+                      out.begin() + std::ptrdiff_t((block.begin + start) * values));
+            at += items * values;
+        }
+    }
+    return out;
+}
+
+template std::vector<float> render_batch_over_ranks<float>(const std::vector<Heightfield>&, const SliceBatch&,
+                                                           const Communicator&, const RenderOptions&);
+template std::vector<double> render_batch_over_ranks<double>(const std::vector<Heightfield>&, const SliceBatch&,
+                                                             const Communicator&, const RenderOptions&);
+
 }  // namespace wavebrdf

@@ -73,11 +73,12 @@ double estimate_table_bytes(const Heightfield& heightfield, const TableSpec& spe
            estimate_render_bytes(heightfield, query, spec.resolution, options, spec.double_precision ? 8 : 4, true);
 }
 
-long long table_work_units(const TableSpec& spec) {
+long long table_work_units(const TableSpec& spec, const Communicator& comm) {
     std::vector<double> x, y;
     std::vector<unsigned char> rendered;
     light_grid_axes(spec.lights, x, y, rendered);
-    return static_cast<long long>(rendered_count(rendered)) * work_units(spec.resolution) *
+    const std::size_t lights = share_of(rendered_count(rendered), comm.rank(), comm.size()).size();
+    return static_cast<long long>(lights) * work_units(spec.resolution) *
            static_cast<long long>(spec.lambdas_um.size());
 }
 
@@ -92,7 +93,65 @@ std::vector<float> render_table_row(const Heightfield& heightfield, const TableS
     return std::vector<float>(full.begin(), full.end());
 }
 
-BrdfTable render_brdf_table(const Heightfield& heightfield, const TableSpec& spec, const RenderOptions& options) {
+namespace {
+
+// render_brdf_table on several ranks: every rendered light one item of one batch (row-major),
+// split over the ranks; rank 0 places the gathered slices.
+BrdfTable render_brdf_table_over_ranks(const Heightfield& heightfield, const TableSpec& spec,
+                                       const RenderOptions& options, const Communicator& comm) {
+    BrdfTable table;
+    table.spec = spec;
+    table.heightfield_rows = heightfield.rows();
+    table.heightfield_cols = heightfield.cols();
+    table.texel_um = heightfield.texel_um();
+    table.vscale = heightfield.vscale();
+    table.version = k_version;
+    agree(comm, [&] {
+        validate(spec);
+        // Rank 0 holds the whole table; the others their block (render_batch checks it).
+        if (comm.is_root())
+            require_memory(estimate_table_bytes(heightfield, spec, options), memory_limit(options.max_memory_gb),
+                           "table (" + std::to_string(spec.lights.rows) + "x" + std::to_string(spec.lights.cols) +
+                               " lights of " + std::to_string(spec.resolution) + "x" + std::to_string(spec.resolution) +
+                               " slices)");
+        light_grid_axes(spec.lights, table.light_x, table.light_y, table.rendered);
+    });
+    const std::size_t cols = static_cast<std::size_t>(spec.lights.cols);
+    std::vector<std::array<double, 2>> lights;
+    std::vector<std::size_t> entries;  // the table entry (a · cols + b) of each light
+    for (std::size_t a = 0; a < table.light_x.size(); ++a)
+        for (std::size_t b = 0; b < cols; ++b)
+            if (table.rendered[a * cols + b]) {
+                lights.push_back({table.light_x[a], table.light_y[b]});
+                entries.push_back(a * cols + b);
+            }
+    const SliceBatch batch = batch_product(spec.query, lights, {{spec.query.x_um, spec.query.y_um}}, {spec.lambdas_um},
+                                           spec.resolution, 3);
+    const std::size_t slice = static_cast<std::size_t>(spec.resolution) * static_cast<std::size_t>(spec.resolution) * 3;
+    const std::vector<Heightfield> heightfields{heightfield};
+    const auto place = [&](const auto& slices) {
+        table.values = allocating("the table's values", 4.0 * table_values(spec), [&] {
+            return std::vector<float>(static_cast<std::size_t>(table_values(spec)), 0.0f);
+        });
+        for (std::size_t k = 0; k < entries.size(); ++k)
+            std::copy(slices.begin() + std::ptrdiff_t(k * slice), slices.begin() + std::ptrdiff_t((k + 1) * slice),
+                      table.values.begin() + std::ptrdiff_t(entries[k] * slice));
+    };
+    if (spec.double_precision) {
+        const std::vector<double> slices = render_batch_over_ranks<double>(heightfields, batch, comm, options);
+        if (comm.is_root()) place(slices);
+    } else {
+        const std::vector<float> slices = render_batch_over_ranks<float>(heightfields, batch, comm, options);
+        if (comm.is_root()) place(slices);
+    }
+    return table;
+}
+
+}  // namespace
+
+BrdfTable render_brdf_table(const Heightfield& heightfield, const TableSpec& spec, const RenderOptions& options,
+                            const Communicator& comm) {
+    if (comm.size() > 1) return render_brdf_table_over_ranks(heightfield, spec, options, comm);
     validate(spec);
     const double needed = estimate_table_bytes(heightfield, spec, options);
     require_memory(needed, memory_limit(options.max_memory_gb),

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
+#include <functional>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -182,15 +184,28 @@ std::vector<double> option_wavelengths(const InversionOptions& o) {
 
 }  // namespace
 
-PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Heightfield> truth,
-                                    std::optional<std::vector<Observation>> observations,
-                                    std::optional<Heightfield> initial) {
+namespace {
+
+// The positions of `observations` (observation_share's argument).
+std::vector<std::array<double, 2>> positions_of(const std::vector<Observation>& observations) {
+    std::vector<std::array<double, 2>> positions;
+    for (const Observation& o : observations) positions.push_back({o.query.x_um, o.query.y_um});
+    return positions;
+}
+
+// prepare_inversion on one rank (no collective calls).
+PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heightfield> truth,
+                                  std::optional<std::vector<Observation>> observations,
+                                  std::optional<Heightfield> initial) {
+    const Communicator& comm = o.communicator ? *o.communicator : serial_communicator();
+    const bool sharded = comm.size() > 1;
     const auto name = [&](const char* key) { return option_name(o.names, key); };
     const MemoryLimit memory = memory_limit(o.max_memory_gb);
     const std::string hint = o.names == OptionStyle::Cli ? "--max-memory-gb" : "max_memory_gb=";
 
     // Settings, checked before any work.
     PreparedInversion p;
+    p.shard.communicator = o.communicator;
     InversionSettings& settings = p.settings;
     settings.loss = o.loss;
     settings.optimizer = o.optimizer;
@@ -232,15 +247,32 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
         throw std::invalid_argument(name("truth") + " and " + name("observations") + " exclude each other");
     int rows = 0, cols = 0;
     if (given_observations) {
-        p.observations = observations ? std::move(*observations)
-                                      : read_observations_file(o.observations_path, 0, 1, o.max_memory_gb);
-        if (p.observations.empty())
+        // An HDF5 file under MPI: this rank reads only its share's slices (the same
+        // observation_share of the file's positions as below).
+        const bool read_share = !observations && sharded && is_hdf5_file(o.observations_path);
+        if (read_share) {
+            p.shard.count = read_observation_index(o.observations_path, o.max_memory_gb).size();
+            p.observations = read_observations_file(o.observations_path, comm.rank(), comm.size(), o.max_memory_gb,
+                                                    &p.shard.indices);
+        } else {
+            p.observations = observations ? std::move(*observations)
+                                          : read_observations_file(o.observations_path, 0, 1, o.max_memory_gb);
+        }
+        const std::size_t total = read_share ? p.shard.count : p.observations.size();
+        if (total == 0)
             throw std::invalid_argument(name("observations") + " is empty; expected at least one observation");
         rows = initial && o.init.kind == InitKind::Heights ? initial->rows() : o.rows;
         cols = initial && o.init.kind == InitKind::Heights ? initial->cols() : o.cols;
-        if (settings.positions == PositionMode::Random && p.observations.size() < 2)
+        if (settings.positions == PositionMode::Random && total < 2)
             throw std::invalid_argument(name("positions") + " random with " + name("observations") +
                                         " needs at least two observations");
+        if (sharded && !read_share) {  // read whole (JSON), this rank's share kept
+            p.shard.count = p.observations.size();
+            p.shard.indices = observation_share(positions_of(p.observations), comm.rank(), comm.size());
+            std::vector<Observation> mine;
+            for (std::size_t i : p.shard.indices) mine.push_back(std::move(p.observations[i]));
+            p.observations = std::move(mine);
+        }
     } else {
         if (truth)
             p.truth = std::move(*truth);
@@ -264,6 +296,13 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
         else
             positions.push_back(
                 {o.x_um ? *o.x_um : 0.5 * p.truth->period_x_um(), o.y_um ? *o.y_um : 0.5 * p.truth->period_y_um()});
+        if (sharded) {  // this rank renders and holds its share only
+            p.shard.count = positions.size();
+            p.shard.indices = observation_share(positions, comm.rank(), comm.size());
+            std::vector<std::array<double, 2>> mine;
+            for (std::size_t i : p.shard.indices) mine.push_back(positions[i]);
+            positions = std::move(mine);
+        }
         // Before the references are rendered: the whole inversion's estimate against the limit.
         std::vector<Observation> planned(positions.size(), base);
         for (std::size_t i = 0; i < planned.size(); ++i) {
@@ -304,16 +343,30 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
     return p;
 }
 
+}  // namespace
+
+PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Heightfield> truth,
+                                    std::optional<std::vector<Observation>> observations,
+                                    std::optional<Heightfield> initial) {
+    PreparedInversion p;
+    agree(o.communicator ? *o.communicator : serial_communicator(),
+          [&] { p = prepare_on_rank(o, std::move(truth), std::move(observations), std::move(initial)); });
+    return p;
+}
+
 InversionRun::InversionRun(PreparedInversion prepared)
     : m_prepared(std::move(prepared)),
       m_inversion(m_prepared.observations, m_prepared.initial, m_prepared.settings,
-                  m_prepared.truth ? &*m_prepared.truth : nullptr) {}
+                  m_prepared.truth ? &*m_prepared.truth : nullptr, m_prepared.shard) {}
 
 InversionStatus InversionRun::run(const Inversion::Callback& on_epoch) {
     bool stopped = false;
+    const Communicator& comm = m_inversion.communicator();
     m_inversion.run([&](const EpochMetrics& metrics, const Heightfield& estimate, const std::vector<double>& gradient,
                         const std::vector<std::vector<double>>& slices) {
-        if (on_epoch && !on_epoch(metrics, estimate, gradient, slices)) {
+        // Split over ranks, a stop on any rank stops them all at this epoch.
+        const bool stop = on_epoch && !on_epoch(metrics, estimate, gradient, slices);
+        if (comm.size() > 1 ? comm.any(stop) : stop) {
             stopped = true;
             return false;
         }
@@ -477,40 +530,140 @@ std::string metrics_csv(const std::vector<EpochMetrics>& history) {
 
 namespace {
 
+const Communicator& communicator_of(const Communicator* comm) { return comm ? *comm : serial_communicator(); }
+
+// An observation as doubles (query, wavelengths, resolution, reference) and `extra` after it,
+// to gather it to rank 0; unpack reverses it.
+std::vector<double> pack(const Observation& o, const std::vector<double>& extra) {
+    std::vector<double> v{o.query.x_um,
+                          o.query.y_um,
+                          o.query.sigma_p_um,
+                          o.query.omega_i[0],
+                          o.query.omega_i[1],
+                          double(int(o.query.model)),
+                          double(o.resolution),
+                          double(o.lambdas_um.size()),
+                          double(o.reference.size())};
+    v.insert(v.end(), o.lambdas_um.begin(), o.lambdas_um.end());
+    v.insert(v.end(), o.reference.begin(), o.reference.end());
+    v.insert(v.end(), extra.begin(), extra.end());
+    return v;
+}
+
+Observation unpack(const std::vector<double>& v, std::vector<double>& extra) {
+    Observation o;
+    o.query.x_um = v[0];
+    o.query.y_um = v[1];
+    o.query.sigma_p_um = v[2];
+    o.query.omega_i = {v[3], v[4]};
+    o.query.model = static_cast<Model>(int(v[5]));
+    o.resolution = int(v[6]);
+    const std::size_t lambdas = std::size_t(v[7]), reference = std::size_t(v[8]);
+    auto at = v.begin() + 9;
+    o.lambdas_um.assign(at, at + std::ptrdiff_t(lambdas));
+    at += std::ptrdiff_t(lambdas);
+    o.reference.assign(at, at + std::ptrdiff_t(reference));
+    at += std::ptrdiff_t(reference);
+    extra.assign(at, v.end());
+    return o;
+}
+
+// Calls use(g, observation, extra(observation)) on rank 0 for every observation g of the run in
+// global order, `extra` computed by the observation's owner and both gathered from it (one
+// observation at a time: rank 0 holds one more, not all). A failure of `use` stops the calls
+// but not the gathers; it is rethrown on every rank afterwards (agree).
+void for_each_observation_on_root(
+    const PreparedInversion& p, const Communicator& comm,
+    const std::function<std::vector<double>(const Observation&)>& extra,
+    const std::function<void(std::size_t, const Observation&, const std::vector<double>&)>& use) {
+    std::exception_ptr failure;
+    if (comm.size() == 1) {
+        for (std::size_t i = 0; i < p.observations.size(); ++i)
+            use(i, p.observations[i], extra ? extra(p.observations[i]) : std::vector<double>());
+        return;
+    }
+    std::size_t next = 0;
+    for (std::size_t g = 0; g < p.shard.count; ++g) {
+        std::vector<double> local;
+        if (next < p.shard.indices.size() && p.shard.indices[next] == g) {
+            const Observation& o = p.observations[next++];
+            local = pack(o, extra ? extra(o) : std::vector<double>());
+        }
+        const std::vector<double> all = comm.gather(local);
+        if (comm.is_root() && !failure) {
+            try {
+                std::vector<double> values;
+                const Observation o = unpack(all, values);
+                use(g, o, values);
+            } catch (...) {
+                failure = std::current_exception();
+            }
+        }
+    }
+    agree(comm, [&] {
+        if (failure) std::rethrow_exception(failure);
+    });
+}
+
+// `write` on rank 0 only, its failure rethrown on every rank (agree).
+void on_root(const Communicator& comm, const std::function<void()>& write) {
+    std::exception_ptr failure;
+    if (comm.is_root()) {
+        try {
+            write();
+        } catch (...) {
+            failure = std::current_exception();
+        }
+    }
+    agree(comm, [&] {
+        if (failure) std::rethrow_exception(failure);
+    });
+}
+
 // The epochs of `run` in `dir`: snapshots, checkpoints on options.checkpoint_every and on a
-// stop, the final checkpoint, metrics, estimate and renders.
+// stop, the final checkpoint, metrics, estimate and renders (rank 0 writes, every rank runs).
 InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& options, const std::string& dir,
                                     const InversionDirectoryControl& control) {
     Inversion& inversion = run.inversion();
+    const Communicator& comm = inversion.communicator();
+    const bool root = comm.is_root();
     const std::vector<Observation>& observations = run.prepared().observations;
     const InversionSettings& settings = run.prepared().settings;
     const int rows = inversion.estimate().rows(), cols = inversion.estimate().cols();
-    const int channels = observations[0].channels();
+    // Rank 0 always holds observation 0 (the first position's block).
+    const int channels = observations.empty() ? 1 : observations[0].channels();
 
-    Progress progress("invert", settings.epochs + 1, control.show_progress);
+    Progress progress("invert", settings.epochs + 1, control.show_progress && root);
     progress.advance(inversion.epoch());
     int last_checkpoint = inversion.epoch();
     auto checkpoint = [&] {
-        inversion.save_checkpoint(dir + "/checkpoint.json");
-        write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history()));
+        on_root(comm, [&] {
+            inversion.save_checkpoint(dir + "/checkpoint.json");
+            write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history()));
+        });
     };
     const auto on_epoch = [&](const EpochMetrics& m, const Heightfield& estimate, const std::vector<double>& gradient,
                               const std::vector<std::vector<double>>& slices) {
         if (options.snapshots.count(m.epoch)) {
-            char name[64];
-            std::snprintf(name, sizeof name, "%04d.npy", m.epoch);
-            const std::string base = dir + "/snapshots/";
-            write_npy(base + "height_" + name, {std::size_t(rows), std::size_t(cols)}, heights_um(estimate));
-            const int n = observations[0].resolution;
-            write_npy(base + "slice_" + name, {std::size_t(n), std::size_t(n), std::size_t(channels)}, slices[0]);
-            std::vector<double> g = gradient.empty() ? std::vector<double>(estimate.values().size(), 0.0) : gradient;
-            write_npy(base + "gradient_" + name, {std::size_t(rows), std::size_t(cols)}, g);
+            on_root(comm, [&] {
+                char name[64];
+                std::snprintf(name, sizeof name, "%04d.npy", m.epoch);
+                const std::string base = dir + "/snapshots/";
+                write_npy(base + "height_" + name, {std::size_t(rows), std::size_t(cols)}, heights_um(estimate));
+                const int n = observations[0].resolution;
+                write_npy(base + "slice_" + name, {std::size_t(n), std::size_t(n), std::size_t(channels)}, slices[0]);
+                std::vector<double> g = gradient.empty() ? std::vector<double>(estimate.values().size(), 0.0)
+                                                         : gradient;
+                write_npy(base + "gradient_" + name, {std::size_t(rows), std::size_t(cols)}, g);
+            });
         }
         char message[96];
         std::snprintf(message, sizeof message, "epoch %d loss %.4g", m.epoch, m.loss);
         progress.set_message(message);
         progress.advance(1);
-        if (control.stop && control.stop()) {
+        // A stop on any rank stops every rank (the same epoch everywhere).
+        const bool stop = comm.any(control.stop && control.stop());
+        if (stop) {
             checkpoint();
             return false;
         }
@@ -534,128 +687,178 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
                 saved.push_back(what);
             } catch (const std::exception&) {}
         };
-        keep("checkpoint.json", [&] { inversion.save_checkpoint(dir + "/checkpoint.json"); });
-        keep("metrics.csv", [&] { write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history())); });
-        keep("estimate.exr",
-             [&] { write_heightfield_exr(dir + "/estimate.exr", inversion.estimate(), "wavebrdf invert: estimate"); });
+        if (root) {
+            keep("checkpoint.json", [&] { inversion.save_checkpoint(dir + "/checkpoint.json"); });
+            keep("metrics.csv", [&] { write_text_atomically(dir + "/metrics.csv", metrics_csv(inversion.history())); });
+            keep("estimate.exr", [&] {
+                write_heightfield_exr(dir + "/estimate.exr", inversion.estimate(), "wavebrdf invert: estimate");
+            });
+        }
         std::string list;
         for (const std::string& name : saved) list += (list.empty() ? "" : ", ") + name;
-        throw std::runtime_error(std::string(e.what()) + "; the run stopped at epoch " +
-                                 std::to_string(inversion.epoch()) + " and " +
-                                 (saved.empty() ? std::string("nothing more could be written to ") + dir
-                                                : "its " + list + " are in " + dir));
+        const std::string message = std::string(e.what()) + "; the run stopped at epoch " +
+                                    std::to_string(inversion.epoch()) + " and " +
+                                    (!root           ? "rank 0 keeps what was finished in " + dir
+                                     : saved.empty() ? std::string("nothing more could be written to ") + dir
+                                                     : "its " + list + " are in " + dir);
+        // A failure every rank agreed on stays one (the others are not waiting for this rank).
+        if (const auto* agreed = dynamic_cast<const CollectiveFailure*>(&e))
+            throw CollectiveFailure(message, agreed->failed_rank());
+        throw std::runtime_error(message);
     }
     progress.finish();
     checkpoint();
 
     // Final outputs.
     const Heightfield& estimate = inversion.estimate();
-    write_heightfield_exr(dir + "/estimate.exr", estimate, "wavebrdf invert: estimate");
-    write_heightfield_png(dir + "/estimate.png", estimate);
-    for (std::size_t i = 0; i < observations.size(); ++i) {
-        char name[64];
-        std::snprintf(name, sizeof name, "/final_%03zu", i);
-        const auto slice = render_observation(estimate, observations[i], settings.render);
-        const RgbImage image = to_image(slice, observations[i].resolution, channels);
-        write_slice_exr(dir + name + ".exr", image,
-                        slice_attributes(observations[i], &estimate, "wavebrdf invert: the estimate's slice"));
-        write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
-    }
+    on_root(comm, [&] {
+        write_heightfield_exr(dir + "/estimate.exr", estimate, "wavebrdf invert: estimate");
+        write_heightfield_png(dir + "/estimate.png", estimate);
+    });
+    for_each_observation_on_root(
+        run.prepared(), comm, [&](const Observation& o) { return render_observation(estimate, o, settings.render); },
+        [&](std::size_t i, const Observation& o, const std::vector<double>& slice) {
+            char name[64];
+            std::snprintf(name, sizeof name, "/final_%03zu", i);
+            const RgbImage image = to_image(slice, o.resolution, channels);
+            write_slice_exr(dir + name + ".exr", image,
+                            slice_attributes(o, &estimate, "wavebrdf invert: the estimate's slice"));
+            write_rgb_png(dir + name + ".png", image, auto_exposure(o.reference), true);
+        });
     result.epoch = inversion.epoch();
     result.history = inversion.history();
     return result;
+}
+
+// The distinct wavelengths of every rank's observations (on rank 0; gathered when sharded).
+std::vector<double> all_wavelengths_um(const std::vector<Observation>& observations, const Communicator& comm) {
+    std::vector<std::vector<double>> lists = wavelength_lists(observations);
+    if (comm.size() > 1) {
+        std::vector<double> local;
+        for (const auto& list : lists) {
+            local.push_back(double(list.size()));
+            local.insert(local.end(), list.begin(), list.end());
+        }
+        const std::vector<double> all = comm.gather(local);
+        lists.clear();
+        for (std::size_t at = 0; at < all.size();) {
+            const std::size_t n = std::size_t(all[at]);
+            lists.emplace_back(all.begin() + std::ptrdiff_t(at + 1), all.begin() + std::ptrdiff_t(at + 1 + n));
+            at += 1 + n;
+        }
+    }
+    return distinct_wavelengths_um(lists);
 }
 
 }  // namespace
 
 InversionDirectoryResult run_inversion_in_directory(const InversionOptions& options, const std::string& dir,
                                                     const InversionDirectoryControl& control) {
-    if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
-    // A new run goes into a new or empty directory (or, with force, one of invert's own runs).
-    check_run_directory(RunKind::Invert, dir, control.force);
-    const nlohmann::json args = to_json(options);  // refuses what run.json cannot hold, before any work
+    const Communicator& comm = communicator_of(options.communicator);
+    nlohmann::json args;
+    agree(comm, [&] {
+        if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
+        // A new run goes into a new or empty directory (or, with force, one of invert's own runs).
+        if (comm.is_root()) check_run_directory(RunKind::Invert, dir, control.force);
+        args = to_json(options);  // refuses what run.json cannot hold, before any work
+    });
     InversionRun run(prepare_inversion(options));
     const PreparedInversion& p = run.prepared();
     const std::vector<Observation>& observations = p.observations;
     const int rows = p.initial.rows(), cols = p.initial.cols();
-    const int channels = observations[0].channels();
+    const int channels = observations.empty() ? 1 : observations[0].channels();
+    const std::vector<double> wavelengths_um = all_wavelengths_um(observations, comm);
+    const std::size_t count = run.inversion().observation_count();
 
-    prepare_run_directory(RunKind::Invert, dir, control.force);
-    fs::create_directories(dir + "/snapshots");
-    check_writable(dir + "/metrics.csv");
-    const nlohmann::json run_json = {
-        {"args", args},
-        {"title", "wavebrdf invert: " + to_string(options.loss) + ", " + to_string(options.optimizer) + ", " +
-                      grid(rows, cols) + " heights, " + std::to_string(options.resolution) + "^2 slices, " +
-                      std::to_string(observations.size()) + " observation(s), positions " +
-                      to_string(options.positions)},
-        {"snapshot_epochs", std::vector<int>(options.snapshots.begin(), options.snapshots.end())},
-        {"channels", channels},
-        {"resolution", observations[0].resolution},
-        {"texel_um", options.texel_um},
-        {"truth", p.truth.has_value()},
-        {"observations", observations.size()},
-        {"version", k_version},
-        {"threads", thread_count()},
-        {"wavelengths_um", distinct_wavelengths_um(wavelength_lists(observations))}};
-    write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
-    const Observation& o = observations[0];
-    write_npy(dir + "/reference.npy", {std::size_t(o.resolution), std::size_t(o.resolution), std::size_t(channels)},
-              o.reference);
-    if (p.truth) {
-        write_npy(dir + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*p.truth));
-        write_heightfield_exr(dir + "/truth.exr", *p.truth, "wavebrdf invert: truth");
-    }
-    for (std::size_t i = 0; i < observations.size(); ++i) {
+    on_root(comm, [&] {
+        prepare_run_directory(RunKind::Invert, dir, control.force);
+        fs::create_directories(dir + "/snapshots");
+        check_writable(dir + "/metrics.csv");
+        const nlohmann::json run_json = {
+            {"args", args},
+            {"title", "wavebrdf invert: " + to_string(options.loss) + ", " + to_string(options.optimizer) + ", " +
+                          grid(rows, cols) + " heights, " + std::to_string(options.resolution) + "^2 slices, " +
+                          std::to_string(count) + " observation(s), positions " + to_string(options.positions)},
+            {"snapshot_epochs", std::vector<int>(options.snapshots.begin(), options.snapshots.end())},
+            {"channels", channels},
+            {"resolution", observations[0].resolution},
+            {"texel_um", options.texel_um},
+            {"truth", p.truth.has_value()},
+            {"observations", count},
+            {"version", k_version},
+            {"threads", thread_count()},
+            {"wavelengths_um", wavelengths_um}};
+        write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
+        const Observation& o = observations[0];
+        write_npy(dir + "/reference.npy", {std::size_t(o.resolution), std::size_t(o.resolution), std::size_t(channels)},
+                  o.reference);
+        if (p.truth) {
+            write_npy(dir + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*p.truth));
+            write_heightfield_exr(dir + "/truth.exr", *p.truth, "wavebrdf invert: truth");
+        }
+    });
+    for_each_observation_on_root(p, comm, {}, [&](std::size_t i, const Observation& o, const std::vector<double>&) {
         char name[64];
         std::snprintf(name, sizeof name, "/reference_%03zu", i);
-        const RgbImage image = to_image(observations[i].reference, observations[i].resolution, channels);
+        const RgbImage image = to_image(o.reference, o.resolution, channels);
         // Rendered from the truth when there is one; given observations have no heightfield.
         const Heightfield* from = p.truth ? &*p.truth : nullptr;
-        write_slice_exr(dir + name + ".exr", image,
-                        slice_attributes(observations[i], from, "wavebrdf invert: reference"));
-        write_rgb_png(dir + name + ".png", image, auto_exposure(observations[i].reference), true);
-    }
+        write_slice_exr(dir + name + ".exr", image, slice_attributes(o, from, "wavebrdf invert: reference"));
+        write_rgb_png(dir + name + ".png", image, auto_exposure(o.reference), true);
+    });
     return run_epochs(run, options, dir, control);
 }
 
 InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, std::optional<int> epochs,
                                                        double max_memory_gb, const InversionDirectoryControl& control) {
+    const Communicator& comm = communicator_of(control.communicator);
     const std::string where = dir + "/run.json";
-    std::ifstream in(where);
-    if (!in) throw std::runtime_error(where + ": cannot open; expected a directory written by 'wavebrdf invert --out'");
     nlohmann::json run_json;
-    try {
-        run_json = nlohmann::json::parse(in);
-    } catch (const nlohmann::json::exception& e) {
-        throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
-    }
-    in.close();
-    nlohmann::json args;
-    try {
-        args = run_json.at("args");
-    } catch (const nlohmann::json::exception& e) {
-        throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
-    }
-    InversionOptions options = options_from_json(args, where);
-    if (!fs::exists(dir + "/checkpoint.json"))
-        throw std::runtime_error(dir + "/checkpoint.json: missing; nothing to resume");
+    InversionOptions options;
+    // Every rank reads run.json (the same file: the errors are the same on every rank).
+    agree(comm, [&] {
+        std::ifstream in(where);
+        if (!in)
+            throw std::runtime_error(where + ": cannot open; expected a directory written by 'wavebrdf invert --out'");
+        try {
+            run_json = nlohmann::json::parse(in);
+        } catch (const nlohmann::json::exception& e) {
+            throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
+        }
+        in.close();
+        nlohmann::json args;
+        try {
+            args = run_json.at("args");
+        } catch (const nlohmann::json::exception& e) {
+            throw std::runtime_error(where + ": corrupt (" + std::string(e.what()) + ")");
+        }
+        options = options_from_json(args, where);
+        if (!fs::exists(dir + "/checkpoint.json"))
+            throw std::runtime_error(dir + "/checkpoint.json: missing; nothing to resume");
+    });
     if (epochs) options.epochs = *epochs;
     options.max_memory_gb = max_memory_gb;
+    options.communicator = control.communicator;
 
     InversionRun run(prepare_inversion(options));
-    fs::create_directories(dir + "/snapshots");
-    check_writable(dir + "/metrics.csv");
     Inversion& inversion = run.inversion();
-    inversion.load_checkpoint(dir + "/checkpoint.json");
-    if (options.epochs < inversion.epoch())
-        throw std::invalid_argument(option_name(options.names, "epochs") + " " + std::to_string(options.epochs) +
-                                    " is below the checkpoint's epoch " + std::to_string(inversion.epoch()) +
-                                    "; expected at least that many");
+    agree(comm, [&] {
+        if (comm.is_root()) {
+            fs::create_directories(dir + "/snapshots");
+            check_writable(dir + "/metrics.csv");
+        }
+        inversion.load_checkpoint(dir + "/checkpoint.json");
+        if (options.epochs < inversion.epoch())
+            throw std::invalid_argument(option_name(options.names, "epochs") + " " + std::to_string(options.epochs) +
+                                        " is below the checkpoint's epoch " + std::to_string(inversion.epoch()) +
+                                        "; expected at least that many");
+    });
     // The new target, for a later resume.
     if (run_json["args"]["epochs"] != options.epochs) {
-        run_json["args"]["epochs"] = options.epochs;
-        write_text_atomically(where, run_json.dump(1) + "\n");
+        on_root(comm, [&] {
+            run_json["args"]["epochs"] = options.epochs;
+            write_text_atomically(where, run_json.dump(1) + "\n");
+        });
     }
     return run_epochs(run, options, dir, control);
 }

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -39,29 +40,55 @@ struct Fingerprint {
     void add(int v) { add(&v, sizeof v); }
 };
 
-// Everything about the observations that defines a run, references included.
-void add_observations(Fingerprint& f, const std::vector<Observation>& observations) {
-    for (const Observation& o : observations) {
-        f.add(o.query.x_um);
-        f.add(o.query.y_um);
-        f.add(o.query.sigma_p_um);
-        f.add(o.query.omega_i[0]);
-        f.add(o.query.omega_i[1]);
-        f.add(int(o.query.model));
-        f.add(o.resolution);
-        for (double l : o.lambdas_um) f.add(l);
-        for (double r : o.reference) f.add(r);
+// Everything about an observation that defines a run, reference included.
+void add_observation(Fingerprint& f, const Observation& o) {
+    f.add(o.query.x_um);
+    f.add(o.query.y_um);
+    f.add(o.query.sigma_p_um);
+    f.add(o.query.omega_i[0]);
+    f.add(o.query.omega_i[1]);
+    f.add(int(o.query.model));
+    f.add(o.resolution);
+    for (double l : o.lambdas_um) f.add(l);
+    for (double r : o.reference) f.add(r);
+}
+
+std::string hex(std::uint64_t h) {
+    std::ostringstream out;
+    out << std::hex << h;
+    return out.str();
+}
+
+// `states` chained over every rank's observations in global order (add_observation): serial,
+// over `local`; sharded, each observation by its owner, the states broadcast from it.
+void chain_observations(std::vector<Fingerprint>& states, const std::vector<Observation>& local,
+                        const std::vector<std::size_t>& indices, std::size_t count, const Communicator& comm) {
+    if (comm.size() == 1) {
+        for (const Observation& o : local)
+            for (Fingerprint& f : states) add_observation(f, o);
+        return;
+    }
+    std::vector<double> owner(count, 0.0);
+    for (std::size_t index : indices) owner[index] = comm.rank();
+    comm.allreduce_sum(owner);  // one rank adds its number to each entry, the others 0: exact
+    std::vector<double> bits(states.size());
+    std::size_t next = 0;  // this rank's next observation
+    for (std::size_t g = 0; g < count; ++g) {
+        const int from = static_cast<int>(owner[g]);
+        if (from == comm.rank()) {
+            for (Fingerprint& f : states) add_observation(f, local[next]);
+            ++next;
+        }
+        for (std::size_t i = 0; i < states.size(); ++i) std::memcpy(&bits[i], &states[i].h, sizeof(double));
+        comm.broadcast(bits, from);  // bits, not numbers: a broadcast copies them unchanged
+        for (std::size_t i = 0; i < states.size(); ++i) std::memcpy(&states[i].h, &bits[i], sizeof(double));
     }
 }
 
 // The values the fingerprint covers, by name, so that a mismatched checkpoint can say which
-// of them differ (the observations as a hash of their own).
-nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings& s,
-                           const std::vector<Observation>& observations) {
-    Fingerprint f;
-    add_observations(f, observations);
-    std::ostringstream hash;
-    hash << std::hex << f.h;
+// of them differ (the observations as a hash of their own, and their count over all ranks).
+nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings& s, std::size_t observations,
+                           const std::string& observations_hash) {
     return {{"size", std::to_string(estimate.rows()) + "x" + std::to_string(estimate.cols())},
             {"texel_um", estimate.texel_um()},
             {"vscale", estimate.vscale()},
@@ -74,8 +101,8 @@ nlohmann::json run_summary(const Heightfield& estimate, const InversionSettings&
             {"decay", s.adam.decay},
             {"positions", s.positions == PositionMode::Fixed ? "fixed" : "random"},
             {"seed", s.seed},
-            {"observations", observations.size()},
-            {"observations_hash", hash.str()}};
+            {"observations", observations},
+            {"observations_hash", observations_hash}};
 }
 
 // "lr 0.01 in the checkpoint, 0.02 now; …" for the entries of `now` that differ in `saved`.
@@ -94,25 +121,71 @@ std::string describe_differences(const nlohmann::json& saved, const nlohmann::js
 }  // namespace
 
 Inversion::Inversion(std::vector<Observation> observations, Heightfield initial, InversionSettings settings,
-                     const Heightfield* truth)
+                     const Heightfield* truth, ObservationShard shard)
     : m_observations(std::move(observations)),
       m_estimate(std::move(initial)),
       m_settings(settings),
       m_truth(truth),
-      m_adam(m_estimate.values().size(), settings.adam) {
-    validate(m_settings);
-    if (m_observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
-    for (std::size_t i = 0; i < m_observations.size(); ++i) validate(m_observations[i], i);
-    validate_iterations(settings.epochs, "epochs");
-    for (const Observation& o : m_observations)
-        validate_footprint(o.query.sigma_p_um, m_estimate.period_x_um(), m_estimate.period_y_um());
-    if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
-        throw std::invalid_argument(
-            "L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
-    if (truth && (truth->rows() != m_estimate.rows() || truth->cols() != m_estimate.cols()))
-        throw std::invalid_argument("truth is " + std::to_string(truth->rows()) + "x" + std::to_string(truth->cols()) +
-                                    " but the estimate is " + std::to_string(m_estimate.rows()) + "x" +
-                                    std::to_string(m_estimate.cols()) + "; expected the same size");
+      m_adam(m_estimate.values().size(), settings.adam),
+      m_comm(shard.communicator ? shard.communicator : &serial_communicator()) {
+    const bool sharded = m_comm->size() > 1;
+    agree(*m_comm, [&] {
+        validate(m_settings);
+        if (!sharded && m_observations.empty())
+            throw std::invalid_argument("no observations given; expected at least one");
+        if (sharded) {
+            if (shard.indices.size() != m_observations.size())
+                throw std::invalid_argument("the shard lists " + std::to_string(shard.indices.size()) +
+                                            " observations but " + std::to_string(m_observations.size()) +
+                                            " are given; expected one index per observation");
+            for (std::size_t i = 0; i < shard.indices.size(); ++i)
+                if (shard.indices[i] >= shard.count || (i > 0 && shard.indices[i] <= shard.indices[i - 1]))
+                    throw std::invalid_argument("the shard's observation indices are not ascending below " +
+                                                std::to_string(shard.count) + "; expected observation_share's");
+        }
+        for (std::size_t i = 0; i < m_observations.size(); ++i)
+            validate(m_observations[i], sharded ? shard.indices[i] : i);
+        validate_iterations(settings.epochs, "epochs");
+        for (const Observation& o : m_observations)
+            validate_footprint(o.query.sigma_p_um, m_estimate.period_x_um(), m_estimate.period_y_um());
+        if (settings.optimizer == OptimizerKind::Lbfgs && settings.positions == PositionMode::Random)
+            throw std::invalid_argument(
+                "L-BFGS needs a fixed objective; use --positions fixed (or Adam for random positions)");
+        if (truth && (truth->rows() != m_estimate.rows() || truth->cols() != m_estimate.cols()))
+            throw std::invalid_argument("truth is " + std::to_string(truth->rows()) + "x" +
+                                        std::to_string(truth->cols()) + " but the estimate is " +
+                                        std::to_string(m_estimate.rows()) + "x" + std::to_string(m_estimate.cols()) +
+                                        "; expected the same size");
+    });
+    if (sharded) {
+        m_indices = std::move(shard.indices);
+        m_count = shard.count;
+        if (m_count == 0) throw std::invalid_argument("no observations given; expected at least one");
+    } else {
+        m_count = m_observations.size();
+        for (std::size_t i = 0; i < m_count; ++i) m_indices.push_back(i);
+    }
+    // The fingerprint of the run (settings, then every observation in global order) and the
+    // observations' own hash, once (collective when sharded).
+    Fingerprint f;
+    f.add(m_estimate.rows());
+    f.add(m_estimate.cols());
+    f.add(m_estimate.texel_um());
+    f.add(m_estimate.vscale());
+    f.add(int(m_settings.loss.kind));
+    f.add(m_settings.loss.epsilon);
+    f.add(int(m_settings.optimizer));
+    f.add(m_settings.adam.lr);
+    f.add(m_settings.adam.beta1);
+    f.add(m_settings.adam.beta2);
+    f.add(m_settings.adam.epsilon);
+    f.add(m_settings.adam.decay);
+    f.add(int(m_settings.positions));
+    f.add(m_settings.seed);
+    std::vector<Fingerprint> states{f, Fingerprint{}};
+    chain_observations(states, m_observations, m_indices, m_count, *m_comm);
+    m_fingerprint = hex(states[0].h);
+    m_observations_hash = hex(states[1].h);
 }
 
 Heightfield default_inversion_truth(int rows, int cols, double texel_um, double vscale, std::uint64_t seed) {
@@ -208,7 +281,10 @@ std::array<double, 2> Inversion::random_position(std::uint64_t seed, int epoch, 
 
 std::vector<Observation> Inversion::epoch_observations(int epoch) const {
     if (m_settings.positions == PositionMode::Fixed) return m_observations;
+    // Sharded: every rank draws the same; the owner of the drawn observation (of observation 0,
+    // the base of a drawn position: rank 0's) evaluates it, the others none.
     if (m_truth) {
+        if (m_indices.empty() || m_indices[0] != 0) return {};
         Observation o = m_observations[0];
         const auto pos = random_position(m_settings.seed, epoch, m_estimate);
         o.query.x_um = pos[0];
@@ -217,16 +293,19 @@ std::vector<Observation> Inversion::epoch_observations(int epoch) const {
         return {o};
     }
     const std::uint64_t pick = splitmix64(m_settings.seed ^ (0xabcdefULL + static_cast<std::uint64_t>(epoch)));
-    return {m_observations[pick % m_observations.size()]};
+    const std::size_t global = static_cast<std::size_t>(pick % m_count);
+    const auto found = std::lower_bound(m_indices.begin(), m_indices.end(), global);
+    if (found == m_indices.end() || *found != global) return {};
+    return {m_observations[static_cast<std::size_t>(found - m_indices.begin())]};
 }
 
 EpochMetrics Inversion::evaluate(std::vector<double>* gradient, std::vector<std::vector<double>>* rendered) const {
     EpochMetrics m;
     std::vector<std::vector<double>> slices;
     m.loss = observation_loss(m_estimate, m_observations, m_settings.loss, gradient, m_settings.render, &slices,
-                              &m_plans);
+                              &m_plans, *m_comm);
     const Loss mse{LossKind::MSE, 1.0}, cmsle1{LossKind::CMSLE, 1.0}, cmsle3{LossKind::CMSLE, 1e-3};
-    const double scale = 1.0 / double(m_observations.size());
+    const double scale = 1.0 / double(m_count);
     for (std::size_t i = 0; i < m_observations.size(); ++i) {
         const Observation& o = m_observations[i];
         m.brdf_mse += scale * loss_value(mse, slices[i], o.reference, o.channels());
@@ -234,6 +313,12 @@ EpochMetrics Inversion::evaluate(std::vector<double>* gradient, std::vector<std:
         m.cmsle_0_001 += scale * loss_value(cmsle3, slices[i], o.reference, o.channels());
         m.rgb_mse += scale * rgb_mse(slices[i], o.reference, o.channels());
         m.rgb_gamma_mse += scale * rgb_gamma_mse(slices[i], o.reference, o.channels());
+    }
+    if (m_comm->size() > 1) {
+        std::vector<double> sums{m.brdf_mse, m.cmsle_1, m.cmsle_0_001, m.rgb_mse, m.rgb_gamma_mse};
+        m_comm->allreduce_sum(sums);
+        m.brdf_mse = sums[0], m.cmsle_1 = sums[1], m.cmsle_0_001 = sums[2], m.rgb_mse = sums[3];
+        m.rgb_gamma_mse = sums[4];
     }
     if (m_truth) {
         // In µm², on the heights H = v·w·h of both.
@@ -269,7 +354,7 @@ void Inversion::run(const Callback& on_epoch) {
             EpochMetrics metrics = evaluate(fixed ? &gradient : nullptr, &slices);
             if (!fixed)
                 observation_loss(m_estimate, epoch_observations(m_epoch), m_settings.loss, &gradient, m_settings.render,
-                                 nullptr, &m_plans);
+                                 nullptr, &m_plans, *m_comm);
             if (!report(gradient, metrics, slices)) break;
             if (m_epoch >= m_settings.epochs) break;
             std::vector<double> x = m_estimate.values();
@@ -298,7 +383,7 @@ void Inversion::run(const Callback& on_epoch) {
     auto objective = [&](const std::vector<double>& v, std::vector<double>& g) {
         g.clear();  // observation_loss adds into its gradient (adjoint.h)
         return observation_loss(m_estimate.with_values(v), m_observations, m_settings.loss, &g, m_settings.render,
-                                nullptr, &m_plans);
+                                nullptr, &m_plans, *m_comm);
     };
     bool stopped = false;
     lbfgs_minimize(
@@ -320,33 +405,13 @@ void Inversion::run(const Callback& on_epoch) {
     m_seconds_before = seconds();
 }
 
-std::string Inversion::fingerprint() const {
-    Fingerprint f;
-    f.add(m_estimate.rows());
-    f.add(m_estimate.cols());
-    f.add(m_estimate.texel_um());
-    f.add(m_estimate.vscale());
-    f.add(int(m_settings.loss.kind));
-    f.add(m_settings.loss.epsilon);
-    f.add(int(m_settings.optimizer));
-    f.add(m_settings.adam.lr);
-    f.add(m_settings.adam.beta1);
-    f.add(m_settings.adam.beta2);
-    f.add(m_settings.adam.epsilon);
-    f.add(m_settings.adam.decay);
-    f.add(int(m_settings.positions));
-    f.add(m_settings.seed);
-    add_observations(f, m_observations);
-    std::ostringstream out;
-    out << std::hex << f.h;
-    return out.str();
-}
+std::string Inversion::fingerprint() const { return m_fingerprint; }
 
 void Inversion::save_checkpoint(const std::string& path) const {
     nlohmann::json j;
     j["format"] = "wavebrdf-checkpoint-1";
     j["fingerprint"] = fingerprint();
-    j["run"] = run_summary(m_estimate, m_settings, m_observations);
+    j["run"] = run_summary(m_estimate, m_settings, m_count, m_observations_hash);
     j["epoch"] = m_epoch;
     j["seconds"] = m_history.empty() ? m_seconds_before : m_history.back().seconds;
     j["rows"] = m_estimate.rows();
@@ -378,10 +443,10 @@ void Inversion::load_checkpoint(const std::string& path) {
         if (j.at("format").get<std::string>() != "wavebrdf-checkpoint-1")
             throw std::runtime_error(path + ": unknown checkpoint format");
         if (j.at("fingerprint").get<std::string>() != fingerprint()) {
-            const std::string differences = j.contains("run")
-                                                ? describe_differences(
-                                                      j["run"], run_summary(m_estimate, m_settings, m_observations))
-                                                : std::string();
+            const std::string differences = j.contains("run") ? describe_differences(
+                                                                    j["run"], run_summary(m_estimate, m_settings,
+                                                                                          m_count, m_observations_hash))
+                                                              : std::string();
             throw std::runtime_error(path + ": the checkpoint belongs to a different run (" +
                                      (differences.empty() ? "settings, observations or seed differ" : differences) +
                                      "); expected the same options as the run it came from");

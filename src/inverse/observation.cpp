@@ -90,18 +90,32 @@ void ObservationPlans::reserve(std::size_t capacity) { m_capacity = std::max(m_c
 
 double observation_loss(const Heightfield& hf, const std::vector<Observation>& observations, const Loss& loss,
                         std::vector<double>* gradient, const RenderOptions& options,
-                        std::vector<std::vector<double>>* rendered, ObservationPlans* plans) {
-    if (observations.empty()) throw std::invalid_argument("no observations given; expected at least one");
-    for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
+                        std::vector<std::vector<double>>* rendered, ObservationPlans* plans, const Communicator& comm) {
+    const bool sharded = comm.size() > 1;
     const std::size_t cells = hf.values().size();
+    // Checks (agreed over the ranks when sharded: a bad observation on one rank fails all).
+    std::vector<double> count{static_cast<double>(observations.size())};
+    agree(comm, [&] {
+        if (!sharded && observations.empty())
+            throw std::invalid_argument("no observations given; expected at least one");
+        for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
+        if (gradient && !gradient->empty() && gradient->size() != cells)
+            throw std::invalid_argument("gradient has " + std::to_string(gradient->size()) +
+                                        " entries; expected rows*cols = " + std::to_string(cells));
+    });
+    if (sharded) {
+        comm.allreduce_sum(count);
+        if (count[0] == 0.0) throw std::invalid_argument("no observations given; expected at least one");
+    }
     if (gradient && gradient->empty()) gradient->assign(cells, 0.0);
-    if (gradient && gradient->size() != cells)
-        throw std::invalid_argument("gradient has " + std::to_string(gradient->size()) +
-                                    " entries; expected rows*cols = " + std::to_string(cells));
     if (rendered) rendered->assign(observations.size(), {});
     if (plans) plans->reserve(2 * observations.size() + 2);
+    // Sharded: this rank's gradient on its own, added to *gradient after the allreduce.
+    std::vector<double> share_gradient;
+    if (sharded && gradient) share_gradient.assign(cells, 0.0);
+    std::vector<double>* into = sharded ? &share_gradient : gradient;
     double total = 0.0;
-    const double scale = 1.0 / static_cast<double>(observations.size());
+    const double scale = 1.0 / count[0];
     for (std::size_t oi = 0; oi < observations.size(); ++oi) {
         const Observation& o = observations[oi];
         // Forward every wavelength (the plan keeps the fields for the backward pass), mixed to
@@ -113,11 +127,19 @@ double observation_loss(const Heightfield& hf, const std::vector<Observation>& o
         const std::vector<double>& estimate = plan.forward();
         std::vector<double> d_estimate;
         total += scale * loss_value(loss, estimate, o.reference, o.channels(), gradient ? &d_estimate : nullptr);
-        if (gradient) plan.adjoint(d_estimate, *gradient, scale);
+        if (gradient) plan.adjoint(d_estimate, *into, scale);
         if (rendered) (*rendered)[oi] = estimate;
         plan.release();  // a cached plan keeps only its height-independent tables between calls
     }
-    return total;
+    if (!sharded) return total;
+    // The loss and the gradient in one allreduce (rank order: the same bits on every rank).
+    std::vector<double> share(1 + share_gradient.size());
+    share[0] = total;
+    std::copy(share_gradient.begin(), share_gradient.end(), share.begin() + 1);
+    comm.allreduce_sum(share);
+    if (gradient)
+        for (std::size_t i = 0; i < cells; ++i) (*gradient)[i] += share[1 + i];
+    return share[0];
 }
 
 namespace {
