@@ -109,15 +109,11 @@ py::dict metrics_columns(const std::vector<StageMetrics>& history) {
     return d;
 }
 
-// The communicator of a `comm` argument: None → the serial one (a Python user opts in to MPI);
-// an mpi4py communicator → its MPI communicator (comm.py2f()).
-std::shared_ptr<const Communicator> communicator_argument(const py::object& comm) {
-    if (comm.is_none()) return std::shared_ptr<const Communicator>(&serial_communicator(), [](const Communicator*) {});
-    if (!py::hasattr(comm, "py2f"))
-        throw py::value_error("comm = " + std::string(py::repr(comm)) +
-                              " is invalid; expected an mpi4py communicator (e.g. MPI.COMM_WORLD) or None");
-    const long long handle = comm.attr("py2f")().cast<long long>();
-    return communicator_from_fortran_handle(handle);
+// The communicator of a `comm` argument (communicator_argument), never null: None → the serial
+// one (a Python user opts in to MPI).
+std::shared_ptr<const Communicator> ranks_argument(const py::object& comm) {
+    if (std::shared_ptr<const Communicator> ranks = communicator_argument(comm)) return ranks;
+    return std::shared_ptr<const Communicator>(&serial_communicator(), [](const Communicator*) {});
 }
 
 // Runs `work(on_step)` without the GIL. Every step is kept in `history` and, with the GIL
@@ -174,7 +170,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
                        const py::object& comm_arg) {
-    const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
+    const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
     options.method = parse_recovery_method(method, "method");
@@ -452,7 +448,7 @@ truth Heightfield) slopes that reflect light off the slice.
            double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
            double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
            const py::object& refine_loss, const py::object& callback, const py::object& comm_arg) {
-            const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
+            const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
             const std::vector<Observation> list = observations_or_file(observations);
             const std::array<int, 2> rc = size_argument(size);
             check_positive(texel_um, "texel_um");

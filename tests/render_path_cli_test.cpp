@@ -55,7 +55,7 @@ TEST_F(RenderPathCliTest, BadPathAndToleranceAreRefusedInOneLine) {
         expect_one_line_naming(sideways, {"--path", "'sideways'", "auto, separable, fft or direct"});
         const CliResult upper = run(command + " --path Direct");
         expect_one_line_naming(upper, {"--path", "'Direct'"});
-        for (const std::string& tolerance : {"0.5", "1e-13", "0", "-1e-6", "nan"}) {
+        for (const char* tolerance : {"0.5", "1e-13", "0", "-1e-6", "nan"}) {
             const CliResult r = run(command + " --tolerance " + tolerance);
             expect_one_line_naming(r, {"--tolerance", "1e-12 to 1e-2"});
         }
