@@ -113,14 +113,22 @@ def test_readme_shell_examples_run_as_written(fresh_dir, cli):
                 check = subprocess.run(["bash", "-n", script], capture_output=True, text=True)
                 assert check.returncode == 0, "%s does not parse: %s" % (argv[1], check.stderr)
                 continue
+            launcher = []
+            if argv[0] == "mpiexec":  # mpiexec -n K build/bin/wavebrdf …: K ranks (docs/scale.md)
+                assert argv[1] == "-n" and argv[2].isdigit(), "README: mpiexec without -n K: %s" % argv
+                # As root and with more ranks than cores, as CI runs it.
+                launcher = ["mpiexec", "-n", argv[2], "--oversubscribe", "--bind-to", "none"]
+                argv = argv[3:]
             assert argv[0] == "build/bin/wavebrdf", "README command this test does not know: %s" % argv
             for path in option_values(argv, INPUTS):
                 assert (fresh_dir / path).exists(), "README: `%s` reads %s, which no earlier example makes" % (
                     shlex.join(argv),
                     path,
                 )
-            run = shrink(argv) if argv[1] in SHRINK else argv
-            result = subprocess.run(run, cwd=fresh_dir, capture_output=True, text=True, env=env, timeout=300)
+            run = launcher + (shrink(argv) if argv[1] in SHRINK else argv)
+            run_env = dict(env, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMP_NUM_THREADS="1")
+            result = subprocess.run(run, cwd=fresh_dir, capture_output=True, text=True,
+                                    env=run_env if launcher else env, timeout=300)
             assert result.returncode == 0, "README: `%s` failed (ran as `%s`):\n%s" % (
                 shlex.join(argv),
                 shlex.join(run),
@@ -131,8 +139,10 @@ def test_readme_shell_examples_run_as_written(fresh_dir, cli):
             if argv[1] in SHRINK:  # a run directory: its estimate and metrics
                 out = option_values(argv, {"--out"})[0]
                 assert (fresh_dir / out / "estimate.exr").exists() and (fresh_dir / out / "metrics.csv").exists()
-            if "--save-observations" in argv:
-                assert (fresh_dir / option_values(argv, {"--out"})[0] / "observations.json").exists()
+            if "--save-observations" in argv:  # into --out, or to the FILE it names
+                named = [v for v in option_values(argv, {"--save-observations"}) if not v.startswith("-")]
+                saved = fresh_dir / named[0] if named else fresh_dir / option_values(argv, {"--out"})[0] / "observations.json"
+                assert saved.exists(), "README: `%s` did not write %s" % (shlex.join(argv), saved)
 
 
 def test_readme_python_example_runs_as_written(fresh_dir, monkeypatch):

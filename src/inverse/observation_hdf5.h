@@ -1,5 +1,5 @@
 #pragma once
-// The HDF5 side of observation_file.h (src/io/observation_hdf5.cpp): what observation_file.cpp
+// The HDF5 side of observation_file.h (src/inverse/observation_hdf5.cpp): what observation_file.cpp
 // dispatches to. Every function throws std::runtime_error "PATH: wavebrdf was built without
 // HDF5 ..." when the library was built without it.
 #include <string>

@@ -1,4 +1,4 @@
-// Observation files by format (observation_file.h): HDF5 (src/io/observation_hdf5.cpp) for the
+// Observation files by format (observation_file.h): HDF5 (src/inverse/observation_hdf5.cpp) for the
 // extensions .h5/.hdf5/.cxi or a file with the HDF5 signature, else JSON (observation.h), and a
 // rank's share of them (communicator.h observation_share).
 #include "wavebrdf/observation_file.h"
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "io/observation_hdf5.h"
+#include "inverse/observation_hdf5.h"
 #include "wavebrdf/communicator.h"
 
 namespace wavebrdf {

@@ -4,7 +4,7 @@
 // std::runtime_error naming the file and the dataset. HDF5's own error stack printing is
 // silenced while we call it, and our calls are serialised (the library may be built without
 // thread safety).
-#include "io/observation_hdf5.h"
+#include "inverse/observation_hdf5.h"
 
 #include <algorithm>
 #include <cmath>
