@@ -161,8 +161,9 @@ public:
     // The sum k as a double (one rounding, to nearest).
     double value(std::size_t k) const { return double(m_sum[k]) * m_inv_scale; }
     // Every sum as a double into out[0 … size() − 1] (on all threads for long vectors).
-    void values(double* out) const {
-        const std::size_t n = m_sum.size();
+    void values(double* out) const { values(out, m_sum.size()); }
+    // The first n sums (n ≤ size()).
+    void values(double* out, std::size_t n) const {
 #pragma omp parallel for schedule(static) if (worth_parallel((long long)n))
         for (std::size_t k = 0; k < n; ++k) out[k] = value(k);
     }
@@ -254,10 +255,15 @@ public:
 
     template <typename Body>
     double run(std::size_t count, const Communicator& comm, std::vector<double>& gradient, Body&& body) {
+        gradient.resize(m_n);
+        return run(count, comm, gradient.data(), std::forward<Body>(body));
+    }
+    // The same into out[0 … n − 1] (e.g. complex values as 2n doubles).
+    template <typename Body>
+    double run(std::size_t count, const Communicator& comm, double* out, Body&& body) {
         run_local(count, std::forward<Body>(body));
         m_total.allreduce(comm);
-        gradient.resize(m_n);
-        m_total.values(gradient.data());
+        m_total.values(out, m_n);
         return m_total.value(m_n);
     }
     // The same without the ranks' sum: this rank's exact sums (then total()).
