@@ -95,6 +95,8 @@ public:
     // std::overflow_error when |v| ≥ max_term() or v is not finite.
     Word to_fixed(double v) const {
         const double x = v * m_scale;  // exact: a power of two
+        // Most terms (|x| < 2^62): one rounding to an integer, the same value as below.
+        if (std::abs(x) < 0x1p62) return Word(static_cast<std::int64_t>(std::rint(x)));
         if (!(std::abs(x) < m_limit)) exact_sum_refuse(v, max_term());
         // x = hi · 2^52 + rest, both parts exact: x·2^−52 − trunc(x·2^−52) is exact in binary
         // floating point, and |hi| < 2^52, |rest| < 2^52.
@@ -159,7 +161,12 @@ public:
     void allreduce(const Communicator& comm);
 
     // The sum k as a double (one rounding, to nearest).
-    double value(std::size_t k) const { return double(m_sum[k]) * m_inv_scale; }
+    double value(std::size_t k) const {
+        const Word w = m_sum[k];
+        // Sums that fit 64 bits (most): one hardware conversion, the same correctly rounded value.
+        const std::int64_t narrow = static_cast<std::int64_t>(w);
+        return (Word(narrow) == w ? double(narrow) : double(w)) * m_inv_scale;
+    }
     // Every sum as a double into out[0 … size() − 1] (on all threads for long vectors).
     void values(double* out) const { values(out, m_sum.size()); }
     // The first n sums (n ≤ size()).
@@ -171,6 +178,15 @@ public:
         std::vector<double> out(m_sum.size());
         values(out.data());
         return out;
+    }
+    // As values(out, n), and every sum set to 0 afterwards (for the next round of sums).
+    void take_values(double* out, std::size_t n) {
+        const std::size_t all = m_sum.size();
+#pragma omp parallel for schedule(static) if (worth_parallel((long long)all))
+        for (std::size_t k = 0; k < all; ++k) {
+            if (k < n) out[k] = value(k);
+            m_sum[k] = 0;
+        }
     }
     Word word(std::size_t k) const { return m_sum[k]; }
 
@@ -263,14 +279,17 @@ public:
     double run(std::size_t count, const Communicator& comm, double* out, Body&& body) {
         run_local(count, std::forward<Body>(body));
         m_total.allreduce(comm);
-        m_total.values(out, m_n);
-        return m_total.value(m_n);
+        const double value = m_total.value(m_n);
+        m_total.take_values(out, m_n);  // and zero for the next call
+        m_zero = true;
+        return value;
     }
     // The same without the ranks' sum: this rank's exact sums (then total()).
     template <typename Body>
     void run_local(std::size_t count, Body&& body) {
-        m_total.set_zero();
-        const int threads = count > 1 && !in_parallel_region() ? std::max(1, omp_get_max_threads()) : 1;
+        if (!m_zero) m_total.set_zero();
+        m_zero = false;
+        const int threads = m_parallel && count > 1 && !in_parallel_region() ? std::max(1, omp_get_max_threads()) : 1;
         if (m_scratch.size() < std::size_t(threads)) m_scratch.resize(std::size_t(threads));
         const bool check = exact_scratch_check().load(std::memory_order_relaxed);
         RegionGuard guard;
@@ -294,11 +313,16 @@ public:
         guard.rethrow();
     }
     ExactVector& total() { return m_total; }
+    // false: the bodies run on the calling thread only, in order (e.g. when they share a
+    // cache that is not thread-safe); the sums are the same either way.
+    void set_parallel(bool parallel) { m_parallel = parallel; }
 
 private:
     static void verify_zero(const std::vector<double>& scratch, std::size_t i);
     std::size_t m_n;
     ExactVector m_total;  // m_n vector sums, then the scalar
+    bool m_zero = true;   // m_total is all zeros
+    bool m_parallel = true;
     std::vector<std::vector<double>> m_scratch;
 };
 
