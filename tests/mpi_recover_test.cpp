@@ -1,8 +1,8 @@
 // `mpiexec -n K wavebrdf recover …` (docs/scale.md): the observations sharded over K ranks, the
-// sums allreduced in rank order. Compared with the one-process run of the same arguments: the
-// same bits for two runs with the same K, the one-process heights within the bound the
-// single-precision stages allow (docs/scale.md, "Equality with one process"), rank 0 alone
-// writing and printing. Compiled only when the library is built with MPI.
+// sums over observations exact (src/core/exact_sum.h). Compared with the one-process run of the
+// same arguments: the same heights bit for bit for K = 2 and 3 and for one process on one or two
+// threads (docs/scale.md, "Equality with one process"), rank 0 alone writing and printing.
+// Compiled only when the library is built with MPI.
 #ifdef WAVEBRDF_HAS_MPI
 
 #include <fcntl.h>
@@ -22,25 +22,27 @@
 namespace wavebrdf::test {
 namespace {
 
-// The child's environment: ours, plus what running OpenMPI as root here needs, one thread per
-// rank (ranks are oversubscribed on 2 cores) and no leak check (OpenMPI's init leaks by design).
-std::vector<std::string> mpi_environment() {
+// The child's environment: ours, plus what running OpenMPI as root here needs, `threads` threads
+// per rank (1: ranks are oversubscribed on 2 cores) and no leak check (OpenMPI's init leaks by
+// design).
+std::vector<std::string> mpi_environment(int threads) {
     std::vector<std::string> env;
     for (char** e = environ; *e != nullptr; ++e) {
         const std::string entry(*e);
         if (entry.rfind("OMP_NUM_THREADS=", 0) == 0 || entry.rfind("ASAN_OPTIONS=", 0) == 0) continue;
         env.push_back(entry);
     }
-    for (const char* extra : {"OMPI_ALLOW_RUN_AS_ROOT=1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1", "OMP_NUM_THREADS=1",
+    for (const char* extra : {"OMPI_ALLOW_RUN_AS_ROOT=1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1",
                               "ASAN_OPTIONS=detect_leaks=0", "OMPI_MCA_rmaps_base_oversubscribe=1"})
         env.emplace_back(extra);
+    env.push_back("OMP_NUM_THREADS=" + std::to_string(threads));
     return env;
 }
 
 // Runs `argv` (argv[0] a path) in `dir` without a shell, stdout and stderr captured.
-CliResult spawn(const fs::path& dir, std::vector<std::string> argv) {
+CliResult spawn(const fs::path& dir, std::vector<std::string> argv, int threads = 1) {
     const fs::path out = dir / "spawn.out", err = dir / "spawn.err";
-    std::vector<std::string> env = mpi_environment();
+    std::vector<std::string> env = mpi_environment(threads);
     std::vector<char*> args, envp;
     for (std::string& a : argv) args.push_back(a.data());
     args.push_back(nullptr);
@@ -66,13 +68,13 @@ CliResult spawn(const fs::path& dir, std::vector<std::string> argv) {
     return r;
 }
 
-// `wavebrdf args` on `ranks` ranks (0: without mpiexec) in `dir`.
-CliResult run_ranks(const fs::path& dir, int ranks, const std::vector<std::string>& args) {
+// `wavebrdf args` on `ranks` ranks (0: without mpiexec) in `dir`, `threads` threads each.
+CliResult run_ranks(const fs::path& dir, int ranks, const std::vector<std::string>& args, int threads = 1) {
     std::vector<std::string> argv;
     if (ranks > 0) argv = {WAVEBRDF_MPIEXEC, "-q", "-n", std::to_string(ranks), "--oversubscribe", "--bind-to", "none"};
     argv.emplace_back(WAVEBRDF_CLI);
     argv.insert(argv.end(), args.begin(), args.end());
-    return spawn(dir, argv);
+    return spawn(dir, argv, threads);
 }
 
 // The float64 values of a .npy file written by the library (little-endian '<f8', C order).
@@ -114,6 +116,10 @@ TEST(MpiRecover, ShardedRunsAreReproducibleAndMatchTheOneProcessRun) {
     ASSERT_EQ(one.exit_code, 0) << one.err;
     const std::vector<double> reference = read_npy(dir / "one" / "estimate_height.npy");
     ASSERT_EQ(reference.size(), 144u);
+    // One process on two threads: the same bits (the sums do not depend on the thread count).
+    const CliResult two_threads = run_ranks(dir, 0, recover_args("one_t2"), 2);
+    ASSERT_EQ(two_threads.exit_code, 0) << two_threads.err;
+    EXPECT_EQ(read_npy(dir / "one_t2" / "estimate_height.npy"), reference) << "1 process, 2 threads";
     for (int ranks : {2, 3}) {
         const std::string a = "k" + std::to_string(ranks) + "a", b = "k" + std::to_string(ranks) + "b";
         const CliResult first = run_ranks(dir, ranks, recover_args(a));
@@ -123,11 +129,10 @@ TEST(MpiRecover, ShardedRunsAreReproducibleAndMatchTheOneProcessRun) {
         const std::vector<double> x = read_npy(dir / a / "estimate_height.npy");
         const std::vector<double> y = read_npy(dir / b / "estimate_height.npy");
         ASSERT_EQ(x.size(), reference.size());
-        // The same bits for the same number of ranks.
+        // The same bits for the same number of ranks, and the one-process heights bit for bit
+        // (exact sums: the split over ranks changes no sum; the bound is 1e-9).
         EXPECT_EQ(x, y) << ranks << " ranks";
-        // The one-process heights, up to the order of the sums: a last-bit difference in a sum
-        // grows through the single-precision slices and L-BFGS (measured ~1e-4 here).
-        EXPECT_LT(max_relative_difference(reference, x), 2e-3) << ranks << " ranks";
+        EXPECT_EQ(x, reference) << ranks << " ranks; max relative difference " << max_relative_difference(reference, x);
         // Only rank 0 wrote: the run's files once, no other file beside them.
         EXPECT_NE(read_text(dir / a / "run.json").find("\"observations\": 25"), std::string::npos)
             << "run.json counts every rank's observations";

@@ -10,6 +10,7 @@
 // made by every rank, in the same order, from the thread that created the communicator.
 #include <array>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <stdexcept>
@@ -31,6 +32,13 @@ public:
     virtual void broadcast(double* values, std::size_t count, int root = 0) const = 0;
     // The concatenation of every rank's `local`, in rank order, on `root` (empty elsewhere).
     virtual std::vector<double> gather(const std::vector<double>& local, int root = 0) const = 0;
+    // Word-level collectives (the exact, order-independent sums of core/exact_sum.h combine
+    // 128-bit integers with them). gather_words: every rank passes `count` words (the same count
+    // on every rank); `all` on root receives size() · count words, rank r's at r · count (ignored
+    // elsewhere: may be null). broadcast_words: words ← root's words on every rank.
+    virtual void gather_words(const std::uint64_t* local, std::size_t count, std::uint64_t* all,
+                              int root = 0) const = 0;
+    virtual void broadcast_words(std::uint64_t* words, std::size_t count, int root = 0) const = 0;
     // True on every rank when `flag` is true on any rank (e.g. one rank was interrupted).
     virtual bool any(bool flag) const = 0;
     virtual void barrier() const = 0;

@@ -78,6 +78,12 @@ public:
     bool matches(const Heightfield& heightfield, const Query& query, const std::vector<double>& lambdas_um,
                  int resolution, int channels, const RenderOptions& options) const;
 
+    // The texel rows and columns adjoint / adjoint_wavelength add into: the footprint's kernels'
+    // and their neighbours' (the slopes' central differences), wrapped around the tile, each
+    // once, ascending. Every gradient value the adjoint writes lies in rows × cols (a box for
+    // exact per-observation sums, core/exact_sum.h). Depends on the geometry only.
+    void gradient_box(std::vector<int>& rows, std::vector<int>& cols) const;
+
     int resolution() const;
     int channels() const;
     std::size_t wavelengths() const;

@@ -340,6 +340,23 @@ bool SlicePlan<Float>::matches(const Heightfield& hf, const Query& query, const 
 }
 
 template <typename Float>
+void SlicePlan<Float>::gradient_box(std::vector<int>& rows, std::vector<int>& cols) const {
+    const State& s = *m_state;
+    std::vector<char> row_used(static_cast<std::size_t>(s.rows), 0), col_used(static_cast<std::size_t>(s.cols), 0);
+    for (std::size_t k = 0; k < s.kernels.size(); ++k)
+        for (int d = -1; d <= 1; ++d) {  // as scatter_to_heights: (i, j), (i ± 1, j), (i, j ± 1)
+            row_used[static_cast<std::size_t>(((s.kernels.row[k] + d) % s.rows + s.rows) % s.rows)] = 1;
+            col_used[static_cast<std::size_t>(((s.kernels.col[k] + d) % s.cols + s.cols) % s.cols)] = 1;
+        }
+    rows.clear();
+    cols.clear();
+    for (int i = 0; i < s.rows; ++i)
+        if (row_used[static_cast<std::size_t>(i)]) rows.push_back(i);
+    for (int j = 0; j < s.cols; ++j)
+        if (col_used[static_cast<std::size_t>(j)]) cols.push_back(j);
+}
+
+template <typename Float>
 int SlicePlan<Float>::resolution() const {
     return m_state->n;
 }

@@ -34,6 +34,11 @@ public:
         check_root(root);
         return local;
     }
+    void gather_words(const std::uint64_t* local, std::size_t count, std::uint64_t* all, int root) const override {
+        check_root(root);
+        if (count > 0) std::memmove(all, local, count * sizeof(std::uint64_t));
+    }
+    void broadcast_words(std::uint64_t*, std::size_t, int root) const override { check_root(root); }
     bool any(bool flag) const override { return flag; }
     void barrier() const override {}
     [[noreturn]] void abort(int code) const override {
@@ -121,6 +126,28 @@ public:
                               root, m_comm),
                   "MPI_Gatherv");
         return all;
+    }
+    void gather_words(const std::uint64_t* local, std::size_t count, std::uint64_t* all, int root) const override {
+        check_root(root);
+        const bool here = m_rank == root;
+        std::vector<std::uint64_t> chunk;
+        for (std::size_t start = 0; start < count; start += k_chunk) {
+            const std::size_t n = std::min(k_chunk, count - start);
+            if (here) chunk.resize(n * std::size_t(m_size));
+            check_mpi(MPI_Gather(local + start, int(n), MPI_UINT64_T, here ? chunk.data() : nullptr, int(n),
+                                 MPI_UINT64_T, root, m_comm),
+                      "MPI_Gather");
+            if (here)
+                for (std::size_t r = 0; r < std::size_t(m_size); ++r)
+                    std::memcpy(all + r * count + start, chunk.data() + r * n, n * sizeof(std::uint64_t));
+        }
+    }
+    void broadcast_words(std::uint64_t* words, std::size_t count, int root) const override {
+        check_root(root);
+        for (std::size_t start = 0; start < count; start += k_chunk) {
+            const std::size_t n = std::min(k_chunk, count - start);
+            check_mpi(MPI_Bcast(words + start, int(n), MPI_UINT64_T, root, m_comm), "MPI_Bcast");
+        }
     }
     bool any(bool flag) const override {
         int mine = flag ? 1 : 0, result = 0;

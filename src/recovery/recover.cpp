@@ -15,8 +15,8 @@
 #include "wavebrdf/loss.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/slice_plan.h"
+#include "core/exact_sum.h"
 #include "core/parallel.h"
-#include "recovery/sharded.h"
 
 namespace wavebrdf {
 
@@ -61,10 +61,10 @@ namespace {
 // `observations_total` counts all ranks' observations.
 Heightfield recover_stages(const std::vector<Observation>& observations,
                            const std::map<double, std::vector<const Observation*>>& by_lambda,
-                           double observations_total,
-                           const Heightfield& flat, int rows, int cols, double texel_um, double vscale,
-                           const RecoverSettings& settings, const std::function<bool(const StageMetrics&)>& on_step,
-                           const Heightfield* truth, const Communicator& comm) {
+                           double observations_total, const Heightfield& flat, int rows, int cols, double texel_um,
+                           double vscale, const RecoverSettings& settings,
+                           const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
+                           const Communicator& comm) {
     const auto start = std::chrono::steady_clock::now();
     const auto seconds = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -210,39 +210,47 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // heights change (slice_plan.h), so rebuilding the tables each time was wasted work.
         // A plan keeps only its height-independent tables between calls (release below).
         std::vector<std::unique_ptr<SlicePlan<float>>> plans(observations.size());
+        // Every rank's observations summed exactly (core/exact_sum.h): each plan's gradient
+        // goes in over its box (the texels its adjoint writes), so the sums are the same for any
+        // thread count and split over ranks.
+        std::vector<std::vector<int>> box_rows(observations.size()), box_cols(observations.size());
+        detail::ExactParallelSum exact_sum(h.size());
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
-            g.assign(x.size(), 0.0);
             const double scale = 1.0 / observations_total;  // all ranks' observations
-            return detail::allreduced(comm, g, detail::ordered_parallel_sum(
-                observations.size(), g, true, [&](std::size_t i, std::vector<double>& local) {
-                    const Observation& o = observations[i];
-                    // Built on the flat surface's geometry (no copy of the heights per
-                    // observation), then given the heights like every later call.
-                    if (!plans[i])
-                        plans[i] = std::make_unique<SlicePlan<float>>(flat, o.query, o.lambdas_um, o.resolution,
-                                                                      o.channels());
-                    plans[i]->set_heights(x);
-                    SlicePlan<float>& plan = *plans[i];
-                    const std::vector<float>& f = plan.forward();
-                    std::vector<double> d_estimate;
-                    const double v = loss_value(settings.refine_loss, std::vector<double>(f.begin(), f.end()),
-                                                o.reference, o.channels(), &d_estimate);
-                    plan.adjoint(d_estimate, local, scale);
-                    plan.release();
-                    return scale * v;
-                }));
+            return exact_sum.run(observations.size(), comm, g, [&](std::size_t i, detail::ExactScratch& scratch) {
+                const Observation& o = observations[i];
+                // Built on the flat surface's geometry (no copy of the heights per
+                // observation), then given the heights like every later call.
+                if (!plans[i]) {
+                    plans[i] = std::make_unique<SlicePlan<float>>(flat, o.query, o.lambdas_um, o.resolution,
+                                                                  o.channels());
+                    plans[i]->gradient_box(box_rows[i], box_cols[i]);
+                }
+                plans[i]->set_heights(x);
+                SlicePlan<float>& plan = *plans[i];
+                const std::vector<float>& f = plan.forward();
+                std::vector<double> d_estimate;
+                const double v = loss_value(settings.refine_loss, std::vector<double>(f.begin(), f.end()), o.reference,
+                                            o.channels(), &d_estimate);
+                plan.adjoint(d_estimate, scratch.vector(), scale);
+                scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
+                plan.release();
+                return scale * v;
+            });
         };
         LbfgsOptions lo;
         lo.history = settings.refine_history;
         lo.max_iterations = settings.refine_iterations;
         lo.gradient_tolerance = 0.0;
-        // observation_loss's mean over all ranks' observations.
-        std::vector<double> reference_sum{
-            observations.empty()
-                ? 0.0
-                : observation_loss(flat, observations, settings.refine_loss, nullptr) * double(observations.size())};
-        comm.allreduce_sum(reference_sum);
-        const double reference_loss = reference_sum[0] / observations_total;
+        // observation_loss's mean over all ranks' observations (summed exactly, as above).
+        std::vector<double> no_gradient;
+        detail::ExactParallelSum exact_reference(0);
+        const double reference_loss = exact_reference.run(observations.size(), comm, no_gradient,
+                                                          [&](std::size_t i, detail::ExactScratch&) {
+                                                              return observation_loss(flat, {observations[i]},
+                                                                                      settings.refine_loss, nullptr);
+                                                          }) /
+                                      observations_total;
         lbfgs_minimize(objective, h, lo, [&](int it, double value) {
             const Heightfield current = flat.with_values(h);
             if (!report("refine", it, value, &current)) return false;
@@ -293,8 +301,8 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             "recover_heights: no single-wavelength OHS or ROHS observation; the field stage needs some");
     // From here on the ranks meet in collective calls: one rank's failure ends them all.
     return run_or_abort(comm, [&] {
-        return recover_stages(observations, by_lambda, total[0], flat, rows, cols, texel_um, vscale, settings,
-                              on_step, truth, comm);
+        return recover_stages(observations, by_lambda, total[0], flat, rows, cols, texel_um, vscale, settings, on_step,
+                              truth, comm);
     });
 }
 

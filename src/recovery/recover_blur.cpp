@@ -21,8 +21,8 @@
 #include "wavebrdf/recover.h"
 #include "wavebrdf/slice_plan.h"
 
+#include "core/exact_sum.h"
 #include "core/parallel.h"
-#include "recovery/sharded.h"
 
 namespace wavebrdf {
 
@@ -88,6 +88,11 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
     plans.reserve(used.size());
     for (const Observation* o : used) plans.emplace_back(initial, o->query, o->lambdas_um, o->resolution, 1);
 
+    // The texels each plan's adjoint writes (its box for the exact sums).
+    std::vector<std::vector<int>> box_rows(used.size()), box_cols(used.size());
+    for (std::size_t i = 0; i < used.size(); ++i) plans[i].gradient_box(box_rows[i], box_cols[i]);
+    detail::ExactParallelSum exact_sum(initial.values().size());
+
     std::vector<double> h = initial.values();
     for (std::size_t stage = 0; stage < settings.blur_widths.size(); ++stage) {
         // Per observation: its blur matrix (shared by every observation of the same resolution,
@@ -104,7 +109,7 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         };
         std::vector<BlurMatrix> matrices;
         std::vector<Blurred> data(used.size());
-        double total = 0.0;
+        std::vector<double> totals(used.size());
         for (std::size_t i = 0; i < used.size(); ++i) {
             const Observation& o = *used[i];
             const double lambda = o.lambdas_um[0];
@@ -125,50 +130,48 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
             Blurred& d = data[i];
             d.matrix = m;
             d.sqrt_reference = to_coarse * as_matrix(o.reference, n).cwiseMax(0.0) * to_coarse.transpose();
-            total += d.sqrt_reference.sum();
+            totals[i] = d.sqrt_reference.sum();
             d.sqrt_reference = d.sqrt_reference.cwiseSqrt();
         }
-        std::vector<double> total_all{total};
-        comm.allreduce_sum(total_all);
-        total = total_all[0];
+        const double total = detail::exact_total(totals, comm);  // every rank's, in any order
         if (!(total > 0.0)) throw std::invalid_argument("fit_blurred: every reference slice is zero");
         const double inv_total = 1.0 / total;
 
         // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
-            grad.assign(x.size(), 0.0);
-            return detail::allreduced(
-                comm, grad,
-                detail::ordered_parallel_sum(used.size(), grad, true, [&](std::size_t i, std::vector<double>& local) {
-                    const Blurred& d = data[i];
-                    const Eigen::MatrixXf& blur = matrices[d.matrix].blur_float;
-                    const int n = int(blur.rows());
-                    SlicePlan<float>& plan = plans[i];
-                    plan.set_heights(x);
-                    const std::vector<float>& f = plan.forward();
-                    const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
-                        f.data(), n, n);
-                    const Eigen::MatrixXf m = blur * slice * blur.transpose();
-                    Eigen::MatrixXf dm(n, n);
-                    double v = 0.0;
-                    for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) {
-                            const double mpq = double(m(p, q));
-                            const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
-                            const double diff = a - d.sqrt_reference(p, q);
-                            v += diff * diff;
-                            dm(p, q) = mpq > 0.0 ? float(inv_total * diff / a) : 0.0f;
-                        }
-                    const double term = v * inv_total;
-                    const Eigen::MatrixXf w = blur.transpose() * dm * blur;
-                    std::vector<float> weights(std::size_t(n) * n);
-                    for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
-                    plan.adjoint_wavelength(0, weights, local);
-                    // Only the height-independent tables stay between iterations.
-                    plan.release();
-                    return term;
-                }));
+            // Every rank's observations, exactly: the same for any thread count and split over
+            // ranks (core/exact_sum.h).
+            return exact_sum.run(used.size(), comm, grad, [&](std::size_t i, detail::ExactScratch& scratch) {
+                const Blurred& d = data[i];
+                const Eigen::MatrixXf& blur = matrices[d.matrix].blur_float;
+                const int n = int(blur.rows());
+                SlicePlan<float>& plan = plans[i];
+                plan.set_heights(x);
+                const std::vector<float>& f = plan.forward();
+                const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
+                    f.data(), n, n);
+                const Eigen::MatrixXf m = blur * slice * blur.transpose();
+                Eigen::MatrixXf dm(n, n);
+                double v = 0.0;
+                for (int p = 0; p < n; ++p)
+                    for (int q = 0; q < n; ++q) {
+                        const double mpq = double(m(p, q));
+                        const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
+                        const double diff = a - d.sqrt_reference(p, q);
+                        v += diff * diff;
+                        dm(p, q) = mpq > 0.0 ? float(inv_total * diff / a) : 0.0f;
+                    }
+                const double term = v * inv_total;
+                const Eigen::MatrixXf w = blur.transpose() * dm * blur;
+                std::vector<float> weights(std::size_t(n) * n);
+                for (int p = 0; p < n; ++p)
+                    for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
+                plan.adjoint_wavelength(0, weights, scratch.vector());
+                scratch.take_box(box_rows[i], box_cols[i], std::size_t(initial.cols()));
+                // Only the height-independent tables stay between iterations.
+                plan.release();
+                return term;
+            });
         };
         LbfgsOptions lo;
         lo.history = settings.history;

@@ -38,8 +38,8 @@
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/text.h"
+#include "core/exact_sum.h"
 #include "core/parallel.h"
-#include "recovery/sharded.h"
 
 namespace wavebrdf {
 
@@ -332,11 +332,13 @@ struct FieldOperator::Impl {
         unfold_add(b, object);
     }
     // Σ |P|² per object sample, added to `coverage` (rows × cols).
-    void add_coverage(std::vector<double>& coverage) const {
+    // add(sample, |P|²) for every object sample of the window (its coverage of the tile).
+    template <typename Add>
+    void add_coverage(Add&& add) const {
         for (std::size_t r = 0; r < row_index.size(); ++r)
             for (int c = lo[r]; c < hi[r]; ++c) {
                 const double p = wx[r] * wy[std::size_t(c)];
-                coverage[std::size_t(row_index[r]) * cols + col_index[std::size_t(c)]] += p * p;
+                add(std::size_t(row_index[r]) * cols + col_index[std::size_t(c)], p * p);
             }
     }
 };
@@ -613,25 +615,25 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     }
     std::vector<Slice> slices;
     slices.reserve(observations.size());
-    double total = 0.0;
     for (std::size_t i = 0; i < observations.size(); ++i) {
-        total += totals[i];
         slices.push_back(std::move(*built[i]));
         built[i].reset();
     }
-    {
-        std::vector<double> sum{total};
-        comm.allreduce_sum(sum);
-        total = sum[0];
-    }
+    const double total = detail::exact_total(totals, comm);  // every rank's, in any order
     if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
 
     // Texels no footprint sees carry no information: they stay 0.
     std::vector<double> mask(texels);
     {
         std::vector<double> coverage(texels, 0.0);  // released here: the grid is ~80 samples per texel
-        for (const Slice& s : slices) FieldAccess::impl(s.op).add_coverage(coverage);
-        comm.allreduce_sum(coverage);  // every rank's footprints
+        {
+            detail::ExactVector exact_coverage(texels);  // every rank's footprints, exactly
+            for (const Slice& s : slices)
+                FieldAccess::impl(s.op).add_coverage(
+                    [&](std::size_t sample, double value) { exact_coverage.add(sample, value); });
+            exact_coverage.allreduce(comm);
+            exact_coverage.values(coverage.data());
+        }
         const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
         for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
     }
@@ -641,64 +643,49 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     // L(O) = Σ_slices [Σ_box (√c1|Ψ| − √R)² + Σ_outside R] / Σ R. With g = ∂L/∂Re Ψ + i ∂L/∂Im Ψ
     // = 2(√c1|Ψ| − √R) √c1 Ψ/|Ψ| / ΣR, the gradient G = ∂L/∂Re O + i ∂L/∂Im O is Aᴴ g.
     const double inv_total = 1.0 / total;
-    // Σ over the slices on all threads, as detail::ordered_parallel_sum (static schedule,
-    // partial sums combined in thread order: reproducible for a given thread count), but the
-    // per-thread gradients (one object grid each) are kept from call to call instead of being
-    // allocated (and page-faulted) on every evaluation, and combined on all threads.
-    const int loss_threads = slices.size() > 1 && !detail::in_parallel_region() ? std::max(1, omp_get_max_threads())
-                                                                                : 1;
-    std::vector<std::vector<std::complex<double>>> locals(static_cast<std::size_t>(loss_threads));
-    std::vector<double> partial(static_cast<std::size_t>(loss_threads));
+    // Σ over the slices on all threads and ranks, exactly (core/exact_sum.h): each slice's
+    // gradient is written into its thread's scratch and only its footprint's samples (the
+    // operator's rows × columns, wrapping around the tile) are added to the exact sums, so the
+    // result is the same for any thread count and any split over ranks. The scratches and the
+    // sums are kept from call to call.
+    detail::ExactParallelSum exact_sum(2 * texels);
+    // Slice i's loss term; its gradient added into `gradient` (on its footprint's samples).
+    const auto slice_loss = [&](std::size_t i, const std::complex<double>* obj, std::complex<double>* gradient) {
+        thread_local Eigen::MatrixXcf psi, g;
+        const Slice& s = slices[i];
+        const auto& impl = FieldAccess::impl(s.op);
+        impl.forward_unphased(obj, psi);
+        g.resize(psi.rows(), psi.cols());
+        double v = s.outside;
+        for (Eigen::Index b = 0; b < psi.cols(); ++b)
+            for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                const double amp = impl.amp_box()(a, b);
+                if (amp == 0.0) {  // outside the disk: no model value, no gradient
+                    const double r = double(s.sqrt_ref(a, b));
+                    v += r * r;
+                    g(a, b) = 0.0f;
+                    continue;
+                }
+                // |Ψ| as √(re² + im²): std::abs calls hypot, ~5× slower, and Ψ
+                // is far from its overflow / underflow range.
+                const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
+                const double mag = std::sqrt(re * re + im * im);
+                const double diff = amp * mag - double(s.sqrt_ref(a, b));
+                v += diff * diff;
+                g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
+            }
+        impl.adjoint_unphased_add(g, gradient);
+        return v * inv_total;
+    };
     const auto loss = [&](const std::complex<double>* obj, std::vector<std::complex<double>>& grad) {
         grad.resize(texels);
-        std::fill(partial.begin(), partial.end(), 0.0);
-        for (auto& l : locals) l.resize(texels);  // allocates on the first call only
-        detail::RegionGuard guard;
-#pragma omp parallel num_threads(loss_threads) if (loss_threads > 1)
-        {
-            const std::size_t t = std::size_t(omp_get_thread_num());
-            std::fill(locals[t].begin(), locals[t].end(), 0.0);
-            Eigen::MatrixXcf psi, g;
-#pragma omp for schedule(static)
-            for (std::size_t i = 0; i < slices.size(); ++i)
-                guard.run([&] {
-                    const Slice& s = slices[i];
-                    const auto& impl = FieldAccess::impl(s.op);
-                    impl.forward_unphased(obj, psi);
-                    g.resize(psi.rows(), psi.cols());
-                    double v = s.outside;
-                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                        for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                            const double amp = impl.amp_box()(a, b);
-                            if (amp == 0.0) {  // outside the disk: no model value, no gradient
-                                const double r = double(s.sqrt_ref(a, b));
-                                v += r * r;
-                                g(a, b) = 0.0f;
-                                continue;
-                            }
-                            // |Ψ| as √(re² + im²): std::abs calls hypot, ~5× slower, and Ψ
-                            // is far from its overflow / underflow range.
-                            const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
-                            const double mag = std::sqrt(re * re + im * im);
-                            const double diff = amp * mag - double(s.sqrt_ref(a, b));
-                            v += diff * diff;
-                            g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
-                        }
-                    impl.adjoint_unphased_add(g, locals[t].data());
-                    partial[t] += v * inv_total;
-                });
-                // Every thread's partial gradient is complete here (the for's barrier).
-#pragma omp for schedule(static)
-            for (std::size_t k = 0; k < texels; ++k) {
-                std::complex<double> sum = 0.0;
-                for (int u = 0; u < loss_threads; ++u) sum += locals[std::size_t(u)][k];
-                grad[k] = sum;
-            }
-        }
-        guard.rethrow();
-        double value = 0.0;
-        for (double p : partial) value += p;
-        return value;
+        return exact_sum.run(slices.size(), comm, reinterpret_cast<double*>(grad.data()),
+                             [&](std::size_t i, detail::ExactScratch& scratch) {
+                                 const double value = slice_loss(i, obj, scratch.complex_data());
+                                 const auto& impl = FieldAccess::impl(slices[i].op);
+                                 scratch.take_box(impl.row_index, impl.col_index, std::size_t(obj_cols), 2);
+                                 return value;
+                             });
     };
 
     // Unknowns: the object's spectrum inside the band the slices see (unitary DFT of the
@@ -798,8 +785,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 g[2 * t + 1] = grad[t].imag();
             }
         }
-        // The shares' sums (the unknowns' gradient: the band's, smaller than the grid's).
-        return detail::allreduced(comm, g, value);
+        return value;  // loss: already every rank's sum
     };
     LbfgsOptions lo;
     lo.history = settings.history;
