@@ -102,7 +102,8 @@ public:
         // floating point, and |hi| < 2^52, |rest| < 2^52.
         const double hi = std::trunc(x * 0x1p-52);
         const double rest = x - hi * 0x1p52;
-        return (Word(static_cast<std::int64_t>(hi)) << 52) + Word(static_cast<std::int64_t>(std::rint(rest)));
+        // (A product, not a shift: shifting a negative value left is undefined before C++20.)
+        return Word(static_cast<std::int64_t>(hi)) * (Word(1) << 52) + Word(static_cast<std::int64_t>(std::rint(rest)));
     }
     static Word checked_add(Word a, Word b) {
         Word r;
