@@ -37,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
@@ -208,6 +209,8 @@ struct RecoverSettings {
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     Loss refine_loss{LossKind::Amplitude, 1.0};
+    // Self-calibration (calibration.h): parts of the acquisition refined with the heights.
+    CalibrationSettings calibrate;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,
@@ -237,10 +240,13 @@ struct StageMetrics {
 // positions' first appearance (planned acquisitions are), as observation_share splits them.
 // After the first collective step, an exception on one rank of several ends every rank
 // (run_or_abort), since the others would wait for it.
+// `calibration`, when given, receives the acquisition as refined with settings.calibrate
+// (calibration.h; its per-observation entries follow `observations`).
 Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
                             double vscale, const RecoverSettings& settings = {},
                             const std::function<bool(const StageMetrics&)>& on_step = {},
-                            const Heightfield* truth = nullptr, const Communicator& comm = serial_communicator());
+                            const Heightfield* truth = nullptr, const Communicator& comm = serial_communicator(),
+                            Calibration* calibration = nullptr);
 
 // RMS of (estimate − truth) in µm after removing each one's mean, divided by the truth's
 // height range max − min (µm). Throws std::invalid_argument on a size mismatch and

@@ -266,7 +266,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
 Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
                             double vscale, const RecoverSettings& settings,
                             const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
-                            const Communicator& comm) {
+                            const Communicator& comm, Calibration* calibration) {
+    if (calibration) *calibration = Calibration{};  // (self-calibration: issue 14, to come)
     // Checks of what every rank is given alike first, then of each rank's share, agreed.
     const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0), texel_um,
                            vscale);
