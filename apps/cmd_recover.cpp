@@ -38,6 +38,7 @@ struct RecoverArgs {
     std::string lambdas;      // "": the planner's
     double overlap = 0.6, jitter = 0.2;
     std::string noise = "none", loss;  // loss "": matched to the noise
+    std::string simulator = "gabor";
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
@@ -99,6 +100,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     RecoveryOptions options;
     options.method = parse_recovery_method(a.method, "--method");
     options.noise = parse_noise(a.noise);
+    options.simulator = parse_simulator(a.simulator, "--simulator");
     if (!a.loss.empty()) options.loss = parse_loss(a.loss);
     if (options.noise.kind != NoiseKind::None && !a.observations.empty())
         throw std::invalid_argument(
@@ -239,6 +241,10 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--jitter", a->jitter, "position jitter, fraction of the raster step, 0 to 0.3")
         ->capture_default_str();
     cmd->add_option("--noise", a->noise, "simulated noise: none, poisson:N (photons per slice) or gaussian:REL")
+        ->capture_default_str();
+    cmd->add_option("--simulator", a->simulator,
+                    "how a truth's observations are simulated: gabor (the model) or scalar (the exact field, "
+                    "scalar_diffraction.h)")
         ->capture_default_str();
     cmd->add_option("--loss", a->loss,
                     "loss (default: matched to the noise; amplitude without noise, thesis: cmsle:1)");

@@ -169,12 +169,13 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
-                       const py::object& comm_arg) {
+                       const py::object& comm_arg, const std::string& simulator) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
     options.method = parse_recovery_method(method, "method");
     options.noise = noise_argument(noise);
+    options.simulator = parse_simulator(simulator, "simulator");
     if (!loss.is_none()) options.loss = loss_argument(loss);
     const std::array<int, 2> rc = size_argument(size);
     options.rows = rc[0];
@@ -610,7 +611,7 @@ without a truth or before heights exist).
           "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
-          "quiet"_a = py::none(), "comm"_a = py::none(),
+          "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor",
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -651,6 +652,9 @@ comm          None (default: one process) or an mpi4py communicator (e.g. MPI.CO
               observations (result.observations: this rank's); the sums are allreduced, every
               rank gets the same estimate, only rank 0 shows progress (docs/scale.md). The
               thesis's method runs on one process only.
+simulator     how a truth's observations are simulated: 'gabor' (the model, default) or
+              'scalar' (the exact field of the interpolated heights, scalar_diffraction.h;
+              OHS / ROHS); not with observations
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 }

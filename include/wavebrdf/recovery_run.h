@@ -20,6 +20,7 @@
 #include "wavebrdf/noise.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
+#include "wavebrdf/scalar_diffraction.h"
 
 namespace wavebrdf {
 
@@ -51,6 +52,9 @@ struct RecoveryOptions {
     std::vector<double> lambdas_um;             // empty: the planner's ladder
     double overlap = 0.6, jitter = 0.2;
     Noise noise;               // simulated on the rendered observations (a truth only)
+    // How the observations of a truth are simulated: the Gabor model (render_observation) or
+    // the independent scalar-diffraction simulator (scalar_diffraction.h, OHS / ROHS only).
+    Simulator simulator = Simulator::Gabor;
     std::optional<Loss> loss;  // none: recovery_loss's choice
     RecoveryMethod method = RecoveryMethod::Pipeline;
     int field_iterations = -1;   // pipeline: per wavelength, ≤ 10^7; < 0: RecoverSettings' default

@@ -119,6 +119,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         throw std::invalid_argument(
             "noise '" + to_string(options.noise) +
             "' is simulated on rendered observations; it needs a truth, not given observations");
+    if (options.simulator != Simulator::Gabor && !observations.empty())
+        throw std::invalid_argument(std::string("simulator '") + to_string(options.simulator) +
+                                    "' simulates observations of a truth; given observations are used as they are");
     // Counts first, before the observations are planned and rendered (negative iteration counts: the library's default).
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
@@ -204,9 +207,13 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                            std::to_string(mine.size()) + " observations of " + std::to_string(plan.resolution) + "x" +
                            std::to_string(plan.resolution) + ")");
         Progress progress("simulate", static_cast<long long>(r.share.size()), show_progress && comm.is_root());
-        r.observations = comm.size() > 1
-                             ? simulate_observations(*r.truth, plan, options.noise, options.seed, r.share, &progress)
-                             : simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
+        if (options.simulator == Simulator::Scalar)
+            r.observations = simulate_scalar_observations(*r.truth, plan, options.noise, options.seed, r.share, {},
+                                                          &progress);
+        else
+            r.observations = comm.size() > 1
+                                 ? simulate_observations(*r.truth, plan, options.noise, options.seed, r.share, &progress)
+                                 : simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
         progress.finish();
         if (comm.size() > 1) catalogue = std::move(planned);
     }
