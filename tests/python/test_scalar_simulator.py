@@ -7,8 +7,9 @@ import pytest
 
 import wavebrdf as wb
 
-# A tiny, fast study: 8x8 texels of 2 um, sigma_p = 3 um, 16x16 slices, few iterations.
-FAST = dict(texel_um=2.0, sigma_p_um=3.0, resolution=16, field_iterations=2, refine_iterations=2, seed=5204)
+# A tiny, fast study: 8x8 texels of 2 um, sigma_p = 3 um, 16x16 slices; the callback stops the
+# recovery at its first step (the observations are what is tested).
+FAST = dict(texel_um=2.0, sigma_p_um=3.0, resolution=16, seed=5204, callback=lambda m: False)
 
 
 def references(result):
@@ -26,7 +27,7 @@ def test_flat_truth_gives_the_gabor_models_slices():
     assert rel_l2(references(scalar), references(gabor)) < 1e-6
 
 
-def test_rough_truth_gives_other_slices_and_is_recovered():
+def test_rough_truth_gives_other_slices():
     study = dict(size=8, height_range_um=0.1, **FAST)
     scalar = wb.recover(simulator="scalar", **study)
     gabor = wb.recover(simulator="gabor", **study)
@@ -35,7 +36,7 @@ def test_rough_truth_gives_other_slices_and_is_recovered():
     # specular lobe with the model's first-order error in the scattered field; 0.018 at +-5 nm,
     # 2e-4 at +-0.05 nm), so it is far from 0 but bounded.
     assert 0.01 < d < 0.3
-    assert np.all(np.isfinite(scalar.metrics["height_rel_rmse"]))
+    assert scalar.stopped and len(scalar.observations) == len(gabor.observations)
 
 
 def test_bad_simulator_and_given_observations_are_refused():
