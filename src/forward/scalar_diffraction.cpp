@@ -148,7 +148,8 @@ std::vector<std::complex<double>> field_at(const Heightfield& hf, const Query& q
     const Axis ay = make_axis(win.y0, win.lo_y, win.hi_y, w, m, max_side);
     const int px = ax.count, py = ay.count, rows = hf.rows(), cols = hf.cols();
     *side = std::max(px, py);
-    const double bytes = 16.0 * (double(px) * py + double(n) * (px + py) + double(px) * n) + 8.0 * rows * py;
+    const double bytes = 16.0 * (double(px) * py + double(n) * (px + py) + double(px) * n + double(n) * n) +
+                         8.0 * (double(rows) * py + double(px) * py);  // + the Gabor window
     MatrixC field, ex, ey, t;
     std::vector<double> along_y;
     allocating("the scalar-diffraction grid (" + std::to_string(px) + "x" + std::to_string(py) + ")", bytes, [&] {
@@ -206,7 +207,8 @@ std::vector<std::complex<double>> field_at(const Heightfield& hf, const Query& q
     if (win.kind == ScalarWindow::Gabor) {
         // W(δ) = Σ_k c_k w² G(δ; δ_k, σ): each kernel's separable Gaussian on its few samples.
         // Accumulated serially per kernel, kernels in order (reproducible), rows in parallel.
-        Eigen::MatrixXd window = Eigen::MatrixXd::Zero(px, py);
+        Eigen::MatrixXd window = allocating("the scalar-diffraction window", 8.0 * px * py,
+                                            [&] { return Eigen::MatrixXd::Zero(px, py).eval(); });
         const double s = win.sigma_um, norm = 1.0 / (2.0 * k_pi * s * s), cut = k_kernel_cut_sigmas * s;
         std::vector<int> a0(win.weight.size()), a1(win.weight.size());
         for (std::size_t k = 0; k < win.weight.size(); ++k) {

@@ -42,6 +42,7 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
         run["sigma_p_um"] = r.observations.front().query.sigma_p_um;
         run["resolution"] = r.observations.front().resolution;
     }
+    if (options.simulator != Simulator::Gabor) run["simulator"] = to_string(options.simulator);
     if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
     return run;
 }
