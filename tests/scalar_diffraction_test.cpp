@@ -197,4 +197,13 @@ TEST(ScalarDiffraction, SimulatedObservationsAreScalarSlicesWithTheSameNoise) {
     ASSERT_EQ(scalar.size(), 2u);
     for (std::size_t k = 0; k < 2; ++k) EXPECT_LT(relative_l2(scalar[k].reference, gabor[k].reference), 1e-6);
     EXPECT_THROW(simulate_scalar_observations(flat, plan, noise, 7, {99}), std::invalid_argument);
+    // A share of one observation (an MPI rank's) gets the same bits as in a larger share.
+    RecoveryOptions options;
+    options.rows = options.cols = 12;
+    options.height_range_um = 0.4;
+    options.seed = 5206;
+    const Heightfield rough = generated_recovery_truth(options);
+    const std::vector<Observation> all = simulate_scalar_observations(rough, plan, noise, 7, {0, 1, 2});
+    const std::vector<Observation> one = simulate_scalar_observations(rough, plan, noise, 7, {2});
+    EXPECT_EQ(one[0].reference, all[2].reference);
 }
