@@ -22,7 +22,7 @@
 //  - the integral by the midpoint rule on a fine grid of spacing w/m aligned with the texels
 //    (m samples per texel; within each texel the interpolant is a polynomial, so the rule
 //    converges fast), evaluated at the slice's u exactly as a separable matrix product
-//    E_x · F · E_yᵀ (no FFT, no interpolation in u). m starts from ≥ 4 samples per cycle of the
+//    E_x · F · E_yᵀ (no FFT, no interpolation in u). m starts from ≥ 2 samples per cycle of the
 //    highest local frequency |u| + 2 max|∇H̃|/λ and is doubled until the slice changes by less
 //    than `tolerance` (relative L2), so the result is converged to that tolerance.
 // Conventions of docs/model.md: heights H = v·w·h (µm), e^{−ix} phase, f_r in 1/sr, pixels
