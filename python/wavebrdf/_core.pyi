@@ -778,6 +778,9 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   observations (result.observations: this rank's); the sums are allreduced, every
                   rank gets the same estimate, only rank 0 shows progress (docs/scale.md). The
                   thesis's method runs on one process only.
+    simulator     how a truth's observations are simulated: 'gabor' (the model, default) or
+                  'scalar' (the exact field of the interpolated heights, scalar_diffraction.h;
+                  OHS / ROHS); not with observations
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...
