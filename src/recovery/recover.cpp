@@ -17,6 +17,7 @@
 #include "wavebrdf/slice_plan.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/recover_positions.h"
 
 namespace wavebrdf {
 
@@ -64,7 +65,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                            double observations_total, const Heightfield& flat, int rows, int cols, double texel_um,
                            double vscale, const RecoverSettings& settings,
                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
-                           const Communicator& comm) {
+                           const Communicator& comm, Calibration* calibration) {
     const auto start = std::chrono::steady_clock::now();
     const auto seconds = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -201,8 +202,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     unwrap_fields();
     if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
 
-    // Stage 3: the full model.
-    if (settings.refine_iterations > 0) {
+    // Stage 3: the full model (with the positions refined as well: recover_positions.h).
+    if (settings.refine_iterations > 0 && settings.calibrate.positions) {
+        std::vector<std::array<double, 2>> offsets;
+        estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
+                                                        report, comm, offsets);
+        if (calibration) calibration->position_offsets_um = std::move(offsets);
+    } else if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();
         // observation_loss's mean, split over the observations on all threads (each slice alone
         // is too small for the renderer to split). Each observation keeps its slice plan for
@@ -303,7 +309,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // From here on the ranks meet in collective calls: one rank's failure ends them all.
     return run_or_abort(comm, [&] {
         return recover_stages(observations, by_lambda, total[0], flat, rows, cols, texel_um, vscale, settings, on_step,
-                              truth, comm);
+                              truth, comm, calibration);
     });
 }
 

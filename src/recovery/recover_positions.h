@@ -1,0 +1,45 @@
+#pragma once
+// Internal: the refinement stage (recover.h, stage 3) with the footprint positions refined
+// together with the heights (self-calibration of positions, calibration.h; docs/recovery.md,
+// "Self-calibration: positions").
+//
+// The L-BFGS variables are the heights (texel units) and one offset (dx, dy) per footprint
+// position: observations at the same stated centre (x_um, y_um, equal bits) share it, as the
+// stage put every wavelength there. Offsets are variables in texels (offset_um = texel_um · t).
+// Gauge: a common shift of every position is a shift of the surface, which the slices cannot
+// see; the offsets used are t − mean(t) per coordinate (the mean is removed, so the gradient
+// with respect to t has zero mean too, and the returned offsets have mean 0).
+// Under MPI the positions are gathered from every rank and sorted (x, then y), so the
+// variables are the same on every rank and for any split; their gradients are summed exactly
+// (core/exact_sum.h) with the heights', so 1, 2, 3 ranks give the same bits.
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/communicator.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/observation.h"
+#include "wavebrdf/recover.h"
+
+namespace wavebrdf::detail {
+
+// report(stage, iteration, loss, heights) as recover_stages' (false: stop).
+using StageReport = std::function<bool(const std::string&, int, double, const Heightfield*)>;
+
+// Distinct stated footprint centres of every rank's observations, sorted; index[i] is this
+// rank's observation i's position (collective).
+std::vector<std::array<double, 2>> gather_positions(const std::vector<Observation>& observations,
+                                                    std::vector<std::size_t>& index, const Communicator& comm);
+
+// Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
+// (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all
+// ranks' observations (observations_total of them). Returns the heights; offsets_um receives
+// one offset (true − stated, µm, mean 0 over the positions) per observation of this rank.
+Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
+                                         const Heightfield& flat, const Heightfield& estimate,
+                                         const RecoverSettings& settings, const StageReport& report,
+                                         const Communicator& comm,
+                                         std::vector<std::array<double, 2>>& offsets_um);
+
+}  // namespace wavebrdf::detail
