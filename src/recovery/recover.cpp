@@ -171,6 +171,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // projection onto pure-phase, smooth objects, which removes the local defects (phase
     // vortices) a retrieval from a poor start can stall in.
     const int passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
+    // Self-calibration of positions (recover_positions.h): every position's offset, corrected
+    // after each field by registration against it, shifts the observations of later fields.
+    std::vector<std::size_t> position_of;
+    std::vector<double> offsets_um;
+    if (settings.calibrate.positions)
+        offsets_um.assign(2 * detail::gather_positions(observations, position_of, comm).size(), 0.0);
+    const auto position_index = [&](const Observation* o) { return position_of[std::size_t(o - observations.data())]; };
     for (int pass = 0; pass < passes; ++pass)
         for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
             const double lambda = it->first;
@@ -180,12 +187,24 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             FieldRetrievalResult r = [&] {
                 std::vector<Observation> group;
                 group.reserve(it->second.size());
-                for (const Observation* o : it->second) group.push_back(*o);
+                for (const Observation* o : it->second) {
+                    group.push_back(*o);
+                    if (settings.calibrate.positions) {
+                        group.back().query.x_um += offsets_um[2 * position_index(o)];
+                        group.back().query.y_um += offsets_um[2 * position_index(o) + 1];
+                    }
+                }
                 return retrieve_field(
                     group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
                     [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
             }();
             if (stopped) return estimate;
+            if (settings.calibrate.positions) {
+                std::vector<std::size_t> index;
+                for (const Observation* o : it->second) index.push_back(position_index(o));
+                detail::register_positions(it->second, index, r.object, lambda, rows, cols, texel_um, q, offsets_um,
+                                           comm);
+            }
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
                 lambdas.push_back(lambda);
@@ -206,7 +225,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     if (settings.refine_iterations > 0 && settings.calibrate.positions) {
         std::vector<std::array<double, 2>> offsets;
         estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
-                                                        report, comm, offsets);
+                                                        report, comm, offsets, offsets_um);
         if (calibration) calibration->position_offsets_um = std::move(offsets);
     } else if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();

@@ -13,6 +13,7 @@
 // variables are the same on every rank and for any split; their gradients are summed exactly
 // (core/exact_sum.h) with the heights', so 1, 2, 3 ranks give the same bits.
 #include <array>
+#include <complex>
 #include <functional>
 #include <string>
 #include <vector>
@@ -32,14 +33,27 @@ using StageReport = std::function<bool(const std::string&, int, double, const He
 std::vector<std::array<double, 2>> gather_positions(const std::vector<Observation>& observations,
                                                     std::vector<std::size_t>& index, const Communicator& comm);
 
+// The field stage's position correction (docs/recovery.md, "Self-calibration: positions"): with
+// the object just retrieved at `lambda_um` (refine × finer than the texels, recover.h), each
+// position of this rank's observations `group` (position[g]: its index into the gathered
+// positions) moves its offset by a pattern search of the amplitude loss Σ(√c1|F O| − √R)² over
+// its observations (FieldOperator at the stated centre + offset; steps of one texel halved down
+// to 1/16 texel). offsets_um (2 per position, x then y, every rank's) is updated on every rank
+// (collective), then its mean is removed (the gauge).
+void register_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
+                        const std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
+                        double texel_um, int refine, std::vector<double>& offsets_um, const Communicator& comm);
+
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
 // (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all
-// ranks' observations (observations_total of them). Returns the heights; offsets_um receives
+// ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
+// position; empty: 0). Returns the heights; offsets_um receives
 // one offset (true − stated, µm, mean 0 over the positions) per observation of this rank.
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm,
-                                         std::vector<std::array<double, 2>>& offsets_um);
+                                         std::vector<std::array<double, 2>>& offsets_um,
+                                         const std::vector<double>& initial_offsets_um = {});
 
 }  // namespace wavebrdf::detail
