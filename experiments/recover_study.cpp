@@ -128,7 +128,8 @@ int main(int argc, char** argv) try {
         for (auto& e : errors) e = {normal(err_rng), normal(err_rng)};
         if (get("zero_mean_errors", "0") == "1") {
             std::array<double, 2> mean{0.0, 0.0};
-            for (const auto& e : errors) mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
+            for (const auto& e : errors)
+                mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
             for (auto& e : errors) e = {e[0] - mean[0], e[1] - mean[1]};
         }
     }

@@ -18,8 +18,8 @@ namespace {
 
 struct OffCase {
     Heightfield truth;
-    std::vector<Observation> observations;       // stated centres
-    std::vector<std::array<double, 2>> errors;   // per observation: true − stated, µm (mean 0)
+    std::vector<Observation> observations;      // stated centres
+    std::vector<std::array<double, 2>> errors;  // per observation: true − stated, µm (mean 0)
 };
 
 // A 12² tile of 2 µm texels (max |H| 0.5 µm), 5 × 5 positions σ_p 3 µm at two wavelengths,
@@ -101,9 +101,8 @@ TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
     const Heightfield without = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(false));
     Calibration calibration;
     calibration.position_offsets_um = {{9.0, 9.0}};  // replaced
-    const Heightfield with =
-        recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(true), {}, nullptr, serial_communicator(),
-                        &calibration);
+    const Heightfield with = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(true), {}, nullptr,
+                                             serial_communicator(), &calibration);
     ASSERT_EQ(calibration.position_offsets_um.size(), c.observations.size());
     // Observations at one stated centre share one offset; the offsets have mean 0 (the gauge).
     const std::size_t half = c.observations.size() / 2;
@@ -123,13 +122,16 @@ TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
     EXPECT_LT(rmse_with, rmse_without) << "without " << rmse_without << " with " << rmse_with;
     // Without calibration nothing is reported.
     Calibration none;
-    recover_heights(c.observations, 12, 12, 2.0, 1.0, [] {
-        RecoverSettings s = quick_settings(false);
-        s.blurred.iterations = 0;
-        s.field.iterations = 1;
-        s.refine_iterations = 1;
-        return s;
-    }(), {}, nullptr, serial_communicator(), &none);
+    recover_heights(
+        c.observations, 12, 12, 2.0, 1.0,
+        [] {
+            RecoverSettings s = quick_settings(false);
+            s.blurred.iterations = 0;
+            s.field.iterations = 1;
+            s.refine_iterations = 1;
+            return s;
+        }(),
+        {}, nullptr, serial_communicator(), &none);
     EXPECT_TRUE(none.position_offsets_um.empty());
 }
 

@@ -99,12 +99,11 @@ std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
                 if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) continue;
                 std::complex<double> d_field = 0.0;
-                visit_terms(
-                    k, query, lambda_um, ox, oy, forward.cutoff,
-                    [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx, std::complex<double> dsy,
-                        std::complex<double>) {
-                        d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
-                    });
+                visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
+                            [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
+                                std::complex<double> dsy, std::complex<double>) {
+                                d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
+                            });
                 out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
             }
         });

@@ -294,10 +294,9 @@ KernelGradient SlicePlan<Float>::State::band_gradient(std::size_t wavelength, co
         throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
                                     " entries; expected resolution^2 = " + std::to_string(pixels));
     const Band& b = s.bands[wavelength];
-    return s.separable && !b.direct_used
-               ? b.nodes->adjoint(*b.engine, s.kernels, b.field, weights)
-               : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
-                                         std::vector<double>(weights.begin(), weights.end()));
+    return s.separable && !b.direct_used ? b.nodes->adjoint(*b.engine, s.kernels, b.field, weights)
+                                         : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
+                                                                   std::vector<double>(weights.begin(), weights.end()));
 }
 
 template <typename Float>

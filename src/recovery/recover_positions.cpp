@@ -113,7 +113,8 @@ void register_positions(const std::vector<const Observation*>& group, const std:
     const std::size_t count = offsets_um.size() / 2;
     for (int c = 0; c < 2; ++c) {
         double mean = 0.0;
-        for (std::size_t p = 0; p < count; ++p) mean += offsets_um[2 * p + std::size_t(c)] + delta[2 * p + std::size_t(c)];
+        for (std::size_t p = 0; p < count; ++p)
+            mean += offsets_um[2 * p + std::size_t(c)] + delta[2 * p + std::size_t(c)];
         mean /= double(count);
         for (std::size_t p = 0; p < count; ++p) {
             double& o = offsets_um[2 * p + std::size_t(c)];
@@ -125,8 +126,7 @@ void register_positions(const std::vector<const Observation*>& group, const std:
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
-                                         const Communicator& comm,
-                                         std::vector<std::array<double, 2>>& offsets_um,
+                                         const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um) {
     std::vector<std::size_t> index;
     const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
@@ -206,15 +206,14 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
     lo.gradient_tolerance = 0.0;
     std::vector<double> no_gradient;
     ExactParallelSum exact_reference(0);
-    const double reference_loss =
-        exact_reference.run(observations.size(), comm, no_gradient,
-                            [&](std::size_t i, ExactScratch&) {
-                                return observation_loss(flat, {observations[i]}, settings.refine_loss, nullptr);
-                            }) /
-        observations_total;
+    const double reference_loss = exact_reference.run(observations.size(), comm, no_gradient,
+                                                      [&](std::size_t i, ExactScratch&) {
+                                                          return observation_loss(flat, {observations[i]},
+                                                                                  settings.refine_loss, nullptr);
+                                                      }) /
+                                  observations_total;
     lbfgs_minimize(objective, x, lo, [&](int it, double value) {
-        const Heightfield current =
-            flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+        const Heightfield current = flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
         if (!report("refine", it, value, &current)) return false;
         return value > settings.refine_relative_tolerance * reference_loss;
     });

@@ -52,8 +52,7 @@ void register_positions(const std::vector<const Observation*>& group, const std:
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
-                                         const Communicator& comm,
-                                         std::vector<std::array<double, 2>>& offsets_um,
+                                         const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {});
 
 }  // namespace wavebrdf::detail
