@@ -9,6 +9,10 @@
 //     (recovery, defaults from RecoverSettings:) refine blur_iters blurs=16,8,4 blur_wavelengths
 //     field_iters refine_iters unwrap=spatial|blurred cascade=1 max_range_um
 //     (baselines on the same data:) baseline_epochs=0 direct_iters=0   quiet=0
+//     (self-calibration:) planner=0 (1: plan_acquisition's positions, σ_p and wavelengths at
+//     `resolution`, seeded by seed) position_error_texels=0 (each position's true centre off by a
+//     Gaussian of this rms per coordinate, all wavelengths alike; the recovery gets the stated
+//     ones) zero_mean_errors=0 (1: the drawn offsets' mean removed) calibrate=none|positions
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <chrono>
@@ -20,7 +24,9 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/acquisition.h"
 #include "wavebrdf/baseline.h"
+#include "wavebrdf/calibration.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
@@ -94,21 +100,55 @@ int main(int argc, char** argv) try {
     const double step = period / steps;
     std::vector<Observation> observations;
     std::vector<std::array<double, 2>> positions;
-    for (int a = 0; a < steps; ++a)
-        for (int b = 0; b < steps; ++b)
-            positions.push_back(
-                {(a + 0.5) * step + jitter * step * uni(rng), (b + 0.5) * step + jitter * step * uni(rng)});
+    double sigma_p = sigma_p_um;
+    std::vector<double> lambdas_used = lambdas;
+    if (get("planner", "0") == "1") {
+        PlanRequest request;
+        request.rows = request.cols = size;
+        request.texel_um = texel_um;
+        request.height_range_um = stats.max_um - stats.min_um;
+        request.resolution = resolution;
+        request.seed = seed;
+        const AcquisitionPlan plan = plan_acquisition(request);
+        positions = plan.positions_um;
+        sigma_p = plan.sigma_p_um;
+        lambdas_used = plan.lambdas_um;
+    } else {
+        for (int a = 0; a < steps; ++a)
+            for (int b = 0; b < steps; ++b)
+                positions.push_back(
+                    {(a + 0.5) * step + jitter * step * uni(rng), (b + 0.5) * step + jitter * step * uni(rng)});
+    }
+    // Position errors: the true centre = stated + error (per position, all wavelengths alike).
+    const double error_texels = std::stod(get("position_error_texels", "0"));
+    std::vector<std::array<double, 2>> errors(positions.size(), {0.0, 0.0});
+    {
+        std::mt19937_64 err_rng(seed * 104729 + 5);
+        std::normal_distribution<double> normal(0.0, error_texels * texel_um);
+        for (auto& e : errors) e = {normal(err_rng), normal(err_rng)};
+        if (get("zero_mean_errors", "0") == "1") {
+            std::array<double, 2> mean{0.0, 0.0};
+            for (const auto& e : errors)
+                mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
+            for (auto& e : errors) e = {e[0] - mean[0], e[1] - mean[1]};
+        }
+    }
+    std::vector<std::array<double, 2>> obs_error;  // per observation
     const auto t_render = std::chrono::steady_clock::now();
-    for (double lambda : lambdas)
-        for (const auto& p : positions) {
+    for (double lambda : lambdas_used)
+        for (std::size_t k = 0; k < positions.size(); ++k) {
+            const auto& p = positions[k];
             Observation o;
-            o.query.x_um = p[0];
-            o.query.y_um = p[1];
-            o.query.sigma_p_um = sigma_p_um;
+            o.query.x_um = p[0] + errors[k][0];
+            o.query.y_um = p[1] + errors[k][1];
+            o.query.sigma_p_um = sigma_p;
             o.lambdas_um = {lambda};
             o.resolution = resolution;
             o.reference = render_observation(truth, o);
+            o.query.x_um = p[0];  // the recovery gets the stated centre
+            o.query.y_um = p[1];
             observations.push_back(std::move(o));
+            obs_error.push_back(errors[k]);
         }
     const double render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_render).count();
     if (!quiet)
@@ -134,6 +174,8 @@ int main(int argc, char** argv) try {
     if (args.count("cascade")) rs.cascade = args["cascade"] == "1";
     if (args.count("blur_spacing")) rs.blur_spacing_sigma = std::stod(args["blur_spacing"]);
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
+    rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
+    Calibration calibration;
     double blur_s = 0, blur_rmse = -1, field_s = 0, unwrap_rmse = -1, field_end = 0;
     std::string last_stage;
     const Heightfield estimate = recover_heights(
@@ -154,8 +196,29 @@ int main(int argc, char** argv) try {
             field_end = m.seconds;
             return true;
         },
-        &truth);
+        &truth, serial_communicator(), &calibration);
     const double rel = height_rel_rmse(estimate, truth);
+    // Position calibration: rms of (found − true) after removing each one's mean, texels.
+    if (!calibration.position_offsets_um.empty()) {
+        std::array<double, 2> mt{0, 0}, mf{0, 0};
+        const double n = double(obs_error.size());
+        for (std::size_t i = 0; i < obs_error.size(); ++i)
+            for (int c = 0; c < 2; ++c) {
+                mt[c] += obs_error[i][c] / n;
+                mf[c] += calibration.position_offsets_um[i][c] / n;
+            }
+        double e2 = 0.0, t2 = 0.0;
+        for (std::size_t i = 0; i < obs_error.size(); ++i)
+            for (int c = 0; c < 2; ++c) {
+                const double t = obs_error[i][c] - mt[c];
+                const double d = calibration.position_offsets_um[i][c] - mf[c] - t;
+                e2 += d * d;
+                t2 += t * t;
+            }
+        std::printf("POSITIONS error_rms_texels=%.4f calibrated_rms_texels=%.4f mean_error_texels=(%.4f, %.4f)\n",
+                    std::sqrt(t2 / (2 * n)) / texel_um, std::sqrt(e2 / (2 * n)) / texel_um, mt[0] / texel_um,
+                    mt[1] / texel_um);
+    }
     std::printf(
         "RESULT size=%d texel_um=%g corr_texels=%g sigma_p_um=%g step_um=%.3f positions=%zu resolution=%d "
         "lambdas=%s blur_rel_rmse=%.5f blur_s=%.1f unwrap_rel_rmse=%.5f field_unwrap_s=%.1f total_s=%.1f "

@@ -71,9 +71,14 @@ std::vector<double> slice_tangent_direct(const Heightfield& heightfield, const Q
 
 // --- building blocks (per-kernel gradients) -----------------------------------------------
 
-// ∂L/∂H_k (per µm), ∂L/∂s_kx, ∂L/∂s_ky for every footprint kernel.
+// ∂L/∂H_k (per µm), ∂L/∂s_kx, ∂L/∂s_ky for every footprint kernel, and ∂L/∂ln c_k, the
+// gradient with respect to the log of the kernel's window weight c_k (every term of kernel k
+// is linear in c_k): the footprint centre's gradient is Σ_k log_weight[k] · δ_k / σ_p²
+// (SlicePlan::position_gradient). Filled by the slice plans' adjoints; scatter_to_heights
+// ignores it.
 struct KernelGradient {
     std::vector<double> height, slope_x, slope_y;
+    std::vector<double> log_weight;
 };
 
 // Chains per-kernel gradients to the raw heights: H = v·w·h[i][j] and the central-difference

@@ -12,6 +12,7 @@
 // render_slice, render_rgb, slice_gradient and SliceAdjoint are one-call conveniences on top.
 //
 // A plan is not thread-safe (forward and set_heights change it); use one plan per thread.
+#include <array>
 #include <cstddef>
 #include <memory>
 #include <vector>
@@ -65,6 +66,18 @@ public:
     // The same for one wavelength's slice: adds ∂(Σ weights · slice(l))/∂h (weights: resolution²).
     void adjoint_wavelength(std::size_t wavelength, const std::vector<Float>& weights,
                             std::vector<double>& gradient) const;
+
+    // After forward, on a differentiable plan: ∂(Σ weights · output)/∂(x_um, y_um), the
+    // gradient with respect to the footprint centre (µm⁻¹ times the output's unit; weights as
+    // for adjoint). Only the window weights c_k = G(μ_k − μ_p) depend on the centre (a common
+    // phase e^{−i2π u·μ_p} drops out of |I|²), so it is Σ_k ∂L/∂ln c_k · δ_k / σ_p² from one
+    // adjoint pass. The 3σ_p cut is held fixed: a kernel entering or leaving the cut (weight
+    // e^{−4.5} ≈ 1 % of the centre's) is a jump the derivative does not see.
+    std::array<double, 2> position_gradient(const std::vector<double>& weights) const;
+    // adjoint and position_gradient in one pass: adds scale · ∂(Σ weights · output)/∂h into
+    // `gradient` and returns scale · ∂(Σ weights · output)/∂(x_um, y_um).
+    std::array<double, 2> adjoint_with_position(const std::vector<double>& weights, std::vector<double>& gradient,
+                                                double scale = 1.0) const;
 
     // Frees what forward kept for the adjoint (every wavelength's field, factors and slice),
     // forward's output (its reference is then empty) and the phase tables the next call

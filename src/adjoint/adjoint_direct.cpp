@@ -15,7 +15,8 @@ namespace wavebrdf::detail {
 
 namespace {
 
-// Calls visit(k, dt_dH, dt_dsx, dt_dsy) for every kernel term of pixel (ox, oy).
+// Calls visit(k, dt_dH, dt_dsx, dt_dsy, t) for every kernel term t of pixel (ox, oy) (t is also
+// ∂t/∂ln c_k: the term is linear in its window weight).
 template <typename Visit>
 void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um, double ox, double oy, double cutoff,
                  Visit&& visit) {
@@ -31,7 +32,7 @@ void visit_terms(const FootprintKernels& k, const Query& query, double lambda_um
             dt_dsx -= terms.hx * term.base;
             dt_dsy -= terms.hy * term.base;
         }
-        visit(i, dt_dh, dt_dsx, dt_dsy);
+        visit(i, dt_dh, dt_dsx, dt_dsy, t);
     }
 }
 
@@ -51,6 +52,7 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
             g.height.assign(total, 0.0);
             g.slope_x.assign(total, 0.0);
             g.slope_y.assign(total, 0.0);
+            g.log_weight.assign(total, 0.0);
         });
         // Static schedule: each thread always gets the same rows, so the per-thread sums and
         // their reduction are bitwise reproducible (resume relies on it).
@@ -64,8 +66,9 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
                     const std::complex<double> b = 2.0 * weights[at] * forward.c1[at] * std::conj(forward.field[at]);
                     visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
                                 [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
-                                    std::complex<double> dsy) {
+                                    std::complex<double> dsy, std::complex<double> t) {
                                     g.height[i] += std::real(b * dh);
+                                    g.log_weight[i] += std::real(b * t);
                                     g.slope_x[i] += std::real(b * dsx);
                                     g.slope_y[i] += std::real(b * dsy);
                                 });
@@ -79,6 +82,7 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
             sum.height[i] += partial[t].height[i];
             sum.slope_x[i] += partial[t].slope_x[i];
             sum.slope_y[i] += partial[t].slope_y[i];
+            sum.log_weight[i] += partial[t].log_weight[i];
         }
     return sum;
 }
@@ -95,11 +99,11 @@ std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query
                 const std::size_t at = static_cast<std::size_t>(p) * n + q;
                 if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) continue;
                 std::complex<double> d_field = 0.0;
-                visit_terms(
-                    k, query, lambda_um, ox, oy, forward.cutoff,
-                    [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx, std::complex<double> dsy) {
-                        d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
-                    });
+                visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
+                            [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
+                                std::complex<double> dsy, std::complex<double>) {
+                                d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
+                            });
                 out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
             }
         });

@@ -14,6 +14,7 @@
 #include "forward/path_cost.h"
 #include "forward/separable.h"
 #include "forward/separable_engine.h"
+#include "wavebrdf/adjoint.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
@@ -83,6 +84,15 @@ struct SlicePlan<Float>::State {
         in.views = query.model == Model::Kirchhoff ? 3 : 1;
         return detail::choose_field_path(in);
     }
+
+    // Per-kernel gradient of Σ weights · slice(l) (weights: n²), after forward.
+    KernelGradient band_gradient(std::size_t wavelength, const std::vector<Float>& weights) const;
+    // position += ∂L/∂(x_um, y_um) from a band's per-kernel gradient.
+    void add_position(const KernelGradient& g, std::array<double, 2>& position) const;
+    // Every band's gradient for output weights (scaled): into *gradient (heights) when given,
+    // and the footprint centre's, returned.
+    std::array<double, 2> all_bands(const std::vector<double>& weights, double scale,
+                                    std::vector<double>* gradient) const;
 
     // One wavelength's slice for the current heights (forward's body; bands are independent).
     std::vector<Float> band_forward(Band& b);
@@ -273,9 +283,8 @@ const std::vector<Float>& SlicePlan<Float>::slice(std::size_t wavelength) const 
 }
 
 template <typename Float>
-void SlicePlan<Float>::adjoint_wavelength(std::size_t wavelength, const std::vector<Float>& weights,
-                                          std::vector<double>& gradient) const {
-    const State& s = *m_state;
+KernelGradient SlicePlan<Float>::State::band_gradient(std::size_t wavelength, const std::vector<Float>& weights) const {
+    const State& s = *this;
     s.require_forward("SlicePlan::adjoint");
     if (wavelength >= s.bands.size())
         throw std::invalid_argument("wavelength index " + std::to_string(wavelength) +
@@ -284,33 +293,74 @@ void SlicePlan<Float>::adjoint_wavelength(std::size_t wavelength, const std::vec
     if (weights.size() != pixels)
         throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
                                     " entries; expected resolution^2 = " + std::to_string(pixels));
+    const Band& b = s.bands[wavelength];
+    return s.separable && !b.direct_used ? b.nodes->adjoint(*b.engine, s.kernels, b.field, weights)
+                                         : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
+                                                                   std::vector<double>(weights.begin(), weights.end()));
+}
+
+template <typename Float>
+void SlicePlan<Float>::State::add_position(const KernelGradient& g, std::array<double, 2>& position) const {
+    // c_k ∝ exp(−|δ_k|²/(2σ_p²)), δ_k = μ_k − μ_p: ∂ln c_k/∂μ_p = δ_k/σ_p².
+    const double inv_var = 1.0 / (query.sigma_p_um * query.sigma_p_um);
+    double gx = 0.0, gy = 0.0;
+    for (std::size_t k = 0; k < kernels.size(); ++k) {
+        gx += g.log_weight[k] * kernels.dx_um[k];
+        gy += g.log_weight[k] * kernels.dy_um[k];
+    }
+    position[0] += gx * inv_var;
+    position[1] += gy * inv_var;
+}
+
+template <typename Float>
+void SlicePlan<Float>::adjoint_wavelength(std::size_t wavelength, const std::vector<Float>& weights,
+                                          std::vector<double>& gradient) const {
+    const State& s = *m_state;
+    s.require_forward("SlicePlan::adjoint");
     detail::prepare_gradient(gradient, s.cells());
-    const typename State::Band& b = s.bands[wavelength];
-    const KernelGradient g = s.separable && !b.direct_used
-                                 ? b.nodes->adjoint(*b.engine, s.kernels, b.field, weights)
-                                 : detail::direct_backward(s.kernels, s.query, b.lambda_um, s.n, b.direct,
-                                                           std::vector<double>(weights.begin(), weights.end()));
+    const KernelGradient g = s.band_gradient(wavelength, weights);
     detail::scatter_to_heights(s.rows, s.cols, s.texel_um, s.vscale, s.kernels, g, gradient);
 }
 
 template <typename Float>
-void SlicePlan<Float>::adjoint(const std::vector<double>& weights, std::vector<double>& gradient, double scale) const {
-    const State& s = *m_state;
+std::array<double, 2> SlicePlan<Float>::State::all_bands(const std::vector<double>& weights, double scale,
+                                                         std::vector<double>* gradient) const {
+    const State& s = *this;
     s.require_forward("SlicePlan::adjoint");
     const std::size_t pixels = static_cast<std::size_t>(s.n) * static_cast<std::size_t>(s.n);
     if (weights.size() != pixels * static_cast<std::size_t>(s.channels))
         throw std::invalid_argument("weights have " + std::to_string(weights.size()) +
                                     " entries; expected resolution^2 * channels = " +
                                     std::to_string(pixels * static_cast<std::size_t>(s.channels)));
-    detail::prepare_gradient(gradient, s.cells());
+    if (gradient) detail::prepare_gradient(*gradient, s.cells());
+    std::array<double, 2> position{0.0, 0.0};
     std::vector<Float> w(pixels);
     for (std::size_t l = 0; l < s.bands.size(); ++l) {
         if (s.channels == 1)
             for (std::size_t p = 0; p < pixels; ++p) w[p] = Float(scale * weights[p]);
         else
             mix_spectral_to_rgb_adjoint<Float>(s.mix, l, weights, w, scale);
-        adjoint_wavelength(l, w, gradient);
+        const KernelGradient g = s.band_gradient(l, w);
+        if (gradient) detail::scatter_to_heights(s.rows, s.cols, s.texel_um, s.vscale, s.kernels, g, *gradient);
+        s.add_position(g, position);
     }
+    return position;
+}
+
+template <typename Float>
+void SlicePlan<Float>::adjoint(const std::vector<double>& weights, std::vector<double>& gradient, double scale) const {
+    m_state->all_bands(weights, scale, &gradient);
+}
+
+template <typename Float>
+std::array<double, 2> SlicePlan<Float>::position_gradient(const std::vector<double>& weights) const {
+    return m_state->all_bands(weights, 1.0, nullptr);
+}
+
+template <typename Float>
+std::array<double, 2> SlicePlan<Float>::adjoint_with_position(const std::vector<double>& weights,
+                                                              std::vector<double>& gradient, double scale) const {
+    return m_state->all_bands(weights, scale, &gradient);
 }
 
 template <typename Float>

@@ -444,6 +444,7 @@ KernelGradient C3Nodes<Float>::adjoint(FieldEngine<Float>& engine, const Footpri
     g.height.assign(k.size(), 0.0);
     g.slope_x.assign(k.size(), 0.0);
     g.slope_y.assign(k.size(), 0.0);
+    g.log_weight.assign(k.size(), 0.0);
     const double kappa = 4.0 * k_pi / m_lambda_um;
     std::vector<ComplexMatrix<Float>> cot(m_kirchhoff ? 3 : 1);
     FieldGradient fg;
@@ -483,6 +484,7 @@ KernelGradient C3Nodes<Float>::adjoint(FieldEngine<Float>& engine, const Footpri
             std::complex<double> dh = 0.0;
             for (std::size_t v = 0; v < w.size(); ++v) dh += fg.weight[v][i] * w[v][i];
             g.height[i] += 2.0 * std::real(dphase * dh);
+            g.log_weight[i] += 2.0 * std::real(dh);  // every weight vector is linear in c_k
             g.slope_x[i] += fg.shift_x[i] * dshift;
             g.slope_y[i] += fg.shift_y[i] * dshift;
             if (m_kirchhoff) {

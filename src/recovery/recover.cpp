@@ -17,6 +17,7 @@
 #include "wavebrdf/slice_plan.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/recover_positions.h"
 
 namespace wavebrdf {
 
@@ -64,7 +65,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                            double observations_total, const Heightfield& flat, int rows, int cols, double texel_um,
                            double vscale, const RecoverSettings& settings,
                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
-                           const Communicator& comm) {
+                           const Communicator& comm, Calibration* calibration) {
     const auto start = std::chrono::steady_clock::now();
     const auto seconds = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -170,6 +171,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // projection onto pure-phase, smooth objects, which removes the local defects (phase
     // vortices) a retrieval from a poor start can stall in.
     const int passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
+    // Self-calibration of positions (recover_positions.h): every position's offset, corrected
+    // after each field by registration against it, shifts the observations of later fields.
+    std::vector<std::size_t> position_of;
+    std::vector<double> offsets_um;
+    if (settings.calibrate.positions)
+        offsets_um.assign(2 * detail::gather_positions(observations, position_of, comm).size(), 0.0);
+    const auto position_index = [&](const Observation* o) { return position_of[std::size_t(o - observations.data())]; };
     for (int pass = 0; pass < passes; ++pass)
         for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
             const double lambda = it->first;
@@ -179,12 +187,24 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             FieldRetrievalResult r = [&] {
                 std::vector<Observation> group;
                 group.reserve(it->second.size());
-                for (const Observation* o : it->second) group.push_back(*o);
+                for (const Observation* o : it->second) {
+                    group.push_back(*o);
+                    if (settings.calibrate.positions) {
+                        group.back().query.x_um += offsets_um[2 * position_index(o)];
+                        group.back().query.y_um += offsets_um[2 * position_index(o) + 1];
+                    }
+                }
                 return retrieve_field(
                     group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
                     [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
             }();
             if (stopped) return estimate;
+            if (settings.calibrate.positions) {
+                std::vector<std::size_t> index;
+                for (const Observation* o : it->second) index.push_back(position_index(o));
+                detail::register_positions(it->second, index, r.object, lambda, rows, cols, texel_um, q, offsets_um,
+                                           comm);
+            }
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
                 lambdas.push_back(lambda);
@@ -201,8 +221,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     unwrap_fields();
     if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
 
-    // Stage 3: the full model.
-    if (settings.refine_iterations > 0) {
+    // Stage 3: the full model (with the positions refined as well: recover_positions.h).
+    if (settings.refine_iterations > 0 && settings.calibrate.positions) {
+        std::vector<std::array<double, 2>> offsets;
+        estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
+                                                        report, comm, offsets, offsets_um);
+        if (calibration) calibration->position_offsets_um = std::move(offsets);
+    } else if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();
         // observation_loss's mean, split over the observations on all threads (each slice alone
         // is too small for the renderer to split). Each observation keeps its slice plan for
@@ -303,7 +328,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // From here on the ranks meet in collective calls: one rank's failure ends them all.
     return run_or_abort(comm, [&] {
         return recover_stages(observations, by_lambda, total[0], flat, rows, cols, texel_um, vscale, settings, on_step,
-                              truth, comm);
+                              truth, comm, calibration);
     });
 }
 

@@ -1,0 +1,226 @@
+// Stage 3 of recover_heights with the footprint positions refined as well (recover_positions.h).
+#include "recovery/recover_positions.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <omp.h>
+
+#include "core/exact_sum.h"
+#include "core/parallel.h"
+#include "wavebrdf/loss.h"
+#include "wavebrdf/optim.h"
+#include "wavebrdf/slice_plan.h"
+
+namespace wavebrdf::detail {
+
+std::vector<std::array<double, 2>> gather_positions(const std::vector<Observation>& observations,
+                                                    std::vector<std::size_t>& index, const Communicator& comm) {
+    std::vector<double> mine;
+    mine.reserve(2 * observations.size());
+    for (const Observation& o : observations) mine.insert(mine.end(), {o.query.x_um, o.query.y_um});
+    const std::vector<double> all = all_gather(comm, mine);
+    std::vector<std::array<double, 2>> positions;
+    positions.reserve(all.size() / 2);
+    for (std::size_t k = 0; 2 * k + 1 < all.size(); ++k) positions.push_back({all[2 * k], all[2 * k + 1]});
+    std::sort(positions.begin(), positions.end());
+    positions.erase(std::unique(positions.begin(), positions.end()), positions.end());
+    index.resize(observations.size());
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        const std::array<double, 2> p{observations[i].query.x_um, observations[i].query.y_um};
+        index[i] = std::size_t(std::lower_bound(positions.begin(), positions.end(), p) - positions.begin());
+    }
+    return positions;
+}
+
+namespace {
+
+// The offsets in µm (mean removed per coordinate) from the variables t (texels) that follow
+// the heights in x.
+std::vector<double> offsets_from(const std::vector<double>& x, std::size_t cells, std::size_t positions,
+                                 double texel_um) {
+    std::vector<double> off(2 * positions);
+    for (int c = 0; c < 2; ++c) {
+        double mean = 0.0;
+        for (std::size_t p = 0; p < positions; ++p) mean += x[cells + 2 * p + std::size_t(c)];
+        mean /= double(positions);
+        for (std::size_t p = 0; p < positions; ++p)
+            off[2 * p + std::size_t(c)] = texel_um * (x[cells + 2 * p + std::size_t(c)] - mean);
+    }
+    return off;
+}
+
+}  // namespace
+
+void register_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
+                        const std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
+                        double texel_um, int refine, std::vector<double>& offsets_um, const Communicator& comm) {
+    // This rank's positions at this wavelength and their observations.
+    std::map<std::size_t, std::vector<const Observation*>> at;
+    for (std::size_t g = 0; g < group.size(); ++g) at[position[g]].push_back(group[g]);
+    std::vector<std::size_t> mine;
+    for (const auto& entry : at) mine.push_back(entry.first);
+    std::vector<double> delta(offsets_um.size(), 0.0);
+    RegionGuard guard;
+#pragma omp parallel for schedule(dynamic, 1) if (mine.size() > 1 && !in_parallel_region())
+    for (std::size_t m = 0; m < mine.size(); ++m)
+        guard.run([&] {
+            const std::size_t p = mine[m];
+            const std::vector<const Observation*>& obs = at[p];
+            const auto loss = [&](double dx, double dy) {
+                double sum = 0.0;
+                for (const Observation* o : obs) {
+                    Query q = o->query;
+                    q.x_um += dx;
+                    q.y_um += dy;
+                    const FieldOperator op(rows, cols, texel_um, q, lambda_um, o->resolution, refine);
+                    const std::vector<std::complex<double>> field = op.forward(object);
+                    const std::vector<double>& amp = op.amplitude_factor();
+                    for (std::size_t k = 0; k < field.size(); ++k) {
+                        if (amp[k] == 0.0) continue;
+                        const double d = amp[k] * std::abs(field[k]) - std::sqrt(std::max(0.0, o->reference[k]));
+                        sum += d * d;
+                    }
+                }
+                return sum;
+            };
+            double x = offsets_um[2 * p], y = offsets_um[2 * p + 1];
+            double best = loss(x, y);
+            for (double step = texel_um; step >= texel_um / 16.0; step *= 0.5)
+                for (int moves = 0; moves < 8; ++moves) {  // at most 8 moves per step size
+                    double bx = x, by = y;
+                    for (int a = -1; a <= 1; ++a)
+                        for (int b = -1; b <= 1; ++b) {
+                            if (a == 0 && b == 0) continue;
+                            const double v = loss(x + a * step, y + b * step);
+                            if (v < best) {
+                                best = v;
+                                bx = x + a * step;
+                                by = y + b * step;
+                            }
+                        }
+                    if (bx == x && by == y) break;
+                    x = bx;
+                    y = by;
+                }
+            delta[2 * p] = x - offsets_um[2 * p];
+            delta[2 * p + 1] = y - offsets_um[2 * p + 1];
+        });
+    guard.rethrow();
+    // Each position lies on one rank: the sum over ranks is its own delta, exactly.
+    comm.allreduce_sum(delta.data(), delta.size());
+    const std::size_t count = offsets_um.size() / 2;
+    for (int c = 0; c < 2; ++c) {
+        double mean = 0.0;
+        for (std::size_t p = 0; p < count; ++p)
+            mean += offsets_um[2 * p + std::size_t(c)] + delta[2 * p + std::size_t(c)];
+        mean /= double(count);
+        for (std::size_t p = 0; p < count; ++p) {
+            double& o = offsets_um[2 * p + std::size_t(c)];
+            o = o + delta[2 * p + std::size_t(c)] - mean;
+        }
+    }
+}
+
+Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
+                                         const Heightfield& flat, const Heightfield& estimate,
+                                         const RecoverSettings& settings, const StageReport& report,
+                                         const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
+                                         const std::vector<double>& initial_offsets_um) {
+    std::vector<std::size_t> index;
+    const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
+    const std::size_t cells = estimate.values().size(), count = positions.size();
+    const double texel_um = flat.texel_um();
+    const std::size_t cols = std::size_t(flat.cols());
+    std::vector<double> x = estimate.values();
+    x.resize(cells + 2 * count, 0.0);
+    if (initial_offsets_um.size() == 2 * count)
+        for (std::size_t k = 0; k < 2 * count; ++k) x[cells + k] = initial_offsets_um[k] / texel_um;
+
+    // One plan per observation, rebuilt when its position's offset changed (the kernels, their
+    // window weights and the engines' tables all follow the centre); released between calls.
+    std::vector<std::unique_ptr<SlicePlan<float>>> plans(observations.size());
+    std::vector<std::array<double, 2>> plan_offset(observations.size());
+    std::vector<std::vector<int>> box_rows(observations.size()), box_cols(observations.size());
+    ExactParallelSum exact_sum(cells + 2 * count);
+    const std::vector<int> row0{0};
+    std::vector<std::vector<double>> height_scratch(std::size_t(std::max(1, omp_get_max_threads())));
+    const auto objective = [&](const std::vector<double>& v, std::vector<double>& g) {
+        const double scale = 1.0 / observations_total;
+        const std::vector<double> off = offsets_from(v, cells, count, texel_um);
+        const std::vector<double> heights(v.begin(), v.begin() + std::ptrdiff_t(cells));
+        const double value = exact_sum.run(observations.size(), comm, g, [&](std::size_t i, ExactScratch& scratch) {
+            const Observation& o = observations[i];
+            const std::size_t p = index[i];
+            const std::array<double, 2> d{off[2 * p], off[2 * p + 1]};
+            if (!plans[i] || plan_offset[i] != d) {
+                Query q = o.query;
+                q.x_um += d[0];
+                q.y_um += d[1];
+                plans[i] = std::make_unique<SlicePlan<float>>(flat, q, o.lambdas_um, o.resolution, o.channels());
+                plans[i]->gradient_box(box_rows[i], box_cols[i]);
+                plan_offset[i] = d;
+            }
+            SlicePlan<float>& plan = *plans[i];
+            plan.set_heights(heights);
+            const std::vector<float>& f = plan.forward();
+            std::vector<double> d_estimate;
+            const double loss = loss_value(settings.refine_loss, std::vector<double>(f.begin(), f.end()), o.reference,
+                                           o.channels(), &d_estimate);
+            std::vector<double>& s = scratch.vector();
+            // The adjoint writes rows·cols values: into this thread's zeroed height scratch, of
+            // which the box is moved into the exact sum's scratch (the cost of the footprint).
+            std::vector<double>& grad = height_scratch[std::size_t(omp_get_thread_num())];
+            if (grad.size() != cells) grad.assign(cells, 0.0);
+            const std::array<double, 2> gp = plan.adjoint_with_position(d_estimate, grad, scale);
+            for (int r : box_rows[i])
+                for (int c : box_cols[i]) {
+                    const std::size_t at = std::size_t(r) * cols + std::size_t(c);
+                    s[at] = grad[at];
+                    grad[at] = 0.0;
+                }
+            scratch.take_box(box_rows[i], box_cols[i], cols);
+            s[cells + 2 * p] += gp[0];
+            s[cells + 2 * p + 1] += gp[1];
+            scratch.take_box(row0, {int(cells + 2 * p), int(cells + 2 * p + 1)}, 1);
+            plan.release();
+            return scale * loss;
+        });
+        // Chain rule through the gauge (t − mean t) and the unit (µm per texel): the same on
+        // every rank (the sums are exact and allreduced).
+        for (int c = 0; c < 2; ++c) {
+            double mean = 0.0;
+            for (std::size_t p = 0; p < count; ++p) mean += g[cells + 2 * p + std::size_t(c)];
+            mean /= double(count);
+            for (std::size_t p = 0; p < count; ++p) {
+                double& gp = g[cells + 2 * p + std::size_t(c)];
+                gp = texel_um * (gp - mean);
+            }
+        }
+        return value;
+    };
+    LbfgsOptions lo;
+    lo.history = settings.refine_history;
+    lo.max_iterations = settings.refine_iterations;
+    lo.gradient_tolerance = 0.0;
+    std::vector<double> no_gradient;
+    ExactParallelSum exact_reference(0);
+    const double reference_loss = exact_reference.run(observations.size(), comm, no_gradient,
+                                                      [&](std::size_t i, ExactScratch&) {
+                                                          return observation_loss(flat, {observations[i]},
+                                                                                  settings.refine_loss, nullptr);
+                                                      }) /
+                                  observations_total;
+    lbfgs_minimize(objective, x, lo, [&](int it, double value) {
+        const Heightfield current = flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+        if (!report("refine", it, value, &current)) return false;
+        return value > settings.refine_relative_tolerance * reference_loss;
+    });
+    const std::vector<double> off = offsets_from(x, cells, count, texel_um);
+    offsets_um.resize(observations.size());
+    for (std::size_t i = 0; i < observations.size(); ++i) offsets_um[i] = {off[2 * index[i]], off[2 * index[i] + 1]};
+    return flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+}
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,58 @@
+#pragma once
+// Internal: the refinement stage (recover.h, stage 3) with the footprint positions refined
+// together with the heights (self-calibration of positions, calibration.h; docs/recovery.md,
+// "Self-calibration: positions").
+//
+// The L-BFGS variables are the heights (texel units) and one offset (dx, dy) per footprint
+// position: observations at the same stated centre (x_um, y_um, equal bits) share it, as the
+// stage put every wavelength there. Offsets are variables in texels (offset_um = texel_um · t).
+// Gauge: a common shift of every position is a shift of the surface, which the slices cannot
+// see; the offsets used are t − mean(t) per coordinate (the mean is removed, so the gradient
+// with respect to t has zero mean too, and the returned offsets have mean 0).
+// Under MPI the positions are gathered from every rank and sorted (x, then y), so the
+// variables are the same on every rank and for any split; their gradients are summed exactly
+// (core/exact_sum.h) with the heights', so 1, 2, 3 ranks give the same bits.
+#include <array>
+#include <complex>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/communicator.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/observation.h"
+#include "wavebrdf/recover.h"
+
+namespace wavebrdf::detail {
+
+// report(stage, iteration, loss, heights) as recover_stages' (false: stop).
+using StageReport = std::function<bool(const std::string&, int, double, const Heightfield*)>;
+
+// Distinct stated footprint centres of every rank's observations, sorted; index[i] is this
+// rank's observation i's position (collective).
+std::vector<std::array<double, 2>> gather_positions(const std::vector<Observation>& observations,
+                                                    std::vector<std::size_t>& index, const Communicator& comm);
+
+// The field stage's position correction (docs/recovery.md, "Self-calibration: positions"): with
+// the object just retrieved at `lambda_um` (refine × finer than the texels, recover.h), each
+// position of this rank's observations `group` (position[g]: its index into the gathered
+// positions) moves its offset by a pattern search of the amplitude loss Σ(√c1|F O| − √R)² over
+// its observations (FieldOperator at the stated centre + offset; steps of one texel halved down
+// to 1/16 texel). offsets_um (2 per position, x then y, every rank's) is updated on every rank
+// (collective), then its mean is removed (the gauge).
+void register_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
+                        const std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
+                        double texel_um, int refine, std::vector<double>& offsets_um, const Communicator& comm);
+
+// Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
+// (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all
+// ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
+// position; empty: 0). Returns the heights; offsets_um receives
+// one offset (true − stated, µm, mean 0 over the positions) per observation of this rank.
+Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
+                                         const Heightfield& flat, const Heightfield& estimate,
+                                         const RecoverSettings& settings, const StageReport& report,
+                                         const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
+                                         const std::vector<double>& initial_offsets_um = {});
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,159 @@
+// Self-calibration of the footprint positions (calibration.h, src/recovery/recover_positions.h):
+// observations rendered at true centres and given with stated ones 1 texel rms off; the
+// refinement with settings.calibrate.positions finds the offsets (up to their mean, the
+// unobservable shift) and better heights than without; its sums stay exact (threads, order).
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+#include <random>
+
+#include "test_util.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/recover.h"
+
+using namespace wavebrdf;
+
+namespace {
+
+struct OffCase {
+    Heightfield truth;
+    std::vector<Observation> observations;      // stated centres
+    std::vector<std::array<double, 2>> errors;  // per observation: true − stated, µm (mean 0)
+};
+
+// A 12² tile of 2 µm texels (max |H| 0.5 µm), 5 × 5 positions σ_p 3 µm at two wavelengths,
+// each position's true centre off by a Gaussian of `rms_texels` per coordinate (mean removed).
+OffCase off_case(std::uint64_t seed, double rms_texels, int resolution = 40) {
+    SurfaceParams p;
+    p.rows = p.cols = 12;
+    p.texel_um = 2.0;
+    p.correlation_um = 8.0;
+    p.rms_height_um = 1.0;
+    p.seed = seed;
+    const Heightfield raw = generate_heightfield(p);
+    double peak = 0.0;
+    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
+    std::vector<double> v = raw.values();
+    for (double& x : v) x *= 0.5 / (peak * p.texel_um);
+    OffCase c{raw.with_values(v), {}, {}};
+    std::mt19937_64 rng(seed + 7);
+    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
+    std::normal_distribution<double> normal(0.0, rms_texels * p.texel_um);
+    const int per_side = 5;
+    const double step = 24.0 / per_side;  // σ_p = 3 µm: linear overlap 1 − 4.8/18 = 73 %
+    std::vector<std::array<double, 2>> stated, error;
+    for (int a = 0; a < per_side; ++a)
+        for (int b = 0; b < per_side; ++b) {
+            stated.push_back({(a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step});
+            error.push_back({normal(rng), normal(rng)});
+        }
+    std::array<double, 2> mean{0.0, 0.0};
+    for (const auto& e : error) mean = {mean[0] + e[0] / double(error.size()), mean[1] + e[1] / double(error.size())};
+    for (auto& e : error) e = {e[0] - mean[0], e[1] - mean[1]};
+    for (double lambda : {0.5, 0.6})
+        for (std::size_t k = 0; k < stated.size(); ++k) {
+            Observation o;
+            o.query = test::make_query(Model::OHS, stated[k][0] + error[k][0], stated[k][1] + error[k][1], 3.0);
+            o.lambdas_um = {lambda};
+            o.resolution = resolution;
+            o.reference = render_observation(c.truth, o);
+            o.query.x_um = stated[k][0];
+            o.query.y_um = stated[k][1];
+            c.observations.push_back(std::move(o));
+            c.errors.push_back(error[k]);
+        }
+    return c;
+}
+
+RecoverSettings quick_settings(bool positions) {
+    RecoverSettings s;
+    s.blurred.blur_widths = {12.0, 4.0};
+    s.blurred.iterations = 15;
+    s.field.iterations = 40;
+    s.refine_iterations = 40;
+    s.calibrate.positions = positions;
+    return s;
+}
+
+// rms over observations and coordinates of (found − true), both with their means removed, µm.
+double offset_rms(const std::vector<std::array<double, 2>>& found, const std::vector<std::array<double, 2>>& truth) {
+    std::array<double, 2> mf{0, 0}, mt{0, 0};
+    const double n = double(truth.size());
+    for (std::size_t i = 0; i < truth.size(); ++i)
+        for (int c = 0; c < 2; ++c) {
+            mf[c] += found[i][c] / n;
+            mt[c] += truth[i][c] / n;
+        }
+    double sum = 0.0;
+    for (std::size_t i = 0; i < truth.size(); ++i)
+        for (int c = 0; c < 2; ++c) {
+            const double d = (found[i][c] - mf[c]) - (truth[i][c] - mt[c]);
+            sum += d * d;
+        }
+    return std::sqrt(sum / (2.0 * n));
+}
+
+}  // namespace
+
+TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
+    const OffCase c = off_case(5111, 0.5);
+    const Heightfield without = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(false));
+    Calibration calibration;
+    calibration.position_offsets_um = {{9.0, 9.0}};  // replaced
+    const Heightfield with = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(true), {}, nullptr,
+                                             serial_communicator(), &calibration);
+    ASSERT_EQ(calibration.position_offsets_um.size(), c.observations.size());
+    // Observations at one stated centre share one offset; the offsets have mean 0 (the gauge).
+    const std::size_t half = c.observations.size() / 2;
+    std::array<double, 2> mean{0.0, 0.0};
+    for (std::size_t i = 0; i < half; ++i) {
+        EXPECT_EQ(calibration.position_offsets_um[i], calibration.position_offsets_um[i + half]);
+        mean = {mean[0] + calibration.position_offsets_um[i][0], mean[1] + calibration.position_offsets_um[i][1]};
+    }
+    EXPECT_NEAR(mean[0] / double(half), 0.0, 1e-9);
+    EXPECT_NEAR(mean[1] / double(half), 0.0, 1e-9);
+    const double before = offset_rms(std::vector<std::array<double, 2>>(c.errors.size(), {0.0, 0.0}), c.errors);
+    const double after = offset_rms(calibration.position_offsets_um, c.errors);
+    EXPECT_GT(before, 0.5);  // µm: about half a texel
+    EXPECT_LT(after, 0.6 * before);
+    const double rmse_without = height_rel_rmse(without, c.truth);
+    const double rmse_with = height_rel_rmse(with, c.truth);
+    EXPECT_LT(rmse_with, rmse_without) << "without " << rmse_without << " with " << rmse_with;
+    // Without calibration nothing is reported.
+    Calibration none;
+    recover_heights(
+        c.observations, 12, 12, 2.0, 1.0,
+        [] {
+            RecoverSettings s = quick_settings(false);
+            s.blurred.iterations = 0;
+            s.field.iterations = 1;
+            s.refine_iterations = 1;
+            return s;
+        }(),
+        {}, nullptr, serial_communicator(), &none);
+    EXPECT_TRUE(none.position_offsets_um.empty());
+}
+
+// The joint refinement's sums are exact: one and two threads give the same heights and offsets
+// bit for bit (as K ranks must, docs/scale.md).
+TEST(PositionCalibration, ExactSumsGiveTheSameBitsForAnyThreadCount) {
+    const OffCase c = off_case(5112, 1.0, 24);
+    RecoverSettings s;
+    s.blurred.blur_widths = {8.0};
+    s.blurred.iterations = 4;
+    s.field.iterations = 6;
+    s.refine_iterations = 4;
+    s.calibrate.positions = true;
+    const int threads = omp_get_max_threads();
+    Calibration one_cal, two_cal;
+    omp_set_num_threads(1);
+    const Heightfield one = recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(),
+                                            &one_cal);
+    omp_set_num_threads(2);
+    const Heightfield two = recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(),
+                                            &two_cal);
+    omp_set_num_threads(threads);
+    EXPECT_EQ(one.values(), two.values());
+    EXPECT_EQ(one_cal.position_offsets_um, two_cal.position_offsets_um);
+}
