@@ -75,7 +75,7 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
          {"estimate.exr", "estimate.png", "truth.exr", "metrics.csv", "run.json", "estimate_height.npy",
           "truth_height.npy", "reference.npy", "final.npy", "observations.json"})
         EXPECT_TRUE(fs::exists(dir / "run" / name)) << name;
-    EXPECT_EQ(lines_of(read_text(dir / "run" / "metrics.csv"))[0], "stage,iteration,loss,seconds,height_rel_rmse");
+    EXPECT_EQ(lines_of(read_text(dir / "run" / "metrics.csv"))[0], "stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed");
     // The estimate, read back from its file, against the truth (an evaluation independent of
     // the metrics the run reports).
     const Heightfield truth = read_heightfield_exr((dir / "run" / "truth.exr").string(), 2.0);

@@ -151,15 +151,28 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                 const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
                     f.data(), n, n);
                 const Eigen::MatrixXf m = blur * slice * blur.transpose();
+                // Self-calibrated exposure: the model scaled by its closed-form optimum
+                // √e = Σ√M_b √R_b / Σ M_b (at the optimum the partial gradient is the gradient).
+                double root_exposure = 1.0;
+                if (settings.calibrate_exposure) {
+                    double cross = 0.0, model = 0.0;
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) {
+                            const double mpq = std::max(double(m(p, q)), 0.0);
+                            cross += std::sqrt(mpq) * d.sqrt_reference(p, q);
+                            model += mpq;
+                        }
+                    if (model > 0.0) root_exposure = cross / model;
+                }
                 Eigen::MatrixXf dm(n, n);
                 double v = 0.0;
                 for (int p = 0; p < n; ++p)
                     for (int q = 0; q < n; ++q) {
                         const double mpq = double(m(p, q));
                         const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
-                        const double diff = a - d.sqrt_reference(p, q);
+                        const double diff = root_exposure * a - d.sqrt_reference(p, q);
                         v += diff * diff;
-                        dm(p, q) = mpq > 0.0 ? float(inv_total * diff / a) : 0.0f;
+                        dm(p, q) = mpq > 0.0 ? float(inv_total * diff * root_exposure / a) : 0.0f;
                     }
                 const double term = v * inv_total;
                 const Eigen::MatrixXf w = blur.transpose() * dm * blur;

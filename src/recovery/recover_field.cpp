@@ -657,6 +657,23 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         impl.forward_unphased(obj, psi);
         g.resize(psi.rows(), psi.cols());
         double v = s.outside;
+        // Self-calibrated exposure: the model amplitude scaled by √e = Σ√c1|Ψ|√R / Σ c1|Ψ|²,
+        // its closed-form optimum (at which the partial gradient is the gradient).
+        double root_exposure = 1.0;
+        if (settings.calibrate_exposure) {
+            double cross = 0.0, model = 0.0;
+            for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                    const double amp = impl.amp_box()(a, b);
+                    if (amp == 0.0) continue;
+                    const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
+                    const double m = amp * std::sqrt(re * re + im * im);
+                    cross += m * double(s.sqrt_ref(a, b));
+                    model += m * m;
+                }
+            if (model > 0.0) root_exposure = cross / model;
+        }
+        const double amp_scale = root_exposure;
         for (Eigen::Index b = 0; b < psi.cols(); ++b)
             for (Eigen::Index a = 0; a < psi.rows(); ++a) {
                 const double amp = impl.amp_box()(a, b);
@@ -670,9 +687,9 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 // is far from its overflow / underflow range.
                 const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
                 const double mag = std::sqrt(re * re + im * im);
-                const double diff = amp * mag - double(s.sqrt_ref(a, b));
+                const double diff = amp_scale * amp * mag - double(s.sqrt_ref(a, b));
                 v += diff * diff;
-                g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
+                g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp_scale * amp / mag) * psi(a, b) : 0.0f;
             }
         impl.adjoint_unphased_add(g, gradient);
         return v * inv_total;
