@@ -96,31 +96,24 @@ double simulated_exposure(const AcquisitionErrors& errors, std::size_t observati
 
 namespace detail {
 
-double optimal_exposure(const Loss& loss, const float* model, const double* reference, std::size_t n) {
-    double a = 0.0, b = 0.0;
-    switch (loss.kind) {
-        case LossKind::MSE:
-            for (std::size_t k = 0; k < n; ++k) {
-                const double f = std::max(double(model[k]), 0.0), r = std::max(reference[k], 0.0);
-                a += f * r;
-                b += f * f;
-            }
-            return b > 0.0 ? a / b : 1.0;
-        case LossKind::Poisson:
-            for (std::size_t k = 0; k < n; ++k) {
-                a += std::max(reference[k], 0.0);
-                b += std::max(double(model[k]), 0.0);
-            }
-            return b > 0.0 ? a / b : 1.0;
-        default:  // amplitude (and CMSLE, which has no closed form)
-            for (std::size_t k = 0; k < n; ++k) {
-                const double f = std::max(double(model[k]), 0.0), r = std::max(reference[k], 0.0);
-                a += std::sqrt(f * r);
-                b += f;
-            }
-            if (!(b > 0.0)) return 1.0;
-            return (a / b) * (a / b);
+double slice_exposure(const float* model, const double* reference, std::size_t n) {
+    double r = 0.0, f = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+        r += std::max(reference[k], 0.0);
+        f += std::max(double(model[k]), 0.0);
     }
+    return f > 0.0 ? r / f : 1.0;
+}
+
+void exposure_gradient(double exposure, const float* model, std::size_t n, std::vector<double>& d) {
+    double f = 0.0, df = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+        const double m = std::max(double(model[k]), 0.0);
+        f += m;
+        df += d[k] * m;
+    }
+    const double shift = f > 0.0 ? exposure * df / f : 0.0;
+    for (std::size_t k = 0; k < n; ++k) d[k] = exposure * d[k] - (model[k] > 0.0f ? shift : 0.0);
 }
 
 double golden_section_minimum(const std::function<double(double)>& f, double lo, double hi, int evaluations,

@@ -222,8 +222,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // thread count and split over ranks.
         std::vector<std::vector<int>> box_rows(observations.size()), box_cols(observations.size());
         detail::ExactParallelSum exact_sum(h.size());
-        // Self-calibration (calibration_detail.h): each observation's exposure in closed form
-        // at every evaluation (variable projection), one σ_p scale for all (plans rebuilt).
+        // Self-calibration (calibration_detail.h): each observation's exposure as the ratio of
+        // its energies at every evaluation (with its gradient), one σ_p scale for all (plans
+        // rebuilt).
         const bool calibrate_exposure = settings.calibrate.exposure;
         std::vector<double> exposures(observations.size(), 1.0);
         double sigma_scale = 1.0;
@@ -245,17 +246,16 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 const std::vector<float>& f = plan.forward();
                 std::vector<double> d_estimate;
                 double exposure = 1.0;
+                const std::size_t values = std::min(f.size(), o.reference.size());
                 if (calibrate_exposure) {
-                    exposure = detail::optimal_exposure(settings.refine_loss, f.data(), o.reference.data(),
-                                                        std::min(f.size(), o.reference.size()));
+                    exposure = detail::slice_exposure(f.data(), o.reference.data(), values);
                     exposures[i] = exposure;
                 }
                 std::vector<double> model(f.begin(), f.end());
-                if (exposure != 1.0)
+                if (calibrate_exposure)
                     for (double& m : model) m *= exposure;
                 const double v = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
-                if (exposure != 1.0)
-                    for (double& d : d_estimate) d *= exposure;
+                if (calibrate_exposure) detail::exposure_gradient(exposure, f.data(), values, d_estimate);
                 plan.adjoint(d_estimate, scratch.vector(), scale);
                 scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
                 plan.release();

@@ -151,29 +151,32 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                 const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
                     f.data(), n, n);
                 const Eigen::MatrixXf m = blur * slice * blur.transpose();
-                // Self-calibrated exposure: the model scaled by its closed-form optimum
-                // √e = Σ√M_b √R_b / Σ M_b (at the optimum the partial gradient is the gradient).
-                double root_exposure = 1.0;
+                // Self-calibrated exposure e = Σ R_b / Σ M_b (calibration_detail.h: the ratio of
+                // the energies), the model scaled by it: with s = √e, ∂/∂M_pq of
+                // Σ(s√M − √R)² is (s√M_pq − √R_pq) s/√M_pq − s C / ΣM, C = Σ(s√M − √R)√M.
+                double root_exposure = 1.0, model_total = 0.0;
                 if (settings.calibrate_exposure) {
-                    double cross = 0.0, model = 0.0;
                     for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) {
-                            const double mpq = std::max(double(m(p, q)), 0.0);
-                            cross += std::sqrt(mpq) * d.sqrt_reference(p, q);
-                            model += mpq;
-                        }
-                    if (model > 0.0) root_exposure = cross / model;
+                        for (int q = 0; q < n; ++q) model_total += std::max(double(m(p, q)), 0.0);
+                    if (model_total > 0.0) root_exposure = std::sqrt(totals[i] / model_total);
                 }
                 Eigen::MatrixXf dm(n, n);
-                double v = 0.0;
+                double v = 0.0, cross = 0.0;
                 for (int p = 0; p < n; ++p)
                     for (int q = 0; q < n; ++q) {
                         const double mpq = double(m(p, q));
                         const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
                         const double diff = root_exposure * a - d.sqrt_reference(p, q);
                         v += diff * diff;
+                        if (mpq > 0.0) cross += diff * a;
                         dm(p, q) = mpq > 0.0 ? float(inv_total * diff * root_exposure / a) : 0.0f;
                     }
+                if (settings.calibrate_exposure && model_total > 0.0) {
+                    const float shift = float(inv_total * root_exposure * cross / model_total);
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q)
+                            if (m(p, q) > 0.0f) dm(p, q) -= shift;
+                }
                 const double term = v * inv_total;
                 const Eigen::MatrixXf w = blur.transpose() * dm * blur;
                 std::vector<float> weights(std::size_t(n) * n);
