@@ -137,6 +137,27 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         if (!(total > 0.0)) throw std::invalid_argument("fit_blurred: every reference slice is zero");
         const double inv_total = 1.0 / total;
 
+        // Self-calibrated exposures e = Σ R_b / Σ M_b (the ratio of the energies,
+        // calibration_detail.h) at the stage's starting heights, fixed during the stage:
+        // re-estimated at every evaluation they let the blurred fit drift (measured: 5.3 %
+        // instead of 2.2 % on exact data), fixed they cost nothing where the energy does not
+        // depend on the heights.
+        std::vector<double> root_exposures(used.size(), 1.0);
+        if (settings.calibrate_exposure)
+            for (std::size_t i = 0; i < used.size(); ++i) {
+                const Eigen::MatrixXf& blur = matrices[data[i].matrix].blur_float;
+                const int n = int(blur.rows());
+                plans[i].set_heights(h);
+                const std::vector<float>& f = plans[i].forward();
+                const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
+                    f.data(), n, n);
+                const Eigen::MatrixXf m = blur * slice * blur.transpose();
+                double model_total = 0.0;
+                for (int p = 0; p < n; ++p)
+                    for (int q = 0; q < n; ++q) model_total += std::max(double(m(p, q)), 0.0);
+                plans[i].release();
+                if (model_total > 0.0) root_exposures[i] = std::sqrt(totals[i] / model_total);
+            }
         // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
             // Every rank's observations, exactly: the same for any thread count and split over
@@ -151,32 +172,18 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                 const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
                     f.data(), n, n);
                 const Eigen::MatrixXf m = blur * slice * blur.transpose();
-                // Self-calibrated exposure e = Σ R_b / Σ M_b (calibration_detail.h: the ratio of
-                // the energies), the model scaled by it: with s = √e, ∂/∂M_pq of
-                // Σ(s√M − √R)² is (s√M_pq − √R_pq) s/√M_pq − s C / ΣM, C = Σ(s√M − √R)√M.
-                double root_exposure = 1.0, model_total = 0.0;
-                if (settings.calibrate_exposure) {
-                    for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) model_total += std::max(double(m(p, q)), 0.0);
-                    if (model_total > 0.0) root_exposure = std::sqrt(totals[i] / model_total);
-                }
+                // Self-calibrated exposure: the model scaled by √e, e fixed for the stage.
+                const double root_exposure = settings.calibrate_exposure ? root_exposures[i] : 1.0;
                 Eigen::MatrixXf dm(n, n);
-                double v = 0.0, cross = 0.0;
+                double v = 0.0;
                 for (int p = 0; p < n; ++p)
                     for (int q = 0; q < n; ++q) {
                         const double mpq = double(m(p, q));
                         const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
                         const double diff = root_exposure * a - d.sqrt_reference(p, q);
                         v += diff * diff;
-                        if (mpq > 0.0) cross += diff * a;
                         dm(p, q) = mpq > 0.0 ? float(inv_total * diff * root_exposure / a) : 0.0f;
                     }
-                if (settings.calibrate_exposure && model_total > 0.0) {
-                    const float shift = float(inv_total * root_exposure * cross / model_total);
-                    for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q)
-                            if (m(p, q) > 0.0f) dm(p, q) -= shift;
-                }
                 const double term = v * inv_total;
                 const Eigen::MatrixXf w = blur.transpose() * dm * blur;
                 std::vector<float> weights(std::size_t(n) * n);
