@@ -102,8 +102,8 @@ TEST(Calibration, ExposureIsTheEnergyRatioAndItsGradientIsExact) {
     }
     EXPECT_NEAR(detail::slice_exposure(f.data(), r.data(), n), 3.0, 1e-12);
     for (std::size_t k = 0; k < n; ++k) r[k] = 2.5 * double(f[k]) * u(rng);  // not a pure scale
-    for (const Loss& loss : {Loss{LossKind::Amplitude, 1.0}, Loss{LossKind::MSE, 1.0},
-                             Loss{LossKind::Poisson, 1.0, 1e4}}) {
+    for (const Loss& loss :
+         {Loss{LossKind::Amplitude, 1.0}, Loss{LossKind::MSE, 1.0}, Loss{LossKind::Poisson, 1.0, 1e4}}) {
         SCOPED_TRACE(to_string(loss));
         const auto value = [&](const std::vector<double>& model, std::vector<double>* grad) {
             std::vector<float> mf(model.begin(), model.end());
@@ -215,9 +215,9 @@ Acquired acquired(std::uint64_t seed, double exposure_min, double exposure_max, 
 RecoverSettings quick() {
     RecoverSettings s;
     s.blurred.blur_widths = {12.0, 4.0};
-    s.blurred.iterations = 15;
-    s.field.iterations = 40;
-    s.refine_iterations = 25;
+    s.blurred.iterations = 12;
+    s.field.iterations = 30;
+    s.refine_iterations = 20;
     return s;
 }
 
@@ -227,10 +227,10 @@ TEST(RecoverHeights, CalibratedExposuresReachTheExactAcquisitionsAccuracy) {
     const double uncalibrated = height_rel_rmse(recover_heights(c.observations, 12, 12, 2.0, 1.0, s), c.truth);
     s.calibrate = parse_calibration("exposure");
     Calibration found;
-    const Heightfield estimate =
-        recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(), &found);
+    const Heightfield estimate = recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr,
+                                                 serial_communicator(), &found);
     const double calibrated = height_rel_rmse(estimate, c.truth);
-    EXPECT_LT(calibrated, 0.002);
+    EXPECT_LT(calibrated, 0.001);  // measured 0.000 %, uncalibrated 0.39 %
     EXPECT_GT(uncalibrated, 3.0 * calibrated);
     ASSERT_EQ(found.exposures.size(), c.exposures.size());
     for (std::size_t i = 0; i < c.exposures.size(); ++i) EXPECT_NEAR(found.exposures[i] / c.exposures[i], 1.0, 0.01);
@@ -243,11 +243,11 @@ TEST(RecoverHeights, CalibratedSigmaFindsTheTrueScale) {
     RecoverSettings s = quick();
     s.calibrate = parse_calibration("sigma");
     Calibration found;
-    const Heightfield estimate =
-        recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(), &found);
-    EXPECT_NEAR(found.sigma_p_scale, 1.2, 0.03);
+    const Heightfield estimate = recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr,
+                                                 serial_communicator(), &found);
+    EXPECT_NEAR(found.sigma_p_scale, 1.2, 0.01);
     EXPECT_TRUE(found.exposures.empty());
-    EXPECT_LT(height_rel_rmse(estimate, c.truth), 0.01);
+    EXPECT_LT(height_rel_rmse(estimate, c.truth), 0.005);  // measured 0.08 %
 }
 
 }  // namespace
