@@ -52,8 +52,9 @@ struct BlurredFitSettings {
     std::vector<double> blur_widths{16.0, 8.0, 4.0, 2.0};
     int iterations = 40;  // L-BFGS iterations per stage
     int history = 20;
-    // Self-calibration of the exposure: each slice's model is scaled by its optimal exposure
-    // (closed form per slice and evaluation: √a = Σ√M_b √R_b / Σ M_b on the blurred slices).
+    // Self-calibration of the exposure: each slice's blurred model is scaled by its exposure
+    // e = Σ R_b / Σ M_b (the ratio of the energies), taken at each blur stage's starting
+    // heights and held for the stage.
     bool calibrate_exposure = false;
 };
 
@@ -128,8 +129,9 @@ struct FieldRetrievalSettings {
     // docs/recovery.md, Speed).
     int stall_window = 5;
     double stall_tolerance = 0.005;
-    // Self-calibration of the exposure: each slice's model amplitude is scaled by √a, its
-    // optimal exposure's root (closed form per slice and evaluation: Σ√c1|I|√R / Σ c1|I|²).
+    // Self-calibration of the exposure: each slice's model amplitude is scaled by √e, e =
+    // Σ R / Σ c1|I|² over the disk's pixels (the ratio of the energies, per evaluation, its
+    // gradient included).
     bool calibrate_exposure = false;
 };
 

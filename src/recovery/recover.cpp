@@ -290,7 +290,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         };
         if (settings.calibrate.sigma) {
             // σ_p: a golden-section search on log s at fixed heights, alternated with L-BFGS
-            // on the heights (rounds of refine_iterations / 4, the last one the rest).
+            // on the heights (rounds of refine_iterations / 6, the last one the rest).
             std::vector<double> no_g;
             sigma_scale = detail::refine_sigma_scale(
                 [&](double s) {
@@ -314,12 +314,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         }
         estimate = flat.with_values(h);
         if (stopped) return estimate;
+        // The exposures at the final heights (collective: on every rank, whatever it asked).
+        if (calibrate_exposure) {
+            std::vector<double> g;
+            objective(h, g);
+        }
         if (calibration) {
-            if (calibrate_exposure) {
-                std::vector<double> g;
-                objective(h, g);  // the exposures at the final heights
-                calibration->exposures = exposures;
-            }
+            if (calibrate_exposure) calibration->exposures = exposures;
             calibration->sigma_p_scale = sigma_scale;
         }
     }
