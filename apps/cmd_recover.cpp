@@ -14,6 +14,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "report.h"
+#include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation_file.h"
@@ -43,6 +44,10 @@ struct RecoverArgs {
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;  // 0: the physical memory
+    std::string calibrate = "none";                 // --calibrate (calibration.h)
+    double position_error_texels = 0.0;             // --simulate-position-error-texels
+    std::string simulate_exposure;                  // --simulate-exposure MIN,MAX ("": none)
+    double sigma_factor = 1.0;                      // --simulate-sigma-factor
     bool save_observations = false, quiet = false, no_plots = false, force = false;
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
@@ -120,6 +125,22 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.epochs = a.epochs;
     options.seed = a.seed;
     options.max_memory_gb = a.max_memory_gb;
+    options.calibrate = parse_calibration(a.calibrate, "--calibrate");
+    options.errors.position_rms_texels = a.position_error_texels;
+    options.errors.sigma_p_factor = a.sigma_factor;
+    options.errors.seed = a.seed;
+    if (!a.simulate_exposure.empty()) {
+        const std::vector<double> range = parse_list("--simulate-exposure", a.simulate_exposure);
+        if (range.size() != 2)
+            throw std::invalid_argument("--simulate-exposure '" + a.simulate_exposure +
+                                        "' is invalid; expected MIN,MAX like 0.5,2");
+        options.errors.exposure_min = range[0];
+        options.errors.exposure_max = range[1];
+    }
+    check_acquisition_errors(options.errors, "--simulate-");
+    if (options.errors.any() && !a.observations.empty())
+        throw std::invalid_argument("--simulate-* render the observations with acquisition errors; they need --truth "
+                                    "(or the generated default), not --observations");
 
     // Truth and observations (files read here; planned, simulated and checked by the library).
     std::unique_ptr<Heightfield> truth;
@@ -189,9 +210,26 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     out.force = a.force;
     out.save_observations = a.save_observations;
     out.observations_path = a.save_observations_path;
+    Calibration calibration;
+    out.calibration = &calibration;
     const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step, comm);
     end_stage();
     if (!comm.is_root()) return;
+    if (!quiet && options.calibrate.any()) {
+        std::fprintf(stderr, "calibrated %s: sigma_p scale %.4f", to_string(options.calibrate).c_str(),
+                     calibration.sigma_p_scale);
+        if (r.true_calibration)
+            std::fprintf(stderr, " (true %.4f)", r.true_calibration->sigma_p_scale);
+        if (!calibration.exposures.empty()) {
+            double lo = calibration.exposures.front(), hi = lo;
+            for (double e : calibration.exposures) lo = std::min(lo, e), hi = std::max(hi, e);
+            std::fprintf(stderr, ", exposures %.3g to %.3g", lo, hi);
+        }
+        std::fprintf(stderr, "; calibration.json in %s\n", a.out.c_str());
+    }
+    if (!quiet && r.truth && r.metric_note.empty())
+        std::fprintf(stderr, "height_rel_rmse with the best-fit plane removed %.3f%%\n",
+                     100.0 * height_rel_rmse_plane_removed(estimate, *r.truth));
     if (!a.no_plots) draw_report(RunKind::Recover, a.out);
     if (!quiet) {
         if (r.truth && !r.metric_note.empty())
@@ -259,6 +297,18 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
     cmd->add_option("--max-memory-gb", a->max_memory_gb,
                     "refuse a run whose estimated peak memory exceeds this many GB (0: the physical memory)")
+        ->capture_default_str();
+    cmd->add_option("--calibrate", a->calibrate,
+                    "self-calibration: parts of the acquisition refined with the heights, comma-separated: "
+                    "positions, exposure, sigma; or all, none")
+        ->capture_default_str();
+    cmd->add_option("--simulate-position-error-texels", a->position_error_texels,
+                    "study: footprint positions off by a Gaussian of this rms per coordinate (texels, 0 to 10)")
+        ->capture_default_str();
+    cmd->add_option("--simulate-exposure", a->simulate_exposure,
+                    "study: each slice scaled by an exposure drawn log-uniformly in MIN,MAX (e.g. 0.5,2)");
+    cmd->add_option("--simulate-sigma-factor", a->sigma_factor,
+                    "study: the true sigma_p is this factor times the stated one (0.25 to 4)")
         ->capture_default_str();
     cmd->add_option("--out", a->out, "output directory")->required();
     cmd->add_flag("--force", a->force,

@@ -83,7 +83,49 @@ void check_callback(const py::object& callback) {
 
 py::dict metrics_row(const StageMetrics& m) {
     return py::dict("stage"_a = m.stage, "iteration"_a = m.iteration, "loss"_a = m.loss, "seconds"_a = m.seconds,
-                    "height_rel_rmse"_a = m.height_rel_rmse >= 0.0 ? m.height_rel_rmse : kNaN);
+                    "height_rel_rmse"_a = m.height_rel_rmse >= 0.0 ? m.height_rel_rmse : kNaN,
+                    "height_rel_rmse_plane_removed"_a =
+                        m.height_rel_rmse_plane_removed >= 0.0 ? m.height_rel_rmse_plane_removed : kNaN);
+}
+
+// calibrate=: None, a string ("positions,exposure", "all", "none") or a sequence of those words.
+CalibrationSettings calibrate_argument(const py::object& calibrate) {
+    if (calibrate.is_none()) return {};
+    if (py::isinstance<py::str>(calibrate)) return parse_calibration(calibrate.cast<std::string>(), "calibrate");
+    std::string joined;
+    try {
+        for (const py::handle item : py::iter(calibrate)) {
+            if (!py::isinstance<py::str>(item)) throw py::cast_error();
+            joined += (joined.empty() ? "" : ",") + item.cast<std::string>();
+        }
+    } catch (const py::error_already_set&) {
+        throw py::value_error("calibrate = " + std::string(py::repr(calibrate)) +
+                              " is invalid; expected a string or a sequence of 'positions', 'exposure', 'sigma'");
+    } catch (const py::cast_error&) {
+        throw py::value_error("calibrate = " + std::string(py::repr(calibrate)) +
+                              " is invalid; expected a string or a sequence of 'positions', 'exposure', 'sigma'");
+    }
+    return joined.empty() ? CalibrationSettings{} : parse_calibration(joined, "calibrate");
+}
+
+// A Calibration as a dict: refined (str), sigma_p_scale, exposures (float64 (N,) or None),
+// position_offsets_um (float64 (N, 2) or None).
+py::dict calibration_dict(const CalibrationSettings& refined, const Calibration& c) {
+    py::dict d;
+    d["refined"] = to_string(refined);
+    d["sigma_p_scale"] = c.sigma_p_scale;
+    if (c.exposures.empty())
+        d["exposures"] = py::none();
+    else
+        d["exposures"] = owning_array(std::vector<double>(c.exposures), {static_cast<py::ssize_t>(c.exposures.size())});
+    if (c.position_offsets_um.empty()) {
+        d["position_offsets_um"] = py::none();
+    } else {
+        std::vector<double> v;
+        for (const auto& o : c.position_offsets_um) v.insert(v.end(), {o[0], o[1]});
+        d["position_offsets_um"] = owning_array(std::move(v), {static_cast<py::ssize_t>(c.position_offsets_um.size()), 2});
+    }
+    return d;
 }
 
 // The metrics.csv columns as arrays: stage (str), iteration (int64), loss, seconds,
@@ -91,7 +133,7 @@ py::dict metrics_row(const StageMetrics& m) {
 py::dict metrics_columns(const std::vector<StageMetrics>& history) {
     const auto n = static_cast<py::ssize_t>(history.size());
     std::vector<std::int64_t> iteration;
-    std::vector<double> loss, seconds, error;
+    std::vector<double> loss, seconds, error, plane_removed;
     py::list stage;
     for (const StageMetrics& m : history) {
         stage.append(m.stage);
@@ -99,6 +141,7 @@ py::dict metrics_columns(const std::vector<StageMetrics>& history) {
         loss.push_back(m.loss);
         seconds.push_back(m.seconds);
         error.push_back(m.height_rel_rmse >= 0.0 ? m.height_rel_rmse : kNaN);
+        plane_removed.push_back(m.height_rel_rmse_plane_removed >= 0.0 ? m.height_rel_rmse_plane_removed : kNaN);
     }
     py::dict d;
     d["stage"] = py::module_::import("numpy").attr("array")(stage, "dtype"_a = "str");
@@ -106,6 +149,7 @@ py::dict metrics_columns(const std::vector<StageMetrics>& history) {
     d["loss"] = owning_array(std::move(loss), {n});
     d["seconds"] = owning_array(std::move(seconds), {n});
     d["height_rel_rmse"] = owning_array(std::move(error), {n});
+    d["height_rel_rmse_plane_removed"] = owning_array(std::move(plane_removed), {n});
     return d;
 }
 
@@ -155,7 +199,7 @@ std::optional<Heightfield> optional_truth(const py::object& truth) {
 }
 
 struct RecoveryResult {
-    py::object estimate, truth, observations, metrics;
+    py::object estimate, truth, observations, metrics, calibration;
     std::vector<std::string> notes, warnings;
     std::string method, loss, noise;
     double height_range_um = 0.0;
@@ -169,7 +213,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
-                       const py::object& comm_arg, const std::string& simulator) {
+                       const py::object& comm_arg, const std::string& simulator, const py::object& calibrate,
+                       double simulate_position_error_texels, const py::object& simulate_exposure,
+                       double simulate_sigma_factor) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -210,6 +256,33 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     if (!std::isfinite(max_memory_gb) || max_memory_gb < 0.0)
         bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
+    options.calibrate = calibrate_argument(calibrate);
+    if (!std::isfinite(simulate_position_error_texels) || simulate_position_error_texels < 0.0 ||
+        simulate_position_error_texels > 10.0)
+        bad_argument("simulate_position_error_texels", format_number(simulate_position_error_texels),
+                      "an rms in texels, 0 to 10");
+    options.errors.position_rms_texels = simulate_position_error_texels;
+    if (!simulate_exposure.is_none()) {
+        std::vector<double> range;
+        try {
+            if (py::isinstance<py::str>(simulate_exposure)) throw py::cast_error();
+            range = simulate_exposure.cast<std::vector<double>>();
+        } catch (const py::cast_error&) {
+            range.clear();
+        }
+        if (range.size() != 2 || !(range[0] >= 1e-3) || !(range[1] <= 1e3) || !(range[0] <= range[1]))
+            throw py::value_error("simulate_exposure = " + std::string(py::repr(simulate_exposure)) +
+                                  " is invalid; expected (min, max) with 0.001 <= min <= max <= 1000, or None");
+        options.errors.exposure_min = range[0];
+        options.errors.exposure_max = range[1];
+    }
+    if (!(simulate_sigma_factor >= 0.25 && simulate_sigma_factor <= 4.0))
+        bad_argument("simulate_sigma_factor", format_number(simulate_sigma_factor), "a factor in [0.25, 4]");
+    options.errors.sigma_p_factor = simulate_sigma_factor;
+    options.errors.seed = seed;
+    if (options.errors.any() && !observations_arg.is_none())
+        throw py::value_error("simulate_* render the observations with acquisition errors; they need a truth (or the "
+                              "generated default), not observations");
     check_callback(callback);
     check_quiet(quiet);
     if (!truth_arg.is_none() && !observations_arg.is_none())
@@ -244,9 +317,17 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     totals["thesis"] = prepared->thesis.epochs;
     // Under MPI only rank 0 shows progress.
     PythonProgress progress("wrap_recover", callback, comm->is_root() ? quiet : py::object(py::bool_(true)), totals);
+    Calibration calibration;
     const Heightfield estimate = run_released(
         progress.callback(), history, result.stopped,
-        [&](const auto& on_step) { return run_recovery(*prepared, on_step, *comm); }, &progress, comm->size() > 1);
+        [&](const auto& on_step) { return run_recovery(*prepared, on_step, *comm, &calibration); }, &progress,
+        comm->size() > 1);
+    py::dict cal = calibration_dict(options.calibrate, calibration);
+    cal["truth"] = prepared->true_calibration ? py::object(calibration_dict(CalibrationSettings{},
+                                                                            *prepared->true_calibration))
+                                              : py::object(py::none());
+    if (prepared->true_calibration) cal["truth"].cast<py::dict>().attr("pop")("refined");
+    result.calibration = cal;
     result.estimate = py::cast(estimate);
     result.truth = prepared->truth ? py::cast(*prepared->truth) : py::none();
     result.observations = py::cast(prepared->observations);
@@ -448,7 +529,8 @@ truth Heightfield) slopes that reflect light off the slice.
            const py::object& truth, const std::vector<double>& blur_widths, int blur_iterations, int blur_wavelengths,
            double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
            double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
-           const py::object& refine_loss, const py::object& callback, const py::object& comm_arg) {
+           const py::object& refine_loss, const py::object& callback, const py::object& comm_arg,
+           const py::object& calibrate) -> py::object {
             const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
             const std::vector<Observation> list = observations_or_file(observations);
             const std::array<int, 2> rc = size_argument(size);
@@ -484,16 +566,21 @@ truth Heightfield) slopes that reflect light off the slice.
             if (refine_history < 1) bad_argument("refine_history", std::to_string(refine_history), ">= 1");
             s.refine_history = refine_history;
             s.refine_loss = loss_argument(refine_loss);
+            s.calibrate = calibrate_argument(calibrate);
             const std::optional<Heightfield> t = optional_truth(truth);
             check_callback(callback);
             std::vector<StageMetrics> history;
             bool stopped = false;
-            return run_released(
+            Calibration calibration;
+            Heightfield estimate = run_released(
                 callback, history, stopped,
                 [&](const auto& on_step) {
-                    return recover_heights(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr, *comm);
+                    return recover_heights(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr, *comm,
+                                           &calibration);
                 },
                 nullptr, comm->size() > 1);
+            if (calibrate.is_none()) return py::cast(std::move(estimate));
+            return py::make_tuple(std::move(estimate), calibration_dict(s.calibrate, calibration));
         },
         "observations"_a, "size"_a, "texel_um"_a, "vscale"_a = 1.0, py::kw_only(), "truth"_a = py::none(),
         "blur_widths"_a = rs.blurred.blur_widths, "blur_iterations"_a = rs.blurred.iterations,
@@ -502,7 +589,7 @@ truth Heightfield) slopes that reflect light off the slice.
         "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
-        "comm"_a = py::none(),
+        "comm"_a = py::none(), "calibrate"_a = py::none(),
         (std::string(R"doc(
 The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
 phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
@@ -525,6 +612,13 @@ Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
 comm                None (one process) or an mpi4py communicator: `observations` is then this
                     rank's share (every rank calls with its own; docs/scale.md), the sums are
                     allreduced and every rank returns the same heights.
+calibrate           self-calibration (calibration.h): None (default: the acquisition is exact;
+                    returns a Heightfield), or 'positions', 'exposure', 'sigma' as a comma-
+                    separated string or a sequence of them, 'all' or 'none': returns a tuple
+                    (Heightfield, dict) with the refined values: refined (str), sigma_p_scale
+                    (true sigma_p / stated), exposures (float64 (N,): reference ~ exposure *
+                    model, per observation in the order given; None when not refined),
+                    position_offsets_um (float64 (N, 2): true - stated centre; or None).
 )doc") + kSettingsDoc)
             .c_str());
 
@@ -574,6 +668,14 @@ epochs >= 0; lr > 0, beta1 and beta2 in [0, 1), decay >= 0 per epoch (the thesis
         "RMS of (estimate - truth) in um after removing each one's mean, divided by the truth's\n"
         "peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat.");
     m.def(
+        "height_rel_rmse_plane_removed",
+        [](const Heightfield& estimate, const Heightfield& truth) {
+            return height_rel_rmse_plane_removed(estimate, truth);
+        },
+        "estimate"_a, "truth"_a,
+        "height_rel_rmse with the best-fit plane a + b x + c y (least squares over the texel centres)\n"
+        "removed from estimate - truth: the error that is not a tilt (a tilt is not observable).");
+    m.def(
         "with_height_range",
         [](const Heightfield& heightfield, double range_um) {
             return with_height_range(heightfield, check_positive(range_um, "range_um"));
@@ -593,15 +695,22 @@ epochs >= 0; lr > 0, beta1 and beta2 in [0, 1), decay >= 0 per epoch (the thesis
         .def_readonly("warnings", &RecoveryResult::warnings, "check_acquisition's warnings")
         .def_readonly("metrics", &RecoveryResult::metrics, R"doc(
 dict of arrays, one entry per reported step (the CLI's metrics.csv columns): stage (str),
-iteration (int64), loss, seconds (since the recovery started), height_rel_rmse (float64; NaN
-without a truth or before heights exist).
+iteration (int64), loss, seconds (since the recovery started), height_rel_rmse and
+height_rel_rmse_plane_removed (float64; NaN without a truth or before heights exist).
 )doc")
         .def_readonly("method", &RecoveryResult::method, "'pipeline' or 'thesis'")
         .def_readonly("loss", &RecoveryResult::loss, "the loss fitted, as a spec")
         .def_readonly("noise", &RecoveryResult::noise, "the simulated noise, as a spec")
         .def_readonly("height_range_um", &RecoveryResult::height_range_um,
                       "the truth's peak-to-valley (um), or the bound given with observations")
-        .def_readonly("stopped", &RecoveryResult::stopped, "True when the callback stopped the run early");
+        .def_readonly("stopped", &RecoveryResult::stopped, "True when the callback stopped the run early")
+        .def_readonly("calibration", &RecoveryResult::calibration, R"doc(
+dict of the self-calibration (calibration.h): refined (str, e.g. 'exposure,sigma' or 'none'),
+sigma_p_scale (true sigma_p / stated), exposures (float64 (N,), reference ~ exposure * model,
+per observation of result.observations; None when not refined), position_offsets_um (float64
+(N, 2), true - stated centre; None when not refined), truth: with simulated acquisition errors
+the same keys with the true values (else None).
+)doc");
 
     const RecoveryOptions ro;
     m.def("recover", &recover, "truth"_a = py::none(), "observations"_a = py::none(), py::kw_only(), "size"_a = ro.rows,
@@ -611,7 +720,9 @@ without a truth or before heights exist).
           "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
-          "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor",
+          "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
+          "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(),
+          "simulate_sigma_factor"_a = 1.0,
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -655,6 +766,14 @@ comm          None (default: one process) or an mpi4py communicator (e.g. MPI.CO
 simulator     how a truth's observations are simulated: 'gabor' (the model, default) or
               'scalar' (the exact field of the interpolated heights, scalar_diffraction.h;
               OHS / ROHS); not with observations
+calibrate     self-calibration, the CLI's --calibrate: None or 'none' (default), 'positions',
+              'exposure', 'sigma' (comma-separated or a sequence), or 'all'; the refined values
+              are in result.calibration
+simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a study's
+              acquisition errors (the CLI's --simulate-*; a truth only): footprint positions off
+              by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
+              log-uniform in (min, max), the true sigma_p this factor times the stated one
+              (0.25...4); the recovery is given the stated acquisition
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 }

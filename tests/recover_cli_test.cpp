@@ -28,8 +28,10 @@ double final_height_error(const fs::path& metrics) {
     const auto lines = lines_of(read_text(metrics));
     EXPECT_GE(lines.size(), 2u);
     if (lines.size() < 2) return NAN;
-    const std::string& last = lines.back();
-    return std::stod(last.substr(last.rfind(',') + 1));
+    // The fifth column (height_rel_rmse; the sixth is the plane-removed one).
+    std::string last = lines.back();
+    for (int column = 0; column < 4; ++column) last = last.substr(last.find(',') + 1);
+    return std::stod(last.substr(0, last.find(',')));
 }
 
 }  // namespace
@@ -59,6 +61,13 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--method thesis --epochs 2147483647 --out " + out, {"epochs 2147483647", "0 to 10000000"}},
         {"--field-iterations 2147483647 --out " + out, {"field iterations 2147483647", "0 to 10000000"}},
         {"--refine-iterations 10000001 --out " + out, {"refine iterations 10000001", "0 to 10000000"}},
+        // Self-calibration and simulated acquisition errors (calibration.h).
+        {"--calibrate exposure,focus --out " + out, {"--calibrate", "'focus'", "positions, exposure, sigma"}},
+        {"--simulate-exposure 2,1 --out " + out, {"--simulate-exposure", "2", "at most the max"}},
+        {"--simulate-exposure 0.5 --out " + out, {"--simulate-exposure", "MIN,MAX"}},
+        {"--simulate-sigma-factor 10 --out " + out, {"--simulate-sigma-factor", "10", "[0.25, 4]"}},
+        {"--simulate-position-error-texels -1 --out " + out, {"--simulate-position-error-texels", "-1"}},
+        {"--observations o.json --simulate-sigma-factor 1.2 --size 8 --out " + out, {"--simulate-", "--truth"}},
     };
     for (const Case& c : cases) {
         SCOPED_TRACE(c.args);
@@ -75,7 +84,7 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
          {"estimate.exr", "estimate.png", "truth.exr", "metrics.csv", "run.json", "estimate_height.npy",
           "truth_height.npy", "reference.npy", "final.npy", "observations.json"})
         EXPECT_TRUE(fs::exists(dir / "run" / name)) << name;
-    EXPECT_EQ(lines_of(read_text(dir / "run" / "metrics.csv"))[0], "stage,iteration,loss,seconds,height_rel_rmse");
+    EXPECT_EQ(lines_of(read_text(dir / "run" / "metrics.csv"))[0], "stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed");
     // The estimate, read back from its file, against the truth (an evaluation independent of
     // the metrics the run reports).
     const Heightfield truth = read_heightfield_exr((dir / "run" / "truth.exr").string(), 2.0);
@@ -89,6 +98,27 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
     const Heightfield from_files = read_heightfield_exr((dir / "again" / "estimate.exr").string(), 2.0);
     EXPECT_LT(height_rel_rmse(from_files, truth), 0.01);
     EXPECT_FALSE(fs::exists(dir / "again" / "truth.exr"));
+}
+
+// Slices rendered with unknown exposures, recovered with --calibrate exposure: calibration.json
+// holds what was refined, one exposure per observation near the true one, and the errors.
+TEST(RecoverCliTest, CalibratedStudyWritesCalibrationJson) {
+    const fs::path dir = fresh_dir("recover");
+    const CliResult r =
+        run_cli(dir, "recover " + kSmall + " --simulate-exposure 0.5,2 --calibrate exposure --out run");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json run = nlohmann::json::parse(read_text(dir / "run" / "run.json"));
+    EXPECT_EQ(run.at("calibrate"), "exposure");
+    const nlohmann::json c = nlohmann::json::parse(read_text(dir / "run" / "calibration.json"));
+    EXPECT_EQ(c.at("refined"), "exposure");
+    const auto& found = c.at("exposures");
+    const auto& truth = c.at("truth").at("exposures");
+    ASSERT_EQ(found.size(), run.at("observations").get<std::size_t>());
+    ASSERT_EQ(truth.size(), found.size());
+    for (std::size_t i = 0; i < found.size(); ++i)
+        EXPECT_NEAR(found[i].get<double>() / truth[i].get<double>(), 1.0, 0.02) << i;
+    EXPECT_LT(c.at("errors").at("exposure_rel_rms").get<double>(), 0.01);
+    EXPECT_TRUE(temporaries_under(dir / "run").empty());
 }
 
 // The report plotter is started without a shell: a hostile --out runs nothing (it used to

@@ -97,7 +97,7 @@ TEST(RecoveryDirectory, WritesEveryFileOfTheLayout) {
 
     // One row per step the callback saw, in the order it saw them.
     const std::string csv = read_text(dir / "metrics.csv");
-    ASSERT_EQ(csv.rfind("stage,iteration,loss,seconds,height_rel_rmse\n", 0), 0u) << csv;
+    ASSERT_EQ(csv.rfind("stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed\n", 0), 0u) << csv;
     ASSERT_EQ(std::count(csv.begin(), csv.end(), '\n'), std::ptrdiff_t(seen.size() + 1)) << csv;
     ASSERT_FALSE(seen.empty());
     EXPECT_NE(csv.find("\nthesis," + std::to_string(seen.back().iteration) + ","), std::string::npos) << csv;

@@ -12,6 +12,7 @@
 // The recovery is given the nominal (stated) acquisition and refines these with the heights;
 // what it found is returned in a Calibration.
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -57,5 +58,21 @@ struct AcquisitionErrors {
         return position_rms_texels != 0.0 || exposure_min != 1.0 || exposure_max != 1.0 || sigma_p_factor != 1.0;
     }
 };
+
+// Checks the bounds of simulated acquisition errors: position_rms_texels finite in [0, 10],
+// exposure_min ≤ exposure_max, both finite in [1e-3, 1e3], sigma_p_factor finite in
+// [0.25, 4]. Throws std::invalid_argument "NAME VALUE is invalid; expected …" naming the
+// option (`prefix` + the field's name, e.g. "--simulate-" gives "--simulate-exposure").
+void check_acquisition_errors(const AcquisitionErrors& errors, const std::string& prefix = "");
+
+// The simulated errors of observation `observation` (its index among all the run's
+// observations) at footprint position `position` (its position's index; every wavelength of
+// a position shares its offset): the true centre − the stated one (µm, Gaussian of
+// position_rms_texels · texel_um per coordinate) and the exposure (log-uniform in
+// [exposure_min, exposure_max]). Each is seeded from errors.seed and its own index only, so
+// the draws do not depend on how the observations are split over ranks.
+std::array<double, 2> simulated_position_offset_um(const AcquisitionErrors& errors, std::size_t position,
+                                                   double texel_um);
+double simulated_exposure(const AcquisitionErrors& errors, std::size_t observation);
 
 }  // namespace wavebrdf

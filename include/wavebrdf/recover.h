@@ -52,6 +52,10 @@ struct BlurredFitSettings {
     std::vector<double> blur_widths{16.0, 8.0, 4.0, 2.0};
     int iterations = 40;  // L-BFGS iterations per stage
     int history = 20;
+    // Self-calibration of the exposure: each slice's blurred model is scaled by its exposure
+    // e = Σ R_b / Σ M_b (the ratio of the energies), taken at each blur stage's starting
+    // heights and held for the stage.
+    bool calibrate_exposure = false;
 };
 
 // Heights that match the single-wavelength observations blurred in u (the distribution of
@@ -125,6 +129,10 @@ struct FieldRetrievalSettings {
     // docs/recovery.md, Speed).
     int stall_window = 5;
     double stall_tolerance = 0.005;
+    // Self-calibration of the exposure: each slice's model amplitude is scaled by √e, e =
+    // Σ R / Σ c1|I|² over the disk's pixels (the ratio of the energies, per evaluation, its
+    // gradient included).
+    bool calibrate_exposure = false;
 };
 
 struct FieldRetrievalResult {
@@ -222,6 +230,7 @@ struct StageMetrics {
     double loss = 0.0;              // the stage's own loss (relative for the blur and field stages; 0 for results)
     double seconds = 0.0;           // since recover_heights started
     double height_rel_rmse = -1.0;  // when a truth is given and heights exist (else −1)
+    double height_rel_rmse_plane_removed = -1.0;  // the same with the best-fit plane removed (else −1)
 };
 
 // The heightfield (rows × cols, values in texel units with the given texel_um and vscale)
@@ -252,5 +261,11 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
 // height range max − min (µm). Throws std::invalid_argument on a size mismatch and
 // std::domain_error when the truth is flat.
 double height_rel_rmse(const Heightfield& estimate, const Heightfield& truth);
+
+// The same with the best-fit plane a + b·x + c·y (least squares over the texel centres) removed
+// from estimate − truth: the error that is not a tilt. A tilt of the light, or of the sample,
+// moves every slice as a plane in the heights does, so a plane is not observable from the
+// slices. Throws as height_rel_rmse does.
+double height_rel_rmse_plane_removed(const Heightfield& estimate, const Heightfield& truth);
 
 }  // namespace wavebrdf

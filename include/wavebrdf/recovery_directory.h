@@ -6,7 +6,12 @@
 //   run.json             the run's settings and plan: method, size, texel_um, vscale,
 //                        height_range_um, noise, loss, seed, observations (count), plan (notes),
 //                        warnings, truth (bool), height_rel_rmse (only when undefined: why)
-//   metrics.csv          stage,iteration,loss,seconds,height_rel_rmse (one row per StageMetrics)
+//   metrics.csv          stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed
+//                        (one row per StageMetrics)
+//   calibration.json     with self-calibration or simulated acquisition errors: what was
+//                        refined ("refined"), the values found (exposures, position_offsets_um per
+//                        observation in the run's order, sigma_p_scale) and, with a truth, "truth"
+//                        and "errors" (calibration_detail.h)
 //   truth.exr, truth_height.npy              the truth, when known (heights in µm in the .npy)
 //   estimate.exr, estimate.png, estimate_height.npy   the estimate
 //   reference.npy, final.npy                 observation 0 and the estimate's slice for it
@@ -33,6 +38,9 @@ struct RecoveryDirectoryOptions {
     // beside it (write_observations_file, observation_file.h).
     std::string observations_path;
     std::string option = "--out";    // names `dir` in messages
+    // When given, receives the acquisition as the pipeline refined it (calibration.h; on rank 0
+    // every observation's entries in the run's order, elsewhere only sigma_p_scale).
+    Calibration* calibration = nullptr;
 };
 
 // Runs `prepared` (prepare_recovery with `options`) into out.dir: prepares the directory

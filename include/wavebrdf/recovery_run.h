@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "wavebrdf/baseline.h"
+#include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/loss.h"
@@ -64,6 +65,14 @@ struct RecoveryOptions {
     // Refuse (OutOfMemory, before simulating or recovering) a run whose estimated peak memory
     // (estimate_recovery_bytes) exceeds this many GB; 0: the physical memory.
     double max_memory_gb = 0.0;
+    // Self-calibration (calibration.h): the parts of the acquisition the pipeline refines.
+    CalibrationSettings calibrate;
+    // A study's acquisition errors (a truth only): the observations are rendered for the
+    // perturbed acquisition (positions offset per footprint position, σ_p scaled, each slice
+    // scaled by its exposure after the noise, which is relative to the slice) and the recovery
+    // is given the nominal one. Seeded per position / observation (calibration.h), so the same
+    // on any number of ranks.
+    AcquisitionErrors errors;
 };
 
 // The loss the recovery fits: options.loss when given; else, for the pipeline, the one
@@ -105,6 +114,9 @@ struct PreparedRecovery {
     std::size_t total_observations = 0;
     int ranks = 1;
     std::vector<Observation> catalogue;
+    // With a truth and options.errors: the true acquisition errors of `observations` (this
+    // rank's share; calibration.h's meaning), what a calibrated recovery should find.
+    std::optional<Calibration> true_calibration;
 };
 
 // Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from
@@ -150,8 +162,10 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 // `comm`: the ranks prepared.observations are split over (prepared with a communicator of the
 // same size, else std::invalid_argument); collective, the estimate the same on every rank,
 // on_step called on every rank (recover_heights).
+// `calibration`, when given, receives the acquisition as the pipeline refined it
+// (recover_heights; this rank's share; the default Calibration for the thesis's method).
 Heightfield run_recovery(const PreparedRecovery& prepared,
                          const std::function<bool(const StageMetrics&)>& on_step = {},
-                         const Communicator& comm = serial_communicator());
+                         const Communicator& comm = serial_communicator(), Calibration* calibration = nullptr);
 
 }  // namespace wavebrdf

@@ -39,6 +39,7 @@ from ._core import (  # noqa: F401
     gradient,
     height_mse,
     height_rel_rmse,
+    height_rel_rmse_plane_removed,
     invert,
     lbfgs_minimize,
     mse,
@@ -68,7 +69,7 @@ from .table import BrdfTable, read_table, render_table  # noqa: F401  (wavebrdf 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
     "Query", "RecoveryResult", "add_noise", "amplitude", "check_acquisition", "cie1931_xyz", "cmsle", "gradient",
-    "height_mse", "height_rel_rmse", "invert", "lbfgs_minimize", "mse", "observation_loss", "plan_acquisition",
+    "height_mse", "height_rel_rmse", "height_rel_rmse_plane_removed", "invert", "lbfgs_minimize", "mse", "observation_loss", "plan_acquisition",
     "planned_observations", "read_observations", "recover", "recover_heights", "recover_heights_thesis", "render",
     "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",
     "spectral_to_srgb_weights", "spectral_wavelengths_um", "with_height_range", "write_observations",

@@ -524,8 +524,8 @@ class RecoveryResult:
     @property
     def metrics(self) -> Any:
         """dict of arrays, one entry per reported step (the CLI's metrics.csv columns): stage (str),
-        iteration (int64), loss, seconds (since the recovery started), height_rel_rmse (float64; NaN
-        without a truth or before heights exist).
+        iteration (int64), loss, seconds (since the recovery started), height_rel_rmse and
+        height_rel_rmse_plane_removed (float64; NaN without a truth or before heights exist).
         """
         ...
     @property
@@ -547,6 +547,15 @@ class RecoveryResult:
     @property
     def stopped(self) -> bool:
         """True when the callback stopped the run early"""
+        ...
+    @property
+    def calibration(self) -> Any:
+        """dict of the self-calibration (calibration.h): refined (str, e.g. 'exposure,sigma' or 'none'),
+        sigma_p_scale (true sigma_p / stated), exposures (float64 (N,), reference ~ exposure * model,
+        per observation of result.observations; None when not refined), position_offsets_um (float64
+        (N, 2), true - stated centre; None when not refined), truth: with simulated acquisition errors
+        the same keys with the true values (else None).
+        """
         ...
 
 def add_noise(values: Any, noise: Any, seed: int = ...) -> Any:
@@ -608,6 +617,12 @@ def height_mse(estimate: Any, truth: Any) -> float:
 def height_rel_rmse(estimate: Heightfield, truth: Heightfield) -> float:
     """RMS of (estimate - truth) in um after removing each one's mean, divided by the truth's
     peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat.
+    """
+    ...
+
+def height_rel_rmse_plane_removed(estimate: Heightfield, truth: Heightfield) -> float:
+    """height_rel_rmse with the best-fit plane a + b x + c y (least squares over the texel centres)
+    removed from estimate - truth: the error that is not a tilt (a tilt is not observable).
     """
     ...
 
@@ -738,7 +753,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -778,14 +793,19 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   observations (result.observations: this rank's); the sums are allreduced, every
                   rank gets the same estimate, only rank 0 shows progress (docs/scale.md). The
                   thesis's method runs on one process only.
-    simulator     how a truth's observations are simulated: 'gabor' (the model, default) or
-                  'scalar' (the exact field of the interpolated heights, scalar_diffraction.h;
-                  OHS / ROHS); not with observations
+    calibrate     self-calibration, the CLI's --calibrate: None or 'none' (default), 'positions',
+                  'exposure', 'sigma' (comma-separated or a sequence), or 'all'; the refined values
+                  are in result.calibration
+    simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a study's
+                  acquisition errors (the CLI's --simulate-*; a truth only): footprint positions off
+                  by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
+                  log-uniform in (min, max), the true sigma_p this factor times the stated one
+                  (0.25...4); the recovery is given the stated acquisition
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...
 
-def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ...) -> Heightfield:
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ...) -> Any:
     """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
     phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
     on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
@@ -807,6 +827,13 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
     comm                None (one process) or an mpi4py communicator: `observations` is then this
                         rank's share (every rank calls with its own; docs/scale.md), the sums are
                         allreduced and every rank returns the same heights.
+    calibrate           self-calibration (calibration.h): None (default: the acquisition is exact;
+                        returns a Heightfield), or 'positions', 'exposure', 'sigma' as a comma-
+                        separated string or a sequence of them, 'all' or 'none': returns a tuple
+                        (Heightfield, dict) with the refined values: refined (str), sigma_p_scale
+                        (true sigma_p / stated), exposures (float64 (N,): reference ~ exposure *
+                        model, per observation in the order given; None when not refined),
+                        position_offsets_um (float64 (N, 2): true - stated centre; or None).
 
     observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
                   ones feed the blurred fit and the fields; all feed the refinement and Adam)

@@ -64,6 +64,21 @@ def make_report(directory):
 
     fig, axes = plt.subplots(2, 4, figsize=(16, 7.6))
     title = "wavebrdf recover ({method}): {size} heights, {observations} observations, noise {noise}, loss {loss}".format(**run)
+    calibration_path = os.path.join(directory, "calibration.json")
+    if os.path.exists(calibration_path):  # self-calibration (calibration.h)
+        with open(calibration_path) as f:
+            cal = json.load(f)
+        parts = ["calibrated: " + cal.get("refined", "none")]
+        if cal.get("refined", "none") != "none":
+            parts.append("sigma_p scale {:.4f}".format(cal.get("sigma_p_scale", 1.0)))
+        errors = cal.get("errors", {})
+        if "exposure_rel_rms" in errors:
+            parts.append("exposure error rms {:.2%}".format(errors["exposure_rel_rms"]))
+        if "position_rms_um" in errors:
+            parts.append("position error rms {:.3g} um".format(errors["position_rms_um"]))
+        if "truth" in cal:
+            parts.append("true sigma_p scale {:.4f}".format(cal["truth"].get("sigma_p_scale", 1.0)))
+        title += "\n" + ", ".join(parts)
     fig.suptitle(title, fontsize=11)
 
     est = estimate - estimate.mean()

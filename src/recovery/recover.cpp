@@ -18,6 +18,7 @@
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/recover_positions.h"
+#include "recovery/calibration_detail.h"
 
 namespace wavebrdf {
 
@@ -79,7 +80,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             m.iteration = iteration;
             m.loss = loss;
             m.seconds = seconds();
-            if (truth && hf) m.height_rel_rmse = height_rel_rmse(*hf, *truth);
+            if (truth && hf) {
+                m.height_rel_rmse = height_rel_rmse(*hf, *truth);
+                m.height_rel_rmse_plane_removed = height_rel_rmse_plane_removed(*hf, *truth);
+            }
             go_on = on_step(m);
         }
         go_on = !comm.any(!go_on);  // one rank's stop stops all, at the same step
@@ -127,8 +131,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     }
     Heightfield estimate = flat;
     if (!settings.blurred.blur_widths.empty() && settings.blurred.iterations > 0) {
+        BlurredFitSettings blurred = settings.blurred;
+        blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
         estimate = fit_blurred(
-            blur_set, flat, settings.blurred,
+            blur_set, flat, blurred,
             [&](int stage, int it, double loss) { return report("blur:" + std::to_string(stage), it, loss, nullptr); },
             comm);
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
@@ -146,6 +152,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                     " is invalid; expected an odd value up to 63 (texel centres must be samples)");
     FieldRetrievalSettings field_settings = settings.field;
     field_settings.refine = q;
+    field_settings.calibrate_exposure = field_settings.calibrate_exposure || settings.calibrate.exposure;
     const int obj_cols = cols * q;
     const double to_texel = 1.0 / (vscale * texel_um);
     std::vector<double> lambdas;
@@ -224,9 +231,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // Stage 3: the full model (with the positions refined as well: recover_positions.h).
     if (settings.refine_iterations > 0 && settings.calibrate.positions) {
         std::vector<std::array<double, 2>> offsets;
+        std::vector<double> exposures;
         estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
-                                                        report, comm, offsets, offsets_um);
-        if (calibration) calibration->position_offsets_um = std::move(offsets);
+                                                        report, comm, offsets, offsets_um, &exposures);
+        if (calibration) {
+            calibration->position_offsets_um = std::move(offsets);
+            calibration->exposures = std::move(exposures);
+        }
     } else if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();
         // observation_loss's mean, split over the observations on all threads (each slice alone
@@ -240,6 +251,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // thread count and split over ranks.
         std::vector<std::vector<int>> box_rows(observations.size()), box_cols(observations.size());
         detail::ExactParallelSum exact_sum(h.size());
+        // Self-calibration (calibration_detail.h): each observation's exposure as the ratio of
+        // its energies at every evaluation (with its gradient), one σ_p scale for all (plans
+        // rebuilt).
+        const bool calibrate_exposure = settings.calibrate.exposure;
+        std::vector<double> exposures(observations.size(), 1.0);
+        double sigma_scale = 1.0;
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             const double scale = 1.0 / observations_total;  // all ranks' observations
             return exact_sum.run(observations.size(), comm, g, [&](std::size_t i, detail::ExactScratch& scratch) {
@@ -247,7 +264,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 // Built on the flat surface's geometry (no copy of the heights per
                 // observation), then given the heights like every later call.
                 if (!plans[i]) {
-                    plans[i] = std::make_unique<SlicePlan<float>>(flat, o.query, o.lambdas_um, o.resolution,
+                    Query query = o.query;
+                    query.sigma_p_um *= sigma_scale;
+                    plans[i] = std::make_unique<SlicePlan<float>>(flat, query, o.lambdas_um, o.resolution,
                                                                   o.channels());
                     plans[i]->gradient_box(box_rows[i], box_cols[i]);
                 }
@@ -255,8 +274,17 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 SlicePlan<float>& plan = *plans[i];
                 const std::vector<float>& f = plan.forward();
                 std::vector<double> d_estimate;
-                const double v = loss_value(settings.refine_loss, std::vector<double>(f.begin(), f.end()), o.reference,
-                                            o.channels(), &d_estimate);
+                double exposure = 1.0;
+                const std::size_t values = std::min(f.size(), o.reference.size());
+                if (calibrate_exposure) {
+                    exposure = detail::slice_exposure(f.data(), o.reference.data(), values);
+                    exposures[i] = exposure;
+                }
+                std::vector<double> model(f.begin(), f.end());
+                if (calibrate_exposure)
+                    for (double& m : model) m *= exposure;
+                const double v = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
+                if (calibrate_exposure) detail::exposure_gradient(exposure, f.data(), values, d_estimate);
                 plan.adjoint(d_estimate, scratch.vector(), scale);
                 scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
                 plan.release();
@@ -276,12 +304,54 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                                                                       settings.refine_loss, nullptr);
                                                           }) /
                                       observations_total;
-        lbfgs_minimize(objective, h, lo, [&](int it, double value) {
-            const Heightfield current = flat.with_values(h);
-            if (!report("refine", it, value, &current)) return false;
-            return value > settings.refine_relative_tolerance * reference_loss;
-        });
+        bool go_on = true;
+        int done = 0;  // refinement iterations so far (the metrics' count across rounds)
+        const auto refine_heights = [&](int iterations) {
+            LbfgsOptions round = lo;
+            round.max_iterations = iterations;
+            const int before = done;
+            lbfgs_minimize(objective, h, round, [&](int it, double value) {
+                done = before + it;
+                const Heightfield current = flat.with_values(h);
+                if (!report("refine", done, value, &current)) return go_on = false;
+                return value > settings.refine_relative_tolerance * reference_loss;
+            });
+        };
+        if (settings.calibrate.sigma) {
+            // σ_p: a golden-section search on log s at fixed heights, alternated with L-BFGS
+            // on the heights (rounds of refine_iterations / 6, the last one the rest).
+            std::vector<double> no_g;
+            sigma_scale = detail::refine_sigma_scale(
+                [&](double s) {
+                    sigma_scale = s;
+                    for (auto& p : plans) p.reset();
+                    return objective(h, no_g);
+                },
+                [&](int round, double s, double value) {
+                    sigma_scale = s;
+                    for (auto& p : plans) p.reset();
+                    const Heightfield current = flat.with_values(h);
+                    if (!report("calibrate:sigma", round, value, &current)) return go_on = false;
+                    refine_heights(round + 1 < detail::k_sigma_rounds
+                                       ? std::max(1, settings.refine_iterations / (2 * detail::k_sigma_rounds))
+                                       : std::max(1, settings.refine_iterations - done));
+                    return go_on;
+                });
+            for (auto& p : plans) p.reset();
+        } else {
+            refine_heights(settings.refine_iterations);
+        }
         estimate = flat.with_values(h);
+        if (stopped) return estimate;
+        // The exposures at the final heights (collective: on every rank, whatever it asked).
+        if (calibrate_exposure) {
+            std::vector<double> g;
+            objective(h, g);
+        }
+        if (calibration) {
+            if (calibrate_exposure) calibration->exposures = exposures;
+            calibration->sigma_p_scale = sigma_scale;
+        }
     }
     return estimate;
 }
@@ -292,7 +362,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                             double vscale, const RecoverSettings& settings,
                             const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
                             const Communicator& comm, Calibration* calibration) {
-    if (calibration) *calibration = Calibration{};  // (self-calibration: issue 14, to come)
+    if (calibration) *calibration = Calibration{};
     // Checks of what every rank is given alike first, then of each rank's share, agreed.
     const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0), texel_um,
                            vscale);

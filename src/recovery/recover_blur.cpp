@@ -137,6 +137,27 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         if (!(total > 0.0)) throw std::invalid_argument("fit_blurred: every reference slice is zero");
         const double inv_total = 1.0 / total;
 
+        // Self-calibrated exposures e = Σ R_b / Σ M_b (the ratio of the energies,
+        // calibration_detail.h) at the stage's starting heights, fixed during the stage:
+        // re-estimated at every evaluation they let the blurred fit drift (measured: 5.3 %
+        // instead of 2.2 % on exact data), fixed they cost nothing where the energy does not
+        // depend on the heights.
+        std::vector<double> root_exposures(used.size(), 1.0);
+        if (settings.calibrate_exposure)
+            for (std::size_t i = 0; i < used.size(); ++i) {
+                const Eigen::MatrixXf& blur = matrices[data[i].matrix].blur_float;
+                const int n = int(blur.rows());
+                plans[i].set_heights(h);
+                const std::vector<float>& f = plans[i].forward();
+                const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
+                    f.data(), n, n);
+                const Eigen::MatrixXf m = blur * slice * blur.transpose();
+                double model_total = 0.0;
+                for (int p = 0; p < n; ++p)
+                    for (int q = 0; q < n; ++q) model_total += std::max(double(m(p, q)), 0.0);
+                plans[i].release();
+                if (model_total > 0.0) root_exposures[i] = std::sqrt(totals[i] / model_total);
+            }
         // L = Σ_obs Σ (√M_b − √R_b)² / Σ R_b, M_b = B M Bᵀ of the coarse model slice M.
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& grad) {
             // Every rank's observations, exactly: the same for any thread count and split over
@@ -151,15 +172,17 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                 const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
                     f.data(), n, n);
                 const Eigen::MatrixXf m = blur * slice * blur.transpose();
+                // Self-calibrated exposure: the model scaled by √e, e fixed for the stage.
+                const double root_exposure = settings.calibrate_exposure ? root_exposures[i] : 1.0;
                 Eigen::MatrixXf dm(n, n);
                 double v = 0.0;
                 for (int p = 0; p < n; ++p)
                     for (int q = 0; q < n; ++q) {
                         const double mpq = double(m(p, q));
                         const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
-                        const double diff = a - d.sqrt_reference(p, q);
+                        const double diff = root_exposure * a - d.sqrt_reference(p, q);
                         v += diff * diff;
-                        dm(p, q) = mpq > 0.0 ? float(inv_total * diff / a) : 0.0f;
+                        dm(p, q) = mpq > 0.0 ? float(inv_total * diff * root_exposure / a) : 0.0f;
                     }
                 const double term = v * inv_total;
                 const Eigen::MatrixXf w = blur.transpose() * dm * blur;

@@ -657,6 +657,24 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         impl.forward_unphased(obj, psi);
         g.resize(psi.rows(), psi.cols());
         double v = s.outside;
+        // Self-calibrated exposure e = Σ R / Σ c1|Ψ|² over the disk's pixels of the box
+        // (calibration_detail.h: the ratio of the energies), the model amplitude scaled by
+        // s = √e; with C = Σ(s m − √R) m, m = √c1|Ψ|, ∂L/∂|Ψ_k| gains −2 C s c1_k |Ψ_k| / Σ m².
+        double root_exposure = 1.0, model_total = 0.0;
+        if (settings.calibrate_exposure) {
+            double reference_total = 0.0;
+            for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                    const double amp = impl.amp_box()(a, b);
+                    if (amp == 0.0) continue;
+                    const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
+                    model_total += amp * amp * (re * re + im * im);
+                    const double r = double(s.sqrt_ref(a, b));
+                    reference_total += r * r;
+                }
+            if (model_total > 0.0) root_exposure = std::sqrt(reference_total / model_total);
+        }
+        double cross = 0.0;
         for (Eigen::Index b = 0; b < psi.cols(); ++b)
             for (Eigen::Index a = 0; a < psi.rows(); ++a) {
                 const double amp = impl.amp_box()(a, b);
@@ -670,10 +688,19 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                 // is far from its overflow / underflow range.
                 const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
                 const double mag = std::sqrt(re * re + im * im);
-                const double diff = amp * mag - double(s.sqrt_ref(a, b));
+                const double diff = root_exposure * amp * mag - double(s.sqrt_ref(a, b));
                 v += diff * diff;
-                g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * amp / mag) * psi(a, b) : 0.0f;
+                cross += diff * amp * mag;
+                g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * root_exposure * amp / mag) * psi(a, b) : 0.0f;
             }
+        if (settings.calibrate_exposure && model_total > 0.0) {
+            const double shift = 2.0 * inv_total * cross * root_exposure / model_total;
+            for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                    const double amp = impl.amp_box()(a, b);
+                    if (amp != 0.0) g(a, b) -= float(shift * amp * amp) * psi(a, b);
+                }
+        }
         impl.adjoint_unphased_add(g, gradient);
         return v * inv_total;
     };

@@ -1,4 +1,5 @@
 // Stage 3 of recover_heights with the footprint positions refined as well (recover_positions.h).
+
 #include "recovery/recover_positions.h"
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/calibration_detail.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/slice_plan.h"
@@ -127,7 +129,8 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
-                                         const std::vector<double>& initial_offsets_um) {
+                                         const std::vector<double>& initial_offsets_um,
+                                         std::vector<double>* exposures_out) {
     std::vector<std::size_t> index;
     const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
     const std::size_t cells = estimate.values().size(), count = positions.size();
@@ -146,6 +149,7 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
     ExactParallelSum exact_sum(cells + 2 * count);
     const std::vector<int> row0{0};
     std::vector<std::vector<double>> height_scratch(std::size_t(std::max(1, omp_get_max_threads())));
+    std::vector<double> exposures(observations.size(), 1.0);
     const auto objective = [&](const std::vector<double>& v, std::vector<double>& g) {
         const double scale = 1.0 / observations_total;
         const std::vector<double> off = offsets_from(v, cells, count, texel_um);
@@ -166,8 +170,18 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
             plan.set_heights(heights);
             const std::vector<float>& f = plan.forward();
             std::vector<double> d_estimate;
-            const double loss = loss_value(settings.refine_loss, std::vector<double>(f.begin(), f.end()), o.reference,
-                                           o.channels(), &d_estimate);
+            // With exposure calibration, each slice's exposure as its energy ratio (as in the
+            // refinement without positions, calibration_detail.h).
+            std::vector<double> model(f.begin(), f.end());
+            const std::size_t values = std::min(f.size(), o.reference.size());
+            double exposure = 1.0;
+            if (settings.calibrate.exposure) {
+                exposure = slice_exposure(f.data(), o.reference.data(), values);
+                exposures[i] = exposure;
+                for (double& m : model) m *= exposure;
+            }
+            const double loss = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
+            if (settings.calibrate.exposure) exposure_gradient(exposure, f.data(), values, d_estimate);
             std::vector<double>& s = scratch.vector();
             // The adjoint writes rows·cols values: into this thread's zeroed height scratch, of
             // which the box is moved into the exact sum's scratch (the cost of the footprint).
@@ -217,6 +231,11 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
         if (!report("refine", it, value, &current)) return false;
         return value > settings.refine_relative_tolerance * reference_loss;
     });
+    if (settings.calibrate.exposure) {  // the exposures at the final heights (collective)
+        std::vector<double> g;
+        objective(x, g);
+        if (exposures_out) *exposures_out = exposures;
+    }
     const std::vector<double> off = offsets_from(x, cells, count, texel_um);
     offsets_um.resize(observations.size());
     for (std::size_t i = 0; i < observations.size(); ++i) offsets_um[i] = {off[2 * index[i]], off[2 * index[i] + 1]};

@@ -49,10 +49,14 @@ void register_positions(const std::vector<const Observation*>& group, const std:
 // ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
 // position; empty: 0). Returns the heights; offsets_um receives
 // one offset (true − stated, µm, mean 0 over the positions) per observation of this rank.
+// With settings.calibrate.exposure each slice's exposure is its energy ratio at every
+// evaluation (calibration_detail.h), and exposures_out (when given) receives them at the end.
+// (settings.calibrate.sigma is not applied here: σ_p stays as stated.)
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
-                                         const std::vector<double>& initial_offsets_um = {});
+                                         const std::vector<double>& initial_offsets_um = {},
+                                         std::vector<double>* exposures_out = nullptr);
 
 }  // namespace wavebrdf::detail

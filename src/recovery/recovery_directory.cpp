@@ -13,6 +13,7 @@
 #include "wavebrdf/observation_file.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/version.h"
+#include "recovery/calibration_detail.h"
 
 namespace wavebrdf {
 
@@ -32,6 +33,7 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                           {"plan", r.notes},
                           {"warnings", r.warnings},
                           {"truth", r.truth.has_value()},
+                          {"calibrate", to_string(r.pipeline.calibrate)},
                           {"version", k_version},
                           {"threads", thread_count()}};
     // What the plan chose (the options' 0 / "" mean "the planner's"): the actual values.
@@ -106,16 +108,20 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     // A metrics row per reported step.
     std::ostringstream csv;
     csv.precision(10);
-    csv << "stage,iteration,loss,seconds,height_rel_rmse\n";
+    csv << "stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed\n";
     auto record = [&](const StageMetrics& m) {
         csv << m.stage << ',' << m.iteration << ',' << m.loss << ',' << m.seconds << ','
-            << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << '\n';
+            << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << ','
+            << (m.height_rel_rmse_plane_removed >= 0.0 ? std::to_string(m.height_rel_rmse_plane_removed)
+                                                      : std::string("nan"))
+            << '\n';
         return on_step ? on_step(m) : true;
     };
     // A failure midway keeps the metrics of the steps that finished.
+    Calibration calibration;
     const Heightfield estimate = [&] {
         try {
-            return run_recovery(r, record, comm);
+            return run_recovery(r, record, comm, &calibration);
         } catch (const RankFailed&) {
             throw;  // the failing rank says why
         } catch (const std::exception& e) {
@@ -131,8 +137,22 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         }
     }();
 
+    // calibration.json: what was refined and found (with simulated errors, the truth and the
+    // errors of the estimate), every rank's observations gathered on rank 0.
+    const bool write_calibration = r.pipeline.calibrate.any() || r.true_calibration.has_value();
+    Calibration all_calibration, all_truth;
+    if (write_calibration) {
+        all_calibration = detail::gathered_calibration(calibration, r.share, r.total_observations, comm);
+        if (r.true_calibration)
+            all_truth = detail::gathered_calibration(*r.true_calibration, r.share, r.total_observations, comm);
+    }
+    if (out.calibration) *out.calibration = all_calibration;
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
+    if (write_calibration)
+        write_text_atomically(dir + "/calibration.json",
+                              detail::calibration_json(r.pipeline.calibrate, all_calibration,
+                                                       r.true_calibration ? &all_truth : nullptr));
     write_heightfield_exr(dir + "/estimate.exr", estimate,
                           std::string("wavebrdf recover: estimate (") + to_string(r.method) + ")");
     write_heightfield_png(dir + "/estimate.png", estimate);

@@ -126,6 +126,11 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
     if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
+    check_acquisition_errors(options.errors, "--simulate-");
+    if (options.errors.any() && !observations.empty())
+        throw std::invalid_argument(
+            "simulated acquisition errors need a truth (the observations are rendered with them), not given "
+            "observations");
     const MemoryLimit limit = memory_limit(options.max_memory_gb);
     if (comm.size() > 1 && options.method == RecoveryMethod::Thesis)
         throw std::invalid_argument(
@@ -207,13 +212,41 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                            std::to_string(mine.size()) + " observations of " + std::to_string(plan.resolution) + "x" +
                            std::to_string(plan.resolution) + ")");
         Progress progress("simulate", static_cast<long long>(r.share.size()), show_progress && comm.is_root());
+        // With acquisition errors: rendered for the true (perturbed) acquisition, handed over
+        // with the nominal one.
+        const AcquisitionErrors& e = options.errors;
+        AcquisitionPlan true_plan = plan;
+        std::vector<std::array<double, 2>> offsets(plan.positions_um.size());
+        if (e.any()) {
+            true_plan.sigma_p_um *= e.sigma_p_factor;
+            for (std::size_t p = 0; p < offsets.size(); ++p) {
+                offsets[p] = simulated_position_offset_um(e, p, r.texel_um);
+                true_plan.positions_um[p][0] += offsets[p][0];
+                true_plan.positions_um[p][1] += offsets[p][1];
+            }
+        }
         if (options.simulator == Simulator::Scalar)
-            r.observations = simulate_scalar_observations(*r.truth, plan, options.noise, options.seed, r.share, {},
-                                                          &progress);
+            r.observations = simulate_scalar_observations(*r.truth, true_plan, options.noise, options.seed, r.share,
+                                                          {}, &progress);
         else
-            r.observations = comm.size() > 1
-                                 ? simulate_observations(*r.truth, plan, options.noise, options.seed, r.share, &progress)
+            r.observations = comm.size() > 1 || e.any()
+                                 ? simulate_observations(*r.truth, true_plan, options.noise, options.seed, r.share,
+                                                         &progress)
                                  : simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
+        if (e.any()) {
+            Calibration t;
+            t.sigma_p_scale = e.sigma_p_factor;
+            const std::size_t per_position = std::max<std::size_t>(plan.lambdas_um.size(), 1);
+            for (std::size_t k = 0; k < r.share.size(); ++k) {
+                Observation& o = r.observations[k];
+                const double exposure = simulated_exposure(e, r.share[k]);
+                for (double& v : o.reference) v *= exposure;
+                o.query = planned[r.share[k]].query;  // the stated acquisition
+                t.exposures.push_back(exposure);
+                t.position_offsets_um.push_back(offsets[r.share[k] / per_position]);
+            }
+            r.true_calibration = std::move(t);
+        }
         progress.finish();
         if (comm.size() > 1) catalogue = std::move(planned);
     }
@@ -228,6 +261,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.warnings.push_back("height_rel_rmse is " + r.metric_note + " (its height range is 0); the metrics give nan");
 
     r.pipeline.refine_loss = r.loss;
+    r.pipeline.calibrate = options.calibrate;
     r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
@@ -238,7 +272,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 }
 
 Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(const StageMetrics&)>& on_step,
-                         const Communicator& comm) {
+                         const Communicator& comm, Calibration* calibration) {
+    if (calibration) *calibration = Calibration{};
     if (comm.size() != r.ranks)
         throw std::invalid_argument("run_recovery: the recovery was prepared for " + std::to_string(r.ranks) +
                                     " ranks but runs on " + std::to_string(comm.size()) +
@@ -246,7 +281,8 @@ Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(con
     // A flat truth has no relative height error (its range is 0): the recovery runs without it.
     const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
     if (r.method == RecoveryMethod::Pipeline)
-        return recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.pipeline, on_step, truth, comm);
+        return recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.pipeline, on_step, truth, comm,
+                               calibration);
     return recover_heights_thesis(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.thesis, on_step, truth);
 }
 
