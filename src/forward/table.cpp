@@ -106,7 +106,7 @@ BrdfTable render_brdf_table_over_ranks(const Heightfield& heightfield, const Tab
     table.texel_um = heightfield.texel_um();
     table.vscale = heightfield.vscale();
     table.version = k_version;
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         validate(spec);
         // Rank 0 holds the whole table; the others their block (render_batch checks it).
         if (comm.is_root())

@@ -95,7 +95,7 @@ double observation_loss(const Heightfield& hf, const std::vector<Observation>& o
     const std::size_t cells = hf.values().size();
     // Checks (agreed over the ranks when sharded: a bad observation on one rank fails all).
     std::vector<double> count{static_cast<double>(observations.size())};
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         if (!sharded && observations.empty())
             throw std::invalid_argument("no observations given; expected at least one");
         for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
