@@ -175,15 +175,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             const double lambda = it->first;
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
-            // A copy of this wavelength's observations only while its field is retrieved.
-            FieldRetrievalResult r = [&] {
-                std::vector<Observation> group;
-                group.reserve(it->second.size());
-                for (const Observation* o : it->second) group.push_back(*o);
-                return retrieve_field(
-                    group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
-                    [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
-            }();
+            // This wavelength's observations where they are (pointers: no copy of the references).
+            FieldRetrievalResult r = retrieve_field(
+                it->second, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
+                [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
             if (stopped) return estimate;
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
