@@ -22,7 +22,7 @@ using wavebrdf::run_agreed;
 
 // What the ranks (threads) share: one slot per rank and a reusable barrier.
 struct Shared {
-    explicit Shared(int size) : slots(std::size_t(size)), size(size) {}
+    explicit Shared(int size) : slots(static_cast<std::size_t>(size)), size(size) {}
     std::vector<std::vector<double>> slots;
     int size;
     std::mutex mutex;
@@ -96,7 +96,7 @@ struct Outcome {
 // Runs `body(comm)` on `size` threads, each its own rank, and returns what each saw.
 std::vector<Outcome> on_ranks(int size, const std::function<void(const Communicator&)>& body) {
     Shared shared(size);
-    std::vector<Outcome> outcomes(std::size_t(size));
+    std::vector<Outcome> outcomes(static_cast<std::size_t>(size));
     std::vector<std::thread> threads;
     for (int r = 0; r < size; ++r)
         threads.emplace_back([&, r] {
