@@ -350,7 +350,7 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
                                     std::optional<Heightfield> initial) {
     PreparedInversion p;
     run_agreed(o.communicator ? *o.communicator : serial_communicator(),
-          [&] { p = prepare_on_rank(o, std::move(truth), std::move(observations), std::move(initial)); });
+               [&] { p = prepare_on_rank(o, std::move(truth), std::move(observations), std::move(initial)); });
     return p;
 }
 
@@ -697,8 +697,8 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
         std::string list;
         for (const std::string& name : saved) list += (list.empty() ? "" : ", ") + name;
         const auto* agreed = dynamic_cast<const RankFailed*>(&e);
-        const std::string message = (agreed ? agreed->message() : std::string(e.what())) + "; the run stopped at epoch " +
-                                    std::to_string(inversion.epoch()) + " and " +
+        const std::string message = (agreed ? agreed->message() : std::string(e.what())) +
+                                    "; the run stopped at epoch " + std::to_string(inversion.epoch()) + " and " +
                                     (!root           ? "rank 0 keeps what was finished in " + dir
                                      : saved.empty() ? std::string("nothing more could be written to ") + dir
                                                      : "its " + list + " are in " + dir);
