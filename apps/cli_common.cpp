@@ -4,9 +4,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
+#include <optional>
 #include <system_error>
 #include <stdexcept>
 
+#include "commands.h"
 #include "wavebrdf/render_options.h"
 #include "wavebrdf/threads.h"
 
@@ -78,6 +81,28 @@ void apply_render_path_options(const RenderPathArgs& args, RenderOptions& option
     options.path = parse_render_path(args.path, "--path");
     validate_render_tolerance(args.tolerance, "--tolerance");
     options.tolerance = args.tolerance;
+}
+
+void run_on_world(const std::function<void(const Communicator& world)>& command) {
+    const std::shared_ptr<const Communicator> world = world_communicator();
+    if (world->size() == 1) {
+        command(*world);
+        return;
+    }
+    std::optional<ExitStatus> status;  // not a failure: each rank ends with its own
+    try {
+        run_agreed(*world, [&] {
+            try {
+                command(*world);
+            } catch (const ExitStatus& s) {
+                status = s;
+            }
+        });
+    } catch (const RankFailed& e) {
+        if (world->is_root()) std::fprintf(stderr, "wavebrdf: error: %s\n", e.what());
+        throw ExitStatus{1};
+    }
+    if (status) throw *status;
 }
 
 }  // namespace wavebrdf::cli

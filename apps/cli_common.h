@@ -2,12 +2,14 @@
 // Helpers shared by the subcommands: distinct file names. (Sizes: wavebrdf::parse_size in
 // wavebrdf/inversion_run.h; images of slices and atomic text files: wavebrdf/io.h.)
 #include <CLI/CLI.hpp>
+#include <functional>
 #include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/inversion_run.h"
 #include "wavebrdf/io.h"
@@ -72,5 +74,14 @@ void apply_render_path_options(const RenderPathArgs& args, RenderOptions& option
 inline std::optional<double> if_given(bool given, double value) {
     return given ? std::optional<double>(value) : std::nullopt;
 }
+
+// Runs a command on the ranks mpiexec started (world_communicator(); one rank without it,
+// docs/scale.md): with one rank, `command(world)` as it is. With several, every rank runs it
+// inside one agreement (run_agreed), so a failure is printed once, by rank 0 ("wavebrdf: error:
+// rank R: …" when rank R failed alone), and every rank ends with ExitStatus{1}; an ExitStatus a
+// rank's command throws (e.g. 130 after a stop) is its own exit, after the others finished. A
+// failure of one rank amid the command's collective work must end every rank inside the
+// library (run_or_abort), since the others never reach the agreement.
+void run_on_world(const std::function<void(const Communicator& world)>& command);
 
 }  // namespace wavebrdf::cli

@@ -114,7 +114,7 @@ void run_on(const InvertArgs& a, const Communicator* comm) {
     const std::string dir = resuming ? a.resume : a.out;
     InversionOptions options;
     // The options, checked on every rank alike (a bad one fails every rank, reported once).
-    agree(comm ? *comm : serial_communicator(), [&] {
+    run_agreed(comm ? *comm : serial_communicator(), [&] {
         if (resuming)
             for (const std::string& option : a.given)
                 if (!kResumeOptions.count(option))
@@ -169,28 +169,6 @@ void run_on(const InvertArgs& a, const Communicator* comm) {
             "wavebrdf: interrupted at epoch %d; checkpoint written, continue with: wavebrdf invert --resume %s\n",
             result.epoch, dir.c_str());
         throw ExitStatus{128 + sig};
-    }
-}
-
-// Under mpirun (world_communicator of several ranks) the run is split over the ranks
-// (inversion_run.h): a failure every rank agreed on is reported once, by rank 0; one that only
-// this rank knows of is reported with its rank and ends every rank (Communicator::abort), since
-// the others would wait for it in their next collective call.
-void run(const InvertArgs& a) {
-    const std::shared_ptr<const Communicator> world = world_communicator();
-    if (world->size() == 1) {
-        run_on(a, nullptr);
-        return;
-    }
-    try {
-        run_on(a, world.get());
-    } catch (const CollectiveFailure& e) {
-        if (world->is_root()) std::fprintf(stderr, "wavebrdf: error: %s\n", e.what());
-        throw ExitStatus{1};
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "wavebrdf: error: rank %d of %d: %s\n", world->rank(), world->size(), e.what());
-        std::fflush(stderr);
-        world->abort(1);
     }
 }
 
@@ -261,7 +239,8 @@ void add_invert_command(CLI::App& app) {
         a->given.clear();
         for (const CLI::Option* option : a->command->get_options())
             if (option->count() > 0) a->given.push_back(option->get_name());
-        run(*a);
+        // Under mpiexec the run is split over the ranks (inversion_run.h), errors printed once.
+        run_on_world([&](const Communicator& world) { run_on(*a, world.size() > 1 ? &world : nullptr); });
     });
 }
 

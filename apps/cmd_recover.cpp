@@ -324,10 +324,8 @@ void add_recover_command(CLI::App& app) {
         a->save_observations = save->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
-        // Under mpiexec, every rank; an error all raise alike is printed once (rank 0's), one
-        // that only some raise by the lowest of them (run_agreed), the others exit quietly.
-        const std::shared_ptr<const Communicator> world = world_communicator();
-        run_agreed(*world, [&] { run(*a, *world); });
+        // Under mpiexec, every rank with its share; errors printed once (run_on_world).
+        run_on_world([&](const Communicator& world) { run(*a, world); });
     });
 }
 

@@ -48,7 +48,7 @@ void run_on(TableArgs a, const Communicator* comm) {
     TableSpec& spec = a.spec;
     Heightfield hf(1, 1, {0.0});
     // The options, checked on every rank alike (a bad one fails every rank, reported once).
-    agree(ranks, [&] {
+    run_agreed(ranks, [&] {
         spec.query.model = parse_model(a.model);
         if (a.precision != "float" && a.precision != "double")
             throw std::invalid_argument("precision '" + a.precision + "' is unknown; expected float or double");
@@ -117,23 +117,6 @@ void run_on(TableArgs a, const Communicator* comm) {
     }
 }
 
-// Under mpirun (world_communicator of several ranks) the lights are split over the ranks: a
-// failure every rank agreed on is reported once, by rank 0; one only this rank knows of (rank
-// 0's write, after the last collective) is reported with its rank.
-void run(const TableArgs& a) {
-    const std::shared_ptr<const Communicator> world = world_communicator();
-    if (world->size() == 1) {
-        run_on(a, nullptr);
-        return;
-    }
-    try {
-        run_on(a, world.get());
-    } catch (const CollectiveFailure& e) {
-        if (world->is_root()) std::fprintf(stderr, "wavebrdf: error: %s\n", e.what());
-        throw ExitStatus{1};
-    }
-}
-
 }  // namespace
 
 void add_table_command(CLI::App& app) {
@@ -179,7 +162,8 @@ void add_table_command(CLI::App& app) {
         a->given_spectral = spectral->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
-        run(*a);
+        // Under mpiexec the lights are split over the ranks (table.h), errors printed once.
+        run_on_world([&](const Communicator& world) { run_on(*a, world.size() > 1 ? &world : nullptr); });
     });
 }
 

@@ -45,8 +45,10 @@ int main(int argc, char** argv) {
     } catch (const CLI::ParseError& e) {
         if (quiet_rank) return e.get_exit_code();
         return app.exit(e);
-    } catch (const wavebrdf::RankFailed&) {
-        return 1;  // the rank that failed printed why
+    } catch (const wavebrdf::RankFailed& e) {
+        // Agreed on every rank (run_on_world prints these itself): rank 0 says why.
+        if (!quiet_rank) std::cerr << "wavebrdf: error: " << e.what() << "\n";
+        return 1;
     } catch (const wavebrdf::cli::ExitStatus& e) {
         return e.code;
     } catch (const std::exception& e) {

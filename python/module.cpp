@@ -1,5 +1,6 @@
 // The compiled part of the Python package: wavebrdf._core (re-exported by wavebrdf/__init__.py).
 #include "common.h"
+#include "wavebrdf/communicator.h"
 #include "wavebrdf/version.h"
 
 PYBIND11_MODULE(_core, m) {
@@ -25,6 +26,18 @@ PYBIND11_MODULE(_core, m) {
             std::rethrow_exception(p);
         } catch (const wavebrdf::Interrupted&) {
             if (!PyErr_Occurred()) PyErr_SetNone(PyExc_KeyboardInterrupt);
+        }
+    });
+    // A failure agreed over the ranks (communicator.h): the failing rank raises its own
+    // exception (ValueError, KeyboardInterrupt, …: the translators above), the others a
+    // RuntimeError with its message ("rank R: …").
+    py::register_exception_translator([](std::exception_ptr p) {
+        if (!p) return;
+        try {
+            std::rethrow_exception(p);
+        } catch (const wavebrdf::RankFailed& e) {
+            if (e.cause()) std::rethrow_exception(e.cause());
+            PyErr_SetString(PyExc_RuntimeError, e.what());
         }
     });
 }

@@ -1,11 +1,8 @@
 // `mpiexec -n K wavebrdf invert` and `wavebrdf table` split over ranks (inversion_run.h,
 // table.h, docs/scale.md): the K-rank runs against the one-process run of the same options,
-// started here with an argument vector (no shell), K = 2 and 3 (oversubscribed on two cores).
+// started here with an argument vector (no shell), K = 2 and 3 (oversubscribed on two cores):
+// the same heights bit for bit (exact sums over observations) and the same table file.
 #ifdef WAVEBRDF_HAS_MPI
-
-#include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <gtest/gtest.h>
 
@@ -22,63 +19,17 @@
 #include "wavebrdf/invert.h"
 #include "wavebrdf/observation.h"
 
-extern char** environ;
-
 namespace {
 
 namespace fs = std::filesystem;
 using wavebrdf::test::fresh_dir;
 using wavebrdf::test::read_text;
 
-struct Ran {
-    int exit_code = -1;
-    std::string err;
-};
-
-// Runs `argv` in `dir` with the environment plus what MPI as root, oversubscribed, needs (and
-// ASan without leak checks: OpenMPI leaks at its initialisation), stdout to /dev/null.
-Ran spawn(const fs::path& dir, std::vector<std::string> argv) {
-    std::vector<std::string> env;
-    for (char** e = environ; *e != nullptr; ++e) {
-        const std::string entry = *e;
-        const std::string name = entry.substr(0, entry.find('='));
-        if (name != "OMP_NUM_THREADS" && name != "ASAN_OPTIONS") env.push_back(entry);
-    }
-    for (const char* extra : {"OMPI_ALLOW_RUN_AS_ROOT=1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1", "OMP_NUM_THREADS=1",
-                              "ASAN_OPTIONS=detect_leaks=0", "OMPI_MCA_rmaps_base_oversubscribe=1"})
-        env.push_back(extra);
-    std::vector<char*> args, envp;
-    for (std::string& a : argv) args.push_back(a.data());
-    args.push_back(nullptr);
-    for (std::string& e : env) envp.push_back(e.data());
-    envp.push_back(nullptr);
-    const fs::path err = dir / "stderr.txt";
-    const pid_t pid = ::fork();
-    if (pid == 0) {
-        const int null = ::open("/dev/null", O_RDWR);
-        const int out = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        if (null < 0 || out < 0 || ::chdir(dir.c_str()) != 0) std::_Exit(127);
-        ::dup2(null, 0);
-        ::dup2(null, 1);
-        ::dup2(out, 2);
-        ::execve(args[0], args.data(), envp.data());
-        std::_Exit(127);
-    }
-    Ran r;
-    int status = 0;
-    if (pid > 0 && ::waitpid(pid, &status, 0) == pid && WIFEXITED(status)) r.exit_code = WEXITSTATUS(status);
-    r.err = read_text(err);
-    fs::remove(err);
-    return r;
-}
+using Ran = wavebrdf::test::CliResult;
 
 // `wavebrdf args…` on `ranks` ranks (1: the executable alone, without mpiexec).
 Ran wavebrdf_on(int ranks, const fs::path& dir, const std::vector<std::string>& args) {
-    std::vector<std::string> argv;
-    if (ranks > 1) argv = {WAVEBRDF_MPIEXEC, "-n", std::to_string(ranks), "--oversubscribe", "--bind-to", "none"};
-    argv.push_back(WAVEBRDF_CLI);
-    argv.insert(argv.end(), args.begin(), args.end());
-    return spawn(dir, argv);
+    return wavebrdf::test::run_cli_on_ranks(dir, ranks, args);
 }
 
 std::vector<double> checkpoint_heights(const fs::path& run) {
@@ -127,14 +78,19 @@ TEST(MpiInvertTest, TwoAndThreeRanksEqualTheOneProcessRun) {
     const auto args = with(tiny_inversion(dir), {"--epochs", "6", "--checkpoint-every", "2"});
     ASSERT_EQ(wavebrdf_on(1, dir, with(args, {"--quiet", "--out", "one"})).exit_code, 0);
     const std::vector<double> one = checkpoint_heights(dir / "one");
+    // One process on two threads: the same bits (the sums over observations are exact and
+    // order-independent, core/exact_sum.h).
+    ASSERT_EQ(wavebrdf::test::run_cli_on_ranks(dir, 1, with(args, {"--quiet", "--out", "one_t2"}), 2).exit_code, 0);
+    EXPECT_EQ(checkpoint_heights(dir / "one_t2"), one) << "1 process, 2 threads";
     for (int ranks : {2, 3}) {
         const std::string out = "k" + std::to_string(ranks);
         // Not --quiet: the summary line comes from rank 0 alone.
         const Ran r = wavebrdf_on(ranks, dir, with(args, {"--out", out}));
         ASSERT_EQ(r.exit_code, 0) << r.err;
         EXPECT_EQ(count_of(r.err, "results in"), 1u) << r.err;
-        const double rel = relative_difference(one, checkpoint_heights(dir / out));
-        EXPECT_LE(rel, 1e-9) << ranks << " ranks";
+        // The one-process heights bit for bit (the bound is 1e-9).
+        EXPECT_EQ(checkpoint_heights(dir / out), one)
+            << ranks << " ranks; max relative difference " << relative_difference(one, checkpoint_heights(dir / out));
         // Rank 0 writes everything the one-process run writes, and nothing else (no second
         // writer's leftovers); the references and the checkpoint's fingerprint are the same.
         EXPECT_EQ(files_under(dir / "one"), files_under(dir / out));
@@ -156,7 +112,8 @@ TEST(MpiInvertTest, LbfgsAndACheckpointResumedOnOtherRanksEqualTheOneProcessRun)
     ASSERT_EQ(r.exit_code, 0) << r.err;
     r = wavebrdf_on(3, dir, {"invert", "--resume", "k", "--epochs", "4", "--quiet", "--no-plots"});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_LE(relative_difference(checkpoint_heights(dir / "one"), checkpoint_heights(dir / "k")), 1e-9);
+    EXPECT_EQ(checkpoint_heights(dir / "k"), checkpoint_heights(dir / "one"))
+        << relative_difference(checkpoint_heights(dir / "one"), checkpoint_heights(dir / "k"));
     fs::remove_all(dir);
 }
 
@@ -177,8 +134,8 @@ TEST(MpiInvertTest, RandomObservationsPerEpochAreTheSameGlobalChoice) {
     ASSERT_EQ(wavebrdf_on(1, dir, with(args, {"--out", "one"})).exit_code, 0);
     const Ran r = wavebrdf_on(2, dir, with(args, {"--out", "k"}));
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const double rel = relative_difference(checkpoint_heights(dir / "one"), checkpoint_heights(dir / "k"));
-    EXPECT_LE(rel, 1e-9);
+    EXPECT_EQ(checkpoint_heights(dir / "k"), checkpoint_heights(dir / "one"))
+        << relative_difference(checkpoint_heights(dir / "one"), checkpoint_heights(dir / "k"));
     EXPECT_GT(relative_difference(checkpoint_heights(dir / "one"), std::vector<double>(144, 0.0)), 0.0);
     fs::remove_all(dir);
 }

@@ -297,7 +297,10 @@ TEST(RetrieveField, RejectsObservationsAtAnotherWavelength) {
     o.resolution = 8;
     o.reference.assign(64, 1.0);
     EXPECT_THROW(retrieve_field({o}, 0.5, 4, 4, 1.0), std::invalid_argument);
-    EXPECT_THROW(retrieve_field({}, 0.5, 4, 4, 1.0), std::invalid_argument);
+    EXPECT_THROW(retrieve_field(std::vector<Observation>{}, 0.5, 4, 4, 1.0), std::invalid_argument);
+    // The overload on pointers (no copies) checks the same, and refuses a null one.
+    EXPECT_THROW(retrieve_field(std::vector<const Observation*>{&o}, 0.5, 4, 4, 1.0), std::invalid_argument);
+    EXPECT_THROW(retrieve_field(std::vector<const Observation*>{nullptr}, 0.6, 4, 4, 1.0), std::invalid_argument);
 }
 
 // Heights spanning 2.4 µm (far beyond λ/2) from exact fields at three wavelengths, each with

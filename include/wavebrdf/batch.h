@@ -93,7 +93,7 @@ std::vector<Float> render_batch(const Heightfield& heightfield, const SliceBatch
 // of at most about 2^24 values) into the whole output, equal bit for bit to render_batch's (an
 // item's slice does not depend on the other items of its batch); the other ranks return an
 // empty vector. Every rank checks the whole batch and its own block's memory; a failure on any
-// rank (a bad item, OutOfMemory, an interrupt) is agreed: CollectiveFailure on every rank
+// rank (a bad item, OutOfMemory, an interrupt) is agreed: RankFailed on every rank
 // (with one rank: render_batch's own exceptions). options.progress advances by this rank's
 // block. Collective: every rank calls it with the same batch.
 template <typename Float>

@@ -11,6 +11,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <exception>
 #include <functional>
 #include <memory>
 #include <stdexcept>
@@ -56,32 +57,42 @@ public:
 std::vector<double> all_gather(const Communicator& comm, const std::vector<double>& local,
                                std::vector<std::size_t>* counts = nullptr);
 
-// Thrown by run_agreed on the ranks whose own work did not fail when another rank's did; what()
-// names the lowest failing rank (whose own exception carries the message). A front end prints
-// nothing for it: the failing rank prints its own line.
+// The one agreement on failures (docs/scale.md, "Errors"). Thrown by run_agreed on EVERY rank
+// when its work failed on some rank: failed_rank() is the rank whose failure is reported (the
+// lowest that failed by itself), message() its exception's what(), what() the message prefixed
+// "rank R: " when R != 0: the same on every rank, so rank 0 alone can print it. cause() is
+// that rank's own exception on that rank (to rethrow when its type matters, e.g. Python's
+// ValueError or the CLI's exit status), null on the others. A RankFailed means every rank
+// agreed on the failure: it may pass through further agreements and run_or_abort unchanged.
 class RankFailed : public std::runtime_error {
 public:
-    explicit RankFailed(int rank);
+    RankFailed(int failed_rank, const std::string& message, std::exception_ptr cause = nullptr);
     int failed_rank() const { return m_rank; }
+    const std::string& message() const { return m_message; }
+    const std::exception_ptr& cause() const { return m_cause; }
 
 private:
     int m_rank;
+    std::string m_message;
+    std::exception_ptr m_cause;
 };
 
-// Runs `work` on every rank and agrees on the outcome (one collective call after it): when it
-// threw on any rank, every rank throws: the lowest rank that failed by itself (not with
-// RankFailed) its own exception, the others RankFailed, so that no rank goes on into a
-// collective call the failing one never makes. Use it for checks whose outcome may differ
-// between ranks (a rank's share, files only rank 0 touches), and around a whole command (then
-// an error every rank raises alike is printed once, by rank 0). `work` may make collective
-// calls only where every rank makes them alike; a failure of one rank amid them must end all
-// ranks (run_or_abort).
+// Runs `work` on every rank and agrees on its outcome (one allreduce after it; three
+// broadcasts more when it failed), so that a failure on one rank does not leave the others
+// waiting in their next collective call. With one rank, `work`'s exceptions propagate
+// unchanged. With several, when `work` threw on any rank, every rank throws RankFailed naming
+// the lowest rank that failed by itself (a RankFailed thrown by `work`, i.e. an agreement
+// inside it, counts only when no rank failed by itself, and is passed on as it is). Use it for
+// checks whose outcome may differ between ranks (a rank's share, files only rank 0 touches),
+// and around a whole command (then every failure is printed once, by rank 0). `work` may make
+// collective calls only where every rank makes them alike; a failure of one rank amid them
+// must end all ranks (run_or_abort).
 void run_agreed(const Communicator& comm, const std::function<void()>& work);
 
 // Runs `work` (which makes collective calls) and, when it throws on a run of more than one
-// rank, prints "wavebrdf: error: rank R: WHAT" on stderr and ends every rank
-// (Communicator::abort(1)): the others may be waiting in a collective call for this one. On
-// one rank the exception passes through.
+// rank anything but RankFailed (which every rank throws alike), prints "wavebrdf: error: rank
+// R: WHAT" on stderr and ends every rank (Communicator::abort(1)): the others may be waiting
+// in a collective call for this one. On one rank the exception passes through.
 template <typename Work>
 auto run_or_abort(const Communicator& comm, Work&& work) -> decltype(work());
 
@@ -129,29 +140,13 @@ auto run_or_abort(const Communicator& comm, Work&& work) -> decltype(work()) {
     if (comm.size() == 1) return work();
     try {
         return work();
+    } catch (const RankFailed&) {
+        throw;  // agreed: every rank throws it
     } catch (const std::exception& e) {
         detail::abort_after(comm, e.what());
     } catch (...) {
         detail::abort_after(comm, "unknown error");
     }
 }
-// Thrown on every rank by agree() when its work failed on some rank: the message of the lowest
-// failing rank's exception ("rank R: …" when R ≠ 0), the same on every rank.
-class CollectiveFailure : public std::runtime_error {
-public:
-    CollectiveFailure(const std::string& message, int failed_rank)
-        : std::runtime_error(message), m_failed_rank(failed_rank) {}
-    int failed_rank() const { return m_failed_rank; }
-
-private:
-    int m_failed_rank;
-};
-
-// Runs `work` (the same step on every rank, e.g. a set-up that reads files or checks options)
-// and agrees on its outcome, so that a failure on one rank does not leave the others waiting in
-// their next collective: with one rank, `work`'s exceptions propagate unchanged; with several,
-// when `work` threw on any rank, every rank throws CollectiveFailure with the lowest failing
-// rank's message. Collective (two or three calls per rank).
-void agree(const Communicator& comm, const std::function<void()>& work);
 
 }  // namespace wavebrdf

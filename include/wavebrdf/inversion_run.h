@@ -149,7 +149,7 @@ struct PreparedInversion {
 // std::invalid_argument when a truth and observations are both given. With options.communicator
 // of several ranks: `observations` (given whole) are cut to this rank's share, a truth's are
 // rendered for the share only, the memory check counts the share, and errors are agreed
-// (CollectiveFailure, communicator.h).
+// (run_agreed: RankFailed on every rank, communicator.h).
 PreparedInversion prepare_inversion(const InversionOptions& options, std::optional<Heightfield> truth = {},
                                     std::optional<std::vector<Observation>> observations = {},
                                     std::optional<Heightfield> initial = {});
@@ -221,7 +221,7 @@ struct InversionDirectoryResult {
 // Split over ranks (options.communicator): rank 0 alone writes `dir` (the references and final
 // renders gathered from their ranks, one observation at a time) and shows progress; every rank
 // returns the same result; errors in the set-up and in rank 0's writes are agreed
-// (CollectiveFailure).
+// (run_agreed: RankFailed on every rank).
 InversionDirectoryResult run_inversion_in_directory(const InversionOptions& options, const std::string& dir,
                                                     const InversionDirectoryControl& control = {});
 

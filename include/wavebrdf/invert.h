@@ -114,7 +114,7 @@ public:
     // every rank takes the same steps, and the run equals the one-process run up to the order
     // of the sums); random positions: every rank draws the same position (or global observation)
     // and its owner evaluates it; on_epoch's slices are this rank's. Errors in the checks are
-    // agreed over the ranks (CollectiveFailure, communicator.h).
+    // agreed over the ranks (run_agreed: RankFailed on every rank, communicator.h).
     Inversion(std::vector<Observation> observations, Heightfield initial, InversionSettings settings,
               const Heightfield* truth = nullptr, ObservationShard shard = {});
 

@@ -84,8 +84,11 @@ private:
 // cache every epoch); without it, each call builds and drops its plans.
 // With a communicator of several ranks (communicator.h), `observations` are this rank's share
 // (possibly none) and the loss and gradient are those of all ranks' observations together: the
-// mean over their total count, the shares' sums combined by allreduce_sum (the same bits on
-// every rank); `rendered` holds this rank's slices only. Collective: every rank calls it.
+// mean over their total count; `rendered` holds this rank's slices only. Collective: every rank
+// calls it. The sums over observations are exact and order-independent (src/core/exact_sum.h),
+// so the loss and gradient are the same bits on every rank, for any split over ranks and any
+// thread count; each term (an observation's loss / count, a texel's gradient) must be below
+// 2^32 in magnitude (std::overflow_error otherwise) and is resolved to 2^-72 absolute.
 double observation_loss(const Heightfield& heightfield, const std::vector<Observation>& observations, const Loss& loss,
                         std::vector<double>* gradient, const RenderOptions& options = {},
                         std::vector<std::vector<double>>* rendered = nullptr, ObservationPlans* plans = nullptr,

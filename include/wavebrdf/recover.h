@@ -156,6 +156,13 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                                     const FieldRetrievalSettings& settings = {},
                                     const std::function<bool(int, double)>& on_iteration = {},
                                     const Communicator& comm = serial_communicator());
+// The same for observations held elsewhere (no copy of their references; the vector overload
+// forwards here). Throws std::invalid_argument for a null pointer.
+FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& observations, double lambda_um, int rows,
+                                    int cols, double texel_um, const std::vector<std::complex<double>>& initial = {},
+                                    const FieldRetrievalSettings& settings = {},
+                                    const std::function<bool(int, double)>& on_iteration = {},
+                                    const Communicator& comm = serial_communicator());
 
 // Heights (µm) of `heightfield` on the grid `refine` times finer than its texels (odd refine;
 // (rows·refine) × (cols·refine), row-major): the blend of the Gabor kernels' tangent planes

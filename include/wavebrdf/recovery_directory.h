@@ -55,8 +55,8 @@ struct RecoveryDirectoryOptions {
 // std::runtime_error for one that cannot be written) pass through.
 // `comm` (the one given to prepare_recovery): collective; rank 0 alone touches the directory
 // and writes every file (the observations gathered to it); the others run the recovery. The
-// checks before the recovery are agreed (run_agreed: a failure on rank 0 throws RankFailed
-// on the others). Returns the estimate on every rank.
+// checks before the recovery are agreed (run_agreed: a failure on any rank throws RankFailed
+// on every rank). Returns the estimate on every rank.
 Heightfield run_recovery_in_directory(const PreparedRecovery& prepared, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
                                       const std::function<bool(const StageMetrics&)>& on_step = {},

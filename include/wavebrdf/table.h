@@ -92,7 +92,7 @@ double estimate_table_bytes(const Heightfield& heightfield, const TableSpec& spe
 // With `comm` of several ranks (docs/scale.md): the rendered lights, in row-major order, are
 // split into contiguous blocks (render_batch_over_ranks), each rank renders its block and rank 0
 // gathers them: rank 0's table equals the one-process table bit for bit; the other ranks get
-// the table's description with `values` empty. Failures are agreed (CollectiveFailure);
+// the table's description with `values` empty. Failures are agreed (run_agreed: RankFailed on every rank);
 // options.progress advances by this rank's block (table_work_units(spec, comm)). Collective.
 BrdfTable render_brdf_table(const Heightfield& heightfield, const TableSpec& spec, const RenderOptions& options = {},
                             const Communicator& comm = serial_communicator());

@@ -265,33 +265,69 @@ std::vector<double> all_gather(const Communicator& comm, const std::vector<doubl
     return all;
 }
 
-RankFailed::RankFailed(int rank)
-    : std::runtime_error("rank " + std::to_string(rank) + " failed (its own message says why)"), m_rank(rank) {}
+RankFailed::RankFailed(int failed_rank, const std::string& message, std::exception_ptr cause)
+    : std::runtime_error(failed_rank == 0 ? message : "rank " + std::to_string(failed_rank) + ": " + message),
+      m_rank(failed_rank),
+      m_message(message),
+      m_cause(std::move(cause)) {}
+
+namespace {
+
+// `text` from `from` to every rank, as bytes in doubles (a broadcast copies bits). Collective.
+std::string broadcast_text(const Communicator& comm, const std::string& text, int from) {
+    double length = comm.rank() == from ? double(text.size()) : 0.0;
+    comm.broadcast(&length, 1, from);
+    const std::size_t bytes = static_cast<std::size_t>(length);
+    std::vector<double> packed((bytes + sizeof(double) - 1) / sizeof(double), 0.0);
+    if (comm.rank() == from && bytes > 0) std::memcpy(packed.data(), text.data(), bytes);
+    comm.broadcast(packed, from);
+    std::string received(bytes, '\0');
+    if (bytes > 0) std::memcpy(&received[0], packed.data(), bytes);
+    return received;
+}
+
+}  // namespace
 
 void run_agreed(const Communicator& comm, const std::function<void()>& work) {
-    std::exception_ptr error;
-    bool own = false;  // failed by itself, not because another rank did (RankFailed)
-    try {
-        work();
-    } catch (const RankFailed&) {
-        error = std::current_exception();
-    } catch (...) {
-        error = std::current_exception();
-        own = true;
-    }
     if (comm.size() == 1) {
-        if (error) std::rethrow_exception(error);
+        work();
         return;
     }
-    // 2: this rank failed by itself, 1: it saw another rank fail, 0: it did not fail.
+    std::exception_ptr error;
+    bool agreed = false;  // work's own agreement failed (on every rank alike)
+    int agreed_rank = 0;
+    std::string message;
+    try {
+        work();
+    } catch (const RankFailed& e) {
+        error = std::current_exception();
+        agreed = true;
+        agreed_rank = e.failed_rank();
+        message = e.message();
+    } catch (const std::exception& e) {
+        error = std::current_exception();
+        message = e.what();
+    } catch (...) {
+        error = std::current_exception();
+        message = "unknown error";
+    }
+    // 2: this rank failed by itself, 1: an agreement inside work failed, 0: it did not fail.
     std::vector<double> failed(std::size_t(comm.size()), 0.0);
-    failed[std::size_t(comm.rank())] = own ? 2.0 : error ? 1.0 : 0.0;
+    if (error) failed[std::size_t(comm.rank())] = agreed ? 1.0 : 2.0;
     comm.allreduce_sum(failed);
     const double worst = *std::max_element(failed.begin(), failed.end());
     if (worst == 0.0) return;
-    const int first = int(std::find(failed.begin(), failed.end(), worst) - failed.begin());
-    if (first == comm.rank()) std::rethrow_exception(error);
-    throw RankFailed(first);
+    const int from = int(std::find(failed.begin(), failed.end(), worst) - failed.begin());
+    if (worst == 1.0) {
+        // Every failure is an earlier agreement's: pass the reporting rank's on, as it is.
+        double rank = double(agreed_rank);
+        comm.broadcast(&rank, 1, from);
+        const std::string text = broadcast_text(comm, message, from);
+        if (agreed && agreed_rank == int(rank) && message == text) std::rethrow_exception(error);
+        throw RankFailed(int(rank), text);
+    }
+    const std::string text = broadcast_text(comm, message, from);
+    throw RankFailed(from, text, comm.rank() == from ? error : nullptr);
 }
 
 namespace detail {
@@ -301,41 +337,6 @@ void abort_after(const Communicator& comm, const char* what) {
     std::abort();  // not reached (abort is noreturn; said again for the compiler)
 }
 }  // namespace detail
-
-void agree(const Communicator& comm, const std::function<void()>& work) {
-    if (comm.size() == 1) {
-        work();
-        return;
-    }
-    std::string message;
-    bool failed = false;
-    try {
-        work();
-    } catch (const std::exception& e) {
-        failed = true;
-        message = e.what();
-    } catch (...) {
-        failed = true;
-        message = "unknown error";
-    }
-    std::vector<double> flags(static_cast<std::size_t>(comm.size()), 0.0);
-    flags[static_cast<std::size_t>(comm.rank())] = failed ? 1.0 : 0.0;
-    comm.allreduce_sum(flags);
-    int first = -1;
-    for (int r = 0; r < comm.size() && first < 0; ++r)
-        if (flags[static_cast<std::size_t>(r)] != 0.0) first = r;
-    if (first < 0) return;
-    // The first failing rank's message, as bytes in doubles (a broadcast copies bits).
-    double length = comm.rank() == first ? double(message.size()) : 0.0;
-    comm.broadcast(&length, 1, first);
-    const std::size_t bytes = static_cast<std::size_t>(length);
-    std::vector<double> packed((bytes + sizeof(double) - 1) / sizeof(double), 0.0);
-    if (comm.rank() == first) std::memcpy(packed.data(), message.data(), bytes);
-    comm.broadcast(packed, first);
-    std::string text(bytes, '\0');
-    std::memcpy(&text[0], packed.data(), bytes);
-    throw CollectiveFailure(first == 0 ? text : "rank " + std::to_string(first) + ": " + text, first);
-}
 
 Share share_of(std::size_t count, int rank, int size) {
     if (size < 1 || rank < 0 || rank >= size)

@@ -203,7 +203,7 @@ std::vector<Float> render_batch_over_ranks(const std::vector<Heightfield>& heigh
     const std::size_t values = static_cast<std::size_t>(batch.resolution) * static_cast<std::size_t>(batch.resolution) *
                                static_cast<std::size_t>(batch.channels);
     std::vector<Float> local, out;
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         if (heightfields.empty()) throw std::invalid_argument("no heightfields given; expected at least one");
         validate(batch, heightfields.size(), options);
         if (comm.is_root())

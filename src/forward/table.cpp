@@ -95,10 +95,17 @@ std::vector<float> render_table_row(const Heightfield& heightfield, const TableS
 
 namespace {
 
-// render_brdf_table on several ranks: every rendered light one item of one batch (row-major),
-// split over the ranks; rank 0 places the gathered slices.
-BrdfTable render_brdf_table_over_ranks(const Heightfield& heightfield, const TableSpec& spec,
-                                       const RenderOptions& options, const Communicator& comm) {
+// Refuses (OutOfMemory) a table whose estimated peak exceeds options.max_memory_gb.
+void require_table_memory(const Heightfield& heightfield, const TableSpec& spec, const RenderOptions& options) {
+    require_memory(estimate_table_bytes(heightfield, spec, options), memory_limit(options.max_memory_gb),
+                   "table (" + std::to_string(spec.lights.rows) + "x" + std::to_string(spec.lights.cols) +
+                       " lights of " + std::to_string(spec.resolution) + "x" + std::to_string(spec.resolution) +
+                       " slices)");
+}
+
+// The table's description without its values: the spec, the heightfield's geometry, the
+// version and the light grid's axes and rendered mask (light_grid_axes). `spec` is validated.
+BrdfTable table_description(const Heightfield& heightfield, const TableSpec& spec) {
     BrdfTable table;
     table.spec = spec;
     table.heightfield_rows = heightfield.rows();
@@ -106,15 +113,20 @@ BrdfTable render_brdf_table_over_ranks(const Heightfield& heightfield, const Tab
     table.texel_um = heightfield.texel_um();
     table.vscale = heightfield.vscale();
     table.version = k_version;
-    agree(comm, [&] {
+    light_grid_axes(spec.lights, table.light_x, table.light_y, table.rendered);
+    return table;
+}
+
+// render_brdf_table on several ranks: every rendered light one item of one batch (row-major),
+// split over the ranks; rank 0 places the gathered slices.
+BrdfTable render_brdf_table_over_ranks(const Heightfield& heightfield, const TableSpec& spec,
+                                       const RenderOptions& options, const Communicator& comm) {
+    BrdfTable table;
+    run_agreed(comm, [&] {
         validate(spec);
         // Rank 0 holds the whole table; the others their block (render_batch checks it).
-        if (comm.is_root())
-            require_memory(estimate_table_bytes(heightfield, spec, options), memory_limit(options.max_memory_gb),
-                           "table (" + std::to_string(spec.lights.rows) + "x" + std::to_string(spec.lights.cols) +
-                               " lights of " + std::to_string(spec.resolution) + "x" + std::to_string(spec.resolution) +
-                               " slices)");
-        light_grid_axes(spec.lights, table.light_x, table.light_y, table.rendered);
+        if (comm.is_root()) require_table_memory(heightfield, spec, options);
+        table = table_description(heightfield, spec);
     });
     const std::size_t cols = static_cast<std::size_t>(spec.lights.cols);
     std::vector<std::array<double, 2>> lights;
@@ -153,19 +165,8 @@ BrdfTable render_brdf_table(const Heightfield& heightfield, const TableSpec& spe
                             const Communicator& comm) {
     if (comm.size() > 1) return render_brdf_table_over_ranks(heightfield, spec, options, comm);
     validate(spec);
-    const double needed = estimate_table_bytes(heightfield, spec, options);
-    require_memory(needed, memory_limit(options.max_memory_gb),
-                   "table (" + std::to_string(spec.lights.rows) + "x" + std::to_string(spec.lights.cols) +
-                       " lights of " + std::to_string(spec.resolution) + "x" + std::to_string(spec.resolution) +
-                       " slices)");
-    BrdfTable table;
-    table.spec = spec;
-    table.heightfield_rows = heightfield.rows();
-    table.heightfield_cols = heightfield.cols();
-    table.texel_um = heightfield.texel_um();
-    table.vscale = heightfield.vscale();
-    table.version = k_version;
-    light_grid_axes(spec.lights, table.light_x, table.light_y, table.rendered);
+    require_table_memory(heightfield, spec, options);
+    BrdfTable table = table_description(heightfield, spec);
     const std::size_t slice = static_cast<std::size_t>(spec.resolution) * static_cast<std::size_t>(spec.resolution) * 3;
     table.values = allocating("the table's values", 4.0 * table_values(spec),
                               [&] { return std::vector<float>(static_cast<std::size_t>(table_values(spec)), 0.0f); });

@@ -349,8 +349,8 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
                                     std::optional<std::vector<Observation>> observations,
                                     std::optional<Heightfield> initial) {
     PreparedInversion p;
-    agree(o.communicator ? *o.communicator : serial_communicator(),
-          [&] { p = prepare_on_rank(o, std::move(truth), std::move(observations), std::move(initial)); });
+    run_agreed(o.communicator ? *o.communicator : serial_communicator(),
+               [&] { p = prepare_on_rank(o, std::move(truth), std::move(observations), std::move(initial)); });
     return p;
 }
 
@@ -571,7 +571,7 @@ Observation unpack(const std::vector<double>& v, std::vector<double>& extra) {
 // Calls use(g, observation, extra(observation)) on rank 0 for every observation g of the run in
 // global order, `extra` computed by the observation's owner and both gathered from it (one
 // observation at a time: rank 0 holds one more, not all). A failure of `use` stops the calls
-// but not the gathers; it is rethrown on every rank afterwards (agree).
+// but not the gathers; it is rethrown on every rank afterwards (run_agreed).
 void for_each_observation_on_root(
     const PreparedInversion& p, const Communicator& comm,
     const std::function<std::vector<double>(const Observation&)>& extra,
@@ -600,12 +600,12 @@ void for_each_observation_on_root(
             }
         }
     }
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         if (failure) std::rethrow_exception(failure);
     });
 }
 
-// `write` on rank 0 only, its failure rethrown on every rank (agree).
+// `write` on rank 0 only, its failure rethrown on every rank (run_agreed).
 void on_root(const Communicator& comm, const std::function<void()>& write) {
     std::exception_ptr failure;
     if (comm.is_root()) {
@@ -615,7 +615,7 @@ void on_root(const Communicator& comm, const std::function<void()>& write) {
             failure = std::current_exception();
         }
     }
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         if (failure) std::rethrow_exception(failure);
     });
 }
@@ -696,14 +696,16 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
         }
         std::string list;
         for (const std::string& name : saved) list += (list.empty() ? "" : ", ") + name;
-        const std::string message = std::string(e.what()) + "; the run stopped at epoch " +
-                                    std::to_string(inversion.epoch()) + " and " +
+        const auto* agreed = dynamic_cast<const RankFailed*>(&e);
+        const std::string message = (agreed ? agreed->message() : std::string(e.what())) +
+                                    "; the run stopped at epoch " + std::to_string(inversion.epoch()) + " and " +
                                     (!root           ? "rank 0 keeps what was finished in " + dir
                                      : saved.empty() ? std::string("nothing more could be written to ") + dir
                                                      : "its " + list + " are in " + dir);
-        // A failure every rank agreed on stays one (the others are not waiting for this rank).
-        if (const auto* agreed = dynamic_cast<const CollectiveFailure*>(&e))
-            throw CollectiveFailure(message, agreed->failed_rank());
+        // A failure every rank agreed on stays one (the others are not waiting for this rank);
+        // one only this rank saw amid the epochs ends every rank (the others wait for it).
+        if (agreed) throw RankFailed(agreed->failed_rank(), message, agreed->cause());
+        if (comm.size() > 1) detail::abort_after(comm, message.c_str());
         throw std::runtime_error(message);
     }
     progress.finish();
@@ -756,7 +758,7 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
                                                     const InversionDirectoryControl& control) {
     const Communicator& comm = communicator_of(options.communicator);
     nlohmann::json args;
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         if (dir.empty()) throw std::invalid_argument("no output directory; expected --out DIR (or --resume DIR)");
         // A new run goes into a new or empty directory (or, with force, one of invert's own runs).
         if (comm.is_root()) check_run_directory(RunKind::Invert, dir, control.force);
@@ -816,7 +818,7 @@ InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, s
     nlohmann::json run_json;
     InversionOptions options;
     // Every rank reads run.json (the same file: the errors are the same on every rank).
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         std::ifstream in(where);
         if (!in)
             throw std::runtime_error(where + ": cannot open; expected a directory written by 'wavebrdf invert --out'");
@@ -842,7 +844,7 @@ InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, s
 
     InversionRun run(prepare_inversion(options));
     Inversion& inversion = run.inversion();
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         if (comm.is_root()) {
             fs::create_directories(dir + "/snapshots");
             check_writable(dir + "/metrics.csv");

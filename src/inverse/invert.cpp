@@ -129,7 +129,7 @@ Inversion::Inversion(std::vector<Observation> observations, Heightfield initial,
       m_adam(m_estimate.values().size(), settings.adam),
       m_comm(shard.communicator ? shard.communicator : &serial_communicator()) {
     const bool sharded = m_comm->size() > 1;
-    agree(*m_comm, [&] {
+    run_agreed(*m_comm, [&] {
         validate(m_settings);
         if (!sharded && m_observations.empty())
             throw std::invalid_argument("no observations given; expected at least one");

@@ -16,6 +16,7 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
+#include "core/exact_sum.h"
 #include "core/json_fields.h"
 
 namespace wavebrdf {
@@ -95,7 +96,7 @@ double observation_loss(const Heightfield& hf, const std::vector<Observation>& o
     const std::size_t cells = hf.values().size();
     // Checks (agreed over the ranks when sharded: a bad observation on one rank fails all).
     std::vector<double> count{static_cast<double>(observations.size())};
-    agree(comm, [&] {
+    run_agreed(comm, [&] {
         if (!sharded && observations.empty())
             throw std::invalid_argument("no observations given; expected at least one");
         for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
@@ -110,36 +111,52 @@ double observation_loss(const Heightfield& hf, const std::vector<Observation>& o
     if (gradient && gradient->empty()) gradient->assign(cells, 0.0);
     if (rendered) rendered->assign(observations.size(), {});
     if (plans) plans->reserve(2 * observations.size() + 2);
-    // Sharded: this rank's gradient on its own, added to *gradient after the allreduce.
-    std::vector<double> share_gradient;
-    if (sharded && gradient) share_gradient.assign(cells, 0.0);
-    std::vector<double>* into = sharded ? &share_gradient : gradient;
-    double total = 0.0;
-    const double scale = 1.0 / count[0];
-    for (std::size_t oi = 0; oi < observations.size(); ++oi) {
-        const Observation& o = observations[oi];
-        // Forward every wavelength (the plan keeps the fields for the backward pass), mixed to
-        // RGB by the plan when the observation has several.
-        std::unique_ptr<SlicePlan<double>> own;
-        if (!plans)
-            own = std::make_unique<SlicePlan<double>>(hf, o.query, o.lambdas_um, o.resolution, o.channels(), options);
-        SlicePlan<double>& plan = plans ? plans->plan(hf, o, options) : *own;
-        const std::vector<double>& estimate = plan.forward();
-        std::vector<double> d_estimate;
-        total += scale * loss_value(loss, estimate, o.reference, o.channels(), gradient ? &d_estimate : nullptr);
-        if (gradient) plan.adjoint(d_estimate, *into, scale);
-        if (rendered) (*rendered)[oi] = estimate;
-        plan.release();  // a cached plan keeps only its height-independent tables between calls
+    // Every rank's observations summed exactly and independently of their order
+    // (core/exact_sum.h): each observation's gradient goes in over its box (the texels its
+    // adjoint writes), so the loss and the gradient are the same bits for any thread count and
+    // any split over ranks (docs/scale.md, "Equality with one process"). The observations run
+    // on all threads, each plan serially inside; cached plans are looked up first, in order
+    // (the cache is not thread-safe and holds them all), and two observations that share a plan
+    // run one after the other.
+    std::vector<SlicePlan<double>*> cached(plans ? observations.size() : 0, nullptr);
+    bool shared_plan = false;
+    if (plans) {
+        for (std::size_t i = 0; i < observations.size(); ++i) cached[i] = &plans->plan(hf, observations[i], options);
+        std::vector<SlicePlan<double>*> sorted = cached;
+        std::sort(sorted.begin(), sorted.end());
+        shared_plan = std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end();
     }
-    if (!sharded) return total;
-    // The loss and the gradient in one allreduce (rank order: the same bits on every rank).
-    std::vector<double> share(1 + share_gradient.size());
-    share[0] = total;
-    std::copy(share_gradient.begin(), share_gradient.end(), share.begin() + 1);
-    comm.allreduce_sum(share);
+    const double scale = 1.0 / count[0];
+    detail::ExactParallelSum sum(gradient ? cells : 0);
+    sum.set_parallel(!shared_plan);
+    std::vector<double> total_gradient;
+    const double total = sum.run(
+        observations.size(), comm, total_gradient, [&](std::size_t oi, detail::ExactScratch& scratch) {
+            const Observation& o = observations[oi];
+            // Forward every wavelength (the plan keeps the fields for the backward pass), mixed to
+            // RGB by the plan when the observation has several.
+            std::unique_ptr<SlicePlan<double>> own;
+            if (!plans)
+                own = std::make_unique<SlicePlan<double>>(hf, o.query, o.lambdas_um, o.resolution, o.channels(),
+                                                          options);
+            SlicePlan<double>& plan = plans ? *cached[oi] : *own;
+            const std::vector<double>& estimate = plan.forward();
+            std::vector<double> d_estimate;
+            const double value = scale * loss_value(loss, estimate, o.reference, o.channels(),
+                                                    gradient ? &d_estimate : nullptr);
+            if (gradient) {
+                std::vector<int> rows, cols;
+                plan.gradient_box(rows, cols);
+                plan.adjoint(d_estimate, scratch.vector(), scale);
+                scratch.take_box(rows, cols, std::size_t(hf.cols()));
+            }
+            if (rendered) (*rendered)[oi] = estimate;
+            plan.release();  // a cached plan keeps only its height-independent tables between calls
+            return value;
+        });
     if (gradient)
-        for (std::size_t i = 0; i < cells; ++i) (*gradient)[i] += share[1 + i];
-    return share[0];
+        for (std::size_t i = 0; i < cells; ++i) (*gradient)[i] += total_gradient[i];
+    return total;
 }
 
 namespace {

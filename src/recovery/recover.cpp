@@ -190,20 +190,24 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             const double lambda = it->first;
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
-            // A copy of this wavelength's observations only while its field is retrieved.
+            // This wavelength's observations where they are (pointers: no copy of the references);
+            // with position calibration, copies at the corrected centres while its field runs.
             FieldRetrievalResult r = [&] {
+                const auto on_iteration = [&](int iteration, double loss) {
+                    return report(name, iteration, loss, nullptr);
+                };
+                if (!settings.calibrate.positions)
+                    return retrieve_field(it->second, lambda, rows, cols, texel_um,
+                                          object_from_heights(estimate, lambda, q), field_settings, on_iteration, comm);
                 std::vector<Observation> group;
                 group.reserve(it->second.size());
                 for (const Observation* o : it->second) {
                     group.push_back(*o);
-                    if (settings.calibrate.positions) {
-                        group.back().query.x_um += offsets_um[2 * position_index(o)];
-                        group.back().query.y_um += offsets_um[2 * position_index(o) + 1];
-                    }
+                    group.back().query.x_um += offsets_um[2 * position_index(o)];
+                    group.back().query.y_um += offsets_um[2 * position_index(o) + 1];
                 }
-                return retrieve_field(
-                    group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q), field_settings,
-                    [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); }, comm);
+                return retrieve_field(group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
+                                      field_settings, on_iteration, comm);
             }();
             if (stopped) return estimate;
             if (settings.calibrate.positions) {

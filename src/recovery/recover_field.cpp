@@ -537,6 +537,19 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
                                     double texel_um, const std::vector<std::complex<double>>& initial,
                                     const FieldRetrievalSettings& settings,
                                     const std::function<bool(int, double)>& on_iteration, const Communicator& comm) {
+    std::vector<const Observation*> pointers(observations.size());
+    for (std::size_t i = 0; i < observations.size(); ++i) pointers[i] = &observations[i];
+    return retrieve_field(pointers, lambda_um, rows, cols, texel_um, initial, settings, on_iteration, comm);
+}
+
+FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& observations, double lambda_um, int rows,
+                                    int cols, double texel_um, const std::vector<std::complex<double>>& initial,
+                                    const FieldRetrievalSettings& settings,
+                                    const std::function<bool(int, double)>& on_iteration, const Communicator& comm) {
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        if (observations[i] == nullptr)
+            throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
+                                        " is null; expected a pointer to an observation");
     // Under MPI `observations` is this rank's share (it may be empty); every sum over the
     // observations below is allreduced.
     {
@@ -572,7 +585,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     // footprint on the fine grid, the costliest set-up step), summed in order afterwards.
     run_agreed(comm, [&] {
         for (std::size_t i = 0; i < observations.size(); ++i) {
-            const Observation& o = observations[i];
+            const Observation& o = *observations[i];
             validate(o, i);
             if (o.lambdas_um.size() != 1 || std::abs(o.lambdas_um[0] - lambda_um) > 1e-12 * lambda_um)
                 throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
@@ -591,7 +604,7 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
 #pragma omp parallel for schedule(dynamic) if (observations.size() > 1 && !detail::in_parallel_region())
         for (std::size_t i = 0; i < observations.size(); ++i)
             guard.run([&] {
-                const Observation& o = observations[i];
+                const Observation& o = *observations[i];
                 auto s = std::make_unique<Slice>(
                     Slice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0});
                 const auto& impl = FieldAccess::impl(s->op);
@@ -727,7 +740,8 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
         // ω_i and σ_p, and testing each of the ~700 slices' copies of it at each of the ~3e5
         // frequencies took ~0.5 s per wavelength.
         std::vector<std::array<double, 3>> disks;
-        for (const Observation& o : observations) {
+        for (const Observation* p : observations) {
+            const Observation& o = *p;
             const double reach = 1.0 / lambda_um + 3.0 / (2.0 * k_pi * o.query.sigma_p_um);
             const std::array<double, 3> d{{o.query.omega_i[0] / lambda_um, o.query.omega_i[1] / lambda_um, reach}};
             if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);

@@ -122,8 +122,6 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     const Heightfield estimate = [&] {
         try {
             return run_recovery(r, record, comm, &calibration);
-        } catch (const RankFailed&) {
-            throw;  // the failing rank says why
         } catch (const std::exception& e) {
             if (!root) throw;
             bool saved = false;
@@ -131,9 +129,12 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
                 write_text_atomically(dir + "/metrics.csv", csv.str());
                 saved = true;
             } catch (const std::exception&) {}
-            throw std::runtime_error(std::string(e.what()) +
-                                     (saved ? "; the metrics so far are in " + dir + "/metrics.csv"
-                                            : "; nothing more could be written to " + dir));
+            const std::string more = saved ? "; the metrics so far are in " + dir + "/metrics.csv"
+                                           : "; nothing more could be written to " + dir;
+            // Agreed on every rank: stays so (rank 0 prints it).
+            if (const auto* agreed = dynamic_cast<const RankFailed*>(&e))
+                throw RankFailed(agreed->failed_rank(), agreed->message() + more, agreed->cause());
+            throw std::runtime_error(std::string(e.what()) + more);
         }
     }();
 
