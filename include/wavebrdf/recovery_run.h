@@ -60,6 +60,9 @@ struct RecoveryOptions {
     // Refuse (OutOfMemory, before simulating or recovering) a run whose estimated peak memory
     // (estimate_recovery_bytes) exceeds this many GB; 0: the physical memory.
     double max_memory_gb = 0.0;
+    // Error bars (uncertainty.h): run_recovery_in_directory also writes uncertainty.exr (σ of
+    // every height, µm) and the summary, at the cost of a few refinements (docs/recovery.md).
+    bool uncertainty = false;
 };
 
 // The loss the recovery fits: options.loss when given; else, for the pipeline, the one
@@ -101,6 +104,7 @@ struct PreparedRecovery {
     std::size_t total_observations = 0;
     int ranks = 1;
     std::vector<Observation> catalogue;
+    bool uncertainty = false;  // options.uncertainty
 };
 
 // Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from

@@ -1,7 +1,9 @@
 #include "wavebrdf/threads.h"
 #include "wavebrdf/recovery_directory.h"
 
+#include <chrono>
 #include <exception>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -73,7 +75,7 @@ std::vector<Observation> gathered_observations(const PreparedRecovery& r, const 
 Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
                                       const std::function<bool(const StageMetrics&)>& on_step,
-                                      const Communicator& comm) {
+                                      const Communicator& comm, UncertaintyReport* uncertainty) {
     const std::string& dir = out.dir;
     const bool root = comm.is_root();
     const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
@@ -130,8 +132,39 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         }
     }();
 
+    // Error bars at the estimate (collective), before rank 0 writes.
+    std::unique_ptr<UncertaintyReport> bars;
+    if (r.uncertainty) {
+        const auto start = std::chrono::steady_clock::now();
+        HeightUncertainty map = run_or_abort(comm, [&] { return height_uncertainty(r.observations, estimate, r.loss, {}, comm); });
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
+        bars = std::make_unique<UncertaintyReport>(uncertainty_report(std::move(map), seconds, estimate, truth));
+        if (uncertainty) *uncertainty = *bars;
+    }
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
+    if (bars) {
+        // Values in µm: vscale 1/texel_um makes a raw value a height in µm.
+        write_heightfield_exr(dir + "/uncertainty.exr",
+                              Heightfield(r.rows, r.cols, bars->map.sigma_um, r.texel_um, 1.0 / r.texel_um),
+                              "wavebrdf recover: uncertainty (standard deviation of each height, um)");
+        write_npy(dir + "/uncertainty_height.npy", height_shape, bars->map.sigma_um);
+        nlohmann::json summary = {{"median_sigma_um", bars->median_sigma_um},
+                                  {"seconds", bars->seconds},
+                                  {"probes", bars->map.probes},
+                                  {"products", bars->map.products},
+                                  {"max_cg_iterations", bars->map.max_cg_iterations},
+                                  {"worst_relative_residual", bars->map.worst_relative_residual},
+                                  {"noise_variance", bars->map.noise_variance},
+                                  {"loss", to_string(r.loss)}};
+        if (bars->coverage_2sigma >= 0.0) {
+            summary["coverage_1sigma"] = bars->coverage_1sigma;
+            summary["coverage_2sigma"] = bars->coverage_2sigma;
+            summary["rms_error_um"] = bars->rms_error_um;
+        }
+        write_text_atomically(dir + "/uncertainty.json", summary.dump(1) + "\n");
+    }
     write_heightfield_exr(dir + "/estimate.exr", estimate,
                           std::string("wavebrdf recover: estimate (") + to_string(r.method) + ")");
     write_heightfield_png(dir + "/estimate.png", estimate);
