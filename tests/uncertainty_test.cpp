@@ -143,40 +143,98 @@ TEST(GaussNewtonOperator, ProductMatchesDenseMatrixFromForwardDifferences) {
         std::vector<double> expect(n, 0.0);
         for (std::size_t a = 0; a < n; ++a)
             for (std::size_t b = 0; b < n; ++b) expect[a] += g[a * n + b] * v[b];
-        EXPECT_LT(test::max_abs_diff(out[std::size_t(k)], expect), 1e-4 * test::max_abs(expect)) << "vector " << k;
+        EXPECT_LT(test::max_abs_diff(out[std::size_t(k)], expect), 1e-5 * test::max_abs(expect)) << "vector " << k;
     }
     // The piston is in the null space: G·1 = 0.
     const auto piston = op.apply({std::vector<double>(n, 1.0)});
     EXPECT_LT(test::max_abs(piston[0]), 1e-6 * test::max_abs(out[0]));
 }
 
-// The probed diagonal of G⁺ against the exact one (dense G inverted): the defaults give every
-// texel's σ within a few per cent; spacing 1 (one probe per texel) is exact up to CG.
+// The probed diagonal of G⁺ against the exact one (dense G inverted). Probe spacing 8 on this
+// 8² tile gives every texel its own probe: exact up to CG (σ within 0.1 %). The default
+// spacing 4 (16 probes) errs by the covariances of texels 4 apart, which are not small here
+// (8² tile: mates at distance 4 both ways); measured on this tile, σ within 9 % on average,
+// 26 % at worst (spacing 6 on a 12² tile: 4 % / 11 %; docs/recovery.md, Error bars).
 TEST(HeightUncertainty, MatchesTheExactDiagonalOfTheInverse) {
     const Tile t = make_tile(8, 32, 5303);
     const std::size_t n = 64;
     const std::vector<double> exact = pseudo_inverse_diagonal(dense_gauss_newton(t.observations, t.truth, 1e4), n);
-    for (int spacing : {1, 2, 4}) {
+    for (int spacing : {8, UncertaintySettings{}.probe_spacing}) {
         UncertaintySettings s;
         s.probe_spacing = spacing;
         const HeightUncertainty u = height_uncertainty(t.observations, t.truth, k_poisson, s);
+        ASSERT_EQ(u.sigma_um.size(), n);
         double worst = 0.0, mean = 0.0;
         for (std::size_t a = 0; a < n; ++a) {
             const double rel = std::abs(u.sigma_um[a] / std::sqrt(exact[a]) - 1.0);
             worst = std::max(worst, rel);
             mean += rel / double(n);
         }
-        std::printf(
-            "spacing %d: %d probes, %d products, CG <= %d its, sigma rel. error mean %.4f max %.4f "
-            "(exact median sigma %.3g um)\n",
-            spacing, u.probes, u.products, u.max_cg_iterations, mean, worst,
-            std::sqrt(*std::max_element(exact.begin(), exact.end())));
-        if (spacing == 1) EXPECT_LT(worst, 0.02);
-        if (spacing == UncertaintySettings{}.probe_spacing) {
-            EXPECT_LT(worst, 0.10);
-            EXPECT_LT(mean, 0.03);
+        std::printf("spacing %d: %d probes, %d products, CG <= %d iterations, sigma rel. error mean %.4f max %.4f\n",
+                    spacing, u.probes, u.products, u.max_cg_iterations, mean, worst);
+        EXPECT_LE(u.worst_relative_residual, s.cg_tolerance);
+        if (spacing == 8) {
+            EXPECT_LT(worst, 1e-3);
+        } else {
+            EXPECT_LT(mean, 0.12);
+            EXPECT_LT(worst, 0.35);
         }
     }
+}
+
+// The error bars are calibrated: for Poisson noise of 10⁴ photons per slice, refinements
+// started from the truth (the maximum-likelihood estimate near it) over kDraws noise draws put
+// the true error (means removed) within ±2σ for about 95 % of the pooled texels. σ is computed
+// once, at the first draw's estimate (it changes by far less than its own accuracy between
+// draws). The band 88–99 %: kDraws · 144 pooled texels, correlated within a footprint (~30
+// independent groups per draw), give a binomial standard deviation of about 1.3 % around 95 %;
+// the band is ±5 of those below and the room to 99 % above. σ off by a factor of 2 fails it:
+// with σ/2 the ±2σ band is ±1σ (68 %), with 2σ it is ±4σ (99.99 %), both outside (checked).
+TEST(HeightUncertainty, TwoSigmaCoversAboutNinetyFivePercentOverNoiseDraws) {
+    const Tile t = make_tile(12, 32, 5311);
+    const Noise noise{NoiseKind::Poisson, 1e4};
+    constexpr int kDraws = 12;
+    std::vector<double> sigma, errors;
+    for (int draw = 0; draw < kDraws; ++draw) {
+        std::vector<Observation> noisy = t.observations;
+        add_noise(noisy, noise, 5320 + std::uint64_t(draw));
+        std::vector<double> h = t.truth.values();
+        LbfgsOptions lo;
+        lo.max_iterations = 60;
+        lo.gradient_tolerance = 0.0;
+        lbfgs_minimize(
+            [&](const std::vector<double>& x, std::vector<double>& g) {
+                return observation_loss(t.truth.with_values(x), noisy, k_poisson, &g);
+            },
+            h, lo);
+        const Heightfield estimate = t.truth.with_values(h);
+        if (draw == 0) sigma = height_uncertainty(noisy, estimate, k_poisson).sigma_um;
+        double mean_e = 0.0, mean_t = 0.0;
+        for (int i = 0; i < 12; ++i)
+            for (int j = 0; j < 12; ++j) {
+                mean_e += estimate.height_um(i, j) / 144.0;
+                mean_t += t.truth.height_um(i, j) / 144.0;
+            }
+        for (int i = 0; i < 12; ++i)
+            for (int j = 0; j < 12; ++j)
+                errors.push_back((estimate.height_um(i, j) - mean_e) - (t.truth.height_um(i, j) - mean_t));
+    }
+    const auto coverage = [&](double k) {
+        double inside = 0.0;
+        for (std::size_t e = 0; e < errors.size(); ++e)
+            if (std::abs(errors[e]) <= k * sigma[e % sigma.size()]) inside += 1.0;
+        return inside / double(errors.size());
+    };
+    double rms = 0.0, mean_sigma2 = 0.0;
+    for (double e : errors) rms += e * e / double(errors.size());
+    for (double s : sigma) mean_sigma2 += s * s / double(sigma.size());
+    std::printf("coverage 1 sigma %.3f, 2 sigma %.3f; rms error %.3g um, rms sigma %.3g um\n", coverage(1.0),
+                coverage(2.0), std::sqrt(rms), std::sqrt(mean_sigma2));
+    EXPECT_GT(coverage(2.0), 0.88);
+    EXPECT_LT(coverage(2.0), 0.99);
+    // The same check with σ scaled by 0.5 or 2 fails.
+    EXPECT_LT(coverage(2.0 * 0.5), 0.88);
+    EXPECT_GT(coverage(2.0 * 2.0), 0.99);
 }
 
 TEST(HeightUncertainty, RejectsBadSettings) {
