@@ -269,7 +269,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
             HeightUncertainty map = run_or_abort(
                 *comm, [&] { return height_uncertainty(prepared->observations, estimate, prepared->loss, {}, *comm); });
             const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-            const Heightfield* truth_known = prepared->truth && prepared->metric_note.empty() ? &*prepared->truth : nullptr;
+            const Heightfield* truth_known = prepared->truth && prepared->metric_note.empty() ? &*prepared->truth
+                                                                                              : nullptr;
             bars = uncertainty_report(std::move(map), seconds, estimate, truth_known);
         }
         result.uncertainty = owning_array(std::move(bars.map.sigma_um), {estimate.rows(), estimate.cols()});

@@ -74,8 +74,8 @@ std::vector<Observation> gathered_observations(const PreparedRecovery& r, const 
 
 Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
-                                      const std::function<bool(const StageMetrics&)>& on_step,
-                                      const Communicator& comm, UncertaintyReport* uncertainty) {
+                                      const std::function<bool(const StageMetrics&)>& on_step, const Communicator& comm,
+                                      UncertaintyReport* uncertainty) {
     const std::string& dir = out.dir;
     const bool root = comm.is_root();
     const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
@@ -136,7 +136,8 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     std::unique_ptr<UncertaintyReport> bars;
     if (r.uncertainty) {
         const auto start = std::chrono::steady_clock::now();
-        HeightUncertainty map = run_or_abort(comm, [&] { return height_uncertainty(r.observations, estimate, r.loss, {}, comm); });
+        HeightUncertainty map = run_or_abort(
+            comm, [&] { return height_uncertainty(r.observations, estimate, r.loss, {}, comm); });
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
         bars = std::make_unique<UncertaintyReport>(uncertainty_report(std::move(map), seconds, estimate, truth));
