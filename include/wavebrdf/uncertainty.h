@@ -93,6 +93,9 @@ struct HeightUncertainty {
     int products = 0;                      // passes over the observations (G·v for all active probes)
     int max_cg_iterations = 0;             // the most any probe needed
     double worst_relative_residual = 0.0;  // the largest ‖r‖/‖b‖ a probe ended with
+    // Texels whose probed variance came out ≤ 0 (a probing error larger than the variance):
+    // they take the mean of their neighbours' positive variances (periodic 3×3).
+    int filled = 0;
 };
 
 // The standard deviations (µm) of `estimate`'s heights, mean removed, under the loss's noise

@@ -157,6 +157,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
                                   {"products", bars->map.products},
                                   {"max_cg_iterations", bars->map.max_cg_iterations},
                                   {"worst_relative_residual", bars->map.worst_relative_residual},
+                                  {"filled", bars->map.filled},
                                   {"noise_variance", bars->map.noise_variance},
                                   {"loss", to_string(r.loss)}};
         if (bars->coverage_2sigma >= 0.0) {

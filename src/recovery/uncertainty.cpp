@@ -327,6 +327,24 @@ HeightUncertainty height_uncertainty(const std::vector<Observation>& observation
             result.worst_relative_residual = std::max(result.worst_relative_residual, std::sqrt(rr[k]) / b_norm[k]);
         for (std::size_t t = 0; t < n; ++t) diag[t] += z[k][t] * x[k][t];
     }
+    std::vector<double> filled = diag;
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            if (diag[std::size_t(i) * cols + j] > 0.0) continue;
+            double sum = 0.0, count = 0.0;
+            for (int a = -1; a <= 1; ++a)
+                for (int b = -1; b <= 1; ++b) {
+                    const double v =
+                        diag[std::size_t((i + a + rows) % rows) * cols + std::size_t((j + b + cols) % cols)];
+                    if (v > 0.0) {
+                        sum += v;
+                        count += 1.0;
+                    }
+                }
+            filled[std::size_t(i) * cols + j] = count > 0.0 ? sum / count : 0.0;
+            ++result.filled;
+        }
+    diag = std::move(filled);
     result.sigma_um.resize(n);
     for (std::size_t t = 0; t < n; ++t) result.sigma_um[t] = std::sqrt(std::max(diag[t], 0.0) / settings.rounds);
     return result;
