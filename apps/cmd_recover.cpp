@@ -193,7 +193,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     UncertaintyReport bars;
     const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step, comm, &bars);
     end_stage();
-    if (options.uncertainty && !quiet) {
+    if (options.uncertainty && !quiet && !bars.map.sigma_um.empty()) {
         std::fprintf(stderr, "uncertainty: median sigma %.3g um (%.1f s)", bars.median_sigma_um, bars.seconds);
         if (bars.coverage_2sigma >= 0.0)
             std::fprintf(stderr, ", rms error %.3g um, error within 1 sigma %.1f%%, within 2 sigma %.1f%%",

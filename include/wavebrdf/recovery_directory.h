@@ -58,7 +58,9 @@ struct RecoveryDirectoryOptions {
 // on the others). Returns the estimate on every rank.
 // With prepared.uncertainty the error bars are computed after the recovery (height_uncertainty
 // with the run's loss; collective) and written; `uncertainty`, when not null, receives their
-// report (on every rank).
+// report (on every rank). When the loss leaves no noise to estimate (height_uncertainty's
+// std::domain_error / std::invalid_argument, alike on every rank) the estimate is still written,
+// the bars are not, rank 0 warns on stderr and `uncertainty` is left as it was.
 Heightfield run_recovery_in_directory(const PreparedRecovery& prepared, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
                                       const std::function<bool(const StageMetrics&)>& on_step = {},

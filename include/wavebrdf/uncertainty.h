@@ -56,6 +56,7 @@ struct UncertaintySettings {
 // observations, the same heights, loss and vectors.
 class GaussNewtonOperator {
 public:
+    // Keeps references to `observations` and `comm` (they must outlive the operator).
     // Observations as for recover_heights (this rank's share; validated), `estimate` the
     // heights where the curvature is taken (texel units of its geometry), `loss` the
     // refinement's (any kind; see above for W). Renders every observation once (kept: their

@@ -2,6 +2,7 @@
 #include "wavebrdf/recovery_directory.h"
 
 #include <chrono>
+#include <cstdio>
 #include <exception>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -136,12 +137,27 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     std::unique_ptr<UncertaintyReport> bars;
     if (r.uncertainty) {
         const auto start = std::chrono::steady_clock::now();
-        HeightUncertainty map = run_or_abort(
-            comm, [&] { return height_uncertainty(r.observations, estimate, r.loss, {}, comm); });
+        // A problem without error bars (no residual to estimate the noise from: the same on every
+        // rank, decided on exact sums) must not cost the estimate: it is written, and why not.
+        std::string why_not;
+        HeightUncertainty map = run_or_abort(comm, [&] {
+            try {
+                return height_uncertainty(r.observations, estimate, r.loss, {}, comm);
+            } catch (const std::domain_error& e) {
+                why_not = e.what();
+            } catch (const std::invalid_argument& e) {
+                why_not = e.what();
+            }
+            return HeightUncertainty{};
+        });
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
-        bars = std::make_unique<UncertaintyReport>(uncertainty_report(std::move(map), seconds, estimate, truth));
-        if (uncertainty) *uncertainty = *bars;
+        if (why_not.empty()) {
+            bars = std::make_unique<UncertaintyReport>(uncertainty_report(std::move(map), seconds, estimate, truth));
+            if (uncertainty) *uncertainty = *bars;
+        } else if (root) {
+            std::fprintf(stderr, "wavebrdf: warning: no error bars: %s\n", why_not.c_str());
+        }
     }
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
