@@ -22,6 +22,7 @@
 #include "wavebrdf/recovery_directory.h"
 #include "wavebrdf/recovery_run.h"
 #include "wavebrdf/run_directory.h"
+#include "wavebrdf/uncertainty.h"
 
 namespace wavebrdf::cli {
 
@@ -49,6 +50,7 @@ struct RecoverArgs {
     std::string simulate_exposure;                  // --simulate-exposure MIN,MAX ("": none)
     double sigma_factor = 1.0;                      // --simulate-sigma-factor
     bool save_observations = false, quiet = false, no_plots = false, force = false;
+    bool uncertainty = false;  // error bars: uncertainty.exr (uncertainty.h)
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
     // --save-observations FILE ("": observations.json in --out).
@@ -141,6 +143,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (options.errors.any() && !a.observations.empty())
         throw std::invalid_argument("--simulate-* render the observations with acquisition errors; they need --truth "
                                     "(or the generated default), not --observations");
+    options.uncertainty = a.uncertainty;
 
     // Truth and observations (files read here; planned, simulated and checked by the library).
     std::unique_ptr<Heightfield> truth;
@@ -212,8 +215,16 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     out.observations_path = a.save_observations_path;
     Calibration calibration;
     out.calibration = &calibration;
-    const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step, comm);
+    UncertaintyReport bars;
+    const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step, comm, &bars);
     end_stage();
+    if (options.uncertainty && !quiet && !bars.map.sigma_um.empty()) {
+        std::fprintf(stderr, "uncertainty: median sigma %.3g um (%.1f s)", bars.median_sigma_um, bars.seconds);
+        if (bars.coverage_2sigma >= 0.0)
+            std::fprintf(stderr, ", rms error %.3g um, error within 1 sigma %.1f%%, within 2 sigma %.1f%%",
+                         bars.rms_error_um, 100.0 * bars.coverage_1sigma, 100.0 * bars.coverage_2sigma);
+        std::fprintf(stderr, "\n");
+    }
     if (!comm.is_root()) return;
     if (!quiet && options.calibrate.any()) {
         std::fprintf(stderr, "calibrated %s: sigma_p scale %.4f", to_string(options.calibrate).c_str(),
@@ -318,6 +329,9 @@ void add_recover_command(CLI::App& app) {
                                  "(.h5 .hdf5 .cxi: one HDF5 file; else JSON + EXR slices)")
                      ->expected(0, 1)
                      ->type_name("[FILE]");
+    cmd->add_flag("--uncertainty", a->uncertainty,
+                  "also compute error bars: uncertainty.exr (sigma of every height, um) from the curvature of the "
+                  "loss at the estimate");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
     cmd->callback([a, texel, vscale, save] {

@@ -1,6 +1,7 @@
 // Heightfield recovery (recover.h, baseline.h), acquisition planning (acquisition.h), simulated noise
 // (noise.h), and recover(): `wavebrdf recover` without its output directory, through the same
 // library piece as the CLI (recovery_run.h), so the same options give the same run.
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -14,6 +15,7 @@
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/recovery_run.h"
+#include "wavebrdf/uncertainty.h"
 
 namespace wavebrdf::python {
 
@@ -204,6 +206,9 @@ struct RecoveryResult {
     std::string method, loss, noise;
     double height_range_um = 0.0;
     bool stopped = false;
+    // Error bars (uncertainty=True): σ per texel (µm) and, with a truth, the coverage.
+    py::object uncertainty = py::none();
+    double median_sigma_um = NAN, coverage_1sigma = NAN, coverage_2sigma = NAN, uncertainty_seconds = NAN;
 };
 
 RecoveryResult recover(const py::object& truth_arg, const py::object& observations_arg, const py::object& size,
@@ -215,7 +220,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
                        const py::object& comm_arg, const std::string& simulator, const py::object& calibrate,
                        double simulate_position_error_texels, const py::object& simulate_exposure,
-                       double simulate_sigma_factor) {
+                       double simulate_sigma_factor, bool with_uncertainty) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -338,6 +343,26 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     result.loss = to_string(prepared->loss);
     result.noise = to_string(prepared->noise);
     result.height_range_um = prepared->range_um;
+    if (with_uncertainty && !result.stopped) {
+        UncertaintyReport bars;
+        {
+            py::gil_scoped_release release;
+            const auto start = std::chrono::steady_clock::now();
+            HeightUncertainty map = run_or_abort(
+                *comm, [&] { return height_uncertainty(prepared->observations, estimate, prepared->loss, {}, *comm); });
+            const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            const Heightfield* truth_known = prepared->truth && prepared->metric_note.empty() ? &*prepared->truth
+                                                                                              : nullptr;
+            bars = uncertainty_report(std::move(map), seconds, estimate, truth_known);
+        }
+        result.uncertainty = owning_array(std::move(bars.map.sigma_um), {estimate.rows(), estimate.cols()});
+        result.median_sigma_um = bars.median_sigma_um;
+        result.uncertainty_seconds = bars.seconds;
+        if (bars.coverage_2sigma >= 0.0) {
+            result.coverage_1sigma = bars.coverage_1sigma;
+            result.coverage_2sigma = bars.coverage_2sigma;
+        }
+    }
     return result;
 }
 
@@ -710,7 +735,17 @@ sigma_p_scale (true sigma_p / stated), exposures (float64 (N,), reference ~ expo
 per observation of result.observations; None when not refined), position_offsets_um (float64
 (N, 2), true - stated centre; None when not refined), truth: with simulated acquisition errors
 the same keys with the true values (else None).
-)doc");
+)doc")
+        .def_readonly("uncertainty", &RecoveryResult::uncertainty,
+                      "with uncertainty=True: sigma of every height (mean removed), um, a float64 array "
+                      "(rows, cols); else None")
+        .def_readonly("median_sigma_um", &RecoveryResult::median_sigma_um, "median of uncertainty (um; NaN without)")
+        .def_readonly("coverage_1sigma", &RecoveryResult::coverage_1sigma,
+                      "fraction of texels whose error lies within +-1 sigma (NaN without a truth or uncertainty)")
+        .def_readonly("coverage_2sigma", &RecoveryResult::coverage_2sigma,
+                      "fraction of texels whose error lies within +-2 sigma (NaN without a truth or uncertainty)")
+        .def_readonly("uncertainty_seconds", &RecoveryResult::uncertainty_seconds,
+                      "wall time of the error bars, s (NaN without)");
 
     const RecoveryOptions ro;
     m.def("recover", &recover, "truth"_a = py::none(), "observations"_a = py::none(), py::kw_only(), "size"_a = ro.rows,
@@ -722,7 +757,7 @@ the same keys with the true values (else None).
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
           "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
           "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(),
-          "simulate_sigma_factor"_a = 1.0,
+          "simulate_sigma_factor"_a = 1.0, "uncertainty"_a = false,
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -774,7 +809,45 @@ simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a stud
               by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
               log-uniform in (min, max), the true sigma_p this factor times the stated one
               (0.25...4); the recovery is given the stated acquisition
+uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
+              uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
+              coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
+)doc");
+
+    const UncertaintySettings us;
+    m.def(
+        "height_uncertainty",
+        [](const py::object& observations, const Heightfield& estimate, const py::object& loss, int probe_spacing,
+           int rounds, double cg_tolerance, int cg_iterations, std::uint64_t seed, const py::object& comm_arg) {
+            const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
+            const std::vector<Observation> list = observations_or_file(observations);
+            const Loss l = loss_argument(loss);
+            UncertaintySettings s;
+            s.probe_spacing = probe_spacing;
+            s.rounds = rounds;
+            s.cg_tolerance = cg_tolerance;
+            s.cg_iterations = cg_iterations;
+            s.seed = seed;
+            HeightUncertainty u;
+            {
+                py::gil_scoped_release release;
+                u = height_uncertainty(list, estimate, l, s, *comm);
+            }
+            return owning_array(std::move(u.sigma_um), {estimate.rows(), estimate.cols()});
+        },
+        "observations"_a, "estimate"_a, "loss"_a, py::kw_only(), "probe_spacing"_a = us.probe_spacing,
+        "rounds"_a = us.rounds, "cg_tolerance"_a = us.cg_tolerance, "cg_iterations"_a = us.cg_iterations,
+        "seed"_a = us.seed, "comm"_a = py::none(),
+        R"doc(
+Error bars of `estimate` (a Heightfield recovered from `observations`): the standard deviation
+of every height (mean removed), um, a float64 array (rows, cols), from the curvature of `loss`
+(the loss it was fitted with: 'poisson:N' uses the Fisher information of N photons per slice;
+'amplitude', 'mse', 'cmsle:EPS' a noise variance estimated from the residuals) at the estimate:
+the diagonal of the inverse Gauss-Newton matrix by coloured probes (texels probe_spacing apart
+share one, 1...16; rounds sign draws, 1...64) and conjugate gradients (cg_tolerance in (0, 1),
+cg_iterations 1...10000). comm: None or an mpi4py communicator (observations: this rank's
+share; every rank gets the same map). uncertainty.h, docs/recovery.md "Error bars".
 )doc");
 }
 

@@ -16,6 +16,12 @@
 //   estimate.exr, estimate.png, estimate_height.npy   the estimate
 //   reference.npy, final.npy                 observation 0 and the estimate's slice for it
 //                                            (resolution × resolution × channels)
+//   uncertainty.exr, uncertainty_height.npy  with options.uncertainty: σ of every height in µm
+//                                            (uncertainty.h; the EXR's values are µm: its
+//                                            vscale is 1/texel_um)
+//   uncertainty.json                         its summary: median_sigma_um, seconds, probes,
+//                                            products, noise_variance; with a truth
+//                                            coverage_1sigma, coverage_2sigma, rms_error_um
 //   observations.json, observations/         with save_observations (EXR references), unless
 //                                            observations_path names another file
 //
@@ -25,6 +31,7 @@
 
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/recovery_run.h"
+#include "wavebrdf/uncertainty.h"
 
 namespace wavebrdf {
 
@@ -57,9 +64,15 @@ struct RecoveryDirectoryOptions {
 // and writes every file (the observations gathered to it); the others run the recovery. The
 // checks before the recovery are agreed (run_agreed: a failure on any rank throws RankFailed
 // on every rank). Returns the estimate on every rank.
+// With prepared.uncertainty the error bars are computed after the recovery (height_uncertainty
+// with the run's loss; collective) and written; `uncertainty`, when not null, receives their
+// report (on every rank). When the loss leaves no noise to estimate (height_uncertainty's
+// std::domain_error / std::invalid_argument, alike on every rank) the estimate is still written,
+// the bars are not, rank 0 warns on stderr and `uncertainty` is left as it was.
 Heightfield run_recovery_in_directory(const PreparedRecovery& prepared, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
                                       const std::function<bool(const StageMetrics&)>& on_step = {},
-                                      const Communicator& comm = serial_communicator());
+                                      const Communicator& comm = serial_communicator(),
+                                      UncertaintyReport* uncertainty = nullptr);
 
 }  // namespace wavebrdf

@@ -73,6 +73,9 @@ struct RecoveryOptions {
     // is given the nominal one. Seeded per position / observation (calibration.h), so the same
     // on any number of ranks.
     AcquisitionErrors errors;
+    // Error bars (uncertainty.h): run_recovery_in_directory also writes uncertainty.exr (σ of
+    // every height, µm) and the summary, at the cost of a few refinements (docs/recovery.md).
+    bool uncertainty = false;
 };
 
 // The loss the recovery fits: options.loss when given; else, for the pipeline, the one
@@ -117,6 +120,7 @@ struct PreparedRecovery {
     // With a truth and options.errors: the true acquisition errors of `observations` (this
     // rank's share; calibration.h's meaning), what a calibrated recovery should find.
     std::optional<Calibration> true_calibration;
+    bool uncertainty = false;  // options.uncertainty
 };
 
 // Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from

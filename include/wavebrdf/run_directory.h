@@ -11,7 +11,7 @@ namespace wavebrdf {
 
 enum class RunKind {
     Invert,  // run.json, metrics.csv, checkpoint.json, snapshots/, reference*, truth*, final_*, estimate.*, report.png, curves.png
-    Recover,  // run.json, metrics.csv, estimate*, truth*, reference.npy, final.npy, report.png, observations.json, observations/
+    Recover,  // run.json, metrics.csv, estimate*, truth*, uncertainty*, reference.npy, final.npy, report.png, observations.json, observations/
 };
 
 // "wavebrdf invert" or "wavebrdf recover".

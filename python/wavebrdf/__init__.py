@@ -15,7 +15,8 @@ and the objects of the thesis's listing 4.1: Heightfield, GaborRep, Query, rende
 (Loss, cmsle, mse, amplitude), gradient / observation_loss, the optimisers (Adam,
 lbfgs_minimize) and invert. Heightfield recovery: recover (``wavebrdf recover``), its parts
 plan_acquisition, planned_observations, simulate_observations, add_noise, check_acquisition,
-recover_heights, recover_heights_thesis, and height_rel_rmse, with_height_range. ``wavebrdf.torch`` wraps render_slice as a differentiable PyTorch
+recover_heights, recover_heights_thesis, and height_rel_rmse, with_height_range, height_uncertainty
+(error bars). ``wavebrdf.torch`` wraps render_slice as a differentiable PyTorch
 function. ``python3 -m wavebrdf.report DIR`` (wavebrdf.report) draws the pictures of a
 `wavebrdf invert` or `wavebrdf recover` run directory (it needs matplotlib; importing wavebrdf
 does not). Bad arguments raise ValueError naming the argument; unreadable files RuntimeError.
@@ -40,6 +41,7 @@ from ._core import (  # noqa: F401
     height_mse,
     height_rel_rmse,
     height_rel_rmse_plane_removed,
+    height_uncertainty,
     invert,
     lbfgs_minimize,
     mse,
@@ -69,7 +71,7 @@ from .table import BrdfTable, read_table, render_table  # noqa: F401  (wavebrdf 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
     "Query", "RecoveryResult", "add_noise", "amplitude", "check_acquisition", "cie1931_xyz", "cmsle", "gradient",
-    "height_mse", "height_rel_rmse", "height_rel_rmse_plane_removed", "invert", "lbfgs_minimize", "mse", "observation_loss", "plan_acquisition",
+    "height_mse", "height_rel_rmse", "height_rel_rmse_plane_removed", "height_uncertainty", "invert", "lbfgs_minimize", "mse", "observation_loss", "plan_acquisition",
     "planned_observations", "read_observations", "recover", "recover_heights", "recover_heights_thesis", "render",
     "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",
     "spectral_to_srgb_weights", "spectral_wavelengths_um", "with_height_range", "write_observations",

@@ -4,10 +4,13 @@
 make_report(DIR) writes DIR/report.png: the true heights (when known), the estimate, their
 difference after removing each one's mean (the mean height is invisible to every slice), one
 observation beside the estimate's slice for it, and the convergence of every stage (its loss,
-normalised to the stage's first value, and height_rel_rmse when the truth is known).
+normalised to the stage's first value, and height_rel_rmse when the truth is known), and with
+error bars (``--uncertainty``) the map of σ per texel and, with the truth, the distribution of
+error / σ against the standard normal.
 
 DIR layout (recovery_directory.h): run.json, metrics.csv, estimate_height.npy,
-truth_height.npy (optional), reference.npy, final.npy.
+truth_height.npy (optional), reference.npy, final.npy, uncertainty_height.npy and
+uncertainty.json (optional).
 """
 import csv
 import json
@@ -62,7 +65,9 @@ def make_report(directory):
     reference = np.load(os.path.join(directory, "reference.npy"))
     final = np.load(os.path.join(directory, "final.npy"))
 
-    fig, axes = plt.subplots(2, 4, figsize=(16, 7.6))
+    sigma_path = os.path.join(directory, "uncertainty_height.npy")
+    sigma = np.load(sigma_path) if os.path.exists(sigma_path) else None
+    fig, axes = plt.subplots(2, 5 if sigma is not None else 4, figsize=(20 if sigma is not None else 16, 7.6))
     title = "wavebrdf recover ({method}): {size} heights, {observations} observations, noise {noise}, loss {loss}".format(**run)
     calibration_path = os.path.join(directory, "calibration.json")
     if os.path.exists(calibration_path):  # self-calibration (calibration.h)
@@ -142,6 +147,30 @@ def make_report(directory):
     if run.get("warnings"):
         lines += ["warnings:"] + ["  " + w for w in run["warnings"]]
     ax.text(0.0, 1.0, "\n".join(_wrap(l, 60) for l in lines), va="top", ha="left", fontsize=7, family="monospace")
+
+    if sigma is not None:
+        summary = {}
+        summary_path = os.path.join(directory, "uncertainty.json")
+        if os.path.exists(summary_path):
+            with open(summary_path) as f:
+                summary = json.load(f)
+        image(axes[0, 4], sigma, "uncertainty σ: median {:.3g} µm".format(float(np.median(sigma))), cmap="magma",
+              vmin=0.0)
+        ax = axes[1, 4]
+        if truth is not None:
+            z = ((est - tru) / np.where(sigma > 0, sigma, np.nan)).ravel()
+            z = z[np.isfinite(z)]
+            ax.hist(np.clip(z, -5, 5), bins=41, range=(-5, 5), density=True, alpha=0.7, label="error / σ")
+            x = np.linspace(-5, 5, 201)
+            ax.plot(x, np.exp(-0.5 * x**2) / np.sqrt(2 * np.pi), "k-", lw=1, label="N(0, 1)")
+            inside = summary.get("coverage_2sigma", float(np.mean(np.abs(z) <= 2)))
+            ax.set_title("error / σ: {:.1%} within ±2σ".format(inside), fontsize=9)
+            ax.set_xlabel("(estimate − truth) / σ")
+            ax.legend(fontsize=7)
+        else:
+            ax.hist(sigma.ravel(), bins=40)
+            ax.set_title("σ per texel", fontsize=9)
+            ax.set_xlabel("µm")
 
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     return save_figure(fig, os.path.join(directory, "report.png"), 110)

@@ -34,6 +34,7 @@ bool is_run_output(RunKind kind, const std::string& relative) {
         R"(snapshots/(height|slice|gradient)_[0-9]{4,}\.npy)$)");
     static const std::regex recover_names(
         R"(^(run\.json|metrics\.csv|estimate\.exr|estimate\.png|estimate_height\.npy|truth\.exr|truth_height\.npy|)"
+        R"(uncertainty\.exr|uncertainty\.json|uncertainty_height\.npy|)"
         R"(reference\.npy|final\.npy|report\.png|observations\.json|observations\.(h5|hdf5|cxi)|observations|observations/slice_[0-9]{4,}\.exr)$)");
     const std::string name = without_temporary_suffix(relative);
     return std::regex_match(name, kind == RunKind::Invert ? invert_names : recover_names);

@@ -1,7 +1,10 @@
 #include "wavebrdf/threads.h"
 #include "wavebrdf/recovery_directory.h"
 
+#include <chrono>
+#include <cstdio>
 #include <exception>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -75,8 +78,8 @@ std::vector<Observation> gathered_observations(const PreparedRecovery& r, const 
 
 Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
-                                      const std::function<bool(const StageMetrics&)>& on_step,
-                                      const Communicator& comm) {
+                                      const std::function<bool(const StageMetrics&)>& on_step, const Communicator& comm,
+                                      UncertaintyReport* uncertainty) {
     const std::string& dir = out.dir;
     const bool root = comm.is_root();
     const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
@@ -148,12 +151,60 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
             all_truth = detail::gathered_calibration(*r.true_calibration, r.share, r.total_observations, comm);
     }
     if (out.calibration) *out.calibration = all_calibration;
+    // Error bars at the estimate (collective), before rank 0 writes.
+    std::unique_ptr<UncertaintyReport> bars;
+    if (r.uncertainty) {
+        const auto start = std::chrono::steady_clock::now();
+        // A problem without error bars (no residual to estimate the noise from: the same on every
+        // rank, decided on exact sums) must not cost the estimate: it is written, and why not.
+        std::string why_not;
+        HeightUncertainty map = run_or_abort(comm, [&] {
+            try {
+                return height_uncertainty(r.observations, estimate, r.loss, {}, comm);
+            } catch (const std::domain_error& e) {
+                why_not = e.what();
+            } catch (const std::invalid_argument& e) {
+                why_not = e.what();
+            }
+            return HeightUncertainty{};
+        });
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
+        if (why_not.empty()) {
+            bars = std::make_unique<UncertaintyReport>(uncertainty_report(std::move(map), seconds, estimate, truth));
+            if (uncertainty) *uncertainty = *bars;
+        } else if (root) {
+            std::fprintf(stderr, "wavebrdf: warning: no error bars: %s\n", why_not.c_str());
+        }
+    }
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
     if (write_calibration)
         write_text_atomically(dir + "/calibration.json",
                               detail::calibration_json(r.pipeline.calibrate, all_calibration,
                                                        r.true_calibration ? &all_truth : nullptr));
+    if (bars) {
+        // Values in µm: vscale 1/texel_um makes a raw value a height in µm.
+        write_heightfield_exr(dir + "/uncertainty.exr",
+                              Heightfield(r.rows, r.cols, bars->map.sigma_um, r.texel_um, 1.0 / r.texel_um),
+                              "wavebrdf recover: uncertainty (standard deviation of each height, um)");
+        write_npy(dir + "/uncertainty_height.npy", height_shape, bars->map.sigma_um);
+        nlohmann::json summary = {{"median_sigma_um", bars->median_sigma_um},
+                                  {"seconds", bars->seconds},
+                                  {"probes", bars->map.probes},
+                                  {"products", bars->map.products},
+                                  {"max_cg_iterations", bars->map.max_cg_iterations},
+                                  {"worst_relative_residual", bars->map.worst_relative_residual},
+                                  {"filled", bars->map.filled},
+                                  {"noise_variance", bars->map.noise_variance},
+                                  {"loss", to_string(r.loss)}};
+        if (bars->coverage_2sigma >= 0.0) {
+            summary["coverage_1sigma"] = bars->coverage_1sigma;
+            summary["coverage_2sigma"] = bars->coverage_2sigma;
+            summary["rms_error_um"] = bars->rms_error_um;
+        }
+        write_text_atomically(dir + "/uncertainty.json", summary.dump(1) + "\n");
+    }
     write_heightfield_exr(dir + "/estimate.exr", estimate,
                           std::string("wavebrdf recover: estimate (") + to_string(r.method) + ")");
     write_heightfield_png(dir + "/estimate.png", estimate);

@@ -265,6 +265,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
+    r.uncertainty = options.uncertainty;
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
     r.thesis.seed = options.seed;

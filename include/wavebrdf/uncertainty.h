@@ -1,0 +1,134 @@
+#pragma once
+// Error bars of a recovered heightfield (docs/recovery.md, "Error bars"): the standard
+// deviation of every texel's height from the curvature of the refinement's loss at the
+// solution, the Laplace / Gauss–Newton approximation of the estimate's covariance:
+//   G = Jᵀ W J,   Cov(h) ≈ G⁺,
+// J = ∂slices/∂heights over all observations, W per slice value the Fisher information of
+// the noise the loss assumes:
+//   poisson:N   W = s / I   (photon counts k ~ Poisson(s·I), s = N / Σ R as in loss.h): absolute,
+//               nothing is estimated;
+//   amplitude   W = 1 / (4 I σ²)   (Gaussian noise of variance σ² on √R),
+//   mse         W = 1 / σ²         (Gaussian noise on R),
+//   cmsle:ε     W = 1 / ((I + ε)² σ²)  (Gaussian noise on log(R + ε)),
+//               σ² estimated from the residuals at the solution in the loss's own variable
+//               (Σ r² / (values − (texels − 1)), over the values that are not 0 in both the
+//               slice and the reference).
+// The mean height (piston) is unobservable (G·1 = 0): the map is for the heights with their
+// mean removed, as height_rel_rmse compares them, i.e. diag(G⁺) on the mean-free subspace.
+//
+// Never formed: a product G·v is one pass over the observations, J·v by a forward difference
+// of the slice plan (double precision) and Jᵀ(W·Jv) by its adjoint. The diagonal of G⁺ by
+// probing: coloured probes (texels whose rows and columns agree modulo `probe_spacing` share a
+// probe, with random signs), each solved by conjugate gradients on the mean-free subspace.
+// A probe's estimate of texel i is exact up to the covariances of i with the texels of its
+// colour (≥ probe_spacing texels away), which decay with distance.
+//
+// Under MPI every sum over observations is exact and allreduced (core/exact_sum.h), so every
+// rank computes the same map, the same bits for any number of ranks.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/communicator.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/loss.h"
+#include "wavebrdf/observation.h"
+
+namespace wavebrdf {
+
+struct UncertaintySettings {
+    // Coloured probes: texels (i, j) with the same (i mod d, j mod d) share one probe: d² probes
+    // per round (1 … 16).
+    int probe_spacing = 4;
+    int rounds = 1;              // independent sign draws per colour (1 … 64), averaged
+    double cg_tolerance = 1e-2;  // stop a probe's CG when ‖r‖ ≤ this · ‖b‖ (0 < tol < 1)
+    int cg_iterations = 60;      // at most this many CG iterations per probe (1 … 10^4)
+    // Forward-difference step of J·v: max |Δh| in µm (> 0). One-sided: the error of G·v is
+    // about the phase step 4π·step/λ relatively (2.5e-6 at 1e-7 µm and 0.5 µm), the rounding
+    // 1e-16 over it.
+    double step_um = 1e-7;
+    std::uint64_t seed = 1;  // the probes' signs
+};
+
+// The linearised problem at a solution: G·v without forming G (the header's comment).
+// Collective under MPI (construction and apply): every rank passes its share of the
+// observations, the same heights, loss and vectors.
+class GaussNewtonOperator {
+public:
+    // Keeps references to `observations` and `comm` (they must outlive the operator).
+    // Observations as for recover_heights (this rank's share; validated), `estimate` the
+    // heights where the curvature is taken (texel units of its geometry), `loss` the
+    // refinement's (any kind; see above for W). Renders every observation once (kept: their
+    // slices at the estimate, one double per slice value of this rank's share). Throws
+    // std::invalid_argument when no rank has an observation or a slice's geometry does not
+    // fit, std::domain_error when the residual variance is 0 or not finite (a noiseless fit
+    // with a loss whose variance must be estimated; give a poisson loss instead).
+    GaussNewtonOperator(const std::vector<Observation>& observations, const Heightfield& estimate, const Loss& loss,
+                        double step_um = 1e-7, const Communicator& comm = serial_communicator());
+    ~GaussNewtonOperator();
+    GaussNewtonOperator(GaussNewtonOperator&&) noexcept;
+    GaussNewtonOperator& operator=(GaussNewtonOperator&&) noexcept;
+
+    // G·v for each of `vectors` (heights in µm, rows·cols each; the results in 1/µm² · µm):
+    // one pass over the observations for all of them.
+    std::vector<std::vector<double>> apply(const std::vector<std::vector<double>>& vectors) const;
+    // The variance σ² the weights were divided by (1 for poisson: the Fisher information is
+    // absolute), in the loss's variable (amplitude: √slice units; mse: slice units; cmsle: log).
+    double noise_variance() const;
+    // The slice values the variance was estimated from (all ranks), less the texels − 1
+    // free heights (0 for poisson).
+    double degrees_of_freedom() const;
+    int rows() const;
+    int cols() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> m_impl;
+};
+
+struct HeightUncertainty {
+    std::vector<double> sigma_um;          // rows·cols, row-major: σ of each height (mean removed), µm
+    double noise_variance = 1.0;           // GaussNewtonOperator::noise_variance
+    int probes = 0;                        // CG solves
+    int products = 0;                      // passes over the observations (G·v for all active probes)
+    int max_cg_iterations = 0;             // the most any probe needed
+    double worst_relative_residual = 0.0;  // the largest ‖r‖/‖b‖ a probe ended with
+    // Texels whose probed variance came out ≤ 0 (a probing error larger than the variance):
+    // they take the mean of their neighbours' positive variances (periodic 3×3).
+    int filled = 0;
+};
+
+// The standard deviations (µm) of `estimate`'s heights, mean removed, under the loss's noise
+// model (the header's comment), by coloured probes and CG (settings). Collective under MPI:
+// the same map on every rank. Throws as GaussNewtonOperator and std::domain_error for settings
+// outside their ranges (naming the value).
+HeightUncertainty height_uncertainty(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                     const Loss& loss, const UncertaintySettings& settings = {},
+                                     const Communicator& comm = serial_communicator());
+
+// The fraction (0 … 1) of texels whose error, (estimate − its mean) − (truth − its mean) in µm,
+// lies within ±k·σ (sigma_um: rows·cols values ≥ 0; k > 0). Throws std::invalid_argument on
+// a size mismatch, std::domain_error for k ≤ 0.
+double error_coverage(const Heightfield& estimate, const Heightfield& truth, const std::vector<double>& sigma_um,
+                      double k);
+
+// The median of sigma_um (µm; 0 when empty).
+double median_sigma_um(const std::vector<double>& sigma_um);
+
+// What a recovery reports with its error bars (run_recovery_in_directory, Python's recover).
+struct UncertaintyReport {
+    HeightUncertainty map;
+    double seconds = 0.0;          // wall time of height_uncertainty
+    double median_sigma_um = 0.0;  // median σ over the texels, µm
+    // With a truth (else −1): the fraction of texels whose error lies within ±1σ and ±2σ
+    // (error_coverage) and the rms error (µm, means removed).
+    double coverage_1sigma = -1.0, coverage_2sigma = -1.0, rms_error_um = -1.0;
+};
+
+// The report of `map` for `estimate`, against `truth` when not null (same size, else
+// std::invalid_argument).
+UncertaintyReport uncertainty_report(HeightUncertainty map, double seconds, const Heightfield& estimate,
+                                     const Heightfield* truth);
+
+}  // namespace wavebrdf

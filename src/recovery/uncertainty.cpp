@@ -1,0 +1,419 @@
+// Error bars of a recovered heightfield: the diagonal of the inverse Gauss–Newton matrix of
+// the refinement's loss, by coloured probes and conjugate gradients (uncertainty.h).
+#include "wavebrdf/uncertainty.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "core/exact_sum.h"
+#include "core/random.h"
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/slice_plan.h"
+
+namespace wavebrdf {
+
+namespace {
+
+// Fraction bits of the exact sums of G·v: the products are normalised (max |v| = 1, weights
+// scaled to about 1 per slice value), so their terms are far below 2^64 and far above 2^−40.
+constexpr int k_product_fraction_bits = 40;
+
+double mean_of(const std::vector<double>& v) {
+    double s = 0.0;
+    for (double x : v) s += x;
+    return v.empty() ? 0.0 : s / double(v.size());
+}
+
+void remove_mean(std::vector<double>& v) {
+    const double m = mean_of(v);
+    for (double& x : v) x -= m;
+}
+
+double dot(const std::vector<double>& a, const std::vector<double>& b) {
+    double s = 0.0;
+    for (std::size_t k = 0; k < a.size(); ++k) s += a[k] * b[k];
+    return s;
+}
+
+}  // namespace
+
+struct GaussNewtonOperator::Impl {
+    const std::vector<Observation>* observations = nullptr;
+    const Communicator* comm = nullptr;
+    int rows = 0, cols = 0;
+    double to_um = 1.0;           // raw height value → µm (vscale · texel_um)
+    double step_raw = 0.0;        // forward-difference step, raw units
+    std::vector<double> heights;  // raw values at the solution
+    Heightfield flat{1, 1, std::vector<double>{0.0}};
+    std::vector<std::unique_ptr<SlicePlan<double>>> plans;
+    std::vector<std::vector<int>> box_rows, box_cols;
+    std::vector<std::vector<double>> slices;   // f at the solution, per observation
+    std::vector<std::vector<double>> weights;  // W / scale per slice value
+    double scale = 1.0;                        // G = scale · (the normalised G)
+    double variance = 1.0, dof = 0.0;
+
+    // The normalised G · v for raw vectors (max |v| ≤ 1 each), summed exactly over all ranks.
+    std::vector<std::vector<double>> apply_normalised(const std::vector<std::vector<double>>& vectors) const {
+        const std::size_t n = std::size_t(rows) * std::size_t(cols), count = vectors.size();
+        std::vector<std::vector<double>> out(count);
+        if (count == 0) return out;
+        detail::ExactParallelSum sum(n * count, k_product_fraction_bits);
+        std::vector<double> all;
+        sum.run(observations->size(), *comm, all, [&](std::size_t i, detail::ExactScratch& scratch) {
+            SlicePlan<double>& plan = *plans[i];
+            const std::vector<double>& f0 = slices[i];
+            const std::vector<double>& w = weights[i];
+            std::vector<double> h(n), jv(f0.size()), gradient(n, 0.0);
+            std::vector<int> rows_all;
+            double* out_scratch = scratch.data();
+            for (std::size_t k = 0; k < count; ++k) {
+                for (std::size_t t = 0; t < n; ++t) h[t] = heights[t] + step_raw * vectors[k][t];
+                plan.set_heights(h);
+                const std::vector<double>& f = plan.forward();
+                for (std::size_t p = 0; p < f0.size(); ++p) jv[p] = w[p] * ((f[p] - f0[p]) / step_raw);
+                plan.adjoint(jv, gradient);
+                for (int r : box_rows[i]) {
+                    for (int c : box_cols[i]) {
+                        const std::size_t at = std::size_t(r) * std::size_t(cols) + std::size_t(c);
+                        out_scratch[k * n + at] += gradient[at];
+                        gradient[at] = 0.0;
+                    }
+                    rows_all.push_back(r + int(k) * rows);
+                }
+            }
+            plan.release();
+            std::sort(rows_all.begin(), rows_all.end());
+            scratch.take_box(rows_all, box_cols[i], std::size_t(cols));
+            return 0.0;
+        });
+        for (std::size_t k = 0; k < count; ++k)
+            out[k].assign(all.begin() + std::ptrdiff_t(k * n), all.begin() + std::ptrdiff_t((k + 1) * n));
+        return out;
+    }
+};
+
+GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                         const Loss& loss, double step_um, const Communicator& comm)
+    : m_impl(std::make_unique<Impl>()) {
+    Impl& m = *m_impl;
+    if (!(step_um > 0.0) || !std::isfinite(step_um))
+        throw std::domain_error("height uncertainty: step " + std::to_string(step_um) + " um is invalid; expected > 0");
+    if (estimate.vscale() == 0.0)
+        throw std::domain_error("height uncertainty: vscale 0 maps every height to 0; expected != 0");
+    m.observations = &observations;
+    m.comm = &comm;
+    m.rows = estimate.rows();
+    m.cols = estimate.cols();
+    m.to_um = estimate.vscale() * estimate.texel_um();
+    m.step_raw = step_um / std::abs(m.to_um);
+    m.heights = estimate.values();
+    m.flat = estimate.with_values(std::vector<double>(m.heights.size(), 0.0));
+    run_agreed(comm, [&] {
+        for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
+        for (const Observation& o : observations)
+            validate_footprint(o.query.sigma_p_um, m.flat.period_x_um(), m.flat.period_y_um());
+    });
+    std::vector<double> total{double(observations.size())};
+    comm.allreduce_sum(total);
+    if (total[0] == 0.0) throw std::invalid_argument("height uncertainty: no observations given");
+
+    const std::size_t count = observations.size();
+    m.plans.resize(count);
+    m.box_rows.resize(count);
+    m.box_cols.resize(count);
+    m.slices.resize(count);
+    m.weights.resize(count);
+    // The slices at the solution, the residuals in the loss's variable and the values counted.
+    std::vector<double> residual(count, 0.0), values(count, 0.0), curvature(count, 0.0);
+    const bool poisson = loss.kind == LossKind::Poisson;
+    if (poisson && !(loss.photons > 0.0 && std::isfinite(loss.photons)))
+        throw std::domain_error("height uncertainty: poisson photons " + std::to_string(loss.photons) +
+                                " is invalid; expected > 0");
+    detail::ExactParallelSum pass(0);
+    std::vector<double> none;
+    run_agreed(comm, [&] {  // rank-local work: a failure on one rank is agreed
+        pass.run_local(count, [&](std::size_t i, detail::ExactScratch&) {
+            const Observation& o = observations[i];
+            m.plans[i] = std::make_unique<SlicePlan<double>>(m.flat, o.query, o.lambdas_um, o.resolution, o.channels());
+            SlicePlan<double>& plan = *m.plans[i];
+            plan.gradient_box(m.box_rows[i], m.box_cols[i]);
+            plan.set_heights(m.heights);
+            m.slices[i] = plan.forward();
+            plan.release();
+            const std::vector<double>& f = m.slices[i];
+            const std::vector<double>& r = o.reference;
+            std::vector<double>& w = m.weights[i];
+            w.assign(f.size(), 0.0);
+            double s = 0.0;
+            if (poisson) {
+                double total_r = 0.0;
+                for (double x : r) total_r += x;
+                if (!(total_r > 0.0))
+                    throw std::invalid_argument("height uncertainty: observation " + std::to_string(i) +
+                                                "'s reference sums to " + std::to_string(total_r) +
+                                                "; the poisson loss needs photons");
+                s = loss.photons / total_r;
+            }
+            for (std::size_t p = 0; p < f.size(); ++p) {
+                const double fi = std::max(f[p], 0.0), ri = std::max(r[p], 0.0);
+                if (fi == 0.0 && ri == 0.0 && !poisson) continue;
+                double d = 0.0;
+                switch (loss.kind) {
+                    case LossKind::Poisson:
+                        // Fisher information of counts k ~ Poisson(s·I) in I (the loss's 1e-9 counts
+                        // keep it finite where I = 0; J vanishes there too).
+                        w[p] = s * s / (s * fi + 1e-9);
+                        break;
+                    case LossKind::Amplitude:
+                        d = std::sqrt(fi) - std::sqrt(ri);
+                        w[p] = 1.0 / (4.0 * (fi + 1e-30));
+                        break;
+                    case LossKind::MSE:
+                        d = fi - ri;
+                        w[p] = 1.0;
+                        break;
+                    case LossKind::CMSLE:
+                        d = std::log(fi + loss.epsilon) - std::log(ri + loss.epsilon);
+                        w[p] = 1.0 / ((fi + loss.epsilon) * (fi + loss.epsilon));
+                        break;
+                }
+                residual[i] += d * d;
+                values[i] += 1.0;
+                curvature[i] += w[p] * fi * fi;
+            }
+            return 0.0;
+        });
+    });
+    const double sum_values = detail::exact_total(values, comm);
+    const double sum_curvature = detail::exact_total(curvature, comm);
+    if (!poisson) {
+        const double sum_residual = detail::exact_total(residual, comm);
+        m.dof = sum_values - double(m.heights.size() - 1);
+        if (!(m.dof > 0.0))
+            throw std::invalid_argument("height uncertainty: " + std::to_string(sum_values) + " slice values for " +
+                                        std::to_string(m.heights.size()) +
+                                        " heights leave no degree of freedom to estimate the noise from");
+        m.variance = sum_residual / m.dof;
+        if (!(m.variance > 0.0) || !std::isfinite(m.variance))
+            throw std::domain_error("height uncertainty: the residual variance is " + std::to_string(m.variance) +
+                                    "; expected > 0 (noiseless slices have no error bars under loss " +
+                                    to_string(loss) + ")");
+    }
+    // Normalised weights: about 1 per slice value (W f² on average), the variance divided out.
+    m.scale = sum_curvature > 0.0 && sum_values > 0.0 ? sum_curvature / sum_values / m.variance : 1.0;
+    const double divide = m.scale * m.variance;
+    for (std::vector<double>& w : m.weights)
+        for (double& x : w) x /= divide;
+}
+
+GaussNewtonOperator::~GaussNewtonOperator() = default;
+GaussNewtonOperator::GaussNewtonOperator(GaussNewtonOperator&&) noexcept = default;
+GaussNewtonOperator& GaussNewtonOperator::operator=(GaussNewtonOperator&&) noexcept = default;
+
+std::vector<std::vector<double>> GaussNewtonOperator::apply(const std::vector<std::vector<double>>& vectors) const {
+    const Impl& m = *m_impl;
+    const std::size_t n = m.heights.size();
+    std::vector<std::vector<double>> raw(vectors.size());
+    std::vector<double> norms(vectors.size(), 0.0);
+    for (std::size_t k = 0; k < vectors.size(); ++k) {
+        if (vectors[k].size() != n)
+            throw std::invalid_argument("GaussNewtonOperator::apply: vector " + std::to_string(k) + " has " +
+                                        std::to_string(vectors[k].size()) + " values; expected " + std::to_string(n));
+        for (double x : vectors[k]) norms[k] = std::max(norms[k], std::abs(x));
+        raw[k].resize(n);
+        for (std::size_t t = 0; t < n; ++t) raw[k][t] = norms[k] > 0.0 ? vectors[k][t] / norms[k] : 0.0;
+    }
+    std::vector<std::vector<double>> out = m.apply_normalised(raw);
+    // G_µm v_µm = G_raw v_raw / to_um with v_raw = v_µm / to_um; G_raw = scale · normalised.
+    for (std::size_t k = 0; k < out.size(); ++k)
+        for (double& x : out[k]) x *= m.scale * norms[k] / (m.to_um * m.to_um);
+    return out;
+}
+
+double GaussNewtonOperator::noise_variance() const { return m_impl->variance; }
+double GaussNewtonOperator::degrees_of_freedom() const { return m_impl->dof; }
+int GaussNewtonOperator::rows() const { return m_impl->rows; }
+int GaussNewtonOperator::cols() const { return m_impl->cols; }
+
+HeightUncertainty height_uncertainty(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                     const Loss& loss, const UncertaintySettings& settings, const Communicator& comm) {
+    const int d = settings.probe_spacing;
+    if (d < 1 || d > 16)
+        throw std::domain_error("height uncertainty: probe spacing " + std::to_string(d) +
+                                " is invalid; expected 1 to 16");
+    if (settings.rounds < 1 || settings.rounds > 64)
+        throw std::domain_error("height uncertainty: rounds " + std::to_string(settings.rounds) +
+                                " is invalid; expected 1 to 64");
+    if (!(settings.cg_tolerance > 0.0 && settings.cg_tolerance < 1.0))
+        throw std::domain_error("height uncertainty: CG tolerance " + std::to_string(settings.cg_tolerance) +
+                                " is invalid; expected 0 < tolerance < 1");
+    if (settings.cg_iterations < 1 || settings.cg_iterations > 10000)
+        throw std::domain_error("height uncertainty: CG iterations " + std::to_string(settings.cg_iterations) +
+                                " is invalid; expected 1 to 10000");
+    const GaussNewtonOperator op(observations, estimate, loss, settings.step_um, comm);
+    const int rows = estimate.rows(), cols = estimate.cols();
+    const std::size_t n = std::size_t(rows) * std::size_t(cols);
+
+    // The probes: colour (i mod d, j mod d) with random signs, `rounds` draws of each colour.
+    std::vector<std::vector<double>> z;
+    std::mt19937_64 rng(detail::derive_seed(settings.seed, 0x756e63));  // "unc"
+    for (int round = 0; round < settings.rounds; ++round)
+        for (int a = 0; a < std::min(d, rows); ++a)
+            for (int b = 0; b < std::min(d, cols); ++b) {
+                std::vector<double> v(n, 0.0);
+                for (int i = a; i < rows; i += d)
+                    for (int j = b; j < cols; j += d) v[std::size_t(i) * cols + j] = (rng() >> 63) ? 1.0 : -1.0;
+                z.push_back(std::move(v));
+            }
+    const std::size_t probes = z.size();
+
+    // CG on the mean-free subspace, G in µm units (op.apply), every probe at once.
+    HeightUncertainty result;
+    result.noise_variance = op.noise_variance();
+    result.probes = int(probes);
+    std::vector<std::vector<double>> x(probes, std::vector<double>(n, 0.0)), r(probes), p(probes);
+    std::vector<double> rr(probes), b_norm(probes);
+    std::vector<int> iterations(probes, 0);
+    std::vector<bool> active(probes, true);
+    for (std::size_t k = 0; k < probes; ++k) {
+        r[k] = z[k];
+        remove_mean(r[k]);
+        p[k] = r[k];
+        rr[k] = dot(r[k], r[k]);
+        b_norm[k] = std::sqrt(rr[k]);
+        if (!(b_norm[k] > 0.0)) active[k] = false;  // a 1×1 tile: nothing to resolve
+    }
+    for (int it = 0; it < settings.cg_iterations; ++it) {
+        std::vector<std::size_t> live;
+        for (std::size_t k = 0; k < probes; ++k)
+            if (active[k]) live.push_back(k);
+        if (live.empty()) break;
+        std::vector<std::vector<double>> directions;
+        for (std::size_t k : live) directions.push_back(p[k]);
+        std::vector<std::vector<double>> q = op.apply(directions);
+        ++result.products;
+        for (std::size_t a = 0; a < live.size(); ++a) {
+            const std::size_t k = live[a];
+            remove_mean(q[a]);  // P G P: the piston is no direction of the solve
+            const double pq = dot(p[k], q[a]);
+            if (!(pq > 0.0)) {  // no curvature left along p: stop this probe
+                active[k] = false;
+                continue;
+            }
+            const double alpha = rr[k] / pq;
+            for (std::size_t t = 0; t < n; ++t) {
+                x[k][t] += alpha * p[k][t];
+                r[k][t] -= alpha * q[a][t];
+            }
+            const double rr_new = dot(r[k], r[k]);
+            iterations[k] = it + 1;
+            if (std::sqrt(rr_new) <= settings.cg_tolerance * b_norm[k]) {
+                active[k] = false;
+                rr[k] = rr_new;
+                continue;
+            }
+            const double beta = rr_new / rr[k];
+            rr[k] = rr_new;
+            for (std::size_t t = 0; t < n; ++t) p[k][t] = r[k][t] + beta * p[k][t];
+        }
+    }
+    // diag(G⁺)_i ≈ z_i x_i over the probes that hold i, averaged over the rounds.
+    std::vector<double> diag(n, 0.0);
+    for (std::size_t k = 0; k < probes; ++k) {
+        result.max_cg_iterations = std::max(result.max_cg_iterations, iterations[k]);
+        if (b_norm[k] > 0.0)
+            result.worst_relative_residual = std::max(result.worst_relative_residual, std::sqrt(rr[k]) / b_norm[k]);
+        for (std::size_t t = 0; t < n; ++t) diag[t] += z[k][t] * x[k][t];
+    }
+    std::vector<double> filled = diag;
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            if (diag[std::size_t(i) * cols + j] > 0.0) continue;
+            double sum = 0.0, count = 0.0;
+            for (int a = -1; a <= 1; ++a)
+                for (int b = -1; b <= 1; ++b) {
+                    const double v =
+                        diag[std::size_t((i + a + rows) % rows) * cols + std::size_t((j + b + cols) % cols)];
+                    if (v > 0.0) {
+                        sum += v;
+                        count += 1.0;
+                    }
+                }
+            filled[std::size_t(i) * cols + j] = count > 0.0 ? sum / count : 0.0;
+            ++result.filled;
+        }
+    diag = std::move(filled);
+    result.sigma_um.resize(n);
+    for (std::size_t t = 0; t < n; ++t) result.sigma_um[t] = std::sqrt(std::max(diag[t], 0.0) / settings.rounds);
+    return result;
+}
+
+double error_coverage(const Heightfield& estimate, const Heightfield& truth, const std::vector<double>& sigma_um,
+                      double k) {
+    if (estimate.rows() != truth.rows() || estimate.cols() != truth.cols() ||
+        sigma_um.size() != estimate.values().size())
+        throw std::invalid_argument("error_coverage: estimate " + std::to_string(estimate.rows()) + " x " +
+                                    std::to_string(estimate.cols()) + ", truth " + std::to_string(truth.rows()) +
+                                    " x " + std::to_string(truth.cols()) + " and " + std::to_string(sigma_um.size()) +
+                                    " sigmas; expected the same size");
+    if (!(k > 0.0)) throw std::domain_error("error_coverage: k " + std::to_string(k) + " is invalid; expected > 0");
+    const int rows = truth.rows(), cols = truth.cols();
+    double mean_e = 0.0, mean_t = 0.0;
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            mean_e += estimate.height_um(i, j);
+            mean_t += truth.height_um(i, j);
+        }
+    const double n = double(rows) * double(cols);
+    mean_e /= n;
+    mean_t /= n;
+    double inside = 0.0;
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            const double e = (estimate.height_um(i, j) - mean_e) - (truth.height_um(i, j) - mean_t);
+            if (std::abs(e) <= k * sigma_um[std::size_t(i) * cols + j]) inside += 1.0;
+        }
+    return inside / n;
+}
+
+double median_sigma_um(const std::vector<double>& sigma_um) {
+    if (sigma_um.empty()) return 0.0;
+    std::vector<double> v = sigma_um;
+    const std::size_t mid = v.size() / 2;
+    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(mid), v.end());
+    if (v.size() % 2 == 1) return v[mid];
+    const double upper = v[mid];
+    return 0.5 * (upper + *std::max_element(v.begin(), v.begin() + std::ptrdiff_t(mid)));
+}
+
+UncertaintyReport uncertainty_report(HeightUncertainty map, double seconds, const Heightfield& estimate,
+                                     const Heightfield* truth) {
+    UncertaintyReport r;
+    r.seconds = seconds;
+    r.median_sigma_um = median_sigma_um(map.sigma_um);
+    if (truth) {
+        r.coverage_1sigma = error_coverage(estimate, *truth, map.sigma_um, 1.0);
+        r.coverage_2sigma = error_coverage(estimate, *truth, map.sigma_um, 2.0);
+        const int rows = truth->rows(), cols = truth->cols();
+        double mean_e = 0.0, mean_t = 0.0;
+        for (int i = 0; i < rows; ++i)
+            for (int j = 0; j < cols; ++j) {
+                mean_e += estimate.height_um(i, j);
+                mean_t += truth->height_um(i, j);
+            }
+        const double n = double(rows) * double(cols);
+        double sum = 0.0;
+        for (int i = 0; i < rows; ++i)
+            for (int j = 0; j < cols; ++j) {
+                const double e = (estimate.height_um(i, j) - mean_e / n) - (truth->height_um(i, j) - mean_t / n);
+                sum += e * e;
+            }
+        r.rms_error_um = std::sqrt(sum / n);
+    }
+    r.map = std::move(map);
+    return r;
+}
+
+}  // namespace wavebrdf

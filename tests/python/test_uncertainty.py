@@ -1,0 +1,74 @@
+"""Error bars from Python and the CLI (uncertainty.h, docs/recovery.md "Error bars"):
+recover(uncertainty=True) returns sigma per texel (um) and its coverage, the same map
+height_uncertainty gives for the run's observations, estimate and loss; `wavebrdf recover
+--uncertainty` writes uncertainty.exr / uncertainty_height.npy / uncertainty.json and the report
+draws them. The coverage itself is checked over noise draws in tests/uncertainty_test.cpp."""
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import wavebrdf as wb
+from wavebrdf import report_recover as pr
+
+import conftest
+
+SMALL = dict(size=8, texel_um=2.0, sigma_p_um=3.0, height_range_um=0.1, seed=5306, noise="poisson:1e4")
+SMALL_CLI = ["--size", "8", "--texel-um", "2", "--sigma-p-um", "3", "--height-range-um", "0.1", "--seed", "5306",
+             "--noise", "poisson:1e4"]
+
+
+def coverage(estimate_um, truth_um, sigma_um, k):
+    """Fraction of texels whose error (means removed) lies within +-k sigma, in NumPy."""
+    e = (estimate_um - estimate_um.mean()) - (truth_um - truth_um.mean())
+    return float(np.mean(np.abs(e) <= k * sigma_um))
+
+
+@pytest.fixture(scope="module")
+def run():
+    return wb.recover(**SMALL, uncertainty=True, quiet=True)
+
+
+def test_recover_returns_the_map_and_its_coverage(run):
+    r = run
+    sigma = r.uncertainty
+    assert sigma.shape == (8, 8) and sigma.dtype == np.float64
+    assert np.all(sigma > 0) and np.all(np.isfinite(sigma))
+    assert r.median_sigma_um == pytest.approx(float(np.median(sigma)), rel=1e-12)
+    est, tru = r.estimate.heights_um(), r.truth.heights_um()
+    assert r.coverage_1sigma == pytest.approx(coverage(est, tru, sigma, 1.0), abs=1e-12)
+    assert r.coverage_2sigma == pytest.approx(coverage(est, tru, sigma, 2.0), abs=1e-12)
+    assert r.uncertainty_seconds >= 0
+    # The same map from the separate function (deterministic: exact sums, seeded probes).
+    again = wb.height_uncertainty(r.observations, r.estimate, r.loss)
+    np.testing.assert_array_equal(again, sigma)
+    # Without the keyword: none.
+    plain = wb.recover(**SMALL, field_iterations=0, refine_iterations=0, quiet=True)
+    assert plain.uncertainty is None and np.isnan(plain.coverage_2sigma)
+
+
+def test_height_uncertainty_rejects_bad_settings(run):
+    r = run
+    with pytest.raises(ValueError, match="probe spacing"):
+        wb.height_uncertainty(r.observations, r.estimate, r.loss, probe_spacing=0)
+
+
+def test_cli_writes_the_map_and_the_report_shows_it(tmp_path):
+    out = tmp_path / "run"
+    cli = os.path.join(conftest.BUILD, "bin", "wavebrdf")
+    assert os.path.exists(cli), "%s is missing; build the wavebrdf_cli target" % cli
+    subprocess.run([cli, "recover", *SMALL_CLI, "--uncertainty", "--no-plots", "--quiet", "--out", str(out)],
+                   check=True)
+    sigma = np.load(out / "uncertainty_height.npy")
+    assert sigma.shape == (8, 8) and np.all(sigma > 0)
+    # The EXR holds the same values in um (float).
+    from_exr = wb.Heightfield.from_exr(str(out / "uncertainty.exr")).heights_um()
+    np.testing.assert_allclose(from_exr, sigma, rtol=1e-6)
+    summary = json.load(open(out / "uncertainty.json"))
+    assert summary["median_sigma_um"] == pytest.approx(float(np.median(sigma)), rel=1e-12)
+    est, tru = np.load(out / "estimate_height.npy"), np.load(out / "truth_height.npy")
+    assert summary["coverage_2sigma"] == pytest.approx(coverage(est, tru, sigma, 2.0), abs=1e-12)
+    path = pr.make_report(str(out))
+    assert os.path.exists(path)
