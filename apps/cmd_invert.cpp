@@ -182,7 +182,8 @@ void add_invert_command(CLI::App& app) {
     a->command = cmd;
     cmd->add_option("--truth", a->truth,
                     "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");
-    cmd->add_option("--observations", a->observations, "reference slices with their query parameters (JSON, or HDF5: .h5 .hdf5 .cxi)");
+    cmd->add_option("--observations", a->observations,
+                    "reference slices with their query parameters (JSON, or HDF5: .h5 .hdf5 .cxi)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
         ->capture_default_str();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um (with --truth: the file's if it says)")

@@ -44,11 +44,11 @@ struct RecoverArgs {
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     std::uint64_t seed = 1;
-    double max_memory_gb = 0.0;  // 0: the physical memory
-    std::string calibrate = "none";                 // --calibrate (calibration.h)
-    double position_error_texels = 0.0;             // --simulate-position-error-texels
-    std::string simulate_exposure;                  // --simulate-exposure MIN,MAX ("": none)
-    double sigma_factor = 1.0;                      // --simulate-sigma-factor
+    double max_memory_gb = 0.0;          // 0: the physical memory
+    std::string calibrate = "none";      // --calibrate (calibration.h)
+    double position_error_texels = 0.0;  // --simulate-position-error-texels
+    std::string simulate_exposure;       // --simulate-exposure MIN,MAX ("": none)
+    double sigma_factor = 1.0;           // --simulate-sigma-factor
     bool save_observations = false, quiet = false, no_plots = false, force = false;
     bool uncertainty = false;  // error bars: uncertainty.exr (uncertainty.h)
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
@@ -141,8 +141,9 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     }
     check_acquisition_errors(options.errors, "--simulate-");
     if (options.errors.any() && !a.observations.empty())
-        throw std::invalid_argument("--simulate-* render the observations with acquisition errors; they need --truth "
-                                    "(or the generated default), not --observations");
+        throw std::invalid_argument(
+            "--simulate-* render the observations with acquisition errors; they need --truth "
+            "(or the generated default), not --observations");
     options.uncertainty = a.uncertainty;
 
     // Truth and observations (files read here; planned, simulated and checked by the library).
@@ -229,8 +230,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (!quiet && options.calibrate.any()) {
         std::fprintf(stderr, "calibrated %s: sigma_p scale %.4f", to_string(options.calibrate).c_str(),
                      calibration.sigma_p_scale);
-        if (r.true_calibration)
-            std::fprintf(stderr, " (true %.4f)", r.true_calibration->sigma_p_scale);
+        if (r.true_calibration) std::fprintf(stderr, " (true %.4f)", r.true_calibration->sigma_p_scale);
         if (!calibration.exposures.empty()) {
             double lo = calibration.exposures.front(), hi = lo;
             for (double e : calibration.exposures) lo = std::min(lo, e), hi = std::max(hi, e);

@@ -86,8 +86,9 @@ void check_callback(const py::object& callback) {
 py::dict metrics_row(const StageMetrics& m) {
     return py::dict("stage"_a = m.stage, "iteration"_a = m.iteration, "loss"_a = m.loss, "seconds"_a = m.seconds,
                     "height_rel_rmse"_a = m.height_rel_rmse >= 0.0 ? m.height_rel_rmse : kNaN,
-                    "height_rel_rmse_plane_removed"_a =
-                        m.height_rel_rmse_plane_removed >= 0.0 ? m.height_rel_rmse_plane_removed : kNaN);
+                    "height_rel_rmse_plane_removed"_a = m.height_rel_rmse_plane_removed >= 0.0
+                                                            ? m.height_rel_rmse_plane_removed
+                                                            : kNaN);
 }
 
 // calibrate=: None, a string ("positions,exposure", "all", "none") or a sequence of those words.
@@ -125,7 +126,8 @@ py::dict calibration_dict(const CalibrationSettings& refined, const Calibration&
     } else {
         std::vector<double> v;
         for (const auto& o : c.position_offsets_um) v.insert(v.end(), {o[0], o[1]});
-        d["position_offsets_um"] = owning_array(std::move(v), {static_cast<py::ssize_t>(c.position_offsets_um.size()), 2});
+        d["position_offsets_um"] = owning_array(std::move(v),
+                                                {static_cast<py::ssize_t>(c.position_offsets_um.size()), 2});
     }
     return d;
 }
@@ -265,7 +267,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     if (!std::isfinite(simulate_position_error_texels) || simulate_position_error_texels < 0.0 ||
         simulate_position_error_texels > 10.0)
         bad_argument("simulate_position_error_texels", format_number(simulate_position_error_texels),
-                      "an rms in texels, 0 to 10");
+                     "an rms in texels, 0 to 10");
     options.errors.position_rms_texels = simulate_position_error_texels;
     if (!simulate_exposure.is_none()) {
         std::vector<double> range;
@@ -286,8 +288,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.errors.sigma_p_factor = simulate_sigma_factor;
     options.errors.seed = seed;
     if (options.errors.any() && !observations_arg.is_none())
-        throw py::value_error("simulate_* render the observations with acquisition errors; they need a truth (or the "
-                              "generated default), not observations");
+        throw py::value_error(
+            "simulate_* render the observations with acquisition errors; they need a truth (or the "
+            "generated default), not observations");
     check_callback(callback);
     check_quiet(quiet);
     if (!truth_arg.is_none() && !observations_arg.is_none())
@@ -328,9 +331,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
         [&](const auto& on_step) { return run_recovery(*prepared, on_step, *comm, &calibration); }, &progress,
         comm->size() > 1);
     py::dict cal = calibration_dict(options.calibrate, calibration);
-    cal["truth"] = prepared->true_calibration ? py::object(calibration_dict(CalibrationSettings{},
-                                                                            *prepared->true_calibration))
-                                              : py::object(py::none());
+    cal["truth"] = prepared->true_calibration
+                       ? py::object(calibration_dict(CalibrationSettings{}, *prepared->true_calibration))
+                       : py::object(py::none());
     if (prepared->true_calibration) cal["truth"].cast<py::dict>().attr("pop")("refined");
     result.calibration = cal;
     result.estimate = py::cast(estimate);
@@ -756,8 +759,8 @@ the same keys with the true values (else None).
           "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
           "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
-          "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(),
-          "simulate_sigma_factor"_a = 1.0, "uncertainty"_a = false,
+          "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0,
+          "uncertainty"_a = false,
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.

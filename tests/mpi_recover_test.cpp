@@ -114,8 +114,8 @@ TEST(MpiRecover, CalibratedRunsOnTwoRanksEqualOneProcess) {
     const fs::path dir = fresh_dir("mpi_recover");
     const auto args = [](const std::string& out) {
         std::vector<std::string> a = recover_args(out);
-        a.insert(a.end() - 2, {"--calibrate", "exposure,sigma", "--simulate-exposure", "0.5,2",
-                               "--simulate-sigma-factor", "1.1"});
+        a.insert(a.end() - 2,
+                 {"--calibrate", "exposure,sigma", "--simulate-exposure", "0.5,2", "--simulate-sigma-factor", "1.1"});
         return a;
     };
     const CliResult one = run_ranks(dir, 0, args("one"));

@@ -84,7 +84,8 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
          {"estimate.exr", "estimate.png", "truth.exr", "metrics.csv", "run.json", "estimate_height.npy",
           "truth_height.npy", "reference.npy", "final.npy", "observations.json"})
         EXPECT_TRUE(fs::exists(dir / "run" / name)) << name;
-    EXPECT_EQ(lines_of(read_text(dir / "run" / "metrics.csv"))[0], "stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed");
+    EXPECT_EQ(lines_of(read_text(dir / "run" / "metrics.csv"))[0],
+              "stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed");
     // The estimate, read back from its file, against the truth (an evaluation independent of
     // the metrics the run reports).
     const Heightfield truth = read_heightfield_exr((dir / "run" / "truth.exr").string(), 2.0);
@@ -104,8 +105,7 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
 // holds what was refined, one exposure per observation near the true one, and the errors.
 TEST(RecoverCliTest, CalibratedStudyWritesCalibrationJson) {
     const fs::path dir = fresh_dir("recover");
-    const CliResult r =
-        run_cli(dir, "recover " + kSmall + " --simulate-exposure 0.5,2 --calibrate exposure --out run");
+    const CliResult r = run_cli(dir, "recover " + kSmall + " --simulate-exposure 0.5,2 --calibrate exposure --out run");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const nlohmann::json run = nlohmann::json::parse(read_text(dir / "run" / "run.json"));
     EXPECT_EQ(run.at("calibrate"), "exposure");

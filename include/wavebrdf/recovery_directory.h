@@ -44,7 +44,7 @@ struct RecoveryDirectoryOptions {
     // extension (.h5 .hdf5 .cxi) writes one HDF5 file, any other JSON with EXR slices
     // beside it (write_observations_file, observation_file.h).
     std::string observations_path;
-    std::string option = "--out";    // names `dir` in messages
+    std::string option = "--out";  // names `dir` in messages
     // When given, receives the acquisition as the pipeline refined it (calibration.h; on rank 0
     // every observation's entries in the run's order, elsewhere only sigma_p_scale).
     Calibration* calibration = nullptr;

@@ -52,7 +52,7 @@ struct RecoveryOptions {
     int resolution = 0;                         // 0: the planner's Nyquist choice
     std::vector<double> lambdas_um;             // empty: the planner's ladder
     double overlap = 0.6, jitter = 0.2;
-    Noise noise;               // simulated on the rendered observations (a truth only)
+    Noise noise;  // simulated on the rendered observations (a truth only)
     // How the observations of a truth are simulated: the Gabor model (render_observation) or
     // the independent scalar-diffraction simulator (scalar_diffraction.h, OHS / ROHS only).
     Simulator simulator = Simulator::Gabor;
@@ -168,8 +168,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 // on_step called on every rank (recover_heights).
 // `calibration`, when given, receives the acquisition as the pipeline refined it
 // (recover_heights; this rank's share; the default Calibration for the thesis's method).
-Heightfield run_recovery(const PreparedRecovery& prepared,
-                         const std::function<bool(const StageMetrics&)>& on_step = {},
+Heightfield run_recovery(const PreparedRecovery& prepared, const std::function<bool(const StageMetrics&)>& on_step = {},
                          const Communicator& comm = serial_communicator(), Calibration* calibration = nullptr);
 
 }  // namespace wavebrdf

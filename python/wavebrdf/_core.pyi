@@ -557,6 +557,26 @@ class RecoveryResult:
         the same keys with the true values (else None).
         """
         ...
+    @property
+    def uncertainty(self) -> Any:
+        """with uncertainty=True: sigma of every height (mean removed), um, a float64 array (rows, cols); else None"""
+        ...
+    @property
+    def median_sigma_um(self) -> float:
+        """median of uncertainty (um; NaN without)"""
+        ...
+    @property
+    def coverage_1sigma(self) -> float:
+        """fraction of texels whose error lies within +-1 sigma (NaN without a truth or uncertainty)"""
+        ...
+    @property
+    def coverage_2sigma(self) -> float:
+        """fraction of texels whose error lies within +-2 sigma (NaN without a truth or uncertainty)"""
+        ...
+    @property
+    def uncertainty_seconds(self) -> float:
+        """wall time of the error bars, s (NaN without)"""
+        ...
 
 def add_noise(values: Any, noise: Any, seed: int = ...) -> Any:
     """Simulated measurement noise (noise.h), deterministic in `seed`.
@@ -623,6 +643,18 @@ def height_rel_rmse(estimate: Heightfield, truth: Heightfield) -> float:
 def height_rel_rmse_plane_removed(estimate: Heightfield, truth: Heightfield) -> float:
     """height_rel_rmse with the best-fit plane a + b x + c y (least squares over the texel centres)
     removed from estimate - truth: the error that is not a tilt (a tilt is not observable).
+    """
+    ...
+
+def height_uncertainty(observations: Any, estimate: Heightfield, loss: Any, *, probe_spacing: int = ..., rounds: int = ..., cg_tolerance: float = ..., cg_iterations: int = ..., seed: int = ..., comm: Any = ...) -> numpy.ndarray:
+    """Error bars of `estimate` (a Heightfield recovered from `observations`): the standard deviation
+    of every height (mean removed), um, a float64 array (rows, cols), from the curvature of `loss`
+    (the loss it was fitted with: 'poisson:N' uses the Fisher information of N photons per slice;
+    'amplitude', 'mse', 'cmsle:EPS' a noise variance estimated from the residuals) at the estimate:
+    the diagonal of the inverse Gauss-Newton matrix by coloured probes (texels probe_spacing apart
+    share one, 1...16; rounds sign draws, 1...64) and conjugate gradients (cg_tolerance in (0, 1),
+    cg_iterations 1...10000). comm: None or an mpi4py communicator (observations: this rank's
+    share; every rank gets the same map). uncertainty.h, docs/recovery.md "Error bars".
     """
     ...
 
@@ -753,7 +785,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -793,6 +825,9 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   observations (result.observations: this rank's); the sums are allreduced, every
                   rank gets the same estimate, only rank 0 shows progress (docs/scale.md). The
                   thesis's method runs on one process only.
+    simulator     how a truth's observations are simulated: 'gabor' (the model, default) or
+                  'scalar' (the exact field of the interpolated heights, scalar_diffraction.h;
+                  OHS / ROHS); not with observations
     calibrate     self-calibration, the CLI's --calibrate: None or 'none' (default), 'positions',
                   'exposure', 'sigma' (comma-separated or a sequence), or 'all'; the refined values
                   are in result.calibration
@@ -801,6 +836,9 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
                   log-uniform in (min, max), the true sigma_p this factor times the stated one
                   (0.25...4); the recovery is given the stated acquisition
+    uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
+                  uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
+                  coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...

@@ -116,7 +116,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         csv << m.stage << ',' << m.iteration << ',' << m.loss << ',' << m.seconds << ','
             << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << ','
             << (m.height_rel_rmse_plane_removed >= 0.0 ? std::to_string(m.height_rel_rmse_plane_removed)
-                                                      : std::string("nan"))
+                                                       : std::string("nan"))
             << '\n';
         return on_step ? on_step(m) : true;
     };
@@ -180,9 +180,9 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
     if (write_calibration)
-        write_text_atomically(dir + "/calibration.json",
-                              detail::calibration_json(r.pipeline.calibrate, all_calibration,
-                                                       r.true_calibration ? &all_truth : nullptr));
+        write_text_atomically(
+            dir + "/calibration.json",
+            detail::calibration_json(r.pipeline.calibrate, all_calibration, r.true_calibration ? &all_truth : nullptr));
     if (bars) {
         // Values in µm: vscale 1/texel_um makes a raw value a height in µm.
         write_heightfield_exr(dir + "/uncertainty.exr",

@@ -226,8 +226,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
             }
         }
         if (options.simulator == Simulator::Scalar)
-            r.observations = simulate_scalar_observations(*r.truth, true_plan, options.noise, options.seed, r.share,
-                                                          {}, &progress);
+            r.observations = simulate_scalar_observations(*r.truth, true_plan, options.noise, options.seed, r.share, {},
+                                                          &progress);
         else
             r.observations = comm.size() > 1 || e.any()
                                  ? simulate_observations(*r.truth, true_plan, options.noise, options.seed, r.share,
