@@ -160,13 +160,16 @@ def test_readme_python_example_runs_as_written(fresh_dir, monkeypatch):
     monkeypatch.chdir(fresh_dir)
     namespace = {}
     exec(compile(code, "README.md (python block)", "exec"), namespace)
-    assert len(calls) == 2
+    assert len(calls) == 3
     # What the example computes: a fitted loss below the start's, a torch gradient, a result.
     assert namespace["loss"] < wb.Loss("cmsle:1").value_and_gradient(
         wb.render_slice(np.zeros((16, 16)), **namespace["opts"]), namespace["reference"]
     )[0]
     assert namespace["h"].grad is not None and namespace["h"].grad.shape == (16, 16)
     assert namespace["r2"].estimate.shape == namespace["r"].estimate.shape
+    r3 = namespace["r3"]  # self-calibration and error bars: one exposure per observation, a sigma map
+    assert len(r3.calibration["exposures"]) == len(r3.observations)
+    assert r3.uncertainty.shape == r3.estimate.shape and r3.median_sigma_um > 0
 
 
 def test_repository_cites_no_file_outside_it():
