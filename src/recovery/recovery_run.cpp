@@ -48,12 +48,14 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     }
     constexpr double base = 64e6;  // program, libraries, FFTW plans, per-thread slices
     if (method == RecoveryMethod::Thesis) return base + references + texels * 16.0 * sizeof(double);
-    // Per slice pixel of one wavelength: the field stage's copy of that wavelength's references
-    // (a double), its footprint's float √R and share of the √c1 maps and factor matrices
-    // (shared by the footprints of a u grid: ~16 KB per 48² footprint, about a double per
-    // pixel). The blurred fit's matrices are shared per wavelength and width (small).
+    // Per slice pixel of one wavelength: the field stage's float √R and share of the √c1 maps
+    // and factor matrices (shared by the footprints of a u grid: ~16 KB per 48² footprint, about
+    // a double per pixel), and with position calibration a copy of that wavelength's references
+    // (a double; without it the stage reads them where they are). The blurred fit's matrices
+    // are shared per wavelength and width (small).
+    const double per_pixel = (settings.calibrate.positions ? 2.0 : 1.0) * sizeof(double);
     double largest_stage = 0.0;
-    for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, 2.0 * sizeof(double) * p.second);
+    for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, per_pixel * p.second);
     int refine = settings.refine;
     if (refine <= 0 && lambda_min > 0.0 && texel_um > 0.0) refine = auto_refine(texel_um, lambda_min);
     const double samples = texels * double(std::max(refine, 1)) * double(std::max(refine, 1));
@@ -62,8 +64,7 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     const double refine_history = texels * sizeof(double) * (2.0 * settings.refine_history + 8.0);
     // The refinement keeps one plan per observation between iterations: its footprint's
     // kernels (two ints, seven doubles each, within 3σ_p) and ~2 KB of grids and bookkeeping;
-    // the per-pixel factors are shared (slice_plan.h, release). The field stage holds a copy of
-    // one wavelength's observations (counted in largest_stage's share of references).
+    // the per-pixel factors are shared (slice_plan.h, release).
     double refine_plans = 0.0;
     for (const Observation& o : observations) {
         const double radius_texels = texel_um > 0.0 ? 3.0 * o.query.sigma_p_um / texel_um : 0.0;
