@@ -135,9 +135,20 @@ struct GaussNewtonOperator::Impl {
                 SlicePlan<double>& plan = *plans[i];
                 const std::vector<double>& f0 = slices[i];
                 const std::vector<double>& w = weights[i];
+                // The box texels the slice depends on: those one adjoint (weights 1 … 2, fixed)
+                // writes; the others (the box's corners outside the footprint's kernels and
+                // their neighbours) have J = 0 and need no forward.
+                plan.set_heights(heights);
+                plan.forward();
+                std::vector<double> probe(f0.size()), touched(heights.size(), 0.0);
+                for (std::size_t p = 0; p < f0.size(); ++p) probe[p] = 1.0 + double((p * 2654435761u) % 1024) / 1024.0;
+                plan.adjoint(probe, touched);
                 std::vector<std::size_t> texels;
                 for (int r : box_rows[i])
-                    for (int c : box_cols[i]) texels.push_back(std::size_t(r) * std::size_t(cols) + std::size_t(c));
+                    for (int c : box_cols[i]) {
+                        const std::size_t t = std::size_t(r) * std::size_t(cols) + std::size_t(c);
+                        if (touched[t] != 0.0) texels.push_back(t);
+                    }
                 std::vector<std::size_t> pixels;  // the slice values with a weight
                 for (std::size_t p = 0; p < f0.size(); ++p)
                     if (w[p] > 0.0) pixels.push_back(p);
@@ -155,7 +166,7 @@ struct GaussNewtonOperator::Impl {
                     h[texels[b]] = heights[texels[b]];
                 }
                 plan.release();
-                counted[i] = int(b_count);
+                counted[i] = int(b_count) + 1;
                 double* out = scratch.data();
                 for (std::size_t x = 0; x < b_count; ++x) {
                     const int rx = int(texels[x] / std::size_t(cols)), cx = int(texels[x] % std::size_t(cols));
