@@ -1,7 +1,7 @@
-// Error bars (uncertainty.h): the matrix-free Gauss–Newton product against the dense matrix
-// formed from forward differences of the renderer (no adjoint), the probed diagonal of its
-// inverse against the exact one, and the calibration: over Poisson noise draws the true error
-// of a refined estimate lies within ±2σ for about 95 % of texels.
+// Error bars (uncertainty.h): the matrix-free Gauss–Newton product and the formed (band) G
+// against the dense matrix from central differences of the renderer (no adjoint), the diagonal
+// of its inverse (exact and probed) against the exact one, and the calibration: over Poisson
+// noise draws the true error of a refined estimate lies within ±2σ for about 95 % of texels.
 #include "wavebrdf/uncertainty.h"
 
 #include <gtest/gtest.h>
