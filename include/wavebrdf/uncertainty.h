@@ -16,12 +16,14 @@
 // The mean height (piston) is unobservable (G·1 = 0): the map is for the heights with their
 // mean removed, as height_rel_rmse compares them, i.e. diag(G⁺) on the mean-free subspace.
 //
-// Never formed: a product G·v is one pass over the observations, J·v by a forward difference
-// of the slice plan (double precision) and Jᵀ(W·Jv) by its adjoint. The diagonal of G⁺ by
-// probing: coloured probes (texels whose rows and columns agree modulo `probe_spacing` share a
-// probe, with random signs), each solved by conjugate gradients on the mean-free subspace.
-// A probe's estimate of texel i is exact up to the covariances of i with the texels of its
-// colour (≥ probe_spacing texels away), which decay with distance.
+// G is formed sparse: an observation's J has a column per texel of its footprint's box only,
+// one forward difference of the slice plan (double precision) each, and G = Σ Jᵀ W J is
+// nonzero only between texels that share a box. Up to 4096 texels its pseudo-inverse diagonal
+// is exact (dense Cholesky); above, by probing: coloured probes (texels whose rows and columns
+// agree modulo `probe_spacing` share a probe, with random signs), each solved by conjugate
+// gradients on the mean-free subspace with sparse products. A probe's estimate of texel i is
+// exact up to the covariances of i with the texels of its colour. GaussNewtonOperator::apply
+// keeps the matrix-free product (a forward difference and an adjoint per observation).
 //
 // Under MPI every sum over observations is exact and allreduced (core/exact_sum.h), so every
 // rank computes the same map, the same bits for any number of ranks.
@@ -38,9 +40,13 @@
 namespace wavebrdf {
 
 struct UncertaintySettings {
-    // Coloured probes: texels (i, j) with the same (i mod d, j mod d) share one probe: d² probes
-    // per round (1 … 16).
-    int probe_spacing = 4;
+    // Tiles of at most this many texels (0 … 16384) get the exact diagonal of G⁺: G formed (band()
+    // below) and factored densely (Cholesky, (rows·cols)² doubles, ~(rows·cols)³/3 multiply-adds);
+    // larger tiles are probed (below) on the formed G. 4096: up to 64², 128 MiB.
+    int dense_max_texels = 4096;
+    // Probing (tiles above dense_max_texels): texels (i, j) with the same (i mod d, j mod d) share
+    // one probe: d² probes per round (1 … 16). A product is a sparse multiply by the formed G.
+    int probe_spacing = 8;
     int rounds = 1;              // independent sign draws per colour (1 … 64), averaged
     double cg_tolerance = 1e-2;  // stop a probe's CG when ‖r‖ ≤ this · ‖b‖ (0 < tol < 1)
     int cg_iterations = 60;      // at most this many CG iterations per probe (1 … 10^4)
@@ -49,6 +55,24 @@ struct UncertaintySettings {
     // 1e-16 over it.
     double step_um = 1e-7;
     std::uint64_t seed = 1;  // the probes' signs
+};
+
+// G formed explicitly (1/µm²), sparse: for each texel a, G[a][b] for every texel b that
+// shares an observation's gradient box with a, stored at the offset (Δrow, Δcol) = b − a
+// (wrapped). An axis whose boxes (extent texels) span at least half the tile stores every
+// offset 0 … size − 1 (full), else −(extent − 1) … extent − 1.
+struct GaussNewtonBand {
+    int rows = 0, cols = 0;
+    int extent_rows = 0, extent_cols = 0;  // the largest gradient box, texels
+    bool full_rows = false, full_cols = false;
+    int offset_rows = 0, offset_cols = 0;  // offsets stored per axis
+    std::vector<double> values;            // rows·cols · offset_rows·offset_cols, 1/µm²
+    std::int64_t forwards = 0;             // forward passes forming it took (all ranks)
+    std::size_t width() const { return std::size_t(offset_rows) * std::size_t(offset_cols); }
+    // G·v (v: rows·cols heights in µm; std::invalid_argument on a size mismatch).
+    std::vector<double> multiply(const std::vector<double>& v) const;
+    // G as a dense (rows·cols)² row-major matrix (OutOfMemory when it does not fit).
+    std::vector<double> dense() const;
 };
 
 // The linearised problem at a solution: G·v without forming G (the header's comment).
@@ -76,6 +100,9 @@ public:
     // The variance σ² the weights were divided by (1 for poisson: the Fisher information is
     // absolute), in the loss's variable (amplitude: √slice units; mse: slice units; cmsle: log).
     double noise_variance() const;
+    // G formed (GaussNewtonBand): one forward pass per texel of each observation's gradient box,
+    // then Jᵀ W J over its slice values, exact sums (collective: the same bits on every rank).
+    GaussNewtonBand band() const;
     // The slice values the variance was estimated from (all ranks), less the texels − 1
     // free heights (0 for poisson).
     double degrees_of_freedom() const;
@@ -90,8 +117,10 @@ private:
 struct HeightUncertainty {
     std::vector<double> sigma_um;          // rows·cols, row-major: σ of each height (mean removed), µm
     double noise_variance = 1.0;           // GaussNewtonOperator::noise_variance
-    int probes = 0;                        // CG solves
-    int products = 0;                      // passes over the observations (G·v for all active probes)
+    bool exact = false;                    // the exact diagonal (dense_max_texels), else probed
+    std::int64_t forwards = 0;             // forward passes over observations forming G (all ranks)
+    int probes = 0;                        // CG solves (0 when exact)
+    int products = 0;                      // products by the formed G (all active probes at once)
     int max_cg_iterations = 0;             // the most any probe needed
     double worst_relative_residual = 0.0;  // the largest ‖r‖/‖b‖ a probe ended with
     // Texels whose probed variance came out ≤ 0 (a probing error larger than the variance):
@@ -100,7 +129,9 @@ struct HeightUncertainty {
 };
 
 // The standard deviations (µm) of `estimate`'s heights, mean removed, under the loss's noise
-// model (the header's comment), by coloured probes and CG (settings). Collective under MPI:
+// model (the header's comment): G formed (GaussNewtonOperator::band), then its exact
+// pseudo-inverse diagonal (dense Cholesky of G + c·11ᵀ/n) up to settings.dense_max_texels,
+// coloured probes and CG on the formed G above. Collective under MPI:
 // the same map on every rank. Throws as GaussNewtonOperator and std::domain_error for settings
 // outside their ranges (naming the value).
 HeightUncertainty height_uncertainty(const std::vector<Observation>& observations, const Heightfield& estimate,

@@ -646,13 +646,15 @@ def height_rel_rmse_plane_removed(estimate: Heightfield, truth: Heightfield) -> 
     """
     ...
 
-def height_uncertainty(observations: Any, estimate: Heightfield, loss: Any, *, probe_spacing: int = ..., rounds: int = ..., cg_tolerance: float = ..., cg_iterations: int = ..., seed: int = ..., comm: Any = ...) -> numpy.ndarray:
+def height_uncertainty(observations: Any, estimate: Heightfield, loss: Any, *, probe_spacing: int = ..., rounds: int = ..., cg_tolerance: float = ..., cg_iterations: int = ..., seed: int = ..., dense_max_texels: int = ..., comm: Any = ...) -> numpy.ndarray:
     """Error bars of `estimate` (a Heightfield recovered from `observations`): the standard deviation
     of every height (mean removed), um, a float64 array (rows, cols), from the curvature of `loss`
     (the loss it was fitted with: 'poisson:N' uses the Fisher information of N photons per slice;
     'amplitude', 'mse', 'cmsle:EPS' a noise variance estimated from the residuals) at the estimate:
-    the diagonal of the inverse Gauss-Newton matrix by coloured probes (texels probe_spacing apart
-    share one, 1...16; rounds sign draws, 1...64) and conjugate gradients (cg_tolerance in (0, 1),
+    the diagonal of the inverse Gauss-Newton matrix G, formed sparse (one forward difference per
+    texel of each observation's footprint): exact (dense Cholesky) up to dense_max_texels texels
+    (0...16384), above by coloured probes (texels probe_spacing apart share one, 1...16; rounds
+    sign draws, 1...64) and conjugate gradients on the formed G (cg_tolerance in (0, 1),
     cg_iterations 1...10000). comm: None or an mpi4py communicator (observations: this rank's
     share; every rank gets the same map). uncertainty.h, docs/recovery.md "Error bars".
     """

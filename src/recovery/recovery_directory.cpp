@@ -191,6 +191,8 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         write_npy(dir + "/uncertainty_height.npy", height_shape, bars->map.sigma_um);
         nlohmann::json summary = {{"median_sigma_um", bars->median_sigma_um},
                                   {"seconds", bars->seconds},
+                                  {"exact", bars->map.exact},
+                                  {"forwards", bars->map.forwards},
                                   {"probes", bars->map.probes},
                                   {"products", bars->map.products},
                                   {"max_cg_iterations", bars->map.max_cg_iterations},

@@ -8,8 +8,10 @@
 #include <string>
 
 #include "core/exact_sum.h"
+#include "core/parallel.h"
 #include "core/random.h"
 #include "wavebrdf/gabor.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf {
@@ -35,6 +37,13 @@ double dot(const std::vector<double>& a, const std::vector<double>& b) {
     double s = 0.0;
     for (std::size_t k = 0; k < a.size(); ++k) s += a[k] * b[k];
     return s;
+}
+
+// The stored offset of b − a ≡ d (mod size, 0 … size − 1) along one axis of a band.
+int band_offset(int d, int size, int extent, bool full) {
+    if (full) return d;
+    if (d > size / 2) d -= size;
+    return d + extent - 1;
 }
 
 }  // namespace
@@ -91,6 +100,107 @@ struct GaussNewtonOperator::Impl {
         for (std::size_t k = 0; k < count; ++k)
             out[k].assign(all.begin() + std::ptrdiff_t(k * n), all.begin() + std::ptrdiff_t((k + 1) * n));
         return out;
+    }
+
+    // G formed (normalised, raw units; GaussNewtonOperator::band scales it): J of one observation
+    // by one forward difference per texel of its box (its columns), then Jᵀ W J over its slice
+    // values, exact sums over the observations and the ranks.
+    GaussNewtonBand form_band() const {
+        GaussNewtonBand band;
+        band.rows = rows;
+        band.cols = cols;
+        // The largest box extents over all ranks' observations (one-hot counts summed).
+        std::vector<double> extents(std::size_t(rows + cols + 2), 0.0);
+        for (std::size_t i = 0; i < plans.size(); ++i) {
+            extents[box_rows[i].size()] += 1.0;
+            extents[std::size_t(rows) + 1 + box_cols[i].size()] += 1.0;
+        }
+        comm->allreduce_sum(extents);
+        for (int e = 0; e <= rows; ++e)
+            if (extents[std::size_t(e)] > 0.0) band.extent_rows = e;
+        for (int e = 0; e <= cols; ++e)
+            if (extents[std::size_t(rows) + 1 + std::size_t(e)] > 0.0) band.extent_cols = e;
+        band.full_rows = 2 * band.extent_rows - 1 >= rows;
+        band.full_cols = 2 * band.extent_cols - 1 >= cols;
+        band.offset_rows = band.full_rows ? rows : std::max(1, 2 * band.extent_rows - 1);
+        band.offset_cols = band.full_cols ? cols : std::max(1, 2 * band.extent_cols - 1);
+        const std::size_t n = std::size_t(rows) * std::size_t(cols), width = band.width();
+        const double bytes = double(n) * double(width) * (16.0 + 8.0 * (1 + omp_get_max_threads()));
+        detail::ExactParallelSum sum = allocating("the Gauss-Newton band", bytes, [&] {
+            return detail::ExactParallelSum(n * width, k_product_fraction_bits);
+        });
+        std::vector<int> counted(plans.size(), 0);
+        run_agreed(*comm, [&] {
+            sum.run_local(plans.size(), [&](std::size_t i, detail::ExactScratch& scratch) {
+                SlicePlan<double>& plan = *plans[i];
+                const std::vector<double>& f0 = slices[i];
+                const std::vector<double>& w = weights[i];
+                // The box texels the slice depends on: those one adjoint (weights 1 … 2, fixed)
+                // writes; the others (the box's corners outside the footprint's kernels and
+                // their neighbours) have J = 0 and need no forward.
+                plan.set_heights(heights);
+                plan.forward();
+                std::vector<double> probe(f0.size()), touched(heights.size(), 0.0);
+                for (std::size_t p = 0; p < f0.size(); ++p) probe[p] = 1.0 + double((p * 2654435761u) % 1024) / 1024.0;
+                plan.adjoint(probe, touched);
+                std::vector<std::size_t> texels;
+                for (int r : box_rows[i])
+                    for (int c : box_cols[i]) {
+                        const std::size_t t = std::size_t(r) * std::size_t(cols) + std::size_t(c);
+                        if (touched[t] != 0.0) texels.push_back(t);
+                    }
+                std::vector<std::size_t> pixels;  // the slice values with a weight
+                for (std::size_t p = 0; p < f0.size(); ++p)
+                    if (w[p] > 0.0) pixels.push_back(p);
+                const std::size_t b_count = texels.size(), m = pixels.size();
+                std::vector<double> a = allocating("an observation's Jacobian", 8.0 * double(b_count) * double(m),
+                                                   [&] { return std::vector<double>(b_count * m); });
+                std::vector<double> h = heights;
+                for (std::size_t b = 0; b < b_count; ++b) {  // √W · J, one column per box texel
+                    h[texels[b]] = heights[texels[b]] + step_raw;
+                    plan.set_heights(h);
+                    const std::vector<double>& f = plan.forward();
+                    double* row = a.data() + b * m;
+                    for (std::size_t q = 0; q < m; ++q)
+                        row[q] = std::sqrt(w[pixels[q]]) * ((f[pixels[q]] - f0[pixels[q]]) / step_raw);
+                    h[texels[b]] = heights[texels[b]];
+                }
+                plan.release();
+                counted[i] = int(b_count) + 1;
+                double* out = scratch.data();
+                for (std::size_t x = 0; x < b_count; ++x) {
+                    const int rx = int(texels[x] / std::size_t(cols)), cx = int(texels[x] % std::size_t(cols));
+                    const double* ax = a.data() + x * m;
+                    for (std::size_t y = x; y < b_count; ++y) {
+                        const double* ay = a.data() + y * m;
+                        double g = 0.0;  // vectorised: a fixed order per build, the same on every rank
+#pragma omp simd reduction(+ : g)
+                        for (std::size_t q = 0; q < m; ++q) g += ax[q] * ay[q];
+                        const int ry = int(texels[y] / std::size_t(cols)), cy = int(texels[y] % std::size_t(cols));
+                        const int dr = (ry - rx + rows) % rows, dc = (cy - cx + cols) % cols;
+                        out[texels[x] * width +
+                            std::size_t(band_offset(dr, rows, band.extent_rows, band.full_rows)) *
+                                std::size_t(band.offset_cols) +
+                            std::size_t(band_offset(dc, cols, band.extent_cols, band.full_cols))] += g;
+                        if (y == x) continue;
+                        out[texels[y] * width +
+                            std::size_t(band_offset((rows - dr) % rows, rows, band.extent_rows, band.full_rows)) *
+                                std::size_t(band.offset_cols) +
+                            std::size_t(band_offset((cols - dc) % cols, cols, band.extent_cols, band.full_cols))] += g;
+                    }
+                }
+                scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols), int(width));
+                return 0.0;
+            });
+        });
+        std::vector<double> total_forwards{0.0};
+        for (int c : counted) total_forwards[0] += double(c);
+        comm->allreduce_sum(total_forwards);
+        band.forwards = std::int64_t(total_forwards[0]);
+        sum.total().allreduce(*comm);
+        band.values.resize(n * width);
+        sum.total().take_values(band.values.data(), n * width);
+        return band;
     }
 };
 
@@ -237,6 +347,115 @@ double GaussNewtonOperator::degrees_of_freedom() const { return m_impl->dof; }
 int GaussNewtonOperator::rows() const { return m_impl->rows; }
 int GaussNewtonOperator::cols() const { return m_impl->cols; }
 
+GaussNewtonBand GaussNewtonOperator::band() const {
+    const Impl& m = *m_impl;
+    GaussNewtonBand band = m.form_band();
+    const double to = m.scale / (m.to_um * m.to_um);  // normalised raw units → 1/µm²
+    for (double& x : band.values) x *= to;
+    return band;
+}
+
+std::vector<double> GaussNewtonBand::multiply(const std::vector<double>& v) const {
+    const std::size_t n = std::size_t(rows) * std::size_t(cols), w = width();
+    if (v.size() != n)
+        throw std::invalid_argument("GaussNewtonBand::multiply: " + std::to_string(v.size()) + " values; expected " +
+                                    std::to_string(n));
+    std::vector<double> out(n, 0.0);
+    const int lo_r = full_rows ? 0 : -(extent_rows - 1), lo_c = full_cols ? 0 : -(extent_cols - 1);
+    const bool parallel = detail::worth_parallel(double(n) * double(w));
+#pragma omp parallel for schedule(static) if (parallel)
+    for (int r = 0; r < rows; ++r)
+        for (int c = 0; c < cols; ++c) {
+            const std::size_t a = std::size_t(r) * std::size_t(cols) + std::size_t(c);
+            const double* g = values.data() + a * w;
+            double sum = 0.0;
+            for (int i = 0; i < offset_rows; ++i) {
+                const std::size_t rb = std::size_t(((r + lo_r + i) % rows + rows) % rows) * std::size_t(cols);
+                for (int j = 0; j < offset_cols; ++j)
+                    sum += g[std::size_t(i) * std::size_t(offset_cols) + std::size_t(j)] *
+                           v[rb + std::size_t(((c + lo_c + j) % cols + cols) % cols)];
+            }
+            out[a] = sum;
+        }
+    return out;
+}
+
+std::vector<double> GaussNewtonBand::dense() const {
+    const std::size_t n = std::size_t(rows) * std::size_t(cols), w = width();
+    std::vector<double> g = allocating("a dense Gauss-Newton matrix", 8.0 * double(n) * double(n),
+                                       [&] { return std::vector<double>(n * n); });
+    const int lo_r = full_rows ? 0 : -(extent_rows - 1), lo_c = full_cols ? 0 : -(extent_cols - 1);
+    for (int r = 0; r < rows; ++r)
+        for (int c = 0; c < cols; ++c) {
+            const std::size_t a = std::size_t(r) * std::size_t(cols) + std::size_t(c);
+            for (int i = 0; i < offset_rows; ++i)
+                for (int j = 0; j < offset_cols; ++j) {
+                    const std::size_t b = std::size_t(((r + lo_r + i) % rows + rows) % rows) * std::size_t(cols) +
+                                          std::size_t(((c + lo_c + j) % cols + cols) % cols);
+                    g[a * n + b] += values[a * w + std::size_t(i) * std::size_t(offset_cols) + std::size_t(j)];
+                }
+        }
+    return g;
+}
+
+namespace {
+
+// diag(G⁺) on the mean-free subspace of a dense symmetric G (n², G·1 = 0, positive on the rest):
+// A = G + c·11ᵀ/n (c the mean diagonal) is positive definite, A⁻¹ = G⁺ + 11ᵀ/(n c), so
+// diag(G⁺)_i = ‖L⁻¹ e_i‖² − 1/(n c) with A = L Lᵀ. Each dot product runs on one thread in a
+// fixed order: the same bits for any thread count. Throws std::domain_error when A is not
+// positive definite (a direction without curvature: a texel no observation sees).
+std::vector<double> dense_pseudo_inverse_diagonal(std::vector<double> g, std::size_t n) {
+    double c = 0.0;
+    for (std::size_t a = 0; a < n; ++a) c += g[a * n + a];
+    c /= double(n);
+    if (!(c > 0.0) || !std::isfinite(c))
+        throw std::domain_error("height uncertainty: the Gauss-Newton matrix has mean diagonal " + std::to_string(c) +
+                                "; expected > 0");
+    for (double& x : g) x += c / double(n);
+    // Cholesky in place, lower triangle, row-major (row i's prefix · row j's prefix).
+    const bool parallel = detail::worth_parallel(double(n) * double(n) * double(n) / 6.0);
+    for (std::size_t j = 0; j < n; ++j) {
+        double* lj = g.data() + j * n;
+        double d = lj[j];
+        for (std::size_t k = 0; k < j; ++k) d -= lj[k] * lj[k];
+        if (!(d > 0.0))
+            throw std::domain_error("height uncertainty: the Gauss-Newton matrix is singular at texel " +
+                                    std::to_string(j) + " (pivot " + std::to_string(d) +
+                                    "); expected every texel seen by an observation");
+        const double ljj = std::sqrt(d);
+        lj[j] = ljj;
+#pragma omp parallel for schedule(static) if (parallel && n - j > 64)
+        for (std::size_t i = j + 1; i < n; ++i) {
+            double* li = g.data() + i * n;
+            double s = li[j];
+            for (std::size_t k = 0; k < j; ++k) s -= li[k] * lj[k];
+            li[j] = s / ljj;
+        }
+    }
+    // x = L⁻¹ e_i (zero above i) by forward substitution; diag(A⁻¹)_i = ‖x‖².
+    std::vector<double> diag(n, 0.0);
+#pragma omp parallel if (parallel)
+    {
+        std::vector<double> x(n);
+#pragma omp for schedule(dynamic, 8)
+        for (std::size_t i = 0; i < n; ++i) {
+            double norm = 0.0;
+            for (std::size_t r = i; r < n; ++r) {
+                const double* lr = g.data() + r * n;
+                double s = r == i ? 1.0 : 0.0;
+                for (std::size_t k = i; k < r; ++k) s -= lr[k] * x[k];
+                x[r] = s / lr[r];
+                norm += x[r] * x[r];
+            }
+            diag[i] = norm - 1.0 / (double(n) * c);
+        }
+    }
+    return diag;
+}
+
+}  // namespace
+
 HeightUncertainty height_uncertainty(const std::vector<Observation>& observations, const Heightfield& estimate,
                                      const Loss& loss, const UncertaintySettings& settings, const Communicator& comm) {
     const int d = settings.probe_spacing;
@@ -252,85 +471,109 @@ HeightUncertainty height_uncertainty(const std::vector<Observation>& observation
     if (settings.cg_iterations < 1 || settings.cg_iterations > 10000)
         throw std::domain_error("height uncertainty: CG iterations " + std::to_string(settings.cg_iterations) +
                                 " is invalid; expected 1 to 10000");
+    if (settings.dense_max_texels < 0 || settings.dense_max_texels > 16384)
+        throw std::domain_error("height uncertainty: dense_max_texels " + std::to_string(settings.dense_max_texels) +
+                                " is invalid; expected 0 to 16384");
     const GaussNewtonOperator op(observations, estimate, loss, settings.step_um, comm);
     const int rows = estimate.rows(), cols = estimate.cols();
     const std::size_t n = std::size_t(rows) * std::size_t(cols);
-
-    // The probes: colour (i mod d, j mod d) with random signs, `rounds` draws of each colour.
-    std::vector<std::vector<double>> z;
-    std::mt19937_64 rng(detail::derive_seed(settings.seed, 0x756e63));  // "unc"
-    for (int round = 0; round < settings.rounds; ++round)
-        for (int a = 0; a < std::min(d, rows); ++a)
-            for (int b = 0; b < std::min(d, cols); ++b) {
-                std::vector<double> v(n, 0.0);
-                for (int i = a; i < rows; i += d)
-                    for (int j = b; j < cols; j += d) v[std::size_t(i) * cols + j] = (rng() >> 63) ? 1.0 : -1.0;
-                z.push_back(std::move(v));
-            }
-    const std::size_t probes = z.size();
-
-    // CG on the mean-free subspace, G in µm units (op.apply), every probe at once.
+    const GaussNewtonBand g = op.band();
     HeightUncertainty result;
     result.noise_variance = op.noise_variance();
-    result.probes = int(probes);
-    std::vector<std::vector<double>> x(probes, std::vector<double>(n, 0.0)), r(probes), p(probes);
-    std::vector<double> rr(probes), b_norm(probes);
-    std::vector<int> iterations(probes, 0);
-    std::vector<bool> active(probes, true);
-    for (std::size_t k = 0; k < probes; ++k) {
-        r[k] = z[k];
-        remove_mean(r[k]);
-        p[k] = r[k];
-        rr[k] = dot(r[k], r[k]);
-        b_norm[k] = std::sqrt(rr[k]);
-        if (!(b_norm[k] > 0.0)) active[k] = false;  // a 1×1 tile: nothing to resolve
-    }
-    for (int it = 0; it < settings.cg_iterations; ++it) {
-        std::vector<std::size_t> live;
-        for (std::size_t k = 0; k < probes; ++k)
-            if (active[k]) live.push_back(k);
-        if (live.empty()) break;
-        std::vector<std::vector<double>> directions;
-        for (std::size_t k : live) directions.push_back(p[k]);
-        std::vector<std::vector<double>> q = op.apply(directions);
-        ++result.products;
-        for (std::size_t a = 0; a < live.size(); ++a) {
-            const std::size_t k = live[a];
-            remove_mean(q[a]);  // P G P: the piston is no direction of the solve
-            const double pq = dot(p[k], q[a]);
-            if (!(pq > 0.0)) {  // no curvature left along p: stop this probe
-                active[k] = false;
-                continue;
-            }
-            const double alpha = rr[k] / pq;
-            for (std::size_t t = 0; t < n; ++t) {
-                x[k][t] += alpha * p[k][t];
-                r[k][t] -= alpha * q[a][t];
-            }
-            const double rr_new = dot(r[k], r[k]);
-            iterations[k] = it + 1;
-            if (std::sqrt(rr_new) <= settings.cg_tolerance * b_norm[k]) {
-                active[k] = false;
-                rr[k] = rr_new;
-                continue;
-            }
-            const double beta = rr_new / rr[k];
-            rr[k] = rr_new;
-            for (std::size_t t = 0; t < n; ++t) p[k][t] = r[k][t] + beta * p[k][t];
-        }
-    }
-    // diag(G⁺)_i ≈ z_i x_i over the probes that hold i, averaged over the rounds.
+    result.forwards = g.forwards;
     std::vector<double> diag(n, 0.0);
-    for (std::size_t k = 0; k < probes; ++k) {
-        result.max_cg_iterations = std::max(result.max_cg_iterations, iterations[k]);
-        if (b_norm[k] > 0.0)
-            result.worst_relative_residual = std::max(result.worst_relative_residual, std::sqrt(rr[k]) / b_norm[k]);
-        for (std::size_t t = 0; t < n; ++t) diag[t] += z[k][t] * x[k][t];
+    int rounds = 1;
+    if (n <= std::size_t(settings.dense_max_texels)) {
+        result.exact = true;
+        if (n > 1) diag = dense_pseudo_inverse_diagonal(g.dense(), n);
+    } else {
+        rounds = settings.rounds;
+        // The probes: colour (i mod d, j mod d) with random signs, `rounds` draws of each colour.
+        std::vector<std::vector<double>> z;
+        std::mt19937_64 rng(detail::derive_seed(settings.seed, 0x756e63));  // "unc"
+        for (int round = 0; round < settings.rounds; ++round)
+            for (int a = 0; a < std::min(d, rows); ++a)
+                for (int b = 0; b < std::min(d, cols); ++b) {
+                    std::vector<double> v(n, 0.0);
+                    for (int i = a; i < rows; i += d)
+                        for (int j = b; j < cols; j += d) v[std::size_t(i) * cols + j] = (rng() >> 63) ? 1.0 : -1.0;
+                    z.push_back(std::move(v));
+                }
+        const std::size_t probes = z.size();
+        // CG on the mean-free subspace, Jacobi-preconditioned (the diagonal of the formed G).
+        result.probes = int(probes);
+        std::vector<double> inv_diag(n, 1.0);
+        {
+            const int lo_r = g.full_rows ? 0 : g.extent_rows - 1, lo_c = g.full_cols ? 0 : g.extent_cols - 1;
+            const std::size_t self = std::size_t(lo_r) * std::size_t(g.offset_cols) + std::size_t(lo_c);
+            for (std::size_t t = 0; t < n; ++t) {
+                const double gt = g.values[t * g.width() + self];
+                inv_diag[t] = gt > 0.0 ? 1.0 / gt : 1.0;
+            }
+        }
+        const auto precondition = [&](const std::vector<double>& r) {
+            std::vector<double> out(n);
+            for (std::size_t t = 0; t < n; ++t) out[t] = inv_diag[t] * r[t];
+            remove_mean(out);
+            return out;
+        };
+        std::vector<std::vector<double>> x(probes, std::vector<double>(n, 0.0)), r(probes), p(probes);
+        std::vector<double> rz(probes), b_norm(probes), r_norm(probes);
+        std::vector<int> iterations(probes, 0);
+        std::vector<bool> active(probes, true);
+        for (std::size_t k = 0; k < probes; ++k) {
+            r[k] = z[k];
+            remove_mean(r[k]);
+            p[k] = precondition(r[k]);
+            rz[k] = dot(r[k], p[k]);
+            b_norm[k] = std::sqrt(dot(r[k], r[k]));
+            r_norm[k] = b_norm[k];
+            if (!(b_norm[k] > 0.0)) active[k] = false;  // a 1×1 tile: nothing to resolve
+        }
+        for (int it = 0; it < settings.cg_iterations; ++it) {
+            bool any = false;
+            for (std::size_t k = 0; k < probes; ++k) {
+                if (!active[k]) continue;
+                any = true;
+                std::vector<double> q = g.multiply(p[k]);
+                remove_mean(q);  // P G P: the piston is no direction of the solve
+                const double pq = dot(p[k], q);
+                if (!(pq > 0.0)) {  // no curvature left along p: stop this probe
+                    active[k] = false;
+                    continue;
+                }
+                const double alpha = rz[k] / pq;
+                for (std::size_t t = 0; t < n; ++t) {
+                    x[k][t] += alpha * p[k][t];
+                    r[k][t] -= alpha * q[t];
+                }
+                iterations[k] = it + 1;
+                r_norm[k] = std::sqrt(dot(r[k], r[k]));
+                if (r_norm[k] <= settings.cg_tolerance * b_norm[k]) {
+                    active[k] = false;
+                    continue;
+                }
+                const std::vector<double> zk = precondition(r[k]);
+                const double rz_new = dot(r[k], zk);
+                const double beta = rz_new / rz[k];
+                rz[k] = rz_new;
+                for (std::size_t t = 0; t < n; ++t) p[k][t] = zk[t] + beta * p[k][t];
+            }
+            if (!any) break;
+            ++result.products;
+        }
+        // diag(G⁺)_i ≈ z_i x_i over the probes that hold i, averaged over the rounds.
+        for (std::size_t k = 0; k < probes; ++k) {
+            result.max_cg_iterations = std::max(result.max_cg_iterations, iterations[k]);
+            if (b_norm[k] > 0.0)
+                result.worst_relative_residual = std::max(result.worst_relative_residual, r_norm[k] / b_norm[k]);
+            for (std::size_t t = 0; t < n; ++t) diag[t] += z[k][t] * x[k][t];
+        }
     }
     std::vector<double> filled = diag;
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j) {
-            if (diag[std::size_t(i) * cols + j] > 0.0) continue;
+            if (diag[std::size_t(i) * cols + j] > 0.0 || n == 1) continue;
             double sum = 0.0, count = 0.0;
             for (int a = -1; a <= 1; ++a)
                 for (int b = -1; b <= 1; ++b) {
@@ -346,7 +589,7 @@ HeightUncertainty height_uncertainty(const std::vector<Observation>& observation
         }
     diag = std::move(filled);
     result.sigma_um.resize(n);
-    for (std::size_t t = 0; t < n; ++t) result.sigma_um[t] = std::sqrt(std::max(diag[t], 0.0) / settings.rounds);
+    for (std::size_t t = 0; t < n; ++t) result.sigma_um[t] = std::sqrt(std::max(diag[t], 0.0) / rounds);
     return result;
 }
 
