@@ -130,7 +130,7 @@ TEST(FieldModelLoss, MatchesAnIndependentEvaluationAndFiniteDifferences) {
     }
     for (bool exposure : {false, true}) {
         const detail::FieldModelLoss loss(pointers(observations), queries_of(observations), n, n, 2.0, refine, exposure,
-                                          serial_communicator());
+                                          serial_communicator(), detail::Interpolant::Cubic, false);
         std::vector<double> g;
         const double value = loss(h, &g);
         if (!exposure) EXPECT_NEAR(value, num / den, 1e-5 * num / den);  // the products in single precision

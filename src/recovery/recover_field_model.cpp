@@ -156,6 +156,7 @@ struct FieldModelLoss::Impl {
         double outside = 0.0;      // Σ R beyond the box
         int lambda = 0;            // index into lambdas
         double k = 0.0;            // 4π/λ (1/µm)
+        double scale = 1.0;        // of the field (the window's integral)
     };
     std::vector<Slice> slices;
     std::vector<double> lambdas;
@@ -178,7 +179,7 @@ struct FieldModelLoss::Impl {
 
 FieldModelLoss::FieldModelLoss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
                                int rows, int cols, double texel_um, int refine, bool calibrate_exposure,
-                               const Communicator& comm, Interpolant interpolant)
+                               const Communicator& comm, Interpolant interpolant, bool gabor_window)
     : m_impl(std::make_unique<Impl>(rows, cols, texel_um, refine, interpolant)) {
     check_inputs(observations, queries, "FieldModelLoss");
     Impl& s = *m_impl;
@@ -196,7 +197,13 @@ FieldModelLoss::FieldModelLoss(const std::vector<const Observation*>& observatio
             const Observation& o = *observations[i];
             const double lambda = o.lambdas_um[0];
             Impl::Slice& slice = s.slices[i];
-            slice.op = std::make_unique<FieldOperator>(rows, cols, texel_um, queries[i], lambda, o.resolution, refine);
+            Query query = queries[i];
+            if (gabor_window) {
+                const double d = texel_um / refine, sigma = query.sigma_p_um;
+                query.sigma_p_um = std::sqrt(sigma * sigma + 0.25 * (texel_um * texel_um - d * d));
+                slice.scale = sigma / query.sigma_p_um;
+            }
+            slice.op = std::make_unique<FieldOperator>(rows, cols, texel_um, query, lambda, o.resolution, refine);
             slice.lambda = int(std::lower_bound(s.lambdas.begin(), s.lambdas.end(), lambda) - s.lambdas.begin());
             slice.k = 4.0 * k_pi / lambda;
             int a0 = 0, b0 = 0;
@@ -240,7 +247,8 @@ double FieldModelLoss::operator()(const std::vector<double>& heights_um, std::ve
             const Impl::Slice& slice = s.slices[i];
             const std::vector<std::complex<double>>& object = s.objects[std::size_t(slice.lambda)];
             int a0 = 0, b0 = 0;
-            const Eigen::MatrixXd& amp = field_amplitude_box(*slice.op, a0, b0);
+            const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
+            const Eigen::MatrixXd amp = slice.scale * amp_box;
             field_forward_unphased(*slice.op, object.data(), psi);
             g.resize(psi.rows(), psi.cols());
             double v = slice.outside, root_exposure = 1.0, model_total = 0.0;

@@ -51,7 +51,11 @@ private:
 //   L(H) = Σ_slices [Σ_box (√(e) √c1 |F_o e^{−i(4π/λ_o) H̃}| − √R)² + Σ_outside R] / Σ R,
 // H̃ = HeightInterpolant(H), F_o the observation's FieldOperator (its query as given in
 // `queries`, e.g. with calibrated positions and σ_p), e its exposure (the energy ratio Σ R /
-// Σ c1|F O|², with its gradient) when calibrate_exposure, else 1. Collective: every sum over
+// Σ c1|F O|², with its gradient) when calibrate_exposure, else 1. With gabor_window the
+// footprint window is the Gabor model's (render_slice's): its kernels, spaced w and each
+// spread by G(·, w/2), make a Gaussian of σ² = σ_p² + w²/4 (up to ripples below 1 %), where
+// FieldOperator's, spaced d = w/refine, make one of σ_p² + d²/4; so F_o is built with
+// σ'² = σ_p² + (w² − d²)/4 and its field scaled by σ_p/σ' (the same integral). Collective: every sum over
 // the observations is exact (core/exact_sum.h), so the value and gradient are the same bits
 // for any thread count and split over ranks.
 class FieldModelLoss {
@@ -61,7 +65,7 @@ public:
     // references are all zero.
     FieldModelLoss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries, int rows,
                    int cols, double texel_um, int refine, bool calibrate_exposure, const Communicator& comm,
-                   Interpolant interpolant = Interpolant::Cubic);
+                   Interpolant interpolant = Interpolant::Cubic, bool gabor_window = true);
     ~FieldModelLoss();
     // L at texel heights_um (rows·cols, µm); gradient (when given) ∂L/∂H (1/µm).
     double operator()(const std::vector<double>& heights_um, std::vector<double>* gradient) const;
