@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
-#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
@@ -376,9 +375,8 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
     const bool exposure = settings.calibrate.exposure;
     const double gabor = gabor_amplitude_loss(separable, queries, refined, exposure, comm);
     if (!report("misfit:gabor", 0, gabor, &refined)) return refined;
-    const char* kind = std::getenv("WAVEBRDF_MODEL_CHECK_INTERPOLANT");  // TEMP measuring
     const FieldModelLoss model(separable, queries, refined.rows(), refined.cols(), refined.texel_um(), refine, exposure,
-                               comm, kind && std::string(kind) == "blend" ? Interpolant::Blend : Interpolant::Cubic);
+                               comm);
     bool go_on = true;
     double field = 0.0;
     const Heightfield in_field = refine_in_field_model(
