@@ -155,7 +155,7 @@ struct ScalarCase {
 };
 
 // A smooth ±0.5 µm surface (correlation 8 µm, 12², texel 2 µm) seen at 6 × 6 jittered
-// positions (σ_p = 3 µm, 78 % overlap) and two wavelengths, 48² slices simulated by
+// positions (σ_p = 3 µm, 78 % overlap) and two wavelengths, 32² slices simulated by
 // `simulator` (recover_test's small case).
 ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
     SurfaceParams p;
@@ -180,7 +180,7 @@ ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
                 o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step,
                                            3.0);
                 o.lambdas_um = {lambda};
-                o.resolution = 48;
+                o.resolution = 32;
                 o.reference = simulator == Simulator::Scalar ? scalar_slice(c.truth, o.query, lambda, o.resolution)
                                                              : render_observation(c.truth, o);
                 c.observations.push_back(std::move(o));
