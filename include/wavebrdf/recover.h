@@ -226,11 +226,22 @@ struct RecoverSettings {
     Loss refine_loss{LossKind::Amplitude, 1.0};
     // Self-calibration (calibration.h): parts of the acquisition refined with the heights.
     CalibrationSettings calibrate;
+    // Model check (docs/recovery.md, "Model robustness"): after stage 3 the unwrapped heights
+    // are refined as well in the field model (the zero-slope field on the fine grid of stage 1:
+    // a scalar-diffraction model, not the Gabor expansion) for up to this many L-BFGS
+    // iterations (stopping as the field stage does: field.stall_window, stall_tolerance), and
+    // the heights whose own model explains the single-wavelength OHS / ROHS slices better
+    // (relative amplitude loss, "misfit:gabor" / "misfit:field" in the metrics) are returned.
+    // 0: off (stage 3's heights).
+    int model_check_iterations = 40;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,
 // iterations), "blur" (its result), "field:λ" (iterations, then with cascading its result
-// after unwrapping), "unwrap", "refine".
+// after unwrapping), "unwrap", "refine", then with the model check (model_check_iterations)
+// "refine:field" (iterations), "misfit:gabor" and "misfit:field" (loss: each model's relative
+// amplitude loss on the single-wavelength slices at its heights) and "select:gabor" or
+// "select:field" (the heights returned).
 struct StageMetrics {
     std::string stage;
     int iteration = 0;

@@ -19,6 +19,7 @@
 #include "core/parallel.h"
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
+#include "recovery/recover_field_model.h"
 
 namespace wavebrdf {
 
@@ -233,11 +234,16 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
 
     // Stage 3: the full model (with the positions refined as well: recover_positions.h).
+    const Heightfield unwrapped = estimate;
+    std::vector<std::array<double, 2>> refined_offsets;  // per observation (positions calibrated)
+    double refined_sigma_scale = 1.0;
     if (settings.refine_iterations > 0 && settings.calibrate.positions) {
         std::vector<std::array<double, 2>> offsets;
         std::vector<double> exposures;
         estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
                                                         report, comm, offsets, offsets_um, &exposures);
+        if (stopped) return estimate;
+        refined_offsets = offsets;
         if (calibration) {
             calibration->position_offsets_um = std::move(offsets);
             calibration->exposures = std::move(exposures);
@@ -356,6 +362,20 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (calibrate_exposure) calibration->exposures = exposures;
             calibration->sigma_p_scale = sigma_scale;
         }
+        refined_sigma_scale = sigma_scale;
+    }
+    // The model check (recover_field_model.h): the field model's refinement of the unwrapped
+    // heights against stage 3's, the one whose model fits the slices better kept.
+    if (settings.refine_iterations > 0 && settings.model_check_iterations > 0) {
+        std::vector<const Observation*> separable;
+        std::vector<std::size_t> index;
+        for (const auto& entry : by_lambda)
+            for (const Observation* o : entry.second) {
+                separable.push_back(o);
+                index.push_back(std::size_t(o - observations.data()));
+            }
+        estimate = detail::check_model(separable, index, refined_offsets, refined_sigma_scale, unwrapped, estimate, q,
+                                       settings, report, comm);
     }
     return estimate;
 }

@@ -40,6 +40,7 @@
 #include "wavebrdf/text.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/field_operator_detail.h"
 
 namespace wavebrdf {
 
@@ -346,6 +347,12 @@ struct FieldOperator::Impl {
 // Gives the retrieval loop access to the factor matrices.
 struct FieldAccess {
     static const FieldOperator::Impl& impl(const FieldOperator& op) { return *op.m_impl; }
+    // For detail::field_amplitude_box (field_operator_detail.h).
+    static const Eigen::MatrixXd& amplitude_box(const FieldOperator& op, int& first_row, int& first_col) {
+        first_row = op.m_impl->a0();
+        first_col = op.m_impl->b0();
+        return op.m_impl->amp_box();
+    }
 };
 
 FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& query, double lambda_um, int resolution,
@@ -489,6 +496,20 @@ std::vector<std::complex<double>> FieldOperator::adjoint(const std::vector<std::
 }
 
 const std::vector<double>& FieldOperator::amplitude_factor() const { return m_impl->amp->full; }
+
+namespace detail {
+void field_forward_unphased(const FieldOperator& op, const std::complex<double>* object, Eigen::MatrixXcf& psi) {
+    FieldAccess::impl(op).forward_unphased(object, psi);
+}
+void field_adjoint_unphased_add(const FieldOperator& op, const Eigen::MatrixXcf& g, std::complex<double>* object) {
+    FieldAccess::impl(op).adjoint_unphased_add(g, object);
+}
+const Eigen::MatrixXd& field_amplitude_box(const FieldOperator& op, int& first_row, int& first_col) {
+    return FieldAccess::amplitude_box(op, first_row, first_col);
+}
+const std::vector<int>& field_rows(const FieldOperator& op) { return FieldAccess::impl(op).row_index; }
+const std::vector<int>& field_cols(const FieldOperator& op) { return FieldAccess::impl(op).col_index; }
+}  // namespace detail
 int FieldOperator::resolution() const { return m_impl->n; }
 
 std::vector<double> refined_heights(const Heightfield& hf, int refine) {

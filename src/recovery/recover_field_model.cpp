@@ -1,0 +1,394 @@
+// The recovery's model check: refinement in the field model and the model selection
+// (recover_field_model.h; docs/recovery.md, "Model robustness").
+#include "recovery/recover_field_model.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <stdexcept>
+#include <string>
+
+#include "wavebrdf/constants.h"
+#include "wavebrdf/optim.h"
+#include "wavebrdf/recover.h"
+#include "wavebrdf/slice_plan.h"
+#include "core/exact_sum.h"
+#include "core/parallel.h"
+#include "recovery/calibration_detail.h"
+#include "recovery/field_operator_detail.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+// Keys' cubic convolution kernel (a = −½) at distance x (texels).
+double keys_kernel(double x) {
+    x = std::abs(x);
+    if (x <= 1.0) return (1.5 * x - 2.5) * x * x + 1.0;
+    if (x < 2.0) return ((-0.5 * x + 2.5) * x - 4.0) * x + 2.0;
+    return 0.0;
+}
+}  // namespace
+
+HeightInterpolant::HeightInterpolant(int rows, int cols, double texel_um, int refine, Interpolant kind)
+    : m_rows(rows), m_cols(cols), m_refine(refine) {
+    if (rows < 1 || cols < 1 || !(texel_um > 0.0) || refine < 1 || refine > 63 || refine % 2 == 0)
+        throw std::invalid_argument("HeightInterpolant: tile " + std::to_string(rows) + " x " + std::to_string(cols) +
+                                    ", refine " + std::to_string(refine) +
+                                    " is invalid; expected >= 1 texels and an odd refine up to 63");
+    const int span = 2 * k_reach + 1, q = refine;
+    m_weights.assign(std::size_t(q) * q * span * span, 0.0);
+    const auto weight = [&](int sa, int sb, int di, int dj) -> double& {
+        return m_weights[((std::size_t(sa) * q + sb) * span + (di + k_reach)) * span + (dj + k_reach)];
+    };
+    if (kind == Interpolant::Cubic) {
+        // Sample (sa, sb) of a texel lies (sa − q/2)/q texels from its centre.
+        for (int sa = 0; sa < q; ++sa)
+            for (int sb = 0; sb < q; ++sb)
+                for (int di = -k_reach; di <= k_reach; ++di)
+                    for (int dj = -k_reach; dj <= k_reach; ++dj)
+                        weight(sa, sb, di, dj) = keys_kernel(double(sa - q / 2) / q - di) *
+                                                 keys_kernel(double(sb - q / 2) / q - dj);
+        return;
+    }
+    // The blend's response to one texel of height 1 µm on a tile wide enough that the stencil
+    // does not wrap onto itself.
+    constexpr int side = 2 * k_reach + 3, centre = side / 2;
+    std::vector<double> impulse(std::size_t(side) * side, 0.0);
+    impulse[std::size_t(centre) * side + centre] = 1.0 / texel_um;
+    const std::vector<double> response = refined_heights(Heightfield(side, side, impulse, texel_um, 1.0), refine);
+    const int fine_cols = side * q;
+    // A sample at offset (sa, sb) in texel (centre − di, centre − dj) sees the impulse as its
+    // texel's neighbour (di, dj).
+    for (int sa = 0; sa < q; ++sa)
+        for (int sb = 0; sb < q; ++sb)
+            for (int di = -k_reach; di <= k_reach; ++di)
+                for (int dj = -k_reach; dj <= k_reach; ++dj)
+                    weight(sa, sb, di,
+                           dj) = response[std::size_t((centre - di) * q + sa) * fine_cols + (centre - dj) * q + sb];
+}
+
+void HeightInterpolant::apply(const std::vector<double>& heights_um, std::vector<double>& fine_um) const {
+    const int q = m_refine, span = 2 * k_reach + 1, fine_cols = m_cols * q;
+    fine_um.assign(std::size_t(m_rows) * q * fine_cols, 0.0);
+    const bool parallel = worth_parallel((long long)fine_um.size() * span * span) && !in_parallel_region();
+#pragma omp parallel for schedule(static) if (parallel)
+    for (int i = 0; i < m_rows; ++i)
+        for (int j = 0; j < m_cols; ++j)
+            for (int sa = 0; sa < q; ++sa)
+                for (int sb = 0; sb < q; ++sb) {
+                    const double* w = m_weights.data() + (std::size_t(sa) * q + sb) * span * span;
+                    double sum = 0.0;
+                    for (int di = -k_reach; di <= k_reach; ++di) {
+                        const int r = ((i + di) % m_rows + m_rows) % m_rows;
+                        for (int dj = -k_reach; dj <= k_reach; ++dj) {
+                            const int c = ((j + dj) % m_cols + m_cols) % m_cols;
+                            sum += w[(di + k_reach) * span + dj + k_reach] * heights_um[std::size_t(r) * m_cols + c];
+                        }
+                    }
+                    fine_um[std::size_t(i * q + sa) * fine_cols + j * q + sb] = sum;
+                }
+}
+
+void HeightInterpolant::transpose(const std::vector<double>& fine, std::vector<double>& texels) const {
+    const int q = m_refine, span = 2 * k_reach + 1, fine_cols = m_cols * q;
+    texels.assign(std::size_t(m_rows) * m_cols, 0.0);
+    const bool parallel = worth_parallel((long long)fine.size() * span * span) && !in_parallel_region();
+    // Gathered per texel (I, J): the samples of texel (I − di, J − dj) that see it as (di, dj).
+#pragma omp parallel for schedule(static) if (parallel)
+    for (int I = 0; I < m_rows; ++I)
+        for (int J = 0; J < m_cols; ++J) {
+            double sum = 0.0;
+            for (int di = -k_reach; di <= k_reach; ++di) {
+                const int i = ((I - di) % m_rows + m_rows) % m_rows;
+                for (int dj = -k_reach; dj <= k_reach; ++dj) {
+                    const int j = ((J - dj) % m_cols + m_cols) % m_cols;
+                    for (int sa = 0; sa < q; ++sa)
+                        for (int sb = 0; sb < q; ++sb)
+                            sum += m_weights[((std::size_t(sa) * q + sb) * span + (di + k_reach)) * span +
+                                             (dj + k_reach)] *
+                                   fine[std::size_t(i * q + sa) * fine_cols + j * q + sb];
+                }
+            }
+            texels[std::size_t(I) * m_cols + J] = sum;
+        }
+}
+
+namespace {
+
+std::vector<double> lambdas_of(const std::vector<const Observation*>& observations, const Communicator& comm) {
+    std::vector<double> mine;
+    for (const Observation* o : observations)
+        if (std::find(mine.begin(), mine.end(), o->lambdas_um[0]) == mine.end()) mine.push_back(o->lambdas_um[0]);
+    std::vector<double> all = all_gather(comm, mine);
+    std::sort(all.begin(), all.end());
+    all.erase(std::unique(all.begin(), all.end()), all.end());
+    return all;
+}
+
+// Σ R over every rank's observations (negative values clamped), exactly.
+double reference_total(const std::vector<const Observation*>& observations, const Communicator& comm) {
+    std::vector<double> totals(observations.size(), 0.0);
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        for (double r : observations[i]->reference) totals[i] += std::max(0.0, r);
+    return exact_total(totals, comm);
+}
+
+void check_inputs(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
+                  const char* who) {
+    if (observations.size() != queries.size())
+        throw std::invalid_argument(std::string(who) + ": " + std::to_string(observations.size()) +
+                                    " observations but " + std::to_string(queries.size()) +
+                                    " queries; expected one query per observation");
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        if (!observations[i] || observations[i]->lambdas_um.size() != 1)
+            throw std::invalid_argument(std::string(who) + ": observation " + std::to_string(i) +
+                                        " is null or not a single-wavelength slice");
+}
+
+}  // namespace
+
+struct FieldModelLoss::Impl {
+    struct Slice {
+        std::unique_ptr<FieldOperator> op;
+        Eigen::MatrixXf sqrt_ref;  // √R on the operator's box
+        double outside = 0.0;      // Σ R beyond the box
+        int lambda = 0;            // index into lambdas
+        double k = 0.0;            // 4π/λ (1/µm)
+        double scale = 1.0;        // of the field (the window's integral)
+    };
+    std::vector<Slice> slices;
+    std::vector<double> lambdas;
+    HeightInterpolant interpolant;
+    int fine_cols = 0;
+    std::size_t fine = 0;
+    double inv_total = 0.0;
+    bool calibrate_exposure = false;
+    const Communicator* comm = nullptr;
+    mutable ExactParallelSum exact_sum;
+    mutable std::vector<double> fine_um, fine_gradient;
+    mutable std::vector<std::vector<std::complex<double>>> objects;
+
+    Impl(int rows, int cols, double texel_um, int refine, Interpolant kind)
+        : interpolant(rows, cols, texel_um, refine, kind),
+          fine_cols(cols * refine),
+          fine(std::size_t(rows) * refine * std::size_t(cols) * refine),
+          exact_sum(fine) {}
+};
+
+FieldModelLoss::FieldModelLoss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
+                               int rows, int cols, double texel_um, int refine, bool calibrate_exposure,
+                               const Communicator& comm, Interpolant interpolant, bool gabor_window)
+    : m_impl(std::make_unique<Impl>(rows, cols, texel_um, refine, interpolant)) {
+    check_inputs(observations, queries, "FieldModelLoss");
+    Impl& s = *m_impl;
+    s.comm = &comm;
+    s.calibrate_exposure = calibrate_exposure;
+    s.lambdas = lambdas_of(observations, comm);
+    const double total = reference_total(observations, comm);
+    if (!(total > 0.0)) throw std::invalid_argument("FieldModelLoss: every reference slice is zero");
+    s.inv_total = 1.0 / total;
+    s.slices.resize(observations.size());
+    RegionGuard guard;
+#pragma omp parallel for schedule(dynamic) if (observations.size() > 1 && !in_parallel_region())
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        guard.run([&] {
+            const Observation& o = *observations[i];
+            const double lambda = o.lambdas_um[0];
+            Impl::Slice& slice = s.slices[i];
+            Query query = queries[i];
+            if (gabor_window) {
+                const double d = texel_um / refine, sigma = query.sigma_p_um;
+                query.sigma_p_um = std::sqrt(sigma * sigma + 0.25 * (texel_um * texel_um - d * d));
+                slice.scale = sigma / query.sigma_p_um;
+            }
+            slice.op = std::make_unique<FieldOperator>(rows, cols, texel_um, query, lambda, o.resolution, refine);
+            slice.lambda = int(std::lower_bound(s.lambdas.begin(), s.lambdas.end(), lambda) - s.lambdas.begin());
+            slice.k = 4.0 * k_pi / lambda;
+            int a0 = 0, b0 = 0;
+            const Eigen::MatrixXd& amp = field_amplitude_box(*slice.op, a0, b0);
+            slice.sqrt_ref.resize(amp.rows(), amp.cols());
+            const int n = o.resolution;
+            for (int p = 0; p < n; ++p)
+                for (int c = 0; c < n; ++c) {
+                    const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
+                    const int a = p - a0, b = c - b0;
+                    if (a >= 0 && a < amp.rows() && b >= 0 && b < amp.cols())
+                        slice.sqrt_ref(a, b) = float(std::sqrt(r));
+                    else
+                        slice.outside += r;
+                }
+        });
+    guard.rethrow();
+    s.objects.resize(s.lambdas.size());
+}
+
+FieldModelLoss::~FieldModelLoss() = default;
+
+double FieldModelLoss::operator()(const std::vector<double>& heights_um, std::vector<double>* gradient) const {
+    const Impl& s = *m_impl;
+    s.interpolant.apply(heights_um, s.fine_um);
+    for (std::size_t l = 0; l < s.lambdas.size(); ++l) {
+        std::vector<std::complex<double>>& object = s.objects[l];
+        object.resize(s.fine);
+        const double k = 4.0 * k_pi / s.lambdas[l];
+        const bool parallel = worth_parallel((long long)s.fine) && !in_parallel_region();
+#pragma omp parallel for schedule(static) if (parallel)
+        for (std::size_t t = 0; t < s.fine; ++t) object[t] = std::polar(1.0, -k * s.fine_um[t]);
+    }
+    // Slice i's term (as retrieve_field's, recover_field.cpp); its object gradient
+    // G = ∂L/∂Re O + i ∂L/∂Im O mapped to the fine heights, ∂L/∂H̃ = k Im(conj(G) O).
+    const double value = s.exact_sum.run(
+        s.slices.size(), *s.comm, s.fine_gradient, [&](std::size_t i, ExactScratch& scratch) {
+            thread_local Eigen::MatrixXcf psi, g;
+            thread_local std::vector<std::complex<double>> object_gradient;
+            if (object_gradient.size() != s.fine) object_gradient.assign(s.fine, 0.0);
+            const Impl::Slice& slice = s.slices[i];
+            const std::vector<std::complex<double>>& object = s.objects[std::size_t(slice.lambda)];
+            int a0 = 0, b0 = 0;
+            const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
+            const Eigen::MatrixXd amp = slice.scale * amp_box;
+            field_forward_unphased(*slice.op, object.data(), psi);
+            g.resize(psi.rows(), psi.cols());
+            double v = slice.outside, root_exposure = 1.0, model_total = 0.0;
+            if (s.calibrate_exposure) {
+                double reference = 0.0;
+                for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                    for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                        if (amp(a, b) == 0.0) continue;
+                        model_total += amp(a, b) * amp(a, b) * double(std::norm(psi(a, b)));
+                        reference += double(slice.sqrt_ref(a, b)) * double(slice.sqrt_ref(a, b));
+                    }
+                if (model_total > 0.0) root_exposure = std::sqrt(reference / model_total);
+            }
+            double cross = 0.0;
+            for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                    const double c = amp(a, b);
+                    if (c == 0.0) {
+                        const double r = double(slice.sqrt_ref(a, b));
+                        v += r * r;
+                        g(a, b) = 0.0f;
+                        continue;
+                    }
+                    const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
+                    const double mag = std::sqrt(re * re + im * im);
+                    const double diff = root_exposure * c * mag - double(slice.sqrt_ref(a, b));
+                    v += diff * diff;
+                    cross += diff * c * mag;
+                    g(a, b) = mag > 0.0 ? float(2.0 * s.inv_total * diff * root_exposure * c / mag) * psi(a, b)
+                                        : std::complex<float>(0.0f);
+                }
+            if (s.calibrate_exposure && model_total > 0.0) {
+                const double shift = 2.0 * s.inv_total * cross * root_exposure / model_total;
+                for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                    for (Eigen::Index a = 0; a < psi.rows(); ++a)
+                        if (amp(a, b) != 0.0) g(a, b) -= float(shift * amp(a, b) * amp(a, b)) * psi(a, b);
+            }
+            field_adjoint_unphased_add(*slice.op, g, object_gradient.data());
+            const std::vector<int>& rows = field_rows(*slice.op);
+            const std::vector<int>& cols = field_cols(*slice.op);
+            double* out = scratch.data();
+            for (int r : rows)
+                for (int c : cols) {
+                    const std::size_t t = std::size_t(r) * s.fine_cols + c;
+                    out[t] += slice.k * std::imag(std::conj(object_gradient[t]) * object[t]);
+                    object_gradient[t] = 0.0;
+                }
+            scratch.take_box(rows, cols, std::size_t(s.fine_cols));
+            return v * s.inv_total;
+        });
+    if (gradient) s.interpolant.transpose(s.fine_gradient, *gradient);
+    return value;
+}
+
+double gabor_amplitude_loss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
+                            const Heightfield& heightfield, bool calibrate_exposure, const Communicator& comm) {
+    check_inputs(observations, queries, "gabor_amplitude_loss");
+    const double total = reference_total(observations, comm);
+    if (!(total > 0.0)) throw std::invalid_argument("gabor_amplitude_loss: every reference slice is zero");
+    std::vector<double> no_gradient;
+    ExactParallelSum sum(0);
+    return sum.run(observations.size(), comm, no_gradient, [&](std::size_t i, ExactScratch&) {
+        const Observation& o = *observations[i];
+        SlicePlan<float> plan(heightfield, queries[i], o.lambdas_um, o.resolution, 1);
+        const std::vector<float>& f = plan.forward();
+        const std::size_t n = std::min(f.size(), o.reference.size());
+        const double e = calibrate_exposure ? slice_exposure(f.data(), o.reference.data(), n) : 1.0;
+        double v = 0.0;
+        for (std::size_t k = 0; k < o.reference.size(); ++k) {
+            const double m = k < n ? std::sqrt(std::max(0.0, e * double(f[k]))) : 0.0;
+            const double d = m - std::sqrt(std::max(0.0, o.reference[k]));
+            v += d * d;
+        }
+        return v;
+    }) / total;
+}
+
+Heightfield refine_in_field_model(const FieldModelLoss& model, const Heightfield& start, int iterations, int history,
+                                  int stall_window, double stall_tolerance,
+                                  const std::function<bool(int, double, const Heightfield&)>& on_iteration,
+                                  double* loss) {
+    const double to_texel = 1.0 / (start.vscale() * start.texel_um());
+    std::vector<double> h(start.values().size());
+    for (int i = 0; i < start.rows(); ++i)
+        for (int j = 0; j < start.cols(); ++j) h[std::size_t(i) * start.cols() + j] = start.height_um(i, j);
+    const auto heights = [&](const std::vector<double>& x) {
+        std::vector<double> v(x.size());
+        for (std::size_t k = 0; k < x.size(); ++k) v[k] = x[k] * to_texel;
+        return start.with_values(std::move(v));
+    };
+    LbfgsOptions lo;
+    lo.history = std::max(1, history);
+    lo.max_iterations = std::max(0, iterations);
+    lo.gradient_tolerance = 0.0;
+    std::vector<double> seen;
+    const LbfgsResult r = lbfgs_minimize(
+        [&](const std::vector<double>& x, std::vector<double>& g) { return model(x, &g); }, h, lo,
+        [&](int it, double value) {
+            if (on_iteration && !on_iteration(it, value, heights(h))) return false;
+            seen.push_back(value);
+            const std::size_t w = std::size_t(std::max(0, stall_window));
+            return !(w > 0 && seen.size() > w && seen[seen.size() - 1 - w] - value < stall_tolerance * value);
+        });
+    if (loss) *loss = r.value;
+    return heights(h);
+}
+
+Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
+                        const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
+                        const Heightfield& unwrapped, const Heightfield& refined, int refine,
+                        const RecoverSettings& settings,
+                        const std::function<bool(const std::string&, int, double, const Heightfield*)>& report,
+                        const Communicator& comm) {
+    std::vector<Query> queries;
+    queries.reserve(separable.size());
+    for (std::size_t i = 0; i < separable.size(); ++i) {
+        Query q = separable[i]->query;
+        if (!offsets_um.empty()) {
+            q.x_um += offsets_um[index[i]][0];
+            q.y_um += offsets_um[index[i]][1];
+        }
+        q.sigma_p_um *= sigma_scale;
+        queries.push_back(q);
+    }
+    const bool exposure = settings.calibrate.exposure;
+    const double gabor = gabor_amplitude_loss(separable, queries, refined, exposure, comm);
+    if (!report("misfit:gabor", 0, gabor, &refined)) return refined;
+    const FieldModelLoss model(separable, queries, refined.rows(), refined.cols(), refined.texel_um(), refine, exposure,
+                               comm);
+    bool go_on = true;
+    double field = 0.0;
+    const Heightfield in_field = refine_in_field_model(
+        model, unwrapped, settings.model_check_iterations, settings.field.history, settings.field.stall_window,
+        settings.field.stall_tolerance,
+        [&](int it, double value, const Heightfield& h) { return go_on = report("refine:field", it, value, &h); },
+        &field);
+    if (!go_on || !report("misfit:field", 0, field, &in_field)) return refined;
+    const bool keep_field = field < gabor;
+    const Heightfield& chosen = keep_field ? in_field : refined;
+    report(keep_field ? "select:field" : "select:gabor", 0, std::min(field, gabor), &chosen);
+    return chosen;
+}
+
+}  // namespace wavebrdf::detail

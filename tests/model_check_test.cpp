@@ -1,0 +1,242 @@
+// The recovery's model check (src/recovery/recover_field_model.h; docs/recovery.md, "Model
+// robustness"): the interpolant against refined_heights, the field model's loss against an
+// independent evaluation with FieldOperator and its gradient against finite differences, and
+// the pipeline on scalar-diffraction slices (not the Gabor model's) and on the Gabor model's.
+#include "recovery/recover_field_model.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "test_util.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/noise.h"
+#include "wavebrdf/recover.h"
+#include "wavebrdf/recovery_run.h"
+#include "wavebrdf/scalar_diffraction.h"
+
+using namespace wavebrdf;
+
+namespace {
+
+// A few single-wavelength OHS slices of `hf` (rendered in the Gabor model: any data will do).
+std::vector<Observation> few_slices(const Heightfield& hf, const std::vector<double>& lambdas, int resolution) {
+    std::vector<Observation> out;
+    for (double lambda : lambdas)
+        for (int a = 0; a < 2; ++a)
+            for (int b = 0; b < 2; ++b) {
+                Observation o;
+                o.query = test::make_query(Model::OHS, 5.0 + 9.0 * a, 6.0 + 8.5 * b, 3.0);
+                o.lambdas_um = {lambda};
+                o.resolution = resolution;
+                o.reference = render_observation(hf, o);
+                out.push_back(std::move(o));
+            }
+    return out;
+}
+
+std::vector<const Observation*> pointers(const std::vector<Observation>& observations) {
+    std::vector<const Observation*> p;
+    for (const Observation& o : observations) p.push_back(&o);
+    return p;
+}
+
+std::vector<Query> queries_of(const std::vector<Observation>& observations) {
+    std::vector<Query> q;
+    for (const Observation& o : observations) q.push_back(o.query);
+    return q;
+}
+
+}  // namespace
+
+// The stencil form of the tangent-plane blend equals refined_heights (recover.h) everywhere,
+// also on a tile smaller than the stencil (9 texels) where it wraps; its transpose is the
+// adjoint (⟨A x, y⟩ = ⟨x, Aᵀ y⟩).
+TEST(HeightInterpolant, EqualsRefinedHeightsAndItsTransposeIsTheAdjoint) {
+    for (const auto& [rows, cols, refine] : std::vector<std::array<int, 3>>{{12, 10, 3}, {7, 13, 5}, {16, 16, 1}}) {
+        const Heightfield hf = test::random_heightfield(rows, cols, 0.6, 5701 + rows, 2.0);
+        const detail::HeightInterpolant interpolant(rows, cols, 2.0, refine, detail::Interpolant::Blend);
+        std::vector<double> fine;
+        interpolant.apply(heights_um(hf), fine);
+        const std::vector<double> expected = refined_heights(hf, refine);
+        ASSERT_EQ(fine.size(), expected.size());
+        double worst = 0.0;
+        for (std::size_t k = 0; k < fine.size(); ++k) worst = std::max(worst, std::abs(fine[k] - expected[k]));
+        EXPECT_LT(worst, 1e-12) << rows << " x " << cols << ", refine " << refine;
+
+        std::mt19937_64 rng(5702);
+        std::normal_distribution<double> normal;
+        std::vector<double> x(std::size_t(rows) * cols), y(fine.size()), ax, aty;
+        for (double& v : x) v = normal(rng);
+        for (double& v : y) v = normal(rng);
+        interpolant.apply(x, ax);
+        interpolant.transpose(y, aty);
+        double left = 0.0, right = 0.0;
+        for (std::size_t k = 0; k < y.size(); ++k) left += ax[k] * y[k];
+        for (std::size_t k = 0; k < x.size(); ++k) right += x[k] * aty[k];
+        EXPECT_NEAR(left, right, 1e-10 * std::abs(left));
+    }
+}
+
+// The cubic interpolant passes through every texel centre (sample q/2 of each texel) and its
+// transpose is the adjoint.
+TEST(HeightInterpolant, CubicPassesThroughTheTexelCentres) {
+    const int rows = 9, cols = 11, q = 5;
+    const Heightfield hf = test::random_heightfield(rows, cols, 0.6, 5706, 2.0);
+    const std::vector<double> h = heights_um(hf);
+    const detail::HeightInterpolant interpolant(rows, cols, 2.0, q, detail::Interpolant::Cubic);
+    std::vector<double> fine;
+    interpolant.apply(h, fine);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            EXPECT_NEAR(fine[std::size_t(i * q + q / 2) * (cols * q) + j * q + q / 2], h[std::size_t(i) * cols + j],
+                        1e-12);
+    std::vector<double> y(fine.size()), aty;
+    for (std::size_t k = 0; k < y.size(); ++k) y[k] = std::sin(0.1 * double(k));
+    interpolant.transpose(y, aty);
+    double left = 0.0, right = 0.0;
+    for (std::size_t k = 0; k < y.size(); ++k) left += fine[k] * y[k];
+    for (std::size_t k = 0; k < h.size(); ++k) right += h[k] * aty[k];
+    EXPECT_NEAR(left, right, 1e-10 * std::abs(left));
+}
+
+// The loss equals Σ(√c1 |F e^{−i(4π/λ)H̃}| − √R)² / Σ R (H̃ the cubic) evaluated independently with
+// FieldOperator::forward (double precision, phases included), and its gradient matches central
+// differences, with and without the exposure calibration.
+TEST(FieldModelLoss, MatchesAnIndependentEvaluationAndFiniteDifferences) {
+    const int n = 12, refine = 3, resolution = 24;
+    const Heightfield truth = test::random_heightfield(n, n, 0.15, 5703, 2.0);
+    const std::vector<Observation> observations = few_slices(truth, {0.5, 0.6}, resolution);
+    const Heightfield start = test::random_heightfield(n, n, 0.15, 5704, 2.0);
+    const std::vector<double> h = heights_um(start);
+    std::vector<double> fine;
+    detail::HeightInterpolant(n, n, 2.0, refine).apply(heights_um(start), fine);
+    double num = 0.0, den = 0.0;
+    for (const Observation& o : observations) {
+        const FieldOperator op(n, n, 2.0, o.query, o.lambdas_um[0], resolution, refine);
+        std::vector<std::complex<double>> object(fine.size());
+        for (std::size_t t = 0; t < fine.size(); ++t)
+            object[t] = std::polar(1.0, -4.0 * M_PI / o.lambdas_um[0] * fine[t]);
+        const std::vector<std::complex<double>> field = op.forward(object);
+        for (std::size_t p = 0; p < field.size(); ++p) {
+            const double d = op.amplitude_factor()[p] * std::abs(field[p]) - std::sqrt(std::max(0.0, o.reference[p]));
+            num += d * d;
+            den += std::max(0.0, o.reference[p]);
+        }
+    }
+    for (bool exposure : {false, true}) {
+        const detail::FieldModelLoss loss(pointers(observations), queries_of(observations), n, n, 2.0, refine, exposure,
+                                          serial_communicator(), detail::Interpolant::Cubic, false);
+        std::vector<double> g;
+        const double value = loss(h, &g);
+        if (!exposure) EXPECT_NEAR(value, num / den, 1e-5 * num / den);  // the products in single precision
+        ASSERT_EQ(g.size(), h.size());
+        for (std::size_t k : {std::size_t(0), std::size_t(29), std::size_t(77), std::size_t(140)}) {
+            const double step = 1e-4;
+            std::vector<double> plus = h, minus = h;
+            plus[k] += step;
+            minus[k] -= step;
+            const double fd = (loss(plus, nullptr) - loss(minus, nullptr)) / (2.0 * step);
+            EXPECT_NEAR(g[k], fd, 1e-2 * std::abs(fd) + 1e-6)  // single-precision products
+                << "texel " << k << ", exposure " << exposure;
+        }
+    }
+}
+
+namespace {
+
+struct ScalarCase {
+    Heightfield truth;
+    std::vector<Observation> observations;
+};
+
+// A smooth ±0.5 µm surface (correlation 8 µm, 12², texel 2 µm) seen at 6 × 6 jittered
+// positions (σ_p = 3 µm, 78 % overlap) and two wavelengths, 32² slices simulated by
+// `simulator` (recover_test's small case).
+ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
+    SurfaceParams p;
+    p.rows = p.cols = 12;
+    p.texel_um = 2.0;
+    p.correlation_um = 8.0;
+    p.rms_height_um = 1.0;
+    p.seed = seed;
+    const Heightfield raw = generate_heightfield(p);
+    double peak = 0.0;
+    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
+    std::vector<double> v = raw.values();
+    for (double& x : v) x *= 0.5 / (peak * p.texel_um);
+    ScalarCase c{raw.with_values(v), {}};
+    std::mt19937_64 rng(seed + 100);
+    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
+    const double step = 4.0;
+    for (double lambda : {0.5, 0.6})
+        for (int a = 0; a < 6; ++a)
+            for (int b = 0; b < 6; ++b) {
+                Observation o;
+                o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step,
+                                           3.0);
+                o.lambdas_um = {lambda};
+                o.resolution = 32;
+                o.reference = simulator == Simulator::Scalar ? scalar_slice(c.truth, o.query, lambda, o.resolution)
+                                                             : render_observation(c.truth, o);
+                c.observations.push_back(std::move(o));
+            }
+    return c;
+}
+
+std::map<std::string, double> run_stages(const ScalarCase& c, RecoverSettings s, std::string* selected) {
+    std::map<std::string, double> rmse;
+    const Heightfield estimate = recover_heights(
+        c.observations, 12, 12, 2.0, 1.0, s,
+        [&](const StageMetrics& m) {
+            if (m.height_rel_rmse >= 0.0) rmse[m.stage] = m.height_rel_rmse;
+            if (selected && m.stage.rfind("select:", 0) == 0) *selected = m.stage;
+            if (m.stage.rfind("misfit:", 0) == 0) rmse[m.stage + ":loss"] = m.loss;
+            return true;
+        },
+        &c.truth);
+    rmse["final"] = height_rel_rmse(estimate, c.truth);
+    return rmse;
+}
+
+RecoverSettings small_settings() {
+    RecoverSettings s;
+    s.blurred.blur_widths = {12.0, 4.0};
+    s.blurred.iterations = 15;
+    s.field.iterations = 40;
+    s.refine_iterations = 15;
+    s.model_check_iterations = 15;
+    return s;
+}
+
+}  // namespace
+
+// On scalar-diffraction slices the Gabor refinement fits a model the data do not follow; the
+// model check keeps the field model's heights, no worse than the unwrapped ones (measured
+// bound: docs/recovery.md, "Model robustness").
+TEST(ModelCheck, OnScalarSlicesTheResultIsNoWorseThanTheUnwrappedHeights) {
+    const ScalarCase c = small_case(Simulator::Scalar, 5705);
+    std::string selected;
+    const std::map<std::string, double> r = run_stages(c, small_settings(), &selected);
+    for (const auto& [k, v] : r) RecordProperty(k, std::to_string(v));
+    ASSERT_TRUE(r.count("unwrap") && r.count("refine") && r.count("misfit:field:loss"));
+    EXPECT_EQ(selected, "select:field");
+    EXPECT_LT(r.at("misfit:field:loss"), r.at("misfit:gabor:loss"));
+    EXPECT_LE(r.at("final"), 1.05 * r.at("unwrap"));
+    EXPECT_LT(r.at("final"), r.at("refine"));
+}
+
+// On the Gabor model's own slices the Gabor refinement explains them (loss far below the field
+// model's floor) and is kept: the final heights are stage 3's, as without the check.
+TEST(ModelCheck, OnGaborSlicesTheRefinementIsKept) {
+    const ScalarCase c = small_case(Simulator::Gabor, 5705);
+    std::string selected;
+    const std::map<std::string, double> r = run_stages(c, small_settings(), &selected);
+    for (const auto& [k, v] : r) RecordProperty(k, std::to_string(v));
+    EXPECT_EQ(selected, "select:gabor");
+    EXPECT_EQ(r.at("final"), r.at("refine"));  // stage 3's heights, as without the check
+}
