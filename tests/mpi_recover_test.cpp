@@ -129,6 +129,26 @@ TEST(MpiRecover, CalibratedRunsOnTwoRanksEqualOneProcess) {
     EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
 }
 
+// Position self-calibration under MPI (field_positions.h, recover_positions.h): the position
+// correction inside the field stage and the joint refinement sum every position's terms
+// exactly over the ranks, so two ranks give the one-process heights and offsets bit for bit.
+TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
+    const fs::path dir = fresh_dir("mpi_recover_positions");
+    const auto args = [](const std::string& out) {
+        std::vector<std::string> a = recover_args(out);
+        a.insert(a.end() - 2, {"--calibrate", "positions", "--simulate-position-error-texels", "0.5"});
+        return a;
+    };
+    const CliResult one = run_ranks(dir, 0, args("one"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const CliResult two = run_ranks(dir, 2, args("two"));
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
+    const std::string calibration = read_text(dir / "one" / "calibration.json");
+    EXPECT_NE(calibration.find("\"position_offsets_um\""), std::string::npos) << calibration;
+    EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
+}
+
 TEST(MpiRecover, ABadOptionFailsWithOneLineNotOnePerRank) {
     const fs::path dir = fresh_dir("mpi_recover");
     const CliResult bad = run_ranks(dir, 2, {"recover", "--size", "12", "--no-such-option", "--out", "x"});
