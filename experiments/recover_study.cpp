@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <random>
 #include <sstream>
@@ -132,6 +133,12 @@ int main(int argc, char** argv) try {
                 mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
             for (auto& e : errors) e = {e[0] - mean[0], e[1] - mean[1]};
         }
+    }
+    if (const char* path = std::getenv("POS2_TRUTH")) {  // DEBUG (POS2): stated centres and true offsets
+        FILE* f = std::fopen(path, "w");
+        for (std::size_t k = 0; k < positions.size(); ++k)
+            std::fprintf(f, "%.17g %.17g %.17g %.17g\n", positions[k][0], positions[k][1], errors[k][0], errors[k][1]);
+        std::fclose(f);
     }
     std::vector<std::array<double, 2>> obs_error;  // per observation
     const auto t_render = std::chrono::steady_clock::now();

@@ -229,6 +229,30 @@ double correct_positions(const std::vector<const Observation*>& group, const std
     for (std::size_t p = 0; p < count; ++p)
         for (int c = 0; c < 2; ++c) x[2 * p + std::size_t(c)] -= mean[c];
     object = shift_object(object, rows, cols, texel_um, refine, -mean[0], -mean[1]);
+    if (const char* path = std::getenv("POS2_TRUTH")) {  // DEBUG
+        std::vector<std::array<double, 4>> t;
+        FILE* f = std::fopen(path, "r");
+        std::array<double, 4> v;
+        while (f && std::fscanf(f, "%lf %lf %lf %lf", &v[0], &v[1], &v[2], &v[3]) == 4) t.push_back(v);
+        if (f) std::fclose(f);
+        double e2 = 0, s2 = 0; int n = 0;
+        std::vector<std::array<double, 2>> truth(count, {NAN, NAN});
+        for (std::size_t g = 0; g < group.size(); ++g)
+            for (const auto& r : t)
+                if (std::abs(r[0] - group[g]->query.x_um) < 1e-9 && std::abs(r[1] - group[g]->query.y_um) < 1e-9)
+                    truth[position[g]] = {r[2], r[3]};
+        double tm[2] = {0, 0};
+        for (std::size_t p = 0; p < count; ++p) for (int c = 0; c < 2; ++c) tm[c] += truth[p][c] / double(count);
+        for (std::size_t p = 0; p < count; ++p)
+            for (int c = 0; c < 2; ++c) {
+                const double tt = truth[p][c] - tm[c];
+                e2 += (x[2 * p + c] - tt) * (x[2 * p + c] - tt);
+                s2 += (start[2 * p + c] - tt) * (start[2 * p + c] - tt);
+                ++n;
+            }
+        std::fprintf(stderr, "  positions: err %.4f -> %.4f texels (mean shift %.4f %.4f um)\n", std::sqrt(s2 / n) / texel_um,
+                     std::sqrt(e2 / n) / texel_um, mean[0], mean[1]);
+    }
     double moved = 0.0;
     for (std::size_t k = 0; k < x.size(); ++k) moved += (x[k] - start[k]) * (x[k] - start[k]);
     offsets_um = x;
