@@ -176,6 +176,7 @@ int main(int argc, char** argv) try {
     set_int("blur_wavelengths", rs.blur_wavelengths);
     set_int("refine_iters", rs.refine_iterations);
     set_int("field_passes", rs.field_passes);
+    set_int("position_blur_rounds", rs.position_blur_rounds);
     if (args.count("blurs")) rs.blurred.blur_widths = parse_list(args["blurs"]);
     if (args.count("unwrap")) rs.unwrap_from_blurred = args["unwrap"] == "blurred";
     if (args.count("cascade")) rs.cascade = args["cascade"] == "1";

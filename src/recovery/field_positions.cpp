@@ -10,12 +10,15 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include <Eigen/Dense>
 #include <fftw3.h>
 
 #include "core/exact_sum.h"
 #include "core/fftw_planner.h"
 #include "core/parallel.h"
 #include "wavebrdf/constants.h"
+#include "wavebrdf/model.h"
+#include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf::detail {
 
@@ -99,47 +102,34 @@ std::vector<std::complex<double>> shift_object(const std::vector<std::complex<do
     return out;
 }
 
-double correct_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
-                         std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
-                         double texel_um, int refine, int steps, std::vector<double>& offsets_um,
-                         const Communicator& comm) {
-    if (position.size() != group.size())
-        throw std::invalid_argument("correct_positions: " + std::to_string(position.size()) + " position indices for " +
-                                    std::to_string(group.size()) + " observations; expected one each");
-    const std::size_t count = offsets_um.size() / 2;
-    for (std::size_t p : position)
-        if (p >= count)
-            throw std::invalid_argument("correct_positions: position index " + std::to_string(p) + " is out of range; expected < " +
-                                        std::to_string(count));
-    // The loss normalised by every rank's Σ R (so every term is of order 1 or less).
-    std::vector<double> totals(group.size(), 0.0);
-    for (std::size_t g = 0; g < group.size(); ++g)
-        for (double r : group[g]->reference) totals[g] += std::max(0.0, r);
-    const double total = exact_total(totals, comm);
-    if (!(total > 0.0)) return 0.0;
-    const double inv_total = 1.0 / total;
+namespace {
 
-    // Every position's loss, gradient (per µm) and observation count at `trial`, for the
-    // positions marked in `active`: summed exactly over every rank's observations.
+// Lockstep gradient steps on every position's offset (field_positions.h): eval(g, offset_um,
+// gradient_um) is observation g's loss (already normalised) and its gradient at its position's
+// trial offset. Every position's loss and gradient are summed exactly over every rank's
+// observations. Returns the offsets (µm, 2 per position) after `steps` steps from x.
+template <class Eval>
+std::vector<double> descend_positions(std::size_t observations, const std::vector<std::size_t>& position,
+                                      std::size_t count, double texel_um, int steps, std::vector<double> x,
+                                      const Eval& eval, const Communicator& comm) {
     std::vector<double> loss(count), grad(2 * count), seen(count);
     const auto evaluate = [&](const std::vector<double>& trial, const std::vector<char>& active,
                               std::vector<double>& l, std::vector<double>& gr, std::vector<double>* n) {
-        std::vector<double> values(3 * group.size(), 0.0);
+        std::vector<double> values(3 * observations, 0.0);
         RegionGuard guard;
-#pragma omp parallel for schedule(dynamic, 1) if (group.size() > 1 && !in_parallel_region())
-        for (std::size_t g = 0; g < group.size(); ++g)
+#pragma omp parallel for schedule(dynamic, 1) if (observations > 1 && !in_parallel_region())
+        for (std::size_t g = 0; g < observations; ++g)
             guard.run([&] {
                 const std::size_t p = position[g];
                 if (!active[p]) return;
                 std::array<double, 2> gp{0.0, 0.0};
-                values[3 * g] = inv_total * field_position_loss(*group[g], {trial[2 * p], trial[2 * p + 1]}, object,
-                                                                lambda_um, rows, cols, texel_um, refine, &gp);
-                values[3 * g + 1] = inv_total * gp[0];
-                values[3 * g + 2] = inv_total * gp[1];
+                values[3 * g] = eval(g, std::array<double, 2>{trial[2 * p], trial[2 * p + 1]}, gp);
+                values[3 * g + 1] = gp[0];
+                values[3 * g + 2] = gp[1];
             });
         guard.rethrow();
         ExactVector sums(4 * count);
-        for (std::size_t g = 0; g < group.size(); ++g) {
+        for (std::size_t g = 0; g < observations; ++g) {
             const std::size_t p = position[g];
             if (!active[p]) continue;
             for (int c = 0; c < 3; ++c) sums.add(4 * p + std::size_t(c), values[3 * g + std::size_t(c)]);
@@ -156,8 +146,6 @@ double correct_positions(const std::vector<const Observation*>& group, const std
             if (n) (*n)[p] = all[4 * p + 3];
         }
     };
-    std::vector<double> x = offsets_um;
-    const std::vector<double> start = x;
     std::vector<char> active(count, 1);
     evaluate(x, active, loss, grad, &seen);
     for (std::size_t p = 0; p < count; ++p) active[p] = seen[p] > 0.0;
@@ -216,12 +204,43 @@ double correct_positions(const std::vector<const Observation*>& group, const std
         }
         for (std::size_t p = 0; p < count; ++p)
             if (pending[p]) alpha[p] *= 1.0 / 64.0;
-        if (std::getenv("POS2_DEBUG")) {
-            double tl = 0; int np = 0;
-            for (std::size_t p = 0; p < count; ++p) { tl += loss[p]; np += pending[p]; }
-            std::fprintf(stderr, "step %d loss %.6e pending %d x0 %.4f %.4f\n", s, tl, np, x[0], x[1]);
-        }  // no decrease: a much shorter step next time
+
     }
+    return x;
+}
+
+}  // namespace
+
+double correct_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
+                         std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
+                         double texel_um, int refine, int steps, std::vector<double>& offsets_um,
+                         const Communicator& comm) {
+    if (position.size() != group.size())
+        throw std::invalid_argument("correct_positions: " + std::to_string(position.size()) + " position indices for " +
+                                    std::to_string(group.size()) + " observations; expected one each");
+    const std::size_t count = offsets_um.size() / 2;
+    for (std::size_t p : position)
+        if (p >= count)
+            throw std::invalid_argument("correct_positions: position index " + std::to_string(p) + " is out of range; expected < " +
+                                        std::to_string(count));
+    // The loss normalised by every rank's Σ R (so every term is of order 1 or less).
+    std::vector<double> totals(group.size(), 0.0);
+    for (std::size_t g = 0; g < group.size(); ++g)
+        for (double r : group[g]->reference) totals[g] += std::max(0.0, r);
+    const double total = exact_total(totals, comm);
+    if (!(total > 0.0)) return 0.0;
+    const double inv_total = 1.0 / total;
+
+    const std::vector<double> start = offsets_um;
+    std::vector<double> x = descend_positions(
+        group.size(), position, count, texel_um, steps, offsets_um,
+        [&](std::size_t g, const std::array<double, 2>& offset, std::array<double, 2>& gradient) {
+            const double l = field_position_loss(*group[g], offset, object, lambda_um, rows, cols, texel_um, refine,
+                                                 &gradient);
+            gradient = {inv_total * gradient[0], inv_total * gradient[1]};
+            return inv_total * l;
+        },
+        comm);
     // The gauge: every position moved by −m and the object by −m leave every slice as it was.
     double mean[2] = {0.0, 0.0};
     for (std::size_t p = 0; p < count; ++p)
@@ -306,6 +325,119 @@ FieldRetrievalResult retrieve_field_with_positions(const std::vector<const Obser
     result.iterations = done;
     result.object = std::move(object);
     return result;
+}
+
+}  // namespace wavebrdf::detail
+
+namespace wavebrdf::detail {
+
+namespace {
+
+// B[p, f] = G_β(u_p − u_f) Δu: the Gaussian blur of std β (cycles/µm) on a slice's own grid
+// (as the blurred fit's, recover_blur.cpp).
+Eigen::MatrixXd slice_blur(int n, double lambda_um, double beta) {
+    Eigen::MatrixXd b(n, n);
+    const double du = 2.0 / (n * lambda_um);
+    const double norm = du / (std::sqrt(2.0 * k_pi) * beta);
+    for (int p = 0; p < n; ++p)
+        for (int f = 0; f < n; ++f) {
+            const double d = (slice_omega(p, n) - slice_omega(f, n)) / lambda_um;
+            b(p, f) = norm * std::exp(-0.5 * d * d / (beta * beta));
+        }
+    return b;
+}
+
+}  // namespace
+
+Heightfield register_positions_blurred(const std::vector<const Observation*>& group,
+                                       const std::vector<std::size_t>& position,
+                                       const std::vector<const Observation*>& blur_set,
+                                       const std::vector<std::size_t>& blur_position, const Heightfield& estimate,
+                                       const BlurredFitSettings& blurred, const std::vector<double>& widths,
+                                       int rounds, int steps, std::vector<double>& offsets_um,
+                                       const Communicator& comm) {
+    if (position.size() != group.size() || blur_position.size() != blur_set.size())
+        throw std::invalid_argument("register_positions_blurred: one position index per observation expected");
+    const std::size_t count = offsets_um.size() / 2;
+    const double texel_um = estimate.texel_um();
+    Heightfield heights = estimate;
+    for (int round = 0; round < rounds; ++round) {
+        for (double width : widths) {
+            // Per observation: its blur and √(B R Bᵀ); the loss Σ(√(B M Bᵀ) − √(B R Bᵀ))² / Σ B R Bᵀ.
+            std::vector<Eigen::MatrixXd> blur(group.size()), root(group.size());
+            std::vector<double> totals(group.size());
+            for (std::size_t g = 0; g < group.size(); ++g) {
+                const Observation& o = *group[g];
+                const int n = o.resolution;
+                blur[g] = slice_blur(n, o.lambdas_um[0], width / (2.0 * std::sqrt(2.0) * k_pi * o.query.sigma_p_um));
+                Eigen::MatrixXd r(n, n);
+                for (int p = 0; p < n; ++p)
+                    for (int q = 0; q < n; ++q) r(p, q) = std::max(0.0, o.reference[std::size_t(p) * n + q]);
+                root[g] = blur[g] * r * blur[g].transpose();
+                totals[g] = root[g].sum();
+                root[g] = root[g].cwiseMax(0.0).cwiseSqrt();
+            }
+            const double total = exact_total(totals, comm);
+            if (!(total > 0.0)) return heights;
+            const double inv_total = 1.0 / total;
+            offsets_um = descend_positions(
+                group.size(), position, count, texel_um, steps, offsets_um,
+                [&](std::size_t g, const std::array<double, 2>& offset, std::array<double, 2>& gradient) {
+                    const Observation& o = *group[g];
+                    Query q = o.query;
+                    q.x_um += offset[0];
+                    q.y_um += offset[1];
+                    SlicePlan<double> plan(heights, q, o.lambdas_um, o.resolution, 1);
+                    const std::vector<double>& f = plan.forward();
+                    const int n = o.resolution;
+                    Eigen::MatrixXd m(n, n);
+                    for (int p = 0; p < n; ++p)
+                        for (int c = 0; c < n; ++c) m(p, c) = f[std::size_t(p) * n + c];
+                    const Eigen::MatrixXd mb = blur[g] * m * blur[g].transpose();
+                    Eigen::MatrixXd dm(n, n);
+                    double v = 0.0;
+                    for (int p = 0; p < n; ++p)
+                        for (int c = 0; c < n; ++c) {
+                            const double a = std::sqrt(std::max(mb(p, c), 0.0));
+                            const double diff = a - root[g](p, c);
+                            v += diff * diff;
+                            dm(p, c) = a > 0.0 ? inv_total * diff / a : 0.0;  // ∂(diff²)/∂M_b = diff / a
+                        }
+                    const Eigen::MatrixXd w = blur[g].transpose() * dm * blur[g];
+                    std::vector<double> weights(std::size_t(n) * n);
+                    for (int p = 0; p < n; ++p)
+                        for (int c = 0; c < n; ++c) weights[std::size_t(p) * n + c] = w(p, c);
+                    gradient = plan.position_gradient(weights);
+                    return inv_total * v;
+                },
+                comm);
+        }
+        // The gauge: the mean offset removed, the heights shifted with it (Fourier, periodic).
+        double mean[2] = {0.0, 0.0};
+        for (std::size_t p = 0; p < count; ++p)
+            for (int c = 0; c < 2; ++c) mean[c] += offsets_um[2 * p + std::size_t(c)] / double(count);
+        for (std::size_t p = 0; p < count; ++p)
+            for (int c = 0; c < 2; ++c) offsets_um[2 * p + std::size_t(c)] -= mean[c];
+        {
+            std::vector<std::complex<double>> h(heights.values().begin(), heights.values().end());
+            h = shift_object(h, heights.rows(), heights.cols(), texel_um, 1, -mean[0], -mean[1]);
+            std::vector<double> v(h.size());
+            for (std::size_t k = 0; k < h.size(); ++k) v[k] = h[k].real();
+            heights = heights.with_values(v);
+        }
+        // The blurred heights refitted at the corrected centres.
+        std::vector<Observation> shifted;
+        shifted.reserve(blur_set.size());
+        for (std::size_t g = 0; g < blur_set.size(); ++g) {
+            shifted.push_back(*blur_set[g]);
+            shifted.back().query.x_um += offsets_um[2 * blur_position[g]];
+            shifted.back().query.y_um += offsets_um[2 * blur_position[g] + 1];
+        }
+        BlurredFitSettings refit = blurred;
+        refit.blur_widths = widths;
+        heights = fit_blurred(shifted, heights, refit, {}, comm);
+    }
+    return heights;
 }
 
 }  // namespace wavebrdf::detail

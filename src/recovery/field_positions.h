@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "wavebrdf/communicator.h"
+#include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
 
@@ -63,5 +64,23 @@ FieldRetrievalResult retrieve_field_with_positions(const std::vector<const Obser
                                                    const std::function<bool(int, double)>& on_iteration,
                                                    std::vector<double>& offsets_um, const Communicator& comm,
                                                    int chunk_iterations = 10, int steps = 3);
+
+// Before the field stage (positions off by more than the field stage's capture range): every
+// position's offset registered against the blurred fit's heights by the blurred loss (smooth in
+// the positions as in the heights), for each blur width of `widths` in turn (lobes, as
+// BlurredFitSettings::blur_widths) `steps` lockstep gradient steps (SlicePlan::position_gradient);
+// then the mean offset is removed (the heights shifted with it) and the blurred heights are
+// refitted on blur_set at the corrected centres (fit_blurred with `blurred` and `widths`);
+// `rounds` times. group / position: this rank's observations used for the registration and
+// their positions' indices into offsets_um (2 per position, every rank's, µm, updated on every
+// rank); blur_set / blur_position: those of the blurred fit. Collective; exact sums as above.
+// Returns the refitted heights.
+Heightfield register_positions_blurred(const std::vector<const Observation*>& group,
+                                       const std::vector<std::size_t>& position,
+                                       const std::vector<const Observation*>& blur_set,
+                                       const std::vector<std::size_t>& blur_position, const Heightfield& estimate,
+                                       const BlurredFitSettings& blurred, const std::vector<double>& widths,
+                                       int rounds, int steps, std::vector<double>& offsets_um,
+                                       const Communicator& comm);
 
 }  // namespace wavebrdf::detail
