@@ -18,7 +18,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <map>
 #include <random>
 #include <sstream>
@@ -134,12 +133,6 @@ int main(int argc, char** argv) try {
             for (auto& e : errors) e = {e[0] - mean[0], e[1] - mean[1]};
         }
     }
-    if (const char* path = std::getenv("POS2_TRUTH")) {  // DEBUG (POS2): stated centres and true offsets
-        FILE* f = std::fopen(path, "w");
-        for (std::size_t k = 0; k < positions.size(); ++k)
-            std::fprintf(f, "%.17g %.17g %.17g %.17g\n", positions[k][0], positions[k][1], errors[k][0], errors[k][1]);
-        std::fclose(f);
-    }
     std::vector<std::array<double, 2>> obs_error;  // per observation
     const auto t_render = std::chrono::steady_clock::now();
     for (double lambda : lambdas_used)
@@ -176,7 +169,6 @@ int main(int argc, char** argv) try {
     set_int("blur_wavelengths", rs.blur_wavelengths);
     set_int("refine_iters", rs.refine_iterations);
     set_int("field_passes", rs.field_passes);
-    set_int("position_blur_rounds", rs.position_blur_rounds);
     if (args.count("blurs")) rs.blurred.blur_widths = parse_list(args["blurs"]);
     if (args.count("unwrap")) rs.unwrap_from_blurred = args["unwrap"] == "blurred";
     if (args.count("cascade")) rs.cascade = args["cascade"] == "1";

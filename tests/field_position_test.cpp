@@ -74,11 +74,10 @@ TEST(FieldPositions, CentreGradientMatchesCentralDifferences) {
                 std::array<double, 2> plus = offset, minus = offset;
                 plus[std::size_t(c)] += h;
                 minus[std::size_t(c)] -= h;
-                const double fd = (detail::field_position_loss(o, plus, object, kLambda, kRows, kCols, kTexel, kRefine,
-                                                               nullptr) -
-                                   detail::field_position_loss(o, minus, object, kLambda, kRows, kCols, kTexel,
-                                                               kRefine, nullptr)) /
-                                  (2.0 * h);
+                const double fd =
+                    (detail::field_position_loss(o, plus, object, kLambda, kRows, kCols, kTexel, kRefine, nullptr) -
+                     detail::field_position_loss(o, minus, object, kLambda, kRows, kCols, kTexel, kRefine, nullptr)) /
+                    (2.0 * h);
                 EXPECT_NEAR(g[std::size_t(c)], fd, 1e-5 * (std::abs(fd) + std::abs(g[0]) + std::abs(g[1])))
                     << "centre " << centre[0] << "," << centre[1] << " coordinate " << c;
             }
@@ -103,8 +102,8 @@ TEST(FieldPositions, ShiftingTheObjectByWholeSamplesIsARoll) {
         }
     EXPECT_LT(worst, 1e-12);
     // A fractional shift and back is the identity.
-    const auto back = detail::shift_object(detail::shift_object(o, rows, cols, kTexel, refine, 0.37, -0.81), rows,
-                                           cols, kTexel, refine, -0.37, 0.81);
+    const auto back = detail::shift_object(detail::shift_object(o, rows, cols, kTexel, refine, 0.37, -0.81), rows, cols,
+                                           kTexel, refine, -0.37, 0.81);
     for (std::size_t k = 0; k < o.size(); ++k) EXPECT_LT(std::abs(back[k] - o[k]), 1e-12);
 }
 
@@ -121,7 +120,8 @@ TEST(FieldPositions, GradientStepsFindKnownOffsetsAtTheTrueObjectWithTheSameBits
             obs.push_back(observation_at(object, {(a + 0.5) * 24.0 / side, (b + 0.5) * 24.0 / side}, errors.back()));
         }
     std::array<double, 2> mean{0.0, 0.0};
-    for (const auto& e : errors) mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
+    for (const auto& e : errors)
+        mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
     std::vector<const Observation*> group;
     std::vector<std::size_t> position;
     for (std::size_t k = 0; k < obs.size(); ++k) {
@@ -155,7 +155,8 @@ TEST(FieldPositions, GradientStepsFindKnownOffsetsAtTheTrueObjectWithTheSameBits
             sum += std::pow(one[2 * k + std::size_t(c)] - truth, 2);
             start += truth * truth;
         }
-    const double rms = std::sqrt(sum / (2.0 * double(obs.size()))) / kTexel, rms0 = std::sqrt(start / (2.0 * double(obs.size()))) / kTexel;
+    const double rms = std::sqrt(sum / (2.0 * double(obs.size()))) / kTexel,
+                 rms0 = std::sqrt(start / (2.0 * double(obs.size()))) / kTexel;
     RecordProperty("offset_rms_before_texels", std::to_string(rms0));
     RecordProperty("offset_rms_after_texels", std::to_string(rms));
     EXPECT_GT(rms0, 0.3);

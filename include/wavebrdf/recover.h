@@ -219,9 +219,6 @@ struct RecoverSettings {
     // Cascading: passes over the wavelengths, every field of a later pass started from the
     // heights of all fields of the pass before.
     int field_passes = 1;
-    // With calibrate.positions: rounds of position registration against the blurred fit (and
-    // its refit at the corrected centres) before the field stage (0: none).
-    int position_blur_rounds = 2;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 40;
     int refine_history = 20;

@@ -7,18 +7,13 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
-#include <cstdio>
-#include <cstdlib>
 
-#include <Eigen/Dense>
 #include <fftw3.h>
 
 #include "core/exact_sum.h"
 #include "core/fftw_planner.h"
 #include "core/parallel.h"
 #include "wavebrdf/constants.h"
-#include "wavebrdf/model.h"
-#include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf::detail {
 
@@ -90,7 +85,8 @@ std::vector<std::complex<double>> shift_object(const std::vector<std::complex<do
         const double nu_x = (2 * a == nr) ? 0.0 : double(a < (nr + 1) / 2 ? a : a - nr) / period_x;
         for (int b = 0; b < nc; ++b) {
             const double nu_y = (2 * b == nc) ? 0.0 : double(b < (nc + 1) / 2 ? b : b - nc) / period_y;
-            out[std::size_t(a) * nc + b] *= inv_n * std::polar(1.0, -2.0 * k_pi * (nu_x * shift_x_um + nu_y * shift_y_um));
+            out[std::size_t(a) * nc + b] *= inv_n *
+                                            std::polar(1.0, -2.0 * k_pi * (nu_x * shift_x_um + nu_y * shift_y_um));
         }
     }
     fftw_execute(backward);
@@ -113,8 +109,8 @@ std::vector<double> descend_positions(std::size_t observations, const std::vecto
                                       std::size_t count, double texel_um, int steps, std::vector<double> x,
                                       const Eval& eval, const Communicator& comm) {
     std::vector<double> loss(count), grad(2 * count), seen(count);
-    const auto evaluate = [&](const std::vector<double>& trial, const std::vector<char>& active,
-                              std::vector<double>& l, std::vector<double>& gr, std::vector<double>* n) {
+    const auto evaluate = [&](const std::vector<double>& trial, const std::vector<char>& active, std::vector<double>& l,
+                              std::vector<double>& gr, std::vector<double>* n) {
         std::vector<double> values(3 * observations, 0.0);
         RegionGuard guard;
 #pragma omp parallel for schedule(dynamic, 1) if (observations > 1 && !in_parallel_region())
@@ -204,7 +200,6 @@ std::vector<double> descend_positions(std::size_t observations, const std::vecto
         }
         for (std::size_t p = 0; p < count; ++p)
             if (pending[p]) alpha[p] *= 1.0 / 64.0;
-
     }
     return x;
 }
@@ -221,8 +216,8 @@ double correct_positions(const std::vector<const Observation*>& group, const std
     const std::size_t count = offsets_um.size() / 2;
     for (std::size_t p : position)
         if (p >= count)
-            throw std::invalid_argument("correct_positions: position index " + std::to_string(p) + " is out of range; expected < " +
-                                        std::to_string(count));
+            throw std::invalid_argument("correct_positions: position index " + std::to_string(p) +
+                                        " is out of range; expected < " + std::to_string(count));
     // The loss normalised by every rank's Σ R (so every term is of order 1 or less).
     std::vector<double> totals(group.size(), 0.0);
     for (std::size_t g = 0; g < group.size(); ++g)
@@ -248,44 +243,17 @@ double correct_positions(const std::vector<const Observation*>& group, const std
     for (std::size_t p = 0; p < count; ++p)
         for (int c = 0; c < 2; ++c) x[2 * p + std::size_t(c)] -= mean[c];
     object = shift_object(object, rows, cols, texel_um, refine, -mean[0], -mean[1]);
-    if (const char* path = std::getenv("POS2_TRUTH")) {  // DEBUG
-        std::vector<std::array<double, 4>> t;
-        FILE* f = std::fopen(path, "r");
-        std::array<double, 4> v;
-        while (f && std::fscanf(f, "%lf %lf %lf %lf", &v[0], &v[1], &v[2], &v[3]) == 4) t.push_back(v);
-        if (f) std::fclose(f);
-        double e2 = 0, s2 = 0; int n = 0;
-        std::vector<std::array<double, 2>> truth(count, {NAN, NAN});
-        for (std::size_t g = 0; g < group.size(); ++g)
-            for (const auto& r : t)
-                if (std::abs(r[0] - group[g]->query.x_um) < 1e-9 && std::abs(r[1] - group[g]->query.y_um) < 1e-9)
-                    truth[position[g]] = {r[2], r[3]};
-        double tm[2] = {0, 0};
-        for (std::size_t p = 0; p < count; ++p) for (int c = 0; c < 2; ++c) tm[c] += truth[p][c] / double(count);
-        for (std::size_t p = 0; p < count; ++p)
-            for (int c = 0; c < 2; ++c) {
-                const double tt = truth[p][c] - tm[c];
-                e2 += (x[2 * p + c] - tt) * (x[2 * p + c] - tt);
-                s2 += (start[2 * p + c] - tt) * (start[2 * p + c] - tt);
-                ++n;
-            }
-        std::fprintf(stderr, "  positions: err %.4f -> %.4f texels (mean shift %.4f %.4f um)\n", std::sqrt(s2 / n) / texel_um,
-                     std::sqrt(e2 / n) / texel_um, mean[0], mean[1]);
-    }
     double moved = 0.0;
     for (std::size_t k = 0; k < x.size(); ++k) moved += (x[k] - start[k]) * (x[k] - start[k]);
     offsets_um = x;
     return count > 0 ? std::sqrt(moved / double(x.size())) / texel_um : 0.0;
 }
 
-FieldRetrievalResult retrieve_field_with_positions(const std::vector<const Observation*>& group,
-                                                   const std::vector<std::size_t>& position, double lambda_um,
-                                                   int rows, int cols, double texel_um,
-                                                   const std::vector<std::complex<double>>& initial,
-                                                   const FieldRetrievalSettings& settings,
-                                                   const std::function<bool(int, double)>& on_iteration,
-                                                   std::vector<double>& offsets_um, const Communicator& comm,
-                                                   int chunk_iterations, int steps) {
+FieldRetrievalResult retrieve_field_with_positions(
+    const std::vector<const Observation*>& group, const std::vector<std::size_t>& position, double lambda_um, int rows,
+    int cols, double texel_um, const std::vector<std::complex<double>>& initial, const FieldRetrievalSettings& settings,
+    const std::function<bool(int, double)>& on_iteration, std::vector<double>& offsets_um, const Communicator& comm,
+    int chunk_iterations, int steps) {
     if (chunk_iterations < 1 || steps < 0)
         throw std::invalid_argument("retrieve_field_with_positions: chunk " + std::to_string(chunk_iterations) +
                                     " / steps " + std::to_string(steps) + " invalid; expected >= 1 / >= 0");
@@ -325,119 +293,6 @@ FieldRetrievalResult retrieve_field_with_positions(const std::vector<const Obser
     result.iterations = done;
     result.object = std::move(object);
     return result;
-}
-
-}  // namespace wavebrdf::detail
-
-namespace wavebrdf::detail {
-
-namespace {
-
-// B[p, f] = G_β(u_p − u_f) Δu: the Gaussian blur of std β (cycles/µm) on a slice's own grid
-// (as the blurred fit's, recover_blur.cpp).
-Eigen::MatrixXd slice_blur(int n, double lambda_um, double beta) {
-    Eigen::MatrixXd b(n, n);
-    const double du = 2.0 / (n * lambda_um);
-    const double norm = du / (std::sqrt(2.0 * k_pi) * beta);
-    for (int p = 0; p < n; ++p)
-        for (int f = 0; f < n; ++f) {
-            const double d = (slice_omega(p, n) - slice_omega(f, n)) / lambda_um;
-            b(p, f) = norm * std::exp(-0.5 * d * d / (beta * beta));
-        }
-    return b;
-}
-
-}  // namespace
-
-Heightfield register_positions_blurred(const std::vector<const Observation*>& group,
-                                       const std::vector<std::size_t>& position,
-                                       const std::vector<const Observation*>& blur_set,
-                                       const std::vector<std::size_t>& blur_position, const Heightfield& estimate,
-                                       const BlurredFitSettings& blurred, const std::vector<double>& widths,
-                                       int rounds, int steps, std::vector<double>& offsets_um,
-                                       const Communicator& comm) {
-    if (position.size() != group.size() || blur_position.size() != blur_set.size())
-        throw std::invalid_argument("register_positions_blurred: one position index per observation expected");
-    const std::size_t count = offsets_um.size() / 2;
-    const double texel_um = estimate.texel_um();
-    Heightfield heights = estimate;
-    for (int round = 0; round < rounds; ++round) {
-        for (double width : widths) {
-            // Per observation: its blur and √(B R Bᵀ); the loss Σ(√(B M Bᵀ) − √(B R Bᵀ))² / Σ B R Bᵀ.
-            std::vector<Eigen::MatrixXd> blur(group.size()), root(group.size());
-            std::vector<double> totals(group.size());
-            for (std::size_t g = 0; g < group.size(); ++g) {
-                const Observation& o = *group[g];
-                const int n = o.resolution;
-                blur[g] = slice_blur(n, o.lambdas_um[0], width / (2.0 * std::sqrt(2.0) * k_pi * o.query.sigma_p_um));
-                Eigen::MatrixXd r(n, n);
-                for (int p = 0; p < n; ++p)
-                    for (int q = 0; q < n; ++q) r(p, q) = std::max(0.0, o.reference[std::size_t(p) * n + q]);
-                root[g] = blur[g] * r * blur[g].transpose();
-                totals[g] = root[g].sum();
-                root[g] = root[g].cwiseMax(0.0).cwiseSqrt();
-            }
-            const double total = exact_total(totals, comm);
-            if (!(total > 0.0)) return heights;
-            const double inv_total = 1.0 / total;
-            offsets_um = descend_positions(
-                group.size(), position, count, texel_um, steps, offsets_um,
-                [&](std::size_t g, const std::array<double, 2>& offset, std::array<double, 2>& gradient) {
-                    const Observation& o = *group[g];
-                    Query q = o.query;
-                    q.x_um += offset[0];
-                    q.y_um += offset[1];
-                    SlicePlan<double> plan(heights, q, o.lambdas_um, o.resolution, 1);
-                    const std::vector<double>& f = plan.forward();
-                    const int n = o.resolution;
-                    Eigen::MatrixXd m(n, n);
-                    for (int p = 0; p < n; ++p)
-                        for (int c = 0; c < n; ++c) m(p, c) = f[std::size_t(p) * n + c];
-                    const Eigen::MatrixXd mb = blur[g] * m * blur[g].transpose();
-                    Eigen::MatrixXd dm(n, n);
-                    double v = 0.0;
-                    for (int p = 0; p < n; ++p)
-                        for (int c = 0; c < n; ++c) {
-                            const double a = std::sqrt(std::max(mb(p, c), 0.0));
-                            const double diff = a - root[g](p, c);
-                            v += diff * diff;
-                            dm(p, c) = a > 0.0 ? inv_total * diff / a : 0.0;  // ∂(diff²)/∂M_b = diff / a
-                        }
-                    const Eigen::MatrixXd w = blur[g].transpose() * dm * blur[g];
-                    std::vector<double> weights(std::size_t(n) * n);
-                    for (int p = 0; p < n; ++p)
-                        for (int c = 0; c < n; ++c) weights[std::size_t(p) * n + c] = w(p, c);
-                    gradient = plan.position_gradient(weights);
-                    return inv_total * v;
-                },
-                comm);
-        }
-        // The gauge: the mean offset removed, the heights shifted with it (Fourier, periodic).
-        double mean[2] = {0.0, 0.0};
-        for (std::size_t p = 0; p < count; ++p)
-            for (int c = 0; c < 2; ++c) mean[c] += offsets_um[2 * p + std::size_t(c)] / double(count);
-        for (std::size_t p = 0; p < count; ++p)
-            for (int c = 0; c < 2; ++c) offsets_um[2 * p + std::size_t(c)] -= mean[c];
-        {
-            std::vector<std::complex<double>> h(heights.values().begin(), heights.values().end());
-            h = shift_object(h, heights.rows(), heights.cols(), texel_um, 1, -mean[0], -mean[1]);
-            std::vector<double> v(h.size());
-            for (std::size_t k = 0; k < h.size(); ++k) v[k] = h[k].real();
-            heights = heights.with_values(v);
-        }
-        // The blurred heights refitted at the corrected centres.
-        std::vector<Observation> shifted;
-        shifted.reserve(blur_set.size());
-        for (std::size_t g = 0; g < blur_set.size(); ++g) {
-            shifted.push_back(*blur_set[g]);
-            shifted.back().query.x_um += offsets_um[2 * blur_position[g]];
-            shifted.back().query.y_um += offsets_um[2 * blur_position[g] + 1];
-        }
-        BlurredFitSettings refit = blurred;
-        refit.blur_widths = widths;
-        heights = fit_blurred(shifted, heights, refit, {}, comm);
-    }
-    return heights;
 }
 
 }  // namespace wavebrdf::detail

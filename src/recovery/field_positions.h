@@ -16,7 +16,6 @@
 #include <vector>
 
 #include "wavebrdf/communicator.h"
-#include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
 
@@ -56,31 +55,10 @@ double correct_positions(const std::vector<const Observation*>& group, const std
 // centres + offsets_um), each followed by correct_positions(steps); settings.iterations in all.
 // Stops early when a chunk ends on the stall rule and the offsets moved by less than 0.01 texel
 // rms. Collective as retrieve_field; offsets_um is updated on every rank.
-FieldRetrievalResult retrieve_field_with_positions(const std::vector<const Observation*>& group,
-                                                   const std::vector<std::size_t>& position, double lambda_um,
-                                                   int rows, int cols, double texel_um,
-                                                   const std::vector<std::complex<double>>& initial,
-                                                   const FieldRetrievalSettings& settings,
-                                                   const std::function<bool(int, double)>& on_iteration,
-                                                   std::vector<double>& offsets_um, const Communicator& comm,
-                                                   int chunk_iterations = 10, int steps = 3);
-
-// Before the field stage (positions off by more than the field stage's capture range): every
-// position's offset registered against the blurred fit's heights by the blurred loss (smooth in
-// the positions as in the heights), for each blur width of `widths` in turn (lobes, as
-// BlurredFitSettings::blur_widths) `steps` lockstep gradient steps (SlicePlan::position_gradient);
-// then the mean offset is removed (the heights shifted with it) and the blurred heights are
-// refitted on blur_set at the corrected centres (fit_blurred with `blurred` and `widths`);
-// `rounds` times. group / position: this rank's observations used for the registration and
-// their positions' indices into offsets_um (2 per position, every rank's, µm, updated on every
-// rank); blur_set / blur_position: those of the blurred fit. Collective; exact sums as above.
-// Returns the refitted heights.
-Heightfield register_positions_blurred(const std::vector<const Observation*>& group,
-                                       const std::vector<std::size_t>& position,
-                                       const std::vector<const Observation*>& blur_set,
-                                       const std::vector<std::size_t>& blur_position, const Heightfield& estimate,
-                                       const BlurredFitSettings& blurred, const std::vector<double>& widths,
-                                       int rounds, int steps, std::vector<double>& offsets_um,
-                                       const Communicator& comm);
+FieldRetrievalResult retrieve_field_with_positions(
+    const std::vector<const Observation*>& group, const std::vector<std::size_t>& position, double lambda_um, int rows,
+    int cols, double texel_um, const std::vector<std::complex<double>>& initial, const FieldRetrievalSettings& settings,
+    const std::function<bool(int, double)>& on_iteration, std::vector<double>& offsets_um, const Communicator& comm,
+    int chunk_iterations = 10, int steps = 3);
 
 }  // namespace wavebrdf::detail

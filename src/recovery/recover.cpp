@@ -140,26 +140,6 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             comm);
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
     }
-    // Self-calibration of positions (recover_positions.h, field_positions.h): one offset per
-    // position, registered against the blurred fit first (a wide capture range), then corrected
-    // during every field's retrieval; stage 3 starts from them.
-    std::vector<std::size_t> position_of;
-    std::vector<double> offsets_um;
-    if (settings.calibrate.positions)
-        offsets_um.assign(2 * detail::gather_positions(observations, position_of, comm).size(), 0.0);
-    const auto position_index = [&](const Observation* o) { return position_of[std::size_t(o - observations.data())]; };
-    if (settings.calibrate.positions && !settings.blurred.blur_widths.empty() && settings.blurred.iterations > 0 &&
-        settings.position_blur_rounds > 0) {
-        std::vector<std::size_t> index, blur_index;
-        for (const Observation* o : by_lambda.rbegin()->second) index.push_back(position_index(o));
-        for (const Observation* o : blur_set) blur_index.push_back(position_index(o));
-        BlurredFitSettings blurred = settings.blurred;
-        blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
-        estimate = detail::register_positions_blurred(by_lambda.rbegin()->second, index, blur_set, blur_index,
-                                                      estimate, blurred, {4.0, 2.0}, settings.position_blur_rounds,
-                                                      5, offsets_um, comm);
-        if (!report("blur:positions", 0, 0.0, &estimate)) return estimate;
-    }
 
     // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.
     double max_omega_i = 0.0;
@@ -199,6 +179,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // projection onto pure-phase, smooth objects, which removes the local defects (phase
     // vortices) a retrieval from a poor start can stall in.
     const int passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
+    // Self-calibration of positions (recover_positions.h): every position's offset, corrected
+    // after each field by registration against it, shifts the observations of later fields.
+    std::vector<std::size_t> position_of;
+    std::vector<double> offsets_um;
+    if (settings.calibrate.positions)
+        offsets_um.assign(2 * detail::gather_positions(observations, position_of, comm).size(), 0.0);
+    const auto position_index = [&](const Observation* o) { return position_of[std::size_t(o - observations.data())]; };
     for (int pass = 0; pass < passes; ++pass)
         for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
             const double lambda = it->first;
