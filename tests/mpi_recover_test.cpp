@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "cli_util.h"
 
 namespace wavebrdf::test {
@@ -147,6 +149,23 @@ TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
     const std::string calibration = read_text(dir / "one" / "calibration.json");
     EXPECT_NE(calibration.find("\"position_offsets_um\""), std::string::npos) << calibration;
     EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
+    // The simulated offsets are mean-free (a common offset is an unobservable shift of the
+    // surface), as the refined ones (the gauge).
+    const nlohmann::json j = nlohmann::json::parse(calibration);
+    for (const char* which : {"truth", "estimate"}) {
+        const nlohmann::json& offsets = std::string(which) == "truth" ? j["truth"]["position_offsets_um"]
+                                                                       : j["position_offsets_um"];
+        ASSERT_TRUE(offsets.is_array()) << which;
+        double mean[2] = {0.0, 0.0}, rms = 0.0;
+        for (const auto& o : offsets)
+            for (int c = 0; c < 2; ++c) {
+                mean[c] += o[std::size_t(c)].get<double>() / double(offsets.size());
+                rms += std::pow(o[std::size_t(c)].get<double>(), 2) / double(2 * offsets.size());
+            }
+        EXPECT_GT(std::sqrt(rms), 0.1) << which;
+        EXPECT_NEAR(mean[0], 0.0, 1e-9) << which;
+        EXPECT_NEAR(mean[1], 0.0, 1e-9) << which;
+    }
 }
 
 TEST(MpiRecover, ABadOptionFailsWithOneLineNotOnePerRank) {
