@@ -219,7 +219,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         std::vector<std::array<double, 2>> offsets(plan.positions_um.size());
         if (e.any()) {
             true_plan.sigma_p_um *= e.sigma_p_factor;
-            for (std::size_t p = 0; p < offsets.size(); ++p) offsets[p] = simulated_position_offset_um(e, p, r.texel_um);
+            for (std::size_t p = 0; p < offsets.size(); ++p)
+                offsets[p] = simulated_position_offset_um(e, p, r.texel_um);
             // Mean-free: a common offset of every position is a shift of the whole surface, which
             // no slice sees (the recovery's gauge puts the surface where the stated positions do),
             // so height_rel_rmse would measure that shift rather than the recovery.
