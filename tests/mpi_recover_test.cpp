@@ -154,7 +154,7 @@ TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
     const nlohmann::json j = nlohmann::json::parse(calibration);
     for (const char* which : {"truth", "estimate"}) {
         const nlohmann::json& offsets = std::string(which) == "truth" ? j["truth"]["position_offsets_um"]
-                                                                       : j["position_offsets_um"];
+                                                                      : j["position_offsets_um"];
         ASSERT_TRUE(offsets.is_array()) << which;
         double mean[2] = {0.0, 0.0}, rms = 0.0;
         for (const auto& o : offsets)
