@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "cli_util.h"
 
 namespace wavebrdf::test {
@@ -127,6 +129,43 @@ TEST(MpiRecover, CalibratedRunsOnTwoRanksEqualOneProcess) {
     EXPECT_NE(calibration.find("\"refined\": \"exposure,sigma\""), std::string::npos) << calibration;
     EXPECT_NE(calibration.find("\"exposure_rel_rms\""), std::string::npos) << calibration;
     EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
+}
+
+// Position self-calibration under MPI (field_positions.h, recover_positions.h): the position
+// correction inside the field stage and the joint refinement sum every position's terms
+// exactly over the ranks, so two ranks give the one-process heights and offsets bit for bit.
+TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
+    const fs::path dir = fresh_dir("mpi_recover_positions");
+    const auto args = [](const std::string& out) {
+        std::vector<std::string> a = recover_args(out);
+        a.insert(a.end() - 2, {"--calibrate", "positions", "--simulate-position-error-texels", "0.5"});
+        return a;
+    };
+    const CliResult one = run_ranks(dir, 0, args("one"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const CliResult two = run_ranks(dir, 2, args("two"));
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
+    const std::string calibration = read_text(dir / "one" / "calibration.json");
+    EXPECT_NE(calibration.find("\"position_offsets_um\""), std::string::npos) << calibration;
+    EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
+    // The simulated offsets are mean-free (a common offset is an unobservable shift of the
+    // surface), as the refined ones (the gauge).
+    const nlohmann::json j = nlohmann::json::parse(calibration);
+    for (const char* which : {"truth", "estimate"}) {
+        const nlohmann::json& offsets = std::string(which) == "truth" ? j["truth"]["position_offsets_um"]
+                                                                      : j["position_offsets_um"];
+        ASSERT_TRUE(offsets.is_array()) << which;
+        double mean[2] = {0.0, 0.0}, rms = 0.0;
+        for (const auto& o : offsets)
+            for (int c = 0; c < 2; ++c) {
+                mean[c] += o[std::size_t(c)].get<double>() / double(offsets.size());
+                rms += std::pow(o[std::size_t(c)].get<double>(), 2) / double(2 * offsets.size());
+            }
+        EXPECT_GT(std::sqrt(rms), 0.1) << which;
+        EXPECT_NEAR(mean[0], 0.0, 1e-9) << which;
+        EXPECT_NEAR(mean[1], 0.0, 1e-9) << which;
+    }
 }
 
 TEST(MpiRecover, ABadOptionFailsWithOneLineNotOnePerRank) {

@@ -17,6 +17,7 @@
 #include "wavebrdf/slice_plan.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
 #include "recovery/recover_field_model.h"
@@ -200,23 +201,14 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!settings.calibrate.positions)
                     return retrieve_field(it->second, lambda, rows, cols, texel_um,
                                           object_from_heights(estimate, lambda, q), field_settings, on_iteration, comm);
-                std::vector<Observation> group;
-                group.reserve(it->second.size());
-                for (const Observation* o : it->second) {
-                    group.push_back(*o);
-                    group.back().query.x_um += offsets_um[2 * position_index(o)];
-                    group.back().query.y_um += offsets_um[2 * position_index(o) + 1];
-                }
-                return retrieve_field(group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
-                                      field_settings, on_iteration, comm);
-            }();
-            if (stopped) return estimate;
-            if (settings.calibrate.positions) {
+                // Position correction interleaved with the object's iterations (field_positions.h).
                 std::vector<std::size_t> index;
                 for (const Observation* o : it->second) index.push_back(position_index(o));
-                detail::register_positions(it->second, index, r.object, lambda, rows, cols, texel_um, q, offsets_um,
-                                           comm);
-            }
+                return detail::retrieve_field_with_positions(it->second, index, lambda, rows, cols, texel_um,
+                                                             object_from_heights(estimate, lambda, q), field_settings,
+                                                             on_iteration, offsets_um, comm);
+            }();
+            if (stopped) return estimate;
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
                 lambdas.push_back(lambda);

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <memory>
 #include <omp.h>
 
@@ -54,76 +53,6 @@ std::vector<double> offsets_from(const std::vector<double>& x, std::size_t cells
 }
 
 }  // namespace
-
-void register_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
-                        const std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
-                        double texel_um, int refine, std::vector<double>& offsets_um, const Communicator& comm) {
-    // This rank's positions at this wavelength and their observations.
-    std::map<std::size_t, std::vector<const Observation*>> at;
-    for (std::size_t g = 0; g < group.size(); ++g) at[position[g]].push_back(group[g]);
-    std::vector<std::size_t> mine;
-    for (const auto& entry : at) mine.push_back(entry.first);
-    std::vector<double> delta(offsets_um.size(), 0.0);
-    RegionGuard guard;
-#pragma omp parallel for schedule(dynamic, 1) if (mine.size() > 1 && !in_parallel_region())
-    for (std::size_t m = 0; m < mine.size(); ++m)
-        guard.run([&] {
-            const std::size_t p = mine[m];
-            const std::vector<const Observation*>& obs = at[p];
-            const auto loss = [&](double dx, double dy) {
-                double sum = 0.0;
-                for (const Observation* o : obs) {
-                    Query q = o->query;
-                    q.x_um += dx;
-                    q.y_um += dy;
-                    const FieldOperator op(rows, cols, texel_um, q, lambda_um, o->resolution, refine);
-                    const std::vector<std::complex<double>> field = op.forward(object);
-                    const std::vector<double>& amp = op.amplitude_factor();
-                    for (std::size_t k = 0; k < field.size(); ++k) {
-                        if (amp[k] == 0.0) continue;
-                        const double d = amp[k] * std::abs(field[k]) - std::sqrt(std::max(0.0, o->reference[k]));
-                        sum += d * d;
-                    }
-                }
-                return sum;
-            };
-            double x = offsets_um[2 * p], y = offsets_um[2 * p + 1];
-            double best = loss(x, y);
-            for (double step = texel_um; step >= texel_um / 16.0; step *= 0.5)
-                for (int moves = 0; moves < 8; ++moves) {  // at most 8 moves per step size
-                    double bx = x, by = y;
-                    for (int a = -1; a <= 1; ++a)
-                        for (int b = -1; b <= 1; ++b) {
-                            if (a == 0 && b == 0) continue;
-                            const double v = loss(x + a * step, y + b * step);
-                            if (v < best) {
-                                best = v;
-                                bx = x + a * step;
-                                by = y + b * step;
-                            }
-                        }
-                    if (bx == x && by == y) break;
-                    x = bx;
-                    y = by;
-                }
-            delta[2 * p] = x - offsets_um[2 * p];
-            delta[2 * p + 1] = y - offsets_um[2 * p + 1];
-        });
-    guard.rethrow();
-    // Each position lies on one rank: the sum over ranks is its own delta, exactly.
-    comm.allreduce_sum(delta.data(), delta.size());
-    const std::size_t count = offsets_um.size() / 2;
-    for (int c = 0; c < 2; ++c) {
-        double mean = 0.0;
-        for (std::size_t p = 0; p < count; ++p)
-            mean += offsets_um[2 * p + std::size_t(c)] + delta[2 * p + std::size_t(c)];
-        mean /= double(count);
-        for (std::size_t p = 0; p < count; ++p) {
-            double& o = offsets_um[2 * p + std::size_t(c)];
-            o = o + delta[2 * p + std::size_t(c)] - mean;
-        }
-    }
-}
 
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,

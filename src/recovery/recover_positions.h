@@ -33,16 +33,7 @@ using StageReport = std::function<bool(const std::string&, int, double, const He
 std::vector<std::array<double, 2>> gather_positions(const std::vector<Observation>& observations,
                                                     std::vector<std::size_t>& index, const Communicator& comm);
 
-// The field stage's position correction (docs/recovery.md, "Self-calibration: positions"): with
-// the object just retrieved at `lambda_um` (refine × finer than the texels, recover.h), each
-// position of this rank's observations `group` (position[g]: its index into the gathered
-// positions) moves its offset by a pattern search of the amplitude loss Σ(√c1|F O| − √R)² over
-// its observations (FieldOperator at the stated centre + offset; steps of one texel halved down
-// to 1/16 texel). offsets_um (2 per position, x then y, every rank's) is updated on every rank
-// (collective), then its mean is removed (the gauge).
-void register_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
-                        const std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
-                        double texel_um, int refine, std::vector<double>& offsets_um, const Communicator& comm);
+// The field stage's position correction: field_positions.h.
 
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
 // (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all

@@ -220,8 +220,16 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         std::vector<std::array<double, 2>> offsets(plan.positions_um.size());
         if (e.any()) {
             true_plan.sigma_p_um *= e.sigma_p_factor;
-            for (std::size_t p = 0; p < offsets.size(); ++p) {
+            for (std::size_t p = 0; p < offsets.size(); ++p)
                 offsets[p] = simulated_position_offset_um(e, p, r.texel_um);
+            // Mean-free: a common offset of every position is a shift of the whole surface, which
+            // no slice sees (the recovery's gauge puts the surface where the stated positions do),
+            // so height_rel_rmse would measure that shift rather than the recovery.
+            std::array<double, 2> mean{{0.0, 0.0}};
+            for (const auto& o : offsets)
+                for (int c = 0; c < 2; ++c) mean[std::size_t(c)] += o[std::size_t(c)] / double(offsets.size());
+            for (std::size_t p = 0; p < offsets.size(); ++p) {
+                for (int c = 0; c < 2; ++c) offsets[p][std::size_t(c)] -= mean[std::size_t(c)];
                 true_plan.positions_um[p][0] += offsets[p][0];
                 true_plan.positions_um[p][1] += offsets[p][1];
             }
