@@ -219,7 +219,7 @@ struct RecoverSettings {
     // robust deviations from their neighbours' median set to it where that lowers the loss,
     // then stage 3 again (0: none).
     int white_repair_rounds = 2;
-    double white_repair_threshold = 5.0;
+    double white_repair_threshold = 3.0;
     int blur_wavelengths = 1;         // stage 0 uses the slices of this many longest wavelengths (0: all)
     double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
     FieldRetrievalSettings field;     // stage 1, per wavelength (its refine is replaced by:)

@@ -6,7 +6,6 @@
 #include <chrono>
 #include <iterator>
 #include <cmath>
-#include <cstdlib>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -139,14 +138,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (k >= first_mine && k < first_mine + it->second.size()) blur_set.push_back(it->second[k - first_mine]);
     }
     Heightfield estimate = flat;
-    BlurredFitSettings blur_settings = white ? settings.white_blurred : settings.blurred;
-    if (white && std::getenv("WB_WIDTHS")) {  // EXPERIMENT-HACK
-        blur_settings.blur_widths.clear();
-        std::string w = std::getenv("WB_WIDTHS");
-        std::size_t pos = 0;
-        while (pos < w.size()) { std::size_t e = w.find(',', pos); if (e == std::string::npos) e = w.size(); blur_settings.blur_widths.push_back(std::stod(w.substr(pos, e - pos))); pos = e + 1; }
-        if (std::getenv("WB_ITERS")) blur_settings.iterations = std::atoi(std::getenv("WB_ITERS"));
-    }
+    const BlurredFitSettings& blur_settings = white ? settings.white_blurred : settings.blurred;
     if (!blur_settings.blur_widths.empty() && blur_settings.iterations > 0) {
         BlurredFitSettings blurred = blur_settings;
         blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
@@ -282,12 +274,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         const bool calibrate_exposure = settings.calibrate.exposure;
         std::vector<double> exposures(observations.size(), 1.0);
         double sigma_scale = 1.0;
+        // RGB slices as non-negative colour coordinates (white_light.h): measured no better on
+        // white light (docs/recovery.md), so off; kept for the study.
         std::vector<std::array<double, 9>> colour_maps;
-        if (std::getenv("WB_XYZ")) {  // EXPERIMENT-HACK
-            colour_maps.resize(observations.size());
-            for (std::size_t i = 0; i < observations.size(); ++i)
-                if (observations[i].channels() == 3) colour_maps[i] = detail::xyz_from_rgb(observations[i].lambdas_um);
-        }
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             const double scale = 1.0 / observations_total;  // all ranks' observations
             return exact_sum.run(observations.size(), comm, g, [&](std::size_t i, detail::ExactScratch& scratch) {
@@ -388,7 +377,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         for (int round = 0; white && go_on && !stopped && round < settings.white_repair_rounds; ++round) {
             std::vector<double> no_g;
             const int kept = detail::repair_defects(
-                h, rows, cols, settings.white_repair_threshold, std::max(1, rows * cols / 64),
+                h, rows, cols, settings.white_repair_threshold, std::max(16, rows * cols / 64),
                 [&](const std::vector<double>& x) { return objective(x, no_g); });
             const Heightfield current = flat.with_values(h);
             if (!report("repair", kept, 0.0, &current)) break;
