@@ -603,6 +603,7 @@ TEST(RecoverHeights, RejectsNoObservationsButTakesRgbOnesAlone) {
     o.resolution = 8;
     o.reference.assign(8 * 8 * 3, 1.0);
     RecoverSettings s;
+    s.white_blurred.blur_widths = {4.0};
     s.white_blurred.iterations = 2;
     s.refine_iterations = 2;
     EXPECT_NO_THROW(recover_heights({o}, 4, 4, 1.0, 1.0, s));
