@@ -38,6 +38,7 @@ struct RecoverArgs {
     double sigma_p_um = 0.0;  // 0: the planner's
     int resolution = 0;       // 0: the planner's
     std::string lambdas;      // "": the planner's
+    int spectral = 0;         // --spectral N: white light, RGB slices of N wavelengths (0: laser)
     double overlap = 0.6, jitter = 0.2;
     std::string noise = "none", loss;  // loss "": matched to the noise
     std::string simulator = "gabor";
@@ -165,6 +166,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
         }
         options.model = parse_model(a.model);
         if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
+        options.spectral = a.spectral;
     }
     PreparedRecovery r;
     // Each rank's share may fail alone (its memory check): agreed before the recovery starts.
@@ -284,6 +286,10 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's Nyquist choice)")
         ->capture_default_str();
     cmd->add_option("--lambdas-um", a->lambdas, "wavelengths in um, comma-separated (default: the planner's ladder)");
+    cmd->add_option("--spectral", a->spectral,
+                    "white light: every planned observation an RGB slice of a broadband source sampled at N "
+                    "wavelengths (2 to 256, as render's --spectral); 0: laser")
+        ->capture_default_str();
     cmd->add_option("--overlap", a->overlap,
                     "worst-case linear overlap of neighbouring windows (jitter included), 0.6 to 0.95")
         ->capture_default_str();

@@ -15,6 +15,7 @@
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/recovery_run.h"
+#include "wavebrdf/spectrum.h"
 #include "wavebrdf/uncertainty.h"
 
 namespace wavebrdf::python {
@@ -222,7 +223,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
                        const py::object& comm_arg, const std::string& simulator, const py::object& calibrate,
                        double simulate_position_error_texels, const py::object& simulate_exposure,
-                       double simulate_sigma_factor, bool with_uncertainty) {
+                       double simulate_sigma_factor, bool with_uncertainty, int spectral) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -253,6 +254,10 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.sigma_p_um = check_finite(sigma_p_um, "sigma_p_um");
     options.resolution = planned_resolution(resolution);
     options.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
+    if (spectral != 0 && (spectral < 2 || spectral > k_max_spectral_samples))
+        bad_argument("spectral", std::to_string(spectral),
+                     "2 to " + std::to_string(k_max_spectral_samples) + " wavelengths, or 0 for laser slices");
+    options.spectral = spectral;
     options.overlap = check_finite(overlap, "overlap");
     options.jitter = check_finite(jitter, "jitter");
     options.field_iterations = optional_count(field_iterations, "field_iterations");
@@ -760,7 +765,7 @@ the same keys with the true values (else None).
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
           "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
           "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0,
-          "uncertainty"_a = false,
+          "uncertainty"_a = false, "spectral"_a = ro.spectral,
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -815,6 +820,8 @@ simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a stud
 uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
               uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
               coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
+spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
+              slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 

@@ -594,13 +594,19 @@ TEST(RecoverHeights, StopsWhenTheCallbackSaysSo) {
     EXPECT_EQ(calls, 1);
 }
 
-TEST(RecoverHeights, RejectsObservationsWithoutASingleWavelengthSlice) {
+// No observation is refused; RGB slices alone are taken (white light: white_light_test.cpp),
+// where they used to be refused for want of a single-wavelength slice.
+TEST(RecoverHeights, RejectsNoObservationsButTakesRgbOnesAlone) {
     Observation o;
     o.query = test::make_query(Model::OHS, 1.0, 1.0, 1.0);
     o.lambdas_um = {0.45, 0.55, 0.65};
     o.resolution = 8;
     o.reference.assign(8 * 8 * 3, 1.0);
-    EXPECT_THROW(recover_heights({o}, 4, 4, 1.0, 1.0), std::invalid_argument);
+    RecoverSettings s;
+    s.white_blurred.blur_widths = {4.0};
+    s.white_blurred.iterations = 2;
+    s.refine_iterations = 2;
+    EXPECT_NO_THROW(recover_heights({o}, 4, 4, 1.0, 1.0, s));
     EXPECT_THROW(recover_heights({}, 4, 4, 1.0, 1.0), std::invalid_argument);
 }
 

@@ -59,6 +59,10 @@ struct AcquisitionPlan {
     std::array<double, 2> omega_i{{0.0, 0.0}};        // projected light direction ω_i
     Model model = Model::OHS;
     std::vector<std::string> notes;  // choices the caller should know about
+    // White light: non-empty, one RGB observation per position, of a broadband source sampled
+    // at these wavelengths (µm; spectral_mix_weights), instead of one per wavelength of
+    // lambdas_um (which then only sized the slices).
+    std::vector<double> white_lambdas_um;
 };
 
 // Throws std::invalid_argument / std::domain_error naming the field for sizes < 1, texel_um,

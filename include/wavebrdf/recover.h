@@ -61,8 +61,11 @@ struct BlurredFitSettings {
 // Heights that match the single-wavelength observations blurred in u (the distribution of
 // reflected directions, smooth in the heights), from `initial` (e.g. flat), wide blur first:
 // L-BFGS on Σ(√(B f Bᵀ) − √(B R Bᵀ))² / Σ B R Bᵀ in the full model (slices in single
-// precision), B the Gaussian blur over the slice pixels. on_iteration(stage, iteration, loss)
-// returning false stops. Throws std::invalid_argument when no single-wavelength observation
+// precision), B the Gaussian blur over the slice pixels. When no rank has a single-wavelength
+// observation, the RGB ones are fitted instead (white light): each channel blurred alike, in ω
+// as at white_light_lambda_um of its wavelengths (the slope distribution is the same at every
+// wavelength). on_iteration(stage, iteration, loss)
+// returning false stops. Throws std::invalid_argument when no observation
 // is given (on any rank), std::domain_error for a blur width ≤ 0 or iterations < 0. `comm`:
 // the ranks the observations are split over (collective; on_iteration's stop is agreed).
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
@@ -75,6 +78,10 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                         const BlurredFitSettings& settings = {},
                         const std::function<bool(int, int, double)>& on_iteration = {},
                         const Communicator& comm = serial_communicator());
+
+// The wavelength (µm) an RGB slice of these wavelengths is blurred at in fit_blurred: their
+// mean. Throws std::invalid_argument on an empty list.
+double white_light_lambda_um(const std::vector<double>& lambdas_um);
 
 // ---- 1. The ptychographic field model ------------------------------------------------------
 
@@ -205,6 +212,14 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i = 0.0)
 
 struct RecoverSettings {
     BlurredFitSettings blurred;       // stage 0 (empty blur_widths: start the field stage from flat)
+    // White light (no single-wavelength OHS / ROHS observation): stage 0 on the RGB slices with
+    // these settings, then stage 3 (docs/recovery.md, White light).
+    BlurredFitSettings white_blurred{{16.0, 8.0, 4.0, 2.0, 1.0, 0.5}, 40, 20, false};
+    // … and after stage 3, up to this many rounds of: texels farther than white_repair_threshold
+    // robust deviations from their neighbours' median set to it where that lowers the loss,
+    // then stage 3 again (0: none).
+    int white_repair_rounds = 2;
+    double white_repair_threshold = 3.0;
     int blur_wavelengths = 1;         // stage 0 uses the slices of this many longest wavelengths (0: all)
     double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
     FieldRetrievalSettings field;     // stage 1, per wavelength (its refine is replaced by:)

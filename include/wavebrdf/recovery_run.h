@@ -51,6 +51,10 @@ struct RecoveryOptions {
     double sigma_p_um = 0.0;                    // 0: the planner's (1.5 texels)
     int resolution = 0;                         // 0: the planner's Nyquist choice
     std::vector<double> lambdas_um;             // empty: the planner's ladder
+    // White light: N ≥ 2 makes every planned observation one RGB slice of a broadband source
+    // sampled at spectral_wavelengths_um(N) (spectrum.h; the renderer's --spectral N), one per
+    // position, its resolution planned for the shortest of them; 0: laser (lambdas_um).
+    int spectral = 0;
     double overlap = 0.6, jitter = 0.2;
     Noise noise;  // simulated on the rendered observations (a truth only)
     // How the observations of a truth are simulated: the Gabor model (render_observation) or

@@ -787,7 +787,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -841,6 +841,8 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
                   uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
                   coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
+    spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
+                  slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...

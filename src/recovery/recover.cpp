@@ -21,6 +21,7 @@
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
 #include "recovery/recover_field_model.h"
+#include "recovery/white_light.h"
 
 namespace wavebrdf {
 
@@ -106,8 +107,15 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // those of its own observations that were taken.
     const double period_x = rows * texel_um, period_y = cols * texel_um;
     const auto periodic = [](double d, double period) { return d - period * std::floor(d / period + 0.5); };
+    // White light (no single-wavelength observation on any rank): the RGB observations, one
+    // group, feed the blurred fit, and the refinement follows it (no field stage).
+    const bool white = by_lambda.empty();
+    std::map<double, std::vector<const Observation*>> blur_groups;
+    if (white)
+        for (const Observation& o : observations) blur_groups[0.0].push_back(&o);
+    const auto& groups = white ? blur_groups : by_lambda;
     int taken = 0;
-    for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it, ++taken) {
+    for (auto it = groups.rbegin(); it != groups.rend(); ++it, ++taken) {
         if (settings.blur_wavelengths > 0 && taken >= settings.blur_wavelengths) break;
         std::vector<double> mine;
         for (const Observation* o : it->second)
@@ -132,8 +140,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (k >= first_mine && k < first_mine + it->second.size()) blur_set.push_back(it->second[k - first_mine]);
     }
     Heightfield estimate = flat;
-    if (!settings.blurred.blur_widths.empty() && settings.blurred.iterations > 0) {
-        BlurredFitSettings blurred = settings.blurred;
+    const BlurredFitSettings& blur_settings = white ? settings.white_blurred : settings.blurred;
+    if (!blur_settings.blur_widths.empty() && blur_settings.iterations > 0) {
+        BlurredFitSettings blurred = blur_settings;
         blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
         estimate = fit_blurred(
             blur_set, flat, blurred,
@@ -148,7 +157,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         for (const Observation* o : group)
             max_omega_i = std::max(max_omega_i, std::hypot(o->query.omega_i[0], o->query.omega_i[1]));
     for (double w : all_gather(comm, {max_omega_i})) max_omega_i = std::max(max_omega_i, w);  // every rank's
-    const int q = settings.refine > 0 ? settings.refine : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
+    const int q = settings.refine > 0 ? settings.refine
+                : white        ? 1
+                               : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
     if (q % 2 == 0 || q > 63)
         throw std::invalid_argument("recover_heights: refine " + std::to_string(q) +
                                     " is invalid; expected an odd value up to 63 (texel centres must be samples)");
@@ -222,8 +233,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report(name, r.iterations, r.relative_loss, &estimate)) return estimate;
             }
         }
-    unwrap_fields();
-    if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
+    if (!white) {
+        unwrap_fields();
+        if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
+    }
 
     // Stage 3: the full model (with the positions refined as well: recover_positions.h).
     const Heightfield unwrapped = estimate;
@@ -259,6 +272,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         const bool calibrate_exposure = settings.calibrate.exposure;
         std::vector<double> exposures(observations.size(), 1.0);
         double sigma_scale = 1.0;
+        // RGB slices as non-negative colour coordinates (white_light.h): measured no better on
+        // white light (docs/recovery.md), so off; kept for the study.
+        std::vector<std::array<double, 9>> colour_maps;
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             const double scale = 1.0 / observations_total;  // all ranks' observations
             return exact_sum.run(observations.size(), comm, g, [&](std::size_t i, detail::ExactScratch& scratch) {
@@ -285,7 +301,18 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 std::vector<double> model(f.begin(), f.end());
                 if (calibrate_exposure)
                     for (double& m : model) m *= exposure;
-                const double v = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
+                // RGB slices compared as non-negative colour coordinates (white_light.h).
+                const bool colour = !colour_maps.empty() && o.channels() == 3;
+                double v;
+                if (colour) {
+                    std::vector<double> reference = o.reference;
+                    detail::apply_colour_map(colour_maps[i], reference);
+                    detail::apply_colour_map(colour_maps[i], model);
+                    v = loss_value(settings.refine_loss, model, reference, 3, &d_estimate);
+                    detail::apply_colour_map_adjoint(colour_maps[i], d_estimate);
+                } else {
+                    v = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
+                }
                 if (calibrate_exposure) detail::exposure_gradient(exposure, f.data(), values, d_estimate);
                 plan.adjoint(d_estimate, scratch.vector(), scale);
                 scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
@@ -343,6 +370,18 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         } else {
             refine_heights(settings.refine_iterations);
         }
+        // White light: isolated texels left a wrap from their neighbours, repaired where the
+        // loss agrees, then refined again (white_light.h).
+        for (int round = 0; white && go_on && !stopped && round < settings.white_repair_rounds; ++round) {
+            std::vector<double> no_g;
+            const int kept = detail::repair_defects(
+                h, rows, cols, settings.white_repair_threshold, std::max(16, rows * cols / 64),
+                [&](const std::vector<double>& x) { return objective(x, no_g); });
+            const Heightfield current = flat.with_values(h);
+            if (!report("repair", kept, 0.0, &current)) break;
+            if (kept == 0) break;
+            refine_heights(settings.refine_iterations);
+        }
         estimate = flat.with_values(h);
         if (stopped) return estimate;
         // The exposures at the final heights (collective: on every rank, whatever it asked).
@@ -357,8 +396,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         refined_sigma_scale = sigma_scale;
     }
     // The model check (recover_field_model.h): the field model's refinement of the unwrapped
-    // heights against stage 3's, the one whose model fits the slices better kept.
-    if (settings.refine_iterations > 0 && settings.model_check_iterations > 0) {
+    // heights against stage 3's, the one whose model fits the slices better kept (not for
+    // white light: no single-wavelength slice, no field model, no unwrapped heights).
+    if (!white && settings.refine_iterations > 0 && settings.model_check_iterations > 0) {
         std::vector<const Observation*> separable;
         std::vector<std::size_t> index;
         for (const auto& entry : by_lambda)
@@ -408,9 +448,6 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     std::vector<double> total{double(observations.size())};
     comm.allreduce_sum(total);
     if (total[0] == 0.0) throw std::invalid_argument("recover_heights: no observations given");
-    if (by_lambda.empty())
-        throw std::invalid_argument(
-            "recover_heights: no single-wavelength OHS or ROHS observation; the field stage needs some");
     // From here on the ranks meet in collective calls: one rank's failure ends them all.
     return run_or_abort(comm, [&] {
         return recover_stages(observations, by_lambda, total[0], flat, rows, cols, texel_um, vscale, settings, on_step,

@@ -42,14 +42,30 @@ Eigen::MatrixXd blur_matrix(int n_to, int n_from, double lambda_um, double beta)
     return b;
 }
 
-Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n) {
+// Channel c of a row-major, channel-interleaved n × n slice of `channels` values per pixel.
+Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n, int channels = 1, int c = 0) {
     Eigen::MatrixXd m(n, n);
     for (int p = 0; p < n; ++p)
-        for (int q = 0; q < n; ++q) m(p, q) = v[std::size_t(p) * n + q];
+        for (int q = 0; q < n; ++q) m(p, q) = v[(std::size_t(p) * n + q) * channels + c];
+    return m;
+}
+
+// The same for the model's float slice.
+Eigen::MatrixXf channel_of(const std::vector<float>& v, int n, int channels, int c) {
+    Eigen::MatrixXf m(n, n);
+    for (int p = 0; p < n; ++p)
+        for (int q = 0; q < n; ++q) m(p, q) = v[(std::size_t(p) * n + q) * channels + c];
     return m;
 }
 
 }  // namespace
+
+double white_light_lambda_um(const std::vector<double>& lambdas_um) {
+    if (lambdas_um.empty()) throw std::invalid_argument("white_light_lambda_um: no wavelength given");
+    double sum = 0.0;
+    for (double l : lambdas_um) sum += l;
+    return sum / double(lambdas_um.size());
+}
 
 Heightfield fit_blurred(const std::vector<Observation>& observations, const Heightfield& initial,
                         const BlurredFitSettings& settings, const std::function<bool(int, int, double)>& on_iteration,
@@ -68,25 +84,31 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
     for (double b : settings.blur_widths)
         if (!(b > 0.0) || !std::isfinite(b))
             throw std::domain_error("fit_blurred: blur width " + std::to_string(b) + " is invalid; expected > 0");
-    // This rank's observations (its share under MPI: every sum below is allreduced).
-    std::vector<const Observation*> used;
+    // This rank's observations (its share under MPI: every sum below is allreduced): the
+    // single-wavelength ones, or, when no rank has any, the RGB ones (white light: each channel
+    // blurred alike in ω).
+    std::vector<const Observation*> used, rgb;
     run_agreed(comm, [&] {
         for (std::size_t i = 0; i < observations.size(); ++i) {
             if (!observations[i])
                 throw std::invalid_argument("fit_blurred: observation " + std::to_string(i) + " is null");
             validate(*observations[i], i);
-            if (observations[i]->lambdas_um.size() == 1) used.push_back(observations[i]);
+            (observations[i]->lambdas_um.size() == 1 ? used : rgb).push_back(observations[i]);
         }
     });
-    std::vector<double> used_count{double(used.size())};
+    std::vector<double> used_count{double(used.size()), double(rgb.size())};
     comm.allreduce_sum(used_count);
-    if (used_count[0] == 0.0) throw std::invalid_argument("fit_blurred: no single-wavelength observation given");
+    if (used_count[0] == 0.0) {
+        if (used_count[1] == 0.0) throw std::invalid_argument("fit_blurred: no observation given");
+        used = std::move(rgb);
+    }
 
     // One slice plan per observation for all stages and iterations (single precision: these
     // stages only need the shape, and are the costliest); only the heights change.
     std::vector<SlicePlan<float>> plans;
     plans.reserve(used.size());
-    for (const Observation* o : used) plans.emplace_back(initial, o->query, o->lambdas_um, o->resolution, 1);
+    for (const Observation* o : used)
+        plans.emplace_back(initial, o->query, o->lambdas_um, o->resolution, o->channels());
 
     // The texels each plan's adjoint writes (its box for the exact sums).
     std::vector<std::vector<int>> box_rows(used.size()), box_cols(used.size());
@@ -104,15 +126,17 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
             Eigen::MatrixXf blur_float;  // the same in single precision (the products are half an evaluation)
         };
         struct Blurred {
-            std::size_t matrix;              // into `matrices`
-            Eigen::MatrixXd sqrt_reference;  // n × n: √(B R Bᵀ)
+            std::size_t matrix;                           // into `matrices`
+            std::vector<Eigen::MatrixXd> sqrt_reference;  // per channel, n × n: √(B R Bᵀ)
         };
         std::vector<BlurMatrix> matrices;
         std::vector<Blurred> data(used.size());
         std::vector<double> totals(used.size());
         for (std::size_t i = 0; i < used.size(); ++i) {
             const Observation& o = *used[i];
-            const double lambda = o.lambdas_um[0];
+            // The blur is a width in ω (the slope distribution is the same at every wavelength):
+            // an RGB slice is blurred as one at the mean of its wavelengths.
+            const double lambda = white_light_lambda_um(o.lambdas_um);
             // The footprint's lobe: |c|² has std σ_p/√2, so its far field intensity has
             // std 1/(2√2 π σ_p) in u.
             const double beta = settings.blur_widths[stage] / (2.0 * std::sqrt(2.0) * k_pi * o.query.sigma_p_um);
@@ -129,9 +153,14 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
             const Eigen::MatrixXd& to_coarse = matrices[m].blur;
             Blurred& d = data[i];
             d.matrix = m;
-            d.sqrt_reference = to_coarse * as_matrix(o.reference, n).cwiseMax(0.0) * to_coarse.transpose();
-            totals[i] = d.sqrt_reference.sum();
-            d.sqrt_reference = d.sqrt_reference.cwiseSqrt();
+            const int channels = o.channels();
+            totals[i] = 0.0;
+            for (int c = 0; c < channels; ++c) {
+                Eigen::MatrixXd r = to_coarse * as_matrix(o.reference, n, channels, c).cwiseMax(0.0) *
+                                    to_coarse.transpose();
+                totals[i] += r.sum();
+                d.sqrt_reference.push_back(r.cwiseSqrt());
+            }
         }
         const double total = detail::exact_total(totals, comm);  // every rank's, in any order
         if (!(total > 0.0)) throw std::invalid_argument("fit_blurred: every reference slice is zero");
@@ -149,12 +178,13 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                 const int n = int(blur.rows());
                 plans[i].set_heights(h);
                 const std::vector<float>& f = plans[i].forward();
-                const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
-                    f.data(), n, n);
-                const Eigen::MatrixXf m = blur * slice * blur.transpose();
+                const int channels = plans[i].channels();
                 double model_total = 0.0;
-                for (int p = 0; p < n; ++p)
-                    for (int q = 0; q < n; ++q) model_total += std::max(double(m(p, q)), 0.0);
+                for (int c = 0; c < channels; ++c) {
+                    const Eigen::MatrixXf m = blur * channel_of(f, n, channels, c) * blur.transpose();
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) model_total += std::max(double(m(p, q)), 0.0);
+                }
                 plans[i].release();
                 if (model_total > 0.0) root_exposures[i] = std::sqrt(totals[i] / model_total);
             }
@@ -169,27 +199,37 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                 SlicePlan<float>& plan = plans[i];
                 plan.set_heights(x);
                 const std::vector<float>& f = plan.forward();
-                const Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> slice(
-                    f.data(), n, n);
-                const Eigen::MatrixXf m = blur * slice * blur.transpose();
+                const int channels = plan.channels();
                 // Self-calibrated exposure: the model scaled by √e, e fixed for the stage.
                 const double root_exposure = settings.calibrate_exposure ? root_exposures[i] : 1.0;
-                Eigen::MatrixXf dm(n, n);
                 double v = 0.0;
-                for (int p = 0; p < n; ++p)
-                    for (int q = 0; q < n; ++q) {
-                        const double mpq = double(m(p, q));
-                        const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
-                        const double diff = root_exposure * a - d.sqrt_reference(p, q);
-                        v += diff * diff;
-                        dm(p, q) = mpq > 0.0 ? float(inv_total * diff * root_exposure / a) : 0.0f;
-                    }
-                const double term = v * inv_total;
-                const Eigen::MatrixXf w = blur.transpose() * dm * blur;
                 std::vector<float> weights(std::size_t(n) * n);
-                for (int p = 0; p < n; ++p)
-                    for (int q = 0; q < n; ++q) weights[std::size_t(p) * n + q] = w(p, q);
-                plan.adjoint_wavelength(0, weights, scratch.vector());
+                std::vector<double> rgb_weights(channels == 1 ? 0 : std::size_t(n) * n * channels);
+                for (int c = 0; c < channels; ++c) {
+                    const Eigen::MatrixXf m = blur * channel_of(f, n, channels, c) * blur.transpose();
+                    Eigen::MatrixXf dm(n, n);
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) {
+                            const double mpq = double(m(p, q));
+                            const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
+                            const double diff = root_exposure * a - d.sqrt_reference[std::size_t(c)](p, q);
+                            v += diff * diff;
+                            dm(p, q) = mpq > 0.0 ? float(inv_total * diff * root_exposure / a) : 0.0f;
+                        }
+                    const Eigen::MatrixXf w = blur.transpose() * dm * blur;
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) {
+                            if (channels == 1)
+                                weights[std::size_t(p) * n + q] = w(p, q);
+                            else
+                                rgb_weights[(std::size_t(p) * n + q) * channels + c] = double(w(p, q));
+                        }
+                }
+                const double term = v * inv_total;
+                if (channels == 1)
+                    plan.adjoint_wavelength(0, weights, scratch.vector());
+                else
+                    plan.adjoint(rgb_weights, scratch.vector());
                 scratch.take_box(box_rows[i], box_cols[i], std::size_t(initial.cols()));
                 // Only the height-independent tables stay between iterations.
                 plan.release();

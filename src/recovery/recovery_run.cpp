@@ -9,6 +9,7 @@
 #include "wavebrdf/optim.h"
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/progress.h"
+#include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
 
@@ -150,16 +151,10 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     // The pipeline's field retrieval needs single-wavelength separable slices: checked here,
     // before the observations are simulated, not after.
     if (options.method == RecoveryMethod::Pipeline) {
-        if (observations.empty() && !is_separable(options.model))
+        if (observations.empty() && options.spectral == 0 && !is_separable(options.model))
             throw std::invalid_argument(std::string("model ") + to_string(options.model) +
                                         " is not separable; the pipeline's field retrieval expects OHS or ROHS "
                                         "(or the thesis's method)");
-        if (!observations.empty() && std::none_of(observations.begin(), observations.end(), [](const Observation& o) {
-                return o.lambdas_um.size() == 1 && is_separable(o.query.model);
-            }))
-            throw std::invalid_argument(
-                "no single-wavelength OHS or ROHS observation given; the pipeline's field retrieval needs some "
-                "(or the thesis's method)");
     }
     // Every observation's metadata (check_acquisition needs them all), and this rank's share.
     std::vector<Observation> catalogue;
@@ -201,7 +196,21 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.seed = options.seed;
         request.lambdas_um = options.lambdas_um;
         request.resolution = options.resolution;
-        const AcquisitionPlan plan = plan_acquisition(request);
+        std::vector<double> white;
+        if (options.spectral != 0) {
+            if (options.spectral < 2 || options.spectral > k_max_spectral_samples || !options.lambdas_um.empty())
+                throw std::invalid_argument("spectral " + std::to_string(options.spectral) +
+                                            " is invalid; expected 2 ... " + std::to_string(k_max_spectral_samples) +
+                                            " wavelengths, without given wavelengths");
+            white = spectral_wavelengths_um(options.spectral);
+            request.lambdas_um = {*std::min_element(white.begin(), white.end())};  // sizes the slices
+        }
+        AcquisitionPlan plan = plan_acquisition(request);
+        if (!white.empty()) {
+            plan.white_lambdas_um = white;
+            plan.notes.push_back("white light: one RGB slice per position, " + std::to_string(white.size()) +
+                                 " wavelengths");
+        }
         r.notes = plan.notes;
         std::vector<Observation> planned = planned_observations(plan);
         r.total_observations = planned.size();

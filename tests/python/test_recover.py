@@ -340,3 +340,16 @@ def test_recover_flat_truth_reports_undefined_metric():
     assert any("undefined: the truth is flat" in w for w in r.warnings)
     with pytest.raises(ValueError, match="GHS"):
         wb.recover(**SMALL, model="GHS")
+
+
+def test_recover_takes_white_light_rgb_slices_alone():
+    # White light (docs/recovery.md): every planned slice RGB of 4 wavelengths, no laser; the
+    # blurred fit and the refinement run, no field stage; the estimate improves on flat.
+    r = wb.recover(**SMALL, resolution=24, spectral=4, refine_iterations=10)
+    stages = set(r.metrics["stage"])
+    assert "refine" in stages and "unwrap" not in stages
+    truth_um = r.truth.heights_um()
+    flat = rel_rmse(np.zeros_like(truth_um), truth_um)
+    assert rel_rmse(r.estimate.heights_um(), truth_um) < 0.5 * flat
+    with pytest.raises(ValueError, match="spectral"):
+        wb.recover(size=8, spectral=1)
