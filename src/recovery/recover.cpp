@@ -19,6 +19,7 @@
 #include "core/parallel.h"
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
+#include "recovery/sigma_search.h"
 
 namespace wavebrdf {
 
@@ -139,6 +140,15 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             comm);
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
     }
+    // σ_p self-calibration before the field stage (sigma_search.h): the scale where the full
+    // model's loss at the blurred heights is smallest; the field stage, the position
+    // registration and the refinement (which starts its σ rounds there) see σ_p · sigma_scale.
+    double sigma_scale = 1.0;
+    if (settings.calibrate.sigma && settings.sigma_presearch) {
+        sigma_scale = detail::presearch_sigma_scale(observations, observations_total, estimate, settings.refine_loss,
+                                                    settings.calibrate.exposure, comm);
+        if (calibration) calibration->sigma_p_scale = calibration->sigma_p_scale_fields = sigma_scale;
+    }
 
     // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.
     double max_omega_i = 0.0;
@@ -191,31 +201,39 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
             // This wavelength's observations where they are (pointers: no copy of the references);
-            // with position calibration, copies at the corrected centres while its field runs.
-            FieldRetrievalResult r = [&] {
-                const auto on_iteration = [&](int iteration, double loss) {
-                    return report(name, iteration, loss, nullptr);
-                };
-                if (!settings.calibrate.positions)
-                    return retrieve_field(it->second, lambda, rows, cols, texel_um,
-                                          object_from_heights(estimate, lambda, q), field_settings, on_iteration, comm);
-                std::vector<Observation> group;
+            // with position or σ_p calibration, copies at the corrected centres and σ_p while its
+            // field runs (one wavelength's at a time).
+            const bool corrected = settings.calibrate.positions || sigma_scale != 1.0;
+            std::vector<Observation> group;
+            std::vector<const Observation*> used = it->second;
+            if (corrected) {
                 group.reserve(it->second.size());
                 for (const Observation* o : it->second) {
                     group.push_back(*o);
-                    group.back().query.x_um += offsets_um[2 * position_index(o)];
-                    group.back().query.y_um += offsets_um[2 * position_index(o) + 1];
+                    group.back().query.sigma_p_um *= sigma_scale;
+                    if (settings.calibrate.positions) {
+                        group.back().query.x_um += offsets_um[2 * position_index(o)];
+                        group.back().query.y_um += offsets_um[2 * position_index(o) + 1];
+                    }
                 }
-                return retrieve_field(group, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
-                                      field_settings, on_iteration, comm);
-            }();
+                for (std::size_t k = 0; k < group.size(); ++k) used[k] = &group[k];
+            }
+            const auto on_iteration = [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); };
+            FieldRetrievalResult r = retrieve_field(used, lambda, rows, cols, texel_um,
+                                                    object_from_heights(estimate, lambda, q), field_settings,
+                                                    on_iteration, comm);
             if (stopped) return estimate;
             if (settings.calibrate.positions) {
+                // At the stated centres (register_positions adds the offsets), with σ_p · s.
+                for (std::size_t k = 0; k < group.size(); ++k) {
+                    group[k].query.x_um = it->second[k]->query.x_um;
+                    group[k].query.y_um = it->second[k]->query.y_um;
+                }
                 std::vector<std::size_t> index;
                 for (const Observation* o : it->second) index.push_back(position_index(o));
-                detail::register_positions(it->second, index, r.object, lambda, rows, cols, texel_um, q, offsets_um,
-                                           comm);
+                detail::register_positions(used, index, r.object, lambda, rows, cols, texel_um, q, offsets_um, comm);
             }
+            std::vector<Observation>().swap(group);
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
                 lambdas.push_back(lambda);
@@ -237,10 +255,11 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         std::vector<std::array<double, 2>> offsets;
         std::vector<double> exposures;
         estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
-                                                        report, comm, offsets, offsets_um, &exposures);
+                                                        report, comm, offsets, offsets_um, &exposures, &sigma_scale);
         if (calibration) {
             calibration->position_offsets_um = std::move(offsets);
             calibration->exposures = std::move(exposures);
+            calibration->sigma_p_scale = sigma_scale;
         }
     } else if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();
@@ -260,7 +279,6 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // rebuilt).
         const bool calibrate_exposure = settings.calibrate.exposure;
         std::vector<double> exposures(observations.size(), 1.0);
-        double sigma_scale = 1.0;
         const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             const double scale = 1.0 / observations_total;  // all ranks' observations
             return exact_sum.run(observations.size(), comm, g, [&](std::size_t i, detail::ExactScratch& scratch) {
@@ -340,7 +358,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                        ? std::max(1, settings.refine_iterations / (2 * detail::k_sigma_rounds))
                                        : std::max(1, settings.refine_iterations - done));
                     return go_on;
-                });
+                },
+                sigma_scale);
             for (auto& p : plans) p.reset();
         } else {
             refine_heights(settings.refine_iterations);
