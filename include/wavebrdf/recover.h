@@ -226,9 +226,9 @@ struct RecoverSettings {
     Loss refine_loss{LossKind::Amplitude, 1.0};
     // Self-calibration (calibration.h): parts of the acquisition refined with the heights.
     CalibrationSettings calibrate;
-    // With calibrate.sigma: estimate σ_p's scale at the blurred fit's heights, before the field
-    // stage, which then sees the refined σ_p (false: the field stage keeps the stated σ_p and
-    // only the refinement calibrates it).
+    // With calibrate.sigma (and not calibrate.exposure): estimate σ_p's scale at the blurred
+    // fit's heights, before the field stage, which then sees the refined σ_p (false: the field
+    // stage keeps the stated σ_p and only the refinement calibrates it).
     bool sigma_presearch = true;
 };
 
