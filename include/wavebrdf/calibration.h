@@ -41,6 +41,7 @@ struct Calibration {
     std::vector<std::array<double, 2>> position_offsets_um;  // true centre − stated centre, µm
     std::vector<double> exposures;                           // reference ≈ exposure · model
     double sigma_p_scale = 1.0;                              // true σ_p = scale · stated σ_p
+    double sigma_p_scale_fields = 1.0;  // the scale the field stage used (found at the blurred fit's heights)
 };
 
 // Errors of the acquisition a study simulates: the observations are rendered for the true

@@ -249,6 +249,10 @@ struct RecoverSettings {
     // (relative amplitude loss, "misfit:gabor" / "misfit:field" in the metrics) are returned.
     // 0: off (stage 3's heights).
     int model_check_iterations = 40;
+    // With calibrate.sigma (and not calibrate.exposure): estimate σ_p's scale at the blurred
+    // fit's heights, before the field stage, which then sees the refined σ_p (false: the field
+    // stage keeps the stated σ_p and only the refinement calibrates it).
+    bool sigma_presearch = true;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
+#include <string>
 #include <stdexcept>
 
 #include "core/random.h"
@@ -141,10 +142,13 @@ double golden_section_minimum(const std::function<double(double)>& f, double lo,
 }
 
 double refine_sigma_scale(const std::function<double(double)>& loss_at,
-                          const std::function<bool(int, double, double)>& after_round) {
+                          const std::function<bool(int, double, double)>& after_round, double initial) {
+    if (!(initial >= 0.25 && initial <= 4.0))
+        throw std::domain_error("refine_sigma_scale: initial scale " + std::to_string(initial) +
+                                " is invalid; expected a factor in [0.25, 4]");
     const double widths[k_sigma_rounds] = {std::log(1.5), 0.08, 0.02};
     const int evaluations[k_sigma_rounds] = {12, 8, 7};
-    double t = 0.0;  // log s
+    double t = std::log(initial);  // log s
     for (int round = 0; round < k_sigma_rounds; ++round) {
         const double lo = std::max(t - widths[round], std::log(0.25)), hi = std::min(t + widths[round], std::log(4.0));
         double value = 0.0;
@@ -172,6 +176,7 @@ Calibration gathered_calibration(const Calibration& mine, const std::vector<std:
     const std::vector<double> all = comm.gather(packed);
     Calibration out;
     out.sigma_p_scale = mine.sigma_p_scale;
+    out.sigma_p_scale_fields = mine.sigma_p_scale_fields;
     if (!comm.is_root()) return out;
     if (flags[0] > 0.0) out.exposures.assign(total, nan);
     if (flags[1] > 0.0) out.position_offsets_um.assign(total, {{nan, nan}});
@@ -189,6 +194,7 @@ std::string calibration_json(const CalibrationSettings& refined, const Calibrati
     nlohmann::json j;
     j["refined"] = to_string(refined);
     j["sigma_p_scale"] = estimate.sigma_p_scale;
+    if (refined.sigma) j["sigma_p_scale_fields"] = estimate.sigma_p_scale_fields;
     if (!estimate.exposures.empty()) j["exposures"] = estimate.exposures;
     if (!estimate.position_offsets_um.empty()) j["position_offsets_um"] = estimate.position_offsets_um;
     if (truth) {

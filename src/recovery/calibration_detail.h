@@ -33,11 +33,12 @@ double golden_section_minimum(const std::function<double(double)>& f, double lo,
 // The σ_p self-calibration's schedule: k_sigma_rounds rounds, each a golden-section search on
 // log s (at fixed heights; loss_at(s) is the loss with every σ_p scaled by s) over a bracket
 // about the current s (±log 1.5 first, then narrower), then after_round(round, s, loss), which
-// refines the heights with σ_p scaled by s and returns false to stop. Returns the last s
+// refines the heights with σ_p scaled by s and returns false to stop. The first bracket is
+// about `initial` (the scale found before the field stage, sigma_search.h). Returns the last s
 // (in [0.25, 4]).
 constexpr int k_sigma_rounds = 3;
 double refine_sigma_scale(const std::function<double(double)>& loss_at,
-                          const std::function<bool(int, double, double)>& after_round);
+                          const std::function<bool(int, double, double)>& after_round, double initial = 1.0);
 
 // Every rank's per-observation entries of `mine` (this rank's share: `share` holds their
 // indices among all `total` observations) on rank 0, in the run's order (empty vectors stay

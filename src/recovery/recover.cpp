@@ -22,6 +22,7 @@
 #include "recovery/calibration_detail.h"
 #include "recovery/recover_field_model.h"
 #include "recovery/white_light.h"
+#include "recovery/sigma_search.h"
 
 namespace wavebrdf {
 
@@ -150,6 +151,18 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             comm);
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
     }
+    // σ_p self-calibration before the field stage (sigma_search.h): the scale where the full
+    // model's loss at the blurred heights is smallest; the field stage, the position
+    // registration and the refinement (which starts its σ rounds there) see σ_p · sigma_scale.
+    // Not with exposure calibration as well: the energy ratio then absorbs σ_p's energy and the
+    // search at the blurred heights can run off (measured: 1.68 for a true 1.0 on an 8² tile of
+    // 0.1 µm range, where the refinement from there stayed at 1.45).
+    double sigma_scale = 1.0;
+    if (settings.calibrate.sigma && settings.sigma_presearch && !settings.calibrate.exposure) {
+        sigma_scale = detail::presearch_sigma_scale(observations, observations_total, estimate, settings.refine_loss,
+                                                    settings.calibrate.exposure, comm);
+        if (calibration) calibration->sigma_p_scale = calibration->sigma_p_scale_fields = sigma_scale;
+    }
 
     // Stage 1: the field at every wavelength on the refined grid, from the blurred fit.
     double max_omega_i = 0.0;
@@ -204,22 +217,32 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
             // This wavelength's observations where they are (pointers: no copy of the references);
-            // with position calibration, copies at the corrected centres while its field runs.
+            // with σ_p calibration copies at σ_p · s while its field runs (one wavelength's at a
+            // time); with position calibration the offsets are applied and corrected inside
+            // (field_positions.h).
+            std::vector<Observation> group;
+            std::vector<const Observation*> used = it->second;
+            if (sigma_scale != 1.0) {
+                group.reserve(it->second.size());
+                for (const Observation* o : it->second) {
+                    group.push_back(*o);
+                    group.back().query.sigma_p_um *= sigma_scale;
+                }
+                for (std::size_t k = 0; k < group.size(); ++k) used[k] = &group[k];
+            }
+            const auto on_iteration = [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); };
             FieldRetrievalResult r = [&] {
-                const auto on_iteration = [&](int iteration, double loss) {
-                    return report(name, iteration, loss, nullptr);
-                };
                 if (!settings.calibrate.positions)
-                    return retrieve_field(it->second, lambda, rows, cols, texel_um,
-                                          object_from_heights(estimate, lambda, q), field_settings, on_iteration, comm);
-                // Position correction interleaved with the object's iterations (field_positions.h).
+                    return retrieve_field(used, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
+                                          field_settings, on_iteration, comm);
                 std::vector<std::size_t> index;
                 for (const Observation* o : it->second) index.push_back(position_index(o));
-                return detail::retrieve_field_with_positions(it->second, index, lambda, rows, cols, texel_um,
+                return detail::retrieve_field_with_positions(used, index, lambda, rows, cols, texel_um,
                                                              object_from_heights(estimate, lambda, q), field_settings,
                                                              on_iteration, offsets_um, comm);
             }();
             if (stopped) return estimate;
+            std::vector<Observation>().swap(group);
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
                 lambdas.push_back(lambda);
@@ -246,12 +269,14 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         std::vector<std::array<double, 2>> offsets;
         std::vector<double> exposures;
         estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
-                                                        report, comm, offsets, offsets_um, &exposures);
+                                                        report, comm, offsets, offsets_um, &exposures, &sigma_scale);
         if (stopped) return estimate;
         refined_offsets = offsets;
+        refined_sigma_scale = sigma_scale;
         if (calibration) {
             calibration->position_offsets_um = std::move(offsets);
             calibration->exposures = std::move(exposures);
+            calibration->sigma_p_scale = sigma_scale;
         }
     } else if (settings.refine_iterations > 0) {
         std::vector<double> h = estimate.values();
@@ -271,7 +296,6 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // rebuilt).
         const bool calibrate_exposure = settings.calibrate.exposure;
         std::vector<double> exposures(observations.size(), 1.0);
-        double sigma_scale = 1.0;
         // RGB slices as non-negative colour coordinates (white_light.h): measured no better on
         // white light (docs/recovery.md), so off; kept for the study.
         std::vector<std::array<double, 9>> colour_maps;
@@ -365,7 +389,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                        ? std::max(1, settings.refine_iterations / (2 * detail::k_sigma_rounds))
                                        : std::max(1, settings.refine_iterations - done));
                     return go_on;
-                });
+                },
+                sigma_scale);
             for (auto& p : plans) p.reset();
         } else {
             refine_heights(settings.refine_iterations);

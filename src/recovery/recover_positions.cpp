@@ -59,7 +59,7 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um,
-                                         std::vector<double>* exposures_out) {
+                                         std::vector<double>* exposures_out, double* sigma_scale) {
     std::vector<std::size_t> index;
     const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
     const std::size_t cells = estimate.values().size(), count = positions.size();
@@ -74,6 +74,7 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
     // window weights and the engines' tables all follow the centre); released between calls.
     std::vector<std::unique_ptr<SlicePlan<float>>> plans(observations.size());
     std::vector<std::array<double, 2>> plan_offset(observations.size());
+    double sigma = sigma_scale ? *sigma_scale : 1.0;  // every σ_p × sigma (plans reset when it changes)
     std::vector<std::vector<int>> box_rows(observations.size()), box_cols(observations.size());
     ExactParallelSum exact_sum(cells + 2 * count);
     const std::vector<int> row0{0};
@@ -91,6 +92,7 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                 Query q = o.query;
                 q.x_um += d[0];
                 q.y_um += d[1];
+                q.sigma_p_um *= sigma;
                 plans[i] = std::make_unique<SlicePlan<float>>(flat, q, o.lambdas_um, o.resolution, o.channels());
                 plans[i]->gradient_box(box_rows[i], box_cols[i]);
                 plan_offset[i] = d;
@@ -155,11 +157,47 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                                                                                   settings.refine_loss, nullptr);
                                                       }) /
                                   observations_total;
-    lbfgs_minimize(objective, x, lo, [&](int it, double value) {
-        const Heightfield current = flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
-        if (!report("refine", it, value, &current)) return false;
-        return value > settings.refine_relative_tolerance * reference_loss;
-    });
+    bool go_on = true;
+    int done = 0;  // iterations so far (the metrics' count across σ rounds)
+    const auto refine = [&](int iterations) {
+        LbfgsOptions round = lo;
+        round.max_iterations = iterations;
+        const int before = done;
+        lbfgs_minimize(objective, x, round, [&](int it, double value) {
+            done = before + it;
+            const Heightfield current =
+                flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+            if (!report("refine", done, value, &current)) return go_on = false;
+            return value > settings.refine_relative_tolerance * reference_loss;
+        });
+    };
+    if (settings.calibrate.sigma && sigma_scale) {
+        // σ_p as in recover.cpp's refinement: golden-section rounds at fixed heights and offsets,
+        // each followed by L-BFGS on both (refine_iterations / 6, the last round the rest).
+        const auto set_sigma = [&](double s) {
+            sigma = s;
+            for (auto& p : plans) p.reset();
+        };
+        std::vector<double> no_g;
+        set_sigma(refine_sigma_scale(
+            [&](double s) {
+                set_sigma(s);
+                return objective(x, no_g);
+            },
+            [&](int round, double s, double value) {
+                set_sigma(s);
+                const Heightfield current =
+                    flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+                if (!report("calibrate:sigma", round, value, &current)) return go_on = false;
+                refine(round + 1 < k_sigma_rounds ? std::max(1, settings.refine_iterations / (2 * k_sigma_rounds))
+                                                  : std::max(1, settings.refine_iterations - done));
+                return go_on;
+            },
+            sigma));
+        *sigma_scale = sigma;
+    } else {
+        refine(settings.refine_iterations);
+    }
     if (settings.calibrate.exposure) {  // the exposures at the final heights (collective)
         std::vector<double> g;
         objective(x, g);

@@ -42,12 +42,15 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 // one offset (true − stated, µm, mean 0 over the positions) per observation of this rank.
 // With settings.calibrate.exposure each slice's exposure is its energy ratio at every
 // evaluation (calibration_detail.h), and exposures_out (when given) receives them at the end.
-// (settings.calibrate.sigma is not applied here: σ_p stays as stated.)
+// sigma_scale (when given): every σ_p is used × *sigma_scale; with settings.calibrate.sigma the
+// scale is refined as well, in the rounds of calibration_detail.h's refine_sigma_scale (a
+// golden-section search from *sigma_scale at fixed heights and offsets, then L-BFGS on both),
+// and *sigma_scale receives it.
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {},
-                                         std::vector<double>* exposures_out = nullptr);
+                                         std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr);
 
 }  // namespace wavebrdf::detail

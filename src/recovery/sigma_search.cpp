@@ -1,0 +1,49 @@
+// The σ_p self-calibration before the field stage (sigma_search.h).
+#include "recovery/sigma_search.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "core/exact_sum.h"
+#include "recovery/calibration_detail.h"
+#include "wavebrdf/slice_plan.h"
+
+namespace wavebrdf::detail {
+
+double scaled_sigma_loss(const std::vector<Observation>& observations, double observations_total,
+                         const Heightfield& heights, double s, const Loss& loss, bool calibrate_exposure,
+                         const Communicator& comm) {
+    if (!(s > 0.0) || !std::isfinite(s))
+        throw std::domain_error("scaled_sigma_loss: sigma scale " + std::to_string(s) + " is invalid; expected > 0");
+    std::vector<double> no_gradient;
+    ExactParallelSum sum(0);
+    const double total = sum.run(observations.size(), comm, no_gradient, [&](std::size_t i, ExactScratch&) {
+        const Observation& o = observations[i];
+        Query query = o.query;
+        query.sigma_p_um *= s;
+        SlicePlan<float> plan(heights, query, o.lambdas_um, o.resolution, o.channels());
+        const std::vector<float>& f = plan.forward();
+        std::vector<double> model(f.begin(), f.end());
+        if (calibrate_exposure) {
+            const double a = slice_exposure(f.data(), o.reference.data(), std::min(f.size(), o.reference.size()));
+            for (double& m : model) m *= a;
+        }
+        return loss_value(loss, model, o.reference, o.channels(), nullptr);
+    });
+    return total / observations_total;
+}
+
+double presearch_sigma_scale(const std::vector<Observation>& observations, double observations_total,
+                             const Heightfield& heights, const Loss& loss, bool calibrate_exposure,
+                             const Communicator& comm) {
+    const double t = golden_section_minimum(
+        [&](double x) {
+            return scaled_sigma_loss(observations, observations_total, heights, std::exp(x), loss, calibrate_exposure,
+                                     comm);
+        },
+        -std::log(2.0), std::log(2.0), k_presearch_evaluations);
+    return std::exp(t);
+}
+
+}  // namespace wavebrdf::detail
