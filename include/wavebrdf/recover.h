@@ -276,8 +276,11 @@ struct StageMetrics {
 // (spectral ones included). Observations are used as given (measured, noisy or rendered).
 // on_step returning false stops the recovery and returns the estimate so far (flat, the
 // blurred fit, the last unwrapped heights or the refinement's last step). `truth`, when given,
-// only feeds height_rel_rmse in the metrics. Throws std::invalid_argument when the observations
-// are empty or have no single-wavelength OHS / ROHS slice, or the truth's size differs;
+// only feeds height_rel_rmse in the metrics. Without any single-wavelength OHS / ROHS slice
+// (white light: RGB slices only) the blurred fit runs on the RGB slices (white_blurred), then
+// the refinement and the defect repair (white_repair_rounds; docs/recovery.md, White light);
+// no field stage. Throws std::invalid_argument when the observations
+// are empty, or the truth's size differs;
 // std::domain_error for vscale 0.
 // `comm`: the ranks the observations are split over (collective; a rank's share may be
 // empty). on_step is called on every rank and its stop is agreed (any rank's false stops all

@@ -137,9 +137,9 @@ struct PreparedRecovery {
 double estimate_recovery_bytes(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
                                RecoveryMethod method, const RecoverSettings& settings = {});
 
-// For the pipeline, a model that is not separable (planned observations) or given
-// observations without a single-wavelength OHS / ROHS one are refused (std::invalid_argument)
-// before any work.
+// For the pipeline, a model that is not separable (planned laser observations) is refused
+// (std::invalid_argument) before any work; RGB observations alone take the white-light path
+// (recover_heights).
 // The set-up: with `observations` (non-empty) they are used as given on an
 // options.rows × options.cols grid; else the truth is `truth` (its size, texel width and
 // vscale) or, when null, generated_recovery_truth(options), the acquisition is planned for its
