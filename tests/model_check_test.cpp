@@ -133,7 +133,9 @@ TEST(FieldModelLoss, MatchesAnIndependentEvaluationAndFiniteDifferences) {
                                           serial_communicator(), detail::Interpolant::Cubic, false);
         std::vector<double> g;
         const double value = loss(h, &g);
-        if (!exposure) EXPECT_NEAR(value, num / den, 1e-5 * num / den);  // the products in single precision
+        if (!exposure) {
+            EXPECT_NEAR(value, num / den, 1e-5 * num / den);  // the products in single precision
+        }
         ASSERT_EQ(g.size(), h.size());
         for (std::size_t k : {std::size_t(0), std::size_t(29), std::size_t(77), std::size_t(140)}) {
             const double step = 1e-4;
