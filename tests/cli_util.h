@@ -6,7 +6,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -145,6 +147,17 @@ inline std::vector<std::string> temporaries_under(const fs::path& dir) {
          it.increment(ec))
         if (it->path().filename().string().find(".tmp") != std::string::npos) found.push_back(it->path().string());
     return found;
+}
+
+// The float64 values of a .npy file written by the library (little-endian '<f8', C order).
+inline std::vector<double> read_npy(const fs::path& path) {
+    const std::string bytes = read_text(path);
+    if (bytes.size() < 10 || bytes.compare(0, 6, "\x93NUMPY") != 0) return {};
+    const std::size_t header = std::size_t(std::uint8_t(bytes[8])) | std::size_t(std::uint8_t(bytes[9])) << 8;
+    const std::size_t start = 10 + header;
+    std::vector<double> values((bytes.size() - start) / sizeof(double));
+    std::memcpy(values.data(), bytes.data() + start, values.size() * sizeof(double));
+    return values;
 }
 
 // The environment of a process an MPI test starts: ours, plus what running OpenMPI as root here

@@ -25,17 +25,6 @@ CliResult run_ranks(const fs::path& dir, int ranks, const std::vector<std::strin
     return run_cli_on_ranks(dir, ranks, args, threads);
 }
 
-// The float64 values of a .npy file written by the library (little-endian '<f8', C order).
-std::vector<double> read_npy(const fs::path& path) {
-    const std::string bytes = read_text(path);
-    if (bytes.size() < 10 || bytes.compare(0, 6, "\x93NUMPY") != 0) return {};
-    const std::size_t header = std::size_t(std::uint8_t(bytes[8])) | std::size_t(std::uint8_t(bytes[9])) << 8;
-    const std::size_t start = 10 + header;
-    std::vector<double> values((bytes.size() - start) / sizeof(double));
-    std::memcpy(values.data(), bytes.data() + start, values.size() * sizeof(double));
-    return values;
-}
-
 // A small recovery: 12², one wavelength, few iterations (a few seconds on 2 cores).
 std::vector<std::string> recover_args(const std::string& out) {
     return {"recover", "--size",

@@ -15,17 +15,6 @@
 namespace wavebrdf::test {
 namespace {
 
-// The float64 values of a .npy file written by the library (little-endian '<f8', C order).
-std::vector<double> read_npy(const fs::path& path) {
-    const std::string bytes = read_text(path);
-    if (bytes.size() < 10 || bytes.compare(0, 6, "\x93NUMPY") != 0) return {};
-    const std::size_t header = std::size_t(std::uint8_t(bytes[8])) | std::size_t(std::uint8_t(bytes[9])) << 8;
-    const std::size_t start = 10 + header;
-    std::vector<double> values((bytes.size() - start) / sizeof(double));
-    std::memcpy(values.data(), bytes.data() + start, values.size() * sizeof(double));
-    return values;
-}
-
 TEST(MpiUncertainty, ShardedErrorBarsAreTheOneProcessMap) {
     const fs::path dir = fresh_dir("mpi_uncertainty");
     const auto args = [](const std::string& out) {
