@@ -1,6 +1,6 @@
 // White light (recover.h, docs/recovery.md "White light"): heights from RGB slices of a
-// broadband source alone, mixed laser + RGB sets, and the pieces of the RGB path (the colour
-// map to non-negative coordinates, the defect repair).
+// broadband source alone, mixed laser + RGB sets, and the pieces of the RGB path (the defect
+// repair, the smoothness penalty).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -108,41 +108,8 @@ TEST(WhiteLight, MixedSetRunsTheFieldStageOnTheLaserSlices) {
         },
         &c.truth);
     EXPECT_TRUE(last.count("unwrap"));
-    EXPECT_FALSE(last.count("repair"));  // the white-light repair is for RGB-only sets
+    EXPECT_FALSE(last.count("repair"));                    // the white-light repair is for RGB-only sets
     EXPECT_LT(height_rel_rmse(estimate, c.truth), 0.025);  // measured 0.016
-}
-
-// The colour map takes the renderer's RGB of any spectrum to non-negative coordinates (the
-// CIE x̄, ȳ, z̄ weights), a constant spectrum to (1, 1, 1), and its adjoint is its transpose.
-TEST(WhiteLight, ColourMapIsNonNegativeOnEverySpectrum) {
-    const std::vector<double> lambdas = spectral_wavelengths_um(8);
-    const std::array<double, 9> a = detail::xyz_from_rgb(lambdas);
-    const std::vector<double> mix = spectral_mix_weights(lambdas);
-    const std::size_t n = lambdas.size();
-    for (std::size_t l = 0; l < n; ++l) {  // each wavelength alone: A · M e_l ≥ 0 (to rounding)
-        std::vector<double> rgb{mix[l], mix[n + l], mix[2 * n + l]};
-        detail::apply_colour_map(a, rgb);
-        for (double v : rgb) EXPECT_GE(v, -1e-9);
-        // and A · M e_l matches the CIE weights' direction: its second entry ∝ ȳ(λ_l)
-    }
-    std::vector<double> white{1.0, 1.0, 1.0};
-    detail::apply_colour_map(a, white);
-    for (double v : white) EXPECT_NEAR(v, 1.0, 1e-12);
-    // Some monochromatic RGB values are negative (why the map is used).
-    bool negative = false;
-    for (std::size_t k = 0; k < mix.size(); ++k) negative = negative || mix[k] < -1e-6;
-    EXPECT_TRUE(negative);
-    // <A x, y> = <x, Aᵀ y>
-    const std::vector<double> x{0.3, -1.2, 2.0, 0.7, 0.1, -0.4}, y{1.1, 0.2, -0.5, 0.9, -2.0, 0.3};
-    std::vector<double> ax = x, aty = y;
-    detail::apply_colour_map(a, ax);
-    detail::apply_colour_map_adjoint(a, aty);
-    double lhs = 0.0, rhs = 0.0;
-    for (std::size_t k = 0; k < x.size(); ++k) {
-        lhs += ax[k] * y[k];
-        rhs += x[k] * aty[k];
-    }
-    EXPECT_NEAR(lhs, rhs, 1e-12);
 }
 
 // A texel a wrap away from a smooth surface is put back where the loss agrees, and left where
@@ -169,6 +136,57 @@ TEST(WhiteLight, RepairDefectsKeepsOnlyWhatLowersTheLoss) {
     EXPECT_EQ(detail::repair_defects(g, rows, cols, 5.0, 4, [&](const std::vector<double>& x) { return -distance(x); }),
               0);
     EXPECT_EQ(g, defect);
+}
+
+// The smoothness penalty: its gradient matches central differences (an independent
+// evaluation), it is 0 on a constant, the closed form on a plane wave (Δ of cos(k·x) is
+// −(4 − 2 cos kx − 2 cos ky) cos(k·x)), larger on a checkerboard than on a smooth surface, and
+// adds nothing at weight 0.
+TEST(WhiteLight, SmoothnessPenaltyGradientMatchesFiniteDifferences) {
+    const int rows = 7, cols = 9;
+    std::mt19937_64 rng(6201);
+    std::uniform_real_distribution<double> u(-0.3, 0.3);
+    std::vector<double> h(std::size_t(rows * cols));
+    for (double& v : h) v = u(rng);
+    const double weight = 2.5;
+    std::vector<double> g(h.size(), 0.0);
+    const double value = detail::add_smoothness_penalty(h, rows, cols, weight, g);
+    EXPECT_GT(value, 0.0);
+    for (std::size_t p = 0; p < h.size(); ++p) {
+        const double step = 1e-5;
+        std::vector<double> hp = h, hm = h, scratch(h.size(), 0.0);
+        hp[p] += step;
+        hm[p] -= step;
+        const double fd = (detail::add_smoothness_penalty(hp, rows, cols, weight, scratch) -
+                           detail::add_smoothness_penalty(hm, rows, cols, weight, scratch)) /
+                          (2.0 * step);
+        EXPECT_NEAR(g[p], fd, 1e-7 * std::max(1.0, std::abs(fd))) << "texel " << p;
+    }
+    // A constant: 0, and no gradient.
+    std::vector<double> flat(h.size(), 0.7), g0(h.size(), 0.0);
+    EXPECT_EQ(detail::add_smoothness_penalty(flat, rows, cols, weight, g0), 0.0);
+    for (double v : g0) EXPECT_EQ(v, 0.0);
+    // A periodic plane wave on 8 × 8: (Δh)² averages to c² / 2.
+    const int n = 8;
+    std::vector<double> wave(std::size_t(n * n)), gw(wave.size(), 0.0);
+    const double kx = 2.0 * k_pi / n, ky = 2.0 * k_pi * 2.0 / n;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) wave[std::size_t(i * n + j)] = std::cos(kx * i + ky * j);
+    const double c = 4.0 - 2.0 * std::cos(kx) - 2.0 * std::cos(ky);
+    EXPECT_NEAR(detail::add_smoothness_penalty(wave, n, n, 1.0, gw), 0.5 * c * c, 1e-12);
+    // A checkerboard (the refinement's local minima) costs far more than the smoothest wave.
+    std::vector<double> checker(wave.size()), smooth(wave.size()), gc(wave.size(), 0.0);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            checker[std::size_t(i * n + j)] = ((i + j) % 2 ? 0.1 : -0.1);
+            smooth[std::size_t(i * n + j)] = 0.1 * std::cos(2.0 * k_pi * i / n);
+        }
+    EXPECT_GT(detail::add_smoothness_penalty(checker, n, n, 1.0, gc),
+              100.0 * detail::add_smoothness_penalty(smooth, n, n, 1.0, gc));
+    // Weight 0: nothing.
+    std::vector<double> gz(h.size(), 0.0);
+    EXPECT_EQ(detail::add_smoothness_penalty(h, rows, cols, 0.0, gz), 0.0);
+    for (double v : gz) EXPECT_EQ(v, 0.0);
 }
 
 }  // namespace

@@ -220,6 +220,12 @@ struct RecoverSettings {
     // then stage 3 again (0: none).
     int white_repair_rounds = 2;
     double white_repair_threshold = 3.0;
+    // … and before stage 3, a smoothness continuation: stage 3's loss plus weight · mean (Δh)²
+    // (h in texel units, Δ the 5-point Laplacian) for white_smoothness_iterations L-BFGS
+    // iterations at each of these weights in turn (largest first; empty: none), which keeps the
+    // refinement out of the wrap defects and checkerboards the spectral loss has as local minima.
+    std::vector<double> white_smoothness{10.0, 1.0, 0.1, 0.01};
+    int white_smoothness_iterations = 20;
     int blur_wavelengths = 1;         // stage 0 uses the slices of this many longest wavelengths (0: all)
     double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
     FieldRetrievalSettings field;     // stage 1, per wavelength (its refine is replaced by:)

@@ -296,10 +296,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // rebuilt).
         const bool calibrate_exposure = settings.calibrate.exposure;
         std::vector<double> exposures(observations.size(), 1.0);
-        // RGB slices as non-negative colour coordinates (white_light.h): measured no better on
-        // white light (docs/recovery.md), so off; kept for the study.
-        std::vector<std::array<double, 9>> colour_maps;
-        const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
+        double smooth_weight = 0.0;  // white light: the smoothness continuation's weight (white_light.h)
+        const auto data_objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             const double scale = 1.0 / observations_total;  // all ranks' observations
             return exact_sum.run(observations.size(), comm, g, [&](std::size_t i, detail::ExactScratch& scratch) {
                 const Observation& o = observations[i];
@@ -325,24 +323,18 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 std::vector<double> model(f.begin(), f.end());
                 if (calibrate_exposure)
                     for (double& m : model) m *= exposure;
-                // RGB slices compared as non-negative colour coordinates (white_light.h).
-                const bool colour = !colour_maps.empty() && o.channels() == 3;
-                double v;
-                if (colour) {
-                    std::vector<double> reference = o.reference;
-                    detail::apply_colour_map(colour_maps[i], reference);
-                    detail::apply_colour_map(colour_maps[i], model);
-                    v = loss_value(settings.refine_loss, model, reference, 3, &d_estimate);
-                    detail::apply_colour_map_adjoint(colour_maps[i], d_estimate);
-                } else {
-                    v = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
-                }
+                const double v = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
                 if (calibrate_exposure) detail::exposure_gradient(exposure, f.data(), values, d_estimate);
                 plan.adjoint(d_estimate, scratch.vector(), scale);
                 scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
                 plan.release();
                 return scale * v;
             });
+        };
+        const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
+            const double value = data_objective(x, g);
+            return smooth_weight > 0.0 ? value + detail::add_smoothness_penalty(x, rows, cols, smooth_weight, g)
+                                       : value;
         };
         LbfgsOptions lo;
         lo.history = settings.refine_history;
@@ -393,6 +385,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 sigma_scale);
             for (auto& p : plans) p.reset();
         } else {
+            // White light: the smoothness continuation (white_light.h), then the loss alone.
+            for (std::size_t k = 0; white && k < settings.white_smoothness.size() && go_on && !stopped; ++k) {
+                smooth_weight = settings.white_smoothness[k];
+                if (settings.white_smoothness_iterations > 0) refine_heights(settings.white_smoothness_iterations);
+            }
+            smooth_weight = 0.0;
             refine_heights(settings.refine_iterations);
         }
         // White light: isolated texels left a wrap from their neighbours, repaired where the
@@ -455,6 +453,11 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
+    validate_iterations(settings.white_smoothness_iterations, "recover_heights: white smoothness iterations");
+    for (double w : settings.white_smoothness)
+        if (!(w >= 0.0 && w <= 1e12))
+            throw std::domain_error("recover_heights: white smoothness weight " + std::to_string(w) +
+                                    " is invalid; expected a finite value >= 0");
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)
     std::map<double, std::vector<const Observation*>> by_lambda;

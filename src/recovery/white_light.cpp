@@ -1,59 +1,8 @@
 #include "recovery/white_light.h"
 
-#include <Eigen/Dense>
-#include <cstddef>
-
-#include "wavebrdf/spectrum.h"
-
-namespace wavebrdf::detail {
-
-std::array<double, 9> xyz_from_rgb(const std::vector<double>& lambdas_um) {
-    const std::vector<double> mix = spectral_mix_weights(lambdas_um);
-    const Eigen::Index n = Eigen::Index(lambdas_um.size());
-    Eigen::MatrixXd m(3, n), w(3, n);
-    for (Eigen::Index l = 0; l < n; ++l) {
-        const std::array<double, 3> xyz = cie1931_xyz(lambdas_um[std::size_t(l)]);
-        for (int c = 0; c < 3; ++c) {
-            m(c, l) = mix[std::size_t(c) * std::size_t(n) + std::size_t(l)];
-            w(c, l) = xyz[std::size_t(c)];
-        }
-    }
-    // A = W Mᵀ (M Mᵀ)⁻¹: the least-squares A with A M ≈ W.
-    const Eigen::Matrix3d mmt = m * m.transpose();
-    Eigen::Matrix3d a = (w * m.transpose()) * mmt.inverse();
-    // A constant spectrum c has RGB (c, c, c): scale each row to map it to 1.
-    for (int c = 0; c < 3; ++c) {
-        const double s = a.row(c).sum();
-        if (s != 0.0) a.row(c) /= s;
-    }
-    std::array<double, 9> out{};
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) out[std::size_t(3 * r + c)] = a(r, c);
-    return out;
-}
-
-void apply_colour_map(const std::array<double, 9>& a, std::vector<double>& values) {
-    for (std::size_t p = 0; p + 2 < values.size(); p += 3) {
-        const double r = values[p], g = values[p + 1], b = values[p + 2];
-        values[p] = a[0] * r + a[1] * g + a[2] * b;
-        values[p + 1] = a[3] * r + a[4] * g + a[5] * b;
-        values[p + 2] = a[6] * r + a[7] * g + a[8] * b;
-    }
-}
-
-void apply_colour_map_adjoint(const std::array<double, 9>& a, std::vector<double>& weights) {
-    for (std::size_t p = 0; p + 2 < weights.size(); p += 3) {
-        const double x = weights[p], y = weights[p + 1], z = weights[p + 2];
-        weights[p] = a[0] * x + a[3] * y + a[6] * z;
-        weights[p + 1] = a[1] * x + a[4] * y + a[7] * z;
-        weights[p + 2] = a[2] * x + a[5] * y + a[8] * z;
-    }
-}
-
-}  // namespace wavebrdf::detail
-
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <utility>
 
 namespace wavebrdf::detail {
@@ -107,6 +56,45 @@ int repair_defects(std::vector<double>& heights, int rows, int cols, double thre
         }
     }
     return kept;
+}
+
+}  // namespace wavebrdf::detail
+
+namespace wavebrdf::detail {
+
+namespace {
+
+// The periodic 5-point Laplacian of x (rows × cols).
+std::vector<double> periodic_laplacian(const std::vector<double>& x, int rows, int cols) {
+    std::vector<double> out(x.size());
+    for (int i = 0; i < rows; ++i) {
+        const std::size_t up = std::size_t((i + rows - 1) % rows) * std::size_t(cols);
+        const std::size_t down = std::size_t((i + 1) % rows) * std::size_t(cols);
+        const std::size_t row = std::size_t(i) * std::size_t(cols);
+        for (int j = 0; j < cols; ++j) {
+            const std::size_t left = std::size_t((j + cols - 1) % cols), right = std::size_t((j + 1) % cols);
+            out[row + std::size_t(j)] = x[up + std::size_t(j)] + x[down + std::size_t(j)] + x[row + left] +
+                                        x[row + right] - 4.0 * x[row + std::size_t(j)];
+        }
+    }
+    return out;
+}
+
+}  // namespace
+
+double add_smoothness_penalty(const std::vector<double>& heights, int rows, int cols, double weight,
+                              std::vector<double>& gradient) {
+    if (!(weight > 0.0) || rows < 1 || cols < 1 || heights.size() != std::size_t(rows) * std::size_t(cols) ||
+        gradient.size() != heights.size())
+        return 0.0;
+    const std::vector<double> lap = periodic_laplacian(heights, rows, cols);
+    const double scale = weight / double(heights.size());
+    double value = 0.0;
+    for (double l : lap) value += l * l;
+    // d/dh Σ (Δh)² = 2 Δᵀ Δ h = 2 Δ(Δh) (the periodic Laplacian is symmetric).
+    const std::vector<double> lap2 = periodic_laplacian(lap, rows, cols);
+    for (std::size_t p = 0; p < gradient.size(); ++p) gradient[p] += 2.0 * scale * lap2[p];
+    return scale * value;
 }
 
 }  // namespace wavebrdf::detail

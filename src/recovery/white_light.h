@@ -1,30 +1,8 @@
 #pragma once
-// White light (recover.h, docs/recovery.md "White light"): the RGB slices of a broadband
-// source are fitted as non-negative colour coordinates. Linear sRGB of a speckled spectrum is
-// often negative (out of gamut) where one wavelength dominates a pixel; the amplitude loss
-// clamps negatives to 0 and so has no gradient there. The CIE XYZ coordinates
-// X, Y, Z = Σ_l x̄, ȳ, z̄ (λ_l) f_l are never negative (the colour-matching functions are not),
-// and are a fixed 3 × 3 map of the RGB values: the refinement compares those instead.
-#include <array>
-#include <vector>
-
-namespace wavebrdf::detail {
-
-// The 3 × 3 map A (row-major) from an RGB slice of wavelengths `lambdas_um` (spectral_mix_weights
-// M, N ≥ 2 wavelengths) to non-negative colour coordinates: A·M = the CIE 1931 x̄, ȳ, z̄ at the
-// wavelengths (least squares; exact for the renderer's mix, whose rows span these), each row
-// scaled so that a constant spectrum maps to (1, 1, 1). Throws as spectral_mix_weights.
-std::array<double, 9> xyz_from_rgb(const std::vector<double>& lambdas_um);
-
-// values (3 per pixel, interleaved) ← A · values, pixel by pixel.
-void apply_colour_map(const std::array<double, 9>& a, std::vector<double>& values);
-
-// weights (3 per pixel) ← Aᵀ · weights: the adjoint of apply_colour_map.
-void apply_colour_map_adjoint(const std::array<double, 9>& a, std::vector<double>& weights);
-
-}  // namespace wavebrdf::detail
-
+// White light (recover.h, docs/recovery.md "White light"): the pieces of the RGB-only path:
+// the defect repair after the refinement and the smoothness continuation before it.
 #include <functional>
+#include <vector>
 
 namespace wavebrdf::detail {
 
@@ -38,5 +16,14 @@ namespace wavebrdf::detail {
 // number kept. Deterministic: the same heights give the same choices on every rank.
 int repair_defects(std::vector<double>& heights, int rows, int cols, double threshold, int max_candidates,
                    const std::function<double(const std::vector<double>&)>& loss);
+
+// A smoothness penalty for the white-light refinement's continuation (docs/recovery.md, White
+// light): weight · mean over texels of (Δh)², Δ the periodic 5-point Laplacian of the heights
+// h (texel units, rows × cols), which wrap defects and checkerboards (the spectral loss's local
+// minima) raise and a smooth surface does not. Returns the value; adds its gradient to
+// `gradient` (the same size as h). Returns 0 and adds nothing when weight ≤ 0 or the sizes
+// disagree. Deterministic (the same bits on every rank).
+double add_smoothness_penalty(const std::vector<double>& heights, int rows, int cols, double weight,
+                              std::vector<double>& gradient);
 
 }  // namespace wavebrdf::detail
