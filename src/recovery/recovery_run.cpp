@@ -128,6 +128,12 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
     if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
+    if (options.field_tile_threshold > 1000000)
+        throw std::invalid_argument("field tile threshold " + std::to_string(options.field_tile_threshold) +
+                                    " texels is invalid; expected 0 to 1000000");
+    if (options.field_tile_core >= 0 && (options.field_tile_core < 8 || options.field_tile_core > 4096))
+        throw std::invalid_argument("field tile core " + std::to_string(options.field_tile_core) +
+                                    " texels is invalid; expected 8 to 4096");
     check_acquisition_errors(options.errors, "--simulate-");
     if (options.errors.any() && !observations.empty())
         throw std::invalid_argument(
@@ -283,6 +289,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
+    if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
+    if (options.field_tile_core >= 0) r.pipeline.field_tile_core = options.field_tile_core;
     r.uncertainty = options.uncertainty;
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
