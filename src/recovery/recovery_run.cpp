@@ -1,6 +1,9 @@
 #include "wavebrdf/recovery_run.h"
 
+#include "recovery/field_tiles.h"
+
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "wavebrdf/constants.h"
@@ -60,8 +63,22 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     int refine = settings.refine;
     if (refine <= 0 && lambda_min > 0.0 && texel_um > 0.0) refine = auto_refine(texel_um, lambda_min);
     const double samples = texels * double(std::max(refine, 1)) * double(std::max(refine, 1));
-    // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples doubles.
-    const double field_history = samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0);
+    // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples doubles, on
+    // the whole surface or on one field tile (field_tiles.h: then also the fields of every
+    // wavelength and their blend on the whole surface).
+    double field_samples = samples, tiled_fields = 0.0;
+    const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core, settings.field_tile_ramp};
+    if (!settings.calibrate.positions && detail::field_tiles_apply(rows, cols, tiling) && texel_um > 0.0) {
+        double sigma_max = 0.0;
+        for (const Observation& o : observations) sigma_max = std::max(sigma_max, o.query.sigma_p_um);
+        const double margin = std::ceil(3.0 * sigma_max / texel_um + 1.0) + tiling.ramp;
+        const double tile_rows = std::min(double(rows), tiling.core + 1.0 + 2.0 * margin);
+        const double tile_cols = std::min(double(cols), tiling.core + 1.0 + 2.0 * margin);
+        field_samples = tile_rows * tile_cols * double(std::max(refine, 1)) * double(std::max(refine, 1));
+        tiled_fields = samples * 2.0 * sizeof(double) * double(pixels_per_lambda.size() + 2);
+    }
+    const double field_history =
+        field_samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0) + tiled_fields;
     const double refine_history = texels * sizeof(double) * (2.0 * settings.refine_history + 8.0);
     // The refinement keeps one plan per observation between iterations: its footprint's
     // kernels (two ints, seven doubles each, within 3σ_p) and ~2 KB of grids and bookkeeping;
