@@ -49,7 +49,7 @@ std::vector<Observation> model_observations(const std::vector<Complex>& object, 
         for (double y = 0.5 * step_um; y < cols * texel_um; y += step_um) {
             Observation o;
             o.query = test::make_query(Model::OHS, x + jitter(rng) * step_um, y + jitter(rng) * step_um, sigma_p_um);
-            o.lambdas_um = {lambda_um};
+            o.lambdas_um.assign(1, lambda_um);
             o.resolution = n;
             const FieldOperator op(rows, cols, texel_um, o.query, lambda_um, n);
             const auto field = op.forward(object);
@@ -114,7 +114,7 @@ TEST(FieldTiles, ThresholdAndBadSettings) {
     EXPECT_FALSE(detail::field_tiles_apply(1024, 1024, detail::FieldTiling{0, 48, 4}));
     Observation o;
     o.query = test::make_query(Model::OHS, 10.0, 10.0, 1.0);
-    o.lambdas_um = {0.5};
+    o.lambdas_um.assign(1, 0.5);
     o.resolution = 8;
     o.reference.assign(64, 1.0);
     const std::vector<const Observation*> one{&o};
