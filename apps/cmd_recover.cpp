@@ -44,6 +44,7 @@ struct RecoverArgs {
     std::string simulator = "gabor";
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
+    int field_tile_threshold = -1, field_tile_core = -1;  // -1: the library's
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;          // 0: the physical memory
     std::string calibrate = "none";      // --calibrate (calibration.h)
@@ -125,6 +126,8 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.jitter = a.jitter;
     options.field_iterations = a.field_iterations;
     options.refine_iterations = a.refine_iterations;
+    options.field_tile_threshold = a.field_tile_threshold;
+    options.field_tile_core = a.field_tile_core;
     options.epochs = a.epochs;
     options.seed = a.seed;
     options.max_memory_gb = a.max_memory_gb;
@@ -310,6 +313,10 @@ void add_recover_command(CLI::App& app) {
                     "field retrieval iterations per wavelength (default: the library's)");
     cmd->add_option("--refine-iterations", a->refine_iterations,
                     "refinement L-BFGS iterations (default: the library's)");
+    cmd->add_option("--field-tile-threshold", a->field_tile_threshold,
+                    "field stage on tiles along an axis of more than N texels (0: never; default: the library's)");
+    cmd->add_option("--field-tile-core", a->field_tile_core,
+                    "field tiles' core size in texels, 8 to 4096 (default: the library's)");
     cmd->add_option("--epochs", a->epochs, "thesis method: Adam epochs")->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
     cmd->add_option("--max-memory-gb", a->max_memory_gb,

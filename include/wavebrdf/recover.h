@@ -259,6 +259,14 @@ struct RecoverSettings {
     // fit's heights, before the field stage, which then sees the refined σ_p (false: the field
     // stage keeps the stated σ_p and only the refinement calibrates it).
     bool sigma_presearch = true;
+    // Stage 1 on overlapping tiles (docs/scale.md, "Field tiles"): along an axis of more than
+    // field_tile_threshold texels (0: never) the field is retrieved on tiles of about
+    // field_tile_core texels (8 … 4096) plus a margin of the footprint's reach and
+    // field_tile_ramp texels (the feathering ramp, 1 … core/2), blended into one field. Not with
+    // calibrate.positions (its field stage stays whole). Smaller surfaces: the whole surface.
+    int field_tile_threshold = 64;
+    int field_tile_core = 48;
+    int field_tile_ramp = 4;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -64,6 +64,9 @@ struct RecoveryOptions {
     RecoveryMethod method = RecoveryMethod::Pipeline;
     int field_iterations = -1;   // pipeline: per wavelength, ≤ 10^7; < 0: RecoverSettings' default
     int refine_iterations = -1;  // pipeline: L-BFGS on the heights, ≤ 10^7; < 0: the default
+    // Field tiles (RecoverSettings::field_tile_*): threshold 0 … 10^6 (0: never tiled), core 8 …
+    // 4096 texels; < 0: the default.
+    int field_tile_threshold = -1, field_tile_core = -1;
     int epochs = 1000;           // thesis: Adam epochs, 0 … 10^7 (k_max_iterations)
     std::uint64_t seed = 1;      // generated truth, jitter, noise, the thesis's draws
     // Refuse (OutOfMemory, before simulating or recovering) a run whose estimated peak memory

@@ -18,6 +18,7 @@
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/field_positions.h"
+#include "recovery/field_tiles.h"
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
 #include "recovery/recover_field_model.h"
@@ -232,6 +233,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             }
             const auto on_iteration = [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); };
             FieldRetrievalResult r = [&] {
+                const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core,
+                                                 settings.field_tile_ramp};
+                if (!settings.calibrate.positions && detail::field_tiles_apply(rows, cols, tiling))
+                    return detail::retrieve_field_tiled(used, lambda, rows, cols, texel_um,
+                                                        object_from_heights(estimate, lambda, q), field_settings,
+                                                        tiling, on_iteration, comm);
                 if (!settings.calibrate.positions)
                     return retrieve_field(used, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
                                           field_settings, on_iteration, comm);

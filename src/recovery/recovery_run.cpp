@@ -1,6 +1,9 @@
 #include "wavebrdf/recovery_run.h"
 
+#include "recovery/field_tiles.h"
+
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
 #include "wavebrdf/constants.h"
@@ -60,8 +63,22 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     int refine = settings.refine;
     if (refine <= 0 && lambda_min > 0.0 && texel_um > 0.0) refine = auto_refine(texel_um, lambda_min);
     const double samples = texels * double(std::max(refine, 1)) * double(std::max(refine, 1));
-    // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples doubles.
-    const double field_history = samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0);
+    // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples doubles, on
+    // the whole surface or on one field tile (field_tiles.h: then also the fields of every
+    // wavelength and their blend on the whole surface).
+    double field_samples = samples, tiled_fields = 0.0;
+    const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core, settings.field_tile_ramp};
+    if (!settings.calibrate.positions && detail::field_tiles_apply(rows, cols, tiling) && texel_um > 0.0) {
+        double sigma_max = 0.0;
+        for (const Observation& o : observations) sigma_max = std::max(sigma_max, o.query.sigma_p_um);
+        const double margin = std::ceil(3.0 * sigma_max / texel_um + 1.0) + tiling.ramp;
+        const double tile_rows = std::min(double(rows), tiling.core + 1.0 + 2.0 * margin);
+        const double tile_cols = std::min(double(cols), tiling.core + 1.0 + 2.0 * margin);
+        field_samples = tile_rows * tile_cols * double(std::max(refine, 1)) * double(std::max(refine, 1));
+        tiled_fields = samples * 2.0 * sizeof(double) * double(pixels_per_lambda.size() + 2);
+    }
+    const double field_history =
+        field_samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0) + tiled_fields;
     const double refine_history = texels * sizeof(double) * (2.0 * settings.refine_history + 8.0);
     // The refinement keeps one plan per observation between iterations: its footprint's
     // kernels (two ints, seven doubles each, within 3σ_p) and ~2 KB of grids and bookkeeping;
@@ -128,6 +145,12 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
     if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
+    if (options.field_tile_threshold > 1000000)
+        throw std::invalid_argument("field tile threshold " + std::to_string(options.field_tile_threshold) +
+                                    " texels is invalid; expected 0 to 1000000");
+    if (options.field_tile_core >= 0 && (options.field_tile_core < 8 || options.field_tile_core > 4096))
+        throw std::invalid_argument("field tile core " + std::to_string(options.field_tile_core) +
+                                    " texels is invalid; expected 8 to 4096");
     check_acquisition_errors(options.errors, "--simulate-");
     if (options.errors.any() && !observations.empty())
         throw std::invalid_argument(
@@ -283,6 +306,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
+    if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
+    if (options.field_tile_core >= 0) r.pipeline.field_tile_core = options.field_tile_core;
     r.uncertainty = options.uncertainty;
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
