@@ -12,6 +12,7 @@
 #include "wavebrdf/optim.h"
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/progress.h"
+#include "wavebrdf/roughness_plan.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
@@ -304,6 +305,12 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     r.pipeline.refine_loss = r.loss;
     r.pipeline.calibrate = options.calibrate;
     r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
+    // Rough surfaces (roughness_plan.h): the stated range and correlation choose the schedule.
+    if (options.method == RecoveryMethod::Pipeline && r.range_um > 0.0 && options.correlation_texels > 0.0) {
+        const RoughnessPlan rough = plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
+        apply_roughness_plan(rough, r.pipeline);
+        r.notes.insert(r.notes.end(), rough.notes.begin(), rough.notes.end());
+    }
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
     if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;

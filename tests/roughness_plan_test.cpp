@@ -1,0 +1,132 @@
+// roughness_plan.h: the expected slopes of a stated surface (checked against generated
+// surfaces: an independent evaluation of the rule), the rough / smooth decision, and what
+// prepare_recovery makes of it (the common case keeps the library's defaults).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "wavebrdf/generate.h"
+#include "wavebrdf/recover.h"
+#include "wavebrdf/recovery_run.h"
+#include "wavebrdf/roughness_plan.h"
+
+namespace wavebrdf {
+namespace {
+
+// The rms |∇H| (central differences, as check_acquisition's rim warning and the renderer
+// take them) and the fraction of texels with |∇H| > 0.5 of a generated surface.
+struct MeasuredSlopes {
+    double rms = 0.0;
+    double beyond_rim = 0.0;
+};
+
+MeasuredSlopes measure(double range_um, double correlation_texels, double texel_um, std::uint64_t seed) {
+    RecoveryOptions options;
+    options.rows = options.cols = 64;
+    options.texel_um = texel_um;
+    options.height_range_um = range_um;
+    options.correlation_texels = correlation_texels;
+    options.seed = seed;
+    const Heightfield h = generated_recovery_truth(options);
+    MeasuredSlopes m;
+    for (int i = 0; i < h.rows(); ++i)
+        for (int j = 0; j < h.cols(); ++j) {
+            const auto s = h.slope(i, j);
+            const double s2 = s[0] * s[0] + s[1] * s[1];
+            m.rms += s2;
+            if (s2 > 0.25) m.beyond_rim += 1.0;
+        }
+    m.rms = std::sqrt(m.rms / (h.rows() * h.cols()));
+    m.beyond_rim /= h.rows() * h.cols();
+    return m;
+}
+
+// The rule rms |∇H| ≈ range / (3ℓ) against generated Gaussian surfaces of the study's kind, at
+// correlations of 4 and 8 texels (central differences blur shorter ones) and several ranges:
+// within 30 % (the peak-to-valley of a 64² tile is 5–7 σ_h), averaged over seeds.
+TEST(RoughnessPlan, ExpectedSlopeMatchesGeneratedSurfaces) {
+    for (double correlation_texels : {4.0, 8.0})
+        for (double range_um : {2.0, 8.0}) {
+            double measured = 0.0, rim = 0.0;
+            const int seeds = 4;
+            for (int s = 0; s < seeds; ++s) {
+                const MeasuredSlopes m = measure(range_um, correlation_texels, 2.0, 6301 + s);
+                measured += m.rms / seeds;
+                rim += m.beyond_rim / seeds;
+            }
+            const RoughnessPlan plan = plan_for_roughness(range_um, 2.0 * correlation_texels, 2.0);
+            EXPECT_NEAR(plan.rms_slope, measured, 0.3 * measured)
+                << "range " << range_um << " um, correlation " << correlation_texels << " texels";
+            // The fraction of texels lighting beyond the rim: the Rayleigh tail of the rule.
+            EXPECT_NEAR(plan.rim_fraction, rim, 0.05 + 0.5 * rim)
+                << "range " << range_um << " um, correlation " << correlation_texels << " texels";
+        }
+}
+
+// The study's default surface (±1 µm, correlation 4 texels of 2 µm) is smooth: the recovery keeps
+// the library's defaults (so the common case costs what it did); the documented failures
+// (±4 µm; correlation 2 texels) are rough and get the longer schedule.
+TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
+    const RoughnessPlan common = plan_for_roughness(2.0, 8.0, 2.0);
+    EXPECT_FALSE(common.rough);
+    EXPECT_TRUE(common.notes.empty());
+    RecoverSettings settings;
+    apply_roughness_plan(common, settings);
+    const RecoverSettings defaults;
+    EXPECT_EQ(settings.field.iterations, defaults.field.iterations);
+    EXPECT_EQ(settings.field_passes, defaults.field_passes);
+    EXPECT_EQ(settings.blurred.iterations, defaults.blurred.iterations);
+    EXPECT_EQ(settings.blurred.blur_widths, defaults.blurred.blur_widths);
+    EXPECT_EQ(settings.refine_iterations, defaults.refine_iterations);
+    // ±2 µm and correlation 3 texels recovered with the defaults (docs/recovery.md): smooth too.
+    EXPECT_FALSE(plan_for_roughness(4.0, 8.0, 2.0).rough);
+    EXPECT_FALSE(plan_for_roughness(2.0, 6.0, 2.0).rough);
+
+    for (const RoughnessPlan& rough : {plan_for_roughness(8.0, 8.0, 2.0), plan_for_roughness(2.0, 4.0, 2.0)}) {
+        EXPECT_TRUE(rough.rough);
+        ASSERT_FALSE(rough.notes.empty());
+    }
+    // The longer field stage for the short correlation only (steep slopes gained nothing).
+    RecoverSettings fine;
+    apply_roughness_plan(plan_for_roughness(2.0, 4.0, 2.0), fine);
+    EXPECT_GT(fine.field.iterations, defaults.field.iterations);
+    RecoverSettings steep;
+    apply_roughness_plan(plan_for_roughness(8.0, 8.0, 2.0), steep);
+    EXPECT_EQ(steep.field.iterations, defaults.field.iterations);
+    // The rule is in µm, not texels, except for the correlation: the same surface on finer
+    // texels (correlation 4 texels of 1 µm) is not "fine".
+    EXPECT_FALSE(plan_for_roughness(1.0, 4.0, 1.0).rough);
+}
+
+TEST(RoughnessPlan, RejectsBadValues) {
+    EXPECT_THROW(plan_for_roughness(-1.0, 8.0, 2.0), std::domain_error);
+    EXPECT_THROW(plan_for_roughness(2.0, 0.0, 2.0), std::domain_error);
+    EXPECT_THROW(plan_for_roughness(2.0, 8.0, 0.0), std::domain_error);
+    EXPECT_THROW(plan_for_roughness(std::nan(""), 8.0, 2.0), std::domain_error);
+    EXPECT_THROW(expected_rms_slope(2.0, -1.0), std::domain_error);
+    EXPECT_DOUBLE_EQ(expected_rms_slope(0.0, 1.0), 0.0);
+}
+
+// prepare_recovery applies the plan from the stated range and correlation: a small tile.
+TEST(RoughnessPlan, PrepareRecoveryChoosesTheScheduleFromTheStatedSurface) {
+    RecoveryOptions options;
+    options.rows = options.cols = 8;
+    options.resolution = 16;
+    options.seed = 6301;
+    const PreparedRecovery smooth = prepare_recovery(options);
+    EXPECT_EQ(smooth.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    EXPECT_EQ(smooth.pipeline.blurred.iterations, RecoverSettings{}.blurred.iterations);
+    options.correlation_texels = 2.0;
+    const PreparedRecovery rough = prepare_recovery(options);
+    EXPECT_GT(rough.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    bool noted = false;
+    for (const auto& n : rough.notes) noted = noted || n.find("rough surface") != std::string::npos;
+    EXPECT_TRUE(noted);
+    // An explicit --field-iterations still wins.
+    options.field_iterations = 7;
+    EXPECT_EQ(prepare_recovery(options).pipeline.field.iterations, 7);
+}
+
+}  // namespace
+}  // namespace wavebrdf
