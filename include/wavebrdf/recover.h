@@ -253,6 +253,12 @@ struct RecoverSettings {
     // fit's heights, before the field stage, which then sees the refined σ_p (false: the field
     // stage keeps the stated σ_p and only the refinement calibrates it).
     bool sigma_presearch = true;
+    // With calibrate.positions: the blurred fit corrects the positions as well (every position of
+    // the longest wavelength, blur_spacing_sigma ignored; per blur stage heights, a registration
+    // by grid search, then heights and offsets together; docs/recovery.md, "Self-calibration:
+    // positions"), and the field stage starts from the offsets it found (false: from 0).
+    // Off by default: measured not to help yet (docs/recovery.md).
+    bool blur_positions = false;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,
