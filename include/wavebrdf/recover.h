@@ -259,6 +259,8 @@ struct RecoverSettings {
     // positions"), and the field stage starts from the offsets it found (false: from 0).
     // Off by default: measured not to help yet (docs/recovery.md).
     bool blur_positions = false;
+    int blur_positions_first_stage = 2;         // the first blur stage that registers (earlier: heights only)
+    double blur_positions_radius_texels = 4.0;  // its grid: ± this, in 1-texel steps (later: ±1 in halves)
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

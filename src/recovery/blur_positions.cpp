@@ -129,8 +129,8 @@ double register_with(const std::vector<const Observation*>& group, const std::ve
                      double radius_texels, double step_texels, std::vector<double>& offsets_um,
                      const Communicator& comm) {
     if (!(radius_texels >= 0.0) || !(step_texels > 0.0) || !(radius_texels / step_texels <= 16.0))
-        throw std::invalid_argument("register_positions_blurred: radius " + std::to_string(radius_texels) +
-                                    " / step " + std::to_string(step_texels) +
+        throw std::invalid_argument("register_positions_blurred: radius " + std::to_string(radius_texels) + " / step " +
+                                    std::to_string(step_texels) +
                                     " texels invalid; expected radius >= 0, step > 0, radius/step <= 16");
     const int half = int(std::floor(radius_texels / step_texels + 1e-9));
     const int side = 2 * half + 1;
@@ -254,9 +254,9 @@ Heightfield fit_blurred_with_positions(const std::vector<const Observation*>& gr
                 plan.set_heights(heights);
                 const std::vector<float>& f = plan.forward();
                 std::vector<double> weights;
-                const double term =
-                    inv_total * blurred_term(f, stage.matrices[stage.matrix_of[g]], stage.sqrt_reference[g],
-                                             stage.totals[g], root_exposures[g], inv_total, &weights);
+                const double term = inv_total * blurred_term(f, stage.matrices[stage.matrix_of[g]],
+                                                             stage.sqrt_reference[g], stage.totals[g],
+                                                             root_exposures[g], inv_total, &weights);
                 std::vector<double>& hs = height_scratch[std::size_t(omp_get_thread_num())];
                 if (hs.size() != cells) hs.assign(cells, 0.0);
                 const std::array<double, 2> gp = plan.adjoint_with_position(weights, hs, 1.0);
@@ -306,7 +306,8 @@ Heightfield fit_blurred_with_positions(const std::vector<const Observation*>& gr
         if (!go_on) break;
         std::vector<double> off(2 * count);
         for (std::size_t k = 0; k < 2 * count; ++k) off[k] = texel_um * x[cells + k];
-        const Heightfield current = initial.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+        const Heightfield current = initial.with_values(
+            std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
         register_with(group, position, current, stage, settings.calibrate_exposure,
                       first ? registration.first_radius_texels : registration.later_radius_texels,
                       first ? registration.first_step_texels : registration.later_step_texels, off, comm);

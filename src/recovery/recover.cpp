@@ -160,7 +160,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         estimate = detail::fit_blurred_with_positions(
             longest, index, flat, blurred, offsets_um,
             [&](int stage, int it, double loss) { return report("blur:" + std::to_string(stage), it, loss, nullptr); },
-            comm);
+            comm,
+            detail::BlurRegistration{settings.blur_positions_radius_texels, 1.0, 1.0, 0.5,
+                                     settings.blur_positions_first_stage});
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
     } else if (!blur_settings.blur_widths.empty() && blur_settings.iterations > 0) {
         BlurredFitSettings blurred = blur_settings;
