@@ -267,6 +267,14 @@ struct RecoverSettings {
     int field_tile_threshold = 64;
     int field_tile_core = 48;
     int field_tile_ramp = 4;
+    // With calibrate.positions: the blurred fit corrects the positions as well (every position of
+    // the longest wavelength, blur_spacing_sigma ignored; per blur stage heights, a registration
+    // by grid search, then heights and offsets together; docs/recovery.md, "Self-calibration:
+    // positions"), and the field stage starts from the offsets it found (false: from 0).
+    // Off by default: measured not to help yet (docs/recovery.md).
+    bool blur_positions = false;
+    int blur_positions_first_stage = 3;         // the first blur stage that registers (earlier: heights only)
+    double blur_positions_radius_texels = 1.0;  // its grid: ± this, in 1-texel steps (later: ±1 in halves)
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -17,6 +17,7 @@
 #include "wavebrdf/slice_plan.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/blur_positions.h"
 #include "recovery/field_positions.h"
 #include "recovery/field_tiles.h"
 #include "recovery/recover_positions.h"
@@ -143,7 +144,28 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     }
     Heightfield estimate = flat;
     const BlurredFitSettings& blur_settings = white ? settings.white_blurred : settings.blurred;
-    if (!blur_settings.blur_widths.empty() && blur_settings.iterations > 0) {
+    // Self-calibration of positions (recover_positions.h): one offset per gathered position,
+    // found first by the blurred fit (blur_positions.h), then corrected by the field stage.
+    std::vector<std::size_t> position_of;
+    std::vector<double> offsets_um;
+    if (settings.calibrate.positions)
+        offsets_um.assign(2 * detail::gather_positions(observations, position_of, comm).size(), 0.0);
+    const auto position_index = [&](const Observation* o) { return position_of[std::size_t(o - observations.data())]; };
+    if (settings.calibrate.positions && settings.blur_positions && !white && !blur_settings.blur_widths.empty() &&
+        blur_settings.iterations > 0) {
+        std::vector<const Observation*> longest = by_lambda.rbegin()->second;  // every position
+        std::vector<std::size_t> index;
+        for (const Observation* o : longest) index.push_back(position_index(o));
+        BlurredFitSettings blurred = blur_settings;
+        blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
+        estimate = detail::fit_blurred_with_positions(
+            longest, index, flat, blurred, offsets_um,
+            [&](int stage, int it, double loss) { return report("blur:" + std::to_string(stage), it, loss, nullptr); },
+            comm,
+            detail::BlurRegistration{settings.blur_positions_radius_texels, 1.0, 1.0, 0.5,
+                                     settings.blur_positions_first_stage});
+        if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
+    } else if (!blur_settings.blur_widths.empty() && blur_settings.iterations > 0) {
         BlurredFitSettings blurred = blur_settings;
         blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
         estimate = fit_blurred(
@@ -205,13 +227,6 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // projection onto pure-phase, smooth objects, which removes the local defects (phase
     // vortices) a retrieval from a poor start can stall in.
     const int passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
-    // Self-calibration of positions (recover_positions.h): every position's offset, corrected
-    // after each field by registration against it, shifts the observations of later fields.
-    std::vector<std::size_t> position_of;
-    std::vector<double> offsets_um;
-    if (settings.calibrate.positions)
-        offsets_um.assign(2 * detail::gather_positions(observations, position_of, comm).size(), 0.0);
-    const auto position_index = [&](const Observation* o) { return position_of[std::size_t(o - observations.data())]; };
     for (int pass = 0; pass < passes; ++pass)
         for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
             const double lambda = it->first;
