@@ -455,6 +455,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
+    detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)
     std::map<double, std::vector<const Observation*>> by_lambda;
