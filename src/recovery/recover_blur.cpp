@@ -246,7 +246,8 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         // 64² tile that is 1/64 texel rms per iteration: ~30 of stage 0's 40 iterations crawled
         // (docs/recovery.md, "Speed", third pass). Fitted in h / scale, those steps move the
         // heights by at most `scale` (1/8 texel rms); with pairs L-BFGS does not see the scale.
-        const double scale = std::max(1.0, std::sqrt(double(h.size())) / 8.0);
+        // Only from 64² texels on (where it was measured): smaller tiles fit as before, bit for bit.
+        const double scale = h.size() >= 4096 ? std::sqrt(double(h.size())) / 8.0 : 1.0;
         std::vector<double> x(h.size()), at(h.size());
         for (std::size_t k = 0; k < h.size(); ++k) x[k] = h[k] / scale;
         const auto scaled = [&](const std::vector<double>& y, std::vector<double>& grad) {
