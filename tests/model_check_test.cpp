@@ -277,8 +277,7 @@ TEST(ModelCheck, ReusedStartEvaluationGivesTheSameRefinement) {
     EXPECT_NE(plain.values(), start.values());  // it moved
     detail::FieldModelEvaluation wrong;
     wrong.gradient.assign(3, 0.0);
-    EXPECT_THROW(detail::refine_in_field_model(model, start, 4, 5, 0, 0.0, {}, nullptr, &wrong),
-                 std::invalid_argument);
+    EXPECT_THROW(detail::refine_in_field_model(model, start, 4, 5, 0, 0.0, {}, nullptr, &wrong), std::invalid_argument);
 }
 
 // On the Gabor model's own slices misfit:gabor is far below the field model's start loss: the
