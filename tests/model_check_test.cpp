@@ -242,3 +242,65 @@ TEST(ModelCheck, OnGaborSlicesTheRefinementIsKept) {
     EXPECT_EQ(selected, "select:gabor");
     EXPECT_EQ(r.at("final"), r.at("refine"));  // stage 3's heights, as without the check
 }
+
+// The model check's shortcut (RecoverSettings::model_check_skip_ratio): the field refinement is
+// skipped only when misfit:gabor is below the ratio times the field model's start loss; 0
+// never skips; outside [0, 1] is refused (also by recover_heights, before any stage runs).
+TEST(ModelCheck, SkipRuleAndItsRange) {
+    EXPECT_TRUE(detail::skip_field_refinement(1e-4, 1e-2, 0.1));
+    EXPECT_FALSE(detail::skip_field_refinement(2e-3, 1e-2, 0.1));
+    EXPECT_FALSE(detail::skip_field_refinement(1e-9, 1e-2, 0.0));
+    EXPECT_THROW(detail::skip_field_refinement(1e-4, 1e-2, -0.1), std::invalid_argument);
+    EXPECT_THROW(detail::skip_field_refinement(1e-4, 1e-2, 1.5), std::invalid_argument);
+    const ScalarCase c = small_case(Simulator::Gabor, 6601);
+    RecoverSettings s = small_settings();
+    s.model_check_skip_ratio = 2.0;
+    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}), std::invalid_argument);
+}
+
+// The refinement's first evaluation taken from the caller (at_start) changes nothing: the same
+// heights and loss, bit for bit, as L-BFGS evaluating the start itself.
+TEST(ModelCheck, ReusedStartEvaluationGivesTheSameRefinement) {
+    const int n = 12, refine = 3, resolution = 24;
+    const Heightfield truth = test::random_heightfield(n, n, 0.15, 6602, 2.0);
+    const std::vector<Observation> observations = few_slices(truth, {0.5, 0.6}, resolution);
+    const Heightfield start = test::random_heightfield(n, n, 0.15, 6603, 2.0);
+    const detail::FieldModelLoss model(pointers(observations), queries_of(observations), n, n, 2.0, refine, false,
+                                       serial_communicator());
+    double plain_loss = 0.0, reused_loss = 0.0;
+    const Heightfield plain = detail::refine_in_field_model(model, start, 4, 5, 0, 0.0, {}, &plain_loss);
+    detail::FieldModelEvaluation at_start;
+    at_start.loss = model(detail::heights_um_of(start), &at_start.gradient);
+    const Heightfield reused = detail::refine_in_field_model(model, start, 4, 5, 0, 0.0, {}, &reused_loss, &at_start);
+    EXPECT_EQ(plain.values(), reused.values());
+    EXPECT_EQ(plain_loss, reused_loss);
+    EXPECT_NE(plain.values(), start.values());  // it moved
+    detail::FieldModelEvaluation wrong;
+    wrong.gradient.assign(3, 0.0);
+    EXPECT_THROW(detail::refine_in_field_model(model, start, 4, 5, 0, 0.0, {}, nullptr, &wrong), std::invalid_argument);
+}
+
+// On the Gabor model's own slices misfit:gabor is far below the field model's start loss: the
+// field refinement is skipped ("refine:field" never reported) and the heights are the same
+// bits as with the refinement run and lost (skip ratio 0).
+TEST(ModelCheck, OnGaborSlicesTheFieldRefinementIsSkippedWithTheSameResult) {
+    const ScalarCase c = small_case(Simulator::Gabor, 6604);
+    const auto run = [&](double ratio, std::map<std::string, int>* stages) {
+        RecoverSettings s = small_settings();
+        s.model_check_skip_ratio = ratio;
+        return recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
+            ++(*stages)[m.stage];
+            return true;
+        });
+    };
+    std::map<std::string, int> skipped, full;
+    const Heightfield a = run(0.1, &skipped);
+    const Heightfield b = run(0.0, &full);
+    EXPECT_EQ(a.values(), b.values());
+    EXPECT_EQ(skipped.count("refine:field"), 0u);
+    EXPECT_EQ(skipped.count("misfit:field"), 0u);
+    EXPECT_EQ(skipped.count("misfit:field-start"), 1u);
+    EXPECT_EQ(skipped.count("select:gabor"), 1u);
+    EXPECT_GT(full.count("refine:field"), 0u);
+    EXPECT_EQ(full.count("select:gabor"), 1u);
+}

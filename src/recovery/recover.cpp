@@ -480,6 +480,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         if (!(w >= 0.0 && w <= 1e12))
             throw std::domain_error("recover_heights: white smoothness weight " + std::to_string(w) +
                                     " is invalid; expected a finite value >= 0");
+    detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)
     std::map<double, std::vector<const Observation*>> by_lambda;

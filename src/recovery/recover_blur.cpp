@@ -241,11 +241,27 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         lo.max_iterations = settings.iterations;
         lo.gradient_tolerance = 0.0;
         bool go_on = true;
-        lbfgs_minimize(objective, h, lo, [&](int it, double value) {
+        // L-BFGS takes its steps without curvature pairs as min(1, 1/‖g‖)·(−g): at most 1 in norm.
+        // From flat heights the blurred loss is not convex (the pairs are skipped), and on a
+        // 64² tile that is 1/64 texel rms per iteration: ~30 of stage 0's 40 iterations crawled
+        // (docs/recovery.md, "Speed", third pass). Fitted in h / scale, those steps move the
+        // heights by at most `scale` (1/8 texel rms); with pairs L-BFGS does not see the scale.
+        // Only from 64² texels on (where it was measured): smaller tiles fit as before, bit for bit.
+        const double scale = h.size() >= 4096 ? std::sqrt(double(h.size())) / 8.0 : 1.0;
+        std::vector<double> x(h.size()), at(h.size());
+        for (std::size_t k = 0; k < h.size(); ++k) x[k] = h[k] / scale;
+        const auto scaled = [&](const std::vector<double>& y, std::vector<double>& grad) {
+            for (std::size_t k = 0; k < y.size(); ++k) at[k] = y[k] * scale;
+            const double v = objective(at, grad);
+            for (double& gk : grad) gk *= scale;
+            return v;
+        };
+        lbfgs_minimize(scaled, x, lo, [&](int it, double value) {
             if (on_iteration && !on_iteration(int(stage), it, value)) go_on = false;
             go_on = !comm.any(!go_on);  // every rank stops at the same iteration
             return go_on;
         });
+        for (std::size_t k = 0; k < h.size(); ++k) h[k] = x[k] * scale;
         if (!go_on) break;
     }
     return initial.with_values(h);

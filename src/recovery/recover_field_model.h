@@ -81,14 +81,32 @@ private:
 double gabor_amplitude_loss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
                             const Heightfield& heightfield, bool calibrate_exposure, const Communicator& comm);
 
+// One evaluation of FieldModelLoss: its value and gradient (1/µm) at some heights.
+struct FieldModelEvaluation {
+    double loss = 0.0;
+    std::vector<double> gradient;
+};
+
+// A heightfield's heights in µm (row-major, rows·cols): FieldModelLoss's argument.
+std::vector<double> heights_um_of(const Heightfield& heights);
+
 // L-BFGS on FieldModelLoss from `start` (its heights), at most `iterations` steps, stopping when
 // the loss fell by less than stall_tolerance of its value over stall_window steps.
 // on_iteration(iteration, loss, heights) returning false stops (agreed over the ranks by the
 // caller). Returns the heights (values in start's texel units); *loss receives the final loss.
+// at_start (optional): the model already evaluated at heights_um_of(start), used instead of
+// L-BFGS's first evaluation (the same bits: the result does not change). Throws
+// std::invalid_argument when its gradient's size is not start's.
 Heightfield refine_in_field_model(const FieldModelLoss& model, const Heightfield& start, int iterations, int history,
                                   int stall_window, double stall_tolerance,
                                   const std::function<bool(int, double, const Heightfield&)>& on_iteration,
-                                  double* loss);
+                                  double* loss, const FieldModelEvaluation* at_start = nullptr);
+
+// The model check's shortcut: true when the Gabor model's loss at its refined heights is below
+// skip_ratio times the field model's loss at its start (the unwrapped heights), so the field
+// refinement is not run and the Gabor heights are kept. skip_ratio in [0, 1]; 0: never skip.
+// Throws std::invalid_argument outside that range.
+bool skip_field_refinement(double gabor_loss, double field_start_loss, double skip_ratio);
 
 // The model check after stage 3 (RecoverSettings::model_check_iterations): `unwrapped` (stage
 // 2's heights) refined in the field model at refine × the texels on the single-wavelength
@@ -96,8 +114,10 @@ Heightfield refine_in_field_model(const FieldModelLoss& model, const Heightfield
 // observations, for offsets_um, one per observation, empty: none) with every σ_p × sigma_scale,
 // compared with `refined` (stage 3's) in the Gabor model on the same slices; returns the
 // heights of the model with the lower relative amplitude loss. report(stage, iteration, loss,
-// heights) as recover_stages' ("refine:field", "misfit:gabor", "misfit:field",
-// "select:gabor" / "select:field"); a false stops and returns `refined`. Collective.
+// heights) as recover_stages' ("misfit:gabor", "misfit:field-start", "refine:field",
+// "misfit:field", "select:gabor" / "select:field"; with skip_field_refinement true the field
+// refinement and "refine:field" / "misfit:field" are left out); a false stops and returns
+// `refined`. Collective.
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
