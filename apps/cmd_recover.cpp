@@ -281,7 +281,7 @@ void add_recover_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--correlation-texels", a->correlation_texels, "generated truth: correlation length in texels")
         ->capture_default_str();
-    cmd->add_option("--model", a->model, "OHS or ROHS (the field retrieval is separable)")->capture_default_str();
+    cmd->add_option("--model", a->model, "OHS, ROHS, GHS or RGHS (GHS-type: the field stage through the separable proxy, docs/recovery.md)")->capture_default_str();
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
     cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um (0: the planner's, 1.5 texels)")

@@ -45,7 +45,7 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
     };
     const std::vector<Case> cases = {
         // Used to fail only after simulating the observations and writing run.json.
-        {"--size 8 --model GHS --out " + out, {"GHS", "OHS or ROHS"}},
+        {"--size 8 --model Kirchhoff --out " + out, {"Kirchhoff", "OHS, ROHS, GHS or RGHS"}},
         {"--truth a.exr --observations o.json --out " + out, {"--truth", "--observations"}},
         {"--method adam --out " + out, {"--method", "adam"}},
         {"--noise poisson:-3 --out " + out, {"poisson:-3"}},

@@ -20,6 +20,7 @@
 #include "recovery/blur_positions.h"
 #include "recovery/field_positions.h"
 #include "recovery/field_tiles.h"
+#include "recovery/field_proxy.h"
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
 #include "recovery/recover_field_model.h"
@@ -142,6 +143,20 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         for (std::size_t k : chosen)
             if (k >= first_mine && k < first_mine + it->second.size()) blur_set.push_back(it->second[k - first_mine]);
     }
+    // GHS/RGHS slices: the field stage (and the blurred fit, whose GHS renders cost many times
+    // the separable ones) run on the separable proxy for the heights s·H (field_proxy.h), s =
+    // cos θ_i; 1 for OHS/ROHS. The refinement runs the full model.
+    const detail::FieldProxy proxy = detail::common_field_proxy(by_lambda, comm);
+    const double proxy_scale = proxy.height_scale;
+    std::vector<Observation> blur_proxies;
+    if (proxy.proxied) {
+        blur_proxies.reserve(blur_set.size());
+        for (const Observation* o : blur_set) {
+            blur_proxies.push_back(*o);
+            blur_proxies.back().query.model = detail::field_proxy_model(o->query.model);
+        }
+        for (std::size_t k = 0; k < blur_set.size(); ++k) blur_set[k] = &blur_proxies[k];
+    }
     Heightfield estimate = flat;
     const BlurredFitSettings& blur_settings = white ? settings.white_blurred : settings.blurred;
     // Self-calibration of positions (recover_positions.h): one offset per gathered position,
@@ -172,6 +187,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             blur_set, flat, blurred,
             [&](int stage, int it, double loss) { return report("blur:" + std::to_string(stage), it, loss, nullptr); },
             comm);
+        if (proxy_scale != 1.0) {
+            std::vector<double> h = estimate.values();
+            for (double& v : h) v /= proxy_scale;
+            estimate = flat.with_values(std::move(h));
+        }
+        std::vector<Observation>().swap(blur_proxies);
         if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
     }
     // σ_p self-calibration before the field stage (sigma_search.h): the scale where the full
@@ -203,14 +224,23 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     field_settings.refine = q;
     field_settings.calibrate_exposure = field_settings.calibrate_exposure || settings.calibrate.exposure;
     const int obj_cols = cols * q;
-    const double to_texel = 1.0 / (vscale * texel_um);
+    const double to_texel = 1.0 / (vscale * texel_um * proxy_scale);
+    const auto scaled = [&](std::vector<double> h) {
+        if (proxy_scale != 1.0)
+            for (double& v : h) v *= proxy_scale;
+        return h;
+    };
+    const auto proxy_start = [&](double lambda) {
+        if (proxy_scale == 1.0) return object_from_heights(estimate, lambda, q);
+        return object_from_heights(estimate.with_values(scaled(estimate.values())), lambda, q);
+    };
     std::vector<double> lambdas;
     std::vector<std::vector<std::complex<double>>> fields;
     // Stage 2 (after each field when cascading): heights on the refined grid from the fields so
     // far (spatially unwrapped, or each sample on the branch nearest the current estimate), then
     // at the texel centres (refine is odd: texel (i, j) is sample (i·q + q/2, j·q + q/2)).
     const auto unwrap_fields = [&] {
-        const std::vector<double> reference = refined_heights(estimate, q);
+        const std::vector<double> reference = scaled(refined_heights(estimate, q));
         const std::vector<double> fine_um = unwrap_heights(lambdas, fields, settings.height_range_um, rows * q,
                                                            obj_cols,
                                                            settings.unwrap_from_blurred ? &reference : nullptr);
@@ -238,11 +268,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             // (field_positions.h).
             std::vector<Observation> group;
             std::vector<const Observation*> used = it->second;
-            if (sigma_scale != 1.0) {
+            if (sigma_scale != 1.0 || proxy.proxied) {
                 group.reserve(it->second.size());
                 for (const Observation* o : it->second) {
                     group.push_back(*o);
                     group.back().query.sigma_p_um *= sigma_scale;
+                    group.back().query.model = detail::field_proxy_model(o->query.model);
                 }
                 for (std::size_t k = 0; k < group.size(); ++k) used[k] = &group[k];
             }
@@ -255,12 +286,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                                         object_from_heights(estimate, lambda, q), field_settings,
                                                         tiling, on_iteration, comm);
                 if (!settings.calibrate.positions)
-                    return retrieve_field(used, lambda, rows, cols, texel_um, object_from_heights(estimate, lambda, q),
+                    return retrieve_field(used, lambda, rows, cols, texel_um, proxy_start(lambda),
                                           field_settings, on_iteration, comm);
                 std::vector<std::size_t> index;
                 for (const Observation* o : it->second) index.push_back(position_index(o));
                 return detail::retrieve_field_with_positions(used, index, lambda, rows, cols, texel_um,
-                                                             object_from_heights(estimate, lambda, q), field_settings,
+                                                             proxy_start(lambda), field_settings,
                                                              on_iteration, offsets_um, comm);
             }();
             if (stopped) return estimate;
@@ -443,7 +474,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // The model check (recover_field_model.h): the field model's refinement of the unwrapped
     // heights against stage 3's, the one whose model fits the slices better kept (not for
     // white light: no single-wavelength slice, no field model, no unwrapped heights).
-    if (!white && settings.refine_iterations > 0 && settings.model_check_iterations > 0) {
+    // (Nor for GHS/RGHS slices: the field model is their separable proxy's, not theirs.)
+    if (!white && !proxy.proxied && settings.refine_iterations > 0 && settings.model_check_iterations > 0) {
         std::vector<const Observation*> separable;
         std::vector<std::size_t> index;
         for (const auto& entry : by_lambda)
@@ -490,7 +522,8 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         for (const Observation& o : observations)
             validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());
         for (const Observation& o : observations)
-            if (o.lambdas_um.size() == 1 && is_separable(o.query.model)) by_lambda[o.lambdas_um[0]].push_back(&o);
+            if (o.lambdas_um.size() == 1 && detail::has_field_stage(o.query.model))
+                by_lambda[o.lambdas_um[0]].push_back(&o);
     });
     // Every rank runs every rank's wavelengths (its share of one may be empty).
     std::vector<double> lambdas_here;

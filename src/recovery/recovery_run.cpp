@@ -175,9 +175,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     // The pipeline's field retrieval needs single-wavelength separable slices: checked here,
     // before the observations are simulated, not after.
     if (options.method == RecoveryMethod::Pipeline) {
-        if (observations.empty() && options.spectral == 0 && !is_separable(options.model))
+        if (observations.empty() && options.spectral == 0 && options.model == Model::Kirchhoff)
             throw std::invalid_argument(std::string("model ") + to_string(options.model) +
-                                        " is not separable; the pipeline's field retrieval expects OHS or ROHS "
+                                        " has no field stage; the pipeline expects OHS, ROHS, GHS or RGHS "
                                         "(or the thesis's method)");
     }
     // Every observation's metadata (check_acquisition needs them all), and this rank's share.

@@ -331,15 +331,16 @@ def test_bad_arguments_of_the_parts(small_observations):
 
 def test_recover_flat_truth_reports_undefined_metric():
     # A flat truth has no relative height error: the recovery runs, with NaN metrics and a
-    # warning (it used to raise from the metric after the work); a non-separable model is
-    # refused before the observations are simulated.
+    # warning (it used to raise from the metric after the work); a model without a field stage
+    # (Kirchhoff; GHS and RGHS go through the separable proxy) is refused before the
+    # observations are simulated.
     flat = wb.Heightfield(np.full((8, 8), 0.25), texel_um=2.0)
     r = wb.recover(flat, sigma_p_um=3.0, field_iterations=3, refine_iterations=2, resolution=32)
     assert r.estimate.shape == (8, 8)
     assert np.all(np.isnan(r.metrics["height_rel_rmse"]))
     assert any("undefined: the truth is flat" in w for w in r.warnings)
-    with pytest.raises(ValueError, match="GHS"):
-        wb.recover(**SMALL, model="GHS")
+    with pytest.raises(ValueError, match="Kirchhoff"):
+        wb.recover(**SMALL, model="Kirchhoff")
 
 
 def test_recover_takes_white_light_rgb_slices_alone():
