@@ -282,8 +282,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core,
                                                  settings.field_tile_ramp};
                 if (!settings.calibrate.positions && detail::field_tiles_apply(rows, cols, tiling))
-                    return detail::retrieve_field_tiled(used, lambda, rows, cols, texel_um,
-                                                        object_from_heights(estimate, lambda, q), field_settings,
+                    return detail::retrieve_field_tiled(used, lambda, rows, cols, texel_um, proxy_start(lambda),
+                                                        field_settings,
                                                         tiling, on_iteration, comm);
                 if (!settings.calibrate.positions)
                     return retrieve_field(used, lambda, rows, cols, texel_um, proxy_start(lambda),
