@@ -803,7 +803,7 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     height_range_um  generated truth: peak-to-valley in um (> 0, default 2: +-1 um); with
                   observations: bound on the height range
     correlation_texels  generated truth: correlation length in texels (> 0)
-    model         'OHS' or 'ROHS' (the field retrieval is separable); light: (wx, wy), |w| < 1
+    model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
     sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
     resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
     lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
