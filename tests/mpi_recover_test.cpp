@@ -157,6 +157,32 @@ TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
     }
 }
 
+// White light under MPI (docs/recovery.md, White light): RGB slices only, the blurred fit on
+// the RGB channels, the smoothness continuation, the spectral refinement and the defect repair
+// (which decides on the collective loss) on two ranks give the one-process heights bit for bit.
+TEST(MpiRecover, WhiteLightRunsOnTwoRanksEqualOneProcess) {
+    const fs::path dir = fresh_dir("mpi_recover_white");
+    const auto args = [](const std::string& out) {
+        return std::vector<std::string>{
+            "recover", "--size",       "12", "--texel-um",          "2", "--sigma-p-um", "3",    "--spectral",
+            "4",       "--resolution", "24", "--refine-iterations", "8", "--seed",       "6211", "--no-plots",
+            "--quiet", "--out",        out};
+    };
+    const CliResult one = run_ranks(dir, 0, args("one"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const std::vector<double> reference = read_npy(dir / "one" / "estimate_height.npy");
+    ASSERT_EQ(reference.size(), 144u);
+    // The white path ran: blurred fit and repair stages, no field stage (no laser slice).
+    const std::string metrics = read_text(dir / "one" / "metrics.csv");
+    EXPECT_NE(metrics.find("repair,"), std::string::npos) << "the white-light repair stage ran";
+    EXPECT_EQ(metrics.find("unwrap,"), std::string::npos) << "no field stage without a laser slice";
+    const CliResult two = run_ranks(dir, 2, args("two"));
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    const std::vector<double> x = read_npy(dir / "two" / "estimate_height.npy");
+    ASSERT_EQ(x.size(), reference.size());
+    EXPECT_EQ(x, reference) << "max relative difference " << max_relative_difference(reference, x);
+}
+
 TEST(MpiRecover, ABadOptionFailsWithOneLineNotOnePerRank) {
     const fs::path dir = fresh_dir("mpi_recover");
     const CliResult bad = run_ranks(dir, 2, {"recover", "--size", "12", "--no-such-option", "--out", "x"});
