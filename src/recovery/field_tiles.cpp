@@ -234,6 +234,12 @@ std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layou
                 if (objects[i].empty() || objects[j].empty()) continue;
                 const auto [xi, yi] = tile_of(i);
                 const auto [xj, yj] = tile_of(j);
+                // Only neighbours (periodic) overlap: the cores are wider than the margins.
+                const auto near = [](std::size_t a, std::size_t b, std::size_t n) {
+                    const std::size_t d = a > b ? a - b : b - a;
+                    return d <= 1 || d + 1 == n;
+                };
+                if (!near(xi, xj, nx) || !near(yi, yj, ny)) continue;
                 const auto gx = axis_overlaps(ax.origin[xi], ax.extent[xi], wx[xi], ax.origin[xj], ax.extent[xj],
                                               wx[xj], q, fine_rows);
                 if (gx.empty()) continue;
@@ -291,6 +297,11 @@ std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layou
             st.gy = st.syy > 0.0 ? sy / st.syy : 0.0;
             return st;
         };
+        std::vector<std::vector<std::size_t>> regions_of(tiles);
+        for (std::size_t g = 0; g < regions.size(); ++g) {
+            regions_of[regions[g].i].push_back(g);
+            regions_of[regions[g].j].push_back(g);
+        }
         for (int pass = 0; pass < 2; ++pass) {
             // The phases: synchronised by the complex averages (raster order, then sweeps).
             std::vector<Stats> stats(regions.size());
@@ -299,7 +310,7 @@ std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layou
             const auto sweep = [&](bool first) {
                 for (std::size_t t = 0; t < tiles; ++t) {
                     std::complex<double> sum = 0.0;
-                    for (std::size_t g = 0; g < regions.size(); ++g) {
+                    for (std::size_t g : regions_of[t]) {
                         // z_i O_i ≈ z_j O_j: z_i ∝ z_j conj m, z_j ∝ z_i m.
                         if (regions[g].i == t && (!first || regions[g].j < t))
                             sum += z[regions[g].j] * std::conj(stats[g].m);
