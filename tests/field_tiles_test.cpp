@@ -104,6 +104,57 @@ TEST(FieldTiles, BlendOfTilesIsTheObjectUpToOneGlobalPhase) {
     EXPECT_LT(distance, 1e-2);
 }
 
+// Tiles that each come back with a phase offset AND a tilt of their own (the ambiguity and the
+// slow direction of a tile's retrieval) blend to the object up to ONE global phase when the
+// phases and tilts are fitted on all overlaps at once: on 3 × 3 tiles (rings along both axes)
+// and on 4 tiles in a row (cut along x only; tilts only along x). The first version's raster
+// alignment (one phase per tile, tile after tile) leaves the tilts in and fails the bound.
+TEST(FieldTiles, JointAlignmentRemovesPerTilePhaseAndTilt) {
+    struct Case {
+        int rows, cols;
+        detail::FieldTiling tiling;
+    };
+    for (const Case& k : {Case{36, 36, {16, 12, 2}}, Case{48, 16, {16, 12, 2}}}) {
+        const int q = 2, reach = 4;
+        const detail::FieldTileLayout layout = detail::field_tile_layout(k.rows, k.cols, q, reach, k.tiling);
+        const std::size_t nx = layout.origin_x.size(), ny = layout.origin_y.size();
+        ASSERT_EQ(nx, k.rows == 36 ? 3u : 4u);
+        ASSERT_EQ(ny, k.rows == 36 ? 3u : 1u);
+        // A smooth object on the fine grid (phase up to a few radians).
+        const Heightfield hf = test::random_heightfield(k.rows * q, k.cols * q, 0.15, 6, 1.0);
+        const std::vector<Complex> truth = object_of(hf, 0.5);
+        const std::size_t fine_cols = std::size_t(k.cols) * q, fine_rows = std::size_t(k.rows) * q;
+        std::mt19937_64 rng(6503);
+        std::uniform_real_distribution<double> offset(0.0, 2.0 * k_pi);
+        std::normal_distribution<double> tilt(0.0, 0.04);  // rad per texel
+        std::vector<std::vector<Complex>> objects(nx * ny);
+        for (std::size_t kx = 0; kx < nx; ++kx)
+            for (std::size_t ky = 0; ky < ny; ++ky) {
+                const int ex = layout.extent_x[kx], ey = layout.extent_y[ky];
+                const double a = offset(rng), b = layout.cut_x ? tilt(rng) : 0.0, c = layout.cut_y ? tilt(rng) : 0.0;
+                std::vector<Complex>& o = objects[kx * ny + ky];
+                o.resize(std::size_t(ex) * q * ey * q);
+                for (int r = 0; r < ex * q; ++r)
+                    for (int cc = 0; cc < ey * q; ++cc) {
+                        const std::size_t sr = std::size_t(
+                            ((layout.origin_x[kx] * q + r) % int(fine_rows) + int(fine_rows)) % int(fine_rows));
+                        const std::size_t sc = std::size_t(
+                            ((layout.origin_y[ky] * q + cc) % int(fine_cols) + int(fine_cols)) % int(fine_cols));
+                        const double x = (r + 0.5) / q - 0.5 * ex, y = (cc + 0.5) / q - 0.5 * ey;
+                        o[std::size_t(r) * ey * q + cc] = truth[sr * fine_cols + sc] *
+                                                          std::polar(1.0, a + b * x + c * y);
+                    }
+            }
+        std::vector<std::vector<Complex>> raster = objects;
+        const std::vector<Complex> joint = detail::blend_field_tiles(layout, objects);
+        const std::vector<Complex> old = detail::blend_field_tiles(layout, raster, detail::FieldTileAlignment::raster);
+        const double d_joint = distance_up_to_phase(truth, joint), d_raster = distance_up_to_phase(truth, old);
+        std::printf("%d x %d: joint %.3g, raster %.3g\n", k.rows, k.cols, d_joint, d_raster);
+        EXPECT_LT(d_joint, 1e-6);
+        EXPECT_GT(d_raster, 0.05);
+    }
+}
+
 // Surfaces within the threshold are not tiled (recover_heights keeps its whole-surface field
 // stage, bit for bit); bad settings name themselves.
 TEST(FieldTiles, ThresholdAndBadSettings) {

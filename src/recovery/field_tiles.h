@@ -24,11 +24,44 @@ struct FieldTiling {
 // Whether retrieve_field_tiled cuts a rows × cols surface at all (some axis above threshold).
 bool field_tiles_apply(int rows, int cols, const FieldTiling& tiling);
 
+// Where the tiles lie: along each axis the tiles' origins (texels, maybe negative: the surface
+// is periodic) and extents, whether the axis is cut, the footprint's reach and the ramp (texels),
+// and the refine factor q (fine samples per texel). Tile (kx, ky) is index kx · count_y + ky.
+struct FieldTileLayout {
+    int rows = 0, cols = 0, refine = 1, reach = 0, ramp = 1;
+    bool cut_x = false, cut_y = false;
+    std::vector<int> origin_x, extent_x, origin_y, extent_y;
+};
+
+// The layout retrieve_field_tiled uses for a rows × cols surface (reach in texels ≥ 0, refine
+// ≥ 1). Throws std::invalid_argument for settings out of range (core 8 to 4096, ramp 1 to core/2).
+FieldTileLayout field_tile_layout(int rows, int cols, int refine, int reach, const FieldTiling& tiling);
+
+// How the tiles' objects are aligned before they are blended.
+enum class FieldTileAlignment {
+    raster,  // one phase per tile, each against the blend of the tiles before it (the first version)
+    joint,   // a phase and a tilt per tile, fitted on all overlaps at once (least squares)
+};
+
+// The blend of the tiles' objects (objects[t]: (extent_x·q)·(extent_y·q) values in the tile's
+// frame, or empty: the tile stays out) on the whole (rows·q)·(cols·q) surface. Each object is
+// first multiplied by e^{i(a + b·x + c·y)} (x, y in texels from the tile's centre): with `joint`,
+// (a, b, c) of every tile fitted at once by weighted least squares on every pairwise overlap
+// (weights: the product of the two tiles' feathering weights; the phase differences, wrapped,
+// synchronised first by their complex averages; a tilt is fixed by the overlaps around a
+// periodic ring of tiles, the tiles' mean tilt is kept where no ring fixes it); with `raster`
+// only a, tile after tile. Modifies `objects` (the aligned tiles). Returns the blend, divided by
+// the sum of the weights (0 where that is 0). Throws std::invalid_argument for an object of the
+// wrong size.
+std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layout,
+                                                    std::vector<std::vector<std::complex<double>>>& objects,
+                                                    FieldTileAlignment alignment = FieldTileAlignment::joint);
+
 // retrieve_field (recover.h) of the rows × cols surface, tile by tile: each tile's retrieval
 // sees the observations whose footprints (3σ_p cut) lie inside it, shifted to its origin, and
 // starts from `initial` (the whole surface's object, (rows·refine)·(cols·refine)) cut to it.
-// The tiles' objects are aligned by one phase each, fitted on the overlaps (in raster order,
-// each against the blend of those before it), and blended with feathering weights sin² over
+// The tiles' objects are aligned (blend_field_tiles, joint: a phase and a tilt each, fitted on
+// all overlaps at once) and blended with feathering weights sin² over
 // the ramp, 0 within the footprint's reach of a tile's edge (a partition of unity across
 // neighbouring tiles). Returns the blend, relative_loss the tiles' mean weighted by their
 // observations, iterations the tiles' sum. on_iteration gets each tile's iterations (its stop

@@ -77,6 +77,11 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
         const double tile_cols = std::min(double(cols), tiling.core + 1.0 + 2.0 * margin);
         field_samples = tile_rows * tile_cols * double(std::max(refine, 1)) * double(std::max(refine, 1));
         tiled_fields = samples * 2.0 * sizeof(double) * double(pixels_per_lambda.size() + 2);
+        // The tiles' objects, kept until all are in for the joint alignment (blend_field_tiles):
+        // the surface's samples times the tiles' overlap factor.
+        const double core_rows = std::min(double(rows), double(tiling.core)),
+                     core_cols = std::min(double(cols), double(tiling.core));
+        tiled_fields += samples * 2.0 * sizeof(double) * (tile_rows * tile_cols) / (core_rows * core_cols);
     }
     const double field_history =
         field_samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0) + tiled_fields;
