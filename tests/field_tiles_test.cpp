@@ -8,6 +8,7 @@
 #include <complex>
 #include <random>
 
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/recover.h"
 
@@ -22,20 +23,6 @@ std::vector<Complex> object_of(const Heightfield& hf, double lambda_um) {
         for (int j = 0; j < hf.cols(); ++j)
             o[hf.index(i, j)] = std::polar(1.0, -4.0 * k_pi / lambda_um * hf.height_um(i, j));
     return o;
-}
-
-// RMS of a − e^{iφ}b over RMS of a, for the best single phase φ.
-double distance_up_to_phase(const std::vector<Complex>& a, const std::vector<Complex>& b) {
-    Complex overlap = 0.0;
-    double norm = 0.0;
-    for (std::size_t k = 0; k < a.size(); ++k) {
-        overlap += std::conj(b[k]) * a[k];
-        norm += std::norm(a[k]);
-    }
-    const Complex phase = std::polar(1.0, std::arg(overlap));
-    double d = 0.0;
-    for (std::size_t k = 0; k < a.size(); ++k) d += std::norm(a[k] - phase * b[k]);
-    return std::sqrt(d / norm);
 }
 
 // Slices made by the field model of the whole (periodic) surface from a known object, on a
@@ -79,7 +66,7 @@ TEST(FieldTiles, BlendOfTilesIsTheObjectUpToOneGlobalPhase) {
     std::normal_distribution<double> noise(0.0, 0.6);
     std::vector<Complex> start(truth.size());
     for (std::size_t k = 0; k < truth.size(); ++k) start[k] = truth[k] * std::polar(1.0, noise(rng));
-    ASSERT_GT(distance_up_to_phase(truth, start), 0.4);
+    ASSERT_GT(test::distance_up_to_phase(truth, start), 0.4);
     FieldRetrievalSettings s;
     s.iterations = 120;
     s.stall_window = 0;
@@ -97,9 +84,9 @@ TEST(FieldTiles, BlendOfTilesIsTheObjectUpToOneGlobalPhase) {
     EXPECT_GT(calls, 0);
     // 40× closer than the start (a tile shifted by a sample, or left at its own phase, is > 0.1
     // away; the tiles' edges converge more slowly than their cores).
-    const double distance = distance_up_to_phase(truth, r.object);
+    const double distance = test::distance_up_to_phase(truth, r.object);
     std::printf("tiles: loss %.3g, distance %.3g (start %.3g)\n", r.relative_loss, distance,
-                distance_up_to_phase(truth, start));
+                test::distance_up_to_phase(truth, start));
     EXPECT_LT(r.relative_loss, 1e-4);
     EXPECT_LT(distance, 1e-2);
 }
@@ -148,7 +135,8 @@ TEST(FieldTiles, JointAlignmentRemovesPerTilePhaseAndTilt) {
         std::vector<std::vector<Complex>> raster = objects;
         const std::vector<Complex> joint = detail::blend_field_tiles(layout, objects);
         const std::vector<Complex> old = detail::blend_field_tiles(layout, raster, detail::FieldTileAlignment::raster);
-        const double d_joint = distance_up_to_phase(truth, joint), d_raster = distance_up_to_phase(truth, old);
+        const double d_joint = test::distance_up_to_phase(truth, joint),
+                     d_raster = test::distance_up_to_phase(truth, old);
         std::printf("%d x %d: joint %.3g, raster %.3g\n", k.rows, k.cols, d_joint, d_raster);
         EXPECT_LT(d_joint, 1e-6);
         EXPECT_GT(d_raster, 0.05);

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/noise.h"
@@ -160,18 +161,8 @@ struct ScalarCase {
 // positions (σ_p = 3 µm, 78 % overlap) and two wavelengths, 32² slices simulated by
 // `simulator` (recover_test's small case).
 ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
-    SurfaceParams p;
-    p.rows = p.cols = 12;
-    p.texel_um = 2.0;
-    p.correlation_um = 8.0;
-    p.rms_height_um = 1.0;
-    p.seed = seed;
-    const Heightfield raw = generate_heightfield(p);
-    double peak = 0.0;
-    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
-    std::vector<double> v = raw.values();
-    for (double& x : v) x *= 0.5 / (peak * p.texel_um);
-    ScalarCase c{raw.with_values(v), {}};
+    const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
+    ScalarCase c{surface, {}};
     std::mt19937_64 rng(seed + 100);
     std::uniform_real_distribution<double> jitter(-0.2, 0.2);
     const double step = 4.0;

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "recovery/field_proxy.h"
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/generate.h"
@@ -20,20 +21,7 @@ namespace wavebrdf {
 namespace {
 
 // A 12² tile of max |H| = 0.5 µm (2 µm texels, correlation 8 µm), as recover_test's small case.
-Heightfield small_surface(std::uint64_t seed) {
-    SurfaceParams p;
-    p.rows = p.cols = 12;
-    p.texel_um = 2.0;
-    p.correlation_um = 8.0;
-    p.rms_height_um = 1.0;
-    p.seed = seed;
-    const Heightfield raw = generate_heightfield(p);
-    double peak = 0.0;
-    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
-    std::vector<double> v = raw.values();
-    for (double& x : v) x *= 0.5 / (peak * p.texel_um);
-    return raw.with_values(v);
-}
+Heightfield small_surface(std::uint64_t seed) { return test::peak_scaled_surface(12, 8.0, 0.5, seed); }
 
 // 6 × 6 jittered positions (σ_p = 3 µm, 78 % overlap) at λ = 0.5 and 0.6 µm, `model` under `omega_i`.
 std::vector<Observation> small_observations(const Heightfield& truth, Model model, std::array<double, 2> omega_i,

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <random>
 
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/recover.h"
@@ -25,21 +26,11 @@ struct OffCase {
 // A 12² tile of 2 µm texels (max |H| 0.5 µm), 5 × 5 positions σ_p 3 µm at two wavelengths,
 // each position's true centre off by a Gaussian of `rms_texels` per coordinate (mean removed).
 OffCase off_case(std::uint64_t seed, double rms_texels, int resolution = 40) {
-    SurfaceParams p;
-    p.rows = p.cols = 12;
-    p.texel_um = 2.0;
-    p.correlation_um = 8.0;
-    p.rms_height_um = 1.0;
-    p.seed = seed;
-    const Heightfield raw = generate_heightfield(p);
-    double peak = 0.0;
-    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
-    std::vector<double> v = raw.values();
-    for (double& x : v) x *= 0.5 / (peak * p.texel_um);
-    OffCase c{raw.with_values(v), {}, {}};
+    const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
+    OffCase c{surface, {}, {}};
     std::mt19937_64 rng(seed + 7);
     std::uniform_real_distribution<double> jitter(-0.2, 0.2);
-    std::normal_distribution<double> normal(0.0, rms_texels * p.texel_um);
+    std::normal_distribution<double> normal(0.0, rms_texels * surface.texel_um());
     const int per_side = 5;
     const double step = 24.0 / per_side;  // σ_p = 3 µm: linear overlap 1 − 4.8/18 = 73 %
     std::vector<std::array<double, 2>> stated, error;

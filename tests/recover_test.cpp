@@ -12,6 +12,7 @@
 #include <random>
 #include <thread>
 
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/slice_plan.h"
@@ -45,20 +46,6 @@ std::vector<Complex> random_complex(std::size_t size, std::uint64_t seed) {
     std::vector<Complex> v(size);
     for (auto& z : v) z = {g(rng), g(rng)};
     return v;
-}
-
-// Global-phase-free distance: min over φ of ‖a − e^{iφ} b‖ / ‖a‖.
-double distance_up_to_phase(const std::vector<Complex>& a, const std::vector<Complex>& b) {
-    Complex overlap = 0.0;
-    double norm = 0.0;
-    for (std::size_t k = 0; k < a.size(); ++k) {
-        overlap += std::conj(b[k]) * a[k];
-        norm += std::norm(a[k]);
-    }
-    const Complex phase = std::polar(1.0, std::arg(overlap));
-    double d = 0.0;
-    for (std::size_t k = 0; k < a.size(); ++k) d += std::norm(a[k] - phase * b[k]);
-    return std::sqrt(d / norm);
 }
 
 // The field model is the renderer's field at zero slope: with period-2 heights (every slope 0)
@@ -245,12 +232,12 @@ TEST(RetrieveField, RecoversKnownObjectUpToGlobalPhase) {
     std::normal_distribution<double> noise(0.0, 0.6);
     std::vector<Complex> start(truth.size());
     for (std::size_t k = 0; k < truth.size(); ++k) start[k] = truth[k] * std::polar(1.0, noise(rng));
-    ASSERT_GT(distance_up_to_phase(truth, start), 0.4);
+    ASSERT_GT(test::distance_up_to_phase(truth, start), 0.4);
     FieldRetrievalSettings s;
     s.iterations = 300;
     const FieldRetrievalResult r = retrieve_field(observations, lambda, rows, cols, texel, start, s);
     EXPECT_LT(r.relative_loss, 1e-10);
-    EXPECT_LT(distance_up_to_phase(truth, r.object), 1e-4);
+    EXPECT_LT(test::distance_up_to_phase(truth, r.object), 1e-4);
 }
 
 // The stopping rule (stall_window / stall_tolerance): with noisy slices the loss has a floor;
@@ -280,8 +267,9 @@ TEST(RetrieveField, StallStopEndsEarlyWithTheFullRunsAccuracy) {
     // The full run ends where its line search finds no descent any more (at the floor).
     EXPECT_LT(b.iterations, a.iterations);
     EXPECT_LT(b.relative_loss, 1.02 * a.relative_loss);
-    const double d_full = distance_up_to_phase(truth, a.object), d_stall = distance_up_to_phase(truth, b.object);
-    EXPECT_LT(d_stall, 0.1 * distance_up_to_phase(truth, start));
+    const double d_full = test::distance_up_to_phase(truth, a.object),
+                 d_stall = test::distance_up_to_phase(truth, b.object);
+    EXPECT_LT(d_stall, 0.1 * test::distance_up_to_phase(truth, start));
     EXPECT_LT(d_stall, 1.5 * d_full + 1e-3);
     std::printf("stall: %d iterations (full %d), loss %.4g (%.4g), distance %.3g (%.3g)\n", b.iterations, a.iterations,
                 b.relative_loss, a.relative_loss, d_stall, d_full);
@@ -407,18 +395,8 @@ struct SmallCase {
 };
 
 SmallCase small_case(std::uint64_t seed) {
-    SurfaceParams p;
-    p.rows = p.cols = 12;
-    p.texel_um = 2.0;
-    p.correlation_um = 8.0;
-    p.rms_height_um = 1.0;
-    p.seed = seed;
-    const Heightfield raw = generate_heightfield(p);
-    double peak = 0.0;
-    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
-    std::vector<double> v = raw.values();
-    for (double& x : v) x *= 0.5 / (peak * p.texel_um);  // max |H| = 0.5 µm
-    SmallCase c{raw.with_values(v), {}};
+    const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
+    SmallCase c{surface, {}};
     std::mt19937_64 rng(seed + 100);
     std::uniform_real_distribution<double> jitter(-0.2, 0.2);
     const double step = 4.0;  // σ_p = 3 µm: linear overlap 1 − 4/18 = 78 %

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <random>
 
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/noise.h"
@@ -29,18 +30,8 @@ struct Tile {
 // A rows × rows tile (texel 2 µm, max |H| = 0.4 µm, correlation 6 µm) seen at a 4 µm raster of
 // footprints σ_p = 3 µm (jittered), one wavelength, `resolution`² slices.
 Tile make_tile(int rows, int resolution, std::uint64_t seed) {
-    SurfaceParams p;
-    p.rows = p.cols = rows;
-    p.texel_um = 2.0;
-    p.correlation_um = 6.0;
-    p.rms_height_um = 1.0;
-    p.seed = seed;
-    const Heightfield raw = generate_heightfield(p);
-    double peak = 0.0;
-    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
-    std::vector<double> v = raw.values();
-    for (double& x : v) x *= 0.4 / (peak * p.texel_um);
-    Tile t{raw.with_values(v), {}};
+    const Heightfield surface = test::peak_scaled_surface(rows, 6.0, 0.4, seed);
+    Tile t{surface, {}};
     std::mt19937_64 rng(seed + 1);
     std::uniform_real_distribution<double> jitter(-0.3, 0.3);
     const int steps = rows * 2 / 4;

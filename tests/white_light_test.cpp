@@ -9,6 +9,7 @@
 #include <random>
 
 #include "recovery/white_light.h"
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/recover.h"
@@ -26,18 +27,8 @@ struct Case {
 };
 
 Case white_case(std::uint64_t seed, int spectral, const std::vector<double>& laser, int resolution) {
-    SurfaceParams p;
-    p.rows = p.cols = 12;
-    p.texel_um = 2.0;
-    p.correlation_um = 8.0;
-    p.rms_height_um = 1.0;
-    p.seed = seed;
-    const Heightfield raw = generate_heightfield(p);
-    double peak = 0.0;
-    for (double v : raw.values()) peak = std::max(peak, std::abs(v));
-    std::vector<double> v = raw.values();
-    for (double& x : v) x *= 0.5 / (peak * p.texel_um);
-    Case c{raw.with_values(v), {}};
+    const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
+    Case c{surface, {}};
     std::mt19937_64 rng(seed + 100);
     std::uniform_real_distribution<double> jitter(-0.2, 0.2);
     std::vector<std::vector<double>> sets;
