@@ -25,29 +25,6 @@ std::vector<Complex> object_of(const Heightfield& hf, double lambda_um) {
     return o;
 }
 
-// Slices made by the field model of the whole (periodic) surface from a known object, on a
-// jittered raster of positions.
-std::vector<Observation> model_observations(const std::vector<Complex>& object, int rows, int cols, double texel_um,
-                                            double lambda_um, int n, double sigma_p_um, double step_um) {
-    std::vector<Observation> out;
-    std::mt19937_64 rng(6501);
-    std::uniform_real_distribution<double> jitter(-0.15, 0.15);
-    for (double x = 0.5 * step_um; x < rows * texel_um; x += step_um)
-        for (double y = 0.5 * step_um; y < cols * texel_um; y += step_um) {
-            Observation o;
-            o.query = test::make_query(Model::OHS, x + jitter(rng) * step_um, y + jitter(rng) * step_um, sigma_p_um);
-            o.lambdas_um.assign(1, lambda_um);
-            o.resolution = n;
-            const FieldOperator op(rows, cols, texel_um, o.query, lambda_um, n);
-            const auto field = op.forward(object);
-            o.reference.resize(field.size());
-            for (std::size_t p = 0; p < field.size(); ++p)
-                o.reference[p] = std::pow(op.amplitude_factor()[p], 2) * std::norm(field[p]);
-            out.push_back(std::move(o));
-        }
-    return out;
-}
-
 }  // namespace
 
 // Tiles retrieved on their own (observations moved to the tile's origin, the start cut to
@@ -59,7 +36,7 @@ TEST(FieldTiles, BlendOfTilesIsTheObjectUpToOneGlobalPhase) {
     const double texel = 1.0, lambda = 0.5;
     const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
     const std::vector<Complex> truth = object_of(hf, lambda);
-    const auto observations = model_observations(truth, rows, cols, texel, lambda, 48, 1.0, 2.0);
+    const auto observations = test::model_observations(truth, rows, cols, texel, lambda, 48, 1.0, 2.0, 6501);
     std::vector<const Observation*> pointers;
     for (const Observation& o : observations) pointers.push_back(&o);
     std::mt19937_64 rng(6502);

@@ -198,28 +198,6 @@ TEST(FieldOperator, RejectsBadArguments) {
     EXPECT_THROW(op.adjoint(std::vector<Complex>(17)), std::invalid_argument);
 }
 
-// Observations made by the field model itself from a known object (a smooth phase object).
-std::vector<Observation> model_observations(const std::vector<Complex>& object, int rows, int cols, double texel_um,
-                                            double lambda_um, int n, double sigma_p_um, double step_um) {
-    std::vector<Observation> out;
-    std::mt19937_64 rng(11);
-    std::uniform_real_distribution<double> jitter(-0.15, 0.15);
-    for (double x = 0.5 * step_um; x < rows * texel_um; x += step_um)
-        for (double y = 0.5 * step_um; y < cols * texel_um; y += step_um) {
-            Observation o;
-            o.query = test::make_query(Model::OHS, x + jitter(rng) * step_um, y + jitter(rng) * step_um, sigma_p_um);
-            o.lambdas_um = {lambda_um};
-            o.resolution = n;
-            const FieldOperator op(rows, cols, texel_um, o.query, lambda_um, n);
-            const auto field = op.forward(object);
-            o.reference.resize(field.size());
-            for (std::size_t p = 0; p < field.size(); ++p)
-                o.reference[p] = std::pow(op.amplitude_factor()[p], 2) * std::norm(field[p]);
-            out.push_back(std::move(o));
-        }
-    return out;
-}
-
 // Overlapping slices determine the object up to a global phase: from a start 0.6 rad (rms)
 // away, the retrieval returns the object (which a single slice could not pin down).
 TEST(RetrieveField, RecoversKnownObjectUpToGlobalPhase) {
@@ -227,7 +205,7 @@ TEST(RetrieveField, RecoversKnownObjectUpToGlobalPhase) {
     const double texel = 1.0, lambda = 0.5;
     const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
     const std::vector<Complex> truth = object_of(hf, lambda);
-    const auto observations = model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0);
+    const auto observations = test::model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0, 11);
     std::mt19937_64 rng(2);
     std::normal_distribution<double> noise(0.0, 0.6);
     std::vector<Complex> start(truth.size());
@@ -248,7 +226,7 @@ TEST(RetrieveField, StallStopEndsEarlyWithTheFullRunsAccuracy) {
     const double texel = 1.0, lambda = 0.5;
     const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
     const std::vector<Complex> truth = object_of(hf, lambda);
-    auto observations = model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0);
+    auto observations = test::model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0, 11);
     std::mt19937_64 rng(7);
     std::normal_distribution<double> noise(0.0, 0.02);  // 2 % multiplicative noise: a floor
     for (Observation& o : observations)

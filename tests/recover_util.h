@@ -1,14 +1,18 @@
 #pragma once
-// Fixtures shared by the recovery tests: the small isotropic test surface and the distance of two
-// fields up to a global phase.
+// Fixtures shared by the recovery tests: the small isotropic test surface, slices made by the field
+// model itself, and the distance of two fields up to a global phase.
 #include <algorithm>
 #include <cmath>
 #include <complex>
 #include <cstdint>
 #include <vector>
 
+#include <random>
+
+#include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/heightfield.h"
+#include "wavebrdf/recover.h"
 
 namespace wavebrdf::test {
 
@@ -42,6 +46,30 @@ inline double distance_up_to_phase(const std::vector<std::complex<double>>& a,
     double d = 0.0;
     for (std::size_t k = 0; k < a.size(); ++k) d += std::norm(a[k] - phase * b[k]);
     return std::sqrt(d / norm);
+}
+
+// OHS slices made by the field model of the whole (periodic) surface from a known object, on a
+// raster of positions `step_um` apart jittered by ±0.15 steps (drawn with `seed`).
+inline std::vector<Observation> model_observations(const std::vector<std::complex<double>>& object, int rows, int cols,
+                                                   double texel_um, double lambda_um, int n, double sigma_p_um,
+                                                   double step_um, std::uint64_t seed) {
+    std::vector<Observation> out;
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> jitter(-0.15, 0.15);
+    for (double x = 0.5 * step_um; x < rows * texel_um; x += step_um)
+        for (double y = 0.5 * step_um; y < cols * texel_um; y += step_um) {
+            Observation o;
+            o.query = make_query(Model::OHS, x + jitter(rng) * step_um, y + jitter(rng) * step_um, sigma_p_um);
+            o.lambdas_um.assign(1, lambda_um);
+            o.resolution = n;
+            const FieldOperator op(rows, cols, texel_um, o.query, lambda_um, n);
+            const auto field = op.forward(object);
+            o.reference.resize(field.size());
+            for (std::size_t p = 0; p < field.size(); ++p)
+                o.reference[p] = std::pow(op.amplitude_factor()[p], 2) * std::norm(field[p]);
+            out.push_back(std::move(o));
+        }
+    return out;
 }
 
 }  // namespace wavebrdf::test
