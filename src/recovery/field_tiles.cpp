@@ -150,13 +150,8 @@ std::vector<double> solve_least_squares(const std::vector<Equation>& equations, 
     return x;
 }
 
-}  // namespace
-
-bool field_tiles_apply(int rows, int cols, const FieldTiling& tiling) {
-    return tiling.threshold > 0 && (rows > tiling.threshold || cols > tiling.threshold);
-}
-
-FieldTileLayout field_tile_layout(int rows, int cols, int refine, int reach, const FieldTiling& tiling) {
+// Throws std::invalid_argument for a core outside 8 … 4096 texels or a ramp outside 1 … core / 2.
+void validate_tiling(const FieldTiling& tiling) {
     if (tiling.core < 8 || tiling.core > 4096)
         throw std::invalid_argument("field tile core " + std::to_string(tiling.core) +
                                     " texels is invalid; expected 8 to 4096");
@@ -164,6 +159,16 @@ FieldTileLayout field_tile_layout(int rows, int cols, int refine, int reach, con
         throw std::invalid_argument("field tile ramp " + std::to_string(tiling.ramp) +
                                     " texels is invalid; expected 1 to half the core (" + std::to_string(tiling.core) +
                                     ")");
+}
+
+}  // namespace
+
+bool field_tiles_apply(int rows, int cols, const FieldTiling& tiling) {
+    return tiling.threshold > 0 && (rows > tiling.threshold || cols > tiling.threshold);
+}
+
+FieldTileLayout field_tile_layout(int rows, int cols, int refine, int reach, const FieldTiling& tiling) {
+    validate_tiling(tiling);
     if (rows < 1 || cols < 1 || refine < 1 || reach < 0)
         throw std::invalid_argument("field_tile_layout: surface " + std::to_string(rows) + " x " +
                                     std::to_string(cols) + ", refine " + std::to_string(refine) + ", reach " +
@@ -418,13 +423,7 @@ FieldRetrievalResult retrieve_field_tiled(const std::vector<const Observation*>&
                                           const FieldRetrievalSettings& settings, const FieldTiling& tiling,
                                           const std::function<bool(int, double)>& on_iteration,
                                           const Communicator& comm) {
-    if (tiling.core < 8 || tiling.core > 4096)
-        throw std::invalid_argument("field tile core " + std::to_string(tiling.core) +
-                                    " texels is invalid; expected 8 to 4096");
-    if (tiling.ramp < 1 || 2 * tiling.ramp > tiling.core)
-        throw std::invalid_argument("field tile ramp " + std::to_string(tiling.ramp) +
-                                    " texels is invalid; expected 1 to half the core (" + std::to_string(tiling.core) +
-                                    ")");
+    validate_tiling(tiling);
     if (rows < 1 || cols < 1 || !(texel_um > 0.0))
         throw std::invalid_argument("retrieve_field_tiled: surface " + std::to_string(rows) + " x " +
                                     std::to_string(cols) + " of texel " + std::to_string(texel_um) +
