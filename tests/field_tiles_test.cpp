@@ -15,17 +15,7 @@
 using namespace wavebrdf;
 using Complex = std::complex<double>;
 
-namespace {
-
-std::vector<Complex> object_of(const Heightfield& hf, double lambda_um) {
-    std::vector<Complex> o(hf.values().size());
-    for (int i = 0; i < hf.rows(); ++i)
-        for (int j = 0; j < hf.cols(); ++j)
-            o[hf.index(i, j)] = std::polar(1.0, -4.0 * k_pi / lambda_um * hf.height_um(i, j));
-    return o;
-}
-
-}  // namespace
+namespace {}  // namespace
 
 // Tiles retrieved on their own (observations moved to the tile's origin, the start cut to
 // it), phase-aligned on the overlaps and blended, give the whole surface's object up to ONE
@@ -35,7 +25,7 @@ TEST(FieldTiles, BlendOfTilesIsTheObjectUpToOneGlobalPhase) {
     const int rows = 28, cols = 28;
     const double texel = 1.0, lambda = 0.5;
     const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
-    const std::vector<Complex> truth = object_of(hf, lambda);
+    const std::vector<Complex> truth = test::object_of(hf, lambda);
     const auto observations = test::model_observations(truth, rows, cols, texel, lambda, 48, 1.0, 2.0, 6501);
     std::vector<const Observation*> pointers;
     for (const Observation& o : observations) pointers.push_back(&o);
@@ -86,7 +76,7 @@ TEST(FieldTiles, JointAlignmentRemovesPerTilePhaseAndTilt) {
         ASSERT_EQ(ny, k.rows == 36 ? 3u : 1u);
         // A smooth object on the fine grid (phase up to a few radians).
         const Heightfield hf = test::random_heightfield(k.rows * q, k.cols * q, 0.15, 6, 1.0);
-        const std::vector<Complex> truth = object_of(hf, 0.5);
+        const std::vector<Complex> truth = test::object_of(hf, 0.5);
         const std::size_t fine_cols = std::size_t(k.cols) * q, fine_rows = std::size_t(k.rows) * q;
         std::mt19937_64 rng(6503);
         std::uniform_real_distribution<double> offset(0.0, 2.0 * k_pi);

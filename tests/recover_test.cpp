@@ -32,14 +32,6 @@ Heightfield zero_slope_heightfield(int rows, int cols, double texel_um, const st
     return Heightfield(rows, cols, v, texel_um);
 }
 
-std::vector<Complex> object_of(const Heightfield& hf, double lambda_um) {
-    std::vector<Complex> o(hf.values().size());
-    for (int i = 0; i < hf.rows(); ++i)
-        for (int j = 0; j < hf.cols(); ++j)
-            o[hf.index(i, j)] = std::polar(1.0, -4.0 * k_pi / lambda_um * hf.height_um(i, j));
-    return o;
-}
-
 std::vector<Complex> random_complex(std::size_t size, std::uint64_t seed) {
     std::mt19937_64 rng(seed);
     std::normal_distribution<double> g(0.0, 1.0);
@@ -62,7 +54,7 @@ TEST(FieldOperator, MatchesRenderSliceAtZeroSlope) {
         direct.prune_tolerance = 0.0;
         const std::vector<double> slice = render_slice<double>(hf, q, lambda, n, direct);
         const FieldOperator op(hf.rows(), hf.cols(), hf.texel_um(), q, lambda, n);
-        const std::vector<Complex> field = op.forward(object_of(hf, lambda));
+        const std::vector<Complex> field = op.forward(test::object_of(hf, lambda));
         double peak = 0.0, worst = 0.0;
         for (std::size_t p = 0; p < slice.size(); ++p) {
             const double a = op.amplitude_factor()[p];
@@ -84,7 +76,7 @@ TEST(FieldOperator, RefinedGridMatchesRenderOfRefinedHeightfield) {
     const int n = 48;
     const std::vector<double> slice = render_slice<double>(fine, query, lambda, n);
     const FieldOperator op(8, 6, 2.0, query, lambda, n, q);
-    const std::vector<Complex> field = op.forward(object_of(fine, lambda));
+    const std::vector<Complex> field = op.forward(test::object_of(fine, lambda));
     double peak = 0.0, worst = 0.0;
     for (std::size_t p = 0; p < slice.size(); ++p) {
         const double a = op.amplitude_factor()[p];
@@ -204,7 +196,7 @@ TEST(RetrieveField, RecoversKnownObjectUpToGlobalPhase) {
     const int rows = 10, cols = 10;
     const double texel = 1.0, lambda = 0.5;
     const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
-    const std::vector<Complex> truth = object_of(hf, lambda);
+    const std::vector<Complex> truth = test::object_of(hf, lambda);
     const auto observations = test::model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0, 11);
     std::mt19937_64 rng(2);
     std::normal_distribution<double> noise(0.0, 0.6);
@@ -225,7 +217,7 @@ TEST(RetrieveField, StallStopEndsEarlyWithTheFullRunsAccuracy) {
     const int rows = 10, cols = 10;
     const double texel = 1.0, lambda = 0.5;
     const Heightfield hf = test::random_heightfield(rows, cols, 0.03, 5, texel);
-    const std::vector<Complex> truth = object_of(hf, lambda);
+    const std::vector<Complex> truth = test::object_of(hf, lambda);
     auto observations = test::model_observations(truth, rows, cols, texel, lambda, 48, 2.0, 2.0, 11);
     std::mt19937_64 rng(7);
     std::normal_distribution<double> noise(0.0, 0.02);  // 2 % multiplicative noise: a floor
@@ -297,7 +289,7 @@ TEST(UnwrapHeights, RecoversHeightsFromExactFieldsAtSeveralWavelengths) {
                                  std::abs(hf.height_um(i, j + 1) - hf.height_um(i, j))});
     ASSERT_LT(4.0 * k_pi / 0.5 * steepest, k_pi);
     for (std::size_t l = 0; l < lambdas.size(); ++l) {
-        auto f = object_of(hf, lambdas[l]);
+        auto f = test::object_of(hf, lambdas[l]);
         for (auto& z : f) z *= std::polar(0.8, 1.0 + 2.0 * double(l));  // global phase and amplitude
         fields.push_back(f);
     }

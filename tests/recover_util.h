@@ -10,6 +10,7 @@
 #include <random>
 
 #include "test_util.h"
+#include "wavebrdf/constants.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/recover.h"
@@ -31,6 +32,15 @@ inline Heightfield peak_scaled_surface(int rows, double correlation_um, double p
     std::vector<double> v = raw.values();
     for (double& x : v) x *= peak_um / (peak * p.texel_um);
     return raw.with_values(v);
+}
+
+// The zero-slope field e^{−i(4π/λ)H} of the heights at the texel centres.
+inline std::vector<std::complex<double>> object_of(const Heightfield& hf, double lambda_um) {
+    std::vector<std::complex<double>> o(hf.values().size());
+    for (int i = 0; i < hf.rows(); ++i)
+        for (int j = 0; j < hf.cols(); ++j)
+            o[hf.index(i, j)] = std::polar(1.0, -4.0 * k_pi / lambda_um * hf.height_um(i, j));
+    return o;
 }
 
 // RMS of a − e^{iφ}b over RMS of a, for the best single phase φ.
