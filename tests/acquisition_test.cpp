@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -180,6 +182,58 @@ TEST(PlanTest, CheckNamesSparseAndCoarseData) {
     // Steep slopes reflect light off the slice.
     const Heightfield steep = test::random_heightfield(r.rows, r.cols, 2.0, 3, r.texel_um, 1.0);
     EXPECT_TRUE(mentions(check_acquisition(obs, r.rows, r.cols, r.texel_um, &steep), "slopes up to"));
+}
+
+// check_acquisition finds nearest centres on a grid of cells (linear in the positions); the
+// worst nearest-neighbour distance and the count of uncovered texels it reports must be the
+// all-pairs search's, here on scattered, clustered and repeated centres, some outside the period.
+TEST(PlanTest, CheckMatchesTheAllPairsSearchOnScatteredCentres) {
+    PlanRequest r;
+    r.height_range_um = 1.0;
+    const AcquisitionPlan plan = plan_acquisition(r);
+    const double px = r.rows * r.texel_um, py = r.cols * r.texel_um, sigma_p = plan.sigma_p_um;
+    std::mt19937 rng(17);
+    for (int trial = 0; trial < 4; ++trial) {
+        auto obs = with_flat_references(planned_observations(plan));
+        std::uniform_real_distribution<double> anywhere(-0.3 * px, 1.3 * px), near(-2.0 * sigma_p, 2.0 * sigma_p);
+        const int count = 5 + 15 * trial;
+        obs.resize(static_cast<std::size_t>(count));
+        for (int k = 0; k < count; ++k) {
+            // A third of the centres scattered, the rest in clusters around one of them; one repeated.
+            const bool scattered = k % 3 == 0;
+            obs[k].query.x_um = scattered ? anywhere(rng) : obs[k - k % 3].query.x_um + near(rng);
+            obs[k].query.y_um = scattered ? anywhere(rng) : obs[k - k % 3].query.y_um + near(rng);
+        }
+        obs.push_back(obs.front());
+
+        std::vector<std::array<double, 2>> centres;
+        for (const auto& o : obs) centres.push_back({{o.query.x_um, o.query.y_um}});
+        std::sort(centres.begin(), centres.end());
+        centres.erase(std::unique(centres.begin(), centres.end()), centres.end());
+        double worst = 0.0;
+        for (std::size_t a = 0; a < centres.size(); ++a) {
+            double nearest = 1e300;
+            for (std::size_t b = 0; b < centres.size(); ++b)
+                if (a != b) nearest = std::min(nearest, periodic_distance(centres[a], centres[b], px, py));
+            worst = std::max(worst, nearest);
+        }
+        int uncovered = 0;
+        for (int i = 0; i < r.rows; ++i)
+            for (int j = 0; j < r.cols; ++j) {
+                double nearest = 1e300;
+                for (const auto& c : centres)
+                    nearest = std::min(nearest, periodic_distance({{(i + 0.5) * r.texel_um, (j + 0.5) * r.texel_um}},
+                                                                  c, px, py));
+                uncovered += nearest > 2.0 * sigma_p;
+            }
+        ASSERT_GT(uncovered, 0);
+        char apart[64];
+        std::snprintf(apart, sizeof apart, "centres up to %.2f um apart", worst);
+        const auto warnings = check_acquisition(obs, r.rows, r.cols, r.texel_um);
+        EXPECT_TRUE(mentions(warnings, apart)) << "trial " << trial << ": expected " << apart;
+        EXPECT_TRUE(mentions(warnings, std::to_string(uncovered) + " of " + std::to_string(r.rows * r.cols) + " texels"))
+            << "trial " << trial << ": expected " << uncovered << " uncovered texels";
+    }
 }
 
 TEST(PlanTest, BadRequestsNameTheField) {

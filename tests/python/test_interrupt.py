@@ -2,7 +2,9 @@
 work (the library polls between rows, kernel chunks and column blocks), instead of running to
 the end. Each case runs in a child process that sends itself SIGINT 0.5 s into a call that
 takes well over 20 s uninterrupted on the machines we test on (~40-70 s on 2 cores), and
-reports whether the call was interrupted and how long after the signal. The bound (10 s) is
+reports whether the call was interrupted and how much CPU time the process spent between the
+signal and the interrupt. CPU time, not wall time: on a loaded machine (CI beside other jobs) a
+second of work can take half a minute of wall time. The bound (10 CPU seconds, all threads) is
 generous: the point is that the call stopped rather than completed, not how fast."""
 import os
 import subprocess
@@ -20,7 +22,7 @@ CHILD = textwrap.dedent("""
     rng = np.random.default_rng(1)
     signalled = []
     def fire():
-        signalled.append(time.monotonic())
+        signalled.append(time.process_time())
         os.kill(os.getpid(), signal.SIGINT)
     {setup}
     threading.Timer(0.5, fire).start()
@@ -29,7 +31,7 @@ CHILD = textwrap.dedent("""
         {call}
         print("completed", time.monotonic() - start)
     except KeyboardInterrupt:
-        print("interrupted", time.monotonic() - signalled[0])
+        print("interrupted", time.process_time() - signalled[0])
 """)
 
 CASES = {
@@ -70,4 +72,4 @@ def test_long_call_raises_keyboard_interrupt_soon_after_sigint(case):
     assert result.returncode == 0, result.stderr
     words = result.stdout.split()
     assert words and words[0] == "interrupted", "the call ran to the end: " + result.stdout
-    assert float(words[1]) < 10.0, "KeyboardInterrupt came %s s after SIGINT" % words[1]
+    assert float(words[1]) < 10.0, "KeyboardInterrupt came after %s CPU seconds of work past SIGINT" % words[1]
