@@ -4,7 +4,7 @@
 // the truth), the expected slopes, and for rough surfaces (steep slopes, or correlation close
 // to the texel) a note, and for a correlation close to the texel the pipeline's longer
 // schedule: more field-retrieval iterations (the field stage, started far from the heights,
-// stops at the default 50 while still descending; steep slopes gained nothing from it). Smooth surfaces (the common case, ±1 µm at correlation 4 texels) keep the
+// stops at the default 50 while still descending; steep slopes gain from it only with the long wavelengths below). Smooth surfaces (the common case, ±1 µm at correlation 4 texels) keep the
 // library's defaults, so they cost what they did.
 //
 // Slopes of a Gaussian-correlated surface (generate.h: autocorrelation σ_h² e^{−r²/ℓ²}):

@@ -74,8 +74,8 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
         for (double l = kLongLambdaFactor * plan.blur_error_um;
              l > kVisibleMaxUm && int(plan.long_lambdas_um.size()) < kMaxLongLambdas; l /= kLongLambdaFactor)
             plan.long_lambdas_um.push_back(std::ceil(10.0 * l - 1e-9) / 10.0);
-        // Without long wavelengths only a short correlation gains from the longer field stage (≈ 30 %); steep slopes do
-        // not (±4 µm: 4.98 % before, 5.49 % after on seed 6301, at 2–3× the field stage's cost).
+        // Without long wavelengths only a short correlation gains from the longer field stage
+        // (≈ 30 %); steep slopes do not (±4 µm: 4.98 % before, 5.49 % after on seed 6301).
         // With long wavelengths the longer schedule pays for steep slopes as well (±4 µm, seed 7301:
         // the 5.5 µm field 5.0 % after 50 iterations, 1.8 % after 150; final 2.6 → 1.5 %).
         plan.field_iterations = fine || !plan.long_lambdas_um.empty() ? kRoughFieldIterations : 0;
