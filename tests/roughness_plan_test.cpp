@@ -218,5 +218,41 @@ TEST(RoughnessPlan, LongWavelengthsRecoverAFineTile) {
     EXPECT_LT(final_long, 0.5 * final_visible);
 }
 
+// RecoverSettings::field_lambda_min_um: refused when negative or not finite; when no
+// wavelength reaches it, every wavelength runs the field stage (an 8² smooth tile).
+TEST(RoughnessPlan, FieldLambdaMinFallsBackToEveryWavelength) {
+    RecoverSettings bad;
+    bad.field_lambda_min_um = -1.0;
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+    bad.field_lambda_min_um = std::nan("");
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+
+    RecoveryOptions options;
+    options.rows = options.cols = 8;
+    options.resolution = 16;
+    options.seed = 7302;
+    options.lambdas_um = {0.5, 0.6};
+    PreparedRecovery prepared = prepare_recovery(options);
+    prepared.pipeline.field_lambda_min_um = 100.0;  // no wavelength reaches it
+    prepared.pipeline.refine_iterations = 0;
+    prepared.pipeline.model_check_iterations = 0;
+    std::vector<std::string> fields;
+    run_recovery(prepared, [&](const StageMetrics& m) {
+        if (m.stage.rfind("field:", 0) == 0 && std::find(fields.begin(), fields.end(), m.stage) == fields.end())
+            fields.push_back(m.stage);
+        return true;
+    });
+    EXPECT_EQ(fields.size(), 2u);
+    prepared.pipeline.field_lambda_min_um = 0.55;  // the longer one only
+    fields.clear();
+    run_recovery(prepared, [&](const StageMetrics& m) {
+        if (m.stage.rfind("field:", 0) == 0 && std::find(fields.begin(), fields.end(), m.stage) == fields.end())
+            fields.push_back(m.stage);
+        return true;
+    });
+    ASSERT_EQ(fields.size(), 1u);
+    EXPECT_EQ(fields[0], "field:0.6");
+}
+
 }  // namespace
 }  // namespace wavebrdf
