@@ -7,7 +7,7 @@
 //     size=32 texel_um=2 corr_texels=4 max_height_um=1 seed=1
 //     sigma_p_um=3 step_um=3 jitter=0.2 resolution=96 lambdas=0.5,0.55,0.65
 //     (recovery, defaults from RecoverSettings:) refine blur_iters blurs=16,8,4 blur_wavelengths
-//     field_iters refine_iters unwrap=spatial|blurred cascade=1 max_range_um
+//     field_iters refine_iters unwrap=spatial|blurred cascade=1 max_range_um field_lambda_min_um
 //     (baselines on the same data:) baseline_epochs=0 direct_iters=0   quiet=0
 //     (self-calibration:) planner=0 (1: plan_acquisition's positions, σ_p and wavelengths at
 //     `resolution`, seeded by seed) position_error_texels=0 (each position's true centre off by a
@@ -177,6 +177,7 @@ int main(int argc, char** argv) try {
     if (args.count("blur_first_stage")) rs.blur_positions_first_stage = std::stoi(args["blur_first_stage"]);
     if (args.count("blur_radius")) rs.blur_positions_radius_texels = std::stod(args["blur_radius"]);
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
+    if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
     Calibration calibration;
     double blur_s = 0, blur_rmse = -1, field_s = 0, unwrap_rmse = -1, field_end = 0;

@@ -3,10 +3,16 @@
 // prepare_recovery makes of it (the common case keeps the library's defaults).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
 #include <stdexcept>
 
+#include "wavebrdf/acquisition.h"
 #include "wavebrdf/generate.h"
+#include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/recovery_run.h"
 #include "wavebrdf/roughness_plan.h"
@@ -87,13 +93,14 @@ TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
         EXPECT_TRUE(rough.rough);
         ASSERT_FALSE(rough.notes.empty());
     }
-    // The longer field stage for the short correlation only (steep slopes gained nothing).
+    // The longer field stage for the short correlation, and for steep slopes with their long
+    // wavelengths (without them steep slopes gained nothing).
     RecoverSettings fine;
     apply_roughness_plan(plan_for_roughness(2.0, 4.0, 2.0), fine);
     EXPECT_GT(fine.field.iterations, defaults.field.iterations);
     RecoverSettings steep;
     apply_roughness_plan(plan_for_roughness(8.0, 8.0, 2.0), steep);
-    EXPECT_EQ(steep.field.iterations, defaults.field.iterations);
+    EXPECT_GT(steep.field.iterations, defaults.field.iterations);
     // The rule is in µm, not texels, except for the correlation: the same surface on finer
     // texels (correlation 4 texels of 1 µm) is not "fine".
     EXPECT_FALSE(plan_for_roughness(1.0, 4.0, 1.0).rough);
@@ -126,6 +133,125 @@ TEST(RoughnessPlan, PrepareRecoveryChoosesTheScheduleFromTheStatedSurface) {
     // An explicit --field-iterations still wins.
     options.field_iterations = 7;
     EXPECT_EQ(prepare_recovery(options).pipeline.field.iterations, 7);
+}
+
+// The long wavelengths of a rough plan (roughness_plan.h): ±4 µm at correlation 4 texels gets a
+// ladder whose longest wavelength is at least 4× the blurred fit's expected rms error (a phase
+// error within a quarter turn), each step at most 4× shorter, all above the visible 0.7 µm; the
+// smooth default gets none and keeps field_lambda_min_um 0 (every wavelength's field).
+TEST(RoughnessPlan, LongWavelengthsStartTheFieldWithinAQuarterWave) {
+    const RoughnessPlan steep = plan_for_roughness(8.0, 8.0, 2.0);
+    ASSERT_TRUE(steep.rough);
+    ASSERT_FALSE(steep.long_lambdas_um.empty());
+    EXPECT_NEAR(steep.blur_error_um, 0.17 * 8.0, 1e-12);  // measured 12–17 % of the range
+    EXPECT_GE(steep.long_lambdas_um.front(), 4.0 * steep.blur_error_um);
+    for (std::size_t k = 0; k < steep.long_lambdas_um.size(); ++k) {
+        EXPECT_GT(steep.long_lambdas_um[k], 0.7);
+        if (k > 0) {
+            EXPECT_LT(steep.long_lambdas_um[k], steep.long_lambdas_um[k - 1]);
+            EXPECT_LE(steep.long_lambdas_um[k - 1] / steep.long_lambdas_um[k], 4.0 + 0.1);
+        }
+    }
+    // The shortest long wavelength is within a quarter wave of the next longer one's start:
+    // with a field as good as the longest's start, 4× finer steps keep the phase within π.
+    RecoverSettings settings;
+    apply_roughness_plan(steep, settings);
+    EXPECT_EQ(settings.field_lambda_min_um, steep.long_lambdas_um.back());
+
+    const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
+    EXPECT_TRUE(smooth.long_lambdas_um.empty());
+    RecoverSettings defaults;
+    apply_roughness_plan(smooth, defaults);
+    EXPECT_EQ(defaults.field_lambda_min_um, 0.0);
+    AcquisitionPlan acquisition;
+    acquisition.lambdas_um = {0.5, 0.55};
+    EXPECT_EQ(add_long_wavelengths(smooth, acquisition), 0);
+    EXPECT_EQ(acquisition.lambdas_um.size(), 2u);
+    EXPECT_EQ(add_long_wavelengths(steep, acquisition), int(steep.long_lambdas_um.size()));
+    EXPECT_EQ(acquisition.lambdas_um.back(), steep.long_lambdas_um.back());
+    // A small range at a short correlation is rough, but its error is within the visible
+    // wavelengths' quarter wave: no long wavelength.
+    EXPECT_TRUE(plan_for_roughness(0.5, 4.0, 2.0).long_lambdas_um.empty());
+}
+
+// prepare_recovery adds the long wavelengths to the acquisition of a rough surface only (the
+// smooth default's observations are the ladder's, as before), and recover_heights then runs
+// the field stage at them only; a small tile of correlation 2 texels is recovered far better
+// than from the visible ladder alone (the same tile, observations and refinement; a 12² tile,
+// 16² slices).
+TEST(RoughnessPlan, LongWavelengthsRecoverAFineTile) {
+    RecoveryOptions options;
+    options.rows = options.cols = 12;
+    options.resolution = 16;
+    options.seed = 7301;
+    const PreparedRecovery smooth = prepare_recovery(options);
+    for (const Observation& o : smooth.observations) EXPECT_LE(o.lambdas_um[0], 0.7);
+    EXPECT_EQ(smooth.pipeline.field_lambda_min_um, 0.0);
+
+    options.correlation_texels = 2.0;
+    const PreparedRecovery steep = prepare_recovery(options);
+    double longest = 0.0;
+    for (const Observation& o : steep.observations) longest = std::max(longest, o.lambdas_um[0]);
+    EXPECT_GT(longest, 4.0 * 0.17 * steep.range_um - 1e-9);
+    EXPECT_GT(steep.pipeline.field_lambda_min_um, 0.7);
+    std::vector<std::string> fields;
+    double final_long = -1.0;
+    const Heightfield with_long = run_recovery(steep, [&](const StageMetrics& m) {
+        if (m.stage.rfind("field:", 0) == 0 && std::find(fields.begin(), fields.end(), m.stage) == fields.end())
+            fields.push_back(m.stage);
+        return true;
+    });
+    final_long = height_rel_rmse(with_long, *steep.truth);
+    for (const std::string& f : fields) EXPECT_GE(std::stod(f.substr(6)), steep.pipeline.field_lambda_min_um) << f;
+    EXPECT_FALSE(fields.empty());
+
+    // The visible ladder alone, the rest alike.
+    std::vector<double> visible;
+    for (const Observation& o : steep.observations)
+        if (o.lambdas_um[0] <= 0.7 && std::find(visible.begin(), visible.end(), o.lambdas_um[0]) == visible.end())
+            visible.push_back(o.lambdas_um[0]);
+    options.lambdas_um = visible;
+    const PreparedRecovery plain = prepare_recovery(options);
+    const double final_visible = height_rel_rmse(run_recovery(plain), *plain.truth);
+    std::printf("12x12 correlation 2 texels: final %.4f with the long wavelengths, %.4f without\n", final_long,
+                final_visible);
+    EXPECT_LT(final_long, 0.5 * final_visible);
+}
+
+// RecoverSettings::field_lambda_min_um: refused when negative or not finite; when no
+// wavelength reaches it, every wavelength runs the field stage (an 8² smooth tile).
+TEST(RoughnessPlan, FieldLambdaMinFallsBackToEveryWavelength) {
+    RecoverSettings bad;
+    bad.field_lambda_min_um = -1.0;
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+    bad.field_lambda_min_um = std::nan("");
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+
+    RecoveryOptions options;
+    options.rows = options.cols = 8;
+    options.resolution = 16;
+    options.seed = 7302;
+    options.lambdas_um = {0.5, 0.6};
+    PreparedRecovery prepared = prepare_recovery(options);
+    prepared.pipeline.field_lambda_min_um = 100.0;  // no wavelength reaches it
+    prepared.pipeline.refine_iterations = 0;
+    prepared.pipeline.model_check_iterations = 0;
+    std::vector<std::string> fields;
+    run_recovery(prepared, [&](const StageMetrics& m) {
+        if (m.stage.rfind("field:", 0) == 0 && std::find(fields.begin(), fields.end(), m.stage) == fields.end())
+            fields.push_back(m.stage);
+        return true;
+    });
+    EXPECT_EQ(fields.size(), 2u);
+    prepared.pipeline.field_lambda_min_um = 0.55;  // the longer one only
+    fields.clear();
+    run_recovery(prepared, [&](const StageMetrics& m) {
+        if (m.stage.rfind("field:", 0) == 0 && std::find(fields.begin(), fields.end(), m.stage) == fields.end())
+            fields.push_back(m.stage);
+        return true;
+    });
+    ASSERT_EQ(fields.size(), 1u);
+    EXPECT_EQ(fields[0], "field:0.6");
 }
 
 }  // namespace

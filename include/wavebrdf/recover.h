@@ -240,6 +240,11 @@ struct RecoverSettings {
     // Cascading: passes over the wavelengths, every field of a later pass started from the
     // heights of all fields of the pass before.
     int field_passes = 1;
+    // Stage 1 only at wavelengths ≥ this (µm; 0: all): a rough surface's plan (roughness_plan.h)
+    // measures a long wavelength whose field starts stage 3, the shorter ones' fields (started
+    // in wrong basins, measured to raise the error) are left out and their slices enter stage 3
+    // only. When no wavelength reaches it, every wavelength runs the field stage.
+    double field_lambda_min_um = 0.0;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 40;
     int refine_history = 20;

@@ -4,7 +4,7 @@
 // the truth), the expected slopes, and for rough surfaces (steep slopes, or correlation close
 // to the texel) a note, and for a correlation close to the texel the pipeline's longer
 // schedule: more field-retrieval iterations (the field stage, started far from the heights,
-// stops at the default 50 while still descending; steep slopes gained nothing from it). Smooth surfaces (the common case, ±1 µm at correlation 4 texels) keep the
+// stops at the default 50 while still descending; steep slopes gain from it only with the long wavelengths below). Smooth surfaces (the common case, ±1 µm at correlation 4 texels) keep the
 // library's defaults, so they cost what they did.
 //
 // Slopes of a Gaussian-correlated surface (generate.h: autocorrelation σ_h² e^{−r²/ℓ²}):
@@ -13,11 +13,22 @@
 // normal light towards |ω_o| ≈ 2s: beyond the slice's rim (|ω_o| > 1) from s > 0.5, i.e. for
 // the 3σ tail from an rms slope of ≈ 0.17 (a wavelength, a σ_p or a slice size cannot bring it
 // back: the slice already spans the whole hemisphere).
+//
+// Long wavelengths for steep or fine surfaces (docs/recovery.md, "Rough surfaces"): the blurred
+// fit ends ≈ 17 % of the range off (rms) on rough surfaces, more than λ/4 at every visible
+// wavelength, so every visible field settles in a wrong basin. The plan then asks the acquisition
+// for a ladder of long wavelengths (an infrared source), the longest 4× that expected error (so
+// its phase error stays within a quarter turn), each next one at most 4× shorter, all longer
+// than the visible ladder; the field stage runs at these only (their heights start the
+// refinement, which fits every wavelength's slices). The model holds at any λ (the Gabor
+// kernels' tangent planes are better approximations the longer λ is; the slices' Nyquist size
+// 4D/λ falls with λ, so the visible wavelengths' slice size covers them).
 #include <string>
 #include <vector>
 
 namespace wavebrdf {
 
+struct AcquisitionPlan;
 struct RecoverSettings;
 
 struct RoughnessPlan {
@@ -26,7 +37,11 @@ struct RoughnessPlan {
     double correlation_texels = 0.0;  // stated correlation length, texels
     bool rough = false;               // the longer schedule below applies
     int field_iterations = 0;         // field retrieval iterations per wavelength (0: the default)
-    std::vector<std::string> notes;   // the choice, one line each
+    double blur_error_um = 0.0;       // expected rms error of the blurred fit (µm; rough surfaces)
+    // Rough surfaces: long wavelengths (µm, longest first) the acquisition adds and the field
+    // stage runs at (empty: none; a smooth surface, or a range the visible ladder already covers).
+    std::vector<double> long_lambdas_um;
+    std::vector<std::string> notes;  // the choice, one line each
 };
 
 // The expected rms slope |∇H| ≈ range / (3ℓ) of a Gaussian-correlated surface (see above).
@@ -40,7 +55,13 @@ double expected_rms_slope(double height_range_um, double correlation_um);
 RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, double texel_um);
 
 // `settings` with the plan applied (field iterations raised to the plan's where it asks for
-// more; nothing changed for a smooth surface).
+// more; the field stage at the plan's long wavelengths only, RecoverSettings::field_lambda_min_um,
+// when it has them; nothing changed for a smooth surface).
 void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings);
+
+// `acquisition` with the plan's long wavelengths appended to its wavelengths (those not longer
+// than every planned one left out) and a note saying the source they need. Returns how many
+// were added (0 for a smooth surface: the acquisition is unchanged).
+int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition);
 
 }  // namespace wavebrdf

@@ -257,8 +257,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // projection onto pure-phase, smooth objects, which removes the local defects (phase
     // vortices) a retrieval from a poor start can stall in.
     const int passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
+    // Every rank holds every wavelength's key (maybe empty), so all ranks skip the same ones.
+    const double field_min_um =
+        !by_lambda.empty() && by_lambda.rbegin()->first >= settings.field_lambda_min_um ? settings.field_lambda_min_um
+                                                                                        : 0.0;
+    const auto field_end = by_lambda.rend();
     for (int pass = 0; pass < passes; ++pass)
-        for (auto it = by_lambda.rbegin(); it != by_lambda.rend(); ++it) {
+        for (auto it = by_lambda.rbegin(); it != field_end && it->first >= field_min_um; ++it) {
             const double lambda = it->first;
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
@@ -303,7 +308,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             } else {
                 fields[std::size_t(at - lambdas.begin())] = std::move(r.object);
             }
-            const bool last = pass + 1 == passes && std::next(it) == by_lambda.rend();
+            const bool last =
+                pass + 1 == passes && (std::next(it) == field_end || std::next(it)->first < field_min_um);
             if (settings.cascade && !last) {
                 unwrap_fields();
                 if (!report(name, r.iterations, r.relative_loss, &estimate)) return estimate;
@@ -507,6 +513,9 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
+    if (!(std::isfinite(settings.field_lambda_min_um) && settings.field_lambda_min_um >= 0.0))
+        throw std::domain_error("recover_heights: field_lambda_min_um " + std::to_string(settings.field_lambda_min_um) +
+                                " is invalid; expected a finite wavelength >= 0 um (0: every wavelength)");
     validate_iterations(settings.white_smoothness_iterations, "recover_heights: white smoothness iterations");
     for (double w : settings.white_smoothness)
         if (!(w >= 0.0 && w <= 1e12))

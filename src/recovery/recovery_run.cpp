@@ -235,6 +235,11 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
             request.lambdas_um = {*std::min_element(white.begin(), white.end())};  // sizes the slices
         }
         AcquisitionPlan plan = plan_acquisition(request);
+        // Rough surfaces (roughness_plan.h): long wavelengths for the field stage's start.
+        if (options.method == RecoveryMethod::Pipeline && white.empty() && options.lambdas_um.empty() &&
+            options.correlation_texels > 0.0 && r.range_um > 0.0)
+            add_long_wavelengths(plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um),
+                                 plan);
         if (!white.empty()) {
             plan.white_lambdas_um = white;
             plan.notes.push_back("white light: one RGB slice per position, " + std::to_string(white.size()) +

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/text.h"
+#include "wavebrdf/acquisition.h"
 #include "wavebrdf/recover.h"
 
 namespace wavebrdf {
@@ -23,6 +24,16 @@ constexpr double kRoughCorrelationTexels = 2.5;
 // The longer schedule (measured there: a second cascade pass, more blurred-fit iterations or
 // stages and more refinement iterations did not help).
 constexpr int kRoughFieldIterations = 200;
+// The blurred fit's rms error on rough surfaces, a fraction of the peak-to-valley range
+// (measured 12–17 % on ±4 µm and correlation 2 texels, seeds 6301–6303 and 7301–7303).
+constexpr double kBlurErrorFraction = 0.17;
+// A field converges from a start within a quarter wavelength (phase error < π): the longest
+// wavelength is this many times the expected start error, each next one this many times shorter.
+constexpr double kLongLambdaFactor = 4.0;
+// Long wavelengths only above the planner's visible range (PlanRequest::lambda_max_um).
+constexpr double kVisibleMaxUm = 0.7;
+// At most this many long wavelengths (a range of 8 µm needs 2).
+constexpr int kMaxLongLambdas = 4;
 
 std::string fixed(double v, int digits) {
     char buf[48];
@@ -58,9 +69,16 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
     const bool fine = plan.correlation_texels < kRoughCorrelationTexels;
     plan.rough = steep || fine;
     if (plan.rough) {
-        // Only a short correlation gains from the longer field stage (≈ 30 %); steep slopes do
-        // not (±4 µm: 4.98 % before, 5.49 % after on seed 6301, at 2–3× the field stage's cost).
-        plan.field_iterations = fine ? kRoughFieldIterations : 0;
+        plan.blur_error_um = kBlurErrorFraction * height_range_um;
+        // Rounded up to 0.1 µm (a source's nominal wavelength), coarsest first.
+        for (double l = kLongLambdaFactor * plan.blur_error_um;
+             l > kVisibleMaxUm && int(plan.long_lambdas_um.size()) < kMaxLongLambdas; l /= kLongLambdaFactor)
+            plan.long_lambdas_um.push_back(std::ceil(10.0 * l - 1e-9) / 10.0);
+        // Without long wavelengths only a short correlation gains from the longer field stage
+        // (≈ 30 %); steep slopes do not (±4 µm: 4.98 % before, 5.49 % after on seed 6301).
+        // With long wavelengths the longer schedule pays for steep slopes as well (±4 µm, seed 7301:
+        // the 5.5 µm field 5.0 % after 50 iterations, 1.8 % after 150; final 2.6 → 1.5 %).
+        plan.field_iterations = fine || !plan.long_lambdas_um.empty() ? kRoughFieldIterations : 0;
         plan.notes.push_back(
             std::string("rough surface (") +
             (steep ? "expected rms slope " + fixed(plan.rms_slope, 2) + " > " + fixed(kRoughSlope, 2) + ", " +
@@ -70,8 +88,13 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
             (fine
                  ? "correlation " + fixed(plan.correlation_texels, 2) + " texels < " + fixed(kRoughCorrelationTexels, 1)
                  : "") +
-            (fine ? "): field retrieval up to " + std::to_string(plan.field_iterations) + " iterations per wavelength"
-                  : "): the default schedule; expect errors of several % (docs/recovery.md, Rough surfaces)"));
+            (plan.field_iterations > 0
+                 ? "): field retrieval up to " + std::to_string(plan.field_iterations) + " iterations per wavelength"
+                 : "): the default field iterations") +
+            (plan.long_lambdas_um.empty()
+                 ? std::string()
+                 : "; blurred fit expected " + fixed(plan.blur_error_um, 2) +
+                       " um rms off: the field stage at long wavelengths only (docs/recovery.md, Rough surfaces)"));
     }
     return plan;
 }
@@ -79,6 +102,30 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
 void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings) {
     if (!plan.rough) return;
     settings.field.iterations = std::max(settings.field.iterations, plan.field_iterations);
+    if (!plan.long_lambdas_um.empty())
+        settings.field_lambda_min_um = *std::min_element(plan.long_lambdas_um.begin(), plan.long_lambdas_um.end());
+}
+
+int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition) {
+    if (!plan.rough || plan.long_lambdas_um.empty()) return 0;
+    const double longest = acquisition.lambdas_um.empty()
+                               ? 0.0
+                               : *std::max_element(acquisition.lambdas_um.begin(), acquisition.lambdas_um.end());
+    std::string added;
+    int count = 0;
+    for (double l : plan.long_lambdas_um)
+        if (l > longest) {
+            acquisition.lambdas_um.push_back(l);
+            added += (added.empty() ? "" : ", ") + fixed(l, 1);
+            ++count;
+        }
+    if (count > 0)
+        acquisition.notes.push_back(
+            "rough surface: long wavelengths " + added + " um added (an infrared source is required): the longest is " +
+            fixed(kLongLambdaFactor, 0) + "x the blurred fit's expected error (" + fixed(plan.blur_error_um, 2) +
+            " um rms), so its field starts within a quarter wave; the field stage runs at "
+            "these, every wavelength in the refinement");
+    return count;
 }
 
 }  // namespace wavebrdf
