@@ -92,6 +92,18 @@ py::dict metrics_row(const StageMetrics& m) {
                                                             : kNaN);
 }
 
+// field_tile_threshold= / field_tile_core=: a texel count in [lo, hi] (ValueError naming it otherwise).
+int tile_size(int value, const char* name, int lo, int hi) {
+    if (value < lo || value > hi)
+        bad_argument(name, std::to_string(value), "texels, " + std::to_string(lo) + " to " + std::to_string(hi));
+    return value;
+}
+// The same, or -1 (the library's) for None.
+int optional_tile_size(const py::object& value, const char* name, int lo, int hi) {
+    if (value.is_none()) return -1;
+    return tile_size(value.cast<int>(), name, lo, hi);
+}
+
 // calibrate=: None, a string ("positions,exposure", "all", "none") or a sequence of those words.
 CalibrationSettings calibrate_argument(const py::object& calibrate) {
     if (calibrate.is_none()) return {};
@@ -223,7 +235,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
                        const py::object& comm_arg, const std::string& simulator, const py::object& calibrate,
                        double simulate_position_error_texels, const py::object& simulate_exposure,
-                       double simulate_sigma_factor, bool with_uncertainty, int spectral) {
+                       double simulate_sigma_factor, bool with_uncertainty, int spectral,
+                       const py::object& field_tile_threshold, const py::object& field_tile_core) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -262,6 +275,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.jitter = check_finite(jitter, "jitter");
     options.field_iterations = optional_count(field_iterations, "field_iterations");
     options.refine_iterations = optional_count(refine_iterations, "refine_iterations");
+    options.field_tile_threshold = optional_tile_size(field_tile_threshold, "field_tile_threshold", 0, 1000000);
+    options.field_tile_core = optional_tile_size(field_tile_core, "field_tile_core", 8, 4096);
     if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
     options.epochs = epochs;
     options.seed = seed;
@@ -563,7 +578,7 @@ truth Heightfield) slopes that reflect light off the slice.
            double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
            double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
            const py::object& refine_loss, const py::object& callback, const py::object& comm_arg,
-           const py::object& calibrate) -> py::object {
+           const py::object& calibrate, int field_tile_threshold, int field_tile_core) -> py::object {
             const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
             const std::vector<Observation> list = observations_or_file(observations);
             const std::array<int, 2> rc = size_argument(size);
@@ -600,6 +615,8 @@ truth Heightfield) slopes that reflect light off the slice.
             s.refine_history = refine_history;
             s.refine_loss = loss_argument(refine_loss);
             s.calibrate = calibrate_argument(calibrate);
+            s.field_tile_threshold = tile_size(field_tile_threshold, "field_tile_threshold", 0, 1000000);
+            s.field_tile_core = tile_size(field_tile_core, "field_tile_core", 8, 4096);
             const std::optional<Heightfield> t = optional_truth(truth);
             check_callback(callback);
             std::vector<StageMetrics> history;
@@ -622,7 +639,8 @@ truth Heightfield) slopes that reflect light off the slice.
         "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
-        "comm"_a = py::none(), "calibrate"_a = py::none(),
+        "comm"_a = py::none(), "calibrate"_a = py::none(), "field_tile_threshold"_a = rs.field_tile_threshold,
+        "field_tile_core"_a = rs.field_tile_core,
         (std::string(R"doc(
 The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
 phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
@@ -652,6 +670,10 @@ calibrate           self-calibration (calibration.h): None (default: the acquisi
                     (true sigma_p / stated), exposures (float64 (N,): reference ~ exposure *
                     model, per observation in the order given; None when not refined),
                     position_offsets_um (float64 (N, 2): true - stated centre; or None).
+field_tile_threshold  a surface with a side above this many texels (0...10^6; 0: never) has its
+                    field retrieved on tiles of about field_tile_core texels (8...4096) plus a
+                    margin, blended into one field (RecoverSettings::field_tile_*; not with
+                    calibrate='positions', which keeps the whole-surface field stage)
 )doc") + kSettingsDoc)
             .c_str());
 
@@ -765,7 +787,8 @@ the same keys with the true values (else None).
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
           "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
           "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0,
-          "uncertainty"_a = false, "spectral"_a = ro.spectral,
+          "uncertainty"_a = false, "spectral"_a = ro.spectral, "field_tile_threshold"_a = py::none(),
+          "field_tile_core"_a = py::none(),
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -822,6 +845,10 @@ uncertainty   True: also the error bars (height_uncertainty with the run's loss)
               coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
 spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
               slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
+field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /
+              --field-tile-core): a surface with a side above the threshold (texels, 0...10^6; 0:
+              never) is retrieved on tiles of about `field_tile_core` texels (8...4096) plus a
+              margin; None: the library's (64, 48)
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 

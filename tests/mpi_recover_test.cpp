@@ -183,6 +183,47 @@ TEST(MpiRecover, WhiteLightRunsOnTwoRanksEqualOneProcess) {
     EXPECT_EQ(x, reference) << "max relative difference " << max_relative_difference(reference, x);
 }
 
+// The field stage on tiles (docs/scale.md, "One machine: the field stage on tiles") under MPI:
+// every rank runs every tile with its share of the tile's observations, so 2 ranks give the
+// one-process heights bit for bit. The smallest run that cuts: 32 rows (3 cores of ~11 texels
+// plus margins of 10: reach 6 + ramp 4), 8 columns (not cut: one periodic tile across), 24²
+// slices. The tiled run must differ from the whole-surface run (else no tile was cut).
+TEST(MpiRecover, TiledFieldStageOnTwoRanksEqualsOneProcess) {
+    const fs::path dir = fresh_dir("mpi_recover_tiles");
+    const auto args = [](const std::string& out, const std::string& threshold) {
+        return std::vector<std::string>{"recover", "--size",
+                                        "32x8",    "--seed",
+                                        "3",       "--lambdas-um",
+                                        "0.6",     "--height-range-um",
+                                        "0.2",     "--resolution",
+                                        "24",      "--field-iterations",
+                                        "6",       "--refine-iterations",
+                                        "3",       "--field-tile-threshold",
+                                        threshold, "--field-tile-core",
+                                        "12",      "--no-plots",
+                                        "--quiet", "--out",
+                                        out};
+    };
+    const CliResult one = run_ranks(dir, 0, args("one", "16"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const std::vector<double> reference = read_npy(dir / "one" / "estimate_height.npy");
+    ASSERT_EQ(reference.size(), 256u);
+    // Three tiles of 6 iterations each: 18 field rows (the whole surface: 6).
+    const std::string metrics = read_text(dir / "one" / "metrics.csv");
+    std::size_t field_rows = 0;
+    for (std::size_t at = metrics.find("\nfield:"); at != std::string::npos; at = metrics.find("\nfield:", at + 1))
+        ++field_rows;
+    EXPECT_EQ(field_rows, 18u) << "the field stage ran on 3 tiles";
+    const CliResult whole = run_ranks(dir, 0, args("whole", "0"));
+    ASSERT_EQ(whole.exit_code, 0) << whole.err;
+    EXPECT_NE(read_npy(dir / "whole" / "estimate_height.npy"), reference) << "the tiles changed nothing";
+    const CliResult two = run_ranks(dir, 2, args("two", "16"));
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    const std::vector<double> x = read_npy(dir / "two" / "estimate_height.npy");
+    ASSERT_EQ(x.size(), reference.size());
+    EXPECT_EQ(x, reference) << "max relative difference " << max_relative_difference(reference, x);
+}
+
 TEST(MpiRecover, ABadOptionFailsWithOneLineNotOnePerRank) {
     const fs::path dir = fresh_dir("mpi_recover");
     const CliResult bad = run_ranks(dir, 2, {"recover", "--size", "12", "--no-such-option", "--out", "x"});

@@ -69,6 +69,10 @@ struct LbfgsOptions {
     int max_iterations = 100;
     double gradient_tolerance = 1e-10;  // stop when ‖g‖∞ ≤ this
     int max_line_search = 20;
+    // Keep the pairs s, y in float (half the history's memory: 8·history·size bytes instead of
+    // 16·history·size); ρ, the direction and every dot product stay in double. The recursion then
+    // uses the rounded pairs (relative 6e-8), a slightly different H; off: double, as before.
+    bool float_history = false;
 };
 
 struct LbfgsResult {

@@ -787,7 +787,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -843,11 +843,15 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
     spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
                   slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
+    field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /
+                  --field-tile-core): a surface with a side above the threshold (texels, 0...10^6; 0:
+                  never) is retrieved on tiles of about `field_tile_core` texels (8...4096) plus a
+                  margin; None: the library's (64, 48)
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...
 
-def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ...) -> Any:
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ...) -> Any:
     """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
     phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
     on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
@@ -876,6 +880,10 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
                         (true sigma_p / stated), exposures (float64 (N,): reference ~ exposure *
                         model, per observation in the order given; None when not refined),
                         position_offsets_um (float64 (N, 2): true - stated centre; or None).
+    field_tile_threshold  a surface with a side above this many texels (0...10^6; 0: never) has its
+                        field retrieved on tiles of about field_tile_core texels (8...4096) plus a
+                        margin, blended into one field (RecoverSettings::field_tile_*; not with
+                        calibrate='positions', which keeps the whole-surface field stage)
 
     observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
                   ones feed the blurred fit and the fields; all feed the refinement and Adam)

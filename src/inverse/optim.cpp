@@ -163,16 +163,50 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
     result.value = f;
     result.converged = g.lpNorm<Eigen::Infinity>() <= options.gradient_tolerance;
 
+    // A pair in double (s, y) or, with float_history, in float (sf, yf; s and y empty).
+    using VecF = Eigen::VectorXf;
     struct Pair {
         Vec s, y;
-        double rho;  // 1 / sᵀy
+        VecF sf, yf;
+        double rho;  // 1 / sᵀy (of the pair before any rounding to float)
+    };
+    const bool in_float = options.float_history;
+    const auto make_pair = [&](Vec s, Vec y, double rho) {
+        Pair p;
+        if (in_float) {
+            p.sf = s.cast<float>();
+            p.yf = y.cast<float>();
+        } else {
+            p.s = std::move(s);
+            p.y = std::move(y);
+        }
+        p.rho = rho;
+        return p;
+    };
+    // sᵀv, yᵀv and v += a·s, v += a·y of a pair, whichever its storage.
+    const auto s_dot = [&](const Pair& p, const Vec& v) { return in_float ? p.sf.cast<double>().dot(v) : p.s.dot(v); };
+    const auto y_dot = [&](const Pair& p, const Vec& v) { return in_float ? p.yf.cast<double>().dot(v) : p.y.dot(v); };
+    const auto add_s = [&](const Pair& p, double a, Vec& v) {
+        if (in_float)
+            v += a * p.sf.cast<double>();
+        else
+            v += a * p.s;
+    };
+    const auto add_y = [&](const Pair& p, double a, Vec& v) {
+        if (in_float)
+            v += a * p.yf.cast<double>();
+        else
+            v += a * p.y;
+    };
+    const auto y_squared_norm = [&](const Pair& p) {
+        return in_float ? p.yf.cast<double>().squaredNorm() : p.y.squaredNorm();
     };
     std::deque<Pair> history;
     std::vector<double> alpha(static_cast<std::size_t>(options.history));
     if (state)
         for (std::size_t k = 0; k < state->s.size(); ++k)
-            history.push_back({Eigen::Map<const Vec>(state->s[k].data(), en),
-                               Eigen::Map<const Vec>(state->y[k].data(), en), state->rho[k]});
+            history.push_back(make_pair(Eigen::Map<const Vec>(state->s[k].data(), en),
+                                        Eigen::Map<const Vec>(state->y[k].data(), en), state->rho[k]));
     // The history, back into *state (after every accepted step).
     const auto save_state = [&] {
         if (!state) return;
@@ -180,8 +214,13 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
         state->y.resize(history.size());
         state->rho.resize(history.size());
         for (std::size_t k = 0; k < history.size(); ++k) {
-            state->s[k].assign(history[k].s.data(), history[k].s.data() + en);
-            state->y[k].assign(history[k].y.data(), history[k].y.data() + en);
+            if (in_float) {
+                state->s[k].assign(history[k].sf.data(), history[k].sf.data() + en);
+                state->y[k].assign(history[k].yf.data(), history[k].yf.data() + en);
+            } else {
+                state->s[k].assign(history[k].s.data(), history[k].s.data() + en);
+                state->y[k].assign(history[k].y.data(), history[k].y.data() + en);
+            }
             state->rho[k] = history[k].rho;
         }
     };
@@ -190,16 +229,16 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
         // Two-loop recursion: d = −H g, with H₀ = γ I, γ = sᵀy / yᵀy of the newest pair.
         Vec d = g;
         for (std::size_t k = history.size(); k-- > 0;) {
-            alpha[k] = history[k].rho * history[k].s.dot(d);
-            d -= alpha[k] * history[k].y;
+            alpha[k] = history[k].rho * s_dot(history[k], d);
+            add_y(history[k], -alpha[k], d);
         }
         if (!history.empty()) {
             const Pair& last = history.back();
-            d *= 1.0 / (last.rho * last.y.squaredNorm());
+            d *= 1.0 / (last.rho * y_squared_norm(last));
         }
         for (std::size_t k = 0; k < history.size(); ++k) {
-            const double beta = history[k].rho * history[k].y.dot(d);
-            d += (alpha[k] - beta) * history[k].s;
+            const double beta = history[k].rho * y_dot(history[k], d);
+            add_s(history[k], alpha[k] - beta, d);
         }
         d = -d;
         double slope = g.dot(d);
@@ -235,7 +274,7 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
         // Keep the pair only with enough positive curvature, so that H stays positive definite.
         if (sy > curvature_skip * s.norm() * y.norm()) {
             if (static_cast<int>(history.size()) == options.history) history.pop_front();
-            history.push_back({std::move(s), std::move(y), 1.0 / sy});
+            history.push_back(make_pair(std::move(s), std::move(y), 1.0 / sy));
         }
         xv = x_new;
         g = g_new;

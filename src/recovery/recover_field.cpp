@@ -851,6 +851,7 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
     };
     LbfgsOptions lo;
     lo.history = settings.history;
+    lo.float_history = true;  // the pairs in float: half the field stage's largest allocation (docs/scale.md)
     lo.max_iterations = settings.iterations;
     lo.gradient_tolerance = 0.0;
     std::vector<double> history{};  // the relative loss after each iteration

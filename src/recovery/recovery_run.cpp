@@ -64,7 +64,7 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     int refine = settings.refine;
     if (refine <= 0 && lambda_min > 0.0 && texel_um > 0.0) refine = auto_refine(texel_um, lambda_min);
     const double samples = texels * double(std::max(refine, 1)) * double(std::max(refine, 1));
-    // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples doubles, on
+    // Object (complex) and its L-BFGS: x, gradient and `history` pairs of 2·samples floats, on
     // the whole surface or on one field tile (field_tiles.h: then also the fields of every
     // wavelength and their blend on the whole surface).
     double field_samples = samples, tiled_fields = 0.0;
@@ -83,8 +83,10 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
                      core_cols = std::min(double(cols), double(tiling.core));
         tiled_fields += samples * 2.0 * sizeof(double) * (tile_rows * tile_cols) / (core_rows * core_cols);
     }
+    // The pairs in float (LbfgsOptions::float_history: 2 · history vectors of 2·samples floats),
+    // six vectors of 2·samples doubles besides (x, gradient, trial, directions).
     const double field_history =
-        field_samples * 2.0 * sizeof(double) * (2.0 * settings.field.history + 6.0) + tiled_fields;
+        field_samples * 2.0 * (2.0 * settings.field.history * sizeof(float) + 6.0 * sizeof(double)) + tiled_fields;
     const double refine_history = texels * sizeof(double) * (2.0 * settings.refine_history + 8.0);
     // The refinement keeps one plan per observation between iterations: its footprint's
     // kernels (two ints, seven doubles each, within 3σ_p) and ~2 KB of grids and bookkeeping;

@@ -354,3 +354,48 @@ def test_recover_takes_white_light_rgb_slices_alone():
     assert rel_rmse(r.estimate.heights_um(), truth_um) < 0.5 * flat
     with pytest.raises(ValueError, match="spectral"):
         wb.recover(size=8, spectral=1)
+
+
+# The field stage on tiles (docs/scale.md): recover()'s field_tile_threshold / field_tile_core are
+# the CLI's --field-tile-threshold / --field-tile-core (the same estimate as the CLI's tiled run),
+# recover_heights() takes them too (its field stage then reports every tile's iterations), and bad
+# values name themselves. The smallest surface that cuts: 32 rows (3 cores of ~11 texels plus
+# margins of 10), 8 columns (not cut).
+TILED = dict(size=(32, 8), seed=3, lambdas_um=[0.6], height_range_um=0.2, resolution=24, field_iterations=6,
+             refine_iterations=3)
+TILED_CLI = ["--size", "32x8", "--seed", "3", "--lambdas-um", "0.6", "--height-range-um", "0.2", "--resolution", "24",
+             "--field-iterations", "6", "--refine-iterations", "3"]
+
+
+def test_field_tile_knobs_are_the_clis(tmp_path):
+    cli = os.path.join(conftest.BUILD, "bin", "wavebrdf")
+    out = tmp_path / "cli"
+    subprocess.run([cli, "recover", *TILED_CLI, "--field-tile-threshold", "16", "--field-tile-core", "12",
+                    "--no-plots", "--quiet", "--out", str(out)], check=True, env=ONE_THREAD)
+    cli_um = np.load(out / "estimate_height.npy")
+    r = wb.recover(**TILED, field_tile_threshold=16, field_tile_core=12)
+    # Three tiles of 6 iterations each (the whole surface: 6 rows).
+    assert list(r.metrics["stage"]).count("field:0.6") == 18
+    np.testing.assert_allclose(r.estimate.heights_um(), cli_um, rtol=0, atol=1e-6 * np.abs(cli_um).max())
+    whole = wb.recover(**TILED, field_tile_threshold=0)
+    assert list(whole.metrics["stage"]).count("field:0.6") == 6
+    assert np.abs(whole.estimate.heights_um() - cli_um).max() > 1e-5 * np.abs(cli_um).max(), "tiles changed nothing"
+
+    stages = []
+    callback = lambda m: stages.append(m["stage"]) or True
+    wb.recover_heights(r.observations, (32, 8), 2.0, blur_iterations=1, field_iterations=2, refine_iterations=0,
+                       field_tile_threshold=16, field_tile_core=12, callback=callback)
+    assert stages.count("field:0.6") == 6
+    stages.clear()
+    wb.recover_heights(r.observations, (32, 8), 2.0, blur_iterations=1, field_iterations=2, refine_iterations=0,
+                       field_tile_threshold=0, callback=callback)
+    assert stages.count("field:0.6") == 2
+
+    for call, needle in [(lambda: wb.recover(size=8, field_tile_core=4), "field_tile_core"),
+                         (lambda: wb.recover(size=8, field_tile_threshold=-3), "field_tile_threshold"),
+                         (lambda: wb.recover_heights(r.observations, (32, 8), 2.0, field_tile_core=5000),
+                          "field_tile_core"),
+                         (lambda: wb.recover_heights(r.observations, (32, 8), 2.0, field_tile_threshold=-1),
+                          "field_tile_threshold")]:
+        with pytest.raises(ValueError, match=needle):
+            call()
