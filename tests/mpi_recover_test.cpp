@@ -224,6 +224,49 @@ TEST(MpiRecover, TiledFieldStageOnTwoRanksEqualsOneProcess) {
     EXPECT_EQ(x, reference) << "max relative difference " << max_relative_difference(reference, x);
 }
 
+// GHS slices under MPI (field_proxy.h): the blurred fit and the field stage through the
+// separable proxy, the refinement on GHS itself; two ranks give the one-process heights bit for
+// bit.
+TEST(MpiRecover, GhsRunsOnTwoRanksEqualOneProcess) {
+    const fs::path dir = fresh_dir("mpi_recover_ghs");
+    const auto args = [](const std::string& out) {
+        std::vector<std::string> a = recover_args(out);
+        a.insert(a.end() - 2, {"--model", "GHS"});
+        return a;
+    };
+    const CliResult one = run_ranks(dir, 0, args("one"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const std::vector<double> reference = read_npy(dir / "one" / "estimate_height.npy");
+    ASSERT_EQ(reference.size(), 144u);
+    EXPECT_NE(read_text(dir / "one" / "metrics.csv").find("unwrap,"), std::string::npos)
+        << "the field stage ran (through the proxy)";
+    const CliResult two = run_ranks(dir, 2, args("two"));
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    const std::vector<double> x = read_npy(dir / "two" / "estimate_height.npy");
+    ASSERT_EQ(x.size(), reference.size());
+    EXPECT_EQ(x, reference) << "max relative difference " << max_relative_difference(reference, x);
+}
+
+// σ_p alone calibrated under MPI: the search before the field stage, the second search at the
+// unwrapped heights with the field stage run again (sigma_search.h), and the refinement's σ
+// rounds give the one-process heights and calibration.json bit for bit on two ranks.
+TEST(MpiRecover, SigmaSearchedTwiceOnTwoRanksEqualsOneProcess) {
+    const fs::path dir = fresh_dir("mpi_recover_sigma");
+    const auto args = [](const std::string& out) {
+        std::vector<std::string> a = recover_args(out);
+        a.insert(a.end() - 2, {"--calibrate", "sigma", "--simulate-sigma-factor", "1.3"});
+        return a;
+    };
+    const CliResult one = run_ranks(dir, 0, args("one"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    EXPECT_NE(read_text(dir / "one" / "metrics.csv").find("sigma:unwrapped,"), std::string::npos)
+        << "the second search ran";
+    const CliResult two = run_ranks(dir, 2, args("two"));
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
+    EXPECT_EQ(read_text(dir / "one" / "calibration.json"), read_text(dir / "two" / "calibration.json"));
+}
+
 TEST(MpiRecover, ABadOptionFailsWithOneLineNotOnePerRank) {
     const fs::path dir = fresh_dir("mpi_recover");
     const CliResult bad = run_ranks(dir, 2, {"recover", "--size", "12", "--no-such-option", "--out", "x"});

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -148,6 +149,45 @@ TEST(SigmaPresearch, AllCalibratesPositionsExposuresAndSigmaTogether) {
     ASSERT_EQ(f.exposures.size(), c.exposures.size());
     ASSERT_EQ(f.position_offsets_um.size(), c.offsets_um.size());
     for (double a : f.exposures) EXPECT_TRUE(std::isfinite(a) && a > 0.0);
+}
+
+// The second search (sigma_search.h, research_sigma_scale): at heights that lost their detail
+// (the truth smoothed over 3 × 3 texels, as the blurred fit's are) the first search is biased
+// away from the true scale; at heights close to the truth (0.5 % noise, as the field stage's
+// unwrapped ones) the second search about that biased answer finds the true scale, and
+// sigma_scale_moved says the field stage must run again.
+TEST(SigmaPresearch, TheSecondSearchAtBetterHeightsFindsTheTrueScale) {
+    const Acquired c = acquired(5614, 1.3);
+    const Loss amplitude{LossKind::Amplitude, 1.0};
+    const double n = double(c.observations.size());
+    const int rows = c.truth.rows(), cols = c.truth.cols();
+    const std::vector<double>& t = c.truth.values();
+    std::vector<double> smooth(t.size()), close(t.size());
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            double sum = 0.0;
+            for (int a = -1; a <= 1; ++a)
+                for (int b = -1; b <= 1; ++b)
+                    sum += t[std::size_t((i + a + rows) % rows) * cols + std::size_t((j + b + cols) % cols)];
+            smooth[std::size_t(i) * cols + j] = sum / 9.0;
+        }
+    const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
+    std::mt19937_64 rng(5614);
+    std::normal_distribution<double> noise(0.0, 0.005 * (*hi - *lo));
+    for (std::size_t k = 0; k < t.size(); ++k) close[k] = t[k] + noise(rng);
+    const double first = detail::presearch_sigma_scale(c.observations, n, c.truth.with_values(smooth), amplitude, false,
+                                                       serial_communicator());
+    EXPECT_GT(std::abs(first / 1.3 - 1.0), 0.03) << first;  // biased by the lost detail
+    const double second = detail::research_sigma_scale(c.observations, n, c.truth.with_values(close), first, amplitude,
+                                                       false, serial_communicator());
+    EXPECT_NEAR(second / 1.3, 1.0, 0.01) << first << " -> " << second;
+    EXPECT_TRUE(detail::sigma_scale_moved(first, second));
+    EXPECT_FALSE(detail::sigma_scale_moved(second, second * 1.01));
+    EXPECT_TRUE(detail::sigma_scale_moved(second, second / 1.03));
+    EXPECT_THROW(detail::sigma_scale_moved(0.0, 1.0), std::domain_error);
+    EXPECT_THROW(
+        detail::research_sigma_scale(c.observations, n, c.truth, -1.0, amplitude, false, serial_communicator()),
+        std::domain_error);
 }
 
 }  // namespace

@@ -202,7 +202,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // search at the blurred heights can run off (measured: 1.68 for a true 1.0 on an 8² tile of
     // 0.1 µm range, where the refinement from there stayed at 1.45).
     double sigma_scale = 1.0;
-    if (settings.calibrate.sigma && settings.sigma_presearch && !settings.calibrate.exposure) {
+    const bool presearched = settings.calibrate.sigma && settings.sigma_presearch && !settings.calibrate.exposure;
+    if (presearched) {
         sigma_scale = detail::presearch_sigma_scale(observations, observations_total, estimate, settings.refine_loss,
                                                     settings.calibrate.exposure, comm);
         if (calibration) calibration->sigma_p_scale = calibration->sigma_p_scale_fields = sigma_scale;
@@ -262,6 +263,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         !by_lambda.empty() && by_lambda.rbegin()->first >= settings.field_lambda_min_um ? settings.field_lambda_min_um
                                                                                         : 0.0;
     const auto field_end = by_lambda.rend();
+    const auto field_stage = [&]() -> bool {  // false: stopped
     for (int pass = 0; pass < passes; ++pass)
         for (auto it = by_lambda.rbegin(); it != field_end && it->first >= field_min_um; ++it) {
             const double lambda = it->first;
@@ -299,7 +301,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                                              proxy_start(lambda), field_settings,
                                                              on_iteration, offsets_um, comm);
             }();
-            if (stopped) return estimate;
+            if (stopped) return false;
             std::vector<Observation>().swap(group);
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
@@ -312,12 +314,33 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 pass + 1 == passes && (std::next(it) == field_end || std::next(it)->first < field_min_um);
             if (settings.cascade && !last) {
                 unwrap_fields();
-                if (!report(name, r.iterations, r.relative_loss, &estimate)) return estimate;
+                if (!report(name, r.iterations, r.relative_loss, &estimate)) return false;
             }
         }
+    return true;
+    };
+    if (!field_stage()) return estimate;
     if (!white) {
         unwrap_fields();
         if (!report("unwrap", 0, 0.0, &estimate)) return estimate;
+    }
+    // σ_p searched again at the unwrapped heights (sigma_search.h: ≈ 0.4–1 % off, where the
+    // blurred fit's bias the first search towards 1); when it moved, the field stage runs again
+    // at the new σ_p from the unwrapped heights (every field anew) and is unwrapped again.
+    if (!white && presearched && settings.sigma_research) {
+        const double s = detail::research_sigma_scale(observations, observations_total, estimate, sigma_scale,
+                                                      settings.refine_loss, settings.calibrate.exposure, comm);
+        const bool moved = detail::sigma_scale_moved(sigma_scale, s);
+        if (!report("sigma:unwrapped", moved ? 1 : 0, s, &estimate)) return estimate;
+        if (moved) {
+            sigma_scale = s;
+            if (calibration) calibration->sigma_p_scale = calibration->sigma_p_scale_fields = sigma_scale;
+            lambdas.clear();
+            fields.clear();
+            if (!field_stage()) return estimate;
+            unwrap_fields();
+            if (!report("unwrap", 1, 0.0, &estimate)) return estimate;
+        }
     }
 
     // Stage 3: the full model (with the positions refined as well: recover_positions.h).

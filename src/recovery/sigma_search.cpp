@@ -46,4 +46,27 @@ double presearch_sigma_scale(const std::vector<Observation>& observations, doubl
     return std::exp(t);
 }
 
+double research_sigma_scale(const std::vector<Observation>& observations, double observations_total,
+                            const Heightfield& heights, double around, const Loss& loss, bool calibrate_exposure,
+                            const Communicator& comm) {
+    if (!(around > 0.0) || !std::isfinite(around))
+        throw std::domain_error("research_sigma_scale: sigma scale " + std::to_string(around) +
+                                " is invalid; expected > 0");
+    const double centre = std::log(around), half = std::log(k_research_span);
+    const double t = golden_section_minimum(
+        [&](double x) {
+            return scaled_sigma_loss(observations, observations_total, heights, std::exp(x), loss, calibrate_exposure,
+                                     comm);
+        },
+        centre - half, centre + half, k_research_evaluations);
+    return std::exp(t);
+}
+
+bool sigma_scale_moved(double before, double after) {
+    if (!(before > 0.0) || !(after > 0.0) || !std::isfinite(before) || !std::isfinite(after))
+        throw std::domain_error("sigma_scale_moved: sigma scales " + std::to_string(before) + ", " +
+                                std::to_string(after) + " are invalid; expected > 0");
+    return std::abs(std::log(after / before)) > k_research_tolerance;
+}
+
 }  // namespace wavebrdf::detail
