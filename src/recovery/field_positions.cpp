@@ -248,8 +248,8 @@ bool register_positions(const std::vector<const Observation*>& group, const std:
 // The gauge: every position moved by −m and every object by −m leave every slice as it was.
 // Returns the rms (over positions and coordinates, texels) of the offsets' change from start.
 double apply_gauge(std::vector<double>& x, const std::vector<double>& start,
-                   const std::vector<std::vector<std::complex<double>>*>& objects, int rows, int cols,
-                   double texel_um, int refine) {
+                   const std::vector<std::vector<std::complex<double>>*>& objects, int rows, int cols, double texel_um,
+                   int refine) {
     const std::size_t count = x.size() / 2;
     double mean[2] = {0.0, 0.0};
     for (std::size_t p = 0; p < count; ++p)
@@ -270,8 +270,7 @@ double correct_positions(const std::vector<const Observation*>& group, const std
                          double texel_um, int refine, int steps, std::vector<double>& offsets_um,
                          const Communicator& comm) {
     const std::vector<double> start = offsets_um;
-    if (!register_positions(group, position, object, lambda_um, rows, cols, texel_um, refine, steps, offsets_um,
-                            comm))
+    if (!register_positions(group, position, object, lambda_um, rows, cols, texel_um, refine, steps, offsets_um, comm))
         return 0.0;
     return apply_gauge(offsets_um, start, {&object}, rows, cols, texel_um, refine);
 }
@@ -307,8 +306,6 @@ FieldRetrievalResult retrieve_field_with_positions(
                                     " is invalid; expected 0 (off) or 2 ... 4");
     std::vector<int> fold_of(folds > 0 ? group.size() : 0);
     for (std::size_t g = 0; g < fold_of.size(); ++g) fold_of[g] = position_fold(*group[g], folds);
-    // One object per fold, retrieved from the observations outside it (cross-validation).
-    std::vector<std::vector<std::complex<double>>> fold_objects(std::size_t(folds), initial);
     FieldRetrievalResult result;
     std::vector<std::complex<double>> object = initial;
     int done = 0;
@@ -345,8 +342,9 @@ FieldRetrievalResult retrieve_field_with_positions(
         } else {
             const std::vector<double> start = offsets_um;
             for (int f = 0; f < folds; ++f) {
-                // The object from the other folds (at their corrected centres), then this fold's
-                // positions registered against it.
+                // The object of all refitted to the other folds only (at their corrected centres:
+                // a chunk from the object of all; measured better than a fold object kept from
+                // the start, docs/recovery.md), then this fold's positions registered against it.
                 std::vector<Observation> others;
                 std::vector<const Observation*> mine;
                 std::vector<std::size_t> mine_position;
@@ -360,17 +358,13 @@ FieldRetrievalResult retrieve_field_with_positions(
                     others.back().query.x_um += offsets_um[2 * position[g]];
                     others.back().query.y_um += offsets_um[2 * position[g] + 1];
                 }
-                FieldRetrievalSettings fold_settings = chunk;
-                FieldRetrievalResult fr = retrieve_field(others, lambda_um, rows, cols, texel_um,
-                                                         fold_objects[std::size_t(f)], fold_settings, nullptr, comm);
+                FieldRetrievalResult fr = retrieve_field(others, lambda_um, rows, cols, texel_um, object, chunk,
+                                                         nullptr, comm);
                 std::vector<Observation>().swap(others);
-                fold_objects[std::size_t(f)] = std::move(fr.object);
-                register_positions(mine, mine_position, fold_objects[std::size_t(f)], lambda_um, rows, cols,
-                                   texel_um, settings.refine, steps, offsets_um, comm);
+                register_positions(mine, mine_position, fr.object, lambda_um, rows, cols, texel_um, settings.refine,
+                                   steps, offsets_um, comm);
             }
-            std::vector<std::vector<std::complex<double>>*> objects{&object};
-            for (auto& o : fold_objects) objects.push_back(&o);
-            moved = apply_gauge(offsets_um, start, objects, rows, cols, texel_um, settings.refine);
+            moved = apply_gauge(offsets_um, start, {&object}, rows, cols, texel_um, settings.refine);
         }
         if (r.iterations < chunk.iterations && moved < 0.01) break;  // the object stalled, the positions too
     }

@@ -61,11 +61,12 @@ int position_fold(const Observation& o, int folds);
 // chunk_iterations (restarted from the object so far, the observations at their stated
 // centres + offsets_um), each followed by correct_positions(steps); settings.iterations in all.
 // Stops early when a chunk ends on the stall rule and the offsets moved by less than 0.01 texel
-// rms. With folds ≥ 2 (cross-validation, "leave the position out"): each fold f
-// (position_fold) also keeps an object retrieved (chunk_iterations per chunk, from `initial`)
-// from the observations outside f only, and f's positions are corrected against that object,
-// which never saw their data and so cannot have absorbed their errors; the gauge (mean offset
-// removed) then shifts every object. folds = 0: every position against the object of all.
+// rms. With folds ≥ 2 (cross-validation, "leave the position out"): after each chunk, for
+// each fold f (position_fold) the object is refitted (chunk_iterations from the object of all)
+// to the observations outside f only, and f's positions are corrected against that refit,
+// which has not seen their data for a chunk; the gauge then shifts the object of all.
+// Measured not to help (docs/recovery.md, "round 4"): kept for the study, off by default.
+// folds = 0: every position against the object of all (the default path, unchanged).
 // Collective as retrieve_field; offsets_um is updated on every rank.
 FieldRetrievalResult retrieve_field_with_positions(
     const std::vector<const Observation*>& group, const std::vector<std::size_t>& position, double lambda_um, int rows,
