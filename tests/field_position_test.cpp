@@ -190,57 +190,47 @@ TEST(FieldPositions, FoldsAreACheckerboardOfSigmaCells) {
     EXPECT_THROW(detail::position_fold(o, 5), std::invalid_argument);
 }
 
-TEST(FieldPositions, FoldRegistrationMovesOffsetsFurtherThanTheObjectOfAll) {
-    // Positions 0.6 texel rms off, on a grid of step σ_p (64 positions on a 12² tile), the
-    // object retrieved from the blurred start of a flat surface: the registration against the
-    // object of all data (folds 0) is held back by an object that absorbed the errors; against
-    // the other fold's object (folds 2) it is not. The same bits on one and two threads.
+TEST(FieldPositions, FoldRegistrationKeepsTrueCentresAtTheTrueObjectWithTheSameBitsOnAnyThreadCount) {
+    // The cross-validation path (folds 2 and 4) from the true object at the true centres: each
+    // fold's positions, registered against the object refitted to the other folds, must stay
+    // where they are (a wrong fold split, offset index or sign would move them), and one and two
+    // threads give the same bits. 64 positions on a grid of step σ_p on a 12² tile.
+    // (That the folds find offsets better than the object of all was measured and is not true:
+    // docs/recovery.md, "Self-calibration: positions", round 4.)
     const auto object = smooth_object(5506, 0.15);
-    std::mt19937_64 rng(5507);
-    std::normal_distribution<double> normal(0.0, 0.6 * kTexel);
     std::vector<Observation> obs;
-    std::vector<std::array<double, 2>> errors;
     const int side = 8;
     for (int a = 0; a < side; ++a)
-        for (int b = 0; b < side; ++b) {
-            errors.push_back({normal(rng), normal(rng)});
-            obs.push_back(observation_at(object, {(a + 0.5) * 24.0 / side, (b + 0.5) * 24.0 / side}, errors.back()));
-        }
-    std::array<double, 2> mean{0.0, 0.0};
-    for (const auto& e : errors)
-        mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
+        for (int b = 0; b < side; ++b)
+            obs.push_back(observation_at(object, {(a + 0.5) * 24.0 / side, (b + 0.5) * 24.0 / side}, {0.0, 0.0}));
     std::vector<const Observation*> group;
     std::vector<std::size_t> position;
     for (std::size_t k = 0; k < obs.size(); ++k) {
         group.push_back(&obs[k]);
         position.push_back(k);
     }
-    const std::vector<std::complex<double>> start(object.size(), std::complex<double>(1.0, 0.0));
     const auto run = [&](int threads, int folds) {
         const int before = omp_get_max_threads();
         omp_set_num_threads(threads);
         std::vector<double> offsets(2 * obs.size(), 0.0);
         FieldRetrievalSettings settings;
         settings.refine = kRefine;
-        settings.iterations = 60;
-        detail::retrieve_field_with_positions(group, position, kLambda, kRows, kCols, kTexel, start, settings, nullptr,
+        settings.iterations = 10;
+        detail::retrieve_field_with_positions(group, position, kLambda, kRows, kCols, kTexel, object, settings, nullptr,
                                               offsets, serial_communicator(), 10, 3, folds);
         omp_set_num_threads(before);
         return offsets;
     };
-    const auto left = [&](const std::vector<double>& found) {
+    for (int folds : {2, 4}) {
+        const std::vector<double> one = run(1, folds);
+        EXPECT_EQ(one, run(2, folds));
         double sum = 0.0;
-        for (std::size_t k = 0; k < obs.size(); ++k)
-            for (int c = 0; c < 2; ++c)
-                sum += std::pow(found[2 * k + std::size_t(c)] - (errors[k][std::size_t(c)] - mean[std::size_t(c)]), 2);
-        return std::sqrt(sum / (2.0 * double(obs.size()))) / kTexel;
-    };
-    const std::vector<double> folded = run(1, 2);
-    EXPECT_EQ(folded, run(2, 2));
-    const double all_in = left(run(1, 0)), cross = left(folded), before = left(std::vector<double>(2 * obs.size()));
-    RecordProperty("offset_rms_before_texels", std::to_string(before));
-    RecordProperty("offset_rms_all_in_texels", std::to_string(all_in));
-    RecordProperty("offset_rms_folds_texels", std::to_string(cross));
-    std::printf("offsets left: start %.3f, all-in %.3f, folds %.3f texel\n", before, all_in, cross);
-    EXPECT_LT(cross, 0.7 * all_in);
+        for (double v : one) sum += v * v;
+        EXPECT_LT(std::sqrt(sum / double(one.size())) / kTexel, 0.02) << folds << " folds";
+    }
+    std::vector<double> offsets(2 * obs.size(), 0.0);
+    EXPECT_THROW(detail::retrieve_field_with_positions(group, position, kLambda, kRows, kCols, kTexel, object,
+                                                       FieldRetrievalSettings{}, nullptr, offsets,
+                                                       serial_communicator(), 10, 3, 1),
+                 std::invalid_argument);
 }
