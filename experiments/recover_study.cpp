@@ -176,6 +176,7 @@ int main(int argc, char** argv) try {
     if (args.count("blur_positions")) rs.blur_positions = args["blur_positions"] == "1";
     if (args.count("blur_first_stage")) rs.blur_positions_first_stage = std::stoi(args["blur_first_stage"]);
     if (args.count("blur_radius")) rs.blur_positions_radius_texels = std::stod(args["blur_radius"]);
+    if (args.count("position_folds")) rs.field_position_folds = std::stoi(args["position_folds"]);
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)

@@ -289,6 +289,13 @@ struct RecoverSettings {
     bool blur_positions = false;
     int blur_positions_first_stage = 3;         // the first blur stage that registers (earlier: heights only)
     double blur_positions_radius_texels = 1.0;  // its grid: ± this, in 1-texel steps (later: ±1 in halves)
+    // With calibrate.positions: the field stage registers each position against the object
+    // refitted without that position's data (cross-validation folds, field_positions.h): the
+    // positions are split into this many interleaved folds (a checkerboard of σ_p cells for 2),
+    // and after each chunk of the object's retrieval a fold's positions are corrected against
+    // the object refitted to the other folds' observations. 0: every position against the one
+    // object fitted to all (the default). Measured not to help yet (docs/recovery.md). Valid: 0, 2 … 4.
+    int field_position_folds = 0;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -206,10 +206,16 @@ std::vector<double> descend_positions(std::size_t observations, const std::vecto
 
 }  // namespace
 
-double correct_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
-                         std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
-                         double texel_um, int refine, int steps, std::vector<double>& offsets_um,
-                         const Communicator& comm) {
+namespace {
+
+// correct_positions without the gauge: `steps` lockstep gradient steps at the fixed object on
+// the offsets of the positions that `group` (every rank's) holds observations of; the others'
+// offsets are left as they are. Returns false (nothing moved) when every rank's Σ R is 0.
+// Collective.
+bool register_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
+                        const std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
+                        double texel_um, int refine, int steps, std::vector<double>& offsets_um,
+                        const Communicator& comm) {
     if (position.size() != group.size())
         throw std::invalid_argument("correct_positions: " + std::to_string(position.size()) + " position indices for " +
                                     std::to_string(group.size()) + " observations; expected one each");
@@ -223,10 +229,9 @@ double correct_positions(const std::vector<const Observation*>& group, const std
     for (std::size_t g = 0; g < group.size(); ++g)
         for (double r : group[g]->reference) totals[g] += std::max(0.0, r);
     const double total = exact_total(totals, comm);
-    if (!(total > 0.0)) return 0.0;
+    if (!(total > 0.0)) return false;
     const double inv_total = 1.0 / total;
 
-    const std::vector<double> start = offsets_um;
     std::vector<double> x = descend_positions(
         group.size(), position, count, texel_um, steps, offsets_um,
         [&](std::size_t g, const std::array<double, 2>& offset, std::array<double, 2>& gradient) {
@@ -236,27 +241,71 @@ double correct_positions(const std::vector<const Observation*>& group, const std
             return inv_total * l;
         },
         comm);
-    // The gauge: every position moved by −m and the object by −m leave every slice as it was.
+    offsets_um = std::move(x);
+    return true;
+}
+
+// The gauge: every position moved by −m and every object by −m leave every slice as it was.
+// Returns the rms (over positions and coordinates, texels) of the offsets' change from start.
+double apply_gauge(std::vector<double>& x, const std::vector<double>& start,
+                   const std::vector<std::vector<std::complex<double>>*>& objects, int rows, int cols, double texel_um,
+                   int refine) {
+    const std::size_t count = x.size() / 2;
     double mean[2] = {0.0, 0.0};
     for (std::size_t p = 0; p < count; ++p)
         for (int c = 0; c < 2; ++c) mean[c] += x[2 * p + std::size_t(c)] / double(count);
     for (std::size_t p = 0; p < count; ++p)
         for (int c = 0; c < 2; ++c) x[2 * p + std::size_t(c)] -= mean[c];
-    object = shift_object(object, rows, cols, texel_um, refine, -mean[0], -mean[1]);
+    for (std::vector<std::complex<double>>* object : objects)
+        *object = shift_object(*object, rows, cols, texel_um, refine, -mean[0], -mean[1]);
     double moved = 0.0;
     for (std::size_t k = 0; k < x.size(); ++k) moved += (x[k] - start[k]) * (x[k] - start[k]);
-    offsets_um = x;
     return count > 0 ? std::sqrt(moved / double(x.size())) / texel_um : 0.0;
+}
+
+}  // namespace
+
+double correct_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
+                         std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
+                         double texel_um, int refine, int steps, std::vector<double>& offsets_um,
+                         const Communicator& comm) {
+    const std::vector<double> start = offsets_um;
+    if (!register_positions(group, position, object, lambda_um, rows, cols, texel_um, refine, steps, offsets_um, comm))
+        return 0.0;
+    return apply_gauge(offsets_um, start, {&object}, rows, cols, texel_um, refine);
+}
+
+int position_fold(const Observation& o, int folds) {
+    if (folds < 2 || folds > 4)
+        throw std::invalid_argument("position_fold: folds " + std::to_string(folds) + " is invalid; expected 2 ... 4");
+    const double sigma = o.query.sigma_p_um;
+    if (!(sigma > 0.0) || !std::isfinite(o.query.x_um / sigma) || !std::isfinite(o.query.y_um / sigma))
+        throw std::invalid_argument("position_fold: centre (" + std::to_string(o.query.x_um) + ", " +
+                                    std::to_string(o.query.y_um) + ") um / sigma_p " + std::to_string(sigma) +
+                                    " um is invalid; expected a finite centre and a positive sigma_p");
+    // The cell's residue (mod 12, which 2, 3 and 4 divide), non-negative for negative centres.
+    const auto cell = [&](double v) {
+        const double r = std::fmod(std::floor(v / sigma), 12.0);
+        return int(r < 0.0 ? r + 12.0 : r);
+    };
+    const int cx = cell(o.query.x_um), cy = cell(o.query.y_um);
+    if (folds == 4) return (cx % 2) + 2 * (cy % 2);
+    return (cx + cy) % folds;
 }
 
 FieldRetrievalResult retrieve_field_with_positions(
     const std::vector<const Observation*>& group, const std::vector<std::size_t>& position, double lambda_um, int rows,
     int cols, double texel_um, const std::vector<std::complex<double>>& initial, const FieldRetrievalSettings& settings,
     const std::function<bool(int, double)>& on_iteration, std::vector<double>& offsets_um, const Communicator& comm,
-    int chunk_iterations, int steps) {
+    int chunk_iterations, int steps, int folds) {
     if (chunk_iterations < 1 || steps < 0)
         throw std::invalid_argument("retrieve_field_with_positions: chunk " + std::to_string(chunk_iterations) +
                                     " / steps " + std::to_string(steps) + " invalid; expected >= 1 / >= 0");
+    if (folds != 0 && (folds < 2 || folds > 4))
+        throw std::invalid_argument("retrieve_field_with_positions: folds " + std::to_string(folds) +
+                                    " is invalid; expected 0 (off) or 2 ... 4");
+    std::vector<int> fold_of(folds > 0 ? group.size() : 0);
+    for (std::size_t g = 0; g < fold_of.size(); ++g) fold_of[g] = position_fold(*group[g], folds);
     FieldRetrievalResult result;
     std::vector<std::complex<double>> object = initial;
     int done = 0;
@@ -286,8 +335,37 @@ FieldRetrievalResult retrieve_field_with_positions(
         result.relative_loss = r.relative_loss;
         object = std::move(r.object);
         if (stopped) break;
-        const double moved = correct_positions(group, position, object, lambda_um, rows, cols, texel_um,
-                                               settings.refine, steps, offsets_um, comm);
+        double moved = 0.0;
+        if (folds == 0) {
+            moved = correct_positions(group, position, object, lambda_um, rows, cols, texel_um, settings.refine, steps,
+                                      offsets_um, comm);
+        } else {
+            const std::vector<double> start = offsets_um;
+            for (int f = 0; f < folds; ++f) {
+                // The object of all refitted to the other folds only (at their corrected centres:
+                // a chunk from the object of all; measured better than a fold object kept from
+                // the start, docs/recovery.md), then this fold's positions registered against it.
+                std::vector<Observation> others;
+                std::vector<const Observation*> mine;
+                std::vector<std::size_t> mine_position;
+                for (std::size_t g = 0; g < group.size(); ++g) {
+                    if (fold_of[g] == f) {
+                        mine.push_back(group[g]);
+                        mine_position.push_back(position[g]);
+                        continue;
+                    }
+                    others.push_back(*group[g]);
+                    others.back().query.x_um += offsets_um[2 * position[g]];
+                    others.back().query.y_um += offsets_um[2 * position[g] + 1];
+                }
+                FieldRetrievalResult fr = retrieve_field(others, lambda_um, rows, cols, texel_um, object, chunk,
+                                                         nullptr, comm);
+                std::vector<Observation>().swap(others);
+                register_positions(mine, mine_position, fr.object, lambda_um, rows, cols, texel_um, settings.refine,
+                                   steps, offsets_um, comm);
+            }
+            moved = apply_gauge(offsets_um, start, {&object}, rows, cols, texel_um, settings.refine);
+        }
         if (r.iterations < chunk.iterations && moved < 0.01) break;  // the object stalled, the positions too
     }
     result.iterations = done;

@@ -50,15 +50,28 @@ double correct_positions(const std::vector<const Observation*>& group, const std
                          double texel_um, int refine, int steps, std::vector<double>& offsets_um,
                          const Communicator& comm);
 
+// The cross-validation fold (0 … folds − 1) of observation o's stated position: cells of σ_p
+// (o.query.sigma_p_um) coloured as a checkerboard for 2 folds, (cell x + cell y) mod 3 for 3,
+// 2×2 colours for 4, so that a position's nearest neighbours (one step ≈ σ_p away) lie in other
+// folds. Depends only on the stated query (every rank and every observation at one position
+// agree). folds must be 2 … 4.
+int position_fold(const Observation& o, int folds);
+
 // retrieve_field (recover.h) with position correction: L-BFGS on the object in chunks of
 // chunk_iterations (restarted from the object so far, the observations at their stated
 // centres + offsets_um), each followed by correct_positions(steps); settings.iterations in all.
 // Stops early when a chunk ends on the stall rule and the offsets moved by less than 0.01 texel
-// rms. Collective as retrieve_field; offsets_um is updated on every rank.
+// rms. With folds ≥ 2 (cross-validation, "leave the position out"): after each chunk, for
+// each fold f (position_fold) the object is refitted (chunk_iterations from the object of all)
+// to the observations outside f only, and f's positions are corrected against that refit,
+// which has not seen their data for a chunk; the gauge then shifts the object of all.
+// Measured not to help (docs/recovery.md, "round 4"): kept for the study, off by default.
+// folds = 0: every position against the object of all (the default path, unchanged).
+// Collective as retrieve_field; offsets_um is updated on every rank.
 FieldRetrievalResult retrieve_field_with_positions(
     const std::vector<const Observation*>& group, const std::vector<std::size_t>& position, double lambda_um, int rows,
     int cols, double texel_um, const std::vector<std::complex<double>>& initial, const FieldRetrievalSettings& settings,
     const std::function<bool(int, double)>& on_iteration, std::vector<double>& offsets_um, const Communicator& comm,
-    int chunk_iterations = 10, int steps = 3);
+    int chunk_iterations = 10, int steps = 3, int folds = 0);
 
 }  // namespace wavebrdf::detail

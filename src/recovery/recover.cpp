@@ -299,7 +299,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 for (const Observation* o : it->second) index.push_back(position_index(o));
                 return detail::retrieve_field_with_positions(used, index, lambda, rows, cols, texel_um,
                                                              proxy_start(lambda), field_settings,
-                                                             on_iteration, offsets_um, comm);
+                                                             on_iteration, offsets_um, comm, 10, 3,
+                                                             settings.field_position_folds);
             }();
             if (stopped) return false;
             std::vector<Observation>().swap(group);
