@@ -245,6 +245,13 @@ struct RecoverSettings {
     // in wrong basins, measured to raise the error) are left out and their slices enter stage 3
     // only. When no wavelength reaches it, every wavelength runs the field stage.
     double field_lambda_min_um = 0.0;
+    // Cascading: the stall tolerance (FieldRetrievalSettings::stall_tolerance) of every field
+    // started from the fields before it (all but the first of the first pass), which start near
+    // the loss floor. Finite; negative (the default): field.stall_tolerance for those too. At
+    // 0.01 / 0.02 the later fields of a 64² recovery stop after ~21 / ~19 iterations instead of
+    // ~27, and the final heights were 3 % better to 22 % worse (docs/recovery.md, Speed,
+    // fourth pass): not the default.
+    double cascade_stall_tolerance = -1.0;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 40;
     int refine_history = 20;

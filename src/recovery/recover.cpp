@@ -285,6 +285,11 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 for (std::size_t k = 0; k < group.size(); ++k) used[k] = &group[k];
             }
             const auto on_iteration = [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); };
+            // Cascading, a field started from the fields before it stops at its own stall tolerance.
+            const bool from_fields = settings.cascade && (pass > 0 || it != by_lambda.rbegin());
+            field_settings.stall_tolerance = from_fields && settings.cascade_stall_tolerance >= 0.0
+                                                 ? settings.cascade_stall_tolerance
+                                                 : settings.field.stall_tolerance;
             FieldRetrievalResult r = [&] {
                 const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core,
                                                  settings.field_tile_ramp};
@@ -546,6 +551,10 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
             throw std::domain_error("recover_heights: white smoothness weight " + std::to_string(w) +
                                     " is invalid; expected a finite value >= 0");
     detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]
+    if (!std::isfinite(settings.cascade_stall_tolerance))
+        throw std::domain_error("recover_heights: cascade stall tolerance " +
+                                std::to_string(settings.cascade_stall_tolerance) +
+                                " is invalid; expected a finite value (negative: the field's)");
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)
     std::map<double, std::vector<const Observation*>> by_lambda;
