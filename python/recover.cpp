@@ -66,6 +66,27 @@ int planned_resolution(int resolution) {
     return resolution;
 }
 
+// White light's smoothness weights (RecoverSettings::white_smoothness): None → the default;
+// else a sequence of at most 64 numbers, each finite in [0, 1e12] (empty: no continuation).
+std::optional<std::vector<double>> white_smoothness_argument(const py::object& value) {
+    if (value.is_none()) return std::nullopt;
+    std::vector<double> weights;
+    bool ok = !py::isinstance<py::str>(value) && py::isinstance<py::sequence>(value) && py::len(value) <= 64;
+    if (ok) {
+        try {
+            weights = value.cast<std::vector<double>>();
+        } catch (const py::cast_error&) {
+            ok = false;
+        }
+    }
+    for (double w : weights) ok = ok && w >= 0.0 && w <= 1e12;
+    if (!ok)
+        throw py::value_error("white_smoothness = " + std::string(py::repr(value)) +
+                              " is invalid; expected a sequence of at most 64 weights, each 0 to 1e12, largest "
+                              "first, or None");
+    return weights;
+}
+
 int optional_count(const py::object& value, const char* name) {
     if (value.is_none()) return -1;
     int n = 0;
@@ -223,7 +244,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
                        const py::object& comm_arg, const std::string& simulator, const py::object& calibrate,
                        double simulate_position_error_texels, const py::object& simulate_exposure,
-                       double simulate_sigma_factor, bool with_uncertainty, int spectral) {
+                       double simulate_sigma_factor, bool with_uncertainty, int spectral,
+                       const py::object& white_smoothness, const py::object& white_smoothness_iterations) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -262,6 +284,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.jitter = check_finite(jitter, "jitter");
     options.field_iterations = optional_count(field_iterations, "field_iterations");
     options.refine_iterations = optional_count(refine_iterations, "refine_iterations");
+    options.white_smoothness = white_smoothness_argument(white_smoothness);
+    options.white_smoothness_iterations = optional_count(white_smoothness_iterations, "white_smoothness_iterations");
     if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
     options.epochs = epochs;
     options.seed = seed;
@@ -563,7 +587,8 @@ truth Heightfield) slopes that reflect light off the slice.
            double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
            double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
            const py::object& refine_loss, const py::object& callback, const py::object& comm_arg,
-           const py::object& calibrate) -> py::object {
+           const py::object& calibrate, const py::object& white_smoothness,
+           int white_smoothness_iterations) -> py::object {
             const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
             const std::vector<Observation> list = observations_or_file(observations);
             const std::array<int, 2> rc = size_argument(size);
@@ -600,6 +625,11 @@ truth Heightfield) slopes that reflect light off the slice.
             s.refine_history = refine_history;
             s.refine_loss = loss_argument(refine_loss);
             s.calibrate = calibrate_argument(calibrate);
+            s.white_smoothness = *white_smoothness_argument(
+                white_smoothness.is_none() ? py::cast(s.white_smoothness) : white_smoothness);
+            if (white_smoothness_iterations < 0)
+                bad_argument("white_smoothness_iterations", std::to_string(white_smoothness_iterations), ">= 0");
+            s.white_smoothness_iterations = white_smoothness_iterations;
             const std::optional<Heightfield> t = optional_truth(truth);
             check_callback(callback);
             std::vector<StageMetrics> history;
@@ -622,7 +652,8 @@ truth Heightfield) slopes that reflect light off the slice.
         "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
-        "comm"_a = py::none(), "calibrate"_a = py::none(),
+        "comm"_a = py::none(), "calibrate"_a = py::none(), "white_smoothness"_a = rs.white_smoothness,
+        "white_smoothness_iterations"_a = rs.white_smoothness_iterations,
         (std::string(R"doc(
 The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
 phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
@@ -641,6 +672,9 @@ max_range_um        bound on the height range for unwrapping (um, > 0; RecoverSe
 unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
 refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                     refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
+white_smoothness    white light (RGB slices only): the smoothness continuation's weights before
+                    the refinement, largest first (at most 64, each 0 ... 1e12; [] none);
+                    white_smoothness_iterations: L-BFGS iterations per weight (>= 0)
 Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
 comm                None (one process) or an mpi4py communicator: `observations` is then this
                     rank's share (every rank calls with its own; docs/scale.md), the sums are
@@ -765,7 +799,8 @@ the same keys with the true values (else None).
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
           "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
           "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0,
-          "uncertainty"_a = false, "spectral"_a = ro.spectral,
+          "uncertainty"_a = false, "spectral"_a = ro.spectral, "white_smoothness"_a = py::none(),
+          "white_smoothness_iterations"_a = py::none(),
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -822,6 +857,9 @@ uncertainty   True: also the error bars (height_uncertainty with the run's loss)
               coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
 spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
               slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
+white_smoothness  white light's smoothness continuation (the CLI's --white-smoothness): weights,
+              largest first (at most 64, each 0 ... 1e12; [] none; None: the library's 10, 1,
+              0.1, 0.01); white_smoothness_iterations: L-BFGS iterations per weight (None: 20)
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 

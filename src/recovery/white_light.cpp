@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace wavebrdf::detail {
@@ -81,6 +83,17 @@ std::vector<double> periodic_laplacian(const std::vector<double>& x, int rows, i
 }
 
 }  // namespace
+
+void check_white_smoothness(const std::vector<double>& weights) {
+    if (weights.size() > k_max_white_smoothness_weights)
+        throw std::invalid_argument("white smoothness: " + std::to_string(weights.size()) +
+                                    " weights are too many; expected at most " +
+                                    std::to_string(k_max_white_smoothness_weights));
+    for (double w : weights)
+        if (!(w >= 0.0 && w <= 1e12))
+            throw std::invalid_argument("white smoothness weight " + std::to_string(w) +
+                                        " is invalid; expected a finite value 0 to 1e12");
+}
 
 double add_smoothness_penalty(const std::vector<double>& heights, int rows, int cols, double weight,
                               std::vector<double>& gradient) {

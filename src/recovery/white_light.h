@@ -1,6 +1,7 @@
 #pragma once
 // White light (recover.h, docs/recovery.md "White light"): the pieces of the RGB-only path:
 // the defect repair after the refinement and the smoothness continuation before it.
+#include <cstddef>
 #include <functional>
 #include <vector>
 
@@ -23,6 +24,12 @@ int repair_defects(std::vector<double>& heights, int rows, int cols, double thre
 // minima) raise and a smooth surface does not. Returns the value; adds its gradient to
 // `gradient` (the same size as h). Returns 0 and adds nothing when weight ≤ 0 or the sizes
 // disagree. Deterministic (the same bits on every rank).
+// Checks a smoothness continuation's weights (RecoverSettings::white_smoothness): at most
+// k_max_white_smoothness_weights of them, each finite in [0, 10^12]. Throws
+// std::invalid_argument naming the bad weight (or the count) otherwise.
+constexpr std::size_t k_max_white_smoothness_weights = 64;
+void check_white_smoothness(const std::vector<double>& weights);
+
 double add_smoothness_penalty(const std::vector<double>& heights, int rows, int cols, double weight,
                               std::vector<double>& gradient);
 
