@@ -173,7 +173,7 @@ TEST(WhiteLight, RegionRepairFixesConnectedWrapDefectsTheSingleTexelRepairCannot
     pair[at(5, 5)] += wrap;
     std::vector<double> block = truth;
     for (int i = 8; i <= 10; ++i)
-        for (int j = 2; j <= 4; ++j) block[at(i, j)] += wrap;
+        for (int j = 9; j <= 11; ++j) block[at(i, j)] += wrap;
     for (const std::vector<double>* planted : {&pair, &block}) {
         std::vector<double> single = *planted;
         EXPECT_EQ(detail::repair_defects(single, rows, cols, 3.0, 16, periodic_loss), 0);
@@ -184,14 +184,19 @@ TEST(WhiteLight, RegionRepairFixesConnectedWrapDefectsTheSingleTexelRepairCannot
         // A loss that prefers the defect keeps it.
         std::vector<double> kept = *planted;
         EXPECT_EQ(detail::repair_defect_regions(kept, rows, cols, wrap, 3.0, 64, 64,
-                                                [&](const std::vector<double>& x) { return -periodic_loss(x); }),
+                                                [&](const std::vector<double>& x) {
+                                                    double d = 0.0;
+                                                    for (std::size_t k = 0; k < x.size(); ++k)
+                                                        d += (x[k] - (*planted)[k]) * (x[k] - (*planted)[k]);
+                                                    return d;
+                                                }),
                   0);
         EXPECT_EQ(kept, *planted);
     }
     // Both at once: two regions; and nothing is evaluated without a wrap or a budget.
     std::vector<double> both = pair;
     for (int i = 8; i <= 10; ++i)
-        for (int j = 2; j <= 4; ++j) both[at(i, j)] += wrap;
+        for (int j = 9; j <= 11; ++j) both[at(i, j)] += wrap;
     EXPECT_EQ(detail::repair_defect_regions(both, rows, cols, wrap, 3.0, 64, 64, periodic_loss), 2);
     EXPECT_LT(max_error(both), 1e-12);
     int calls = 0;
