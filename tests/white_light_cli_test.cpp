@@ -20,7 +20,7 @@ const std::string kWhite =
 
 // The largest iteration number of the refine rows of metrics.csv (stage, iteration, ...): the
 // continuation's weights × its iterations, then the refinement's.
-[[maybe_unused]] int last_refine_iteration(const fs::path& metrics) {
+int last_refine_iteration(const fs::path& metrics) {
     int last = -1;
     for (const std::string& line : lines_of(read_text(metrics)))
         if (line.rfind("refine,", 0) == 0) last = std::max(last, std::stoi(line.substr(7)));
@@ -31,16 +31,15 @@ const std::string kWhite =
 
 TEST(WhiteLightCli, SmoothnessKnobsReachTheContinuationAndBadValuesFailWithOneLine) {
     const fs::path dir = fresh_dir("white_cli");
-    // One weight × 3 iterations, no refinement after it (and no repair rounds' refinement):
-    // the refine rows end at iteration 3; two weights: at 6.
-    for (const auto& [weights, expected] : std::vector<std::pair<std::string, int>>{{"5", 3}, {"5,0.5", 6}}) {
+    // One weight × 3 iterations, then 1 refinement iteration: the refine rows end at iteration 4;
+    // two weights: at 7.
+    for (const auto& [weights, expected] : std::vector<std::pair<std::string, int>>{{"5", 4}, {"5,0.5", 7}}) {
         SCOPED_TRACE(weights);
         const std::string out = "run_" + std::to_string(expected);
         const CliResult r = run_cli(dir, "recover " + kWhite + " --white-smoothness " + weights +
-                                             " --white-smoothness-iterations 3 --refine-iterations 0 --out " + out);
+                                             " --white-smoothness-iterations 3 --refine-iterations 1 --out " + out);
         ASSERT_EQ(r.exit_code, 0) << r.err;
-        // (The refine rows' count is not checked here: TODO, metrics.csv of this 8² run had none.)
-        EXPECT_TRUE(fs::exists(dir / out / "metrics.csv"));
+        EXPECT_EQ(last_refine_iteration(dir / out / "metrics.csv"), expected);
     }
     const std::string out = (dir / "bad").string();
     std::string many = "1";  // 65 weights, one more than allowed
