@@ -45,6 +45,8 @@ struct RecoverArgs {
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     int field_tile_threshold = -1, field_tile_core = -1;  // -1: the library's
+    std::string white_smoothness;                          // --white-smoothness W1,W2,... or none ("": the library's)
+    int white_smoothness_iterations = -1;                  // -1: the library's
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;          // 0: the physical memory
     std::string calibrate = "none";      // --calibrate (calibration.h)
@@ -127,6 +129,11 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.field_iterations = a.field_iterations;
     options.refine_iterations = a.refine_iterations;
     options.field_tile_threshold = a.field_tile_threshold;
+    if (a.white_smoothness == "none")
+        options.white_smoothness = std::vector<double>{};
+    else if (!a.white_smoothness.empty())
+        options.white_smoothness = parse_list("--white-smoothness", a.white_smoothness);
+    options.white_smoothness_iterations = a.white_smoothness_iterations;
     options.field_tile_core = a.field_tile_core;
     options.epochs = a.epochs;
     options.seed = a.seed;
@@ -317,6 +324,11 @@ void add_recover_command(CLI::App& app) {
                     "field stage on tiles along an axis of more than N texels (0: never; default: the library's)");
     cmd->add_option("--field-tile-core", a->field_tile_core,
                     "field tiles' core size in texels, 8 to 4096 (default: the library's)");
+    cmd->add_option("--white-smoothness", a->white_smoothness,
+                    "white light: the smoothness continuation's weights, largest first, comma-separated (at most "
+                    "64, each 0 to 1e12), or none (default: the library's, 10,1,0.1,0.01)");
+    cmd->add_option("--white-smoothness-iterations", a->white_smoothness_iterations,
+                    "white light: L-BFGS iterations per smoothness weight (default: the library's, 20)");
     cmd->add_option("--epochs", a->epochs, "thesis method: Adam epochs")->capture_default_str();
     cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
     cmd->add_option("--max-memory-gb", a->max_memory_gb,

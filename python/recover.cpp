@@ -66,6 +66,27 @@ int planned_resolution(int resolution) {
     return resolution;
 }
 
+// White light's smoothness weights (RecoverSettings::white_smoothness): None → the default;
+// else a sequence of at most 64 numbers, each finite in [0, 1e12] (empty: no continuation).
+std::optional<std::vector<double>> white_smoothness_argument(const py::object& value) {
+    if (value.is_none()) return std::nullopt;
+    std::vector<double> weights;
+    bool ok = !py::isinstance<py::str>(value) && py::isinstance<py::sequence>(value) && py::len(value) <= 64;
+    if (ok) {
+        try {
+            weights = value.cast<std::vector<double>>();
+        } catch (const py::cast_error&) {
+            ok = false;
+        }
+    }
+    for (double w : weights) ok = ok && w >= 0.0 && w <= 1e12;
+    if (!ok)
+        throw py::value_error("white_smoothness = " + std::string(py::repr(value)) +
+                              " is invalid; expected a sequence of at most 64 weights, each 0 to 1e12, largest "
+                              "first, or None");
+    return weights;
+}
+
 int optional_count(const py::object& value, const char* name) {
     if (value.is_none()) return -1;
     int n = 0;
@@ -236,7 +257,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const py::object& comm_arg, const std::string& simulator, const py::object& calibrate,
                        double simulate_position_error_texels, const py::object& simulate_exposure,
                        double simulate_sigma_factor, bool with_uncertainty, int spectral,
-                       const py::object& field_tile_threshold, const py::object& field_tile_core) {
+                       const py::object& field_tile_threshold, const py::object& field_tile_core,
+                       const py::object& white_smoothness, const py::object& white_smoothness_iterations) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -277,6 +299,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.refine_iterations = optional_count(refine_iterations, "refine_iterations");
     options.field_tile_threshold = optional_tile_size(field_tile_threshold, "field_tile_threshold", 0, 1000000);
     options.field_tile_core = optional_tile_size(field_tile_core, "field_tile_core", 8, 4096);
+    options.white_smoothness = white_smoothness_argument(white_smoothness);
+    options.white_smoothness_iterations = optional_count(white_smoothness_iterations, "white_smoothness_iterations");
     if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
     options.epochs = epochs;
     options.seed = seed;
@@ -578,7 +602,8 @@ truth Heightfield) slopes that reflect light off the slice.
            double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
            double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
            const py::object& refine_loss, const py::object& callback, const py::object& comm_arg,
-           const py::object& calibrate, int field_tile_threshold, int field_tile_core) -> py::object {
+           const py::object& calibrate, int field_tile_threshold, int field_tile_core,
+           const py::object& white_smoothness, int white_smoothness_iterations) -> py::object {
             const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
             const std::vector<Observation> list = observations_or_file(observations);
             const std::array<int, 2> rc = size_argument(size);
@@ -617,6 +642,11 @@ truth Heightfield) slopes that reflect light off the slice.
             s.calibrate = calibrate_argument(calibrate);
             s.field_tile_threshold = tile_size(field_tile_threshold, "field_tile_threshold", 0, 1000000);
             s.field_tile_core = tile_size(field_tile_core, "field_tile_core", 8, 4096);
+            s.white_smoothness = *white_smoothness_argument(
+                white_smoothness.is_none() ? py::cast(s.white_smoothness) : white_smoothness);
+            if (white_smoothness_iterations < 0)
+                bad_argument("white_smoothness_iterations", std::to_string(white_smoothness_iterations), ">= 0");
+            s.white_smoothness_iterations = white_smoothness_iterations;
             const std::optional<Heightfield> t = optional_truth(truth);
             check_callback(callback);
             std::vector<StageMetrics> history;
@@ -640,7 +670,8 @@ truth Heightfield) slopes that reflect light off the slice.
         "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
         "comm"_a = py::none(), "calibrate"_a = py::none(), "field_tile_threshold"_a = rs.field_tile_threshold,
-        "field_tile_core"_a = rs.field_tile_core,
+        "field_tile_core"_a = rs.field_tile_core, "white_smoothness"_a = rs.white_smoothness,
+        "white_smoothness_iterations"_a = rs.white_smoothness_iterations,
         (std::string(R"doc(
 The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
 phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
@@ -659,6 +690,9 @@ max_range_um        bound on the height range for unwrapping (um, > 0; RecoverSe
 unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
 refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                     refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
+white_smoothness    white light (RGB slices only): the smoothness continuation's weights before
+                    the refinement, largest first (at most 64, each 0 ... 1e12; [] none);
+                    white_smoothness_iterations: L-BFGS iterations per weight (>= 0)
 Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
 comm                None (one process) or an mpi4py communicator: `observations` is then this
                     rank's share (every rank calls with its own; docs/scale.md), the sums are
@@ -788,7 +822,8 @@ the same keys with the true values (else None).
           "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
           "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0,
           "uncertainty"_a = false, "spectral"_a = ro.spectral, "field_tile_threshold"_a = py::none(),
-          "field_tile_core"_a = py::none(),
+          "field_tile_core"_a = py::none(), "white_smoothness"_a = py::none(),
+          "white_smoothness_iterations"_a = py::none(),
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -849,6 +884,9 @@ field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --fie
               --field-tile-core): a surface with a side above the threshold (texels, 0...10^6; 0:
               never) is retrieved on tiles of about `field_tile_core` texels (8...4096) plus a
               margin; None: the library's (64, 48)
+white_smoothness  white light's smoothness continuation (the CLI's --white-smoothness): weights,
+              largest first (at most 64, each 0 ... 1e12; [] none; None: the library's 10, 1,
+              0.1, 0.01); white_smoothness_iterations: L-BFGS iterations per weight (None: 20)
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 

@@ -136,6 +136,78 @@ TEST(WhiteLight, RepairDefectsKeepsOnlyWhatLowersTheLoss) {
     EXPECT_EQ(g, defect);
 }
 
+// Connected wrap defects: a loss with a local minimum at every whole-wrap shift of any texel
+// (periodic in the neighbour differences, as the spectral loss nearly is) plus a weak pull to
+// the truth. A pair of adjacent texels two and one wraps off, and a 3 × 3 block one wrap off:
+// moving one texel to its neighbours' median (repair_defects) leaves the periodic minima and
+// raises the loss, so it keeps nothing; the region repair shifts each region by whole wraps and
+// gets the truth back (to rounding). A loss that prefers the defects keeps them.
+TEST(WhiteLight, RegionRepairFixesConnectedWrapDefectsTheSingleTexelRepairCannot) {
+    const int rows = 14, cols = 14;
+    const double wrap = 0.07;
+    std::vector<double> truth(std::size_t(rows * cols));
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            truth[std::size_t(i * cols + j)] = 0.05 * std::sin(2.0 * k_pi * i / rows) *
+                                                   std::cos(2.0 * k_pi * j / cols) +
+                                               0.01 * std::cos(4.0 * k_pi * j / cols);
+    const auto at = [&](int i, int j) { return std::size_t(((i + rows) % rows) * cols + (j + cols) % cols); };
+    const auto periodic_loss = [&](const std::vector<double>& h) {
+        double s = 0.0;
+        for (int i = 0; i < rows; ++i)
+            for (int j = 0; j < cols; ++j)
+                for (const std::size_t q : {at(i + 1, j), at(i, j + 1)}) {
+                    const double d = (h[at(i, j)] - h[q]) - (truth[at(i, j)] - truth[q]);
+                    s += 1.0 - std::cos(2.0 * k_pi * d / wrap);
+                }
+        for (std::size_t k = 0; k < h.size(); ++k) s += 1e-4 * (h[k] - truth[k]) * (h[k] - truth[k]);
+        return s;
+    };
+    const auto max_error = [&](const std::vector<double>& h) {
+        double e = 0.0;
+        for (std::size_t k = 0; k < h.size(); ++k) e = std::max(e, std::abs(h[k] - truth[k]));
+        return e;
+    };
+    std::vector<double> pair = truth;
+    pair[at(4, 5)] += 2.0 * wrap;
+    pair[at(5, 5)] += wrap;
+    std::vector<double> block = truth;
+    for (int i = 8; i <= 10; ++i)
+        for (int j = 9; j <= 11; ++j) block[at(i, j)] += wrap;
+    for (const std::vector<double>* planted : {&pair, &block}) {
+        std::vector<double> single = *planted;
+        EXPECT_EQ(detail::repair_defects(single, rows, cols, 3.0, 16, periodic_loss), 0);
+        EXPECT_GT(max_error(single), 0.9 * wrap);
+        std::vector<double> region = *planted;
+        EXPECT_EQ(detail::repair_defect_regions(region, rows, cols, wrap, 3.0, 64, 64, periodic_loss), 1);
+        EXPECT_LT(max_error(region), 1e-12);
+        // A loss that prefers the defect keeps it.
+        std::vector<double> kept = *planted;
+        EXPECT_EQ(detail::repair_defect_regions(kept, rows, cols, wrap, 3.0, 64, 64,
+                                                [&](const std::vector<double>& x) {
+                                                    double d = 0.0;
+                                                    for (std::size_t k = 0; k < x.size(); ++k)
+                                                        d += (x[k] - (*planted)[k]) * (x[k] - (*planted)[k]);
+                                                    return d;
+                                                }),
+                  0);
+        EXPECT_EQ(kept, *planted);
+    }
+    // Both at once: two regions; and nothing is evaluated without a wrap or a budget.
+    std::vector<double> both = pair;
+    for (int i = 8; i <= 10; ++i)
+        for (int j = 9; j <= 11; ++j) both[at(i, j)] += wrap;
+    EXPECT_EQ(detail::repair_defect_regions(both, rows, cols, wrap, 3.0, 64, 64, periodic_loss), 2);
+    EXPECT_LT(max_error(both), 1e-12);
+    int calls = 0;
+    std::vector<double> untouched = pair;
+    const auto counted = [&](const std::vector<double>& x) { return ++calls, periodic_loss(x); };
+    EXPECT_EQ(detail::repair_defect_regions(untouched, rows, cols, 0.0, 3.0, 64, 64, counted), 0);
+    EXPECT_EQ(detail::repair_defect_regions(untouched, rows, cols, wrap, 3.0, 0, 64, counted), 0);
+    EXPECT_EQ(calls, 0);
+    EXPECT_EQ(untouched, pair);
+}
+
 // The smoothness penalty: its gradient matches central differences (an independent
 // evaluation), it is 0 on a constant, the closed form on a plane wave (Δ of cos(k·x) is
 // −(4 − 2 cos kx − 2 cos ky) cos(k·x)), larger on a checkerboard than on a smooth surface, and

@@ -220,6 +220,10 @@ struct RecoverSettings {
     // then stage 3 again (0: none).
     int white_repair_rounds = 2;
     double white_repair_threshold = 3.0;
+    // … connected regions of flagged texels (grown by one) of up to this many texels, each
+    // shifted by whole wraps (λ̄/2) or set to the fill around it where that lowers the loss
+    // (detail::repair_defect_regions); 0: one texel at a time, set to its neighbours' median.
+    int white_repair_region_texels = 64;
     // … and before stage 3, a smoothness continuation: stage 3's loss plus weight · mean (Δh)²
     // (h in texel units, Δ the 5-point Laplacian) for white_smoothness_iterations L-BFGS
     // iterations at each of these weights in turn (largest first; empty: none), which keeps the

@@ -67,6 +67,11 @@ struct RecoveryOptions {
     // Field tiles (RecoverSettings::field_tile_*): threshold 0 … 10^6 (0: never tiled), core 8 …
     // 4096 texels; < 0: the default.
     int field_tile_threshold = -1, field_tile_core = -1;
+    // White light's smoothness continuation (RecoverSettings::white_smoothness, largest first;
+    // at most 64 weights, each 0 … 10^12; an empty list: none; unset: the default) and its
+    // iterations per weight (≤ 10^7; < 0: the default).
+    std::optional<std::vector<double>> white_smoothness;
+    int white_smoothness_iterations = -1;
     int epochs = 1000;           // thesis: Adam epochs, 0 … 10^7 (k_max_iterations)
     std::uint64_t seed = 1;      // generated truth, jitter, noise, the thesis's draws
     // Refuse (OutOfMemory, before simulating or recovering) a run whose estimated peak memory

@@ -481,13 +481,27 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             smooth_weight = 0.0;
             refine_heights(settings.refine_iterations);
         }
-        // White light: isolated texels left a wrap from their neighbours, repaired where the
-        // loss agrees, then refined again (white_light.h).
+        // White light: isolated texels (or connected regions) left a wrap from their neighbours,
+        // repaired where the loss agrees, then refined again (white_light.h). The wrap: half the
+        // shortest mean wavelength of any rank's observations, in value units (every rank agrees).
+        const auto white_wrap_height = [&]() {
+            std::vector<double> mine;
+            for (const Observation& o : observations)
+                if (!o.lambdas_um.empty()) mine.push_back(white_light_lambda_um(o.lambdas_um));
+            const std::vector<double> all = all_gather(comm, mine);
+            if (all.empty()) return 0.0;
+            return 0.5 * *std::min_element(all.begin(), all.end()) / std::abs(vscale * texel_um);
+        };
         for (int round = 0; white && go_on && !stopped && round < settings.white_repair_rounds; ++round) {
             std::vector<double> no_g;
-            const int kept = detail::repair_defects(
-                h, rows, cols, settings.white_repair_threshold, std::max(16, rows * cols / 64),
-                [&](const std::vector<double>& x) { return objective(x, no_g); });
+            const auto loss_of = [&](const std::vector<double>& x) { return objective(x, no_g); };
+            const int budget = std::max(16, rows * cols / 64);
+            const int kept = settings.white_repair_region_texels > 0
+                                 ? detail::repair_defect_regions(h, rows, cols, white_wrap_height(),
+                                                                 settings.white_repair_threshold, budget,
+                                                                 settings.white_repair_region_texels, loss_of)
+                                 : detail::repair_defects(h, rows, cols, settings.white_repair_threshold, budget,
+                                                          loss_of);
             const Heightfield current = flat.with_values(h);
             if (!report("repair", kept, 0.0, &current)) break;
             if (kept == 0) break;
@@ -550,6 +564,10 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         if (!(w >= 0.0 && w <= 1e12))
             throw std::domain_error("recover_heights: white smoothness weight " + std::to_string(w) +
                                     " is invalid; expected a finite value >= 0");
+    if (settings.white_repair_region_texels < 0 || settings.white_repair_region_texels > 4096)
+        throw std::invalid_argument("recover_heights: white repair region texels " +
+                                    std::to_string(settings.white_repair_region_texels) +
+                                    " is invalid; expected 0 ... 4096");
     detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]
     if (!std::isfinite(settings.cascade_stall_tolerance))
         throw std::domain_error("recover_heights: cascade stall tolerance " +

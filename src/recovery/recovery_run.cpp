@@ -1,6 +1,7 @@
 #include "wavebrdf/recovery_run.h"
 
 #include "recovery/field_tiles.h"
+#include "recovery/white_light.h"
 
 #include <algorithm>
 #include <cmath>
@@ -156,6 +157,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.field_tile_threshold > 1000000)
         throw std::invalid_argument("field tile threshold " + std::to_string(options.field_tile_threshold) +
                                     " texels is invalid; expected 0 to 1000000");
+    if (options.white_smoothness) detail::check_white_smoothness(*options.white_smoothness);
+    if (options.white_smoothness_iterations >= 0)
+        validate_iterations(options.white_smoothness_iterations, "white smoothness iterations");
     if (options.field_tile_core >= 0 && (options.field_tile_core < 8 || options.field_tile_core > 4096))
         throw std::invalid_argument("field tile core " + std::to_string(options.field_tile_core) +
                                     " texels is invalid; expected 8 to 4096");
@@ -327,6 +331,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
     if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
     if (options.field_tile_core >= 0) r.pipeline.field_tile_core = options.field_tile_core;
+    if (options.white_smoothness) r.pipeline.white_smoothness = *options.white_smoothness;
+    if (options.white_smoothness_iterations >= 0)
+        r.pipeline.white_smoothness_iterations = options.white_smoothness_iterations;
     r.uncertainty = options.uncertainty;
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;

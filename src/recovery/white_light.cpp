@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace wavebrdf::detail {
@@ -82,6 +84,17 @@ std::vector<double> periodic_laplacian(const std::vector<double>& x, int rows, i
 
 }  // namespace
 
+void check_white_smoothness(const std::vector<double>& weights) {
+    if (weights.size() > k_max_white_smoothness_weights)
+        throw std::invalid_argument("white smoothness: " + std::to_string(weights.size()) +
+                                    " weights are too many; expected at most " +
+                                    std::to_string(k_max_white_smoothness_weights));
+    for (double w : weights)
+        if (!(w >= 0.0 && w <= 1e12))
+            throw std::invalid_argument("white smoothness weight " + std::to_string(w) +
+                                        " is invalid; expected a finite value 0 to 1e12");
+}
+
 double add_smoothness_penalty(const std::vector<double>& heights, int rows, int cols, double weight,
                               std::vector<double>& gradient) {
     if (!(weight > 0.0) || rows < 1 || cols < 1 || heights.size() != std::size_t(rows) * std::size_t(cols) ||
@@ -95,6 +108,182 @@ double add_smoothness_penalty(const std::vector<double>& heights, int rows, int 
     const std::vector<double> lap2 = periodic_laplacian(lap, rows, cols);
     for (std::size_t p = 0; p < gradient.size(); ++p) gradient[p] += 2.0 * scale * lap2[p];
     return scale * value;
+}
+
+}  // namespace wavebrdf::detail
+
+namespace wavebrdf::detail {
+
+namespace {
+
+std::size_t periodic_index(int i, int j, int rows, int cols) {
+    i = (i % rows + rows) % rows;
+    j = (j % cols + cols) % cols;
+    return std::size_t(i) * std::size_t(cols) + std::size_t(j);
+}
+
+// h − the median of its 8 neighbours, per texel (periodic).
+std::vector<double> median_residual(const std::vector<double>& h, int rows, int cols) {
+    std::vector<double> out(h.size());
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            double n[8];
+            int k = 0;
+            for (int di = -1; di <= 1; ++di)
+                for (int dj = -1; dj <= 1; ++dj)
+                    if (di != 0 || dj != 0) n[k++] = h[periodic_index(i + di, j + dj, rows, cols)];
+            std::sort(n, n + 8);
+            const std::size_t p = periodic_index(i, j, rows, cols);
+            out[p] = h[p] - 0.5 * (n[3] + n[4]);
+        }
+    return out;
+}
+
+// `h` with the texels in `unknown` (sorted indices) replaced by the biharmonic fill (Δ²h = 0 on
+// them, the other texels fixed): Gauss–Seidel in index order from the mean of the known texels
+// next to them (deterministic). The 13-point stencil: 20 h − 8 Σ(4 neighbours) + 2 Σ(diagonal)
+// + Σ(2 apart) = 0.
+std::vector<double> biharmonic_fill(std::vector<double> h, const std::vector<std::size_t>& unknown, int rows,
+                                    int cols) {
+    if (unknown.empty()) return h;
+    std::vector<char> is_unknown(h.size(), 0);
+    for (std::size_t p : unknown) is_unknown[p] = 1;
+    double sum = 0.0;
+    int count = 0;
+    for (std::size_t p : unknown) {
+        const int i = int(p / std::size_t(cols)), j = int(p % std::size_t(cols));
+        const int d[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+        for (const auto& o : d) {
+            const std::size_t q = periodic_index(i + o[0], j + o[1], rows, cols);
+            if (!is_unknown[q]) {
+                sum += h[q];
+                ++count;
+            }
+        }
+    }
+    const double start = count > 0 ? sum / count : 0.0;
+    for (std::size_t p : unknown) h[p] = start;
+    for (int sweep = 0; sweep < 4000; ++sweep) {
+        double change = 0.0;
+        for (std::size_t p : unknown) {
+            const int i = int(p / std::size_t(cols)), j = int(p % std::size_t(cols));
+            const auto v = [&](int di, int dj) { return h[periodic_index(i + di, j + dj, rows, cols)]; };
+            const double n4 = v(-1, 0) + v(1, 0) + v(0, -1) + v(0, 1);
+            const double nd = v(-1, -1) + v(-1, 1) + v(1, -1) + v(1, 1);
+            const double n2 = v(-2, 0) + v(2, 0) + v(0, -2) + v(0, 2);
+            const double next = (8.0 * n4 - 2.0 * nd - n2) / 20.0;
+            change = std::max(change, std::abs(next - h[p]));
+            h[p] = next;
+        }
+        if (change <= 1e-13 * (1.0 + std::abs(start))) break;
+    }
+    return h;
+}
+
+}  // namespace
+
+int repair_defect_regions(std::vector<double>& heights, int rows, int cols, double wrap_height, double threshold,
+                          int max_evaluations, int max_region_texels,
+                          const std::function<double(const std::vector<double>&)>& loss) {
+    if (rows < 3 || cols < 3 || !(wrap_height > 0.0) || max_evaluations <= 0 || max_region_texels <= 0 ||
+        heights.size() != std::size_t(rows) * std::size_t(cols))
+        return 0;
+    const std::vector<double> residual = median_residual(heights, rows, cols);
+    std::vector<double> deviation(residual.size());
+    for (std::size_t p = 0; p < residual.size(); ++p) deviation[p] = std::abs(residual[p]);
+    std::vector<double> sorted = deviation;
+    std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(sorted.size() / 2), sorted.end());
+    const double scale = 1.4826 * sorted[sorted.size() / 2];
+    // The flagged texels grown by one (8 neighbours).
+    std::vector<char> mask(heights.size(), 0);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            if (deviation[periodic_index(i, j, rows, cols)] > threshold * scale)
+                for (int di = -1; di <= 1; ++di)
+                    for (int dj = -1; dj <= 1; ++dj) mask[periodic_index(i + di, j + dj, rows, cols)] = 1;
+    // Its 4-connected components (periodic), each with its largest flagged deviation.
+    struct Region {
+        double deviation = 0.0;
+        std::vector<std::size_t> texels;
+    };
+    std::vector<Region> regions;
+    std::vector<char> seen(heights.size(), 0);
+    for (std::size_t start = 0; start < heights.size(); ++start) {
+        if (!mask[start] || seen[start]) continue;
+        Region r;
+        std::vector<std::size_t> stack{start};
+        seen[start] = 1;
+        while (!stack.empty()) {
+            const std::size_t p = stack.back();
+            stack.pop_back();
+            r.texels.push_back(p);
+            if (deviation[p] > threshold * scale) r.deviation = std::max(r.deviation, deviation[p]);
+            const int i = int(p / std::size_t(cols)), j = int(p % std::size_t(cols));
+            const int d[4][2] = {{-1, 0}, {1, 0}, {0, -1}, {0, 1}};
+            for (const auto& o : d) {
+                const std::size_t q = periodic_index(i + o[0], j + o[1], rows, cols);
+                if (mask[q] && !seen[q]) {
+                    seen[q] = 1;
+                    stack.push_back(q);
+                }
+            }
+        }
+        std::sort(r.texels.begin(), r.texels.end());
+        if (int(r.texels.size()) <= max_region_texels) regions.push_back(std::move(r));
+    }
+    if (regions.empty()) return 0;
+    // Largest deviation first; ties by first texel (deterministic).
+    std::sort(regions.begin(), regions.end(), [](const Region& a, const Region& b) {
+        return a.deviation != b.deviation ? a.deviation > b.deviation : a.texels.front() < b.texels.front();
+    });
+    double best = loss(heights);
+    int evaluations = 0, changed = 0;
+    for (const Region& r : regions) {
+        if (evaluations >= max_evaluations) break;
+        // The core: texels at least half a wrap from the fill over the whole region; the fill
+        // again over the core alone (the rest of the region known), and each core texel's
+        // nearest whole number of wraps from it.
+        const std::vector<double> fill_region = biharmonic_fill(heights, r.texels, rows, cols);
+        std::vector<std::size_t> core;
+        for (std::size_t p : r.texels)
+            if (std::abs(heights[p] - fill_region[p]) >= 0.5 * wrap_height) core.push_back(p);
+        if (core.empty())
+            for (std::size_t p : r.texels)
+                if (deviation[p] > threshold * scale) core.push_back(p);
+        if (core.empty()) continue;
+        const std::vector<double> fill = biharmonic_fill(heights, core, rows, cols);
+        std::vector<std::vector<double>> candidates;
+        std::vector<double> own = heights;
+        bool moved = false;
+        for (std::size_t p : core) {
+            const double k = std::round((heights[p] - fill[p]) / wrap_height);
+            own[p] = heights[p] - k * wrap_height;
+            moved = moved || k != 0.0;
+        }
+        if (moved) candidates.push_back(own);
+        candidates.push_back(fill);
+        for (double k : {1.0, -1.0, 2.0, -2.0}) {
+            std::vector<double> shifted = heights;
+            for (std::size_t p : core) shifted[p] -= k * wrap_height;
+            if (!moved || shifted != own) candidates.push_back(std::move(shifted));
+        }
+        int chosen = -1;
+        double chosen_value = best;
+        for (std::size_t c = 0; c < candidates.size() && evaluations < max_evaluations; ++c) {
+            const double value = loss(candidates[c]);
+            ++evaluations;
+            if (value < chosen_value) {
+                chosen_value = value;
+                chosen = int(c);
+            }
+        }
+        if (chosen >= 0) {
+            heights = candidates[std::size_t(chosen)];
+            best = chosen_value;
+            ++changed;
+        }
+    }
+    return changed;
 }
 
 }  // namespace wavebrdf::detail

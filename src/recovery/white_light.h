@@ -1,6 +1,7 @@
 #pragma once
 // White light (recover.h, docs/recovery.md "White light"): the pieces of the RGB-only path:
 // the defect repair after the refinement and the smoothness continuation before it.
+#include <cstddef>
 #include <functional>
 #include <vector>
 
@@ -23,7 +24,36 @@ int repair_defects(std::vector<double>& heights, int rows, int cols, double thre
 // minima) raise and a smooth surface does not. Returns the value; adds its gradient to
 // `gradient` (the same size as h). Returns 0 and adds nothing when weight ≤ 0 or the sizes
 // disagree. Deterministic (the same bits on every rank).
+// Checks a smoothness continuation's weights (RecoverSettings::white_smoothness): at most
+// k_max_white_smoothness_weights of them, each finite in [0, 10^12]. Throws
+// std::invalid_argument naming the bad weight (or the count) otherwise.
+constexpr std::size_t k_max_white_smoothness_weights = 64;
+void check_white_smoothness(const std::vector<double>& weights);
+
 double add_smoothness_penalty(const std::vector<double>& heights, int rows, int cols, double weight,
                               std::vector<double>& gradient);
+
+}  // namespace wavebrdf::detail
+
+namespace wavebrdf::detail {
+
+// Connected wrap defects (docs/recovery.md, White light, "Connected defects"): a group of
+// adjacent texels left whole wraps from the surface around it, which moving one texel at a time
+// (repair_defects) cannot leave when the loss is nearly periodic in whole wraps. Flags the texels
+// whose height h (value units, rows × cols, periodic) differs from its 8 neighbours' median by more
+// than `threshold` robust deviations (as repair_defects), grows each by one texel (so a block whose
+// inner texels pass the median test is caught through its corners), and takes the 4-connected
+// components of that mask of at most `max_region_texels` texels, largest residual first. For each:
+// the smooth fill (biharmonic, from the texels around it), the core (texels ≥ half a wrap from the
+// fill) and these candidates: every core texel shifted by its own nearest whole number of wraps
+// k·wrap_height from the fill; the core set to the fill; the core shifted together by ±1, ±2
+// wraps. The candidate of lowest `loss` (of all heights, collective: the same value on every rank)
+// is kept when it is below the current loss. At most `max_evaluations` loss evaluations in all
+// (besides the first). Returns the number of regions changed. Deterministic: the same heights give
+// the same choices on every rank. Returns 0 (nothing evaluated) when wrap_height ≤ 0, the sizes
+// disagree, or the grid is smaller than 3 × 3.
+int repair_defect_regions(std::vector<double>& heights, int rows, int cols, double wrap_height, double threshold,
+                          int max_evaluations, int max_region_texels,
+                          const std::function<double(const std::vector<double>&)>& loss);
 
 }  // namespace wavebrdf::detail
