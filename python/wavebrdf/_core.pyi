@@ -787,7 +787,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -847,11 +847,14 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   --field-tile-core): a surface with a side above the threshold (texels, 0...10^6; 0:
                   never) is retrieved on tiles of about `field_tile_core` texels (8...4096) plus a
                   margin; None: the library's (64, 48)
+    white_smoothness  white light's smoothness continuation (the CLI's --white-smoothness): weights,
+                  largest first (at most 64, each 0 ... 1e12; [] none; None: the library's 10, 1,
+                  0.1, 0.01); white_smoothness_iterations: L-BFGS iterations per weight (None: 20)
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...
 
-def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ...) -> Any:
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ..., white_smoothness: Any = ..., white_smoothness_iterations: int = ...) -> Any:
     """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
     phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
     on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
@@ -869,6 +872,9 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
     unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
     refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
                         refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
+    white_smoothness    white light (RGB slices only): the smoothness continuation's weights before
+                        the refinement, largest first (at most 64, each 0 ... 1e12; [] none);
+                        white_smoothness_iterations: L-BFGS iterations per weight (>= 0)
     Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
     comm                None (one process) or an mpi4py communicator: `observations` is then this
                         rank's share (every rank calls with its own; docs/scale.md), the sums are

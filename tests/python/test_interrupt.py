@@ -19,6 +19,10 @@ CHILD = textwrap.dedent("""
     import os, signal, sys, threading, time
     import numpy as np
     import wavebrdf as wb
+    # Python's own Ctrl-C handler, whatever this process inherited: a test runner started in the
+    # background of a non-interactive shell passes SIGINT on as ignored, and the signal would
+    # then never reach the library (every case "completed").
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     rng = np.random.default_rng(1)
     signalled = []
     def fire():
