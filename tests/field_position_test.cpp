@@ -182,7 +182,9 @@ TEST(FieldPositions, FoldsAreACheckerboardOfSigmaCells) {
             EXPECT_NE(f2, fold(x, y - sigma, 2));
             for (int da = -1; da <= 1; ++da)
                 for (int db = -1; db <= 1; ++db)
-                    if (da != 0 || db != 0) EXPECT_NE(f4, fold(x + da * sigma, y + db * sigma, 4));
+                    if (da != 0 || db != 0) {
+                        EXPECT_NE(f4, fold(x + da * sigma, y + db * sigma, 4));
+                    }
         }
     Observation o;
     o.query = test::make_query(Model::OHS, 1.0, 1.0, sigma);

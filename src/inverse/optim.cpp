@@ -15,18 +15,6 @@ namespace wavebrdf {
 
 namespace {
 
-// Σ a_k b_k in index order. Eigen's vectorised reductions start their packets at the first
-// aligned element, so their rounding depends on where the heap put the vectors: the same run
-// took other L-BFGS steps in a binary with another heap layout (InvertTest's checkpoint test).
-// A plain loop keeps its order (no -ffast-math), so the same values give the same bits wherever
-// they live.
-template <typename A, typename B>
-double ordered_dot(const A& a, const B& b) {
-    double sum = 0.0;
-    for (Eigen::Index k = 0; k < a.size(); ++k) sum += double(a[k]) * double(b[k]);
-    return sum;
-}
-
 void require(bool ok, const char* option, double value, const char* expected) {
     if (!ok) throw std::domain_error(std::string(option) + " must be " + expected + ", got " + format_shortest(value));
 }
@@ -196,12 +184,8 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
         return p;
     };
     // sᵀv, yᵀv and v += a·s, v += a·y of a pair, whichever its storage.
-    const auto s_dot = [&](const Pair& p, const Vec& v) {
-        return in_float ? ordered_dot(p.sf, v) : ordered_dot(p.s, v);
-    };
-    const auto y_dot = [&](const Pair& p, const Vec& v) {
-        return in_float ? ordered_dot(p.yf, v) : ordered_dot(p.y, v);
-    };
+    const auto s_dot = [&](const Pair& p, const Vec& v) { return in_float ? p.sf.cast<double>().dot(v) : p.s.dot(v); };
+    const auto y_dot = [&](const Pair& p, const Vec& v) { return in_float ? p.yf.cast<double>().dot(v) : p.y.dot(v); };
     const auto add_s = [&](const Pair& p, double a, Vec& v) {
         if (in_float)
             v += a * p.sf.cast<double>();
@@ -215,7 +199,7 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
             v += a * p.y;
     };
     const auto y_squared_norm = [&](const Pair& p) {
-        return in_float ? ordered_dot(p.yf, p.yf) : ordered_dot(p.y, p.y);
+        return in_float ? p.yf.cast<double>().squaredNorm() : p.y.squaredNorm();
     };
     std::deque<Pair> history;
     std::vector<double> alpha(static_cast<std::size_t>(options.history));
@@ -257,17 +241,17 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
             add_s(history[k], alpha[k] - beta, d);
         }
         d = -d;
-        double slope = ordered_dot(g, d);
+        double slope = g.dot(d);
         // H is positive definite in exact arithmetic; should rounding make d uphill anyway,
         // forget the history and fall back to steepest descent.
         if (!(slope < 0.0) || !std::isfinite(slope)) {
             history.clear();
             d = -g;
-            slope = ordered_dot(g, d);
+            slope = g.dot(d);
         }
         // Without curvature information the step length of −g has no scale: start at
         // min(1, 1/‖g‖) so that the first trial moves x by at most 1.
-        double step = history.empty() ? std::min(1.0, 1.0 / std::sqrt(ordered_dot(g, g))) : 1.0;
+        double step = history.empty() ? std::min(1.0, 1.0 / g.norm()) : 1.0;
 
         // Armijo backtracking: halve until f(x + αd) ≤ f(x) + c₁ α gᵀd. A non-finite value or
         // gradient at the trial point counts as a failed trial.
@@ -286,9 +270,9 @@ LbfgsResult lbfgs_minimize(const std::function<double(const std::vector<double>&
         const Vec x_new = Eigen::Map<const Vec>(trial.data(), en);
         const Vec g_new = Eigen::Map<const Vec>(trial_gradient.data(), en);
         Vec s = x_new - xv, y = g_new - g;
-        const double sy = ordered_dot(s, y);
+        const double sy = s.dot(y);
         // Keep the pair only with enough positive curvature, so that H stays positive definite.
-        if (sy > curvature_skip * std::sqrt(ordered_dot(s, s)) * std::sqrt(ordered_dot(y, y))) {
+        if (sy > curvature_skip * s.norm() * y.norm()) {
             if (static_cast<int>(history.size()) == options.history) history.pop_front();
             history.push_back(make_pair(std::move(s), std::move(y), 1.0 / sy));
         }
