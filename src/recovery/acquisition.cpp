@@ -254,31 +254,22 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
 
 std::vector<Observation> planned_observations(const AcquisitionPlan& plan) {
     std::vector<Observation> out;
+    const auto add = [&](const std::array<double, 2>& p, std::vector<double> lambdas_um) {
+        Observation o;
+        o.query.x_um = p[0];
+        o.query.y_um = p[1];
+        o.query.sigma_p_um = plan.sigma_p_um;
+        o.query.omega_i = plan.omega_i;
+        o.query.model = plan.model;
+        o.lambdas_um = std::move(lambdas_um);
+        o.resolution = plan.resolution;
+        out.push_back(std::move(o));
+    };
     if (!plan.white_lambdas_um.empty())
-        for (const auto& p : plan.positions_um) {
-            Observation o;
-            o.query.x_um = p[0];
-            o.query.y_um = p[1];
-            o.query.sigma_p_um = plan.sigma_p_um;
-            o.query.omega_i = plan.omega_i;
-            o.query.model = plan.model;
-            o.lambdas_um = plan.white_lambdas_um;
-            o.resolution = plan.resolution;
-            out.push_back(o);
-        }
+        for (const auto& p : plan.positions_um) add(p, plan.white_lambdas_um);
     else
         for (const auto& p : plan.positions_um)
-            for (double lambda : plan.lambdas_um) {
-                Observation o;
-                o.query.x_um = p[0];
-                o.query.y_um = p[1];
-                o.query.sigma_p_um = plan.sigma_p_um;
-                o.query.omega_i = plan.omega_i;
-                o.query.model = plan.model;
-                o.lambdas_um = {lambda};
-                o.resolution = plan.resolution;
-                out.push_back(o);
-            }
+            for (double lambda : plan.lambdas_um) add(p, {lambda});
     return out;
 }
 

@@ -9,28 +9,39 @@
 
 namespace wavebrdf::detail {
 
-int repair_defects(std::vector<double>& heights, int rows, int cols, double threshold, int max_candidates,
-                   const std::function<double(const std::vector<double>&)>& loss) {
-    if (rows < 3 || cols < 3 || max_candidates <= 0 || heights.size() != std::size_t(rows) * std::size_t(cols))
-        return 0;
-    const auto at = [&](int i, int j) {
-        i = (i % rows + rows) % rows;
-        j = (j % cols + cols) % cols;
-        return std::size_t(i) * std::size_t(cols) + std::size_t(j);
-    };
-    std::vector<double> median(heights.size()), deviation(heights.size());
+namespace {
+
+std::size_t periodic_index(int i, int j, int rows, int cols) {
+    i = (i % rows + rows) % rows;
+    j = (j % cols + cols) % cols;
+    return std::size_t(i) * std::size_t(cols) + std::size_t(j);
+}
+
+// The median of each texel's 8 neighbours (periodic): the mean of the middle two.
+std::vector<double> neighbour_median(const std::vector<double>& h, int rows, int cols) {
+    std::vector<double> out(h.size());
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j) {
             double n[8];
             int k = 0;
             for (int di = -1; di <= 1; ++di)
                 for (int dj = -1; dj <= 1; ++dj)
-                    if (di != 0 || dj != 0) n[k++] = heights[at(i + di, j + dj)];
+                    if (di != 0 || dj != 0) n[k++] = h[periodic_index(i + di, j + dj, rows, cols)];
             std::sort(n, n + 8);
-            const std::size_t p = at(i, j);
-            median[p] = 0.5 * (n[3] + n[4]);
-            deviation[p] = std::abs(heights[p] - median[p]);
+            out[periodic_index(i, j, rows, cols)] = 0.5 * (n[3] + n[4]);
         }
+    return out;
+}
+
+}  // namespace
+
+int repair_defects(std::vector<double>& heights, int rows, int cols, double threshold, int max_candidates,
+                   const std::function<double(const std::vector<double>&)>& loss) {
+    if (rows < 3 || cols < 3 || max_candidates <= 0 || heights.size() != std::size_t(rows) * std::size_t(cols))
+        return 0;
+    const std::vector<double> median = neighbour_median(heights, rows, cols);
+    std::vector<double> deviation(heights.size());
+    for (std::size_t p = 0; p < heights.size(); ++p) deviation[p] = std::abs(heights[p] - median[p]);
     std::vector<double> sorted = deviation;
     std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(sorted.size() / 2), sorted.end());
     const double scale = 1.4826 * sorted[sorted.size() / 2];
@@ -116,26 +127,10 @@ namespace wavebrdf::detail {
 
 namespace {
 
-std::size_t periodic_index(int i, int j, int rows, int cols) {
-    i = (i % rows + rows) % rows;
-    j = (j % cols + cols) % cols;
-    return std::size_t(i) * std::size_t(cols) + std::size_t(j);
-}
-
 // h − the median of its 8 neighbours, per texel (periodic).
 std::vector<double> median_residual(const std::vector<double>& h, int rows, int cols) {
-    std::vector<double> out(h.size());
-    for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < cols; ++j) {
-            double n[8];
-            int k = 0;
-            for (int di = -1; di <= 1; ++di)
-                for (int dj = -1; dj <= 1; ++dj)
-                    if (di != 0 || dj != 0) n[k++] = h[periodic_index(i + di, j + dj, rows, cols)];
-            std::sort(n, n + 8);
-            const std::size_t p = periodic_index(i, j, rows, cols);
-            out[p] = h[p] - 0.5 * (n[3] + n[4]);
-        }
+    std::vector<double> out = neighbour_median(h, rows, cols);
+    for (std::size_t p = 0; p < h.size(); ++p) out[p] = h[p] - out[p];
     return out;
 }
 
