@@ -280,9 +280,10 @@ struct RecoverSettings {
     // fit's heights, before the field stage, which then sees the refined σ_p (false: the field
     // stage keeps the stated σ_p and only the refinement calibrates it).
     bool sigma_presearch = true;
-    // With sigma_presearch: search σ_p's scale again at the field stage's unwrapped heights
-    // (±25 % about the first answer) and, when it moved by more than 2 %, run the field stage
-    // again at the new σ_p from those heights (false: one field stage at the first answer).
+    // With calibrate.sigma: search σ_p's scale again at the field stage's unwrapped heights
+    // (±25 % about the first answer; with calibrate.exposure, where there is no first search,
+    // over [1/2, 2], kept only where it lowers the loss) and, when it moved by more than 2 %, run
+    // the field stage again at the new σ_p from those heights (false: one field stage).
     bool sigma_research = true;
     // Stage 1 on overlapping tiles (docs/scale.md, "Field tiles"): along an axis of more than
     // field_tile_threshold texels (0: never) the field is retrieved on tiles of about

@@ -332,10 +332,18 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     }
     // σ_p searched again at the unwrapped heights (sigma_search.h: ≈ 0.4–1 % off, where the
     // blurred fit's bias the first search towards 1); when it moved, the field stage runs again
-    // at the new σ_p from the unwrapped heights (every field anew) and is unwrapped again.
-    if (!white && presearched && settings.sigma_research) {
-        const double s = detail::research_sigma_scale(observations, observations_total, estimate, sigma_scale,
-                                                      settings.refine_loss, settings.calibrate.exposure, comm);
+    // at the new σ_p from the unwrapped heights (every field anew) and is unwrapped again. With
+    // exposure calibration there was no first search (the energy ratio pulls it off at the
+    // blurred heights): this is then the only one, over the first search's whole range, and
+    // its answer is kept only where its loss is below the stated σ_p's (guarded_sigma_scale).
+    const bool researched = !white && settings.calibrate.sigma && settings.sigma_research &&
+                            (presearched || settings.calibrate.exposure);
+    if (researched) {
+        const double s =
+            presearched ? detail::research_sigma_scale(observations, observations_total, estimate, sigma_scale,
+                                                       settings.refine_loss, settings.calibrate.exposure, comm)
+                        : detail::guarded_sigma_scale(observations, observations_total, estimate, settings.refine_loss,
+                                                      settings.calibrate.exposure, comm);
         const bool moved = detail::sigma_scale_moved(sigma_scale, s);
         if (!report("sigma:unwrapped", moved ? 1 : 0, s, &estimate)) return estimate;
         if (moved) {

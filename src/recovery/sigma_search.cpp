@@ -62,6 +62,16 @@ double research_sigma_scale(const std::vector<Observation>& observations, double
     return std::exp(t);
 }
 
+double guarded_sigma_scale(const std::vector<Observation>& observations, double observations_total,
+                           const Heightfield& heights, const Loss& loss, bool calibrate_exposure,
+                           const Communicator& comm) {
+    const double s = presearch_sigma_scale(observations, observations_total, heights, loss, calibrate_exposure, comm);
+    const double at_s = scaled_sigma_loss(observations, observations_total, heights, s, loss, calibrate_exposure, comm);
+    const double at_stated = scaled_sigma_loss(observations, observations_total, heights, 1.0, loss, calibrate_exposure,
+                                               comm);
+    return at_s < at_stated * (1.0 - k_guard_margin) ? s : 1.0;
+}
+
 bool sigma_scale_moved(double before, double after) {
     if (!(before > 0.0) || !(after > 0.0) || !std::isfinite(before) || !std::isfinite(after))
         throw std::domain_error("sigma_scale_moved: sigma scales " + std::to_string(before) + ", " +

@@ -42,6 +42,14 @@ double research_sigma_scale(const std::vector<Observation>& observations, double
                             const Heightfield& heights, double around, const Loss& loss, bool calibrate_exposure,
                             const Communicator& comm);
 
+// The σ search at the unwrapped heights when there was none before the field stage (exposure
+// calibration on): presearch_sigma_scale's wide search at `heights`, kept only where its loss is
+// below the stated σ_p's (scale 1) by more than k_guard_margin relative; else 1. Collective.
+constexpr double k_guard_margin = 1e-6;
+double guarded_sigma_scale(const std::vector<Observation>& observations, double observations_total,
+                           const Heightfield& heights, const Loss& loss, bool calibrate_exposure,
+                           const Communicator& comm);
+
 // Whether the second search moved the scale from `before` to `after` (both > 0) by more than
 // k_research_tolerance (relative, on log s): then the field stage runs again at the new σ_p.
 constexpr double k_research_tolerance = 0.02;
