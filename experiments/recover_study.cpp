@@ -13,6 +13,9 @@
 //     `resolution`, seeded by seed) position_error_texels=0 (each position's true centre off by a
 //     Gaussian of this rms per coordinate, all wavelengths alike; the recovery gets the stated
 //     ones) zero_mean_errors=0 (1: the drawn offsets' mean removed) calibrate=none|positions
+//     (position outer loop, docs/recovery.md round 5:) outer_passes register_radius outer_tolerance
+//     outer_fields=1 register_check=0 (1: after the run, register every position at the final
+//     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <chrono>

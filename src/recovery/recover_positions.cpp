@@ -37,10 +37,14 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
     return positions;
 }
 
-double register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
-                          double radius_texels, double step_texels, std::vector<double>& offsets_um,
-                          const Communicator& comm) {
+namespace {
+
+// One grid of register_positions (recover_positions.h): the best point of the grid, then the
+// parabola. Returns nothing; offsets_um is updated.
+void register_grid(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                   const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                   double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                   const Communicator& comm) {
     if (!(radius_texels >= 0.0) || !(step_texels > 0.0) || !(radius_texels / step_texels <= 16.0))
         throw std::invalid_argument("register_positions: radius " + std::to_string(radius_texels) + " / step " +
                                     std::to_string(step_texels) +
@@ -93,7 +97,6 @@ double register_positions(const std::vector<Observation>& observations, const st
         scratch.take_box(row0, columns, 1);
         return 0.0;
     });
-    double moved_sq = 0.0;
     for (std::size_t p = 0; p < positions; ++p) {
         if (losses[positions * candidates + p] == 0.0) continue;  // no observation here
         const double* l = &losses[p * candidates];
@@ -114,9 +117,29 @@ double register_positions(const std::vector<Observation>& observations, const st
             sy += step_texels * vertex(l[std::size_t(a) * side + b - 1], l[best], l[std::size_t(a) * side + b + 1]);
         offsets_um[2 * p] += texel_um * sx;
         offsets_um[2 * p + 1] += texel_um * sy;
-        moved_sq += sx * sx + sy * sy;
     }
-    return positions ? std::sqrt(moved_sq / double(2 * positions)) : 0.0;
+}
+
+}  // namespace
+
+double register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                          const Communicator& comm) {
+    const std::vector<double> start = offsets_um;
+    // Coarse to fine: ± radius in steps of 2·step, then ± step in steps of step about the best.
+    if (radius_texels > step_texels && step_texels > 0.0) {
+        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, 2.0 * step_texels, offsets_um,
+                      comm);
+        register_grid(observations, index, heights, settings, sigma_scale, step_texels, step_texels, offsets_um, comm);
+    } else {
+        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, step_texels, offsets_um,
+                      comm);
+    }
+    const double texel_um = heights.texel_um();
+    double moved_sq = 0.0;
+    for (std::size_t k = 0; k < start.size(); ++k) moved_sq += (offsets_um[k] - start[k]) * (offsets_um[k] - start[k]);
+    return start.empty() ? 0.0 : std::sqrt(moved_sq / double(start.size())) / texel_um;
 }
 
 namespace {

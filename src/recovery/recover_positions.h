@@ -37,16 +37,18 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 
 // Registration at fixed heights (the outer loop of docs/recovery.md, "Self-calibration:
 // positions", round 5): every gathered position's offset (offsets_um, 2 per position, µm, every
-// rank's) moved to the point of the grid {offset + step·(a, b): |a|, |b| ≤ radius/step} (texels)
-// where the sum of its observations' losses (all its wavelengths, the full slice model,
-// settings.refine_loss, each slice's exposure its energy ratio with settings.calibrate.exposure,
-// every σ_p × sigma_scale) is smallest (ties: the first; the offset so far unless a smaller
-// loss), then sub-texel by a parabola through the best point and its grid neighbours, per
-// coordinate (its vertex kept within half a step; not at the grid's edge). index[i]: observation
-// i's position (gather_positions). The offsets' mean is left in. Collective: each position's
-// losses are summed exactly over its observations on every rank (core/exact_sum.h), so 1, 2, 3
-// ranks and any thread count give the same bits. Returns the rms change (texels) over positions
-// and coordinates. Throws std::invalid_argument for radius < 0, step ≤ 0, radius/step > 16 or
+// rank's) moved where the sum of its observations' losses (all its wavelengths, the full slice
+// model, settings.refine_loss, each slice's exposure its energy ratio with
+// settings.calibrate.exposure, every σ_p × sigma_scale) is smallest, coarse to fine: the best
+// point of the grid {offset + 2·step·(a, b): |a|, |b| ≤ radius/(2·step)} (texels), then of the
+// grid ± step in steps of step about it (radius ≤ step: one grid ± radius in steps of step);
+// ties: the first, and the offset so far unless a smaller loss. Each grid is followed by a
+// parabola through the best point and its grid neighbours, per coordinate (its vertex kept
+// within half a step; none at the grid's edge). index[i]: observation i's position
+// (gather_positions). The offsets' mean is left in. Collective: each position's losses are
+// summed exactly over its observations on every rank (core/exact_sum.h), so 1, 2, 3 ranks and
+// any thread count give the same bits. Returns the rms change (texels) over positions and
+// coordinates. Throws std::invalid_argument for radius < 0, step ≤ 0, radius/(2·step) > 16 or
 // offsets_um not 2 per position.
 double register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                           const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
