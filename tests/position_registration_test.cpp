@@ -9,6 +9,7 @@
 #include <random>
 
 #include "recovery/recover_positions.h"
+#include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/recover.h"
