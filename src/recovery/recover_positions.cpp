@@ -43,7 +43,7 @@ namespace {
 // parabola. Returns nothing; offsets_um is updated.
 void register_grid(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                    const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
-                   double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                   double radius_texels, double step_texels, bool parabola, std::vector<double>& offsets_um,
                    const Communicator& comm) {
     if (!(radius_texels >= 0.0) || !(step_texels > 0.0) || !(radius_texels / step_texels <= 16.0))
         throw std::invalid_argument("register_positions: radius " + std::to_string(radius_texels) + " / step " +
@@ -111,9 +111,9 @@ void register_grid(const std::vector<Observation>& observations, const std::vect
             return std::clamp(0.5 * (minus - plus) / curvature, -0.5, 0.5);
         };
         double sx = step_texels * (a - half), sy = step_texels * (b - half);
-        if (a > 0 && a + 1 < side)
+        if (parabola && a > 0 && a + 1 < side)
             sx += step_texels * vertex(l[std::size_t(a - 1) * side + b], l[best], l[std::size_t(a + 1) * side + b]);
-        if (b > 0 && b + 1 < side)
+        if (parabola && b > 0 && b + 1 < side)
             sy += step_texels * vertex(l[std::size_t(a) * side + b - 1], l[best], l[std::size_t(a) * side + b + 1]);
         offsets_um[2 * p] += texel_um * sx;
         offsets_um[2 * p + 1] += texel_um * sy;
@@ -129,11 +129,12 @@ double register_positions(const std::vector<Observation>& observations, const st
     const std::vector<double> start = offsets_um;
     // Coarse to fine: ± radius in steps of 2·step, then ± step in steps of step about the best.
     if (radius_texels > step_texels && step_texels > 0.0) {
-        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, 2.0 * step_texels, offsets_um,
+        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, 2.0 * step_texels, false,
+                      offsets_um, comm);
+        register_grid(observations, index, heights, settings, sigma_scale, step_texels, step_texels, true, offsets_um,
                       comm);
-        register_grid(observations, index, heights, settings, sigma_scale, step_texels, step_texels, offsets_um, comm);
     } else {
-        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, step_texels, offsets_um,
+        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, step_texels, true, offsets_um,
                       comm);
     }
     const double texel_um = heights.texel_um();

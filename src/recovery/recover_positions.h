@@ -42,7 +42,7 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 // settings.calibrate.exposure, every σ_p × sigma_scale) is smallest, coarse to fine: the best
 // point of the grid {offset + 2·step·(a, b): |a|, |b| ≤ radius/(2·step)} (texels), then of the
 // grid ± step in steps of step about it (radius ≤ step: one grid ± radius in steps of step);
-// ties: the first, and the offset so far unless a smaller loss. Each grid is followed by a
+// ties: the first, and the offset so far unless a smaller loss. The last grid is followed by a
 // parabola through the best point and its grid neighbours, per coordinate (its vertex kept
 // within half a step; none at the grid's edge). index[i]: observation i's position
 // (gather_positions). The offsets' mean is left in. Collective: each position's losses are
