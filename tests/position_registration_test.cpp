@@ -6,6 +6,7 @@
 #include <omp.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "recovery/recover_positions.h"
@@ -154,6 +155,8 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     const double before = offset_rms(std::vector<std::array<double, 2>>(c.errors.size(), {0.0, 0.0}), c.errors);
     const double after_once = offset_rms(once.position_offsets_um, c.errors);
     const double after_outer = offset_rms(outer.position_offsets_um, c.errors);
+    std::printf("offsets error (um): before %.3f, one recovery %.3f, outer loop %.3f\n", before, after_once,
+                after_outer);
     EXPECT_GT(before, 1.4);  // µm: about 0.7 texel or more
     EXPECT_LT(after_outer, 0.7 * after_once) << "once " << after_once << " outer " << after_outer;
 }
