@@ -13,6 +13,9 @@
 //     `resolution`, seeded by seed) position_error_texels=0 (each position's true centre off by a
 //     Gaussian of this rms per coordinate, all wavelengths alike; the recovery gets the stated
 //     ones) zero_mean_errors=0 (1: the drawn offsets' mean removed) calibrate=none|positions
+//     (position outer loop, docs/recovery.md round 5:) outer_passes register_radius outer_tolerance
+//     outer_fields=1 register_check=0 (1: after the run, register every position at the final
+//     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <chrono>
@@ -29,6 +32,7 @@
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/optim.h"
+#include "recovery/recover_positions.h"
 #include "wavebrdf/recover.h"
 
 using namespace wavebrdf;
@@ -177,6 +181,10 @@ int main(int argc, char** argv) try {
     if (args.count("blur_first_stage")) rs.blur_positions_first_stage = std::stoi(args["blur_first_stage"]);
     if (args.count("blur_radius")) rs.blur_positions_radius_texels = std::stod(args["blur_radius"]);
     if (args.count("position_folds")) rs.field_position_folds = std::stoi(args["position_folds"]);
+    set_int("outer_passes", rs.position_outer_passes);
+    if (args.count("register_radius")) rs.position_register_radius_texels = std::stod(args["register_radius"]);
+    if (args.count("outer_tolerance")) rs.position_outer_tolerance_texels = std::stod(args["outer_tolerance"]);
+    if (args.count("outer_fields")) rs.position_outer_fields = args["outer_fields"] == "1";
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
@@ -223,6 +231,35 @@ int main(int argc, char** argv) try {
         std::printf("POSITIONS error_rms_texels=%.4f calibrated_rms_texels=%.4f mean_error_texels=(%.4f, %.4f)\n",
                     std::sqrt(t2 / (2 * n)) / texel_um, std::sqrt(e2 / (2 * n)) / texel_um, mt[0] / texel_um,
                     mt[1] / texel_um);
+        // register_check=1: every position registered at the final heights (the outer loop's
+        // registration, recover_positions.h) from the calibrated offsets, and its error.
+        if (get("register_check", "0") == "1") {
+            std::vector<std::size_t> index;
+            const std::size_t count = detail::gather_positions(observations, index, serial_communicator()).size();
+            std::vector<double> off(2 * count, 0.0);
+            for (std::size_t i = 0; i < index.size(); ++i)
+                for (int c = 0; c < 2; ++c) off[2 * index[i] + c] = calibration.position_offsets_um[i][c];
+            const auto error_rms = [&](const std::vector<double>& o) {
+                std::array<double, 2> m{0, 0};
+                for (std::size_t i = 0; i < index.size(); ++i)
+                    for (int c = 0; c < 2; ++c) m[c] += o[2 * index[i] + c] / n;
+                double s2 = 0.0;
+                for (std::size_t i = 0; i < index.size(); ++i)
+                    for (int c = 0; c < 2; ++c) {
+                        const double d = o[2 * index[i] + c] - m[c] - (obs_error[i][c] - mt[c]);
+                        s2 += d * d;
+                    }
+                return std::sqrt(s2 / (2 * n)) / texel_um;
+            };
+            const double radius = std::stod(get("register_radius", "2"));
+            const double moved = detail::register_positions(
+                observations, index, estimate, rs, calibration.sigma_p_scale > 0 ? calibration.sigma_p_scale : 1.0,
+                radius, 0.5, off, serial_communicator());
+            std::printf(
+                "REGISTER radius_texels=%g moved_rms_texels=%.4f before_rms_texels=%.4f "
+                "after_rms_texels=%.4f\n",
+                radius, moved, std::sqrt(e2 / (2 * n)) / texel_um, error_rms(off));
+        }
     }
     std::printf(
         "RESULT size=%d texel_um=%g corr_texels=%g sigma_p_um=%g step_um=%.3f positions=%zu resolution=%d "

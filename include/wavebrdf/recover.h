@@ -308,6 +308,18 @@ struct RecoverSettings {
     // the object refitted to the other folds' observations. 0: every position against the one
     // object fitted to all (the default). Measured not to help yet (docs/recovery.md). Valid: 0, 2 … 4.
     int field_position_folds = 0;
+    // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration:
+    // positions", round 5): after stage 3, every position is registered on its own at the final
+    // heights (a grid search of its full-model loss over ± position_register_radius_texels in
+    // half-texel steps about its offset, then a parabola), and the field stage (from the final
+    // heights, with position_outer_fields) and stage 3 run again from the registered positions;
+    // at most this many times, stopping when a registration moves the offsets by less than
+    // position_outer_tolerance_texels rms. 0: off; −1: the library's default (recover.cpp,
+    // k_position_outer_passes; docs/recovery.md says what it is and why).
+    int position_outer_passes = -1;
+    double position_register_radius_texels = 2.0;
+    double position_outer_tolerance_texels = 0.05;
+    bool position_outer_fields = true;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -65,6 +65,10 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i) {
 
 namespace {
 
+// RecoverSettings::position_outer_passes = −1 (the default): outer passes of position
+// self-calibration (docs/recovery.md, "Self-calibration: positions", round 5).
+constexpr int k_position_outer_passes = 0;
+
 // recover_heights' stages, after its checks: `by_lambda` holds this rank's single-wavelength
 // separable observations, with an entry (maybe empty) for every rank's wavelengths;
 // `observations_total` counts all ranks' observations.
@@ -358,15 +362,44 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     }
 
     // Stage 3: the full model (with the positions refined as well: recover_positions.h).
-    const Heightfield unwrapped = estimate;
+    Heightfield unwrapped = estimate;
     std::vector<std::array<double, 2>> refined_offsets;  // per observation (positions calibrated)
     double refined_sigma_scale = 1.0;
     if (settings.refine_iterations > 0 && settings.calibrate.positions) {
         std::vector<std::array<double, 2>> offsets;
         std::vector<double> exposures;
+        std::vector<double> position_offsets;  // per gathered position (2 each, µm)
         estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, settings,
-                                                        report, comm, offsets, offsets_um, &exposures, &sigma_scale);
+                                                        report, comm, offsets, offsets_um, &exposures, &sigma_scale,
+                                                        &position_offsets);
         if (stopped) return estimate;
+        // The outer loop (docs/recovery.md, "Self-calibration: positions", round 5): every
+        // position registered on its own at the final heights (a grid search of its full-model
+        // loss), then the field stage (from the final heights) and stage 3 again at the
+        // registered positions, until the registration moves the offsets by less than
+        // position_outer_tolerance_texels rms.
+        const int outer_passes = settings.position_outer_passes >= 0 ? settings.position_outer_passes
+                                                                      : k_position_outer_passes;
+        for (int outer = 0; outer < outer_passes; ++outer) {
+            const double moved = detail::register_positions(observations, position_of, estimate, settings,
+                                                            sigma_scale, settings.position_register_radius_texels,
+                                                            0.5, position_offsets, comm);
+            if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
+            if (moved < settings.position_outer_tolerance_texels) break;
+            offsets_um = position_offsets;
+            if (!white && settings.position_outer_fields) {
+                lambdas.clear();
+                fields.clear();
+                if (!field_stage()) return estimate;
+                unwrap_fields();
+                if (!report("unwrap", outer + 1, 0.0, &estimate)) return estimate;
+                unwrapped = estimate;
+            }
+            estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate,
+                                                            settings, report, comm, offsets, offsets_um, &exposures,
+                                                            &sigma_scale, &position_offsets);
+            if (stopped) return estimate;
+        }
         refined_offsets = offsets;
         refined_sigma_scale = sigma_scale;
         if (calibration) {
@@ -564,6 +597,18 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
+    if (settings.position_outer_passes < -1 || settings.position_outer_passes > 100)
+        throw std::invalid_argument("recover_heights: position outer passes " +
+                                    std::to_string(settings.position_outer_passes) +
+                                    " is invalid; expected 0 ... 100 (-1: the default)");
+    if (!(settings.position_register_radius_texels >= 0.0 && settings.position_register_radius_texels <= 8.0))
+        throw std::domain_error("recover_heights: position register radius " +
+                                std::to_string(settings.position_register_radius_texels) +
+                                " texels is invalid; expected 0 ... 8");
+    if (!(settings.position_outer_tolerance_texels >= 0.0 && std::isfinite(settings.position_outer_tolerance_texels)))
+        throw std::domain_error("recover_heights: position outer tolerance " +
+                                std::to_string(settings.position_outer_tolerance_texels) +
+                                " texels is invalid; expected a finite value >= 0");
     if (!(std::isfinite(settings.field_lambda_min_um) && settings.field_lambda_min_um >= 0.0))
         throw std::domain_error("recover_heights: field_lambda_min_um " + std::to_string(settings.field_lambda_min_um) +
                                 " is invalid; expected a finite wavelength >= 0 um (0: every wavelength)");

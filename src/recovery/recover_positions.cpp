@@ -6,6 +6,8 @@
 #include <cmath>
 #include <memory>
 #include <omp.h>
+#include <stdexcept>
+#include <string>
 
 #include "core/exact_sum.h"
 #include "core/parallel.h"
@@ -37,6 +39,112 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 
 namespace {
 
+// One grid of register_positions (recover_positions.h): the best point of the grid, then the
+// parabola. Returns nothing; offsets_um is updated.
+void register_grid(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                   const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                   double radius_texels, double step_texels, bool parabola, std::vector<double>& offsets_um,
+                   const Communicator& comm) {
+    if (!(radius_texels >= 0.0) || !(step_texels > 0.0) || !(radius_texels / step_texels <= 16.0))
+        throw std::invalid_argument("register_positions: radius " + std::to_string(radius_texels) + " / step " +
+                                    std::to_string(step_texels) +
+                                    " texels invalid; expected radius >= 0, step > 0, radius/step <= 16");
+    if (index.size() != observations.size())
+        throw std::invalid_argument("register_positions: " + std::to_string(index.size()) + " position indices for " +
+                                    std::to_string(observations.size()) + " observations; expected one each");
+    const std::size_t positions = offsets_um.size() / 2;
+    for (std::size_t i = 0; i < index.size(); ++i)
+        if (offsets_um.size() % 2 != 0 || index[i] >= positions)
+            throw std::invalid_argument("register_positions: observation " + std::to_string(i) + "'s position " +
+                                        std::to_string(index[i]) + " is outside the " + std::to_string(positions) +
+                                        " positions' offsets given");
+    const int half = int(std::floor(radius_texels / step_texels + 1e-9));
+    const int side = 2 * half + 1;
+    const std::size_t candidates = std::size_t(side) * side;
+    const double texel_um = heights.texel_um();
+    // Per position and candidate, the sum of its observations' losses (exact, every rank's), and
+    // per position its count of observations (whether it has any).
+    std::vector<double> losses;
+    ExactParallelSum exact_sum(positions * (candidates + 1));
+    std::vector<double> total{double(observations.size())};  // every rank's (integers: exact)
+    comm.allreduce_sum(total);
+    const double scale = total[0] > 0.0 ? 1.0 / total[0] : 1.0;
+    std::vector<int> row0{0};
+    exact_sum.run(observations.size(), comm, losses, [&](std::size_t i, ExactScratch& scratch) {
+        const Observation& o = observations[i];
+        const std::size_t p = index[i];
+        std::vector<double>& out = scratch.vector();
+        std::vector<int> columns(candidates + 1);
+        for (std::size_t c = 0; c < candidates; ++c) {
+            Query q = o.query;
+            q.x_um += offsets_um[2 * p] + texel_um * step_texels * (int(c / std::size_t(side)) - half);
+            q.y_um += offsets_um[2 * p + 1] + texel_um * step_texels * (int(c % std::size_t(side)) - half);
+            q.sigma_p_um *= sigma_scale;
+            SlicePlan<float> plan(heights, q, o.lambdas_um, o.resolution, o.channels(), {}, false);
+            const std::vector<float>& f = plan.forward();
+            std::vector<double> model(f.begin(), f.end());
+            if (settings.calibrate.exposure) {
+                const double exposure = slice_exposure(f.data(), o.reference.data(),
+                                                       std::min(f.size(), o.reference.size()));
+                for (double& m : model) m *= exposure;
+            }
+            out[p * candidates + c] = scale *
+                                      loss_value(settings.refine_loss, model, o.reference, o.channels(), nullptr);
+            columns[c] = int(p * candidates + c);
+        }
+        out[positions * candidates + p] = 1.0;
+        columns[candidates] = int(positions * candidates + p);
+        scratch.take_box(row0, columns, 1);
+        return 0.0;
+    });
+    for (std::size_t p = 0; p < positions; ++p) {
+        if (losses[positions * candidates + p] == 0.0) continue;  // no observation here
+        const double* l = &losses[p * candidates];
+        std::size_t best = candidates / 2;  // no shift unless a smaller loss
+        for (std::size_t c = 0; c < candidates; ++c)
+            if (l[c] < l[best]) best = c;
+        const int a = int(best / std::size_t(side)), b = int(best % std::size_t(side));
+        // The parabola's vertex through (−1, 0, +1) steps about the best point, per coordinate.
+        const auto vertex = [](double minus, double centre, double plus) {
+            const double curvature = minus - 2.0 * centre + plus;
+            if (!(curvature > 0.0)) return 0.0;
+            return std::clamp(0.5 * (minus - plus) / curvature, -0.5, 0.5);
+        };
+        double sx = step_texels * (a - half), sy = step_texels * (b - half);
+        if (parabola && a > 0 && a + 1 < side)
+            sx += step_texels * vertex(l[std::size_t(a - 1) * side + b], l[best], l[std::size_t(a + 1) * side + b]);
+        if (parabola && b > 0 && b + 1 < side)
+            sy += step_texels * vertex(l[std::size_t(a) * side + b - 1], l[best], l[std::size_t(a) * side + b + 1]);
+        offsets_um[2 * p] += texel_um * sx;
+        offsets_um[2 * p + 1] += texel_um * sy;
+    }
+}
+
+}  // namespace
+
+double register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                          const Communicator& comm) {
+    const std::vector<double> start = offsets_um;
+    // Coarse to fine: ± radius in steps of 2·step, then ± step in steps of step about the best.
+    if (radius_texels > step_texels && step_texels > 0.0) {
+        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, 2.0 * step_texels, false,
+                      offsets_um, comm);
+        register_grid(observations, index, heights, settings, sigma_scale, step_texels, step_texels, true, offsets_um,
+                      comm);
+    } else {
+        register_grid(observations, index, heights, settings, sigma_scale, radius_texels, step_texels, true, offsets_um,
+                      comm);
+    }
+    const double texel_um = heights.texel_um();
+    double moved_sq = 0.0;
+    for (std::size_t k = 0; k < start.size(); ++k) moved_sq += (offsets_um[k] - start[k]) * (offsets_um[k] - start[k]);
+    return start.empty() ? 0.0 : std::sqrt(moved_sq / double(start.size())) / texel_um;
+}
+
+namespace {
+
 // The offsets in µm (mean removed per coordinate) from the variables t (texels) that follow
 // the heights in x.
 std::vector<double> offsets_from(const std::vector<double>& x, std::size_t cells, std::size_t positions,
@@ -59,7 +167,8 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um,
-                                         std::vector<double>* exposures_out, double* sigma_scale) {
+                                         std::vector<double>* exposures_out, double* sigma_scale,
+                                         std::vector<double>* position_offsets_out) {
     std::vector<std::size_t> index;
     const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
     const std::size_t cells = estimate.values().size(), count = positions.size();
@@ -165,8 +274,8 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
         const int before = done;
         lbfgs_minimize(objective, x, round, [&](int it, double value) {
             done = before + it;
-            const Heightfield current =
-                flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+            const Heightfield current = flat.with_values(
+                std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
             if (!report("refine", done, value, &current)) return go_on = false;
             return value > settings.refine_relative_tolerance * reference_loss;
         });
@@ -186,8 +295,8 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
             },
             [&](int round, double s, double value) {
                 set_sigma(s);
-                const Heightfield current =
-                    flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+                const Heightfield current = flat.with_values(
+                    std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
                 if (!report("calibrate:sigma", round, value, &current)) return go_on = false;
                 refine(round + 1 < k_sigma_rounds ? std::max(1, settings.refine_iterations / (2 * k_sigma_rounds))
                                                   : std::max(1, settings.refine_iterations - done));
@@ -204,6 +313,7 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
         if (exposures_out) *exposures_out = exposures;
     }
     const std::vector<double> off = offsets_from(x, cells, count, texel_um);
+    if (position_offsets_out) *position_offsets_out = off;
     offsets_um.resize(observations.size());
     for (std::size_t i = 0; i < observations.size(); ++i) offsets_um[i] = {off[2 * index[i]], off[2 * index[i] + 1]};
     return flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));

@@ -35,6 +35,26 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 
 // The field stage's position correction: field_positions.h.
 
+// Registration at fixed heights (the outer loop of docs/recovery.md, "Self-calibration:
+// positions", round 5): every gathered position's offset (offsets_um, 2 per position, µm, every
+// rank's) moved where the sum of its observations' losses (all its wavelengths, the full slice
+// model, settings.refine_loss, each slice's exposure its energy ratio with
+// settings.calibrate.exposure, every σ_p × sigma_scale) is smallest, coarse to fine: the best
+// point of the grid {offset + 2·step·(a, b): |a|, |b| ≤ radius/(2·step)} (texels), then of the
+// grid ± step in steps of step about it (radius ≤ step: one grid ± radius in steps of step);
+// ties: the first, and the offset so far unless a smaller loss. The last grid is followed by a
+// parabola through the best point and its grid neighbours, per coordinate (its vertex kept
+// within half a step; none at the grid's edge). index[i]: observation i's position
+// (gather_positions). The offsets' mean is left in. Collective: each position's losses are
+// summed exactly over its observations on every rank (core/exact_sum.h), so 1, 2, 3 ranks and
+// any thread count give the same bits. Returns the rms change (texels) over positions and
+// coordinates. Throws std::invalid_argument for radius < 0, step ≤ 0, radius/(2·step) > 16 or
+// offsets_um not 2 per position.
+double register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                          const Communicator& comm);
+
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
 // (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all
 // ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
@@ -45,12 +65,14 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 // sigma_scale (when given): every σ_p is used × *sigma_scale; with settings.calibrate.sigma the
 // scale is refined as well, in the rounds of calibration_detail.h's refine_sigma_scale (a
 // golden-section search from *sigma_scale at fixed heights and offsets, then L-BFGS on both),
-// and *sigma_scale receives it.
+// and *sigma_scale receives it. position_offsets_out (when given) receives the offsets per
+// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them.
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {},
-                                         std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr);
+                                         std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr,
+                                         std::vector<double>* position_offsets_out = nullptr);
 
 }  // namespace wavebrdf::detail
