@@ -6,6 +6,7 @@
 #include "test_util.h"
 
 #include <Eigen/Dense>
+#include <omp.h>
 
 #include <cmath>
 #include <iostream>
@@ -299,6 +300,45 @@ TEST(OptimTest, LbfgsFloatHistoryConvergesAndContinuesBitForBit) {
     rest.max_iterations = 18;
     lbfgs_minimize(quadratic, part, rest, {}, &state);
     EXPECT_EQ(part, whole) << "not bitwise identical to the uninterrupted run";
+}
+
+// Long vectors (≥ 2^17 values, the field stage's band spectrum) run the two-loop recursion on
+// all threads with chunked sums: the iterates must be the same bits on 1 and 2 threads, in
+// double and in float history, and the minimisation must still converge.
+TEST(OptimTest, LbfgsLongVectorsGiveTheSameBitsOnAnyThreadCount) {
+    const int n = (1 << 17) + 4099;  // not a whole number of chunks
+    std::vector<double> lambda(n), c = uniform_vector(std::size_t(n), -1.0, 1.0, 34);
+    for (int i = 0; i < n; ++i) lambda[std::size_t(i)] = std::pow(10.0, 2.0 * double(i % 97) / 96.0);
+    const auto quadratic = [&](const std::vector<double>& v, std::vector<double>& g) {
+        double f = 0.0;
+        for (int i = 0; i < n; ++i) {
+            const std::size_t k = std::size_t(i), next = std::size_t((i + 1) % n);
+            const double d = v[k] - c[k], e = v[next] - c[next];
+            f += 0.5 * lambda[k] * d * d + 0.25 * d * e;
+            g[k] += lambda[k] * d + 0.25 * e;
+            g[next] += 0.25 * d;
+        }
+        return f;
+    };
+    for (const bool in_float : {false, true}) {
+        LbfgsOptions o;
+        o.max_iterations = 40;
+        o.gradient_tolerance = 0.0;
+        o.float_history = in_float;
+        std::vector<std::vector<double>> x;
+        std::vector<double> value;
+        for (const int threads : {1, 2}) {
+            const int before = omp_get_max_threads();
+            omp_set_num_threads(threads);
+            x.emplace_back(std::size_t(n), 0.0);
+            value.push_back(lbfgs_minimize(quadratic, x.back(), o).value);
+            omp_set_num_threads(before);
+        }
+        EXPECT_EQ(x[0], x[1]) << "float history " << in_float;
+        std::vector<double> g0(std::size_t(n), 0.0);
+        const double start = quadratic(std::vector<double>(std::size_t(n), 0.0), g0);
+        EXPECT_LT(value[0], 1e-3 * start) << "float history " << in_float;
+    }
 }
 
 TEST(OptimTest, LbfgsCallbackCanStopAndCountsEvaluations) {

@@ -16,6 +16,7 @@
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/slice_plan.h"
+#include "recovery/field_operator_detail.h"
 
 namespace wavebrdf {
 namespace {
@@ -176,6 +177,52 @@ TEST(FieldOperator, SharedFactorsMatchDirectSumAndAdjoint) {
         EXPECT_GT(std::abs(lhs), 1e-3);
         EXPECT_NEAR(lhs.real(), rhs.real(), 1e-11 * std::abs(lhs)) << "lambda " << lambda;
         EXPECT_NEAR(lhs.imag(), rhs.imag(), 1e-11 * std::abs(lhs)) << "lambda " << lambda;
+    }
+}
+
+// The retrieval's single-precision products (field_operator_detail.h: three real products per
+// complex one) against the double operator: |Ψ| on the box, and the adjoint identity of the
+// float pair. λ 0.5 folds (du·d = 1/9), 0.47 does not; both product orders (a 12 × 11 tile with
+// refine 3 at n = 24 and one with refine 9 at n = 48, the recovery's footprint).
+TEST(FieldOperator, SinglePrecisionProductsMatchTheDoubleOperator) {
+    struct Case {
+        int rows, cols, refine, n;
+        double texel, sigma_p;
+    };
+    for (const Case c : {Case{12, 11, 3, 24, 2.0, 2.5}, Case{12, 12, 9, 48, 2.0, 3.0}}) {
+        const Query q = test::make_query(Model::OHS, 7.3, 15.9, c.sigma_p, 0.3, -0.2);
+        const int fr = c.rows * c.refine, fc = c.cols * c.refine;
+        const auto object = random_complex(std::size_t(fr) * fc, 23);
+        for (double lambda : {0.5, 0.47}) {
+            const FieldOperator op(c.rows, c.cols, c.texel, q, lambda, c.n, c.refine);
+            const std::vector<Complex> field = op.forward(object);
+            Eigen::MatrixXcf psi;
+            wavebrdf::detail::field_forward_unphased(op, object.data(), psi);
+            int a0 = 0, b0 = 0;
+            (void)wavebrdf::detail::field_amplitude_box(op, a0, b0);
+            double peak = 0.0, worst = 0.0;
+            for (Eigen::Index a = 0; a < psi.rows(); ++a)
+                for (Eigen::Index b = 0; b < psi.cols(); ++b) {
+                    const double exact = std::abs(field[std::size_t(a0 + a) * c.n + std::size_t(b0 + b)]);
+                    peak = std::max(peak, exact);
+                    worst = std::max(worst, std::abs(exact - double(std::abs(psi(a, b)))));
+                }
+            EXPECT_GT(peak, 1e-3);
+            EXPECT_LT(worst, 1e-5 * peak) << "lambda " << lambda << ", refine " << c.refine;
+
+            // ⟨G, A x⟩ = ⟨Aᴴ G, x⟩ for the float pair.
+            const auto gv = random_complex(std::size_t(psi.size()), 24);
+            Eigen::MatrixXcf g(psi.rows(), psi.cols());
+            for (Eigen::Index k = 0; k < g.size(); ++k) g(k) = std::complex<float>(gv[std::size_t(k)]);
+            std::vector<Complex> atg(object.size(), 0.0);
+            wavebrdf::detail::field_adjoint_unphased_add(op, g, atg.data());
+            Complex lhs = 0.0, rhs = 0.0;
+            for (Eigen::Index k = 0; k < g.size(); ++k) lhs += std::conj(Complex(g(k))) * Complex(psi(k));
+            for (std::size_t k = 0; k < object.size(); ++k) rhs += std::conj(atg[k]) * object[k];
+            EXPECT_GT(std::abs(lhs), 1e-3);
+            EXPECT_NEAR(lhs.real(), rhs.real(), 1e-5 * std::abs(lhs)) << "lambda " << lambda;
+            EXPECT_NEAR(lhs.imag(), rhs.imag(), 1e-5 * std::abs(lhs)) << "lambda " << lambda;
+        }
     }
 }
 

@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "core/denormals.h"
 #include "test_util.h"
 #include "wavebrdf/adjoint.h"
 #include "wavebrdf/spectrum.h"
@@ -83,6 +84,23 @@ void expect_plan_matches_one_call_functions() {
 }
 
 }  // namespace
+
+// FlushDenormals (core/denormals.h, set by float plans): inside its scope a float product
+// below FLT_MIN is 0 and a denormal operand counts as 0; afterwards gradual underflow is back.
+TEST(SlicePlanTest, FlushDenormalsScopeFlushesAndRestores) {
+    volatile float tiny = 1e-20f, denormal = 1e-40f, one = 1.0f;
+    ASSERT_GT(tiny * tiny, 0.0f) << "gradual underflow is off before the scope";
+    {
+        const wavebrdf::detail::FlushDenormals flush;
+#if defined(__SSE2__)
+        EXPECT_EQ(tiny * tiny, 0.0f);
+        EXPECT_EQ(denormal * one, 0.0f);
+#endif
+        EXPECT_EQ(tiny * one, 1e-20f);  // normal values are untouched
+    }
+    EXPECT_GT(tiny * tiny, 0.0f) << "the caller's mode was not put back";
+    EXPECT_GT(denormal * one, 0.0f);
+}
 
 TEST(SlicePlanTest, MatchesOneCallFunctionsBitForBitDouble) { expect_plan_matches_one_call_functions<double>(); }
 TEST(SlicePlanTest, MatchesOneCallFunctionsBitForBitFloat) { expect_plan_matches_one_call_functions<float>(); }
