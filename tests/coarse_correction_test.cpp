@@ -49,7 +49,7 @@ TEST(CoarseBasis, LevelsAndSizes) {
 // ⟨B c, g⟩ = ⟨c, Bᵀ g⟩ for random c and g (a non-square surface, non-integer node spacing).
 TEST(CoarseBasis, AdjointDotProductIdentity) {
     const int rows = 40, cols = 56;
-    const CoarseBasis b(rows, cols, 7.0, 1.7);
+    const CoarseBasis b(rows, cols, 5.0, 1.7);  // 8 × 11 and 4 × 6 nodes
     ASSERT_GE(b.levels(), 2);
     const std::vector<double> c = test::uniform_vector(b.size(), -1.0, 1.0, 3);
     const std::vector<double> g = test::uniform_vector(std::size_t(rows * cols), -1.0, 1.0, 4);
@@ -180,6 +180,6 @@ TEST(CoarseBasis, RemovesASmoothUndulationWherePlainLbfgsDoesNot) {
     lbfgs_minimize(detail::coarse_objective(f, basis), z, lo);
     const double coarse_rmse = height_rel_rmse(truth.with_values(detail::coarse_heights(z, basis)), truth);
     std::cout << "undulation: start " << before << ", plain " << plain_rmse << ", coarse " << coarse_rmse << "\n";
-    EXPECT_GT(plain_rmse, 0.3 * before);
-    EXPECT_LT(coarse_rmse, 0.1 * before);
+    EXPECT_GT(plain_rmse, 0.25 * before);  // measured 0.34
+    EXPECT_LT(coarse_rmse, 0.1 * before);  // measured 0.03
 }

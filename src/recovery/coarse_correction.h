@@ -40,8 +40,8 @@ public:
 private:
     // One axis of a level: for each texel the 4 nodes whose β reaches it and their weights.
     struct Axis {
-        std::vector<int> node;        // texels × 4
-        std::vector<double> weight;   // texels × 4
+        std::vector<int> node;       // texels × 4
+        std::vector<double> weight;  // texels × 4
     };
     struct Level {
         int m_rows = 0, m_cols = 0;
