@@ -45,10 +45,11 @@ struct RecoverArgs {
     std::string method = "pipeline";
     int field_iterations = -1, refine_iterations = -1, epochs = 1000;
     int field_tile_threshold = -1, field_tile_core = -1;  // -1: the library's
-    double refine_coarse_spacing = -1.0, refine_coarse_weight = -1.0;  // < 0: the library's
-    int refine_coarse_iterations = -1;
     std::string white_smoothness;                          // --white-smoothness W1,W2,... or none ("": the library's)
     int white_smoothness_iterations = -1;                  // -1: the library's
+    // --refine-coarse-*: the refinement's coarse space (< 0: the library's)
+    double refine_coarse_spacing = -1.0, refine_coarse_weight = -1.0;
+    int refine_coarse_iterations = -1;
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;          // 0: the physical memory
     std::string calibrate = "none";      // --calibrate (calibration.h)
