@@ -47,6 +47,9 @@ struct RecoverArgs {
     int field_tile_threshold = -1, field_tile_core = -1;  // -1: the library's
     std::string white_smoothness;                          // --white-smoothness W1,W2,... or none ("": the library's)
     int white_smoothness_iterations = -1;                  // -1: the library's
+    // --refine-coarse-*: the refinement's coarse space (< 0: the library's)
+    double refine_coarse_spacing = -1.0, refine_coarse_weight = -1.0;
+    int refine_coarse_iterations = -1;
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;          // 0: the physical memory
     std::string calibrate = "none";      // --calibrate (calibration.h)
@@ -135,6 +138,9 @@ void run(const RecoverArgs& a, const Communicator& comm) {
         options.white_smoothness = parse_list("--white-smoothness", a.white_smoothness);
     options.white_smoothness_iterations = a.white_smoothness_iterations;
     options.field_tile_core = a.field_tile_core;
+    options.refine_coarse_spacing = a.refine_coarse_spacing;
+    options.refine_coarse_weight = a.refine_coarse_weight;
+    options.refine_coarse_iterations = a.refine_coarse_iterations;
     options.epochs = a.epochs;
     options.seed = a.seed;
     options.max_memory_gb = a.max_memory_gb;
@@ -324,6 +330,15 @@ void add_recover_command(CLI::App& app) {
                     "field stage on tiles along an axis of more than N texels (0: never; default: the library's)");
     cmd->add_option("--field-tile-core", a->field_tile_core,
                     "field tiles' core size in texels, 8 to 4096 (default: the library's)");
+    cmd->add_option("--refine-coarse-spacing", a->refine_coarse_spacing,
+                    "refinement's coarse space: B-spline node spacing in texels, doubled per level (0: off; default: "
+                    "the library's)");
+    cmd->add_option("--refine-coarse-weight", a->refine_coarse_weight,
+                    "refinement's coarse space: weight of the coarse variables in the joint L-BFGS (0: none; "
+                    "default: the library's)");
+    cmd->add_option("--refine-coarse-iterations", a->refine_coarse_iterations,
+                    "refinement's coarse space: L-BFGS iterations on the coarse coefficients alone after each round "
+                    "(default: the library's)");
     cmd->add_option("--white-smoothness", a->white_smoothness,
                     "white light: the smoothness continuation's weights, largest first, comma-separated (at most "
                     "64, each 0 to 1e12), or none (default: the library's, 10,1,0.1,0.01)");

@@ -260,6 +260,15 @@ struct RecoverSettings {
     int refine_iterations = 40;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
+    // Stage 3's coarse space (docs/scale.md, "The whole-surface undulation"): levels of periodic
+    // cubic B-splines of node spacing refine_coarse_spacing texels, doubled while an axis keeps
+    // ≥ 4 nodes (0: off). With refine_coarse_weight > 0 L-BFGS runs on (x, c), h = x + weight·B c
+    // (mean-free; gradient Bᵀ∇h, no new adjoint): the smooth directions get steps of their own
+    // size. With refine_coarse_iterations > 0, after each round of stage 3 L-BFGS on c alone
+    // (h fixed) for that many iterations.
+    double refine_coarse_spacing = 0.0;
+    double refine_coarse_weight = 1.0;
+    int refine_coarse_iterations = 0;
     Loss refine_loss{LossKind::Amplitude, 1.0};
     // Self-calibration (calibration.h): parts of the acquisition refined with the heights.
     CalibrationSettings calibrate;

@@ -67,6 +67,10 @@ struct RecoveryOptions {
     // Field tiles (RecoverSettings::field_tile_*): threshold 0 … 10^6 (0: never tiled), core 8 …
     // 4096 texels; < 0: the default.
     int field_tile_threshold = -1, field_tile_core = -1;
+    // Stage 3's coarse space (RecoverSettings::refine_coarse_*): node spacing in texels (0: off),
+    // the joint variables' weight (0: none) and coarse-only iterations per round; < 0: the default.
+    double refine_coarse_spacing = -1.0, refine_coarse_weight = -1.0;
+    int refine_coarse_iterations = -1;
     // White light's smoothness continuation (RecoverSettings::white_smoothness, largest first;
     // at most 64 weights, each 0 … 10^12; an empty list: none; unset: the default) and its
     // iterations per weight (≤ 10^7; < 0: the default).

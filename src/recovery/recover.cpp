@@ -23,6 +23,7 @@
 #include "recovery/field_proxy.h"
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
+#include "recovery/coarse_correction.h"
 #include "recovery/recover_field_model.h"
 #include "recovery/white_light.h"
 #include "recovery/sigma_search.h"
@@ -480,16 +481,52 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                       observations_total;
         bool go_on = true;
         int done = 0;  // refinement iterations so far (the metrics' count across rounds)
+        // The coarse space (coarse_correction.h): none when off or the surface is too small.
+        const detail::CoarseBasis coarse(rows, cols,
+                                         settings.refine_coarse_spacing > 0.0 ? settings.refine_coarse_spacing
+                                                                              : double(std::max(rows, cols)),
+                                         settings.refine_coarse_weight > 0.0 ? settings.refine_coarse_weight : 1.0);
+        const bool coarse_on = settings.refine_coarse_spacing > 0.0 && coarse.size() > 0;
         const auto refine_heights = [&](int iterations) {
             LbfgsOptions round = lo;
             round.max_iterations = iterations;
             const int before = done;
-            lbfgs_minimize(objective, h, round, [&](int it, double value) {
-                done = before + it;
-                const Heightfield current = flat.with_values(h);
-                if (!report("refine", done, value, &current)) return go_on = false;
-                return value > settings.refine_relative_tolerance * reference_loss;
-            });
+            if (coarse_on && settings.refine_coarse_weight > 0.0) {
+                // L-BFGS on z = (x, c), h = x + B c.
+                std::vector<double> z(h.size() + coarse.size(), 0.0);
+                std::copy(h.begin(), h.end(), z.begin());
+                lbfgs_minimize(detail::coarse_objective(objective, coarse), z, round, [&](int it, double value) {
+                    done = before + it;
+                    h = detail::coarse_heights(z, coarse);
+                    const Heightfield current = flat.with_values(h);
+                    if (!report("refine", done, value, &current)) return go_on = false;
+                    return value > settings.refine_relative_tolerance * reference_loss;
+                });
+                h = detail::coarse_heights(z, coarse);
+            } else {
+                lbfgs_minimize(objective, h, round, [&](int it, double value) {
+                    done = before + it;
+                    const Heightfield current = flat.with_values(h);
+                    if (!report("refine", done, value, &current)) return go_on = false;
+                    return value > settings.refine_relative_tolerance * reference_loss;
+                });
+            }
+            if (coarse_on && settings.refine_coarse_iterations > 0 && go_on && !stopped) {
+                // L-BFGS on c alone, h fixed: the smooth directions by themselves.
+                const std::vector<double> h0 = h;
+                std::vector<double> c(coarse.size(), 0.0);
+                LbfgsOptions co = lo;
+                co.max_iterations = settings.refine_coarse_iterations;
+                lbfgs_minimize(detail::coarse_only_objective(objective, coarse, h0), c, co,
+                               [&](int it, double value) {
+                                   h = h0;
+                                   coarse.apply(c.data(), h);
+                                   const Heightfield current = flat.with_values(h);
+                                   return go_on = report("refine:coarse", it, value, &current);
+                               });
+                h = h0;
+                coarse.apply(c.data(), h);
+            }
         };
         if (settings.calibrate.sigma) {
             // σ_p: a golden-section search on log s at fixed heights, alternated with L-BFGS
@@ -609,6 +646,14 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::domain_error("recover_heights: position outer tolerance " +
                                 std::to_string(settings.position_outer_tolerance_texels) +
                                 " texels is invalid; expected a finite value >= 0");
+    validate_iterations(settings.refine_coarse_iterations, "recover_heights: refine coarse iterations");
+    if (!(std::isfinite(settings.refine_coarse_spacing) &&
+          (settings.refine_coarse_spacing == 0.0 || settings.refine_coarse_spacing >= 1.0)))
+        throw std::domain_error("recover_heights: refine_coarse_spacing " +
+                                std::to_string(settings.refine_coarse_spacing) + "; expected 0 (off) or >= 1 texel");
+    if (!(std::isfinite(settings.refine_coarse_weight) && settings.refine_coarse_weight >= 0.0))
+        throw std::domain_error("recover_heights: refine_coarse_weight " +
+                                std::to_string(settings.refine_coarse_weight) + "; expected finite and >= 0");
     if (!(std::isfinite(settings.field_lambda_min_um) && settings.field_lambda_min_um >= 0.0))
         throw std::domain_error("recover_heights: field_lambda_min_um " + std::to_string(settings.field_lambda_min_um) +
                                 " is invalid; expected a finite wavelength >= 0 um (0: every wavelength)");

@@ -331,6 +331,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
     if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
     if (options.field_tile_core >= 0) r.pipeline.field_tile_core = options.field_tile_core;
+    if (options.refine_coarse_spacing >= 0.0) r.pipeline.refine_coarse_spacing = options.refine_coarse_spacing;
+    if (options.refine_coarse_weight >= 0.0) r.pipeline.refine_coarse_weight = options.refine_coarse_weight;
+    if (options.refine_coarse_iterations >= 0) r.pipeline.refine_coarse_iterations = options.refine_coarse_iterations;
     if (options.white_smoothness) r.pipeline.white_smoothness = *options.white_smoothness;
     if (options.white_smoothness_iterations >= 0)
         r.pipeline.white_smoothness_iterations = options.white_smoothness_iterations;
