@@ -254,5 +254,82 @@ TEST(RoughnessPlan, FieldLambdaMinFallsBackToEveryWavelength) {
     EXPECT_EQ(fields[0], "field:0.6");
 }
 
+
+// RecoverSettings::refine_ladder_min_um: refused when negative or not finite; the rungs are the
+// single-wavelength slices' wavelengths ≥ it, longest first, then the refinement on every
+// slice; a rung's loss holds only the slices at wavelengths ≥ its own: with the 0.5 µm slices
+// replaced by others (three times as bright), every step of the rungs at 1.2 and 0.6 µm is the
+// same bit for bit, and the refinement on every slice is not (an 8² tile, 16² slices).
+TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
+    RecoverSettings bad;
+    bad.refine_ladder_min_um = -1.0;
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+    bad.refine_ladder_min_um = std::nan("");
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+    bad.refine_ladder_min_um = 1.0;
+    bad.refine_ladder_iterations = -1;
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+
+    RecoveryOptions options;
+    options.rows = options.cols = 8;
+    options.resolution = 16;
+    options.seed = 10301;
+    options.lambdas_um = {0.5, 0.6, 1.2};
+    PreparedRecovery prepared = prepare_recovery(options);
+    prepared.pipeline.field_lambda_min_um = 0.55;  // the 0.5 µm slices enter the refinement only
+    prepared.pipeline.refine_ladder_min_um = 0.55;
+    prepared.pipeline.refine_ladder_iterations = 6;
+    prepared.pipeline.refine_iterations = 6;
+    prepared.pipeline.model_check_iterations = 0;
+    const auto run = [](const PreparedRecovery& p) {
+        std::vector<StageMetrics> steps;
+        run_recovery(p, [&](const StageMetrics& m) {
+            if (m.stage.rfind("refine", 0) == 0) steps.push_back(m);
+            return true;
+        });
+        return steps;
+    };
+    const std::vector<StageMetrics> clean = run(prepared);
+    std::vector<std::string> order;
+    for (const StageMetrics& m : clean)
+        if (order.empty() || order.back() != m.stage) order.push_back(m.stage);
+    EXPECT_EQ(order, (std::vector<std::string>{"refine:1.2", "refine:0.6", "refine"}));
+
+    PreparedRecovery other = prepared;
+    int replaced = 0;
+    for (Observation& o : other.observations)
+        if (o.lambdas_um[0] < 0.55) {
+            for (double& v : o.reference) v *= 3.0;
+            ++replaced;
+        }
+    ASSERT_GT(replaced, 0);
+    const std::vector<StageMetrics> changed = run(other);
+    ASSERT_EQ(changed.size(), clean.size());
+    std::size_t rungs = 0, differ = 0;
+    for (std::size_t k = 0; k < clean.size(); ++k) {
+        ASSERT_EQ(changed[k].stage, clean[k].stage);
+        if (clean[k].stage != "refine") {
+            ++rungs;
+            EXPECT_EQ(changed[k].loss, clean[k].loss) << clean[k].stage << " step " << clean[k].iteration;
+            EXPECT_EQ(changed[k].height_rel_rmse, clean[k].height_rel_rmse) << clean[k].stage;
+        } else if (changed[k].loss != clean[k].loss) {
+            ++differ;
+        }
+    }
+    EXPECT_GT(rungs, 0u);
+    EXPECT_GT(differ, 0u);  // the 0.5 µm slices do enter the last round
+
+    // Off (0, the default) and a minimum above every wavelength: the refinement as before.
+    prepared.pipeline.refine_ladder_min_um = 0.0;
+    const std::vector<StageMetrics> off = run(prepared);
+    prepared.pipeline.refine_ladder_min_um = 100.0;
+    const std::vector<StageMetrics> above = run(prepared);
+    ASSERT_EQ(off.size(), above.size());
+    for (std::size_t k = 0; k < off.size(); ++k) {
+        EXPECT_EQ(off[k].stage, "refine");
+        EXPECT_EQ(above[k].loss, off[k].loss);
+    }
+}
+
 }  // namespace
 }  // namespace wavebrdf

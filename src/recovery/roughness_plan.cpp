@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>  // WBX-TEMP
 #include <stdexcept>
 #include <string>
 
@@ -74,6 +75,14 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
         for (double l = kLongLambdaFactor * plan.blur_error_um;
              l > kVisibleMaxUm && int(plan.long_lambdas_um.size()) < kMaxLongLambdas; l /= kLongLambdaFactor)
             plan.long_lambdas_um.push_back(std::ceil(10.0 * l - 1e-9) / 10.0);
+        if (const char* e = std::getenv("WBX_LONG")) {  // WBX-TEMP
+            plan.long_lambdas_um.clear();
+            for (std::string t = e; !t.empty();) {
+                const auto c = t.find(',');
+                plan.long_lambdas_um.push_back(std::stod(t.substr(0, c)));
+                t = c == std::string::npos ? "" : t.substr(c + 1);
+            }
+        }
         // Without long wavelengths only a short correlation gains from the longer field stage
         // (≈ 30 %); steep slopes do not (±4 µm: 4.98 % before, 5.49 % after on seed 6301).
         // With long wavelengths the longer schedule pays for steep slopes as well (±4 µm, seed 7301:
