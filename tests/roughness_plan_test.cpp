@@ -85,6 +85,8 @@ TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
     EXPECT_EQ(settings.blurred.iterations, defaults.blurred.iterations);
     EXPECT_EQ(settings.blurred.blur_widths, defaults.blurred.blur_widths);
     EXPECT_EQ(settings.refine_iterations, defaults.refine_iterations);
+    EXPECT_EQ(settings.refine_ladder_min_um, defaults.refine_ladder_min_um);
+    EXPECT_EQ(common.refine_ladder_min_um, 0.0);
     // ±2 µm and correlation 3 texels recovered with the defaults (docs/recovery.md): smooth too.
     EXPECT_FALSE(plan_for_roughness(4.0, 8.0, 2.0).rough);
     EXPECT_FALSE(plan_for_roughness(2.0, 6.0, 2.0).rough);
@@ -157,12 +159,19 @@ TEST(RoughnessPlan, LongWavelengthsStartTheFieldWithinAQuarterWave) {
     RecoverSettings settings;
     apply_roughness_plan(steep, settings);
     EXPECT_EQ(settings.field_lambda_min_um, steep.long_lambdas_um.back());
+    // ±4 µm at correlation 4 texels of 2 µm: 5.5 and 1.4 µm, and the refinement's ladder over
+    // both (rungs 5.5, 1.4, then every slice; measured: docs/recovery.md, round 5).
+    EXPECT_EQ(steep.long_lambdas_um, (std::vector<double>{5.5, 1.4}));
+    EXPECT_EQ(steep.refine_ladder_min_um, 1.4);
+    EXPECT_EQ(settings.refine_ladder_min_um, 1.4);
 
     const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
     EXPECT_TRUE(smooth.long_lambdas_um.empty());
     RecoverSettings defaults;
     apply_roughness_plan(smooth, defaults);
     EXPECT_EQ(defaults.field_lambda_min_um, 0.0);
+    EXPECT_EQ(smooth.refine_ladder_min_um, 0.0);
+    EXPECT_EQ(defaults.refine_ladder_min_um, 0.0);
     AcquisitionPlan acquisition;
     acquisition.lambdas_um = {0.5, 0.55};
     EXPECT_EQ(add_long_wavelengths(smooth, acquisition), 0);

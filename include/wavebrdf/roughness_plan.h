@@ -41,6 +41,11 @@ struct RoughnessPlan {
     // Rough surfaces: long wavelengths (µm, longest first) the acquisition adds and the field
     // stage runs at (empty: none; a smooth surface, or a range the visible ladder already covers).
     std::vector<double> long_lambdas_um;
+    // Rough surfaces with long wavelengths: the refinement's wavelength ladder
+    // (RecoverSettings::refine_ladder_min_um; 0: none): the shortest long wavelength, so the
+    // refinement runs on the longest wavelength's slices, then adds each shorter long one, then
+    // every slice at once (docs/recovery.md, "Rough surfaces", round 5).
+    double refine_ladder_min_um = 0.0;
     std::vector<std::string> notes;  // the choice, one line each
 };
 
@@ -56,7 +61,8 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
 
 // `settings` with the plan applied (field iterations raised to the plan's where it asks for
 // more; the field stage at the plan's long wavelengths only, RecoverSettings::field_lambda_min_um,
-// when it has them; nothing changed for a smooth surface).
+// and the refinement's wavelength ladder down to the shortest of them,
+// RecoverSettings::refine_ladder_min_um, when it has them; nothing changed for a smooth surface).
 void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings);
 
 // `acquisition` with the plan's long wavelengths appended to its wavelengths (those not longer

@@ -14,7 +14,6 @@
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/roughness_plan.h"
-#include <cstdlib> // WBX-TEMP
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
@@ -328,11 +327,6 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         apply_roughness_plan(rough, r.pipeline);
         r.notes.insert(r.notes.end(), rough.notes.begin(), rough.notes.end());
     }
-    // WBX-TEMP experiment knobs
-    if (const char* e = std::getenv("WBX_LADDER_MIN")) r.pipeline.refine_ladder_min_um = std::stod(e);
-    if (const char* e = std::getenv("WBX_LADDER_IT")) r.pipeline.refine_ladder_iterations = std::stoi(e);
-    if (const char* e = std::getenv("WBX_FIELD_PASSES")) r.pipeline.field_passes = std::stoi(e);
-    if (const char* e = std::getenv("WBX_FIELD_MIN")) r.pipeline.field_lambda_min_um = std::stod(e);
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
     if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
     if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
