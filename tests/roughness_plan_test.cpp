@@ -263,7 +263,6 @@ TEST(RoughnessPlan, FieldLambdaMinFallsBackToEveryWavelength) {
     EXPECT_EQ(fields[0], "field:0.6");
 }
 
-
 // RecoverSettings::refine_ladder_min_um: refused when negative or not finite; the rungs are the
 // single-wavelength slices' wavelengths ≥ it, longest first, then the refinement on every
 // slice; a rung's loss holds only the slices at wavelengths ≥ its own: with the 0.5 µm slices

@@ -457,9 +457,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // longest first, each from the last ("refine:λ" in the metrics), then every observation.
         if (!white && !settings.calibrate.sigma && settings.refine_ladder_min_um > 0.0 &&
             settings.refine_ladder_iterations > 0) {
-            for (auto it = by_lambda.rbegin(); it != by_lambda.rend() && it->first >= settings.refine_ladder_min_um &&
-                                               go_on && !stopped;
-                 ++it) {
+            for (auto it = by_lambda.rbegin();
+                 it != by_lambda.rend() && it->first >= settings.refine_ladder_min_um && go_on && !stopped; ++it) {
                 active.assign(observations.size(), 0);
                 for (std::size_t i = 0; i < observations.size(); ++i) {
                     const std::vector<double>& l = observations[i].lambdas_um;
@@ -584,7 +583,8 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::domain_error("recover_heights: field_lambda_min_um " + std::to_string(settings.field_lambda_min_um) +
                                 " is invalid; expected a finite wavelength >= 0 um (0: every wavelength)");
     if (!(std::isfinite(settings.refine_ladder_min_um) && settings.refine_ladder_min_um >= 0.0))
-        throw std::domain_error("recover_heights: refine_ladder_min_um " + std::to_string(settings.refine_ladder_min_um) +
+        throw std::domain_error("recover_heights: refine_ladder_min_um " +
+                                std::to_string(settings.refine_ladder_min_um) +
                                 " is invalid; expected a finite wavelength >= 0 um (0: no ladder)");
     validate_iterations(settings.refine_ladder_iterations, "recover_heights: refine ladder iterations");
     validate_iterations(settings.white_smoothness_iterations, "recover_heights: white smoothness iterations");
