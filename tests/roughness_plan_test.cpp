@@ -276,7 +276,7 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
     EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
     bad.refine_ladder_min_um = 1.0;
     bad.refine_ladder_iterations = -1;
-    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::invalid_argument);
 
     RecoveryOptions options;
     options.rows = options.cols = 8;
