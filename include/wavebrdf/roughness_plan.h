@@ -20,7 +20,8 @@
 // for a ladder of long wavelengths (an infrared source), the longest 4× that expected error (so
 // its phase error stays within a quarter turn), each next one at most 4× shorter, all longer
 // than the visible ladder; the field stage runs at these only (their heights start the
-// refinement, which fits every wavelength's slices). The model holds at any λ (the Gabor
+// refinement, which fits every wavelength's slices: first the longest wavelength's slices,
+// then each shorter long one's added, then every slice, RecoverSettings::refine_ladder_min_um). The model holds at any λ (the Gabor
 // kernels' tangent planes are better approximations the longer λ is; the slices' Nyquist size
 // 4D/λ falls with λ, so the visible wavelengths' slice size covers them).
 #include <string>
