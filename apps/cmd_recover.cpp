@@ -210,10 +210,11 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     auto on_step = [&](const StageMetrics& m) {
         if (!progress || m.stage != last.stage) {
             end_stage();
-            const long long total = m.stage.rfind("field", 0) == 0 ? r.pipeline.field.iterations
-                                    : m.stage == "refine"          ? r.pipeline.refine_iterations
-                                    : m.stage == "thesis"          ? r.thesis.epochs
-                                                                   : 1;
+            const long long total = m.stage.rfind("field", 0) == 0     ? r.pipeline.field.iterations
+                                    : m.stage == "refine"              ? r.pipeline.refine_iterations
+                                    : m.stage.rfind("refine:", 0) == 0 ? r.pipeline.refine_ladder_iterations
+                                    : m.stage == "thesis"              ? r.thesis.epochs
+                                                                       : 1;
             progress = std::make_unique<Progress>(m.stage, std::max<long long>(total, 1), !quiet);
         }
         char message[96];

@@ -366,6 +366,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     totals["blur:"] = prepared->pipeline.blurred.iterations;
     totals["field:"] = prepared->pipeline.field.iterations;
     totals["refine"] = prepared->pipeline.refine_iterations;
+    totals["refine:"] = prepared->pipeline.refine_ladder_iterations;  // the wavelength ladder's rungs
     totals["thesis"] = prepared->thesis.epochs;
     // Under MPI only rank 0 shows progress.
     PythonProgress progress("wrap_recover", callback, comm->is_root() ? quiet : py::object(py::bool_(true)), totals);

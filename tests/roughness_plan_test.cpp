@@ -85,6 +85,8 @@ TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
     EXPECT_EQ(settings.blurred.iterations, defaults.blurred.iterations);
     EXPECT_EQ(settings.blurred.blur_widths, defaults.blurred.blur_widths);
     EXPECT_EQ(settings.refine_iterations, defaults.refine_iterations);
+    EXPECT_EQ(settings.refine_ladder_min_um, defaults.refine_ladder_min_um);
+    EXPECT_EQ(common.refine_ladder_min_um, 0.0);
     // ±2 µm and correlation 3 texels recovered with the defaults (docs/recovery.md): smooth too.
     EXPECT_FALSE(plan_for_roughness(4.0, 8.0, 2.0).rough);
     EXPECT_FALSE(plan_for_roughness(2.0, 6.0, 2.0).rough);
@@ -157,12 +159,19 @@ TEST(RoughnessPlan, LongWavelengthsStartTheFieldWithinAQuarterWave) {
     RecoverSettings settings;
     apply_roughness_plan(steep, settings);
     EXPECT_EQ(settings.field_lambda_min_um, steep.long_lambdas_um.back());
+    // ±4 µm at correlation 4 texels of 2 µm: 5.5 and 1.4 µm, and the refinement's ladder over
+    // both (rungs 5.5, 1.4, then every slice; measured: docs/recovery.md, round 5).
+    EXPECT_EQ(steep.long_lambdas_um, (std::vector<double>{5.5, 1.4}));
+    EXPECT_EQ(steep.refine_ladder_min_um, 1.4);
+    EXPECT_EQ(settings.refine_ladder_min_um, 1.4);
 
     const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
     EXPECT_TRUE(smooth.long_lambdas_um.empty());
     RecoverSettings defaults;
     apply_roughness_plan(smooth, defaults);
     EXPECT_EQ(defaults.field_lambda_min_um, 0.0);
+    EXPECT_EQ(smooth.refine_ladder_min_um, 0.0);
+    EXPECT_EQ(defaults.refine_ladder_min_um, 0.0);
     AcquisitionPlan acquisition;
     acquisition.lambdas_um = {0.5, 0.55};
     EXPECT_EQ(add_long_wavelengths(smooth, acquisition), 0);
@@ -252,6 +261,82 @@ TEST(RoughnessPlan, FieldLambdaMinFallsBackToEveryWavelength) {
     });
     ASSERT_EQ(fields.size(), 1u);
     EXPECT_EQ(fields[0], "field:0.6");
+}
+
+// RecoverSettings::refine_ladder_min_um: refused when negative or not finite; the rungs are the
+// single-wavelength slices' wavelengths ≥ it, longest first, then the refinement on every
+// slice; a rung's loss holds only the slices at wavelengths ≥ its own: with the 0.5 µm slices
+// replaced by others (three times as bright), every step of the rungs at 1.2 and 0.6 µm is the
+// same bit for bit, and the refinement on every slice is not (an 8² tile, 16² slices).
+TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
+    RecoverSettings bad;
+    bad.refine_ladder_min_um = -1.0;
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+    bad.refine_ladder_min_um = std::nan("");
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
+    bad.refine_ladder_min_um = 1.0;
+    bad.refine_ladder_iterations = -1;
+    EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::invalid_argument);
+
+    RecoveryOptions options;
+    options.rows = options.cols = 8;
+    options.resolution = 16;
+    options.seed = 10301;
+    options.lambdas_um = {0.5, 0.6, 1.2};
+    PreparedRecovery prepared = prepare_recovery(options);
+    prepared.pipeline.field_lambda_min_um = 0.55;  // the 0.5 µm slices enter the refinement only
+    prepared.pipeline.refine_ladder_min_um = 0.55;
+    prepared.pipeline.refine_ladder_iterations = 6;
+    prepared.pipeline.refine_iterations = 6;
+    prepared.pipeline.model_check_iterations = 0;
+    const auto run = [](const PreparedRecovery& p) {
+        std::vector<StageMetrics> steps;
+        run_recovery(p, [&](const StageMetrics& m) {
+            if (m.stage.rfind("refine", 0) == 0) steps.push_back(m);
+            return true;
+        });
+        return steps;
+    };
+    const std::vector<StageMetrics> clean = run(prepared);
+    std::vector<std::string> order;
+    for (const StageMetrics& m : clean)
+        if (order.empty() || order.back() != m.stage) order.push_back(m.stage);
+    EXPECT_EQ(order, (std::vector<std::string>{"refine:1.2", "refine:0.6", "refine"}));
+
+    PreparedRecovery other = prepared;
+    int replaced = 0;
+    for (Observation& o : other.observations)
+        if (o.lambdas_um[0] < 0.55) {
+            for (double& v : o.reference) v *= 3.0;
+            ++replaced;
+        }
+    ASSERT_GT(replaced, 0);
+    const std::vector<StageMetrics> changed = run(other);
+    ASSERT_EQ(changed.size(), clean.size());
+    std::size_t rungs = 0, differ = 0;
+    for (std::size_t k = 0; k < clean.size(); ++k) {
+        ASSERT_EQ(changed[k].stage, clean[k].stage);
+        if (clean[k].stage != "refine") {
+            ++rungs;
+            EXPECT_EQ(changed[k].loss, clean[k].loss) << clean[k].stage << " step " << clean[k].iteration;
+            EXPECT_EQ(changed[k].height_rel_rmse, clean[k].height_rel_rmse) << clean[k].stage;
+        } else if (changed[k].loss != clean[k].loss) {
+            ++differ;
+        }
+    }
+    EXPECT_GT(rungs, 0u);
+    EXPECT_GT(differ, 0u);  // the 0.5 µm slices do enter the last round
+
+    // Off (0, the default) and a minimum above every wavelength: the refinement as before.
+    prepared.pipeline.refine_ladder_min_um = 0.0;
+    const std::vector<StageMetrics> off = run(prepared);
+    prepared.pipeline.refine_ladder_min_um = 100.0;
+    const std::vector<StageMetrics> above = run(prepared);
+    ASSERT_EQ(off.size(), above.size());
+    for (std::size_t k = 0; k < off.size(); ++k) {
+        EXPECT_EQ(off[k].stage, "refine");
+        EXPECT_EQ(above[k].loss, off[k].loss);
+    }
 }
 
 }  // namespace

@@ -258,6 +258,15 @@ struct RecoverSettings {
     double cascade_stall_tolerance = -1.0;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 40;
+    // Stage 3 as a continuation over the wavelengths (rough surfaces: roughness_plan.h;
+    // docs/recovery.md, "Rough surfaces", round 5): when > 0, before the refinement on every
+    // observation, one round of refine_ladder_iterations L-BFGS iterations on the observations
+    // at wavelengths ≥ each single-wavelength OHS / ROHS slice's wavelength that is ≥ this (µm),
+    // longest first, each round started from the last (a rung adds one wavelength). 0 (the
+    // default): the refinement on every observation at once. Not with calibrate.sigma or
+    // calibrate.positions (their refinements run as before), nor for white light.
+    double refine_ladder_min_um = 0.0;
+    int refine_ladder_iterations = 40;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     // Stage 3's coarse space (docs/scale.md, "The whole-surface undulation"): levels of periodic

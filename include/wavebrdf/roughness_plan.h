@@ -20,7 +20,8 @@
 // for a ladder of long wavelengths (an infrared source), the longest 4× that expected error (so
 // its phase error stays within a quarter turn), each next one at most 4× shorter, all longer
 // than the visible ladder; the field stage runs at these only (their heights start the
-// refinement, which fits every wavelength's slices). The model holds at any λ (the Gabor
+// refinement, which fits every wavelength's slices: first the longest wavelength's slices,
+// then each shorter long one's added, then every slice, RecoverSettings::refine_ladder_min_um). The model holds at any λ (the Gabor
 // kernels' tangent planes are better approximations the longer λ is; the slices' Nyquist size
 // 4D/λ falls with λ, so the visible wavelengths' slice size covers them).
 #include <string>
@@ -41,6 +42,11 @@ struct RoughnessPlan {
     // Rough surfaces: long wavelengths (µm, longest first) the acquisition adds and the field
     // stage runs at (empty: none; a smooth surface, or a range the visible ladder already covers).
     std::vector<double> long_lambdas_um;
+    // Rough surfaces with long wavelengths: the refinement's wavelength ladder
+    // (RecoverSettings::refine_ladder_min_um; 0: none): the shortest long wavelength, so the
+    // refinement runs on the longest wavelength's slices, then adds each shorter long one, then
+    // every slice at once (docs/recovery.md, "Rough surfaces", round 5).
+    double refine_ladder_min_um = 0.0;
     std::vector<std::string> notes;  // the choice, one line each
 };
 
@@ -56,7 +62,8 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
 
 // `settings` with the plan applied (field iterations raised to the plan's where it asks for
 // more; the field stage at the plan's long wavelengths only, RecoverSettings::field_lambda_min_um,
-// when it has them; nothing changed for a smooth surface).
+// and the refinement's wavelength ladder down to the shortest of them,
+// RecoverSettings::refine_ladder_min_um, when it has them; nothing changed for a smooth surface).
 void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings);
 
 // `acquisition` with the plan's long wavelengths appended to its wavelengths (those not longer

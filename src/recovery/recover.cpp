@@ -426,10 +426,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // rebuilt).
         const bool calibrate_exposure = settings.calibrate.exposure;
         std::vector<double> exposures(observations.size(), 1.0);
+        // The wavelength ladder's rung (refine_ladder_min_um): the observations in the loss (empty: all).
+        std::vector<char> active;
         double smooth_weight = 0.0;  // white light: the smoothness continuation's weight (white_light.h)
         const auto data_objective = [&](const std::vector<double>& x, std::vector<double>& g) {
             const double scale = 1.0 / observations_total;  // all ranks' observations
             return exact_sum.run(observations.size(), comm, g, [&](std::size_t i, detail::ExactScratch& scratch) {
+                if (!active.empty() && !active[i]) return 0.0;
                 const Observation& o = observations[i];
                 // Built on the flat surface's geometry (no copy of the heights per
                 // observation), then given the heights like every later call.
@@ -487,7 +490,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                                                               : double(std::max(rows, cols)),
                                          settings.refine_coarse_weight > 0.0 ? settings.refine_coarse_weight : 1.0);
         const bool coarse_on = settings.refine_coarse_spacing > 0.0 && coarse.size() > 0;
-        const auto refine_heights = [&](int iterations) {
+        const auto refine_heights = [&](int iterations, const std::string& stage = "refine") {
             LbfgsOptions round = lo;
             round.max_iterations = iterations;
             const int before = done;
@@ -499,7 +502,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                     done = before + it;
                     h = detail::coarse_heights(z, coarse);
                     const Heightfield current = flat.with_values(h);
-                    if (!report("refine", done, value, &current)) return go_on = false;
+                    if (!report(stage, done, value, &current)) return go_on = false;
                     return value > settings.refine_relative_tolerance * reference_loss;
                 });
                 h = detail::coarse_heights(z, coarse);
@@ -507,7 +510,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 lbfgs_minimize(objective, h, round, [&](int it, double value) {
                     done = before + it;
                     const Heightfield current = flat.with_values(h);
-                    if (!report("refine", done, value, &current)) return go_on = false;
+                    if (!report(stage, done, value, &current)) return go_on = false;
                     return value > settings.refine_relative_tolerance * reference_loss;
                 });
             }
@@ -528,6 +531,26 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 coarse.apply(c.data(), h);
             }
         };
+        // The wavelength ladder (rough surfaces): a round on the slices at wavelengths ≥ each rung,
+        // longest first, each from the last ("refine:λ" in the metrics), then every observation.
+        if (!white && !settings.calibrate.sigma && settings.refine_ladder_min_um > 0.0 &&
+            settings.refine_ladder_iterations > 0) {
+            for (auto it = by_lambda.rbegin();
+                 it != by_lambda.rend() && it->first >= settings.refine_ladder_min_um && go_on && !stopped; ++it) {
+                active.assign(observations.size(), 0);
+                for (std::size_t i = 0; i < observations.size(); ++i) {
+                    const std::vector<double>& l = observations[i].lambdas_um;
+                    active[i] = !l.empty() && *std::min_element(l.begin(), l.end()) >= it->first;
+                }
+                char name[48];
+                std::snprintf(name, sizeof name, "refine:%g", it->first);
+                done = 0;
+                refine_heights(settings.refine_ladder_iterations, name);
+            }
+            active.clear();
+            done = 0;
+            if (stopped) return flat.with_values(h);
+        }
         if (settings.calibrate.sigma) {
             // σ_p: a golden-section search on log s at fixed heights, alternated with L-BFGS
             // on the heights (rounds of refine_iterations / 6, the last one the rest).
@@ -657,6 +680,11 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     if (!(std::isfinite(settings.field_lambda_min_um) && settings.field_lambda_min_um >= 0.0))
         throw std::domain_error("recover_heights: field_lambda_min_um " + std::to_string(settings.field_lambda_min_um) +
                                 " is invalid; expected a finite wavelength >= 0 um (0: every wavelength)");
+    if (!(std::isfinite(settings.refine_ladder_min_um) && settings.refine_ladder_min_um >= 0.0))
+        throw std::domain_error("recover_heights: refine_ladder_min_um " +
+                                std::to_string(settings.refine_ladder_min_um) +
+                                " is invalid; expected a finite wavelength >= 0 um (0: no ladder)");
+    validate_iterations(settings.refine_ladder_iterations, "recover_heights: refine ladder iterations");
     validate_iterations(settings.white_smoothness_iterations, "recover_heights: white smoothness iterations");
     for (double w : settings.white_smoothness)
         if (!(w >= 0.0 && w <= 1e12))
