@@ -12,49 +12,17 @@
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/recover.h"
+#include "position_cases.h"
 
 using namespace wavebrdf;
+using test::OffCase;
+using test::offset_rms;
 
 namespace {
 
-struct OffCase {
-    Heightfield truth;
-    std::vector<Observation> observations;      // stated centres
-    std::vector<std::array<double, 2>> errors;  // per observation: true − stated, µm (mean 0)
-};
-
-// A 12² tile of 2 µm texels (max |H| 0.5 µm), 5 × 5 positions σ_p 3 µm at two wavelengths,
-// each position's true centre off by a Gaussian of `rms_texels` per coordinate (mean removed).
+// The 5 × 5 positions of the shared case (position_cases.h): linear overlap 1 − 4.8/18 = 73 %.
 OffCase off_case(std::uint64_t seed, double rms_texels, int resolution = 40) {
-    const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
-    OffCase c{surface, {}, {}};
-    std::mt19937_64 rng(seed + 7);
-    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
-    std::normal_distribution<double> normal(0.0, rms_texels * surface.texel_um());
-    const int per_side = 5;
-    const double step = 24.0 / per_side;  // σ_p = 3 µm: linear overlap 1 − 4.8/18 = 73 %
-    std::vector<std::array<double, 2>> stated, error;
-    for (int a = 0; a < per_side; ++a)
-        for (int b = 0; b < per_side; ++b) {
-            stated.push_back({(a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step});
-            error.push_back({normal(rng), normal(rng)});
-        }
-    std::array<double, 2> mean{0.0, 0.0};
-    for (const auto& e : error) mean = {mean[0] + e[0] / double(error.size()), mean[1] + e[1] / double(error.size())};
-    for (auto& e : error) e = {e[0] - mean[0], e[1] - mean[1]};
-    for (double lambda : {0.5, 0.6})
-        for (std::size_t k = 0; k < stated.size(); ++k) {
-            Observation o;
-            o.query = test::make_query(Model::OHS, stated[k][0] + error[k][0], stated[k][1] + error[k][1], 3.0);
-            o.lambdas_um = {lambda};
-            o.resolution = resolution;
-            o.reference = render_observation(c.truth, o);
-            o.query.x_um = stated[k][0];
-            o.query.y_um = stated[k][1];
-            c.observations.push_back(std::move(o));
-            c.errors.push_back(error[k]);
-        }
-    return c;
+    return test::off_case(seed, rms_texels, resolution, 5);
 }
 
 RecoverSettings quick_settings(bool positions) {
@@ -65,24 +33,6 @@ RecoverSettings quick_settings(bool positions) {
     s.refine_iterations = 40;
     s.calibrate.positions = positions;
     return s;
-}
-
-// rms over observations and coordinates of (found − true), both with their means removed, µm.
-double offset_rms(const std::vector<std::array<double, 2>>& found, const std::vector<std::array<double, 2>>& truth) {
-    std::array<double, 2> mf{0, 0}, mt{0, 0};
-    const double n = double(truth.size());
-    for (std::size_t i = 0; i < truth.size(); ++i)
-        for (int c = 0; c < 2; ++c) {
-            mf[c] += found[i][c] / n;
-            mt[c] += truth[i][c] / n;
-        }
-    double sum = 0.0;
-    for (std::size_t i = 0; i < truth.size(); ++i)
-        for (int c = 0; c < 2; ++c) {
-            const double d = (found[i][c] - mf[c]) - (truth[i][c] - mt[c]);
-            sum += d * d;
-        }
-    return std::sqrt(sum / (2.0 * n));
 }
 
 }  // namespace
