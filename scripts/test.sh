@@ -13,8 +13,10 @@ JOBS="$(nproc)" bash scripts/test_consumer.sh  # the C++ package: find_package a
 bash scripts/test_pip.sh  # pip install in a fresh venv, smoke test outside the tree
 
 echo "test: sanitizer build (ASan + UBSan)"
+launcher=()  # ccache, where the machine has it, as in setup.sh (a fresh CI machine has none)
+command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWAVEBRDF_SANITIZE=ON \
-      -DWAVEBRDF_BUILD_BENCH=OFF -DWAVEBRDF_BUILD_PYTHON=OFF >/dev/null
+      -DWAVEBRDF_BUILD_BENCH=OFF -DWAVEBRDF_BUILD_PYTHON=OFF "${launcher[@]}" >/dev/null
 cmake --build build-sanitize -j"$(nproc)"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
