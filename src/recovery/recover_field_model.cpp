@@ -159,10 +159,10 @@ struct FieldModelLoss::Impl {
             const int n = observation->resolution;
             return float(std::sqrt(std::max(0.0, observation->reference[std::size_t(a0 + a) * n + (b0 + b)])));
         }
-        double outside = 0.0;      // Σ R beyond the box
-        int lambda = 0;            // index into lambdas
-        double k = 0.0;            // 4π/λ (1/µm)
-        double scale = 1.0;        // of the field (the window's integral)
+        double outside = 0.0;  // Σ R beyond the box
+        int lambda = 0;        // index into lambdas
+        double k = 0.0;        // 4π/λ (1/µm)
+        double scale = 1.0;    // of the field (the window's integral)
     };
     std::vector<Slice> slices;
     std::vector<double> lambdas;
@@ -252,66 +252,69 @@ double FieldModelLoss::operator()(const std::vector<double>& heights_um, std::ve
         const bool parallel = worth_parallel((long long)s.fine) && !in_parallel_region();
 #pragma omp parallel for schedule(static) if (parallel)
         for (std::size_t t = 0; t < s.fine; ++t) object[t] = std::polar(1.0, -k * s.fine_um[t]);
-    // Slice i's term (as retrieve_field's, recover_field.cpp); its object gradient
-    // G = ∂L/∂Re O + i ∂L/∂Im O mapped to the fine heights, ∂L/∂H̃ = k Im(conj(G) O).
-    s.exact_sum.run_local(group.size(), [&](std::size_t gi, ExactScratch& scratch) {
-            thread_local Eigen::MatrixXcf psi, g;
-            thread_local std::vector<std::complex<double>> object_gradient;
-            if (object_gradient.size() != s.fine) object_gradient.assign(s.fine, 0.0);
-            const Impl::Slice& slice = s.slices[group[gi]];
-            int a0 = 0, b0 = 0;
-            const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
-            const Eigen::MatrixXd amp = slice.scale * amp_box;
-            field_forward_unphased(*slice.op, object.data(), psi);
-            g.resize(psi.rows(), psi.cols());
-            double v = slice.outside, root_exposure = 1.0, model_total = 0.0;
-            if (s.calibrate_exposure) {
-                double reference = 0.0;
+        // Slice i's term (as retrieve_field's, recover_field.cpp); its object gradient
+        // G = ∂L/∂Re O + i ∂L/∂Im O mapped to the fine heights, ∂L/∂H̃ = k Im(conj(G) O).
+        s.exact_sum.run_local(
+            group.size(),
+            [&](std::size_t gi, ExactScratch& scratch) {
+                thread_local Eigen::MatrixXcf psi, g;
+                thread_local std::vector<std::complex<double>> object_gradient;
+                if (object_gradient.size() != s.fine) object_gradient.assign(s.fine, 0.0);
+                const Impl::Slice& slice = s.slices[group[gi]];
+                int a0 = 0, b0 = 0;
+                const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
+                const Eigen::MatrixXd amp = slice.scale * amp_box;
+                field_forward_unphased(*slice.op, object.data(), psi);
+                g.resize(psi.rows(), psi.cols());
+                double v = slice.outside, root_exposure = 1.0, model_total = 0.0;
+                if (s.calibrate_exposure) {
+                    double reference = 0.0;
+                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                        for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                            if (amp(a, b) == 0.0) continue;
+                            model_total += amp(a, b) * amp(a, b) * double(std::norm(psi(a, b)));
+                            reference += double(slice.sqrt_ref(a, b)) * double(slice.sqrt_ref(a, b));
+                        }
+                    if (model_total > 0.0) root_exposure = std::sqrt(reference / model_total);
+                }
+                double cross = 0.0;
                 for (Eigen::Index b = 0; b < psi.cols(); ++b)
                     for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                        if (amp(a, b) == 0.0) continue;
-                        model_total += amp(a, b) * amp(a, b) * double(std::norm(psi(a, b)));
-                        reference += double(slice.sqrt_ref(a, b)) * double(slice.sqrt_ref(a, b));
+                        const double c = amp(a, b);
+                        if (c == 0.0) {
+                            const double r = double(slice.sqrt_ref(a, b));
+                            v += r * r;
+                            g(a, b) = 0.0f;
+                            continue;
+                        }
+                        const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
+                        const double mag = std::sqrt(re * re + im * im);
+                        const double diff = root_exposure * c * mag - double(slice.sqrt_ref(a, b));
+                        v += diff * diff;
+                        cross += diff * c * mag;
+                        g(a, b) = mag > 0.0 ? float(2.0 * s.inv_total * diff * root_exposure * c / mag) * psi(a, b)
+                                            : std::complex<float>(0.0f);
                     }
-                if (model_total > 0.0) root_exposure = std::sqrt(reference / model_total);
-            }
-            double cross = 0.0;
-            for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                    const double c = amp(a, b);
-                    if (c == 0.0) {
-                        const double r = double(slice.sqrt_ref(a, b));
-                        v += r * r;
-                        g(a, b) = 0.0f;
-                        continue;
+                if (s.calibrate_exposure && model_total > 0.0) {
+                    const double shift = 2.0 * s.inv_total * cross * root_exposure / model_total;
+                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                        for (Eigen::Index a = 0; a < psi.rows(); ++a)
+                            if (amp(a, b) != 0.0) g(a, b) -= float(shift * amp(a, b) * amp(a, b)) * psi(a, b);
+                }
+                field_adjoint_unphased_add(*slice.op, g, object_gradient.data());
+                const std::vector<int>& rows = field_rows(*slice.op);
+                const std::vector<int>& cols = field_cols(*slice.op);
+                double* out = scratch.data();
+                for (int r : rows)
+                    for (int c : cols) {
+                        const std::size_t t = std::size_t(r) * s.fine_cols + c;
+                        out[t] += slice.k * std::imag(std::conj(object_gradient[t]) * object[t]);
+                        object_gradient[t] = 0.0;
                     }
-                    const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
-                    const double mag = std::sqrt(re * re + im * im);
-                    const double diff = root_exposure * c * mag - double(slice.sqrt_ref(a, b));
-                    v += diff * diff;
-                    cross += diff * c * mag;
-                    g(a, b) = mag > 0.0 ? float(2.0 * s.inv_total * diff * root_exposure * c / mag) * psi(a, b)
-                                        : std::complex<float>(0.0f);
-                }
-            if (s.calibrate_exposure && model_total > 0.0) {
-                const double shift = 2.0 * s.inv_total * cross * root_exposure / model_total;
-                for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                    for (Eigen::Index a = 0; a < psi.rows(); ++a)
-                        if (amp(a, b) != 0.0) g(a, b) -= float(shift * amp(a, b) * amp(a, b)) * psi(a, b);
-            }
-            field_adjoint_unphased_add(*slice.op, g, object_gradient.data());
-            const std::vector<int>& rows = field_rows(*slice.op);
-            const std::vector<int>& cols = field_cols(*slice.op);
-            double* out = scratch.data();
-            for (int r : rows)
-                for (int c : cols) {
-                    const std::size_t t = std::size_t(r) * s.fine_cols + c;
-                    out[t] += slice.k * std::imag(std::conj(object_gradient[t]) * object[t]);
-                    object_gradient[t] = 0.0;
-                }
-            scratch.take_box(rows, cols, std::size_t(s.fine_cols));
-            return v * s.inv_total;
-        }, accumulate);
+                scratch.take_box(rows, cols, std::size_t(s.fine_cols));
+                return v * s.inv_total;
+            },
+            accumulate);
         accumulate = true;
     }
     s.fine_gradient.resize(s.fine);
