@@ -178,6 +178,20 @@ TEST(ExactSum, ParallelSumIsIndependentOfTheThreadCountAndChecksTheBox) {
     }
     EXPECT_EQ(merged.value(n), value1);
     for (std::size_t k = 0; k < n; ++k) EXPECT_EQ(merged.value(k), one[k]);
+    // In groups on one sum (run_local, accumulate, then finish; the groups in another order):
+    // the same bits; without accumulate a group starts again from zero.
+    {
+        ExactParallelSum grouped(n);
+        std::vector<double> out(n);
+        const std::size_t half = v.size() / 2;
+        grouped.run_local(v.size() - half, [&](std::size_t i, ExactScratch& s) { return body(half + i, s); });
+        grouped.run_local(half, body, true);
+        EXPECT_EQ(grouped.finish(serial_communicator(), out.data()), value1);
+        EXPECT_EQ(out, one);
+        grouped.run_local(v.size() - half, [&](std::size_t i, ExactScratch& s) { return body(half + i, s); });
+        grouped.run_local(half, body);  // not accumulated: the first group is dropped
+        EXPECT_NE(grouped.finish(serial_communicator(), out.data()), value1);
+    }
     // A box too small leaves values in the scratch: the check names it; the sum stays usable.
     exact_scratch_check() = true;
     EXPECT_THROW(sum1.run(v.size(), serial_communicator(), one,

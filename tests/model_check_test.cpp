@@ -83,6 +83,32 @@ TEST(HeightInterpolant, EqualsRefinedHeightsAndItsTransposeIsTheAdjoint) {
     }
 }
 
+// The loss runs one wavelength's slices at a time (one object on the fine grid): given in any
+// order (the wavelengths interleaved, reversed), the same value and gradient to the bit, with
+// and without the exposure calibration.
+TEST(FieldModelLoss, OneWavelengthAtATimeInAnyOrderGivesTheSameBits) {
+    const int n = 12, refine = 3, resolution = 24;
+    const Heightfield truth = test::random_heightfield(n, n, 0.15, 5707, 2.0);
+    const std::vector<Observation> observations = few_slices(truth, {0.5, 0.6, 0.7}, resolution);
+    std::vector<Observation> shuffled;
+    for (std::size_t k = 0; k < 4; ++k)
+        for (std::size_t l = 3; l-- > 0;) shuffled.push_back(observations[l * 4 + (k * 3 + l) % 4]);
+    ASSERT_EQ(shuffled.size(), observations.size());
+    const std::vector<double> h = heights_um(test::random_heightfield(n, n, 0.15, 5708, 2.0));
+    for (bool exposure : {false, true}) {
+        const detail::FieldModelLoss a(pointers(observations), queries_of(observations), n, n, 2.0, refine, exposure,
+                                       serial_communicator());
+        const detail::FieldModelLoss b(pointers(shuffled), queries_of(shuffled), n, n, 2.0, refine, exposure,
+                                       serial_communicator());
+        std::vector<double> ga, gb;
+        const double va = a(h, &ga), vb = b(h, &gb);
+        EXPECT_GT(va, 0.0);
+        EXPECT_EQ(va, vb) << "exposure " << exposure;
+        EXPECT_EQ(ga, gb) << "exposure " << exposure;
+        EXPECT_EQ(a(h, nullptr), va);  // a second evaluation starts from zero sums
+    }
+}
+
 // The cubic interpolant passes through every texel centre (sample q/2 of each texel) and its
 // transpose is the adjoint.
 TEST(HeightInterpolant, CubicPassesThroughTheTexelCentres) {

@@ -142,9 +142,11 @@ struct PreparedRecovery {
 // Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from
 // `observations` (their references counted at full size even when still empty, as
 // planned_observations leaves them) by `method` with `settings` (the pipeline's): the
-// references, the largest stage's working set (the field retrieval's per-slice operators of
-// one wavelength, or the blurred fit's matrices), the object grid's and the heights' L-BFGS
-// histories, and a fixed base. Within a factor of ~2 of the measured peak
+// references and a fixed base, plus the largest of the stages' working sets, which do not
+// overlap: the field stage (its per-slice operators of one wavelength, the object grid's
+// L-BFGS history, with tiles the fields of every wavelength), the refinement (its plans and
+// the heights' L-BFGS history) and the model check (one wavelength's object and the exact
+// sums on the fine grid). Within a factor of ~2 of the measured peak
 // (RecoveryRun.EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak).
 double estimate_recovery_bytes(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
                                RecoveryMethod method, const RecoverSettings& settings = {});

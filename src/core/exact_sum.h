@@ -279,16 +279,14 @@ public:
     template <typename Body>
     double run(std::size_t count, const Communicator& comm, double* out, Body&& body) {
         run_local(count, std::forward<Body>(body));
-        m_total.allreduce(comm);
-        const double value = m_total.value(m_n);
-        m_total.take_values(out, m_n);  // and zero for the next call
-        m_zero = true;
-        return value;
+        return finish(comm, out);
     }
-    // The same without the ranks' sum: this rank's exact sums (then total()).
+    // The same without the ranks' sum: this rank's exact sums (then total(), or finish).
+    // accumulate: add to the sums of the run_local before (e.g. the observations of one
+    // wavelength after another's, each with its own data prepared) instead of starting at 0.
     template <typename Body>
-    void run_local(std::size_t count, Body&& body) {
-        if (!m_zero) m_total.set_zero();
+    void run_local(std::size_t count, Body&& body, bool accumulate = false) {
+        if (!m_zero && !accumulate) m_total.set_zero();
         m_zero = false;
         const int threads = m_parallel && count > 1 && !in_parallel_region() ? std::max(1, omp_get_max_threads()) : 1;
         if (m_scratch.size() < std::size_t(threads)) m_scratch.resize(std::size_t(threads));
@@ -312,6 +310,15 @@ public:
         if (guard.failed())  // a body that threw may have left values behind
             for (std::vector<double>& scratch : m_scratch) std::fill(scratch.begin(), scratch.end(), 0.0);
         guard.rethrow();
+    }
+    // After run_local(s): sums over the ranks of comm (collective), writes the vector sums into
+    // out[0 … n − 1] and returns the scalar sum (as run's end; the sums are zero after).
+    double finish(const Communicator& comm, double* out) {
+        m_total.allreduce(comm);
+        const double value = m_total.value(m_n);
+        m_total.take_values(out, m_n);  // and zero for the next call
+        m_zero = true;
+        return value;
     }
     ExactVector& total() { return m_total; }
     // false: the bodies run on the calling thread only, in order (e.g. when they share a

@@ -362,6 +362,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         }
     }
 
+    // The fields (every wavelength's object on the fine grid, 16 bytes per sample) are the
+    // unwrapping's input only: released before stage 3 (the position loop's field stages below
+    // start from empty ones again).
+    lambdas.clear();
+    std::vector<std::vector<std::complex<double>>>().swap(fields);
+
     // Stage 3: the full model (with the positions refined as well: recover_positions.h).
     Heightfield unwrapped = estimate;
     std::vector<std::array<double, 2>> refined_offsets;  // per observation (positions calibrated)

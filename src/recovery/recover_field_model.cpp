@@ -151,11 +151,18 @@ void check_inputs(const std::vector<const Observation*>& observations, const std
 struct FieldModelLoss::Impl {
     struct Slice {
         std::unique_ptr<FieldOperator> op;
-        Eigen::MatrixXf sqrt_ref;  // √R on the operator's box
-        double outside = 0.0;      // Σ R beyond the box
-        int lambda = 0;            // index into lambdas
-        double k = 0.0;            // 4π/λ (1/µm)
-        double scale = 1.0;        // of the field (the window's integral)
+        // √R on the operator's box, read from the observation's reference at each evaluation
+        // (rounded to float as the products are; no copy of the references is kept).
+        const Observation* observation = nullptr;
+        int a0 = 0, b0 = 0;  // the box's first slice row / column
+        float sqrt_ref(Eigen::Index a, Eigen::Index b) const {
+            const int n = observation->resolution;
+            return float(std::sqrt(std::max(0.0, observation->reference[std::size_t(a0 + a) * n + (b0 + b)])));
+        }
+        double outside = 0.0;  // Σ R beyond the box
+        int lambda = 0;        // index into lambdas
+        double k = 0.0;        // 4π/λ (1/µm)
+        double scale = 1.0;    // of the field (the window's integral)
     };
     std::vector<Slice> slices;
     std::vector<double> lambdas;
@@ -167,7 +174,10 @@ struct FieldModelLoss::Impl {
     const Communicator* comm = nullptr;
     mutable ExactParallelSum exact_sum;
     mutable std::vector<double> fine_um, fine_gradient;
-    mutable std::vector<std::vector<std::complex<double>>> objects;
+    // The object e^{−i k H̃} of one wavelength at a time (its slices' terms are summed, then the
+    // next wavelength's: the exact sums do not depend on the order).
+    mutable std::vector<std::complex<double>> object;
+    std::vector<std::vector<std::size_t>> by_lambda;  // this rank's slices per wavelength
 
     Impl(int rows, int cols, double texel_um, int refine, Interpolant kind)
         : interpolant(rows, cols, texel_um, refine, kind),
@@ -207,20 +217,23 @@ FieldModelLoss::FieldModelLoss(const std::vector<const Observation*>& observatio
             slice.k = 4.0 * k_pi / lambda;
             int a0 = 0, b0 = 0;
             const Eigen::MatrixXd& amp = field_amplitude_box(*slice.op, a0, b0);
-            slice.sqrt_ref.resize(amp.rows(), amp.cols());
+            slice.observation = &o;
+            slice.a0 = a0;
+            slice.b0 = b0;
             const int n = o.resolution;
+            if (a0 < 0 || b0 < 0 || a0 + amp.rows() > n || b0 + amp.cols() > n)
+                throw std::logic_error("FieldModelLoss: observation " + std::to_string(i) +
+                                       "'s pixel box lies outside its slice");
             for (int p = 0; p < n; ++p)
                 for (int c = 0; c < n; ++c) {
                     const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
                     const int a = p - a0, b = c - b0;
-                    if (a >= 0 && a < amp.rows() && b >= 0 && b < amp.cols())
-                        slice.sqrt_ref(a, b) = float(std::sqrt(r));
-                    else
-                        slice.outside += r;
+                    if (!(a >= 0 && a < amp.rows() && b >= 0 && b < amp.cols())) slice.outside += r;
                 }
         });
     guard.rethrow();
-    s.objects.resize(s.lambdas.size());
+    s.by_lambda.resize(s.lambdas.size());
+    for (std::size_t i = 0; i < s.slices.size(); ++i) s.by_lambda[std::size_t(s.slices[i].lambda)].push_back(i);
 }
 
 FieldModelLoss::~FieldModelLoss() = default;
@@ -228,76 +241,84 @@ FieldModelLoss::~FieldModelLoss() = default;
 double FieldModelLoss::operator()(const std::vector<double>& heights_um, std::vector<double>* gradient) const {
     const Impl& s = *m_impl;
     s.interpolant.apply(heights_um, s.fine_um);
+    // One wavelength's object at a time (not all of them on the fine grid at once).
+    std::vector<std::complex<double>>& object = s.object;
+    object.resize(s.fine);
+    bool accumulate = false;
     for (std::size_t l = 0; l < s.lambdas.size(); ++l) {
-        std::vector<std::complex<double>>& object = s.objects[l];
-        object.resize(s.fine);
+        const std::vector<std::size_t>& group = s.by_lambda[l];
+        if (group.empty()) continue;
         const double k = 4.0 * k_pi / s.lambdas[l];
         const bool parallel = worth_parallel((long long)s.fine) && !in_parallel_region();
 #pragma omp parallel for schedule(static) if (parallel)
         for (std::size_t t = 0; t < s.fine; ++t) object[t] = std::polar(1.0, -k * s.fine_um[t]);
-    }
-    // Slice i's term (as retrieve_field's, recover_field.cpp); its object gradient
-    // G = ∂L/∂Re O + i ∂L/∂Im O mapped to the fine heights, ∂L/∂H̃ = k Im(conj(G) O).
-    const double value = s.exact_sum.run(
-        s.slices.size(), *s.comm, s.fine_gradient, [&](std::size_t i, ExactScratch& scratch) {
-            thread_local Eigen::MatrixXcf psi, g;
-            thread_local std::vector<std::complex<double>> object_gradient;
-            if (object_gradient.size() != s.fine) object_gradient.assign(s.fine, 0.0);
-            const Impl::Slice& slice = s.slices[i];
-            const std::vector<std::complex<double>>& object = s.objects[std::size_t(slice.lambda)];
-            int a0 = 0, b0 = 0;
-            const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
-            const Eigen::MatrixXd amp = slice.scale * amp_box;
-            field_forward_unphased(*slice.op, object.data(), psi);
-            g.resize(psi.rows(), psi.cols());
-            double v = slice.outside, root_exposure = 1.0, model_total = 0.0;
-            if (s.calibrate_exposure) {
-                double reference = 0.0;
+        // Slice i's term (as retrieve_field's, recover_field.cpp); its object gradient
+        // G = ∂L/∂Re O + i ∂L/∂Im O mapped to the fine heights, ∂L/∂H̃ = k Im(conj(G) O).
+        s.exact_sum.run_local(
+            group.size(),
+            [&](std::size_t gi, ExactScratch& scratch) {
+                thread_local Eigen::MatrixXcf psi, g;
+                thread_local std::vector<std::complex<double>> object_gradient;
+                if (object_gradient.size() != s.fine) object_gradient.assign(s.fine, 0.0);
+                const Impl::Slice& slice = s.slices[group[gi]];
+                int a0 = 0, b0 = 0;
+                const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
+                const Eigen::MatrixXd amp = slice.scale * amp_box;
+                field_forward_unphased(*slice.op, object.data(), psi);
+                g.resize(psi.rows(), psi.cols());
+                double v = slice.outside, root_exposure = 1.0, model_total = 0.0;
+                if (s.calibrate_exposure) {
+                    double reference = 0.0;
+                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                        for (Eigen::Index a = 0; a < psi.rows(); ++a) {
+                            if (amp(a, b) == 0.0) continue;
+                            model_total += amp(a, b) * amp(a, b) * double(std::norm(psi(a, b)));
+                            reference += double(slice.sqrt_ref(a, b)) * double(slice.sqrt_ref(a, b));
+                        }
+                    if (model_total > 0.0) root_exposure = std::sqrt(reference / model_total);
+                }
+                double cross = 0.0;
                 for (Eigen::Index b = 0; b < psi.cols(); ++b)
                     for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                        if (amp(a, b) == 0.0) continue;
-                        model_total += amp(a, b) * amp(a, b) * double(std::norm(psi(a, b)));
-                        reference += double(slice.sqrt_ref(a, b)) * double(slice.sqrt_ref(a, b));
+                        const double c = amp(a, b);
+                        if (c == 0.0) {
+                            const double r = double(slice.sqrt_ref(a, b));
+                            v += r * r;
+                            g(a, b) = 0.0f;
+                            continue;
+                        }
+                        const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
+                        const double mag = std::sqrt(re * re + im * im);
+                        const double diff = root_exposure * c * mag - double(slice.sqrt_ref(a, b));
+                        v += diff * diff;
+                        cross += diff * c * mag;
+                        g(a, b) = mag > 0.0 ? float(2.0 * s.inv_total * diff * root_exposure * c / mag) * psi(a, b)
+                                            : std::complex<float>(0.0f);
                     }
-                if (model_total > 0.0) root_exposure = std::sqrt(reference / model_total);
-            }
-            double cross = 0.0;
-            for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                    const double c = amp(a, b);
-                    if (c == 0.0) {
-                        const double r = double(slice.sqrt_ref(a, b));
-                        v += r * r;
-                        g(a, b) = 0.0f;
-                        continue;
+                if (s.calibrate_exposure && model_total > 0.0) {
+                    const double shift = 2.0 * s.inv_total * cross * root_exposure / model_total;
+                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
+                        for (Eigen::Index a = 0; a < psi.rows(); ++a)
+                            if (amp(a, b) != 0.0) g(a, b) -= float(shift * amp(a, b) * amp(a, b)) * psi(a, b);
+                }
+                field_adjoint_unphased_add(*slice.op, g, object_gradient.data());
+                const std::vector<int>& rows = field_rows(*slice.op);
+                const std::vector<int>& cols = field_cols(*slice.op);
+                double* out = scratch.data();
+                for (int r : rows)
+                    for (int c : cols) {
+                        const std::size_t t = std::size_t(r) * s.fine_cols + c;
+                        out[t] += slice.k * std::imag(std::conj(object_gradient[t]) * object[t]);
+                        object_gradient[t] = 0.0;
                     }
-                    const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
-                    const double mag = std::sqrt(re * re + im * im);
-                    const double diff = root_exposure * c * mag - double(slice.sqrt_ref(a, b));
-                    v += diff * diff;
-                    cross += diff * c * mag;
-                    g(a, b) = mag > 0.0 ? float(2.0 * s.inv_total * diff * root_exposure * c / mag) * psi(a, b)
-                                        : std::complex<float>(0.0f);
-                }
-            if (s.calibrate_exposure && model_total > 0.0) {
-                const double shift = 2.0 * s.inv_total * cross * root_exposure / model_total;
-                for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                    for (Eigen::Index a = 0; a < psi.rows(); ++a)
-                        if (amp(a, b) != 0.0) g(a, b) -= float(shift * amp(a, b) * amp(a, b)) * psi(a, b);
-            }
-            field_adjoint_unphased_add(*slice.op, g, object_gradient.data());
-            const std::vector<int>& rows = field_rows(*slice.op);
-            const std::vector<int>& cols = field_cols(*slice.op);
-            double* out = scratch.data();
-            for (int r : rows)
-                for (int c : cols) {
-                    const std::size_t t = std::size_t(r) * s.fine_cols + c;
-                    out[t] += slice.k * std::imag(std::conj(object_gradient[t]) * object[t]);
-                    object_gradient[t] = 0.0;
-                }
-            scratch.take_box(rows, cols, std::size_t(s.fine_cols));
-            return v * s.inv_total;
-        });
+                scratch.take_box(rows, cols, std::size_t(s.fine_cols));
+                return v * s.inv_total;
+            },
+            accumulate);
+        accumulate = true;
+    }
+    s.fine_gradient.resize(s.fine);
+    const double value = s.exact_sum.finish(*s.comm, s.fine_gradient.data());
     if (gradient) s.interpolant.transpose(s.fine_gradient, *gradient);
     return value;
 }

@@ -61,8 +61,10 @@ private:
 class FieldModelLoss {
 public:
     // observations (this rank's; none null, each single-wavelength OHS / ROHS) and queries
-    // (one per observation). Throws std::invalid_argument on a mismatch or when every rank's
-    // references are all zero.
+    // (one per observation). The observations are read where they are at every evaluation (no
+    // copy of their references): they must outlive the loss. An evaluation holds one
+    // wavelength's object on the fine grid at a time. Throws std::invalid_argument on a
+    // mismatch or when every rank's references are all zero.
     FieldModelLoss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries, int rows,
                    int cols, double texel_um, int refine, bool calibrate_exposure, const Communicator& comm,
                    Interpolant interpolant = Interpolant::Cubic, bool gabor_window = true);

@@ -2,6 +2,7 @@
 
 #include "recovery/field_tiles.h"
 #include "recovery/white_light.h"
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <cmath>
@@ -89,6 +90,16 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     const double field_history =
         field_samples * 2.0 * (2.0 * settings.field.history * sizeof(float) + 6.0 * sizeof(double)) + tiled_fields;
     const double refine_history = texels * sizeof(double) * (2.0 * settings.refine_history + 8.0);
+    // The model check (recover_field_model.h) on the whole surface's fine grid: one
+    // wavelength's object (complex), the fine heights and gradient, the exact sum's
+    // accumulator (16 bytes per value), and per thread a scratch and an object gradient
+    // (complex); its operators share their factors (small).
+    const double threads = double(std::max(1, omp_get_max_threads()));
+    const double model_check = settings.model_check_iterations > 0
+                                   ? samples * (2.0 * sizeof(double) + 2.0 * sizeof(double) + 16.0 +
+                                                threads * 3.0 * sizeof(double)) +
+                                         refine_history
+                                   : 0.0;
     // The refinement keeps one plan per observation between iterations: its footprint's
     // kernels (two ints, seven doubles each, within 3σ_p) and ~2 KB of grids and bookkeeping;
     // the per-pixel factors are shared (slice_plan.h, release).
@@ -98,7 +109,11 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
         const double kernels = std::min(texels, k_pi * (radius_texels + 1.0) * (radius_texels + 1.0));
         refine_plans += 2048.0 + kernels * (2.0 * sizeof(int) + 7.0 * sizeof(double));
     }
-    return base + references + largest_stage + field_history + refine_history + refine_plans;
+    // The stages one after another (the fields are released before the refinement, its plans
+    // before the model check): the largest of them on top of the references.
+    const double field_stage = largest_stage + field_history;
+    const double refinement = refine_history + refine_plans;
+    return base + references + std::max({field_stage, refinement, model_check});
 }
 
 Heightfield generated_recovery_truth(const RecoveryOptions& options) {
