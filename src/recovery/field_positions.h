@@ -80,10 +80,11 @@ struct PositionSearch {
     double radius_texels = 0.0;  // 0: off (the gradient steps of correct_positions)
     double min_radius_texels = 0.25;
     int chunk_iterations = 5;
-    // Before each search the object is projected onto pure-phase objects (every sample's
-    // amplitude set to the mean amplitude, its phase kept; a reflecting surface's object is
-    // e^{−i(4π/λ)H}), and the retrieval continues from the projection: a free amplitude can
-    // absorb the positions' errors where overlapping footprints disagree.
+    // Before each correction (the search or, with radius_texels 0, the gradient steps) the
+    // object is projected onto pure-phase objects (every sample's amplitude set to the mean
+    // amplitude, its phase kept; a reflecting surface's object is e^{−i(4π/λ)H}), and the
+    // retrieval continues from the projection: a free amplitude can absorb the positions'
+    // errors where overlapping footprints disagree. Measured not to help (round 6).
     bool project_phase = false;
 };
 
