@@ -284,9 +284,7 @@ std::function<void(const std::vector<double>&)>& position_probe() {
 
 }  // namespace
 
-void set_position_probe(std::function<void(const std::vector<double>&)> probe) {
-    position_probe() = std::move(probe);
-}
+void set_position_probe(std::function<void(const std::vector<double>&)> probe) { position_probe() = std::move(probe); }
 
 double search_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
                         std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
@@ -367,8 +365,9 @@ FieldRetrievalResult retrieve_field_with_positions(
     int chunk_iterations, int steps, int folds, const PositionSearch& search) {
     const bool searching = search.radius_texels > 0.0;
     if (searching && (folds != 0 || search.chunk_iterations < 1 || !(search.min_radius_texels > 0.0)))
-        throw std::invalid_argument("retrieve_field_with_positions: the position search needs folds 0, a chunk >= 1 "
-                                    "and a minimum radius > 0");
+        throw std::invalid_argument(
+            "retrieve_field_with_positions: the position search needs folds 0, a chunk >= 1 "
+            "and a minimum radius > 0");
     if (searching) chunk_iterations = search.chunk_iterations;
     int round = 0;
     if (chunk_iterations < 1 || steps < 0)
@@ -416,11 +415,11 @@ FieldRetrievalResult retrieve_field_with_positions(
         }
         double moved = 0.0;
         if (searching) {
-            const double radius =
-                std::max(search.min_radius_texels, search.radius_texels * std::ldexp(1.0, -std::min(round, 60)));
+            const double radius = std::max(search.min_radius_texels,
+                                           search.radius_texels * std::ldexp(1.0, -std::min(round, 60)));
             ++round;
-            moved = search_positions(group, position, object, lambda_um, rows, cols, texel_um, settings.refine,
-                                     radius, offsets_um, comm);
+            moved = search_positions(group, position, object, lambda_um, rows, cols, texel_um, settings.refine, radius,
+                                     offsets_um, comm);
         } else if (folds == 0) {
             moved = correct_positions(group, position, object, lambda_um, rows, cols, texel_um, settings.refine, steps,
                                       offsets_um, comm);
