@@ -22,6 +22,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <random>
 #include <sstream>
 #include <string>
@@ -32,6 +33,7 @@
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/optim.h"
+#include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
 #include "wavebrdf/recover.h"
 
@@ -182,12 +184,42 @@ int main(int argc, char** argv) try {
     if (args.count("blur_radius")) rs.blur_positions_radius_texels = std::stod(args["blur_radius"]);
     if (args.count("position_folds")) rs.field_position_folds = std::stoi(args["position_folds"]);
     set_int("outer_passes", rs.position_outer_passes);
+    if (args.count("search_radius")) rs.field_position_search_radius_texels = std::stod(args["search_radius"]);
+    if (args.count("search_min")) rs.field_position_search_min_texels = std::stod(args["search_min"]);
+    set_int("search_chunk", rs.field_position_search_chunk);
+    if (args.count("search_project")) rs.field_position_search_project = args["search_project"] == "1";
+    if (args.count("search_hold")) rs.field_position_search_hold = args["search_hold"] == "1";
     if (args.count("register_radius")) rs.position_register_radius_texels = std::stod(args["register_radius"]);
     if (args.count("outer_tolerance")) rs.position_outer_tolerance_texels = std::stod(args["outer_tolerance"]);
     if (args.count("outer_fields")) rs.position_outer_fields = args["outer_fields"] == "1";
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
+    // The field stage's offsets after every correction round against the truth (offsets left,
+    // rms over positions and coordinates, means removed, texels): "PROBE round rms".
+    if (rs.calibrate.positions && get("probe", "1") == "1") {
+        auto probe_index = std::make_shared<std::vector<std::size_t>>();
+        detail::gather_positions(observations, *probe_index, serial_communicator());
+        auto round = std::make_shared<int>(0);
+        detail::set_position_probe([probe_index, round, &obs_error, texel_um](const std::vector<double>& off) {
+            const std::vector<std::size_t>& index = *probe_index;
+            const double n = double(index.size());
+            std::array<double, 2> m{0, 0}, mt{0, 0};
+            for (std::size_t i = 0; i < index.size(); ++i)
+                for (int c = 0; c < 2; ++c) {
+                    m[c] += off[2 * index[i] + c] / n;
+                    mt[c] += obs_error[i][c] / n;
+                }
+            double s2 = 0.0;
+            for (std::size_t i = 0; i < index.size(); ++i)
+                for (int c = 0; c < 2; ++c) {
+                    const double d = off[2 * index[i] + c] - m[c] - (obs_error[i][c] - mt[c]);
+                    s2 += d * d;
+                }
+            std::printf("PROBE round %d offsets_left_rms_texels=%.4f\n", ++*round, std::sqrt(s2 / (2 * n)) / texel_um);
+            std::fflush(stdout);
+        });
+    }
     Calibration calibration;
     double blur_s = 0, blur_rmse = -1, field_s = 0, unwrap_rmse = -1, field_end = 0;
     std::string last_stage;

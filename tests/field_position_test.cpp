@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <complex>
 #include <random>
@@ -234,5 +235,71 @@ TEST(FieldPositions, FoldRegistrationKeepsTrueCentresAtTheTrueObjectWithTheSameB
     EXPECT_THROW(detail::retrieve_field_with_positions(group, position, kLambda, kRows, kCols, kTexel, object,
                                                        FieldRetrievalSettings{}, nullptr, offsets,
                                                        serial_communicator(), 10, 3, 1),
+                 std::invalid_argument);
+}
+
+// Round 6 (docs/recovery.md): the annealing grid search (search_positions) at the true object
+// finds offsets of 1 texel rms (up to ±2.5 texels, beyond the gradient steps' reach in one
+// round) with radii 2, 1, 0.5, 0.25, 0.125 texel, to the last grid's step; one and two threads
+// give the same bits, and the offsets have mean 0 (the gauge).
+TEST(FieldPositions, AnnealingSearchFindsKnownOffsetsAtTheTrueObjectWithTheSameBitsOnAnyThreadCount) {
+    const auto object = smooth_object(6601, 0.3);
+    std::mt19937_64 rng(6602);
+    std::normal_distribution<double> normal(0.0, 1.0 * kTexel);  // 1 texel rms
+    std::vector<Observation> obs;
+    std::vector<std::array<double, 2>> errors;
+    const int side = 4;
+    for (int a = 0; a < side; ++a)
+        for (int b = 0; b < side; ++b) {
+            errors.push_back({std::clamp(normal(rng), -2.5 * kTexel, 2.5 * kTexel),
+                              std::clamp(normal(rng), -2.5 * kTexel, 2.5 * kTexel)});
+            obs.push_back(observation_at(object, {(a + 0.5) * 24.0 / side, (b + 0.5) * 24.0 / side}, errors.back()));
+        }
+    std::array<double, 2> mean{0.0, 0.0};
+    for (const auto& e : errors)
+        mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
+    std::vector<const Observation*> group;
+    std::vector<std::size_t> position;
+    for (std::size_t k = 0; k < obs.size(); ++k) {
+        group.push_back(&obs[k]);
+        position.push_back(k);
+    }
+    const auto run = [&](int threads) {
+        const int before = omp_get_max_threads();
+        omp_set_num_threads(threads);
+        std::vector<double> offsets(2 * obs.size(), 0.0);
+        std::vector<std::complex<double>> o = detail::shift_object(object, kRows, kCols, kTexel, kRefine, -mean[0],
+                                                                   -mean[1]);
+        for (double radius : {2.0, 1.0, 0.5, 0.25, 0.125})
+            detail::search_positions(group, position, o, kLambda, kRows, kCols, kTexel, kRefine, radius, offsets,
+                                     serial_communicator());
+        omp_set_num_threads(before);
+        return offsets;
+    };
+    const std::vector<double> one = run(1);
+    EXPECT_EQ(one, run(2));
+    double found_mean[2] = {0.0, 0.0};
+    for (std::size_t k = 0; k < obs.size(); ++k)
+        for (int c = 0; c < 2; ++c) found_mean[c] += one[2 * k + std::size_t(c)] / double(obs.size());
+    EXPECT_NEAR(found_mean[0], 0.0, 1e-12);
+    EXPECT_NEAR(found_mean[1], 0.0, 1e-12);
+    double sum = 0.0, start = 0.0, worst = 0.0;
+    for (std::size_t k = 0; k < obs.size(); ++k)
+        for (int c = 0; c < 2; ++c) {
+            const double truth = errors[k][std::size_t(c)] - mean[std::size_t(c)];
+            sum += std::pow(one[2 * k + std::size_t(c)] - truth, 2);
+            start += truth * truth;
+            worst = std::max(worst, std::abs(one[2 * k + std::size_t(c)] - truth) / kTexel);
+        }
+    const double rms = std::sqrt(sum / (2.0 * double(obs.size()))) / kTexel,
+                 rms0 = std::sqrt(start / (2.0 * double(obs.size()))) / kTexel;
+    RecordProperty("offset_rms_before_texels", std::to_string(rms0));
+    RecordProperty("offset_rms_after_texels", std::to_string(rms));
+    EXPECT_GT(rms0, 0.7);
+    EXPECT_LT(rms, 0.05) << "from " << rms0 << ", worst " << worst;
+    std::vector<std::complex<double>> copy = object;
+    std::vector<double> offsets(2 * obs.size(), 0.0);
+    EXPECT_THROW(detail::search_positions(group, position, copy, kLambda, kRows, kCols, kTexel, kRefine, 0.0, offsets,
+                                          serial_communicator()),
                  std::invalid_argument);
 }

@@ -326,6 +326,21 @@ struct RecoverSettings {
     // the object refitted to the other folds' observations. 0: every position against the one
     // object fitted to all (the default). Measured not to help yet (docs/recovery.md). Valid: 0, 2 … 4.
     int field_position_folds = 0;
+    // With calibrate.positions (docs/recovery.md, "Self-calibration: positions", round 6): the
+    // field stage at the longest wavelength corrects the positions by ptychography's annealing
+    // search (field_positions.h): after every field_position_search_chunk L-BFGS iterations each
+    // position moves to the best point of a grid of trial shifts of its own loss within a radius
+    // that starts at field_position_search_radius_texels and halves each round down to
+    // field_position_search_min_texels. 0: off (the gradient steps). With
+    // field_position_search_hold the shorter wavelengths' fields hold the positions found.
+    // Off by default: measured not to help (round 6).
+    double field_position_search_radius_texels = 0.0;
+    double field_position_search_min_texels = 0.25;
+    int field_position_search_chunk = 5;
+    bool field_position_search_hold = true;
+    // The longest wavelength's object projected onto pure-phase objects before each position
+    // correction (search or gradient steps), and the retrieval continued from there.
+    bool field_position_search_project = false;
     // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration:
     // positions", round 5): after stage 3, every position is registered on its own at the final
     // heights (a grid search of its full-model loss over ± position_register_radius_texels in

@@ -307,10 +307,21 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                           field_settings, on_iteration, comm);
                 std::vector<std::size_t> index;
                 for (const Observation* o : it->second) index.push_back(position_index(o));
+                // Round 6: the annealing search at the longest wavelength; the shorter ones hold
+                // the positions it found (no steps) with field_position_search_hold.
+                detail::PositionSearch search;
+                const bool searching = settings.field_position_search_radius_texels > 0.0;
+                if (searching && it == by_lambda.rbegin()) {
+                    search.radius_texels = settings.field_position_search_radius_texels;
+                    search.min_radius_texels = settings.field_position_search_min_texels;
+                    search.chunk_iterations = settings.field_position_search_chunk;
+                }
+                if (it == by_lambda.rbegin()) search.project_phase = settings.field_position_search_project;
+                const int steps = searching && settings.field_position_search_hold ? 0 : 3;
                 return detail::retrieve_field_with_positions(used, index, lambda, rows, cols, texel_um,
                                                              proxy_start(lambda), field_settings,
-                                                             on_iteration, offsets_um, comm, 10, 3,
-                                                             settings.field_position_folds);
+                                                             on_iteration, offsets_um, comm, 10, steps,
+                                                             settings.field_position_folds, search);
             }();
             if (stopped) return false;
             std::vector<Observation>().swap(group);
@@ -663,6 +674,18 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
+    if (!(settings.field_position_search_radius_texels >= 0.0 && settings.field_position_search_radius_texels <= 16.0) ||
+        !(settings.field_position_search_min_texels > 0.0 && settings.field_position_search_min_texels <= 16.0) ||
+        settings.field_position_search_chunk < 1)
+        throw std::invalid_argument("recover_heights: field position search radius " +
+                                    std::to_string(settings.field_position_search_radius_texels) + " / minimum " +
+                                    std::to_string(settings.field_position_search_min_texels) + " texels / chunk " +
+                                    std::to_string(settings.field_position_search_chunk) +
+                                    " is invalid; expected 0 ... 16 / > 0 ... 16 / >= 1");
+    if (settings.field_position_search_radius_texels > 0.0 && settings.field_position_folds != 0)
+        throw std::invalid_argument("recover_heights: the field position search and field_position_folds " +
+                                    std::to_string(settings.field_position_folds) +
+                                    " cannot be combined; expected folds 0");
     if (settings.position_outer_passes < -1 || settings.position_outer_passes > 100)
         throw std::invalid_argument("recover_heights: position outer passes " +
                                     std::to_string(settings.position_outer_passes) +
