@@ -341,3 +341,39 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
 
 }  // namespace
 }  // namespace wavebrdf
+
+// The smooth schedule (docs/recovery.md, Speed, sixth pass): a smooth surface without
+// self-calibration gets the field stage at its longest wavelength only, at most 25 field
+// iterations, and the refinement first on that wavelength's slices; a rough surface or any
+// calibration keeps the settings as they were.
+TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
+    const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
+    ASSERT_FALSE(smooth.rough);
+    RecoverSettings settings;
+    apply_smooth_schedule(smooth, settings);
+    EXPECT_EQ(settings.field_wavelengths, 1);
+    EXPECT_EQ(settings.refine_ladder_wavelengths, 1);
+    EXPECT_EQ(settings.field.iterations, 25);
+    EXPECT_EQ(settings.refine_ladder_iterations, 40);
+    EXPECT_EQ(settings.refine_iterations, 8);
+    EXPECT_EQ(settings.field_lambda_min_um, 0.0);  // counted, not named
+    EXPECT_EQ(settings.refine_ladder_min_um, 0.0);
+
+    const RecoverSettings defaults;
+    const auto unchanged = [&](const RecoverSettings& s) {
+        EXPECT_EQ(s.field_wavelengths, defaults.field_wavelengths);
+        EXPECT_EQ(s.refine_ladder_wavelengths, defaults.refine_ladder_wavelengths);
+        EXPECT_EQ(s.field.iterations, defaults.field.iterations);
+        EXPECT_EQ(s.refine_ladder_iterations, defaults.refine_ladder_iterations);
+        EXPECT_EQ(s.refine_iterations, defaults.refine_iterations);
+    };
+    RecoverSettings calibrated;
+    calibrated.calibrate.sigma = true;
+    apply_smooth_schedule(smooth, calibrated);
+    unchanged(calibrated);
+    const RoughnessPlan steep = plan_for_roughness(8.0, 8.0, 2.0);
+    ASSERT_TRUE(steep.rough);
+    RecoverSettings rough;
+    apply_smooth_schedule(steep, rough);
+    unchanged(rough);
+}
