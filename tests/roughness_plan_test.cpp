@@ -124,11 +124,16 @@ TEST(RoughnessPlan, PrepareRecoveryChoosesTheScheduleFromTheStatedSurface) {
     options.resolution = 16;
     options.seed = 6301;
     const PreparedRecovery smooth = prepare_recovery(options);
-    EXPECT_EQ(smooth.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    // Smooth: the smooth schedule (apply_smooth_schedule: fewer field iterations, longest
+    // wavelength only).
+    EXPECT_LT(smooth.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    EXPECT_EQ(smooth.pipeline.field_wavelengths, 1);
+    EXPECT_EQ(smooth.pipeline.refine_ladder_wavelengths, 1);
     EXPECT_EQ(smooth.pipeline.blurred.iterations, RecoverSettings{}.blurred.iterations);
     options.correlation_texels = 2.0;
     const PreparedRecovery rough = prepare_recovery(options);
     EXPECT_GT(rough.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    EXPECT_EQ(rough.pipeline.field_wavelengths, 0);
     bool noted = false;
     for (const auto& n : rough.notes) noted = noted || n.find("rough surface") != std::string::npos;
     EXPECT_TRUE(noted);
@@ -327,8 +332,10 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
     EXPECT_GT(rungs, 0u);
     EXPECT_GT(differ, 0u);  // the 0.5 µm slices do enter the last round
 
-    // Off (0, the default) and a minimum above every wavelength: the refinement as before.
+    // Off (0, the default, and no count: the smooth schedule's refine_ladder_wavelengths 0) and
+    // a minimum above every wavelength: the refinement as before.
     prepared.pipeline.refine_ladder_min_um = 0.0;
+    prepared.pipeline.refine_ladder_wavelengths = 0;
     const std::vector<StageMetrics> off = run(prepared);
     prepared.pipeline.refine_ladder_min_um = 100.0;
     const std::vector<StageMetrics> above = run(prepared);
@@ -338,9 +345,6 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
         EXPECT_EQ(above[k].loss, off[k].loss);
     }
 }
-
-}  // namespace
-}  // namespace wavebrdf
 
 // The smooth schedule (docs/recovery.md, Speed, sixth pass): a smooth surface without
 // self-calibration gets the field stage at its longest wavelength only, at most 25 field
@@ -377,3 +381,6 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     apply_smooth_schedule(steep, rough);
     unchanged(rough);
 }
+
+}  // namespace
+}  // namespace wavebrdf
