@@ -347,14 +347,14 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
 }
 
 // The smooth schedule (docs/recovery.md, Speed, sixth pass): a smooth surface without
-// self-calibration gets the field stage at its longest wavelength only, at most 25 field
-// iterations, and the refinement first on that wavelength's slices; a rough surface or any
-// calibration keeps the settings as they were.
+// self-calibration, up to 64² texels, gets the field stage at its longest wavelength only, at
+// most 25 field iterations, and the refinement first on that wavelength's slices; a rough
+// surface, any calibration or a larger surface keeps the settings as they were.
 TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
     ASSERT_FALSE(smooth.rough);
     RecoverSettings settings;
-    apply_smooth_schedule(smooth, settings);
+    apply_smooth_schedule(smooth, 64, 64, settings);
     EXPECT_EQ(settings.field_wavelengths, 1);
     EXPECT_EQ(settings.refine_ladder_wavelengths, 1);
     EXPECT_EQ(settings.field.iterations, 25);
@@ -373,13 +373,16 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     };
     RecoverSettings calibrated;
     calibrated.calibrate.sigma = true;
-    apply_smooth_schedule(smooth, calibrated);
+    apply_smooth_schedule(smooth, 64, 64, calibrated);
     unchanged(calibrated);
     const RoughnessPlan steep = plan_for_roughness(8.0, 8.0, 2.0);
     ASSERT_TRUE(steep.rough);
     RecoverSettings rough;
-    apply_smooth_schedule(steep, rough);
+    apply_smooth_schedule(steep, 64, 64, rough);
     unchanged(rough);
+    RecoverSettings large;
+    apply_smooth_schedule(smooth, 128, 64, large);
+    unchanged(large);
 }
 
 }  // namespace

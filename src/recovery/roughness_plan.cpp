@@ -42,6 +42,8 @@ constexpr int kMaxLongLambdas = 4;
 // field iteration's cost each.
 constexpr int kSmoothFieldIterations = 25;
 constexpr int kSmoothLadderIterations = 40;
+// … up to this many texels (measured at 64²; at 128² worse, see roughness_plan.h).
+constexpr double kSmoothMaxTexels = 64.0 * 64.0;
 constexpr int kSmoothRefineIterations = 8;
 
 std::string fixed(double v, int digits) {
@@ -124,8 +126,8 @@ void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings) 
     if (plan.refine_ladder_min_um > 0.0) settings.refine_ladder_min_um = plan.refine_ladder_min_um;
 }
 
-void apply_smooth_schedule(const RoughnessPlan& plan, RecoverSettings& settings) {
-    if (plan.rough || settings.calibrate.any()) return;
+void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, RecoverSettings& settings) {
+    if (plan.rough || settings.calibrate.any() || double(rows) * double(cols) > kSmoothMaxTexels) return;
     settings.field_wavelengths = 1;
     settings.field.iterations = std::min(settings.field.iterations, kSmoothFieldIterations);
     settings.refine_ladder_wavelengths = 1;
