@@ -250,9 +250,9 @@ struct RecoverSettings {
     // only. When no wavelength reaches it, every wavelength runs the field stage.
     double field_lambda_min_um = 0.0;
     // Stage 1 only at this many longest single-wavelength wavelengths (0: all; with
-    // field_lambda_min_um > 0 that applies instead). Smooth surfaces (recovery_run.h: the CLI's
-    // plan): 1, the longest field alone unwraps as well as all of them (docs/recovery.md, Speed,
-    // sixth pass).
+    // field_lambda_min_um > 0 that applies instead). Smooth surfaces up to 64² texels (the CLI's
+    // plan, roughness_plan.h apply_smooth_schedule): 1, the refinement then reaches the same
+    // heights from the longest field alone (docs/recovery.md, Speed, sixth pass).
     int field_wavelengths = 0;
     // Cascading: the stall tolerance (FieldRetrievalSettings::stall_tolerance) of every field
     // started from the fields before it (all but the first of the first pass), which start near
@@ -275,8 +275,8 @@ struct RecoverSettings {
     // The same ladder over this many longest single-wavelength wavelengths (0: none; with
     // refine_ladder_min_um > 0 that applies instead): with 1, refine_ladder_iterations on the
     // longest wavelength's slices alone (a fraction of the cost per iteration), then
-    // refine_iterations on every slice. Smooth surfaces (the CLI's plan): 1 (docs/recovery.md,
-    // Speed, sixth pass).
+    // refine_iterations on every slice. Smooth surfaces up to 64² texels (the CLI's plan): 1
+    // (docs/recovery.md, Speed, sixth pass).
     int refine_ladder_wavelengths = 0;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
