@@ -324,9 +324,11 @@ void add_recover_command(CLI::App& app) {
                     "pipeline (field retrieval, unwrapping, refinement) or thesis (Adam, one observation per epoch)")
         ->capture_default_str();
     cmd->add_option("--field-iterations", a->field_iterations,
-                    "field retrieval iterations per wavelength (default: the library's)");
+                    "field retrieval iterations per wavelength (default: the library's; a smooth surface without "
+                    "--calibrate: at most 25, at the longest wavelength only)");
     cmd->add_option("--refine-iterations", a->refine_iterations,
-                    "refinement L-BFGS iterations (default: the library's)");
+                    "refinement L-BFGS iterations (default: the library's; a smooth surface without --calibrate: 8 on "
+                    "every slice after 40 on the longest wavelength's)");
     cmd->add_option("--field-tile-threshold", a->field_tile_threshold,
                     "field stage on tiles along an axis of more than N texels (0: never; default: the library's)");
     cmd->add_option("--field-tile-core", a->field_tile_core,

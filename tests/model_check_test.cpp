@@ -316,8 +316,50 @@ TEST(ModelCheck, OnGaborSlicesTheFieldRefinementIsSkippedWithTheSameResult) {
     EXPECT_EQ(a.values(), b.values());
     EXPECT_EQ(skipped.count("refine:field"), 0u);
     EXPECT_EQ(skipped.count("misfit:field"), 0u);
-    EXPECT_EQ(skipped.count("misfit:field-start"), 1u);
+    // The field stage's floor decides already (no field model built), or its start does.
+    EXPECT_EQ(skipped.count("misfit:field-start") + skipped.count("misfit:field-floor"), 1u);
     EXPECT_EQ(skipped.count("select:gabor"), 1u);
     EXPECT_GT(full.count("refine:field"), 0u);
     EXPECT_EQ(full.count("select:gabor"), 1u);
+}
+
+// The field-floor shortcut (check_model's field_floor_loss): when misfit:gabor is below the
+// skip ratio times the field stage's floor, the field model is not built ("misfit:field-floor"
+// instead of "misfit:field-start") and stage 3's heights are kept; a floor too low for the rule,
+// or none (0), evaluates the field model's start as before. The heights are the same bits.
+TEST(ModelCheck, FieldFloorShortcutSkipsBuildingTheFieldModel) {
+    const ScalarCase c = small_case(Simulator::Gabor, 6605);
+    std::vector<double> near = c.truth.values();
+    for (std::size_t k = 0; k < near.size(); ++k) near[k] += 0.002 * std::sin(0.7 * double(k));
+    const Heightfield refined = c.truth.with_values(near);
+    std::vector<std::size_t> index(c.observations.size());
+    for (std::size_t k = 0; k < index.size(); ++k) index[k] = k;
+    RecoverSettings s = small_settings();
+    s.model_check_iterations = 2;
+    const auto run = [&](double floor, std::map<std::string, double>* stages) {
+        return detail::check_model(
+            pointers(c.observations), index, {}, 1.0, c.truth, refined, 3, s,
+            [&](const std::string& stage, int, double loss, const Heightfield*) {
+                (*stages)[stage] = loss;
+                return true;
+            },
+            serial_communicator(), floor);
+    };
+    std::map<std::string, double> none, low, high;
+    const Heightfield a = run(0.0, &none);
+    ASSERT_TRUE(none.count("misfit:gabor"));
+    const double gabor = none.at("misfit:gabor");
+    ASSERT_GT(gabor, 0.0);
+    EXPECT_EQ(none.count("misfit:field-start"), 1u);
+    EXPECT_EQ(none.count("misfit:field-floor"), 0u);
+    const Heightfield b = run(0.1 * gabor, &low);  // gabor > 0.1 × floor: the start decides
+    EXPECT_EQ(low.count("misfit:field-start"), 1u);
+    EXPECT_EQ(low.count("misfit:field-floor"), 0u);
+    const Heightfield d = run(100.0 * gabor, &high);  // gabor < 0.1 × floor: skipped at once
+    EXPECT_EQ(high.count("misfit:field-start"), 0u);
+    EXPECT_EQ(high.count("refine:field"), 0u);
+    EXPECT_EQ(high.at("misfit:field-floor"), 100.0 * gabor);
+    EXPECT_EQ(high.count("select:gabor"), 1u);
+    EXPECT_EQ(d.values(), refined.values());
+    EXPECT_EQ(a.values(), b.values());
 }

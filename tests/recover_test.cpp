@@ -621,6 +621,50 @@ TEST(RecoverHeights, CascadeStallToleranceStopsTheLaterFields) {
     EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, s), std::domain_error);
 }
 
+// field_wavelengths / refine_ladder_wavelengths count the longest wavelengths: 1 runs the field
+// stage at the longest wavelength only and the refinement first on its slices ("refine:0.6")
+// then on every slice, the same bits as naming that wavelength in field_lambda_min_um /
+// refine_ladder_min_um; negative counts are refused.
+TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
+    const SmallCase c = small_case(25);
+    const auto run = [&](const RecoverSettings& s, std::map<std::string, int>* stages) {
+        return recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
+            ++(*stages)[m.stage];
+            return true;
+        });
+    };
+    RecoverSettings s = quick_settings();
+    s.refine_iterations = 3;
+    s.refine_ladder_iterations = 4;
+    s.model_check_iterations = 0;
+    std::map<std::string, int> all, counted, named;
+    const Heightfield a = run(s, &all);
+    EXPECT_GT(all.count("field:0.5"), 0u);
+    EXPECT_EQ(all.count("refine:0.6"), 0u);
+    RecoverSettings one = s;
+    one.field_wavelengths = 1;
+    one.refine_ladder_wavelengths = 1;
+    const Heightfield b = run(one, &counted);
+    EXPECT_GT(counted.count("field:0.6"), 0u);
+    EXPECT_EQ(counted.count("field:0.5"), 0u);
+    EXPECT_EQ(counted.at("refine:0.6"), one.refine_ladder_iterations);
+    EXPECT_EQ(counted.count("refine:0.5"), 0u);
+    EXPECT_GT(counted.count("refine"), 0u);
+    EXPECT_NE(a.values(), b.values());
+    RecoverSettings by_name = s;
+    by_name.field_lambda_min_um = 0.6;
+    by_name.refine_ladder_min_um = 0.6;
+    const Heightfield d = run(by_name, &named);
+    EXPECT_EQ(b.values(), d.values());
+    EXPECT_EQ(counted, named);
+    RecoverSettings bad = s;
+    bad.field_wavelengths = -1;
+    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad), std::invalid_argument);
+    bad = s;
+    bad.refine_ladder_wavelengths = -2;
+    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad), std::invalid_argument);
+}
+
 // No observation is refused; RGB slices alone are taken (white light: white_light_test.cpp),
 // where they used to be refused for want of a single-wavelength slice.
 TEST(RecoverHeights, RejectsNoObservationsButTakesRgbOnesAlone) {

@@ -124,11 +124,16 @@ TEST(RoughnessPlan, PrepareRecoveryChoosesTheScheduleFromTheStatedSurface) {
     options.resolution = 16;
     options.seed = 6301;
     const PreparedRecovery smooth = prepare_recovery(options);
-    EXPECT_EQ(smooth.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    // Smooth: the smooth schedule (apply_smooth_schedule: fewer field iterations, longest
+    // wavelength only).
+    EXPECT_LT(smooth.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    EXPECT_EQ(smooth.pipeline.field_wavelengths, 1);
+    EXPECT_EQ(smooth.pipeline.refine_ladder_wavelengths, 1);
     EXPECT_EQ(smooth.pipeline.blurred.iterations, RecoverSettings{}.blurred.iterations);
     options.correlation_texels = 2.0;
     const PreparedRecovery rough = prepare_recovery(options);
     EXPECT_GT(rough.pipeline.field.iterations, RecoverSettings{}.field.iterations);
+    EXPECT_EQ(rough.pipeline.field_wavelengths, 0);
     bool noted = false;
     for (const auto& n : rough.notes) noted = noted || n.find("rough surface") != std::string::npos;
     EXPECT_TRUE(noted);
@@ -327,8 +332,10 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
     EXPECT_GT(rungs, 0u);
     EXPECT_GT(differ, 0u);  // the 0.5 µm slices do enter the last round
 
-    // Off (0, the default) and a minimum above every wavelength: the refinement as before.
+    // Off (0, the default, and no count: the smooth schedule's refine_ladder_wavelengths 0) and
+    // a minimum above every wavelength: the refinement as before.
     prepared.pipeline.refine_ladder_min_um = 0.0;
+    prepared.pipeline.refine_ladder_wavelengths = 0;
     const std::vector<StageMetrics> off = run(prepared);
     prepared.pipeline.refine_ladder_min_um = 100.0;
     const std::vector<StageMetrics> above = run(prepared);
@@ -337,6 +344,45 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
         EXPECT_EQ(off[k].stage, "refine");
         EXPECT_EQ(above[k].loss, off[k].loss);
     }
+}
+
+// The smooth schedule (docs/recovery.md, Speed, sixth pass): a smooth surface without
+// self-calibration, up to 64² texels, gets the field stage at its longest wavelength only, at
+// most 25 field iterations, and the refinement first on that wavelength's slices; a rough
+// surface, any calibration or a larger surface keeps the settings as they were.
+TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
+    const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
+    ASSERT_FALSE(smooth.rough);
+    RecoverSettings settings;
+    apply_smooth_schedule(smooth, 64, 64, settings);
+    EXPECT_EQ(settings.field_wavelengths, 1);
+    EXPECT_EQ(settings.refine_ladder_wavelengths, 1);
+    EXPECT_EQ(settings.field.iterations, 25);
+    EXPECT_EQ(settings.refine_ladder_iterations, 40);
+    EXPECT_EQ(settings.refine_iterations, 8);
+    EXPECT_EQ(settings.field_lambda_min_um, 0.0);  // counted, not named
+    EXPECT_EQ(settings.refine_ladder_min_um, 0.0);
+
+    const RecoverSettings defaults;
+    const auto unchanged = [&](const RecoverSettings& s) {
+        EXPECT_EQ(s.field_wavelengths, defaults.field_wavelengths);
+        EXPECT_EQ(s.refine_ladder_wavelengths, defaults.refine_ladder_wavelengths);
+        EXPECT_EQ(s.field.iterations, defaults.field.iterations);
+        EXPECT_EQ(s.refine_ladder_iterations, defaults.refine_ladder_iterations);
+        EXPECT_EQ(s.refine_iterations, defaults.refine_iterations);
+    };
+    RecoverSettings calibrated;
+    calibrated.calibrate.sigma = true;
+    apply_smooth_schedule(smooth, 64, 64, calibrated);
+    unchanged(calibrated);
+    const RoughnessPlan steep = plan_for_roughness(8.0, 8.0, 2.0);
+    ASSERT_TRUE(steep.rough);
+    RecoverSettings rough;
+    apply_smooth_schedule(steep, 64, 64, rough);
+    unchanged(rough);
+    RecoverSettings large;
+    apply_smooth_schedule(smooth, 128, 64, large);
+    unchanged(large);
 }
 
 }  // namespace

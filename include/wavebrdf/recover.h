@@ -249,6 +249,11 @@ struct RecoverSettings {
     // in wrong basins, measured to raise the error) are left out and their slices enter stage 3
     // only. When no wavelength reaches it, every wavelength runs the field stage.
     double field_lambda_min_um = 0.0;
+    // Stage 1 only at this many longest single-wavelength wavelengths (0: all; with
+    // field_lambda_min_um > 0 that applies instead). Smooth surfaces up to 64² texels (the CLI's
+    // plan, roughness_plan.h apply_smooth_schedule): 1, the refinement then reaches the same
+    // heights from the longest field alone (docs/recovery.md, Speed, sixth pass).
+    int field_wavelengths = 0;
     // Cascading: the stall tolerance (FieldRetrievalSettings::stall_tolerance) of every field
     // started from the fields before it (all but the first of the first pass), which start near
     // the loss floor. Finite; negative (the default): field.stall_tolerance for those too. At
@@ -267,6 +272,12 @@ struct RecoverSettings {
     // calibrate.positions (their refinements run as before), nor for white light.
     double refine_ladder_min_um = 0.0;
     int refine_ladder_iterations = 40;
+    // The same ladder over this many longest single-wavelength wavelengths (0: none; with
+    // refine_ladder_min_um > 0 that applies instead): with 1, refine_ladder_iterations on the
+    // longest wavelength's slices alone (a fraction of the cost per iteration), then
+    // refine_iterations on every slice. Smooth surfaces up to 64² texels (the CLI's plan): 1
+    // (docs/recovery.md, Speed, sixth pass).
+    int refine_ladder_wavelengths = 0;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     // Stage 3's coarse space (docs/scale.md, "The whole-surface undulation"): levels of periodic

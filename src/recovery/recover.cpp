@@ -6,6 +6,7 @@
 #include <chrono>
 #include <iterator>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -76,9 +77,21 @@ constexpr int k_position_outer_passes = 0;
 Heightfield recover_stages(const std::vector<Observation>& observations,
                            const std::map<double, std::vector<const Observation*>>& by_lambda,
                            double observations_total, const Heightfield& flat, int rows, int cols, double texel_um,
-                           double vscale, const RecoverSettings& settings,
+                           double vscale, const RecoverSettings& settings_in,
                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
                            const Communicator& comm, Calibration* calibration) {
+    RecoverSettings settings = settings_in;
+    // field_wavelengths / refine_ladder_wavelengths as wavelengths (every rank holds every
+    // wavelength's key, so all ranks agree): the n-th longest.
+    const auto nth_longest = [&](int n) {
+        double l = 0.0;
+        for (auto it = by_lambda.rbegin(); it != by_lambda.rend() && n > 0; ++it, --n) l = it->first;
+        return l;
+    };
+    if (settings.field_lambda_min_um == 0.0 && settings.field_wavelengths > 0)
+        settings.field_lambda_min_um = nth_longest(settings.field_wavelengths);
+    if (settings.refine_ladder_min_um == 0.0 && settings.refine_ladder_wavelengths > 0)
+        settings.refine_ladder_min_um = nth_longest(settings.refine_ladder_wavelengths);
     const auto start = std::chrono::steady_clock::now();
     const auto seconds = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -268,6 +281,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         !by_lambda.empty() && by_lambda.rbegin()->first >= settings.field_lambda_min_um ? settings.field_lambda_min_um
                                                                                         : 0.0;
     const auto field_end = by_lambda.rend();
+    // The smallest final loss of the field retrievals (the model check's shortcut; 0: none).
+    double field_floor = std::numeric_limits<double>::infinity();
     const auto field_stage = [&]() -> bool {  // false: stopped
     for (int pass = 0; pass < passes; ++pass)
         for (auto it = by_lambda.rbegin(); it != field_end && it->first >= field_min_um; ++it) {
@@ -324,6 +339,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                                              settings.field_position_folds, search);
             }();
             if (stopped) return false;
+            if (std::isfinite(r.relative_loss) && r.relative_loss > 0.0)
+                field_floor = std::min(field_floor, r.relative_loss);
             std::vector<Observation>().swap(group);
             const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
             if (at == lambdas.end()) {
@@ -651,7 +668,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 index.push_back(std::size_t(o - observations.data()));
             }
         estimate = detail::check_model(separable, index, refined_offsets, refined_sigma_scale, unwrapped, estimate, q,
-                                       settings, report, comm);
+                                       settings, report, comm, std::isfinite(field_floor) ? field_floor : 0.0);
     }
     return estimate;
 }
@@ -709,6 +726,13 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     if (!(std::isfinite(settings.field_lambda_min_um) && settings.field_lambda_min_um >= 0.0))
         throw std::domain_error("recover_heights: field_lambda_min_um " + std::to_string(settings.field_lambda_min_um) +
                                 " is invalid; expected a finite wavelength >= 0 um (0: every wavelength)");
+    if (settings.field_wavelengths < 0)
+        throw std::invalid_argument("recover_heights: field_wavelengths " + std::to_string(settings.field_wavelengths) +
+                                    " is invalid; expected >= 0 (0: every wavelength)");
+    if (settings.refine_ladder_wavelengths < 0)
+        throw std::invalid_argument("recover_heights: refine_ladder_wavelengths " +
+                                    std::to_string(settings.refine_ladder_wavelengths) +
+                                    " is invalid; expected >= 0 (0: no ladder)");
     if (!(std::isfinite(settings.refine_ladder_min_um) && settings.refine_ladder_min_um >= 0.0))
         throw std::domain_error("recover_heights: refine_ladder_min_um " +
                                 std::to_string(settings.refine_ladder_min_um) +

@@ -409,7 +409,7 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
                         const RecoverSettings& settings,
                         const std::function<bool(const std::string&, int, double, const Heightfield*)>& report,
-                        const Communicator& comm) {
+                        const Communicator& comm, double field_floor_loss) {
     std::vector<Query> queries;
     queries.reserve(separable.size());
     for (std::size_t i = 0; i < separable.size(); ++i) {
@@ -424,6 +424,13 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
     const bool exposure = settings.calibrate.exposure;
     const double gabor = gabor_amplitude_loss(separable, queries, refined, exposure, comm);
     if (!report("misfit:gabor", 0, gabor, &refined)) return refined;
+    // The field model's loss at any heights is not expected below the field stage's floor (its
+    // retrievals minimised it over free objects): skipped without building the model.
+    if (field_floor_loss > 0.0 && skip_field_refinement(gabor, field_floor_loss, settings.model_check_skip_ratio)) {
+        if (!report("misfit:field-floor", 0, field_floor_loss, &unwrapped)) return refined;
+        report("select:gabor", 0, gabor, &refined);
+        return refined;
+    }
     const FieldModelLoss model(separable, queries, refined.rows(), refined.cols(), refined.texel_um(), refine, exposure,
                                comm);
     // The field model at its start (the unwrapped heights; L-BFGS's first evaluation, reused):

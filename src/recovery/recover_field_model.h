@@ -119,12 +119,16 @@ bool skip_field_refinement(double gabor_loss, double field_start_loss, double sk
 // heights) as recover_stages' ("misfit:gabor", "misfit:field-start", "refine:field",
 // "misfit:field", "select:gabor" / "select:field"; with skip_field_refinement true the field
 // refinement and "refine:field" / "misfit:field" are left out); a false stops and returns
-// `refined`. Collective.
+// `refined`. Collective. field_floor_loss (> 0; 0: none): the smallest final relative loss of
+// the field stage's retrievals, which minimised the same loss over free objects, a superset of
+// the field model's pure-phase ones: when skip_field_refinement(misfit:gabor, field_floor_loss)
+// holds already, the field model is not even built ("misfit:field-floor" reported instead of
+// "misfit:field-start"; docs/recovery.md, Speed, sixth pass).
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
                         const RecoverSettings& settings,
                         const std::function<bool(const std::string&, int, double, const Heightfield*)>& report,
-                        const Communicator& comm);
+                        const Communicator& comm, double field_floor_loss = 0.0);
 
 }  // namespace wavebrdf::detail

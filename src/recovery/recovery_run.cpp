@@ -340,6 +340,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.method == RecoveryMethod::Pipeline && r.range_um > 0.0 && options.correlation_texels > 0.0) {
         const RoughnessPlan rough = plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
         apply_roughness_plan(rough, r.pipeline);
+        apply_smooth_schedule(rough, r.rows, r.cols, r.pipeline);
         r.notes.insert(r.notes.end(), rough.notes.begin(), rough.notes.end());
     }
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;

@@ -34,6 +34,17 @@ constexpr double kLongLambdaFactor = 4.0;
 constexpr double kVisibleMaxUm = 0.7;
 // At most this many long wavelengths (a range of 8 µm needs 2).
 constexpr int kMaxLongLambdas = 4;
+// Smooth surfaces (apply_smooth_schedule): refinement iterations on the longest wavelength's
+// slices, then on every slice (docs/recovery.md, Speed, sixth pass).
+// The field stage's cap: from the blurred fit the longest field is near its loss floor after
+// ~20 iterations (0.5 % of the range off, against 0.36 % after the ~46 of the default stall
+// rule), and the refinement's first iterations on its slices close that gap at a sixth of a
+// field iteration's cost each.
+constexpr int kSmoothFieldIterations = 25;
+constexpr int kSmoothLadderIterations = 40;
+// … up to this many texels (measured at 64²; at 128² worse, see roughness_plan.h).
+constexpr double kSmoothMaxTexels = 64.0 * 64.0;
+constexpr int kSmoothRefineIterations = 8;
 
 std::string fixed(double v, int digits) {
     char buf[48];
@@ -113,6 +124,15 @@ void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings) 
     if (!plan.long_lambdas_um.empty())
         settings.field_lambda_min_um = *std::min_element(plan.long_lambdas_um.begin(), plan.long_lambdas_um.end());
     if (plan.refine_ladder_min_um > 0.0) settings.refine_ladder_min_um = plan.refine_ladder_min_um;
+}
+
+void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, RecoverSettings& settings) {
+    if (plan.rough || settings.calibrate.any() || double(rows) * double(cols) > kSmoothMaxTexels) return;
+    settings.field_wavelengths = 1;
+    settings.field.iterations = std::min(settings.field.iterations, kSmoothFieldIterations);
+    settings.refine_ladder_wavelengths = 1;
+    settings.refine_ladder_iterations = kSmoothLadderIterations;
+    settings.refine_iterations = kSmoothRefineIterations;
 }
 
 int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition) {
