@@ -59,6 +59,36 @@ Observation observation_at(const std::vector<std::complex<double>>& object, std:
     return o;
 }
 
+// A 4 × 4 grid of positions over the 24 µm object, each observed at its stated centre plus an
+// error from `draw` (µm; called once per position, row-major), with the errors' mean and the
+// group and position indices a retrieval takes (group points into obs: keep the case whole).
+struct GridCase {
+    std::vector<Observation> obs;
+    std::vector<std::array<double, 2>> errors;
+    std::array<double, 2> mean{0.0, 0.0};
+    std::vector<const Observation*> group;
+    std::vector<std::size_t> position;
+};
+
+template <class Draw>
+GridCase grid_case(const std::vector<std::complex<double>>& object, Draw draw) {
+    GridCase c;
+    const int side = 4;
+    for (int a = 0; a < side; ++a)
+        for (int b = 0; b < side; ++b) {
+            c.errors.push_back(draw());
+            c.obs.push_back(
+                observation_at(object, {(a + 0.5) * 24.0 / side, (b + 0.5) * 24.0 / side}, c.errors.back()));
+        }
+    for (const auto& e : c.errors)
+        c.mean = {c.mean[0] + e[0] / double(c.errors.size()), c.mean[1] + e[1] / double(c.errors.size())};
+    for (std::size_t k = 0; k < c.obs.size(); ++k) {
+        c.group.push_back(&c.obs[k]);
+        c.position.push_back(k);
+    }
+    return c;
+}
+
 }  // namespace
 
 TEST(FieldPositions, CentreGradientMatchesCentralDifferences) {
@@ -112,23 +142,10 @@ TEST(FieldPositions, GradientStepsFindKnownOffsetsAtTheTrueObjectWithTheSameBits
     const auto object = smooth_object(5504, 0.3);
     std::mt19937_64 rng(5505);
     std::normal_distribution<double> normal(0.0, 0.5 * kTexel);  // 0.5 texel rms
-    std::vector<Observation> obs;
-    std::vector<std::array<double, 2>> errors;
-    const int side = 4;
-    for (int a = 0; a < side; ++a)
-        for (int b = 0; b < side; ++b) {
-            errors.push_back({normal(rng), normal(rng)});
-            obs.push_back(observation_at(object, {(a + 0.5) * 24.0 / side, (b + 0.5) * 24.0 / side}, errors.back()));
-        }
-    std::array<double, 2> mean{0.0, 0.0};
-    for (const auto& e : errors)
-        mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
-    std::vector<const Observation*> group;
-    std::vector<std::size_t> position;
-    for (std::size_t k = 0; k < obs.size(); ++k) {
-        group.push_back(&obs[k]);
-        position.push_back(k);
-    }
+    GridCase c = grid_case(object, [&] { return std::array<double, 2>{normal(rng), normal(rng)}; });
+    const auto& obs = c.obs;
+    const auto& errors = c.errors;
+    const auto& mean = c.mean;
     const auto run = [&](int threads, int steps) {
         const int before = omp_get_max_threads();
         omp_set_num_threads(threads);
@@ -136,7 +153,7 @@ TEST(FieldPositions, GradientStepsFindKnownOffsetsAtTheTrueObjectWithTheSameBits
         // The object shifted by the errors' mean: the frame in which the mean-free offsets hold.
         std::vector<std::complex<double>> o = detail::shift_object(object, kRows, kCols, kTexel, kRefine, -mean[0],
                                                                    -mean[1]);
-        detail::correct_positions(group, position, o, kLambda, kRows, kCols, kTexel, kRefine, steps, offsets,
+        detail::correct_positions(c.group, c.position, o, kLambda, kRows, kCols, kTexel, kRefine, steps, offsets,
                                   serial_communicator());
         omp_set_num_threads(before);
         return offsets;
@@ -246,24 +263,13 @@ TEST(FieldPositions, AnnealingSearchFindsKnownOffsetsAtTheTrueObjectWithTheSameB
     const auto object = smooth_object(6601, 0.3);
     std::mt19937_64 rng(6602);
     std::normal_distribution<double> normal(0.0, 1.0 * kTexel);  // 1 texel rms
-    std::vector<Observation> obs;
-    std::vector<std::array<double, 2>> errors;
-    const int side = 4;
-    for (int a = 0; a < side; ++a)
-        for (int b = 0; b < side; ++b) {
-            errors.push_back({std::clamp(normal(rng), -2.5 * kTexel, 2.5 * kTexel),
-                              std::clamp(normal(rng), -2.5 * kTexel, 2.5 * kTexel)});
-            obs.push_back(observation_at(object, {(a + 0.5) * 24.0 / side, (b + 0.5) * 24.0 / side}, errors.back()));
-        }
-    std::array<double, 2> mean{0.0, 0.0};
-    for (const auto& e : errors)
-        mean = {mean[0] + e[0] / double(errors.size()), mean[1] + e[1] / double(errors.size())};
-    std::vector<const Observation*> group;
-    std::vector<std::size_t> position;
-    for (std::size_t k = 0; k < obs.size(); ++k) {
-        group.push_back(&obs[k]);
-        position.push_back(k);
-    }
+    GridCase c = grid_case(object, [&] {
+        return std::array<double, 2>{std::clamp(normal(rng), -2.5 * kTexel, 2.5 * kTexel),
+                                     std::clamp(normal(rng), -2.5 * kTexel, 2.5 * kTexel)};
+    });
+    const auto& obs = c.obs;
+    const auto& errors = c.errors;
+    const auto& mean = c.mean;
     const auto run = [&](int threads) {
         const int before = omp_get_max_threads();
         omp_set_num_threads(threads);
@@ -271,7 +277,7 @@ TEST(FieldPositions, AnnealingSearchFindsKnownOffsetsAtTheTrueObjectWithTheSameB
         std::vector<std::complex<double>> o = detail::shift_object(object, kRows, kCols, kTexel, kRefine, -mean[0],
                                                                    -mean[1]);
         for (double radius : {2.0, 1.0, 0.5, 0.25, 0.125})
-            detail::search_positions(group, position, o, kLambda, kRows, kCols, kTexel, kRefine, radius, offsets,
+            detail::search_positions(c.group, c.position, o, kLambda, kRows, kCols, kTexel, kRefine, radius, offsets,
                                      serial_communicator());
         omp_set_num_threads(before);
         return offsets;
@@ -299,7 +305,7 @@ TEST(FieldPositions, AnnealingSearchFindsKnownOffsetsAtTheTrueObjectWithTheSameB
     EXPECT_LT(rms, 0.05) << "from " << rms0 << ", worst " << worst;
     std::vector<std::complex<double>> copy = object;
     std::vector<double> offsets(2 * obs.size(), 0.0);
-    EXPECT_THROW(detail::search_positions(group, position, copy, kLambda, kRows, kCols, kTexel, kRefine, 0.0, offsets,
-                                          serial_communicator()),
+    EXPECT_THROW(detail::search_positions(c.group, c.position, copy, kLambda, kRows, kCols, kTexel, kRefine, 0.0,
+                                          offsets, serial_communicator()),
                  std::invalid_argument);
 }
