@@ -344,7 +344,11 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.notes.insert(r.notes.end(), rough.notes.begin(), rough.notes.end());
     }
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
-    if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
+    if (options.refine_iterations >= 0) {
+        // A stated count is the whole refinement: the smooth schedule's ladder does not run before it.
+        r.pipeline.refine_iterations = options.refine_iterations;
+        r.pipeline.refine_ladder_wavelengths = 0;
+    }
     if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
     if (options.field_tile_core >= 0) r.pipeline.field_tile_core = options.field_tile_core;
     if (options.refine_coarse_spacing >= 0.0) r.pipeline.refine_coarse_spacing = options.refine_coarse_spacing;
