@@ -248,6 +248,82 @@ TEST(C3Nodes, SeparableEngineAdjointIdentityAndShiftGradient) {
     }
 }
 
+// The single-precision engine (three real products on planar operands) against the double one
+// (Eigen's complex products) on the same kernels: fields, weight gradients and shift gradients
+// within float rounding, and its own adjoint identity, with the factors kept and not, and for a
+// footprint large enough that the adjoint works in chunks of kernels.
+TEST(C3Nodes, FloatSeparableEngineMatchesTheDoubleEngineAndItsAdjointIdentity) {
+    for (double sigma : {3.0, 7.0}) {
+        SCOPED_TRACE(sigma);
+        const Heightfield hf = random_heightfield(48, 48, 0.4, 32, 1.0, 1.0);
+        const Query q = make_query(Model::GHS, 24.0, 24.0, sigma, 0.2, -0.3);
+        const FootprintKernels k = footprint_kernels(hf, q.x_um, q.y_um, q.sigma_p_um);
+        if (sigma > 5.0) {
+            ASSERT_GT(k.size(), 512u);  // the adjoint's chunk (separable_engine.cpp)
+        }
+        const int n = 20;
+        const double lambda = 0.55, shift_scale = 0.8;
+        const detail::SliceGrid grid(q, lambda, n);
+        std::mt19937_64 rng(6);
+        std::normal_distribution<double> gauss;
+        detail::KernelWeights w(2, std::vector<std::complex<double>>(k.size()));
+        for (auto& v : w)
+            for (auto& x : v) x = {gauss(rng), gauss(rng)};
+        std::vector<detail::ComplexMatrix<double>> bd(2, detail::ComplexMatrix<double>(n, n));
+        std::vector<detail::ComplexMatrix<float>> bf(2);
+        for (int v = 0; v < 2; ++v) {
+            for (int i = 0; i < n * n; ++i) bd[v].data()[i] = {gauss(rng), gauss(rng)};
+            bf[v] = bd[v].cast<std::complex<float>>();
+        }
+        for (bool keep : {false, true}) {
+            SCOPED_TRACE(keep);
+            detail::SeparableEngine<double> ed(k, grid, lambda, n);
+            detail::SeparableEngine<float> ef(k, grid, lambda, n);
+            ed.keep_factors(keep);
+            ef.keep_factors(keep);
+            std::vector<detail::ComplexMatrix<double>> fd;
+            std::vector<detail::ComplexMatrix<float>> ff;
+            ed.forward(w, shift_scale, fd);
+            ef.forward(w, shift_scale, ff);
+            detail::FieldGradient gd, gf;
+            ed.adjoint(w, shift_scale, bd, gd);
+            ef.adjoint(w, shift_scale, bf, gf);
+            std::complex<double> lhs = 0.0, rhs = 0.0;
+            for (int v = 0; v < 2; ++v) {
+                const double scale = fd[v].cwiseAbs().maxCoeff();
+                ASSERT_GT(scale, 0.0);
+                EXPECT_LE((fd[v] - ff[v].cast<std::complex<double>>()).cwiseAbs().maxCoeff(), 1e-5 * scale);
+                for (int i = 0; i < n * n; ++i)
+                    lhs += std::complex<double>(bf[v].data()[i]) * std::complex<double>(ff[v].data()[i]);
+                double gscale = 0.0, gdiff = 0.0;
+                for (std::size_t i = 0; i < k.size(); ++i) {
+                    rhs += gf.weight[v][i] * w[v][i];
+                    gscale = std::max(gscale, std::abs(gd.weight[v][i]));
+                    gdiff = std::max(gdiff, std::abs(gd.weight[v][i] - gf.weight[v][i]));
+                }
+                EXPECT_LE(gdiff, 1e-5 * gscale);
+            }
+            // Float rounding of Σ|B||F| terms: a relative 1e-5 of the sum of magnitudes.
+            double magnitude = 0.0;
+            for (int v = 0; v < 2; ++v)
+                for (int i = 0; i < n * n; ++i)
+                    magnitude += double(std::abs(bf[v].data()[i])) * double(std::abs(ff[v].data()[i]));
+            EXPECT_LE(std::abs(lhs - rhs), 1e-5 * magnitude);
+            double sx = 0.0, sy = 0.0, dx = 0.0, dy = 0.0;
+            for (std::size_t i = 0; i < k.size(); ++i) {
+                sx = std::max(sx, std::abs(gd.shift_x[i]));
+                sy = std::max(sy, std::abs(gd.shift_y[i]));
+                dx = std::max(dx, std::abs(gd.shift_x[i] - gf.shift_x[i]));
+                dy = std::max(dy, std::abs(gd.shift_y[i] - gf.shift_y[i]));
+            }
+            ASSERT_GT(sx, 0.0);
+            ASSERT_GT(sy, 0.0);
+            EXPECT_LE(dx, 1e-5 * sx);
+            EXPECT_LE(dy, 1e-5 * sy);
+        }
+    }
+}
+
 // The separable and FFT paths' gradients (tight tolerance) equal the direct path's, and match
 // central differences of their own slices.
 TEST(C3Nodes, GradientMatchesDirectPathAndFiniteDifferences) {

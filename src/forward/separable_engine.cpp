@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "wavebrdf/memory.h"
 
@@ -28,6 +29,17 @@ void check_weights(const KernelWeights& weights, std::size_t kernels) {
             throw std::invalid_argument("weight vector " + std::to_string(v) + " has " +
                                         std::to_string(weights[v].size()) + " entries; expected one per kernel (" +
                                         std::to_string(kernels) + ")");
+}
+
+template <typename Float>
+void check_cotangents(const std::vector<ComplexMatrix<Float>>& cotangents, std::size_t vectors, int n) {
+    if (cotangents.size() != vectors)
+        throw std::invalid_argument("cotangents are " + std::to_string(cotangents.size()) +
+                                    " matrices; expected one per weight vector (" + std::to_string(vectors) + ")");
+    for (const ComplexMatrix<Float>& b : cotangents)
+        if (b.rows() != n || b.cols() != n)
+            throw std::invalid_argument("a cotangent is " + std::to_string(b.rows()) + "x" + std::to_string(b.cols()) +
+                                        "; expected the slice's " + std::to_string(n) + "x" + std::to_string(n));
 }
 
 }  // namespace
@@ -81,13 +93,37 @@ void SeparableEngine<Float>::keep(double shift_scale, ComplexMatrix<Float>& xs, 
         m_kept_slope_x = m_kernels.slope_x;
         m_kept_slope_y = m_kernels.slope_y;
     }
-    m_kept.push_back(Kept{shift_scale, std::move(xs), std::move(ys)});
+    Kept k;
+    k.shift_scale = shift_scale;
+    k.xs = std::move(xs);
+    k.ys = std::move(ys);
+    m_kept.push_back(std::move(k));
+    m_kept_bytes += bytes;
+}
+
+template <typename Float>
+void SeparableEngine<Float>::keep(double shift_scale, PlanarFactors& px, PlanarFactors& py) {
+    const double bytes = 6.0 * double(px.re.size()) * sizeof(float);
+    if (!m_kept.empty() && m_kept_bytes + bytes > kKeptBytes) return;
+    if (m_kept.empty()) {
+        m_kept_slope_x = m_kernels.slope_x;
+        m_kept_slope_y = m_kernels.slope_y;
+    }
+    Kept k;
+    k.shift_scale = shift_scale;
+    k.px = std::move(px);
+    k.py = std::move(py);
+    m_kept.push_back(std::move(k));
     m_kept_bytes += bytes;
 }
 
 template <typename Float>
 void SeparableEngine<Float>::forward(const KernelWeights& weights, double shift_scale,
                                      std::vector<ComplexMatrix<Float>>& fields) {
+    if constexpr (std::is_same_v<Float, float>) {
+        forward_planar(weights, shift_scale, fields);
+        return;
+    }
     using Complex = std::complex<Float>;
     const int n = m_n;
     const Eigen::Index total = static_cast<Eigen::Index>(m_kernels.size());
@@ -140,14 +176,11 @@ void SeparableEngine<Float>::adjoint(const KernelWeights& weights, double shift_
     const int n = m_n;
     const std::size_t total = m_kernels.size();
     check_weights(weights, total);
-    if (cotangents.size() != weights.size())
-        throw std::invalid_argument("cotangents are " + std::to_string(cotangents.size()) +
-                                    " matrices; expected one per weight vector (" + std::to_string(weights.size()) +
-                                    ")");
-    for (const ComplexMatrix<Float>& b : cotangents)
-        if (b.rows() != n || b.cols() != n)
-            throw std::invalid_argument("a cotangent is " + std::to_string(b.rows()) + "x" + std::to_string(b.cols()) +
-                                        "; expected the slice's " + std::to_string(n) + "x" + std::to_string(n));
+    check_cotangents(cotangents, weights.size(), n);
+    if constexpr (std::is_same_v<Float, float>) {
+        adjoint_planar(weights, shift_scale, cotangents, gradient);
+        return;
+    }
     gradient.weight.assign(weights.size(), std::vector<std::complex<double>>(total, 0.0));
     gradient.shift_x.assign(total, 0.0);
     gradient.shift_y.assign(total, 0.0);
@@ -212,6 +245,229 @@ void SeparableEngine<Float>::adjoint(const KernelWeights& weights, double shift_
             gradient.shift_x[idx] = 2.0 * std::real(tx[static_cast<std::size_t>(c)]);
             gradient.shift_y[idx] = 2.0 * std::real(ty[static_cast<std::size_t>(c)]);
         }
+    }
+}
+
+// Single precision: the products as three real ones on planar operands (PlanarFactors).
+// Forward, per weight vector: W = Y·diag(w_v) in planar form, then
+//   F_re = X_re W_reᵀ − X_im W_imᵀ,  F_im = X_sum W_sumᵀ − X_re W_reᵀ − X_im W_imᵀ.
+template <typename Float>
+void SeparableEngine<Float>::forward_planar(const KernelWeights& weights, double shift_scale,
+                                            std::vector<ComplexMatrix<Float>>& fields) {
+    if constexpr (std::is_same_v<Float, float>) {
+        using Complex = std::complex<float>;
+        const int n = m_n;
+        const Eigen::Index total = static_cast<Eigen::Index>(m_kernels.size());
+        check_weights(weights, m_kernels.size());
+        const std::string size = std::to_string(n) + "x" + std::to_string(n);
+        fields.resize(weights.size());
+        allocating("the " + size + " slice's " + std::to_string(weights.size()) + " field(s)",
+                   double(weights.size()) * double(n) * n * sizeof(Complex), [&] {
+                       for (ComplexMatrix<float>& f : fields) f.setZero(n, n);
+                   });
+        const Kept* cached = kept(shift_scale);
+        const Eigen::Index chunk = cached ? std::max<Eigen::Index>(total, 1) : chunk_size(n, sizeof(Complex), 3);
+        const Eigen::Index cols = std::min(chunk, std::max<Eigen::Index>(total, 1));
+        ComplexMatrix<float> built_xs, built_ys;
+        PlanarFactors planar_x, planar_y, yw;
+        Eigen::MatrixXf fr, fi, scratch;
+        allocating(
+            "the " + size + " slice's factor matrices",
+            (cached ? 1.5 : 7.5) * double(n) * double(cols) * sizeof(Complex) + 3.0 * double(n) * n * sizeof(float),
+            [&] {
+                if (!cached) {
+                    built_xs.resize(n, cols);
+                    built_ys.resize(n, cols);
+                    planar_x.resize(n, cols);
+                    planar_y.resize(n, cols);
+                }
+                yw.resize(n, cols);
+                fr.resize(n, n);
+                fi.resize(n, n);
+                scratch.resize(n, n);
+            });
+        const PlanarFactors& xs = cached ? cached->px : planar_x;
+        const PlanarFactors& ys = cached ? cached->py : planar_y;
+        for (Eigen::Index k0 = 0; k0 < total; k0 += chunk) {
+            const Eigen::Index count = std::min(chunk, total - k0);
+            const Eigen::Index base = cached ? k0 : 0;
+            if (!cached) {
+                build_factors<float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, built_xs,
+                                     built_ys);
+                planar_x.assign(built_xs, count);
+                planar_y.assign(built_ys, count);
+            }
+            for (std::size_t v = 0; v < weights.size(); ++v) {
+                // Y·diag(w_v): the weights enter the smaller factor.
+                for (Eigen::Index c = 0; c < count; ++c) {
+                    const std::complex<double> w = weights[v][static_cast<std::size_t>(k0 + c)];
+                    const float wr = float(w.real()), wi = float(w.imag());
+                    yw.re.col(c) = ys.re.col(base + c) * wr - ys.im.col(base + c) * wi;
+                    yw.im.col(c) = ys.re.col(base + c) * wi + ys.im.col(base + c) * wr;
+                    yw.sum.col(c) = yw.re.col(c) + yw.im.col(c);
+                }
+                ComplexMatrix<float>& field = fields[v];
+                for_column_blocks(n, 0.75 * double(n) * n * double(count), [&](long long first, long long block) {
+                    auto re = fr.middleCols(first, block);
+                    auto im = fi.middleCols(first, block);
+                    auto p2 = scratch.middleCols(first, block);
+                    re.noalias() = xs.re.middleCols(base, count) *
+                                   yw.re.leftCols(count).middleRows(first, block).transpose();
+                    p2.noalias() = xs.im.middleCols(base, count) *
+                                   yw.im.leftCols(count).middleRows(first, block).transpose();
+                    im.noalias() = xs.sum.middleCols(base, count) *
+                                   yw.sum.leftCols(count).middleRows(first, block).transpose();
+                    im -= re;
+                    im -= p2;
+                    re -= p2;
+                    field.middleCols(first, block).real() += re;
+                    field.middleCols(first, block).imag() += im;
+                });
+            }
+        }
+        if (m_keep && !cached && total > 0 && total <= chunk) {
+            planar_x.re.conservativeResize(n, total);
+            planar_x.im.conservativeResize(n, total);
+            planar_x.sum.conservativeResize(n, total);
+            planar_y.re.conservativeResize(n, total);
+            planar_y.im.conservativeResize(n, total);
+            planar_y.sum.conservativeResize(n, total);
+            keep(shift_scale, planar_x, planar_y);
+        }
+    } else {
+        (void)weights;
+        (void)shift_scale;
+        (void)fields;
+        throw std::logic_error("SeparableEngine: the planar path is single precision only");
+    }
+}
+
+// Single precision: Z = B·Y and V = Bᵀ·X as three real products each (planar B, X, Y), then the
+// per-kernel sums of the adjoint (separable_engine.h) in double.
+template <typename Float>
+void SeparableEngine<Float>::adjoint_planar(const KernelWeights& weights, double shift_scale,
+                                            const std::vector<ComplexMatrix<Float>>& cotangents,
+                                            FieldGradient& gradient) {
+    if constexpr (std::is_same_v<Float, float>) {
+        using Complex = std::complex<float>;
+        const int n = m_n;
+        const std::size_t total = m_kernels.size();
+        gradient.weight.assign(weights.size(), std::vector<std::complex<double>>(total, 0.0));
+        gradient.shift_x.assign(total, 0.0);
+        gradient.shift_y.assign(total, 0.0);
+        const Kept* cached = kept(shift_scale);
+        const Eigen::Index chunk = cached ? std::max<Eigen::Index>(Eigen::Index(total), 1)
+                                          : chunk_size(n, sizeof(Complex), 4, kAdjointChunkColumns);
+        const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
+        ComplexMatrix<float> built_xs, built_ys;
+        PlanarFactors planar_x, planar_y, b;
+        Eigen::MatrixXf zr, zi, vr, vi, scratch;
+        allocating(
+            "the " + std::to_string(n) + "x" + std::to_string(n) + " slice's adjoint factor matrices",
+            (cached ? 2.5 : 7.5) * double(n) * double(cols) * sizeof(Complex) + 1.5 * double(n) * n * sizeof(Complex),
+            [&] {
+                if (!cached) {
+                    built_xs.resize(n, cols);
+                    built_ys.resize(n, cols);
+                    planar_x.resize(n, cols);
+                    planar_y.resize(n, cols);
+                }
+                b.resize(n, n);
+                zr.resize(n, cols);
+                zi.resize(n, cols);
+                vr.resize(n, cols);
+                vi.resize(n, cols);
+                scratch.resize(n, cols);
+            });
+        const PlanarFactors& xs = cached ? cached->px : planar_x;
+        const PlanarFactors& ys = cached ? cached->py : planar_y;
+        const double gauss = 2.0 * k_pi * k_pi * m_kernels.sigma_um * m_kernels.sigma_um;
+        const double shift = shift_scale * 2.0 / m_lambda_um;
+        std::vector<std::complex<double>> tx(static_cast<std::size_t>(cols)), ty(static_cast<std::size_t>(cols));
+        for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
+            const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
+            const Eigen::Index base = cached ? k0 : 0;
+            if (!cached) {
+                build_factors<float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, built_xs,
+                                     built_ys);
+                planar_x.assign(built_xs, count);
+                planar_y.assign(built_ys, count);
+            }
+            std::fill(tx.begin(), tx.end(), 0.0);
+            std::fill(ty.begin(), ty.end(), 0.0);
+            for (std::size_t vec = 0; vec < weights.size(); ++vec) {
+                b.assign(cotangents[vec], n);
+                // Z = B·Y and V = Bᵀ·X, split over kernels (columns).
+                for_column_blocks(count, 1.5 * double(n) * n * double(count), [&](long long first, long long block) {
+                    auto p2 = scratch.middleCols(first, block);
+                    auto z_re = zr.middleCols(first, block), z_im = zi.middleCols(first, block);
+                    z_re.noalias() = b.re * ys.re.middleCols(base + first, block);
+                    p2.noalias() = b.im * ys.im.middleCols(base + first, block);
+                    z_im.noalias() = b.sum * ys.sum.middleCols(base + first, block);
+                    z_im -= z_re;
+                    z_im -= p2;
+                    z_re -= p2;
+                    auto v_re = vr.middleCols(first, block), v_im = vi.middleCols(first, block);
+                    v_re.noalias() = b.re.transpose() * xs.re.middleCols(base + first, block);
+                    p2.noalias() = b.im.transpose() * xs.im.middleCols(base + first, block);
+                    v_im.noalias() = b.sum.transpose() * xs.sum.middleCols(base + first, block);
+                    v_im -= v_re;
+                    v_im -= p2;
+                    v_re -= p2;
+                });
+                RegionGuard guard;
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(count) * n))
+                for (Eigen::Index c = 0; c < count; ++c)
+                    guard.run([&] {
+                        const std::size_t idx = static_cast<std::size_t>(k0 + c);
+                        const double bx = shift * m_kernels.slope_x[idx];
+                        const double by = shift * m_kernels.slope_y[idx];
+                        const float* x_re = xs.re.col(base + c).data();
+                        const float* x_im = xs.im.col(base + c).data();
+                        const float* y_re = ys.re.col(base + c).data();
+                        const float* y_im = ys.im.col(base + c).data();
+                        const float* z_re = zr.col(c).data();
+                        const float* z_im = zi.col(c).data();
+                        const float* v_re = vr.col(c).data();
+                        const float* v_im = vi.col(c).data();
+                        double t0r = 0.0, t0i = 0.0, t1r = 0.0, t1i = 0.0, t2r = 0.0, t2i = 0.0;
+                        for (Eigen::Index p = 0; p < n; ++p) {
+                            const double xr = double(x_re[p]), xi = double(x_im[p]);
+                            const double yr = double(y_re[p]), yi = double(y_im[p]);
+                            const double zr_p = double(z_re[p]), zi_p = double(z_im[p]);
+                            const double vr_p = double(v_re[p]), vi_p = double(v_im[p]);
+                            const double xzr = xr * zr_p - xi * zi_p;
+                            const double xzi = xr * zi_p + xi * zr_p;
+                            const double yvr = yr * vr_p - yi * vi_p;
+                            const double yvi = yr * vi_p + yi * vr_p;
+                            const double fx = m_grid.ux[static_cast<std::size_t>(p)] + bx;
+                            const double fy = m_grid.uy[static_cast<std::size_t>(p)] + by;
+                            t0r += xzr;
+                            t0i += xzi;
+                            t1r += fx * xzr;
+                            t1i += fx * xzi;
+                            t2r += fy * yvr;
+                            t2i += fy * yvi;
+                        }
+                        const std::complex<double> w = weights[vec][idx];
+                        gradient.weight[vec][idx] = std::complex<double>(t0r, t0i);
+                        tx[static_cast<std::size_t>(c)] += w * (-2.0 * gauss * std::complex<double>(t1r, t1i));
+                        ty[static_cast<std::size_t>(c)] += w * (-2.0 * gauss * std::complex<double>(t2r, t2i));
+                    });
+                guard.rethrow();
+            }
+            for (Eigen::Index c = 0; c < count; ++c) {
+                const std::size_t idx = static_cast<std::size_t>(k0 + c);
+                gradient.shift_x[idx] = 2.0 * std::real(tx[static_cast<std::size_t>(c)]);
+                gradient.shift_y[idx] = 2.0 * std::real(ty[static_cast<std::size_t>(c)]);
+            }
+        }
+    } else {
+        (void)weights;
+        (void)shift_scale;
+        (void)cotangents;
+        (void)gradient;
+        throw std::logic_error("SeparableEngine: the planar path is single precision only");
     }
 }
 

@@ -6,6 +6,8 @@
 // and Y. Kernels are processed in chunks so the factor matrices stay within ~32 MiB; when all
 // kernels fit one chunk and keep_factors(true) was called, the factors of each shift_scale are
 // kept (up to ~64 MiB beyond the first) for the adjoint, which then skips rebuilding them.
+// In single precision the complex products run as three real ones (Gauss: planar operands
+// re, im and re + im; see PlanarFactors), ~30 % fewer flops than Eigen's complex product.
 #include <memory>
 #include <vector>
 
@@ -13,6 +15,25 @@
 #include "forward/separable.h"
 
 namespace wavebrdf::detail {
+
+// A complex single-precision matrix as its real and imaginary parts and their sum, for the
+// three-multiplication product (Gauss): with P1 = a_re b_re, P2 = a_im b_im and
+// P3 = (a_re + a_im)(b_re + b_im), a·b = (P1 − P2) + i (P3 − P1 − P2). The imaginary part's
+// rounding scales with |a||b| rather than with |a·b|: a few float ulps of the operands' scale.
+struct PlanarFactors {
+    Eigen::MatrixXf re, im, sum;
+    void resize(Eigen::Index rows, Eigen::Index cols) {
+        re.resize(rows, cols);
+        im.resize(rows, cols);
+        sum.resize(rows, cols);
+    }
+    // Columns [0, count) of `m` into columns [0, count).
+    void assign(const ComplexMatrix<float>& m, Eigen::Index count) {
+        re.leftCols(count) = m.leftCols(count).real();
+        im.leftCols(count) = m.leftCols(count).imag();
+        sum.leftCols(count) = re.leftCols(count) + im.leftCols(count);
+    }
+};
 
 template <typename Float>
 class SeparableEngine : public FieldEngine<Float> {
@@ -34,11 +55,17 @@ public:
 private:
     struct Kept {
         double shift_scale = 0.0;
-        ComplexMatrix<Float> xs, ys;  // unweighted, all kernels
+        ComplexMatrix<Float> xs, ys;  // unweighted, all kernels (double engines)
+        PlanarFactors px, py;         // the same in planar form (float engines)
     };
     // The kept factors of `shift_scale`, or null; drops them all when the slopes have changed.
     const Kept* kept(double shift_scale);
     void keep(double shift_scale, ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys);
+    void keep(double shift_scale, PlanarFactors& px, PlanarFactors& py);
+    // The single-precision bodies of forward and adjoint (three real products per complex one).
+    void forward_planar(const KernelWeights& weights, double shift_scale, std::vector<ComplexMatrix<Float>>& fields);
+    void adjoint_planar(const KernelWeights& weights, double shift_scale,
+                        const std::vector<ComplexMatrix<Float>>& cotangents, FieldGradient& gradient);
 
     const FootprintKernels& m_kernels;
     SliceGrid m_grid;
