@@ -665,6 +665,40 @@ TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
     EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad), std::invalid_argument);
 }
 
+// refine_ladder_relative_tolerance stops a ladder rung once loss / loss(flat) is below it (the
+// rung starts near the answer, so 0.999 stops it after its first iteration), and the refinement
+// on every slice still runs its iterations; 0 runs the rung to its cap. Out of range: refused.
+TEST(RecoverHeights, LadderRelativeToleranceStopsTheRungEarly) {
+    const SmallCase c = small_case(25);
+    const auto run = [&](const RecoverSettings& s, std::map<std::string, int>* stages) {
+        return recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
+            ++(*stages)[m.stage];
+            return true;
+        });
+    };
+    RecoverSettings s = quick_settings();
+    s.refine_iterations = 3;
+    s.refine_ladder_iterations = 6;
+    s.model_check_iterations = 0;
+    s.field_wavelengths = 1;
+    s.refine_ladder_wavelengths = 1;
+    std::map<std::string, int> full, early;
+    const Heightfield a = run(s, &full);
+    EXPECT_EQ(full.at("refine:0.6"), 6);
+    EXPECT_EQ(full.at("refine"), 3);
+    RecoverSettings stop = s;
+    stop.refine_ladder_relative_tolerance = 0.999;
+    const Heightfield b = run(stop, &early);
+    EXPECT_EQ(early.at("refine:0.6"), 1);
+    EXPECT_EQ(early.at("refine"), 3);
+    EXPECT_NE(a.values(), b.values());
+    for (double bad : {-1e-9, 1.0, std::nan("")}) {
+        RecoverSettings r = s;
+        r.refine_ladder_relative_tolerance = bad;
+        EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, r), std::domain_error);
+    }
+}
+
 // No observation is refused; RGB slices alone are taken (white light: white_light_test.cpp),
 // where they used to be refused for want of a single-wavelength slice.
 TEST(RecoverHeights, RejectsNoObservationsButTakesRgbOnesAlone) {

@@ -359,6 +359,7 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     EXPECT_EQ(settings.refine_ladder_wavelengths, 1);
     EXPECT_EQ(settings.field.iterations, 25);
     EXPECT_EQ(settings.refine_ladder_iterations, 40);
+    EXPECT_EQ(settings.refine_ladder_relative_tolerance, 1e-8);
     EXPECT_EQ(settings.refine_iterations, 8);
     EXPECT_EQ(settings.field_lambda_min_um, 0.0);  // counted, not named
     EXPECT_EQ(settings.refine_ladder_min_um, 0.0);
@@ -367,6 +368,7 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     const auto unchanged = [&](const RecoverSettings& s) {
         EXPECT_EQ(s.field_wavelengths, defaults.field_wavelengths);
         EXPECT_EQ(s.refine_ladder_wavelengths, defaults.refine_ladder_wavelengths);
+        EXPECT_EQ(s.refine_ladder_relative_tolerance, defaults.refine_ladder_relative_tolerance);
         EXPECT_EQ(s.field.iterations, defaults.field.iterations);
         EXPECT_EQ(s.refine_ladder_iterations, defaults.refine_ladder_iterations);
         EXPECT_EQ(s.refine_iterations, defaults.refine_iterations);

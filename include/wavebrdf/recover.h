@@ -211,7 +211,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
 int auto_refine(double texel_um, double lambda_min_um, double max_omega_i = 0.0);
 
 struct RecoverSettings {
-    BlurredFitSettings blurred;       // stage 0 (empty blur_widths: start the field stage from flat)
+    BlurredFitSettings blurred;  // stage 0 (empty blur_widths: start the field stage from flat)
     // White light (no single-wavelength OHS / ROHS observation): stage 0 on the RGB slices with
     // these settings, then stage 3 (docs/recovery.md, White light).
     BlurredFitSettings white_blurred{{16.0, 8.0, 4.0, 2.0, 1.0, 0.5}, 40, 20, false};
@@ -278,6 +278,14 @@ struct RecoverSettings {
     // refine_iterations on every slice. Smooth surfaces up to 64² texels (the CLI's plan): 1
     // (docs/recovery.md, Speed, sixth pass).
     int refine_ladder_wavelengths = 0;
+    // A ladder rung stops early once its loss / loss(flat) drops below this (0: every rung
+    // runs refine_ladder_iterations; refine_relative_tolerance still applies). The rung's loss is
+    // its slices' part of the mean over every observation. On exact data the loss tracks the
+    // squared height error, and the refinement on every slice continues from where the rung
+    // stopped; with noise the loss floor lies far above any useful value here, so the rung runs
+    // to its cap as before. Smooth surfaces up to 64² (the CLI's plan): see
+    // apply_smooth_schedule (docs/recovery.md, Speed, seventh pass).
+    double refine_ladder_relative_tolerance = 0.0;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     // Stage 3's coarse space (docs/scale.md, "The whole-surface undulation"): levels of periodic

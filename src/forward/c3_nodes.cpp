@@ -425,20 +425,19 @@ KernelGradient C3Nodes<Float>::adjoint(FieldEngine<Float>& engine, const Footpri
     using Complex = std::complex<Float>;
     const int n = m_n;
     const std::size_t m = m_node_s.size();
-    ComplexMatrix<Float> b = ComplexMatrix<Float>::Zero(n, n);
-    RegionGuard b_guard;
+    // c1 is 0 outside the disk (pixel_factors), so every pixel takes the same formula: one
+    // branch-free pass (columns outer: the matrix's order).
+    ComplexMatrix<Float> b(n, n);
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(n) * n))
-    for (int p = 0; p < n; ++p)
-        b_guard.run([&] {
-            for (const auto [q, ox, oy] : disk_row(p, n)) {
-                const std::size_t at = static_cast<std::size_t>(p) * n + q;
-                const double scale = double(weights[at]) * m_c1[at];
-                // The forward wrote non-finite pixels as 0: they carry no gradient.
-                if (!std::isfinite(scale * double(std::norm(field(p, q))))) continue;
-                b(p, q) = Complex(Float(scale)) * std::conj(field(p, q));
-            }
-        });
-    b_guard.rethrow();
+    for (int q = 0; q < n; ++q)
+        for (int p = 0; p < n; ++p) {
+            const std::size_t at = static_cast<std::size_t>(p) * n + q;
+            const double scale = double(weights[at]) * m_c1[at];
+            // The forward wrote non-finite pixels as 0: they carry no gradient.
+            b(p, q) = std::isfinite(scale * double(std::norm(field(p, q))))
+                          ? Complex(Float(scale)) * std::conj(field(p, q))
+                          : Complex(0);
+        }
 
     KernelGradient g;
     g.height.assign(k.size(), 0.0);
@@ -451,7 +450,7 @@ KernelGradient C3Nodes<Float>::adjoint(FieldEngine<Float>& engine, const Footpri
     for (std::size_t j = 0; j < m; ++j) {
         const double s_j = m_node_s[j];
         if (m == 1 && !m_kirchhoff) {
-            cot[0] = b;
+            cot[0] = std::move(b);  // used once (one node)
         } else {
             for (ComplexMatrix<Float>& c : cot) c.setZero(n, n);
             RegionGuard guard;

@@ -166,6 +166,19 @@ template <typename Float>
 std::vector<Float> separable_slice(const ComplexMatrix<Float>& field, const Query& query, double lambda_um, int n,
                                    const std::vector<double>* c1 = nullptr) {
     std::vector<Float> slice(static_cast<std::size_t>(n) * static_cast<std::size_t>(n), Float(0));
+    if (c1) {
+        // The table is 0 outside the disk (disk_c1), so every pixel takes the same formula
+        // there (0, or a non-finite product written as 0): one branch-free pass, the same values.
+        const double* factor = c1->data();
+#pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(n) * n))
+        for (int p = 0; p < n; ++p)
+            for (int q = 0; q < n; ++q) {
+                const std::size_t at = static_cast<std::size_t>(p) * n + q;
+                const double value = factor[at] * static_cast<double>(std::norm(field(p, q)));
+                slice[at] = std::isfinite(value) ? Float(value) : Float(0);
+            }
+        return slice;
+    }
     RegionGuard guard;
 #pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(n) * n))
     for (int p = 0; p < n; ++p)

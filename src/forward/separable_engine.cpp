@@ -384,6 +384,7 @@ void SeparableEngine<Float>::adjoint_planar(const KernelWeights& weights, double
         const double gauss = 2.0 * k_pi * k_pi * m_kernels.sigma_um * m_kernels.sigma_um;
         const double shift = shift_scale * 2.0 / m_lambda_um;
         std::vector<std::complex<double>> tx(static_cast<std::size_t>(cols)), ty(static_cast<std::size_t>(cols));
+        const Eigen::Map<const Eigen::VectorXd> ux(m_grid.ux.data(), n), uy(m_grid.uy.data(), n);
         for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
             const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
             const Eigen::Index base = cached ? k0 : 0;
@@ -415,45 +416,40 @@ void SeparableEngine<Float>::adjoint_planar(const KernelWeights& weights, double
                     v_im -= p2;
                     v_re -= p2;
                 });
+                // Per kernel, in float on whole columns (vectorised): u + b in double, then
+                // rounded once (it is small near the Gaussian's centre, where X is large).
                 RegionGuard guard;
-#pragma omp parallel for schedule(static) if (worth_parallel(static_cast <long long>(count) * n))
-                for (Eigen::Index c = 0; c < count; ++c)
+#pragma omp parallel if (worth_parallel(static_cast <long long>(count) * n))
+                {
+                    Eigen::ArrayXf xzr, xzi, yvr, yvi, fx, fy;
                     guard.run([&] {
-                        const std::size_t idx = static_cast<std::size_t>(k0 + c);
-                        const double bx = shift * m_kernels.slope_x[idx];
-                        const double by = shift * m_kernels.slope_y[idx];
-                        const float* x_re = xs.re.col(base + c).data();
-                        const float* x_im = xs.im.col(base + c).data();
-                        const float* y_re = ys.re.col(base + c).data();
-                        const float* y_im = ys.im.col(base + c).data();
-                        const float* z_re = zr.col(c).data();
-                        const float* z_im = zi.col(c).data();
-                        const float* v_re = vr.col(c).data();
-                        const float* v_im = vi.col(c).data();
-                        double t0r = 0.0, t0i = 0.0, t1r = 0.0, t1i = 0.0, t2r = 0.0, t2i = 0.0;
-                        for (Eigen::Index p = 0; p < n; ++p) {
-                            const double xr = double(x_re[p]), xi = double(x_im[p]);
-                            const double yr = double(y_re[p]), yi = double(y_im[p]);
-                            const double zr_p = double(z_re[p]), zi_p = double(z_im[p]);
-                            const double vr_p = double(v_re[p]), vi_p = double(v_im[p]);
-                            const double xzr = xr * zr_p - xi * zi_p;
-                            const double xzi = xr * zi_p + xi * zr_p;
-                            const double yvr = yr * vr_p - yi * vi_p;
-                            const double yvi = yr * vi_p + yi * vr_p;
-                            const double fx = m_grid.ux[static_cast<std::size_t>(p)] + bx;
-                            const double fy = m_grid.uy[static_cast<std::size_t>(p)] + by;
-                            t0r += xzr;
-                            t0i += xzi;
-                            t1r += fx * xzr;
-                            t1i += fx * xzi;
-                            t2r += fy * yvr;
-                            t2i += fy * yvi;
-                        }
-                        const std::complex<double> w = weights[vec][idx];
-                        gradient.weight[vec][idx] = std::complex<double>(t0r, t0i);
-                        tx[static_cast<std::size_t>(c)] += w * (-2.0 * gauss * std::complex<double>(t1r, t1i));
-                        ty[static_cast<std::size_t>(c)] += w * (-2.0 * gauss * std::complex<double>(t2r, t2i));
+                        for (Eigen::ArrayXf* a : {&xzr, &xzi, &yvr, &yvi, &fx, &fy}) a->resize(n);
                     });
+#pragma omp for schedule(static)
+                    for (Eigen::Index c = 0; c < count; ++c)
+                        guard.run([&] {
+                            const std::size_t idx = static_cast<std::size_t>(k0 + c);
+                            const double bx = shift * m_kernels.slope_x[idx];
+                            const double by = shift * m_kernels.slope_y[idx];
+                            const auto x_re = xs.re.col(base + c).array(), x_im = xs.im.col(base + c).array();
+                            const auto y_re = ys.re.col(base + c).array(), y_im = ys.im.col(base + c).array();
+                            const auto z_re = zr.col(c).array(), z_im = zi.col(c).array();
+                            const auto v_re = vr.col(c).array(), v_im = vi.col(c).array();
+                            xzr = x_re * z_re - x_im * z_im;
+                            xzi = x_re * z_im + x_im * z_re;
+                            yvr = y_re * v_re - y_im * v_im;
+                            yvi = y_re * v_im + y_im * v_re;
+                            fx = (ux.array() + bx).cast<float>();
+                            fy = (uy.array() + by).cast<float>();
+                            const std::complex<double> t0(double(xzr.sum()), double(xzi.sum()));
+                            const std::complex<double> t1(double((fx * xzr).sum()), double((fx * xzi).sum()));
+                            const std::complex<double> t2(double((fy * yvr).sum()), double((fy * yvi).sum()));
+                            const std::complex<double> w = weights[vec][idx];
+                            gradient.weight[vec][idx] = t0;
+                            tx[static_cast<std::size_t>(c)] += w * (-2.0 * gauss * t1);
+                            ty[static_cast<std::size_t>(c)] += w * (-2.0 * gauss * t2);
+                        });
+                }
                 guard.rethrow();
             }
             for (Eigen::Index c = 0; c < count; ++c) {
