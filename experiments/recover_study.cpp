@@ -14,7 +14,8 @@
 //     Gaussian of this rms per coordinate, all wavelengths alike; the recovery gets the stated
 //     ones) zero_mean_errors=0 (1: the drawn offsets' mean removed) calibrate=none|positions
 //     (position outer loop, docs/recovery.md round 5:) outer_passes register_radius outer_tolerance
-//     outer_fields=1 register_check=0 (1: after the run, register every position at the final
+//     outer_fields=1 outer_field_iters=0 outer_refine_iters=0 (later passes' iterations; 0: the
+//     first's) register_check=0 (1: after the run, register every position at the final
 //     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
@@ -192,6 +193,8 @@ int main(int argc, char** argv) try {
     if (args.count("register_radius")) rs.position_register_radius_texels = std::stod(args["register_radius"]);
     if (args.count("outer_tolerance")) rs.position_outer_tolerance_texels = std::stod(args["outer_tolerance"]);
     if (args.count("outer_fields")) rs.position_outer_fields = args["outer_fields"] == "1";
+    set_int("outer_field_iters", rs.position_outer_field_iterations);
+    set_int("outer_refine_iters", rs.position_outer_refine_iterations);
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)

@@ -102,6 +102,45 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     EXPECT_LT(after_outer, 0.8 * after_once) << "once " << after_once << " outer " << after_outer;
 }
 
+// The outer loop's later passes (round 7) run position_outer_field_iterations per field and
+// position_outer_refine_iterations in stage 3 (the first pass keeps field.iterations and
+// refine_iterations); negative counts are refused.
+TEST(PositionRegistration, OuterLoopLaterPassesRunTheirOwnIterationCounts) {
+    const OffCase c = off_case(5123, 1.0, 32, 5);
+    RecoverSettings s;
+    s.blurred.blur_widths = {12.0, 4.0};
+    s.blurred.iterations = 10;
+    s.field.iterations = 30;
+    s.refine_iterations = 30;
+    s.model_check_iterations = 0;
+    s.calibrate.positions = true;
+    s.position_outer_passes = 1;
+    s.position_outer_tolerance_texels = 0.0;
+    s.position_outer_field_iterations = 10;
+    s.position_outer_refine_iterations = 4;
+    int pass = 0;
+    std::array<int, 2> field_max{0, 0}, refine_max{0, 0};
+    recover_heights(
+        c.observations, 12, 12, 2.0, 1.0, s,
+        [&](const StageMetrics& m) {
+            if (m.stage == "positions:register") pass = 1;
+            if (m.stage.rfind("field:", 0) == 0) field_max[pass] = std::max(field_max[pass], m.iteration);
+            if (m.stage == "refine") refine_max[pass] = std::max(refine_max[pass], m.iteration);
+            return true;
+        },
+        nullptr, serial_communicator());
+    EXPECT_EQ(pass, 1);
+    EXPECT_GT(field_max[0], 10);
+    EXPECT_GT(refine_max[0], 4);
+    EXPECT_GT(field_max[1], 0);
+    EXPECT_LE(field_max[1], 10);
+    EXPECT_GT(refine_max[1], 0);
+    EXPECT_LE(refine_max[1], 4);
+    s.position_outer_refine_iterations = -1;
+    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator()),
+                 std::invalid_argument);
+}
+
 // End to end in the field stage (round 6, docs/recovery.md): the object retrieved at the
 // longest wavelength's slices (the full model's renders, positions 1 texel rms off) from the
 // truth blurred by a 3-texel box, with the annealing grid search (radius 2 → 1 → 0.5 → 0.25

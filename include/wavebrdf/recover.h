@@ -374,6 +374,11 @@ struct RecoverSettings {
     double position_register_radius_texels = 2.0;
     double position_outer_tolerance_texels = 0.05;
     bool position_outer_fields = true;
+    // The outer loop's later passes (round 7): each field of a pass after the first runs this
+    // many L-BFGS iterations from the pass's heights, and its stage 3 this many (0: the first
+    // pass's field.iterations and refine_iterations).
+    int position_outer_field_iterations = 0;
+    int position_outer_refine_iterations = 0;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -286,6 +286,10 @@ std::function<void(const std::vector<double>&)>& position_probe() {
 
 void set_position_probe(std::function<void(const std::vector<double>&)> probe) { position_probe() = std::move(probe); }
 
+void call_position_probe(const std::vector<double>& offsets_um) {
+    if (position_probe()) position_probe()(offsets_um);
+}
+
 double search_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
                         std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
                         double texel_um, int refine, double radius_texels, std::vector<double>& offsets_um,

@@ -92,6 +92,9 @@ struct PositionSearch {
 // correction round of retrieve_field_with_positions with the offsets (2 per position, µm).
 // Not thread-safe to set while a recovery runs; empty by default.
 void set_position_probe(std::function<void(const std::vector<double>&)> probe);
+// Calls the probe (when set) with offsets (2 per position, µm); the outer loop calls it with
+// stage 3's offsets before each registration.
+void call_position_probe(const std::vector<double>& offsets_um);
 
 // retrieve_field (recover.h) with position correction: L-BFGS on the object in chunks of
 // chunk_iterations (restarted from the object so far, the observations at their stated

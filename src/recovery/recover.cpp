@@ -415,7 +415,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // position_outer_tolerance_texels rms.
         const int outer_passes = settings.position_outer_passes >= 0 ? settings.position_outer_passes
                                                                       : k_position_outer_passes;
+        // Later passes warm-start from the pass before (its heights, hence its objects) and may
+        // run fewer iterations (position_outer_field_iterations, position_outer_refine_iterations).
+        RecoverSettings later = settings;
+        if (settings.position_outer_refine_iterations > 0)
+            later.refine_iterations = settings.position_outer_refine_iterations;
         for (int outer = 0; outer < outer_passes; ++outer) {
+            detail::call_position_probe(position_offsets);
             const double moved = detail::register_positions(observations, position_of, estimate, settings,
                                                             sigma_scale, settings.position_register_radius_texels,
                                                             0.5, position_offsets, comm);
@@ -425,13 +431,15 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (!white && settings.position_outer_fields) {
                 lambdas.clear();
                 fields.clear();
+                if (settings.position_outer_field_iterations > 0)
+                    field_settings.iterations = settings.position_outer_field_iterations;
                 if (!field_stage()) return estimate;
                 unwrap_fields();
                 if (!report("unwrap", outer + 1, 0.0, &estimate)) return estimate;
                 unwrapped = estimate;
             }
             estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate,
-                                                            settings, report, comm, offsets, offsets_um, &exposures,
+                                                            later, report, comm, offsets, offsets_um, &exposures,
                                                             &sigma_scale, &position_offsets);
             if (stopped) return estimate;
         }
@@ -715,6 +723,11 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::domain_error("recover_heights: position register radius " +
                                 std::to_string(settings.position_register_radius_texels) +
                                 " texels is invalid; expected 0 ... 8");
+    if (settings.position_outer_field_iterations < 0 || settings.position_outer_refine_iterations < 0)
+        throw std::invalid_argument("recover_heights: position outer iterations " +
+                                    std::to_string(settings.position_outer_field_iterations) + ", " +
+                                    std::to_string(settings.position_outer_refine_iterations) +
+                                    " (field, refinement) must be >= 0 (0: the first pass's)");
     if (!(settings.position_outer_tolerance_texels >= 0.0 && std::isfinite(settings.position_outer_tolerance_texels)))
         throw std::domain_error("recover_heights: position outer tolerance " +
                                 std::to_string(settings.position_outer_tolerance_texels) +
