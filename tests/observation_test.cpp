@@ -26,7 +26,7 @@ Observation make_observation(const Heightfield& truth, double x, double y, std::
     o.query.model = model;
     o.lambdas_um = std::move(lambdas);
     o.resolution = 16;
-    o.reference = render_observation(truth, o);
+    o.reference = to_reference(render_observation(truth, o));
     return o;
 }
 
@@ -137,7 +137,7 @@ TEST(ObservationTest, WrittenObservationsReadBackTheSame) {
         make_observation(truth, 3, 4, {0.1, 0.2}, {0.55}, Model::OHS),
         make_observation(truth, -1.5, 2.25, {0.0, -0.3}, spectral_wavelengths_um(3), Model::ROHS)};
     obs[1].resolution = 8;
-    obs[1].reference = render_observation(truth, obs[1]);
+    obs[1].reference = to_reference(render_observation(truth, obs[1]));
     for (Observation& o : obs)
         for (double& v : o.reference) v = double(float(v));  // representable in an EXR
     const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test" / "round_trip";
@@ -239,7 +239,7 @@ TEST(ObservationPlansTest, CachedLossEqualsUncachedAndBuildsEachPlanOnce) {
     obs[1].query = test::make_query(Model::OHS, 11.0, 2.0, 3.0);
     obs[1].lambdas_um = {0.5};
     obs[1].resolution = 10;
-    for (Observation& o : obs) o.reference = render_observation(truth, o);
+    for (Observation& o : obs) o.reference = to_reference(render_observation(truth, o));
     const Loss loss{LossKind::CMSLE, 1.0};
     ObservationPlans plans;
     for (std::uint64_t seed : {22u, 23u, 24u}) {

@@ -253,7 +253,7 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
             m.slices[i] = plan.forward();
             plan.release();
             const std::vector<double>& f = m.slices[i];
-            const std::vector<double>& r = o.reference;
+            const std::vector<float>& r = o.reference;
             std::vector<double>& w = m.weights[i];
             w.assign(f.size(), 0.0);
             double s = 0.0;
