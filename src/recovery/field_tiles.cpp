@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/free_heap.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/observation.h"
 
@@ -537,8 +538,11 @@ FieldRetrievalResult retrieve_field_tiled(const std::vector<const Observation*>&
             loss_weight += count;
             objects[kx * ty.origin.size() + ky].assign(t.object.begin(), t.object.end());
             std::vector<std::complex<double>>().swap(t.object);
+            release_free_heap();  // the tile's retrieval is gone: its pages back before the next
         }
     result.object = blend_field_tiles(layout, objects, FieldTileAlignment::joint);
+    std::vector<std::vector<std::complex<float>>>().swap(objects);
+    release_free_heap();
     result.relative_loss = loss_weight > 0.0 ? loss_sum / loss_weight : 0.0;
     return result;
 }
