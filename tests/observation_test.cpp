@@ -3,6 +3,8 @@
 // round trip.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <filesystem>
 #include <fstream>
 
@@ -138,8 +140,6 @@ TEST(ObservationTest, WrittenObservationsReadBackTheSame) {
         make_observation(truth, -1.5, 2.25, {0.0, -0.3}, spectral_wavelengths_um(3), Model::ROHS)};
     obs[1].resolution = 8;
     obs[1].reference = to_reference(render_observation(truth, obs[1]));
-    for (Observation& o : obs)
-        for (double& v : o.reference) v = double(float(v));  // representable in an EXR
     const std::filesystem::path dir = std::filesystem::path(WAVEBRDF_TEST_TMP) / "observation_test" / "round_trip";
     std::filesystem::remove_all(dir);
     std::filesystem::create_directories(dir);
@@ -162,10 +162,14 @@ TEST(ObservationTest, WrittenObservationsReadBackTheSame) {
             EXPECT_EQ(back[i].reference, obs[i].reference);
         }
     }
-    // Inline references keep every double, not only floats.
-    obs[0].reference[0] = 0.1;
+    // Inline references keep every float (the reference is float; the JSON number is its exact
+    // double, read back to the same float).
+    obs[0].reference[0] = 0.1f;
+    obs[0].reference[1] = std::nextafter(0.3f, 1.0f);
     write_observations_json((dir / "exact.json").string(), obs);
-    EXPECT_EQ(read_observations_json((dir / "exact.json").string())[0].reference[0], 0.1);
+    const std::vector<Observation> exact = read_observations_json((dir / "exact.json").string());
+    EXPECT_EQ(exact[0].reference[0], 0.1f);
+    EXPECT_EQ(exact[0].reference[1], std::nextafter(0.3f, 1.0f));
     // No file name to name the folder after.
     EXPECT_THROW(write_observations_json((dir / "..").string(), obs, ReferenceStorage::Exr), std::invalid_argument);
 }

@@ -267,7 +267,7 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
                 s = loss.photons / total_r;
             }
             for (std::size_t p = 0; p < f.size(); ++p) {
-                const double fi = std::max(f[p], 0.0), ri = std::max(r[p], 0.0);
+                const double fi = std::max(f[p], 0.0), ri = std::max(double(r[p]), 0.0);
                 if (fi == 0.0 && ri == 0.0 && !poisson) continue;
                 double d = 0.0;
                 switch (loss.kind) {
