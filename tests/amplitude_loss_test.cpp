@@ -81,11 +81,11 @@ TEST(AmplitudeLoss, ValueIsTheDirectSumAndGradientMatchesFiniteDifferences) {
                 plus.psi(k) += step;
                 minus.psi(k) -= step;
                 Field unused;
-                const double fd =
-                    (detail::amplitude_box_loss(plus.psi, plus.amp, plus.sqrt_ref, outside, calibrate, scale, unused) -
-                     detail::amplitude_box_loss(minus.psi, minus.amp, minus.sqrt_ref, outside, calibrate, scale,
-                                                unused)) /
-                    (2.0 * h);
+                const double fd = (detail::amplitude_box_loss(plus.psi, plus.amp, plus.sqrt_ref, outside, calibrate,
+                                                              scale, unused) -
+                                   detail::amplitude_box_loss(minus.psi, minus.amp, minus.sqrt_ref, outside, calibrate,
+                                                              scale, unused)) /
+                                  (2.0 * h);
                 // g = scale · (∂L/∂Re Ψ + i ∂L/∂Im Ψ)
                 const double analytic = (step.real() != 0.0 ? g(k).real() : g(k).imag()) / scale;
                 EXPECT_NEAR(analytic, fd, 1e-6 * (1.0 + std::abs(fd))) << "pixel " << k;

@@ -150,7 +150,8 @@ TEST(FieldModelLoss, MatchesAnIndependentEvaluationAndFiniteDifferences) {
             object[t] = std::polar(1.0, -4.0 * M_PI / o.lambdas_um[0] * fine[t]);
         const std::vector<std::complex<double>> field = op.forward(object);
         for (std::size_t p = 0; p < field.size(); ++p) {
-            const double d = op.amplitude_factor()[p] * std::abs(field[p]) - std::sqrt(std::max(0.0, double(o.reference[p])));
+            const double d = op.amplitude_factor()[p] * std::abs(field[p]) -
+                             std::sqrt(std::max(0.0, double(o.reference[p])));
             num += d * d;
             den += std::max(0.0, double(o.reference[p]));
         }
@@ -200,8 +201,9 @@ ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
                                            3.0);
                 o.lambdas_um = {lambda};
                 o.resolution = 32;
-                o.reference = to_reference(simulator == Simulator::Scalar ? scalar_slice(c.truth, o.query, lambda, o.resolution)
-                                                             : render_observation(c.truth, o));
+                o.reference = to_reference(simulator == Simulator::Scalar
+                                               ? scalar_slice(c.truth, o.query, lambda, o.resolution)
+                                               : render_observation(c.truth, o));
                 c.observations.push_back(std::move(o));
             }
     return c;

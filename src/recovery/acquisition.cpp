@@ -297,8 +297,8 @@ std::vector<Observation> simulate_observations(const Heightfield& truth, const A
                                         " is out of range; the plan has " + std::to_string(planned.size()) +
                                         " observations");
         Observation o = planned[i];
-        o.reference = to_reference(add_noise(render_observation(truth, o), noise,
-                                             detail::derive_seed(seed, 1 + i)));  // as for all above
+        o.reference = to_reference(
+            add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));  // as for all above
         observations.push_back(std::move(o));
         if (progress) progress->advance(1);
     }

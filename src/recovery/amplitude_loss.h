@@ -21,8 +21,8 @@ namespace wavebrdf::detail {
 // matrices or accessors); the sums are in double whatever the field's scalar.
 template <typename Scalar, typename Amplitude, typename SqrtReference>
 double amplitude_box_loss(const Eigen::Matrix<std::complex<Scalar>, Eigen::Dynamic, Eigen::Dynamic>& psi,
-                          const Amplitude& amp, const SqrtReference& sqrt_ref, double outside,
-                          bool calibrate_exposure, double gradient_scale,
+                          const Amplitude& amp, const SqrtReference& sqrt_ref, double outside, bool calibrate_exposure,
+                          double gradient_scale,
                           Eigen::Matrix<std::complex<Scalar>, Eigen::Dynamic, Eigen::Dynamic>& g) {
     g.resize(psi.rows(), psi.cols());
     double v = outside, root_exposure = 1.0, model_total = 0.0;

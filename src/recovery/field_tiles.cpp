@@ -228,9 +228,9 @@ std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layou
         for (std::size_t r = 0; r < wx[kx].size(); ++r)
             for (std::size_t c = 0; c < tc; ++c)
                 objects[t][r * tc + c] = std::complex<T>(
-                    at(t, r * tc + c) * std::polar(1.0, phase[3 * t] +
-                                                            phase[3 * t + 1] * local_coordinate(r, ax.extent[kx], q) +
-                                                            phase[3 * t + 2] * local_coordinate(c, ay.extent[ky], q)));
+                    at(t, r * tc + c) *
+                    std::polar(1.0, phase[3 * t] + phase[3 * t + 1] * local_coordinate(r, ax.extent[kx], q) +
+                                        phase[3 * t + 2] * local_coordinate(c, ay.extent[ky], q)));
     };
     if (alignment == FieldTileAlignment::joint) {
         // Every overlap of two tiles, as a product of the axes' connected overlaps.
@@ -292,8 +292,7 @@ std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layou
             for (const auto& [ri, rj] : g.xs)
                 for (const auto& [ci, cj] : g.ys) {
                     const double w = wx[kxi][ri] * wx[kxj][rj] * wy[kyi][ci] * wy[kyj][cj];
-                    const double rho = std::arg(at(g.i, ri * tci + ci) * std::conj(at(g.j, rj * tcj + cj)) *
-                                                unit);
+                    const double rho = std::arg(at(g.i, ri * tci + ci) * std::conj(at(g.j, rj * tcj + cj)) * unit);
                     const double x = local_coordinate(ri, ax.extent[kxi], q) - st.xi;
                     const double y = local_coordinate(ci, ay.extent[kyi], q) - st.yi;
                     se += w * rho;
