@@ -36,7 +36,8 @@ def main(argv=None):
     query = wb.Query(x_um=gr_truth_hf.period_x_um / 2, y_um=gr_truth_hf.period_y_um / 2, sigma_p_um=4.0,
                      spectral=8)
     gr_truth_gabor = wb.GaborRep(gr_truth_hf, query)  # the kernels within the footprint
-    ref_brdf = wb.render(gr_truth_gabor, query, resolution=args.resolution)
+    # rounded to float32, as a wb.Observation (and so wb.invert) holds a reference
+    ref_brdf = wb.render(gr_truth_gabor, query, resolution=args.resolution).astype(np.float32).astype(np.float64)
 
     # Initialize hypothesis: a plane at height zero
     hypo_hf = wb.Heightfield(np.zeros(gr_truth_hf.shape), gr_truth_hf.texel_um, gr_truth_hf.vscale)
@@ -52,7 +53,8 @@ def main(argv=None):
             epoch_query = query.copy()
             epoch_query.x_um, epoch_query.y_um = rng.uniform(0.0, 1.0, 2) * (gr_truth_hf.period_x_um,
                                                                                gr_truth_hf.period_y_um)
-            ref_brdf = wb.render(wb.GaborRep(gr_truth_hf, epoch_query), epoch_query, resolution=args.resolution)
+            ref_brdf = wb.render(wb.GaborRep(gr_truth_hf, epoch_query), epoch_query,
+                                 resolution=args.resolution).astype(np.float32).astype(np.float64)
         brdf = wb.render(hypo_hf, epoch_query, resolution=args.resolution)
         loss, dloss_dbrdf = loss_fn.value_and_gradient(brdf, ref_brdf)
         grad = wb.gradient(hypo_hf, epoch_query, dloss_dbrdf)  # backward(loss): the adjoint, d loss / d heights

@@ -151,7 +151,7 @@ int main(int argc, char** argv) try {
             o.query.sigma_p_um = sigma_p;
             o.lambdas_um = {lambda};
             o.resolution = resolution;
-            o.reference = render_observation(truth, o);
+            o.reference = to_reference(render_observation(truth, o));
             o.query.x_um = p[0];  // the recovery gets the stated centre
             o.query.y_um = p[1];
             observations.push_back(std::move(o));

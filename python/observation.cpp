@@ -52,7 +52,7 @@ Observation make_observation(const PyQuery& q, py::handle reference) {
     o.query = q.query;
     o.lambdas_um = q.lambdas_um;
     o.resolution = check_resolution(static_cast<int>(r.shape(0)), "reference.shape[0]");
-    o.reference = to_doubles(r, "reference");
+    o.reference = to_reference(to_doubles(r, "reference"));
     validate(o);
     return o;
 }
@@ -75,7 +75,7 @@ Observation(query, reference)
     query      a Query
     reference  the slice, finite: (n, n) for one wavelength, (n, n, 3) linear sRGB for a
                spectral query (may be slightly negative: out-of-gamut colours); n = the
-               resolution (1...8192)
+               resolution (1...8192); stored rounded to float32
 )doc")
         .def(py::init(&make_observation), "query"_a, "reference"_a)
         .def_property_readonly("query", &query_of)
@@ -87,10 +87,10 @@ Observation(query, reference)
             [](py::object self) {
                 const auto& o = self.cast<const Observation&>();
                 const py::ssize_t n = o.resolution;
-                return o.channels() == 1 ? readonly_view<double>(o.reference.data(), {n, n}, self)
-                                         : readonly_view<double>(o.reference.data(), {n, n, 3}, self);
+                return o.channels() == 1 ? readonly_view<float>(o.reference.data(), {n, n}, self)
+                                         : readonly_view<float>(o.reference.data(), {n, n, 3}, self);
             },
-            "the reference slice, a read-only float64 view")
+            "the reference slice, a read-only float32 view (stored in float, as in the slice files)")
         .def(
             "render",
             [](const Observation& o, const Heightfield& hf, const std::string& path, double tolerance) {

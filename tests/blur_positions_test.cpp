@@ -34,7 +34,7 @@ std::vector<Observation> shifted_observations(const Heightfield& truth, std::vec
             o.lambdas_um = {kLambda};
             o.resolution = 32;
             SlicePlan<double> plan(truth, o.query, o.lambdas_um, o.resolution, 1, {}, false);
-            o.reference = plan.forward();
+            o.reference = to_reference(plan.forward());
             o.query.x_um -= ex;
             o.query.y_um -= ey;
             out.push_back(std::move(o));

@@ -148,7 +148,7 @@ TEST(CoarseBasis, RemovesASmoothUndulationWherePlainLbfgsDoesNot) {
             o.query = test::make_query(Model::OHS, (a + 0.5) * step, (b + 0.5) * step, 3.0);
             o.lambdas_um = {0.5};
             o.resolution = 32;
-            o.reference = render_observation(truth, o);
+            o.reference = to_reference(render_observation(truth, o));
             observations.push_back(std::move(o));
         }
     std::vector<double> start = truth.values();

@@ -30,7 +30,7 @@ std::vector<Observation> small_observations(const Heightfield& truth) {
                 o.query = test::make_query(Model::OHS, (a + 0.3) * step, (b + 0.6) * step, 3.0);
                 o.lambdas_um = {lambda};
                 o.resolution = 32;
-                o.reference = render_observation(truth, o);
+                o.reference = to_reference(render_observation(truth, o));
                 observations.push_back(std::move(o));
             }
     }

@@ -53,7 +53,7 @@ Observation observation_at(const std::vector<std::complex<double>>& object, std:
     const std::vector<std::complex<double>> f = op.forward(object);
     const std::vector<double>& amp = op.amplitude_factor();
     o.reference.resize(f.size());
-    for (std::size_t k = 0; k < f.size(); ++k) o.reference[k] = amp[k] * amp[k] * std::norm(f[k]);
+    for (std::size_t k = 0; k < f.size(); ++k) o.reference[k] = float(amp[k] * amp[k] * std::norm(f[k]));
     o.query.x_um = stated[0];
     o.query.y_um = stated[1];
     return o;

@@ -60,7 +60,7 @@ Observation tiny_observation(const Heightfield& truth, double x_um = 4.0, double
     o.query.sigma_p_um = 2.0;
     o.lambdas_um = {0.5};
     o.resolution = 16;
-    o.reference = render_observation(truth, o);
+    o.reference = to_reference(render_observation(truth, o));
     return o;
 }
 

@@ -34,7 +34,7 @@ std::vector<Observation> few_slices(const Heightfield& hf, const std::vector<dou
                 o.query = test::make_query(Model::OHS, 5.0 + 9.0 * a, 6.0 + 8.5 * b, 3.0);
                 o.lambdas_um = {lambda};
                 o.resolution = resolution;
-                o.reference = render_observation(hf, o);
+                o.reference = to_reference(render_observation(hf, o));
                 out.push_back(std::move(o));
             }
     return out;
@@ -150,9 +150,10 @@ TEST(FieldModelLoss, MatchesAnIndependentEvaluationAndFiniteDifferences) {
             object[t] = std::polar(1.0, -4.0 * M_PI / o.lambdas_um[0] * fine[t]);
         const std::vector<std::complex<double>> field = op.forward(object);
         for (std::size_t p = 0; p < field.size(); ++p) {
-            const double d = op.amplitude_factor()[p] * std::abs(field[p]) - std::sqrt(std::max(0.0, o.reference[p]));
+            const double d = op.amplitude_factor()[p] * std::abs(field[p]) -
+                             std::sqrt(std::max(0.0, double(o.reference[p])));
             num += d * d;
-            den += std::max(0.0, o.reference[p]);
+            den += std::max(0.0, double(o.reference[p]));
         }
     }
     for (bool exposure : {false, true}) {
@@ -200,8 +201,9 @@ ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
                                            3.0);
                 o.lambdas_um = {lambda};
                 o.resolution = 32;
-                o.reference = simulator == Simulator::Scalar ? scalar_slice(c.truth, o.query, lambda, o.resolution)
-                                                             : render_observation(c.truth, o);
+                o.reference = to_reference(simulator == Simulator::Scalar
+                                               ? scalar_slice(c.truth, o.query, lambda, o.resolution)
+                                               : render_observation(c.truth, o));
                 c.observations.push_back(std::move(o));
             }
     return c;

@@ -38,7 +38,7 @@ std::vector<Observation> small_observations(const Heightfield& truth, Model mode
                                            omega_i[0], omega_i[1]);
                 o.lambdas_um = {lambda};
                 o.resolution = resolution;
-                o.reference = render_observation(truth, o);
+                o.reference = to_reference(render_observation(truth, o));
                 observations.push_back(std::move(o));
             }
     return observations;

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <functional>
 #include <random>
 #include <set>
@@ -63,7 +64,7 @@ std::vector<Observation> sample_observations(std::size_t count, int resolution, 
                            : std::vector<double>{0.4 + 0.1 * u(rng)};
         o.resolution = resolution;
         o.reference.resize(std::size_t(resolution) * std::size_t(resolution) * std::size_t(o.channels()));
-        for (double& v : o.reference) v = std::exp(8.0 * u(rng) - 6.0) - 0.001;
+        for (float& v : o.reference) v = float(std::exp(8.0 * u(rng) - 6.0) - 0.001);
         out.push_back(std::move(o));
     }
     return out;
@@ -281,9 +282,9 @@ TEST(ObservationFileTest, WritingRefusesMixedOrInvalidSets) {
                                                "observation 2 has resolution 5");
     EXPECT_THROW(write_observations_hdf5((dir / "e.h5").string(), {}), std::invalid_argument);
     std::vector<Observation> huge = sample_observations(1, 2, false);
-    huge[0].reference[1] = 1e300;
-    expect_throw_naming<std::invalid_argument>([&] { write_observations_hdf5((dir / "h.h5").string(), huge); },
-                                               "overflows float32");
+    huge[0].reference[1] = std::numeric_limits<float>::infinity();  // 1e300 rounded to float
+    expect_throw_naming<std::domain_error>([&] { write_observations_hdf5((dir / "h.h5").string(), huge); },
+                                           "is not finite");
     EXPECT_FALSE(fs::exists(dir / "m.h5") || fs::exists(dir / "e.h5") || fs::exists(dir / "h.h5"));
     // A directory in the way is not replaced.
     fs::create_directories(dir / "d.h5");

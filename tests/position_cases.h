@@ -53,7 +53,7 @@ inline OffCase off_case(std::uint64_t seed, double rms_texels, int resolution, i
             o.query = test::make_query(Model::OHS, stated[k][0] + error[k][0], stated[k][1] + error[k][1], 3.0);
             o.lambdas_um = {lambda};
             o.resolution = resolution;
-            o.reference = render_observation(c.truth, o);
+            o.reference = to_reference(render_observation(c.truth, o));
             o.query.x_um = stated[k][0];
             o.query.y_um = stated[k][1];
             c.observations.push_back(std::move(o));

@@ -269,7 +269,7 @@ TEST(RetrieveField, StallStopEndsEarlyWithTheFullRunsAccuracy) {
     std::mt19937_64 rng(7);
     std::normal_distribution<double> noise(0.0, 0.02);  // 2 % multiplicative noise: a floor
     for (Observation& o : observations)
-        for (double& r : o.reference) r *= std::max(0.0, 1.0 + noise(rng));
+        for (float& r : o.reference) r = float(double(r) * std::max(0.0, 1.0 + noise(rng)));
     std::normal_distribution<double> phase(0.0, 0.6);
     std::vector<Complex> start(truth.size());
     for (std::size_t k = 0; k < truth.size(); ++k) start[k] = truth[k] * std::polar(1.0, phase(rng));
@@ -425,7 +425,7 @@ SmallCase small_case(std::uint64_t seed) {
                                            3.0);
                 o.lambdas_um = {lambda};
                 o.resolution = 64;
-                o.reference = render_observation(c.truth, o);
+                o.reference = to_reference(render_observation(c.truth, o));
                 c.observations.push_back(std::move(o));
             }
     return c;

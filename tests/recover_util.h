@@ -76,7 +76,7 @@ inline std::vector<Observation> model_observations(const std::vector<std::comple
             const auto field = op.forward(object);
             o.reference.resize(field.size());
             for (std::size_t p = 0; p < field.size(); ++p)
-                o.reference[p] = std::pow(op.amplitude_factor()[p], 2) * std::norm(field[p]);
+                o.reference[p] = float(std::pow(op.amplitude_factor()[p], 2) * std::norm(field[p]));
             out.push_back(std::move(o));
         }
     return out;

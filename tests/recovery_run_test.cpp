@@ -67,5 +67,20 @@ TEST(RecoveryRun, EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
     test::expect_estimate_within_factor_of_two(estimate, measured, "recover 24x24");
 }
 
+// The references are held in float (Observation::reference): one more observation adds its
+// pixels × channels × 4 bytes to the estimate's reference term (the thesis method's estimate is
+// the base, the references and a per-texel term only).
+TEST(RecoveryRun, EstimateCountsTheReferencesInFloat) {
+    Observation mono;
+    mono.lambdas_um = {0.5};
+    mono.resolution = 40;
+    Observation rgb = mono;
+    rgb.lambdas_um = {0.45, 0.55, 0.65};
+    const std::vector<Observation> one{mono}, two{mono, mono}, with_rgb{mono, rgb};
+    const double a = estimate_recovery_bytes(one, 16, 16, 2.0, RecoveryMethod::Thesis);
+    EXPECT_EQ(estimate_recovery_bytes(two, 16, 16, 2.0, RecoveryMethod::Thesis) - a, 40.0 * 40.0 * 4.0);
+    EXPECT_EQ(estimate_recovery_bytes(with_rgb, 16, 16, 2.0, RecoveryMethod::Thesis) - a, 40.0 * 40.0 * 3.0 * 4.0);
+}
+
 }  // namespace
 }  // namespace wavebrdf

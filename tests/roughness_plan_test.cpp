@@ -312,7 +312,7 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
     int replaced = 0;
     for (Observation& o : other.observations)
         if (o.lambdas_um[0] < 0.55) {
-            for (double& v : o.reference) v *= 3.0;
+            for (float& v : o.reference) v *= 3.0f;
             ++replaced;
         }
     ASSERT_GT(replaced, 0);

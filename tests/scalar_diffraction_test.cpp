@@ -195,7 +195,8 @@ TEST(ScalarDiffraction, SimulatedObservationsAreScalarSlicesWithTheSameNoise) {
     const std::vector<Observation> scalar = simulate_scalar_observations(flat, plan, noise, 7, indices);
     const std::vector<Observation> gabor = simulate_observations(flat, plan, noise, 7, indices);
     ASSERT_EQ(scalar.size(), 2u);
-    for (std::size_t k = 0; k < 2; ++k) EXPECT_LT(relative_l2(scalar[k].reference, gabor[k].reference), 1e-6);
+    for (std::size_t k = 0; k < 2; ++k)
+        EXPECT_LT(relative_l2(to_doubles(scalar[k].reference), to_doubles(gabor[k].reference)), 1e-6);
     EXPECT_THROW(simulate_scalar_observations(flat, plan, noise, 7, {99}), std::invalid_argument);
     // A share of one observation (an MPI rank's) gets the same bits as in a larger share.
     RecoveryOptions options;

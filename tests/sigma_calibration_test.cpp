@@ -54,9 +54,9 @@ Acquired acquired(std::uint64_t seed, double sigma_factor, double position_rms_t
             const Query stated = o.query;
             o.query.x_um += d[0];
             o.query.y_um += d[1];
-            o.reference = render_observation(c.truth, o);
+            o.reference = to_reference(render_observation(c.truth, o));
             const double x = simulated_exposure(e, i);
-            for (double& v : o.reference) v *= x;
+            for (float& v : o.reference) v = float(double(v) * x);
             o.query = stated;
             o.query.sigma_p_um = 3.0;
             c.exposures.push_back(x);

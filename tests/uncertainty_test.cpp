@@ -41,7 +41,7 @@ Tile make_tile(int rows, int resolution, std::uint64_t seed) {
             o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * 4.0, (b + 0.5 + jitter(rng)) * 4.0, 3.0);
             o.lambdas_um = {0.5};
             o.resolution = resolution;
-            o.reference = render_observation(t.truth, o);
+            o.reference = to_reference(render_observation(t.truth, o));
             t.observations.push_back(std::move(o));
         }
     return t;

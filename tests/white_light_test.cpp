@@ -43,7 +43,7 @@ Case white_case(std::uint64_t seed, int spectral, const std::vector<double>& las
                 o.query = test::make_query(Model::OHS, x, y, 3.0);
                 o.lambdas_um = lambdas;
                 o.resolution = resolution;
-                o.reference = render_observation(c.truth, o);
+                o.reference = to_reference(render_observation(c.truth, o));
                 c.observations.push_back(std::move(o));
             }
         }

@@ -45,6 +45,9 @@ std::string to_string(const Loss& loss);
 // reference that sums to 0; std::domain_error for a CMSLE ε or Poisson N ≤ 0 or not finite.
 double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
                   int channels, std::vector<double>* gradient = nullptr);
+// The same for a reference stored in float (Observation::reference): each value read as double.
+double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<float>& reference,
+                  int channels, std::vector<double>* gradient = nullptr);
 
 // Reporting metrics (no gradients). Mono slices (channels = 1) are treated as grey RGB, which
 // makes both a plain mean over all values; negative values are clamped to 0 first (as above).
@@ -55,6 +58,8 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
 //   rgb_gamma_mse  the same with T(x) = (x / (1 + x))^(1/2.2)
 double rgb_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels);
 double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels);
+double rgb_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels);
+double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels);
 
 // Mean squared difference of two heightfields (same size) after removing each one's mean
 // height, which no slice can see. In the squared units of the inputs. Throws

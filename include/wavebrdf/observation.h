@@ -19,7 +19,9 @@ struct Observation {
     Query query;
     std::vector<double> lambdas_um;  // one: single wavelength (1 channel); several: RGB (3)
     int resolution = 32;
-    std::vector<double> reference;  // resolution² · channels(), row-major, interleaved
+    // resolution² · channels(), row-major, interleaved. Float: the slices are float on disk
+    // (EXR), and half the memory of the recovery's largest input (issue 13).
+    std::vector<float> reference;
     int channels() const { return lambdas_um.size() == 1 ? 1 : 3; }
 };
 
@@ -33,6 +35,11 @@ SliceAttributes slice_attributes(const Observation& observation, const Heightfie
 // reference values. Negative values are accepted (linear sRGB of an out-of-gamut spectral
 // colour is negative); the losses clamp them to 0.
 void validate(const Observation& observation, std::size_t index = 0);
+
+// `values` rounded to float, as Observation::reference holds them.
+std::vector<float> to_reference(const std::vector<double>& values);
+// Observation::reference (or any float slice) as doubles, for the functions that take a double slice.
+std::vector<double> to_doubles(const std::vector<float>& values);
 
 // What `observation` would see of `heightfield`: resolution² · channels() values (double).
 std::vector<double> render_observation(const Heightfield& heightfield, const Observation& observation,

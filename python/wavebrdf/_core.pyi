@@ -408,7 +408,7 @@ class Observation:
         query      a Query
         reference  the slice, finite: (n, n) for one wavelength, (n, n, 3) linear sRGB for a
                    spectral query (may be slightly negative: out-of-gamut colours); n = the
-                   resolution (1...8192)
+                   resolution (1...8192); stored rounded to float32
     """
     def __init__(self, query: Query, reference: Any) -> None:
         ...
@@ -427,7 +427,7 @@ class Observation:
         ...
     @property
     def reference(self) -> numpy.ndarray:
-        """the reference slice, a read-only float64 view"""
+        """the reference slice, a read-only float32 view (stored in float, as in the slice files)"""
         ...
     def render(self, heightfield: Heightfield, *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
         """What this observation would see of `heightfield`, shaped like the reference (float64); path and

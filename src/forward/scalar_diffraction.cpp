@@ -390,8 +390,9 @@ std::vector<Observation> simulate_scalar_observations(const Heightfield& truth, 
     for (std::size_t k = 0; k < observations.size(); ++k)
         guard.run([&] {
             Observation& o = observations[k];
-            o.reference = add_noise(scalar_slice(truth, o.query, o.lambdas_um[0], o.resolution, settings), noise,
-                                    detail::derive_seed(seed, 1 + indices[k]));  // as add_noise does for all
+            o.reference = to_reference(
+                add_noise(scalar_slice(truth, o.query, o.lambdas_um[0], o.resolution, settings), noise,
+                          detail::derive_seed(seed, 1 + indices[k])));  // as add_noise does for all
             if (progress) progress->advance(1);
         });
     guard.rethrow();

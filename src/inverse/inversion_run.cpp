@@ -725,7 +725,7 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
             const RgbImage image = to_image(slice, o.resolution, channels);
             write_slice_exr(dir + name + ".exr", image,
                             slice_attributes(o, &estimate, "wavebrdf invert: the estimate's slice"));
-            write_rgb_png(dir + name + ".png", image, auto_exposure(o.reference), true);
+            write_rgb_png(dir + name + ".png", image, auto_exposure(to_doubles(o.reference)), true);
         });
     result.epoch = inversion.epoch();
     result.history = inversion.history();
@@ -793,7 +793,7 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
         write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
         const Observation& o = observations[0];
         write_npy(dir + "/reference.npy", {std::size_t(o.resolution), std::size_t(o.resolution), std::size_t(channels)},
-                  o.reference);
+                  to_doubles(o.reference));
         if (p.truth) {
             write_npy(dir + "/truth_height.npy", {std::size_t(rows), std::size_t(cols)}, heights_um(*p.truth));
             write_heightfield_exr(dir + "/truth.exr", *p.truth, "wavebrdf invert: truth");
@@ -802,11 +802,11 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
     for_each_observation_on_root(p, comm, {}, [&](std::size_t i, const Observation& o, const std::vector<double>&) {
         char name[64];
         std::snprintf(name, sizeof name, "/reference_%03zu", i);
-        const RgbImage image = to_image(o.reference, o.resolution, channels);
+        const RgbImage image = to_image(to_doubles(o.reference), o.resolution, channels);
         // Rendered from the truth when there is one; given observations have no heightfield.
         const Heightfield* from = p.truth ? &*p.truth : nullptr;
         write_slice_exr(dir + name + ".exr", image, slice_attributes(o, from, "wavebrdf invert: reference"));
-        write_rgb_png(dir + name + ".png", image, auto_exposure(o.reference), true);
+        write_rgb_png(dir + name + ".png", image, auto_exposure(to_doubles(o.reference)), true);
     });
     return run_epochs(run, options, dir, control);
 }

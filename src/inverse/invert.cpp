@@ -222,7 +222,7 @@ std::vector<Observation> observe(const Heightfield& truth, const Observation& ba
         o.query.x_um = pos[0];
         o.query.y_um = pos[1];
         validate(o.query);
-        o.reference = render_observation(truth, o, options);
+        o.reference = to_reference(render_observation(truth, o, options));
         out.push_back(std::move(o));
     }
     return out;
@@ -289,7 +289,7 @@ std::vector<Observation> Inversion::epoch_observations(int epoch) const {
         const auto pos = random_position(m_settings.seed, epoch, m_estimate);
         o.query.x_um = pos[0];
         o.query.y_um = pos[1];
-        o.reference = render_observation(*m_truth, o, m_settings.render);
+        o.reference = to_reference(render_observation(*m_truth, o, m_settings.render));
         return {o};
     }
     const std::uint64_t pick = splitmix64(m_settings.seed ^ (0xabcdefULL + static_cast<std::uint64_t>(epoch)));

@@ -25,8 +25,9 @@ void check_photons(double photons, const std::string& what) {
 }
 
 // Validates a (estimate, reference, channels) triple; returns the number of pixels.
-std::size_t check_slices(const char* function, const std::vector<double>& estimate,
-                         const std::vector<double>& reference, int channels) {
+template <typename Ref>
+std::size_t check_slices(const char* function, const std::vector<double>& estimate, const std::vector<Ref>& reference,
+                         int channels) {
     const std::string where = std::string(function) + ": ";
     if (channels < 1) throw std::invalid_argument(where + "channels must be >= 1, got " + std::to_string(channels));
     if (estimate.size() != reference.size())
@@ -41,8 +42,8 @@ std::size_t check_slices(const char* function, const std::vector<double>& estima
 }
 
 // Shared body of rgb_mse and rgb_gamma_mse: mean over all values of (T(I) − T(R))².
-template <typename ToneMap>
-double tone_mapped_mse(const char* function, const std::vector<double>& estimate, const std::vector<double>& reference,
+template <typename Ref, typename ToneMap>
+double tone_mapped_mse(const char* function, const std::vector<double>& estimate, const std::vector<Ref>& reference,
                        int channels, ToneMap tone_map) {
     check_slices(function, estimate, reference, channels);
     if (channels != 1 && channels != 3)
@@ -52,7 +53,7 @@ double tone_mapped_mse(const char* function, const std::vector<double>& estimate
     // pixels and RGB channels equals the mean over the mono values: both cases divide by size.
     double sum = 0.0;
     for (std::size_t i = 0; i < estimate.size(); ++i) {
-        const double d = tone_map(std::max(estimate[i], 0.0)) - tone_map(std::max(reference[i], 0.0));
+        const double d = tone_map(std::max(estimate[i], 0.0)) - tone_map(std::max(double(reference[i]), 0.0));
         sum += d * d;
     }
     return sum / static_cast<double>(estimate.size());
@@ -62,8 +63,8 @@ double tone_mapped_mse(const char* function, const std::vector<double>& estimate
 // summed, `derivative(e, r, d)` is ∂(d²)/∂e. The value and the gradient are two separate loops
 // so that the value is bit-for-bit the same whether or not the gradient is asked for (one
 // fused loop lets the compiler contract and vectorise the sum differently in each case).
-template <typename Residual, typename Derivative>
-double mean_over_pixels(const std::vector<double>& estimate, const std::vector<double>& reference, double inv_pixels,
+template <typename Ref, typename Residual, typename Derivative>
+double mean_over_pixels(const std::vector<double>& estimate, const std::vector<Ref>& reference, double inv_pixels,
                         std::vector<double>* gradient, Residual residual, Derivative derivative) {
     const std::size_t n = estimate.size();
     double sum = 0.0;
@@ -116,8 +117,12 @@ std::string to_string(const Loss& loss) {
     throw std::invalid_argument("to_string: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
 }
 
-double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
-                  int channels, std::vector<double>* gradient) {
+namespace {
+
+// loss_value for a reference in double or float (each value read as double).
+template <typename Ref>
+double loss_value_of(const Loss& loss, const std::vector<double>& estimate, const std::vector<Ref>& reference,
+                     int channels, std::vector<double>* gradient) {
     const std::size_t pixels = check_slices("loss_value", estimate, reference, channels);
     // Definition 3.2 normalises by |P| only (not |P|·|C|): each pixel's channel vector is one sample.
     const double inv_pixels = 1.0 / static_cast<double>(pixels);
@@ -178,7 +183,7 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
                 gradient->resize(estimate.size());
                 for (std::size_t i = 0; i < estimate.size(); ++i) {
                     const double e = estimate[i];
-                    const double k = s * std::max(reference[i], 0.0) + tiny, mu = s * std::max(e, 0.0) + tiny;
+                    const double k = s * std::max(double(reference[i]), 0.0) + tiny, mu = s * std::max(e, 0.0) + tiny;
                     // ∂/∂e = 2 s (1 − k/μ); zero where the clamp is active (e < 0).
                     (*gradient)[i] = e >= 0.0 ? 2.0 * s * (1.0 - k / mu) * inv_pixels : 0.0;
                 }
@@ -189,13 +194,35 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
     throw std::invalid_argument("loss_value: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
 }
 
+double reinhard(double x) { return x / (1.0 + x); }
+double reinhard_gamma(double x) { return std::pow(x / (1.0 + x), 1.0 / 2.2); }
+
+}  // namespace
+
+double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
+                  int channels, std::vector<double>* gradient) {
+    return loss_value_of(loss, estimate, reference, channels, gradient);
+}
+
+double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<float>& reference,
+                  int channels, std::vector<double>* gradient) {
+    return loss_value_of(loss, estimate, reference, channels, gradient);
+}
+
 double rgb_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels) {
-    return tone_mapped_mse("rgb_mse", estimate, reference, channels, [](double x) { return x / (1.0 + x); });
+    return tone_mapped_mse("rgb_mse", estimate, reference, channels, reinhard);
+}
+
+double rgb_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels) {
+    return tone_mapped_mse("rgb_mse", estimate, reference, channels, reinhard);
 }
 
 double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels) {
-    return tone_mapped_mse("rgb_gamma_mse", estimate, reference, channels,
-                           [](double x) { return std::pow(x / (1.0 + x), 1.0 / 2.2); });
+    return tone_mapped_mse("rgb_gamma_mse", estimate, reference, channels, reinhard_gamma);
+}
+
+double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels) {
+    return tone_mapped_mse("rgb_gamma_mse", estimate, reference, channels, reinhard_gamma);
 }
 
 double height_mse(const std::vector<double>& estimate, const std::vector<double>& truth) {

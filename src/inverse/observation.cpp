@@ -38,6 +38,14 @@ SliceAttributes slice_attributes(const Observation& observation, const Heightfie
     return a;
 }
 
+std::vector<float> to_reference(const std::vector<double>& values) {
+    std::vector<float> out(values.size());
+    for (std::size_t i = 0; i < values.size(); ++i) out[i] = static_cast<float>(values[i]);
+    return out;
+}
+
+std::vector<double> to_doubles(const std::vector<float>& values) { return {values.begin(), values.end()}; }
+
 void validate(const Observation& o, std::size_t index) {
     const std::string where = "observation " + std::to_string(index) + ": ";
     try {
@@ -243,7 +251,7 @@ std::vector<Observation> read_observations_json(const std::string& path, double 
                 for (std::size_t i = 0; i < o.reference.size(); ++i) o.reference[i] = image.data[3 * i];
             }
         } else {
-            o.reference = field<std::vector<double>>(j, "reference", where);
+            o.reference = to_reference(field<std::vector<double>>(j, "reference", where));
         }
         try {
             validate(o, index);
@@ -290,7 +298,7 @@ void write_observations_json(const std::string& path, const std::vector<Observat
             char name[32];
             std::snprintf(name, sizeof name, "/slice_%04zu.exr", i);
             const std::string relative = folder + name;
-            write_slice_exr(dir + relative, to_image(o.reference, o.resolution, o.channels()),
+            write_slice_exr(dir + relative, to_image(to_doubles(o.reference), o.resolution, o.channels()),
                             slice_attributes(o, nullptr, "observations"));
             j["reference"] = relative;
         } else {

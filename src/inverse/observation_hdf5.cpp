@@ -220,7 +220,7 @@ void write_file(const std::string& path, const std::string& tmp, const std::vect
         const hsize_t memory_dims[1] = {slice.size()};
         Id memory = checked(H5Screate_simple(1, memory_dims, nullptr), H5Sclose, path, k_data);
         for (std::size_t i = 0; i < count; ++i) {
-            const std::vector<double>& r = observations[i].reference;
+            const std::vector<float>& r = observations[i].reference;
             // Interleaved (pixel-major, channel fastest) in memory; channel planes in the file.
             for (std::size_t p = 0; p < plane; ++p)
                 for (int c = 0; c < channels; ++c) {
@@ -537,13 +537,6 @@ void write_observations_hdf5(const std::string& path, const std::vector<Observat
                 std::to_string(o.channels()) + " channel(s), observation 0 " + std::to_string(first.resolution) +
                 " and " + std::to_string(first.channels()) +
                 "; an HDF5 observation file holds one resolution and channel count (use JSON for mixed sets)");
-        for (double v : o.reference)
-            if (std::fabs(v) > double(std::numeric_limits<float>::max())) {
-                char text[32];
-                std::snprintf(text, sizeof text, "%.3g", v);
-                throw std::invalid_argument("observation " + std::to_string(i) + ": reference value " + text +
-                                            " overflows float32; expected |v| < 3.4e38");
-            }
     }
     write_file_atomically(path, [&](const std::string& tmp) {
         const Hdf5Session session;
@@ -593,7 +586,7 @@ std::vector<Observation> read_observations_hdf5(const std::string& path, const s
         o.resolution = index.resolution;
         o.reference.resize(values);
         for (std::size_t p = 0; p < plane; ++p)
-            for (std::size_t c = 0; c < channels; ++c) o.reference[p * channels + c] = double(slice[c * plane + p]);
+            for (std::size_t c = 0; c < channels; ++c) o.reference[p * channels + c] = slice[c * plane + p];
         try {
             validate(o, i);
         } catch (const std::exception& e) {

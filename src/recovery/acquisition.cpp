@@ -276,11 +276,12 @@ std::vector<Observation> planned_observations(const AcquisitionPlan& plan) {
 std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
                                                const Noise& noise, std::uint64_t seed, Progress* progress) {
     std::vector<Observation> observations = planned_observations(plan);
-    for (Observation& o : observations) {
-        o.reference = render_observation(truth, o);
+    // The noise is added to the double slice, then rounded (as for a subset below: the same bits).
+    for (std::size_t i = 0; i < observations.size(); ++i) {
+        Observation& o = observations[i];
+        o.reference = to_reference(add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));
         if (progress) progress->advance(1);
     }
-    add_noise(observations, noise, seed);
     return observations;
 }
 
@@ -296,8 +297,8 @@ std::vector<Observation> simulate_observations(const Heightfield& truth, const A
                                         " is out of range; the plan has " + std::to_string(planned.size()) +
                                         " observations");
         Observation o = planned[i];
-        o.reference = add_noise(render_observation(truth, o), noise,
-                                detail::derive_seed(seed, 1 + i));  // as add_noise does for all
+        o.reference = to_reference(
+            add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));  // as for all above
         observations.push_back(std::move(o));
         if (progress) progress->advance(1);
     }

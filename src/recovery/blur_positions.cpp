@@ -58,7 +58,7 @@ StageData make_stage(const std::vector<const Observation*>& group, double blur_w
         s.matrix_of.push_back(m);
         Eigen::MatrixXd r(n, n);
         for (int p = 0; p < n; ++p)
-            for (int q = 0; q < n; ++q) r(p, q) = std::max(o->reference[std::size_t(p) * n + q], 0.0);
+            for (int q = 0; q < n; ++q) r(p, q) = std::max(double(o->reference[std::size_t(p) * n + q]), 0.0);
         r = b * r * b.transpose();
         s.totals.push_back(r.sum());
         s.sqrt_reference.push_back(r.cwiseSqrt());

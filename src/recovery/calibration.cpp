@@ -97,10 +97,10 @@ double simulated_exposure(const AcquisitionErrors& errors, std::size_t observati
 
 namespace detail {
 
-double slice_exposure(const float* model, const double* reference, std::size_t n) {
+double slice_exposure(const float* model, const float* reference, std::size_t n) {
     double r = 0.0, f = 0.0;
     for (std::size_t k = 0; k < n; ++k) {
-        r += std::max(reference[k], 0.0);
+        r += std::max(double(reference[k]), 0.0);
         f += std::max(double(model[k]), 0.0);
     }
     return f > 0.0 ? r / f : 1.0;

@@ -19,7 +19,7 @@ namespace wavebrdf::detail {
 // Σ√f√R / Σf for the amplitude loss) are biased low while the model's detail is still wrong
 // (measured: the blurred fit then ends at 8 % instead of 1.7 %). It is also the Poisson
 // deviance's optimum in a.
-double slice_exposure(const float* model, const double* reference, std::size_t n);
+double slice_exposure(const float* model, const float* reference, std::size_t n);
 
 // The chain rule through a = Σ R / Σ f: given d = ∂L/∂e of a loss of e = a · f, replaces it by
 // dL/df = a d − (a / Σ f) Σ_j d_j f_j (the loss's total derivative through a as well).

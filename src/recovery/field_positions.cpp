@@ -34,7 +34,7 @@ double field_position_loss(const Observation& o, const std::array<double, 2>& of
     for (std::size_t k = 0; k < field.size(); ++k) {
         if (amp[k] == 0.0) continue;
         const double mag = std::abs(field[k]);
-        const double d = amp[k] * mag - std::sqrt(std::max(0.0, o.reference[k]));
+        const double d = amp[k] * mag - std::sqrt(std::max(0.0, double(o.reference[k])));
         sum += d * d;
         if (gradient_um && mag > 0.0) g[k] = (2.0 * d * amp[k] / mag) * field[k];
     }

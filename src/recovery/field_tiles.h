@@ -52,9 +52,11 @@ enum class FieldTileAlignment {
 // periodic ring of tiles, the tiles' mean tilt is kept where no ring fixes it); with `raster`
 // only a, tile after tile. Modifies `objects` (the aligned tiles). Returns the blend, divided by
 // the sum of the weights (0 where that is 0). Throws std::invalid_argument for an object of the
-// wrong size.
+// wrong size. T: double or float (the tiles' objects as stored; the fit and the blend are in
+// double either way, a rotated float object is rounded back to float).
+template <typename T>
 std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layout,
-                                                    std::vector<std::vector<std::complex<double>>>& objects,
+                                                    std::vector<std::vector<std::complex<T>>>& objects,
                                                     FieldTileAlignment alignment = FieldTileAlignment::joint);
 
 // retrieve_field (recover.h) of the rows × cols surface, tile by tile: each tile's retrieval

@@ -72,7 +72,8 @@ std::vector<double> add_noise(const std::vector<double>& slice, const Noise& noi
 
 void add_noise(std::vector<Observation>& observations, const Noise& noise, std::uint64_t seed) {
     for (std::size_t i = 0; i < observations.size(); ++i)
-        observations[i].reference = add_noise(observations[i].reference, noise, detail::derive_seed(seed, 1 + i));
+        observations[i].reference = to_reference(
+            add_noise(to_doubles(observations[i].reference), noise, detail::derive_seed(seed, 1 + i)));
 }
 
 Loss matched_loss(const Noise& noise, const Loss& fallback) {

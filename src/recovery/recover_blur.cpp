@@ -44,10 +44,11 @@ Eigen::MatrixXd blur_matrix(int n_to, int n_from, double lambda_um, double beta)
 }
 
 // Channel c of a row-major, channel-interleaved n × n slice of `channels` values per pixel.
-Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n, int channels = 1, int c = 0) {
+template <typename T>
+Eigen::MatrixXd as_matrix(const std::vector<T>& v, int n, int channels = 1, int c = 0) {
     Eigen::MatrixXd m(n, n);
     for (int p = 0; p < n; ++p)
-        for (int q = 0; q < n; ++q) m(p, q) = v[(std::size_t(p) * n + q) * channels + c];
+        for (int q = 0; q < n; ++q) m(p, q) = double(v[(std::size_t(p) * n + q) * channels + c]);
     return m;
 }
 
@@ -55,7 +56,7 @@ Eigen::MatrixXd as_matrix(const std::vector<double>& v, int n, int channels = 1,
 Eigen::MatrixXf channel_of(const std::vector<float>& v, int n, int channels, int c) {
     Eigen::MatrixXf m(n, n);
     for (int p = 0; p < n; ++p)
-        for (int q = 0; q < n; ++q) m(p, q) = v[(std::size_t(p) * n + q) * channels + c];
+        for (int q = 0; q < n; ++q) m(p, q) = double(v[(std::size_t(p) * n + q) * channels + c]);
     return m;
 }
 

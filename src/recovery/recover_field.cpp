@@ -40,6 +40,7 @@
 #include "wavebrdf/text.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/amplitude_loss.h"
 #include "recovery/field_operator_detail.h"
 
 namespace wavebrdf {
@@ -701,7 +702,7 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
                 double sum = 0.0;
                 for (int p = 0; p < n; ++p)
                     for (int c = 0; c < n; ++c) {
-                        const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
+                        const double r = std::max(0.0, double(o.reference[std::size_t(p) * n + c]));
                         sum += r;
                         const int a = p - impl.a0(), b = c - impl.b0();
                         if (a >= 0 && a < impl.ma() && b >= 0 && b < impl.mb())
@@ -756,52 +757,9 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
         const Slice& s = slices[i];
         const auto& impl = FieldAccess::impl(s.op);
         impl.forward_unphased(obj, psi);
-        g.resize(psi.rows(), psi.cols());
-        double v = s.outside;
-        // Self-calibrated exposure e = Σ R / Σ c1|Ψ|² over the disk's pixels of the box
-        // (calibration_detail.h: the ratio of the energies), the model amplitude scaled by
-        // s = √e; with C = Σ(s m − √R) m, m = √c1|Ψ|, ∂L/∂|Ψ_k| gains −2 C s c1_k |Ψ_k| / Σ m².
-        double root_exposure = 1.0, model_total = 0.0;
-        if (settings.calibrate_exposure) {
-            double reference_total = 0.0;
-            for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                    const double amp = impl.amp_box()(a, b);
-                    if (amp == 0.0) continue;
-                    const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
-                    model_total += amp * amp * (re * re + im * im);
-                    const double r = double(s.sqrt_ref(a, b));
-                    reference_total += r * r;
-                }
-            if (model_total > 0.0) root_exposure = std::sqrt(reference_total / model_total);
-        }
-        double cross = 0.0;
-        for (Eigen::Index b = 0; b < psi.cols(); ++b)
-            for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                const double amp = impl.amp_box()(a, b);
-                if (amp == 0.0) {  // outside the disk: no model value, no gradient
-                    const double r = double(s.sqrt_ref(a, b));
-                    v += r * r;
-                    g(a, b) = 0.0f;
-                    continue;
-                }
-                // |Ψ| as √(re² + im²): std::abs calls hypot, ~5× slower, and Ψ
-                // is far from its overflow / underflow range.
-                const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
-                const double mag = std::sqrt(re * re + im * im);
-                const double diff = root_exposure * amp * mag - double(s.sqrt_ref(a, b));
-                v += diff * diff;
-                cross += diff * amp * mag;
-                g(a, b) = mag > 0.0 ? float(2.0 * inv_total * diff * root_exposure * amp / mag) * psi(a, b) : 0.0f;
-            }
-        if (settings.calibrate_exposure && model_total > 0.0) {
-            const double shift = 2.0 * inv_total * cross * root_exposure / model_total;
-            for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                    const double amp = impl.amp_box()(a, b);
-                    if (amp != 0.0) g(a, b) -= float(shift * amp * amp) * psi(a, b);
-                }
-        }
+        // Self-calibrated exposure when asked (amplitude_loss.h), the model amplitude scaled by √e.
+        const double v = detail::amplitude_box_loss(psi, impl.amp_box(), s.sqrt_ref, s.outside,
+                                                    settings.calibrate_exposure, inv_total, g);
         impl.adjoint_unphased_add(g, gradient);
         return v * inv_total;
     };

@@ -15,6 +15,7 @@
 #include "wavebrdf/slice_plan.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
+#include "recovery/amplitude_loss.h"
 #include "recovery/calibration_detail.h"
 #include "recovery/field_operator_detail.h"
 
@@ -157,7 +158,7 @@ struct FieldModelLoss::Impl {
         int a0 = 0, b0 = 0;  // the box's first slice row / column
         float sqrt_ref(Eigen::Index a, Eigen::Index b) const {
             const int n = observation->resolution;
-            return float(std::sqrt(std::max(0.0, observation->reference[std::size_t(a0 + a) * n + (b0 + b)])));
+            return float(std::sqrt(std::max(0.0, double(observation->reference[std::size_t(a0 + a) * n + (b0 + b)]))));
         }
         double outside = 0.0;  // Σ R beyond the box
         int lambda = 0;        // index into lambdas
@@ -226,7 +227,7 @@ FieldModelLoss::FieldModelLoss(const std::vector<const Observation*>& observatio
                                        "'s pixel box lies outside its slice");
             for (int p = 0; p < n; ++p)
                 for (int c = 0; c < n; ++c) {
-                    const double r = std::max(0.0, o.reference[std::size_t(p) * n + c]);
+                    const double r = std::max(0.0, double(o.reference[std::size_t(p) * n + c]));
                     const int a = p - a0, b = c - b0;
                     if (!(a >= 0 && a < amp.rows() && b >= 0 && b < amp.cols())) slice.outside += r;
                 }
@@ -265,42 +266,9 @@ double FieldModelLoss::operator()(const std::vector<double>& heights_um, std::ve
                 const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
                 const Eigen::MatrixXd amp = slice.scale * amp_box;
                 field_forward_unphased(*slice.op, object.data(), psi);
-                g.resize(psi.rows(), psi.cols());
-                double v = slice.outside, root_exposure = 1.0, model_total = 0.0;
-                if (s.calibrate_exposure) {
-                    double reference = 0.0;
-                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                        for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                            if (amp(a, b) == 0.0) continue;
-                            model_total += amp(a, b) * amp(a, b) * double(std::norm(psi(a, b)));
-                            reference += double(slice.sqrt_ref(a, b)) * double(slice.sqrt_ref(a, b));
-                        }
-                    if (model_total > 0.0) root_exposure = std::sqrt(reference / model_total);
-                }
-                double cross = 0.0;
-                for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                    for (Eigen::Index a = 0; a < psi.rows(); ++a) {
-                        const double c = amp(a, b);
-                        if (c == 0.0) {
-                            const double r = double(slice.sqrt_ref(a, b));
-                            v += r * r;
-                            g(a, b) = 0.0f;
-                            continue;
-                        }
-                        const double re = double(psi(a, b).real()), im = double(psi(a, b).imag());
-                        const double mag = std::sqrt(re * re + im * im);
-                        const double diff = root_exposure * c * mag - double(slice.sqrt_ref(a, b));
-                        v += diff * diff;
-                        cross += diff * c * mag;
-                        g(a, b) = mag > 0.0 ? float(2.0 * s.inv_total * diff * root_exposure * c / mag) * psi(a, b)
-                                            : std::complex<float>(0.0f);
-                    }
-                if (s.calibrate_exposure && model_total > 0.0) {
-                    const double shift = 2.0 * s.inv_total * cross * root_exposure / model_total;
-                    for (Eigen::Index b = 0; b < psi.cols(); ++b)
-                        for (Eigen::Index a = 0; a < psi.rows(); ++a)
-                            if (amp(a, b) != 0.0) g(a, b) -= float(shift * amp(a, b) * amp(a, b)) * psi(a, b);
-                }
+                const double v = amplitude_box_loss(
+                    psi, amp, [&](Eigen::Index a, Eigen::Index b) { return slice.sqrt_ref(a, b); }, slice.outside,
+                    s.calibrate_exposure, s.inv_total, g);
                 field_adjoint_unphased_add(*slice.op, g, object_gradient.data());
                 const std::vector<int>& rows = field_rows(*slice.op);
                 const std::vector<int>& cols = field_cols(*slice.op);
@@ -339,7 +307,7 @@ double gabor_amplitude_loss(const std::vector<const Observation*>& observations,
         double v = 0.0;
         for (std::size_t k = 0; k < o.reference.size(); ++k) {
             const double m = k < n ? std::sqrt(std::max(0.0, e * double(f[k]))) : 0.0;
-            const double d = m - std::sqrt(std::max(0.0, o.reference[k]));
+            const double d = m - std::sqrt(std::max(0.0, double(o.reference[k])));
             v += d * d;
         }
         return v;

@@ -216,7 +216,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     const Observation& first = r.observations.front();
     const std::vector<std::size_t> slice_shape{std::size_t(first.resolution), std::size_t(first.resolution),
                                                std::size_t(first.channels())};
-    write_npy(dir + "/reference.npy", slice_shape, first.reference);
+    write_npy(dir + "/reference.npy", slice_shape, to_doubles(first.reference));
     write_npy(dir + "/final.npy", slice_shape, render_observation(estimate, first));
     return estimate;
 }

@@ -43,7 +43,7 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     std::vector<std::pair<double, double>> pixels_per_lambda;
     for (const Observation& o : observations) {
         const double pixels = double(o.resolution) * double(o.resolution);
-        references += pixels * double(o.lambdas_um.size() == 1 ? 1 : 3) * sizeof(double);
+        references += pixels * double(o.lambdas_um.size() == 1 ? 1 : 3) * sizeof(float);  // Observation::reference
         for (double l : o.lambdas_um) lambda_min = lambda_min > 0.0 ? std::min(lambda_min, l) : l;
         if (o.lambdas_um.size() != 1) continue;
         auto it = std::find_if(pixels_per_lambda.begin(), pixels_per_lambda.end(),
@@ -58,9 +58,9 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     // Per slice pixel of one wavelength: the field stage's float √R and share of the √c1 maps
     // and factor matrices (shared by the footprints of a u grid: ~16 KB per 48² footprint, about
     // a double per pixel), and with position calibration a copy of that wavelength's references
-    // (a double; without it the stage reads them where they are). The blurred fit's matrices
+    // (a float; without it the stage reads them where they are). The blurred fit's matrices
     // are shared per wavelength and width (small).
-    const double per_pixel = (settings.calibrate.positions ? 2.0 : 1.0) * sizeof(double);
+    const double per_pixel = sizeof(double) + (settings.calibrate.positions ? sizeof(float) : 0.0);
     double largest_stage = 0.0;
     for (const auto& p : pixels_per_lambda) largest_stage = std::max(largest_stage, per_pixel * p.second);
     int refine = settings.refine;
@@ -79,11 +79,11 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
         const double tile_cols = std::min(double(cols), tiling.core + 1.0 + 2.0 * margin);
         field_samples = tile_rows * tile_cols * double(std::max(refine, 1)) * double(std::max(refine, 1));
         tiled_fields = samples * 2.0 * sizeof(double) * double(pixels_per_lambda.size() + 2);
-        // The tiles' objects, kept until all are in for the joint alignment (blend_field_tiles):
-        // the surface's samples times the tiles' overlap factor.
+        // The tiles' objects in complex float, kept until all are in for the joint alignment
+        // (blend_field_tiles): the surface's samples times the tiles' overlap factor.
         const double core_rows = std::min(double(rows), double(tiling.core)),
                      core_cols = std::min(double(cols), double(tiling.core));
-        tiled_fields += samples * 2.0 * sizeof(double) * (tile_rows * tile_cols) / (core_rows * core_cols);
+        tiled_fields += samples * 2.0 * sizeof(float) * (tile_rows * tile_cols) / (core_rows * core_cols);
     }
     // The pairs in float (LbfgsOptions::float_history: 2 · history vectors of 2·samples floats),
     // six vectors of 2·samples doubles besides (x, gradient, trial, directions).
@@ -313,7 +313,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
             for (std::size_t k = 0; k < r.share.size(); ++k) {
                 Observation& o = r.observations[k];
                 const double exposure = simulated_exposure(e, r.share[k]);
-                for (double& v : o.reference) v *= exposure;
+                for (float& v : o.reference) v = float(double(v) * exposure);
                 o.query = planned[r.share[k]].query;  // the stated acquisition
                 t.exposures.push_back(exposure);
                 t.position_offsets_um.push_back(offsets[r.share[k] / per_position]);

@@ -253,7 +253,7 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
             m.slices[i] = plan.forward();
             plan.release();
             const std::vector<double>& f = m.slices[i];
-            const std::vector<double>& r = o.reference;
+            const std::vector<float>& r = o.reference;
             std::vector<double>& w = m.weights[i];
             w.assign(f.size(), 0.0);
             double s = 0.0;
@@ -267,7 +267,7 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
                 s = loss.photons / total_r;
             }
             for (std::size_t p = 0; p < f.size(); ++p) {
-                const double fi = std::max(f[p], 0.0), ri = std::max(r[p], 0.0);
+                const double fi = std::max(f[p], 0.0), ri = std::max(double(r[p]), 0.0);
                 if (fi == 0.0 && ri == 0.0 && !poisson) continue;
                 double d = 0.0;
                 switch (loss.kind) {

@@ -163,7 +163,7 @@ def test_planned_and_simulated_observations():
     truth = wb.with_height_range(wb.Heightfield.generate("isotropic", rows=8, texel_um=2.0, seed=5), 0.1)
     simulated = wb.simulate_observations(truth, plan)
     for o in simulated[:3]:
-        np.testing.assert_array_equal(o.reference, o.render(truth))
+        np.testing.assert_array_equal(o.reference, o.render(truth).astype(np.float32))
     noisy = wb.simulate_observations(truth, plan, noise="poisson:1e4", seed=2)
     assert not np.array_equal(noisy[0].reference, simulated[0].reference)
     assert wb.check_acquisition(simulated, 8, 2.0, truth=truth) == []
