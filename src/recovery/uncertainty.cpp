@@ -13,6 +13,7 @@
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/slice_plan.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf {
 
@@ -236,7 +237,9 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
     m.slices.resize(count);
     m.weights.resize(count);
     // The slices at the solution, the residuals in the loss's variable and the values counted.
-    std::vector<double> residual(count, 0.0), values(count, 0.0), curvature(count, 0.0);
+    // `rounding`: what the references' float storage alone leaves in the residual (a bound of
+    // the square of half an ulp per value, in the loss's variable).
+    std::vector<double> residual(count, 0.0), values(count, 0.0), curvature(count, 0.0), rounding(count, 0.0);
     const bool poisson = loss.kind == LossKind::Poisson;
     if (poisson && !(loss.photons > 0.0 && std::isfinite(loss.photons)))
         throw std::domain_error("height uncertainty: poisson photons " + std::to_string(loss.photons) +
@@ -269,7 +272,8 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
             for (std::size_t p = 0; p < f.size(); ++p) {
                 const double fi = std::max(f[p], 0.0), ri = std::max(double(r[p]), 0.0);
                 if (fi == 0.0 && ri == 0.0 && !poisson) continue;
-                double d = 0.0;
+                double d = 0.0, ulp = 0.0;
+                constexpr double half_ulp = 0x1p-24;  // float's relative rounding
                 switch (loss.kind) {
                     case LossKind::Poisson:
                         // Fisher information of counts k ~ Poisson(s·I) in I (the loss's 1e-9 counts
@@ -278,18 +282,22 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
                         break;
                     case LossKind::Amplitude:
                         d = std::sqrt(fi) - std::sqrt(ri);
+                        ulp = half_ulp * std::sqrt(ri);
                         w[p] = 1.0 / (4.0 * (fi + 1e-30));
                         break;
                     case LossKind::MSE:
                         d = fi - ri;
+                        ulp = half_ulp * ri;
                         w[p] = 1.0;
                         break;
                     case LossKind::CMSLE:
                         d = std::log(fi + loss.epsilon) - std::log(ri + loss.epsilon);
+                        ulp = half_ulp * ri / (ri + loss.epsilon);
                         w[p] = 1.0 / ((fi + loss.epsilon) * (fi + loss.epsilon));
                         break;
                 }
                 residual[i] += d * d;
+                rounding[i] += ulp * ulp;
                 values[i] += 1.0;
                 curvature[i] += w[p] * fi * fi;
             }
@@ -306,9 +314,13 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
                                         std::to_string(m.heights.size()) +
                                         " heights leave no degree of freedom to estimate the noise from");
         m.variance = sum_residual / m.dof;
-        if (!(m.variance > 0.0) || !std::isfinite(m.variance))
-            throw std::domain_error("height uncertainty: the residual variance is " + std::to_string(m.variance) +
-                                    "; expected > 0 (noiseless slices have no error bars under loss " +
+        // Noiseless slices fitted exactly leave only the references' float rounding.
+        const double rounding_variance = detail::exact_total(rounding, comm) / m.dof;
+        if (!(m.variance > 4.0 * rounding_variance) || !std::isfinite(m.variance))
+            throw std::domain_error("height uncertainty: the residual variance is " + format_shortest(m.variance) +
+                                    ", at most 4 times what the references' float rounding leaves (" +
+                                    format_shortest(rounding_variance) +
+                                    "); expected noisy slices (noiseless slices have no error bars under loss " +
                                     to_string(loss) + ")");
     }
     // Normalised weights: about 1 per slice value (W f² on average), the variance divided out.
