@@ -317,11 +317,10 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
         // Noiseless slices fitted exactly leave only the references' float rounding.
         const double rounding_variance = detail::exact_total(rounding, comm) / m.dof;
         if (!(m.variance > 4.0 * rounding_variance) || !std::isfinite(m.variance))
-            throw std::domain_error("height uncertainty: the residual variance is " + format_shortest(m.variance) +
-                                    ", at most 4 times what the references' float rounding leaves (" +
-                                    format_shortest(rounding_variance) +
-                                    "); expected noisy slices (noiseless slices have no error bars under loss " +
-                                    to_string(loss) + ")");
+            throw std::domain_error(
+                "height uncertainty: the residual variance is " + format_shortest(m.variance) +
+                ", at most 4 times what the references' float rounding leaves (" + format_shortest(rounding_variance) +
+                "); expected noisy slices (noiseless slices have no error bars under loss " + to_string(loss) + ")");
     }
     // Normalised weights: about 1 per slice value (W f² on average), the variance divided out.
     m.scale = sum_curvature > 0.0 && sum_values > 0.0 ? sum_curvature / sum_values / m.variance : 1.0;
