@@ -17,6 +17,7 @@
 //     outer_fields=1 outer_field_iters=0 outer_refine_iters=0 (later passes' iterations; 0: the
 //     first's) register_check=0 (1: after the run, register every position at the final
 //     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
+//     save=PREFIX (write PREFIX_estimate.npy and PREFIX_truth.npy, heights in µm, for analysis)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <chrono>
@@ -33,6 +34,7 @@
 #include "wavebrdf/baseline.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/generate.h"
+#include "wavebrdf/io.h"
 #include "wavebrdf/optim.h"
 #include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
@@ -246,6 +248,11 @@ int main(int argc, char** argv) try {
         },
         &truth, serial_communicator(), &calibration);
     const double rel = height_rel_rmse(estimate, truth);
+    if (args.count("save")) {
+        const std::vector<std::size_t> shape{std::size_t(truth.rows()), std::size_t(truth.cols())};
+        write_npy(args["save"] + "_estimate.npy", shape, heights_um(estimate));
+        write_npy(args["save"] + "_truth.npy", shape, heights_um(truth));
+    }
     // Position calibration: rms of (found − true) after removing each one's mean, texels.
     if (!calibration.position_offsets_um.empty()) {
         std::array<double, 2> mt{0, 0}, mf{0, 0};
