@@ -10,7 +10,7 @@ down show up as a warp that such a fit removes.
 """
 import sys
 import numpy as np
-from scipy.ndimage import map_coordinates, zoom
+from scipy.ndimage import map_coordinates
 from scipy.optimize import least_squares
 d = sys.argv[1]
 e = np.load(d + '/estimate_height.npy'); t = np.load(d + '/truth_height.npy')
