@@ -621,30 +621,32 @@ TEST(RecoverHeights, CascadeStallToleranceStopsTheLaterFields) {
     EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, s), std::domain_error);
 }
 
+// Recovers the 12² small case, counting the reports per stage name.
+Heightfield recover_counting_stages(const SmallCase& c, const RecoverSettings& s, std::map<std::string, int>* stages) {
+    return recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
+        ++(*stages)[m.stage];
+        return true;
+    });
+}
+
 // field_wavelengths / refine_ladder_wavelengths count the longest wavelengths: 1 runs the field
 // stage at the longest wavelength only and the refinement first on its slices ("refine:0.6")
 // then on every slice, the same bits as naming that wavelength in field_lambda_min_um /
 // refine_ladder_min_um; negative counts are refused.
 TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
     const SmallCase c = small_case(25);
-    const auto run = [&](const RecoverSettings& s, std::map<std::string, int>* stages) {
-        return recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
-            ++(*stages)[m.stage];
-            return true;
-        });
-    };
     RecoverSettings s = quick_settings();
     s.refine_iterations = 3;
     s.refine_ladder_iterations = 4;
     s.model_check_iterations = 0;
     std::map<std::string, int> all, counted, named;
-    const Heightfield a = run(s, &all);
+    const Heightfield a = recover_counting_stages(c, s, &all);
     EXPECT_GT(all.count("field:0.5"), 0u);
     EXPECT_EQ(all.count("refine:0.6"), 0u);
     RecoverSettings one = s;
     one.field_wavelengths = 1;
     one.refine_ladder_wavelengths = 1;
-    const Heightfield b = run(one, &counted);
+    const Heightfield b = recover_counting_stages(c, one, &counted);
     EXPECT_GT(counted.count("field:0.6"), 0u);
     EXPECT_EQ(counted.count("field:0.5"), 0u);
     EXPECT_EQ(counted.at("refine:0.6"), one.refine_ladder_iterations);
@@ -654,7 +656,7 @@ TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
     RecoverSettings by_name = s;
     by_name.field_lambda_min_um = 0.6;
     by_name.refine_ladder_min_um = 0.6;
-    const Heightfield d = run(by_name, &named);
+    const Heightfield d = recover_counting_stages(c, by_name, &named);
     EXPECT_EQ(b.values(), d.values());
     EXPECT_EQ(counted, named);
     RecoverSettings bad = s;
@@ -670,12 +672,6 @@ TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
 // on every slice still runs its iterations; 0 runs the rung to its cap. Out of range: refused.
 TEST(RecoverHeights, LadderRelativeToleranceStopsTheRungEarly) {
     const SmallCase c = small_case(25);
-    const auto run = [&](const RecoverSettings& s, std::map<std::string, int>* stages) {
-        return recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
-            ++(*stages)[m.stage];
-            return true;
-        });
-    };
     RecoverSettings s = quick_settings();
     s.refine_iterations = 3;
     s.refine_ladder_iterations = 6;
@@ -683,12 +679,12 @@ TEST(RecoverHeights, LadderRelativeToleranceStopsTheRungEarly) {
     s.field_wavelengths = 1;
     s.refine_ladder_wavelengths = 1;
     std::map<std::string, int> full, early;
-    const Heightfield a = run(s, &full);
+    const Heightfield a = recover_counting_stages(c, s, &full);
     EXPECT_EQ(full.at("refine:0.6"), 6);
     EXPECT_EQ(full.at("refine"), 3);
     RecoverSettings stop = s;
     stop.refine_ladder_relative_tolerance = 0.999;
-    const Heightfield b = run(stop, &early);
+    const Heightfield b = recover_counting_stages(c, stop, &early);
     EXPECT_EQ(early.at("refine:0.6"), 1);
     EXPECT_EQ(early.at("refine"), 3);
     EXPECT_NE(a.values(), b.values());
