@@ -81,41 +81,41 @@ TEST(LossTest, ParseErrorsNameTheText) {
 TEST(LossTest, HandComputedValues) {
     const Loss mse{LossKind::MSE, 1.0};
     // (0² + 1² + 2²) / 3 pixels.
-    EXPECT_DOUBLE_EQ(loss_value(mse, {1, 2, 3}, std::vector<double>{1, 1, 1}, 1), 5.0 / 3.0);
+    EXPECT_DOUBLE_EQ(loss_value(mse, {1, 2, 3}, {1, 1, 1}, 1), 5.0 / 3.0);
     // Two channels: the sum over channels is divided by the 2 pixels, not by the 4 values.
-    EXPECT_DOUBLE_EQ(loss_value(mse, {1, 2, 3, 4}, std::vector<double>{0, 0, 0, 0}, 2), 15.0);
+    EXPECT_DOUBLE_EQ(loss_value(mse, {1, 2, 3, 4}, {0, 0, 0, 0}, 2), 15.0);
 
     const double e = std::exp(1.0);
     const Loss cmsle1{LossKind::CMSLE, 1.0};
     // log(e − 1 + 1) − log(0 + 1) = 1; the second pixel matches.
-    EXPECT_DOUBLE_EQ(loss_value(cmsle1, {e - 1.0, 0.0}, std::vector<double>{0.0, 0.0}, 1), 0.5);
+    EXPECT_DOUBLE_EQ(loss_value(cmsle1, {e - 1.0, 0.0}, {0.0, 0.0}, 1), 0.5);
     // log(e² − 1 + 1) − log(e − 1 + 1) = 1, one pixel of three channels.
-    EXPECT_NEAR(loss_value(cmsle1, {e * e - 1.0, 5.0, 0.0}, std::vector<double>{e - 1.0, 5.0, 0.0}, 3), 1.0, 1e-15);
+    EXPECT_NEAR(loss_value(cmsle1, {e * e - 1.0, 5.0, 0.0}, {e - 1.0, 5.0, 0.0}, 3), 1.0, 1e-15);
     const Loss cmsle_small{LossKind::CMSLE, 0.5};
     // log(1.5 / 0.5)² = log(3)².
-    EXPECT_NEAR(loss_value(cmsle_small, {1.0}, std::vector<double>{0.0}, 1), std::log(3.0) * std::log(3.0), 1e-15);
+    EXPECT_NEAR(loss_value(cmsle_small, {1.0}, {0.0}, 1), std::log(3.0) * std::log(3.0), 1e-15);
 
     const Loss amplitude{LossKind::Amplitude, 1.0};
     // (√4 − √1)² + (√9 − √1)² = 1 + 4, one pixel of two channels.
-    EXPECT_NEAR(loss_value(amplitude, {4, 9}, std::vector<double>{1, 1}, 2), 5.0, 1e-14);
+    EXPECT_NEAR(loss_value(amplitude, {4, 9}, {1, 1}, 2), 5.0, 1e-14);
 
     // N = 10 photons over R = (1, 1): s = 5, counts k = (5, 5), rates μ = s·I = (10, 2.5):
     // 2[5 log(1/2) + 5] + 2[5 log 2 − 2.5] = 5 over 2 pixels.
     const Loss poisson{LossKind::Poisson, 1.0, 10.0};
-    EXPECT_NEAR(loss_value(poisson, {2.0, 0.5}, std::vector<double>{1.0, 1.0}, 1), 2.5, 1e-9);
+    EXPECT_NEAR(loss_value(poisson, {2.0, 0.5}, {1.0, 1.0}, 1), 2.5, 1e-9);
     // The scale comes from the reference's sum: the same counts at another brightness.
-    EXPECT_NEAR(loss_value(poisson, {6.0, 1.5}, std::vector<double>{3.0, 3.0}, 1), 2.5, 1e-9);
+    EXPECT_NEAR(loss_value(poisson, {6.0, 1.5}, {3.0, 3.0}, 1), 2.5, 1e-9);
 }
 
 TEST(LossTest, NegativeValuesAreClampedToZero) {
     const Loss cmsle{LossKind::CMSLE, 1.0}, amplitude{LossKind::Amplitude, 1.0};
     std::vector<double> gradient;
-    EXPECT_EQ(loss_value(cmsle, {-0.5}, std::vector<double>{0.0}, 1, &gradient), 0.0);
+    EXPECT_EQ(loss_value(cmsle, {-0.5}, {0.0}, 1, &gradient), 0.0);
     EXPECT_EQ(gradient[0], 0.0);
-    EXPECT_EQ(loss_value(amplitude, {-0.5}, std::vector<double>{-2.0}, 1, &gradient), 0.0);
+    EXPECT_EQ(loss_value(amplitude, {-0.5}, {-2.0}, 1, &gradient), 0.0);
     EXPECT_EQ(gradient[0], 0.0);
     // At exactly 0 the amplitude gradient is large but finite and pulls the estimate up.
-    loss_value(amplitude, {0.0}, std::vector<double>{1.0}, 1, &gradient);
+    loss_value(amplitude, {0.0}, {1.0}, 1, &gradient);
     EXPECT_TRUE(std::isfinite(gradient[0]));
     EXPECT_LT(gradient[0], 0.0);
 }
@@ -179,9 +179,9 @@ TEST(LossTest, SizeAndChannelErrorsThrow) {
 
 TEST(LossTest, RgbMetricsHandComputed) {
     // T(1) = 1/2, T(3) = 3/4, T(0) = 0.
-    EXPECT_DOUBLE_EQ(rgb_mse({1.0}, std::vector<double>{0.0}, 1), 0.25);
-    EXPECT_DOUBLE_EQ(rgb_mse({1.0, 3.0, 0.0}, std::vector<double>{0.0, 1.0, 0.0}, 3), (0.25 + 0.0625) / 3.0);
-    EXPECT_DOUBLE_EQ(rgb_gamma_mse({1.0}, std::vector<double>{0.0}, 1), std::pow(0.5, 2.0 / 2.2));
+    EXPECT_DOUBLE_EQ(rgb_mse({1.0}, {0.0}, 1), 0.25);
+    EXPECT_DOUBLE_EQ(rgb_mse({1.0, 3.0, 0.0}, {0.0, 1.0, 0.0}, 3), (0.25 + 0.0625) / 3.0);
+    EXPECT_DOUBLE_EQ(rgb_gamma_mse({1.0}, {0.0}, 1), std::pow(0.5, 2.0 / 2.2));
     // A mono slice is grey RGB: the same as its triplicated RGB slice.
     const auto mono_e = uniform_vector(9, 0.0, 4.0, 1), mono_r = uniform_vector(9, 0.0, 4.0, 2);
     std::vector<double> rgb_e, rgb_r;
@@ -193,7 +193,30 @@ TEST(LossTest, RgbMetricsHandComputed) {
     EXPECT_NEAR(rgb_mse(mono_e, mono_r, 1), rgb_mse(rgb_e, rgb_r, 3), 1e-15);
     EXPECT_NEAR(rgb_gamma_mse(mono_e, mono_r, 1), rgb_gamma_mse(rgb_e, rgb_r, 3), 1e-15);
     // Gamma lifts the dark values, so it weighs a difference there more (the thesis's Fig. 5.3).
-    EXPECT_GT(rgb_gamma_mse({0.01}, std::vector<double>{0.02}, 1), rgb_mse({0.01}, std::vector<double>{0.02}, 1));
+    EXPECT_GT(rgb_gamma_mse({0.01}, {0.02}, 1), rgb_mse({0.01}, {0.02}, 1));
+}
+
+// A float reference (Observation::reference) gives the double reference's values and
+// gradients when its values are exact in float; a braced list selects the double overload.
+TEST(LossTest, FloatReferenceMatchesTheDoubleOne) {
+    const std::vector<float> ref{0.5f, 0.25f, 2.0f, 0.0f, 1.5f, 3.0f};
+    const std::vector<double> ref_double(ref.begin(), ref.end());
+    const std::vector<double> estimate{1.0, 0.0, 3.0, 0.125, 1.5, 2.0};
+    for (const Loss& loss : {Loss{LossKind::MSE, 1.0}, Loss{LossKind::CMSLE, 0.01}, Loss{LossKind::Amplitude, 1.0},
+                             Loss{LossKind::Poisson, 1.0, 100.0}}) {
+        std::vector<double> g_float, g_double;
+        // Equal up to the compiler's contraction of a * b + c, which may differ between the
+        // two instantiations (a few ulps).
+        EXPECT_DOUBLE_EQ(loss_value(loss, estimate, ref, 3, &g_float),
+                         loss_value(loss, estimate, ref_double, 3, &g_double))
+            << to_string(loss);
+        ASSERT_EQ(g_float.size(), g_double.size());
+        for (std::size_t i = 0; i < g_float.size(); ++i) EXPECT_DOUBLE_EQ(g_float[i], g_double[i]) << to_string(loss);
+    }
+    EXPECT_DOUBLE_EQ(rgb_mse(estimate, ref, 3), rgb_mse(estimate, ref_double, 3));
+    EXPECT_DOUBLE_EQ(rgb_gamma_mse(estimate, ref, 3), rgb_gamma_mse(estimate, ref_double, 3));
+    EXPECT_DOUBLE_EQ(rgb_mse({0.0, 1.0, 3.0}, {0.0, 0.0, 0.0}, 1), (0.25 + 0.5625) / 3.0);
+    EXPECT_GT(rgb_gamma_mse({1.0}, {0.0}, 1), 0.0);
 }
 
 TEST(LossTest, HeightMseHandComputedAndOffsetInvariant) {

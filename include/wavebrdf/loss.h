@@ -10,6 +10,7 @@
 //                     the Poisson deviance (negative log-likelihood up to a constant) of photon
 //                     counts k for a slice measured with N photons: s = N / Σ R (noise.h)
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace wavebrdf {
@@ -46,7 +47,10 @@ std::string to_string(const Loss& loss);
 double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
                   int channels, std::vector<double>* gradient = nullptr);
 // The same for a reference stored in float (Observation::reference): each value read as double.
-double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<float>& reference,
+// A template for float alone, so that a braced list as the reference ({1.0, 2.0}) selects the
+// double overload above instead of being ambiguous between the two.
+template <typename Ref, typename = std::enable_if_t<std::is_same_v<Ref, float>>>
+double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<Ref>& reference,
                   int channels, std::vector<double>* gradient = nullptr);
 
 // Reporting metrics (no gradients). Mono slices (channels = 1) are treated as grey RGB, which
@@ -58,8 +62,11 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
 //   rgb_gamma_mse  the same with T(x) = (x / (1 + x))^(1/2.2)
 double rgb_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels);
 double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels);
-double rgb_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels);
-double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels);
+// A float reference (templates for float alone, as loss_value's).
+template <typename Ref, typename = std::enable_if_t<std::is_same_v<Ref, float>>>
+double rgb_mse(const std::vector<double>& estimate, const std::vector<Ref>& reference, int channels);
+template <typename Ref, typename = std::enable_if_t<std::is_same_v<Ref, float>>>
+double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<Ref>& reference, int channels);
 
 // Mean squared difference of two heightfields (same size) after removing each one's mean
 // height, which no slice can see. In the squared units of the inputs. Throws

@@ -86,35 +86,54 @@ const typename SeparableEngine<Float>::Kept* SeparableEngine<Float>::kept(double
 }
 
 template <typename Float>
-void SeparableEngine<Float>::keep(double shift_scale, ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys) {
-    const double bytes = 2.0 * double(xs.size()) * sizeof(std::complex<Float>);
-    if (!m_kept.empty() && m_kept_bytes + bytes > kKeptBytes) return;
+bool SeparableEngine<Float>::admit(double bytes) {
+    if (!m_kept.empty() && m_kept_bytes + bytes > kKeptBytes) return false;
     if (m_kept.empty()) {
         m_kept_slope_x = m_kernels.slope_x;
         m_kept_slope_y = m_kernels.slope_y;
     }
+    m_kept_bytes += bytes;
+    return true;
+}
+
+template <typename Float>
+void SeparableEngine<Float>::keep(double shift_scale, ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys) {
+    if (!admit(2.0 * double(xs.size()) * sizeof(std::complex<Float>))) return;
     Kept k;
     k.shift_scale = shift_scale;
     k.xs = std::move(xs);
     k.ys = std::move(ys);
     m_kept.push_back(std::move(k));
-    m_kept_bytes += bytes;
 }
 
 template <typename Float>
 void SeparableEngine<Float>::keep(double shift_scale, PlanarFactors& px, PlanarFactors& py) {
-    const double bytes = 6.0 * double(px.re.size()) * sizeof(float);
-    if (!m_kept.empty() && m_kept_bytes + bytes > kKeptBytes) return;
-    if (m_kept.empty()) {
-        m_kept_slope_x = m_kernels.slope_x;
-        m_kept_slope_y = m_kernels.slope_y;
-    }
+    if (!admit(6.0 * double(px.re.size()) * sizeof(float))) return;
     Kept k;
     k.shift_scale = shift_scale;
     k.px = std::move(px);
     k.py = std::move(py);
     m_kept.push_back(std::move(k));
-    m_kept_bytes += bytes;
+}
+
+template <typename Float>
+void SeparableEngine<Float>::PlanarChunk::reserve(Eigen::Index rows, Eigen::Index cols) {
+    if (cached) return;
+    built_x.resize(rows, cols);
+    built_y.resize(rows, cols);
+    planar_x.resize(rows, cols);
+    planar_y.resize(rows, cols);
+}
+
+template <typename Float>
+Eigen::Index SeparableEngine<Float>::load_chunk(double shift_scale, Eigen::Index k0, Eigen::Index count,
+                                                PlanarChunk& chunk) {
+    if (chunk.cached) return k0;
+    build_factors<float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, chunk.built_x,
+                         chunk.built_y);
+    chunk.planar_x.assign(chunk.built_x, count);
+    chunk.planar_y.assign(chunk.built_y, count);
+    return 0;
 }
 
 template <typename Float>
@@ -265,38 +284,28 @@ void SeparableEngine<Float>::forward_planar(const KernelWeights& weights, double
                    double(weights.size()) * double(n) * n * sizeof(Complex), [&] {
                        for (ComplexMatrix<float>& f : fields) f.setZero(n, n);
                    });
-        const Kept* cached = kept(shift_scale);
+        PlanarChunk factors;
+        factors.cached = kept(shift_scale);
+        const bool cached = factors.cached != nullptr;
         const Eigen::Index chunk = cached ? std::max<Eigen::Index>(total, 1) : chunk_size(n, sizeof(Complex), 3);
         const Eigen::Index cols = std::min(chunk, std::max<Eigen::Index>(total, 1));
-        ComplexMatrix<float> built_xs, built_ys;
-        PlanarFactors planar_x, planar_y, yw;
+        PlanarFactors yw;
         Eigen::MatrixXf fr, fi, scratch;
         allocating(
             "the " + size + " slice's factor matrices",
             (cached ? 1.5 : 7.5) * double(n) * double(cols) * sizeof(Complex) + 3.0 * double(n) * n * sizeof(float),
             [&] {
-                if (!cached) {
-                    built_xs.resize(n, cols);
-                    built_ys.resize(n, cols);
-                    planar_x.resize(n, cols);
-                    planar_y.resize(n, cols);
-                }
+                factors.reserve(n, cols);
                 yw.resize(n, cols);
                 fr.resize(n, n);
                 fi.resize(n, n);
                 scratch.resize(n, n);
             });
-        const PlanarFactors& xs = cached ? cached->px : planar_x;
-        const PlanarFactors& ys = cached ? cached->py : planar_y;
+        const PlanarFactors& xs = factors.x();
+        const PlanarFactors& ys = factors.y();
         for (Eigen::Index k0 = 0; k0 < total; k0 += chunk) {
             const Eigen::Index count = std::min(chunk, total - k0);
-            const Eigen::Index base = cached ? k0 : 0;
-            if (!cached) {
-                build_factors<float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, built_xs,
-                                     built_ys);
-                planar_x.assign(built_xs, count);
-                planar_y.assign(built_ys, count);
-            }
+            const Eigen::Index base = load_chunk(shift_scale, k0, count, factors);
             for (std::size_t v = 0; v < weights.size(); ++v) {
                 // Y·diag(w_v): the weights enter the smaller factor.
                 for (Eigen::Index c = 0; c < count; ++c) {
@@ -326,13 +335,12 @@ void SeparableEngine<Float>::forward_planar(const KernelWeights& weights, double
             }
         }
         if (m_keep && !cached && total > 0 && total <= chunk) {
-            planar_x.re.conservativeResize(n, total);
-            planar_x.im.conservativeResize(n, total);
-            planar_x.sum.conservativeResize(n, total);
-            planar_y.re.conservativeResize(n, total);
-            planar_y.im.conservativeResize(n, total);
-            planar_y.sum.conservativeResize(n, total);
-            keep(shift_scale, planar_x, planar_y);
+            for (PlanarFactors* p : {&factors.planar_x, &factors.planar_y}) {
+                p->re.conservativeResize(n, total);
+                p->im.conservativeResize(n, total);
+                p->sum.conservativeResize(n, total);
+            }
+            keep(shift_scale, factors.planar_x, factors.planar_y);
         }
     } else {
         (void)weights;
@@ -355,23 +363,19 @@ void SeparableEngine<Float>::adjoint_planar(const KernelWeights& weights, double
         gradient.weight.assign(weights.size(), std::vector<std::complex<double>>(total, 0.0));
         gradient.shift_x.assign(total, 0.0);
         gradient.shift_y.assign(total, 0.0);
-        const Kept* cached = kept(shift_scale);
+        PlanarChunk factors;
+        factors.cached = kept(shift_scale);
+        const bool cached = factors.cached != nullptr;
         const Eigen::Index chunk = cached ? std::max<Eigen::Index>(Eigen::Index(total), 1)
                                           : chunk_size(n, sizeof(Complex), 4, kAdjointChunkColumns);
         const Eigen::Index cols = std::min<Eigen::Index>(chunk, std::max<Eigen::Index>(Eigen::Index(total), 1));
-        ComplexMatrix<float> built_xs, built_ys;
-        PlanarFactors planar_x, planar_y, b;
+        PlanarFactors b;
         Eigen::MatrixXf zr, zi, vr, vi, scratch;
         allocating(
             "the " + std::to_string(n) + "x" + std::to_string(n) + " slice's adjoint factor matrices",
             (cached ? 2.5 : 7.5) * double(n) * double(cols) * sizeof(Complex) + 1.5 * double(n) * n * sizeof(Complex),
             [&] {
-                if (!cached) {
-                    built_xs.resize(n, cols);
-                    built_ys.resize(n, cols);
-                    planar_x.resize(n, cols);
-                    planar_y.resize(n, cols);
-                }
+                factors.reserve(n, cols);
                 b.resize(n, n);
                 zr.resize(n, cols);
                 zi.resize(n, cols);
@@ -379,21 +383,15 @@ void SeparableEngine<Float>::adjoint_planar(const KernelWeights& weights, double
                 vi.resize(n, cols);
                 scratch.resize(n, cols);
             });
-        const PlanarFactors& xs = cached ? cached->px : planar_x;
-        const PlanarFactors& ys = cached ? cached->py : planar_y;
+        const PlanarFactors& xs = factors.x();
+        const PlanarFactors& ys = factors.y();
         const double gauss = 2.0 * k_pi * k_pi * m_kernels.sigma_um * m_kernels.sigma_um;
         const double shift = shift_scale * 2.0 / m_lambda_um;
         std::vector<std::complex<double>> tx(static_cast<std::size_t>(cols)), ty(static_cast<std::size_t>(cols));
         const Eigen::Map<const Eigen::VectorXd> ux(m_grid.ux.data(), n), uy(m_grid.uy.data(), n);
         for (Eigen::Index k0 = 0; k0 < Eigen::Index(total); k0 += chunk) {
             const Eigen::Index count = std::min<Eigen::Index>(chunk, Eigen::Index(total) - k0);
-            const Eigen::Index base = cached ? k0 : 0;
-            if (!cached) {
-                build_factors<float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, built_xs,
-                                     built_ys);
-                planar_x.assign(built_xs, count);
-                planar_y.assign(built_ys, count);
-            }
+            const Eigen::Index base = load_chunk(shift_scale, k0, count, factors);
             std::fill(tx.begin(), tx.end(), 0.0);
             std::fill(ty.begin(), ty.end(), 0.0);
             for (std::size_t vec = 0; vec < weights.size(); ++vec) {

@@ -60,8 +60,23 @@ private:
     };
     // The kept factors of `shift_scale`, or null; drops them all when the slopes have changed.
     const Kept* kept(double shift_scale);
+    // Whether `bytes` more may be kept (the first entry always may; it records the slopes).
+    bool admit(double bytes);
     void keep(double shift_scale, ComplexMatrix<Float>& xs, ComplexMatrix<Float>& ys);
     void keep(double shift_scale, PlanarFactors& px, PlanarFactors& py);
+    // The planar X and Y that forward_planar and adjoint_planar read chunk by chunk: the kept
+    // factors of the call's shift_scale (every kernel, so chunk k0 starts at column k0), or one
+    // chunk built at a time into this storage (starting at column 0).
+    struct PlanarChunk {
+        const Kept* cached = nullptr;
+        ComplexMatrix<float> built_x, built_y;
+        PlanarFactors planar_x, planar_y;
+        void reserve(Eigen::Index rows, Eigen::Index cols);
+        const PlanarFactors& x() const { return cached ? cached->px : planar_x; }
+        const PlanarFactors& y() const { return cached ? cached->py : planar_y; }
+    };
+    // Makes kernels [k0, k0 + count) available in `chunk`; returns the column of kernel k0.
+    Eigen::Index load_chunk(double shift_scale, Eigen::Index k0, Eigen::Index count, PlanarChunk& chunk);
     // The single-precision bodies of forward and adjoint (three real products per complex one).
     void forward_planar(const KernelWeights& weights, double shift_scale, std::vector<ComplexMatrix<Float>>& fields);
     void adjoint_planar(const KernelWeights& weights, double shift_scale,

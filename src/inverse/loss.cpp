@@ -204,26 +204,33 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
     return loss_value_of(loss, estimate, reference, channels, gradient);
 }
 
-double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<float>& reference,
+template <typename Ref, typename>
+double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<Ref>& reference,
                   int channels, std::vector<double>* gradient) {
     return loss_value_of(loss, estimate, reference, channels, gradient);
 }
+template double loss_value<float>(const Loss&, const std::vector<double>&, const std::vector<float>&, int,
+                                  std::vector<double>*);
 
 double rgb_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels) {
     return tone_mapped_mse("rgb_mse", estimate, reference, channels, reinhard);
 }
 
-double rgb_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels) {
+template <typename Ref, typename>
+double rgb_mse(const std::vector<double>& estimate, const std::vector<Ref>& reference, int channels) {
     return tone_mapped_mse("rgb_mse", estimate, reference, channels, reinhard);
 }
+template double rgb_mse<float>(const std::vector<double>&, const std::vector<float>&, int);
 
 double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels) {
     return tone_mapped_mse("rgb_gamma_mse", estimate, reference, channels, reinhard_gamma);
 }
 
-double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<float>& reference, int channels) {
+template <typename Ref, typename>
+double rgb_gamma_mse(const std::vector<double>& estimate, const std::vector<Ref>& reference, int channels) {
     return tone_mapped_mse("rgb_gamma_mse", estimate, reference, channels, reinhard_gamma);
 }
+template double rgb_gamma_mse<float>(const std::vector<double>&, const std::vector<float>&, int);
 
 double height_mse(const std::vector<double>& estimate, const std::vector<double>& truth) {
     if (estimate.size() != truth.size())

@@ -56,7 +56,7 @@ Eigen::MatrixXd as_matrix(const std::vector<T>& v, int n, int channels = 1, int 
 Eigen::MatrixXf channel_of(const std::vector<float>& v, int n, int channels, int c) {
     Eigen::MatrixXf m(n, n);
     for (int p = 0; p < n; ++p)
-        for (int q = 0; q < n; ++q) m(p, q) = double(v[(std::size_t(p) * n + q) * channels + c]);
+        for (int q = 0; q < n; ++q) m(p, q) = v[(std::size_t(p) * n + q) * channels + c];
     return m;
 }
 

@@ -373,7 +373,7 @@ std::vector<double> GaussNewtonBand::multiply(const std::vector<double>& v) cons
                                     std::to_string(n));
     std::vector<double> out(n, 0.0);
     const int lo_r = full_rows ? 0 : -(extent_rows - 1), lo_c = full_cols ? 0 : -(extent_cols - 1);
-    const bool parallel = detail::worth_parallel(double(n) * double(w));
+    const bool parallel = detail::worth_parallel(static_cast<long long>(double(n) * double(w)));
 #pragma omp parallel for schedule(static) if (parallel)
     for (int r = 0; r < rows; ++r)
         for (int c = 0; c < cols; ++c) {
@@ -425,7 +425,7 @@ std::vector<double> dense_pseudo_inverse_diagonal(std::vector<double> g, std::si
                                 "; expected > 0");
     for (double& x : g) x += c / double(n);
     // Cholesky in place, lower triangle, row-major (row i's prefix · row j's prefix).
-    const bool parallel = detail::worth_parallel(double(n) * double(n) * double(n) / 6.0);
+    const bool parallel = detail::worth_parallel(static_cast<long long>(double(n) * double(n) * double(n) / 6.0));
     for (std::size_t j = 0; j < n; ++j) {
         double* lj = g.data() + j * n;
         double d = lj[j];
