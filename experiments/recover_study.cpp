@@ -200,13 +200,17 @@ int main(int argc, char** argv) try {
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
+    // Round 8: the outer loop removes the smooth part (1: affine, k: k × k nodes) of every
+    // registration's update (recover_positions.h).
+    detail::set_position_outer_smooth_nodes(args.count("outer_smooth") ? std::stoi(args["outer_smooth"]) : 0);
     // The field stage's offsets after every correction round against the truth (offsets left,
     // rms over positions and coordinates, means removed, texels): "PROBE round rms".
     if (rs.calibrate.positions && get("probe", "1") == "1") {
         auto probe_index = std::make_shared<std::vector<std::size_t>>();
-        detail::gather_positions(observations, *probe_index, serial_communicator());
+        auto centres = std::make_shared<std::vector<std::array<double, 2>>>(
+            detail::gather_positions(observations, *probe_index, serial_communicator()));
         auto round = std::make_shared<int>(0);
-        detail::set_position_probe([probe_index, round, &obs_error, texel_um](const std::vector<double>& off) {
+        detail::set_position_probe([probe_index, centres, round, &obs_error, texel_um](const std::vector<double>& off) {
             const std::vector<std::size_t>& index = *probe_index;
             const double n = double(index.size());
             std::array<double, 2> m{0, 0}, mt{0, 0};
@@ -221,7 +225,20 @@ int main(int argc, char** argv) try {
                     const double d = off[2 * index[i] + c] - m[c] - (obs_error[i][c] - mt[c]);
                     s2 += d * d;
                 }
-            std::printf("PROBE round %d offsets_left_rms_texels=%.4f\n", ++*round, std::sqrt(s2 / (2 * n)) / texel_um);
+            // The same with the best-fit smooth displacement (affine; 6 × 6 nodes) removed.
+            std::vector<double> d(2 * centres->size(), 0.0);
+            for (std::size_t i = 0; i < index.size(); ++i)
+                for (int c = 0; c < 2; ++c) d[2 * index[i] + c] = off[2 * index[i] + c] - obs_error[i][c];
+            const auto rms = [&](const std::vector<double>& v) {
+                double s = 0.0;
+                for (double x : v) s += x * x;
+                return v.empty() ? 0.0 : std::sqrt(s / double(v.size())) / texel_um;
+            };
+            std::vector<double> d1 = d, d6 = d;
+            detail::remove_smooth_displacement(*centres, d1, 1);
+            detail::remove_smooth_displacement(*centres, d6, 6);
+            std::printf("PROBE round %d offsets_left_rms_texels=%.4f affine_removed=%.4f warp6_removed=%.4f\n", ++*round,
+                        std::sqrt(s2 / (2 * n)) / texel_um, rms(d1), rms(d6));
             std::fflush(stdout);
         });
     }
