@@ -234,8 +234,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             max_omega_i = std::max(max_omega_i, std::hypot(o->query.omega_i[0], o->query.omega_i[1]));
     for (double w : all_gather(comm, {max_omega_i})) max_omega_i = std::max(max_omega_i, w);  // every rank's
     const int q = settings.refine > 0 ? settings.refine
-                  : white             ? 1
-                                      : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
+                : white        ? 1
+                               : auto_refine(texel_um, by_lambda.begin()->first, max_omega_i);
     if (q % 2 == 0 || q > 63)
         throw std::invalid_argument("recover_heights: refine " + std::to_string(q) +
                                     " is invalid; expected an odd value up to 63 (texel centres must be samples)");
@@ -277,86 +277,86 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // vortices) a retrieval from a poor start can stall in.
     const int passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
     // Every rank holds every wavelength's key (maybe empty), so all ranks skip the same ones.
-    const double field_min_um = !by_lambda.empty() && by_lambda.rbegin()->first >= settings.field_lambda_min_um
-                                    ? settings.field_lambda_min_um
-                                    : 0.0;
+    const double field_min_um =
+        !by_lambda.empty() && by_lambda.rbegin()->first >= settings.field_lambda_min_um ? settings.field_lambda_min_um
+                                                                                        : 0.0;
     const auto field_end = by_lambda.rend();
     // The smallest final loss of the field retrievals (the model check's shortcut; 0: none).
     double field_floor = std::numeric_limits<double>::infinity();
     const auto field_stage = [&]() -> bool {  // false: stopped
-        for (int pass = 0; pass < passes; ++pass)
-            for (auto it = by_lambda.rbegin(); it != field_end && it->first >= field_min_um; ++it) {
-                const double lambda = it->first;
-                char name[48];
-                std::snprintf(name, sizeof name, "field:%g", lambda);
-                // This wavelength's observations where they are (pointers: no copy of the references);
-                // with σ_p calibration copies at σ_p · s while its field runs (one wavelength's at a
-                // time); with position calibration the offsets are applied and corrected inside
-                // (field_positions.h).
-                std::vector<Observation> group;
-                std::vector<const Observation*> used = it->second;
-                if (sigma_scale != 1.0 || proxy.proxied) {
-                    group.reserve(it->second.size());
-                    for (const Observation* o : it->second) {
-                        group.push_back(*o);
-                        group.back().query.sigma_p_um *= sigma_scale;
-                        group.back().query.model = detail::field_proxy_model(o->query.model);
-                    }
-                    for (std::size_t k = 0; k < group.size(); ++k) used[k] = &group[k];
+    for (int pass = 0; pass < passes; ++pass)
+        for (auto it = by_lambda.rbegin(); it != field_end && it->first >= field_min_um; ++it) {
+            const double lambda = it->first;
+            char name[48];
+            std::snprintf(name, sizeof name, "field:%g", lambda);
+            // This wavelength's observations where they are (pointers: no copy of the references);
+            // with σ_p calibration copies at σ_p · s while its field runs (one wavelength's at a
+            // time); with position calibration the offsets are applied and corrected inside
+            // (field_positions.h).
+            std::vector<Observation> group;
+            std::vector<const Observation*> used = it->second;
+            if (sigma_scale != 1.0 || proxy.proxied) {
+                group.reserve(it->second.size());
+                for (const Observation* o : it->second) {
+                    group.push_back(*o);
+                    group.back().query.sigma_p_um *= sigma_scale;
+                    group.back().query.model = detail::field_proxy_model(o->query.model);
                 }
-                const auto on_iteration = [&](int iteration, double loss) {
-                    return report(name, iteration, loss, nullptr);
-                };
-                // Cascading, a field started from the fields before it stops at its own stall tolerance.
-                const bool from_fields = settings.cascade && (pass > 0 || it != by_lambda.rbegin());
-                field_settings.stall_tolerance = from_fields && settings.cascade_stall_tolerance >= 0.0
-                                                     ? settings.cascade_stall_tolerance
-                                                     : settings.field.stall_tolerance;
-                FieldRetrievalResult r = [&] {
-                    const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core,
-                                                     settings.field_tile_ramp};
-                    if (!settings.calibrate.positions && detail::field_tiles_apply(rows, cols, tiling))
-                        return detail::retrieve_field_tiled(used, lambda, rows, cols, texel_um, proxy_start(lambda),
-                                                            field_settings, tiling, on_iteration, comm);
-                    if (!settings.calibrate.positions)
-                        return retrieve_field(used, lambda, rows, cols, texel_um, proxy_start(lambda), field_settings,
-                                              on_iteration, comm);
-                    std::vector<std::size_t> index;
-                    for (const Observation* o : it->second) index.push_back(position_index(o));
-                    // Round 6: the annealing search at the longest wavelength; the shorter ones hold
-                    // the positions it found (no steps) with field_position_search_hold.
-                    detail::PositionSearch search;
-                    const bool searching = settings.field_position_search_radius_texels > 0.0;
-                    if (searching && it == by_lambda.rbegin()) {
-                        search.radius_texels = settings.field_position_search_radius_texels;
-                        search.min_radius_texels = settings.field_position_search_min_texels;
-                        search.chunk_iterations = settings.field_position_search_chunk;
-                    }
-                    if (it == by_lambda.rbegin()) search.project_phase = settings.field_position_search_project;
-                    const int steps = searching && settings.field_position_search_hold ? 0 : 3;
-                    return detail::retrieve_field_with_positions(
-                        used, index, lambda, rows, cols, texel_um, proxy_start(lambda), field_settings, on_iteration,
-                        offsets_um, comm, 10, steps, settings.field_position_folds, search);
-                }();
-                if (stopped) return false;
-                if (std::isfinite(r.relative_loss) && r.relative_loss > 0.0)
-                    field_floor = std::min(field_floor, r.relative_loss);
-                std::vector<Observation>().swap(group);
-                const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
-                if (at == lambdas.end()) {
-                    lambdas.push_back(lambda);
-                    fields.push_back(std::move(r.object));
-                } else {
-                    fields[std::size_t(at - lambdas.begin())] = std::move(r.object);
-                }
-                const bool last = pass + 1 == passes &&
-                                  (std::next(it) == field_end || std::next(it)->first < field_min_um);
-                if (settings.cascade && !last) {
-                    unwrap_fields();
-                    if (!report(name, r.iterations, r.relative_loss, &estimate)) return false;
-                }
+                for (std::size_t k = 0; k < group.size(); ++k) used[k] = &group[k];
             }
-        return true;
+            const auto on_iteration = [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); };
+            // Cascading, a field started from the fields before it stops at its own stall tolerance.
+            const bool from_fields = settings.cascade && (pass > 0 || it != by_lambda.rbegin());
+            field_settings.stall_tolerance = from_fields && settings.cascade_stall_tolerance >= 0.0
+                                                 ? settings.cascade_stall_tolerance
+                                                 : settings.field.stall_tolerance;
+            FieldRetrievalResult r = [&] {
+                const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core,
+                                                 settings.field_tile_ramp};
+                if (!settings.calibrate.positions && detail::field_tiles_apply(rows, cols, tiling))
+                    return detail::retrieve_field_tiled(used, lambda, rows, cols, texel_um, proxy_start(lambda),
+                                                        field_settings,
+                                                        tiling, on_iteration, comm);
+                if (!settings.calibrate.positions)
+                    return retrieve_field(used, lambda, rows, cols, texel_um, proxy_start(lambda),
+                                          field_settings, on_iteration, comm);
+                std::vector<std::size_t> index;
+                for (const Observation* o : it->second) index.push_back(position_index(o));
+                // Round 6: the annealing search at the longest wavelength; the shorter ones hold
+                // the positions it found (no steps) with field_position_search_hold.
+                detail::PositionSearch search;
+                const bool searching = settings.field_position_search_radius_texels > 0.0;
+                if (searching && it == by_lambda.rbegin()) {
+                    search.radius_texels = settings.field_position_search_radius_texels;
+                    search.min_radius_texels = settings.field_position_search_min_texels;
+                    search.chunk_iterations = settings.field_position_search_chunk;
+                }
+                if (it == by_lambda.rbegin()) search.project_phase = settings.field_position_search_project;
+                const int steps = searching && settings.field_position_search_hold ? 0 : 3;
+                return detail::retrieve_field_with_positions(used, index, lambda, rows, cols, texel_um,
+                                                             proxy_start(lambda), field_settings,
+                                                             on_iteration, offsets_um, comm, 10, steps,
+                                                             settings.field_position_folds, search);
+            }();
+            if (stopped) return false;
+            if (std::isfinite(r.relative_loss) && r.relative_loss > 0.0)
+                field_floor = std::min(field_floor, r.relative_loss);
+            std::vector<Observation>().swap(group);
+            const auto at = std::find(lambdas.begin(), lambdas.end(), lambda);
+            if (at == lambdas.end()) {
+                lambdas.push_back(lambda);
+                fields.push_back(std::move(r.object));
+            } else {
+                fields[std::size_t(at - lambdas.begin())] = std::move(r.object);
+            }
+            const bool last =
+                pass + 1 == passes && (std::next(it) == field_end || std::next(it)->first < field_min_um);
+            if (settings.cascade && !last) {
+                unwrap_fields();
+                if (!report(name, r.iterations, r.relative_loss, &estimate)) return false;
+            }
+        }
+    return true;
     };
     if (!field_stage()) return estimate;
     if (!white) {
@@ -372,11 +372,11 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     const bool researched = !white && settings.calibrate.sigma && settings.sigma_research &&
                             (presearched || settings.calibrate.exposure);
     if (researched) {
-        const double s = presearched
-                             ? detail::research_sigma_scale(observations, observations_total, estimate, sigma_scale,
-                                                            settings.refine_loss, settings.calibrate.exposure, comm)
-                             : detail::guarded_sigma_scale(observations, observations_total, estimate,
-                                                           settings.refine_loss, settings.calibrate.exposure, comm);
+        const double s =
+            presearched ? detail::research_sigma_scale(observations, observations_total, estimate, sigma_scale,
+                                                       settings.refine_loss, settings.calibrate.exposure, comm)
+                        : detail::guarded_sigma_scale(observations, observations_total, estimate, settings.refine_loss,
+                                                      settings.calibrate.exposure, comm);
         const bool moved = detail::sigma_scale_moved(sigma_scale, s);
         if (!report("sigma:unwrapped", moved ? 1 : 0, s, &estimate)) return estimate;
         if (moved) {
@@ -414,7 +414,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // registered positions, until the registration moves the offsets by less than
         // position_outer_tolerance_texels rms.
         const int outer_passes = settings.position_outer_passes >= 0 ? settings.position_outer_passes
-                                                                     : k_position_outer_passes;
+                                                                      : k_position_outer_passes;
         // Later passes warm-start from the pass before (its heights, hence its objects) and may
         // run fewer iterations (position_outer_field_iterations, position_outer_refine_iterations).
         RecoverSettings later = settings;
@@ -432,8 +432,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             detail::call_position_probe(position_offsets);
             const std::vector<double> before = position_offsets;
             double moved = detail::register_positions(observations, position_of, estimate, settings, sigma_scale,
-                                                      settings.position_register_radius_texels, 0.5, position_offsets,
-                                                      comm);
+                                                      settings.position_register_radius_texels, 0.5,
+                                                      position_offsets, comm);
             if (smooth_nodes > 0) {
                 std::vector<double> update(position_offsets.size());
                 for (std::size_t i = 0; i < update.size(); ++i) update[i] = position_offsets[i] - before[i];
@@ -458,9 +458,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report("unwrap", outer + 1, 0.0, &estimate)) return estimate;
                 unwrapped = estimate;
             }
-            estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate, later,
-                                                            report, comm, offsets, offsets_um, &exposures, &sigma_scale,
-                                                            &position_offsets);
+            estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate,
+                                                            later, report, comm, offsets, offsets_um, &exposures,
+                                                            &sigma_scale, &position_offsets);
             if (stopped) return estimate;
         }
         refined_offsets = offsets;
@@ -547,15 +547,16 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         bool go_on = true;
         int done = 0;  // refinement iterations so far (the metrics' count across rounds)
         // The coarse space (coarse_correction.h): none when off or the surface is too small.
-        const detail::CoarseBasis coarse(
-            rows, cols,
-            settings.refine_coarse_spacing > 0.0 ? settings.refine_coarse_spacing : double(std::max(rows, cols)),
-            settings.refine_coarse_weight > 0.0 ? settings.refine_coarse_weight : 1.0);
+        const detail::CoarseBasis coarse(rows, cols,
+                                         settings.refine_coarse_spacing > 0.0 ? settings.refine_coarse_spacing
+                                                                              : double(std::max(rows, cols)),
+                                         settings.refine_coarse_weight > 0.0 ? settings.refine_coarse_weight : 1.0);
         const bool coarse_on = settings.refine_coarse_spacing > 0.0 && coarse.size() > 0;
         const auto refine_heights = [&](int iterations, const std::string& stage = "refine",
                                         double relative_tolerance = 0.0) {
             // loss / loss(flat) below which the round stops.
-            const double stop_below = std::max(settings.refine_relative_tolerance, relative_tolerance) * reference_loss;
+            const double stop_below =
+                std::max(settings.refine_relative_tolerance, relative_tolerance) * reference_loss;
             LbfgsOptions round = lo;
             round.max_iterations = iterations;
             const int before = done;
@@ -585,12 +586,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 std::vector<double> c(coarse.size(), 0.0);
                 LbfgsOptions co = lo;
                 co.max_iterations = settings.refine_coarse_iterations;
-                lbfgs_minimize(detail::coarse_only_objective(objective, coarse, h0), c, co, [&](int it, double value) {
-                    h = h0;
-                    coarse.apply(c.data(), h);
-                    const Heightfield current = flat.with_values(h);
-                    return go_on = report("refine:coarse", it, value, &current);
-                });
+                lbfgs_minimize(detail::coarse_only_objective(objective, coarse, h0), c, co,
+                               [&](int it, double value) {
+                                   h = h0;
+                                   coarse.apply(c.data(), h);
+                                   const Heightfield current = flat.with_values(h);
+                                   return go_on = report("refine:coarse", it, value, &current);
+                               });
                 h = h0;
                 coarse.apply(c.data(), h);
             }
@@ -721,8 +723,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
-    if (!(settings.field_position_search_radius_texels >= 0.0 &&
-          settings.field_position_search_radius_texels <= 16.0) ||
+    if (!(settings.field_position_search_radius_texels >= 0.0 && settings.field_position_search_radius_texels <= 16.0) ||
         !(settings.field_position_search_min_texels > 0.0 && settings.field_position_search_min_texels <= 16.0) ||
         settings.field_position_search_chunk < 1)
         throw std::invalid_argument("recover_heights: field position search radius " +
@@ -774,8 +775,8 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                                 std::to_string(settings.refine_ladder_min_um) +
                                 " is invalid; expected a finite wavelength >= 0 um (0: no ladder)");
     validate_iterations(settings.refine_ladder_iterations, "recover_heights: refine ladder iterations");
-    if (!(std::isfinite(settings.refine_ladder_relative_tolerance) &&
-          settings.refine_ladder_relative_tolerance >= 0.0 && settings.refine_ladder_relative_tolerance < 1.0))
+    if (!(std::isfinite(settings.refine_ladder_relative_tolerance) && settings.refine_ladder_relative_tolerance >= 0.0 &&
+          settings.refine_ladder_relative_tolerance < 1.0))
         throw std::domain_error("recover_heights: refine_ladder_relative_tolerance " +
                                 std::to_string(settings.refine_ladder_relative_tolerance) +
                                 " is invalid; expected 0 (off) to below 1");
