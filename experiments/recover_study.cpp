@@ -18,6 +18,11 @@
 //     first's) register_check=0 (1: after the run, register every position at the final
 //     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
 //     save=PREFIX (write PREFIX_estimate.npy and PREFIX_truth.npy, heights in µm, for analysis)
+//     (round 8:) outer_smooth=0 (K ≥ 1: the outer loop removes the smooth part of every
+//     registration's update, 1 affine, K ≥ 2 bilinear on K × K nodes) warp_metric=1 (the WARP
+//     line: the error on the inner texels with the best-fit translation / 6 × 6-node warp of the
+//     truth removed, a diagnostic beside rel_rmse); the PROBE lines also give the offsets left
+//     with their best-fit affine / 6 × 6-node part removed
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <algorithm>
