@@ -432,8 +432,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             detail::call_position_probe(position_offsets);
             const std::vector<double> before = position_offsets;
             double moved = detail::register_positions(observations, position_of, estimate, settings, sigma_scale,
-                                                      settings.position_register_radius_texels, 0.5,
-                                                      position_offsets, comm);
+                                                      settings.position_register_radius_texels, 0.5, position_offsets,
+                                                      comm);
             if (smooth_nodes > 0) {
                 std::vector<double> update(position_offsets.size());
                 for (std::size_t i = 0; i < update.size(); ++i) update[i] = position_offsets[i] - before[i];
