@@ -18,8 +18,14 @@
 //     first's) register_check=0 (1: after the run, register every position at the final
 //     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
 //     save=PREFIX (write PREFIX_estimate.npy and PREFIX_truth.npy, heights in µm, for analysis)
+//     (round 8:) outer_smooth=0 (K ≥ 1: the outer loop removes the smooth part of every
+//     registration's update, 1 affine, K ≥ 2 bilinear on K × K nodes) warp_metric=1 (the WARP
+//     line: the error on the inner texels with the best-fit translation / 6 × 6-node warp of the
+//     truth removed, a diagnostic beside rel_rmse); the PROBE lines also give the offsets left
+//     with their best-fit affine / 6 × 6-node part removed
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -61,6 +67,141 @@ std::vector<double> parse_list(const std::string& s) {
     std::string item;
     while (std::getline(ss, item, ',')) v.push_back(std::stod(item));
     return v;
+}
+
+// Catmull-Rom bicubic sample of a rows × cols grid at (r, c) (texels; the grid clamped at its
+// edges).
+double cubic_sample(const std::vector<double>& a, int rows, int cols, double r, double c) {
+    const auto at = [&](int i, int j) {
+        i = std::min(rows - 1, std::max(0, i));
+        j = std::min(cols - 1, std::max(0, j));
+        return a[std::size_t(i) * cols + j];
+    };
+    const auto w = [](double t, double* k) {
+        const double t2 = t * t, t3 = t2 * t;
+        k[0] = 0.5 * (-t3 + 2 * t2 - t);
+        k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
+        k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
+        k[3] = 0.5 * (t3 - t2);
+    };
+    const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
+    double wr[4], wc[4];
+    w(r - i0, wr);
+    w(c - j0, wc);
+    double s = 0.0;
+    for (int a2 = 0; a2 < 4; ++a2)
+        for (int b = 0; b < 4; ++b) s += wr[a2] * wc[b] * at(i0 - 1 + a2, j0 - 1 + b);
+    return s;
+}
+
+// Round 8 (docs/recovery.md, "Self-calibration: positions"): height_rel_rmse's kind of figure
+// (% of the truth's range, mean removed) on the inner texels (margin texels left out) after the
+// best-fit smooth warp of the truth: a displacement bilinear on k × k nodes (texels; k = 1: a
+// translation) maps the truth (bicubic) onto the estimate, Gauss–Newton from 0 (as
+// experiments/warp_fit.py, with Catmull-Rom for scipy's spline). A diagnostic of how much of the
+// error is a smooth warp (positions and heights moved together), not the target.
+double warp_removed_rel_rmse(const std::vector<double>& e, const std::vector<double>& t, int rows, int cols, int k,
+                             int margin, double* warp_rms_texels) {
+    double lo = t[0], hi = t[0];
+    for (double v : t) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+    }
+    const int m = 2 * k * k + 1;  // dx, dy per node, and the mean
+    std::vector<double> p(m, 0.0);
+    const auto node_weights = [&](int i, int j, std::vector<std::pair<int, double>>& out) {
+        out.clear();
+        if (k == 1) {
+            out.push_back({0, 1.0});
+            return;
+        }
+        const double u = double(i) * (k - 1) / std::max(1, rows - 1), v = double(j) * (k - 1) / std::max(1, cols - 1);
+        const int a = std::min(k - 2, int(std::floor(u))), b = std::min(k - 2, int(std::floor(v)));
+        const double fu = u - a, fv = v - b;
+        out.push_back({a * k + b, (1 - fu) * (1 - fv)});
+        out.push_back({(a + 1) * k + b, fu * (1 - fv)});
+        out.push_back({a * k + b + 1, (1 - fu) * fv});
+        out.push_back({(a + 1) * k + b + 1, fu * fv});
+    };
+    std::vector<std::pair<int, double>> nw;
+    double rel = 0.0;
+    for (int iter = 0; iter <= 12; ++iter) {
+        std::vector<double> jtj(std::size_t(m) * m, 0.0), jtr(m, 0.0);
+        double r2 = 0.0, rsum = 0.0, count = 0.0;
+        for (int i = margin; i < rows - margin; ++i)
+            for (int j = margin; j < cols - margin; ++j) {
+                node_weights(i, j, nw);
+                double dx = 0.0, dy = 0.0;  // dx along the columns, dy along the rows
+                for (const auto& [n, wgt] : nw) {
+                    dx += wgt * p[n];
+                    dy += wgt * p[k * k + n];
+                }
+                const double r0 = i + dy, c0 = j + dx, h = 1e-3;
+                const double tw = cubic_sample(t, rows, cols, r0, c0);
+                const double gr = (cubic_sample(t, rows, cols, r0 + h, c0) - cubic_sample(t, rows, cols, r0 - h, c0)) /
+                                  (2 * h);
+                const double gc = (cubic_sample(t, rows, cols, r0, c0 + h) - cubic_sample(t, rows, cols, r0, c0 - h)) /
+                                  (2 * h);
+                const double res = e[std::size_t(i) * cols + j] - tw - p[m - 1];
+                r2 += res * res;
+                rsum += res;
+                count += 1.0;
+                // Jacobian of tw + mean with respect to the parameters.
+                std::vector<std::pair<int, double>> jac;
+                for (const auto& [n, wgt] : nw) {
+                    jac.push_back({n, gc * wgt});
+                    jac.push_back({k * k + n, gr * wgt});
+                }
+                jac.push_back({m - 1, 1.0});
+                for (const auto& [a, ja] : jac) {
+                    jtr[a] += ja * res;
+                    for (const auto& [b, jb] : jac) jtj[std::size_t(a) * m + b] += ja * jb;
+                }
+            }
+        const double mean = rsum / count;
+        rel = std::sqrt(std::max(0.0, r2 / count - mean * mean)) / (hi - lo) * 100.0;
+        if (iter == 12) break;
+        double trace = 0.0;
+        for (int a = 0; a < m; ++a) trace += jtj[std::size_t(a) * m + a];
+        for (int a = 0; a < m; ++a) jtj[std::size_t(a) * m + a] += 1e-9 * trace / m;
+        // Cholesky solve jtj · step = jtr.
+        std::vector<double>& A = jtj;
+        for (int j = 0; j < m; ++j) {
+            for (int q = 0; q < j; ++q)
+                A[std::size_t(j) * m + j] -= A[std::size_t(j) * m + q] * A[std::size_t(j) * m + q];
+            A[std::size_t(j) * m + j] = std::sqrt(A[std::size_t(j) * m + j]);
+            for (int i = j + 1; i < m; ++i) {
+                for (int q = 0; q < j; ++q)
+                    A[std::size_t(i) * m + j] -= A[std::size_t(i) * m + q] * A[std::size_t(j) * m + q];
+                A[std::size_t(i) * m + j] /= A[std::size_t(j) * m + j];
+            }
+        }
+        std::vector<double> x = jtr;
+        for (int i = 0; i < m; ++i) {
+            for (int q = 0; q < i; ++q) x[i] -= A[std::size_t(i) * m + q] * x[q];
+            x[i] /= A[std::size_t(i) * m + i];
+        }
+        for (int i = m - 1; i >= 0; --i) {
+            for (int q = i + 1; q < m; ++q) x[i] -= A[std::size_t(q) * m + i] * x[q];
+            x[i] /= A[std::size_t(i) * m + i];
+        }
+        for (int a = 0; a < m; ++a) p[a] += x[a];
+    }
+    if (warp_rms_texels) {
+        double s = 0.0;
+        for (int i = 0; i < rows; ++i)
+            for (int j = 0; j < cols; ++j) {
+                node_weights(i, j, nw);
+                double dx = 0.0, dy = 0.0;
+                for (const auto& [n, wgt] : nw) {
+                    dx += wgt * p[n];
+                    dy += wgt * p[k * k + n];
+                }
+                s += dx * dx + dy * dy;
+            }
+        *warp_rms_texels = std::sqrt(s / (double(rows) * cols));
+    }
+    return rel;
 }
 
 }  // namespace
@@ -200,13 +341,17 @@ int main(int argc, char** argv) try {
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
+    // Round 8: the outer loop removes the smooth part (1: affine, k: k × k nodes) of every
+    // registration's update (recover_positions.h).
+    detail::set_position_outer_smooth_nodes(args.count("outer_smooth") ? std::stoi(args["outer_smooth"]) : 0);
     // The field stage's offsets after every correction round against the truth (offsets left,
     // rms over positions and coordinates, means removed, texels): "PROBE round rms".
     if (rs.calibrate.positions && get("probe", "1") == "1") {
         auto probe_index = std::make_shared<std::vector<std::size_t>>();
-        detail::gather_positions(observations, *probe_index, serial_communicator());
+        auto centres = std::make_shared<std::vector<std::array<double, 2>>>(
+            detail::gather_positions(observations, *probe_index, serial_communicator()));
         auto round = std::make_shared<int>(0);
-        detail::set_position_probe([probe_index, round, &obs_error, texel_um](const std::vector<double>& off) {
+        detail::set_position_probe([probe_index, centres, round, &obs_error, texel_um](const std::vector<double>& off) {
             const std::vector<std::size_t>& index = *probe_index;
             const double n = double(index.size());
             std::array<double, 2> m{0, 0}, mt{0, 0};
@@ -221,7 +366,20 @@ int main(int argc, char** argv) try {
                     const double d = off[2 * index[i] + c] - m[c] - (obs_error[i][c] - mt[c]);
                     s2 += d * d;
                 }
-            std::printf("PROBE round %d offsets_left_rms_texels=%.4f\n", ++*round, std::sqrt(s2 / (2 * n)) / texel_um);
+            // The same with the best-fit smooth displacement (affine; 6 × 6 nodes) removed.
+            std::vector<double> d(2 * centres->size(), 0.0);
+            for (std::size_t i = 0; i < index.size(); ++i)
+                for (int c = 0; c < 2; ++c) d[2 * index[i] + c] = off[2 * index[i] + c] - obs_error[i][c];
+            const auto rms = [&](const std::vector<double>& v) {
+                double s = 0.0;
+                for (double x : v) s += x * x;
+                return v.empty() ? 0.0 : std::sqrt(s / double(v.size())) / texel_um;
+            };
+            std::vector<double> d1 = d, d6 = d;
+            detail::remove_smooth_displacement(*centres, d1, 1);
+            detail::remove_smooth_displacement(*centres, d6, 6);
+            std::printf("PROBE round %d offsets_left_rms_texels=%.4f affine_removed=%.4f warp6_removed=%.4f\n",
+                        ++*round, std::sqrt(s2 / (2 * n)) / texel_um, rms(d1), rms(d6));
             std::fflush(stdout);
         });
     }
@@ -309,6 +467,18 @@ int main(int argc, char** argv) try {
         "rel_rmse=%.5f\n",
         size, texel_um, corr_texels, sigma_p_um, step, positions.size(), resolution,
         get("lambdas", "0.5,0.55,0.65").c_str(), blur_rmse, blur_s, unwrap_rmse, field_s, field_end, rel);
+
+    // The warp-removed figure beside rel_rmse (a diagnostic; the target stays rel_rmse).
+    if (get("warp_metric", "1") == "1") {
+        const std::vector<double> e = heights_um(estimate), t = heights_um(truth);
+        double warp0 = 0.0, warp6 = 0.0;
+        const double inner = warp_removed_rel_rmse(e, t, truth.rows(), truth.cols(), 1, 3, &warp0);
+        const double removed = warp_removed_rel_rmse(e, t, truth.rows(), truth.cols(), 6, 3, &warp6);
+        std::printf(
+            "WARP inner_translation_removed_rel_rmse=%.5f translation_texels=%.4f warp6_removed_rel_rmse=%.5f "
+            "warp6_rms_texels=%.4f\n",
+            inner / 100.0, warp0, removed / 100.0, warp6);
+    }
 
     if (baseline_epochs > 0) {
         // The thesis's method on the same observations (baseline.h): Adam (lr 0.01, β 0.9/0.99,

@@ -2,6 +2,8 @@
 """How much of a recovery's height error is a smooth warp of the truth (issue 14, positions).
 
 Usage: /usr/bin/python3 experiments/warp_fit.py RUN_DIR   (estimate_height.npy, truth_height.npy)
+       /usr/bin/python3 experiments/warp_fit.py PREFIX    (recover_study save=PREFIX: PREFIX_estimate.npy,
+                                                          PREFIX_truth.npy)
 Fits a displacement field on k×k nodes (bilinear between them; k = 1 is a translation) that maps
 the truth onto the estimate (bicubic), by least squares on the inner texels (3 texels of margin),
 and prints height_rel_rmse (% of the truth's range, mean removed) before and after each fit with
@@ -13,7 +15,11 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 from scipy.optimize import least_squares
 d = sys.argv[1]
-e = np.load(d + '/estimate_height.npy'); t = np.load(d + '/truth_height.npy')
+import os
+if os.path.isdir(d):
+    e = np.load(d + '/estimate_height.npy'); t = np.load(d + '/truth_height.npy')
+else:
+    e = np.load(d + '_estimate.npy'); t = np.load(d + '_truth.npy')
 n = e.shape[0]; rng = t.max() - t.min()
 def rel(a, b):
     r = (a - b); r = r - r.mean(); return np.sqrt((r**2).mean()) / rng * 100

@@ -192,3 +192,53 @@ TEST(PositionRegistration, AnnealingSearchInTheFieldStageReducesTheOffsetsError)
     EXPECT_NEAR(held, before, 1e-9);
     EXPECT_LT(searched, 0.8 * before) << "before " << before << " searched " << searched;
 }
+
+// Round 8's gauge helper: a displacement that is affine (or bilinear on the nodes) is removed
+// to rounding; white noise keeps most of its rms (its smooth projection is small); bad input
+// throws.
+TEST(PositionRegistration, SmoothDisplacementRemovesAffineAndNodeFieldsAndKeepsNoise) {
+    std::vector<std::array<double, 2>> centres;
+    for (int i = 0; i < 13; ++i)
+        for (int j = 0; j < 13; ++j) centres.push_back({3.05 * i + 1.0, 3.05 * j - 2.0});
+    const std::size_t n = centres.size();
+    std::vector<double> affine(2 * n), bilinear(2 * n), noise(2 * n);
+    std::mt19937 rng(7);
+    std::normal_distribution<double> g(0.0, 1.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double x = centres[i][0], y = centres[i][1];
+        affine[2 * i] = 0.3 + 0.01 * x - 0.02 * y;
+        affine[2 * i + 1] = -0.1 + 0.015 * x + 0.005 * y;
+        // Bilinear between the 3 × 3 nodes at x, y ∈ {1, 19.3, 37.6} and {−2, 16.3, 34.6}:
+        // one hat function per coordinate.
+        const double hx = std::max(0.0, 1.0 - std::abs(x - 19.3) / 18.3);
+        const double hy = std::max(0.0, 1.0 - std::abs(y - 16.3) / 18.3);
+        bilinear[2 * i] = 0.5 * hx * hy;
+        bilinear[2 * i + 1] = -0.25 * hx * hy;
+        noise[2 * i] = g(rng);
+        noise[2 * i + 1] = g(rng);
+    }
+    const auto rms = [](const std::vector<double>& v) {
+        double s = 0.0;
+        for (double x : v) s += x * x;
+        return std::sqrt(s / double(v.size()));
+    };
+    std::vector<double> a = affine;
+    const std::vector<double> removed = wavebrdf::detail::remove_smooth_displacement(centres, a, 1);
+    EXPECT_LT(rms(a), 1e-9 * rms(affine));
+    for (std::size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(removed[i], affine[i], 1e-9);
+    std::vector<double> a6 = affine;
+    wavebrdf::detail::remove_smooth_displacement(centres, a6, 6);
+    EXPECT_LT(rms(a6), 1e-6 * rms(affine));
+    std::vector<double> b = bilinear, b1 = bilinear;
+    wavebrdf::detail::remove_smooth_displacement(centres, b, 3);
+    EXPECT_LT(rms(b), 1e-6 * rms(bilinear));
+    wavebrdf::detail::remove_smooth_displacement(centres, b1, 1);  // an affine fit cannot
+    EXPECT_GT(rms(b1), 0.3 * rms(bilinear));
+    std::vector<double> w = noise;
+    wavebrdf::detail::remove_smooth_displacement(centres, w, 6);
+    EXPECT_GT(rms(w), 0.75 * rms(noise));  // 36 of 169 degrees of freedom per coordinate: ≈ 0.89
+    EXPECT_LT(rms(w), rms(noise));
+    std::vector<double> bad(3);
+    EXPECT_THROW(wavebrdf::detail::remove_smooth_displacement(centres, bad, 1), std::invalid_argument);
+    EXPECT_THROW(wavebrdf::detail::remove_smooth_displacement(centres, noise, 0), std::invalid_argument);
+}

@@ -420,11 +420,31 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         RecoverSettings later = settings;
         if (settings.position_outer_refine_iterations > 0)
             later.refine_iterations = settings.position_outer_refine_iterations;
+        // Round 8 (study hook, off by default): the smooth part of each registration's update
+        // removed (positions and heights can trade a smooth warp; recover_positions.h).
+        const int smooth_nodes = detail::position_outer_smooth_nodes();
+        std::vector<std::array<double, 2>> centres;
+        if (outer_passes > 0 && smooth_nodes > 0) {
+            std::vector<std::size_t> unused;
+            centres = detail::gather_positions(observations, unused, comm);
+        }
         for (int outer = 0; outer < outer_passes; ++outer) {
             detail::call_position_probe(position_offsets);
-            const double moved = detail::register_positions(observations, position_of, estimate, settings,
-                                                            sigma_scale, settings.position_register_radius_texels,
-                                                            0.5, position_offsets, comm);
+            const std::vector<double> before = position_offsets;
+            double moved = detail::register_positions(observations, position_of, estimate, settings, sigma_scale,
+                                                      settings.position_register_radius_texels, 0.5, position_offsets,
+                                                      comm);
+            if (smooth_nodes > 0) {
+                std::vector<double> update(position_offsets.size());
+                for (std::size_t i = 0; i < update.size(); ++i) update[i] = position_offsets[i] - before[i];
+                detail::remove_smooth_displacement(centres, update, smooth_nodes);
+                double s2 = 0.0;
+                for (std::size_t i = 0; i < update.size(); ++i) {
+                    position_offsets[i] = before[i] + update[i];
+                    s2 += update[i] * update[i];
+                }
+                moved = update.empty() ? 0.0 : std::sqrt(s2 / double(update.size())) / estimate.texel_um();
+            }
             if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
             if (moved < settings.position_outer_tolerance_texels) break;
             offsets_um = position_offsets;

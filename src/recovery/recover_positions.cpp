@@ -319,4 +319,92 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
     return flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
 }
 
+std::vector<double> remove_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
+                                               std::vector<double>& values, int nodes) {
+    if (nodes < 1)
+        throw std::invalid_argument("remove_smooth_displacement: nodes must be >= 1, got " + std::to_string(nodes));
+    const std::size_t n = centres_um.size();
+    if (values.size() != 2 * n)
+        throw std::invalid_argument("remove_smooth_displacement: values must hold 2 per centre, got " +
+                                    std::to_string(values.size()) + " for " + std::to_string(n));
+    std::vector<double> removed(2 * n, 0.0);
+    if (n == 0) return removed;
+    double lo[2] = {centres_um[0][0], centres_um[0][1]}, hi[2] = {lo[0], lo[1]};
+    for (const auto& c : centres_um)
+        for (int d = 0; d < 2; ++d) {
+            lo[d] = std::min(lo[d], c[d]);
+            hi[d] = std::max(hi[d], c[d]);
+        }
+    // Basis values per position (m functions).
+    const int m = nodes == 1 ? 3 : nodes * nodes;
+    std::vector<double> basis(n * std::size_t(m), 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        double t[2];
+        for (int d = 0; d < 2; ++d) t[d] = hi[d] > lo[d] ? (centres_um[i][d] - lo[d]) / (hi[d] - lo[d]) : 0.0;
+        double* b = &basis[i * std::size_t(m)];
+        if (nodes == 1) {
+            b[0] = 1.0;
+            b[1] = t[0] - 0.5;
+            b[2] = t[1] - 0.5;
+            continue;
+        }
+        int k[2];
+        double f[2];
+        for (int d = 0; d < 2; ++d) {
+            const double u = t[d] * (nodes - 1);
+            k[d] = std::min(nodes - 2, std::max(0, int(std::floor(u))));
+            f[d] = u - k[d];
+        }
+        for (int a = 0; a < 2; ++a)
+            for (int c = 0; c < 2; ++c)
+                b[(k[0] + a) * nodes + (k[1] + c)] += (a ? f[0] : 1 - f[0]) * (c ? f[1] : 1 - f[1]);
+    }
+    // Normal equations (a tiny ridge keeps nodes without positions at 0), Cholesky.
+    std::vector<double> a(std::size_t(m) * m, 0.0);
+    for (std::size_t i = 0; i < n; ++i)
+        for (int p = 0; p < m; ++p)
+            for (int q = 0; q < m; ++q) a[p * m + q] += basis[i * m + p] * basis[i * m + q];
+    double trace = 0.0;
+    for (int p = 0; p < m; ++p) trace += a[p * m + p];
+    for (int p = 0; p < m; ++p) a[p * m + p] += 1e-10 * trace / m;
+    for (int j = 0; j < m; ++j) {
+        for (int k = 0; k < j; ++k) a[j * m + j] -= a[j * m + k] * a[j * m + k];
+        a[j * m + j] = std::sqrt(a[j * m + j]);
+        for (int i = j + 1; i < m; ++i) {
+            for (int k = 0; k < j; ++k) a[i * m + j] -= a[i * m + k] * a[j * m + k];
+            a[i * m + j] /= a[j * m + j];
+        }
+    }
+    for (int d = 0; d < 2; ++d) {
+        std::vector<double> r(m, 0.0);
+        for (std::size_t i = 0; i < n; ++i)
+            for (int p = 0; p < m; ++p) r[p] += basis[i * m + p] * values[2 * i + d];
+        for (int i = 0; i < m; ++i) {  // L y = r, then Lᵀ x = y
+            for (int k = 0; k < i; ++k) r[i] -= a[i * m + k] * r[k];
+            r[i] /= a[i * m + i];
+        }
+        for (int i = m - 1; i >= 0; --i) {
+            for (int k = i + 1; k < m; ++k) r[i] -= a[k * m + i] * r[k];
+            r[i] /= a[i * m + i];
+        }
+        for (std::size_t i = 0; i < n; ++i) {
+            double s = 0.0;
+            for (int p = 0; p < m; ++p) s += basis[i * m + p] * r[p];
+            removed[2 * i + d] = s;
+            values[2 * i + d] -= s;
+        }
+    }
+    return removed;
+}
+
+namespace {
+int& outer_smooth_nodes() {
+    static int nodes = 0;
+    return nodes;
+}
+}  // namespace
+
+void set_position_outer_smooth_nodes(int nodes) { outer_smooth_nodes() = nodes; }
+int position_outer_smooth_nodes() { return outer_smooth_nodes(); }
+
 }  // namespace wavebrdf::detail

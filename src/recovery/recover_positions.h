@@ -55,6 +55,23 @@ double register_positions(const std::vector<Observation>& observations, const st
                           double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm);
 
+// The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
+// "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
+// the least-squares fit of each coordinate by a smooth field is subtracted in place and
+// returned (2 per position). nodes = 1: an affine field (1, x, y); nodes = k ≥ 2: bilinear on
+// k × k nodes spanning the centres' bounding box (it holds the affine fields). Positions and
+// heights moved together by such a warp change the slices little, so the outer loop can drift
+// along it. Deterministic (the same bits on every rank). Throws std::invalid_argument for
+// nodes < 1 or values not 2 per centre.
+std::vector<double> remove_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
+                                               std::vector<double>& values, int nodes);
+
+// A study hook (experiments/recover_study.cpp): the outer loop (position_outer_passes)
+// removes remove_smooth_displacement(·, nodes) of every registration's update (new − old
+// offsets) when nodes ≥ 1; 0 (the default): off. Not thread-safe to set while a recovery runs.
+void set_position_outer_smooth_nodes(int nodes);
+int position_outer_smooth_nodes();
+
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
 // (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all
 // ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
