@@ -347,9 +347,10 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
 }
 
 // The smooth schedule (docs/recovery.md, Speed, sixth pass): a smooth surface without
-// self-calibration, up to 64² texels, gets the field stage at its longest wavelength only, at
+// self-calibration, of any size (docs/scale.md, "Time per texel above 64²": above 64² the
+// field stage's cap is each tile's), gets the field stage at its longest wavelength only, at
 // most 25 field iterations, and the refinement first on that wavelength's slices; a rough
-// surface, any calibration or a larger surface keeps the settings as they were.
+// surface or any calibration keeps the settings as they were.
 TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
     ASSERT_FALSE(smooth.rough);
@@ -382,9 +383,20 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     RecoverSettings rough;
     apply_smooth_schedule(steep, 64, 64, rough);
     unchanged(rough);
-    RecoverSettings large;
-    apply_smooth_schedule(smooth, 128, 64, large);
-    unchanged(large);
+    // Larger surfaces get the same schedule as 64² (it used to stop at 64² texels).
+    for (const int n : {128, 512}) {
+        RecoverSettings large;
+        apply_smooth_schedule(smooth, n, 64, large);
+        EXPECT_EQ(large.field_wavelengths, settings.field_wavelengths) << n;
+        EXPECT_EQ(large.field.iterations, settings.field.iterations) << n;
+        EXPECT_EQ(large.refine_ladder_wavelengths, settings.refine_ladder_wavelengths) << n;
+        EXPECT_EQ(large.refine_ladder_iterations, settings.refine_ladder_iterations) << n;
+        EXPECT_EQ(large.refine_ladder_relative_tolerance, settings.refine_ladder_relative_tolerance) << n;
+        EXPECT_EQ(large.refine_iterations, settings.refine_iterations) << n;
+        // The refinement's coarse space stays on: it removes the whole-surface undulation.
+        EXPECT_EQ(large.refine_coarse_spacing, defaults.refine_coarse_spacing) << n;
+        EXPECT_GT(large.refine_coarse_spacing, 0.0) << n;
+    }
 }
 
 }  // namespace

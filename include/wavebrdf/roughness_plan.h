@@ -73,9 +73,10 @@ void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings);
 // of the cost each with three wavelengths) and then on every slice (refine_iterations). The
 // same final heights as the library's defaults at ~half the CPU time on 3 of 4 seeds (64²;
 // one, 10408, 0.013 → 0.017 %). Nothing
-// changed for a rough surface, with calibration (its loops keep their own schedule) or for more
-// than 64² texels (rows · cols: at 128² the capped field stage, on tiles, ended at 1.1 % instead
-// of 0.52 % and the final heights were worse; measured on one seed).
+// changed for a rough surface or with calibration (its loops keep their own schedule). Every
+// size gets it (rows, cols are not read): above the tile threshold the 25 iterations are each
+// tile's, and the refinement's coarse space removes the whole-surface undulation that made the
+// capped 128² run worse before it (docs/scale.md, "Time per texel above 64²").
 void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, RecoverSettings& settings);
 
 // `acquisition` with the plan's long wavelengths appended to its wavelengths (those not longer

@@ -42,8 +42,6 @@ constexpr int kMaxLongLambdas = 4;
 // field iteration's cost each.
 constexpr int kSmoothFieldIterations = 25;
 constexpr int kSmoothLadderIterations = 40;
-// … up to this many texels (measured at 64²; at 128² worse, see roughness_plan.h).
-constexpr double kSmoothMaxTexels = 64.0 * 64.0;
 constexpr int kSmoothRefineIterations = 8;
 // The ladder's rung stops once loss / loss(flat) < this: on exact data a loss of ~3e-9 (loss(flat)
 // ≈ 0.27 at 64²) is ~0.005 % of the range off, reached after ~24 of the 40 iterations (seed
@@ -131,7 +129,11 @@ void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings) 
 }
 
 void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, RecoverSettings& settings) {
-    if (plan.rough || settings.calibrate.any() || double(rows) * double(cols) > kSmoothMaxTexels) return;
+    // At every size (docs/scale.md, "Time per texel above 64²"): above the tile threshold the
+    // capped iterations are each tile's, and the coarse space takes the refinement's undulation.
+    (void)rows;
+    (void)cols;
+    if (plan.rough || settings.calibrate.any()) return;
     settings.field_wavelengths = 1;
     settings.field.iterations = std::min(settings.field.iterations, kSmoothFieldIterations);
     settings.refine_ladder_wavelengths = 1;
