@@ -61,8 +61,9 @@ TEST(OutlierRepair, ATexelAWrapOffReturnsAndTheRestIsUntouched) {
     EXPECT_EQ(counts.kept, 1);
     EXPECT_EQ(counts.evaluations, 1 + 2 + 2);       // the start, quadratic, median, ± the wrap
     EXPECT_LT(std::abs(h[37] - truth[37]), 1e-12);  // h − wrap is the truth exactly
-    for (std::size_t p = 0; p < h.size(); ++p)
+    for (std::size_t p = 0; p < h.size(); ++p) {
         if (p != 37) EXPECT_EQ(h[p], truth[p]) << p;
+    }
 }
 
 TEST(OutlierRepair, NothingChangesWhereTheLossDoesNotFallOrNothingStandsOut) {
@@ -124,7 +125,8 @@ TEST(OutlierRepair, OnGaborSlicesATexelHalfAWavelengthOffReturnsToTheTruth) {
     }
     ASSERT_FALSE(seeing.empty());
     ASSERT_LT(seeing.size(), observations.size());  // a local evaluation
-    const Loss loss = Loss::amplitude();
+    Loss loss;
+    loss.kind = LossKind::Amplitude;
     const auto local_loss = [&](const std::vector<double>& x, std::size_t) {
         return observation_loss(truth.with_values(x), seeing, loss, nullptr);
     };

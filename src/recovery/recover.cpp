@@ -648,8 +648,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             };
             const double min_residual = 0.25 * *std::min_element(wraps.begin(), wraps.end());
             const detail::OutlierRepairCounts counts = detail::repair_outlier_texels(
-                h, rows, cols, settings.outlier_repair_threshold, min_residual, std::max(16, rows * cols / 256),
-                wraps, local_loss);
+                h, rows, cols, settings.outlier_repair_threshold, min_residual, std::max(16, rows * cols / 256), wraps,
+                local_loss);
             if (counts.flagged == 0) break;
             const Heightfield current = flat.with_values(h);
             if (!report("repair:outliers", counts.kept, double(counts.flagged), &current)) break;
