@@ -397,7 +397,9 @@ struct RecoverSettings {
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,
 // iterations), "blur" (its result), "field:λ" (iterations, then with cascading its result
-// after unwrapping), "unwrap", "refine", then with the model check (model_check_iterations)
+// after unwrapping), "unwrap", "refine", "repair:outliers" (only where a texel was flagged:
+// iteration = texels changed, loss = texels evaluated; outlier_repair_rounds) and "refine" again
+// where one changed, then with the model check (model_check_iterations)
 // "misfit:gabor", "misfit:field-start" (the field model's loss at the unwrapped heights),
 // "refine:field" (iterations), "misfit:field" (loss: each model's relative amplitude loss on
 // the single-wavelength slices at its heights; the last two left out when
