@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "recovery/outlier_repair.h"
@@ -12,6 +14,7 @@
 #include "wavebrdf/constants.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/recover.h"
 #include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf {
@@ -147,6 +150,32 @@ TEST(OutlierRepair, OnGaborSlicesATexelHalfAWavelengthOffReturnsToTheTruth) {
                                                                              local_loss);
     EXPECT_EQ(counts.kept, 1);
     EXPECT_LT(std::abs(h[texel] - truth.values()[texel]) * texel_um, 0.03);  // µm; was 0.25
+}
+
+}  // namespace
+}  // namespace wavebrdf
+
+namespace wavebrdf {
+namespace {
+
+TEST(OutlierRepair, RecoverHeightsRefusesBadSettingsWithOneLine) {
+    const auto message = [](const RecoverSettings& s) {
+        try {
+            recover_heights({}, 4, 4, 2.0, 1.0, s);
+        } catch (const std::exception& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    RecoverSettings rounds;
+    rounds.outlier_repair_rounds = -1;
+    EXPECT_NE(message(rounds).find("outlier repair rounds -1"), std::string::npos) << message(rounds);
+    RecoverSettings threshold;
+    threshold.outlier_repair_threshold = 0.0;
+    EXPECT_NE(message(threshold).find("outlier repair"), std::string::npos) << message(threshold);
+    RecoverSettings iterations;
+    iterations.outlier_repair_iterations = -1;
+    EXPECT_NE(message(iterations).find("outlier repair iterations"), std::string::npos) << message(iterations);
 }
 
 }  // namespace
