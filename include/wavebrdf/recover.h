@@ -286,6 +286,20 @@ struct RecoverSettings {
     // to its cap as before. Smooth surfaces up to 64² (the CLI's plan): see
     // apply_smooth_schedule (docs/recovery.md, Speed, seventh pass).
     double refine_ladder_relative_tolerance = 0.0;
+    // Single-texel outliers (docs/recovery.md, Speed, eighth pass): after stage 3 with
+    // single-wavelength slices (not white light, not with position calibration), up to this many
+    // rounds of: texels farther than outlier_repair_threshold robust deviations (and a quarter of
+    // the shortest wavelength's λ/2) from the quadratic through their 8 neighbours, each tried at
+    // that quadratic, the neighbours' median and ± λ/2 of every wavelength, judged by the loss of
+    // the slices that see it and kept where that loss falls; where any was kept, stage 3's last
+    // refine_iterations again (0: off). A texel the refinement left ≈ 0.22 µm off while every other
+    // converged is a local minimum it does not leave (seeds 4 and 10632 at 32², 10423 at 64²).
+    int outlier_repair_rounds = 1;
+    double outlier_repair_threshold = 6.0;
+    // … the refinement on every slice after a repair: this many iterations (0: refine_iterations),
+    // stopped early where loss / loss(flat) falls below refine_ladder_relative_tolerance (the
+    // texel's neighbours had bent towards it: 8 iterations left seed 4 at 0.05 %).
+    int outlier_repair_iterations = 30;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     // Stage 3's coarse space (docs/scale.md, "The whole-surface undulation"): levels of periodic
@@ -383,7 +397,9 @@ struct RecoverSettings {
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,
 // iterations), "blur" (its result), "field:λ" (iterations, then with cascading its result
-// after unwrapping), "unwrap", "refine", then with the model check (model_check_iterations)
+// after unwrapping), "unwrap", "refine", "repair:outliers" (only where a texel was flagged:
+// iteration = texels changed, loss = texels evaluated; outlier_repair_rounds) and "refine" again
+// where one changed, then with the model check (model_check_iterations)
 // "misfit:gabor", "misfit:field-start" (the field model's loss at the unwrapped heights),
 // "refine:field" (iterations), "misfit:field" (loss: each model's relative amplitude loss on
 // the single-wavelength slices at its heights; the last two left out when

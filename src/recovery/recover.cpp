@@ -22,6 +22,7 @@
 #include "recovery/field_positions.h"
 #include "recovery/field_tiles.h"
 #include "recovery/field_proxy.h"
+#include "recovery/outlier_repair.h"
 #include "recovery/recover_positions.h"
 #include "recovery/calibration_detail.h"
 #include "recovery/coarse_correction.h"
@@ -648,6 +649,35 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             smooth_weight = 0.0;
             refine_heights(settings.refine_iterations);
         }
+        // Single-texel outliers (outlier_repair.h): each flagged texel judged on the slices that see
+        // it (its gradient box: a local loss, collective), then stage 3's last iterations again.
+        for (int round = 0; !white && go_on && !stopped && round < settings.outlier_repair_rounds; ++round) {
+            std::vector<double> wraps;  // λ/2 of every rank's wavelengths, value units
+            for (const auto& entry : by_lambda) wraps.push_back(0.5 * entry.first / std::abs(vscale * texel_um));
+            if (wraps.empty()) break;
+            std::vector<double> no_g;
+            const auto local_loss = [&](const std::vector<double>& x, std::size_t texel) {
+                const int r = int(texel / std::size_t(cols)), c = int(texel % std::size_t(cols));
+                active.assign(observations.size(), 0);
+                for (std::size_t i = 0; i < observations.size(); ++i)
+                    active[i] = !plans[i] || (std::binary_search(box_rows[i].begin(), box_rows[i].end(), r) &&
+                                              std::binary_search(box_cols[i].begin(), box_cols[i].end(), c));
+                const double value = objective(x, no_g);
+                active.clear();
+                return value;
+            };
+            const double min_residual = 0.25 * *std::min_element(wraps.begin(), wraps.end());
+            const detail::OutlierRepairCounts counts = detail::repair_outlier_texels(
+                h, rows, cols, settings.outlier_repair_threshold, min_residual, std::max(16, rows * cols / 256), wraps,
+                local_loss);
+            if (counts.flagged == 0) break;
+            const Heightfield current = flat.with_values(h);
+            if (!report("repair:outliers", counts.kept, double(counts.flagged), &current)) break;
+            if (counts.kept == 0) break;
+            refine_heights(settings.outlier_repair_iterations > 0 ? settings.outlier_repair_iterations
+                                                                  : settings.refine_iterations,
+                           "refine", settings.refine_ladder_relative_tolerance);
+        }
         // White light: isolated texels (or connected regions) left a wrap from their neighbours,
         // repaired where the loss agrees, then refined again (white_light.h). The wrap: half the
         // shortest mean wavelength of any rank's observations, in value units (every rank agrees).
@@ -780,6 +810,13 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::domain_error("recover_heights: refine_ladder_relative_tolerance " +
                                 std::to_string(settings.refine_ladder_relative_tolerance) +
                                 " is invalid; expected 0 (off) to below 1");
+    validate_iterations(settings.outlier_repair_iterations, "recover_heights: outlier repair iterations");
+    if (settings.outlier_repair_rounds < 0 || settings.outlier_repair_rounds > 100 ||
+        !(settings.outlier_repair_threshold > 0.0 && std::isfinite(settings.outlier_repair_threshold)))
+        throw std::invalid_argument("recover_heights: outlier repair rounds " +
+                                    std::to_string(settings.outlier_repair_rounds) + " / threshold " +
+                                    std::to_string(settings.outlier_repair_threshold) +
+                                    " is invalid; expected 0 ... 100 / a finite value > 0");
     validate_iterations(settings.white_smoothness_iterations, "recover_heights: white smoothness iterations");
     for (double w : settings.white_smoothness)
         if (!(w >= 0.0 && w <= 1e12))
