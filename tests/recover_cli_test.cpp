@@ -239,8 +239,7 @@ TEST(RecoverCliTest, SmoothScheduleLeavesNoSingleTexelOutlier) {
                                 std::abs((estimate.height_um(i, j) - mean_e) - (truth.height_um(i, j) - mean_t)));
     EXPECT_LT(worst_um, 0.05);                              // 0.218 without the repair
     EXPECT_LT(height_rel_rmse(estimate, truth), 0.0005);    // 0.357 % without it
-    bool repaired = false;
-    for (const std::string& line : lines_of(read_text(dir / "run" / "metrics.csv")))
-        repaired = repaired || line.rfind("repair:outliers,", 0) == 0;
-    EXPECT_TRUE(repaired);
+    // Whether the trap occurs depends on the build's float rounding: the Release build lands in it
+    // (and the repair reports repair:outliers), the sanitizer build (other optimisation) does not.
+    // So the outcome is asserted here; the repair itself is OutlierRepair.*'s.
 }
