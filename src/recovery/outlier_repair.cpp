@@ -4,36 +4,21 @@
 #include <cmath>
 #include <utility>
 
+#include "recovery/texel_neighbours.h"
+
 namespace wavebrdf::detail {
 
 namespace {
-
-std::size_t wrapped(int i, int j, int rows, int cols) {
-    i = (i % rows + rows) % rows;
-    j = (j % cols + cols) % cols;
-    return std::size_t(i) * std::size_t(cols) + std::size_t(j);
-}
-
-// The median of texel (i, j)'s 8 neighbours (periodic): the mean of the middle two.
-double median8(const std::vector<double>& h, int i, int j, int rows, int cols) {
-    double n[8];
-    int k = 0;
-    for (int di = -1; di <= 1; ++di)
-        for (int dj = -1; dj <= 1; ++dj)
-            if (di != 0 || dj != 0) n[k++] = h[wrapped(i + di, j + dj, rows, cols)];
-    std::sort(n, n + 8);
-    return 0.5 * (n[3] + n[4]);
-}
 
 // The quadratic through texel (i, j)'s 8 neighbours (least squares, periodic) at its centre:
 // ½ Σ edge neighbours − ¼ Σ corner neighbours, exact for any quadratic surface, so its residual on
 // a smooth surface is the fourth-order terms only (≈ 0.003 µm at 32² and 64², seeds 4 and 10631–
 // 10640) where the 8 neighbours' median is off by the curvature (≈ 0.04 µm).
 double quadratic8(const std::vector<double>& h, int i, int j, int rows, int cols) {
-    const double edges = h[wrapped(i - 1, j, rows, cols)] + h[wrapped(i + 1, j, rows, cols)] +
-                         h[wrapped(i, j - 1, rows, cols)] + h[wrapped(i, j + 1, rows, cols)];
-    const double corners = h[wrapped(i - 1, j - 1, rows, cols)] + h[wrapped(i - 1, j + 1, rows, cols)] +
-                           h[wrapped(i + 1, j - 1, rows, cols)] + h[wrapped(i + 1, j + 1, rows, cols)];
+    const double edges = h[periodic_index(i - 1, j, rows, cols)] + h[periodic_index(i + 1, j, rows, cols)] +
+                         h[periodic_index(i, j - 1, rows, cols)] + h[periodic_index(i, j + 1, rows, cols)];
+    const double corners = h[periodic_index(i - 1, j - 1, rows, cols)] + h[periodic_index(i - 1, j + 1, rows, cols)] +
+                           h[periodic_index(i + 1, j - 1, rows, cols)] + h[periodic_index(i + 1, j + 1, rows, cols)];
     return 0.5 * edges - 0.25 * corners;
 }
 
@@ -50,7 +35,7 @@ OutlierRepairCounts repair_outlier_texels(
     std::vector<double> residual(heights.size());
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j) {
-            const std::size_t p = wrapped(i, j, rows, cols);
+            const std::size_t p = periodic_index(i, j, rows, cols);
             residual[p] = std::abs(heights[p] - quadratic8(heights, i, j, rows, cols));
         }
     std::vector<double> sorted = residual;
@@ -72,7 +57,7 @@ OutlierRepairCounts repair_outlier_texels(
         const double prediction = quadratic8(heights, i, j, rows, cols);
         if (!(std::abs(at - prediction) > bound)) continue;
         ++counts.flagged;
-        std::vector<double> trials{prediction, median8(heights, i, j, rows, cols)};
+        std::vector<double> trials{prediction, neighbour_median(heights, i, j, rows, cols)};
         for (double w : wrap_heights)
             if (w > 0.0 && std::isfinite(w)) trials.insert(trials.end(), {at - w, at + w});
         double best = local_loss(heights, p);

@@ -7,29 +7,17 @@
 #include <string>
 #include <utility>
 
+#include "recovery/texel_neighbours.h"
+
 namespace wavebrdf::detail {
 
 namespace {
 
-std::size_t periodic_index(int i, int j, int rows, int cols) {
-    i = (i % rows + rows) % rows;
-    j = (j % cols + cols) % cols;
-    return std::size_t(i) * std::size_t(cols) + std::size_t(j);
-}
-
-// The median of each texel's 8 neighbours (periodic): the mean of the middle two.
-std::vector<double> neighbour_median(const std::vector<double>& h, int rows, int cols) {
+// The median of each texel's 8 neighbours (periodic).
+std::vector<double> neighbour_medians(const std::vector<double>& h, int rows, int cols) {
     std::vector<double> out(h.size());
     for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < cols; ++j) {
-            double n[8];
-            int k = 0;
-            for (int di = -1; di <= 1; ++di)
-                for (int dj = -1; dj <= 1; ++dj)
-                    if (di != 0 || dj != 0) n[k++] = h[periodic_index(i + di, j + dj, rows, cols)];
-            std::sort(n, n + 8);
-            out[periodic_index(i, j, rows, cols)] = 0.5 * (n[3] + n[4]);
-        }
+        for (int j = 0; j < cols; ++j) out[periodic_index(i, j, rows, cols)] = neighbour_median(h, i, j, rows, cols);
     return out;
 }
 
@@ -39,7 +27,7 @@ int repair_defects(std::vector<double>& heights, int rows, int cols, double thre
                    const std::function<double(const std::vector<double>&)>& loss) {
     if (rows < 3 || cols < 3 || max_candidates <= 0 || heights.size() != std::size_t(rows) * std::size_t(cols))
         return 0;
-    const std::vector<double> median = neighbour_median(heights, rows, cols);
+    const std::vector<double> median = neighbour_medians(heights, rows, cols);
     std::vector<double> deviation(heights.size());
     for (std::size_t p = 0; p < heights.size(); ++p) deviation[p] = std::abs(heights[p] - median[p]);
     std::vector<double> sorted = deviation;
@@ -129,7 +117,7 @@ namespace {
 
 // h − the median of its 8 neighbours, per texel (periodic).
 std::vector<double> median_residual(const std::vector<double>& h, int rows, int cols) {
-    std::vector<double> out = neighbour_median(h, rows, cols);
+    std::vector<double> out = neighbour_medians(h, rows, cols);
     for (std::size_t p = 0; p < h.size(); ++p) out[p] = h[p] - out[p];
     return out;
 }
