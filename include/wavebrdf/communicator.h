@@ -40,6 +40,13 @@ public:
     virtual void gather_words(const std::uint64_t* local, std::size_t count, std::uint64_t* all,
                               int root = 0) const = 0;
     virtual void broadcast_words(std::uint64_t* words, std::size_t count, int root = 0) const = 0;
+    // Sums of `count` 192-bit two's-complement integers, three words each, least significant
+    // first: words[3i … 3i + 2] ← Σ_r words_r[3i … 3i + 2] modulo 2^192, on every rank. Integer
+    // addition is associative and commutative, so the result does not depend on the order in
+    // which the ranks are combined. This default gathers to rank 0 and broadcasts (rank 0
+    // receives size() × the words of a piece); the MPI communicator overrides it with
+    // MPI_Allreduce and its own operation, where no rank holds more than its own words.
+    virtual void allreduce_words192(std::uint64_t* words, std::size_t count) const;
     // True on every rank when `flag` is true on any rank (e.g. one rank was interrupted).
     virtual bool any(bool flag) const = 0;
     virtual void barrier() const = 0;

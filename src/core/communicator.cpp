@@ -2,6 +2,8 @@
 // (include/wavebrdf/communicator.h).
 #include "wavebrdf/communicator.h"
 
+#include "core/exact_sum.h"
+
 #include <algorithm>
 #include <cstdlib>
 #include <cstdio>
@@ -64,6 +66,12 @@ void check_mpi(int code, const char* what) {
     int length = 0;
     MPI_Error_string(code, message, &length);
     throw std::runtime_error(std::string("MPI: ") + what + " failed: " + std::string(message, std::size_t(length)));
+}
+
+// MPI_User_function: inout ← in + inout, element-wise on 192-bit integers (three words each).
+void sum_words192(void* in, void* inout, int* count, MPI_Datatype*) {
+    detail::add_words192(static_cast<const std::uint64_t*>(in), static_cast<std::uint64_t*>(inout),
+                         static_cast<std::size_t>(*count));
 }
 
 class MpiCommunicator final : public Communicator {
@@ -149,6 +157,27 @@ public:
             check_mpi(MPI_Bcast(words + start, int(n), MPI_UINT64_T, root, m_comm), "MPI_Bcast");
         }
     }
+    // MPI_Allreduce with a commutative operation on 192-bit integers (the reduction's order is
+    // MPI's, the sum's bits are not: integer addition).
+    void allreduce_words192(std::uint64_t* words, std::size_t count) const override {
+        if (m_size == 1 || count == 0) return;
+        struct Triple {  // the datatype and the operation, freed however the calls end
+            MPI_Datatype type = MPI_DATATYPE_NULL;
+            MPI_Op op = MPI_OP_NULL;
+            ~Triple() {
+                if (op != MPI_OP_NULL) MPI_Op_free(&op);
+                if (type != MPI_DATATYPE_NULL) MPI_Type_free(&type);
+            }
+        } t;
+        check_mpi(MPI_Type_contiguous(3, MPI_UINT64_T, &t.type), "MPI_Type_contiguous");
+        check_mpi(MPI_Type_commit(&t.type), "MPI_Type_commit");
+        check_mpi(MPI_Op_create(&sum_words192, 1, &t.op), "MPI_Op_create");
+        const std::size_t piece = k_chunk / 3;
+        for (std::size_t start = 0; start < count; start += piece) {
+            const std::size_t n = std::min(piece, count - start);
+            check_mpi(MPI_Allreduce(MPI_IN_PLACE, words + 3 * start, int(n), t.type, t.op, m_comm), "MPI_Allreduce");
+        }
+    }
     bool any(bool flag) const override {
         int mine = flag ? 1 : 0, result = 0;
         check_mpi(MPI_Allreduce(&mine, &result, 1, MPI_INT, MPI_LOR, m_comm), "MPI_Allreduce");
@@ -190,6 +219,22 @@ struct MpiLifetime {
 #endif
 
 }  // namespace
+
+void Communicator::allreduce_words192(std::uint64_t* words, std::size_t count) const {
+    if (size() == 1) return;
+    constexpr std::size_t piece = std::size_t(1) << 18;  // sums per gather: bounds rank 0's buffer
+    const std::size_t ranks = static_cast<std::size_t>(size());
+    std::vector<std::uint64_t> all;
+    for (std::size_t start = 0; start < count; start += piece) {
+        const std::size_t n = std::min(piece, count - start);
+        std::uint64_t* mine = words + 3 * start;
+        if (is_root()) all.resize(3 * n * ranks);
+        gather_words(mine, 3 * n, is_root() ? all.data() : nullptr);
+        if (is_root())
+            for (std::size_t r = 1; r < ranks; ++r) detail::add_words192(all.data() + 3 * n * r, mine, n);
+        broadcast_words(mine, 3 * n);
+    }
+}
 
 const Communicator& serial_communicator() {
     static const SerialCommunicator serial;

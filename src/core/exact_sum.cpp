@@ -20,15 +20,20 @@ void exact_sum_overflow() {
 }
 
 namespace {
-// Elements per collective call (two words each): bounds the root's receive buffer.
-constexpr std::size_t k_exact_chunk = std::size_t(1) << 20;
+// Sums per collective call (three words each): bounds each rank's buffer to 6 MB.
+constexpr std::size_t k_exact_chunk = std::size_t(1) << 18;
 
-void to_words(ExactVector::Word w, std::uint64_t* out) {
+// A 128-bit sum sign-extended to 192 bits, and back: the sum of K ranks' 128-bit sums fits in
+// 192 bits for any K below 2^64, so the collective sum is exact whatever the order of the ranks;
+// only a total outside the 128-bit range is refused (on every rank alike: the same bits).
+void to_words192(ExactVector::Word w, std::uint64_t* out) {
     const unsigned __int128 u = static_cast<unsigned __int128>(w);
     out[0] = static_cast<std::uint64_t>(u);
     out[1] = static_cast<std::uint64_t>(u >> 64);
+    out[2] = w < 0 ? ~std::uint64_t(0) : 0;
 }
-ExactVector::Word from_words(const std::uint64_t* in) {
+ExactVector::Word from_words192(const std::uint64_t* in) {
+    if (in[2] != ((in[1] >> 63) != 0 ? ~std::uint64_t(0) : 0)) exact_sum_overflow();
     const unsigned __int128 u = (static_cast<unsigned __int128>(in[1]) << 64) | in[0];
     return static_cast<ExactVector::Word>(u);
 }
@@ -36,24 +41,14 @@ ExactVector::Word from_words(const std::uint64_t* in) {
 
 void ExactVector::allreduce(const Communicator& comm) {
     if (comm.size() == 1) return;
-    const std::size_t n = m_sum.size(), ranks = std::size_t(comm.size());
-    std::vector<std::uint64_t> mine, all;
+    const std::size_t n = m_sum.size();
+    std::vector<std::uint64_t> words;
     for (std::size_t start = 0; start < n; start += k_exact_chunk) {
         const std::size_t count = std::min(k_exact_chunk, n - start);
-        mine.resize(2 * count);
-        for (std::size_t k = 0; k < count; ++k) to_words(m_sum[start + k], &mine[2 * k]);
-        if (comm.is_root()) all.resize(2 * count * ranks);
-        comm.gather_words(mine.data(), mine.size(), comm.is_root() ? all.data() : nullptr);
-        if (comm.is_root()) {
-            // Integer sums: exact in any order (rank order here).
-            for (std::size_t k = 0; k < count; ++k) {
-                Word sum = 0;
-                for (std::size_t r = 0; r < ranks; ++r) sum = checked_add(sum, from_words(&all[2 * (r * count + k)]));
-                to_words(sum, &mine[2 * k]);
-            }
-        }
-        comm.broadcast_words(mine.data(), mine.size());
-        for (std::size_t k = 0; k < count; ++k) m_sum[start + k] = from_words(&mine[2 * k]);
+        words.resize(3 * count);
+        for (std::size_t k = 0; k < count; ++k) to_words192(m_sum[start + k], &words[3 * k]);
+        comm.allreduce_words192(words.data(), count);
+        for (std::size_t k = 0; k < count; ++k) m_sum[start + k] = from_words192(&words[3 * k]);
     }
 }
 
