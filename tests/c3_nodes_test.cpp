@@ -324,6 +324,50 @@ TEST(C3Nodes, FloatSeparableEngineMatchesTheDoubleEngineAndItsAdjointIdentity) {
     }
 }
 
+// build_planar_factors writes the float engine's planar factors directly: the same bits as
+// build_factors<float> followed by PlanarFactors::assign, on a chunk that starts inside the
+// footprint, and an independent evaluation of the formula agrees to float rounding (the test
+// fails if an entry took another kernel's slope or phase).
+TEST(C3Nodes, PlanarFactorsAreBuildFactorsInPlanarFormBitForBit) {
+    const Heightfield hf = random_heightfield(24, 24, 0.4, 17, 1.0, 1.0);
+    const Query q = make_query(Model::OHS, 12.0, 12.0, 2.0, 0.15, -0.25);
+    const FootprintKernels k = footprint_kernels(hf, q.x_um, q.y_um, q.sigma_p_um);
+    ASSERT_GT(k.size(), 20u);
+    const int n = 24;
+    const double lambda = 0.5, shift_scale = 0.9;
+    const detail::SliceGrid grid(q, lambda, n);
+    const detail::PhaseTables phases(k, grid);
+    const Eigen::Index k0 = 5, count = Eigen::Index(k.size()) - 7;
+    detail::ComplexMatrix<float> xs(n, count), ys(n, count);
+    detail::build_factors<float>(k, grid, phases, lambda, shift_scale, k0, count, xs, ys);
+    detail::PlanarFactors want_x, want_y, px, py;
+    want_x.resize(n, count);
+    want_y.resize(n, count);
+    want_x.assign(xs, count);
+    want_y.assign(ys, count);
+    px.resize(n, count + 3);  // wider than needed: only columns [0, count) are written
+    py.resize(n, count + 3);
+    detail::build_planar_factors(k, grid, phases, lambda, shift_scale, k0, count, px, py);
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
+    double worst = 0.0;
+    for (Eigen::Index c = 0; c < count; ++c)
+        for (Eigen::Index p = 0; p < n; ++p) {
+            for (auto [got, want] : {std::pair{&px, &want_x}, std::pair{&py, &want_y}}) {
+                ASSERT_EQ(got->re(p, c), want->re(p, c)) << p << ", " << c;
+                ASSERT_EQ(got->im(p, c), want->im(p, c)) << p << ", " << c;
+                ASSERT_EQ(got->sum(p, c), want->sum(p, c)) << p << ", " << c;
+            }
+            // The formula (separable_engine.h), term by term in double.
+            const std::size_t idx = std::size_t(k0 + c);
+            const double b = shift_scale * 2.0 / lambda * k.slope_x[idx];
+            const double u = grid.ux[std::size_t(p)];
+            const std::complex<double> x = std::exp(-gauss * (u + b) * (u + b)) *
+                                           std::polar(1.0, -2.0 * k_pi * u * k.dx_um[idx]);
+            worst = std::max(worst, std::abs(std::complex<double>(px.re(p, c), px.im(p, c)) - x));
+        }
+    EXPECT_LE(worst, 1e-6);
+}
+
 // The separable and FFT paths' gradients (tight tolerance) equal the direct path's, and match
 // central differences of their own slices.
 TEST(C3Nodes, GradientMatchesDirectPathAndFiniteDifferences) {

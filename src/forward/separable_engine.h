@@ -35,6 +35,15 @@ struct PlanarFactors {
     }
 };
 
+// build_factors<float> (separable.h) written in planar form: columns [0, count) of xs and ys
+// (sized by the caller, at least n × count) for kernels k0 … k0 + count − 1. The same bits as
+// build_factors<float> followed by PlanarFactors::assign (each entry the double product of the
+// Gaussian and the phase, rounded once to float; sum = re + im in float), without the
+// interleaved complex copy in between.
+void build_planar_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
+                          double lambda_um, double shift_scale, Eigen::Index k0, Eigen::Index count,
+                          PlanarFactors& xs, PlanarFactors& ys);
+
 template <typename Float>
 class SeparableEngine : public FieldEngine<Float> {
 public:
@@ -69,7 +78,6 @@ private:
     // chunk built at a time into this storage (starting at column 0).
     struct PlanarChunk {
         const Kept* cached = nullptr;
-        ComplexMatrix<float> built_x, built_y;
         PlanarFactors planar_x, planar_y;
         void reserve(Eigen::Index rows, Eigen::Index cols);
         const PlanarFactors& x() const { return cached ? cached->px : planar_x; }
