@@ -324,6 +324,96 @@ TEST(C3Nodes, FloatSeparableEngineMatchesTheDoubleEngineAndItsAdjointIdentity) {
     }
 }
 
+// build_planar_factors writes the float engine's planar factors directly: the same bits as
+// build_factors<float> followed by PlanarFactors::assign, on a chunk that starts inside the
+// footprint, and an independent evaluation of the formula agrees to float rounding (the test
+// fails if an entry took another kernel's slope or phase).
+TEST(C3Nodes, PlanarFactorsAreBuildFactorsInPlanarFormBitForBit) {
+    const Heightfield hf = random_heightfield(24, 24, 0.4, 17, 1.0, 1.0);
+    const Query q = make_query(Model::OHS, 12.0, 12.0, 2.0, 0.15, -0.25);
+    const FootprintKernels k = footprint_kernels(hf, q.x_um, q.y_um, q.sigma_p_um);
+    ASSERT_GT(k.size(), 20u);
+    const int n = 24;
+    const double lambda = 0.5, shift_scale = 0.9;
+    const detail::SliceGrid grid(q, lambda, n);
+    const detail::PhaseTables phases(k, grid);
+    const Eigen::Index k0 = 5, count = Eigen::Index(k.size()) - 7;
+    detail::ComplexMatrix<float> xs(n, count), ys(n, count);
+    detail::build_factors<float>(k, grid, phases, lambda, shift_scale, k0, count, xs, ys);
+    detail::PlanarFactors want_x, want_y, px, py;
+    want_x.resize(n, count);
+    want_y.resize(n, count);
+    want_x.assign(xs, count);
+    want_y.assign(ys, count);
+    px.resize(n, count + 3);  // wider than needed: only columns [0, count) are written
+    py.resize(n, count + 3);
+    detail::build_planar_factors(k, grid, phases, lambda, shift_scale, k0, count, px, py);
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;
+    double worst = 0.0;
+    for (Eigen::Index c = 0; c < count; ++c)
+        for (Eigen::Index p = 0; p < n; ++p) {
+            for (auto [got, want] : {std::pair{&px, &want_x}, std::pair{&py, &want_y}}) {
+                ASSERT_EQ(got->re(p, c), want->re(p, c)) << p << ", " << c;
+                ASSERT_EQ(got->im(p, c), want->im(p, c)) << p << ", " << c;
+                ASSERT_EQ(got->sum(p, c), want->sum(p, c)) << p << ", " << c;
+            }
+            // The formula (separable_engine.h), term by term in double.
+            const std::size_t idx = std::size_t(k0 + c);
+            const double b = shift_scale * 2.0 / lambda * k.slope_x[idx];
+            const double u = grid.ux[std::size_t(p)];
+            const std::complex<double> x = std::exp(-gauss * (u + b) * (u + b)) *
+                                           std::polar(1.0, -2.0 * k_pi * u * k.dx_um[idx]);
+            worst = std::max(worst, std::abs(std::complex<double>(px.re(p, c), px.im(p, c)) - x));
+        }
+    EXPECT_LE(worst, 1e-6);
+}
+
+// release_tables(true) keeps the phase tables within the process-wide budget (counted while
+// kept, returned when dropped or when the engine goes); the next call gives the same bits as an
+// engine that rebuilt them, forward and adjoint.
+TEST(C3Nodes, KeptPhaseTablesAreCountedAndGiveTheSameBits) {
+    const Heightfield hf = random_heightfield(24, 24, 0.4, 23, 1.0, 1.0);
+    const Query q = make_query(Model::OHS, 10.0, 14.0, 2.0, 0.1, 0.2);
+    FootprintKernels k = footprint_kernels(hf, q.x_um, q.y_um, q.sigma_p_um);
+    const int n = 24;
+    const double lambda = 0.5;
+    const detail::SliceGrid grid(q, lambda, n);
+    detail::KernelWeights w(1, std::vector<std::complex<double>>(k.size()));
+    for (std::size_t i = 0; i < k.size(); ++i) w[0][i] = std::polar(k.weight[i], 0.3 * double(i));
+    std::vector<detail::ComplexMatrix<float>> b(1, detail::ComplexMatrix<float>(n, n));
+    for (int i = 0; i < n * n; ++i) b[0].data()[i] = {float(std::sin(0.7 * i)), float(std::cos(0.3 * i))};
+    const std::size_t before = detail::kept_phase_bytes();
+    {
+        detail::SeparableEngine<float> keeps(k, grid, lambda, n), drops(k, grid, lambda, n);
+        for (int cycle = 0; cycle < 3; ++cycle) {
+            SCOPED_TRACE(cycle);
+            for (std::size_t i = 0; i < k.size(); ++i) k.slope_x[i] += 0.01 * double(cycle);  // new heights
+            std::vector<detail::ComplexMatrix<float>> fk, fd;
+            keeps.forward(w, 1.0, fk);
+            drops.forward(w, 1.0, fd);
+            ASSERT_TRUE(fk[0] == fd[0]);
+            detail::FieldGradient gk, gd;
+            keeps.adjoint(w, 1.0, b, gk);
+            drops.adjoint(w, 1.0, b, gd);
+            EXPECT_EQ(gk.weight, gd.weight);
+            EXPECT_EQ(gk.shift_x, gd.shift_x);
+            EXPECT_EQ(gk.shift_y, gd.shift_y);
+            keeps.release_tables(true);
+            drops.release_tables(false);
+            // Kept: at least the tables' n × (rows + columns) complex doubles are counted.
+            EXPECT_GE(detail::kept_phase_bytes(), before + std::size_t(2 * n) * sizeof(std::complex<double>));
+            EXPECT_LE(detail::kept_phase_bytes(), detail::k_kept_phase_bytes);
+        }
+        keeps.release_tables(false);  // dropped: returned to the budget
+        EXPECT_EQ(detail::kept_phase_bytes(), before);
+        std::vector<detail::ComplexMatrix<float>> f;
+        keeps.forward(w, 1.0, f);
+        keeps.release_tables(true);
+        EXPECT_GT(detail::kept_phase_bytes(), before);
+    }
+    EXPECT_EQ(detail::kept_phase_bytes(), before);  // the engine's destructor returned them
+}
+
 // The separable and FFT paths' gradients (tight tolerance) equal the direct path's, and match
 // central differences of their own slices.
 TEST(C3Nodes, GradientMatchesDirectPathAndFiniteDifferences) {

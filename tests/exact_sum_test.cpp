@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 #include <random>
 #include <stdexcept>
@@ -139,6 +140,45 @@ TEST(ExactSum, BoxesTakeTheirValuesAndZeroTheScratch) {
     sum.take_range(scratch.data(), 6, 2);
     EXPECT_EQ(scratch[7], 0.0);
     EXPECT_EQ(sum.value(7), 2.0);
+}
+
+// take_box converts runs of consecutive columns in blocks: the same integer sums as adding each
+// value alone, for small terms, terms beyond the blocks' fast range (2^62 after scaling), zeros,
+// a run split by a wrap and several blocks per run; a NaN or infinity inside a run is refused.
+TEST(ExactSum, BoxRunsGiveTheSameWordsAsOneValueAtATime) {
+    const std::size_t grid_cols = 300;
+    std::vector<int> cols;
+    for (int c = 150; c < 300; ++c) cols.push_back(c);  // a run of 150 (three blocks at width 1)
+    for (int c = 0; c < 70; ++c) cols.push_back(c);     // wrapped: a second run
+    const std::vector<int> rows{2, 0};
+    for (int width : {1, 2}) {
+        SCOPED_TRACE(width);
+        const std::size_t n = std::size_t(width) * 3 * grid_cols;
+        std::vector<double> scratch(n, 0.0);
+        ExactVector boxed(n), single(n);
+        std::uint64_t state = 12345;
+        for (int round = 0; round < 3; ++round) {
+            for (int r : rows)
+                for (int c : cols)
+                    for (int e = 0; e < width; ++e) {
+                        state = state * 6364136223846793005ull + 1442695040888963407ull;
+                        const double u = double(state >> 11) * 0x1p-53 - 0.5;
+                        const std::size_t k = (std::size_t(r) * grid_cols + std::size_t(c)) * std::size_t(width) +
+                                              std::size_t(e);
+                        // Mostly small, some zeros, and a few above 2^62 · 2^-72 (the per-value path).
+                        scratch[k] = c % 17 == 0 ? 0.0 : (c % 41 == 3 ? 50.0 * u : 1e-6 * u);
+                        single.add(k, scratch[k]);
+                    }
+            boxed.take_box(scratch.data(), rows, cols, grid_cols, width);
+            EXPECT_TRUE(std::all_of(scratch.begin(), scratch.end(), [](double x) { return x == 0.0; }));
+        }
+        for (std::size_t k = 0; k < n; ++k) ASSERT_TRUE(boxed.word(k) == single.word(k)) << k;
+        for (double bad : {std::nan(""), HUGE_VAL}) {
+            scratch[std::size_t(width) * 200] = bad;  // row 0, column 200: inside the first run
+            EXPECT_THROW(boxed.take_box(scratch.data(), {0}, cols, grid_cols, width), std::overflow_error);
+            std::fill(scratch.begin(), scratch.end(), 0.0);
+        }
+    }
 }
 
 TEST(ExactSum, ParallelSumIsIndependentOfTheThreadCountAndChecksTheBox) {

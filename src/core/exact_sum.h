@@ -215,8 +215,35 @@ private:
     void take_row(double* scratch, int r, const std::vector<int>& cols, std::size_t grid_cols, int width) {
         const std::size_t w = std::size_t(width);
         const std::size_t row = std::size_t(r) * grid_cols;
-        for (int c : cols)
-            for (std::size_t e = 0; e < w; ++e) take(scratch, (row + std::size_t(c)) * w + e);
+        // Runs of consecutive columns are contiguous in the scratch: taken in blocks.
+        const std::size_t n = cols.size();
+        for (std::size_t j = 0; j < n;) {
+            std::size_t end = j + 1;
+            while (end < n && cols[end] == cols[end - 1] + 1) ++end;
+            take_run(scratch, (row + std::size_t(cols[j])) * w, (end - j) * w);
+            j = end;
+        }
+    }
+    // take() for scratch[first … first + count), the same sums: where every value of a block is
+    // below 2^62 after scaling (almost always), its fixed-point integers are formed in one
+    // vectorisable pass and added (adding a zero term changes no sum); otherwise per value.
+    void take_run(double* scratch, std::size_t first, std::size_t count) {
+        constexpr std::size_t kBlock = 64;
+        double* v = scratch + first;
+        Word* sum = m_sum.data() + first;
+        std::int64_t fixed[kBlock];
+        for (std::size_t b = 0; b < count; b += kBlock) {
+            const std::size_t len = std::min(kBlock, count - b);
+            bool small = true;  // false for a large, NaN or infinite value
+            for (std::size_t k = 0; k < len; ++k) small &= std::abs(v[b + k] * m_scale) < 0x1p62;
+            if (!small) {  // the general path (it refuses NaN, infinities and too large terms)
+                for (std::size_t k = 0; k < len; ++k) take(scratch, first + b + k);
+                continue;
+            }
+            for (std::size_t k = 0; k < len; ++k) fixed[k] = static_cast<std::int64_t>(std::rint(v[b + k] * m_scale));
+            for (std::size_t k = 0; k < len; ++k) sum[b + k] = checked_add(sum[b + k], Word(fixed[k]));
+            std::fill(v + b, v + b + len, 0.0);
+        }
     }
 
     std::vector<Word> m_sum;

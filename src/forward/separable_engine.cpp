@@ -7,6 +7,7 @@
 #include "forward/separable_engine.h"
 
 #include <algorithm>
+#include <atomic>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -42,7 +43,66 @@ void check_cotangents(const std::vector<ComplexMatrix<Float>>& cotangents, std::
                                         "; expected the slice's " + std::to_string(n) + "x" + std::to_string(n));
 }
 
+std::atomic<std::size_t>& phase_budget_used() {
+    static std::atomic<std::size_t> used{0};
+    return used;
+}
+
+std::size_t table_bytes(const PhaseTables& t) {
+    return std::size_t(t.phase_x.size() + t.phase_y.size()) * sizeof(std::complex<double>) +
+           (t.slot_x.size() + t.slot_y.size()) * sizeof(int);
+}
+
 }  // namespace
+
+std::size_t kept_phase_bytes() { return phase_budget_used().load(); }
+
+void build_planar_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
+                          double lambda_um, double shift_scale, Eigen::Index k0, Eigen::Index count,
+                          PlanarFactors& xs, PlanarFactors& ys) {
+    const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
+    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;  // 2π²σ²
+    const double shift = shift_scale * 2.0 / lambda_um;
+    const double du = 2.0 / (double(n) * lambda_um);  // slice_omega's spacing / λ
+    RegionGuard guard;
+#pragma omp parallel if (worth_parallel(static_cast <long long>(count) * n))
+    {
+        std::vector<double> gx, gy;
+        guard.run([&] {
+            gx.resize(static_cast<std::size_t>(n));
+            gy.resize(static_cast<std::size_t>(n));
+        });
+#pragma omp for schedule(static)
+        for (Eigen::Index c = 0; c < count; ++c)
+            guard.run([&] {
+                const std::size_t idx = static_cast<std::size_t>(k0 + c);
+                gaussian_samples(gauss, grid.ux[0] + shift * k.slope_x[idx], du, n, gx.data());
+                gaussian_samples(gauss, grid.uy[0] + shift * k.slope_y[idx], du, n, gy.data());
+                // As build_factors: Complex(g · phase) rounds each part of the double product.
+                const double* px = reinterpret_cast<const double*>(&phases.phase_x(0, phases.slot_x[idx]));
+                const double* py = reinterpret_cast<const double*>(&phases.phase_y(0, phases.slot_y[idx]));
+                float* xr = &xs.re(0, c);
+                float* xi = &xs.im(0, c);
+                float* xsum = &xs.sum(0, c);
+                float* yr = &ys.re(0, c);
+                float* yi = &ys.im(0, c);
+                float* ysum = &ys.sum(0, c);
+                for (Eigen::Index p = 0; p < n; ++p) {
+                    const double g = gx[static_cast<std::size_t>(p)];
+                    xr[p] = float(g * px[2 * p]);
+                    xi[p] = float(g * px[2 * p + 1]);
+                    xsum[p] = xr[p] + xi[p];
+                }
+                for (Eigen::Index p = 0; p < n; ++p) {
+                    const double g = gy[static_cast<std::size_t>(p)];
+                    yr[p] = float(g * py[2 * p]);
+                    yi[p] = float(g * py[2 * p + 1]);
+                    ysum[p] = yr[p] + yi[p];
+                }
+            });
+    }
+    guard.rethrow();
+}
 
 template <typename Float>
 SeparableEngine<Float>::SeparableEngine(const FootprintKernels& kernels, const SliceGrid& grid, double lambda_um, int n)
@@ -55,8 +115,26 @@ const PhaseTables& SeparableEngine<Float>::phases() {
 }
 
 template <typename Float>
-void SeparableEngine<Float>::release_tables() {
-    m_phases.reset();
+SeparableEngine<Float>::~SeparableEngine() {
+    if (m_counted_phase_bytes) phase_budget_used().fetch_sub(m_counted_phase_bytes);
+}
+
+template <typename Float>
+void SeparableEngine<Float>::release_tables(bool keep_phases) {
+    if (m_phases && !m_counted_phase_bytes && keep_phases) {
+        // Admitted when the budget has room (engines release on several threads at once).
+        const std::size_t bytes = table_bytes(*m_phases);
+        const std::size_t before = phase_budget_used().fetch_add(bytes);
+        if (before + bytes <= k_kept_phase_bytes)
+            m_counted_phase_bytes = bytes;
+        else
+            phase_budget_used().fetch_sub(bytes);
+    }
+    if (!keep_phases || !m_counted_phase_bytes) {
+        if (m_counted_phase_bytes) phase_budget_used().fetch_sub(m_counted_phase_bytes);
+        m_counted_phase_bytes = 0;
+        m_phases.reset();
+    }
     m_kept.clear();
     m_kept_bytes = 0.0;
     m_kept_slope_x = std::vector<double>();
@@ -119,8 +197,6 @@ void SeparableEngine<Float>::keep(double shift_scale, PlanarFactors& px, PlanarF
 template <typename Float>
 void SeparableEngine<Float>::PlanarChunk::reserve(Eigen::Index rows, Eigen::Index cols) {
     if (cached) return;
-    built_x.resize(rows, cols);
-    built_y.resize(rows, cols);
     planar_x.resize(rows, cols);
     planar_y.resize(rows, cols);
 }
@@ -129,10 +205,8 @@ template <typename Float>
 Eigen::Index SeparableEngine<Float>::load_chunk(double shift_scale, Eigen::Index k0, Eigen::Index count,
                                                 PlanarChunk& chunk) {
     if (chunk.cached) return k0;
-    build_factors<float>(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, chunk.built_x,
-                         chunk.built_y);
-    chunk.planar_x.assign(chunk.built_x, count);
-    chunk.planar_y.assign(chunk.built_y, count);
+    build_planar_factors(m_kernels, m_grid, phases(), m_lambda_um, shift_scale, k0, count, chunk.planar_x,
+                         chunk.planar_y);
     return 0;
 }
 
@@ -293,7 +367,7 @@ void SeparableEngine<Float>::forward_planar(const KernelWeights& weights, double
         Eigen::MatrixXf fr, fi, scratch;
         allocating(
             "the " + size + " slice's factor matrices",
-            (cached ? 1.5 : 7.5) * double(n) * double(cols) * sizeof(Complex) + 3.0 * double(n) * n * sizeof(float),
+            (cached ? 1.5 : 4.5) * double(n) * double(cols) * sizeof(Complex) + 3.0 * double(n) * n * sizeof(float),
             [&] {
                 factors.reserve(n, cols);
                 yw.resize(n, cols);
@@ -373,7 +447,7 @@ void SeparableEngine<Float>::adjoint_planar(const KernelWeights& weights, double
         Eigen::MatrixXf zr, zi, vr, vi, scratch;
         allocating(
             "the " + std::to_string(n) + "x" + std::to_string(n) + " slice's adjoint factor matrices",
-            (cached ? 2.5 : 7.5) * double(n) * double(cols) * sizeof(Complex) + 1.5 * double(n) * n * sizeof(Complex),
+            (cached ? 2.5 : 5.5) * double(n) * double(cols) * sizeof(Complex) + 1.5 * double(n) * n * sizeof(Complex),
             [&] {
                 factors.reserve(n, cols);
                 b.resize(n, n);

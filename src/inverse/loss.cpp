@@ -60,25 +60,27 @@ double tone_mapped_mse(const char* function, const std::vector<double>& estimate
 }
 
 // Shared body of loss_value: `residual(e, r)` is the per-value difference whose square is
-// summed, `derivative(e, r, d)` is ∂(d²)/∂e. The value and the gradient are two separate loops
-// so that the value is bit-for-bit the same whether or not the gradient is asked for (one
-// fused loop lets the compiler contract and vectorise the sum differently in each case).
+// summed, `derivative(e, r, d)` is ∂(d²)/∂e. The residuals are computed once, in a loop of
+// their own (no sum in it, so it vectorises: the square roots and divisions of the amplitude
+// loss), into the gradient's storage or a per-thread scratch; then the sum in index order and
+// the gradient from the stored residuals. The same code runs whether or not the gradient is
+// asked for, so the value is bit-for-bit the same either way (and the same as the earlier
+// form, which computed each residual twice).
 template <typename Ref, typename Residual, typename Derivative>
 double mean_over_pixels(const std::vector<double>& estimate, const std::vector<Ref>& reference, double inv_pixels,
                         std::vector<double>* gradient, Residual residual, Derivative derivative) {
     const std::size_t n = estimate.size();
+    thread_local std::vector<double> scratch;
+    std::vector<double>& d = gradient ? *gradient : scratch;
+    d.resize(n);
+    const double* e = estimate.data();
+    const Ref* r = reference.data();
+    double* out = d.data();
+    for (std::size_t i = 0; i < n; ++i) out[i] = residual(e[i], double(r[i]));
     double sum = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
-        const double d = residual(estimate[i], reference[i]);
-        sum += d * d;
-    }
-    if (gradient) {
-        gradient->resize(n);
-        for (std::size_t i = 0; i < n; ++i) {
-            const double d = residual(estimate[i], reference[i]);
-            (*gradient)[i] = derivative(estimate[i], reference[i], d) * inv_pixels;
-        }
-    }
+    for (std::size_t i = 0; i < n; ++i) sum += out[i] * out[i];
+    if (gradient)
+        for (std::size_t i = 0; i < n; ++i) out[i] = derivative(e[i], double(r[i]), out[i]) * inv_pixels;
     return sum * inv_pixels;
 }
 

@@ -214,14 +214,22 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
                 for (int c = 0; c < channels; ++c) {
                     const Eigen::MatrixXf m = blur * channel_of(f, n, channels, c) * blur.transpose();
                     Eigen::MatrixXf dm(n, n);
-                    for (int p = 0; p < n; ++p)
-                        for (int q = 0; q < n; ++q) {
+                    // Per pixel in storage order (columns: the square roots and divisions
+                    // vectorise), the differences kept; then their squares summed in the
+                    // original row order, so the loss is the same bits as one fused loop.
+                    thread_local Eigen::MatrixXd diffs;
+                    diffs.resize(n, n);
+                    const Eigen::MatrixXd& sqrt_reference = d.sqrt_reference[std::size_t(c)];
+                    for (int q = 0; q < n; ++q)
+                        for (int p = 0; p < n; ++p) {
                             const double mpq = double(m(p, q));
                             const double a = std::sqrt(std::max(mpq, 0.0) + 1e-300);
-                            const double diff = root_exposure * a - d.sqrt_reference[std::size_t(c)](p, q);
-                            v += diff * diff;
+                            const double diff = root_exposure * a - sqrt_reference(p, q);
+                            diffs(p, q) = diff;
                             dm(p, q) = mpq > 0.0 ? float(inv_total * diff * root_exposure / a) : 0.0f;
                         }
+                    for (int p = 0; p < n; ++p)
+                        for (int q = 0; q < n; ++q) v += diffs(p, q) * diffs(p, q);
                     const Eigen::MatrixXf w = blur.transpose() * dm * blur;
                     for (int p = 0; p < n; ++p)
                         for (int q = 0; q < n; ++q) {
