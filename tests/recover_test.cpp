@@ -510,6 +510,54 @@ TEST(FitBlurred, FindsTheShapeFromFlat) {
     EXPECT_THROW(fit_blurred(c.observations, flat, s), std::domain_error);
 }
 
+// BlurredFitSettings::width_iterations caps each width's stage on its own (0 skips the width), and
+// the stall rule stops a width once its loss fell by less than stall_tolerance of its value over
+// stall_window iterations (a tolerance of 1e6 is met at the first chance: window + 1 iterations);
+// the stopped fit still finds the shape (the bound of FindsTheShapeFromFlat). Bad values refused.
+TEST(FitBlurred, WidthIterationsAndTheStallRuleStopEachWidth) {
+    const SmallCase c = small_case(23);
+    const Heightfield flat(12, 12, std::vector<double>(144, 0.0), 2.0);
+    BlurredFitSettings s;
+    s.blur_widths = {12.0, 8.0, 4.0};
+    s.iterations = 12;
+    const auto per_stage = [&](const BlurredFitSettings& settings, Heightfield* out) {
+        std::map<int, int> calls;
+        *out = fit_blurred(c.observations, flat, settings, [&](int stage, int, double) {
+            ++calls[stage];
+            return true;
+        });
+        return calls;
+    };
+    Heightfield all, capped, stalled;
+    EXPECT_EQ(per_stage(s, &all), (std::map<int, int>{{0, 12}, {1, 12}, {2, 12}}));
+    BlurredFitSettings c2 = s;
+    c2.width_iterations = {12, 0, 5};
+    EXPECT_EQ(per_stage(c2, &capped), (std::map<int, int>{{0, 12}, {2, 5}}));
+    EXPECT_NE(all.values(), capped.values());
+    BlurredFitSettings c3 = s;
+    c3.stall_window = 3;
+    c3.stall_tolerance = 1e6;
+    EXPECT_EQ(per_stage(c3, &stalled), (std::map<int, int>{{0, 4}, {1, 4}, {2, 4}}));
+    EXPECT_LT(height_rel_rmse(stalled, c.truth), 0.4 * height_rel_rmse(flat, c.truth));
+    // A tolerance of 0 never stops a falling loss: the same bits as without the rule.
+    BlurredFitSettings c4 = s;
+    c4.stall_window = 3;
+    Heightfield zero;
+    EXPECT_EQ(per_stage(c4, &zero), (std::map<int, int>{{0, 12}, {1, 12}, {2, 12}}));
+    EXPECT_EQ(zero.values(), all.values());
+    BlurredFitSettings bad = s;
+    bad.width_iterations = {1, 2};
+    EXPECT_THROW(fit_blurred(c.observations, flat, bad), std::invalid_argument);
+    bad.width_iterations = {1, -1, 2};
+    EXPECT_THROW(fit_blurred(c.observations, flat, bad), std::domain_error);
+    bad = s;
+    bad.stall_window = -1;
+    EXPECT_THROW(fit_blurred(c.observations, flat, bad), std::domain_error);
+    bad = s;
+    bad.stall_tolerance = std::nan("");
+    EXPECT_THROW(fit_blurred(c.observations, flat, bad), std::domain_error);
+}
+
 // The blurred fit and the refinement hold no more memory at their last iteration than at their
 // third (only the L-BFGS history, 2·history vectors of rows·cols doubles, may still fill), and
 // the refinement's plans, kept between iterations, stay light: under 16 KB per observation
@@ -692,6 +740,49 @@ TEST(RecoverHeights, LadderRelativeToleranceStopsTheRungEarly) {
         RecoverSettings r = s;
         r.refine_ladder_relative_tolerance = bad;
         EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, r), std::domain_error);
+    }
+}
+
+// refine_ladder_stall_window / _tolerance stop a ladder rung once its loss fell by less than the
+// tolerance (a fraction of its value) over the window, for the outlier repair; where nothing is
+// repaired (rounds 0 here) the rung then runs on to its cap without the rule: a tolerance of 1e6
+// stops it at the first chance (window + 1 iterations), so the rung reports all its iterations but
+// restarts L-BFGS there (other heights); a tolerance of 0 never stops a falling loss (the same bits
+// as off). The refinement on every slice still runs its iterations. Out of range: refused.
+TEST(RecoverHeights, LadderStallRuleStopsTheRung) {
+    const SmallCase c = small_case(25);
+    RecoverSettings s = quick_settings();
+    s.refine_iterations = 3;
+    s.refine_ladder_iterations = 8;
+    s.model_check_iterations = 0;
+    s.field_wavelengths = 1;
+    s.refine_ladder_wavelengths = 1;
+    s.outlier_repair_rounds = 0;  // the rung's count alone
+    std::map<std::string, int> full, stalled, never;
+    const Heightfield a = recover_counting_stages(c, s, &full);
+    EXPECT_EQ(full.at("refine:0.6"), 8);
+    RecoverSettings stall = s;
+    stall.refine_ladder_stall_window = 2;
+    stall.refine_ladder_stall_tolerance = 1e6;
+    std::vector<int> iterations;
+    const Heightfield b = recover_heights(c.observations, 12, 12, 2.0, 1.0, stall, [&](const StageMetrics& m) {
+        if (m.stage == "refine:0.6") iterations.push_back(m.iteration);
+        ++stalled[m.stage];
+        return true;
+    });
+    EXPECT_EQ(iterations, (std::vector<int>{1, 2, 3, 4, 5, 6, 7, 8}));  // 3 stalled, then 5 more
+    EXPECT_EQ(stalled.at("refine"), 3);
+    EXPECT_NE(a.values(), b.values());
+    stall.refine_ladder_stall_tolerance = 0.0;
+    const Heightfield d = recover_counting_stages(c, stall, &never);
+    EXPECT_EQ(never, full);
+    EXPECT_EQ(d.values(), a.values());
+    for (const auto& [window, tolerance] :
+         std::vector<std::pair<int, double>>{{-1, 0.01}, {5, -0.1}, {5, std::nan("")}}) {
+        RecoverSettings r = s;
+        r.refine_ladder_stall_window = window;
+        r.refine_ladder_stall_tolerance = tolerance;
+        EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, r), std::invalid_argument);
     }
 }
 

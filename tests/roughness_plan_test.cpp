@@ -361,6 +361,8 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     EXPECT_EQ(settings.field.iterations, 25);
     EXPECT_EQ(settings.refine_ladder_iterations, 40);
     EXPECT_EQ(settings.refine_ladder_relative_tolerance, 1e-8);
+    EXPECT_EQ(settings.refine_ladder_stall_window, 5);
+    EXPECT_EQ(settings.refine_ladder_stall_tolerance, 0.01);
     EXPECT_EQ(settings.refine_iterations, 8);
     EXPECT_EQ(settings.field_lambda_min_um, 0.0);  // counted, not named
     EXPECT_EQ(settings.refine_ladder_min_um, 0.0);
@@ -373,6 +375,7 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
         EXPECT_EQ(s.field.iterations, defaults.field.iterations);
         EXPECT_EQ(s.refine_ladder_iterations, defaults.refine_ladder_iterations);
         EXPECT_EQ(s.refine_iterations, defaults.refine_iterations);
+        EXPECT_EQ(s.refine_ladder_stall_window, defaults.refine_ladder_stall_window);
     };
     RecoverSettings calibrated;
     calibrated.calibrate.sigma = true;

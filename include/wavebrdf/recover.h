@@ -56,6 +56,15 @@ struct BlurredFitSettings {
     // e = Σ R_b / Σ M_b (the ratio of the energies), taken at each blur stage's starting
     // heights and held for the stage.
     bool calibrate_exposure = false;
+    // Per stage (empty, the default: `iterations` for every width; else one count ≥ 0 per blur
+    // width, 0 skipping that width).
+    std::vector<int> width_iterations;
+    // A stage also stops once its loss fell by less than stall_tolerance (a fraction of its value)
+    // over the last stall_window iterations (0, the default: off). The narrow widths' losses
+    // level off (≈ 1 % per 5 iterations near 40) while the wide ones still fall by ≈ 15 %
+    // (docs/recovery.md, Speed, ninth pass).
+    int stall_window = 0;
+    double stall_tolerance = 0.0;
 };
 
 // Heights that match the single-wavelength observations blurred in u (the distribution of
@@ -286,6 +295,14 @@ struct RecoverSettings {
     // to its cap as before. Smooth surfaces up to 64² (the CLI's plan): see
     // apply_smooth_schedule (docs/recovery.md, Speed, seventh pass).
     double refine_ladder_relative_tolerance = 0.0;
+    // A ladder rung also stops once its loss fell by less than refine_ladder_stall_tolerance (a
+    // fraction of its value) over the last refine_ladder_stall_window iterations (0: off, the
+    // default). A rung trapped by a single-texel outlier stalls at a loss ≈ 1e-5 from its ~17th
+    // iteration on while an untrapped one falls by 25–50 % every 5 (docs/recovery.md, Speed, ninth
+    // pass): the repair after the rung (outlier_repair_on_rungs) then comes without the idle
+    // iterations. Smooth surfaces: see apply_smooth_schedule.
+    int refine_ladder_stall_window = 0;
+    double refine_ladder_stall_tolerance = 0.01;
     // Single-texel outliers (docs/recovery.md, Speed, eighth pass): after stage 3 with
     // single-wavelength slices (not white light, not with position calibration), up to this many
     // rounds of: texels farther than outlier_repair_threshold robust deviations (and a quarter of
@@ -300,6 +317,13 @@ struct RecoverSettings {
     // stopped early where loss / loss(flat) falls below refine_ladder_relative_tolerance (the
     // texel's neighbours had bent towards it: 8 iterations left seed 4 at 0.05 %).
     int outlier_repair_iterations = 30;
+    // The same repair after every ladder rung as well (outlier_repair_rounds > 0), judged on the
+    // rung's slices that see the texel (exact data: the true heights minimise any subset's loss),
+    // and where a texel was kept the rung again (its iterations, tolerance and stall rule): the
+    // trap is already there after the rung (docs/recovery.md, Speed, eighth pass), and a rung's
+    // iteration costs a third of one on every slice (ninth pass). The repair after stage 3 still
+    // runs (it flags nothing where the rung's repair worked).
+    bool outlier_repair_on_rungs = true;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     // Stage 3's coarse space (docs/scale.md, "The whole-surface undulation"): levels of periodic

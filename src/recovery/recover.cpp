@@ -554,13 +554,26 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                          settings.refine_coarse_weight > 0.0 ? settings.refine_coarse_weight : 1.0);
         const bool coarse_on = settings.refine_coarse_spacing > 0.0 && coarse.size() > 0;
         const auto refine_heights = [&](int iterations, const std::string& stage = "refine",
-                                        double relative_tolerance = 0.0) {
+                                        double relative_tolerance = 0.0, int stall_window = 0,
+                                        double stall_tolerance = 0.0) {
             // loss / loss(flat) below which the round stops.
             const double stop_below =
                 std::max(settings.refine_relative_tolerance, relative_tolerance) * reference_loss;
             LbfgsOptions round = lo;
             round.max_iterations = iterations;
             const int before = done;
+            // The stall rule (stall_window > 0): the loss fell by less than stall_tolerance of its
+            // value over the last stall_window iterations (the values are every rank's: all agree).
+            std::vector<double> values;
+            bool stalled = false;
+            const auto go_on_at = [&](double value) {
+                values.push_back(value);
+                const std::size_t w = std::size_t(std::max(0, stall_window));
+                if (w > 0 && values.size() > w && values[values.size() - 1 - w] - value < stall_tolerance * value &&
+                    value > stop_below)
+                    stalled = true;
+                return !stalled && value > stop_below;
+            };
             if (coarse_on && settings.refine_coarse_weight > 0.0) {
                 // L-BFGS on z = (x, c), h = x + B c.
                 std::vector<double> z(h.size() + coarse.size(), 0.0);
@@ -570,7 +583,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                     h = detail::coarse_heights(z, coarse);
                     const Heightfield current = flat.with_values(h);
                     if (!report(stage, done, value, &current)) return go_on = false;
-                    return value > stop_below;
+                    return go_on_at(value);
                 });
                 h = detail::coarse_heights(z, coarse);
             } else {
@@ -578,7 +591,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                     done = before + it;
                     const Heightfield current = flat.with_values(h);
                     if (!report(stage, done, value, &current)) return go_on = false;
-                    return value > stop_below;
+                    return go_on_at(value);
                 });
             }
             if (coarse_on && settings.refine_coarse_iterations > 0 && go_on && !stopped) {
@@ -597,6 +610,35 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 h = h0;
                 coarse.apply(c.data(), h);
             }
+            return stalled;  // stopped by the stall rule
+        };
+        // Single-texel outliers (outlier_repair.h): each flagged texel judged on the slices that see
+        // it (its gradient box) among `within` (a ladder rung's; empty: every slice), through the
+        // objective with the `active` mask (a local loss, collective); `active` is `within` after.
+        const auto repair_outliers = [&](const std::vector<char>& within) {
+            detail::OutlierRepairCounts counts;
+            std::vector<double> wraps;  // λ/2 of every rank's wavelengths, value units
+            for (const auto& entry : by_lambda) wraps.push_back(0.5 * entry.first / std::abs(vscale * texel_um));
+            if (wraps.empty()) return counts;
+            std::vector<double> no_g;
+            const auto local_loss = [&](const std::vector<double>& x, std::size_t texel) {
+                const int r = int(texel / std::size_t(cols)), c = int(texel % std::size_t(cols));
+                active.assign(observations.size(), 0);
+                for (std::size_t i = 0; i < observations.size(); ++i)
+                    active[i] = (within.empty() || within[i]) &&
+                                (!plans[i] || (std::binary_search(box_rows[i].begin(), box_rows[i].end(), r) &&
+                                               std::binary_search(box_cols[i].begin(), box_cols[i].end(), c)));
+                return objective(x, no_g);
+            };
+            const double min_residual = 0.25 * *std::min_element(wraps.begin(), wraps.end());
+            counts = detail::repair_outlier_texels(h, rows, cols, settings.outlier_repair_threshold, min_residual,
+                                                   std::max(16, rows * cols / 256), wraps, local_loss);
+            active = within;
+            if (counts.flagged > 0) {
+                const Heightfield current = flat.with_values(h);
+                if (!report("repair:outliers", counts.kept, double(counts.flagged), &current)) go_on = false;
+            }
+            return counts;
         };
         // The wavelength ladder (rough surfaces): a round on the slices at wavelengths ≥ each rung,
         // longest first, each from the last ("refine:λ" in the metrics), then every observation.
@@ -612,7 +654,25 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 char name[48];
                 std::snprintf(name, sizeof name, "refine:%g", it->first);
                 done = 0;
-                refine_heights(settings.refine_ladder_iterations, name, settings.refine_ladder_relative_tolerance);
+                int rung_start = 0;  // `done` where the last round of the rung began
+                const auto rung = [&](int iterations, int stall_window) {
+                    rung_start = done;
+                    return refine_heights(iterations, name, settings.refine_ladder_relative_tolerance, stall_window,
+                                          settings.refine_ladder_stall_tolerance);
+                };
+                bool stalled = rung(settings.refine_ladder_iterations, settings.refine_ladder_stall_window);
+                // The outlier repair on the rung's slices, then the rung again where a texel was kept.
+                for (int round = 0; settings.outlier_repair_on_rungs && go_on && !stopped &&
+                                    round < settings.outlier_repair_rounds;
+                     ++round) {
+                    const std::vector<char> within = active;
+                    if (repair_outliers(within).kept == 0 || !go_on || stopped) break;
+                    stalled = rung(settings.refine_ladder_iterations, settings.refine_ladder_stall_window);
+                }
+                // A stall that no repair answered: the rung runs on to its cap, without the rule (the
+                // stall was the loss's own pace, not a trapped texel).
+                const int left = settings.refine_ladder_iterations - (done - rung_start);
+                if (stalled && left > 0 && go_on && !stopped) rung(left, 0);
             }
             active.clear();
             done = 0;
@@ -649,31 +709,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             smooth_weight = 0.0;
             refine_heights(settings.refine_iterations);
         }
-        // Single-texel outliers (outlier_repair.h): each flagged texel judged on the slices that see
-        // it (its gradient box: a local loss, collective), then stage 3's last iterations again.
+        // Single-texel outliers after stage 3 (every slice), then stage 3's last iterations again.
         for (int round = 0; !white && go_on && !stopped && round < settings.outlier_repair_rounds; ++round) {
-            std::vector<double> wraps;  // λ/2 of every rank's wavelengths, value units
-            for (const auto& entry : by_lambda) wraps.push_back(0.5 * entry.first / std::abs(vscale * texel_um));
-            if (wraps.empty()) break;
-            std::vector<double> no_g;
-            const auto local_loss = [&](const std::vector<double>& x, std::size_t texel) {
-                const int r = int(texel / std::size_t(cols)), c = int(texel % std::size_t(cols));
-                active.assign(observations.size(), 0);
-                for (std::size_t i = 0; i < observations.size(); ++i)
-                    active[i] = !plans[i] || (std::binary_search(box_rows[i].begin(), box_rows[i].end(), r) &&
-                                              std::binary_search(box_cols[i].begin(), box_cols[i].end(), c));
-                const double value = objective(x, no_g);
-                active.clear();
-                return value;
-            };
-            const double min_residual = 0.25 * *std::min_element(wraps.begin(), wraps.end());
-            const detail::OutlierRepairCounts counts = detail::repair_outlier_texels(
-                h, rows, cols, settings.outlier_repair_threshold, min_residual, std::max(16, rows * cols / 256), wraps,
-                local_loss);
-            if (counts.flagged == 0) break;
-            const Heightfield current = flat.with_values(h);
-            if (!report("repair:outliers", counts.kept, double(counts.flagged), &current)) break;
-            if (counts.kept == 0) break;
+            const detail::OutlierRepairCounts counts = repair_outliers({});
+            if (counts.flagged == 0 || counts.kept == 0 || !go_on || stopped) break;
             refine_heights(settings.outlier_repair_iterations > 0 ? settings.outlier_repair_iterations
                                                                   : settings.refine_iterations,
                            "refine", settings.refine_ladder_relative_tolerance);
@@ -810,6 +849,12 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::domain_error("recover_heights: refine_ladder_relative_tolerance " +
                                 std::to_string(settings.refine_ladder_relative_tolerance) +
                                 " is invalid; expected 0 (off) to below 1");
+    if (settings.refine_ladder_stall_window < 0 ||
+        !(std::isfinite(settings.refine_ladder_stall_tolerance) && settings.refine_ladder_stall_tolerance >= 0.0))
+        throw std::invalid_argument("recover_heights: refine ladder stall window " +
+                                    std::to_string(settings.refine_ladder_stall_window) + " / tolerance " +
+                                    std::to_string(settings.refine_ladder_stall_tolerance) +
+                                    " is invalid; expected >= 0 (0: off) / a finite value >= 0");
     validate_iterations(settings.outlier_repair_iterations, "recover_heights: outlier repair iterations");
     if (settings.outlier_repair_rounds < 0 || settings.outlier_repair_rounds > 100 ||
         !(settings.outlier_repair_threshold > 0.0 && std::isfinite(settings.outlier_repair_threshold)))

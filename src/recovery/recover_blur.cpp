@@ -83,6 +83,15 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
     if (settings.iterations < 0 || settings.history < 1)
         throw std::domain_error("fit_blurred: iterations " + std::to_string(settings.iterations) + " / history " +
                                 std::to_string(settings.history) + " invalid; expected >= 0 / >= 1");
+    if (!settings.width_iterations.empty() && settings.width_iterations.size() != settings.blur_widths.size())
+        throw std::invalid_argument("fit_blurred: " + std::to_string(settings.width_iterations.size()) +
+                                    " width iterations for " + std::to_string(settings.blur_widths.size()) +
+                                    " blur widths; expected one per width (or none)");
+    for (int k : settings.width_iterations)
+        if (k < 0) throw std::domain_error("fit_blurred: width iterations " + std::to_string(k) + "; expected >= 0");
+    if (settings.stall_window < 0 || !(settings.stall_tolerance >= 0.0 && std::isfinite(settings.stall_tolerance)))
+        throw std::domain_error("fit_blurred: stall window " + std::to_string(settings.stall_window) + " / tolerance " +
+                                std::to_string(settings.stall_tolerance) + " invalid; expected >= 0 / finite >= 0");
     for (double b : settings.blur_widths)
         if (!(b > 0.0) || !std::isfinite(b))
             throw std::domain_error("fit_blurred: blur width " + std::to_string(b) + " is invalid; expected > 0");
@@ -119,6 +128,9 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
 
     std::vector<double> h = initial.values();
     for (std::size_t stage = 0; stage < settings.blur_widths.size(); ++stage) {
+        const int stage_iterations = settings.width_iterations.empty() ? settings.iterations
+                                                                       : settings.width_iterations[stage];
+        if (stage_iterations == 0) continue;
         // Per observation: its blur matrix (shared by every observation of the same resolution,
         // wavelength and blur width) and the square root of its blurred reference.
         struct BlurMatrix {
@@ -252,9 +264,10 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         };
         LbfgsOptions lo;
         lo.history = settings.history;
-        lo.max_iterations = settings.iterations;
+        lo.max_iterations = stage_iterations;
         lo.gradient_tolerance = 0.0;
         bool go_on = true;
+        std::vector<double> values;  // the stage's loss after each iteration (every rank's: all agree)
         // L-BFGS takes its steps without curvature pairs as min(1, 1/‖g‖)·(−g): at most 1 in norm.
         // From flat heights the blurred loss is not convex (the pairs are skipped), and on a
         // 64² tile that is 1/64 texel rms per iteration: ~30 of stage 0's 40 iterations crawled
@@ -273,6 +286,10 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         lbfgs_minimize(scaled, x, lo, [&](int it, double value) {
             if (on_iteration && !on_iteration(int(stage), it, value)) go_on = false;
             go_on = !comm.any(!go_on);  // every rank stops at the same iteration
+            values.push_back(value);
+            const std::size_t w = std::size_t(settings.stall_window);
+            if (w > 0 && values.size() > w && values[values.size() - 1 - w] - value < settings.stall_tolerance * value)
+                return false;  // stalled: the next width
             return go_on;
         });
         for (std::size_t k = 0; k < h.size(); ++k) h[k] = x[k] * scale;

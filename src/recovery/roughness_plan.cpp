@@ -47,6 +47,11 @@ constexpr int kSmoothRefineIterations = 8;
 // ≈ 0.27 at 64²) is ~0.005 % of the range off, reached after ~24 of the 40 iterations (seed
 // 10421); with noise the loss stays far above and the rung runs its 40 (seventh pass).
 constexpr double kSmoothLadderRelativeTolerance = 1e-8;
+// The rung's stall rule: stopped where its loss fell by < 1 % over 5 iterations (a rung trapped by
+// a single-texel outlier levels off at ≈ 1e-5 from its ~17th iteration; untrapped rungs fall by
+// 25–50 % every 5), so the outlier repair after the rung comes early (ninth pass).
+constexpr int kSmoothLadderStallWindow = 5;
+constexpr double kSmoothLadderStallTolerance = 0.01;
 
 std::string fixed(double v, int digits) {
     char buf[48];
@@ -140,6 +145,8 @@ void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, Recove
     settings.refine_ladder_iterations = kSmoothLadderIterations;
     settings.refine_ladder_relative_tolerance = kSmoothLadderRelativeTolerance;
     settings.refine_iterations = kSmoothRefineIterations;
+    settings.refine_ladder_stall_window = kSmoothLadderStallWindow;
+    settings.refine_ladder_stall_tolerance = kSmoothLadderStallTolerance;
 }
 
 int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition) {
