@@ -522,6 +522,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 const double step = next.empty() ? 0.0 : std::sqrt(step_sq / double(next.size())) / estimate.texel_um();
                 if (!report("positions:extrapolate", outer + 1, step, &estimate)) return estimate;
             }
+            const std::vector<double> fed_to_pass = offsets_um;  // before the field stage corrects them
             if (!white && settings.position_outer_fields) {
                 lambdas.clear();
                 fields.clear();
@@ -532,9 +533,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report("unwrap", outer + 1, 0.0, &estimate)) return estimate;
                 unwrapped = estimate;
             }
-            estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate,
-                                                            later, report, comm, offsets, offsets_um, &exposures,
-                                                            &sigma_scale, &position_offsets);
+            estimate = detail::refine_heights_and_positions(
+                observations, observations_total, flat, estimate, later, report, comm, offsets, offsets_um, &exposures,
+                &sigma_scale, &position_offsets, hooks.refine_smooth_from_fed ? &fed_to_pass : nullptr);
             if (stopped) return estimate;
         }
         refined_offsets = offsets;

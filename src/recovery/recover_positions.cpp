@@ -168,7 +168,8 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um,
                                          std::vector<double>* exposures_out, double* sigma_scale,
-                                         std::vector<double>* position_offsets_out) {
+                                         std::vector<double>* position_offsets_out,
+                                         const std::vector<double>* gauge_reference_um) {
     std::vector<std::size_t> index;
     const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
     const std::size_t cells = estimate.values().size(), count = positions.size();
@@ -271,7 +272,12 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
     // Round 9 (study hook, off by default): the smooth part of the offsets' change since the
     // stage's start removed, the heights warped through it (recover_positions.h).
     const PositionStudyHooks hooks = position_study_hooks();
-    const std::vector<double> start_offsets = offsets_from(x, cells, count, texel_um);
+    std::vector<double> start_offsets = offsets_from(x, cells, count, texel_um);
+    if (gauge_reference_um && gauge_reference_um->size() == 2 * count) {
+        std::vector<double> reference(cells + 2 * count, 0.0);
+        for (std::size_t k = 0; k < 2 * count; ++k) reference[cells + k] = (*gauge_reference_um)[k] / texel_um;
+        start_offsets = offsets_from(reference, cells, count, texel_um);
+    }
     const auto smooth_gauge = [&] {
         const std::vector<double> off = offsets_from(x, cells, count, texel_um);
         std::vector<double> change(off.size());

@@ -92,6 +92,8 @@ Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& d
 //     every refine_smooth_chunk L-BFGS iterations (0: once, at the end), warping the heights
 //     through it (warp_heights) so that heights and offsets describe the same surface; L-BFGS
 //     restarts after each removal.
+//   refine_smooth_from_fed: in the outer loop's later passes the change is measured from the
+//     positions fed to the pass (the registration's), so the field stage's change counts too;
 //   outer_anderson ≥ 1: the outer loop's positions fed to the next pass are Anderson-mixed (depth
 //     outer_anderson) over the passes' fixed-point map x → registration after the pass from x;
 //   outer_momentum > 0 (without Anderson): x_next = r + momentum · (r − r_previous);
@@ -99,6 +101,7 @@ Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& d
 struct PositionStudyHooks {
     int refine_smooth_nodes = 0;
     int refine_smooth_chunk = 0;
+    bool refine_smooth_from_fed = false;  // later passes: the change since the registration
     int outer_anderson = 0;
     double outer_momentum = 0.0;
     double outer_step_cap_texels = 1.0;
@@ -123,13 +126,16 @@ int position_outer_smooth_nodes();
 // scale is refined as well, in the rounds of calibration_detail.h's refine_sigma_scale (a
 // golden-section search from *sigma_scale at fixed heights and offsets, then L-BFGS on both),
 // and *sigma_scale receives it. position_offsets_out (when given) receives the offsets per
-// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them.
+// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them. gauge_reference_um
+// (when given, 2 per position): the offsets the round-9 gauge measures the change from (default:
+// the start's).
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {},
                                          std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr,
-                                         std::vector<double>* position_offsets_out = nullptr);
+                                         std::vector<double>* position_offsets_out = nullptr,
+                                         const std::vector<double>* gauge_reference_um = nullptr);
 
 }  // namespace wavebrdf::detail
