@@ -386,7 +386,7 @@ void smooth_basis(const double t_in[2], int nodes, double* b) {
 std::array<double, 2> SmoothDisplacement::at(double x_um, double y_um) const {
     if (nodes < 1) return {0.0, 0.0};
     const int m = nodes == 1 ? 3 : nodes * nodes;
-    std::vector<double> b(std::size_t(m));
+    std::vector<double> b(static_cast<std::size_t>(m), 0.0);
     const double p[2] = {x_um, y_um};
     double t[2];
     for (int d = 0; d < 2; ++d) t[d] = hi_um[d] > lo_um[d] ? (p[d] - lo_um[d]) / (hi_um[d] - lo_um[d]) : 0.0;
