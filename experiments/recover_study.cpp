@@ -23,6 +23,11 @@
 //     line: the error on the inner texels with the best-fit translation / 6 × 6-node warp of the
 //     truth removed, a diagnostic beside rel_rmse); the PROBE lines also give the offsets left
 //     with their best-fit affine / 6 × 6-node part removed
+//     (round 9:) refine_smooth=0 (K ≥ 1: stage 3 removes the smooth part of its offsets' change,
+//     warping the heights through it) refine_smooth_chunk=0 (every N L-BFGS iterations; 0: at the
+//     end) refine_smooth_from_fed=0 (1: later passes measure the change from the registered
+//     positions, the field stage's included) outer_anderson=0 (depth m of Anderson mixing of the outer loop's positions)
+//     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <algorithm>
@@ -344,6 +349,18 @@ int main(int argc, char** argv) try {
     // Round 8: the outer loop removes the smooth part (1: affine, k: k × k nodes) of every
     // registration's update (recover_positions.h).
     detail::set_position_outer_smooth_nodes(args.count("outer_smooth") ? std::stoi(args["outer_smooth"]) : 0);
+    // Round 9: the gauge inside stage 3 (heights warped through the removed smooth part) and the
+    // outer loop's extrapolation (recover_positions.h, PositionStudyHooks).
+    {
+        detail::PositionStudyHooks hooks;
+        set_int("refine_smooth", hooks.refine_smooth_nodes);
+        set_int("refine_smooth_chunk", hooks.refine_smooth_chunk);
+        set_int("outer_anderson", hooks.outer_anderson);
+        hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";
+        if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
+        if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);
+        detail::set_position_study_hooks(hooks);
+    }
     // The field stage's offsets after every correction round against the truth (offsets left,
     // rms over positions and coordinates, means removed, texels): "PROBE round rms".
     if (rs.calibrate.positions && get("probe", "1") == "1") {

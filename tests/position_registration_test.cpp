@@ -242,3 +242,72 @@ TEST(PositionRegistration, SmoothDisplacementRemovesAffineAndNodeFieldsAndKeepsN
     EXPECT_THROW(wavebrdf::detail::remove_smooth_displacement(centres, bad, 1), std::invalid_argument);
     EXPECT_THROW(wavebrdf::detail::remove_smooth_displacement(centres, noise, 0), std::invalid_argument);
 }
+
+// Round 9's gauge (recover_positions.h): the fitted smooth displacement evaluates to what
+// remove_smooth_displacement removes at the centres, and heights warped through a smooth
+// displacement u (warp_heights: h'(μ) = h(μ + u(μ))) seen at offsets moved by −u give slices
+// closer to the original heights' at the original offsets than moving only one of the two does.
+// Only nearly: the warp also strains the heights (slopes × (1 + ∇u)); measured on this 32² tile
+// (64 positions 8 µm apart, a 0.4-texel hat over 56 µm: ≈ 3 % strain) the gauged loss is 0.27 ×
+// the heights-only one and 0.34 × the offsets-only one; on a 12² tile (8 % strain) 0.87 and 3.9 ×
+// (the gauge does not hold there). A warp the wrong way round moves the content by 2u.
+TEST(PositionRegistration, WarpedHeightsAtGaugedOffsetsKeepTheSlices) {
+    const Heightfield truth = test::peak_scaled_surface(32, 8.0, 0.5, 5191);
+    std::vector<Observation> observations;
+    for (int a = 0; a < 8; ++a)
+        for (int b = 0; b < 8; ++b) {
+            Observation o;
+            o.query = test::make_query(Model::OHS, 4.0 + 8.0 * a, 4.0 + 8.0 * b, 3.0);
+            o.lambdas_um = {0.5};
+            o.resolution = 32;
+            o.reference = to_reference(render_observation(truth, o));
+            observations.push_back(std::move(o));
+        }
+    std::vector<std::size_t> index;
+    const std::vector<std::array<double, 2>> centres = detail::gather_positions(observations, index,
+                                                                                serial_communicator());
+    // Bilinear on 3 × 3 nodes with only the middle node set: 0 at the centres' bounding box
+    // (and outside it), so the warp is periodic across the tile's seam.
+    std::vector<double> values(2 * centres.size(), 0.0);
+    detail::SmoothDisplacement u = detail::fit_smooth_displacement(centres, values, 3);
+    ASSERT_EQ(u.coefficients[0].size(), 9u);
+    u.coefficients[0][4] = 0.8;   // µm: 0.4 texel at the middle
+    u.coefficients[1][4] = -0.6;  // µm
+    // fit → at() agrees with remove_smooth_displacement at the centres.
+    for (std::size_t p = 0; p < centres.size(); ++p) {
+        const std::array<double, 2> s = u.at(centres[p][0], centres[p][1]);
+        values[2 * p] = s[0];
+        values[2 * p + 1] = s[1];
+    }
+    std::vector<double> left = values;
+    const std::vector<double> removed = detail::remove_smooth_displacement(centres, left, 3);
+    for (std::size_t k = 0; k < values.size(); ++k) {
+        EXPECT_NEAR(removed[k], values[k], 1e-9);
+        EXPECT_NEAR(left[k], 0.0, 1e-9);
+    }
+    EXPECT_EQ(detail::SmoothDisplacement{}.at(3.0, 4.0)[0], 0.0);  // empty: zero
+    const Heightfield warped = detail::warp_heights(truth, u);
+    const Loss loss = RecoverSettings{}.refine_loss;
+    const auto total = [&](const Heightfield& h, bool moved) {
+        double sum = 0.0;
+        for (const Observation& given : observations) {
+            Observation o = given;
+            if (moved) {
+                const std::array<double, 2> s = u.at(o.query.x_um, o.query.y_um);
+                o.query.x_um -= s[0];
+                o.query.y_um -= s[1];
+            }
+            sum += observation_loss(h, {o}, loss, nullptr);
+        }
+        return sum;
+    };
+    const double gauged = total(warped, true);
+    const double heights_only = total(warped, false);
+    const double offsets_only = total(truth, true);
+    std::printf("losses: gauged %.4e, heights only %.4e, offsets only %.4e\n", gauged, heights_only, offsets_only);
+    EXPECT_LT(gauged, 0.5 * heights_only);
+    EXPECT_LT(gauged, 0.5 * offsets_only);
+    // A zero displacement leaves the heights as they were (bicubic at the samples).
+    const Heightfield same = detail::warp_heights(truth, detail::fit_smooth_displacement(centres, left, 1));
+    for (std::size_t k = 0; k < same.values().size(); ++k) EXPECT_NEAR(same.values()[k], truth.values()[k], 1e-9);
+}

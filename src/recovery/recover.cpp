@@ -429,6 +429,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             std::vector<std::size_t> unused;
             centres = detail::gather_positions(observations, unused, comm);
         }
+        const detail::PositionStudyHooks hooks = detail::position_study_hooks();
+        std::vector<double> fed, previous_result;                        // round 9's extrapolation
+        std::vector<std::vector<double>> fed_history, result_history;  // (x_k, F(x_k)) per pass
         for (int outer = 0; outer < outer_passes; ++outer) {
             detail::call_position_probe(position_offsets);
             const std::vector<double> before = position_offsets;
@@ -449,6 +452,77 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
             if (moved < settings.position_outer_tolerance_texels) break;
             offsets_um = position_offsets;
+            // Round 9 (study hooks, off by default): the positions fed to the next pass
+            // extrapolated over the passes (Anderson mixing or a momentum; recover_positions.h).
+            if (hooks.outer_anderson > 0 || hooks.outer_momentum > 0.0) {
+                std::vector<double> next = position_offsets;
+                if (!fed.empty()) {  // a pass from fed gave position_offsets: one history pair
+                    fed_history.push_back(fed);
+                    result_history.push_back(position_offsets);
+                }
+                if (hooks.outer_anderson > 0 && result_history.size() >= 2) {
+                    // Type II: γ = argmin ‖f_k − ΔF γ‖, x = g_k − ΔG γ (f = g − x, depth m).
+                    const std::size_t h = result_history.size();
+                    const std::size_t m = std::min<std::size_t>(std::size_t(hooks.outer_anderson), h - 1);
+                    const std::size_t n = next.size();
+                    const auto residual = [&](std::size_t k, std::size_t i) {
+                        return result_history[k][i] - fed_history[k][i];
+                    };
+                    std::vector<double> a(m * m, 0.0), b(m, 0.0);
+                    for (std::size_t p = 0; p < m; ++p)
+                        for (std::size_t i = 0; i < n; ++i) {
+                            const std::size_t k = h - 1 - m + p;  // ΔF column p: f_{k+1} − f_k
+                            const double dfp = residual(k + 1, i) - residual(k, i);
+                            b[p] += dfp * residual(h - 1, i);
+                            for (std::size_t q = 0; q < m; ++q) {
+                                const std::size_t l = h - 1 - m + q;
+                                a[p * m + q] += dfp * (residual(l + 1, i) - residual(l, i));
+                            }
+                        }
+                    double trace = 0.0;
+                    for (std::size_t p = 0; p < m; ++p) trace += a[p * m + p];
+                    for (std::size_t p = 0; p < m; ++p) a[p * m + p] += 1e-8 * trace + 1e-300;
+                    // Gaussian elimination (m ≤ a few).
+                    for (std::size_t c = 0; c < m; ++c)
+                        for (std::size_t r = c + 1; r < m; ++r) {
+                            const double f = a[r * m + c] / a[c * m + c];
+                            for (std::size_t q = c; q < m; ++q) a[r * m + q] -= f * a[c * m + q];
+                            b[r] -= f * b[c];
+                        }
+                    std::vector<double> gamma(m, 0.0);
+                    for (std::size_t c = m; c-- > 0;) {
+                        double v = b[c];
+                        for (std::size_t q = c + 1; q < m; ++q) v -= a[c * m + q] * gamma[q];
+                        gamma[c] = v / a[c * m + c];
+                    }
+                    for (std::size_t p = 0; p < m; ++p) {
+                        const std::size_t k = h - 1 - m + p;
+                        for (std::size_t i = 0; i < n; ++i)
+                            next[i] -= gamma[p] * (result_history[k + 1][i] - result_history[k][i]);
+                    }
+                } else if (hooks.outer_anderson == 0 && hooks.outer_momentum > 0.0 && !previous_result.empty()) {
+                    for (std::size_t i = 0; i < next.size(); ++i)
+                        next[i] += hooks.outer_momentum * (position_offsets[i] - previous_result[i]);
+                }
+                // The extrapolation's change capped per position.
+                const double cap_um = hooks.outer_step_cap_texels * estimate.texel_um();
+                double step_sq = 0.0;
+                for (std::size_t p = 0; 2 * p + 1 < next.size(); ++p) {
+                    const double dx = next[2 * p] - position_offsets[2 * p];
+                    const double dy = next[2 * p + 1] - position_offsets[2 * p + 1];
+                    const double len = std::hypot(dx, dy);
+                    const double f = len > cap_um ? cap_um / len : 1.0;
+                    next[2 * p] = position_offsets[2 * p] + f * dx;
+                    next[2 * p + 1] = position_offsets[2 * p + 1] + f * dy;
+                    step_sq += f * f * (dx * dx + dy * dy);
+                }
+                previous_result = position_offsets;
+                fed = next;
+                offsets_um = next;
+                const double step = next.empty() ? 0.0 : std::sqrt(step_sq / double(next.size())) / estimate.texel_um();
+                if (!report("positions:extrapolate", outer + 1, step, &estimate)) return estimate;
+            }
+            const std::vector<double> fed_to_pass = offsets_um;  // before the field stage corrects them
             if (!white && settings.position_outer_fields) {
                 lambdas.clear();
                 fields.clear();
@@ -459,9 +533,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report("unwrap", outer + 1, 0.0, &estimate)) return estimate;
                 unwrapped = estimate;
             }
-            estimate = detail::refine_heights_and_positions(observations, observations_total, flat, estimate,
-                                                            later, report, comm, offsets, offsets_um, &exposures,
-                                                            &sigma_scale, &position_offsets);
+            estimate = detail::refine_heights_and_positions(
+                observations, observations_total, flat, estimate, later, report, comm, offsets, offsets_um, &exposures,
+                &sigma_scale, &position_offsets, hooks.refine_smooth_from_fed ? &fed_to_pass : nullptr);
             if (stopped) return estimate;
         }
         refined_offsets = offsets;

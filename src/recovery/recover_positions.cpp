@@ -168,7 +168,8 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um,
                                          std::vector<double>* exposures_out, double* sigma_scale,
-                                         std::vector<double>* position_offsets_out) {
+                                         std::vector<double>* position_offsets_out,
+                                         const std::vector<double>* gauge_reference_um) {
     std::vector<std::size_t> index;
     const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
     const std::size_t cells = estimate.values().size(), count = positions.size();
@@ -268,17 +269,55 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
                                   observations_total;
     bool go_on = true;
     int done = 0;  // iterations so far (the metrics' count across σ rounds)
+    // Round 9 (study hook, off by default): the smooth part of the offsets' change since the
+    // stage's start removed, the heights warped through it (recover_positions.h).
+    const PositionStudyHooks hooks = position_study_hooks();
+    std::vector<double> start_offsets = offsets_from(x, cells, count, texel_um);
+    if (gauge_reference_um && gauge_reference_um->size() == 2 * count) {
+        std::vector<double> reference(cells + 2 * count, 0.0);
+        for (std::size_t k = 0; k < 2 * count; ++k) reference[cells + k] = (*gauge_reference_um)[k] / texel_um;
+        start_offsets = offsets_from(reference, cells, count, texel_um);
+    }
+    const auto smooth_gauge = [&] {
+        const std::vector<double> off = offsets_from(x, cells, count, texel_um);
+        std::vector<double> change(off.size());
+        for (std::size_t k = 0; k < off.size(); ++k) change[k] = off[k] - start_offsets[k];
+        const SmoothDisplacement smooth = fit_smooth_displacement(positions, change, hooks.refine_smooth_nodes);
+        double removed_sq = 0.0;
+        for (std::size_t p = 0; p < count; ++p) {
+            const std::array<double, 2> u = smooth.at(positions[p][0], positions[p][1]);
+            for (int c = 0; c < 2; ++c) {
+                x[cells + 2 * p + std::size_t(c)] = (off[2 * p + std::size_t(c)] - u[std::size_t(c)]) / texel_um;
+                removed_sq += u[std::size_t(c)] * u[std::size_t(c)];
+            }
+        }
+        const Heightfield warped = warp_heights(
+            flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells))), smooth);
+        std::copy(warped.values().begin(), warped.values().end(), x.begin());
+        if (!report("positions:gauge", done, count ? std::sqrt(removed_sq / double(2 * count)) / texel_um : 0.0,
+                    &warped))
+            go_on = false;
+    };
     const auto refine = [&](int iterations) {
-        LbfgsOptions round = lo;
-        round.max_iterations = iterations;
-        const int before = done;
-        lbfgs_minimize(objective, x, round, [&](int it, double value) {
-            done = before + it;
-            const Heightfield current = flat.with_values(
-                std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
-            if (!report("refine", done, value, &current)) return go_on = false;
-            return value > settings.refine_relative_tolerance * reference_loss;
-        });
+        const bool gauged = hooks.refine_smooth_nodes > 0;
+        const int chunk = gauged && hooks.refine_smooth_chunk > 0 ? hooks.refine_smooth_chunk : iterations;
+        for (int left = iterations; left > 0 && go_on;) {
+            LbfgsOptions round = lo;
+            round.max_iterations = std::min(chunk, left);
+            left -= round.max_iterations;
+            const int before = done;
+            bool below = false;
+            lbfgs_minimize(objective, x, round, [&](int it, double value) {
+                done = before + it;
+                const Heightfield current = flat.with_values(
+                    std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
+                if (!report("refine", done, value, &current)) return go_on = false;
+                below = !(value > settings.refine_relative_tolerance * reference_loss);
+                return !below;
+            });
+            if (gauged && go_on) smooth_gauge();
+            if (below) break;
+        }
     };
     if (settings.calibrate.sigma && sigma_scale) {
         // σ_p as in recover.cpp's refinement: golden-section rounds at fixed heights and offsets,
@@ -319,17 +358,61 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
     return flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
 }
 
-std::vector<double> remove_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
-                                               std::vector<double>& values, int nodes) {
+namespace {
+
+// The smooth basis at the bounding-box coordinates t (each in [0, 1] inside the box): nodes = 1:
+// (1, t0 − ½, t1 − ½); nodes = k ≥ 2: bilinear hats on k × k nodes (t clamped to the box).
+void smooth_basis(const double t_in[2], int nodes, double* b) {
+    if (nodes == 1) {
+        b[0] = 1.0;
+        b[1] = t_in[0] - 0.5;
+        b[2] = t_in[1] - 0.5;
+        return;
+    }
+    std::fill(b, b + nodes * nodes, 0.0);
+    int k[2];
+    double f[2];
+    for (int d = 0; d < 2; ++d) {
+        const double u = std::clamp(t_in[d], 0.0, 1.0) * (nodes - 1);
+        k[d] = std::min(nodes - 2, std::max(0, int(std::floor(u))));
+        f[d] = u - k[d];
+    }
+    for (int a = 0; a < 2; ++a)
+        for (int c = 0; c < 2; ++c) b[(k[0] + a) * nodes + (k[1] + c)] += (a ? f[0] : 1 - f[0]) * (c ? f[1] : 1 - f[1]);
+}
+
+}  // namespace
+
+std::array<double, 2> SmoothDisplacement::at(double x_um, double y_um) const {
+    if (nodes < 1) return {0.0, 0.0};
+    const int m = nodes == 1 ? 3 : nodes * nodes;
+    std::vector<double> b(static_cast<std::size_t>(m), 0.0);
+    const double p[2] = {x_um, y_um};
+    double t[2];
+    for (int d = 0; d < 2; ++d) t[d] = hi_um[d] > lo_um[d] ? (p[d] - lo_um[d]) / (hi_um[d] - lo_um[d]) : 0.0;
+    smooth_basis(t, nodes, b.data());
+    std::array<double, 2> v{0.0, 0.0};
+    for (int d = 0; d < 2; ++d)
+        for (int q = 0; q < m; ++q)
+            v[std::size_t(d)] += b[std::size_t(q)] * coefficients[std::size_t(d)][std::size_t(q)];
+    return v;
+}
+
+SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
+                                           const std::vector<double>& values, int nodes) {
     if (nodes < 1)
         throw std::invalid_argument("remove_smooth_displacement: nodes must be >= 1, got " + std::to_string(nodes));
     const std::size_t n = centres_um.size();
     if (values.size() != 2 * n)
         throw std::invalid_argument("remove_smooth_displacement: values must hold 2 per centre, got " +
                                     std::to_string(values.size()) + " for " + std::to_string(n));
-    std::vector<double> removed(2 * n, 0.0);
-    if (n == 0) return removed;
-    double lo[2] = {centres_um[0][0], centres_um[0][1]}, hi[2] = {lo[0], lo[1]};
+    SmoothDisplacement fit;
+    if (n == 0) return fit;
+    fit.nodes = nodes;
+    double* lo = fit.lo_um.data();
+    double* hi = fit.hi_um.data();
+    lo[0] = hi[0] = centres_um[0][0];
+    lo[1] = hi[1] = centres_um[0][1];
     for (const auto& c : centres_um)
         for (int d = 0; d < 2; ++d) {
             lo[d] = std::min(lo[d], c[d]);
@@ -341,23 +424,7 @@ std::vector<double> remove_smooth_displacement(const std::vector<std::array<doub
     for (std::size_t i = 0; i < n; ++i) {
         double t[2];
         for (int d = 0; d < 2; ++d) t[d] = hi[d] > lo[d] ? (centres_um[i][d] - lo[d]) / (hi[d] - lo[d]) : 0.0;
-        double* b = &basis[i * std::size_t(m)];
-        if (nodes == 1) {
-            b[0] = 1.0;
-            b[1] = t[0] - 0.5;
-            b[2] = t[1] - 0.5;
-            continue;
-        }
-        int k[2];
-        double f[2];
-        for (int d = 0; d < 2; ++d) {
-            const double u = t[d] * (nodes - 1);
-            k[d] = std::min(nodes - 2, std::max(0, int(std::floor(u))));
-            f[d] = u - k[d];
-        }
-        for (int a = 0; a < 2; ++a)
-            for (int c = 0; c < 2; ++c)
-                b[(k[0] + a) * nodes + (k[1] + c)] += (a ? f[0] : 1 - f[0]) * (c ? f[1] : 1 - f[1]);
+        smooth_basis(t, nodes, &basis[i * std::size_t(m)]);
     }
     // Normal equations (a tiny ridge keeps nodes without positions at 0), Cholesky.
     std::vector<double> a(std::size_t(m) * m, 0.0);
@@ -387,14 +454,51 @@ std::vector<double> remove_smooth_displacement(const std::vector<std::array<doub
             for (int k = i + 1; k < m; ++k) r[i] -= a[k * m + i] * r[k];
             r[i] /= a[i * m + i];
         }
-        for (std::size_t i = 0; i < n; ++i) {
-            double s = 0.0;
-            for (int p = 0; p < m; ++p) s += basis[i * m + p] * r[p];
-            removed[2 * i + d] = s;
-            values[2 * i + d] -= s;
+        fit.coefficients[std::size_t(d)] = r;
+    }
+    return fit;
+}
+
+std::vector<double> remove_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
+                                               std::vector<double>& values, int nodes) {
+    const SmoothDisplacement fit = fit_smooth_displacement(centres_um, values, nodes);
+    const std::size_t n = centres_um.size();
+    std::vector<double> removed(2 * n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::array<double, 2> s = fit.at(centres_um[i][0], centres_um[i][1]);
+        for (int d = 0; d < 2; ++d) {
+            removed[2 * i + std::size_t(d)] = s[std::size_t(d)];
+            values[2 * i + std::size_t(d)] -= s[std::size_t(d)];
         }
     }
     return removed;
+}
+
+Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& displacement) {
+    const int rows = heights.rows(), cols = heights.cols();
+    const double w = heights.texel_um();
+    const auto kernel = [](double t, double* k) {  // Catmull-Rom
+        const double t2 = t * t, t3 = t2 * t;
+        k[0] = 0.5 * (-t3 + 2 * t2 - t);
+        k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
+        k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
+        k[3] = 0.5 * (t3 - t2);
+    };
+    std::vector<double> out(std::size_t(rows) * std::size_t(cols));
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            const std::array<double, 2> u = displacement.at((i + 0.5) * w, (j + 0.5) * w);
+            const double r = i + u[0] / w, c = j + u[1] / w;
+            const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
+            double kr[4], kc[4];
+            kernel(r - i0, kr);
+            kernel(c - j0, kc);
+            double s = 0.0;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) s += kr[a] * kc[b] * heights.value(i0 - 1 + a, j0 - 1 + b);
+            out[std::size_t(i) * std::size_t(cols) + std::size_t(j)] = s;
+        }
+    return heights.with_values(std::move(out));
 }
 
 namespace {
@@ -406,5 +510,15 @@ int& outer_smooth_nodes() {
 
 void set_position_outer_smooth_nodes(int nodes) { outer_smooth_nodes() = nodes; }
 int position_outer_smooth_nodes() { return outer_smooth_nodes(); }
+
+namespace {
+PositionStudyHooks& study_hooks() {
+    static PositionStudyHooks hooks;
+    return hooks;
+}
+}  // namespace
+
+void set_position_study_hooks(const PositionStudyHooks& hooks) { study_hooks() = hooks; }
+const PositionStudyHooks& position_study_hooks() { return study_hooks(); }
 
 }  // namespace wavebrdf::detail

@@ -66,6 +66,49 @@ double register_positions(const std::vector<Observation>& observations, const st
 std::vector<double> remove_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
                                                std::vector<double>& values, int nodes);
 
+// The fitted smooth displacement itself (round 9), evaluable anywhere: nodes 0 (empty: zero
+// everywhere), 1 (affine) or k (bilinear on k × k nodes over [lo_um, hi_um], clamped outside),
+// coefficients per coordinate. remove_smooth_displacement subtracts it at the centres.
+struct SmoothDisplacement {
+    int nodes = 0;
+    std::array<double, 2> lo_um{0.0, 0.0}, hi_um{0.0, 0.0};
+    std::array<std::vector<double>, 2> coefficients;
+    std::array<double, 2> at(double x_um, double y_um) const;  // (x, y) displacement at a point
+};
+// The least-squares fit of remove_smooth_displacement (the same checks, the same throws).
+SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
+                                           const std::vector<double>& values, int nodes);
+
+// Heights re-registered through a displacement u (µm): h'(μ) = h(μ + u(μ)) at every texel
+// centre μ = ((i + ½) w, (j + ½) w), periodic Catmull-Rom bicubic. Offsets o' = o − u(c) with
+// these heights give nearly the slices that (o, h) give (the window at c + o − u sees h' where
+// it saw h, to first order in u's gradient): the round-9 gauge of stage 3.
+Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& displacement);
+
+// Study hooks of round 9 (experiments/recover_study.cpp; not thread-safe to set while a recovery
+// runs; all off by default):
+//   refine_smooth_nodes ≥ 1: stage 3 (refine_heights_and_positions) removes the smooth part
+//     (remove_smooth_displacement's, these nodes) of its offsets' change since its start after
+//     every refine_smooth_chunk L-BFGS iterations (0: once, at the end), warping the heights
+//     through it (warp_heights) so that heights and offsets describe the same surface; L-BFGS
+//     restarts after each removal.
+//   refine_smooth_from_fed: in the outer loop's later passes the change is measured from the
+//     positions fed to the pass (the registration's), so the field stage's change counts too;
+//   outer_anderson ≥ 1: the outer loop's positions fed to the next pass are Anderson-mixed (depth
+//     outer_anderson) over the passes' fixed-point map x → registration after the pass from x;
+//   outer_momentum > 0 (without Anderson): x_next = r + momentum · (r − r_previous);
+//   outer_step_cap_texels: the extrapolation's change to r capped per position (texels).
+struct PositionStudyHooks {
+    int refine_smooth_nodes = 0;
+    int refine_smooth_chunk = 0;
+    bool refine_smooth_from_fed = false;  // later passes: the change since the registration
+    int outer_anderson = 0;
+    double outer_momentum = 0.0;
+    double outer_step_cap_texels = 1.0;
+};
+void set_position_study_hooks(const PositionStudyHooks& hooks);
+const PositionStudyHooks& position_study_hooks();
+
 // A study hook (experiments/recover_study.cpp): the outer loop (position_outer_passes)
 // removes remove_smooth_displacement(·, nodes) of every registration's update (new − old
 // offsets) when nodes ≥ 1; 0 (the default): off. Not thread-safe to set while a recovery runs.
@@ -83,13 +126,16 @@ int position_outer_smooth_nodes();
 // scale is refined as well, in the rounds of calibration_detail.h's refine_sigma_scale (a
 // golden-section search from *sigma_scale at fixed heights and offsets, then L-BFGS on both),
 // and *sigma_scale receives it. position_offsets_out (when given) receives the offsets per
-// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them.
+// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them. gauge_reference_um
+// (when given, 2 per position): the offsets the round-9 gauge measures the change from (default:
+// the start's).
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {},
                                          std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr,
-                                         std::vector<double>* position_offsets_out = nullptr);
+                                         std::vector<double>* position_offsets_out = nullptr,
+                                         const std::vector<double>* gauge_reference_um = nullptr);
 
 }  // namespace wavebrdf::detail
