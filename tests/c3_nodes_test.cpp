@@ -368,52 +368,6 @@ TEST(C3Nodes, PlanarFactorsAreBuildFactorsInPlanarFormBitForBit) {
     EXPECT_LE(worst, 1e-6);
 }
 
-// release_tables(true) keeps the phase tables within the process-wide budget (counted while
-// kept, returned when dropped or when the engine goes); the next call gives the same bits as an
-// engine that rebuilt them, forward and adjoint.
-TEST(C3Nodes, KeptPhaseTablesAreCountedAndGiveTheSameBits) {
-    const Heightfield hf = random_heightfield(24, 24, 0.4, 23, 1.0, 1.0);
-    const Query q = make_query(Model::OHS, 10.0, 14.0, 2.0, 0.1, 0.2);
-    FootprintKernels k = footprint_kernels(hf, q.x_um, q.y_um, q.sigma_p_um);
-    const int n = 24;
-    const double lambda = 0.5;
-    const detail::SliceGrid grid(q, lambda, n);
-    detail::KernelWeights w(1, std::vector<std::complex<double>>(k.size()));
-    for (std::size_t i = 0; i < k.size(); ++i) w[0][i] = std::polar(k.weight[i], 0.3 * double(i));
-    std::vector<detail::ComplexMatrix<float>> b(1, detail::ComplexMatrix<float>(n, n));
-    for (int i = 0; i < n * n; ++i) b[0].data()[i] = {float(std::sin(0.7 * i)), float(std::cos(0.3 * i))};
-    const std::size_t before = detail::kept_phase_bytes();
-    {
-        detail::SeparableEngine<float> keeps(k, grid, lambda, n), drops(k, grid, lambda, n);
-        for (int cycle = 0; cycle < 3; ++cycle) {
-            SCOPED_TRACE(cycle);
-            for (std::size_t i = 0; i < k.size(); ++i) k.slope_x[i] += 0.01 * double(cycle);  // new heights
-            std::vector<detail::ComplexMatrix<float>> fk, fd;
-            keeps.forward(w, 1.0, fk);
-            drops.forward(w, 1.0, fd);
-            ASSERT_TRUE(fk[0] == fd[0]);
-            detail::FieldGradient gk, gd;
-            keeps.adjoint(w, 1.0, b, gk);
-            drops.adjoint(w, 1.0, b, gd);
-            EXPECT_EQ(gk.weight, gd.weight);
-            EXPECT_EQ(gk.shift_x, gd.shift_x);
-            EXPECT_EQ(gk.shift_y, gd.shift_y);
-            keeps.release_tables(true);
-            drops.release_tables(false);
-            // Kept: at least the tables' n × (rows + columns) complex doubles are counted.
-            EXPECT_GE(detail::kept_phase_bytes(), before + std::size_t(2 * n) * sizeof(std::complex<double>));
-            EXPECT_LE(detail::kept_phase_bytes(), detail::k_kept_phase_bytes);
-        }
-        keeps.release_tables(false);  // dropped: returned to the budget
-        EXPECT_EQ(detail::kept_phase_bytes(), before);
-        std::vector<detail::ComplexMatrix<float>> f;
-        keeps.forward(w, 1.0, f);
-        keeps.release_tables(true);
-        EXPECT_GT(detail::kept_phase_bytes(), before);
-    }
-    EXPECT_EQ(detail::kept_phase_bytes(), before);  // the engine's destructor returned them
-}
-
 // The separable and FFT paths' gradients (tight tolerance) equal the direct path's, and match
 // central differences of their own slices.
 TEST(C3Nodes, GradientMatchesDirectPathAndFiniteDifferences) {

@@ -79,13 +79,11 @@ public:
     std::array<double, 2> adjoint_with_position(const std::vector<double>& weights, std::vector<double>& gradient,
                                                 double scale = 1.0) const;
 
-    // Frees what forward kept for the adjoint (every wavelength's field, factors and slice) and
-    // forward's output (its reference is then empty); the kernels and the per-pixel factors
-    // (shared by every plan of the same wavelength, direction and resolution) stay, and so do
-    // the separable path's phase tables (~15 KB at 48² slices, σ_p 1.5 texels) while all plans'
-    // kept tables fit a process-wide 32 MiB (else they are freed and the next call rebuilds them
-    // bit for bit). adjoint and slice need a new forward afterwards. A plan kept this way between
-    // calls holds ~10 KB without its tables.
+    // Frees what forward kept for the adjoint (every wavelength's field, factors and slice),
+    // forward's output (its reference is then empty) and the phase tables the next call
+    // rebuilds bit for bit; the kernels and the per-pixel factors (shared by every plan of the
+    // same wavelength, direction and resolution) stay. adjoint and slice need a new forward
+    // afterwards. A plan kept this way between calls holds ~10 KB (48² slices, σ_p 1.5 texels).
     void release();
 
     // True when this plan serves exactly these arguments (geometry, query, wavelengths,

@@ -381,9 +381,7 @@ void SlicePlan<Float>::release() {
     for (typename State::Band& b : s.bands) {
         b.field = detail::ComplexMatrix<Float>();
         if (auto* engine = dynamic_cast<detail::SeparableEngine<Float>*>(b.engine.get()))
-            // The kept factors; the phase tables stay (height-independent) while the process-wide
-            // budget has room, else the next call rebuilds them bit for bit.
-            engine->release_tables(true);
+            engine->release_tables();  // kept factors and phase tables (rebuilt by the next call)
         b.direct = detail::DirectField();
         b.slice = std::vector<Float>();
     }

@@ -7,7 +7,6 @@
 #include "forward/separable_engine.h"
 
 #include <algorithm>
-#include <atomic>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -43,19 +42,7 @@ void check_cotangents(const std::vector<ComplexMatrix<Float>>& cotangents, std::
                                         "; expected the slice's " + std::to_string(n) + "x" + std::to_string(n));
 }
 
-std::atomic<std::size_t>& phase_budget_used() {
-    static std::atomic<std::size_t> used{0};
-    return used;
-}
-
-std::size_t table_bytes(const PhaseTables& t) {
-    return std::size_t(t.phase_x.size() + t.phase_y.size()) * sizeof(std::complex<double>) +
-           (t.slot_x.size() + t.slot_y.size()) * sizeof(int);
-}
-
 }  // namespace
-
-std::size_t kept_phase_bytes() { return phase_budget_used().load(); }
 
 void build_planar_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
                           double lambda_um, double shift_scale, Eigen::Index k0, Eigen::Index count,
@@ -115,26 +102,8 @@ const PhaseTables& SeparableEngine<Float>::phases() {
 }
 
 template <typename Float>
-SeparableEngine<Float>::~SeparableEngine() {
-    if (m_counted_phase_bytes) phase_budget_used().fetch_sub(m_counted_phase_bytes);
-}
-
-template <typename Float>
-void SeparableEngine<Float>::release_tables(bool keep_phases) {
-    if (m_phases && !m_counted_phase_bytes && keep_phases) {
-        // Admitted when the budget has room (engines release on several threads at once).
-        const std::size_t bytes = table_bytes(*m_phases);
-        const std::size_t before = phase_budget_used().fetch_add(bytes);
-        if (before + bytes <= k_kept_phase_bytes)
-            m_counted_phase_bytes = bytes;
-        else
-            phase_budget_used().fetch_sub(bytes);
-    }
-    if (!keep_phases || !m_counted_phase_bytes) {
-        if (m_counted_phase_bytes) phase_budget_used().fetch_sub(m_counted_phase_bytes);
-        m_counted_phase_bytes = 0;
-        m_phases.reset();
-    }
+void SeparableEngine<Float>::release_tables() {
+    m_phases.reset();
     m_kept.clear();
     m_kept_bytes = 0.0;
     m_kept_slope_x = std::vector<double>();

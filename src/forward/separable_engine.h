@@ -8,7 +8,6 @@
 // kept (up to ~64 MiB beyond the first) for the adjoint, which then skips rebuilding them.
 // In single precision the complex products run as three real ones (Gauss: planar operands
 // re, im and re + im; see PlanarFactors), ~30 % fewer flops than Eigen's complex product.
-#include <cstddef>
 #include <memory>
 #include <vector>
 
@@ -36,13 +35,6 @@ struct PlanarFactors {
     }
 };
 
-// The most bytes of phase tables all separable engines together keep between calls
-// (SeparableEngine::release_tables): 32 MiB, about what a 64² recovery's plans hold
-// (~15 KB each at 48² slices).
-constexpr std::size_t k_kept_phase_bytes = std::size_t(32) << 20;
-// The bytes kept under that budget now (for tests).
-std::size_t kept_phase_bytes();
-
 // build_factors<float> (separable.h) written in planar form: columns [0, count) of xs and ys
 // (sized by the caller, at least n × count) for kernels k0 … k0 + count − 1. The same bits as
 // build_factors<float> followed by PlanarFactors::assign (each entry the double product of the
@@ -61,16 +53,9 @@ public:
 
     // Keep the factor matrices built by forward for the adjoint (differentiable plans).
     void keep_factors(bool keep);
-    ~SeparableEngine() override;
-    SeparableEngine(const SeparableEngine&) = delete;
-    SeparableEngine& operator=(const SeparableEngine&) = delete;
-
-    // Frees the kept factors and the phase tables (the next call rebuilds the tables, with the
-    // same values): what a plan kept between calls is then only the kernels. `keep_phases`:
-    // the phase tables stay instead while every engine's kept tables together fit
-    // k_kept_phase_bytes (a process-wide budget, so a 64² recovery's ~2000 plans keep theirs
-    // and a larger one's memory per texel does not grow; docs/recovery.md, "Speed", ninth pass).
-    void release_tables(bool keep_phases = false);
+    // Frees the phase tables and the kept factors (the next call rebuilds the tables, with the
+    // same values): what a plan kept between calls is then only the kernels.
+    void release_tables();
 
     void forward(const KernelWeights& weights, double shift_scale, std::vector<ComplexMatrix<Float>>& fields) override;
     void adjoint(const KernelWeights& weights, double shift_scale, const std::vector<ComplexMatrix<Float>>& cotangents,
@@ -108,7 +93,6 @@ private:
     const FootprintKernels& m_kernels;
     SliceGrid m_grid;
     std::unique_ptr<PhaseTables> m_phases;  // built on first use (phases())
-    std::size_t m_counted_phase_bytes = 0;  // of m_phases, in the process-wide budget (release_tables)
     const PhaseTables& phases();
     double m_lambda_um;
     int m_n;
