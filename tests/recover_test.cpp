@@ -528,7 +528,7 @@ TEST(FitBlurred, WidthIterationsAndTheStallRuleStopEachWidth) {
         });
         return calls;
     };
-    Heightfield all, capped, stalled;
+    Heightfield all = flat, capped = flat, stalled = flat;
     EXPECT_EQ(per_stage(s, &all), (std::map<int, int>{{0, 12}, {1, 12}, {2, 12}}));
     BlurredFitSettings c2 = s;
     c2.width_iterations = {12, 0, 5};
@@ -542,7 +542,7 @@ TEST(FitBlurred, WidthIterationsAndTheStallRuleStopEachWidth) {
     // A tolerance of 0 never stops a falling loss: the same bits as without the rule.
     BlurredFitSettings c4 = s;
     c4.stall_window = 3;
-    Heightfield zero;
+    Heightfield zero = flat;
     EXPECT_EQ(per_stage(c4, &zero), (std::map<int, int>{{0, 12}, {1, 12}, {2, 12}}));
     EXPECT_EQ(zero.values(), all.values());
     BlurredFitSettings bad = s;
