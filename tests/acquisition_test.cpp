@@ -4,6 +4,7 @@
 // noisy single-wavelength phases into the right heights, and check_acquisition names each
 // kind of too-coarse or too-sparse data.
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <array>
@@ -18,6 +19,7 @@
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/acquisition.h"
+#include "wavebrdf/noise.h"
 
 using namespace wavebrdf;
 
@@ -318,4 +320,38 @@ TEST(PlanTest, RasterNeighboursOverlapAtTheLargestJitter) {
             }
         EXPECT_GE(1.0 - worst / d, r.overlap) << "seed " << seed;
     }
+}
+
+// simulate_observations renders one observation per thread: every slice's noise has its own
+// seed, so the slices do not depend on the thread count, and the subset form (any order of
+// indices) gives each planned observation the same bits as the whole.
+TEST(SimulateTest, SlicesDoNotDependOnTheThreadCountOrTheSubsetOrder) {
+    PlanRequest r;
+    r.rows = r.cols = 16;
+    r.texel_um = 1.0;
+    r.resolution = 24;
+    r.seed = 5;
+    const AcquisitionPlan plan = plan_acquisition(r);
+    const Heightfield truth = test::random_heightfield(16, 16, 0.3, 11);
+    const Noise noise{NoiseKind::Poisson, 1e4};
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const std::vector<Observation> one = simulate_observations(truth, plan, noise, 7);
+    omp_set_num_threads(2);
+    const std::vector<Observation> two = simulate_observations(truth, plan, noise, 7);
+    std::vector<std::size_t> reversed(one.size());
+    for (std::size_t i = 0; i < reversed.size(); ++i) reversed[i] = reversed.size() - 1 - i;
+    const std::vector<Observation> subset = simulate_observations(truth, plan, noise, 7, reversed);
+    omp_set_num_threads(before);
+    ASSERT_GT(one.size(), 8u);
+    ASSERT_EQ(two.size(), one.size());
+    ASSERT_EQ(subset.size(), one.size());
+    for (std::size_t i = 0; i < one.size(); ++i) {
+        EXPECT_EQ(one[i].reference, two[i].reference) << "observation " << i;
+        EXPECT_EQ(one[i].reference, subset[reversed.size() - 1 - i].reference) << "observation " << i;
+        EXPECT_EQ(one[i].query.x_um, subset[reversed.size() - 1 - i].query.x_um);
+    }
+    // The noise differs from slice to slice (each its own seed): two slices of one position at
+    // different wavelengths, or two positions, are not equal.
+    EXPECT_NE(one[0].reference, one[1].reference);
 }

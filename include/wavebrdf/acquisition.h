@@ -76,12 +76,13 @@ AcquisitionPlan plan_acquisition(const PlanRequest& request);
 std::vector<Observation> planned_observations(const AcquisitionPlan& plan);
 
 // The planned observations of `truth`, rendered, with `noise` added (seeded per observation,
-// noise.h). `progress`, when given, advances by one per observation.
+// noise.h), one observation per thread: the same bits for any thread count. `progress`, when
+// given, advances by one per observation.
 std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
                                                const Noise& noise, std::uint64_t seed, Progress* progress = nullptr);
 
-// Only the planned observations `indices` (ascending indices into planned_observations(plan),
-// e.g. a rank's observation_share), with the same references and noise they have in the
+// Only the planned observations `indices` (indices into planned_observations(plan), in any
+// order, e.g. a rank's observation_share), with the same references and noise they have in the
 // full set. Throws std::invalid_argument for an index out of range.
 std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
                                                const Noise& noise, std::uint64_t seed,

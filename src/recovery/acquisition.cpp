@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/parallel.h"
 #include "core/random.h"
 #include "core/text.h"
 #include "wavebrdf/heightfield.h"
@@ -277,11 +278,19 @@ std::vector<Observation> simulate_observations(const Heightfield& truth, const A
                                                const Noise& noise, std::uint64_t seed, Progress* progress) {
     std::vector<Observation> observations = planned_observations(plan);
     // The noise is added to the double slice, then rounded (as for a subset below: the same bits).
-    for (std::size_t i = 0; i < observations.size(); ++i) {
-        Observation& o = observations[i];
-        o.reference = to_reference(add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));
-        if (progress) progress->advance(1);
-    }
+    // One observation per thread (each slice alone is too small to split: at 64² the 2028 slices
+    // of 48² ran on one core for 0.5 s); every slice's noise has its own seed, so the result does
+    // not depend on the thread count.
+    detail::RegionGuard guard;
+#pragma omp parallel for schedule(dynamic) if (observations.size() > 1 && !detail::in_parallel_region())
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        guard.run([&] {
+            Observation& o = observations[i];
+            o.reference =
+                to_reference(add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));
+            if (progress) progress->advance(1);
+        });
+    guard.rethrow();
     return observations;
 }
 
@@ -296,12 +305,18 @@ std::vector<Observation> simulate_observations(const Heightfield& truth, const A
             throw std::invalid_argument("simulate_observations: index " + std::to_string(i) +
                                         " is out of range; the plan has " + std::to_string(planned.size()) +
                                         " observations");
-        Observation o = planned[i];
-        o.reference = to_reference(
-            add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));  // as for all above
-        observations.push_back(std::move(o));
-        if (progress) progress->advance(1);
+        observations.push_back(planned[i]);
     }
+    detail::RegionGuard guard;
+#pragma omp parallel for schedule(dynamic) if (observations.size() > 1 && !detail::in_parallel_region())
+    for (std::size_t k = 0; k < observations.size(); ++k)
+        guard.run([&] {
+            Observation& o = observations[k];
+            o.reference = to_reference(add_noise(render_observation(truth, o), noise,
+                                                 detail::derive_seed(seed, 1 + indices[k])));  // as for all above
+            if (progress) progress->advance(1);
+        });
+    guard.rethrow();
     return observations;
 }
 
