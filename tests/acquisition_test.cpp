@@ -225,8 +225,8 @@ TEST(PlanTest, CheckMatchesTheAllPairsSearchOnScatteredCentres) {
             for (int j = 0; j < r.cols; ++j) {
                 double nearest = 1e300;
                 for (const auto& c : centres)
-                    nearest = std::min(nearest, periodic_distance({{(i + 0.5) * r.texel_um, (j + 0.5) * r.texel_um}},
-                                                                  c, px, py));
+                    nearest = std::min(
+                        nearest, periodic_distance({{(i + 0.5) * r.texel_um, (j + 0.5) * r.texel_um}}, c, px, py));
                 uncovered += nearest > 2.0 * sigma_p;
             }
         ASSERT_GT(uncovered, 0);
@@ -239,7 +239,8 @@ TEST(PlanTest, CheckMatchesTheAllPairsSearchOnScatteredCentres) {
         sparse_trials += sparse;
         EXPECT_EQ(mentions(warnings, apart), sparse) << "trial " << trial << ": " << apart;
         EXPECT_EQ(mentions(warnings, "overlap by only"), sparse) << "trial " << trial;
-        EXPECT_TRUE(mentions(warnings, std::to_string(uncovered) + " of " + std::to_string(r.rows * r.cols) + " texels"))
+        EXPECT_TRUE(
+            mentions(warnings, std::to_string(uncovered) + " of " + std::to_string(r.rows * r.cols) + " texels"))
             << "trial " << trial << ": expected " << uncovered << " uncovered texels";
     }
     EXPECT_GE(sparse_trials, 2) << "the scattered trials must reach the overlap warning";

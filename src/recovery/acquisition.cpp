@@ -286,8 +286,8 @@ std::vector<Observation> simulate_observations(const Heightfield& truth, const A
     for (std::size_t i = 0; i < observations.size(); ++i)
         guard.run([&] {
             Observation& o = observations[i];
-            o.reference =
-                to_reference(add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));
+            o.reference = to_reference(
+                add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));
             if (progress) progress->advance(1);
         });
     guard.rethrow();
