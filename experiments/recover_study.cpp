@@ -27,6 +27,8 @@
 //     warping the heights through it) refine_smooth_chunk=0 (every N L-BFGS iterations; 0: at the
 //     end) refine_smooth_from_fed=0 (1: later passes measure the change from the registered
 //     positions, the field stage's included) outer_anderson=0 (depth m of Anderson mixing of the outer loop's positions)
+//     outer_field_passes=-1 (round 10: the field stage only in the first N later passes) stall_diag=0 (round 10: per-position table, PREFIX_positions.csv)
+//     rescue_factor=0 rescue_radius=6 (round 10: positions with loss > factor × median searched ± radius)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
@@ -358,6 +360,9 @@ int main(int argc, char** argv) try {
         set_int("refine_smooth", hooks.refine_smooth_nodes);
         set_int("refine_smooth_chunk", hooks.refine_smooth_chunk);
         set_int("outer_anderson", hooks.outer_anderson);
+        set_int("outer_field_passes", hooks.outer_field_passes);
+        if (args.count("rescue_factor")) hooks.rescue_factor = std::stod(args["rescue_factor"]);
+        if (args.count("rescue_radius")) hooks.rescue_radius_texels = std::stod(args["rescue_radius"]);
         hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);
