@@ -494,8 +494,8 @@ int main(int argc, char** argv) try {
     // distance of the stated centre to the raster's border. PREFIX_positions.csv (with save=).
     if (!calibration.position_offsets_um.empty() && get("stall_diag", "0") == "1") {
         std::vector<std::size_t> index;
-        const std::vector<std::array<double, 2>> centres =
-            detail::gather_positions(observations, index, serial_communicator());
+        const std::vector<std::array<double, 2>> centres = detail::gather_positions(observations, index,
+                                                                                    serial_communicator());
         const std::size_t count = centres.size();
         std::vector<double> found(2 * count, 0.0), truth_off(2 * count, 0.0);
         std::array<double, 2> mf{0, 0}, mt{0, 0};
@@ -561,7 +561,8 @@ int main(int argc, char** argv) try {
         for (std::size_t p = 0; p < count; ++p) {
             const double cx = centres[p][0], cy = centres[p][1];
             const double edge = std::min({cx, period_um - cx, cy, period_um - cy}) / texel_um;
-            const double tdx = (truth_gauged[2 * p] - mf[0]) / texel_um, tdy = (truth_gauged[2 * p + 1] - mf[1]) / texel_um;
+            const double tdx = (truth_gauged[2 * p] - mf[0]) / texel_um,
+                         tdy = (truth_gauged[2 * p + 1] - mf[1]) / texel_um;
             const double fdx = (found[2 * p] - mf[0]) / texel_um, fdy = (found[2 * p + 1] - mf[1]) / texel_um;
             const double rdx = (registered[2 * p] - mf[0]) / texel_um, rdy = (registered[2 * p + 1] - mf[1]) / texel_um;
             const double ef = std::hypot(fdx - tdx, fdy - tdy), er = std::hypot(rdx - tdx, rdy - tdy);
@@ -585,7 +586,9 @@ int main(int argc, char** argv) try {
             sum_tt += lt_true[p];
             true_lower += lf_true[p] < lf_found[p];
             if (csv)
-                std::fprintf(csv, "%zu,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e\n",
+                std::fprintf(csv,
+                             "%zu,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,"
+                             "%.6e,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e\n",
                              p, cx, cy, edge, tdx, tdy, fdx, fdy, rdx, rdy, ef, er, gx, gy, hxx, hxy, hyy, tr - dis,
                              tr + dis, en, lf_found[p], lf_true[p], lf_reg[p], lt_found[p], lt_true[p]);
         }

@@ -111,8 +111,8 @@ void register_grid(const std::vector<Observation>& observations, const std::vect
     const int side = 2 * half + 1;
     const std::size_t candidates = std::size_t(side) * side;
     const double texel_um = heights.texel_um();
-    const std::vector<double> losses =
-        grid_losses(observations, index, heights, settings, sigma_scale, half, step_texels, offsets_um, comm);
+    const std::vector<double> losses = grid_losses(observations, index, heights, settings, sigma_scale, half,
+                                                   step_texels, offsets_um, comm);
     for (std::size_t p = 0; p < positions; ++p) {
         if (losses[positions * candidates + p] == 0.0) continue;  // no observation here
         const double* l = &losses[p * candidates];
@@ -168,15 +168,15 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
                                     std::to_string(radius_texels) + " invalid; expected factor > 1, radius > 0");
     const std::size_t positions = offsets_um.size() / 2;
     if (index.size() != observations.size() || offsets_um.size() % 2 != 0)
-        throw std::invalid_argument("rescue_lost_positions: " + std::to_string(index.size()) + " position indices for " +
-                                    std::to_string(observations.size()) + " observations, " +
+        throw std::invalid_argument("rescue_lost_positions: " + std::to_string(index.size()) +
+                                    " position indices for " + std::to_string(observations.size()) + " observations, " +
                                     std::to_string(offsets_um.size()) + " offsets; expected one each, 2 per position");
     for (std::size_t p : index)
         if (p >= positions)
             throw std::invalid_argument("rescue_lost_positions: position " + std::to_string(p) + " outside the " +
                                         std::to_string(positions) + " positions' offsets given");
-    const std::vector<double> losses =
-        grid_losses(observations, index, heights, settings, sigma_scale, 0, 1.0, offsets_um, comm);
+    const std::vector<double> losses = grid_losses(observations, index, heights, settings, sigma_scale, 0, 1.0,
+                                                   offsets_um, comm);
     std::vector<double> seen;
     for (std::size_t p = 0; p < positions; ++p)
         if (losses[positions + p] != 0.0) seen.push_back(losses[p]);
