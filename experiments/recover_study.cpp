@@ -28,7 +28,8 @@
 //     end) refine_smooth_from_fed=0 (1: later passes measure the change from the registered
 //     positions, the field stage's included) outer_anderson=0 (depth m of Anderson mixing of the outer loop's positions)
 //     outer_field_passes=-1 (round 10: the field stage only in the first N later passes) stall_diag=0 (round 10: per-position table, PREFIX_positions.csv)
-//     rescue_factor=0 rescue_radius=6 (round 10: positions with loss > factor × median searched ± radius)
+//     rescue_factor=0 rescue_radius=6 rescue_step=0.5 (round 10: positions with loss > factor ×
+//     median searched ± radius, coarse grid 2·step)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
@@ -363,6 +364,7 @@ int main(int argc, char** argv) try {
         set_int("outer_field_passes", hooks.outer_field_passes);
         if (args.count("rescue_factor")) hooks.rescue_factor = std::stod(args["rescue_factor"]);
         if (args.count("rescue_radius")) hooks.rescue_radius_texels = std::stod(args["rescue_radius"]);
+        if (args.count("rescue_step")) hooks.rescue_step_texels = std::stod(args["rescue_step"]);
         hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);

@@ -351,7 +351,7 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
                                serial_communicator());
     EXPECT_GT(lost_error(registered), 0.5);  // beyond the ordinary registration's reach
     std::vector<double> rescued = start;
-    const int searched = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 6.0,
+    const int searched = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 6.0, 0.5,
                                                        rescued, serial_communicator());
     std::printf("lost position: %.3f texel after register_positions, %.3f after the rescue (%d searched)\n",
                 lost_error(registered), lost_error(rescued), searched);
@@ -362,10 +362,10 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
             EXPECT_EQ(rescued[2 * p], start[2 * p]) << "position " << p;
             EXPECT_EQ(rescued[2 * p + 1], start[2 * p + 1]) << "position " << p;
         }
-    EXPECT_THROW(detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 1.0, 6.0, rescued,
+    EXPECT_THROW(detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 1.0, 6.0, 0.5, rescued,
                                                serial_communicator()),
                  std::invalid_argument);
-    EXPECT_THROW(detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 0.0, rescued,
+    EXPECT_THROW(detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 0.0, 0.5, rescued,
                                                serial_communicator()),
                  std::invalid_argument);
 }

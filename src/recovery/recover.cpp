@@ -456,7 +456,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 const std::vector<double> kept = position_offsets;
                 rescued = detail::rescue_lost_positions(observations, position_of, estimate, settings, sigma_scale,
                                                         hooks.rescue_factor, hooks.rescue_radius_texels,
-                                                        position_offsets, comm);
+                                                        hooks.rescue_step_texels, position_offsets, comm);
                 double s2 = 0.0;
                 for (std::size_t i = 0; i < kept.size(); ++i)
                     s2 += (position_offsets[i] - kept[i]) * (position_offsets[i] - kept[i]);
