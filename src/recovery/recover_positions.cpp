@@ -161,8 +161,8 @@ double register_positions(const std::vector<Observation>& observations, const st
 
 int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                           const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
-                          double factor, double radius_texels, double step_texels,
-                          std::vector<double>& offsets_um, const Communicator& comm) {
+                          double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                          const Communicator& comm) {
     if (!(factor > 1.0) || !(radius_texels > 0.0))
         throw std::invalid_argument("rescue_lost_positions: factor " + std::to_string(factor) + " / radius " +
                                     std::to_string(radius_texels) + " invalid; expected factor > 1, radius > 0");

@@ -65,8 +65,8 @@ double register_positions(const std::vector<Observation>& observations, const st
 // collective). Throws std::invalid_argument for factor ≤ 1 or radius ≤ 0.
 int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                           const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
-                          double factor, double radius_texels, double step_texels,
-                          std::vector<double>& offsets_um, const Communicator& comm);
+                          double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                          const Communicator& comm);
 
 // The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
 // "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
