@@ -27,6 +27,9 @@
 //     warping the heights through it) refine_smooth_chunk=0 (every N L-BFGS iterations; 0: at the
 //     end) refine_smooth_from_fed=0 (1: later passes measure the change from the registered
 //     positions, the field stage's included) outer_anderson=0 (depth m of Anderson mixing of the outer loop's positions)
+//     outer_field_passes=-1 (round 10: the field stage only in the first N later passes) stall_diag=0 (round 10: per-position table, PREFIX_positions.csv)
+//     rescue_factor=0 rescue_radius=6 rescue_step=0.5 (round 10: positions with loss > factor ×
+//     median searched ± radius, coarse grid 2·step)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
@@ -50,6 +53,8 @@
 #include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
 #include "wavebrdf/recover.h"
+#include "wavebrdf/loss.h"
+#include "wavebrdf/slice_plan.h"
 
 using namespace wavebrdf;
 
@@ -356,6 +361,10 @@ int main(int argc, char** argv) try {
         set_int("refine_smooth", hooks.refine_smooth_nodes);
         set_int("refine_smooth_chunk", hooks.refine_smooth_chunk);
         set_int("outer_anderson", hooks.outer_anderson);
+        set_int("outer_field_passes", hooks.outer_field_passes);
+        if (args.count("rescue_factor")) hooks.rescue_factor = std::stod(args["rescue_factor"]);
+        if (args.count("rescue_radius")) hooks.rescue_radius_texels = std::stod(args["rescue_radius"]);
+        if (args.count("rescue_step")) hooks.rescue_step_texels = std::stod(args["rescue_step"]);
         hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);
@@ -477,6 +486,119 @@ int main(int argc, char** argv) try {
                 "after_rms_texels=%.4f\n",
                 radius, moved, std::sqrt(e2 / (2 * n)) / texel_um, error_rms(off));
         }
+    }
+    // Round 10: stall_diag=1 — which positions hold the stall (docs/recovery.md, "Self-calibration:
+    // positions", round 10). Per gathered position, at the final heights and at the true heights:
+    // the loss (sum over its observations, settings.refine_loss, σ_p × the calibrated scale) at the
+    // found offsets, at the true offsets (the found mean added: the gauge) and at the registered
+    // ones (register_positions from the found offsets at the final heights), the 2 × 2 Hessian of
+    // the loss in the offset at the found offsets (central differences, step h texels) and the
+    // distance of the stated centre to the raster's border. PREFIX_positions.csv (with save=).
+    if (!calibration.position_offsets_um.empty() && get("stall_diag", "0") == "1") {
+        std::vector<std::size_t> index;
+        const std::vector<std::array<double, 2>> centres = detail::gather_positions(observations, index,
+                                                                                    serial_communicator());
+        const std::size_t count = centres.size();
+        std::vector<double> found(2 * count, 0.0), truth_off(2 * count, 0.0);
+        std::array<double, 2> mf{0, 0}, mt{0, 0};
+        for (std::size_t i = 0; i < index.size(); ++i)
+            for (int c = 0; c < 2; ++c) {
+                found[2 * index[i] + c] = calibration.position_offsets_um[i][c];
+                truth_off[2 * index[i] + c] = obs_error[i][c];
+            }
+        for (std::size_t p = 0; p < count; ++p)
+            for (int c = 0; c < 2; ++c) {
+                mf[c] += found[2 * p + c] / double(count);
+                mt[c] += truth_off[2 * p + c] / double(count);
+            }
+        const double sigma_scale = calibration.sigma_p_scale > 0 ? calibration.sigma_p_scale : 1.0;
+        const double h = std::stod(get("diag_step", "0.25"));
+        const double radius = std::stod(get("register_radius", "2"));
+        std::vector<double> registered = found;
+        detail::register_positions(observations, index, estimate, rs, sigma_scale, radius, 0.5, registered,
+                                   serial_communicator());
+        // loss(heights, offsets per position (µm), shift in texels) per position.
+        const auto losses = [&](const Heightfield& hf, const std::vector<double>& off, double sx, double sy) {
+            std::vector<double> l(count, 0.0);
+            for (std::size_t i = 0; i < observations.size(); ++i) {
+                const Observation& o = observations[i];
+                const std::size_t p = index[i];
+                Query q = o.query;
+                q.x_um += off[2 * p] + texel_um * sx;
+                q.y_um += off[2 * p + 1] + texel_um * sy;
+                q.sigma_p_um *= sigma_scale;
+                SlicePlan<float> plan(hf, q, o.lambdas_um, o.resolution, o.channels(), {}, false);
+                const std::vector<float>& f = plan.forward();
+                const std::vector<double> model(f.begin(), f.end());
+                l[p] += loss_value(rs.refine_loss, model, o.reference, o.channels(), nullptr) /
+                        double(observations.size());
+            }
+            return l;
+        };
+        // Truth in the found offsets' gauge at the final heights (the recovery fixes the mean).
+        std::vector<double> truth_gauged = truth_off, found_abs = found;
+        for (std::size_t p = 0; p < count; ++p)
+            for (int c = 0; c < 2; ++c) {
+                truth_gauged[2 * p + c] += mf[c] - mt[c];
+                found_abs[2 * p + c] += mt[c] - mf[c];
+            }
+        const std::vector<double> lf_found = losses(estimate, found, 0, 0);
+        const std::vector<double> lf_true = losses(estimate, truth_gauged, 0, 0);
+        const std::vector<double> lf_reg = losses(estimate, registered, 0, 0);
+        const std::vector<double> lt_found = losses(truth, found_abs, 0, 0);
+        const std::vector<double> lt_true = losses(truth, truth_off, 0, 0);
+        const std::vector<double> xp = losses(estimate, found, h, 0), xm = losses(estimate, found, -h, 0);
+        const std::vector<double> yp = losses(estimate, found, 0, h), ym = losses(estimate, found, 0, -h);
+        const std::vector<double> pp = losses(estimate, found, h, h), pm = losses(estimate, found, h, -h);
+        const std::vector<double> mp = losses(estimate, found, -h, h), mm = losses(estimate, found, -h, -h);
+        FILE* csv = nullptr;
+        if (args.count("save")) csv = std::fopen((args["save"] + "_positions.csv").c_str(), "w");
+        if (csv)
+            std::fprintf(csv,
+                         "p,cx_um,cy_um,edge_texels,true_dx,true_dy,found_dx,found_dy,reg_dx,reg_dy,err_found,err_reg,"
+                         "gx,gy,hxx,hxy,hyy,lmin,lmax,newton_err,lf_found,lf_true,lf_reg,lt_found,lt_true\n");
+        const double period_um = size * texel_um;
+        double sum_ff = 0, sum_ft = 0, sum_fr = 0, sum_tf = 0, sum_tt = 0;
+        int true_lower = 0;
+        for (std::size_t p = 0; p < count; ++p) {
+            const double cx = centres[p][0], cy = centres[p][1];
+            const double edge = std::min({cx, period_um - cx, cy, period_um - cy}) / texel_um;
+            const double tdx = (truth_gauged[2 * p] - mf[0]) / texel_um,
+                         tdy = (truth_gauged[2 * p + 1] - mf[1]) / texel_um;
+            const double fdx = (found[2 * p] - mf[0]) / texel_um, fdy = (found[2 * p + 1] - mf[1]) / texel_um;
+            const double rdx = (registered[2 * p] - mf[0]) / texel_um, rdy = (registered[2 * p + 1] - mf[1]) / texel_um;
+            const double ef = std::hypot(fdx - tdx, fdy - tdy), er = std::hypot(rdx - tdx, rdy - tdy);
+            const double gx = (xp[p] - xm[p]) / (2 * h), gy = (yp[p] - ym[p]) / (2 * h);
+            const double hxx = (xp[p] - 2 * lf_found[p] + xm[p]) / (h * h);
+            const double hyy = (yp[p] - 2 * lf_found[p] + ym[p]) / (h * h);
+            const double hxy = (pp[p] - pm[p] - mp[p] + mm[p]) / (4 * h * h);
+            const double tr = 0.5 * (hxx + hyy), dis = std::sqrt(0.25 * (hxx - hyy) * (hxx - hyy) + hxy * hxy);
+            // The Newton point of the quadratic model about the found offsets: its error.
+            const double det = hxx * hyy - hxy * hxy;
+            double ndx = fdx, ndy = fdy;
+            if (det > 0 && hxx > 0) {
+                ndx -= (hyy * gx - hxy * gy) / det;
+                ndy -= (-hxy * gx + hxx * gy) / det;
+            }
+            const double en = std::hypot(ndx - tdx, ndy - tdy);
+            sum_ff += lf_found[p];
+            sum_ft += lf_true[p];
+            sum_fr += lf_reg[p];
+            sum_tf += lt_found[p];
+            sum_tt += lt_true[p];
+            true_lower += lf_true[p] < lf_found[p];
+            if (csv)
+                std::fprintf(csv,
+                             "%zu,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e,%.6e,"
+                             "%.6e,%.6f,%.6e,%.6e,%.6e,%.6e,%.6e\n",
+                             p, cx, cy, edge, tdx, tdy, fdx, fdy, rdx, rdy, ef, er, gx, gy, hxx, hxy, hyy, tr - dis,
+                             tr + dis, en, lf_found[p], lf_true[p], lf_reg[p], lt_found[p], lt_true[p]);
+        }
+        if (csv) std::fclose(csv);
+        std::printf(
+            "STALLDIAG positions=%zu final_heights: loss_found=%.6e loss_true=%.6e loss_registered=%.6e "
+            "true_lower_at=%d true_heights: loss_found=%.6e loss_true=%.6e\n",
+            count, sum_ff, sum_ft, sum_fr, true_lower, sum_tf, sum_tt);
     }
     std::printf(
         "RESULT size=%d texel_um=%g corr_texels=%g sigma_p_um=%g step_um=%.3f positions=%zu resolution=%d "

@@ -450,6 +450,20 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 moved = update.empty() ? 0.0 : std::sqrt(s2 / double(update.size())) / estimate.texel_um();
             }
             if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
+            // Round 10 (study hook, off by default): the lost positions searched wide.
+            int rescued = 0;
+            if (hooks.rescue_factor > 0.0) {
+                const std::vector<double> kept = position_offsets;
+                rescued = detail::rescue_lost_positions(observations, position_of, estimate, settings, sigma_scale,
+                                                        hooks.rescue_factor, hooks.rescue_radius_texels,
+                                                        hooks.rescue_step_texels, position_offsets, comm);
+                double s2 = 0.0;
+                for (std::size_t i = 0; i < kept.size(); ++i)
+                    s2 += (position_offsets[i] - kept[i]) * (position_offsets[i] - kept[i]);
+                const double jump = kept.empty() ? 0.0 : std::sqrt(s2 / double(kept.size())) / estimate.texel_um();
+                if (!report("positions:rescue", rescued, jump, &estimate)) return estimate;
+                if (jump > 0.0) moved = std::max(moved, settings.position_outer_tolerance_texels);
+            }
             if (moved < settings.position_outer_tolerance_texels) break;
             offsets_um = position_offsets;
             // Round 9 (study hooks, off by default): the positions fed to the next pass
@@ -523,7 +537,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report("positions:extrapolate", outer + 1, step, &estimate)) return estimate;
             }
             const std::vector<double> fed_to_pass = offsets_um;  // before the field stage corrects them
-            if (!white && settings.position_outer_fields) {
+            if (!white && settings.position_outer_fields &&
+                (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes)) {
                 lambdas.clear();
                 fields.clear();
                 if (settings.position_outer_field_iterations > 0)

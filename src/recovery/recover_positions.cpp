@@ -39,26 +39,14 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 
 namespace {
 
-// One grid of register_positions (recover_positions.h): the best point of the grid, then the
-// parabola. Returns nothing; offsets_um is updated.
-void register_grid(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                   const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
-                   double radius_texels, double step_texels, bool parabola, std::vector<double>& offsets_um,
-                   const Communicator& comm) {
-    if (!(radius_texels >= 0.0) || !(step_texels > 0.0) || !(radius_texels / step_texels <= 16.0))
-        throw std::invalid_argument("register_positions: radius " + std::to_string(radius_texels) + " / step " +
-                                    std::to_string(step_texels) +
-                                    " texels invalid; expected radius >= 0, step > 0, radius/step <= 16");
-    if (index.size() != observations.size())
-        throw std::invalid_argument("register_positions: " + std::to_string(index.size()) + " position indices for " +
-                                    std::to_string(observations.size()) + " observations; expected one each");
+// Per position and candidate of the grid offset + step·(a, b), |a|, |b| ≤ half, the sum of its
+// observations' losses (exact, every rank's), then per position its count marker (1 where it has
+// an observation): positions · (candidates + 1) values.
+std::vector<double> grid_losses(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                                const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                                int half, double step_texels, const std::vector<double>& offsets_um,
+                                const Communicator& comm) {
     const std::size_t positions = offsets_um.size() / 2;
-    for (std::size_t i = 0; i < index.size(); ++i)
-        if (offsets_um.size() % 2 != 0 || index[i] >= positions)
-            throw std::invalid_argument("register_positions: observation " + std::to_string(i) + "'s position " +
-                                        std::to_string(index[i]) + " is outside the " + std::to_string(positions) +
-                                        " positions' offsets given");
-    const int half = int(std::floor(radius_texels / step_texels + 1e-9));
     const int side = 2 * half + 1;
     const std::size_t candidates = std::size_t(side) * side;
     const double texel_um = heights.texel_um();
@@ -97,6 +85,34 @@ void register_grid(const std::vector<Observation>& observations, const std::vect
         scratch.take_box(row0, columns, 1);
         return 0.0;
     });
+    return losses;
+}
+
+// One grid of register_positions (recover_positions.h): the best point of the grid, then the
+// parabola. Returns nothing; offsets_um is updated.
+void register_grid(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                   const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                   double radius_texels, double step_texels, bool parabola, std::vector<double>& offsets_um,
+                   const Communicator& comm) {
+    if (!(radius_texels >= 0.0) || !(step_texels > 0.0) || !(radius_texels / step_texels <= 16.0))
+        throw std::invalid_argument("register_positions: radius " + std::to_string(radius_texels) + " / step " +
+                                    std::to_string(step_texels) +
+                                    " texels invalid; expected radius >= 0, step > 0, radius/step <= 16");
+    if (index.size() != observations.size())
+        throw std::invalid_argument("register_positions: " + std::to_string(index.size()) + " position indices for " +
+                                    std::to_string(observations.size()) + " observations; expected one each");
+    const std::size_t positions = offsets_um.size() / 2;
+    for (std::size_t i = 0; i < index.size(); ++i)
+        if (offsets_um.size() % 2 != 0 || index[i] >= positions)
+            throw std::invalid_argument("register_positions: observation " + std::to_string(i) + "'s position " +
+                                        std::to_string(index[i]) + " is outside the " + std::to_string(positions) +
+                                        " positions' offsets given");
+    const int half = int(std::floor(radius_texels / step_texels + 1e-9));
+    const int side = 2 * half + 1;
+    const std::size_t candidates = std::size_t(side) * side;
+    const double texel_um = heights.texel_um();
+    const std::vector<double> losses = grid_losses(observations, index, heights, settings, sigma_scale, half,
+                                                   step_texels, offsets_um, comm);
     for (std::size_t p = 0; p < positions; ++p) {
         if (losses[positions * candidates + p] == 0.0) continue;  // no observation here
         const double* l = &losses[p * candidates];
@@ -141,6 +157,50 @@ double register_positions(const std::vector<Observation>& observations, const st
     double moved_sq = 0.0;
     for (std::size_t k = 0; k < start.size(); ++k) moved_sq += (offsets_um[k] - start[k]) * (offsets_um[k] - start[k]);
     return start.empty() ? 0.0 : std::sqrt(moved_sq / double(start.size())) / texel_um;
+}
+
+int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                          const Communicator& comm) {
+    if (!(factor > 1.0) || !(radius_texels > 0.0))
+        throw std::invalid_argument("rescue_lost_positions: factor " + std::to_string(factor) + " / radius " +
+                                    std::to_string(radius_texels) + " invalid; expected factor > 1, radius > 0");
+    const std::size_t positions = offsets_um.size() / 2;
+    if (index.size() != observations.size() || offsets_um.size() % 2 != 0)
+        throw std::invalid_argument("rescue_lost_positions: " + std::to_string(index.size()) +
+                                    " position indices for " + std::to_string(observations.size()) + " observations, " +
+                                    std::to_string(offsets_um.size()) + " offsets; expected one each, 2 per position");
+    for (std::size_t p : index)
+        if (p >= positions)
+            throw std::invalid_argument("rescue_lost_positions: position " + std::to_string(p) + " outside the " +
+                                        std::to_string(positions) + " positions' offsets given");
+    const std::vector<double> losses = grid_losses(observations, index, heights, settings, sigma_scale, 0, 1.0,
+                                                   offsets_um, comm);
+    std::vector<double> seen;
+    for (std::size_t p = 0; p < positions; ++p)
+        if (losses[positions + p] != 0.0) seen.push_back(losses[p]);
+    if (seen.empty()) return 0;
+    std::nth_element(seen.begin(), seen.begin() + std::ptrdiff_t(seen.size() / 2), seen.end());
+    const double median = seen[seen.size() / 2];
+    std::vector<char> lost(positions, 0);
+    int count = 0;
+    for (std::size_t p = 0; p < positions; ++p)
+        if (losses[positions + p] != 0.0 && losses[p] > factor * median) {
+            lost[p] = 1;
+            ++count;
+        }
+    if (count == 0) return 0;
+    // Only the lost positions' observations: the others have none and keep their offsets.
+    std::vector<Observation> mine;
+    std::vector<std::size_t> mine_index;
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        if (lost[index[i]]) {
+            mine.push_back(observations[i]);
+            mine_index.push_back(index[i]);
+        }
+    register_positions(mine, mine_index, heights, settings, sigma_scale, radius_texels, step_texels, offsets_um, comm);
+    return count;
 }
 
 namespace {

@@ -55,6 +55,19 @@ double register_positions(const std::vector<Observation>& observations, const st
                           double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm);
 
+// Round 10 (docs/recovery.md, "Self-calibration: positions"): the positions whose loss (the sum
+// of their observations' losses at their offsets, as register_positions') exceeds factor × the
+// median over the positions are registered again over ± radius_texels (register_positions with
+// step_texels: a coarse grid of 2·step, then ± step; its throws): a position trapped beyond the
+// outer loop's radius is brought back (its true basin can be narrower than a texel: the coarse
+// grid must be fine enough to land in it). Returns
+// how many positions were searched (the same on every rank: the losses are exact and
+// collective). Throws std::invalid_argument for factor ≤ 1 or radius ≤ 0.
+int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
+                          const Communicator& comm);
+
 // The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
 // "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
 // the least-squares fit of each coordinate by a smooth field is subtracted in place and
@@ -97,7 +110,8 @@ Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& d
 //   outer_anderson ≥ 1: the outer loop's positions fed to the next pass are Anderson-mixed (depth
 //     outer_anderson) over the passes' fixed-point map x → registration after the pass from x;
 //   outer_momentum > 0 (without Anderson): x_next = r + momentum · (r − r_previous);
-//   outer_step_cap_texels: the extrapolation's change to r capped per position (texels).
+//   outer_step_cap_texels: the extrapolation's change to r capped per position (texels);
+//   outer_field_passes ≥ 0 (round 10): the field stage runs only in that many later passes.
 struct PositionStudyHooks {
     int refine_smooth_nodes = 0;
     int refine_smooth_chunk = 0;
@@ -105,6 +119,14 @@ struct PositionStudyHooks {
     int outer_anderson = 0;
     double outer_momentum = 0.0;
     double outer_step_cap_texels = 1.0;
+    // Round 10: the outer loop's later passes run the field stage only in their first
+    // outer_field_passes passes (then registration and stage 3 alone); −1: every pass (as before).
+    int outer_field_passes = -1;
+    // Round 10: after every registration of the outer loop, rescue_lost_positions with this
+    // factor (0: off), radius and step (texels).
+    double rescue_factor = 0.0;
+    double rescue_radius_texels = 6.0;
+    double rescue_step_texels = 0.5;
 };
 void set_position_study_hooks(const PositionStudyHooks& hooks);
 const PositionStudyHooks& position_study_hooks();
