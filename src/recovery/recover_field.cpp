@@ -42,6 +42,7 @@
 #include "core/parallel.h"
 #include "recovery/amplitude_loss.h"
 #include "recovery/field_operator_detail.h"
+#include "surface/footprint_offsets.h"
 
 namespace wavebrdf {
 
@@ -451,7 +452,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     const std::shared_ptr<const Heightfield> flat_grid = shared_flat_grid(s.rows, s.cols, texel_um / refine);
     const Heightfield& flat = *flat_grid;
     const double d = flat.texel_um();
-    const FootprintKernels k = footprint_kernels(flat, query.x_um, query.y_um, query.sigma_p_um);
+    const detail::FootprintOffsets k = detail::footprint_offsets(flat, query.x_um, query.y_um, query.sigma_p_um);
     // The footprint's rows (columns) in offset order: the minimal periodic images of a regular
     // grid, so offset r is δ_0 + r·d.
     const auto axis = [&](const std::vector<int>& index, const std::vector<double>& offset, int size,
