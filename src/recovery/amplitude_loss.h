@@ -6,7 +6,6 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <complex>
-#include <vector>
 
 namespace wavebrdf::detail {
 
@@ -39,34 +38,6 @@ double amplitude_box_loss(const Eigen::Matrix<std::complex<Scalar>, Eigen::Dynam
                 reference_total += r * r;
             }
         if (model_total > 0.0) root_exposure = std::sqrt(reference_total / model_total);
-    }
-    if (!calibrate_exposure) {
-        // s = 1: each pixel's residual (or √R where c = 0) and gradient in a loop with no
-        // reduction (its square roots and divisions vectorise), then the squares summed in the
-        // same order as below: the same bits.
-        const Eigen::Index rows = psi.rows(), size = psi.size();
-        thread_local std::vector<double> residual;
-        residual.resize(std::size_t(size));
-        double* res = residual.data();
-        const std::complex<Scalar>* in = psi.data();
-        std::complex<Scalar>* out = g.data();
-        for (Eigen::Index b = 0; b < psi.cols(); ++b)
-            for (Eigen::Index a = 0; a < rows; ++a) {
-                const Eigen::Index k = b * rows + a;
-                const double c = double(amp(a, b));
-                const double r = double(sqrt_ref(a, b));
-                const double re = double(in[k].real()), im = double(in[k].imag());
-                const double mag = std::sqrt(re * re + im * im);
-                const double diff = root_exposure * c * mag - r;
-                const bool model = c != 0.0;
-                res[k] = model ? diff : r;
-                // As below: Scalar(…) · Ψ where c ≠ 0 and |Ψ| > 0, exactly 0 elsewhere.
-                const Scalar scale = Scalar(2.0 * gradient_scale * diff * root_exposure * c / mag);
-                out[k] = model && mag > 0.0 ? std::complex<Scalar>(scale * in[k].real(), scale * in[k].imag())
-                                            : std::complex<Scalar>(Scalar(0));
-            }
-        for (Eigen::Index k = 0; k < size; ++k) v += res[k] * res[k];
-        return v;
     }
     double cross = 0.0;
     for (Eigen::Index b = 0; b < psi.cols(); ++b)
