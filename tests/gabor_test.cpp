@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <tuple>
+
+#include "surface/footprint_offsets.h"
 #include "test_util.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/spectrum.h"
@@ -26,6 +29,25 @@ TEST(GaborRepresentationTest, HeightsFromKernelsInvertsTheKernelHeights) {
     test::expect_throw_naming<std::domain_error>(
         [&] { flat.heights_from_kernels(flat.kernels.height_um, std::vector<double>(hf.values().size())); },
         "vscale = 0");
+}
+
+// footprint_offsets lists footprint_kernels' texels and offsets, the same values in the same
+// order, for centres inside and across the tile's edges (the periodic images), and throws as it.
+TEST(GaborRepresentationTest, FootprintOffsetsAreTheKernelsPositions) {
+    const Heightfield hf = test::random_heightfield(12, 10, 0.3, 5, 0.8, 1.7);
+    for (const auto& [x, y, sigma] : {std::tuple{4.0, 4.0, 1.0}, std::tuple{0.1, 7.9, 0.7}, std::tuple{-3.3, 25.0, 1.4},
+                                      std::tuple{9.5, 0.0, 2.5}}) {
+        const FootprintKernels k = footprint_kernels(hf, x, y, sigma);
+        const detail::FootprintOffsets o = detail::footprint_offsets(hf, x, y, sigma);
+        ASSERT_GT(k.size(), 0u);
+        EXPECT_EQ(o.size(), k.size());
+        EXPECT_EQ(o.row, k.row);
+        EXPECT_EQ(o.col, k.col);
+        EXPECT_EQ(o.dx_um, k.dx_um);
+        EXPECT_EQ(o.dy_um, k.dy_um);
+        EXPECT_EQ(o.sigma_um, k.sigma_um);
+    }
+    EXPECT_THROW(detail::footprint_offsets(hf, 0.0, 0.0, 0.0), std::domain_error);
 }
 
 // Rendering from the representation is render_rgb of the heightfield, for every path the

@@ -10,6 +10,7 @@
 #include <map>
 #include <malloc.h>
 #include <random>
+#include <tuple>
 #include <thread>
 
 #include "recover_util.h"
@@ -402,6 +403,39 @@ TEST(RefinedHeights, FollowsTheSurfaceBetweenTexelCentres) {
     const auto flat = refined_heights(Heightfield(3, 3, std::vector<double>(9, 0.25), 2.0), 3);
     for (double h : flat) EXPECT_NEAR(h, 0.5, 1e-12);
     EXPECT_THROW(refined_heights(hf, 2), std::invalid_argument);
+}
+
+// refined_heights (its Gaussians from a table per place in the texel, the values from a
+// periodically padded copy) against the blend written out with Heightfield's own accessors, on
+// grids smaller than the kernels' reach (the padding wraps more than once) and with v ≠ 1.
+TEST(RefinedHeights, MatchesTheBlendWrittenOut) {
+    std::mt19937_64 rng(11511);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (const auto& [rows, cols, q, w, vscale] :
+         {std::tuple{3, 5, 3, 2.0, 0.7}, std::tuple{9, 7, 5, 0.5, 1.3}, std::tuple{2, 2, 1, 1.0, 1.0}}) {
+        std::vector<double> v(std::size_t(rows) * cols);
+        for (double& x : v) x = u(rng);
+        const Heightfield hf(rows, cols, v, w, vscale);
+        const std::vector<double> fine = refined_heights(hf, q);
+        ASSERT_EQ(fine.size(), std::size_t(rows) * q * cols * q);
+        const double d = w / q, sigma = 0.5 * w;
+        double worst = 0.0;
+        for (int a = 0; a < rows * q; ++a)
+            for (int b = 0; b < cols * q; ++b) {
+                const double x = (a + 0.5) * d, y = (b + 0.5) * d;  // the sample's position
+                const int i0 = a / q, j0 = b / q;
+                double num = 0.0, den = 0.0;
+                for (int i = i0 - 3; i <= i0 + 3; ++i)
+                    for (int j = j0 - 3; j <= j0 + 3; ++j) {
+                        const double dx = x - (i + 0.5) * w, dy = y - (j + 0.5) * w;
+                        const double g = std::exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma));
+                        num += g * (hf.height_um(i, j) + hf.slope(i, j)[0] * dx + hf.slope(i, j)[1] * dy);
+                        den += g;
+                    }
+                worst = std::max(worst, std::abs(fine[std::size_t(a) * cols * q + b] - num / den));
+            }
+        EXPECT_LT(worst, 1e-12) << rows << "x" << cols << " refine " << q;
+    }
 }
 
 // A fresh isotropic surface (correlation 4 texels, heights to ±0.5 µm: 2-4 rad per texel at

@@ -106,15 +106,16 @@ inline void gaussian_samples(double gauss, double v0, double dv, Eigen::Index n,
     for (Eigen::Index p = peak - 1; p >= 0; --p, ratio *= step) g[p] = g[p + 1] * ratio;
 }
 
-// Columns c = 0…count−1 of X and Y for kernels k0…k0+count−1:
+// The column walker of the factor matrices: for c = 0…count−1 (kernel k0 + c), in parallel over
+// columns, calls write(c, gx, gy, px, py) with the Gaussians gx[p], gy[p] (p = 0…n−1) and the
+// kernel's phase columns px, py, so that X[p,c] = gx[p]·px[p] and Y[q,c] = gy[q]·py[q]:
 //   X[p,c] = exp(−2π²σ²(u_x[p] + b_x)²) e^{−i2π u_x[p] δ_x}, Y likewise in y,
 // with b = shift_scale·(2/λ)·s_k (field_engine.h). The grid is uniform (u[p] = u[0] + p·du),
-// so the Gaussians come from gaussian_samples. Weights are applied by the caller.
-template <typename Float>
-void build_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases, double lambda_um,
-                   double shift_scale, Eigen::Index k0, Eigen::Index count, ComplexMatrix<Float>& xs,
-                   ComplexMatrix<Float>& ys) {
-    using Complex = std::complex<Float>;
+// so the Gaussians come from gaussian_samples. build_factors and build_planar_factors
+// (separable_engine.h) are its two writers (interleaved complex, planar float).
+template <typename Write>
+void for_each_factor_column(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
+                            double lambda_um, double shift_scale, Eigen::Index k0, Eigen::Index count, Write&& write) {
     const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
     const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;  // 2π²σ²
     const double shift = shift_scale * 2.0 / lambda_um;
@@ -133,15 +134,29 @@ void build_factors(const FootprintKernels& k, const SliceGrid& grid, const Phase
                 const std::size_t idx = static_cast<std::size_t>(k0 + c);
                 gaussian_samples(gauss, grid.ux[0] + shift * k.slope_x[idx], du, n, gx.data());
                 gaussian_samples(gauss, grid.uy[0] + shift * k.slope_y[idx], du, n, gy.data());
-                const std::complex<double>* px = &phases.phase_x(0, phases.slot_x[idx]);
-                const std::complex<double>* py = &phases.phase_y(0, phases.slot_y[idx]);
-                for (Eigen::Index p = 0; p < n; ++p) {
-                    xs(p, c) = Complex(gx[static_cast<std::size_t>(p)] * px[p]);
-                    ys(p, c) = Complex(gy[static_cast<std::size_t>(p)] * py[p]);
-                }
+                write(c, gx.data(), gy.data(), &phases.phase_x(0, phases.slot_x[idx]),
+                      &phases.phase_y(0, phases.slot_y[idx]));
             });
     }
     guard.rethrow();
+}
+
+// Columns c = 0…count−1 of X and Y (for_each_factor_column) for kernels k0…k0+count−1, as
+// complex matrices. Weights are applied by the caller.
+template <typename Float>
+void build_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases, double lambda_um,
+                   double shift_scale, Eigen::Index k0, Eigen::Index count, ComplexMatrix<Float>& xs,
+                   ComplexMatrix<Float>& ys) {
+    using Complex = std::complex<Float>;
+    const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
+    for_each_factor_column(k, grid, phases, lambda_um, shift_scale, k0, count,
+                           [&](Eigen::Index c, const double* gx, const double* gy, const std::complex<double>* px,
+                               const std::complex<double>* py) {
+                               for (Eigen::Index p = 0; p < n; ++p) {
+                                   xs(p, c) = Complex(gx[p] * px[p]);
+                                   ys(p, c) = Complex(gy[p] * py[p]);
+                               }
+                           });
 }
 
 // c1 of every pixel of the n × n slice inside the disk (0 outside), row-major: the height-

@@ -44,51 +44,25 @@ void check_cotangents(const std::vector<ComplexMatrix<Float>>& cotangents, std::
 
 }  // namespace
 
-void build_planar_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases,
-                          double lambda_um, double shift_scale, Eigen::Index k0, Eigen::Index count,
-                          PlanarFactors& xs, PlanarFactors& ys) {
+void build_planar_factors(const FootprintKernels& k, const SliceGrid& grid, const PhaseTables& phases, double lambda_um,
+                          double shift_scale, Eigen::Index k0, Eigen::Index count, PlanarFactors& xs,
+                          PlanarFactors& ys) {
     const Eigen::Index n = static_cast<Eigen::Index>(grid.ux.size());
-    const double gauss = 2.0 * k_pi * k_pi * k.sigma_um * k.sigma_um;  // 2π²σ²
-    const double shift = shift_scale * 2.0 / lambda_um;
-    const double du = 2.0 / (double(n) * lambda_um);  // slice_omega's spacing / λ
-    RegionGuard guard;
-#pragma omp parallel if (worth_parallel(static_cast <long long>(count) * n))
-    {
-        std::vector<double> gx, gy;
-        guard.run([&] {
-            gx.resize(static_cast<std::size_t>(n));
-            gy.resize(static_cast<std::size_t>(n));
-        });
-#pragma omp for schedule(static)
-        for (Eigen::Index c = 0; c < count; ++c)
-            guard.run([&] {
-                const std::size_t idx = static_cast<std::size_t>(k0 + c);
-                gaussian_samples(gauss, grid.ux[0] + shift * k.slope_x[idx], du, n, gx.data());
-                gaussian_samples(gauss, grid.uy[0] + shift * k.slope_y[idx], du, n, gy.data());
-                // As build_factors: Complex(g · phase) rounds each part of the double product.
-                const double* px = reinterpret_cast<const double*>(&phases.phase_x(0, phases.slot_x[idx]));
-                const double* py = reinterpret_cast<const double*>(&phases.phase_y(0, phases.slot_y[idx]));
-                float* xr = &xs.re(0, c);
-                float* xi = &xs.im(0, c);
-                float* xsum = &xs.sum(0, c);
-                float* yr = &ys.re(0, c);
-                float* yi = &ys.im(0, c);
-                float* ysum = &ys.sum(0, c);
-                for (Eigen::Index p = 0; p < n; ++p) {
-                    const double g = gx[static_cast<std::size_t>(p)];
-                    xr[p] = float(g * px[2 * p]);
-                    xi[p] = float(g * px[2 * p + 1]);
-                    xsum[p] = xr[p] + xi[p];
-                }
-                for (Eigen::Index p = 0; p < n; ++p) {
-                    const double g = gy[static_cast<std::size_t>(p)];
-                    yr[p] = float(g * py[2 * p]);
-                    yi[p] = float(g * py[2 * p + 1]);
-                    ysum[p] = yr[p] + yi[p];
-                }
-            });
-    }
-    guard.rethrow();
+    // As build_factors: Complex(g · phase) rounds each part of the double product.
+    const auto write = [n](const double* g, const std::complex<double>* phase, float* re, float* im, float* sum) {
+        const double* ph = reinterpret_cast<const double*>(phase);
+        for (Eigen::Index p = 0; p < n; ++p) {
+            re[p] = float(g[p] * ph[2 * p]);
+            im[p] = float(g[p] * ph[2 * p + 1]);
+            sum[p] = re[p] + im[p];
+        }
+    };
+    for_each_factor_column(k, grid, phases, lambda_um, shift_scale, k0, count,
+                           [&](Eigen::Index c, const double* gx, const double* gy, const std::complex<double>* px,
+                               const std::complex<double>* py) {
+                               write(gx, px, &xs.re(0, c), &xs.im(0, c), &xs.sum(0, c));
+                               write(gy, py, &ys.re(0, c), &ys.im(0, c), &ys.sum(0, c));
+                           });
 }
 
 template <typename Float>

@@ -42,6 +42,7 @@
 #include "core/parallel.h"
 #include "recovery/amplitude_loss.h"
 #include "recovery/field_operator_detail.h"
+#include "surface/footprint_offsets.h"
 
 namespace wavebrdf {
 
@@ -451,7 +452,7 @@ FieldOperator::FieldOperator(int rows, int cols, double texel_um, const Query& q
     const std::shared_ptr<const Heightfield> flat_grid = shared_flat_grid(s.rows, s.cols, texel_um / refine);
     const Heightfield& flat = *flat_grid;
     const double d = flat.texel_um();
-    const FootprintKernels k = footprint_kernels(flat, query.x_um, query.y_um, query.sigma_p_um);
+    const detail::FootprintOffsets k = detail::footprint_offsets(flat, query.x_um, query.y_um, query.sigma_p_um);
     // The footprint's rows (columns) in offset order: the minimal periodic images of a regular
     // grid, so offset r is δ_0 + r·d.
     const auto axis = [&](const std::vector<int>& index, const std::vector<double>& offset, int size,
@@ -587,24 +588,67 @@ std::vector<double> refined_heights(const Heightfield& hf, int refine) {
     const double w = hf.texel_um(), d = w / refine, sigma = 0.5 * w;
     std::vector<double> out(std::size_t(rows) * cols);
     // Kernels within 3 texels (≥ 6σ) of a sample contribute; the rest are below e^{-18}.
-    constexpr int reach = 3;
+    constexpr int reach = 3, side = 2 * reach + 1;
+    // The Gaussian of kernel (di, dj) depends only on the sample's place inside its texel: one
+    // table of refine² × 7² values (each rounded as the per-sample expression was, so the same
+    // bits) instead of 49 exps per sample.
+    std::vector<double> gauss(std::size_t(refine) * refine * side * side);
+    for (int ra = 0; ra < refine; ++ra)
+        for (int rb = 0; rb < refine; ++rb) {
+            const double ox = (ra - refine / 2) * d, oy = (rb - refine / 2) * d;
+            for (int di = -reach; di <= reach; ++di) {
+                const double dx = ox - di * w, dx2 = dx * dx;
+                for (int dj = -reach; dj <= reach; ++dj) {
+                    const double dy = oy - dj * w;
+                    // exp(−(dx² + dy²)/(2σ²)) rounded as the per-sample loop it replaces was
+                    // compiled (dx² rounded outside the dj loop, dy² fused with it): the same bits.
+#ifdef __FMA__
+                    const double r2 = std::fma(dy, dy, dx2);
+#else
+                    const double r2 = dy * dy + dx2;
+#endif
+                    gauss[((std::size_t(ra) * refine + rb) * side + std::size_t(di + reach)) * side + (dj + reach)] =
+                        std::exp(-r2 / (2.0 * sigma * sigma));
+                }
+            }
+        }
+    // The values with a periodic border of reach + 1 (the slopes' neighbours): no index wrapping
+    // per kernel. Heights and slopes are formed from them as Heightfield::height_um and slope do.
+    constexpr int pad = reach + 1;
+    const int padded_cols = hf.cols() + 2 * pad;
+    std::vector<double> values(std::size_t(hf.rows() + 2 * pad) * padded_cols);
+    for (int i = -pad; i < hf.rows() + pad; ++i)
+        for (int j = -pad; j < hf.cols() + pad; ++j)
+            values[std::size_t(i + pad) * padded_cols + (j + pad)] = hf.value(i, j);
+    const double vscale = hf.vscale();
     detail::RegionGuard guard;
 #pragma omp parallel for schedule(static) if (std::size_t(rows) * cols > 4096)
     for (int a = 0; a < rows; ++a)
         guard.run([&] {
             for (int b = 0; b < cols; ++b) {
                 const int i0 = a / refine, j0 = b / refine;
+                const int ra = a - i0 * refine, rb = b - j0 * refine;
                 // Offset of the sample from its texel's centre (µm).
-                const double ox = (a - i0 * refine - refine / 2) * d, oy = (b - j0 * refine - refine / 2) * d;
+                const double ox = (ra - refine / 2) * d, oy = (rb - refine / 2) * d;
+                const double* g_row = &gauss[(std::size_t(ra) * refine + rb) * side * side];
                 double num = 0.0, den = 0.0;
-                for (int di = -reach; di <= reach; ++di)
+                for (int di = -reach; di <= reach; ++di) {
+                    // Row i0 + di of the padded values, and its neighbours' rows.
+                    const double* v = &values[std::size_t(i0 + di + pad) * padded_cols + pad];
+                    const double* v_up = v + padded_cols;
+                    const double* v_down = v - padded_cols;
                     for (int dj = -reach; dj <= reach; ++dj) {
                         const double dx = ox - di * w, dy = oy - dj * w;  // x − μ_k
-                        const double g = std::exp(-(dx * dx + dy * dy) / (2.0 * sigma * sigma));
-                        const auto s = hf.slope(i0 + di, j0 + dj);
-                        num += g * (hf.height_um(i0 + di, j0 + dj) + s[0] * dx + s[1] * dy);
+                        const double g = g_row[(di + reach) * side + (dj + reach)];
+                        const int j = j0 + dj;
+                        const std::array<double, 2> s{0.5 * vscale * (v_up[j] - v_down[j]),
+                                                      0.5 * vscale * (v[j + 1] - v[j - 1])};
+                        // The expression of Heightfield::height_um and slope, inlined as before
+                        // (the same contractions: estimate_height.npy byte for byte, recovery.md).
+                        num += g * (vscale * w * v[j] + s[0] * dx + s[1] * dy);
                         den += g;
                     }
+                }
                 out[std::size_t(a) * cols + b] = num / den;
             }
         });

@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "surface/footprint_offsets.h"
 #include "wavebrdf/constants.h"
 
 namespace wavebrdf {
@@ -70,7 +71,13 @@ void validate_footprint(double sigma_p_um, double period_x_um, double period_y_u
     }
 }
 
-FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double y_in_um, double sigma_p_um) {
+namespace {
+
+// The footprint's walker: visit(i, j, dx, dy, d2) for each texel within 3σ_p of the centre, in
+// the order footprint_kernels lists them, after reserve(candidates).
+template <typename Reserve, typename Visit>
+void for_each_footprint_texel(const Heightfield& hf, double x_in_um, double y_in_um, double sigma_p_um,
+                              Reserve&& reserve, Visit&& visit) {
     validate_footprint(sigma_p_um, hf.period_x_um(), hf.period_y_um());
     const double x_um = reduce_periodic(x_in_um, hf.period_x_um());
     const double y_um = reduce_periodic(y_in_um, hf.period_y_um());
@@ -78,13 +85,7 @@ FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double
     const double radius = 3.0 * sigma_p_um;
     const std::vector<int> rows = indices_within(x_um, radius, w, hf.rows());
     const std::vector<int> cols = indices_within(y_um, radius, w, hf.cols());
-
-    FootprintKernels k;
-    k.sigma_um = 0.5 * w;
-    const std::size_t reserve = rows.size() * cols.size();
-    for (auto* v : {&k.dx_um, &k.dy_um, &k.weight, &k.height_um, &k.slope_x, &k.slope_y}) v->reserve(reserve);
-    k.row.reserve(reserve);
-    k.col.reserve(reserve);
+    reserve(rows.size() * cols.size());
     for (int i : rows) {
         const double dx = periodic_offset(i, x_um, w, hf.rows());
         for (int j : cols) {
@@ -92,6 +93,25 @@ FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double
             const double d2 = dx * dx + dy * dy;
             // The model's cut: the reference drops kernels farther than 3σ_p.
             if (d2 > radius * radius) continue;
+            visit(i, j, dx, dy, d2);
+        }
+    }
+}
+
+}  // namespace
+
+FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double y_in_um, double sigma_p_um) {
+    const double w = hf.texel_um();
+    FootprintKernels k;
+    k.sigma_um = 0.5 * w;
+    for_each_footprint_texel(
+        hf, x_in_um, y_in_um, sigma_p_um,
+        [&](std::size_t reserve) {
+            for (auto* v : {&k.dx_um, &k.dy_um, &k.weight, &k.height_um, &k.slope_x, &k.slope_y}) v->reserve(reserve);
+            k.row.reserve(reserve);
+            k.col.reserve(reserve);
+        },
+        [&](int i, int j, double dx, double dy, double d2) {
             const auto s = hf.slope(i, j);
             k.row.push_back(i);
             k.col.push_back(j);
@@ -101,8 +121,26 @@ FootprintKernels footprint_kernels(const Heightfield& hf, double x_in_um, double
             k.height_um.push_back(hf.height_um(i, j));
             k.slope_x.push_back(s[0]);
             k.slope_y.push_back(s[1]);
-        }
-    }
+        });
+    return k;
+}
+
+detail::FootprintOffsets detail::footprint_offsets(const Heightfield& hf, double x_um, double y_um, double sigma_p_um) {
+    detail::FootprintOffsets k;
+    k.sigma_um = 0.5 * hf.texel_um();
+    for_each_footprint_texel(
+        hf, x_um, y_um, sigma_p_um,
+        [&](std::size_t reserve) {
+            for (auto* v : {&k.dx_um, &k.dy_um}) v->reserve(reserve);
+            k.row.reserve(reserve);
+            k.col.reserve(reserve);
+        },
+        [&](int i, int j, double dx, double dy, double) {
+            k.row.push_back(i);
+            k.col.push_back(j);
+            k.dx_um.push_back(dx);
+            k.dy_um.push_back(dy);
+        });
     return k;
 }
 
