@@ -364,6 +364,7 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     EXPECT_EQ(settings.refine_ladder_stall_window, 5);
     EXPECT_EQ(settings.refine_ladder_stall_tolerance, 0.01);
     EXPECT_EQ(settings.refine_iterations, 8);
+    EXPECT_EQ(settings.outlier_repair_rounds, 3);  // a second trapped texel shows after the first's repair
     EXPECT_EQ(settings.field_lambda_min_um, 0.0);  // counted, not named
     EXPECT_EQ(settings.refine_ladder_min_um, 0.0);
 
@@ -376,7 +377,12 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
         EXPECT_EQ(s.refine_ladder_iterations, defaults.refine_ladder_iterations);
         EXPECT_EQ(s.refine_iterations, defaults.refine_iterations);
         EXPECT_EQ(s.refine_ladder_stall_window, defaults.refine_ladder_stall_window);
+        EXPECT_EQ(s.outlier_repair_rounds, defaults.outlier_repair_rounds);
     };
+    RecoverSettings repair_off;
+    repair_off.outlier_repair_rounds = 0;  // a caller's "off" stays off
+    apply_smooth_schedule(smooth, 64, 64, repair_off);
+    EXPECT_EQ(repair_off.outlier_repair_rounds, 0);
     RecoverSettings calibrated;
     calibrated.calibrate.sigma = true;
     apply_smooth_schedule(smooth, 64, 64, calibrated);
