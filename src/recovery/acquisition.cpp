@@ -274,23 +274,35 @@ std::vector<Observation> planned_observations(const AcquisitionPlan& plan) {
     return out;
 }
 
-std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
-                                               const Noise& noise, std::uint64_t seed, Progress* progress) {
-    std::vector<Observation> observations = planned_observations(plan);
-    // The noise is added to the double slice, then rounded (as for a subset below: the same bits).
-    // One observation per thread (each slice alone is too small to split: at 64² the 2028 slices
-    // of 48² ran on one core for 0.5 s); every slice's noise has its own seed, so the result does
-    // not depend on the thread count.
+namespace {
+
+// Renders observations[k] (planned observation index_of(k)) with its noise, one observation per
+// thread (each slice alone is too small to split: at 64² the 2028 slices of 48² ran on one core
+// for 0.5 s). The noise is added to the double slice, then rounded; every slice's noise has its
+// own seed (its planned index), so the result depends neither on the thread count nor on which
+// observations are rendered together.
+template <typename IndexOf>
+void render_with_noise(const Heightfield& truth, std::vector<Observation>& observations, IndexOf index_of,
+                       const Noise& noise, std::uint64_t seed, Progress* progress) {
     detail::RegionGuard guard;
 #pragma omp parallel for schedule(dynamic) if (observations.size() > 1 && !detail::in_parallel_region())
-    for (std::size_t i = 0; i < observations.size(); ++i)
+    for (std::size_t k = 0; k < observations.size(); ++k)
         guard.run([&] {
-            Observation& o = observations[i];
+            Observation& o = observations[k];
             o.reference = to_reference(
-                add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + i)));
+                add_noise(render_observation(truth, o), noise, detail::derive_seed(seed, 1 + index_of(k))));
             if (progress) progress->advance(1);
         });
     guard.rethrow();
+}
+
+}  // namespace
+
+std::vector<Observation> simulate_observations(const Heightfield& truth, const AcquisitionPlan& plan,
+                                               const Noise& noise, std::uint64_t seed, Progress* progress) {
+    std::vector<Observation> observations = planned_observations(plan);
+    render_with_noise(
+        truth, observations, [](std::size_t k) { return k; }, noise, seed, progress);
     return observations;
 }
 
@@ -307,16 +319,8 @@ std::vector<Observation> simulate_observations(const Heightfield& truth, const A
                                         " observations");
         observations.push_back(planned[i]);
     }
-    detail::RegionGuard guard;
-#pragma omp parallel for schedule(dynamic) if (observations.size() > 1 && !detail::in_parallel_region())
-    for (std::size_t k = 0; k < observations.size(); ++k)
-        guard.run([&] {
-            Observation& o = observations[k];
-            o.reference = to_reference(add_noise(render_observation(truth, o), noise,
-                                                 detail::derive_seed(seed, 1 + indices[k])));  // as for all above
-            if (progress) progress->advance(1);
-        });
-    guard.rethrow();
+    render_with_noise(
+        truth, observations, [&](std::size_t k) { return indices[k]; }, noise, seed, progress);
     return observations;
 }
 
