@@ -5,7 +5,8 @@
 # one of those fails again or fuzzing finds a crash, leak, timeout or out-of-memory; new inputs
 # that did are kept in build-fuzz/findings/<target>/.
 # Usage: bash scripts/fuzz.sh [target...]     (default: every target)
-# Environment: FUZZ_SECONDS (per target, default 60), FUZZ_JOBS (build parallelism, default 2).
+# Environment: FUZZ_SECONDS (per target, default 60), FUZZ_JOBS (build parallelism and targets run
+# at once, default 2).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -51,27 +52,31 @@ export TMPDIR="$work/tmp"
 findings="$PWD/build-fuzz/findings"
 export ASAN_OPTIONS="detect_leaks=1:allocator_may_return_null=0${ASAN_OPTIONS:+:$ASAN_OPTIONS}"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1${UBSAN_OPTIONS:+:$UBSAN_OPTIONS}"
-failed=()
-for t in "${targets[@]}"; do
+# One target: its saved inputs once each, then fuzzing for $seconds. Prints its log lines and
+# writes what failed (one input or target name per line) to $work/$t.failed; always returns 0,
+# so that targets running side by side report each other's results.
+run_target() {  # target
+    local t="$1"
+    : >"$work/$t.failed"
     rm -rf "${findings:?}/$t"
     mkdir -p "$work/$t" "$findings/$t"
     cp -R "fuzz/corpus/$t/." "$work/$t/"
     # Field names and tricky numbers (fuzz/dict/) get the mutations past the first checks sooner.
-    dict=()
+    local dict=()
     if [ "$t" = exr ]; then
         dict=(-dict=fuzz/dict/exr.dict)
     elif [ -f "fuzz/dict/$t.dict" ]; then
         cat fuzz/dict/json_common.dict "fuzz/dict/$t.dict" >"$work/$t.dict"
         dict=(-dict="$work/$t.dict")
     fi
-    limits=(-timeout=10 -rss_limit_mb=2048 -malloc_limit_mb="$(malloc_limit "$t")")
+    local limits=(-timeout=10 -rss_limit_mb=2048 -malloc_limit_mb="$(malloc_limit "$t")")
     # Inputs that once failed (fuzz/regressions/<target>/, see fuzz/README.md) run first, once each.
-    regressions=(fuzz/regressions/"$t"/*)
+    local regressions=(fuzz/regressions/"$t"/*)
     if [ -e "${regressions[0]}" ]; then
         echo "fuzz: $t: ${#regressions[@]} regression input(s)"
         for input in "${regressions[@]}"; do  # one at a time: libFuzzer stops at the first failure
             if ! "build-fuzz/bin/${t}_fuzz" "${limits[@]}" "$input" </dev/null >"$work/$t.regression.log" 2>&1; then
-                failed+=("$input")
+                echo "$input" >>"$work/$t.failed"
                 grep -E 'ERROR|runtime error|SUMMARY' "$work/$t.regression.log" | head -n 3
                 echo "fuzz: $t: $input fails again"
             fi
@@ -82,12 +87,31 @@ for t in "${targets[@]}"; do
     if ! "build-fuzz/bin/${t}_fuzz" "$work/$t" "${dict[@]}" \
             -max_total_time="$seconds" -max_len="$(max_len "$t")" "${limits[@]}" -print_final_stats=1 \
             -artifact_prefix="$findings/$t/" </dev/null >"$work/$t.log" 2>&1; then
-        failed+=("$t")
+        echo "$t" >>"$work/$t.failed"
         tail -n 60 "$work/$t.log"
         echo "fuzz: $t FAILED; inputs in $findings/$t/"
     else
         grep -E '^(Done|stat::number_of_executed_units|stat::new_units_added)' "$work/$t.log" || true
     fi
+    return 0
+}
+
+# FUZZ_JOBS targets at a time (each libFuzzer process is single-threaded); each one's lines are
+# printed together once it is done.
+running=0
+for t in "${targets[@]}"; do
+    run_target "$t" >"$work/$t.out" 2>&1 &
+    running=$((running + 1))
+    if [ "$running" -ge "$jobs" ]; then
+        wait -n
+        running=$((running - 1))
+    fi
+done
+wait
+failed=()
+for t in "${targets[@]}"; do
+    cat "$work/$t.out"
+    while IFS= read -r line; do failed+=("$line"); done <"$work/$t.failed"
 done
 if [ ${#failed[@]} -gt 0 ]; then
     echo "fuzz: FAILED: ${failed[*]} (fuzz/README.md says how to reproduce and minimise)"

@@ -38,7 +38,7 @@ using namespace wavebrdf::test;
 // allocations before they are made, only check that the failure is reported as one line.
 // After such a failure HDF5 1.10 also keeps objects it cannot free (the library's own; our
 // handles are all closed): LeakSanitizer is told to leave allocations made inside HDF5 alone.
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(WAVEBRDF_ASAN)
 extern "C" const char* __asan_default_options() { return "allocator_may_return_null=1"; }
 extern "C" const char* __lsan_default_suppressions() { return "leak:libhdf5\n"; }
 #endif

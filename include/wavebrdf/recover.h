@@ -223,7 +223,7 @@ struct RecoverSettings {
     BlurredFitSettings blurred;  // stage 0 (empty blur_widths: start the field stage from flat)
     // White light (no single-wavelength OHS / ROHS observation): stage 0 on the RGB slices with
     // these settings, then stage 3 (docs/recovery.md, White light).
-    BlurredFitSettings white_blurred{{16.0, 8.0, 4.0, 2.0, 1.0, 0.5}, 40, 20, false};
+    BlurredFitSettings white_blurred{{16.0, 8.0, 4.0, 2.0, 1.0, 0.5}, 40, 20, false, {}, 0, 0.0};
     // … and after stage 3, up to this many rounds of: texels farther than white_repair_threshold
     // robust deviations from their neighbours' median set to it where that lowers the loss,
     // then stage 3 again (0: none).

@@ -50,7 +50,7 @@ void add_observation(Fingerprint& f, const Observation& o) {
     f.add(int(o.query.model));
     f.add(o.resolution);
     for (double l : o.lambdas_um) f.add(l);
-    for (double r : o.reference) f.add(r);
+    for (const float r : o.reference) f.add(double(r));
 }
 
 std::string hex(std::uint64_t h) {

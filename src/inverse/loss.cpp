@@ -164,7 +164,7 @@ double loss_value_of(const Loss& loss, const std::vector<double>& estimate, cons
         case LossKind::Poisson: {
             check_photons(loss.photons, detail::format_shortest(loss.photons));
             double total = 0.0;
-            for (double r : reference) total += std::max(r, 0.0);
+            for (const auto r : reference) total += std::max(double(r), 0.0);
             if (!(total > 0.0))
                 throw std::invalid_argument(
                     "loss_value: the Poisson loss needs a reference with a positive sum "
@@ -180,7 +180,7 @@ double loss_value_of(const Loss& loss, const std::vector<double>& estimate, cons
                 return 2.0 * (k * std::log1p((k - mu) / mu) - (k - mu));
             };
             double sum = 0.0;
-            for (std::size_t i = 0; i < estimate.size(); ++i) sum += term(estimate[i], reference[i]);
+            for (std::size_t i = 0; i < estimate.size(); ++i) sum += term(double(estimate[i]), double(reference[i]));
             if (gradient) {
                 gradient->resize(estimate.size());
                 for (std::size_t i = 0; i < estimate.size(); ++i) {

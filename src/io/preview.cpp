@@ -220,7 +220,8 @@ Preview8 make_slice_preview(const RgbImage& image, const PreviewOptions& options
     // The value each pixel's level comes from: a grey pixel's own value, else the luminance
     // (computed twice rather than stored: an 8192² slice would need 512 MiB more).
     const auto value = [&](std::size_t p) {
-        const double r = image.data[3 * p], g = image.data[3 * p + 1], b = image.data[3 * p + 2];
+        const double r = double(image.data[3 * p]), g = double(image.data[3 * p + 1]),
+                     b = double(image.data[3 * p + 2]);
         return r == g && g == b ? r : 0.2126 * r + 0.7152 * g + 0.0722 * b;
     };
     double peak = 0.0;
@@ -253,7 +254,8 @@ Preview8 make_slice_preview(const RgbImage& image, const PreviewOptions& options
             continue;
         }
         // Keep the hue: the largest channel shows the level.
-        const double r = image.data[3 * p], g = image.data[3 * p + 1], b = image.data[3 * p + 2];
+        const double r = double(image.data[3 * p]), g = double(image.data[3 * p + 1]),
+                     b = double(image.data[3 * p + 2]);
         const double m = std::max({r, g, b});
         if (!(m > 0.0) || !std::isfinite(m) || !std::isfinite(r + g + b)) continue;
         for (std::size_t c = 0; c < 3; ++c) pixel[c] = to_byte(t * std::max(double(image.data[3 * p + c]), 0.0) / m);

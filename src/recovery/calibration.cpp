@@ -245,7 +245,7 @@ double height_rel_rmse_plane_removed(const Heightfield& estimate, const Heightfi
                                     " x " + std::to_string(estimate.cols()) + " but truth is " +
                                     std::to_string(truth.rows()) + " x " + std::to_string(truth.cols()));
     const int rows = truth.rows(), cols = truth.cols();
-    double lo = INFINITY, hi = -INFINITY;
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j) {
             lo = std::min(lo, truth.height_um(i, j));
