@@ -31,12 +31,19 @@
 //     rescue_factor=0 rescue_radius=6 rescue_step=0.5 (round 10: positions with loss > factor ×
 //     median searched ± radius, coarse grid 2·step)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
+//     (round 11b:) stitch=0 (1: every position's patch recovered alone on a stitch_tile² tile
+//     (default 14; patch_blurs, patch_field_iters, patch_refine_iters override the patch's
+//     recovery), stitched (src/recovery/stitch_positions.h: stitch_distance, stitch_misfit,
+//     stitch_overlap) and, with stitch_apply=1 (default), the stated centres moved by the
+//     stitched offsets before the recovery: STITCH line; stitch_only=1 stops there)
+//     stitch_probe=K (K positions' patches alone and their errors: PATCH lines)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <map>
 #include <memory>
 #include <random>
@@ -52,6 +59,7 @@
 #include "wavebrdf/optim.h"
 #include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
+#include "recovery/stitch_positions.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/slice_plan.h"
@@ -369,6 +377,150 @@ int main(int argc, char** argv) try {
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);
         detail::set_position_study_hooks(hooks);
+    }
+    // Round 11b (docs/recovery.md, "Self-calibration: positions"): stitch_probe=K — K positions
+    // (evenly spread over the list) each recovered alone: recover_heights on a stitch_tile² tile
+    // (default 14) with only that position's observations, centred at its stated centre. Prints
+    // the patch's error in the window's own coordinates (weighted by the window, constant
+    // removed, % of the truth's range; the direct and the twin orientation) and its CPU seconds.
+    if (args.count("stitch_probe") || get("stitch", "0") == "1") {
+        const int probes = std::stoi(get("stitch_probe", "0"));
+        const int tile = std::stoi(get("stitch_tile", "14"));
+        RecoverSettings ps = rs;
+        ps.calibrate = {};
+        ps.position_outer_passes = 0;
+        if (args.count("patch_blurs")) ps.blurred.blur_widths = parse_list(args["patch_blurs"]);
+        set_int("patch_field_iters", ps.field.iterations);
+        set_int("patch_refine_iters", ps.refine_iterations);
+        const double range_um = stats.max_um - stats.min_um;
+        const auto sample_um = [&](double x_um, double y_um) {  // the truth (µm) at a point, periodic bicubic
+            const double r = x_um / texel_um - 0.5, c = y_um / texel_um - 0.5;
+            const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
+            const auto w = [](double t, double* k) {
+                const double t2 = t * t, t3 = t2 * t;
+                k[0] = 0.5 * (-t3 + 2 * t2 - t);
+                k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
+                k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
+                k[3] = 0.5 * (t3 - t2);
+            };
+            double wr[4], wc[4];
+            w(r - i0, wr);
+            w(c - j0, wc);
+            double s = 0.0;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) s += wr[a] * wc[b] * truth.height_um(i0 - 1 + a, j0 - 1 + b);
+            return s;
+        };
+        // Position k's patch from its observations alone (heights µm on the tile), and its CPU s.
+        const auto recover_patch = [&](std::size_t k, double& cpu) {
+            const int i0 = int(std::lround(positions[k][0] / texel_um - tile / 2.0));
+            const int j0 = int(std::lround(positions[k][1] / texel_um - tile / 2.0));
+            std::vector<Observation> sub;
+            for (std::size_t o = 0; o < observations.size(); ++o)
+                if (observations[o].query.x_um == positions[k][0] && observations[o].query.y_um == positions[k][1]) {
+                    Observation so = observations[o];
+                    so.query.x_um -= i0 * texel_um;
+                    so.query.y_um -= j0 * texel_um;
+                    sub.push_back(std::move(so));
+                }
+            const std::clock_t c0 = std::clock();
+            const Heightfield patch = recover_heights(sub, tile, tile, texel_um, 1.0, ps);
+            cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+            detail::StitchPatch out;
+            out.origin_row = i0;
+            out.origin_col = j0;
+            out.rows = out.cols = tile;
+            out.heights_um = heights_um(patch);
+            out.centre = {positions[k][0] / texel_um, positions[k][1] / texel_um};
+            return out;
+        };
+        // The patch's error in the window's own coordinates (direct, twin), % of the range.
+        const auto patch_error = [&](std::size_t k, const detail::StitchPatch& pt, double* err) {
+            for (int twin = 0; twin < 2; ++twin) {
+                double sw = 0, sd = 0, sd2 = 0;
+                for (int a = 0; a < tile; ++a)
+                    for (int b = 0; b < tile; ++b) {
+                        const double yx = (pt.origin_row + a + 0.5) * texel_um - positions[k][0];
+                        const double yy = (pt.origin_col + b + 0.5) * texel_um - positions[k][1];
+                        const double wgt = std::exp(-(yx * yx + yy * yy) / (2 * sigma_p * sigma_p));
+                        const double tx = positions[k][0] + errors[k][0], ty = positions[k][1] + errors[k][1];
+                        const double ref = twin ? -sample_um(tx - yx, ty - yy) : sample_um(tx + yx, ty + yy);
+                        const double d = pt.heights_um[std::size_t(a) * tile + b] - ref;
+                        sw += wgt;
+                        sd += wgt * d;
+                        sd2 += wgt * d * d;
+                    }
+                err[twin] = std::sqrt(std::max(0.0, sd2 / sw - (sd / sw) * (sd / sw))) / range_um * 100.0;
+            }
+        };
+        const bool all = probes <= 0 || std::size_t(probes) >= positions.size();
+        const std::size_t count = all ? positions.size() : std::size_t(probes);
+        std::vector<detail::StitchPatch> patches;
+        double sum_best = 0.0, sum_cpu = 0.0;
+        int twins = 0;
+        for (std::size_t q = 0; q < count; ++q) {
+            const std::size_t k = all ? q : q * positions.size() / count + positions.size() / (2 * count);
+            double cpu = 0.0, err[2];
+            patches.push_back(recover_patch(k, cpu));
+            patch_error(k, patches.back(), err);
+            sum_best += std::min(err[0], err[1]);
+            sum_cpu += cpu;
+            twins += err[1] < err[0];
+            std::printf("PATCH k=%zu offset_texels=(%.2f, %.2f) err_direct=%.3f%% err_twin=%.3f%% cpu_s=%.2f\n", k,
+                        errors[k][0] / texel_um, errors[k][1] / texel_um, err[0], err[1], cpu);
+        }
+        std::printf("PATCHES count=%zu mean_best_err=%.3f%% twins=%d mean_cpu_s=%.2f\n", count, sum_best / count, twins,
+                    sum_cpu / count);
+        if (all) {
+            // Stitch: every offset from the patches alone; the stated centres moved by them.
+            detail::StitchSettings ss;
+            ss.sigma_texels = sigma_p / texel_um;
+            if (args.count("stitch_distance")) ss.max_distance_texels = std::stod(args["stitch_distance"]);
+            if (args.count("stitch_misfit")) ss.max_misfit = std::stod(args["stitch_misfit"]);
+            if (args.count("stitch_overlap")) ss.min_overlap = std::stod(args["stitch_overlap"]);
+            const std::clock_t c0 = std::clock();
+            const detail::StitchResult st = detail::stitch_positions(patches, ss);
+            const double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+            double before = 0.0, after = 0.0;
+            int twin_agree = 0;
+            for (std::size_t k = 0; k < positions.size(); ++k)
+                for (int c = 0; c < 2; ++c) {
+                    const double t = errors[k][c] / texel_um;
+                    before += t * t;
+                    after += (t - st.offsets_texels[k][c]) * (t - st.offsets_texels[k][c]);
+                }
+            for (std::size_t k = 0; k < positions.size(); ++k) {
+                double err[2];
+                patch_error(k, patches[k], err);
+                twin_agree += st.twin[k] == (err[1] < err[0] ? 1 : 0);
+            }
+            const double n2 = 2.0 * double(positions.size());
+            std::printf(
+                "STITCH pairs_tried=%d pairs_used=%d residual_rms_texels=%.4f offsets_before_rms_texels=%.4f "
+                "after_rms_texels=%.4f twin_agree=%d/%zu cpu_s=%.2f\n",
+                st.pairs_tried, st.pairs_used, st.residual_rms_texels, std::sqrt(before / n2), std::sqrt(after / n2),
+                twin_agree, positions.size(), cpu);
+            // The estimated offsets as the new stated centres (stitch_apply=1, the default).
+            if (get("stitch_apply", "1") == "1") {
+                std::array<double, 2> mean{0, 0};
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    for (int c = 0; c < 2; ++c) {
+                        errors[k][c] -= st.offsets_texels[k][c] * texel_um;
+                        mean[c] += errors[k][c] / double(positions.size());
+                    }
+                for (auto& e : errors) e = {e[0] - mean[0], e[1] - mean[1]};  // the study's gauge: mean 0
+                for (std::size_t o = 0; o < observations.size(); ++o) {
+                    const std::size_t k = o % positions.size();  // observations: wavelength-major
+                    observations[o].query.x_um = positions[k][0] + st.offsets_texels[k][0] * texel_um;
+                    observations[o].query.y_um = positions[k][1] + st.offsets_texels[k][1] * texel_um;
+                    obs_error[o] = errors[k];
+                }
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    positions[k] = {positions[k][0] + st.offsets_texels[k][0] * texel_um,
+                                    positions[k][1] + st.offsets_texels[k][1] * texel_um};
+            }
+        }
+        if (get("stitch_only", "0") == "1") return 0;
     }
     // The field stage's offsets after every correction round against the truth (offsets left,
     // rms over positions and coordinates, means removed, texels): "PROBE round rms".
