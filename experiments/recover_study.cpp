@@ -44,10 +44,13 @@
 #include <cmath>
 #include <cstdio>
 #include <ctime>
+#include <functional>
 #include <map>
+#include <numeric>
 #include <memory>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -426,6 +429,18 @@ int main(int argc, char** argv) try {
             const std::clock_t c0 = std::clock();
             const Heightfield patch = recover_heights(sub, tile, tile, texel_um, 1.0, ps);
             cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+            if (get("patch_loss", "0") == "1") {  // the patch's loss against the truth's (true centre) on the tile
+                std::vector<double> t(std::size_t(tile) * tile);
+                for (int a = 0; a < tile; ++a)
+                    for (int b = 0; b < tile; ++b)
+                        t[std::size_t(a) * tile + b] = sample_um((i0 + a + 0.5) * texel_um + errors[k][0],
+                                                                 (j0 + b + 0.5) * texel_um + errors[k][1]) /
+                                                       texel_um;
+                const Loss amplitude{LossKind::Amplitude, 1.0};
+                std::printf("PATCH_LOSS k=%zu recovered=%.4e truth=%.4e\n", k,
+                            observation_loss(patch, sub, amplitude, nullptr),
+                            observation_loss(patch.with_values(t), sub, amplitude, nullptr));
+            }
             detail::StitchPatch out;
             out.origin_row = i0;
             out.origin_col = j0;
@@ -458,10 +473,47 @@ int main(int argc, char** argv) try {
         std::vector<detail::StitchPatch> patches;
         double sum_best = 0.0, sum_cpu = 0.0;
         int twins = 0;
+        // stitch_patches=FILE: the patches read from FILE when it exists (written there otherwise),
+        // so the stitching's settings can be varied without recovering the patches again.
+        std::vector<detail::StitchPatch> loaded;
+        if (args.count("stitch_patches")) {
+            if (FILE* f = std::fopen(args["stitch_patches"].c_str(), "rb")) {
+                std::size_t n = 0;
+                if (std::fread(&n, sizeof n, 1, f) != 1) n = 0;
+                for (std::size_t i = 0; i < n; ++i) {
+                    detail::StitchPatch pt;
+                    int head[4];
+                    bool ok = std::fread(head, sizeof head, 1, f) == 1 && std::fread(pt.centre.data(), sizeof(double), 2, f) == 2;
+                    pt.origin_row = head[0];
+                    pt.origin_col = head[1];
+                    pt.rows = head[2];
+                    pt.cols = head[3];
+                    pt.heights_um.resize(std::size_t(pt.rows) * pt.cols);
+                    ok = ok && std::fread(pt.heights_um.data(), sizeof(double), pt.heights_um.size(), f) == pt.heights_um.size();
+                    if (!ok) throw std::runtime_error("stitch_patches: cannot read " + args["stitch_patches"]);
+                    loaded.push_back(std::move(pt));
+                }
+                std::fclose(f);
+            }
+        }
         for (std::size_t q = 0; q < count; ++q) {
             const std::size_t k = all ? q : q * positions.size() / count + positions.size() / (2 * count);
             double cpu = 0.0, err[2];
-            patches.push_back(recover_patch(k, cpu));
+            if (get("stitch_truth_patches", "0") == "1") {  // a check of the geometry: the truth's patch
+                detail::StitchPatch pt;
+                pt.rows = pt.cols = tile;
+                pt.origin_row = int(std::lround(positions[k][0] / texel_um - tile / 2.0));
+                pt.origin_col = int(std::lround(positions[k][1] / texel_um - tile / 2.0));
+                pt.centre = {positions[k][0] / texel_um, positions[k][1] / texel_um};
+                for (int a = 0; a < tile; ++a)
+                    for (int b = 0; b < tile; ++b)
+                        pt.heights_um.push_back(sample_um((pt.origin_row + a + 0.5) * texel_um + errors[k][0],
+                                                          (pt.origin_col + b + 0.5) * texel_um + errors[k][1]));
+                patches.push_back(pt);
+            } else if (q < loaded.size())
+                patches.push_back(loaded[q]);
+            else
+                patches.push_back(recover_patch(k, cpu));
             patch_error(k, patches.back(), err);
             sum_best += std::min(err[0], err[1]);
             sum_cpu += cpu;
@@ -471,6 +523,18 @@ int main(int argc, char** argv) try {
         }
         std::printf("PATCHES count=%zu mean_best_err=%.3f%% twins=%d mean_cpu_s=%.2f\n", count, sum_best / count, twins,
                     sum_cpu / count);
+        if (args.count("stitch_patches") && loaded.empty())
+            if (FILE* f = std::fopen(args["stitch_patches"].c_str(), "wb")) {
+                const std::size_t n = patches.size();
+                std::fwrite(&n, sizeof n, 1, f);
+                for (const detail::StitchPatch& pt : patches) {
+                    const int head[4] = {pt.origin_row, pt.origin_col, pt.rows, pt.cols};
+                    std::fwrite(head, sizeof head, 1, f);
+                    std::fwrite(pt.centre.data(), sizeof(double), 2, f);
+                    std::fwrite(pt.heights_um.data(), sizeof(double), pt.heights_um.size(), f);
+                }
+                std::fclose(f);
+            }
         if (all) {
             // Stitch: every offset from the patches alone; the stated centres moved by them.
             detail::StitchSettings ss;
@@ -478,8 +542,16 @@ int main(int argc, char** argv) try {
             if (args.count("stitch_distance")) ss.max_distance_texels = std::stod(args["stitch_distance"]);
             if (args.count("stitch_misfit")) ss.max_misfit = std::stod(args["stitch_misfit"]);
             if (args.count("stitch_overlap")) ss.min_overlap = std::stod(args["stitch_overlap"]);
+            if (args.count("stitch_search_overlap")) ss.search_overlap = std::stod(args["stitch_search_overlap"]);
             const std::clock_t c0 = std::clock();
-            const detail::StitchResult st = detail::stitch_positions(patches, ss);
+            std::vector<int> oracle;  // stitch_oracle_twins=1: the twins from the truth (a diagnostic)
+            for (std::size_t k = 0; k < positions.size(); ++k) {
+                double err[2];
+                patch_error(k, patches[k], err);
+                oracle.push_back(err[1] < err[0] ? 1 : 0);
+            }
+            const detail::StitchResult st = detail::stitch_positions(
+                patches, ss, get("stitch_oracle_twins", "0") == "1" ? &oracle : nullptr);
             const double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
             double before = 0.0, after = 0.0;
             int twin_agree = 0;
@@ -494,12 +566,48 @@ int main(int argc, char** argv) try {
                 patch_error(k, patches[k], err);
                 twin_agree += st.twin[k] == (err[1] < err[0] ? 1 : 0);
             }
+            {
+                std::vector<double> m = st.candidate_misfits;
+                std::sort(m.begin(), m.end());
+                const auto qt = [&](double f) { return m.empty() ? -1.0 : m[std::size_t(f * (m.size() - 1))]; };
+                std::printf("STITCH_MISFITS overlapping_pairs=%zu q10=%.4f q25=%.4f q50=%.4f q75=%.4f q90=%.4f\n",
+                            m.size(), qt(0.1), qt(0.25), qt(0.5), qt(0.75), qt(0.9));
+            }
+            {  // the used pairs' shifts against the truth's d_a − d_b
+                int good = 0;
+                double e2 = 0.0;
+                for (const detail::StitchPair& pr : st.pairs) {
+                    const double eu = pr.shift[0] - (errors[pr.a][0] - errors[pr.b][0]) / texel_um;
+                    const double ev = pr.shift[1] - (errors[pr.a][1] - errors[pr.b][1]) / texel_um;
+                    good += std::hypot(eu, ev) < 0.5;
+                    if (get("stitch_dump", "0") == "1" && std::hypot(eu, ev) >= 0.5)
+                        std::printf("STITCH_BAD a=%d b=%d shift=(%.2f, %.2f) true=(%.2f, %.2f) w=%.3f\n", pr.a, pr.b,
+                                    pr.shift[0], pr.shift[1], (errors[pr.a][0] - errors[pr.b][0]) / texel_um,
+                                    (errors[pr.a][1] - errors[pr.b][1]) / texel_um, pr.weight);
+                    e2 += eu * eu + ev * ev;
+                }
+                std::vector<int> comp(positions.size());
+                std::iota(comp.begin(), comp.end(), 0);
+                const std::function<int(int)> root = [&](int x) { return comp[x] == x ? x : comp[x] = root(comp[x]); };
+                for (const detail::StitchPair& pr : st.pairs) comp[root(pr.a)] = root(pr.b);
+                std::map<int, int> sizes;
+                for (std::size_t k = 0; k < positions.size(); ++k) ++sizes[root(int(k))];
+                int largest = 0;
+                for (const auto& [r0, c] : sizes) largest = std::max(largest, c);
+                std::printf("STITCH_PAIRS used=%zu within_half_texel=%d rms_error_texels=%.4f components=%zu largest=%d\n",
+                            st.pairs.size(), good, st.pairs.empty() ? 0.0 : std::sqrt(e2 / (2.0 * st.pairs.size())),
+                            sizes.size(), largest);
+            }
+            if (get("stitch_dump", "0") == "1")
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    std::printf("STITCH_D k=%zu true=(%.3f, %.3f) found=(%.3f, %.3f) twin=%d\n", k, errors[k][0] / texel_um,
+                                errors[k][1] / texel_um, st.offsets_texels[k][0], st.offsets_texels[k][1], st.twin[k]);
             const double n2 = 2.0 * double(positions.size());
             std::printf(
                 "STITCH pairs_tried=%d pairs_used=%d residual_rms_texels=%.4f offsets_before_rms_texels=%.4f "
-                "after_rms_texels=%.4f twin_agree=%d/%zu cpu_s=%.2f\n",
+                "after_rms_texels=%.4f twin_agree=%d/%zu unresolved=%d cpu_s=%.2f\n",
                 st.pairs_tried, st.pairs_used, st.residual_rms_texels, std::sqrt(before / n2), std::sqrt(after / n2),
-                twin_agree, positions.size(), cpu);
+                twin_agree, positions.size(), st.unresolved, cpu);
             // The estimated offsets as the new stated centres (stitch_apply=1, the default).
             if (get("stitch_apply", "1") == "1") {
                 std::array<double, 2> mean{0, 0};

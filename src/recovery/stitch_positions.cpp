@@ -224,20 +224,83 @@ StitchResult solve_oriented(const std::vector<StitchPatch>& patches, const std::
     for (const auto& [a, b] : candidates) {
         const PairRegistration reg = register_patch_pair(patches[a], patches[b], s.sigma_texels, s.search_overlap);
         if (reg.misfit > s.max_misfit || reg.overlap < s.min_overlap) continue;
-        pairs.push_back({a, b, reg.shift, reg.overlap});
+        pairs.push_back({a, b, reg.shift, reg.overlap, reg.misfit});
     }
     r.pairs_tried = int(candidates.size());
-    for (int round = 0; round < 4; ++round) {
-        r.offsets_texels = solve_stitch_offsets(int(patches.size()), pairs);
-        if (round == 3) break;
-        std::vector<StitchPair> kept;
-        for (const StitchPair& p : pairs) {
-            const double du = r.offsets_texels[p.a][0] - r.offsets_texels[p.b][0] - p.shift[0];
-            const double dv = r.offsets_texels[p.a][1] - r.offsets_texels[p.b][1] - p.shift[1];
-            if (std::hypot(du, dv) <= s.outlier_texels) kept.push_back(p);
+    // Start: a spanning tree of the pairs in order of misfit (Kruskal), the offsets along it.
+    const std::vector<StitchPair> all = pairs;
+    {
+        const int n = int(patches.size());
+        std::vector<int> order(all.size());
+        std::iota(order.begin(), order.end(), 0);
+        std::stable_sort(order.begin(), order.end(), [&](int x, int y) { return all[x].misfit < all[y].misfit; });
+        std::vector<int> parent(n);
+        std::iota(parent.begin(), parent.end(), 0);
+        const auto find = [&](int x) {
+            while (parent[x] != x) x = parent[x] = parent[parent[x]];
+            return x;
+        };
+        std::vector<std::vector<std::pair<int, std::array<double, 2>>>> tree(n);
+        for (int k : order) {
+            const StitchPair& p = all[k];
+            const int ra = find(p.a), rb = find(p.b);
+            if (ra == rb) continue;
+            parent[rb] = ra;
+            tree[p.a].push_back({p.b, {-p.shift[0], -p.shift[1]}});  // d_b = d_a − shift
+            tree[p.b].push_back({p.a, p.shift});
         }
-        if (kept.size() == pairs.size()) break;
-        pairs = std::move(kept);
+        r.offsets_texels.assign(n, {0.0, 0.0});
+        std::vector<int> seen(n, 0);
+        for (int start = 0; start < n; ++start) {
+            if (seen[start]) continue;
+            std::vector<int> stack{start};
+            seen[start] = 1;
+            while (!stack.empty()) {
+                const int x = stack.back();
+                stack.pop_back();
+                for (const auto& [y, step] : tree[x])
+                    if (!seen[y]) {
+                        seen[y] = 1;
+                        r.offsets_texels[y] = {r.offsets_texels[x][0] + step[0], r.offsets_texels[x][1] + step[1]};
+                        stack.push_back(y);
+                    }
+            }
+        }
+    }
+    for (double threshold = 2.0;; threshold = std::max(0.5 * threshold, s.outlier_texels)) {
+        for (int repeat = 0; repeat < 2; ++repeat) {
+            std::vector<StitchPair> kept;
+            for (const StitchPair& p : all) {
+                const double du = r.offsets_texels[p.a][0] - r.offsets_texels[p.b][0] - p.shift[0];
+                const double dv = r.offsets_texels[p.a][1] - r.offsets_texels[p.b][1] - p.shift[1];
+                if (std::hypot(du, dv) <= threshold) kept.push_back(p);
+            }
+            pairs = std::move(kept);
+            r.offsets_texels = solve_stitch_offsets(int(patches.size()), pairs);
+        }
+        if (threshold <= s.outlier_texels) break;
+    }
+    {  // patches held by fewer than min_pairs pairs: unresolved, at the stated centre
+        const int n = int(patches.size());
+        std::vector<int> degree(n, 0);
+        for (const StitchPair& p : pairs) {
+            ++degree[p.a];
+            ++degree[p.b];
+        }
+        r.resolved.assign(n, 0);
+        std::array<double, 2> mean{0, 0};
+        int count = 0;
+        for (int i = 0; i < n; ++i)
+            if (degree[i] >= s.min_pairs) {
+                r.resolved[i] = 1;
+                ++count;
+                mean = {mean[0] + r.offsets_texels[i][0], mean[1] + r.offsets_texels[i][1]};
+            }
+        for (int i = 0; i < n; ++i)
+            r.offsets_texels[i] = r.resolved[i] ? std::array<double, 2>{r.offsets_texels[i][0] - mean[0] / count,
+                                                                         r.offsets_texels[i][1] - mean[1] / count}
+                                                : std::array<double, 2>{0.0, 0.0};
+        r.unresolved = n - count;
     }
     double s2 = 0.0;
     for (const StitchPair& p : pairs) {
@@ -246,13 +309,15 @@ StitchResult solve_oriented(const std::vector<StitchPatch>& patches, const std::
         s2 += du * du + dv * dv;
     }
     r.pairs_used = int(pairs.size());
+    r.pairs = pairs;
     r.residual_rms_texels = pairs.empty() ? 0.0 : std::sqrt(s2 / (2.0 * double(pairs.size())));
     return r;
 }
 
 }  // namespace
 
-StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const StitchSettings& s) {
+StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const StitchSettings& s,
+                              const std::vector<int>* known_twins) {
     const int n = int(patches.size());
     std::vector<std::array<int, 2>> candidates;
     for (int a = 0; a < n; ++a)
@@ -260,6 +325,15 @@ StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const Sti
             if (std::hypot(patches[a].centre[0] - patches[b].centre[0], patches[a].centre[1] - patches[b].centre[1]) <=
                 s.max_distance_texels)
                 candidates.push_back({a, b});
+    if (known_twins) {
+        if (known_twins->size() != patches.size())
+            throw std::invalid_argument("stitch_positions: known_twins must have one flag per patch");
+        std::vector<StitchPatch> oriented;
+        for (int i = 0; i < n; ++i) oriented.push_back((*known_twins)[i] ? flip_patch(patches[i]) : patches[i]);
+        StitchResult r = solve_oriented(oriented, candidates, s);
+        r.twin = *known_twins;
+        return r;
+    }
     // Relative orientations: each pair as it is and with b flipped.
     std::vector<StitchPatch> flipped;
     flipped.reserve(patches.size());
@@ -269,11 +343,13 @@ StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const Sti
         int a, b, flip;
     };
     std::vector<Relation> relations;
+    std::vector<double> candidate_misfits;
     for (const auto& [a, b] : candidates) {
         const PairRegistration same = register_patch_pair(patches[a], patches[b], s.sigma_texels, s.search_overlap);
         const PairRegistration other = register_patch_pair(patches[a], flipped[b], s.sigma_texels, s.search_overlap);
         const bool flip = other.misfit < same.misfit;
         const PairRegistration& better = flip ? other : same;
+        if (better.overlap >= s.min_overlap) candidate_misfits.push_back(better.misfit);
         if (better.misfit <= s.max_misfit && better.overlap >= s.min_overlap)
             relations.push_back({better.misfit, a, b, flip ? 1 : 0});
     }
@@ -312,6 +388,7 @@ StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const Sti
         if (rms < best_rms) {
             best_rms = rms;
             best = std::move(r);
+            best.candidate_misfits = candidate_misfits;
             best.twin.assign(n, 0);
             for (int i = 0; i < n; ++i) best.twin[i] = orientation[i] ^ global;
         }

@@ -56,6 +56,7 @@ struct StitchPair {
     int b = 0;
     std::array<double, 2> shift{};
     double weight = 1.0;
+    double misfit = 0.0;  // the registration's (orders the spanning tree that starts the solve)
 };
 std::vector<std::array<double, 2>> solve_stitch_offsets(int count, const std::vector<StitchPair>& pairs);
 
@@ -66,15 +67,26 @@ struct StitchSettings {
     double min_overlap = 0.25;         // pairs whose best shift overlaps less are left out (the best
                                        // at the searched region's edge is a false match)
     double max_misfit = 0.05;          // pairs with a worse misfit are left out
-    double outlier_texels = 1.0;       // pairs whose residual exceeds this after a solve are left out (3 rounds)
+    // The solve starts from a spanning tree of the best pairs (lowest misfit first), then keeps
+    // the pairs whose residual is within a threshold halved from 2 texels to this, solving again.
+    double outlier_texels = 0.5;
+    // Patches with fewer pairs left after the solve are unresolved: offset 0 (the stated centre),
+    // the others' mean 0.
+    int min_pairs = 3;
 };
 
 struct StitchResult {
     std::vector<std::array<double, 2>> offsets_texels;  // d_i = true − stated (mean 0), texels
     std::vector<int> twin;                              // 1: the patch was the twin (flipped to read h)
+    std::vector<int> resolved;                          // 1: at least min_pairs pairs fix the offset
+    int unresolved = 0;
     int pairs_used = 0;
     int pairs_tried = 0;
     double residual_rms_texels = 0.0;  // of the pairs used, after the solve
+    // The better orientation's misfit of every candidate pair whose best shift overlaps by at
+    // least min_overlap (a diagnostic for max_misfit), in the candidates' order.
+    std::vector<double> candidate_misfits;
+    std::vector<StitchPair> pairs;  // the pairs used in the final solve
 };
 
 // Every patch's offset from the patches alone. The twins: each pair is registered as it is and
@@ -83,6 +95,8 @@ struct StitchResult {
 // both global choices are solved and the one whose offsets have the smaller rms is returned
 // (the other is the point reflection of the whole surface, offsets of the raster's size).
 // Patches not connected to the largest group get offset 0.
-StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const StitchSettings& settings = {});
+// `known_twins` (a study's oracle, 1 per twin patch), when given, replaces the orientation step.
+StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const StitchSettings& settings = {},
+                              const std::vector<int>* known_twins = nullptr);
 
 }  // namespace wavebrdf::detail
