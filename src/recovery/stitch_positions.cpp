@@ -298,7 +298,7 @@ StitchResult solve_oriented(const std::vector<StitchPatch>& patches, const std::
             }
         for (int i = 0; i < n; ++i)
             r.offsets_texels[i] = r.resolved[i] ? std::array<double, 2>{r.offsets_texels[i][0] - mean[0] / count,
-                                                                         r.offsets_texels[i][1] - mean[1] / count}
+                                                                        r.offsets_texels[i][1] - mean[1] / count}
                                                 : std::array<double, 2>{0.0, 0.0};
         r.unresolved = n - count;
     }
