@@ -427,7 +427,48 @@ int main(int argc, char** argv) try {
                     sub.push_back(std::move(so));
                 }
             const std::clock_t c0 = std::clock();
-            const Heightfield patch = recover_heights(sub, tile, tile, texel_um, 1.0, ps);
+            Heightfield patch = recover_heights(sub, tile, tile, texel_um, 1.0, ps);
+            // patch_hops=N: basin hopping on the patch's own amplitude loss: N times, the best
+            // patch so far perturbed (each texel, Gaussian of patch_hop_um, smoothed by a 3 × 3 box)
+            // and refined by L-BFGS (patch_hop_iters, 60); the lower loss kept.
+            if (const int hops = std::stoi(get("patch_hops", "0")); hops > 0) {
+                const Loss amplitude{LossKind::Amplitude, 1.0};
+                const double hop_um = std::stod(get("patch_hop_um", "0.05"));
+                LbfgsOptions lo;
+                lo.max_iterations = std::stoi(get("patch_hop_iters", "60"));
+                lo.history = 20;
+                lo.gradient_tolerance = 0.0;
+                const auto refine = [&](std::vector<double>& h) {
+                    lbfgs_minimize(
+                        [&](const std::vector<double>& x, std::vector<double>& g) {
+                            return observation_loss(patch.with_values(x), sub, amplitude, &g);
+                        },
+                        h, lo);
+                    return observation_loss(patch.with_values(h), sub, amplitude, nullptr);
+                };
+                std::vector<double> best = patch.values();
+                double best_loss = refine(best);
+                std::mt19937_64 hop_rng(seed * 31 + k);
+                std::normal_distribution<double> gauss(0.0, hop_um / texel_um);
+                for (int hop = 0; hop < hops; ++hop) {
+                    std::vector<double> noise(best.size()), h = best;
+                    for (double& v : noise) v = gauss(hop_rng);
+                    for (int a = 0; a < tile; ++a)
+                        for (int b = 0; b < tile; ++b) {
+                            double sm = 0.0;
+                            for (int da = -1; da <= 1; ++da)
+                                for (int db = -1; db <= 1; ++db)
+                                    sm += noise[std::size_t((a + da + tile) % tile) * tile + (b + db + tile) % tile];
+                            h[std::size_t(a) * tile + b] += sm / 3.0;
+                        }
+                    const double l = refine(h);
+                    if (l < best_loss) {
+                        best_loss = l;
+                        best = h;
+                    }
+                }
+                patch = patch.with_values(best);
+            }
             cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
             if (get("patch_loss", "0") == "1") {  // the patch's loss against the truth's (true centre) on the tile
                 std::vector<double> t(std::size_t(tile) * tile);
@@ -602,6 +643,34 @@ int main(int argc, char** argv) try {
                 for (std::size_t k = 0; k < positions.size(); ++k)
                     std::printf("STITCH_D k=%zu true=(%.3f, %.3f) found=(%.3f, %.3f) twin=%d\n", k, errors[k][0] / texel_um,
                                 errors[k][1] / texel_um, st.offsets_texels[k][0], st.offsets_texels[k][1], st.twin[k]);
+            {  // the resolved patches' error, both means removed (texels)
+                std::array<double, 2> mt{0, 0}, mf{0, 0};
+                int nr = 0;
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    if (st.resolved[k]) {
+                        ++nr;
+                        for (int c = 0; c < 2; ++c) {
+                            mt[c] += errors[k][c] / texel_um;
+                            mf[c] += st.offsets_texels[k][c];
+                        }
+                    }
+                double e2 = 0.0, t2 = 0.0;
+                int within = 0;
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    if (st.resolved[k]) {
+                        double ek = 0.0;
+                        for (int c = 0; c < 2; ++c) {
+                            const double t = errors[k][c] / texel_um - mt[c] / nr;
+                            const double e = st.offsets_texels[k][c] - mf[c] / nr - t;
+                            e2 += e * e;
+                            t2 += t * t;
+                            ek += e * e;
+                        }
+                        within += std::sqrt(ek) < 0.5;
+                    }
+                std::printf("STITCH_RESOLVED count=%d before_rms_texels=%.4f after_rms_texels=%.4f within_half_texel=%d\n",
+                            nr, nr ? std::sqrt(t2 / (2.0 * nr)) : 0.0, nr ? std::sqrt(e2 / (2.0 * nr)) : 0.0, within);
+            }
             const double n2 = 2.0 * double(positions.size());
             std::printf(
                 "STITCH pairs_tried=%d pairs_used=%d residual_rms_texels=%.4f offsets_before_rms_texels=%.4f "
