@@ -37,6 +37,10 @@
 //     stitch_overlap) and, with stitch_apply=1 (default), the stated centres moved by the
 //     stitched offsets before the recovery: STITCH line; stitch_only=1 stops there)
 //     stitch_probe=K (K positions' patches alone and their errors: PATCH lines)
+//     stitch_patches=FILE (patches reloaded from / saved to FILE) stitch_search_overlap
+//     (diagnostics:) stitch_truth_patches=1 (the truth's patches at the true centres)
+//     stitch_truth_noise=E (plus smooth noise of E % of the range) stitch_oracle_twins=1
+//     stitch_dump=1 patch_loss=1 patch_hops=N patch_hop_um=0.05 patch_hop_iters=60 (basin hopping)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <algorithm>
@@ -550,6 +554,27 @@ int main(int argc, char** argv) try {
                     for (int b = 0; b < tile; ++b)
                         pt.heights_um.push_back(sample_um((pt.origin_row + a + 0.5) * texel_um + errors[k][0],
                                                           (pt.origin_col + b + 0.5) * texel_um + errors[k][1]));
+                // stitch_truth_noise=E: plus smooth noise (3 × 3 box of Gaussian texels) of rms E %
+                // of the truth's range, a patch error of known size.
+                if (const double noise_pct = std::stod(get("stitch_truth_noise", "0")); noise_pct > 0) {
+                    std::mt19937_64 nrng(seed * 977 + k);
+                    std::normal_distribution<double> gauss(0.0, 1.0);
+                    std::vector<double> w(pt.heights_um.size());
+                    for (double& v : w) v = gauss(nrng);
+                    std::vector<double> sm(w.size(), 0.0);
+                    double s2 = 0.0;
+                    for (int a = 0; a < tile; ++a)
+                        for (int b = 0; b < tile; ++b) {
+                            double acc = 0.0;
+                            for (int da = -1; da <= 1; ++da)
+                                for (int db = -1; db <= 1; ++db)
+                                    acc += w[std::size_t((a + da + tile) % tile) * tile + (b + db + tile) % tile];
+                            sm[std::size_t(a) * tile + b] = acc;
+                            s2 += acc * acc;
+                        }
+                    const double scale = noise_pct / 100.0 * range_um / std::sqrt(s2 / double(sm.size()));
+                    for (std::size_t i = 0; i < sm.size(); ++i) pt.heights_um[i] += scale * sm[i];
+                }
                 patches.push_back(pt);
             } else if (q < loaded.size())
                 patches.push_back(loaded[q]);
