@@ -280,6 +280,12 @@ StitchResult solve_oriented(const std::vector<StitchPatch>& patches, const std::
         }
         if (threshold <= s.outlier_texels) break;
     }
+    double s2 = 0.0;
+    for (const StitchPair& p : pairs) {
+        const double du = r.offsets_texels[p.a][0] - r.offsets_texels[p.b][0] - p.shift[0];
+        const double dv = r.offsets_texels[p.a][1] - r.offsets_texels[p.b][1] - p.shift[1];
+        s2 += du * du + dv * dv;
+    }
     {  // patches held by fewer than min_pairs pairs: unresolved, at the stated centre
         const int n = int(patches.size());
         std::vector<int> degree(n, 0);
@@ -301,12 +307,6 @@ StitchResult solve_oriented(const std::vector<StitchPatch>& patches, const std::
                                                                         r.offsets_texels[i][1] - mean[1] / count}
                                                 : std::array<double, 2>{0.0, 0.0};
         r.unresolved = n - count;
-    }
-    double s2 = 0.0;
-    for (const StitchPair& p : pairs) {
-        const double du = r.offsets_texels[p.a][0] - r.offsets_texels[p.b][0] - p.shift[0];
-        const double dv = r.offsets_texels[p.a][1] - r.offsets_texels[p.b][1] - p.shift[1];
-        s2 += du * du + dv * dv;
     }
     r.pairs_used = int(pairs.size());
     r.pairs = pairs;

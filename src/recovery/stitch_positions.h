@@ -61,12 +61,13 @@ struct StitchPair {
 std::vector<std::array<double, 2>> solve_stitch_offsets(int count, const std::vector<StitchPair>& pairs);
 
 struct StitchSettings {
-    double sigma_texels = 1.5;         // the window's σ_p in texels
-    double max_distance_texels = 8.0;  // pairs whose stated centres are at most this far apart
-    double search_overlap = 0.05;      // register_patch_pair's min_overlap: the region searched
-    double min_overlap = 0.25;         // pairs whose best shift overlaps less are left out (the best
-                                       // at the searched region's edge is a false match)
-    double max_misfit = 0.05;          // pairs with a worse misfit are left out
+    double sigma_texels = 1.5;  // the window's σ_p in texels
+    // (the defaults: docs/recovery.md round 11b's "wide" settings, which connect the pair graph)
+    double max_distance_texels = 14.0;  // pairs whose stated centres are at most this far apart
+    double search_overlap = 0.02;       // register_patch_pair's min_overlap: the region searched
+    double min_overlap = 0.1;           // pairs whose best shift overlaps less are left out (the best
+                                        // at the searched region's edge is a false match)
+    double max_misfit = 0.05;           // pairs with a worse misfit are left out
     // The solve starts from a spanning tree of the best pairs (lowest misfit first), then keeps
     // the pairs whose residual is within a threshold halved from 2 texels to this, solving again.
     double outlier_texels = 0.5;
@@ -82,7 +83,7 @@ struct StitchResult {
     int unresolved = 0;
     int pairs_used = 0;
     int pairs_tried = 0;
-    double residual_rms_texels = 0.0;  // of the pairs used, after the solve
+    double residual_rms_texels = 0.0;  // of the pairs used, after the solve (before the unresolved are zeroed)
     // The better orientation's misfit of every candidate pair whose best shift overlaps by at
     // least min_overlap (a diagnostic for max_misfit), in the candidates' order.
     std::vector<double> candidate_misfits;
@@ -94,7 +95,7 @@ struct StitchResult {
 // with parity over the pairs in order of misfit assigns every patch's (up to a global flip);
 // both global choices are solved and the one whose offsets have the smaller rms is returned
 // (the other is the point reflection of the whole surface, offsets of the raster's size).
-// Patches not connected to the largest group get offset 0.
+// Patches with fewer than min_pairs pairs left get offset 0 (unresolved).
 // `known_twins` (a study's oracle, 1 per twin patch), when given, replaces the orientation step.
 StitchResult stitch_positions(const std::vector<StitchPatch>& patches, const StitchSettings& settings = {},
                               const std::vector<int>* known_twins = nullptr);
