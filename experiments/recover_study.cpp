@@ -528,13 +528,15 @@ int main(int argc, char** argv) try {
                 for (std::size_t i = 0; i < n; ++i) {
                     detail::StitchPatch pt;
                     int head[4];
-                    bool ok = std::fread(head, sizeof head, 1, f) == 1 && std::fread(pt.centre.data(), sizeof(double), 2, f) == 2;
+                    bool ok = std::fread(head, sizeof head, 1, f) == 1 &&
+                              std::fread(pt.centre.data(), sizeof(double), 2, f) == 2;
                     pt.origin_row = head[0];
                     pt.origin_col = head[1];
                     pt.rows = head[2];
                     pt.cols = head[3];
                     pt.heights_um.resize(std::size_t(pt.rows) * pt.cols);
-                    ok = ok && std::fread(pt.heights_um.data(), sizeof(double), pt.heights_um.size(), f) == pt.heights_um.size();
+                    ok = ok && std::fread(pt.heights_um.data(), sizeof(double), pt.heights_um.size(), f) ==
+                                   pt.heights_um.size();
                     if (!ok) throw std::runtime_error("stitch_patches: cannot read " + args["stitch_patches"]);
                     loaded.push_back(std::move(pt));
                 }
@@ -660,14 +662,16 @@ int main(int argc, char** argv) try {
                 for (std::size_t k = 0; k < positions.size(); ++k) ++sizes[root(int(k))];
                 int largest = 0;
                 for (const auto& [r0, c] : sizes) largest = std::max(largest, c);
-                std::printf("STITCH_PAIRS used=%zu within_half_texel=%d rms_error_texels=%.4f components=%zu largest=%d\n",
-                            st.pairs.size(), good, st.pairs.empty() ? 0.0 : std::sqrt(e2 / (2.0 * st.pairs.size())),
-                            sizes.size(), largest);
+                std::printf(
+                    "STITCH_PAIRS used=%zu within_half_texel=%d rms_error_texels=%.4f components=%zu largest=%d\n",
+                    st.pairs.size(), good, st.pairs.empty() ? 0.0 : std::sqrt(e2 / (2.0 * st.pairs.size())),
+                    sizes.size(), largest);
             }
             if (get("stitch_dump", "0") == "1")
                 for (std::size_t k = 0; k < positions.size(); ++k)
-                    std::printf("STITCH_D k=%zu true=(%.3f, %.3f) found=(%.3f, %.3f) twin=%d\n", k, errors[k][0] / texel_um,
-                                errors[k][1] / texel_um, st.offsets_texels[k][0], st.offsets_texels[k][1], st.twin[k]);
+                    std::printf("STITCH_D k=%zu true=(%.3f, %.3f) found=(%.3f, %.3f) twin=%d\n", k,
+                                errors[k][0] / texel_um, errors[k][1] / texel_um, st.offsets_texels[k][0],
+                                st.offsets_texels[k][1], st.twin[k]);
             {  // the resolved patches' error, both means removed (texels)
                 std::array<double, 2> mt{0, 0}, mf{0, 0};
                 int nr = 0;
@@ -693,8 +697,9 @@ int main(int argc, char** argv) try {
                         }
                         within += std::sqrt(ek) < 0.5;
                     }
-                std::printf("STITCH_RESOLVED count=%d before_rms_texels=%.4f after_rms_texels=%.4f within_half_texel=%d\n",
-                            nr, nr ? std::sqrt(t2 / (2.0 * nr)) : 0.0, nr ? std::sqrt(e2 / (2.0 * nr)) : 0.0, within);
+                std::printf(
+                    "STITCH_RESOLVED count=%d before_rms_texels=%.4f after_rms_texels=%.4f within_half_texel=%d\n", nr,
+                    nr ? std::sqrt(t2 / (2.0 * nr)) : 0.0, nr ? std::sqrt(e2 / (2.0 * nr)) : 0.0, within);
             }
             const double n2 = 2.0 * double(positions.size());
             std::printf(
