@@ -31,16 +31,30 @@
 //     rescue_factor=0 rescue_radius=6 rescue_step=0.5 (round 10: positions with loss > factor ×
 //     median searched ± radius, coarse grid 2·step)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
+//     (round 11b:) stitch=0 (1: every position's patch recovered alone on a stitch_tile² tile
+//     (default 14; patch_blurs, patch_field_iters, patch_refine_iters override the patch's
+//     recovery), stitched (src/recovery/stitch_positions.h: stitch_distance, stitch_misfit,
+//     stitch_overlap) and, with stitch_apply=1 (default), the stated centres moved by the
+//     stitched offsets before the recovery: STITCH line; stitch_only=1 stops there)
+//     stitch_probe=K (K positions' patches alone and their errors: PATCH lines)
+//     stitch_patches=FILE (patches reloaded from / saved to FILE) stitch_search_overlap
+//     (diagnostics:) stitch_truth_patches=1 (the truth's patches at the true centres)
+//     stitch_truth_noise=E (plus smooth noise of E % of the range) stitch_oracle_twins=1
+//     stitch_dump=1 patch_loss=1 patch_hops=N patch_hop_um=0.05 patch_hop_iters=60 (basin hopping)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
+#include <functional>
 #include <map>
+#include <numeric>
 #include <memory>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -52,6 +66,7 @@
 #include "wavebrdf/optim.h"
 #include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
+#include "recovery/stitch_positions.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/slice_plan.h"
@@ -369,6 +384,350 @@ int main(int argc, char** argv) try {
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);
         detail::set_position_study_hooks(hooks);
+    }
+    // Round 11b (docs/recovery.md, "Self-calibration: positions"): stitch_probe=K — K positions
+    // (evenly spread over the list) each recovered alone: recover_heights on a stitch_tile² tile
+    // (default 14) with only that position's observations, centred at its stated centre. Prints
+    // the patch's error in the window's own coordinates (weighted by the window, constant
+    // removed, % of the truth's range; the direct and the twin orientation) and its CPU seconds.
+    if (args.count("stitch_probe") || get("stitch", "0") == "1") {
+        const int probes = std::stoi(get("stitch_probe", "0"));
+        const int tile = std::stoi(get("stitch_tile", "14"));
+        RecoverSettings ps = rs;
+        ps.calibrate = {};
+        ps.position_outer_passes = 0;
+        if (args.count("patch_blurs")) ps.blurred.blur_widths = parse_list(args["patch_blurs"]);
+        set_int("patch_field_iters", ps.field.iterations);
+        set_int("patch_refine_iters", ps.refine_iterations);
+        const double range_um = stats.max_um - stats.min_um;
+        const auto sample_um = [&](double x_um, double y_um) {  // the truth (µm) at a point, periodic bicubic
+            const double r = x_um / texel_um - 0.5, c = y_um / texel_um - 0.5;
+            const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
+            const auto w = [](double t, double* k) {
+                const double t2 = t * t, t3 = t2 * t;
+                k[0] = 0.5 * (-t3 + 2 * t2 - t);
+                k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
+                k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
+                k[3] = 0.5 * (t3 - t2);
+            };
+            double wr[4], wc[4];
+            w(r - i0, wr);
+            w(c - j0, wc);
+            double s = 0.0;
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) s += wr[a] * wc[b] * truth.height_um(i0 - 1 + a, j0 - 1 + b);
+            return s;
+        };
+        // Position k's patch from its observations alone (heights µm on the tile), and its CPU s.
+        const auto recover_patch = [&](std::size_t k, double& cpu) {
+            const int i0 = int(std::lround(positions[k][0] / texel_um - tile / 2.0));
+            const int j0 = int(std::lround(positions[k][1] / texel_um - tile / 2.0));
+            std::vector<Observation> sub;
+            for (std::size_t o = 0; o < observations.size(); ++o)
+                if (observations[o].query.x_um == positions[k][0] && observations[o].query.y_um == positions[k][1]) {
+                    Observation so = observations[o];
+                    so.query.x_um -= i0 * texel_um;
+                    so.query.y_um -= j0 * texel_um;
+                    sub.push_back(std::move(so));
+                }
+            const std::clock_t c0 = std::clock();
+            Heightfield patch = recover_heights(sub, tile, tile, texel_um, 1.0, ps);
+            // patch_hops=N: basin hopping on the patch's own amplitude loss: N times, the best
+            // patch so far perturbed (each texel, Gaussian of patch_hop_um, smoothed by a 3 × 3 box)
+            // and refined by L-BFGS (patch_hop_iters, 60); the lower loss kept.
+            if (const int hops = std::stoi(get("patch_hops", "0")); hops > 0) {
+                const Loss amplitude{LossKind::Amplitude, 1.0};
+                const double hop_um = std::stod(get("patch_hop_um", "0.05"));
+                LbfgsOptions lo;
+                lo.max_iterations = std::stoi(get("patch_hop_iters", "60"));
+                lo.history = 20;
+                lo.gradient_tolerance = 0.0;
+                const auto refine = [&](std::vector<double>& h) {
+                    lbfgs_minimize(
+                        [&](const std::vector<double>& x, std::vector<double>& g) {
+                            return observation_loss(patch.with_values(x), sub, amplitude, &g);
+                        },
+                        h, lo);
+                    return observation_loss(patch.with_values(h), sub, amplitude, nullptr);
+                };
+                std::vector<double> best = patch.values();
+                double best_loss = refine(best);
+                std::mt19937_64 hop_rng(seed * 31 + k);
+                std::normal_distribution<double> gauss(0.0, hop_um / texel_um);
+                for (int hop = 0; hop < hops; ++hop) {
+                    std::vector<double> noise(best.size()), h = best;
+                    for (double& v : noise) v = gauss(hop_rng);
+                    for (int a = 0; a < tile; ++a)
+                        for (int b = 0; b < tile; ++b) {
+                            double sm = 0.0;
+                            for (int da = -1; da <= 1; ++da)
+                                for (int db = -1; db <= 1; ++db)
+                                    sm += noise[std::size_t((a + da + tile) % tile) * tile + (b + db + tile) % tile];
+                            h[std::size_t(a) * tile + b] += sm / 3.0;
+                        }
+                    const double l = refine(h);
+                    if (l < best_loss) {
+                        best_loss = l;
+                        best = h;
+                    }
+                }
+                patch = patch.with_values(best);
+            }
+            cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+            if (get("patch_loss", "0") == "1") {  // the patch's loss against the truth's (true centre) on the tile
+                std::vector<double> t(std::size_t(tile) * tile);
+                for (int a = 0; a < tile; ++a)
+                    for (int b = 0; b < tile; ++b)
+                        t[std::size_t(a) * tile + b] = sample_um((i0 + a + 0.5) * texel_um + errors[k][0],
+                                                                 (j0 + b + 0.5) * texel_um + errors[k][1]) /
+                                                       texel_um;
+                const Loss amplitude{LossKind::Amplitude, 1.0};
+                std::printf("PATCH_LOSS k=%zu recovered=%.4e truth=%.4e\n", k,
+                            observation_loss(patch, sub, amplitude, nullptr),
+                            observation_loss(patch.with_values(t), sub, amplitude, nullptr));
+            }
+            detail::StitchPatch out;
+            out.origin_row = i0;
+            out.origin_col = j0;
+            out.rows = out.cols = tile;
+            out.heights_um = heights_um(patch);
+            out.centre = {positions[k][0] / texel_um, positions[k][1] / texel_um};
+            return out;
+        };
+        // The patch's error in the window's own coordinates (direct, twin), % of the range.
+        const auto patch_error = [&](std::size_t k, const detail::StitchPatch& pt, double* err) {
+            for (int twin = 0; twin < 2; ++twin) {
+                double sw = 0, sd = 0, sd2 = 0;
+                for (int a = 0; a < tile; ++a)
+                    for (int b = 0; b < tile; ++b) {
+                        const double yx = (pt.origin_row + a + 0.5) * texel_um - positions[k][0];
+                        const double yy = (pt.origin_col + b + 0.5) * texel_um - positions[k][1];
+                        const double wgt = std::exp(-(yx * yx + yy * yy) / (2 * sigma_p * sigma_p));
+                        const double tx = positions[k][0] + errors[k][0], ty = positions[k][1] + errors[k][1];
+                        const double ref = twin ? -sample_um(tx - yx, ty - yy) : sample_um(tx + yx, ty + yy);
+                        const double d = pt.heights_um[std::size_t(a) * tile + b] - ref;
+                        sw += wgt;
+                        sd += wgt * d;
+                        sd2 += wgt * d * d;
+                    }
+                err[twin] = std::sqrt(std::max(0.0, sd2 / sw - (sd / sw) * (sd / sw))) / range_um * 100.0;
+            }
+        };
+        const bool all = probes <= 0 || std::size_t(probes) >= positions.size();
+        const std::size_t count = all ? positions.size() : std::size_t(probes);
+        std::vector<detail::StitchPatch> patches;
+        double sum_best = 0.0, sum_cpu = 0.0;
+        int twins = 0;
+        // stitch_patches=FILE: the patches read from FILE when it exists (written there otherwise),
+        // so the stitching's settings can be varied without recovering the patches again.
+        std::vector<detail::StitchPatch> loaded;
+        if (args.count("stitch_patches")) {
+            if (FILE* f = std::fopen(args["stitch_patches"].c_str(), "rb")) {
+                std::size_t n = 0;
+                if (std::fread(&n, sizeof n, 1, f) != 1) n = 0;
+                for (std::size_t i = 0; i < n; ++i) {
+                    detail::StitchPatch pt;
+                    int head[4];
+                    bool ok = std::fread(head, sizeof head, 1, f) == 1 &&
+                              std::fread(pt.centre.data(), sizeof(double), 2, f) == 2;
+                    pt.origin_row = head[0];
+                    pt.origin_col = head[1];
+                    pt.rows = head[2];
+                    pt.cols = head[3];
+                    pt.heights_um.resize(std::size_t(pt.rows) * pt.cols);
+                    ok = ok && std::fread(pt.heights_um.data(), sizeof(double), pt.heights_um.size(), f) ==
+                                   pt.heights_um.size();
+                    if (!ok) throw std::runtime_error("stitch_patches: cannot read " + args["stitch_patches"]);
+                    loaded.push_back(std::move(pt));
+                }
+                std::fclose(f);
+            }
+        }
+        for (std::size_t q = 0; q < count; ++q) {
+            const std::size_t k = all ? q : q * positions.size() / count + positions.size() / (2 * count);
+            double cpu = 0.0, err[2];
+            if (get("stitch_truth_patches", "0") == "1") {  // a check of the geometry: the truth's patch
+                detail::StitchPatch pt;
+                pt.rows = pt.cols = tile;
+                pt.origin_row = int(std::lround(positions[k][0] / texel_um - tile / 2.0));
+                pt.origin_col = int(std::lround(positions[k][1] / texel_um - tile / 2.0));
+                pt.centre = {positions[k][0] / texel_um, positions[k][1] / texel_um};
+                for (int a = 0; a < tile; ++a)
+                    for (int b = 0; b < tile; ++b)
+                        pt.heights_um.push_back(sample_um((pt.origin_row + a + 0.5) * texel_um + errors[k][0],
+                                                          (pt.origin_col + b + 0.5) * texel_um + errors[k][1]));
+                // stitch_truth_noise=E: plus smooth noise (3 × 3 box of Gaussian texels) of rms E %
+                // of the truth's range, a patch error of known size.
+                if (const double noise_pct = std::stod(get("stitch_truth_noise", "0")); noise_pct > 0) {
+                    std::mt19937_64 nrng(seed * 977 + k);
+                    std::normal_distribution<double> gauss(0.0, 1.0);
+                    std::vector<double> w(pt.heights_um.size());
+                    for (double& v : w) v = gauss(nrng);
+                    std::vector<double> sm(w.size(), 0.0);
+                    double s2 = 0.0;
+                    for (int a = 0; a < tile; ++a)
+                        for (int b = 0; b < tile; ++b) {
+                            double acc = 0.0;
+                            for (int da = -1; da <= 1; ++da)
+                                for (int db = -1; db <= 1; ++db)
+                                    acc += w[std::size_t((a + da + tile) % tile) * tile + (b + db + tile) % tile];
+                            sm[std::size_t(a) * tile + b] = acc;
+                            s2 += acc * acc;
+                        }
+                    const double scale = noise_pct / 100.0 * range_um / std::sqrt(s2 / double(sm.size()));
+                    for (std::size_t i = 0; i < sm.size(); ++i) pt.heights_um[i] += scale * sm[i];
+                }
+                patches.push_back(pt);
+            } else if (q < loaded.size())
+                patches.push_back(loaded[q]);
+            else
+                patches.push_back(recover_patch(k, cpu));
+            patch_error(k, patches.back(), err);
+            sum_best += std::min(err[0], err[1]);
+            sum_cpu += cpu;
+            twins += err[1] < err[0];
+            std::printf("PATCH k=%zu offset_texels=(%.2f, %.2f) err_direct=%.3f%% err_twin=%.3f%% cpu_s=%.2f\n", k,
+                        errors[k][0] / texel_um, errors[k][1] / texel_um, err[0], err[1], cpu);
+        }
+        std::printf("PATCHES count=%zu mean_best_err=%.3f%% twins=%d mean_cpu_s=%.2f\n", count, sum_best / count, twins,
+                    sum_cpu / count);
+        if (args.count("stitch_patches") && loaded.empty())
+            if (FILE* f = std::fopen(args["stitch_patches"].c_str(), "wb")) {
+                const std::size_t n = patches.size();
+                std::fwrite(&n, sizeof n, 1, f);
+                for (const detail::StitchPatch& pt : patches) {
+                    const int head[4] = {pt.origin_row, pt.origin_col, pt.rows, pt.cols};
+                    std::fwrite(head, sizeof head, 1, f);
+                    std::fwrite(pt.centre.data(), sizeof(double), 2, f);
+                    std::fwrite(pt.heights_um.data(), sizeof(double), pt.heights_um.size(), f);
+                }
+                std::fclose(f);
+            }
+        if (all) {
+            // Stitch: every offset from the patches alone; the stated centres moved by them.
+            detail::StitchSettings ss;
+            ss.sigma_texels = sigma_p / texel_um;
+            if (args.count("stitch_distance")) ss.max_distance_texels = std::stod(args["stitch_distance"]);
+            if (args.count("stitch_misfit")) ss.max_misfit = std::stod(args["stitch_misfit"]);
+            if (args.count("stitch_overlap")) ss.min_overlap = std::stod(args["stitch_overlap"]);
+            if (args.count("stitch_search_overlap")) ss.search_overlap = std::stod(args["stitch_search_overlap"]);
+            const std::clock_t c0 = std::clock();
+            std::vector<int> oracle;  // stitch_oracle_twins=1: the twins from the truth (a diagnostic)
+            for (std::size_t k = 0; k < positions.size(); ++k) {
+                double err[2];
+                patch_error(k, patches[k], err);
+                oracle.push_back(err[1] < err[0] ? 1 : 0);
+            }
+            const detail::StitchResult st = detail::stitch_positions(
+                patches, ss, get("stitch_oracle_twins", "0") == "1" ? &oracle : nullptr);
+            const double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+            double before = 0.0, after = 0.0;
+            int twin_agree = 0;
+            for (std::size_t k = 0; k < positions.size(); ++k)
+                for (int c = 0; c < 2; ++c) {
+                    const double t = errors[k][c] / texel_um;
+                    before += t * t;
+                    after += (t - st.offsets_texels[k][c]) * (t - st.offsets_texels[k][c]);
+                }
+            for (std::size_t k = 0; k < positions.size(); ++k) {
+                double err[2];
+                patch_error(k, patches[k], err);
+                twin_agree += st.twin[k] == (err[1] < err[0] ? 1 : 0);
+            }
+            {
+                std::vector<double> m = st.candidate_misfits;
+                std::sort(m.begin(), m.end());
+                const auto qt = [&](double f) { return m.empty() ? -1.0 : m[std::size_t(f * (m.size() - 1))]; };
+                std::printf("STITCH_MISFITS overlapping_pairs=%zu q10=%.4f q25=%.4f q50=%.4f q75=%.4f q90=%.4f\n",
+                            m.size(), qt(0.1), qt(0.25), qt(0.5), qt(0.75), qt(0.9));
+            }
+            {  // the used pairs' shifts against the truth's d_a − d_b
+                int good = 0;
+                double e2 = 0.0;
+                for (const detail::StitchPair& pr : st.pairs) {
+                    const double eu = pr.shift[0] - (errors[pr.a][0] - errors[pr.b][0]) / texel_um;
+                    const double ev = pr.shift[1] - (errors[pr.a][1] - errors[pr.b][1]) / texel_um;
+                    good += std::hypot(eu, ev) < 0.5;
+                    if (get("stitch_dump", "0") == "1" && std::hypot(eu, ev) >= 0.5)
+                        std::printf("STITCH_BAD a=%d b=%d shift=(%.2f, %.2f) true=(%.2f, %.2f) w=%.3f\n", pr.a, pr.b,
+                                    pr.shift[0], pr.shift[1], (errors[pr.a][0] - errors[pr.b][0]) / texel_um,
+                                    (errors[pr.a][1] - errors[pr.b][1]) / texel_um, pr.weight);
+                    e2 += eu * eu + ev * ev;
+                }
+                std::vector<int> comp(positions.size());
+                std::iota(comp.begin(), comp.end(), 0);
+                const std::function<int(int)> root = [&](int x) { return comp[x] == x ? x : comp[x] = root(comp[x]); };
+                for (const detail::StitchPair& pr : st.pairs) comp[root(pr.a)] = root(pr.b);
+                std::map<int, int> sizes;
+                for (std::size_t k = 0; k < positions.size(); ++k) ++sizes[root(int(k))];
+                int largest = 0;
+                for (const auto& [r0, c] : sizes) largest = std::max(largest, c);
+                std::printf(
+                    "STITCH_PAIRS used=%zu within_half_texel=%d rms_error_texels=%.4f components=%zu largest=%d\n",
+                    st.pairs.size(), good, st.pairs.empty() ? 0.0 : std::sqrt(e2 / (2.0 * st.pairs.size())),
+                    sizes.size(), largest);
+            }
+            if (get("stitch_dump", "0") == "1")
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    std::printf("STITCH_D k=%zu true=(%.3f, %.3f) found=(%.3f, %.3f) twin=%d\n", k,
+                                errors[k][0] / texel_um, errors[k][1] / texel_um, st.offsets_texels[k][0],
+                                st.offsets_texels[k][1], st.twin[k]);
+            {  // the resolved patches' error, both means removed (texels)
+                std::array<double, 2> mt{0, 0}, mf{0, 0};
+                int nr = 0;
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    if (st.resolved[k]) {
+                        ++nr;
+                        for (int c = 0; c < 2; ++c) {
+                            mt[c] += errors[k][c] / texel_um;
+                            mf[c] += st.offsets_texels[k][c];
+                        }
+                    }
+                double e2 = 0.0, t2 = 0.0;
+                int within = 0;
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    if (st.resolved[k]) {
+                        double ek = 0.0;
+                        for (int c = 0; c < 2; ++c) {
+                            const double t = errors[k][c] / texel_um - mt[c] / nr;
+                            const double e = st.offsets_texels[k][c] - mf[c] / nr - t;
+                            e2 += e * e;
+                            t2 += t * t;
+                            ek += e * e;
+                        }
+                        within += std::sqrt(ek) < 0.5;
+                    }
+                std::printf(
+                    "STITCH_RESOLVED count=%d before_rms_texels=%.4f after_rms_texels=%.4f within_half_texel=%d\n", nr,
+                    nr ? std::sqrt(t2 / (2.0 * nr)) : 0.0, nr ? std::sqrt(e2 / (2.0 * nr)) : 0.0, within);
+            }
+            const double n2 = 2.0 * double(positions.size());
+            std::printf(
+                "STITCH pairs_tried=%d pairs_used=%d residual_rms_texels=%.4f offsets_before_rms_texels=%.4f "
+                "after_rms_texels=%.4f twin_agree=%d/%zu unresolved=%d cpu_s=%.2f\n",
+                st.pairs_tried, st.pairs_used, st.residual_rms_texels, std::sqrt(before / n2), std::sqrt(after / n2),
+                twin_agree, positions.size(), st.unresolved, cpu);
+            // The estimated offsets as the new stated centres (stitch_apply=1, the default).
+            if (get("stitch_apply", "1") == "1") {
+                std::array<double, 2> mean{0, 0};
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    for (int c = 0; c < 2; ++c) {
+                        errors[k][c] -= st.offsets_texels[k][c] * texel_um;
+                        mean[c] += errors[k][c] / double(positions.size());
+                    }
+                for (auto& e : errors) e = {e[0] - mean[0], e[1] - mean[1]};  // the study's gauge: mean 0
+                for (std::size_t o = 0; o < observations.size(); ++o) {
+                    const std::size_t k = o % positions.size();  // observations: wavelength-major
+                    observations[o].query.x_um = positions[k][0] + st.offsets_texels[k][0] * texel_um;
+                    observations[o].query.y_um = positions[k][1] + st.offsets_texels[k][1] * texel_um;
+                    obs_error[o] = errors[k];
+                }
+                for (std::size_t k = 0; k < positions.size(); ++k)
+                    positions[k] = {positions[k][0] + st.offsets_texels[k][0] * texel_um,
+                                    positions[k][1] + st.offsets_texels[k][1] * texel_um};
+            }
+        }
+        if (get("stitch_only", "0") == "1") return 0;
     }
     // The field stage's offsets after every correction round against the truth (offsets left,
     // rms over positions and coordinates, means removed, texels): "PROBE round rms".
