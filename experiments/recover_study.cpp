@@ -33,6 +33,7 @@
 //     register_newton=0 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
 //     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
 //     rescue_below=0 (round 11: the rescue only in passes whose registration moved < this, texels)
+//     field_below=0 (round 11: a later pass skips the field stage when its registration moved < this)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
@@ -370,6 +371,7 @@ int main(int argc, char** argv) try {
         if (args.count("rescue_step")) hooks.rescue_step_texels = std::stod(args["rescue_step"]);
         set_int("register_newton", hooks.register_newton);  // round 11
         if (args.count("rescue_below")) hooks.rescue_below_texels = std::stod(args["rescue_below"]);
+        if (args.count("field_below")) hooks.outer_field_below_texels = std::stod(args["field_below"]);
         if (args.count("newton_step")) hooks.newton_step_texels = std::stod(args["newton_step"]);
         if (args.count("newton_cap")) hooks.newton_cap_texels = std::stod(args["newton_cap"]);
         hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";

@@ -550,7 +550,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             }
             const std::vector<double> fed_to_pass = offsets_um;  // before the field stage corrects them
             if (!white && settings.position_outer_fields &&
-                (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes)) {
+                (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes) &&
+                !(hooks.outer_field_below_texels > 0.0 && moved < hooks.outer_field_below_texels)) {
                 lambdas.clear();
                 fields.clear();
                 if (settings.position_outer_field_iterations > 0)

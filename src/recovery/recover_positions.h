@@ -137,6 +137,10 @@ struct PositionStudyHooks {
     // Round 10: the outer loop's later passes run the field stage only in their first
     // outer_field_passes passes (then registration and stage 3 alone); −1: every pass (as before).
     int outer_field_passes = -1;
+    // Round 11: a later pass skips the field stage when the registration before it moved the
+    // offsets by less than this (rms, texels: near the end the field stage's own position steps
+    // undo the registration's last 0.02 texel); 0: off.
+    double outer_field_below_texels = 0.0;
     // Round 10: after every registration of the outer loop, rescue_lost_positions with this
     // factor (0: off), radius and step (texels).
     double rescue_factor = 0.0;
