@@ -49,7 +49,7 @@ for path in sys.argv[1:]:
             rss = int(m.group(1)) / 1024
     print(path)
     print("  offsets left:", ", ".join(f"{v:.3f}" for v in left), "| final", final_left)
-    print("  % per recovery:", ", ".join(f"{v:.2f}" for v in pct), "| final", f"{final_pct:.3f}" if final_pct else None)
+    print("  % per recovery:", ", ".join(f"{v:.3f}" for v in pct), "| final", f"{final_pct:.3f}" if final_pct else None)
     print("  registration moves:", ", ".join(f"{v:.3f}" for v in moves))
     print("  Newton moved:", ", ".join(str(v) for v in newton))
     print("  rescue:", ", ".join(rescue))
