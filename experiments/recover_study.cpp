@@ -30,6 +30,10 @@
 //     outer_field_passes=-1 (round 10: the field stage only in the first N later passes) stall_diag=0 (round 10: per-position table, PREFIX_positions.csv)
 //     rescue_factor=0 rescue_radius=6 rescue_step=0.5 (round 10: positions with loss > factor ×
 //     median searched ± radius, coarse grid 2·step)
+//     register_newton=0 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
+//     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
+//     rescue_below=0 (round 11: the rescue only in passes whose registration moved < this, texels)
+//     field_below=0 (round 11: a later pass skips the field stage when its registration moved < this)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 //     (round 11b:) stitch=0 (1: every position's patch recovered alone on a stitch_tile² tile
 //     (default 14; patch_blurs, patch_field_iters, patch_refine_iters override the patch's
@@ -380,6 +384,11 @@ int main(int argc, char** argv) try {
         if (args.count("rescue_factor")) hooks.rescue_factor = std::stod(args["rescue_factor"]);
         if (args.count("rescue_radius")) hooks.rescue_radius_texels = std::stod(args["rescue_radius"]);
         if (args.count("rescue_step")) hooks.rescue_step_texels = std::stod(args["rescue_step"]);
+        set_int("register_newton", hooks.register_newton);  // round 11
+        if (args.count("rescue_below")) hooks.rescue_below_texels = std::stod(args["rescue_below"]);
+        if (args.count("field_below")) hooks.outer_field_below_texels = std::stod(args["field_below"]);
+        if (args.count("newton_step")) hooks.newton_step_texels = std::stod(args["newton_step"]);
+        if (args.count("newton_cap")) hooks.newton_cap_texels = std::stod(args["newton_cap"]);
         hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);
@@ -876,6 +885,10 @@ int main(int argc, char** argv) try {
         std::vector<double> registered = found;
         detail::register_positions(observations, index, estimate, rs, sigma_scale, radius, 0.5, registered,
                                    serial_communicator());
+        for (int k = 0; k < detail::position_study_hooks().register_newton; ++k)  // round 11
+            detail::newton_register_positions(
+                observations, index, estimate, rs, sigma_scale, detail::position_study_hooks().newton_step_texels,
+                detail::position_study_hooks().newton_cap_texels, registered, serial_communicator());
         // loss(heights, offsets per position (µm), shift in texels) per position.
         const auto losses = [&](const Heightfield& hf, const std::vector<double>& off, double sx, double sy) {
             std::vector<double> l(count, 0.0);

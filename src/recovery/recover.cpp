@@ -438,6 +438,18 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             double moved = detail::register_positions(observations, position_of, estimate, settings, sigma_scale,
                                                       settings.position_register_radius_texels, 0.5, position_offsets,
                                                       comm);
+            // Round 11 (study hook, off by default): Newton steps on each position's offset after
+            // the grid and parabola (recover_positions.h); moved counts them.
+            for (int n = 0; n < hooks.register_newton; ++n) {
+                const int stepped = detail::newton_register_positions(observations, position_of, estimate, settings,
+                                                                      sigma_scale, hooks.newton_step_texels,
+                                                                      hooks.newton_cap_texels, position_offsets, comm);
+                double s2 = 0.0;
+                for (std::size_t i = 0; i < before.size(); ++i)
+                    s2 += (position_offsets[i] - before[i]) * (position_offsets[i] - before[i]);
+                moved = before.empty() ? 0.0 : std::sqrt(s2 / double(before.size())) / estimate.texel_um();
+                if (!report("positions:newton", stepped, moved, &estimate)) return estimate;
+            }
             if (smooth_nodes > 0) {
                 std::vector<double> update(position_offsets.size());
                 for (std::size_t i = 0; i < update.size(); ++i) update[i] = position_offsets[i] - before[i];
@@ -452,7 +464,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
             // Round 10 (study hook, off by default): the lost positions searched wide.
             int rescued = 0;
-            if (hooks.rescue_factor > 0.0) {
+            if (hooks.rescue_factor > 0.0 && (hooks.rescue_below_texels <= 0.0 || moved < hooks.rescue_below_texels)) {
                 const std::vector<double> kept = position_offsets;
                 rescued = detail::rescue_lost_positions(observations, position_of, estimate, settings, sigma_scale,
                                                         hooks.rescue_factor, hooks.rescue_radius_texels,
@@ -538,7 +550,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             }
             const std::vector<double> fed_to_pass = offsets_um;  // before the field stage corrects them
             if (!white && settings.position_outer_fields &&
-                (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes)) {
+                (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes) &&
+                !(hooks.outer_field_below_texels > 0.0 && moved < hooks.outer_field_below_texels)) {
                 lambdas.clear();
                 fields.clear();
                 if (settings.position_outer_field_iterations > 0)

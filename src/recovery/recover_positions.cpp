@@ -203,6 +203,77 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
     return count;
 }
 
+int newton_register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                              const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                              double step_texels, double cap_texels, std::vector<double>& offsets_um,
+                              const Communicator& comm) {
+    if (!(step_texels > 0.0) || !(cap_texels > 0.0))
+        throw std::invalid_argument("newton_register_positions: step " + std::to_string(step_texels) + " / cap " +
+                                    std::to_string(cap_texels) + " texels invalid; expected step > 0, cap > 0");
+    const std::size_t positions = offsets_um.size() / 2;
+    if (index.size() != observations.size() || offsets_um.size() % 2 != 0)
+        throw std::invalid_argument("newton_register_positions: " + std::to_string(index.size()) +
+                                    " position indices for " + std::to_string(observations.size()) + " observations, " +
+                                    std::to_string(offsets_um.size()) + " offsets; expected one each, 2 per position");
+    for (std::size_t p : index)
+        if (p >= positions)
+            throw std::invalid_argument("newton_register_positions: position " + std::to_string(p) + " outside the " +
+                                        std::to_string(positions) + " positions' offsets given");
+    const double texel_um = heights.texel_um(), h = step_texels;
+    // The 3 × 3 stencil: candidate (a + 1) · 3 + (b + 1) is the offset + step · (a, b).
+    const std::vector<double> stencil = grid_losses(observations, index, heights, settings, sigma_scale, 1, step_texels,
+                                                    offsets_um, comm);
+    std::vector<double> step(2 * positions, 0.0), centre(positions, 0.0);
+    std::vector<char> pending(positions, 0);
+    for (std::size_t p = 0; p < positions; ++p) {
+        if (stencil[positions * 9 + p] == 0.0) continue;  // no observation here
+        const double* s = &stencil[p * 9];
+        const auto at = [s](int a, int b) { return s[(a + 1) * 3 + (b + 1)]; };
+        const double gx = (at(1, 0) - at(-1, 0)) / (2.0 * h), gy = (at(0, 1) - at(0, -1)) / (2.0 * h);
+        const double hxx = (at(1, 0) - 2.0 * at(0, 0) + at(-1, 0)) / (h * h);
+        const double hyy = (at(0, 1) - 2.0 * at(0, 0) + at(0, -1)) / (h * h);
+        const double hxy = (at(1, 1) - at(1, -1) - at(-1, 1) + at(-1, -1)) / (4.0 * h * h);
+        const double det = hxx * hyy - hxy * hxy;
+        if (!(hxx > 0.0) || !(det > 0.0)) continue;  // not a minimum's basin: no step
+        double sx = -(hyy * gx - hxy * gy) / det, sy = -(hxx * gy - hxy * gx) / det;
+        const double length = std::hypot(sx, sy);
+        if (!(length > 0.0) || !std::isfinite(length)) continue;
+        if (length > cap_texels) {
+            sx *= cap_texels / length;
+            sy *= cap_texels / length;
+        }
+        step[2 * p] = sx;
+        step[2 * p + 1] = sy;
+        centre[p] = at(0, 0);
+        pending[p] = 1;
+    }
+    int moved = 0;
+    for (int attempt = 0; attempt < 4; ++attempt) {  // the step, then halved at most 3 times
+        if (std::find(pending.begin(), pending.end(), char(1)) == pending.end()) break;
+        std::vector<double> trial = offsets_um;
+        for (std::size_t p = 0; p < positions; ++p)
+            if (pending[p]) {
+                trial[2 * p] += texel_um * step[2 * p];
+                trial[2 * p + 1] += texel_um * step[2 * p + 1];
+            }
+        const std::vector<double> losses = grid_losses(observations, index, heights, settings, sigma_scale, 0, 1.0,
+                                                       trial, comm);
+        for (std::size_t p = 0; p < positions; ++p) {
+            if (!pending[p]) continue;
+            if (losses[p] < centre[p]) {
+                offsets_um[2 * p] = trial[2 * p];
+                offsets_um[2 * p + 1] = trial[2 * p + 1];
+                pending[p] = 0;
+                ++moved;
+            } else {
+                step[2 * p] *= 0.5;
+                step[2 * p + 1] *= 0.5;
+            }
+        }
+    }
+    return moved;
+}
+
 namespace {
 
 // The offsets in µm (mean removed per coordinate) from the variables t (texels) that follow

@@ -68,6 +68,21 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
                           double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm);
 
+// Round 11 (docs/recovery.md, "Self-calibration: positions"): a Newton step on every gathered
+// position's offset after the registration's grid and parabola. Per position, the 2 × 2 Hessian
+// and gradient of its loss (as register_positions') in its offset by central differences of
+// ± step_texels (a 3 × 3 stencil about the offset, the cross term from its corners); where the
+// Hessian is positive definite, the Newton point (its step capped at cap_texels in length) is
+// taken if that position's loss there is lower than at its offset, else the step is halved (at
+// most 3 times; then the offset is kept). The losses are register_positions' exact collective
+// sums, so every rank takes the same decisions (1, 2, 3 ranks give the same bits). Returns how
+// many positions moved. Throws std::invalid_argument for step ≤ 0, cap ≤ 0 or offsets_um not 2
+// per position.
+int newton_register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                              const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                              double step_texels, double cap_texels, std::vector<double>& offsets_um,
+                              const Communicator& comm);
+
 // The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
 // "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
 // the least-squares fit of each coordinate by a smooth field is subtracted in place and
@@ -122,11 +137,24 @@ struct PositionStudyHooks {
     // Round 10: the outer loop's later passes run the field stage only in their first
     // outer_field_passes passes (then registration and stage 3 alone); −1: every pass (as before).
     int outer_field_passes = -1;
+    // Round 11: a later pass skips the field stage when the registration before it moved the
+    // offsets by less than this (rms, texels: near the end the field stage's own position steps
+    // undo the registration's last 0.02 texel); 0: off.
+    double outer_field_below_texels = 0.0;
     // Round 10: after every registration of the outer loop, rescue_lost_positions with this
     // factor (0: off), radius and step (texels).
     double rescue_factor = 0.0;
     double rescue_radius_texels = 6.0;
     double rescue_step_texels = 0.5;
+    // Round 11: the rescue only in passes whose registration moved the offsets by less than this
+    // (rms, texels: the loop near its stall); 0: every pass (round 10).
+    double rescue_below_texels = 0.0;
+    // Round 11: after every registration of the outer loop (before its gauge and the rescue),
+    // register_newton Newton steps (newton_register_positions, stencil ± newton_step_texels,
+    // steps capped at newton_cap_texels); 0: off.
+    int register_newton = 0;
+    double newton_step_texels = 0.25;
+    double newton_cap_texels = 0.5;
 };
 void set_position_study_hooks(const PositionStudyHooks& hooks);
 const PositionStudyHooks& position_study_hooks();
