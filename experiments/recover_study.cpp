@@ -598,8 +598,8 @@ int main(int argc, char** argv) try {
             std::printf("PATCH k=%zu offset_texels=(%.2f, %.2f) err_direct=%.3f%% err_twin=%.3f%% cpu_s=%.2f\n", k,
                         errors[k][0] / texel_um, errors[k][1] / texel_um, err[0], err[1], cpu);
         }
-        std::printf("PATCHES count=%zu mean_best_err=%.3f%% twins=%d mean_cpu_s=%.2f\n", count, sum_best / count, twins,
-                    sum_cpu / count);
+        std::printf("PATCHES count=%zu mean_best_err=%.3f%% twins=%d mean_cpu_s=%.2f\n", count, sum_best / double(count), twins,
+                    sum_cpu / double(count));
         if (args.count("stitch_patches") && loaded.empty())
             if (FILE* f = std::fopen(args["stitch_patches"].c_str(), "wb")) {
                 const std::size_t n = patches.size();
@@ -646,7 +646,7 @@ int main(int argc, char** argv) try {
             {
                 std::vector<double> m = st.candidate_misfits;
                 std::sort(m.begin(), m.end());
-                const auto qt = [&](double f) { return m.empty() ? -1.0 : m[std::size_t(f * (m.size() - 1))]; };
+                const auto qt = [&](double f) { return m.empty() ? -1.0 : m[std::size_t(f * double(m.size() - 1))]; };
                 std::printf("STITCH_MISFITS overlapping_pairs=%zu q10=%.4f q25=%.4f q50=%.4f q75=%.4f q90=%.4f\n",
                             m.size(), qt(0.1), qt(0.25), qt(0.5), qt(0.75), qt(0.9));
             }
@@ -673,7 +673,7 @@ int main(int argc, char** argv) try {
                 for (const auto& [r0, c] : sizes) largest = std::max(largest, c);
                 std::printf(
                     "STITCH_PAIRS used=%zu within_half_texel=%d rms_error_texels=%.4f components=%zu largest=%d\n",
-                    st.pairs.size(), good, st.pairs.empty() ? 0.0 : std::sqrt(e2 / (2.0 * st.pairs.size())),
+                    st.pairs.size(), good, st.pairs.empty() ? 0.0 : std::sqrt(e2 / (2.0 * double(st.pairs.size()))),
                     sizes.size(), largest);
             }
             if (get("stitch_dump", "0") == "1")
