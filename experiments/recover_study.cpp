@@ -68,6 +68,7 @@
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/optim.h"
+#include "core/catmull_rom.h"
 #include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
 #include "recovery/stitch_positions.h"
@@ -106,21 +107,7 @@ double cubic_sample(const std::vector<double>& a, int rows, int cols, double r, 
         j = std::min(cols - 1, std::max(0, j));
         return a[std::size_t(i) * cols + j];
     };
-    const auto w = [](double t, double* k) {
-        const double t2 = t * t, t3 = t2 * t;
-        k[0] = 0.5 * (-t3 + 2 * t2 - t);
-        k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
-        k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
-        k[3] = 0.5 * (t3 - t2);
-    };
-    const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
-    double wr[4], wc[4];
-    w(r - i0, wr);
-    w(c - j0, wc);
-    double s = 0.0;
-    for (int a2 = 0; a2 < 4; ++a2)
-        for (int b = 0; b < 4; ++b) s += wr[a2] * wc[b] * at(i0 - 1 + a2, j0 - 1 + b);
-    return s;
+    return detail::catmull_rom_bicubic(r, c, at);
 }
 
 // Round 8 (docs/recovery.md, "Self-calibration: positions"): height_rel_rmse's kind of figure
@@ -411,21 +398,7 @@ int main(int argc, char** argv) try {
         const double range_um = stats.max_um - stats.min_um;
         const auto sample_um = [&](double x_um, double y_um) {  // the truth (µm) at a point, periodic bicubic
             const double r = x_um / texel_um - 0.5, c = y_um / texel_um - 0.5;
-            const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
-            const auto w = [](double t, double* k) {
-                const double t2 = t * t, t3 = t2 * t;
-                k[0] = 0.5 * (-t3 + 2 * t2 - t);
-                k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
-                k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
-                k[3] = 0.5 * (t3 - t2);
-            };
-            double wr[4], wc[4];
-            w(r - i0, wr);
-            w(c - j0, wc);
-            double s = 0.0;
-            for (int a = 0; a < 4; ++a)
-                for (int b = 0; b < 4; ++b) s += wr[a] * wc[b] * truth.height_um(i0 - 1 + a, j0 - 1 + b);
-            return s;
+            return detail::catmull_rom_bicubic(r, c, [&](int i, int j) { return truth.height_um(i, j); });
         };
         // Position k's patch from its observations alone (heights µm on the tile), and its CPU s.
         const auto recover_patch = [&](std::size_t k, double& cpu) {

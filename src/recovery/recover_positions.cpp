@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/catmull_rom.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/calibration_detail.h"
@@ -608,26 +609,13 @@ std::vector<double> remove_smooth_displacement(const std::vector<std::array<doub
 Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& displacement) {
     const int rows = heights.rows(), cols = heights.cols();
     const double w = heights.texel_um();
-    const auto kernel = [](double t, double* k) {  // Catmull-Rom
-        const double t2 = t * t, t3 = t2 * t;
-        k[0] = 0.5 * (-t3 + 2 * t2 - t);
-        k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
-        k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
-        k[3] = 0.5 * (t3 - t2);
-    };
     std::vector<double> out(std::size_t(rows) * std::size_t(cols));
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j) {
             const std::array<double, 2> u = displacement.at((i + 0.5) * w, (j + 0.5) * w);
             const double r = i + u[0] / w, c = j + u[1] / w;
-            const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
-            double kr[4], kc[4];
-            kernel(r - i0, kr);
-            kernel(c - j0, kc);
-            double s = 0.0;
-            for (int a = 0; a < 4; ++a)
-                for (int b = 0; b < 4; ++b) s += kr[a] * kc[b] * heights.value(i0 - 1 + a, j0 - 1 + b);
-            out[std::size_t(i) * std::size_t(cols) + std::size_t(j)] = s;
+            out[std::size_t(i) * std::size_t(cols) + std::size_t(j)] = catmull_rom_bicubic(
+                r, c, [&](int a, int b) { return heights.value(a, b); });
         }
     return heights.with_values(std::move(out));
 }

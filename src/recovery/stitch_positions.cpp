@@ -6,17 +6,11 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "core/catmull_rom.h"
+
 namespace wavebrdf::detail {
 
 namespace {
-
-void catmull_rom(double t, double* k) {
-    const double t2 = t * t, t3 = t2 * t;
-    k[0] = 0.5 * (-t3 + 2 * t2 - t);
-    k[1] = 0.5 * (3 * t3 - 5 * t2 + 2);
-    k[2] = 0.5 * (-3 * t3 + 4 * t2 + t);
-    k[3] = 0.5 * (t3 - t2);
-}
 
 double window(const std::array<double, 2>& centre, double u, double v, double sigma) {
     const double du = u - centre[0], dv = v - centre[1];
@@ -90,14 +84,9 @@ bool sample_patch(const StitchPatch& patch, double u, double v, double& value_um
     const double r = u - patch.origin_row - 0.5, c = v - patch.origin_col - 0.5;
     const int i0 = int(std::floor(r)), j0 = int(std::floor(c));
     if (i0 - 1 < 0 || j0 - 1 < 0 || i0 + 2 >= patch.rows || j0 + 2 >= patch.cols) return false;
-    double wr[4], wc[4];
-    catmull_rom(r - i0, wr);
-    catmull_rom(c - j0, wc);
-    double s = 0.0;
-    for (int a = 0; a < 4; ++a)
-        for (int b = 0; b < 4; ++b)
-            s += wr[a] * wc[b] * patch.heights_um[std::size_t(i0 - 1 + a) * patch.cols + (j0 - 1 + b)];
-    value_um = s;
+    value_um = catmull_rom_bicubic(r, c, [&](int i, int j) {
+        return patch.heights_um[std::size_t(i) * std::size_t(patch.cols) + std::size_t(j)];
+    });
     return true;
 }
 
