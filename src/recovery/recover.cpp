@@ -476,6 +476,21 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report("positions:rescue", rescued, jump, &estimate)) return estimate;
                 if (jump > 0.0) moved = std::max(moved, settings.position_outer_tolerance_texels);
             }
+            // Round 12 (study hook, off by default): lost clusters moved with their heights.
+            if (hooks.cluster_factor > 0.0) {
+                std::vector<std::size_t> unused;
+                std::vector<detail::ClusterTrial> trials;
+                const int repaired = detail::repair_lost_clusters(
+                    observations, position_of, detail::gather_positions(observations, unused, comm), estimate, settings,
+                    sigma_scale, hooks.cluster_factor, hooks.cluster_radius_texels, hooks.cluster_refit_iterations,
+                    position_offsets, comm, &trials);
+                for (const detail::ClusterTrial& t : trials)
+                    if (!report("positions:cluster_trial", t.kept ? t.moved : -t.moved,
+                                t.refit_moved / t.refit_unmoved, &estimate))
+                        return estimate;
+                if (!report("positions:cluster", repaired, 0.0, &estimate)) return estimate;
+                if (repaired > 0) moved = std::max(moved, settings.position_outer_tolerance_texels);
+            }
             if (moved < settings.position_outer_tolerance_texels) break;
             offsets_um = position_offsets;
             // Round 9 (study hooks, off by default): the positions fed to the next pass
