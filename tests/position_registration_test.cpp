@@ -546,9 +546,10 @@ TEST(PositionRegistration, LostClusterMovesBackWithItsHeights) {
     EXPECT_EQ(repaired_offsets[0], repaired_offsets[1]);
     EXPECT_EQ(repaired_heights[0].values(), repaired_heights[1].values());
     for (const detail::ClusterTrial& t : trials)
-        std::printf("cluster of %d lost: %d moved by (%.2f, %.2f) texels, region %d, refit loss %.3e -> %.3e, %s\n",
-                    t.lost, t.moved, t.delta_texels[0], t.delta_texels[1], t.region, t.refit_unmoved, t.refit_moved,
-                    t.kept ? "kept" : "not kept");
+        std::printf("cluster of %d lost: %d moved by (%.2f, %.2f) texels (kind %d), region %d, refit loss %.3e -> "
+                    "%.3e, %s\n",
+                    t.lost, t.moved, t.delta_texels[0], t.delta_texels[1], t.kind, t.region, t.refit_unmoved,
+                    t.refit_moved, t.kept ? "kept" : "not kept");
     std::printf("repaired %d: cluster %.3f texels off, heights %.3f %%\n", repaired,
                 cluster_error(repaired_offsets[0]), 100.0 * height_rel_rmse(repaired_heights[0], truth));
     EXPECT_GE(repaired, 1);

@@ -304,6 +304,42 @@ Heightfield shift_near(const Heightfield& heights, const std::vector<std::array<
     return heights.with_values(std::move(out));
 }
 
+// Heights near the given centres blended with their Gaussian blur (σ sigma_texels, periodic):
+// h' = (1 − s) h + s · blur(h), s as shift_near's (repair_lost_clusters' second candidate: the
+// detail that followed the lost offsets taken out, for the refit to find again).
+Heightfield blur_near(const Heightfield& heights, const std::vector<std::array<double, 2>>& centres_um,
+                      double inner_um, double outer_um, double sigma_texels) {
+    const int rows = heights.rows(), cols = heights.cols();
+    const double w = heights.texel_um();
+    const int reach = int(std::ceil(3.0 * sigma_texels));
+    std::vector<double> kernel(std::size_t(2 * reach + 1));
+    double norm = 0.0;
+    for (int k = -reach; k <= reach; ++k)
+        norm += kernel[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma_texels * sigma_texels));
+    for (double& k : kernel) k /= norm;
+    std::vector<double> along(std::size_t(rows) * std::size_t(cols), 0.0), out(along.size());
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            for (int k = -reach; k <= reach; ++k)
+                along[std::size_t(i) * std::size_t(cols) + std::size_t(j)] +=
+                    kernel[std::size_t(k + reach)] * heights.value(i + k, j);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            double blurred = 0.0;
+            for (int k = -reach; k <= reach; ++k)
+                blurred += kernel[std::size_t(k + reach)] *
+                           along[std::size_t(i) * std::size_t(cols) + std::size_t(((j + k) % cols + cols) % cols)];
+            double nearest = std::numeric_limits<double>::infinity();
+            for (const auto& c : centres_um)
+                nearest = std::min(nearest, std::hypot((i + 0.5) * w - c[0], (j + 0.5) * w - c[1]));
+            const double t = std::clamp((outer_um - nearest) / (outer_um - inner_um), 0.0, 1.0);
+            const double weight = t * t * (3.0 - 2.0 * t);
+            out[std::size_t(i) * std::size_t(cols) + std::size_t(j)] =
+                (1.0 - weight) * heights.value(i, j) + weight * blurred;
+        }
+    return heights.with_values(std::move(out));
+}
+
 }  // namespace
 
 int repair_lost_clusters(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
@@ -502,11 +538,28 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
             const std::array<double, 2> delta{others[0] - mean[0], others[1] - mean[1]};
             const double length = std::hypot(delta[0], delta[1]);
             if (length > radius_texels || length < 0.25) continue;  // too far, or no move (< ¼ texel)
-            Refitted r = refit_region(sub, region, candidate(set, delta, off), off);
-            if (r.loss < trial.refit_moved) {
-                trial = {int(cluster.size()), int(set.size()), int(region.size()), delta, unmoved.loss, r.loss,
-                         r.loss < unmoved.loss};
-                if (trial.kept) kept = std::move(r);
+            for (int kind = 0; kind < 2; ++kind) {
+                // 0: the set moved rigidly with its heights; 1: each of its positions at the
+                // stated centre, the heights near them blurred (σ 1 texel).
+                Heightfield h = heights;
+                if (kind == 0) {
+                    h = candidate(set, delta, off);
+                } else {
+                    off = offsets_um;
+                    std::vector<std::array<double, 2>> at;
+                    for (std::size_t p : set) {
+                        off[2 * p] = texel_um * others[0];
+                        off[2 * p + 1] = texel_um * others[1];
+                        at.push_back({centres_um[p][0] + off[2 * p], centres_um[p][1] + off[2 * p + 1]});
+                    }
+                    h = blur_near(heights, at, inner_um, outer_um, 1.0);
+                }
+                Refitted r = refit_region(sub, region, h, off);
+                if (r.loss < trial.refit_moved) {
+                    trial = {int(cluster.size()), int(set.size()), int(region.size()), delta, unmoved.loss, r.loss,
+                             r.loss < unmoved.loss, kind};
+                    if (trial.kept) kept = std::move(r);
+                }
             }
         }
         if (trials && trial.moved > 0) trials->push_back(trial);

@@ -110,6 +110,7 @@ struct ClusterTrial {
     std::array<double, 2> delta_texels{};    // the candidate's shift
     double refit_unmoved = 0.0, refit_moved = 0.0;  // the region's loss after the refit
     bool kept = false;
+    int kind = 0;  // 0: moved rigidly with its heights; 1: at the stated centres, heights blurred
 };
 int repair_lost_clusters(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                          const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
