@@ -459,7 +459,9 @@ TEST(PositionRegistration, NewtonStepLandsCloserThanTheGridAndParabola) {
 // under them moved along (h(x) = H(x − g(x) shift), g = 1 within 5 µm of the centre, 0 beyond
 // 11 µm), and stage 3 settles heights and positions from there: the cluster stays trapped, and
 // the per-position rescue (± 4 texels, quarter-texel grid) at these heights does not bring it
-// back; repair_lost_clusters, which moves a cluster together with the heights near it, does.
+// back (2.2 texels left); repair_lost_clusters does (measured: the 14 lost positions at their
+// stated centres with the heights near them blurred, refitted: the cluster to 0.02 texel, the
+// heights from 6.4 to 3.8 %); without it the test fails.
 // One and two threads give the same bits; invalid arguments throw.
 TEST(PositionRegistration, LostClusterMovesBackWithItsHeights) {
     const Heightfield truth = test::peak_scaled_surface(16, 8.0, 0.5, 5126);
@@ -528,6 +530,7 @@ TEST(PositionRegistration, LostClusterMovesBackWithItsHeights) {
                                                        rescued, serial_communicator());
     std::printf("rescue (5 x the median, +- 4, step 0.125): %d searched, cluster %.3f texels off\n", searched,
                 cluster_error(rescued));
+    EXPECT_GT(cluster_error(rescued), 1.0);  // measured: 2.207 (14 positions searched)
     const int threads = omp_get_max_threads();
     std::vector<std::vector<double>> repaired_offsets;
     std::vector<Heightfield> repaired_heights;
@@ -553,7 +556,8 @@ TEST(PositionRegistration, LostClusterMovesBackWithItsHeights) {
     std::printf("repaired %d: cluster %.3f texels off, heights %.3f %%\n", repaired,
                 cluster_error(repaired_offsets[0]), 100.0 * height_rel_rmse(repaired_heights[0], truth));
     EXPECT_GE(repaired, 1);
-    EXPECT_LT(cluster_error(repaired_offsets[0]), 0.5);
+    EXPECT_LT(cluster_error(repaired_offsets[0]), 0.5);  // measured: 0.020
+    EXPECT_LT(height_rel_rmse(repaired_heights[0], truth), height_rel_rmse(fitted, truth));  // 3.84 % from 6.37 %
     std::vector<double> o = fitted_offsets;
     Heightfield h = fitted;
     EXPECT_THROW(detail::repair_lost_clusters(observations, index, centres, h, settings, 1.0, 1.0, 4.0, 20, o,
