@@ -33,7 +33,7 @@
 //     register_newton=0 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
 //     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
 //     rescue_below=0 (round 11: the rescue only in passes whose registration moved < this, texels)
-//     cluster_factor=0 cluster_radius=6 cluster_refit=20 (round 12: lost clusters
+//     cluster_factor=0 cluster_radius=6 cluster_refit=20 cluster_grid=0 (round 12: lost clusters
 //     moved with their heights, repair_lost_clusters; 0: off)
 //     field_below=0 (round 11: a later pass skips the field stage when its registration moved < this)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
@@ -382,6 +382,7 @@ int main(int argc, char** argv) try {
         if (args.count("cluster_factor")) hooks.cluster_factor = std::stod(args["cluster_factor"]);
         if (args.count("cluster_radius")) hooks.cluster_radius_texels = std::stod(args["cluster_radius"]);
         set_int("cluster_refit", hooks.cluster_refit_iterations);
+        if (args.count("cluster_grid")) hooks.cluster_grid_texels = std::stod(args["cluster_grid"]);
         hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);

@@ -346,14 +346,15 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                          const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
                          const RecoverSettings& settings, double sigma_scale, double factor, double radius_texels,
                          int refit_iterations, std::vector<double>& offsets_um, const Communicator& comm,
-                         std::vector<ClusterTrial>* trials) {
+                         std::vector<ClusterTrial>* trials, double grid_texels) {
     if (trials) trials->clear();
     if (!(factor > 1.0) || !(radius_texels > 0.0) || !(radius_texels <= 64.0) || refit_iterations < 1 ||
-        refit_iterations > 1000)
+        refit_iterations > 1000 || !(grid_texels >= 0.0 && grid_texels <= 8.0))
         throw std::invalid_argument("repair_lost_clusters: factor " + std::to_string(factor) + " / radius " +
                                     std::to_string(radius_texels) + " texels / refit iterations " +
-                                    std::to_string(refit_iterations) +
-                                    " invalid; expected factor > 1, 0 < radius <= 64, 1 <= iterations <= 1000");
+                                    std::to_string(refit_iterations) + " / grid " + std::to_string(grid_texels) +
+                                    " invalid; expected factor > 1, 0 < radius <= 64, 1 <= iterations <= 1000, "
+                                    "0 <= grid <= 8");
     const std::size_t positions = centres_um.size();
     if (index.size() != observations.size() || offsets_um.size() != 2 * positions)
         throw std::invalid_argument("repair_lost_clusters: " + std::to_string(index.size()) + " position indices for " +
@@ -413,7 +414,8 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
         std::vector<double> offsets_um;
     };
     const auto refit_region = [&](const std::vector<Observation>& sub, const std::vector<std::size_t>& region,
-                                  const Heightfield& h, const std::vector<double>& off) {
+                                  const Heightfield& h, const std::vector<double>& off, int iterations) {
+        refit.refine_iterations = iterations;
         std::array<double, 2> mean{0.0, 0.0};
         for (std::size_t p : region)
             for (int c = 0; c < 2; ++c) mean[std::size_t(c)] += off[2 * p + std::size_t(c)] / double(region.size());
@@ -517,7 +519,7 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
         // after a move does not rank them: it is highest for the right move, whose heights at
         // the rim are yet to be refitted.)
         std::vector<double> off;
-        const Refitted unmoved = refit_region(sub, region, heights, offsets_um);
+        const Refitted unmoved = refit_region(sub, region, heights, offsets_um, refit_iterations);
         ClusterTrial trial{int(cluster.size()), 0, int(region.size()), {0.0, 0.0}, unmoved.loss,
                            std::numeric_limits<double>::infinity(), false};
         Refitted kept = unmoved;
@@ -554,10 +556,37 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                     }
                     h = blur_near(heights, at, inner_um, outer_um, 1.0);
                 }
-                Refitted r = refit_region(sub, region, h, off);
+                Refitted r = refit_region(sub, region, h, off, refit_iterations);
                 if (r.loss < trial.refit_moved) {
                     trial = {int(cluster.size()), int(set.size()), int(region.size()), delta, unmoved.loss, r.loss,
                              r.loss < unmoved.loss, kind};
+                    if (trial.kept) kept = std::move(r);
+                }
+            }
+        }
+        // With grid_texels: each set moved rigidly with its heights by δ on the grid
+        // grid · (a, b), |a|, |b| ≤ 2, about its offsets, ranked by a short refit (a quarter of
+        // the iterations), the best refitted in full.
+        if (grid_texels > 0.0) {
+            const int short_iterations = std::max(2, refit_iterations / 4);
+            double best = std::numeric_limits<double>::infinity();
+            std::size_t best_set = 0;
+            std::array<double, 2> best_delta{0.0, 0.0};
+            for (std::size_t s = 0; s < sets.size(); ++s)
+                for (int a = -2; a <= 2; ++a)
+                    for (int b = -2; b <= 2; ++b) {
+                        if (a == 0 && b == 0) continue;
+                        const std::array<double, 2> delta{grid_texels * a, grid_texels * b};
+                        const Heightfield h = candidate(sets[s], delta, off);
+                        const double l = refit_region(sub, region, h, off, short_iterations).loss;
+                        if (l < best) best = l, best_set = s, best_delta = delta;
+                    }
+            if (best < std::numeric_limits<double>::infinity()) {
+                Refitted r = refit_region(sub, region, candidate(sets[best_set], best_delta, off), off,
+                                          refit_iterations);
+                if (r.loss < trial.refit_moved) {
+                    trial = {int(cluster.size()), int(sets[best_set].size()), int(region.size()), best_delta,
+                             unmoved.loss, r.loss, r.loss < unmoved.loss, 2};
                     if (trial.kept) kept = std::move(r);
                 }
             }

@@ -101,8 +101,11 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
 // and offsets, if below the loss of the same refit from the unmoved state. centres_um:
 // gather_positions'. The losses are exact collective sums, so every rank takes the same
 // decisions. Returns the clusters moved; trials (when given) receives one entry per cluster with
-// a candidate. Throws std::invalid_argument for factor ≤ 1, radius outside (0, 64],
-// refit_iterations outside [1, 1000] or offsets_um not 2 per centre.
+// a candidate. grid_texels > 0: also each set moved rigidly with its heights by δ = grid · (a, b),
+// |a|, |b| ≤ 2, about its offsets, ranked by a refit of a quarter of the iterations, the best
+// refitted in full and judged as the others. Throws std::invalid_argument for factor ≤ 1, radius
+// outside (0, 64], refit_iterations outside [1, 1000], grid outside [0, 8] or offsets_um not 2
+// per centre.
 struct ClusterTrial {
     int lost = 0;                            // the cluster's lost positions
     int moved = 0;                           // the positions of the candidate's set
@@ -110,13 +113,13 @@ struct ClusterTrial {
     std::array<double, 2> delta_texels{};    // the candidate's shift
     double refit_unmoved = 0.0, refit_moved = 0.0;  // the region's loss after the refit
     bool kept = false;
-    int kind = 0;  // 0: moved rigidly with its heights; 1: at the stated centres, heights blurred
+    int kind = 0;  // 0: reset rigidly with its heights; 1: at the stated centres, heights blurred; 2: grid
 };
 int repair_lost_clusters(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                          const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
                          const RecoverSettings& settings, double sigma_scale, double factor, double radius_texels,
                          int refit_iterations, std::vector<double>& offsets_um, const Communicator& comm,
-                         std::vector<ClusterTrial>* trials = nullptr);
+                         std::vector<ClusterTrial>* trials = nullptr, double grid_texels = 0.0);
 
 // The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
 // "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
@@ -195,6 +198,7 @@ struct PositionStudyHooks {
     double cluster_factor = 0.0;
     double cluster_radius_texels = 6.0;
     int cluster_refit_iterations = 20;
+    double cluster_grid_texels = 0.0;  // repair_lost_clusters' grid (0: none)
 };
 void set_position_study_hooks(const PositionStudyHooks& hooks);
 const PositionStudyHooks& position_study_hooks();
