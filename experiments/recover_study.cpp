@@ -33,7 +33,7 @@
 //     register_newton=0 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
 //     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
 //     rescue_below=0 (round 11: the rescue only in passes whose registration moved < this, texels)
-//     cluster_factor=0 cluster_radius=6 cluster_refit=20 cluster_grid=0 (round 12: lost clusters
+//     cluster_factor=0 cluster_radius=6 cluster_refit=20 cluster_grid=0 cluster_oracle=0 (round 12: lost clusters
 //     moved with their heights, repair_lost_clusters; 0: off)
 //     field_below=0 (round 11: a later pass skips the field stage when its registration moved < this)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
@@ -720,6 +720,17 @@ int main(int argc, char** argv) try {
     }
     // The field stage's offsets after every correction round against the truth (offsets left,
     // rms over positions and coordinates, means removed, texels): "PROBE round rms".
+    // Round 12: cluster_oracle=1 — repair_lost_clusters also tries each set at its true offsets
+    // (a diagnostic of its judge; never kept).
+    if (rs.calibrate.positions && get("cluster_oracle", "0") == "1") {
+        std::vector<std::size_t> index;
+        const std::size_t count = detail::gather_positions(observations, index, serial_communicator()).size();
+        detail::PositionStudyHooks hooks = detail::position_study_hooks();
+        hooks.cluster_oracle_um.assign(2 * count, 0.0);
+        for (std::size_t i = 0; i < index.size(); ++i)
+            for (std::size_t c = 0; c < 2; ++c) hooks.cluster_oracle_um[2 * index[i] + c] = obs_error[i][c];
+        detail::set_position_study_hooks(hooks);
+    }
     if (rs.calibrate.positions && get("probe", "1") == "1") {
         auto probe_index = std::make_shared<std::vector<std::size_t>>();
         auto centres = std::make_shared<std::vector<std::array<double, 2>>>(

@@ -483,7 +483,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 const int repaired = detail::repair_lost_clusters(
                     observations, position_of, detail::gather_positions(observations, unused, comm), estimate, settings,
                     sigma_scale, hooks.cluster_factor, hooks.cluster_radius_texels, hooks.cluster_refit_iterations,
-                    position_offsets, comm, &trials, hooks.cluster_grid_texels);
+                    position_offsets, comm, &trials, hooks.cluster_grid_texels,
+                    hooks.cluster_oracle_um.empty() ? nullptr : &hooks.cluster_oracle_um);
                 for (const detail::ClusterTrial& t : trials)  // (alternating names: every line printed)
                     if (!report("positions:cluster_trial", t.kept ? t.moved : -t.moved,
                                 t.refit_moved / t.refit_unmoved, &estimate) ||

@@ -346,7 +346,7 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                          const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
                          const RecoverSettings& settings, double sigma_scale, double factor, double radius_texels,
                          int refit_iterations, std::vector<double>& offsets_um, const Communicator& comm,
-                         std::vector<ClusterTrial>* trials, double grid_texels) {
+                         std::vector<ClusterTrial>* trials, double grid_texels, const std::vector<double>* oracle_um) {
     if (trials) trials->clear();
     if (!(factor > 1.0) || !(radius_texels > 0.0) || !(radius_texels <= 64.0) || refit_iterations < 1 ||
         refit_iterations > 1000 || !(grid_texels >= 0.0 && grid_texels <= 8.0))
@@ -564,6 +564,43 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                 }
             }
         }
+        // Study diagnostic (oracle_um, the true offsets): each set at its true offsets (aligned to
+        // the found ones by the other positions' means), the heights as they are (kind 3) or
+        // blurred near them (kind 4), judged as the others: whether the refit can tell the truth.
+        if (oracle_um && oracle_um->size() == offsets_um.size())
+            for (const std::vector<std::size_t>& set : sets) {
+                std::vector<char> in_set(positions, 0);
+                for (std::size_t p : set) in_set[p] = 1;
+                std::array<double, 2> found{0.0, 0.0}, truth{0.0, 0.0};
+                std::size_t other_count = 0;
+                for (std::size_t p = 0; p < positions; ++p)
+                    if (has[p] && !in_set[p]) ++other_count;
+                if (other_count == 0) continue;
+                for (std::size_t p = 0; p < positions; ++p)
+                    if (has[p] && !in_set[p])
+                        for (std::size_t c = 0; c < 2; ++c) {
+                            found[c] += offsets_um[2 * p + c] / double(other_count);
+                            truth[c] += (*oracle_um)[2 * p + c] / double(other_count);
+                        }
+                for (int kind = 3; kind < 5; ++kind) {
+                    off = offsets_um;
+                    std::vector<std::array<double, 2>> at;
+                    for (std::size_t p : set) {
+                        for (std::size_t c = 0; c < 2; ++c) off[2 * p + c] = (*oracle_um)[2 * p + c] - truth[c] + found[c];
+                        at.push_back({centres_um[p][0] + off[2 * p], centres_um[p][1] + off[2 * p + 1]});
+                    }
+                    const Heightfield h = kind == 3 ? heights : blur_near(heights, at, inner_um, outer_um, 1.0);
+                    Refitted r = refit_region(sub, region, h, off, refit_iterations);
+                    double moved_sq = 0.0;
+                    for (std::size_t p : set)
+                        for (std::size_t c = 0; c < 2; ++c)
+                            moved_sq += (off[2 * p + c] - offsets_um[2 * p + c]) * (off[2 * p + c] - offsets_um[2 * p + c]);
+                    if (trials)
+                        trials->push_back({int(cluster.size()), int(set.size()), int(region.size()),
+                                           {std::sqrt(moved_sq / double(set.size())) / texel_um, 0.0}, unmoved.loss,
+                                           r.loss, false, kind});
+                }
+            }
         // With grid_texels: each set moved rigidly with its heights by δ on the grid
         // grid · (a, b), |a|, |b| ≤ 2, about its offsets, ranked by a short refit (a quarter of
         // the iterations), the best refitted in full.

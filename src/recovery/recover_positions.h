@@ -105,7 +105,9 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
 // |a|, |b| ≤ 2, about its offsets, ranked by a refit of a quarter of the iterations, the best
 // refitted in full and judged as the others. Throws std::invalid_argument for factor ≤ 1, radius
 // outside (0, 64], refit_iterations outside [1, 1000], grid outside [0, 8] or offsets_um not 2
-// per centre.
+// per centre. oracle_um (a study diagnostic, 2 per centre: the true offsets): each set is also
+// tried at its true offsets (trials of kind 3: the heights as they are, 4: blurred near them;
+// never kept; delta_texels[0] the rms move).
 struct ClusterTrial {
     int lost = 0;                            // the cluster's lost positions
     int moved = 0;                           // the positions of the candidate's set
@@ -119,7 +121,8 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                          const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
                          const RecoverSettings& settings, double sigma_scale, double factor, double radius_texels,
                          int refit_iterations, std::vector<double>& offsets_um, const Communicator& comm,
-                         std::vector<ClusterTrial>* trials = nullptr, double grid_texels = 0.0);
+                         std::vector<ClusterTrial>* trials = nullptr, double grid_texels = 0.0,
+                         const std::vector<double>* oracle_um = nullptr);
 
 // The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
 // "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
@@ -199,6 +202,7 @@ struct PositionStudyHooks {
     double cluster_radius_texels = 6.0;
     int cluster_refit_iterations = 20;
     double cluster_grid_texels = 0.0;  // repair_lost_clusters' grid (0: none)
+    std::vector<double> cluster_oracle_um;  // a study diagnostic: the true offsets (empty: none)
 };
 void set_position_study_hooks(const PositionStudyHooks& hooks);
 const PositionStudyHooks& position_study_hooks();
