@@ -718,8 +718,6 @@ int main(int argc, char** argv) try {
         }
         if (get("stitch_only", "0") == "1") return 0;
     }
-    // The field stage's offsets after every correction round against the truth (offsets left,
-    // rms over positions and coordinates, means removed, texels): "PROBE round rms".
     // Round 12: cluster_oracle=1 — repair_lost_clusters also tries each set at its true offsets
     // (a diagnostic of its judge; never kept).
     if (rs.calibrate.positions && get("cluster_oracle", "0") == "1") {
@@ -731,6 +729,8 @@ int main(int argc, char** argv) try {
             for (std::size_t c = 0; c < 2; ++c) hooks.cluster_oracle_um[2 * index[i] + c] = obs_error[i][c];
         detail::set_position_study_hooks(hooks);
     }
+    // The field stage's offsets after every correction round against the truth (offsets left,
+    // rms over positions and coordinates, means removed, texels): "PROBE round rms".
     if (rs.calibrate.positions && get("probe", "1") == "1") {
         auto probe_index = std::make_shared<std::vector<std::size_t>>();
         auto centres = std::make_shared<std::vector<std::array<double, 2>>>(

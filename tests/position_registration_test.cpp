@@ -478,8 +478,8 @@ TEST(PositionRegistration, LostClusterMovesBackWithItsHeights) {
                 observations.push_back(std::move(o));
             }
     std::vector<std::size_t> index;
-    const std::vector<std::array<double, 2>> centres =
-        detail::gather_positions(observations, index, serial_communicator());
+    const std::vector<std::array<double, 2>> centres = detail::gather_positions(observations, index,
+                                                                                serial_communicator());
     ASSERT_EQ(centres.size(), 49u);
     const std::array<double, 2> shift{2.0 * texel_um, -1.5 * texel_um};
     const auto from_centre = [](double x, double y) { return std::hypot(x - 16.0, y - 16.0); };
@@ -549,14 +549,15 @@ TEST(PositionRegistration, LostClusterMovesBackWithItsHeights) {
     EXPECT_EQ(repaired_offsets[0], repaired_offsets[1]);
     EXPECT_EQ(repaired_heights[0].values(), repaired_heights[1].values());
     for (const detail::ClusterTrial& t : trials)
-        std::printf("cluster of %d lost: %d moved by (%.2f, %.2f) texels (kind %d), region %d, refit loss %.3e -> "
-                    "%.3e, %s\n",
-                    t.lost, t.moved, t.delta_texels[0], t.delta_texels[1], t.kind, t.region, t.refit_unmoved,
-                    t.refit_moved, t.kept ? "kept" : "not kept");
-    std::printf("repaired %d: cluster %.3f texels off, heights %.3f %%\n", repaired,
-                cluster_error(repaired_offsets[0]), 100.0 * height_rel_rmse(repaired_heights[0], truth));
+        std::printf(
+            "cluster of %d lost: %d moved by (%.2f, %.2f) texels (kind %d), region %d, refit loss %.3e -> "
+            "%.3e, %s\n",
+            t.lost, t.moved, t.delta_texels[0], t.delta_texels[1], t.kind, t.region, t.refit_unmoved, t.refit_moved,
+            t.kept ? "kept" : "not kept");
+    std::printf("repaired %d: cluster %.3f texels off, heights %.3f %%\n", repaired, cluster_error(repaired_offsets[0]),
+                100.0 * height_rel_rmse(repaired_heights[0], truth));
     EXPECT_GE(repaired, 1);
-    EXPECT_LT(cluster_error(repaired_offsets[0]), 0.5);  // measured: 0.020
+    EXPECT_LT(cluster_error(repaired_offsets[0]), 0.5);                                      // measured: 0.020
     EXPECT_LT(height_rel_rmse(repaired_heights[0], truth), height_rel_rmse(fitted, truth));  // 3.84 % from 6.37 %
     std::vector<double> o = fitted_offsets;
     Heightfield h = fitted;

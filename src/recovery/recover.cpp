@@ -486,8 +486,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                     position_offsets, comm, &trials, hooks.cluster_grid_texels,
                     hooks.cluster_oracle_um.empty() ? nullptr : &hooks.cluster_oracle_um);
                 for (const detail::ClusterTrial& t : trials)  // (alternating names: every line printed)
-                    if (!report("positions:cluster_trial", t.kept ? t.moved : -t.moved,
-                                t.refit_moved / t.refit_unmoved, &estimate) ||
+                    if (!report("positions:cluster_trial", t.kept ? t.moved : -t.moved, t.refit_moved / t.refit_unmoved,
+                                &estimate) ||
                         !report("positions:cluster_move", t.kind, std::hypot(t.delta_texels[0], t.delta_texels[1]),
                                 &estimate))
                         return estimate;

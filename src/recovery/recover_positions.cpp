@@ -307,8 +307,8 @@ Heightfield shift_near(const Heightfield& heights, const std::vector<std::array<
 // Heights near the given centres blended with their Gaussian blur (σ sigma_texels, periodic):
 // h' = (1 − s) h + s · blur(h), s as shift_near's (repair_lost_clusters' second candidate: the
 // detail that followed the lost offsets taken out, for the refit to find again).
-Heightfield blur_near(const Heightfield& heights, const std::vector<std::array<double, 2>>& centres_um,
-                      double inner_um, double outer_um, double sigma_texels) {
+Heightfield blur_near(const Heightfield& heights, const std::vector<std::array<double, 2>>& centres_um, double inner_um,
+                      double outer_um, double sigma_texels) {
     const int rows = heights.rows(), cols = heights.cols();
     const double w = heights.texel_um();
     const int reach = int(std::ceil(3.0 * sigma_texels));
@@ -321,8 +321,8 @@ Heightfield blur_near(const Heightfield& heights, const std::vector<std::array<d
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j)
             for (int k = -reach; k <= reach; ++k)
-                along[std::size_t(i) * std::size_t(cols) + std::size_t(j)] +=
-                    kernel[std::size_t(k + reach)] * heights.value(i + k, j);
+                along[std::size_t(i) * std::size_t(cols) + std::size_t(j)] += kernel[std::size_t(k + reach)] *
+                                                                              heights.value(i + k, j);
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j) {
             double blurred = 0.0;
@@ -334,8 +334,8 @@ Heightfield blur_near(const Heightfield& heights, const std::vector<std::array<d
                 nearest = std::min(nearest, std::hypot((i + 0.5) * w - c[0], (j + 0.5) * w - c[1]));
             const double t = std::clamp((outer_um - nearest) / (outer_um - inner_um), 0.0, 1.0);
             const double weight = t * t * (3.0 - 2.0 * t);
-            out[std::size_t(i) * std::size_t(cols) + std::size_t(j)] =
-                (1.0 - weight) * heights.value(i, j) + weight * blurred;
+            out[std::size_t(i) * std::size_t(cols) + std::size_t(j)] = (1.0 - weight) * heights.value(i, j) +
+                                                                       weight * blurred;
         }
     return heights.with_values(std::move(out));
 }
@@ -437,8 +437,8 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
         std::vector<double> found;  // per region position, mean 0
         double scale = sigma_scale;
         out.heights = refine_heights_and_positions(moved, total[0],
-                                                   h.with_values(std::vector<double>(h.values().size(), 0.0)), h,
-                                                   refit, keep_last, comm, unused, initial, nullptr, &scale, &found);
+                                                   h.with_values(std::vector<double>(h.values().size(), 0.0)), h, refit,
+                                                   keep_last, comm, unused, initial, nullptr, &scale, &found);
         if (found.size() == 2 * region.size())
             for (std::size_t k = 0; k < region.size(); ++k) {
                 out.offsets_um[2 * region[k]] = found[2 * k] + mean[0];
@@ -520,8 +520,13 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
         // the rim are yet to be refitted.)
         std::vector<double> off;
         const Refitted unmoved = refit_region(sub, region, heights, offsets_um, refit_iterations);
-        ClusterTrial trial{int(cluster.size()), 0, int(region.size()), {0.0, 0.0}, unmoved.loss,
-                           std::numeric_limits<double>::infinity(), false};
+        ClusterTrial trial{int(cluster.size()),
+                           0,
+                           int(region.size()),
+                           {0.0, 0.0},
+                           unmoved.loss,
+                           std::numeric_limits<double>::infinity(),
+                           false};
         Refitted kept = unmoved;
         for (const std::vector<std::size_t>& set : sets) {
             std::vector<char> in_set(positions, 0);
@@ -534,8 +539,10 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
             for (std::size_t p = 0; p < positions; ++p)
                 for (int c = 0; c < 2; ++c) {
                     const double o = offsets_um[2 * p + std::size_t(c)] / texel_um;
-                    if (in_set[p]) mean[std::size_t(c)] += o / double(set.size());
-                    else if (has[p]) others[std::size_t(c)] += o / double(other_count);
+                    if (in_set[p])
+                        mean[std::size_t(c)] += o / double(set.size());
+                    else if (has[p])
+                        others[std::size_t(c)] += o / double(other_count);
                 }
             const std::array<double, 2> delta{others[0] - mean[0], others[1] - mean[1]};
             const double length = std::hypot(delta[0], delta[1]);
@@ -558,8 +565,8 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                 }
                 Refitted r = refit_region(sub, region, h, off, refit_iterations);
                 if (r.loss < trial.refit_moved) {
-                    trial = {int(cluster.size()), int(set.size()), int(region.size()), delta, unmoved.loss, r.loss,
-                             r.loss < unmoved.loss, kind};
+                    trial = {int(cluster.size()), int(set.size()), int(region.size()),    delta,
+                             unmoved.loss,        r.loss,          r.loss < unmoved.loss, kind};
                     if (trial.kept) kept = std::move(r);
                 }
             }
@@ -586,7 +593,8 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                     off = offsets_um;
                     std::vector<std::array<double, 2>> at;
                     for (std::size_t p : set) {
-                        for (std::size_t c = 0; c < 2; ++c) off[2 * p + c] = (*oracle_um)[2 * p + c] - truth[c] + found[c];
+                        for (std::size_t c = 0; c < 2; ++c)
+                            off[2 * p + c] = (*oracle_um)[2 * p + c] - truth[c] + found[c];
                         at.push_back({centres_um[p][0] + off[2 * p], centres_um[p][1] + off[2 * p + 1]});
                     }
                     const Heightfield h = kind == 3 ? heights : blur_near(heights, at, inner_um, outer_um, 1.0);
@@ -594,11 +602,17 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                     double moved_sq = 0.0;
                     for (std::size_t p : set)
                         for (std::size_t c = 0; c < 2; ++c)
-                            moved_sq += (off[2 * p + c] - offsets_um[2 * p + c]) * (off[2 * p + c] - offsets_um[2 * p + c]);
+                            moved_sq += (off[2 * p + c] - offsets_um[2 * p + c]) *
+                                        (off[2 * p + c] - offsets_um[2 * p + c]);
                     if (trials)
-                        trials->push_back({int(cluster.size()), int(set.size()), int(region.size()),
-                                           {std::sqrt(moved_sq / double(set.size())) / texel_um, 0.0}, unmoved.loss,
-                                           r.loss, false, kind});
+                        trials->push_back({int(cluster.size()),
+                                           int(set.size()),
+                                           int(region.size()),
+                                           {std::sqrt(moved_sq / double(set.size())) / texel_um, 0.0},
+                                           unmoved.loss,
+                                           r.loss,
+                                           false,
+                                           kind});
                 }
             }
         // With grid_texels: each set moved rigidly with its heights by δ on the grid
@@ -622,8 +636,10 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
                 Refitted r = refit_region(sub, region, candidate(sets[best_set], best_delta, off), off,
                                           refit_iterations);
                 if (r.loss < trial.refit_moved) {
-                    trial = {int(cluster.size()), int(sets[best_set].size()), int(region.size()), best_delta,
-                             unmoved.loss, r.loss, r.loss < unmoved.loss, 2};
+                    trial = {int(cluster.size()),   int(sets[best_set].size()),
+                             int(region.size()),    best_delta,
+                             unmoved.loss,          r.loss,
+                             r.loss < unmoved.loss, 2};
                     if (trial.kept) kept = std::move(r);
                 }
             }

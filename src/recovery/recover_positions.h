@@ -109,10 +109,10 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
 // tried at its true offsets (trials of kind 3: the heights as they are, 4: blurred near them;
 // never kept; delta_texels[0] the rms move).
 struct ClusterTrial {
-    int lost = 0;                            // the cluster's lost positions
-    int moved = 0;                           // the positions of the candidate's set
-    int region = 0;                          // the positions whose observations judged it
-    std::array<double, 2> delta_texels{};    // the candidate's shift
+    int lost = 0;                                   // the cluster's lost positions
+    int moved = 0;                                  // the positions of the candidate's set
+    int region = 0;                                 // the positions whose observations judged it
+    std::array<double, 2> delta_texels{};           // the candidate's shift
     double refit_unmoved = 0.0, refit_moved = 0.0;  // the region's loss after the refit
     bool kept = false;
     int kind = 0;  // 0: reset rigidly with its heights; 1: at the stated centres, heights blurred; 2: grid
@@ -201,7 +201,7 @@ struct PositionStudyHooks {
     double cluster_factor = 0.0;
     double cluster_radius_texels = 6.0;
     int cluster_refit_iterations = 20;
-    double cluster_grid_texels = 0.0;  // repair_lost_clusters' grid (0: none)
+    double cluster_grid_texels = 0.0;       // repair_lost_clusters' grid (0: none)
     std::vector<double> cluster_oracle_um;  // a study diagnostic: the true offsets (empty: none)
 };
 void set_position_study_hooks(const PositionStudyHooks& hooks);
