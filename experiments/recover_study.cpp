@@ -33,6 +33,8 @@
 //     register_newton=0 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
 //     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
 //     rescue_below=0 (round 11: the rescue only in passes whose registration moved < this, texels)
+//     cluster_factor=0 cluster_radius=6 cluster_refit=20 cluster_grid=0 cluster_oracle=0 (round 12: lost clusters
+//     moved with their heights, repair_lost_clusters; 0: off)
 //     field_below=0 (round 11: a later pass skips the field stage when its registration moved < this)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 //     (round 11b:) stitch=0 (1: every position's patch recovered alone on a stitch_tile² tile
@@ -376,6 +378,11 @@ int main(int argc, char** argv) try {
         if (args.count("field_below")) hooks.outer_field_below_texels = std::stod(args["field_below"]);
         if (args.count("newton_step")) hooks.newton_step_texels = std::stod(args["newton_step"]);
         if (args.count("newton_cap")) hooks.newton_cap_texels = std::stod(args["newton_cap"]);
+        // Round 12: lost clusters moved with their heights (repair_lost_clusters).
+        if (args.count("cluster_factor")) hooks.cluster_factor = std::stod(args["cluster_factor"]);
+        if (args.count("cluster_radius")) hooks.cluster_radius_texels = std::stod(args["cluster_radius"]);
+        set_int("cluster_refit", hooks.cluster_refit_iterations);
+        if (args.count("cluster_grid")) hooks.cluster_grid_texels = std::stod(args["cluster_grid"]);
         hooks.refine_smooth_from_fed = get("refine_smooth_from_fed", "0") == "1";
         if (args.count("outer_momentum")) hooks.outer_momentum = std::stod(args["outer_momentum"]);
         if (args.count("outer_cap")) hooks.outer_step_cap_texels = std::stod(args["outer_cap"]);
@@ -710,6 +717,17 @@ int main(int argc, char** argv) try {
             }
         }
         if (get("stitch_only", "0") == "1") return 0;
+    }
+    // Round 12: cluster_oracle=1 — repair_lost_clusters also tries each set at its true offsets
+    // (a diagnostic of its judge; never kept).
+    if (rs.calibrate.positions && get("cluster_oracle", "0") == "1") {
+        std::vector<std::size_t> index;
+        const std::size_t count = detail::gather_positions(observations, index, serial_communicator()).size();
+        detail::PositionStudyHooks hooks = detail::position_study_hooks();
+        hooks.cluster_oracle_um.assign(2 * count, 0.0);
+        for (std::size_t i = 0; i < index.size(); ++i)
+            for (std::size_t c = 0; c < 2; ++c) hooks.cluster_oracle_um[2 * index[i] + c] = obs_error[i][c];
+        detail::set_position_study_hooks(hooks);
     }
     // The field stage's offsets after every correction round against the truth (offsets left,
     // rms over positions and coordinates, means removed, texels): "PROBE round rms".

@@ -476,6 +476,24 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report("positions:rescue", rescued, jump, &estimate)) return estimate;
                 if (jump > 0.0) moved = std::max(moved, settings.position_outer_tolerance_texels);
             }
+            // Round 12 (study hook, off by default): lost clusters moved with their heights.
+            if (hooks.cluster_factor > 0.0) {
+                std::vector<std::size_t> unused;
+                std::vector<detail::ClusterTrial> trials;
+                const int repaired = detail::repair_lost_clusters(
+                    observations, position_of, detail::gather_positions(observations, unused, comm), estimate, settings,
+                    sigma_scale, hooks.cluster_factor, hooks.cluster_radius_texels, hooks.cluster_refit_iterations,
+                    position_offsets, comm, &trials, hooks.cluster_grid_texels,
+                    hooks.cluster_oracle_um.empty() ? nullptr : &hooks.cluster_oracle_um);
+                for (const detail::ClusterTrial& t : trials)  // (alternating names: every line printed)
+                    if (!report("positions:cluster_trial", t.kept ? t.moved : -t.moved, t.refit_moved / t.refit_unmoved,
+                                &estimate) ||
+                        !report("positions:cluster_move", t.kind, std::hypot(t.delta_texels[0], t.delta_texels[1]),
+                                &estimate))
+                        return estimate;
+                if (!report("positions:cluster", repaired, 0.0, &estimate)) return estimate;
+                if (repaired > 0) moved = std::max(moved, settings.position_outer_tolerance_texels);
+            }
             if (moved < settings.position_outer_tolerance_texels) break;
             offsets_um = position_offsets;
             // Round 9 (study hooks, off by default): the positions fed to the next pass

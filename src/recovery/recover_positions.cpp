@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <omp.h>
 #include <stdexcept>
@@ -273,6 +274,384 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
         }
     }
     return moved;
+}
+
+namespace {
+
+// Heights moved by delta_um where they are near the given centres (repair_lost_clusters):
+// h'(x) = h(x − s(x) delta), s = 1 within inner_um of the nearest centre, 0 beyond outer_um, the
+// smoothstep 3t² − 2t³ between; periodic Catmull-Rom bicubic (warp_heights' sampler).
+Heightfield shift_near(const Heightfield& heights, const std::vector<std::array<double, 2>>& centres_um,
+                       double inner_um, double outer_um, std::array<double, 2> delta_um) {
+    const int rows = heights.rows(), cols = heights.cols();
+    const double w = heights.texel_um();
+    std::vector<double> out(std::size_t(rows) * std::size_t(cols));
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            double nearest = std::numeric_limits<double>::infinity();
+            for (const auto& c : centres_um)
+                nearest = std::min(nearest, std::hypot((i + 0.5) * w - c[0], (j + 0.5) * w - c[1]));
+            const double t = std::clamp((outer_um - nearest) / (outer_um - inner_um), 0.0, 1.0);
+            const double weight = t * t * (3.0 - 2.0 * t);
+            const std::size_t at = std::size_t(i) * std::size_t(cols) + std::size_t(j);
+            if (weight == 0.0) {
+                out[at] = heights.value(i, j);
+                continue;
+            }
+            out[at] = catmull_rom_bicubic(i - weight * delta_um[0] / w, j - weight * delta_um[1] / w,
+                                          [&](int a, int b) { return heights.value(a, b); });
+        }
+    return heights.with_values(std::move(out));
+}
+
+// Heights near the given centres blended with their Gaussian blur (σ sigma_texels, periodic):
+// h' = (1 − s) h + s · blur(h), s as shift_near's (repair_lost_clusters' second candidate: the
+// detail that followed the lost offsets taken out, for the refit to find again).
+Heightfield blur_near(const Heightfield& heights, const std::vector<std::array<double, 2>>& centres_um, double inner_um,
+                      double outer_um, double sigma_texels) {
+    const int rows = heights.rows(), cols = heights.cols();
+    const double w = heights.texel_um();
+    const int reach = int(std::ceil(3.0 * sigma_texels));
+    std::vector<double> kernel(std::size_t(2 * reach + 1));
+    double norm = 0.0;
+    for (int k = -reach; k <= reach; ++k)
+        norm += kernel[std::size_t(k + reach)] = std::exp(-0.5 * k * k / (sigma_texels * sigma_texels));
+    for (double& k : kernel) k /= norm;
+    std::vector<double> along(std::size_t(rows) * std::size_t(cols), 0.0), out(along.size());
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j)
+            for (int k = -reach; k <= reach; ++k)
+                along[std::size_t(i) * std::size_t(cols) + std::size_t(j)] += kernel[std::size_t(k + reach)] *
+                                                                              heights.value(i + k, j);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            double blurred = 0.0;
+            for (int k = -reach; k <= reach; ++k)
+                blurred += kernel[std::size_t(k + reach)] *
+                           along[std::size_t(i) * std::size_t(cols) + std::size_t(((j + k) % cols + cols) % cols)];
+            double nearest = std::numeric_limits<double>::infinity();
+            for (const auto& c : centres_um)
+                nearest = std::min(nearest, std::hypot((i + 0.5) * w - c[0], (j + 0.5) * w - c[1]));
+            const double t = std::clamp((outer_um - nearest) / (outer_um - inner_um), 0.0, 1.0);
+            const double weight = t * t * (3.0 - 2.0 * t);
+            out[std::size_t(i) * std::size_t(cols) + std::size_t(j)] = (1.0 - weight) * heights.value(i, j) +
+                                                                       weight * blurred;
+        }
+    return heights.with_values(std::move(out));
+}
+
+}  // namespace
+
+int repair_lost_clusters(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                         const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
+                         const RecoverSettings& settings, double sigma_scale, double factor, double radius_texels,
+                         int refit_iterations, std::vector<double>& offsets_um, const Communicator& comm,
+                         std::vector<ClusterTrial>* trials, double grid_texels, const std::vector<double>* oracle_um) {
+    if (trials) trials->clear();
+    if (!(factor > 1.0) || !(radius_texels > 0.0) || !(radius_texels <= 64.0) || refit_iterations < 1 ||
+        refit_iterations > 1000 || !(grid_texels >= 0.0 && grid_texels <= 8.0))
+        throw std::invalid_argument("repair_lost_clusters: factor " + std::to_string(factor) + " / radius " +
+                                    std::to_string(radius_texels) + " texels / refit iterations " +
+                                    std::to_string(refit_iterations) + " / grid " + std::to_string(grid_texels) +
+                                    " invalid; expected factor > 1, 0 < radius <= 64, 1 <= iterations <= 1000, "
+                                    "0 <= grid <= 8");
+    const std::size_t positions = centres_um.size();
+    if (index.size() != observations.size() || offsets_um.size() != 2 * positions)
+        throw std::invalid_argument("repair_lost_clusters: " + std::to_string(index.size()) + " position indices for " +
+                                    std::to_string(observations.size()) + " observations, " +
+                                    std::to_string(offsets_um.size()) + " offsets for " + std::to_string(positions) +
+                                    " centres; expected one each, 2 per centre");
+    for (std::size_t p : index)
+        if (p >= positions)
+            throw std::invalid_argument("repair_lost_clusters: position " + std::to_string(p) + " outside the " +
+                                        std::to_string(positions) + " centres given");
+    if (positions < 2) return 0;
+    const double texel_um = heights.texel_um();
+    // Each position's loss at its offset; lost: above factor × the median (rescue_lost_positions').
+    const std::vector<double> start = grid_losses(observations, index, heights, settings, sigma_scale, 0, 1.0,
+                                                  offsets_um, comm);
+    std::vector<char> has(positions, 0);
+    std::vector<double> seen;
+    for (std::size_t p = 0; p < positions; ++p)
+        if (start[positions + p] != 0.0) {
+            has[p] = 1;
+            seen.push_back(start[p]);
+        }
+    if (seen.empty()) return 0;
+    std::nth_element(seen.begin(), seen.begin() + std::ptrdiff_t(seen.size() / 2), seen.end());
+    const double median = seen[seen.size() / 2];
+    std::vector<char> lost(positions, 0);
+    bool any = false;
+    for (std::size_t p = 0; p < positions; ++p)
+        if (has[p] && start[p] > factor * median) lost[p] = 1, any = true;
+    if (!any) return 0;
+    // The raster's spacing (median nearest-neighbour distance) and the widest footprint (every rank's).
+    const auto distance = [&](std::size_t p, std::size_t q) {
+        return std::hypot(centres_um[p][0] - centres_um[q][0], centres_um[p][1] - centres_um[q][1]);
+    };
+    std::vector<double> nearest(positions, std::numeric_limits<double>::infinity());
+    for (std::size_t p = 0; p < positions; ++p)
+        for (std::size_t q = 0; q < positions; ++q)
+            if (q != p) nearest[p] = std::min(nearest[p], distance(p, q));
+    std::nth_element(nearest.begin(), nearest.begin() + std::ptrdiff_t(positions / 2), nearest.end());
+    const double spacing_um = nearest[positions / 2];
+    double sigma_local = 0.0;
+    for (const Observation& o : observations) sigma_local = std::max(sigma_local, o.query.sigma_p_um * sigma_scale);
+    double sigma_um = 0.0;
+    for (double v : all_gather(comm, {sigma_local})) sigma_um = std::max(sigma_um, v);
+    const double link_um = 1.5 * spacing_um, inner_um = 0.75 * spacing_um, outer_um = 1.75 * spacing_um;
+    const double reach_um = outer_um + 3.0 * sigma_um;
+
+    // Stage 3 on the region's observations alone from (h, off): its loss after the refit. The
+    // observations move by the region's mean offset m and start from off − m, so that stage 3's
+    // gauge (mean 0 over its positions) leaves every window where off puts it.
+    RecoverSettings refit = settings;
+    refit.refine_iterations = refit_iterations;
+    refit.calibrate.sigma = false;
+    struct Refitted {
+        double loss;
+        Heightfield heights;
+        std::vector<double> offsets_um;
+    };
+    const auto refit_region = [&](const std::vector<Observation>& sub, const std::vector<std::size_t>& region,
+                                  const Heightfield& h, const std::vector<double>& off, int iterations) {
+        refit.refine_iterations = iterations;
+        std::array<double, 2> mean{0.0, 0.0};
+        for (std::size_t p : region)
+            for (int c = 0; c < 2; ++c) mean[std::size_t(c)] += off[2 * p + std::size_t(c)] / double(region.size());
+        std::vector<Observation> moved = sub;
+        for (Observation& o : moved) {
+            o.query.x_um += mean[0];
+            o.query.y_um += mean[1];
+        }
+        std::vector<double> initial;
+        for (std::size_t p : region) initial.insert(initial.end(), {off[2 * p] - mean[0], off[2 * p + 1] - mean[1]});
+        std::vector<double> total{double(sub.size())};
+        comm.allreduce_sum(total);
+        Refitted out{std::numeric_limits<double>::infinity(), h, off};
+        const StageReport keep_last = [&](const std::string& stage, int, double loss, const Heightfield*) {
+            if (stage == "refine") out.loss = loss;
+            return true;
+        };
+        std::vector<std::array<double, 2>> unused;
+        std::vector<double> found;  // per region position, mean 0
+        double scale = sigma_scale;
+        out.heights = refine_heights_and_positions(moved, total[0],
+                                                   h.with_values(std::vector<double>(h.values().size(), 0.0)), h, refit,
+                                                   keep_last, comm, unused, initial, nullptr, &scale, &found);
+        if (found.size() == 2 * region.size())
+            for (std::size_t k = 0; k < region.size(); ++k) {
+                out.offsets_um[2 * region[k]] = found[2 * k] + mean[0];
+                out.offsets_um[2 * region[k] + 1] = found[2 * k + 1] + mean[1];
+            }
+        return out;
+    };
+
+    int repaired = 0;
+    std::vector<char> done(positions, 0);
+    for (std::size_t seed = 0; seed < positions; ++seed) {
+        if (!lost[seed] || done[seed]) continue;
+        // The cluster: lost positions linked by ≤ link_um (breadth first, in index order).
+        std::vector<std::size_t> cluster{seed};
+        done[seed] = 1;
+        for (std::size_t k = 0; k < cluster.size(); ++k)
+            for (std::size_t q = 0; q < positions; ++q)
+                if (lost[q] && !done[q] && distance(cluster[k], q) <= link_um) {
+                    done[q] = 1;
+                    cluster.push_back(q);
+                }
+        std::sort(cluster.begin(), cluster.end());
+        std::vector<std::size_t> grown;
+        for (std::size_t q = 0; q < positions; ++q) {
+            if (!has[q]) continue;
+            for (std::size_t p : cluster)
+                if (q == p || distance(p, q) <= link_um) {
+                    grown.push_back(q);
+                    break;
+                }
+        }
+        std::vector<std::size_t> region;
+        for (std::size_t q = 0; q < positions; ++q) {
+            if (!has[q]) continue;
+            for (std::size_t p : grown)
+                if (distance(p, q) <= reach_um) {
+                    region.push_back(q);
+                    break;
+                }
+        }
+        std::vector<char> in_region(positions, 0);
+        for (std::size_t q : region) in_region[q] = 1;
+        std::vector<Observation> sub;
+        std::vector<std::size_t> sub_index;
+        for (std::size_t i = 0; i < observations.size(); ++i)
+            if (in_region[index[i]]) {
+                sub.push_back(observations[i]);
+                sub_index.push_back(index[i]);
+            }
+        // A candidate: the set's offsets + δ, the heights near them moved by δ.
+        const auto candidate = [&](const std::vector<std::size_t>& set, std::array<double, 2> delta_texels,
+                                   std::vector<double>& off) {
+            off = offsets_um;
+            std::vector<std::array<double, 2>> moved_centres;
+            for (std::size_t p : set) {
+                off[2 * p] += texel_um * delta_texels[0];
+                off[2 * p + 1] += texel_um * delta_texels[1];
+                moved_centres.push_back({centres_um[p][0] + off[2 * p], centres_um[p][1] + off[2 * p + 1]});
+            }
+            return shift_near(heights, moved_centres, inner_um, outer_um,
+                              {texel_um * delta_texels[0], texel_um * delta_texels[1]});
+        };
+        // The sets that may have moved together: per lost position, the positions of the cluster
+        // and its neighbours whose offsets are within 0.75 texel of its own (a translated patch
+        // shares one offset), and the lost positions themselves.
+        std::vector<std::vector<std::size_t>> sets{cluster};
+        for (std::size_t p : cluster) {
+            std::vector<std::size_t> set;
+            for (std::size_t q : grown)
+                if (std::hypot(offsets_um[2 * q] - offsets_um[2 * p], offsets_um[2 * q + 1] - offsets_um[2 * p + 1]) <=
+                    0.75 * texel_um)
+                    set.push_back(q);
+            if (std::find(sets.begin(), sets.end(), set) == sets.end()) sets.push_back(set);
+        }
+        // Per set: its reset to the stated centres (its mean offset to the other positions' mean,
+        // the offsets' gauge; the shape of its offsets kept), refitted; the lowest refitted loss
+        // is kept if below the unmoved state's after the same refit. (The region's loss right
+        // after a move does not rank them: it is highest for the right move, whose heights at
+        // the rim are yet to be refitted.)
+        std::vector<double> off;
+        const Refitted unmoved = refit_region(sub, region, heights, offsets_um, refit_iterations);
+        ClusterTrial trial{int(cluster.size()),
+                           0,
+                           int(region.size()),
+                           {0.0, 0.0},
+                           unmoved.loss,
+                           std::numeric_limits<double>::infinity(),
+                           false};
+        Refitted kept = unmoved;
+        for (const std::vector<std::size_t>& set : sets) {
+            std::vector<char> in_set(positions, 0);
+            for (std::size_t p : set) in_set[p] = 1;
+            std::array<double, 2> mean{0.0, 0.0}, others{0.0, 0.0};
+            std::size_t other_count = 0;
+            for (std::size_t p = 0; p < positions; ++p)
+                if (has[p] && !in_set[p]) ++other_count;
+            if (other_count == 0) continue;
+            for (std::size_t p = 0; p < positions; ++p)
+                for (int c = 0; c < 2; ++c) {
+                    const double o = offsets_um[2 * p + std::size_t(c)] / texel_um;
+                    if (in_set[p])
+                        mean[std::size_t(c)] += o / double(set.size());
+                    else if (has[p])
+                        others[std::size_t(c)] += o / double(other_count);
+                }
+            const std::array<double, 2> delta{others[0] - mean[0], others[1] - mean[1]};
+            const double length = std::hypot(delta[0], delta[1]);
+            if (length > radius_texels || length < 0.25) continue;  // too far, or no move (< ¼ texel)
+            for (int kind = 0; kind < 2; ++kind) {
+                // 0: the set moved rigidly with its heights; 1: each of its positions at the
+                // stated centre, the heights near them blurred (σ 1 texel).
+                Heightfield h = heights;
+                if (kind == 0) {
+                    h = candidate(set, delta, off);
+                } else {
+                    off = offsets_um;
+                    std::vector<std::array<double, 2>> at;
+                    for (std::size_t p : set) {
+                        off[2 * p] = texel_um * others[0];
+                        off[2 * p + 1] = texel_um * others[1];
+                        at.push_back({centres_um[p][0] + off[2 * p], centres_um[p][1] + off[2 * p + 1]});
+                    }
+                    h = blur_near(heights, at, inner_um, outer_um, 1.0);
+                }
+                Refitted r = refit_region(sub, region, h, off, refit_iterations);
+                if (r.loss < trial.refit_moved) {
+                    trial = {int(cluster.size()), int(set.size()), int(region.size()),    delta,
+                             unmoved.loss,        r.loss,          r.loss < unmoved.loss, kind};
+                    if (trial.kept) kept = std::move(r);
+                }
+            }
+        }
+        // Study diagnostic (oracle_um, the true offsets): each set at its true offsets (aligned to
+        // the found ones by the other positions' means), the heights as they are (kind 3) or
+        // blurred near them (kind 4), judged as the others: whether the refit can tell the truth.
+        if (oracle_um && oracle_um->size() == offsets_um.size())
+            for (const std::vector<std::size_t>& set : sets) {
+                std::vector<char> in_set(positions, 0);
+                for (std::size_t p : set) in_set[p] = 1;
+                std::array<double, 2> found{0.0, 0.0}, truth{0.0, 0.0};
+                std::size_t other_count = 0;
+                for (std::size_t p = 0; p < positions; ++p)
+                    if (has[p] && !in_set[p]) ++other_count;
+                if (other_count == 0) continue;
+                for (std::size_t p = 0; p < positions; ++p)
+                    if (has[p] && !in_set[p])
+                        for (std::size_t c = 0; c < 2; ++c) {
+                            found[c] += offsets_um[2 * p + c] / double(other_count);
+                            truth[c] += (*oracle_um)[2 * p + c] / double(other_count);
+                        }
+                for (int kind = 3; kind < 5; ++kind) {
+                    off = offsets_um;
+                    std::vector<std::array<double, 2>> at;
+                    for (std::size_t p : set) {
+                        for (std::size_t c = 0; c < 2; ++c)
+                            off[2 * p + c] = (*oracle_um)[2 * p + c] - truth[c] + found[c];
+                        at.push_back({centres_um[p][0] + off[2 * p], centres_um[p][1] + off[2 * p + 1]});
+                    }
+                    const Heightfield h = kind == 3 ? heights : blur_near(heights, at, inner_um, outer_um, 1.0);
+                    Refitted r = refit_region(sub, region, h, off, refit_iterations);
+                    double moved_sq = 0.0;
+                    for (std::size_t p : set)
+                        for (std::size_t c = 0; c < 2; ++c)
+                            moved_sq += (off[2 * p + c] - offsets_um[2 * p + c]) *
+                                        (off[2 * p + c] - offsets_um[2 * p + c]);
+                    if (trials)
+                        trials->push_back({int(cluster.size()),
+                                           int(set.size()),
+                                           int(region.size()),
+                                           {std::sqrt(moved_sq / double(set.size())) / texel_um, 0.0},
+                                           unmoved.loss,
+                                           r.loss,
+                                           false,
+                                           kind});
+                }
+            }
+        // With grid_texels: each set moved rigidly with its heights by δ on the grid
+        // grid · (a, b), |a|, |b| ≤ 2, about its offsets, ranked by a short refit (a quarter of
+        // the iterations), the best refitted in full.
+        if (grid_texels > 0.0) {
+            const int short_iterations = std::max(2, refit_iterations / 4);
+            double best = std::numeric_limits<double>::infinity();
+            std::size_t best_set = 0;
+            std::array<double, 2> best_delta{0.0, 0.0};
+            for (std::size_t s = 0; s < sets.size(); ++s)
+                for (int a = -2; a <= 2; ++a)
+                    for (int b = -2; b <= 2; ++b) {
+                        if (a == 0 && b == 0) continue;
+                        const std::array<double, 2> delta{grid_texels * a, grid_texels * b};
+                        const Heightfield h = candidate(sets[s], delta, off);
+                        const double l = refit_region(sub, region, h, off, short_iterations).loss;
+                        if (l < best) best = l, best_set = s, best_delta = delta;
+                    }
+            if (best < std::numeric_limits<double>::infinity()) {
+                Refitted r = refit_region(sub, region, candidate(sets[best_set], best_delta, off), off,
+                                          refit_iterations);
+                if (r.loss < trial.refit_moved) {
+                    trial = {int(cluster.size()),   int(sets[best_set].size()),
+                             int(region.size()),    best_delta,
+                             unmoved.loss,          r.loss,
+                             r.loss < unmoved.loss, 2};
+                    if (trial.kept) kept = std::move(r);
+                }
+            }
+        }
+        if (trials && trial.moved > 0) trials->push_back(trial);
+        if (trial.kept) {
+            heights = kept.heights;
+            offsets_um = kept.offsets_um;
+            ++repaired;
+        }
+    }
+    return repaired;
 }
 
 namespace {

@@ -83,6 +83,47 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
                               double step_texels, double cap_texels, std::vector<double>& offsets_um,
                               const Communicator& comm);
 
+// Round 12 (docs/recovery.md, "Self-calibration: positions"): lost clusters. A cluster of
+// neighbouring positions can be lost together with the heights between them: a locally rigid
+// shift of heights and positions is invisible inside and costs loss only at its rim, where the
+// wrong offsets are a local minimum that a per-position search (rescue_lost_positions) cannot
+// leave. Per cluster of lost positions (loss, as register_positions', above factor × the median;
+// linked when their stated centres are ≤ 1.5 spacings apart, the spacing being the median
+// nearest-neighbour distance of centres_um), the candidate sets that may have moved together:
+// the lost positions, and per lost position the positions of the cluster and its neighbours
+// (≤ 1.5 spacings) whose offsets are within 0.75 texel of its own. Each set is reset to the
+// stated centres (its mean offset moved by δ to the other positions' mean, the offsets' gauge;
+// skipped when |δ| > radius_texels or < ¼ texel) with the heights near it moved along,
+// h'(x) = h(x − w(x) δ) (w = 1 within 0.75 spacing of a moved centre, 0 beyond 1.75 spacings, a
+// C¹ smoothstep between; Catmull-Rom bicubic), then refitted: refit_iterations of stage 3
+// (refine_heights_and_positions) on the observations of the region (the positions within 1.75
+// spacings + 3 σ_p of the set's neighbourhood). The lowest refitted loss is kept, refitted heights
+// and offsets, if below the loss of the same refit from the unmoved state. centres_um:
+// gather_positions'. The losses are exact collective sums, so every rank takes the same
+// decisions. Returns the clusters moved; trials (when given) receives one entry per cluster with
+// a candidate. grid_texels > 0: also each set moved rigidly with its heights by δ = grid · (a, b),
+// |a|, |b| ≤ 2, about its offsets, ranked by a refit of a quarter of the iterations, the best
+// refitted in full and judged as the others. Throws std::invalid_argument for factor ≤ 1, radius
+// outside (0, 64], refit_iterations outside [1, 1000], grid outside [0, 8] or offsets_um not 2
+// per centre. oracle_um (a study diagnostic, 2 per centre: the true offsets): each set is also
+// tried at its true offsets (trials of kind 3: the heights as they are, 4: blurred near them;
+// never kept; delta_texels[0] the rms move).
+struct ClusterTrial {
+    int lost = 0;                                   // the cluster's lost positions
+    int moved = 0;                                  // the positions of the candidate's set
+    int region = 0;                                 // the positions whose observations judged it
+    std::array<double, 2> delta_texels{};           // the candidate's shift
+    double refit_unmoved = 0.0, refit_moved = 0.0;  // the region's loss after the refit
+    bool kept = false;
+    int kind = 0;  // 0: reset rigidly with its heights; 1: at the stated centres, heights blurred; 2: grid
+};
+int repair_lost_clusters(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                         const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
+                         const RecoverSettings& settings, double sigma_scale, double factor, double radius_texels,
+                         int refit_iterations, std::vector<double>& offsets_um, const Communicator& comm,
+                         std::vector<ClusterTrial>* trials = nullptr, double grid_texels = 0.0,
+                         const std::vector<double>* oracle_um = nullptr);
+
 // The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
 // "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
 // the least-squares fit of each coordinate by a smooth field is subtracted in place and
@@ -155,6 +196,13 @@ struct PositionStudyHooks {
     int register_newton = 0;
     double newton_step_texels = 0.25;
     double newton_cap_texels = 0.5;
+    // Round 12: after the rescue, repair_lost_clusters with this factor (0: off), radius (the
+    // largest move, texels) and refit iterations.
+    double cluster_factor = 0.0;
+    double cluster_radius_texels = 6.0;
+    int cluster_refit_iterations = 20;
+    double cluster_grid_texels = 0.0;       // repair_lost_clusters' grid (0: none)
+    std::vector<double> cluster_oracle_um;  // a study diagnostic: the true offsets (empty: none)
 };
 void set_position_study_hooks(const PositionStudyHooks& hooks);
 const PositionStudyHooks& position_study_hooks();
