@@ -122,7 +122,7 @@ TEST(MpiRecover, CalibratedRunsOnTwoRanksEqualOneProcess) {
 
 // Position self-calibration under MPI (field_positions.h, recover_positions.h): the position
 // correction inside the field stage, the joint refinement and the position loop (on by default:
-// the registration, its Newton step and the rescue decide from exact collective sums; here 3
+// the registration, its Newton step and the rescue decide from exact collective sums; here 1
 // passes) sum every position's terms exactly over the ranks, so two ranks give the one-process
 // heights and offsets bit for bit.
 TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
@@ -130,7 +130,7 @@ TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
     const auto args = [](const std::string& out) {
         std::vector<std::string> a = recover_args(out);
         a.insert(a.end() - 2, {"--calibrate", "positions", "--simulate-position-error-texels", "0.5",
-                               "--position-passes", "3"});
+                               "--position-passes", "1"});
         return a;
     };
     const CliResult one = run_ranks(dir, 0, args("one"));
