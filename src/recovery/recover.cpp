@@ -75,7 +75,7 @@ namespace {
 constexpr int k_position_outer_passes = 12;
 // RecoverSettings::position_outer_stall_tolerance = −1 (the default): the stall rule's relative
 // loss decrease (docs/recovery.md, round 12b).
-constexpr double k_position_outer_stall_tolerance = 0.05;
+constexpr double k_position_outer_stall_tolerance = 0.02;
 
 // recover_heights' stages, after its checks: `by_lambda` holds this rank's single-wavelength
 // separable observations, with an entry (maybe empty) for every rank's wavelengths;
