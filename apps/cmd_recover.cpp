@@ -53,6 +53,7 @@ struct RecoverArgs {
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;          // 0: the physical memory
     std::string calibrate = "none";      // --calibrate (calibration.h)
+    int position_passes = -1;            // --position-passes (-1: the library's)
     double position_error_texels = 0.0;  // --simulate-position-error-texels
     std::string simulate_exposure;       // --simulate-exposure MIN,MAX ("": none)
     double sigma_factor = 1.0;           // --simulate-sigma-factor
@@ -145,6 +146,10 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.seed = a.seed;
     options.max_memory_gb = a.max_memory_gb;
     options.calibrate = parse_calibration(a.calibrate, "--calibrate");
+    if (a.position_passes < -1 || a.position_passes > 100)
+        throw std::invalid_argument("--position-passes " + std::to_string(a.position_passes) +
+                                    " is invalid; expected 0 to 100 (0: off)");
+    options.position_passes = a.position_passes;
     options.errors.position_rms_texels = a.position_error_texels;
     options.errors.sigma_p_factor = a.sigma_factor;
     options.errors.seed = a.seed;
@@ -356,6 +361,10 @@ void add_recover_command(CLI::App& app) {
                     "self-calibration: parts of the acquisition refined with the heights, comma-separated: "
                     "positions, exposure, sigma; or all, none")
         ->capture_default_str();
+    cmd->add_option("--position-passes", a->position_passes,
+                    "with --calibrate positions: at most N passes of the position loop (registration at the "
+                    "heights, then the field stage and the refinement again) after the first recovery, 0 to 100; "
+                    "0: off (default: the library's, 20, stopped earlier when the loss stalls)");
     cmd->add_option("--simulate-position-error-texels", a->position_error_texels,
                     "study: footprint positions off by a Gaussian of this rms per coordinate (texels, 0 to 10)")
         ->capture_default_str();

@@ -5,17 +5,57 @@ Usage: pass_table.py LOG [LOG ...]. Per log: the offsets left before each regist
 outer loop's PROBE, texels) and the final ones (POSITIONS calibrated_rms... against the truth:
 error_rms), height_rel_rmse after each recovery's stage 3 (%) and the final one (RESULT), the
 registration's moves (rms, texels, after the Newton step and the gauge), the Newton step's
-positions moved, the rescue's positions searched, user CPU and peak RSS."""
+positions moved, the rescue's positions searched, user CPU and peak RSS.
+Round 12b: stage 3's final loss per recovery (the last "refine" line of each, printed every 10
+iterations: exact when stage 3 ends on a multiple of 10), which passes ran the field stage, and
+with --stall N,TOL[;N,TOL...] where RecoverSettings' stall rule (position_outer_stall_passes N,
+position_outer_stall_tolerance TOL) would have stopped a log of the loop run without it (the
+passes before the stop are the same bits), with the % after that pass's stage 3."""
 import re
 import sys
 
-for path in sys.argv[1:]:
+rules = []
+args = sys.argv[1:]
+if args and args[0] == "--stall":
+    rules = [(int(r.split(",")[0]), float(r.split(",")[1])) for r in args[1].split(";")]
+    args = args[2:]
+
+
+def stall_stop(losses, field, passes, tolerance):
+    """The pass (1-based) after which the stall rule stops, or None (recover.cpp, round 12b)."""
+    best, stalled = losses[0], 0
+    for k in range(1, len(losses)):
+        if field[k]:
+            stalled = 0
+        else:
+            stalled = stalled + 1 if losses[k] > (1.0 - tolerance) * best else 0
+            if stalled >= passes:
+                return k
+        best = min(best, losses[k])
+    return None
+
+
+for path in args:
     lines = open(path).read().splitlines()
     left, pct, moves, newton, rescue = [], [], [], [], []
+    refine_loss, refine_pct, field = [], [], [False]
+    last_refine = None
     last_probe = None
     final_left = final_pct = cpu = rss = None
     in_pass = False
     for line in lines:
+        m = re.match(r"refine\s+(\d+) loss (\S+)\s+\S+ s\s+rel_rmse (\S+)", line)
+        if m:
+            last_refine = (int(m.group(1)), float(m.group(2)), 100 * float(m.group(3)))
+        m = re.match(r"unwrap\s+(\d+) ", line)
+        if m and int(m.group(1)) >= 1 and len(field) == len(refine_loss) + 1 and len(refine_loss) > 0:
+            field[-1] = True
+        if re.match(r"(positions:newton|positions:register|misfit:gabor|RESULT)", line) and last_refine:
+            refine_loss.append(last_refine[1])
+            refine_pct.append(last_refine[2])
+            last_refine = None
+            if line.startswith("positions"):
+                field.append(False)
         m = re.match(r"PROBE round \d+ offsets_left_rms_texels=([\d.]+)", line)
         if m:
             last_probe = float(m.group(1))
@@ -54,3 +94,9 @@ for path in sys.argv[1:]:
     print("  Newton moved:", ", ".join(str(v) for v in newton))
     print("  rescue:", ", ".join(rescue))
     print(f"  user CPU {cpu} s, peak RSS {rss:.0f} MB" if cpu and rss else "  (running)")
+    print("  stage 3 final loss:", ", ".join(f"{v:.4e}" for v in refine_loss))
+    print("  field stage in pass:", "".join("F" if f else "-" for f in field[1:len(refine_loss)]))
+    for n, tol in rules:
+        k = stall_stop(refine_loss, field[:len(refine_loss)], n, tol)
+        where = f"after pass {k}: {refine_pct[k]:.3f} %" if k is not None else f"not ({len(refine_loss) - 1} passes)"
+        print(f"  stall rule N={n} tol={tol}: stops {where}")

@@ -14,11 +14,11 @@
 //     Gaussian of this rms per coordinate, all wavelengths alike; the recovery gets the stated
 //     ones) zero_mean_errors=0 (1: the drawn offsets' mean removed) calibrate=none|positions
 //     (position outer loop, docs/recovery.md round 5:) outer_passes register_radius outer_tolerance
-//     outer_fields=1 outer_field_iters=0 outer_refine_iters=0 (later passes' iterations; 0: the
+//     outer_fields=1 outer_field_iters=20 outer_refine_iters=0 (later passes' iterations; 0: the
 //     first's) register_check=0 (1: after the run, register every position at the final
 //     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
 //     save=PREFIX (write PREFIX_estimate.npy and PREFIX_truth.npy, heights in µm, for analysis)
-//     (round 8:) outer_smooth=0 (K ≥ 1: the outer loop removes the smooth part of every
+//     (round 8:) outer_smooth=1 (K ≥ 1: the outer loop removes the smooth part of every
 //     registration's update, 1 affine, K ≥ 2 bilinear on K × K nodes) warp_metric=1 (the WARP
 //     line: the error on the inner texels with the best-fit translation / 6 × 6-node warp of the
 //     truth removed, a diagnostic beside rel_rmse); the PROBE lines also give the offsets left
@@ -28,14 +28,17 @@
 //     end) refine_smooth_from_fed=0 (1: later passes measure the change from the registered
 //     positions, the field stage's included) outer_anderson=0 (depth m of Anderson mixing of the outer loop's positions)
 //     outer_field_passes=-1 (round 10: the field stage only in the first N later passes) stall_diag=0 (round 10: per-position table, PREFIX_positions.csv)
-//     rescue_factor=0 rescue_radius=6 rescue_step=0.5 (round 10: positions with loss > factor ×
-//     median searched ± radius, coarse grid 2·step)
-//     register_newton=0 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
+//     rescue_factor=20 rescue_radius=4 rescue_step=0.125 (round 10: positions with loss > factor ×
+//     median searched ± radius, coarse grid 2·step; 0: off)
+//     register_newton=1 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
 //     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
 //     rescue_below=0 (round 11: the rescue only in passes whose registration moved < this, texels)
 //     cluster_factor=0 cluster_radius=6 cluster_refit=20 cluster_grid=0 cluster_oracle=0 (round 12: lost clusters
 //     moved with their heights, repair_lost_clusters; 0: off)
-//     field_below=0 (round 11: a later pass skips the field stage when its registration moved < this)
+//     field_below=0.05 (round 11: a later pass skips the field stage when its registration moved < this)
+//     stall_passes=2 stall_tolerance=-1 (round 12b: the loop stops after N passes in a row without
+//     the field stage that lowered stage 3's loss by less than the tolerance; 0: off; -1: default)
+//     (the outer loop's knobs default to RecoverSettings', round 12b: on with calibrate=positions)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 //     (round 11b:) stitch=0 (1: every position's patch recovered alone on a stitch_tile² tile
 //     (default 14; patch_blurs, patch_field_iters, patch_refine_iters override the patch's
@@ -360,8 +363,19 @@ int main(int argc, char** argv) try {
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
     // Round 8: the outer loop removes the smooth part (1: affine, k: k × k nodes) of every
-    // registration's update (recover_positions.h).
-    detail::set_position_outer_smooth_nodes(args.count("outer_smooth") ? std::stoi(args["outer_smooth"]) : 0);
+    // registration's update (recover_positions.h). Rounds 10–12b: the rescue, the Newton step,
+    // the field stage's skip and the stall rule (RecoverSettings since round 12b; the library's
+    // defaults unless given).
+    set_int("outer_smooth", rs.position_outer_smooth_nodes);
+    if (args.count("rescue_factor")) rs.position_rescue_factor = std::stod(args["rescue_factor"]);
+    if (args.count("rescue_radius")) rs.position_rescue_radius_texels = std::stod(args["rescue_radius"]);
+    if (args.count("rescue_step")) rs.position_rescue_step_texels = std::stod(args["rescue_step"]);
+    set_int("register_newton", rs.position_register_newton_steps);
+    if (args.count("newton_step")) rs.position_newton_step_texels = std::stod(args["newton_step"]);
+    if (args.count("newton_cap")) rs.position_newton_cap_texels = std::stod(args["newton_cap"]);
+    if (args.count("field_below")) rs.position_outer_field_below_texels = std::stod(args["field_below"]);
+    set_int("stall_passes", rs.position_outer_stall_passes);
+    if (args.count("stall_tolerance")) rs.position_outer_stall_tolerance = std::stod(args["stall_tolerance"]);
     // Round 9: the gauge inside stage 3 (heights warped through the removed smooth part) and the
     // outer loop's extrapolation (recover_positions.h, PositionStudyHooks).
     {
@@ -370,14 +384,7 @@ int main(int argc, char** argv) try {
         set_int("refine_smooth_chunk", hooks.refine_smooth_chunk);
         set_int("outer_anderson", hooks.outer_anderson);
         set_int("outer_field_passes", hooks.outer_field_passes);
-        if (args.count("rescue_factor")) hooks.rescue_factor = std::stod(args["rescue_factor"]);
-        if (args.count("rescue_radius")) hooks.rescue_radius_texels = std::stod(args["rescue_radius"]);
-        if (args.count("rescue_step")) hooks.rescue_step_texels = std::stod(args["rescue_step"]);
-        set_int("register_newton", hooks.register_newton);  // round 11
-        if (args.count("rescue_below")) hooks.rescue_below_texels = std::stod(args["rescue_below"]);
-        if (args.count("field_below")) hooks.outer_field_below_texels = std::stod(args["field_below"]);
-        if (args.count("newton_step")) hooks.newton_step_texels = std::stod(args["newton_step"]);
-        if (args.count("newton_cap")) hooks.newton_cap_texels = std::stod(args["newton_cap"]);
+        if (args.count("rescue_below")) hooks.rescue_below_texels = std::stod(args["rescue_below"]);  // round 11
         // Round 12: lost clusters moved with their heights (repair_lost_clusters).
         if (args.count("cluster_factor")) hooks.cluster_factor = std::stod(args["cluster_factor"]);
         if (args.count("cluster_radius")) hooks.cluster_radius_texels = std::stod(args["cluster_radius"]);
@@ -876,10 +883,10 @@ int main(int argc, char** argv) try {
         std::vector<double> registered = found;
         detail::register_positions(observations, index, estimate, rs, sigma_scale, radius, 0.5, registered,
                                    serial_communicator());
-        for (int k = 0; k < detail::position_study_hooks().register_newton; ++k)  // round 11
-            detail::newton_register_positions(
-                observations, index, estimate, rs, sigma_scale, detail::position_study_hooks().newton_step_texels,
-                detail::position_study_hooks().newton_cap_texels, registered, serial_communicator());
+        for (int k = 0; k < rs.position_register_newton_steps; ++k)  // round 11
+            detail::newton_register_positions(observations, index, estimate, rs, sigma_scale,
+                                              rs.position_newton_step_texels, rs.position_newton_cap_texels,
+                                              registered, serial_communicator());
         // loss(heights, offsets per position (µm), shift in texels) per position.
         const auto losses = [&](const Heightfield& hf, const std::vector<double>& off, double sx, double sy) {
             std::vector<double> l(count, 0.0);

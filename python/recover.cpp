@@ -258,7 +258,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        double simulate_position_error_texels, const py::object& simulate_exposure,
                        double simulate_sigma_factor, bool with_uncertainty, int spectral,
                        const py::object& field_tile_threshold, const py::object& field_tile_core,
-                       const py::object& white_smoothness, const py::object& white_smoothness_iterations) {
+                       const py::object& white_smoothness, const py::object& white_smoothness_iterations,
+                       const py::object& position_passes) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -308,6 +309,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
         bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
     options.calibrate = calibrate_argument(calibrate);
+    options.position_passes = optional_count(position_passes, "position_passes");
+    if (options.position_passes > 100)
+        bad_argument("position_passes", std::to_string(options.position_passes), "0 to 100 (0: off) or None");
     if (!std::isfinite(simulate_position_error_texels) || simulate_position_error_texels < 0.0 ||
         simulate_position_error_texels > 10.0)
         bad_argument("simulate_position_error_texels", format_number(simulate_position_error_texels),
@@ -824,7 +828,7 @@ the same keys with the true values (else None).
           "simulate_position_error_texels"_a = 0.0, "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0,
           "uncertainty"_a = false, "spectral"_a = ro.spectral, "field_tile_threshold"_a = py::none(),
           "field_tile_core"_a = py::none(), "white_smoothness"_a = py::none(),
-          "white_smoothness_iterations"_a = py::none(),
+          "white_smoothness_iterations"_a = py::none(), "position_passes"_a = py::none(),
           R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -871,6 +875,10 @@ simulator     how a truth's observations are simulated: 'gabor' (the model, defa
 calibrate     self-calibration, the CLI's --calibrate: None or 'none' (default), 'positions',
               'exposure', 'sigma' (comma-separated or a sequence), or 'all'; the refined values
               are in result.calibration
+position_passes  with calibrate 'positions' (or 'all'): at most this many passes of the
+              position loop after the first recovery (the CLI's --position-passes, 0...100; 0:
+              off; None: the library's, 20, stopped earlier when the loss stalls); its per-pass
+              steps are in result.metrics (positions:register, positions:newton, ...)
 simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a study's
               acquisition errors (the CLI's --simulate-*; a truth only): footprint positions off
               by this rms per coordinate (texels, 0...10), each slice scaled by an exposure

@@ -121,13 +121,16 @@ TEST(MpiRecover, CalibratedRunsOnTwoRanksEqualOneProcess) {
 }
 
 // Position self-calibration under MPI (field_positions.h, recover_positions.h): the position
-// correction inside the field stage and the joint refinement sum every position's terms
-// exactly over the ranks, so two ranks give the one-process heights and offsets bit for bit.
+// correction inside the field stage, the joint refinement and the position loop (on by default:
+// the registration, its Newton step and the rescue decide from exact collective sums; here 1
+// passes) sum every position's terms exactly over the ranks, so two ranks give the one-process
+// heights and offsets bit for bit.
 TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
     const fs::path dir = fresh_dir("mpi_recover_positions");
     const auto args = [](const std::string& out) {
         std::vector<std::string> a = recover_args(out);
-        a.insert(a.end() - 2, {"--calibrate", "positions", "--simulate-position-error-texels", "0.5"});
+        a.insert(a.end() - 2, {"--calibrate", "positions", "--simulate-position-error-texels", "0.5",
+                               "--position-passes", "1"});
         return a;
     };
     const CliResult one = run_ranks(dir, 0, args("one"));
@@ -135,6 +138,10 @@ TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
     const CliResult two = run_ranks(dir, 2, args("two"));
     ASSERT_EQ(two.exit_code, 0) << two.err;
     EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
+    // The loop ran (its per-pass lines in the metrics), the same on both.
+    const std::string metrics = read_text(dir / "one" / "metrics.csv");
+    EXPECT_NE(metrics.find("positions:newton"), std::string::npos) << metrics.substr(0, 400);
+    EXPECT_NE(metrics.find("positions:register"), std::string::npos);
     const std::string calibration = read_text(dir / "one" / "calibration.json");
     EXPECT_NE(calibration.find("\"position_offsets_um\""), std::string::npos) << calibration;
     EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));

@@ -10,6 +10,9 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <functional>
+#include <map>
+#include <string>
 #include <random>
 
 #include "core/catmull_rom.h"
@@ -81,6 +84,7 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     s.model_check_iterations = 0;
     s.calibrate.positions = true;
     Calibration once, outer;
+    s.position_outer_passes = 0;  // one recovery
     recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(), &once);
     s.position_outer_passes = 2;
     std::vector<std::string> stages;
@@ -102,6 +106,92 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     // speed pass's float products and flushed denormals (a different path from the same start):
     // the loop is off by default and this checks only that it reduces the error.
     EXPECT_LT(after_outer, 0.8 * after_once) << "once " << after_once << " outer " << after_outer;
+}
+
+// Round 12b (docs/recovery.md, "Self-calibration: positions"): calibrate.positions alone runs
+// the position loop — RecoverSettings' defaults: up to 20 passes, Newton steps after every
+// registration, the field stage while the registration moves, stopped by the stall rule — and
+// its offsets end closer to the truth than one recovery's (before round 12b the loop was off
+// unless position_outer_passes was set, and this failed).
+TEST(PositionRegistration, CalibratePositionsRunsTheOuterLoopByDefault) {
+    const OffCase c = off_case(5124, 1.0, 32, 5);
+    RecoverSettings s;
+    s.blurred.blur_widths = {12.0, 4.0};
+    s.blurred.iterations = 15;
+    s.field.iterations = 40;
+    s.refine_iterations = 40;
+    s.model_check_iterations = 0;
+    s.calibrate.positions = true;
+    std::map<std::string, int> reported;
+    Calibration by_default, once;
+    recover_heights(
+        c.observations, 12, 12, 2.0, 1.0, s,
+        [&](const StageMetrics& m) {
+            ++reported[m.stage];
+            return true;
+        },
+        nullptr, serial_communicator(), &by_default);
+    s.position_outer_passes = 0;
+    recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(), &once);
+    const double before = offset_rms(std::vector<std::array<double, 2>>(c.errors.size(), {0.0, 0.0}), c.errors);
+    const double after_once = offset_rms(once.position_offsets_um, c.errors);
+    const double after_loop = offset_rms(by_default.position_offsets_um, c.errors);
+    std::printf("offsets error (um): before %.3f, one recovery %.3f, default loop %.3f; %d passes, %d stall checks\n",
+                before, after_once, after_loop, reported["positions:register"], reported["positions:stall"]);
+    EXPECT_GE(reported["positions:register"], 2);
+    EXPECT_LE(reported["positions:register"], 20);
+    EXPECT_EQ(reported["positions:newton"], reported["positions:register"]);  // one Newton step a pass
+    EXPECT_EQ(reported["positions:rescue"], reported["positions:register"]);  // the rescue looks every pass
+    EXPECT_GT(before, 1.4);  // µm: about 0.7 texel or more
+    EXPECT_LT(after_loop, 0.5 * after_once) << "once " << after_once << " loop " << after_loop;
+}
+
+// Round 12b's stall rule: with a tolerance of 1 every pass without the field stage counts as
+// stalled, so with stall_passes = 1 and the field stage never rerun the loop stops after its
+// first pass (2 with stall_passes = 2; all 3 with the rule off); out-of-range settings are refused.
+TEST(PositionRegistration, StallRuleStopsTheLoop) {
+    const OffCase c = off_case(5125, 1.0, 24, 3);
+    RecoverSettings s;
+    s.blurred.blur_widths = {8.0};
+    s.blurred.iterations = 4;
+    s.field.iterations = 6;
+    s.refine_iterations = 4;
+    s.model_check_iterations = 0;
+    s.calibrate.positions = true;
+    s.position_outer_passes = 3;
+    s.position_outer_tolerance_texels = 0.0;
+    s.position_outer_field_below_texels = 1e9;  // no field stage in later passes
+    s.position_outer_stall_tolerance = 1.0;
+    const auto passes = [&](int stall_passes) {
+        s.position_outer_stall_passes = stall_passes;
+        int registered = 0, stall_reports = 0;
+        recover_heights(
+            c.observations, 12, 12, 2.0, 1.0, s,
+            [&](const StageMetrics& m) {
+                registered += m.stage == "positions:register";
+                stall_reports += m.stage == "positions:stall";
+                return true;
+            },
+            nullptr, serial_communicator());
+        EXPECT_EQ(stall_reports, stall_passes == 0 ? 0 : registered) << "stall_passes " << stall_passes;
+        return registered;
+    };
+    EXPECT_EQ(passes(1), 1);
+    EXPECT_EQ(passes(2), 2);
+    EXPECT_EQ(passes(0), 3);
+    const auto refused = [&](const std::function<void(RecoverSettings&)>& change) {
+        RecoverSettings bad = s;
+        change(bad);
+        EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad, {}, nullptr, serial_communicator()),
+                     std::invalid_argument);
+    };
+    refused([](RecoverSettings& b) { b.position_outer_stall_passes = -1; });
+    refused([](RecoverSettings& b) { b.position_outer_stall_tolerance = 1.5; });
+    refused([](RecoverSettings& b) { b.position_register_newton_steps = 11; });
+    refused([](RecoverSettings& b) { b.position_newton_step_texels = 0.0; });
+    refused([](RecoverSettings& b) { b.position_outer_smooth_nodes = 17; });
+    refused([](RecoverSettings& b) { b.position_rescue_factor = 0.5; });
+    refused([](RecoverSettings& b) { b.position_rescue_step_texels = 0.01; });  // 4 / 0.02 > 16
 }
 
 // The outer loop's later passes (round 7) run position_outer_field_iterations per field and

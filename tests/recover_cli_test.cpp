@@ -67,6 +67,7 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--simulate-exposure 0.5 --out " + out, {"--simulate-exposure", "MIN,MAX"}},
         {"--simulate-sigma-factor 10 --out " + out, {"--simulate-sigma-factor", "10", "[0.25, 4]"}},
         {"--simulate-position-error-texels -1 --out " + out, {"--simulate-position-error-texels", "-1"}},
+        {"--calibrate positions --position-passes 101 --out " + out, {"--position-passes", "101", "0 to 100"}},
         {"--observations o.json --simulate-sigma-factor 1.2 --size 8 --out " + out, {"--simulate-", "--truth"}},
     };
     for (const Case& c : cases) {

@@ -128,6 +128,8 @@ TEST(SigmaPresearch, AllCalibratesPositionsExposuresAndSigmaTogether) {
     s.field.iterations = 8;
     s.refine_iterations = 6;
     s.calibrate = parse_calibration("all");
+    s.position_outer_passes = 1;  // the position loop's plumbing, one pass
+    s.position_outer_field_iterations = 8;
     const int threads = omp_get_max_threads();
     Calibration found[2];
     std::vector<Heightfield> estimate;

@@ -401,22 +401,65 @@ struct RecoverSettings {
     // correction (search or gradient steps), and the retrieval continued from there.
     bool field_position_search_project = false;
     // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration:
-    // positions", round 5): after stage 3, every position is registered on its own at the final
-    // heights (a grid search of its full-model loss over ± position_register_radius_texels in
-    // half-texel steps about its offset, then a parabola), and the field stage (from the final
-    // heights, with position_outer_fields) and stage 3 run again from the registered positions;
-    // at most this many times, stopping when a registration moves the offsets by less than
-    // position_outer_tolerance_texels rms. 0: off; −1: the library's default (recover.cpp,
-    // k_position_outer_passes; docs/recovery.md says what it is and why).
+    // positions", rounds 5–12b; on by default since round 12b): after stage 3, every position is
+    // registered on its own at the final heights (a grid search of its full-model loss over
+    // ± position_register_radius_texels in half-texel steps about its offset, then a parabola,
+    // then position_register_newton_steps Newton steps), the smooth part of the registration's
+    // update removed (position_outer_smooth_nodes), positions far worse than the median searched
+    // wide (position_rescue_*), and the field stage (from the final heights, with
+    // position_outer_fields, while the registration still moves the offsets by at least
+    // position_outer_field_below_texels) and stage 3 run again from the registered positions; at
+    // most this many times, stopping when a registration moves the offsets by less than
+    // position_outer_tolerance_texels rms or when the loss stalls (position_outer_stall_*).
+    // 0: off (one recovery); −1: the library's default (recover.cpp, k_position_outer_passes:
+    // 20; docs/recovery.md says why). At most 100.
     int position_outer_passes = -1;
-    double position_register_radius_texels = 2.0;
-    double position_outer_tolerance_texels = 0.05;
+    double position_register_radius_texels = 2.0;  // 0 … 8
+    // Finite, ≥ 0 (0: never stops on the moves). At the loop's end the registration jitters the
+    // offsets by ~0.004 texel a pass, so the default 0.001 leaves the stopping to the stall rule.
+    double position_outer_tolerance_texels = 0.001;
     bool position_outer_fields = true;
     // The outer loop's later passes (round 7): each field of a pass after the first runs this
     // many L-BFGS iterations from the pass's heights, and its stage 3 this many (0: the first
-    // pass's field.iterations and refine_iterations).
-    int position_outer_field_iterations = 0;
+    // pass's field.iterations and refine_iterations, i.e. 40 by default; round 11's loop: 20 and
+    // 40).
+    int position_outer_field_iterations = 20;
     int position_outer_refine_iterations = 0;
+    // Round 11: after the registration's grid and parabola, this many Newton steps on every
+    // position's offset (0 … 10; 0: off): per position the 2 × 2 Hessian and gradient of its
+    // loss by central differences of ± position_newton_step_texels (a 3 × 3 stencil, > 0 … 2),
+    // the Newton point taken where the Hessian is positive definite and it lowers that position's
+    // loss, its length capped at position_newton_cap_texels (> 0 … 4), else halved (at most 3
+    // times). The decisions come from exact collective sums: the same on every rank.
+    int position_register_newton_steps = 1;
+    double position_newton_step_texels = 0.25;
+    double position_newton_cap_texels = 0.5;
+    // Round 8: the smooth part of every registration's update (new − old offsets) removed: its
+    // least-squares fit by an affine field (1) or a bilinear one on k × k nodes (k = 2 … 16)
+    // over the positions; 0: off. Positions and heights moved together by a smooth warp change
+    // the slices little, so without it the loop drifts along one.
+    int position_outer_smooth_nodes = 1;
+    // Round 10: after every registration, the positions whose loss exceeds
+    // position_rescue_factor × the median position's (> 1 … 10⁶; 0: off) are registered again
+    // over ± position_rescue_radius_texels (> 0 … 16) on a grid of 2 × position_rescue_step_texels,
+    // then ± the step (> 0, radius/(2·step) ≤ 16): a position trapped beyond the registration's
+    // radius is brought back.
+    double position_rescue_factor = 20.0;
+    double position_rescue_radius_texels = 4.0;
+    double position_rescue_step_texels = 0.125;
+    // Round 11: a later pass skips the field stage when the registration before it moved the
+    // offsets by less than this (rms, texels, finite ≥ 0; 0: the field stage in every pass).
+    // Near the end the field stage's own position steps undo the registration's last 0.02 texel.
+    double position_outer_field_below_texels = 0.05;
+    // Round 12b, the stopping rule: the loop stops once position_outer_stall_passes (0 … 100; 0:
+    // off) consecutive passes without the field stage each lowered stage 3's final loss by less
+    // than position_outer_stall_tolerance (a fraction of the lowest such loss before, 0 … 1; −1:
+    // the library's default, recover.cpp k_position_outer_stall_tolerance) — at the end the
+    // registration's ± 0.25-texel stencil is coarser than stage 3 and the loss jitters
+    // (docs/recovery.md, round 12b). The loss is the exact collective objective: every rank
+    // stops at the same pass.
+    int position_outer_stall_passes = 2;
+    double position_outer_stall_tolerance = -1.0;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -83,6 +83,10 @@ struct RecoveryOptions {
     double max_memory_gb = 0.0;
     // Self-calibration (calibration.h): the parts of the acquisition the pipeline refines.
     CalibrationSettings calibrate;
+    // With calibrate.positions: at most this many passes of the position loop after the first
+    // recovery (RecoverSettings::position_outer_passes, 0 … 100; 0: off, one recovery; < 0: the
+    // library's default, 20, stopped earlier by its stall rule).
+    int position_passes = -1;
     // A study's acquisition errors (a truth only): the observations are rendered for the
     // perturbed acquisition (positions offset per footprint position, σ_p scaled, each slice
     // scaled by its exposure after the noise, which is relative to the slice) and the recovery

@@ -787,7 +787,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -833,6 +833,10 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     calibrate     self-calibration, the CLI's --calibrate: None or 'none' (default), 'positions',
                   'exposure', 'sigma' (comma-separated or a sequence), or 'all'; the refined values
                   are in result.calibration
+    position_passes  with calibrate 'positions' (or 'all'): at most this many passes of the
+                  position loop after the first recovery (the CLI's --position-passes, 0...100; 0:
+                  off; None: the library's, 20, stopped earlier when the loss stalls); its per-pass
+                  steps are in result.metrics (positions:register, positions:newton, ...)
     simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a study's
                   acquisition errors (the CLI's --simulate-*; a truth only): footprint positions off
                   by this rms per coordinate (texels, 0...10), each slice scaled by an exposure

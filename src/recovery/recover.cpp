@@ -69,8 +69,16 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i) {
 namespace {
 
 // RecoverSettings::position_outer_passes = −1 (the default): outer passes of position
-// self-calibration (docs/recovery.md, "Self-calibration: positions", round 5).
-constexpr int k_position_outer_passes = 0;
+// self-calibration (docs/recovery.md, "Self-calibration: positions", rounds 5–12b: 12 passes of
+// round 11's loop reached ≤ 0.1 % at 1 texel on 6 of 9 seeds and never ended worse than one
+// recovery; round 12b: converging runs still gain after 12, and a cluster the rescue brings back
+// late needs more (0.22 % at 12, 0.046 % at 20); the stall rule stops the stalled ones early).
+constexpr int k_position_outer_passes = 20;
+// RecoverSettings::position_outer_stall_tolerance = −1 (the default): the stall rule's relative
+// loss decrease (docs/recovery.md, round 12b: converging runs lower stage 3's loss by ≥ 14 % a
+// pass to their 12th; a stalled one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue
+// brought back later, 0.05 nearly did).
+constexpr double k_position_outer_stall_tolerance = 0.02;
 
 // recover_heights' stages, after its checks: `by_lambda` holds this rank's single-wavelength
 // separable observations, with an entry (maybe empty) for every rank's wavelengths;
@@ -98,7 +106,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
     bool stopped = false;
+    double last_refine_loss = 0.0;  // stage 3's last reported loss (the position loop's stall rule)
     const auto report = [&](const std::string& stage, int iteration, double loss, const Heightfield* hf) {
+        if (stage == "refine") last_refine_loss = loss;
         bool go_on = true;
         if (on_step) {
             StageMetrics m;
@@ -409,11 +419,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                                         report, comm, offsets, offsets_um, &exposures, &sigma_scale,
                                                         &position_offsets);
         if (stopped) return estimate;
-        // The outer loop (docs/recovery.md, "Self-calibration: positions", round 5): every
+        // The outer loop (docs/recovery.md, "Self-calibration: positions", rounds 5–12b): every
         // position registered on its own at the final heights (a grid search of its full-model
-        // loss), then the field stage (from the final heights) and stage 3 again at the
-        // registered positions, until the registration moves the offsets by less than
-        // position_outer_tolerance_texels rms.
+        // loss, then Newton steps), then the field stage (from the final heights, while the
+        // registration moves) and stage 3 again at the registered positions, until the
+        // registration moves the offsets by less than position_outer_tolerance_texels rms or
+        // stage 3's loss stalls.
         const int outer_passes = settings.position_outer_passes >= 0 ? settings.position_outer_passes
                                                                       : k_position_outer_passes;
         // Later passes warm-start from the pass before (its heights, hence its objects) and may
@@ -421,15 +432,23 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         RecoverSettings later = settings;
         if (settings.position_outer_refine_iterations > 0)
             later.refine_iterations = settings.position_outer_refine_iterations;
-        // Round 8 (study hook, off by default): the smooth part of each registration's update
-        // removed (positions and heights can trade a smooth warp; recover_positions.h).
-        const int smooth_nodes = detail::position_outer_smooth_nodes();
+        // Round 8: the smooth part of each registration's update removed (positions and heights
+        // can trade a smooth warp; recover_positions.h).
+        const int smooth_nodes = settings.position_outer_smooth_nodes;
         std::vector<std::array<double, 2>> centres;
         if (outer_passes > 0 && smooth_nodes > 0) {
             std::vector<std::size_t> unused;
             centres = detail::gather_positions(observations, unused, comm);
         }
         const detail::PositionStudyHooks hooks = detail::position_study_hooks();
+        // Round 12b's stall rule: the lowest stage-3 loss of the passes without the field stage
+        // (and of the first recovery), and how many such passes in a row lowered it by less than
+        // the tolerance.
+        const double stall_tolerance = settings.position_outer_stall_tolerance >= 0.0
+                                           ? settings.position_outer_stall_tolerance
+                                           : k_position_outer_stall_tolerance;
+        double best_loss = last_refine_loss;
+        int stalled = 0;
         std::vector<double> fed, previous_result;                        // round 9's extrapolation
         std::vector<std::vector<double>> fed_history, result_history;  // (x_k, F(x_k)) per pass
         for (int outer = 0; outer < outer_passes; ++outer) {
@@ -438,12 +457,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             double moved = detail::register_positions(observations, position_of, estimate, settings, sigma_scale,
                                                       settings.position_register_radius_texels, 0.5, position_offsets,
                                                       comm);
-            // Round 11 (study hook, off by default): Newton steps on each position's offset after
-            // the grid and parabola (recover_positions.h); moved counts them.
-            for (int n = 0; n < hooks.register_newton; ++n) {
-                const int stepped = detail::newton_register_positions(observations, position_of, estimate, settings,
-                                                                      sigma_scale, hooks.newton_step_texels,
-                                                                      hooks.newton_cap_texels, position_offsets, comm);
+            // Round 11: Newton steps on each position's offset after the grid and parabola
+            // (recover_positions.h); moved counts them.
+            for (int n = 0; n < settings.position_register_newton_steps; ++n) {
+                const int stepped = detail::newton_register_positions(
+                    observations, position_of, estimate, settings, sigma_scale, settings.position_newton_step_texels,
+                    settings.position_newton_cap_texels, position_offsets, comm);
                 double s2 = 0.0;
                 for (std::size_t i = 0; i < before.size(); ++i)
                     s2 += (position_offsets[i] - before[i]) * (position_offsets[i] - before[i]);
@@ -462,13 +481,15 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 moved = update.empty() ? 0.0 : std::sqrt(s2 / double(update.size())) / estimate.texel_um();
             }
             if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
-            // Round 10 (study hook, off by default): the lost positions searched wide.
+            // Round 10: the lost positions searched wide.
             int rescued = 0;
-            if (hooks.rescue_factor > 0.0 && (hooks.rescue_below_texels <= 0.0 || moved < hooks.rescue_below_texels)) {
+            if (settings.position_rescue_factor > 0.0 &&
+                (hooks.rescue_below_texels <= 0.0 || moved < hooks.rescue_below_texels)) {
                 const std::vector<double> kept = position_offsets;
-                rescued = detail::rescue_lost_positions(observations, position_of, estimate, settings, sigma_scale,
-                                                        hooks.rescue_factor, hooks.rescue_radius_texels,
-                                                        hooks.rescue_step_texels, position_offsets, comm);
+                rescued = detail::rescue_lost_positions(
+                    observations, position_of, estimate, settings, sigma_scale, settings.position_rescue_factor,
+                    settings.position_rescue_radius_texels, settings.position_rescue_step_texels, position_offsets,
+                    comm);
                 double s2 = 0.0;
                 for (std::size_t i = 0; i < kept.size(); ++i)
                     s2 += (position_offsets[i] - kept[i]) * (position_offsets[i] - kept[i]);
@@ -567,9 +588,11 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 if (!report("positions:extrapolate", outer + 1, step, &estimate)) return estimate;
             }
             const std::vector<double> fed_to_pass = offsets_um;  // before the field stage corrects them
-            if (!white && settings.position_outer_fields &&
-                (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes) &&
-                !(hooks.outer_field_below_texels > 0.0 && moved < hooks.outer_field_below_texels)) {
+            const bool field_pass = !white && settings.position_outer_fields &&
+                                    (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes) &&
+                                    !(settings.position_outer_field_below_texels > 0.0 &&
+                                      moved < settings.position_outer_field_below_texels);
+            if (field_pass) {
                 lambdas.clear();
                 fields.clear();
                 if (settings.position_outer_field_iterations > 0)
@@ -583,6 +606,18 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 observations, observations_total, flat, estimate, later, report, comm, offsets, offsets_um, &exposures,
                 &sigma_scale, &position_offsets, hooks.refine_smooth_from_fed ? &fed_to_pass : nullptr);
             if (stopped) return estimate;
+            // Round 12b's stall rule: a pass of registration and stage 3 alone that lowered stage
+            // 3's loss by less than the tolerance (relative to the lowest so far) counts; the
+            // loop stops after position_outer_stall_passes of them in a row. A pass with the
+            // field stage resets the count (its heights are a new start).
+            if (field_pass) {
+                stalled = 0;
+            } else if (settings.position_outer_stall_passes > 0) {
+                stalled = last_refine_loss > (1.0 - stall_tolerance) * best_loss ? stalled + 1 : 0;
+                if (!report("positions:stall", stalled, last_refine_loss, &estimate)) return estimate;
+                if (stalled >= settings.position_outer_stall_passes) break;
+            }
+            best_loss = std::min(best_loss, last_refine_loss);
         }
         refined_offsets = offsets;
         refined_sigma_scale = sigma_scale;
@@ -941,6 +976,40 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::domain_error("recover_heights: position outer tolerance " +
                                 std::to_string(settings.position_outer_tolerance_texels) +
                                 " texels is invalid; expected a finite value >= 0");
+    if (settings.position_register_newton_steps < 0 || settings.position_register_newton_steps > 10 ||
+        !(settings.position_newton_step_texels > 0.0 && settings.position_newton_step_texels <= 2.0) ||
+        !(settings.position_newton_cap_texels > 0.0 && settings.position_newton_cap_texels <= 4.0))
+        throw std::invalid_argument("recover_heights: position Newton steps " +
+                                    std::to_string(settings.position_register_newton_steps) + " / stencil " +
+                                    std::to_string(settings.position_newton_step_texels) + " / cap " +
+                                    std::to_string(settings.position_newton_cap_texels) +
+                                    " texels is invalid; expected 0 ... 10 / > 0 ... 2 / > 0 ... 4");
+    if (settings.position_outer_smooth_nodes < 0 || settings.position_outer_smooth_nodes > 16)
+        throw std::invalid_argument("recover_heights: position outer smooth nodes " +
+                                    std::to_string(settings.position_outer_smooth_nodes) +
+                                    " is invalid; expected 0 (off), 1 (affine) or 2 ... 16");
+    if (!(settings.position_rescue_factor == 0.0 ||
+          (settings.position_rescue_factor > 1.0 && settings.position_rescue_factor <= 1e6)) ||
+        !(settings.position_rescue_radius_texels > 0.0 && settings.position_rescue_radius_texels <= 16.0) ||
+        !(settings.position_rescue_step_texels > 0.0 &&
+          settings.position_rescue_radius_texels / (2.0 * settings.position_rescue_step_texels) <= 16.0))
+        throw std::invalid_argument("recover_heights: position rescue factor " +
+                                    std::to_string(settings.position_rescue_factor) + " / radius " +
+                                    std::to_string(settings.position_rescue_radius_texels) + " / step " +
+                                    std::to_string(settings.position_rescue_step_texels) +
+                                    " texels is invalid; expected 0 (off) or > 1 ... 1e6 / > 0 ... 16 / > 0 with "
+                                    "radius / (2 step) <= 16");
+    if (!(settings.position_outer_field_below_texels >= 0.0 && std::isfinite(settings.position_outer_field_below_texels)))
+        throw std::domain_error("recover_heights: position outer field-below " +
+                                std::to_string(settings.position_outer_field_below_texels) +
+                                " texels is invalid; expected a finite value >= 0");
+    if (settings.position_outer_stall_passes < 0 || settings.position_outer_stall_passes > 100 ||
+        !(settings.position_outer_stall_tolerance == -1.0 ||
+          (settings.position_outer_stall_tolerance >= 0.0 && settings.position_outer_stall_tolerance <= 1.0)))
+        throw std::invalid_argument("recover_heights: position outer stall passes " +
+                                    std::to_string(settings.position_outer_stall_passes) + " / tolerance " +
+                                    std::to_string(settings.position_outer_stall_tolerance) +
+                                    " is invalid; expected 0 ... 100 / 0 ... 1 (-1: the default)");
     validate_iterations(settings.refine_coarse_iterations, "recover_heights: refine coarse iterations");
     if (!(std::isfinite(settings.refine_coarse_spacing) &&
           (settings.refine_coarse_spacing == 0.0 || settings.refine_coarse_spacing >= 1.0)))

@@ -1000,16 +1000,6 @@ Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& d
 }
 
 namespace {
-int& outer_smooth_nodes() {
-    static int nodes = 0;
-    return nodes;
-}
-}  // namespace
-
-void set_position_outer_smooth_nodes(int nodes) { outer_smooth_nodes() = nodes; }
-int position_outer_smooth_nodes() { return outer_smooth_nodes(); }
-
-namespace {
 PositionStudyHooks& study_hooks() {
     static PositionStudyHooks hooks;
     return hooks;

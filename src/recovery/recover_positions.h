@@ -168,6 +168,8 @@ Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& d
 //   outer_momentum > 0 (without Anderson): x_next = r + momentum · (r − r_previous);
 //   outer_step_cap_texels: the extrapolation's change to r capped per position (texels);
 //   outer_field_passes ≥ 0 (round 10): the field stage runs only in that many later passes.
+// (The loop's measured parts — the smooth-update removal, the rescue, the Newton step, the field
+// stage's skip and the stall rule — are RecoverSettings fields since round 12b.)
 struct PositionStudyHooks {
     int refine_smooth_nodes = 0;
     int refine_smooth_chunk = 0;
@@ -178,24 +180,9 @@ struct PositionStudyHooks {
     // Round 10: the outer loop's later passes run the field stage only in their first
     // outer_field_passes passes (then registration and stage 3 alone); −1: every pass (as before).
     int outer_field_passes = -1;
-    // Round 11: a later pass skips the field stage when the registration before it moved the
-    // offsets by less than this (rms, texels: near the end the field stage's own position steps
-    // undo the registration's last 0.02 texel); 0: off.
-    double outer_field_below_texels = 0.0;
-    // Round 10: after every registration of the outer loop, rescue_lost_positions with this
-    // factor (0: off), radius and step (texels).
-    double rescue_factor = 0.0;
-    double rescue_radius_texels = 6.0;
-    double rescue_step_texels = 0.5;
     // Round 11: the rescue only in passes whose registration moved the offsets by less than this
     // (rms, texels: the loop near its stall); 0: every pass (round 10).
     double rescue_below_texels = 0.0;
-    // Round 11: after every registration of the outer loop (before its gauge and the rescue),
-    // register_newton Newton steps (newton_register_positions, stencil ± newton_step_texels,
-    // steps capped at newton_cap_texels); 0: off.
-    int register_newton = 0;
-    double newton_step_texels = 0.25;
-    double newton_cap_texels = 0.5;
     // Round 12: after the rescue, repair_lost_clusters with this factor (0: off), radius (the
     // largest move, texels) and refit iterations.
     double cluster_factor = 0.0;
@@ -206,12 +193,6 @@ struct PositionStudyHooks {
 };
 void set_position_study_hooks(const PositionStudyHooks& hooks);
 const PositionStudyHooks& position_study_hooks();
-
-// A study hook (experiments/recover_study.cpp): the outer loop (position_outer_passes)
-// removes remove_smooth_displacement(·, nodes) of every registration's update (new − old
-// offsets) when nodes ≥ 1; 0 (the default): off. Not thread-safe to set while a recovery runs.
-void set_position_outer_smooth_nodes(int nodes);
-int position_outer_smooth_nodes();
 
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
 // (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all

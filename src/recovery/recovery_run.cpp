@@ -169,6 +169,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
     if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
+    if (options.position_passes > 100)
+        throw std::invalid_argument("position passes " + std::to_string(options.position_passes) +
+                                    " is invalid; expected 0 to 100 (0: off)");
     if (options.field_tile_threshold > 1000000)
         throw std::invalid_argument("field tile threshold " + std::to_string(options.field_tile_threshold) +
                                     " texels is invalid; expected 0 to 1000000");
@@ -349,6 +352,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.pipeline.refine_iterations = options.refine_iterations;
         r.pipeline.refine_ladder_wavelengths = 0;
     }
+    if (options.position_passes >= 0) r.pipeline.position_outer_passes = options.position_passes;
     if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
     if (options.field_tile_core >= 0) r.pipeline.field_tile_core = options.field_tile_core;
     if (options.refine_coarse_spacing >= 0.0) r.pipeline.refine_coarse_spacing = options.refine_coarse_spacing;

@@ -47,6 +47,17 @@ def test_recover_heights_returns_the_calibration_when_asked():
     assert none["refined"] == "none"
 
 
+def test_position_passes_bounds_the_position_loop():
+    args = dict(SMALL, calibrate="positions", simulate_position_error_texels=0.5, field_iterations=3,
+                refine_iterations=3, quiet=True)
+    one = wb.recover(**args, position_passes=1)
+    stages = list(one.metrics["stage"])
+    assert stages.count("positions:register") == 1 and stages.count("positions:newton") == 1
+    assert one.calibration["position_offsets_um"].shape == (len(one.observations), 2)
+    off = wb.recover(**args, position_passes=0)
+    assert "positions:register" not in list(off.metrics["stage"])
+
+
 @pytest.mark.parametrize("call, needles", [
     (lambda: wb.recover(size=8, calibrate="exposure,focus"), ["calibrate", "'focus'", "positions, exposure"]),
     (lambda: wb.recover(size=8, calibrate=("exposure", 3)), ["calibrate", "sequence"]),
@@ -55,6 +66,8 @@ def test_recover_heights_returns_the_calibration_when_asked():
     (lambda: wb.recover(size=8, simulate_exposure="0.5,2"), ["simulate_exposure"]),
     (lambda: wb.recover(size=8, simulate_sigma_factor=9.0), ["simulate_sigma_factor", "9"]),
     (lambda: wb.recover(size=8, simulate_position_error_texels=-1.0), ["simulate_position_error_texels"]),
+    (lambda: wb.recover(size=8, calibrate="positions", position_passes=101), ["position_passes", "101", "0 to 100"]),
+    (lambda: wb.recover(size=8, calibrate="positions", position_passes=-2), ["position_passes", "-2"]),
 ])
 def test_bad_calibration_arguments_name_themselves(call, needles):
     with pytest.raises(ValueError) as e:
