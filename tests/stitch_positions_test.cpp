@@ -91,7 +91,8 @@ TEST(StitchPositions, KnownShiftsAndTwinsAreRecovered) {
             d.push_back({uni(rng), uni(rng)});
         }
     std::array<double, 2> mean{0, 0};
-    for (const auto& x : d) mean = {mean[0] + x[0] / d.size(), mean[1] + x[1] / d.size()};
+    const double count = double(d.size());
+    for (const auto& x : d) mean = {mean[0] + x[0] / count, mean[1] + x[1] / count};
     for (auto& x : d) x = {x[0] - mean[0], x[1] - mean[1]};
     std::vector<StitchPatch> patches;
     std::vector<int> twin;
