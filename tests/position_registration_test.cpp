@@ -29,7 +29,22 @@ using test::off_case;
 using test::OffCase;
 using test::offset_rms;
 
-namespace {}  // namespace
+namespace {
+
+// The 12² tile's pipeline in the loop's tests: two blur widths, short stages, no model check,
+// the positions calibrated.
+RecoverSettings tile_settings(int blurred_iterations, int iterations) {
+    RecoverSettings s;
+    s.blurred.blur_widths = {12.0, 4.0};
+    s.blurred.iterations = blurred_iterations;
+    s.field.iterations = iterations;
+    s.refine_iterations = iterations;
+    s.model_check_iterations = 0;
+    s.calibrate.positions = true;
+    return s;
+}
+
+}  // namespace
 
 // At the true heights the grid search (±2 texels in halves) and the parabola find known offsets
 // of up to ±1.7 texels, on and between the grid's points, to a quarter texel (measured: 0.2 texel
@@ -76,13 +91,7 @@ TEST(PositionRegistration, FindsKnownOffsetsAtTheTrueHeightsWithTheFullModel) {
 // recovery does.
 TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     const OffCase c = off_case(5122, 1.0, 32, 5);
-    RecoverSettings s;
-    s.blurred.blur_widths = {12.0, 4.0};
-    s.blurred.iterations = 15;
-    s.field.iterations = 40;
-    s.refine_iterations = 40;
-    s.model_check_iterations = 0;
-    s.calibrate.positions = true;
+    RecoverSettings s = tile_settings(15, 40);
     Calibration once, outer;
     s.position_outer_passes = 0;  // one recovery
     recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(), &once);
@@ -115,13 +124,7 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
 // unless position_outer_passes was set, and this failed).
 TEST(PositionRegistration, CalibratePositionsRunsTheOuterLoopByDefault) {
     const OffCase c = off_case(5124, 1.0, 32, 5);
-    RecoverSettings s;
-    s.blurred.blur_widths = {12.0, 4.0};
-    s.blurred.iterations = 15;
-    s.field.iterations = 40;
-    s.refine_iterations = 40;
-    s.model_check_iterations = 0;
-    s.calibrate.positions = true;
+    RecoverSettings s = tile_settings(15, 40);
     std::map<std::string, int> reported;
     Calibration by_default, once;
     recover_heights(
@@ -199,13 +202,7 @@ TEST(PositionRegistration, StallRuleStopsTheLoop) {
 // refine_iterations); negative counts are refused.
 TEST(PositionRegistration, OuterLoopLaterPassesRunTheirOwnIterationCounts) {
     const OffCase c = off_case(5123, 1.0, 32, 5);
-    RecoverSettings s;
-    s.blurred.blur_widths = {12.0, 4.0};
-    s.blurred.iterations = 10;
-    s.field.iterations = 30;
-    s.refine_iterations = 30;
-    s.model_check_iterations = 0;
-    s.calibrate.positions = true;
+    RecoverSettings s = tile_settings(10, 30);
     s.position_outer_passes = 1;
     s.position_outer_tolerance_texels = 0.0;
     s.position_outer_field_iterations = 10;
