@@ -460,6 +460,13 @@ struct RecoverSettings {
     // stops at the same pass.
     int position_outer_stall_passes = 2;
     double position_outer_stall_tolerance = -1.0;
+    // With calibrate.positions and calibrate.exposure both on, the field stage holds each slice's
+    // exposure fixed (found at the heights and offsets before it: the blurred fit's, then each
+    // pass's stage 3) instead of finding it anew at every evaluation: its object is complex, and
+    // free exposures let it trade the object's local amplitude for the exposures of the slices
+    // over it once the positions are off (docs/recovery.md, "All at once": 18.5 % with free
+    // exposures where the positions alone give 5.5 %).
+    bool field_exposures_held = true;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

@@ -294,6 +294,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     const auto field_end = by_lambda.rend();
     // The smallest final loss of the field retrievals (the model check's shortcut; 0: none).
     double field_floor = std::numeric_limits<double>::infinity();
+    // With positions and exposures both calibrated (field_exposures_held): each observation's
+    // exposure, held fixed through the field stage (recover_positions.h, exposures_at); its
+    // references are divided by it and the stage's own exposure calibration is off.
+    std::vector<double> field_exposures;
+    const bool hold_exposures = settings.calibrate.positions && settings.calibrate.exposure &&
+                                settings.field_exposures_held && !white;
     const auto field_stage = [&]() -> bool {  // false: stopped
     for (int pass = 0; pass < passes; ++pass)
         for (auto it = by_lambda.rbegin(); it != field_end && it->first >= field_min_um; ++it) {
@@ -306,15 +312,22 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             // (field_positions.h).
             std::vector<Observation> group;
             std::vector<const Observation*> used = it->second;
-            if (sigma_scale != 1.0 || proxy.proxied) {
+            const bool held = !field_exposures.empty();
+            if (sigma_scale != 1.0 || proxy.proxied || held) {
                 group.reserve(it->second.size());
                 for (const Observation* o : it->second) {
                     group.push_back(*o);
                     group.back().query.sigma_p_um *= sigma_scale;
                     group.back().query.model = detail::field_proxy_model(o->query.model);
+                    if (held) {
+                        const double e = field_exposures[std::size_t(o - observations.data())];
+                        for (float& v : group.back().reference) v = float(double(v) / e);
+                    }
                 }
                 for (std::size_t k = 0; k < group.size(); ++k) used[k] = &group[k];
             }
+            field_settings.calibrate_exposure =
+                !held && (settings.field.calibrate_exposure || settings.calibrate.exposure);
             const auto on_iteration = [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); };
             // Cascading, a field started from the fields before it stops at its own stall tolerance.
             const bool from_fields = settings.cascade && (pass > 0 || it != by_lambda.rbegin());
@@ -369,6 +382,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         }
     return true;
     };
+    if (hold_exposures) {
+        field_exposures = detail::exposures_at(observations, position_of, estimate, sigma_scale, offsets_um);
+        if (!report("exposures:held", 0, 0.0, &estimate)) return estimate;
+    }
     if (!field_stage()) return estimate;
     if (!white) {
         unwrap_fields();
@@ -395,6 +412,8 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (calibration) calibration->sigma_p_scale = calibration->sigma_p_scale_fields = sigma_scale;
             lambdas.clear();
             fields.clear();
+            if (hold_exposures)  // at the unwrapped heights and the new σ_p
+                field_exposures = detail::exposures_at(observations, position_of, estimate, sigma_scale, offsets_um);
             if (!field_stage()) return estimate;
             unwrap_fields();
             if (!report("unwrap", 1, 0.0, &estimate)) return estimate;
@@ -597,6 +616,11 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 fields.clear();
                 if (settings.position_outer_field_iterations > 0)
                     field_settings.iterations = settings.position_outer_field_iterations;
+                if (hold_exposures)  // stage 3's, at the heights and offsets it ended with
+                    field_exposures = exposures.size() == observations.size()
+                                          ? exposures
+                                          : detail::exposures_at(observations, position_of, estimate, sigma_scale,
+                                                                 offsets_um);
                 if (!field_stage()) return estimate;
                 unwrap_fields();
                 if (!report("unwrap", outer + 1, 0.0, &estimate)) return estimate;

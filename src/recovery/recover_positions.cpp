@@ -39,6 +39,35 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
     return positions;
 }
 
+std::vector<double> exposures_at(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                                 const Heightfield& heights, double sigma_scale, const std::vector<double>& offsets_um) {
+    if (index.size() != observations.size())
+        throw std::invalid_argument("exposures_at: " + std::to_string(index.size()) + " position indices for " +
+                                    std::to_string(observations.size()) + " observations");
+    for (std::size_t i = 0; i < index.size(); ++i)
+        if (2 * index[i] + 1 >= offsets_um.size())
+            throw std::invalid_argument("exposures_at: observation " + std::to_string(i) + "'s position " +
+                                        std::to_string(index[i]) + " has no offset");
+    std::vector<double> exposures(observations.size(), 1.0);
+    RegionGuard guard;
+#pragma omp parallel for schedule(dynamic)
+    for (std::ptrdiff_t k = 0; k < std::ptrdiff_t(observations.size()); ++k)
+        guard.run([&] {
+            const Observation& o = observations[std::size_t(k)];
+            const std::size_t p = index[std::size_t(k)];
+            Query q = o.query;
+            q.x_um += offsets_um[2 * p];
+            q.y_um += offsets_um[2 * p + 1];
+            q.sigma_p_um *= sigma_scale;
+            SlicePlan<float> plan(heights, q, o.lambdas_um, o.resolution, o.channels(), {}, false);
+            const std::vector<float>& f = plan.forward();
+            const double e = slice_exposure(f.data(), o.reference.data(), std::min(f.size(), o.reference.size()));
+            if (std::isfinite(e) && e > 0.0) exposures[std::size_t(k)] = e;
+        });
+    guard.rethrow();
+    return exposures;
+}
+
 namespace {
 
 // Per position and candidate of the grid offset + step·(a, b), |a|, |b| ≤ half, the sum of its

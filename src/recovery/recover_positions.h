@@ -35,6 +35,17 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 
 // The field stage's position correction: field_positions.h.
 
+// Each of this rank's observations' closed-form exposure (calibration_detail.h, slice_exposure:
+// Σ R / Σ f) at `heights`, its centre moved by its position's offset (offsets_um, 2 per gathered
+// position, µm; index[i]: observation i's position) and σ_p × sigma_scale; 1 where the ratio is
+// not a positive finite number. With positions and exposures both calibrated the field stage
+// runs at these, held fixed (docs/recovery.md, "All at once"): its object is complex, and an
+// exposure found anew at every evaluation lets it trade its local amplitude for the exposures
+// of the slices over it. Local (no collective); one observation per thread, the same bits for
+// any thread count. Throws std::invalid_argument for an index without an offset.
+std::vector<double> exposures_at(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                                 const Heightfield& heights, double sigma_scale, const std::vector<double>& offsets_um);
+
 // Registration at fixed heights (the outer loop of docs/recovery.md, "Self-calibration:
 // positions", round 5): every gathered position's offset (offsets_um, 2 per position, µm, every
 // rank's) moved where the sum of its observations' losses (all its wavelengths, the full slice
