@@ -164,6 +164,31 @@ TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
     }
 }
 
+// Positions, exposures and σ_p calibrated together (docs/recovery.md, "Self-calibration: all at
+// once"): the field stage's held exposures are each rank's own slices' (exposures_at, local),
+// the rest exact collective sums, so two ranks give the one-process heights and calibration.json
+// bit for bit, through the first recovery and one pass of the position loop.
+TEST(MpiRecover, AllCalibratedRunsOnTwoRanksEqualOneProcess) {
+    const fs::path dir = fresh_dir("mpi_recover_all");
+    const auto args = [](const std::string& out) {
+        std::vector<std::string> a = recover_args(out);
+        a.insert(a.end() - 2, {"--calibrate", "all", "--simulate-position-error-texels", "0.5", "--simulate-exposure",
+                               "0.5,2", "--simulate-sigma-factor", "1.2", "--position-passes", "1"});
+        return a;
+    };
+    const CliResult one = run_ranks(dir, 0, args("one"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const CliResult two = run_ranks(dir, 2, args("two"));
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
+    const std::string metrics = read_text(dir / "one" / "metrics.csv");
+    EXPECT_NE(metrics.find("exposures:held"), std::string::npos) << metrics.substr(0, 400);
+    EXPECT_NE(metrics.find("positions:register"), std::string::npos);
+    const std::string calibration = read_text(dir / "one" / "calibration.json");
+    EXPECT_NE(calibration.find("\"exposures\""), std::string::npos) << calibration;
+    EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
+}
+
 // White light under MPI (docs/recovery.md, White light): RGB slices only, the blurred fit on
 // the RGB channels, the smoothness continuation, the spectral refinement and the defect repair
 // (which decides on the collective loss) on two ranks give the one-process heights bit for bit.
