@@ -39,6 +39,9 @@
 //     stall_passes=2 stall_tolerance=-1 (round 12b: the loop stops after N passes in a row without
 //     the field stage that lowered stage 3's loss by less than the tolerance; 0: off; -1: default)
 //     (the outer loop's knobs default to RecoverSettings', round 12b: on with calibrate=positions)
+//     exposures_free=0 (round 13: with calibrate=positions the exposures calibrated as nuisance
+//     parameters) exposures_held=1 (with positions and exposures calibrated, the field stage at
+//     held exposures; 0: its own energy ratio per evaluation, as before round 13)
 //     outer_momentum=0 (without Anderson: r + β (r − r_previous)) outer_cap=1 (texels per position)
 //     (round 11b:) stitch=0 (1: every position's patch recovered alone on a stitch_tile² tile
 //     (default 14; patch_blurs, patch_field_iters, patch_refine_iters override the patch's
@@ -376,6 +379,8 @@ int main(int argc, char** argv) try {
     if (args.count("field_below")) rs.position_outer_field_below_texels = std::stod(args["field_below"]);
     set_int("stall_passes", rs.position_outer_stall_passes);
     if (args.count("stall_tolerance")) rs.position_outer_stall_tolerance = std::stod(args["stall_tolerance"]);
+    if (args.count("exposures_free")) rs.position_exposures_free = args["exposures_free"] == "1";
+    if (args.count("exposures_held")) rs.field_exposures_held = args["exposures_held"] == "1";
     // Round 9: the gauge inside stage 3 (heights warped through the removed smooth part) and the
     // outer loop's extrapolation (recover_positions.h, PositionStudyHooks).
     {

@@ -102,3 +102,51 @@ TEST(PositionCalibration, ExactSumsGiveTheSameBitsForAnyThreadCount) {
     EXPECT_EQ(one.values(), two.values());
     EXPECT_EQ(one_cal.position_offsets_um, two_cal.position_offsets_um);
 }
+
+// Round 13 (docs/recovery.md, "Self-calibration: positions"; a study option, off by default):
+// with position_exposures_free the exposures are calibrated as nuisance parameters along with
+// the positions: the same computation as asking for both (the same bits), the field stage at
+// held exposures (its "exposures:held" stage), and no exposures reported; by default the stated
+// exposures are used.
+TEST(PositionCalibration, ExposuresAreNuisanceParametersUnlessAsked) {
+    const OffCase c = off_case(5113, 1.0, 24);
+    RecoverSettings s;
+    s.blurred.blur_widths = {8.0};
+    s.blurred.iterations = 4;
+    s.field.iterations = 6;
+    s.refine_iterations = 4;
+    s.calibrate.positions = true;
+    s.position_outer_passes = 1;
+    s.position_outer_field_iterations = 6;
+    s.position_exposures_free = true;
+    const auto run = [&](const RecoverSettings& settings, Calibration& calibration, bool& held) {
+        held = false;
+        return recover_heights(
+            c.observations, 12, 12, 2.0, 1.0, settings,
+            [&](const StageMetrics& m) {
+                held = held || m.stage == "exposures:held";
+                return true;
+            },
+            nullptr, serial_communicator(), &calibration);
+    };
+    Calibration nuisance, asked, stated;
+    bool held_nuisance = false, held_asked = false, held_stated = false;
+    const Heightfield a = run(s, nuisance, held_nuisance);
+    RecoverSettings both = s;
+    both.calibrate.exposure = true;
+    const Heightfield b = run(both, asked, held_asked);
+    const RecoverSettings off = [&] {
+        RecoverSettings o = s;
+        o.position_exposures_free = RecoverSettings{}.position_exposures_free;  // the default: off
+        return o;
+    }();
+    const Heightfield d = run(off, stated, held_stated);
+    EXPECT_EQ(a.values(), b.values());
+    EXPECT_EQ(nuisance.position_offsets_um, asked.position_offsets_um);
+    EXPECT_TRUE(held_nuisance && held_asked);
+    EXPECT_TRUE(nuisance.exposures.empty());
+    EXPECT_EQ(asked.exposures.size(), c.observations.size());
+    EXPECT_FALSE(held_stated);
+    EXPECT_NE(a.values(), d.values());
+    EXPECT_TRUE(stated.exposures.empty());
+}

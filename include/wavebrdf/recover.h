@@ -467,6 +467,12 @@ struct RecoverSettings {
     // over it once the positions are off (docs/recovery.md, "All at once": 18.5 % with free
     // exposures where the positions alone give 5.5 %).
     bool field_exposures_held = true;
+    // With calibrate.positions and not calibrate.exposure: the exposures calibrated all the same,
+    // as nuisance parameters (each slice's model scaled by its energy ratio, the field stage at
+    // held exposures; not reported in Calibration::exposures). Off by default: measured to change
+    // which seeds end with a lost cluster of positions, not how many (docs/recovery.md,
+    // "Self-calibration: positions", round 13). Not with white light.
+    bool position_exposures_free = false;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

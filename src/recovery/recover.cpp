@@ -143,6 +143,12 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // White light (no single-wavelength observation on any rank): the RGB observations, one
     // group, feed the blurred fit, and the refinement follows it (no field stage).
     const bool white = by_lambda.empty();
+    // Round 13 (study option, off by default; docs/recovery.md, "Self-calibration: positions"):
+    // with the positions calibrated, the exposures calibrated as well even where the user states
+    // them (position_exposures_free), as nuisance parameters; not reported.
+    const bool nuisance_exposures = settings.calibrate.positions && !settings.calibrate.exposure &&
+                                    settings.position_exposures_free && !white;
+    if (nuisance_exposures) settings.calibrate.exposure = true;
     std::map<double, std::vector<const Observation*>> blur_groups;
     if (white)
         for (const Observation& o : observations) blur_groups[0.0].push_back(&o);
@@ -647,7 +653,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         refined_sigma_scale = sigma_scale;
         if (calibration) {
             calibration->position_offsets_um = std::move(offsets);
-            calibration->exposures = std::move(exposures);
+            if (!nuisance_exposures) calibration->exposures = std::move(exposures);
             calibration->sigma_p_scale = sigma_scale;
         }
     } else if (settings.refine_iterations > 0) {
