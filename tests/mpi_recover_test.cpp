@@ -120,31 +120,45 @@ TEST(MpiRecover, CalibratedRunsOnTwoRanksEqualOneProcess) {
     EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
 }
 
+// One process and two ranks on recover_args plus `extra` (inserted before "--out DIR"): both
+// succeed and give the same heights and calibration.json (asserted here); rank 0's metrics.csv
+// and calibration.json for the caller's checks.
+struct OneAndTwoRanks {
+    std::string metrics, calibration;
+};
+OneAndTwoRanks calibrated_on_one_and_two_ranks(const std::string& name, const std::vector<std::string>& extra) {
+    const fs::path dir = fresh_dir(name);
+    const auto args = [&](const std::string& out) {
+        std::vector<std::string> a = recover_args(out);
+        a.insert(a.end() - 2, extra.begin(), extra.end());
+        return a;
+    };
+    const CliResult one = run_ranks(dir, 0, args("one"));
+    EXPECT_EQ(one.exit_code, 0) << one.err;
+    const CliResult two = run_ranks(dir, 2, args("two"));
+    EXPECT_EQ(two.exit_code, 0) << two.err;
+    if (one.exit_code != 0 || two.exit_code != 0) return {};  // (reported above)
+    EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
+    OneAndTwoRanks r{read_text(dir / "one" / "metrics.csv"), read_text(dir / "one" / "calibration.json")};
+    EXPECT_EQ(r.calibration, read_text(dir / "two" / "calibration.json"));
+    return r;
+}
+
 // Position self-calibration under MPI (field_positions.h, recover_positions.h): the position
 // correction inside the field stage, the joint refinement and the position loop (on by default:
 // the registration, its Newton step and the rescue decide from exact collective sums; here 1
 // passes) sum every position's terms exactly over the ranks, so two ranks give the one-process
 // heights and offsets bit for bit.
 TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
-    const fs::path dir = fresh_dir("mpi_recover_positions");
-    const auto args = [](const std::string& out) {
-        std::vector<std::string> a = recover_args(out);
-        a.insert(a.end() - 2, {"--calibrate", "positions", "--simulate-position-error-texels", "0.5",
-                               "--position-passes", "1"});
-        return a;
-    };
-    const CliResult one = run_ranks(dir, 0, args("one"));
-    ASSERT_EQ(one.exit_code, 0) << one.err;
-    const CliResult two = run_ranks(dir, 2, args("two"));
-    ASSERT_EQ(two.exit_code, 0) << two.err;
-    EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
+    const OneAndTwoRanks r = calibrated_on_one_and_two_ranks(
+        "mpi_recover_positions",
+        {"--calibrate", "positions", "--simulate-position-error-texels", "0.5", "--position-passes", "1"});
+    if (r.metrics.empty()) return;  // a run failed (reported)
     // The loop ran (its per-pass lines in the metrics), the same on both.
-    const std::string metrics = read_text(dir / "one" / "metrics.csv");
-    EXPECT_NE(metrics.find("positions:newton"), std::string::npos) << metrics.substr(0, 400);
-    EXPECT_NE(metrics.find("positions:register"), std::string::npos);
-    const std::string calibration = read_text(dir / "one" / "calibration.json");
+    EXPECT_NE(r.metrics.find("positions:newton"), std::string::npos) << r.metrics.substr(0, 400);
+    EXPECT_NE(r.metrics.find("positions:register"), std::string::npos);
+    const std::string& calibration = r.calibration;
     EXPECT_NE(calibration.find("\"position_offsets_um\""), std::string::npos) << calibration;
-    EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
     // The simulated offsets are mean-free (a common offset is an unobservable shift of the
     // surface), as the refined ones (the gauge).
     const nlohmann::json j = nlohmann::json::parse(calibration);
@@ -169,24 +183,13 @@ TEST(MpiRecover, PositionCalibratedRunsOnTwoRanksEqualOneProcess) {
 // the rest exact collective sums, so two ranks give the one-process heights and calibration.json
 // bit for bit, through the first recovery and one pass of the position loop.
 TEST(MpiRecover, AllCalibratedRunsOnTwoRanksEqualOneProcess) {
-    const fs::path dir = fresh_dir("mpi_recover_all");
-    const auto args = [](const std::string& out) {
-        std::vector<std::string> a = recover_args(out);
-        a.insert(a.end() - 2, {"--calibrate", "all", "--simulate-position-error-texels", "0.5", "--simulate-exposure",
-                               "0.5,2", "--simulate-sigma-factor", "1.2", "--position-passes", "1"});
-        return a;
-    };
-    const CliResult one = run_ranks(dir, 0, args("one"));
-    ASSERT_EQ(one.exit_code, 0) << one.err;
-    const CliResult two = run_ranks(dir, 2, args("two"));
-    ASSERT_EQ(two.exit_code, 0) << two.err;
-    EXPECT_EQ(read_npy(dir / "one" / "estimate_height.npy"), read_npy(dir / "two" / "estimate_height.npy"));
-    const std::string metrics = read_text(dir / "one" / "metrics.csv");
-    EXPECT_NE(metrics.find("exposures:held"), std::string::npos) << metrics.substr(0, 400);
-    EXPECT_NE(metrics.find("positions:register"), std::string::npos);
-    const std::string calibration = read_text(dir / "one" / "calibration.json");
-    EXPECT_NE(calibration.find("\"exposures\""), std::string::npos) << calibration;
-    EXPECT_EQ(calibration, read_text(dir / "two" / "calibration.json"));
+    const OneAndTwoRanks r = calibrated_on_one_and_two_ranks(
+        "mpi_recover_all", {"--calibrate", "all", "--simulate-position-error-texels", "0.5", "--simulate-exposure",
+                            "0.5,2", "--simulate-sigma-factor", "1.2", "--position-passes", "1"});
+    if (r.metrics.empty()) return;  // a run failed (reported)
+    EXPECT_NE(r.metrics.find("exposures:held"), std::string::npos) << r.metrics.substr(0, 400);
+    EXPECT_NE(r.metrics.find("positions:register"), std::string::npos);
+    EXPECT_NE(r.calibration.find("\"exposures\""), std::string::npos) << r.calibration;
 }
 
 // White light under MPI (docs/recovery.md, White light): RGB slices only, the blurred fit on

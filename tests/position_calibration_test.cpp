@@ -36,6 +36,19 @@ RecoverSettings quick_settings(bool positions) {
     return s;
 }
 
+// A short recovery with the positions calibrated through one pass of the position loop.
+RecoverSettings one_pass_settings() {
+    RecoverSettings s;
+    s.blurred.blur_widths = {8.0};
+    s.blurred.iterations = 4;
+    s.field.iterations = 6;
+    s.refine_iterations = 4;
+    s.calibrate.positions = true;
+    s.position_outer_passes = 1;
+    s.position_outer_field_iterations = 6;
+    return s;
+}
+
 }  // namespace
 
 TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
@@ -82,14 +95,7 @@ TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
 // (the registration's, the Newton step's and the rescue's decisions).
 TEST(PositionCalibration, ExactSumsGiveTheSameBitsForAnyThreadCount) {
     const OffCase c = off_case(5112, 1.0, 24);
-    RecoverSettings s;
-    s.blurred.blur_widths = {8.0};
-    s.blurred.iterations = 4;
-    s.field.iterations = 6;
-    s.refine_iterations = 4;
-    s.calibrate.positions = true;
-    s.position_outer_passes = 1;
-    s.position_outer_field_iterations = 6;
+    RecoverSettings s = one_pass_settings();
     const int threads = omp_get_max_threads();
     Calibration one_cal, two_cal;
     omp_set_num_threads(1);
@@ -110,14 +116,7 @@ TEST(PositionCalibration, ExactSumsGiveTheSameBitsForAnyThreadCount) {
 // exposures are used.
 TEST(PositionCalibration, ExposuresAreNuisanceParametersUnlessAsked) {
     const OffCase c = off_case(5113, 1.0, 24);
-    RecoverSettings s;
-    s.blurred.blur_widths = {8.0};
-    s.blurred.iterations = 4;
-    s.field.iterations = 6;
-    s.refine_iterations = 4;
-    s.calibrate.positions = true;
-    s.position_outer_passes = 1;
-    s.position_outer_field_iterations = 6;
+    RecoverSettings s = one_pass_settings();
     s.position_exposures_free = true;
     const auto run = [&](const RecoverSettings& settings, Calibration& calibration, bool& held) {
         held = false;

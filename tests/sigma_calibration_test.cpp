@@ -231,15 +231,15 @@ TEST(ExposuresAt, TrueHeightsAndCentresGiveTheSimulatedExposures) {
         offsets[2 * index[i] + 1] = c.offsets_um[i][1];
     }
     const std::vector<double> at_truth = detail::exposures_at(c.observations, index, c.truth, 1.0, offsets);
-    const std::vector<double> at_stated =
-        detail::exposures_at(c.observations, index, c.truth, 1.0, std::vector<double>(2 * positions, 0.0));
+    const std::vector<double> at_stated = detail::exposures_at(c.observations, index, c.truth, 1.0,
+                                                               std::vector<double>(2 * positions, 0.0));
     ASSERT_EQ(at_truth.size(), c.exposures.size());
     double worst_truth = 0.0, worst_stated = 0.0;
     for (std::size_t i = 0; i < c.exposures.size(); ++i) {
         worst_truth = std::max(worst_truth, std::abs(at_truth[i] / c.exposures[i] - 1.0));
         worst_stated = std::max(worst_stated, std::abs(at_stated[i] / c.exposures[i] - 1.0));
     }
-    EXPECT_LT(worst_truth, 1e-5);  // measured 1.1e-7 (float slices)
+    EXPECT_LT(worst_truth, 1e-5);   // measured 1.1e-7 (float slices)
     EXPECT_GT(worst_stated, 1e-2);  // the centres matter (measured 0.137)
     const int threads = omp_get_max_threads();
     omp_set_num_threads(1);

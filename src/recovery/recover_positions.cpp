@@ -40,7 +40,8 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 }
 
 std::vector<double> exposures_at(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                                 const Heightfield& heights, double sigma_scale, const std::vector<double>& offsets_um) {
+                                 const Heightfield& heights, double sigma_scale,
+                                 const std::vector<double>& offsets_um) {
     if (index.size() != observations.size())
         throw std::invalid_argument("exposures_at: " + std::to_string(index.size()) + " position indices for " +
                                     std::to_string(observations.size()) + " observations");
