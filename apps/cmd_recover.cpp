@@ -22,6 +22,7 @@
 #include "wavebrdf/recovery_directory.h"
 #include "wavebrdf/recovery_run.h"
 #include "wavebrdf/run_directory.h"
+#include "wavebrdf/text.h"
 #include "wavebrdf/uncertainty.h"
 
 namespace wavebrdf::cli {
@@ -39,7 +40,7 @@ struct RecoverArgs {
     int resolution = 0;       // 0: the planner's
     std::string lambdas;      // "": the planner's
     int spectral = 0;         // --spectral N: white light, RGB slices of N wavelengths (0: laser)
-    double overlap = 0.6, jitter = 0.2;
+    double overlap = 0.6, jitter = 0.2;  // overlap: used only where given (given_overlap)
     std::string noise = "none", loss;  // loss "": matched to the noise
     std::string simulator = "gabor";
     std::string method = "pipeline";
@@ -61,6 +62,8 @@ struct RecoverArgs {
     bool uncertainty = false;  // error bars: uncertainty.exr (uncertainty.h)
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
+    // Whether --overlap was given: when not, the planner's default for the calibration.
+    bool given_overlap = false;
     // --save-observations FILE ("": observations.json in --out).
     std::string save_observations_path;
 };
@@ -128,7 +131,9 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.omega_i = {a.light_x, a.light_y};
     options.sigma_p_um = a.sigma_p_um;
     options.resolution = a.resolution;
-    options.overlap = a.overlap;
+    if (a.given_overlap && !(a.overlap >= 0.6 && a.overlap <= 0.95))
+        throw std::invalid_argument("--overlap " + format_shortest(a.overlap) + " is invalid; expected 0.6 to 0.95");
+    options.overlap = a.given_overlap ? a.overlap : 0.0;  // 0: the planner's default for the calibration
     options.jitter = a.jitter;
     options.field_iterations = a.field_iterations;
     options.refine_iterations = a.refine_iterations;
@@ -312,9 +317,9 @@ void add_recover_command(CLI::App& app) {
                     "white light: every planned observation an RGB slice of a broadband source sampled at N "
                     "wavelengths (2 to 256, as render's --spectral); 0: laser")
         ->capture_default_str();
-    cmd->add_option("--overlap", a->overlap,
-                    "worst-case linear overlap of neighbouring windows (jitter included), 0.6 to 0.95")
-        ->capture_default_str();
+    CLI::Option* overlap = cmd->add_option("--overlap", a->overlap,
+                    "worst-case linear overlap of neighbouring windows (jitter included), 0.6 to 0.95 (default: "
+                    "0.6; 0.7 with --calibrate positions or all)");
     cmd->add_option("--jitter", a->jitter, "position jitter, fraction of the raster step, 0 to 0.3")
         ->capture_default_str();
     cmd->add_option("--noise", a->noise, "simulated noise: none, poisson:N (photons per slice) or gaussian:REL")
@@ -386,8 +391,9 @@ void add_recover_command(CLI::App& app) {
                   "loss at the estimate");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
-    cmd->callback([a, texel, vscale, save] {
+    cmd->callback([a, texel, vscale, save, overlap] {
         a->save_observations = save->count() > 0;
+        a->given_overlap = overlap->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
         // Under mpiexec, every rank with its share; errors printed once (run_on_world).

@@ -250,7 +250,7 @@ struct RecoveryResult {
 RecoveryResult recover(const py::object& truth_arg, const py::object& observations_arg, const py::object& size,
                        const py::object& texel_arg, const py::object& vscale_arg, double height_range_um,
                        double correlation_texels, const std::string& model, const py::object& light, double sigma_p_um,
-                       int resolution, const py::object& lambdas_um, double overlap, double jitter,
+                       int resolution, const py::object& lambdas_um, const py::object& overlap, double jitter,
                        const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
@@ -294,7 +294,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
         bad_argument("spectral", std::to_string(spectral),
                      "2 to " + std::to_string(k_max_spectral_samples) + " wavelengths, or 0 for laser slices");
     options.spectral = spectral;
-    options.overlap = check_finite(overlap, "overlap");
+    options.overlap = overlap.is_none() ? 0.0 : check_finite(overlap.cast<double>(), "overlap");
+    if (!overlap.is_none() && options.overlap == 0.0)
+        bad_argument("overlap", "0", "0.6 ... 0.95, or None (the planner's: 0.6, 0.7 with calibrate 'positions')");
     options.jitter = check_finite(jitter, "jitter");
     options.field_iterations = optional_count(field_iterations, "field_iterations");
     options.refine_iterations = optional_count(refine_iterations, "refine_iterations");
@@ -821,7 +823,7 @@ the same keys with the true values (else None).
           "texel_um"_a = py::none(), "vscale"_a = py::none(), "height_range_um"_a = ro.height_range_um,
           "correlation_texels"_a = ro.correlation_texels, "model"_a = "OHS", "light"_a = py::make_tuple(0.0, 0.0),
           "sigma_p_um"_a = ro.sigma_p_um, "resolution"_a = ro.resolution, "lambdas_um"_a = py::none(),
-          "overlap"_a = ro.overlap, "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
+          "overlap"_a = py::none(), "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
           "epochs"_a = ro.epochs, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb,
           "quiet"_a = py::none(), "comm"_a = py::none(), "simulator"_a = "gabor", "calibrate"_a = py::none(),
@@ -849,7 +851,8 @@ model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable pro
 sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
 resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
 lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
-overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95; jitter 0 ... 0.3
+overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.7 with
+              calibrate 'positions' or 'all'); jitter 0 ... 0.3
 noise         simulated noise: 'none', 'poisson:N' (photons per slice) or 'gaussian:REL'
 loss          a spec or Loss; None: matched to the noise for the pipeline (amplitude without
               noise, poisson:N, mse), cmsle:1 for the thesis's method

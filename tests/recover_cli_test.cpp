@@ -68,6 +68,8 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--simulate-sigma-factor 10 --out " + out, {"--simulate-sigma-factor", "10", "[0.25, 4]"}},
         {"--simulate-position-error-texels -1 --out " + out, {"--simulate-position-error-texels", "-1"}},
         {"--calibrate positions --position-passes 101 --out " + out, {"--position-passes", "101", "0 to 100"}},
+        {"--overlap 0 --out " + out, {"--overlap", "0", "0.6 to 0.95"}},
+        {"--calibrate positions --overlap 0.96 --out " + out, {"--overlap", "0.96", "0.6 to 0.95"}},
         {"--observations o.json --simulate-sigma-factor 1.2 --size 8 --out " + out, {"--simulate-", "--truth"}},
     };
     for (const Case& c : cases) {
@@ -238,8 +240,8 @@ TEST(RecoverCliTest, SmoothScheduleLeavesNoSingleTexelOutlier) {
         for (int j = 0; j < truth.cols(); ++j)
             worst_um = std::max(worst_um,
                                 std::abs((estimate.height_um(i, j) - mean_e) - (truth.height_um(i, j) - mean_t)));
-    EXPECT_LT(worst_um, 0.05);                              // 0.218 without the repair
-    EXPECT_LT(height_rel_rmse(estimate, truth), 0.0005);    // 0.357 % without it
+    EXPECT_LT(worst_um, 0.05);                            // 0.218 without the repair
+    EXPECT_LT(height_rel_rmse(estimate, truth), 0.0005);  // 0.357 % without it
     // Whether the trap occurs depends on the build's float rounding: the Release build lands in it
     // (and the repair reports repair:outliers), the sanitizer build (other optimisation) does not.
     // So the outcome is asserted here; the repair itself is OutlierRepair.*'s.

@@ -1,11 +1,14 @@
 // recovery_run.h: the memory estimate of a recovery and the limit prepare_recovery enforces.
 #include <gtest/gtest.h>
 
+#include <set>
 #include <string>
+#include <utility>
 
 #include "test_util.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/acquisition.h"
+#include "wavebrdf/calibration.h"
 #include "wavebrdf/recovery_run.h"
 
 namespace wavebrdf {
@@ -82,6 +85,35 @@ TEST(RecoveryRun, EstimateCountsTheReferencesInFloat) {
     const double a = estimate_recovery_bytes(one, 16, 16, 2.0, RecoveryMethod::Thesis);
     EXPECT_EQ(estimate_recovery_bytes(two, 16, 16, 2.0, RecoveryMethod::Thesis) - a, 40.0 * 40.0 * 4.0);
     EXPECT_EQ(estimate_recovery_bytes(with_rgb, 16, 16, 2.0, RecoveryMethod::Thesis) - a, 40.0 * 40.0 * 3.0 * 4.0);
+}
+
+// The planner's overlap (RecoveryOptions::overlap 0): 0.6, and k_position_calibration_overlap
+// (0.7) where the positions are calibrated (docs/recovery.md, "Self-calibration: positions",
+// round 13b); a stated overlap is kept with or without calibration.
+TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
+    const auto planned = [](const char* calibrate, double overlap) {
+        RecoveryOptions options;
+        options.rows = options.cols = 16;
+        options.resolution = 16;
+        options.calibrate = parse_calibration(calibrate);
+        options.overlap = overlap;
+        const PreparedRecovery r = prepare_recovery(options);
+        std::set<std::pair<double, double>> positions;
+        for (const Observation& o : r.observations) positions.insert({o.query.x_um, o.query.y_um});
+        std::string note;
+        for (const std::string& n : r.notes)
+            if (n.find("overlap by at least") != std::string::npos) note = n;
+        return std::make_pair(positions.size(), note);
+    };
+    const auto plain = planned("none", 0.0);
+    const auto calibrated = planned("positions", 0.0);
+    EXPECT_NE(plain.second.find("at least 6"), std::string::npos) << plain.second;            // 60 % and up
+    EXPECT_NE(calibrated.second.find("at least 7"), std::string::npos) << calibrated.second;  // 70 % and up
+    EXPECT_GT(calibrated.first, plain.first);
+    EXPECT_EQ(planned("all", 0.0).first, calibrated.first);
+    EXPECT_EQ(planned("positions", 0.6).first, plain.first);  // stated: kept
+    EXPECT_EQ(planned("none", 0.7).first, calibrated.first);
+    EXPECT_EQ(planned("exposure,sigma", 0.0).first, plain.first);  // not without positions
 }
 
 }  // namespace

@@ -787,7 +787,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: float = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -807,7 +807,8 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
     resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
     lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
-    overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95; jitter 0 ... 0.3
+    overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.7 with
+                  calibrate 'positions' or 'all'); jitter 0 ... 0.3
     noise         simulated noise: 'none', 'poisson:N' (photons per slice) or 'gaussian:REL'
     loss          a spec or Loss; None: matched to the noise for the pipeline (amplitude without
                   noise, poisson:N, mse), cmsle:1 for the thesis's method

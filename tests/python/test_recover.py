@@ -277,6 +277,7 @@ def test_recover_refuses_what_cannot_fit_before_any_work():
     (lambda: wb.recover(loss="cmsle:0"), ["cmsle:0"]),
     (lambda: wb.recover(size=0), ["size"]),
     (lambda: wb.recover(size=8, overlap=0.3), ["overlap", "0.3"]),
+    (lambda: wb.recover(size=8, overlap=0), ["overlap", "0"]),
     (lambda: wb.recover(size=8, jitter=0.9), ["jitter", "0.9"]),
     (lambda: wb.recover(lambdas_um=[0.5, -1]), ["lambdas_um"]),
     (lambda: wb.recover(height_range_um=0), ["height_range_um"]),
