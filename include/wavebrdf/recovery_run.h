@@ -36,9 +36,10 @@ RecoveryMethod parse_recovery_method(const std::string& text, const std::string&
 const char* to_string(RecoveryMethod method);
 
 // The planner's overlap when the positions are calibrated (RecoveryOptions::overlap 0): the
-// position loop (recover.h) ends with clusters of positions lost together with the heights
-// between them on about 4 seeds in 9 at 0.6 and on none of those at 0.7 (docs/recovery.md,
-// "Self-calibration: positions", round 13b).
+// position loop (recover.h) ends with a cluster of positions lost together with the heights
+// between them on 4 of 9 seeds at 0.6; at 0.7 the 5 development seeds that lose one converge,
+// and 1 of 3 fresh seeds still loses one (docs/recovery.md, "Self-calibration: positions",
+// round 13b). About 1.5 × the CPU (more slices).
 constexpr double k_position_calibration_overlap = 0.7;
 constexpr double k_default_overlap = 0.6;
 
