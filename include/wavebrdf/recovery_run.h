@@ -41,7 +41,6 @@ const char* to_string(RecoveryMethod method);
 // and 1 of 3 fresh seeds still loses one (docs/recovery.md, "Self-calibration: positions",
 // round 13b). About 1.5 × the CPU (more slices).
 constexpr double k_position_calibration_overlap = 0.7;
-constexpr double k_default_overlap = 0.6;
 
 // The options of `wavebrdf recover` (its defaults), as values.
 struct RecoveryOptions {
@@ -64,7 +63,8 @@ struct RecoveryOptions {
     // position, its resolution planned for the shortest of them; 0: laser (lambdas_um).
     int spectral = 0;
     // Worst-case linear overlap of neighbouring windows for the planner (0.6 … 0.95); 0: the
-    // planner's default, 0.6, or k_position_calibration_overlap with calibrate.positions.
+    // planner's default (PlanRequest's, 0.6), or k_position_calibration_overlap with
+    // calibrate.positions.
     double overlap = 0.0;
     double jitter = 0.2;
     Noise noise;  // simulated on the rendered observations (a truth only)

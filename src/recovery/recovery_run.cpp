@@ -242,9 +242,10 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.texel_um = r.texel_um;
         request.height_range_um = r.range_um;
         request.sigma_p_um = options.sigma_p_um;
-        request.overlap = options.overlap != 0.0            ? options.overlap
-                          : options.calibrate.positions ? k_position_calibration_overlap
-                                                        : k_default_overlap;
+        if (options.overlap != 0.0)
+            request.overlap = options.overlap;
+        else if (options.calibrate.positions)
+            request.overlap = k_position_calibration_overlap;  // else the planner's default
         request.jitter = options.jitter;
         request.omega_i = options.omega_i;
         request.model = options.model;
