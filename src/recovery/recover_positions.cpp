@@ -20,6 +20,25 @@
 
 namespace wavebrdf::detail {
 
+namespace {
+
+// The position index a registration takes (one per observation, each naming a position of the
+// offsets: 2 values per position) checked, with the function's name in the message.
+void check_position_index(const char* function, const std::vector<Observation>& observations,
+                          const std::vector<std::size_t>& index, const std::vector<double>& offsets_um) {
+    const std::size_t positions = offsets_um.size() / 2;
+    if (index.size() != observations.size() || offsets_um.size() % 2 != 0)
+        throw std::invalid_argument(std::string(function) + ": " + std::to_string(index.size()) +
+                                    " position indices for " + std::to_string(observations.size()) + " observations, " +
+                                    std::to_string(offsets_um.size()) + " offsets; expected one each, 2 per position");
+    for (std::size_t p : index)
+        if (p >= positions)
+            throw std::invalid_argument(std::string(function) + ": position " + std::to_string(p) + " outside the " +
+                                        std::to_string(positions) + " positions' offsets given");
+}
+
+}  // namespace
+
 std::vector<std::array<double, 2>> gather_positions(const std::vector<Observation>& observations,
                                                     std::vector<std::size_t>& index, const Communicator& comm) {
     std::vector<double> mine;
@@ -42,13 +61,7 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 std::vector<double> exposures_at(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                                  const Heightfield& heights, double sigma_scale,
                                  const std::vector<double>& offsets_um) {
-    if (index.size() != observations.size())
-        throw std::invalid_argument("exposures_at: " + std::to_string(index.size()) + " position indices for " +
-                                    std::to_string(observations.size()) + " observations");
-    for (std::size_t i = 0; i < index.size(); ++i)
-        if (2 * index[i] + 1 >= offsets_um.size())
-            throw std::invalid_argument("exposures_at: observation " + std::to_string(i) + "'s position " +
-                                        std::to_string(index[i]) + " has no offset");
+    check_position_index("exposures_at", observations, index, offsets_um);
     std::vector<double> exposures(observations.size(), 1.0);
     RegionGuard guard;
 #pragma omp parallel for schedule(dynamic)
@@ -130,15 +143,8 @@ void register_grid(const std::vector<Observation>& observations, const std::vect
         throw std::invalid_argument("register_positions: radius " + std::to_string(radius_texels) + " / step " +
                                     std::to_string(step_texels) +
                                     " texels invalid; expected radius >= 0, step > 0, radius/step <= 16");
-    if (index.size() != observations.size())
-        throw std::invalid_argument("register_positions: " + std::to_string(index.size()) + " position indices for " +
-                                    std::to_string(observations.size()) + " observations; expected one each");
+    check_position_index("register_positions", observations, index, offsets_um);
     const std::size_t positions = offsets_um.size() / 2;
-    for (std::size_t i = 0; i < index.size(); ++i)
-        if (offsets_um.size() % 2 != 0 || index[i] >= positions)
-            throw std::invalid_argument("register_positions: observation " + std::to_string(i) + "'s position " +
-                                        std::to_string(index[i]) + " is outside the " + std::to_string(positions) +
-                                        " positions' offsets given");
     const int half = int(std::floor(radius_texels / step_texels + 1e-9));
     const int side = 2 * half + 1;
     const std::size_t candidates = std::size_t(side) * side;
@@ -198,15 +204,8 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
     if (!(factor > 1.0) || !(radius_texels > 0.0))
         throw std::invalid_argument("rescue_lost_positions: factor " + std::to_string(factor) + " / radius " +
                                     std::to_string(radius_texels) + " invalid; expected factor > 1, radius > 0");
+    check_position_index("rescue_lost_positions", observations, index, offsets_um);
     const std::size_t positions = offsets_um.size() / 2;
-    if (index.size() != observations.size() || offsets_um.size() % 2 != 0)
-        throw std::invalid_argument("rescue_lost_positions: " + std::to_string(index.size()) +
-                                    " position indices for " + std::to_string(observations.size()) + " observations, " +
-                                    std::to_string(offsets_um.size()) + " offsets; expected one each, 2 per position");
-    for (std::size_t p : index)
-        if (p >= positions)
-            throw std::invalid_argument("rescue_lost_positions: position " + std::to_string(p) + " outside the " +
-                                        std::to_string(positions) + " positions' offsets given");
     const std::vector<double> losses = grid_losses(observations, index, heights, settings, sigma_scale, 0, 1.0,
                                                    offsets_um, comm);
     std::vector<double> seen;
@@ -242,15 +241,8 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
     if (!(step_texels > 0.0) || !(cap_texels > 0.0))
         throw std::invalid_argument("newton_register_positions: step " + std::to_string(step_texels) + " / cap " +
                                     std::to_string(cap_texels) + " texels invalid; expected step > 0, cap > 0");
+    check_position_index("newton_register_positions", observations, index, offsets_um);
     const std::size_t positions = offsets_um.size() / 2;
-    if (index.size() != observations.size() || offsets_um.size() % 2 != 0)
-        throw std::invalid_argument("newton_register_positions: " + std::to_string(index.size()) +
-                                    " position indices for " + std::to_string(observations.size()) + " observations, " +
-                                    std::to_string(offsets_um.size()) + " offsets; expected one each, 2 per position");
-    for (std::size_t p : index)
-        if (p >= positions)
-            throw std::invalid_argument("newton_register_positions: position " + std::to_string(p) + " outside the " +
-                                        std::to_string(positions) + " positions' offsets given");
     const double texel_um = heights.texel_um(), h = step_texels;
     // The 3 × 3 stencil: candidate (a + 1) · 3 + (b + 1) is the offset + step · (a, b).
     const std::vector<double> stencil = grid_losses(observations, index, heights, settings, sigma_scale, 1, step_texels,
