@@ -29,7 +29,8 @@
 //     positions, the field stage's included) outer_anderson=0 (depth m of Anderson mixing of the outer loop's positions)
 //     outer_field_passes=-1 (round 10: the field stage only in the first N later passes) stall_diag=0 (round 10: per-position table, PREFIX_positions.csv)
 //     rescue_factor=20 rescue_radius=4 rescue_step=0.125 (round 10: positions with loss > factor ×
-//     median searched ± radius, coarse grid 2·step; 0: off)
+//     median searched ± radius, coarse grid 2·step; 0: off) rescue_centre=1 (round 14: also about the
+//     stated centre where the offset is > radius/2 from it)
 //     register_newton=1 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
 //     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
 //     rescue_below=0 (round 11: the rescue only in passes whose registration moved < this, texels)
@@ -38,6 +39,8 @@
 //     field_below=0.05 (round 11: a later pass skips the field stage when its registration moved < this)
 //     stall_passes=2 stall_tolerance=-1 (round 12b: the loop stops after N passes in a row without
 //     the field stage that lowered stage 3's loss by less than the tolerance; 0: off; -1: default)
+//     stall_median=1 (round 14: the rule on the median position's loss at the start of a pass; 0:
+//     on stage 3's loss, round 12b)
 //     (the outer loop's knobs default to RecoverSettings', round 12b: on with calibrate=positions)
 //     exposures_free=0 (round 13: with calibrate=positions the exposures calibrated as nuisance
 //     parameters) exposures_held=1 (with positions and exposures calibrated, the field stage at
@@ -373,12 +376,14 @@ int main(int argc, char** argv) try {
     if (args.count("rescue_factor")) rs.position_rescue_factor = std::stod(args["rescue_factor"]);
     if (args.count("rescue_radius")) rs.position_rescue_radius_texels = std::stod(args["rescue_radius"]);
     if (args.count("rescue_step")) rs.position_rescue_step_texels = std::stod(args["rescue_step"]);
+    if (args.count("rescue_centre")) rs.position_rescue_from_centre = args["rescue_centre"] == "1";
     set_int("register_newton", rs.position_register_newton_steps);
     if (args.count("newton_step")) rs.position_newton_step_texels = std::stod(args["newton_step"]);
     if (args.count("newton_cap")) rs.position_newton_cap_texels = std::stod(args["newton_cap"]);
     if (args.count("field_below")) rs.position_outer_field_below_texels = std::stod(args["field_below"]);
     set_int("stall_passes", rs.position_outer_stall_passes);
     if (args.count("stall_tolerance")) rs.position_outer_stall_tolerance = std::stod(args["stall_tolerance"]);
+    if (args.count("stall_median")) rs.position_outer_stall_median = args["stall_median"] == "1";
     if (args.count("exposures_free")) rs.position_exposures_free = args["exposures_free"] == "1";
     if (args.count("exposures_held")) rs.field_exposures_held = args["exposures_held"] == "1";
     // Round 9: the gauge inside stage 3 (heights warped through the removed smooth part) and the

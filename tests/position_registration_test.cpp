@@ -21,6 +21,8 @@
 #include "recover_util.h"
 #include "test_util.h"
 #include "wavebrdf/generate.h"
+#include "wavebrdf/loss.h"
+#include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
 #include "position_cases.h"
 
@@ -440,8 +442,27 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
                                serial_communicator());
     EXPECT_GT(lost_error(registered), 0.5);  // beyond the ordinary registration's reach
     std::vector<double> rescued = start;
+    double median = -1.0;
     const int searched = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 6.0, 0.5,
-                                                       rescued, serial_communicator());
+                                                       rescued, serial_communicator(), &median);
+    // The median it reports (round 14's stall rule) is the median position's loss at the start
+    // offsets: each position's observations rendered in double at their shifted centres.
+    std::vector<double> position_loss(count, 0.0);
+    for (std::size_t i = 0; i < c.observations.size(); ++i) {
+        Observation o = c.observations[i];
+        o.query.x_um += start[2 * index[i]];
+        o.query.y_um += start[2 * index[i] + 1];
+        const std::vector<double> reference = to_doubles(o.reference);
+        position_loss[index[i]] += loss_value(settings.refine_loss, render_observation(c.truth, o), reference,
+                                              o.channels(), nullptr) /
+                                   double(c.observations.size());
+    }
+    std::vector<double> sorted = position_loss;
+    std::sort(sorted.begin(), sorted.end());
+    std::printf("median position loss %.6g (direct %.6g; lowest %.3g, lost one %.3g)\n", median, sorted[count / 2],
+                sorted[0], position_loss[lost]);
+    EXPECT_NEAR(median, sorted[count / 2], 1e-3 * sorted[count / 2]);
+    EXPECT_GT(position_loss[lost], 20.0 * median);  // the one the rescue searched
     std::printf("lost position: %.3f texel after register_positions, %.3f after the rescue (%d searched)\n",
                 lost_error(registered), lost_error(rescued), searched);
     EXPECT_EQ(searched, 1);
@@ -457,6 +478,60 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
     EXPECT_THROW(detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 0.0, 0.5, rescued,
                                                serial_communicator()),
                  std::invalid_argument);
+}
+
+// Round 14 (docs/recovery.md, "Self-calibration: positions"): at 0.8 overlap the loop ends with
+// single positions lost 6–7 texels from the truth, carried to the far side of their stated centre
+// (truths 2.3–3.4 texels off): a search about the offset no longer reaches them. Here one position
+// is 2.5 texels (x) off its stated centre and starts at −3.5: the round-10 rescue (± 4 about the
+// offset) leaves it lost; with position_rescue_from_centre (the default) the search about the
+// stated centre finds it to a quarter texel, and the others keep their offsets' bits.
+TEST(PositionRegistration, RescueSearchesAboutTheStatedCentreToo) {
+    std::vector<double> fixed(18, 0.0);
+    fixed[8] = 2.5;
+    const OffCase c = off_case(5127, 0.0, 32, 3, fixed);
+    std::vector<std::size_t> index;
+    const std::size_t count = detail::gather_positions(c.observations, index, serial_communicator()).size();
+    ASSERT_EQ(count, 9u);
+    const double texel_um = c.truth.texel_um();
+    std::vector<double> start(2 * count, 0.0), truth(2 * count, 0.0);
+    for (std::size_t i = 0; i < index.size(); ++i)
+        for (int k = 0; k < 2; ++k) truth[2 * index[i] + std::size_t(k)] = c.errors[i][std::size_t(k)];
+    std::size_t lost = count;
+    for (std::size_t p = 0; p < count; ++p) {
+        start[2 * p + 1] = truth[2 * p + 1];
+        if (std::abs(truth[2 * p] - 2.5 * texel_um) < 1e-9) {
+            lost = p;
+            start[2 * p] = -3.5 * texel_um;  // the far side of its stated centre
+        } else {
+            start[2 * p] = truth[2 * p] + 0.2 * texel_um;
+        }
+    }
+    ASSERT_LT(lost, count);
+    const auto lost_error = [&](const std::vector<double>& o) {
+        return std::hypot(o[2 * lost] - truth[2 * lost], o[2 * lost + 1] - truth[2 * lost + 1]) / texel_um;
+    };
+    RecoverSettings settings;
+    settings.position_rescue_from_centre = false;
+    std::vector<double> about_offset = start;
+    const int searched_offset = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 4.0,
+                                                              0.5, about_offset, serial_communicator());
+    settings.position_rescue_from_centre = true;
+    std::vector<double> both = start;
+    const int searched_both = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 4.0,
+                                                            0.5, both, serial_communicator());
+    std::printf("lost position: %.3f texel at the start, %.3f after the search about its offset, %.3f with the "
+                "stated centre's (%d / %d searched)\n",
+                lost_error(start), lost_error(about_offset), lost_error(both), searched_offset, searched_both);
+    EXPECT_EQ(searched_offset, 1);
+    EXPECT_EQ(searched_both, 1);
+    EXPECT_GT(lost_error(about_offset), 0.5);
+    EXPECT_LT(lost_error(both), 0.25);
+    for (std::size_t p = 0; p < count; ++p)
+        if (p != lost) {
+            EXPECT_EQ(both[2 * p], start[2 * p]) << "position " << p;
+            EXPECT_EQ(both[2 * p + 1], start[2 * p + 1]) << "position " << p;
+        }
 }
 
 // Round 11 (docs/recovery.md, "Self-calibration: positions"): after round 10's rescue the outer

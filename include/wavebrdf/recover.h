@@ -447,6 +447,11 @@ struct RecoverSettings {
     double position_rescue_factor = 20.0;
     double position_rescue_radius_texels = 4.0;
     double position_rescue_step_texels = 0.125;
+    // Round 14: a lost position more than half the rescue radius from its stated centre is
+    // searched about that centre as well (the better of the two kept): a position the first
+    // registrations carried to the far side of its centre is out of reach of a search about its
+    // offset (docs/recovery.md, "Self-calibration: positions", round 14). false: round 10's rescue.
+    bool position_rescue_from_centre = true;
     // Round 11: a later pass skips the field stage when the registration before it moved the
     // offsets by less than this (rms, texels, finite ≥ 0; 0: the field stage in every pass).
     // Near the end the field stage's own position steps undo the registration's last 0.02 texel.
@@ -460,6 +465,13 @@ struct RecoverSettings {
     // stops at the same pass.
     int position_outer_stall_passes = 2;
     double position_outer_stall_tolerance = -1.0;
+    // Round 14: the stall rule judges the median position's loss (each position's loss at its
+    // registered offset and the heights of the pass before, as the rescue computes it) instead
+    // of stage 3's loss, and is applied at the start of a pass (a stalled loop ends before that
+    // pass's stage 3). A few positions lost for good dominate stage 3's loss and stop the loop
+    // while the heights elsewhere still improve by a quarter a pass (docs/recovery.md, round
+    // 14). Only while the rescue runs (position_rescue_factor > 0); false: round 12b's rule.
+    bool position_outer_stall_median = true;
     // With calibrate.positions and calibrate.exposure both on, the field stage holds each slice's
     // exposure fixed (found at the heights and offsets before it: the blurred fit's, then each
     // pass's stage 3) instead of finding it anew at every evaluation: its object is complex, and

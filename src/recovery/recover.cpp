@@ -474,6 +474,11 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                            : k_position_outer_stall_tolerance;
         double best_loss = last_refine_loss;
         int stalled = 0;
+        // Round 14's rule (position_outer_stall_median): the median position's loss, judged at the
+        // start of each pass for the heights of the pass before (a pass after the field stage's
+        // heights, a new start, resets the count as the round-12b rule does).
+        double best_median = 0.0;
+        bool after_field = true;  // the first recovery ran the field stage
         std::vector<double> fed, previous_result;                        // round 9's extrapolation
         std::vector<std::vector<double>> fed_history, result_history;  // (x_k, F(x_k)) per pass
         for (int outer = 0; outer < outer_passes; ++outer) {
@@ -508,19 +513,31 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
             // Round 10: the lost positions searched wide.
             int rescued = 0;
+            bool median_judged = false;  // round 14's stall rule judged this pass
             if (settings.position_rescue_factor > 0.0 &&
                 (hooks.rescue_below_texels <= 0.0 || moved < hooks.rescue_below_texels)) {
                 const std::vector<double> kept = position_offsets;
+                double median = 0.0;
                 rescued = detail::rescue_lost_positions(
                     observations, position_of, estimate, settings, sigma_scale, settings.position_rescue_factor,
                     settings.position_rescue_radius_texels, settings.position_rescue_step_texels, position_offsets,
-                    comm);
+                    comm, &median);
                 double s2 = 0.0;
                 for (std::size_t i = 0; i < kept.size(); ++i)
                     s2 += (position_offsets[i] - kept[i]) * (position_offsets[i] - kept[i]);
                 const double jump = kept.empty() ? 0.0 : std::sqrt(s2 / double(kept.size())) / estimate.texel_um();
                 if (!report("positions:rescue", rescued, jump, &estimate)) return estimate;
                 if (jump > 0.0) moved = std::max(moved, settings.position_outer_tolerance_texels);
+                // Round 14's stall rule: the median position's loss at the heights of the pass
+                // before (stage 3's loss is dominated by positions lost for good). A stalled loop
+                // ends here, with the pass before's heights and offsets.
+                if (settings.position_outer_stall_median && settings.position_outer_stall_passes > 0) {
+                    median_judged = true;
+                    stalled = after_field ? 0 : median > (1.0 - stall_tolerance) * best_median ? stalled + 1 : 0;
+                    best_median = after_field && outer == 0 ? median : std::min(best_median, median);
+                    if (!report("positions:stall", stalled, median, &estimate)) return estimate;
+                    if (stalled >= settings.position_outer_stall_passes) break;
+                }
             }
             // Round 12 (study hook, off by default): lost clusters moved with their heights.
             if (hooks.cluster_factor > 0.0) {
@@ -640,9 +657,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             // 3's loss by less than the tolerance (relative to the lowest so far) counts; the
             // loop stops after position_outer_stall_passes of them in a row. A pass with the
             // field stage resets the count (its heights are a new start).
+            after_field = field_pass;
             if (field_pass) {
                 stalled = 0;
-            } else if (settings.position_outer_stall_passes > 0) {
+            } else if (settings.position_outer_stall_passes > 0 && !median_judged) {
                 stalled = last_refine_loss > (1.0 - stall_tolerance) * best_loss ? stalled + 1 : 0;
                 if (!report("positions:stall", stalled, last_refine_loss, &estimate)) return estimate;
                 if (stalled >= settings.position_outer_stall_passes) break;

@@ -200,7 +200,7 @@ double register_positions(const std::vector<Observation>& observations, const st
 int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                           const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
                           double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
-                          const Communicator& comm) {
+                          const Communicator& comm, double* median_loss) {
     if (!(factor > 1.0) || !(radius_texels > 0.0))
         throw std::invalid_argument("rescue_lost_positions: factor " + std::to_string(factor) + " / radius " +
                                     std::to_string(radius_texels) + " invalid; expected factor > 1, radius > 0");
@@ -211,9 +211,11 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
     std::vector<double> seen;
     for (std::size_t p = 0; p < positions; ++p)
         if (losses[positions + p] != 0.0) seen.push_back(losses[p]);
+    if (median_loss) *median_loss = 0.0;
     if (seen.empty()) return 0;
     std::nth_element(seen.begin(), seen.begin() + std::ptrdiff_t(seen.size() / 2), seen.end());
     const double median = seen[seen.size() / 2];
+    if (median_loss) *median_loss = median;
     std::vector<char> lost(positions, 0);
     int count = 0;
     for (std::size_t p = 0; p < positions; ++p)
@@ -230,7 +232,42 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
             mine.push_back(observations[i]);
             mine_index.push_back(index[i]);
         }
+    const std::vector<double> before = offsets_um;
     register_positions(mine, mine_index, heights, settings, sigma_scale, radius_texels, step_texels, offsets_um, comm);
+    if (!settings.position_rescue_from_centre) return count;
+    // Round 14: a lost position whose offset lay more than half the radius from its stated
+    // centre (either axis) before the search is searched about the stated centre as well, and keeps the better of
+    // the two: the registration can carry a position far to the wrong side of its centre, where
+    // a search about its offset no longer reaches the truth (docs/recovery.md, round 14).
+    const double half_radius_um = 0.5 * radius_texels * heights.texel_um();
+    std::vector<double> centred = offsets_um;
+    std::vector<char> far(positions, 0);
+    bool any_far = false;
+    for (std::size_t p = 0; p < positions; ++p)
+        if (lost[p] && std::max(std::abs(before[2 * p]), std::abs(before[2 * p + 1])) > half_radius_um) {
+            far[p] = 1;
+            any_far = true;
+            centred[2 * p] = centred[2 * p + 1] = 0.0;
+        }
+    if (!any_far) return count;  // (every rank: lost and the offsets are the same everywhere)
+    std::vector<Observation> far_observations;
+    std::vector<std::size_t> far_index;
+    for (std::size_t i = 0; i < mine.size(); ++i)
+        if (far[mine_index[i]]) {
+            far_observations.push_back(mine[i]);
+            far_index.push_back(mine_index[i]);
+        }
+    register_positions(far_observations, far_index, heights, settings, sigma_scale, radius_texels, step_texels,
+                       centred, comm);
+    const std::vector<double> at_offset =
+        grid_losses(far_observations, far_index, heights, settings, sigma_scale, 0, 1.0, offsets_um, comm);
+    const std::vector<double> at_centre =
+        grid_losses(far_observations, far_index, heights, settings, sigma_scale, 0, 1.0, centred, comm);
+    for (std::size_t p = 0; p < positions; ++p)
+        if (far[p] && at_centre[p] < at_offset[p]) {
+            offsets_um[2 * p] = centred[2 * p];
+            offsets_um[2 * p + 1] = centred[2 * p + 1];
+        }
     return count;
 }
 

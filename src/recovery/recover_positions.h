@@ -71,13 +71,14 @@ double register_positions(const std::vector<Observation>& observations, const st
 // median over the positions are registered again over ± radius_texels (register_positions with
 // step_texels: a coarse grid of 2·step, then ± step; its throws): a position trapped beyond the
 // outer loop's radius is brought back (its true basin can be narrower than a texel: the coarse
-// grid must be fine enough to land in it). Returns
-// how many positions were searched (the same on every rank: the losses are exact and
-// collective). Throws std::invalid_argument for factor ≤ 1 or radius ≤ 0.
+// grid must be fine enough to land in it). Returns how many positions were searched (the same
+// on every rank: the losses are exact and collective); median_loss (if given) receives the
+// median position's loss before the search (0 when no position has an observation; the outer
+// loop's stall rule, round 14). Throws std::invalid_argument for factor ≤ 1 or radius ≤ 0.
 int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                           const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
                           double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
-                          const Communicator& comm);
+                          const Communicator& comm, double* median_loss = nullptr);
 
 // Round 11 (docs/recovery.md, "Self-calibration: positions"): a Newton step on every gathered
 // position's offset after the registration's grid and parabola. Per position, the 2 × 2 Hessian
