@@ -151,9 +151,13 @@ TEST(PositionRegistration, CalibratePositionsRunsTheOuterLoopByDefault) {
     EXPECT_LT(after_loop, 0.5 * after_once) << "once " << after_once << " loop " << after_loop;
 }
 
-// Round 12b's stall rule: with a tolerance of 1 every pass without the field stage counts as
-// stalled, so with stall_passes = 1 and the field stage never rerun the loop stops after its
-// first pass (2 with stall_passes = 2; all 3 with the rule off); out-of-range settings are refused.
+// The stall rules: with a tolerance of 1 every judged pass counts as stalled. Round 12b's rule
+// (position_outer_stall_median false, stage 3's loss after each pass) with the field stage never
+// rerun stops the loop after its first pass with stall_passes = 1 (2 with stall_passes = 2; all 4
+// with the rule off). Round 14's rule (the default: the median position's loss at the start of a
+// pass, for the pass before's heights) does not judge the first pass (it follows the field
+// stage's heights), so it stops at the start of the second pass with stall_passes = 1 (the third
+// with 2); out-of-range settings are refused.
 TEST(PositionRegistration, StallRuleStopsTheLoop) {
     const OffCase c = off_case(5125, 1.0, 24, 3);
     RecoverSettings s;
@@ -163,12 +167,13 @@ TEST(PositionRegistration, StallRuleStopsTheLoop) {
     s.refine_iterations = 4;
     s.model_check_iterations = 0;
     s.calibrate.positions = true;
-    s.position_outer_passes = 3;
+    s.position_outer_passes = 4;
     s.position_outer_tolerance_texels = 0.0;
     s.position_outer_field_below_texels = 1e9;  // no field stage in later passes
     s.position_outer_stall_tolerance = 1.0;
-    const auto passes = [&](int stall_passes) {
+    const auto passes = [&](int stall_passes, bool median) {
         s.position_outer_stall_passes = stall_passes;
+        s.position_outer_stall_median = median;
         int registered = 0, stall_reports = 0;
         recover_heights(
             c.observations, 12, 12, 2.0, 1.0, s,
@@ -181,9 +186,11 @@ TEST(PositionRegistration, StallRuleStopsTheLoop) {
         EXPECT_EQ(stall_reports, stall_passes == 0 ? 0 : registered) << "stall_passes " << stall_passes;
         return registered;
     };
-    EXPECT_EQ(passes(1), 1);
-    EXPECT_EQ(passes(2), 2);
-    EXPECT_EQ(passes(0), 3);
+    EXPECT_EQ(passes(1, false), 1);
+    EXPECT_EQ(passes(2, false), 2);
+    EXPECT_EQ(passes(1, true), 2);
+    EXPECT_EQ(passes(2, true), 3);
+    EXPECT_EQ(passes(0, true), 4);
     const auto refused = [&](const std::function<void(RecoverSettings&)>& change) {
         RecoverSettings bad = s;
         change(bad);
