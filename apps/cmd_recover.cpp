@@ -319,7 +319,7 @@ void add_recover_command(CLI::App& app) {
         ->capture_default_str();
     CLI::Option* overlap = cmd->add_option("--overlap", a->overlap,
                     "worst-case linear overlap of neighbouring windows (jitter included), 0.6 to 0.95 (default: "
-                    "0.6; 0.7 with --calibrate positions or all)");
+                    "0.6; 0.8 with --calibrate positions or all)");
     cmd->add_option("--jitter", a->jitter, "position jitter, fraction of the raster step, 0 to 0.3")
         ->capture_default_str();
     cmd->add_option("--noise", a->noise, "simulated noise: none, poisson:N (photons per slice) or gaussian:REL")

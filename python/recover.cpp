@@ -296,7 +296,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.spectral = spectral;
     options.overlap = overlap.is_none() ? 0.0 : check_finite(overlap.cast<double>(), "overlap");
     if (!overlap.is_none() && options.overlap == 0.0)
-        bad_argument("overlap", "0", "0.6 ... 0.95, or None (the planner's: 0.6, 0.7 with calibrate 'positions')");
+        bad_argument("overlap", "0", "0.6 ... 0.95, or None (the planner's: 0.6, 0.8 with calibrate 'positions')");
     options.jitter = check_finite(jitter, "jitter");
     options.field_iterations = optional_count(field_iterations, "field_iterations");
     options.refine_iterations = optional_count(refine_iterations, "refine_iterations");
@@ -851,7 +851,7 @@ model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable pro
 sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
 resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
 lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
-overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.7 with
+overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.8 with
               calibrate 'positions' or 'all'); jitter 0 ... 0.3
 noise         simulated noise: 'none', 'poisson:N' (photons per slice) or 'gaussian:REL'
 loss          a spec or Loss; None: matched to the noise for the pipeline (amplitude without

@@ -108,11 +108,11 @@ TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
     const auto plain = planned("none", 0.0);
     const auto calibrated = planned("positions", 0.0);
     EXPECT_NE(plain.second.find("at least 6"), std::string::npos) << plain.second;            // 60 % and up
-    EXPECT_NE(calibrated.second.find("at least 7"), std::string::npos) << calibrated.second;  // 70 % and up
+    EXPECT_NE(calibrated.second.find("at least 8"), std::string::npos) << calibrated.second;  // 80 % and up
     EXPECT_GT(calibrated.first, plain.first);
     EXPECT_EQ(planned("all", 0.0).first, calibrated.first);
     EXPECT_EQ(planned("positions", 0.6).first, plain.first);  // stated: kept
-    EXPECT_EQ(planned("none", 0.7).first, calibrated.first);
+    EXPECT_EQ(planned("none", 0.8).first, calibrated.first);
     EXPECT_EQ(planned("exposure,sigma", 0.0).first, plain.first);  // not without positions
 }
 

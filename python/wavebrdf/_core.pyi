@@ -807,7 +807,7 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
     resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
     lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
-    overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.7 with
+    overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.8 with
                   calibrate 'positions' or 'all'); jitter 0 ... 0.3
     noise         simulated noise: 'none', 'poisson:N' (photons per slice) or 'gaussian:REL'
     loss          a spec or Loss; None: matched to the noise for the pipeline (amplitude without
