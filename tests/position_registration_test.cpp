@@ -410,6 +410,29 @@ TEST(PositionRegistration, WarpedHeightsAtGaugedOffsetsKeepTheSlices) {
     for (std::size_t k = 0; k < same.values().size(); ++k) EXPECT_NEAR(same.values()[k], truth.values()[k], 1e-9);
 }
 
+// The rescue's cases: a 12² tile at 9 positions on a 3 × 3 raster, every position at its
+// stated centre but those `fixed` (x, y texels per position) puts elsewhere, with the position
+// index of each observation and each position's true offset (µm, 2 per position).
+// `lost` is the position whose true x offset is lost_x_texels.
+struct RescueCase {
+    OffCase c;
+    std::vector<std::size_t> index;
+    std::vector<double> truth;
+    std::size_t lost;
+};
+
+RescueCase rescue_case(std::uint64_t seed, const std::vector<double>& fixed, double lost_x_texels) {
+    RescueCase r{off_case(seed, 0.0, 32, 3, fixed), {}, {}, 0};
+    const std::size_t count = detail::gather_positions(r.c.observations, r.index, serial_communicator()).size();
+    r.truth.assign(2 * count, 0.0);
+    for (std::size_t i = 0; i < r.index.size(); ++i)
+        for (int k = 0; k < 2; ++k) r.truth[2 * r.index[i] + std::size_t(k)] = r.c.errors[i][std::size_t(k)];
+    r.lost = count;
+    for (std::size_t p = 0; p < count; ++p)
+        if (std::abs(r.truth[2 * p] - lost_x_texels * r.c.truth.texel_um()) < 1e-9) r.lost = p;
+    return r;
+}
+
 // Round 10 (docs/recovery.md, "Self-calibration: positions"): the outer loop's stall on seeds
 // 11201/11202 was held by one or two positions trapped 2.7–5 texels from the truth, beyond the
 // registration's ± 2 texels, whose loss was 100–700 × the median. rescue_lost_positions searches
@@ -421,25 +444,22 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
     std::vector<double> fixed(18, 0.0);
     fixed[8] = 3.5;
     fixed[9] = -3.0;
-    const OffCase c = off_case(5125, 0.0, 32, 3, fixed);
-    std::vector<std::size_t> index;
-    const std::size_t count = detail::gather_positions(c.observations, index, serial_communicator()).size();
+    const RescueCase r = rescue_case(5125, fixed, 3.5);
+    const OffCase& c = r.c;
+    const std::vector<std::size_t>& index = r.index;
+    const std::vector<double>& truth = r.truth;
+    const std::size_t lost = r.lost;
+    const std::size_t count = truth.size() / 2;
     ASSERT_EQ(count, 9u);
+    ASSERT_LT(lost, count);
     const double texel_um = c.truth.texel_um();
     // Start: every position 0.2 texel (x) off its truth, the lost one at its stated centre.
-    std::vector<double> start(2 * count, 0.0), truth(2 * count, 0.0);
-    for (std::size_t i = 0; i < index.size(); ++i)
-        for (int k = 0; k < 2; ++k) truth[2 * index[i] + std::size_t(k)] = c.errors[i][std::size_t(k)];
-    std::size_t lost = count;
-    for (std::size_t p = 0; p < count; ++p) {
-        if (std::abs(truth[2 * p] - 3.5 * texel_um) < 1e-9) {
-            lost = p;
-            continue;
+    std::vector<double> start(2 * count, 0.0);
+    for (std::size_t p = 0; p < count; ++p)
+        if (p != lost) {
+            start[2 * p] = truth[2 * p] + 0.2 * texel_um;
+            start[2 * p + 1] = truth[2 * p + 1];
         }
-        start[2 * p] = truth[2 * p] + 0.2 * texel_um;
-        start[2 * p + 1] = truth[2 * p + 1];
-    }
-    ASSERT_LT(lost, count);
     const auto lost_error = [&](const std::vector<double>& o) {
         return std::hypot(o[2 * lost] - truth[2 * lost], o[2 * lost + 1] - truth[2 * lost + 1]) / texel_um;
     };
@@ -496,36 +516,25 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
 TEST(PositionRegistration, RescueSearchesAboutTheStatedCentreToo) {
     std::vector<double> fixed(18, 0.0);
     fixed[8] = 2.5;
-    const OffCase c = off_case(5127, 0.0, 32, 3, fixed);
-    std::vector<std::size_t> index;
-    const std::size_t count = detail::gather_positions(c.observations, index, serial_communicator()).size();
-    ASSERT_EQ(count, 9u);
-    const double texel_um = c.truth.texel_um();
-    std::vector<double> start(2 * count, 0.0), truth(2 * count, 0.0);
-    for (std::size_t i = 0; i < index.size(); ++i)
-        for (int k = 0; k < 2; ++k) truth[2 * index[i] + std::size_t(k)] = c.errors[i][std::size_t(k)];
-    std::size_t lost = count;
-    for (std::size_t p = 0; p < count; ++p) {
-        start[2 * p + 1] = truth[2 * p + 1];
-        if (std::abs(truth[2 * p] - 2.5 * texel_um) < 1e-9) {
-            lost = p;
-            start[2 * p] = -3.5 * texel_um;  // the far side of its stated centre
-        } else {
-            start[2 * p] = truth[2 * p] + 0.2 * texel_um;
-        }
-    }
-    ASSERT_LT(lost, count);
+    const RescueCase r = rescue_case(5127, fixed, 2.5);
+    ASSERT_EQ(r.truth.size(), 18u);
+    ASSERT_LT(r.lost, 9u);
+    const double texel_um = r.c.truth.texel_um();
+    std::vector<double> start = r.truth;  // (y: the truth)
+    for (std::size_t p = 0; p < 9; ++p)  // the lost one on the far side of its stated centre
+        start[2 * p] = p == r.lost ? -3.5 * texel_um : r.truth[2 * p] + 0.2 * texel_um;
     const auto lost_error = [&](const std::vector<double>& o) {
-        return std::hypot(o[2 * lost] - truth[2 * lost], o[2 * lost + 1] - truth[2 * lost + 1]) / texel_um;
+        return std::hypot(o[2 * r.lost] - r.truth[2 * r.lost], o[2 * r.lost + 1] - r.truth[2 * r.lost + 1]) /
+               texel_um;
     };
     RecoverSettings settings;
     settings.position_rescue_from_centre = false;
     std::vector<double> about_offset = start;
-    const int searched_offset = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 4.0,
+    const int searched_offset = detail::rescue_lost_positions(r.c.observations, r.index, r.c.truth, settings, 1.0, 20.0, 4.0,
                                                               0.5, about_offset, serial_communicator());
     settings.position_rescue_from_centre = true;
     std::vector<double> both = start;
-    const int searched_both = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 4.0,
+    const int searched_both = detail::rescue_lost_positions(r.c.observations, r.index, r.c.truth, settings, 1.0, 20.0, 4.0,
                                                             0.5, both, serial_communicator());
     std::printf("lost position: %.3f texel at the start, %.3f after the search about its offset, %.3f with the "
                 "stated centre's (%d / %d searched)\n",
@@ -534,8 +543,8 @@ TEST(PositionRegistration, RescueSearchesAboutTheStatedCentreToo) {
     EXPECT_EQ(searched_both, 1);
     EXPECT_GT(lost_error(about_offset), 0.5);
     EXPECT_LT(lost_error(both), 0.25);
-    for (std::size_t p = 0; p < count; ++p)
-        if (p != lost) {
+    for (std::size_t p = 0; p < 9; ++p)
+        if (p != r.lost) {
             EXPECT_EQ(both[2 * p], start[2 * p]) << "position " << p;
             EXPECT_EQ(both[2 * p + 1], start[2 * p + 1]) << "position " << p;
         }

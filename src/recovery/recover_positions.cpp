@@ -37,6 +37,17 @@ void check_position_index(const char* function, const std::vector<Observation>& 
                                         std::to_string(positions) + " positions' offsets given");
 }
 
+// The observations (and their position indices) of the positions flagged in `of`.
+void observations_of(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
+                     const std::vector<char>& of, std::vector<Observation>& chosen,
+                     std::vector<std::size_t>& chosen_index) {
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        if (of[index[i]]) {
+            chosen.push_back(observations[i]);
+            chosen_index.push_back(index[i]);
+        }
+}
+
 }  // namespace
 
 std::vector<std::array<double, 2>> gather_positions(const std::vector<Observation>& observations,
@@ -227,18 +238,15 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
     // Only the lost positions' observations: the others have none and keep their offsets.
     std::vector<Observation> mine;
     std::vector<std::size_t> mine_index;
-    for (std::size_t i = 0; i < observations.size(); ++i)
-        if (lost[index[i]]) {
-            mine.push_back(observations[i]);
-            mine_index.push_back(index[i]);
-        }
+    observations_of(observations, index, lost, mine, mine_index);
     const std::vector<double> before = offsets_um;
     register_positions(mine, mine_index, heights, settings, sigma_scale, radius_texels, step_texels, offsets_um, comm);
     if (!settings.position_rescue_from_centre) return count;
     // Round 14: a lost position whose offset lay more than half the radius from its stated
-    // centre (either axis) before the search is searched about the stated centre as well, and keeps the better of
-    // the two: the registration can carry a position far to the wrong side of its centre, where
-    // a search about its offset no longer reaches the truth (docs/recovery.md, round 14).
+    // centre (either axis) before the search is searched about the stated centre as well, and
+    // keeps the better of the two: the registration can carry a position far to the wrong side
+    // of its centre, where a search about its offset no longer reaches the truth
+    // (docs/recovery.md, "Self-calibration: positions", round 14).
     const double half_radius_um = 0.5 * radius_texels * heights.texel_um();
     std::vector<double> centred = offsets_um;
     std::vector<char> far(positions, 0);
@@ -252,11 +260,7 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
     if (!any_far) return count;  // (every rank: lost and the offsets are the same everywhere)
     std::vector<Observation> far_observations;
     std::vector<std::size_t> far_index;
-    for (std::size_t i = 0; i < mine.size(); ++i)
-        if (far[mine_index[i]]) {
-            far_observations.push_back(mine[i]);
-            far_index.push_back(mine_index[i]);
-        }
+    observations_of(mine, mine_index, far, far_observations, far_index);
     register_positions(far_observations, far_index, heights, settings, sigma_scale, radius_texels, step_texels,
                        centred, comm);
     const std::vector<double> at_offset =
@@ -542,11 +546,7 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
         for (std::size_t q : region) in_region[q] = 1;
         std::vector<Observation> sub;
         std::vector<std::size_t> sub_index;
-        for (std::size_t i = 0; i < observations.size(); ++i)
-            if (in_region[index[i]]) {
-                sub.push_back(observations[i]);
-                sub_index.push_back(index[i]);
-            }
+        observations_of(observations, index, in_region, sub, sub_index);
         // A candidate: the set's offsets + δ, the heights near them moved by δ.
         const auto candidate = [&](const std::vector<std::size_t>& set, std::array<double, 2> delta_texels,
                                    std::vector<double>& off) {
