@@ -37,6 +37,7 @@ struct RecoverArgs {
     std::string model = "OHS";
     double light_x = 0.0, light_y = 0.0;
     double sigma_p_um = 0.0;  // 0: the planner's
+    double position_uncertainty_um = 0.0;  // --position-uncertainty-um, used only where given
     int resolution = 0;       // 0: the planner's
     std::string lambdas;      // "": the planner's
     int spectral = 0;         // --spectral N: white light, RGB slices of N wavelengths (0: laser)
@@ -64,6 +65,8 @@ struct RecoverArgs {
     bool given_texel = false, given_vscale = false;
     // Whether --overlap was given: when not, the planner's default for the calibration.
     bool given_overlap = false;
+    // Whether --position-uncertainty-um was given: when not, the simulated error's rms.
+    bool given_position_uncertainty = false;
     // --save-observations FILE ("": observations.json in --out).
     std::string save_observations_path;
 };
@@ -130,6 +133,12 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.correlation_texels = a.correlation_texels;
     options.omega_i = {a.light_x, a.light_y};
     options.sigma_p_um = a.sigma_p_um;
+    if (a.given_position_uncertainty) {
+        if (!(a.position_uncertainty_um >= 0.0 && a.position_uncertainty_um <= 1e6))
+            throw std::invalid_argument("--position-uncertainty-um " + format_shortest(a.position_uncertainty_um) +
+                                        " is invalid; expected 0 to 1e6 (um rms per coordinate)");
+        options.position_uncertainty_um = a.position_uncertainty_um;
+    }
     options.resolution = a.resolution;
     if (a.given_overlap && !(a.overlap >= 0.6 && a.overlap <= 0.95))
         throw std::invalid_argument("--overlap " + format_shortest(a.overlap) + " is invalid; expected 0.6 to 0.95");
@@ -308,8 +317,14 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--model", a->model, "OHS, ROHS, GHS or RGHS (GHS-type: the field stage through the separable proxy, docs/recovery.md)")->capture_default_str();
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
-    cmd->add_option("--sigma-p-um", a->sigma_p_um, "footprint sigma_p in um (0: the planner's, 1.5 texels)")
+    cmd->add_option("--sigma-p-um", a->sigma_p_um,
+                    "footprint sigma_p in um (0: the planner's, 1.5 texels or the position uncertainty if larger)")
         ->capture_default_str();
+    CLI::Option* position_uncertainty =
+        cmd->add_option("--position-uncertainty-um", a->position_uncertainty_um,
+                        "how far the stage may put a footprint from where it says, um rms per coordinate: the "
+                        "planner makes sigma_p at least this (default: the simulated error's rms with "
+                        "--simulate-position-error-texels, else 0)");
     cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's Nyquist choice)")
         ->capture_default_str();
     cmd->add_option("--lambdas-um", a->lambdas, "wavelengths in um, comma-separated (default: the planner's ladder)");
@@ -391,9 +406,10 @@ void add_recover_command(CLI::App& app) {
                   "loss at the estimate");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
-    cmd->callback([a, texel, vscale, save, overlap] {
+    cmd->callback([a, texel, vscale, save, overlap, position_uncertainty] {
         a->save_observations = save->count() > 0;
         a->given_overlap = overlap->count() > 0;
+        a->given_position_uncertainty = position_uncertainty->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
         // Under mpiexec, every rank with its share; errors printed once (run_on_world).

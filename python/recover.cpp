@@ -259,7 +259,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        double simulate_sigma_factor, bool with_uncertainty, int spectral,
                        const py::object& field_tile_threshold, const py::object& field_tile_core,
                        const py::object& white_smoothness, const py::object& white_smoothness_iterations,
-                       const py::object& position_passes) {
+                       const py::object& position_passes, const py::object& position_uncertainty_um) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -288,6 +288,12 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.model = model_from(model);
     options.omega_i = light_direction(light);
     options.sigma_p_um = check_finite(sigma_p_um, "sigma_p_um");
+    if (!position_uncertainty_um.is_none()) {
+        const double u = position_uncertainty_um.cast<double>();
+        if (!(u >= 0.0 && u <= 1e6))
+            bad_argument("position_uncertainty_um", format_number(u), "0 ... 1e6 (um rms per coordinate), or None");
+        options.position_uncertainty_um = u;
+    }
     options.resolution = planned_resolution(resolution);
     options.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
     if (spectral != 0 && (spectral < 2 || spectral > k_max_spectral_samples))
@@ -473,8 +479,8 @@ into Observations (one per position and wavelength).
     const PlanRequest pr;
     m.def(
         "plan_acquisition",
-        [](int rows, const py::object& cols, double texel_um, double height_range_um, double sigma_p_um, double overlap,
-           double jitter, double lambda_um, double lambda_min_um, double lambda_max_um, double max_step_ratio,
+        [](int rows, const py::object& cols, double texel_um, double height_range_um, double sigma_p_um,
+           double position_uncertainty_um, double overlap, double jitter, double lambda_um, double lambda_min_um, double lambda_max_um, double max_step_ratio,
            const py::object& lambdas_um, int resolution, const py::object& light, const std::string& model,
            std::uint64_t seed) {
             PlanRequest r;
@@ -487,6 +493,7 @@ into Observations (one per position and wavelength).
                 bad_argument("height_range_um", format_number(height_range_um), "a peak-to-valley height >= 0 (um)");
             r.height_range_um = height_range_um;
             r.sigma_p_um = sigma_p_um;
+            r.position_uncertainty_um = position_uncertainty_um;  // the planner names it
             r.overlap = overlap;
             r.jitter = jitter;
             if (!std::isfinite(lambda_um) || !(lambda_um >= lambda_min_um && lambda_um <= lambda_max_um))
@@ -507,7 +514,8 @@ into Observations (one per position and wavelength).
             return plan_acquisition(r);
         },
         py::kw_only(), "rows"_a = pr.rows, "cols"_a = py::none(), "texel_um"_a = pr.texel_um,
-        "height_range_um"_a = pr.height_range_um, "sigma_p_um"_a = pr.sigma_p_um, "overlap"_a = pr.overlap,
+        "height_range_um"_a = pr.height_range_um, "sigma_p_um"_a = pr.sigma_p_um,
+        "position_uncertainty_um"_a = pr.position_uncertainty_um, "overlap"_a = pr.overlap,
         "jitter"_a = pr.jitter, "lambda_um"_a = pr.lambda_um, "lambda_min_um"_a = pr.lambda_min_um,
         "lambda_max_um"_a = pr.lambda_max_um, "max_step_ratio"_a = pr.max_step_ratio, "lambdas_um"_a = py::none(),
         "resolution"_a = 0, "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "seed"_a = pr.seed, R"doc(
@@ -516,7 +524,11 @@ AcquisitionPlan. Keyword arguments (PlanRequest's fields):
 
 rows, cols       heightfield size in texels (>= 1; cols defaults to rows); texel_um > 0 (um)
 height_range_um  expected peak-to-valley of the heights, um (>= 0): sets the wavelength ladder
-sigma_p_um       footprint sigma_p, um (> 0; 0: 1.5 texels). Window support D = 6 sigma_p.
+sigma_p_um       footprint sigma_p, um (> 0; 0: 1.5 texels, or k x position_uncertainty_um if
+                 larger, k = 1). Window support D = 6 sigma_p.
+position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per
+                 coordinate (>= 0): with sigma_p planned, the footprint is made at least
+                 that wide (the position loop converges up to ~sigma_p, docs/recovery.md)
 overlap          worst-case linear overlap 1 - d/D of neighbouring windows, 0.6 ... 0.95
 jitter           position jitter, fraction of the raster step, 0 ... 0.3
 lambda_um        base wavelength lambda0 (um), within lambda_min_um ... lambda_max_um (the
@@ -831,7 +843,7 @@ the same keys with the true values (else None).
           "uncertainty"_a = false, "spectral"_a = ro.spectral, "field_tile_threshold"_a = py::none(),
           "field_tile_core"_a = py::none(), "white_smoothness"_a = py::none(),
           "white_smoothness_iterations"_a = py::none(), "position_passes"_a = py::none(),
-          R"doc(
+          "position_uncertainty_um"_a = py::none(), R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -848,7 +860,12 @@ height_range_um  generated truth: peak-to-valley in um (> 0, default 2: +-1 um);
               observations: bound on the height range
 correlation_texels  generated truth: correlation length in texels (> 0)
 model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
-sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
+sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels or position_uncertainty_um
+              if larger)
+position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per
+              coordinate (the CLI's --position-uncertainty-um): the planner makes sigma_p at
+              least this; None: the simulated error's rms (simulate_position_error_texels x
+              texel_um), else 0
 resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
 lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
 overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.8 with

@@ -273,6 +273,36 @@ TEST(PlanTest, BadRequestsNameTheField) {
     r = {};
     r.height_range_um = NAN;
     expect_naming(r, "height range");
+    r = {};
+    r.position_uncertainty_um = -1.0;
+    expect_naming(r, "position_uncertainty_um");
+    r.position_uncertainty_um = NAN;
+    expect_naming(r, "position_uncertainty_um");
+}
+
+// A stage whose positions are uncertain by more than the default footprint gets a footprint of
+// that width (the position loop's reach, docs/recovery.md round 15); a smaller uncertainty, or a
+// given σ_p, leaves σ_p as it was.
+TEST(PlanTest, FootprintGrowsWithThePositionUncertainty) {
+    PlanRequest r;
+    r.texel_um = 2.0;
+    r.height_range_um = 2.0;
+    r.overlap = 0.8;
+    const AcquisitionPlan nominal = plan_acquisition(r);
+    EXPECT_EQ(nominal.sigma_p_um, 3.0);  // 1.5 texels
+    r.position_uncertainty_um = 2.0;     // below 1.5 texels: unchanged
+    EXPECT_EQ(plan_acquisition(r).sigma_p_um, 3.0);
+    r.position_uncertainty_um = 6.0;
+    const AcquisitionPlan wide = plan_acquisition(r);
+    EXPECT_EQ(wide.sigma_p_um, k_footprint_per_position_uncertainty * 6.0);
+    // The raster follows the wider window (its step scales with D) and keeps the overlap.
+    EXPECT_LT(wide.positions_um.size(), nominal.positions_um.size());
+    EXPECT_GE(wide.overlap, 0.8 - 1e-12);
+    bool noted = false;
+    for (const auto& n : wide.notes) noted |= n.find("uncertain by 6 um") != std::string::npos;
+    EXPECT_TRUE(noted);
+    r.sigma_p_um = 4.0;  // given: kept
+    EXPECT_EQ(plan_acquisition(r).sigma_p_um, 4.0);
 }
 
 TEST(PlanTest, GivenWavelengthsAndResolutionReplaceThePlannedOnes) {

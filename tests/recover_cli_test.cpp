@@ -70,6 +70,7 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--calibrate positions --position-passes 101 --out " + out, {"--position-passes", "101", "0 to 100"}},
         {"--overlap 0 --out " + out, {"--overlap", "0", "0.6 to 0.95"}},
         {"--calibrate positions --overlap 0.96 --out " + out, {"--overlap", "0.96", "0.6 to 0.95"}},
+        {"--position-uncertainty-um -2 --out " + out, {"--position-uncertainty-um", "-2", "0 to 1e6"}},
         {"--observations o.json --simulate-sigma-factor 1.2 --size 8 --out " + out, {"--simulate-", "--truth"}},
     };
     for (const Case& c : cases) {

@@ -1,6 +1,7 @@
 // recovery_run.h: the memory estimate of a recovery and the limit prepare_recovery enforces.
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <set>
 #include <string>
 #include <utility>
@@ -114,6 +115,26 @@ TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
     EXPECT_EQ(planned("positions", 0.6).first, plain.first);  // stated: kept
     EXPECT_EQ(planned("none", 0.8).first, calibrated.first);
     EXPECT_EQ(planned("exposure,sigma", 0.0).first, plain.first);  // not without positions
+}
+
+// The simulated position error is the stage's stated uncertainty unless one is given: the
+// planner sizes the footprint for it (PlanRequest::position_uncertainty_um).
+TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprint) {
+    const auto sigma_of = [](double error_texels, std::optional<double> uncertainty_um) {
+        RecoveryOptions options;
+        options.rows = options.cols = 16;
+        options.resolution = 16;
+        options.calibrate = parse_calibration("positions");
+        options.errors.position_rms_texels = error_texels;
+        options.position_uncertainty_um = uncertainty_um;
+        const PreparedRecovery r = prepare_recovery(options);
+        return r.observations.front().query.sigma_p_um;
+    };
+    EXPECT_EQ(sigma_of(0.0, std::nullopt), 3.0);  // 1.5 texels of 2 um
+    EXPECT_EQ(sigma_of(1.0, std::nullopt), 3.0);  // 2 um: within the default footprint
+    EXPECT_EQ(sigma_of(3.0, std::nullopt), 6.0);  // 6 um rms per coordinate
+    EXPECT_EQ(sigma_of(3.0, 0.0), 3.0);           // stated: kept
+    EXPECT_EQ(sigma_of(0.0, 5.0), 5.0);
 }
 
 }  // namespace

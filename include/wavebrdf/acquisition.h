@@ -30,11 +30,21 @@ class Heightfield;
 class Progress;
 struct Observation;
 
+// The planned footprint's σ_p per µm (rms per coordinate) of position uncertainty. The position
+// loop (recover.h) registers a footprint against heights that are themselves recovered at wrong
+// positions; it converges when the positions are off by up to ~σ_p (rms per coordinate) and
+// stalls at 2σ_p: positions 3 texels (6 µm) off stall at 12–13 % with σ_p = 3 µm and at ~7 % with
+// 4.5 µm, and reach 0.01 % with 6 µm (docs/recovery.md, "Self-calibration: positions", round 15).
+constexpr double k_footprint_per_position_uncertainty = 1.0;
+
 struct PlanRequest {
     int rows = 32, cols = 32;      // heightfield size (texels)
     double texel_um = 1.0;         // texel width w, µm
     double height_range_um = 0.0;  // expected peak-to-valley of the heights, µm (≥ 0)
-    double sigma_p_um = 0.0;       // footprint σ_p, µm; 0: 1.5 texels
+    double sigma_p_um = 0.0;       // footprint σ_p, µm; 0: planned (below)
+    // How far the stage may put a footprint from where it says, µm rms per coordinate (≥ 0).
+    // With σ_p planned: σ_p = max(1.5 texels, k_footprint_per_position_uncertainty × this).
+    double position_uncertainty_um = 0.0;
     double overlap = 0.6;          // worst-case linear overlap of neighbouring windows, 0.6 … 0.95
     double jitter = 0.2;           // position jitter, fraction of the raster step, 0 … 0.3
     double lambda_um = 0.5;        // base wavelength λ0, µm
@@ -66,7 +76,7 @@ struct AcquisitionPlan {
 };
 
 // Throws std::invalid_argument / std::domain_error naming the field for sizes < 1, texel_um,
-// σ_p, λ or ranges out of range, overlap outside 0.6 … 0.95, jitter outside 0 … 0.3, a
+// σ_p, the position uncertainty, λ or ranges out of range, overlap outside 0.6 … 0.95, jitter outside 0 … 0.3, a
 // base wavelength outside [lambda_min_um, lambda_max_um], or a height range the wavelength
 // range cannot unwrap (names the largest range it can).
 AcquisitionPlan plan_acquisition(const PlanRequest& request);

@@ -56,7 +56,11 @@ struct RecoveryOptions {
     // Acquisition, planned for a truth (PlanRequest's fields of the same names).
     Model model = Model::OHS;
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (|ω_i| < 1)
-    double sigma_p_um = 0.0;                    // 0: the planner's (1.5 texels)
+    double sigma_p_um = 0.0;                    // 0: the planner's (1.5 texels, or below)
+    // The stage's position uncertainty, µm rms per coordinate (PlanRequest's: the planner sizes
+    // σ_p for it). Unset: the simulated error's rms (errors.position_rms_texels × texel_um), as
+    // a stage's datasheet would state it; 0 without simulated errors.
+    std::optional<double> position_uncertainty_um;
     int resolution = 0;                         // 0: the planner's Nyquist choice
     std::vector<double> lambdas_um;             // empty: the planner's ladder
     // White light: N ≥ 2 makes every planned observation one RGB slice of a broadband source

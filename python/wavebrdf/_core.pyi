@@ -730,13 +730,17 @@ def observation_loss(heightfield: Heightfield, observations: Any, loss: Any = ..
     """
     ...
 
-def plan_acquisition(*, rows: int = ..., cols: Any = ..., texel_um: float = ..., height_range_um: float = ..., sigma_p_um: float = ..., overlap: float = ..., jitter: float = ..., lambda_um: float = ..., lambda_min_um: float = ..., lambda_max_um: float = ..., max_step_ratio: float = ..., lambdas_um: Any = ..., resolution: int = ..., light: Any = ..., model: str = ..., seed: int = ...) -> AcquisitionPlan:
+def plan_acquisition(*, rows: int = ..., cols: Any = ..., texel_um: float = ..., height_range_um: float = ..., sigma_p_um: float = ..., position_uncertainty_um: float = ..., overlap: float = ..., jitter: float = ..., lambda_um: float = ..., lambda_min_um: float = ..., lambda_max_um: float = ..., max_step_ratio: float = ..., lambdas_um: Any = ..., resolution: int = ..., light: Any = ..., model: str = ..., seed: int = ...) -> AcquisitionPlan:
     """An acquisition that determines the heights of a rows x cols tile (acquisition.h): returns an
     AcquisitionPlan. Keyword arguments (PlanRequest's fields):
 
     rows, cols       heightfield size in texels (>= 1; cols defaults to rows); texel_um > 0 (um)
     height_range_um  expected peak-to-valley of the heights, um (>= 0): sets the wavelength ladder
-    sigma_p_um       footprint sigma_p, um (> 0; 0: 1.5 texels). Window support D = 6 sigma_p.
+    sigma_p_um       footprint sigma_p, um (> 0; 0: 1.5 texels, or k x position_uncertainty_um if
+                     larger, k = 1). Window support D = 6 sigma_p.
+    position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per
+                     coordinate (>= 0): with sigma_p planned, the footprint is made at least
+                     that wide (the position loop converges up to ~sigma_p, docs/recovery.md)
     overlap          worst-case linear overlap 1 - d/D of neighbouring windows, 0.6 ... 0.95
     jitter           position jitter, fraction of the raster step, 0 ... 0.3
     lambda_um        base wavelength lambda0 (um), within lambda_min_um ... lambda_max_um (the
@@ -787,7 +791,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -804,7 +808,12 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   observations: bound on the height range
     correlation_texels  generated truth: correlation length in texels (> 0)
     model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
-    sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels)
+    sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels or position_uncertainty_um
+                  if larger)
+    position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per
+                  coordinate (the CLI's --position-uncertainty-um): the planner makes sigma_p at
+                  least this; None: the simulated error's rms (simulate_position_error_texels x
+                  texel_um), else 0
     resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
     lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
     overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.8 with

@@ -179,6 +179,7 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
     require_range(r.lambda_min_um, 0.01, 100.0, "lambda_min_um");
     require_range(r.lambda_max_um, r.lambda_min_um, 100.0, "lambda_max_um");
     if (!(r.sigma_p_um == 0.0)) require_range(r.sigma_p_um, 1e-6, 1e6, "sigma_p_um");
+    require_range(r.position_uncertainty_um, 0.0, 1e6, "position_uncertainty_um");
     Query probe;
     probe.omega_i = r.omega_i;
     probe.model = r.model;
@@ -187,7 +188,11 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
     AcquisitionPlan plan;
     plan.omega_i = r.omega_i;
     plan.model = r.model;
-    plan.sigma_p_um = r.sigma_p_um > 0.0 ? r.sigma_p_um : 1.5 * r.texel_um;
+    const bool sized_for_positions =
+        r.sigma_p_um == 0.0 && k_footprint_per_position_uncertainty * r.position_uncertainty_um > 1.5 * r.texel_um;
+    plan.sigma_p_um = r.sigma_p_um > 0.0     ? r.sigma_p_um
+                      : sized_for_positions ? k_footprint_per_position_uncertainty * r.position_uncertainty_um
+                                            : 1.5 * r.texel_um;
     const double d_um = support_um(plan.sigma_p_um);
 
     // Wavelengths: given, or λ0 and the ladder's partners.
@@ -232,7 +237,11 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
     validate_resolution(plan.resolution);
 
     plan.notes.push_back("footprint sigma_p = " + format_shortest(plan.sigma_p_um) +
-                         " um (window support D = " + format_shortest(d_um) + " um)");
+                         " um (window support D = " + format_shortest(d_um) + " um" +
+                         (sized_for_positions ? "; sized for positions uncertain by " +
+                                                    format_shortest(r.position_uncertainty_um) + " um rms"
+                                              : std::string()) +
+                         ")");
     plan.notes.push_back(std::to_string(plan.positions_um.size()) + " positions on a " + std::to_string(nx) + "x" +
                          std::to_string(ny) + " raster, steps " + fixed(plan.step_x_um, 2) + " x " +
                          fixed(plan.step_y_um, 2) + " um, jitter +-" + fixed(100.0 * r.jitter, 0) +

@@ -242,6 +242,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.texel_um = r.texel_um;
         request.height_range_um = r.range_um;
         request.sigma_p_um = options.sigma_p_um;
+        request.position_uncertainty_um = options.position_uncertainty_um.value_or(
+            options.errors.position_rms_texels * r.texel_um);
         if (options.overlap != 0.0)
             request.overlap = options.overlap;
         else if (options.calibrate.positions)

@@ -113,10 +113,13 @@ def periodic_nearest_distances(positions, period):
     dict(rows=32, texel_um=2.0, height_range_um=2.0, jitter=0.0),
     dict(rows=24, cols=40, texel_um=1.0, height_range_um=0.5, overlap=0.8, jitter=0.3, seed=7),
     dict(rows=16, texel_um=2.0, sigma_p_um=5.0, overlap=0.7, jitter=0.1, lambdas_um=[0.5, 0.55]),
-], ids=["defaults", "raster", "dense-rectangular", "given-wavelengths"])
+    dict(rows=32, texel_um=2.0, height_range_um=2.0, overlap=0.8, position_uncertainty_um=6.0),
+], ids=["defaults", "raster", "dense-rectangular", "given-wavelengths", "uncertain-positions"])
 def test_plan_keeps_its_rules(kw):
     plan = wb.plan_acquisition(**kw)
     rows, cols, texel = kw["rows"], kw.get("cols", kw["rows"]), kw["texel_um"]
+    # sigma_p: given, else 1.5 texels or the position uncertainty where that is wider.
+    assert plan.sigma_p_um == kw.get("sigma_p_um", max(1.5 * texel, kw.get("position_uncertainty_um", 0.0)))
     period = np.array([rows * texel, cols * texel])
     support = 6.0 * plan.sigma_p_um
     pos = plan.positions_um
@@ -297,6 +300,8 @@ def test_recover_refuses_what_cannot_fit_before_any_work():
     (lambda: wb.plan_acquisition(max_step_ratio=1.0), ["max_step_ratio"]),
     (lambda: wb.plan_acquisition(height_range_um=-1.0), ["height_range_um"]),
     (lambda: wb.plan_acquisition(sigma_p_um=-1.0), ["sigma_p_um"]),
+    (lambda: wb.plan_acquisition(position_uncertainty_um=float("nan")), ["position_uncertainty_um"]),
+    (lambda: wb.recover(size=8, position_uncertainty_um=-1), ["position_uncertainty_um", "-1"]),
     (lambda: wb.plan_acquisition(height_range_um=1.0, lambda_min_um=0.49, lambda_max_um=0.51), ["0.125 um"]),
     (lambda: wb.add_noise(np.ones(4), "poisson:-3"), ["poisson:-3"]),
     (lambda: wb.add_noise(-np.ones(4), "poisson:3"), ["values", "negative"]),
