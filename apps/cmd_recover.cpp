@@ -384,7 +384,7 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--position-passes", a->position_passes,
                     "with --calibrate positions: at most N passes of the position loop (registration at the "
                     "heights, then the field stage and the refinement again) after the first recovery, 0 to 100; "
-                    "0: off (default: the library's, 20, stopped earlier when the loss stalls)");
+                    "0: off (default: the library's, 40, stopped earlier when the loss stalls)");
     cmd->add_option("--simulate-position-error-texels", a->position_error_texels,
                     "study: footprint positions off by a Gaussian of this rms per coordinate (texels, 0 to 10)")
         ->capture_default_str();

@@ -412,7 +412,7 @@ struct RecoverSettings {
     // most this many times, stopping when a registration moves the offsets by less than
     // position_outer_tolerance_texels rms or when the loss stalls (position_outer_stall_*).
     // 0: off (one recovery); −1: the library's default (recover.cpp, k_position_outer_passes:
-    // 20; docs/recovery.md says why). At most 100.
+    // 40; docs/recovery.md says why). At most 100.
     int position_outer_passes = -1;
     double position_register_radius_texels = 2.0;  // 0 … 8
     // Finite, ≥ 0 (0: never stops on the moves). At the loop's end the registration jitters the

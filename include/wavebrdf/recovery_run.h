@@ -101,7 +101,7 @@ struct RecoveryOptions {
     CalibrationSettings calibrate;
     // With calibrate.positions: at most this many passes of the position loop after the first
     // recovery (RecoverSettings::position_outer_passes, 0 … 100; 0: off, one recovery; < 0: the
-    // library's default, 20, stopped earlier by its stall rule).
+    // library's default, 40, stopped earlier by its stall rule).
     int position_passes = -1;
     // A study's acquisition errors (a truth only): the observations are rendered for the
     // perturbed acquisition (positions offset per footprint position, σ_p scaled, each slice

@@ -845,7 +845,7 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   are in result.calibration
     position_passes  with calibrate 'positions' (or 'all'): at most this many passes of the
                   position loop after the first recovery (the CLI's --position-passes, 0...100; 0:
-                  off; None: the library's, 20, stopped earlier when the loss stalls); its per-pass
+                  off; None: the library's, 40, stopped earlier when the loss stalls); its per-pass
                   steps are in result.metrics (positions:register, positions:newton, ...)
     simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a study's
                   acquisition errors (the CLI's --simulate-*; a truth only): footprint positions off

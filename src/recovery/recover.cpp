@@ -72,8 +72,11 @@ namespace {
 // self-calibration (docs/recovery.md, "Self-calibration: positions", rounds 5–12b: 12 passes of
 // round 11's loop reached ≤ 0.1 % at 1 texel on 6 of 9 seeds and never ended worse than one
 // recovery; round 12b: converging runs still gain after 12, and a cluster the rescue brings back
-// late needs more (0.22 % at 12, 0.046 % at 20); the stall rule stops the stalled ones early).
-constexpr int k_position_outer_passes = 20;
+// late needs more (0.22 % at 12, 0.046 % at 20); the stall rule stops the stalled ones early.
+// Round 15: 3 texels with the footprint sized for it converges in 12–19 passes, the slowest
+// seed's last passes doing the most (3.1 % → 0.36 % → 0.04 %), so the cap is 40; converged or
+// stalled runs still end by the stall rule).
+constexpr int k_position_outer_passes = 40;
 // RecoverSettings::position_outer_stall_tolerance = −1 (the default): the stall rule's relative
 // loss decrease (docs/recovery.md, round 12b: converging runs lower stage 3's loss by ≥ 14 % a
 // pass to their 12th; a stalled one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue
