@@ -118,23 +118,40 @@ TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
 }
 
 // The simulated position error is the stage's stated uncertainty unless one is given: the
-// planner sizes the footprint for it (PlanRequest::position_uncertainty_um).
-TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprint) {
-    const auto sigma_of = [](double error_texels, std::optional<double> uncertainty_um) {
+// planner sizes the footprint for it (PlanRequest::position_uncertainty_um), and the position
+// loop's rescue reaches k × it (k_rescue_radius_per_position_uncertainty) where that is farther
+// than its default, with as many grid points.
+TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprintAndTheRescue) {
+    const RecoverSettings defaults;
+    struct Planned {
+        double sigma_p_um, rescue_radius_texels, rescue_step_texels;
+    };
+    const auto planned = [](double error_texels, std::optional<double> uncertainty_um,
+                            const char* calibrate = "positions") {
         RecoveryOptions options;
         options.rows = options.cols = 16;
         options.resolution = 16;
-        options.calibrate = parse_calibration("positions");
+        options.calibrate = parse_calibration(calibrate);
         options.errors.position_rms_texels = error_texels;
         options.position_uncertainty_um = uncertainty_um;
         const PreparedRecovery r = prepare_recovery(options);
-        return r.observations.front().query.sigma_p_um;
+        return Planned{r.observations.front().query.sigma_p_um, r.pipeline.position_rescue_radius_texels,
+                       r.pipeline.position_rescue_step_texels};
     };
-    EXPECT_EQ(sigma_of(0.0, std::nullopt), 3.0);  // 1.5 texels of 2 um
-    EXPECT_EQ(sigma_of(1.0, std::nullopt), 3.0);  // 2 um: within the default footprint
-    EXPECT_EQ(sigma_of(3.0, std::nullopt), 6.0);  // 6 um rms per coordinate
-    EXPECT_EQ(sigma_of(3.0, 0.0), 3.0);           // stated: kept
-    EXPECT_EQ(sigma_of(0.0, 5.0), 5.0);
+    EXPECT_EQ(planned(0.0, std::nullopt).sigma_p_um, 3.0);  // 1.5 texels of 2 um
+    EXPECT_EQ(planned(1.0, std::nullopt).sigma_p_um, 3.0);  // 2 um: within the default footprint
+    EXPECT_EQ(planned(1.0, std::nullopt).rescue_radius_texels, defaults.position_rescue_radius_texels);
+    const Planned three = planned(3.0, std::nullopt);  // 6 um rms per coordinate
+    EXPECT_EQ(three.sigma_p_um, 6.0);
+    EXPECT_EQ(three.rescue_radius_texels, k_rescue_radius_per_position_uncertainty * 3.0);
+    EXPECT_DOUBLE_EQ(three.rescue_radius_texels / three.rescue_step_texels,
+                     defaults.position_rescue_radius_texels / defaults.position_rescue_step_texels);
+    EXPECT_EQ(planned(10.0, std::nullopt).rescue_radius_texels, 16.0);  // the rescue's bound
+    EXPECT_EQ(planned(3.0, 0.0).sigma_p_um, 3.0);                      // stated: kept
+    EXPECT_EQ(planned(3.0, 0.0).rescue_radius_texels, defaults.position_rescue_radius_texels);
+    EXPECT_EQ(planned(0.0, 5.0).sigma_p_um, 5.0);
+    // Without position calibration only the footprint follows.
+    EXPECT_EQ(planned(3.0, std::nullopt, "none").rescue_radius_texels, defaults.position_rescue_radius_texels);
 }
 
 }  // namespace

@@ -43,6 +43,12 @@ const char* to_string(RecoveryMethod method);
 // rounds 13b and 14). About 2.5 × the slices of 0.6, ≈ 1.5–2 × the CPU.
 constexpr double k_position_calibration_overlap = 0.8;
 
+// The position loop's rescue radius per unit of the stated position uncertainty
+// (RecoveryOptions::position_uncertainty_um; at least RecoverSettings' default 4 texels, at most
+// 16): at 3 texels rms the default ± 4 texels left positions 9–13 texels from their stated
+// centres lost for good (docs/recovery.md, "Self-calibration: positions", round 15).
+constexpr double k_rescue_radius_per_position_uncertainty = 4.0;
+
 // The options of `wavebrdf recover` (its defaults), as values.
 struct RecoveryOptions {
     // Grid of the generated truth, and of the estimate with given observations (≥ 1 each).
@@ -58,7 +64,8 @@ struct RecoveryOptions {
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (|ω_i| < 1)
     double sigma_p_um = 0.0;                    // 0: the planner's (1.5 texels, or below)
     // The stage's position uncertainty, µm rms per coordinate (PlanRequest's: the planner sizes
-    // σ_p for it). Unset: the simulated error's rms (errors.position_rms_texels × texel_um), as
+    // σ_p for it; with calibrate.positions the loop's rescue searches ± k × it,
+    // k_rescue_radius_per_position_uncertainty, where that exceeds its default). Unset: the simulated error's rms (errors.position_rms_texels × texel_um), as
     // a stage's datasheet would state it; 0 without simulated errors.
     std::optional<double> position_uncertainty_um;
     int resolution = 0;                         // 0: the planner's Nyquist choice

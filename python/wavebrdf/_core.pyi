@@ -812,7 +812,7 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   if larger)
     position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per
                   coordinate (the CLI's --position-uncertainty-um): the planner makes sigma_p at
-                  least this; None: the simulated error's rms (simulate_position_error_texels x
+                  least this and the position loop searches lost positions 4x as far; None: the simulated error's rms (simulate_position_error_texels x
                   texel_um), else 0
     resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
     lambdas_um    wavelengths in um (None: the planner's ladder for the height range)

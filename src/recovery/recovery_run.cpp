@@ -343,6 +343,16 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 
     r.pipeline.refine_loss = r.loss;
     r.pipeline.calibrate = options.calibrate;
+    // The position loop's rescue reaches as far as the stated uncertainty: ± k × it about a lost
+    // position's offset and stated centre, on a grid of the same number of points (coarser).
+    const double uncertainty_um =
+        options.position_uncertainty_um.value_or(options.errors.position_rms_texels * r.texel_um);
+    const double rescue_radius_texels =
+        std::min(k_rescue_radius_per_position_uncertainty * uncertainty_um / r.texel_um, 16.0);
+    if (options.calibrate.positions && rescue_radius_texels > r.pipeline.position_rescue_radius_texels) {
+        r.pipeline.position_rescue_step_texels *= rescue_radius_texels / r.pipeline.position_rescue_radius_texels;
+        r.pipeline.position_rescue_radius_texels = rescue_radius_texels;
+    }
     r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
     // Rough surfaces (roughness_plan.h): the stated range and correlation choose the schedule.
     if (options.method == RecoveryMethod::Pipeline && r.range_um > 0.0 && options.correlation_texels > 0.0) {
