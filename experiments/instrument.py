@@ -49,6 +49,12 @@ CASES = {
     "scalar_calibrated": (["--size", "32", "--resolution", "48", "--simulator", "scalar", "--calibrate",
                            "exposure,sigma"],
                           dict(size=32, resolution=48, simulator="scalar", calibrate="exposure,sigma"), 0.2),
+    "rough_4um": (["--size", "32", "--resolution", "48", "--height-range-um", "8"],
+                  dict(size=32, resolution=48, height_range_um=8.0), 1.0),
+    "correlation_2": (["--size", "32", "--resolution", "48", "--correlation-texels", "2"],
+                      dict(size=32, resolution=48, correlation_texels=2.0), 1.0),
+    "oblique_ghs": (["--size", "32", "--resolution", "48", "--model", "GHS", "--light-x", "0.3"],
+                    dict(size=32, resolution=48, model="GHS", light=(0.3, 0.0)), None),
     "uncertainty": (["--size", "32", "--resolution", "48", "--noise", "poisson:1e4", "--uncertainty"],
                     dict(size=32, resolution=48, noise="poisson:1e4", uncertainty=True), None),
 }
