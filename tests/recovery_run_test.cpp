@@ -154,5 +154,22 @@ TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprintAndTheRescue) {
     EXPECT_EQ(planned(3.0, std::nullopt, "none").rescue_radius_texels, defaults.position_rescue_radius_texels);
 }
 
+// Error bars need the minimum: with them the smooth schedule's 8 last iterations become
+// k_uncertainty_refine_iterations (the ±2σ coverage fell to 85–93 % with 8); a stated count wins.
+TEST(RecoveryRun, ErrorBarsRefineToTheMinimum) {
+    const auto refine_of = [](bool uncertainty, int stated) {
+        RecoveryOptions options;
+        options.rows = options.cols = 16;
+        options.resolution = 16;
+        options.noise = parse_noise("poisson:1e4");
+        options.uncertainty = uncertainty;
+        options.refine_iterations = stated;
+        return prepare_recovery(options).pipeline.refine_iterations;
+    };
+    EXPECT_LT(refine_of(false, -1), k_uncertainty_refine_iterations);  // the smooth schedule's
+    EXPECT_EQ(refine_of(true, -1), k_uncertainty_refine_iterations);
+    EXPECT_EQ(refine_of(true, 5), 5);
+}
+
 }  // namespace
 }  // namespace wavebrdf

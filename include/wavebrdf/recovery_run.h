@@ -49,6 +49,12 @@ constexpr double k_position_calibration_overlap = 0.8;
 // centres lost for good (docs/recovery.md, "Self-calibration: positions", round 15).
 constexpr double k_rescue_radius_per_position_uncertainty = 4.0;
 
+// With error bars (RecoveryOptions::uncertainty), at least this many refinement iterations on
+// every slice: the bars are the loss's curvature at its minimum, and the smooth schedule's 8
+// (roughness_plan.cpp) stop short of it by more than the noise moves the estimate
+// (docs/recovery.md, "Error bars", round 15).
+constexpr int k_uncertainty_refine_iterations = 40;
+
 // The options of `wavebrdf recover` (its defaults), as values.
 struct RecoveryOptions {
     // Grid of the generated truth, and of the estimate with given observations (≥ 1 each).

@@ -377,6 +377,10 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.white_smoothness_iterations >= 0)
         r.pipeline.white_smoothness_iterations = options.white_smoothness_iterations;
     r.uncertainty = options.uncertainty;
+    // Error bars are the curvature at the minimum: the smooth schedule's short last refinement
+    // (8 iterations on every slice) leaves the estimate off it by more than the noise does.
+    if (r.uncertainty && options.refine_iterations < 0)
+        r.pipeline.refine_iterations = std::max(r.pipeline.refine_iterations, k_uncertainty_refine_iterations);
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
     r.thesis.seed = options.seed;
