@@ -316,6 +316,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     if (!std::isfinite(max_memory_gb) || max_memory_gb < 0.0)
         bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
+    options.uncertainty = with_uncertainty;  // the plan refines to the minimum first (recovery_run.h)
     options.calibrate = calibrate_argument(calibrate);
     options.position_passes = optional_count(position_passes, "position_passes");
     if (options.position_passes > 100)

@@ -72,3 +72,22 @@ def test_cli_writes_the_map_and_the_report_shows_it(tmp_path):
     assert summary["coverage_2sigma"] == pytest.approx(coverage(est, tru, sigma, 2.0), abs=1e-12)
     path = pr.make_report(str(out))
     assert os.path.exists(path)
+
+
+def test_python_and_the_cli_refine_to_the_minimum_alike(tmp_path):
+    """With error bars the plan refines further (recovery_run.h, k_uncertainty_refine_iterations:
+    the bars are the curvature at the minimum); recover(uncertainty=True) must run that plan too,
+    so it gives the CLI's estimate (on this 16² case the last refinement takes 27 iterations, the
+    schedule without bars 8)."""
+    args = dict(size=16, texel_um=2.0, sigma_p_um=3.0, height_range_um=0.5, resolution=32, seed=5306,
+                noise="poisson:1e4")
+    out = tmp_path / "run"
+    cli = os.path.join(conftest.BUILD, "bin", "wavebrdf")
+    subprocess.run([cli, "recover", "--size", "16", "--texel-um", "2", "--sigma-p-um", "3", "--height-range-um",
+                    "0.5", "--resolution", "32", "--seed", "5306", "--noise", "poisson:1e4", "--uncertainty",
+                    "--no-plots", "--quiet", "--out", str(out)], check=True)
+    r = wb.recover(**args, uncertainty=True, quiet=True)
+    np.testing.assert_allclose(r.estimate.heights_um(), np.load(out / "estimate_height.npy"), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(r.uncertainty, np.load(out / "uncertainty_height.npy"), rtol=1e-12)
+    plain = wb.recover(**args, quiet=True)
+    assert not np.array_equal(plain.estimate.heights_um(), r.estimate.heights_um())
