@@ -481,7 +481,8 @@ into Observations (one per position and wavelength).
     m.def(
         "plan_acquisition",
         [](int rows, const py::object& cols, double texel_um, double height_range_um, double sigma_p_um,
-           double position_uncertainty_um, double overlap, double jitter, double lambda_um, double lambda_min_um, double lambda_max_um, double max_step_ratio,
+           double position_uncertainty_um, double overlap, double jitter, double lambda_um, double lambda_min_um,
+           double lambda_max_um, double max_step_ratio,
            const py::object& lambdas_um, int resolution, const py::object& light, const std::string& model,
            std::uint64_t seed) {
             PlanRequest r;

@@ -76,9 +76,9 @@ struct AcquisitionPlan {
 };
 
 // Throws std::invalid_argument / std::domain_error naming the field for sizes < 1, texel_um,
-// σ_p, the position uncertainty, λ or ranges out of range, overlap outside 0.6 … 0.95, jitter outside 0 … 0.3, a
-// base wavelength outside [lambda_min_um, lambda_max_um], or a height range the wavelength
-// range cannot unwrap (names the largest range it can).
+// σ_p, the position uncertainty, λ or ranges out of range, overlap outside 0.6 … 0.95, jitter
+// outside 0 … 0.3, a base wavelength outside [lambda_min_um, lambda_max_um], or a height range
+// the wavelength range cannot unwrap (names the largest range it can).
 AcquisitionPlan plan_acquisition(const PlanRequest& request);
 
 // One observation per (position, wavelength) of `plan`, with empty references (render them with

@@ -71,8 +71,9 @@ struct RecoveryOptions {
     double sigma_p_um = 0.0;                    // 0: the planner's (1.5 texels, or below)
     // The stage's position uncertainty, µm rms per coordinate (PlanRequest's: the planner sizes
     // σ_p for it; with calibrate.positions the loop's rescue searches ± k × it,
-    // k_rescue_radius_per_position_uncertainty, where that exceeds its default). Unset: the simulated error's rms (errors.position_rms_texels × texel_um), as
-    // a stage's datasheet would state it; 0 without simulated errors.
+    // k_rescue_radius_per_position_uncertainty, where that exceeds its default). Unset: the
+    // simulated error's rms (errors.position_rms_texels × texel_um), as a stage's datasheet would
+    // state it; 0 without simulated errors.
     std::optional<double> position_uncertainty_um;
     int resolution = 0;                         // 0: the planner's Nyquist choice
     std::vector<double> lambdas_um;             // empty: the planner's ladder
