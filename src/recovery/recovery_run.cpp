@@ -152,6 +152,11 @@ std::vector<Observation> metadata_of(const std::vector<Observation>& observation
     return out;
 }
 
+// The stage's position uncertainty, µm rms per coordinate: stated, else the simulated error's.
+double position_uncertainty_um(const RecoveryOptions& options, double texel_um) {
+    return options.position_uncertainty_um.value_or(options.errors.position_rms_texels * texel_um);
+}
+
 }  // namespace
 
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth,
@@ -242,8 +247,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.texel_um = r.texel_um;
         request.height_range_um = r.range_um;
         request.sigma_p_um = options.sigma_p_um;
-        request.position_uncertainty_um = options.position_uncertainty_um.value_or(
-            options.errors.position_rms_texels * r.texel_um);
+        request.position_uncertainty_um = position_uncertainty_um(options, r.texel_um);
         if (options.overlap != 0.0)
             request.overlap = options.overlap;
         else if (options.calibrate.positions)
@@ -345,10 +349,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     r.pipeline.calibrate = options.calibrate;
     // The position loop's rescue reaches as far as the stated uncertainty: ± k × it about a lost
     // position's offset and stated centre, on a grid of the same number of points (coarser).
-    const double uncertainty_um =
-        options.position_uncertainty_um.value_or(options.errors.position_rms_texels * r.texel_um);
-    const double rescue_radius_texels =
-        std::min(k_rescue_radius_per_position_uncertainty * uncertainty_um / r.texel_um, 16.0);
+    const double rescue_radius_texels = std::min(
+        k_rescue_radius_per_position_uncertainty * position_uncertainty_um(options, r.texel_um) / r.texel_um, 16.0);
     if (options.calibrate.positions && rescue_radius_texels > r.pipeline.position_rescue_radius_texels) {
         r.pipeline.position_rescue_step_texels *= rescue_radius_texels / r.pipeline.position_rescue_radius_texels;
         r.pipeline.position_rescue_radius_texels = rescue_radius_texels;
