@@ -36,6 +36,7 @@ struct RecoverArgs {
     double correlation_texels = 4.0;  // generated truth
     std::string model = "OHS";
     double light_x = 0.0, light_y = 0.0;
+    bool no_oblique_lights = false;
     double sigma_p_um = 0.0;  // 0: the planner's
     double position_uncertainty_um = 0.0;  // --position-uncertainty-um, used only where given
     int resolution = 0;       // 0: the planner's
@@ -132,6 +133,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.height_range_um = a.height_range_um;
     options.correlation_texels = a.correlation_texels;
     options.omega_i = {a.light_x, a.light_y};
+    options.oblique_lights = !a.no_oblique_lights;
     options.sigma_p_um = a.sigma_p_um;
     if (a.given_position_uncertainty) {
         if (!(a.position_uncertainty_um >= 0.0 && a.position_uncertainty_um <= 1e6))
@@ -317,6 +319,9 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--model", a->model, "OHS, ROHS, GHS or RGHS (GHS-type: the field stage through the separable proxy, docs/recovery.md)")->capture_default_str();
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
+    cmd->add_flag("--no-oblique-lights", a->no_oblique_lights,
+                  "steep surfaces: observe under the one light only (default: the planner adds 4 oblique lights "
+                  "so that steep facets reflect into a slice)");
     cmd->add_option("--sigma-p-um", a->sigma_p_um,
                     "footprint sigma_p in um (0: the planner's, 1.5 texels or the position uncertainty if larger)")
         ->capture_default_str();

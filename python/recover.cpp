@@ -259,7 +259,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        double simulate_sigma_factor, bool with_uncertainty, int spectral,
                        const py::object& field_tile_threshold, const py::object& field_tile_core,
                        const py::object& white_smoothness, const py::object& white_smoothness_iterations,
-                       const py::object& position_passes, const py::object& position_uncertainty_um) {
+                       const py::object& position_passes, const py::object& position_uncertainty_um,
+                       bool oblique_lights) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -287,6 +288,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.correlation_texels = check_positive(correlation_texels, "correlation_texels");
     options.model = model_from(model);
     options.omega_i = light_direction(light);
+    options.oblique_lights = oblique_lights;
     options.sigma_p_um = check_finite(sigma_p_um, "sigma_p_um");
     if (!position_uncertainty_um.is_none()) {
         const double u = position_uncertainty_um.cast<double>();
@@ -452,7 +454,7 @@ void bind_recover(py::module_& m) {
 What plan_acquisition proposes: footprint centres on a jittered raster over the periodic tile,
 a slice resolution that samples the window (Nyquist), and wavelengths whose synthetic
 wavelengths unwrap the height range. planned_observations / simulate_observations turn it
-into Observations (one per position and wavelength).
+into Observations (one per position, light and wavelength).
 )doc")
         .def_readonly("sigma_p_um", &AcquisitionPlan::sigma_p_um, "footprint sigma_p, um")
         .def_readonly("resolution", &AcquisitionPlan::resolution, "slice pixels per side")
@@ -468,7 +470,16 @@ into Observations (one per position and wavelength).
                       "worst-case linear overlap 1 - d/D of neighbouring windows (D = 6 sigma_p), jitter included")
         .def_property_readonly(
             "light", [](const AcquisitionPlan& p) { return py::make_tuple(p.omega_i[0], p.omega_i[1]); },
-            "projected light direction (wx, wy) of every observation")
+            "projected light direction (wx, wy) (of every observation without oblique_lights)")
+        .def_property_readonly(
+            "oblique_lights",
+            [](const AcquisitionPlan& p) {
+                py::list out;
+                for (const auto& w : p.oblique_omega_i) out.append(py::make_tuple(w[0], w[1]));
+                return out;
+            },
+            "further light directions (wx, wy) under which every position is observed as well (steep "
+            "surfaces; empty: one light)")
         .def_property_readonly("model", [](const AcquisitionPlan& p) { return std::string(to_string(p.model)); })
         .def_readonly("notes", &AcquisitionPlan::notes, "the choices, one line each")
         .def("__repr__", [](const AcquisitionPlan& p) {
@@ -845,7 +856,7 @@ the same keys with the true values (else None).
           "uncertainty"_a = false, "spectral"_a = ro.spectral, "field_tile_threshold"_a = py::none(),
           "field_tile_core"_a = py::none(), "white_smoothness"_a = py::none(),
           "white_smoothness_iterations"_a = py::none(), "position_passes"_a = py::none(),
-          "position_uncertainty_um"_a = py::none(), R"doc(
+          "position_uncertainty_um"_a = py::none(), "oblique_lights"_a = ro.oblique_lights, R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -862,6 +873,10 @@ height_range_um  generated truth: peak-to-valley in um (> 0, default 2: +-1 um);
               observations: bound on the height range
 correlation_texels  generated truth: correlation length in texels (> 0)
 model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
+oblique_lights  steep generated surfaces (expected rms slope > 0.2 from height_range_um and
+              correlation_texels): every position is observed under 4 oblique lights at
+              sin(theta_i) = 0.8 as well, so that steep facets reflect into a slice (default
+              True); False: under `light` alone (the CLI's --no-oblique-lights)
 sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels or position_uncertainty_um
               if larger)
 position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per

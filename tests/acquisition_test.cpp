@@ -186,6 +186,32 @@ TEST(PlanTest, CheckNamesSparseAndCoarseData) {
     EXPECT_TRUE(mentions(check_acquisition(obs, r.rows, r.cols, r.texel_um, &steep), "slopes up to"));
 }
 
+// A facet of slope s reflects light ω_i towards ω_o ≈ −ω_i − 2s: on a sinusoid whose slopes
+// along x span ±0.6, normal light sees |s| ≤ 0.45 (|ω_o| ≤ 0.9), a light at +0.8 sees
+// s ∈ [−0.85, 0.05] and one at −0.8 s ∈ [−0.05, 0.85].
+TEST(PlanTest, ObliqueLightsBringSteepFacetsBackOntoTheSlice) {
+    PlanRequest r;
+    r.height_range_um = 1.0;
+    AcquisitionPlan plan = plan_acquisition(r);
+    const double pi = 3.14159265358979323846, amplitude = 0.6 / std::sin(2.0 * pi / r.rows);
+    std::vector<double> values;
+    for (int i = 0; i < r.rows; ++i)
+        for (int j = 0; j < r.cols; ++j) values.push_back(amplitude * std::sin(2.0 * pi * i / r.rows));
+    const Heightfield tilted(r.rows, r.cols, values, r.texel_um, 1.0);
+    const auto check = [&](const AcquisitionPlan& p) {
+        return check_acquisition(with_flat_references(planned_observations(p)), r.rows, r.cols, r.texel_um, &tilted);
+    };
+    EXPECT_TRUE(mentions(check(plan), "reflect the light beyond the slice's rim"));
+    // Only a light on the slope's side brings it back: +0.8 sends it to |ω_o| = 2.0.
+    plan.oblique_omega_i = {{{0.8, 0.0}}};
+    EXPECT_TRUE(mentions(check(plan), "each of the 2 lights"));
+    plan.oblique_omega_i = {{{0.8, 0.0}}, {{-0.8, 0.0}}};
+    EXPECT_FALSE(mentions(check(plan), "slice's rim"));
+    // Every position under every light, at every wavelength.
+    EXPECT_EQ(planned_observations(plan).size(), plan.positions_um.size() * 3 * plan.lambdas_um.size());
+    EXPECT_EQ(observations_per_position(plan), 3 * plan.lambdas_um.size());
+}
+
 // check_acquisition finds nearest centres on a grid of cells (linear in the positions); the
 // worst nearest-neighbour distance and the count of uncovered texels it reports must be the
 // all-pairs search's, here on scattered, clustered and repeated centres, some outside the period.

@@ -108,6 +108,60 @@ TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
     EXPECT_FALSE(plan_for_roughness(1.0, 4.0, 1.0).rough);
 }
 
+// Steep surfaces get a ring of oblique lights (roughness_plan.h): a facet of slope s reflects
+// light ω_i towards ω_o ≈ −ω_i − 2s, measured inside the rim 0.9. With the ring every slope up to
+// 0.63 in any direction, and up to 0.85 along the lights' azimuths, reaches some slice (normal
+// light alone: 0.45). Smooth and merely fine-correlated surfaces keep one light.
+TEST(RoughnessPlan, SteepSurfacesGetObliqueLights) {
+    EXPECT_TRUE(plan_for_roughness(2.0, 8.0, 2.0).oblique_omega_i.empty());
+    EXPECT_TRUE(plan_for_roughness(2.0, 4.0, 2.0).oblique_omega_i.empty());  // rough, but not steep
+    const RoughnessPlan steep = plan_for_roughness(8.0, 8.0, 2.0);
+    ASSERT_EQ(steep.oblique_omega_i.size(), 4u);
+    std::vector<std::array<double, 2>> lights{{{0.0, 0.0}}};
+    for (const auto& w : steep.oblique_omega_i) {
+        EXPECT_NEAR(std::hypot(w[0], w[1]), 0.8, 1e-12);
+        lights.push_back(w);
+    }
+    const auto seen = [&](double sx, double sy) {
+        for (const auto& w : lights)
+            if (std::hypot(w[0] + 2.0 * sx, w[1] + 2.0 * sy) <= 0.9) return true;
+        return false;
+    };
+    for (int a = 0; a < 360; ++a) {
+        const double t = a * 3.14159265358979323846 / 180.0;
+        EXPECT_TRUE(seen(0.63 * std::cos(t), 0.63 * std::sin(t))) << a << " deg";
+    }
+    EXPECT_TRUE(seen(0.85, 0.0));
+    EXPECT_FALSE(seen(0.9, 0.0));
+    EXPECT_FALSE(seen(0.7 * std::sqrt(0.5), 0.7 * std::sqrt(0.5)));
+    // The acquisition gets them with a note; a smooth plan adds none.
+    AcquisitionPlan acquisition;
+    EXPECT_EQ(add_oblique_lights(plan_for_roughness(2.0, 8.0, 2.0), acquisition), 0);
+    EXPECT_TRUE(acquisition.oblique_omega_i.empty());
+    EXPECT_EQ(add_oblique_lights(steep, acquisition), 4);
+    EXPECT_EQ(acquisition.oblique_omega_i, steep.oblique_omega_i);
+    ASSERT_EQ(acquisition.notes.size(), 1u);
+    EXPECT_NE(acquisition.notes[0].find("oblique lights"), std::string::npos);
+}
+
+// prepare_recovery observes a steep generated surface under every light, unless told not to.
+TEST(RoughnessPlan, PrepareRecoveryObservesSteepSurfacesUnderObliqueLights) {
+    RecoveryOptions options;
+    options.rows = options.cols = 8;
+    options.resolution = 16;
+    options.seed = 6301;
+    options.height_range_um = 8.0;
+    const PreparedRecovery steep = prepare_recovery(options);
+    std::vector<std::array<double, 2>> lights;
+    for (const Observation& o : steep.observations)
+        if (std::find(lights.begin(), lights.end(), o.query.omega_i) == lights.end()) lights.push_back(o.query.omega_i);
+    EXPECT_EQ(lights.size(), 5u);
+    options.oblique_lights = false;
+    const PreparedRecovery one = prepare_recovery(options);
+    EXPECT_EQ(steep.observations.size(), 5 * one.observations.size());
+    for (const Observation& o : one.observations) EXPECT_EQ(o.query.omega_i, (std::array<double, 2>{{0.0, 0.0}}));
+}
+
 TEST(RoughnessPlan, RejectsBadValues) {
     EXPECT_THROW(plan_for_roughness(-1.0, 8.0, 2.0), std::domain_error);
     EXPECT_THROW(plan_for_roughness(2.0, 0.0, 2.0), std::domain_error);

@@ -67,6 +67,10 @@ struct AcquisitionPlan {
     double step_x_um = 0.0, step_y_um = 0.0;          // raster steps
     double overlap = 0.0;                             // worst-case linear overlap of neighbours
     std::array<double, 2> omega_i{{0.0, 0.0}};        // projected light direction ω_i
+    // Further light directions (projected ω_i): every position is observed under omega_i and
+    // under each of these, at every wavelength (steep surfaces: add_oblique_lights in
+    // roughness_plan.h). Empty: one light.
+    std::vector<std::array<double, 2>> oblique_omega_i;
     Model model = Model::OHS;
     std::vector<std::string> notes;  // choices the caller should know about
     // White light: non-empty, one RGB observation per position, of a broadband source sampled
@@ -81,9 +85,12 @@ struct AcquisitionPlan {
 // the wavelength range cannot unwrap (names the largest range it can).
 AcquisitionPlan plan_acquisition(const PlanRequest& request);
 
-// One observation per (position, wavelength) of `plan`, with empty references (render them with
-// render_observation, or fill them with measurements).
+// One observation per (position, light, wavelength) of `plan`, in that order (position slowest),
+// with empty references (render them with render_observation, or fill them with measurements).
 std::vector<Observation> planned_observations(const AcquisitionPlan& plan);
+
+// How many observations planned_observations(plan) makes per position (lights × wavelengths).
+std::size_t observations_per_position(const AcquisitionPlan& plan);
 
 // The planned observations of `truth`, rendered, with `noise` added (seeded per observation,
 // noise.h), one observation per thread: the same bits for any thread count. `progress`, when

@@ -68,6 +68,10 @@ struct RecoveryOptions {
     // Acquisition, planned for a truth (PlanRequest's fields of the same names).
     Model model = Model::OHS;
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (|ω_i| < 1)
+    // Steep surfaces (the stated range and correlation, roughness_plan.h): every position is
+    // observed under oblique lights as well (add_oblique_lights). false: under omega_i alone
+    // (an instrument with one source).
+    bool oblique_lights = true;
     double sigma_p_um = 0.0;                    // 0: the planner's (1.5 texels, or below)
     // The stage's position uncertainty, µm rms per coordinate (PlanRequest's: the planner sizes
     // σ_p for it; with calibrate.positions the loop's rescue searches ± k × it,

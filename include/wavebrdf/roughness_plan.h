@@ -12,7 +12,8 @@
 // tile of ~10³ texels is ≈ 6σ_h, so rms |∇H| ≈ range / (3ℓ). A facet of slope s reflects
 // normal light towards |ω_o| ≈ 2s: beyond the slice's rim (|ω_o| > 1) from s > 0.5, i.e. for
 // the 3σ tail from an rms slope of ≈ 0.17 (a wavelength, a σ_p or a slice size cannot bring it
-// back: the slice already spans the whole hemisphere).
+// back: the slice already spans the whole hemisphere; a light tilted along the slope can:
+// oblique_omega_i below).
 //
 // Long wavelengths for steep or fine surfaces (docs/recovery.md, "Rough surfaces"): the blurred
 // fit ends ≈ 17 % of the range off (rms) on rough surfaces, more than λ/4 at every visible
@@ -24,6 +25,7 @@
 // then each shorter long one's added, then every slice, RecoverSettings::refine_ladder_min_um). The model holds at any λ (the Gabor
 // kernels' tangent planes are better approximations the longer λ is; the slices' Nyquist size
 // 4D/λ falls with λ, so the visible wavelengths' slice size covers them).
+#include <array>
 #include <string>
 #include <vector>
 
@@ -47,6 +49,13 @@ struct RoughnessPlan {
     // refinement runs on the longest wavelength's slices, then adds each shorter long one, then
     // every slice at once (docs/recovery.md, "Rough surfaces", round 5).
     double refine_ladder_min_um = 0.0;
+    // Steep surfaces: further light directions (projected ω_i, a ring around normal incidence)
+    // under which the acquisition observes every position as well (empty: one light). A facet
+    // of slope s sends light ω_i towards ω_o ≈ −ω_i − 2s, so a light tilted along a slope
+    // brings its reflection back onto the slice: with the ring, slopes up to 0.85 along the
+    // lights' azimuths (0.63 in any direction; normal light alone: 0.45) reflect inside the rim
+    // 0.9 of some slice (docs/recovery.md, Rough surfaces, round 16).
+    std::vector<std::array<double, 2>> oblique_omega_i;
     std::vector<std::string> notes;  // the choice, one line each
 };
 
@@ -84,5 +93,9 @@ void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, Recove
 // than every planned one left out) and a note saying the source they need. Returns how many
 // were added (0 for a smooth surface: the acquisition is unchanged).
 int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition);
+
+// `acquisition` with the plan's oblique lights (AcquisitionPlan::oblique_omega_i) and a note
+// saying what they cost. Returns how many were added (0 for a surface that is not steep).
+int add_oblique_lights(const RoughnessPlan& plan, AcquisitionPlan& acquisition);
 
 }  // namespace wavebrdf

@@ -10,7 +10,7 @@ class AcquisitionPlan:
     """What plan_acquisition proposes: footprint centres on a jittered raster over the periodic tile,
     a slice resolution that samples the window (Nyquist), and wavelengths whose synthetic
     wavelengths unwrap the height range. planned_observations / simulate_observations turn it
-    into Observations (one per position and wavelength).
+    into Observations (one per position, light and wavelength).
     """
     @property
     def sigma_p_um(self) -> float:
@@ -42,7 +42,11 @@ class AcquisitionPlan:
         ...
     @property
     def light(self) -> tuple:
-        """projected light direction (wx, wy) of every observation"""
+        """projected light direction (wx, wy) (of every observation without oblique_lights)"""
+        ...
+    @property
+    def oblique_lights(self) -> list:
+        """further light directions (wx, wy) under which every position is observed as well (steep surfaces; empty: one light)"""
         ...
     @property
     def model(self) -> str:
@@ -791,7 +795,7 @@ def read_slice(path: str) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ..., oblique_lights: bool = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -808,6 +812,10 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   observations: bound on the height range
     correlation_texels  generated truth: correlation length in texels (> 0)
     model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
+    oblique_lights  steep generated surfaces (expected rms slope > 0.2 from height_range_um and
+                  correlation_texels): every position is observed under 4 oblique lights at
+                  sin(theta_i) = 0.8 as well, so that steep facets reflect into a slice (default
+                  True); False: under `light` alone (the CLI's --no-oblique-lights)
     sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels or position_uncertainty_um
                   if larger)
     position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per

@@ -264,23 +264,32 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
 
 std::vector<Observation> planned_observations(const AcquisitionPlan& plan) {
     std::vector<Observation> out;
-    const auto add = [&](const std::array<double, 2>& p, std::vector<double> lambdas_um) {
+    std::vector<std::array<double, 2>> lights{plan.omega_i};
+    lights.insert(lights.end(), plan.oblique_omega_i.begin(), plan.oblique_omega_i.end());
+    const auto add = [&](const std::array<double, 2>& p, const std::array<double, 2>& light,
+                         std::vector<double> lambdas_um) {
         Observation o;
         o.query.x_um = p[0];
         o.query.y_um = p[1];
         o.query.sigma_p_um = plan.sigma_p_um;
-        o.query.omega_i = plan.omega_i;
+        o.query.omega_i = light;
         o.query.model = plan.model;
         o.lambdas_um = std::move(lambdas_um);
         o.resolution = plan.resolution;
         out.push_back(std::move(o));
     };
-    if (!plan.white_lambdas_um.empty())
-        for (const auto& p : plan.positions_um) add(p, plan.white_lambdas_um);
-    else
-        for (const auto& p : plan.positions_um)
-            for (double lambda : plan.lambdas_um) add(p, {lambda});
+    for (const auto& p : plan.positions_um)
+        for (const auto& light : lights)
+            if (!plan.white_lambdas_um.empty())
+                add(p, light, plan.white_lambdas_um);
+            else
+                for (double lambda : plan.lambdas_um) add(p, light, {lambda});
     return out;
+}
+
+std::size_t observations_per_position(const AcquisitionPlan& plan) {
+    const std::size_t lights = 1 + plan.oblique_omega_i.size();
+    return lights * (plan.white_lambdas_um.empty() ? plan.lambdas_um.size() : 1);
 }
 
 namespace {
@@ -408,22 +417,33 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
         warnings.push_back("the slices hold " + fixed(values, 0) + " values for " + std::to_string(rows * cols) +
                            " heights: too few to determine them");
 
-    // Light must stay on the slice: a facet of slope s reflects towards ω_o ≈ −ω_i − 2s.
+    // Light must reach a slice: a facet of slope s reflects light ω_i towards ω_o ≈ −ω_i − 2s,
+    // measured when some observation's light puts that inside the rim (0.9: the disk's edge
+    // pixels hold a fraction of the lobe).
     if (truth) {
-        double max_slope = 0.0;
+        std::vector<std::array<double, 2>> lights;
+        for (const Observation& o : observations)
+            if (std::find(lights.begin(), lights.end(), o.query.omega_i) == lights.end())
+                lights.push_back(o.query.omega_i);
+        double max_unseen_slope = 0.0;
+        long long unseen = 0;
         for (int i = 0; i < truth->rows(); ++i)
             for (int j = 0; j < truth->cols(); ++j) {
                 const auto s = truth->slope(i, j);
-                max_slope = std::max(max_slope, std::hypot(s[0], s[1]));
+                const bool seen = std::any_of(lights.begin(), lights.end(), [&](const std::array<double, 2>& w) {
+                    return std::hypot(w[0] + 2.0 * s[0], w[1] + 2.0 * s[1]) <= 0.9;
+                });
+                if (!seen) {
+                    ++unseen;
+                    max_unseen_slope = std::max(max_unseen_slope, std::hypot(s[0], s[1]));
+                }
             }
-        double light = 0.0;
-        for (const Observation& o : observations)
-            light = std::max(light, std::hypot(o.query.omega_i[0], o.query.omega_i[1]));
-        if (light + 2.0 * max_slope > 0.9)
-            warnings.push_back("slopes up to " + fixed(max_slope, 3) + " reflect light towards |omega_o| up to " +
-                               fixed(light + 2.0 * max_slope, 2) +
-                               ", at or beyond the slice's rim: part of the field is not measured (use larger texels "
-                               "or lower heights)");
+        if (unseen > 0)
+            warnings.push_back(std::to_string(unseen) + " of " + std::to_string(truth->rows() * truth->cols()) +
+                               " texels (slopes up to " + fixed(max_unseen_slope, 3) + ") reflect " +
+                               (lights.size() == 1 ? "the light" : "each of the " + std::to_string(lights.size()) + " lights") +
+                               " beyond the slice's rim (|omega_o| > 0.9): part of the field is not measured "
+                               "(use oblique lights, larger texels or lower heights)");
     }
     return warnings;
 }

@@ -269,10 +269,14 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         }
         AcquisitionPlan plan = plan_acquisition(request);
         // Rough surfaces (roughness_plan.h): long wavelengths for the field stage's start.
-        if (options.method == RecoveryMethod::Pipeline && white.empty() && options.lambdas_um.empty() &&
-            options.correlation_texels > 0.0 && r.range_um > 0.0)
-            add_long_wavelengths(plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um),
-                                 plan);
+        // Steep ones: oblique lights, so that their steep facets reflect into a slice.
+        if (options.method == RecoveryMethod::Pipeline && white.empty() && options.correlation_texels > 0.0 &&
+            r.range_um > 0.0) {
+            const RoughnessPlan rough =
+                plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
+            if (options.lambdas_um.empty()) add_long_wavelengths(rough, plan);
+            if (options.oblique_lights) add_oblique_lights(rough, plan);
+        }
         if (!white.empty()) {
             plan.white_lambdas_um = white;
             plan.notes.push_back("white light: one RGB slice per position, " + std::to_string(white.size()) +
@@ -321,7 +325,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         if (e.any()) {
             Calibration t;
             t.sigma_p_scale = e.sigma_p_factor;
-            const std::size_t per_position = std::max<std::size_t>(plan.lambdas_um.size(), 1);
+            const std::size_t per_position = std::max<std::size_t>(observations_per_position(plan), 1);
             for (std::size_t k = 0; k < r.share.size(); ++k) {
                 Observation& o = r.observations[k];
                 const double exposure = simulated_exposure(e, r.share[k]);
