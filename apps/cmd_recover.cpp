@@ -320,8 +320,8 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
     cmd->add_flag("--no-oblique-lights", a->no_oblique_lights,
-                  "steep surfaces: observe under the one light only (default: the planner adds 4 oblique lights "
-                  "so that steep facets reflect into a slice)");
+                  "steep surfaces: observe under the one light only (default, OHS and ROHS: the planner adds 4 "
+                  "oblique lights so that steep facets reflect into a slice)");
     cmd->add_option("--sigma-p-um", a->sigma_p_um,
                     "footprint sigma_p in um (0: the planner's, 1.5 texels or the position uncertainty if larger)")
         ->capture_default_str();

@@ -876,7 +876,8 @@ model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable pro
 oblique_lights  steep generated surfaces (expected rms slope > 0.2 from height_range_um and
               correlation_texels): every position is observed under 4 oblique lights at
               sin(theta_i) = 0.8 as well, so that steep facets reflect into a slice (default
-              True); False: under `light` alone (the CLI's --no-oblique-lights)
+              True; OHS and ROHS: GHS-type models keep one light); False: under `light` alone
+              (the CLI's --no-oblique-lights)
 sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels or position_uncertainty_um
               if larger)
 position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per

@@ -142,6 +142,13 @@ TEST(RoughnessPlan, SteepSurfacesGetObliqueLights) {
     EXPECT_EQ(acquisition.oblique_omega_i, steep.oblique_omega_i);
     ASSERT_EQ(acquisition.notes.size(), 1u);
     EXPECT_NE(acquisition.notes[0].find("oblique lights"), std::string::npos);
+    // GHS-type slices share one light direction in the field stage: none added, said so.
+    AcquisitionPlan ghs;
+    ghs.model = Model::GHS;
+    EXPECT_EQ(add_oblique_lights(steep, ghs), 0);
+    EXPECT_TRUE(ghs.oblique_omega_i.empty());
+    ASSERT_EQ(ghs.notes.size(), 1u);
+    EXPECT_NE(ghs.notes[0].find("no oblique lights for GHS"), std::string::npos);
 }
 
 // prepare_recovery observes a steep generated surface under every light, unless told not to.
@@ -160,6 +167,14 @@ TEST(RoughnessPlan, PrepareRecoveryObservesSteepSurfacesUnderObliqueLights) {
     const PreparedRecovery one = prepare_recovery(options);
     EXPECT_EQ(steep.observations.size(), 5 * one.observations.size());
     for (const Observation& o : one.observations) EXPECT_EQ(o.query.omega_i, (std::array<double, 2>{{0.0, 0.0}}));
+    // GHS keeps one light (its field stage refuses several) and says why.
+    options.oblique_lights = true;
+    options.model = Model::GHS;
+    const PreparedRecovery ghs = prepare_recovery(options);
+    EXPECT_EQ(ghs.observations.size(), one.observations.size());
+    bool noted = false;
+    for (const auto& n : ghs.notes) noted = noted || n.find("no oblique lights for GHS") != std::string::npos;
+    EXPECT_TRUE(noted);
 }
 
 TEST(RoughnessPlan, RejectsBadValues) {

@@ -95,7 +95,8 @@ void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, Recove
 int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition);
 
 // `acquisition` with the plan's oblique lights (AcquisitionPlan::oblique_omega_i) and a note
-// saying what they cost. Returns how many were added (0 for a surface that is not steep).
+// saying what they cost. Returns how many were added (0 for a surface that is not steep, and for
+// GHS-type models, whose field stage takes one light direction: a note says so).
 int add_oblique_lights(const RoughnessPlan& plan, AcquisitionPlan& acquisition);
 
 }  // namespace wavebrdf

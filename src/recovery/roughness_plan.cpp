@@ -8,6 +8,7 @@
 
 #include "core/text.h"
 #include "wavebrdf/acquisition.h"
+#include "wavebrdf/model.h"
 #include "wavebrdf/recover.h"
 
 namespace wavebrdf {
@@ -192,6 +193,14 @@ int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition
 
 int add_oblique_lights(const RoughnessPlan& plan, AcquisitionPlan& acquisition) {
     if (plan.oblique_omega_i.empty()) return 0;
+    if (!is_separable(acquisition.model)) {
+        // The field stage takes GHS-type slices through the OHS proxy at one height scale cos θ_i
+        // (field_proxy.h): every GHS slice must share one light direction.
+        acquisition.notes.push_back(std::string("steep surface: no oblique lights for ") + to_string(acquisition.model) +
+                                    " (its field stage takes one light direction): light beyond the slice's rim "
+                                    "is not measured");
+        return 0;
+    }
     acquisition.oblique_omega_i.insert(acquisition.oblique_omega_i.end(), plan.oblique_omega_i.begin(),
                                        plan.oblique_omega_i.end());
     const int count = int(plan.oblique_omega_i.size());
