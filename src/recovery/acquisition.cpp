@@ -442,8 +442,8 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
             warnings.push_back(std::to_string(unseen) + " of " + std::to_string(truth->rows() * truth->cols()) +
                                " texels (slopes up to " + fixed(max_unseen_slope, 3) + ") reflect " +
                                (lights.size() == 1 ? "the light" : "each of the " + std::to_string(lights.size()) + " lights") +
-                               " beyond the slice's rim (|omega_o| > 0.9): part of the field is not measured "
-                               "(use oblique lights, larger texels or lower heights)");
+                               " beyond the slice's rim (|omega_o| > 0.9): part of the field is not measured (use " +
+                               (lights.size() == 1 ? "oblique lights, " : "") + "larger texels or lower heights)");
     }
     return warnings;
 }
