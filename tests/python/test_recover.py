@@ -421,6 +421,7 @@ def test_steep_surfaces_are_observed_under_oblique_lights():
     assert len(lights) == 5 and (0.0, 0.0) in lights
     assert all(abs(math.hypot(*w) - 0.8) < 1e-12 for w in lights - {(0.0, 0.0)})
     assert any("oblique lights" in n for n in many.notes)
+    assert wb.plan_acquisition(height_range_um=8.0).oblique_lights == []  # the planner alone: one light
 
     def unseen(result, phrase):
         found = [w for w in result.warnings if phrase in w]
