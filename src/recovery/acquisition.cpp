@@ -438,12 +438,13 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
                     max_unseen_slope = std::max(max_unseen_slope, std::hypot(s[0], s[1]));
                 }
             }
+        const bool one = lights.size() == 1;
         if (unseen > 0)
             warnings.push_back(std::to_string(unseen) + " of " + std::to_string(truth->rows() * truth->cols()) +
                                " texels (slopes up to " + fixed(max_unseen_slope, 3) + ") reflect " +
-                               (lights.size() == 1 ? "the light" : "each of the " + std::to_string(lights.size()) + " lights") +
+                               (one ? "the light" : "each of the " + std::to_string(lights.size()) + " lights") +
                                " beyond the slice's rim (|omega_o| > 0.9): part of the field is not measured (use " +
-                               (lights.size() == 1 ? "oblique lights, " : "") + "larger texels or lower heights)");
+                               (one ? "oblique lights, " : "") + "larger texels or lower heights)");
     }
     return warnings;
 }

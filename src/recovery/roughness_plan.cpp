@@ -120,7 +120,8 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
             for (int k = 0; k < kObliqueLights; ++k) {
                 const double azimuth = 2.0 * 3.14159265358979323846 * k / kObliqueLights;
                 // Exact zeros on the axes (cos 90° is 6e-17 otherwise): the lights print as stated.
-                const double c = std::round(std::cos(azimuth) * 1e12) / 1e12, s = std::round(std::sin(azimuth) * 1e12) / 1e12;
+                const double c = std::round(std::cos(azimuth) * 1e12) / 1e12;
+                const double s = std::round(std::sin(azimuth) * 1e12) / 1e12;
                 plan.oblique_omega_i.push_back({{kObliqueLightSin * c, kObliqueLightSin * s}});
             }
         plan.notes.push_back(
@@ -196,7 +197,8 @@ int add_oblique_lights(const RoughnessPlan& plan, AcquisitionPlan& acquisition) 
     if (!is_separable(acquisition.model)) {
         // The field stage takes GHS-type slices through the OHS proxy at one height scale cos θ_i
         // (field_proxy.h): every GHS slice must share one light direction.
-        acquisition.notes.push_back(std::string("steep surface: no oblique lights for ") + to_string(acquisition.model) +
+        acquisition.notes.push_back(std::string("steep surface: no oblique lights for ") +
+                                    to_string(acquisition.model) +
                                     " (its field stage takes one light direction): light beyond the slice's rim "
                                     "is not measured");
         return 0;
@@ -207,7 +209,8 @@ int add_oblique_lights(const RoughnessPlan& plan, AcquisitionPlan& acquisition) 
     acquisition.notes.push_back(
         "steep surface: " + std::to_string(count) + " oblique lights at sin(theta_i) = " + fixed(kObliqueLightSin, 2) +
         " added (azimuths every " + fixed(360.0 / count, 0) +
-        " deg): facets up to slope 0.63 in any direction (0.85 along the lights) reflect into a slice; every position is observed under each light, " +
+        " deg): facets up to slope 0.63 in any direction (0.85 along the lights) reflect into a slice; "
+        "every position is observed under each light, " +
         std::to_string(count + 1) + "x the slices");
     return count;
 }
