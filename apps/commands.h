@@ -16,5 +16,6 @@ void add_genbrdf_command(CLI::App& app);      // wavebrdf genbrdf: the reference
 void add_invert_command(CLI::App& app);       // wavebrdf invert: the inverse renderer
 void add_recover_command(CLI::App& app);      // wavebrdf recover: heights from overlapping slices
 void add_table_command(CLI::App& app);        // wavebrdf table: slices over a grid of lights
+void add_lobe_command(CLI::App& app);         // wavebrdf lobe: an analytic lobe as a table
 
 }  // namespace wavebrdf::cli

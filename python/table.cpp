@@ -1,14 +1,13 @@
 // BRDF tables (table.h): rendering one and reading its file, as dicts of NumPy arrays and
 // numbers that wavebrdf/table.py wraps into a BrdfTable. This file only converts and validates.
 #include "common.h"
+#include "lobe.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/table.h"
 
 namespace wavebrdf::python {
 
 using namespace pybind11::literals;
-
-namespace {
 
 py::dict table_dict(BrdfTable&& t) {
     const TableSpec& s = t.spec;
@@ -27,10 +26,9 @@ py::dict table_dict(BrdfTable&& t) {
                     "lambdas_um"_a = s.lambdas_um, "spectral"_a = s.spectral,
                     "precision"_a = s.double_precision ? "double" : "float",
                     "heightfield_size"_a = py::make_tuple(t.heightfield_rows, t.heightfield_cols),
-                    "texel_um"_a = t.texel_um, "vscale"_a = t.vscale, "version"_a = t.version);
+                    "texel_um"_a = t.texel_um, "vscale"_a = t.vscale, "version"_a = t.version,
+                    "source"_a = t.source);
 }
-
-}  // namespace
 
 void bind_table(py::module_& m) {
     m.def(

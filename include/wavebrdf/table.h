@@ -59,6 +59,9 @@ struct BrdfTable {
     int heightfield_rows = 0, heightfield_cols = 0;
     double texel_um = 1.0, vscale = 1.0;
     std::string version;          // wavebrdf version that wrote the table
+    // "" for a table rendered from a surface; otherwise what made it instead (an analytic lobe,
+    // lobe.h), stored as the optional attribute wavebrdf:source.
+    std::string source;
     std::vector<double> light_x;  // rows values: ω_i,x of each light row (light_grid_omega)
     std::vector<double> light_y;  // cols values: ω_i,y of each light column
     // rows · cols flags (row-major): 1 where the light was rendered (|ω_i| ≤ max_sin), 0 where

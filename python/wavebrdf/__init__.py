@@ -66,7 +66,7 @@ from ._core import (  # noqa: F401
 
 from ._core import __version__  # from the file VERSION, through the extension
 from ._core import read_slice  # noqa: F401  (a slice EXR and what it says about itself)
-from .table import BrdfTable, read_table, render_table  # noqa: F401  (wavebrdf table, docs/table.md)
+from .table import BrdfTable, lobe_brdf, lobe_table, read_table, render_table  # noqa: F401  (docs/table.md)
 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
@@ -75,7 +75,7 @@ __all__ = [
     "planned_observations", "read_observations", "recover", "recover_heights", "recover_heights_thesis", "render",
     "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",
     "spectral_to_srgb_weights", "spectral_wavelengths_um", "with_height_range", "write_observations",
-    "BrdfTable", "read_table", "render_table",
+    "BrdfTable", "read_table", "render_table", "lobe_table", "lobe_brdf",
 ]
 __all__ += ["read_slice"]
 # Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.

@@ -16,7 +16,7 @@ import os
 
 from . import _core
 
-__all__ = ["BrdfTable", "read_table", "render_table"]
+__all__ = ["BrdfTable", "lobe_brdf", "lobe_table", "read_table", "render_table"]
 
 
 class BrdfTable:
@@ -37,6 +37,8 @@ class BrdfTable:
     heightfield_size, texel_um, vscale   the surface: (rows, cols) texels, texel width in um,
                     vertical scale
     version         the wavebrdf version that rendered it
+    source          '' for a table rendered from a surface; an analytic lobe's description
+                    (lobe_table) otherwise
     """
 
     def __init__(self, fields):
@@ -94,3 +96,38 @@ def render_table(heightfield, query, *, lights=(32, 32), max_light_sin=0.9, reso
     table = _core._render_table(heightfield, query, lights, max_light_sin, resolution, precision,
                                 max_memory_gb, "" if out is None else str(out), path, tolerance, comm)
     return None if table is None else BrdfTable(table)
+
+
+def _lobe_alphas(alpha, alpha_x, alpha_y):
+    return (alpha if alpha_x is None else alpha_x, alpha if alpha_y is None else alpha_y)
+
+
+def lobe_table(distribution="ggx", alpha=0.2, *, alpha_x=None, alpha_y=None, fresnel_f0=1.0, lights=(32, 32),
+               max_light_sin=0.9, resolution=64, lambda_um=0.5, max_memory_gb=0.0, out=None):
+    """An analytic microfacet lobe as a BRDF table (``wavebrdf lobe``, docs/table.md "Analytic
+    lobes"): the Cook-Torrance BRDF with a GGX or Beckmann distribution, height-correlated Smith
+    masking-shadowing and Schlick's Fresnel, sampled at the table's light grid and slice pixels.
+
+    distribution    'ggx' or 'beckmann'
+    alpha           roughness of an isotropic lobe, 0.001...4 (default 0.2)
+    alpha_x, alpha_y  roughness along x (slice rows) and y (columns); default alpha
+    fresnel_f0      Schlick's F0, 0...1; 1 (default): no Fresnel, a perfect reflector as the
+                    wave-optical models are
+    lights, max_light_sin, resolution   the light grid and slice size, as render_table's
+    lambda_um       the wavelength recorded in the table (the lobe does not depend on it)
+    max_memory_gb   refuse (MemoryError) a table beyond this many GB; 0: the physical memory
+    out             optional path: also write the table file there (atomically)
+    Returns a BrdfTable (its ``source`` names the lobe); ValueError for a bad value.
+    """
+    ax, ay = _lobe_alphas(alpha, alpha_x, alpha_y)
+    return BrdfTable(_core._lobe_table(str(distribution), float(ax), float(ay), float(fresnel_f0), lights,
+                                       float(max_light_sin), int(resolution), float(lambda_um), float(max_memory_gb),
+                                       "" if out is None else str(out)))
+
+
+def lobe_brdf(omega_i, omega_o, distribution="ggx", alpha=0.2, *, alpha_x=None, alpha_y=None, fresnel_f0=1.0):
+    """f_r in 1/sr of the lobe lobe_table tabulates, for projected directions omega_i = (x, y)
+    (towards the light) and omega_o (towards the viewer); 0 outside the unit disk."""
+    ax, ay = _lobe_alphas(alpha, alpha_x, alpha_y)
+    return _core._lobe_brdf(str(distribution), float(ax), float(ay), float(fresnel_f0), float(omega_i[0]),
+                            float(omega_i[1]), float(omega_o[0]), float(omega_o[1]))

@@ -165,6 +165,8 @@ void write_brdf_table(const std::string& path, const BrdfTable& table) {
     header.insert("wavebrdf:heightfield_cols", Imf::IntAttribute(table.heightfield_cols));
     header.insert("wavebrdf:texel_um", Imf::DoubleAttribute(table.texel_um));
     header.insert("wavebrdf:vscale", Imf::DoubleAttribute(table.vscale));
+    if (!table.source.empty())
+        header.insert("wavebrdf:source", Imf::StringAttribute(table.source.substr(0, k_max_attribute_chars)));
     write_file_atomically(path, [&](const std::string& temporary) {
         Imf::FrameBuffer frame;
         const std::size_t stride = 3 * sizeof(float);
@@ -210,6 +212,8 @@ BrdfTable read_brdf_table(const std::string& path) {
         t.heightfield_cols = at.integer("wavebrdf:heightfield_cols", 1, std::numeric_limits<int>::max());
         t.texel_um = at.real("wavebrdf:texel_um");
         t.vscale = at.real("wavebrdf:vscale");
+        if (file.header().findTypedAttribute<Imf::StringAttribute>("wavebrdf:source") != nullptr)
+            t.source = at.text("wavebrdf:source", k_max_attribute_chars);
         try {
             validate(s);
         } catch (const std::exception& e) {
