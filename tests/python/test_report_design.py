@@ -1,0 +1,182 @@
+"""report.png of a design run (wavebrdf.report_design), drawn from a synthetic run directory
+written here: design.json by hand, the pictures by a minimal EXR writer of this file's own (an
+independent writer of the format), heights.exr through Heightfield.save_exr."""
+import json
+import os
+import struct
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import wavebrdf as wb
+
+matplotlib = pytest.importorskip("matplotlib")
+
+PY_DIR = os.path.dirname(os.path.dirname(os.path.abspath(wb.__file__)))
+
+
+def write_rgb_exr(path, rgb):
+    """An uncompressed scanline OpenEXR of float R, G, B (OpenEXR file layout 2.0)."""
+    rows, cols, _ = rgb.shape
+
+    def attribute(name, kind, data):
+        return name.encode() + b"\0" + kind.encode() + b"\0" + struct.pack("<i", len(data)) + data
+
+    channels = b"".join(c.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1) for c in "BGR") + b"\0"
+    box = struct.pack("<iiii", 0, 0, cols - 1, rows - 1)
+    header = (attribute("channels", "chlist", channels) + attribute("compression", "compression", b"\0") +
+              attribute("dataWindow", "box2i", box) + attribute("displayWindow", "box2i", box) +
+              attribute("lineOrder", "lineOrder", b"\0") + attribute("pixelAspectRatio", "float", struct.pack("<f", 1)) +
+              attribute("screenWindowCenter", "v2f", struct.pack("<ff", 0, 0)) +
+              attribute("screenWindowWidth", "float", struct.pack("<f", 1)) + b"\0")
+    start = 8 + len(header) + 8 * rows
+    line_bytes = 4 * 3 * cols
+    blob = bytearray(b"\x76\x2f\x31\x01" + struct.pack("<i", 2) + header)
+    blob += b"".join(struct.pack("<Q", start + y * (8 + line_bytes)) for y in range(rows))
+    for y in range(rows):
+        blob += struct.pack("<ii", y, line_bytes)
+        for c in (2, 1, 0):  # B, G, R: channels in name order
+            blob += rgb[y, :, c].astype("<f4").tobytes()
+    with open(path, "wb") as f:
+        f.write(bytes(blob))
+
+
+def design_doc(kind="colour"):
+    exact = {"delta_uv": 0.021, "luminous_efficiency": 0.12, "uv": [0.2, 0.5], "target_uv": [0.21, 0.51],
+             "linear_srgb": [0.8, 0.1, 0.05], "reflectance": [0.5, 0.4]}
+    return {
+        "kind": "design",
+        "target": {"kind": kind, "text": "colour:#ff2010", "srgb8": [255, 32, 16], "linear_rgb": [1.0, 0.014, 0.005],
+                   "view": [0.0, 0.0], "view_cone": 0.05},
+        "constraints": {"size": 16, "texel_um": 0.5, "height_range_um": 2.0, "levels": 4},
+        "levels_um": [0.0, 2.0 / 3, 4.0 / 3, 2.0],
+        "metrics": {"model": dict(exact, delta_uv=0.018), "exact": exact, "final_loss": 0.01},
+        "fabrication_errors": [{"error": "scale 0.95", "metrics": dict(exact, delta_uv=0.03)},
+                               {"error": "blur 0.3 um", "metrics": dict(exact, delta_uv=0.05)}],
+        "notes": ["a note"],
+        "timings_s": {"total": 12.5},
+    }
+
+
+def make_run(d, doc=None, heights=True, pictures=True, csv=True):
+    os.makedirs(d, exist_ok=True)
+    if doc is not False:
+        with open(os.path.join(d, "design.json"), "w") as f:
+            json.dump(design_doc() if doc is None else doc, f)
+    rng = np.random.default_rng(3)
+    if heights:
+        levels = rng.integers(0, 4, size=(16, 16))
+        levels[0, 0] = 3
+        levels[:, 1] = 1  # level 1 on 16 texels at least, so the histogram's counts are known below
+        h_um = levels * (2.0 / 3)
+        wb.Heightfield(h_um / 0.5, texel_um=0.5).save_exr(os.path.join(d, "heights.exr"))
+    if pictures:
+        n = 24
+        y, x = np.mgrid[0:n, 0:n]
+        blob = np.exp(-((x - 12) ** 2 + (y - 12) ** 2) / 20.0)
+        write_rgb_exr(os.path.join(d, "target.exr"), np.stack([blob, 0.1 * blob, 0.0 * blob], axis=2))
+        write_rgb_exr(os.path.join(d, "far_field.exr"), np.stack([0.8 * blob, 0.2 * blob, 0.1 * blob], axis=2))
+    if csv:
+        with open(os.path.join(d, "metrics.csv"), "w") as f:
+            f.write("iteration,loss,phase,temperature\n")
+            for i in range(30):
+                f.write("%d,%g,%s,%g\n" % (i, 1.0 / (1 + i), "relaxed" if i < 20 else "refine", 0.5))
+    return d
+
+
+def run_report(d):
+    env = dict(os.environ, PYTHONPATH=PY_DIR + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    return subprocess.run([sys.executable, "-m", "wavebrdf.report", d], capture_output=True, text=True, env=env)
+
+
+def test_minimal_exr_writer_is_read_back_exactly(tmp_path):
+    # The test's own EXR writer against the library's reader, so the pictures below are what
+    # the report reads.
+    rgb = np.random.default_rng(1).random((5, 7, 3)).astype(np.float32)
+    write_rgb_exr(str(tmp_path / "x.exr"), rgb)
+    image, _ = wb.read_slice(str(tmp_path / "x.exr"))
+    np.testing.assert_array_equal(np.asarray(image), rgb)
+
+
+def test_design_report_is_drawn(tmp_path):
+    d = make_run(str(tmp_path / "run"))
+    r = run_report(d)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == os.path.join(d, "report.png")
+    from PIL import Image
+
+    im = Image.open(os.path.join(d, "report.png"))
+    assert im.size[0] > 1000 and im.size[1] > 500
+    assert not [f for f in os.listdir(d) if f.endswith(".tmp")]
+
+
+def test_metrics_table_and_histogram_read_the_run(tmp_path):
+    from wavebrdf import report_design
+
+    d = make_run(str(tmp_path / "run"))
+    names, columns = report_design.metrics_rows(report_design.read_design_json(d))
+    assert [c for c, _ in columns] == ["design model", "exact scalar", "scale 0.95", "blur 0.3 um"]
+    assert names[0] == "delta_uv" and "luminous_efficiency" in names
+    assert [m["delta_uv"] for _, m in columns] == [0.018, 0.021, 0.03, 0.05]
+    h = report_design.read_heights_um(d)
+    assert h.shape == (16, 16)
+    # heights.exr holds texel units with texel_um 0.5: back in µm on the levels.
+    np.testing.assert_allclose(np.sort(np.unique(np.round(h, 9))), [0.0, 2 / 3, 4 / 3, 2.0], atol=1e-6)
+    curve = report_design.read_loss_curve(d)
+    assert list(curve["iteration"][:3]) == [0, 1, 2] and curve["phase"][25] == "refine"
+
+
+def test_linear_to_srgb_swatch():
+    from wavebrdf import report_design
+
+    np.testing.assert_allclose(report_design.linear_to_srgb([1.0, 0.0, 0.0]), [1.0, 0.0, 0.0])
+    # Mid grey 0.2140 linear is sRGB 0.5 (IEC 61966-2-1), after normalising the largest channel to 1.
+    np.testing.assert_allclose(report_design.linear_to_srgb([2.0, 0.428, 0.428]), [1.0, 0.5, 0.5], atol=1e-3)
+    np.testing.assert_array_equal(report_design.linear_to_srgb([0.0, 0.0, 0.0]), [0.0, 0.0, 0.0])
+
+
+def test_absent_optional_files_and_keys_still_draw(tmp_path):
+    doc = {"target": {"kind": "anti-mirror"}}  # no metrics, no constraints, no levels
+    d = make_run(str(tmp_path / "sparse"), doc=doc, heights=False, pictures=False, csv=False)
+    r = run_report(d)
+    assert r.returncode == 0, r.stderr
+    assert os.path.exists(os.path.join(d, "report.png"))
+    # A grayscale design without levels_um: the plain histogram.
+    doc = design_doc("anti-mirror")
+    del doc["levels_um"]
+    del doc["target"]["linear_rgb"]
+    d = make_run(str(tmp_path / "grey"), doc=doc)
+    r = run_report(d)
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("damage", ["bad_json", "array_json", "truncated_exr", "bad_csv", "no_design_json"])
+def test_unusable_files_give_one_line_and_exit_2(tmp_path, damage):
+    d = make_run(str(tmp_path / damage))
+    if damage == "bad_json":
+        with open(os.path.join(d, "design.json"), "w") as f:
+            f.write('{"target": ')
+    elif damage == "array_json":
+        with open(os.path.join(d, "design.json"), "w") as f:
+            f.write("[1, 2]")
+    elif damage == "truncated_exr":
+        path = os.path.join(d, "far_field.exr")
+        with open(path, "rb") as f:
+            data = f.read()
+        with open(path, "wb") as f:
+            f.write(data[: len(data) // 2])
+    elif damage == "bad_csv":
+        with open(os.path.join(d, "metrics.csv"), "a") as f:
+            f.write("31,not-a-number,refine,0.5\n")
+    elif damage == "no_design_json":
+        os.unlink(os.path.join(d, "design.json"))
+    r = run_report(d)
+    assert r.returncode == 2, (r.returncode, r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("wavebrdf.report: error: "), r.stderr
+    expected = {"bad_json": "design.json", "array_json": "design.json", "truncated_exr": "far_field.exr",
+                "bad_csv": "metrics.csv", "no_design_json": "design.json"}[damage]
+    assert expected in lines[0]
+    assert not os.path.exists(os.path.join(d, "report.png"))
