@@ -1,5 +1,6 @@
 // The compiled part of the Python package: wavebrdf._core (re-exported by wavebrdf/__init__.py).
 #include "common.h"
+#include "fabrication.h"
 #include "lobe.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/version.h"
@@ -20,6 +21,7 @@ PYBIND11_MODULE(_core, m) {
     bind_recover(m);
     bind_table(m);
     bind_lobe(m);
+    bind_fabrication(m);
     // A long call stopped by Ctrl-C (InterruptibleRelease): its poll left the signal handler's
     // exception (KeyboardInterrupt) pending; raise that, or KeyboardInterrupt if none is.
     py::register_exception_translator([](std::exception_ptr p) {

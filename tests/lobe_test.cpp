@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include "cli_util.h"
 #include "test_util.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/table.h"
@@ -216,6 +217,38 @@ TEST(Lobe, BadInputIsRefused) {
     spec.resolution = 512;
     spec.lights = {33, 32, 0.9};  // 33 · 512 > 16384 per side
     EXPECT_ANY_THROW(lobe_table(spec));
+}
+
+// The command writes the table lobe_table makes (read back by the table reader), and bad options
+// fail with one line naming the value and leave no file.
+TEST(Lobe, CommandWritesTheTableAndRefusesBadOptions) {
+    const fs::path dir = test::fresh_dir("lobe");
+    const test::CliResult r = test::run_cli(dir,
+                                            "lobe --distribution beckmann --alpha-x 0.3 --alpha-y 0.1 --lights 3x5 "
+                                            "--max-light-sin 0.7 --resolution 12 --out l.exr --png l.png --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err, "");
+    const BrdfTable t = read_brdf_table((dir / "l.exr").string());
+    LobeTableSpec spec;
+    spec.lobe.distribution = LobeDistribution::beckmann;
+    spec.lobe.alpha_x = 0.3;
+    spec.lobe.alpha_y = 0.1;
+    spec.lights = {3, 5, 0.7};
+    spec.resolution = 12;
+    EXPECT_EQ(t.values, lobe_table(spec).values);
+    EXPECT_TRUE(fs::exists(dir / "l.png"));
+    for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+             {"lobe --alpha 5 --out bad.exr", "alpha_x 5"},
+             {"lobe --alpha-y 0 --out bad.exr", "alpha_y 0"},
+             {"lobe --distribution phong --out bad.exr", "'phong'"},
+             {"lobe --fresnel-f0 -0.5 --out bad.exr", "fresnel_f0 -0.5"},
+             {"lobe --lights 0x4 --out bad.exr", "--lights"},
+             {"lobe --max-light-sin 1 --out bad.exr", "max sin"},
+             {"lobe --resolution 9000 --out bad.exr", "resolution 9000"}}) {
+        SCOPED_TRACE(args);
+        test::expect_one_line_naming(test::run_cli(dir, args), {needle});
+        EXPECT_FALSE(fs::exists(dir / "bad.exr"));
+    }
 }
 
 }  // namespace

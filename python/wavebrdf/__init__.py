@@ -81,3 +81,6 @@ __all__ += ["read_slice"]
 # Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.
 from ._core import built_with_hdf5, read_observation_index  # noqa: F401
 __all__ += ["built_with_hdf5", "read_observation_index"]
+# Files for fabricating a relief: 16-bit heights PNG, lithography masks, STL (docs/fabrication.md).
+from ._core import write_fabrication_exports  # noqa: F401
+__all__ += ["write_fabrication_exports"]
