@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 
 packages=(build-essential cmake pkg-config libopenexr-dev libeigen3-dev libcli11-dev
           nlohmann-json3-dev libfftw3-dev libpng-dev libgtest-dev libbenchmark-dev
-          python3 python3-numpy python3-matplotlib python3-pytest
+          python3 python3-numpy python3-matplotlib python3-pil python3-pytest
           python3-dev pybind11-dev python3-torch
           python3-venv python3-setuptools python3-pip python3-wheel python3-tqdm doxygen
           libopenmpi-dev openmpi-bin python3-mpi4py libhdf5-dev  # MPI and HDF5 (docs/scale.md)
