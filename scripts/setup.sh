@@ -10,6 +10,8 @@ packages=(build-essential cmake pkg-config libopenexr-dev libeigen3-dev libcli11
           python3-dev pybind11-dev python3-torch
           python3-venv python3-setuptools python3-pip python3-wheel python3-tqdm doxygen
           libopenmpi-dev openmpi-bin python3-mpi4py libhdf5-dev  # MPI and HDF5 (docs/scale.md)
+          libzip-dev libpugixml-dev  # x3p surface files (docs/surfaces.md)
+          gwyddion libgwyddion20-dev xvfb  # Gwyddion reads and writes surface files in the tests
           clang libclang-rt-dev libomp-dev)  # clang: the fuzzers (scripts/fuzz.sh)
 missing=()
 for p in "${packages[@]}"; do

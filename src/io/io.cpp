@@ -34,6 +34,7 @@
 #include <ImfVecAttribute.h>
 #include <png.h>
 
+#include "io/surface_formats.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/text.h"
 #include "wavebrdf/version.h"
@@ -474,6 +475,8 @@ double srgb_encode(double x) { return x <= 0.0031308 ? 12.92 * x : 1.055 * std::
 }  // namespace
 
 HeightfieldAttributes read_heightfield_attributes(const std::string& path) {
+    // Measured topographies (x3p, sdf, npy, ...) are heightfields too (surface_file.h).
+    if (surface_io::is_measured_surface_file(path)) return surface_io::measured_attributes(path);
     const ExrSource source(path);
     return heightfield_attributes(path, source.m_file->header());
 }
@@ -509,6 +512,7 @@ void append_rows(const ExrSource& source, const char* channel, int first_row, in
 template <typename RowsNeeded>
 HeightfieldFile read_heightfield_rows(const std::string& path, std::optional<double> texel_um,
                                       std::optional<double> vscale, const RowsNeeded& rows_needed) {
+    if (surface_io::is_measured_surface_file(path)) return surface_io::read_measured_heightfield(path, texel_um, vscale);
     ExrSource source(path);
     HeightfieldAttributes attributes = heightfield_attributes(path, source.m_file->header());
     const char* channel = height_channel(source);
@@ -572,6 +576,9 @@ HeightfieldScale resolve_heightfield_scale(const std::string& path, const Height
                                            const std::string& texel_option, const std::string& vscale_option,
                                            double default_texel_um, double default_vscale) {
     HeightfieldScale scale;
+    if (!texel_um && surface_io::measured_surface_needs_spacing(path))
+        throw std::runtime_error(path + ": " + file.units + " states no spacing; give the texel width (" +
+                                 texel_option + ")");
     const auto pick = [&](std::optional<double> given, std::optional<double> in_file, double fallback,
                           const std::string& option, const char* attribute) {
         if (given && in_file && *given != *in_file)
