@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 13's scaling benchmark (docs/scale.md, "Measured"): `wavebrdf recover` under
+# The scaling benchmark (docs/scale.md, "Measured"): `wavebrdf recover` under
 # `mpiexec -n K` for K in RANKS (default 1 2 3 4), whole process.
 #   strong   the same tile (--size N, default 64, --resolution 48) on every K: ideally the wall
 #            time falls as 1/K and the heights are the same bits as on one rank (checked: the

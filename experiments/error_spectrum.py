@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The height error of a recover run directory split by spatial frequency (docs/scale.md,
+"""The height error of a recover run directory split by spatial frequency (experiments/2026-11-24-field-tiles-and-coarse-space.md,
 "Where the 512² error is"): estimate_height.npy − truth_height.npy, each mean removed, 2-D FFT,
 the share of the error power below 1.5 cycles per surface, at 1.5–3, 3–6 and above 6, and the
 error's rms relative to the truth's height range (height_rel_rmse: all of it, with the best-fit

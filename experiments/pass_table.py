@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Round 11 (docs/recovery.md, "Self-calibration: positions"): the per-pass row of the outer loop
+"""Round 11 (experiments/2026-11-23-position-calibration.md): the per-pass row of the outer loop
 from a recover_study log (outer_passes=N, stdout and /usr/bin/time -v's stderr together).
 Usage: pass_table.py LOG [LOG ...]. Per log: the offsets left before each registration (the
 outer loop's PROBE, texels) and the final ones (POSITIONS calibrated_rms... against the truth:

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Round 10 (docs/recovery.md, "Self-calibration: positions"): the stall table from
+"""Round 10 (experiments/2026-11-23-position-calibration.md): the stall table from
 recover_study ... stall_diag=1 save=PREFIX (PREFIX_positions.csv). Usage: stall_table.py PREFIX"""
 import sys
 

@@ -35,8 +35,8 @@ max_len() {
 }
 
 # The largest single allocation allowed before libFuzzer reports out-of-memory. EXR: 256 MB, so
-# a small file declaring a huge image is reported at once (until the readers cap the pixel count
-# before allocating, issue 9 item 4; see fuzz/README.md) rather than grinding through gigabytes.
+# a small file declaring a huge image is reported at once (should a reader stop capping the pixel
+# count before allocating; see fuzz/README.md) rather than grinding through gigabytes.
 malloc_limit() {
     case "$1" in
         exr) echo 256 ;;

@@ -34,7 +34,7 @@ struct Observation;
 // loop (recover.h) registers a footprint against heights that are themselves recovered at wrong
 // positions; it converges when the positions are off by up to ~σ_p (rms per coordinate) and
 // stalls at 2σ_p: positions 3 texels (6 µm) off stall at 12–13 % with σ_p = 3 µm and at ~7 % with
-// 4.5 µm, and reach 0.01 % with 6 µm (docs/recovery.md, "Self-calibration: positions", round 15).
+// 4.5 µm, and reach 0.01 % with 6 µm (experiments/2026-11-23-position-calibration.md).
 constexpr double k_footprint_per_position_uncertainty = 1.0;
 
 struct PlanRequest {

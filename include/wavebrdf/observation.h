@@ -20,7 +20,7 @@ struct Observation {
     std::vector<double> lambdas_um;  // one: single wavelength (1 channel); several: RGB (3)
     int resolution = 32;
     // resolution² · channels(), row-major, interleaved. Float: the slices are float on disk
-    // (EXR), and half the memory of the recovery's largest input (issue 13).
+    // (EXR), and half the memory of the recovery's largest input.
     std::vector<float> reference;
     int channels() const { return lambdas_um.size() == 1 ? 1 : 3; }
 };

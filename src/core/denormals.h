@@ -4,7 +4,7 @@
 // CPU's microcoded denormal path. On the Intel Xeon of the 2-core machine a 48 × 64 × 48 complex
 // float product with 130 denormal inputs took 30× longer (≈ 570 µs instead of ≈ 18 µs), which
 // made the refinement and the blurred fit spend most of their time in Eigen's GEMM kernel
-// (docs/recovery.md, "Speed", fifth pass). FlushDenormals sets the calling thread's
+// (experiments/2026-11-23-recovery-speed.md). FlushDenormals sets the calling thread's
 // flush-to-zero and denormals-are-zero modes while it lives and puts the caller's two modes
 // back afterwards: values below FLT_MIN (DBL_MIN in double arithmetic) count as 0, far below
 // anything a slice resolves. Only the calling thread changes: a scope that spreads its work

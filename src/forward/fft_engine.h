@@ -1,5 +1,5 @@
 #pragma once
-// Internal: the FFT engine (issue 12 item 2). The slice's field is the Fourier transform
+// Internal: the FFT engine. The slice's field is the Fourier transform
 //   F(u) = ∫ f(x) e^{−i2π u·x} dx  of  f(x) = Σ_k w_k G_σ(x − δ_k) e^{−i2π b_k·(x − δ_k)}
 // (G_σ the normalised 2-D Gaussian), sampled on the slice's grid u = U0 + j·du. Sampling in u
 // at spacing du periodises f with period P = 1/du (Poisson: exact), so the engine

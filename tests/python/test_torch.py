@@ -84,7 +84,7 @@ def test_non_contiguous_tensor_and_expanded_gradient():
 
 
 def test_errors():
-    # (3, 3, 3) is a batch of three since issue 11 (tests/python/test_batch.py); 1-D is refused.
+    # (3, 3, 3) is a batch of three (tests/python/test_batch.py); 1-D is refused.
     with pytest.raises(ValueError, match="heights has shape"):
         wt.render_slice(torch.zeros(3, dtype=torch.float64), **SMALL)
     with pytest.raises(ValueError, match="dtype"):
