@@ -17,5 +17,6 @@ void add_invert_command(CLI::App& app);       // wavebrdf invert: the inverse re
 void add_recover_command(CLI::App& app);      // wavebrdf recover: heights from overlapping slices
 void add_table_command(CLI::App& app);        // wavebrdf table: slices over a grid of lights
 void add_lobe_command(CLI::App& app);         // wavebrdf lobe: an analytic lobe as a table
+void add_image_command(CLI::App& app);        // wavebrdf image: camera pictures of the surface
 
 }  // namespace wavebrdf::cli

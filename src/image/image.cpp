@@ -1,0 +1,432 @@
+// Camera images (image.h): the geometry of every pixel (its ray, where it meets the plane, its
+// footprint and its directions in the surface's frame), then the point-evaluation engine
+// (point_eval.h) row by row, weighted into radiance by the lights and the spectral mix.
+#include "wavebrdf/image.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <ImfChannelList.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfOutputFile.h>
+#include <ImfStringAttribute.h>
+
+#include "core/text.h"
+#include "wavebrdf/constants.h"
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/interrupt.h"
+#include "wavebrdf/memory.h"
+#include "wavebrdf/point_eval.h"
+#include "wavebrdf/spectrum.h"
+#include "wavebrdf/version.h"
+
+namespace wavebrdf {
+
+const char* const k_image_unit =
+    "radiance in W/(m^2 sr), linear sRGB (D65): sum over lights and wavelengths of the spectral mix of "
+    "f_r(omega_i, omega_o) [1/sr] * cos(theta_i) * E_light [W/m^2]; one wavelength: R = G = B";
+
+namespace {
+
+using Vec3 = std::array<double, 3>;
+
+Vec3 sub(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+Vec3 add(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
+Vec3 mul(const Vec3& a, double s) { return {a[0] * s, a[1] * s, a[2] * s}; }
+double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+Vec3 cross(const Vec3& a, const Vec3& b) {
+    return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
+Vec3 normalised(const Vec3& a) { return mul(a, 1.0 / norm(a)); }
+
+std::string vec_text(const Vec3& v) {
+    return format_shortest(v[0]) + "," + format_shortest(v[1]) + "," + format_shortest(v[2]);
+}
+
+bool finite(const Vec3& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+
+// The camera's orthonormal frame: forward, right (image columns), up (towards row 0).
+struct CameraFrame {
+    Vec3 origin, forward, right, up;
+    double half_height;  // pinhole: tan(fov/2); orthographic: half the view width, µm
+    double half_width;
+    bool orthographic;
+    int rows, cols;
+
+    // The ray of pixel (r, c) at its centre: origin and unit direction.
+    void ray(int r, int c, Vec3& o, Vec3& d) const {
+        const double sx = ((c + 0.5) / cols * 2.0 - 1.0) * half_width;
+        const double sy = (1.0 - (r + 0.5) / rows * 2.0) * half_height;
+        if (orthographic) {
+            o = add(origin, add(mul(right, sx), mul(up, sy)));
+            d = forward;
+        } else {
+            o = origin;
+            d = normalised(add(forward, add(mul(right, sx), mul(up, sy))));
+        }
+    }
+};
+
+CameraFrame camera_frame(const ImageOptions& options) {
+    const ImageCamera& cam = options.camera;
+    CameraFrame f;
+    f.origin = cam.position;
+    f.forward = normalised(sub(cam.look_at, cam.position));
+    Vec3 up = cam.up;
+    if (norm(up) == 0.0) {
+        up = {0.0, 0.0, 1.0};
+        if (std::abs(dot(up, f.forward)) > 0.999) up = {-1.0, 0.0, 0.0};
+    }
+    f.right = normalised(cross(f.forward, up));
+    f.up = cross(f.right, f.forward);
+    f.orthographic = cam.orthographic;
+    f.rows = cam.rows;
+    f.cols = cam.cols;
+    const double aspect = double(cam.cols) / double(cam.rows);
+    if (cam.orthographic) {
+        const double width = cam.view_width_um > 0.0 ? cam.view_width_um : options.plane_size_um[0];
+        f.half_height = 0.5 * width;
+    } else {
+        f.half_height = std::tan(0.5 * cam.fov_deg * k_pi / 180.0);
+    }
+    f.half_width = f.half_height * aspect;
+    return f;
+}
+
+// One pixel's geometry on the plane: whether it hits the plate, the footprint centre in the
+// heightfield's coordinates, ω_o in the surface frame, the hit point and σ_p.
+struct PixelGeometry {
+    bool hit = false;
+    Vec3 point{};
+    double x_um = 0.0, y_um = 0.0;
+    std::array<double, 2> omega_o{{0.0, 0.0}};
+    double sigma_p_um = 0.0;
+};
+
+struct PlaneFrame {
+    double half_x, half_y;
+    Vec3 tx, ty;  // the heightfield's row and column axes on the plate
+};
+
+PlaneFrame plane_frame(const ImageOptions& options) {
+    const double a = options.rotation_deg * k_pi / 180.0;
+    return {0.5 * options.plane_size_um[0],
+            0.5 * options.plane_size_um[1],
+            {std::cos(a), std::sin(a), 0.0},
+            {-std::sin(a), std::cos(a), 0.0}};
+}
+
+PixelGeometry pixel_geometry(const CameraFrame& cam, const PlaneFrame& plane, double sigma_p_given, int r, int c) {
+    PixelGeometry g;
+    Vec3 o, d;
+    cam.ray(r, c, o, d);
+    if (!(d[2] < 0.0)) return g;
+    const double t = -o[2] / d[2];
+    if (!(t > 0.0)) return g;
+    const Vec3 p = add(o, mul(d, t));
+    if (std::abs(p[0]) > plane.half_x || std::abs(p[1]) > plane.half_y) return g;
+    g.hit = true;
+    g.point = p;
+    // Heightfield coordinates: texel (0, 0) at the plate's corner, axes turned by the rotation.
+    const Vec3 corner{-plane.half_x, -plane.half_y, 0.0};
+    const Vec3 rel = sub(p, corner);
+    g.x_um = dot(rel, plane.tx);
+    g.y_um = dot(rel, plane.ty);
+    const Vec3 wo = mul(d, -1.0);
+    g.omega_o = {dot(wo, plane.tx), dot(wo, plane.ty)};
+    const double cos_o = wo[2];
+    if (sigma_p_given > 0.0) {
+        g.sigma_p_um = sigma_p_given;
+    } else {
+        // The pixel's area on the surface: its solid angle times t² over cos θ_o (pinhole), its
+        // cross-section over cos θ_o (orthographic); σ_p is half the square root of it.
+        double area;
+        if (cam.orthographic) {
+            const double side = 2.0 * cam.half_height / cam.rows;
+            area = side * side / cos_o;
+        } else {
+            const double pitch = 2.0 * cam.half_height / cam.rows;  // per unit forward distance
+            const double cos_a = dot(d, cam.forward);
+            area = pitch * pitch * cos_a * cos_a * cos_a * t * t / cos_o;
+        }
+        g.sigma_p_um = 0.5 * std::sqrt(area);
+    }
+    return g;
+}
+
+// The light's direction towards it from `p`, and its irradiance on a surface facing it (W/m²).
+void light_at(const ImageLight& light, const Vec3& p, Vec3& omega, double& irradiance) {
+    if (light.kind == LightKind::Directional) {
+        omega = normalised(light.vector);
+        irradiance = light.irradiance_w_m2;
+    } else {
+        const Vec3 to = sub(light.vector, p);
+        const double d = norm(to);
+        omega = mul(to, 1.0 / d);
+        const double d_m = d * 1e-6;
+        irradiance = light.power_w / (4.0 * k_pi * d_m * d_m);
+    }
+}
+
+// S(λ) at the samples, mean 1.
+std::vector<double> light_spectrum(const ImageLight& light, const std::vector<double>& lambdas) {
+    std::vector<double> s(lambdas.size(), 1.0);
+    if (light.spectrum == LightSpectrum::Blackbody && lambdas.size() > 1) {
+        // Planck: B ∝ λ^−5 / (e^{hc/(λkT)} − 1), hc/k = 14387.77 µm·K.
+        double mean = 0.0;
+        for (std::size_t l = 0; l < lambdas.size(); ++l) {
+            const double x = 14387.77 / (lambdas[l] * light.temperature_k);
+            s[l] = std::pow(lambdas[l], -5.0) / std::expm1(x);
+            mean += s[l];
+        }
+        mean /= double(lambdas.size());
+        for (double& v : s) v /= mean;
+    }
+    return s;
+}
+
+void require(bool ok, const std::string& message) {
+    if (!ok) throw std::domain_error(message);
+}
+
+}  // namespace
+
+std::array<double, 3> orbit_about_z(const std::array<double, 3>& p, double degrees) {
+    const double a = degrees * k_pi / 180.0, c = std::cos(a), s = std::sin(a);
+    return {c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]};
+}
+
+PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& options) {
+    const ImageCamera& cam = options.camera;
+    require(finite(cam.position), "camera position " + vec_text(cam.position) + " um is not finite");
+    require(finite(cam.look_at), "look-at point " + vec_text(cam.look_at) + " um is not finite");
+    require(finite(cam.up), "camera up " + vec_text(cam.up) + " is not finite");
+    require(cam.position[2] > 0.0, "camera position " + vec_text(cam.position) +
+                                       " um is inside or below the sample; expected z > 0 (above the plane)");
+    const Vec3 view = sub(cam.look_at, cam.position);
+    require(norm(view) > 0.0, "look-at point " + vec_text(cam.look_at) +
+                                  " equals the camera position; expected a "
+                                  "point the camera looks towards");
+    if (norm(cam.up) > 0.0)
+        require(norm(cross(normalised(view), normalised(cam.up))) > 1e-9,
+                "camera up " + vec_text(cam.up) + " is parallel to the viewing direction; expected another up");
+    require(cam.rows >= 1 && cam.rows <= 8192 && cam.cols >= 1 && cam.cols <= 8192,
+            "resolution " + std::to_string(cam.rows) + "x" + std::to_string(cam.cols) +
+                " is out of range; expected 1 to 8192 per side");
+    if (cam.orthographic) {
+        require(std::isfinite(cam.view_width_um) && cam.view_width_um >= 0.0,
+                "view width " + format_shortest(cam.view_width_um) + " um is invalid; expected > 0 (0: the plane's)");
+    } else {
+        require(std::isfinite(cam.fov_deg) && cam.fov_deg > 0.0 && cam.fov_deg < 180.0,
+                "field of view " + format_shortest(cam.fov_deg) + " deg is invalid; expected 0 < fov < 180");
+    }
+    for (int a = 0; a < 2; ++a)
+        require(std::isfinite(options.plane_size_um[a]) && options.plane_size_um[a] > 0.0 &&
+                    options.plane_size_um[a] <= 1e9,
+                "plane size " + format_shortest(options.plane_size_um[a]) + " um is invalid; expected 0 < size <= 1e9");
+    require(std::isfinite(options.rotation_deg),
+            "rotation " + format_shortest(options.rotation_deg) + " deg is not finite");
+    require(!options.lights.empty(), "no light; expected at least one (--point-light or --directional-light)");
+    require(options.lights.size() <= 64,
+            std::to_string(options.lights.size()) + " lights are too many; expected at most 64");
+    for (const ImageLight& light : options.lights) {
+        const std::string what = light.kind == LightKind::Point ? "point light " : "directional light ";
+        require(finite(light.vector), what + vec_text(light.vector) + " is not finite");
+        require(light.vector[2] > 0.0, what + vec_text(light.vector) + (light.kind == LightKind::Point ? " um" : "") +
+                                           " is behind the sample; expected z > 0 (above the plane)");
+        require(std::isfinite(light.power_w) && light.power_w > 0.0,
+                "light power " + format_shortest(light.power_w) + " W is invalid; expected > 0");
+        require(std::isfinite(light.irradiance_w_m2) && light.irradiance_w_m2 > 0.0,
+                "light irradiance " + format_shortest(light.irradiance_w_m2) + " W/m^2 is invalid; expected > 0");
+        if (light.spectrum == LightSpectrum::Blackbody)
+            require(
+                std::isfinite(light.temperature_k) && light.temperature_k >= 500.0 && light.temperature_k <= 50000.0,
+                "blackbody temperature " + format_shortest(light.temperature_k) +
+                    " K is out of range; expected 500 to 50000");
+        if (light.kind == LightKind::Directional) {
+            const Vec3 d = normalised(light.vector);
+            require(d[0] * d[0] + d[1] * d[1] < 1.0,
+                    what + vec_text(light.vector) + " grazes the plane; expected z > 0");
+        }
+    }
+    require(!options.lambdas_um.empty() && options.lambdas_um.size() <= std::size_t(k_max_spectral_samples),
+            std::to_string(options.lambdas_um.size()) + " wavelengths; expected 1 to " +
+                std::to_string(k_max_spectral_samples));
+    for (double l : options.lambdas_um) validate_lambda(l);
+    validate_prune_tolerance(options.prune_tolerance);
+    require(std::isfinite(options.sigma_p_um) && options.sigma_p_um >= 0.0,
+            "sigma_p " + format_shortest(options.sigma_p_um) + " um is invalid; expected > 0 (0: the pixel's size)");
+    for (double b : options.background)
+        require(std::isfinite(b), "background " + format_shortest(b) + " is not finite");
+
+    PreparedImage out;
+    out.options = options;
+    // Every pixel's footprint and directions, before any work: a footprint too large for the
+    // tile or a light below a pixel's horizon is refused here.
+    const CameraFrame frame = camera_frame(options);
+    const PlaneFrame plane = plane_frame(options);
+    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
+    for (int r = 0; r < cam.rows; ++r)
+        for (int c = 0; c < cam.cols; ++c) {
+            const PixelGeometry g = pixel_geometry(frame, plane, options.sigma_p_um, r, c);
+            if (!g.hit) continue;
+            ++out.pixels_on_sample;
+            lo = std::min(lo, g.sigma_p_um);
+            hi = std::max(hi, g.sigma_p_um);
+        }
+    if (out.pixels_on_sample > 0) {
+        out.sigma_p_min_um = lo;
+        out.sigma_p_max_um = hi;
+        Query q;
+        q.sigma_p_um = hi;
+        q.x_um = q.y_um = 0.0;
+        try {
+            validate(q);
+            Query ql = q;
+            ql.sigma_p_um = lo;
+            validate(ql);
+            validate_footprint(hi, heightfield.period_x_um(), heightfield.period_y_um());
+        } catch (const std::domain_error& e) {
+            throw std::domain_error(std::string("pixel footprint: ") + e.what() +
+                                    (options.sigma_p_um > 0.0
+                                         ? ""
+                                         : " (sigma_p from the pixel's size; give --sigma-p-um or move the camera)"));
+        }
+    }
+    // Memory: the image (RGB double while rendering, float result), the evaluator's tables
+    // (heightfield copy, heights and slopes: 4 doubles per texel), per-thread row buffers and
+    // footprint kernel lists (≈ 10 doubles per kernel within 3σ_p).
+    const double pixels = double(cam.rows) * double(cam.cols);
+    const double texels = double(heightfield.rows()) * double(heightfield.cols());
+    const double image_bytes = pixels * 3.0 * (sizeof(double) + sizeof(float));
+    const double table_bytes = texels * 4.0 * sizeof(double);
+    const double kernels = std::min(texels,
+                                    k_pi * std::pow(3.0 * std::max(hi, 0.0) / heightfield.texel_um() + 1.0, 2.0));
+    const double thread_bytes = double(omp_get_max_threads()) *
+                                (kernels * 12.0 * sizeof(double) +
+                                 double(cam.cols) * (double(options.lambdas_um.size()) + 8.0) * sizeof(double));
+    out.estimated_bytes = image_bytes + table_bytes + thread_bytes;
+    out.memory_note = "memory: about " + format_bytes(out.estimated_bytes) + " (image " + format_bytes(image_bytes) +
+                      ", heightfield tables " + format_bytes(table_bytes) + ")";
+    require_memory(out.estimated_bytes, memory_limit(options.max_memory_gb), "the image");
+    return out;
+}
+
+RgbImage render_image(const Heightfield& heightfield, const PreparedImage& prepared, const ImageProgress& progress) {
+    const ImageOptions& options = prepared.options;
+    const CameraFrame frame = camera_frame(options);
+    const PlaneFrame plane = plane_frame(options);
+    PointEvalOptions eval_options;
+    eval_options.model = options.model;
+    eval_options.prune_tolerance = options.prune_tolerance;
+    const PointEvaluator eval(heightfield, options.lambdas_um, eval_options);
+    const std::size_t L = options.lambdas_um.size();
+    const std::vector<double> mix = spectral_mix_weights(options.lambdas_um);
+    std::vector<std::vector<double>> spectra;
+    for (const ImageLight& light : options.lights) spectra.push_back(light_spectrum(light, options.lambdas_um));
+
+    const int rows = frame.rows, cols = frame.cols;
+    RgbImage image;
+    image.rows = rows;
+    image.cols = cols;
+    allocating("the " + std::to_string(rows) + "x" + std::to_string(cols) + " image",
+               double(rows) * cols * 3 * sizeof(float), [&] { image.data.assign(std::size_t(rows) * cols * 3, 0.0f); });
+
+    std::vector<PointSample> samples;
+    std::vector<int> column;
+    std::vector<double> weight;  // cos θ_i E_⊥ per sample
+    std::vector<double> values;
+    std::vector<double> rgb(std::size_t(cols) * 3);
+    for (int r = 0; r < rows; ++r) {
+        check_interrupt();
+        std::fill(rgb.begin(), rgb.end(), 0.0);
+        std::vector<PixelGeometry> geometry(static_cast<std::size_t>(cols));
+        for (int c = 0; c < cols; ++c)
+            geometry[std::size_t(c)] = pixel_geometry(frame, plane, options.sigma_p_um, r, c);
+        for (std::size_t li = 0; li < options.lights.size(); ++li) {
+            samples.clear();
+            column.clear();
+            weight.clear();
+            for (int c = 0; c < cols; ++c) {
+                const PixelGeometry& g = geometry[std::size_t(c)];
+                if (!g.hit) continue;
+                Vec3 omega;
+                double irradiance;
+                light_at(options.lights[li], g.point, omega, irradiance);
+                if (!(omega[2] > 0.0)) continue;  // the light is below this point's horizon
+                PointSample s;
+                s.x_um = g.x_um;
+                s.y_um = g.y_um;
+                s.sigma_p_um = g.sigma_p_um;
+                s.omega_i = {dot(omega, plane.tx), dot(omega, plane.ty)};
+                s.omega_o = g.omega_o;
+                if (s.omega_i[0] * s.omega_i[0] + s.omega_i[1] * s.omega_i[1] >= 1.0) continue;
+                samples.push_back(s);
+                column.push_back(c);
+                weight.push_back(omega[2] * irradiance);
+            }
+            values.resize(samples.size() * L);
+            eval.evaluate(samples.data(), samples.size(), values.data());
+            for (std::size_t s = 0; s < samples.size(); ++s)
+                for (std::size_t l = 0; l < L; ++l) {
+                    const double f = values[s * L + l] * spectra[li][l] * weight[s];
+                    for (int ch = 0; ch < 3; ++ch)
+                        rgb[std::size_t(column[s]) * 3 + std::size_t(ch)] += mix[std::size_t(ch) * L + l] * f;
+                }
+        }
+        for (int c = 0; c < cols; ++c)
+            for (int ch = 0; ch < 3; ++ch) {
+                const double v = geometry[std::size_t(c)].hit ? rgb[std::size_t(c) * 3 + std::size_t(ch)]
+                                                              : options.background[std::size_t(ch)];
+                image.data[(std::size_t(r) * cols + std::size_t(c)) * 3 + std::size_t(ch)] = static_cast<float>(v);
+            }
+        if (progress && !progress(r + 1, rows)) throw Interrupted();
+    }
+    return image;
+}
+
+void write_image_exr(const std::string& path, const RgbImage& image, const std::string& made_by) {
+    if (image.rows < 1 || image.cols < 1 || image.data.size() != std::size_t(image.rows) * image.cols * 3)
+        throw std::invalid_argument("image to write is empty or its data does not hold rows*cols*3 values");
+    write_file_atomically(path, [&](const std::string& file) {
+        Imf::Header header(image.cols, image.rows);
+        const char* names[3] = {"R", "G", "B"};
+        for (const char* name : names) header.channels().insert(name, Imf::Channel(Imf::FLOAT));
+        header.insert("wavebrdf:unit", Imf::StringAttribute(k_image_unit));
+        header.insert("wavebrdf:made_by", Imf::StringAttribute(made_by.substr(0, k_max_attribute_chars)));
+        header.insert("wavebrdf:version", Imf::StringAttribute(k_version));
+        Imf::FrameBuffer frame;
+        const std::size_t stride = 3 * sizeof(float);
+        for (int c = 0; c < 3; ++c)
+            frame.insert(names[c],
+                         Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(image.data.data() + c)),
+                                    stride, stride * std::size_t(image.cols)));
+        Imf::OutputFile out(file.c_str(), header);
+        out.setFrameBuffer(frame);
+        out.writePixels(image.rows);
+    });
+}
+
+std::vector<double> image_luminance(const RgbImage& image) {
+    std::vector<double> luminance(std::size_t(image.rows) * std::size_t(image.cols));
+    for (std::size_t p = 0; p < luminance.size(); ++p)
+        luminance[p] = 0.2126 * double(image.data[3 * p]) + 0.7152 * double(image.data[3 * p + 1]) +
+                       0.0722 * double(image.data[3 * p + 2]);
+    return luminance;
+}
+
+void write_image_png(const std::string& path, const RgbImage& image, double exposure_stops, bool automatic) {
+    double exposure = exposure_stops;
+    if (automatic) exposure += auto_exposure(image_luminance(image));
+    write_rgb_png(path, image, exposure, true);
+}
+
+}  // namespace wavebrdf

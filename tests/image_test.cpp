@@ -1,0 +1,326 @@
+// Camera images against independent evaluations: pixels against render_slice of their own
+// footprint at their own direction (geometry computed here by hand), a flat mirror's one
+// highlight at the hand-computed mirror point, a grating's orders where the grating equation
+// puts them, reciprocity under swapping light and camera, the pruning bound, bad input.
+#include "wavebrdf/image.h"
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "test_util.h"
+#include "wavebrdf/brdf.h"
+#include "wavebrdf/gabor.h"
+#include "wavebrdf/point_eval.h"
+
+namespace wavebrdf {
+namespace {
+
+using Vec3 = std::array<double, 3>;
+
+Vec3 normal(const Vec3& v) {
+    const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    return {v[0] / n, v[1] / n, v[2] / n};
+}
+
+double value_at(const RgbImage& image, int r, int c, int ch = 0) {
+    return image.data[(std::size_t(r) * image.cols + std::size_t(c)) * 3 + std::size_t(ch)];
+}
+
+// An orthographic camera along −ω_o (ω_o a slice pixel centre) and a directional light: every
+// pixel's value is the slice pixel of its own footprint, times cos θ_i.
+TEST(Image, PixelsEqualRenderSliceOfTheirOwnFootprint) {
+    const Heightfield hf = test::random_heightfield(48, 40, 0.3, 17, 1.0, 1.0);
+    const int n = 21, p = 7, q = 12;  // the slice pixel whose direction the camera looks from
+    const double ox = slice_omega(p, n), oy = slice_omega(q, n);
+    const Vec3 wo{ox, oy, std::sqrt(1.0 - ox * ox - oy * oy)};
+    const std::array<double, 2> wi{{0.25, -0.1}};
+    const Vec3 light{wi[0], wi[1], std::sqrt(1.0 - wi[0] * wi[0] - wi[1] * wi[1])};
+    for (Model model : {Model::OHS, Model::RGHS, Model::Kirchhoff}) {
+        ImageOptions o;
+        o.camera.orthographic = true;
+        o.camera.position = {300.0 * wo[0] + 3.0, 300.0 * wo[1] - 2.0, 300.0 * wo[2]};
+        o.camera.look_at = {3.0, -2.0, 0.0};
+        o.camera.up = {0.0, 0.0, 1.0};
+        o.camera.view_width_um = 60.0;
+        o.camera.rows = 9;
+        o.camera.cols = 11;
+        o.plane_size_um = {400.0, 400.0};
+        o.lights = {ImageLight{LightKind::Directional, light}};
+        o.lambdas_um = {0.55};
+        o.model = model;
+        o.sigma_p_um = 4.0;
+        o.prune_tolerance = 0.0;
+        const RgbImage image = render_image(hf, prepare_image(hf, o));
+        // The camera's frame and each pixel's hit point, by hand.
+        const Vec3 f = normal({-wo[0], -wo[1], -wo[2]});
+        const Vec3 up{0.0, 0.0, 1.0};
+        Vec3 right = normal({f[1] * up[2] - f[2] * up[1], f[2] * up[0] - f[0] * up[2], f[0] * up[1] - f[1] * up[0]});
+        const Vec3 u2{right[1] * f[2] - right[2] * f[1], right[2] * f[0] - right[0] * f[2],
+                      right[0] * f[1] - right[1] * f[0]};
+        std::mt19937_64 rng(3);
+        for (int trial = 0; trial < 8; ++trial) {
+            const int r = static_cast<int>(rng() % 9), c = static_cast<int>(rng() % 11);
+            const double sx = ((c + 0.5) / 11 * 2 - 1) * 30.0 * 11.0 / 9.0, sy = (1 - (r + 0.5) / 9 * 2) * 30.0;
+            Vec3 origin;
+            for (int k = 0; k < 3; ++k) origin[k] = o.camera.position[k] + sx * right[k] + sy * u2[k];
+            const double t = -origin[2] / f[2];
+            const double px = origin[0] + t * f[0], py = origin[1] + t * f[1];
+            Query query;
+            query.model = model;
+            query.x_um = px + 200.0;  // texel (0, 0) at the plate's corner (−200, −200)
+            query.y_um = py + 200.0;
+            query.sigma_p_um = 4.0;
+            query.omega_i = wi;
+            RenderOptions direct;
+            direct.path = RenderPath::Direct;
+            direct.prune_tolerance = 0.0;
+            const std::vector<double> slice = render_slice<double>(hf, query, 0.55, n, direct);
+            const double expected = slice[std::size_t(p) * n + q] * light[2];
+            EXPECT_NEAR(value_at(image, r, c), expected, 1e-6 * expected)
+                << to_string(model) << " pixel " << r << "," << c;
+            EXPECT_EQ(value_at(image, r, c, 0), value_at(image, r, c, 2));  // one wavelength: grey
+        }
+    }
+}
+
+// A flat mirror under a point light: one highlight, at the pixel that sees the mirror image of
+// the light.
+TEST(Image, FlatMirrorShowsOneHighlightAtTheMirrorPoint) {
+    const Heightfield flat(16, 16, std::vector<double>(256, 0.0), 1.0, 1.0);
+    ImageOptions o;
+    const Vec3 cam{-900.0, 300.0, 2000.0}, light{700.0, -100.0, 1500.0};
+    o.camera.position = cam;
+    o.camera.look_at = {0.0, 0.0, 0.0};
+    o.camera.up = {0.0, 0.0, 1.0};
+    o.camera.fov_deg = 20.0;
+    o.camera.rows = o.camera.cols = 64;
+    o.plane_size_um = {2000.0, 2000.0};
+    o.lights = {ImageLight{LightKind::Point, light}};
+    o.lambdas_um = {0.5};
+    o.sigma_p_um = 5.0;
+    o.prune_tolerance = 0.0;
+    const RgbImage image = render_image(flat, prepare_image(flat, o));
+    // The mirror point: where the line from the camera to the light's mirror image (z → −z)
+    // crosses the plane; its pixel from the pinhole projection.
+    const double t = cam[2] / (cam[2] + light[2]);
+    const Vec3 m{cam[0] + t * (light[0] - cam[0]), cam[1] + t * (light[1] - cam[1]), 0.0};
+    const Vec3 f = normal({-cam[0], -cam[1], -cam[2]});
+    const Vec3 up{0.0, 0.0, 1.0};
+    const Vec3 right = normal({f[1] * up[2] - f[2] * up[1], f[2] * up[0] - f[0] * up[2], f[0] * up[1] - f[1] * up[0]});
+    const Vec3 u2{right[1] * f[2] - right[2] * f[1], right[2] * f[0] - right[0] * f[2],
+                  right[0] * f[1] - right[1] * f[0]};
+    const Vec3 d{m[0] - cam[0], m[1] - cam[1], m[2] - cam[2]};
+    const double along = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
+    const double half = std::tan(10.0 * k_pi / 180.0);
+    const double sx = (d[0] * right[0] + d[1] * right[1] + d[2] * right[2]) / along / half;
+    const double sy = (d[0] * u2[0] + d[1] * u2[1] + d[2] * u2[2]) / along / half;
+    const double col = (sx + 1.0) / 2.0 * 64 - 0.5, row = (1.0 - sy) / 2.0 * 64 - 0.5;
+    int best_r = 0, best_c = 0;
+    double peak = 0.0;
+    for (int r = 0; r < 64; ++r)
+        for (int c = 0; c < 64; ++c)
+            if (value_at(image, r, c) > peak) {
+                peak = value_at(image, r, c);
+                best_r = r;
+                best_c = c;
+            }
+    ASSERT_GT(peak, 0.0);
+    EXPECT_LE(std::abs(best_r - row), 1.0) << "highlight row " << best_r << ", mirror point at " << row;
+    EXPECT_LE(std::abs(best_c - col), 1.0) << "highlight column " << best_c << ", mirror point at " << col;
+    // Exactly one highlight: every pixel above 1e-2 of the peak is within 4 pixels of the mirror
+    // point (the lobe's standard deviation for σ_p = 5 µm is about 1.2 pixels here; further out
+    // only the ripple of the window's 3σ_p cut remains, below 5e-3 of the peak).
+    int bright = 0;
+    for (int r = 0; r < 64; ++r)
+        for (int c = 0; c < 64; ++c)
+            if (value_at(image, r, c) > 1e-2 * peak) {
+                ++bright;
+                EXPECT_LE(std::hypot(r - row, c - col), 4.0) << "bright pixel " << r << "," << c;
+            }
+    EXPECT_GE(bright, 1);
+}
+
+// A sinusoidal grating h = A sin(2π x / Λ) along x, a camera straight above, light at normal
+// incidence: order m at ω_o,x = m λ / Λ, each wavelength at its own place.
+TEST(Image, GratingOrdersWhereTheGratingEquationPutsThem) {
+    const int rows = 64, cols = 8, period = 16;
+    const double amplitude_um = 0.05;
+    std::vector<double> v(std::size_t(rows) * cols);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) v[std::size_t(i) * cols + j] = amplitude_um * std::sin(2 * k_pi * i / period);
+    const Heightfield grating(rows, cols, v, 1.0, 1.0);
+    const double height = 5000.0;
+    ImageOptions o;
+    o.camera.position = {0.0, 0.0, height};
+    o.camera.look_at = {0.0, 0.0, 0.0};  // straight down: rows follow +x, columns +y
+    o.camera.fov_deg = 2.0 * std::atan(0.1) * 180.0 / k_pi;
+    o.camera.rows = 240;
+    o.camera.cols = 3;
+    o.plane_size_um = {4000.0, 4000.0};
+    o.lights = {ImageLight{LightKind::Directional, {0.0, 0.0, 1.0}}};
+    o.sigma_p_um = 10.0;
+    o.prune_tolerance = 0.0;
+    double previous_first_order = 0.0;
+    for (double lambda : {0.45, 0.65}) {
+        o.lambdas_um = {lambda};
+        const RgbImage image = render_image(grating, prepare_image(grating, o));
+        // ω_o,x of row r by hand: looking straight down, up is −x, so row r's ray meets the plane at
+        // x = −sy · tan(fov/2) · h with sy = 1 − 2(r + ½)/R, and ω_o = (camera − point)/distance.
+        auto omega_x = [&](int r) {
+            const double sy = 1.0 - (r + 0.5) / o.camera.rows * 2.0;
+            const double x = -sy * 0.1 * height;
+            return -x / std::sqrt(x * x + height * height);
+        };
+        for (int m : {-2, -1, 1, 2}) {
+            const double expected = m * lambda / (period * 1.0);
+            // The brightest row within ±0.4 λ/Λ of the predicted order.
+            int best = -1;
+            double peak = 0.0;
+            for (int r = 0; r < o.camera.rows; ++r)
+                if (std::abs(omega_x(r) - expected) < 0.4 * lambda / period && value_at(image, r, 1) > peak) {
+                    peak = value_at(image, r, 1);
+                    best = r;
+                }
+            ASSERT_GE(best, 0);
+            EXPECT_NEAR(omega_x(best), expected, 1e-3 + 0.5 * std::abs(omega_x(1) - omega_x(0)))
+                << "order " << m << " at lambda " << lambda;
+            // A true maximum, not the window's edge.
+            EXPECT_GT(peak, value_at(image, best - 3, 1));
+            EXPECT_GT(peak, value_at(image, best + 3, 1));
+            if (m == 1) {
+                EXPECT_GT(omega_x(best), previous_first_order) << "red diffracts farther than blue";
+                previous_first_order = omega_x(best);
+            }
+        }
+    }
+}
+
+// One pixel looking at P with a point light: its f_r, the radiance divided by cos θ_i E.
+double one_pixel_brdf(const Heightfield& hf, Model model, const Vec3& camera, const Vec3& light, const Vec3& at) {
+    ImageOptions o;
+    o.camera.position = camera;
+    o.camera.look_at = at;
+    o.camera.fov_deg = 1.0;
+    o.camera.rows = o.camera.cols = 1;
+    o.plane_size_um = {1000.0, 1000.0};
+    ImageLight l;
+    l.kind = LightKind::Point;
+    l.vector = light;
+    l.power_w = 2.0;
+    o.lights = {l};
+    o.lambdas_um = {0.6};
+    o.model = model;
+    o.sigma_p_um = 6.0;
+    o.prune_tolerance = 0.0;
+    const RgbImage image = render_image(hf, prepare_image(hf, o));
+    const Vec3 d{light[0] - at[0], light[1] - at[1], light[2] - at[2]};
+    const double dist_m = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) * 1e-6;
+    const double irradiance = 2.0 / (4 * k_pi * dist_m * dist_m);
+    return value_at(image, 0, 0) / (normal(d)[2] * irradiance);
+}
+
+TEST(Image, SwappingLightAndCameraKeepsReciprocalModels) {
+    const Heightfield hf = test::random_heightfield(32, 32, 0.4, 5, 1.0, 1.0);
+    const Vec3 a{-400.0, 250.0, 900.0}, b{350.0, -150.0, 1200.0}, at{12.0, -7.0, 0.0};
+    for (Model model : {Model::ROHS, Model::RGHS, Model::Kirchhoff, Model::OHS}) {
+        const double forward = one_pixel_brdf(hf, model, a, b, at);
+        const double swapped = one_pixel_brdf(hf, model, b, a, at);
+        ASSERT_GT(forward, 0.0);
+        if (model == Model::OHS) {
+            // Not reciprocal: c1 = cos θ_o / (λ² cos θ_i) changes by (cos θ_a / cos θ_b)².
+            const double ca = normal({a[0] - at[0], a[1] - at[1], a[2]})[2];
+            const double cb = normal({b[0] - at[0], b[1] - at[1], b[2]})[2];
+            EXPECT_NEAR(forward / swapped, (ca * ca) / (cb * cb), 1e-5);
+        } else {
+            EXPECT_NEAR(forward, swapped, 1e-5 * forward) << to_string(model);
+        }
+    }
+}
+
+TEST(Image, PrunedImageWithinItsStatedBound) {
+    const Heightfield hf = test::random_heightfield(64, 64, 0.8, 23, 1.0, 1.0);
+    ImageOptions o;
+    o.camera.position = {-300.0, 100.0, 600.0};
+    o.camera.look_at = {0.0, 0.0, 0.0};
+    o.camera.up = {0.0, 0.0, 1.0};
+    o.camera.fov_deg = 40.0;
+    o.camera.rows = o.camera.cols = 24;
+    o.plane_size_um = {1000.0, 1000.0};
+    o.lights = {ImageLight{LightKind::Directional, {0.6, 0.1, 0.5}}};
+    o.lambdas_um = {0.5};
+    o.sigma_p_um = 5.0;
+    o.prune_tolerance = 0.0;
+    const RgbImage full = render_image(hf, prepare_image(hf, o));
+    const double tau = 1e-3;
+    o.prune_tolerance = tau;
+    const RgbImage pruned = render_image(hf, prepare_image(hf, o));
+    // The bound τ c1 A² cos θ_i E per pixel, A = Σ c_k w² from the footprint's own kernels; c1
+    // of OHS ≤ 1/(λ² cos θ_i), so the bound on radiance is τ A² / λ² · E.
+    double largest_difference = 0.0;
+    for (std::size_t k = 0; k < full.data.size(); ++k) {
+        const double diff = std::abs(double(full.data[k]) - double(pruned.data[k]));
+        largest_difference = std::max(largest_difference, diff);
+    }
+    const FootprintKernels kernels = footprint_kernels(hf, 500.0, 500.0, 5.0);
+    double amplitude = 0.0;
+    for (double w : kernels.weight) amplitude += w;
+    const double bound = tau * amplitude * amplitude / (0.5 * 0.5);
+    const double peak = test::max_abs(std::vector<double>(full.data.begin(), full.data.end()));
+    EXPECT_LE(largest_difference, bound * (1 + 1e-6) + 1e-6 * peak);  // + the float images' rounding
+    EXPECT_GT(largest_difference, 0.0) << "nothing was pruned: the test would test nothing";
+}
+
+TEST(Image, BadInputFailsBeforeWork) {
+    const Heightfield hf = test::random_heightfield(16, 16, 0.1, 1);
+    ImageOptions good;
+    good.camera.position = {0.0, 0.0, 500.0};
+    good.lights = {ImageLight{LightKind::Point, {100.0, 0.0, 500.0}}};
+    good.plane_size_um = {200.0, 200.0};
+    good.camera.rows = good.camera.cols = 8;
+    EXPECT_NO_THROW(prepare_image(hf, good));
+    auto with = [&](auto change) {
+        ImageOptions o = good;
+        change(o);
+        return o;
+    };
+    test::expect_throw_naming<std::domain_error>(
+        [&] {
+            prepare_image(hf, with([](ImageOptions& o) { o.camera.position = {0.0, 0.0, -5.0}; }));
+        },
+        "camera position 0,0,-5 um is inside or below the sample");
+    test::expect_throw_naming<std::domain_error>(
+        [&] {
+            prepare_image(hf, with([](ImageOptions& o) { o.lights[0].vector = {0.0, 0.0, -1.0}; }));
+        },
+        "point light 0,0,-1 um is behind the sample");
+    test::expect_throw_naming<std::domain_error>(
+        [&] {
+            prepare_image(hf, with([](ImageOptions& o) {
+                              o.lights[0].kind = LightKind::Directional;
+                              o.lights[0].vector = {1.0, 0.0, -0.2};
+                          }));
+        },
+        "directional light 1,0,-0.2 is behind the sample");
+    test::expect_throw_naming<std::domain_error>(
+        [&] { prepare_image(hf, with([](ImageOptions& o) { o.camera.fov_deg = 0.0; })); },
+        "field of view 0 deg is invalid");
+    test::expect_throw_naming<std::domain_error>(
+        [&] { prepare_image(hf, with([](ImageOptions& o) { o.sigma_p_um = 1e4; })); }, "too large for the tile");
+    // The footprint from the pixel's size: a far camera with few pixels makes huge footprints.
+    test::expect_throw_naming<std::domain_error>(
+        [&] {
+            prepare_image(hf, with([](ImageOptions& o) {
+                              o.camera.position = {0.0, 0.0, 1e7};
+                              o.camera.fov_deg = 1.0;
+                              o.camera.rows = o.camera.cols = 1;
+                              o.plane_size_um = {1e6, 1e6};
+                          }));
+        },
+        "pixel footprint");
+}
+
+}  // namespace
+}  // namespace wavebrdf
