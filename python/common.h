@@ -119,6 +119,7 @@ void bind_optim(py::module_& m);
 void bind_invert(py::module_& m);
 void bind_recover(py::module_& m);
 void bind_table(py::module_& m);
+void bind_image(py::module_& m);
 
 // For a long library call: releases the GIL and installs an InterruptScope whose poll takes the
 // GIL back (every 50 ms of work at most) and checks for signals. On Ctrl-C the handler's

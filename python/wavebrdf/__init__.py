@@ -84,3 +84,6 @@ __all__ += ["built_with_hdf5", "read_observation_index"]
 # Files for fabricating a relief: 16-bit heights PNG, lithography masks, STL (docs/fabrication.md).
 from ._core import write_fabrication_exports  # noqa: F401
 __all__ += ["write_fabrication_exports"]
+# Camera pictures of the surface (docs/image.md).
+from ._core import render_image  # noqa: F401
+__all__ += ["render_image"]

@@ -959,6 +959,23 @@ def render(gabor: GaborRep, query: Query, resolution: int = ..., precision: str 
     """
     ...
 
+def render_image(heightfield: Any, *, plane_size_um: Any, camera: Any, look_at: Any = ..., fov_deg: float = ..., resolution: Any = ..., point_light: Any = ..., directional_light: Any = ..., lambda_um: Any = ..., spectral: Any = ..., up: Any = ..., orthographic: bool = ..., view_width_um: float = ..., rotation_deg: float = ..., model: str = ..., sigma_p_um: float = ..., prune_tolerance: float = ..., power_w: float = ..., irradiance: float = ..., blackbody_k: Any = ..., texel_um: Any = ..., vscale: Any = ..., max_memory_gb: float = ...) -> numpy.ndarray:
+    """A camera picture of a plate carrying the heightfield (docs/image.md), as `wavebrdf image` renders it:
+    a float32 array (rows, cols, 3) of linear sRGB radiance in W/(m^2 sr).
+
+    heightfield: a Heightfield, an EXR path or a 2-D array of heights in texel widths.
+    plane_size_um: W or (W, H), the plate (x by y) centred at the origin, the heightfield tiled on it.
+    camera, look_at, up: (x, y, z) in um; z is the plate's normal, x/y the heightfield's rows/columns.
+    fov_deg: pinhole field of view across the rows; orthographic=True with view_width_um instead.
+    resolution: N or (rows, cols).
+    point_light: (x, y, z) um or a list of them; directional_light: direction(s) towards the light.
+    lambda_um: one wavelength (a laser) or spectral=K wavelengths over 0.36-0.83 um.
+    sigma_p_um: every pixel's footprint (0: from the pixel's projected size).
+    prune_tolerance: kernel pruning bound relative to each pixel's largest possible value (0: full sum).
+    power_w (point), irradiance (directional, W/m^2), blackbody_k (spectrum; None: white).
+    """
+    ...
+
 def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ..., comm: Any = ...) -> Any:
     """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', tolerance=1e-06, comm=None)
 

@@ -1,0 +1,69 @@
+"""Camera images: wb.render_image and `wavebrdf image` give the same picture bit for bit, the EXR
+says its unit, an orbit writes numbered frames, and bad scenes are refused with one line before
+any work."""
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import wavebrdf as wb
+
+
+def plate(tmp_path, rng, n=32):
+    hf = wb.Heightfield(rng.normal(0.0, 0.2, (n, n)), texel_um=1.0)
+    path = str(tmp_path / "h.exr")
+    hf.save_exr(path)
+    return path
+
+
+SCENE = ["--plane-size-um", "400", "--camera", "-300,50,500", "--look-at", "0,0,0", "--fov-deg", "40",
+         "--resolution", "12,10", "--point-light", "250,-40,400", "--spectral", "3", "--sigma-p-um", "3"]
+
+
+def test_cli_and_python_bit_identical(tmp_path, rng, cli):
+    hf = plate(tmp_path, rng)
+    out = tmp_path / "i.exr"
+    png = tmp_path / "i.png"
+    subprocess.run([cli, "image", "--heightfield", hf, *SCENE, "--out", str(out), "--png", str(png), "--quiet"],
+                   check=True)
+    image = wb.render_image(hf, plane_size_um=400, camera=(-300, 50, 500), look_at=(0, 0, 0), fov_deg=40,
+                            resolution=(12, 10), point_light=(250, -40, 400), spectral=3, sigma_p_um=3)
+    assert image.shape == (12, 10, 3) and image.dtype == np.float32
+    image_file, attributes = wb.read_slice(str(out))
+    assert not attributes  # an image, not a slice: no slice attributes
+    np.testing.assert_array_equal(np.asarray(image_file), image)
+    assert image.max() > 0 and os.path.getsize(png) > 0
+
+
+def test_orbit_writes_numbered_frames(tmp_path, rng, cli):
+    hf = plate(tmp_path, rng, 16)
+    subprocess.run([cli, "image", "--heightfield", hf, *SCENE, "--png", str(tmp_path / "f.png"), "--frames", "3",
+                    "--orbit", "light", "--start-deg", "0", "--end-deg", "90", "--quiet"], check=True)
+    assert sorted(os.listdir(tmp_path)) == ["f_0000.png", "f_0001.png", "f_0002.png", "h.exr"]
+
+
+@pytest.mark.parametrize("change, message", [
+    (["--camera", "0,0,-5"], "camera position 0,0,-5 um is inside or below the sample"),
+    (["--point-light", "0,0,-1"], "point light 0,0,-1 um is behind the sample"),
+    (["--fov-deg", "0"], "field of view 0 deg is invalid"),
+    (["--sigma-p-um", "1e6"], "too large for the tile"),
+])
+def test_bad_scenes_fail_before_work(tmp_path, rng, cli, change, message):
+    hf = plate(tmp_path, rng, 16)
+    args = list(SCENE)
+    for k in range(0, len(change), 2):
+        i = args.index(change[k])
+        args[i + 1] = change[k + 1]
+    out = tmp_path / "bad.exr"
+    r = subprocess.run([cli, "image", "--heightfield", hf, *args, "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode != 0 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+    with pytest.raises(ValueError, match="camera position"):
+        wb.render_image(hf, plane_size_um=400, camera=(0, 0, -5), point_light=(0, 0, 100))
+
+
+def test_missing_heightfield(tmp_path, cli):
+    r = subprocess.run([cli, "image", "--heightfield", str(tmp_path / "none.exr"), *SCENE, "--out",
+                        str(tmp_path / "o.exr")], capture_output=True, text=True)
+    assert r.returncode != 0 and "none.exr" in r.stderr and not (tmp_path / "o.exr").exists()
