@@ -93,6 +93,9 @@ class cmake_build_ext(build_ext):
         destination = self.get_ext_fullpath(ext.name)
         os.makedirs(os.path.dirname(os.path.abspath(destination)), exist_ok=True)
         shutil.copyfile(built[0], destination)
+        # The MPI and HDF5 plugins (src/core/plugin.h), where the module looks first: beside it.
+        for plugin in sorted(glob.glob(os.path.join(build_dir, "lib*", "wavebrdf", "libwavebrdf_*.so"))):
+            shutil.copyfile(plugin, os.path.join(os.path.dirname(os.path.abspath(destination)), os.path.basename(plugin)))
 
 
 class build_outside_cmake_tree(build):

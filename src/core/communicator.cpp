@@ -1,5 +1,5 @@
 // The serial communicator, the shares, and (built with MPI) the MPI communicator
-// (include/wavebrdf/communicator.h).
+// (include/wavebrdf/communicator.h), whose calls go through the MPI plugin (src/plugins/mpi_api.h).
 #include "wavebrdf/communicator.h"
 
 #include "core/exact_sum.h"
@@ -16,10 +16,8 @@
 #include <utility>
 
 #ifdef WAVEBRDF_HAS_MPI
-// MPI's C interface only (not the deprecated C++ bindings, which need libmpi_cxx).
-#define OMPI_SKIP_MPICXX 1
-#define MPICH_SKIP_MPICXX 1
-#include <mpi.h>
+#include "core/plugin.h"
+#include "plugins/mpi_api.h"
 #endif
 
 namespace wavebrdf {
@@ -60,25 +58,33 @@ private:
 // MPI counts are int: long arrays go in pieces of this many values.
 constexpr std::size_t k_chunk = std::size_t(1) << 24;
 
-void check_mpi(int code, const char* what) {
-    if (code == MPI_SUCCESS) return;
-    char message[MPI_MAX_ERROR_STRING];
-    int length = 0;
-    MPI_Error_string(code, message, &length);
-    throw std::runtime_error(std::string("MPI: ") + what + " failed: " + std::string(message, std::size_t(length)));
+// MPI, through the plugin (src/plugins/mpi_api.h), loaded on the first call.
+const detail::MpiApi& mpi() {
+    static const detail::MpiApi* const api = [] {
+        using Entry = const detail::MpiApi* (*)();
+        const auto entry = reinterpret_cast<Entry>(detail::plugin_symbol("mpi", "wavebrdf_mpi_api"));
+        const detail::MpiApi* table = entry();
+        if (table == nullptr || table->version != detail::k_mpi_api_version)
+            throw std::runtime_error("wavebrdf: the MPI plugin libwavebrdf_mpi.so is of another version (interface " +
+                                     std::to_string(table ? table->version : -1) + ", expected " +
+                                     std::to_string(detail::k_mpi_api_version) + "); rebuild it");
+        return table;
+    }();
+    return *api;
 }
 
-// MPI_User_function: inout ← in + inout, element-wise on 192-bit integers (three words each).
-void sum_words192(void* in, void* inout, int* count, MPI_Datatype*) {
-    detail::add_words192(static_cast<const std::uint64_t*>(in), static_cast<std::uint64_t*>(inout),
-                         static_cast<std::size_t>(*count));
+void check_mpi(int code, const char* what) {
+    if (code == 0) return;
+    char message[512];
+    mpi().error_string(code, message, int(sizeof message));
+    throw std::runtime_error(std::string("MPI: ") + what + " failed: " + message);
 }
 
 class MpiCommunicator final : public Communicator {
 public:
-    explicit MpiCommunicator(MPI_Comm comm) : m_comm(comm) {
-        check_mpi(MPI_Comm_rank(comm, &m_rank), "MPI_Comm_rank");
-        check_mpi(MPI_Comm_size(comm, &m_size), "MPI_Comm_size");
+    explicit MpiCommunicator(long long comm) : m_comm(comm) {
+        check_mpi(mpi().rank(comm, &m_rank), "MPI_Comm_rank");
+        check_mpi(mpi().size(comm, &m_size), "MPI_Comm_size");
     }
     int rank() const override { return m_rank; }
     int size() const override { return m_size; }
@@ -91,8 +97,7 @@ public:
         for (std::size_t start = 0; start < count; start += k_chunk) {
             const std::size_t n = std::min(k_chunk, count - start);
             if (m_rank == 0) all.resize(n * std::size_t(m_size));
-            check_mpi(MPI_Gather(values + start, int(n), MPI_DOUBLE, m_rank == 0 ? all.data() : nullptr, int(n),
-                                 MPI_DOUBLE, 0, m_comm),
+            check_mpi(mpi().gather_doubles(values + start, int(n), m_rank == 0 ? all.data() : nullptr, 0, m_comm),
                       "MPI_Gather");
             if (m_rank == 0) {
                 for (std::size_t i = 0; i < n; ++i) {
@@ -101,14 +106,14 @@ public:
                     values[start + i] = sum;
                 }
             }
-            check_mpi(MPI_Bcast(values + start, int(n), MPI_DOUBLE, 0, m_comm), "MPI_Bcast");
+            check_mpi(mpi().broadcast_doubles(values + start, int(n), 0, m_comm), "MPI_Bcast");
         }
     }
     void broadcast(double* values, std::size_t count, int root) const override {
         check_root(root);
         for (std::size_t start = 0; start < count; start += k_chunk) {
             const std::size_t n = std::min(k_chunk, count - start);
-            check_mpi(MPI_Bcast(values + start, int(n), MPI_DOUBLE, root, m_comm), "MPI_Bcast");
+            check_mpi(mpi().broadcast_doubles(values + start, int(n), root, m_comm), "MPI_Bcast");
         }
     }
     std::vector<double> gather(const std::vector<double>& local, int root) const override {
@@ -118,7 +123,7 @@ public:
                                         " values per rank; expected at most 2^30");
         int mine = int(local.size());
         std::vector<int> counts(static_cast<std::size_t>(m_size)), offsets(static_cast<std::size_t>(m_size));
-        check_mpi(MPI_Gather(&mine, 1, MPI_INT, counts.data(), 1, MPI_INT, root, m_comm), "MPI_Gather");
+        check_mpi(mpi().gather_ints(&mine, 1, counts.data(), root, m_comm), "MPI_Gather");
         std::vector<double> all;
         if (m_rank == root) {
             long long total = 0;
@@ -130,8 +135,7 @@ public:
                 throw std::invalid_argument("gather of " + std::to_string(total) + " values; expected below 2^31");
             all.resize(std::size_t(total));
         }
-        check_mpi(MPI_Gatherv(local.data(), mine, MPI_DOUBLE, all.data(), counts.data(), offsets.data(), MPI_DOUBLE,
-                              root, m_comm),
+        check_mpi(mpi().gatherv_doubles(local.data(), mine, all.data(), counts.data(), offsets.data(), root, m_comm),
                   "MPI_Gatherv");
         return all;
     }
@@ -142,8 +146,7 @@ public:
         for (std::size_t start = 0; start < count; start += k_chunk) {
             const std::size_t n = std::min(k_chunk, count - start);
             if (here) chunk.resize(n * std::size_t(m_size));
-            check_mpi(MPI_Gather(local + start, int(n), MPI_UINT64_T, here ? chunk.data() : nullptr, int(n),
-                                 MPI_UINT64_T, root, m_comm),
+            check_mpi(mpi().gather_words(local + start, int(n), here ? chunk.data() : nullptr, root, m_comm),
                       "MPI_Gather");
             if (here)
                 for (std::size_t r = 0; r < std::size_t(m_size); ++r)
@@ -154,39 +157,28 @@ public:
         check_root(root);
         for (std::size_t start = 0; start < count; start += k_chunk) {
             const std::size_t n = std::min(k_chunk, count - start);
-            check_mpi(MPI_Bcast(words + start, int(n), MPI_UINT64_T, root, m_comm), "MPI_Bcast");
+            check_mpi(mpi().broadcast_words(words + start, int(n), root, m_comm), "MPI_Bcast");
         }
     }
     // MPI_Allreduce with a commutative operation on 192-bit integers (the reduction's order is
     // MPI's, the sum's bits are not: integer addition).
     void allreduce_words192(std::uint64_t* words, std::size_t count) const override {
         if (m_size == 1 || count == 0) return;
-        struct Triple {  // the datatype and the operation, freed however the calls end
-            MPI_Datatype type = MPI_DATATYPE_NULL;
-            MPI_Op op = MPI_OP_NULL;
-            ~Triple() {
-                if (op != MPI_OP_NULL) MPI_Op_free(&op);
-                if (type != MPI_DATATYPE_NULL) MPI_Type_free(&type);
-            }
-        } t;
-        check_mpi(MPI_Type_contiguous(3, MPI_UINT64_T, &t.type), "MPI_Type_contiguous");
-        check_mpi(MPI_Type_commit(&t.type), "MPI_Type_commit");
-        check_mpi(MPI_Op_create(&sum_words192, 1, &t.op), "MPI_Op_create");
         const std::size_t piece = k_chunk / 3;
         for (std::size_t start = 0; start < count; start += piece) {
             const std::size_t n = std::min(piece, count - start);
-            check_mpi(MPI_Allreduce(MPI_IN_PLACE, words + 3 * start, int(n), t.type, t.op, m_comm), "MPI_Allreduce");
+            check_mpi(mpi().allreduce_words192(words + 3 * start, int(n), m_comm), "MPI_Allreduce");
         }
     }
     bool any(bool flag) const override {
-        int mine = flag ? 1 : 0, result = 0;
-        check_mpi(MPI_Allreduce(&mine, &result, 1, MPI_INT, MPI_LOR, m_comm), "MPI_Allreduce");
+        int result = flag ? 1 : 0;
+        check_mpi(mpi().allreduce_or(&result, m_comm), "MPI_Allreduce");
         return result != 0;
     }
-    void barrier() const override { check_mpi(MPI_Barrier(m_comm), "MPI_Barrier"); }
+    void barrier() const override { check_mpi(mpi().barrier(m_comm), "MPI_Barrier"); }
     [[noreturn]] void abort(int code) const override {
         std::fflush(nullptr);
-        MPI_Abort(m_comm, code);
+        mpi().abort(m_comm, code);
         std::_Exit(code);  // MPI_Abort does not return; should it, end this rank at least
     }
 
@@ -196,7 +188,7 @@ private:
             throw std::invalid_argument("root rank " + std::to_string(root) + " is out of range; expected 0 … " +
                                         std::to_string(m_size - 1));
     }
-    MPI_Comm m_comm;
+    long long m_comm;  // a Fortran handle (MPI_Comm_c2f)
     int m_rank = 0, m_size = 1;
 };
 
@@ -210,9 +202,7 @@ bool launched_by_mpi() {
 struct MpiLifetime {
     bool initialised_here = false;
     ~MpiLifetime() {
-        int finalized = 0;
-        MPI_Finalized(&finalized);
-        if (initialised_here && !finalized) MPI_Finalize();
+        if (initialised_here) mpi().finalize();
     }
 };
 
@@ -255,18 +245,23 @@ std::shared_ptr<const Communicator> world_communicator() {
     std::lock_guard<std::mutex> lock(mutex);
     if (world) return world;
 #ifdef WAVEBRDF_HAS_MPI
-    static MpiLifetime lifetime;
-    int initialised = 0;
-    MPI_Initialized(&initialised);
-    if (!initialised && launched_by_mpi()) {
-        int provided = 0;
-        check_mpi(MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided), "MPI_Init_thread");
-        lifetime.initialised_here = true;
-        initialised = 1;
-    }
-    if (initialised) {
-        world = std::make_shared<MpiCommunicator>(MPI_COMM_WORLD);
-        return world;
+    // The plugin (and MPI with it) is loaded only when MPI can be in use: this process was
+    // started by mpiexec, or it already holds an MPI library (mpi4py).
+    if (launched_by_mpi() || detail::library_loaded("libmpi")) {
+        static MpiLifetime lifetime;
+        int initialised = 0;
+        check_mpi(mpi().initialized(&initialised), "MPI_Initialized");
+        if (!initialised && launched_by_mpi()) {
+            check_mpi(mpi().init_thread_funneled(), "MPI_Init_thread");
+            lifetime.initialised_here = true;
+            initialised = 1;
+        }
+        if (initialised) {
+            long long handle = 0;
+            check_mpi(mpi().world(&handle), "MPI_COMM_WORLD");
+            world = std::make_shared<MpiCommunicator>(handle);
+            return world;
+        }
     }
 #endif
     // Not owned: the serial communicator lives for the whole program.
@@ -277,10 +272,10 @@ std::shared_ptr<const Communicator> world_communicator() {
 std::shared_ptr<const Communicator> communicator_from_fortran_handle(long long handle) {
 #ifdef WAVEBRDF_HAS_MPI
     int initialised = 0;
-    MPI_Initialized(&initialised);
+    check_mpi(mpi().initialized(&initialised), "MPI_Initialized");
     if (!initialised)
         throw std::runtime_error("an MPI communicator was given but MPI is not initialised (import mpi4py.MPI first)");
-    return std::make_shared<MpiCommunicator>(MPI_Comm_f2c(MPI_Fint(handle)));
+    return std::make_shared<MpiCommunicator>(handle);
 #else
     (void)handle;
     throw std::runtime_error(
