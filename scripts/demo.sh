@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The main job on a built-in default: sets up, builds, then
+# The main job on a built-in default: sets up, builds only the CLI and the Python module (the
+# report plotter), then
 #  1. runs the inverse renderer on the thesis's first experiment (a generated 16×16 truth,
 #     normal incidence, 32×32 spectral slice, flat start, Adam, CMSLE ε = 1, 300 epochs)
 #     → out/invert/{report.png, curves.png, metrics.csv, estimate.exr, ...}
@@ -7,7 +8,7 @@
 #     → out/demo/{scratched.png, slice.png}
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh --demo
 W=build/bin/wavebrdf
 $W invert --out out/invert
 mkdir -p out/demo

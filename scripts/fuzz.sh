@@ -19,9 +19,11 @@ launcher=()
 if command -v ccache >/dev/null 2>&1; then
     launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 fi
+# One shared instrumented library (WAVEBRDF_SHARED) that every target loads: each target's link
+# is then its own small file, not a copy of the whole library.
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    -DWAVEBRDF_BUILD_FUZZERS=ON -DWAVEBRDF_BUILD_TESTS=OFF -DWAVEBRDF_BUILD_BENCH=OFF \
-    -DWAVEBRDF_BUILD_PYTHON=OFF "${launcher[@]}" >/dev/null
+    -DWAVEBRDF_BUILD_FUZZERS=ON -DWAVEBRDF_SHARED=ON -DWAVEBRDF_BUILD_TESTS=OFF -DWAVEBRDF_BUILD_BENCH=OFF \
+    -DWAVEBRDF_BUILD_PYTHON=OFF -DWAVEBRDF_BUILD_EXPERIMENTS=OFF "${launcher[@]}" >/dev/null
 build_targets=()
 for t in "${targets[@]}"; do build_targets+=(--target "${t}_fuzz"); done
 cmake --build build-fuzz -j"$jobs" "${build_targets[@]}"

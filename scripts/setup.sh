@@ -1,16 +1,22 @@
 #!/usr/bin/env bash
 # Installs what wavebrdf needs (Debian packages) and builds it into build/ (Release).
-# Usage: bash scripts/setup.sh [extra cmake args...]
+# Usage: bash scripts/setup.sh [--demo] [extra cmake args...]
+# --demo: only what scripts/demo.sh needs (the CLI and the Python module, their packages and
+# ccache), not the tests, benchmarks, MPI, HDF5, clang or the documentation tools.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-packages=(build-essential cmake pkg-config libopenexr-dev libeigen3-dev libcli11-dev
-          nlohmann-json3-dev libfftw3-dev libpng-dev libgtest-dev libbenchmark-dev
-          python3 python3-numpy python3-matplotlib python3-pil python3-pytest
-          python3-dev pybind11-dev python3-torch
+demo=0
+[ "${1:-}" = --demo ] && { demo=1; shift; }
+# The demo's packages (what the library, the CLI and the Python module need), then the rest.
+packages=(build-essential cmake pkg-config ccache libopenexr-dev libeigen3-dev libcli11-dev
+          nlohmann-json3-dev libfftw3-dev libpng-dev python3 python3-numpy python3-matplotlib
+          python3-dev pybind11-dev
+          libzip-dev libpugixml-dev)  # x3p surface files (docs/surfaces.md)
+[ "$demo" = 1 ] || packages+=(libgtest-dev libbenchmark-dev
+          python3-pil python3-pytest python3-torch
           python3-venv python3-setuptools python3-pip python3-wheel python3-tqdm doxygen
           libopenmpi-dev openmpi-bin python3-mpi4py libhdf5-dev  # MPI and HDF5 (docs/scale.md)
-          libzip-dev libpugixml-dev  # x3p surface files (docs/surfaces.md)
           gwyddion libgwyddion20-dev xvfb  # Gwyddion reads and writes surface files in the tests
           clang libclang-rt-dev libomp-dev)  # clang: the fuzzers (scripts/fuzz.sh)
 missing=()
@@ -28,5 +34,11 @@ fi
 # ccache, where the machine has it, makes rebuilds of other checkouts nearly free.
 launcher=()
 command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" "$@" >/dev/null
-cmake --build build -j"$(nproc)"
+if [ "$demo" = 1 ]; then
+    cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DWAVEBRDF_BUILD_TESTS=OFF -DWAVEBRDF_BUILD_BENCH=OFF \
+          -DWAVEBRDF_BUILD_EXPERIMENTS=OFF "${launcher[@]}" "$@" >/dev/null
+    cmake --build build -j"$(nproc)" --target wavebrdf_cli wavebrdf_python
+else
+    cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" "$@" >/dev/null
+    cmake --build build -j"$(nproc)"
+fi

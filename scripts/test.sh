@@ -45,7 +45,7 @@ launcher=()  # ccache, where the machine has it, as in setup.sh (a fresh CI mach
 command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 CC=clang CXX=clang++ cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DWAVEBRDF_SANITIZE=ON -DWAVEBRDF_BUILD_BENCH=OFF \
-      -DWAVEBRDF_BUILD_PYTHON=OFF "${launcher[@]}" >/dev/null
+      -DWAVEBRDF_BUILD_PYTHON=OFF -DWAVEBRDF_BUILD_EXPERIMENTS=OFF "${launcher[@]}" >/dev/null
 cmake --build build-sanitize -j"$(nproc)"
 phase "sanitizer tests (ctest)"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
