@@ -1,11 +1,17 @@
 #!/usr/bin/env bash
-# Issue 12's speed benchmark (results: bench/results/2026-11-23-models.md). Four parts:
+# The speed benchmark. Parts:
+#   startup    whole process: `wavebrdf --version` (the start-up every command pays), the shared
+#              libraries the binary loads (ldd), and `python3 -c "import wavebrdf"` against
+#              `python3 -c pass`.
 #   table      whole process, `wavebrdf genbrdf` against the reference program genBrdf (Yan et
 #              al. 2018's public release, built separately; none of its code is in this
 #              repository) on a generated 1024² heightfield, σ_p 10 µm, footprint at the centre
-#              (512, 512): 128², λ 0.5, normal light, each of the five models; and the README
-#              example (128², 8 wavelengths, light (−1, −1, 1), OHS). Median of RUNS after one
-#              warm-up. Without GENBRDF only wavebrdf is timed.
+#              (512, 512): the README example (128², 8 wavelengths, light (−1, −1, 1), OHS;
+#              target ≥ 150×) and each of the five models (128², λ 0.5, normal light; target
+#              ≥ 30×). Without GENBRDF only wavebrdf is timed.
+#   slice      whole process, `wavebrdf render` of a 1024² slice, σ_p 50 µm, λ 0.5, OHS, on the
+#              same heightfield: `--path auto` against `--path separable`, double and float
+#              (target ≥ 20×).
 #   gradient   library: the gradient (forward + adjoint) against the forward of one 128² slice
 #              per model (build/bin/models_bench, median of 3).
 #   paths      library: the separable and fft paths (RenderOptions::path) over slice size n and
@@ -14,19 +20,23 @@
 #              A path the library refuses prints n/a.
 #   recovery   `wavebrdf recover --size 64 --resolution 48 --seed S` for SEEDS: wall time and
 #              the final height_rel_rmse (metrics.csv).
+# The whole-process parts (startup, table, slice) run the two programs of a row in turn (A B A B
+# …, after one warm-up of each), RUNS times each, and report each one's minimum (the run least
+# disturbed by the rest of the machine) and the ratio of the minima.
 # Usage:
-#   [GENBRDF=/path/to/genBrdf] bash bench/speed.sh [--part table|gradient|paths|recovery]...
+#   [GENBRDF=/path/to/genBrdf] bash bench/speed.sh [--part startup|table|slice|gradient|paths|recovery]...
 #       [--runs N] [--build DIR] [--seeds "S1 S2 S3"]
-# Environment: GENBRDF (the reference binary; never committed), PEAK_SP_GFLOPS (nominal single-
-# precision peak of this machine, default 166.4: 2 cores × 2.6 GHz × 32, the project's 2-core
-# EPYC, bench/results/2026-11-21-epyc-2core.md). Needs a Release build of the targets
-# wavebrdf_cli and models_bench. All four parts take about 6 minutes on that machine.
+# Default: startup, table and slice (the whole-process targets); gradient and paths need the
+# target models_bench (WAVEBRDF_BUILD_BENCH). Environment: GENBRDF (the reference binary; never
+# committed), PEAK_SP_GFLOPS (nominal single-precision peak of this machine, default 166.4:
+# 2 cores × 2.6 GHz × 32, the project's 2-core EPYC). Needs a Release build of wavebrdf_cli (and
+# wavebrdf_python for the import time).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
 
 parts=()
-runs=3
+runs=5
 build=build
 seeds="3001 3002 3003"
 while [ $# -gt 0 ]; do
@@ -35,14 +45,14 @@ while [ $# -gt 0 ]; do
         --runs) runs=$2; shift 2 ;;
         --build) build=$2; shift 2 ;;
         --seeds) seeds=$2; shift 2 ;;
-        -h|--help) sed -n '2,25p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,34p' "$0"; exit 0 ;;
         *) echo "speed.sh: unknown argument '$1' (expected --part, --runs, --build, --seeds)" >&2; exit 2 ;;
     esac
 done
-[ ${#parts[@]} -eq 0 ] && parts=(table gradient paths recovery)
+[ ${#parts[@]} -eq 0 ] && parts=(startup table slice)
 for p in "${parts[@]}"; do
-    case "$p" in table|gradient|paths|recovery) ;; *)
-        echo "speed.sh: unknown part '$p' (expected table, gradient, paths or recovery)" >&2; exit 2 ;;
+    case "$p" in startup|table|slice|gradient|paths|recovery) ;; *)
+        echo "speed.sh: unknown part '$p' (expected startup, table, slice, gradient, paths or recovery)" >&2; exit 2 ;;
     esac
 done
 case "$runs" in ''|*[!0-9]*|0) echo "speed.sh: --runs '$runs' is not a positive integer" >&2; exit 2 ;; esac
@@ -56,7 +66,6 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 want() { local p; for p in "${parts[@]}"; do [ "$p" = "$1" ] && return 0; done; return 1; }
-median() { sort -g | awk '{a[NR]=$1} END {print (NR % 2) ? a[(NR+1)/2] : (a[NR/2] + a[NR/2+1]) / 2}'; }
 seconds() {  # program args...: wall seconds of one run (output discarded), "failed" if it fails
     local s e
     s=$(date +%s.%N)
@@ -65,16 +74,6 @@ seconds() {  # program args...: wall seconds of one run (output discarded), "fai
     fi
     e=$(date +%s.%N)
     echo "$e - $s" | bc
-}
-time_runs() {  # program args...: one warm-up, then the median of $runs timed runs ("failed" if any fails)
-    local t all=()
-    "$@" >/dev/null 2>&1 || true
-    for _ in $(seq "$runs"); do
-        t=$(seconds "$@")
-        [ "$t" = failed ] && { echo failed; return; }
-        all+=("$t")
-    done
-    printf '%s\n' "${all[@]}" | median
 }
 fmt() { case "$1" in failed|-) echo "$1" ;; *) printf "%.${2:-3}f" "$1" ;; esac; }
 
@@ -88,29 +87,63 @@ echo "build:   $build ($(sed -n 's/^CMAKE_BUILD_TYPE:STRING=//p' "$build/CMakeCa
 echo "load:    $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min) at the start"
 echo "genBrdf: ${GENBRDF:-not given (only wavebrdf is timed)}"
 
-if want table; then
+# pairs LABEL TARGET -- A... -- B...: B and A in turn ($runs each after a warm-up of each), whole
+# process; prints "| LABEL | min B | min A | B/A | TARGET |" (B: the reference side; none: only A).
+pairs() {
+    /usr/bin/python3 "$root/bench/whole_process.py" "$runs" "$@"
+}
+
+if want startup || want table || want slice; then
     "$W" heightfield --type isotropic --size 1024 --rms-height-um 0.05 --correlation-um 4 --seed 1 \
         --out "$work/iso1024.exr" --no-png --quiet
+fi
+
+if want startup; then
     echo
-    echo "## Whole process against genBrdf (1024² heightfield, σ_p 10 µm, footprint at the centre; median of $runs after one warm-up)"
+    echo "## Start-up (whole process, minimum of $runs after one warm-up, alternating)"
     echo
-    echo "| case | genBrdf [s] | wavebrdf genbrdf [s] | ratio |"
-    echo "|---|---|---|---|"
-    table_row() {  # label, then the genBrdf arguments both programs take
-        local label=$1 ours ref ratio
-        shift
-        ours=$(time_runs "$W" genbrdf -i "$work/iso1024.exr" -o "$work/ours.exr" "$@" --quiet)
-        ref="-"; ratio="-"
-        [ -n "${GENBRDF:-}" ] && ref=$(time_runs "$GENBRDF" -i "$work/iso1024.exr" -o "$work/ref.exr" "$@")
-        if [ "$ref" != - ] && [ "$ref" != failed ] && [ "$ours" != failed ]; then
-            ratio=$(echo "scale=1; $ref / $ours" | bc)×
-        fi
-        echo "| $label | $(fmt "$ref") | $(fmt "$ours") | $ratio |"
+    echo "Shared libraries \`wavebrdf\` loads: $(ldd "$W" | wc -l) (\`ldd $build/bin/wavebrdf | wc -l\`)."
+    echo
+    echo "| case | baseline [s] | wavebrdf [s] | ratio | target |"
+    echo "|---|---|---|---|---|"
+    pairs "\`wavebrdf --version\` (baseline: \`/bin/true\`)" "< 5 ms" -- "$W" --version -- /bin/true
+    if [ -d "$root/$build/python/wavebrdf" ]; then
+        PYTHONPATH="$root/$build/python" pairs "\`python3 -c 'import wavebrdf'\` (baseline: \`python3 -c pass\`)" \
+            "" -- /usr/bin/python3 -c "import wavebrdf" -- /usr/bin/python3 -c pass
+    fi
+fi
+
+if want table; then
+    echo
+    echo "## Whole process against genBrdf (1024² heightfield, σ_p 10 µm, footprint at the centre; minimum of $runs, alternating)"
+    echo
+    echo "| case | genBrdf [s] | wavebrdf genbrdf [s] | ratio | target |"
+    echo "|---|---|---|---|---|"
+    table_row() {  # label, target, then the genBrdf arguments both programs take
+        local label=$1 target=$2
+        shift 2
+        local ref=()
+        [ -n "${GENBRDF:-}" ] && ref=("$GENBRDF" -i "$work/iso1024.exr" -o "$work/ref.exr" "$@")
+        pairs "$label" "$target" -- "$W" genbrdf -i "$work/iso1024.exr" -o "$work/ours.exr" "$@" --quiet \
+            -- "${ref[@]}"
     }
     centre=(-x 512 -y 512 -p 10 -r 128)
-    table_row "README example: 128², 8 wavelengths, light (−1,−1,1), OHS" "${centre[@]}" -l 0 -s -1 -t -1 -d OHS
+    table_row "README example: 128², 8 wavelengths, light (−1,−1,1), OHS" "≥ 150×" "${centre[@]}" -l 0 -s -1 -t -1 -d OHS
     for m in OHS GHS ROHS RGHS Kirchhoff; do
-        table_row "128², λ 0.5, normal light, $m" "${centre[@]}" -l 0.5 -d "$m"
+        table_row "128², λ 0.5, normal light, $m" "≥ 30×" "${centre[@]}" -l 0.5 -d "$m"
+    done
+fi
+
+if want slice; then
+    echo
+    echo "## 1024² slice, σ_p 50 µm: \`--path auto\` against \`--path separable\` (whole process, minimum of $runs, alternating)"
+    echo
+    echo "| precision | separable [s] | auto [s] | ratio | target |"
+    echo "|---|---|---|---|---|"
+    for precision in double float; do
+        slice=("$W" render --heightfield "$work/iso1024.exr" --x-um 512 --y-um 512 --sigma-p-um 50 --lambda-um 0.5
+               --resolution 1024 --precision "$precision" --out "$work/slice.exr" --quiet)
+        pairs "$precision" "≥ 20×" -- "${slice[@]}" --path auto -- "${slice[@]}" --path separable
     done
 fi
 
