@@ -90,7 +90,7 @@ echo "genBrdf: ${GENBRDF:-not given (only wavebrdf is timed)}"
 # pairs LABEL TARGET -- A... -- B...: B and A in turn ($runs each after a warm-up of each), whole
 # process; prints "| LABEL | min B | min A | B/A | TARGET |" (B: the reference side; none: only A).
 pairs() {
-    /usr/bin/python3 "$root/bench/whole_process.py" "$runs" "$@"
+    /usr/bin/python3 "$root/bench/whole_process.py" "${pair_runs:-$runs}" "$@"
 }
 
 if want startup || want table || want slice; then
@@ -100,7 +100,10 @@ fi
 
 if want startup; then
     echo
-    echo "## Start-up (whole process, minimum of $runs after one warm-up, alternating)"
+    # Start-up is milliseconds: many more runs than the slow rows, so that the minimum is one
+    # the rest of the machine did not disturb.
+    pair_runs=$((runs * 10))
+    echo "## Start-up (whole process, minimum of $pair_runs after one warm-up, alternating)"
     echo
     echo "Shared libraries \`wavebrdf\` loads: $(ldd "$W" | wc -l) (\`ldd $build/bin/wavebrdf | wc -l\`)."
     echo
@@ -111,6 +114,7 @@ if want startup; then
         PYTHONPATH="$root/$build/python" pairs "\`python3 -c 'import wavebrdf'\` (baseline: \`python3 -c pass\`)" \
             "" -- /usr/bin/python3 -c "import wavebrdf" -- /usr/bin/python3 -c pass
     fi
+    unset pair_runs
 fi
 
 if want table; then
