@@ -22,7 +22,9 @@
 #              the final height_rel_rmse (metrics.csv).
 # The whole-process parts (startup, table, slice) run the two programs of a row in turn (A B A B
 # …, after one warm-up of each), RUNS times each, and report each one's minimum (the run least
-# disturbed by the rest of the machine) and the ratio of the minima.
+# disturbed by the rest of the machine) and the ratio of the minima, each with the minimum CPU
+# time (user + system, all threads; bench/whole_process.py), which a busy machine does not
+# inflate the way it inflates the wall time.
 # Usage:
 #   [GENBRDF=/path/to/genBrdf] bash bench/speed.sh [--part startup|table|slice|gradient|paths|recovery]...
 #       [--runs N] [--build DIR] [--seeds "S1 S2 S3"]

@@ -5,32 +5,42 @@
 Runs B then A once each untimed (warm-up: page cache, CPU frequency), then RUNS rounds of B, A
 (alternating, so that a drift of the machine's speed touches both alike) and prints one Markdown
 row: | LABEL | min B | min A | min B / min A | TARGET |. The time is the wall time from the
-start of the child to its reaping (time.perf_counter), output discarded. A failing run prints
-the command and its last error line on stderr and "failed" in the row.
+start of the child to its reaping (time.perf_counter), output discarded; beside it, the CPU
+time (user + system of the child and its threads, from wait4): on a machine shared with other
+work the wall time waits for the processor, the CPU time does not. A failing run prints the
+command and its last error line on stderr and "failed" in the row.
 """
+import os
 import subprocess
 import sys
 import time
 
 
 def once(cmd):
+    """(wall seconds, CPU seconds) of one run of cmd, or None when it fails."""
     start = time.perf_counter()
-    done = subprocess.run(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    child = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    error = child.stderr.read()
+    _, status, usage = os.wait4(child.pid, 0)
     seconds = time.perf_counter() - start
-    if done.returncode != 0:
-        last = done.stderr.decode(errors="replace").strip().splitlines()[-1:] or ["exit %d" % done.returncode]
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode != 0:
+        last = error.decode(errors="replace").strip().splitlines()[-1:] or ["exit %d" % child.returncode]
         sys.stderr.write("whole_process.py: failed: %s (%s)\n" % (" ".join(cmd), last[0]))
         return None
-    return seconds
+    return seconds, usage.ru_utime + usage.ru_stime
 
 
-def cell(times):
-    if not times:
+def fmt(t):
+    return "%.4f" % t if t < 0.1 else "%.3f" % t
+
+
+def cell(runs):
+    if not runs:
         return "-"
-    if None in times:
+    if None in runs:
         return "failed"
-    best = min(times)
-    return "%.4f" % best if best < 0.1 else "%.3f" % best
+    return "%s (cpu %s)" % (fmt(min(r[0] for r in runs)), fmt(min(r[1] for r in runs)))
 
 
 def main(argv):
@@ -53,7 +63,9 @@ def main(argv):
         ta.append(once(a))
     ratio = "-"
     if ta and tb and None not in ta and None not in tb:
-        ratio = "%.1f×" % (min(tb) / min(ta))
+        wall = min(r[0] for r in tb) / min(r[0] for r in ta)
+        cpu = min(r[1] for r in tb) / max(min(r[1] for r in ta), 1e-6)
+        ratio = "%.1f× (cpu %.1f×)" % (wall, cpu)
     print("| %s | %s | %s | %s | %s |" % (label, cell(tb), cell(ta), ratio, target))
 
 
