@@ -1,10 +1,12 @@
 // Heightfield: from NumPy or an EXR file, to NumPy; the procedural generators.
 #include <cstring>
+#include <filesystem>
 #include <optional>
 
 #include "common.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/surface_file.h"
 
 namespace wavebrdf::python {
 
@@ -68,6 +70,19 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             "CLI), else 1.0; a given value that differs from the file's wins, with a UserWarning naming\n"
             "both. RuntimeError names the file when it is missing, unreadable or corrupt, or has a\n"
             "hostile wavebrdf attribute; ValueError on a non-finite value.")
+        .def_static(
+            "read",
+            [](const std::string& path, const py::object& texel_um, const py::object& vscale) {
+                const HeightfieldScale scale = heightfield_file_scale(path, texel_um, vscale);
+                py::gil_scoped_release release;
+                return read_heightfield_exr(path, scale.texel_um, scale.vscale);
+            },
+            "path"_a, "texel_um"_a = py::none(), "vscale"_a = py::none(),
+            "Reads a heightfield EXR or a measured surface (x3p, sdf, MetroPro .dat, sur, plu, al3d, npy,\n"
+            "text matrix; recognised by content, docs/surfaces.md). A measured surface keeps its heights\n"
+            "in um and is transposed so that row index i runs along x; its spacing must be square and every\n"
+            "point measured (else ValueError: run `wavebrdf convert` with --resample-um / --fill). texel_um:\n"
+            "the file's spacing when None; npy and text files state none and need it. vscale: 1 when None.")
         .def_static(
             "exr_attributes",
             [](const std::string& path) {
@@ -190,6 +205,24 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             "Writes the values (texel units) as a single-channel float EXR (atomically), with the\n"
             "attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,\n"
             "\"Files\"), so that from_exr reads the same scale back.")
+        .def(
+            "save",
+            [](const Heightfield& hf, const std::string& path, const std::string& made_by) {
+                py::gil_scoped_release release;
+                std::string ext = std::filesystem::path(path).extension().string();
+                for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+                if (ext == ".exr") {
+                    write_heightfield_exr(path, hf, made_by);
+                } else {
+                    MeasuredSurface s = from_heightfield(hf, ext.empty() ? "" : ext.substr(1));
+                    s.metadata.push_back({"made_by", made_by});
+                    write_surface(path, s);
+                }
+            },
+            "path"_a, "made_by"_a = "python",
+            "Writes the heightfield in the format of path's extension: .exr (save_exr), .x3p, .sdf or .npy\n"
+            "(heights in um, transposed to rows along y as those formats store them; docs/surfaces.md).\n"
+            "ValueError for another extension.")
         .def(
             "save_png",
             [](const Heightfield& hf, const std::string& path) {

@@ -225,6 +225,15 @@ class Heightfield:
         """
         ...
     @staticmethod
+    def read(path: str, texel_um: Any = ..., vscale: Any = ...) -> Heightfield:
+        """Reads a heightfield EXR or a measured surface (x3p, sdf, MetroPro .dat, sur, plu, al3d, npy,
+        text matrix; recognised by content, docs/surfaces.md). A measured surface keeps its heights
+        in um and is transposed so that row index i runs along x; its spacing must be square and every
+        point measured (else ValueError: run `wavebrdf convert` with --resample-um / --fill). texel_um:
+        the file's spacing when None; npy and text files state none and need it. vscale: 1 when None.
+        """
+        ...
+    @staticmethod
     def exr_attributes(path: str) -> dict:
         """What a heightfield EXR says about itself (no pixels read): a dict with texel_um, vscale
         (None when the file does not say), units, made_by and version ('' when absent).
@@ -300,6 +309,12 @@ class Heightfield:
         """Writes the values (texel units) as a single-channel float EXR (atomically), with the
         attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,
         "Files"), so that from_exr reads the same scale back.
+        """
+        ...
+    def save(self, path: str, made_by: str = ...) -> None:
+        """Writes the heightfield in the format of path's extension: .exr (save_exr), .x3p, .sdf or .npy
+        (heights in um, transposed to rows along y as those formats store them; docs/surfaces.md).
+        ValueError for another extension.
         """
         ...
     def save_png(self, path: str) -> None:
