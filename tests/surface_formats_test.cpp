@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -362,6 +363,9 @@ TEST(SurfaceFileSdf, ReadsTheStandardsAsciiExampleAndRefusesDamage) {
     std::string compressed = ascii;
     compressed.replace(compressed.find("Compression = 0"), 15, "Compression = 1");
     expect_throw_naming<std::runtime_error>([&] { read_surface_bytes(compressed, "c.sdf"); }, "compressed");
+    std::string huge_code = ascii;
+    huge_code.replace(huge_code.find("DataType = 7"), 12, "DataType = 1e300");
+    expect_throw_naming<std::runtime_error>([&] { read_surface_bytes(huge_code, "h.sdf"); }, "expected a code 0 to 255");
     // Binary: what we write reads back; a short file is truncated.
     const std::string path = temp_path("b.sdf");
     write_surface(path, synthetic(true));
@@ -369,6 +373,22 @@ TEST(SurfaceFileSdf, ReadsTheStandardsAsciiExampleAndRefusesDamage) {
     const std::string binary((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     EXPECT_EQ(read_surface_bytes(binary, "b.sdf").invalid_count(), 2u);
     expect_throw_naming<std::runtime_error>([&] { read_surface_bytes(binary.substr(0, 200), "b.sdf"); }, "truncated");
+}
+
+TEST(SurfaceFileAl3d, HugeDeclaredSizesAreRefusedBeforeUse) {
+    const fs::path seed = fs::path(WAVEBRDF_SOURCE_DIR) / "fuzz" / "corpus" / "surface_al3d" / "tiny.al3d";
+    std::ifstream in(seed, std::ios::binary);
+    const std::string good((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_EQ(read_surface_bytes(good, "a.al3d").rows, 3);
+    for (const char* rows : {"1e300", "-7", "70000", "2.5"}) {
+        std::string bad = good;
+        const std::size_t at = bad.find("Rows");
+        ASSERT_NE(at, std::string::npos);
+        std::string value(30, '\0');
+        value.replace(0, std::strlen(rows), rows);
+        bad.replace(at + 20, 30, value);
+        expect_throw_naming<std::runtime_error>([&] { read_surface_bytes(bad, "a.al3d"); }, "AL3D Cols");
+    }
 }
 
 TEST(SurfaceFileBinary, TruncatedRealFilesAreRefusedNotOverread) {

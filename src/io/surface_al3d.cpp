@@ -50,8 +50,10 @@ MeasuredSurface read_al3d(const Bytes& b) {
         return v;
     };
     const double cols = number("Cols"), rows = number("Rows"), offset = number("DepthImageOffset");
+    // Bounded before any conversion to an integer (a double beyond its range would be undefined).
     if (cols != std::floor(cols) || rows != std::floor(rows) || offset != std::floor(offset) || offset < 0 ||
-        offset > double(b.size()))
+        offset > double(b.size()) || !(cols >= 1 && cols <= double(k_max_surface_side)) ||
+        !(rows >= 1 && rows <= double(k_max_surface_side)))
         fail(b.name(), "has AL3D Cols " + format_shortest(cols) + ", Rows " + format_shortest(rows) +
                            ", DepthImageOffset " + format_shortest(offset) + "; expected counts within the file");
     if (offset == 0) fail(b.name(), "has no AL3D depth image (DepthImageOffset 0)");

@@ -159,8 +159,15 @@ MeasuredSurface read_ascii(const Bytes& b) {
     h.xscale = number("Xscale", std::nullopt);
     h.yscale = number("Yscale", std::nullopt);
     h.zscale = number("Zscale", std::nullopt);
-    h.compression = int(number("Compression", 0.0));
-    h.data_type = int(number("DataType", 7.0));
+    // Small codes: bounded before the conversion to int.
+    const auto code = [&](const char* key, double fallback) {
+        const double v = number(key, fallback);
+        if (!(v >= 0 && v <= 255) || v != std::floor(v))
+            fail(b.name(), std::string("has SDF ") + key + " " + format_shortest(v) + "; expected a code 0 to 255");
+        return int(v);
+    };
+    h.compression = code("Compression", 0.0);
+    h.data_type = code("DataType", 7.0);
     sdf_type(b.name(), h.data_type);
     MeasuredSurface s = surface_of(b, h);
     const std::size_t n = std::size_t(s.rows) * std::size_t(s.cols);
