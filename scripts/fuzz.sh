@@ -13,7 +13,9 @@ cd "$(dirname "$0")/.."
 seconds="${FUZZ_SECONDS:-60}"
 jobs="${FUZZ_JOBS:-2}"
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint)
+[ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint
+                                     surface_x3p surface_sdf surface_plu surface_sur surface_al3d
+                                     surface_metropro surface_npy surface_text)
 
 launcher=()
 if command -v ccache >/dev/null 2>&1; then
@@ -31,7 +33,7 @@ cmake --build build-fuzz -j"$jobs" "${build_targets[@]}"
 # The largest input worth mutating: the seeds are under 3 kB; larger inputs mostly repeat.
 max_len() {
     case "$1" in
-        exr|checkpoint) echo 16384 ;;
+        exr|checkpoint|surface_*) echo 16384 ;;
         *) echo 8192 ;;
     esac
 }
@@ -41,7 +43,7 @@ max_len() {
 # count before allocating; see fuzz/README.md) rather than grinding through gigabytes.
 malloc_limit() {
     case "$1" in
-        exr) echo 256 ;;
+        exr|surface_*) echo 256 ;;
         *) echo 2048 ;;
     esac
 }
