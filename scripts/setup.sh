@@ -17,7 +17,7 @@ packages=(build-essential cmake pkg-config ccache libopenexr-dev libeigen3-dev l
           python3-pil python3-pytest python3-torch
           python3-venv python3-setuptools python3-pip python3-wheel python3-tqdm doxygen
           libopenmpi-dev openmpi-bin python3-mpi4py libhdf5-dev  # MPI and HDF5 (docs/scale.md)
-          gwyddion libgwyddion20-dev xvfb  # Gwyddion reads and writes surface files in the tests
+          gwyddion libgwyddion20-dev libgtk2.0-dev libgtkglext1-dev  # tests/gwyddion/gwy_probe.c (gwyddion.pc needs GTK 2)
           clang libclang-rt-dev libomp-dev)  # clang: the fuzzers (scripts/fuzz.sh)
 missing=()
 for p in "${packages[@]}"; do
