@@ -18,5 +18,6 @@ void add_recover_command(CLI::App& app);      // wavebrdf recover: heights from 
 void add_table_command(CLI::App& app);        // wavebrdf table: slices over a grid of lights
 void add_lobe_command(CLI::App& app);         // wavebrdf lobe: an analytic lobe as a table
 void add_image_command(CLI::App& app);        // wavebrdf image: camera pictures of the surface
+void add_design_command(CLI::App& app);      // wavebrdf design: a relief for a target appearance
 
 }  // namespace wavebrdf::cli

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
     wavebrdf::cli::add_table_command(app);
     wavebrdf::cli::add_lobe_command(app);
     wavebrdf::cli::add_image_command(app);
+    wavebrdf::cli::add_design_command(app);
     app.footer(wavebrdf::cli::k_common_help);
     // What every command shares: --threads, and the help's last lines (after the command's own).
     for (CLI::App* command : app.get_subcommands([](CLI::App*) { return true; })) {

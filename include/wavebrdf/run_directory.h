@@ -12,9 +12,10 @@ namespace wavebrdf {
 enum class RunKind {
     Invert,  // run.json, metrics.csv, checkpoint.json, snapshots/, reference*, truth*, final_*, estimate.*, report.png, curves.png
     Recover,  // run.json, metrics.csv, estimate*, truth*, uncertainty*, reference.npy, final.npy, report.png, observations.json, observations/
+    Design,   // design.json, metrics.csv, heights.*, masks*, target.*, far_field.*, report.png
 };
 
-// "wavebrdf invert" or "wavebrdf recover".
+// "wavebrdf invert", "wavebrdf recover" or "wavebrdf design".
 const char* to_string(RunKind kind);
 
 // Whether `relative` (a path inside the run directory, '/'-separated, e.g. "snapshots/height_0010.npy"

@@ -25,7 +25,14 @@ std::string without_temporary_suffix(const std::string& relative) {
 
 }  // namespace
 
-const char* to_string(RunKind kind) { return kind == RunKind::Invert ? "wavebrdf invert" : "wavebrdf recover"; }
+const char* to_string(RunKind kind) {
+    switch (kind) {
+        case RunKind::Invert: return "wavebrdf invert";
+        case RunKind::Recover: return "wavebrdf recover";
+        case RunKind::Design: return "wavebrdf design";
+    }
+    return "wavebrdf";
+}
 
 bool is_run_output(RunKind kind, const std::string& relative) {
     static const std::regex invert_names(
@@ -36,7 +43,11 @@ bool is_run_output(RunKind kind, const std::string& relative) {
         R"(^(run\.json|metrics\.csv|estimate\.exr|estimate\.png|estimate_height\.npy|truth\.exr|truth_height\.npy|)"
         R"(uncertainty\.exr|uncertainty\.json|uncertainty_height\.npy|)"
         R"(reference\.npy|final\.npy|report\.png|observations\.json|observations\.(h5|hdf5|cxi)|observations|observations/slice_[0-9]{4,}\.exr)$)");
+    static const std::regex design_names(
+        R"(^(design\.json|metrics\.csv|heights\.(exr|png|stl|x3p)|masks\.json|masks_[0-9]{2,}\.png|)"
+        R"((target|far_field)\.(exr|png)|report\.png)$)");
     const std::string name = without_temporary_suffix(relative);
+    if (kind == RunKind::Design) return std::regex_match(name, design_names);
     return std::regex_match(name, kind == RunKind::Invert ? invert_names : recover_names);
 }
 

@@ -1,0 +1,124 @@
+// wavebrdf design: a surface relief for a target appearance (docs/design.md). Reads the target,
+// runs the library's design (design_run.h), writes the run directory.
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "wavebrdf/design_run.h"
+#include "wavebrdf/memory.h"
+#include "wavebrdf/progress.h"
+#include "wavebrdf/run_directory.h"
+#include "wavebrdf/text.h"
+
+namespace wavebrdf::cli {
+
+namespace {
+
+struct DesignArgs {
+    std::string target = "anti-mirror";
+    std::string out;
+    std::string region = "annulus:0.1,0.5";
+    std::string errors;
+    std::vector<double> band_um;
+    double view_x = 0.0, view_y = 0.0;
+    bool given_view = false, given_spectral = false, force = false, quiet = false;
+    DesignOptions options;
+};
+
+void run(DesignArgs a) {
+    DesignOptions& o = a.options;
+    // Everything checked before any work: the output directory, then the options.
+    check_run_directory(RunKind::Design, a.out, a.force);
+    if (!a.given_spectral) o.spectral = 0;
+    if (!a.band_um.empty()) {
+        if (a.band_um.size() != 2) throw std::invalid_argument("--band-um expects two wavelengths A,B in um");
+        o.band_um = {a.band_um[0], a.band_um[1]};
+    }
+    if (a.given_view) o.view = std::array<double, 2>{a.view_x, a.view_y};
+    o.region = a.region;
+    o.errors = parse_fabrication_errors(a.errors);
+    o.target = parse_design_target(a.target);
+    const PreparedDesign prepared = prepare_design(o);
+    if (!a.quiet) {
+        std::cerr << "design: " << o.size << "x" << o.size << " texels of " << format_shortest(o.texel_um) << " um, "
+                  << o.levels << " levels within " << format_shortest(o.height_range_um) << " um, "
+                  << prepared.lambdas_um.size() << " wavelength(s), " << prepared.orders
+                  << " propagating orders; estimated memory " << format_bytes(prepared.estimated_bytes) << "\n";
+        for (const std::string& note : prepared.notes) std::cerr << "design: note: " << note << "\n";
+    }
+    Progress progress("design", o.iterations + o.refine_passes, !a.quiet);
+    const DesignResult result = run_design(prepared, [&](const DesignStep& s) {
+        progress.advance();
+        progress.set_message(s.phase + " loss " + format_shortest(s.loss));
+        return true;
+    });
+    progress.finish();
+    write_design_directory(a.out, result, a.force);
+    if (!a.quiet) {
+        const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
+        std::cerr << "design: exact scalar diffraction: " << j["metrics"]["exact"].dump() << "\n"
+                  << "design: wrote " << a.out << " in " << format_shortest(j["timings_s"]["total"].get<double>())
+                  << " s\n";
+    }
+}
+
+}  // namespace
+
+void add_design_command(CLI::App& app) {
+    auto a = std::make_shared<DesignArgs>();
+    CLI::App* cmd = app.add_subcommand("design", "Design a texel relief for a target appearance (docs/design.md)");
+    cmd->add_option("--target", a->target, "anti-mirror, pattern:IMAGE.png or colour:#RRGGBB")->capture_default_str();
+    cmd->add_option("--out", a->out, "run directory (new or empty; see --force)")->required();
+    cmd->add_flag("--force", a->force, "reuse a directory holding only a design's outputs");
+    cmd->add_option("--light-x", a->options.omega_i[0], "projected light direction, x")->capture_default_str();
+    cmd->add_option("--light-y", a->options.omega_i[1], "projected light direction, y")->capture_default_str();
+    auto* lambda = cmd->add_option("--lambda-um", a->options.lambda_um, "laser wavelength in um (default 0.5)");
+    auto* spectral = cmd->add_option("--spectral", a->options.spectral,
+                                     "white light: N equal-energy wavelengths over --band-um");
+    lambda->excludes(spectral);
+    cmd->add_option("--band-um", a->band_um, "white light's band A,B in um (default 0.36,0.83, the slices')")
+        ->delimiter(',')
+        ->expected(2);
+    cmd->add_option("--specular-cone", a->options.specular_cone, "anti-mirror: sin of the mirror cone's half-angle")
+        ->capture_default_str();
+    cmd->add_option("--region", a->region, "anti-mirror: annulus:R1,R2 or disk:R about the mirror direction")
+        ->capture_default_str();
+    cmd->add_option("--window", a->options.window, "pattern: half-width of the window about the mirror direction")
+        ->capture_default_str();
+    auto* vx = cmd->add_option("--view-x", a->view_x, "colour: projected view direction, x (default: the mirror's)");
+    auto* vy = cmd->add_option("--view-y", a->view_y, "colour: projected view direction, y (default: the mirror's)");
+    cmd->add_option("--view-cone", a->options.view_cone, "colour: sin of the view cone's half-angle")
+        ->capture_default_str();
+    cmd->add_option("--size", a->options.size, "N: the N x N periodic tile")->capture_default_str();
+    cmd->add_option("--texel-um", a->options.texel_um, "texel width in um")->capture_default_str();
+    cmd->add_option("--height-range-um", a->options.height_range_um, "every height within 0..H um")
+        ->capture_default_str();
+    cmd->add_option("--levels", a->options.levels, "K equally spaced height levels (2-256)")->capture_default_str();
+    cmd->add_option("--level-step-um", a->options.level_step_um,
+                    "spacing of the levels in um (default: H/(K-1); anti-mirror: chosen so the mirror order can cancel)");
+    cmd->add_option("--min-feature-um", a->options.min_feature_um,
+                    "grayscale relief's smallest feature (contradicts --levels; not available)");
+    cmd->add_option("--fabrication-error", a->errors, "e.g. scale:5%,blur:0.3um (design for and score under them)");
+    cmd->add_option("--seed", a->options.seed, "random start")->capture_default_str();
+    cmd->add_option("--iterations", a->options.iterations, "relaxed iterations")->capture_default_str();
+    cmd->add_option("--refine-passes", a->options.refine_passes, "discrete passes on the levels")
+        ->capture_default_str();
+    cmd->add_option("--max-memory-gb", a->options.max_memory_gb,
+                    "refuse a design whose estimated memory exceeds this many GB (0: the physical memory)")
+        ->capture_default_str();
+    cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
+    cmd->callback([a, spectral, vx, vy] {
+        a->given_spectral = spectral->count() > 0;
+        if ((vx->count() > 0) != (vy->count() > 0))
+            throw std::invalid_argument("--view-x and --view-y go together; give both or neither");
+        a->given_view = vx->count() > 0;
+        run(*a);
+    });
+}
+
+}  // namespace wavebrdf::cli

@@ -1,0 +1,148 @@
+#pragma once
+// One surface design as `wavebrdf design` and the Python module's design() run it, so that both
+// share one implementation (docs/design.md): the options parsed and checked once, prepare (the
+// target read, the diffraction orders of every wavelength, the memory estimate), run (the
+// optimisation, the final relief on the allowed levels, its metrics under the design model, under
+// exact scalar diffraction and under fabrication errors) with a callback, and writing the run
+// directory. The CLI reads and writes files; the binding converts arrays.
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace wavebrdf {
+
+namespace detail {
+class Target;
+struct OrderSet;
+}  // namespace detail
+
+enum class DesignKind { AntiMirror, Pattern, Colour };
+const char* to_string(DesignKind kind);
+
+// What the design aims for: `--target anti-mirror | pattern:IMAGE.png | colour:#RRGGBB`.
+struct DesignTarget {
+    DesignKind kind = DesignKind::AntiMirror;
+    std::string text = "anti-mirror";  // as given
+    // Pattern: the image's grey values in 0 … 1 (relative intensity), row-major, rows along ω_x.
+    int image_rows = 0, image_cols = 0;
+    std::vector<double> image;
+    std::string image_file;  // "" when given as an array
+    // Colour: the target as 8-bit sRGB (as typed) and as linear sRGB.
+    std::array<int, 3> srgb8{{255, 255, 255}};
+    std::array<double, 3> linear_rgb{{1.0, 1.0, 1.0}};
+};
+
+// Parses a --target text; a pattern's image is read from its PNG (8- or 16-bit, grey or RGB: the
+// luminance; at most 1024 × 1024). Throws std::invalid_argument naming the text (unknown kind, a
+// colour that is not #RRGGBB, an unreadable or empty image) before any work.
+DesignTarget parse_design_target(const std::string& text);
+// A pattern target from grey values (row-major, rows × cols, finite, ≥ 0, not all equal).
+DesignTarget pattern_target(int rows, int cols, std::vector<double> image);
+
+// Fabrication errors the design is made robust to and scored under (`scale:5%,blur:0.3um`).
+struct FabricationErrors {
+    double scale = 0.0;    // relative error of every height (0 … 0.5): the loop averages 1 − s, 1, 1 + s
+    double blur_um = 0.0;  // Gaussian σ of the written relief, µm (0 … 10): scored only (docs/design.md)
+};
+// Parses "scale:5%,blur:0.3um" (either part optional, "none" for no errors); std::invalid_argument.
+FabricationErrors parse_fabrication_errors(const std::string& text);
+
+// The options of `wavebrdf design` (its defaults).
+struct DesignOptions {
+    DesignTarget target;
+    // Light and wavelengths, as `render` takes them: a laser lambda_um (when spectral is 0) or
+    // white light sampled at `spectral` wavelengths over band_um (the slices' band 0.36 … 0.83 µm by
+    // default: λ_k = a + (k + ½)(b − a)/N, spectral_wavelengths_um's samples), equal energy.
+    std::array<double, 2> omega_i{{0.0, 0.0}};
+    double lambda_um = 0.5;
+    int spectral = 0;
+    std::array<double, 2> band_um{{0.36, 0.83}};
+    // Anti-mirror.
+    double specular_cone = 0.05;
+    std::string region = "annulus:0.1,0.5";  // or disk:R, about the mirror direction
+    // Pattern: the window's half-width about the mirror direction.
+    double window = 0.3;
+    // Colour: the view direction (unset: the mirror direction) and its cone.
+    std::optional<std::array<double, 2>> view;
+    double view_cone = 0.05;
+    // The tile and the fabrication constraints.
+    int size = 256;                 // N: the N × N tile, 2 … 2048
+    double texel_um = 0.5;          // 0.05 … 100
+    double height_range_um = 2.0;   // every height within [0, H], 0 < H ≤ 100
+    int levels = 8;                 // K equally spaced levels 0, H/(K−1), …, H; 2 … 256
+    // The levels' spacing Δ (levels 0, Δ, …, (K−1)Δ, (K−1)Δ ≤ H); 0: H/(K−1), except for the
+    // anti-mirror, whose step is the largest that lets every wavelength's mirror order cancel
+    // (docs/design.md).
+    double level_step_um = 0.0;
+    double min_feature_um = 0.0;    // grayscale only (not with levels): refused, see docs/design.md
+    FabricationErrors errors;
+    // The optimisation.
+    std::uint64_t seed = 1;
+    int iterations = 200;       // relaxed (softmax over levels) iterations, 0 … 100000
+    int refine_passes = 60;     // discrete passes on the final levels, 0 … 100000
+    double max_memory_gb = 0.0;  // refuse an estimate above this (0: the physical memory)
+};
+
+// The wavelengths of `options` (µm).
+std::vector<double> design_wavelengths_um(const DesignOptions& options);
+
+// One step of the optimisation, for progress and metrics.csv.
+struct DesignStep {
+    std::string phase;   // "relaxed" or "refine"
+    int iteration = 0;   // counted over both phases
+    double loss = 0.0;
+    double temperature = 0.0;  // softmax temperature (relaxed), or the refine pass's fraction of texels tried
+};
+
+struct PreparedDesign {
+    DesignOptions options;
+    std::vector<double> lambdas_um;
+    std::vector<double> levels_um;  // the allowed heights
+    double estimated_bytes = 0.0;
+    std::size_t orders = 0;         // propagating orders over all wavelengths
+    std::vector<std::string> notes;
+    std::shared_ptr<const std::vector<detail::OrderSet>> order_sets;
+    std::shared_ptr<detail::Target> target;
+};
+
+// Estimated peak memory (bytes) of a design with these options (orders of every wavelength, the
+// level weights and their optimiser state, the spectra and their gradients).
+double estimate_design_bytes(const DesignOptions& options);
+
+// Checks every option (std::invalid_argument / std::domain_error naming the value: contradicting
+// constraints, a window, region or view cone reaching outside the visible disk, ranges), builds
+// the orders and the target, and refuses (OutOfMemory, memory.h) an estimate above
+// options.max_memory_gb, all before any optimisation.
+PreparedDesign prepare_design(const DesignOptions& options);
+
+struct DesignResult {
+    int size = 0;
+    double texel_um = 0.0;
+    std::vector<double> heights_um;  // size², row-major, each one of levels_um
+    std::vector<int> level;          // each texel's level index
+    std::vector<double> levels_um;
+    std::vector<double> lambdas_um;
+    std::vector<DesignStep> curve;
+    std::string metrics_json;        // design.json's content (target, constraints, metrics, timings)
+    // Pictures on the window grid about the mirror direction: picture_size² pixels, linear RGB,
+    // interleaved; the window's half-width picture_extent (ω units).
+    int picture_size = 0;
+    double picture_extent = 0.0;
+    std::vector<float> target_picture, far_field_picture;
+};
+
+// Runs the design: the relaxed optimisation, quantisation onto the levels, discrete refinement,
+// then the metrics. on_step gets every step; returning false stops early (the relief so far is
+// finished and scored all the same).
+DesignResult run_design(const PreparedDesign& prepared, const std::function<bool(const DesignStep&)>& on_step = {});
+
+// Writes the run directory (docs/design.md): design.json, heights.exr (µm, self-describing),
+// target.exr, far_field.exr, metrics.csv. A new or empty directory, or with `force` one holding
+// only a design's outputs (run_directory.h).
+void write_design_directory(const std::string& dir, const DesignResult& result, bool force);
+
+}  // namespace wavebrdf

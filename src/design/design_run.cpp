@@ -1,0 +1,729 @@
+// The design run (design_run.h): options, preparation, the optimisation and its metrics.
+#include "wavebrdf/design_run.h"
+#include "wavebrdf/constants.h"
+
+#include <png.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include "core/random.h"
+#include "design/engine.h"
+#include "design/evaluator.h"
+#include "design/relief.h"
+#include "design/target.h"
+#include "wavebrdf/design.h"
+#include "wavebrdf/memory.h"
+#include "wavebrdf/spectrum.h"
+#include "wavebrdf/text.h"
+#include "wavebrdf/version.h"
+
+namespace wavebrdf {
+
+namespace {
+
+
+using detail::Complex;
+using detail::Fractions;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::string num(double v) { return format_shortest(v); }
+
+// The grey values of a PNG (0 … 1), luminance for colour images, at most 1024 × 1024.
+std::vector<double> read_grey_png(const std::string& path, int& rows, int& cols) {
+    png_image image{};
+    image.version = PNG_IMAGE_VERSION;
+    if (!png_image_begin_read_from_file(&image, path.c_str()))
+        throw std::invalid_argument("pattern image '" + path + "' cannot be read: " + image.message);
+    if (image.width < 1 || image.height < 1 || image.width > 1024 || image.height > 1024) {
+        png_image_free(&image);
+        throw std::invalid_argument("pattern image '" + path + "' is " + std::to_string(image.width) + " x " +
+                                    std::to_string(image.height) + "; expected 1 to 1024 pixels a side");
+    }
+    image.format = PNG_FORMAT_GRAY;
+    std::vector<png_byte> buffer(PNG_IMAGE_SIZE(image));
+    if (!png_image_finish_read(&image, nullptr, buffer.data(), 0, nullptr)) {
+        const std::string message = image.message;
+        png_image_free(&image);
+        throw std::invalid_argument("pattern image '" + path + "' cannot be read: " + message);
+    }
+    rows = static_cast<int>(image.height);
+    cols = static_cast<int>(image.width);
+    std::vector<double> out(buffer.size());
+    for (std::size_t i = 0; i < buffer.size(); ++i) out[i] = buffer[i] / 255.0;
+    return out;
+}
+
+struct Region {
+    double r1 = 0.1, r2 = 0.5;
+};
+
+Region parse_region(const std::string& text) {
+    auto bad = [&] {
+        return std::invalid_argument("--region '" + text + "' is not understood; expected annulus:R1,R2 or disk:R "
+                                     "with 0 <= R1 < R2 < 1");
+    };
+    Region r;
+    auto number = [&](const std::string& s) {
+        if (s.empty()) throw bad();
+        char* end = nullptr;
+        const double v = std::strtod(s.c_str(), &end);
+        if (end != s.c_str() + s.size() || !std::isfinite(v)) throw bad();
+        return v;
+    };
+    if (text.rfind("annulus:", 0) == 0) {
+        const std::string rest = text.substr(8);
+        const auto comma = rest.find(',');
+        if (comma == std::string::npos) throw bad();
+        r.r1 = number(rest.substr(0, comma));
+        r.r2 = number(rest.substr(comma + 1));
+    } else if (text.rfind("disk:", 0) == 0) {
+        r.r1 = 0.0;
+        r.r2 = number(text.substr(5));
+    } else {
+        throw bad();
+    }
+    if (!(r.r1 >= 0.0 && r.r1 < r.r2 && r.r2 < 1.0)) throw bad();
+    return r;
+}
+
+void require_range(double value, double lo, double hi, const std::string& name, const std::string& expected) {
+    if (!(value >= lo && value <= hi))
+        throw std::domain_error(name + " " + num(value) + " is out of range; expected " + expected);
+}
+
+std::vector<double> level_heights(int levels, double step_um) {
+    std::vector<double> h(static_cast<std::size_t>(levels));
+    for (int l = 0; l < levels; ++l) h[static_cast<std::size_t>(l)] = step_um * l;
+    return h;
+}
+
+// How dark levels 0, Δ, …, (K−1)Δ can make the mirror order over the whole band. Its amplitude
+// is P(z) = Σ_ℓ a_ℓ z^ℓ, a_ℓ ≥ 0 the levels' shares (Σ a_ℓ = 1), z = e^{−iθ}, θ = 2 k Δ cos θ_i:
+// a polynomial with non-negative coefficients that must be small on the arc of θ the band
+// sweeps. The binomial shares a_ℓ = C(K−1, ℓ)/2^{K−1} give |P| = |cos(θ/2)|^{K−1}, zero at θ = π
+// and small on a wide arc about it; the worst power over the band (a dense grid between the
+// extreme wavelengths) says how well a step suits the band. A step with 2Δ cos θ_i a multiple of
+// a wavelength in the band (θ = 2π) makes every design a mirror there.
+double binomial_mirror_power(double step_um, int levels, const std::vector<double>& lambdas_um, double cos_i) {
+    const auto [lo, hi] = std::minmax_element(lambdas_um.begin(), lambdas_um.end());
+    double worst = 0.0;
+    constexpr int k_dense = 256;
+    for (int d = 0; d <= k_dense; ++d) {
+        const double lambda = *lo + (*hi - *lo) * d / k_dense;
+        const double c = std::cos(2.0 * k_pi * step_um * cos_i / lambda);  // cos(θ/2)
+        worst = std::max(worst, std::pow(c * c, levels - 1));
+    }
+    return worst;
+}
+
+// The anti-mirror's level step: the largest Δ ≤ H/(K−1) whose binomial mirror power is at most
+// k_mirror_power_wanted at every wavelength of the band, else the step of least power.
+constexpr double k_mirror_power_wanted = 1e-5;
+double anti_mirror_step(double range_um, int levels, const std::vector<double>& lambdas_um, double cos_i) {
+    const double full = range_um / (levels - 1);
+    double best = full, best_power = 1e300;
+    constexpr int k_candidates = 1000;
+    for (int c = 0; c < k_candidates; ++c) {
+        const double step = full * (1.0 - static_cast<double>(c) / k_candidates);
+        const double power = binomial_mirror_power(step, levels, lambdas_um, cos_i);
+        if (power <= k_mirror_power_wanted) return step;
+        if (power < best_power) {
+            best_power = power;
+            best = step;
+        }
+    }
+    return best;
+}
+
+// A Gaussian blur of σ texels on the periodic tile (separable, direct), for the blur error.
+std::vector<double> periodic_blur(const std::vector<double>& h, int size, double sigma_texels) {
+    if (sigma_texels <= 0.0) return h;
+    const int radius = std::min(size / 2, static_cast<int>(std::ceil(4.0 * sigma_texels)));
+    std::vector<double> kernel(static_cast<std::size_t>(2 * radius + 1));
+    double sum = 0.0;
+    for (int d = -radius; d <= radius; ++d)
+        sum += kernel[static_cast<std::size_t>(d + radius)] = std::exp(-0.5 * d * d / (sigma_texels * sigma_texels));
+    for (double& k : kernel) k /= sum;
+    std::vector<double> tmp(h.size(), 0.0), out(h.size(), 0.0);
+    const auto N = static_cast<std::size_t>(size);
+    for (int i = 0; i < size; ++i)
+        for (int j = 0; j < size; ++j) {
+            double acc = 0.0;
+            for (int d = -radius; d <= radius; ++d)
+                acc += kernel[static_cast<std::size_t>(d + radius)] *
+                       h[static_cast<std::size_t>(((i + d) % size + size) % size) * N + static_cast<std::size_t>(j)];
+            tmp[static_cast<std::size_t>(i) * N + static_cast<std::size_t>(j)] = acc;
+        }
+    for (int i = 0; i < size; ++i)
+        for (int j = 0; j < size; ++j) {
+            double acc = 0.0;
+            for (int d = -radius; d <= radius; ++d)
+                acc += kernel[static_cast<std::size_t>(d + radius)] *
+                       tmp[static_cast<std::size_t>(i) * N + static_cast<std::size_t>(((j + d) % size + size) % size)];
+            out[static_cast<std::size_t>(i) * N + static_cast<std::size_t>(j)] = acc;
+        }
+    return out;
+}
+
+std::vector<double> one_hot(const std::vector<int>& level, int levels) {
+    const std::size_t n2 = level.size();
+    std::vector<double> w(n2 * static_cast<std::size_t>(levels), 0.0);
+    for (std::size_t t = 0; t < n2; ++t) w[static_cast<std::size_t>(level[t]) * n2 + t] = 1.0;
+    return w;
+}
+
+// Direct sums of a few orders' amplitudes over the texels (the aperture's sinc in closed form):
+// an evaluation of the relief independent of the FFT identity, at full size. Returns the largest
+// difference in flux relative to the largest flux of the wavelength, over `per_wavelength`
+// orders of each (the strongest and random others).
+double spot_check(const std::vector<double>& heights, int size, const std::vector<detail::OrderSet>& sets,
+                  const std::vector<std::vector<double>>& flux, int per_wavelength, std::uint64_t seed,
+                  std::size_t& checked) {
+    double worst_rel = 0.0;
+    checked = 0;
+    std::mt19937_64 rng(detail::derive_seed(seed, 0x5e7c));
+    for (std::size_t w = 0; w < sets.size(); ++w) {
+        const auto& s = sets[w];
+        if (s.size() == 0) continue;
+        std::vector<std::size_t> picks;
+        picks.push_back(static_cast<std::size_t>(std::max_element(flux[w].begin(), flux[w].end()) - flux[w].begin()));
+        for (int r = 1; r < per_wavelength; ++r) picks.push_back(static_cast<std::size_t>(rng() % s.size()));
+        const double peak = *std::max_element(flux[w].begin(), flux[w].end());
+        std::vector<double> direct(picks.size(), 0.0);
+#pragma omp parallel for schedule(dynamic)
+        for (std::ptrdiff_t pi = 0; pi < static_cast<std::ptrdiff_t>(picks.size()); ++pi) {
+            const std::size_t o = picks[static_cast<std::size_t>(pi)];
+            Complex a(0.0, 0.0);
+            for (int i = 0; i < size; ++i)
+                for (int j = 0; j < size; ++j) {
+                    const double h = heights[static_cast<std::size_t>(i) * static_cast<std::size_t>(size) +
+                                             static_cast<std::size_t>(j)];
+                    a += std::polar(1.0, -s.k * h * s.q[o] -
+                                             2.0 * k_pi * (static_cast<double>(s.m[o]) * i + static_cast<double>(s.n[o]) * j) /
+                                                 size);
+                }
+            a /= static_cast<double>(size) * size;
+            auto sinc = [](double x) { return x == 0.0 ? 1.0 : std::sin(k_pi * x) / (k_pi * x); };
+            const double sx = sinc(static_cast<double>(s.m[o]) / size), sy = sinc(static_cast<double>(s.n[o]) / size);
+            const double cos_o = s.q[o] - s.cos_i;
+            direct[static_cast<std::size_t>(pi)] = sx * sx * sy * sy * std::norm(a) * cos_o / s.cos_i;
+        }
+        for (std::size_t pi = 0; pi < picks.size(); ++pi) {
+            worst_rel = std::max(worst_rel, std::abs(direct[pi] - flux[w][picks[pi]]) / std::max(peak, 1e-300));
+            ++checked;
+        }
+    }
+    return worst_rel;
+}
+
+// The far field on a picture_size² grid of ω_o offsets in [−E, E]² about the mirror direction:
+// power per unit projected solid angle, mixed to linear sRGB (one wavelength: grey).
+std::vector<float> far_field_picture(const std::vector<detail::OrderSet>& sets, const Fractions& power_unused,
+                                     const std::vector<std::vector<double>>& flux, const std::vector<double>& lambdas,
+                                     int n, double extent) {
+    (void)power_unused;
+    const std::vector<double> mix = spectral_mix_weights(lambdas);
+    const std::size_t W = lambdas.size();
+    const double pixel_area = (2.0 * extent / n) * (2.0 * extent / n);
+    std::vector<float> rgb(static_cast<std::size_t>(n) * static_cast<std::size_t>(n) * 3, 0.0f);
+    for (std::size_t w = 0; w < W; ++w) {
+        double total = 0.0;
+        for (double f : flux[w]) total += f;
+        if (!(total > 0.0)) continue;
+        const auto& s = sets[w];
+        for (std::size_t o = 0; o < s.size(); ++o) {
+            const double u = (s.dx(o) + extent) / (2.0 * extent), v = (s.dy(o) + extent) / (2.0 * extent);
+            if (u < 0.0 || u >= 1.0 || v < 0.0 || v >= 1.0) continue;
+            const auto i = static_cast<std::size_t>(std::min(n - 1, static_cast<int>(u * n)));
+            const auto j = static_cast<std::size_t>(std::min(n - 1, static_cast<int>(v * n)));
+            const double value = flux[w][o] / total / pixel_area;
+            for (std::size_t c = 0; c < 3; ++c)
+                rgb[(i * static_cast<std::size_t>(n) + j) * 3 + c] += static_cast<float>(mix[c * W + w] * value);
+        }
+    }
+    return rgb;
+}
+
+}  // namespace
+
+const char* to_string(DesignKind kind) {
+    switch (kind) {
+        case DesignKind::AntiMirror: return "anti-mirror";
+        case DesignKind::Pattern: return "pattern";
+        case DesignKind::Colour: return "colour";
+    }
+    return "?";
+}
+
+DesignTarget pattern_target(int rows, int cols, std::vector<double> image) {
+    if (rows < 1 || cols < 1 || rows > 1024 || cols > 1024)
+        throw std::invalid_argument("pattern image " + std::to_string(rows) + " x " + std::to_string(cols) +
+                                    " is out of range; expected 1 to 1024 pixels a side");
+    if (image.size() != static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols))
+        throw std::invalid_argument("pattern image has " + std::to_string(image.size()) + " values; expected " +
+                                    std::to_string(rows) + " x " + std::to_string(cols));
+    for (double v : image)
+        if (!(std::isfinite(v) && v >= 0.0))
+            throw std::domain_error("pattern image value " + num(v) + " is not a finite intensity >= 0");
+    const auto [lo, hi] = std::minmax_element(image.begin(), image.end());
+    if (!(*hi > *lo)) throw std::invalid_argument("pattern image is uniform; a pattern needs at least two grey values");
+    DesignTarget t;
+    t.kind = DesignKind::Pattern;
+    t.text = "pattern";
+    t.image_rows = rows;
+    t.image_cols = cols;
+    t.image = std::move(image);
+    return t;
+}
+
+DesignTarget parse_design_target(const std::string& text) {
+    if (text == "anti-mirror") return DesignTarget{};
+    if (text.rfind("pattern:", 0) == 0) {
+        const std::string path = text.substr(8);
+        if (path.empty()) throw std::invalid_argument("--target '" + text + "' names no image; expected pattern:IMAGE.png");
+        int rows = 0, cols = 0;
+        std::vector<double> image = read_grey_png(path, rows, cols);
+        DesignTarget t = pattern_target(rows, cols, std::move(image));
+        t.text = text;
+        t.image_file = path;
+        return t;
+    }
+    if (text.rfind("colour:", 0) == 0 || text.rfind("color:", 0) == 0) {
+        const std::string c = text.substr(text.find(':') + 1);
+        bool ok = c.size() == 7 && c[0] == '#';
+        for (std::size_t i = 1; ok && i < 7; ++i) ok = std::isxdigit(static_cast<unsigned char>(c[i])) != 0;
+        if (!ok)
+            throw std::invalid_argument("--target '" + text + "': colour '" + c +
+                                        "' is not an sRGB colour; expected #RRGGBB (hex digits)");
+        DesignTarget t;
+        t.kind = DesignKind::Colour;
+        t.text = text;
+        for (int k = 0; k < 3; ++k) {
+            t.srgb8[static_cast<std::size_t>(k)] = std::stoi(c.substr(static_cast<std::size_t>(1 + 2 * k), 2), nullptr, 16);
+            t.linear_rgb[static_cast<std::size_t>(k)] = srgb_decode(t.srgb8[static_cast<std::size_t>(k)] / 255.0);
+        }
+        if (t.srgb8 == std::array<int, 3>{0, 0, 0})
+            throw std::invalid_argument("--target '" + text + "': black has no chromaticity; expected a colour");
+        return t;
+    }
+    throw std::invalid_argument("--target '" + text +
+                                "' is unknown; expected anti-mirror, pattern:IMAGE.png or colour:#RRGGBB");
+}
+
+FabricationErrors parse_fabrication_errors(const std::string& text) {
+    FabricationErrors e;
+    if (text.empty() || text == "none") return e;
+    auto bad = [&](const std::string& why) {
+        return std::invalid_argument("--fabrication-error '" + text + "': " + why +
+                                     "; expected scale:S%,blur:Bum (e.g. scale:5%,blur:0.3um)");
+    };
+    std::stringstream ss(text);
+    std::string part;
+    while (std::getline(ss, part, ',')) {
+        const auto colon = part.find(':');
+        if (colon == std::string::npos) throw bad("'" + part + "' has no ':'");
+        const std::string key = part.substr(0, colon);
+        std::string value = part.substr(colon + 1);
+        double factor = 1.0;
+        if (key == "scale" && !value.empty() && value.back() == '%') {
+            value.pop_back();
+            factor = 0.01;
+        } else if (key == "blur" && value.size() > 2 && value.compare(value.size() - 2, 2, "um") == 0) {
+            value.resize(value.size() - 2);
+        }
+        char* end = nullptr;
+        const double v = std::strtod(value.c_str(), &end);
+        if (value.empty() || end != value.c_str() + value.size() || !std::isfinite(v)) throw bad("'" + part + "' has no number");
+        if (key == "scale") {
+            e.scale = v * factor;
+            if (!(e.scale >= 0.0 && e.scale <= 0.5)) throw bad("scale " + num(e.scale) + " outside 0 to 50%");
+        } else if (key == "blur") {
+            e.blur_um = v;
+            if (!(v >= 0.0 && v <= 10.0)) throw bad("blur " + num(v) + " um outside 0 to 10 um");
+        } else {
+            throw bad("'" + key + "' is unknown");
+        }
+    }
+    return e;
+}
+
+std::vector<double> design_wavelengths_um(const DesignOptions& o) {
+    if (o.spectral == 0) return {o.lambda_um};
+    std::vector<double> l(static_cast<std::size_t>(o.spectral));
+    for (int k = 0; k < o.spectral; ++k)
+        l[static_cast<std::size_t>(k)] = o.band_um[0] + (k + 0.5) * (o.band_um[1] - o.band_um[0]) / o.spectral;
+    return l;
+}
+
+double estimate_design_bytes(const DesignOptions& o) {
+    const double period = o.size * o.texel_um;
+    double orders = 0.0;
+    for (double lambda : design_wavelengths_um(o)) orders += k_pi * (period / lambda) * (period / lambda) + 4.0 * period / lambda;
+    const double n2 = static_cast<double>(o.size) * o.size;
+    const double weights = 7.0 * 8.0 * o.levels * n2;  // θ, p, Adam's two moments, gradients, one-hot
+    const int threads = 2;
+    const double spectra = 16.0 * o.levels * n2 * (2.0 + threads);
+    return 1.2 * (orders * 76.0 + weights + spectra) + 64e6;
+}
+
+PreparedDesign prepare_design(const DesignOptions& options) {
+    const DesignOptions& o = options;
+    require_range(o.size, 2, 2048, "--size", "2 to 2048 texels");
+    require_range(o.texel_um, 0.05, 100.0, "--texel-um", "0.05 to 100 um");
+    require_range(o.height_range_um, 1e-3, 100.0, "--height-range-um", "0.001 to 100 um");
+    require_range(o.levels, 2, 256, "--levels", "2 to 256");
+    if (o.min_feature_um != 0.0)
+        throw std::invalid_argument("--min-feature-um " + num(o.min_feature_um) +
+                                    " asks for a grayscale relief, which contradicts --levels " +
+                                    std::to_string(o.levels) + " (multi-step lithography); grayscale designs are "
+                                    "not available, use --levels");
+    require_range(o.iterations, 0, 100000, "--iterations", "0 to 100000");
+    require_range(o.refine_passes, 0, 100000, "--refine-passes", "0 to 100000");
+    if (o.spectral != 0) {
+        require_range(o.spectral, 1, k_max_spectral_samples, "--spectral", "1 to 256 wavelengths");
+        if (!(o.band_um[0] >= 0.05 && o.band_um[0] < o.band_um[1] && o.band_um[1] <= 100.0))
+            throw std::domain_error("--band-um " + num(o.band_um[0]) + "," + num(o.band_um[1]) +
+                                    " is not a band; expected A,B with 0.05 <= A < B <= 100 um");
+    } else {
+        require_range(o.lambda_um, 0.05, 100.0, "--lambda-um", "0.05 to 100 um");
+    }
+    const double light = std::hypot(o.omega_i[0], o.omega_i[1]);
+    if (!(light < 1.0))
+        throw std::domain_error("light direction (" + num(o.omega_i[0]) + ", " + num(o.omega_i[1]) +
+                                ") is outside the unit disk; expected |omega_i| < 1");
+    const std::array<double, 2> mirror{-o.omega_i[0], -o.omega_i[1]};
+    const double mirror_r = std::hypot(mirror[0], mirror[1]);
+
+    PreparedDesign p;
+    p.options = o;
+    p.lambdas_um = design_wavelengths_um(o);
+    double step = o.height_range_um / (o.levels - 1);
+    if (o.level_step_um > 0.0) {
+        if (!(o.level_step_um * (o.levels - 1) <= o.height_range_um * (1.0 + 1e-12)))
+            throw std::domain_error("--level-step-um " + num(o.level_step_um) + " puts the top level at " +
+                                    num(o.level_step_um * (o.levels - 1)) + " um; expected at most --height-range-um " +
+                                    num(o.height_range_um));
+        step = o.level_step_um;
+    } else if (o.target.kind == DesignKind::AntiMirror) {
+        step = anti_mirror_step(o.height_range_um, o.levels, p.lambdas_um, std::sqrt(1.0 - light * light));
+        if (step < o.height_range_um / (o.levels - 1))
+            p.notes.push_back("level step " + num(step) + " um (top level " + num(step * (o.levels - 1)) +
+                              " um): the full range's step would leave the mirror order uncancellable at some wavelength");
+    }
+    p.levels_um = level_heights(o.levels, step);
+    switch (o.target.kind) {
+        case DesignKind::AntiMirror: {
+            const Region region = parse_region(o.region);
+            require_range(o.specular_cone, 1e-4, 0.5, "--specular-cone", "1e-4 to 0.5");
+            if (!(mirror_r + region.r2 < 1.0))
+                throw std::domain_error("--region " + o.region + " about the mirror direction reaches |omega_o| = " +
+                                        num(mirror_r + region.r2) + "; expected the region inside the visible disk (< 1)");
+            p.target = detail::make_anti_mirror({o.specular_cone, region.r1, region.r2});
+            break;
+        }
+        case DesignKind::Pattern: {
+            require_range(o.window, 1e-3, 1.0, "--window", "1e-3 to 1");
+            const double corner = std::hypot(std::abs(mirror[0]) + o.window, std::abs(mirror[1]) + o.window);
+            if (!(corner < 1.0))
+                throw std::domain_error("--window " + num(o.window) + " about the mirror direction reaches |omega_o| = " +
+                                        num(corner) + "; expected the window inside the visible disk (< 1)");
+            if (o.target.image_rows < 1) throw std::invalid_argument("pattern target without an image");
+            p.target = detail::make_pattern({o.window, o.target.image_rows, o.target.image_cols, o.target.image});
+            break;
+        }
+        case DesignKind::Colour: {
+            require_range(o.view_cone, 1e-3, 0.5, "--view-cone", "1e-3 to 0.5");
+            const std::array<double, 2> view = o.view ? *o.view : mirror;
+            if (!(std::hypot(view[0], view[1]) + o.view_cone < 1.0))
+                throw std::domain_error("view (" + num(view[0]) + ", " + num(view[1]) + ") with --view-cone " +
+                                        num(o.view_cone) + " reaches outside the visible disk; expected |view| + cone < 1");
+            if (p.lambdas_um.size() < 3)
+                throw std::invalid_argument("--target " + o.target.text +
+                                            " needs white light; give --spectral N (N >= 3), not one --lambda-um");
+            detail::ColourSpec spec;
+            spec.view_offset = {view[0] - mirror[0], view[1] - mirror[1]};
+            spec.view_cone = o.view_cone;
+            spec.rgb = o.target.linear_rgb;
+            spec.lambdas_um = p.lambdas_um;
+            p.target = detail::make_colour(spec);
+            break;
+        }
+    }
+    p.estimated_bytes = estimate_design_bytes(o);
+    require_memory(p.estimated_bytes, memory_limit(o.max_memory_gb), "the design");
+    auto sets = std::make_shared<std::vector<detail::OrderSet>>();
+    for (double lambda : p.lambdas_um) {
+        sets->push_back(detail::make_order_set(o.size, o.texel_um, o.omega_i, lambda));
+        p.orders += sets->back().size();
+    }
+    p.target->assign(*sets);
+    p.order_sets = sets;
+    if (o.errors.blur_um > 0.0)
+        p.notes.push_back("the blur error is scored, not designed for: the loop averages the height scale errors only");
+    return p;
+}
+
+DesignResult run_design(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step) {
+    const DesignOptions& o = p.options;
+    const auto start = Clock::now();
+    const int K = o.levels, N = o.size;
+    const std::size_t n2 = static_cast<std::size_t>(N) * static_cast<std::size_t>(N);
+    const std::size_t total = n2 * static_cast<std::size_t>(K);
+    std::vector<double> scales{1.0};
+    if (o.errors.scale > 0.0) scales = {1.0 - o.errors.scale, 1.0, 1.0 + o.errors.scale};
+    detail::Evaluator evaluator(p, scales);
+    DesignResult r;
+    r.size = N;
+    r.texel_um = o.texel_um;
+    r.levels_um = p.levels_um;
+    r.lambdas_um = p.lambdas_um;
+    bool stopped = false;
+    auto report = [&](const DesignStep& s) {
+        r.curve.push_back(s);
+        if (on_step && !on_step(s)) stopped = true;
+    };
+
+    // Relaxed phase: softmax over the levels per texel, p = softmax(θ / τ), τ annealed from
+    // k_tau_start to k_tau_end, Adam on θ.
+    std::mt19937_64 rng(detail::derive_seed(o.seed, 0xde5190));
+    std::vector<double> theta(total);
+    detail::fill_standard_normal(theta.data(), theta.size(), rng);
+    if (o.target.kind == DesignKind::AntiMirror) {
+        // Start from the binomial shares of the levels (binomial_mirror_power): a dark mirror
+        // order at every wavelength of the band on average; the loop shapes the rest.
+        for (int l = 0; l < K; ++l) {
+            const double log_share = std::lgamma(K) - std::lgamma(l + 1) - std::lgamma(K - l);
+            for (std::size_t t = 0; t < n2; ++t) theta[static_cast<std::size_t>(l) * n2 + t] += log_share;
+        }
+    }
+    std::vector<double> weights(total), grad, m1(total, 0.0), m2(total, 0.0);
+    constexpr double k_tau_start = 1.0, k_tau_end = 0.05, k_rate = 0.1, k_b1 = 0.9, k_b2 = 0.999;
+    auto softmax = [&](double tau) {
+        for (std::size_t t = 0; t < n2; ++t) {
+            double mx = -1e300;
+            for (int l = 0; l < K; ++l) mx = std::max(mx, theta[static_cast<std::size_t>(l) * n2 + t]);
+            double s = 0.0;
+            for (int l = 0; l < K; ++l) {
+                const double e = std::exp((theta[static_cast<std::size_t>(l) * n2 + t] - mx) / tau);
+                weights[static_cast<std::size_t>(l) * n2 + t] = e;
+                s += e;
+            }
+            for (int l = 0; l < K; ++l) weights[static_cast<std::size_t>(l) * n2 + t] /= s;
+        }
+    };
+    Fractions relaxed_fractions;
+    const auto relaxed_start = Clock::now();
+    for (int it = 0; it < o.iterations && !stopped; ++it) {
+        const double frac = o.iterations > 1 ? static_cast<double>(it) / (o.iterations - 1) : 1.0;
+        const double tau = k_tau_start * std::pow(k_tau_end / k_tau_start, frac);
+        softmax(tau);
+        const double loss = evaluator.evaluate(weights, &grad, &relaxed_fractions);
+        // Through the softmax: ∂L/∂θ_ℓ = p_ℓ (g_ℓ − Σ_j p_j g_j) / τ; then Adam.
+        const double c1 = 1.0 - std::pow(k_b1, it + 1), c2 = 1.0 - std::pow(k_b2, it + 1);
+        for (std::size_t t = 0; t < n2; ++t) {
+            double pg = 0.0;
+            for (int l = 0; l < K; ++l) pg += weights[static_cast<std::size_t>(l) * n2 + t] * grad[static_cast<std::size_t>(l) * n2 + t];
+            for (int l = 0; l < K; ++l) {
+                const std::size_t i = static_cast<std::size_t>(l) * n2 + t;
+                const double g = weights[i] * (grad[i] - pg) / tau;
+                m1[i] = k_b1 * m1[i] + (1.0 - k_b1) * g;
+                m2[i] = k_b2 * m2[i] + (1.0 - k_b2) * g * g;
+                theta[i] -= k_rate * (m1[i] / c1) / (std::sqrt(m2[i] / c2) + 1e-12);
+            }
+        }
+        report({"relaxed", it, loss, tau});
+    }
+    const double relaxed_seconds = seconds_since(relaxed_start);
+
+    // Quantise: each texel's most likely level; then discrete passes that switch the texels the
+    // gradient predicts to gain most, kept only when the exact loss falls.
+    std::vector<int> level(n2);
+    for (std::size_t t = 0; t < n2; ++t) {
+        int best = 0;
+        for (int l = 1; l < K; ++l)
+            if (theta[static_cast<std::size_t>(l) * n2 + t] > theta[static_cast<std::size_t>(best) * n2 + t]) best = l;
+        level[t] = best;
+    }
+    const auto refine_start = Clock::now();
+    double loss = evaluator.evaluate(one_hot(level, K), &grad);
+    const int iteration0 = o.iterations;
+    report({"refine", iteration0, loss, 0.0});
+    double fraction = 0.01;
+    std::vector<double> trial_grad;
+    for (int pass = 0; pass < o.refine_passes && !stopped; ++pass) {
+        std::vector<std::pair<double, std::size_t>> gain;
+        std::vector<int> best(n2, -1);
+        for (std::size_t t = 0; t < n2; ++t) {
+            const double current = grad[static_cast<std::size_t>(level[t]) * n2 + t];
+            double d = 0.0;
+            for (int l = 0; l < K; ++l) {
+                const double x = grad[static_cast<std::size_t>(l) * n2 + t] - current;
+                if (x < d) {
+                    d = x;
+                    best[t] = l;
+                }
+            }
+            if (best[t] >= 0) gain.emplace_back(d, t);
+        }
+        if (gain.empty()) break;
+        const std::size_t take = std::min(gain.size(), std::max<std::size_t>(1, static_cast<std::size_t>(fraction * static_cast<double>(n2))));
+        std::partial_sort(gain.begin(), gain.begin() + static_cast<std::ptrdiff_t>(take), gain.end());
+        std::vector<int> trial = level;
+        for (std::size_t k = 0; k < take; ++k) trial[gain[k].second] = best[gain[k].second];
+        const double trial_loss = evaluator.evaluate(one_hot(trial, K), &trial_grad);
+        if (trial_loss < loss) {
+            level.swap(trial);
+            grad.swap(trial_grad);
+            loss = trial_loss;
+            fraction = std::min(0.1, fraction * 1.5);
+        } else {
+            if (take == 1) break;
+            fraction /= 4.0;
+        }
+        report({"refine", iteration0 + pass + 1, loss, fraction});
+    }
+    const double refine_seconds = seconds_since(refine_start);
+
+    r.level = level;
+    r.heights_um.resize(n2);
+    for (std::size_t t = 0; t < n2; ++t) r.heights_um[t] = p.levels_um[static_cast<std::size_t>(level[t])];
+
+    // Metrics: the loop's model on the final relief, the relaxation where it ended, exact scalar
+    // diffraction of the relief (the heights alone, re-levelled) with a direct-sum spot check, and
+    // the fabrication errors.
+    const auto metrics_start = Clock::now();
+    const auto& sets = *p.order_sets;
+    Fractions model_fractions;
+    (void)evaluator.evaluate(one_hot(level, K), nullptr, &model_fractions);
+    const detail::LevelRelief relief = detail::to_level_relief(r.heights_um, detail::k_exact_max_levels);
+    const auto exact_flux = detail::level_flux(relief, N, sets, 1.0);
+    std::vector<double> kirchhoff_totals;
+    const Fractions exact_fractions = detail::group_fractions(*p.target, exact_flux, &kirchhoff_totals);
+    std::size_t checked = 0;
+    const double spot = spot_check(r.heights_um, N, sets, exact_flux, N >= 512 ? 4 : 16, o.seed, checked);
+    double model_vs_exact = 0.0;
+    for (std::size_t w = 0; w < exact_fractions.size(); ++w)
+        for (std::size_t q = 0; q < exact_fractions[w].size(); ++q)
+            model_vs_exact = std::max(model_vs_exact, std::abs(exact_fractions[w][q] - model_fractions[w][q]));
+    nlohmann::json fabrication = nlohmann::json::array();
+    if (o.errors.scale > 0.0)
+        for (double s : {1.0 - o.errors.scale, 1.0 + o.errors.scale}) {
+            const auto flux = detail::level_flux(relief, N, sets, s);
+            fabrication.push_back({{"error", "scale " + num(s)}, {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
+        }
+    if (o.errors.blur_um > 0.0) {
+        const std::vector<double> blurred = periodic_blur(r.heights_um, N, o.errors.blur_um / o.texel_um);
+        const detail::LevelRelief b = detail::to_level_relief(blurred, detail::k_exact_max_levels);
+        const auto flux = detail::level_flux(b, N, sets, 1.0);
+        fabrication.push_back({{"error", "blur " + num(o.errors.blur_um) + " um"},
+                               {"quantised_to_levels", b.quantised ? detail::k_exact_max_levels : 0},
+                               {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
+    }
+    const double metrics_seconds = seconds_since(metrics_start);
+
+    // Pictures on the window grid.
+    const std::array<double, 2> mirror{-o.omega_i[0], -o.omega_i[1]};
+    r.picture_size = 256;
+    double extent = 0.3;
+    switch (o.target.kind) {
+        case DesignKind::AntiMirror: extent = std::min(1.0, 1.2 * parse_region(o.region).r2); break;
+        case DesignKind::Pattern: extent = o.window; break;
+        case DesignKind::Colour: {
+            const std::array<double, 2> view = o.view ? *o.view : mirror;
+            extent = std::min(1.0, std::max(std::abs(view[0] - mirror[0]), std::abs(view[1] - mirror[1])) + 2.0 * o.view_cone);
+            break;
+        }
+    }
+    r.picture_extent = extent;
+    const int n = r.picture_size;
+    r.far_field_picture = far_field_picture(sets, exact_fractions, exact_flux, p.lambdas_um, n, extent);
+    r.target_picture.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n) * 3, 0.0f);
+    {
+        const double pixel_area = (2.0 * extent / n) * (2.0 * extent / n);
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                const double dx = (i + 0.5) / n * 2.0 * extent - extent, dy = (j + 0.5) / n * 2.0 * extent - extent;
+                std::array<double, 3> c{0.0, 0.0, 0.0};
+                if (o.target.kind == DesignKind::AntiMirror) {
+                    const Region g = parse_region(o.region);
+                    const double rr = std::hypot(dx, dy);
+                    const double area = k_pi * (g.r2 * g.r2 - g.r1 * g.r1);
+                    if (rr >= g.r1 && rr <= g.r2) c = {1.0 / area, 1.0 / area, 1.0 / area};
+                } else if (o.target.kind == DesignKind::Pattern) {
+                    const int ii = std::min(o.target.image_rows - 1, static_cast<int>((i + 0.5) / n * o.target.image_rows));
+                    const int jj = std::min(o.target.image_cols - 1, static_cast<int>((j + 0.5) / n * o.target.image_cols));
+                    const double sum = std::accumulate(o.target.image.begin(), o.target.image.end(), 0.0);
+                    const double cell = pixel_area * n * n / (static_cast<double>(o.target.image_rows) * o.target.image_cols);
+                    const double v = o.target.image[static_cast<std::size_t>(ii * o.target.image_cols + jj)] / (sum * cell);
+                    c = {v, v, v};
+                } else {
+                    const std::array<double, 2> view = o.view ? *o.view : mirror;
+                    if (std::hypot(dx - (view[0] - mirror[0]), dy - (view[1] - mirror[1])) <= o.view_cone) c = o.target.linear_rgb;
+                }
+                for (std::size_t k = 0; k < 3; ++k)
+                    r.target_picture[(static_cast<std::size_t>(i) * static_cast<std::size_t>(n) + static_cast<std::size_t>(j)) * 3 + k] =
+                        static_cast<float>(c[k]);
+            }
+    }
+
+    nlohmann::json j;
+    j["kind"] = "design";
+    j["version"] = k_version;
+    nlohmann::json target{{"kind", to_string(o.target.kind)}, {"text", o.target.text}};
+    if (o.target.kind == DesignKind::AntiMirror) {
+        const Region g = parse_region(o.region);
+        target["specular_cone"] = o.specular_cone;
+        target["region"] = o.region;
+        target["region_r1"] = g.r1;
+        target["region_r2"] = g.r2;
+    } else if (o.target.kind == DesignKind::Pattern) {
+        target["window"] = o.window;
+        target["image_rows"] = o.target.image_rows;
+        target["image_cols"] = o.target.image_cols;
+        target["image_file"] = o.target.image_file;
+    } else {
+        const std::array<double, 2> view = o.view ? *o.view : mirror;
+        target["srgb8"] = o.target.srgb8;
+        target["linear_rgb"] = o.target.linear_rgb;
+        target["view"] = view;
+        target["view_cone"] = o.view_cone;
+    }
+    j["target"] = target;
+    j["light"] = {{"omega_i", o.omega_i}, {"lambdas_um", p.lambdas_um}, {"spectral", o.spectral},
+                  {"band_um", o.spectral ? nlohmann::json(o.band_um) : nlohmann::json(nullptr)}};
+    j["constraints"] = {{"size", N}, {"texel_um", o.texel_um}, {"height_range_um", o.height_range_um},
+                        {"levels", K}, {"fabrication_error", {{"scale", o.errors.scale}, {"blur_um", o.errors.blur_um}}}};
+    j["levels_um"] = p.levels_um;
+    j["seed"] = o.seed;
+    j["options"] = {{"iterations", o.iterations}, {"refine_passes", o.refine_passes}, {"stopped_early", stopped}};
+    j["orders"] = p.orders;
+    j["estimated_bytes"] = p.estimated_bytes;
+    j["metrics"] = {
+        {"model", p.target->metrics(model_fractions)},
+        {"exact", p.target->metrics(exact_fractions)},
+        {"relaxed", relaxed_fractions.empty() ? nlohmann::json(nullptr) : p.target->metrics(relaxed_fractions)},
+        {"model_vs_exact_max_fraction_difference", model_vs_exact},
+        {"exact_direct_sum_check", {{"orders", checked}, {"max_flux_difference_relative_to_peak", spot}}},
+        {"kirchhoff_total", kirchhoff_totals},
+        {"final_loss", loss}};
+    j["fabrication_errors"] = fabrication;
+    j["notes"] = p.notes;
+    j["timings_s"] = {{"relaxed", relaxed_seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
+                      {"total", seconds_since(start)}};
+    r.metrics_json = j.dump(2);
+    return r;
+}
+
+}  // namespace wavebrdf

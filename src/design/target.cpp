@@ -1,0 +1,351 @@
+#include "design/target.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "wavebrdf/constants.h"
+#include <numeric>
+
+#include "wavebrdf/design.h"
+#include "wavebrdf/spectrum.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+
+
+
+double mean(const std::vector<double>& v) {
+    return v.empty() ? 0.0 : std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
+}
+double worst(const std::vector<double>& v, bool largest) {
+    if (v.empty()) return 0.0;
+    return largest ? *std::max_element(v.begin(), v.end()) : *std::min_element(v.begin(), v.end());
+}
+
+// Anti-mirror: group 0 the specular cone, 1 … 16 the region's equal-area bins (4 rings of equal
+// area × 4 quadrants).
+class AntiMirror final : public Target {
+public:
+    explicit AntiMirror(const AntiMirrorSpec& spec) : m_spec(spec) {}
+    int groups() const override { return 17; }
+
+    void assign(const std::vector<OrderSet>& sets) override {
+        m_members.assign(sets.size(), {});
+        for (std::size_t w = 0; w < sets.size(); ++w) {
+            const OrderSet& s = sets[w];
+            auto& mem = m_members[w];
+            mem.assign(s.size(), {{-1, -1}});
+            for (std::size_t o = 0; o < s.size(); ++o) {
+                const double dx = s.dx(o), dy = s.dy(o);
+                const double r2 = dx * dx + dy * dy;
+                if (r2 <= m_spec.specular_cone * m_spec.specular_cone) mem[o][0] = 0;
+                if (r2 >= m_spec.r1 * m_spec.r1 && r2 <= m_spec.r2 * m_spec.r2)
+                    mem[o][1] = 1 + bin_of(dx, dy, r2);
+            }
+        }
+    }
+
+    int bin_of(double dx, double dy, double r2) const {
+        const double a = m_spec.r1 * m_spec.r1, b = m_spec.r2 * m_spec.r2;
+        const int ring = std::min(3, static_cast<int>(4.0 * (r2 - a) / (b - a)));
+        const double angle = std::atan2(dy, dx) + k_pi;  // 0 … 2π
+        const int quadrant = std::min(3, static_cast<int>(angle / (0.5 * k_pi)));
+        return ring * 4 + quadrant;
+    }
+
+    // Per wavelength: weight_specular · s + (1 − r) + weight_uniformity · u², u = std/mean of the
+    // bins; the mean over wavelengths plus the worst wavelength's specular excess, so that no
+    // wavelength is left behind.
+    double loss(const Fractions& f, Fractions* gradient) const override {
+        const std::size_t W = f.size();
+        if (gradient) gradient->assign(W, std::vector<double>(17, 0.0));
+        double total = 0.0;
+        for (std::size_t w = 0; w < W; ++w) {
+            const auto& g = f[w];
+            double r = 0.0;
+            for (int q = 1; q <= 16; ++q) r += g[static_cast<std::size_t>(q)];
+            const double mean_bin = r / 16.0;
+            double var = 0.0;
+            for (int q = 1; q <= 16; ++q) var += (g[static_cast<std::size_t>(q)] - mean_bin) * (g[static_cast<std::size_t>(q)] - mean_bin);
+            var /= 16.0;
+            const double m2 = std::max(mean_bin * mean_bin, 1e-30);
+            const double u2 = var / m2;
+            total += (k_weight_specular * g[0] + (1.0 - r) + k_weight_uniformity * u2) / static_cast<double>(W);
+            if (gradient) {
+                auto& d = (*gradient)[w];
+                const double scale = 1.0 / static_cast<double>(W);
+                d[0] = k_weight_specular * scale;
+                // u² = var/mean²: ∂/∂b_q = 2(b_q − mean)/(16 mean²) − 2 var/(mean³ · 16)
+                for (int q = 1; q <= 16; ++q) {
+                    const double bq = g[static_cast<std::size_t>(q)];
+                    const double du2 = 2.0 * (bq - mean_bin) / (16.0 * m2) - 2.0 * var / (m2 * std::max(mean_bin, 1e-15) * 16.0);
+                    d[static_cast<std::size_t>(q)] = scale * (-1.0 + k_weight_uniformity * du2);
+                }
+            }
+        }
+        return total;
+    }
+
+    nlohmann::json metrics(const Fractions& f) const override {
+        std::vector<double> specular, region, uniformity;
+        for (const auto& g : f) {
+            double r = 0.0;
+            for (int q = 1; q <= 16; ++q) r += g[static_cast<std::size_t>(q)];
+            const double mb = r / 16.0;
+            double var = 0.0;
+            for (int q = 1; q <= 16; ++q) var += (g[static_cast<std::size_t>(q)] - mb) * (g[static_cast<std::size_t>(q)] - mb);
+            specular.push_back(g[0]);
+            region.push_back(r);
+            uniformity.push_back(mb > 0.0 ? std::sqrt(var / 16.0) / mb : 0.0);
+        }
+        return {{"specular_fraction", specular},
+                {"specular_fraction_worst", worst(specular, true)},
+                {"specular_fraction_mean", mean(specular)},
+                {"region_fraction", region},
+                {"region_fraction_mean", mean(region)},
+                {"region_fraction_worst", worst(region, false)},
+                {"uniformity", uniformity},
+                {"uniformity_worst", worst(uniformity, true)},
+                {"uniformity_mean", mean(uniformity)}};
+    }
+
+private:
+    static constexpr double k_weight_specular = 100.0;
+    static constexpr double k_weight_uniformity = 0.5;
+    AntiMirrorSpec m_spec;
+};
+
+// Pattern: one group per image pixel over the window (rows along ω_x); the binned far field
+// is each pixel's power per order (its intensity), averaged over the wavelengths.
+class Pattern final : public Target {
+public:
+    explicit Pattern(const PatternSpec& spec) : m_spec(spec) {
+        const double mu = mean(spec.image);
+        double ss = 0.0;
+        m_centred.resize(spec.image.size());
+        for (std::size_t i = 0; i < spec.image.size(); ++i) {
+            m_centred[i] = spec.image[i] - mu;
+            ss += m_centred[i] * m_centred[i];
+        }
+        m_image_norm = std::sqrt(ss);
+    }
+    int groups() const override { return m_spec.rows * m_spec.cols; }
+
+    void assign(const std::vector<OrderSet>& sets) override {
+        const std::size_t P = static_cast<std::size_t>(groups());
+        m_members.assign(sets.size(), {});
+        m_count.assign(sets.size(), std::vector<double>(P, 0.0));
+        for (std::size_t w = 0; w < sets.size(); ++w) {
+            const OrderSet& s = sets[w];
+            m_members[w].assign(s.size(), {{-1, -1}});
+            for (std::size_t o = 0; o < s.size(); ++o) {
+                const double u = (s.dx(o) + m_spec.window) / (2.0 * m_spec.window);
+                const double v = (s.dy(o) + m_spec.window) / (2.0 * m_spec.window);
+                if (u < 0.0 || u >= 1.0 || v < 0.0 || v >= 1.0) continue;
+                const int i = std::min(m_spec.rows - 1, static_cast<int>(u * m_spec.rows));
+                const int j = std::min(m_spec.cols - 1, static_cast<int>(v * m_spec.cols));
+                const int q = i * m_spec.cols + j;
+                m_members[w][o][0] = q;
+                m_count[w][static_cast<std::size_t>(q)] += 1.0;
+            }
+        }
+    }
+
+    std::vector<double> intensity(const Fractions& f) const {
+        const std::size_t P = static_cast<std::size_t>(groups());
+        std::vector<double> b(P, 0.0);
+        for (std::size_t w = 0; w < f.size(); ++w)
+            for (std::size_t q = 0; q < P; ++q)
+                if (m_count[w][q] > 0.0) b[q] += f[w][q] / m_count[w][q] / static_cast<double>(f.size());
+        return b;
+    }
+
+    // (1 − Pearson correlation) + (1 − efficiency).
+    double loss(const Fractions& f, Fractions* gradient) const override {
+        const std::size_t P = static_cast<std::size_t>(groups());
+        const std::vector<double> b = intensity(f);
+        const double mb = mean(b);
+        double sbb = 0.0, sbi = 0.0;
+        for (std::size_t q = 0; q < P; ++q) {
+            sbb += (b[q] - mb) * (b[q] - mb);
+            sbi += (b[q] - mb) * m_centred[q];
+        }
+        const double nb = std::sqrt(std::max(sbb, 1e-300));
+        const double corr = sbi / (nb * m_image_norm);
+        double efficiency = 0.0;
+        for (const auto& g : f) efficiency += std::accumulate(g.begin(), g.end(), 0.0) / static_cast<double>(f.size());
+        if (gradient) {
+            gradient->assign(f.size(), std::vector<double>(P, 0.0));
+            // ∂corr/∂b_q = (c_q/|c| − corr (b_q − mb)/nb) / nb   (c the centred image)
+            std::vector<double> dcorr(P);
+            for (std::size_t q = 0; q < P; ++q)
+                dcorr[q] = (m_centred[q] / m_image_norm - corr * (b[q] - mb) / nb) / nb;
+            for (std::size_t w = 0; w < f.size(); ++w)
+                for (std::size_t q = 0; q < P; ++q) {
+                    const double db = m_count[w][q] > 0.0 ? 1.0 / m_count[w][q] / static_cast<double>(f.size()) : 0.0;
+                    (*gradient)[w][q] = -dcorr[q] * db - 1.0 / static_cast<double>(f.size());
+                }
+        }
+        return (1.0 - corr) + (1.0 - efficiency);
+    }
+
+    nlohmann::json metrics(const Fractions& f) const override {
+        const std::vector<double> b = intensity(f);
+        const double mb = mean(b);
+        double sbb = 0.0, sbi = 0.0;
+        for (std::size_t q = 0; q < b.size(); ++q) {
+            sbb += (b[q] - mb) * (b[q] - mb);
+            sbi += (b[q] - mb) * m_centred[q];
+        }
+        std::vector<double> efficiency;
+        for (const auto& g : f) efficiency.push_back(std::accumulate(g.begin(), g.end(), 0.0));
+        const double corr = sbb > 0.0 && m_image_norm > 0.0 ? sbi / (std::sqrt(sbb) * m_image_norm) : 0.0;
+        return {{"correlation", corr}, {"efficiency", efficiency}, {"efficiency_mean", mean(efficiency)}};
+    }
+
+private:
+    PatternSpec m_spec;
+    std::vector<double> m_centred;
+    double m_image_norm = 0.0;
+    std::vector<std::vector<double>> m_count;
+};
+
+// Colour: group 0 the view cone; its fraction per wavelength is the reflectance into the cone.
+class Colour final : public Target {
+public:
+    explicit Colour(const ColourSpec& spec) : m_spec(spec) {
+        const std::vector<double> mix = spectral_mix_weights(spec.lambdas_um);
+        const std::size_t n = spec.lambdas_um.size();
+        m_xyz_weights.assign(3 * n, 0.0);
+        for (std::size_t l = 0; l < n; ++l) {
+            const auto xyz = linear_srgb_to_xyz({mix[l], mix[n + l], mix[2 * n + l]});
+            for (std::size_t c = 0; c < 3; ++c) m_xyz_weights[c * n + l] = xyz[c];
+        }
+        m_target_uv = xyz_to_uv(linear_srgb_to_xyz(spec.rgb));
+    }
+    int groups() const override { return 1; }
+
+    void assign(const std::vector<OrderSet>& sets) override {
+        m_members.assign(sets.size(), {});
+        const double c2 = m_spec.view_cone * m_spec.view_cone;
+        for (std::size_t w = 0; w < sets.size(); ++w) {
+            const OrderSet& s = sets[w];
+            m_members[w].assign(s.size(), {{-1, -1}});
+            for (std::size_t o = 0; o < s.size(); ++o) {
+                const double dx = s.dx(o) - m_spec.view_offset[0], dy = s.dy(o) - m_spec.view_offset[1];
+                if (dx * dx + dy * dy <= c2) m_members[w][o][0] = 0;
+            }
+        }
+    }
+
+    std::array<double, 3> xyz(const Fractions& f) const {
+        const std::size_t n = f.size();
+        std::array<double, 3> x{0.0, 0.0, 0.0};
+        for (std::size_t c = 0; c < 3; ++c)
+            for (std::size_t l = 0; l < n; ++l) x[c] += m_xyz_weights[c * n + l] * f[l][0];
+        return x;
+    }
+
+    // (Δu′v′ / 0.01)² + a hinge that keeps the luminous efficiency Y above k_min_y.
+    double loss(const Fractions& f, Fractions* gradient) const override {
+        const auto X = xyz(f);
+        const double d = X[0] + 15.0 * X[1] + 3.0 * X[2];
+        const double dd = std::max(d, 1e-12);
+        const double u = 4.0 * X[0] / dd, v = 9.0 * X[1] / dd;
+        const double du = u - m_target_uv[0], dv = v - m_target_uv[1];
+        const double s = 1.0 / (k_uv_scale * k_uv_scale);
+        const double hinge = std::max(0.0, k_min_y - X[1]) / k_min_y;
+        const double value = s * (du * du + dv * dv) + k_weight_y * hinge * hinge;
+        if (gradient) {
+            // ∂u/∂X = (4/d)e_x − u/d ∂d/∂X,  ∂v/∂X = (9/d)e_y − v/d ∂d/∂X,  ∂d/∂X = (1, 15, 3)
+            const std::array<double, 3> dd_dx{1.0, 15.0, 3.0};
+            std::array<double, 3> g{};
+            for (std::size_t c = 0; c < 3; ++c) {
+                const double du_dx = (c == 0 ? 4.0 / dd : 0.0) - u / dd * dd_dx[c];
+                const double dv_dx = (c == 1 ? 9.0 / dd : 0.0) - v / dd * dd_dx[c];
+                g[c] = s * 2.0 * (du * du_dx + dv * dv_dx);
+            }
+            g[1] += -2.0 * k_weight_y * hinge / k_min_y;
+            const std::size_t n = f.size();
+            gradient->assign(n, std::vector<double>(1, 0.0));
+            for (std::size_t l = 0; l < n; ++l)
+                for (std::size_t c = 0; c < 3; ++c) (*gradient)[l][0] += g[c] * m_xyz_weights[c * n + l];
+        }
+        return value;
+    }
+
+    nlohmann::json metrics(const Fractions& f) const override {
+        const auto X = xyz(f);
+        const auto uv = xyz_to_uv(X);
+        std::vector<double> reflectance;
+        for (const auto& g : f) reflectance.push_back(g[0]);
+        const std::array<double, 9> m = xyz_to_linear_srgb();
+        const std::array<double, 3> rgb{m[0] * X[0] + m[1] * X[1] + m[2] * X[2], m[3] * X[0] + m[4] * X[1] + m[5] * X[2],
+                                        m[6] * X[0] + m[7] * X[1] + m[8] * X[2]};
+        return {{"delta_uv", std::hypot(uv[0] - m_target_uv[0], uv[1] - m_target_uv[1])},
+                {"luminous_efficiency", X[1]},
+                {"uv", {uv[0], uv[1]}},
+                {"target_uv", {m_target_uv[0], m_target_uv[1]}},
+                {"linear_srgb", {rgb[0], rgb[1], rgb[2]}},
+                {"reflectance", reflectance}};
+    }
+
+private:
+    static constexpr double k_uv_scale = 0.01;
+    static constexpr double k_min_y = 0.10;
+    static constexpr double k_weight_y = 4.0;
+    ColourSpec m_spec;
+    std::vector<double> m_xyz_weights;  // 3 × wavelengths: XYZ per unit reflectance
+    std::array<double, 2> m_target_uv{};
+};
+
+}  // namespace
+
+Fractions group_fractions(const Target& target, const std::vector<std::vector<double>>& flux,
+                          std::vector<double>* totals) {
+    const std::size_t P = static_cast<std::size_t>(target.groups());
+    Fractions f(flux.size(), std::vector<double>(P, 0.0));
+    if (totals) totals->assign(flux.size(), 0.0);
+    for (std::size_t w = 0; w < flux.size(); ++w) {
+        const auto& mem = target.members()[w];
+        double total = 0.0;
+        for (std::size_t o = 0; o < flux[w].size(); ++o) {
+            const double p = flux[w][o];
+            total += p;
+            for (int q : mem[o])
+                if (q >= 0) f[w][static_cast<std::size_t>(q)] += p;
+        }
+        if (total > 0.0)
+            for (double& x : f[w]) x /= total;
+        if (totals) (*totals)[w] = total;
+    }
+    return f;
+}
+
+void flux_gradient(const Target& target, const std::vector<std::vector<double>>& flux, const Fractions& f,
+                   const Fractions& df, std::vector<std::vector<double>>& gradient) {
+    gradient.resize(flux.size());
+    for (std::size_t w = 0; w < flux.size(); ++w) {
+        const auto& mem = target.members()[w];
+        double total = 0.0;
+        for (double p : flux[w]) total += p;
+        // f_q = X_q / T: ∂L/∂Φ_o = (Σ_{q ∋ o} ∂L/∂f_q − Σ_q ∂L/∂f_q f_q) / T
+        double common = 0.0;
+        for (std::size_t q = 0; q < f[w].size(); ++q) common += df[w][q] * f[w][q];
+        gradient[w].assign(flux[w].size(), 0.0);
+        if (!(total > 0.0)) continue;
+        for (std::size_t o = 0; o < flux[w].size(); ++o) {
+            double s = -common;
+            for (int q : mem[o])
+                if (q >= 0) s += df[w][static_cast<std::size_t>(q)];
+            gradient[w][o] = s / total;
+        }
+    }
+}
+
+std::unique_ptr<Target> make_anti_mirror(const AntiMirrorSpec& spec) { return std::make_unique<AntiMirror>(spec); }
+std::unique_ptr<Target> make_pattern(const PatternSpec& spec) { return std::make_unique<Pattern>(spec); }
+std::unique_ptr<Target> make_colour(const ColourSpec& spec) { return std::make_unique<Colour>(spec); }
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,64 @@
+#pragma once
+// Internal: the appearance targets as functions of the orders' power fractions. Every order of
+// every wavelength belongs to at most two groups (a cone, a region's bin, an image pixel); a
+// target sees only each group's fraction of the wavelength's reflected power,
+// f[w][q] = Σ_{o ∈ q} Φ_o / Σ_o Φ_o, and maps them to a loss (with its gradient) and to metrics.
+#include <array>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "design/engine.h"
+
+namespace wavebrdf::detail {
+
+using Fractions = std::vector<std::vector<double>>;  // [wavelength][group]
+
+class Target {
+public:
+    virtual ~Target() = default;
+    // The groups of every order (-1: none), for these order sets; called once, before the rest.
+    virtual void assign(const std::vector<OrderSet>& sets) = 0;
+    virtual int groups() const = 0;
+    // The loss of the fractions; with `gradient`, ∂loss/∂f (same shape).
+    virtual double loss(const Fractions& f, Fractions* gradient) const = 0;
+    // The target's metrics (design.json), from the fractions.
+    virtual nlohmann::json metrics(const Fractions& f) const = 0;
+    // What the target picture holds on a size × size grid of ω_o about the mirror direction
+    // (target.exr): rows along ω_x.
+    const std::vector<std::vector<std::array<int, 2>>>& members() const { return m_members; }
+
+protected:
+    std::vector<std::vector<std::array<int, 2>>> m_members;  // [wavelength][order]
+};
+
+// Each group's fraction and each wavelength's total flux Σ Φ.
+Fractions group_fractions(const Target& target, const std::vector<std::vector<double>>& flux,
+                          std::vector<double>* totals = nullptr);
+// ∂loss/∂Φ_o from ∂loss/∂f (the fractions' quotient rule).
+void flux_gradient(const Target& target, const std::vector<std::vector<double>>& flux, const Fractions& f,
+                   const Fractions& df, std::vector<std::vector<double>>& gradient);
+
+struct AntiMirrorSpec {
+    double specular_cone = 0.05;  // sin of the cone's half-angle about the mirror direction
+    double r1 = 0.1, r2 = 0.5;    // the region: r1 ≤ |ω_o − ω_mirror| ≤ r2 (disk: r1 = 0)
+};
+std::unique_ptr<Target> make_anti_mirror(const AntiMirrorSpec& spec);
+
+struct PatternSpec {
+    double window = 0.3;        // half-width of the square window about the mirror direction
+    int rows = 0, cols = 0;     // the image
+    std::vector<double> image;  // grey values (relative intensity), row-major
+};
+std::unique_ptr<Target> make_pattern(const PatternSpec& spec);
+
+struct ColourSpec {
+    std::array<double, 2> view_offset{{0.0, 0.0}};  // view direction − mirror direction
+    double view_cone = 0.05;
+    std::array<double, 3> rgb{{1.0, 1.0, 1.0}};      // target, linear sRGB
+    std::vector<double> lambdas_um;                  // the white light's samples
+};
+std::unique_ptr<Target> make_colour(const ColourSpec& spec);
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,77 @@
+// `wavebrdf design` end to end: the run directory, its relief read back and scored here by the
+// exact evaluation, and one-line errors for bad input before any work.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli_util.h"
+#include "wavebrdf/design.h"
+#include "wavebrdf/io.h"
+
+namespace wavebrdf {
+namespace {
+
+using namespace wavebrdf::test;
+
+TEST(DesignCli, WritesARunDirectoryWhoseReliefScoresAsReported) {
+    const fs::path dir = fresh_dir("design_cli");
+    const CliResult r = run_cli(dir, "design --out run --size 24 --spectral 3 --band-um 0.45,0.65 --levels 4 "
+                                     "--height-range-um 1 --region annulus:0.15,0.6 --specular-cone 0.1 "
+                                     "--iterations 10 --refine-passes 5 --fabrication-error scale:5%,blur:0.2um --quiet");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    for (const char* name : {"design.json", "heights.exr", "target.exr", "far_field.exr", "metrics.csv"})
+        EXPECT_TRUE(fs::is_regular_file(dir / "run" / name)) << name;
+    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
+    EXPECT_EQ(j["target"]["kind"], "anti-mirror");
+    EXPECT_EQ(j["levels_um"].size(), 4u);
+    EXPECT_EQ(j["fabrication_errors"].size(), 3u);  // scale − and +, blur
+    const Heightfield hf = read_heightfield_exr((dir / "run" / "heights.exr").string());
+    EXPECT_DOUBLE_EQ(hf.texel_um(), 0.5);
+    std::vector<double> heights = heights_um(hf);
+    for (double h : heights) {
+        EXPECT_GE(h, -1e-6);
+        EXPECT_LE(h, 1.0 + 1e-6);
+    }
+    // Independent of the run: its exported heights, scored here.
+    const std::vector<double> lambdas = j["light"]["lambdas_um"].get<std::vector<double>>();
+    const auto orders = exact_orders(heights, 24, 0.5, {0.0, 0.0}, lambdas);
+    const auto reported = j["metrics"]["exact"]["specular_fraction"].get<std::vector<double>>();
+    ASSERT_EQ(reported.size(), orders.size());
+    for (std::size_t w = 0; w < orders.size(); ++w) {
+        double specular = 0.0;
+        for (std::size_t o = 0; o < orders[w].m.size(); ++o)
+            if (std::hypot(orders[w].omega_x[o], orders[w].omega_y[o]) <= 0.1) specular += orders[w].power[o];
+        EXPECT_NEAR(specular, reported[w], 1e-6);
+    }
+    EXPECT_LT(j["metrics"]["exact_direct_sum_check"]["max_flux_difference_relative_to_peak"].get<double>(), 1e-9);
+    // The directory is a design's: a second run refuses it without --force, takes it with.
+    const CliResult again = run_cli(dir, "design --out run --size 8 --spectral 3 --iterations 1 --refine-passes 0 --quiet");
+    expect_one_line_naming(again, {"run"});
+    const CliResult forced = run_cli(dir, "design --out run --size 8 --spectral 3 --iterations 1 --refine-passes 0 "
+                                          "--quiet --force");
+    EXPECT_EQ(forced.exit_code, 0) << forced.err;
+}
+
+TEST(DesignCli, BadInputGetsOneLineBeforeAnyWork) {
+    const fs::path dir = fresh_dir("design_cli");
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --levels 8 --min-feature-um 1"), {"--min-feature-um", "--levels"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target colour:#12345"), {"#12345"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target pattern:missing.png"), {"missing.png"});
+    {
+        std::ofstream bad(dir / "bad.png");
+        bad << "not a png";
+    }
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target pattern:bad.png"), {"bad.png"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target anti-mirror --light-x 0.7"), {"--region"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target colour:#ff0000 --spectral 8 --view-x 0.95 --view-y 0.3"),
+                           {"view"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --fabrication-error scale:90%"), {"scale"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --region ring:1"), {"ring:1"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --max-memory-gb 0.000001"), {"max-memory-gb"});
+    EXPECT_FALSE(fs::exists(dir / "a"));
+}
+
+}  // namespace
+}  // namespace wavebrdf

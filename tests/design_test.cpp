@@ -1,0 +1,308 @@
+// The design engine against independent evaluations: a direct sum of the Kirchhoff integral,
+// a mirror, a λ/4 grating, energy, and the loop's gradient against finite differences.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "design/engine.h"
+#include "design/evaluator.h"
+#include "design/target.h"
+#include "wavebrdf/design.h"
+#include "wavebrdf/design_run.h"
+
+namespace wavebrdf {
+namespace {
+
+std::vector<double> random_levels(int size, int levels, double step_um, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::vector<double> h(static_cast<std::size_t>(size * size));
+    for (double& x : h) x = step_um * static_cast<double>(rng() % static_cast<std::uint64_t>(levels));
+    return h;
+}
+
+TEST(Design, ExactOrdersMatchADirectSumOfTheKirchhoffIntegral) {
+    // 4 levels on a 6 × 6 tile under oblique light: every propagating order's power, FFT identity
+    // against the midpoint rule with 48² points per texel (its aperture error is (π m/(N S))²/6
+    // of the amplitude, below 1e-3 for every order here).
+    const int size = 6;
+    const std::vector<double> h = random_levels(size, 4, 0.13, 7);
+    const std::array<double, 2> light{0.2, -0.1};
+    const std::vector<double> lambdas{0.45, 0.62};
+    const auto fast = exact_orders(h, size, 0.5, light, lambdas);
+    const auto slow = direct_orders(h, size, 0.5, light, lambdas, 48);
+    for (std::size_t w = 0; w < lambdas.size(); ++w) {
+        double peak = 0.0;
+        for (double p : slow[w].power) peak = std::max(peak, p);
+        // The direct sum lists every propagating order, the fast one leaves out the aperture's zeros.
+        std::size_t matched = 0;
+        for (std::size_t o = 0; o < slow[w].m.size(); ++o) {
+            std::size_t f = 0;
+            while (f < fast[w].m.size() && (fast[w].m[f] != slow[w].m[o] || fast[w].n[f] != slow[w].n[o])) ++f;
+            const double fast_power = f < fast[w].m.size() ? fast[w].power[f] : 0.0;
+            if (f < fast[w].m.size()) ++matched;
+            EXPECT_NEAR(fast_power, slow[w].power[o], 2e-3 * peak) << "order " << slow[w].m[o] << "," << slow[w].n[o];
+        }
+        EXPECT_EQ(matched, fast[w].m.size());
+        EXPECT_NEAR(fast[w].kirchhoff_total, slow[w].kirchhoff_total, 2e-3);
+    }
+}
+
+TEST(Design, OneLevelIsAPerfectMirror) {
+    const std::vector<double> h(64, 0.37);
+    const auto orders = exact_orders(h, 8, 0.5, {0.3, 0.1}, {0.4, 0.55, 0.7});
+    for (const auto& w : orders) {
+        EXPECT_NEAR(w.kirchhoff_total, 1.0, 1e-12);
+        for (std::size_t o = 0; o < w.m.size(); ++o) {
+            const bool mirror = w.m[o] == 0 && w.n[o] == 0;
+            EXPECT_NEAR(w.power[o], mirror ? 1.0 : 0.0, 1e-12);
+            if (mirror) {
+                EXPECT_NEAR(w.omega_x[o], -0.3, 1e-15);
+                EXPECT_NEAR(w.omega_y[o], -0.1, 1e-15);
+            }
+        }
+    }
+}
+
+TEST(Design, QuarterWaveBinaryGratingHasNoZerothOrder) {
+    // Normal light, lines of 0 and λ/4 (50 % duty): the two halves' mirror fields are in
+    // antiphase (2 k λ/4 = π), so the zeroth order vanishes; the ±1 orders carry the most power.
+    const int size = 16;
+    const double lambda = 0.6;
+    std::vector<double> h(static_cast<std::size_t>(size * size));
+    for (int i = 0; i < size; ++i)
+        for (int j = 0; j < size; ++j) h[static_cast<std::size_t>(i * size + j)] = (i < size / 2) ? 0.0 : lambda / 4;
+    const auto w = exact_orders(h, size, 0.5, {0.0, 0.0}, {lambda})[0];
+    double zero = -1.0, first = 0.0, best_other = 0.0;
+    for (std::size_t o = 0; o < w.m.size(); ++o) {
+        if (w.m[o] == 0 && w.n[o] == 0) {
+            zero = w.power[o];
+        } else if (std::abs(w.m[o]) == 1 && w.n[o] == 0) {
+            first += w.power[o];
+        } else {
+            best_other = std::max(best_other, w.power[o]);
+        }
+    }
+    EXPECT_NEAR(zero, 0.0, 1e-15);
+    EXPECT_GT(first, 0.5);
+    EXPECT_LT(best_other, first / 2);
+    // The same lines of depth λ/2 are a mirror for the zeroth order (2 k λ/2 = 2π) but not
+    // exactly: an order leaving at θ_o sees the step's phase k (λ/2)(1 + cos θ_o) ≠ 2π, so the
+    // first orders (sin θ = λ/L = 0.075) keep (π (1 − cos θ)/2)² / 4 ≈ 0.2 % between them.
+    for (double& x : h) x *= 2.0;
+    const auto v = exact_orders(h, size, 0.5, {0.0, 0.0}, {lambda})[0];
+    for (std::size_t o = 0; o < v.m.size(); ++o)
+        if (v.m[o] == 0 && v.n[o] == 0) {
+            EXPECT_GT(v.power[o], 0.99);
+            EXPECT_LT(v.power[o], 1.0 - 1e-6);
+        }
+}
+
+TEST(Design, ShallowReliefConservesEnergy) {
+    // Energy: for a shallow relief the thin-element field is nearly a plane wave, and the orders'
+    // flux sums to the incident power to second order in k h; evanescent orders carry none (the
+    // orders listed are the propagating ones only, and their directions lie inside the disk).
+    const int size = 16;
+    const std::vector<double> h = random_levels(size, 8, 0.0005, 3);
+    const auto orders = exact_orders(h, size, 0.5, {0.1, 0.2}, {0.5});
+    EXPECT_NEAR(orders[0].kirchhoff_total, 1.0, 2e-3);
+    for (std::size_t o = 0; o < orders[0].m.size(); ++o)
+        EXPECT_LT(std::hypot(orders[0].omega_x[o], orders[0].omega_y[o]), 1.0);
+}
+
+TEST(Design, LevelSpectraAdjointIsItsTranspose) {
+    // ⟨F p, B⟩ = ⟨p, Fᵀ B⟩ in the real inner product the loop uses (dL = Σ Re conj(B) dF).
+    const int size = 8, levels = 3;
+    detail::LevelSpectra spectra(size, levels);
+    std::mt19937_64 rng(5);
+    std::normal_distribution<double> normal;
+    std::vector<double> p(static_cast<std::size_t>(size * size * levels));
+    for (double& x : p) x = normal(rng);
+    std::vector<detail::Complex> b(p.size());
+    for (auto& x : b) x = {normal(rng), normal(rng)};
+    spectra.forward(p);
+    double lhs = 0.0;
+    for (std::size_t i = 0; i < b.size(); ++i) lhs += (std::conj(b[i]) * spectra.spectra()[i]).real();
+    std::vector<double> g;
+    spectra.adjoint(b, g);
+    double rhs = 0.0;
+    for (std::size_t i = 0; i < p.size(); ++i) rhs += p[i] * g[i];
+    EXPECT_NEAR(lhs, rhs, 1e-12 * std::abs(lhs) + 1e-12);
+}
+
+// The loop's loss and gradient (with the softmax weights as the loop feeds them) against
+// central finite differences, for each target kind.
+void check_gradient(const DesignOptions& options) {
+    const PreparedDesign prepared = prepare_design(options);
+    detail::Evaluator evaluator(prepared, {0.97, 1.0, 1.03});
+    const std::size_t total = static_cast<std::size_t>(options.size * options.size * options.levels);
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> uniform(0.1, 1.0);
+    std::vector<double> w(total);
+    for (double& x : w) x = uniform(rng);
+    std::vector<double> g;
+    evaluator.evaluate(w, &g);
+    const double step = 1e-6;
+    for (int trial = 0; trial < 6; ++trial) {
+        const std::size_t i = static_cast<std::size_t>(rng() % total);
+        std::vector<double> plus = w, minus = w;
+        plus[i] += step;
+        minus[i] -= step;
+        const double fd = (evaluator.evaluate(plus, nullptr) - evaluator.evaluate(minus, nullptr)) / (2 * step);
+        EXPECT_NEAR(g[i], fd, 1e-5 * std::max(1.0, std::abs(fd))) << to_string(options.target.kind) << " weight " << i;
+    }
+}
+
+TEST(Design, LossGradientMatchesFiniteDifferences) {
+    DesignOptions o;
+    o.size = 8;
+    o.levels = 3;
+    o.texel_um = 0.5;
+    o.spectral = 4;
+    o.band_um = {0.4, 0.7};
+    o.omega_i = {0.1, 0.05};
+    o.specular_cone = 0.2;
+    o.region = "annulus:0.25,0.6";
+    check_gradient(o);
+    DesignOptions p = o;
+    p.spectral = 0;
+    p.lambda_um = 0.5;
+    p.window = 0.5;
+    p.target = pattern_target(3, 4, {0, 1, 0.5, 0.2, 1, 0, 0.3, 0.7, 0.9, 0.1, 0.4, 0.6});
+    check_gradient(p);
+    DesignOptions c = o;
+    c.spectral = 6;
+    c.band_um = {0.38, 0.78};
+    c.view_cone = 0.2;
+    c.target = parse_design_target("colour:#20c040");
+    check_gradient(c);
+}
+
+TEST(Design, BadOptionsFailBeforeAnyWork) {
+    DesignOptions o;
+    o.min_feature_um = 1.0;
+    EXPECT_THROW(prepare_design(o), std::invalid_argument);  // levels with a grey min feature
+    o = DesignOptions{};
+    o.target = pattern_target(2, 2, {0, 1, 1, 0});
+    o.window = 0.8;  // corner at |ω| = 1.13
+    EXPECT_THROW(prepare_design(o), std::domain_error);
+    o = DesignOptions{};
+    o.region = "annulus:0.5,0.2";
+    EXPECT_THROW(prepare_design(o), std::invalid_argument);
+    o = DesignOptions{};
+    o.omega_i = {0.7, 0.0};  // region reaches 1.2
+    EXPECT_THROW(prepare_design(o), std::domain_error);
+    o = DesignOptions{};
+    o.levels = 1;
+    EXPECT_THROW(prepare_design(o), std::domain_error);
+    o = DesignOptions{};
+    o.target = parse_design_target("colour:#ff0000");
+    EXPECT_THROW(prepare_design(o), std::invalid_argument);  // colour without white light
+    EXPECT_THROW(parse_design_target("colour:#ff00"), std::invalid_argument);
+    EXPECT_THROW(parse_design_target("colour:#gg0000"), std::invalid_argument);
+    EXPECT_THROW(parse_design_target("pattern:/nonexistent/x.png"), std::invalid_argument);
+    EXPECT_THROW(parse_design_target("mirror"), std::invalid_argument);
+    EXPECT_THROW(parse_fabrication_errors("scale:80%"), std::invalid_argument);
+    EXPECT_THROW(parse_fabrication_errors("tilt:3"), std::invalid_argument);
+    const FabricationErrors e = parse_fabrication_errors("scale:5%,blur:0.3um");
+    EXPECT_DOUBLE_EQ(e.scale, 0.05);
+    EXPECT_DOUBLE_EQ(e.blur_um, 0.3);
+    o = DesignOptions{};
+    o.max_memory_gb = 1e-6;
+    EXPECT_THROW(prepare_design(o), std::bad_alloc);
+}
+
+TEST(Design, AntiMirrorLevelsCanCancelTheMirrorOrderAcrossTheBand) {
+    // 8 levels spanning 2 µm (step 0.286 µm) are a mirror at λ = 2 · 0.286 µm, inside 0.4–0.7,
+    // whatever the design: the anti-mirror's levels take a step on which a histogram of the levels
+    // (the binomial one) darkens the mirror order at every wavelength of the band. Checked here
+    // by the exact evaluation of a relief with those shares, texel by texel in a random order.
+    DesignOptions o;
+    o.spectral = 16;
+    o.band_um = {0.4, 0.7};
+    o.size = 64;
+    const PreparedDesign p = prepare_design(o);
+    EXPECT_LT(p.levels_um[1], 2.0 / 7.0);
+    EXPECT_LE(p.levels_um.back(), 2.0);
+    std::vector<double> h;
+    const int shares[8] = {1, 7, 21, 35, 35, 21, 7, 1};  // of 128
+    for (int copy = 0; copy < 32; ++copy)
+        for (int l = 0; l < 8; ++l)
+            for (int k = 0; k < shares[l]; ++k) h.push_back(p.levels_um[static_cast<std::size_t>(l)]);
+    std::shuffle(h.begin(), h.end(), std::mt19937_64(3));
+    for (const auto& w : exact_orders(h, 64, 0.5, {0.0, 0.0}, p.lambdas_um))
+        for (std::size_t k = 0; k < w.m.size(); ++k)
+            if (w.m[k] == 0 && w.n[k] == 0) {
+                EXPECT_LT(w.power[k], 1e-4) << "lambda " << w.lambda_um;
+            }
+    // The full range's step: one wavelength of the band near 2Δ is nearly a mirror for the same shares.
+    for (double& x : h) x *= (2.0 / 7.0) / p.levels_um[1];
+    double worst = 0.0;
+    for (const auto& w : exact_orders(h, 64, 0.5, {0.0, 0.0}, p.lambdas_um))
+        for (std::size_t k = 0; k < w.m.size(); ++k)
+            if (w.m[k] == 0 && w.n[k] == 0) worst = std::max(worst, w.power[k]);
+    EXPECT_GT(worst, 0.5);
+}
+
+TEST(Design, SmallAntiMirrorDesignBeatsItsStartAndKeepsTheConstraints) {
+    DesignOptions o;
+    o.size = 32;
+    o.spectral = 4;
+    o.band_um = {0.45, 0.65};
+    o.region = "annulus:0.15,0.6";
+    o.specular_cone = 0.1;
+    o.iterations = 40;
+    o.refine_passes = 20;
+    o.height_range_um = 1.5;
+    const PreparedDesign p = prepare_design(o);
+    std::vector<DesignStep> steps;
+    const DesignResult r = run_design(p, [&](const DesignStep& s) {
+        steps.push_back(s);
+        return true;
+    });
+    ASSERT_FALSE(steps.empty());
+    EXPECT_LT(steps.back().loss, 0.5 * steps.front().loss);
+    for (double h : r.heights_um) {
+        EXPECT_GE(h, 0.0);
+        EXPECT_LE(h, 1.5 + 1e-12);
+        const double level = h / p.levels_um[1];
+        EXPECT_NEAR(level, std::round(level), 1e-9);
+    }
+    // Scored here from the heights alone (exact_orders), against the loop's random start (the
+    // same seed, no iterations): the mirror cone darker and the region brighter.
+    auto score = [&](const std::vector<double>& heights) {
+        std::array<double, 2> s{0.0, 0.0};
+        for (const auto& w : exact_orders(heights, o.size, o.texel_um, o.omega_i, p.lambdas_um))
+            for (std::size_t k = 0; k < w.m.size(); ++k) {
+                const double r = std::hypot(w.omega_x[k], w.omega_y[k]);
+                if (r <= 0.1) s[0] += w.power[k] / 4;
+                if (r >= 0.15 && r <= 0.6) s[1] += w.power[k] / 4;
+            }
+        return s;
+    };
+    DesignOptions start = o;
+    start.iterations = 0;
+    start.refine_passes = 0;
+    const auto designed = score(r.heights_um);
+    const auto random = score(run_design(prepare_design(start)).heights_um);
+    EXPECT_LT(designed[0], random[0] / 3);
+    EXPECT_GT(designed[1], random[1]);
+}
+
+TEST(Design, ColourOfAFlatWhiteReflectorIsTheWhitePoint) {
+    // Reflectance 1 everywhere: Y = 1 and the chromaticity of D65 (the white the slices adapt to).
+    std::vector<double> lambdas;
+    for (int k = 0; k < 16; ++k) lambdas.push_back(0.36 + (k + 0.5) * 0.47 / 16);
+    const auto xyz = reflectance_xyz(lambdas, std::vector<double>(16, 1.0));
+    EXPECT_NEAR(xyz[1], 1.0, 1e-9);
+    const auto uv = xyz_to_uv(xyz);
+    const auto d65 = xyz_to_uv(linear_srgb_to_xyz({1.0, 1.0, 1.0}));
+    EXPECT_NEAR(uv[0], d65[0], 1e-9);
+    EXPECT_NEAR(uv[1], d65[1], 1e-9);
+    // D65's u'v' from its xy (0.3127, 0.3290): u' = 4x/(−2x + 12y + 3).
+    EXPECT_NEAR(d65[0], 4 * 0.3127 / (-2 * 0.3127 + 12 * 0.3290 + 3), 1e-4);
+}
+
+}  // namespace
+}  // namespace wavebrdf
