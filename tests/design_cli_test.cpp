@@ -21,12 +21,14 @@ TEST(DesignCli, WritesARunDirectoryWhoseReliefScoresAsReported) {
                                      "--height-range-um 1 --region annulus:0.15,0.6 --specular-cone 0.1 "
                                      "--iterations 10 --refine-passes 5 --fabrication-error scale:5%,blur:0.2um --quiet");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    for (const char* name : {"design.json", "heights.exr", "target.exr", "far_field.exr", "metrics.csv"})
+    for (const char* name : {"design.json", "heights.exr", "target.exr", "far_field.exr", "metrics.csv", "heights.png",
+                             "heights.stl", "masks.json", "masks_01.png", "masks_02.png"})
         EXPECT_TRUE(fs::is_regular_file(dir / "run" / name)) << name;
     const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
     EXPECT_EQ(j["target"]["kind"], "anti-mirror");
     EXPECT_EQ(j["levels_um"].size(), 4u);
     EXPECT_EQ(j["fabrication_errors"].size(), 3u);  // scale − and +, blur
+    EXPECT_EQ(j["fabrication_files"]["masks"].size(), 2u);  // 4 levels: log2 4 binary-weighted masks
     const Heightfield hf = read_heightfield_exr((dir / "run" / "heights.exr").string());
     EXPECT_DOUBLE_EQ(hf.texel_um(), 0.5);
     std::vector<double> heights = heights_um(hf);

@@ -1,9 +1,11 @@
 // Writing a design's run directory (design_run.h, docs/design.md).
 #include <cstdio>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "wavebrdf/design_run.h"
+#include "wavebrdf/fabrication.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/run_directory.h"
@@ -19,6 +21,11 @@ void write_design_directory(const std::string& dir, const DesignResult& result, 
     for (std::size_t t = 0; t < values.size(); ++t) values[t] = result.heights_um[t] / result.texel_um;
     const Heightfield hf(result.size, result.size, std::move(values), result.texel_um, 1.0);
     write_heightfield_exr((d / "heights.exr").string(), hf, "wavebrdf design");
+    // For lithography and printing: heights.png (16-bit, 0 … the top level), the etch masks of
+    // the levels (their step is the top level over K − 1) and heights.stl.
+    const FabricationFiles files = write_fabrication_exports(
+        dir, result.heights_um, result.size, result.size, result.texel_um, result.levels_um.back(),
+        static_cast<int>(result.levels_um.size()));
     auto picture = [&](const std::vector<float>& data) {
         RgbImage image;
         image.rows = image.cols = result.picture_size;
@@ -34,7 +41,17 @@ void write_design_directory(const std::string& dir, const DesignResult& result, 
             << '\n';
     write_text_atomically((d / "metrics.csv").string(), csv.str());
     // design.json last: its presence says the run directory is complete.
-    write_text_atomically((d / "design.json").string(), result.metrics_json + "\n");
+    nlohmann::json j = nlohmann::json::parse(result.metrics_json);
+    nlohmann::json masks = nlohmann::json::array();
+    for (const LevelMask& m : files.masks)
+        masks.push_back({{"file", std::filesystem::path(m.path).filename().string()}, {"depth_um", m.depth_um},
+                         {"weight", m.weight}});
+    j["fabrication_files"] = {{"heights_png", "heights.png"},
+                              {"heights_stl", files.heights_stl.empty() ? "" : "heights.stl"},
+                              {"stl_note", files.note},
+                              {"masks_json", files.masks_json.empty() ? "" : "masks.json"},
+                              {"masks", masks}};
+    write_text_atomically((d / "design.json").string(), j.dump(2) + "\n");
 }
 
 }  // namespace wavebrdf
