@@ -1,5 +1,6 @@
 // The compiled part of the Python package: wavebrdf._core (re-exported by wavebrdf/__init__.py).
 #include "common.h"
+#include "design.h"
 #include "fabrication.h"
 #include "lobe.h"
 #include "wavebrdf/communicator.h"
@@ -23,6 +24,7 @@ PYBIND11_MODULE(_core, m) {
     bind_lobe(m);
     bind_fabrication(m);
     bind_image(m);
+    bind_design(m);
     // A long call stopped by Ctrl-C (InterruptibleRelease): its poll left the signal handler's
     // exception (KeyboardInterrupt) pending; raise that, or KeyboardInterrupt if none is.
     py::register_exception_translator([](std::exception_ptr p) {

@@ -78,6 +78,8 @@ __all__ = [
     "BrdfTable", "read_table", "render_table", "lobe_table", "lobe_brdf",
 ]
 __all__ += ["read_slice"]
+from ._core import design  # noqa: E402,F401  (docs/design.md)
+__all__ += ["design"]
 # Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.
 from ._core import built_with_hdf5, read_observation_index  # noqa: F401
 __all__ += ["built_with_hdf5", "read_observation_index"]

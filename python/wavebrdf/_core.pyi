@@ -639,6 +639,25 @@ def cmsle(estimate: Any, reference: Any, epsilon: float = ...) -> float:
     """
     ...
 
+def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ...) -> dict:
+    """A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
+
+    target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', or 'pattern' with image= (a 2-D grey
+    array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
+    or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, region
+    (anti-mirror), window (pattern), view (default the mirror direction) and view_cone (colour) as the
+    CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule),
+    fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
+    out: also write the run directory there (force: reuse one holding only a design's outputs).
+
+    Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,
+    lambdas_um, texel_um, target and far_field (256 x 256 x 3 float32 pictures over +-picture_extent
+    about the mirror direction), curve [(iteration, loss, phase, temperature)], metrics (design.json's
+    metrics: model, exact, relaxed, ...) and design (all of design.json). The same options and seed give
+    the same design as the CLI.
+    """
+    ...
+
 def gradient(heightfield: Heightfield, query: Query, weights: Any, precision: str = ..., *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
     """The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
     values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss

@@ -112,7 +112,7 @@ public:
 
 private:
     static constexpr double k_weight_specular = 100.0;
-    static constexpr double k_weight_uniformity = 0.5;
+    static constexpr double k_weight_uniformity = 2.0;
     AntiMirrorSpec m_spec;
 };
 

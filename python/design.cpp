@@ -1,0 +1,115 @@
+// design(): `wavebrdf design` through the same library run (design_run.h), returning arrays;
+// with out= it writes the same run directory.
+#include "design.h"
+
+#include <cmath>
+#include <optional>
+
+#include "wavebrdf/design_run.h"
+#include "wavebrdf/run_directory.h"
+
+namespace wavebrdf::python {
+
+using namespace pybind11::literals;
+
+namespace {
+
+py::dict design(const std::string& target, const py::object& image, const py::object& out, bool force,
+                std::array<double, 2> light, const py::object& lambda_um, const py::object& spectral,
+                std::array<double, 2> band_um, double specular_cone, const std::string& region, double window,
+                const py::object& view, double view_cone, int size, double texel_um, double height_range_um,
+                int levels, double level_step_um, double min_feature_um, const std::string& fabrication_error,
+                std::uint64_t seed, int iterations, int refine_passes, double max_memory_gb) {
+    DesignOptions o;
+    if (!image.is_none()) {
+        if (target != "pattern")
+            bad_argument("image", "an array", "None unless target='pattern' (a pattern's grey image)");
+        const py::array a = float_array(image, "image");
+        check_shape(a, {-1, -1}, "image");
+        o.target = pattern_target(static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), to_doubles(a, "image"));
+    } else if (target == "pattern") {
+        bad_argument("target", "'pattern'", "'pattern:IMAGE.png', or target='pattern' with image=ARRAY");
+    } else {
+        o.target = parse_design_target(target);
+    }
+    o.omega_i = light;
+    if (!lambda_um.is_none() && !spectral.is_none())
+        bad_argument("lambda_um", "given with spectral", "one of lambda_um (a laser) or spectral (white light)");
+    if (!lambda_um.is_none()) o.lambda_um = lambda_um.cast<double>();
+    if (!spectral.is_none()) {
+        o.spectral = spectral.cast<int>();
+        if (o.spectral < 1) bad_argument("spectral", std::to_string(o.spectral), "1 to 256 wavelengths");
+    }
+    o.band_um = band_um;
+    o.specular_cone = specular_cone;
+    o.region = region;
+    o.window = window;
+    if (!view.is_none()) o.view = view.cast<std::array<double, 2>>();
+    o.view_cone = view_cone;
+    o.size = size;
+    o.texel_um = texel_um;
+    o.height_range_um = height_range_um;
+    o.levels = levels;
+    o.level_step_um = level_step_um;
+    o.min_feature_um = min_feature_um;
+    o.errors = parse_fabrication_errors(fabrication_error);
+    o.seed = seed;
+    o.iterations = iterations;
+    o.refine_passes = refine_passes;
+    o.max_memory_gb = max_memory_gb;
+    const std::string dir = out.is_none() ? std::string() : out.cast<std::string>();
+    DesignResult result;
+    {
+        InterruptibleRelease release;
+        if (!dir.empty()) check_run_directory(RunKind::Design, dir, force, "out");
+        const PreparedDesign prepared = prepare_design(o);
+        result = run_design(prepared);
+        if (!dir.empty()) write_design_directory(dir, result, force);
+    }
+    const auto n = static_cast<py::ssize_t>(result.size);
+    py::array_t<double> heights({n, n});
+    std::copy(result.heights_um.begin(), result.heights_um.end(), heights.mutable_data());
+    py::array_t<int> level({n, n});
+    std::copy(result.level.begin(), result.level.end(), level.mutable_data());
+    const auto p = static_cast<py::ssize_t>(result.picture_size);
+    py::array_t<float> target_picture({p, p, py::ssize_t{3}}), far_field({p, p, py::ssize_t{3}});
+    std::copy(result.target_picture.begin(), result.target_picture.end(), target_picture.mutable_data());
+    std::copy(result.far_field_picture.begin(), result.far_field_picture.end(), far_field.mutable_data());
+    py::list curve;
+    for (const DesignStep& s : result.curve)
+        curve.append(py::make_tuple(s.iteration, s.loss, s.phase, s.temperature));
+    const py::object info = py::module_::import("json").attr("loads")(result.metrics_json);
+    return py::dict("heights_um"_a = heights, "level"_a = level, "levels_um"_a = result.levels_um,
+                    "lambdas_um"_a = result.lambdas_um, "texel_um"_a = result.texel_um, "target"_a = target_picture,
+                    "far_field"_a = far_field, "picture_extent"_a = result.picture_extent, "curve"_a = curve,
+                    "metrics"_a = info["metrics"], "design"_a = info);
+}
+
+}  // namespace
+
+void bind_design(py::module_& m) {
+    m.def("design", &design, "target"_a = "anti-mirror", "image"_a = py::none(), "out"_a = py::none(),
+          "force"_a = false, "light"_a = std::array<double, 2>{{0.0, 0.0}}, "lambda_um"_a = py::none(),
+          "spectral"_a = py::none(), "band_um"_a = std::array<double, 2>{{0.36, 0.83}}, "specular_cone"_a = 0.05,
+          "region"_a = "annulus:0.1,0.5", "window"_a = 0.3, "view"_a = py::none(), "view_cone"_a = 0.05,
+          "size"_a = 256, "texel_um"_a = 0.5, "height_range_um"_a = 2.0, "levels"_a = 8, "level_step_um"_a = 0.0,
+          "min_feature_um"_a = 0.0, "fabrication_error"_a = "", "seed"_a = 1, "iterations"_a = 200,
+          "refine_passes"_a = 60, "max_memory_gb"_a = 0.0,
+          R"(A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
+
+target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', or 'pattern' with image= (a 2-D grey
+array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
+or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, region
+(anti-mirror), window (pattern), view (default the mirror direction) and view_cone (colour) as the
+CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule),
+fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
+out: also write the run directory there (force: reuse one holding only a design's outputs).
+
+Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,
+lambdas_um, texel_um, target and far_field (256 x 256 x 3 float32 pictures over +-picture_extent
+about the mirror direction), curve [(iteration, loss, phase, temperature)], metrics (design.json's
+metrics: model, exact, relaxed, ...) and design (all of design.json). The same options and seed give
+the same design as the CLI.)");
+}
+
+}  // namespace wavebrdf::python
