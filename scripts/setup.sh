@@ -39,6 +39,8 @@ if [ "$demo" = 1 ]; then
           -DWAVEBRDF_BUILD_EXPERIMENTS=OFF "${launcher[@]}" "$@" >/dev/null
     cmake --build build -j"$(nproc)" --target wavebrdf_cli wavebrdf_python
 else
-    cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" "$@" >/dev/null
+    # Explicit: a build/ configured by --demo has the tests, benchmarks and experiments cached OFF.
+    cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DWAVEBRDF_BUILD_TESTS=ON -DWAVEBRDF_BUILD_BENCH=ON \
+          -DWAVEBRDF_BUILD_EXPERIMENTS=ON "${launcher[@]}" "$@" >/dev/null
     cmake --build build -j"$(nproc)"
 fi
