@@ -20,6 +20,7 @@
 #include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
 
+#include "io/exr_threads.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/table.h"
@@ -167,6 +168,8 @@ void write_brdf_table(const std::string& path, const BrdfTable& table) {
     header.insert("wavebrdf:vscale", Imf::DoubleAttribute(table.vscale));
     if (!table.source.empty())
         header.insert("wavebrdf:source", Imf::StringAttribute(table.source.substr(0, k_max_attribute_chars)));
+    // As the slices (src/io/io.cpp): ZIP at deflate's fastest level, lossless.
+    header.zipCompressionLevel() = 1;
     write_file_atomically(path, [&](const std::string& temporary) {
         Imf::FrameBuffer frame;
         const std::size_t stride = 3 * sizeof(float);
@@ -174,7 +177,7 @@ void write_brdf_table(const std::string& path, const BrdfTable& table) {
             frame.insert(std::string(1, "RGB"[c]),
                          Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(mosaic.data() + c)), stride,
                                     stride * static_cast<std::size_t>(width)));
-        Imf::OutputFile out(temporary.c_str(), header);
+        Imf::OutputFile out(temporary.c_str(), header, detail::exr_threads());
         out.setFrameBuffer(frame);
         out.writePixels(height);
     });

@@ -39,6 +39,7 @@
 #include "io/surface_formats.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/threads.h"
+#include "io/exr_threads.h"
 #include "wavebrdf/text.h"
 #include "wavebrdf/version.h"
 
@@ -267,20 +268,6 @@ void check_attribute_sizes(const std::string& path) {
     }
 }
 
-// OpenEXR compresses and decompresses its line blocks on its own thread pool, empty until asked:
-// the library's thread count (--threads, OMP_NUM_THREADS) there too. The same bytes either way.
-int exr_threads() {
-    static std::mutex mutex;
-    static int pool = 0;
-    const int threads = std::max(1, thread_count());
-    std::lock_guard<std::mutex> lock(mutex);
-    if (pool != threads) {
-        Imf::setGlobalThreadCount(threads);
-        pool = threads;
-    }
-    return threads;
-}
-
 // An opened EXR file with the facts every reader needs; errors name the path.
 struct ExrSource {
     explicit ExrSource(const std::string& path) : m_path(path) {
@@ -292,7 +279,7 @@ struct ExrSource {
         check_attribute_sizes(path);  // first: opening the file is what allocates
         refuse_multi_part(path);
         try {
-            m_file = std::make_unique<Imf::InputFile>(path.c_str(), exr_threads());
+            m_file = std::make_unique<Imf::InputFile>(path.c_str(), detail::exr_threads());
         } catch (const std::exception& e) {
             fail(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
         }
@@ -372,7 +359,7 @@ void write_float_exr(const std::string& file, int rows, int cols, const std::vec
         frame.insert(channels[c],
                      Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(data + c)),
                                 stride * sizeof(float), stride * sizeof(float) * static_cast<std::size_t>(cols)));
-    Imf::OutputFile out(file.c_str(), header, exr_threads());
+    Imf::OutputFile out(file.c_str(), header, detail::exr_threads());
     out.setFrameBuffer(frame);
     out.writePixels(rows);
 }
@@ -909,5 +896,21 @@ double auto_exposure(const std::vector<double>& slice) {
     std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
     return v[k] > 0 ? -std::log2(v[k]) + 2.0 : 0.0;
 }
+
+namespace detail {
+
+int exr_threads() {
+    static std::mutex mutex;
+    static int pool = 0;
+    const int threads = std::max(1, thread_count());
+    std::lock_guard<std::mutex> lock(mutex);
+    if (pool != threads) {
+        Imf::setGlobalThreadCount(threads);
+        pool = threads;
+    }
+    return threads;
+}
+
+}  // namespace detail
 
 }  // namespace wavebrdf
