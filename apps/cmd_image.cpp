@@ -231,19 +231,21 @@ void add_image_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_option("--out", a->out, "output EXR (float RGB radiance, unit in its attributes)");
     cmd->add_option("--png", a->png, "tone-mapped 8-bit preview");
-    auto* exposure = cmd->add_option("--exposure", a->exposure,
-                                     "PNG exposure in stops (default: automatic, the 99.9th percentile to 4)");
+    cmd->add_option("--exposure", a->exposure,
+                    "PNG exposure in stops, added to the automatic one (the first frame's 99.9th percentile of "
+                    "the luminance to 4, then Reinhard)")
+        ->capture_default_str();
+    cmd->add_flag("--manual-exposure", a->fixed_exposure, "PNG: --exposure alone, no automatic part");
     cmd->add_option("--frames", a->frames, "frames of an orbit about the z axis (numbered outputs)")
         ->capture_default_str();
     cmd->add_option("--orbit", a->orbit, "what orbits with --frames: light or camera")->capture_default_str();
     cmd->add_option("--start-deg", a->start_deg, "orbit angle of the first frame, degrees")->capture_default_str();
     cmd->add_option("--end-deg", a->end_deg, "orbit angle of the last frame, degrees")->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or memory line");
-    cmd->callback([a, spectral, texel, vscale, exposure] {
+    cmd->callback([a, spectral, texel, vscale] {
         a->given_spectral = spectral->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;
-        a->fixed_exposure = exposure->count() > 0;
         run(*a);
     });
 }

@@ -273,6 +273,47 @@ TEST(Image, PrunedImageWithinItsStatedBound) {
     EXPECT_GT(largest_difference, 0.0) << "nothing was pruned: the test would test nothing";
 }
 
+// An image loss's gradient against central differences of the double-precision image.
+TEST(Image, GradientMatchesFiniteDifferences) {
+    const Heightfield hf = test::random_heightfield(16, 12, 0.3, 31, 1.0, 1.0);
+    ImageOptions o;
+    o.camera.position = {-60.0, 20.0, 150.0};
+    o.camera.look_at = {0.0, 0.0, 0.0};
+    o.camera.up = {0.0, 0.0, 1.0};
+    o.camera.fov_deg = 30.0;
+    o.camera.rows = 6;
+    o.camera.cols = 7;
+    o.plane_size_um = {60.0, 60.0};
+    ImageLight light{LightKind::Point, {50.0, -10.0, 120.0}};
+    light.spectrum = LightSpectrum::Blackbody;
+    light.temperature_k = 3000.0;
+    o.lights = {light, ImageLight{LightKind::Directional, {-0.2, 0.3, 1.0}}};
+    o.lambdas_um = {0.45, 0.55, 0.65};
+    o.model = Model::RGHS;
+    o.sigma_p_um = 2.5;
+    o.prune_tolerance = 0.0;
+    const PreparedImage prepared = prepare_image(hf, o);
+    const std::vector<double> w = test::uniform_vector(std::size_t(6 * 7 * 3), -1.0, 1.0, 4);
+    auto loss = [&](const Heightfield& h) {
+        const std::vector<double> v = render_image_values(h, prepared);
+        double sum = 0.0;
+        for (std::size_t k = 0; k < v.size(); ++k) sum += w[k] * v[k];
+        return sum;
+    };
+    std::vector<double> gradient;
+    image_gradient(hf, prepared, w, gradient);
+    const double scale = test::max_abs(gradient);
+    ASSERT_GT(scale, 0.0);
+    const double h = 1e-5;
+    for (std::size_t t : {std::size_t(3), std::size_t(50), std::size_t(97), std::size_t(140), std::size_t(181)}) {
+        std::vector<double> up = hf.values(), down = hf.values();
+        up[t] += h;
+        down[t] -= h;
+        const double fd = (loss(hf.with_values(up)) - loss(hf.with_values(down))) / (2.0 * h);
+        EXPECT_NEAR(gradient[t], fd, 1e-6 * scale + 1e-6 * std::abs(fd)) << "texel " << t;
+    }
+}
+
 TEST(Image, BadInputFailsBeforeWork) {
     const Heightfield hf = test::random_heightfield(16, 16, 0.1, 1);
     ImageOptions good;

@@ -102,6 +102,19 @@ using ImageProgress = std::function<bool(int, int)>;
 RgbImage render_image(const Heightfield& heightfield, const PreparedImage& prepared,
                       const ImageProgress& progress = {});
 
+// The same picture in double precision (rows · cols · 3 values, row-major, interleaved): what
+// render_image rounds to float, and what image_gradient differentiates.
+std::vector<double> render_image_values(const Heightfield& heightfield, const PreparedImage& prepared,
+                                        const ImageProgress& progress = {});
+
+// Images are differentiable: adds Σ_{pixels, c} dL_dimage[3p + c] · ∂image[3p + c]/∂h into
+// `gradient` (heightfield rows · cols, per raw height value in texel units; an empty vector is
+// sized and zeroed first) — the gradient of a loss L of the image whose derivative with respect
+// to the image is dL_dimage (rows · cols · 3). Pixels off the sample contribute nothing. Cost:
+// about twice the forward pass (PointEvaluator::adjoint). std::invalid_argument on a size mismatch.
+void image_gradient(const Heightfield& heightfield, const PreparedImage& prepared, const std::vector<double>& dL_dimage,
+                    std::vector<double>& gradient);
+
 // What the EXR's "wavebrdf:unit" attribute says.
 extern const char* const k_image_unit;
 

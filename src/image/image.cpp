@@ -320,35 +320,26 @@ PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& 
     return out;
 }
 
-RgbImage render_image(const Heightfield& heightfield, const PreparedImage& prepared, const ImageProgress& progress) {
-    const ImageOptions& options = prepared.options;
-    const CameraFrame frame = camera_frame(options);
-    const PlaneFrame plane = plane_frame(options);
-    PointEvalOptions eval_options;
-    eval_options.model = options.model;
-    eval_options.prune_tolerance = options.prune_tolerance;
-    const PointEvaluator eval(heightfield, options.lambdas_um, eval_options);
-    const std::size_t L = options.lambdas_um.size();
-    const std::vector<double> mix = spectral_mix_weights(options.lambdas_um);
-    std::vector<std::vector<double>> spectra;
-    for (const ImageLight& light : options.lights) spectra.push_back(light_spectrum(light, options.lambdas_um));
+namespace {
 
-    const int rows = frame.rows, cols = frame.cols;
-    RgbImage image;
-    image.rows = rows;
-    image.cols = cols;
-    allocating("the " + std::to_string(rows) + "x" + std::to_string(cols) + " image",
-               double(rows) * cols * 3 * sizeof(float), [&] { image.data.assign(std::size_t(rows) * cols * 3, 0.0f); });
+// What the forward pass and the gradient share: the evaluator, the mix, the light spectra, and
+// per row and light the samples of the lit pixels with their weight cos θ_i E_⊥.
+struct ImageWalker {
+    ImageWalker(const Heightfield& heightfield, const PreparedImage& prepared)
+        : options(prepared.options),
+          frame(camera_frame(options)),
+          plane(plane_frame(options)),
+          eval(heightfield, options.lambdas_um, {options.model, options.prune_tolerance}),
+          L(options.lambdas_um.size()),
+          mix(spectral_mix_weights(options.lambdas_um)) {
+        for (const ImageLight& light : options.lights) spectra.push_back(light_spectrum(light, options.lambdas_um));
+    }
 
-    std::vector<PointSample> samples;
-    std::vector<int> column;
-    std::vector<double> weight;  // cos θ_i E_⊥ per sample
-    std::vector<double> values;
-    std::vector<double> rgb(std::size_t(cols) * 3);
-    for (int r = 0; r < rows; ++r) {
-        check_interrupt();
-        std::fill(rgb.begin(), rgb.end(), 0.0);
-        std::vector<PixelGeometry> geometry(static_cast<std::size_t>(cols));
+    // Row r's geometry, then visit(light, samples, columns, weights) per light.
+    template <typename Visit>
+    void row(int r, std::vector<PixelGeometry>& geometry, Visit&& visit) {
+        const int cols = frame.cols;
+        geometry.resize(static_cast<std::size_t>(cols));
         for (int c = 0; c < cols; ++c)
             geometry[std::size_t(c)] = pixel_geometry(frame, plane, options.sigma_p_um, r, c);
         for (std::size_t li = 0; li < options.lights.size(); ++li) {
@@ -373,24 +364,98 @@ RgbImage render_image(const Heightfield& heightfield, const PreparedImage& prepa
                 column.push_back(c);
                 weight.push_back(omega[2] * irradiance);
             }
-            values.resize(samples.size() * L);
-            eval.evaluate(samples.data(), samples.size(), values.data());
-            for (std::size_t s = 0; s < samples.size(); ++s)
-                for (std::size_t l = 0; l < L; ++l) {
-                    const double f = values[s * L + l] * spectra[li][l] * weight[s];
-                    for (int ch = 0; ch < 3; ++ch)
-                        rgb[std::size_t(column[s]) * 3 + std::size_t(ch)] += mix[std::size_t(ch) * L + l] * f;
-                }
+            visit(li);
         }
+    }
+
+    const ImageOptions& options;
+    CameraFrame frame;
+    PlaneFrame plane;
+    PointEvaluator eval;
+    std::size_t L;
+    std::vector<double> mix;
+    std::vector<std::vector<double>> spectra;
+    std::vector<PointSample> samples;
+    std::vector<int> column;
+    std::vector<double> weight;  // cos θ_i E_⊥ per sample
+};
+
+}  // namespace
+
+std::vector<double> render_image_values(const Heightfield& heightfield, const PreparedImage& prepared,
+                                        const ImageProgress& progress) {
+    ImageWalker walk(heightfield, prepared);
+    const ImageOptions& options = prepared.options;
+    const int rows = walk.frame.rows, cols = walk.frame.cols;
+    const std::size_t L = walk.L;
+    std::vector<double> image;
+    allocating("the " + std::to_string(rows) + "x" + std::to_string(cols) + " image",
+               double(rows) * cols * 3 * sizeof(double), [&] { image.assign(std::size_t(rows) * cols * 3, 0.0); });
+    std::vector<PixelGeometry> geometry;
+    std::vector<double> values;
+    for (int r = 0; r < rows; ++r) {
+        check_interrupt();
+        double* rgb = image.data() + std::size_t(r) * std::size_t(cols) * 3;
+        walk.row(r, geometry, [&](std::size_t li) {
+            values.resize(walk.samples.size() * L);
+            walk.eval.evaluate(walk.samples.data(), walk.samples.size(), values.data());
+            for (std::size_t s = 0; s < walk.samples.size(); ++s)
+                for (std::size_t l = 0; l < L; ++l) {
+                    const double f = values[s * L + l] * walk.spectra[li][l] * walk.weight[s];
+                    for (std::size_t ch = 0; ch < 3; ++ch)
+                        rgb[std::size_t(walk.column[s]) * 3 + ch] += walk.mix[ch * L + l] * f;
+                }
+        });
         for (int c = 0; c < cols; ++c)
-            for (int ch = 0; ch < 3; ++ch) {
-                const double v = geometry[std::size_t(c)].hit ? rgb[std::size_t(c) * 3 + std::size_t(ch)]
-                                                              : options.background[std::size_t(ch)];
-                image.data[(std::size_t(r) * cols + std::size_t(c)) * 3 + std::size_t(ch)] = static_cast<float>(v);
-            }
+            if (!geometry[std::size_t(c)].hit)
+                for (std::size_t ch = 0; ch < 3; ++ch) rgb[std::size_t(c) * 3 + ch] = options.background[ch];
         if (progress && !progress(r + 1, rows)) throw Interrupted();
     }
     return image;
+}
+
+RgbImage render_image(const Heightfield& heightfield, const PreparedImage& prepared, const ImageProgress& progress) {
+    const std::vector<double> values = render_image_values(heightfield, prepared, progress);
+    RgbImage image;
+    image.rows = prepared.options.camera.rows;
+    image.cols = prepared.options.camera.cols;
+    image.data.resize(values.size());
+    for (std::size_t k = 0; k < values.size(); ++k) image.data[k] = static_cast<float>(values[k]);
+    return image;
+}
+
+void image_gradient(const Heightfield& heightfield, const PreparedImage& prepared, const std::vector<double>& dL_dimage,
+                    std::vector<double>& gradient) {
+    ImageWalker walk(heightfield, prepared);
+    const int rows = walk.frame.rows, cols = walk.frame.cols;
+    const std::size_t pixels = std::size_t(rows) * std::size_t(cols);
+    if (dL_dimage.size() != pixels * 3)
+        throw std::invalid_argument("image gradient weights have " + std::to_string(dL_dimage.size()) +
+                                    " values; expected rows*cols*3 = " + std::to_string(pixels * 3));
+    const std::size_t texels = std::size_t(heightfield.rows()) * std::size_t(heightfield.cols());
+    if (gradient.empty()) gradient.assign(texels, 0.0);
+    if (gradient.size() != texels)
+        throw std::invalid_argument("gradient has " + std::to_string(gradient.size()) +
+                                    " values; expected rows*cols = " + std::to_string(texels));
+    const std::size_t L = walk.L;
+    std::vector<PixelGeometry> geometry;
+    std::vector<double> weights;
+    for (int r = 0; r < rows; ++r) {
+        check_interrupt();
+        const double* d = dL_dimage.data() + std::size_t(r) * std::size_t(cols) * 3;
+        walk.row(r, geometry, [&](std::size_t li) {
+            // The image is linear in every f: ∂L/∂f_{s,l} = Σ_c dL/dI_c · M[c, l] · S_l · cos θ_i E.
+            weights.assign(walk.samples.size() * L, 0.0);
+            for (std::size_t s = 0; s < walk.samples.size(); ++s)
+                for (std::size_t l = 0; l < L; ++l) {
+                    double w = 0.0;
+                    for (std::size_t ch = 0; ch < 3; ++ch)
+                        w += d[std::size_t(walk.column[s]) * 3 + ch] * walk.mix[ch * L + l];
+                    weights[s * L + l] = w * walk.spectra[li][l] * walk.weight[s];
+                }
+            walk.eval.adjoint(walk.samples.data(), walk.samples.size(), weights.data(), gradient);
+        });
+    }
 }
 
 void write_image_exr(const std::string& path, const RgbImage& image, const std::string& made_by) {
