@@ -5,18 +5,21 @@
 #   speed      the 1024² image: wall and CPU time, pixel-kernel-wavelength terms per second
 #   accuracy   a 256² image of the same scene pruned (1e-3) and unpruned: the largest difference,
 #              relative to the image's peak and to each pixel's own bound
-# Usage: bash bench/image_bench.sh [--build DIR] [--resolution N] [--threads T]
+# Usage: bash bench/image_bench.sh [--build DIR] [--resolution N] [--threads T] [--plane-size-um W]
+# (the default 6 mm plate fills about half the frame; 20000 fills all of it)
 # Needs a Release build of wavebrdf_cli and wavebrdf_python.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build=build
 resolution=1024
 threads=2
+plane=6000
 while [ $# -gt 0 ]; do
     case "$1" in
         --build) build=$2; shift 2 ;;
         --resolution) resolution=$2; shift 2 ;;
         --threads) threads=$2; shift 2 ;;
+        --plane-size-um) plane=$2; shift 2 ;;
         *) echo "unknown option $1" >&2; exit 2 ;;
     esac
 done
@@ -25,7 +28,7 @@ dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 $W heightfield --type scratched --size 512 --seed 7 --scratches 60 --scratch-depth-um 0.08 \
     --scratch-width-um 2 --correlation-um 4 --out "$dir/scratched.exr" > /dev/null
-scene=(--heightfield "$dir/scratched.exr" --plane-size-um 6000 --camera -6000,0,9000 --look-at 0,0,0
+scene=(--heightfield "$dir/scratched.exr" --plane-size-um "$plane" --camera -6000,0,9000 --look-at 0,0,0
        --fov-deg 40 --point-light 5000,1500,7000 --spectral 16 --sigma-p-um 10 --quiet --threads "$threads")
 
 echo "== speed: ${resolution}² image, $threads threads"

@@ -4,8 +4,8 @@
 #  1. runs the inverse renderer on the thesis's first experiment (a generated 16×16 truth,
 #     normal incidence, 32×32 spectral slice, flat start, Adam, CMSLE ε = 1, 300 epochs)
 #     → out/invert/{report.png, curves.png, metrics.csv, estimate.exr, ...}
-#  2. renders the spectral BRDF slice of a generated scratched surface
-#     → out/demo/{scratched.png, slice.png}
+#  2. renders the spectral BRDF slice of a generated scratched surface, and a camera picture of
+#     a plate carrying it (docs/image.md) → out/demo/{scratched.png, slice.png, image.png}
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh --demo
@@ -17,4 +17,7 @@ $W heightfield --type scratched --size 512 --seed 7 --scratches 60 --scratch-dep
 $W render --heightfield out/demo/scratched.exr --x-um 256 --y-um 256 --sigma-p-um 20 \
     --spectral 12 --resolution 384 --exposure -4 --reinhard \
     --out out/demo/slice.exr --png out/demo/slice.png
-echo "demo: see out/invert/report.png, out/invert/curves.png and out/demo/slice.png"
+$W image --heightfield out/demo/scratched.exr --plane-size-um 6000 --camera -6000,0,9000 --look-at 0,0,0 \
+    --fov-deg 40 --resolution 256 --point-light 5000,1500,7000 --spectral 12 --sigma-p-um 10 \
+    --exposure 2 --out out/demo/image.exr --png out/demo/image.png
+echo "demo: see out/invert/report.png, out/invert/curves.png, out/demo/slice.png and out/demo/image.png"
