@@ -31,12 +31,14 @@ std::string libraries_loaded_by_cli(const std::vector<std::string>& args) {
     return r.err;
 }
 
-TEST(PluginTest, TheCliLoadsNeitherMpiNorHdf5ForACommandThatUsesNeither) {
+TEST(PluginTest, TheCliLoadsNeitherMpiNorHdf5NorLibzipForACommandThatUsesNone) {
     const std::string trace = libraries_loaded_by_cli({"--version"});
     // The trace is there (else the absence below proves nothing): the C library is always loaded.
     ASSERT_NE(trace.find("libc.so"), std::string::npos) << trace;
     EXPECT_EQ(trace.find("libmpi"), std::string::npos) << trace;
     EXPECT_EQ(trace.find("libhdf5"), std::string::npos) << trace;
+    EXPECT_EQ(trace.find("libzip"), std::string::npos) << trace;
+    EXPECT_EQ(trace.find("libcrypto"), std::string::npos) << trace;
     EXPECT_EQ(trace.find("libwavebrdf_"), std::string::npos) << trace;
 }
 
