@@ -671,38 +671,6 @@ TEST(RecoverHeights, StopsWhenTheCallbackSaysSo) {
     EXPECT_EQ(calls, 1);
 }
 
-// Cascading, the fields started from the fields before them stop at cascade_stall_tolerance:
-// at a huge tolerance the second wavelength stops as soon as the stall window is full
-// (window + 1 iterations) while the first runs as the field's own rule says; negative gives
-// both the field's rule; a tolerance that is not finite is refused.
-TEST(RecoverHeights, CascadeStallToleranceStopsTheLaterFields) {
-    const SmallCase c = small_case(24);
-    const auto last_iterations = [&](const RecoverSettings& s) {
-        std::map<std::string, int> last;
-        recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {
-            if (m.stage.rfind("field:", 0) == 0 && m.height_rel_rmse < 0.0) last[m.stage] = m.iteration;
-            return true;
-        });
-        return last;
-    };
-    RecoverSettings s = quick_settings();
-    s.refine_iterations = 1;
-    s.model_check_iterations = 0;
-    s.field.stall_window = 3;
-    s.field.stall_tolerance = 0.0;  // the field's own rule: all 40 iterations unless the loss stops falling
-    s.cascade_stall_tolerance = 1e6;
-    const std::map<std::string, int> quick = last_iterations(s);
-    ASSERT_EQ(quick.size(), 2u);
-    EXPECT_EQ(quick.at("field:0.5"), s.field.stall_window + 1);
-    EXPECT_GT(quick.at("field:0.6"), s.field.stall_window + 1);
-    s.cascade_stall_tolerance = -1.0;
-    const std::map<std::string, int> own = last_iterations(s);
-    EXPECT_EQ(own.at("field:0.6"), quick.at("field:0.6"));
-    EXPECT_GT(own.at("field:0.5"), s.field.stall_window + 1);
-    s.cascade_stall_tolerance = std::nan("");
-    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, s), std::domain_error);
-}
-
 // Recovers the 12² small case, counting the reports per stage name.
 Heightfield recover_counting_stages(const SmallCase& c, const RecoverSettings& s, std::map<std::string, int>* stages) {
     return recover_heights(c.observations, 12, 12, 2.0, 1.0, s, [&](const StageMetrics& m) {

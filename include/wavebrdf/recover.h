@@ -263,13 +263,6 @@ struct RecoverSettings {
     // plan, roughness_plan.h apply_smooth_schedule): 1, the refinement then reaches the same
     // heights from the longest field alone (docs/recovery.md, Speed, sixth pass).
     int field_wavelengths = 0;
-    // Cascading: the stall tolerance (FieldRetrievalSettings::stall_tolerance) of every field
-    // started from the fields before it (all but the first of the first pass), which start near
-    // the loss floor. Finite; negative (the default): field.stall_tolerance for those too. At
-    // 0.01 / 0.02 the later fields of a 64² recovery stop after ~21 / ~19 iterations instead of
-    // ~27, and the final heights were 3 % better to 22 % worse (docs/recovery.md, Speed,
-    // fourth pass): not the default.
-    double cascade_stall_tolerance = -1.0;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 40;
     // Stage 3 as a continuation over the wavelengths (rough surfaces: roughness_plan.h;
@@ -370,36 +363,6 @@ struct RecoverSettings {
     int field_tile_threshold = 64;
     int field_tile_core = 48;
     int field_tile_ramp = 4;
-    // With calibrate.positions: the blurred fit corrects the positions as well (every position of
-    // the longest wavelength, blur_spacing_sigma ignored; per blur stage heights, a registration
-    // by grid search, then heights and offsets together; docs/recovery.md, "Self-calibration:
-    // positions"), and the field stage starts from the offsets it found (false: from 0).
-    // Off by default: measured not to help yet (docs/recovery.md).
-    bool blur_positions = false;
-    int blur_positions_first_stage = 3;         // the first blur stage that registers (earlier: heights only)
-    double blur_positions_radius_texels = 1.0;  // its grid: ± this, in 1-texel steps (later: ±1 in halves)
-    // With calibrate.positions: the field stage registers each position against the object
-    // refitted without that position's data (cross-validation folds, field_positions.h): the
-    // positions are split into this many interleaved folds (a checkerboard of σ_p cells for 2),
-    // and after each chunk of the object's retrieval a fold's positions are corrected against
-    // the object refitted to the other folds' observations. 0: every position against the one
-    // object fitted to all (the default). Measured not to help yet (docs/recovery.md). Valid: 0, 2 … 4.
-    int field_position_folds = 0;
-    // With calibrate.positions (docs/recovery.md, "Self-calibration: positions", round 6): the
-    // field stage at the longest wavelength corrects the positions by ptychography's annealing
-    // search (field_positions.h): after every field_position_search_chunk L-BFGS iterations each
-    // position moves to the best point of a grid of trial shifts of its own loss within a radius
-    // that starts at field_position_search_radius_texels and halves each round down to
-    // field_position_search_min_texels. 0: off (the gradient steps). With
-    // field_position_search_hold the shorter wavelengths' fields hold the positions found.
-    // Off by default: measured not to help (round 6).
-    double field_position_search_radius_texels = 0.0;
-    double field_position_search_min_texels = 0.25;
-    int field_position_search_chunk = 5;
-    bool field_position_search_hold = true;
-    // The longest wavelength's object projected onto pure-phase objects before each position
-    // correction (search or gradient steps), and the retrieval continued from there.
-    bool field_position_search_project = false;
     // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration:
     // positions", rounds 5–12b; on by default since round 12b): after stage 3, every position is
     // registered on its own at the final heights (a grid search of its full-model loss over
@@ -479,12 +442,6 @@ struct RecoverSettings {
     // over it once the positions are off (docs/recovery.md, "All at once": 18.5 % with free
     // exposures where the positions alone give 5.5 %).
     bool field_exposures_held = true;
-    // With calibrate.positions and not calibrate.exposure: the exposures calibrated all the same,
-    // as nuisance parameters (each slice's model scaled by its energy ratio, the field stage at
-    // held exposures; not reported in Calibration::exposures). Off by default: measured to change
-    // which seeds end with a lost cluster of positions, not how many (docs/recovery.md,
-    // "Self-calibration: positions", round 13). Not with white light.
-    bool position_exposures_free = false;
 };
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,

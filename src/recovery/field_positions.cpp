@@ -275,113 +275,14 @@ double correct_positions(const std::vector<const Observation*>& group, const std
     return apply_gauge(offsets_um, start, {&object}, rows, cols, texel_um, refine);
 }
 
-namespace {
-
-std::function<void(const std::vector<double>&)>& position_probe() {
-    static std::function<void(const std::vector<double>&)> probe;
-    return probe;
-}
-
-}  // namespace
-
-void set_position_probe(std::function<void(const std::vector<double>&)> probe) { position_probe() = std::move(probe); }
-
-void call_position_probe(const std::vector<double>& offsets_um) {
-    if (position_probe()) position_probe()(offsets_um);
-}
-
-double search_positions(const std::vector<const Observation*>& group, const std::vector<std::size_t>& position,
-                        std::vector<std::complex<double>>& object, double lambda_um, int rows, int cols,
-                        double texel_um, int refine, double radius_texels, std::vector<double>& offsets_um,
-                        const Communicator& comm) {
-    if (!(radius_texels > 0.0 && radius_texels <= 16.0))
-        throw std::invalid_argument("search_positions: radius " + std::to_string(radius_texels) +
-                                    " texels is invalid; expected > 0 and <= 16");
-    if (position.size() != group.size())
-        throw std::invalid_argument("search_positions: " + std::to_string(position.size()) + " position indices for " +
-                                    std::to_string(group.size()) + " observations; expected one each");
-    const std::size_t count = offsets_um.size() / 2;
-    for (std::size_t p : position)
-        if (p >= count)
-            throw std::invalid_argument("search_positions: position index " + std::to_string(p) +
-                                        " is out of range; expected < " + std::to_string(count));
-    const std::vector<double> start = offsets_um;
-    const int n = std::max(2, int(std::ceil(radius_texels - 1e-9)));
-    const int side = 2 * n + 1;
-    const std::size_t trials = std::size_t(side) * side;
-    const double step_um = radius_texels * texel_um / n;
-    // Every observation's loss at every trial (normalisation is irrelevant: each position is
-    // compared with itself), then each position's sums exactly over every rank.
-    std::vector<double> values(group.size() * trials, 0.0);
-    RegionGuard guard;
-    const std::size_t work = group.size() * trials;
-#pragma omp parallel for schedule(dynamic, 1) if (work > 1 && !in_parallel_region())
-    for (std::size_t w = 0; w < work; ++w)
-        guard.run([&] {
-            const std::size_t g = w / trials, t = w % trials;
-            const std::size_t p = position[g];
-            const int a = int(t / std::size_t(side)) - n, b = int(t % std::size_t(side)) - n;
-            const std::array<double, 2> trial{offsets_um[2 * p] + a * step_um, offsets_um[2 * p + 1] + b * step_um};
-            values[w] = field_position_loss(*group[g], trial, object, lambda_um, rows, cols, texel_um, refine, nullptr);
-        });
-    guard.rethrow();
-    ExactVector sums(count * trials);
-    for (std::size_t g = 0; g < group.size(); ++g)
-        for (std::size_t t = 0; t < trials; ++t) sums.add(position[g] * trials + t, values[g * trials + t]);
-    std::vector<double>().swap(values);
-    sums.allreduce(comm);
-    std::vector<double> all(count * trials);
-    sums.values(all.data());
-    const std::size_t centre = std::size_t(n) * side + std::size_t(n);
-    for (std::size_t p = 0; p < count; ++p) {
-        std::size_t best = centre;
-        for (std::size_t t = 0; t < trials; ++t)
-            if (all[p * trials + t] < all[p * trials + best]) best = t;
-        if (best == centre) continue;
-        offsets_um[2 * p] += (int(best / std::size_t(side)) - n) * step_um;
-        offsets_um[2 * p + 1] += (int(best % std::size_t(side)) - n) * step_um;
-    }
-    return apply_gauge(offsets_um, start, {&object}, rows, cols, texel_um, refine);
-}
-
-int position_fold(const Observation& o, int folds) {
-    if (folds < 2 || folds > 4)
-        throw std::invalid_argument("position_fold: folds " + std::to_string(folds) + " is invalid; expected 2 ... 4");
-    const double sigma = o.query.sigma_p_um;
-    if (!(sigma > 0.0) || !std::isfinite(o.query.x_um / sigma) || !std::isfinite(o.query.y_um / sigma))
-        throw std::invalid_argument("position_fold: centre (" + std::to_string(o.query.x_um) + ", " +
-                                    std::to_string(o.query.y_um) + ") um / sigma_p " + std::to_string(sigma) +
-                                    " um is invalid; expected a finite centre and a positive sigma_p");
-    // The cell's residue (mod 12, which 2, 3 and 4 divide), non-negative for negative centres.
-    const auto cell = [&](double v) {
-        const double r = std::fmod(std::floor(v / sigma), 12.0);
-        return int(r < 0.0 ? r + 12.0 : r);
-    };
-    const int cx = cell(o.query.x_um), cy = cell(o.query.y_um);
-    if (folds == 4) return (cx % 2) + 2 * (cy % 2);
-    return (cx + cy) % folds;
-}
-
 FieldRetrievalResult retrieve_field_with_positions(
     const std::vector<const Observation*>& group, const std::vector<std::size_t>& position, double lambda_um, int rows,
     int cols, double texel_um, const std::vector<std::complex<double>>& initial, const FieldRetrievalSettings& settings,
     const std::function<bool(int, double)>& on_iteration, std::vector<double>& offsets_um, const Communicator& comm,
-    int chunk_iterations, int steps, int folds, const PositionSearch& search) {
-    const bool searching = search.radius_texels > 0.0;
-    if (searching && (folds != 0 || search.chunk_iterations < 1 || !(search.min_radius_texels > 0.0)))
-        throw std::invalid_argument(
-            "retrieve_field_with_positions: the position search needs folds 0, a chunk >= 1 "
-            "and a minimum radius > 0");
-    if (searching) chunk_iterations = search.chunk_iterations;
-    int round = 0;
+    int chunk_iterations, int steps) {
     if (chunk_iterations < 1 || steps < 0)
         throw std::invalid_argument("retrieve_field_with_positions: chunk " + std::to_string(chunk_iterations) +
                                     " / steps " + std::to_string(steps) + " invalid; expected >= 1 / >= 0");
-    if (folds != 0 && (folds < 2 || folds > 4))
-        throw std::invalid_argument("retrieve_field_with_positions: folds " + std::to_string(folds) +
-                                    " is invalid; expected 0 (off) or 2 ... 4");
-    std::vector<int> fold_of(folds > 0 ? group.size() : 0);
-    for (std::size_t g = 0; g < fold_of.size(); ++g) fold_of[g] = position_fold(*group[g], folds);
     FieldRetrievalResult result;
     std::vector<std::complex<double>> object = initial;
     int done = 0;
@@ -411,50 +312,8 @@ FieldRetrievalResult retrieve_field_with_positions(
         result.relative_loss = r.relative_loss;
         object = std::move(r.object);
         if (stopped) break;
-        if (search.project_phase) {
-            double mean = 0.0;
-            for (const std::complex<double>& v : object) mean += std::abs(v);
-            mean /= double(std::max<std::size_t>(1, object.size()));
-            for (std::complex<double>& v : object) v = std::abs(v) > 0.0 ? v * (mean / std::abs(v)) : mean;
-        }
-        double moved = 0.0;
-        if (searching) {
-            const double radius = std::max(search.min_radius_texels,
-                                           search.radius_texels * std::ldexp(1.0, -std::min(round, 60)));
-            ++round;
-            moved = search_positions(group, position, object, lambda_um, rows, cols, texel_um, settings.refine, radius,
-                                     offsets_um, comm);
-        } else if (folds == 0) {
-            moved = correct_positions(group, position, object, lambda_um, rows, cols, texel_um, settings.refine, steps,
-                                      offsets_um, comm);
-        } else {
-            const std::vector<double> start = offsets_um;
-            for (int f = 0; f < folds; ++f) {
-                // The object of all refitted to the other folds only (at their corrected centres:
-                // a chunk from the object of all; measured better than a fold object kept from
-                // the start, docs/recovery.md), then this fold's positions registered against it.
-                std::vector<Observation> others;
-                std::vector<const Observation*> mine;
-                std::vector<std::size_t> mine_position;
-                for (std::size_t g = 0; g < group.size(); ++g) {
-                    if (fold_of[g] == f) {
-                        mine.push_back(group[g]);
-                        mine_position.push_back(position[g]);
-                        continue;
-                    }
-                    others.push_back(*group[g]);
-                    others.back().query.x_um += offsets_um[2 * position[g]];
-                    others.back().query.y_um += offsets_um[2 * position[g] + 1];
-                }
-                FieldRetrievalResult fr = retrieve_field(others, lambda_um, rows, cols, texel_um, object, chunk,
-                                                         nullptr, comm);
-                std::vector<Observation>().swap(others);
-                register_positions(mine, mine_position, fr.object, lambda_um, rows, cols, texel_um, settings.refine,
-                                   steps, offsets_um, comm);
-            }
-            moved = apply_gauge(offsets_um, start, {&object}, rows, cols, texel_um, settings.refine);
-        }
-        if (position_probe()) position_probe()(offsets_um);
+        const double moved = correct_positions(group, position, object, lambda_um, rows, cols, texel_um,
+                                               settings.refine, steps, offsets_um, comm);
         if (r.iterations < chunk.iterations && moved < 0.01) break;  // the object stalled, the positions too
     }
     result.iterations = done;

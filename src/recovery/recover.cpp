@@ -18,7 +18,6 @@
 #include "wavebrdf/slice_plan.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
-#include "recovery/blur_positions.h"
 #include "recovery/field_positions.h"
 #include "recovery/field_tiles.h"
 #include "recovery/field_proxy.h"
@@ -146,12 +145,6 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // White light (no single-wavelength observation on any rank): the RGB observations, one
     // group, feed the blurred fit, and the refinement follows it (no field stage).
     const bool white = by_lambda.empty();
-    // Round 13 (study option, off by default; docs/recovery.md, "Self-calibration: positions"):
-    // with the positions calibrated, the exposures calibrated as well even where the user states
-    // them (position_exposures_free), as nuisance parameters; not reported.
-    const bool nuisance_exposures = settings.calibrate.positions && !settings.calibrate.exposure &&
-                                    settings.position_exposures_free && !white;
-    if (nuisance_exposures) settings.calibrate.exposure = true;
     std::map<double, std::vector<const Observation*>> blur_groups;
     if (white)
         for (const Observation& o : observations) blur_groups[0.0].push_back(&o);
@@ -198,27 +191,13 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     Heightfield estimate = flat;
     const BlurredFitSettings& blur_settings = white ? settings.white_blurred : settings.blurred;
     // Self-calibration of positions (recover_positions.h): one offset per gathered position,
-    // found first by the blurred fit (blur_positions.h), then corrected by the field stage.
+    // corrected by the field stage.
     std::vector<std::size_t> position_of;
     std::vector<double> offsets_um;
     if (settings.calibrate.positions)
         offsets_um.assign(2 * detail::gather_positions(observations, position_of, comm).size(), 0.0);
     const auto position_index = [&](const Observation* o) { return position_of[std::size_t(o - observations.data())]; };
-    if (settings.calibrate.positions && settings.blur_positions && !white && !blur_settings.blur_widths.empty() &&
-        blur_settings.iterations > 0) {
-        std::vector<const Observation*> longest = by_lambda.rbegin()->second;  // every position
-        std::vector<std::size_t> index;
-        for (const Observation* o : longest) index.push_back(position_index(o));
-        BlurredFitSettings blurred = blur_settings;
-        blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
-        estimate = detail::fit_blurred_with_positions(
-            longest, index, flat, blurred, offsets_um,
-            [&](int stage, int it, double loss) { return report("blur:" + std::to_string(stage), it, loss, nullptr); },
-            comm,
-            detail::BlurRegistration{settings.blur_positions_radius_texels, 1.0, 1.0, 0.5,
-                                     settings.blur_positions_first_stage});
-        if (stopped || !report("blur", 0, 0.0, &estimate)) return estimate;
-    } else if (!blur_settings.blur_widths.empty() && blur_settings.iterations > 0) {
+    if (!blur_settings.blur_widths.empty() && blur_settings.iterations > 0) {
         BlurredFitSettings blurred = blur_settings;
         blurred.calibrate_exposure = blurred.calibrate_exposure || settings.calibrate.exposure;
         estimate = fit_blurred(
@@ -338,11 +317,6 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             field_settings.calibrate_exposure =
                 !held && (settings.field.calibrate_exposure || settings.calibrate.exposure);
             const auto on_iteration = [&](int iteration, double loss) { return report(name, iteration, loss, nullptr); };
-            // Cascading, a field started from the fields before it stops at its own stall tolerance.
-            const bool from_fields = settings.cascade && (pass > 0 || it != by_lambda.rbegin());
-            field_settings.stall_tolerance = from_fields && settings.cascade_stall_tolerance >= 0.0
-                                                 ? settings.cascade_stall_tolerance
-                                                 : settings.field.stall_tolerance;
             FieldRetrievalResult r = [&] {
                 const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core,
                                                  settings.field_tile_ramp};
@@ -355,21 +329,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                           field_settings, on_iteration, comm);
                 std::vector<std::size_t> index;
                 for (const Observation* o : it->second) index.push_back(position_index(o));
-                // Round 6: the annealing search at the longest wavelength; the shorter ones hold
-                // the positions it found (no steps) with field_position_search_hold.
-                detail::PositionSearch search;
-                const bool searching = settings.field_position_search_radius_texels > 0.0;
-                if (searching && it == by_lambda.rbegin()) {
-                    search.radius_texels = settings.field_position_search_radius_texels;
-                    search.min_radius_texels = settings.field_position_search_min_texels;
-                    search.chunk_iterations = settings.field_position_search_chunk;
-                }
-                if (it == by_lambda.rbegin()) search.project_phase = settings.field_position_search_project;
-                const int steps = searching && settings.field_position_search_hold ? 0 : 3;
                 return detail::retrieve_field_with_positions(used, index, lambda, rows, cols, texel_um,
-                                                             proxy_start(lambda), field_settings,
-                                                             on_iteration, offsets_um, comm, 10, steps,
-                                                             settings.field_position_folds, search);
+                                                             proxy_start(lambda), field_settings, on_iteration,
+                                                             offsets_um, comm);
             }();
             if (stopped) return false;
             if (std::isfinite(r.relative_loss) && r.relative_loss > 0.0)
@@ -468,7 +430,6 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             std::vector<std::size_t> unused;
             centres = detail::gather_positions(observations, unused, comm);
         }
-        const detail::PositionStudyHooks hooks = detail::position_study_hooks();
         // Round 12b's stall rule: the lowest stage-3 loss of the passes without the field stage
         // (and of the first recovery), and how many such passes in a row lowered it by less than
         // the tolerance.
@@ -482,10 +443,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         // heights, a new start, resets the count as the round-12b rule does).
         double best_median = 0.0;
         bool after_field = true;  // the first recovery ran the field stage
-        std::vector<double> fed, previous_result;                        // round 9's extrapolation
-        std::vector<std::vector<double>> fed_history, result_history;  // (x_k, F(x_k)) per pass
         for (int outer = 0; outer < outer_passes; ++outer) {
-            detail::call_position_probe(position_offsets);
             const std::vector<double> before = position_offsets;
             double moved = detail::register_positions(observations, position_of, estimate, settings, sigma_scale,
                                                       settings.position_register_radius_texels, 0.5, position_offsets,
@@ -517,8 +475,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             // Round 10: the lost positions searched wide.
             int rescued = 0;
             bool median_judged = false;  // round 14's stall rule judged this pass
-            if (settings.position_rescue_factor > 0.0 &&
-                (hooks.rescue_below_texels <= 0.0 || moved < hooks.rescue_below_texels)) {
+            if (settings.position_rescue_factor > 0.0) {
                 const std::vector<double> kept = position_offsets;
                 double median = 0.0;
                 rescued = detail::rescue_lost_positions(
@@ -542,99 +499,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                     if (stalled >= settings.position_outer_stall_passes) break;
                 }
             }
-            // Round 12 (study hook, off by default): lost clusters moved with their heights.
-            if (hooks.cluster_factor > 0.0) {
-                std::vector<std::size_t> unused;
-                std::vector<detail::ClusterTrial> trials;
-                const int repaired = detail::repair_lost_clusters(
-                    observations, position_of, detail::gather_positions(observations, unused, comm), estimate, settings,
-                    sigma_scale, hooks.cluster_factor, hooks.cluster_radius_texels, hooks.cluster_refit_iterations,
-                    position_offsets, comm, &trials, hooks.cluster_grid_texels,
-                    hooks.cluster_oracle_um.empty() ? nullptr : &hooks.cluster_oracle_um);
-                for (const detail::ClusterTrial& t : trials)  // (alternating names: every line printed)
-                    if (!report("positions:cluster_trial", t.kept ? t.moved : -t.moved, t.refit_moved / t.refit_unmoved,
-                                &estimate) ||
-                        !report("positions:cluster_move", t.kind, std::hypot(t.delta_texels[0], t.delta_texels[1]),
-                                &estimate))
-                        return estimate;
-                if (!report("positions:cluster", repaired, 0.0, &estimate)) return estimate;
-                if (repaired > 0) moved = std::max(moved, settings.position_outer_tolerance_texels);
-            }
             if (moved < settings.position_outer_tolerance_texels) break;
             offsets_um = position_offsets;
-            // Round 9 (study hooks, off by default): the positions fed to the next pass
-            // extrapolated over the passes (Anderson mixing or a momentum; recover_positions.h).
-            if (hooks.outer_anderson > 0 || hooks.outer_momentum > 0.0) {
-                std::vector<double> next = position_offsets;
-                if (!fed.empty()) {  // a pass from fed gave position_offsets: one history pair
-                    fed_history.push_back(fed);
-                    result_history.push_back(position_offsets);
-                }
-                if (hooks.outer_anderson > 0 && result_history.size() >= 2) {
-                    // Type II: γ = argmin ‖f_k − ΔF γ‖, x = g_k − ΔG γ (f = g − x, depth m).
-                    const std::size_t h = result_history.size();
-                    const std::size_t m = std::min<std::size_t>(std::size_t(hooks.outer_anderson), h - 1);
-                    const std::size_t n = next.size();
-                    const auto residual = [&](std::size_t k, std::size_t i) {
-                        return result_history[k][i] - fed_history[k][i];
-                    };
-                    std::vector<double> a(m * m, 0.0), b(m, 0.0);
-                    for (std::size_t p = 0; p < m; ++p)
-                        for (std::size_t i = 0; i < n; ++i) {
-                            const std::size_t k = h - 1 - m + p;  // ΔF column p: f_{k+1} − f_k
-                            const double dfp = residual(k + 1, i) - residual(k, i);
-                            b[p] += dfp * residual(h - 1, i);
-                            for (std::size_t q = 0; q < m; ++q) {
-                                const std::size_t l = h - 1 - m + q;
-                                a[p * m + q] += dfp * (residual(l + 1, i) - residual(l, i));
-                            }
-                        }
-                    double trace = 0.0;
-                    for (std::size_t p = 0; p < m; ++p) trace += a[p * m + p];
-                    for (std::size_t p = 0; p < m; ++p) a[p * m + p] += 1e-8 * trace + 1e-300;
-                    // Gaussian elimination (m ≤ a few).
-                    for (std::size_t c = 0; c < m; ++c)
-                        for (std::size_t r = c + 1; r < m; ++r) {
-                            const double f = a[r * m + c] / a[c * m + c];
-                            for (std::size_t q = c; q < m; ++q) a[r * m + q] -= f * a[c * m + q];
-                            b[r] -= f * b[c];
-                        }
-                    std::vector<double> gamma(m, 0.0);
-                    for (std::size_t c = m; c-- > 0;) {
-                        double v = b[c];
-                        for (std::size_t q = c + 1; q < m; ++q) v -= a[c * m + q] * gamma[q];
-                        gamma[c] = v / a[c * m + c];
-                    }
-                    for (std::size_t p = 0; p < m; ++p) {
-                        const std::size_t k = h - 1 - m + p;
-                        for (std::size_t i = 0; i < n; ++i)
-                            next[i] -= gamma[p] * (result_history[k + 1][i] - result_history[k][i]);
-                    }
-                } else if (hooks.outer_anderson == 0 && hooks.outer_momentum > 0.0 && !previous_result.empty()) {
-                    for (std::size_t i = 0; i < next.size(); ++i)
-                        next[i] += hooks.outer_momentum * (position_offsets[i] - previous_result[i]);
-                }
-                // The extrapolation's change capped per position.
-                const double cap_um = hooks.outer_step_cap_texels * estimate.texel_um();
-                double step_sq = 0.0;
-                for (std::size_t p = 0; 2 * p + 1 < next.size(); ++p) {
-                    const double dx = next[2 * p] - position_offsets[2 * p];
-                    const double dy = next[2 * p + 1] - position_offsets[2 * p + 1];
-                    const double len = std::hypot(dx, dy);
-                    const double f = len > cap_um ? cap_um / len : 1.0;
-                    next[2 * p] = position_offsets[2 * p] + f * dx;
-                    next[2 * p + 1] = position_offsets[2 * p + 1] + f * dy;
-                    step_sq += f * f * (dx * dx + dy * dy);
-                }
-                previous_result = position_offsets;
-                fed = next;
-                offsets_um = next;
-                const double step = next.empty() ? 0.0 : std::sqrt(step_sq / double(next.size())) / estimate.texel_um();
-                if (!report("positions:extrapolate", outer + 1, step, &estimate)) return estimate;
-            }
-            const std::vector<double> fed_to_pass = offsets_um;  // before the field stage corrects them
             const bool field_pass = !white && settings.position_outer_fields &&
-                                    (hooks.outer_field_passes < 0 || outer < hooks.outer_field_passes) &&
                                     !(settings.position_outer_field_below_texels > 0.0 &&
                                       moved < settings.position_outer_field_below_texels);
             if (field_pass) {
@@ -654,7 +521,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             }
             estimate = detail::refine_heights_and_positions(
                 observations, observations_total, flat, estimate, later, report, comm, offsets, offsets_um, &exposures,
-                &sigma_scale, &position_offsets, hooks.refine_smooth_from_fed ? &fed_to_pass : nullptr);
+                &sigma_scale, &position_offsets);
             if (stopped) return estimate;
             // Round 12b's stall rule: a pass of registration and stage 3 alone that lowered stage
             // 3's loss by less than the tolerance (relative to the lowest so far) counts; the
@@ -674,7 +541,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         refined_sigma_scale = sigma_scale;
         if (calibration) {
             calibration->position_offsets_um = std::move(offsets);
-            if (!nuisance_exposures) calibration->exposures = std::move(exposures);
+            calibration->exposures = std::move(exposures);
             calibration->sigma_p_scale = sigma_scale;
         }
     } else if (settings.refine_iterations > 0) {
@@ -998,18 +865,6 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     validate_iterations(settings.blurred.iterations, "recover_heights: blur iterations");
     validate_iterations(settings.field.iterations, "recover_heights: field iterations");
     validate_iterations(settings.refine_iterations, "recover_heights: refine iterations");
-    if (!(settings.field_position_search_radius_texels >= 0.0 && settings.field_position_search_radius_texels <= 16.0) ||
-        !(settings.field_position_search_min_texels > 0.0 && settings.field_position_search_min_texels <= 16.0) ||
-        settings.field_position_search_chunk < 1)
-        throw std::invalid_argument("recover_heights: field position search radius " +
-                                    std::to_string(settings.field_position_search_radius_texels) + " / minimum " +
-                                    std::to_string(settings.field_position_search_min_texels) + " texels / chunk " +
-                                    std::to_string(settings.field_position_search_chunk) +
-                                    " is invalid; expected 0 ... 16 / > 0 ... 16 / >= 1");
-    if (settings.field_position_search_radius_texels > 0.0 && settings.field_position_folds != 0)
-        throw std::invalid_argument("recover_heights: the field position search and field_position_folds " +
-                                    std::to_string(settings.field_position_folds) +
-                                    " cannot be combined; expected folds 0");
     if (settings.position_outer_passes < -1 || settings.position_outer_passes > 100)
         throw std::invalid_argument("recover_heights: position outer passes " +
                                     std::to_string(settings.position_outer_passes) +
@@ -1112,10 +967,6 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                                     std::to_string(settings.white_repair_region_texels) +
                                     " is invalid; expected 0 ... 4096");
     detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]
-    if (!std::isfinite(settings.cascade_stall_tolerance))
-        throw std::domain_error("recover_heights: cascade stall tolerance " +
-                                std::to_string(settings.cascade_stall_tolerance) +
-                                " is invalid; expected a finite value (negative: the field's)");
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)
     std::map<double, std::vector<const Observation*>> by_lambda;

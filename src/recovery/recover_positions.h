@@ -95,47 +95,6 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
                               double step_texels, double cap_texels, std::vector<double>& offsets_um,
                               const Communicator& comm);
 
-// Round 12 (docs/recovery.md, "Self-calibration: positions"): lost clusters. A cluster of
-// neighbouring positions can be lost together with the heights between them: a locally rigid
-// shift of heights and positions is invisible inside and costs loss only at its rim, where the
-// wrong offsets are a local minimum that a per-position search (rescue_lost_positions) cannot
-// leave. Per cluster of lost positions (loss, as register_positions', above factor × the median;
-// linked when their stated centres are ≤ 1.5 spacings apart, the spacing being the median
-// nearest-neighbour distance of centres_um), the candidate sets that may have moved together:
-// the lost positions, and per lost position the positions of the cluster and its neighbours
-// (≤ 1.5 spacings) whose offsets are within 0.75 texel of its own. Each set is reset to the
-// stated centres (its mean offset moved by δ to the other positions' mean, the offsets' gauge;
-// skipped when |δ| > radius_texels or < ¼ texel) with the heights near it moved along,
-// h'(x) = h(x − w(x) δ) (w = 1 within 0.75 spacing of a moved centre, 0 beyond 1.75 spacings, a
-// C¹ smoothstep between; Catmull-Rom bicubic), then refitted: refit_iterations of stage 3
-// (refine_heights_and_positions) on the observations of the region (the positions within 1.75
-// spacings + 3 σ_p of the set's neighbourhood). The lowest refitted loss is kept, refitted heights
-// and offsets, if below the loss of the same refit from the unmoved state. centres_um:
-// gather_positions'. The losses are exact collective sums, so every rank takes the same
-// decisions. Returns the clusters moved; trials (when given) receives one entry per cluster with
-// a candidate. grid_texels > 0: also each set moved rigidly with its heights by δ = grid · (a, b),
-// |a|, |b| ≤ 2, about its offsets, ranked by a refit of a quarter of the iterations, the best
-// refitted in full and judged as the others. Throws std::invalid_argument for factor ≤ 1, radius
-// outside (0, 64], refit_iterations outside [1, 1000], grid outside [0, 8] or offsets_um not 2
-// per centre. oracle_um (a study diagnostic, 2 per centre: the true offsets): each set is also
-// tried at its true offsets (trials of kind 3: the heights as they are, 4: blurred near them;
-// never kept; delta_texels[0] the rms move).
-struct ClusterTrial {
-    int lost = 0;                                   // the cluster's lost positions
-    int moved = 0;                                  // the positions of the candidate's set
-    int region = 0;                                 // the positions whose observations judged it
-    std::array<double, 2> delta_texels{};           // the candidate's shift
-    double refit_unmoved = 0.0, refit_moved = 0.0;  // the region's loss after the refit
-    bool kept = false;
-    int kind = 0;  // 0: reset rigidly with its heights; 1: at the stated centres, heights blurred; 2: grid
-};
-int repair_lost_clusters(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                         const std::vector<std::array<double, 2>>& centres_um, Heightfield& heights,
-                         const RecoverSettings& settings, double sigma_scale, double factor, double radius_texels,
-                         int refit_iterations, std::vector<double>& offsets_um, const Communicator& comm,
-                         std::vector<ClusterTrial>* trials = nullptr, double grid_texels = 0.0,
-                         const std::vector<double>* oracle_um = nullptr);
-
 // The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
 // "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
 // the least-squares fit of each coordinate by a smooth field is subtracted in place and
@@ -147,7 +106,7 @@ int repair_lost_clusters(const std::vector<Observation>& observations, const std
 std::vector<double> remove_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
                                                std::vector<double>& values, int nodes);
 
-// The fitted smooth displacement itself (round 9), evaluable anywhere: nodes 0 (empty: zero
+// The fitted smooth displacement itself, evaluable anywhere: nodes 0 (empty: zero
 // everywhere), 1 (affine) or k (bilinear on k × k nodes over [lo_um, hi_um], clamped outside),
 // coefficients per coordinate. remove_smooth_displacement subtracts it at the centres.
 struct SmoothDisplacement {
@@ -160,52 +119,6 @@ struct SmoothDisplacement {
 SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 2>>& centres_um,
                                            const std::vector<double>& values, int nodes);
 
-// Heights re-registered through a displacement u (µm): h'(μ) = h(μ + u(μ)) at every texel
-// centre μ = ((i + ½) w, (j + ½) w), periodic Catmull-Rom bicubic. Offsets o' = o − u(c) with
-// these heights give nearly the slices that (o, h) give (the window at c + o − u sees h' where
-// it saw h, to first order in u's gradient): the round-9 gauge of stage 3.
-Heightfield warp_heights(const Heightfield& heights, const SmoothDisplacement& displacement);
-
-// Study hooks of round 9 (experiments/recover_study.cpp; not thread-safe to set while a recovery
-// runs; all off by default):
-//   refine_smooth_nodes ≥ 1: stage 3 (refine_heights_and_positions) removes the smooth part
-//     (remove_smooth_displacement's, these nodes) of its offsets' change since its start after
-//     every refine_smooth_chunk L-BFGS iterations (0: once, at the end), warping the heights
-//     through it (warp_heights) so that heights and offsets describe the same surface; L-BFGS
-//     restarts after each removal.
-//   refine_smooth_from_fed: in the outer loop's later passes the change is measured from the
-//     positions fed to the pass (the registration's), so the field stage's change counts too;
-//   outer_anderson ≥ 1: the outer loop's positions fed to the next pass are Anderson-mixed (depth
-//     outer_anderson) over the passes' fixed-point map x → registration after the pass from x;
-//   outer_momentum > 0 (without Anderson): x_next = r + momentum · (r − r_previous);
-//   outer_step_cap_texels: the extrapolation's change to r capped per position (texels);
-//   outer_field_passes ≥ 0 (round 10): the field stage runs only in that many later passes.
-// (The loop's measured parts — the smooth-update removal, the rescue, the Newton step, the field
-// stage's skip and the stall rule — are RecoverSettings fields since round 12b.)
-struct PositionStudyHooks {
-    int refine_smooth_nodes = 0;
-    int refine_smooth_chunk = 0;
-    bool refine_smooth_from_fed = false;  // later passes: the change since the registration
-    int outer_anderson = 0;
-    double outer_momentum = 0.0;
-    double outer_step_cap_texels = 1.0;
-    // Round 10: the outer loop's later passes run the field stage only in their first
-    // outer_field_passes passes (then registration and stage 3 alone); −1: every pass (as before).
-    int outer_field_passes = -1;
-    // Round 11: the rescue only in passes whose registration moved the offsets by less than this
-    // (rms, texels: the loop near its stall); 0: every pass (round 10).
-    double rescue_below_texels = 0.0;
-    // Round 12: after the rescue, repair_lost_clusters with this factor (0: off), radius (the
-    // largest move, texels) and refit iterations.
-    double cluster_factor = 0.0;
-    double cluster_radius_texels = 6.0;
-    int cluster_refit_iterations = 20;
-    double cluster_grid_texels = 0.0;       // repair_lost_clusters' grid (0: none)
-    std::vector<double> cluster_oracle_um;  // a study diagnostic: the true offsets (empty: none)
-};
-void set_position_study_hooks(const PositionStudyHooks& hooks);
-const PositionStudyHooks& position_study_hooks();
-
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
 // (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all
 // ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
@@ -217,16 +130,13 @@ const PositionStudyHooks& position_study_hooks();
 // scale is refined as well, in the rounds of calibration_detail.h's refine_sigma_scale (a
 // golden-section search from *sigma_scale at fixed heights and offsets, then L-BFGS on both),
 // and *sigma_scale receives it. position_offsets_out (when given) receives the offsets per
-// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them. gauge_reference_um
-// (when given, 2 per position): the offsets the round-9 gauge measures the change from (default:
-// the start's).
+// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them.
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {},
                                          std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr,
-                                         std::vector<double>* position_offsets_out = nullptr,
-                                         const std::vector<double>* gauge_reference_um = nullptr);
+                                         std::vector<double>* position_offsets_out = nullptr);
 
 }  // namespace wavebrdf::detail
