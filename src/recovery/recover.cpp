@@ -16,6 +16,7 @@
 #include "wavebrdf/loss.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/slice_plan.h"
+#include "core/stall_rule.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/field_positions.h"
@@ -637,14 +638,10 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             const int before = done;
             // The stall rule (stall_window > 0): the loss fell by less than stall_tolerance of its
             // value over the last stall_window iterations (the values are every rank's: all agree).
-            std::vector<double> values;
+            detail::StallRule stall(stall_window, stall_tolerance);
             bool stalled = false;
             const auto go_on_at = [&](double value) {
-                values.push_back(value);
-                const std::size_t w = std::size_t(std::max(0, stall_window));
-                if (w > 0 && values.size() > w && values[values.size() - 1 - w] - value < stall_tolerance * value &&
-                    value > stop_below)
-                    stalled = true;
+                if (stall.stalled_at(value) && value > stop_below) stalled = true;
                 return !stalled && value > stop_below;
             };
             if (coarse_on && settings.refine_coarse_weight > 0.0) {

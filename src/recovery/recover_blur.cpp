@@ -21,6 +21,7 @@
 #include "wavebrdf/recover.h"
 #include "wavebrdf/slice_plan.h"
 
+#include "core/stall_rule.h"
 #include "core/denormals.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
@@ -267,7 +268,7 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         lo.max_iterations = stage_iterations;
         lo.gradient_tolerance = 0.0;
         bool go_on = true;
-        std::vector<double> values;  // the stage's loss after each iteration (every rank's: all agree)
+        detail::StallRule stall(settings.stall_window, settings.stall_tolerance);
         // L-BFGS takes its steps without curvature pairs as min(1, 1/‖g‖)·(−g): at most 1 in norm.
         // From flat heights the blurred loss is not convex (the pairs are skipped), and on a
         // 64² tile that is 1/64 texel rms per iteration: ~30 of stage 0's 40 iterations crawled
@@ -286,10 +287,7 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         lbfgs_minimize(scaled, x, lo, [&](int it, double value) {
             if (on_iteration && !on_iteration(int(stage), it, value)) go_on = false;
             go_on = !comm.any(!go_on);  // every rank stops at the same iteration
-            values.push_back(value);
-            const std::size_t w = std::size_t(settings.stall_window);
-            if (w > 0 && values.size() > w && values[values.size() - 1 - w] - value < settings.stall_tolerance * value)
-                return false;  // stalled: the next width
+            if (stall.stalled_at(value)) return false;  // stalled: the next width
             return go_on;
         });
         for (std::size_t k = 0; k < h.size(); ++k) h[k] = x[k] * scale;

@@ -32,6 +32,7 @@
 #include <fftw3.h>
 #include <omp.h>
 
+#include "core/stall_rule.h"
 #include "core/fftw_planner.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
@@ -928,15 +929,12 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
     lo.float_history = true;  // the pairs in float: half the field stage's largest allocation (docs/scale.md)
     lo.max_iterations = settings.iterations;
     lo.gradient_tolerance = 0.0;
-    std::vector<double> history{};  // the relative loss after each iteration
+    detail::StallRule stall(settings.stall_window, settings.stall_tolerance);
     const LbfgsResult r = lbfgs_minimize(objective, xv, lo, [&](int it, double value) {
         result.iterations = it;
         // Every rank stops at the same iteration (the rest of the rule is on replicated values).
         if (comm.any(on_iteration && !on_iteration(it, value))) return false;
-        history.push_back(value);
-        const std::size_t w = std::size_t(std::max(0, settings.stall_window));
-        if (w > 0 && history.size() > w && history[history.size() - 1 - w] - value < settings.stall_tolerance * value)
-            return false;
+        if (stall.stalled_at(value)) return false;
         return value > settings.relative_tolerance;
     });
     result.relative_loss = r.value;

@@ -13,6 +13,7 @@
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/slice_plan.h"
+#include "core/stall_rule.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/amplitude_loss.h"
@@ -342,7 +343,7 @@ Heightfield refine_in_field_model(const FieldModelLoss& model, const Heightfield
     lo.history = std::max(1, history);
     lo.max_iterations = std::max(0, iterations);
     lo.gradient_tolerance = 0.0;
-    std::vector<double> seen;
+    detail::StallRule stall(stall_window, stall_tolerance);
     const LbfgsResult r = lbfgs_minimize(
         [&](const std::vector<double>& x, std::vector<double>& g) {
             // L-BFGS's first evaluation is at the start: the caller's evaluation there is reused.
@@ -357,9 +358,7 @@ Heightfield refine_in_field_model(const FieldModelLoss& model, const Heightfield
         h, lo,
         [&](int it, double value) {
             if (on_iteration && !on_iteration(it, value, heights(h))) return false;
-            seen.push_back(value);
-            const std::size_t w = std::size_t(std::max(0, stall_window));
-            return !(w > 0 && seen.size() > w && seen[seen.size() - 1 - w] - value < stall_tolerance * value);
+            return !stall.stalled_at(value);
         });
     if (loss) *loss = r.value;
     return heights(h);
