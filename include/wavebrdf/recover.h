@@ -62,7 +62,7 @@ struct BlurredFitSettings {
     // A stage also stops once its loss fell by less than stall_tolerance (a fraction of its value)
     // over the last stall_window iterations (0, the default: off). The narrow widths' losses
     // level off (≈ 1 % per 5 iterations near 40) while the wide ones still fall by ≈ 15 %
-    // (docs/recovery.md, Speed, ninth pass).
+    // (experiments/recovery/2026-11-23-speed.md).
     int stall_window = 0;
     double stall_tolerance = 0.0;
 };
@@ -142,7 +142,7 @@ struct FieldRetrievalSettings {
     // of its value) over the last stall_window iterations (0: run all `iterations`). The loss
     // has a floor (the zero-slope model's error, ~1e-3 of the slices' amplitude); once near it
     // further iterations move the heights by far less than the refinement corrects (measured:
-    // docs/recovery.md, Speed).
+    // experiments/recovery/2026-11-23-speed.md).
     int stall_window = 5;
     double stall_tolerance = 0.005;
     // Self-calibration of the exposure: each slice's model amplitude is scaled by √e, e =
@@ -261,12 +261,12 @@ struct RecoverSettings {
     // Stage 1 only at this many longest single-wavelength wavelengths (0: all; with
     // field_lambda_min_um > 0 that applies instead). Smooth surfaces up to 64² texels (the CLI's
     // plan, roughness_plan.h apply_smooth_schedule): 1, the refinement then reaches the same
-    // heights from the longest field alone (docs/recovery.md, Speed, sixth pass).
+    // heights from the longest field alone.
     int field_wavelengths = 0;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
     int refine_iterations = 40;
     // Stage 3 as a continuation over the wavelengths (rough surfaces: roughness_plan.h;
-    // docs/recovery.md, "Rough surfaces", round 5): when > 0, before the refinement on every
+    // docs/recovery.md, "Rough surfaces"): when > 0, before the refinement on every
     // observation, one round of refine_ladder_iterations L-BFGS iterations on the observations
     // at wavelengths ≥ each single-wavelength OHS / ROHS slice's wavelength that is ≥ this (µm),
     // longest first, each round started from the last (a rung adds one wavelength). 0 (the
@@ -278,7 +278,7 @@ struct RecoverSettings {
     // refine_ladder_min_um > 0 that applies instead): with 1, refine_ladder_iterations on the
     // longest wavelength's slices alone (a fraction of the cost per iteration), then
     // refine_iterations on every slice. Smooth surfaces up to 64² texels (the CLI's plan): 1
-    // (docs/recovery.md, Speed, sixth pass).
+    // (docs/recovery.md, "Settings of each stage").
     int refine_ladder_wavelengths = 0;
     // A ladder rung stops early once its loss / loss(flat) drops below this (0: every rung
     // runs refine_ladder_iterations; refine_relative_tolerance still applies). The rung's loss is
@@ -286,17 +286,17 @@ struct RecoverSettings {
     // squared height error, and the refinement on every slice continues from where the rung
     // stopped; with noise the loss floor lies far above any useful value here, so the rung runs
     // to its cap as before. Smooth surfaces up to 64² (the CLI's plan): see
-    // apply_smooth_schedule (docs/recovery.md, Speed, seventh pass).
+    // apply_smooth_schedule.
     double refine_ladder_relative_tolerance = 0.0;
     // A ladder rung also stops once its loss fell by less than refine_ladder_stall_tolerance (a
     // fraction of its value) over the last refine_ladder_stall_window iterations (0: off, the
     // default). A rung trapped by a single-texel outlier stalls at a loss ≈ 1e-5 from its ~17th
-    // iteration on while an untrapped one falls by 25–50 % every 5 (docs/recovery.md, Speed, ninth
-    // pass): the repair after the rung (outlier_repair_on_rungs) then comes without the idle
-    // iterations. Smooth surfaces: see apply_smooth_schedule.
+    // iteration on while an untrapped one falls by 25–50 % every 5: the repair after the rung
+    // (outlier_repair_on_rungs) then comes without the idle iterations. Smooth surfaces: see
+    // apply_smooth_schedule.
     int refine_ladder_stall_window = 0;
     double refine_ladder_stall_tolerance = 0.01;
-    // Single-texel outliers (docs/recovery.md, Speed, eighth pass): after stage 3 with
+    // Single-texel outliers: after stage 3 with
     // single-wavelength slices (not white light, not with position calibration), up to this many
     // rounds of: texels farther than outlier_repair_threshold robust deviations (and a quarter of
     // the shortest wavelength's λ/2) from the quadratic through their 8 neighbours, each tried at
@@ -313,13 +313,13 @@ struct RecoverSettings {
     // The same repair after every ladder rung as well (outlier_repair_rounds > 0), judged on the
     // rung's slices that see the texel (exact data: the true heights minimise any subset's loss),
     // and where a texel was kept the rung again (its iterations, tolerance and stall rule): the
-    // trap is already there after the rung (docs/recovery.md, Speed, eighth pass), and a rung's
-    // iteration costs a third of one on every slice (ninth pass). The repair after stage 3 still
+    // trap is already there after the rung, and a rung's iteration costs a third of one on every
+    // slice. The repair after stage 3 still
     // runs (it flags nothing where the rung's repair worked).
     bool outlier_repair_on_rungs = true;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
-    // Stage 3's coarse space (docs/scale.md, "The whole-surface undulation"): levels of periodic
+    // Stage 3's coarse space (docs/scale.md, "Large surfaces on one machine"): levels of periodic
     // cubic B-splines of node spacing refine_coarse_spacing texels, doubled while an axis keeps
     // ≥ 4 nodes (0: off). With refine_coarse_weight > 0 L-BFGS runs on (x, c), h = x + weight·B c
     // (mean-free; gradient Bᵀ∇h, no new adjoint): the smooth directions get steps of their own
@@ -333,7 +333,7 @@ struct RecoverSettings {
     Loss refine_loss{LossKind::Amplitude, 1.0};
     // Self-calibration (calibration.h): parts of the acquisition refined with the heights.
     CalibrationSettings calibrate;
-    // Model check (docs/recovery.md, "Model robustness"): after stage 3 the unwrapped heights
+    // Model check (docs/recovery.md, "How it works"): after stage 3 the unwrapped heights
     // are refined as well in the field model (the zero-slope field on the fine grid of stage 1:
     // a scalar-diffraction model, not the Gabor expansion) for up to this many L-BFGS
     // iterations (stopping as the field stage does: field.stall_window, stall_tolerance), and
@@ -355,16 +355,16 @@ struct RecoverSettings {
     // over [1/2, 2], kept only where it lowers the loss) and, when it moved by more than 2 %, run
     // the field stage again at the new σ_p from those heights (false: one field stage).
     bool sigma_research = true;
-    // Stage 1 on overlapping tiles (docs/scale.md, "Field tiles"): along an axis of more than
-    // field_tile_threshold texels (0: never) the field is retrieved on tiles of about
-    // field_tile_core texels (8 … 4096) plus a margin of the footprint's reach and
+    // Stage 1 on overlapping tiles (docs/scale.md, "Large surfaces on one machine"): along an
+    // axis of more than field_tile_threshold texels (0: never) the field is retrieved on tiles
+    // of about field_tile_core texels (8 … 4096) plus a margin of the footprint's reach and
     // field_tile_ramp texels (the feathering ramp, 1 … core/2), blended into one field. Not with
     // calibrate.positions (its field stage stays whole). Smaller surfaces: the whole surface.
     int field_tile_threshold = 64;
     int field_tile_core = 48;
     int field_tile_ramp = 4;
-    // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration:
-    // positions", rounds 5–12b; on by default since round 12b): after stage 3, every position is
+    // With calibrate.positions, the outer loop (docs/recovery.md, "Calibration"): after stage 3,
+    // every position is
     // registered on its own at the final heights (a grid search of its full-model loss over
     // ± position_register_radius_texels in half-texel steps about its offset, then a parabola,
     // then position_register_newton_steps Newton steps), the smooth part of the registration's
@@ -375,20 +375,19 @@ struct RecoverSettings {
     // most this many times, stopping when a registration moves the offsets by less than
     // position_outer_tolerance_texels rms or when the loss stalls (position_outer_stall_*).
     // 0: off (one recovery); −1: the library's default (recover.cpp, k_position_outer_passes:
-    // 40; docs/recovery.md says why). At most 100.
+    // 40). At most 100.
     int position_outer_passes = -1;
     double position_register_radius_texels = 2.0;  // 0 … 8
     // Finite, ≥ 0 (0: never stops on the moves). At the loop's end the registration jitters the
     // offsets by ~0.004 texel a pass, so the default 0.001 leaves the stopping to the stall rule.
     double position_outer_tolerance_texels = 0.001;
     bool position_outer_fields = true;
-    // The outer loop's later passes (round 7): each field of a pass after the first runs this
-    // many L-BFGS iterations from the pass's heights, and its stage 3 this many (0: the first
-    // pass's field.iterations and refine_iterations, i.e. 40 by default; round 11's loop: 20 and
-    // 40).
+    // The outer loop's later passes: each field of a pass after the first runs this many L-BFGS
+    // iterations from the pass's heights, and its stage 3 this many (0: the first pass's
+    // field.iterations and refine_iterations).
     int position_outer_field_iterations = 20;
     int position_outer_refine_iterations = 0;
-    // Round 11: after the registration's grid and parabola, this many Newton steps on every
+    // After the registration's grid and parabola, this many Newton steps on every
     // position's offset (0 … 10; 0: off): per position the 2 × 2 Hessian and gradient of its
     // loss by central differences of ± position_newton_step_texels (a 3 × 3 stencil, > 0 … 2),
     // the Newton point taken where the Hessian is positive definite and it lowers that position's
@@ -397,12 +396,12 @@ struct RecoverSettings {
     int position_register_newton_steps = 1;
     double position_newton_step_texels = 0.25;
     double position_newton_cap_texels = 0.5;
-    // Round 8: the smooth part of every registration's update (new − old offsets) removed: its
+    // The smooth part of every registration's update (new − old offsets) removed: its
     // least-squares fit by an affine field (1) or a bilinear one on k × k nodes (k = 2 … 16)
     // over the positions; 0: off. Positions and heights moved together by a smooth warp change
     // the slices little, so without it the loop drifts along one.
     int position_outer_smooth_nodes = 1;
-    // Round 10: after every registration, the positions whose loss exceeds
+    // After every registration, the positions whose loss exceeds
     // position_rescue_factor × the median position's (> 1 … 10⁶; 0: off) are registered again
     // over ± position_rescue_radius_texels (> 0 … 16) on a grid of 2 × position_rescue_step_texels,
     // then ± the step (> 0, radius/(2·step) ≤ 16): a position trapped beyond the registration's
@@ -410,37 +409,37 @@ struct RecoverSettings {
     double position_rescue_factor = 20.0;
     double position_rescue_radius_texels = 4.0;
     double position_rescue_step_texels = 0.125;
-    // Round 14: a lost position more than half the rescue radius from its stated centre is
+    // A lost position more than half the rescue radius from its stated centre is
     // searched about that centre as well (the better of the two kept): a position the first
     // registrations carried to the far side of its centre is out of reach of a search about its
-    // offset (docs/recovery.md, "Self-calibration: positions", round 14). false: round 10's rescue.
+    // offset. false: the search about the offset only.
     bool position_rescue_from_centre = true;
-    // Round 11: a later pass skips the field stage when the registration before it moved the
+    // A later pass skips the field stage when the registration before it moved the
     // offsets by less than this (rms, texels, finite ≥ 0; 0: the field stage in every pass).
     // Near the end the field stage's own position steps undo the registration's last 0.02 texel.
     double position_outer_field_below_texels = 0.05;
-    // Round 12b, the stopping rule: the loop stops once position_outer_stall_passes (0 … 100; 0:
+    // The stopping rule: the loop stops once position_outer_stall_passes (0 … 100; 0:
     // off) consecutive passes without the field stage each lowered stage 3's final loss by less
     // than position_outer_stall_tolerance (a fraction of the lowest such loss before, 0 … 1; −1:
     // the library's default, recover.cpp k_position_outer_stall_tolerance) — at the end the
     // registration's ± 0.25-texel stencil is coarser than stage 3 and the loss jitters
-    // (docs/recovery.md, round 12b). The loss is the exact collective objective: every rank
+    // The loss is the exact collective objective: every rank
     // stops at the same pass.
     int position_outer_stall_passes = 2;
     double position_outer_stall_tolerance = -1.0;
-    // Round 14: the stall rule judges the median position's loss (each position's loss at its
+    // The stall rule judges the median position's loss (each position's loss at its
     // registered offset and the heights of the pass before, as the rescue computes it) instead
     // of stage 3's loss, and is applied at the start of a pass (a stalled loop ends before that
     // pass's stage 3). A few positions lost for good dominate stage 3's loss and stop the loop
-    // while the heights elsewhere still improve by a quarter a pass (docs/recovery.md, round
-    // 14). Only while the rescue runs (position_rescue_factor > 0); false: round 12b's rule.
+    // while the heights elsewhere still improve by a quarter a pass. Only while the rescue runs
+    // (position_rescue_factor > 0); false: the rule on stage 3's loss after the pass.
     bool position_outer_stall_median = true;
     // With calibrate.positions and calibrate.exposure both on, the field stage holds each slice's
     // exposure fixed (found at the heights and offsets before it: the blurred fit's, then each
     // pass's stage 3) instead of finding it anew at every evaluation: its object is complex, and
     // free exposures let it trade the object's local amplitude for the exposures of the slices
-    // over it once the positions are off (docs/recovery.md, "All at once": 18.5 % with free
-    // exposures where the positions alone give 5.5 %).
+    // over it once the positions are off (measured: 18.5 % with free exposures where the positions
+    // alone give 5.5 %).
     bool field_exposures_held = true;
 };
 

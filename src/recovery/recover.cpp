@@ -69,18 +69,16 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i) {
 namespace {
 
 // RecoverSettings::position_outer_passes = −1 (the default): outer passes of position
-// self-calibration (docs/recovery.md, "Self-calibration: positions", rounds 5–12b: 12 passes of
-// round 11's loop reached ≤ 0.1 % at 1 texel on 6 of 9 seeds and never ended worse than one
-// recovery; round 12b: converging runs still gain after 12, and a cluster the rescue brings back
-// late needs more (0.22 % at 12, 0.046 % at 20); the stall rule stops the stalled ones early.
-// Round 15: 3 texels with the footprint sized for it converges in 12–19 passes, the slowest
-// seed's last passes doing the most (3.1 % → 0.36 % → 0.04 %), so the cap is 40; converged or
-// stalled runs still end by the stall rule).
+// self-calibration. Converging runs still gain after 12 passes, a cluster the rescue brings back
+// late needs 20, and 3 texels rms with the footprint sized for it converges in 12–19 passes, the
+// slowest seed's last passes doing the most (3.1 % → 0.36 % → 0.04 %): so the cap is 40, and
+// converged or stalled runs end earlier by the stall rule
+// (experiments/recovery/2026-11-23-self-calibration.md).
 constexpr int k_position_outer_passes = 40;
 // RecoverSettings::position_outer_stall_tolerance = −1 (the default): the stall rule's relative
-// loss decrease (docs/recovery.md, round 12b: converging runs lower stage 3's loss by ≥ 14 % a
-// pass to their 12th; a stalled one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue
-// brought back later, 0.05 nearly did).
+// loss decrease: converging runs lower stage 3's loss by ≥ 14 % a pass to their 12th, a stalled
+// one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue brought back later, 0.05 nearly
+// did.
 constexpr double k_position_outer_stall_tolerance = 0.02;
 
 // recover_heights' stages, after its checks: `by_lambda` holds this rank's single-wavelength
@@ -410,7 +408,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                                         report, comm, offsets, offsets_um, &exposures, &sigma_scale,
                                                         &position_offsets);
         if (stopped) return estimate;
-        // The outer loop (docs/recovery.md, "Self-calibration: positions", rounds 5–12b): every
+        // The outer loop: every
         // position registered on its own at the final heights (a grid search of its full-model
         // loss, then Newton steps), then the field stage (from the final heights, while the
         // registration moves) and stage 3 again at the registered positions, until the
@@ -423,7 +421,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
         RecoverSettings later = settings;
         if (settings.position_outer_refine_iterations > 0)
             later.refine_iterations = settings.position_outer_refine_iterations;
-        // Round 8: the smooth part of each registration's update removed (positions and heights
+        // The smooth part of each registration's update removed (positions and heights
         // can trade a smooth warp; recover_positions.h).
         const int smooth_nodes = settings.position_outer_smooth_nodes;
         std::vector<std::array<double, 2>> centres;
@@ -431,7 +429,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             std::vector<std::size_t> unused;
             centres = detail::gather_positions(observations, unused, comm);
         }
-        // Round 12b's stall rule: the lowest stage-3 loss of the passes without the field stage
+        // The stall rule on stage 3's loss: the lowest stage-3 loss of the passes without the field stage
         // (and of the first recovery), and how many such passes in a row lowered it by less than
         // the tolerance.
         const double stall_tolerance = settings.position_outer_stall_tolerance >= 0.0
@@ -439,9 +437,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                            : k_position_outer_stall_tolerance;
         double best_loss = last_refine_loss;
         int stalled = 0;
-        // Round 14's rule (position_outer_stall_median): the median position's loss, judged at the
+        // The rule on the median position's loss (position_outer_stall_median), judged at the
         // start of each pass for the heights of the pass before (a pass after the field stage's
-        // heights, a new start, resets the count as the round-12b rule does).
+        // heights, a new start, resets the count as the rule on stage 3's loss does).
         double best_median = 0.0;
         bool after_field = true;  // the first recovery ran the field stage
         for (int outer = 0; outer < outer_passes; ++outer) {
@@ -449,7 +447,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             double moved = detail::register_positions(observations, position_of, estimate, settings, sigma_scale,
                                                       settings.position_register_radius_texels, 0.5, position_offsets,
                                                       comm);
-            // Round 11: Newton steps on each position's offset after the grid and parabola
+            // Newton steps on each position's offset after the grid and parabola
             // (recover_positions.h); moved counts them.
             for (int n = 0; n < settings.position_register_newton_steps; ++n) {
                 const int stepped = detail::newton_register_positions(
@@ -473,9 +471,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 moved = update.empty() ? 0.0 : std::sqrt(s2 / double(update.size())) / estimate.texel_um();
             }
             if (!report("positions:register", outer + 1, moved, &estimate)) return estimate;
-            // Round 10: the lost positions searched wide.
+            // The lost positions searched wide.
             int rescued = 0;
-            bool median_judged = false;  // round 14's stall rule judged this pass
+            bool median_judged = false;  // the median position's stall rule judged this pass
             if (settings.position_rescue_factor > 0.0) {
                 const std::vector<double> kept = position_offsets;
                 double median = 0.0;
@@ -489,7 +487,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 const double jump = kept.empty() ? 0.0 : std::sqrt(s2 / double(kept.size())) / estimate.texel_um();
                 if (!report("positions:rescue", rescued, jump, &estimate)) return estimate;
                 if (jump > 0.0) moved = std::max(moved, settings.position_outer_tolerance_texels);
-                // Round 14's stall rule: the median position's loss at the heights of the pass
+                // The stall rule on the median position's loss at the heights of the pass
                 // before (stage 3's loss is dominated by positions lost for good). A stalled loop
                 // ends here, with the pass before's heights and offsets.
                 if (settings.position_outer_stall_median && settings.position_outer_stall_passes > 0) {
@@ -524,7 +522,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 observations, observations_total, flat, estimate, later, report, comm, offsets, offsets_um, &exposures,
                 &sigma_scale, &position_offsets);
             if (stopped) return estimate;
-            // Round 12b's stall rule: a pass of registration and stage 3 alone that lowered stage
+            // The stall rule on stage 3's loss: a pass of registration and stage 3 alone that lowered stage
             // 3's loss by less than the tolerance (relative to the lowest so far) counts; the
             // loop stops after position_outer_stall_passes of them in a row. A pass with the
             // field stage resets the count (its heights are a new start).

@@ -241,11 +241,10 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
     const std::vector<double> before = offsets_um;
     register_positions(mine, mine_index, heights, settings, sigma_scale, radius_texels, step_texels, offsets_um, comm);
     if (!settings.position_rescue_from_centre) return count;
-    // Round 14: a lost position whose offset lay more than half the radius from its stated
+    // A lost position whose offset lay more than half the radius from its stated
     // centre (either axis) before the search is searched about the stated centre as well, and
     // keeps the better of the two: the registration can carry a position far to the wrong side
-    // of its centre, where a search about its offset no longer reaches the truth
-    // (docs/recovery.md, "Self-calibration: positions", round 14).
+    // of its centre, where a search about its offset no longer reaches the truth.
     const double half_radius_um = 0.5 * radius_texels * heights.texel_um();
     std::vector<double> centred = offsets_um;
     std::vector<char> far(positions, 0);

@@ -1,7 +1,7 @@
 #pragma once
 // Internal: the refinement stage (recover.h, stage 3) with the footprint positions refined
 // together with the heights (self-calibration of positions, calibration.h; docs/recovery.md,
-// "Self-calibration: positions").
+// "Calibration").
 //
 // The L-BFGS variables are the heights (texel units) and one offset (dx, dy) per footprint
 // position: observations at the same stated centre (x_um, y_um, equal bits) share it, as the
@@ -39,18 +39,18 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 // Σ R / Σ f) at `heights`, its centre moved by its position's offset (offsets_um, 2 per gathered
 // position, µm; index[i]: observation i's position) and σ_p × sigma_scale; 1 where the ratio is
 // not a positive finite number. With positions and exposures both calibrated the field stage
-// runs at these, held fixed (docs/recovery.md, "All at once"): its object is complex, and an
+// runs at these, held fixed: its object is complex, and an
 // exposure found anew at every evaluation lets it trade its local amplitude for the exposures
 // of the slices over it. Local (no collective); one observation per thread, the same bits for
 // any thread count. Throws std::invalid_argument for an index without an offset.
 std::vector<double> exposures_at(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                                  const Heightfield& heights, double sigma_scale, const std::vector<double>& offsets_um);
 
-// Registration at fixed heights (the outer loop of docs/recovery.md, "Self-calibration:
-// positions", round 5): every gathered position's offset (offsets_um, 2 per position, µm, every
-// rank's) moved where the sum of its observations' losses (all its wavelengths, the full slice
-// model, settings.refine_loss, each slice's exposure its energy ratio with
-// settings.calibrate.exposure, every σ_p × sigma_scale) is smallest, coarse to fine: the best
+// Registration at fixed heights (the outer loop of stage 3 with positions): every gathered
+// position's offset (offsets_um, 2 per position, µm, every rank's) moved where the sum of its
+// observations' losses (all its wavelengths, the full slice model, settings.refine_loss, each
+// slice's exposure its energy ratio with settings.calibrate.exposure, every σ_p × sigma_scale)
+// is smallest, coarse to fine: the best
 // point of the grid {offset + 2·step·(a, b): |a|, |b| ≤ radius/(2·step)} (texels), then of the
 // grid ± step in steps of step about it (radius ≤ step: one grid ± radius in steps of step);
 // ties: the first, and the offset so far unless a smaller loss. The last grid is followed by a
@@ -66,7 +66,7 @@ double register_positions(const std::vector<Observation>& observations, const st
                           double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm);
 
-// Round 10 (docs/recovery.md, "Self-calibration: positions"): the positions whose loss (the sum
+// The positions whose loss (the sum
 // of their observations' losses at their offsets, as register_positions') exceeds factor × the
 // median over the positions are registered again over ± radius_texels (register_positions with
 // step_texels: a coarse grid of 2·step, then ± step; its throws): a position trapped beyond the
@@ -74,13 +74,13 @@ double register_positions(const std::vector<Observation>& observations, const st
 // grid must be fine enough to land in it). Returns how many positions were searched (the same
 // on every rank: the losses are exact and collective); median_loss (if given) receives the
 // median position's loss before the search (0 when no position has an observation; the outer
-// loop's stall rule, round 14). Throws std::invalid_argument for factor ≤ 1 or radius ≤ 0.
+// loop's stall rule on the median position). Throws std::invalid_argument for factor ≤ 1 or radius ≤ 0.
 int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                           const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
                           double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm, double* median_loss = nullptr);
 
-// Round 11 (docs/recovery.md, "Self-calibration: positions"): a Newton step on every gathered
+// A Newton step on every gathered
 // position's offset after the registration's grid and parabola. Per position, the 2 × 2 Hessian
 // and gradient of its loss (as register_positions') in its offset by central differences of
 // ± step_texels (a 3 × 3 stencil about the offset, the cross term from its corners); where the
@@ -95,9 +95,8 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
                               double step_texels, double cap_texels, std::vector<double>& offsets_um,
                               const Communicator& comm);
 
-// The smooth part of a displacement field over the positions (round 8 of docs/recovery.md,
-// "Self-calibration: positions"): values holds 2 per position (x, y; any unit) at centres_um;
-// the least-squares fit of each coordinate by a smooth field is subtracted in place and
+// The smooth part of a displacement field over the positions: values holds 2 per position
+// (x, y; any unit) at centres_um; the least-squares fit of each coordinate by a smooth field is subtracted in place and
 // returned (2 per position). nodes = 1: an affine field (1, x, y); nodes = k ≥ 2: bilinear on
 // k × k nodes spanning the centres' bounding box (it holds the affine fields). Positions and
 // heights moved together by such a warp change the slices little, so the outer loop can drift
