@@ -2,8 +2,9 @@
 # Results-unchanged check for refactors of the recovery: short recoveries over every route,
 # each reduced to the md5 of its estimate (estimate_height.npy), of its metrics trajectory
 # (metrics.csv without the seconds column) and, where written, of uncertainty.exr.
-# Usage: experiments/stages_baseline.sh [BIN] [OUT_TABLE]  (BIN default build/bin/wavebrdf)
-# Compare two tables with diff; identical tables mean identical bits on every route.
+# Usage: experiments/stages_baseline.sh [BIN] [OUT_TABLE]  (BIN default build/bin/wavebrdf;
+# ONLY=route,route runs those routes only). Compare two tables without their last column (wall
+# seconds): cut -d' ' -f1-5 | diff; identical tables mean identical bits on every route.
 set -euo pipefail
 bin=${1:-build/bin/wavebrdf}
 table=${2:-/dev/stdout}
@@ -20,12 +21,13 @@ routes=(
   "ghs-proxy|--size 16 --model GHS"
   "tiled-field|--size 32 --field-tile-threshold 16 --field-tile-core 16 --refine-iterations 10"
   "mpi-2|--size 16"
-  "uncertainty|--size 16 --uncertainty"
+  "uncertainty|--size 16 --noise poisson:2000 --uncertainty"
 )
 lines=()
 for r in "${routes[@]}"; do
   name=${r%%|*}
   args=${r#*|}
+  [[ -z ${ONLY:-} || ,$ONLY, == *,$name,* ]] || continue
   out="$work/$name"
   start=$(date +%s)
   if [[ $name == mpi-* ]]; then
