@@ -23,6 +23,8 @@ report_phases() {
 }
 trap 'report_phases' EXIT
 
+phase "layering (scripts/check_layers.py)"
+/usr/bin/python3 scripts/check_layers.py  # src/ includes run down the stages only
 phase "setup and Release build"
 bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
 phase "Release tests (ctest)"

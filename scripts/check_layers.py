@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""Checks that src/ includes only run down the stages of docs/architecture.md.
+
+The order is core -> surface -> forward -> adjoint -> inverse -> recovery; io needs only core and
+surface. A public header include/wavebrdf/X.h belongs to the stage whose folder holds X.cpp (or
+X_*.cpp); an internal header "stage/x.h" to its folder; a header-only public header without a
+source to core. Every include of a later stage (or of a stage beside it: io <-> forward) is an
+error, except those listed in KNOWN, the arrows still to be removed; a KNOWN entry that no longer
+occurs is an error too, so the list only shrinks.
+Usage: python3 scripts/check_layers.py  (exit 1 and one line per arrow when one runs back)
+"""
+import os
+import re
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ALLOWED = {
+    "core": {"core"},
+    "surface": {"core", "surface"},
+    "io": {"core", "surface", "io"},
+    "forward": {"core", "surface", "forward"},
+    "adjoint": {"core", "surface", "forward", "adjoint"},
+    "inverse": {"core", "surface", "io", "forward", "adjoint", "inverse"},
+    "recovery": {"core", "surface", "io", "forward", "adjoint", "inverse", "recovery"},
+}
+# (file, included header): arrows that run back up today; remove an entry with its arrow.
+KNOWN = {
+    ("src/forward/scalar_diffraction.cpp", "wavebrdf/acquisition.h"),
+    ("src/forward/scalar_diffraction.cpp", "wavebrdf/noise.h"),
+    ("src/forward/scalar_diffraction.cpp", "wavebrdf/observation.h"),
+    ("src/forward/brdf.cpp", "wavebrdf/slice_plan.h"),
+    ("src/forward/batch_run.h", "wavebrdf/slice_plan.h"),
+    ("src/forward/c3_nodes.h", "wavebrdf/adjoint.h"),
+    ("src/forward/separable.h", "wavebrdf/adjoint.h"),
+    ("src/forward/table_file.cpp", "wavebrdf/io.h"),
+    ("src/io/io.cpp", "wavebrdf/spectrum.h"),
+    ("include/wavebrdf/io.h", "wavebrdf/model.h"),
+}
+
+
+def stage_of_public(header, sources):
+    stem = header[: -len(".h")]
+    for stage, names in sources.items():
+        if any(n == stem + ".cpp" or n.startswith(stem + "_") for n in names):
+            return stage
+    return "core"
+
+
+def main():
+    src = os.path.join(ROOT, "src")
+    sources = {s: os.listdir(os.path.join(src, s)) for s in ALLOWED if os.path.isdir(os.path.join(src, s))}
+    include_re = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
+    files = []
+    for stage in sources:
+        for name in sorted(sources[stage]):
+            if name.endswith((".cpp", ".h")):
+                files.append((stage, os.path.join("src", stage, name)))
+    for name in sorted(os.listdir(os.path.join(ROOT, "include", "wavebrdf"))):
+        if name.endswith(".h"):
+            files.append((stage_of_public(name, sources), os.path.join("include", "wavebrdf", name)))
+    errors, seen = [], set()
+    for stage, path in files:
+        with open(os.path.join(ROOT, path), encoding="utf-8") as f:
+            for number, line in enumerate(f, 1):
+                m = include_re.match(line)
+                if not m:
+                    continue
+                target = m.group(1)
+                if target.startswith("wavebrdf/"):
+                    to = stage_of_public(target[len("wavebrdf/"):], sources)
+                elif target.split("/")[0] in ALLOWED:
+                    to = target.split("/")[0]
+                else:
+                    continue  # a sibling file (e.g. a .inc table) or a plugin header
+                if to in ALLOWED[stage]:
+                    continue
+                if (path, target) in KNOWN:
+                    seen.add((path, target))
+                    continue
+                errors.append(f"{path}:{number}: {stage} includes {target} ({to}), a later stage")
+    for path, target in sorted(KNOWN - seen):
+        errors.append(f"{path}: no longer includes {target}: remove it from KNOWN in scripts/check_layers.py")
+    for e in errors:
+        print(e, file=sys.stderr)
+    return 1 if errors else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
