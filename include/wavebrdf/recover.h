@@ -62,7 +62,7 @@ struct BlurredFitSettings {
     // A stage also stops once its loss fell by less than stall_tolerance (a fraction of its value)
     // over the last stall_window iterations (0, the default: off). The narrow widths' losses
     // level off (≈ 1 % per 5 iterations near 40) while the wide ones still fall by ≈ 15 %
-    // (experiments/recovery/2026-11-23-speed.md).
+    // (experiments/2026-11-23-recovery-speed.md).
     int stall_window = 0;
     double stall_tolerance = 0.0;
 };
@@ -142,7 +142,7 @@ struct FieldRetrievalSettings {
     // of its value) over the last stall_window iterations (0: run all `iterations`). The loss
     // has a floor (the zero-slope model's error, ~1e-3 of the slices' amplitude); once near it
     // further iterations move the heights by far less than the refinement corrects (measured:
-    // experiments/recovery/2026-11-23-speed.md).
+    // experiments/2026-11-23-recovery-speed.md).
     int stall_window = 5;
     double stall_tolerance = 0.005;
     // Self-calibration of the exposure: each slice's model amplitude is scaled by √e, e =
@@ -278,7 +278,7 @@ struct RecoverSettings {
     // refine_ladder_min_um > 0 that applies instead): with 1, refine_ladder_iterations on the
     // longest wavelength's slices alone (a fraction of the cost per iteration), then
     // refine_iterations on every slice. Smooth surfaces up to 64² texels (the CLI's plan): 1
-    // (docs/recovery.md, "Settings of each stage").
+    // (docs/recovery.md, "Settings by stage").
     int refine_ladder_wavelengths = 0;
     // A ladder rung stops early once its loss / loss(flat) drops below this (0: every rung
     // runs refine_ladder_iterations; refine_relative_tolerance still applies). The rung's loss is
@@ -319,7 +319,7 @@ struct RecoverSettings {
     bool outlier_repair_on_rungs = true;
     int refine_history = 20;
     double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
-    // Stage 3's coarse space (docs/scale.md, "Large surfaces on one machine"): levels of periodic
+    // Stage 3's coarse space (docs/scale.md, "One machine: large surfaces"): levels of periodic
     // cubic B-splines of node spacing refine_coarse_spacing texels, doubled while an axis keeps
     // ≥ 4 nodes (0: off). With refine_coarse_weight > 0 L-BFGS runs on (x, c), h = x + weight·B c
     // (mean-free; gradient Bᵀ∇h, no new adjoint): the smooth directions get steps of their own
@@ -355,7 +355,7 @@ struct RecoverSettings {
     // over [1/2, 2], kept only where it lowers the loss) and, when it moved by more than 2 %, run
     // the field stage again at the new σ_p from those heights (false: one field stage).
     bool sigma_research = true;
-    // Stage 1 on overlapping tiles (docs/scale.md, "Large surfaces on one machine"): along an
+    // Stage 1 on overlapping tiles (docs/scale.md, "One machine: large surfaces"): along an
     // axis of more than field_tile_threshold texels (0: never) the field is retrieved on tiles
     // of about field_tile_core texels (8 … 4096) plus a margin of the footprint's reach and
     // field_tile_ramp texels (the feathering ramp, 1 … core/2), blended into one field. Not with
@@ -363,7 +363,7 @@ struct RecoverSettings {
     int field_tile_threshold = 64;
     int field_tile_core = 48;
     int field_tile_ramp = 4;
-    // With calibrate.positions, the outer loop (docs/recovery.md, "Calibration"): after stage 3,
+    // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration"): after stage 3,
     // every position is
     // registered on its own at the final heights (a grid search of its full-model loss over
     // ± position_register_radius_texels in half-texel steps about its offset, then a parabola,

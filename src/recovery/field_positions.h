@@ -1,6 +1,6 @@
 #pragma once
 // Internal: position correction inside the field stage (self-calibration of positions,
-// docs/recovery.md, "Calibration"), as ptychography's gradient-based position
+// docs/recovery.md, "Self-calibration"), as ptychography's gradient-based position
 // correction: the object's L-BFGS runs in chunks of a few iterations, and between chunks every
 // footprint position's offset takes a few gradient steps at the fixed object.
 //

@@ -73,7 +73,7 @@ namespace {
 // late needs 20, and 3 texels rms with the footprint sized for it converges in 12–19 passes, the
 // slowest seed's last passes doing the most (3.1 % → 0.36 % → 0.04 %): so the cap is 40, and
 // converged or stalled runs end earlier by the stall rule
-// (experiments/recovery/2026-11-23-self-calibration.md).
+// (experiments/2026-11-23-position-calibration.md).
 constexpr int k_position_outer_passes = 40;
 // RecoverSettings::position_outer_stall_tolerance = −1 (the default): the stall rule's relative
 // loss decrease: converging runs lower stage 3's loss by ≥ 14 % a pass to their 12th, a stalled

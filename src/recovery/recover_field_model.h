@@ -123,7 +123,7 @@ bool skip_field_refinement(double gabor_loss, double field_start_loss, double sk
 // the field stage's retrievals, which minimised the same loss over free objects, a superset of
 // the field model's pure-phase ones: when skip_field_refinement(misfit:gabor, field_floor_loss)
 // holds already, the field model is not even built ("misfit:field-floor" reported instead of
-// "misfit:field-start"; experiments/recovery/2026-11-23-speed.md).
+// "misfit:field-start"; experiments/2026-11-23-recovery-speed.md).
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,

@@ -1,7 +1,7 @@
 #pragma once
 // Internal: the refinement stage (recover.h, stage 3) with the footprint positions refined
 // together with the heights (self-calibration of positions, calibration.h; docs/recovery.md,
-// "Calibration").
+// "Self-calibration").
 //
 // The L-BFGS variables are the heights (texel units) and one offset (dx, dy) per footprint
 // position: observations at the same stated centre (x_um, y_um, equal bits) share it, as the
