@@ -1,4 +1,4 @@
-// The refinement's coarse space (issue 13, docs/scale.md "The whole-surface undulation"): smooth
+// The refinement's coarse space (docs/scale.md, "One machine: large surfaces"): smooth
 // periodic cubic B-splines at several spacings over the surface, so that the refinement's L-BFGS
 // can move the longest undulations, which the slices barely pin, by steps of their own size.
 #pragma once

@@ -1,5 +1,5 @@
 #pragma once
-// The field stage for GHS-type observations (docs/recovery.md, "Oblique light and other models").
+// The field stage for GHS-type observations (experiments/2026-11-23-oblique-light-and-models.md).
 //
 // A GHS (RGHS) slice scales the Gabor kernels' phase and frequency by s = C3/2 =
 // (cos θ_i + cos θ_o)/2 per pixel; at constant s it is exactly the OHS (ROHS) slice of the

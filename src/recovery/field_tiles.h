@@ -1,5 +1,5 @@
-// The field stage on overlapping tiles (issue 13): memory bounded by a tile, time linear in
-// the number of tiles (docs/scale.md, "Field tiles").
+// The field stage on overlapping tiles: memory bounded by a tile, time linear in the number of
+// tiles (docs/scale.md, "One machine: large surfaces").
 #pragma once
 
 #include <complex>

@@ -1,8 +1,8 @@
 #pragma once
-// Single-texel outliers after the refinement (docs/recovery.md, Speed, "Eighth pass: single-texel
-// outliers"): a texel left about half a wavelength from the surface around it by the field stage's
-// phase is a local minimum of the loss in that texel alone, which the refinement (L-BFGS, local)
-// does not leave while every other texel converges.
+// Single-texel outliers after the refinement (experiments/2026-11-23-recovery-speed.md): a texel
+// left about half a wavelength from the surface around it by the field stage's phase is a local
+// minimum of the loss in that texel alone, which the refinement (L-BFGS, local) does not leave
+// while every other texel converges.
 #include <cstddef>
 #include <functional>
 #include <vector>

@@ -272,7 +272,7 @@ Heightfield fit_blurred(const std::vector<const Observation*>& observations, con
         // L-BFGS takes its steps without curvature pairs as min(1, 1/‖g‖)·(−g): at most 1 in norm.
         // From flat heights the blurred loss is not convex (the pairs are skipped), and on a
         // 64² tile that is 1/64 texel rms per iteration: ~30 of stage 0's 40 iterations crawled
-        // (docs/recovery.md, "Speed", third pass). Fitted in h / scale, those steps move the
+        // (experiments/2026-11-23-recovery-speed.md). Fitted in h / scale, those steps move the
         // heights by at most `scale` (1/8 texel rms); with pairs L-BFGS does not see the scale.
         // Only from 64² texels on (where it was measured): smaller tiles fit as before, bit for bit.
         const double scale = h.size() >= 4096 ? std::sqrt(double(h.size())) / 8.0 : 1.0;

@@ -130,8 +130,8 @@ struct Planar {
 //   P1 = a_re b_re, P2 = a_im b_im, P3 = (a_re + a_im)(b_re + b_im);
 //   c_re = P1 − P2, c_im = P3 − P1 − P2.
 // Both operands' sums must be set. At the field stage's sizes (48 × 72 × 72, 48 × 81 × 81) the
-// three real float products took ~20 % less CPU than Eigen's complex float product (docs/
-// recovery.md, "Speed", fifth pass). The imaginary part's rounding scales with |a||b| rather
+// three real float products took ~20 % less CPU than Eigen's complex float product
+// (experiments/2026-11-23-recovery-speed.md). The imaginary part's rounding scales with |a||b| rather
 // than |c_im|: a few float ulps of the operands' scale, far below the retrieval's loss floor
 // (~1e-3 relative).
 void product3(const Planar& a, const Planar& b, Planar& c, Eigen::MatrixXf& scratch) {

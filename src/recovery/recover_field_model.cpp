@@ -1,5 +1,5 @@
 // The recovery's model check: refinement in the field model and the model selection
-// (recover_field_model.h; docs/recovery.md, "Model robustness").
+// (recover_field_model.h; experiments/2026-11-23-scalar-diffraction-model-check.md).
 #include "recovery/recover_field_model.h"
 
 #include <Eigen/Dense>

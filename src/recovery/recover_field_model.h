@@ -1,5 +1,5 @@
 #pragma once
-// Internal: the recovery's model check (docs/recovery.md, "Model robustness"). The refinement
+// Internal: the recovery's model check (experiments/2026-11-23-scalar-diffraction-model-check.md). The refinement
 // (stage 3) fits the Gabor model, whose tangent-plane kernels are a first-order approximation
 // of the surface: on slices that do not follow it (a real surface, the scalar-diffraction
 // simulator) its best fit can lie further from the truth than the unwrapped heights. Here the

@@ -33,7 +33,7 @@ constexpr double kBlurErrorFraction = 0.17;
 // wavelength is this many times the expected start error, each next one this many times shorter.
 constexpr double kLongLambdaFactor = 4.0;
 // Steep surfaces: oblique lights at these azimuths (unit vectors: 0°, 90°, 180°, 270°) and this
-// sin θ_i, a ring around normal incidence. Measured on ±4 µm (round 16, seeds 11922/11923, whose
+// sin θ_i, a ring around normal incidence. Measured on ±4 µm (seeds 11922/11923, whose
 // slopes reach 1.07/1.10): 2.22 / 1.52 % with one light, 0.0001 / 0.0000 % with 4 at 0.8; 3 at
 // 0.8 gave 0.0027 % on 11922, 4 at 0.6 0.0053 %.
 constexpr std::array<std::array<double, 2>, 4> kObliqueLightAzimuths{
@@ -44,7 +44,7 @@ constexpr double kVisibleMaxUm = 0.7;
 // At most this many long wavelengths (a range of 8 µm needs 2).
 constexpr int kMaxLongLambdas = 4;
 // Smooth surfaces (apply_smooth_schedule): refinement iterations on the longest wavelength's
-// slices, then on every slice (docs/recovery.md, Speed, sixth pass).
+// slices, then on every slice (experiments/2026-11-23-recovery-speed.md).
 // The field stage's cap: from the blurred fit the longest field is near its loss floor after
 // ~20 iterations (0.5 % of the range off, against 0.36 % after the ~46 of the default stall
 // rule), and the refinement's first iterations on its slices close that gap at a sixth of a
@@ -54,18 +54,18 @@ constexpr int kSmoothLadderIterations = 40;
 constexpr int kSmoothRefineIterations = 8;
 // The ladder's rung stops once loss / loss(flat) < this: on exact data a loss of ~3e-9 (loss(flat)
 // ≈ 0.27 at 64²) is ~0.005 % of the range off, reached after ~24 of the 40 iterations (seed
-// 10421); with noise the loss stays far above and the rung runs its 40 (seventh pass).
+// 10421); with noise the loss stays far above and the rung runs its 40.
 constexpr double kSmoothLadderRelativeTolerance = 1e-8;
 // The rung's stall rule: stopped where its loss fell by < 1 % over 5 iterations (a rung trapped by
 // a single-texel outlier levels off at ≈ 1e-5 from its ~17th iteration; untrapped rungs fall by
-// 25–50 % every 5), so the outlier repair after the rung comes early (ninth pass).
+// 25–50 % every 5), so the outlier repair after the rung comes early.
 constexpr int kSmoothLadderStallWindow = 5;
 constexpr double kSmoothLadderStallTolerance = 0.01;
 // Rounds of the outlier repair (after the rung and after every slice): a second trapped texel may
 // stand out only once the first is repaired and the rung has run again (64², seed 9346: one round
 // left it, the rung ran on to its cap at a flat loss and the repair after every slice found it,
 // 27 further iterations on every slice; 18 → 14 s). A round that keeps nothing ends the repair,
-// so an untrapped run, or one repaired in its first round, computes the same bits (tenth pass).
+// so an untrapped run, or one repaired in its first round, computes the same bits.
 constexpr int kSmoothOutlierRepairRounds = 3;
 
 std::string fixed(double v, int digits) {
@@ -116,7 +116,7 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
         // from the unwrapped fields (≈ 1–2 % of the range off, more than λ/4 at the visible
         // wavelengths) the refinement on every slice at once stalled at 1.1–1.5 % (±4 µm, seeds
         // 10302–10303); on the 5.5 µm slices alone it reaches 0.09–0.16 %, within a quarter wave of
-        // every visible wavelength, which then join at once (docs/recovery.md, round 5).
+        // every visible wavelength, which then join at once (experiments/2026-11-23-rough-surfaces.md).
         if (!plan.long_lambdas_um.empty())
             plan.refine_ladder_min_um = *std::min_element(plan.long_lambdas_um.begin(), plan.long_lambdas_um.end());
         if (steep)
@@ -152,7 +152,7 @@ void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings) 
 }
 
 void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, RecoverSettings& settings) {
-    // At every size (docs/scale.md, "Time per texel above 64²"): above the tile threshold the
+    // At every size (experiments/2026-11-24-time-per-texel.md): above the tile threshold the
     // capped iterations are each tile's, and the coarse space takes the refinement's undulation.
     (void)rows;
     (void)cols;

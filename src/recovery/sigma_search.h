@@ -1,10 +1,11 @@
 #pragma once
 // Internal: the σ_p self-calibration before the field stage (docs/recovery.md,
-// "Self-calibration", "σ_p before the field stage"). The field stage needs σ_p close to the
-// true one (σ_p 30 % off leaves its fields at ≈ 1 % and the refinement from there can settle in
-// a local minimum), so recover_heights estimates the scale s (true σ_p = s · stated) at the
-// blurred fit's heights, before the field stage, and hands the field stage, the refinement's σ
-// rounds (which start from it) and the joint position refinement σ_p · s.
+// "Self-calibration"; experiments/2026-11-23-self-calibration-exposure-sigma.md). The field
+// stage needs σ_p close to the true one (σ_p 30 % off leaves its fields at ≈ 1 % and the
+// refinement from there can settle in a local minimum), so recover_heights estimates the scale s
+// (true σ_p = s · stated) at the blurred fit's heights, before the field stage, and hands the
+// field stage, the refinement's σ rounds (which start from it) and the joint position refinement
+// σ_p · s.
 #include <vector>
 
 #include "wavebrdf/communicator.h"

@@ -37,7 +37,7 @@ double add_smoothness_penalty(const std::vector<double>& heights, int rows, int 
 
 namespace wavebrdf::detail {
 
-// Connected wrap defects (docs/recovery.md, White light, "Connected defects"): a group of
+// Connected wrap defects (experiments/2026-11-23-white-light.md): a group of
 // adjacent texels left whole wraps from the surface around it, which moving one texel at a time
 // (repair_defects) cannot leave when the loss is nearly periodic in whole wraps. Flags the texels
 // whose height h (value units, rows × cols, periodic) differs from its 8 neighbours' median by more
