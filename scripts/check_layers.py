@@ -2,7 +2,7 @@
 """Checks that src/ includes only run down the stages of docs/architecture.md.
 
 The order is core -> surface -> forward -> adjoint -> inverse -> recovery; io needs only core and
-surface; image sits beside inverse (forward, adjoint, io); the plugins' C tables count as core. A public header include/wavebrdf/X.h belongs to the stage whose folder holds X.cpp (or
+surface; image and design sit beside inverse (forward, adjoint, io); the plugins' C tables count as core. A public header include/wavebrdf/X.h belongs to the stage whose folder holds X.cpp (or
 X_*.cpp); an internal header "stage/x.h" to its folder; a header-only public header without a
 source to core. Every include of a later stage (or of a stage beside it: io <-> forward) is an
 error, except those listed in KNOWN, the arrows still to be removed; a KNOWN entry that no longer
@@ -23,6 +23,7 @@ ALLOWED = {
     "inverse": {"core", "surface", "io", "forward", "adjoint", "inverse"},
     "recovery": {"core", "surface", "io", "forward", "adjoint", "inverse", "recovery"},
     "image": {"core", "surface", "io", "forward", "adjoint", "image"},
+    "design": {"core", "surface", "io", "forward", "adjoint", "inverse", "design"},
     # Loaded at run time through the C tables of plugins/*_api.h, which count as core.
     "plugins": {"core", "surface", "io", "forward", "adjoint", "inverse", "plugins"},
 }
@@ -66,6 +67,9 @@ def main():
         if name.endswith(".h"):
             files.append((stage_of_public(name, sources), os.path.join("include", "wavebrdf", name)))
     errors, seen = [], set()
+    for d in sorted(os.listdir(src)):
+        if os.path.isdir(os.path.join(src, d)) and d not in ALLOWED:
+            errors.append(f"src/{d}: a folder of no known stage: add it to ALLOWED in scripts/check_layers.py")
     for stage, path in files:
         with open(os.path.join(ROOT, path), encoding="utf-8") as f:
             for number, line in enumerate(f, 1):
