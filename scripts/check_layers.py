@@ -37,6 +37,7 @@ KNOWN = {
     ("src/forward/c3_nodes.h", "wavebrdf/adjoint.h"),
     ("src/forward/separable.h", "wavebrdf/adjoint.h"),
     ("src/forward/table_file.cpp", "wavebrdf/io.h"),
+    ("src/forward/table_file.cpp", "io/exr_threads.h"),
     ("src/io/io.cpp", "wavebrdf/spectrum.h"),
     ("include/wavebrdf/io.h", "wavebrdf/model.h"),
 }
