@@ -11,6 +11,7 @@
 
 #include "test_util.h"
 #include "wavebrdf/brdf.h"
+#include "wavebrdf/gabor.h"
 
 namespace wavebrdf {
 namespace {
@@ -168,6 +169,42 @@ TEST(PointEval, PrunedValuesWithinTheirStatedBound) {
             // The pruning must actually skip something at these directions, or the test tests nothing.
             EXPECT_GT(differs, 0.0) << to_string(model) << " tau " << tau;
         }
+    }
+}
+
+TEST(PointEval, SinglePrecisionWithinItsStatedError) {
+    const Heightfield hf = random_heightfield(64, 64, 0.8, 8, 1.0, 1.0);
+    const std::vector<double> lambdas = {0.4, 0.55, 0.7};
+    for (Model model : {Model::OHS, Model::GHS, Model::Kirchhoff}) {
+        std::vector<PointSample> points;
+        for (int p = 0; p < 60; ++p) {
+            PointSample s;
+            s.x_um = 1.7 * p + 300.0;  // far from the origin: large offsets, large phases
+            s.y_um = 3.1 * p - 200.0;
+            s.sigma_p_um = 8.0;
+            s.omega_i = {0.3, -0.2};
+            s.omega_o = {-0.6 + 0.02 * p, 0.1};
+            points.push_back(s);
+        }
+        PointEvalOptions options;
+        options.model = model;
+        const PointEvaluator full(hf, lambdas, options);
+        options.single_precision = true;
+        const PointEvaluator single(hf, lambdas, options);
+        std::vector<double> a(points.size() * lambdas.size()), b(a.size());
+        full.evaluate(points.data(), points.size(), a.data());
+        single.evaluate(points.data(), points.size(), b.data());
+        // Relative to c1 A², the footprint's largest possible value: for OHS-type c1 ≤ 1/(λ² cos θ_i)
+        // and A = Σ c_k w² over a footprint away from the tile's seams (|C2| ≤ 2 + 2|s| for Kirchhoff).
+        double amplitude = 0.0;
+        for (double w : footprint_kernels(hf, 32.0, 32.0, 8.0).weight) amplitude += w;
+        for (std::size_t i = 0; i < a.size(); ++i) {
+            const double lambda = lambdas[i % lambdas.size()];
+            const double scale = (model == Model::Kirchhoff ? 9.0 : 1.0) * amplitude * amplitude /
+                                 (lambda * lambda * std::sqrt(1 - 0.13));
+            EXPECT_LE(std::abs(a[i] - b[i]), 1e-5 * scale) << to_string(model) << " value " << i;
+        }
+        EXPECT_NE(a, b);  // it did run in float
     }
 }
 

@@ -75,6 +75,7 @@ struct ImageOptions {
     // the area the pixel covers on the surface.
     double sigma_p_um = 0.0;
     double prune_tolerance = 1e-4;                      // point_eval.h's τ; 0: the full sum
+    bool single_precision = false;                      // point_eval.h's: the forward sum in float (about 2x faster)
     std::array<double, 3> background{{0.0, 0.0, 0.0}};  // linear sRGB of pixels off the sample
     double max_memory_gb = 0.0;                         // refuse a run whose estimate exceeds this; 0: physical memory
 };

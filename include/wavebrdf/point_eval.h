@@ -42,6 +42,10 @@ struct PointEvalOptions {
     // τ of the header: 0 (the full sum, equal to render_slice's direct path without pruning)
     // or 1e-12 … 1e-1.
     double prune_tolerance = 0.0;
+    // evaluate() in single precision (float kernels and polynomials, twice the SIMD lanes):
+    // values within about 1e-5 of c1 A² of the double sum (tests/point_eval_test.cpp); the
+    // pruning bound does not cover that rounding. adjoint() and tangent() stay in double.
+    bool single_precision = false;
 };
 
 // Throws std::domain_error naming the value: σ_p or the centre as validate(Query) does, σ_p too

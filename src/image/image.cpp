@@ -329,7 +329,7 @@ struct ImageWalker {
         : options(prepared.options),
           frame(camera_frame(options)),
           plane(plane_frame(options)),
-          eval(heightfield, options.lambdas_um, {options.model, options.prune_tolerance}),
+          eval(heightfield, options.lambdas_um, {options.model, options.prune_tolerance, options.single_precision}),
           L(options.lambdas_um.size()),
           mix(spectral_mix_weights(options.lambdas_um)) {
         for (const ImageLight& light : options.lights) spectra.push_back(light_spectrum(light, options.lambdas_um));
