@@ -9,6 +9,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "report.h"
 #include "wavebrdf/design_run.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
@@ -26,7 +27,7 @@ struct DesignArgs {
     std::string errors;
     std::vector<double> band_um;
     double view_x = 0.0, view_y = 0.0;
-    bool given_view = false, given_spectral = false, force = false, quiet = false;
+    bool given_view = false, given_spectral = false, force = false, quiet = false, no_plots = false;
     DesignOptions options;
 };
 
@@ -59,8 +60,19 @@ void run(DesignArgs a) {
     });
     progress.finish();
     write_design_directory(a.out, result, a.force);
+    if (!a.no_plots) draw_report(RunKind::Design, a.out);
     if (!a.quiet) {
         const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
+        if (j.contains("mirror_order_bound")) {
+            const auto& b = j["mirror_order_bound"];
+            const double achieved = j["metrics"]["exact"]["delta_uv"].get<double>();
+            if (achieved > 0.04)
+                std::cerr << "design: " << o.target.text << " not reached in the mirror direction (delta u'v' "
+                          << format_shortest(achieved) << "); the mirror order of any mixture of these levels gets "
+                          << "at best delta u'v' " << format_shortest(b["delta_uv"].get<double>()) << " at Y "
+                          << format_shortest(b["luminous_efficiency"].get<double>()) << " (linear sRGB "
+                          << b["linear_srgb"].dump() << ")\n";
+        }
         std::cerr << "design: exact scalar diffraction: " << j["metrics"]["exact"].dump() << "\n"
                   << "design: wrote " << a.out << " in " << format_shortest(j["timings_s"]["total"].get<double>())
                   << " s\n";
@@ -112,6 +124,7 @@ void add_design_command(CLI::App& app) {
                     "refuse a design whose estimated memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
+    cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->callback([a, spectral, vx, vy] {
         a->given_spectral = spectral->count() > 0;
         if ((vx->count() > 0) != (vy->count() > 0))

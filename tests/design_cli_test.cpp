@@ -19,7 +19,7 @@ TEST(DesignCli, WritesARunDirectoryWhoseReliefScoresAsReported) {
     const fs::path dir = fresh_dir("design_cli");
     const CliResult r = run_cli(dir, "design --out run --size 24 --spectral 3 --band-um 0.45,0.65 --levels 4 "
                                      "--height-range-um 1 --region annulus:0.15,0.6 --specular-cone 0.1 "
-                                     "--iterations 10 --refine-passes 5 --fabrication-error scale:5%,blur:0.2um --quiet");
+                                     "--iterations 10 --refine-passes 5 --fabrication-error scale:5%,blur:0.2um --quiet --no-plots");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     for (const char* name : {"design.json", "heights.exr", "target.exr", "far_field.exr", "metrics.csv", "heights.png",
                              "heights.stl", "masks.json", "masks_01.png", "masks_02.png"})

@@ -256,6 +256,66 @@ std::vector<float> far_field_picture(const std::vector<detail::OrderSet>& sets, 
     return rgb;
 }
 
+// What the levels allow in the mirror direction: the best colour of the mirror order alone over
+// every histogram a_ℓ of the levels (its amplitude Σ_ℓ a_ℓ e^{−i k h_ℓ 2 cos θ_i}, independent of
+// where the texels lie). A relief whose other orders all leave the view cone reflects exactly
+// this into it, so a colour this cannot reach is out of reach for that view with these levels.
+// Softmax over the levels, Adam, several seeded starts; the colour target's own loss.
+nlohmann::json mirror_order_bound(const PreparedDesign& p) {
+    const DesignOptions& o = p.options;
+    const int K = o.levels;
+    const std::size_t W = p.lambdas_um.size();
+    const double cos_i = std::sqrt(1.0 - o.omega_i[0] * o.omega_i[0] - o.omega_i[1] * o.omega_i[1]);
+    std::vector<std::vector<Complex>> phasor(W, std::vector<Complex>(static_cast<std::size_t>(K)));
+    for (std::size_t w = 0; w < W; ++w)
+        for (int l = 0; l < K; ++l)
+            phasor[w][static_cast<std::size_t>(l)] =
+                std::polar(1.0, -2.0 * k_pi / p.lambdas_um[w] * p.levels_um[static_cast<std::size_t>(l)] * 2.0 * cos_i);
+    std::mt19937_64 rng(detail::derive_seed(o.seed, 0xb0d));
+    double best_loss = 1e300;
+    Fractions best;
+    for (int start = 0; start < 8; ++start) {
+        std::vector<double> theta(static_cast<std::size_t>(K)), m1(theta.size(), 0.0), m2(theta.size(), 0.0);
+        detail::fill_standard_normal(theta.data(), theta.size(), rng);
+        Fractions f(W, std::vector<double>(1, 0.0)), df;
+        std::vector<double> a(theta.size());
+        std::vector<Complex> amp(W);
+        double loss = 0.0;
+        for (int it = 0; it < 1500; ++it) {
+            double mx = *std::max_element(theta.begin(), theta.end()), sum = 0.0;
+            for (std::size_t l = 0; l < a.size(); ++l) sum += a[l] = std::exp(theta[l] - mx);
+            for (double& x : a) x /= sum;
+            for (std::size_t w = 0; w < W; ++w) {
+                amp[w] = 0.0;
+                for (std::size_t l = 0; l < a.size(); ++l) amp[w] += a[l] * phasor[w][l];
+                f[w][0] = std::norm(amp[w]);
+            }
+            loss = p.target->loss(f, &df);
+            std::vector<double> ga(a.size(), 0.0);
+            for (std::size_t w = 0; w < W; ++w)
+                for (std::size_t l = 0; l < a.size(); ++l)
+                    ga[l] += df[w][0] * 2.0 * (std::conj(amp[w]) * phasor[w][l]).real();
+            double pg = 0.0;
+            for (std::size_t l = 0; l < a.size(); ++l) pg += a[l] * ga[l];
+            for (std::size_t l = 0; l < a.size(); ++l) {
+                const double g = a[l] * (ga[l] - pg);
+                m1[l] = 0.9 * m1[l] + 0.1 * g;
+                m2[l] = 0.999 * m2[l] + 0.001 * g * g;
+                theta[l] -= 0.05 * (m1[l] / (1.0 - std::pow(0.9, it + 1))) /
+                            (std::sqrt(m2[l] / (1.0 - std::pow(0.999, it + 1))) + 1e-12);
+            }
+        }
+        if (loss < best_loss) {
+            best_loss = loss;
+            best = f;
+        }
+    }
+    nlohmann::json j = p.target->metrics(best);
+    j.erase("reflectance");
+    j["what"] = "the best any histogram of the levels does in the mirror order alone (a relief whose other orders leave the view cone)";
+    return j;
+}
+
 }  // namespace
 
 const char* to_string(DesignKind kind) {
@@ -719,6 +779,10 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
         {"kirchhoff_total", kirchhoff_totals},
         {"final_loss", loss}};
     j["fabrication_errors"] = fabrication;
+    if (o.target.kind == DesignKind::Colour) {
+        const bool mirror_view = !o.view || (std::abs((*o.view)[0] - mirror[0]) < 1e-12 && std::abs((*o.view)[1] - mirror[1]) < 1e-12);
+        if (mirror_view) j["mirror_order_bound"] = mirror_order_bound(p);
+    }
     j["notes"] = p.notes;
     j["timings_s"] = {{"relaxed", relaxed_seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
                       {"total", seconds_since(start)}};
