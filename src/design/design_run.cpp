@@ -480,7 +480,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
         step = anti_mirror_step(o.height_range_um, o.levels, p.lambdas_um, std::sqrt(1.0 - light * light));
         if (step < o.height_range_um / (o.levels - 1))
             p.notes.push_back("level step " + num(step) + " um (top level " + num(step * (o.levels - 1)) +
-                              " um): the full range's step would leave the mirror order uncancellable at some wavelength");
+                              " um): on the full range's step no design keeps the mirror order dark at every wavelength of the band");
     }
     p.levels_um = level_heights(o.levels, step);
     switch (o.target.kind) {
