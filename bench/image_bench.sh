@@ -6,6 +6,7 @@
 #   accuracy   a 256² image of the same scene pruned (1e-3) and unpruned: the largest difference,
 #              relative to the image's peak and to each pixel's own bound
 # Usage: bash bench/image_bench.sh [--build DIR] [--resolution N] [--threads T] [--plane-size-um W]
+#            [--precision double|float]
 # (the default 6 mm plate fills about half the frame; 20000 fills all of it)
 # Needs a Release build of wavebrdf_cli and wavebrdf_python.
 set -euo pipefail
@@ -14,12 +15,14 @@ build=build
 resolution=1024
 threads=2
 plane=6000
+precision=double
 while [ $# -gt 0 ]; do
     case "$1" in
         --build) build=$2; shift 2 ;;
         --resolution) resolution=$2; shift 2 ;;
         --threads) threads=$2; shift 2 ;;
         --plane-size-um) plane=$2; shift 2 ;;
+        --precision) precision=$2; shift 2 ;;
         *) echo "unknown option $1" >&2; exit 2 ;;
     esac
 done
@@ -33,7 +36,7 @@ scene=(--heightfield "$dir/scratched.exr" --plane-size-um "$plane" --camera -600
 
 echo "== speed: ${resolution}² image, $threads threads"
 /usr/bin/time -f "wall %e s, user %U s, sys %S s, max RSS %M kB" \
-    "$W" image "${scene[@]}" --resolution "$resolution" --prune-tolerance 1e-3 --out "$dir/speed.exr" \
+    "$W" image "${scene[@]}" --resolution "$resolution" --prune-tolerance 1e-3 --precision "$precision" --out "$dir/speed.exr" \
     --png "$dir/speed.png" 2> "$dir/time.txt" || { cat "$dir/time.txt"; exit 1; }
 cat "$dir/time.txt"
 wall=$(sed -n 's/^wall \([0-9.]*\) s.*/\1/p' "$dir/time.txt")
