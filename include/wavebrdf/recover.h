@@ -224,15 +224,11 @@ struct RecoverSettings {
     // White light (no single-wavelength OHS / ROHS observation): stage 0 on the RGB slices with
     // these settings, then stage 3 (docs/recovery.md, White light).
     BlurredFitSettings white_blurred{{16.0, 8.0, 4.0, 2.0, 1.0, 0.5}, 40, 20, false, {}, 0, 0.0};
-    // … and after stage 3, up to this many rounds of: texels farther than white_repair_threshold
-    // robust deviations from their neighbours' median set to it where that lowers the loss,
-    // then stage 3 again (0: none).
-    int white_repair_rounds = 2;
-    double white_repair_threshold = 3.0;
-    // … connected regions of flagged texels (grown by one) of up to this many texels, each
+    // … and after stage 3, up to this many rounds of: connected regions of texels farther than
+    // 3 robust deviations from their neighbours' median (grown by one, up to 64 texels), each
     // shifted by whole wraps (λ̄/2) or set to the fill around it where that lowers the loss
-    // (detail::repair_defect_regions); 0: one texel at a time, set to its neighbours' median.
-    int white_repair_region_texels = 64;
+    // (detail::repair_defect_regions), then stage 3 again (0: none).
+    int white_repair_rounds = 2;
     // … and before stage 3, a smoothness continuation: stage 3's loss plus weight · mean (Δh)²
     // (h in texel units, Δ the 5-point Laplacian) for white_smoothness_iterations L-BFGS
     // iterations at each of these weights in turn (largest first; empty: none), which keeps the
@@ -281,7 +277,7 @@ struct RecoverSettings {
     // (docs/recovery.md, "Settings by stage").
     int refine_ladder_wavelengths = 0;
     // A ladder rung stops early once its loss / loss(flat) drops below this (0: every rung
-    // runs refine_ladder_iterations; refine_relative_tolerance still applies). The rung's loss is
+    // runs refine_ladder_iterations; stage 3's own 1e-14 still applies). The rung's loss is
     // its slices' part of the mean over every observation. On exact data the loss tracks the
     // squared height error, and the refinement on every slice continues from where the rung
     // stopped; with noise the loss floor lies far above any useful value here, so the rung runs
@@ -292,8 +288,7 @@ struct RecoverSettings {
     // fraction of its value) over the last refine_ladder_stall_window iterations (0: off, the
     // default). A rung trapped by a single-texel outlier stalls at a loss ≈ 1e-5 from its ~17th
     // iteration on while an untrapped one falls by 25–50 % every 5: the repair after the rung
-    // (outlier_repair_on_rungs) then comes without the idle iterations. Smooth surfaces: see
-    // apply_smooth_schedule.
+    // then comes without the idle iterations. Smooth surfaces: see apply_smooth_schedule.
     int refine_ladder_stall_window = 0;
     double refine_ladder_stall_tolerance = 0.01;
     // Single-texel outliers: after stage 3 with
@@ -310,15 +305,7 @@ struct RecoverSettings {
     // stopped early where loss / loss(flat) falls below refine_ladder_relative_tolerance (the
     // texel's neighbours had bent towards it: 8 iterations left seed 4 at 0.05 %).
     int outlier_repair_iterations = 30;
-    // The same repair after every ladder rung as well (outlier_repair_rounds > 0), judged on the
-    // rung's slices that see the texel (exact data: the true heights minimise any subset's loss),
-    // and where a texel was kept the rung again (its iterations, tolerance and stall rule): the
-    // trap is already there after the rung, and a rung's iteration costs a third of one on every
-    // slice. The repair after stage 3 still
-    // runs (it flags nothing where the rung's repair worked).
-    bool outlier_repair_on_rungs = true;
     int refine_history = 20;
-    double refine_relative_tolerance = 1e-14;  // stop when loss / loss(flat) drops below this
     // Stage 3's coarse space (docs/scale.md, "One machine: large surfaces"): levels of periodic
     // cubic B-splines of node spacing refine_coarse_spacing texels, doubled while an axis keeps
     // ≥ 4 nodes (0: off). With refine_coarse_weight > 0 L-BFGS runs on (x, c), h = x + weight·B c
@@ -350,11 +337,6 @@ struct RecoverSettings {
     // fit's heights, before the field stage, which then sees the refined σ_p (false: the field
     // stage keeps the stated σ_p and only the refinement calibrates it).
     bool sigma_presearch = true;
-    // With calibrate.sigma: search σ_p's scale again at the field stage's unwrapped heights
-    // (±25 % about the first answer; with calibrate.exposure, where there is no first search,
-    // over [1/2, 2], kept only where it lowers the loss) and, when it moved by more than 2 %, run
-    // the field stage again at the new σ_p from those heights (false: one field stage).
-    bool sigma_research = true;
     // Stage 1 on overlapping tiles (docs/scale.md, "One machine: large surfaces"): along an
     // axis of more than field_tile_threshold texels (0: never) the field is retrieved on tiles
     // of about field_tile_core texels (8 … 4096) plus a margin of the footprint's reach and

@@ -80,6 +80,11 @@ constexpr int k_position_outer_passes = 40;
 // one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue brought back later, 0.05 nearly
 // did.
 constexpr double k_position_outer_stall_tolerance = 0.02;
+// White light's defect repair: texels farther than this many robust deviations from their
+// neighbours' median are flagged, and connected regions of them up to k_white_repair_region_texels
+// are shifted by whole wraps or filled (white_light.h, repair_defect_regions).
+constexpr double k_white_repair_threshold = 3.0;
+constexpr int k_white_repair_region_texels = 64;
 
 // recover_heights' stages, after its checks: `by_lambda` holds this rank's single-wavelength
 // separable observations, with an entry (maybe empty) for every rank's wavelengths;
@@ -367,7 +372,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
     // exposure calibration there was no first search (the energy ratio pulls it off at the
     // blurred heights): this is then the only one, over the first search's whole range, and
     // its answer is kept only where its loss is below the stated σ_p's (guarded_sigma_scale).
-    const bool researched = !white && settings.calibrate.sigma && settings.sigma_research &&
+    const bool researched = !white && settings.calibrate.sigma &&
                             (presearched || settings.calibrate.exposure);
     if (researched) {
         const double s =
@@ -630,7 +635,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                         double stall_tolerance = 0.0) {
             // loss / loss(flat) below which the round stops.
             const double stop_below =
-                std::max(settings.refine_relative_tolerance, relative_tolerance) * reference_loss;
+                std::max(detail::k_refine_relative_tolerance, relative_tolerance) * reference_loss;
             LbfgsOptions round = lo;
             round.max_iterations = iterations;
             const int before = done;
@@ -730,7 +735,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                 };
                 bool stalled = rung(settings.refine_ladder_iterations, settings.refine_ladder_stall_window);
                 // The outlier repair on the rung's slices, then the rung again where a texel was kept.
-                for (int round = 0; settings.outlier_repair_on_rungs && go_on && !stopped &&
+                for (int round = 0; go_on && !stopped &&
                                     round < settings.outlier_repair_rounds;
                      ++round) {
                     const std::vector<char> within = active;
@@ -800,12 +805,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
             std::vector<double> no_g;
             const auto loss_of = [&](const std::vector<double>& x) { return objective(x, no_g); };
             const int budget = std::max(16, rows * cols / 64);
-            const int kept = settings.white_repair_region_texels > 0
-                                 ? detail::repair_defect_regions(h, rows, cols, white_wrap_height(),
-                                                                 settings.white_repair_threshold, budget,
-                                                                 settings.white_repair_region_texels, loss_of)
-                                 : detail::repair_defects(h, rows, cols, settings.white_repair_threshold, budget,
-                                                          loss_of);
+            const int kept =
+                detail::repair_defect_regions(h, rows, cols, white_wrap_height(), k_white_repair_threshold, budget,
+                                              k_white_repair_region_texels, loss_of);
             const Heightfield current = flat.with_values(h);
             if (!report("repair", kept, 0.0, &current)) break;
             if (kept == 0) break;
@@ -957,10 +959,6 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         if (!(w >= 0.0 && w <= 1e12))
             throw std::domain_error("recover_heights: white smoothness weight " + std::to_string(w) +
                                     " is invalid; expected a finite value >= 0");
-    if (settings.white_repair_region_texels < 0 || settings.white_repair_region_texels > 4096)
-        throw std::invalid_argument("recover_heights: white repair region texels " +
-                                    std::to_string(settings.white_repair_region_texels) +
-                                    " is invalid; expected 0 ... 4096");
     detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)

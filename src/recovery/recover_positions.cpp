@@ -472,7 +472,7 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
             const Heightfield current =
                 flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
             if (!report("refine", done, value, &current)) return go_on = false;
-            return value > settings.refine_relative_tolerance * reference_loss;
+            return value > k_refine_relative_tolerance * reference_loss;
         });
     };
     if (settings.calibrate.sigma && sigma_scale) {

@@ -26,6 +26,10 @@
 namespace wavebrdf::detail {
 
 // report(stage, iteration, loss, heights) as recover_stages' (false: stop).
+
+// Stage 3 stops once its loss / loss(flat heights) is below this: the heights are then exact
+// to the precision of the single-precision slices.
+inline constexpr double k_refine_relative_tolerance = 1e-14;
 using StageReport = std::function<bool(const std::string&, int, double, const Heightfield*)>;
 
 // Distinct stated footprint centres of every rank's observations, sorted; index[i] is this
@@ -119,7 +123,7 @@ SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 
                                            const std::vector<double>& values, int nodes);
 
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
-// (settings.refine_iterations, refine_history, refine_loss, refine_relative_tolerance) on all
+// (settings.refine_iterations, refine_history, refine_loss, k_refine_relative_tolerance) on all
 // ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
 // position; empty: 0). Returns the heights; offsets_um receives
 // one offset (true − stated, µm, mean 0 over the positions) per observation of this rank.
