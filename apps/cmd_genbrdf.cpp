@@ -9,6 +9,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "slice_job.h"
+#include "unit_check.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/text.h"
@@ -78,9 +79,11 @@ void run(const GenbrdfArgs& a) {
     // One footprint: only its rows are read (bit for bit the slice of the whole file).
     const Heightfield hf =
         read_heightfield_exr_footprint(a.input, q.x_um, q.sigma_p_um, scale.texel_um, scale.vscale).heightfield;
+    const UnitCheck units = warn_units(hf, job.lambdas_um.front(), a.input);
     job.heightfield_file = a.input;
     job.made_by = "wavebrdf genbrdf";
     run_slice_job(hf, q, job);
+    print_units(units, a.input, a.quiet);
 }
 
 }  // namespace

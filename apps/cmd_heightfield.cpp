@@ -5,6 +5,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "unit_check.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/preview.h"
@@ -57,6 +58,8 @@ void run(const HeightfieldArgs& a) {
                      a.out.c_str(), to_string(p.type), hf.rows(), hf.cols(), hf.texel_um(), s.rms_height_um, s.min_um,
                      s.max_um, s.rms_slope);
     }
+    // No wavelength here: the phase at render's default, 0.5 um.
+    print_units(warn_units(hf, 0.5, a.out), a.out, a.quiet);
 }
 
 }  // namespace

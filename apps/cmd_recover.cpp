@@ -14,6 +14,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "report.h"
+#include "unit_check.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/io.h"
@@ -213,6 +214,11 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     }
     if (comm.is_root())
         for (const auto& w : r.warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
+    if (comm.is_root() && r.truth && !a.truth.empty()) {
+        const bool planned = !r.observations.empty() && !r.observations.front().lambdas_um.empty();
+        print_units(warn_units(*r.truth, planned ? r.observations.front().lambdas_um.front() : 0.5, a.truth), a.truth,
+                    quiet);
+    }
 
     // A progress bar per stage (drawn on terminals) and a one-line summary when a stage ends.
     std::unique_ptr<Progress> progress;

@@ -5,6 +5,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "slice_job.h"
+#include "unit_check.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/spectrum.h"
 
@@ -56,9 +57,11 @@ void run(RenderArgs a) {
     const Heightfield hf = read_heightfield_exr_footprint(a.heightfield, a.query.x_um, a.query.sigma_p_um,
                                                           scale.texel_um, scale.vscale)
                                .heightfield;
+    const UnitCheck units = warn_units(hf, a.job.lambdas_um.front(), a.heightfield);
     a.job.heightfield_file = a.heightfield;
     a.job.made_by = "wavebrdf render";
     run_slice_job(hf, a.query, a.job);
+    print_units(units, a.heightfield, a.job.quiet);
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "unit_check.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
@@ -47,6 +48,7 @@ void run_on(TableArgs a, const Communicator* comm) {
     const Communicator& ranks = comm ? *comm : serial_communicator();
     TableSpec& spec = a.spec;
     Heightfield hf(1, 1, {0.0});
+    UnitCheck units;  // rank 0's, printed after the table
     // The options, checked on every rank alike (a bad one fails every rank, reported once).
     run_agreed(ranks, [&] {
         spec.query.model = parse_model(a.model);
@@ -79,6 +81,7 @@ void run_on(TableArgs a, const Communicator* comm) {
         hf = read_heightfield_exr_footprint(a.heightfield, spec.query.x_um, spec.query.sigma_p_um, scale.texel_um,
                                             scale.vscale)
                  .heightfield;
+        if (ranks.is_root()) units = warn_units(hf, spec.lambdas_um.front(), a.heightfield);
         if (!a.png.empty() && ranks.is_root()) {
             // The preview's copies (its mosaic in float, the exposure's in double) on top of the table.
             const double values = 3.0 * spec.lights.rows * spec.lights.cols * double(spec.resolution) * spec.resolution;
@@ -115,6 +118,7 @@ void run_on(TableArgs a, const Communicator* comm) {
                      spec.lambdas_um.size(), spec.lambdas_um.size() == 1 ? "" : "s", to_string(spec.query.model),
                      seconds);
     }
+    if (ranks.is_root()) print_units(units, a.heightfield, a.quiet);
 }
 
 }  // namespace

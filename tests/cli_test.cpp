@@ -176,15 +176,16 @@ TEST_F(CliTest, RenderWritesExrAndPngQuietly) {
 }
 
 // Without --quiet, but with stderr a file: no progress bar (no '\r' redraws), just the
-// one-line summary.
+// one-line summary and the heightfield's unit check (docs/cli.md).
 TEST_F(CliTest, RenderWithoutQuietPrintsOnlyASummaryWhenNotATerminal) {
     const std::string hf = make_heightfield();
     const CliResult r = run("render --heightfield " + quote(hf) + " --resolution 16 --out a.exr");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(r.err.find('\r'), std::string::npos) << r.err;
     const std::vector<std::string> lines = lines_of(r.err);
-    ASSERT_EQ(lines.size(), 1u) << r.err;
+    ASSERT_EQ(lines.size(), 2u) << r.err;
     EXPECT_TRUE(starts_with(lines[0], "rendered 16x16 slice")) << lines[0];
+    EXPECT_TRUE(starts_with(lines[1], hf + ": rms height")) << lines[1];
 }
 
 TEST_F(CliTest, GenbrdfMatchesRender) {

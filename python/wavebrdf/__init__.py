@@ -60,6 +60,9 @@ from ._core import (  # noqa: F401
     slice_gradient,
     spectral_to_srgb_weights,
     spectral_wavelengths_um,
+    surface_acf,
+    surface_psd,
+    surface_stats,
     with_height_range,
     write_observations,
 )
@@ -80,6 +83,7 @@ __all__ = [
 __all__ += ["read_slice"]
 from ._core import design  # noqa: E402,F401  (docs/design.md)
 __all__ += ["design"]
+__all__ += ["surface_acf", "surface_psd", "surface_stats"]
 # Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.
 from ._core import built_with_hdf5, read_observation_index  # noqa: F401
 __all__ += ["built_with_hdf5", "read_observation_index"]

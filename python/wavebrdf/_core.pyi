@@ -328,6 +328,13 @@ class Heightfield:
         ...
     def __repr__(self) -> str:
         ...
+    @staticmethod
+    def from_um(heights_um: Any, texel_um: float, vscale: float = ...) -> Heightfield:
+        """A Heightfield from heights in um (2-D, finite; axis 0 along x as Heightfield(values)) on square
+        texels of texel_um: values heights_um / (vscale * texel_um). For NaN or non-square spacing,
+        wavebrdf.condition_surface first.
+        """
+        ...
 
 class InversionResult:
     """What invert() returns."""
@@ -1142,6 +1149,32 @@ def spectral_to_srgb_weights(lambdas_um: List[float]) -> numpy.ndarray:
 
 def spectral_wavelengths_um(count: int) -> List[float]:
     """The library's N wavelengths in um: 0.36 + (k + 1/2) * 0.47 / N (N = 8: genBrdf's samples)."""
+    ...
+
+def surface_acf(heightfield: Any) -> dict:
+    """The areal autocorrelation function (ISO 25178-2; not wrapped, normalised by the overlapping
+    points and to 1 at zero lag): a dict with the radial average lag_um, acf, count, and the 2-D
+    ACF acf_2d ((2 rows - 1) x (2 cols - 1) in the image frame, zero lag at the centre) with its
+    lag steps step_x_um, step_y_um.
+    """
+    ...
+
+def surface_psd(heightfield: Any) -> dict:
+    """The power spectral density of a heightfield (periodic, no window): a dict with the radial
+    average q_per_um (rad/um), psd_um4 (um^4) and count (FFT bins per ring), and the 2-D PSD
+    psd_2d_um4 (image frame: axis 0 along y, axis 1 along x, zero frequency at the centre) with its
+    steps dq_x_per_um, dq_y_per_um. sum(psd_2d_um4) * dq_x * dq_y / (2 pi)^2 = Sq^2.
+    """
+    ...
+
+def surface_stats(heightfield: Any) -> dict:
+    """The ISO 25178-2 areal parameters of a heightfield (a Heightfield, an EXR path or a 2-D array of
+    heights in texel units with texel 1 um), over the whole tile, the mean removed: a dict with
+    Sa, Sq, Sp, Sv, Sz (um), Ssk, Sku, Sdq, Sdr (%), Sal (um), Str, Std (degrees, the lay's
+    direction from x towards y, x along the heightfield's rows) and acf_decayed_everywhere (False:
+    Str is an upper bound). Definitions: docs/surfaces.md, "Parameters". ValueError for a tile
+    smaller than 2 x 2.
+    """
     ...
 
 def with_height_range(heightfield: Heightfield, range_um: float) -> Heightfield:
