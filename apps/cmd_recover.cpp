@@ -14,6 +14,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "report.h"
+#include "surface_options.h"
 #include "unit_check.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
@@ -71,6 +72,8 @@ struct RecoverArgs {
     bool given_position_uncertainty = false;
     // --save-observations FILE ("": observations.json in --out).
     std::string save_observations_path;
+    // --resample-um, --fill, --detrend, --crop, --periodic: a measured --truth conditioned.
+    ConditioningArgs conditioning;
 };
 
 std::vector<double> parse_list(const std::string& option, const std::string& text) {
@@ -120,6 +123,9 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (comm.is_root()) check_run_directory(RunKind::Recover, a.out, a.force);
     if (!a.truth.empty() && !a.observations.empty())
         throw std::invalid_argument("--truth and --observations exclude each other");
+    if (a.truth.empty() && any_conditioning(a.conditioning))
+        throw std::invalid_argument(
+            "--resample-um, --fill, --detrend, --crop and --periodic condition a measured --truth; expected --truth FILE");
     RecoveryOptions options;
     options.method = parse_recovery_method(a.method, "--method");
     options.noise = parse_noise(a.noise);
@@ -187,14 +193,22 @@ void run(const RecoverArgs& a, const Communicator& comm) {
 
     // Truth and observations (files read here; planned, simulated and checked by the library).
     std::unique_ptr<Heightfield> truth;
+    std::vector<std::string> conditioning_steps;  // recorded in run.json with the plan's notes
     std::vector<Observation> observations;
     if (!a.observations.empty()) {
         observations = read_given_observations(a.observations, a.max_memory_gb, comm);
         parse_size("--size", a.size, options.rows, options.cols);
     } else {
-        if (a.truth.empty())
+        if (a.truth.empty()) {
             parse_size("--size", a.size, options.rows, options.cols);
-        else {
+        } else if (any_conditioning(a.conditioning)) {
+            // A measured truth conditioned first (--texel-um: the spacing of a file without one).
+            truth = std::make_unique<Heightfield>(read_conditioned_heightfield(
+                a.truth, a.conditioning, if_given(a.given_texel, a.texel_um), if_given(a.given_vscale, a.vscale),
+                quiet, conditioning_steps));
+            options.texel_um = truth->texel_um();
+            options.vscale = truth->vscale();
+        } else {
             const HeightfieldScale scale = resolve_scale_with_warnings(a.truth, if_given(a.given_texel, a.texel_um),
                                                                        if_given(a.given_vscale, a.vscale), "--texel-um",
                                                                        "--vscale", 2.0, 1.0);
@@ -212,6 +226,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (!quiet) {
         for (const auto& n : r.notes) std::fprintf(stderr, "plan: %s\n", n.c_str());
     }
+    for (const std::string& step : conditioning_steps) r.notes.push_back("truth conditioning: " + step);
     if (comm.is_root())
         for (const auto& w : r.warnings) std::fprintf(stderr, "wavebrdf: warning: %s\n", w.c_str());
     if (comm.is_root() && r.truth && !a.truth.empty()) {
@@ -417,6 +432,7 @@ void add_recover_command(CLI::App& app) {
                   "loss at the estimate");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
+    add_conditioning_options(cmd, a->conditioning);
     cmd->callback([a, texel, vscale, save, overlap, position_uncertainty] {
         a->save_observations = save->count() > 0;
         a->given_overlap = overlap->count() > 0;

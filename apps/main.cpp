@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
     wavebrdf::cli::add_invert_command(app);
     wavebrdf::cli::add_recover_command(app);
     wavebrdf::cli::add_table_command(app);
+    wavebrdf::cli::add_convert_command(app);
+    wavebrdf::cli::add_stats_command(app);
     wavebrdf::cli::add_lobe_command(app);
     wavebrdf::cli::add_image_command(app);
     wavebrdf::cli::add_design_command(app);

@@ -119,6 +119,7 @@ void bind_optim(py::module_& m);
 void bind_invert(py::module_& m);
 void bind_recover(py::module_& m);
 void bind_surface(py::module_& m);  // surface.cpp: metrology
+void bind_conditioning(py::module_& m);
 void bind_table(py::module_& m);
 void bind_image(py::module_& m);
 

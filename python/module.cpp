@@ -26,6 +26,7 @@ PYBIND11_MODULE(_core, m) {
     bind_image(m);
     bind_design(m);
     bind_surface(m);
+    bind_conditioning(m);
     // A long call stopped by Ctrl-C (InterruptibleRelease): its poll left the signal handler's
     // exception (KeyboardInterrupt) pending; raise that, or KeyboardInterrupt if none is.
     py::register_exception_translator([](std::exception_ptr p) {

@@ -37,6 +37,7 @@ from ._core import (  # noqa: F401
     cie1931_xyz,
     check_acquisition,
     cmsle,
+    condition_surface,
     gradient,
     height_mse,
     height_rel_rmse,
@@ -83,7 +84,7 @@ __all__ = [
 __all__ += ["read_slice"]
 from ._core import design  # noqa: E402,F401  (docs/design.md)
 __all__ += ["design"]
-__all__ += ["surface_acf", "surface_psd", "surface_stats"]
+__all__ += ["condition_surface", "surface_acf", "surface_psd", "surface_stats"]
 # Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.
 from ._core import built_with_hdf5, read_observation_index  # noqa: F401
 __all__ += ["built_with_hdf5", "read_observation_index"]

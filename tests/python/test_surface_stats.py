@@ -1,4 +1,5 @@
-"""wb.surface_stats / surface_psd / surface_acf and Heightfield.from_um: against values published by another program for a surface anyone can rebuild
+"""wb.surface_stats / surface_psd / surface_acf, wb.condition_surface, Heightfield.from_um and
+hf.conditioned: against values published by another program for a surface anyone can rebuild
 (surfalize's test fixture, whose height parameters surfalize checks against Gwyddion and
 MountainsMap), against closed forms, and their errors."""
 import math
@@ -74,10 +75,30 @@ def test_sinusoid_and_psd_parseval(rng):
     assert acf["acf"][0] == pytest.approx(1.0)
 
 
-def test_from_um():
+def test_condition_surface_fills_detrends_and_refuses(rng):
+    y, x = np.mgrid[0:30, 0:40]
+    z = 0.01 * x - 0.02 * y + rng.normal(0, 1e-3, (30, 40))
+    z[5:9, 10:14] = np.nan
+    with pytest.raises(ValueError, match="16 of 1200 points"):
+        wb.condition_surface(z, 0.5, 1.0, resample_um=0.5)
+    out = wb.condition_surface(z, 0.5, 1.0, detrend="plane", fill="harmonic", resample_um=0.5, periodic="smooth")
+    assert out["dx_um"] == out["dy_um"] == 0.5
+    assert out["heights_um"].shape == (59, 40)
+    assert np.isfinite(out["heights_um"]).all()
+    assert [s.split(":")[0] for s in out["steps"]] == ["detrend", "fill", "resample", "periodic"]
+    assert out["seam_ratio_after"] < out["seam_ratio_before"]
+    with pytest.raises(ValueError, match="fill 'zero'"):
+        wb.condition_surface(z, 0.5, fill="zero")
+
+
+def test_from_um_and_conditioned():
     heights = np.add.outer(np.arange(16) * 0.01, np.arange(12) * 0.02)
     hf = wb.Heightfield.from_um(heights, 0.5, vscale=2.0)
     assert hf.texel_um == 0.5 and hf.vscale == 2.0
     np.testing.assert_allclose(hf.values * 2.0 * 0.5, heights, rtol=1e-15)
+    flat = hf.conditioned(detrend="plane")
+    assert wb.surface_stats(flat)["Sq"] < 1e-12
+    cropped = hf.conditioned(crop=(2, 3, 8, 5), periodic="mirror")
+    assert (cropped.rows, cropped.cols) == (16, 10)
     with pytest.raises(ValueError, match="NaN|finite"):
         wb.Heightfield.from_um(np.full((4, 4), np.nan), 1.0)
