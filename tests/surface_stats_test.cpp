@@ -112,8 +112,10 @@ TEST(SurfaceStats, GaussianBumpOnNonSquareSpacing) {
     EXPECT_NEAR(p.Sq, std::sqrt(pi * s * s * h * h / area - mean * mean), 1e-6);
     EXPECT_NEAR(p.Sp, h - mean, 1e-3 * h);
     EXPECT_NEAR(p.Sv, mean, 1e-9);
-    // Forward differences of a bump sampled at s/dx = 12 and s/dy = 7.5 points: within 0.5 %.
-    EXPECT_NEAR(p.Sdq, std::sqrt(pi * h * h / area), 5e-3 * std::sqrt(pi * h * h / area));
+    // Forward differences of a bump sampled at s/dx = 12 and s/dy = 7.5 points, averaged over
+    // the (rows − 1)(cols − 1) points that have both: within 0.5 % of π h² over their area.
+    const double cells = (rows - 1) * dx * (cols - 1) * dy;
+    EXPECT_NEAR(p.Sdq, std::sqrt(pi * h * h / cells), 5e-3 * std::sqrt(pi * h * h / cells));
     // A round bump correlates alike in every direction whatever the spacing (a mix-up of dx
     // and dy would give Str ≈ dy/dx or dx/dy).
     EXPECT_GT(p.Str, 0.9);

@@ -335,6 +335,13 @@ class Heightfield:
         wavebrdf.condition_surface first.
         """
         ...
+    def conditioned(self, detrend: str = ..., crop: Any = ..., resample_um: Any = ..., periodic: str = ...) -> Heightfield:
+        """This heightfield conditioned (as `wavebrdf convert`; crop indices are (i0, j0, rows, cols) of
+        this heightfield), in order: crop, detrend ('none', 'mean', 'plane', 'poly:N'), resample_um
+        (bilinear) and periodic ('none', 'smooth', 'mirror'). Heights in um are kept; the vertical scale
+        is kept (1 for a flat vscale 0).
+        """
+        ...
 
 class InversionResult:
     """What invert() returns."""
@@ -643,6 +650,17 @@ def cmsle(estimate: Any, reference: Any, epsilon: float = ...) -> float:
     """Corrected mean squared log error with epsilon > 0 (see Loss).
     estimate, reference: float arrays of the same shape, finite; an (n, n, c) array has c
     channels per pixel, any other shape one. The loss is a mean over pixels of a sum over channels.
+    """
+    ...
+
+def condition_surface(heights_um: Any, dx_um: float, dy_um: Any = ..., fill: str = ..., detrend: str = ..., crop: Any = ..., resample_um: Any = ..., periodic: str = ...) -> dict:
+    """Conditions measured heights (as `wavebrdf convert`): a 2-D array in um, NaN where unmeasured,
+    axis 0 along y with spacing dy_um (default dx_um), axis 1 along x with spacing dx_um. In order:
+    crop (r0, c0, rows, cols), detrend ('none', 'mean', 'plane', 'poly:N'), fill ('none' refuses
+    NaN where a later step needs every point; 'nearest', 'harmonic', 'mean'), resample_um (square
+    texels, bilinear), periodic ('none', 'smooth' periodic-plus-smooth, 'mirror'). Returns a dict:
+    heights_um, dx_um, dy_um, steps (one line each) and the seam's slope ratio before and after the
+    periodic step (None without one). ValueError naming the argument on bad input.
     """
     ...
 

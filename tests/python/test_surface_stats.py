@@ -38,7 +38,7 @@ def test_parameters_match_surfalize_published_values():
                        "Ssk": -0.08144, "Sku": 1.818014}.items():
         assert p[key] == pytest.approx(value, abs=2e-6), key
     # Sdq: surfalize divides both directions' sums of squared forward differences by all
-    # 700 x 1000 points, we each by its own count of pairs (as SurfaceTopography): 0.06 % apart.
+    # 700 x 1000 points, we average over the points that have both (as SurfaceTopography).
     assert p["Sdq"] == pytest.approx(4.079605, rel=1e-3)
     # Sdr: surfalize doubles one triangle per cell; we add the cell's two triangles.
     assert p["Sdr"] == pytest.approx(276.112693, rel=5e-3)
