@@ -22,7 +22,7 @@ namespace {
 namespace fs = std::filesystem;
 using test::expect_throw_naming;
 
-// ../shared/ beside the clone (CI puts it there); a test that needs it fails under CI when it is
+// ../shared/real-surfaces/ beside the clone (CI puts it there); a test that needs it fails under CI when it is
 // missing and is skipped with a message elsewhere.
 // (A git worktree under a folder of worktrees finds it one level further up.)
 const fs::path k_shared = fs::exists(fs::path(WAVEBRDF_SOURCE_DIR) / ".." / "shared")
@@ -61,7 +61,7 @@ Moments moments(const MeasuredSurface& s) {
 std::map<std::string, std::string> gwyddion_probe(const std::string& in, const std::string& out = "") {
     std::map<std::string, std::string> result;
 #ifdef WAVEBRDF_GWY_PROBE
-    // Paths are the tests' own (temporary files, ../shared), quoted; no user input reaches here.
+    // Paths are the tests' own (temporary files, ../shared/real-surfaces), quoted; no user input reaches here.
     const std::string command = std::string("'") + WAVEBRDF_GWY_PROBE + "' '" + in + "'" + (out.empty() ? "" : " '" + out + "'");
     FILE* pipe = ::popen(command.c_str(), "r");
     if (!pipe) return result;
