@@ -1,11 +1,13 @@
 #include "cli_common.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <system_error>
 #include <stdexcept>
 
@@ -54,6 +56,112 @@ void check_distinct_files(const std::vector<std::pair<std::string, std::string>>
                 throw std::invalid_argument(files[i].first + " " + files[i].second + " and " + files[k].first + " " +
                                             files[k].second + " name the same file; expected different paths");
     }
+}
+
+namespace {
+
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+    std::vector<std::size_t> row(b.size() + 1);
+    for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+    for (std::size_t i = 1; i <= a.size(); ++i) {
+        std::size_t diagonal = row[0];
+        row[0] = i;
+        for (std::size_t j = 1; j <= b.size(); ++j) {
+            const std::size_t up = row[j];
+            row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+            diagonal = up;
+        }
+    }
+    return row[b.size()];
+}
+
+// The candidate nearest to `word`: the only one it begins, else the closest within a third of
+// its letters (ties: none).
+std::string nearest(const std::string& word, const std::vector<std::string>& candidates) {
+    std::vector<std::string> prefixed;
+    for (const std::string& c : candidates)
+        if (c.size() > word.size() && c.compare(0, word.size(), word) == 0) prefixed.push_back(c);
+    if (prefixed.size() == 1) return prefixed.front();
+    std::string best;
+    std::size_t best_distance = std::max<std::size_t>(2, word.size() / 3) + 1;
+    bool tie = false;
+    for (const std::string& c : candidates) {
+        const std::size_t d = edit_distance(word, c);
+        if (d < best_distance) {
+            best = c;
+            best_distance = d;
+            tie = false;
+        } else if (d == best_distance) {
+            tie = true;
+        }
+    }
+    return tie ? std::string() : best;
+}
+
+}  // namespace
+
+std::string did_you_mean(const CLI::App& app, const std::string& message, const std::vector<std::string>& args) {
+    std::vector<const CLI::App*> parsed;
+    for (const CLI::App* sub : app.get_subcommands()) parsed.push_back(sub);
+    if (parsed.empty()) {
+        std::vector<std::string> commands;
+        for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+            commands.push_back(sub->get_name());
+        for (const std::string& word : args) {
+            if (word.empty() || word[0] == '-') continue;
+            const std::string found = nearest(word, commands);
+            return !found.empty() && found != word ? "; '" + word + "' is not a command; did you mean " + found + "?"
+                                                   : std::string();
+        }
+    }
+    const std::size_t colon = message.find(": ");
+    if (colon == std::string::npos) return "";
+    std::istringstream words(message.substr(colon + 2));
+    std::string word;
+    while (words >> word) {
+        word = word.substr(0, word.find('='));
+        std::vector<std::string> candidates;
+        if (word.rfind("--", 0) == 0) {
+            const CLI::App& in = parsed.empty() ? app : *parsed.front();
+            for (const CLI::Option* option : in.get_options())
+                for (const std::string& name : option->get_lnames()) candidates.push_back("--" + name);
+        } else if (parsed.empty() && !word.empty() && word[0] != '-') {
+            for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+                candidates.push_back(sub->get_name());
+        } else {
+            continue;
+        }
+        const std::string found = nearest(word, candidates);
+        if (!found.empty() && found != word) return "; did you mean " + found + "?";
+    }
+    return "";
+}
+
+std::string seed_error(const std::string& text) {
+    const std::string max = "18446744073709551615";
+    const std::size_t first = text.find_first_not_of('0');
+    const std::string digits = first == std::string::npos ? "0" : text.substr(first);
+    const bool all_digits = !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+    if (!all_digits || digits.size() > max.size() || (digits.size() == max.size() && digits > max))
+        return "seed " + text + " is invalid; expected an integer from 0 to 18446744073709551615";
+    return "";
+}
+
+void check_output_format(const std::string& option, const std::string& path,
+                         const std::vector<std::string>& extensions) {
+    if (path.empty()) return;
+    const auto lower = [](std::string s) {
+        std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+        return s;
+    };
+    const std::string name = lower(std::filesystem::path(path).filename().string());
+    std::string known;
+    for (const std::string& e : extensions) {
+        if (name.size() > e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0) return;
+        known += (known.empty() ? "" : ", ") + e;
+    }
+    throw std::invalid_argument(option + " " + path + ": the name's extension is not a format this output writes; " +
+                                "expected a name ending in " + known);
 }
 
 HeightfieldScale resolve_scale_with_warnings(const std::string& path, std::optional<double> texel_um,

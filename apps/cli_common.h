@@ -39,11 +39,29 @@ void add_threads_option(CLI::App* cmd);
 // allowed); throws std::invalid_argument naming the text otherwise.
 int parse_threads(const std::string& text);
 
+// "; did you mean X?" for the first word of a CLI11 parse error `message` ("The following
+// arguments were not expected: --sigma-p 3") that is near a name `app` knows: an option of the
+// subcommand being parsed (a prefix of exactly one, or at most a third of its letters edited);
+// with no subcommand parsed, the first word of `args` (the command line after the program)
+// that is not an option, near a subcommand ("rendr" → render). "" when none is near.
+std::string did_you_mean(const CLI::App& app, const std::string& message, const std::vector<std::string>& args);
+
+// A CLI11 check for a --seed text: an integer from 0 to 2^64 - 1 (CLI11's own conversion
+// saturates a larger one to 2^64 - 1 without a word). Returns "" or the reason.
+std::string seed_error(const std::string& text);
+
 // Throws std::invalid_argument when two of `files` ({option, path}; empty paths are skipped)
 // name the same file, compared after std::filesystem::weakly_canonical (so `o.exr`, `./o.exr`
 // and `dir/../o.exr` match): an output written over another output, or over an input, would
 // silently lose it. The message names both options and the path.
 void check_distinct_files(const std::vector<std::pair<std::string, std::string>>& files);
+
+// Throws std::invalid_argument when `path` (not empty) does not end in one of `extensions`
+// (".exr", compared ignoring case): an output is written in the format its name says or not at
+// all, so `--out x.png` never holds EXR data. The message names the option, the path and the
+// extensions this output writes.
+void check_output_format(const std::string& option, const std::string& path,
+                         const std::vector<std::string>& extensions);
 
 // The texel width (µm) and vertical scale for the heightfield file at `path`: the user's
 // value where the option was given (CLI11's count() > 0), else the file's attribute, else the

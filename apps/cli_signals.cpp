@@ -1,6 +1,7 @@
 #include "cli_signals.h"
 
 #include <signal.h>
+#include <unistd.h>
 
 #include <atomic>
 
@@ -15,13 +16,28 @@ std::atomic<int> g_stop_signal{0};
 static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free,
               "the signal handler needs lock-free atomics");
 
-// Only async-signal-safe calls: atomics, unlink (in remove_temporary_files), sigaction, raise.
+// One line on stderr before the signal ends the process: under mpiexec the exit status alone
+// (1) says nothing of why the run stopped. write() is async-signal-safe; printf is not.
+void say_stopped(int sig) {
+    const char* text = sig == SIGINT
+                           ? "wavebrdf: stopped by SIGINT before the run finished; its outputs are incomplete\n"
+                       : sig == SIGTERM
+                           ? "wavebrdf: stopped by SIGTERM before the run finished; its outputs are incomplete\n"
+                           : "wavebrdf: stopped by SIGHUP before the run finished; its outputs are incomplete\n";
+    std::size_t length = 0;
+    while (text[length] != '\0') ++length;
+    const ssize_t written = ::write(STDERR_FILENO, text, length);
+    (void)written;
+}
+
+// Only async-signal-safe calls: atomics, unlink (in remove_temporary_files), write, sigaction, raise.
 extern "C" void on_signal(int sig) {
     if (sig != SIGHUP && g_graceful.load()) {
         int none = 0;
         if (g_stop_signal.compare_exchange_strong(none, sig)) return;  // the first: stop gracefully
     }
     remove_temporary_files();
+    say_stopped(sig);
     struct sigaction fallback {};
     fallback.sa_handler = SIG_DFL;
     sigemptyset(&fallback.sa_mask);

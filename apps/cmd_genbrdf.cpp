@@ -74,6 +74,8 @@ void run(const GenbrdfArgs& a) {
     validate(q);
     validate_resolution(job.resolution);
     check_distinct_files({{"-i", a.input}, {"-o", a.output}, {"--png", a.png}});
+    check_output_format("-o", a.output, {".exr"});
+    check_output_format("--png", a.png, {".png"});
     const HeightfieldScale scale = resolve_scale_with_warnings(a.input, if_given(a.given_texel, a.texel),
                                                                if_given(a.given_vscale, a.vscale), "-w", "-v");
     // One footprint: only its rows are read (bit for bit the slice of the whole file).

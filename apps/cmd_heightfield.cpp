@@ -40,6 +40,8 @@ void run(const HeightfieldArgs& a) {
     const std::string png = a.no_png ? "" : (a.png.empty() ? default_png(a.out) : a.png);
     // `--out h.png` would have its default preview written over it.
     check_distinct_files({{"--out", a.out}, {a.png.empty() ? "the default preview" : "--png", png}});
+    check_output_format("--out", a.out, {".exr"});
+    check_output_format(a.png.empty() ? "the default preview" : "--png", png, {".png"});
     check_writable(a.out);
     if (!png.empty()) check_writable(png);
     const Heightfield hf = generate_heightfield(p);
@@ -70,7 +72,9 @@ void add_heightfield_command(CLI::App& app) {
     auto& p = args->params;
     cmd->add_option("--type", args->type, "flat, isotropic, brushed, scratched or grating")->capture_default_str();
     cmd->add_option("--size", args->size, "N or NxM texels (rows x columns)")->capture_default_str();
-    cmd->add_option("--seed", p.seed, "random seed")->capture_default_str();
+    cmd->add_option("--seed", p.seed, "random seed")
+        ->check(std::function<std::string(const std::string&)>(seed_error))
+        ->capture_default_str();
     cmd->add_option("--out", args->out, "output EXR (heights in units of texel width, R channel)")->required();
     cmd->add_option("--png", args->png, "preview PNG (default: the EXR name with .png)");
     cmd->add_flag("--no-png", args->no_png, "do not write a preview");

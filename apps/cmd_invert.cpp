@@ -101,7 +101,18 @@ InversionOptions to_options(const InvertArgs& a) {
     o.seed = a.seed;
     o.path = parse_render_path(a.render.path, "--path");
     o.tolerance = a.render.tolerance;  // checked by prepare_inversion, named --tolerance
-    o.snapshots = parse_epoch_list(a.snapshots, "--snapshots");
+    // Not given, for a run longer than 300 epochs: spread over its length (0, E/30, E/10, E/3, E,
+    // as 0,10,30,100,300 is for 300), so its report shows its end, not only its first 300 epochs.
+    const bool given_snapshots = std::find(a.given.begin(), a.given.end(), "--snapshots") != a.given.end();
+    std::string snapshots = a.snapshots;
+    if (!given_snapshots && a.epochs > 300) {
+        std::set<long long> epochs;
+        for (double fraction : {0.0, 1.0 / 30.0, 0.1, 1.0 / 3.0, 1.0})
+            epochs.insert(std::llround(fraction * double(std::max(a.epochs, 0))));
+        snapshots.clear();
+        for (long long e : epochs) snapshots += (snapshots.empty() ? "" : ",") + std::to_string(e);
+    }
+    o.snapshots = parse_epoch_list(snapshots, "--snapshots");
     o.checkpoint_every = a.checkpoint_every;
     o.max_memory_gb = a.max_memory_gb;
     o.names = OptionStyle::Cli;
@@ -218,14 +229,17 @@ void add_invert_command(CLI::App& app) {
                     "fixed, random (a new position per epoch) or FILE.json ([[x_um, y_um], ...])")
         ->capture_default_str();
     add_render_path_options(cmd, a->render);
-    cmd->add_option("--seed", a->seed, "seed (generated truth, noise, random positions)")->capture_default_str();
+    cmd->add_option("--seed", a->seed, "seed (generated truth, noise, random positions)")
+        ->check(std::function<std::string(const std::string&)>(seed_error))
+        ->capture_default_str();
     cmd->add_option("--out", a->out, "output directory");
     cmd->add_option("--resume", a->resume,
                     "continue the run in this directory with its own options (--epochs N extends it to N epochs)");
     cmd->add_flag("--force", a->force,
                   "replace the earlier run in --out (only a directory that holds nothing but invert's outputs)");
-    cmd->add_option("--snapshots", a->snapshots, "epochs to keep heights, slices and gradients for the report")
-        ->capture_default_str();
+    cmd->add_option("--snapshots", a->snapshots,
+                    "epochs to keep heights, slices and gradients for the report (default: 0,10,30,100,300; for "
+                    "--epochs E > 300: 0, E/30, E/10, E/3 and E)");
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");

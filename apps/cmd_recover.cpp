@@ -6,6 +6,7 @@
 // this file reads the input files, reports progress and draws the report.
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
@@ -18,6 +19,7 @@
 #include "unit_check.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
+#include "wavebrdf/input_digest.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation_file.h"
 #include "wavebrdf/progress.h"
@@ -126,6 +128,44 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (a.truth.empty() && any_conditioning(a.conditioning))
         throw std::invalid_argument(
             "--resample-um, --fill, --detrend, --crop and --periodic condition a measured --truth; expected --truth FILE");
+    // Every output against every input and every other output: one written over another
+    // loses it (recovery_directory.h lists what --out holds).
+    {
+        check_output_format("--save-observations", a.save_observations_path, {".json", ".h5", ".hdf5", ".cxi"});
+        std::vector<std::pair<std::string, std::string>> files{{"--truth", a.truth},
+                                                               {"--observations", a.observations}};
+        if (a.save_observations) {
+            const std::string saved = a.save_observations_path.empty() ? a.out + "/observations.json"
+                                                                       : a.save_observations_path;
+            files.push_back({"--save-observations", saved});
+            // JSON keeps its slices in the folder named after it: not the run's directory.
+            if (!is_hdf5_path(saved)) {
+                const std::filesystem::path p(saved);
+                files.push_back({"--save-observations' slice folder", (p.parent_path() / p.stem()).string()});
+                files.push_back({"--out", a.out});
+            }
+        }
+        for (const char* name : {"run.json", "metrics.csv", "truth.exr", "truth_height.npy", "estimate.exr",
+                                 "estimate.png", "estimate_height.npy", "reference.npy", "final.npy", "report.png",
+                                 "calibration.json", "uncertainty.exr", "uncertainty.json", "uncertainty_height.npy"})
+            files.push_back({"--out's " + std::string(name), a.out + "/" + name});
+        check_distinct_files(files);
+        // --force empties --out first: an input inside it would be deleted before it is read.
+        const auto inside_out = [&](const std::string& input) {
+            if (input.empty()) return false;
+            std::error_code ec;
+            const std::filesystem::path out = std::filesystem::weakly_canonical(std::filesystem::absolute(a.out), ec);
+            const std::filesystem::path in = std::filesystem::weakly_canonical(std::filesystem::absolute(input), ec);
+            const auto rel = in.lexically_relative(out);
+            return !rel.empty() && *rel.begin() != "..";
+        };
+        for (const auto& [option, input] : {std::pair<std::string, std::string>{"--truth", a.truth},
+                                            std::pair<std::string, std::string>{"--observations", a.observations}})
+            if (a.force && inside_out(input))
+                throw std::invalid_argument(option + " " + input + " is inside --out " + a.out +
+                                            ", which --force empties first; expected an input outside the run "
+                                            "directory");
+    }
     RecoveryOptions options;
     options.method = parse_recovery_method(a.method, "--method");
     options.noise = parse_noise(a.noise);
@@ -196,7 +236,8 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     std::vector<std::string> conditioning_steps;  // recorded in run.json with the plan's notes
     std::vector<Observation> observations;
     if (!a.observations.empty()) {
-        observations = read_given_observations(a.observations, a.max_memory_gb, comm);
+        // Agreed: a file one rank cannot open (or its memory) fails every rank, not that one alone.
+        run_agreed(comm, [&] { observations = read_given_observations(a.observations, a.max_memory_gb, comm); });
         parse_size("--size", a.size, options.rows, options.cols);
     } else {
         if (a.truth.empty()) {
@@ -214,11 +255,40 @@ void run(const RecoverArgs& a, const Communicator& comm) {
                                                                        "--vscale", 2.0, 1.0);
             options.texel_um = scale.texel_um;
             options.vscale = scale.vscale;
-            truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, scale.texel_um, scale.vscale));
+            run_agreed(comm, [&] {
+                truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, scale.texel_um, scale.vscale));
+            });
         }
         options.model = parse_model(a.model);
         if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
         options.spectral = a.spectral;
+    }
+    // Every rank must run the same job: a digest of its options and inputs, agreed before the
+    // first collective that depends on them (different sizes would abort in MPI itself).
+    if (comm.size() > 1) {
+        InputDigest d;
+        for (const std::string& text : {a.size, a.method, a.noise, a.simulator, a.loss, a.model, a.lambdas, a.calibrate,
+                                        a.white_smoothness, a.simulate_exposure})
+            d.add(text);
+        for (double v : {options.texel_um, options.vscale, options.height_range_um, options.correlation_texels,
+                         options.omega_i[0], options.omega_i[1], a.sigma_p_um, a.overlap, a.jitter, a.sigma_factor,
+                         a.position_error_texels, options.refine_coarse_spacing, options.refine_coarse_weight})
+            d.add(v);
+        for (long long v : {static_cast<long long>(options.seed), static_cast<long long>(a.resolution),
+                            static_cast<long long>(a.spectral), static_cast<long long>(a.epochs),
+                            static_cast<long long>(a.field_iterations), static_cast<long long>(a.refine_iterations),
+                            static_cast<long long>(a.position_passes), static_cast<long long>(a.uncertainty)})
+            d.add(v);
+        if (truth) {
+            d.add(static_cast<long long>(truth->rows()));
+            d.add(truth->values());
+        }
+        for (const Observation& o : observations) {
+            d.add(std::vector<double>{o.query.x_um, o.query.y_um, o.query.sigma_p_um, o.query.omega_i[0],
+                                      o.query.omega_i[1], double(int(o.query.model)), double(o.resolution)});
+            d.add(o.lambdas_um);
+        }
+        agree_on_inputs(comm, d.value(), "options or inputs");
     }
     PreparedRecovery r;
     // Each rank's share may fail alone (its memory check): agreed before the recovery starts.
@@ -399,7 +469,9 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--white-smoothness-iterations", a->white_smoothness_iterations,
                     "white light: L-BFGS iterations per smoothness weight (default: the library's, 20)");
     cmd->add_option("--epochs", a->epochs, "thesis method: Adam epochs")->capture_default_str();
-    cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")->capture_default_str();
+    cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")
+        ->check(std::function<std::string(const std::string&)>(seed_error))
+        ->capture_default_str();
     cmd->add_option("--max-memory-gb", a->max_memory_gb,
                     "refuse a run whose estimated peak memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();

@@ -50,6 +50,8 @@ void run(RenderArgs a) {
     validate_resolution(a.job.resolution);
     a.job.preview = to_preview_options(a.preview);
     check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.job.out_exr}, {"--png", a.job.png}});
+    check_output_format("--out", a.job.out_exr, {".exr", ".npy"});
+    check_output_format("--png", a.job.png, {".png"});
     const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
                                                                if_given(a.given_vscale, a.vscale), "--texel-um",
                                                                "--vscale");

@@ -70,6 +70,8 @@ void run_on(TableArgs a, const Communicator* comm) {
         validate(spec);
         if (a.out.empty()) throw std::invalid_argument("no output given; expected --out F.exr");
         check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.out}, {"--png", a.png}});
+        check_output_format("--out", a.out, {".exr"});
+        check_output_format("--png", a.png, {".png"});
         if (ranks.is_root()) {
             check_writable(a.out);
             if (!a.png.empty()) check_writable(a.png);

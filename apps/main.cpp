@@ -5,6 +5,7 @@
 #include <exception>
 #include <iostream>
 #include <string>
+#include <vector>
 
 #include "cli_common.h"
 #include "cli_signals.h"
@@ -39,8 +40,11 @@ int main(int argc, char** argv) {
     }
     // CLI11's own errors (unknown option, bad number, missing value) in the same one-line form
     // as the commands' errors; --help and --version are not failures and print as usual.
-    app.failure_message([](const CLI::App*, const CLI::Error& e) {
-        return "wavebrdf: error: " + std::string(e.what()) + " (see --help)\n";
+    // A misspelt option or command gets the nearest name ("did you mean --sigma-p-um?").
+    const std::vector<std::string> args(argv + 1, argv + argc);
+    app.failure_message([&app, &args](const CLI::App*, const CLI::Error& e) {
+        return "wavebrdf: error: " + std::string(e.what()) + wavebrdf::cli::did_you_mean(app, e.what(), args) +
+               " (see --help)\n";
     });
     // Started by mpiexec (docs/scale.md): every rank parses the same arguments and fails alike;
     // rank 0 alone prints (help, version, errors).

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "wavebrdf/batch.h"
+#include "wavebrdf/input_digest.h"
 #include "wavebrdf/memory.h"
 
 namespace wavebrdf::python {
@@ -108,6 +109,15 @@ Batched batched_arguments(py::handle heights_object, int resolution, double texe
     if (nd < 2 || a.heights.shape(nd - 1) == 0 || a.heights.shape(nd - 2) == 0)
         throw py::value_error("heights has shape " + shape_string(a.heights) +
                               "; expected (..., rows, cols) with rows, cols >= 1 (heights in texel units)");
+    // Batch axes lead: (H, W, 1) from an image-like export would otherwise read as H surfaces of
+    // W x 1 texels, each narrower than any footprint. A surface one texel wide in a batch is
+    // refused, naming how the axes are read.
+    if (nd >= 3 && (a.heights.shape(nd - 1) == 1 || a.heights.shape(nd - 2) == 1))
+        throw py::value_error("heights has shape " + shape_string(a.heights) + ", read as a batch " +
+                              shape_string(shape_of(a.heights, 2)) + " of " + std::to_string(a.heights.shape(nd - 2)) +
+                              "x" + std::to_string(a.heights.shape(nd - 1)) +
+                              " surfaces (batch axes lead: (..., rows, cols)); expected rows, cols >= 2 (for one "
+                              "surface stored as (rows, cols, 1), pass heights[..., 0])");
     check_resolution(resolution);
     check_positive(texel_um, "texel_um");
     check_finite(vscale, "vscale");
@@ -232,8 +242,31 @@ py::object render_slice_batch(py::handle heights, int resolution, double texel_u
                               py::handle y_um, double sigma_p_um, const py::object& lambda_um,
                               const py::object& spectral, py::handle light, const std::string& model,
                               const RenderOptions& options, const Communicator* comm) {
-    const Batched a = batched_arguments(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
-                                        spectral, light, model, false);
+    if (comm == nullptr) {
+        const Batched a = batched_arguments(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um,
+                                            spectral, light, model, false);
+        return a.single ? render<float>(a, options, nullptr) : render<double>(a, options, nullptr);
+    }
+    // Over ranks: a bad argument on one rank fails every rank (an agreement before the first
+    // collective), and the ranks must have been given the same batch (a digest of it).
+    Batched a;
+    run_agreed(*comm, [&] {
+        a = batched_arguments(heights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral, light,
+                              model, false);
+    });
+    InputDigest d;
+    d.add(static_cast<long long>(resolution));
+    d.add(std::vector<double>(a.batch_shape.begin(), a.batch_shape.end()));
+    d.add(static_cast<long long>(a.single));
+    for (const Heightfield& hf : a.heightfields) {
+        d.add(std::vector<double>{double(hf.rows()), hf.texel_um(), hf.vscale()});
+        d.add(hf.values());
+    }
+    for (const BatchItem& item : a.batch.items)
+        d.add(std::vector<double>{item.query.x_um, item.query.y_um, item.query.sigma_p_um, item.query.omega_i[0],
+                                  item.query.omega_i[1], double(int(item.query.model)), double(item.heightfield)});
+    for (const auto& band : a.batch.bands) d.add(band);
+    agree_on_inputs(*comm, d.value(), "arguments (heights, positions, lights, options)");
     return a.single ? render<float>(a, options, comm) : render<double>(a, options, comm);
 }
 

@@ -61,6 +61,44 @@ bool double_precision(const std::string& precision) {
     bad_argument("precision", "'" + precision + "'", "'float' or 'double'");
 }
 
+// The texel width and vertical scale for `heights`: a Heightfield's own, with texel_um and
+// vscale (None when not given) allowed only when they agree with it, so that its scale is never
+// silently replaced by the defaults; any other heights take the keywords' values (default 1).
+struct Scale {
+    double texel_um = 1.0, vscale = 1.0;
+};
+
+Scale heights_scale(py::handle heights, const py::object& texel_um, const py::object& vscale) {
+    const auto number = [](const py::object& v, const char* name) {
+        try {
+            return v.cast<double>();
+        } catch (const py::cast_error&) {
+            throw py::value_error(std::string(name) + " = " + std::string(py::repr(v)) +
+                                  " is invalid; expected a number");
+        }
+    };
+    Scale s;
+    if (!py::isinstance<Heightfield>(heights)) {
+        if (!texel_um.is_none()) s.texel_um = number(texel_um, "texel_um");
+        if (!vscale.is_none()) s.vscale = number(vscale, "vscale");
+        return s;
+    }
+    const auto& hf = heights.cast<const Heightfield&>();
+    s = {hf.texel_um(), hf.vscale()};
+    const auto agree = [&](const py::object& given, double own, const char* name) {
+        if (given.is_none()) return;
+        const double v = number(given, name);
+        if (v != own)
+            throw py::value_error(std::string(name) + " = " + format_number(v) + " conflicts with the Heightfield's " +
+                                  name + " " + format_number(own) + "; expected no " + name +
+                                  " keyword (the Heightfield's own is used) or the same value "
+                                  "(Heightfield.with_scale gives another)");
+    };
+    agree(texel_um, s.texel_um, "texel_um");
+    agree(vscale, s.vscale, "vscale");
+    return s;
+}
+
 // The plain functions' arguments, checked in the order of the signature.
 struct Plain {
     Heightfield hf;
@@ -123,9 +161,10 @@ heights     float32 or float64 array (rows, cols), or (..., rows, cols) for a ba
             finite, in texel units. float64 renders
             in double precision, float32 in single (the CLI's --precision); the result has the
             same dtype.
-texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
-vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
-            vscale * texel_um * heights
+texel_um    texel width w in um, 1e-4 to 1e4 (default: a Heightfield's own, else 1; a value
+            that differs from a Heightfield's is refused)
+vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default: a Heightfield's own, else 1):
+            height in um = vscale * texel_um * heights
 x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
             default 0); arrays for a batch (below)
 sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
@@ -206,10 +245,11 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
 
     m.def(
         "render_slice",
-        [](py::handle heights, int resolution, double texel_um, double vscale, const py::object& x_um,
-           const py::object& y_um, double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
-           const py::object& light, const std::string& model, const std::string& path, double tolerance,
-           const py::object& comm_arg) -> py::object {
+        [](py::handle heights, int resolution, const py::object& texel_arg, const py::object& vscale_arg,
+           const py::object& x_um, const py::object& y_um, double sigma_p_um, const py::object& lambda_um,
+           const py::object& spectral, const py::object& light, const std::string& model, const std::string& path,
+           double tolerance, const py::object& comm_arg) -> py::object {
+            const auto [texel_um, vscale] = heights_scale(heights, texel_arg, vscale_arg);
             const RenderOptions options = render_options(path, tolerance);
             const std::shared_ptr<const Communicator> comm = communicator_argument(comm_arg);
             if (comm || !single_query(heights, x_um, y_um, light))
@@ -220,11 +260,11 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
             return a.single ? render_rgb_array<float>(a.hf, a.q, resolution, options)
                             : render_rgb_array<double>(a.hf, a.q, resolution, options);
         },
-        "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
+        "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = py::none(), "vscale"_a = py::none(), "x_um"_a = 0.0,
         "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
         "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto", "tolerance"_a = 1e-6,
         "comm"_a = py::none(),
-        (std::string("render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, "
+        (std::string("render_slice(heights, *, resolution, texel_um=None, vscale=None, x_um=0.0, y_um=0.0, "
                      "sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', "
                      "tolerance=1e-06, comm=None)\n\n"
                      "One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),\n"
@@ -240,9 +280,11 @@ Internal (wavebrdf.torch): the library's SlicePlan for render_slice's arguments,
 backward pass reuses its forward. forward() -> the (n, n, 3) slice; adjoint(weights) -> the
 gradient of sum(weights * slice) (as slice_gradient, after forward()).
 )doc")
-        .def(py::init([](py::handle heights, int resolution, double texel_um, double vscale, double x_um, double y_um,
-                         double sigma_p_um, const py::object& lambda_um, const py::object& spectral,
-                         const py::object& light, const std::string& model, const std::string& path, double tolerance) {
+        .def(py::init([](py::handle heights, int resolution, const py::object& texel_arg, const py::object& vscale_arg,
+                         double x_um, double y_um, double sigma_p_um, const py::object& lambda_um,
+                         const py::object& spectral, const py::object& light, const std::string& model,
+                         const std::string& path, double tolerance) {
+                 const auto [texel_um, vscale] = heights_scale(heights, texel_arg, vscale_arg);
                  const RenderOptions options = render_options(path, tolerance);
                  const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
                                                  light, resolution, model);
@@ -258,9 +300,10 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
                                                                          options);
                  return p;
              }),
-             "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
-             "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
-             "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto", "tolerance"_a = 1e-6)
+             "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = py::none(), "vscale"_a = py::none(),
+             "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(),
+             "spectral"_a = py::none(), "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto",
+             "tolerance"_a = 1e-6)
         .def("forward",
              [](PyPlan& p) {
                  return p.single_plan ? plan_forward(*p.single_plan, p.n) : plan_forward(*p.double_plan, p.n);
@@ -284,10 +327,11 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
 
     m.def(
         "slice_gradient",
-        [](py::handle heights, py::handle weights, int resolution, double texel_um, double vscale,
-           const py::object& x_um, const py::object& y_um, double sigma_p_um, const py::object& lambda_um,
-           const py::object& spectral, const py::object& light, const std::string& model, const std::string& path,
-           double tolerance) {
+        [](py::handle heights, py::handle weights, int resolution, const py::object& texel_arg,
+           const py::object& vscale_arg, const py::object& x_um, const py::object& y_um, double sigma_p_um,
+           const py::object& lambda_um, const py::object& spectral, const py::object& light, const std::string& model,
+           const std::string& path, double tolerance) {
+            const auto [texel_um, vscale] = heights_scale(heights, texel_arg, vscale_arg);
             const RenderOptions options = render_options(path, tolerance);
             if (!single_query(heights, x_um, y_um, light))
                 return slice_gradient_batch(heights, weights, resolution, texel_um, vscale, x_um, y_um, sigma_p_um,
@@ -299,8 +343,8 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
                                              : rgb_gradient<double>(a.hf, a.q, resolution, w, options);
             return gradient_array(std::move(g), a.hf, a.single);
         },
-        "heights"_a, "weights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0, "x_um"_a = 0.0,
-        "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
+        "heights"_a, "weights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = py::none(), "vscale"_a = py::none(),
+        "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(), "spectral"_a = py::none(),
         "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto", "tolerance"_a = 1e-6,
         (std::string("slice_gradient(heights, weights, *, resolution, **the options of render_slice)\n\n"
                      "The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`\n"

@@ -1,5 +1,7 @@
 #include "common.h"
 
+#include <algorithm>
+
 #include <cmath>
 
 #include "wavebrdf/io.h"
@@ -157,8 +159,10 @@ Heightfield heightfield_from_array(py::handle object, const char* name, double t
 std::array<int, 2> size_argument(const py::object& size, const char* name) {
     std::array<int, 2> rc{};
     try {
-        if (py::isinstance<py::int_>(size)) {
-            rc[0] = rc[1] = size.cast<int>();
+        // Any integer, NumPy's too (np.int64 is no Python int but has __index__); not bool.
+        if (!py::isinstance<py::bool_>(size) && PyIndex_Check(size.ptr())) {
+            const long long v = py::reinterpret_steal<py::int_>(PyNumber_Index(size.ptr())).cast<long long>();
+            rc[0] = rc[1] = static_cast<int>(std::clamp<long long>(v, -1, 1 << 30));
         } else {
             const auto v = size.cast<std::vector<int>>();
             if (v.size() != 2) throw py::cast_error();

@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "common.h"
+#include <pybind11/stl/filesystem.h>
 #include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/surface_file.h"
@@ -59,7 +60,8 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             "values"_a, "texel_um"_a = 1.0, "vscale"_a = 1.0)
         .def_static(
             "from_exr",
-            [](const std::string& path, const py::object& texel_um, const py::object& vscale) {
+            [](const std::filesystem::path& path_arg, const py::object& texel_um, const py::object& vscale) {
+                const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
                 const HeightfieldScale scale = heightfield_file_scale(path, texel_um, vscale);
                 py::gil_scoped_release release;
                 return read_heightfield_exr(path, scale.texel_um, scale.vscale);
@@ -85,7 +87,8 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             "the file's spacing when None; npy and text files state none and need it. vscale: 1 when None.")
         .def_static(
             "exr_attributes",
-            [](const std::string& path) {
+            [](const std::filesystem::path& path_arg) {
+                const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
                 HeightfieldAttributes a;
                 {
                     py::gil_scoped_release release;
@@ -197,7 +200,8 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             "Mean, rms height, min and max in um (vscale included) and rms slope.")
         .def(
             "save_exr",
-            [](const Heightfield& hf, const std::string& path, const std::string& made_by) {
+            [](const Heightfield& hf, const std::filesystem::path& path_arg, const std::string& made_by) {
+                const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
                 py::gil_scoped_release release;
                 write_heightfield_exr(path, hf, made_by);
             },
@@ -225,7 +229,8 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             "ValueError for another extension.")
         .def(
             "save_png",
-            [](const Heightfield& hf, const std::string& path) {
+            [](const Heightfield& hf, const std::filesystem::path& path_arg) {
+                const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
                 py::gil_scoped_release release;
                 write_heightfield_png(path, hf);
             },
@@ -241,7 +246,8 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
 
     m.def(
         "read_slice",
-        [](const std::string& path) {
+        [](const std::filesystem::path& path_arg) {
+            const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
             SliceFile file;
             {
                 py::gil_scoped_release release;

@@ -1,6 +1,7 @@
 // Observations (reference slices with their queries) and the loss of a heightfield against
 // them with its gradient with respect to the heights (observation.h).
 #include "common.h"
+#include <pybind11/stl/filesystem.h>
 #include "observation_arg.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/observation_file.h"
@@ -136,7 +137,8 @@ path and tolerance as wavebrdf.render_slice's.
 
     m.def(
         "read_observations",
-        [](const std::string& path, const py::object& indices, int rank, int size, double max_memory_gb) {
+        [](const std::filesystem::path& path_arg, const py::object& indices, int rank, int size, double max_memory_gb) {
+            const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
             if (!indices.is_none() && size != 1)
                 throw py::value_error("indices and rank/size exclude each other; give one of them");
             if (indices.is_none()) {
@@ -173,7 +175,8 @@ max_memory_gb  refuse (MemoryError) a read needing more than this many GB (0: ph
 )doc");
     m.def(
         "read_observation_index",
-        [](const std::string& path, double max_memory_gb) {
+        [](const std::filesystem::path& path_arg, double max_memory_gb) {
+            const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
             ObservationIndex index;
             {
                 py::gil_scoped_release release;
@@ -206,7 +209,8 @@ and 'channels' (1 or 3). An HDF5 file reads its metadata only; a JSON file is re
           "Whether this build reads and writes HDF5 observation files (CMake option WAVEBRDF_HDF5).");
     m.def(
         "write_observations",
-        [](const std::string& path, const py::object& observations, const std::string& references) {
+        [](const std::filesystem::path& path_arg, const py::object& observations, const std::string& references) {
+            const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
             ReferenceStorage storage = ReferenceStorage::Inline;
             if (references == "exr")
                 storage = ReferenceStorage::Exr;

@@ -2,6 +2,7 @@
 // numbers that wavebrdf/table.py wraps into a BrdfTable. This file only converts and validates.
 #include "common.h"
 #include "lobe.h"
+#include <pybind11/stl/filesystem.h>
 #include "wavebrdf/io.h"
 #include "wavebrdf/table.h"
 
@@ -33,7 +34,8 @@ py::dict table_dict(BrdfTable&& t) {
 void bind_table(py::module_& m) {
     m.def(
         "_read_table",
-        [](const std::string& path) {
+        [](const std::filesystem::path& path_arg) {
+            const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
             BrdfTable t;
             {
                 py::gil_scoped_release release;

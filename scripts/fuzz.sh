@@ -13,7 +13,7 @@ cd "$(dirname "$0")/.."
 seconds="${FUZZ_SECONDS:-60}"
 jobs="${FUZZ_JOBS:-2}"
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint
+[ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint observations_hdf5 table
                                      surface_x3p surface_sdf surface_plu surface_sur surface_al3d
                                      surface_metropro surface_npy surface_text)
 
@@ -33,7 +33,8 @@ cmake --build build-fuzz -j"$jobs" "${build_targets[@]}"
 # The largest input worth mutating: the seeds are under 3 kB; larger inputs mostly repeat.
 max_len() {
     case "$1" in
-        exr|checkpoint|surface_*) echo 16384 ;;
+        exr|checkpoint|table|surface_*) echo 16384 ;;
+        observations_hdf5) echo 32768 ;;  # an HDF5 file of two 4x4 slices is 18 kB
         *) echo 8192 ;;
     esac
 }
@@ -43,7 +44,7 @@ max_len() {
 # count before allocating; see fuzz/README.md) rather than grinding through gigabytes.
 malloc_limit() {
     case "$1" in
-        exr|surface_*) echo 256 ;;
+        exr|table|surface_*) echo 256 ;;
         *) echo 2048 ;;
     esac
 }
@@ -67,7 +68,7 @@ run_target() {  # target
     cp -R "fuzz/corpus/$t/." "$work/$t/"
     # Field names and tricky numbers (fuzz/dict/) get the mutations past the first checks sooner.
     local dict=()
-    if [ "$t" = exr ]; then
+    if [ "$t" = exr ] || [ "$t" = table ]; then
         dict=(-dict=fuzz/dict/exr.dict)
     elif [ -f "fuzz/dict/$t.dict" ]; then
         cat fuzz/dict/json_common.dict "fuzz/dict/$t.dict" >"$work/$t.dict"

@@ -24,7 +24,9 @@ TYPING = ("Any", "Callable", "Dict", "Iterable", "Iterator", "List", "Optional",
 # pybind11's names for what a C++ argument accepts, as stub types.
 PLAIN = {"handle": "Any", "object": "Any", "capsule": "Any", "buffer": "Any", "iterable": "Iterable[Any]",
          "iterator": "Iterator[Any]", "function": "Callable[..., Any]", "args": "Any", "kwargs": "Any",
-         "numpy.ndarray": "numpy.ndarray", "array": "numpy.ndarray"}
+         "numpy.ndarray": "numpy.ndarray", "array": "numpy.ndarray",
+         # std::filesystem::path arguments take str or any os.PathLike (pathlib.Path).
+         "os.PathLike": "Union[str, os.PathLike]"}
 
 
 def split_top_level(text, separator=","):
@@ -199,7 +201,7 @@ def generate():
     module = importlib.import_module(MODULE)
     out = ['"""Type stubs of %s, written by scripts/gen_stubs.py from the module\'s signatures and' % MODULE,
            'docstrings (run it again after changing a binding; tests/python/test_stubs.py checks them)."""',
-           "from typing import " + ", ".join(TYPING + ("overload",)), "", "import numpy", "",
+           "from typing import " + ", ".join(TYPING + ("overload",)), "", "import os", "", "import numpy", "",
            "__version__: str", ""]
     for name in sorted(n for n in dir(module) if not n.startswith("_")):
         value = getattr(module, name)

@@ -519,7 +519,7 @@ TEST_F(CliTest, EqualPathsAreRefused) {
     expect_clean_failure(run("heightfield --size 16 --out x.exr --png ./x.exr"),
                          {"--out x.exr", "--png ./x.exr", "same file"}, {path("x.exr")});
     // Different names stay fine, and --no-png needs no preview name.
-    EXPECT_EQ(run("heightfield --size 16 --out x.png --no-png --quiet").exit_code, 0);
+    EXPECT_EQ(run("heightfield --size 16 --out y.exr --no-png --quiet").exit_code, 0);
     EXPECT_EQ(run("render --heightfield " + hf + " --resolution 16 --out o.exr --png o.png --quiet").exit_code, 0);
 }
 

@@ -15,6 +15,8 @@
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/observation_file.h"
+#include "wavebrdf/table.h"
 
 namespace fs = std::filesystem;
 
@@ -89,3 +91,17 @@ TEST(FuzzCorpus, OtherRunCheckpointSeedReachesTheDifferenceReport) {
 }
 
 }  // namespace
+
+#ifdef WAVEBRDF_HAS_HDF5
+TEST(FuzzCorpus, EveryHdf5ObservationSeedIsRead) {
+    const auto files = seeds("observations_hdf5");
+    ASSERT_GE(files.size(), 2u);
+    for (const fs::path& file : files) EXPECT_FALSE(wavebrdf::read_observations_file(file.string()).empty()) << file;
+}
+#endif
+
+TEST(FuzzCorpus, EveryTableSeedIsRead) {
+    const auto files = seeds("table");
+    ASSERT_GE(files.size(), 2u);
+    for (const fs::path& file : files) EXPECT_GE(wavebrdf::read_brdf_table(file.string()).spec.resolution, 1) << file;
+}

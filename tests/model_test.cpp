@@ -10,12 +10,16 @@
 namespace wavebrdf {
 namespace {
 
-// Every model's name parses back to it, and only those names (exact spelling) parse.
+// Every model's name parses back to it, in any case, and only those names parse.
 TEST(ModelNames, EveryModelRoundTripsThroughItsName) {
     for (Model m : {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff})
         EXPECT_EQ(parse_model(to_string(m)), m) << to_string(m);
     EXPECT_STREQ(to_string(Model::Kirchhoff), "Kirchhoff");
-    for (const char* bad : {"", "ohs", "Wave", "OHS "}) EXPECT_THROW(parse_model(bad), std::invalid_argument) << bad;
+    EXPECT_EQ(parse_model("ohs"), Model::OHS);
+    EXPECT_EQ(parse_model("rGhS"), Model::RGHS);
+    EXPECT_EQ(parse_model("KIRCHHOFF"), Model::Kirchhoff);
+    for (const char* bad : {"", "oh", "Wave", "OHS ", "Kirchof"})
+        EXPECT_THROW(parse_model(bad), std::invalid_argument) << bad;
 }
 
 TEST(DiskRow, VisitsExactlyThePixelsInsideTheDiskInColumnOrder) {

@@ -308,6 +308,44 @@ TEST(Table, RefusesHostileTableFiles) {
     expect_throw_naming<std::runtime_error>([&] { read_brdf_table(bad); }, "has no string attribute wavebrdf:kind");
 }
 
+// Every convention attribute is required (docs/table.md says so), the surface it was rendered
+// from is bounded (texel, vscale, size, footprint), and a table is not a heightfield.
+TEST(Table, RequiresEveryConventionAndBoundsItsSurface) {
+    const fs::path dir = test::fresh_dir("table");
+    const Heightfield hf = test::random_heightfield(16, 16, 0.1, 1, 2.0);
+    TableSpec spec = small_spec();
+    spec.resolution = 4;
+    spec.query.sigma_p_um = 3.0;
+    const std::string good = (dir / "good.exr").string(), bad = (dir / "bad.exr").string();
+    write_brdf_table(good, render_brdf_table(hf, spec));
+    ASSERT_NO_THROW(read_brdf_table(good));
+    const auto refused = [&](const std::function<void(Imf::Header&)>& edit, const std::string& text) {
+        rewrite(good, bad, edit);
+        expect_throw_naming<std::runtime_error>([&] { read_brdf_table(bad); }, text);
+    };
+    for (const char* name : {"wavebrdf:unit", "wavebrdf:layout", "wavebrdf:omega_o", "wavebrdf:light_grid"}) {
+        SCOPED_TRACE(name);
+        refused([&](Imf::Header& h) { h = wavebrdf::test::header_without(h, name); },
+                std::string("has no string attribute ") + name);
+        refused([&](Imf::Header& h) { h.insert(name, Imf::StringAttribute("something else")); },
+                std::string("attribute ") + name + " differs from this build's convention");
+    }
+    for (const auto& [texel, text] : {std::pair<double, const char*>{0.0, "0"}, {-1.0, "-1"}, {20000.0, "20000"}})
+        refused([&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::DoubleAttribute(texel)); },
+                std::string("wavebrdf:texel_um = ") + text + " is out of range");
+    refused([](Imf::Header& h) { h.insert("wavebrdf:vscale", Imf::DoubleAttribute(20000.0)); },
+            "wavebrdf:vscale = 20000 is out of range");
+    refused([](Imf::Header& h) { h.insert("wavebrdf:heightfield_rows", Imf::IntAttribute(2147483647)); },
+            "wavebrdf:heightfield_rows = 2147483647 is out of range");
+    // sigma_p 500 um on a 32 um tile (16 texels of 2 um).
+    refused([](Imf::Header& h) { h.insert("wavebrdf:sigma_p_um", Imf::DoubleAttribute(500.0)); },
+            "wavebrdf:sigma_p_um = 500 um is more than 10 periods");
+    // The table's R channel is f_r: the heightfield reader refuses it.
+    expect_throw_naming<std::runtime_error>([&] { read_heightfield_exr(good); },
+                                            "is a 'wavebrdf brdf table' file (attribute wavebrdf:kind), not a "
+                                            "heightfield");
+}
+
 // The CLI: `wavebrdf table` entries equal `wavebrdf render` with that light, bit for bit.
 TEST(TableCli, EntryEqualsRenderOfThatLight) {
     const fs::path dir = test::fresh_dir("table_cli");

@@ -5,7 +5,9 @@
 //
 //   run.json             the run's settings and plan: method, size, texel_um, vscale,
 //                        height_range_um, noise, loss, seed, observations (count), plan (notes),
-//                        warnings, truth (bool), height_rel_rmse (only when undefined: why)
+//                        warnings, truth (bool), height_rel_rmse (only when undefined: why),
+//                        finished (false until every other output is written: a run that was
+//                        interrupted, crashed or failed says so)
 //   metrics.csv          stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed
 //                        (one row per StageMetrics)
 //   calibration.json     with self-calibration or simulated acquisition errors: what was

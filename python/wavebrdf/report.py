@@ -10,8 +10,10 @@ this after every run unless --no-plots; the pictures are drawn by wavebrdf.repor
 wavebrdf.report_recover and wavebrdf.report_design, which need NumPy and matplotlib (this module
 itself needs neither, so it can say which one is missing).
 
-Exit status: 0 drawn; 2 DIR, its metrics.csv or its kind missing or unknown, or a design's file
-unusable (one line on stderr); 3 NumPy is not installed; 4 matplotlib is not installed. With --quiet nothing is
+Exit status: 0 drawn; 2 DIR, its metrics.csv or its kind missing or unknown, a design's file
+unusable, a file in it that is not a regular file (a FIFO, a device) or larger than 1 GiB, or
+contents the report cannot draw (missing or non-numeric columns, a truncated line, missing
+keys) (one line on stderr); 3 NumPy is not installed; 4 matplotlib is not installed. With --quiet nothing is
 printed on success, and a missing NumPy or matplotlib is reported by the exit status alone
 (the `wavebrdf` command then prints its own warning).
 
@@ -21,12 +23,41 @@ it), so a reader never sees half a picture.
 import argparse
 import csv
 import os
+import stat
 import sys
 import tempfile
 
 EXIT_USAGE = 2
 EXIT_NO_NUMPY = 3
 EXIT_NO_MATPLOTLIB = 4
+# The largest file a report reads (metrics.csv of a long run is a few MB; a link to /dev/zero
+# or a hostile file must not be read without end).
+MAX_INPUT_BYTES = 1 << 30
+
+
+def check_inputs(d):
+    """Raises ValueError naming the first entry of the run directory `d` (or of its snapshots/)
+    that is not a regular file or directory (a FIFO would block a read forever, a device never
+    end one) or is larger than MAX_INPUT_BYTES."""
+    for sub in ("", "snapshots"):
+        folder = os.path.join(d, sub) if sub else d
+        if not os.path.isdir(folder):
+            continue
+        for name in sorted(os.listdir(folder)):
+            path = os.path.join(folder, name)
+            try:
+                st = os.stat(path)
+            except OSError:
+                continue  # a dangling link: the reader that wants it says it is missing
+            if stat.S_ISDIR(st.st_mode):
+                continue
+            if not stat.S_ISREG(st.st_mode):
+                kind = ("a FIFO" if stat.S_ISFIFO(st.st_mode) else "a character device" if stat.S_ISCHR(st.st_mode)
+                        else "a block device" if stat.S_ISBLK(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
+                        else "a special file")
+                raise ValueError("%s is %s, not a regular file; expected the files of a run" % (path, kind))
+            if st.st_size > MAX_INPUT_BYTES:
+                raise ValueError("%s is %d bytes; expected at most %d" % (path, st.st_size, MAX_INPUT_BYTES))
 
 
 def run_kind(d):
@@ -120,6 +151,7 @@ def main(argv=None):
         print("wavebrdf.report: error: no such directory: %s" % d, file=sys.stderr)
         return EXIT_USAGE
     try:
+        check_inputs(d)
         kind = run_kind(d)
     except (OSError, ValueError) as e:
         print("wavebrdf.report: error: %s" % (
@@ -130,16 +162,18 @@ def main(argv=None):
         if not args.quiet:
             print("wavebrdf.report: error: %s is not installed for %s" % (missing[1], sys.executable), file=sys.stderr)
         return missing[0]
-    if kind == "design":
-        from .report_design import ReportError
-
-        try:
-            paths = draw(d)
-        except ReportError as e:  # a file of the run that is there but unusable, named
+    try:
+        paths = draw(d)
+    except ImportError:
+        raise
+    except Exception as e:  # a hostile or interrupted directory: one line, not a traceback
+        if kind == "design" and type(e).__name__ == "ReportError":  # a design's file named by its reader
             print("wavebrdf.report: error: %s" % e, file=sys.stderr)
             return EXIT_USAGE
-    else:
-        paths = draw(d)
+        text = " ".join(str(e).split()) or type(e).__name__
+        print("wavebrdf.report: error: %s: cannot draw the report (%s: %s)" % (d, type(e).__name__, text[:300]),
+              file=sys.stderr)
+        return EXIT_USAGE
     for path in paths:
         if not args.quiet:
             print(path)

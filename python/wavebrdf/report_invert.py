@@ -94,6 +94,20 @@ def _snapshot_epochs(d):
     return sorted(found)
 
 
+# The most snapshot rows one report draws: each row is ~260 px tall, so 300 snapshots made an
+# image too large to save (77803 px). More are thinned to this many, first and last kept.
+MAX_SNAPSHOT_ROWS = 12
+
+
+def _drawn_epochs(epochs):
+    """At most MAX_SNAPSHOT_ROWS of `epochs`, evenly spread, the first and the last kept."""
+    if len(epochs) <= MAX_SNAPSHOT_ROWS:
+        return epochs
+    last = len(epochs) - 1
+    picks = sorted({round(k * last / (MAX_SNAPSHOT_ROWS - 1)) for k in range(MAX_SNAPSHOT_ROWS)})
+    return [epochs[i] for i in picks]
+
+
 def _snapshot_path(d, kind, epoch):
     return os.path.join(d, "snapshots", "%s_%04d.npy" % (kind, epoch))
 
@@ -193,7 +207,7 @@ def make_report(d):
     hunit = "µm" if run.get("texel_um") else "texels"
     truth = _load_npy(os.path.join(d, "truth_height.npy"))
     reference = _load_npy(os.path.join(d, "reference.npy"))
-    epochs = _snapshot_epochs(d)
+    epochs = _drawn_epochs(_snapshot_epochs(d))
     snaps = [{k: _load_npy(_snapshot_path(d, k, e)) for k in ("slice", "height", "gradient")}
              for e in epochs]
     scale = tonemap_scale(reference)

@@ -27,7 +27,6 @@ a batch keeps no plan per item), which sums the gradients of the items that shar
 """
 import numpy as np
 import torch
-from torch.autograd.function import once_differentiable
 
 from . import _core
 
@@ -37,6 +36,12 @@ __all__ = ["RenderSlice", "render_slice"]
 def _numpy(tensor, name):
     if not isinstance(tensor, torch.Tensor):
         raise ValueError("%s is a %s; expected a torch.Tensor" % (name, type(tensor).__name__))
+    if tensor.layout != torch.strided:
+        raise ValueError("%s is a %s tensor; expected a dense (torch.strided) tensor (call .to_dense())"
+                         % (name, str(tensor.layout).replace("torch.", "")))
+    if tensor.device.type == "meta":
+        raise ValueError("%s is on the meta device (shape only, no values); expected a tensor with values "
+                         "(cpu, cuda, ...)" % name)
     if tensor.dtype not in (torch.float32, torch.float64):
         raise ValueError("%s has dtype %s; expected torch.float32 or torch.float64" % (name, tensor.dtype))
     # A view of the tensor's memory for CPU tensors (no copy); strides are honoured.
@@ -44,7 +49,12 @@ def _numpy(tensor, name):
 
 
 def _plain_options(options):
-    """The options with tensors (light, x_um, y_um) as NumPy arrays; they are not differentiated."""
+    """The options with tensors (light, x_um, y_um) as NumPy arrays; they are not differentiated,
+    so a tensor that asks for a gradient is refused rather than left with grad None."""
+    for name, value in options.items():
+        if isinstance(value, torch.Tensor) and value.requires_grad:
+            raise ValueError("%s requires grad, but wavebrdf.torch.render_slice differentiates only with respect "
+                             "to heights; expected %s.detach() (or a tensor without requires_grad)" % (name, name))
     return {k: (v.detach().cpu().numpy() if isinstance(v, torch.Tensor) else v) for k, v in options.items()}
 
 
@@ -52,6 +62,20 @@ def _is_single(heights, options):
     """A single query as before batches: 2-D heights, one light pair, scalar positions."""
     return (heights.dim() == 2 and np.ndim(options.get("light", (0.0, 0.0))) <= 1
             and np.ndim(options.get("x_um", 0.0)) == 0 and np.ndim(options.get("y_um", 0.0)) == 0)
+
+
+class _FirstDerivativeOnly(torch.autograd.Function):
+    """Passes a gradient through; differentiating it again (create_graph=True, then a second
+    backward or torch.autograd.grad) raises a message that says so."""
+
+    @staticmethod
+    def forward(ctx, gradient, *inputs):
+        return gradient.clone()
+
+    @staticmethod
+    def backward(ctx, *grad_outputs):
+        raise RuntimeError("wavebrdf.torch.render_slice: second derivatives (double backward) are not supported; "
+                           "the library has the first derivative (the adjoint) only")
 
 
 class RenderSlice(torch.autograd.Function):
@@ -76,7 +100,6 @@ class RenderSlice(torch.autograd.Function):
         return torch.from_numpy(out).to(heights.device)
 
     @staticmethod
-    @once_differentiable
     def backward(ctx, grad_output):
         (heights,) = ctx.saved_tensors
         weights = _numpy(grad_output, "grad_output")
@@ -84,7 +107,10 @@ class RenderSlice(torch.autograd.Function):
             gradient = ctx.plan.adjoint(weights)
         else:
             gradient = _core.slice_gradient(_numpy(heights, "heights"), weights, **ctx.options)
-        return torch.from_numpy(np.asarray(gradient)).to(heights.device), None
+        gradient = torch.from_numpy(np.asarray(gradient)).to(heights.device)
+        if torch.is_grad_enabled():  # create_graph=True: a graph whose second backward says why it stops
+            gradient = _FirstDerivativeOnly.apply(gradient, grad_output, heights)
+        return gradient, None
 
 
 def render_slice(heights, **options):

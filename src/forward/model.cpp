@@ -1,5 +1,6 @@
 #include "wavebrdf/model.h"
 
+#include <cctype>
 #include <cmath>
 #include <stdexcept>
 
@@ -18,6 +19,13 @@ constexpr std::pair<Model, const char*> k_model_names[] = {{Model::OHS, "OHS"},
 Model parse_model(const std::string& name) {
     Model model;
     if (detail::value_named(k_model_names, name, model)) return model;
+    // Any case ("ohs", "kirchhoff"): the names differ in more than case.
+    const auto lower = [](std::string s) {
+        for (char& c : s) c = char(std::tolower(static_cast<unsigned char>(c)));
+        return s;
+    };
+    for (const auto& entry : k_model_names)
+        if (lower(entry.second) == lower(name)) return entry.first;
     throw std::invalid_argument("unknown diffraction model '" + name +
                                 "'; expected one of OHS, GHS, ROHS, RGHS, Kirchhoff");
 }

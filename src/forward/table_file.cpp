@@ -5,6 +5,7 @@
 // reader accepts (k_max_exr_channels = 64, io.h) and what viewers show; a mosaic is one image
 // any EXR viewer opens, and its tiles are indexed by the light grid's attributes.
 #include <algorithm>
+#include <utility>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -195,6 +196,16 @@ BrdfTable read_brdf_table(const std::string& path) {
         const std::string kind = at.text("wavebrdf:kind");
         if (kind != k_kind) fail(path, "attribute wavebrdf:kind is '" + kind + "'; expected '" + k_kind + "'");
         t.version = at.text("wavebrdf:version", 256);
+        // The conventions the values follow: every one required, and the one this build writes.
+        const std::pair<const char*, const char*> conventions[] = {{"wavebrdf:unit", k_unit},
+                                                                   {"wavebrdf:layout", k_layout},
+                                                                   {"wavebrdf:omega_o", k_omega_o},
+                                                                   {"wavebrdf:light_grid", k_light_grid}};
+        for (const auto& [name, expected] : conventions)
+            if (at.text(name, 1024) != expected)
+                fail(path, std::string("attribute ") + name +
+                               " differs from this build's convention; expected a table written by wavebrdf table "
+                               "(docs/table.md)");
         TableSpec& s = t.spec;
         s.resolution = at.integer("wavebrdf:resolution", 1, 8192);
         const int max_lights = int(k_max_table_side);
@@ -211,10 +222,24 @@ BrdfTable read_brdf_table(const std::string& path) {
         if (precision != "float" && precision != "double")
             fail(path, "attribute wavebrdf:precision is '" + precision + "'; expected 'float' or 'double'");
         s.double_precision = precision == "double";
-        t.heightfield_rows = at.integer("wavebrdf:heightfield_rows", 1, std::numeric_limits<int>::max());
-        t.heightfield_cols = at.integer("wavebrdf:heightfield_cols", 1, std::numeric_limits<int>::max());
+        // The surface it was rendered from: the bounds of a heightfield (io.h, heightfield.h).
+        t.heightfield_rows = at.integer("wavebrdf:heightfield_rows", 1, 65536);
+        t.heightfield_cols = at.integer("wavebrdf:heightfield_cols", 1, 65536);
         t.texel_um = at.real("wavebrdf:texel_um");
+        if (!(t.texel_um >= 1e-4 && t.texel_um <= 1e4))
+            fail(path, "attribute wavebrdf:texel_um = " + format_shortest(t.texel_um) +
+                           " is out of range; expected 1e-4 to 1e4 um");
         t.vscale = at.real("wavebrdf:vscale");
+        if (std::abs(t.vscale) > 1e4)
+            fail(path,
+                 "attribute wavebrdf:vscale = " + format_shortest(t.vscale) + " is out of range; expected |v| <= 1e4");
+        // The footprint's limit for this surface (brdf.h validate: at most 10 tile periods).
+        const double period = t.texel_um * double(std::max(t.heightfield_rows, t.heightfield_cols));
+        if (s.query.sigma_p_um > 10.0 * period)
+            fail(path, "attribute wavebrdf:sigma_p_um = " + format_shortest(s.query.sigma_p_um) +
+                           " um is more than 10 periods of the " + std::to_string(t.heightfield_rows) + "x" +
+                           std::to_string(t.heightfield_cols) + " surface of texel " + format_shortest(t.texel_um) +
+                           " um (" + format_shortest(period) + " um); expected the table of a real render");
         if (file.header().findTypedAttribute<Imf::StringAttribute>("wavebrdf:source") != nullptr)
             t.source = at.text("wavebrdf:source", k_max_attribute_chars);
         try {

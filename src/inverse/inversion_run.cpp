@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/json_fields.h"
+#include "wavebrdf/input_files.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/observation_file.h"
@@ -819,6 +820,7 @@ InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, s
     InversionOptions options;
     // Every rank reads run.json (the same file: the errors are the same on every rank).
     run_agreed(comm, [&] {
+        check_readable_file(where);
         std::ifstream in(where);
         if (!in)
             throw std::runtime_error(where + ": cannot open; expected a directory written by 'wavebrdf invert --out'");

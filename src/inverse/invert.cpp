@@ -17,6 +17,7 @@
 #include <string>
 
 #include "wavebrdf/generate.h"
+#include "wavebrdf/input_files.h"
 #include "wavebrdf/io.h"
 #include "core/json_fields.h"
 #include "core/random.h"
@@ -432,6 +433,7 @@ void Inversion::save_checkpoint(const std::string& path) const {
 }
 
 void Inversion::load_checkpoint(const std::string& path) {
+    check_readable_file(path);
     std::ifstream in(path);
     if (!in) throw std::runtime_error(path + ": cannot open the checkpoint");
     nlohmann::json j;

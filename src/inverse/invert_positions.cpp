@@ -7,11 +7,13 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/input_files.h"
 #include "wavebrdf/invert.h"
 
 namespace wavebrdf {
 
 std::vector<std::array<double, 2>> read_positions_json(const std::string& path) {
+    check_readable_file(path);
     std::ifstream in(path);
     if (!in) throw std::runtime_error(path + ": cannot open the positions file");
     nlohmann::json j;

@@ -12,7 +12,10 @@
 #include <stdexcept>
 #include <string>
 
+#include <unistd.h>
+
 #include "wavebrdf/adjoint.h"
+#include "wavebrdf/input_files.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
@@ -63,9 +66,13 @@ void validate(const Observation& o, std::size_t index) {
         throw std::invalid_argument(where + "reference has " + std::to_string(o.reference.size()) +
                                     " values; expected resolution^2 * channels = " + std::to_string(expected));
     for (std::size_t i = 0; i < o.reference.size(); ++i)
-        if (!std::isfinite(o.reference[i]))
-            throw std::domain_error(where + "reference value " + std::to_string(i) +
-                                    " is not finite; expected finite values");
+        if (!std::isfinite(o.reference[i])) {
+            const std::size_t c = std::size_t(o.channels()), p = i / c, n = std::size_t(o.resolution);
+            throw std::domain_error(where + "reference pixel (" + std::to_string(p / n) + ", " + std::to_string(p % n) +
+                                    ") channel " + std::to_string(i % c) + " is " +
+                                    (std::isnan(o.reference[i]) ? "NaN" : "infinite") +
+                                    " (not finite); expected finite values");
+        }
 }
 
 std::vector<double> render_observation(const Heightfield& hf, const Observation& o, const RenderOptions& options) {
@@ -189,6 +196,7 @@ T field(const json& j, const char* name, const std::string& where) {
 }  // namespace
 
 std::vector<Observation> read_observations_json(const std::string& path, double max_memory_gb) {
+    check_readable_file(path);
     std::ifstream in(path);
     if (!in) throw std::runtime_error(path + ": cannot open the observations file");
     json doc;
@@ -267,44 +275,87 @@ std::vector<Observation> read_observations_json(const std::string& path, double 
 
 void write_observations_json(const std::string& path, const std::vector<Observation>& observations,
                              ReferenceStorage references) {
+    namespace fs = std::filesystem;
     // The EXR folder: the JSON's name without its extension, beside it.
     std::string folder;
+    fs::path folder_path, fresh;
     if (references == ReferenceStorage::Exr) {
-        const std::filesystem::path json_path(path);
+        const fs::path json_path(path);
         folder = json_path.stem().string();
         if (folder.empty() || folder == "." || folder == "..")
             throw std::invalid_argument("observations file '" + path +
                                         "' has no file name to name its reference folder after; expected e.g. "
                                         "observations.json");
-        std::filesystem::create_directories(json_path.parent_path() / folder);
+        folder_path = json_path.parent_path() / folder;
+        // An existing folder is replaced only when it holds nothing but slices of an earlier
+        // set: a user's own folder of that name is not ours to delete.
+        std::error_code ec;
+        if (fs::exists(fs::symlink_status(folder_path, ec))) {
+            if (!fs::is_directory(fs::symlink_status(folder_path, ec)))
+                throw std::invalid_argument(folder_path.string() +
+                                            " exists and is not a folder; expected the slices' "
+                                            "folder of " +
+                                            path + " to be new or an earlier set's");
+            for (const auto& entry : fs::directory_iterator(folder_path, ec)) {
+                const std::string name = entry.path().filename().string();
+                const bool slice = name.size() >= 14 && name.compare(0, 6, "slice_") == 0 &&
+                                   name.compare(name.size() - 4, 4, ".exr") == 0 &&
+                                   name.find_first_not_of("0123456789", 6) == name.size() - 4;
+                if (!slice || !entry.is_regular_file() || entry.is_symlink())
+                    throw std::invalid_argument(folder_path.string() + " holds '" + name +
+                                                "', which is not a slice of an observations set; expected the "
+                                                "slices' folder of " +
+                                                path + " to be new or an earlier set's");
+            }
+        }
+        // The slices go to a fresh folder first: the earlier set stays whole until they are all written.
+        fresh = json_path.parent_path() / ("." + folder + ".writing." + std::to_string(::getpid()));
+        fs::remove_all(fresh, ec);
+        fs::create_directories(fresh);
     }
-    const std::string dir = directory_of(path);
     json doc;
     doc["observations"] = json::array();
-    for (std::size_t i = 0; i < observations.size(); ++i) {
-        const Observation& o = observations[i];
-        json j;
-        j["x_um"] = o.query.x_um;
-        j["y_um"] = o.query.y_um;
-        j["sigma_p_um"] = o.query.sigma_p_um;
-        j["light"] = {o.query.omega_i[0], o.query.omega_i[1]};
-        j["model"] = to_string(o.query.model);
-        if (o.lambdas_um.size() == 1)
-            j["lambda_um"] = o.lambdas_um[0];
-        else
-            j["lambdas_um"] = o.lambdas_um;
-        j["resolution"] = o.resolution;
-        if (references == ReferenceStorage::Exr) {
-            char name[32];
-            std::snprintf(name, sizeof name, "/slice_%04zu.exr", i);
-            const std::string relative = folder + name;
-            write_slice_exr(dir + relative, to_image(to_doubles(o.reference), o.resolution, o.channels()),
-                            slice_attributes(o, nullptr, "observations"));
-            j["reference"] = relative;
-        } else {
-            j["reference"] = o.reference;
+    try {
+        for (std::size_t i = 0; i < observations.size(); ++i) {
+            const Observation& o = observations[i];
+            validate(o, i);  // a short reference would be read past its end
+            json j;
+            j["x_um"] = o.query.x_um;
+            j["y_um"] = o.query.y_um;
+            j["sigma_p_um"] = o.query.sigma_p_um;
+            j["light"] = {o.query.omega_i[0], o.query.omega_i[1]};
+            j["model"] = to_string(o.query.model);
+            if (o.lambdas_um.size() == 1)
+                j["lambda_um"] = o.lambdas_um[0];
+            else
+                j["lambdas_um"] = o.lambdas_um;
+            j["resolution"] = o.resolution;
+            if (references == ReferenceStorage::Exr) {
+                char name[32];
+                std::snprintf(name, sizeof name, "slice_%04zu.exr", i);
+                write_slice_exr((fresh / name).string(), to_image(to_doubles(o.reference), o.resolution, o.channels()),
+                                slice_attributes(o, nullptr, "observations"));
+                j["reference"] = folder + "/" + name;
+            } else {
+                j["reference"] = o.reference;
+            }
+            doc["observations"].push_back(j);
         }
-        doc["observations"].push_back(j);
+    } catch (...) {
+        std::error_code ec;
+        if (!fresh.empty()) fs::remove_all(fresh, ec);
+        throw;
+    }
+    if (references == ReferenceStorage::Exr) {
+        // The earlier JSON goes first, so that no failure from here on leaves a set that reads
+        // but names the wrong slices: a reader then finds no file, never a mixed set.
+        std::error_code ec;
+        fs::remove(path, ec);
+        const fs::path old = folder_path.parent_path() / ("." + folder + ".old." + std::to_string(::getpid()));
+        fs::remove_all(old, ec);
+        if (fs::exists(folder_path, ec)) fs::rename(folder_path, old);
+        fs::rename(fresh, folder_path);
+        fs::remove_all(old, ec);
     }
     write_text_atomically(path, doc.dump(1) + "\n");
 }

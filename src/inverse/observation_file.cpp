@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "inverse/observation_hdf5.h"
+#include "wavebrdf/input_files.h"
 #include "wavebrdf/communicator.h"
 
 namespace wavebrdf {
@@ -21,6 +22,7 @@ namespace {
 // Whether the file starts with the HDF5 signature (at offset 0; files with a user block are
 // recognised by their extension).
 bool has_hdf5_signature(const std::string& path) {
+    check_readable_file(path);
     std::ifstream in(path, std::ios::binary);
     char head[8] = {};
     if (!in.read(head, sizeof head)) return false;

@@ -1,4 +1,5 @@
 #include "wavebrdf/io.h"
+#include "wavebrdf/input_files.h"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -113,20 +114,23 @@ private:
     int m_slot = -1;
 };
 
+const char* file_kind(mode_t mode) {
+    return S_ISDIR(mode)    ? "a directory"
+           : S_ISLNK(mode)  ? "a symbolic link"
+           : S_ISFIFO(mode) ? "a FIFO"
+           : S_ISSOCK(mode) ? "a socket"
+           : S_ISCHR(mode)  ? "a character device"
+           : S_ISBLK(mode)  ? "a block device"
+                            : "a special file";
+}
+
 // Throws when `path` exists and is not a regular file: renaming onto it would replace a device
 // node, FIFO, socket or symbolic link with a regular file (or fail on a directory).
 void refuse_non_regular(const std::string& path) {
     struct stat st {};
     if (::lstat(path.c_str(), &st) != 0) return;  // absent (or unreachable: the write will say)
     if (S_ISREG(st.st_mode)) return;
-    const char* kind = S_ISDIR(st.st_mode)    ? "a directory"
-                       : S_ISLNK(st.st_mode)  ? "a symbolic link"
-                       : S_ISFIFO(st.st_mode) ? "a FIFO"
-                       : S_ISSOCK(st.st_mode) ? "a socket"
-                       : S_ISCHR(st.st_mode)  ? "a character device"
-                       : S_ISBLK(st.st_mode)  ? "a block device"
-                                              : "a special file";
-    fail(path, std::string("is ") + kind + ", not a regular file; refusing to replace it");
+    fail(path, std::string("is ") + file_kind(st.st_mode) + ", not a regular file; refusing to replace it");
 }
 
 // Throws when `path` is an OpenEXR file of several parts: InputFile would silently read part 0
@@ -274,6 +278,7 @@ struct ExrSource {
         std::error_code ec;
         if (!fs::exists(path, ec)) fail(path, "file does not exist");
         if (fs::is_directory(path, ec)) fail(path, "is a directory; expected an OpenEXR file");
+        check_readable_file(path);
         // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
         if (!Imf::isOpenExrFile(path.c_str())) fail(path, "not an OpenEXR file (missing magic number or unreadable)");
         check_attribute_sizes(path);  // first: opening the file is what allocates
@@ -490,8 +495,14 @@ HeightfieldAttributes read_heightfield_attributes(const std::string& path) {
 
 namespace {
 
-// The heightfield channel of `source`: R, else a single luminance channel Y.
+// The heightfield channel of `source`: R, else a single luminance channel Y. A file that says
+// it is something else (a BRDF table's wavebrdf:kind) is refused: its R channel is f_r, not heights.
 const char* height_channel(const ExrSource& source) {
+    const auto* kind = source.m_file->header().findTypedAttribute<Imf::StringAttribute>("wavebrdf:kind");
+    if (kind != nullptr && kind->value() == "wavebrdf brdf table")
+        fail(source.m_path, "is a '" + one_line(kind->value().substr(0, 64)) +
+                                "' file (attribute wavebrdf:kind), not a heightfield; expected a heightfield EXR "
+                                "(heights in R)");
     const char* channel = source.has_channel("R") ? "R" : source.has_channel("Y") ? "Y" : nullptr;
     if (channel == nullptr) fail(source.m_path, "has no R or Y channel; expected a heightfield in R");
     return channel;
@@ -874,6 +885,13 @@ void write_text_atomically(const std::string& path, const std::string& text) {
 void remove_temporary_files() noexcept {
     for (TemporarySlot& slot : g_temporary_slots)
         if (slot.state.load() == 2) ::unlink(slot.name);
+}
+
+void check_readable_file(const std::string& path) {
+    struct stat st {};
+    if (::stat(path.c_str(), &st) != 0) return;  // absent: the reader says so
+    if (S_ISREG(st.st_mode)) return;
+    fail(path, std::string("is ") + file_kind(st.st_mode) + ", not a regular file; expected a regular file to read");
 }
 
 void check_writable(const std::string& path) {

@@ -27,12 +27,13 @@ Noise parse_noise(const std::string& text) {
     if (name != "poisson" && name != "gaussian") throw bad();
     const double level = detail::parse_number_from(text, colon + 1, bad);
     if (name == "poisson") {
-        if (!(std::isfinite(level) && level > 0.0))
-            throw std::domain_error("noise '" + text + "': photons per slice must be finite and > 0");
+        if (!(std::isfinite(level) && level > 0.0 && level <= 1e18))
+            throw std::domain_error("noise '" + text + "': photons per slice must be more than 0 and at most 1e18");
         return {NoiseKind::Poisson, level};
     }
-    if (!(std::isfinite(level) && level >= 0.0))
-        throw std::domain_error("noise '" + text + "': the relative sigma must be finite and >= 0");
+    // Bounded where it is read, not when the noisy slices turn out infinite midway through a run.
+    if (!(std::isfinite(level) && level >= 0.0 && level <= 100.0))
+        throw std::domain_error("noise '" + text + "': the relative sigma must be 0 to 100 (times the slice's peak)");
     return {NoiseKind::Gaussian, level};
 }
 

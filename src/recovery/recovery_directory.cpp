@@ -88,7 +88,11 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         if (!root) return;
         prepare_run_directory(RunKind::Recover, dir, out.force, out.option);
         check_writable(dir + "/metrics.csv");
-        write_text_atomically(dir + "/run.json", run_json(r, options).dump(1) + "\n");
+        // "finished": false until every output is written: a run ended by a signal, a crash or
+        // a full disk says so in its run.json.
+        nlohmann::json run = run_json(r, options);
+        run["finished"] = false;
+        write_text_atomically(dir + "/run.json", run.dump(1) + "\n");
     });
     if (out.save_observations) {
         const std::string path = out.observations_path.empty() ? dir + "/observations.json" : out.observations_path;
@@ -218,6 +222,9 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
                                                std::size_t(first.channels())};
     write_npy(dir + "/reference.npy", slice_shape, to_doubles(first.reference));
     write_npy(dir + "/final.npy", slice_shape, render_observation(estimate, first));
+    nlohmann::json run = run_json(r, options);
+    run["finished"] = true;
+    write_text_atomically(dir + "/run.json", run.dump(1) + "\n");
     return estimate;
 }
 

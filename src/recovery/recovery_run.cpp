@@ -3,6 +3,7 @@
 #include "recovery/field_tiles.h"
 #include "recovery/white_light.h"
 #include "core/parallel.h"
+#include "core/text.h"
 
 #include <algorithm>
 #include <cmath>
@@ -152,6 +153,38 @@ std::vector<Observation> metadata_of(const std::vector<Observation>& observation
     return out;
 }
 
+// Throws std::invalid_argument when the footprint centres of `observations` span a full tile
+// period or more along x or y (max − min ≥ rows · texel_um, or cols · texel_um): positions that
+// far apart were made on a larger surface than the rows × cols one asked for (a --size that
+// disagrees with the observations ran to a 100 times worse loss with exit 0).
+void check_observation_extent(const std::vector<Observation>& observations, int rows, int cols, double texel_um) {
+    const std::string option = "--size";
+    if (observations.empty() || !(texel_um > 0.0)) return;
+    double lo[2] = {observations[0].query.x_um, observations[0].query.y_um}, hi[2] = {lo[0], lo[1]};
+    for (const Observation& o : observations) {
+        const double p[2] = {o.query.x_um, o.query.y_um};
+        for (int a = 0; a < 2; ++a) {
+            lo[a] = std::min(lo[a], p[a]);
+            hi[a] = std::max(hi[a], p[a]);
+        }
+    }
+    const double period[2] = {rows * texel_um, cols * texel_um};
+    const char* axis[2] = {"x", "y"};
+    for (int a = 0; a < 2; ++a)
+        if (hi[a] - lo[a] >= period[a] * (1.0 - 1e-12))
+            throw std::invalid_argument(
+                "the observations' footprint centres span " + detail::format_shortest(hi[a] - lo[a]) + " um along " +
+                axis[a] + " (" + detail::format_shortest(lo[a]) + " to " + detail::format_shortest(hi[a]) +
+                " um), a full period or more of the " + std::to_string(rows) + "x" + std::to_string(cols) +
+                " surface asked for (" + option + ", texel " + detail::format_shortest(texel_um) + " um: period " +
+                detail::format_shortest(period[a]) +
+                " um); expected the size of the surface the observations were made of");
+}
+
+// The most laser wavelengths a recovery takes (RecoveryOptions::lambdas_um): a plan's ladder
+// has a handful; 300 ran past 100 s before any check.
+constexpr std::size_t k_max_laser_wavelengths = 64;
+
 // The stage's position uncertainty, µm rms per coordinate: stated, else the simulated error's.
 double position_uncertainty_um(const RecoveryOptions& options, double texel_um) {
     return options.position_uncertainty_um.value_or(options.errors.position_rms_texels * texel_um);
@@ -170,6 +203,36 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.simulator != Simulator::Gabor && !observations.empty())
         throw std::invalid_argument(std::string("simulator '") + to_string(options.simulator) +
                                     "' simulates observations of a truth; given observations are used as they are");
+    // The sentinels first: -1 is "the library's default"; another negative or a NaN is a
+    // mistake (an option given as -5 or nan), named as the front end spells it.
+    {
+        // As the CLI spells them (Python checks its keywords' signs itself, by their names).
+        const auto name = [&](std::string key) {
+            std::replace(key.begin(), key.end(), '_', '-');
+            return "--" + key;
+        };
+        const std::pair<const char*, long long> counts[] = {
+            {"field_iterations", options.field_iterations},
+            {"refine_iterations", options.refine_iterations},
+            {"refine_coarse_iterations", options.refine_coarse_iterations},
+            {"white_smoothness_iterations", options.white_smoothness_iterations},
+            {"position_passes", options.position_passes},
+            {"field_tile_threshold", options.field_tile_threshold},
+            {"field_tile_core", options.field_tile_core}};
+        for (const auto& [key, value] : counts)
+            if (value < -1)
+                throw std::invalid_argument(name(key) + " " + std::to_string(value) +
+                                            " is invalid; expected 0 or more (unset: the default)");
+        const std::pair<const char*, double> weights[] = {{"refine_coarse_spacing", options.refine_coarse_spacing},
+                                                          {"refine_coarse_weight", options.refine_coarse_weight}};
+        for (const auto& [key, value] : weights)
+            if (std::isnan(value) || (value < 0.0 && value != -1.0) || std::isinf(value))
+                throw std::invalid_argument(name(key) + " " + detail::format_shortest(value) +
+                                            " is invalid; expected a finite value >= 0 (unset: the default)");
+        if (options.lambdas_um.size() > k_max_laser_wavelengths)
+            throw std::invalid_argument(name("lambdas_um") + " lists " + std::to_string(options.lambdas_um.size()) +
+                                        " wavelengths; expected at most " + std::to_string(k_max_laser_wavelengths));
+    }
     // Counts first, before the observations are planned and rendered (negative iteration counts: the library's default).
     validate_iterations(options.epochs, "epochs");
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
@@ -230,6 +293,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         }
         r.rows = options.rows;
         r.cols = options.cols;
+        check_observation_extent(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um);
         require_memory(estimate_recovery_bytes(r.observations, r.rows, r.cols, r.texel_um, options.method), limit,
                        "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
                            std::to_string(r.observations.size()) + " given observations)");

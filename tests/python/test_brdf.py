@@ -174,7 +174,7 @@ BAD = [
     (dict(light=(0.8, 0.8)), "light"),
     (dict(light=(0.1,)), "light"),
     (dict(light=(float("nan"), 0.0)), "light"),
-    (dict(model="ohs"), "model"),
+    (dict(model="ohs2"), "model"),
 ]
 
 

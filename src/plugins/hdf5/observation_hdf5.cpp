@@ -6,10 +6,13 @@
 // thread safety).
 #include "plugins/hdf5_api.h"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -270,14 +273,27 @@ struct Shape {
     std::vector<hsize_t> dims;
 };
 
-Id open_dataset(hid_t file, const std::string& path, const char* name) {
+// Each part of `name` from the root is checked to exist and to be a hard link before the next
+// is looked up, so that no lookup ever follows an external link (into another file, a FIFO, a
+// device) or a soft link: a wavebrdf observation file holds its objects itself.
+void check_hard_link(hid_t file, const std::string& path, const char* name, const std::string& part) {
     // H5Lexists fails (negative) when a parent group is missing: missing either way.
+    if (H5Lexists(file, part.c_str(), H5P_DEFAULT) <= 0)
+        fail(path, name, "missing; expected a wavebrdf observation file (docs/observations_hdf5.md)");
+    H5L_info_t info{};
+    if (H5Lget_info(file, part.c_str(), &info, H5P_DEFAULT) < 0) fail(path, name, "cannot read the link " + part);
+    if (info.type != H5L_TYPE_HARD)
+        fail(path, name,
+             std::string("reaches ") + part + " through " +
+                 (info.type == H5L_TYPE_EXTERNAL ? "an external link (into another file)" : "a soft or user link") +
+                 "; expected objects stored in this file (links are not followed)");
+}
+
+Id open_dataset(hid_t file, const std::string& path, const char* name) {
     const std::string full(name);
     for (std::size_t at = full.find('/', 1); at != std::string::npos; at = full.find('/', at + 1))
-        if (H5Lexists(file, full.substr(0, at).c_str(), H5P_DEFAULT) <= 0)
-            fail(path, name, "missing; expected a wavebrdf observation file (docs/observations_hdf5.md)");
-    if (H5Lexists(file, name, H5P_DEFAULT) <= 0)
-        fail(path, name, "missing; expected a wavebrdf observation file (docs/observations_hdf5.md)");
+        check_hard_link(file, path, name, full.substr(0, at));
+    check_hard_link(file, path, name, full);
     const hid_t id = H5Dopen2(file, name, H5P_DEFAULT);
     if (id < 0) fail(path, name, "is not a dataset (or cannot be opened); expected a dataset");
     return Id(id, H5Dclose);
@@ -303,6 +319,88 @@ Shape shape_of(hid_t dataset, const std::string& path, const char* name, H5T_cla
     if (H5Sget_simple_extent_dims(space.get(), s.dims.data(), nullptr) != rank)
         fail(path, name, "cannot read its dims");
     return s;
+}
+
+// Where a dataset's values are and whether they can be read safely, checked before any read:
+// only compact, contiguous or chunked storage inside this file (no virtual dataset drawing on
+// other files, no external raw storage such as /etc/passwd or a FIFO); chunks of the dataset's
+// rank, each dimension 1 to the dataset's (a corrupt chunk dimension made HDF5 read out of
+// bounds); every chunk written (a few bytes may not declare 1e8 chunks of fill values) or,
+// contiguous, every byte; and every filter of the pipeline available in this HDF5 (named when
+// missing, e.g. lzf from h5py). Returns the bytes of one chunk in memory (0 unless chunked).
+double check_storage(hid_t dataset, const std::string& path, const char* name, const std::vector<hsize_t>& dims) {
+    Id dcpl(H5Dget_create_plist(dataset), H5Pclose);
+    if (!dcpl.valid()) fail(path, name, "cannot read its storage layout");
+    const H5D_layout_t layout = H5Pget_layout(dcpl.get());
+    if (layout == H5D_VIRTUAL)
+        fail(path, name,
+             "is a virtual dataset (its values come from other datasets or files); expected its "
+             "values stored in this file");
+    if (layout != H5D_COMPACT && layout != H5D_CONTIGUOUS && layout != H5D_CHUNKED)
+        fail(path, name, "has an unknown storage layout; expected compact, contiguous or chunked");
+    const int external = H5Pget_external_count(dcpl.get());
+    if (external != 0)
+        fail(path, name,
+             "has external raw storage (its values in " +
+                 (external > 0 ? std::to_string(external) : std::string("some")) +
+                 " other file(s)); expected its values stored in this file");
+    const int filters = H5Pget_nfilters(dcpl.get());
+    if (filters < 0) fail(path, name, "cannot read its filter pipeline");
+    for (int k = 0; k < filters; ++k) {
+        unsigned flags = 0, config = 0;
+        std::size_t values = 0;
+        char filter_name[64] = {};
+        const H5Z_filter_t id = H5Pget_filter2(dcpl.get(), unsigned(k), &flags, &values, nullptr, sizeof filter_name,
+                                               filter_name, &config);
+        if (id < 0) fail(path, name, "cannot read its filter pipeline");
+        if (H5Zfilter_avail(id) <= 0)
+            fail(path, name,
+                 "is compressed with HDF5 filter " + std::to_string(id) +
+                     (filter_name[0] != '\0'
+                          ? " (" + std::string(filter_name, strnlen(filter_name, sizeof filter_name)) + ")"
+                          : std::string()) +
+                     ", which this build's HDF5 does not have; expected gzip (deflate), shuffle or no compression");
+    }
+    Id type(H5Dget_type(dataset), H5Tclose);
+    const double value_bytes = type.valid() ? double(H5Tget_size(type.get())) : 8.0;
+    double count = 1.0;
+    for (hsize_t d : dims) count *= double(d);
+    if (layout == H5D_CONTIGUOUS) {
+        const double expected = count * value_bytes;
+        const double stored = double(H5Dget_storage_size(dataset));
+        if (stored < expected)
+            fail(path, name,
+                 "holds " + std::to_string(static_cast<long long>(stored)) + " of its " +
+                     std::to_string(static_cast<long long>(expected)) + " bytes (never written, or damaged)");
+        return 0.0;
+    }
+    if (layout != H5D_CHUNKED) return 0.0;
+    std::vector<hsize_t> chunk(dims.size() + 1, 0);
+    if (H5Pget_chunk(dcpl.get(), int(chunk.size()), chunk.data()) != int(dims.size()))
+        fail(path, name, "has chunks of another rank than the dataset's " + std::to_string(dims.size()));
+    double chunks = 1.0, elements = 1.0;
+    for (std::size_t k = 0; k < dims.size(); ++k) {
+        if (chunk[k] < 1 || chunk[k] > std::max<hsize_t>(dims[k], 1))
+            fail(path, name,
+                 "has a chunk dimension " + std::to_string(chunk[k]) + " on axis " + std::to_string(k) +
+                     " where the dataset has " + std::to_string(dims[k]) +
+                     "; expected chunks of 1 to the dataset's size per axis (damaged file?)");
+        chunks *= std::ceil(double(dims[k]) / double(chunk[k]));
+        elements *= double(chunk[k]);
+    }
+#if H5_VERSION_GE(1, 10, 5)
+    if (count > 0.0) {
+        hsize_t written = 0;
+        Id space(H5Dget_space(dataset), H5Sclose);
+        if (!space.valid() || H5Dget_num_chunks(dataset, space.get(), &written) < 0)
+            fail(path, name, "cannot count its chunks");
+        if (double(written) < chunks)
+            fail(path, name,
+                 "holds " + std::to_string(written) + " of its " + std::to_string(static_cast<long long>(chunks)) +
+                     " chunks (never written, or damaged); expected every value stored");
+    }
+#endif
+    return elements * 8.0;
 }
 
 template <class T>
@@ -332,19 +430,13 @@ std::vector<T> read_checked(hid_t file, const std::string& path, const char* nam
         }
         count *= std::size_t(dims[k]);
     }
-    // Contiguous data must all be in the file: a few bytes may not declare gigabytes of values
-    // that were never written (chunked data is bounded by the memory limit checked before).
-    Id dcpl(H5Dget_create_plist(dataset.get()), H5Pclose);
-    if (!dcpl.valid()) fail(path, name, "cannot read its layout");
-    if (H5Pget_layout(dcpl.get()) == H5D_CONTIGUOUS) {
-        Id type(H5Dget_type(dataset.get()), H5Tclose);
-        const double expected = double(count) * double(H5Tget_size(type.get()));
-        const double stored = double(H5Dget_storage_size(dataset.get()));
-        if (stored < expected)
-            fail(path, name,
-                 "holds " + std::to_string(static_cast<long long>(stored)) + " of its " +
-                     std::to_string(static_cast<long long>(expected)) + " bytes (never written, or damaged)");
-    }
+    // The data must all be in this file: a few bytes may not declare gigabytes of values
+    // that were never written, nor point elsewhere.
+    const double chunk_bytes = check_storage(dataset.get(), path, name, dims);
+    if (chunk_bytes > double(1 << 27))
+        fail(path, name,
+             "has chunks of " + std::to_string(static_cast<long long>(chunk_bytes / 8.0)) +
+                 " values; expected at most 2^24");
     return read_whole<T>(dataset.get(), memory_type, count, path, name);
 }
 
@@ -359,8 +451,11 @@ std::string read_root_string(hid_t file, const std::string& path, const char* na
         H5Sget_simple_extent_npoints(space.get()) != 1)
         fail(path, name, "attribute is not one string; expected e.g. '" + std::string(k_format) + "'");
     if (H5Tis_variable_str(type.get()) > 0) {
+        // In the attribute's character set: h5py writes UTF-8, and HDF5 converts no string
+        // between ASCII and UTF-8.
         Id memory(H5Tcopy(H5T_C_S1), H5Tclose);
         H5Tset_size(memory.get(), H5T_VARIABLE);
+        H5Tset_cset(memory.get(), H5Tget_cset(type.get()));
         char* text = nullptr;
         if (H5Aread(attribute.get(), memory.get(), &text) < 0 || text == nullptr)
             fail(path, name, "attribute cannot be read");
@@ -390,6 +485,18 @@ struct OpenFile {
 
 OpenFile open_observation_file(const std::string& path, double max_memory_gb) {
     OpenFile f;
+    // Only a regular file (after links): a FIFO would block H5Fopen forever (the core's
+    // check_readable_file, which this plugin does not link).
+    {
+        struct stat st {};
+        if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+            throw std::runtime_error(path + ": is " +
+                                     (S_ISFIFO(st.st_mode)  ? "a FIFO"
+                                      : S_ISDIR(st.st_mode) ? "a directory"
+                                      : S_ISCHR(st.st_mode) ? "a character device"
+                                                            : "a special file") +
+                                     ", not a regular file; expected a regular file to read");
+    }
     // Read-only and without file locks: the ranks of a run open one file at once, on file
     // systems (NFS, Lustre) where flock may fail; our writer renames complete files into
     // place, so no reader ever sees one being written.
@@ -418,22 +525,16 @@ OpenFile open_observation_file(const std::string& path, double max_memory_gb) {
         fail(path, k_data,
              "slices are " + std::to_string(n) + " x " + std::to_string(s.dims[3]) + "; expected n x n, 1 ≤ n ≤ 8192");
     f.data_space = Id(H5Dget_space(f.data.get()), H5Sclose);
-    // Chunks are read whole: bound them (a slice, or 64 MiB).
+    // Where the slices are, checked before any read; chunks are read whole: bound them (a
+    // slice, or 2^24 values).
+    f.chunk_bytes = check_storage(f.data.get(), path, k_data, s.dims);
     {
-        Id dcpl(H5Dget_create_plist(f.data.get()), H5Pclose);
-        if (!dcpl.valid()) fail(path, k_data, "cannot read its layout");
-        if (H5Pget_layout(dcpl.get()) == H5D_CHUNKED) {
-            hsize_t chunk[4] = {0, 0, 0, 0};
-            if (H5Pget_chunk(dcpl.get(), 4, chunk) != 4) fail(path, k_data, "has chunks of the wrong rank");
-            double elements = 1.0;
-            for (hsize_t c : chunk) elements *= double(c);
-            f.chunk_bytes = elements * 8.0;
-            const double slice = double(channels) * double(n) * double(n);
-            if (elements > std::max(slice, double(1 << 24)))
-                fail(path, k_data,
-                     "has chunks of " + std::to_string(static_cast<long long>(elements)) +
-                         " values; expected at most one slice or 2^24");
-        }
+        const double elements = f.chunk_bytes / 8.0;
+        const double slice = double(channels) * double(n) * double(n);
+        if (elements > std::max(slice, double(1 << 24)))
+            fail(path, k_data,
+                 "has chunks of " + std::to_string(static_cast<long long>(elements)) +
+                     " values; expected at most one slice or 2^24");
     }
 
     // The index: bounded by the count, the wavelengths' dims checked first.
