@@ -2,6 +2,8 @@
 docstrings (run it again after changing a binding; tests/python/test_stubs.py checks them)."""
 from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Sequence, Set, Tuple, Union, overload
 
+import os
+
 import numpy
 
 __version__: str
@@ -216,7 +218,7 @@ class Heightfield:
     def __init__(self, values: Any, texel_um: float = ..., vscale: float = ...) -> None:
         ...
     @staticmethod
-    def from_exr(path: str, texel_um: Any = ..., vscale: Any = ...) -> Heightfield:
+    def from_exr(path: Union[str, os.PathLike], texel_um: Any = ..., vscale: Any = ...) -> Heightfield:
         """Reads the R (or Y) channel of an OpenEXR file (half or float) as heights in texel units.
         texel_um (um) and vscale: when None (default), the file's own (written by save_exr and the
         CLI), else 1.0; a given value that differs from the file's wins, with a UserWarning naming
@@ -234,7 +236,7 @@ class Heightfield:
         """
         ...
     @staticmethod
-    def exr_attributes(path: str) -> dict:
+    def exr_attributes(path: Union[str, os.PathLike]) -> dict:
         """What a heightfield EXR says about itself (no pixels read): a dict with texel_um, vscale
         (None when the file does not say), units, made_by and version ('' when absent).
         """
@@ -305,7 +307,7 @@ class Heightfield:
     def stats(self) -> dict:
         """Mean, rms height, min and max in um (vscale included) and rms slope."""
         ...
-    def save_exr(self, path: str, made_by: str = ...) -> None:
+    def save_exr(self, path: Union[str, os.PathLike], made_by: str = ...) -> None:
         """Writes the values (texel units) as a single-channel float EXR (atomically), with the
         attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,
         "Files"), so that from_exr reads the same scale back.
@@ -317,7 +319,7 @@ class Heightfield:
         ValueError for another extension.
         """
         ...
-    def save_png(self, path: str) -> None:
+    def save_png(self, path: Union[str, os.PathLike]) -> None:
         """Writes a grey PNG preview, min black, max white."""
         ...
     def copy(self) -> Heightfield:
@@ -822,14 +824,14 @@ def planned_observations(plan: AcquisitionPlan) -> List[Observation]:
     """
     ...
 
-def read_observation_index(path: str, max_memory_gb: float = ...) -> dict:
+def read_observation_index(path: Union[str, os.PathLike], max_memory_gb: float = ...) -> dict:
     """What an observation file holds, without its slices: a dict with 'queries' (a Query per
     observation, with its wavelengths), 'positions_um' (float64 (N, 2): x_um, y_um), 'resolution'
     and 'channels' (1 or 3). An HDF5 file reads its metadata only; a JSON file is read whole.
     """
     ...
 
-def read_observations(path: str, indices: Any = ..., *, rank: int = ..., size: int = ..., max_memory_gb: float = ...) -> List[Observation]:
+def read_observations(path: Union[str, os.PathLike], indices: Any = ..., *, rank: int = ..., size: int = ..., max_memory_gb: float = ...) -> List[Observation]:
     """Observations from a file (what `wavebrdf invert|recover --observations` read): HDF5 (.h5,
     .hdf5, .cxi, or any file with the HDF5 signature; docs/observations_hdf5.md) or JSON.
     indices        positions in an HDF5 file to read (only their slices are read), in the order
@@ -840,7 +842,7 @@ def read_observations(path: str, indices: Any = ..., *, rank: int = ..., size: i
     """
     ...
 
-def read_slice(path: str) -> tuple:
+def read_slice(path: Union[str, os.PathLike]) -> tuple:
     """Reads a slice EXR written by wavebrdf (render --out, genbrdf -o, a run's reference_/final_
     slices, observation files) or any RGB EXR.
 
@@ -1035,8 +1037,8 @@ def render_image(heightfield: Any, *, plane_size_um: Any, camera: Any, look_at: 
     """
     ...
 
-def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ..., comm: Any = ...) -> Any:
-    """render_slice(heights, *, resolution, texel_um=1.0, vscale=1.0, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', tolerance=1e-06, comm=None)
+def render_slice(heights: Any, *, resolution: int, texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ..., comm: Any = ...) -> Any:
+    """render_slice(heights, *, resolution, texel_um=None, vscale=None, x_um=0.0, y_um=0.0, sigma_p_um=10.0, lambda_um=None, spectral=None, light=(0, 0), model='OHS', path='auto', tolerance=1e-06, comm=None)
 
     One BRDF slice f_r (1/sr) of the heightfield `heights`, shape (resolution, resolution, 3),
     linear RGB. The same as `wavebrdf render` with the same options. With batch axes
@@ -1048,9 +1050,10 @@ def render_slice(heights: Any, *, resolution: int, texel_um: float = ..., vscale
                 finite, in texel units. float64 renders
                 in double precision, float32 in single (the CLI's --precision); the result has the
                 same dtype.
-    texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
-    vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
-                vscale * texel_um * heights
+    texel_um    texel width w in um, 1e-4 to 1e4 (default: a Heightfield's own, else 1; a value
+                that differs from a Heightfield's is refused)
+    vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default: a Heightfield's own, else 1):
+                height in um = vscale * texel_um * heights
     x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
                 default 0); arrays for a batch (below)
     sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
@@ -1105,7 +1108,7 @@ def simulate_observations(truth: Heightfield, plan: AcquisitionPlan, noise: Any 
     """
     ...
 
-def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: float = ..., vscale: float = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ...) -> numpy.ndarray:
+def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., model: str = ..., path: str = ..., tolerance: float = ...) -> numpy.ndarray:
     """slice_gradient(heights, weights, *, resolution, **the options of render_slice)
 
     The gradient of sum(weights * render_slice(heights, ...)) with respect to `heights`
@@ -1124,9 +1127,10 @@ def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: flo
                 finite, in texel units. float64 renders
                 in double precision, float32 in single (the CLI's --precision); the result has the
                 same dtype.
-    texel_um    texel width w in um, 1e-4 to 1e4 (default 1)
-    vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default 1): height in um =
-                vscale * texel_um * heights
+    texel_um    texel width w in um, 1e-4 to 1e4 (default: a Heightfield's own, else 1; a value
+                that differs from a Heightfield's is refused)
+    vscale      vertical scale v, 0 or 1e-6 <= |v| <= 1e4 (default: a Heightfield's own, else 1):
+                height in um = vscale * texel_um * heights
     x_um, y_um  footprint centre in um along x (rows) and y (columns), any finite value (periodic;
                 default 0); arrays for a batch (below)
     sigma_p_um  footprint (coherence) standard deviation sigma_p in um, 1e-6 to 1e6 and at most
@@ -1216,7 +1220,7 @@ def write_fabrication_exports(out_dir: str, heights_um: Any, texel_um: float, he
     """
     ...
 
-def write_observations(path: str, observations: Any, references: str = ...) -> None:
+def write_observations(path: Union[str, os.PathLike], observations: Any, references: str = ...) -> None:
     """Writes observations (the formats read_observations and `wavebrdf invert|recover
     --observations` read), atomically: one HDF5 file for a path ending in .h5, .hdf5 or .cxi
     (slices as float32, one resolution and channel count for all; docs/observations_hdf5.md),
