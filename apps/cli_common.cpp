@@ -150,6 +150,11 @@ std::string seed_error(const std::string& text) {
 void check_output_format(const std::string& option, const std::string& path,
                          const std::vector<std::string>& extensions) {
     if (path.empty()) return;
+    // A path that exists and is not a regular file (a FIFO, a device) is the writer's to refuse,
+    // with its own message; its name says nothing of a format.
+    std::error_code ec;
+    const auto status = std::filesystem::symlink_status(path, ec);
+    if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) return;
     const auto lower = [](std::string s) {
         std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
         return s;

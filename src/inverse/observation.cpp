@@ -69,9 +69,8 @@ void validate(const Observation& o, std::size_t index) {
         if (!std::isfinite(o.reference[i])) {
             const std::size_t c = std::size_t(o.channels()), p = i / c, n = std::size_t(o.resolution);
             throw std::domain_error(where + "reference pixel (" + std::to_string(p / n) + ", " + std::to_string(p % n) +
-                                    ") channel " + std::to_string(i % c) + " is " +
-                                    (std::isnan(o.reference[i]) ? "NaN" : "infinite") +
-                                    " (not finite); expected finite values");
+                                    ") channel " + std::to_string(i % c) + " is not finite (" +
+                                    (std::isnan(o.reference[i]) ? "NaN" : "infinite") + "); expected finite values");
         }
 }
 

@@ -525,18 +525,6 @@ OpenFile open_observation_file(const std::string& path, double max_memory_gb) {
         fail(path, k_data,
              "slices are " + std::to_string(n) + " x " + std::to_string(s.dims[3]) + "; expected n x n, 1 ≤ n ≤ 8192");
     f.data_space = Id(H5Dget_space(f.data.get()), H5Sclose);
-    // Where the slices are, checked before any read; chunks are read whole: bound them (a
-    // slice, or 2^24 values).
-    f.chunk_bytes = check_storage(f.data.get(), path, k_data, s.dims);
-    {
-        const double elements = f.chunk_bytes / 8.0;
-        const double slice = double(channels) * double(n) * double(n);
-        if (elements > std::max(slice, double(1 << 24)))
-            fail(path, k_data,
-                 "has chunks of " + std::to_string(static_cast<long long>(elements)) +
-                     " values; expected at most one slice or 2^24");
-    }
-
     // The index: bounded by the count, the wavelengths' dims checked first.
     const std::size_t N = std::size_t(count);
     Id lambdas_dataset = open_dataset(file, path, k_lambdas);
@@ -549,7 +537,6 @@ OpenFile open_observation_file(const std::string& path, double max_memory_gb) {
     const std::size_t L = std::size_t(ls.dims[1]);
     host().require_memory(double(N) * (8.0 * double(6 + 2 * L) + double(sizeof(Query)) + 64.0), max_memory_gb,
                    "reading the index of the " + std::to_string(N) + " observations of " + path);
-
     const auto x = read_checked<double>(file, path, k_x, H5T_FLOAT, {count}, H5T_NATIVE_DOUBLE);
     const auto y = read_checked<double>(file, path, k_y, H5T_FLOAT, {count}, H5T_NATIVE_DOUBLE);
     const auto sigma = read_checked<double>(file, path, k_sigma, H5T_FLOAT, {count}, H5T_NATIVE_DOUBLE);
@@ -557,6 +544,18 @@ OpenFile open_observation_file(const std::string& path, double max_memory_gb) {
     const auto model = read_checked<int>(file, path, k_model, H5T_INTEGER, {count}, H5T_NATIVE_INT);
     const auto lambda_count = read_checked<int>(file, path, k_count, H5T_INTEGER, {count}, H5T_NATIVE_INT);
     const auto lambdas = read_checked<double>(file, path, k_lambdas, H5T_FLOAT, {count, hsize_t(L)}, H5T_NATIVE_DOUBLE);
+
+    // Where the slices are, checked before any of them is read (after the index, whose memory
+    // bound and storage come first); chunks are read whole: bound them (a slice, or 2^24 values).
+    f.chunk_bytes = check_storage(f.data.get(), path, k_data, s.dims);
+    {
+        const double elements = f.chunk_bytes / 8.0;
+        const double slice = double(channels) * double(n) * double(n);
+        if (elements > std::max(slice, double(1 << 24)))
+            fail(path, k_data,
+                 "has chunks of " + std::to_string(static_cast<long long>(elements)) +
+                     " values; expected at most one slice or 2^24");
+    }
 
     ObservationIndex& index = f.index;
     index.resolution = static_cast<int>(n);
