@@ -699,7 +699,9 @@ TEST_F(InvertTest, CliBadObservations) {
     j = doc;
     j["observations"][0]["reference"] = "nan.exr";
     std::ofstream(path("refs/nan.json")) << j.dump();
-    expect_clean_failure(invert("--observations refs/nan.json --out o"), {"nan.json", "37", "not finite"}, {out});
+    // Value 37 of a single-channel-per-pixel write is pixel (row 2, column 5) of the 16-wide image.
+    expect_clean_failure(invert("--observations refs/nan.json --out o"),
+                         {"nan.json", "pixel (2, 5) channel 0", "not finite"}, {out});
 
     // --truth and --observations exclude each other.
     write_heightfield_exr(path("truth.exr").string(), tiny_truth());
