@@ -330,9 +330,11 @@ TEST(Table, RequiresEveryConventionAndBoundsItsSurface) {
         refused([&](Imf::Header& h) { h.insert(name, Imf::StringAttribute("something else")); },
                 std::string("attribute ") + name + " differs from this build's convention");
     }
-    for (const auto& [texel, text] : {std::pair<double, const char*>{0.0, "0"}, {-1.0, "-1"}, {20000.0, "20000"}})
+    for (const auto& bad_texel : {std::pair<double, const char*>{0.0, "0"}, {-1.0, "-1"}, {20000.0, "20000"}}) {
+        const double texel = bad_texel.first;  // C++17 lambdas cannot capture a structured binding
         refused([&](Imf::Header& h) { h.insert("wavebrdf:texel_um", Imf::DoubleAttribute(texel)); },
-                std::string("wavebrdf:texel_um = ") + text + " is out of range");
+                std::string("wavebrdf:texel_um = ") + bad_texel.second + " is out of range");
+    }
     refused([](Imf::Header& h) { h.insert("wavebrdf:vscale", Imf::DoubleAttribute(20000.0)); },
             "wavebrdf:vscale = 20000 is out of range");
     refused([](Imf::Header& h) { h.insert("wavebrdf:heightfield_rows", Imf::IntAttribute(2147483647)); },
