@@ -10,7 +10,9 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "report.h"
+#include "wavebrdf/design_plate.h"
 #include "wavebrdf/design_run.h"
+#include "wavebrdf/fabrication.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/run_directory.h"
@@ -25,11 +27,60 @@ struct DesignArgs {
     std::string out;
     std::string region = "annulus:0.1,0.5";
     std::string errors;
+    std::string palette;
+    double plate_pixel_um = 0.0;
     std::vector<double> band_um;
     double view_x = 0.0, view_y = 0.0;
     bool given_view = false, given_spectral = false, force = false, quiet = false, no_plots = false;
     DesignOptions options;
 };
+
+// --target image:PICTURE.png --palette …: a plate of palette designs (design_plate.h).
+void run_plate_command(const DesignArgs& a) {
+    PlateOptions po;
+    po.design = a.options;
+    po.palette = parse_palette(a.palette);
+    po.plate_pixel_um = a.plate_pixel_um;
+    const long long pixel_texels = plate_pixel_texels(po.design, po.plate_pixel_um);
+    const std::string file = a.target.substr(6);
+    if (file.empty()) throw std::invalid_argument("--target '" + a.target + "' names no picture; expected image:PICTURE.png");
+    po.picture = read_plate_picture(file, k_max_fabrication_texels / (pixel_texels * pixel_texels));
+    const PreparedPlate prepared = prepare_plate(po);
+    const DesignOptions& o = po.design;
+    if (!a.quiet) {
+        std::cerr << "design: plate " << prepared.rows << "x" << prepared.cols << " texels of "
+                  << format_shortest(o.texel_um) << " um (picture " << po.picture.rows << "x" << po.picture.cols
+                  << ", " << prepared.pixel_texels << " texels a pixel), " << po.palette.size()
+                  << " palette entries of " << o.size << "x" << o.size << " tiles; estimated memory "
+                  << format_bytes(prepared.estimated_bytes) << "\n";
+        for (const std::string& note : prepared.notes) std::cerr << "design: note: " << note << "\n";
+    }
+    int used = 0;
+    for (long long n : prepared.pixels_per_entry) used += n > 0;
+    Progress progress("design", used * (o.iterations + o.refine_passes), !a.quiet);
+    const PlateResult result = run_plate(prepared, [&](int entry, const DesignStep& s) {
+        progress.advance();
+        progress.set_message(po.palette[static_cast<std::size_t>(entry)].text + " " + s.phase + " loss " +
+                             format_shortest(s.loss));
+        return true;
+    });
+    progress.finish();
+    write_plate_directory(a.out, result, a.force);
+    if (!a.quiet) {
+        const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
+        for (const auto& e : j["entries"]) {
+            if (!e.contains("views")) continue;
+            std::cerr << "design: " << e["entry"].get<std::string>() << " (" << e["pixels"] << " pixels):";
+            for (const auto& v : e["views"]) {
+                std::cerr << " Y " << format_shortest(v["luminous_efficiency"].get<double>());
+                if (v.contains("delta_uv")) std::cerr << ", delta u'v' " << format_shortest(v["delta_uv"].get<double>());
+            }
+            std::cerr << "\n";
+        }
+        std::cerr << "design: wrote " << a.out << " in " << format_shortest(j["timings_s"]["total"].get<double>())
+                  << " s\n";
+    }
+}
 
 void run(DesignArgs a) {
     DesignOptions& o = a.options;
@@ -43,6 +94,8 @@ void run(DesignArgs a) {
     if (a.given_view) o.view = std::array<double, 2>{a.view_x, a.view_y};
     o.region = a.region;
     o.errors = parse_fabrication_errors(a.errors);
+    if (a.target.rfind("image:", 0) == 0) return run_plate_command(a);
+    if (!a.palette.empty()) throw std::invalid_argument("--palette goes with --target image:PICTURE.png");
     o.target = parse_design_target(a.target);
     const PreparedDesign prepared = prepare_design(o);
     if (!a.quiet) {
@@ -84,7 +137,12 @@ void run(DesignArgs a) {
 void add_design_command(CLI::App& app) {
     auto a = std::make_shared<DesignArgs>();
     CLI::App* cmd = app.add_subcommand("design", "Design a texel relief for a target appearance (docs/design.md)");
-    cmd->add_option("--target", a->target, "anti-mirror, pattern:IMAGE.png or colour:#RRGGBB")->capture_default_str();
+    cmd->add_option("--target", a->target, "anti-mirror, pattern:IMAGE.png, colour:#RRGGBB or image:PICTURE.png")
+        ->capture_default_str();
+    cmd->add_option("--palette", a->palette,
+                    "image: the plate's designs, '#RRGGBB;#RRGGBB;...' or 'dir:X,Y;dir:X,Y;...'");
+    cmd->add_option("--plate-pixel-um", a->plate_pixel_um,
+                    "image: a picture pixel's side on the plate, a multiple of the tile period (default: one period)");
     cmd->add_option("--out", a->out, "run directory (new or empty; see --force)")->required();
     cmd->add_flag("--force", a->force, "reuse a directory holding only a design's outputs");
     cmd->add_option("--light-x", a->options.omega_i[0], "projected light direction, x")->capture_default_str();

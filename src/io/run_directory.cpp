@@ -45,7 +45,7 @@ bool is_run_output(RunKind kind, const std::string& relative) {
         R"(reference\.npy|final\.npy|report\.png|observations\.json|observations\.(h5|hdf5|cxi)|observations|observations/slice_[0-9]{4,}\.exr)$)");
     static const std::regex design_names(
         R"(^(design\.json|metrics\.csv|heights\.(exr|png|stl|x3p)|masks\.json|masks_[0-9]{2,}\.png|)"
-        R"((target|far_field)\.(exr|png)|report\.png)$)");
+        R"((target|far_field|plate)\.(exr|png)|report\.png)$)");
     const std::string name = without_temporary_suffix(relative);
     if (kind == RunKind::Design) return std::regex_match(name, design_names);
     return std::regex_match(name, kind == RunKind::Invert ? invert_names : recover_names);
