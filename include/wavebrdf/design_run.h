@@ -19,11 +19,20 @@ namespace detail {
 class Target;
 struct OrderSet;
 }  // namespace detail
+struct BrdfTable;
 
-enum class DesignKind { AntiMirror, Pattern, Colour };
+enum class DesignKind { AntiMirror, Pattern, Colour, Iridescent, Brdf };
 const char* to_string(DesignKind kind);
 
-// What the design aims for: `--target anti-mirror | pattern:IMAGE.png | colour:#RRGGBB`.
+// One (view direction, colour) pair of an iridescent target.
+struct IridescentPair {
+    std::array<double, 2> view{{0.0, 0.0}};  // projected ω_o, |view| < 1
+    std::array<int, 3> srgb8{{255, 255, 255}};
+    std::array<double, 3> linear_rgb{{1.0, 1.0, 1.0}};
+};
+
+// What the design aims for: `--target anti-mirror | pattern:IMAGE.png | colour:#RRGGBB |
+// iridescent:SPEC.json | brdf:TABLE.exr`.
 struct DesignTarget {
     DesignKind kind = DesignKind::AntiMirror;
     std::string text = "anti-mirror";  // as given
@@ -34,11 +43,20 @@ struct DesignTarget {
     // Colour: the target as 8-bit sRGB (as typed) and as linear sRGB.
     std::array<int, 3> srgb8{{255, 255, 255}};
     std::array<double, 3> linear_rgb{{1.0, 1.0, 1.0}};
+    // Iridescent: the pairs of SPEC.json (docs/design.md), each a view cone with its colour.
+    std::vector<IridescentPair> pairs;
+    std::string spec_file;
+    // Brdf: the tabulated BRDF (table.h) and its file.
+    std::shared_ptr<const BrdfTable> table;
+    std::string table_file;
 };
 
 // Parses a --target text; a pattern's image is read from its PNG (8- or 16-bit, grey or RGB: the
-// luminance; at most 1024 × 1024). Throws std::invalid_argument naming the text (unknown kind, a
-// colour that is not #RRGGBB, an unreadable or empty image) before any work.
+// luminance; at most 1024 × 1024); an iridescent target's pairs from its JSON (at most 64 kB, 1 to
+// 16 pairs); a brdf target's table from its EXR (read_brdf_table; the mosaic's size bounded from
+// the header before its pixels are read). Throws std::invalid_argument naming the text (unknown
+// kind, a colour that is not #RRGGBB, an unreadable or empty image, a bad spec or table) before
+// any work.
 DesignTarget parse_design_target(const std::string& text);
 // A pattern target from grey values (row-major, rows × cols, finite, ≥ 0, not all equal).
 DesignTarget pattern_target(int rows, int cols, std::vector<double> image);
@@ -140,7 +158,8 @@ struct DesignResult {
 // finished and scored all the same).
 DesignResult run_design(const PreparedDesign& prepared, const std::function<bool(const DesignStep&)>& on_step = {});
 
-// Writes the run directory (docs/design.md): design.json, heights.exr (µm, self-describing),
+// Writes the run directory (docs/design.md): design.json, heights.exr (µm, self-describing), heights.x3p
+// (where the x3p plugin loads),
 // target.exr, far_field.exr, metrics.csv. A new or empty directory, or with `force` one holding
 // only a design's outputs (run_directory.h).
 void write_design_directory(const std::string& dir, const DesignResult& result, bool force);

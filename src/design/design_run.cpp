@@ -19,9 +19,11 @@
 #include "design/evaluator.h"
 #include "design/relief.h"
 #include "design/target.h"
+#include "design/target_more.h"
 #include "wavebrdf/design.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
+#include "wavebrdf/table.h"
 #include "wavebrdf/text.h"
 #include "wavebrdf/version.h"
 
@@ -323,6 +325,8 @@ const char* to_string(DesignKind kind) {
         case DesignKind::AntiMirror: return "anti-mirror";
         case DesignKind::Pattern: return "pattern";
         case DesignKind::Colour: return "colour";
+        case DesignKind::Iridescent: return "iridescent";
+        case DesignKind::Brdf: return "brdf";
     }
     return "?";
 }
@@ -378,8 +382,11 @@ DesignTarget parse_design_target(const std::string& text) {
             throw std::invalid_argument("--target '" + text + "': black has no chromaticity; expected a colour");
         return t;
     }
+    if (text.rfind("iridescent:", 0) == 0) return detail::read_iridescent_target(text, text.substr(11));
+    if (text.rfind("brdf:", 0) == 0) return detail::read_brdf_target(text, text.substr(5));
     throw std::invalid_argument("--target '" + text +
-                                "' is unknown; expected anti-mirror, pattern:IMAGE.png or colour:#RRGGBB");
+                                "' is unknown; expected anti-mirror, pattern:IMAGE.png, colour:#RRGGBB, "
+                                "iridescent:SPEC.json or brdf:TABLE.exr");
 }
 
 FabricationErrors parse_fabrication_errors(const std::string& text) {
@@ -420,6 +427,7 @@ FabricationErrors parse_fabrication_errors(const std::string& text) {
 }
 
 std::vector<double> design_wavelengths_um(const DesignOptions& o) {
+    if (o.target.kind == DesignKind::Brdf && o.target.table) return o.target.table->spec.lambdas_um;
     if (o.spectral == 0) return {o.lambda_um};
     std::vector<double> l(static_cast<std::size_t>(o.spectral));
     for (int k = 0; k < o.spectral; ++k)
@@ -431,11 +439,12 @@ double estimate_design_bytes(const DesignOptions& o) {
     const double period = o.size * o.texel_um;
     double orders = 0.0;
     for (double lambda : design_wavelengths_um(o)) orders += k_pi * (period / lambda) * (period / lambda) + 4.0 * period / lambda;
+    orders *= static_cast<double>(detail::design_lights(o).size());
     const double n2 = static_cast<double>(o.size) * o.size;
     const double weights = 7.0 * 8.0 * o.levels * n2;  // θ, p, Adam's two moments, gradients, one-hot
     const int threads = 2;
     const double spectra = 16.0 * o.levels * n2 * (2.0 + threads);
-    return 1.2 * (orders * 76.0 + weights + spectra) + 64e6;
+    return 1.2 * (orders * 76.0 + weights + spectra + detail::more_target_bytes(o)) + 64e6;
 }
 
 PreparedDesign prepare_design(const DesignOptions& options) {
@@ -520,14 +529,17 @@ PreparedDesign prepare_design(const DesignOptions& options) {
             p.target = detail::make_colour(spec);
             break;
         }
+        case DesignKind::Iridescent:
+        case DesignKind::Brdf: detail::prepare_more_target(p); break;
     }
     p.estimated_bytes = estimate_design_bytes(o);
     require_memory(p.estimated_bytes, memory_limit(o.max_memory_gb), "the design");
     auto sets = std::make_shared<std::vector<detail::OrderSet>>();
-    for (double lambda : p.lambdas_um) {
-        sets->push_back(detail::make_order_set(o.size, o.texel_um, o.omega_i, lambda));
-        p.orders += sets->back().size();
-    }
+    for (const auto& light : detail::design_lights(p.options))
+        for (double lambda : p.lambdas_um) {
+            sets->push_back(detail::make_order_set(o.size, o.texel_um, light, lambda));
+            p.orders += sets->back().size();
+        }
     p.target->assign(*sets);
     p.order_sets = sets;
     if (o.errors.blur_um > 0.0)
@@ -705,12 +717,16 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
             extent = std::min(1.0, std::max(std::abs(view[0] - mirror[0]), std::abs(view[1] - mirror[1])) + 2.0 * o.view_cone);
             break;
         }
+        case DesignKind::Iridescent:
+        case DesignKind::Brdf: extent = detail::more_picture_extent(o); break;
     }
     r.picture_extent = extent;
     const int n = r.picture_size;
     r.far_field_picture = far_field_picture(sets, exact_fractions, exact_flux, p.lambdas_um, n, extent);
     r.target_picture.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n) * 3, 0.0f);
-    {
+    if (o.target.kind == DesignKind::Iridescent || o.target.kind == DesignKind::Brdf) {
+        detail::more_target_picture(o, n, extent, r.target_picture);
+    } else {
         const double pixel_area = (2.0 * extent / n) * (2.0 * extent / n);
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
@@ -753,14 +769,17 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
         target["image_rows"] = o.target.image_rows;
         target["image_cols"] = o.target.image_cols;
         target["image_file"] = o.target.image_file;
-    } else {
+    } else if (o.target.kind == DesignKind::Colour) {
         const std::array<double, 2> view = o.view ? *o.view : mirror;
         target["srgb8"] = o.target.srgb8;
         target["linear_rgb"] = o.target.linear_rgb;
         target["view"] = view;
         target["view_cone"] = o.view_cone;
+    } else {
+        detail::more_target_json(o, target);
     }
     j["target"] = target;
+    j["picture_extent"] = extent;
     j["light"] = {{"omega_i", o.omega_i}, {"lambdas_um", p.lambdas_um}, {"spectral", o.spectral},
                   {"band_um", o.spectral ? nlohmann::json(o.band_um) : nlohmann::json(nullptr)}};
     j["constraints"] = {{"size", N}, {"texel_um", o.texel_um}, {"height_range_um", o.height_range_um},

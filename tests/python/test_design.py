@@ -58,3 +58,33 @@ def test_bad_input_is_a_value_error_before_any_work():
         wb.design(target="pattern", image=np.eye(3), window=0.9, size=8)
     with pytest.raises(ValueError, match="lambda_um"):
         wb.design(lambda_um=0.5, spectral=4, size=8)
+
+
+def test_iridescent_cli_and_python_give_the_same_design(cli, tmp_path):
+    spec = tmp_path / "spec.json"
+    spec.write_text(json.dumps({"pairs": [{"view": [0.25, 0.0], "colour": "#ff8000"},
+                                          {"view": [-0.25, 0.0], "colour": "#0080ff"}]}))
+    target = "iridescent:" + str(spec)
+    r = wb.design(target=target, size=16, spectral=4, band_um=(0.42, 0.68), levels=4, height_range_um=1.0,
+                  view_cone=0.1, iterations=8, refine_passes=4, seed=3)
+    out = tmp_path / "run"
+    subprocess.run([cli, "design", "--target", target, "--out", str(out), "--size", "16", "--spectral", "4",
+                    "--band-um", "0.42,0.68", "--levels", "4", "--height-range-um", "1", "--view-cone", "0.1",
+                    "--iterations", "8", "--refine-passes", "4", "--seed", "3", "--quiet", "--no-plots"], check=True)
+    hf = wb.Heightfield.from_exr(str(out / "heights.exr"))
+    heights = np.asarray(hf.values) * hf.texel_um * hf.vscale
+    np.testing.assert_allclose(heights.reshape(16, 16), r["heights_um"], atol=1e-6)
+    doc = json.loads((out / "design.json").read_text())
+    assert doc["target"]["kind"] == "iridescent"
+    assert len(r["metrics"]["exact"]["pairs"]) == 2
+    assert doc["metrics"]["exact"]["delta_uv"] == pytest.approx(r["metrics"]["exact"]["delta_uv"], rel=1e-12)
+    assert doc["metrics"]["exact"]["luminous_efficiency"] == pytest.approx(
+        r["metrics"]["exact"]["luminous_efficiency"], rel=1e-12)
+
+
+def test_bad_iridescent_spec_is_one_line(tmp_path):
+    spec = tmp_path / "spec.json"
+    spec.write_text('{"pairs": [{"view": [1.5, 0], "colour": "#ff0000"}]}')
+    with pytest.raises(ValueError, match="visible disk") as e:
+        wb.design(target="iridescent:" + str(spec), spectral=4, size=8)
+    assert "\n" not in str(e.value)
