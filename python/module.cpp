@@ -1,6 +1,7 @@
 // The compiled part of the Python package: wavebrdf._core (re-exported by wavebrdf/__init__.py).
 #include "common.h"
 #include "design.h"
+#include "design_plate.h"
 #include "fabrication.h"
 #include "lobe.h"
 #include "wavebrdf/communicator.h"
@@ -25,6 +26,7 @@ PYBIND11_MODULE(_core, m) {
     bind_fabrication(m);
     bind_image(m);
     bind_design(m);
+    bind_design_plate(m);
     bind_surface(m);
     bind_conditioning(m);
     // A long call stopped by Ctrl-C (InterruptibleRelease): its poll left the signal handler's

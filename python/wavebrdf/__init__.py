@@ -84,6 +84,8 @@ __all__ = [
 __all__ += ["read_slice"]
 from ._core import design  # noqa: E402,F401  (docs/design.md)
 __all__ += ["design"]
+from ._core import design_plate  # noqa: E402,F401  (docs/design.md, "Plate")
+__all__ += ["design_plate"]
 __all__ += ["condition_surface", "surface_acf", "surface_psd", "surface_stats"]
 # Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.
 from ._core import built_with_hdf5, read_observation_index  # noqa: F401

@@ -685,6 +685,22 @@ def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..
     """
     ...
 
+def design_plate(picture: Any, palette: str, out: Any = ..., force: bool = ..., plate_pixel_um: float = ..., light: List[float[2]] = ..., spectral: int = ..., band_um: List[float[2]] = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ...) -> dict:
+    """A plate that shows a picture, one palette design per region: `wavebrdf design --target
+    image:PICTURE.png --palette ...` (docs/design.md, "Plate"), the same library run.
+
+    picture: a PNG path or a (rows, cols, 3) uint8 array of sRGB values. palette: '#RRGGBB;#RRGGBB;...'
+    or 'dir:X,Y;dir:X,Y;...'. plate_pixel_um: a picture pixel's side on the plate, a whole number of
+    tile periods (0: one period). The other options are the CLI's (white light: spectral >= 3; note
+    the defaults here: size 128, levels 16). out: also write the run directory there.
+
+    Returns a dict: heights_um (the plate, float64, um), levels_um, texel_um, assignment (each picture
+    pixel's palette entry), appearance (views x rows x cols x 3 float32: each region's linear sRGB into
+    the view cone under exact scalar diffraction of its tile), views (their names) and design (all of
+    design.json). The same options and seed give the same plate as the CLI.
+    """
+    ...
+
 def gradient(heightfield: Heightfield, query: Query, weights: Any, precision: str = ..., *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
     """The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
     values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss
