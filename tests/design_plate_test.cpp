@@ -246,7 +246,7 @@ TEST(DesignPlate, CliWritesThePlateAndRefusesBadInputWithOneLine) {
     const std::string base = "design --target image:pic.png --size 8 --spectral 3 --iterations 2 --refine-passes 1 --quiet ";
     const CliResult r = run_cli(dir, base + "--palette '#00FF00;#FF00FF' --plate-pixel-um 8 --out run");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    for (const char* name : {"design.json", "heights.exr", "heights.png", "heights.stl", "masks.json", "plate.png", "plate.exr"})
+    for (const char* name : {"design.json", "heights.exr", "heights.x3p", "heights.png", "heights.stl", "masks.json", "plate.png", "plate.exr"})
         EXPECT_TRUE(fs::is_regular_file(dir / "run" / name)) << name;
     const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
     EXPECT_EQ(j["target"]["kind"], "image");

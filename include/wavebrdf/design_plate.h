@@ -104,7 +104,7 @@ struct PlateResult {
 PlateResult run_plate(const PreparedPlate& prepared,
                       const std::function<bool(int entry, const DesignStep&)>& on_step = {});
 
-// Writes the run directory: design.json, heights.exr, the fabrication files (heights.png,
+// Writes the run directory: design.json, heights.exr (and heights.x3p), the fabrication files (heights.png,
 // masks, heights.stl when under 1 GB), plate.png (the picture beside its appearance) and
 // plate.exr (the appearance panels side by side, linear).
 void write_plate_directory(const std::string& dir, const PlateResult& result, bool force);
