@@ -94,7 +94,7 @@ TEST(FuzzCorpus, OtherRunCheckpointSeedReachesTheDifferenceReport) {
 
 #ifdef WAVEBRDF_HAS_HDF5
 TEST(FuzzCorpus, EveryHdf5ObservationSeedIsRead) {
-    const auto files = seeds("observations_hdf5");
+    const auto files = seeds("observations_hdf5_bytes");
     ASSERT_GE(files.size(), 2u);
     for (const fs::path& file : files) EXPECT_FALSE(wavebrdf::read_observations_file(file.string()).empty()) << file;
 }
