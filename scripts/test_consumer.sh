@@ -5,7 +5,7 @@
 #      build (BUILD, default build/; not rebuilt), which must be configured and built already.
 #      Asking for 0.3, 1.0 or 0.1 instead must fail (0.x: same minor version only). The
 #      installed CLI draws a report with the installed Python package (when it was built).
-#   2. add_subdirectory(<this source tree>): the consumer's own build of the library, with
+#   2. add_subdirectory(<this source tree>): the consumer's own Debug build of the library, with
 #      tests, benchmarks, Python and the CLI off by default (build-consumer/, kept for ccache).
 # Both check that no flag of ours (-march=native, sanitizers, OpenMP, Eigen's path) reaches the
 # consumer's compile lines.
@@ -83,8 +83,10 @@ else
     echo "test_consumer: no installed Python package or no matplotlib: report not checked"
 fi
 
-echo "test_consumer: 2. add_subdirectory of the source tree"
-cmake -S tests/consumer -B build-consumer -DWAVEBRDF_SOURCE_DIR="$root" -DCMAKE_BUILD_TYPE=Release \
+# A Debug consumer: a second build type, and -O0 compiles the whole library (this part builds
+# all of it, with the consumer's flags) faster than -O2.
+echo "test_consumer: 2. add_subdirectory of the source tree (Debug)"
+cmake -S tests/consumer -B build-consumer -DWAVEBRDF_SOURCE_DIR="$root" -DCMAKE_BUILD_TYPE=Debug \
     -DCMAKE_EXPORT_COMPILE_COMMANDS=ON "${launcher[@]}" >"$work/sub-configure.log"
 cache=build-consumer/CMakeCache.txt
 for option in WAVEBRDF_BUILD_TESTS WAVEBRDF_BUILD_BENCH WAVEBRDF_BUILD_PYTHON WAVEBRDF_BUILD_CLI \
