@@ -1,8 +1,9 @@
 // libFuzzer target: the HDF5 observation reader (read_observation_index and
 // read_observations_file of a .h5 path) on arbitrary bytes: structure, chunk layout, storage
 // that points outside the file, filters and declared sizes are all checked before a read
-// (observation_hdf5.cpp). Seeds: fuzz/corpus/observations_hdf5/ (files written by
-// write_observations_file).
+// (observation_hdf5.cpp). Seeds: fuzz/corpus/observations_hdf5_bytes/ (files written by
+// write_observations_file). Mostly HDF5's own parser at work (fuzz/README.md): scripts/fuzz.sh
+// replays its inputs unless it is named; observations_hdf5_fuzz fuzzes our reader by recipe.
 #include <cstdint>
 #include <cstdlib>
 
