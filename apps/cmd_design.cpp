@@ -31,7 +31,7 @@ struct DesignArgs {
     double plate_pixel_um = 0.0;
     std::vector<double> band_um;
     double view_x = 0.0, view_y = 0.0;
-    bool given_view = false, given_spectral = false, force = false, quiet = false, no_plots = false;
+    bool given_view = false, given_spectral = false, given_lambda = false, force = false, quiet = false, no_plots = false;
     DesignOptions options;
 };
 
@@ -97,6 +97,9 @@ void run(DesignArgs a) {
     if (a.target.rfind("image:", 0) == 0) return run_plate_command(a);
     if (!a.palette.empty()) throw std::invalid_argument("--palette goes with --target image:PICTURE.png");
     o.target = parse_design_target(a.target);
+    if (o.target.kind == DesignKind::Brdf && a.given_lambda)
+        throw std::invalid_argument("--lambda-um with --target " + a.target +
+                                    ": a brdf target's wavelengths are its table's; expected no --lambda-um");
     const PreparedDesign prepared = prepare_design(o);
     if (!a.quiet) {
         std::cerr << "design: " << o.size << "x" << o.size << " texels of " << format_shortest(o.texel_um) << " um, "
@@ -137,7 +140,7 @@ void run(DesignArgs a) {
 void add_design_command(CLI::App& app) {
     auto a = std::make_shared<DesignArgs>();
     CLI::App* cmd = app.add_subcommand("design", "Design a texel relief for a target appearance (docs/design.md)");
-    cmd->add_option("--target", a->target, "anti-mirror, pattern:IMAGE.png, colour:#RRGGBB or image:PICTURE.png")
+    cmd->add_option("--target", a->target, "anti-mirror, pattern:IMAGE.png, colour:#RRGGBB, iridescent:SPEC.json, brdf:TABLE.exr or image:PICTURE.png")
         ->capture_default_str();
     cmd->add_option("--palette", a->palette,
                     "image: the plate's designs, '#RRGGBB;#RRGGBB;...' or 'dir:X,Y;dir:X,Y;...'");
@@ -162,7 +165,7 @@ void add_design_command(CLI::App& app) {
         ->capture_default_str();
     auto* vx = cmd->add_option("--view-x", a->view_x, "colour: projected view direction, x (default: the mirror's)");
     auto* vy = cmd->add_option("--view-y", a->view_y, "colour: projected view direction, y (default: the mirror's)");
-    cmd->add_option("--view-cone", a->options.view_cone, "colour: sin of the view cone's half-angle")
+    cmd->add_option("--view-cone", a->options.view_cone, "colour, iridescent: sin of the view cone's half-angle")
         ->capture_default_str();
     cmd->add_option("--size", a->options.size, "N: the N x N periodic tile")->capture_default_str();
     cmd->add_option("--texel-um", a->options.texel_um, "texel width in um")->capture_default_str();
@@ -183,8 +186,9 @@ void add_design_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
-    cmd->callback([a, spectral, vx, vy] {
+    cmd->callback([a, spectral, lambda, vx, vy] {
         a->given_spectral = spectral->count() > 0;
+        a->given_lambda = lambda->count() > 0;
         if ((vx->count() > 0) != (vy->count() > 0))
             throw std::invalid_argument("--view-x and --view-y go together; give both or neither");
         a->given_view = vx->count() > 0;

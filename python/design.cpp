@@ -35,6 +35,8 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     o.omega_i = light;
     if (!lambda_um.is_none() && !spectral.is_none())
         bad_argument("lambda_um", "given with spectral", "one of lambda_um (a laser) or spectral (white light)");
+    if (!lambda_um.is_none() && o.target.kind == DesignKind::Brdf)
+        bad_argument("lambda_um", "given with a brdf target", "None: a brdf target's wavelengths are its table's");
     if (!lambda_um.is_none()) o.lambda_um = lambda_um.cast<double>();
     if (!spectral.is_none()) {
         o.spectral = spectral.cast<int>();
@@ -97,8 +99,9 @@ void bind_design(py::module_& m) {
           "refine_passes"_a = 60, "max_memory_gb"_a = 0.0,
           R"(A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
-target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', or 'pattern' with image= (a 2-D grey
-array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
+target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
+pairs), 'brdf:TABLE.exr' (a wavebrdf table or lobe file; its lights and wavelengths), or 'pattern' with
+image= (a 2-D grey array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
 or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, region
 (anti-mirror), window (pattern), view (default the mirror direction) and view_cone (colour) as the
 CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule),

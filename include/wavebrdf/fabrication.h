@@ -90,6 +90,8 @@ struct FabricationFiles {
     std::vector<LevelMask> masks;     // DIR/masks_NN.png (empty for a grayscale relief)
     long long stl_triangles = 0;      // the STL's triangles (84 + 50 per triangle bytes)
     std::string note;                 // why the STL was not written ("" when it was)
+    std::string heights_x3p;          // DIR/heights.x3p ("" when not written)
+    std::string x3p_note;             // why heights.x3p was not written ("" when it was)
 };
 
 // Writes the fabrication files of a relief into the existing directory `out_dir`:
@@ -99,7 +101,9 @@ struct FabricationFiles {
 // the texel). levels = 0: a grayscale relief, no masks. The STL takes 84 + 50 bytes per
 // triangle, 2 to about 8 triangles per texel (a random 8-level 1024² relief: 375 MB): when it
 // would exceed max_stl_bytes it is not written, heights_stl is "" and `note` says why.
-// Checks as the writers'.
+// heights.x3p: the heights as ISO 25178-72 x3p (write_surface, surface_file.h: float64 µm, rows
+// along y), where the x3p plugin loads and its copies (about 24 bytes a texel) stay within
+// max_stl_bytes; else heights_x3p is "" and x3p_note says why. Checks as the writers'.
 FabricationFiles write_fabrication_exports(const std::string& out_dir, const std::vector<double>& heights_um, int rows,
                                            int cols, double texel_um, double height_range_um, int levels,
                                            double max_stl_bytes = 4e9);

@@ -245,7 +245,25 @@ def make_report(directory):
         rgb = _get(doc, "metrics", key, "linear_srgb")
         if isinstance(rgb, list) and len(rgb) == 3 and all(isinstance(x, (int, float)) for x in rgb):
             swatches.append((label, rgb))
-    if len(swatches) >= 1 and target_rgb is not None:
+    # An iridescent target: each pair's target colour above what exact scalar diffraction reaches.
+    pairs = _get(doc, "target", "pairs")
+    reached = _get(doc, "metrics", "exact", "pairs")
+    if isinstance(pairs, list) and pairs and isinstance(reached, list) and len(reached) == len(pairs):
+        for k, (p, m) in enumerate(zip(pairs, reached)):
+            for row, rgb in ((1, _get(p, "linear_rgb")), (0, _get(m, "linear_srgb"))):
+                if isinstance(rgb, list) and len(rgb) == 3 and all(isinstance(x, (int, float)) for x in rgb):
+                    ax.add_patch(plt.Rectangle((k, row * 1.1), 0.9, 1, color=linear_to_srgb(rgb)))
+            view = _get(p, "view", default=["?", "?"])
+            du, y = _get(m, "delta_uv"), _get(m, "luminous_efficiency")
+            label = "view (%s, %s)" % tuple(_format_value(v) for v in view)
+            if isinstance(du, (int, float)) and isinstance(y, (int, float)):
+                label += "\nΔu′v′ %.3f\nY %.1f%%" % (du, 100 * y)
+            ax.text(k + 0.45, -0.08, label, ha="center", va="top", fontsize=7)
+        ax.set_xlim(-0.1, len(pairs))
+        ax.set_ylim(-0.6, 2.15)
+        ax.set_title("pairs: target (top), exact (bottom)", fontsize=9)
+        ax.axis("off")
+    elif len(swatches) >= 1 and target_rgb is not None:
         for k, (label, rgb) in enumerate(swatches):
             ax.add_patch(plt.Rectangle((k, 0), 0.9, 1, color=linear_to_srgb(rgb)))
             ax.text(k + 0.45, -0.08, label, ha="center", va="top", fontsize=8)

@@ -9,7 +9,6 @@
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/run_directory.h"
-#include "wavebrdf/surface_file.h"
 #include "wavebrdf/text.h"
 
 namespace wavebrdf {
@@ -22,13 +21,6 @@ void write_design_directory(const std::string& dir, const DesignResult& result, 
     for (std::size_t t = 0; t < values.size(); ++t) values[t] = result.heights_um[t] / result.texel_um;
     const Heightfield hf(result.size, result.size, std::move(values), result.texel_um, 1.0);
     write_heightfield_exr((d / "heights.exr").string(), hf, "wavebrdf design");
-    // The same heights as ISO 25178-72 x3p (float64 µm) where the x3p plugin loads; else a note.
-    std::string x3p_note;
-    try {
-        write_surface((d / "heights.x3p").string(), from_heightfield(hf, "x3p"));
-    } catch (const std::runtime_error& e) {
-        x3p_note = std::string("heights.x3p not written: ") + e.what();
-    }
     // For lithography and printing: heights.png (16-bit, 0 … the top level), the etch masks of
     // the levels (their step is the top level over K − 1) and heights.stl.
     const FabricationFiles files = write_fabrication_exports(
@@ -59,8 +51,8 @@ void write_design_directory(const std::string& dir, const DesignResult& result, 
                               {"stl_note", files.note},
                               {"masks_json", files.masks_json.empty() ? "" : "masks.json"},
                               {"masks", masks},
-                              {"heights_x3p", x3p_note.empty() ? "heights.x3p" : ""}};
-    if (!x3p_note.empty()) j["fabrication_files"]["x3p_note"] = x3p_note;
+                              {"heights_x3p", files.heights_x3p.empty() ? "" : "heights.x3p"}};
+    if (!files.x3p_note.empty()) j["fabrication_files"]["x3p_note"] = files.x3p_note;
     write_text_atomically((d / "design.json").string(), j.dump(2) + "\n");
 }
 

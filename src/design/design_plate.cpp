@@ -23,7 +23,6 @@
 #include "wavebrdf/memory.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/spectrum.h"
-#include "wavebrdf/surface_file.h"
 #include "wavebrdf/text.h"
 #include "wavebrdf/version.h"
 
@@ -498,18 +497,11 @@ RgbImage side_by_side(const std::vector<RgbImage>& panels, int gap) {
 void write_plate_directory(const std::string& dir, const PlateResult& r, bool force) {
     prepare_run_directory(RunKind::Design, dir, force);
     const std::filesystem::path d(dir);
-    std::string x3p_note;
     {
         std::vector<double> values(r.heights_um.size());
         for (std::size_t t = 0; t < values.size(); ++t) values[t] = r.heights_um[t] / r.texel_um;
         const Heightfield hf(r.rows, r.cols, std::move(values), r.texel_um, 1.0);
         write_heightfield_exr((d / "heights.exr").string(), hf, "wavebrdf design (plate)");
-        // As the single design: ISO 25178-72 x3p where the x3p plugin loads, else a note.
-        try {
-            write_surface((d / "heights.x3p").string(), from_heightfield(hf, "x3p"));
-        } catch (const std::runtime_error& e) {
-            x3p_note = std::string("heights.x3p not written: ") + e.what();
-        }
     }
     const FabricationFiles files = write_fabrication_exports(dir, r.heights_um, r.rows, r.cols, r.texel_um,
                                                              r.levels_um.back(), static_cast<int>(r.levels_um.size()), 1e9);
@@ -535,11 +527,11 @@ void write_plate_directory(const std::string& dir, const PlateResult& r, bool fo
                               {"stl_note", files.note},
                               {"masks_json", files.masks_json.empty() ? "" : "masks.json"},
                               {"masks", masks},
-                              {"heights_x3p", x3p_note.empty() ? "heights.x3p" : ""},
+                              {"heights_x3p", files.heights_x3p.empty() ? "" : "heights.x3p"},
+                              {"x3p_note", files.x3p_note},
                               {"plate_png", "plate.png"},
                               {"plate_exr", "plate.exr"},
                               {"views", r.view_names}};
-    if (!x3p_note.empty()) j["fabrication_files"]["x3p_note"] = x3p_note;
     write_text_atomically((d / "design.json").string(), j.dump(2) + "\n");
 }
 

@@ -707,7 +707,8 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
 
     // Pictures on the window grid.
     const std::array<double, 2> mirror{-o.omega_i[0], -o.omega_i[1]};
-    r.picture_size = 256;
+    // A brdf target's pictures on its table's ω_o grid (about the mirror direction): what it is scored on.
+    r.picture_size = o.target.kind == DesignKind::Brdf ? o.target.table->spec.resolution : 256;
     double extent = 0.3;
     switch (o.target.kind) {
         case DesignKind::AntiMirror: extent = std::min(1.0, 1.2 * parse_region(o.region).r2); break;

@@ -20,6 +20,7 @@
 
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/surface_file.h"
 #include "wavebrdf/version.h"
 
 namespace wavebrdf {
@@ -490,6 +491,23 @@ FabricationFiles write_fabrication_exports(const std::string& out_dir, const std
         files.masks = write_level_masks((dir / "masks").string(), level_index, rows, cols, levels, height_range_um,
                                         texel_um);
         files.masks_json = (dir / "masks.json").string();
+    }
+    // The heights as x3p for metrology and mask-writer tools that read ISO 25178 surfaces.
+    const double x3p_bytes = 24.0 * static_cast<double>(heights_um.size());
+    if (x3p_bytes > max_stl_bytes) {
+        files.x3p_note = "heights.x3p not written: its copies take " + number(x3p_bytes / 1e9) +
+                         " GB, over the limit of " + number(max_stl_bytes / 1e9) + " GB";
+    } else {
+        try {
+            std::vector<double> values(heights_um.size());
+            for (std::size_t k = 0; k < values.size(); ++k) values[k] = heights_um[k] / texel_um;
+            const Heightfield hf(rows, cols, std::move(values), texel_um, 1.0);
+            write_surface((dir / "heights.x3p").string(), from_heightfield(hf, "x3p"));
+            files.heights_x3p = (dir / "heights.x3p").string();
+        } catch (const std::runtime_error& e) {
+            // The plugin did not load (or could not write): the other files do not depend on it.
+            files.x3p_note = std::string("heights.x3p not written: ") + e.what();
+        }
     }
     const double base_um = std::max(height_range_um, texel_um);
     files.stl_triangles = stl_triangle_count(heights_um, rows, cols, base_um);
