@@ -97,6 +97,9 @@ void run(DesignArgs a) {
     if (a.target.rfind("image:", 0) == 0) return run_plate_command(a);
     if (!a.palette.empty()) throw std::invalid_argument("--palette goes with --target image:PICTURE.png");
     o.target = parse_design_target(a.target);
+    if (o.target.kind == DesignKind::Iridescent && a.given_view)
+        throw std::invalid_argument("--view-x/-y with --target " + a.target +
+                                    ": an iridescent target's views are its spec's pairs; expected no --view-x/-y");
     if (o.target.kind == DesignKind::Brdf && a.given_lambda)
         throw std::invalid_argument("--lambda-um with --target " + a.target +
                                     ": a brdf target's wavelengths are its table's; expected no --lambda-um");

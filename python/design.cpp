@@ -46,6 +46,8 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     o.specular_cone = specular_cone;
     o.region = region;
     o.window = window;
+    if (!view.is_none() && o.target.kind == DesignKind::Iridescent)
+        bad_argument("view", "given with an iridescent target", "None: the views are the spec's pairs");
     if (!view.is_none()) o.view = view.cast<std::array<double, 2>>();
     o.view_cone = view_cone;
     o.size = size;

@@ -88,3 +88,31 @@ def test_bad_iridescent_spec_is_one_line(tmp_path):
     with pytest.raises(ValueError, match="visible disk") as e:
         wb.design(target="iridescent:" + str(spec), spectral=4, size=8)
     assert "\n" not in str(e.value)
+    with pytest.raises(ValueError, match="view"):
+        spec.write_text('{"pairs": [{"view": [0.2, 0], "colour": "#ff0000"}]}')
+        wb.design(target="iridescent:" + str(spec), spectral=4, size=8, view=(0.1, 0.1))
+
+
+def test_brdf_against_a_lobe_file_cli_and_python_agree(cli, tmp_path):
+    # The table written by another command (wavebrdf lobe), designed for by the CLI and by
+    # wb.design from one seed: the same heights and relative L2, which beats the random start's.
+    table = tmp_path / "ggx.exr"
+    subprocess.run([cli, "lobe", "--distribution", "ggx", "--alpha", "0.2", "--lights", "1", "--resolution", "16",
+                    "--out", str(table)], check=True, capture_output=True)
+    target = "brdf:" + str(table)
+    options = dict(size=24, levels=4, height_range_um=1.0, iterations=20, refine_passes=5, seed=2)
+    r = wb.design(target=target, **options)
+    out = tmp_path / "run"
+    subprocess.run([cli, "design", "--target", target, "--out", str(out), "--size", "24", "--levels", "4",
+                    "--height-range-um", "1", "--iterations", "20", "--refine-passes", "5", "--seed", "2",
+                    "--quiet", "--no-plots"], check=True)
+    hf = wb.Heightfield.from_exr(str(out / "heights.exr"))
+    heights = np.asarray(hf.values) * hf.texel_um * hf.vscale
+    np.testing.assert_allclose(heights.reshape(24, 24), r["heights_um"], atol=1e-6)
+    doc = json.loads((out / "design.json").read_text())
+    assert doc["target"]["kind"] == "brdf"
+    assert doc["metrics"]["exact"]["relative_l2"] == pytest.approx(r["metrics"]["exact"]["relative_l2"], rel=1e-12)
+    start = wb.design(target=target, **dict(options, iterations=0, refine_passes=0))
+    assert r["metrics"]["exact"]["relative_l2"] < start["metrics"]["exact"]["relative_l2"]
+    with pytest.raises(ValueError, match="lambda_um"):
+        wb.design(target=target, lambda_um=0.6, size=8)
