@@ -75,6 +75,8 @@ struct DesignOptions {
     // Light and wavelengths, as `render` takes them: a laser lambda_um (when spectral is 0) or
     // white light sampled at `spectral` wavelengths over band_um (the slices' band 0.36 … 0.83 µm by
     // default: λ_k = a + (k + ½)(b − a)/N, spectral_wavelengths_um's samples), equal energy.
+    // A brdf target takes its table's wavelengths and lights instead (spectral must be 0; omega_i
+    // picks the table's nearest light when the table has more than 16).
     std::array<double, 2> omega_i{{0.0, 0.0}};
     double lambda_um = 0.5;
     int spectral = 0;
@@ -84,7 +86,8 @@ struct DesignOptions {
     std::string region = "annulus:0.1,0.5";  // or disk:R, about the mirror direction
     // Pattern: the window's half-width about the mirror direction.
     double window = 0.3;
-    // Colour: the view direction (unset: the mirror direction) and its cone.
+    // Colour: the view direction (unset: the mirror direction) and its cone (iridescent: the
+    // cone of every pair's view; the views are the pairs').
     std::optional<std::array<double, 2>> view;
     double view_cone = 0.05;
     // The tile and the fabrication constraints.
