@@ -67,6 +67,7 @@ void run(const GenbrdfArgs& a) {
     job.out_exr = a.output;
     job.png = a.png;
     job.preview = to_preview_options(a.preview);
+    job.clip_negative = clip_negative_option(a.preview);
     job.with_alpha = true;
     job.quiet = a.quiet;
     job.options.max_memory_gb = a.max_memory_gb;

@@ -21,6 +21,7 @@
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/inversion_run.h"
 #include "wavebrdf/render_options.h"
+#include "wavebrdf/spectrum.h"
 
 namespace wavebrdf::cli {
 
@@ -29,7 +30,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct InvertArgs {
-    std::string truth, observations, init = "flat", size = "16";
+    std::string truth, observations, reference, weights, init = "flat", size = "16";
     double texel_um = 1.0, vscale = 1.0, x_um = 0.0, y_um = 0.0, sigma_p_um = 4.0;
     // Whether --x-um / --y-um were given (default: the tile centre). Not NaN as "absent":
     // --x-um nan is an error like any non-finite position.
@@ -61,11 +62,56 @@ struct InvertArgs {
 const std::set<std::string> kResumeOptions = {"--resume",   "--epochs",        "--quiet",
                                               "--no-plots", "--max-memory-gb", "--threads"};
 
+bool was_given(const InvertArgs& a, const char* option) {
+    return std::find(a.given.begin(), a.given.end(), option) != a.given.end();
+}
+
+// --reference: what the options do not say is read from the slice's attributes (the query it
+// was rendered with, its resolution, and the heightfield's size and scale when known). A slice
+// without attributes (a measurement) needs the query that the defaults would otherwise guess.
+void apply_reference_attributes(const InvertArgs& a, InversionOptions& o) {
+    const SliceFile slice = read_slice_exr(a.reference);
+    if (!was_given(a, "--resolution")) o.resolution = slice.image.rows;
+    if (!slice.attributes) {
+        const bool wavelength = a.given_lambda || a.given_spectral;
+        if (!was_given(a, "--sigma-p-um") || !wavelength)
+            throw std::invalid_argument(
+                "--reference " + a.reference +
+                " has no wavebrdf slice attributes (a measured slice?); expected its query as options: --sigma-p-um "
+                "and --lambda-um or --spectral (and --light-x/--light-y, --model, --x-um/--y-um where not the "
+                "defaults)");
+        return;
+    }
+    const SliceAttributes& s = *slice.attributes;
+    if (!a.given_x) o.x_um = s.query.x_um;
+    if (!a.given_y) o.y_um = s.query.y_um;
+    if (!was_given(a, "--sigma-p-um")) o.sigma_p_um = s.query.sigma_p_um;
+    if (!was_given(a, "--light-x")) o.omega_i[0] = s.query.omega_i[0];
+    if (!was_given(a, "--light-y")) o.omega_i[1] = s.query.omega_i[1];
+    if (!was_given(a, "--model")) o.model = s.query.model;
+    if (!a.given_lambda && !a.given_spectral) {
+        if (s.lambdas_um.size() == 1) {
+            o.lambda_um = s.lambdas_um[0];
+        } else if (s.lambdas_um == spectral_wavelengths_um(int(s.lambdas_um.size()))) {
+            o.spectral = int(s.lambdas_um.size());
+        } else {
+            o.wavelengths_um = s.lambdas_um;
+        }
+    }
+    if (s.heightfield_rows > 0) {
+        if (!was_given(a, "--size")) o.rows = s.heightfield_rows, o.cols = s.heightfield_cols;
+        if (!was_given(a, "--texel-um")) o.texel_um = s.texel_um;
+        if (!was_given(a, "--vscale")) o.vscale = s.vscale;
+    }
+}
+
 // The flags as the library's options; every text parsed here, once.
 InversionOptions to_options(const InvertArgs& a) {
     InversionOptions o;
     o.truth_path = a.truth;
     o.observations_path = a.observations;
+    o.reference_path = a.reference;
+    o.weights_path = a.weights;
     // The size matters for the generated truth and with --observations (a given truth brings its own).
     if (a.truth.empty()) parse_size("--size", a.size, o.rows, o.cols);
     o.texel_um = a.texel_um;
@@ -116,6 +162,7 @@ InversionOptions to_options(const InvertArgs& a) {
     o.checkpoint_every = a.checkpoint_every;
     o.max_memory_gb = a.max_memory_gb;
     o.names = OptionStyle::Cli;
+    if (!a.reference.empty()) apply_reference_attributes(a, o);
     return o;
 }
 
@@ -195,6 +242,12 @@ void add_invert_command(CLI::App& app) {
                     "true heightfield EXR: references are rendered from it (default: a generated 16x16 surface)");
     cmd->add_option("--observations", a->observations,
                     "reference slices with their query parameters (JSON, or HDF5: .h5 .hdf5 .cxi)");
+    cmd->add_option("--reference", a->reference,
+                    "one reference slice EXR (render's, or measured) to fit; its query from its attributes where "
+                    "the options do not give it");
+    cmd->add_option("--weights", a->weights,
+                    "with --reference: per-pixel weights EXR of the slice's size (R channel, >= 0; 0 masks a dead, "
+                    "saturated or unmeasured pixel out of the loss)");
     cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
         ->capture_default_str();
     cmd->add_option("--texel-um", a->texel_um, "texel width w in um (with --truth: the file's if it says)")

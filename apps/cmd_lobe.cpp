@@ -10,6 +10,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/preview.h"
 #include "wavebrdf/lobe.h"
 #include "wavebrdf/model.h"
 #include "wavebrdf/table.h"
@@ -51,7 +52,10 @@ void run(LobeArgs a) {
         image.rows = spec.lights.rows * spec.resolution;
         image.cols = spec.lights.cols * spec.resolution;
         image.data = table_mosaic(table);
-        write_rgb_png(a.png, image, auto_exposure(std::vector<double>(image.data.begin(), image.data.end())), true);
+        // With grid lines between the lights' slices and each light row and column labelled.
+        write_preview_png(a.png,
+                          make_table_preview(image, spec.resolution, table.light_x, table.light_y,
+                                             auto_exposure(std::vector<double>(image.data.begin(), image.data.end()))));
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (!a.quiet)
@@ -86,7 +90,7 @@ void add_lobe_command(CLI::App& app) {
                     "the wavelength recorded in the file, um (the lobe does not depend on it)")
         ->capture_default_str();
     cmd->add_option("--out", a->out, "output EXR: the table mosaic (float RGB, f_r in 1/sr)")->required();
-    cmd->add_option("--png", a->png, "tonemapped 8-bit sRGB preview of the mosaic (auto exposure, Reinhard)");
+    cmd->add_option("--png", a->png, "tonemapped 8-bit sRGB preview of the mosaic (auto exposure, Reinhard), grid lines, light labels");
     cmd->add_option("--max-memory-gb", a->max_memory_gb,
                     "refuse a table whose estimated memory exceeds this many GB (0: the physical memory)")
         ->capture_default_str();

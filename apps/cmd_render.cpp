@@ -49,6 +49,7 @@ void run(RenderArgs a) {
     validate(a.query);
     validate_resolution(a.job.resolution);
     a.job.preview = to_preview_options(a.preview);
+    a.job.clip_negative = clip_negative_option(a.preview);
     check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.job.out_exr}, {"--png", a.job.png}});
     check_output_format("--out", a.job.out_exr, {".exr", ".npy"});
     check_output_format("--png", a.job.png, {".png"});

@@ -13,6 +13,7 @@
 #include "unit_check.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/preview.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/spectrum.h"
@@ -108,7 +109,10 @@ void run_on(TableArgs a, const Communicator* comm) {
         image.data = table_mosaic(table);
         // Reinhard at the slices' automatic exposure: the specular peaks differ by orders of
         // magnitude from the rest, which a clipped linear preview would lose.
-        write_rgb_png(a.png, image, auto_exposure(std::vector<double>(image.data.begin(), image.data.end())), true);
+        // With grid lines between the lights' slices and each light row and column labelled.
+        write_preview_png(a.png,
+                          make_table_preview(image, spec.resolution, table.light_x, table.light_y,
+                                             auto_exposure(std::vector<double>(image.data.begin(), image.data.end()))));
     }
     if (!a.quiet) {
         std::size_t lights = 0;
@@ -157,7 +161,8 @@ void add_table_command(CLI::App& app) {
                     "output EXR: a mosaic of the lights' slices (float RGB, f_r in 1/sr) with its axes as "
                     "attributes")
         ->required();
-    cmd->add_option("--png", a->png, "tonemapped 8-bit sRGB preview of the mosaic (auto exposure, Reinhard)");
+    cmd->add_option("--png", a->png,
+                    "tonemapped 8-bit sRGB preview of the mosaic (auto exposure, Reinhard), grid lines, light labels");
     cmd->add_option("--precision", a->precision, "float or double (values are stored as float)")->capture_default_str();
     add_render_path_options(cmd, a->path);
     cmd->add_option("--max-memory-gb", a->options.max_memory_gb,

@@ -1,5 +1,6 @@
 #include "slice_job.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -23,6 +24,13 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     if (!job.png.empty()) check_writable(job.png);
     // make_slice_preview would reject them too, but only after the EXR is written: check up front.
     if (!job.png.empty()) validate_preview_options(job.preview);
+    if (!job.png.empty() && job.preview.has_window) {
+        try {
+            window_pixels(job.preview.window, job.resolution);
+        } catch (const std::exception& e) {
+            throw std::invalid_argument(std::string("--") + e.what());
+        }
+    }
 
     Progress progress("render", work_units(job.resolution) * static_cast<long long>(job.lambdas_um.size()), !job.quiet);
     job.options.progress = &progress;
@@ -38,6 +46,10 @@ void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob 
     }
     progress.finish();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (job.clip_negative) {
+        for (float& v : image.data) v = std::max(v, 0.0f);
+        for (double& v : full) v = std::max(v, 0.0);
+    }
 
     const auto ends_with = [](const std::string& s, const std::string& tail) {
         return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
@@ -87,8 +99,23 @@ void add_preview_options(CLI::App* cmd, PreviewArgs& args) {
     }
     cmd->add_flag("--false-colour,--false-color", args.false_colour,
                   "preview: the luminance in false colour (viridis) instead of grey/colour");
-    cmd->add_flag("--colour-bar,--color-bar", args.colour_bar,
-                  "preview: append a colour bar with tick labels in 1/sr (log: powers of ten)");
+    auto* bar = cmd->add_flag("--colour-bar,--color-bar", args.colour_bar,
+                              "preview: a colour bar with tick labels in 1/sr right of the picture (log: powers of "
+                              "ten); the default");
+    cmd->add_flag("--no-colour-bar,--no-color-bar", args.no_colour_bar, "preview: no colour bar")->excludes(bar);
+    cmd->add_flag("--no-axes", args.no_axes, "preview: no omega axes (a frame with ticks and labels wx, wy)");
+    cmd->add_option("--window", args.window,
+                    "preview: only the pixels whose omega lies in x0,x1,y0,y1 (each in [-1, 1]), scaled up");
+    cmd->add_option("--negative", args.negative,
+                    "keep or clip: negative linear sRGB values of a spectral slice (out-of-gamut colours, "
+                    "docs/model.md) kept in the outputs, or set to 0")
+        ->capture_default_str();
+}
+
+bool clip_negative_option(const PreviewArgs& args) {
+    if (args.negative == "keep") return false;
+    if (args.negative == "clip") return true;
+    throw std::invalid_argument("--negative '" + args.negative + "' is unknown; expected keep or clip");
 }
 
 PreviewOptions to_preview_options(const PreviewArgs& args) {
@@ -99,7 +126,12 @@ PreviewOptions to_preview_options(const PreviewArgs& args) {
     o.exposure_stops = args.exposure;
     o.reinhard = args.reinhard;
     o.false_colour = args.false_colour;
-    o.colour_bar = args.colour_bar;
+    o.colour_bar = !args.no_colour_bar;
+    o.axes = !args.no_axes;
+    if (!args.window.empty()) {
+        o.window = parse_omega_window(args.window, "--window");
+        o.has_window = true;
+    }
     o.unit = k_slice_unit_label;
     if (!(o.log_decades > 0.0 && o.log_decades <= 30.0))
         throw std::domain_error("--log-decades " + format_shortest(o.log_decades) +

@@ -20,6 +20,9 @@ struct SliceJob {
     bool with_alpha = false;  // genBrdf's RGBA layout
     std::string png;
     PreviewOptions preview;  // checked before the render
+    // Negative linear-sRGB values of a spectral slice (colours outside the sRGB gamut, model.md)
+    // set to 0 in every output; false keeps them.
+    bool clip_negative = false;
     bool quiet = false;
     // Recorded in the slice EXR's attributes (io.h SliceAttributes).
     std::string heightfield_file;  // "" when none
@@ -33,20 +36,28 @@ struct PreviewArgs {
     double exposure = 0.0;
     bool reinhard = false;
     bool false_colour = false;
-    bool colour_bar = false;
+    bool colour_bar = false;  // given to be explicit: the bar is on unless --no-colour-bar
+    bool no_colour_bar = false;
+    bool no_axes = false;
+    std::string window;             // --window x0,x1,y0,y1 (ω), "" for the whole slice
+    std::string negative = "keep";  // --negative keep|clip (SliceJob::clip_negative)
     CLI::Option* log_decades_option = nullptr;
     CLI::Option* exposure_option = nullptr;
     CLI::Option* reinhard_option = nullptr;
 };
 
-// Adds --log, --log-decades, --exposure, --reinhard, --false-colour and --colour-bar to `cmd`;
-// `args` must outlive the parse (keep it in the command's shared arguments).
+// Adds --log, --log-decades, --exposure, --reinhard, --false-colour, --colour-bar,
+// --no-colour-bar, --no-axes, --window and --negative to `cmd`; `args` must outlive the parse
+// (keep it in the command's shared arguments).
 void add_preview_options(CLI::App* cmd, PreviewArgs& args);
 
 // The options for the library: the log scale unless --exposure or --reinhard asks for the linear
 // one (they exclude --log and --log-decades); the bar labelled with the slice unit. Throws
 // std::domain_error naming the flag for a bad --log-decades or --exposure.
 PreviewOptions to_preview_options(const PreviewArgs& args);
+
+// --negative: true for clip, false for keep; std::invalid_argument naming the value otherwise.
+bool clip_negative_option(const PreviewArgs& args);
 
 void run_slice_job(const Heightfield& heightfield, const Query& query, SliceJob job);
 

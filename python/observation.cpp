@@ -41,7 +41,7 @@ py::array observation_array(std::vector<double>&& values, const Observation& o) 
 
 namespace {
 
-Observation make_observation(const PyQuery& q, py::handle reference) {
+Observation make_observation(const PyQuery& q, py::handle reference, py::handle weights) {
     const py::array r = float_array(reference, "reference");
     const bool rgb = q.lambdas_um.size() > 1;
     const bool ok = rgb ? (r.ndim() == 3 && r.shape(2) == 3) : r.ndim() == 2;
@@ -53,8 +53,22 @@ Observation make_observation(const PyQuery& q, py::handle reference) {
     o.query = q.query;
     o.lambdas_um = q.lambdas_um;
     o.resolution = check_resolution(static_cast<int>(r.shape(0)), "reference.shape[0]");
-    o.reference = to_reference(to_doubles(r, "reference"));
-    validate(o);
+    if (weights.is_none()) {
+        o.reference = to_reference(to_doubles(r, "reference"));
+    } else {
+        const py::array w = float_array(weights, "weights");
+        if (w.ndim() != 2 || w.shape(0) != r.shape(0) || w.shape(1) != r.shape(1))
+            throw py::value_error("weights has shape " + shape_string(w) + "; expected (" + std::to_string(r.shape(0)) +
+                                  ", " + std::to_string(r.shape(0)) + "), one weight per pixel of the reference");
+        o.weights = to_reference(to_doubles(w, "weights"));
+        // A pixel of weight 0 may hold anything (NaN for a dead pixel): validate checks the others.
+        o.reference = to_reference(to_doubles(r, "reference", false));
+    }
+    try {
+        validate(o);
+    } catch (const std::exception& e) {
+        throw py::value_error(e.what());
+    }
     return o;
 }
 
@@ -72,13 +86,26 @@ void bind_observation(py::module_& m) {
     py::class_<Observation>(m, "Observation", R"doc(
 A reference slice with the query that produced it (an input of observation_loss and invert).
 
-Observation(query, reference)
+Observation(query, reference, weights=None)
     query      a Query
     reference  the slice, finite: (n, n) for one wavelength, (n, n, 3) linear sRGB for a
                spectral query (may be slightly negative: out-of-gamut colours); n = the
                resolution (1...8192); stored rounded to float32
+    weights    None (every pixel weighs 1) or (n, n) per-pixel weights, finite, >= 0, not all 0:
+               the loss is the weighted mean over pixels, so a pixel of weight 0 (dead,
+               saturated, unmeasured) changes neither the loss nor its gradient, and its
+               reference value may be anything, NaN included; stored as float32
 )doc")
-        .def(py::init(&make_observation), "query"_a, "reference"_a)
+        .def(py::init(&make_observation), "query"_a, "reference"_a, "weights"_a = py::none())
+        .def_property_readonly(
+            "weights",
+            [](py::object self) -> py::object {
+                const auto& o = self.cast<const Observation&>();
+                if (o.weights.empty()) return py::none();
+                const py::ssize_t n = o.resolution;
+                return readonly_view<float>(o.weights.data(), {n, n}, self);
+            },
+            "the per-pixel weights, a read-only float32 (n, n) view, or None (every pixel weighs 1)")
         .def_property_readonly("query", &query_of)
         .def_property_readonly("resolution", [](const Observation& o) { return o.resolution; })
         .def_property_readonly("channels", &Observation::channels, "1 (one wavelength) or 3 (RGB)")

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <utility>
 
 #include "common.h"
 #include "observation_arg.h"
@@ -782,20 +783,36 @@ epochs >= 0; lr > 0, beta1 and beta2 in [0, 1), decay >= 0 per epoch (the thesis
 )doc") + kSettingsDoc)
             .c_str());
 
+    // Heightfields or 2-D arrays: an array is in the other argument's units (a Heightfield's
+    // texel_um and vscale; two arrays share theirs, which the ratio does not depend on).
+    const auto height_pair = [](const py::object& estimate, const py::object& truth) {
+        const bool e_hf = py::isinstance<Heightfield>(estimate), t_hf = py::isinstance<Heightfield>(truth);
+        const Heightfield* scale = e_hf ? &estimate.cast<const Heightfield&>()
+                                        : t_hf ? &truth.cast<const Heightfield&>() : nullptr;
+        const double w = scale ? scale->texel_um() : 1.0, v = scale ? scale->vscale() : 1.0;
+        return std::make_pair(e_hf ? estimate.cast<Heightfield>() : heightfield_from_array(estimate, "estimate", w, v),
+                              t_hf ? truth.cast<Heightfield>() : heightfield_from_array(truth, "truth", w, v));
+    };
     m.def(
         "height_rel_rmse",
-        [](const Heightfield& estimate, const Heightfield& truth) { return height_rel_rmse(estimate, truth); },
+        [height_pair](const py::object& estimate, const py::object& truth) {
+            const auto [e, t] = height_pair(estimate, truth);
+            return height_rel_rmse(e, t);
+        },
         "estimate"_a, "truth"_a,
         "RMS of (estimate - truth) in um after removing each one's mean, divided by the truth's\n"
-        "peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat.");
+        "peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat. Each a\n"
+        "Heightfield or a 2-D array (in the other's units: the ratio needs no unit when both are arrays).");
     m.def(
         "height_rel_rmse_plane_removed",
-        [](const Heightfield& estimate, const Heightfield& truth) {
-            return height_rel_rmse_plane_removed(estimate, truth);
+        [height_pair](const py::object& estimate, const py::object& truth) {
+            const auto [e, t] = height_pair(estimate, truth);
+            return height_rel_rmse_plane_removed(e, t);
         },
         "estimate"_a, "truth"_a,
         "height_rel_rmse with the best-fit plane a + b x + c y (least squares over the texel centres)\n"
-        "removed from estimate - truth: the error that is not a tilt (a tilt is not observable).");
+        "removed from estimate - truth: the error that is not a tilt (a tilt is not observable).\n"
+        "Heightfields or 2-D arrays, as height_rel_rmse.");
     m.def(
         "with_height_range",
         [](const Heightfield& heightfield, double range_um) {

@@ -650,7 +650,7 @@ wavebrdf::RgbImage slice_of(const fs::path& exr) { return wavebrdf::read_rgb_exr
 TEST_F(CliTest, RenderPreviewOptions) {
     const std::string hf = quote(make_heightfield());
     const std::string base = "render --heightfield " + hf + " --resolution 32 --out a.exr --quiet --png ";
-    ASSERT_EQ(run(base + "a.png").exit_code, 0);
+    ASSERT_EQ(run(base + "a.png --no-axes --no-colour-bar").exit_code, 0);
     wavebrdf::test::DecodedPng png = wavebrdf::test::read_png_rgb(path("a.png").string());
     ASSERT_EQ(png.rows, 32);
     ASSERT_EQ(png.cols, 32);
@@ -662,6 +662,7 @@ TEST_F(CliTest, RenderPreviewOptions) {
     png = wavebrdf::test::read_png_rgb(path("b.png").string());
     log.log_decades = 2.0;
     log.false_colour = log.colour_bar = true;
+    log.axes = true;  // on by default
     log.unit = "1/sr";
     const wavebrdf::Preview8 expected = wavebrdf::make_slice_preview(slice_of(path("a.exr")), log);
     EXPECT_GT(png.cols, 32);
@@ -669,7 +670,7 @@ TEST_F(CliTest, RenderPreviewOptions) {
     EXPECT_EQ(png.cols, expected.cols);
     EXPECT_EQ(png.rgb, expected.rgb);
 
-    ASSERT_EQ(run(base + "c.png --exposure -2 --reinhard").exit_code, 0);
+    ASSERT_EQ(run(base + "c.png --exposure -2 --reinhard --no-axes --no-colour-bar").exit_code, 0);
     wavebrdf::write_rgb_png(path("c-ref.png").string(), slice_of(path("a.exr")), -2.0, true);
     EXPECT_EQ(wavebrdf::test::read_png_rgb(path("c.png").string()).rgb,
               wavebrdf::test::read_png_rgb(path("c-ref.png").string()).rgb);

@@ -89,6 +89,14 @@ void parse_size(const std::string& name, const std::string& text, int& rows, int
 struct InversionOptions {
     std::string truth_path;         // EXR of the truth; empty: given to prepare_inversion, or generated
     std::string observations_path;  // observations JSON or HDF5 (observation_file.h); empty: none (or given)
+    // A slice EXR (read_slice_exr; its R channel for one wavelength, RGB for several) as the one
+    // observation, with this query: x_um, y_um (none: the tile centre), sigma_p_um, omega_i,
+    // model, the wavelengths, and resolution = the image's n (the CLI fills what is not given
+    // from the slice's attributes). Excludes truth_path and observations_path.
+    std::string reference_path;
+    // With reference_path: its per-pixel weights, an EXR of n × n pixels (R channel; finite,
+    // ≥ 0, not all 0; Observation::weights). Empty: every pixel weighs 1.
+    std::string weights_path;
     // The generated truth's grid (default_inversion_truth), and the estimate's with observations.
     int rows = 16, cols = 16;
     double texel_um = 1.0, vscale = 1.0;  // of the truth read or generated, and of the estimate
@@ -96,8 +104,8 @@ struct InversionOptions {
     double sigma_p_um = 4.0;
     Model model = Model::OHS;
     // The wavelengths: one (lambda_um, µm: one channel), spectral N samples (CIE 1931 → linear
-    // sRGB, 1 … 256), or a list (wavelengths_um, Python's spectral=[...]; not storable in
-    // run.json). At most one of them; none: spectral 8.
+    // sRGB, 1 … 256), or a list (wavelengths_um, Python's spectral=[...] or a reference
+    // slice's). At most one of them; none: spectral 8.
     std::optional<double> lambda_um;
     std::optional<int> spectral;
     std::vector<double> wavelengths_um;
@@ -184,7 +192,7 @@ private:
 
 // run.json's "args" object for `options` as JSON text (input files by absolute path, so that
 // a resume finds them from any directory). Throws std::invalid_argument for options that
-// run.json cannot hold (a list of wavelengths or of positions given as values, given heights).
+// run.json cannot hold (a list of positions given as values, given heights).
 std::string inversion_options_to_json(const InversionOptions& options);
 // The options of run.json's "args" (JSON text). Throws std::runtime_error "WHERE: corrupt (...)"
 // for JSON that is not such an object, "WHERE: field 'NAME' is ...; expected an integer from

@@ -53,6 +53,19 @@ template <typename Ref, typename = std::enable_if_t<std::is_same_v<Ref, float>>>
 double loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<Ref>& reference,
                   int channels, std::vector<double>* gradient = nullptr);
 
+// The loss with a weight per pixel: Σ_p w_p Σ_c ℓ(I_pc, R_pc) / Σ_p w_p, the mean of
+// loss_value weighted by `weights` (one per pixel: estimate.size() / channels values, each finite
+// and ≥ 0, at least one > 0). A pixel of weight 0 (a dead, saturated or unmeasured detector
+// pixel) is skipped: neither its estimate nor its reference (which may then be anything, even
+// NaN) enters the loss or the gradient. With weights of 0 and 1 this is loss_value of the pixels
+// of weight 1 alone; the Poisson loss's count scale is then N / Σ R over the pixels of weight
+// > 0. Throws what loss_value throws, and std::invalid_argument for weights of the wrong count,
+// a negative or non-finite weight, or all weights 0.
+double weighted_loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<float>& reference,
+                           int channels, const std::vector<float>& weights, std::vector<double>* gradient = nullptr);
+double weighted_loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
+                           int channels, const std::vector<float>& weights, std::vector<double>* gradient = nullptr);
+
 // Reporting metrics (no gradients). Mono slices (channels = 1) are treated as grey RGB, which
 // makes both a plain mean over all values; negative values are clamped to 0 first (as above).
 // Throws std::invalid_argument on a size mismatch, empty slices, or channels other than 1 or 3

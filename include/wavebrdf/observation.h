@@ -22,6 +22,11 @@ struct Observation {
     // resolution² · channels(), row-major, interleaved. Float: the slices are float on disk
     // (EXR), and half the memory of the recovery's largest input.
     std::vector<float> reference;
+    // One weight per pixel (resolution², row-major), or empty: every pixel weighs 1. The loss
+    // is the weighted mean over pixels (weighted_loss_value, loss.h): a pixel of weight 0 (dead,
+    // saturated, unmeasured) influences neither the loss nor its gradient, and its reference
+    // may be any value, NaN included. Each finite and ≥ 0, at least one > 0.
+    std::vector<float> weights;
     int channels() const { return lambdas_um.size() == 1 ? 1 : 3; }
 };
 
@@ -32,7 +37,8 @@ SliceAttributes slice_attributes(const Observation& observation, const Heightfie
 
 // Throws std::invalid_argument / std::domain_error naming the observation (by index) and the
 // field: invalid query, wavelength or resolution; reference of the wrong size; non-finite
-// reference values. Negative values are accepted (linear sRGB of an out-of-gamut spectral
+// reference values (at pixels of weight > 0); weights of the wrong count, negative or
+// non-finite, or all 0. Negative values are accepted (linear sRGB of an out-of-gamut spectral
 // colour is negative); the losses clamp them to 0.
 void validate(const Observation& observation, std::size_t index = 0);
 
@@ -83,7 +89,13 @@ private:
     std::size_t m_built = 0;
 };
 
-// The mean over observations of loss(render(heightfield), reference) and, when `gradient` is
+// The loss of one observation's rendered slice `estimate`: loss_value, or weighted_loss_value
+// with the observation's weights when it has any.
+double observation_slice_loss(const Loss& loss, const std::vector<double>& estimate, const Observation& observation,
+                              std::vector<double>* gradient = nullptr);
+
+// The mean over observations of loss(render(heightfield), reference) (each observation's
+// pixels weighted by its weights when it has any) and, when `gradient` is
 // not null, its gradient with respect to the raw heights (rows·cols, texel units), ADDED into
 // `*gradient` (the convention of adjoint.h: pass an empty vector for the gradient alone).
 // `rendered`, when not null, receives each observation's rendered slice. `plans`, when not

@@ -20,6 +20,27 @@ enum class PreviewScale {
     Linear,  // value · 2^exposure, optionally Reinhard x/(1+x), clamped, sRGB curve (write_rgb_png)
 };
 
+// A rectangle of projected outgoing directions: ω_x from x0 to x1, ω_y from y0 to y1, each
+// −1 ≤ lower < upper ≤ 1. The whole slice is (−1, 1, −1, 1).
+struct OmegaWindow {
+    double x0 = -1.0, x1 = 1.0, y0 = -1.0, y1 = 1.0;
+};
+
+// "x0,x1,y0,y1" (four numbers, commas, blanks allowed around them). Throws
+// std::invalid_argument "NAME 'TEXT' is invalid; expected x0,x1,y0,y1 ..." for text that is
+// not four finite numbers, std::domain_error naming the bound for one outside [−1, 1] or a
+// lower bound not below its upper one.
+OmegaWindow parse_omega_window(const std::string& text, const std::string& name = "window");
+
+// The pixels of an n × n slice inside `window`: rows first_row…last_row (pixel row i is
+// ω_x = (i + ½)/n · 2 − 1) and columns first_col…last_col (ω_y likewise), every pixel whose
+// centre lies in the closed rectangle. Throws std::invalid_argument naming the window and n
+// when no pixel centre lies inside it (a window narrower than a pixel).
+struct PixelBox {
+    int first_row = 0, last_row = -1, first_col = 0, last_col = -1;
+};
+PixelBox window_pixels(const OmegaWindow& window, int n);
+
 struct PreviewOptions {
     PreviewScale scale = PreviewScale::Log;
     double log_decades = 5.0;     // Log: decades below the peak that are shown; (0, 30]
@@ -28,6 +49,14 @@ struct PreviewOptions {
     bool false_colour = false;    // the luminance through viridis instead of grey/colour
     bool colour_bar = false;      // a bar with tick labels right of the picture
     std::string unit;             // the bar's caption (e.g. "1/sr"); drawn when it fits
+    // ω axes: a frame with ticks and labels of ω_y (columns, below, labelled "wy") and ω_x
+    // (rows, left, "wx") around the picture.
+    bool axes = false;
+    // Only the pixels inside this window (window_pixels), scaled up by a whole factor to at
+    // least 256 pixels on the longer side (at most 16 times) when it is smaller; the log
+    // scale's peak is the window's. Square slices only.
+    bool has_window = false;
+    OmegaWindow window;
 };
 
 // Throws std::domain_error naming the value when log_decades is not in (0, 30] or
@@ -42,6 +71,10 @@ struct Preview8 {
     int cols = 0;
     std::vector<std::uint8_t> rgb;
     int bar_top = -1, bar_bottom = -1, bar_left = -1, bar_right = -1;
+    // Where the slice's pixels are in the picture (after axes or a table's labels moved them):
+    // rows image_top… image_top + image_rows − 1, likewise columns. Each slice pixel covers
+    // magnify × magnify picture pixels (a window scaled up; 1 otherwise).
+    int image_top = 0, image_left = 0, image_rows = 0, image_cols = 0, magnify = 1;
 };
 
 // The log preview's level of `value` in [0, 1]: 1 + log10(value / peak) / decades, clamped;
@@ -52,8 +85,8 @@ double log_level(double value, double peak, double decades);
 // interpolated between the 256 published entries (entry k at t = k/255).
 std::array<double, 3> viridis(double t);
 
-// Draws `text` (digits, '.', '-', '+', 'e', '/', 's', 'r', 'u', 'm', ' '; other characters are
-// blank) in the 3×5 font scaled by `scale` (1…16) with its top-left at (row, col), in `grey`;
+// Draws `text` (digits, '.', ',', '-', '+', 'e', '/', 's', 'r', 'u', 'm', 'w', 'x', 'y', ' ';
+// other characters are blank) in the 3×5 font scaled by `scale` (1…16) with its top-left at (row, col), in `grey`;
 // pixels outside the picture are skipped. Each character advances 4·scale columns.
 void draw_text(Preview8& picture, int row, int col, const std::string& text, int scale, std::uint8_t grey);
 
@@ -71,6 +104,15 @@ Preview8 make_slice_preview(const RgbImage& image, const PreviewOptions& options
 // The preview of a heightfield: heights min → level 0, max → 1 (a flat field mid grey), grey
 // or viridis; the colour bar is labelled in µm (vscale · texel_um · value).
 Preview8 make_heightfield_preview(const Heightfield& heightfield, bool false_colour, bool colour_bar);
+
+// The preview of a table's mosaic (table.h table_mosaic: lights_rows × lights_cols tiles of
+// n × n pixels): each tile tone-mapped as write_rgb_png does at `exposure_stops` with Reinhard,
+// one-pixel grey grid lines between and around the tiles, each light row labelled on the left
+// with its ω_i,x (`light_x`) and each light column on top with its ω_i,y (`light_y`) (a column
+// label wider than its tile is left out). Throws
+// std::invalid_argument for a mosaic that does not hold the tiles or label counts that differ.
+Preview8 make_table_preview(const RgbImage& mosaic, int n, const std::vector<double>& light_x,
+                            const std::vector<double>& light_y, double exposure_stops);
 
 // Writes a picture as an 8-bit RGB PNG (atomically, as io.h's writers).
 void write_preview_png(const std::string& path, const Preview8& picture);

@@ -439,13 +439,21 @@ class Loss:
 class Observation:
     """A reference slice with the query that produced it (an input of observation_loss and invert).
 
-    Observation(query, reference)
+    Observation(query, reference, weights=None)
         query      a Query
         reference  the slice, finite: (n, n) for one wavelength, (n, n, 3) linear sRGB for a
                    spectral query (may be slightly negative: out-of-gamut colours); n = the
                    resolution (1...8192); stored rounded to float32
+        weights    None (every pixel weighs 1) or (n, n) per-pixel weights, finite, >= 0, not all 0:
+                   the loss is the weighted mean over pixels, so a pixel of weight 0 (dead,
+                   saturated, unmeasured) changes neither the loss nor its gradient, and its
+                   reference value may be anything, NaN included; stored as float32
     """
-    def __init__(self, query: Query, reference: Any) -> None:
+    def __init__(self, query: Query, reference: Any, weights: Any = ...) -> None:
+        ...
+    @property
+    def weights(self) -> Any:
+        """the per-pixel weights, a read-only float32 (n, n) view, or None (every pixel weighs 1)"""
         ...
     @property
     def query(self) -> Query:
@@ -716,15 +724,17 @@ def height_mse(estimate: Any, truth: Any) -> float:
     """
     ...
 
-def height_rel_rmse(estimate: Heightfield, truth: Heightfield) -> float:
+def height_rel_rmse(estimate: Any, truth: Any) -> float:
     """RMS of (estimate - truth) in um after removing each one's mean, divided by the truth's
-    peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat.
+    peak-to-valley height (um): 0.01 is 1 %. Same sizes; the truth must not be flat. Each a
+    Heightfield or a 2-D array (in the other's units: the ratio needs no unit when both are arrays).
     """
     ...
 
-def height_rel_rmse_plane_removed(estimate: Heightfield, truth: Heightfield) -> float:
+def height_rel_rmse_plane_removed(estimate: Any, truth: Any) -> float:
     """height_rel_rmse with the best-fit plane a + b x + c y (least squares over the texel centres)
     removed from estimate - truth: the error that is not a tilt (a tilt is not observable).
+    Heightfields or 2-D arrays, as height_rel_rmse.
     """
     ...
 

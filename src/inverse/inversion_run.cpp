@@ -194,6 +194,49 @@ std::vector<std::array<double, 2>> positions_of(const std::vector<Observation>& 
     return positions;
 }
 
+// The one observation of options.reference_path (and its weights), with the options' query.
+Observation reference_observation(const InversionOptions& o, const std::vector<double>& lambdas) {
+    const auto name = [&](const char* key) { return option_name(o.names, key); };
+    const RgbImage image = read_slice_exr(o.reference_path).image;
+    if (image.rows != image.cols)
+        throw std::invalid_argument(name("reference") + " " + o.reference_path + " is " + grid(image.rows, image.cols) +
+                                    "; expected a square n x n slice");
+    if (image.rows != o.resolution)
+        throw std::invalid_argument(name("reference") + " " + o.reference_path + " is " + grid(image.rows, image.cols) +
+                                    " but " + name("resolution") + " is " + std::to_string(o.resolution) +
+                                    "; expected them equal");
+    Observation r;
+    r.query.x_um = o.x_um ? *o.x_um : 0.0;  // none: set to the tile centre once the size is known
+    r.query.y_um = o.y_um ? *o.y_um : 0.0;
+    r.query.sigma_p_um = o.sigma_p_um;
+    r.query.omega_i = o.omega_i;
+    r.query.model = o.model;
+    r.lambdas_um = lambdas;
+    r.resolution = o.resolution;
+    const std::size_t pixels = std::size_t(image.rows) * std::size_t(image.cols);
+    const std::size_t c = std::size_t(r.channels());
+    r.reference.resize(pixels * c);
+    for (std::size_t p = 0; p < pixels; ++p)
+        for (std::size_t k = 0; k < c; ++k) r.reference[p * c + k] = image.data[3 * p + k];
+    if (!o.weights_path.empty()) {
+        const RgbImage w = read_rgb_exr(o.weights_path);
+        if (w.rows != image.rows || w.cols != image.cols)
+            throw std::invalid_argument(name("weights") + " " + o.weights_path + " is " + grid(w.rows, w.cols) +
+                                        "; expected the reference's " + grid(image.rows, image.cols));
+        r.weights.resize(pixels);
+        for (std::size_t p = 0; p < pixels; ++p) r.weights[p] = w.data[3 * p];
+    }
+    try {
+        validate(r);
+    } catch (const std::exception& e) {
+        std::string what = e.what();
+        const std::string prefix = "observation 0: ";
+        if (what.compare(0, prefix.size(), prefix) == 0) what = what.substr(prefix.size());
+        throw std::invalid_argument(name("reference") + " " + o.reference_path + ": " + what);
+    }
+    return r;
+}
+
 // prepare_inversion on one rank (no collective calls).
 PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heightfield> truth,
                                   std::optional<std::vector<Observation>> observations,
@@ -225,7 +268,13 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
     settings.render.path = o.path;
     settings.render.tolerance = o.tolerance;
     validate(settings.render, o.model);  // a path the model has not (or not yet): before any work
-    const bool given_observations = observations.has_value() || !o.observations_path.empty();
+    const bool given_reference = !o.reference_path.empty();
+    const bool given_observations = observations.has_value() || !o.observations_path.empty() || given_reference;
+    if (given_reference && (observations.has_value() || !o.observations_path.empty()))
+        throw std::invalid_argument(name("reference") + " and " + name("observations") + " exclude each other");
+    if (!o.weights_path.empty() && !given_reference)
+        throw std::invalid_argument(name("weights") + " " + o.weights_path + " needs " + name("reference") +
+                                    " (an observations file holds its own weights)");
     const bool given_truth = truth.has_value() || !o.truth_path.empty();
     if (o.init.kind == InitKind::Noisy) {
         if (given_observations)
@@ -245,13 +294,16 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
 
     // Truth, observations.
     if (given_truth && given_observations)
-        throw std::invalid_argument(name("truth") + " and " + name("observations") + " exclude each other");
+        throw std::invalid_argument(name("truth") + " and " + name(given_reference ? "reference" : "observations") +
+                                    " exclude each other");
     int rows = 0, cols = 0;
     if (given_observations) {
         // An HDF5 file under MPI: this rank reads only its share's slices (the same
         // observation_share of the file's positions as below).
-        const bool read_share = !observations && sharded && is_hdf5_file(o.observations_path);
-        if (read_share) {
+        const bool read_share = !observations && !given_reference && sharded && is_hdf5_file(o.observations_path);
+        if (given_reference) {
+            p.observations.push_back(reference_observation(o, lambdas));
+        } else if (read_share) {
             p.shard.count = read_observation_index(o.observations_path, o.max_memory_gb).size();
             p.observations = read_observations_file(o.observations_path, comm.rank(), comm.size(), o.max_memory_gb,
                                                     &p.shard.indices);
@@ -264,6 +316,11 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
             throw std::invalid_argument(name("observations") + " is empty; expected at least one observation");
         rows = initial && o.init.kind == InitKind::Heights ? initial->rows() : o.rows;
         cols = initial && o.init.kind == InitKind::Heights ? initial->cols() : o.cols;
+        if (given_reference) {  // no position given: the estimate's tile centre
+            Observation& r = p.observations.front();
+            if (!o.x_um) r.query.x_um = 0.5 * rows * o.texel_um;
+            if (!o.y_um) r.query.y_um = 0.5 * cols * o.texel_um;
+        }
         if (settings.positions == PositionMode::Random && total < 2)
             throw std::invalid_argument(name("positions") + " random with " + name("observations") +
                                         " needs at least two observations");
@@ -394,9 +451,6 @@ std::vector<std::vector<double>> wavelength_lists(const std::vector<Observation>
 std::string size_text(int rows, int cols) { return rows == cols ? std::to_string(rows) : grid(rows, cols); }
 
 nlohmann::json to_json(const InversionOptions& o) {
-    if (!o.wavelengths_um.empty())
-        throw std::invalid_argument(
-            "a list of wavelengths cannot be stored in run.json; expected lambda_um or spectral");
     if (o.positions.kind == PositionsKind::List && o.positions.path.empty())
         throw std::invalid_argument(
             "positions given as values cannot be stored in run.json; expected a positions file");
@@ -407,35 +461,40 @@ nlohmann::json to_json(const InversionOptions& o) {
     if (o.init.kind == InitKind::File) init = absolute_path(init);
     std::string positions = to_string(o.positions);
     if (o.positions.kind == PositionsKind::List) positions = absolute_path(positions);
-    return {{"truth", absolute_path(o.truth_path)},
-            {"observations", absolute_path(o.observations_path)},
-            {"init", init},
-            {"size", size_text(o.rows, o.cols)},
-            {"texel_um", o.texel_um},
-            {"vscale", o.vscale},
-            {"x_um", o.x_um ? nlohmann::json(*o.x_um) : nlohmann::json(nullptr)},
-            {"y_um", o.y_um ? nlohmann::json(*o.y_um) : nlohmann::json(nullptr)},
-            {"sigma_p_um", o.sigma_p_um},
-            {"model", to_string(o.model)},
-            // Not given: null (files written before 0.2 said 0; both read back as not given).
-            {"lambda_um", o.lambda_um ? nlohmann::json(*o.lambda_um) : nlohmann::json(nullptr)},
-            {"spectral", o.spectral ? nlohmann::json(*o.spectral) : nlohmann::json(nullptr)},
-            {"light_x", o.omega_i[0]},
-            {"light_y", o.omega_i[1]},
-            {"resolution", o.resolution},
-            {"epochs", o.epochs},
-            {"optimizer", to_string(o.optimizer)},
-            {"loss", to_string(o.loss)},
-            {"positions", positions},
-            {"lr", o.adam.lr},
-            {"beta1", o.adam.beta1},
-            {"beta2", o.adam.beta2},
-            {"decay", o.adam.decay},
-            {"seed", o.seed},
-            {"snapshots", format_epoch_list(o.snapshots)},
-            {"checkpoint_every", o.checkpoint_every},
-            {"path", to_string(o.path)},
-            {"tolerance", o.tolerance}};
+    nlohmann::json j = {{"truth", absolute_path(o.truth_path)},
+                        {"observations", absolute_path(o.observations_path)},
+                        {"init", init},
+                        {"size", size_text(o.rows, o.cols)},
+                        {"texel_um", o.texel_um},
+                        {"vscale", o.vscale},
+                        {"x_um", o.x_um ? nlohmann::json(*o.x_um) : nlohmann::json(nullptr)},
+                        {"y_um", o.y_um ? nlohmann::json(*o.y_um) : nlohmann::json(nullptr)},
+                        {"sigma_p_um", o.sigma_p_um},
+                        {"model", to_string(o.model)},
+                        // Not given: null (files written before 0.2 said 0; both read back as not given).
+                        {"lambda_um", o.lambda_um ? nlohmann::json(*o.lambda_um) : nlohmann::json(nullptr)},
+                        {"spectral", o.spectral ? nlohmann::json(*o.spectral) : nlohmann::json(nullptr)},
+                        {"light_x", o.omega_i[0]},
+                        {"light_y", o.omega_i[1]},
+                        {"resolution", o.resolution},
+                        {"epochs", o.epochs},
+                        {"optimizer", to_string(o.optimizer)},
+                        {"loss", to_string(o.loss)},
+                        {"positions", positions},
+                        {"lr", o.adam.lr},
+                        {"beta1", o.adam.beta1},
+                        {"beta2", o.adam.beta2},
+                        {"decay", o.adam.decay},
+                        {"seed", o.seed},
+                        {"snapshots", format_epoch_list(o.snapshots)},
+                        {"checkpoint_every", o.checkpoint_every},
+                        {"path", to_string(o.path)},
+                        {"tolerance", o.tolerance}};
+    // Only when used, so that run.json of other runs reads as before.
+    if (!o.reference_path.empty()) j["reference"] = absolute_path(o.reference_path);
+    if (!o.weights_path.empty()) j["weights"] = absolute_path(o.weights_path);
+    if (!o.wavelengths_um.empty()) j["wavelengths_um"] = o.wavelengths_um;
+    return j;
 }
 
 // Throws nlohmann's exceptions for missing fields and wrong types, std::runtime_error for an
@@ -483,6 +542,14 @@ InversionOptions from_json(const nlohmann::json& j) {
     if (j.contains("tolerance")) {
         o.tolerance = j.at("tolerance").get<double>();
         validate_render_tolerance(o.tolerance, "tolerance");
+    }
+    if (j.contains("reference")) o.reference_path = j.at("reference").get<std::string>();
+    if (j.contains("weights")) o.weights_path = j.at("weights").get<std::string>();
+    if (j.contains("wavelengths_um")) {
+        if (!j.at("wavelengths_um").is_array() || j.at("wavelengths_um").size() > std::size_t(k_max_spectral_samples))
+            throw std::runtime_error("field 'wavelengths_um' is not a list of at most " +
+                                     std::to_string(k_max_spectral_samples) + " wavelengths");
+        o.wavelengths_um = j.at("wavelengths_um").get<std::vector<double>>();
     }
     return o;
 }

@@ -52,6 +52,7 @@ void add_observation(Fingerprint& f, const Observation& o) {
     f.add(o.resolution);
     for (double l : o.lambdas_um) f.add(l);
     for (const float r : o.reference) f.add(double(r));
+    for (const float w : o.weights) f.add(double(w));
 }
 
 std::string hex(std::uint64_t h) {
@@ -309,11 +310,24 @@ EpochMetrics Inversion::evaluate(std::vector<double>* gradient, std::vector<std:
     const double scale = 1.0 / double(m_count);
     for (std::size_t i = 0; i < m_observations.size(); ++i) {
         const Observation& o = m_observations[i];
-        m.brdf_mse += scale * loss_value(mse, slices[i], o.reference, o.channels());
-        m.cmsle_1 += scale * loss_value(cmsle1, slices[i], o.reference, o.channels());
-        m.cmsle_0_001 += scale * loss_value(cmsle3, slices[i], o.reference, o.channels());
-        m.rgb_mse += scale * rgb_mse(slices[i], o.reference, o.channels());
-        m.rgb_gamma_mse += scale * rgb_gamma_mse(slices[i], o.reference, o.channels());
+        m.brdf_mse += scale * observation_slice_loss(mse, slices[i], o);
+        m.cmsle_1 += scale * observation_slice_loss(cmsle1, slices[i], o);
+        m.cmsle_0_001 += scale * observation_slice_loss(cmsle3, slices[i], o);
+        if (o.weights.empty()) {
+            m.rgb_mse += scale * rgb_mse(slices[i], o.reference, o.channels());
+            m.rgb_gamma_mse += scale * rgb_gamma_mse(slices[i], o.reference, o.channels());
+        } else {  // over the pixels of weight > 0 (the tone-mapped metrics are not weighted)
+            std::vector<double> estimate, reference;
+            const std::size_t c = std::size_t(o.channels());
+            for (std::size_t p = 0; p < o.weights.size(); ++p)
+                if (o.weights[p] > 0.0f)
+                    for (std::size_t k = 0; k < c; ++k) {
+                        estimate.push_back(slices[i][p * c + k]);
+                        reference.push_back(double(o.reference[p * c + k]));
+                    }
+            m.rgb_mse += scale * rgb_mse(estimate, reference, o.channels());
+            m.rgb_gamma_mse += scale * rgb_gamma_mse(estimate, reference, o.channels());
+        }
     }
     if (m_comm->size() > 1) {
         std::vector<double> sums{m.brdf_mse, m.cmsle_1, m.cmsle_0_001, m.rgb_mse, m.rgb_gamma_mse};

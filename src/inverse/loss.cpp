@@ -196,6 +196,97 @@ double loss_value_of(const Loss& loss, const std::vector<double>& estimate, cons
     throw std::invalid_argument("loss_value: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
 }
 
+// weighted_loss_value: `value_and_derivative(e, r, &d)` returns a value's term and sets d to its
+// derivative in e; pixels of weight 0 are skipped (their values may be anything, NaN included).
+template <typename Ref, typename Term>
+double weighted_sum(const std::vector<double>& estimate, const std::vector<Ref>& reference, std::size_t channels,
+                    const std::vector<float>& weights, double inv_weight, std::vector<double>* gradient, Term term) {
+    if (gradient) gradient->assign(estimate.size(), 0.0);
+    double sum = 0.0;
+    for (std::size_t p = 0; p < weights.size(); ++p) {
+        const double w = weights[p];
+        if (w == 0.0) continue;
+        for (std::size_t c = 0; c < channels; ++c) {
+            const std::size_t i = p * channels + c;
+            double d = 0.0;
+            sum += w * term(estimate[i], double(reference[i]), d);
+            if (gradient) (*gradient)[i] = d * w * inv_weight;
+        }
+    }
+    return sum * inv_weight;
+}
+
+template <typename Ref>
+double weighted_loss_of(const Loss& loss, const std::vector<double>& estimate, const std::vector<Ref>& reference,
+                        int channels, const std::vector<float>& weights, std::vector<double>* gradient) {
+    const std::size_t pixels = check_slices("weighted_loss_value", estimate, reference, channels);
+    if (weights.size() != pixels)
+        throw std::invalid_argument("weighted_loss_value: " + std::to_string(weights.size()) +
+                                    " weights; expected one per pixel, " + std::to_string(pixels));
+    double total_weight = 0.0;
+    for (std::size_t p = 0; p < pixels; ++p) {
+        if (!(std::isfinite(weights[p]) && weights[p] >= 0.0f))
+            throw std::invalid_argument("weighted_loss_value: weight " + std::to_string(p) + " is " +
+                                        detail::format_shortest(double(weights[p])) +
+                                        "; expected a finite weight >= 0");
+        total_weight += weights[p];
+    }
+    if (!(total_weight > 0.0))
+        throw std::invalid_argument(
+            "weighted_loss_value: every weight is 0; expected at least one pixel of weight > 0");
+    const double inv_weight = 1.0 / total_weight;
+    const std::size_t c = static_cast<std::size_t>(channels);
+    switch (loss.kind) {
+        case LossKind::CMSLE: {
+            const double eps = loss.epsilon;
+            check_epsilon(eps, detail::format_shortest(eps));
+            return weighted_sum(
+                estimate, reference, c, weights, inv_weight, gradient, [eps](double e, double r, double& de) {
+                    const double d = std::log1p((std::max(e, 0.0) - std::max(r, 0.0)) / (std::max(r, 0.0) + eps));
+                    de = e >= 0.0 ? 2.0 * d / (e + eps) : 0.0;
+                    return d * d;
+                });
+        }
+        case LossKind::MSE:
+            return weighted_sum(estimate, reference, c, weights, inv_weight, gradient,
+                                [](double e, double r, double& de) {
+                                    de = 2.0 * (e - r);
+                                    return (e - r) * (e - r);
+                                });
+        case LossKind::Amplitude: {
+            constexpr double tiny = 1e-30;  // as loss_value's
+            return weighted_sum(estimate, reference, c, weights, inv_weight, gradient,
+                                [](double e, double r, double& de) {
+                                    const double ec = std::max(e, 0.0), rc = std::max(r, 0.0);
+                                    const double d = (ec - rc) / (std::sqrt(ec + tiny) + std::sqrt(rc + tiny));
+                                    de = e >= 0.0 ? d / std::sqrt(e + tiny) : 0.0;
+                                    return d * d;
+                                });
+        }
+        case LossKind::Poisson: {
+            check_photons(loss.photons, detail::format_shortest(loss.photons));
+            double total = 0.0;
+            for (std::size_t p = 0; p < pixels; ++p)
+                if (weights[p] != 0.0f)
+                    for (std::size_t k = 0; k < c; ++k) total += std::max(double(reference[p * c + k]), 0.0);
+            if (!(total > 0.0))
+                throw std::invalid_argument(
+                    "weighted_loss_value: the Poisson loss needs a reference with a positive sum over the pixels of "
+                    "weight > 0, got sum " +
+                    detail::format_shortest(total));
+            const double s = loss.photons / total;
+            constexpr double tiny = 1e-9;  // as loss_value's
+            return weighted_sum(estimate, reference, c, weights, inv_weight, gradient,
+                                [s](double e, double r, double& de) {
+                                    const double k = s * std::max(r, 0.0) + tiny, mu = s * std::max(e, 0.0) + tiny;
+                                    de = e >= 0.0 ? 2.0 * s * (1.0 - k / mu) : 0.0;
+                                    return 2.0 * (k * std::log1p((k - mu) / mu) - (k - mu));
+                                });
+        }
+    }
+    throw std::invalid_argument("weighted_loss_value: invalid LossKind " + std::to_string(static_cast<int>(loss.kind)));
+}
+
 double reinhard(double x) { return x / (1.0 + x); }
 double reinhard_gamma(double x) { return std::pow(x / (1.0 + x), 1.0 / 2.2); }
 
@@ -213,6 +304,16 @@ double loss_value(const Loss& loss, const std::vector<double>& estimate, const s
 }
 template double loss_value<float>(const Loss&, const std::vector<double>&, const std::vector<float>&, int,
                                   std::vector<double>*);
+
+double weighted_loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<float>& reference,
+                           int channels, const std::vector<float>& weights, std::vector<double>* gradient) {
+    return weighted_loss_of(loss, estimate, reference, channels, weights, gradient);
+}
+
+double weighted_loss_value(const Loss& loss, const std::vector<double>& estimate, const std::vector<double>& reference,
+                           int channels, const std::vector<float>& weights, std::vector<double>* gradient) {
+    return weighted_loss_of(loss, estimate, reference, channels, weights, gradient);
+}
 
 double rgb_mse(const std::vector<double>& estimate, const std::vector<double>& reference, int channels) {
     return tone_mapped_mse("rgb_mse", estimate, reference, channels, reinhard);

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
@@ -21,6 +22,7 @@
 #include "wavebrdf/spectrum.h"
 #include "core/exact_sum.h"
 #include "core/json_fields.h"
+#include "core/text.h"
 
 namespace wavebrdf {
 
@@ -65,8 +67,24 @@ void validate(const Observation& o, std::size_t index) {
     if (o.reference.size() != expected)
         throw std::invalid_argument(where + "reference has " + std::to_string(o.reference.size()) +
                                     " values; expected resolution^2 * channels = " + std::to_string(expected));
+    const std::size_t pixels = static_cast<std::size_t>(o.resolution) * o.resolution;
+    if (!o.weights.empty()) {
+        if (o.weights.size() != pixels)
+            throw std::invalid_argument(where + "weights has " + std::to_string(o.weights.size()) +
+                                        " values; expected one per pixel, resolution^2 = " + std::to_string(pixels));
+        bool any = false;
+        for (std::size_t p = 0; p < pixels; ++p) {
+            if (!(std::isfinite(o.weights[p]) && o.weights[p] >= 0.0f))
+                throw std::domain_error(where + "weight of pixel (" + std::to_string(p / std::size_t(o.resolution)) +
+                                        ", " + std::to_string(p % std::size_t(o.resolution)) + ") is " +
+                                        detail::format_shortest(double(o.weights[p])) +
+                                        "; expected a finite weight >= 0");
+            any = any || o.weights[p] > 0.0f;
+        }
+        if (!any) throw std::invalid_argument(where + "every weight is 0; expected at least one pixel of weight > 0");
+    }
     for (std::size_t i = 0; i < o.reference.size(); ++i)
-        if (!std::isfinite(o.reference[i])) {
+        if (!std::isfinite(o.reference[i]) && (o.weights.empty() || o.weights[i / std::size_t(o.channels())] > 0.0f)) {
             const std::size_t c = std::size_t(o.channels()), p = i / c, n = std::size_t(o.resolution);
             throw std::domain_error(where + "reference pixel (" + std::to_string(p / n) + ", " + std::to_string(p % n) +
                                     ") channel " + std::to_string(i % c) + " is not finite (" +
@@ -102,6 +120,12 @@ SlicePlan<double>& ObservationPlans::plan(const Heightfield& hf, const Observati
 }
 
 void ObservationPlans::reserve(std::size_t capacity) { m_capacity = std::max(m_capacity, capacity); }
+
+double observation_slice_loss(const Loss& loss, const std::vector<double>& estimate, const Observation& o,
+                              std::vector<double>* gradient) {
+    return o.weights.empty() ? loss_value(loss, estimate, o.reference, o.channels(), gradient)
+                             : weighted_loss_value(loss, estimate, o.reference, o.channels(), o.weights, gradient);
+}
 
 double observation_loss(const Heightfield& hf, const std::vector<Observation>& observations, const Loss& loss,
                         std::vector<double>* gradient, const RenderOptions& options,
@@ -156,8 +180,7 @@ double observation_loss(const Heightfield& hf, const std::vector<Observation>& o
             SlicePlan<double>& plan = plans ? *cached[oi] : *own;
             const std::vector<double>& estimate = plan.forward();
             std::vector<double> d_estimate;
-            const double value = scale * loss_value(loss, estimate, o.reference, o.channels(),
-                                                    gradient ? &d_estimate : nullptr);
+            const double value = scale * observation_slice_loss(loss, estimate, o, gradient ? &d_estimate : nullptr);
             if (gradient) {
                 std::vector<int> rows, cols;
                 plan.gradient_box(rows, cols);
@@ -192,6 +215,37 @@ T field(const json& j, const char* name, const std::string& where) {
     }
 }
 
+// An observation's "weights": a list of resolution² numbers (row-major) or an EXR file (its R
+// channel; relative to the JSON's folder) of resolution × resolution pixels.
+std::vector<float> read_weights(const json& value, int resolution, const std::string& dir, const std::string& where) {
+    const std::size_t pixels = std::size_t(resolution) * std::size_t(resolution);
+    if (value.is_string()) {
+        const std::string file = value.get<std::string>();
+        const RgbImage image = read_rgb_exr(file.empty() || file[0] == '/' ? file : dir + file);
+        if (image.rows != resolution || image.cols != resolution)
+            throw std::runtime_error(where + "weights image " + file + " is " + std::to_string(image.rows) + "x" +
+                                     std::to_string(image.cols) + "; expected resolution " +
+                                     std::to_string(resolution));
+        std::vector<float> w(pixels);
+        for (std::size_t p = 0; p < pixels; ++p) w[p] = image.data[3 * p];
+        return w;
+    }
+    if (!value.is_array())
+        throw std::runtime_error(where +
+                                 "field 'weights' has the wrong type; expected a list of numbers or an EXR file");
+    if (value.size() != pixels)
+        throw std::runtime_error(where + "field 'weights' has " + std::to_string(value.size()) +
+                                 " values; expected one per pixel, resolution^2 = " + std::to_string(pixels));
+    std::vector<float> w(pixels);
+    for (std::size_t p = 0; p < pixels; ++p) {
+        if (!value[p].is_number())
+            throw std::runtime_error(where + "field 'weights' value " + std::to_string(p) +
+                                     " is not a number; expected weights >= 0");
+        w[p] = static_cast<float>(value[p].get<double>());
+    }
+    return w;
+}
+
 }  // namespace
 
 std::vector<Observation> read_observations_json(const std::string& path, double max_memory_gb) {
@@ -215,7 +269,8 @@ std::vector<Observation> read_observations_json(const std::string& path, double 
         const double n = std::min(std::fabs(j["resolution"].get<double>()), 8192.0);
         const double channels = j.contains("lambda_um") ? 1.0 : 3.0;
         reference_bytes += n * n * channels * 8.0 +
-                           (j.contains("reference") && j["reference"].is_string() ? n * n * 12.0 : 0.0);
+                           (j.contains("reference") && j["reference"].is_string() ? n * n * 12.0 : 0.0) +
+                           (j.contains("weights") ? n * n * 16.0 : 0.0);
     }
     require_memory(reference_bytes, limit,
                    "reading the " + std::to_string(doc["observations"].size()) + " observations of " + path);
@@ -258,8 +313,19 @@ std::vector<Observation> read_observations_json(const std::string& path, double 
                 for (std::size_t i = 0; i < o.reference.size(); ++i) o.reference[i] = image.data[3 * i];
             }
         } else {
-            o.reference = to_reference(field<std::vector<double>>(j, "reference", where));
+            // null is a value JSON cannot hold (NaN, as a dead pixel's): allowed where its weight is 0.
+            const json& values = j["reference"];
+            if (!values.is_array()) throw std::runtime_error(where + "field 'reference' has the wrong type");
+            o.reference.resize(values.size());
+            for (std::size_t k = 0; k < values.size(); ++k) {
+                if (!values[k].is_number() && !values[k].is_null())
+                    throw std::runtime_error(where + "field 'reference' value " + std::to_string(k) +
+                                             " is not a number");
+                o.reference[k] = values[k].is_null() ? std::numeric_limits<float>::quiet_NaN()
+                                                     : static_cast<float>(values[k].get<double>());
+            }
         }
+        if (j.contains("weights")) o.weights = read_weights(j["weights"], o.resolution, dir, where);
         try {
             validate(o, index);
         } catch (const std::exception& e) {
@@ -297,9 +363,12 @@ void write_observations_json(const std::string& path, const std::vector<Observat
                                             path + " to be new or an earlier set's");
             for (const auto& entry : fs::directory_iterator(folder_path, ec)) {
                 const std::string name = entry.path().filename().string();
-                const bool slice = name.size() >= 14 && name.compare(0, 6, "slice_") == 0 &&
+                const std::size_t digits = name.compare(0, 6, "slice_") == 0     ? 6
+                                           : name.compare(0, 8, "weights_") == 0 ? 8
+                                                                                 : 0;
+                const bool slice = digits > 0 && name.size() >= digits + 8 &&
                                    name.compare(name.size() - 4, 4, ".exr") == 0 &&
-                                   name.find_first_not_of("0123456789", 6) == name.size() - 4;
+                                   name.find_first_not_of("0123456789", digits) == name.size() - 4;
                 if (!slice || !entry.is_regular_file() || entry.is_symlink())
                     throw std::invalid_argument(folder_path.string() + " holds '" + name +
                                                 "', which is not a slice of an observations set; expected the "
@@ -337,6 +406,16 @@ void write_observations_json(const std::string& path, const std::vector<Observat
                 j["reference"] = folder + "/" + name;
             } else {
                 j["reference"] = o.reference;
+            }
+            if (!o.weights.empty()) {
+                if (references == ReferenceStorage::Exr) {
+                    char name[32];
+                    std::snprintf(name, sizeof name, "weights_%04zu.exr", i);
+                    write_rgb_exr((fresh / name).string(), to_image(to_doubles(o.weights), o.resolution, 1));
+                    j["weights"] = folder + "/" + name;
+                } else {
+                    j["weights"] = o.weights;
+                }
             }
             doc["observations"].push_back(j);
         }

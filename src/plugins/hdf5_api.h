@@ -18,7 +18,8 @@
 
 namespace wavebrdf::detail {
 
-constexpr int k_hdf5_api_version = 1;
+// 2: Observation gained per-pixel weights (its layout changed).
+constexpr int k_hdf5_api_version = 2;
 
 // What the plugin calls in the core (the functions of the same names in wavebrdf/model.h,
 // wavebrdf/observation.h, wavebrdf/memory.h and wavebrdf/io.h).

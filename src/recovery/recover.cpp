@@ -964,7 +964,14 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // (Pointers, not copies: the references are most of the memory a run holds.)
     std::map<double, std::vector<const Observation*>> by_lambda;
     run_agreed(comm, [&] {
-        for (std::size_t i = 0; i < observations.size(); ++i) validate(observations[i], i);
+        for (std::size_t i = 0; i < observations.size(); ++i) {
+            validate(observations[i], i);
+            // Its stages fit whole slices; silently fitting masked pixels would be a wrong answer.
+            if (!observations[i].weights.empty())
+                throw std::invalid_argument("observation " + std::to_string(i) +
+                                            " has per-pixel weights, which recover does not use; expected "
+                                            "observations without weights (invert uses them)");
+        }
         // Here, not only in the renderer: the stages render inside parallel regions.
         for (const Observation& o : observations)
             validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());

@@ -49,6 +49,8 @@ constexpr const char* k_light = "/entry_1/wavebrdf_1/light";
 constexpr const char* k_model = "/entry_1/wavebrdf_1/model";
 constexpr const char* k_count = "/entry_1/wavebrdf_1/wavelength_count";
 constexpr const char* k_lambdas = "/entry_1/wavebrdf_1/wavelengths_um";
+// Optional: per-pixel weights, float32 [N, n, n] (absent: every pixel weighs 1).
+constexpr const char* k_weights = "/entry_1/wavebrdf_1/weights";
 
 [[noreturn]] void fail(const std::string& path, const std::string& dataset, const std::string& what) {
     throw std::runtime_error(path + ": " + dataset + ": " + what);
@@ -261,6 +263,34 @@ void write_file(const std::string& path, const std::string& tmp, const std::vect
         write_dataset(ours.get(), "wavelength_count", {count}, H5T_STD_I32LE, H5T_NATIVE_INT, lambda_count, path);
         write_dataset(ours.get(), "wavelengths_um", {count, max_lambdas}, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, lambdas,
                       path);
+        // Weights only when some observation has them (the others' pixels all weigh 1), one
+        // chunk per observation like the slices.
+        const bool weighted = std::any_of(observations.begin(), observations.end(),
+                                          [](const Observation& o) { return !o.weights.empty(); });
+        if (weighted) {
+            const std::size_t plane = std::size_t(n) * std::size_t(n);
+            const hsize_t dims[3] = {count, hsize_t(n), hsize_t(n)};
+            const hsize_t chunk[3] = {1, hsize_t(n), hsize_t(n)};
+            Id space = checked(H5Screate_simple(3, dims, nullptr), H5Sclose, path, k_weights);
+            Id dcpl = checked(H5Pcreate(H5P_DATASET_CREATE), H5Pclose, path, k_weights);
+            check(H5Pset_chunk(dcpl.get(), 3, chunk), path, k_weights);
+            if (H5Zfilter_avail(H5Z_FILTER_DEFLATE) > 0) check(H5Pset_deflate(dcpl.get(), 1), path, k_weights);
+            Id dataset = checked(
+                H5Dcreate2(ours.get(), "weights", H5T_IEEE_F32LE, space.get(), H5P_DEFAULT, dcpl.get(), H5P_DEFAULT),
+                H5Dclose, path, k_weights);
+            const hsize_t block[3] = {1, hsize_t(n), hsize_t(n)};
+            const hsize_t memory_dims[1] = {plane};
+            Id memory = checked(H5Screate_simple(1, memory_dims, nullptr), H5Sclose, path, k_weights);
+            const std::vector<float> ones(plane, 1.0f);
+            for (std::size_t i = 0; i < count; ++i) {
+                const std::vector<float>& w = observations[i].weights.empty() ? ones : observations[i].weights;
+                const hsize_t start[3] = {i, 0, 0};
+                check(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, block, nullptr), path,
+                      k_weights);
+                check(H5Dwrite(dataset.get(), H5T_NATIVE_FLOAT, memory.get(), space.get(), H5P_DEFAULT, w.data()),
+                      path, k_weights);
+            }
+        }
     }
     entry = Id();
     if (H5Fclose(file.release()) < 0) throw std::runtime_error(path + ": cannot write the file (disk full?)");
@@ -479,6 +509,8 @@ struct OpenFile {
     Id file;
     Id data;
     Id data_space;
+    Id weights;  // invalid when the file has none
+    Id weights_space;
     ObservationIndex index;
     double chunk_bytes = 0.0;
 };
@@ -557,6 +589,25 @@ OpenFile open_observation_file(const std::string& path, double max_memory_gb) {
                      " values; expected at most one slice or 2^24");
     }
 
+    // The optional weights: [N, n, n] float, stored in this file, chunks of at most one plane.
+    // (Its parents were checked as hard links above; H5Lexists does not follow the last link.)
+    if (H5Lexists(file, k_weights, H5P_DEFAULT) > 0) {
+        f.weights = open_dataset(file, path, k_weights);
+        const Shape ws = shape_of(f.weights.get(), path, k_weights, H5T_FLOAT, 3);
+        if (ws.dims[0] != count || ws.dims[1] != n || ws.dims[2] != n)
+            fail(path, k_weights,
+                 "has dims " + std::to_string(ws.dims[0]) + " x " + std::to_string(ws.dims[1]) + " x " +
+                     std::to_string(ws.dims[2]) + "; expected " + std::to_string(count) + " x " + std::to_string(n) +
+                     " x " + std::to_string(n) + " (one weight per slice pixel)");
+        const double elements = check_storage(f.weights.get(), path, k_weights, ws.dims) / 8.0;
+        if (elements > std::max(double(n) * double(n), double(1 << 24)))
+            fail(path, k_weights,
+                 "has chunks of " + std::to_string(static_cast<long long>(elements)) +
+                     " values; expected at most one plane or 2^24");
+        f.chunk_bytes = std::max(f.chunk_bytes, elements * 8.0);
+        f.weights_space = Id(H5Dget_space(f.weights.get()), H5Sclose);
+    }
+
     ObservationIndex& index = f.index;
     index.resolution = static_cast<int>(n);
     index.channels = static_cast<int>(channels);
@@ -627,7 +678,8 @@ std::vector<Observation> plugin_read_observations(const std::string& path, const
                                     " is out of range; the file holds " + std::to_string(index.size()));
     const std::size_t n = std::size_t(index.resolution), channels = std::size_t(index.channels);
     const std::size_t values = n * n * channels;
-    host().require_memory(double(indices.size()) * double(values) * 8.0 + double(values) * 4.0 + f.chunk_bytes,
+    host().require_memory(double(indices.size()) * double(values + (f.weights.valid() ? n * n : 0)) * 8.0 +
+                              double(values) * 4.0 + f.chunk_bytes,
                           max_memory_gb,
                    "reading " + std::to_string(indices.size()) + " observations of " + path);
 
@@ -650,6 +702,17 @@ std::vector<Observation> plugin_read_observations(const std::string& path, const
         o.reference.resize(values);
         for (std::size_t p = 0; p < plane; ++p)
             for (std::size_t c = 0; c < channels; ++c) o.reference[p * channels + c] = slice[c * plane + p];
+        if (f.weights.valid()) {
+            o.weights.resize(plane);
+            const hsize_t wstart[3] = {i, 0, 0}, wblock[3] = {1, n, n};
+            const hsize_t wdims[1] = {plane};
+            Id wmemory(H5Screate_simple(1, wdims, nullptr), H5Sclose);
+            if (H5Sselect_hyperslab(f.weights_space.get(), H5S_SELECT_SET, wstart, nullptr, wblock, nullptr) < 0 ||
+                H5Dread(f.weights.get(), H5T_NATIVE_FLOAT, wmemory.get(), f.weights_space.get(), H5P_DEFAULT,
+                        o.weights.data()) < 0)
+                fail(path, k_weights,
+                     "observation " + std::to_string(i) + " cannot be read (truncated or damaged file?)");
+        }
         try {
             host().validate_observation(o, i);
         } catch (const std::exception& e) {
