@@ -49,7 +49,7 @@ PlateOptions small_plate() {
     return o;
 }
 
-// The light reflected into the cone |ω_o| ≤ cone (normal light) by the R × R block of texels at
+// The light reflected into the cone |ω_o − centre| ≤ cone (normal light) by the R × R block of texels at
 // (r0, c0) of the plate alone, per wavelength, as a fraction of the light incident on the block:
 // the Kirchhoff far field of the block,
 //   A(ω) = w² sinc(w f_x) sinc(w f_y) Σ_t e^{−i k h_t (1 + cos θ_o)} e^{−2πi f·x_t},  f = ω/λ,
@@ -58,7 +58,8 @@ PlateOptions small_plate() {
 // The sum over texels is grouped by the block's distinct heights and separated along rows and
 // columns (exact algebra, no FFT, no periodicity).
 std::vector<double> block_cone_flux(const std::vector<double>& h, int cols, int r0, int c0, int R, double w,
-                                    const std::vector<double>& lambdas, double cone, double step) {
+                                    const std::vector<double>& lambdas, double cone, double step,
+                                    std::array<double, 2> centre = {0.0, 0.0}) {
     std::map<double, int> level_of;
     for (int i = 0; i < R; ++i)
         for (int j = 0; j < R; ++j) level_of.emplace(h[static_cast<std::size_t>((r0 + i) * cols + c0 + j)], 0);
@@ -69,8 +70,12 @@ std::vector<double> block_cone_flux(const std::vector<double>& h, int cols, int 
     }
     const int K = static_cast<int>(heights.size());
     const int G = static_cast<int>(std::ceil(2.0 * cone / step));
-    std::vector<double> grid(static_cast<std::size_t>(G));
-    for (int g = 0; g < G; ++g) grid[static_cast<std::size_t>(g)] = -cone + (g + 0.5) * (2.0 * cone / G);
+    std::vector<double> grid(static_cast<std::size_t>(G)), gridx(grid.size()), gridy(grid.size());
+    for (int g = 0; g < G; ++g) {
+        grid[static_cast<std::size_t>(g)] = -cone + (g + 0.5) * (2.0 * cone / G);
+        gridx[static_cast<std::size_t>(g)] = centre[0] + grid[static_cast<std::size_t>(g)];
+        gridy[static_cast<std::size_t>(g)] = centre[1] + grid[static_cast<std::size_t>(g)];
+    }
     const double cell = (2.0 * cone / G) * (2.0 * cone / G);
     auto sinc = [](double x) { return x == 0.0 ? 1.0 : std::sin(k_pi * x) / (k_pi * x); };
     std::vector<double> out;
@@ -83,19 +88,19 @@ std::vector<double> block_cone_flux(const std::vector<double>& h, int cols, int 
                 const int l = level_of[h[static_cast<std::size_t>((r0 + i) * cols + c0 + j)]];
                 for (int gy = 0; gy < G; ++gy)
                     T[(static_cast<std::size_t>(l) * R + i) * G + gy] +=
-                        std::polar(1.0, -2.0 * k_pi * grid[static_cast<std::size_t>(gy)] / lambda * (j + 0.5) * w);
+                        std::polar(1.0, -2.0 * k_pi * gridy[static_cast<std::size_t>(gy)] / lambda * (j + 0.5) * w);
             }
         double flux = 0.0;
 #pragma omp parallel for reduction(+ : flux) schedule(static)
         for (int gx = 0; gx < G; ++gx) {
-            const double wx = grid[static_cast<std::size_t>(gx)];
+            const double wx = gridx[static_cast<std::size_t>(gx)];
             std::vector<C> ex(static_cast<std::size_t>(R));
             for (int i = 0; i < R; ++i) ex[static_cast<std::size_t>(i)] = std::polar(1.0, -2.0 * k_pi * wx / lambda * (i + 0.5) * w);
             for (int gy = 0; gy < G; ++gy) {
-                const double wy = grid[static_cast<std::size_t>(gy)];
-                const double r2 = wx * wx + wy * wy;
-                if (r2 > cone * cone) continue;
-                const double cos_o = std::sqrt(1.0 - r2);
+                const double wy = gridy[static_cast<std::size_t>(gy)];
+                const double gxo = grid[static_cast<std::size_t>(gx)], gyo = grid[static_cast<std::size_t>(gy)];
+                if (gxo * gxo + gyo * gyo > cone * cone) continue;
+                const double cos_o = std::sqrt(1.0 - wx * wx - wy * wy);
                 C a(0.0, 0.0);
                 for (int l = 0; l < K; ++l) {
                     C m(0.0, 0.0);
@@ -154,6 +159,43 @@ TEST(DesignPlate, EachRegionShowsItsPaletteColourUnderADirectIntegralOverTheRegi
             EXPECT_LT(own, design_delta + 0.01);
             EXPECT_GT(other, 0.1);
         }
+}
+
+TEST(DesignPlate, EachDirectionRegionSendsItsHighlightToItsOwnDirection) {
+    // Two highlight directions on a 1 x 2 picture (dark: the first, light: the second); each
+    // region of the exported plate, integrated alone over both view cones, puts far more of the
+    // light into its own entry's cone than into the other's, as its tile's exact orders say.
+    const fs::path dir = fresh_dir("design_plate");
+    PlateOptions o = small_plate();
+    o.palette = parse_palette("dir:0.2,0;dir:0,-0.2");
+    o.picture = picture(1, 2, {{{0, 0, 0}}, {{255, 255, 255}}});
+    const PreparedPlate p = prepare_plate(o);
+    ASSERT_EQ(p.assignment, (std::vector<int>{0, 1}));
+    const PlateResult r = run_plate(p);
+    write_plate_directory((dir / "run").string(), r, false);
+    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
+    const std::vector<double> lambdas = j["light"]["lambdas_um"].get<std::vector<double>>();
+    const std::vector<double> h = heights_um(read_heightfield_exr((dir / "run" / "heights.exr").string()));
+    ASSERT_EQ(h.size(), 128u * 256u);
+    for (int e = 0; e < 2; ++e) {
+        const auto& views = j["entries"][static_cast<std::size_t>(e)]["views"];
+        // Fractions of the reflected power, as design.h's: per wavelength over Σ Φ of one period.
+        std::vector<double> tile(32 * 32);
+        for (int i = 0; i < 32; ++i)
+            for (int k = 0; k < 32; ++k) tile[static_cast<std::size_t>(i * 32 + k)] = h[static_cast<std::size_t>(i * 256 + e * 128 + k)];
+        const auto orders = exact_orders(tile, 32, 0.5, {0.0, 0.0}, lambdas);
+        double into[2];
+        for (int v = 0; v < 2; ++v) {
+            const std::array<double, 2> centre = o.palette[static_cast<std::size_t>(v)].omega;
+            std::vector<double> flux = block_cone_flux(h, 256, 0, e * 128, 128, 0.5, lambdas, 0.1, 0.0015, centre);
+            for (std::size_t w = 0; w < flux.size(); ++w) flux[w] /= orders[w].kirchhoff_total;
+            into[v] = reflectance_xyz(lambdas, flux)[1];
+            // The tile's exact Y into that cone against the region's, which its finite size spreads.
+            EXPECT_NEAR(into[v], views[static_cast<std::size_t>(v)]["luminous_efficiency"].get<double>(), 0.05) << e << v;
+        }
+        EXPECT_GT(into[e], 0.3) << e;
+        EXPECT_GT(into[e], 5.0 * into[1 - e]) << e;
+    }
 }
 
 // Writes an 8-bit sRGB picture as PNG (through the linear writer: decode, then its encode).
