@@ -180,3 +180,22 @@ def test_unusable_files_give_one_line_and_exit_2(tmp_path, damage):
                 "bad_csv": "metrics.csv", "no_design_json": "design.json"}[damage]
     assert expected in lines[0]
     assert not os.path.exists(os.path.join(d, "report.png"))
+
+
+def test_iridescent_pairs_are_drawn_as_swatches(tmp_path):
+    # Each pair's target colour above what exact scalar diffraction reaches: pixels of those
+    # colours appear in the picture (a pure red target, a pure blue reached colour).
+    doc = design_doc("iridescent")
+    doc["target"] = {"kind": "iridescent", "text": "iridescent:spec.json", "view_cone": 0.05,
+                     "pairs": [{"view": [0.2, 0.0], "srgb8": [255, 0, 0], "linear_rgb": [1.0, 0.0, 0.0]},
+                               {"view": [-0.2, 0.0], "srgb8": [0, 255, 0], "linear_rgb": [0.0, 1.0, 0.0]}]}
+    pair = {"delta_uv": 0.01, "luminous_efficiency": 0.05, "linear_srgb": [0.0, 0.0, 1.0]}
+    doc["metrics"]["exact"] = {"delta_uv": [0.01, 0.01], "pairs": [pair, pair]}
+    d = make_run(str(tmp_path / "iri"), doc=doc)
+    r = run_report(d)
+    assert r.returncode == 0, r.stderr
+    from PIL import Image
+
+    im = np.asarray(Image.open(os.path.join(d, "report.png")).convert("RGB")).astype(int)
+    for colour in ([255, 0, 0], [0, 255, 0], [0, 0, 255]):
+        assert (np.abs(im - colour).sum(axis=2) < 10).sum() > 500, colour
