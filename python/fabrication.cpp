@@ -31,20 +31,23 @@ void bind_fabrication(py::module_& m) {
                 masks.append(py::dict("path"_a = mask.path, "depth_um"_a = mask.depth_um, "weight"_a = mask.weight));
             return py::dict("heights_png"_a = files.heights_png, "heights_stl"_a = files.heights_stl,
                             "masks_json"_a = files.masks_json, "masks"_a = masks,
-                            "stl_triangles"_a = files.stl_triangles, "note"_a = files.note);
+                            "stl_triangles"_a = files.stl_triangles, "note"_a = files.note,
+                            "heights_x3p"_a = files.heights_x3p, "x3p_note"_a = files.x3p_note);
         },
         "out_dir"_a, "heights_um"_a, "texel_um"_a, "height_range_um"_a, "levels"_a = 0, "max_stl_gb"_a = 4.0,
         R"doc(
 Writes the fabrication files of a relief of square texels (docs/fabrication.md) into the
 existing directory out_dir: heights.png (16-bit grey, 0...height_range_um, the scale in text
-chunks), heights.stl (a closed binary STL solid in um; skipped beyond max_stl_gb, with a note)
-and, when levels > 0, masks_01.png ... and masks.json (the masks of multi-step lithography:
+chunks), heights.stl (a closed binary STL solid in um; skipped beyond max_stl_gb, with a note),
+heights.x3p (ISO 25178-72, float64 um; skipped with x3p_note when the x3p plugin does not load or
+its copies, 24 bytes a texel, exceed max_stl_gb) and, when levels > 0, masks_01.png ... and masks.json (the masks of multi-step lithography:
 log2 K binary-weighted masks when K is a power of two, else K - 1 cumulative ones; each height
 must then be a level k * height_range_um / (levels - 1)).
 
 heights_um: 2-D array (rows, cols) of heights in um, within 0...height_range_um; texel_um:
 texel width in um. Returns a dict: heights_png, heights_stl ('' when skipped), masks_json,
-masks (list of {path, depth_um, weight}), stl_triangles, note. ValueError for a bad value
+masks (list of {path, depth_um, weight}), stl_triangles, note, heights_x3p ('' when skipped),
+x3p_note. ValueError for a bad value
 (naming the texel), RuntimeError when a file cannot be written.)doc");
 }
 

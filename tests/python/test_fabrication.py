@@ -60,3 +60,16 @@ def test_bad_inputs_raise(tmp_path):
     with pytest.raises(ValueError, match="levels"):
         wb.write_fabrication_exports(str(tmp_path), np.zeros((3, 3)), 0.5, 1.0, levels=1)
     assert os.listdir(tmp_path) == []
+
+
+def test_exports_hold_an_x3p_with_the_same_heights(tmp_path):
+    # heights.x3p read back by the surface reader (the x3p plugin; rows along y there, transposed
+    # back to the heightfield's rows along x by Heightfield.read).
+    rng = np.random.default_rng(4)
+    heights = rng.integers(0, 4, size=(6, 9)) * 0.5
+    files = wb.write_fabrication_exports(str(tmp_path), heights, texel_um=0.25, height_range_um=1.5, levels=4)
+    assert files["heights_x3p"] == str(tmp_path / "heights.x3p") and files["x3p_note"] == ""
+    hf = wb.Heightfield.read(files["heights_x3p"])
+    back = np.asarray(hf.values) * hf.texel_um * hf.vscale
+    np.testing.assert_allclose(back.reshape(6, 9), heights, atol=1e-12)
+    assert hf.texel_um == pytest.approx(0.25)
