@@ -72,6 +72,36 @@ Observation make_observation(const PyQuery& q, py::handle reference, py::handle 
     return o;
 }
 
+// An observation from a slice EXR that wavebrdf wrote (its query in the attributes), as
+// `wavebrdf invert --reference` reads one; weights as the constructor's.
+Observation observation_from_slice(const std::filesystem::path& path_arg, py::handle weights) {
+    const std::string path = path_arg.string();
+    SliceFile file;
+    {
+        py::gil_scoped_release release;
+        file = read_slice_exr(path);
+    }
+    if (!file.attributes)
+        throw py::value_error(path +
+                              " has no wavebrdf slice attributes (a measured slice?); expected "
+                              "Observation(Query(...), reference) with its query, e.g. "
+                              "read_slice(path)[0][..., 0] as the reference");
+    const SliceAttributes& a = *file.attributes;
+    if (file.image.rows != file.image.cols)
+        throw py::value_error(path + " is " + std::to_string(file.image.rows) + "x" + std::to_string(file.image.cols) +
+                              "; expected a square slice");
+    PyQuery q;
+    q.query = a.query;
+    q.lambdas_um = a.lambdas_um;
+    q.spectral = a.lambdas_um.size() > 1;
+    const py::ssize_t n = file.image.rows;
+    py::array_t<float> image = owning_array(std::move(file.image.data), {n, n, 3});
+    // One wavelength: the R channel (R = G = B in the file).
+    const py::object reference = q.lambdas_um.size() == 1 ? py::object(image[py::make_tuple(py::ellipsis(), 0)])
+                                                          : py::object(image);
+    return make_observation(q, reference, weights);
+}
+
 PyQuery query_of(const Observation& o) {
     PyQuery q;
     q.query = o.query;
@@ -97,6 +127,11 @@ Observation(query, reference, weights=None)
                reference value may be anything, NaN included; stored as float32
 )doc")
         .def(py::init(&make_observation), "query"_a, "reference"_a, "weights"_a = py::none())
+        .def_static("from_slice", &observation_from_slice, "path"_a, "weights"_a = py::none(),
+                    "The observation of a slice EXR written by wavebrdf (render --out, genbrdf -o, a run's\n"
+                    "reference_ slices): its query and wavelengths from the file's attributes, as `wavebrdf\n"
+                    "invert --reference` reads it; weights as the constructor's. ValueError for a file\n"
+                    "without the attributes (a measured slice: use Observation(query, reference)).")
         .def_property_readonly(
             "weights",
             [](py::object self) -> py::object {

@@ -451,6 +451,14 @@ class Observation:
     """
     def __init__(self, query: Query, reference: Any, weights: Any = ...) -> None:
         ...
+    @staticmethod
+    def from_slice(path: Union[str, os.PathLike], weights: Any = ...) -> Observation:
+        """The observation of a slice EXR written by wavebrdf (render --out, genbrdf -o, a run's
+        reference_ slices): its query and wavelengths from the file's attributes, as `wavebrdf
+        invert --reference` reads it; weights as the constructor's. ValueError for a file
+        without the attributes (a measured slice: use Observation(query, reference)).
+        """
+        ...
     @property
     def weights(self) -> Any:
         """the per-pixel weights, a read-only float32 (n, n) view, or None (every pixel weighs 1)"""

@@ -1,6 +1,8 @@
 """Fitting one's own slice from Python: per-pixel weights of an Observation (a masked pixel
 changes neither the loss nor its gradient), files that keep them; calls that miss or misspell a
 keyword are told which; height_rel_rmse takes arrays."""
+import subprocess
+
 import numpy as np
 import pytest
 
@@ -123,3 +125,24 @@ def test_height_rel_rmse_takes_arrays():
     assert np.isfinite(wb.height_rel_rmse_plane_removed(e, t))
     with pytest.raises(ValueError, match="estimate has shape"):
         wb.height_rel_rmse(np.zeros((2, 2, 2)), t)
+
+
+def test_observation_from_a_slice_file_takes_its_query(tmp_path, cli):
+    truth = _truth()
+    path = str(tmp_path / "s.exr")
+    # render --out writes the query into the slice's attributes.
+    hf_path = str(tmp_path / "h.exr")
+    truth.save_exr(hf_path)
+    subprocess.run([cli, "render", "--heightfield", hf_path, "--resolution", "12", "--x-um", "3", "--y-um", "5",
+                    "--sigma-p-um", "2", "--light-x", "0.2", "--light-y", "-0.1", "--lambda-um", "0.6",
+                    "--out", path, "--quiet"], check=True)
+    mask = _mask()
+    obs = wb.Observation.from_slice(path, weights=mask)
+    assert obs.lambdas_um == [0.6]
+    assert obs.query.sigma_p_um == 2.0 and obs.query.x_um == 3.0 and tuple(obs.query.light) == (0.2, -0.1)
+    assert np.array_equal(obs.weights, mask.astype(np.float32))
+    # From the true heights the loss is 0 up to the slice's float rounding: the query is the right one.
+    assert wb.observation_loss(truth, [obs], "cmsle:1")[0] < 1e-12
+    np.save(str(tmp_path / "plain.npy"), np.zeros((4, 4)))
+    with pytest.raises((ValueError, RuntimeError)):
+        wb.Observation.from_slice(str(tmp_path / "plain.npy"))
