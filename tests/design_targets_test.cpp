@@ -303,6 +303,19 @@ TEST(DesignTargets, HostileSpecsAndTablesGetOneLine) {
     o.target = parse_design_target(spec("good.json", good));
     o.spectral = 0;  // needs white light
     EXPECT_THROW(prepare_design(o), std::invalid_argument);
+    // A 4² tile of 0.5 µm texels has orders λ/2 µm ≥ 0.2 apart: a cone of 0.02 about (0.1, 0.1)
+    // holds none at any wavelength.
+    o.size = 4;
+    o.spectral = 4;
+    o.band_um = {0.4, 0.7};
+    o.view_cone = 0.02;
+    o.target = parse_design_target(spec("between.json", R"({"pairs": [{"view": [0.1, 0.1], "colour": "#ff0000"}]})"));
+    try {
+        prepare_design(o);
+        ADD_FAILURE() << "a cone between the orders was accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("holds no diffraction order"), std::string::npos) << e.what();
+    }
     // Tables: not a table, and a mosaic whose header declares more pixels than a design reads
     // (refused before its pixels are read: the file holds only a header).
     fails("brdf:" + (d / "absent.exr").string(), "absent.exr");

@@ -61,15 +61,26 @@ public:
     void assign(const std::vector<OrderSet>& sets) override {
         m_members.assign(sets.size(), {});
         const double c2 = m_spec.view_cone * m_spec.view_cone;
+        std::vector<std::size_t> count(m_spec.view_offsets.size(), 0);
         for (std::size_t w = 0; w < sets.size(); ++w) {
             const OrderSet& s = sets[w];
             m_members[w].assign(s.size(), {{-1, -1}});
             for (std::size_t o = 0; o < s.size(); ++o)
                 for (std::size_t q = 0; q < m_spec.view_offsets.size(); ++q) {
                     const double dx = s.dx(o) - m_spec.view_offsets[q][0], dy = s.dy(o) - m_spec.view_offsets[q][1];
-                    if (dx * dx + dy * dy <= c2) m_members[w][o][0] = static_cast<int>(q);
+                    if (dx * dx + dy * dy <= c2) {
+                        m_members[w][o][0] = static_cast<int>(q);
+                        ++count[q];
+                    }
                 }
         }
+        // A cone between the orders of every wavelength can receive no light whatever the relief.
+        for (std::size_t q = 0; q < count.size(); ++q)
+            if (count[q] == 0 && !sets.empty())
+                throw std::invalid_argument("iridescent pair " + std::to_string(q + 1) + ": its view cone of --view-cone " +
+                                            num(m_spec.view_cone) + " holds no diffraction order of the tile (period " +
+                                            num(sets[0].period_um) + " um) at any wavelength; expected a larger --size "
+                                            "or --view-cone");
     }
 
     std::array<double, 3> xyz(const Fractions& f, std::size_t q) const {
