@@ -230,6 +230,9 @@ bool write_recipe(FuzzedDataProvider& in, const std::string& path) {
     for (hsize_t k = 0; k < wavelengths; ++k) lambdas.push_back(0.45 + 0.1 * double(k));
     w.dataset("/entry_1/wavebrdf_1/wavelengths_um", H5T_NATIVE_DOUBLE, {count, wavelengths},
               hostile_values ? values(0.5, 12) : lambdas);
+    // The optional per-pixel weights (absent is as specified too).
+    if (in.ConsumeBool())
+        w.dataset("/entry_1/wavebrdf_1/weights", H5T_NATIVE_FLOAT, {count, n, n}, values(1.0, 5), true);
     if (H5Fclose(file) < 0) std::abort();
     return w.clean;
 }
