@@ -15,7 +15,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "core/fftw_planner.h"
+#include "core/fftw_raii.h"
 #include "wavebrdf/constants.h"
 
 namespace wavebrdf {
@@ -260,16 +260,6 @@ MeasuredSurface resample(const MeasuredSurface& s, double w) {
     return out;
 }
 
-struct FftwFree {
-    void operator()(void* p) const { fftw_free(p); }
-};
-struct PlanDeleter {
-    void operator()(fftw_plan_s* plan) const {
-        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
-        fftw_destroy_plan(plan);
-    }
-};
-
 // Moisan's periodic-plus-smooth decomposition (L. Moisan, "Periodic plus smooth image
 // decomposition", J. Math. Imaging Vis. 39, 2011, eq. 7 and Theorem 1): the smooth component s
 // solves Δ_per s = v, v holding the jumps across the tile's edges (v = 0 inside), and
@@ -278,9 +268,8 @@ struct PlanDeleter {
 void periodic_smooth(MeasuredSurface& s) {
     const int rows = s.rows, cols = s.cols;
     const std::size_t n = s.heights_um.size();
-    std::unique_ptr<fftw_complex[], FftwFree> data(static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * n)));
-    if (!data) throw std::bad_alloc();
-    std::unique_ptr<fftw_plan_s, PlanDeleter> forward, inverse;
+    detail::FftwBuffer<fftw_complex> data = detail::fftw_buffer<fftw_complex>(n);
+    detail::FftwPlan forward, inverse;
     {
         std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
         forward.reset(fftw_plan_dft_2d(rows, cols, data.get(), data.get(), FFTW_FORWARD, FFTW_ESTIMATE));

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "core/fftw_planner.h"
+#include "core/fftw_raii.h"
 #include "core/random.h"
 #include "wavebrdf/constants.h"
 #include "core/text.h"
@@ -92,26 +92,9 @@ void validate(const SurfaceParams& p) {
 // ---------------------------------------------------------------------------------------------
 // FFTW: plans are made and destroyed under detail::fftw_planner_mutex (core/fftw_planner.h).
 // FFTW_ESTIMATE plans without timing, hence the same plan (and the same rounding) on every call.
-struct FftwFree {
-    void operator()(void* p) const { fftw_free(p); }
-};
-template <typename T>
-using FftwBuffer = std::unique_ptr<T[], FftwFree>;
-
-template <typename T>
-FftwBuffer<T> fftw_buffer(std::size_t count) {
-    void* p = fftw_malloc(sizeof(T) * count);
-    if (!p) throw std::bad_alloc();
-    return FftwBuffer<T>(static_cast<T*>(p));
-}
-
-struct PlanDeleter {
-    void operator()(fftw_plan_s* plan) const {
-        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
-        fftw_destroy_plan(plan);
-    }
-};
-using Plan = std::unique_ptr<fftw_plan_s, PlanDeleter>;
+using detail::fftw_buffer;
+using detail::FftwBuffer;
+using Plan = detail::FftwPlan;
 
 // ---------------------------------------------------------------------------------------------
 // Gaussian-correlated noise

@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "core/fftw_planner.h"
+#include "core/fftw_raii.h"
 #include "wavebrdf/constants.h"
 
 namespace wavebrdf {
@@ -64,24 +64,9 @@ std::vector<double> centred(const HeightGrid& g) {
     return z;
 }
 
-struct FftwFree {
-    void operator()(void* p) const { fftw_free(p); }
-};
-template <typename T>
-using FftwBuffer = std::unique_ptr<T[], FftwFree>;
-template <typename T>
-FftwBuffer<T> fftw_buffer(std::size_t count) {
-    void* p = fftw_malloc(sizeof(T) * count);
-    if (!p) throw std::bad_alloc();
-    return FftwBuffer<T>(static_cast<T*>(p));
-}
-struct PlanDeleter {
-    void operator()(fftw_plan_s* plan) const {
-        std::lock_guard<std::mutex> lock(detail::fftw_planner_mutex());
-        fftw_destroy_plan(plan);
-    }
-};
-using Plan = std::unique_ptr<fftw_plan_s, PlanDeleter>;
+using detail::fftw_buffer;
+using detail::FftwBuffer;
+using Plan = detail::FftwPlan;
 
 // |DFT|² of the mean-free heights on the grid itself (periodic), rows × cols, uncentred.
 std::vector<double> periodogram(const HeightGrid& g) {
