@@ -106,7 +106,9 @@ void run(DesignArgs a) {
     const PreparedDesign prepared = prepare_design(o);
     if (!a.quiet) {
         std::cerr << "design: " << o.size << "x" << o.size << " texels of " << format_shortest(o.texel_um) << " um, "
-                  << o.levels << " levels within " << format_shortest(o.height_range_um) << " um, "
+                  << (o.min_feature_um != 0.0 ? "grayscale (features >= " + format_shortest(o.min_feature_um) + " um)"
+                                              : std::to_string(o.levels) + " levels")
+                  << " within " << format_shortest(o.height_range_um) << " um, "
                   << prepared.lambdas_um.size() << " wavelength(s), " << prepared.orders
                   << " propagating orders; estimated memory " << format_bytes(prepared.estimated_bytes) << "\n";
         for (const std::string& note : prepared.notes) std::cerr << "design: note: " << note << "\n";
@@ -174,11 +176,12 @@ void add_design_command(CLI::App& app) {
     cmd->add_option("--texel-um", a->options.texel_um, "texel width in um")->capture_default_str();
     cmd->add_option("--height-range-um", a->options.height_range_um, "every height within 0..H um")
         ->capture_default_str();
-    cmd->add_option("--levels", a->options.levels, "K equally spaced height levels (2-256)")->capture_default_str();
+    auto* levels = cmd->add_option("--levels", a->options.levels, "K equally spaced height levels (2-256)")
+                       ->capture_default_str();
     cmd->add_option("--level-step-um", a->options.level_step_um,
                     "spacing of the levels in um (default: H/(K-1); anti-mirror: chosen so the mirror order can cancel)");
     cmd->add_option("--min-feature-um", a->options.min_feature_um,
-                    "grayscale relief's smallest feature (contradicts --levels; not available)");
+                    "grayscale relief: no lateral detail finer than this, um (contradicts --levels)");
     cmd->add_option("--fabrication-error", a->errors, "e.g. scale:5%,blur:0.3um (design for and score under them)");
     cmd->add_option("--seed", a->options.seed, "random start")->capture_default_str();
     cmd->add_option("--iterations", a->options.iterations, "relaxed iterations")->capture_default_str();
@@ -189,8 +192,10 @@ void add_design_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
-    cmd->callback([a, spectral, lambda, vx, vy] {
+    cmd->callback([a, spectral, lambda, vx, vy, levels] {
         a->given_spectral = spectral->count() > 0;
+        // A grayscale relief has no levels: --min-feature-um without --levels.
+        if (a->options.min_feature_um != 0.0 && levels->count() == 0) a->options.levels = 0;
         a->given_lambda = lambda->count() > 0;
         if ((vx->count() > 0) != (vy->count() > 0))
             throw std::invalid_argument("--view-x and --view-y go together; give both or neither");

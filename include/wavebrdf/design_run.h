@@ -94,12 +94,14 @@ struct DesignOptions {
     int size = 256;                 // N: the N × N tile, 2 … 2048
     double texel_um = 0.5;          // 0.05 … 100
     double height_range_um = 2.0;   // every height within [0, H], 0 < H ≤ 100
-    int levels = 8;                 // K equally spaced levels 0, H/(K−1), …, H; 2 … 256
+    int levels = 8;                 // K equally spaced levels 0, H/(K−1), …, H; 2 … 256 (0: grayscale)
     // The levels' spacing Δ (levels 0, Δ, …, (K−1)Δ, (K−1)Δ ≤ H); 0: H/(K−1), except for the
     // anti-mirror, whose step is the largest that lets every wavelength's mirror order cancel
     // (docs/design.md).
     double level_step_um = 0.0;
-    double min_feature_um = 0.0;    // grayscale only (not with levels): refused, see docs/design.md
+    // Grayscale (with levels 0): no lateral detail finer than this, µm (2 texels … the period), by
+    // a filtered parameterisation evaluated on 256 levels (docs/design.md); 0: the levels above.
+    double min_feature_um = 0.0;
     FabricationErrors errors;
     // The optimisation.
     std::uint64_t seed = 1;

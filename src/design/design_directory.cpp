@@ -21,11 +21,14 @@ void write_design_directory(const std::string& dir, const DesignResult& result, 
     for (std::size_t t = 0; t < values.size(); ++t) values[t] = result.heights_um[t] / result.texel_um;
     const Heightfield hf(result.size, result.size, std::move(values), result.texel_um, 1.0);
     write_heightfield_exr((d / "heights.exr").string(), hf, "wavebrdf design");
+    // A grayscale relief (--min-feature-um) is written for grayscale lithography: no etch masks.
+    const bool grayscale =
+        nlohmann::json::parse(result.metrics_json)["constraints"].value("min_feature_um", 0.0) > 0.0;
     // For lithography and printing: heights.png (16-bit, 0 … the top level), the etch masks of
     // the levels (their step is the top level over K − 1) and heights.stl.
     const FabricationFiles files = write_fabrication_exports(
         dir, result.heights_um, result.size, result.size, result.texel_um, result.levels_um.back(),
-        static_cast<int>(result.levels_um.size()));
+        grayscale ? 0 : static_cast<int>(result.levels_um.size()));
     auto picture = [&](const std::vector<float>& data) {
         RgbImage image;
         image.rows = image.cols = result.picture_size;

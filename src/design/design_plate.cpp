@@ -437,6 +437,7 @@ PlateResult run_plate(const PreparedPlate& p, const std::function<bool(int, cons
     j["constraints"] = {{"size", N}, {"texel_um", o.design.texel_um}, {"height_range_um", o.design.height_range_um},
                         {"levels", o.design.levels},
                         {"fabrication_error", {{"scale", o.design.errors.scale}, {"blur_um", o.design.errors.blur_um}}}};
+    if (o.design.min_feature_um != 0.0) j["constraints"]["min_feature_um"] = o.design.min_feature_um;
     j["levels_um"] = r.levels_um;
     j["seed"] = o.design.seed;
     j["options"] = {{"iterations", o.design.iterations}, {"refine_passes", o.design.refine_passes}};
@@ -503,8 +504,11 @@ void write_plate_directory(const std::string& dir, const PlateResult& r, bool fo
         const Heightfield hf(r.rows, r.cols, std::move(values), r.texel_um, 1.0);
         write_heightfield_exr((d / "heights.exr").string(), hf, "wavebrdf design (plate)");
     }
+    // A grayscale plate (--min-feature-um) is written for grayscale lithography: no etch masks.
+    const bool grayscale = nlohmann::json::parse(r.metrics_json)["constraints"].value("min_feature_um", 0.0) > 0.0;
     const FabricationFiles files = write_fabrication_exports(dir, r.heights_um, r.rows, r.cols, r.texel_um,
-                                                             r.levels_um.back(), static_cast<int>(r.levels_um.size()), 1e9);
+                                                             r.levels_um.back(),
+                                                             grayscale ? 0 : static_cast<int>(r.levels_um.size()), 1e9);
     // plate.exr: the appearance panels side by side, linear (fractions of the incident light);
     // plate.png: the picture, then each panel scaled so that its brightest channel is 1.
     std::vector<RgbImage> linear, shown;

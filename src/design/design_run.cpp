@@ -17,6 +17,7 @@
 #include "core/random.h"
 #include "design/engine.h"
 #include "design/evaluator.h"
+#include "design/grayscale.h"
 #include "design/relief.h"
 #include "design/target.h"
 #include "design/target_more.h"
@@ -441,23 +442,34 @@ double estimate_design_bytes(const DesignOptions& o) {
     for (double lambda : design_wavelengths_um(o)) orders += k_pi * (period / lambda) * (period / lambda) + 4.0 * period / lambda;
     orders *= static_cast<double>(detail::design_lights(o).size());
     const double n2 = static_cast<double>(o.size) * o.size;
-    const double weights = 7.0 * 8.0 * o.levels * n2;  // θ, p, Adam's two moments, gradients, one-hot
+    const int K = o.levels == 0 && o.min_feature_um != 0.0 ? detail::k_grayscale_levels : o.levels;
+    const double weights = 7.0 * 8.0 * K * n2;  // θ, p, Adam's two moments, gradients, one-hot
     const int threads = 2;
-    const double spectra = 16.0 * o.levels * n2 * (2.0 + threads);
+    const double spectra = 16.0 * K * n2 * (2.0 + threads);
     return 1.2 * (orders * 76.0 + weights + spectra + detail::more_target_bytes(o)) + 64e6;
 }
 
 PreparedDesign prepare_design(const DesignOptions& options) {
-    const DesignOptions& o = options;
+    // A grayscale design (min_feature_um > 0, levels 0) is evaluated on k_grayscale_levels levels.
+    DesignOptions grey = options;
+    if (options.min_feature_um != 0.0 && options.levels == 0) grey.levels = detail::k_grayscale_levels;
+    const DesignOptions& o = grey;
     require_range(o.size, 2, 2048, "--size", "2 to 2048 texels");
     require_range(o.texel_um, 0.05, 100.0, "--texel-um", "0.05 to 100 um");
     require_range(o.height_range_um, 1e-3, 100.0, "--height-range-um", "0.001 to 100 um");
-    require_range(o.levels, 2, 256, "--levels", "2 to 256");
-    if (o.min_feature_um != 0.0)
+    if (o.min_feature_um != 0.0 && options.levels != 0)
         throw std::invalid_argument("--min-feature-um " + num(o.min_feature_um) +
                                     " asks for a grayscale relief, which contradicts --levels " +
-                                    std::to_string(o.levels) + " (multi-step lithography); grayscale designs are "
-                                    "not available, use --levels");
+                                    std::to_string(o.levels) + " (multi-step lithography); give one of them");
+    require_range(o.levels, 2, 256, "--levels", "2 to 256");
+    const bool grayscale = o.min_feature_um != 0.0;
+    if (grayscale) {
+        require_range(o.min_feature_um, 2.0 * o.texel_um, o.size * o.texel_um, "--min-feature-um",
+                      "2 x --texel-um to the tile's period (" + num(2.0 * o.texel_um) + " to " +
+                          num(o.size * o.texel_um) + " um)");
+        if (o.level_step_um != 0.0)
+            throw std::invalid_argument("--level-step-um " + num(o.level_step_um) + " has no levels to space in a grayscale design");
+    }
     require_range(o.iterations, 0, 100000, "--iterations", "0 to 100000");
     require_range(o.refine_passes, 0, 100000, "--refine-passes", "0 to 100000");
     if (o.spectral != 0) {
@@ -485,7 +497,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
                                     num(o.level_step_um * (o.levels - 1)) + " um; expected at most --height-range-um " +
                                     num(o.height_range_um));
         step = o.level_step_um;
-    } else if (o.target.kind == DesignKind::AntiMirror) {
+    } else if (o.target.kind == DesignKind::AntiMirror && !grayscale) {
         step = anti_mirror_step(o.height_range_um, o.levels, p.lambdas_um, std::sqrt(1.0 - light * light));
         if (step < o.height_range_um / (o.levels - 1))
             p.notes.push_back("level step " + num(step) + " um (top level " + num(step * (o.levels - 1)) +
@@ -552,7 +564,8 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
     const auto start = Clock::now();
     const int K = o.levels, N = o.size;
     const std::size_t n2 = static_cast<std::size_t>(N) * static_cast<std::size_t>(N);
-    const std::size_t total = n2 * static_cast<std::size_t>(K);
+    const bool grayscale = o.min_feature_um != 0.0;  // the relaxed phase is grayscale_design's
+    const std::size_t total = grayscale ? 0 : n2 * static_cast<std::size_t>(K);
     std::vector<double> scales{1.0};
     if (o.errors.scale > 0.0) scales = {1.0 - o.errors.scale, 1.0, 1.0 + o.errors.scale};
     detail::Evaluator evaluator(p, scales);
@@ -572,7 +585,7 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
     std::mt19937_64 rng(detail::derive_seed(o.seed, 0xde5190));
     std::vector<double> theta(total);
     detail::fill_standard_normal(theta.data(), theta.size(), rng);
-    if (o.target.kind == DesignKind::AntiMirror) {
+    if (o.target.kind == DesignKind::AntiMirror && !grayscale) {
         // Start from the binomial shares of the levels (binomial_mirror_power): a dark mirror
         // order at every wavelength of the band on average; the loop shapes the rest.
         for (int l = 0; l < K; ++l) {
@@ -597,7 +610,7 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
     };
     Fractions relaxed_fractions;
     const auto relaxed_start = Clock::now();
-    for (int it = 0; it < o.iterations && !stopped; ++it) {
+    for (int it = 0; !grayscale && it < o.iterations && !stopped; ++it) {
         const double frac = o.iterations > 1 ? static_cast<double>(it) / (o.iterations - 1) : 1.0;
         const double tau = k_tau_start * std::pow(k_tau_end / k_tau_start, frac);
         softmax(tau);
@@ -617,12 +630,15 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
         }
         report({"relaxed", it, loss, tau});
     }
+    std::vector<int> grey_level;
+    if (grayscale) grey_level = detail::grayscale_design(p, evaluator, report, stopped, relaxed_fractions);
     const double relaxed_seconds = seconds_since(relaxed_start);
 
     // Quantise: each texel's most likely level; then discrete passes that switch the texels the
     // gradient predicts to gain most, kept only when the exact loss falls.
     std::vector<int> level(n2);
-    for (std::size_t t = 0; t < n2; ++t) {
+    if (grayscale) level = std::move(grey_level);
+    for (std::size_t t = 0; !grayscale && t < n2; ++t) {
         int best = 0;
         for (int l = 1; l < K; ++l)
             if (theta[static_cast<std::size_t>(l) * n2 + t] > theta[static_cast<std::size_t>(best) * n2 + t]) best = l;
@@ -634,7 +650,7 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
     report({"refine", iteration0, loss, 0.0});
     double fraction = 0.01;
     std::vector<double> trial_grad;
-    for (int pass = 0; pass < o.refine_passes && !stopped; ++pass) {
+    for (int pass = 0; !grayscale && pass < o.refine_passes && !stopped; ++pass) {
         std::vector<std::pair<double, std::size_t>> gain;
         std::vector<int> best(n2, -1);
         for (std::size_t t = 0; t < n2; ++t) {
@@ -785,6 +801,7 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
                   {"band_um", o.spectral ? nlohmann::json(o.band_um) : nlohmann::json(nullptr)}};
     j["constraints"] = {{"size", N}, {"texel_um", o.texel_um}, {"height_range_um", o.height_range_um},
                         {"levels", K}, {"fabrication_error", {{"scale", o.errors.scale}, {"blur_um", o.errors.blur_um}}}};
+    if (grayscale) j["constraints"]["min_feature_um"] = o.min_feature_um;
     j["levels_um"] = p.levels_um;
     j["seed"] = o.seed;
     j["options"] = {{"iterations", o.iterations}, {"refine_passes", o.refine_passes}, {"stopped_early", stopped}};
