@@ -8,21 +8,15 @@
 #include <mutex>
 #include <stdexcept>
 
-#include "core/fftw_planner.h"
+#include "core/fftw_raii.h"
 #include "wavebrdf/text.h"
 
 namespace wavebrdf::detail {
 
 struct FeatureFilter::Plans {
-    fftw_complex* buffer = nullptr;
-    fftw_plan forward = nullptr, backward = nullptr;
-    mutable std::mutex mutex;  // apply() shares the buffer
-    ~Plans() {
-        std::lock_guard<std::mutex> lock(fftw_planner_mutex());
-        if (forward) fftw_destroy_plan(forward);
-        if (backward) fftw_destroy_plan(backward);
-        if (buffer) fftw_free(buffer);
-    }
+    FftwBuffer<fftw_complex> buffer;
+    FftwPlan forward, backward;  // destroyed before the buffer (declared after it)
+    mutable std::mutex mutex;    // apply() shares the buffer
 };
 
 FeatureFilter::FeatureFilter(int size, double texel_um, double min_feature_um) : m_size(size) {
@@ -38,26 +32,26 @@ FeatureFilter::FeatureFilter(int size, double texel_um, double min_feature_um) :
     m_plans = std::make_unique<Plans>();
     {
         std::lock_guard<std::mutex> lock(fftw_planner_mutex());
-        m_plans->buffer = fftw_alloc_complex(n2);
-        if (!m_plans->buffer) throw std::bad_alloc();
-        m_plans->forward = fftw_plan_dft_2d(size, size, m_plans->buffer, m_plans->buffer, FFTW_FORWARD, FFTW_ESTIMATE);
-        m_plans->backward = fftw_plan_dft_2d(size, size, m_plans->buffer, m_plans->buffer, FFTW_BACKWARD, FFTW_ESTIMATE);
+        m_plans->buffer = fftw_buffer<fftw_complex>(n2);
+        fftw_complex* b = m_plans->buffer.get();
+        m_plans->forward.reset(fftw_plan_dft_2d(size, size, b, b, FFTW_FORWARD, FFTW_ESTIMATE));
+        m_plans->backward.reset(fftw_plan_dft_2d(size, size, b, b, FFTW_BACKWARD, FFTW_ESTIMATE));
     }
     // The disc |ν| ≤ 1/(2F) on the DFT grid (signed indices), its inverse DFT d, the kernel |d|²
     // normalised to sum 1, and the kernel's DFT: the transfer (real: the kernel is even).
     const double L = size * texel_um, radius = L / (2.0 * min_feature_um);  // in DFT index units
-    auto* b = reinterpret_cast<std::complex<double>*>(m_plans->buffer);
+    auto* b = reinterpret_cast<std::complex<double>*>(m_plans->buffer.get());
     for (std::size_t i = 0; i < N; ++i)
         for (std::size_t j = 0; j < N; ++j) {
             const double m = i <= N / 2 ? static_cast<double>(i) : static_cast<double>(i) - size;
             const double n = j <= N / 2 ? static_cast<double>(j) : static_cast<double>(j) - size;
             b[i * N + j] = std::hypot(m, n) <= radius ? 1.0 : 0.0;
         }
-    fftw_execute(m_plans->backward);
+    fftw_execute(m_plans->backward.get());
     double sum = 0.0;
     for (std::size_t t = 0; t < n2; ++t) sum += std::norm(b[t]);
     for (std::size_t t = 0; t < n2; ++t) b[t] = std::norm(b[t]) / sum;
-    fftw_execute(m_plans->forward);
+    fftw_execute(m_plans->forward.get());
     m_transfer.resize(n2);
     for (std::size_t t = 0; t < n2; ++t) m_transfer[t] = b[t].real();
 }
@@ -68,11 +62,11 @@ void FeatureFilter::apply(const std::vector<double>& in, std::vector<double>& ou
     const std::size_t n2 = static_cast<std::size_t>(m_size) * static_cast<std::size_t>(m_size);
     if (in.size() != n2) throw std::invalid_argument("FeatureFilter::apply: wrong size");
     std::lock_guard<std::mutex> lock(m_plans->mutex);
-    auto* b = reinterpret_cast<std::complex<double>*>(m_plans->buffer);
+    auto* b = reinterpret_cast<std::complex<double>*>(m_plans->buffer.get());
     for (std::size_t t = 0; t < n2; ++t) b[t] = in[t];
-    fftw_execute(m_plans->forward);
+    fftw_execute(m_plans->forward.get());
     for (std::size_t t = 0; t < n2; ++t) b[t] *= m_transfer[t] / static_cast<double>(n2);
-    fftw_execute(m_plans->backward);
+    fftw_execute(m_plans->backward.get());
     out.resize(n2);
     for (std::size_t t = 0; t < n2; ++t) out[t] = b[t].real();
 }
