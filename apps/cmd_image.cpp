@@ -22,9 +22,12 @@ struct ImageArgs {
     double texel_um = 1.0, vscale = 1.0;
     bool given_texel = false, given_vscale = false;
     std::string plane_size = "512";
+    double sphere_radius = 0.0, cylinder_radius = 0.0, cylinder_length = 0.0;
+    bool given_sphere = false, given_cylinder = false;
     std::string camera = "0,0,1000", look_at = "0,0,0", up;
     std::string resolution = "256";
-    std::vector<std::string> point_lights, directional_lights;
+    std::vector<std::string> point_lights, directional_lights, disc_lights;
+    int disc_order = 4;
     double power_w = 1.0, irradiance = 1.0, blackbody_k = 0.0;
     double lambda_um = 0.5;
     int spectral = 0;
@@ -94,6 +97,15 @@ void run(ImageArgs a) {
         throw std::invalid_argument("--precision '" + a.precision + "' is unknown; expected double or float");
     o.single_precision = a.precision == "float";
     o.plane_size_um = parse_pair(a.plane_size, "--plane-size-um");
+    if (a.given_sphere) {
+        o.shape = SampleShape::Sphere;
+        o.radius_um = a.sphere_radius;
+    }
+    if (a.given_cylinder) {
+        o.shape = SampleShape::Cylinder;
+        o.radius_um = a.cylinder_radius;
+        o.length_um = a.cylinder_length;
+    }
     o.camera.position = parse_vec3(a.camera, "--camera");
     o.camera.look_at = parse_vec3(a.look_at, "--look-at");
     if (!a.up.empty()) o.camera.up = parse_vec3(a.up, "--up");
@@ -128,6 +140,25 @@ void run(ImageArgs a) {
         ImageLight l = base;
         l.kind = LightKind::Directional;
         l.vector = parse_vec3(d, "--directional-light");
+        o.lights.push_back(l);
+    }
+    for (const std::string& d : a.disc_lights) {
+        // "X,Y,Z,R": the centre, then the radius after the last comma.
+        const std::size_t comma = d.rfind(',');
+        ImageLight l = base;
+        l.kind = LightKind::Disc;
+        const std::string bad = "--disc-light '" + d + "' is invalid; expected four finite numbers X,Y,Z,R";
+        if (comma == std::string::npos) throw std::invalid_argument(bad);
+        try {
+            l.vector = parse_vec3(d.substr(0, comma), "--disc-light");
+            std::size_t used = 0;
+            const std::string radius = d.substr(comma + 1);
+            l.radius_um = std::stod(radius, &used);
+            if (used != radius.size()) throw std::invalid_argument(radius);
+        } catch (const std::exception&) {
+            throw std::invalid_argument(bad);
+        }
+        l.disc_order = a.disc_order;
         o.lights.push_back(l);
     }
     if (a.frames < 1 || a.frames > 10000)
@@ -199,9 +230,20 @@ void add_image_command(CLI::App& app) {
         ->required();
     auto* texel = cmd->add_option("--texel-um", a->texel_um, "texel width w in um (default: the file's, else 1)");
     auto* vscale = cmd->add_option("--vscale", a->vscale, "vertical scale v (default: the file's, else 1)");
-    cmd->add_option("--plane-size-um", a->plane_size, "plate size W or W,H in um (x by y), tiled with the heightfield")
-        ->capture_default_str();
-    cmd->add_option("--rotation-deg", a->options.rotation_deg, "heightfield rotation in the plane, degrees")
+    auto* plane_size = cmd->add_option("--plane-size-um", a->plane_size,
+                                       "plate size W or W,H in um (x by y), tiled with the heightfield")
+                           ->capture_default_str();
+    auto* sphere = cmd->add_option("--sphere-radius-um", a->sphere_radius,
+                                   "sample: a sphere of this radius about the origin instead of the plate");
+    auto* cylinder = cmd->add_option("--cylinder-radius-um", a->cylinder_radius,
+                                     "sample: a cylinder of this radius about the x axis instead of the plate");
+    auto* length = cmd->add_option("--cylinder-length-um", a->cylinder_length,
+                                   "the cylinder's length along x, centred at the origin");
+    sphere->excludes(cylinder);
+    plane_size->excludes(sphere)->excludes(cylinder);
+    cylinder->needs(length);
+    length->needs(cylinder);
+    cmd->add_option("--rotation-deg", a->options.rotation_deg, "heightfield rotation about the surface normal, degrees")
         ->capture_default_str();
     cmd->add_option("--camera", a->camera, "camera position X,Y,Z in um (z > 0)")->capture_default_str();
     cmd->add_option("--look-at", a->look_at, "point the camera looks at, X,Y,Z in um")->capture_default_str();
@@ -216,7 +258,11 @@ void add_image_command(CLI::App& app) {
     cmd->add_option("--point-light", a->point_lights, "point light position X,Y,Z in um (repeatable)");
     cmd->add_option("--directional-light", a->directional_lights,
                     "directional light: direction X,Y,Z from the surface towards the light (repeatable)");
-    cmd->add_option("--power-w", a->power_w, "point lights' radiant power, W")->capture_default_str();
+    cmd->add_option("--disc-light", a->disc_lights,
+                    "disc area light X,Y,Z,R: centre in um facing the origin, radius in um (repeatable)");
+    cmd->add_option("--disc-order", a->disc_order, "disc lights' quadrature: N Gauss-Legendre radii x 2N angles")
+        ->capture_default_str();
+    cmd->add_option("--power-w", a->power_w, "point and disc lights' radiant power, W")->capture_default_str();
     cmd->add_option("--irradiance", a->irradiance, "directional lights' irradiance, W/m^2")->capture_default_str();
     cmd->add_option("--blackbody-k", a->blackbody_k, "lights' spectrum: blackbody at T kelvin (default: white)");
     auto* lambda = cmd->add_option("--lambda-um", a->lambda_um, "single wavelength (laser) in um (default 0.5)");
@@ -248,7 +294,9 @@ void add_image_command(CLI::App& app) {
     cmd->add_option("--start-deg", a->start_deg, "orbit angle of the first frame, degrees")->capture_default_str();
     cmd->add_option("--end-deg", a->end_deg, "orbit angle of the last frame, degrees")->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or memory line");
-    cmd->callback([a, spectral, texel, vscale] {
+    cmd->callback([a, spectral, texel, vscale, sphere, cylinder] {
+        a->given_sphere = sphere->count() > 0;
+        a->given_cylinder = cylinder->count() > 0;
         a->given_spectral = spectral->count() > 0;
         a->given_texel = texel->count() > 0;
         a->given_vscale = vscale->count() > 0;

@@ -39,7 +39,14 @@ struct ImageCamera {
     int rows = 256, cols = 256;  // 1 … 8192 each
 };
 
-enum class LightKind { Point, Directional };
+enum class LightKind { Point, Directional, Disc };
+
+// What carries the heightfield (docs/image.md states each mapping).
+enum class SampleShape {
+    Plane,     // the plate of plane_size_um in the z = 0 plane
+    Sphere,    // radius_um about the origin, poles on the y axis
+    Cylinder,  // radius_um about the x axis, length_um along it, centred at the origin; no caps
+};
 
 // A light's relative spectrum S(λ) at the sampled wavelengths, normalised to mean 1.
 enum class LightSpectrum {
@@ -56,7 +63,19 @@ struct ImageLight {
     double irradiance_w_m2 = 1.0;  // directional: irradiance on a surface facing it, W/m²
     LightSpectrum spectrum = LightSpectrum::White;
     double temperature_k = 5500.0;  // blackbody: 500 … 50000 K
+    // Disc: a Lambertian emitter of power_w (one-sided) centred at `vector` (µm), radius_um,
+    // facing the origin; its radiance P / (π · π r²). Integrated over its area by the product
+    // rule of disc_order n: n Gauss–Legendre radii × 2n equally spaced angles (2n² nodes, each a
+    // point emitter with its area weight and cos θ at the disc), exact for integrands that are
+    // polynomials of degree ≤ 2n − 2 in the radius and trigonometric of degree < 2n in the angle.
+    double radius_um = 0.0;
+    int disc_order = 4;  // 1 … 32
 };
+
+// The quadrature of a disc light: node positions (µm) and their area weights (µm², summing to
+// π r²).
+void disc_light_nodes(const ImageLight& light, std::vector<std::array<double, 3>>& positions,
+                      std::vector<double>& weights);
 
 struct ImageOptions {
     ImageCamera camera;
@@ -66,6 +85,11 @@ struct ImageOptions {
     // +z: rows then run along (cos, sin, 0)).
     std::array<double, 2> plane_size_um{{512.0, 512.0}};
     double rotation_deg = 0.0;
+    // The sample's shape; a sphere or cylinder carries the heightfield through the mapping of
+    // sample_surface_at (texel (0, 0) at its top point (0, 0, R), rows along +x there).
+    SampleShape shape = SampleShape::Plane;
+    double radius_um = 0.0;  // sphere, cylinder: 0 < R <= 1e9
+    double length_um = 0.0;  // cylinder: 0 < L <= 1e9
     std::vector<ImageLight> lights;
     // Wavelengths: one (a laser, R = G = B) or several (spectral_wavelengths_um(K) for
     // `--spectral K`), µm.
@@ -129,6 +153,32 @@ std::vector<double> image_luminance(const RgbImage& image);
 // The tone-mapped preview: 2^exposure_stops · value, Reinhard, sRGB curve, 8 bit. With
 // auto_exposure, the exposure that maps the 99.9th percentile of the luminance to 4 is added.
 void write_image_png(const std::string& path, const RgbImage& image, double exposure_stops, bool auto_exposure);
+
+// A point of the sample's surface with its frame: heightfield coordinates (x_um, y_um), the
+// point, the mapping's derivatives ∂point/∂x and ∂point/∂y, and the orthonormal right-handed frame
+// the heightfield is laid in there (tangent_x along its rows, tangent_y along its columns,
+// normal = tangent_x × tangent_y, pointing out of the sample). The tangent frame is the
+// (unrotated) mapping's normalised derivatives turned by rotation_deg about the normal.
+struct SurfacePoint {
+    double x_um = 0.0, y_um = 0.0;
+    std::array<double, 3> point{}, dp_dx{}, dp_dy{}, tangent_x{}, tangent_y{}, normal{};
+};
+
+// The mapping (x_um, y_um) → surface, for (a, b) the unrotated coordinates
+// (x = a cos ρ + b sin ρ, y = −a sin ρ + b cos ρ, ρ = rotation_deg):
+//   plane:    point = (a − W/2, b − H/2, 0)
+//   sphere:   φ = a/R, β = b/R (longitude about y from +z, latitude towards +y);
+//             point = R (cos β sin φ, sin β, cos β cos φ)
+//   cylinder: ψ = b/R (angle about x from +z); point = (a, R sin ψ, R cos ψ)
+// The sphere's mapping is isometric along its equator (β = 0) and shrinks the rows' direction by
+// cos β away from it; the cylinder's is isometric everywhere. The periodic heightfield meets
+// itself at the seam φ = ±π (ψ = ±π) only where 2πR is a multiple of its period.
+SurfacePoint sample_surface_at(const ImageOptions& options, double x_um, double y_um);
+
+// The ray origin + t · direction (direction unit) where it first meets the sample from outside
+// (t > 0): false on a miss (and for rays starting inside a sphere or cylinder).
+bool sample_ray_hit(const ImageOptions& options, const std::array<double, 3>& origin,
+                    const std::array<double, 3>& direction, SurfacePoint& hit, double& t);
 
 // Orbits for sequences: `position` turned about the z axis by `degrees` (counter-clockwise seen
 // from +z).

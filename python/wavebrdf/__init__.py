@@ -94,15 +94,15 @@ __all__ += ["built_with_hdf5", "read_observation_index"]
 from ._core import write_fabrication_exports  # noqa: F401
 __all__ += ["write_fabrication_exports"]
 # Camera pictures of the surface (docs/image.md).
-from ._core import render_image  # noqa: F401
-__all__ += ["render_image"]
+from ._core import image_gradient, render_image  # noqa: F401
+__all__ += ["image_gradient", "render_image"]
 # A call with a missing or misspelt keyword names it (pybind11 alone lists every signature).
 from ._arguments import explained as _explained  # noqa: E402
 
 for _name in ("render_slice", "slice_gradient", "render", "gradient", "observation_loss", "invert", "recover",
               "recover_heights", "recover_heights_thesis", "plan_acquisition", "planned_observations",
               "simulate_observations", "height_uncertainty", "height_rel_rmse", "height_rel_rmse_plane_removed",
-              "read_observations", "write_observations", "render_image", "design", "surface_stats",
-              "condition_surface"):
+              "read_observations", "write_observations", "render_image", "image_gradient", "design",
+              "surface_stats", "condition_surface"):
     globals()[_name] = _explained(globals()[_name])
 del _name

@@ -761,6 +761,14 @@ def height_uncertainty(observations: Any, estimate: Heightfield, loss: Any, *, p
     """
     ...
 
+def image_gradient(heightfield: Any, dL_dimage: Any, *, plane_size_um: Any = ..., camera: Any, look_at: Any = ..., fov_deg: float = ..., resolution: Any = ..., point_light: Any = ..., directional_light: Any = ..., lambda_um: Any = ..., spectral: Any = ..., up: Any = ..., orthographic: bool = ..., view_width_um: float = ..., rotation_deg: float = ..., model: str = ..., sigma_p_um: float = ..., prune_tolerance: float = ..., power_w: float = ..., irradiance: float = ..., blackbody_k: Any = ..., texel_um: Any = ..., vscale: Any = ..., max_memory_gb: float = ..., sphere_radius_um: Any = ..., cylinder_radius_um: Any = ..., cylinder_length_um: Any = ..., precision: str = ..., disc_light: Any = ..., disc_order: int = ...) -> numpy.ndarray:
+    """The gradient of a loss of render_image's picture with respect to the heights: given dL/dimage (rows, cols,
+    3), returns dL/dh (the heightfield's rows, cols; per height value in texel widths, as the array or file
+    holds it), through the point evaluator's adjoint (about twice the forward pass). The scene's keywords are
+    render_image's; the gradient is of the double-precision picture (render_image(..., dtype='float64')).
+    """
+    ...
+
 def invert(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., x_um: Any = ..., y_um: Any = ..., sigma_p_um: float = ..., model: str = ..., lambda_um: Any = ..., spectral: Any = ..., light: Any = ..., resolution: int = ..., init: Any = ..., epochs: int = ..., optimizer: str = ..., lr: float = ..., beta1: float = ..., beta2: float = ..., decay: float = ..., loss: Any = ..., positions: Any = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., path: str = ..., tolerance: float = ..., comm: Any = ...) -> InversionResult:
     """The inverse renderer (``wavebrdf invert`` without its output directory): recovers heights
     whose slices match references. Defaults are the thesis's first experiment (a generated 16x16
@@ -1056,19 +1064,25 @@ def render(gabor: GaborRep, query: Query, resolution: int = ..., precision: str 
     """
     ...
 
-def render_image(heightfield: Any, *, plane_size_um: Any, camera: Any, look_at: Any = ..., fov_deg: float = ..., resolution: Any = ..., point_light: Any = ..., directional_light: Any = ..., lambda_um: Any = ..., spectral: Any = ..., up: Any = ..., orthographic: bool = ..., view_width_um: float = ..., rotation_deg: float = ..., model: str = ..., sigma_p_um: float = ..., prune_tolerance: float = ..., power_w: float = ..., irradiance: float = ..., blackbody_k: Any = ..., texel_um: Any = ..., vscale: Any = ..., max_memory_gb: float = ...) -> numpy.ndarray:
-    """A camera picture of a plate carrying the heightfield (docs/image.md), as `wavebrdf image` renders it:
-    a float32 array (rows, cols, 3) of linear sRGB radiance in W/(m^2 sr).
+def render_image(heightfield: Any, *, plane_size_um: Any = ..., camera: Any, look_at: Any = ..., fov_deg: float = ..., resolution: Any = ..., point_light: Any = ..., directional_light: Any = ..., lambda_um: Any = ..., spectral: Any = ..., up: Any = ..., orthographic: bool = ..., view_width_um: float = ..., rotation_deg: float = ..., model: str = ..., sigma_p_um: float = ..., prune_tolerance: float = ..., power_w: float = ..., irradiance: float = ..., blackbody_k: Any = ..., texel_um: Any = ..., vscale: Any = ..., max_memory_gb: float = ..., sphere_radius_um: Any = ..., cylinder_radius_um: Any = ..., cylinder_length_um: Any = ..., precision: str = ..., disc_light: Any = ..., disc_order: int = ..., dtype: str = ...) -> Any:
+    """A camera picture of a sample carrying the heightfield (docs/image.md), as `wavebrdf image` renders it:
+    an array (rows, cols, 3) of linear sRGB radiance in W/(m^2 sr): float32 as the EXR (the default), or
+    dtype='float64' for the values before that rounding.
 
     heightfield: a Heightfield, an EXR path or a 2-D array of heights in texel widths.
-    plane_size_um: W or (W, H), the plate (x by y) centred at the origin, the heightfield tiled on it.
+    plane_size_um: W or (W, H), the plate (x by y) centred at the origin, the heightfield tiled on it; or
+    sphere_radius_um=R (a sphere about the origin, poles on y), or cylinder_radius_um=R with
+    cylinder_length_um=L (about the x axis, centred): exactly one of them (docs/image.md states the mappings).
     camera, look_at, up: (x, y, z) in um; z is the plate's normal, x/y the heightfield's rows/columns.
     fov_deg: pinhole field of view across the rows; orthographic=True with view_width_um instead.
     resolution: N or (rows, cols).
-    point_light: (x, y, z) um or a list of them; directional_light: direction(s) towards the light.
+    point_light: (x, y, z) um or a list of them; directional_light: direction(s) towards the light;
+    disc_light: (x, y, z, r) um, a Lambertian disc facing the origin, integrated by disc_order n
+    (n Gauss-Legendre radii x 2n angles).
     lambda_um: one wavelength (a laser) or spectral=K wavelengths over 0.36-0.83 um.
     sigma_p_um: every pixel's footprint (0: from the pixel's projected size).
     prune_tolerance: kernel pruning bound relative to each pixel's largest possible value (0: full sum).
+    precision: 'double' or 'float' (the sum in single precision, as the CLI's --precision float).
     power_w (point), irradiance (directional, W/m^2), blackbody_k (spectrum; None: white).
     """
     ...

@@ -1,4 +1,4 @@
-// Camera images (image.h): the geometry of every pixel (its ray, where it meets the plane, its
+// Camera images (image.h): the geometry of every pixel (its ray, where it meets the sample, its
 // footprint and its directions in the surface's frame), then the point-evaluation engine
 // (point_eval.h) row by row, weighted into radiance by the lights and the spectral mix.
 #include "wavebrdf/image.h"
@@ -92,7 +92,11 @@ CameraFrame camera_frame(const ImageOptions& options) {
     f.cols = cam.cols;
     const double aspect = double(cam.cols) / double(cam.rows);
     if (cam.orthographic) {
-        const double width = cam.view_width_um > 0.0 ? cam.view_width_um : options.plane_size_um[0];
+        const double width = cam.view_width_um > 0.0               ? cam.view_width_um
+                             : options.shape == SampleShape::Plane ? options.plane_size_um[0]
+                             : options.shape == SampleShape::Sphere
+                                 ? 2.0 * options.radius_um
+                                 : std::max(options.length_um, 2.0 * options.radius_um);
         f.half_height = 0.5 * width;
     } else {
         f.half_height = std::tan(0.5 * cam.fov_deg * k_pi / 180.0);
@@ -101,53 +105,86 @@ CameraFrame camera_frame(const ImageOptions& options) {
     return f;
 }
 
-// One pixel's geometry on the plane: whether it hits the plate, the footprint centre in the
-// heightfield's coordinates, ω_o in the surface frame, the hit point and σ_p.
+// One pixel's geometry on the sample: whether it hits it, the footprint centre in the
+// heightfield's coordinates, the surface frame there, ω_o in that frame, the hit point and σ_p.
 struct PixelGeometry {
     bool hit = false;
     Vec3 point{};
     double x_um = 0.0, y_um = 0.0;
+    Vec3 tx{}, ty{}, n{};
     std::array<double, 2> omega_o{{0.0, 0.0}};
     double sigma_p_um = 0.0;
 };
 
-struct PlaneFrame {
-    double half_x, half_y;
-    Vec3 tx, ty;  // the heightfield's row and column axes on the plate
-};
+// The grazing floor of a curved sample's footprint: σ_p from the pixel's area with cos θ_o at
+// least this (at a silhouette the area over cos θ_o grows without bound, while the surface
+// curving away keeps the patch the pixel really sees finite).
+constexpr double k_min_cos_curved = 0.125;
 
-PlaneFrame plane_frame(const ImageOptions& options) {
-    const double a = options.rotation_deg * k_pi / 180.0;
-    return {0.5 * options.plane_size_um[0],
-            0.5 * options.plane_size_um[1],
-            {std::cos(a), std::sin(a), 0.0},
-            {-std::sin(a), std::cos(a), 0.0}};
+// The unrotated mapping (a, b) → point with its unit derivative directions e1, e2 and their
+// lengths (the metric's scale factors), then turned by the rotation.
+SurfacePoint surface_from_ab(const ImageOptions& o, double a, double b, double cos_r, double sin_r) {
+    Vec3 p, e1, e2;
+    double s1 = 1.0, s2 = 1.0;
+    switch (o.shape) {
+        case SampleShape::Plane:
+            p = {a - 0.5 * o.plane_size_um[0], b - 0.5 * o.plane_size_um[1], 0.0};
+            e1 = {1.0, 0.0, 0.0};
+            e2 = {0.0, 1.0, 0.0};
+            break;
+        case SampleShape::Sphere: {
+            const double R = o.radius_um, phi = a / R, beta = b / R;
+            const double cp = std::cos(phi), sp = std::sin(phi), cb = std::cos(beta), sb = std::sin(beta);
+            p = {R * cb * sp, R * sb, R * cb * cp};
+            e1 = {cp, 0.0, -sp};
+            e2 = {-sb * sp, cb, -sb * cp};
+            s1 = cb;
+            break;
+        }
+        case SampleShape::Cylinder: {
+            const double R = o.radius_um, psi = b / R, c = std::cos(psi), s = std::sin(psi);
+            p = {a, R * s, R * c};
+            e1 = {1.0, 0.0, 0.0};
+            e2 = {0.0, c, -s};
+            break;
+        }
+    }
+    SurfacePoint q;
+    q.point = p;
+    q.x_um = a * cos_r + b * sin_r;
+    q.y_um = -a * sin_r + b * cos_r;
+    q.tangent_x = add(mul(e1, cos_r), mul(e2, sin_r));
+    q.tangent_y = add(mul(e1, -sin_r), mul(e2, cos_r));
+    q.normal = cross(e1, e2);
+    q.dp_dx = add(mul(e1, s1 * cos_r), mul(e2, s2 * sin_r));
+    q.dp_dy = add(mul(e1, -s1 * sin_r), mul(e2, s2 * cos_r));
+    return q;
 }
 
-PixelGeometry pixel_geometry(const CameraFrame& cam, const PlaneFrame& plane, double sigma_p_given, int r, int c) {
+// The pixel's area on the surface: its solid angle times t² over cos θ_o (pinhole), its
+// cross-section over cos θ_o (orthographic); σ_p is half the square root of it.
+PixelGeometry pixel_geometry(const CameraFrame& cam, const ImageOptions& options, int r, int c) {
     PixelGeometry g;
     Vec3 o, d;
     cam.ray(r, c, o, d);
-    if (!(d[2] < 0.0)) return g;
-    const double t = -o[2] / d[2];
-    if (!(t > 0.0)) return g;
-    const Vec3 p = add(o, mul(d, t));
-    if (std::abs(p[0]) > plane.half_x || std::abs(p[1]) > plane.half_y) return g;
-    g.hit = true;
-    g.point = p;
-    // Heightfield coordinates: texel (0, 0) at the plate's corner, axes turned by the rotation.
-    const Vec3 corner{-plane.half_x, -plane.half_y, 0.0};
-    const Vec3 rel = sub(p, corner);
-    g.x_um = dot(rel, plane.tx);
-    g.y_um = dot(rel, plane.ty);
+    SurfacePoint sp;
+    double t = 0.0;
+    if (!sample_ray_hit(options, o, d, sp, t)) return g;
     const Vec3 wo = mul(d, -1.0);
-    g.omega_o = {dot(wo, plane.tx), dot(wo, plane.ty)};
-    const double cos_o = wo[2];
-    if (sigma_p_given > 0.0) {
-        g.sigma_p_um = sigma_p_given;
+    double cos_o = dot(wo, sp.normal);
+    if (!(cos_o > 0.0)) return g;
+    g.hit = true;
+    g.point = sp.point;
+    g.x_um = sp.x_um;
+    g.y_um = sp.y_um;
+    g.tx = sp.tangent_x;
+    g.ty = sp.tangent_y;
+    g.n = sp.normal;
+    g.omega_o = {dot(wo, g.tx), dot(wo, g.ty)};
+    if (options.sigma_p_um > 0.0) {
+        g.sigma_p_um = options.sigma_p_um;
     } else {
-        // The pixel's area on the surface: its solid angle times t² over cos θ_o (pinhole), its
-        // cross-section over cos θ_o (orthographic); σ_p is half the square root of it.
+        if (options.shape != SampleShape::Plane) cos_o = std::max(cos_o, k_min_cos_curved);
         double area;
         if (cam.orthographic) {
             const double side = 2.0 * cam.half_height / cam.rows;
@@ -162,17 +199,61 @@ PixelGeometry pixel_geometry(const CameraFrame& cam, const PlaneFrame& plane, do
     return g;
 }
 
+// Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n from the Chebyshev guess).
+void gauss_legendre(int n, std::vector<double>& t, std::vector<double>& w) {
+    t.assign(std::size_t(n), 0.0);
+    w.assign(std::size_t(n), 0.0);
+    for (int i = 0; i < n; ++i) {
+        double x = std::cos(k_pi * (i + 0.75) / (n + 0.5)), dp = 1.0;
+        for (int it = 0; it < 100; ++it) {
+            double p0 = 1.0, p1 = x;
+            for (int k = 2; k <= n; ++k) {
+                const double p2 = ((2.0 * k - 1.0) * x * p1 - (k - 1.0) * p0) / k;
+                p0 = p1;
+                p1 = p2;
+            }
+            dp = n * (x * p1 - p0) / (x * x - 1.0);
+            const double step = p1 / dp;
+            x -= step;
+            if (std::abs(step) < 1e-15) break;
+        }
+        t[std::size_t(i)] = x;
+        w[std::size_t(i)] = 2.0 / ((1.0 - x * x) * dp * dp);
+    }
+}
+
+// The disc's unit normal: towards the origin.
+Vec3 disc_normal(const ImageLight& light) { return mul(light.vector, -1.0 / norm(light.vector)); }
+
+// A point emitter: a point or directional light, or one node of a disc light with its share
+// of the disc's radiant intensity (W/sr along its normal) and the disc's normal.
+struct Emitter {
+    LightKind kind;
+    Vec3 vector;
+    double scale;  // point: power; directional: irradiance; disc node: P · (weight / π r²) / π
+    Vec3 facing;
+    std::size_t light;
+};
+
 // The light's direction towards it from `p`, and its irradiance on a surface facing it (W/m²).
-void light_at(const ImageLight& light, const Vec3& p, Vec3& omega, double& irradiance) {
+void light_at(const Emitter& light, const Vec3& p, Vec3& omega, double& irradiance) {
+    if (light.kind == LightKind::Disc) {
+        const Vec3 to = sub(light.vector, p);
+        const double d = norm(to);
+        omega = mul(to, 1.0 / d);
+        const double d_m = d * 1e-6;
+        irradiance = light.scale * std::max(0.0, -dot(light.facing, omega)) / (d_m * d_m);
+        return;
+    }
     if (light.kind == LightKind::Directional) {
         omega = normalised(light.vector);
-        irradiance = light.irradiance_w_m2;
+        irradiance = light.scale;
     } else {
         const Vec3 to = sub(light.vector, p);
         const double d = norm(to);
         omega = mul(to, 1.0 / d);
         const double d_m = d * 1e-6;
-        irradiance = light.power_w / (4.0 * k_pi * d_m * d_m);
+        irradiance = light.scale / (4.0 * k_pi * d_m * d_m);
     }
 }
 
@@ -204,13 +285,104 @@ std::array<double, 3> orbit_about_z(const std::array<double, 3>& p, double degre
     return {c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]};
 }
 
+void disc_light_nodes(const ImageLight& light, std::vector<std::array<double, 3>>& positions,
+                      std::vector<double>& weights) {
+    const int n = light.disc_order;
+    std::vector<double> t, w;
+    gauss_legendre(n, t, w);
+    const Vec3 nd = disc_normal(light);
+    const Vec3 helper = std::abs(nd[0]) < 0.9 ? Vec3{1.0, 0.0, 0.0} : Vec3{0.0, 1.0, 0.0};
+    const Vec3 u = normalised(cross(nd, helper)), v = cross(nd, u);
+    const double r = light.radius_um;
+    positions.clear();
+    weights.clear();
+    // ∫∫ g ρ dρ dφ: ρ = r (1 + t)/2 with weight w r/2 · ρ, φ at 2n midpoints with weight π/n.
+    for (int i = 0; i < n; ++i) {
+        const double rho = 0.5 * r * (1.0 + t[std::size_t(i)]);
+        const double radial = w[std::size_t(i)] * 0.5 * r * rho;
+        for (int j = 0; j < 2 * n; ++j) {
+            const double phi = (j + 0.5) * k_pi / n;
+            positions.push_back(add(light.vector, add(mul(u, rho * std::cos(phi)), mul(v, rho * std::sin(phi)))));
+            weights.push_back(radial * k_pi / n);
+        }
+    }
+}
+
+SurfacePoint sample_surface_at(const ImageOptions& o, double x_um, double y_um) {
+    const double rho = o.rotation_deg * k_pi / 180.0, cr = std::cos(rho), sr = std::sin(rho);
+    return surface_from_ab(o, x_um * cr - y_um * sr, x_um * sr + y_um * cr, cr, sr);
+}
+
+bool sample_ray_hit(const ImageOptions& o, const std::array<double, 3>& origin, const std::array<double, 3>& d,
+                    SurfacePoint& hit, double& t) {
+    double a = 0.0, b = 0.0;
+    if (o.shape == SampleShape::Plane) {
+        if (!(d[2] < 0.0)) return false;
+        t = -origin[2] / d[2];
+        if (!(t > 0.0)) return false;
+        const Vec3 p = add(origin, mul(d, t));
+        if (std::abs(p[0]) > 0.5 * o.plane_size_um[0] || std::abs(p[1]) > 0.5 * o.plane_size_um[1]) return false;
+        a = p[0] + 0.5 * o.plane_size_um[0];
+        b = p[1] + 0.5 * o.plane_size_um[1];
+    } else {
+        const double R = o.radius_um;
+        // |q|² = R² with q the point (sphere) or its (y, z) part (cylinder): the entering root.
+        const bool sphere = o.shape == SampleShape::Sphere;
+        const double A = sphere ? 1.0 : d[1] * d[1] + d[2] * d[2];
+        const double B = sphere ? dot(origin, d) : origin[1] * d[1] + origin[2] * d[2];
+        const double C = (sphere ? dot(origin, origin) : origin[1] * origin[1] + origin[2] * origin[2]) - R * R;
+        if (!(C > 0.0) || !(A > 0.0)) return false;
+        const double disc = B * B - A * C;
+        if (!(disc >= 0.0)) return false;
+        // The entering root in the cancellation-free form C / (−B + √disc).
+        const double denom = -B + std::sqrt(disc);
+        if (!(denom > 0.0)) return false;
+        t = C / denom;
+        if (!(t > 0.0)) return false;
+        const Vec3 p = add(origin, mul(d, t));
+        if (sphere) {
+            a = R * std::atan2(p[0], p[2]);
+            b = R * std::asin(std::clamp(p[1] / R, -1.0, 1.0));
+        } else {
+            if (std::abs(p[0]) > 0.5 * o.length_um) return false;
+            a = p[0];
+            b = R * std::atan2(p[1], p[2]);
+        }
+    }
+    const double rho = o.rotation_deg * k_pi / 180.0;
+    hit = surface_from_ab(o, a, b, std::cos(rho), std::sin(rho));
+    return true;
+}
+
 PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& options) {
     const ImageCamera& cam = options.camera;
     require(finite(cam.position), "camera position " + vec_text(cam.position) + " um is not finite");
     require(finite(cam.look_at), "look-at point " + vec_text(cam.look_at) + " um is not finite");
     require(finite(cam.up), "camera up " + vec_text(cam.up) + " is not finite");
-    require(cam.position[2] > 0.0, "camera position " + vec_text(cam.position) +
-                                       " um is inside or below the sample; expected z > 0 (above the plane)");
+    const bool plane = options.shape == SampleShape::Plane;
+    const bool sphere = options.shape == SampleShape::Sphere;
+    if (!plane) {
+        require(std::isfinite(options.radius_um) && options.radius_um > 0.0 && options.radius_um <= 1e9,
+                std::string(sphere ? "sphere" : "cylinder") + " radius " + format_shortest(options.radius_um) +
+                    " um is invalid; expected 0 < radius <= 1e9");
+        if (!sphere)
+            require(
+                std::isfinite(options.length_um) && options.length_um > 0.0 && options.length_um <= 1e9,
+                "cylinder length " + format_shortest(options.length_um) + " um is invalid; expected 0 < length <= 1e9");
+    }
+    // Outside a sphere: the distance from its centre; outside a cylinder: from its axis (x).
+    auto distance = [&](const Vec3& p) { return sphere ? norm(p) : std::sqrt(p[1] * p[1] + p[2] * p[2]); };
+    auto where = [&] {
+        return sphere ? " um is inside the sphere of radius " + format_shortest(options.radius_um) +
+                            " um; expected a distance from the origin > the radius"
+                      : " um is inside the cylinder of radius " + format_shortest(options.radius_um) +
+                            " um; expected a distance from the x axis > the radius";
+    };
+    if (plane)
+        require(cam.position[2] > 0.0, "camera position " + vec_text(cam.position) +
+                                           " um is inside or below the sample; expected z > 0 (above the plane)");
+    else
+        require(distance(cam.position) > options.radius_um, "camera position " + vec_text(cam.position) + where());
     const Vec3 view = sub(cam.look_at, cam.position);
     require(norm(view) > 0.0, "look-at point " + vec_text(cam.look_at) +
                                   " equals the camera position; expected a "
@@ -234,14 +406,43 @@ PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& 
                 "plane size " + format_shortest(options.plane_size_um[a]) + " um is invalid; expected 0 < size <= 1e9");
     require(std::isfinite(options.rotation_deg),
             "rotation " + format_shortest(options.rotation_deg) + " deg is not finite");
-    require(!options.lights.empty(), "no light; expected at least one (--point-light or --directional-light)");
+    require(!options.lights.empty(), "no light; expected at least one (--point-light, --directional-light or --disc-light)");
     require(options.lights.size() <= 64,
             std::to_string(options.lights.size()) + " lights are too many; expected at most 64");
     for (const ImageLight& light : options.lights) {
-        const std::string what = light.kind == LightKind::Point ? "point light " : "directional light ";
+        const std::string what = light.kind == LightKind::Point         ? "point light "
+                                 : light.kind == LightKind::Directional ? "directional light "
+                                                                        : "disc light ";
         require(finite(light.vector), what + vec_text(light.vector) + " is not finite");
-        require(light.vector[2] > 0.0, what + vec_text(light.vector) + (light.kind == LightKind::Point ? " um" : "") +
-                                           " is behind the sample; expected z > 0 (above the plane)");
+        if (light.kind == LightKind::Disc) {
+            require(
+                std::isfinite(light.radius_um) && light.radius_um > 0.0 && light.radius_um <= 1e9,
+                "disc light radius " + format_shortest(light.radius_um) + " um is invalid; expected 0 < radius <= 1e9");
+            require(light.disc_order >= 1 && light.disc_order <= 32,
+                    "disc light order " + std::to_string(light.disc_order) + " is out of range; expected 1 to 32");
+            require(norm(light.vector) > 0.0,
+                    what + vec_text(light.vector) + " um is at the origin; expected a centre that can face it");
+            // Every point of the disc outside the sample: its lowest point above a plate; its
+            // centre farther than R + r from a sphere's centre or a cylinder's axis.
+            const Vec3 nd = disc_normal(light);
+            const double lowest = light.vector[2] - light.radius_um * std::sqrt(std::max(0.0, 1.0 - nd[2] * nd[2]));
+            if (plane)
+                require(lowest > 0.0, what + vec_text(light.vector) + " um of radius " +
+                                          format_shortest(light.radius_um) +
+                                          " um reaches the plane or below it; expected every point at z > 0");
+            else
+                require(distance(light.vector) > options.radius_um + light.radius_um,
+                        what + vec_text(light.vector) + " um of radius " + format_shortest(light.radius_um) +
+                            " um reaches into the sample; expected its centre farther than the sample's radius "
+                            "plus the disc's");
+        } else if (plane)
+            require(light.vector[2] > 0.0, what + vec_text(light.vector) +
+                                               (light.kind == LightKind::Point ? " um" : "") +
+                                               " is behind the sample; expected z > 0 (above the plane)");
+        else if (light.kind == LightKind::Point)
+            require(distance(light.vector) > options.radius_um, what + vec_text(light.vector) + where());
+        else
+            require(norm(light.vector) > 0.0, what + vec_text(light.vector) + " has no direction; expected X,Y,Z != 0");
         require(std::isfinite(light.power_w) && light.power_w > 0.0,
                 "light power " + format_shortest(light.power_w) + " W is invalid; expected > 0");
         require(std::isfinite(light.irradiance_w_m2) && light.irradiance_w_m2 > 0.0,
@@ -251,7 +452,7 @@ PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& 
                 std::isfinite(light.temperature_k) && light.temperature_k >= 500.0 && light.temperature_k <= 50000.0,
                 "blackbody temperature " + format_shortest(light.temperature_k) +
                     " K is out of range; expected 500 to 50000");
-        if (light.kind == LightKind::Directional) {
+        if (plane && light.kind == LightKind::Directional) {
             const Vec3 d = normalised(light.vector);
             require(d[0] * d[0] + d[1] * d[1] < 1.0,
                     what + vec_text(light.vector) + " grazes the plane; expected z > 0");
@@ -272,11 +473,10 @@ PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& 
     // Every pixel's footprint and directions, before any work: a footprint too large for the
     // tile or a light below a pixel's horizon is refused here.
     const CameraFrame frame = camera_frame(options);
-    const PlaneFrame plane = plane_frame(options);
     double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
     for (int r = 0; r < cam.rows; ++r)
         for (int c = 0; c < cam.cols; ++c) {
-            const PixelGeometry g = pixel_geometry(frame, plane, options.sigma_p_um, r, c);
+            const PixelGeometry g = pixel_geometry(frame, options, r, c);
             if (!g.hit) continue;
             ++out.pixels_on_sample;
             lo = std::min(lo, g.sigma_p_um);
@@ -328,21 +528,34 @@ struct ImageWalker {
     ImageWalker(const Heightfield& heightfield, const PreparedImage& prepared)
         : options(prepared.options),
           frame(camera_frame(options)),
-          plane(plane_frame(options)),
           eval(heightfield, options.lambdas_um, {options.model, options.prune_tolerance, options.single_precision}),
           L(options.lambdas_um.size()),
           mix(spectral_mix_weights(options.lambdas_um)) {
-        for (const ImageLight& light : options.lights) spectra.push_back(light_spectrum(light, options.lambdas_um));
+        for (std::size_t li = 0; li < options.lights.size(); ++li) {
+            const ImageLight& light = options.lights[li];
+            spectra.push_back(light_spectrum(light, options.lambdas_um));
+            if (light.kind != LightKind::Disc) {
+                const double scale = light.kind == LightKind::Point ? light.power_w : light.irradiance_w_m2;
+                emitters.push_back({light.kind, light.vector, scale, {}, li});
+                continue;
+            }
+            std::vector<Vec3> nodes;
+            std::vector<double> area;
+            disc_light_nodes(light, nodes, area);
+            const double disc_area = k_pi * light.radius_um * light.radius_um;
+            for (std::size_t q = 0; q < nodes.size(); ++q)
+                emitters.push_back(
+                    {LightKind::Disc, nodes[q], light.power_w * (area[q] / disc_area) / k_pi, disc_normal(light), li});
+        }
     }
 
-    // Row r's geometry, then visit(light, samples, columns, weights) per light.
+    // Row r's geometry, then visit(light) per emitter with its lit samples, their columns and weights.
     template <typename Visit>
     void row(int r, std::vector<PixelGeometry>& geometry, Visit&& visit) {
         const int cols = frame.cols;
         geometry.resize(static_cast<std::size_t>(cols));
-        for (int c = 0; c < cols; ++c)
-            geometry[std::size_t(c)] = pixel_geometry(frame, plane, options.sigma_p_um, r, c);
-        for (std::size_t li = 0; li < options.lights.size(); ++li) {
+        for (int c = 0; c < cols; ++c) geometry[std::size_t(c)] = pixel_geometry(frame, options, r, c);
+        for (const Emitter& emitter : emitters) {
             samples.clear();
             column.clear();
             weight.clear();
@@ -351,30 +564,33 @@ struct ImageWalker {
                 if (!g.hit) continue;
                 Vec3 omega;
                 double irradiance;
-                light_at(options.lights[li], g.point, omega, irradiance);
-                if (!(omega[2] > 0.0)) continue;  // the light is below this point's horizon
+                light_at(emitter, g.point, omega, irradiance);
+                // Below this point's horizon: on the plane and on a convex sample that is exactly
+                // the shadow.
+                const double cos_i = dot(omega, g.n);
+                if (!(cos_i > 0.0) || !(irradiance > 0.0)) continue;  // or the point is behind a disc
                 PointSample s;
                 s.x_um = g.x_um;
                 s.y_um = g.y_um;
                 s.sigma_p_um = g.sigma_p_um;
-                s.omega_i = {dot(omega, plane.tx), dot(omega, plane.ty)};
+                s.omega_i = {dot(omega, g.tx), dot(omega, g.ty)};
                 s.omega_o = g.omega_o;
                 if (s.omega_i[0] * s.omega_i[0] + s.omega_i[1] * s.omega_i[1] >= 1.0) continue;
                 samples.push_back(s);
                 column.push_back(c);
-                weight.push_back(omega[2] * irradiance);
+                weight.push_back(cos_i * irradiance);
             }
-            visit(li);
+            visit(emitter.light);
         }
     }
 
     const ImageOptions& options;
     CameraFrame frame;
-    PlaneFrame plane;
     PointEvaluator eval;
     std::size_t L;
     std::vector<double> mix;
     std::vector<std::vector<double>> spectra;
+    std::vector<Emitter> emitters;  // the lights, a disc light as its quadrature's nodes
     std::vector<PointSample> samples;
     std::vector<int> column;
     std::vector<double> weight;  // cos θ_i E_⊥ per sample
