@@ -13,6 +13,7 @@
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/calibration_detail.h"
+#include "recovery/refinement.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/slice_plan.h"
@@ -337,177 +338,38 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
     return moved;
 }
 
-namespace {
-
-// The offsets in µm (mean removed per coordinate) from the variables t (texels) that follow
-// the heights in x.
-std::vector<double> offsets_from(const std::vector<double>& x, std::size_t cells, std::size_t positions,
-                                 double texel_um) {
-    std::vector<double> off(2 * positions);
-    for (int c = 0; c < 2; ++c) {
-        double mean = 0.0;
-        for (std::size_t p = 0; p < positions; ++p) mean += x[cells + 2 * p + std::size_t(c)];
-        mean /= double(positions);
-        for (std::size_t p = 0; p < positions; ++p)
-            off[2 * p + std::size_t(c)] = texel_um * (x[cells + 2 * p + std::size_t(c)] - mean);
-    }
-    return off;
-}
-
-}  // namespace
-
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um,
                                          std::vector<double>* exposures_out, double* sigma_scale,
-                                         std::vector<double>* position_offsets_out) {
+                                         std::vector<double>* position_offsets_out, double* last_loss) {
     std::vector<std::size_t> index;
     const std::vector<std::array<double, 2>> positions = gather_positions(observations, index, comm);
     const std::size_t cells = estimate.values().size(), count = positions.size();
     const double texel_um = flat.texel_um();
-    const std::size_t cols = std::size_t(flat.cols());
     std::vector<double> x = estimate.values();
     x.resize(cells + 2 * count, 0.0);
     if (initial_offsets_um.size() == 2 * count)
         for (std::size_t k = 0; k < 2 * count; ++k) x[cells + k] = initial_offsets_um[k] / texel_um;
 
-    // One plan per observation, rebuilt when its position's offset changed (the kernels, their
-    // window weights and the engines' tables all follow the centre); released between calls.
-    std::vector<std::unique_ptr<SlicePlan<float>>> plans(observations.size());
-    std::vector<std::array<double, 2>> plan_offset(observations.size());
-    double sigma = sigma_scale ? *sigma_scale : 1.0;  // every σ_p × sigma (plans reset when it changes)
-    std::vector<std::vector<int>> box_rows(observations.size()), box_cols(observations.size());
-    ExactParallelSum exact_sum(cells + 2 * count);
-    const std::vector<int> row0{0};
-    std::vector<std::vector<double>> height_scratch(std::size_t(std::max(1, omp_get_max_threads())));
-    std::vector<double> exposures(observations.size(), 1.0);
-    const auto objective = [&](const std::vector<double>& v, std::vector<double>& g) {
-        const double scale = 1.0 / observations_total;
-        const std::vector<double> off = offsets_from(v, cells, count, texel_um);
-        const std::vector<double> heights(v.begin(), v.begin() + std::ptrdiff_t(cells));
-        const double value = exact_sum.run(observations.size(), comm, g, [&](std::size_t i, ExactScratch& scratch) {
-            const Observation& o = observations[i];
-            const std::size_t p = index[i];
-            const std::array<double, 2> d{off[2 * p], off[2 * p + 1]};
-            if (!plans[i] || plan_offset[i] != d) {
-                Query q = o.query;
-                q.x_um += d[0];
-                q.y_um += d[1];
-                q.sigma_p_um *= sigma;
-                plans[i] = std::make_unique<SlicePlan<float>>(flat, q, o.lambdas_um, o.resolution, o.channels());
-                plans[i]->gradient_box(box_rows[i], box_cols[i]);
-                plan_offset[i] = d;
-            }
-            SlicePlan<float>& plan = *plans[i];
-            plan.set_heights(heights);
-            const std::vector<float>& f = plan.forward();
-            std::vector<double> d_estimate;
-            // With exposure calibration, each slice's exposure as its energy ratio (as in the
-            // refinement without positions, calibration_detail.h).
-            std::vector<double> model(f.begin(), f.end());
-            const std::size_t values = std::min(f.size(), o.reference.size());
-            double exposure = 1.0;
-            if (settings.calibrate.exposure) {
-                exposure = slice_exposure(f.data(), o.reference.data(), values);
-                exposures[i] = exposure;
-                for (double& m : model) m *= exposure;
-            }
-            const double loss = loss_value(settings.refine_loss, model, o.reference, o.channels(), &d_estimate);
-            if (settings.calibrate.exposure) exposure_gradient(exposure, f.data(), values, d_estimate);
-            std::vector<double>& s = scratch.vector();
-            // The adjoint writes rows·cols values: into this thread's zeroed height scratch, of
-            // which the box is moved into the exact sum's scratch (the cost of the footprint).
-            std::vector<double>& grad = height_scratch[std::size_t(omp_get_thread_num())];
-            if (grad.size() != cells) grad.assign(cells, 0.0);
-            const std::array<double, 2> gp = plan.adjoint_with_position(d_estimate, grad, scale);
-            for (int r : box_rows[i])
-                for (int c : box_cols[i]) {
-                    const std::size_t at = std::size_t(r) * cols + std::size_t(c);
-                    s[at] = grad[at];
-                    grad[at] = 0.0;
-                }
-            scratch.take_box(box_rows[i], box_cols[i], cols);
-            s[cells + 2 * p] += gp[0];
-            s[cells + 2 * p + 1] += gp[1];
-            scratch.take_box(row0, {int(cells + 2 * p), int(cells + 2 * p + 1)}, 1);
-            plan.release();
-            return scale * loss;
-        });
-        // Chain rule through the gauge (t − mean t) and the unit (µm per texel): the same on
-        // every rank (the sums are exact and allreduced).
-        for (int c = 0; c < 2; ++c) {
-            double mean = 0.0;
-            for (std::size_t p = 0; p < count; ++p) mean += g[cells + 2 * p + std::size_t(c)];
-            mean /= double(count);
-            for (std::size_t p = 0; p < count; ++p) {
-                double& gp = g[cells + 2 * p + std::size_t(c)];
-                gp = texel_um * (gp - mean);
-            }
-        }
-        return value;
-    };
-    LbfgsOptions lo;
-    lo.history = settings.refine_history;
-    lo.max_iterations = settings.refine_iterations;
-    lo.gradient_tolerance = 0.0;
-    std::vector<double> no_gradient;
-    ExactParallelSum exact_reference(0);
-    const double reference_loss = exact_reference.run(observations.size(), comm, no_gradient,
-                                                      [&](std::size_t i, ExactScratch&) {
-                                                          return observation_loss(flat, {observations[i]},
-                                                                                  settings.refine_loss, nullptr);
-                                                      }) /
-                                  observations_total;
-    bool go_on = true;
-    int done = 0;  // iterations so far (the metrics' count across σ rounds)
-    const auto refine = [&](int iterations) {
-        if (iterations <= 0 || !go_on) return;
-        LbfgsOptions round = lo;
-        round.max_iterations = iterations;
-        const int before = done;
-        lbfgs_minimize(objective, x, round, [&](int it, double value) {
-            done = before + it;
-            const Heightfield current =
-                flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
-            if (!report("refine", done, value, &current)) return go_on = false;
-            return value > k_refine_relative_tolerance * reference_loss;
-        });
-    };
-    if (settings.calibrate.sigma && sigma_scale) {
-        // σ_p as in recover.cpp's refinement: golden-section rounds at fixed heights and offsets,
-        // each followed by L-BFGS on both (refine_iterations / 6, the last round the rest).
-        const auto set_sigma = [&](double s) {
-            sigma = s;
-            for (auto& p : plans) p.reset();
-        };
-        std::vector<double> no_g;
-        set_sigma(refine_sigma_scale(
-            [&](double s) {
-                set_sigma(s);
-                return objective(x, no_g);
-            },
-            [&](int round, double s, double value) {
-                set_sigma(s);
-                const Heightfield current = flat.with_values(
-                    std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
-                if (!report("calibrate:sigma", round, value, &current)) return go_on = false;
-                refine(round + 1 < k_sigma_rounds ? std::max(1, settings.refine_iterations / (2 * k_sigma_rounds))
-                                                  : std::max(1, settings.refine_iterations - done));
-                return go_on;
-            },
-            sigma));
-        *sigma_scale = sigma;
-    } else {
-        refine(settings.refine_iterations);
-    }
+    ObservationObjective objective(observations, observations_total, flat, settings.refine_loss,
+                                   settings.calibrate.exposure, sigma_scale ? *sigma_scale : 1.0, comm, &index, count);
+    RefinementRounds rounds(std::ref(objective), flat, settings.refine_history,
+                            mean_observation_loss(observations, observations_total, flat, settings.refine_loss, comm),
+                            report);
+    if (settings.calibrate.sigma && sigma_scale)
+        *sigma_scale = calibrate_sigma_rounds(objective, rounds, x, settings.refine_iterations, report);
+    else
+        rounds.run(x, settings.refine_iterations);
+    if (last_loss && rounds.reported()) *last_loss = rounds.last_loss();
     if (settings.calibrate.exposure) {  // the exposures at the final heights (collective)
         std::vector<double> g;
         objective(x, g);
-        if (exposures_out) *exposures_out = exposures;
+        if (exposures_out) *exposures_out = objective.exposures();
     }
-    const std::vector<double> off = offsets_from(x, cells, count, texel_um);
+    const std::vector<double> off = objective.offsets_um(x);
     if (position_offsets_out) *position_offsets_out = off;
     offsets_um.resize(observations.size());
     for (std::size_t i = 0; i < observations.size(); ++i) offsets_um[i] = {off[2 * index[i]], off[2 * index[i] + 1]};

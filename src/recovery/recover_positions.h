@@ -22,15 +22,9 @@
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
+#include "recovery/refinement.h"
 
 namespace wavebrdf::detail {
-
-// report(stage, iteration, loss, heights) as recover_stages' (false: stop).
-
-// Stage 3 stops once its loss / loss(flat heights) is below this: the heights are then exact
-// to the precision of the single-precision slices.
-inline constexpr double k_refine_relative_tolerance = 1e-14;
-using StageReport = std::function<bool(const std::string&, int, double, const Heightfield*)>;
 
 // Distinct stated footprint centres of every rank's observations, sorted; index[i] is this
 // rank's observation i's position (collective).
@@ -133,13 +127,16 @@ SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 
 // scale is refined as well, in the rounds of calibration_detail.h's refine_sigma_scale (a
 // golden-section search from *sigma_scale at fixed heights and offsets, then L-BFGS on both),
 // and *sigma_scale receives it. position_offsets_out (when given) receives the offsets per
-// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them.
+// gathered position (2 each, µm, mean 0), as initial_offsets_um takes them. last_loss (when
+// given) receives the last reported "refine" loss (unchanged where none was reported).
+// The refinement's objective and rounds are refinement.h's, with the offsets as variables.
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
                                          const RecoverSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {},
                                          std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr,
-                                         std::vector<double>* position_offsets_out = nullptr);
+                                         std::vector<double>* position_offsets_out = nullptr,
+                                         double* last_loss = nullptr);
 
 }  // namespace wavebrdf::detail
