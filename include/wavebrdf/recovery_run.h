@@ -38,21 +38,21 @@ const char* to_string(RecoveryMethod method);
 // The planner's overlap when the positions are calibrated (RecoveryOptions::overlap 0): the
 // position loop (recover.h) ends with a cluster of positions lost together with the heights
 // between them on 4 of 9 seeds at 0.6 and 1 of 3 fresh seeds at 0.7; at 0.8 no cluster is lost
-// on 9 development seeds, only single positions far in the tail of the errors, which round 14's
-// rescue about the stated centre brings back (docs/recovery.md, "Self-calibration: positions",
-// rounds 13b and 14). About 2.5 × the slices of 0.6, ≈ 1.5–2 × the CPU.
+// on 9 development seeds, only single positions far in the tail of the errors, which the loop's
+// rescue about the stated centre brings back (experiments/2026-11-23-position-calibration.md).
+// About 2.5 × the slices of 0.6, ≈ 1.5–2 × the CPU.
 constexpr double k_position_calibration_overlap = 0.8;
 
 // The position loop's rescue radius per unit of the stated position uncertainty
 // (RecoveryOptions::position_uncertainty_um; at least RecoverSettings' default 4 texels, at most
 // 16): at 3 texels rms the default ± 4 texels left positions 9–13 texels from their stated
-// centres lost for good (docs/recovery.md, "Self-calibration: positions", round 15).
+// centres lost for good (experiments/2026-11-23-position-calibration.md).
 constexpr double k_rescue_radius_per_position_uncertainty = 4.0;
 
 // With error bars (RecoveryOptions::uncertainty), at least this many refinement iterations on
 // every slice: the bars are the loss's curvature at its minimum, and the smooth schedule's 8
 // (roughness_plan.cpp) stop short of it by more than the noise moves the estimate
-// (docs/recovery.md, "Error bars", round 15).
+// (experiments/2026-11-23-error-bars.md).
 constexpr int k_uncertainty_refine_iterations = 40;
 
 // The options of `wavebrdf recover` (its defaults), as values.

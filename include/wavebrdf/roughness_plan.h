@@ -47,14 +47,15 @@ struct RoughnessPlan {
     // Rough surfaces with long wavelengths: the refinement's wavelength ladder
     // (RecoverSettings::refine_ladder_min_um; 0: none): the shortest long wavelength, so the
     // refinement runs on the longest wavelength's slices, then adds each shorter long one, then
-    // every slice at once (docs/recovery.md, "Rough surfaces", round 5).
+    // every slice at once: from the unwrapped fields the refinement on every slice at once
+    // stalls (experiments/2026-11-23-rough-surfaces.md).
     double refine_ladder_min_um = 0.0;
     // Steep surfaces: further light directions (projected ω_i, a ring around normal incidence)
     // under which the acquisition observes every position as well (empty: one light). A facet
     // of slope s sends light ω_i towards ω_o ≈ −ω_i − 2s, so a light tilted along a slope
     // brings its reflection back onto the slice: with the ring, slopes up to 0.85 along the
     // lights' azimuths (0.63 in any direction; normal light alone: 0.45) reflect inside the rim
-    // 0.9 of some slice (docs/recovery.md, Rough surfaces, round 16).
+    // 0.9 of some slice (experiments/2026-11-23-rough-surfaces.md).
     std::vector<std::array<double, 2>> oblique_omega_i;
     std::vector<std::string> notes;  // the choice, one line each
 };
@@ -65,8 +66,9 @@ double expected_rms_slope(double height_range_um, double correlation_um);
 
 // The plan for a surface of peak-to-valley `height_range_um` (µm, ≥ 0) and correlation length
 // `correlation_um` (µm, > 0) on texels of `texel_um` (µm, > 0): rough when the expected rms
-// slope exceeds 0.15 (light of the 3σ tail beyond the rim) or the correlation is shorter than
-// 3 texels (measured limits: docs/recovery.md). Throws std::domain_error naming a bad value.
+// slope exceeds 0.2 (light of the tail beyond the rim) or the correlation is shorter than
+// 2.5 texels (roughness_plan.cpp: between the measured limits of docs/recovery.md, "Where it
+// fails"). Throws std::domain_error naming a bad value.
 RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, double texel_um);
 
 // `settings` with the plan applied (field iterations raised to the plan's where it asks for
@@ -76,7 +78,7 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
 void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings);
 
 // Smooth surfaces (not plan.rough) without self-calibration (settings.calibrate: none): the
-// schedule of docs/recovery.md, Speed, sixth pass: the field stage at the longest wavelength
+// smooth schedule (experiments/2026-11-23-recovery-speed.md): the field stage at the longest wavelength
 // only (RecoverSettings::field_wavelengths = 1), then the refinement first on that wavelength's
 // slices alone (refine_ladder_wavelengths = 1, refine_ladder_iterations iterations at a third
 // of the cost each with three wavelengths) and then on every slice (refine_iterations), with up

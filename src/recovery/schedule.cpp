@@ -1,0 +1,179 @@
+// The Schedule of recover_heights' stages: which run, in which order, with which settings
+// (stages.h); the metrics stream; the model check.
+#include <algorithm>
+#include <cmath>
+
+#include "recovery/recover_field_model.h"
+#include "recovery/stages.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+
+// RecoverSettings::position_outer_passes = −1 (the default): outer passes of position
+// self-calibration. Converging runs still gain after 12 passes, a cluster the rescue brings back
+// late needs 20, and 3 texels rms with the footprint sized for it converges in 12–19 passes, the
+// slowest seed's last passes doing the most (3.1 % → 0.36 % → 0.04 %): so the cap is 40, and
+// converged or stalled runs end earlier by the stall rule
+// (experiments/2026-11-23-position-calibration.md).
+constexpr int k_position_outer_passes = 40;
+// RecoverSettings::position_outer_stall_tolerance = −1 (the default): the stall rule's relative
+// loss decrease: converging runs lower stage 3's loss by ≥ 14 % a pass to their 12th, a stalled
+// one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue brought back later, 0.05 nearly
+// did.
+constexpr double k_position_outer_stall_tolerance = 0.02;
+
+}  // namespace
+
+StageReporter::StageReporter(const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
+                             const Communicator& comm)
+    : m_on_step(on_step), m_truth(truth), m_comm(comm), m_start(std::chrono::steady_clock::now()) {}
+
+bool StageReporter::operator()(const std::string& stage, int iteration, double loss, const Heightfield* heights) {
+    bool go_on = true;
+    if (m_on_step) {
+        StageMetrics m;
+        m.stage = stage;
+        m.iteration = iteration;
+        m.loss = loss;
+        m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();
+        if (m_truth && heights) {
+            m.height_rel_rmse = height_rel_rmse(*heights, *m_truth);
+            m.height_rel_rmse_plane_removed = height_rel_rmse_plane_removed(*heights, *m_truth);
+        }
+        go_on = m_on_step(m);
+    }
+    go_on = !m_comm.any(!go_on);  // one rank's stop stops all, at the same step
+    if (!go_on) m_stopped = true;
+    return go_on;
+}
+
+bool ReleaseFieldsStage::run(const StageContext&, RecoveryState& state) const {
+    // The position loop's field stages start from empty fields again.
+    state.fields = FieldSet{};
+    state.unwrapped = state.estimate;
+    return true;
+}
+
+bool ModelCheckStage::run(const StageContext& context, RecoveryState& state) const {
+    std::vector<const Observation*> separable;
+    std::vector<std::size_t> index;
+    for (const auto& entry : context.by_lambda)
+        for (const Observation* o : entry.second) {
+            separable.push_back(o);
+            index.push_back(std::size_t(o - context.observations.data()));
+        }
+    state.estimate = check_model(separable, index, state.refined_offsets, state.refined_sigma_scale, state.unwrapped,
+                                 state.estimate, context.refine, settings, context.report, context.comm,
+                                 std::isfinite(state.field_floor) ? state.field_floor : 0.0);
+    return !context.stopped();
+}
+
+Schedule make_schedule(const RecoverSettings& settings_in, const StageContext& context) {
+    RecoverSettings settings = settings_in;
+    const auto& by_lambda = context.by_lambda;
+    const CalibrationSettings& calibrate = settings.calibrate;
+    const bool white = context.white;
+    // field_wavelengths / refine_ladder_wavelengths as wavelengths (every rank holds every
+    // wavelength's key, so all ranks agree): the n-th longest.
+    const auto nth_longest = [&](int n) {
+        double l = 0.0;
+        for (auto it = by_lambda.rbegin(); it != by_lambda.rend() && n > 0; ++it, --n) l = it->first;
+        return l;
+    };
+    if (settings.field_lambda_min_um == 0.0 && settings.field_wavelengths > 0)
+        settings.field_lambda_min_um = nth_longest(settings.field_wavelengths);
+    if (settings.refine_ladder_min_um == 0.0 && settings.refine_ladder_wavelengths > 0)
+        settings.refine_ladder_min_um = nth_longest(settings.refine_ladder_wavelengths);
+
+    Schedule schedule;
+    const auto add = [&](std::shared_ptr<const Stage> stage) { schedule.stages.push_back(std::move(stage)); };
+
+    const BlurredFitSettings& blur = white ? settings.white_blurred : settings.blurred;
+    if (!blur.blur_widths.empty() && blur.iterations > 0) {
+        auto stage = std::make_shared<BlurredFitStage>();
+        stage->fit = blur;
+        stage->fit.calibrate_exposure = blur.calibrate_exposure || calibrate.exposure;
+        stage->wavelengths = settings.blur_wavelengths;
+        stage->spacing_sigma = settings.blur_spacing_sigma;
+        add(stage);
+    }
+    // σ_p before the field stage, not with exposure calibration as well: the energy ratio then
+    // absorbs σ_p's energy and the search at the blurred heights can run off (measured: 1.68 for a
+    // true 1.0 on an 8² tile of 0.1 µm range, where the refinement from there stayed at 1.45).
+    const bool presearched = calibrate.sigma && settings.sigma_presearch && !calibrate.exposure;
+    if (presearched) {
+        auto stage = std::make_shared<SigmaPresearchStage>();
+        stage->loss = settings.refine_loss;
+        stage->calibrate_exposure = calibrate.exposure;
+        add(stage);
+    }
+
+    auto field = std::make_shared<FieldStage>();
+    field->field = settings.field;
+    field->field.refine = context.refine;
+    field->calibrate_exposure = settings.field.calibrate_exposure || calibrate.exposure;
+    field->field.calibrate_exposure = field->calibrate_exposure;
+    field->cascade = settings.cascade;
+    field->passes = settings.cascade ? std::max(1, settings.field_passes) : 1;
+    // When no wavelength reaches the bound, every wavelength runs the field stage.
+    field->lambda_min_um = !by_lambda.empty() && by_lambda.rbegin()->first >= settings.field_lambda_min_um
+                               ? settings.field_lambda_min_um
+                               : 0.0;
+    field->tiling = FieldTiling{settings.field_tile_threshold, settings.field_tile_core, settings.field_tile_ramp};
+    field->positions = calibrate.positions;
+    field->height_range_um = settings.height_range_um;
+    field->unwrap_from_blurred = settings.unwrap_from_blurred;
+    // With positions and exposures both calibrated the field stage holds each slice's exposure
+    // (found before it) fixed: free exposures trade the object's local amplitude.
+    const bool hold_exposures = calibrate.positions && calibrate.exposure && settings.field_exposures_held && !white;
+    if (hold_exposures) add(std::make_shared<HeldExposuresStage>());
+    if (!white) {
+        add(field);
+        auto unwrap = std::make_shared<UnwrapStage>();
+        unwrap->field = field;
+        add(unwrap);
+    }
+    if (!white && calibrate.sigma && (presearched || calibrate.exposure)) {
+        auto stage = std::make_shared<SigmaResearchStage>();
+        stage->loss = settings.refine_loss;
+        stage->calibrate_exposure = calibrate.exposure;
+        stage->presearched = presearched;
+        stage->hold_exposures = hold_exposures;
+        stage->field = field;
+        add(stage);
+    }
+    add(std::make_shared<ReleaseFieldsStage>());
+
+    if (settings.refine_iterations > 0 && calibrate.positions) {
+        auto stage = std::make_shared<PositionLoopStage>();
+        stage->settings = settings;
+        stage->passes =
+            settings.position_outer_passes >= 0 ? settings.position_outer_passes : k_position_outer_passes;
+        stage->stall_tolerance = settings.position_outer_stall_tolerance >= 0.0
+                                     ? settings.position_outer_stall_tolerance
+                                     : k_position_outer_stall_tolerance;
+        stage->hold_exposures = hold_exposures;
+        stage->field = *field;
+        add(stage);
+    } else if (settings.refine_iterations > 0) {
+        auto stage = std::make_shared<RefineStage>();
+        stage->settings = settings;
+        add(stage);
+    }
+    // Not for white light (no single-wavelength slice, no field model, no unwrapped heights),
+    // nor for GHS/RGHS slices (the field model is their separable proxy's, not theirs).
+    if (!white && !context.proxy.proxied && settings.refine_iterations > 0 && settings.model_check_iterations > 0) {
+        auto stage = std::make_shared<ModelCheckStage>();
+        stage->settings = settings;
+        add(stage);
+    }
+    return schedule;
+}
+
+void run_schedule(const Schedule& schedule, const StageContext& context, RecoveryState& state) {
+    for (const auto& stage : schedule.stages)
+        if (!stage->run(context, state)) return;
+}
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,156 @@
+// Stage 3 with the footprint positions calibrated, and the position loop around it (stages.h).
+#include <algorithm>
+#include <cmath>
+
+#include "recovery/recover_positions.h"
+#include "recovery/stages.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+
+// The rms (texels) of the change from `before` to `after` (2 values per position).
+double rms_move(const std::vector<double>& before, const std::vector<double>& after, double texel_um) {
+    double s2 = 0.0;
+    for (std::size_t i = 0; i < before.size(); ++i) s2 += (after[i] - before[i]) * (after[i] - before[i]);
+    return before.empty() ? 0.0 : std::sqrt(s2 / double(before.size())) / texel_um;
+}
+
+}  // namespace
+
+bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) const {
+    const auto& observations = context.observations;
+    const Communicator& comm = context.comm;
+    const auto& report = context.report;
+    std::vector<std::array<double, 2>> offsets;
+    std::vector<double> exposures;
+    std::vector<double> position_offsets;  // per gathered position (2 each, µm)
+    double last_refine_loss = 0.0;         // stage 3's last reported loss (the stall rule's)
+    state.estimate = refine_heights_and_positions(observations, context.observations_total, context.flat,
+                                                  state.estimate, settings, report, comm, offsets, state.offsets_um,
+                                                  &exposures, &state.sigma_scale, &position_offsets, &last_refine_loss);
+    if (context.stopped()) return false;
+    // The outer loop: every position registered on its own at the final heights (a grid search
+    // of its full-model loss, then Newton steps), then the field stage (from the final heights,
+    // while the registration moves) and stage 3 again at the registered positions, until the
+    // registration moves the offsets by less than position_outer_tolerance_texels rms or stage
+    // 3's loss stalls.
+    // Later passes warm-start from the pass before (its heights, hence its objects) and may run
+    // fewer iterations (position_outer_field_iterations, position_outer_refine_iterations).
+    RecoverSettings later = settings;
+    if (settings.position_outer_refine_iterations > 0)
+        later.refine_iterations = settings.position_outer_refine_iterations;
+    FieldRetrievalSettings later_field = field.field;
+    if (settings.position_outer_field_iterations > 0) later_field.iterations = settings.position_outer_field_iterations;
+    // The smooth part of each registration's update removed (positions and heights can trade a
+    // smooth warp; recover_positions.h).
+    const int smooth_nodes = settings.position_outer_smooth_nodes;
+    std::vector<std::array<double, 2>> centres;
+    if (passes > 0 && smooth_nodes > 0) {
+        std::vector<std::size_t> unused;
+        centres = gather_positions(observations, unused, comm);
+    }
+    // The stall rule on stage 3's loss: the lowest stage-3 loss of the passes without the field
+    // stage (and of the first recovery), and how many such passes in a row lowered it by less
+    // than the tolerance.
+    double best_loss = last_refine_loss;
+    int stalled = 0;
+    // The rule on the median position's loss (position_outer_stall_median), judged at the start
+    // of each pass for the heights of the pass before (a pass after the field stage's heights, a
+    // new start, resets the count as the rule on stage 3's loss does).
+    double best_median = 0.0;
+    bool after_field = true;  // the first recovery ran the field stage
+    for (int outer = 0; outer < passes; ++outer) {
+        const std::vector<double> before = position_offsets;
+        double moved = register_positions(observations, context.position_of, state.estimate, settings,
+                                          state.sigma_scale, settings.position_register_radius_texels, 0.5,
+                                          position_offsets, comm);
+        // Newton steps on each position's offset after the grid and parabola
+        // (recover_positions.h); moved counts them.
+        for (int n = 0; n < settings.position_register_newton_steps; ++n) {
+            const int stepped = newton_register_positions(
+                observations, context.position_of, state.estimate, settings, state.sigma_scale,
+                settings.position_newton_step_texels, settings.position_newton_cap_texels, position_offsets, comm);
+            moved = rms_move(before, position_offsets, state.estimate.texel_um());
+            if (!report("positions:newton", stepped, moved, &state.estimate)) return false;
+        }
+        if (smooth_nodes > 0) {
+            std::vector<double> update(position_offsets.size());
+            for (std::size_t i = 0; i < update.size(); ++i) update[i] = position_offsets[i] - before[i];
+            remove_smooth_displacement(centres, update, smooth_nodes);
+            double s2 = 0.0;
+            for (std::size_t i = 0; i < update.size(); ++i) {
+                position_offsets[i] = before[i] + update[i];
+                s2 += update[i] * update[i];
+            }
+            moved = update.empty() ? 0.0 : std::sqrt(s2 / double(update.size())) / state.estimate.texel_um();
+        }
+        if (!report("positions:register", outer + 1, moved, &state.estimate)) return false;
+        // The lost positions searched wide.
+        bool median_judged = false;  // the median position's stall rule judged this pass
+        if (settings.position_rescue_factor > 0.0) {
+            const std::vector<double> kept = position_offsets;
+            double median = 0.0;
+            const int rescued = rescue_lost_positions(
+                observations, context.position_of, state.estimate, settings, state.sigma_scale,
+                settings.position_rescue_factor, settings.position_rescue_radius_texels,
+                settings.position_rescue_step_texels, position_offsets, comm, &median);
+            const double jump = rms_move(kept, position_offsets, state.estimate.texel_um());
+            if (!report("positions:rescue", rescued, jump, &state.estimate)) return false;
+            if (jump > 0.0) moved = std::max(moved, settings.position_outer_tolerance_texels);
+            // The stall rule on the median position's loss at the heights of the pass before
+            // (stage 3's loss is dominated by positions lost for good). A stalled loop ends here,
+            // with the pass before's heights and offsets.
+            if (settings.position_outer_stall_median && settings.position_outer_stall_passes > 0) {
+                median_judged = true;
+                stalled = after_field ? 0 : median > (1.0 - stall_tolerance) * best_median ? stalled + 1 : 0;
+                best_median = after_field && outer == 0 ? median : std::min(best_median, median);
+                if (!report("positions:stall", stalled, median, &state.estimate)) return false;
+                if (stalled >= settings.position_outer_stall_passes) break;
+            }
+        }
+        if (moved < settings.position_outer_tolerance_texels) break;
+        state.offsets_um = position_offsets;
+        const bool field_pass = !context.white && settings.position_outer_fields &&
+                                !(settings.position_outer_field_below_texels > 0.0 &&
+                                  moved < settings.position_outer_field_below_texels);
+        if (field_pass) {
+            state.fields = FieldSet{};
+            if (hold_exposures)  // stage 3's, at the heights and offsets it ended with
+                state.field_exposures = exposures.size() == observations.size()
+                                            ? exposures
+                                            : exposures_at(observations, context.position_of, state.estimate,
+                                                           state.sigma_scale, state.offsets_um);
+            if (!field.retrieve(context, state, later_field)) return false;
+            field.unwrap(context, state);
+            if (!report("unwrap", outer + 1, 0.0, &state.estimate)) return false;
+            state.unwrapped = state.estimate;
+        }
+        state.estimate = refine_heights_and_positions(observations, context.observations_total, context.flat,
+                                                      state.estimate, later, report, comm, offsets, state.offsets_um,
+                                                      &exposures, &state.sigma_scale, &position_offsets,
+                                                      &last_refine_loss);
+        if (context.stopped()) return false;
+        // The stall rule on stage 3's loss: a pass of registration and stage 3 alone that
+        // lowered stage 3's loss by less than the tolerance (relative to the lowest so far)
+        // counts; the loop stops after position_outer_stall_passes of them in a row. A pass
+        // with the field stage resets the count (its heights are a new start).
+        after_field = field_pass;
+        if (field_pass) {
+            stalled = 0;
+        } else if (settings.position_outer_stall_passes > 0 && !median_judged) {
+            stalled = last_refine_loss > (1.0 - stall_tolerance) * best_loss ? stalled + 1 : 0;
+            if (!report("positions:stall", stalled, last_refine_loss, &state.estimate)) return false;
+            if (stalled >= settings.position_outer_stall_passes) break;
+        }
+        best_loss = std::min(best_loss, last_refine_loss);
+    }
+    state.refined_offsets = offsets;
+    state.refined_sigma_scale = state.sigma_scale;
+    state.calibration.position_offsets_um = std::move(offsets);
+    state.calibration.exposures = std::move(exposures);
+    state.calibration.sigma_p_scale = state.sigma_scale;
+    return true;
+}
+
+}  // namespace wavebrdf::detail
