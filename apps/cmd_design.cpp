@@ -134,6 +134,14 @@ void run(DesignArgs a) {
                           << format_shortest(b["luminous_efficiency"].get<double>()) << " (linear sRGB "
                           << b["linear_srgb"].dump() << ")\n";
         }
+        if (j.contains("view_survey") && !j["view_survey"]["best"].is_null()) {
+            const auto& b = j["view_survey"]["best"];
+            std::cerr << "design: reachable: from view (" << format_shortest(b["view"][0].get<double>()) << ", "
+                      << format_shortest(b["view"][1].get<double>()) << ") a " << j["view_survey"]["size"].get<int>()
+                      << "^2 design on these levels reaches delta u'v' " << format_shortest(b["delta_uv"].get<double>())
+                      << " at Y " << format_shortest(b["luminous_efficiency"].get<double>())
+                      << " (design.json view_survey lists every view tried)\n";
+        }
         std::cerr << "design: exact scalar diffraction: " << j["metrics"]["exact"].dump() << "\n"
                   << "design: wrote " << a.out << " in " << format_shortest(j["timings_s"]["total"].get<double>())
                   << " s\n";

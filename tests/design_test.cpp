@@ -11,6 +11,7 @@
 #include "design/target.h"
 #include "wavebrdf/design.h"
 #include "wavebrdf/design_run.h"
+#include <nlohmann/json.hpp>
 
 namespace wavebrdf {
 namespace {
@@ -302,6 +303,105 @@ TEST(Design, ColourOfAFlatWhiteReflectorIsTheWhitePoint) {
     EXPECT_NEAR(uv[1], d65[1], 1e-9);
     // D65's u'v' from its xy (0.3127, 0.3290): u' = 4x/(−2x + 12y + 3).
     EXPECT_NEAR(d65[0], 4 * 0.3127 / (-2 * 0.3127 + 12 * 0.3290 + 3), 1e-4);
+}
+
+TEST(Design, AntiMirrorLossGradientMatchesFiniteDifferencesOnBothSidesOfTheUniformityHinge) {
+    // Fractions of three wavelengths: bins nearly even (u below the free level), uneven (above),
+    // and very uneven; the loss's gradient against central differences in every fraction.
+    const auto target = detail::make_anti_mirror({});
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    detail::Fractions f(3, std::vector<double>(17, 0.0));
+    const double spread[3] = {0.05, 1.0, 1.6};
+    for (std::size_t w = 0; w < 3; ++w) {
+        f[w][0] = 0.01 * uniform(rng);
+        for (std::size_t q = 1; q <= 16; ++q) f[w][q] = 0.05 * std::max(0.05, 1.0 + spread[w] * (uniform(rng) - 0.5));
+    }
+    const nlohmann::json m = target->metrics(f);
+    EXPECT_LT(m["uniformity"][0].get<double>(), 0.2);
+    EXPECT_GT(m["uniformity"][1].get<double>(), 0.2);
+    detail::Fractions g;
+    target->loss(f, &g);
+    const double step = 1e-7;
+    for (std::size_t w = 0; w < 3; ++w)
+        for (std::size_t q = 0; q <= 16; ++q) {
+            detail::Fractions plus = f, minus = f;
+            plus[w][q] += step;
+            minus[w][q] -= step;
+            const double fd = (target->loss(plus, nullptr) - target->loss(minus, nullptr)) / (2 * step);
+            EXPECT_NEAR(g[w][q], fd, 1e-6 * std::max(1.0, std::abs(fd))) << "wavelength " << w << " group " << q;
+        }
+}
+
+TEST(Design, RepeatedTileHasTheSameFarField) {
+    // The view survey's premise: an s² tile repeated 2 × 2 reflects into exactly the orders of the
+    // small tile (the even orders of the large one) with the same powers; the odd orders are dark.
+    const int s = 8;
+    const std::vector<double> small = random_levels(s, 4, 0.15, 21);
+    std::vector<double> big(static_cast<std::size_t>(4 * s * s));
+    for (int i = 0; i < 2 * s; ++i)
+        for (int j = 0; j < 2 * s; ++j)
+            big[static_cast<std::size_t>(i * 2 * s + j)] = small[static_cast<std::size_t>((i % s) * s + j % s)];
+    const std::array<double, 2> light{0.1, -0.05};
+    const auto a = exact_orders(small, s, 0.5, light, {0.45})[0];
+    const auto b = exact_orders(big, 2 * s, 0.5, light, {0.45})[0];
+    std::size_t matched = 0;
+    for (std::size_t o = 0; o < b.m.size(); ++o) {
+        if (b.m[o] % 2 != 0 || b.n[o] % 2 != 0) {
+            EXPECT_NEAR(b.power[o], 0.0, 1e-12) << b.m[o] << "," << b.n[o];
+            continue;
+        }
+        for (std::size_t k = 0; k < a.m.size(); ++k)
+            if (a.m[k] == b.m[o] / 2 && a.n[k] == b.n[o] / 2) {
+                EXPECT_NEAR(b.power[o], a.power[k], 1e-12);
+                ++matched;
+            }
+    }
+    EXPECT_EQ(matched, a.m.size());
+}
+
+TEST(Design, ColourOutOfReachIsSurveyedFromOtherViews) {
+    // A colour the run misses (too little light into the cone, or the wrong chromaticity) is
+    // designed for other views; each listed view's numbers are what a design for it reflects,
+    // rescored here by exact diffraction of its relief.
+    DesignOptions o;
+    o.size = 16;
+    o.levels = 16;
+    o.height_range_um = 2.0;
+    o.spectral = 6;
+    o.iterations = 10;
+    o.refine_passes = 3;
+    o.target = parse_design_target("colour:#FF0000");
+    const DesignResult r = run_design(prepare_design(o));
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    const auto& exact = j["metrics"]["exact"];
+    ASSERT_TRUE(exact["delta_uv"].get<double>() > 0.04 || exact["luminous_efficiency"].get<double>() < 0.05);
+    ASSERT_TRUE(j.contains("view_survey"));
+    const auto& survey = j["view_survey"];
+    EXPECT_EQ(survey["size"].get<int>(), 16);
+    ASSERT_EQ(survey["views"].size(), 4u);  // offsets 0.1 … 0.4; not the run's own view
+    for (const auto& v : survey["views"]) {
+        EXPECT_GT(std::hypot(v["view"][0].get<double>(), v["view"][1].get<double>()), 0.05);
+        // Each entry is what a design for that view reaches, scored by exact diffraction.
+        DesignOptions w = o;
+        w.iterations = survey["iterations"].get<int>();
+        w.refine_passes = survey["refine_passes"].get<int>();
+        w.view = std::array<double, 2>{v["view"][0].get<double>(), v["view"][1].get<double>()};
+        const DesignResult rv = run_design(prepare_design(w));
+        const auto e = exact_orders(rv.heights_um, o.size, o.texel_um, o.omega_i, rv.lambdas_um);
+        std::vector<double> reflectance;
+        for (const auto& op : e) {
+            double in = 0.0;
+            for (std::size_t k = 0; k < op.m.size(); ++k)
+                if (std::hypot(op.omega_x[k] - (*w.view)[0], op.omega_y[k] - (*w.view)[1]) <= o.view_cone) in += op.power[k];
+            reflectance.push_back(in);
+        }
+        const auto xyz = reflectance_xyz(rv.lambdas_um, reflectance);
+        EXPECT_NEAR(v["luminous_efficiency"].get<double>(), xyz[1], 1e-9);
+    }
+    double least = 1e300;
+    for (const auto& v : survey["views"]) least = std::min(least, v["loss"].get<double>());
+    EXPECT_EQ(survey["best"]["loss"].get<double>(), least);
 }
 
 }  // namespace

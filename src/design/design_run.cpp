@@ -559,7 +559,71 @@ PreparedDesign prepare_design(const DesignOptions& options) {
     return p;
 }
 
+namespace {
+DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step,
+                             bool survey_views);
+
+// Which views reach a colour: for a few view directions (offsets along x from the mirror
+// direction, inside the visible disk), a small design on the same levels, texel and light. Its
+// tile (the largest divisor of the run's size up to k_survey_size) repeats into the run's tile
+// with the same far field, so what a view reaches here the run's tile reaches too: a reachable
+// colour is proven by a relief, not estimated.
+constexpr int k_survey_size = 32, k_survey_iterations = 40, k_survey_refine_passes = 10;
+// A colour counts as reached within this chromaticity distance and above this luminous efficiency;
+// below them the run surveys the other views.
+constexpr double k_reached_delta_uv = 0.04, k_reached_y = 0.05;
+nlohmann::json view_survey(const PreparedDesign& p) {
+    const DesignOptions& o = p.options;
+    int size = 1;
+    for (int d = 1; d <= std::min(o.size, k_survey_size); ++d)
+        if (o.size % d == 0) size = d;
+    const std::array<double, 2> mirror{-o.omega_i[0], -o.omega_i[1]};
+    nlohmann::json views = nlohmann::json::array();
+    nlohmann::json best;
+    double best_loss = 1e300;
+    if (size < 2) return {{"size", size}, {"views", views}};
+    const std::array<double, 2> own = o.view ? *o.view : mirror;
+    for (double offset : {0.0, 0.1, 0.2, 0.3, 0.4}) {
+        DesignOptions v = o;
+        v.size = size;
+        v.iterations = k_survey_iterations;
+        v.refine_passes = k_survey_refine_passes;
+        v.errors = {};
+        v.view = std::array<double, 2>{mirror[0] + offset, mirror[1]};
+        if (!(std::hypot((*v.view)[0], (*v.view)[1]) + o.view_cone < 1.0)) continue;
+        if (std::hypot((*v.view)[0] - own[0], (*v.view)[1] - own[1]) < 1e-9) continue;  // the run itself
+        const PreparedDesign pv = prepare_design(v);
+        const DesignResult r = run_design_impl(pv, {}, false);
+        const nlohmann::json j = nlohmann::json::parse(r.metrics_json);
+        const nlohmann::json& e = j["metrics"]["exact"];
+        nlohmann::json entry{{"view", *v.view},
+                             {"delta_uv", e["delta_uv"]},
+                             {"luminous_efficiency", e["luminous_efficiency"]},
+                             {"linear_srgb", e["linear_srgb"]},
+                             {"loss", j["metrics"]["final_loss"]}};
+        views.push_back(entry);
+        if (j["metrics"]["final_loss"].get<double>() < best_loss) {
+            best_loss = j["metrics"]["final_loss"].get<double>();
+            best = entry;
+        }
+    }
+    return {{"what", "per view: a small design on these levels, texel and light whose tile repeats into this run's "
+                     "tile (same far field), so each colour listed is reachable from that view"},
+            {"size", size},
+            {"iterations", k_survey_iterations},
+            {"refine_passes", k_survey_refine_passes},
+            {"views", views},
+            {"best", best}};
+}
+}  // namespace
+
 DesignResult run_design(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step) {
+    return run_design_impl(p, on_step, true);
+}
+
+namespace {
+DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step,
+                             bool survey_views) {
     const DesignOptions& o = p.options;
     const auto start = Clock::now();
     const int K = o.levels, N = o.size;
@@ -818,7 +882,14 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
     j["fabrication_errors"] = fabrication;
     if (o.target.kind == DesignKind::Colour) {
         const bool mirror_view = !o.view || (std::abs((*o.view)[0] - mirror[0]) < 1e-12 && std::abs((*o.view)[1] - mirror[1]) < 1e-12);
-        if (mirror_view) j["mirror_order_bound"] = mirror_order_bound(p);
+        if (mirror_view && survey_views) j["mirror_order_bound"] = mirror_order_bound(p);
+        const nlohmann::json& e = j["metrics"]["exact"];
+        const bool reached = e["delta_uv"].get<double>() <= k_reached_delta_uv && e["luminous_efficiency"].get<double>() >= k_reached_y;
+        if (survey_views && !reached) {
+            const auto survey_start = Clock::now();
+            j["view_survey"] = view_survey(p);
+            j["view_survey"]["seconds"] = seconds_since(survey_start);
+        }
     }
     j["notes"] = p.notes;
     j["timings_s"] = {{"relaxed", relaxed_seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
@@ -826,5 +897,6 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
     r.metrics_json = j.dump(2);
     return r;
 }
+}  // namespace
 
 }  // namespace wavebrdf

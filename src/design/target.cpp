@@ -54,12 +54,16 @@ public:
         return ring * 4 + quadrant;
     }
 
-    // Per wavelength: weight_specular · s + (1 − r) + weight_uniformity · u², u = std/mean of the
-    // bins; the mean over wavelengths plus the worst wavelength's specular excess, so that no
-    // wavelength is left behind.
+    // Per wavelength: weight_specular · s + (1 − r) + weight_uniformity · max(0, u − u_free)²,
+    // u = std/mean of the bins, averaged over the wavelengths. The uniformity costs nothing
+    // below u_free: a penalty on all of u (u² at any size) made the loop buy uniformity where it
+    // was already good, at the wavelengths in the middle of the band, with region it then lacked,
+    // while the worst wavelength stayed as it was; the hinge spends the relief on the wavelengths
+    // whose bins are uneven.
     double loss(const Fractions& f, Fractions* gradient) const override {
         const std::size_t W = f.size();
         if (gradient) gradient->assign(W, std::vector<double>(17, 0.0));
+        const double scale = 1.0 / static_cast<double>(W);
         double total = 0.0;
         for (std::size_t w = 0; w < W; ++w) {
             const auto& g = f[w];
@@ -70,17 +74,19 @@ public:
             for (int q = 1; q <= 16; ++q) var += (g[static_cast<std::size_t>(q)] - mean_bin) * (g[static_cast<std::size_t>(q)] - mean_bin);
             var /= 16.0;
             const double m2 = std::max(mean_bin * mean_bin, 1e-30);
-            const double u2 = var / m2;
-            total += (k_weight_specular * g[0] + (1.0 - r) + k_weight_uniformity * u2) / static_cast<double>(W);
+            const double u = std::sqrt(var / m2);
+            const double excess = std::max(0.0, u - k_uniformity_free);
+            total += scale * (k_weight_specular * g[0] + (1.0 - r) + k_weight_uniformity * excess * excess);
             if (gradient) {
                 auto& d = (*gradient)[w];
-                const double scale = 1.0 / static_cast<double>(W);
-                d[0] = k_weight_specular * scale;
-                // u² = var/mean²: ∂/∂b_q = 2(b_q − mean)/(16 mean²) − 2 var/(mean³ · 16)
+                d[0] = scale * k_weight_specular;
+                // u² = var/mean²: ∂u²/∂b_q = 2(b_q − mean)/(16 mean²) − 2 var/(mean³ · 16);
+                // ∂(excess²) = 2 excess ∂u = excess ∂u² / u.
+                const double dexcess = u > 0.0 ? excess / u : 0.0;
                 for (int q = 1; q <= 16; ++q) {
                     const double bq = g[static_cast<std::size_t>(q)];
                     const double du2 = 2.0 * (bq - mean_bin) / (16.0 * m2) - 2.0 * var / (m2 * std::max(mean_bin, 1e-15) * 16.0);
-                    d[static_cast<std::size_t>(q)] = scale * (-1.0 + k_weight_uniformity * du2);
+                    d[static_cast<std::size_t>(q)] = scale * (-1.0 + k_weight_uniformity * dexcess * du2);
                 }
             }
         }
@@ -112,7 +118,8 @@ public:
 
 private:
     static constexpr double k_weight_specular = 100.0;
-    static constexpr double k_weight_uniformity = 2.0;
+    static constexpr double k_weight_uniformity = 20.0;
+    static constexpr double k_uniformity_free = 0.2;
     AntiMirrorSpec m_spec;
 };
 
