@@ -107,6 +107,9 @@ struct DesignOptions {
     std::uint64_t seed = 1;
     int iterations = 200;       // relaxed (softmax over levels) iterations, 0 … 100000
     int refine_passes = 60;     // discrete passes on the final levels, 0 … 100000
+    // Colour: when the design misses its colour, design it for other views too (design.json
+    // view_survey; docs/design.md). A plate's palette entries leave it off.
+    bool survey_views = true;
     double max_memory_gb = 0.0;  // refuse an estimate above this (0: the physical memory)
 };
 

@@ -343,7 +343,8 @@ PlateResult run_plate(const PreparedPlate& p, const std::function<bool(int, cons
             entries.push_back({{"entry", o.palette[e].text}, {"pixels", 0}});
             continue;
         }
-        const PreparedDesign pd = prepare_entry(o, e);
+        PreparedDesign pd = prepare_entry(o, e);
+        pd.options.survey_views = false;
         DesignResult d = run_design(pd, [&](const DesignStep& s) { return on_step ? on_step(static_cast<int>(e), s) : true; });
         d.target_picture.clear();
         d.far_field_picture.clear();

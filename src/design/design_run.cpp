@@ -618,7 +618,7 @@ nlohmann::json view_survey(const PreparedDesign& p) {
 }  // namespace
 
 DesignResult run_design(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step) {
-    return run_design_impl(p, on_step, true);
+    return run_design_impl(p, on_step, p.options.survey_views);
 }
 
 namespace {
@@ -884,8 +884,11 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         const bool mirror_view = !o.view || (std::abs((*o.view)[0] - mirror[0]) < 1e-12 && std::abs((*o.view)[1] - mirror[1]) < 1e-12);
         if (mirror_view && survey_views) j["mirror_order_bound"] = mirror_order_bound(p);
         const nlohmann::json& e = j["metrics"]["exact"];
-        const bool reached = e["delta_uv"].get<double>() <= k_reached_delta_uv && e["luminous_efficiency"].get<double>() >= k_reached_y;
-        if (survey_views && !reached) {
+        // Grayscale reliefs (no levels) are not surveyed.
+        const bool reached = !survey_views || o.min_feature_um > 0.0 || !e.contains("delta_uv") || !e.contains("luminous_efficiency") ||
+                             (e["delta_uv"].get<double>() <= k_reached_delta_uv &&
+                              e["luminous_efficiency"].get<double>() >= k_reached_y);
+        if (!reached) {
             const auto survey_start = Clock::now();
             j["view_survey"] = view_survey(p);
             j["view_survey"]["seconds"] = seconds_since(survey_start);
