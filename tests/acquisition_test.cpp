@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -60,7 +61,7 @@ TEST(PlanTest, PositionsOverlapAsRequestedAndCoverTheTile) {
         const double px = r.rows * r.texel_um, py = r.cols * r.texel_um, d = 6.0 * plan.sigma_p_um;
         double worst = 0.0;
         for (std::size_t a = 0; a < plan.positions_um.size(); ++a) {
-            double nearest = INFINITY;
+            double nearest = std::numeric_limits<double>::infinity();
             for (std::size_t b = 0; b < plan.positions_um.size(); ++b)
                 if (a != b)
                     nearest = std::min(nearest, periodic_distance(plan.positions_um[a], plan.positions_um[b], px, py));
@@ -297,12 +298,12 @@ TEST(PlanTest, BadRequestsNameTheField) {
     r.lambda_um = 0.8;
     expect_naming(r, "lambda0");
     r = {};
-    r.height_range_um = NAN;
+    r.height_range_um = std::numeric_limits<double>::quiet_NaN();
     expect_naming(r, "height range");
     r = {};
     r.position_uncertainty_um = -1.0;
     expect_naming(r, "position_uncertainty_um");
-    r.position_uncertainty_um = NAN;
+    r.position_uncertainty_um = std::numeric_limits<double>::quiet_NaN();
     expect_naming(r, "position_uncertainty_um");
 }
 

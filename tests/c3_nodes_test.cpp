@@ -363,7 +363,7 @@ TEST(C3Nodes, PlanarFactorsAreBuildFactorsInPlanarFormBitForBit) {
             const double u = grid.ux[std::size_t(p)];
             const std::complex<double> x = std::exp(-gauss * (u + b) * (u + b)) *
                                            std::polar(1.0, -2.0 * k_pi * u * k.dx_um[idx]);
-            worst = std::max(worst, std::abs(std::complex<double>(px.re(p, c), px.im(p, c)) - x));
+            worst = std::max(worst, std::abs(std::complex<double>(double(px.re(p, c)), double(px.im(p, c))) - x));
         }
     EXPECT_LE(worst, 1e-6);
 }

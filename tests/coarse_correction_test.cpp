@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -43,7 +44,7 @@ TEST(CoarseBasis, LevelsAndSizes) {
     EXPECT_THROW(CoarseBasis(0, 12, 8.0), std::invalid_argument);
     EXPECT_THROW(CoarseBasis(12, 12, 0.5), std::invalid_argument);
     EXPECT_THROW(CoarseBasis(12, 12, 8.0, 0.0), std::invalid_argument);
-    EXPECT_THROW(CoarseBasis(12, 12, NAN), std::invalid_argument);
+    EXPECT_THROW(CoarseBasis(12, 12, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
 }
 
 // ⟨B c, g⟩ = ⟨c, Bᵀ g⟩ for random c and g (a non-square surface, non-integer node spacing).

@@ -241,7 +241,7 @@ TEST(DesignTargets, BrdfDesignAgainstALobeImprovesItsRelativeL2) {
         }
         double d2 = 0.0, t2 = 0.0;
         for (std::size_t q = 0; q < f.size(); ++q) {
-            const double t = table.values[q * 3];
+            const double t = double(table.values[q * 3]);
             d2 += (f[q] - t) * (f[q] - t);
             t2 += t * t;
         }

@@ -254,7 +254,7 @@ TEST(ExactSum, TotalOfAnyMagnitudeIsOrderIndependent) {
     std::reverse(v.begin(), v.end());
     EXPECT_EQ(exact_total(v, serial_communicator()), total);
     long double reference = 0.0L;
-    for (double x : v) reference += x;
+    for (const double x : v) reference += static_cast<long double>(x);
     EXPECT_NEAR(total, double(reference), 1e-12 * std::abs(double(reference)));
     EXPECT_EQ(exact_total({}, serial_communicator()), 0.0);
     EXPECT_THROW(exact_total({1.0, std::nan("")}, serial_communicator()), std::overflow_error);

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <random>
 #include <stdexcept>
@@ -361,7 +362,7 @@ TEST(FabricationTest, StlRefusesBadInput) {
     const std::string path = (dir.path / "r.stl").string();
     std::vector<double> h(4, 0.0);
     test::expect_throw_naming<std::invalid_argument>([&] { write_stl(path, h, 2, 2, 0.5, 0.0); }, "base_um 0");
-    h[3] = INFINITY;
+    h[3] = std::numeric_limits<double>::infinity();
     test::expect_throw_naming<std::invalid_argument>([&] { write_stl(path, h, 2, 2, 0.5, 1.0); }, "texel (1, 1)");
     EXPECT_TRUE(fs::is_empty(dir.path));
 }

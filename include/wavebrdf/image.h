@@ -93,7 +93,7 @@ struct ImageOptions {
     std::vector<ImageLight> lights;
     // Wavelengths: one (a laser, R = G = B) or several (spectral_wavelengths_um(K) for
     // `--spectral K`), µm.
-    std::vector<double> lambdas_um{{0.5}};
+    std::vector<double> lambdas_um{0.5};
     Model model = Model::OHS;
     // σ_p of every footprint, µm; 0: from the pixel's projected size, half the square root of
     // the area the pixel covers on the surface.

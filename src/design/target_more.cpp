@@ -151,7 +151,7 @@ void more_target_picture(const DesignOptions& o, int n, double extent, std::vect
                                               static_cast<std::size_t>(first[1]);
                     const std::size_t at = ((entry * static_cast<std::size_t>(r) + static_cast<std::size_t>(p)) *
                                                 static_cast<std::size_t>(r) + static_cast<std::size_t>(q)) * 3;
-                    c = {t->values[at], t->values[at + 1], t->values[at + 2]};
+                    c = {double(t->values[at]), double(t->values[at + 1]), double(t->values[at + 2])};
                 }
             }
             for (std::size_t k = 0; k < 3; ++k)

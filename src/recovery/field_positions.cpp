@@ -227,7 +227,7 @@ bool register_positions(const std::vector<const Observation*>& group, const std:
     // The loss normalised by every rank's Σ R (so every term is of order 1 or less).
     std::vector<double> totals(group.size(), 0.0);
     for (std::size_t g = 0; g < group.size(); ++g)
-        for (double r : group[g]->reference) totals[g] += std::max(0.0, r);
+        for (const float r : group[g]->reference) totals[g] += std::max(0.0, double(r));
     const double total = exact_total(totals, comm);
     if (!(total > 0.0)) return false;
     const double inv_total = 1.0 / total;

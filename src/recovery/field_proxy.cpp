@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -33,7 +34,7 @@ double field_height_scale(const Query& query) {
 
 FieldProxy common_field_proxy(const std::map<double, std::vector<const Observation*>>& by_lambda,
                               const Communicator& comm) {
-    double lo = INFINITY, hi = -INFINITY, proxied = 0.0;
+    double lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity(), proxied = 0.0;
     for (const auto& entry : by_lambda)
         for (const Observation* o : entry.second) {
             const double s = field_height_scale(o->query);

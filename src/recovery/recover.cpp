@@ -26,7 +26,7 @@ double height_rel_rmse(const Heightfield& estimate, const Heightfield& truth) {
                                     std::to_string(estimate.cols()) + " but truth is " + std::to_string(truth.rows()) +
                                     " x " + std::to_string(truth.cols()));
     const double n = double(truth.values().size());
-    double mean_e = 0.0, mean_t = 0.0, lo = INFINITY, hi = -INFINITY;
+    double mean_e = 0.0, mean_t = 0.0, lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
     for (int i = 0; i < truth.rows(); ++i)
         for (int j = 0; j < truth.cols(); ++j) {
             mean_e += estimate.height_um(i, j);

@@ -132,7 +132,7 @@ std::vector<double> lambdas_of(const std::vector<const Observation*>& observatio
 double reference_total(const std::vector<const Observation*>& observations, const Communicator& comm) {
     std::vector<double> totals(observations.size(), 0.0);
     for (std::size_t i = 0; i < observations.size(); ++i)
-        for (double r : observations[i]->reference) totals[i] += std::max(0.0, r);
+        for (const float r : observations[i]->reference) totals[i] += std::max(0.0, double(r));
     return exact_total(totals, comm);
 }
 

@@ -11,6 +11,7 @@
 // the global phases over the single wavelengths ends it.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -220,7 +221,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
     const bool spatial = !reference && rows > 0;
     if (fields.size() > 1 && !spatial) {
         std::size_t shortest = 0;
-        double min_synthetic = INFINITY;
+        double min_synthetic = std::numeric_limits<double>::infinity();
         for (std::size_t a = 0; a < fields.size(); ++a) {
             if (lambdas_um[a] < lambdas_um[shortest]) shortest = a;
             for (std::size_t b = 0; b < fields.size(); ++b)
@@ -237,7 +238,7 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
             if (!(std::abs(fields[shortest][k]) > 0.0)) continue;
             const double base = h[k] -
                                 wrap_phase(std::arg(fields[shortest][k]) - phi[shortest] + kappa0 * h[k]) / kappa0;
-            double best = -INFINITY, best_h = h[k];
+            double best = -std::numeric_limits<double>::infinity(), best_h = h[k];
             for (int m = -branches; m <= branches; ++m) {
                 const double cand = base + m * half_step;
                 double j_value = 0.0;

@@ -262,7 +262,7 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
             double s = 0.0;
             if (poisson) {
                 double total_r = 0.0;
-                for (double x : r) total_r += x;
+                for (const float x : r) total_r += double(x);
                 if (!(total_r > 0.0))
                     throw std::invalid_argument("height uncertainty: observation " + std::to_string(i) +
                                                 "'s reference sums to " + std::to_string(total_r) +
