@@ -19,6 +19,7 @@
 #include "unit_check.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/input_digest.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation_file.h"
@@ -68,6 +69,8 @@ struct RecoverArgs {
     bool uncertainty = false;  // error bars: uncertainty.exr (uncertainty.h)
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
+    // Whether --correlation-texels was given: when not, a --truth is planned for its measured roughness.
+    bool given_correlation = false;
     // Whether --overlap was given: when not, the planner's default for the calibration.
     bool given_overlap = false;
     // Whether --position-uncertainty-um was given: when not, the simulated error's rms.
@@ -179,6 +182,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.vscale = a.vscale;
     options.height_range_um = a.height_range_um;
     options.correlation_texels = a.correlation_texels;
+    options.plan_from_truth = !a.truth.empty() && !a.given_correlation;
     options.omega_i = {a.light_x, a.light_y};
     options.oblique_lights = !a.no_oblique_lights;
     options.sigma_p_um = a.sigma_p_um;
@@ -348,6 +352,8 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     Calibration calibration;
     out.calibration = &calibration;
     UncertaintyReport bars;
+    ConvergenceCheck convergence;
+    out.convergence = &convergence;
     const Heightfield estimate = run_recovery_in_directory(r, options, out, on_step, comm, &bars);
     end_stage();
     if (options.uncertainty && !quiet && !bars.map.sigma_um.empty()) {
@@ -358,6 +364,19 @@ void run(const RecoverArgs& a, const Communicator& comm) {
         std::fprintf(stderr, "\n");
     }
     if (!comm.is_root()) return;
+    // Whether it converged, without the truth: a warning even with --quiet (run.json has it too).
+    if (!quiet && convergence.floor == "poisson")
+        std::fprintf(stderr, "convergence: misfit %.3g x the photon-noise floor (converged below %.3g)\n",
+                     convergence.misfit_ratio, k_misfit_ratio_limit);
+    else if (!quiet && convergence.floor == "noiseless")
+        std::fprintf(stderr, "convergence: relative misfit %.3g on noiseless slices (converged below %.0e)\n",
+                     convergence.relative_misfit, k_noiseless_misfit_limit);
+    else if (!quiet)
+        std::fprintf(stderr,
+                     "convergence: not judged: loss %s states no noise level (relative misfit %.3g; for photon "
+                     "counts use --loss poisson:N)\n",
+                     to_string(r.loss).c_str(), convergence.relative_misfit);
+    if (!convergence.converged) std::fprintf(stderr, "wavebrdf: warning: %s\n", convergence.warning().c_str());
     if (!quiet && options.calibrate.any()) {
         std::fprintf(stderr, "calibrated %s: sigma_p scale %.4f", to_string(options.calibrate).c_str(),
                      calibration.sigma_p_scale);
@@ -405,8 +424,11 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--height-range-um", a->height_range_um,
                     "generated truth: peak-to-valley height in um; with --observations: a bound for unwrapping")
         ->capture_default_str();
-    cmd->add_option("--correlation-texels", a->correlation_texels, "generated truth: correlation length in texels")
-        ->capture_default_str();
+    CLI::Option* correlation =
+        cmd->add_option("--correlation-texels", a->correlation_texels,
+                        "generated truth: correlation length in texels; with --truth: plan for this (and the "
+                        "truth's range) instead of the truth's measured roughness (range, slopes, Sal, Str)")
+            ->capture_default_str();
     cmd->add_option("--model", a->model, "OHS, ROHS, GHS or RGHS (GHS-type: the field stage through the separable proxy, docs/recovery.md)")->capture_default_str();
     cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
     cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
@@ -505,7 +527,8 @@ void add_recover_command(CLI::App& app) {
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
     add_conditioning_options(cmd, a->conditioning);
-    cmd->callback([a, texel, vscale, save, overlap, position_uncertainty] {
+    cmd->callback([a, texel, vscale, save, overlap, position_uncertainty, correlation] {
+        a->given_correlation = correlation->count() > 0;
         a->save_observations = save->count() > 0;
         a->given_overlap = overlap->count() > 0;
         a->given_position_uncertainty = position_uncertainty->count() > 0;

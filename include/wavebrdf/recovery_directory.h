@@ -6,6 +6,10 @@
 //   run.json             the run's settings and plan: method, size, texel_um, vscale,
 //                        height_range_um, noise, loss, seed, observations (count), plan (notes),
 //                        warnings, truth (bool), height_rel_rmse (only when undefined: why),
+//                        convergence (converged, floor, relative_misfit, reasons; Poisson:
+//                        deviance, expected_deviance, deviance_sd, misfit_ratio; the model
+//                        check's misfits; with error bars median_sigma_relative: convergence.h;
+//                        a recovery that did not converge also adds its warning to warnings),
 //                        finished (false until every other output is written: a run that was
 //                        interrupted, crashed or failed says so)
 //   metrics.csv          stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed
@@ -31,6 +35,7 @@
 #include <functional>
 #include <string>
 
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/recovery_run.h"
 #include "wavebrdf/uncertainty.h"
@@ -50,6 +55,9 @@ struct RecoveryDirectoryOptions {
     // When given, receives the acquisition as the pipeline refined it (calibration.h; on rank 0
     // every observation's entries in the run's order, elsewhere only sigma_p_scale).
     Calibration* calibration = nullptr;
+    // When given, receives whether the recovery converged, judged without the truth
+    // (convergence.h; on every rank).
+    ConvergenceCheck* convergence = nullptr;
 };
 
 // Runs `prepared` (prepare_recovery with `options`) into out.dir: prepares the directory

@@ -65,6 +65,11 @@ struct RecoveryOptions {
     // the height range for unwrapping. (With a given truth its own range is used.)
     double height_range_um = 2.0;
     double correlation_texels = 4.0;  // generated truth: correlation length, texels (> 0)
+    // With a given truth: the rough-surface plan (roughness_plan.h) from the truth's measured
+    // roughness (measure_roughness: range, slopes, Sal, Str) instead of height_range_um and
+    // correlation_texels. false: the stated ones (a study that plans as a user without the
+    // truth would).
+    bool plan_from_truth = false;
     // Acquisition, planned for a truth (PlanRequest's fields of the same names).
     Model model = Model::OHS;
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i (|ω_i| < 1)

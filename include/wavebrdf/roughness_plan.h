@@ -33,6 +33,7 @@ namespace wavebrdf {
 
 struct AcquisitionPlan;
 struct RecoverSettings;
+class Heightfield;
 
 struct RoughnessPlan {
     double rms_slope = 0.0;           // expected rms |∇H| (dimensionless)
@@ -70,6 +71,32 @@ double expected_rms_slope(double height_range_um, double correlation_um);
 // 2.5 texels (roughness_plan.cpp: between the measured limits of docs/recovery.md, "Where it
 // fails"). Throws std::domain_error naming a bad value.
 RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, double texel_um);
+
+// A known surface's measured roughness (a measured or given truth), for the plan instead of the
+// stated range and correlation: what the surface has, not what a Gaussian-correlated one of
+// its range would have.
+struct MeasuredRoughness {
+    double range_um = 0.0;        // peak to valley, µm
+    double rms_slope = 0.0;       // rms |∇H|, central differences across the periodic tile (the model's slopes)
+    double rim_fraction = 0.0;    // fraction of texels with |∇H| > 0.5 (their light leaves the slice)
+    double correlation_um = 0.0;  // Sal (ISO 25178-2): the shortest lag at which the ACF falls to 0.2, µm
+    double aspect = 1.0;          // Str: shortest over longest such lag (an upper bound when a lay is longer than half the tile)
+    double lay_deg = 0.0;         // Std: the lay's direction from x towards y, degrees
+};
+
+// The measured roughness of `heightfield` (surface_stats.h's Sal, Str, Std; the slopes and range
+// directly). Throws as surface_parameters does.
+MeasuredRoughness measure_roughness(const Heightfield& heightfield);
+
+// The plan for a surface of measured roughness `m` on texels of `texel_um`: as
+// plan_for_roughness, with the measured rms slope and rim fraction for the expected ones and
+// Sal (the fastest decay, across a lay) for the correlation length; Sal is taken as at least
+// one texel (a surface whose ACF falls within a texel is as fine as the grid). A surface with a
+// lay (Str < 0.5) whose blurred fit is expected off by more than a quarter of the longest visible
+// wavelength (0.17 × range > 0.7 µm / 4) is rough as well: striated surfaces of a few µm end
+// the blurred fit as far off as rough ones. Its first note says what was measured; a strongly
+// anisotropic surface (Str < 0.3) is named there.
+RoughnessPlan plan_for_measured_roughness(const MeasuredRoughness& m, double texel_um);
 
 // `settings` with the plan applied (field iterations raised to the plan's where it asks for
 // more; the field stage at the plan's long wavelengths only, RecoverSettings::field_lambda_min_um,

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/observation_file.h"
@@ -116,7 +117,13 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     std::ostringstream csv;
     csv.precision(10);
     csv << "stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed\n";
+    // The model check's misfits, for the convergence check after the run.
+    double misfit_gabor = -1.0, misfit_field = -1.0;
+    std::string selected;
     auto record = [&](const StageMetrics& m) {
+        if (m.stage == "misfit:gabor") misfit_gabor = m.loss;
+        if (m.stage == "misfit:field") misfit_field = m.loss;
+        if (m.stage.rfind("select:", 0) == 0) selected = m.stage.substr(7);
         csv << m.stage << ',' << m.iteration << ',' << m.loss << ',' << m.seconds << ','
             << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << ','
             << (m.height_rel_rmse_plane_removed >= 0.0 ? std::to_string(m.height_rel_rmse_plane_removed)
@@ -181,6 +188,17 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
             std::fprintf(stderr, "wavebrdf: warning: no error bars: %s\n", why_not.c_str());
         }
     }
+    // Whether it converged, judged without the truth (convergence.h): collective.
+    ConvergenceCheck convergence = run_or_abort(comm, [&] {
+        const double photons = r.noise.kind == NoiseKind::Poisson ? r.noise.level
+                               : r.loss.kind == LossKind::Poisson ? r.loss.photons
+                                                                  : 0.0;
+        return check_convergence(r.observations, estimate, photons, r.truth && r.noise.kind == NoiseKind::None,
+                                 r.pipeline.calibrate.any() ? &calibration : nullptr, comm);
+    });
+    add_model_check(convergence, misfit_gabor, misfit_field, selected);
+    if (bars) add_error_bars(convergence, bars->median_sigma_um, r.range_um);
+    if (out.convergence) *out.convergence = convergence;
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
     if (write_calibration)
@@ -223,6 +241,24 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     write_npy(dir + "/reference.npy", slice_shape, to_doubles(first.reference));
     write_npy(dir + "/final.npy", slice_shape, render_observation(estimate, first));
     nlohmann::json run = run_json(r, options);
+    run["convergence"] = {{"converged", convergence.converged},
+                          {"floor", convergence.floor},
+                          {"relative_misfit", convergence.relative_misfit},
+                          {"reasons", convergence.reasons}};
+    if (convergence.floor == "poisson") {
+        run["convergence"]["deviance"] = convergence.deviance;
+        run["convergence"]["expected_deviance"] = convergence.expected_deviance;
+        run["convergence"]["deviance_sd"] = convergence.deviance_sd;
+        run["convergence"]["misfit_ratio"] = convergence.misfit_ratio;
+    }
+    if (!convergence.model_selected.empty()) {
+        run["convergence"]["model_misfit_gabor"] = convergence.model_misfit_gabor;
+        run["convergence"]["model_misfit_field"] = convergence.model_misfit_field;
+        run["convergence"]["model_selected"] = convergence.model_selected;
+    }
+    if (convergence.median_sigma_relative >= 0.0)
+        run["convergence"]["median_sigma_relative"] = convergence.median_sigma_relative;
+    if (!convergence.converged) run["warnings"].push_back(convergence.warning());
     run["finished"] = true;
     write_text_atomically(dir + "/run.json", run.dump(1) + "\n");
     return estimate;

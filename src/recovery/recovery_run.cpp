@@ -279,6 +279,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     }
     // Every observation's metadata (check_acquisition needs them all), and this rank's share.
     std::vector<Observation> catalogue;
+    std::optional<RoughnessPlan> measured;  // options.plan_from_truth: the truth's measured roughness
     if (!observations.empty()) {
         r.total_observations = observations.size();
         r.share = observation_share(positions_of(observations), comm.rank(), comm.size());
@@ -334,10 +335,12 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         AcquisitionPlan plan = plan_acquisition(request);
         // Rough surfaces (roughness_plan.h): long wavelengths for the field stage's start.
         // Steep ones: oblique lights, so that their steep facets reflect into a slice.
+        if (options.plan_from_truth && truth != nullptr && r.range_um > 0.0)
+            measured = plan_for_measured_roughness(measure_roughness(*r.truth), r.texel_um);
         if (options.method == RecoveryMethod::Pipeline && white.empty() && options.correlation_texels > 0.0 &&
             r.range_um > 0.0) {
             const RoughnessPlan rough =
-                plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
+                measured ? *measured : plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
             if (options.lambdas_um.empty()) add_long_wavelengths(rough, plan);
             if (options.oblique_lights) add_oblique_lights(rough, plan);
         }
@@ -426,7 +429,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
     // Rough surfaces (roughness_plan.h): the stated range and correlation choose the schedule.
     if (options.method == RecoveryMethod::Pipeline && r.range_um > 0.0 && options.correlation_texels > 0.0) {
-        const RoughnessPlan rough = plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
+        const RoughnessPlan rough =
+            measured ? *measured : plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
         apply_roughness_plan(rough, r.pipeline);
         apply_smooth_schedule(rough, r.rows, r.cols, r.pipeline);
         r.notes.insert(r.notes.end(), rough.notes.begin(), rough.notes.end());

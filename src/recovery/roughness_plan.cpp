@@ -9,6 +9,8 @@
 
 #include "core/text.h"
 #include "wavebrdf/acquisition.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/surface_stats.h"
 #include "wavebrdf/model.h"
 #include "wavebrdf/recover.h"
 
@@ -41,6 +43,8 @@ constexpr std::array<std::array<double, 2>, 4> kObliqueLightAzimuths{
 constexpr double kObliqueLightSin = 0.8;
 // Long wavelengths only above the planner's visible range (PlanRequest::lambda_max_um).
 constexpr double kVisibleMaxUm = 0.7;
+// A measured surface's texture aspect ratio Str below which it has a lay (plan_for_measured_roughness).
+constexpr double kLayeredAspect = 0.5;
 // At most this many long wavelengths (a range of 8 µm needs 2).
 constexpr int kMaxLongLambdas = 4;
 // Smooth surfaces (apply_smooth_schedule): refinement iterations on the longest wavelength's
@@ -90,17 +94,20 @@ double expected_rms_slope(double height_range_um, double correlation_um) {
     return height_range_um / (3.0 * correlation_um);
 }
 
-RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, double texel_um) {
-    require(std::isfinite(texel_um) && texel_um > 0.0, "texel_um", texel_um, "a finite value > 0");
+namespace {
+
+// The plan from its slopes: rms |∇H|, the fraction beyond the rim and the correlation in texels.
+// `layered`: a measured surface with a lay, tall for the visible wavelengths (see
+// plan_for_measured_roughness): rough although its slopes and correlation are not.
+RoughnessPlan plan_from_slopes(double height_range_um, double rms_slope, double rim_fraction,
+                               double correlation_texels, bool layered = false) {
     RoughnessPlan plan;
-    plan.rms_slope = expected_rms_slope(height_range_um, correlation_um);
-    plan.correlation_texels = correlation_um / texel_um;
-    // |∇H| of an isotropic Gaussian field is Rayleigh distributed with E|∇H|² = s²:
-    // P(|∇H| > 0.5) = exp(−0.25 / s²).
-    plan.rim_fraction = plan.rms_slope > 0.0 ? std::exp(-0.25 / (plan.rms_slope * plan.rms_slope)) : 0.0;
+    plan.rms_slope = rms_slope;
+    plan.correlation_texels = correlation_texels;
+    plan.rim_fraction = rim_fraction;
     const bool steep = plan.rms_slope > kRoughSlope;
     const bool fine = plan.correlation_texels < kRoughCorrelationTexels;
-    plan.rough = steep || fine;
+    plan.rough = steep || fine || layered;
     if (plan.rough) {
         plan.blur_error_um = kBlurErrorFraction * height_range_um;
         // Rounded up to 0.1 µm (a source's nominal wavelength), coarsest first.
@@ -131,6 +138,9 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
             (fine
                  ? "correlation " + fixed(plan.correlation_texels, 2) + " texels < " + fixed(kRoughCorrelationTexels, 1)
                  : "") +
+            (layered && !steep && !fine ? "a lay, and a range whose blurred fit is expected beyond a quarter wave "
+                                          "at the visible wavelengths"
+                                        : "") +
             (plan.field_iterations > 0
                  ? "): field retrieval up to " + std::to_string(plan.field_iterations) + " iterations per wavelength"
                  : "): the default field iterations") +
@@ -140,6 +150,67 @@ RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, 
                        " um rms off: the field stage at long wavelengths only, the refinement from the longest "
                        "wavelength's slices down to every slice (docs/recovery.md, Rough surfaces)"));
     }
+    return plan;
+}
+
+}  // namespace
+
+RoughnessPlan plan_for_roughness(double height_range_um, double correlation_um, double texel_um) {
+    require(std::isfinite(texel_um) && texel_um > 0.0, "texel_um", texel_um, "a finite value > 0");
+    const double rms_slope = expected_rms_slope(height_range_um, correlation_um);
+    // |∇H| of an isotropic Gaussian field is Rayleigh distributed with E|∇H|² = s²:
+    // P(|∇H| > 0.5) = exp(−0.25 / s²).
+    const double rim = rms_slope > 0.0 ? std::exp(-0.25 / (rms_slope * rms_slope)) : 0.0;
+    return plan_from_slopes(height_range_um, rms_slope, rim, correlation_um / texel_um);
+}
+
+MeasuredRoughness measure_roughness(const Heightfield& hf) {
+    MeasuredRoughness m;
+    const SurfaceParameters p = surface_parameters(hf);
+    m.range_um = p.Sz;
+    m.correlation_um = p.Sal;
+    m.aspect = p.Str;
+    m.lay_deg = p.Std;
+    // Central differences across the periodic tile, as the model sees the slopes (model.md §2).
+    const int rows = hf.rows(), cols = hf.cols();
+    const double w = 2.0 * hf.texel_um();
+    double sum = 0.0;
+    long long beyond = 0;
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) {
+            const double gx = (hf.height_um((i + 1) % rows, j) - hf.height_um((i + rows - 1) % rows, j)) / w;
+            const double gy = (hf.height_um(i, (j + 1) % cols) - hf.height_um(i, (j + cols - 1) % cols)) / w;
+            const double g2 = gx * gx + gy * gy;
+            sum += g2;
+            if (g2 > 0.25) ++beyond;
+        }
+    const double n = double(rows) * double(cols);
+    m.rms_slope = std::sqrt(sum / n);
+    m.rim_fraction = double(beyond) / n;
+    return m;
+}
+
+RoughnessPlan plan_for_measured_roughness(const MeasuredRoughness& m, double texel_um) {
+    require(std::isfinite(texel_um) && texel_um > 0.0, "texel_um", texel_um, "a finite value > 0");
+    require(std::isfinite(m.range_um) && m.range_um >= 0.0, "height range (um)", m.range_um, "a finite value >= 0");
+    require(std::isfinite(m.rms_slope) && m.rms_slope >= 0.0, "rms slope", m.rms_slope, "a finite value >= 0");
+    require(std::isfinite(m.correlation_um) && m.correlation_um >= 0.0, "correlation length (um)", m.correlation_um,
+            "a finite value >= 0");
+    const double correlation_texels = std::max(m.correlation_um / texel_um, 1.0);
+    // A lay (Str below kLayeredAspect) on a surface whose blurred fit is expected off by more
+    // than a quarter of the longest visible wavelength: the bullet land's 64² patch (Str 0.33,
+    // 5.2 um peak to valley, rms slope 0.08, Sal 11 texels; smooth by slope and correlation)
+    // ended its blurred fit 16–18 % of the range off, as rough surfaces do, and 3.2 % after the
+    // smooth schedule; with the long wavelengths 0.033 % (docs/surfaces.md, Recovery).
+    const bool layered =
+        m.aspect < kLayeredAspect && kBlurErrorFraction * m.range_um > 0.25 * kVisibleMaxUm;
+    RoughnessPlan plan = plan_from_slopes(m.range_um, m.rms_slope, m.rim_fraction, correlation_texels, layered);
+    plan.notes.insert(plan.notes.begin(),
+                      "planned for the truth's measured roughness: peak to valley " + fixed(m.range_um, 3) +
+                          " um, rms slope " + fixed(m.rms_slope, 3) + " (" + fixed(100.0 * m.rim_fraction, 1) +
+                          " % of texels beyond slope 0.5), correlation length Sal " + fixed(m.correlation_um, 2) +
+                          " um (" + fixed(m.correlation_um / texel_um, 2) + " texels), Str " + fixed(m.aspect, 2) +
+                          (m.aspect < 0.3 ? " (strongly anisotropic, lay at " + fixed(m.lay_deg, 0) + " deg)" : ""));
     return plan;
 }
 

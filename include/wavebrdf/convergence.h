@@ -1,0 +1,84 @@
+#pragma once
+// Whether a recovery converged, judged without the truth (docs/recovery.md, "Did it
+// converge?"): a user with measured slices has no truth to compare with, only the slices, the
+// noise they were measured with, the error bars and the model check. recover writes the result
+// into run.json ("convergence") and prints its one-line warning.
+//
+// The misfit against the noise floor: with the Poisson loss (photon counts, loss.h) the slices'
+// deviance at the estimate, D = Σ_p 2 [k log(k/μ) − (k − μ)] over every pixel of every slice
+// (k the measured counts, μ the estimate's: its slice times the count scale N / Σ R), is what
+// the noise alone leaves when the estimate is the truth: E[D] = Σ_p e(μ_p) with
+// e(μ) = E[2 (K log(K/μ) − (K − μ))], K ~ Poisson(μ), summed exactly over K (about 1 for many
+// photons per pixel, much less for few: most of a slice's pixels are dark). A converged
+// estimate leaves D ≈ E[D] (a little below: it fits part of the noise); a recovery stuck in a
+// wrong basin leaves the slices' speckle unexplained and D several times E[D].
+// Without noise (a study's simulated slices, stored as float) the floor is the slices' rounding:
+// the relative amplitude misfit Σ(√I − √R)² / Σ R of a converged estimate is ~10⁻⁸ or less.
+// Other losses (amplitude on measured slices, mse) state no noise level: the misfit is reported
+// but not judged.
+#include <string>
+#include <vector>
+
+#include "wavebrdf/calibration.h"
+#include "wavebrdf/communicator.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/observation.h"
+
+namespace wavebrdf {
+
+// Not converged when the deviance exceeds its noise floor by this factor and by more than
+// k_misfit_sd_limit of its standard deviations (a converged estimate leaves 0.99, a little
+// below 1 as it fits part of the noise; a 32² recovery stopped at 0.35 % of the range 1.17;
+// docs/recovery.md, "Did it converge?").
+constexpr double k_misfit_ratio_limit = 1.05;
+constexpr double k_misfit_sd_limit = 5.0;
+// Without noise: not converged above this relative amplitude misfit.
+constexpr double k_noiseless_misfit_limit = 1e-5;
+// Error bars: a warning when twice the median σ exceeds this fraction of the height range (the
+// recovery's target, docs/surfaces.md).
+constexpr double k_error_bar_limit = 0.01;
+
+struct ConvergenceCheck {
+    // "poisson" (judged against the photon-noise floor), "noiseless" (judged against the float
+    // slices' rounding) or "none" (no noise level known: not judged).
+    std::string floor = "none";
+    double deviance = -1.0;           // Poisson: D (all slices, all ranks); else −1
+    double expected_deviance = -1.0;  // Poisson: E[D] at the estimate's μ; else −1
+    double deviance_sd = -1.0;        // Poisson: √Var[D]; else −1
+    double misfit_ratio = -1.0;       // Poisson: D / E[D]; else −1
+    double relative_misfit = 0.0;     // Σ(√I − √R)² / Σ R over every slice (every loss)
+    // The model check (recover.h, model_check_iterations), from the run's metrics: each model's
+    // relative amplitude misfit on the single-wavelength slices and which heights were kept
+    // (−1 / "" when it did not run).
+    double model_misfit_gabor = -1.0, model_misfit_field = -1.0;
+    std::string model_selected;
+    // Error bars (uncertainty.h), when computed: their median σ over the height range (else −1).
+    double median_sigma_relative = -1.0;
+    bool converged = true;             // no reason below
+    std::vector<std::string> reasons;  // why it did not converge (or may miss the target), one clause each
+    // "" when converged; else "the recovery did not converge: REASON; REASON (…)".
+    std::string warning() const;
+};
+
+// The misfit part of the check: the estimate's slices for `observations` (this rank's share
+// under MPI; collective: the sums are over every rank) against their references. `photons`:
+// the photons per slice N when the slices are photon counts (a study's poisson:N noise, or a
+// Poisson loss's N; 0: unknown); else `noiseless` true: a study's exact slices; else not judged. `calibration`, when not null and refined (positions, exposures, σ_p scale, its
+// per-observation entries for `observations`), is applied to the estimate's slices as the
+// recovery fitted them. Throws std::invalid_argument when observations are empty or a
+// reference's size is not its slice's.
+ConvergenceCheck check_convergence(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                   double photons, bool noiseless, const Calibration* calibration = nullptr,
+                                   const Communicator& comm = serial_communicator());
+
+// Adds the model check (misfit:gabor, misfit:field, select:* from the run's metrics; ignored
+// when absent) and the error bars (median σ in µm over the height range; < 0: none) to `check`,
+// with their reasons.
+void add_model_check(ConvergenceCheck& check, double misfit_gabor, double misfit_field, const std::string& selected);
+void add_error_bars(ConvergenceCheck& check, double median_sigma_um, double height_range_um);
+
+// e(μ) and Var of the Poisson deviance of one pixel of mean μ ≥ 0 (see above), by exact sums
+// over the counts (to 12 standard deviations past μ). For tests and the check above.
+void poisson_deviance_moments(double mu, double& mean, double& variance);
+
+}  // namespace wavebrdf

@@ -1,0 +1,178 @@
+#include "wavebrdf/convergence.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/slice_plan.h"
+
+namespace wavebrdf {
+
+namespace {
+
+std::string fixed(const char* format, double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, format, v);
+    return buf;
+}
+
+// 2 [k log(k/μ) − (k − μ)], 0 log 0 = 0.
+double deviance_term(double k, double mu) {
+    if (k <= 0.0) return 2.0 * mu;
+    if (mu <= 0.0) return 2.0 * (k * std::log(k / 1e-300) - k);
+    return 2.0 * (k * std::log1p((k - mu) / mu) - (k - mu));
+}
+
+}  // namespace
+
+void poisson_deviance_moments(double mu, double& mean, double& variance) {
+    if (!(std::isfinite(mu) && mu >= 0.0))
+        throw std::domain_error("poisson_deviance_moments: mean " + std::to_string(mu) + " is invalid; expected >= 0");
+    if (mu == 0.0) {
+        mean = variance = 0.0;
+        return;
+    }
+    // The counts within 12 standard deviations (and 40 counts) of μ carry all but ~1e-30 of
+    // the probability; the pmf in logs (no overflow at large μ).
+    const double reach = 12.0 * std::sqrt(mu) + 40.0;
+    const long long lo = std::max(0LL, static_cast<long long>(std::floor(mu - reach)));
+    const long long hi = static_cast<long long>(std::ceil(mu + reach));
+    const double log_mu = std::log(mu);
+    double m1 = 0.0, m2 = 0.0, total = 0.0;
+    for (long long k = lo; k <= hi; ++k) {
+        const double kd = double(k);
+        const double p = std::exp(kd * log_mu - mu - std::lgamma(kd + 1.0));
+        const double d = deviance_term(kd, mu);
+        total += p;
+        m1 += p * d;
+        m2 += p * d * d;
+    }
+    mean = m1 / total;
+    variance = std::max(m2 / total - mean * mean, 0.0);
+}
+
+std::string ConvergenceCheck::warning() const {
+    if (converged) return "";
+    std::string line = "the recovery did not converge: ";
+    for (std::size_t i = 0; i < reasons.size(); ++i) line += (i ? "; " : "") + reasons[i];
+    return line;
+}
+
+ConvergenceCheck check_convergence(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                   double photons, bool noiseless, const Calibration* calibration,
+                                   const Communicator& comm) {
+    if (observations.empty() && comm.size() == 1)
+        throw std::invalid_argument("check_convergence: no observations given; expected at least one");
+    const std::size_t n = observations.size();
+    const bool positions = calibration && calibration->position_offsets_um.size() == n;
+    const bool exposures = calibration && calibration->exposures.size() == n;
+    const double sigma_scale = calibration ? calibration->sigma_p_scale : 1.0;
+    if (!(std::isfinite(photons) && photons >= 0.0))
+        throw std::invalid_argument("check_convergence: photons " + std::to_string(photons) +
+                                    " is invalid; expected >= 0 (0: unknown)");
+    const bool poisson = photons > 0.0;
+    // Per observation, summed in order afterwards (the same bits for any thread count):
+    // deviance, its expectation and variance, Σ(√I − √R)², Σ R.
+    std::vector<double> dev(n, 0.0), mean(n, 0.0), var(n, 0.0), amp(n, 0.0), energy(n, 0.0);
+    std::vector<std::string> errors(n);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::size_t i = 0; i < n; ++i) {
+        try {
+            const Observation& o = observations[i];
+            Query query = o.query;
+            query.sigma_p_um *= sigma_scale;
+            if (positions) {
+                query.x_um += calibration->position_offsets_um[i][0];
+                query.y_um += calibration->position_offsets_um[i][1];
+            }
+            SlicePlan<double> plan(estimate, query, o.lambdas_um, o.resolution, o.channels());
+            std::vector<double> model = plan.forward();
+            if (model.size() != o.reference.size())
+                throw std::invalid_argument("observation " + std::to_string(i) + " has " +
+                                            std::to_string(o.reference.size()) + " reference values; expected " +
+                                            std::to_string(model.size()));
+            if (exposures)
+                for (double& m : model) m *= calibration->exposures[i];
+            double total = 0.0;
+            for (const float r : o.reference) total += std::max(double(r), 0.0);
+            for (std::size_t p = 0; p < model.size(); ++p) {
+                const double r = std::max(double(o.reference[p]), 0.0), m = std::max(model[p], 0.0);
+                const double d = std::sqrt(m) - std::sqrt(r);
+                amp[i] += d * d;
+            }
+            energy[i] = total;
+            if (poisson && total > 0.0) {
+                const double s = photons / total;
+                for (std::size_t p = 0; p < model.size(); ++p) {
+                    const double mu = s * std::max(model[p], 0.0), k = s * std::max(double(o.reference[p]), 0.0);
+                    double e = 0.0, v = 0.0;
+                    poisson_deviance_moments(mu, e, v);
+                    dev[i] += deviance_term(k, mu);
+                    mean[i] += e;
+                    var[i] += v;
+                }
+            }
+        } catch (const std::exception& e) {
+            errors[i] = e.what();
+        }
+    }
+    for (const std::string& e : errors)
+        if (!e.empty()) throw std::invalid_argument("check_convergence: " + e);
+    std::vector<double> sums(5, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+        sums[0] += dev[i];
+        sums[1] += mean[i];
+        sums[2] += var[i];
+        sums[3] += amp[i];
+        sums[4] += energy[i];
+    }
+    comm.allreduce_sum(sums);
+    ConvergenceCheck check;
+    check.relative_misfit = sums[4] > 0.0 ? sums[3] / sums[4] : 0.0;
+    if (poisson && sums[1] > 0.0) {
+        check.floor = "poisson";
+        check.deviance = sums[0];
+        check.expected_deviance = sums[1];
+        check.deviance_sd = std::sqrt(sums[2]);
+        check.misfit_ratio = sums[0] / sums[1];
+        if (check.misfit_ratio > k_misfit_ratio_limit &&
+            check.deviance - check.expected_deviance > k_misfit_sd_limit * check.deviance_sd) {
+            check.converged = false;
+            check.reasons.push_back("the slices' misfit is " + fixed("%.3g", check.misfit_ratio) +
+                                    "x what photon noise leaves (deviance " + fixed("%.4g", check.deviance) +
+                                    ", expected " + fixed("%.4g", check.expected_deviance) + " +- " +
+                                    fixed("%.2g", check.deviance_sd) + ")");
+        }
+    } else if (noiseless) {
+        check.floor = "noiseless";
+        if (check.relative_misfit > k_noiseless_misfit_limit) {
+            check.converged = false;
+            check.reasons.push_back("the slices were simulated without noise, yet the estimate's relative misfit is " +
+                                    fixed("%.3g", check.relative_misfit) + " (a converged estimate: below " +
+                                    fixed("%.0e", k_noiseless_misfit_limit) + ")");
+        }
+    }
+    return check;
+}
+
+void add_model_check(ConvergenceCheck& check, double misfit_gabor, double misfit_field, const std::string& selected) {
+    check.model_misfit_gabor = misfit_gabor;
+    check.model_misfit_field = misfit_field;
+    check.model_selected = selected;
+}
+
+void add_error_bars(ConvergenceCheck& check, double median_sigma_um, double height_range_um) {
+    if (!(median_sigma_um >= 0.0) || !(height_range_um > 0.0)) return;
+    check.median_sigma_relative = median_sigma_um / height_range_um;
+    if (2.0 * check.median_sigma_relative > k_error_bar_limit) {
+        check.converged = false;
+        check.reasons.push_back("the error bars are wide: 2 sigma (median) is " +
+                                fixed("%.3g", 200.0 * check.median_sigma_relative) +
+                                " % of the height range (target " + fixed("%.0f", 100.0 * k_error_bar_limit) + " %)");
+    }
+}
+
+}  // namespace wavebrdf

@@ -1,0 +1,175 @@
+// convergence.h: the Poisson deviance's noise floor against draws of the noise (noise.h), and
+// the check on slices rendered from a known surface: the surface itself sits on the floor, a
+// wrong one far above it. roughness_plan.h's measured roughness against a sinusoid's slopes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "wavebrdf/convergence.h"
+#include "wavebrdf/generate.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/noise.h"
+#include "wavebrdf/observation.h"
+#include "wavebrdf/roughness_plan.h"
+
+namespace wavebrdf {
+namespace {
+
+// The deviance's mean and variance against the sample moments of Poisson draws (independent of
+// the exact sums): within 4 standard errors.
+TEST(Convergence, DevianceMomentsMatchPoissonDraws) {
+    std::mt19937_64 rng(20261129);
+    for (double mu : {0.05, 0.3, 2.0, 17.0, 400.0}) {
+        double mean = 0.0, variance = 0.0;
+        poisson_deviance_moments(mu, mean, variance);
+        std::poisson_distribution<long long> draw(mu);
+        const int n = 200000;
+        double s1 = 0.0, s2 = 0.0;
+        for (int i = 0; i < n; ++i) {
+            const double k = double(draw(rng));
+            const double d = k > 0.0 ? 2.0 * (k * std::log(k / mu) - (k - mu)) : 2.0 * mu;
+            s1 += d;
+            s2 += d * d;
+        }
+        const double m = s1 / n, v = s2 / n - m * m;
+        EXPECT_NEAR(mean, m, 4.0 * std::sqrt(v / n)) << "mu " << mu;
+        EXPECT_NEAR(variance, v, 0.05 * v + 1e-12) << "mu " << mu;
+    }
+    // Many photons: the chi-square limit, E ≈ 1 + 1/(6μ), Var ≈ 2.
+    double mean = 0.0, variance = 0.0;
+    poisson_deviance_moments(1e4, mean, variance);
+    EXPECT_NEAR(mean, 1.0 + 1.0 / 6e4, 1e-5);
+    EXPECT_NEAR(variance, 2.0, 0.01);
+    poisson_deviance_moments(0.0, mean, variance);
+    EXPECT_EQ(mean, 0.0);
+    EXPECT_THROW(poisson_deviance_moments(-1.0, mean, variance), std::domain_error);
+}
+
+struct Case {
+    Heightfield truth;
+    std::vector<Observation> observations;
+};
+
+// A 16² surface of ±1 µm seen at 9 positions and two wavelengths, slices rendered by the model.
+Case make_case(double photons) {
+    SurfaceParams p;
+    p.rows = p.cols = 16;
+    p.texel_um = 2.0;
+    p.correlation_um = 8.0;
+    p.seed = 5;
+    Case c{with_height_range(generate_heightfield(p).with_scale(2.0, 1.0), 2.0), {}};
+    for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+            for (double lambda : {0.5, 0.7}) {
+                Observation o;
+                o.query.x_um = 4.0 + 10.0 * a;
+                o.query.y_um = 4.0 + 10.0 * b;
+                o.query.sigma_p_um = 3.0;
+                o.lambdas_um = {lambda};
+                o.resolution = 32;
+                o.reference = to_reference(render_observation(c.truth, o));
+                c.observations.push_back(std::move(o));
+            }
+    if (photons > 0.0) add_noise(c.observations, Noise{NoiseKind::Poisson, photons}, 77);
+    return c;
+}
+
+TEST(Convergence, TheTruthSitsOnThePhotonNoiseFloorAndAWrongSurfaceDoesNot) {
+    const Case c = make_case(1e4);
+    const ConvergenceCheck at_truth = check_convergence(c.observations, c.truth, 1e4, false);
+    EXPECT_EQ(at_truth.floor, "poisson");
+    EXPECT_TRUE(at_truth.converged) << at_truth.warning();
+    EXPECT_TRUE(at_truth.warning().empty());
+    // The truth leaves the noise alone: D within a few standard deviations of E[D].
+    EXPECT_NEAR(at_truth.deviance, at_truth.expected_deviance, 5.0 * at_truth.deviance_sd);
+    EXPECT_NEAR(at_truth.misfit_ratio, 1.0, 0.05);
+    // Heights 5 % too large (a recovery stopped short of its scale): far above the floor.
+    std::vector<double> scaled = c.truth.values();
+    for (double& v : scaled) v *= 1.05;
+    const Heightfield wrong(16, 16, scaled, 2.0, 1.0);
+    const ConvergenceCheck off = check_convergence(c.observations, wrong, 1e4, false);
+    EXPECT_FALSE(off.converged);
+    EXPECT_GT(off.misfit_ratio, k_misfit_ratio_limit);
+    EXPECT_NE(off.warning().find("did not converge"), std::string::npos) << off.warning();
+    EXPECT_NE(off.warning().find("photon noise"), std::string::npos) << off.warning();
+}
+
+TEST(Convergence, NoiselessSlicesAreJudgedByTheirRounding) {
+    const Case c = make_case(0.0);
+    const ConvergenceCheck at_truth = check_convergence(c.observations, c.truth, 0.0, true);
+    EXPECT_EQ(at_truth.floor, "noiseless");
+    EXPECT_TRUE(at_truth.converged);
+    EXPECT_LT(at_truth.relative_misfit, 1e-10);
+    const Heightfield flat(16, 16, std::vector<double>(256, 0.0), 2.0, 1.0);
+    const ConvergenceCheck off = check_convergence(c.observations, flat, 0.0, true);
+    EXPECT_FALSE(off.converged);
+    // Without a stated noise level nothing is judged, whatever the misfit.
+    const ConvergenceCheck unjudged = check_convergence(c.observations, flat, 0.0, false);
+    EXPECT_EQ(unjudged.floor, "none");
+    EXPECT_TRUE(unjudged.converged);
+    EXPECT_GT(unjudged.relative_misfit, 1e-3);
+}
+
+TEST(Convergence, WideErrorBarsAreAReason) {
+    ConvergenceCheck c;
+    add_error_bars(c, 0.004, 2.0);  // 2σ = 0.4 % of the range
+    EXPECT_TRUE(c.converged);
+    add_error_bars(c, 0.02, 2.0);  // 2σ = 2 %
+    EXPECT_FALSE(c.converged);
+    EXPECT_NE(c.warning().find("error bars"), std::string::npos) << c.warning();
+}
+
+// A sinusoid along x, h = A sin(2π x / L): central differences give the slope
+// A sin(2π w / L) / w · cos(2π x / L), rms over whole periods that over √2; its ACF falls to
+// 0.2 at the lag where cos(2π τ / L) = 0.2 along x and never along y (a lay along y).
+TEST(MeasuredRoughness, ASinusoidsSlopesCorrelationAndLay) {
+    const int n = 64;
+    const double w = 1.5, L = 16.0 * w, A = 3.0;
+    std::vector<double> values(std::size_t(n) * n);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            values[std::size_t(i) * n + std::size_t(j)] = A * std::sin(2.0 * M_PI * i * w / L) / w;  // row i along x
+    const Heightfield hf(n, n, values, w, 1.0);
+    const MeasuredRoughness m = measure_roughness(hf);
+    const double slope = A * std::sin(2.0 * M_PI * w / L) / w;
+    EXPECT_NEAR(m.rms_slope, slope / std::sqrt(2.0), 1e-9);
+    EXPECT_NEAR(m.range_um, 2.0 * A, 1e-9);
+    EXPECT_NEAR(m.correlation_um, L * std::acos(0.2) / (2.0 * M_PI), 0.02 * L);
+    EXPECT_LT(m.aspect, 0.3);
+    EXPECT_NEAR(m.lay_deg, 90.0, 1.0);
+    // |slope| > 0.5 where |cos| > 0.5 / slope: counted over the 16 phases a period samples.
+    int beyond = 0;
+    for (int k = 0; k < 16; ++k) beyond += std::abs(slope * std::cos(2.0 * M_PI * k / 16.0)) > 0.5 ? 1 : 0;
+    EXPECT_DOUBLE_EQ(m.rim_fraction, beyond / 16.0);
+    // Steep (rms slope over 0.2): oblique lights and long wavelengths; the note names the lay.
+    const RoughnessPlan plan = plan_for_measured_roughness(m, w);
+    EXPECT_TRUE(plan.rough);
+    EXPECT_FALSE(plan.oblique_omega_i.empty());
+    ASSERT_FALSE(plan.notes.empty());
+    EXPECT_NE(plan.notes.front().find("strongly anisotropic"), std::string::npos) << plan.notes.front();
+    // The same surface 10× lower: smooth, nothing added.
+    std::vector<double> low = values;
+    for (double& v : low) v *= 0.1;
+    const RoughnessPlan smooth = plan_for_measured_roughness(measure_roughness(Heightfield(n, n, low, w, 1.0)), w);
+    EXPECT_FALSE(smooth.rough);
+    EXPECT_TRUE(smooth.oblique_omega_i.empty());
+    // One period across the tile, 4 µm high: gentle slopes (rms 0.09) and a long correlation,
+    // but a lay and a range beyond the blurred fit's reach at visible wavelengths: long
+    // wavelengths, no oblique lights.
+    std::vector<double> tall(values.size());
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) tall[std::size_t(i) * n + std::size_t(j)] = 2.0 * std::sin(2.0 * M_PI * i / n) / w;
+    const MeasuredRoughness mt = measure_roughness(Heightfield(n, n, tall, w, 1.0));
+    EXPECT_LT(mt.rms_slope, 0.2);
+    EXPECT_GT(mt.correlation_um / w, 2.5);
+    const RoughnessPlan layered = plan_for_measured_roughness(mt, w);
+    EXPECT_TRUE(layered.rough);
+    EXPECT_FALSE(layered.long_lambdas_um.empty());
+    EXPECT_TRUE(layered.oblique_omega_i.empty());
+}
+
+}  // namespace
+}  // namespace wavebrdf
