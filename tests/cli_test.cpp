@@ -766,7 +766,11 @@ TEST_F(CliTest, EveryCommandSummarisesOnStderrOnly) {
         const CliResult quiet = run(c.args + " --quiet");
         ASSERT_EQ(quiet.exit_code, 0) << quiet.err;
         EXPECT_EQ(quiet.out, "");
-        EXPECT_EQ(quiet.err, "");
+        // One epoch of the thesis's method does not converge: its warning is the one line --quiet keeps.
+        if (c.args.rfind("recover", 0) == 0)
+            EXPECT_EQ(quiet.err.rfind("wavebrdf: warning: the recovery did not converge", 0), 0u) << quiet.err;
+        else
+            EXPECT_EQ(quiet.err, "");
     }
 }
 

@@ -74,7 +74,10 @@ TEST(MpiRecover, ShardedRunsAreReproducibleAndMatchTheOneProcessRun) {
         EXPECT_NE(read_text(dir / a / "run.json").find("\"observations\": 25"), std::string::npos)
             << "run.json counts every rank's observations";
         EXPECT_TRUE(temporaries_under(dir / a).empty());
-        EXPECT_EQ(first.err, "") << "--quiet: no rank prints";
+        // --quiet: no rank prints, but for rank 0's warning that 10 + 5 iterations did not converge.
+        for (const std::string& line : lines_of(first.err))
+            EXPECT_EQ(line.rfind("wavebrdf: warning: the recovery did not converge", 0), 0u) << first.err;
+        EXPECT_LE(lines_of(first.err).size(), 1u) << first.err;
     }
 }
 
