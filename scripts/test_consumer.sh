@@ -73,7 +73,9 @@ if [ -n "$(find "$work/prefix" -path '*/wavebrdf/python/wavebrdf/report.py')" ] 
     mkdir -p "$work/run"
     (cd "$work/run" && env -u PYTHONPATH "$work/prefix/bin/wavebrdf" recover --size 8 --texel-um 2 --sigma-p-um 3 \
         --height-range-um 0.1 --seed 3 --method thesis --epochs 2 --quiet --out rec 2>"$work/report.err")
-    if [ -s "$work/report.err" ] || [ ! -s "$work/run/rec/report.png" ]; then
+    # Two epochs do not converge, and the run says so in one line: any other line is a failure.
+    grep -v '^wavebrdf: warning: the recovery did not converge' "$work/report.err" >"$work/report.other" || true
+    if [ -s "$work/report.other" ] || [ ! -s "$work/run/rec/report.png" ]; then
         cat "$work/report.err"
         echo "test_consumer: FAILED: the installed CLI did not draw report.png"
         exit 1

@@ -13,6 +13,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -51,6 +52,16 @@ inline std::vector<std::string> lines_of(std::string text) {
         if (end == std::string::npos) return lines;
         start = end + 1;
     }
+}
+
+// The lines of a short test recovery's stderr but its convergence warning: a recovery of a few
+// epochs or iterations does not converge and says so (convergence.h), which is not what such a
+// test checks.
+inline std::vector<std::string> lines_but_convergence_warning(const std::string& err) {
+    std::vector<std::string> kept;
+    for (std::string& line : lines_of(err))
+        if (line.rfind("wavebrdf: warning: the recovery did not converge", 0) != 0) kept.push_back(std::move(line));
+    return kept;
 }
 
 // A fresh directory per test under WAVEBRDF_TEST_TMP/group (named after the test and the

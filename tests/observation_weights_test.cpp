@@ -198,7 +198,9 @@ TEST(ObservationWeights, ValidateNamesTheBadWeight) {
 void expect_same_observation(const Observation& a, const Observation& b) {
     EXPECT_EQ(a.reference.size(), b.reference.size());
     for (std::size_t i = 0; i < a.reference.size(); ++i)
-        if (!std::isnan(a.reference[i]) || !std::isnan(b.reference[i])) EXPECT_EQ(a.reference[i], b.reference[i]);
+        if (!std::isnan(a.reference[i]) || !std::isnan(b.reference[i])) {
+            EXPECT_EQ(a.reference[i], b.reference[i]);
+        }
     EXPECT_EQ(a.weights, b.weights);
 }
 

@@ -102,7 +102,7 @@ TEST(RealScansCli, BadMeasuredTruthFailsWithOneLine) {
         std::ofstream f(dir / "ragged.txt");
         f << "1 2 3\n4 5\n";
     }
-    for (const std::string& file : {"broken.x3p", "ragged.txt", "missing.sdf"}) {
+    for (const std::string& file : std::vector<std::string>{"broken.x3p", "ragged.txt", "missing.sdf"}) {
         const CliResult r = run_cli(dir, "recover --truth " + file + " --texel-um 1 --fill harmonic --out run_" + file);
         expect_one_line_naming(r, {file});
         EXPECT_FALSE(fs::exists(dir / ("run_" + file) / "estimate.exr")) << file;
