@@ -221,16 +221,10 @@ private:
 // Colour: group 0 the view cone; its fraction per wavelength is the reflectance into the cone.
 class Colour final : public Target {
 public:
-    explicit Colour(const ColourSpec& spec) : m_spec(spec) {
-        const std::vector<double> mix = spectral_mix_weights(spec.lambdas_um);
-        const std::size_t n = spec.lambdas_um.size();
-        m_xyz_weights.assign(3 * n, 0.0);
-        for (std::size_t l = 0; l < n; ++l) {
-            const auto xyz = linear_srgb_to_xyz({mix[l], mix[n + l], mix[2 * n + l]});
-            for (std::size_t c = 0; c < 3; ++c) m_xyz_weights[c * n + l] = xyz[c];
-        }
-        m_target_uv = xyz_to_uv(linear_srgb_to_xyz(spec.rgb));
-    }
+    explicit Colour(const ColourSpec& spec)
+        : m_spec(spec),
+          m_xyz_weights(colour_xyz_weights(spec.lambdas_um)),
+          m_target_uv(xyz_to_uv(linear_srgb_to_xyz(spec.rgb))) {}
     int groups() const override { return 1; }
 
     void assign(const std::vector<OrderSet>& sets) override {
@@ -246,34 +240,12 @@ public:
         }
     }
 
-    std::array<double, 3> xyz(const Fractions& f) const {
-        const std::size_t n = f.size();
-        std::array<double, 3> x{0.0, 0.0, 0.0};
-        for (std::size_t c = 0; c < 3; ++c)
-            for (std::size_t l = 0; l < n; ++l) x[c] += m_xyz_weights[c * n + l] * f[l][0];
-        return x;
-    }
+    std::array<double, 3> xyz(const Fractions& f) const { return cone_xyz(m_xyz_weights, f, 0); }
 
-    // (Δu′v′ / 0.01)² + a hinge that keeps the luminous efficiency Y above k_min_y.
     double loss(const Fractions& f, Fractions* gradient) const override {
-        const auto X = xyz(f);
-        const double d = X[0] + 15.0 * X[1] + 3.0 * X[2];
-        const double dd = std::max(d, 1e-12);
-        const double u = 4.0 * X[0] / dd, v = 9.0 * X[1] / dd;
-        const double du = u - m_target_uv[0], dv = v - m_target_uv[1];
-        const double s = 1.0 / (k_uv_scale * k_uv_scale);
-        const double hinge = std::max(0.0, k_min_y - X[1]) / k_min_y;
-        const double value = s * (du * du + dv * dv) + k_weight_y * hinge * hinge;
+        std::array<double, 3> g{};
+        const double value = colour_loss(xyz(f), m_target_uv, gradient ? &g : nullptr);
         if (gradient) {
-            // ∂u/∂X = (4/d)e_x − u/d ∂d/∂X,  ∂v/∂X = (9/d)e_y − v/d ∂d/∂X,  ∂d/∂X = (1, 15, 3)
-            const std::array<double, 3> dd_dx{1.0, 15.0, 3.0};
-            std::array<double, 3> g{};
-            for (std::size_t c = 0; c < 3; ++c) {
-                const double du_dx = (c == 0 ? 4.0 / dd : 0.0) - u / dd * dd_dx[c];
-                const double dv_dx = (c == 1 ? 9.0 / dd : 0.0) - v / dd * dd_dx[c];
-                g[c] = s * 2.0 * (du * du_dx + dv * dv_dx);
-            }
-            g[1] += -2.0 * k_weight_y * hinge / k_min_y;
             const std::size_t n = f.size();
             gradient->assign(n, std::vector<double>(1, 0.0));
             for (std::size_t l = 0; l < n; ++l)
@@ -299,15 +271,51 @@ public:
     }
 
 private:
-    static constexpr double k_uv_scale = 0.01;
-    static constexpr double k_min_y = 0.10;
-    static constexpr double k_weight_y = 4.0;
     ColourSpec m_spec;
     std::vector<double> m_xyz_weights;  // 3 × wavelengths: XYZ per unit reflectance
     std::array<double, 2> m_target_uv{};
 };
 
 }  // namespace
+
+std::vector<double> colour_xyz_weights(const std::vector<double>& lambdas_um) {
+    const std::vector<double> mix = spectral_mix_weights(lambdas_um);
+    const std::size_t n = lambdas_um.size();
+    std::vector<double> weights(3 * n, 0.0);
+    for (std::size_t l = 0; l < n; ++l) {
+        const auto xyz = linear_srgb_to_xyz({mix[l], mix[n + l], mix[2 * n + l]});
+        for (std::size_t c = 0; c < 3; ++c) weights[c * n + l] = xyz[c];
+    }
+    return weights;
+}
+
+std::array<double, 3> cone_xyz(const std::vector<double>& xyz_weights, const Fractions& f, std::size_t group) {
+    const std::size_t n = f.size();
+    std::array<double, 3> x{0.0, 0.0, 0.0};
+    for (std::size_t c = 0; c < 3; ++c)
+        for (std::size_t l = 0; l < n; ++l) x[c] += xyz_weights[c * n + l] * f[l][group];
+    return x;
+}
+
+double colour_loss(const std::array<double, 3>& X, const std::array<double, 2>& target_uv, std::array<double, 3>* d_xyz) {
+    constexpr double k_uv_scale = 0.01, k_min_y = 0.10, k_weight_y = 4.0;
+    const double dd = std::max(X[0] + 15.0 * X[1] + 3.0 * X[2], 1e-12);
+    const double u = 4.0 * X[0] / dd, v = 9.0 * X[1] / dd;
+    const double du = u - target_uv[0], dv = v - target_uv[1];
+    const double s = 1.0 / (k_uv_scale * k_uv_scale);
+    const double hinge = std::max(0.0, k_min_y - X[1]) / k_min_y;
+    if (d_xyz) {
+        // ∂u/∂X = (4/d)e_x − u/d ∂d/∂X,  ∂v/∂X = (9/d)e_y − v/d ∂d/∂X,  ∂d/∂X = (1, 15, 3)
+        const std::array<double, 3> dd_dx{1.0, 15.0, 3.0};
+        for (std::size_t c = 0; c < 3; ++c) {
+            const double du_dx = (c == 0 ? 4.0 / dd : 0.0) - u / dd * dd_dx[c];
+            const double dv_dx = (c == 1 ? 9.0 / dd : 0.0) - v / dd * dd_dx[c];
+            (*d_xyz)[c] = s * 2.0 * (du * du_dx + dv * dv_dx);
+        }
+        (*d_xyz)[1] += -2.0 * k_weight_y * hinge / k_min_y;
+    }
+    return s * (du * du + dv * dv) + k_weight_y * hinge * hinge;
+}
 
 Fractions group_fractions(const Target& target, const std::vector<std::vector<double>>& flux,
                           std::vector<double>* totals) {

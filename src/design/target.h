@@ -53,6 +53,15 @@ struct PatternSpec {
 };
 std::unique_ptr<Target> make_pattern(const PatternSpec& spec);
 
+// The colour targets' pieces (colour, iridescent): the weights that turn a cone's reflectance
+// per wavelength into CIE XYZ under the white light sampled at `lambdas_um` (3 × n, row c
+// holding X, Y or Z), that XYZ, and the loss of one cone's XYZ against a target u′v′:
+// (Δu′v′ / 0.01)² + 4 · (max(0, 0.1 − Y) / 0.1)², with ∂loss/∂XYZ when `d_xyz` is given.
+std::vector<double> colour_xyz_weights(const std::vector<double>& lambdas_um);
+std::array<double, 3> cone_xyz(const std::vector<double>& xyz_weights, const Fractions& f, std::size_t group);
+double colour_loss(const std::array<double, 3>& xyz, const std::array<double, 2>& target_uv,
+                   std::array<double, 3>* d_xyz);
+
 struct ColourSpec {
     std::array<double, 2> view_offset{{0.0, 0.0}};  // view direction − mirror direction
     double view_cone = 0.05;

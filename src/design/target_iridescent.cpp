@@ -41,19 +41,9 @@ int nesting_depth(const std::string& text) {
     return deepest;
 }
 
-// Colour loss of one group (the colour target's: (Δu′v′/0.01)² + a hinge keeping Y ≥ 0.1).
-constexpr double k_uv_scale = 0.01, k_min_y = 0.10, k_weight_y = 4.0;
-
 class Iridescent final : public Target {
 public:
-    explicit Iridescent(const IridescentSpec& spec) : m_spec(spec) {
-        const std::vector<double> mix = spectral_mix_weights(spec.lambdas_um);
-        const std::size_t n = spec.lambdas_um.size();
-        m_xyz_weights.assign(3 * n, 0.0);
-        for (std::size_t l = 0; l < n; ++l) {
-            const auto xyz = linear_srgb_to_xyz({mix[l], mix[n + l], mix[2 * n + l]});
-            for (std::size_t c = 0; c < 3; ++c) m_xyz_weights[c * n + l] = xyz[c];
-        }
+    explicit Iridescent(const IridescentSpec& spec) : m_spec(spec), m_xyz_weights(colour_xyz_weights(spec.lambdas_um)) {
         for (const auto& rgb : spec.rgb) m_target_uv.push_back(xyz_to_uv(linear_srgb_to_xyz(rgb)));
     }
     int groups() const override { return static_cast<int>(m_spec.rgb.size()); }
@@ -83,13 +73,7 @@ public:
                                             "or --view-cone");
     }
 
-    std::array<double, 3> xyz(const Fractions& f, std::size_t q) const {
-        const std::size_t n = f.size();
-        std::array<double, 3> x{0.0, 0.0, 0.0};
-        for (std::size_t c = 0; c < 3; ++c)
-            for (std::size_t l = 0; l < n; ++l) x[c] += m_xyz_weights[c * n + l] * f[l][q];
-        return x;
-    }
+    std::array<double, 3> xyz(const Fractions& f, std::size_t q) const { return cone_xyz(m_xyz_weights, f, q); }
 
     // The sum over the pairs of the colour target's loss.
     double loss(const Fractions& f, Fractions* gradient) const override {
@@ -97,22 +81,9 @@ public:
         if (gradient) gradient->assign(n, std::vector<double>(P, 0.0));
         double total = 0.0;
         for (std::size_t q = 0; q < P; ++q) {
-            const auto X = xyz(f, q);
-            const double dd = std::max(X[0] + 15.0 * X[1] + 3.0 * X[2], 1e-12);
-            const double u = 4.0 * X[0] / dd, v = 9.0 * X[1] / dd;
-            const double du = u - m_target_uv[q][0], dv = v - m_target_uv[q][1];
-            const double s = 1.0 / (k_uv_scale * k_uv_scale);
-            const double hinge = std::max(0.0, k_min_y - X[1]) / k_min_y;
-            total += s * (du * du + dv * dv) + k_weight_y * hinge * hinge;
-            if (!gradient) continue;
-            const std::array<double, 3> dd_dx{1.0, 15.0, 3.0};
             std::array<double, 3> g{};
-            for (std::size_t c = 0; c < 3; ++c) {
-                const double du_dx = (c == 0 ? 4.0 / dd : 0.0) - u / dd * dd_dx[c];
-                const double dv_dx = (c == 1 ? 9.0 / dd : 0.0) - v / dd * dd_dx[c];
-                g[c] = s * 2.0 * (du * du_dx + dv * dv_dx);
-            }
-            g[1] += -2.0 * k_weight_y * hinge / k_min_y;
+            total += colour_loss(xyz(f, q), m_target_uv[q], gradient ? &g : nullptr);
+            if (!gradient) continue;
             for (std::size_t l = 0; l < n; ++l)
                 for (std::size_t c = 0; c < 3; ++c) (*gradient)[l][q] += g[c] * m_xyz_weights[c * n + l];
         }
