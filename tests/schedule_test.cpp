@@ -118,7 +118,8 @@ TEST(Schedule, CalibrationAddsItsStagesAndResolvesTheLoopsDefaults) {
     EXPECT_TRUE(find<FieldStage>(s)->calibrate_exposure);
     settings.position_outer_passes = 3;
     settings.position_outer_stall_tolerance = 0.5;
-    const PositionLoopStage* set = find<PositionLoopStage>(f.schedule(settings));
+    const Schedule given = f.schedule(settings);  // held: the stages live as long as their schedule
+    const PositionLoopStage* set = find<PositionLoopStage>(given);
     EXPECT_EQ(set->passes, 3);
     EXPECT_EQ(set->stall_tolerance, 0.5);
 }
