@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "design/fabrication_json.h"
 #include "wavebrdf/design_run.h"
 #include "wavebrdf/fabrication.h"
 #include "wavebrdf/heightfield.h"
@@ -45,16 +46,7 @@ void write_design_directory(const std::string& dir, const DesignResult& result, 
     write_text_atomically((d / "metrics.csv").string(), csv.str());
     // design.json last: its presence says the run directory is complete.
     nlohmann::json j = nlohmann::json::parse(result.metrics_json);
-    nlohmann::json masks = nlohmann::json::array();
-    for (const LevelMask& m : files.masks)
-        masks.push_back({{"file", std::filesystem::path(m.path).filename().string()}, {"depth_um", m.depth_um},
-                         {"weight", m.weight}});
-    j["fabrication_files"] = {{"heights_png", "heights.png"},
-                              {"heights_stl", files.heights_stl.empty() ? "" : "heights.stl"},
-                              {"stl_note", files.note},
-                              {"masks_json", files.masks_json.empty() ? "" : "masks.json"},
-                              {"masks", masks},
-                              {"heights_x3p", files.heights_x3p.empty() ? "" : "heights.x3p"}};
+    j["fabrication_files"] = detail::fabrication_files_json(files);
     if (!files.x3p_note.empty()) j["fabrication_files"]["x3p_note"] = files.x3p_note;
     write_text_atomically((d / "design.json").string(), j.dump(2) + "\n");
 }

@@ -14,6 +14,7 @@
 
 #include "core/random.h"
 #include "design/engine.h"
+#include "design/fabrication_json.h"
 #include "design/target.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/design.h"
@@ -523,20 +524,12 @@ void write_plate_directory(const std::string& dir, const PlateResult& r, bool fo
     write_rgb_exr((d / "plate.exr").string(), side_by_side(linear, 0));
     write_rgb_png((d / "plate.png").string(), side_by_side(shown, 8));
     nlohmann::json j = nlohmann::json::parse(r.metrics_json);
-    nlohmann::json masks = nlohmann::json::array();
-    for (const LevelMask& m : files.masks)
-        masks.push_back({{"file", std::filesystem::path(m.path).filename().string()}, {"depth_um", m.depth_um},
-                         {"weight", m.weight}});
-    j["fabrication_files"] = {{"heights_png", "heights.png"},
-                              {"heights_stl", files.heights_stl.empty() ? "" : "heights.stl"},
-                              {"stl_note", files.note},
-                              {"masks_json", files.masks_json.empty() ? "" : "masks.json"},
-                              {"masks", masks},
-                              {"heights_x3p", files.heights_x3p.empty() ? "" : "heights.x3p"},
-                              {"x3p_note", files.x3p_note},
-                              {"plate_png", "plate.png"},
-                              {"plate_exr", "plate.exr"},
-                              {"views", r.view_names}};
+    nlohmann::json fabrication = detail::fabrication_files_json(files);
+    fabrication["x3p_note"] = files.x3p_note;
+    fabrication["plate_png"] = "plate.png";
+    fabrication["plate_exr"] = "plate.exr";
+    fabrication["views"] = r.view_names;
+    j["fabrication_files"] = fabrication;
     write_text_atomically((d / "design.json").string(), j.dump(2) + "\n");
 }
 
