@@ -82,7 +82,7 @@ void run(const GenbrdfArgs& a) {
     // One footprint: only its rows are read (bit for bit the slice of the whole file).
     const Heightfield hf =
         read_heightfield_exr_footprint(a.input, q.x_um, q.sigma_p_um, scale.texel_um, scale.vscale).heightfield;
-    const UnitCheck units = warn_units(hf, job.lambdas_um.front(), a.input);
+    const UnitCheck units = warn_units(hf, q, job.lambdas_um.front(), a.input);
     job.heightfield_file = a.input;
     job.made_by = "wavebrdf genbrdf";
     run_slice_job(hf, q, job);

@@ -60,7 +60,7 @@ void run(RenderArgs a) {
     const Heightfield hf = read_heightfield_exr_footprint(a.heightfield, a.query.x_um, a.query.sigma_p_um,
                                                           scale.texel_um, scale.vscale)
                                .heightfield;
-    const UnitCheck units = warn_units(hf, a.job.lambdas_um.front(), a.heightfield);
+    const UnitCheck units = warn_units(hf, a.query, a.job.lambdas_um.front(), a.heightfield);
     a.job.heightfield_file = a.heightfield;
     a.job.made_by = "wavebrdf render";
     run_slice_job(hf, a.query, a.job);

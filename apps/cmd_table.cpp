@@ -84,7 +84,7 @@ void run_on(TableArgs a, const Communicator* comm) {
         hf = read_heightfield_exr_footprint(a.heightfield, spec.query.x_um, spec.query.sigma_p_um, scale.texel_um,
                                             scale.vscale)
                  .heightfield;
-        if (ranks.is_root()) units = warn_units(hf, spec.lambdas_um.front(), a.heightfield);
+        if (ranks.is_root()) units = warn_units(hf, spec.query, spec.lambdas_um.front(), a.heightfield);
         if (!a.png.empty() && ranks.is_root()) {
             // The preview's copies (its mosaic in float, the exposure's in double) on top of the table.
             const double values = 3.0 * spec.lights.rows * spec.lights.cols * double(spec.resolution) * spec.resolution;

@@ -3,7 +3,8 @@
 # surface (512², 1 µm texels) on a 6 mm plate, one point light, 16 wavelengths, every footprint
 # σ_p = 10 µm, OHS, pruning bound 1e-3.
 #   speed      the 1024² image: wall and CPU time, pixel-kernel-wavelength terms per second
-#   accuracy   a 256² image of the same scene pruned (1e-3) and unpruned: the largest difference,
+#   accuracy   a 256² image of the same scene pruned (1e-3, at the chosen precision) and unpruned
+#              (double): the largest difference,
 #              relative to the image's peak and to each pixel's own bound
 # Usage: bash bench/image_bench.sh [--build DIR] [--resolution N] [--threads T] [--plane-size-um W]
 #            [--precision double|float]
@@ -42,9 +43,9 @@ cat "$dir/time.txt"
 wall=$(sed -n 's/^wall \([0-9.]*\) s.*/\1/p' "$dir/time.txt")
 user=$(sed -n 's/.*user \([0-9.]*\) s.*/\1/p' "$dir/time.txt")
 
-echo "== accuracy: 256² pruned (1e-3) against unpruned"
-"$W" image "${scene[@]}" --resolution 256 --prune-tolerance 1e-3 --out "$dir/pruned.exr"
-"$W" image "${scene[@]}" --resolution 256 --prune-tolerance 0 --out "$dir/full.exr"
+echo "== accuracy: 256², pruned (1e-3) at $precision precision against unpruned double"
+"$W" image "${scene[@]}" --resolution 256 --prune-tolerance 1e-3 --precision "$precision" --out "$dir/pruned.exr"
+"$W" image "${scene[@]}" --resolution 256 --prune-tolerance 0 --precision double --out "$dir/full.exr"
 
 PYTHONPATH=$build/python /usr/bin/python3 - "$dir" "$resolution" "$wall" "$user" <<'EOF'
 import sys

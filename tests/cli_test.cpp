@@ -188,6 +188,29 @@ TEST_F(CliTest, RenderWithoutQuietPrintsOnlyASummaryWhenNotATerminal) {
     EXPECT_TRUE(starts_with(lines[1], hf + ": rms height")) << lines[1];
 }
 
+// render and genbrdf read only the footprint's rows of a file; their unit check describes the
+// footprint's own texels (not a tile of zeros around them): on z = A cos(2π j / 8) the rms
+// height is A/√2, with the file 32 times taller than the footprint.
+TEST_F(CliTest, UnitCheckOfAFootprintReadDescribesTheFootprint) {
+    const int rows = 1024, cols = 64;
+    const double A = 0.05;
+    std::vector<double> v(static_cast<std::size_t>(rows) * cols);
+    for (int i = 0; i < rows; ++i)
+        for (int j = 0; j < cols; ++j) v[static_cast<std::size_t>(i) * cols + j] = A * std::cos(2 * M_PI * j / 8.0);
+    const std::string hf = path("tall.exr").string();
+    wavebrdf::write_heightfield_exr(hf, wavebrdf::Heightfield(rows, cols, v, 1.0, 1.0));
+    for (const std::string& cmd : {"render --heightfield " + quote(hf) + " --x-um 512 --y-um 32 --sigma-p-um 5 --resolution 16 --out a.exr",
+                                  "genbrdf -i " + quote(hf) + " -o g.exr -x 512 -y 32 -p 5 -r 16 -l 0.5"}) {
+        const CliResult r = run(cmd);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        const std::string needle = hf + ": rms height ";
+        const std::size_t at = r.err.find(needle);
+        ASSERT_NE(at, std::string::npos) << r.err;
+        const double rms = std::atof(r.err.c_str() + at + needle.size());
+        EXPECT_NEAR(rms, A / std::sqrt(2.0), 0.03 * A / std::sqrt(2.0)) << cmd << "\n" << r.err;
+    }
+}
+
 TEST_F(CliTest, GenbrdfMatchesRender) {
     const std::string hf = make_heightfield();
     const CliResult g = run("genbrdf -i " + quote(hf) + " -o g.exr -r 32 -l 0.5 --quiet");

@@ -235,3 +235,26 @@ TEST(UnitCheck, NanometreHeightsWarn) {
     EXPECT_NE(m.warnings[0].find("in m read as um"), std::string::npos) << m.warnings[0];
     EXPECT_NE(describe(um).find("rms height"), std::string::npos);
 }
+
+// The footprint's check sees exactly the footprint's texels: on z = A cos(2π j / 8) (along the
+// columns, 1 µm texels) its rms height is A/√2 and its rms slope A sin(2π/8) / 2 (the wrapping
+// central difference of the cosine, averaged over both axes), whatever the rest of the tile
+// holds — here 10⁶ µm everywhere more than 3 σ_p + 2 texels away (what a footprint read of a
+// file leaves as 0, and what the whole-tile check sees).
+TEST(UnitCheck, FootprintCheckSeesOnlyTheFootprintsTexels) {
+    const int n = 256;
+    const double A = 0.05, sigma_p = 5.0, cx = 128.0, cy = 100.0;
+    std::vector<double> v(static_cast<std::size_t>(n) * n);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            const bool near = std::abs(i - cx) <= 3 * sigma_p + 2 && std::abs(j - cy) <= 3 * sigma_p + 2;
+            v[static_cast<std::size_t>(i) * n + j] = near ? A * std::cos(2 * pi * j / 8.0) : 1e6;
+        }
+    const Heightfield hf(n, n, v, 1.0, 1.0);
+    const UnitCheck c = check_units_footprint(hf, cx, cy, sigma_p, 0.5);
+    EXPECT_NEAR(c.rms_height_um, A / std::sqrt(2.0), 0.03 * A / std::sqrt(2.0));
+    EXPECT_NEAR(c.rms_slope, A * std::sin(2 * pi / 8.0) / 2.0, 0.03 * A * std::sin(2 * pi / 8.0) / 2.0);
+    EXPECT_TRUE(c.warnings.empty());
+    // The whole tile is another surface altogether.
+    EXPECT_GT(check_units(hf, 0.5).rms_height_um, 1e5);
+}

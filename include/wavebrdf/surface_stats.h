@@ -115,6 +115,12 @@ struct UnitCheck {
 };
 UnitCheck check_units(const HeightGrid& grid, double lambda_um);  // throws as surface_parameters
 UnitCheck check_units(const Heightfield& heightfield, double lambda_um);
+// The same check over the part of the surface one footprint sees: the texels of its kernels
+// (footprint_kernels, gabor.h; slopes from their neighbours as above). What render, genbrdf and
+// table print: they read only the footprint's rows of a file, and a slice depends on no other
+// texel. Throws as footprint_kernels.
+UnitCheck check_units_footprint(const Heightfield& heightfield, double x_um, double y_um, double sigma_p_um,
+                                double lambda_um);
 // "rms height 0.1234 um, rms slope 0.05678, phase rms 3.102 rad at 0.5 um" (no newline).
 std::string describe(const UnitCheck& check);
 

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "core/fftw_raii.h"
+#include "surface/footprint_offsets.h"
 #include "wavebrdf/constants.h"
 
 namespace wavebrdf {
@@ -371,24 +372,13 @@ std::vector<std::pair<std::string, double>> parameter_list(const SurfaceParamete
             {"Sa", p.Sa},   {"Sal", p.Sal}, {"Str", p.Str}, {"Std", p.Std}, {"Sdq", p.Sdq}, {"Sdr", p.Sdr}};
 }
 
-UnitCheck check_units(const HeightGrid& g, double lambda_um) {
-    // Any heightfield, 1 × 1 included (the differences wrap onto the point itself).
-    if (g.rows >= 2 && g.cols >= 2) validate(g);
-    const std::vector<double> z = centred(g);
-    const int rows = g.rows, cols = g.cols;
-    double sq = 0.0, slope_sq = 0.0;
-    // Slopes as the model takes them (Heightfield::slope): central differences that wrap.
-    for (int r = 0; r < rows; ++r)
-        for (int c = 0; c < cols; ++c) {
-            sq += z[at(r, c, cols)] * z[at(r, c, cols)];
-            const double sx = (z[at(r, (c + 1) % cols, cols)] - z[at(r, (c + cols - 1) % cols, cols)]) / (2 * g.dx_um);
-            const double sy = (z[at((r + 1) % rows, c, cols)] - z[at((r + rows - 1) % rows, c, cols)]) / (2 * g.dy_um);
-            slope_sq += sx * sx + sy * sy;
-        }
-    const double n = static_cast<double>(z.size());
+namespace {
+
+// The check's numbers from the sums over n points (heights already centred), and its warnings.
+UnitCheck unit_check(double sum_sq, double slope_sum_sq, double n, double lambda_um) {
     UnitCheck c;
-    c.rms_height_um = std::sqrt(sq / n);
-    c.rms_slope = std::sqrt(slope_sq / (2.0 * n));
+    c.rms_height_um = std::sqrt(sum_sq / n);
+    c.rms_slope = std::sqrt(slope_sum_sq / (2.0 * n));
     c.lambda_um = lambda_um;
     c.phase_rms_rad = 4.0 * k_pi * c.rms_height_um / lambda_um;
     const std::string where = " (docs/model.md, \"Where the model holds\")";
@@ -406,6 +396,55 @@ UnitCheck check_units(const HeightGrid& g, double lambda_um) {
                              " um is below 0.1 nm (the surface reflects as a mirror); heights in m read as um?" +
                              where);
     return c;
+}
+
+}  // namespace
+
+UnitCheck check_units(const HeightGrid& g, double lambda_um) {
+    // Any heightfield, 1 × 1 included (the differences wrap onto the point itself).
+    if (g.rows >= 2 && g.cols >= 2) validate(g);
+    const std::vector<double> z = centred(g);
+    const int rows = g.rows, cols = g.cols;
+    double sq = 0.0, slope_sq = 0.0;
+    // Slopes as the model takes them (Heightfield::slope): central differences that wrap.
+    for (int r = 0; r < rows; ++r)
+        for (int c = 0; c < cols; ++c) {
+            sq += z[at(r, c, cols)] * z[at(r, c, cols)];
+            const double sx = (z[at(r, (c + 1) % cols, cols)] - z[at(r, (c + cols - 1) % cols, cols)]) / (2 * g.dx_um);
+            const double sy = (z[at((r + 1) % rows, c, cols)] - z[at((r + rows - 1) % rows, c, cols)]) / (2 * g.dy_um);
+            slope_sq += sx * sx + sy * sy;
+        }
+    return unit_check(sq, slope_sq, static_cast<double>(z.size()), lambda_um);
+}
+
+UnitCheck check_units_footprint(const Heightfield& hf, double x_um, double y_um, double sigma_p_um,
+                                double lambda_um) {
+    // Exactly the texels of the footprint's kernels (each once, where a footprint wider than the
+    // tile meets a texel twice): what a footprint read leaves of a file (io.h) is all there.
+    const detail::FootprintOffsets k = detail::footprint_offsets(hf, x_um, y_um, sigma_p_um);
+    const int rows = hf.rows(), cols = hf.cols();
+    const double w = hf.texel_um();
+    std::vector<char> seen(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols), 0);
+    std::vector<std::size_t> texels;
+    texels.reserve(k.size());
+    for (std::size_t n = 0; n < k.size(); ++n) {
+        const std::size_t t = at(k.row[n], k.col[n], cols);
+        if (!seen[t]) texels.push_back(t);
+        seen[t] = 1;
+    }
+    double mean = 0.0;
+    for (const std::size_t t : texels) mean += hf.height_um(static_cast<int>(t / cols), static_cast<int>(t % cols));
+    mean /= static_cast<double>(texels.size());
+    double sq = 0.0, slope_sq = 0.0;
+    for (const std::size_t t : texels) {
+        const int i = static_cast<int>(t / cols), j = static_cast<int>(t % cols);
+        const double z = hf.height_um(i, j) - mean;
+        sq += z * z;
+        const double sx = (hf.height_um((i + 1) % rows, j) - hf.height_um((i + rows - 1) % rows, j)) / (2 * w);
+        const double sy = (hf.height_um(i, (j + 1) % cols) - hf.height_um(i, (j + cols - 1) % cols)) / (2 * w);
+        slope_sq += sx * sx + sy * sy;
+    }
+    return unit_check(sq, slope_sq, static_cast<double>(texels.size()), lambda_um);
 }
 
 UnitCheck check_units(const Heightfield& hf, double lambda_um) { return check_units(height_grid(hf), lambda_um); }
