@@ -6,12 +6,17 @@ names what is wrong from the signature line of f's docstring: the required param
 missing, a keyword that f does not have (with the nearest one it has), or too many positional
 arguments. Any other TypeError (a value of the wrong type) is pybind11's, unchanged.
 """
-import difflib
-import functools
-import re
-from typing import Callable, List, Optional, Tuple, TypeVar
+from __future__ import annotations
 
-F = TypeVar("F", bound=Callable)
+import functools
+
+# difflib, re and typing are imported where used (a misspelt call, a type checker): together
+# they were half of `import wavebrdf`'s own time.
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    from typing import Callable, List, Optional, Tuple, TypeVar
+
+    F = TypeVar("F", bound=Callable)
 
 
 def _split(text: str) -> List[str]:
@@ -49,6 +54,8 @@ def parameters(name: str, doc: Optional[str]) -> Optional[List[Tuple[str, bool, 
             break
     if end is None:
         return None
+    import re
+
     out, keyword_only = [], False
     for part in _split(first[len(name) + 1:end]):
         if part == "*":
@@ -71,6 +78,8 @@ def diagnose(name: str, doc: Optional[str], args: tuple, kwargs: dict) -> Option
     names = [p[0] for p in params]
     for key in kwargs:
         if key not in names:
+            import difflib
+
             near = difflib.get_close_matches(key, names, n=1, cutoff=0.6)
             hint = f"; did you mean {near[0]!r}?" if near else "; expected one of " + ", ".join(names)
             return f"{name}() got an unexpected keyword argument {key!r}{hint}"
