@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "image_util.h"
 #include "test_util.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/image.h"
@@ -17,17 +18,12 @@
 namespace wavebrdf {
 namespace {
 
-using Vec3 = std::array<double, 3>;
-
-double dot3(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Vec3 unit(const Vec3& v) {
-    const double n = std::sqrt(dot3(v, v));
-    return {v[0] / n, v[1] / n, v[2] / n};
-}
-
-double value_at(const RgbImage& image, int r, int c) {
-    return image.data[(std::size_t(r) * image.cols + std::size_t(c)) * 3];
-}
+using test::brightest;
+using test::cross3;
+using test::dot3;
+using test::unit;
+using test::value_at;
+using test::Vec3;
 
 ImageOptions shape(SampleShape kind, double rotation_deg) {
     ImageOptions o;
@@ -128,25 +124,16 @@ TEST(ImageShapes, FlatSphereHighlightAtTheMirrorPoint) {
     // The camera's frame by hand: forward −V, right = forward × up, up' = right × forward.
     const Vec3 f{-V[0], -V[1], -V[2]};
     const Vec3 right = unit({f[1], -f[0], 0.0});  // f × (0, 0, 1)
-    const Vec3 up{right[1] * f[2] - right[2] * f[1], right[2] * f[0] - right[0] * f[2],
-                  right[0] * f[1] - right[1] * f[0]};
+    const Vec3 up = cross3(right, f);
     const double half = 220.0, pitch = 2 * half / 89;
     const double c_star = (dot3(p, right) + half) / pitch - 0.5, r_star = (half - dot3(p, up)) / pitch - 0.5;
-    int best_r = 0, best_c = 0;
-    double peak = 0.0;
-    for (int r = 0; r < 89; ++r)
-        for (int c = 0; c < 89; ++c)
-            if (value_at(image, r, c) > peak) {
-                peak = value_at(image, r, c);
-                best_r = r;
-                best_c = c;
-            }
-    EXPECT_NEAR(best_r, r_star, 1.0);
-    EXPECT_NEAR(best_c, c_star, 1.0);
+    const test::Brightest best = brightest(image);
+    EXPECT_NEAR(best.row, r_star, 1.0);
+    EXPECT_NEAR(best.col, c_star, 1.0);
     // One highlight: everything brighter than 1 % of the peak lies within 4 pixels of it.
     for (int r = 0; r < 89; ++r)
         for (int c = 0; c < 89; ++c)
-            if (value_at(image, r, c) > 1e-2 * peak) {
+            if (value_at(image, r, c) > 1e-2 * best.value) {
                 EXPECT_LE(std::hypot(r - r_star, c - c_star), 4.0) << r << "," << c;
             }
 }

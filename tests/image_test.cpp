@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 
+#include "image_util.h"
 #include "test_util.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/gabor.h"
@@ -18,16 +19,11 @@
 namespace wavebrdf {
 namespace {
 
-using Vec3 = std::array<double, 3>;
-
-Vec3 normal(const Vec3& v) {
-    const double n = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    return {v[0] / n, v[1] / n, v[2] / n};
-}
-
-double value_at(const RgbImage& image, int r, int c, int ch = 0) {
-    return image.data[(std::size_t(r) * image.cols + std::size_t(c)) * 3 + std::size_t(ch)];
-}
+using test::brightest;
+using test::cross3;
+using test::unit;
+using test::value_at;
+using test::Vec3;
 
 // An orthographic camera along −ω_o (ω_o a slice pixel centre) and a directional light: every
 // pixel's value is the slice pixel of its own footprint, times cos θ_i.
@@ -55,9 +51,9 @@ TEST(Image, PixelsEqualRenderSliceOfTheirOwnFootprint) {
         o.prune_tolerance = 0.0;
         const RgbImage image = render_image(hf, prepare_image(hf, o));
         // The camera's frame and each pixel's hit point, by hand.
-        const Vec3 f = normal({-wo[0], -wo[1], -wo[2]});
+        const Vec3 f = unit({-wo[0], -wo[1], -wo[2]});
         const Vec3 up{0.0, 0.0, 1.0};
-        Vec3 right = normal({f[1] * up[2] - f[2] * up[1], f[2] * up[0] - f[0] * up[2], f[0] * up[1] - f[1] * up[0]});
+        Vec3 right = unit(cross3(f, up));
         const Vec3 u2{right[1] * f[2] - right[2] * f[1], right[2] * f[0] - right[0] * f[2],
                       right[0] * f[1] - right[1] * f[0]};
         std::mt19937_64 rng(3);
@@ -107,29 +103,21 @@ TEST(Image, FlatMirrorShowsOneHighlightAtTheMirrorPoint) {
     // crosses the plane; its pixel from the pinhole projection.
     const double t = cam[2] / (cam[2] + light[2]);
     const Vec3 m{cam[0] + t * (light[0] - cam[0]), cam[1] + t * (light[1] - cam[1]), 0.0};
-    const Vec3 f = normal({-cam[0], -cam[1], -cam[2]});
+    const Vec3 f = unit({-cam[0], -cam[1], -cam[2]});
     const Vec3 up{0.0, 0.0, 1.0};
-    const Vec3 right = normal({f[1] * up[2] - f[2] * up[1], f[2] * up[0] - f[0] * up[2], f[0] * up[1] - f[1] * up[0]});
-    const Vec3 u2{right[1] * f[2] - right[2] * f[1], right[2] * f[0] - right[0] * f[2],
-                  right[0] * f[1] - right[1] * f[0]};
+    const Vec3 right = unit(cross3(f, up));
+    const Vec3 u2 = cross3(right, f);
     const Vec3 d{m[0] - cam[0], m[1] - cam[1], m[2] - cam[2]};
     const double along = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
     const double half = std::tan(10.0 * k_pi / 180.0);
     const double sx = (d[0] * right[0] + d[1] * right[1] + d[2] * right[2]) / along / half;
     const double sy = (d[0] * u2[0] + d[1] * u2[1] + d[2] * u2[2]) / along / half;
     const double col = (sx + 1.0) / 2.0 * 64 - 0.5, row = (1.0 - sy) / 2.0 * 64 - 0.5;
-    int best_r = 0, best_c = 0;
-    double peak = 0.0;
-    for (int r = 0; r < 64; ++r)
-        for (int c = 0; c < 64; ++c)
-            if (value_at(image, r, c) > peak) {
-                peak = value_at(image, r, c);
-                best_r = r;
-                best_c = c;
-            }
+    const test::Brightest best = brightest(image);
+    const double peak = best.value;
     ASSERT_GT(peak, 0.0);
-    EXPECT_LE(std::abs(best_r - row), 1.0) << "highlight row " << best_r << ", mirror point at " << row;
-    EXPECT_LE(std::abs(best_c - col), 1.0) << "highlight column " << best_c << ", mirror point at " << col;
+    EXPECT_LE(std::abs(best.row - row), 1.0) << "highlight row " << best.row << ", mirror point at " << row;
+    EXPECT_LE(std::abs(best.col - col), 1.0) << "highlight column " << best.col << ", mirror point at " << col;
     // Exactly one highlight: every pixel above 1e-2 of the peak is within 4 pixels of the mirror
     // point (the lobe's standard deviation for σ_p = 5 µm is about 1.2 pixels here; further out
     // only the ripple of the window's 3σ_p cut remains, below 5e-3 of the peak).
@@ -219,7 +207,7 @@ double one_pixel_brdf(const Heightfield& hf, Model model, const Vec3& camera, co
     const Vec3 d{light[0] - at[0], light[1] - at[1], light[2] - at[2]};
     const double dist_m = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) * 1e-6;
     const double irradiance = 2.0 / (4 * k_pi * dist_m * dist_m);
-    return value_at(image, 0, 0) / (normal(d)[2] * irradiance);
+    return value_at(image, 0, 0) / (unit(d)[2] * irradiance);
 }
 
 TEST(Image, SwappingLightAndCameraKeepsReciprocalModels) {
@@ -231,8 +219,8 @@ TEST(Image, SwappingLightAndCameraKeepsReciprocalModels) {
         ASSERT_GT(forward, 0.0);
         if (model == Model::OHS) {
             // Not reciprocal: c1 = cos θ_o / (λ² cos θ_i) changes by (cos θ_a / cos θ_b)².
-            const double ca = normal({a[0] - at[0], a[1] - at[1], a[2]})[2];
-            const double cb = normal({b[0] - at[0], b[1] - at[1], b[2]})[2];
+            const double ca = unit({a[0] - at[0], a[1] - at[1], a[2]})[2];
+            const double cb = unit({b[0] - at[0], b[1] - at[1], b[2]})[2];
             EXPECT_NEAR(forward / swapped, (ca * ca) / (cb * cb), 1e-5);
         } else {
             EXPECT_NEAR(forward, swapped, 1e-5 * forward) << to_string(model);

@@ -27,3 +27,17 @@ def cli():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def random_heightfield_exr(tmp_path, rng):
+    """random_heightfield_exr(n): the path of an n × n heightfield EXR (heights N(0, 0.2) in texel
+    widths, 1 µm texels) in tmp_path."""
+    def make(n):
+        import wavebrdf as wb
+
+        path = str(tmp_path / "h.exr")
+        wb.Heightfield(rng.normal(0.0, 0.2, (n, n)), texel_um=1.0).save_exr(path)
+        return path
+
+    return make

@@ -10,19 +10,12 @@ import pytest
 import wavebrdf as wb
 
 
-def plate(tmp_path, rng, n=32):
-    hf = wb.Heightfield(rng.normal(0.0, 0.2, (n, n)), texel_um=1.0)
-    path = str(tmp_path / "h.exr")
-    hf.save_exr(path)
-    return path
-
-
 SCENE = ["--plane-size-um", "400", "--camera", "-300,50,500", "--look-at", "0,0,0", "--fov-deg", "40",
          "--resolution", "12,10", "--point-light", "250,-40,400", "--spectral", "3", "--sigma-p-um", "3"]
 
 
-def test_cli_and_python_bit_identical(tmp_path, rng, cli):
-    hf = plate(tmp_path, rng)
+def test_cli_and_python_bit_identical(tmp_path, rng, cli, random_heightfield_exr):
+    hf = random_heightfield_exr(32)
     out = tmp_path / "i.exr"
     png = tmp_path / "i.png"
     subprocess.run([cli, "image", "--heightfield", hf, *SCENE, "--out", str(out), "--png", str(png), "--quiet"],
@@ -36,8 +29,8 @@ def test_cli_and_python_bit_identical(tmp_path, rng, cli):
     assert image.max() > 0 and os.path.getsize(png) > 0
 
 
-def test_orbit_writes_numbered_frames(tmp_path, rng, cli):
-    hf = plate(tmp_path, rng, 16)
+def test_orbit_writes_numbered_frames(tmp_path, rng, cli, random_heightfield_exr):
+    hf = random_heightfield_exr(16)
     subprocess.run([cli, "image", "--heightfield", hf, *SCENE, "--png", str(tmp_path / "f.png"), "--frames", "3",
                     "--orbit", "light", "--start-deg", "0", "--end-deg", "90", "--quiet"], check=True)
     assert sorted(os.listdir(tmp_path)) == ["f_0000.png", "f_0001.png", "f_0002.png", "h.exr"]
@@ -49,8 +42,8 @@ def test_orbit_writes_numbered_frames(tmp_path, rng, cli):
     (["--fov-deg", "0"], "field of view 0 deg is invalid"),
     (["--sigma-p-um", "1e6"], "too large for the tile"),
 ])
-def test_bad_scenes_fail_before_work(tmp_path, rng, cli, change, message):
-    hf = plate(tmp_path, rng, 16)
+def test_bad_scenes_fail_before_work(tmp_path, rng, cli, change, message, random_heightfield_exr):
+    hf = random_heightfield_exr(16)
     args = list(SCENE)
     for k in range(0, len(change), 2):
         i = args.index(change[k])

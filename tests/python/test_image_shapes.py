@@ -11,13 +11,6 @@ import pytest
 import wavebrdf as wb
 
 
-def heightfield_file(tmp_path, rng, n=24):
-    hf = wb.Heightfield(rng.normal(0.0, 0.2, (n, n)), texel_um=1.0)
-    path = str(tmp_path / "h.exr")
-    hf.save_exr(path)
-    return path
-
-
 SPHERE_CLI = ["--sphere-radius-um", "300", "--camera", "-200,100,900", "--fov-deg", "45", "--resolution", "11,9",
               "--point-light", "400,-300,700", "--spectral", "3", "--sigma-p-um", "3", "--rotation-deg", "20"]
 SPHERE_PY = dict(sphere_radius_um=300, camera=(-200, 100, 900), fov_deg=45, resolution=(11, 9),
@@ -37,8 +30,8 @@ CYLINDER_PY = dict(cylinder_radius_um=200, cylinder_length_um=500, camera=(0, -3
      dict(SPHERE_PY, disc_light=(300, -200, 600, 30), disc_order=3)),
     (CYLINDER_CLI + ["--precision", "float"], dict(CYLINDER_PY, precision="float")),
 ])
-def test_cli_and_python_bit_identical(tmp_path, rng, cli, cli_args, py_args):
-    hf = heightfield_file(tmp_path, rng)
+def test_cli_and_python_bit_identical(tmp_path, rng, cli, cli_args, py_args, random_heightfield_exr):
+    hf = random_heightfield_exr(24)
     out = tmp_path / "i.exr"
     subprocess.run([cli, "image", "--heightfield", hf, *cli_args, "--out", str(out), "--quiet"], check=True)
     image = wb.render_image(hf, **py_args)
@@ -48,8 +41,8 @@ def test_cli_and_python_bit_identical(tmp_path, rng, cli, cli_args, py_args):
     assert image.max() > 0 and (image == 0).all(axis=2).any()
 
 
-def test_float_precision_runs_in_float_within_its_error(tmp_path, rng):
-    hf = heightfield_file(tmp_path, rng)
+def test_float_precision_runs_in_float_within_its_error(tmp_path, rng, random_heightfield_exr):
+    hf = random_heightfield_exr(24)
     double = wb.render_image(hf, dtype="float64", **SPHERE_PY)
     single = wb.render_image(hf, dtype="float64", precision="float", **SPHERE_PY)
     assert double.dtype == np.float64
@@ -83,8 +76,8 @@ def test_image_gradient_equals_central_differences(rng):
     (["--sphere-radius-um", "0"], "sphere radius 0 um is invalid"),
     (["--point-light", "0,0,-100"], "point light 0,0,-100 um is inside the sphere"),
 ])
-def test_bad_shapes_fail_before_work(tmp_path, rng, cli, change, message):
-    hf = heightfield_file(tmp_path, rng, 16)
+def test_bad_shapes_fail_before_work(tmp_path, rng, cli, change, message, random_heightfield_exr):
+    hf = random_heightfield_exr(16)
     args = list(SPHERE_CLI)
     for k in range(0, len(change), 2):
         args[args.index(change[k]) + 1] = change[k + 1]
@@ -94,8 +87,8 @@ def test_bad_shapes_fail_before_work(tmp_path, rng, cli, change, message):
     assert not out.exists()
 
 
-def test_bad_python_arguments(tmp_path, rng):
-    hf = heightfield_file(tmp_path, rng, 16)
+def test_bad_python_arguments(tmp_path, rng, random_heightfield_exr):
+    hf = random_heightfield_exr(16)
     with pytest.raises(ValueError, match="cylinder radius -1 um is invalid"):
         wb.render_image(hf, cylinder_radius_um=-1, cylinder_length_um=100, camera=(0, 0, 500),
                         point_light=(0, 0, 600))
