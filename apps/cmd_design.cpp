@@ -31,7 +31,8 @@ struct DesignArgs {
     double plate_pixel_um = 0.0;
     std::vector<double> band_um;
     double view_x = 0.0, view_y = 0.0;
-    bool given_view = false, given_spectral = false, given_lambda = false, force = false, quiet = false, no_plots = false;
+    bool given_view = false, given_spectral = false, given_lambda = false, force = false, quiet = false, no_plots = false,
+         no_view_survey = false;
     DesignOptions options;
 };
 
@@ -94,6 +95,7 @@ void run(DesignArgs a) {
     if (a.given_view) o.view = std::array<double, 2>{a.view_x, a.view_y};
     o.region = a.region;
     o.errors = parse_fabrication_errors(a.errors);
+    if (a.no_view_survey) o.survey_views = false;
     if (a.target.rfind("image:", 0) == 0) return run_plate_command(a);
     if (!a.palette.empty()) throw std::invalid_argument("--palette goes with --target image:PICTURE.png");
     o.target = parse_design_target(a.target);
@@ -133,6 +135,32 @@ void run(DesignArgs a) {
                           << "at best delta u'v' " << format_shortest(b["delta_uv"].get<double>()) << " at Y "
                           << format_shortest(b["luminous_efficiency"].get<double>()) << " (linear sRGB "
                           << b["linear_srgb"].dump() << ")\n";
+        }
+        if (o.target.kind == DesignKind::Colour && j.contains("optimal_colour_bound")) {
+            const auto& e = j["metrics"]["exact"];
+            const auto& b = j["optimal_colour_bound"];
+            if (e["delta_uv"].get<double>() > b["delta_uv"].get<double>() || e["luminous_efficiency"].get<double>() < 0.05)
+                std::cerr << "design: " << o.target.text << " reached delta u'v' "
+                          << format_shortest(e["delta_uv"].get<double>()) << " at Y "
+                          << format_shortest(e["luminous_efficiency"].get<double>())
+                          << "; no surface reflects this chromaticity brighter than Y "
+                          << format_shortest(b["y_at_target"].get<double>()) << " (Y "
+                          << format_shortest(b["y_within_delta_uv"].get<double>()) << " within delta u'v' "
+                          << format_shortest(b["delta_uv"].get<double>())
+                          << ") under this light: the optimal-colour limit, design.json optimal_colour_bound\n";
+        }
+        if (o.target.kind == DesignKind::Iridescent && j.contains("optimal_colour_bound")) {
+            const auto& pairs = j["metrics"]["exact"]["pairs"];
+            const auto& bounds = j["optimal_colour_bound"];
+            for (std::size_t q = 0; q < pairs.size() && q < bounds.size(); ++q) {
+                const double d = pairs[q]["delta_uv"].get<double>(), y = pairs[q]["luminous_efficiency"].get<double>();
+                if (d > bounds[q]["delta_uv"].get<double>() || y < 0.05)
+                    std::cerr << "design: pair " << q + 1 << " reached delta u'v' " << format_shortest(d) << " at Y "
+                              << format_shortest(y) << "; no surface reflects its chromaticity brighter than Y "
+                              << format_shortest(bounds[q]["y_at_target"].get<double>()) << " (Y "
+                              << format_shortest(bounds[q]["y_within_delta_uv"].get<double>()) << " within delta u'v' "
+                              << format_shortest(bounds[q]["delta_uv"].get<double>()) << ")\n";
+            }
         }
         if (j.contains("view_survey") && !j["view_survey"]["best"].is_null()) {
             const auto& b = j["view_survey"]["best"];
@@ -200,6 +228,8 @@ void add_design_command(CLI::App& app) {
         ->capture_default_str();
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
+    cmd->add_flag("--no-view-survey", a->no_view_survey,
+                  "colour: when the colour is missed, do not design it for other views (design.json view_survey)");
     cmd->callback([a, spectral, lambda, vx, vy, levels] {
         a->given_spectral = spectral->count() > 0;
         // A grayscale relief has no levels: --min-feature-um without --levels.

@@ -64,7 +64,7 @@ DesignTarget pattern_target(int rows, int cols, std::vector<double> image);
 // Fabrication errors the design is made robust to and scored under (`scale:5%,blur:0.3um`).
 struct FabricationErrors {
     double scale = 0.0;    // relative error of every height (0 … 0.5): the loop averages 1 − s, 1, 1 + s
-    double blur_um = 0.0;  // Gaussian σ of the written relief, µm (0 … 10): scored only (docs/design.md)
+    double blur_um = 0.0;  // Gaussian σ of the written relief, µm (0 … 10): in the discrete refinement's mean (docs/design.md)
 };
 // Parses "scale:5%,blur:0.3um" (either part optional, "none" for no errors); std::invalid_argument.
 FabricationErrors parse_fabrication_errors(const std::string& text);

@@ -258,6 +258,9 @@ def make_report(directory):
             label = "view (%s, %s)" % tuple(_format_value(v) for v in view)
             if isinstance(du, (int, float)) and isinstance(y, (int, float)):
                 label += "\nΔu′v′ %.3f\nY %.1f%%" % (du, 100 * y)
+            bounds = _get(doc, "optimal_colour_bound")
+            if isinstance(bounds, list) and k < len(bounds) and isinstance(_get(bounds[k], "y_at_target"), (int, float)):
+                label += "\n(≤ %.1f%%)" % (100 * bounds[k]["y_at_target"])
             ax.text(k + 0.45, -0.08, label, ha="center", va="top", fontsize=7)
         ax.set_xlim(-0.1, len(pairs))
         ax.set_ylim(-0.6, 2.15)
@@ -276,6 +279,9 @@ def make_report(directory):
             sub.append("Δu′v′ %.3f" % du)
         if isinstance(y, (int, float)):
             sub.append("Y %.1f%%" % (100 * y))
+        bound = _get(doc, "optimal_colour_bound", "y_at_target")
+        if isinstance(bound, (int, float)):
+            sub.append("any surface: Y ≤ %.1f%%" % (100 * bound))
         ax.set_title("colour (each swatch at full brightness)" + ("\n" + ", ".join(sub) if sub else ""), fontsize=9)
         ax.axis("off")
     else:

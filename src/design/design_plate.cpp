@@ -378,6 +378,7 @@ PlateResult run_plate(const PreparedPlate& p, const std::function<bool(int, cons
                            {"seed", dj["seed"]},
                            {"metrics", {{"model", dj["metrics"]["model"]}, {"exact", dj["metrics"]["exact"]}}},
                            {"exact_direct_sum_check", dj["metrics"]["exact_direct_sum_check"]},
+                           {"fabrication_errors", dj["fabrication_errors"]},
                            {"views", views_json},
                            {"timings_s", dj["timings_s"]}});
         r.tiles[e] = std::move(d);

@@ -15,6 +15,8 @@
 #include <stdexcept>
 
 #include "core/random.h"
+#include "design/blur_term.h"
+#include "design/colour_bound.h"
 #include "design/engine.h"
 #include "design/evaluator.h"
 #include "design/grayscale.h"
@@ -148,36 +150,6 @@ double anti_mirror_step(double range_um, int levels, const std::vector<double>& 
         }
     }
     return best;
-}
-
-// A Gaussian blur of σ texels on the periodic tile (separable, direct), for the blur error.
-std::vector<double> periodic_blur(const std::vector<double>& h, int size, double sigma_texels) {
-    if (sigma_texels <= 0.0) return h;
-    const int radius = std::min(size / 2, static_cast<int>(std::ceil(4.0 * sigma_texels)));
-    std::vector<double> kernel(static_cast<std::size_t>(2 * radius + 1));
-    double sum = 0.0;
-    for (int d = -radius; d <= radius; ++d)
-        sum += kernel[static_cast<std::size_t>(d + radius)] = std::exp(-0.5 * d * d / (sigma_texels * sigma_texels));
-    for (double& k : kernel) k /= sum;
-    std::vector<double> tmp(h.size(), 0.0), out(h.size(), 0.0);
-    const auto N = static_cast<std::size_t>(size);
-    for (int i = 0; i < size; ++i)
-        for (int j = 0; j < size; ++j) {
-            double acc = 0.0;
-            for (int d = -radius; d <= radius; ++d)
-                acc += kernel[static_cast<std::size_t>(d + radius)] *
-                       h[static_cast<std::size_t>(((i + d) % size + size) % size) * N + static_cast<std::size_t>(j)];
-            tmp[static_cast<std::size_t>(i) * N + static_cast<std::size_t>(j)] = acc;
-        }
-    for (int i = 0; i < size; ++i)
-        for (int j = 0; j < size; ++j) {
-            double acc = 0.0;
-            for (int d = -radius; d <= radius; ++d)
-                acc += kernel[static_cast<std::size_t>(d + radius)] *
-                       tmp[static_cast<std::size_t>(i) * N + static_cast<std::size_t>(((j + d) % size + size) % size)];
-            out[static_cast<std::size_t>(i) * N + static_cast<std::size_t>(j)] = acc;
-        }
-    return out;
 }
 
 std::vector<double> one_hot(const std::vector<int>& level, int levels) {
@@ -319,6 +291,27 @@ nlohmann::json mirror_order_bound(const PreparedDesign& p) {
     return j;
 }
 
+// The optimal-colour limit of the target's chromaticity on these wavelengths (colour_bound.h):
+// no relief, on any levels and from any view, reflects that chromaticity into a cone with a
+// larger luminous efficiency Y.
+// A colour counts as reached within this chromaticity distance and above this luminous efficiency;
+// below them the run surveys the other views.
+constexpr double k_reached_delta_uv = 0.04, k_reached_y = 0.05;
+nlohmann::json optimal_colour_bound_json(const std::vector<double>& lambdas_um, const std::array<double, 3>& linear_rgb) {
+    const auto weights = detail::colour_xyz_weights(lambdas_um);
+    const auto b = detail::optimal_colour_bound(weights, xyz_to_uv(linear_srgb_to_xyz(linear_rgb)), k_reached_delta_uv);
+    std::vector<double> band;
+    for (std::size_t l = 0; l < b.reflects.size(); ++l)
+        if (b.reflects[l]) band.push_back(lambdas_um[l]);
+    return {{"what", "the largest luminous efficiency Y any reflectance spectrum (0 to 1 per wavelength) has at the "
+                     "target chromaticity, and within delta u'v' of it, under this white light: an upper bound for "
+                     "every relief, level set and view (the optimal-colour limit)"},
+            {"y_at_target", b.y_at_target},
+            {"delta_uv", b.tolerance},
+            {"y_within_delta_uv", b.y_within},
+            {"optimal_colour_reflects_um", band}};
+}
+
 }  // namespace
 
 const char* to_string(DesignKind kind) {
@@ -446,7 +439,8 @@ double estimate_design_bytes(const DesignOptions& o) {
     const double weights = 7.0 * 8.0 * K * n2;  // θ, p, Adam's two moments, gradients, one-hot
     const int threads = 2;
     const double spectra = 16.0 * K * n2 * (2.0 + threads);
-    return 1.2 * (orders * 76.0 + weights + spectra + detail::more_target_bytes(o)) + 64e6;
+    const double blur = o.errors.blur_um > 0.0 && o.min_feature_um == 0.0 ? detail::blur_term_bytes(o.size) : 0.0;
+    return 1.2 * (orders * 76.0 + weights + spectra + blur + detail::more_target_bytes(o)) + 64e6;
 }
 
 PreparedDesign prepare_design(const DesignOptions& options) {
@@ -555,7 +549,8 @@ PreparedDesign prepare_design(const DesignOptions& options) {
     p.target->assign(*sets);
     p.order_sets = sets;
     if (o.errors.blur_um > 0.0)
-        p.notes.push_back("the blur error is scored, not designed for: the loop averages the height scale errors only");
+        p.notes.push_back(grayscale ? "the blur error is scored, not designed for: a grayscale loop averages the height scale errors only"
+                                    : "the blur error is designed for in the discrete refinement (the relaxed phase averages the height scale errors only)");
     return p;
 }
 
@@ -569,9 +564,6 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
 // with the same far field, so what a view reaches here the run's tile reaches too: a reachable
 // colour is proven by a relief, not estimated.
 constexpr int k_survey_size = 32, k_survey_iterations = 40, k_survey_refine_passes = 10;
-// A colour counts as reached within this chromaticity distance and above this luminous efficiency;
-// below them the run surveys the other views.
-constexpr double k_reached_delta_uv = 0.04, k_reached_y = 0.05;
 nlohmann::json view_survey(const PreparedDesign& p) {
     const DesignOptions& o = p.options;
     int size = 1;
@@ -709,7 +701,28 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         level[t] = best;
     }
     const auto refine_start = Clock::now();
-    double loss = evaluator.evaluate(one_hot(level, K), &grad);
+    // Blur in the loop: the discrete refinement minimises the mean loss over the error samples,
+    // the height scales and the blurred relief (blur_term.h); the relaxed phase's level
+    // mixtures have no heights to blur.
+    std::unique_ptr<detail::BlurTerm> blur_term;
+    if (o.errors.blur_um > 0.0 && !grayscale) blur_term = std::make_unique<detail::BlurTerm>(p, o.errors.blur_um / o.texel_um);
+    const double blur_weight = 1.0 / (static_cast<double>(scales.size()) + 1.0);
+    auto refine_loss = [&](const std::vector<int>& lv, std::vector<double>* g) {
+        const double nominal = evaluator.evaluate(one_hot(lv, K), g);
+        if (!blur_term) return nominal;
+        std::vector<double> gh;
+        const double blurred = blur_term->evaluate(lv, g ? &gh : nullptr);
+        if (g) {
+            // A texel's switch from level a to b changes its height by h_b − h_a: the blurred
+            // loss's gradient per level is ∂L/∂h · h_ℓ.
+            for (double& x : *g) x *= 1.0 - blur_weight;
+            for (int l = 0; l < K; ++l)
+                for (std::size_t t = 0; t < n2; ++t)
+                    (*g)[static_cast<std::size_t>(l) * n2 + t] += blur_weight * gh[t] * p.levels_um[static_cast<std::size_t>(l)];
+        }
+        return (1.0 - blur_weight) * nominal + blur_weight * blurred;
+    };
+    double loss = refine_loss(level, &grad);
     const int iteration0 = o.iterations;
     report({"refine", iteration0, loss, 0.0});
     double fraction = 0.01;
@@ -734,7 +747,7 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         std::partial_sort(gain.begin(), gain.begin() + static_cast<std::ptrdiff_t>(take), gain.end());
         std::vector<int> trial = level;
         for (std::size_t k = 0; k < take; ++k) trial[gain[k].second] = best[gain[k].second];
-        const double trial_loss = evaluator.evaluate(one_hot(trial, K), &trial_grad);
+        const double trial_loss = refine_loss(trial, &trial_grad);
         if (trial_loss < loss) {
             level.swap(trial);
             grad.swap(trial_grad);
@@ -776,7 +789,7 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
             fabrication.push_back({{"error", "scale " + num(s)}, {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
         }
     if (o.errors.blur_um > 0.0) {
-        const std::vector<double> blurred = periodic_blur(r.heights_um, N, o.errors.blur_um / o.texel_um);
+        const std::vector<double> blurred = detail::periodic_blur(r.heights_um, N, o.errors.blur_um / o.texel_um);
         const detail::LevelRelief b = detail::to_level_relief(blurred, detail::k_exact_max_levels);
         const auto flux = detail::level_flux(b, N, sets, 1.0);
         fabrication.push_back({{"error", "blur " + num(o.errors.blur_um) + " um"},
@@ -880,6 +893,13 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         {"kirchhoff_total", kirchhoff_totals},
         {"final_loss", loss}};
     j["fabrication_errors"] = fabrication;
+    if (o.target.kind == DesignKind::Colour)
+        j["optimal_colour_bound"] = optimal_colour_bound_json(p.lambdas_um, o.target.linear_rgb);
+    if (o.target.kind == DesignKind::Iridescent) {
+        nlohmann::json pairs = nlohmann::json::array();
+        for (const auto& pair : o.target.pairs) pairs.push_back(optimal_colour_bound_json(p.lambdas_um, pair.linear_rgb));
+        j["optimal_colour_bound"] = pairs;
+    }
     if (o.target.kind == DesignKind::Colour) {
         const bool mirror_view = !o.view || (std::abs((*o.view)[0] - mirror[0]) < 1e-12 && std::abs((*o.view)[1] - mirror[1]) < 1e-12);
         if (mirror_view && survey_views) j["mirror_order_bound"] = mirror_order_bound(p);
