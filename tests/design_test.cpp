@@ -4,11 +4,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
+#include <map>
 #include <random>
 
 #include "design/engine.h"
 #include "design/evaluator.h"
 #include "design/target.h"
+#include "wavebrdf/constants.h"
 #include "wavebrdf/design.h"
 #include "wavebrdf/design_run.h"
 #include <nlohmann/json.hpp>
@@ -214,31 +217,110 @@ TEST(Design, BadOptionsFailBeforeAnyWork) {
     EXPECT_THROW(prepare_design(o), std::bad_alloc);
 }
 
+// The shares a of K equally spaced levels of step Δ with least mean |Σ_ℓ a_ℓ e^{−iℓθ}|² over the
+// phases θ = 4πΔ/λ of `lambdas` (normal light), by trying every subset of levels: on a subset,
+// a ∝ G⁻¹1; the least over the subsets whose a is non-negative. Independent of the run's
+// active-set solver (small K only).
+std::vector<double> least_mirror_shares(double step, int K, const std::vector<double>& lambdas) {
+    std::vector<double> c(static_cast<std::size_t>(K), 0.0);
+    for (int d = 0; d < K; ++d) {
+        for (double l : lambdas) c[static_cast<std::size_t>(d)] += std::cos(d * 4.0 * k_pi * step / l);
+        c[static_cast<std::size_t>(d)] /= static_cast<double>(lambdas.size());
+    }
+    std::vector<double> best;
+    double best_value = 1e300;
+    for (int mask = 1; mask < (1 << K); ++mask) {
+        std::vector<int> S;
+        for (int l = 0; l < K; ++l)
+            if (mask & (1 << l)) S.push_back(l);
+        const std::size_t n = S.size();
+        std::vector<double> A(n * (n + 1));
+        for (std::size_t i = 0; i < n; ++i) {
+            for (std::size_t j = 0; j < n; ++j)
+                A[i * (n + 1) + j] = c[static_cast<std::size_t>(std::abs(S[i] - S[j]))] + (i == j ? 1e-13 : 0.0);
+            A[i * (n + 1) + n] = 1.0;
+        }
+        for (std::size_t k = 0; k < n; ++k) {  // Gaussian elimination with partial pivoting
+            std::size_t piv = k;
+            for (std::size_t i = k + 1; i < n; ++i)
+                if (std::abs(A[i * (n + 1) + k]) > std::abs(A[piv * (n + 1) + k])) piv = i;
+            for (std::size_t j = 0; j <= n; ++j) std::swap(A[k * (n + 1) + j], A[piv * (n + 1) + j]);
+            for (std::size_t i = k + 1; i < n; ++i) {
+                const double f = A[i * (n + 1) + k] / A[k * (n + 1) + k];
+                for (std::size_t j = k; j <= n; ++j) A[i * (n + 1) + j] -= f * A[k * (n + 1) + j];
+            }
+        }
+        std::vector<double> x(n);
+        for (std::size_t i = n; i-- > 0;) {
+            double v = A[i * (n + 1) + n];
+            for (std::size_t j = i + 1; j < n; ++j) v -= A[i * (n + 1) + j] * x[j];
+            x[i] = v / A[i * (n + 1) + i];
+        }
+        double total = 0.0;
+        for (double v : x) total += v;
+        std::vector<double> a(static_cast<std::size_t>(K), 0.0);
+        bool ok = true;
+        for (std::size_t i = 0; i < n; ++i) {
+            a[static_cast<std::size_t>(S[i])] = x[i] / total;
+            ok = ok && x[i] / total >= 0.0;
+        }
+        if (!ok) continue;
+        double value = 0.0;
+        for (int l = 0; l < K; ++l)
+            for (int m = 0; m < K; ++m)
+                value += a[static_cast<std::size_t>(l)] * a[static_cast<std::size_t>(m)] * c[static_cast<std::size_t>(std::abs(l - m))];
+        if (value < best_value) {
+            best_value = value;
+            best = a;
+        }
+    }
+    return best;
+}
+
+double worst_mirror_power(const std::vector<double>& shares, double step, const std::vector<double>& lambdas) {
+    double worst = 0.0;
+    for (double l : lambdas) {
+        std::complex<double> a(0.0, 0.0);
+        for (std::size_t k = 0; k < shares.size(); ++k) a += shares[k] * std::polar(1.0, -4.0 * k_pi * step * static_cast<double>(k) / l);
+        worst = std::max(worst, std::norm(a));
+    }
+    return worst;
+}
+
 TEST(Design, AntiMirrorLevelsCanCancelTheMirrorOrderAcrossTheBand) {
     // 8 levels spanning 2 µm (step 0.286 µm) are a mirror at λ = 2 · 0.286 µm, inside 0.4–0.7,
-    // whatever the design: the anti-mirror's levels take a step on which a histogram of the levels
-    // (the binomial one) darkens the mirror order at every wavelength of the band. Checked here
-    // by the exact evaluation of a relief with those shares, texel by texel in a random order.
+    // whatever the design: the anti-mirror's levels take the largest step on which some shares
+    // of the levels darken the mirror order (power ≤ 1e-4) at every wavelength of the band.
+    // Checked here by the exact evaluation of a relief with those shares (found by a solver of
+    // this test's own), texel by texel in a random order; and that a step 3 % larger allows no
+    // shares that dark: the step is the largest, not merely a safe one.
     DesignOptions o;
     o.spectral = 16;
     o.band_um = {0.4, 0.7};
     o.size = 64;
     const PreparedDesign p = prepare_design(o);
-    EXPECT_LT(p.levels_um[1], 2.0 / 7.0);
+    const double step = p.levels_um[1];
+    EXPECT_LT(step, 2.0 / 7.0);
     EXPECT_LE(p.levels_um.back(), 2.0);
+    std::vector<double> dense;
+    for (int d = 0; d <= 300; ++d) dense.push_back(p.lambdas_um.front() + (p.lambdas_um.back() - p.lambdas_um.front()) * d / 300.0);
+    const std::vector<double> shares = least_mirror_shares(step, 8, dense);
+    EXPECT_LT(worst_mirror_power(shares, step, dense), 1.2e-4);
+    EXPECT_GT(worst_mirror_power(least_mirror_shares(1.03 * step, 8, dense), 1.03 * step, dense), 1e-4);
     std::vector<double> h;
-    const int shares[8] = {1, 7, 21, 35, 35, 21, 7, 1};  // of 128
-    for (int copy = 0; copy < 32; ++copy)
-        for (int l = 0; l < 8; ++l)
-            for (int k = 0; k < shares[l]; ++k) h.push_back(p.levels_um[static_cast<std::size_t>(l)]);
+    for (int l = 0; l < 8; ++l) {
+        const auto count = static_cast<std::size_t>(std::lround(shares[static_cast<std::size_t>(l)] * 64 * 64));
+        for (std::size_t k = 0; k < count && h.size() < 64 * 64; ++k) h.push_back(p.levels_um[static_cast<std::size_t>(l)]);
+    }
+    while (h.size() < 64 * 64) h.push_back(p.levels_um[3]);
     std::shuffle(h.begin(), h.end(), std::mt19937_64(3));
     for (const auto& w : exact_orders(h, 64, 0.5, {0.0, 0.0}, p.lambdas_um))
         for (std::size_t k = 0; k < w.m.size(); ++k)
             if (w.m[k] == 0 && w.n[k] == 0) {
-                EXPECT_LT(w.power[k], 1e-4) << "lambda " << w.lambda_um;
+                EXPECT_LT(w.power[k], 3e-4) << "lambda " << w.lambda_um;
             }
     // The full range's step: one wavelength of the band near 2Δ is nearly a mirror for the same shares.
-    for (double& x : h) x *= (2.0 / 7.0) / p.levels_um[1];
+    for (double& x : h) x *= (2.0 / 7.0) / step;
     double worst = 0.0;
     for (const auto& w : exact_orders(h, 64, 0.5, {0.0, 0.0}, p.lambdas_um))
         for (std::size_t k = 0; k < w.m.size(); ++k)
@@ -331,6 +413,65 @@ TEST(Design, AntiMirrorLossGradientMatchesFiniteDifferencesOnBothSidesOfTheUnifo
             const double fd = (target->loss(plus, nullptr) - target->loss(minus, nullptr)) / (2 * step);
             EXPECT_NEAR(g[w][q], fd, 1e-6 * std::max(1.0, std::abs(fd))) << "wavelength " << w << " group " << q;
         }
+}
+
+TEST(Design, AntiMirrorBinsAreEqualForAReliefWithQuarterTurnSymmetry) {
+    // A relief unchanged by a quarter turn of the tile reflects a far field unchanged by a quarter
+    // turn about the mirror direction (normal light): power(m, n) = power(−n, m). The region's 16
+    // equal-area bins (4 rings × 4 quadrants) must then hold equal power within each ring, and
+    // equally many orders, whatever the relief; bins that give a half-axis of orders to the wrong
+    // quadrant do not.
+    const int N = 32;
+    const int K = 8;
+    const double step = 0.13;
+    std::mt19937_64 rng(11);
+    std::vector<double> h(static_cast<std::size_t>(N * N), -1.0);
+    auto at = [&](int i, int j) -> double& {
+        return h[static_cast<std::size_t>(((i % N + N) % N) * N + ((j % N + N) % N))];
+    };
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            if (at(i, j) >= 0.0) continue;
+            const double v = step * static_cast<double>(rng() % K);
+            at(i, j) = v;     // the orbit of (i, j) under quarter turns (i, j) → (−j, i)
+            at(-j, i) = v;
+            at(-i, -j) = v;
+            at(j, -i) = v;
+        }
+    const std::vector<double> lambdas{0.41, 0.55, 0.69};
+    const auto orders = exact_orders(h, N, 0.5, {0.0, 0.0}, lambdas);
+    std::vector<detail::OrderSet> sets;
+    for (double lambda : lambdas) sets.push_back(detail::make_order_set(N, 0.5, {0.0, 0.0}, lambda));
+    const auto target = detail::make_anti_mirror({});
+    target->assign(sets);
+    for (std::size_t w = 0; w < lambdas.size(); ++w) {
+        std::map<std::pair<int, int>, double> power;
+        for (std::size_t o = 0; o < orders[w].m.size(); ++o) power[{orders[w].m[o], orders[w].n[o]}] = orders[w].power[o];
+        std::vector<double> bin(16, 0.0), count(16, 0.0);
+        double in_region = 0.0;
+        for (std::size_t o = 0; o < sets[w].size(); ++o) {
+            const int m = sets[w].m[o], n = sets[w].n[o];
+            ASSERT_NEAR(power.at({m, n}), power.at({-n, m}), 1e-12) << m << "," << n;  // the premise
+            const int q = target->members()[w][o][1];
+            if (q < 1) continue;
+            bin[static_cast<std::size_t>(q - 1)] += power.at({m, n});
+            count[static_cast<std::size_t>(q - 1)] += 1.0;
+            in_region += power.at({m, n});
+        }
+        ASSERT_GT(in_region, 0.1);
+        for (int ring = 0; ring < 4; ++ring)
+            for (int quadrant = 1; quadrant < 4; ++quadrant) {
+                const auto a = static_cast<std::size_t>(ring * 4), b = static_cast<std::size_t>(ring * 4 + quadrant);
+                EXPECT_EQ(count[b], count[a]) << "lambda " << lambdas[w] << " ring " << ring;
+                EXPECT_NEAR(bin[b], bin[a], 1e-12) << "lambda " << lambdas[w] << " ring " << ring;
+            }
+        // The target's own uniformity of these fractions is the std/mean of the same 16 bins.
+        detail::Fractions f(1, std::vector<double>(17, 0.0));
+        for (std::size_t q = 0; q < 16; ++q) f[0][q + 1] = bin[q];
+        double mean = in_region / 16.0, var = 0.0;
+        for (double x : bin) var += (x - mean) * (x - mean) / 16.0;
+        EXPECT_NEAR(target->metrics(f)["uniformity"][0].get<double>(), std::sqrt(var) / mean, 1e-12);
+    }
 }
 
 TEST(Design, RepeatedTileHasTheSameFarField) {

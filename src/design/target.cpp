@@ -46,11 +46,18 @@ public:
         }
     }
 
+    // The quadrants are the half-open angle ranges [0, π/2), [π/2, π), [π, 3π/2), [3π/2, 2π), so
+    // that each holds one half-axis: the orders lie on a lattice symmetric under quarter turns
+    // about the mirror direction (normal light), and every ring's four bins then hold equally many
+    // orders. (Angles shifted to (0, 2π] by atan2 + π and clamped put both the −x and +y half-axes
+    // in one quadrant and none in another: ≈ 2 % more orders in one bin than in its neighbour.)
     int bin_of(double dx, double dy, double r2) const {
         const double a = m_spec.r1 * m_spec.r1, b = m_spec.r2 * m_spec.r2;
-        const int ring = std::min(3, static_cast<int>(4.0 * (r2 - a) / (b - a)));
-        const double angle = std::atan2(dy, dx) + k_pi;  // 0 … 2π
-        const int quadrant = std::min(3, static_cast<int>(angle / (0.5 * k_pi)));
+        const int ring = std::clamp(static_cast<int>(4.0 * (r2 - a) / (b - a)), 0, 3);
+        int quadrant = 3;  // dx ≥ 0, dy < 0 (and the centre of a disk)
+        if (dx > 0.0 && dy >= 0.0) quadrant = 0;
+        else if (dx <= 0.0 && dy > 0.0) quadrant = 1;
+        else if (dx < 0.0 && dy <= 0.0) quadrant = 2;
         return ring * 4 + quadrant;
     }
 
