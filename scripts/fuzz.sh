@@ -18,11 +18,12 @@ targets=("$@")
 # observations_hdf5_bytes mutates the bytes of HDF5 files, which exercises HDF5's own parser more
 # than our reader, and HDF5 1.10 overflows and leaks on some malformed headers (fuzz/README.md).
 # Unless named, it only reruns its saved inputs and seeds; observations_hdf5 fuzzes our reader.
+# surface_datx (Zygo datx, HDF5 bytes) likewise.
 replay_only=()
-[ ${#targets[@]} -gt 0 ] || replay_only=(observations_hdf5_bytes)
+[ ${#targets[@]} -gt 0 ] || replay_only=(observations_hdf5_bytes surface_datx)
 [ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint observations_hdf5 observations_hdf5_bytes table
                                      surface_x3p surface_sdf surface_plu surface_sur surface_al3d
-                                     surface_metropro surface_npy surface_text)
+                                     surface_metropro surface_npy surface_text surface_datx)
 
 build="${FUZZ_BUILD:-build-fuzz}"
 if [ -z "${FUZZ_BUILD:-}" ]; then

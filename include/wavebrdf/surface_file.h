@@ -55,7 +55,8 @@ constexpr long long k_max_surface_file_bytes = 4LL << 30;
 //   (Digital Surf), plu (Sensofar), al3d (Alicona), npy (NumPy 1.0–3.0:
 //   float32/float64, either byte order, C or Fortran order), text (a matrix of numbers, one
 //   line per row along y, NaN accepted), exr (a wavebrdf heightfield EXR, transposed as above).
-//   An HDF5 file (Zygo datx) is recognised and refused: datx is not read yet.
+//   datx (Zygo, HDF5: read by the HDF5 plugin; a build without HDF5 recognises it and says
+//   so).
 // spacing_um: the spacing (µm, both axes) for formats that carry none (npy, text); ignored
 // with a file that states its own. Throws std::runtime_error with one line naming the file
 // when it is missing, unreadable, of no known format, of an unsupported variant (which one is

@@ -15,11 +15,12 @@
 
 #include "wavebrdf/observation.h"
 #include "wavebrdf/observation_file.h"
+#include "wavebrdf/surface_file.h"
 
 namespace wavebrdf::detail {
 
-// 2: Observation gained per-pixel weights (its layout changed).
-constexpr int k_hdf5_api_version = 2;
+// 2: Observation gained per-pixel weights (its layout changed). 3: read_datx.
+constexpr int k_hdf5_api_version = 3;
 
 // What the plugin calls in the core (the functions of the same names in wavebrdf/model.h,
 // wavebrdf/observation.h, wavebrdf/memory.h and wavebrdf/io.h).
@@ -42,6 +43,10 @@ struct Hdf5Api {
     ObservationIndex (*read_observation_index)(const std::string& path, double max_memory_gb);
     std::vector<Observation> (*read_observations)(const std::string& path, const std::vector<std::size_t>& indices,
                                                   double max_memory_gb);
+    // A Zygo datx file's surface from the file's bytes `data` named `name` (surface_file.h's
+    // reader, src/io/surface_datx.cpp). Calls nothing of the host: the surface readers (core
+    // and io) use it without attaching, whether or not the observation readers attached first.
+    MeasuredSurface (*read_datx)(const std::string& data, const std::string& name);
 };
 
 }  // namespace wavebrdf::detail
