@@ -83,6 +83,13 @@ void run_plate_command(const DesignArgs& a) {
     }
 }
 
+// A metric for a summary line: three significant digits.
+std::string three_digits(double v) {
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.3g", v);
+    return buffer;
+}
+
 void run(DesignArgs a) {
     DesignOptions& o = a.options;
     // Everything checked before any work: the output directory, then the options.
@@ -141,12 +148,12 @@ void run(DesignArgs a) {
             const auto& b = j["optimal_colour_bound"];
             if (e["delta_uv"].get<double>() > b["delta_uv"].get<double>() || e["luminous_efficiency"].get<double>() < 0.05)
                 std::cerr << "design: " << o.target.text << " reached delta u'v' "
-                          << format_shortest(e["delta_uv"].get<double>()) << " at Y "
-                          << format_shortest(e["luminous_efficiency"].get<double>())
+                          << three_digits(e["delta_uv"].get<double>()) << " at Y "
+                          << three_digits(e["luminous_efficiency"].get<double>())
                           << "; no surface reflects this chromaticity brighter than Y "
-                          << format_shortest(b["y_at_target"].get<double>()) << " (Y "
-                          << format_shortest(b["y_within_delta_uv"].get<double>()) << " within delta u'v' "
-                          << format_shortest(b["delta_uv"].get<double>())
+                          << three_digits(b["y_at_target"].get<double>()) << " (Y "
+                          << three_digits(b["y_within_delta_uv"].get<double>()) << " within delta u'v' "
+                          << three_digits(b["delta_uv"].get<double>())
                           << ") under this light: the optimal-colour limit, design.json optimal_colour_bound\n";
         }
         if (o.target.kind == DesignKind::Iridescent && j.contains("optimal_colour_bound")) {
@@ -155,11 +162,11 @@ void run(DesignArgs a) {
             for (std::size_t q = 0; q < pairs.size() && q < bounds.size(); ++q) {
                 const double d = pairs[q]["delta_uv"].get<double>(), y = pairs[q]["luminous_efficiency"].get<double>();
                 if (d > bounds[q]["delta_uv"].get<double>() || y < 0.05)
-                    std::cerr << "design: pair " << q + 1 << " reached delta u'v' " << format_shortest(d) << " at Y "
-                              << format_shortest(y) << "; no surface reflects its chromaticity brighter than Y "
-                              << format_shortest(bounds[q]["y_at_target"].get<double>()) << " (Y "
-                              << format_shortest(bounds[q]["y_within_delta_uv"].get<double>()) << " within delta u'v' "
-                              << format_shortest(bounds[q]["delta_uv"].get<double>()) << ")\n";
+                    std::cerr << "design: pair " << q + 1 << " reached delta u'v' " << three_digits(d) << " at Y "
+                              << three_digits(y) << "; no surface reflects its chromaticity brighter than Y "
+                              << three_digits(bounds[q]["y_at_target"].get<double>()) << " (Y "
+                              << three_digits(bounds[q]["y_within_delta_uv"].get<double>()) << " within delta u'v' "
+                              << three_digits(bounds[q]["delta_uv"].get<double>()) << ")\n";
             }
         }
         if (j.contains("view_survey") && !j["view_survey"]["best"].is_null()) {

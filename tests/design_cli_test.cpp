@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -54,6 +55,21 @@ TEST(DesignCli, WritesARunDirectoryWhoseReliefScoresAsReported) {
     const CliResult forced = run_cli(dir, "design --out run --size 8 --spectral 3 --iterations 1 --refine-passes 0 "
                                           "--quiet --force");
     EXPECT_EQ(forced.exit_code, 0) << forced.err;
+}
+
+TEST(DesignCli, AMissedColourIsReportedWithTheOptimalColourLimit) {
+    // Blue on a 4-level 8² tile with one iteration misses Y ≥ 5 %: the CLI says so with the bound
+    // design.json holds, and --no-view-survey leaves the survey out.
+    const fs::path dir = fresh_dir("design_cli_bound");
+    const CliResult r = run_cli(dir, "design --out run --target colour:#0000FF --size 8 --spectral 8 --levels 4 "
+                                     "--iterations 1 --refine-passes 0 --no-view-survey --no-plots");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
+    EXPECT_FALSE(j.contains("view_survey"));
+    ASSERT_TRUE(j.contains("optimal_colour_bound"));
+    char expected[64];
+    std::snprintf(expected, sizeof expected, "brighter than Y %.3g", j["optimal_colour_bound"]["y_at_target"].get<double>());
+    EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
 }
 
 TEST(DesignCli, BadInputGetsOneLineBeforeAnyWork) {
