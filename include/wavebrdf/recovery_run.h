@@ -21,7 +21,7 @@
 #include "wavebrdf/noise.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
-#include "wavebrdf/scalar_diffraction.h"
+#include "wavebrdf/scalar_observations.h"
 
 namespace wavebrdf {
 

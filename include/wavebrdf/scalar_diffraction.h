@@ -2,7 +2,7 @@
 // An independent scalar-diffraction simulator: slices of a heightfield computed from the exact
 // reflected field e^{−i(4π/λ)H(x)} of a smooth surface through the heights, not from the Gabor
 // expansion (docs/model.md §3), to test the recovery against data the model does not explain
-// exactly (docs/recovery.md, "Model robustness").
+// exactly (experiments/2026-11-23-scalar-diffraction-model-check.md).
 //
 // What it computes, for one observation (query, one wavelength λ, resolution n):
 //   I(u) = ∫ W(x − μ_p) e^{−i(4π/λ)H̃(x)} e^{−i2π u·(x − μ_p)} dx,   f_r = c1(ω_i, ω_o, λ) |I(u)|²
@@ -38,10 +38,6 @@
 
 namespace wavebrdf {
 
-struct AcquisitionPlan;
-struct Noise;
-struct Observation;
-class Progress;
 
 enum class ScalarWindow {
     Gabor,     // the model's window: sampled Gaussian within 3σ_p, each sample spread by G(·, w/2)
@@ -88,25 +84,5 @@ std::vector<double> scalar_slice(const Heightfield& heightfield, const Query& qu
 // equals ∫|I(u)|² du, whatever the heights.
 double scalar_window_energy(const Heightfield& heightfield, const Query& query,
                             ScalarWindow window = ScalarWindow::Gabor);
-
-// How a study simulates its observations (RecoveryOptions::simulator, CLI --simulator):
-// the Gabor model itself (render_observation) or this scalar-diffraction simulator.
-enum class Simulator { Gabor, Scalar };
-// Parses "gabor" or "scalar"; throws std::invalid_argument "NAME 'TEXT' is unknown; expected
-// gabor or scalar".
-Simulator parse_simulator(const std::string& text, const std::string& name = "simulator");
-const char* to_string(Simulator simulator);
-
-// The planned observations `indices` (ascending indices into planned_observations(plan)) of
-// `truth`, simulated by scalar_slice with `settings` and with `noise` added exactly as
-// simulate_observations adds it (seeded per observation: the same draws for the same index),
-// observations in parallel. Only single-wavelength observations (std::invalid_argument
-// otherwise, naming the observation); std::invalid_argument for an index out of range; throws
-// as scalar_slice. `progress` advances by one per observation.
-std::vector<Observation> simulate_scalar_observations(const Heightfield& truth, const AcquisitionPlan& plan,
-                                                      const Noise& noise, std::uint64_t seed,
-                                                      const std::vector<std::size_t>& indices,
-                                                      const ScalarDiffractionSettings& settings = {},
-                                                      Progress* progress = nullptr);
 
 }  // namespace wavebrdf

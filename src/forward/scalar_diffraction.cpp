@@ -10,13 +10,10 @@
 
 #include "core/parallel.h"
 #include "core/random.h"
-#include "wavebrdf/acquisition.h"
+#include "forward/scalar_diffraction_detail.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/memory.h"
-#include "wavebrdf/noise.h"
-#include "wavebrdf/observation.h"
-#include "wavebrdf/progress.h"
 
 namespace wavebrdf {
 namespace {
@@ -87,20 +84,6 @@ Window make_window(const Heightfield& hf, const Query& query, ScalarWindow kind)
     return w;
 }
 
-void validate_settings(const ScalarDiffractionSettings& s) {
-    if (!(s.tolerance <= 0.1) || !(std::isfinite(s.tolerance)) || (s.tolerance > 0.0 && s.tolerance < 1e-12))
-        throw std::domain_error("scalar diffraction: tolerance " + std::to_string(s.tolerance) +
-                                " is out of range; expected ≤ 0 (no refinement) or 1e-12 … 0.1");
-    if (s.max_samples_per_texel < 1 || s.max_samples_per_texel > 4096)
-        throw std::domain_error("scalar diffraction: max_samples_per_texel " + std::to_string(s.max_samples_per_texel) +
-                                " is out of range; expected 1 … 4096");
-    if (s.min_samples_per_texel < 1 || s.min_samples_per_texel > s.max_samples_per_texel)
-        throw std::domain_error("scalar diffraction: min_samples_per_texel " + std::to_string(s.min_samples_per_texel) +
-                                " is out of range; expected 1 … " + std::to_string(s.max_samples_per_texel));
-    if (s.max_grid_side < 1)
-        throw std::domain_error("scalar diffraction: max_grid_side " + std::to_string(s.max_grid_side) +
-                                " is out of range; expected ≥ 1");
-}
 
 // One axis of the fine grid: samples x_a = (a + ½) h, a = first … first + count − 1, covering
 // the window's support [x0 + lo, x0 + hi]; per sample its texel (i0) and Keys weights.
@@ -274,12 +257,31 @@ double relative_change(const std::vector<std::complex<double>>& a, const std::ve
 
 }  // namespace
 
+namespace detail {
+
+void validate_scalar_settings(const ScalarDiffractionSettings& s) {
+    if (!(s.tolerance <= 0.1) || !(std::isfinite(s.tolerance)) || (s.tolerance > 0.0 && s.tolerance < 1e-12))
+        throw std::domain_error("scalar diffraction: tolerance " + std::to_string(s.tolerance) +
+                                " is out of range; expected ≤ 0 (no refinement) or 1e-12 … 0.1");
+    if (s.max_samples_per_texel < 1 || s.max_samples_per_texel > 4096)
+        throw std::domain_error("scalar diffraction: max_samples_per_texel " + std::to_string(s.max_samples_per_texel) +
+                                " is out of range; expected 1 … 4096");
+    if (s.min_samples_per_texel < 1 || s.min_samples_per_texel > s.max_samples_per_texel)
+        throw std::domain_error("scalar diffraction: min_samples_per_texel " + std::to_string(s.min_samples_per_texel) +
+                                " is out of range; expected 1 … " + std::to_string(s.max_samples_per_texel));
+    if (s.max_grid_side < 1)
+        throw std::domain_error("scalar diffraction: max_grid_side " + std::to_string(s.max_grid_side) +
+                                " is out of range; expected ≥ 1");
+}
+
+}  // namespace detail
+
 std::vector<std::complex<double>> scalar_field(const Heightfield& heightfield, const Query& query, double lambda_um,
                                                int resolution, const ScalarDiffractionSettings& settings,
                                                ScalarDiffractionInfo* info) {
     validate_lambda(lambda_um);
     validate_resolution(resolution);
-    validate_settings(settings);
+    detail::validate_scalar_settings(settings);
     if (query.model != Model::OHS && query.model != Model::ROHS)
         throw std::invalid_argument("scalar diffraction: model " + std::string(to_string(query.model)) +
                                     " is not supported; expected OHS or ROHS (S = 1)");
@@ -352,51 +354,6 @@ double scalar_window_energy(const Heightfield& heightfield, const Query& query, 
             sum += win.weight[k] * win.weight[l] * std::exp(-(dx * dx + dy * dy) / (4.0 * s2));
         }
     return sum / (4.0 * k_pi * s2);
-}
-
-Simulator parse_simulator(const std::string& text, const std::string& name) {
-    if (text == "gabor") return Simulator::Gabor;
-    if (text == "scalar") return Simulator::Scalar;
-    throw std::invalid_argument(name + " '" + text + "' is unknown; expected gabor or scalar");
-}
-
-const char* to_string(Simulator simulator) { return simulator == Simulator::Scalar ? "scalar" : "gabor"; }
-
-std::vector<Observation> simulate_scalar_observations(const Heightfield& truth, const AcquisitionPlan& plan,
-                                                      const Noise& noise, std::uint64_t seed,
-                                                      const std::vector<std::size_t>& indices,
-                                                      const ScalarDiffractionSettings& settings, Progress* progress) {
-    validate_settings(settings);
-    const std::vector<Observation> planned = planned_observations(plan);
-    std::vector<Observation> observations;
-    observations.reserve(indices.size());
-    for (std::size_t i : indices) {
-        if (i >= planned.size())
-            throw std::invalid_argument("simulate_scalar_observations: index " + std::to_string(i) +
-                                        " is out of range; the plan has " + std::to_string(planned.size()) +
-                                        " observations");
-        if (planned[i].lambdas_um.size() != 1)
-            throw std::invalid_argument("simulate_scalar_observations: observation " + std::to_string(i) + " has " +
-                                        std::to_string(planned[i].lambdas_um.size()) +
-                                        " wavelengths; expected one (the simulator is single-wavelength)");
-        observations.push_back(planned[i]);
-    }
-    // One observation per thread; inside, scalar_field's loops and products run serially
-    // (in_parallel_region), so a slice has the same bits however the observations are shared
-    // among ranks (even a share of one).
-    const bool parallel = !detail::in_parallel_region();
-    detail::RegionGuard guard;
-#pragma omp parallel for schedule(dynamic, 1) if (parallel)
-    for (std::size_t k = 0; k < observations.size(); ++k)
-        guard.run([&] {
-            Observation& o = observations[k];
-            o.reference = to_reference(
-                add_noise(scalar_slice(truth, o.query, o.lambdas_um[0], o.resolution, settings), noise,
-                          detail::derive_seed(seed, 1 + indices[k])));  // as add_noise does for all
-            if (progress) progress->advance(1);
-        });
-    guard.rethrow();
-    return observations;
 }
 
 }  // namespace wavebrdf
