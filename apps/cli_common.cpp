@@ -179,6 +179,29 @@ HeightfieldScale resolve_scale_with_warnings(const std::string& path, std::optio
     return scale;
 }
 
+std::pair<CLI::Option*, CLI::Option*> add_grid_options(CLI::App* cmd, std::string& size, double& texel_um,
+                                                       double& vscale) {
+    cmd->add_option("--size", size, "heightfield size NxM for the generated truth or with --observations")
+        ->capture_default_str();
+    CLI::Option* texel =
+        cmd->add_option("--texel-um", texel_um, "texel width w in um (with --truth: the file's if it says)")
+            ->capture_default_str();
+    CLI::Option* scale =
+        cmd->add_option("--vscale", vscale, "vertical scale v (with --truth: the file's if it says)")->capture_default_str();
+    return {texel, scale};
+}
+
+void add_light_options(CLI::App* cmd, double& light_x, double& light_y) {
+    cmd->add_option("--light-x", light_x, "projected light direction x")->capture_default_str();
+    cmd->add_option("--light-y", light_y, "projected light direction y")->capture_default_str();
+}
+
+void add_memory_option(CLI::App* cmd, double& max_memory_gb) {
+    cmd->add_option("--max-memory-gb", max_memory_gb,
+                    "refuse a run whose estimated peak memory exceeds this many GB (0: the physical memory)")
+        ->capture_default_str();
+}
+
 void add_render_path_options(CLI::App* cmd, RenderPathArgs& args) {
     cmd->add_option("--path", args.path,
                     "rendering path: auto (chosen by cost), separable (matrix products), fft (the FFT engine) or "

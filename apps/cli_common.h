@@ -88,6 +88,16 @@ void add_render_path_options(CLI::App* cmd, RenderPathArgs& args);
 // is the library's check, when it renders).
 void apply_render_path_options(const RenderPathArgs& args, RenderOptions& options);
 
+// The options invert and recover share in shape. --size NxM (for the generated truth or with
+// --observations), --texel-um and --vscale (with --truth: the file's if it says); returns the
+// --texel-um and --vscale options (count() > 0 when given). The variables must outlive the parse.
+std::pair<CLI::Option*, CLI::Option*> add_grid_options(CLI::App* cmd, std::string& size, double& texel_um,
+                                                       double& vscale);
+// --light-x, --light-y: the projected light direction.
+void add_light_options(CLI::App* cmd, double& light_x, double& light_y);
+// --max-memory-gb: the limit on the estimated peak memory (0: the physical memory).
+void add_memory_option(CLI::App* cmd, double& max_memory_gb);
+
 // `value` when `given`, else std::nullopt (for the options above).
 inline std::optional<double> if_given(bool given, double value) {
     return given ? std::optional<double>(value) : std::nullopt;

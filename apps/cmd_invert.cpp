@@ -248,12 +248,7 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--weights", a->weights,
                     "with --reference: per-pixel weights EXR of the slice's size (R channel, >= 0; 0 masks a dead, "
                     "saturated or unmeasured pixel out of the loss)");
-    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
-        ->capture_default_str();
-    cmd->add_option("--texel-um", a->texel_um, "texel width w in um (with --truth: the file's if it says)")
-        ->capture_default_str();
-    cmd->add_option("--vscale", a->vscale, "vertical scale v (with --truth: the file's if it says)")
-        ->capture_default_str();
+    add_grid_options(cmd, a->size, a->texel_um, a->vscale);
     auto* x_um = cmd->add_option("--x-um", a->x_um,
                                  "footprint centre x in um, any finite value (periodic; default: tile centre)");
     auto* y_um = cmd->add_option("--y-um", a->y_um,
@@ -262,8 +257,7 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--model", a->model, "OHS, GHS, ROHS, RGHS or Kirchhoff")->capture_default_str();
     auto* lambda = cmd->add_option("--lambda-um", a->lambda_um, "single wavelength in um (default: --spectral 8)");
     auto* spectral = cmd->add_option("--spectral", a->spectral, "N wavelengths, CIE 1931 to linear sRGB (default 8)");
-    cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
-    cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
+    add_light_options(cmd, a->light_x, a->light_y);
     cmd->add_option("--resolution", a->resolution, "slice size n")->capture_default_str();
     cmd->add_option("--init", a->init,
                     "flat, noisy:FRAC (truth + uniform noise of width FRAC x height range) or FILE.exr")
@@ -296,9 +290,7 @@ void add_invert_command(CLI::App& app) {
     cmd->add_option("--checkpoint-every", a->checkpoint_every, "epochs between checkpoints")->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png and curves.png");
     cmd->add_flag("--quiet", a->quiet, "no progress bar or summary");
-    cmd->add_option("--max-memory-gb", a->max_memory_gb,
-                    "refuse a run whose estimated peak memory exceeds this many GB (0: the physical memory)")
-        ->capture_default_str();
+    add_memory_option(cmd, a->max_memory_gb);
     cmd->callback([a, lambda, spectral, x_um, y_um] {
         a->given_x = x_um->count() > 0;
         a->given_y = y_um->count() > 0;

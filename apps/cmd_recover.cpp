@@ -186,12 +186,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.omega_i = {a.light_x, a.light_y};
     options.oblique_lights = !a.no_oblique_lights;
     options.sigma_p_um = a.sigma_p_um;
-    if (a.given_position_uncertainty) {
-        if (!(a.position_uncertainty_um >= 0.0 && a.position_uncertainty_um <= 1e6))
-            throw std::invalid_argument("--position-uncertainty-um " + format_shortest(a.position_uncertainty_um) +
-                                        " is invalid; expected 0 to 1e6 (um rms per coordinate)");
-        options.position_uncertainty_um = a.position_uncertainty_um;
-    }
+    if (a.given_position_uncertainty) options.position_uncertainty_um = a.position_uncertainty_um;
     options.resolution = a.resolution;
     if (a.given_overlap && !(a.overlap >= 0.6 && a.overlap <= 0.95))
         throw std::invalid_argument("--overlap " + format_shortest(a.overlap) + " is invalid; expected 0.6 to 0.95");
@@ -213,9 +208,6 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.seed = a.seed;
     options.max_memory_gb = a.max_memory_gb;
     options.calibrate = parse_calibration(a.calibrate, "--calibrate");
-    if (a.position_passes < -1 || a.position_passes > 100)
-        throw std::invalid_argument("--position-passes " + std::to_string(a.position_passes) +
-                                    " is invalid; expected 0 to 100 (0: off)");
     options.position_passes = a.position_passes;
     options.errors.position_rms_texels = a.position_error_texels;
     options.errors.sigma_p_factor = a.sigma_factor;
@@ -326,12 +318,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     auto on_step = [&](const StageMetrics& m) {
         if (!progress || m.stage != last.stage) {
             end_stage();
-            const long long total = m.stage.rfind("field", 0) == 0     ? r.pipeline.field.iterations
-                                    : m.stage == "refine"              ? r.pipeline.refine_iterations
-                                    : m.stage.rfind("refine:", 0) == 0 ? r.pipeline.refine_ladder_iterations
-                                    : m.stage == "thesis"              ? r.thesis.epochs
-                                                                       : 1;
-            progress = std::make_unique<Progress>(m.stage, std::max<long long>(total, 1), !quiet);
+            progress = std::make_unique<Progress>(m.stage, stage_iterations(r, m.stage), !quiet);
         }
         char message[96];
         if (m.height_rel_rmse >= 0.0)
@@ -414,13 +401,9 @@ void add_recover_command(CLI::App& app) {
                     "true heightfield EXR: observations are planned and rendered from it (default: a generated one)");
     cmd->add_option("--observations", a->observations,
                     "measured or rendered slices with their query parameters (JSON, or HDF5: .h5 .hdf5 .cxi)");
-    cmd->add_option("--size", a->size, "heightfield size NxM for the generated truth or with --observations")
-        ->capture_default_str();
-    auto* texel = cmd->add_option("--texel-um", a->texel_um,
-                                  "texel width w in um (with --truth: the file's if it says)")
-                      ->capture_default_str();
-    auto* vscale = cmd->add_option("--vscale", a->vscale, "vertical scale v (with --truth: the file's if it says)")
-                       ->capture_default_str();
+    const std::pair<CLI::Option*, CLI::Option*> grid = add_grid_options(cmd, a->size, a->texel_um, a->vscale);
+    CLI::Option* texel = grid.first;
+    CLI::Option* vscale = grid.second;
     cmd->add_option("--height-range-um", a->height_range_um,
                     "generated truth: peak-to-valley height in um; with --observations: a bound for unwrapping")
         ->capture_default_str();
@@ -430,8 +413,7 @@ void add_recover_command(CLI::App& app) {
                         "truth's range) instead of the truth's measured roughness (range, slopes, Sal, Str)")
             ->capture_default_str();
     cmd->add_option("--model", a->model, "OHS, ROHS, GHS or RGHS (GHS-type: the field stage through the separable proxy, docs/recovery.md)")->capture_default_str();
-    cmd->add_option("--light-x", a->light_x, "projected light direction x")->capture_default_str();
-    cmd->add_option("--light-y", a->light_y, "projected light direction y")->capture_default_str();
+    add_light_options(cmd, a->light_x, a->light_y);
     cmd->add_flag("--no-oblique-lights", a->no_oblique_lights,
                   "steep surfaces: observe under the one light only (default, OHS and ROHS: the planner adds 4 "
                   "oblique lights so that steep facets reflect into a slice)");
@@ -467,11 +449,11 @@ void add_recover_command(CLI::App& app) {
                     "pipeline (field retrieval, unwrapping, refinement) or thesis (Adam, one observation per epoch)")
         ->capture_default_str();
     cmd->add_option("--field-iterations", a->field_iterations,
-                    "field retrieval iterations per wavelength (default: the library's; a smooth surface without "
-                    "--calibrate: at most 25, at the longest wavelength only)");
+                    "field retrieval iterations per wavelength (default: the schedule's: a smooth surface without "
+                    "--calibrate 25, at the longest wavelength only; else 50, a rough surface up to 200)");
     cmd->add_option("--refine-iterations", a->refine_iterations,
-                    "refinement L-BFGS iterations (default: the library's; a smooth surface without --calibrate: 8 on "
-                    "every slice after 40 on the longest wavelength's)");
+                    "refinement L-BFGS iterations, the whole refinement when given (default: the schedule's: a smooth "
+                    "surface without --calibrate 8 on every slice after 40 on the longest wavelength's; else 40)");
     cmd->add_option("--field-tile-threshold", a->field_tile_threshold,
                     "field stage on tiles along an axis of more than N texels (0: never; default: the library's)");
     cmd->add_option("--field-tile-core", a->field_tile_core,
@@ -494,9 +476,7 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--seed", a->seed, "seed (generated truth, jitter, noise, thesis draws)")
         ->check(std::function<std::string(const std::string&)>(seed_error))
         ->capture_default_str();
-    cmd->add_option("--max-memory-gb", a->max_memory_gb,
-                    "refuse a run whose estimated peak memory exceeds this many GB (0: the physical memory)")
-        ->capture_default_str();
+    add_memory_option(cmd, a->max_memory_gb);
     cmd->add_option("--calibrate", a->calibrate,
                     "self-calibration: parts of the acquisition refined with the heights, comma-separated: "
                     "positions, exposure, sigma; or all, none")

@@ -265,6 +265,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
+    options.names = OptionStyle::Python;  // prepare_recovery's messages name the keywords
     options.method = parse_recovery_method(method, "method");
     options.noise = noise_argument(noise);
     options.simulator = parse_simulator(simulator, "simulator");
@@ -291,17 +292,9 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.omega_i = light_direction(light);
     options.oblique_lights = oblique_lights;
     options.sigma_p_um = check_finite(sigma_p_um, "sigma_p_um");
-    if (!position_uncertainty_um.is_none()) {
-        const double u = position_uncertainty_um.cast<double>();
-        if (!(u >= 0.0 && u <= 1e6))
-            bad_argument("position_uncertainty_um", format_number(u), "0 ... 1e6 (um rms per coordinate), or None");
-        options.position_uncertainty_um = u;
-    }
+    if (!position_uncertainty_um.is_none()) options.position_uncertainty_um = position_uncertainty_um.cast<double>();
     options.resolution = planned_resolution(resolution);
     options.lambdas_um = wavelength_list(lambdas_um, "lambdas_um");
-    if (spectral != 0 && (spectral < 2 || spectral > k_max_spectral_samples))
-        bad_argument("spectral", std::to_string(spectral),
-                     "2 to " + std::to_string(k_max_spectral_samples) + " wavelengths, or 0 for laser slices");
     options.spectral = spectral;
     options.overlap = overlap.is_none() ? 0.0 : check_finite(overlap.cast<double>(), "overlap");
     if (!overlap.is_none() && options.overlap == 0.0)
@@ -322,8 +315,6 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.uncertainty = with_uncertainty;  // the plan refines to the minimum first (recovery_run.h)
     options.calibrate = calibrate_argument(calibrate);
     options.position_passes = optional_count(position_passes, "position_passes");
-    if (options.position_passes > 100)
-        bad_argument("position_passes", std::to_string(options.position_passes), "0 to 100 (0: off) or None");
     if (!std::isfinite(simulate_position_error_texels) || simulate_position_error_texels < 0.0 ||
         simulate_position_error_texels > 10.0)
         bad_argument("simulate_position_error_texels", format_number(simulate_position_error_texels),
@@ -379,11 +370,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     RecoveryResult result;
     // Progress (progress.h): a bar per stage of known length, closed however the run ends.
     py::dict totals;
-    totals["blur:"] = prepared->pipeline.blurred.iterations;
-    totals["field:"] = prepared->pipeline.field.iterations;
-    totals["refine"] = prepared->pipeline.refine_iterations;
-    totals["refine:"] = prepared->pipeline.refine_ladder_iterations;  // the wavelength ladder's rungs
-    totals["thesis"] = prepared->thesis.epochs;
+    for (const char* stage : {"blur:", "field:", "refine", "refine:", "thesis"})
+        totals[stage] = stage_iterations(*prepared, stage);
     // Under MPI only rank 0 shows progress.
     PythonProgress progress("wrap_recover", callback, comm->is_root() ? quiet : py::object(py::bool_(true)), totals);
     Calibration calibration;
@@ -408,17 +396,19 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     result.noise = to_string(prepared->noise);
     result.height_range_um = prepared->range_um;
     if (with_uncertainty && !result.stopped) {
-        UncertaintyReport bars;
+        std::optional<UncertaintyReport> report;
+        std::string why_not;
         {
             py::gil_scoped_release release;
-            const auto start = std::chrono::steady_clock::now();
-            HeightUncertainty map = run_or_abort(
-                *comm, [&] { return height_uncertainty(prepared->observations, estimate, prepared->loss, {}, *comm); });
-            const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-            const Heightfield* truth_known = prepared->truth && prepared->metric_note.empty() ? &*prepared->truth
-                                                                                              : nullptr;
-            bars = uncertainty_report(std::move(map), seconds, estimate, truth_known);
+            report = recovery_error_bars(*prepared, estimate, *comm, &why_not);
         }
+        // As the CLI: a problem without error bars keeps its estimate, with a warning.
+        if (!report) {
+            py::module_::import("warnings").attr("warn")("no error bars: " + why_not,
+                                                         py::module_::import("builtins").attr("RuntimeWarning"));
+            return result;
+        }
+        UncertaintyReport& bars = *report;
         result.uncertainty = owning_array(std::move(bars.map.sigma_um), {estimate.rows(), estimate.cols()});
         result.median_sigma_um = bars.median_sigma_um;
         result.uncertainty_seconds = bars.seconds;
@@ -632,8 +622,9 @@ truth Heightfield) slopes that reflect light off the slice.
         "recover_heights",
         [](const py::object& observations, const py::object& size, double texel_um, double vscale,
            const py::object& truth, const std::vector<double>& blur_widths, int blur_iterations, int blur_wavelengths,
-           double blur_spacing_sigma, int field_iterations, int field_passes, bool cascade, bool band_limit, int refine,
-           double max_range_um, bool unwrap_from_blurred, int refine_iterations, int refine_history,
+           double blur_spacing_sigma, const py::object& field_iterations, int field_passes, bool cascade,
+           bool band_limit, int refine, const py::object& max_range_um, bool unwrap_from_blurred,
+           const py::object& refine_iterations, int refine_history,
            const py::object& refine_loss, const py::object& callback, const py::object& comm_arg,
            const py::object& calibrate, int field_tile_threshold, int field_tile_core,
            const py::object& white_smoothness, int white_smoothness_iterations) -> py::object {
@@ -656,8 +647,7 @@ truth Heightfield) slopes that reflect light off the slice.
             if (!std::isfinite(blur_spacing_sigma) || blur_spacing_sigma < 0.0)
                 bad_argument("blur_spacing_sigma", format_number(blur_spacing_sigma), ">= 0 (0: all positions)");
             s.blur_spacing_sigma = blur_spacing_sigma;
-            if (field_iterations < 0) bad_argument("field_iterations", std::to_string(field_iterations), ">= 0");
-            s.field.iterations = field_iterations;
+            s.field.iterations = optional_count(field_iterations, "field_iterations");
             if (field_passes < 1) bad_argument("field_passes", std::to_string(field_passes), ">= 1");
             s.field_passes = field_passes;
             s.cascade = cascade;
@@ -665,10 +655,9 @@ truth Heightfield) slopes that reflect light off the slice.
             if (refine < 0 || (refine > 0 && refine % 2 == 0) || refine > 63)
                 bad_argument("refine", std::to_string(refine), "0 (automatic) or an odd object-grid refinement 1...63");
             s.refine = refine;
-            s.height_range_um = check_positive(max_range_um, "max_range_um");
+            if (!max_range_um.is_none()) s.height_range_um = check_positive(max_range_um.cast<double>(), "max_range_um");
             s.unwrap_from_blurred = unwrap_from_blurred;
-            if (refine_iterations < 0) bad_argument("refine_iterations", std::to_string(refine_iterations), ">= 0");
-            s.refine_iterations = refine_iterations;
+            s.refine_iterations = optional_count(refine_iterations, "refine_iterations");
             if (refine_history < 1) bad_argument("refine_history", std::to_string(refine_history), ">= 1");
             s.refine_history = refine_history;
             s.refine_loss = loss_argument(refine_loss);
@@ -698,9 +687,9 @@ truth Heightfield) slopes that reflect light off the slice.
         "observations"_a, "size"_a, "texel_um"_a, "vscale"_a = 1.0, py::kw_only(), "truth"_a = py::none(),
         "blur_widths"_a = rs.blurred.blur_widths, "blur_iterations"_a = rs.blurred.iterations,
         "blur_wavelengths"_a = rs.blur_wavelengths, "blur_spacing_sigma"_a = rs.blur_spacing_sigma,
-        "field_iterations"_a = rs.field.iterations, "field_passes"_a = rs.field_passes, "cascade"_a = rs.cascade,
-        "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = rs.height_range_um,
-        "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = rs.refine_iterations,
+        "field_iterations"_a = py::none(), "field_passes"_a = rs.field_passes, "cascade"_a = rs.cascade,
+        "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = py::none(),
+        "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = py::none(),
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
         "comm"_a = py::none(), "calibrate"_a = py::none(), "field_tile_threshold"_a = rs.field_tile_threshold,
         "field_tile_core"_a = rs.field_tile_core, "white_smoothness"_a = rs.white_smoothness,
@@ -709,19 +698,24 @@ truth Heightfield) slopes that reflect light off the slice.
 The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
 phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
 on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
-vscale). Settings (defaults: the library's, in the signature):
+vscale). Settings (defaults: the library's, in the signature; None: the schedule's, which with
+every default is the schedule `wavebrdf recover` and recover() run for a smooth surface):
 
 blur_widths         blurred fit: blur widths in footprint lobes, widest first ([] : start the
                     fields from flat); blur_iterations: L-BFGS per width (>= 0)
 blur_wavelengths    the blurred fit uses this many longest wavelengths (0: all), at positions
                     at least blur_spacing_sigma sigma_p apart (0: all)
-field_iterations    L-BFGS iterations of each field retrieval (>= 0); field_passes >= 1;
+field_iterations    L-BFGS iterations of each field retrieval (>= 0; None: 25 on a smooth surface
+                    without calibration, else 50); field_passes >= 1;
                     cascade: each field starts from the heights of the fields before it;
                     band_limit: keep only the object's spectrum the slices see
 refine              odd object-grid refinement 1...63 (0: automatic)
-max_range_um        bound on the height range for unwrapping (um, > 0; RecoverSettings::height_range_um)
+max_range_um        bound on the height range for unwrapping (um, > 0; None: 4;
+                    RecoverSettings::height_range_um)
 unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
-refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
+refine_iterations   final L-BFGS iterations on the heights (>= 0; None: the schedule's, 8 after
+                    a first round on the longest wavelength's slices on a smooth surface without
+                    calibration, else 40; a count given is the whole refinement); refine_history >= 1;
                     refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
 white_smoothness    white light (RGB slices only): the smoothness continuation's weights before
                     the refinement, largest first (at most 64, each 0 ... 1e12; [] none);
@@ -910,7 +904,7 @@ loss          a spec or Loss; None: matched to the noise for the pipeline (ampli
               noise, poisson:N, mse), cmsle:1 for the thesis's method
 method        'pipeline' (blurred fit, field retrieval, unwrapping, refinement) or 'thesis'
               (Adam, one observation per epoch)
-field_iterations, refine_iterations  pipeline iterations (>= 0; None: the library's)
+field_iterations, refine_iterations  pipeline iterations (>= 0; None: the schedule's)
 epochs        thesis method: Adam epochs (>= 0)
 seed          generated truth, position jitter, noise, the thesis's draws
 callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse)

@@ -238,7 +238,7 @@ RecoverSettings small_settings() {
 
 // On scalar-diffraction slices the Gabor refinement fits a model the data do not follow; the
 // model check keeps the field model's heights, no worse than the unwrapped ones (measured
-// bound: docs/recovery.md, "Model robustness").
+// bound: experiments/2026-11-23-scalar-diffraction-model-check.md).
 TEST(ModelCheck, OnScalarSlicesTheResultIsNoWorseThanTheUnwrappedHeights) {
     const ScalarCase c = small_case(Simulator::Scalar, 5705);
     std::string selected;

@@ -1,5 +1,5 @@
 // Oblique light and GHS-type observations in the recovery (recovery/field_proxy.h;
-// docs/recovery.md, "Oblique light and other models"): the separable proxy against the
+// experiments/2026-11-23-oblique-light-and-models.md): the separable proxy against the
 // renderer, and end-to-end recoveries of a small tile.
 #include <gtest/gtest.h>
 
@@ -49,6 +49,7 @@ RecoverSettings quick_settings() {
     s.blurred.blur_widths = {12.0, 4.0};
     s.blurred.iterations = 15;
     s.field.iterations = 40;
+    s.field_wavelengths = 0;  // every wavelength's field (the smooth schedule's is the longest's alone)
     s.refine_iterations = 15;
     return s;
 }

@@ -1,5 +1,5 @@
-// The outer loop of position self-calibration (docs/recovery.md, "Self-calibration: positions",
-// round 5; src/recovery/recover_positions.h): every position registered on its own at fixed
+// The outer loop of position self-calibration (experiments/2026-11-23-position-calibration.md;
+// src/recovery/recover_positions.h): every position registered on its own at fixed
 // heights by a grid search of its full-model loss (all its wavelengths) and a parabola, then the
 // field stage and stage 3 again from the registered positions.
 #include <gtest/gtest.h>
@@ -119,7 +119,7 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     EXPECT_LT(after_outer, 0.8 * after_once) << "once " << after_once << " outer " << after_outer;
 }
 
-// Round 12b (docs/recovery.md, "Self-calibration: positions"): calibrate.positions alone runs
+// (experiments/2026-11-23-position-calibration.md): calibrate.positions alone runs
 // the position loop — RecoverSettings' defaults: up to 20 passes, Newton steps after every
 // registration, the field stage while the registration moves, stopped by the stall rule — and
 // its offsets end closer to the truth than one recovery's (before round 12b the loop was off
@@ -312,7 +312,7 @@ RescueCase rescue_case(std::uint64_t seed, const std::vector<double>& fixed, dou
     return r;
 }
 
-// Round 10 (docs/recovery.md, "Self-calibration: positions"): the outer loop's stall on seeds
+// (experiments/2026-11-23-position-calibration.md): the outer loop's stall on seeds
 // 11201/11202 was held by one or two positions trapped 2.7–5 texels from the truth, beyond the
 // registration's ± 2 texels, whose loss was 100–700 × the median. rescue_lost_positions searches
 // only the positions above factor × the median over ± radius: here, at the true heights, one
@@ -386,7 +386,7 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
                  std::invalid_argument);
 }
 
-// Round 14 (docs/recovery.md, "Self-calibration: positions"): at 0.8 overlap the loop ends with
+// (experiments/2026-11-23-position-calibration.md): at 0.8 overlap the loop ends with
 // single positions lost 6–7 texels from the truth, carried to the far side of their stated centre
 // (truths 2.3–3.4 texels off): a search about the offset no longer reaches them. Here one position
 // is 2.5 texels (x) off its stated centre and starts at −3.5: the round-10 rescue (± 4 about the
@@ -429,8 +429,8 @@ TEST(PositionRegistration, RescueSearchesAboutTheStatedCentreToo) {
         }
 }
 
-// Round 11 (docs/recovery.md, "Self-calibration: positions"): after round 10's rescue the outer
-// loop was held by the registration's precision (the half-texel grid and a parabola per
+// (experiments/2026-11-23-position-calibration.md): with the rescue of lost positions, the outer
+// loop was still held by the registration's precision (the half-texel grid and a parabola per
 // coordinate, without the cross term), not by the heights. newton_register_positions takes one
 // Newton step per position on its 2 × 2 Hessian (central differences ± 0.25 texel): here, at the
 // true heights, every position starts 0.3 / −0.2 texel off its truth; the grid and parabola

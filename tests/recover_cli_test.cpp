@@ -59,8 +59,8 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--observations missing.json --size 8 --out " + out, {"missing.json"}},
         // Issue 9: counts are bounded (2147483647 overflowed the progress total), before work.
         {"--method thesis --epochs 2147483647 --out " + out, {"epochs 2147483647", "0 to 10000000"}},
-        {"--field-iterations 2147483647 --out " + out, {"field iterations 2147483647", "0 to 10000000"}},
-        {"--refine-iterations 10000001 --out " + out, {"refine iterations 10000001", "0 to 10000000"}},
+        {"--field-iterations 2147483647 --out " + out, {"--field-iterations 2147483647", "0 to 10000000"}},
+        {"--refine-iterations 10000001 --out " + out, {"--refine-iterations 10000001", "0 to 10000000"}},
         // Self-calibration and simulated acquisition errors (calibration.h).
         {"--calibrate exposure,focus --out " + out, {"--calibrate", "'focus'", "positions, exposure, sigma"}},
         {"--simulate-exposure 2,1 --out " + out, {"--simulate-exposure", "2", "at most the max"}},
@@ -224,7 +224,7 @@ TEST(RecoverCliTest, OutMustBeNewOrEmptyUnlessForced) {
     EXPECT_TRUE(fs::exists(dir / "run" / "estimate.exr")) << "--force deleted files though a foreign one was there";
 }
 
-// The smooth schedule's single-texel trap (docs/recovery.md, Speed, eighth pass): on this seed the
+// The smooth schedule's single-texel trap (experiments/2026-11-23-recovery-speed.md): on this seed the
 // 0.667 µm ladder rung left texel (5, 5) 0.218 µm off (0.357 % overall, every other texel within
 // 0.022 µm); the outlier repair after the refinement puts it back. ~6 s of CPU.
 TEST(RecoverCliTest, SmoothScheduleLeavesNoSingleTexelOutlier) {

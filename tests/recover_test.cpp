@@ -682,10 +682,11 @@ Heightfield recover_counting_stages(const SmallCase& c, const RecoverSettings& s
 // field_wavelengths / refine_ladder_wavelengths count the longest wavelengths: 1 runs the field
 // stage at the longest wavelength only and the refinement first on its slices ("refine:0.6")
 // then on every slice, the same bits as naming that wavelength in field_lambda_min_um /
-// refine_ladder_min_um; negative counts are refused.
+// refine_ladder_min_um; negative counts other than −1 (unset: the schedule's) are refused.
 TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
     const SmallCase c = small_case(25);
     RecoverSettings s = quick_settings();
+    s.field_wavelengths = 0;  // every wavelength (the smooth schedule's default is the longest)
     s.refine_iterations = 3;
     s.refine_ladder_iterations = 4;
     s.model_check_iterations = 0;
@@ -710,7 +711,7 @@ TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
     EXPECT_EQ(b.values(), d.values());
     EXPECT_EQ(counted, named);
     RecoverSettings bad = s;
-    bad.field_wavelengths = -1;
+    bad.field_wavelengths = -2;
     EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad), std::invalid_argument);
     bad = s;
     bad.refine_ladder_wavelengths = -2;
@@ -760,6 +761,8 @@ TEST(RecoverHeights, LadderStallRuleStopsTheRung) {
     s.field_wavelengths = 1;
     s.refine_ladder_wavelengths = 1;
     s.outlier_repair_rounds = 0;  // the rung's count alone
+    s.refine_ladder_stall_window = 0;          // off (the smooth schedule's is 5)
+    s.refine_ladder_relative_tolerance = 0.0;  // off (the smooth schedule's is 1e-8)
     std::map<std::string, int> full, stalled, never;
     const Heightfield a = recover_counting_stages(c, s, &full);
     EXPECT_EQ(full.at("refine:0.6"), 8);
@@ -780,7 +783,7 @@ TEST(RecoverHeights, LadderStallRuleStopsTheRung) {
     EXPECT_EQ(never, full);
     EXPECT_EQ(d.values(), a.values());
     for (const auto& [window, tolerance] :
-         std::vector<std::pair<int, double>>{{-1, 0.01}, {5, -0.1}, {5, std::nan("")}}) {
+         std::vector<std::pair<int, double>>{{-2, 0.01}, {5, -0.1}, {5, std::nan("")}}) {
         RecoverSettings r = s;
         r.refine_ladder_stall_window = window;
         r.refine_ladder_stall_tolerance = tolerance;

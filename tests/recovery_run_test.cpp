@@ -5,6 +5,7 @@
 #include <set>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "test_util.h"
 #include "wavebrdf/memory.h"
@@ -89,8 +90,7 @@ TEST(RecoveryRun, EstimateCountsTheReferencesInFloat) {
 }
 
 // The planner's overlap (RecoveryOptions::overlap 0): 0.6, and k_position_calibration_overlap
-// (0.7) where the positions are calibrated (docs/recovery.md, "Self-calibration: positions",
-// round 13b); a stated overlap is kept with or without calibration.
+// (0.7) where the positions are calibrated (experiments/2026-11-23-position-calibration.md); a stated overlap is kept with or without calibration.
 TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
     const auto planned = [](const char* calibrate, double overlap) {
         RecoveryOptions options;
@@ -154,6 +154,41 @@ TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprintAndTheRescue) {
     EXPECT_EQ(planned(3.0, std::nullopt, "none").rescue_radius_texels, defaults.position_rescue_radius_texels);
 }
 
+// recover_heights with default settings runs the schedule that `wavebrdf recover` and Python's
+// recover() run (prepare_recovery, run_recovery) for the default, smooth surface: the same
+// stages, iterations and losses, and the same heights to the bit. (The front ends once
+// overwrote the settings with a smooth schedule the library did not know.)
+TEST(RecoveryRun, LibraryDefaultsRunTheFrontEndsSchedule) {
+    RecoveryOptions options;
+    options.rows = options.cols = 12;
+    options.resolution = 16;
+    options.seed = 3;
+    const PreparedRecovery prepared = prepare_recovery(options);
+    std::vector<StageMetrics> front, library;
+    const Heightfield a = run_recovery(prepared, [&](const StageMetrics& m) {
+        front.push_back(m);
+        return true;
+    });
+    const Heightfield b = recover_heights(prepared.observations, prepared.rows, prepared.cols, prepared.texel_um,
+                                          prepared.vscale, RecoverSettings{}, [&](const StageMetrics& m) {
+                                              library.push_back(m);
+                                              return true;
+                                          });
+    ASSERT_EQ(front.size(), library.size());
+    for (std::size_t k = 0; k < front.size(); ++k) {
+        EXPECT_EQ(front[k].stage, library[k].stage) << k;
+        EXPECT_EQ(front[k].iteration, library[k].iteration) << k;
+        EXPECT_EQ(front[k].loss, library[k].loss) << front[k].stage << " " << front[k].iteration;
+    }
+    ASSERT_EQ(a.values().size(), b.values().size());
+    for (std::size_t k = 0; k < a.values().size(); ++k) EXPECT_EQ(a.values()[k], b.values()[k]) << k;
+    // The front ends' progress totals are the schedule's.
+    const RecoverSettings s = scheduled_settings(RecoverSettings{}, prepared.texel_um);
+    EXPECT_EQ(stage_iterations(prepared, "refine"), s.refine_iterations);
+    EXPECT_EQ(stage_iterations(prepared, "field:0.7"), s.field.iterations);
+    EXPECT_EQ(stage_iterations(prepared, "unwrap"), 1);
+}
+
 // Error bars need the minimum: with them the smooth schedule's 8 last iterations become
 // k_uncertainty_refine_iterations (the ±2σ coverage fell to 85–93 % with 8); a stated count wins.
 TEST(RecoveryRun, ErrorBarsRefineToTheMinimum) {
@@ -164,7 +199,8 @@ TEST(RecoveryRun, ErrorBarsRefineToTheMinimum) {
         options.noise = parse_noise("poisson:1e4");
         options.uncertainty = uncertainty;
         options.refine_iterations = stated;
-        return prepare_recovery(options).pipeline.refine_iterations;
+        const PreparedRecovery r = prepare_recovery(options);
+        return scheduled_settings(r.pipeline, r.texel_um).refine_iterations;
     };
     EXPECT_LT(refine_of(false, -1), k_uncertainty_refine_iterations);  // the smooth schedule's
     EXPECT_EQ(refine_of(true, -1), k_uncertainty_refine_iterations);

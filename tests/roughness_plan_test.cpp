@@ -70,16 +70,22 @@ TEST(RoughnessPlan, ExpectedSlopeMatchesGeneratedSurfaces) {
         }
 }
 
-// The study's default surface (±1 µm, correlation 4 texels of 2 µm) is smooth: the recovery keeps
-// the library's defaults (so the common case costs what it did); the documented failures
+// The settings the recovery's schedule resolves for a stated surface (µm) on texels of 2 µm.
+RecoverSettings scheduled_for(double range_um, double correlation_um, RecoverSettings s = {}) {
+    s.surface.height_range_um = range_um;
+    s.surface.correlation_um = correlation_um;
+    return scheduled_settings(s, 2.0);
+}
+
+// The study's default surface (±1 µm, correlation 4 texels of 2 µm) is smooth: the recovery runs
+// the schedule of an unstated surface (the library's defaults); the documented failures
 // (±4 µm; correlation 2 texels) are rough and get the longer schedule.
 TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
     const RoughnessPlan common = plan_for_roughness(2.0, 8.0, 2.0);
     EXPECT_FALSE(common.rough);
     EXPECT_TRUE(common.notes.empty());
-    RecoverSettings settings;
-    apply_roughness_plan(common, settings);
-    const RecoverSettings defaults;
+    const RecoverSettings settings = scheduled_for(2.0, 8.0);
+    const RecoverSettings defaults = scheduled_settings(RecoverSettings{}, 2.0);
     EXPECT_EQ(settings.field.iterations, defaults.field.iterations);
     EXPECT_EQ(settings.field_passes, defaults.field_passes);
     EXPECT_EQ(settings.blurred.iterations, defaults.blurred.iterations);
@@ -97,12 +103,9 @@ TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
     }
     // The longer field stage for the short correlation, and for steep slopes with their long
     // wavelengths (without them steep slopes gained nothing).
-    RecoverSettings fine;
-    apply_roughness_plan(plan_for_roughness(2.0, 4.0, 2.0), fine);
-    EXPECT_GT(fine.field.iterations, defaults.field.iterations);
-    RecoverSettings steep;
-    apply_roughness_plan(plan_for_roughness(8.0, 8.0, 2.0), steep);
-    EXPECT_GT(steep.field.iterations, defaults.field.iterations);
+    const int library = FieldRetrievalSettings{}.iterations;
+    EXPECT_GT(scheduled_for(2.0, 4.0).field.iterations, library);
+    EXPECT_GT(scheduled_for(8.0, 8.0).field.iterations, library);
     // The rule is in µm, not texels, except for the correlation: the same surface on finer
     // texels (correlation 4 texels of 1 µm) is not "fine".
     EXPECT_FALSE(plan_for_roughness(1.0, 4.0, 1.0).rough);
@@ -192,23 +195,24 @@ TEST(RoughnessPlan, PrepareRecoveryChoosesTheScheduleFromTheStatedSurface) {
     options.rows = options.cols = 8;
     options.resolution = 16;
     options.seed = 6301;
+    const auto scheduled = [](const PreparedRecovery& r) { return scheduled_settings(r.pipeline, r.texel_um); };
     const PreparedRecovery smooth = prepare_recovery(options);
-    // Smooth: the smooth schedule (apply_smooth_schedule: fewer field iterations, longest
-    // wavelength only).
-    EXPECT_LT(smooth.pipeline.field.iterations, RecoverSettings{}.field.iterations);
-    EXPECT_EQ(smooth.pipeline.field_wavelengths, 1);
-    EXPECT_EQ(smooth.pipeline.refine_ladder_wavelengths, 1);
-    EXPECT_EQ(smooth.pipeline.blurred.iterations, RecoverSettings{}.blurred.iterations);
+    // Smooth: the smooth schedule (fewer field iterations, longest wavelength only).
+    const int library = FieldRetrievalSettings{}.iterations;
+    EXPECT_LT(scheduled(smooth).field.iterations, library);
+    EXPECT_EQ(scheduled(smooth).field_wavelengths, 1);
+    EXPECT_EQ(scheduled(smooth).refine_ladder_wavelengths, 1);
+    EXPECT_EQ(scheduled(smooth).blurred.iterations, RecoverSettings{}.blurred.iterations);
     options.correlation_texels = 2.0;
     const PreparedRecovery rough = prepare_recovery(options);
-    EXPECT_GT(rough.pipeline.field.iterations, RecoverSettings{}.field.iterations);
-    EXPECT_EQ(rough.pipeline.field_wavelengths, 0);
+    EXPECT_GT(scheduled(rough).field.iterations, library);
+    EXPECT_EQ(scheduled(rough).field_wavelengths, 0);
     bool noted = false;
     for (const auto& n : rough.notes) noted = noted || n.find("rough surface") != std::string::npos;
     EXPECT_TRUE(noted);
     // An explicit --field-iterations still wins.
     options.field_iterations = 7;
-    EXPECT_EQ(prepare_recovery(options).pipeline.field.iterations, 7);
+    EXPECT_EQ(scheduled(prepare_recovery(options)).field.iterations, 7);
 }
 
 // The long wavelengths of a rough plan (roughness_plan.h): ±4 µm at correlation 4 texels gets a
@@ -230,8 +234,7 @@ TEST(RoughnessPlan, LongWavelengthsStartTheFieldWithinAQuarterWave) {
     }
     // The shortest long wavelength is within a quarter wave of the next longer one's start:
     // with a field as good as the longest's start, 4× finer steps keep the phase within π.
-    RecoverSettings settings;
-    apply_roughness_plan(steep, settings);
+    const RecoverSettings settings = scheduled_for(8.0, 8.0);
     EXPECT_EQ(settings.field_lambda_min_um, steep.long_lambdas_um.back());
     // ±4 µm at correlation 4 texels of 2 µm: 5.5 and 1.4 µm, and the refinement's ladder over
     // both (rungs 5.5, 1.4, then every slice; measured: docs/recovery.md, round 5).
@@ -241,8 +244,7 @@ TEST(RoughnessPlan, LongWavelengthsStartTheFieldWithinAQuarterWave) {
 
     const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
     EXPECT_TRUE(smooth.long_lambdas_um.empty());
-    RecoverSettings defaults;
-    apply_roughness_plan(smooth, defaults);
+    const RecoverSettings defaults = scheduled_for(2.0, 8.0);
     EXPECT_EQ(defaults.field_lambda_min_um, 0.0);
     EXPECT_EQ(smooth.refine_ladder_min_um, 0.0);
     EXPECT_EQ(defaults.refine_ladder_min_um, 0.0);
@@ -269,14 +271,15 @@ TEST(RoughnessPlan, LongWavelengthsRecoverAFineTile) {
     options.seed = 7301;
     const PreparedRecovery smooth = prepare_recovery(options);
     for (const Observation& o : smooth.observations) EXPECT_LE(o.lambdas_um[0], 0.7);
-    EXPECT_EQ(smooth.pipeline.field_lambda_min_um, 0.0);
+    EXPECT_EQ(scheduled_settings(smooth.pipeline, smooth.texel_um).field_lambda_min_um, 0.0);
 
     options.correlation_texels = 2.0;
     const PreparedRecovery steep = prepare_recovery(options);
     double longest = 0.0;
     for (const Observation& o : steep.observations) longest = std::max(longest, o.lambdas_um[0]);
     EXPECT_GT(longest, 4.0 * 0.17 * steep.range_um - 1e-9);
-    EXPECT_GT(steep.pipeline.field_lambda_min_um, 0.7);
+    const double field_lambda_min_um = scheduled_settings(steep.pipeline, steep.texel_um).field_lambda_min_um;
+    EXPECT_GT(field_lambda_min_um, 0.7);
     std::vector<std::string> fields;
     double final_long = -1.0;
     const Heightfield with_long = run_recovery(steep, [&](const StageMetrics& m) {
@@ -285,7 +288,7 @@ TEST(RoughnessPlan, LongWavelengthsRecoverAFineTile) {
         return true;
     });
     final_long = height_rel_rmse(with_long, *steep.truth);
-    for (const std::string& f : fields) EXPECT_GE(std::stod(f.substr(6)), steep.pipeline.field_lambda_min_um) << f;
+    for (const std::string& f : fields) EXPECT_GE(std::stod(f.substr(6)), field_lambda_min_um) << f;
     EXPECT_FALSE(fields.empty());
 
     // The visible ladder alone, the rest alike.
@@ -415,16 +418,14 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
     }
 }
 
-// The smooth schedule (docs/recovery.md, Speed, sixth pass): a smooth surface without
-// self-calibration, of any size (docs/scale.md, "Time per texel above 64²": above 64² the
-// field stage's cap is each tile's), gets the field stage at its longest wavelength only, at
-// most 25 field iterations, and the refinement first on that wavelength's slices; a rough
-// surface or any calibration keeps the settings as they were.
+// The smooth schedule (experiments/2026-11-23-recovery-speed.md): a smooth surface without
+// self-calibration gets the field stage at its longest wavelength only, at most 25 field
+// iterations, and the refinement first on that wavelength's slices; a rough surface or any
+// calibration gets the longer schedule; a value the caller set is kept.
 TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     const RoughnessPlan smooth = plan_for_roughness(2.0, 8.0, 2.0);
     ASSERT_FALSE(smooth.rough);
-    RecoverSettings settings;
-    apply_smooth_schedule(smooth, 64, 64, settings);
+    const RecoverSettings settings = scheduled_for(2.0, 8.0);
     EXPECT_EQ(settings.field_wavelengths, 1);
     EXPECT_EQ(settings.refine_ladder_wavelengths, 1);
     EXPECT_EQ(settings.field.iterations, 25);
@@ -436,45 +437,52 @@ TEST(RoughnessPlan, SmoothScheduleOnlyForSmoothUncalibratedSurfaces) {
     EXPECT_EQ(settings.outlier_repair_rounds, 3);  // a second trapped texel shows after the first's repair
     EXPECT_EQ(settings.field_lambda_min_um, 0.0);  // counted, not named
     EXPECT_EQ(settings.refine_ladder_min_um, 0.0);
+    EXPECT_EQ(settings.height_range_um, 2.0);      // the stated range bounds the unwrapping
+    // An unstated surface is smooth: the same schedule.
+    const RecoverSettings unstated = scheduled_settings(RecoverSettings{}, 2.0);
+    EXPECT_EQ(unstated.field.iterations, 25);
+    EXPECT_EQ(unstated.refine_iterations, 8);
+    EXPECT_EQ(unstated.refine_ladder_wavelengths, 1);
+    EXPECT_EQ(unstated.height_range_um, 4.0);
 
-    const RecoverSettings defaults;
-    const auto unchanged = [&](const RecoverSettings& s) {
-        EXPECT_EQ(s.field_wavelengths, defaults.field_wavelengths);
-        EXPECT_EQ(s.refine_ladder_wavelengths, defaults.refine_ladder_wavelengths);
-        EXPECT_EQ(s.refine_ladder_relative_tolerance, defaults.refine_ladder_relative_tolerance);
-        EXPECT_EQ(s.field.iterations, defaults.field.iterations);
-        EXPECT_EQ(s.refine_ladder_iterations, defaults.refine_ladder_iterations);
-        EXPECT_EQ(s.refine_iterations, defaults.refine_iterations);
-        EXPECT_EQ(s.refine_ladder_stall_window, defaults.refine_ladder_stall_window);
-        EXPECT_EQ(s.outlier_repair_rounds, defaults.outlier_repair_rounds);
+    const auto longer = [&](const RecoverSettings& s, int field_iterations) {
+        EXPECT_EQ(s.field_wavelengths, 0);
+        EXPECT_EQ(s.refine_ladder_wavelengths, 0);
+        EXPECT_EQ(s.refine_ladder_relative_tolerance, 0.0);
+        EXPECT_EQ(s.field.iterations, field_iterations);
+        EXPECT_EQ(s.refine_ladder_iterations, 40);
+        EXPECT_EQ(s.refine_iterations, 40);
+        EXPECT_EQ(s.refine_ladder_stall_window, 0);
+        EXPECT_EQ(s.outlier_repair_rounds, 1);
     };
     RecoverSettings repair_off;
     repair_off.outlier_repair_rounds = 0;  // a caller's "off" stays off
-    apply_smooth_schedule(smooth, 64, 64, repair_off);
-    EXPECT_EQ(repair_off.outlier_repair_rounds, 0);
+    EXPECT_EQ(scheduled_for(2.0, 8.0, repair_off).outlier_repair_rounds, 0);
     RecoverSettings calibrated;
     calibrated.calibrate.sigma = true;
-    apply_smooth_schedule(smooth, 64, 64, calibrated);
-    unchanged(calibrated);
-    const RoughnessPlan steep = plan_for_roughness(8.0, 8.0, 2.0);
-    ASSERT_TRUE(steep.rough);
-    RecoverSettings rough;
-    apply_smooth_schedule(steep, 64, 64, rough);
-    unchanged(rough);
-    // Larger surfaces get the same schedule as 64² (it used to stop at 64² texels).
-    for (const int n : {128, 512}) {
-        RecoverSettings large;
-        apply_smooth_schedule(smooth, n, 64, large);
-        EXPECT_EQ(large.field_wavelengths, settings.field_wavelengths) << n;
-        EXPECT_EQ(large.field.iterations, settings.field.iterations) << n;
-        EXPECT_EQ(large.refine_ladder_wavelengths, settings.refine_ladder_wavelengths) << n;
-        EXPECT_EQ(large.refine_ladder_iterations, settings.refine_ladder_iterations) << n;
-        EXPECT_EQ(large.refine_ladder_relative_tolerance, settings.refine_ladder_relative_tolerance) << n;
-        EXPECT_EQ(large.refine_iterations, settings.refine_iterations) << n;
-        // The refinement's coarse space stays on: it removes the whole-surface undulation.
-        EXPECT_EQ(large.refine_coarse_spacing, defaults.refine_coarse_spacing) << n;
-        EXPECT_GT(large.refine_coarse_spacing, 0.0) << n;
-    }
+    longer(scheduled_for(2.0, 8.0, calibrated), FieldRetrievalSettings{}.iterations);
+    const RecoverSettings rough = scheduled_for(8.0, 8.0);
+    longer(rough, 200);
+    EXPECT_EQ(rough.refine_ladder_min_um, 1.4);  // the rough plan's ladder instead
+    // A stated refinement count is the whole refinement (no ladder before it); other values stay.
+    RecoverSettings stated;
+    stated.refine_iterations = 20;
+    stated.field.iterations = 30;
+    const RecoverSettings kept = scheduled_for(2.0, 8.0, stated);
+    EXPECT_EQ(kept.refine_iterations, 20);
+    EXPECT_EQ(kept.refine_ladder_wavelengths, 0);
+    EXPECT_EQ(kept.field.iterations, 30);
+    EXPECT_EQ(kept.field_wavelengths, 1);
+    // Error bars: the refinement runs to the loss's minimum, after the same ladder.
+    RecoverSettings bars;
+    bars.error_bars = true;
+    EXPECT_EQ(scheduled_for(2.0, 8.0, bars).refine_iterations, k_uncertainty_refine_iterations);
+    EXPECT_EQ(scheduled_for(2.0, 8.0, bars).refine_ladder_wavelengths, 1);
+    // Resolving twice changes nothing (make_schedule resolves what recover_heights resolved).
+    const RecoverSettings twice = scheduled_settings(settings, 2.0);
+    EXPECT_EQ(twice.field.iterations, settings.field.iterations);
+    EXPECT_EQ(twice.refine_ladder_wavelengths, settings.refine_ladder_wavelengths);
+    EXPECT_EQ(twice.refine_iterations, settings.refine_iterations);
 }
 
 }  // namespace

@@ -70,9 +70,18 @@ TEST(Schedule, DefaultsRunEveryStageInOrder) {
     EXPECT_EQ(order(s), (std::vector<std::string>{"blurred", "field", "unwrap", "release", "refine", "model-check"}));
     const FieldStage* field = find<FieldStage>(s);
     ASSERT_NE(field, nullptr);
-    EXPECT_EQ(field->field.refine, 3);        // the context's object grid
-    EXPECT_EQ(field->lambda_min_um, 0.0);     // every wavelength
-    EXPECT_EQ(field->field.iterations, RecoverSettings{}.field.iterations);
+    EXPECT_EQ(field->field.refine, 3);  // the context's object grid
+    // The defaults are the smooth schedule's (scheduled_settings): the longest wavelength's field,
+    // then the refinement's first rung on its slices.
+    EXPECT_EQ(field->lambda_min_um, 0.6);
+    EXPECT_EQ(field->field.iterations, scheduled_settings(RecoverSettings{}, 2.0).field.iterations);
+    EXPECT_EQ(find<RefineStage>(s)->settings.refine_ladder_min_um, 0.6);
+    // With calibration the longer schedule: every wavelength's field.
+    RecoverSettings calibrated;
+    calibrated.calibrate.exposure = true;
+    const Schedule c = f.schedule(calibrated);
+    EXPECT_EQ(find<FieldStage>(c)->lambda_min_um, 0.0);
+    EXPECT_EQ(find<RefineStage>(c)->settings.refine_ladder_min_um, 0.0);
 }
 
 TEST(Schedule, WavelengthCountsBecomeWavelengths) {

@@ -252,7 +252,7 @@ TEST(ExposuresAt, TrueHeightsAndCentresGiveTheSimulatedExposures) {
     EXPECT_THROW(detail::exposures_at(c.observations, index, c.truth, 1.0, offsets), std::invalid_argument);
 }
 
-// Positions and exposures unknown together (docs/recovery.md, "Self-calibration: all at once"):
+// Positions and exposures unknown together (experiments/2026-11-28-calibrate-all.md):
 // the field stage with each slice's exposure held at its value at the blurred fit's heights and
 // offsets (field_exposures_held, the default) unwraps far closer to the truth than with the
 // exposures found anew at every evaluation, where the complex object trades its local amplitude

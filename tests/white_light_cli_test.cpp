@@ -49,7 +49,7 @@ TEST(WhiteLightCli, SmoothnessKnobsReachTheContinuationAndBadValuesFailWithOneLi
         {"--white-smoothness 1,x", {"--white-smoothness", "'1,x'"}},
         {"--white-smoothness 1e13", {"white smoothness weight", "0 to 1e12"}},
         {"--white-smoothness " + many, {"65 weights", "at most 64"}},
-        {"--white-smoothness-iterations 10000001", {"white smoothness iterations 10000001", "0 to 10000000"}},
+        {"--white-smoothness-iterations 10000001", {"--white-smoothness-iterations 10000001", "0 to 10000000"}},
     };
     for (const auto& [args, needles] : cases) {
         SCOPED_TRACE(args);

@@ -19,14 +19,9 @@
 #include "wavebrdf/model.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/optim.h"
+#include "wavebrdf/option_style.h"
 
 namespace wavebrdf {
-
-// How messages name an option: Cli "--lambda-um", Python "lambda_um".
-enum class OptionStyle { Cli, Python };
-
-// `key` (an option's Python name, e.g. "lambda_um") in `style`: "--lambda-um" or "lambda_um".
-std::string option_name(OptionStyle style, const std::string& key);
 
 // Where the footprints of an inversion are.
 enum class PositionsKind {

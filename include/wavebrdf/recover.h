@@ -34,6 +34,7 @@
 #include <complex>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,7 @@
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/roughness_plan.h"
 
 namespace wavebrdf {
 
@@ -219,6 +221,33 @@ std::vector<double> unwrap_heights(const std::vector<double>& lambdas_um,
 // (d = w/q < λ / (2 (1 + |ω_i|))).
 int auto_refine(double texel_um, double lambda_min_um, double max_omega_i = 0.0);
 
+// What the caller states about the surface (roughness_plan.h). The schedule (scheduled_settings)
+// takes the rough-surface plan or the smooth schedule from it; unstated, the surface counts as
+// smooth (the common case, and `wavebrdf recover`'s default of ±1 µm at correlation 4 texels).
+struct SurfaceClass {
+    std::optional<double> height_range_um;  // stated peak to valley (µm, ≥ 0)
+    std::optional<double> correlation_um;   // stated correlation length (µm, > 0)
+    // A known surface's measured roughness (measure_roughness), planned for instead of the
+    // stated range and correlation (still both needed: the plan applies only where both are > 0).
+    std::optional<MeasuredRoughness> measured;
+};
+
+// With error bars (RecoverSettings::error_bars), at least this many refinement iterations on
+// every slice where refine_iterations is unset: the bars are the loss's curvature at its
+// minimum, and the smooth schedule's 8 stop short of it by more than the noise moves the
+// estimate (experiments/2026-11-23-error-bars.md).
+constexpr int k_uncertainty_refine_iterations = 40;
+
+// FieldRetrievalSettings with iterations unset (−1), RecoverSettings::field's default.
+inline FieldRetrievalSettings unset_field_iterations() {
+    FieldRetrievalSettings f;
+    f.iterations = -1;
+    return f;
+}
+
+// Settings of −1 (−1.0) are unset: scheduled_settings resolves them, from the surface class,
+// the calibration asked for and error bars (the one place the run's defaults live). A value
+// the caller sets is kept as given.
 struct RecoverSettings {
     BlurredFitSettings blurred;  // stage 0 (empty blur_widths: start the field stage from flat)
     // White light (no single-wavelength OHS / ROHS observation): stage 0 on the RGB slices with
@@ -237,9 +266,13 @@ struct RecoverSettings {
     int white_smoothness_iterations = 20;
     int blur_wavelengths = 1;         // stage 0 uses the slices of this many longest wavelengths (0: all)
     double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
-    FieldRetrievalSettings field;     // stage 1, per wavelength (its refine is replaced by:)
-    int refine = 0;                   // object grid refinement; 0: auto_refine
-    double height_range_um = 4.0;     // bound on the height range, for unwrapping (stage 2)
+    // Stage 1, per wavelength (its refine is replaced by `refine`). field.iterations −1: the
+    // schedule's (50; smooth surfaces 25; rough ones up to the plan's 200).
+    FieldRetrievalSettings field = unset_field_iterations();
+    int refine = 0;  // object grid refinement; 0: auto_refine
+    // Bound on the height range for unwrapping (stage 2); −1: the stated surface range (at least
+    // 1e-3 µm), else 4 µm. The spatial unwrapping (the default) does not read it.
+    double height_range_um = -1.0;
     // Stage 2 starts from the spatially unwrapped fields (false) or from the estimate before it
     // (true: the blurred fit, or the fields so far when cascading).
     bool unwrap_from_blurred = false;
@@ -253,14 +286,16 @@ struct RecoverSettings {
     // measures a long wavelength whose field starts stage 3, the shorter ones' fields (started
     // in wrong basins, measured to raise the error) are left out and their slices enter stage 3
     // only. When no wavelength reaches it, every wavelength runs the field stage.
-    double field_lambda_min_um = 0.0;
+    // −1: the rough plan's shortest long wavelength, else 0.
+    double field_lambda_min_um = -1.0;
     // Stage 1 only at this many longest single-wavelength wavelengths (0: all; with
-    // field_lambda_min_um > 0 that applies instead). Smooth surfaces up to 64² texels (the CLI's
-    // plan, roughness_plan.h apply_smooth_schedule): 1, the refinement then reaches the same
-    // heights from the longest field alone.
-    int field_wavelengths = 0;
+    // field_lambda_min_um > 0 that applies instead). Smooth surfaces: 1, the refinement then
+    // reaches the same heights from the longest field alone.
+    // −1: 1 on smooth surfaces without calibration, else 0.
+    int field_wavelengths = -1;
     // Stage 3: L-BFGS on the heights in the full model, on the observations' amplitude loss.
-    int refine_iterations = 40;
+    // −1: 8 on smooth surfaces without calibration (after the ladder), else 40; 40 with error_bars.
+    int refine_iterations = -1;
     // Stage 3 as a continuation over the wavelengths (rough surfaces: roughness_plan.h;
     // docs/recovery.md, "Rough surfaces"): when > 0, before the refinement on every
     // observation, one round of refine_ladder_iterations L-BFGS iterations on the observations
@@ -268,28 +303,30 @@ struct RecoverSettings {
     // longest first, each round started from the last (a rung adds one wavelength). 0 (the
     // default): the refinement on every observation at once. Not with calibrate.sigma or
     // calibrate.positions (their refinements run as before), nor for white light.
-    double refine_ladder_min_um = 0.0;
+    // −1: the rough plan's (its shortest long wavelength), else 0.
+    double refine_ladder_min_um = -1.0;
     int refine_ladder_iterations = 40;
     // The same ladder over this many longest single-wavelength wavelengths (0: none; with
     // refine_ladder_min_um > 0 that applies instead): with 1, refine_ladder_iterations on the
     // longest wavelength's slices alone (a fraction of the cost per iteration), then
-    // refine_iterations on every slice. Smooth surfaces up to 64² texels (the CLI's plan): 1
-    // (docs/recovery.md, "Settings by stage").
-    int refine_ladder_wavelengths = 0;
+    // refine_iterations on every slice (docs/recovery.md, "Settings by stage").
+    // −1: 1 on smooth surfaces without calibration where refine_iterations is unset (a stated
+    // count is the whole refinement), else 0.
+    int refine_ladder_wavelengths = -1;
     // A ladder rung stops early once its loss / loss(flat) drops below this (0: every rung
     // runs refine_ladder_iterations; stage 3's own 1e-14 still applies). The rung's loss is
     // its slices' part of the mean over every observation. On exact data the loss tracks the
     // squared height error, and the refinement on every slice continues from where the rung
     // stopped; with noise the loss floor lies far above any useful value here, so the rung runs
-    // to its cap as before. Smooth surfaces up to 64² (the CLI's plan): see
-    // apply_smooth_schedule.
-    double refine_ladder_relative_tolerance = 0.0;
+    // to its cap as before.
+    // −1: 1e-8 on smooth surfaces without calibration, else 0.
+    double refine_ladder_relative_tolerance = -1.0;
     // A ladder rung also stops once its loss fell by less than refine_ladder_stall_tolerance (a
-    // fraction of its value) over the last refine_ladder_stall_window iterations (0: off, the
-    // default). A rung trapped by a single-texel outlier stalls at a loss ≈ 1e-5 from its ~17th
-    // iteration on while an untrapped one falls by 25–50 % every 5: the repair after the rung
-    // then comes without the idle iterations. Smooth surfaces: see apply_smooth_schedule.
-    int refine_ladder_stall_window = 0;
+    // fraction of its value) over the last refine_ladder_stall_window iterations (0: off). A
+    // rung trapped by a single-texel outlier stalls at a loss ≈ 1e-5 from its ~17th iteration on while an untrapped one falls by 25–50 % every 5: the repair after the rung
+    // then comes without the idle iterations.
+    // −1: 5 on smooth surfaces without calibration, else 0.
+    int refine_ladder_stall_window = -1;
     double refine_ladder_stall_tolerance = 0.01;
     // Single-texel outliers: after stage 3 with
     // single-wavelength slices (not white light, not with position calibration), up to this many
@@ -299,7 +336,9 @@ struct RecoverSettings {
     // the slices that see it and kept where that loss falls; where any was kept, stage 3's last
     // refine_iterations again (0: off). A texel the refinement left ≈ 0.22 µm off while every other
     // converged is a local minimum it does not leave (seeds 4 and 10632 at 32², 10423 at 64²).
-    int outlier_repair_rounds = 1;
+    // −1: 3 on smooth surfaces without calibration (a second trapped texel may stand out only
+    // once the first is repaired), else 1.
+    int outlier_repair_rounds = -1;
     double outlier_repair_threshold = 6.0;
     // … the refinement on every slice after a repair: this many iterations (0: refine_iterations),
     // stopped early where loss / loss(flat) falls below refine_ladder_relative_tolerance (the
@@ -423,7 +462,23 @@ struct RecoverSettings {
     // over it once the positions are off (measured: 18.5 % with free exposures where the positions
     // alone give 5.5 %).
     bool field_exposures_held = true;
+    // The surface as stated (the schedule's choice between the smooth and the rough plan).
+    SurfaceClass surface;
+    // Error bars follow (uncertainty.h): an unset refine_iterations becomes at least
+    // k_uncertainty_refine_iterations.
+    bool error_bars = false;
 };
+
+// `settings` with every unset value (−1) resolved as recover_heights runs them (the schedule's
+// defaults): smooth surfaces (settings.surface unstated, or stated and not rough by
+// plan_for_roughness / plan_for_measured_roughness) without self-calibration get the smooth
+// schedule (the field stage at the longest wavelength only, 25 iterations; the refinement on
+// that wavelength's slices, then 8 iterations on every slice; 3 rounds of the outlier repair:
+// the same heights as the longer schedule at about half the CPU time,
+// experiments/2026-11-23-recovery-speed.md); rough ones the plan's field iterations, long
+// wavelengths and refinement ladder; calibrated runs the library's longer schedule. Values set
+// (not −1) are kept. Throws std::domain_error for texel_um ≤ 0 where a stated surface needs it.
+RecoverSettings scheduled_settings(const RecoverSettings& settings, double texel_um);
 
 // What recover_heights reports after every iteration of every stage: "blur:S" (blur stage S,
 // iterations), "blur" (its result), "field:λ" (iterations, then with cascading its result

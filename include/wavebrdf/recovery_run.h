@@ -20,8 +20,10 @@
 #include "wavebrdf/model.h"
 #include "wavebrdf/noise.h"
 #include "wavebrdf/observation.h"
+#include "wavebrdf/option_style.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/scalar_observations.h"
+#include "wavebrdf/uncertainty.h"
 
 namespace wavebrdf {
 
@@ -48,12 +50,6 @@ constexpr double k_position_calibration_overlap = 0.8;
 // 16): at 3 texels rms the default ± 4 texels left positions 9–13 texels from their stated
 // centres lost for good (experiments/2026-11-23-position-calibration.md).
 constexpr double k_rescue_radius_per_position_uncertainty = 4.0;
-
-// With error bars (RecoveryOptions::uncertainty), at least this many refinement iterations on
-// every slice: the bars are the loss's curvature at its minimum, and the smooth schedule's 8
-// (roughness_plan.cpp) stop short of it by more than the noise moves the estimate
-// (experiments/2026-11-23-error-bars.md).
-constexpr int k_uncertainty_refine_iterations = 40;
 
 // The options of `wavebrdf recover` (its defaults), as values.
 struct RecoveryOptions {
@@ -135,6 +131,8 @@ struct RecoveryOptions {
     // Error bars (uncertainty.h): run_recovery_in_directory also writes uncertainty.exr (σ of
     // every height, µm) and the summary, at the cost of a few refinements (docs/recovery.md).
     bool uncertainty = false;
+    // How prepare_recovery's messages name the options (the front end's spelling).
+    OptionStyle names = OptionStyle::Cli;
 };
 
 // The loss the recovery fits: options.loss when given; else, for the pipeline, the one
@@ -229,7 +227,23 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 // on_step called on every rank (recover_heights).
 // `calibration`, when given, receives the acquisition as the pipeline refined it
 // (recover_heights; this rank's share; the default Calibration for the thesis's method).
+// The most iterations stage `stage` of run_recovery's metrics stream reports, from the schedule
+// the run resolves (a progress bar's length, ≥ 1): "blur:S" the blurred fit's per width,
+// "field:λ" the field stage's, "refine" the refinement's, "refine:λ" a wavelength ladder's rung,
+// "thesis" the epochs; 1 for a stage reported once.
+long long stage_iterations(const PreparedRecovery& prepared, const std::string& stage);
+
 Heightfield run_recovery(const PreparedRecovery& prepared, const std::function<bool(const StageMetrics&)>& on_step = {},
                          const Communicator& comm = serial_communicator(), Calibration* calibration = nullptr);
+
+// Error bars of a run's estimate (uncertainty.h; what `wavebrdf recover --uncertainty` and
+// Python's recover(uncertainty=True) report): height_uncertainty at `estimate` with the run's
+// loss, timed, and the report with the coverage where a truth is known. A problem without error
+// bars (no residual to estimate the noise from: decided on exact sums, so the same on every
+// rank) returns none and says why in *why_not (when given) instead of costing the estimate.
+// Collective over `comm` (the run's communicator).
+std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& prepared, const Heightfield& estimate,
+                                                     const Communicator& comm = serial_communicator(),
+                                                     std::string* why_not = nullptr);
 
 }  // namespace wavebrdf

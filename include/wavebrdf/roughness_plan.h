@@ -4,8 +4,10 @@
 // the truth), the expected slopes, and for rough surfaces (steep slopes, or correlation close
 // to the texel) a note, and for a correlation close to the texel the pipeline's longer
 // schedule: more field-retrieval iterations (the field stage, started far from the heights,
-// stops at the default 50 while still descending; steep slopes gain from it only with the long wavelengths below). Smooth surfaces (the common case, ±1 µm at correlation 4 texels) keep the
-// library's defaults, so they cost what they did.
+// stops at the default 50 while still descending; steep slopes gain from it only with the long
+// wavelengths below). The recovery's schedule applies the plan (recover.h, scheduled_settings,
+// from RecoverSettings::surface); smooth surfaces (the common case, ±1 µm at correlation 4
+// texels) get its smooth schedule.
 //
 // Slopes of a Gaussian-correlated surface (generate.h: autocorrelation σ_h² e^{−r²/ℓ²}):
 // E[(∂H/∂x)²] = −C''(0) = 2σ_h²/ℓ², so |∇H| has rms 2σ_h/ℓ; the peak-to-valley range of a
@@ -32,7 +34,6 @@
 namespace wavebrdf {
 
 struct AcquisitionPlan;
-struct RecoverSettings;
 class Heightfield;
 
 struct RoughnessPlan {
@@ -97,26 +98,6 @@ MeasuredRoughness measure_roughness(const Heightfield& heightfield);
 // the blurred fit as far off as rough ones. Its first note says what was measured; a strongly
 // anisotropic surface (Str < 0.3) is named there.
 RoughnessPlan plan_for_measured_roughness(const MeasuredRoughness& m, double texel_um);
-
-// `settings` with the plan applied (field iterations raised to the plan's where it asks for
-// more; the field stage at the plan's long wavelengths only, RecoverSettings::field_lambda_min_um,
-// and the refinement's wavelength ladder down to the shortest of them,
-// RecoverSettings::refine_ladder_min_um, when it has them; nothing changed for a smooth surface).
-void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings);
-
-// Smooth surfaces (not plan.rough) without self-calibration (settings.calibrate: none): the
-// smooth schedule (experiments/2026-11-23-recovery-speed.md): the field stage at the longest wavelength
-// only (RecoverSettings::field_wavelengths = 1), then the refinement first on that wavelength's
-// slices alone (refine_ladder_wavelengths = 1, refine_ladder_iterations iterations at a third
-// of the cost each with three wavelengths) and then on every slice (refine_iterations), with up
-// to 3 rounds of the outlier repair after the rung and after every slice (unless 0: off). The
-// same final heights as the library's defaults at ~half the CPU time on 3 of 4 seeds (64²;
-// one, 10408, 0.013 → 0.017 %). Nothing
-// changed for a rough surface or with calibration (its loops keep their own schedule). Every
-// size gets it (rows, cols are not read): above the tile threshold the 25 iterations are each
-// tile's, and the refinement's coarse space removes the whole-surface undulation that made the
-// capped 128² run worse before it (docs/scale.md, "Time per texel above 64²").
-void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, RecoverSettings& settings);
 
 // `acquisition` with the plan's long wavelengths appended to its wavelengths (those not longer
 // than every planned one left out) and a note saying the source they need. Returns how many

@@ -31,9 +31,9 @@
 // The bars describe the noise about the loss's minimum, so the heights passed in must be at it:
 // an estimate still off by an optimisation error comparable to the noise's under-covers
 // (the smooth schedule's 8 final refinement iterations left ~0.36 nm rms beside the noise's
-// 0.75 nm: ±2σ held 85–91 % of texels instead of ≈ 95 %). prepare_recovery (recovery_run.h)
+// 0.75 nm: ±2σ held 85–91 % of texels instead of ≈ 95 %). The recovery's schedule
 // therefore raises the refinement to k_uncertainty_refine_iterations (40) when error bars are
-// asked for; a caller of recover_heights + height_uncertainty sets refine_iterations itself.
+// asked for (RecoverSettings::error_bars, recover.h).
 #include <cstdint>
 #include <memory>
 #include <string>

@@ -937,7 +937,7 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   noise, poisson:N, mse), cmsle:1 for the thesis's method
     method        'pipeline' (blurred fit, field retrieval, unwrapping, refinement) or 'thesis'
                   (Adam, one observation per epoch)
-    field_iterations, refine_iterations  pipeline iterations (>= 0; None: the library's)
+    field_iterations, refine_iterations  pipeline iterations (>= 0; None: the schedule's)
     epochs        thesis method: Adam epochs (>= 0)
     seed          generated truth, position jitter, noise, the thesis's draws
     callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse)
@@ -982,23 +982,28 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     """
     ...
 
-def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: int = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: float = ..., unwrap_from_blurred: bool = ..., refine_iterations: int = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ..., white_smoothness: Any = ..., white_smoothness_iterations: int = ...) -> Any:
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: Any = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: Any = ..., unwrap_from_blurred: bool = ..., refine_iterations: Any = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ..., white_smoothness: Any = ..., white_smoothness_iterations: int = ...) -> Any:
     """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
     phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
     on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
-    vscale). Settings (defaults: the library's, in the signature):
+    vscale). Settings (defaults: the library's, in the signature; None: the schedule's, which with
+    every default is the schedule `wavebrdf recover` and recover() run for a smooth surface):
 
     blur_widths         blurred fit: blur widths in footprint lobes, widest first ([] : start the
                         fields from flat); blur_iterations: L-BFGS per width (>= 0)
     blur_wavelengths    the blurred fit uses this many longest wavelengths (0: all), at positions
                         at least blur_spacing_sigma sigma_p apart (0: all)
-    field_iterations    L-BFGS iterations of each field retrieval (>= 0); field_passes >= 1;
+    field_iterations    L-BFGS iterations of each field retrieval (>= 0; None: 25 on a smooth surface
+                        without calibration, else 50); field_passes >= 1;
                         cascade: each field starts from the heights of the fields before it;
                         band_limit: keep only the object's spectrum the slices see
     refine              odd object-grid refinement 1...63 (0: automatic)
-    max_range_um        bound on the height range for unwrapping (um, > 0; RecoverSettings::height_range_um)
+    max_range_um        bound on the height range for unwrapping (um, > 0; None: 4;
+                        RecoverSettings::height_range_um)
     unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
-    refine_iterations   final L-BFGS iterations on the heights (>= 0); refine_history >= 1;
+    refine_iterations   final L-BFGS iterations on the heights (>= 0; None: the schedule's, 8 after
+                        a first round on the longest wavelength's slices on a smooth surface without
+                        calibration, else 40; a count given is the whole refinement); refine_history >= 1;
                         refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
     white_smoothness    white light (RGB slices only): the smoothness continuation's weights before
                         the refinement, largest first (at most 64, each 0 ... 1e12; [] none);

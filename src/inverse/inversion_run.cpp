@@ -31,13 +31,6 @@ namespace wavebrdf {
 
 namespace fs = std::filesystem;
 
-std::string option_name(OptionStyle style, const std::string& key) {
-    if (style == OptionStyle::Python) return key;
-    std::string name = "--" + key;
-    std::replace(name.begin(), name.end(), '_', '-');
-    return name;
-}
-
 PositionsSpec parse_positions_spec(const std::string& text, const std::string& /*name*/) {
     PositionsSpec spec;
     if (text == "fixed") return spec;

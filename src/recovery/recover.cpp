@@ -97,13 +97,15 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
 }  // namespace
 
 Heightfield recover_heights(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
-                            double vscale, const RecoverSettings& settings,
+                            double vscale, const RecoverSettings& given,
                             const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
                             const Communicator& comm, Calibration* calibration) {
     if (calibration) *calibration = Calibration{};
     // Checks of what every rank is given alike first, then of each rank's share, agreed.
     const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0), texel_um,
                            vscale);
+    // The unset settings resolved (the schedule's defaults), so that the checks see what runs.
+    const RecoverSettings settings = scheduled_settings(given, texel_um);
     if (truth && (truth->rows() != rows || truth->cols() != cols))
         throw std::invalid_argument("recover_heights: truth is " + std::to_string(truth->rows()) + " x " +
                                     std::to_string(truth->cols()) + "; expected " + std::to_string(rows) + " x " +

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <exception>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <stdexcept>
@@ -165,24 +166,11 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     // Error bars at the estimate (collective), before rank 0 writes.
     std::unique_ptr<UncertaintyReport> bars;
     if (r.uncertainty) {
-        const auto start = std::chrono::steady_clock::now();
-        // A problem without error bars (no residual to estimate the noise from: the same on every
-        // rank, decided on exact sums) must not cost the estimate: it is written, and why not.
+        // A problem without error bars must not cost the estimate: it is written, and why not.
         std::string why_not;
-        HeightUncertainty map = run_or_abort(comm, [&] {
-            try {
-                return height_uncertainty(r.observations, estimate, r.loss, {}, comm);
-            } catch (const std::domain_error& e) {
-                why_not = e.what();
-            } catch (const std::invalid_argument& e) {
-                why_not = e.what();
-            }
-            return HeightUncertainty{};
-        });
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
-        if (why_not.empty()) {
-            bars = std::make_unique<UncertaintyReport>(uncertainty_report(std::move(map), seconds, estimate, truth));
+        std::optional<UncertaintyReport> report = recovery_error_bars(r, estimate, comm, &why_not);
+        if (report) {
+            bars = std::make_unique<UncertaintyReport>(std::move(*report));
             if (uncertainty) *uncertainty = *bars;
         } else if (root) {
             std::fprintf(stderr, "wavebrdf: warning: no error bars: %s\n", why_not.c_str());

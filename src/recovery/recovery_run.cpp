@@ -6,6 +6,7 @@
 #include "core/text.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
@@ -203,14 +204,11 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.simulator != Simulator::Gabor && !observations.empty())
         throw std::invalid_argument(std::string("simulator '") + to_string(options.simulator) +
                                     "' simulates observations of a truth; given observations are used as they are");
-    // The sentinels first: -1 is "the library's default"; another negative or a NaN is a
-    // mistake (an option given as -5 or nan), named as the front end spells it.
+    // Every option checked here, once, before any work, named as the front end spells it
+    // (options.names). The sentinels first: -1 is "the library's default"; another negative or
+    // a NaN is a mistake (an option given as -5 or nan).
+    const auto name = [&](const std::string& key) { return option_name(options.names, key); };
     {
-        // As the CLI spells them (Python checks its keywords' signs itself, by their names).
-        const auto name = [&](std::string key) {
-            std::replace(key.begin(), key.end(), '_', '-');
-            return "--" + key;
-        };
         const std::pair<const char*, long long> counts[] = {
             {"field_iterations", options.field_iterations},
             {"refine_iterations", options.refine_iterations},
@@ -234,22 +232,32 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                                         " wavelengths; expected at most " + std::to_string(k_max_laser_wavelengths));
     }
     // Counts first, before the observations are planned and rendered (negative iteration counts: the library's default).
-    validate_iterations(options.epochs, "epochs");
-    if (options.field_iterations >= 0) validate_iterations(options.field_iterations, "field iterations");
-    if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, "refine iterations");
+    validate_iterations(options.epochs, name("epochs"));
+    if (options.field_iterations >= 0) validate_iterations(options.field_iterations, name("field_iterations"));
+    if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, name("refine_iterations"));
     if (options.position_passes > 100)
-        throw std::invalid_argument("position passes " + std::to_string(options.position_passes) +
+        throw std::invalid_argument(name("position_passes") + " " + std::to_string(options.position_passes) +
                                     " is invalid; expected 0 to 100 (0: off)");
     if (options.field_tile_threshold > 1000000)
-        throw std::invalid_argument("field tile threshold " + std::to_string(options.field_tile_threshold) +
+        throw std::invalid_argument(name("field_tile_threshold") + " " + std::to_string(options.field_tile_threshold) +
                                     " texels is invalid; expected 0 to 1000000");
     if (options.white_smoothness) detail::check_white_smoothness(*options.white_smoothness);
     if (options.white_smoothness_iterations >= 0)
-        validate_iterations(options.white_smoothness_iterations, "white smoothness iterations");
+        validate_iterations(options.white_smoothness_iterations, name("white_smoothness_iterations"));
     if (options.field_tile_core >= 0 && (options.field_tile_core < 8 || options.field_tile_core > 4096))
-        throw std::invalid_argument("field tile core " + std::to_string(options.field_tile_core) +
+        throw std::invalid_argument(name("field_tile_core") + " " + std::to_string(options.field_tile_core) +
                                     " texels is invalid; expected 8 to 4096");
-    check_acquisition_errors(options.errors, "--simulate-");
+    if (options.position_uncertainty_um &&
+        !(*options.position_uncertainty_um >= 0.0 && *options.position_uncertainty_um <= 1e6))
+        throw std::invalid_argument(name("position_uncertainty_um") + " " +
+                                    detail::format_shortest(*options.position_uncertainty_um) +
+                                    " is invalid; expected 0 to 1e6 (um rms per coordinate)");
+    if (options.spectral != 0 &&
+        (options.spectral < 2 || options.spectral > k_max_spectral_samples || !options.lambdas_um.empty()))
+        throw std::invalid_argument(name("spectral") + " " + std::to_string(options.spectral) +
+                                    " is invalid; expected 2 ... " + std::to_string(k_max_spectral_samples) +
+                                    " wavelengths, without given wavelengths (0: laser slices)");
+    check_acquisition_errors(options.errors, options.names == OptionStyle::Cli ? "--simulate-" : "simulate_");
     if (options.errors.any() && !observations.empty())
         throw std::invalid_argument(
             "simulated acquisition errors need a truth (the observations are rendered with them), not given "
@@ -280,6 +288,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     // Every observation's metadata (check_acquisition needs them all), and this rank's share.
     std::vector<Observation> catalogue;
     std::optional<RoughnessPlan> measured;  // options.plan_from_truth: the truth's measured roughness
+    std::optional<MeasuredRoughness> measured_roughness;
     if (!observations.empty()) {
         r.total_observations = observations.size();
         r.share = observation_share(positions_of(observations), comm.rank(), comm.size());
@@ -325,18 +334,16 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         request.resolution = options.resolution;
         std::vector<double> white;
         if (options.spectral != 0) {
-            if (options.spectral < 2 || options.spectral > k_max_spectral_samples || !options.lambdas_um.empty())
-                throw std::invalid_argument("spectral " + std::to_string(options.spectral) +
-                                            " is invalid; expected 2 ... " + std::to_string(k_max_spectral_samples) +
-                                            " wavelengths, without given wavelengths");
             white = spectral_wavelengths_um(options.spectral);
             request.lambdas_um = {*std::min_element(white.begin(), white.end())};  // sizes the slices
         }
         AcquisitionPlan plan = plan_acquisition(request);
         // Rough surfaces (roughness_plan.h): long wavelengths for the field stage's start.
         // Steep ones: oblique lights, so that their steep facets reflect into a slice.
-        if (options.plan_from_truth && truth != nullptr && r.range_um > 0.0)
-            measured = plan_for_measured_roughness(measure_roughness(*r.truth), r.texel_um);
+        if (options.plan_from_truth && truth != nullptr && r.range_um > 0.0) {
+            measured_roughness = measure_roughness(*r.truth);
+            measured = plan_for_measured_roughness(*measured_roughness, r.texel_um);
+        }
         if (options.method == RecoveryMethod::Pipeline && white.empty() && options.correlation_texels > 0.0 &&
             r.range_um > 0.0) {
             const RoughnessPlan rough =
@@ -426,21 +433,18 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.pipeline.position_rescue_step_texels *= rescue_radius_texels / r.pipeline.position_rescue_radius_texels;
         r.pipeline.position_rescue_radius_texels = rescue_radius_texels;
     }
-    r.pipeline.height_range_um = std::max(r.range_um, 1e-3);
-    // Rough surfaces (roughness_plan.h): the stated range and correlation choose the schedule.
+    // The surface as stated (or measured): the schedule (recover.h, scheduled_settings) takes
+    // the smooth or the rough-surface plan from it.
+    r.pipeline.surface.height_range_um = r.range_um;
+    r.pipeline.surface.correlation_um = options.correlation_texels * r.texel_um;
+    r.pipeline.surface.measured = measured_roughness;
     if (options.method == RecoveryMethod::Pipeline && r.range_um > 0.0 && options.correlation_texels > 0.0) {
         const RoughnessPlan rough =
             measured ? *measured : plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
-        apply_roughness_plan(rough, r.pipeline);
-        apply_smooth_schedule(rough, r.rows, r.cols, r.pipeline);
         r.notes.insert(r.notes.end(), rough.notes.begin(), rough.notes.end());
     }
     if (options.field_iterations >= 0) r.pipeline.field.iterations = options.field_iterations;
-    if (options.refine_iterations >= 0) {
-        // A stated count is the whole refinement: the smooth schedule's ladder does not run before it.
-        r.pipeline.refine_iterations = options.refine_iterations;
-        r.pipeline.refine_ladder_wavelengths = 0;
-    }
+    if (options.refine_iterations >= 0) r.pipeline.refine_iterations = options.refine_iterations;
     if (options.position_passes >= 0) r.pipeline.position_outer_passes = options.position_passes;
     if (options.field_tile_threshold >= 0) r.pipeline.field_tile_threshold = options.field_tile_threshold;
     if (options.field_tile_core >= 0) r.pipeline.field_tile_core = options.field_tile_core;
@@ -451,14 +455,23 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.white_smoothness_iterations >= 0)
         r.pipeline.white_smoothness_iterations = options.white_smoothness_iterations;
     r.uncertainty = options.uncertainty;
-    // Error bars are the curvature at the minimum: the smooth schedule's short last refinement
-    // (8 iterations on every slice) leaves the estimate off it by more than the noise does.
-    if (r.uncertainty && options.refine_iterations < 0)
-        r.pipeline.refine_iterations = std::max(r.pipeline.refine_iterations, k_uncertainty_refine_iterations);
+    r.pipeline.error_bars = options.uncertainty;
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
     r.thesis.seed = options.seed;
     return r;
+}
+
+long long stage_iterations(const PreparedRecovery& r, const std::string& stage) {
+    const auto starts = [&](const char* prefix) { return stage.rfind(prefix, 0) == 0; };
+    if (r.method == RecoveryMethod::Thesis) return stage == "thesis" ? std::max(r.thesis.epochs, 1) : 1;
+    const RecoverSettings s = scheduled_settings(r.pipeline, r.texel_um);
+    const long long total = starts("blur:")     ? s.blurred.iterations
+                            : starts("field")   ? s.field.iterations
+                            : stage == "refine" ? s.refine_iterations
+                            : starts("refine:") ? s.refine_ladder_iterations
+                                                : 1;
+    return std::max<long long>(total, 1);
 }
 
 Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(const StageMetrics&)>& on_step,
@@ -474,6 +487,27 @@ Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(con
         return recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.pipeline, on_step, truth, comm,
                                calibration);
     return recover_heights_thesis(r.observations, r.rows, r.cols, r.texel_um, r.vscale, r.thesis, on_step, truth);
+}
+
+std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& r, const Heightfield& estimate,
+                                                     const Communicator& comm, std::string* why_not) {
+    const auto start = std::chrono::steady_clock::now();
+    std::string why;
+    HeightUncertainty map = run_or_abort(comm, [&] {
+        try {
+            return height_uncertainty(r.observations, estimate, r.loss, {}, comm);
+        } catch (const std::domain_error& e) {
+            why = e.what();
+        } catch (const std::invalid_argument& e) {
+            why = e.what();
+        }
+        return HeightUncertainty{};
+    });
+    if (why_not) *why_not = why;
+    if (!why.empty()) return std::nullopt;
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const Heightfield* truth = r.truth && r.metric_note.empty() ? &*r.truth : nullptr;
+    return uncertainty_report(std::move(map), seconds, estimate, truth);
 }
 
 }  // namespace wavebrdf

@@ -12,7 +12,6 @@
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/surface_stats.h"
 #include "wavebrdf/model.h"
-#include "wavebrdf/recover.h"
 
 namespace wavebrdf {
 
@@ -47,31 +46,6 @@ constexpr double kVisibleMaxUm = 0.7;
 constexpr double kLayeredAspect = 0.5;
 // At most this many long wavelengths (a range of 8 µm needs 2).
 constexpr int kMaxLongLambdas = 4;
-// Smooth surfaces (apply_smooth_schedule): refinement iterations on the longest wavelength's
-// slices, then on every slice (experiments/2026-11-23-recovery-speed.md).
-// The field stage's cap: from the blurred fit the longest field is near its loss floor after
-// ~20 iterations (0.5 % of the range off, against 0.36 % after the ~46 of the default stall
-// rule), and the refinement's first iterations on its slices close that gap at a sixth of a
-// field iteration's cost each.
-constexpr int kSmoothFieldIterations = 25;
-constexpr int kSmoothLadderIterations = 40;
-constexpr int kSmoothRefineIterations = 8;
-// The ladder's rung stops once loss / loss(flat) < this: on exact data a loss of ~3e-9 (loss(flat)
-// ≈ 0.27 at 64²) is ~0.005 % of the range off, reached after ~24 of the 40 iterations (seed
-// 10421); with noise the loss stays far above and the rung runs its 40.
-constexpr double kSmoothLadderRelativeTolerance = 1e-8;
-// The rung's stall rule: stopped where its loss fell by < 1 % over 5 iterations (a rung trapped by
-// a single-texel outlier levels off at ≈ 1e-5 from its ~17th iteration; untrapped rungs fall by
-// 25–50 % every 5), so the outlier repair after the rung comes early.
-constexpr int kSmoothLadderStallWindow = 5;
-constexpr double kSmoothLadderStallTolerance = 0.01;
-// Rounds of the outlier repair (after the rung and after every slice): a second trapped texel may
-// stand out only once the first is repaired and the rung has run again (64², seed 9346: one round
-// left it, the rung ran on to its cap at a flat loss and the repair after every slice found it,
-// 27 further iterations on every slice; 18 → 14 s). A round that keeps nothing ends the repair,
-// so an untrapped run, or one repaired in its first round, computes the same bits.
-constexpr int kSmoothOutlierRepairRounds = 3;
-
 std::string fixed(double v, int digits) {
     char buf[48];
     std::snprintf(buf, sizeof buf, "%.*f", digits, v);
@@ -212,31 +186,6 @@ RoughnessPlan plan_for_measured_roughness(const MeasuredRoughness& m, double tex
                           " um (" + fixed(m.correlation_um / texel_um, 2) + " texels), Str " + fixed(m.aspect, 2) +
                           (m.aspect < 0.3 ? " (strongly anisotropic, lay at " + fixed(m.lay_deg, 0) + " deg)" : ""));
     return plan;
-}
-
-void apply_roughness_plan(const RoughnessPlan& plan, RecoverSettings& settings) {
-    if (!plan.rough) return;
-    settings.field.iterations = std::max(settings.field.iterations, plan.field_iterations);
-    if (!plan.long_lambdas_um.empty())
-        settings.field_lambda_min_um = *std::min_element(plan.long_lambdas_um.begin(), plan.long_lambdas_um.end());
-    if (plan.refine_ladder_min_um > 0.0) settings.refine_ladder_min_um = plan.refine_ladder_min_um;
-}
-
-void apply_smooth_schedule(const RoughnessPlan& plan, int rows, int cols, RecoverSettings& settings) {
-    // At every size (experiments/2026-11-24-time-per-texel.md): above the tile threshold the
-    // capped iterations are each tile's, and the coarse space takes the refinement's undulation.
-    (void)rows;
-    (void)cols;
-    if (plan.rough || settings.calibrate.any()) return;
-    settings.field_wavelengths = 1;
-    settings.field.iterations = std::min(settings.field.iterations, kSmoothFieldIterations);
-    settings.refine_ladder_wavelengths = 1;
-    settings.refine_ladder_iterations = kSmoothLadderIterations;
-    settings.refine_ladder_relative_tolerance = kSmoothLadderRelativeTolerance;
-    settings.refine_iterations = kSmoothRefineIterations;
-    settings.refine_ladder_stall_window = kSmoothLadderStallWindow;
-    settings.refine_ladder_stall_tolerance = kSmoothLadderStallTolerance;
-    if (settings.outlier_repair_rounds > 0) settings.outlier_repair_rounds = kSmoothOutlierRepairRounds;
 }
 
 int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition) {

@@ -1,10 +1,88 @@
-// The Schedule of recover_heights' stages: which run, in which order, with which settings
-// (stages.h); the metrics stream; the model check.
+// The Schedule of recover_heights' stages: the run's defaults (scheduled_settings), which stages
+// run, in which order, with which settings (stages.h); the metrics stream; the model check.
 #include <algorithm>
 #include <cmath>
 
 #include "recovery/recover_field_model.h"
 #include "recovery/stages.h"
+
+namespace wavebrdf {
+
+namespace {
+
+// The smooth schedule (smooth surfaces without self-calibration;
+// experiments/2026-11-23-recovery-speed.md, experiments/2026-11-24-time-per-texel.md): the
+// same final heights as the longer schedule at about half the CPU time, at every size (above the
+// tile threshold the field's iterations are each tile's, and the refinement's coarse space takes
+// the undulation that made capped large runs worse).
+// The field stage's cap: from the blurred fit the longest field is near its loss floor after
+// ~20 iterations (0.5 % of the range off, against 0.36 % after the ~46 of the stall rule), and
+// the refinement's first iterations on its slices close that gap at a sixth of a field
+// iteration's cost each.
+constexpr int k_smooth_field_iterations = 25;
+// Refinement iterations on every slice after the rung on the longest wavelength's slices.
+constexpr int k_smooth_refine_iterations = 8;
+// The rung stops once loss / loss(flat) < this: on exact data a loss of ~3e-9 (loss(flat) ≈ 0.27
+// at 64²) is ~0.005 % of the range off, reached after ~24 of its 40 iterations (seed 10421);
+// with noise the loss stays far above and the rung runs its 40.
+constexpr double k_smooth_ladder_relative_tolerance = 1e-8;
+// The rung's stall rule: stopped where its loss fell by < 1 % (refine_ladder_stall_tolerance)
+// over 5 iterations (a rung trapped by a single-texel outlier levels off at ≈ 1e-5 from its
+// ~17th iteration; untrapped rungs fall by 25–50 % every 5), so the outlier repair comes early.
+constexpr int k_smooth_ladder_stall_window = 5;
+// Rounds of the outlier repair (after the rung and after every slice): a second trapped texel may
+// stand out only once the first is repaired and the rung has run again (64², seed 9346: one round
+// left it, and the rung ran on to its cap at a flat loss; 18 → 14 s with 3). A round that keeps
+// nothing ends the repair, so an untrapped run computes the same bits.
+constexpr int k_smooth_outlier_repair_rounds = 3;
+// Elsewhere (rough surfaces, calibrated runs): the longer schedule.
+constexpr int k_refine_iterations = 40;
+constexpr int k_outlier_repair_rounds = 1;
+// Unwrapping's bound on the height range when no range is stated (only the per-sample
+// unwrapping without a grid reads it).
+constexpr double k_height_range_um = 4.0;
+
+}  // namespace
+
+RecoverSettings scheduled_settings(const RecoverSettings& settings, double texel_um) {
+    RecoverSettings s = settings;
+    const SurfaceClass& surface = settings.surface;
+    // The surface class: the rough-surface plan where a stated surface is rough, else smooth.
+    RoughnessPlan plan;
+    if (surface.height_range_um && surface.correlation_um && *surface.height_range_um > 0.0 &&
+        *surface.correlation_um > 0.0)
+        plan = surface.measured ? plan_for_measured_roughness(*surface.measured, texel_um)
+                                : plan_for_roughness(*surface.height_range_um, *surface.correlation_um, texel_um);
+    // The calibrated runs' loops keep the longer schedule.
+    const bool smooth = !plan.rough && !settings.calibrate.any();
+    if (s.field.iterations == -1) {
+        const int library = FieldRetrievalSettings{}.iterations;
+        s.field.iterations = plan.rough  ? std::max(library, plan.field_iterations)
+                             : smooth    ? std::min(library, k_smooth_field_iterations)
+                                         : library;
+    }
+    if (s.field_lambda_min_um == -1.0)
+        s.field_lambda_min_um =
+            plan.long_lambdas_um.empty() ? 0.0 : *std::min_element(plan.long_lambdas_um.begin(), plan.long_lambdas_um.end());
+    if (s.refine_ladder_min_um == -1.0) s.refine_ladder_min_um = plan.refine_ladder_min_um;
+    if (s.field_wavelengths == -1) s.field_wavelengths = smooth ? 1 : 0;
+    if (s.refine_iterations == -1) {
+        s.refine_iterations = smooth ? k_smooth_refine_iterations : k_refine_iterations;
+        if (settings.error_bars) s.refine_iterations = std::max(s.refine_iterations, k_uncertainty_refine_iterations);
+    }
+    // A stated refinement count is the whole refinement: no ladder before it.
+    if (s.refine_ladder_wavelengths == -1) s.refine_ladder_wavelengths = smooth && settings.refine_iterations == -1 ? 1 : 0;
+    if (s.refine_ladder_relative_tolerance == -1.0)
+        s.refine_ladder_relative_tolerance = smooth ? k_smooth_ladder_relative_tolerance : 0.0;
+    if (s.refine_ladder_stall_window == -1) s.refine_ladder_stall_window = smooth ? k_smooth_ladder_stall_window : 0;
+    if (s.outlier_repair_rounds == -1)
+        s.outlier_repair_rounds = smooth ? k_smooth_outlier_repair_rounds : k_outlier_repair_rounds;
+    if (s.height_range_um == -1.0)
+        s.height_range_um = surface.height_range_um ? std::max(*surface.height_range_um, 1e-3) : k_height_range_um;
+    return s;
+}
+
+}  // namespace wavebrdf
 
 namespace wavebrdf::detail {
 
@@ -70,7 +148,7 @@ bool ModelCheckStage::run(const StageContext& context, RecoveryState& state) con
 }
 
 Schedule make_schedule(const RecoverSettings& settings_in, const StageContext& context) {
-    RecoverSettings settings = settings_in;
+    RecoverSettings settings = scheduled_settings(settings_in, context.texel_um);
     const auto& by_lambda = context.by_lambda;
     const CalibrationSettings& calibrate = settings.calibrate;
     const bool white = context.white;

@@ -88,6 +88,25 @@ def test_small_study_recovers_the_truth_as_the_cli_does(cli_run, tmp_path):
     assert text["observations"] == run["observations"]
 
 
+def test_recover_heights_with_defaults_runs_the_cli_schedule(cli_run, tmp_path):
+    """recover_heights with its default settings, on recover()'s observations, runs the schedule
+    that recover() and `wavebrdf recover` run for this smooth surface (recover.h,
+    scheduled_settings): the same heights, bit for bit, from all three (one thread each, as the
+    CLI ran). The front ends used to overwrite the settings with a schedule of their own."""
+    saved = tmp_path / "defaults.npz"
+    script = (
+        "import numpy as np, wavebrdf as wb\n"
+        "r = wb.recover(**%r)\n"
+        "h = wb.recover_heights(r.observations, %d, %r)\n"
+        "np.savez(%r, recover=r.estimate.heights_um(), recover_heights=h.heights_um())\n"
+        % (SMALL, SMALL["size"], SMALL["texel_um"], str(saved)))
+    env = dict(ONE_THREAD, PYTHONPATH=os.path.join(conftest.BUILD, "python"))
+    subprocess.run([sys.executable, "-c", script], check=True, env=env)
+    py = np.load(saved)
+    np.testing.assert_array_equal(py["recover_heights"], py["recover"])
+    np.testing.assert_array_equal(py["recover"], np.load(cli_run / "estimate_height.npy"))
+
+
 def test_recovers_from_the_cli_saved_observations(cli_run):
     truth = wb.Heightfield.from_exr(str(cli_run / "truth.exr"), 2.0)
     r = wb.recover(observations=str(cli_run / "observations.json"), size=8, texel_um=2.0, height_range_um=0.1)
@@ -291,7 +310,7 @@ def test_recover_refuses_what_cannot_fit_before_any_work():
     (lambda: wb.recover(field_iterations=-1), ["field_iterations"]),
     (lambda: wb.recover(epochs=-1, method="thesis"), ["epochs"]),
     (lambda: wb.recover(epochs=2**31 - 1, method="thesis"), ["epochs 2147483647", "0 to 10000000"]),
-    (lambda: wb.recover(field_iterations=10**8), ["field iterations 100000000", "0 to 10000000"]),
+    (lambda: wb.recover(field_iterations=10**8), ["field_iterations 100000000", "0 to 10000000"]),
     (lambda: wb.recover(resolution=-2), ["resolution"]),
     (lambda: wb.recover(callback=3), ["callback"]),
     (lambda: wb.recover(truth=np.zeros((4, 4)), observations="o.json"), ["truth", "observations"]),
