@@ -168,8 +168,8 @@ TEST(OutlierRepair, RecoverHeightsRefusesBadSettingsWithOneLine) {
         return std::string();
     };
     RecoverSettings rounds;
-    rounds.outlier_repair_rounds = -1;
-    EXPECT_NE(message(rounds).find("outlier repair rounds -1"), std::string::npos) << message(rounds);
+    rounds.outlier_repair_rounds = -2;  // −1 is unset: the schedule's
+    EXPECT_NE(message(rounds).find("outlier repair rounds -2"), std::string::npos) << message(rounds);
     RecoverSettings threshold;
     threshold.outlier_repair_threshold = 0.0;
     EXPECT_NE(message(threshold).find("outlier repair"), std::string::npos) << message(threshold);

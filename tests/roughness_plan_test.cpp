@@ -304,11 +304,11 @@ TEST(RoughnessPlan, LongWavelengthsRecoverAFineTile) {
     EXPECT_LT(final_long, 0.5 * final_visible);
 }
 
-// RecoverSettings::field_lambda_min_um: refused when negative or not finite; when no
+// RecoverSettings::field_lambda_min_um: refused when negative (but −1, unset) or not finite; when no
 // wavelength reaches it, every wavelength runs the field stage (an 8² smooth tile).
 TEST(RoughnessPlan, FieldLambdaMinFallsBackToEveryWavelength) {
     RecoverSettings bad;
-    bad.field_lambda_min_um = -1.0;
+    bad.field_lambda_min_um = -2.0;  // −1 is unset: the schedule's
     EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
     bad.field_lambda_min_um = std::nan("");
     EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
@@ -347,7 +347,7 @@ TEST(RoughnessPlan, FieldLambdaMinFallsBackToEveryWavelength) {
 // same bit for bit, and the refinement on every slice is not (an 8² tile, 16² slices).
 TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
     RecoverSettings bad;
-    bad.refine_ladder_min_um = -1.0;
+    bad.refine_ladder_min_um = -2.0;  // −1 is unset: the schedule's
     EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
     bad.refine_ladder_min_um = std::nan("");
     EXPECT_THROW(recover_heights({}, 4, 4, 2.0, 1.0, bad), std::domain_error);
