@@ -220,12 +220,15 @@ void run_on(const InvertArgs& a, const Communicator* comm) {
     }
     // Split over ranks, a signal to any rank stops the run: rank 0 reports it (SIGINT when it
     // was another rank's).
-    if (comm != nullptr && result.status == InversionStatus::Stopped && sig == 0) sig = SIGINT;
+    const bool elsewhere = comm != nullptr && result.status == InversionStatus::Stopped && sig == 0;
+    if (elsewhere) sig = SIGINT;
     if (result.status == InversionStatus::Stopped && sig != 0) {
-        std::fprintf(
-            stderr,
-            "wavebrdf: interrupted at epoch %d; checkpoint written, continue with: wavebrdf invert --resume %s\n",
-            result.epoch, dir.c_str());
+        // The signal named: under mpiexec the exit status alone says nothing of why it stopped.
+        const char* by = elsewhere ? "a signal to another rank" : sig == SIGTERM ? "SIGTERM" : "SIGINT";
+        std::fprintf(stderr,
+                     "wavebrdf: interrupted at epoch %d by %s; checkpoint written, continue with: wavebrdf invert "
+                     "--resume %s\n",
+                     result.epoch, by, dir.c_str());
         throw ExitStatus{128 + sig};
     }
 }

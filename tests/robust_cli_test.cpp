@@ -80,6 +80,10 @@ TEST(RobustCliTest, RecoverSizeMustMatchTheObservations) {
     expect_one_line_naming(run_cli(dir, "recover --size 8 " + given + " --out small"),
                            {"footprint centres span", "8x8", "--size", "period 16 um"});
     EXPECT_FALSE(fs::exists(dir / "small" / "metrics.csv"));
+    // Larger than the surface: a band of the 32x32 tile (period 64 um) that no footprint reaches.
+    expect_one_line_naming(run_cli(dir, "recover --size 32 " + given + " --out large"),
+                           {"no observation's footprint", "32x32", "--size", "period 64 um"});
+    EXPECT_FALSE(fs::exists(dir / "large" / "metrics.csv"));
     const CliResult right = run_cli(dir, "recover --size 16 " + given +
                                              " --field-iterations 3 --refine-iterations 2 "
                                              "--out right");

@@ -9,6 +9,7 @@
 
 #include "core/text.h"
 #include "forward/batch_run.h"
+#include "wavebrdf/input_digest.h"
 #include "wavebrdf/memory.h"
 
 namespace wavebrdf {
@@ -203,6 +204,22 @@ std::vector<Float> render_batch_over_ranks(const std::vector<Heightfield>& heigh
     const std::size_t values = static_cast<std::size_t>(batch.resolution) * static_cast<std::size_t>(batch.resolution) *
                                static_cast<std::size_t>(batch.channels);
     std::vector<Float> local, out;
+    // Every rank must have been given the same batch: the shares and the gathers below assume
+    // it (different counts abort in MPI, different heights or queries give a mixed result).
+    InputDigest digest;
+    digest.add(static_cast<long long>(sizeof(Float)));
+    digest.add(std::vector<double>{double(batch.resolution), double(batch.channels), double(int(options.path)),
+                                   options.tolerance, options.prune_tolerance, double(count)});
+    for (const Heightfield& hf : heightfields) {
+        digest.add(std::vector<double>{double(hf.rows()), double(hf.cols()), hf.texel_um(), hf.vscale()});
+        digest.add(hf.values());
+    }
+    for (const auto& band : batch.bands) digest.add(band);
+    for (const BatchItem& item : batch.items)
+        digest.add(std::vector<double>{item.query.x_um, item.query.y_um, item.query.sigma_p_um, item.query.omega_i[0],
+                                       item.query.omega_i[1], double(int(item.query.model)), double(item.band),
+                                       double(item.heightfield)});
+    agree_on_inputs(comm, digest.value(), "slices to render (heightfields, queries or options)");
     run_agreed(comm, [&] {
         if (heightfields.empty()) throw std::invalid_argument("no heightfields given; expected at least one");
         validate(batch, heightfields.size(), options);

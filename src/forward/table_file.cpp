@@ -21,8 +21,10 @@
 #include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
 
+#include "io/exr_source.h"
 #include "io/exr_threads.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/table.h"
 #include "wavebrdf/text.h"
@@ -185,14 +187,14 @@ void write_brdf_table(const std::string& path, const BrdfTable& table) {
 }
 
 BrdfTable read_brdf_table(const std::string& path) {
-    // The pixels through read_rgb_exr: its header walk bounds attribute sizes, the image size
-    // (k_max_exr_side per side), channels and tiles before OpenEXR allocates anything, and
-    // refuses multi-part files. Only then is the header opened again for the attributes.
-    RgbImage image = read_rgb_exr(path);
+    // The header first (ExrSource: its raw walk bounds attribute sizes, the image size, channels
+    // and tiles before OpenEXR allocates anything, refuses multi-part files and pixel data larger
+    // than the file can hold), then the attributes: a file that is not a table is refused before
+    // a pixel is allocated or read.
+    const detail::ExrSource source(path);
     BrdfTable t;
     try {
-        Imf::InputFile file(path.c_str());
-        const Attributes at(path, file.header());
+        const Attributes at(path, source.header());
         const std::string kind = at.text("wavebrdf:kind");
         if (kind != k_kind) fail(path, "attribute wavebrdf:kind is '" + kind + "'; expected '" + k_kind + "'");
         t.version = at.text("wavebrdf:version", 256);
@@ -240,7 +242,7 @@ BrdfTable read_brdf_table(const std::string& path) {
                            " um is more than 10 periods of the " + std::to_string(t.heightfield_rows) + "x" +
                            std::to_string(t.heightfield_cols) + " surface of texel " + format_shortest(t.texel_um) +
                            " um (" + format_shortest(period) + " um); expected the table of a real render");
-        if (file.header().findTypedAttribute<Imf::StringAttribute>("wavebrdf:source") != nullptr)
+        if (source.header().findTypedAttribute<Imf::StringAttribute>("wavebrdf:source") != nullptr)
             t.source = at.text("wavebrdf:source", k_max_attribute_chars);
         try {
             validate(s);
@@ -249,8 +251,8 @@ BrdfTable read_brdf_table(const std::string& path) {
         }
         const long long height = static_cast<long long>(s.lights.rows) * s.resolution;
         const long long width = static_cast<long long>(s.lights.cols) * s.resolution;
-        if (image.rows != height || image.cols != width)
-            fail(path, "mosaic is " + std::to_string(image.rows) + "x" + std::to_string(image.cols) +
+        if (source.m_rows != height || source.m_cols != width)
+            fail(path, "mosaic is " + std::to_string(source.m_rows) + "x" + std::to_string(source.m_cols) +
                            " pixels but the attributes declare " + std::to_string(s.lights.rows) + "x" +
                            std::to_string(s.lights.cols) + " lights of " + std::to_string(s.resolution) + "x" +
                            std::to_string(s.resolution) + " (" + std::to_string(height) + "x" + std::to_string(width) +
@@ -267,18 +269,36 @@ BrdfTable read_brdf_table(const std::string& path) {
     } catch (const std::exception& e) {
         fail(path, std::string("cannot read the table's attributes (") + e.what() + ")");
     }
-    for (float v : image.data)
-        if (!std::isfinite(v)) fail(path, "has a value that is not finite; expected f_r values");
-    // Mosaic → (rows, cols, n, n, 3).
+    // The values once, read a row of lights (n mosaic rows) at a time into their place
+    // (rows, cols, n, n, 3): the table's memory and one row of lights, not the mosaic twice.
     const std::size_t n = std::size_t(t.spec.resolution), rows = std::size_t(t.spec.lights.rows),
                       cols = std::size_t(t.spec.lights.cols), width = cols * n;
-    t.values.resize(image.data.size());
-    for (std::size_t a = 0; a < rows; ++a)
+    const double values = double(rows) * double(width) * double(n) * 3.0;
+    require_memory(4.0 * values + 4.0 * double(width) * double(n) * 3.0, memory_limit(0.0),
+                   "the table " + path + " (" + std::to_string(rows) + "x" + std::to_string(cols) + " lights of " +
+                       std::to_string(n) + "x" + std::to_string(n) + ")",
+                   "more memory");
+    const bool rgb = source.has_channel("R") && source.has_channel("G") && source.has_channel("B");
+    if (!rgb && !source.has_channel("Y")) fail(path, "has no R, G, B channels (nor Y); expected an RGB image");
+    t.values = allocating("the table's values", 4.0 * values,
+                          [&] { return std::vector<float>(static_cast<std::size_t>(values)); });
+    std::vector<float> band(width * n * 3);
+    for (std::size_t a = 0; a < rows; ++a) {
+        const int first = int(a * n), last = int(a * n + n - 1);
+        if (rgb) {
+            source.read_rows({"R", "G", "B"}, first, last, band.data());
+        } else {  // a luminance-only file is grey: Y in every channel, as read_rgb_exr does
+            source.read_rows("Y", first, last, band.data());
+            for (std::size_t k = width * n; k-- > 0;) band[3 * k] = band[3 * k + 1] = band[3 * k + 2] = band[k];
+        }
+        for (float v : band)
+            if (!std::isfinite(v)) fail(path, "has a value that is not finite; expected f_r values");
         for (std::size_t b = 0; b < cols; ++b)
             for (std::size_t p = 0; p < n; ++p) {
-                const float* from = image.data.data() + ((a * n + p) * width + b * n) * 3;
+                const float* from = band.data() + (p * width + b * n) * 3;
                 std::copy(from, from + n * 3, t.values.begin() + std::ptrdiff_t((((a * cols + b) * n + p) * n) * 3));
             }
+    }
     return t;
 }
 

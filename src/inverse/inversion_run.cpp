@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/json_fields.h"
+#include "wavebrdf/input_digest.h"
 #include "wavebrdf/input_files.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
@@ -230,10 +231,35 @@ Observation reference_observation(const InversionOptions& o, const std::vector<d
     return r;
 }
 
-// prepare_inversion on one rank (no collective calls).
+// What shapes an inversion's run on every rank, for agree_on_inputs: the options that change
+// its arithmetic or its collective calls (not the output paths, the memory limit or the names).
+void add_options(InputDigest& d, const InversionOptions& o, const std::vector<double>& lambdas) {
+    const double none = std::numeric_limits<double>::quiet_NaN();
+    d.add(std::vector<double>{double(o.rows), double(o.cols), o.texel_um, o.vscale, o.x_um.value_or(none),
+                              o.y_um.value_or(none), o.sigma_p_um, double(int(o.model)), o.omega_i[0], o.omega_i[1],
+                              double(o.resolution), double(o.epochs), double(int(o.optimizer)), o.adam.lr,
+                              o.adam.beta1, o.adam.beta2, o.adam.epsilon, o.adam.decay, double(int(o.loss.kind)),
+                              o.loss.epsilon, o.loss.photons, double(int(o.positions.kind)), double(int(o.init.kind)),
+                              o.init.noise_fraction, double(int(o.path)), o.tolerance, double(o.checkpoint_every)});
+    d.add(static_cast<long long>(o.seed));
+    d.add(lambdas);
+    std::vector<double> positions;
+    for (const auto& p : o.positions.positions_um) positions.insert(positions.end(), {p[0], p[1]});
+    d.add(positions);
+    d.add(std::vector<double>(o.snapshots.begin(), o.snapshots.end()));
+}
+
+void add_observation(InputDigest& d, const Query& q, const std::vector<double>& lambdas, int resolution) {
+    d.add(std::vector<double>{q.x_um, q.y_um, q.sigma_p_um, q.omega_i[0], q.omega_i[1], double(int(q.model)),
+                              double(resolution)});
+    d.add(lambdas);
+}
+
+// prepare_inversion on one rank (no collective calls). `digest` gets what every rank must agree
+// on: the options and the whole inputs (every observation, before this rank keeps its share).
 PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heightfield> truth,
                                   std::optional<std::vector<Observation>> observations,
-                                  std::optional<Heightfield> initial) {
+                                  std::optional<Heightfield> initial, InputDigest& digest) {
     const Communicator& comm = o.communicator ? *o.communicator : serial_communicator();
     const bool sharded = comm.size() > 1;
     const auto name = [&](const char* key) { return option_name(o.names, key); };
@@ -284,6 +310,7 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
                                     " is given as heights but none were passed; expected the initial heights");
     const std::vector<double> lambdas = option_wavelengths(o);
     validate_resolution(o.resolution);
+    add_options(digest, o, lambdas);
 
     // Truth, observations.
     if (given_truth && given_observations)
@@ -297,13 +324,22 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
         if (given_reference) {
             p.observations.push_back(reference_observation(o, lambdas));
         } else if (read_share) {
-            p.shard.count = read_observation_index(o.observations_path, o.max_memory_gb).size();
+            const ObservationIndex index = read_observation_index(o.observations_path, o.max_memory_gb);
+            p.shard.count = index.size();
+            for (std::size_t i = 0; i < index.size(); ++i)
+                add_observation(digest, index.queries[i], index.lambdas_um[i], index.resolution);
             p.observations = read_observations_file(o.observations_path, comm.rank(), comm.size(), o.max_memory_gb,
                                                     &p.shard.indices);
         } else {
             p.observations = observations ? std::move(*observations)
                                           : read_observations_file(o.observations_path, 0, 1, o.max_memory_gb);
         }
+        if (!read_share)
+            for (const Observation& r : p.observations) {
+                add_observation(digest, r.query, r.lambdas_um, r.resolution);
+                digest.add_bytes(r.reference.data(), r.reference.size() * sizeof(float));
+                digest.add_bytes(r.weights.data(), r.weights.size() * sizeof(float));
+            }
         const std::size_t total = read_share ? p.shard.count : p.observations.size();
         if (total == 0)
             throw std::invalid_argument(name("observations") + " is empty; expected at least one observation");
@@ -335,6 +371,8 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
             p.truth = default_inversion_truth(o.rows, o.cols, o.texel_um, o.vscale, o.seed);
         rows = p.truth->rows();
         cols = p.truth->cols();
+        digest.add(std::vector<double>{double(rows), double(cols), p.truth->texel_um(), p.truth->vscale()});
+        digest.add(p.truth->values());
         Observation base;
         base.query.model = o.model;
         base.query.sigma_p_um = o.sigma_p_um;
@@ -386,6 +424,7 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
         }
     }
     p.initial = Heightfield(rows, cols, std::move(start), o.texel_um, o.vscale);
+    digest.add(p.initial.values());
     if (given_observations)
         require_memory(
             estimate_inversion_bytes(p.initial, p.observations, settings), memory,
@@ -400,8 +439,14 @@ PreparedInversion prepare_inversion(const InversionOptions& o, std::optional<Hei
                                     std::optional<std::vector<Observation>> observations,
                                     std::optional<Heightfield> initial) {
     PreparedInversion p;
-    run_agreed(o.communicator ? *o.communicator : serial_communicator(),
-               [&] { p = prepare_on_rank(o, std::move(truth), std::move(observations), std::move(initial)); });
+    const Communicator& comm = o.communicator ? *o.communicator : serial_communicator();
+    InputDigest digest;
+    run_agreed(comm, [&] {
+        p = prepare_on_rank(o, std::move(truth), std::move(observations), std::move(initial), digest);
+    });
+    // Ranks started with different options or files (mpiexec's MPMD form, node-local copies that
+    // differ) refuse to run instead of mixing their shares into a wrong estimate.
+    agree_on_inputs(comm, digest.value(), "options or inputs");
     return p;
 }
 
@@ -793,6 +838,16 @@ InversionDirectoryResult run_epochs(InversionRun& run, const InversionOptions& o
     return result;
 }
 
+// run.json's "finished": true once every epoch ran and every output was written (rank 0 writes).
+void mark_finished(const Communicator& comm, const std::string& dir, nlohmann::json& run_json,
+                   const InversionDirectoryResult& result) {
+    if (result.status != InversionStatus::Completed) return;
+    on_root(comm, [&] {
+        run_json["finished"] = true;
+        write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
+    });
+}
+
 // The distinct wavelengths of every rank's observations (on rank 0; gathered when sharded).
 std::vector<double> all_wavelengths_um(const std::vector<Observation>& observations, const Communicator& comm) {
     std::vector<std::vector<double>> lists = wavelength_lists(observations);
@@ -833,11 +888,12 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
     const std::vector<double> wavelengths_um = all_wavelengths_um(observations, comm);
     const std::size_t count = run.inversion().observation_count();
 
+    nlohmann::json run_json;
     on_root(comm, [&] {
         prepare_run_directory(RunKind::Invert, dir, control.force);
         fs::create_directories(dir + "/snapshots");
         check_writable(dir + "/metrics.csv");
-        const nlohmann::json run_json = {
+        run_json = {
             {"args", args},
             {"title", "wavebrdf invert: " + to_string(options.loss) + ", " + to_string(options.optimizer) + ", " +
                           grid(rows, cols) + " heights, " + std::to_string(options.resolution) + "^2 slices, " +
@@ -850,7 +906,10 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
             {"observations", count},
             {"version", k_version},
             {"threads", thread_count()},
-            {"wavelengths_um", wavelengths_um}};
+            {"wavelengths_um", wavelengths_um},
+            // false until every epoch ran and every output is written: a run ended by a signal,
+            // a failure or a crash says so (a stop keeps its checkpoint for --resume).
+            {"finished", false}};
         write_text_atomically(dir + "/run.json", run_json.dump(1) + "\n");
         const Observation& o = observations[0];
         write_npy(dir + "/reference.npy", {std::size_t(o.resolution), std::size_t(o.resolution), std::size_t(channels)},
@@ -869,7 +928,9 @@ InversionDirectoryResult run_inversion_in_directory(const InversionOptions& opti
         write_slice_exr(dir + name + ".exr", image, slice_attributes(o, from, "wavebrdf invert: reference"));
         write_rgb_png(dir + name + ".png", image, auto_exposure(to_doubles(o.reference)), true);
     });
-    return run_epochs(run, options, dir, control);
+    InversionDirectoryResult result = run_epochs(run, options, dir, control);
+    mark_finished(comm, dir, run_json, result);
+    return result;
 }
 
 InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, std::optional<int> epochs,
@@ -917,14 +978,15 @@ InversionDirectoryResult resume_inversion_in_directory(const std::string& dir, s
                                         " is below the checkpoint's epoch " + std::to_string(inversion.epoch()) +
                                         "; expected at least that many");
     });
-    // The new target, for a later resume.
-    if (run_json["args"]["epochs"] != options.epochs) {
-        on_root(comm, [&] {
-            run_json["args"]["epochs"] = options.epochs;
-            write_text_atomically(where, run_json.dump(1) + "\n");
-        });
-    }
-    return run_epochs(run, options, dir, control);
+    // The new target, for a later resume, and the run unfinished until it completes again.
+    on_root(comm, [&] {
+        run_json["args"]["epochs"] = options.epochs;
+        run_json["finished"] = false;
+        write_text_atomically(where, run_json.dump(1) + "\n");
+    });
+    InversionDirectoryResult result = run_epochs(run, options, dir, control);
+    mark_finished(comm, dir, run_json, result);
+    return result;
 }
 
 }  // namespace wavebrdf

@@ -38,8 +38,10 @@
 #include <png.h>
 
 #include "io/surface_formats.h"
+#include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/threads.h"
+#include "io/exr_source.h"
 #include "io/exr_threads.h"
 #include "wavebrdf/text.h"
 #include "wavebrdf/version.h"
@@ -272,81 +274,7 @@ void check_attribute_sizes(const std::string& path) {
     }
 }
 
-// An opened EXR file with the facts every reader needs; errors name the path.
-struct ExrSource {
-    explicit ExrSource(const std::string& path) : m_path(path) {
-        std::error_code ec;
-        if (!fs::exists(path, ec)) fail(path, "file does not exist");
-        if (fs::is_directory(path, ec)) fail(path, "is a directory; expected an OpenEXR file");
-        check_readable_file(path);
-        // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
-        if (!Imf::isOpenExrFile(path.c_str())) fail(path, "not an OpenEXR file (missing magic number or unreadable)");
-        check_attribute_sizes(path);  // first: opening the file is what allocates
-        refuse_multi_part(path);
-        try {
-            m_file = std::make_unique<Imf::InputFile>(path.c_str(), detail::exr_threads());
-        } catch (const std::exception& e) {
-            fail(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
-        }
-        const Imath::Box2i dw = m_file->header().dataWindow();
-        const long long width = static_cast<long long>(dw.max.x) - dw.min.x + 1;
-        const long long height = static_cast<long long>(dw.max.y) - dw.min.y + 1;
-        if (width < 1 || height < 1 || width > std::numeric_limits<int>::max() ||
-            height > std::numeric_limits<int>::max())
-            fail(path, "data window " + std::to_string(width) + "x" + std::to_string(height) +
-                           " is invalid; expected a non-empty image");
-        // Before any pixel is allocated: a small file may declare a huge image.
-        if (width * height > k_max_exr_pixels)
-            fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image (" +
-                           std::to_string(width * height) + " pixels); the limit is " +
-                           std::to_string(k_max_exr_pixels) + " pixels (16384x16384)");
-        m_rows = static_cast<int>(height);
-        m_cols = static_cast<int>(width);
-    }
-
-    bool has_channel(const char* name) const { return m_file->header().channels().findChannel(name) != nullptr; }
-
-    // Reads channels[c] into data[k * stride + c] (float, whatever the stored type), row-major
-    // from the data window's top-left corner, which Slice::Make maps to element 0.
-    void read(const std::vector<std::string>& channels, std::vector<float>& data) const {
-        const std::size_t stride = channels.size();
-        const std::size_t count = static_cast<std::size_t>(m_rows) * static_cast<std::size_t>(m_cols) * stride;
-        const Imath::Box2i dw = m_file->header().dataWindow();
-        try {
-            data.assign(count, 0.0f);
-            Imf::FrameBuffer frame;
-            for (std::size_t c = 0; c < stride; ++c)
-                frame.insert(channels[c], Imf::Slice::Make(Imf::FLOAT, data.data() + c, dw, stride * sizeof(float),
-                                                           stride * sizeof(float) * static_cast<std::size_t>(m_cols)));
-            m_file->setFrameBuffer(frame);
-            m_file->readPixels(dw.min.y, dw.max.y);
-        } catch (const std::exception& e) {
-            // A truncated file usually opens fine and only fails here.
-            fail(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") + e.what() + ")");
-        }
-    }
-
-    // Reads rows first_row … last_row (0-based from the data window's top, inclusive) of one
-    // channel as float into out[(r - first_row) * m_cols + j]; `out` holds that many values.
-    void read_rows(const char* channel, int first_row, int last_row, float* out) const {
-        const Imath::Box2i dw = m_file->header().dataWindow();
-        const Imath::Box2i rows(Imath::V2i(dw.min.x, dw.min.y + first_row), Imath::V2i(dw.max.x, dw.min.y + last_row));
-        try {
-            Imf::FrameBuffer frame;
-            frame.insert(channel, Imf::Slice::Make(Imf::FLOAT, out, rows, sizeof(float),
-                                                   sizeof(float) * static_cast<std::size_t>(m_cols)));
-            m_file->setFrameBuffer(frame);
-            m_file->readPixels(rows.min.y, rows.max.y);
-        } catch (const std::exception& e) {
-            fail(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") + e.what() + ")");
-        }
-    }
-
-    std::string m_path;
-    std::unique_ptr<Imf::InputFile> m_file;
-    int m_rows = 0;
-    int m_cols = 0;
-};
+using detail::ExrSource;
 
 // Writes float channels interleaved in `data` (stride = channels.size()) as a ZIP EXR;
 // `describe` adds header attributes.
@@ -927,6 +855,110 @@ int exr_threads() {
         pool = threads;
     }
     return threads;
+}
+
+}  // namespace detail
+
+namespace detail {
+
+double exr_expansion_limit(int compression) {
+    switch (static_cast<Imf::Compression>(compression)) {
+        case Imf::NO_COMPRESSION: return 1.0;
+        case Imf::RLE_COMPRESSION: return 64.0;
+        case Imf::ZIPS_COMPRESSION:
+        case Imf::ZIP_COMPRESSION: return 1032.0;
+        case Imf::PXR24_COMPRESSION: return 1376.0;
+        case Imf::B44_COMPRESSION:
+        case Imf::B44A_COMPRESSION: return 11.0;
+        default: return 0.0;
+    }
+}
+
+ExrSource::ExrSource(const std::string& path) : m_path(path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) fail(path, "file does not exist");
+    if (fs::is_directory(path, ec)) fail(path, "is a directory; expected an OpenEXR file");
+    check_readable_file(path);
+    // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
+    if (!Imf::isOpenExrFile(path.c_str())) fail(path, "not an OpenEXR file (missing magic number or unreadable)");
+    check_attribute_sizes(path);  // first: opening the file is what allocates
+    refuse_multi_part(path);
+    try {
+        m_file = std::make_unique<Imf::InputFile>(path.c_str(), detail::exr_threads());
+    } catch (const std::exception& e) {
+        fail(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
+    }
+    const Imath::Box2i dw = m_file->header().dataWindow();
+    const long long width = static_cast<long long>(dw.max.x) - dw.min.x + 1;
+    const long long height = static_cast<long long>(dw.max.y) - dw.min.y + 1;
+    if (width < 1 || height < 1 || width > std::numeric_limits<int>::max() ||
+        height > std::numeric_limits<int>::max())
+        fail(path, "data window " + std::to_string(width) + "x" + std::to_string(height) +
+                       " is invalid; expected a non-empty image");
+    // Before any pixel is allocated: a small file may declare a huge image.
+    if (width * height > k_max_exr_pixels)
+        fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image (" +
+                       std::to_string(width * height) + " pixels); the limit is " + std::to_string(k_max_exr_pixels) +
+                       " pixels (16384x16384)");
+    // ... and no more pixel data than the file can hold: each stored byte expands to at most
+    // exr_expansion_limit bytes, so a truncated or forged file that declares more is refused
+    // here instead of allocating its declared size (a 3 MB table asked for 6.3 GB).
+    const double limit = exr_expansion_limit(int(m_file->header().compression()));
+    const std::uintmax_t file_size = fs::file_size(path, ec);
+    if (limit > 0.0 && !ec) {
+        double declared = 0.0;
+        for (auto c = m_file->header().channels().begin(); c != m_file->header().channels().end(); ++c) {
+            const Imf::Channel& channel = c.channel();
+            const double bytes = channel.type == Imf::HALF ? 2.0 : 4.0;
+            const double xs = std::max(channel.xSampling, 1), ys = std::max(channel.ySampling, 1);
+            declared += bytes * std::floor(double(width) / xs) * std::floor(double(height) / ys);
+        }
+        if (declared > limit * double(file_size))
+            fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image of " +
+                           format_shortest(declared) + " bytes, more than its " + std::to_string(file_size) +
+                           " bytes can hold (at most " + format_shortest(limit) +
+                           " times their size with its compression); expected an OpenEXR file that is not "
+                           "truncated or corrupt");
+    }
+    m_rows = static_cast<int>(height);
+    m_cols = static_cast<int>(width);
+}
+
+bool ExrSource::has_channel(const char* name) const {
+    return m_file->header().channels().findChannel(name) != nullptr;
+}
+
+void ExrSource::read(const std::vector<std::string>& channels, std::vector<float>& data) const {
+    const std::size_t stride = channels.size();
+    const std::size_t count = static_cast<std::size_t>(m_rows) * static_cast<std::size_t>(m_cols) * stride;
+    try {
+        data.assign(count, 0.0f);
+    } catch (const std::bad_alloc&) {
+        throw OutOfMemory("out of memory allocating the " + std::to_string(m_rows) + "x" + std::to_string(m_cols) +
+                          " pixels of " + m_path + " (" + format_shortest(4.0 * double(count)) + " bytes)");
+    }
+    read_rows(channels, 0, m_rows - 1, data.data());
+}
+
+void ExrSource::read_rows(const char* channel, int first_row, int last_row, float* out) const {
+    read_rows(std::vector<std::string>{channel}, first_row, last_row, out);
+}
+
+void ExrSource::read_rows(const std::vector<std::string>& channels, int first_row, int last_row, float* out) const {
+    const Imath::Box2i dw = m_file->header().dataWindow();
+    const Imath::Box2i rows(Imath::V2i(dw.min.x, dw.min.y + first_row), Imath::V2i(dw.max.x, dw.min.y + last_row));
+    const std::size_t stride = channels.size();
+    try {
+        Imf::FrameBuffer frame;
+        for (std::size_t c = 0; c < stride; ++c)
+            frame.insert(channels[c], Imf::Slice::Make(Imf::FLOAT, out + c, rows, stride * sizeof(float),
+                                                       stride * sizeof(float) * static_cast<std::size_t>(m_cols)));
+        m_file->setFrameBuffer(frame);
+        m_file->readPixels(rows.min.y, rows.max.y);
+    } catch (const std::exception& e) {
+        // A truncated file usually opens fine and only fails here.
+        fail(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") + e.what() + ")");
+    }
 }
 
 }  // namespace detail

@@ -182,6 +182,51 @@ void check_observation_extent(const std::vector<Observation>& observations, int 
                 " um); expected the size of the surface the observations were made of");
 }
 
+// Throws std::invalid_argument when the footprints of `observations` leave a band of texel rows
+// or columns of the rows × cols tile that none of them reaches: the renderer reads the texels
+// within 3σ_p of a footprint's centre only (gabor.h), so heights there are not observed at all —
+// a --size larger than the surface the observations were made of. Per axis: the centres reduced
+// modulo the period, sorted; between neighbours (and across the wrap) the part farther than 3σ_p
+// (the largest σ_p of the set) from both. A band wider than one texel holds a texel's centre.
+void check_observation_coverage(const std::vector<Observation>& observations, int rows, int cols, double texel_um) {
+    if (observations.empty() || !(texel_um > 0.0)) return;
+    double radius = 0.0;
+    for (const Observation& o : observations) radius = std::max(radius, 3.0 * o.query.sigma_p_um);
+    const double period[2] = {rows * texel_um, cols * texel_um};
+    const char* axis[2] = {"x", "y"};
+    const char* lines[2] = {"rows", "columns"};
+    for (int a = 0; a < 2; ++a) {
+        if (!(2.0 * radius < period[a])) continue;  // one footprint reaches across the whole period
+        std::vector<double> centres;
+        centres.reserve(observations.size());
+        for (const Observation& o : observations) {
+            double c = std::fmod(a == 0 ? o.query.x_um : o.query.y_um, period[a]);
+            if (c < 0.0) c += period[a];
+            centres.push_back(c);
+        }
+        std::sort(centres.begin(), centres.end());
+        double widest = 0.0, from = 0.0;
+        for (std::size_t k = 0; k < centres.size(); ++k) {
+            const double next = k + 1 < centres.size() ? centres[k + 1] : centres.front() + period[a];
+            const double band = (next - centres[k]) - 2.0 * radius;
+            if (band > widest) {
+                widest = band;
+                from = std::fmod(centres[k] + radius, period[a]);
+            }
+        }
+        if (widest > texel_um * (1.0 + 1e-12))
+            throw std::invalid_argument(
+                "no observation's footprint (3 sigma_p = " + detail::format_shortest(radius) +
+                " um about its centre) reaches the texel " + lines[a] + " from " + axis[a] + " = " +
+                detail::format_shortest(from) + " to " + detail::format_shortest(from + widest) + " um of the " +
+                std::to_string(rows) + "x" + std::to_string(cols) + " surface asked for (--size, texel " +
+                detail::format_shortest(texel_um) + " um: period " + detail::format_shortest(period[a]) +
+                " um), a band " + detail::format_shortest(widest) +
+                " um wide whose heights they cannot tell; expected the size of the surface the observations were "
+                "made of");
+    }
+}
+
 // The most laser wavelengths a recovery takes (RecoveryOptions::lambdas_um): a plan's ladder
 // has a handful; 300 ran past 100 s before any check.
 constexpr std::size_t k_max_laser_wavelengths = 64;
@@ -197,6 +242,13 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                                   std::vector<Observation> observations, bool show_progress, const Communicator& comm) {
     if (truth != nullptr && !observations.empty())
         throw std::invalid_argument("a truth and observations exclude each other; expected one of them (or neither)");
+    // The stages fit whole slices (a masked pixel would be fitted as measured): refused here,
+    // before the run directory or any work, not by the first stage.
+    for (std::size_t i = 0; i < observations.size(); ++i)
+        if (!observations[i].weights.empty())
+            throw std::invalid_argument("observation " + std::to_string(i) +
+                                        " has per-pixel weights, which recover does not use; expected "
+                                        "observations without weights (invert uses them)");
     if (options.noise.kind != NoiseKind::None && !observations.empty())
         throw std::invalid_argument(
             "noise '" + to_string(options.noise) +
@@ -304,6 +356,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.rows = options.rows;
         r.cols = options.cols;
         check_observation_extent(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um);
+        check_observation_coverage(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um);
         require_memory(estimate_recovery_bytes(r.observations, r.rows, r.cols, r.texel_um, options.method), limit,
                        "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
                            std::to_string(r.observations.size()) + " given observations)");
