@@ -10,6 +10,7 @@
 #include "wavebrdf/batch.h"
 #include "wavebrdf/input_digest.h"
 #include "wavebrdf/memory.h"
+#include "wavebrdf/model.h"
 
 namespace wavebrdf::python {
 
@@ -226,6 +227,35 @@ py::array gradient_of(const Batched& a, const std::vector<double>& weights, cons
 
 }  // namespace
 
+std::vector<double> slice_weights(const py::array& w, int n, const char* name) {
+    std::vector<double> values = to_doubles(w, name, false);
+    const std::size_t pixels = static_cast<std::size_t>(n) * static_cast<std::size_t>(n);
+    std::vector<unsigned char> inside(pixels, 0);
+    for (int p = 0; p < n; ++p)
+        for (const DiskPixel pixel : disk_row(p, n)) inside[std::size_t(p) * std::size_t(n) + std::size_t(pixel.q)] = 1;
+    std::size_t bad = values.size();
+    for (std::size_t k = 0; k < values.size(); ++k) {
+        if (!inside[(k / 3) % pixels])
+            values[k] = 0.0;
+        else if (!std::isfinite(values[k]) && bad == values.size())
+            bad = k;
+    }
+    if (bad != values.size()) {
+        // The index in the array's own shape, e.g. [3, 4, 0].
+        std::string index;
+        std::size_t rest = bad;
+        for (py::ssize_t d = w.ndim() - 1; d >= 0; --d) {
+            const auto extent = static_cast<std::size_t>(w.shape(d));
+            index = std::to_string(rest % extent) + (index.empty() ? "" : ", ") + index;
+            rest /= extent;
+        }
+        throw py::value_error(std::string(name) + "[" + index + "] = " + format_number(values[bad]) +
+                              " is not finite; expected finite values inside the unit disk (pixels outside it are "
+                              "ignored)");
+    }
+    return values;
+}
+
 bool single_query(py::handle heights, py::handle x_um, py::handle y_um, py::handle light) {
     const auto ndim = [](py::handle o) -> py::ssize_t {
         if (py::isinstance<py::array>(o)) return py::reinterpret_borrow<py::array>(o).ndim();
@@ -280,7 +310,7 @@ py::array slice_gradient_batch(py::handle heights, py::handle weights, int resol
     const py::ssize_t n = resolution;
     const Shape expected = with(a.batch_shape, {n, n, 3});
     check_shape(w, expected, "weights");
-    const std::vector<double> values = to_doubles(w, "weights");
+    const std::vector<double> values = slice_weights(w, resolution, "weights");
     return a.single ? gradient_of<float>(a, values, options) : gradient_of<double>(a, values, options);
 }
 

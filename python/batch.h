@@ -24,6 +24,13 @@ py::array slice_gradient_batch(py::handle heights, py::handle weights, int resol
                                const py::object& spectral, py::handle light, const std::string& model,
                                const RenderOptions& options);
 
+// The weights of slice_gradient (and the torch plan's adjoint): `w` holds (…, n, n, 3) values,
+// read as doubles. Pixels outside the unit disk are not rendered, so their weights are ignored
+// (set to 0), whatever they hold: a loss such as (sqrt(I) - sqrt(R))^2 has an infinite or NaN
+// derivative where I = 0 there. Inside the disk every weight must be finite (ValueError naming
+// its index otherwise).
+std::vector<double> slice_weights(const py::array& w, int n, const char* name);
+
 // The docstring paragraph on batch axes and broadcasting (render_slice, slice_gradient).
 extern const char* const kBatchDoc;
 

@@ -47,7 +47,7 @@ std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n,
 std::vector<double> weights_argument(py::handle weights, int n) {
     const py::array w = float_array(weights, "weights");
     check_shape(w, {n, n, 3}, "weights");
-    return to_doubles(w, "weights");
+    return slice_weights(w, n, "weights");
 }
 
 py::array gradient_array(std::vector<double>&& g, const Heightfield& hf, bool single) {
@@ -352,11 +352,12 @@ gradient of sum(weights * slice) (as slice_gradient, after forward()).
                      "and typed like `heights`. For a loss L of the slice, weights = dL/dslice gives\n"
                      "dL/dheights.\n\n"
                      "weights     float32/float64 array (resolution, resolution, 3), or (batch..., resolution,\n"
-                     "            resolution, 3) for a batch (below), finite; one weight per\n"
-                     "            pixel and channel. One wavelength: R = G = B, so the three channels'\n"
-                     "            weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]\n"
-                     "            with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk\n"
-                     "            are ignored.\n") +
+                     "            resolution, 3) for a batch (below); one weight per pixel and channel.\n"
+                     "            One wavelength: R = G = B, so the three channels' weights add.\n"
+                     "            Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]\n"
+                     "            with M = spectral_to_srgb_weights(wavelengths). Finite inside the unit\n"
+                     "            disk; pixels outside it are not rendered and their weights are ignored,\n"
+                     "            whatever they hold (the inf or NaN of d/dI sqrt(I) where I = 0 included).\n") +
          kPlainDoc + kBatchDoc)
             .c_str());
 

@@ -214,8 +214,10 @@ std::vector<double> wavelengths(const py::object& lambda_um, const py::object& s
     if (!lambda_um.is_none() && !spectral.is_none())
         throw py::value_error("lambda_um and spectral exclude each other; expected one of them (or neither: 0.5 um)");
     if (!spectral.is_none()) {
-        if (py::isinstance<py::int_>(spectral) && !py::isinstance<py::bool_>(spectral)) {
-            const long long count = spectral.cast<long long>();
+        // An int, or any integer that says so (__index__: NumPy's np.int64, np.int32, ...).
+        if (!py::isinstance<py::bool_>(spectral) &&
+            (py::isinstance<py::int_>(spectral) || PyIndex_Check(spectral.ptr()))) {
+            const long long count = py::module_::import("operator").attr("index")(spectral).cast<long long>();
             if (count < 1 || count > 256)
                 bad_argument("spectral", std::to_string(count),
                              "1 to 256 wavelength samples, or a list of wavelengths in um");

@@ -74,7 +74,8 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             "hostile wavebrdf attribute; ValueError on a non-finite value.")
         .def_static(
             "read",
-            [](const std::string& path, const py::object& texel_um, const py::object& vscale) {
+            [](const std::filesystem::path& path_arg, const py::object& texel_um, const py::object& vscale) {
+                const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
                 const HeightfieldScale scale = heightfield_file_scale(path, texel_um, vscale);
                 py::gil_scoped_release release;
                 return read_heightfield_exr(path, scale.texel_um, scale.vscale);
@@ -211,7 +212,8 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             "\"Files\"), so that from_exr reads the same scale back.")
         .def(
             "save",
-            [](const Heightfield& hf, const std::string& path, const std::string& made_by) {
+            [](const Heightfield& hf, const std::filesystem::path& path_arg, const std::string& made_by) {
+                const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
                 py::gil_scoped_release release;
                 std::string ext = std::filesystem::path(path).extension().string();
                 for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));

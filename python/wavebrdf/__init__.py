@@ -103,6 +103,6 @@ for _name in ("render_slice", "slice_gradient", "render", "gradient", "observati
               "recover_heights", "recover_heights_thesis", "plan_acquisition", "planned_observations",
               "simulate_observations", "height_uncertainty", "height_rel_rmse", "height_rel_rmse_plane_removed",
               "read_observations", "write_observations", "render_image", "image_gradient", "design",
-              "surface_stats", "condition_surface"):
+              "design_plate", "surface_stats", "condition_surface", "write_fabrication_exports"):
     globals()[_name] = _explained(globals()[_name])
 del _name

@@ -5,10 +5,13 @@ arguments" and every overload's whole signature. explained(f) calls f and, on th
 names what is wrong from the signature line of f's docstring: the required parameter that is
 missing, a keyword that f does not have (with the nearest one it has), or too many positional
 arguments. Any other TypeError (a value of the wrong type) is pybind11's, unchanged.
+It also passes every os.PathLike argument (a pathlib.Path) as its str (os.fspath), so that each
+wrapped function takes paths as str or Path alike.
 """
 from __future__ import annotations
 
 import functools
+import os  # already loaded by the interpreter: costs nothing
 
 # difflib, re and typing are imported where used (a misspelt call, a type checker): together
 # they were half of `import wavebrdf`'s own time.
@@ -100,11 +103,14 @@ def diagnose(name: str, doc: Optional[str], args: tuple, kwargs: dict) -> Option
 
 
 def explained(function: F) -> F:
-    """`function` with the clearer messages above for calls that do not match its parameters."""
+    """`function` with the clearer messages above for calls that do not match its parameters,
+    and path-like arguments passed as str."""
     name = getattr(function, "__name__", "")
 
     @functools.wraps(function)
     def call(*args, **kwargs):
+        args = tuple(os.fspath(a) if isinstance(a, os.PathLike) else a for a in args)
+        kwargs = {k: os.fspath(v) if isinstance(v, os.PathLike) else v for k, v in kwargs.items()}
         try:
             return function(*args, **kwargs)
         except TypeError as error:

@@ -227,7 +227,7 @@ class Heightfield:
         """
         ...
     @staticmethod
-    def read(path: str, texel_um: Any = ..., vscale: Any = ...) -> Heightfield:
+    def read(path: Union[str, os.PathLike], texel_um: Any = ..., vscale: Any = ...) -> Heightfield:
         """Reads a heightfield EXR or a measured surface (x3p, sdf, MetroPro .dat, sur, plu, al3d, npy,
         text matrix; recognised by content, docs/surfaces.md). A measured surface keeps its heights
         in um and is transposed so that row index i runs along x; its spacing must be square and every
@@ -313,7 +313,7 @@ class Heightfield:
         "Files"), so that from_exr reads the same scale back.
         """
         ...
-    def save(self, path: str, made_by: str = ...) -> None:
+    def save(self, path: Union[str, os.PathLike], made_by: str = ...) -> None:
         """Writes the heightfield in the format of path's extension: .exr (save_exr), .x3p, .sdf or .npy
         (heights in um, transposed to rows along y as those formats store them; docs/surfaces.md).
         ValueError for another extension.
@@ -1172,11 +1172,12 @@ def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: Any
     dL/dheights.
 
     weights     float32/float64 array (resolution, resolution, 3), or (batch..., resolution,
-                resolution, 3) for a batch (below), finite; one weight per
-                pixel and channel. One wavelength: R = G = B, so the three channels'
-                weights add. Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]
-                with M = spectral_to_srgb_weights(wavelengths). Pixels outside the disk
-                are ignored.
+                resolution, 3) for a batch (below); one weight per pixel and channel.
+                One wavelength: R = G = B, so the three channels' weights add.
+                Spectral: each wavelength gets sum_c M[c, l] * weights[..., c]
+                with M = spectral_to_srgb_weights(wavelengths). Finite inside the unit
+                disk; pixels outside it are not rendered and their weights are ignored,
+                whatever they hold (the inf or NaN of d/dI sqrt(I) where I = 0 included).
 
     heights     float32 or float64 array (rows, cols), or (..., rows, cols) for a batch (below),
                 finite, in texel units. float64 renders
