@@ -25,6 +25,7 @@
 #include "wavebrdf/observation_file.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/recovery_directory.h"
+#include "wavebrdf/surface_stats.h"
 #include "wavebrdf/recovery_run.h"
 #include "wavebrdf/run_directory.h"
 #include "wavebrdf/text.h"
@@ -148,9 +149,10 @@ void run(const RecoverArgs& a, const Communicator& comm) {
                 files.push_back({"--out", a.out});
             }
         }
-        for (const char* name : {"run.json", "metrics.csv", "truth.exr", "truth_height.npy", "estimate.exr",
-                                 "estimate.png", "estimate_height.npy", "reference.npy", "final.npy", "report.png",
-                                 "calibration.json", "uncertainty.exr", "uncertainty.json", "uncertainty_height.npy"})
+        for (const char* name :
+             {"run.json", "metrics.csv", "truth.exr", "truth_height.npy", "estimate.exr", "estimate.png",
+              "estimate_height.npy", "reference.npy", "final.npy", "report.png", "calibration.json", "uncertainty.exr",
+              "uncertainty.json", "uncertainty_height.npy", "psd.csv"})
             files.push_back({"--out's " + std::string(name), a.out + "/" + name});
         check_distinct_files(files);
         // --force empties --out first: an input inside it would be deleted before it is read.
@@ -378,6 +380,21 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (!quiet && r.truth && r.metric_note.empty())
         std::fprintf(stderr, "height_rel_rmse with the best-fit plane removed %.3f%%\n",
                      100.0 * height_rel_rmse_plane_removed(estimate, *r.truth));
+    if (!quiet && r.truth && r.metric_note.empty()) {
+        // The estimate's spectrum against the truth's (psd.csv, run.json "psd").
+        const SpectrumComparison psd = compare_spectra(*r.truth, estimate);
+        if (psd.resolved_all)
+            std::fprintf(stderr, "spectrum: the error's power below the truth's in every band (to q %.3g rad/um)",
+                         psd.resolved_q_per_um);
+        else if (psd.resolved_q_per_um > 0.0)
+            std::fprintf(stderr,
+                         "spectrum: the error's power below the truth's up to q %.3g rad/um (wavelength %.3g um)",
+                         psd.resolved_q_per_um, psd.resolved_wavelength_um);
+        else
+            std::fprintf(stderr, "spectrum: the error's power reaches the truth's already in the longest band");
+        std::fprintf(stderr, "; error power %.3g of the truth's; psd.csv in %s\n", psd.error_power_ratio,
+                     a.out.c_str());
+    }
     if (!a.no_plots) draw_report(RunKind::Recover, a.out);
     if (!quiet) {
         if (r.truth && !r.metric_note.empty())

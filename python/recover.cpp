@@ -15,7 +15,9 @@
 #include "wavebrdf/observation_file.h"
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/communicator.h"
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/recovery_run.h"
+#include "wavebrdf/roughness_plan.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/uncertainty.h"
 
@@ -246,13 +248,85 @@ struct RecoveryResult {
     // Error bars (uncertainty=True): σ per texel (µm) and, with a truth, the coverage.
     py::object uncertainty = py::none();
     double median_sigma_um = NAN, coverage_1sigma = NAN, coverage_2sigma = NAN, uncertainty_seconds = NAN;
+    py::dict convergence;  // the run's own verdict, without the truth (convergence.h)
 };
+
+// run.json's "convergence" block (recovery_directory.cpp) as a dict, with its warning line.
+py::dict convergence_dict(const ConvergenceCheck& c) {
+    py::dict d;
+    d["converged"] = c.converged;
+    d["floor"] = c.floor;
+    d["relative_misfit"] = c.relative_misfit;
+    d["reasons"] = c.reasons;
+    d["warning"] = c.warning();
+    if (c.floor == "poisson") {
+        d["deviance"] = c.deviance;
+        d["expected_deviance"] = c.expected_deviance;
+        d["deviance_sd"] = c.deviance_sd;
+        d["misfit_ratio"] = c.misfit_ratio;
+    }
+    if (!c.model_selected.empty()) {
+        d["model_misfit_gabor"] = c.model_misfit_gabor;
+        d["model_misfit_field"] = c.model_misfit_field;
+        d["model_selected"] = c.model_selected;
+    }
+    if (c.median_sigma_relative >= 0.0) d["median_sigma_relative"] = c.median_sigma_relative;
+    return d;
+}
+
+py::dict roughness_dict(const MeasuredRoughness& m) {
+    py::dict d;
+    d["range_um"] = m.range_um;
+    d["rms_slope"] = m.rms_slope;
+    d["rim_fraction"] = m.rim_fraction;
+    d["correlation_um"] = m.correlation_um;
+    d["aspect"] = m.aspect;
+    d["lay_deg"] = m.lay_deg;
+    return d;
+}
+
+// A Heightfield (measured here) or a dict of measure_roughness's keys.
+MeasuredRoughness roughness_argument(const py::object& value) {
+    if (py::isinstance<Heightfield>(value)) {
+        const Heightfield& hf = value.cast<const Heightfield&>();
+        py::gil_scoped_release release;
+        return measure_roughness(hf);
+    }
+    if (!py::isinstance<py::dict>(value))
+        throw py::value_error("roughness = " + std::string(py::repr(value).cast<std::string>().substr(0, 80)) +
+                              " is invalid; expected a Heightfield or a dict as measure_roughness returns");
+    const py::dict d = value.cast<py::dict>();
+    MeasuredRoughness m;
+    const auto field = [&](const char* key, double& out, bool required) {
+        if (!d.contains(key)) {
+            if (required)
+                throw py::value_error(std::string("roughness has no '") + key +
+                                      "'; expected measure_roughness's keys (range_um, rms_slope, rim_fraction, "
+                                      "correlation_um, aspect, lay_deg)");
+            return;
+        }
+        double v = NAN;
+        try {
+            v = d[key].cast<double>();
+        } catch (const py::cast_error&) {}
+        if (!std::isfinite(v))
+            bad_argument(std::string("roughness['") + key + "']", std::string(py::repr(d[key])), "a finite number");
+        out = v;
+    };
+    field("range_um", m.range_um, true);
+    field("rms_slope", m.rms_slope, true);
+    field("rim_fraction", m.rim_fraction, false);
+    field("correlation_um", m.correlation_um, true);
+    field("aspect", m.aspect, false);
+    field("lay_deg", m.lay_deg, false);
+    return m;
+}
 
 RecoveryResult recover(const py::object& truth_arg, const py::object& observations_arg, const py::object& size,
                        const py::object& texel_arg, const py::object& vscale_arg, double height_range_um,
-                       double correlation_texels, const std::string& model, const py::object& light, double sigma_p_um,
-                       int resolution, const py::object& lambdas_um, const py::object& overlap, double jitter,
-                       const py::object& noise, const py::object& loss, const std::string& method,
+                       const py::object& correlation_texels, const std::string& model, const py::object& light,
+                       double sigma_p_um, int resolution, const py::object& lambdas_um, const py::object& overlap,
+                       double jitter, const py::object& noise, const py::object& loss, const std::string& method,
                        const py::object& field_iterations, const py::object& refine_iterations, int epochs,
                        std::uint64_t seed, const py::object& callback, double max_memory_gb, const py::object& quiet,
                        const py::object& comm_arg, const std::string& simulator, const py::object& calibrate,
@@ -261,7 +335,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const py::object& field_tile_threshold, const py::object& field_tile_core,
                        const py::object& white_smoothness, const py::object& white_smoothness_iterations,
                        const py::object& position_passes, const py::object& position_uncertainty_um,
-                       bool oblique_lights) {
+                       bool oblique_lights, const py::object& plan_from_truth) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -287,7 +361,26 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
         options.vscale = scale.vscale;
     }
     options.height_range_um = check_positive(height_range_um, "height_range_um");
-    options.correlation_texels = check_positive(correlation_texels, "correlation_texels");
+    // As the CLI: a given truth is planned for its measured roughness unless a correlation length
+    // is stated (then the stated plan, as a user without the truth would have it).
+    const bool correlation_given = !correlation_texels.is_none();
+    if (correlation_given)
+        options.correlation_texels = check_positive(correlation_texels.cast<double>(), "correlation_texels");
+    options.plan_from_truth = !truth_arg.is_none() && !correlation_given;
+    if (!plan_from_truth.is_none()) {
+        if (!py::isinstance<py::bool_>(plan_from_truth))
+            bad_argument("plan_from_truth", std::string(py::repr(plan_from_truth)), "True, False or None");
+        const bool wanted = plan_from_truth.cast<bool>();
+        if (wanted && truth_arg.is_none())
+            throw py::value_error(
+                "plan_from_truth = True plans for a given truth's measured roughness; expected a truth (not "
+                "observations or the generated default)");
+        if (wanted && correlation_given)
+            throw py::value_error(
+                "plan_from_truth = True and correlation_texels exclude each other; expected one of them (the "
+                "measured roughness, or the stated correlation length)");
+        options.plan_from_truth = wanted;
+    }
     options.model = model_from(model);
     options.omega_i = light_direction(light);
     options.oblique_lights = oblique_lights;
@@ -417,6 +510,31 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
             result.coverage_2sigma = bars.coverage_2sigma;
         }
     }
+    // Whether it converged, judged without the truth, as run_recovery_in_directory judges it for
+    // the CLI (the same floor, the model check's misfits from the metrics, the error bars).
+    double misfit_gabor = -1.0, misfit_field = -1.0;
+    std::string selected;
+    for (const StageMetrics& m : history) {
+        if (m.stage == "misfit:gabor") misfit_gabor = m.loss;
+        if (m.stage == "misfit:field") misfit_field = m.loss;
+        if (m.stage.rfind("select:", 0) == 0) selected = m.stage.substr(7);
+    }
+    ConvergenceCheck convergence;
+    {
+        py::gil_scoped_release release;
+        const PreparedRecovery& r = *prepared;
+        convergence = run_or_abort(*comm, [&] {
+            const double photons = r.noise.kind == NoiseKind::Poisson ? r.noise.level
+                                   : r.loss.kind == LossKind::Poisson ? r.loss.photons
+                                                                      : 0.0;
+            return check_convergence(r.observations, estimate, photons, r.truth && r.noise.kind == NoiseKind::None,
+                                     r.pipeline.calibrate.any() ? &calibration : nullptr, *comm);
+        });
+    }
+    add_model_check(convergence, misfit_gabor, misfit_field, selected);
+    if (std::isfinite(result.median_sigma_um)) add_error_bars(convergence, result.median_sigma_um, prepared->range_um);
+    if (!convergence.converged) result.warnings.push_back(convergence.warning());
+    result.convergence = convergence_dict(convergence);
     return result;
 }
 
@@ -484,9 +602,9 @@ into Observations (one per position, light and wavelength).
         "plan_acquisition",
         [](int rows, const py::object& cols, double texel_um, double height_range_um, double sigma_p_um,
            double position_uncertainty_um, double overlap, double jitter, double lambda_um, double lambda_min_um,
-           double lambda_max_um, double max_step_ratio,
-           const py::object& lambdas_um, int resolution, const py::object& light, const std::string& model,
-           std::uint64_t seed) {
+           double lambda_max_um, double max_step_ratio, const py::object& lambdas_um, int resolution,
+           const py::object& light, const std::string& model, std::uint64_t seed, const py::object& roughness,
+           bool oblique_lights) {
             PlanRequest r;
             if (rows < 1) bad_argument("rows", std::to_string(rows), "at least 1 texel");
             r.rows = rows;
@@ -515,14 +633,27 @@ into Observations (one per position, light and wavelength).
             r.omega_i = light_direction(light);
             r.model = model_from(model);
             r.seed = seed;
-            return plan_acquisition(r);
+            std::optional<MeasuredRoughness> measured;
+            if (!roughness.is_none()) measured = roughness_argument(roughness);
+            AcquisitionPlan plan = plan_acquisition(r);
+            // As recover() plans a given truth (recovery_run.cpp): the rough-surface plan's long
+            // wavelengths (unless the wavelengths are given) and oblique lights.
+            if (measured && measured->range_um > 0.0) {
+                const RoughnessPlan rough = plan_for_measured_roughness(*measured, r.texel_um);
+                if (r.lambdas_um.empty()) add_long_wavelengths(rough, plan);
+                if (oblique_lights) add_oblique_lights(rough, plan);
+                // What was measured and what it asks of the recovery (recover() adds these too).
+                plan.notes.insert(plan.notes.end(), rough.notes.begin(), rough.notes.end());
+            }
+            return plan;
         },
         py::kw_only(), "rows"_a = pr.rows, "cols"_a = py::none(), "texel_um"_a = pr.texel_um,
         "height_range_um"_a = pr.height_range_um, "sigma_p_um"_a = pr.sigma_p_um,
-        "position_uncertainty_um"_a = pr.position_uncertainty_um, "overlap"_a = pr.overlap,
-        "jitter"_a = pr.jitter, "lambda_um"_a = pr.lambda_um, "lambda_min_um"_a = pr.lambda_min_um,
-        "lambda_max_um"_a = pr.lambda_max_um, "max_step_ratio"_a = pr.max_step_ratio, "lambdas_um"_a = py::none(),
-        "resolution"_a = 0, "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "seed"_a = pr.seed, R"doc(
+        "position_uncertainty_um"_a = pr.position_uncertainty_um, "overlap"_a = pr.overlap, "jitter"_a = pr.jitter,
+        "lambda_um"_a = pr.lambda_um, "lambda_min_um"_a = pr.lambda_min_um, "lambda_max_um"_a = pr.lambda_max_um,
+        "max_step_ratio"_a = pr.max_step_ratio, "lambdas_um"_a = py::none(), "resolution"_a = 0,
+        "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "seed"_a = pr.seed, "roughness"_a = py::none(),
+        "oblique_lights"_a = true, R"doc(
 An acquisition that determines the heights of a rows x cols tile (acquisition.h): returns an
 AcquisitionPlan. Keyword arguments (PlanRequest's fields):
 
@@ -541,7 +672,32 @@ lambdas_um       given wavelengths (um) instead of the ladder; None: planned
 resolution       given slice size n (1...8192) instead of Nyquist's n >= 4D/lambda; 0: planned
 light            projected light direction (wx, wy), wx^2 + wy^2 < 1; model: 'OHS', 'ROHS', ...
 seed             the jitter
+roughness        None, or a known surface's measured roughness: a Heightfield (measured here) or
+                 the dict measure_roughness returns. A rough, steep or strongly striated surface
+                 then gets the rough-surface plan's long wavelengths (not with lambdas_um) and,
+                 with oblique_lights (default True), its oblique lights, with notes: the plan
+                 recover(truth=...) makes, given the truth's rows, cols, texel_um and
+                 peak-to-valley (docs/recovery.md, "Rough surfaces")
 A height range the wavelengths cannot unwrap is a ValueError naming the largest they can.
+)doc");
+
+    m.def(
+        "measure_roughness",
+        [](const Heightfield& heightfield) {
+            MeasuredRoughness m;
+            {
+                py::gil_scoped_release release;
+                m = measure_roughness(heightfield);
+            }
+            return roughness_dict(m);
+        },
+        "heightfield"_a, R"doc(
+What the recovery's planner reads from a known surface (roughness_plan.h, measure_roughness):
+a dict with range_um (peak to valley, um), rms_slope (rms |grad H|, central differences across
+the periodic tile: the model's slopes), rim_fraction (fraction of texels with |grad H| > 0.5,
+whose light leaves a slice under normal light), correlation_um (Sal, um), aspect (Str) and
+lay_deg (Std, degrees from x towards y). plan_acquisition(roughness=...) and
+recover(truth=...) plan for these.
 )doc");
 
     m.def(
@@ -852,12 +1008,20 @@ the same keys with the true values (else None).
         .def_readonly("coverage_2sigma", &RecoveryResult::coverage_2sigma,
                       "fraction of texels whose error lies within +-2 sigma (NaN without a truth or uncertainty)")
         .def_readonly("uncertainty_seconds", &RecoveryResult::uncertainty_seconds,
-                      "wall time of the error bars, s (NaN without)");
+                      "wall time of the error bars, s (NaN without)")
+        .def_readonly("convergence", &RecoveryResult::convergence, R"doc(
+dict: whether the recovery converged, judged without the truth (convergence.h; the CLI's
+run.json "convergence"): converged (bool), floor ('poisson': the slices' photon-noise deviance,
+'noiseless': a study's exact slices, 'none': not judged), relative_misfit, reasons (list of
+str), warning (str, '' when converged); with 'poisson' also deviance, expected_deviance,
+deviance_sd, misfit_ratio (deviance / its noise floor); after the model check
+model_misfit_gabor, model_misfit_field, model_selected; with error bars median_sigma_relative.
+)doc");
 
     const RecoveryOptions ro;
     m.def("recover", &recover, "truth"_a = py::none(), "observations"_a = py::none(), py::kw_only(), "size"_a = ro.rows,
           "texel_um"_a = py::none(), "vscale"_a = py::none(), "height_range_um"_a = ro.height_range_um,
-          "correlation_texels"_a = ro.correlation_texels, "model"_a = "OHS", "light"_a = py::make_tuple(0.0, 0.0),
+          "correlation_texels"_a = py::none(), "model"_a = "OHS", "light"_a = py::make_tuple(0.0, 0.0),
           "sigma_p_um"_a = ro.sigma_p_um, "resolution"_a = ro.resolution, "lambdas_um"_a = py::none(),
           "overlap"_a = py::none(), "jitter"_a = ro.jitter, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
@@ -867,7 +1031,8 @@ the same keys with the true values (else None).
           "uncertainty"_a = false, "spectral"_a = ro.spectral, "field_tile_threshold"_a = py::none(),
           "field_tile_core"_a = py::none(), "white_smoothness"_a = py::none(),
           "white_smoothness_iterations"_a = py::none(), "position_passes"_a = py::none(),
-          "position_uncertainty_um"_a = py::none(), "oblique_lights"_a = ro.oblique_lights, R"doc(
+          "position_uncertainty_um"_a = py::none(), "oblique_lights"_a = ro.oblique_lights,
+          "plan_from_truth"_a = py::none(), R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -882,7 +1047,15 @@ texel_um      texel width in um (> 0), vscale: vertical scale; default the truth
               else 2 um and 1. Given, they apply to the truth and the estimate.
 height_range_um  generated truth: peak-to-valley in um (> 0, default 2: +-1 um); with
               observations: bound on the height range
-correlation_texels  generated truth: correlation length in texels (> 0)
+correlation_texels  generated truth: correlation length in texels (> 0; None: 4). With a given
+              truth: the stated correlation the acquisition is planned for (as a user without
+              the truth would plan it) instead of the truth's measured roughness
+plan_from_truth  None (default): as the CLI, a given truth is planned for its measured
+              roughness (measure_roughness: peak to valley, rms slope, Sal, Str; a rough, steep
+              or strongly striated surface gets long wavelengths, oblique lights and the longer
+              schedule, docs/recovery.md "Rough surfaces") unless correlation_texels is given;
+              True: that (a truth needed, not with correlation_texels); False: the stated plan
+              (height range and correlation_texels, default 4)
 model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
 oblique_lights  steep generated surfaces (expected rms slope > 0.2 from height_range_um and
               correlation_texels): every position is observed under 4 oblique lights at
@@ -945,6 +1118,9 @@ field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --fie
 white_smoothness  white light's smoothness continuation (the CLI's --white-smoothness): weights,
               largest first (at most 64, each 0 ... 1e12; [] none; None: the library's 10, 1,
               0.1, 0.01); white_smoothness_iterations: L-BFGS iterations per weight (None: 20)
+Whether the run converged is judged without the truth, as the CLI judges it (docs/recovery.md,
+"Did it converge?"): result.convergence; when it did not, its warning is also the last entry
+of result.warnings (as in the CLI's run.json).
 The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
 )doc");
 

@@ -10,6 +10,9 @@
 //                        deviance, expected_deviance, deviance_sd, misfit_ratio; the model
 //                        check's misfits; with error bars median_sigma_relative: convergence.h;
 //                        a recovery that did not converge also adds its warning to warnings),
+//                        psd (with a truth: resolved_all, resolved_q_per_um,
+//                        resolved_wavelength_um where some band is resolved, error_power_ratio,
+//                        bins: surface_stats.h's compare_spectra),
 //                        finished (false until every other output is written: a run that was
 //                        interrupted, crashed or failed says so)
 //   metrics.csv          stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed
@@ -19,6 +22,9 @@
 //                        observation in the run's order, sigma_p_scale) and, with a truth, "truth"
 //                        and "errors" (calibration_detail.h)
 //   truth.exr, truth_height.npy              the truth, when known (heights in µm in the .npy)
+//   psd.csv                                  with a truth: q_per_um, truth_psd_um4,
+//                                            estimate_psd_um4, error_psd_um4, count (the radial
+//                                            PSDs of compare_spectra)
 //   estimate.exr, estimate.png, estimate_height.npy   the estimate
 //   reference.npy, final.npy                 observation 0 and the estimate's slice for it
 //                                            (resolution × resolution × channels)

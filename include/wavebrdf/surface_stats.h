@@ -98,6 +98,30 @@ RadialProfile radial_power_spectrum(const HeightGrid& grid);
 Spectrum2d autocorrelation_2d(const HeightGrid& grid);
 RadialProfile radial_autocorrelation(const HeightGrid& grid);
 
+// An estimate's spectrum against a known truth's (a recovery's report, docs/recovery.md "The
+// spectrum against the truth's"): the radial PSDs (radial_power_spectrum's bins) of the truth,
+// the estimate and their difference (estimate − truth, each less its mean), and the band the
+// estimate resolves: up to the first bin where the error's power exceeds the truth's (the error's
+// amplitude there larger than the surface's own). Same rows, columns and texel width; throws
+// std::invalid_argument otherwise.
+struct SpectrumComparison {
+    std::vector<double> q_per_um;      // bin centres (mean |q|), rad/µm
+    std::vector<double> truth_um4;     // the truth's radial PSD, µm⁴
+    std::vector<double> estimate_um4;  // the estimate's
+    std::vector<double> error_um4;     // of estimate − truth
+    std::vector<int> count;            // FFT points in the bin
+    // The largest bin centre up to which every bin has error_um4 ≤ truth_um4 (0: not even the
+    // first), and its wavelength 2π / q (µm; infinite when 0). `resolved_all`: every bin up to
+    // the smaller Nyquist frequency.
+    double resolved_q_per_um = 0.0;
+    double resolved_wavelength_um = 0.0;
+    bool resolved_all = false;
+    // Σ over the bins of error_um4 · count over Σ truth_um4 · count: the error's share of the
+    // truth's power (≈ the squared relative rms error over the binned band).
+    double error_power_ratio = 0.0;
+};
+SpectrumComparison compare_spectra(const Heightfield& truth, const Heightfield& estimate);
+
 // What every command that reads or makes a heightfield prints about it: its rms height (µm),
 // rms slope (sqrt(mean(s_x² + s_y²) / 2), s by the model's wrapping central differences,
 // Heightfield::slope) and the rms of the phase a

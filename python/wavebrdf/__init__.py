@@ -87,6 +87,9 @@ __all__ += ["design"]
 from ._core import design_plate  # noqa: E402,F401  (docs/design.md, "Plate")
 __all__ += ["design_plate"]
 __all__ += ["condition_surface", "surface_acf", "surface_psd", "surface_stats"]
+# What the recovery's planner reads from a known surface (docs/recovery.md, "Rough surfaces").
+from ._core import measure_roughness  # noqa: E402,F401
+__all__ += ["measure_roughness"]
 # Observation files that scale (HDF5, docs/observations_hdf5.md): what a file holds without its slices.
 from ._core import built_with_hdf5, read_observation_index  # noqa: F401
 __all__ += ["built_with_hdf5", "read_observation_index"]
@@ -103,6 +106,7 @@ for _name in ("render_slice", "slice_gradient", "render", "gradient", "observati
               "recover_heights", "recover_heights_thesis", "plan_acquisition", "planned_observations",
               "simulate_observations", "height_uncertainty", "height_rel_rmse", "height_rel_rmse_plane_removed",
               "read_observations", "write_observations", "render_image", "image_gradient", "design",
-              "design_plate", "surface_stats", "condition_surface", "write_fabrication_exports"):
+              "design_plate", "surface_stats", "condition_surface", "write_fabrication_exports",
+              "measure_roughness"):
     globals()[_name] = _explained(globals()[_name])
 del _name

@@ -628,6 +628,16 @@ class RecoveryResult:
     def uncertainty_seconds(self) -> float:
         """wall time of the error bars, s (NaN without)"""
         ...
+    @property
+    def convergence(self) -> dict:
+        """dict: whether the recovery converged, judged without the truth (convergence.h; the CLI's
+        run.json "convergence"): converged (bool), floor ('poisson': the slices' photon-noise deviance,
+        'noiseless': a study's exact slices, 'none': not judged), relative_misfit, reasons (list of
+        str), warning (str, '' when converged); with 'poisson' also deviance, expected_deviance,
+        deviance_sd, misfit_ratio (deviance / its noise floor); after the model check
+        model_misfit_gabor, model_misfit_field, model_selected; with error bars median_sigma_relative.
+        """
+        ...
 
 def add_noise(values: Any, noise: Any, seed: int = ...) -> Any:
     """Simulated measurement noise (noise.h), deterministic in `seed`.
@@ -824,6 +834,16 @@ def lbfgs_minimize(objective: Callable[..., Any], x0: Any, *, history: int = ...
     """
     ...
 
+def measure_roughness(heightfield: Heightfield) -> dict:
+    """What the recovery's planner reads from a known surface (roughness_plan.h, measure_roughness):
+    a dict with range_um (peak to valley, um), rms_slope (rms |grad H|, central differences across
+    the periodic tile: the model's slopes), rim_fraction (fraction of texels with |grad H| > 0.5,
+    whose light leaves a slice under normal light), correlation_um (Sal, um), aspect (Str) and
+    lay_deg (Std, degrees from x towards y). plan_acquisition(roughness=...) and
+    recover(truth=...) plan for these.
+    """
+    ...
+
 def mse(estimate: Any, reference: Any) -> float:
     """Mean squared error (see Loss).
     estimate, reference: float arrays of the same shape, finite; an (n, n, c) array has c
@@ -839,7 +859,7 @@ def observation_loss(heightfield: Heightfield, observations: Any, loss: Any = ..
     """
     ...
 
-def plan_acquisition(*, rows: int = ..., cols: Any = ..., texel_um: float = ..., height_range_um: float = ..., sigma_p_um: float = ..., position_uncertainty_um: float = ..., overlap: float = ..., jitter: float = ..., lambda_um: float = ..., lambda_min_um: float = ..., lambda_max_um: float = ..., max_step_ratio: float = ..., lambdas_um: Any = ..., resolution: int = ..., light: Any = ..., model: str = ..., seed: int = ...) -> AcquisitionPlan:
+def plan_acquisition(*, rows: int = ..., cols: Any = ..., texel_um: float = ..., height_range_um: float = ..., sigma_p_um: float = ..., position_uncertainty_um: float = ..., overlap: float = ..., jitter: float = ..., lambda_um: float = ..., lambda_min_um: float = ..., lambda_max_um: float = ..., max_step_ratio: float = ..., lambdas_um: Any = ..., resolution: int = ..., light: Any = ..., model: str = ..., seed: int = ..., roughness: Any = ..., oblique_lights: bool = ...) -> AcquisitionPlan:
     """An acquisition that determines the heights of a rows x cols tile (acquisition.h): returns an
     AcquisitionPlan. Keyword arguments (PlanRequest's fields):
 
@@ -858,6 +878,12 @@ def plan_acquisition(*, rows: int = ..., cols: Any = ..., texel_um: float = ...,
     resolution       given slice size n (1...8192) instead of Nyquist's n >= 4D/lambda; 0: planned
     light            projected light direction (wx, wy), wx^2 + wy^2 < 1; model: 'OHS', 'ROHS', ...
     seed             the jitter
+    roughness        None, or a known surface's measured roughness: a Heightfield (measured here) or
+                     the dict measure_roughness returns. A rough, steep or strongly striated surface
+                     then gets the rough-surface plan's long wavelengths (not with lambdas_um) and,
+                     with oblique_lights (default True), its oblique lights, with notes: the plan
+                     recover(truth=...) makes, given the truth's rows, cols, texel_um and
+                     peak-to-valley (docs/recovery.md, "Rough surfaces")
     A height range the wavelengths cannot unwrap is a ValueError naming the largest they can.
     """
     ...
@@ -900,7 +926,7 @@ def read_slice(path: Union[str, os.PathLike]) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: float = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ..., oblique_lights: bool = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ..., oblique_lights: bool = ..., plan_from_truth: Any = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -915,7 +941,15 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   else 2 um and 1. Given, they apply to the truth and the estimate.
     height_range_um  generated truth: peak-to-valley in um (> 0, default 2: +-1 um); with
                   observations: bound on the height range
-    correlation_texels  generated truth: correlation length in texels (> 0)
+    correlation_texels  generated truth: correlation length in texels (> 0; None: 4). With a given
+                  truth: the stated correlation the acquisition is planned for (as a user without
+                  the truth would plan it) instead of the truth's measured roughness
+    plan_from_truth  None (default): as the CLI, a given truth is planned for its measured
+                  roughness (measure_roughness: peak to valley, rms slope, Sal, Str; a rough, steep
+                  or strongly striated surface gets long wavelengths, oblique lights and the longer
+                  schedule, docs/recovery.md "Rough surfaces") unless correlation_texels is given;
+                  True: that (a truth needed, not with correlation_texels); False: the stated plan
+                  (height range and correlation_texels, default 4)
     model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
     oblique_lights  steep generated surfaces (expected rms slope > 0.2 from height_range_um and
                   correlation_texels): every position is observed under 4 oblique lights at
@@ -978,6 +1012,9 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     white_smoothness  white light's smoothness continuation (the CLI's --white-smoothness): weights,
                   largest first (at most 64, each 0 ... 1e12; [] none; None: the library's 10, 1,
                   0.1, 0.01); white_smoothness_iterations: L-BFGS iterations per weight (None: 20)
+    Whether the run converged is judged without the truth, as the CLI judges it (docs/recovery.md,
+    "Did it converge?"): result.convergence; when it did not, its warning is also the last entry
+    of result.warnings (as in the CLI's run.json).
     The run releases the GIL; Ctrl-C stops it within about a second (KeyboardInterrupt).
     """
     ...

@@ -6,11 +6,13 @@ difference after removing each one's mean (the mean height is invisible to every
 observation beside the estimate's slice for it, and the convergence of every stage (its loss,
 normalised to the stage's first value, and height_rel_rmse when the truth is known), and with
 error bars (``--uncertainty``) the map of σ per texel and, with the truth, the distribution of
-error / σ against the standard normal.
+error / σ against the standard normal, and with the truth the radial power spectra of the truth,
+the estimate and the error (psd.csv) with the band the estimate resolves (the error's power below
+the truth's).
 
 DIR layout (recovery_directory.h): run.json, metrics.csv, estimate_height.npy,
 truth_height.npy (optional), reference.npy, final.npy, uncertainty_height.npy and
-uncertainty.json (optional).
+uncertainty.json (optional), psd.csv (with a truth).
 """
 import csv
 import json
@@ -67,7 +69,10 @@ def make_report(directory):
 
     sigma_path = os.path.join(directory, "uncertainty_height.npy")
     sigma = np.load(sigma_path) if os.path.exists(sigma_path) else None
-    fig, axes = plt.subplots(2, 5 if sigma is not None else 4, figsize=(20 if sigma is not None else 16, 7.6))
+    psd_path = os.path.join(directory, "psd.csv")
+    psd = read_psd(psd_path) if os.path.exists(psd_path) else None
+    columns = 4 + (sigma is not None) + (psd is not None)
+    fig, axes = plt.subplots(2, columns, figsize=(4 * columns, 7.6))
     title = "wavebrdf recover ({method}): {size} heights, {observations} observations, noise {noise}, loss {loss}".format(**run)
     calibration_path = os.path.join(directory, "calibration.json")
     if os.path.exists(calibration_path):  # self-calibration (calibration.h)
@@ -172,8 +177,41 @@ def make_report(directory):
             ax.set_title("σ per texel", fontsize=9)
             ax.set_xlabel("µm")
 
+    if psd is not None:
+        q = psd["q_per_um"]
+        summary = run.get("psd", {})
+        ax = axes[0, columns - 1]
+        for key, label in (("truth_psd_um4", "truth"), ("estimate_psd_um4", "estimate"),
+                           ("error_psd_um4", "estimate − truth")):
+            ax.loglog(q, np.clip(psd[key], 1e-300, None), label=label)
+        resolved = summary.get("resolved_q_per_um", 0.0)
+        if resolved > 0 and not summary.get("resolved_all", False):
+            ax.axvline(resolved, color="k", ls="--", lw=0.8, label="resolved to {:.3g} µm".format(2 * np.pi / resolved))
+        ax.set_xlabel("q (rad/µm)")
+        ax.set_ylabel("radial PSD (µm⁴)")
+        ax.set_title("power spectra", fontsize=9)
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+        ax = axes[1, columns - 1]
+        ok = psd["truth_psd_um4"] > 0
+        ax.loglog(q[ok], np.clip(psd["error_psd_um4"][ok] / psd["truth_psd_um4"][ok], 1e-300, None), "o-", ms=2)
+        ax.axhline(1.0, color="k", ls="--", lw=0.8)
+        ax.set_xlabel("q (rad/µm)")
+        ax.set_ylabel("error PSD / truth PSD")
+        ax.set_title("error's share of the power: {:.3g}".format(summary.get("error_power_ratio", float("nan"))),
+                     fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+
     fig.tight_layout(rect=(0, 0, 1, 0.95))
     return save_figure(fig, os.path.join(directory, "report.png"), 110)
+
+
+def read_psd(path):
+    """psd.csv (recovery_directory.h) as {column: float64 array}."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    names = ("q_per_um", "truth_psd_um4", "estimate_psd_um4", "error_psd_um4", "count")
+    return {n: np.array([float(r[n]) for r in rows]) for n in names}
 
 
 def _wrap(text, width):

@@ -41,7 +41,7 @@ bool is_run_output(RunKind kind, const std::string& relative) {
         R"(snapshots/(height|slice|gradient)_[0-9]{4,}\.npy)$)");
     static const std::regex recover_names(
         R"(^(run\.json|metrics\.csv|estimate\.exr|estimate\.png|estimate_height\.npy|truth\.exr|truth_height\.npy|)"
-        R"(uncertainty\.exr|uncertainty\.json|uncertainty_height\.npy|calibration\.json|)"
+        R"(uncertainty\.exr|uncertainty\.json|uncertainty_height\.npy|calibration\.json|psd\.csv|)"
         R"(reference\.npy|final\.npy|report\.png|observations\.json|observations\.(h5|hdf5|cxi)|observations|observations/slice_[0-9]{4,}\.exr)$)");
     static const std::regex design_names(
         R"(^(design\.json|metrics\.csv|heights\.(exr|png|stl|x3p)|masks\.json|masks_[0-9]{2,}\.png|)"

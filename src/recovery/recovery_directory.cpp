@@ -17,6 +17,7 @@
 #include "wavebrdf/observation.h"
 #include "wavebrdf/observation_file.h"
 #include "wavebrdf/run_directory.h"
+#include "wavebrdf/surface_stats.h"
 #include "wavebrdf/version.h"
 #include "recovery/calibration_detail.h"
 
@@ -247,6 +248,23 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     if (convergence.median_sigma_relative >= 0.0)
         run["convergence"]["median_sigma_relative"] = convergence.median_sigma_relative;
     if (!convergence.converged) run["warnings"].push_back(convergence.warning());
+    // The estimate's spectrum against the truth's (surface_stats.h): psd.csv and its summary.
+    if (r.truth && r.metric_note.empty()) {
+        const SpectrumComparison psd = compare_spectra(*r.truth, estimate);
+        std::ostringstream table;
+        table.precision(10);
+        table << "q_per_um,truth_psd_um4,estimate_psd_um4,error_psd_um4,count\n";
+        for (std::size_t k = 0; k < psd.q_per_um.size(); ++k)
+            table << psd.q_per_um[k] << ',' << psd.truth_um4[k] << ',' << psd.estimate_um4[k] << ',' << psd.error_um4[k]
+                  << ',' << psd.count[k] << '\n';
+        write_text_atomically(dir + "/psd.csv", table.str());
+        run["psd"] = {{"resolved_all", psd.resolved_all},
+                      {"resolved_q_per_um", psd.resolved_q_per_um},
+                      {"error_power_ratio", psd.error_power_ratio},
+                      {"bins", psd.q_per_um.size()}};
+        // JSON has no infinity: a wavelength only where some band was resolved.
+        if (psd.resolved_q_per_um > 0.0) run["psd"]["resolved_wavelength_um"] = psd.resolved_wavelength_um;
+    }
     run["finished"] = true;
     write_text_atomically(dir + "/run.json", run.dump(1) + "\n");
     return estimate;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <complex>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <stdexcept>
@@ -162,6 +163,40 @@ RadialProfile radial_power_spectrum(const HeightGrid& g) {
     }
     r.count.erase(std::remove(r.count.begin(), r.count.end(), 0), r.count.end());
     return r;
+}
+
+SpectrumComparison compare_spectra(const Heightfield& truth, const Heightfield& estimate) {
+    if (truth.rows() != estimate.rows() || truth.cols() != estimate.cols() ||
+        !(truth.texel_um() == estimate.texel_um()))
+        throw std::invalid_argument("the estimate (" + std::to_string(estimate.rows()) + "x" +
+                                    std::to_string(estimate.cols()) + " texels) and the truth (" +
+                                    std::to_string(truth.rows()) + "x" + std::to_string(truth.cols()) +
+                                    ") differ in size or texel width; expected the same grid");
+    const HeightGrid t = height_grid(truth), e = height_grid(estimate);
+    HeightGrid d = t;
+    for (std::size_t k = 0; k < d.heights_um.size(); ++k) d.heights_um[k] = e.heights_um[k] - t.heights_um[k];
+    const RadialProfile pt = radial_power_spectrum(t), pe = radial_power_spectrum(e), pd = radial_power_spectrum(d);
+    SpectrumComparison c;
+    c.q_per_um = pt.r;
+    c.truth_um4 = pt.value;
+    c.estimate_um4 = pe.value;
+    c.error_um4 = pd.value;
+    c.count = pt.count;
+    c.resolved_all = true;
+    double error_power = 0.0, truth_power = 0.0;
+    for (std::size_t k = 0; k < c.q_per_um.size(); ++k) {
+        error_power += c.error_um4[k] * c.count[k];
+        truth_power += c.truth_um4[k] * c.count[k];
+        if (c.resolved_all && c.error_um4[k] <= c.truth_um4[k]) {
+            c.resolved_q_per_um = c.q_per_um[k];
+        } else {
+            c.resolved_all = false;
+        }
+    }
+    c.resolved_wavelength_um = c.resolved_q_per_um > 0.0 ? 2.0 * k_pi / c.resolved_q_per_um
+                                                         : std::numeric_limits<double>::infinity();
+    c.error_power_ratio = truth_power > 0.0 ? error_power / truth_power : std::numeric_limits<double>::infinity();
+    return c;
 }
 
 Spectrum2d autocorrelation_2d(const HeightGrid& g) {
