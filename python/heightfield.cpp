@@ -81,7 +81,7 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
                 return read_heightfield_exr(path, scale.texel_um, scale.vscale);
             },
             "path"_a, "texel_um"_a = py::none(), "vscale"_a = py::none(),
-            "Reads a heightfield EXR or a measured surface (x3p, sdf, MetroPro .dat, sur, plu, al3d, npy,\n"
+            "Reads a heightfield EXR or a measured surface (x3p, sdf, Zygo .dat and .datx, sur, plu, al3d, npy,\n"
             "text matrix; recognised by content, docs/surfaces.md). A measured surface keeps its heights\n"
             "in um and is transposed so that row index i runs along x; its spacing must be square and every\n"
             "point measured (else ValueError: run `wavebrdf convert` with --resample-um / --fill). texel_um:\n"

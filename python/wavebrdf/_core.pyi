@@ -228,7 +228,7 @@ class Heightfield:
         ...
     @staticmethod
     def read(path: Union[str, os.PathLike], texel_um: Any = ..., vscale: Any = ...) -> Heightfield:
-        """Reads a heightfield EXR or a measured surface (x3p, sdf, MetroPro .dat, sur, plu, al3d, npy,
+        """Reads a heightfield EXR or a measured surface (x3p, sdf, Zygo .dat and .datx, sur, plu, al3d, npy,
         text matrix; recognised by content, docs/surfaces.md). A measured surface keeps its heights
         in um and is transposed so that row index i runs along x; its spacing must be square and every
         point measured (else ValueError: run `wavebrdf convert` with --resample-um / --fill). texel_um:
