@@ -172,6 +172,8 @@ void run(ImageArgs a) {
     if (a.out.empty() && a.png.empty())
         throw std::invalid_argument("no output; expected --out I.exr and/or --png I.png");
     check_distinct_files({{"--heightfield", a.heightfield}, {"--out", a.out}, {"--png", a.png}});
+    check_output_format("--out", a.out, {".exr"});
+    check_output_format("--png", a.png, {".png"});
     const HeightfieldScale scale = resolve_scale_with_warnings(a.heightfield, if_given(a.given_texel, a.texel_um),
                                                                if_given(a.given_vscale, a.vscale), "--texel-um",
                                                                "--vscale");

@@ -42,6 +42,8 @@ void run(LobeArgs a) {
     parse_size("--lights", a.lights, spec.lights.rows, spec.lights.cols);
     if (a.out.empty()) throw std::invalid_argument("no output given; expected --out F.exr");
     check_distinct_files({{"--out", a.out}, {"--png", a.png}});
+    check_output_format("--out", a.out, {".exr"});
+    check_output_format("--png", a.png, {".png"});
     check_writable(a.out);
     if (!a.png.empty()) check_writable(a.png);
     const auto start = std::chrono::steady_clock::now();

@@ -58,6 +58,12 @@ TEST(RobustCliTest, OutputsWriteTheFormatTheirExtensionNames) {
         {"heightfield --size 16 --out g.exr --png g.tif --quiet", "--png g.tif", ".png", "g.exr"},
         {"genbrdf -i h.exr -r 8 -o x.npy --quiet", "-o x.npy", ".exr", "x.npy"},
         {"table --heightfield h.exr --lights 2x2 --resolution 4 --out t.png --quiet", "--out t.png", ".exr", "t.png"},
+        {"image --heightfield h.exr --plane-size-um 100 --camera 0,0,300 --resolution 4 --out i.png --quiet",
+         "--out i.png", ".exr", "i.png"},
+        {"image --heightfield h.exr --plane-size-um 100 --camera 0,0,300 --resolution 4 --png i.jpg --quiet",
+         "--png i.jpg", ".png", "i.jpg"},
+        {"lobe --lights 2x2 --resolution 4 --out l.npy --quiet", "--out l.npy", ".exr", "l.npy"},
+        {"lobe --lights 2x2 --resolution 4 --out l.exr --png l.tif --quiet", "--png l.tif", ".png", "l.exr"},
         {"recover " + kSmall + " --save-observations mine --out run", "--save-observations mine",
          ".json, .h5, .hdf5, .cxi", "run"},
     };

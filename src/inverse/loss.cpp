@@ -229,7 +229,7 @@ double weighted_loss_of(const Loss& loss, const std::vector<double>& estimate, c
             throw std::invalid_argument("weighted_loss_value: weight " + std::to_string(p) + " is " +
                                         detail::format_shortest(double(weights[p])) +
                                         "; expected a finite weight >= 0");
-        total_weight += weights[p];
+        total_weight += double(weights[p]);
     }
     if (!(total_weight > 0.0))
         throw std::invalid_argument(

@@ -409,7 +409,7 @@ void write_observations_json(const std::string& path, const std::vector<Observat
             }
             if (!o.weights.empty()) {
                 if (references == ReferenceStorage::Exr) {
-                    char name[32];
+                    char name[48];
                     std::snprintf(name, sizeof name, "weights_%04zu.exr", i);
                     write_rgb_exr((fresh / name).string(), to_image(to_doubles(o.weights), o.resolution, 1));
                     j["weights"] = folder + "/" + name;
