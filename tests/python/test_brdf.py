@@ -198,7 +198,8 @@ def test_bad_arguments_raise_value_error(bad, name):
     (np.zeros((8, 8, 1)), "weights has shape"),
     (np.zeros((7, 8, 3)), "weights has shape"),
     (np.zeros((8, 8, 3), dtype=np.int32), "weights has dtype"),
-    (np.full((8, 8, 3), np.nan), "weights[0, 0, 0]"),
+    # The first pixel inside the unit disk (row 0, column 2 of 8 x 8): outside it weights are ignored.
+    (np.full((8, 8, 3), np.nan), "weights[0, 2, 0]"),
 ])
 def test_bad_weights(weights, name):
     with pytest.raises(ValueError) as e:
