@@ -22,7 +22,7 @@
 
 #include "forward/field_engine.h"
 #include "forward/separable.h"
-#include "wavebrdf/adjoint.h"
+#include "wavebrdf/kernel_gradient.h"
 
 namespace wavebrdf {
 class Progress;

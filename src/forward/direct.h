@@ -1,12 +1,13 @@
 #pragma once
 // Internal: the direct sum's per-pixel field, shared by the forward pass (brdf_direct.cpp)
-// and its adjoint and tangent (adjoint_direct.cpp).
+// and its adjoint and tangent (brdf_direct_adjoint.cpp).
 #include <cmath>
 #include <complex>
 #include <vector>
 
 #include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
+#include "wavebrdf/kernel_gradient.h"
 #include "wavebrdf/model.h"
 
 namespace wavebrdf {
@@ -71,5 +72,12 @@ struct DirectField {
 // The direct sum with the pruning bound of RenderOptions::prune_tolerance (0: none).
 DirectField direct_field(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
                          double prune_tolerance, Progress* progress);
+
+// The direct sum's adjoint (per-kernel gradient of Σ weights · slice) and tangent (d slice for a
+// per-kernel perturbation), from the forward's field (brdf_direct_adjoint.cpp).
+KernelGradient direct_backward(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
+                               const DirectField& field, const std::vector<double>& weights);
+std::vector<double> direct_tangent(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
+                                   const DirectField& field, const KernelGradient& direction);
 
 }  // namespace wavebrdf::detail

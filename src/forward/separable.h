@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "core/parallel.h"
-#include "wavebrdf/adjoint.h"
+#include "wavebrdf/kernel_gradient.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/model.h"

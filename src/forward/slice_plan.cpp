@@ -16,7 +16,8 @@
 #include "forward/path_cost.h"
 #include "forward/separable.h"
 #include "forward/separable_engine.h"
-#include "wavebrdf/adjoint.h"
+#include "forward/kernel_gradient_detail.h"
+#include "wavebrdf/kernel_gradient.h"
 #include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
@@ -28,14 +29,6 @@ struct NoFlush {};
 template <typename Float>
 using FlushIfFloat = std::conditional_t<std::is_same_v<Float, float>, detail::FlushDenormals, NoFlush>;
 }  // namespace
-
-namespace detail {
-KernelGradient direct_backward(const FootprintKernels&, const Query&, double, int, const DirectField&,
-                               const std::vector<double>&);
-void scatter_to_heights(int rows, int cols, double texel_um, double vscale, const FootprintKernels& kernels,
-                        const KernelGradient& kernel_gradient, std::vector<double>& gradient);
-void prepare_gradient(std::vector<double>& gradient, std::size_t cells);
-}  // namespace detail
 
 void validate(const RenderOptions& options, Model model) {
     if (!(options.prune_tolerance >= 0.0 && options.prune_tolerance <= 1e-6))

@@ -9,7 +9,7 @@
 
 #include "forward/direct.h"
 #include "core/parallel.h"
-#include "wavebrdf/adjoint.h"
+#include "wavebrdf/kernel_gradient.h"
 
 namespace wavebrdf::detail {
 
