@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
 """Checks that src/ includes only run down the stages of docs/architecture.md.
 
-The order is core -> surface -> forward -> adjoint -> inverse -> recovery; io needs only core and
-surface; image and design sit beside inverse (forward, adjoint, io); the plugins' C tables count as core. A public header include/wavebrdf/X.h belongs to the stage whose folder holds X.cpp (or
-X_*.cpp); an internal header "stage/x.h" to its folder; a header-only public header without a
-source to core. Every include of a later stage (or of a stage beside it: io <-> forward) is an
+The order is core -> surface -> forward -> adjoint -> inverse -> recovery; io needs core, surface
+and forward (a table file stores forward's results); image and design sit beside inverse (forward,
+adjoint, io); the plugins' C tables count as core. A public header include/wavebrdf/X.h belongs to
+the stage whose folder holds X.cpp (or X_*.cpp); an internal header "stage/x.h" to its folder; a header-only public header without a
+source to core. Every include of a later stage (or of a stage beside it: image <-> design) is an
 error, except those listed in KNOWN, the arrows still to be removed; a KNOWN entry that no longer
 occurs is an error too, so the list only shrinks.
 Usage: python3 scripts/check_layers.py  (exit 1 and one line per arrow when one runs back)
@@ -17,7 +18,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ALLOWED = {
     "core": {"core"},
     "surface": {"core", "surface"},
-    "io": {"core", "surface", "io"},
+    "io": {"core", "surface", "forward", "io"},
     "forward": {"core", "surface", "forward"},
     "adjoint": {"core", "surface", "forward", "adjoint"},
     "inverse": {"core", "surface", "io", "forward", "adjoint", "inverse"},
@@ -28,11 +29,7 @@ ALLOWED = {
     "plugins": {"core", "surface", "io", "forward", "adjoint", "inverse", "plugins"},
 }
 # (file, included header): arrows that run back up today; remove an entry with its arrow.
-KNOWN = {
-    ("src/forward/table_file.cpp", "wavebrdf/io.h"),
-    ("src/forward/table_file.cpp", "io/exr_threads.h"),
-    ("src/forward/table_file.cpp", "io/exr_source.h"),  # the table reader's EXR checks, with the two above
-}
+KNOWN = set()
 
 
 def stage_of_public(header, sources):

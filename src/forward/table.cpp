@@ -1,5 +1,5 @@
 // Rendering a BRDF table (table.h): the light grid, the memory estimate and the per-light loop.
-// The file is table_file.cpp.
+// The file is src/io/exr_table.cpp.
 #include <algorithm>
 #include <stdexcept>
 #include <string>
