@@ -676,10 +676,19 @@ FieldRetrievalResult retrieve_field(const std::vector<Observation>& observations
     return retrieve_field(pointers, lambda_um, rows, cols, texel_um, initial, settings, on_iteration, comm);
 }
 
-FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& observations, double lambda_um, int rows,
-                                    int cols, double texel_um, const std::vector<std::complex<double>>& initial,
-                                    const FieldRetrievalSettings& settings,
-                                    const std::function<bool(int, double)>& on_iteration, const Communicator& comm) {
+namespace {
+
+// One observation of the retrieval: its operator on the fine grid and its reference.
+struct RetrievalSlice {
+    FieldOperator op;
+    Eigen::MatrixXf sqrt_ref;  // √R on the operator's box
+    double outside = 0.0;      // Σ R beyond the box (the model is 0 there)
+};
+
+// The retrieval's arguments, checked before anything is built (the same checks on every rank).
+void check_retrieval(const std::vector<const Observation*>& observations, double lambda_um, int rows, int cols,
+                     const std::vector<std::complex<double>>& initial, const FieldRetrievalSettings& settings,
+                     const Communicator& comm) {
     for (std::size_t i = 0; i < observations.size(); ++i)
         if (observations[i] == nullptr)
             throw std::invalid_argument("retrieve_field: observation " + std::to_string(i) +
@@ -695,10 +704,8 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
     if (settings.refine < 1 || settings.refine > 64)
         throw std::invalid_argument("retrieve_field: refine " + std::to_string(settings.refine) +
                                     " is invalid; expected 1 to 64");
-    // The object lives on the grid `refine` times finer than the texels.
     const int q = settings.refine;
     const std::size_t texels = std::size_t(rows) * q * std::size_t(std::max(cols, 0)) * q;
-    const int obj_cols = cols * q;
     if (!initial.empty() && initial.size() != texels)
         throw std::invalid_argument("retrieve_field: initial object has " + std::to_string(initial.size()) +
                                     " values; expected (rows * refine) * (cols * refine) = " + std::to_string(texels));
@@ -709,14 +716,6 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
         throw std::domain_error("retrieve_field: stall window " + std::to_string(settings.stall_window) +
                                 " / tolerance " + format_shortest(settings.stall_tolerance) +
                                 " invalid; expected >= 0 / finite >= 0");
-
-    struct Slice {
-        FieldOperator op;
-        Eigen::MatrixXf sqrt_ref;  // √R on the operator's box
-        double outside = 0.0;      // Σ R beyond the box (the model is 0 there)
-    };
-    // The operators are independent of each other: built on all threads (each builds its
-    // footprint on the fine grid, the costliest set-up step), summed in order afterwards.
     run_agreed(comm, [&] {
         for (std::size_t i = 0; i < observations.size(); ++i) {
             const Observation& o = *observations[i];
@@ -727,11 +726,15 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
                                             " um");
         }
     });
-    // One flat fine grid for all the operators, released when the retrieval ends.
-    std::shared_ptr<const Heightfield> flat_grid;
-    if (rows >= 1 && cols >= 1 && std::isfinite(texel_um) && texel_um > 0.0)
-        flat_grid = shared_flat_grid(rows * q, cols * q, texel_um / q);
-    std::vector<std::unique_ptr<Slice>> built(observations.size());
+}
+
+// Each observation's operator on the fine grid and √R on its box. The operators are independent
+// of each other: built on all threads (each builds its footprint on the fine grid, the costliest
+// set-up step), kept in order. `total`: Σ R over every rank's slices.
+std::vector<RetrievalSlice> build_retrieval_slices(const std::vector<const Observation*>& observations,
+                                                   double lambda_um, int rows, int cols, double texel_um, int q,
+                                                   const Communicator& comm, double& total) {
+    std::vector<std::unique_ptr<RetrievalSlice>> built(observations.size());
     std::vector<double> totals(observations.size(), 0.0);
     {
         detail::RegionGuard guard;
@@ -739,8 +742,8 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
         for (std::size_t i = 0; i < observations.size(); ++i)
             guard.run([&] {
                 const Observation& o = *observations[i];
-                auto s = std::make_unique<Slice>(
-                    Slice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0});
+                auto s = std::make_unique<RetrievalSlice>(
+                    RetrievalSlice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0});
                 const auto& impl = FieldAccess::impl(s->op);
                 s->sqrt_ref.resize(impl.ma(), impl.mb());
                 const int n = o.resolution;
@@ -760,30 +763,100 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
             });
         guard.rethrow();
     }
-    std::vector<Slice> slices;
+    std::vector<RetrievalSlice> slices;
     slices.reserve(observations.size());
     for (std::size_t i = 0; i < observations.size(); ++i) {
         slices.push_back(std::move(*built[i]));
         built[i].reset();
     }
-    const double total = detail::exact_total(totals, comm);  // every rank's, in any order
+    total = detail::exact_total(totals, comm);  // every rank's, in any order
     if (!(total > 0.0)) throw std::invalid_argument("retrieve_field: every reference slice is zero");
+    return slices;
+}
 
-    // Texels no footprint sees carry no information: they stay 0.
+// 1 on the fine-grid samples some footprint (of any rank) sees, 0 on the others: texels no
+// footprint sees carry no information and stay 0.
+std::vector<double> coverage_mask(const std::vector<RetrievalSlice>& slices, std::size_t texels,
+                                  const Communicator& comm) {
     std::vector<double> mask(texels);
+    std::vector<double> coverage(texels, 0.0);  // released on return: the grid is ~80 samples per texel
     {
-        std::vector<double> coverage(texels, 0.0);  // released here: the grid is ~80 samples per texel
-        {
-            detail::ExactVector exact_coverage(texels);  // every rank's footprints, exactly
-            for (const Slice& s : slices)
-                FieldAccess::impl(s.op).add_coverage(
-                    [&](std::size_t sample, double value) { exact_coverage.add(sample, value); });
-            exact_coverage.allreduce(comm);
-            exact_coverage.values(coverage.data());
-        }
-        const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
-        for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
+        detail::ExactVector exact_coverage(texels);  // every rank's footprints, exactly
+        for (const RetrievalSlice& s : slices)
+            FieldAccess::impl(s.op).add_coverage(
+                [&](std::size_t sample, double value) { exact_coverage.add(sample, value); });
+        exact_coverage.allreduce(comm);
+        exact_coverage.values(coverage.data());
     }
+    const double max_coverage = *std::max_element(coverage.begin(), coverage.end());
+    for (std::size_t t = 0; t < texels; ++t) mask[t] = coverage[t] > 1e-12 * max_coverage ? 1.0 : 0.0;
+    return mask;
+}
+
+// Unknowns: the object's spectrum inside the band the slices see (unitary DFT of the
+// periodic object grid), or the object itself when band_limit is off. Frequencies outside
+// every slice's disk (|u − ω_i/λ| ≤ 1/λ, widened by the window's spectral reach 3/(2πσ_p))
+// reach no pixel and would only drift; leaving them out also makes fewer unknowns.
+std::vector<std::size_t> band_indices(const std::vector<const Observation*>& observations, double lambda_um, int rows,
+                                      int cols, double texel_um, int obj_rows, int obj_cols,
+                                      const Communicator& comm) {
+    std::vector<std::size_t> band;
+    const double period_x = rows * texel_um, period_y = cols * texel_um;
+    // The distinct disks (centre ω_i/λ, reach): observations of one acquisition share one
+    // ω_i and σ_p, and testing each of the ~700 slices' copies of it at each of the ~3e5
+    // frequencies took ~0.5 s per wavelength.
+    std::vector<std::array<double, 3>> disks;
+    for (const Observation* p : observations) {
+        const Observation& o = *p;
+        const double reach = 1.0 / lambda_um + 3.0 / (2.0 * k_pi * o.query.sigma_p_um);
+        const std::array<double, 3> d{{o.query.omega_i[0] / lambda_um, o.query.omega_i[1] / lambda_um, reach}};
+        if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);
+    }
+    if (comm.size() > 1) {  // the union of every rank's disks, in rank order
+        std::vector<double> mine;
+        for (const auto& d : disks) mine.insert(mine.end(), d.begin(), d.end());
+        const std::vector<double> all = all_gather(comm, mine);
+        disks.clear();
+        for (std::size_t k = 0; k + 2 < all.size(); k += 3) {
+            const std::array<double, 3> d{{all[k], all[k + 1], all[k + 2]}};
+            if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);
+        }
+    }
+    for (int a = 0; a < obj_rows; ++a)
+        for (int b = 0; b < obj_cols; ++b) {
+            const double nu_x = double(a < (obj_rows + 1) / 2 ? a : a - obj_rows) / period_x;
+            const double nu_y = double(b < (obj_cols + 1) / 2 ? b : b - obj_cols) / period_y;
+            bool inside = false;
+            for (const auto& [cx, cy, reach] : disks) {
+                if ((nu_x - cx) * (nu_x - cx) + (nu_y - cy) * (nu_y - cy) <= reach * reach) {
+                    inside = true;
+                    break;
+                }
+            }
+            if (inside) band.push_back(std::size_t(a) * obj_cols + b);
+        }
+    return band;  // indices of the spectrum kept, row-major
+}
+
+}  // namespace
+
+FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& observations, double lambda_um, int rows,
+                                    int cols, double texel_um, const std::vector<std::complex<double>>& initial,
+                                    const FieldRetrievalSettings& settings,
+                                    const std::function<bool(int, double)>& on_iteration, const Communicator& comm) {
+    check_retrieval(observations, lambda_um, rows, cols, initial, settings, comm);
+    // The object lives on the grid `refine` times finer than the texels.
+    const int q = settings.refine;
+    const std::size_t texels = std::size_t(rows) * q * std::size_t(std::max(cols, 0)) * q;
+    const int obj_cols = cols * q;
+    // One flat fine grid for all the operators, released when the retrieval ends.
+    std::shared_ptr<const Heightfield> flat_grid;
+    if (rows >= 1 && cols >= 1 && std::isfinite(texel_um) && texel_um > 0.0)
+        flat_grid = shared_flat_grid(rows * q, cols * q, texel_um / q);
+    double total = 0.0;
+    const std::vector<RetrievalSlice> slices =
+        build_retrieval_slices(observations, lambda_um, rows, cols, texel_um, q, comm, total);
+    const std::vector<double> mask = coverage_mask(slices, texels, comm);
     std::vector<std::complex<double>> object(texels);
     for (std::size_t t = 0; t < texels; ++t) object[t] = mask[t] * (initial.empty() ? 1.0 : initial[t]);
 
@@ -799,7 +872,7 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
     // Slice i's loss term; its gradient added into `gradient` (on its footprint's samples).
     const auto slice_loss = [&](std::size_t i, const std::complex<double>* obj, std::complex<double>* gradient) {
         thread_local Eigen::MatrixXcf psi, g;
-        const Slice& s = slices[i];
+        const RetrievalSlice& s = slices[i];
         const auto& impl = FieldAccess::impl(s.op);
         impl.forward_unphased(obj, psi);
         // Self-calibrated exposure when asked (amplitude_loss.h), the model amplitude scaled by √e.
@@ -819,48 +892,12 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
                              });
     };
 
-    // Unknowns: the object's spectrum inside the band the slices see (unitary DFT of the
-    // periodic object grid), or the object itself when band_limit is off. Frequencies outside
-    // every slice's disk (|u − ω_i/λ| ≤ 1/λ, widened by the window's spectral reach 3/(2πσ_p))
-    // reach no pixel and would only drift; leaving them out also makes fewer unknowns.
+    // Unknowns: the object's spectrum inside the band the slices see (band_indices), or the object
+    // itself when band_limit is off.
     const int obj_rows = rows * q;
-    std::vector<std::size_t> band;  // indices of the spectrum kept, row-major
-    if (settings.band_limit) {
-        const double period_x = rows * texel_um, period_y = cols * texel_um;
-        // The distinct disks (centre ω_i/λ, reach): observations of one acquisition share one
-        // ω_i and σ_p, and testing each of the ~700 slices' copies of it at each of the ~3e5
-        // frequencies took ~0.5 s per wavelength.
-        std::vector<std::array<double, 3>> disks;
-        for (const Observation* p : observations) {
-            const Observation& o = *p;
-            const double reach = 1.0 / lambda_um + 3.0 / (2.0 * k_pi * o.query.sigma_p_um);
-            const std::array<double, 3> d{{o.query.omega_i[0] / lambda_um, o.query.omega_i[1] / lambda_um, reach}};
-            if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);
-        }
-        if (comm.size() > 1) {  // the union of every rank's disks, in rank order
-            std::vector<double> mine;
-            for (const auto& d : disks) mine.insert(mine.end(), d.begin(), d.end());
-            const std::vector<double> all = all_gather(comm, mine);
-            disks.clear();
-            for (std::size_t k = 0; k + 2 < all.size(); k += 3) {
-                const std::array<double, 3> d{{all[k], all[k + 1], all[k + 2]}};
-                if (std::find(disks.begin(), disks.end(), d) == disks.end()) disks.push_back(d);
-            }
-        }
-        for (int a = 0; a < obj_rows; ++a)
-            for (int b = 0; b < obj_cols; ++b) {
-                const double nu_x = double(a < (obj_rows + 1) / 2 ? a : a - obj_rows) / period_x;
-                const double nu_y = double(b < (obj_cols + 1) / 2 ? b : b - obj_cols) / period_y;
-                bool inside = false;
-                for (const auto& [cx, cy, reach] : disks) {
-                    if ((nu_x - cx) * (nu_x - cx) + (nu_y - cy) * (nu_y - cy) <= reach * reach) {
-                        inside = true;
-                        break;
-                    }
-                }
-                if (inside) band.push_back(std::size_t(a) * obj_cols + b);
-            }
-    }
+    const std::vector<std::size_t> band = settings.band_limit ? band_indices(observations, lambda_um, rows, cols, texel_um,
+                                                                             obj_rows, obj_cols, comm)
+                                                              : std::vector<std::size_t>{};
     std::vector<std::complex<double>> spectrum(texels);
     std::unique_ptr<SplitFft2d> to_spectrum, to_object;
     if (settings.band_limit) {
