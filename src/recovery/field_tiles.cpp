@@ -190,122 +190,45 @@ FieldTileLayout field_tile_layout(int rows, int cols, int refine, int reach, con
     return layout;
 }
 
+// The tiles' objects, their blend weights and per-tile phases a + b·x + c·y (x, y in texels
+// from the tile's centre), for aligning the tiles' arbitrary phases and blending them.
 template <typename T>
-std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layout,
-                                                    std::vector<std::vector<std::complex<T>>>& objects,
-                                                    FieldTileAlignment alignment) {
-    // Sample k of tile t in double (the sums and the blend are in double whatever T).
-    const auto at = [&](std::size_t t, std::size_t k) { return std::complex<double>(objects[t][k]); };
-    const int q = layout.refine;
-    const std::size_t nx = layout.origin_x.size(), ny = layout.origin_y.size(), tiles = nx * ny;
-    if (objects.size() != tiles)
-        throw std::invalid_argument("blend_field_tiles: " + std::to_string(objects.size()) +
-                                    " tile objects; expected " + std::to_string(tiles));
-    const long long fine_rows = (long long)(layout.rows) * q, fine_cols = (long long)(layout.cols) * q;
-    const auto tile_of = [&](std::size_t t) { return std::pair<std::size_t, std::size_t>(t / ny, t % ny); };
-    AxisTiles ax, ay;
-    ax.cut = layout.cut_x;
-    ax.origin = layout.origin_x;
-    ax.extent = layout.extent_x;
-    ay.cut = layout.cut_y;
-    ay.origin = layout.origin_y;
-    ay.extent = layout.extent_y;
-    std::vector<std::vector<double>> wx(nx), wy(ny);
-    for (std::size_t k = 0; k < nx; ++k) wx[k] = axis_weights(ax, ax.extent[k], q, layout.reach, layout.ramp);
-    for (std::size_t k = 0; k < ny; ++k) wy[k] = axis_weights(ay, ay.extent[k], q, layout.reach, layout.ramp);
-    for (std::size_t t = 0; t < tiles; ++t) {
-        const auto [kx, ky] = tile_of(t);
-        if (!objects[t].empty() && objects[t].size() != wx[kx].size() * wy[ky].size())
-            throw std::invalid_argument("blend_field_tiles: tile " + std::to_string(t) + " has " +
-                                        std::to_string(objects[t].size()) + " values; expected " +
-                                        std::to_string(wx[kx].size() * wy[ky].size()));
+class TileBlend {
+public:
+    TileBlend(const FieldTileLayout& layout, std::vector<std::vector<std::complex<T>>>& objects)
+        : objects(objects),
+          q(layout.refine),
+          nx(layout.origin_x.size()),
+          ny(layout.origin_y.size()),
+          tiles(nx * ny),
+          fine_rows((long long)(layout.rows) * q),
+          fine_cols((long long)(layout.cols) * q),
+          phase(3 * tiles, 0.0) {
+        if (objects.size() != tiles)
+            throw std::invalid_argument("blend_field_tiles: " + std::to_string(objects.size()) +
+                                        " tile objects; expected " + std::to_string(tiles));
+        ax.cut = layout.cut_x;
+        ax.origin = layout.origin_x;
+        ax.extent = layout.extent_x;
+        ay.cut = layout.cut_y;
+        ay.origin = layout.origin_y;
+        ay.extent = layout.extent_y;
+        wx.resize(nx);
+        wy.resize(ny);
+        for (std::size_t k = 0; k < nx; ++k) wx[k] = axis_weights(ax, ax.extent[k], q, layout.reach, layout.ramp);
+        for (std::size_t k = 0; k < ny; ++k) wy[k] = axis_weights(ay, ay.extent[k], q, layout.reach, layout.ramp);
+        for (std::size_t t = 0; t < tiles; ++t) {
+            const auto [kx, ky] = tile_of(t);
+            if (!objects[t].empty() && objects[t].size() != wx[kx].size() * wy[ky].size())
+                throw std::invalid_argument("blend_field_tiles: tile " + std::to_string(t) + " has " +
+                                            std::to_string(objects[t].size()) + " values; expected " +
+                                            std::to_string(wx[kx].size() * wy[ky].size()));
+        }
     }
-    // Phase a + b·x + c·y of every tile (x, y in texels from its centre).
-    std::vector<double> phase(3 * tiles, 0.0);
-    const auto rotate = [&](std::size_t t) {
-        const auto [kx, ky] = tile_of(t);
-        const std::size_t tc = wy[ky].size();
-        for (std::size_t r = 0; r < wx[kx].size(); ++r)
-            for (std::size_t c = 0; c < tc; ++c)
-                objects[t][r * tc + c] = std::complex<T>(
-                    at(t, r * tc + c) *
-                    std::polar(1.0, phase[3 * t] + phase[3 * t + 1] * local_coordinate(r, ax.extent[kx], q) +
-                                        phase[3 * t + 2] * local_coordinate(c, ay.extent[ky], q)));
-    };
-    if (alignment == FieldTileAlignment::joint) {
-        // Every overlap of two tiles, as a product of the axes' connected overlaps.
-        struct Region {
-            std::size_t i, j;
-            std::vector<std::pair<std::size_t, std::size_t>> xs, ys;
-        };
-        std::vector<Region> regions;
-        for (std::size_t i = 0; i < tiles; ++i)
-            for (std::size_t j = i + 1; j < tiles; ++j) {
-                if (objects[i].empty() || objects[j].empty()) continue;
-                const auto [xi, yi] = tile_of(i);
-                const auto [xj, yj] = tile_of(j);
-                // Only neighbours (periodic) overlap: the cores are wider than the margins.
-                const auto near = [](std::size_t a, std::size_t b, std::size_t n) {
-                    const std::size_t d = a > b ? a - b : b - a;
-                    return d <= 1 || d + 1 == n;
-                };
-                if (!near(xi, xj, nx) || !near(yi, yj, ny)) continue;
-                const auto gx = axis_overlaps(ax.origin[xi], ax.extent[xi], wx[xi], ax.origin[xj], ax.extent[xj],
-                                              wx[xj], q, fine_rows);
-                if (gx.empty()) continue;
-                const auto gy = axis_overlaps(ay.origin[yi], ay.extent[yi], wy[yi], ay.origin[yj], ay.extent[yj],
-                                              wy[yj], q, fine_cols);
-                for (const auto& [dx, xs] : gx)
-                    for (const auto& [dy, ys] : gy) regions.push_back(Region{i, j, xs, ys});
-            }
-        // A region's statistics: m = Σ ω O_i conj O_j, ω = the four weights' product; the
-        // weights' sum and centroids (each tile's frame); the weighted linear fit of the residual
-        // phase arg(O_i conj O_j conj m̂) = e + g_x (x − x̄) + g_y (y − ȳ).
-        struct Stats {
-            std::complex<double> m = 0.0;
-            double weight = 0.0, xi = 0.0, yi = 0.0, xj = 0.0, yj = 0.0, e = 0.0, gx = 0.0, gy = 0.0, sxx = 0.0,
-                   syy = 0.0;
-        };
-        const auto statistics = [&](const Region& g, bool fit) {
-            Stats st;
-            const auto [kxi, kyi] = tile_of(g.i);
-            const auto [kxj, kyj] = tile_of(g.j);
-            const std::size_t tci = wy[kyi].size(), tcj = wy[kyj].size();
-            for (const auto& [ri, rj] : g.xs)
-                for (const auto& [ci, cj] : g.ys) {
-                    const double w = wx[kxi][ri] * wx[kxj][rj] * wy[kyi][ci] * wy[kyj][cj];
-                    st.m += w * at(g.i, ri * tci + ci) * std::conj(at(g.j, rj * tcj + cj));
-                    st.weight += w;
-                    st.xi += w * local_coordinate(ri, ax.extent[kxi], q);
-                    st.yi += w * local_coordinate(ci, ay.extent[kyi], q);
-                    st.xj += w * local_coordinate(rj, ax.extent[kxj], q);
-                    st.yj += w * local_coordinate(cj, ay.extent[kyj], q);
-                }
-            if (!(st.weight > 0.0)) return st;
-            st.xi /= st.weight;
-            st.yi /= st.weight;
-            st.xj /= st.weight;
-            st.yj /= st.weight;
-            if (!fit || std::abs(st.m) == 0.0) return st;
-            const std::complex<double> unit = std::conj(st.m) / std::abs(st.m);
-            double se = 0.0, sx = 0.0, sy = 0.0;
-            for (const auto& [ri, rj] : g.xs)
-                for (const auto& [ci, cj] : g.ys) {
-                    const double w = wx[kxi][ri] * wx[kxj][rj] * wy[kyi][ci] * wy[kyj][cj];
-                    const double rho = std::arg(at(g.i, ri * tci + ci) * std::conj(at(g.j, rj * tcj + cj)) * unit);
-                    const double x = local_coordinate(ri, ax.extent[kxi], q) - st.xi;
-                    const double y = local_coordinate(ci, ay.extent[kyi], q) - st.yi;
-                    se += w * rho;
-                    sx += w * rho * x;
-                    sy += w * rho * y;
-                    st.sxx += w * x * x;
-                    st.syy += w * y * y;
-                }
-            st.e = se / st.weight;
-            st.gx = st.sxx > 0.0 ? sx / st.sxx : 0.0;
-            st.gy = st.syy > 0.0 ? sy / st.syy : 0.0;
-            return st;
-        };
+
+    // Aligns every tile's phase and tilt to its neighbours' on all overlaps at once.
+    void align_jointly() {
+        const std::vector<Region> regions = overlapping_regions();
         std::vector<std::vector<std::size_t>> regions_of(tiles);
         for (std::size_t g = 0; g < regions.size(); ++g) {
             regions_of[regions[g].i].push_back(g);
@@ -374,51 +297,167 @@ std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layou
                 if (!objects[t].empty()) rotate(t);
         }
     }
-    // The blend Σ_t w_t O_t (raster: each tile turned by arg Σ w · blend · conj(O_t) on what the
-    // tiles before it hold); the weights are separable, so is their sum.
-    std::vector<std::complex<double>> blend = allocating(
-        "the field tiles' blend", double(fine_rows * fine_cols) * 16.0,
-        [&] { return std::vector<std::complex<double>>(std::size_t(fine_rows * fine_cols), 0.0); });
-    std::vector<double> sum_x(std::size_t(fine_rows), 0.0), sum_y(std::size_t(fine_cols), 0.0);
-    for (std::size_t k = 0; k < nx; ++k)
-        for (std::size_t s = 0; s < wx[k].size(); ++s)
-            sum_x[wrap_index((long long)(ax.origin[k]) * q, (long long)(s), fine_rows)] += wx[k][s];
-    for (std::size_t k = 0; k < ny; ++k)
-        for (std::size_t s = 0; s < wy[k].size(); ++s)
-            sum_y[wrap_index((long long)(ay.origin[k]) * q, (long long)(s), fine_cols)] += wy[k][s];
-    for (std::size_t t = 0; t < tiles; ++t) {
-        if (objects[t].empty()) continue;
-        const auto [kx, ky] = tile_of(t);
-        const std::size_t tr = wx[kx].size(), tc = wy[ky].size();
-        std::vector<std::size_t> map_r(tr), map_c(tc);
-        for (std::size_t s = 0; s < tr; ++s)
-            map_r[s] = wrap_index((long long)(ax.origin[kx]) * q, (long long)(s), fine_rows);
-        for (std::size_t s = 0; s < tc; ++s)
-            map_c[s] = wrap_index((long long)(ay.origin[ky]) * q, (long long)(s), fine_cols);
-        std::complex<double> turn = 1.0;
-        if (alignment == FieldTileAlignment::raster) {
-            std::complex<double> overlap = 0.0;
+
+    // The blend Σ_t w_t O_t (raster alignment: each tile turned by arg Σ w · blend · conj(O_t) on
+    // what the tiles before it hold); the weights are separable, so is their sum.
+    std::vector<std::complex<double>> blend(FieldTileAlignment alignment) {
+        std::vector<std::complex<double>> blend = allocating(
+            "the field tiles' blend", double(fine_rows * fine_cols) * 16.0,
+            [&] { return std::vector<std::complex<double>>(std::size_t(fine_rows * fine_cols), 0.0); });
+        std::vector<double> sum_x(std::size_t(fine_rows), 0.0), sum_y(std::size_t(fine_cols), 0.0);
+        for (std::size_t k = 0; k < nx; ++k)
+            for (std::size_t s = 0; s < wx[k].size(); ++s)
+                sum_x[wrap_index((long long)(ax.origin[k]) * q, (long long)(s), fine_rows)] += wx[k][s];
+        for (std::size_t k = 0; k < ny; ++k)
+            for (std::size_t s = 0; s < wy[k].size(); ++s)
+                sum_y[wrap_index((long long)(ay.origin[k]) * q, (long long)(s), fine_cols)] += wy[k][s];
+        for (std::size_t t = 0; t < tiles; ++t) {
+            if (objects[t].empty()) continue;
+            const auto [kx, ky] = tile_of(t);
+            const std::size_t tr = wx[kx].size(), tc = wy[ky].size();
+            std::vector<std::size_t> map_r(tr), map_c(tc);
+            for (std::size_t s = 0; s < tr; ++s)
+                map_r[s] = wrap_index((long long)(ax.origin[kx]) * q, (long long)(s), fine_rows);
+            for (std::size_t s = 0; s < tc; ++s)
+                map_c[s] = wrap_index((long long)(ay.origin[ky]) * q, (long long)(s), fine_cols);
+            std::complex<double> turn = 1.0;
+            if (alignment == FieldTileAlignment::raster) {
+                std::complex<double> overlap = 0.0;
+                for (std::size_t r = 0; r < tr; ++r)
+                    for (std::size_t c = 0; c < tc; ++c) {
+                        const double w = wx[kx][r] * wy[ky][c];
+                        if (w > 0.0)
+                            overlap += w * blend[map_r[r] * std::size_t(fine_cols) + map_c[c]] *
+                                       std::conj(at(t, r * tc + c));
+                    }
+                if (std::abs(overlap) > 0.0) turn = overlap / std::abs(overlap);
+                for (std::complex<T>& v : objects[t]) v = std::complex<T>(std::complex<double>(v) * turn);
+            }
             for (std::size_t r = 0; r < tr; ++r)
-                for (std::size_t c = 0; c < tc; ++c) {
-                    const double w = wx[kx][r] * wy[ky][c];
-                    if (w > 0.0)
-                        overlap += w * blend[map_r[r] * std::size_t(fine_cols) + map_c[c]] *
-                                   std::conj(at(t, r * tc + c));
-                }
-            if (std::abs(overlap) > 0.0) turn = overlap / std::abs(overlap);
-            for (std::complex<T>& v : objects[t]) v = std::complex<T>(std::complex<double>(v) * turn);
+                for (std::size_t c = 0; c < tc; ++c)
+                    blend[map_r[r] * std::size_t(fine_cols) + map_c[c]] += wx[kx][r] * wy[ky][c] * at(t, r * tc + c);
         }
-        for (std::size_t r = 0; r < tr; ++r)
-            for (std::size_t c = 0; c < tc; ++c)
-                blend[map_r[r] * std::size_t(fine_cols) + map_c[c]] += wx[kx][r] * wy[ky][c] * at(t, r * tc + c);
+        for (std::size_t r = 0; r < std::size_t(fine_rows); ++r)
+            for (std::size_t c = 0; c < std::size_t(fine_cols); ++c) {
+                const double w = sum_x[r] * sum_y[c];
+                std::complex<double>& v = blend[r * std::size_t(fine_cols) + c];
+                v = w > 0.0 ? v / w : 0.0;
+            }
+        return blend;
     }
-    for (std::size_t r = 0; r < std::size_t(fine_rows); ++r)
-        for (std::size_t c = 0; c < std::size_t(fine_cols); ++c) {
-            const double w = sum_x[r] * sum_y[c];
-            std::complex<double>& v = blend[r * std::size_t(fine_cols) + c];
-            v = w > 0.0 ? v / w : 0.0;
-        }
-    return blend;
+
+private:
+    struct Region {
+        std::size_t i, j;
+        std::vector<std::pair<std::size_t, std::size_t>> xs, ys;
+    };
+
+    // A region's statistics: m = Σ ω O_i conj O_j, ω = the four weights' product; the
+    // weights' sum and centroids (each tile's frame); the weighted linear fit of the residual
+    // phase arg(O_i conj O_j conj m̂) = e + g_x (x − x̄) + g_y (y − ȳ).
+    struct Stats {
+        std::complex<double> m = 0.0;
+        double weight = 0.0, xi = 0.0, yi = 0.0, xj = 0.0, yj = 0.0, e = 0.0, gx = 0.0, gy = 0.0, sxx = 0.0, syy = 0.0;
+    };
+
+    // Sample k of tile t in double (the sums and the blend are in double whatever T).
+    std::complex<double> at(std::size_t t, std::size_t k) const { return std::complex<double>(objects[t][k]); }
+    std::pair<std::size_t, std::size_t> tile_of(std::size_t t) const { return {t / ny, t % ny}; }
+
+    // Turns tile t by its phase.
+    void rotate(std::size_t t) {
+        const auto [kx, ky] = tile_of(t);
+        const std::size_t tc = wy[ky].size();
+        for (std::size_t r = 0; r < wx[kx].size(); ++r)
+            for (std::size_t c = 0; c < tc; ++c)
+                objects[t][r * tc + c] = std::complex<T>(
+                    at(t, r * tc + c) *
+                    std::polar(1.0, phase[3 * t] + phase[3 * t + 1] * local_coordinate(r, ax.extent[kx], q) +
+                                        phase[3 * t + 2] * local_coordinate(c, ay.extent[ky], q)));
+    }
+
+    // Every overlap of two tiles, as a product of the axes' connected overlaps.
+    std::vector<Region> overlapping_regions() const {
+        std::vector<Region> regions;
+        for (std::size_t i = 0; i < tiles; ++i)
+            for (std::size_t j = i + 1; j < tiles; ++j) {
+                if (objects[i].empty() || objects[j].empty()) continue;
+                const auto [xi, yi] = tile_of(i);
+                const auto [xj, yj] = tile_of(j);
+                // Only neighbours (periodic) overlap: the cores are wider than the margins.
+                const auto near = [](std::size_t a, std::size_t b, std::size_t n) {
+                    const std::size_t d = a > b ? a - b : b - a;
+                    return d <= 1 || d + 1 == n;
+                };
+                if (!near(xi, xj, nx) || !near(yi, yj, ny)) continue;
+                const auto gx = axis_overlaps(ax.origin[xi], ax.extent[xi], wx[xi], ax.origin[xj], ax.extent[xj],
+                                              wx[xj], q, fine_rows);
+                if (gx.empty()) continue;
+                const auto gy = axis_overlaps(ay.origin[yi], ay.extent[yi], wy[yi], ay.origin[yj], ay.extent[yj],
+                                              wy[yj], q, fine_cols);
+                for (const auto& [dx, xs] : gx)
+                    for (const auto& [dy, ys] : gy) regions.push_back(Region{i, j, xs, ys});
+            }
+        return regions;
+    }
+
+    Stats statistics(const Region& g, bool fit) const {
+        Stats st;
+        const auto [kxi, kyi] = tile_of(g.i);
+        const auto [kxj, kyj] = tile_of(g.j);
+        const std::size_t tci = wy[kyi].size(), tcj = wy[kyj].size();
+        for (const auto& [ri, rj] : g.xs)
+            for (const auto& [ci, cj] : g.ys) {
+                const double w = wx[kxi][ri] * wx[kxj][rj] * wy[kyi][ci] * wy[kyj][cj];
+                st.m += w * at(g.i, ri * tci + ci) * std::conj(at(g.j, rj * tcj + cj));
+                st.weight += w;
+                st.xi += w * local_coordinate(ri, ax.extent[kxi], q);
+                st.yi += w * local_coordinate(ci, ay.extent[kyi], q);
+                st.xj += w * local_coordinate(rj, ax.extent[kxj], q);
+                st.yj += w * local_coordinate(cj, ay.extent[kyj], q);
+            }
+        if (!(st.weight > 0.0)) return st;
+        st.xi /= st.weight;
+        st.yi /= st.weight;
+        st.xj /= st.weight;
+        st.yj /= st.weight;
+        if (!fit || std::abs(st.m) == 0.0) return st;
+        const std::complex<double> unit = std::conj(st.m) / std::abs(st.m);
+        double se = 0.0, sx = 0.0, sy = 0.0;
+        for (const auto& [ri, rj] : g.xs)
+            for (const auto& [ci, cj] : g.ys) {
+                const double w = wx[kxi][ri] * wx[kxj][rj] * wy[kyi][ci] * wy[kyj][cj];
+                const double rho = std::arg(at(g.i, ri * tci + ci) * std::conj(at(g.j, rj * tcj + cj)) * unit);
+                const double x = local_coordinate(ri, ax.extent[kxi], q) - st.xi;
+                const double y = local_coordinate(ci, ay.extent[kyi], q) - st.yi;
+                se += w * rho;
+                sx += w * rho * x;
+                sy += w * rho * y;
+                st.sxx += w * x * x;
+                st.syy += w * y * y;
+            }
+        st.e = se / st.weight;
+        st.gx = st.sxx > 0.0 ? sx / st.sxx : 0.0;
+        st.gy = st.syy > 0.0 ? sy / st.syy : 0.0;
+        return st;
+    }
+
+    std::vector<std::vector<std::complex<T>>>& objects;
+    const int q;
+    const std::size_t nx, ny, tiles;
+    const long long fine_rows, fine_cols;
+    AxisTiles ax, ay;
+    std::vector<std::vector<double>> wx, wy;
+    std::vector<double> phase;
+};
+
+template <typename T>
+std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layout,
+                                                    std::vector<std::vector<std::complex<T>>>& objects,
+                                                    FieldTileAlignment alignment) {
+    TileBlend<T> tiles(layout, objects);
+    if (alignment == FieldTileAlignment::joint) tiles.align_jointly();
+    return tiles.blend(alignment);
 }
 
 template std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout&,
