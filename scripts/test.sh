@@ -29,6 +29,7 @@ phase "setup and Release build"
 bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
 phase "Release tests (ctest)"
 (cd build && ctest --output-on-failure -j"$(nproc)")
+/usr/bin/python3 scripts/slowest_tests.py build  # docs/reliability.md quotes these
 phase "Python (pytest)"
 /usr/bin/python3 -m pytest -q tests/python
 phase "API reference (scripts/docs.sh)"
@@ -61,6 +62,7 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 skip="$(grep -v '^#' tests/sanitizer_skip.txt | awk 'NF { gsub(/\./, "\\.", $1); print $1 }' | paste -sd'|')"
 echo "test: sanitizer pass skips $(grep -cv '^#' tests/sanitizer_skip.txt) tests (tests/sanitizer_skip.txt)"
 (cd build-sanitize && ctest --output-on-failure -j"$(nproc)" -E "^(${skip})\$")
+/usr/bin/python3 scripts/slowest_tests.py build-sanitize
 
 # Each target's saved inputs and seeds, then FUZZ_SECONDS of fuzzing (default here 20: a check
 # that nothing found before comes back and that a short run finds nothing; scripts/fuzz.sh
