@@ -4,6 +4,7 @@
 // without the GIL and interruptible.
 #include "batch.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -28,6 +29,11 @@ get the sum over the lights). sigma_p_um, the wavelengths and the model are shar
 run in one library call spread over the threads (wavebrdf/batch.h); each equals the single call
 (to rounding of a parallel sum, ~1e-12 relative in float64). A single query (2-D heights, one
 light pair, scalar positions) keeps the shapes (n, n, 3) and (rows, cols).
+The last two axes of heights are always one surface. With batch axes, a surface that looks like
+an image's channels is refused (ValueError): 1 texel wide, or 2 to 4 texels wide and at least 4
+times longer, when that is narrower than the footprint (6 sigma_p) or is the last axis of an
+(H, W, C) array with H and W both at least 4 C. For an image-like export (rows, cols, 1 to 4)
+pass heights[..., 0]; narrow surfaces of a real batch render one 2-D array at a time.
 )doc";
 
 namespace {
@@ -91,6 +97,41 @@ double product(const Shape& shape) {
     return p;
 }
 
+// Batch axes lead: the last two axes are one surface, any before them a batch. An image-like
+// export, (H, W, 1) or (H, W, C) with C <= 4 colour channels, would otherwise read as H surfaces
+// of W x C texels, and render without complaint. A periodic tile smaller than the footprint is
+// valid (the model takes each texel once, at its nearest periodic copy), so small square tiles
+// pass; what is refused is a surface in a batch that is 1 texel wide, or 2 to 4 texels wide, at
+// least 4 times longer than wide, and either narrower than the footprint (6 sigma_p, the
+// renderer's cut at 3 sigma_p both sides) or shaped as an image's channels (the last axis, with
+// the axis before the surface as long as the rows). A 2-D array is one surface, never refused here.
+void check_batch_surfaces(const py::array& heights, double texel_um, double sigma_p_um) {
+    const py::ssize_t nd = heights.ndim();
+    if (nd < 3) return;
+    const py::ssize_t rows = heights.shape(nd - 2), cols = heights.shape(nd - 1), lead = heights.shape(nd - 3);
+    const py::ssize_t narrow = std::min(rows, cols), wide = std::max(rows, cols);
+    const double footprint_texels = 6.0 * sigma_p_um / texel_um;
+    std::string why;
+    if (narrow == 1)
+        why = "1 texel wide";
+    else if (narrow <= 4 && wide >= 4 * narrow && double(narrow) < footprint_texels)
+        why = "narrower than the footprint (6 sigma_p = " + format_number(6.0 * sigma_p_um) + " um, " +
+              format_number(footprint_texels) + " texels) and " + std::to_string(wide / narrow) +
+              " times longer than wide";
+    else if (cols <= 4 && rows >= 4 * cols && lead >= 4 * cols)
+        why = "shaped as an image's colour channels (rows, cols, " + std::to_string(cols) + ")";
+    if (why.empty()) return;
+    throw py::value_error("heights has shape " + shape_string(heights) + ", read as a batch " +
+                          shape_string(shape_of(heights, 2)) + " of " + std::to_string(rows) + "x" +
+                          std::to_string(cols) +
+                          " surfaces (batch axes lead: (..., rows, cols), the last two axes "
+                          "are one surface); a " +
+                          std::to_string(rows) + "x" + std::to_string(cols) + " surface is " + why +
+                          "; expected one surface per (rows, cols): for one surface stored as (rows, cols, "
+                          "channels), pass heights[..., 0] (or a mean over the channels); a batch of narrow "
+                          "surfaces renders one 2-D array at a time");
+}
+
 struct Batched {
     py::array heights;
     bool single = false;  // float32
@@ -110,21 +151,13 @@ Batched batched_arguments(py::handle heights_object, int resolution, double texe
     if (nd < 2 || a.heights.shape(nd - 1) == 0 || a.heights.shape(nd - 2) == 0)
         throw py::value_error("heights has shape " + shape_string(a.heights) +
                               "; expected (..., rows, cols) with rows, cols >= 1 (heights in texel units)");
-    // Batch axes lead: (H, W, 1) from an image-like export would otherwise read as H surfaces of
-    // W x 1 texels, each narrower than any footprint. A surface one texel wide in a batch is
-    // refused, naming how the axes are read.
-    if (nd >= 3 && (a.heights.shape(nd - 1) == 1 || a.heights.shape(nd - 2) == 1))
-        throw py::value_error("heights has shape " + shape_string(a.heights) + ", read as a batch " +
-                              shape_string(shape_of(a.heights, 2)) + " of " + std::to_string(a.heights.shape(nd - 2)) +
-                              "x" + std::to_string(a.heights.shape(nd - 1)) +
-                              " surfaces (batch axes lead: (..., rows, cols)); expected rows, cols >= 2 (for one "
-                              "surface stored as (rows, cols, 1), pass heights[..., 0])");
     check_resolution(resolution);
     check_positive(texel_um, "texel_um");
     check_finite(vscale, "vscale");
     const py::array x = coordinates(x_um, "x_um"), y = coordinates(y_um, "y_um");
     const std::vector<double> xs = to_doubles(x, "x_um"), ys = to_doubles(y, "y_um");
     check_positive(sigma_p_um, "sigma_p_um");
+    check_batch_surfaces(a.heights, texel_um, sigma_p_um);
     Query base;
     base.sigma_p_um = sigma_p_um;
     const std::vector<double> lambdas = wavelengths(lambda_um, spectral);

@@ -1175,6 +1175,11 @@ def render_slice(heights: Any, *, resolution: int, texel_um: Any = ..., vscale: 
     run in one library call spread over the threads (wavebrdf/batch.h); each equals the single call
     (to rounding of a parallel sum, ~1e-12 relative in float64). A single query (2-D heights, one
     light pair, scalar positions) keeps the shapes (n, n, 3) and (rows, cols).
+    The last two axes of heights are always one surface. With batch axes, a surface that looks like
+    an image's channels is refused (ValueError): 1 texel wide, or 2 to 4 texels wide and at least 4
+    times longer, when that is narrower than the footprint (6 sigma_p) or is the last axis of an
+    (H, W, C) array with H and W both at least 4 C. For an image-like export (rows, cols, 1 to 4)
+    pass heights[..., 0]; narrow surfaces of a real batch render one 2-D array at a time.
     """
     ...
 
@@ -1253,6 +1258,11 @@ def slice_gradient(heights: Any, weights: Any, *, resolution: int, texel_um: Any
     run in one library call spread over the threads (wavebrdf/batch.h); each equals the single call
     (to rounding of a parallel sum, ~1e-12 relative in float64). A single query (2-D heights, one
     light pair, scalar positions) keeps the shapes (n, n, 3) and (rows, cols).
+    The last two axes of heights are always one surface. With batch axes, a surface that looks like
+    an image's channels is refused (ValueError): 1 texel wide, or 2 to 4 texels wide and at least 4
+    times longer, when that is narrower than the footprint (6 sigma_p) or is the last axis of an
+    (H, W, C) array with H and W both at least 4 C. For an image-like export (rows, cols, 1 to 4)
+    pass heights[..., 0]; narrow surfaces of a real batch render one 2-D array at a time.
     """
     ...
 

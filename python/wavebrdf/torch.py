@@ -24,6 +24,8 @@ Batches: heights (..., rows, cols), light (2,) or (..., 2) and x_um, y_um as num
 (batch..., n, n, 3), one slice per item, rendered by one library call threaded across the batch,
 and the backward pass is wavebrdf.slice_gradient of the same batch (it renders the batch again:
 a batch keeps no plan per item), which sums the gradients of the items that share heights.
+The last two axes of heights are one surface: an image-like (rows, cols, channels) tensor is
+refused as wavebrdf.render_slice refuses it (pass heights[..., 0]).
 """
 import numpy as np
 import torch

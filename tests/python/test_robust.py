@@ -46,6 +46,51 @@ def test_a_trailing_singleton_axis_is_not_a_batch(shape):
         wb.slice_gradient(np.zeros(shape), np.zeros(shape[:-2] + (8, 8, 3)), resolution=8)
 
 
+# An RGB(A) or two-channel export read with batch axes: (H, W, C) would be H surfaces W x C.
+@pytest.mark.parametrize("shape", [(16, 16, 3), (16, 16, 4), (32, 24, 2), (2, 3, 16, 16, 3)])
+def test_image_channels_are_not_a_batch_of_narrow_surfaces(shape):
+    heights = rough(shape=shape)
+    rows, cols = shape[-2:]
+    message = (r"heights has shape \(%s\), read as a batch .* of %dx%d surfaces \(batch axes lead: "
+               r"\(\.\.\., rows, cols\), the last two axes are one surface\).*pass heights\[\.\.\., 0\]"
+               % (", ".join(str(e) for e in shape), rows, cols))
+    with pytest.raises(ValueError, match=message):
+        wb.render_slice(heights, resolution=8)
+    # A footprint narrower than the channels does not let the image through either.
+    with pytest.raises(ValueError, match=r"shaped as an image's colour channels"):
+        wb.render_slice(heights, resolution=8, sigma_p_um=0.1)
+    with pytest.raises(ValueError, match=message):
+        wb.slice_gradient(heights, np.zeros(shape[:-2] + (8, 8, 3)), resolution=8)
+    torch = pytest.importorskip("torch", reason="python3-torch is installed by scripts/setup.sh")
+    import wavebrdf.torch as wt
+    with pytest.raises(ValueError, match=message):
+        wt.render_slice(torch.tensor(heights, requires_grad=True), resolution=8)
+
+
+def test_a_batch_of_surfaces_narrower_than_the_footprint_is_refused():
+    # Two 40 x 3 surfaces under a footprint of 6 sigma_p = 60 texels: the image-channel shape does
+    # not apply (2 < 4 * 3), the footprint rule does.
+    with pytest.raises(ValueError, match=r"a 40x3 surface is narrower than the footprint \(6 sigma_p = 60 um, "
+                                         r"60 texels\) and 13 times longer than wide"):
+        wb.render_slice(rough(shape=(2, 40, 3)), resolution=8, sigma_p_um=10.0)
+    with pytest.raises(ValueError, match=r"a 3x40 surface is narrower than the footprint"):
+        wb.render_slice(rough(shape=(2, 3, 40)), resolution=8, sigma_p_um=10.0)
+
+
+def test_small_square_tiles_and_single_narrow_surfaces_still_render():
+    # A periodic tile smaller than the footprint is valid: square tiles in a batch render.
+    tiles = rough(shape=(5, 4, 4))
+    out = wb.render_slice(tiles, resolution=8, sigma_p_um=10.0)
+    assert out.shape == (5, 8, 8, 3)
+    np.testing.assert_allclose(out[2], wb.render_slice(tiles[2], resolution=8, sigma_p_um=10.0), rtol=1e-9,
+                               atol=1e-12 * out.max())
+    # Narrow surfaces wider than the footprint, and a batch too short to be an image's rows.
+    assert wb.render_slice(rough(shape=(2, 40, 3)), resolution=8, sigma_p_um=0.4).shape == (2, 8, 8, 3)
+    assert wb.render_slice(rough(shape=(3, 12, 3)), resolution=8, sigma_p_um=0.4).shape == (3, 8, 8, 3)
+    # One 2-D surface is never read as a batch, whatever its shape.
+    assert wb.render_slice(rough(shape=(40, 3)), resolution=8, sigma_p_um=10.0).shape == (8, 8, 3)
+
+
 def test_a_real_batch_still_renders():
     out = wb.render_slice(np.zeros((2, 6, 6)), resolution=8)
     assert out.shape == (2, 8, 8, 3)
