@@ -1,7 +1,10 @@
 // `wavebrdf convert`: a surface file to another format (by OUT's extension), conditioned on the
 // way (conditioning.h); every step is printed and kept in the file's metadata.
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -28,6 +31,7 @@ struct ConvertArgs {
 void run(const ConvertArgs& a) {
     validate_lambda(a.lambda_um);
     check_distinct_files({{"IN", a.in}, {"OUT", a.out}});
+    check_output_format("OUT", a.out, {".x3p", ".sdf", ".npy", ".exr"});          // before the input is read
     const ConditioningOptions options = to_conditioning_options(a.conditioning);  // bad options before reading
     (void)options;
     check_writable(a.out);
@@ -36,8 +40,9 @@ void run(const ConvertArgs& a) {
     const MeasuredSurface input = read_surface(a.in, spacing);
     const MeasuredSurface surface = condition_and_report(input, a.conditioning, a.quiet);
     // A heightfield EXR holds every point: say which option fills them, before the writer refuses.
-    const std::string ext = a.out.size() >= 4 ? a.out.substr(a.out.size() - 4) : "";
-    if ((ext == ".exr" || ext == ".EXR") && surface.invalid_count() > 0)
+    std::string ext = std::filesystem::path(a.out).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (ext == ".exr" && surface.invalid_count() > 0)
         throw std::invalid_argument(a.in + " has " + std::to_string(surface.invalid_count()) +
                                     " unmeasured points (NaN) and a heightfield EXR holds every point; expected "
                                     "--fill nearest, harmonic or mean");

@@ -57,6 +57,8 @@ std::string profile_csv(const RadialProfile& p, const std::string& r_name, const
 void run(const StatsArgs& a) {
     validate_lambda(a.lambda_um);
     check_distinct_files({{"FILE", a.file}, {"--psd", a.psd}, {"--acf", a.acf}});
+    check_output_format("--psd", a.psd, {".csv"});
+    check_output_format("--acf", a.acf, {".csv"});
     if (!a.psd.empty()) check_writable(a.psd);
     if (!a.acf.empty()) check_writable(a.acf);
     const std::optional<double> spacing =

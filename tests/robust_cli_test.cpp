@@ -75,6 +75,40 @@ TEST(RobustCliTest, OutputsWriteTheFormatTheirExtensionNames) {
     }
 }
 
+// The outputs of the measured-surface commands go through the same check: convert's OUT is one of
+// the formats it writes (checked before the input is read), stats' CSV profiles end in .csv (a
+// --psd p.png used to be CSV text under a PNG name).
+TEST(RobustCliTest, SurfaceCommandOutputsWriteTheFormatTheirExtensionNames) {
+    const fs::path dir = fresh_dir("robust_surface");
+    ASSERT_EQ(run_cli(dir, "heightfield --size 16 --out h.exr --quiet").exit_code, 0);
+    const CliResult npy = run_cli(dir, "convert h.exr c.NPY --quiet");
+    ASSERT_EQ(npy.exit_code, 0) << npy.err;
+    EXPECT_EQ(head(dir / "c.NPY", 6), kNpy);
+    ASSERT_EQ(run_cli(dir, "convert h.exr c.x3p --quiet").exit_code, 0);
+    EXPECT_EQ(head(dir / "c.x3p", 2), "PK");  // an x3p file is a zip archive
+    const CliResult stats = run_cli(dir, "stats h.exr --psd p.csv --acf a.CSV --quiet");
+    ASSERT_EQ(stats.exit_code, 0) << stats.err;
+    EXPECT_EQ(head(dir / "p.csv", 9), "q_per_um,");
+    EXPECT_EQ(head(dir / "a.CSV", 7), "lag_um,");
+
+    struct Case {
+        std::string args, option, known;
+        fs::path not_written;
+    };
+    const std::vector<Case> cases{
+        {"convert h.exr c.png --quiet", "OUT c.png", ".x3p, .sdf, .npy, .exr", "c.png"},
+        // The name is checked before the input is read: the missing input is not what is reported.
+        {"convert missing.x3p c.tif --quiet", "OUT c.tif", ".x3p, .sdf, .npy, .exr", "c.tif"},
+        {"stats h.exr --psd p.png --quiet", "--psd p.png", ".csv", "p.png"},
+        {"stats h.exr --psd p2.csv --acf a.json --quiet", "--acf a.json", ".csv", "p2.csv"},
+    };
+    for (const Case& c : cases) {
+        SCOPED_TRACE(c.args);
+        expect_one_line_naming(run_cli(dir, c.args), {c.option, c.known});
+        EXPECT_FALSE(fs::exists(dir / c.not_written));
+    }
+}
+
 // recover --observations with a --size other than the surface they were made of is an error
 // (it ran to a 100x worse loss with exit 0); the right size still runs.
 TEST(RobustCliTest, RecoverSizeMustMatchTheObservations) {
