@@ -131,20 +131,6 @@ TEST(Calibration, ExposureIsTheEnergyRatioAndItsGradientIsExact) {
     }
 }
 
-TEST(Calibration, GoldenSectionFindsAParabolasMinimum) {
-    int calls = 0;
-    double value = 0.0;
-    const double x = detail::golden_section_minimum(
-        [&](double t) {
-            ++calls;
-            return (t - 0.123) * (t - 0.123) + 2.0;
-        },
-        -1.0, 1.0, 30, &value);
-    EXPECT_EQ(calls, 30);
-    EXPECT_NEAR(x, 0.123, 1e-5);
-    EXPECT_NEAR(value, 2.0, 1e-9);
-}
-
 TEST(HeightRelRmsePlaneRemoved, RemovesAHandMadePlaneAndNothingElse) {
     const Heightfield truth = test::random_heightfield(12, 14, 0.3, 5021, 2.0);
     const auto with = [&](double a, double b, double c, double checker) {

@@ -5,6 +5,8 @@
 #include <functional>
 #include <stdexcept>
 
+#include "core/golden_section.h"
+
 namespace wavebrdf::detail {
 
 namespace {
@@ -44,36 +46,6 @@ double dual_value(const std::vector<double>& w, std::size_t n, const std::array<
     return best;
 }
 
-// Golden-section minimum of a convex function on [lo, hi] (correct for plateaus too: a minimiser
-// stays inside the bracket).
-double golden_min(const std::function<double(double)>& f, double lo, double hi, int iterations, double* arg) {
-    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-    double a = lo, b = hi;
-    double x1 = b - g * (b - a), x2 = a + g * (b - a);
-    double f1 = f(x1), f2 = f(x2);
-    for (int i = 0; i < iterations; ++i) {
-        if (f1 <= f2) {
-            b = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = b - g * (b - a);
-            f1 = f(x1);
-        } else {
-            a = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = a + g * (b - a);
-            f2 = f(x2);
-        }
-    }
-    if (f1 <= f2) {
-        *arg = x1;
-        return f1;
-    }
-    *arg = x2;
-    return f2;
-}
-
 // min over μ of the dual: g(μ0) = min_μ1 F(μ0, μ1) is convex (a partial minimum of a convex
 // function), so nested golden sections find the minimum; the bracket is wide enough that the
 // minimiser of these small-magnitude weights lies well inside it (checked below: a minimum on the
@@ -85,11 +57,21 @@ double minimise_dual(const std::vector<double>& w, std::size_t n, const std::arr
     double value = 0.0;
     for (int widen = 0; widen < 6; ++widen) {
         auto inner = [&](double m0, double* m1) {
-            return golden_min([&](double x) { return dual_value(w, n, t, r, {m0, x}, nullptr); }, -bracket, bracket,
-                              k_iterations, m1);
+            double v = 0.0;
+            *m1 = golden_section_minimum(
+                [&](double x) {
+                    return dual_value(w, n, t, r, {m0, x}, nullptr);
+                },
+                -bracket, bracket, k_iterations + 2, &v);
+            return v;
         };
-        double m0 = 0.0, m1 = 0.0;
-        value = golden_min([&](double x) { double y; return inner(x, &y); }, -bracket, bracket, k_iterations, &m0);
+        double m1 = 0.0;
+        const double m0 = golden_section_minimum(
+            [&](double x) {
+                double y;
+                return inner(x, &y);
+            },
+            -bracket, bracket, k_iterations + 2, &value);
         inner(m0, &m1);
         mu = {m0, m1};
         if (std::max(std::abs(m0), std::abs(m1)) < 0.9 * bracket) break;

@@ -117,30 +117,6 @@ void exposure_gradient(double exposure, const float* model, std::size_t n, std::
     for (std::size_t k = 0; k < n; ++k) d[k] = exposure * d[k] - (model[k] > 0.0f ? shift : 0.0);
 }
 
-double golden_section_minimum(const std::function<double(double)>& f, double lo, double hi, int evaluations,
-                              double* value) {
-    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
-    double x1 = hi - g * (hi - lo), x2 = lo + g * (hi - lo);
-    double f1 = f(x1), f2 = f(x2);
-    for (int k = 2; k < std::max(evaluations, 3); ++k) {
-        if (f1 <= f2) {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - g * (hi - lo);
-            f1 = f(x1);
-        } else {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + g * (hi - lo);
-            f2 = f(x2);
-        }
-    }
-    if (value) *value = std::min(f1, f2);
-    return f1 <= f2 ? x1 : x2;
-}
-
 double refine_sigma_scale(const std::function<double(double)>& loss_at,
                           const std::function<bool(int, double, double)>& after_round, double initial) {
     if (!(initial >= 0.25 && initial <= 4.0))

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "core/golden_section.h"  // golden_section_minimum, the σ_p searches' line search
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/loss.h"
@@ -24,11 +25,6 @@ double slice_exposure(const float* model, const float* reference, std::size_t n)
 // The chain rule through a = Σ R / Σ f: given d = ∂L/∂e of a loss of e = a · f, replaces it by
 // dL/df = a d − (a / Σ f) Σ_j d_j f_j (the loss's total derivative through a as well).
 void exposure_gradient(double exposure, const float* model, std::size_t n, std::vector<double>& d);
-
-// The x in [lo, hi] where f is smallest, by golden-section search with `evaluations` (≥ 3)
-// calls of f; *value (when given) receives f there.
-double golden_section_minimum(const std::function<double(double)>& f, double lo, double hi, int evaluations,
-                              double* value = nullptr);
 
 // The σ_p self-calibration's schedule: k_sigma_rounds rounds, each a golden-section search on
 // log s (at fixed heights; loss_at(s) is the loss with every σ_p scaled by s) over a bracket
