@@ -22,7 +22,7 @@ targets=("$@")
 replay_only=()
 [ ${#targets[@]} -gt 0 ] || replay_only=(observations_hdf5_bytes surface_datx)
 [ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint observations_hdf5 observations_hdf5_bytes table
-                                     surface_x3p surface_sdf surface_plu surface_sur surface_al3d
+                                     iridescent_spec png_picture surface_x3p surface_sdf surface_plu surface_sur surface_al3d
                                      surface_metropro surface_npy surface_text surface_datx)
 
 build="${FUZZ_BUILD:-build-fuzz}"
@@ -47,7 +47,7 @@ cmake --build "$build" -j"$jobs" "${build_targets[@]}"
 # The largest input worth mutating: the seeds are under 3 kB; larger inputs mostly repeat.
 max_len() {
     case "$1" in
-        exr|checkpoint|table|surface_*) echo 16384 ;;
+        exr|checkpoint|table|png_picture|surface_*) echo 16384 ;;
         observations_hdf5_bytes) echo 32768 ;;  # an HDF5 file of two 4x4 slices is 18 kB
         observations_hdf5) echo 1024 ;;  # a recipe: about one byte per choice
         *) echo 8192 ;;
@@ -59,7 +59,7 @@ max_len() {
 # count before allocating; see fuzz/README.md) rather than grinding through gigabytes.
 malloc_limit() {
     case "$1" in
-        exr|table|surface_*) echo 256 ;;
+        exr|table|png_picture|surface_*) echo 256 ;;
         *) echo 2048 ;;
     esac
 }
@@ -85,6 +85,8 @@ run_target() {  # target
     local dict=()
     if [ "$t" = exr ] || [ "$t" = table ]; then
         dict=(-dict=fuzz/dict/exr.dict)
+    elif [ "$t" = png_picture ]; then
+        dict=(-dict=fuzz/dict/png.dict)
     elif [ -f "fuzz/dict/$t.dict" ]; then
         cat fuzz/dict/json_common.dict "fuzz/dict/$t.dict" >"$work/$t.dict"
         dict=(-dict="$work/$t.dict")

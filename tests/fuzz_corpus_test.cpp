@@ -12,6 +12,8 @@
 #include <gtest/gtest.h>
 
 #include "test_util.h"
+#include "wavebrdf/design_plate.h"
+#include "wavebrdf/design_run.h"
 #include "wavebrdf/invert.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
@@ -99,6 +101,27 @@ TEST(FuzzCorpus, EveryHdf5ObservationSeedIsRead) {
     for (const fs::path& file : files) EXPECT_FALSE(wavebrdf::read_observations_file(file.string()).empty()) << file;
 }
 #endif
+
+TEST(FuzzCorpus, EveryIridescentSpecSeedIsRead) {
+    const auto files = seeds("iridescent_spec");
+    ASSERT_GE(files.size(), 2u);
+    for (const fs::path& file : files)
+        EXPECT_GE(wavebrdf::parse_design_target("iridescent:" + file.string()).pairs.size(), 1u) << file;
+}
+
+// Each PNG seed (grey 8 and 16 bit, RGB, RGBA, a palette; written by Python's zlib) is read as a
+// pattern target's image and as a plate's picture.
+TEST(FuzzCorpus, EveryPngPictureSeedIsReadByBothReaders) {
+    const auto files = seeds("png_picture");
+    ASSERT_GE(files.size(), 5u);
+    for (const fs::path& file : files) {
+        const wavebrdf::DesignTarget t = wavebrdf::parse_design_target("pattern:" + file.string());
+        EXPECT_GE(t.image_rows, 2) << file;
+        const wavebrdf::PlatePicture p = wavebrdf::read_plate_picture(file.string());
+        EXPECT_EQ(p.rows, t.image_rows) << file;
+        EXPECT_EQ(p.cols, t.image_cols) << file;
+    }
+}
 
 TEST(FuzzCorpus, EveryTableSeedIsRead) {
     const auto files = seeds("table");

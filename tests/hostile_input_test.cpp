@@ -21,6 +21,8 @@
 #include <vector>
 
 #include "cli_util.h"
+#include "wavebrdf/design_plate.h"
+#include "wavebrdf/design_run.h"
 #include "wavebrdf/invert.h"
 #include "wavebrdf/input_files.h"
 #include "wavebrdf/io.h"
@@ -88,7 +90,8 @@ void expect_refused_naming(const std::string& message, const std::vector<std::st
 // A FIFO or a device given as any input is refused at once, naming what it is.
 TEST(HostileInputTest, FifosAndDevicesAreRefusedByEveryReader) {
     const fs::path dir = fresh_dir("hostile");
-    for (const char* name : {"obs.json", "obs.h5", "slice.exr", "table.exr", "height.exr", "positions.json"})
+    for (const char* name : {"obs.json", "obs.h5", "slice.exr", "table.exr", "height.exr", "positions.json",
+                             "pattern.png", "picture.png", "spec.json", "target.exr"})
         ASSERT_EQ(::mkfifo((dir / name).c_str(), 0600), 0) << name;
     fs::create_symlink("/dev/zero", dir / "zero.json");
     const auto path = [&](const char* name) { return (dir / name).string(); };
@@ -104,6 +107,16 @@ TEST(HostileInputTest, FifosAndDevicesAreRefusedByEveryReader) {
                           {"height.exr", "is a FIFO"});
     expect_refused_naming(message_of_read_in_child(dir, [&] { read_positions_json(path("positions.json")); }),
                           {"positions.json", "is a FIFO"});
+    // The design's inputs: a pattern's image, a plate's picture, an iridescent spec, a brdf table.
+    expect_refused_naming(message_of_read_in_child(dir, [&] { parse_design_target("pattern:" + path("pattern.png")); }),
+                          {"pattern.png", "is a FIFO"});
+    expect_refused_naming(message_of_read_in_child(dir, [&] { read_plate_picture(path("picture.png")); }),
+                          {"picture.png", "is a FIFO"});
+    expect_refused_naming(
+        message_of_read_in_child(dir, [&] { parse_design_target("iridescent:" + path("spec.json")); }),
+        {"spec.json", "is a FIFO"});
+    expect_refused_naming(message_of_read_in_child(dir, [&] { parse_design_target("brdf:" + path("target.exr")); }),
+                          {"target.exr", "is a FIFO"});
     expect_refused_naming(message_of_read_in_child(dir, [&] { read_observations_file(path("zero.json")); }),
                           {"zero.json", "is a character device"});
 

@@ -15,6 +15,7 @@
 #include "core/random.h"
 #include "design/engine.h"
 #include "design/fabrication_json.h"
+#include "design/png_input.h"
 #include "design/target.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/design.h"
@@ -193,9 +194,7 @@ std::vector<PaletteEntry> parse_palette(const std::string& text) {
 
 PlatePicture read_plate_picture(const std::string& path, long long max_pixels) {
     png_image image{};
-    image.version = PNG_IMAGE_VERSION;
-    if (!png_image_begin_read_from_file(&image, path.c_str()))
-        throw std::invalid_argument("picture '" + path + "' cannot be read: " + image.message);
+    detail::begin_png_read(image, path, "picture '" + path + "'");
     const long long pixels = static_cast<long long>(image.width) * image.height;
     if (image.width < 1 || image.height < 1 || image.width > k_max_picture_side || image.height > k_max_picture_side ||
         pixels > max_pixels) {

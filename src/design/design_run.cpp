@@ -20,6 +20,7 @@
 #include "design/engine.h"
 #include "design/evaluator.h"
 #include "design/grayscale.h"
+#include "design/png_input.h"
 #include "design/relief.h"
 #include "design/target.h"
 #include "design/target_more.h"
@@ -48,9 +49,7 @@ std::string num(double v) { return format_shortest(v); }
 // The grey values of a PNG (0 … 1), luminance for colour images, at most 1024 × 1024.
 std::vector<double> read_grey_png(const std::string& path, int& rows, int& cols) {
     png_image image{};
-    image.version = PNG_IMAGE_VERSION;
-    if (!png_image_begin_read_from_file(&image, path.c_str()))
-        throw std::invalid_argument("pattern image '" + path + "' cannot be read: " + image.message);
+    detail::begin_png_read(image, path, "pattern image '" + path + "'");
     if (image.width < 1 || image.height < 1 || image.width > 1024 || image.height > 1024) {
         png_image_free(&image);
         throw std::invalid_argument("pattern image '" + path + "' is " + std::to_string(image.width) + " x " +
