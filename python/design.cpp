@@ -5,9 +5,6 @@
 #include <cmath>
 #include <optional>
 
-#include "wavebrdf/design_run.h"
-#include "wavebrdf/run_directory.h"
-
 namespace wavebrdf::python {
 
 using namespace pybind11::literals;
@@ -48,28 +45,12 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     o.window = window;
     if (!view.is_none() && o.target.kind == DesignKind::Iridescent)
         bad_argument("view", "given with an iridescent target", "None: the views are the spec's pairs");
-    if (!view.is_none()) o.view = view.cast<std::array<double, 2>>();
-    o.view_cone = view_cone;
-    o.size = size;
-    o.texel_um = texel_um;
-    o.height_range_um = height_range_um;
-    o.levels = levels;
-    o.level_step_um = level_step_um;
+    set_common_design_options(o, view, view_cone, size, texel_um, height_range_um, levels, level_step_um,
+                              fabrication_error, seed, iterations, refine_passes, max_memory_gb);
     o.min_feature_um = min_feature_um;
-    o.errors = parse_fabrication_errors(fabrication_error);
-    o.seed = seed;
-    o.iterations = iterations;
-    o.refine_passes = refine_passes;
-    o.max_memory_gb = max_memory_gb;
-    const std::string dir = out.is_none() ? std::string() : out.cast<std::string>();
-    DesignResult result;
-    {
-        InterruptibleRelease release;
-        if (!dir.empty()) check_run_directory(RunKind::Design, dir, force, "out");
-        const PreparedDesign prepared = prepare_design(o);
-        result = run_design(prepared);
-        if (!dir.empty()) write_design_directory(dir, result, force);
-    }
+    const DesignResult result = run_design_into(
+        out, force, [&] { return run_design(prepare_design(o)); },
+        [&](const std::string& dir, const DesignResult& r) { write_design_directory(dir, r, force); });
     const auto n = static_cast<py::ssize_t>(result.size);
     py::array_t<double> heights({n, n});
     std::copy(result.heights_um.begin(), result.heights_um.end(), heights.mutable_data());
@@ -90,6 +71,24 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
 }
 
 }  // namespace
+
+void set_common_design_options(DesignOptions& o, const py::object& view, double view_cone, int size, double texel_um,
+                               double height_range_um, int levels, double level_step_um,
+                               const std::string& fabrication_error, std::uint64_t seed, int iterations,
+                               int refine_passes, double max_memory_gb) {
+    if (!view.is_none()) o.view = view.cast<std::array<double, 2>>();
+    o.view_cone = view_cone;
+    o.size = size;
+    o.texel_um = texel_um;
+    o.height_range_um = height_range_um;
+    o.levels = levels;
+    o.level_step_um = level_step_um;
+    o.errors = parse_fabrication_errors(fabrication_error);
+    o.seed = seed;
+    o.iterations = iterations;
+    o.refine_passes = refine_passes;
+    o.max_memory_gb = max_memory_gb;
+}
 
 void bind_design(py::module_& m) {
     m.def("design", &design, "target"_a = "anti-mirror", "image"_a = py::none(), "out"_a = py::none(),

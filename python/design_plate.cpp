@@ -2,11 +2,12 @@
 // (design_plate.h), returning arrays; with out= it writes the same run directory.
 #include "design_plate.h"
 
+#include "design.h"
+
 #include <filesystem>
 
 #include "wavebrdf/design_plate.h"
 #include "wavebrdf/fabrication.h"
-#include "wavebrdf/run_directory.h"
 
 namespace wavebrdf::python {
 
@@ -25,18 +26,8 @@ py::dict design_plate(const py::object& picture, const std::string& palette, con
     if (spectral < 1) bad_argument("spectral", std::to_string(spectral), "3 to 256 wavelengths");
     d.spectral = spectral;
     d.band_um = band_um;
-    if (!view.is_none()) d.view = view.cast<std::array<double, 2>>();
-    d.view_cone = view_cone;
-    d.size = size;
-    d.texel_um = texel_um;
-    d.height_range_um = height_range_um;
-    d.levels = levels;
-    d.level_step_um = level_step_um;
-    d.errors = parse_fabrication_errors(fabrication_error);
-    d.seed = seed;
-    d.iterations = iterations;
-    d.refine_passes = refine_passes;
-    d.max_memory_gb = max_memory_gb;
+    set_common_design_options(d, view, view_cone, size, texel_um, height_range_um, levels, level_step_um,
+                              fabrication_error, seed, iterations, refine_passes, max_memory_gb);
     o.palette = parse_palette(palette);
     o.plate_pixel_um = plate_pixel_um;
     const long long pixel_texels = plate_pixel_texels(d, plate_pixel_um);
@@ -56,16 +47,14 @@ py::dict design_plate(const py::object& picture, const std::string& palette, con
         o.picture.cols = static_cast<int>(a.shape(1));
         o.picture.srgb8.assign(a.data(), a.data() + a.size());
     }
-    const std::string dir = out.is_none() ? std::string() : py::module_::import("os").attr("fspath")(out).cast<std::string>();
-    PlateResult r;
     PreparedPlate prepared;
-    {
-        InterruptibleRelease release;
-        if (!dir.empty()) check_run_directory(RunKind::Design, dir, force, "out");
-        prepared = prepare_plate(o);
-        r = run_plate(prepared);
-        if (!dir.empty()) write_plate_directory(dir, r, force);
-    }
+    const PlateResult r = run_design_into(
+        out, force,
+        [&] {
+            prepared = prepare_plate(o);
+            return run_plate(prepared);
+        },
+        [&](const std::string& dir, const PlateResult& result) { write_plate_directory(dir, result, force); });
     py::array_t<double> heights({static_cast<py::ssize_t>(r.rows), static_cast<py::ssize_t>(r.cols)});
     std::copy(r.heights_um.begin(), r.heights_um.end(), heights.mutable_data());
     const auto pr = static_cast<py::ssize_t>(r.picture_rows), pc = static_cast<py::ssize_t>(r.picture_cols);

@@ -10,6 +10,7 @@
 
 #include "design/colour_bound.h"
 #include "design/target.h"
+#include "design_util.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/design.h"
 #include "wavebrdf/design_run.h"
@@ -110,22 +111,11 @@ TEST(DesignColourBound, ADesignsConeColourNeverExceedsItsBound) {
     // A small colour design, scored by exact_orders: its Y is below the bound of its own
     // chromaticity (the bound holds for any reflectance spectrum), and design.json reports the
     // bound of the target's.
-    DesignOptions o;
-    o.target = parse_design_target("colour:#0000FF");
-    o.size = 16;
-    o.levels = 4;
-    o.spectral = 8;
-    o.iterations = 30;
-    o.refine_passes = 5;
-    o.survey_views = false;
+    const DesignOptions o = test::small_design("colour:#0000FF", 4, 30, 5);
     const PreparedDesign p = prepare_design(o);
     const DesignResult r = run_design(p);
-    const auto orders = exact_orders(r.heights_um, o.size, o.texel_um, o.omega_i, r.lambdas_um);
-    std::vector<double> cone(orders.size(), 0.0);
-    for (std::size_t l = 0; l < orders.size(); ++l)
-        for (std::size_t q = 0; q < orders[l].power.size(); ++q)
-            if (std::hypot(orders[l].omega_x[q], orders[l].omega_y[q]) <= o.view_cone) cone[l] += orders[l].power[q];
-    const auto xyz = reflectance_xyz(r.lambdas_um, cone);
+    const auto xyz = reflectance_xyz(
+        r.lambdas_um, test::cone_power(r.heights_um, o.size, o.texel_um, r.lambdas_um, {0.0, 0.0}, o.view_cone));
     const auto own = detail::optimal_colour_bound(detail::colour_xyz_weights(r.lambdas_um), xyz_to_uv(xyz), 0.0);
     EXPECT_LE(xyz[1], own.y_at_target + 1e-9);
     const auto j = nlohmann::json::parse(r.metrics_json);

@@ -10,6 +10,7 @@
 
 #include "design/blur_term.h"
 #include "design/target.h"
+#include "design_util.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/design.h"
 #include "wavebrdf/design_plate.h"
@@ -17,6 +18,8 @@
 
 namespace wavebrdf {
 namespace {
+
+using namespace wavebrdf::test;
 
 // Gaussian blur of σ texels on the periodic tile, a 2-D sum over the square |d| ≤ ceil(4σ) (at most
 // size/2), normalised.
@@ -39,34 +42,14 @@ std::vector<double> blur2d(const std::vector<double>& h, int size, double sigma)
     return out;
 }
 
-// The cone colour of a relief (normal light): Y and u′v′ of the orders within `cone` of `view`.
-std::array<double, 3> cone_colour(const std::vector<double>& h, int size, double texel, const std::vector<double>& lambdas,
-                                  std::array<double, 2> view, double cone) {
-    const auto orders = exact_orders(h, size, texel, {0.0, 0.0}, lambdas);
-    std::vector<double> r(orders.size(), 0.0);
-    for (std::size_t w = 0; w < orders.size(); ++w)
-        for (std::size_t q = 0; q < orders[w].power.size(); ++q)
-            if (std::hypot(orders[w].omega_x[q] - view[0], orders[w].omega_y[q] - view[1]) <= cone) r[w] += orders[w].power[q];
-    const auto xyz = reflectance_xyz(lambdas, r);
-    const auto uv = xyz_to_uv(xyz);
-    return {xyz[1], uv[0], uv[1]};
-}
-
 std::vector<double> scaled(std::vector<double> h, double s) {
     for (double& x : h) x *= s;
     return h;
 }
 
 TEST(DesignFabricationErrors, ColourMetricsUnderEachErrorMatchAnIndependentEvaluation) {
-    DesignOptions o;
-    o.target = parse_design_target("colour:#00FFFF");
-    o.size = 16;
-    o.levels = 8;
-    o.spectral = 8;
+    DesignOptions o = small_design("colour:#00FFFF", 8, 30, 5);
     o.view_cone = 0.1;
-    o.iterations = 30;
-    o.refine_passes = 5;
-    o.survey_views = false;
     o.errors = parse_fabrication_errors("scale:5%,blur:0.3um");
     const DesignResult r = run_design(prepare_design(o));
     const auto j = nlohmann::json::parse(r.metrics_json);
@@ -88,15 +71,10 @@ TEST(DesignFabricationErrors, ColourMetricsUnderEachErrorMatchAnIndependentEvalu
 
 TEST(DesignFabricationErrors, EveryKindReportsItsMetricsUnderEachError) {
     for (const char* target : {"anti-mirror", "colour:#FF00FF"}) {
-        DesignOptions o;
-        o.target = parse_design_target(target);
+        DesignOptions o = small_design(target, 4, 5, 2);
         o.size = 8;
-        o.levels = 4;
         o.spectral = 4;
         o.band_um = {0.4, 0.7};
-        o.iterations = 5;
-        o.refine_passes = 2;
-        o.survey_views = false;
         o.errors = parse_fabrication_errors("scale:5%,blur:0.3um");
         const auto j = nlohmann::json::parse(run_design(prepare_design(o)).metrics_json);
         ASSERT_EQ(j["fabrication_errors"].size(), 3U) << target;
@@ -107,19 +85,9 @@ TEST(DesignFabricationErrors, EveryKindReportsItsMetricsUnderEachError) {
 }
 
 TEST(DesignFabricationErrors, APlatesEntriesCarryTheirTilesMetricsUnderEachError) {
-    PlateOptions o;
-    o.design.size = 16;
-    o.design.texel_um = 0.5;
-    o.design.spectral = 6;
-    o.design.levels = 8;
-    o.design.view_cone = 0.1;
-    o.design.iterations = 20;
-    o.design.refine_passes = 4;
+    PlateOptions o = small_plate(16, 6, 8, 20, 4);
     o.design.errors = parse_fabrication_errors("scale:5%,blur:0.3um");
-    o.palette = parse_palette("#00FF00;#FF00FF");
-    o.picture.rows = 1;
-    o.picture.cols = 2;
-    o.picture.srgb8 = {0, 255, 0, 255, 0, 255};
+    o.picture = picture(1, 2, {{{0, 255, 0}}, {{255, 0, 255}}});
     o.plate_pixel_um = 16.0;
     const PlateResult r = run_plate(prepare_plate(o));
     const auto j = nlohmann::json::parse(r.metrics_json);
@@ -136,15 +104,8 @@ TEST(DesignFabricationErrors, APlatesEntriesCarryTheirTilesMetricsUnderEachError
 }
 
 DesignOptions small_colour(const std::string& errors) {
-    DesignOptions o;
-    o.target = parse_design_target("colour:#FF00FF");
-    o.size = 16;
-    o.levels = 8;
-    o.spectral = 8;
+    DesignOptions o = small_design("colour:#FF00FF", 8, 40, 30);
     o.view_cone = 0.1;
-    o.iterations = 40;
-    o.refine_passes = 30;
-    o.survey_views = false;
     o.errors = parse_fabrication_errors(errors);
     return o;
 }
@@ -201,13 +162,10 @@ TEST(DesignFabricationErrors, TheLoopsBlurredReliefAgreesWithExactDiffractionOfT
     for (std::size_t t = 0; t < h.size(); ++t) h[t] = p.levels_um[static_cast<std::size_t>(level[t])];
     detail::Fractions f;
     term.evaluate(level, nullptr, &f);
-    const auto orders = exact_orders(blur2d(h, 16, 0.6), 16, 0.5, {0.0, 0.0}, p.lambdas_um);
-    for (std::size_t w = 0; w < orders.size(); ++w) {
-        double cone = 0.0;
-        for (std::size_t q = 0; q < orders[w].power.size(); ++q)
-            if (std::hypot(orders[w].omega_x[q], orders[w].omega_y[q]) <= 0.1) cone += orders[w].power[q];
+    const auto cone = cone_power(blur2d(h, 16, 0.6), 16, 0.5, p.lambdas_um, {0.0, 0.0}, 0.1);
+    for (std::size_t w = 0; w < cone.size(); ++w) {
         // (kqΔ)²/8 with Δ = top/255: below 1e-3 of the amplitude here.
-        EXPECT_NEAR(f[w][0], cone, 3e-3) << p.lambdas_um[w];
+        EXPECT_NEAR(f[w][0], cone[w], 3e-3) << p.lambdas_um[w];
     }
 }
 

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_util.h"
+#include "design_util.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/design.h"
 #include "wavebrdf/design_plate.h"
@@ -23,27 +24,9 @@ namespace {
 using namespace wavebrdf::test;
 using C = std::complex<double>;
 
-// A picture from 8-bit sRGB triples (row-major).
-PlatePicture picture(int rows, int cols, const std::vector<std::array<int, 3>>& pixels) {
-    PlatePicture p;
-    p.rows = rows;
-    p.cols = cols;
-    for (const auto& px : pixels)
-        for (int c : px) p.srgb8.push_back(static_cast<std::uint8_t>(c));
-    return p;
-}
-
 PlateOptions small_plate() {
-    PlateOptions o;
-    o.design.size = 32;
-    o.design.texel_um = 0.5;
-    o.design.spectral = 8;
-    o.design.levels = 16;
+    PlateOptions o = test::small_plate(32, 8, 16, 40, 10);
     o.design.height_range_um = 2.0;
-    o.design.view_cone = 0.1;
-    o.design.iterations = 40;
-    o.design.refine_passes = 10;
-    o.palette = parse_palette("#00FF00;#FF00FF");
     o.picture = picture(2, 2, {{{0, 255, 0}}, {{255, 0, 255}}, {{255, 0, 255}}, {{0, 255, 0}}});
     o.plate_pixel_um = 64.0;  // 4 periods of 16 um
     return o;
