@@ -133,15 +133,33 @@ void run(DesignArgs a) {
     if (!a.no_plots) draw_report(RunKind::Design, a.out);
     if (!a.quiet) {
         const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
-        if (j.contains("mirror_order_bound")) {
-            const auto& b = j["mirror_order_bound"];
-            const double achieved = j["metrics"]["exact"]["delta_uv"].get<double>();
-            if (achieved > 0.04)
-                std::cerr << "design: " << o.target.text << " not reached in the mirror direction (delta u'v' "
-                          << format_shortest(achieved) << "); the mirror order of any mixture of these levels gets "
-                          << "at best delta u'v' " << format_shortest(b["delta_uv"].get<double>()) << " at Y "
-                          << format_shortest(b["luminous_efficiency"].get<double>()) << " (linear sRGB "
-                          << b["linear_srgb"].dump() << ")\n";
+        if (j.contains("mixture_bound")) {
+            // A missed colour against what mixtures of the levels can do in this view.
+            const auto& e = j["metrics"]["exact"];
+            const auto& b = j["mixture_bound"];
+            const auto& one = b["one_mixture"];
+            const bool missed = e["delta_uv"].get<double>() > 0.04 || e["luminous_efficiency"].get<double>() < 0.05;
+            if (missed && !b["reachable_at_target"].get<bool>()) {
+                std::cerr << "design: " << o.target.text << " is out of reach for this view as level mixtures: bound Y "
+                          << three_digits(b["y_at_target"].get<double>()) << " < " << three_digits(b["min_y"].get<double>())
+                          << " at its chromaticity";
+                if (!b["delta_uv_at_min_y"].is_null())
+                    std::cerr << ", delta u'v' >= " << three_digits(b["delta_uv_at_min_y"].get<double>()) << " at Y >= "
+                              << three_digits(b["min_y"].get<double>());
+                std::cerr << " (one mixture reaches delta u'v' " << three_digits(one["delta_uv"].get<double>()) << " at Y "
+                          << three_digits(one["y"].get<double>()) << "; design.json mixture_bound)\n";
+            } else if (missed) {
+                std::cerr << "design: mixtures of these levels allow Y " << three_digits(b["y_at_target"].get<double>())
+                          << " at the target chromaticity in this view (one mixture reaches delta u'v' "
+                          << three_digits(one["delta_uv"].get<double>()) << " at Y " << three_digits(one["y"].get<double>())
+                          << "): the levels do not rule it out\n";
+            }
+            if (missed && !b["design_check"]["normalised"]["within"].get<bool>())
+                std::cerr << "design: this design's cone light (Y "
+                          << three_digits(b["design_check"]["normalised"]["y"].get<double>())
+                          << ") exceeds the mixture bound at its own chromaticity (Y "
+                          << three_digits(b["design_check"]["normalised"]["bound_y_at_its_chromaticity"].get<double>())
+                          << "): the bound does not cover this relief\n";
         }
         if (o.target.kind == DesignKind::Colour && j.contains("optimal_colour_bound")) {
             const auto& e = j["metrics"]["exact"];

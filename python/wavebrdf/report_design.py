@@ -282,7 +282,24 @@ def make_report(directory):
         bound = _get(doc, "optimal_colour_bound", "y_at_target")
         if isinstance(bound, (int, float)):
             sub.append("any surface: Y ≤ %.1f%%" % (100 * bound))
-        ax.set_title("colour (each swatch at full brightness)" + ("\n" + ", ".join(sub) if sub else ""), fontsize=9)
+        lines = [", ".join(sub)] if sub else []
+        mix = _get(doc, "mixture_bound", "y_at_target")
+        min_y = _get(doc, "mixture_bound", "min_y")
+        if isinstance(mix, (int, float)) and isinstance(min_y, (int, float)):
+            if mix < min_y:
+                text = "out of reach for this view: level mixtures' bound Y %.1f%% < %.0f%%" % (100 * mix, 100 * min_y)
+                if _get(doc, "mixture_bound", "design_check", "normalised", "within") is False:
+                    text += "\n(this relief exceeds it: not a bound for it)"
+                best = _get(doc, "view_survey", "best")
+                view = _get(best, "view") if isinstance(best, dict) else None
+                if isinstance(view, list) and len(view) == 2 and all(isinstance(v, (int, float)) for v in view):
+                    text += "\nview (%.2g, %.2g) reaches Δu′v′ %.3f at Y %.1f%%" % (
+                        view[0], view[1], _get(best, "delta_uv", default=float("nan")),
+                        100 * _get(best, "luminous_efficiency", default=float("nan")))
+                lines.append(text)
+            else:
+                lines.append("level mixtures: Y ≤ %.1f%%" % (100 * mix))
+        ax.set_title("colour (each swatch at full brightness)" + ("\n" + "\n".join(lines) if lines else ""), fontsize=9)
         ax.axis("off")
     else:
         ax.axis("off")

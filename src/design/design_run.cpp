@@ -17,6 +17,7 @@
 #include "core/random.h"
 #include "design/blur_term.h"
 #include "design/colour_bound.h"
+#include "design/mixture_bound.h"
 #include "design/engine.h"
 #include "design/evaluator.h"
 #include "design/grayscale.h"
@@ -321,66 +322,6 @@ std::vector<float> far_field_picture(const std::vector<detail::OrderSet>& sets, 
     return rgb;
 }
 
-// What the levels allow in the mirror direction: the best colour of the mirror order alone over
-// every histogram a_ℓ of the levels (its amplitude Σ_ℓ a_ℓ e^{−i k h_ℓ 2 cos θ_i}, independent of
-// where the texels lie). A relief whose other orders all leave the view cone reflects exactly
-// this into it, so a colour this cannot reach is out of reach for that view with these levels.
-// Softmax over the levels, Adam, several seeded starts; the colour target's own loss.
-nlohmann::json mirror_order_bound(const PreparedDesign& p) {
-    const DesignOptions& o = p.options;
-    const int K = o.levels;
-    const std::size_t W = p.lambdas_um.size();
-    const double cos_i = std::sqrt(1.0 - o.omega_i[0] * o.omega_i[0] - o.omega_i[1] * o.omega_i[1]);
-    std::vector<std::vector<Complex>> phasor(W, std::vector<Complex>(static_cast<std::size_t>(K)));
-    for (std::size_t w = 0; w < W; ++w)
-        for (int l = 0; l < K; ++l)
-            phasor[w][static_cast<std::size_t>(l)] =
-                std::polar(1.0, -2.0 * k_pi / p.lambdas_um[w] * p.levels_um[static_cast<std::size_t>(l)] * 2.0 * cos_i);
-    std::mt19937_64 rng(detail::derive_seed(o.seed, 0xb0d));
-    double best_loss = 1e300;
-    Fractions best;
-    for (int start = 0; start < 8; ++start) {
-        std::vector<double> theta(static_cast<std::size_t>(K)), m1(theta.size(), 0.0), m2(theta.size(), 0.0);
-        detail::fill_standard_normal(theta.data(), theta.size(), rng);
-        Fractions f(W, std::vector<double>(1, 0.0)), df;
-        std::vector<double> a(theta.size());
-        std::vector<Complex> amp(W);
-        double loss = 0.0;
-        for (int it = 0; it < 1500; ++it) {
-            double mx = *std::max_element(theta.begin(), theta.end()), sum = 0.0;
-            for (std::size_t l = 0; l < a.size(); ++l) sum += a[l] = std::exp(theta[l] - mx);
-            for (double& x : a) x /= sum;
-            for (std::size_t w = 0; w < W; ++w) {
-                amp[w] = 0.0;
-                for (std::size_t l = 0; l < a.size(); ++l) amp[w] += a[l] * phasor[w][l];
-                f[w][0] = std::norm(amp[w]);
-            }
-            loss = p.target->loss(f, &df);
-            std::vector<double> ga(a.size(), 0.0);
-            for (std::size_t w = 0; w < W; ++w)
-                for (std::size_t l = 0; l < a.size(); ++l)
-                    ga[l] += df[w][0] * 2.0 * (std::conj(amp[w]) * phasor[w][l]).real();
-            double pg = 0.0;
-            for (std::size_t l = 0; l < a.size(); ++l) pg += a[l] * ga[l];
-            for (std::size_t l = 0; l < a.size(); ++l) {
-                const double g = a[l] * (ga[l] - pg);
-                m1[l] = 0.9 * m1[l] + 0.1 * g;
-                m2[l] = 0.999 * m2[l] + 0.001 * g * g;
-                theta[l] -= 0.05 * (m1[l] / (1.0 - std::pow(0.9, it + 1))) /
-                            (std::sqrt(m2[l] / (1.0 - std::pow(0.999, it + 1))) + 1e-12);
-            }
-        }
-        if (loss < best_loss) {
-            best_loss = loss;
-            best = f;
-        }
-    }
-    nlohmann::json j = p.target->metrics(best);
-    j.erase("reflectance");
-    j["what"] = "the best any histogram of the levels does in the mirror order alone (a relief whose other orders leave the view cone)";
-    return j;
-}
-
 // The optimal-colour limit of the target's chromaticity on these wavelengths (colour_bound.h):
 // no relief, on any levels and from any view, reflects that chromaticity into a cone with a
 // larger luminous efficiency Y.
@@ -400,6 +341,87 @@ nlohmann::json optimal_colour_bound_json(const std::vector<double>& lambdas_um, 
             {"delta_uv", b.tolerance},
             {"y_within_delta_uv", b.y_within},
             {"optimal_colour_reflects_um", band}};
+}
+
+// Whether a colour target's view cone holds the mirror direction (where mixtures send light).
+bool colour_view_holds_mirror(const DesignOptions& o) {
+    if (!o.view) return true;
+    return std::hypot((*o.view)[0] + o.omega_i[0], (*o.view)[1] + o.omega_i[1]) <= o.view_cone;
+}
+
+// The phase step between neighbouring levels in the mirror direction, per wavelength:
+// ν_λ = (2π/λ) Δh (cos θ_i + cos θ_o) with θ_o = θ_i.
+std::vector<double> mirror_phase_steps(const PreparedDesign& p) {
+    const DesignOptions& o = p.options;
+    const double light2 = o.omega_i[0] * o.omega_i[0] + o.omega_i[1] * o.omega_i[1];
+    const double q = 2.0 * std::sqrt(1.0 - light2);
+    const double step = o.levels > 1 ? p.levels_um[1] - p.levels_um[0] : 0.0;
+    std::vector<double> nu(p.lambdas_um.size());
+    for (std::size_t w = 0; w < nu.size(); ++w) nu[w] = 2.0 * k_pi / p.lambdas_um[w] * step * q;
+    return nu;
+}
+
+// The colour target's single best mixture of the levels (the same search as mixture_bound_json's).
+detail::BestMixture colour_best_mixture(const PreparedDesign& p) {
+    const DesignOptions& o = p.options;
+    return detail::best_mixture(detail::colour_xyz_weights(p.lambdas_um), mirror_phase_steps(p), o.levels,
+                                xyz_to_uv(linear_srgb_to_xyz(o.target.linear_rgb)), 1e-3, k_reached_y,
+                                detail::derive_seed(o.seed, 0xb0d));
+}
+
+// The mixture bound (mixture_bound.h) for a view cone that holds the mirror direction, on the
+// run's levels: the largest Y at the target chromaticity of any relief made of patches of level
+// mixtures, the Δu′v′ such reliefs cannot beat at Y ≥ k_reached_y, what one mixture reaches (a
+// local search: fine random mixing of those shares), and the run's own cone light against the
+// bound at its own chromaticity, in incident power (absolute) and as the metrics count it (shares
+// of the reflected propagating power): where the design exceeds it, its detail did what no
+// mixture can, and the bound does not hold for that design.
+nlohmann::json mixture_bound_json(const PreparedDesign& p, const detail::Fractions& exact, const std::vector<double>& totals) {
+    const DesignOptions& o = p.options;
+    const std::size_t W = p.lambdas_um.size();
+    const int K = o.levels;
+    const double step = K > 1 ? p.levels_um[1] - p.levels_um[0] : 0.0;
+    const std::vector<double> nu = mirror_phase_steps(p);
+    const auto weights = detail::colour_xyz_weights(p.lambdas_um);
+    const auto target_uv = xyz_to_uv(linear_srgb_to_xyz(o.target.linear_rgb));
+    const detail::MixtureBound b = detail::mixture_bound(weights, nu, K, target_uv, k_reached_y);
+    const detail::BestMixture one = colour_best_mixture(p);
+    auto check = [&](const std::vector<double>& spectrum) {
+        std::array<double, 3> X{0.0, 0.0, 0.0};
+        for (std::size_t c = 0; c < 3; ++c)
+            for (std::size_t w = 0; w < W; ++w) X[c] += weights[c * W + w] * spectrum[w];
+        const auto uv = xyz_to_uv(X);
+        const double bound = detail::mixture_bound_y(weights, nu, K, uv);
+        return nlohmann::json{{"y", X[1]}, {"uv", uv}, {"bound_y_at_its_chromaticity", bound}, {"within", X[1] <= bound + 1e-9}};
+    };
+    std::vector<double> normalised(W), absolute(W);
+    for (std::size_t w = 0; w < W; ++w) {
+        normalised[w] = exact[w][0];
+        absolute[w] = exact[w][0] * totals[w];
+    }
+    nlohmann::json j{
+        {"what", "the largest luminous efficiency Y at the target chromaticity of any relief made of patches of "
+                 "mixtures of these levels, each patch coarser than the view cone's resolution (the cone receives "
+                 "each patch's mean phasor, |sum_l p_l exp(-i l nu)|^2 per unit incident power), an upper bound "
+                 "for such reliefs only (docs/design.md)"},
+        {"levels", K},
+        {"level_step_um", step},
+        {"phase_step_rad", nu},
+        {"xyz_weights", weights},
+        {"grid", b.grid},
+        {"y_at_target", b.y_at_target},
+        {"min_y", b.min_y},
+        {"reachable_at_target", b.y_at_target >= b.min_y},
+        {"delta_uv_at_min_y", std::isfinite(b.delta_uv_at_min_y) ? nlohmann::json(b.delta_uv_at_min_y) : nlohmann::json(nullptr)},
+        {"uv_at_min_y", b.uv_at_min_y},
+        {"one_mixture", {{"what", "the best single mixture a local search found (fine random mixing of these shares): "
+                                  "reachable, not a bound"},
+                         {"shares", one.shares},
+                         {"y", one.y},
+                         {"delta_uv", one.delta_uv},
+                         {"uv", one.uv}}},
+        {"design_check", {{"absolute", check(absolute)}, {"normalised", check(normalised)}}}};
+    return j;
 }
 
 }  // namespace
@@ -994,8 +1016,7 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         j["optimal_colour_bound"] = pairs;
     }
     if (o.target.kind == DesignKind::Colour) {
-        const bool mirror_view = !o.view || (std::abs((*o.view)[0] - mirror[0]) < 1e-12 && std::abs((*o.view)[1] - mirror[1]) < 1e-12);
-        if (mirror_view && survey_views) j["mirror_order_bound"] = mirror_order_bound(p);
+        if (colour_view_holds_mirror(o) && !grayscale) j["mixture_bound"] = mixture_bound_json(p, exact_fractions, kirchhoff_totals);
         const nlohmann::json& e = j["metrics"]["exact"];
         // Grayscale reliefs (no levels) are not surveyed.
         const bool reached = !survey_views || o.min_feature_um > 0.0 || !e.contains("delta_uv") || !e.contains("luminous_efficiency") ||
