@@ -140,8 +140,10 @@ void run(DesignArgs a) {
             const auto& one = b["one_mixture"];
             const bool missed = e["delta_uv"].get<double>() > 0.04 || e["luminous_efficiency"].get<double>() < 0.05;
             if (missed && !b["reachable_at_target"].get<bool>()) {
+                // The simplex's relaxation leaves ~1e-11 where the programme's optimum is 0.
+                const double y = b["y_at_target"].get<double>();
                 std::cerr << "design: " << o.target.text << " is out of reach for this view as level mixtures: bound Y "
-                          << three_digits(b["y_at_target"].get<double>()) << " < " << three_digits(b["min_y"].get<double>())
+                          << (y < 1e-6 ? std::string("< 1e-6") : three_digits(y)) << " < " << three_digits(b["min_y"].get<double>())
                           << " at its chromaticity";
                 if (!b["delta_uv_at_min_y"].is_null())
                     std::cerr << ", delta u'v' >= " << three_digits(b["delta_uv_at_min_y"].get<double>()) << " at Y >= "

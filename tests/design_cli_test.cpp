@@ -70,6 +70,22 @@ TEST(DesignCli, AMissedColourIsReportedWithTheOptimalColourLimit) {
     char expected[64];
     std::snprintf(expected, sizeof expected, "brighter than Y %.3g", j["optimal_colour_bound"]["y_at_target"].get<double>());
     EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
+    // The mixture bound's line, with design.json's numbers: out of reach for mixtures or not, and
+    // whether this relief exceeds the bound.
+    ASSERT_TRUE(j.contains("mixture_bound"));
+    const auto& m = j["mixture_bound"];
+    if (!m["reachable_at_target"].get<bool>()) {
+        EXPECT_NE(r.err.find("out of reach for this view as level mixtures"), std::string::npos) << r.err;
+        if (!m["delta_uv_at_min_y"].is_null()) {
+            std::snprintf(expected, sizeof expected, "delta u'v' >= %.3g", m["delta_uv_at_min_y"].get<double>());
+            EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
+        }
+    } else {
+        EXPECT_NE(r.err.find("the levels do not rule it out"), std::string::npos) << r.err;
+    }
+    EXPECT_EQ(r.err.find("exceeds the mixture bound") != std::string::npos,
+              !m["design_check"]["normalised"]["within"].get<bool>())
+        << r.err;
 }
 
 TEST(DesignCli, BadInputGetsOneLineBeforeAnyWork) {
