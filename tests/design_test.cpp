@@ -9,6 +9,7 @@
 #include <random>
 
 #include "design/engine.h"
+#include "design/relief.h"
 #include "design/evaluator.h"
 #include "design/target.h"
 #include "wavebrdf/constants.h"
@@ -471,6 +472,44 @@ TEST(Design, AntiMirrorBinsAreEqualForAReliefWithQuarterTurnSymmetry) {
         double mean = in_region / 16.0, var = 0.0;
         for (double x : bin) var += (x - mean) * (x - mean) / 16.0;
         EXPECT_NEAR(target->metrics(f)["uniformity"][0].get<double>(), std::sqrt(var) / mean, 1e-12);
+    }
+}
+
+TEST(Design, AntiMirrorMetricsSayWhereTheLightTheRegionMissesGoes) {
+    // A random relief: the fractions inside the region's inner edge (the cone excepted) and beyond
+    // its outer edge, against sums over exact_orders' powers by |ω_o − ω_mirror|; with the cone
+    // and the region they hold every propagating order once (they sum to 1; a disk region holds the
+    // cone's orders too, and has nothing inside it).
+    const int N = 32;
+    const std::vector<double> h = random_levels(N, 8, 0.15, 21);
+    const std::vector<double> lambdas{0.41, 0.55, 0.69};
+    const auto orders = exact_orders(h, N, 0.5, {0.0, 0.0}, lambdas);
+    std::vector<detail::OrderSet> sets;
+    for (double lambda : lambdas) sets.push_back(detail::make_order_set(N, 0.5, {0.0, 0.0}, lambda));
+    const auto flux = detail::level_flux(detail::to_level_relief(h, 8), N, sets, 1.0);
+    for (const bool disk : {false, true}) {
+        detail::AntiMirrorSpec spec;
+        if (disk) spec.r1 = 0.0;
+        const auto target = detail::make_anti_mirror(spec);
+        target->assign(sets);
+        const nlohmann::json m = target->metrics(detail::group_fractions(*target, flux));
+        ASSERT_TRUE(m.contains("beyond_fraction"));
+        for (std::size_t w = 0; w < lambdas.size(); ++w) {
+            double inside = 0.0, beyond = 0.0;
+            for (std::size_t o = 0; o < orders[w].m.size(); ++o) {
+                const double r = std::hypot(orders[w].omega_x[o], orders[w].omega_y[o]);
+                if (r > spec.specular_cone && r < spec.r1) inside += orders[w].power[o];
+                if (r > spec.r2) beyond += orders[w].power[o];
+            }
+            EXPECT_GT(beyond, 0.05);  // the premise: a random relief lights the whole disk
+            EXPECT_NEAR(m["beyond_fraction"][w].get<double>(), beyond, 1e-12) << lambdas[w];
+            EXPECT_NEAR(m["inside_fraction"][w].get<double>(), inside, 1e-12) << lambdas[w];
+            if (disk) EXPECT_EQ(m["inside_fraction"][w].get<double>(), 0.0);
+            else EXPECT_GT(inside, 0.005);
+            const double all = m["specular_fraction"][w].get<double>() + m["region_fraction"][w].get<double>() +
+                               m["inside_fraction"][w].get<double>() + m["beyond_fraction"][w].get<double>();
+            EXPECT_NEAR(all, disk ? 1.0 + m["specular_fraction"][w].get<double>() : 1.0, 1e-12) << lambdas[w];
+        }
     }
 }
 

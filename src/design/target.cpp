@@ -24,11 +24,12 @@ double worst(const std::vector<double>& v, bool largest) {
 }
 
 // Anti-mirror: group 0 the specular cone, 1 … 16 the region's equal-area bins (4 rings of equal
-// area × 4 quadrants).
+// area × 4 quadrants); for the metrics only, 17 the orders inside the region's inner edge (the
+// cone's excepted) and 18 those beyond its outer edge: where the light the region misses goes.
 class AntiMirror final : public Target {
 public:
     explicit AntiMirror(const AntiMirrorSpec& spec) : m_spec(spec) {}
-    int groups() const override { return 17; }
+    int groups() const override { return 19; }
 
     void assign(const std::vector<OrderSet>& sets) override {
         m_members.assign(sets.size(), {});
@@ -39,9 +40,13 @@ public:
             for (std::size_t o = 0; o < s.size(); ++o) {
                 const double dx = s.dx(o), dy = s.dy(o);
                 const double r2 = dx * dx + dy * dy;
+                // Slot 0: the cone, else (outside the region) inside or beyond it; slot 1: the
+                // region's bin (a disk region holds the cone too).
+                const bool in_region = r2 >= m_spec.r1 * m_spec.r1 && r2 <= m_spec.r2 * m_spec.r2;
                 if (r2 <= m_spec.specular_cone * m_spec.specular_cone) mem[o][0] = 0;
-                if (r2 >= m_spec.r1 * m_spec.r1 && r2 <= m_spec.r2 * m_spec.r2)
-                    mem[o][1] = 1 + bin_of(dx, dy, r2);
+                else if (r2 > m_spec.r2 * m_spec.r2) mem[o][0] = static_cast<int>(k_beyond);
+                else if (!in_region) mem[o][0] = static_cast<int>(k_inside);
+                if (in_region) mem[o][1] = 1 + bin_of(dx, dy, r2);
             }
         }
     }
@@ -69,7 +74,10 @@ public:
     // whose bins are uneven.
     double loss(const Fractions& f, Fractions* gradient) const override {
         const std::size_t W = f.size();
-        if (gradient) gradient->assign(W, std::vector<double>(17, 0.0));
+        if (gradient) {
+            gradient->resize(W);
+            for (std::size_t w = 0; w < W; ++w) (*gradient)[w].assign(f[w].size(), 0.0);
+        }
         const double scale = 1.0 / static_cast<double>(W);
         double total = 0.0;
         for (std::size_t w = 0; w < W; ++w) {
@@ -101,8 +109,12 @@ public:
     }
 
     nlohmann::json metrics(const Fractions& f) const override {
-        std::vector<double> specular, region, uniformity;
+        std::vector<double> specular, region, uniformity, inside, beyond;
         for (const auto& g : f) {
+            if (g.size() > k_beyond) {
+                inside.push_back(g[k_inside]);
+                beyond.push_back(g[k_beyond]);
+            }
             double r = 0.0;
             for (int q = 1; q <= 16; ++q) r += g[static_cast<std::size_t>(q)];
             const double mb = r / 16.0;
@@ -112,7 +124,7 @@ public:
             region.push_back(r);
             uniformity.push_back(mb > 0.0 ? std::sqrt(var / 16.0) / mb : 0.0);
         }
-        return {{"specular_fraction", specular},
+        nlohmann::json j = {{"specular_fraction", specular},
                 {"specular_fraction_worst", worst(specular, true)},
                 {"specular_fraction_mean", mean(specular)},
                 {"region_fraction", region},
@@ -121,9 +133,16 @@ public:
                 {"uniformity", uniformity},
                 {"uniformity_worst", worst(uniformity, true)},
                 {"uniformity_mean", mean(uniformity)}};
+        if (inside.size() == f.size() && !f.empty()) {
+            j["inside_fraction"] = inside;
+            j["beyond_fraction"] = beyond;
+            j["beyond_fraction_worst"] = worst(beyond, true);
+        }
+        return j;
     }
 
 private:
+    static constexpr std::size_t k_inside = 17, k_beyond = 18;
     static constexpr double k_weight_specular = 100.0;
     static constexpr double k_weight_uniformity = 20.0;
     static constexpr double k_uniformity_free = 0.2;
