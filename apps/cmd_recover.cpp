@@ -365,6 +365,10 @@ void run(const RecoverArgs& a, const Communicator& comm) {
                      "convergence: not judged: loss %s states no noise level (relative misfit %.3g; for photon "
                      "counts use --loss poisson:N)\n",
                      to_string(r.loss).c_str(), convergence.relative_misfit);
+    if (!quiet && convergence.predicted_error_relative >= 0.0)
+        std::fprintf(stderr, "convergence: the error bars predict an rms height error of %.3g %% of the height range "
+                             "(target <= %.0f %%)\n",
+                     100.0 * convergence.predicted_error_relative, 100.0 * k_predicted_error_limit);
     if (!convergence.converged) std::fprintf(stderr, "wavebrdf: warning: %s\n", convergence.warning().c_str());
     if (!quiet && options.calibrate.any()) {
         std::fprintf(stderr, "calibrated %s: sigma_p scale %.4f", to_string(options.calibrate).c_str(),

@@ -271,6 +271,7 @@ py::dict convergence_dict(const ConvergenceCheck& c) {
         d["model_selected"] = c.model_selected;
     }
     if (c.median_sigma_relative >= 0.0) d["median_sigma_relative"] = c.median_sigma_relative;
+    if (c.predicted_error_relative >= 0.0) d["predicted_error_relative"] = c.predicted_error_relative;
     return d;
 }
 
@@ -488,6 +489,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     result.loss = to_string(prepared->loss);
     result.noise = to_string(prepared->noise);
     result.height_range_um = prepared->range_um;
+    std::optional<std::vector<double>> sigma_um;  // the error bars, for the convergence check
     if (with_uncertainty && !result.stopped) {
         std::optional<UncertaintyReport> report;
         std::string why_not;
@@ -502,6 +504,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
             return result;
         }
         UncertaintyReport& bars = *report;
+        sigma_um = bars.map.sigma_um;
         result.uncertainty = owning_array(std::move(bars.map.sigma_um), {estimate.rows(), estimate.cols()});
         result.median_sigma_um = bars.median_sigma_um;
         result.uncertainty_seconds = bars.seconds;
@@ -533,6 +536,10 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     }
     add_model_check(convergence, misfit_gabor, misfit_field, selected);
     if (std::isfinite(result.median_sigma_um)) add_error_bars(convergence, result.median_sigma_um, prepared->range_um);
+    if (!result.stopped) {
+        py::gil_scoped_release release;
+        judge_noise_limit(convergence, *prepared, estimate, sigma_um ? &*sigma_um : nullptr, *comm);
+    }
     if (!convergence.converged) result.warnings.push_back(convergence.warning());
     result.convergence = convergence_dict(convergence);
     return result;

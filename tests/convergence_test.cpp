@@ -122,6 +122,51 @@ TEST(Convergence, WideErrorBarsAreAReason) {
     EXPECT_NE(c.warning().find("error bars"), std::string::npos) << c.warning();
 }
 
+// The noise limit: √(mean σ²) over the range against 1 %, only where the misfit passed
+// (needs_error_bars), the warning saying "likely inaccurate" unless the misfit failed too.
+TEST(Convergence, TheErrorBarsPredictedRmsErrorIsJudgedAgainstTheTarget) {
+    ConvergenceCheck on_floor;
+    on_floor.floor = "poisson";
+    EXPECT_TRUE(needs_error_bars(on_floor));
+    ConvergenceCheck c = on_floor;
+    // σ of 0.006 and 0.008 µm on a 1 µm range: √((0.006² + 0.008²) / 2) = 0.00707 → 0.71 %.
+    add_predicted_error(c, {0.006, 0.008}, 1.0);
+    EXPECT_NEAR(c.predicted_error_relative, std::sqrt(0.00005), 1e-12);
+    EXPECT_TRUE(c.converged) << c.warning();
+    // The same bars on half the range: 1.41 %, a miss the misfit could not see.
+    c = on_floor;
+    add_predicted_error(c, {0.006, 0.008}, 0.5);
+    EXPECT_FALSE(c.converged);
+    EXPECT_EQ(c.warning().rfind("the recovery is likely inaccurate: the misfit is on the photon-noise floor, but the "
+                                "error bars predict an rms height error of 1.41 % of the height range",
+                                0),
+              0u)
+        << c.warning();
+    // The rms, not the median: one texel in four at 2.4 % of the range, the rest at 0.2 %.
+    c = on_floor;
+    add_predicted_error(c, {0.002, 0.002, 0.002, 0.024}, 1.0);
+    EXPECT_NEAR(c.predicted_error_relative, std::sqrt((3 * 4e-6 + 5.76e-4) / 4.0), 1e-12);
+    EXPECT_FALSE(c.converged);
+    // Nothing to judge without bars or a range.
+    c = on_floor;
+    add_predicted_error(c, {}, 1.0);
+    add_predicted_error(c, {0.5}, 0.0);
+    EXPECT_TRUE(c.converged);
+    EXPECT_LT(c.predicted_error_relative, 0.0);
+    // Wide bars said already (add_error_bars): no second reason.
+    c = on_floor;
+    add_error_bars(c, 0.02, 1.0);
+    add_predicted_error(c, {0.02, 0.02}, 1.0);
+    EXPECT_EQ(c.reasons.size(), 1u);
+    // A misfit above the floor, or no noise level: the bars are not needed for the verdict.
+    ConvergenceCheck off = on_floor;
+    off.converged = false;
+    off.misfit_failed = true;
+    EXPECT_FALSE(needs_error_bars(off));
+    ConvergenceCheck none;
+    EXPECT_FALSE(needs_error_bars(none));
+}
+
 // A sinusoid along x, h = A sin(2π x / L): central differences give the slope
 // A sin(2π w / L) / w · cos(2π x / L), rms over whole periods that over √2; its ACF falls to
 // 0.2 at the lag where cos(2π τ / L) = 0.2 along x and never along y (a lay along y).

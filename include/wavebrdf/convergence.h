@@ -37,6 +37,14 @@ constexpr double k_noiseless_misfit_limit = 1e-5;
 // Error bars: a warning when twice the median σ exceeds this fraction of the height range (the
 // recovery's target, docs/surfaces.md).
 constexpr double k_error_bar_limit = 0.01;
+// The noise limit: the rms height error the error bars predict, √(mean σ²) over the texels (the
+// Laplace approximation's expected rms error of the mean-free heights), against the recovery's
+// target, this fraction of the height range. A misfit on the photon-noise floor says the slices
+// are explained as well as their noise allows, not that the noise leaves the heights within the
+// target: where 10⁴ photons per slice carry too little information on nm heights, or the slices
+// resolve too little of the surface's spectrum, the estimate fits the noise instead (measured on
+// real scans, docs/surfaces.md). So a recovery whose misfit passes is also judged by its bars.
+constexpr double k_predicted_error_limit = 0.01;
 
 struct ConvergenceCheck {
     // "poisson" (judged against the photon-noise floor), "noiseless" (judged against the float
@@ -54,9 +62,14 @@ struct ConvergenceCheck {
     std::string model_selected;
     // Error bars (uncertainty.h), when computed: their median σ over the height range (else −1).
     double median_sigma_relative = -1.0;
+    // Error bars, when computed (asked for, or by the check itself: needs_error_bars): √(mean σ²)
+    // over the height range, the rms error they predict (else −1).
+    double predicted_error_relative = -1.0;
     bool converged = true;             // no reason below
     std::vector<std::string> reasons;  // why it did not converge (or may miss the target), one clause each
-    // "" when converged; else "the recovery did not converge: REASON; REASON (…)".
+    // "" when converged; else "the recovery did not converge: REASON; …" where the misfit is a
+    // reason, "the recovery is likely inaccurate: REASON; …" where only the error bars are.
+    bool misfit_failed = false;
     std::string warning() const;
 };
 
@@ -76,6 +89,14 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
 // with their reasons.
 void add_model_check(ConvergenceCheck& check, double misfit_gabor, double misfit_field, const std::string& selected);
 void add_error_bars(ConvergenceCheck& check, double median_sigma_um, double height_range_um);
+
+// Whether the check is left to the error bars: photon counts (floor "poisson") and a misfit
+// that passed, so it cannot tell an accurate estimate from one that fits the noise.
+bool needs_error_bars(const ConvergenceCheck& check);
+// The noise limit (k_predicted_error_limit above): the error bars' σ (µm, one per texel, ≥ 0)
+// over the height range (µm, > 0; else nothing is added). A reason when √(mean σ²) exceeds the
+// limit, unless the wide-bars reason (add_error_bars) is there already.
+void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sigma_um, double height_range_um);
 
 // e(μ) and Var of the Poisson deviance of one pixel of mean μ ≥ 0 (see above), by exact sums
 // over the counts (to 12 standard deviations past μ). For tests and the check above.

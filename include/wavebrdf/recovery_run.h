@@ -15,6 +15,7 @@
 #include "wavebrdf/baseline.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/model.h"
@@ -245,5 +246,12 @@ Heightfield run_recovery(const PreparedRecovery& prepared, const std::function<b
 std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& prepared, const Heightfield& estimate,
                                                      const Communicator& comm = serial_communicator(),
                                                      std::string* why_not = nullptr);
+
+// The convergence check's noise limit (convergence.h, add_predicted_error) for a run's estimate:
+// with `sigma_um` (error bars the run computed) as given; else, where the check needs them
+// (needs_error_bars: photon counts and a misfit on the floor), the bars computed here for the
+// check alone (recovery_error_bars; a problem without bars adds nothing). Collective.
+void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& prepared, const Heightfield& estimate,
+                       const std::vector<double>* sigma_um, const Communicator& comm = serial_communicator());
 
 }  // namespace wavebrdf

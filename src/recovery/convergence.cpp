@@ -56,7 +56,7 @@ void poisson_deviance_moments(double mu, double& mean, double& variance) {
 
 std::string ConvergenceCheck::warning() const {
     if (converged) return "";
-    std::string line = "the recovery did not converge: ";
+    std::string line = misfit_failed ? "the recovery did not converge: " : "the recovery is likely inaccurate: ";
     for (std::size_t i = 0; i < reasons.size(); ++i) line += (i ? "; " : "") + reasons[i];
     return line;
 }
@@ -141,6 +141,7 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
         if (check.misfit_ratio > k_misfit_ratio_limit &&
             check.deviance - check.expected_deviance > k_misfit_sd_limit * check.deviance_sd) {
             check.converged = false;
+            check.misfit_failed = true;
             check.reasons.push_back("the slices' misfit is " + fixed("%.3g", check.misfit_ratio) +
                                     "x what photon noise leaves (deviance " + fixed("%.4g", check.deviance) +
                                     ", expected " + fixed("%.4g", check.expected_deviance) + " +- " +
@@ -150,6 +151,7 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
         check.floor = "noiseless";
         if (check.relative_misfit > k_noiseless_misfit_limit) {
             check.converged = false;
+            check.misfit_failed = true;
             check.reasons.push_back("the slices were simulated without noise, yet the estimate's relative misfit is " +
                                     fixed("%.3g", check.relative_misfit) + " (a converged estimate: below " +
                                     fixed("%.0e", k_noiseless_misfit_limit) + ")");
@@ -173,6 +175,26 @@ void add_error_bars(ConvergenceCheck& check, double median_sigma_um, double heig
                                 fixed("%.3g", 200.0 * check.median_sigma_relative) +
                                 " % of the height range (target " + fixed("%.0f", 100.0 * k_error_bar_limit) + " %)");
     }
+}
+
+bool needs_error_bars(const ConvergenceCheck& check) { return check.floor == "poisson" && check.converged; }
+
+void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sigma_um, double height_range_um) {
+    if (sigma_um.empty() || !(height_range_um > 0.0)) return;
+    double sum = 0.0;
+    for (const double s : sigma_um) sum += s * s;
+    check.predicted_error_relative = std::sqrt(sum / double(sigma_um.size())) / height_range_um;
+    if (!(check.predicted_error_relative > k_predicted_error_limit)) return;
+    const bool wide_bars_said = !check.converged && check.median_sigma_relative >= 0.0 &&
+                                2.0 * check.median_sigma_relative > k_error_bar_limit;
+    check.converged = false;
+    if (wide_bars_said) return;
+    check.reasons.push_back(std::string(check.misfit_failed ? "" : "the misfit is on the photon-noise floor, but ") +
+                            "the error bars predict an rms height error of " +
+                            fixed("%.3g", 100.0 * check.predicted_error_relative) +
+                            " % of the height range (target " + fixed("%.0f", 100.0 * k_predicted_error_limit) +
+                            " %): the slices do not determine the heights that well at this photon count "
+                            "(more photons, slices or wavelengths would)");
 }
 
 }  // namespace wavebrdf

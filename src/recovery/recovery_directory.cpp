@@ -187,6 +187,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     });
     add_model_check(convergence, misfit_gabor, misfit_field, selected);
     if (bars) add_error_bars(convergence, bars->median_sigma_um, r.range_um);
+    judge_noise_limit(convergence, r, estimate, bars ? &bars->map.sigma_um : nullptr, comm);
     if (out.convergence) *out.convergence = convergence;
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
@@ -247,6 +248,8 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     }
     if (convergence.median_sigma_relative >= 0.0)
         run["convergence"]["median_sigma_relative"] = convergence.median_sigma_relative;
+    if (convergence.predicted_error_relative >= 0.0)
+        run["convergence"]["predicted_error_relative"] = convergence.predicted_error_relative;
     if (!convergence.converged) run["warnings"].push_back(convergence.warning());
     // The estimate's spectrum against the truth's (surface_stats.h): psd.csv and its summary.
     if (r.truth && r.metric_note.empty()) {

@@ -563,4 +563,15 @@ std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& r, 
     return uncertainty_report(std::move(map), seconds, estimate, truth);
 }
 
+void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const Heightfield& estimate,
+                       const std::vector<double>* sigma_um, const Communicator& comm) {
+    if (sigma_um) {
+        add_predicted_error(check, *sigma_um, r.range_um);
+        return;
+    }
+    if (!needs_error_bars(check)) return;
+    std::optional<UncertaintyReport> bars = recovery_error_bars(r, estimate, comm, nullptr);
+    if (bars) add_predicted_error(check, bars->map.sigma_um, r.range_um);
+}
+
 }  // namespace wavebrdf
