@@ -16,6 +16,9 @@
 // the relative amplitude misfit Σ(√I − √R)² / Σ R of a converged estimate is ~10⁻⁸ or less.
 // Other losses (amplitude on measured slices, mse) state no noise level: the misfit is reported
 // but not judged.
+// Observations with per-pixel weights: only the values of weight > 0 count, each term of D,
+// E[D], Σ(√I − √R)² and Σ R times its weight (Var[D]'s times its square), and N counts the
+// photons of those pixels (N / Σ R over them, as the weighted Poisson loss's scale).
 #include <string>
 #include <vector>
 

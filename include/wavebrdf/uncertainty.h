@@ -13,6 +13,10 @@
 //               σ² estimated from the residuals at the solution in the loss's own variable
 //               (Σ r² / (values − (texels − 1)), over the values that are not 0 in both the
 //               slice and the reference).
+// Observations with per-pixel weights (observation.h): a value of weight 0 is no measurement
+// and is left out of G, σ² and N's Σ R; the others count with their weight w as the weighted
+// loss has them (W × w, residual² × w; the values counted for σ²'s degrees of freedom are those
+// of weight > 0).
 // The mean height (piston) is unobservable (G·1 = 0): the map is for the heights with their
 // mean removed, as height_rel_rmse compares them, i.e. diag(G⁺) on the mean-free subspace.
 //

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "recovery/observation_loss.h"
 #include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf {
@@ -82,13 +83,10 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
     for (std::size_t i = 0; i < n; ++i) {
         try {
             const Observation& o = observations[i];
-            Query query = o.query;
-            query.sigma_p_um *= sigma_scale;
-            if (positions) {
-                query.x_um += calibration->position_offsets_um[i][0];
-                query.y_um += calibration->position_offsets_um[i][1];
-            }
-            SlicePlan<double> plan(estimate, query, o.lambdas_um, o.resolution, o.channels());
+            SlicePlan<double> plan(estimate,
+                                   detail::calibrated_query(o, sigma_scale,
+                                                            positions ? &calibration->position_offsets_um[i] : nullptr),
+                                   o.lambdas_um, o.resolution, o.channels());
             std::vector<double> model = plan.forward();
             if (model.size() != o.reference.size())
                 throw std::invalid_argument("observation " + std::to_string(i) + " has " +
@@ -96,23 +94,31 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
                                             std::to_string(model.size()));
             if (exposures)
                 for (double& m : model) m *= calibration->exposures[i];
-            double total = 0.0;
-            for (const float r : o.reference) total += std::max(double(r), 0.0);
+            // Only the values of weight > 0 count, each with its weight (a value of weight 0
+            // may hold anything); the photons are those of the counted values, as the weighted
+            // Poisson loss's.
+            double total = 0.0, weighted = 0.0;
             for (std::size_t p = 0; p < model.size(); ++p) {
+                const double w = detail::value_weight(o, p);
+                if (w == 0.0) continue;
+                total += std::max(double(o.reference[p]), 0.0);
+                weighted += w * std::max(double(o.reference[p]), 0.0);
                 const double r = std::max(double(o.reference[p]), 0.0), m = std::max(model[p], 0.0);
                 const double d = std::sqrt(m) - std::sqrt(r);
-                amp[i] += d * d;
+                amp[i] += w * d * d;
             }
-            energy[i] = total;
+            energy[i] = weighted;
             if (poisson && total > 0.0) {
                 const double s = photons / total;
                 for (std::size_t p = 0; p < model.size(); ++p) {
+                    const double w = detail::value_weight(o, p);
+                    if (w == 0.0) continue;
                     const double mu = s * std::max(model[p], 0.0), k = s * std::max(double(o.reference[p]), 0.0);
                     double e = 0.0, v = 0.0;
                     poisson_deviance_moments(mu, e, v);
-                    dev[i] += deviance_term(k, mu);
-                    mean[i] += e;
-                    var[i] += v;
+                    dev[i] += w * deviance_term(k, mu);
+                    mean[i] += w * e;
+                    var[i] += w * w * v;
                 }
             }
         } catch (const std::exception& e) {

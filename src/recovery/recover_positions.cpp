@@ -13,6 +13,7 @@
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/calibration_detail.h"
+#include "recovery/observation_loss.h"
 #include "recovery/refinement.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/optim.h"
@@ -80,13 +81,10 @@ std::vector<double> exposures_at(const std::vector<Observation>& observations, c
         guard.run([&] {
             const Observation& o = observations[std::size_t(k)];
             const std::size_t p = index[std::size_t(k)];
-            Query q = o.query;
-            q.x_um += offsets_um[2 * p];
-            q.y_um += offsets_um[2 * p + 1];
-            q.sigma_p_um *= sigma_scale;
-            SlicePlan<float> plan(heights, q, o.lambdas_um, o.resolution, o.channels(), {}, false);
-            const std::vector<float>& f = plan.forward();
-            const double e = slice_exposure(f.data(), o.reference.data(), std::min(f.size(), o.reference.size()));
+            const std::array<double, 2> offset{offsets_um[2 * p], offsets_um[2 * p + 1]};
+            SlicePlan<float> plan(heights, calibrated_query(o, sigma_scale, &offset), o.lambdas_um, o.resolution,
+                                  o.channels(), {}, false);
+            const double e = observation_exposure(plan.forward(), o);
             if (std::isfinite(e) && e > 0.0) exposures[std::size_t(k)] = e;
         });
     guard.rethrow();
@@ -120,20 +118,11 @@ std::vector<double> grid_losses(const std::vector<Observation>& observations, co
         std::vector<double>& out = scratch.vector();
         std::vector<int> columns(candidates + 1);
         for (std::size_t c = 0; c < candidates; ++c) {
-            Query q = o.query;
-            q.x_um += offsets_um[2 * p] + texel_um * step_texels * (int(c / std::size_t(side)) - half);
-            q.y_um += offsets_um[2 * p + 1] + texel_um * step_texels * (int(c % std::size_t(side)) - half);
-            q.sigma_p_um *= sigma_scale;
-            SlicePlan<float> plan(heights, q, o.lambdas_um, o.resolution, o.channels(), {}, false);
-            const std::vector<float>& f = plan.forward();
-            std::vector<double> model(f.begin(), f.end());
-            if (settings.calibrate.exposure) {
-                const double exposure = slice_exposure(f.data(), o.reference.data(),
-                                                       std::min(f.size(), o.reference.size()));
-                for (double& m : model) m *= exposure;
-            }
-            out[p * candidates + c] = scale *
-                                      loss_value(settings.refine_loss, model, o.reference, o.channels(), nullptr);
+            const std::array<double, 2> offset{
+                offsets_um[2 * p] + texel_um * step_texels * (int(c / std::size_t(side)) - half),
+                offsets_um[2 * p + 1] + texel_um * step_texels * (int(c % std::size_t(side)) - half)};
+            out[p * candidates + c] = scale * observation_misfit(heights, o, settings.refine_loss, sigma_scale, &offset,
+                                                                 settings.calibrate.exposure, false);
             columns[c] = int(p * candidates + c);
         }
         out[positions * candidates + p] = 1.0;

@@ -7,19 +7,9 @@
 
 #include "core/stall_rule.h"
 #include "recovery/calibration_detail.h"
+#include "recovery/observation_loss.h"
 
 namespace wavebrdf::detail {
-
-double mean_observation_loss(const std::vector<Observation>& observations, double observations_total,
-                             const Heightfield& heights, const Loss& loss, const Communicator& comm) {
-    std::vector<double> no_gradient;
-    ExactParallelSum exact(0);
-    return exact.run(observations.size(), comm, no_gradient,
-                     [&](std::size_t i, ExactScratch&) {
-                         return observation_loss(heights, {observations[i]}, loss, nullptr);
-                     }) /
-           observations_total;
-}
 
 ObservationObjective::ObservationObjective(const std::vector<Observation>& observations, double observations_total,
                                            const Heightfield& flat, const Loss& loss, bool calibrate_exposure,
@@ -84,31 +74,16 @@ double ObservationObjective::operator()(const std::vector<double>& x, std::vecto
         // given the heights like every later call; with positions rebuilt where the offset moved
         // (the kernels, their window weights and the engines' tables all follow the centre).
         if (!m_plans[i] || (with_positions && m_plan_offset[i] != d)) {
-            Query query = o.query;
-            if (with_positions) {
-                query.x_um += d[0];
-                query.y_um += d[1];
-            }
-            query.sigma_p_um *= m_sigma_scale;
-            m_plans[i] = std::make_unique<SlicePlan<float>>(m_flat, query, o.lambdas_um, o.resolution, o.channels());
+            m_plans[i] = std::make_unique<SlicePlan<float>>(
+                m_flat, calibrated_query(o, m_sigma_scale, with_positions ? &d : nullptr), o.lambdas_um,
+                o.resolution, o.channels());
             m_plans[i]->gradient_box(m_box_rows[i], m_box_cols[i]);
             m_plan_offset[i] = d;
         }
         SlicePlan<float>& plan = *m_plans[i];
         plan.set_heights(with_positions ? heights : x);
-        const std::vector<float>& f = plan.forward();
         std::vector<double> d_estimate;
-        double exposure = 1.0;
-        const std::size_t values = std::min(f.size(), o.reference.size());
-        if (m_calibrate_exposure) {
-            exposure = slice_exposure(f.data(), o.reference.data(), values);
-            m_exposures[i] = exposure;
-        }
-        std::vector<double> model(f.begin(), f.end());
-        if (m_calibrate_exposure)
-            for (double& m : model) m *= exposure;
-        const double v = loss_value(m_loss, model, o.reference, o.channels(), &d_estimate);
-        if (m_calibrate_exposure) exposure_gradient(exposure, f.data(), values, d_estimate);
+        const double v = slice_misfit(m_loss, plan.forward(), o, m_calibrate_exposure, &d_estimate, &m_exposures[i]);
         if (!with_positions) {
             plan.adjoint(d_estimate, scratch.vector(), scale);
             scratch.take_box(m_box_rows[i], m_box_cols[i], cols);

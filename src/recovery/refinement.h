@@ -13,6 +13,7 @@
 
 #include "core/exact_sum.h"
 #include "recovery/coarse_correction.h"
+#include "recovery/observation_loss.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/loss.h"
@@ -30,11 +31,6 @@ using StageReport = std::function<bool(const std::string&, int, double, const He
 // to the precision of the single-precision slices.
 inline constexpr double k_refine_relative_tolerance = 1e-14;
 
-// observation_loss's mean over every rank's observations (observations_total of them) at
-// `heights`, summed exactly (core/exact_sum.h): the same on every rank for any split.
-double mean_observation_loss(const std::vector<Observation>& observations, double observations_total,
-                             const Heightfield& heights, const Loss& loss, const Communicator& comm);
-
 // The refinement's data term: the mean of `loss` over every rank's observations of the full
 // slice model at heights x (texel units, rows · cols of `flat`), with its gradient. Each slice's
 // plan is built on the first evaluation (on the thread that owns the observation) and keeps
@@ -45,8 +41,9 @@ double mean_observation_loss(const std::vector<Observation>& observations, doubl
 // them), x holds after the heights 2 offsets per position in texels; the offsets used are
 // t − mean(t) per coordinate (a common shift is the surface's, which the slices cannot see) and
 // a plan is rebuilt when its position's offset changed.
-// With calibrate_exposure each slice's exposure is its energy ratio at every evaluation
-// (calibration_detail.h), its gradient included. Every σ_p is used × sigma_scale.
+// Each slice's misfit is observation_loss.h's slice_misfit (weights, exposure and gradient);
+// with calibrate_exposure its exposure is the energy ratio at every evaluation, its gradient
+// included. Every σ_p is used × sigma_scale.
 class ObservationObjective {
 public:
     ObservationObjective(const std::vector<Observation>& observations, double observations_total,

@@ -7,7 +7,7 @@
 
 #include "core/exact_sum.h"
 #include "recovery/calibration_detail.h"
-#include "wavebrdf/slice_plan.h"
+#include "recovery/observation_loss.h"
 
 namespace wavebrdf::detail {
 
@@ -19,17 +19,7 @@ double scaled_sigma_loss(const std::vector<Observation>& observations, double ob
     std::vector<double> no_gradient;
     ExactParallelSum sum(0);
     const double total = sum.run(observations.size(), comm, no_gradient, [&](std::size_t i, ExactScratch&) {
-        const Observation& o = observations[i];
-        Query query = o.query;
-        query.sigma_p_um *= s;
-        SlicePlan<float> plan(heights, query, o.lambdas_um, o.resolution, o.channels());
-        const std::vector<float>& f = plan.forward();
-        std::vector<double> model(f.begin(), f.end());
-        if (calibrate_exposure) {
-            const double a = slice_exposure(f.data(), o.reference.data(), std::min(f.size(), o.reference.size()));
-            for (double& m : model) m *= a;
-        }
-        return loss_value(loss, model, o.reference, o.channels(), nullptr);
+        return observation_misfit(heights, observations[i], loss, s, nullptr, calibrate_exposure);
     });
     return total / observations_total;
 }

@@ -17,7 +17,7 @@ namespace wavebrdf::detail {
 
 // The mean over every rank's observations (observations_total of them) of the full model's
 // loss `loss` at the fixed `heights`, every σ_p scaled by s (> 0); with calibrate_exposure each
-// slice scaled by its energy ratio (calibration_detail.h). Collective (summed exactly: the same
+// slice scaled by its energy ratio (observation_loss.h observation_misfit). Collective (summed exactly: the same
 // bits for any thread count and split over ranks). Throws as SlicePlan does for a footprint that
 // does not fit.
 double scaled_sigma_loss(const std::vector<Observation>& observations, double observations_total,

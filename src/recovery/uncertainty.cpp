@@ -10,6 +10,7 @@
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "core/random.h"
+#include "recovery/observation_loss.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/slice_plan.h"
@@ -249,7 +250,8 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
     run_agreed(comm, [&] {  // rank-local work: a failure on one rank is agreed
         pass.run_local(count, [&](std::size_t i, detail::ExactScratch&) {
             const Observation& o = observations[i];
-            m.plans[i] = std::make_unique<SlicePlan<double>>(m.flat, o.query, o.lambdas_um, o.resolution, o.channels());
+            m.plans[i] = std::make_unique<SlicePlan<double>>(m.flat, detail::calibrated_query(o, 1.0), o.lambdas_um,
+                                                             o.resolution, o.channels());
             SlicePlan<double>& plan = *m.plans[i];
             plan.gradient_box(m.box_rows[i], m.box_cols[i]);
             plan.set_heights(m.heights);
@@ -261,8 +263,9 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
             w.assign(f.size(), 0.0);
             double s = 0.0;
             if (poisson) {
-                double total_r = 0.0;
-                for (const float x : r) total_r += double(x);
+                double total_r = 0.0;  // over the counted values (as the weighted Poisson loss's)
+                for (std::size_t p = 0; p < r.size(); ++p)
+                    if (detail::value_weight(o, p) != 0.0) total_r += double(r[p]);
                 if (!(total_r > 0.0))
                     throw std::invalid_argument("height uncertainty: observation " + std::to_string(i) +
                                                 "'s reference sums to " + std::to_string(total_r) +
@@ -270,6 +273,10 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
                 s = loss.photons / total_r;
             }
             for (std::size_t p = 0; p < f.size(); ++p) {
+                // A value of weight 0 is no measurement (it may hold anything); the others count
+                // with their weight in W, the residual and the curvature.
+                const double pw = detail::value_weight(o, p);
+                if (pw == 0.0) continue;
                 const double fi = std::max(f[p], 0.0), ri = std::max(double(r[p]), 0.0);
                 if (fi == 0.0 && ri == 0.0 && !poisson) continue;
                 double d = 0.0, ulp = 0.0;
@@ -296,8 +303,9 @@ GaussNewtonOperator::GaussNewtonOperator(const std::vector<Observation>& observa
                         w[p] = 1.0 / ((fi + loss.epsilon) * (fi + loss.epsilon));
                         break;
                 }
-                residual[i] += d * d;
-                rounding[i] += ulp * ulp;
+                w[p] *= pw;
+                residual[i] += pw * d * d;
+                rounding[i] += pw * ulp * ulp;
                 values[i] += 1.0;
                 curvature[i] += w[p] * fi * fi;
             }
