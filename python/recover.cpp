@@ -553,7 +553,8 @@ py::array positions_array(const AcquisitionPlan& plan) {
 
 const char* const kSettingsDoc = R"doc(
 observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
-              ones feed the blurred fit and the fields; all feed the refinement and Adam)
+              ones feed the blurred fit and the fields; all feed the refinement and Adam); their
+              weights count (a pixel of weight 0 is out of every misfit; docs/recovery.md)
 size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
 truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
 callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse

@@ -1,6 +1,6 @@
 // Traps a new user or a hostile file still found: EXR pixel data bounded by what the file can
 // hold, a table read once after its attributes, an inversion's run.json that says whether the
-// run finished, recover refusing per-pixel weights before any work. Memory is this process's
+// run finished. Memory is this process's
 // peak resident size, reset just before the read, so a test never depends on what other tests
 // of this binary allocated (skipped under AddressSanitizer, whose shadow memory inflates it).
 #include <cstdio>
@@ -179,25 +179,6 @@ TEST(InvertRunJson, SaysWhetherTheRunFinished) {
         test::run_cli(dir, "invert --resume run --epochs " + std::to_string(epoch + 2) + " --no-plots --quiet");
     ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
     EXPECT_EQ(nlohmann::json::parse(test::read_text(dir / "run" / "run.json")).at("finished"), true);
-}
-
-// recover does not use per-pixel weights: observations that carry them are refused with one
-// line before any work (no run directory), not fitted as if every pixel counted.
-TEST(RecoverWeights, ObservationsWithWeightsAreRefusedBeforeAnyWork) {
-    const fs::path dir = test::fresh_dir("traps");
-    Observation o;
-    o.query.sigma_p_um = 3.0;
-    o.query.x_um = o.query.y_um = 8.0;
-    o.lambdas_um = {0.5};
-    o.resolution = 8;
-    o.reference.assign(64, 1.0f);
-    o.weights.assign(64, 1.0f);
-    o.weights[5] = 0.0f;
-    write_observations_json((dir / "o.json").string(), {o});
-    test::expect_one_line_naming(
-        test::run_cli(dir, "recover --observations o.json --size 8 --texel-um 2 --no-plots --quiet --out run"),
-        {"per-pixel weights", "recover does not use"});
-    EXPECT_FALSE(fs::exists(dir / "run"));
 }
 
 }  // namespace

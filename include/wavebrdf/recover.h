@@ -503,6 +503,10 @@ struct StageMetrics {
 // whose slices best match `observations`, from a flat start: the blurred fit and the fields on
 // the single-wavelength OHS / ROHS observations, unwrapping, refinement on all observations
 // (spectral ones included). Observations are used as given (measured, noisy or rendered).
+// Per-pixel weights (observation.h) are honoured: the stages that fit the full slice model
+// (refinement, positions, σ_p searches, exposures) count only the pixels of weight > 0, each
+// with its weight, and the blurred fit, field stage and model check, whose models read whole
+// slices, see the pixels of weight 0 filled from their weighted neighbours (a start only).
 // on_step returning false stops the recovery and returns the estimate so far (flat, the
 // blurred fit, the last unwrapped heights or the refinement's last step). `truth`, when given,
 // only feeds height_rel_rmse in the metrics. Without any single-wavelength OHS / ROHS slice

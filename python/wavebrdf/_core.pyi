@@ -1062,7 +1062,8 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
                         calibrate='positions', which keeps the whole-surface field stage)
 
     observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
-                  ones feed the blurred fit and the fields; all feed the refinement and Adam)
+                  ones feed the blurred fit and the fields; all feed the refinement and Adam); their
+                  weights count (a pixel of weight 0 is out of every misfit; docs/recovery.md)
     size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
     truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
     callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse
@@ -1079,7 +1080,8 @@ def recover_heights_thesis(observations: Any, size: Any, texel_um: float, vscale
     0.99, 0.005); the callback sees stage 'thesis' every report_every (>= 1) epochs and the last.
 
     observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
-                  ones feed the blurred fit and the fields; all feed the refinement and Adam)
+                  ones feed the blurred fit and the fields; all feed the refinement and Adam); their
+                  weights count (a pixel of weight 0 is out of every misfit; docs/recovery.md)
     size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
     truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
     callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse

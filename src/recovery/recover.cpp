@@ -14,6 +14,7 @@
 
 #include "core/parallel.h"
 #include "recovery/field_proxy.h"
+#include "recovery/observation_loss.h"
 #include "recovery/recover_field_model.h"
 #include "recovery/recover_positions.h"
 #include "recovery/stages.h"
@@ -56,11 +57,12 @@ int auto_refine(double texel_um, double lambda_min_um, double max_omega_i) {
 
 namespace {
 
-// recover_heights' stages, after its checks: `by_lambda` holds this rank's single-wavelength
-// separable observations, with an entry (maybe empty) for every rank's wavelengths;
+// recover_heights' stages, after its checks: `filled` the copies the stages with their own
+// models read (null: `observations`), `by_lambda` this rank's single-wavelength separable
+// ones among them, with an entry (maybe empty) for every rank's wavelengths;
 // `observations_total` counts all ranks' observations. The context every stage reads, then the
 // schedule (stages.h).
-Heightfield recover_stages(const std::vector<Observation>& observations,
+Heightfield recover_stages(const std::vector<Observation>& observations, const std::vector<Observation>* filled,
                            const std::map<double, std::vector<const Observation*>>& by_lambda,
                            double observations_total, const Heightfield& flat, int rows, int cols, double texel_um,
                            double vscale, const RecoverSettings& settings,
@@ -88,7 +90,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations,
                                     " is invalid; expected an odd value up to 63 (texel centres must be samples)");
     const detail::StageContext context{observations, by_lambda, observations_total, flat, rows, cols, texel_um,
                                        vscale, comm, reporter, std::ref(reporter), white, proxy, q,
-                                       std::move(position_of)};
+                                       std::move(position_of), filled};
     detail::run_schedule(detail::make_schedule(settings, context), context, state);
     if (calibration) *calibration = std::move(state.calibration);
     return std::move(state.estimate);
@@ -215,19 +217,16 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)
     std::map<double, std::vector<const Observation*>> by_lambda;
+    std::vector<Observation> filled;  // with weights: what the stages with their own models read
     run_agreed(comm, [&] {
         for (std::size_t i = 0; i < observations.size(); ++i) {
             validate(observations[i], i);
-            // Its stages fit whole slices; silently fitting masked pixels would be a wrong answer.
-            if (!observations[i].weights.empty())
-                throw std::invalid_argument("observation " + std::to_string(i) +
-                                            " has per-pixel weights, which recover does not use; expected "
-                                            "observations without weights (invert uses them)");
         }
         // Here, not only in the renderer: the stages render inside parallel regions.
         for (const Observation& o : observations)
             validate_footprint(o.query.sigma_p_um, flat.period_x_um(), flat.period_y_um());
-        for (const Observation& o : observations)
+        if (detail::any_weights(observations)) filled = detail::filled_observations(observations);
+        for (const Observation& o : filled.empty() ? observations : filled)
             if (o.lambdas_um.size() == 1 && detail::has_field_stage(o.query.model))
                 by_lambda[o.lambdas_um[0]].push_back(&o);
     });
@@ -240,8 +239,8 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     if (total[0] == 0.0) throw std::invalid_argument("recover_heights: no observations given");
     // From here on the ranks meet in collective calls: one rank's failure ends them all.
     return run_or_abort(comm, [&] {
-        return recover_stages(observations, by_lambda, total[0], flat, rows, cols, texel_um, vscale, settings, on_step,
-                              truth, comm, calibration);
+        return recover_stages(observations, filled.empty() ? nullptr : &filled, by_lambda, total[0], flat, rows, cols,
+                              texel_um, vscale, settings, on_step, truth, comm, calibration);
     });
 }
 

@@ -55,8 +55,8 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
     return run;
 }
 
-// Every rank's observations on rank 0 (the catalogue with the gathered references, in the
-// run's order); empty elsewhere. Collective.
+// Every rank's observations on rank 0 (the catalogue with the gathered references and
+// weights, in the run's order); empty elsewhere. Collective.
 std::vector<Observation> gathered_observations(const PreparedRecovery& r, const Communicator& comm) {
     if (comm.size() == 1) return r.observations;
     std::vector<double> mine;
@@ -64,6 +64,8 @@ std::vector<Observation> gathered_observations(const PreparedRecovery& r, const 
         mine.push_back(double(r.share[k]));
         mine.push_back(double(r.observations[k].reference.size()));
         mine.insert(mine.end(), r.observations[k].reference.begin(), r.observations[k].reference.end());
+        mine.push_back(double(r.observations[k].weights.size()));
+        mine.insert(mine.end(), r.observations[k].weights.begin(), r.observations[k].weights.end());
     }
     const std::vector<double> all = comm.gather(mine);
     if (!comm.is_root()) return {};
@@ -73,6 +75,9 @@ std::vector<Observation> gathered_observations(const PreparedRecovery& r, const 
         out.at(index).reference.assign(all.begin() + std::ptrdiff_t(at + 2),
                                        all.begin() + std::ptrdiff_t(at + 2 + count));
         at += 2 + count;
+        const std::size_t weights = std::size_t(all.at(at));
+        out.at(index).weights.assign(all.begin() + std::ptrdiff_t(at + 1), all.begin() + std::ptrdiff_t(at + 1 + weights));
+        at += 1 + weights;
     }
     return out;
 }

@@ -46,6 +46,9 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     for (const Observation& o : observations) {
         const double pixels = double(o.resolution) * double(o.resolution);
         references += pixels * double(o.lambdas_um.size() == 1 ? 1 : 3) * sizeof(float);  // Observation::reference
+        // Weights, and the filled copy of the slices the whole-slice stages read
+        // (observation_loss.h filled_observations).
+        if (!o.weights.empty()) references += pixels * (1.0 + double(o.lambdas_um.size() == 1 ? 1 : 3)) * sizeof(float);
         for (double l : o.lambdas_um) lambda_min = lambda_min > 0.0 ? std::min(lambda_min, l) : l;
         if (o.lambdas_um.size() != 1) continue;
         auto it = std::find_if(pixels_per_lambda.begin(), pixels_per_lambda.end(),
@@ -242,13 +245,6 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
                                   std::vector<Observation> observations, bool show_progress, const Communicator& comm) {
     if (truth != nullptr && !observations.empty())
         throw std::invalid_argument("a truth and observations exclude each other; expected one of them (or neither)");
-    // The stages fit whole slices (a masked pixel would be fitted as measured): refused here,
-    // before the run directory or any work, not by the first stage.
-    for (std::size_t i = 0; i < observations.size(); ++i)
-        if (!observations[i].weights.empty())
-            throw std::invalid_argument("observation " + std::to_string(i) +
-                                        " has per-pixel weights, which recover does not use; expected "
-                                        "observations without weights (invert uses them)");
     if (options.noise.kind != NoiseKind::None && !observations.empty())
         throw std::invalid_argument(
             "noise '" + to_string(options.noise) +

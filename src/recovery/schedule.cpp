@@ -139,7 +139,7 @@ bool ModelCheckStage::run(const StageContext& context, RecoveryState& state) con
     for (const auto& entry : context.by_lambda)
         for (const Observation* o : entry.second) {
             separable.push_back(o);
-            index.push_back(std::size_t(o - context.observations.data()));
+            index.push_back(std::size_t(o - context.field_observations().data()));
         }
     state.estimate = check_model(separable, index, state.refined_offsets, state.refined_sigma_scale, state.unwrapped,
                                  state.estimate, context.refine, settings, context.report, context.comm,

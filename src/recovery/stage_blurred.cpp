@@ -23,7 +23,7 @@ std::vector<const Observation*> blurred_fit_set(const StageContext& context, int
     const auto periodic = [](double d, double period) { return d - period * std::floor(d / period + 0.5); };
     std::map<double, std::vector<const Observation*>> white_group;
     if (context.white)
-        for (const Observation& o : context.observations) white_group[0.0].push_back(&o);
+        for (const Observation& o : context.field_observations()) white_group[0.0].push_back(&o);
     const auto& groups = context.white ? white_group : context.by_lambda;
     std::vector<const Observation*> set;
     int taken = 0;

@@ -81,7 +81,7 @@ bool FieldStage::retrieve(const StageContext& context, RecoveryState& state,
                     group.back().query.sigma_p_um *= state.sigma_scale;
                     group.back().query.model = field_proxy_model(o->query.model);
                     if (held) {
-                        const double e = state.field_exposures[std::size_t(o - context.observations.data())];
+                        const double e = state.field_exposures[std::size_t(o - context.field_observations().data())];
                         for (float& v : group.back().reference) v = float(double(v) / e);
                     }
                 }
@@ -101,7 +101,7 @@ bool FieldStage::retrieve(const StageContext& context, RecoveryState& state,
                                           field_settings, on_iteration, context.comm);
                 std::vector<std::size_t> index;
                 for (const Observation* o : it->second)
-                    index.push_back(context.position_of[std::size_t(o - context.observations.data())]);
+                    index.push_back(context.position_of[std::size_t(o - context.field_observations().data())]);
                 return retrieve_field_with_positions(used, index, lambda, context.rows, context.cols,
                                                      context.texel_um, start, field_settings, on_iteration,
                                                      state.offsets_um, context.comm);

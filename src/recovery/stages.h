@@ -48,7 +48,8 @@ private:
 
 // What every stage reads and none changes.
 struct StageContext {
-    const std::vector<Observation>& observations;  // this rank's share
+    // This rank's share, with their weights: the full-model stages' (observation_loss.h).
+    const std::vector<Observation>& observations;
     // This rank's single-wavelength separable observations by wavelength, with a key (maybe
     // empty) for every rank's wavelengths, so that all ranks run the same wavelengths.
     const std::map<double, std::vector<const Observation*>>& by_lambda;
@@ -67,6 +68,12 @@ struct StageContext {
     int refine = 1;  // the object grid's samples per texel (odd)
     // With positions calibrated: each observation's gathered position (gather_positions).
     std::vector<std::size_t> position_of;
+    // What the stages with their own slice models read (the blurred fit, the field stage, the
+    // model check; by_lambda points into it): filled_observations' copies (observation_loss.h)
+    // where this rank's observations carry weights; null: `observations` themselves. Index i
+    // is observation i in both.
+    const std::vector<Observation>* filled = nullptr;
+    const std::vector<Observation>& field_observations() const { return filled ? *filled : observations; }
 
     bool stopped() const { return reporter.stopped(); }
 };
