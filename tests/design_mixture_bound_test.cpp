@@ -218,5 +218,21 @@ TEST(DesignMixtureBound, DesignJsonChecksTheDesignsConeLight) {
     EXPECT_EQ(m["levels"].get<int>(), 4);
 }
 
+TEST(DesignMixtureBound, AboveSixtyFourLevelsTheRunSaysItIsNotComputed) {
+    DesignOptions o;
+    o.target = parse_design_target("colour:#0000FF");
+    o.size = 4;
+    o.levels = 128;
+    o.spectral = 4;
+    o.iterations = 1;
+    o.refine_passes = 0;
+    o.survey_views = false;
+    const auto j = nlohmann::json::parse(run_design(prepare_design(o)).metrics_json);
+    EXPECT_FALSE(j.contains("mixture_bound"));
+    bool noted = false;
+    for (const auto& n : j["notes"]) noted = noted || n.get<std::string>().find("up to 64 levels") != std::string::npos;
+    EXPECT_TRUE(noted) << j["notes"].dump();
+}
+
 }  // namespace
 }  // namespace wavebrdf

@@ -1015,8 +1015,24 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         for (const auto& pair : o.target.pairs) pairs.push_back(optimal_colour_bound_json(p.lambdas_um, pair.linear_rgb));
         j["optimal_colour_bound"] = pairs;
     }
+    std::string mixture_note;
     if (o.target.kind == DesignKind::Colour) {
-        if (colour_view_holds_mirror(o) && !grayscale) j["mixture_bound"] = mixture_bound_json(p, exact_fractions, kirchhoff_totals);
+        // The programme grows as 8K rows by K columns and the dense simplex with it (minutes at
+        // 256 levels), so it is solved up to k_mixture_bound_max_levels; a failure is a note, never
+        // the end of a finished design.
+        constexpr int k_mixture_bound_max_levels = 64;
+        if (colour_view_holds_mirror(o) && !grayscale) {
+            if (K > k_mixture_bound_max_levels) {
+                mixture_note = "the mixture bound is computed for up to " + std::to_string(k_mixture_bound_max_levels) +
+                               " levels; this run has " + std::to_string(K);
+            } else {
+                try {
+                    j["mixture_bound"] = mixture_bound_json(p, exact_fractions, kirchhoff_totals);
+                } catch (const std::runtime_error& e) {
+                    mixture_note = std::string("the mixture bound was not computed: ") + e.what();
+                }
+            }
+        }
         const nlohmann::json& e = j["metrics"]["exact"];
         // Grayscale reliefs (no levels) are not surveyed.
         const bool reached = !survey_views || o.min_feature_um > 0.0 || !e.contains("delta_uv") || !e.contains("luminous_efficiency") ||
@@ -1029,6 +1045,7 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         }
     }
     j["notes"] = p.notes;
+    if (!mixture_note.empty()) j["notes"].push_back(mixture_note);
     j["timings_s"] = {{"relaxed", relaxed_seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
                       {"total", seconds_since(start)}};
     r.metrics_json = j.dump(2);
