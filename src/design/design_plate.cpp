@@ -33,7 +33,7 @@ namespace wavebrdf {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-std::string num(double v) { return format_shortest(v); }
+using detail::num;  // design/target.h
 
 // A highlight: as much of the reflected light as possible into the view cone about the
 // direction, on average over the wavelengths. Group 0 is the cone.

@@ -45,7 +45,7 @@ double seconds_since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-std::string num(double v) { return format_shortest(v); }
+using detail::num;  // design/target.h
 
 // The grey values of a PNG (0 … 1), luminance for colour images, at most 1024 × 1024.
 std::vector<double> read_grey_png(const std::string& path, int& rows, int& cols) {

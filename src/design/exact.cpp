@@ -11,6 +11,7 @@
 #include "design/relief.h"
 #include "wavebrdf/design.h"
 #include "wavebrdf/spectrum.h"
+#include "core/srgb.h"
 #include "wavebrdf/text.h"
 
 namespace wavebrdf {
@@ -195,9 +196,7 @@ std::array<double, 3> linear_srgb_to_xyz(const std::array<double, 3>& rgb) {
             inv[6] * rgb[0] + inv[7] * rgb[1] + inv[8] * rgb[2]};
 }
 
-double srgb_decode(double encoded) {
-    return encoded <= 0.04045 ? encoded / 12.92 : std::pow((encoded + 0.055) / 1.055, 2.4);
-}
+double srgb_decode(double encoded) { return detail::srgb_decode(encoded); }
 
 std::array<double, 3> reflectance_xyz(const std::vector<double>& lambdas_um, const std::vector<double>& reflectance) {
     if (reflectance.size() != lambdas_um.size())

@@ -10,8 +10,12 @@
 #include <vector>
 
 #include "design/engine.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf::detail {
+
+// A number in the design stage's messages and notes (format_shortest).
+inline std::string num(double v) { return format_shortest(v); }
 
 using Fractions = std::vector<std::vector<double>>;  // [wavelength][group]
 

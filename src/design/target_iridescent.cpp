@@ -20,8 +20,6 @@ namespace {
 constexpr std::size_t k_max_spec_bytes = 64 * 1024;
 constexpr int k_max_pairs = 16;
 
-std::string num(double v) { return format_shortest(v); }
-
 // The deepest nesting of arrays and objects in `text` (outside strings): a spec nests four deep,
 // and refusing deeper text before parsing keeps a hostile file from recursing through the parser.
 int nesting_depth(const std::string& text) {

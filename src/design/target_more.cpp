@@ -13,8 +13,6 @@ namespace wavebrdf::detail {
 
 namespace {
 
-std::string num(double v) { return format_shortest(v); }
-
 // The table lights (row a, column b) a brdf design matches: every rendered light when there are at
 // most k_max_brdf_lights, else the rendered light nearest the design's light.
 std::vector<std::array<int, 2>> table_lights(const DesignOptions& o) {

@@ -26,7 +26,7 @@
 namespace wavebrdf {
 namespace {
 
-std::string number(double value) {
+std::string full_precision(double value) {
     std::ostringstream out;
     out.precision(17);
     out << value;
@@ -50,13 +50,13 @@ void check_size(int rows, int cols, std::size_t values, const char* what) {
 
 void check_texel(double texel_um, const char* what) {
     if (!(texel_um >= k_min_texel_um && texel_um <= k_max_texel_um))
-        throw std::invalid_argument(std::string(what) + ": texel_um " + number(texel_um) + " is outside " +
-                                    number(k_min_texel_um) + " ... " + number(k_max_texel_um));
+        throw std::invalid_argument(std::string(what) + ": texel_um " + full_precision(texel_um) + " is outside " +
+                                    full_precision(k_min_texel_um) + " ... " + full_precision(k_max_texel_um));
 }
 
 void check_range(double height_range_um, const char* what) {
     if (!(std::isfinite(height_range_um) && height_range_um > 0.0))
-        throw std::invalid_argument(std::string(what) + ": height_range_um " + number(height_range_um) +
+        throw std::invalid_argument(std::string(what) + ": height_range_um " + full_precision(height_range_um) +
                                     " must be finite and > 0");
 }
 
@@ -64,7 +64,7 @@ void check_finite_heights(const std::vector<double>& heights_um, int cols, const
     for (std::size_t k = 0; k < heights_um.size(); ++k)
         if (!std::isfinite(heights_um[k]))
             throw std::invalid_argument(std::string(what) + ": height at texel (" + std::to_string(k / cols) + ", " +
-                                        std::to_string(k % cols) + ") is " + number(heights_um[k]) +
+                                        std::to_string(k % cols) + ") is " + full_precision(heights_um[k]) +
                                         "; expected a finite value in um");
 }
 
@@ -276,7 +276,7 @@ void check_stl_input(const std::vector<double>& heights_um, int rows, int cols, 
     check_size(rows, cols, heights_um.size(), what);
     check_finite_heights(heights_um, cols, what);
     if (!(std::isfinite(base_um) && base_um > 0.0 && base_um <= 1e6))
-        throw std::invalid_argument(std::string(what) + ": base_um " + number(base_um) +
+        throw std::invalid_argument(std::string(what) + ": base_um " + full_precision(base_um) +
                                     " must be finite, > 0 and at most 1e6");
 }
 
@@ -302,13 +302,13 @@ void write_heights_png16(const std::string& path, const std::vector<double>& hei
     const double tolerance = 1e-9 * height_range_um;
     for (std::size_t k = 0; k < heights_um.size(); ++k)
         if (heights_um[k] < -tolerance || heights_um[k] > height_range_um + tolerance)
-            throw std::invalid_argument(std::string(what) + ": height " + number(heights_um[k]) + " um at texel (" +
+            throw std::invalid_argument(std::string(what) + ": height " + full_precision(heights_um[k]) + " um at texel (" +
                                         std::to_string(k / static_cast<std::size_t>(cols)) + ", " +
                                         std::to_string(k % static_cast<std::size_t>(cols)) + ") is outside 0 ... " +
-                                        number(height_range_um) + " um");
+                                        full_precision(height_range_um) + " um");
     const std::vector<std::pair<std::string, std::string>> texts = {
-        {"wavebrdf:height_range_um", number(height_range_um)},
-        {"wavebrdf:texel_um", number(texel_um)},
+        {"wavebrdf:height_range_um", full_precision(height_range_um)},
+        {"wavebrdf:texel_um", full_precision(texel_um)},
         {"wavebrdf:units", "height in um = value / 65535 * height_range_um"},
         {"Software", std::string("wavebrdf ") + k_version},
     };
@@ -366,8 +366,8 @@ std::vector<LevelMask> write_level_masks(const std::string& prefix, const std::v
         };
         const std::vector<std::pair<std::string, std::string>> texts = {
             {"wavebrdf:mask", std::to_string(m + 1) + " of " + std::to_string(n_masks)},
-            {"wavebrdf:depth_um", number(mask.depth_um)},
-            {"wavebrdf:texel_um", number(texel_um)},
+            {"wavebrdf:depth_um", full_precision(mask.depth_um)},
+            {"wavebrdf:texel_um", full_precision(texel_um)},
             {"wavebrdf:units", "white (1) = exposed, etched depth_um deep; black (0) = protected"},
             {"Software", std::string("wavebrdf ") + k_version},
         };
@@ -431,7 +431,7 @@ void write_stl(const std::string& path, const std::vector<double>& heights_um, i
         };
         // The header must not begin with "solid", or readers take the file for ASCII STL.
         std::string header = "wavebrdf " + std::string(k_version) + " texel relief, units um, texel_um " +
-                             number(texel_um) + ", base z " + number(solid.z_base());
+                             full_precision(texel_um) + ", base z " + full_precision(solid.z_base());
         header.resize(80, ' ');
         buffer.insert(buffer.end(), header.begin(), header.end());
         put_u32(buffer, static_cast<std::uint32_t>(count));
@@ -476,10 +476,10 @@ FabricationFiles write_fabrication_exports(const std::string& out_dir, const std
         for (std::size_t k = 0; k < heights_um.size(); ++k) {
             const double k_level = std::round(heights_um[k] / step_um);
             if (k_level < 0 || k_level > levels - 1 || std::abs(heights_um[k] - k_level * step_um) > 1e-6 * step_um)
-                throw std::invalid_argument(std::string(what) + ": height " + number(heights_um[k]) + " um at texel (" +
+                throw std::invalid_argument(std::string(what) + ": height " + full_precision(heights_um[k]) + " um at texel (" +
                                             std::to_string(k / static_cast<std::size_t>(cols)) + ", " +
                                             std::to_string(k % static_cast<std::size_t>(cols)) + ") is not one of the " +
-                                            std::to_string(levels) + " levels k * " + number(step_um) + " um");
+                                            std::to_string(levels) + " levels k * " + full_precision(step_um) + " um");
             level_index[k] = static_cast<int>(k_level);
         }
     }
@@ -495,8 +495,8 @@ FabricationFiles write_fabrication_exports(const std::string& out_dir, const std
     // The heights as x3p for metrology and mask-writer tools that read ISO 25178 surfaces.
     const double x3p_bytes = 24.0 * static_cast<double>(heights_um.size());
     if (x3p_bytes > max_stl_bytes) {
-        files.x3p_note = "heights.x3p not written: its copies take " + number(x3p_bytes / 1e9) +
-                         " GB, over the limit of " + number(max_stl_bytes / 1e9) + " GB";
+        files.x3p_note = "heights.x3p not written: its copies take " + full_precision(x3p_bytes / 1e9) +
+                         " GB, over the limit of " + full_precision(max_stl_bytes / 1e9) + " GB";
     } else {
         try {
             std::vector<double> values(heights_um.size());
@@ -514,7 +514,7 @@ FabricationFiles write_fabrication_exports(const std::string& out_dir, const std
     const double stl_bytes = 84.0 + 50.0 * double(files.stl_triangles);
     if (stl_bytes > max_stl_bytes) {
         files.note = "heights.stl not written: " + std::to_string(files.stl_triangles) + " triangles, " +
-                     number(stl_bytes / 1e9) + " GB, exceed the limit of " + number(max_stl_bytes / 1e9) + " GB";
+                     full_precision(stl_bytes / 1e9) + " GB, exceed the limit of " + full_precision(max_stl_bytes / 1e9) + " GB";
         return files;
     }
     files.heights_stl = (dir / "heights.stl").string();

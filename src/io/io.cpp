@@ -37,6 +37,7 @@
 #include <ImfVecAttribute.h>
 #include <png.h>
 
+#include "core/srgb.h"
 #include "io/surface_formats.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/spectrum.h"
@@ -409,9 +410,6 @@ std::string join_numbers(const std::vector<double>& values) {
     return text;
 }
 
-// sRGB transfer curve (IEC 61966-2-1) on a linear value already clamped to [0, 1].
-double srgb_encode(double x) { return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055; }
-
 }  // namespace
 
 HeightfieldAttributes read_heightfield_attributes(const std::string& path) {
@@ -735,7 +733,7 @@ void write_rgb_png(const std::string& path, const RgbImage& image, double exposu
         // x/(1+x) would give inf/inf = NaN for an overflowed product; its limit is 1.
         if (tonemap) x = std::isinf(x) ? 1.0 : x / (1.0 + x);
         x = std::min(x, 1.0);
-        pixels[k] = static_cast<std::uint8_t>(std::lround(srgb_encode(x) * 255.0));
+        pixels[k] = static_cast<std::uint8_t>(std::lround(detail::srgb_encode(x) * 255.0));
     }
     write_file_atomically(path, [&](const std::string& tmp) { write_png8(tmp, image.rows, image.cols, true, pixels); });
 }

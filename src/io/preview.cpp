@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "core/srgb.h"
 #include "wavebrdf/text.h"
 
 namespace wavebrdf {
@@ -46,10 +47,6 @@ const Glyph* glyph(char c) {
         if (g.c == c) return &g;
     return nullptr;
 }
-
-// sRGB transfer curve (IEC 61966-2-1) on [0, 1] and its inverse (as io.cpp's write_rgb_png).
-double srgb_encode(double x) { return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055; }
-double srgb_decode(double y) { return y <= 0.04045 ? y / 12.92 : std::pow((y + 0.055) / 1.055, 2.4); }
 
 std::uint8_t to_byte(double t) { return static_cast<std::uint8_t>(std::lround(std::clamp(t, 0.0, 1.0) * 255.0)); }
 
@@ -147,7 +144,7 @@ std::vector<Tick> linear_ticks(double exposure_stops, bool reinhard) {
     std::vector<Tick> ticks;
     for (int k = 4; k >= 0; --k) {
         const double t = k / 4.0;
-        double x = srgb_decode(t);
+        double x = detail::srgb_decode(t);
         if (reinhard) {
             if (k == 4) continue;
             x = x / (1.0 - x);
@@ -442,7 +439,7 @@ Preview8 make_slice_preview(const RgbImage& image, const PreviewOptions& options
     const auto linear = [&](double v) {
         double x = std::isfinite(v) ? std::max(v * scale, 0.0) : 0.0;
         if (options.reinhard) x = std::isinf(x) ? 1.0 : x / (1.0 + x);
-        return srgb_encode(std::min(x, 1.0));
+        return detail::srgb_encode(std::min(x, 1.0));
     };
     for (std::size_t p = 0; p < count; ++p) {
         std::uint8_t* pixel = &out.rgb[3 * p];
@@ -538,7 +535,7 @@ Preview8 make_table_preview(const RgbImage& mosaic, int n, const std::vector<dou
                 double x = double(mosaic.data[(std::size_t(i) * std::size_t(mosaic.cols) + std::size_t(j)) * 3u + c]);
                 x = std::isfinite(x) ? std::max(x * scale, 0.0) : 0.0;
                 x = std::isinf(x) ? 1.0 : x / (1.0 + x);
-                px[c] = to_byte(srgb_encode(std::min(x, 1.0)));
+                px[c] = to_byte(detail::srgb_encode(std::min(x, 1.0)));
             }
         }
     // Light labels: ω_i,x left of each row of tiles, ω_i,y above each column; the axes' names

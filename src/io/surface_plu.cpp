@@ -16,7 +16,7 @@
 namespace wavebrdf::surface_io {
 
 namespace {
-constexpr std::size_t k_header = 500;
+constexpr std::size_t k_plu_header = 500;
 constexpr std::size_t k_calibration = 388;
 constexpr std::size_t k_configuration = 428;
 constexpr std::size_t k_layers = 489;
@@ -25,7 +25,7 @@ constexpr float k_not_measured = 1000001.0f;
 }  // namespace
 
 bool looks_like_plu(const std::string& d) {
-    if (d.size() < k_header + 8) return false;
+    if (d.size() < k_plu_header + 8) return false;
     // The date: printable text, then only NUL bytes to 128.
     std::size_t i = 0;
     while (i < 128 && d[i] != '\0') {
@@ -38,12 +38,12 @@ bool looks_like_plu(const std::string& d) {
         if (d[i] != '\0') return false;
     // The first layer's size repeats the calibration's.
     const Bytes b(d, "");
-    return b.get<std::uint32_t>(k_calibration) == b.get<std::uint32_t>(k_header) &&
-           b.get<std::uint32_t>(k_calibration + 4) == b.get<std::uint32_t>(k_header + 4);
+    return b.get<std::uint32_t>(k_calibration) == b.get<std::uint32_t>(k_plu_header) &&
+           b.get<std::uint32_t>(k_calibration + 4) == b.get<std::uint32_t>(k_plu_header + 4);
 }
 
 MeasuredSurface read_plu(const Bytes& b) {
-    b.need(0, k_header + 8, "the PLU header");
+    b.need(0, k_plu_header + 8, "the PLU header");
     const std::uint32_t type = b.get<std::uint32_t>(k_configuration);
     if (type != k_topography)
         fail(b.name(), "is a Sensofar PLU measurement of type " + std::to_string(type) +
@@ -52,9 +52,9 @@ MeasuredSurface read_plu(const Bytes& b) {
     if (layers != 1) fail(b.name(), "holds " + std::to_string(layers) + " PLU layers; only single-layer files are read");
     const double dx = double(b.get<float>(k_calibration + 16));
     const double dy = double(b.get<float>(k_calibration + 20));
-    const long long ny = b.get<std::uint32_t>(k_header);
-    const long long nx = b.get<std::uint32_t>(k_header + 4);
-    check_grid(b.name(), ny, nx, 4, b.size() - (k_header + 8));
+    const long long ny = b.get<std::uint32_t>(k_plu_header);
+    const long long nx = b.get<std::uint32_t>(k_plu_header + 4);
+    check_grid(b.name(), ny, nx, 4, b.size() - (k_plu_header + 8));
     MeasuredSurface s;
     s.rows = int(ny);
     s.cols = int(nx);
@@ -63,7 +63,7 @@ MeasuredSurface read_plu(const Bytes& b) {
     s.format = "plu";
     const std::size_t n = std::size_t(nx) * std::size_t(ny);
     s.heights_um.resize(n);
-    const char* data = b.data().data() + k_header + 8;
+    const char* data = b.data().data() + k_plu_header + 8;
     for (std::size_t i = 0; i < n; ++i) {
         const double h = sample_value(data + 4 * i, Sample::f32, false);
         s.heights_um[i] = h == double(k_not_measured) ? std::numeric_limits<double>::quiet_NaN() : h;

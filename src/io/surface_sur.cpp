@@ -15,7 +15,7 @@ namespace wavebrdf::surface_io {
 
 namespace {
 
-constexpr std::size_t k_header = 512;
+constexpr std::size_t k_sur_header = 512;
 
 // µm per unit of a SUR unit name ("mm", "µm" in Latin-1 or UTF-8, "um", "nm", "m", "A").
 std::optional<double> sur_unit(const std::string& unit) {
@@ -34,7 +34,7 @@ std::optional<double> sur_unit(const std::string& unit) {
 MeasuredSurface read_sur(const Bytes& b) {
     if (b.data().compare(0, 12, "DSCOMPRESSED") == 0)
         fail(b.name(), "is a compressed Digital Surf file (DSCOMPRESSED); only uncompressed SUR files are read");
-    b.need(0, k_header, "the SUR header");
+    b.need(0, k_sur_header, "the SUR header");
     const int objects = b.get<std::uint16_t>(14);
     if (objects != 1)
         fail(b.name(), "holds " + std::to_string(objects) + " SUR objects; only single-object files are read");
@@ -63,7 +63,7 @@ MeasuredSurface read_sur(const Bytes& b) {
     const double z_offset = double(b.get<float>(474)) * z_unit;
     if (!std::isfinite(z_offset)) fail(b.name(), "has a SUR z offset that is not finite");
     if (!std::isfinite(dz) || dz == 0.0) fail(b.name(), "has SUR z scale " + format_shortest(dz) + "; expected finite, non-zero");
-    const std::size_t start = k_header + b.get<std::uint16_t>(334) + b.get<std::uint16_t>(336);
+    const std::size_t start = k_sur_header + b.get<std::uint16_t>(334) + b.get<std::uint16_t>(336);
     const std::size_t size = std::size_t(bits / 8);
     b.need(start, 0, "the SUR data");
     check_grid(b.name(), ny, nx, size, b.size() - start);
@@ -96,7 +96,7 @@ MeasuredSurface read_sur(const Bytes& b) {
         s.metadata.push_back({"date", date});
     }
     const std::size_t comment_size = b.get<std::uint16_t>(334);
-    if (comment_size > 0) s.metadata.push_back({"comment", b.text(k_header, comment_size)});
+    if (comment_size > 0) s.metadata.push_back({"comment", b.text(k_sur_header, comment_size)});
     return s;
 }
 
