@@ -147,28 +147,6 @@ std::string seed_error(const std::string& text) {
     return "";
 }
 
-void check_output_format(const std::string& option, const std::string& path,
-                         const std::vector<std::string>& extensions) {
-    if (path.empty()) return;
-    // A path that exists and is not a regular file (a FIFO, a device) is the writer's to refuse,
-    // with its own message; its name says nothing of a format.
-    std::error_code ec;
-    const auto status = std::filesystem::symlink_status(path, ec);
-    if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) return;
-    const auto lower = [](std::string s) {
-        std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-        return s;
-    };
-    const std::string name = lower(std::filesystem::path(path).filename().string());
-    std::string known;
-    for (const std::string& e : extensions) {
-        if (name.size() > e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0) return;
-        known += (known.empty() ? "" : ", ") + e;
-    }
-    throw std::invalid_argument(option + " " + path + ": the name's extension is not a format this output writes; " +
-                                "expected a name ending in " + known);
-}
-
 HeightfieldScale resolve_scale_with_warnings(const std::string& path, std::optional<double> texel_um,
                                              std::optional<double> vscale, const std::string& texel_option,
                                              const std::string& vscale_option, double default_texel_um,

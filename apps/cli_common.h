@@ -56,12 +56,6 @@ std::string seed_error(const std::string& text);
 // silently lose it. The message names both options and the path.
 void check_distinct_files(const std::vector<std::pair<std::string, std::string>>& files);
 
-// Throws std::invalid_argument when `path` (not empty) does not end in one of `extensions`
-// (".exr", compared ignoring case): an output is written in the format its name says or not at
-// all, so `--out x.png` never holds EXR data. The message names the option, the path and the
-// extensions this output writes.
-void check_output_format(const std::string& option, const std::string& path,
-                         const std::vector<std::string>& extensions);
 
 // The texel width (µm) and vertical scale for the heightfield file at `path`: the user's
 // value where the option was given (CLI11's count() > 0), else the file's attribute, else the

@@ -203,13 +203,14 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             "save_exr",
             [](const Heightfield& hf, const std::filesystem::path& path_arg, const std::string& made_by) {
                 const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
+                check_output_format("path", path, {".exr"});
                 py::gil_scoped_release release;
                 write_heightfield_exr(path, hf, made_by);
             },
             "path"_a, "made_by"_a = "python",
             "Writes the values (texel units) as a single-channel float EXR (atomically), with the\n"
             "attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,\n"
-            "\"Files\"), so that from_exr reads the same scale back.")
+            "\"Files\"), so that from_exr reads the same scale back. ValueError for a path not ending in .exr.")
         .def(
             "save",
             [](const Heightfield& hf, const std::filesystem::path& path_arg, const std::string& made_by) {
@@ -233,10 +234,11 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             "save_png",
             [](const Heightfield& hf, const std::filesystem::path& path_arg) {
                 const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
+                check_output_format("path", path, {".png"});
                 py::gil_scoped_release release;
                 write_heightfield_png(path, hf);
             },
-            "path"_a, "Writes a grey PNG preview, min black, max white.")
+            "path"_a, "Writes a grey PNG preview, min black, max white. ValueError for a path not ending in .png.")
         .def("copy", [](const Heightfield& hf) { return Heightfield(hf); })
         .def("__copy__", [](const Heightfield& hf) { return Heightfield(hf); })
         .def(

@@ -211,4 +211,12 @@ void write_text_atomically(const std::string& path, const std::string& text);
 // its temporary is not removed by this call.
 void remove_temporary_files() noexcept;
 
+// Throws std::invalid_argument when `path` (not empty) does not end in one of `extensions`
+// (".exr", compared ignoring case): an output is written in the format its name says or not at
+// all, so `--out x.png` never holds EXR data. The message names the option (as the front end spells
+// it: `--out`, `path`), the path and the extensions this output writes. A path that exists and is
+// not a regular file (a FIFO, a device) passes: its writer refuses it with its own message.
+void check_output_format(const std::string& option, const std::string& path,
+                         const std::vector<std::string>& extensions);
+
 }  // namespace wavebrdf

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -960,5 +961,27 @@ void ExrSource::read_rows(const std::vector<std::string>& channels, int first_ro
 }
 
 }  // namespace detail
+
+void check_output_format(const std::string& option, const std::string& path,
+                         const std::vector<std::string>& extensions) {
+    if (path.empty()) return;
+    // A path that exists and is not a regular file (a FIFO, a device) is the writer's to refuse,
+    // with its own message; its name says nothing of a format.
+    std::error_code ec;
+    const auto status = std::filesystem::symlink_status(path, ec);
+    if (!ec && std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) return;
+    const auto lower = [](std::string s) {
+        std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+        return s;
+    };
+    const std::string name = lower(std::filesystem::path(path).filename().string());
+    std::string known;
+    for (const std::string& e : extensions) {
+        if (name.size() > e.size() && name.compare(name.size() - e.size(), e.size(), e) == 0) return;
+        known += (known.empty() ? "" : ", ") + e;
+    }
+    throw std::invalid_argument(option + " " + path + ": the name's extension is not a format this output writes; " +
+                                "expected a name ending in " + known);
+}
 
 }  // namespace wavebrdf

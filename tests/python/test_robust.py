@@ -217,3 +217,17 @@ def test_numpy_integers_are_sizes():
     assert wb.check_acquisition(obs, (np.int64(8), np.int32(8)), 1.0) == b
     with pytest.raises(ValueError, match="expected N or"):
         wb.check_acquisition(obs, True, 1.0)
+
+
+def test_heightfield_files_are_written_in_the_format_their_name_says(tmp_path):
+    hf = wb.Heightfield(np.zeros((4, 4)), texel_um=0.5)
+    for save, wrong, expected in ((hf.save_exr, "h.png", ".exr"), (hf.save_png, "h.exr", ".png"),
+                                  (hf.save_exr, "h.npy", ".exr")):
+        with pytest.raises(ValueError, match=r"path .*%s.*expected a name ending in \%s" % (wrong, expected)):
+            save(str(tmp_path / wrong))
+        assert not (tmp_path / wrong).exists()
+    # The extension's case does not matter, and what is written is what the name says.
+    hf.save_exr(str(tmp_path / "h.EXR"))
+    assert (tmp_path / "h.EXR").read_bytes()[:4] == b"\x76\x2f\x31\x01"  # OpenEXR's magic number
+    hf.save_png(str(tmp_path / "h.png"))
+    assert (tmp_path / "h.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
