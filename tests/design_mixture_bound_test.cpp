@@ -174,8 +174,9 @@ TEST(DesignMixtureBound, NoMixtureBeatsItsDeltaUvAtFivePercent) {
         if (X[1] < 0.05) continue;
         ++bright;
         const auto uv = xyz_to_uv(X);
-        if (bound.y_at_target < 0.05)
+        if (bound.y_at_target < 0.05) {
             EXPECT_GE(std::hypot(uv[0] - blue[0], uv[1] - blue[1]), bound.delta_uv_at_min_y - 1e-9);
+        }
     }
     EXPECT_GT(bright, 100);
     // What one mixture reaches lies within the bound: at its Y the Δu′v′ is no better.
@@ -183,8 +184,12 @@ TEST(DesignMixtureBound, NoMixtureBeatsItsDeltaUvAtFivePercent) {
     const auto X = xyz(b, own);
     EXPECT_NEAR(X[1], one.y, 1e-12);
     EXPECT_LE(one.y, detail::mixture_bound_y(b.weights, b.nu, K, one.uv) + 1e-9);
-    if (one.y >= 0.05 && bound.y_at_target < 0.05) EXPECT_GE(one.delta_uv, bound.delta_uv_at_min_y - 1e-9);
-    if (bound.y_at_target >= 0.05) EXPECT_EQ(bound.delta_uv_at_min_y, 0.0);
+    if (one.y >= 0.05 && bound.y_at_target < 0.05) {
+        EXPECT_GE(one.delta_uv, bound.delta_uv_at_min_y - 1e-9);
+    }
+    if (bound.y_at_target >= 0.05) {
+        EXPECT_EQ(bound.delta_uv_at_min_y, 0.0);
+    }
 }
 
 TEST(DesignMixtureBound, DesignJsonChecksTheDesignsConeLight) {
