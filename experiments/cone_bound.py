@@ -68,8 +68,9 @@ def cone_matrix(size, texel_um, cone, lambdas_um, step_um, levels):
     return keys, A
 
 
-def programme(size, texel_um, cone, lambdas_um, step_um, levels, xyz_weights, grid=64):
-    """The linear programme's pieces: objective rows X (3 x vars), inequality and equality rows, bounds."""
+def programme(size, texel_um, cone, lambdas_um, step_um, levels, xyz_weights, grid=64, mirror_at_most_one=False):
+    """The linear programme's pieces: objective rows X (3 x vars), inequality and equality rows, bounds.
+    mirror_at_most_one: S_0(0) <= 1 instead of = 1 (the relaxation the library's semidefinite dual solves)."""
     keys, A = cone_matrix(size, texel_um, cone, lambdas_um, step_um, levels)
     if 2 * keys[-1][0] >= size:
         raise ValueError("the cone reaches order %d of a %d-texel tile; expected below half the tile" % (keys[-1][0], size))
@@ -92,13 +93,19 @@ def programme(size, texel_um, cone, lambdas_um, step_um, levels, xyz_weights, gr
     b_eq = np.zeros(K + 1)
     b_eq[0] = b_eq[1] = 1
     bounds = [(0, None) if (c == 0 or m == 0) else (None, None) for c in range(C) for m in range(K)]
+    if mirror_at_most_one:
+        A_ub = np.vstack([A_ub, A_eq[:1]])
+        A_eq, b_eq = A_eq[1:], b_eq[1:]
+        b_ub = np.concatenate([np.zeros(len(A_ub) - 1), [1.0]])
+        return dict(keys=keys, A=A, X=np.asarray(xyz_weights).reshape(3, -1) @ A, A_ub=A_ub, b_ub=b_ub, A_eq=A_eq,
+                    b_eq=b_eq, bounds=bounds)
     X = np.asarray(xyz_weights).reshape(3, -1) @ A
     return dict(keys=keys, A=A, X=X, A_ub=A_ub, b_ub=np.zeros(len(A_ub)), A_eq=A_eq, b_eq=b_eq, bounds=bounds)
 
 
 def max_y(prog, uv, delta=0.0):
     """The largest Y (incident power) at chromaticity uv (delta 0) or within a 32-gon circumscribing
-    the disk of radius delta about it; 0 when the set holds no such colour."""
+    the disk of radius delta about it; 0 when the set holds no such colour (HiGHS: infeasible)."""
     from scipy.optimize import linprog
     X = prog["X"]
     d = X[0] + 15 * X[1] + 3 * X[2]
@@ -111,7 +118,11 @@ def max_y(prog, uv, delta=0.0):
         poly = np.cos(th)[:, None] * cu + np.sin(th)[:, None] * cv - delta * d
         A_ub, b_ub = np.vstack([A_ub, poly]), np.concatenate([b_ub, np.zeros(32)])
     r = linprog(-X[1], A_ub=A_ub, b_ub=b_ub, A_eq=A_eq, b_eq=b_eq, bounds=prog["bounds"], method="highs")
-    return max(0.0, -r.fun) if r.status == 0 else 0.0
+    if r.status == 2:  # infeasible: no point of the set has this colour
+        return 0.0
+    if r.status != 0:
+        raise RuntimeError("the linear programme did not solve: " + r.message)
+    return max(0.0, -r.fun)
 
 
 def min_delta_uv(prog, uv, min_y=0.05):

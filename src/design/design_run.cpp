@@ -18,6 +18,7 @@
 #include "design/blur_term.h"
 #include "design/colour_bound.h"
 #include "design/mixture_bound.h"
+#include "design/cone_bound.h"
 #include "design/engine.h"
 #include "design/evaluator.h"
 #include "design/grayscale.h"
@@ -422,6 +423,50 @@ nlohmann::json mixture_bound_json(const PreparedDesign& p, const detail::Fractio
                          {"uv", one.uv}}},
         {"design_check", {{"absolute", check(absolute)}, {"normalised", check(normalised)}}}};
     return j;
+}
+
+// The cone bound (cone_bound.h) for a colour view cone about the mirror direction under normal
+// light: the largest Y, in incident power, of any relief on the run's levels at the target
+// chromaticity, the radius about the target within which it proves Y < k_reached_y, and the run's
+// own cone light against it at its own chromaticity, in incident power (where the bound holds for
+// every relief) and as the metrics count it (shares of the reflected propagating power, which the
+// bound does not cover).
+nlohmann::json cone_bound_json(const PreparedDesign& p, const detail::Fractions& exact, const std::vector<double>& totals) {
+    const DesignOptions& o = p.options;
+    const std::size_t W = p.lambdas_um.size();
+    const int K = o.levels;
+    const double step = K > 1 ? p.levels_um[1] - p.levels_um[0] : 0.0;
+    const auto weights = detail::colour_xyz_weights(p.lambdas_um);
+    const auto target_uv = xyz_to_uv(linear_srgb_to_xyz(o.target.linear_rgb));
+    const detail::ConeProgramme prog = detail::cone_programme(o.size, o.texel_um, o.view_cone, p.lambdas_um, step, K);
+    const detail::ConeBound b = detail::cone_bound(prog, weights, target_uv, k_reached_y);
+    auto check = [&](const std::vector<double>& spectrum) {
+        std::array<double, 3> X{0.0, 0.0, 0.0};
+        for (std::size_t c = 0; c < 3; ++c)
+            for (std::size_t w = 0; w < W; ++w) X[c] += weights[c * W + w] * spectrum[w];
+        const auto uv = xyz_to_uv(X);
+        const double bound = detail::cone_bound_y(prog, weights, uv);
+        return nlohmann::json{{"y", X[1]}, {"uv", uv}, {"bound_y_at_its_chromaticity", bound}, {"within", X[1] <= bound}};
+    };
+    std::vector<double> normalised(W), absolute(W);
+    for (std::size_t w = 0; w < W; ++w) {
+        normalised[w] = exact[w][0];
+        absolute[w] = exact[w][0] * totals[w];
+    }
+    return {{"what", "an upper bound on the luminous efficiency Y, in incident power, of the light any relief on these "
+                     "levels sends into the view cone about the mirror direction under normal light, at the target "
+                     "chromaticity (classes of the cone's orders as non-negative cosine polynomials in the level "
+                     "phase step, Parseval at each step; a semidefinite dual, docs/design.md); it does not cover the "
+                     "metrics' division by the reflected propagating power"},
+            {"units", "incident power"},
+            {"levels", K},
+            {"level_step_um", step},
+            {"classes", b.classes},
+            {"y_at_target", b.y_at_target},
+            {"min_y", b.min_y},
+            {"out_of_reach_at_target", b.y_at_target < b.min_y},
+            {"delta_uv_ruled_out", b.delta_uv_ruled_out},
+            {"design_check", {{"absolute", check(absolute)}, {"normalised", check(normalised)}}}};
 }
 
 }  // namespace
@@ -1015,7 +1060,7 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         for (const auto& pair : o.target.pairs) pairs.push_back(optimal_colour_bound_json(p.lambdas_um, pair.linear_rgb));
         j["optimal_colour_bound"] = pairs;
     }
-    std::string mixture_note;
+    std::string mixture_note, cone_note;
     if (o.target.kind == DesignKind::Colour) {
         // The programme grows as 8K rows by K columns and the dense simplex with it (minutes at
         // 256 levels), so it is solved up to k_mixture_bound_max_levels; a failure is a note, never
@@ -1033,6 +1078,16 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
                 }
             }
         }
+        // The cone bound: normal light, the view cone centred on the mirror direction, levels.
+        const bool normal_light = o.omega_i[0] == 0.0 && o.omega_i[1] == 0.0;
+        const bool centred = !o.view || ((*o.view)[0] == 0.0 && (*o.view)[1] == 0.0);
+        if (normal_light && centred && !grayscale && K >= 2 && K <= 64) {
+            try {
+                j["cone_bound"] = cone_bound_json(p, exact_fractions, kirchhoff_totals);
+            } catch (const std::exception& e) {
+                cone_note = std::string("the cone bound was not computed: ") + e.what();
+            }
+        }
         const nlohmann::json& e = j["metrics"]["exact"];
         // Grayscale reliefs (no levels) are not surveyed.
         const bool reached = !survey_views || o.min_feature_um > 0.0 || !e.contains("delta_uv") || !e.contains("luminous_efficiency") ||
@@ -1046,6 +1101,7 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     }
     j["notes"] = p.notes;
     if (!mixture_note.empty()) j["notes"].push_back(mixture_note);
+    if (!cone_note.empty()) j["notes"].push_back(cone_note);
     j["timings_s"] = {{"relaxed", relaxed_seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
                       {"total", seconds_since(start)}};
     r.metrics_json = j.dump(2);

@@ -101,3 +101,76 @@ def test_a_designs_own_cone_light_is_within_the_bound(colour):
     prog = cb.programme(16, 0.5, 0.2, lam, m["level_step_um"], m["levels"], m["xyz_weights"])
     own = m["design_check"]["absolute"]
     assert own["y"] <= cb.max_y(prog, own["uv"]) + 1e-7
+
+
+def _cvxopt_dual(doc, uv, size, texel_um, cone):
+    """The semidefinite dual of design.json's cone bound, solved by cvxopt from the definition."""
+    cvx = pytest.importorskip("cvxopt")
+    from cvxopt import matrix, solvers
+    solvers.options["show_progress"] = False
+    lam = np.asarray(doc["light"]["lambdas_um"])
+    cbj = doc["cone_bound"]
+    K = cbj["levels"]
+    keys, A = cb.cone_matrix(size, texel_um, cone, lam, cbj["level_step_um"], K)
+    C = len(keys)
+    w = np.asarray(doc["mixture_bound"]["xyz_weights"]).reshape(3, -1)
+    X = np.einsum("xw,wcm->xcm", w, A[:, :C * K].reshape(len(lam), C, K))
+
+    def T(v):
+        i, j = np.indices((K, K))
+        d = np.abs(i - j)
+        return np.where(d == 0, v[0], 0.5 * np.asarray(v)[d])
+
+    dd = X[0] + 15 * X[1] + 3 * X[2]
+    G = [4 * X[0] - uv[0] * dd, 9 * X[1] - uv[1] * dd]
+    n = K + 1 + 2 + 2 * (K - 1)
+    ip, ir, ig, ia, ib = 0, K, K + 1, K + 3, 2 * K + 2
+    ones2 = np.full(K, 2.0)
+    ones2[0] = 1
+    Gs, hs = [], []
+    for c in range(C + 1):
+        base, J = np.zeros(K), np.zeros((K, n))
+        J[np.arange(K), ip + np.arange(K)] = 1
+        if c < C:
+            base = -X[1][c]
+            for g in range(2):
+                J[:, ig + g] = G[g][c]
+        if c == 0:
+            J[:, ir] = ones2
+            for m in range(1, K):
+                J[m, ia + m - 1], J[m, ib + m - 1], J[0, ib + m - 1] = -1, 1, -1
+        hs.append(matrix(T(base)))
+        Gs.append(matrix(np.column_stack([-T(J[:, i]).ravel() for i in range(n)])))
+    pos = [ir] + list(range(ia, n))
+    Gl = np.zeros((len(pos), n))
+    Gl[np.arange(len(pos)), pos] = -1
+    cobj = np.zeros(n)
+    cobj[ip] = cobj[ir] = 1
+    r = solvers.sdp(matrix(cobj), Gl=matrix(Gl), hl=matrix(np.zeros(len(pos))), Gs=Gs, hs=hs)
+    assert r["status"] == "optimal"
+    return r["primal objective"]
+
+
+@pytest.mark.parametrize("colour", ["#FF0000", "#00FF00"])
+def test_design_json_cone_bound_holds_for_the_run_and_matches_an_independent_solver(colour):
+    import wavebrdf as wb
+    r = wb.design(target="colour:" + colour, size=16, spectral=8, band_um=(0.4, 0.7), levels=8,
+                  height_range_um=1.5, view_cone=0.2, iterations=20, refine_passes=2, seed=11)
+    doc = r["design"]
+    c = doc["cone_bound"]
+    # the run's own cone light in incident power, from the exact metrics
+    w = np.asarray(doc["mixture_bound"]["xyz_weights"]).reshape(3, -1)
+    X = w @ (np.asarray(doc["metrics"]["exact"]["reflectance"]) * np.asarray(doc["metrics"]["kirchhoff_total"]))
+    own = c["design_check"]["absolute"]
+    assert own["y"] == pytest.approx(X[1], rel=1e-9)
+    assert own["within"] and X[1] <= own["bound_y_at_its_chromaticity"]
+    # the same programme by HiGHS on a grid (a weaker relaxation) and by cvxopt (the exact dual)
+    lam = np.asarray(doc["light"]["lambdas_um"])
+    prog = cb.programme(16, 0.5, 0.2, lam, c["level_step_um"], c["levels"], doc["mixture_bound"]["xyz_weights"], grid=256,
+                        mirror_at_most_one=True)
+    target = doc["metrics"]["exact"]["target_uv"]
+    exact = _cvxopt_dual(doc, target, 16, 0.5, 0.2)
+    assert c["y_at_target"] >= exact - 1e-6          # a bound: never below the optimum
+    assert c["y_at_target"] <= exact + 0.01 + 0.05 * exact  # and near it
+    assert exact <= cb.max_y(prog, target) + 1e-6    # the grid's relaxation is weaker
+    assert c["out_of_reach_at_target"] == (c["y_at_target"] < 0.05)
