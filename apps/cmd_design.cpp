@@ -163,6 +163,21 @@ void run(DesignArgs a) {
                           << three_digits(b["design_check"]["normalised"]["bound_y_at_its_chromaticity"].get<double>())
                           << "): the bound does not cover this relief\n";
         }
+        if (j.contains("cone_bound") && j["cone_bound"]["out_of_reach_at_target"].get<bool>()) {
+            // Out of reach for every relief on these levels in this view, in incident power.
+            const auto& c = j["cone_bound"];
+            std::cerr << "design: " << o.target.text << " is out of reach for this view: no relief on these levels sends "
+                      << "more than Y " << three_digits(c["y_at_target"].get<double>())
+                      << " of the incident light into the view cone at its chromaticity, and none Y >= "
+                      << three_digits(c["min_y"].get<double>()) << " within delta u'v' "
+                      << three_digits(c["delta_uv_ruled_out"].get<double>()) << " of it (design.json cone_bound)\n";
+            const auto& own = c["design_check"]["normalised"];
+            if (!own["within"].get<bool>())
+                std::cerr << "design: this design's scored Y " << three_digits(own["y"].get<double>())
+                          << " exceeds that bound at its own chromaticity (Y "
+                          << three_digits(own["bound_y_at_its_chromaticity"].get<double>())
+                          << " in incident power): the share is lifted by the division by the reflected propagating power\n";
+        }
         if (o.target.kind == DesignKind::Colour && j.contains("optimal_colour_bound")) {
             const auto& e = j["metrics"]["exact"];
             const auto& b = j["optimal_colour_bound"];

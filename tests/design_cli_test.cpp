@@ -88,6 +88,29 @@ TEST(DesignCli, AMissedColourIsReportedWithTheOptimalColourLimit) {
         << r.err;
 }
 
+TEST(DesignCli, AColourTheConeBoundRulesOutIsSaidSoAndSurveyed) {
+    // Red on 16 levels within 2 µm in the mirror cone: the cone bound rules it out in incident
+    // power; the CLI says so with design.json's numbers, and the view survey says which view reaches it.
+    const fs::path dir = fresh_dir("design_cli_cone");
+    const CliResult r = run_cli(dir, "design --out run --target colour:#FF0000 --size 16 --spectral 16 --levels 16 "
+                                     "--height-range-um 2 --iterations 2 --refine-passes 0 --no-plots");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
+    ASSERT_TRUE(j.contains("cone_bound"));
+    const auto& c = j["cone_bound"];
+    ASSERT_TRUE(c["out_of_reach_at_target"].get<bool>());
+    char expected[96];
+    std::snprintf(expected, sizeof expected, "more than Y %.3g of the incident light", c["y_at_target"].get<double>());
+    EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
+    std::snprintf(expected, sizeof expected, "within delta u'v' %.3g of it", c["delta_uv_ruled_out"].get<double>());
+    EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("lifted by the division") != std::string::npos, !c["design_check"]["normalised"]["within"].get<bool>())
+        << r.err;
+    EXPECT_TRUE(c["design_check"]["absolute"]["within"].get<bool>());
+    ASSERT_TRUE(j.contains("view_survey"));
+    EXPECT_NE(r.err.find("design: reachable: from view"), std::string::npos) << r.err;
+}
+
 TEST(DesignCli, BadInputGetsOneLineBeforeAnyWork) {
     const fs::path dir = fresh_dir("design_cli");
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --levels 8 --min-feature-um 1"), {"--min-feature-um", "--levels"});

@@ -1093,7 +1093,9 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         const bool reached = !survey_views || o.min_feature_um > 0.0 || !e.contains("delta_uv") || !e.contains("luminous_efficiency") ||
                              (e["delta_uv"].get<double>() <= k_reached_delta_uv &&
                               e["luminous_efficiency"].get<double>() >= k_reached_y);
-        if (!reached) {
+        // A colour the cone bound rules out for this view is surveyed too: which view reaches it.
+        const bool ruled_out = j.contains("cone_bound") && j["cone_bound"]["out_of_reach_at_target"].get<bool>();
+        if (!reached || (survey_views && o.min_feature_um == 0.0 && ruled_out)) {
             const auto survey_start = Clock::now();
             j["view_survey"] = view_survey(p);
             j["view_survey"]["seconds"] = seconds_since(survey_start);
