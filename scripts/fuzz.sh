@@ -22,7 +22,7 @@ targets=("$@")
 replay_only=()
 [ ${#targets[@]} -gt 0 ] || replay_only=(observations_hdf5_bytes surface_datx)
 [ ${#targets[@]} -gt 0 ] || targets=(exr positions_json observations_json checkpoint observations_hdf5 observations_hdf5_bytes table
-                                     iridescent_spec png_picture surface_x3p surface_sdf surface_plu surface_sur surface_al3d
+                                     iridescent_spec png_picture run_json surface_x3p surface_sdf surface_plu surface_sur surface_al3d
                                      surface_metropro surface_npy surface_text surface_datx)
 
 build="${FUZZ_BUILD:-build-fuzz}"

@@ -147,7 +147,7 @@ TEST(CoarseBasis, RemovesASmoothUndulationWherePlainLbfgsDoesNot) {
         for (int b = 0; b < 16; ++b) {
             Observation o;
             o.query = test::make_query(Model::OHS, (a + 0.5) * step, (b + 0.5) * step, 3.0);
-            o.lambdas_um = {0.5};
+            o.lambdas_um.assign(1, 0.5);
             o.resolution = 32;
             o.reference = to_reference(render_observation(truth, o));
             observations.push_back(std::move(o));

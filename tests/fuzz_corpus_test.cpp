@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -15,6 +17,7 @@
 #include "wavebrdf/design_plate.h"
 #include "wavebrdf/design_run.h"
 #include "wavebrdf/invert.h"
+#include "wavebrdf/inversion_run.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/observation_file.h"
@@ -70,6 +73,32 @@ TEST(FuzzCorpus, EveryObservationsSeedReadsBesideTheFuzzersRefExr) {
         EXPECT_NO_THROW(wavebrdf::read_observations_json((dir / "observations.json").string())) << file;
     }
     fs::remove_all(dir);
+}
+
+std::string file_text(const fs::path& file) {
+    std::ifstream in(file);
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
+}
+
+// As fuzz/run_json_fuzz.cpp checks of every input it accepts: read, written back and read again,
+// the options are the same.
+TEST(FuzzCorpus, EveryRunJsonSeedReadsAndRoundTrips) {
+    const auto files = seeds("run_json");
+    ASSERT_GE(files.size(), 3u);
+    for (const fs::path& file : files) {
+        const wavebrdf::InversionOptions options = wavebrdf::inversion_options_from_json(file_text(file));
+        const std::string written = wavebrdf::inversion_options_to_json(options);
+        EXPECT_EQ(wavebrdf::inversion_options_to_json(wavebrdf::inversion_options_from_json(written)), written)
+            << file;
+    }
+    const wavebrdf::InversionOptions full =
+        wavebrdf::inversion_options_from_json(file_text(k_corpus / "run_json" / "reference_weights.json"));
+    EXPECT_EQ(full.weights_path, "/tmp/w.exr");
+    EXPECT_EQ(full.wavelengths_um.size(), 3u);
+    EXPECT_EQ(full.rows, 16);
+    EXPECT_EQ(full.cols, 24);
 }
 
 // The inversion of fuzz/checkpoint_fuzz.cpp.

@@ -32,7 +32,7 @@ std::vector<Observation> few_slices(const Heightfield& hf, const std::vector<dou
             for (int b = 0; b < 2; ++b) {
                 Observation o;
                 o.query = test::make_query(Model::OHS, 5.0 + 9.0 * a, 6.0 + 8.5 * b, 3.0);
-                o.lambdas_um = {lambda};
+                o.lambdas_um.assign(1, lambda);
                 o.resolution = resolution;
                 o.reference = to_reference(render_observation(hf, o));
                 out.push_back(std::move(o));
@@ -199,7 +199,7 @@ ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
                 Observation o;
                 o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step,
                                            3.0);
-                o.lambdas_um = {lambda};
+                o.lambdas_um.assign(1, lambda);
                 o.resolution = 32;
                 o.reference = to_reference(simulator == Simulator::Scalar
                                                ? scalar_slice(c.truth, o.query, lambda, o.resolution)

@@ -36,7 +36,7 @@ std::vector<Observation> small_observations(const Heightfield& truth, Model mode
                 Observation o;
                 o.query = test::make_query(model, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step, 3.0,
                                            omega_i[0], omega_i[1]);
-                o.lambdas_um = {lambda};
+                o.lambdas_um.assign(1, lambda);
                 o.resolution = resolution;
                 o.reference = to_reference(render_observation(truth, o));
                 observations.push_back(std::move(o));

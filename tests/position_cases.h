@@ -51,7 +51,7 @@ inline OffCase off_case(std::uint64_t seed, double rms_texels, int resolution, i
         for (std::size_t k = 0; k < stated.size(); ++k) {
             Observation o;
             o.query = test::make_query(Model::OHS, stated[k][0] + error[k][0], stated[k][1] + error[k][1], 3.0);
-            o.lambdas_um = {lambda};
+            o.lambdas_um.assign(1, lambda);
             o.resolution = resolution;
             o.reference = to_reference(render_observation(c.truth, o));
             o.query.x_um = stated[k][0];

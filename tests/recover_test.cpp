@@ -438,32 +438,8 @@ TEST(RefinedHeights, MatchesTheBlendWrittenOut) {
     }
 }
 
-// A fresh isotropic surface (correlation 4 texels, heights to ±0.5 µm: 2-4 rad per texel at
-// 0.5 µm) from a flat start, through every stage, to well under 1 % of its range.
-struct SmallCase {
-    Heightfield truth;
-    std::vector<Observation> observations;
-};
-
-SmallCase small_case(std::uint64_t seed) {
-    const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
-    SmallCase c{surface, {}};
-    std::mt19937_64 rng(seed + 100);
-    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
-    const double step = 4.0;  // σ_p = 3 µm: linear overlap 1 − 4/18 = 78 %
-    for (double lambda : {0.5, 0.6})
-        for (int a = 0; a < 6; ++a)
-            for (int b = 0; b < 6; ++b) {
-                Observation o;
-                o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step,
-                                           3.0);
-                o.lambdas_um = {lambda};
-                o.resolution = 64;
-                o.reference = to_reference(render_observation(c.truth, o));
-                c.observations.push_back(std::move(o));
-            }
-    return c;
-}
+using test::SmallCase;
+using test::small_case;
 
 // The refinement keeps one single-precision slice plan per observation across its iterations
 // (set_heights, forward, adjoint, release per evaluation): every cycle gives exactly what a

@@ -13,6 +13,7 @@
 #include "wavebrdf/constants.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/heightfield.h"
+#include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
 
 namespace wavebrdf::test {
@@ -32,6 +33,32 @@ inline Heightfield peak_scaled_surface(int rows, double correlation_um, double p
     std::vector<double> v = raw.values();
     for (double& x : v) x *= peak_um / (peak * p.texel_um);
     return raw.with_values(v);
+}
+
+// A fresh isotropic 12² tile of 2 µm texels (correlation 4 texels, max |H| 0.5 µm: 2-4 rad per
+// texel at 0.5 µm) seen by 6 × 6 footprints of σ_p 3 µm, 4 µm apart (linear overlap 1 − 4/18 =
+// 78 %) with centres jittered by ±0.2 of a step, at 0.5 and 0.6 µm, 64² pixels each.
+struct SmallCase {
+    Heightfield truth;
+    std::vector<Observation> observations;
+};
+
+inline SmallCase small_case(std::uint64_t seed) {
+    SmallCase c{peak_scaled_surface(12, 8.0, 0.5, seed), {}};
+    std::mt19937_64 rng(seed + 100);
+    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
+    const double step = 4.0;
+    for (double lambda : {0.5, 0.6})
+        for (int a = 0; a < 6; ++a)
+            for (int b = 0; b < 6; ++b) {
+                Observation o;
+                o.query = make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step, 3.0);
+                o.lambdas_um = std::vector<double>(1, lambda);  // not = {lambda}: GCC 12's -Wnonnull misfires on it
+                o.resolution = 64;
+                o.reference = to_reference(render_observation(c.truth, o));
+                c.observations.push_back(std::move(o));
+            }
+    return c;
 }
 
 // The zero-slope field e^{−i(4π/λ)H} of the heights at the texel centres.

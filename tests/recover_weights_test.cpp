@@ -32,29 +32,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The 12² tile of 2 µm texels seen by 6 × 6 footprints (σ_p 3 µm) at 0.5 and 0.6 µm, 64² pixels.
-struct Case {
-    Heightfield truth;
-    std::vector<Observation> observations;
-};
-
-Case small_case(std::uint64_t seed) {
-    Case c{test::peak_scaled_surface(12, 8.0, 0.5, seed), {}};
-    std::mt19937_64 rng(seed + 100);
-    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
-    for (double lambda : {0.5, 0.6})
-        for (int a = 0; a < 6; ++a)
-            for (int b = 0; b < 6; ++b) {
-                Observation o;
-                o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * 4.0, (b + 0.5 + jitter(rng)) * 4.0,
-                                           3.0);
-                o.lambdas_um = {lambda};
-                o.resolution = 64;
-                o.reference = to_reference(render_observation(c.truth, o));
-                c.observations.push_back(std::move(o));
-            }
-    return c;
-}
+using Case = test::SmallCase;
+using test::small_case;
 
 // `fraction` of each slice's pixels (chosen at random) set to garbage: bright hot pixels of up
 // to 20 × the slice's largest value, and dead ones at 0. With `mask` they get weight 0 (and one
