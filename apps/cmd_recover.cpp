@@ -68,6 +68,7 @@ struct RecoverArgs {
     double sigma_factor = 1.0;           // --simulate-sigma-factor
     bool save_observations = false, quiet = false, no_plots = false, force = false;
     bool uncertainty = false;  // error bars: uncertainty.exr (uncertainty.h)
+    std::string check_error_bars = "auto";  // --check-error-bars (convergence.h)
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
     bool given_texel = false, given_vscale = false;
     // Whether --correlation-texels was given: when not, a --truth is planned for its measured roughness.
@@ -228,6 +229,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
             "--simulate-* render the observations with acquisition errors; they need --truth "
             "(or the generated default), not --observations");
     options.uncertainty = a.uncertainty;
+    options.check_error_bars = parse_check_error_bars(a.check_error_bars);
 
     // Truth and observations (files read here; planned, simulated and checked by the library).
     std::unique_ptr<Heightfield> truth;
@@ -266,6 +268,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (comm.size() > 1) {
         InputDigest d;
         for (const std::string& text : {a.size, a.method, a.noise, a.simulator, a.loss, a.model, a.lambdas, a.calibrate,
+                                        a.check_error_bars,
                                         a.white_smoothness, a.simulate_exposure})
             d.add(text);
         for (double v : {options.texel_um, options.vscale, options.height_range_um, options.correlation_texels,
@@ -362,13 +365,25 @@ void run(const RecoverArgs& a, const Communicator& comm) {
                      convergence.relative_misfit, k_noiseless_misfit_limit);
     else if (!quiet)
         std::fprintf(stderr,
-                     "convergence: not judged: loss %s states no noise level (relative misfit %.3g; for photon "
+                     "convergence: misfit not judged: loss %s states no noise level (relative misfit %.3g; for photon "
                      "counts use --loss poisson:N)\n",
                      to_string(r.loss).c_str(), convergence.relative_misfit);
     if (!quiet && convergence.predicted_error_relative >= 0.0)
-        std::fprintf(stderr, "convergence: the error bars predict an rms height error of %.3g %% of the height range "
-                             "(target <= %.0f %%)\n",
-                     100.0 * convergence.predicted_error_relative, 100.0 * k_predicted_error_limit);
+        std::fprintf(stderr, "convergence: the error bars%s predict an rms height error of %.3g %% of the height range "
+                             "(target <= %.0f %%)%s\n",
+                     convergence.floor == "none" ? " (the noise estimated from the residuals)" : "",
+                     100.0 * convergence.predicted_error_relative, 100.0 * k_predicted_error_limit,
+                     convergence.floor == "none" && convergence.converged
+                         ? "; a lower bound: without a noise level a wrong basin is not seen, so the run is not judged"
+                         : "");
+    // Where the check needed error bars and has none, the noise limit is not judged.
+    if (!quiet && (convergence.error_bars == "skipped" || convergence.error_bars == "off" ||
+                   convergence.error_bars == "unavailable"))
+        std::fprintf(stderr, "convergence: the %s not judged: %s%s\n",
+                     convergence.judged() ? "noise limit is" : "recovery is", convergence.error_bars_note.c_str(),
+                     convergence.error_bars == "unavailable"
+                         ? ""
+                         : " (--check-error-bars always or --uncertainty computes them)");
     if (!convergence.converged) std::fprintf(stderr, "wavebrdf: warning: %s\n", convergence.warning().c_str());
     if (!quiet && options.calibrate.any()) {
         std::fprintf(stderr, "calibrated %s: sigma_p scale %.4f", to_string(options.calibrate).c_str(),
@@ -525,6 +540,11 @@ void add_recover_command(CLI::App& app) {
     cmd->add_flag("--uncertainty", a->uncertainty,
                   "also compute error bars: uncertainty.exr (sigma of every height, um) from the curvature of the "
                   "loss at the estimate");
+    cmd->add_option("--check-error-bars", a->check_error_bars,
+                    "the convergence check's own error bars, where it needs them (photon counts with the misfit on "
+                    "the floor, or a loss without a noise level): auto (computed when predicted to take at most "
+                    "half the recovery's time), always, or off")
+        ->default_str("auto");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
     add_conditioning_options(cmd, a->conditioning);

@@ -272,6 +272,16 @@ py::dict convergence_dict(const ConvergenceCheck& c) {
     }
     if (c.median_sigma_relative >= 0.0) d["median_sigma_relative"] = c.median_sigma_relative;
     if (c.predicted_error_relative >= 0.0) d["predicted_error_relative"] = c.predicted_error_relative;
+    d["judged"] = c.judged();
+    if (!c.error_bars.empty()) {
+        d["error_bars"] = c.error_bars;
+        if (!c.error_bars_note.empty()) d["error_bars_note"] = c.error_bars_note;
+        if (c.error_bars_predicted_seconds >= 0.0) {
+            d["error_bars_predicted_seconds"] = c.error_bars_predicted_seconds;
+            d["run_seconds"] = c.run_seconds;
+        }
+        if (c.error_bars_seconds >= 0.0) d["error_bars_seconds"] = c.error_bars_seconds;
+    }
     return d;
 }
 
@@ -336,7 +346,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const py::object& field_tile_threshold, const py::object& field_tile_core,
                        const py::object& white_smoothness, const py::object& white_smoothness_iterations,
                        const py::object& position_passes, const py::object& position_uncertainty_um,
-                       bool oblique_lights, const py::object& plan_from_truth) {
+                       bool oblique_lights, const py::object& plan_from_truth,
+                       const std::string& check_error_bars) {
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -407,6 +418,11 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
         bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
     options.uncertainty = with_uncertainty;  // the plan refines to the minimum first (recovery_run.h)
+    try {
+        options.check_error_bars = parse_check_error_bars(check_error_bars);
+    } catch (const std::invalid_argument&) {
+        bad_argument("check_error_bars", "'" + check_error_bars + "'", "'auto', 'always' or 'off'");
+    }
     options.calibrate = calibrate_argument(calibrate);
     options.position_passes = optional_count(position_passes, "position_passes");
     if (!std::isfinite(simulate_position_error_texels) || simulate_position_error_texels < 0.0 ||
@@ -469,10 +485,12 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     // Under MPI only rank 0 shows progress.
     PythonProgress progress("wrap_recover", callback, comm->is_root() ? quiet : py::object(py::bool_(true)), totals);
     Calibration calibration;
+    const double run_start = process_cpu_seconds();
     const Heightfield estimate = run_released(
         progress.callback(), history, result.stopped,
         [&](const auto& on_step) { return run_recovery(*prepared, on_step, *comm, &calibration); }, &progress,
         comm->size() > 1);
+    const double run_seconds = process_cpu_seconds() - run_start;  // CPU: the error bars' cost rule
     py::dict cal = calibration_dict(options.calibrate, calibration);
     cal["truth"] = prepared->true_calibration
                        ? py::object(calibration_dict(CalibrationSettings{}, *prepared->true_calibration))
@@ -538,7 +556,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     if (std::isfinite(result.median_sigma_um)) add_error_bars(convergence, result.median_sigma_um, prepared->range_um);
     if (!result.stopped) {
         py::gil_scoped_release release;
-        judge_noise_limit(convergence, *prepared, estimate, sigma_um ? &*sigma_um : nullptr, *comm);
+        judge_noise_limit(convergence, *prepared, estimate, sigma_um ? &*sigma_um : nullptr, run_seconds, *comm);
     }
     if (!convergence.converged) result.warnings.push_back(convergence.warning());
     result.convergence = convergence_dict(convergence);
@@ -1020,10 +1038,14 @@ the same keys with the true values (else None).
         .def_readonly("convergence", &RecoveryResult::convergence, R"doc(
 dict: whether the recovery converged, judged without the truth (convergence.h; the CLI's
 run.json "convergence"): converged (bool), floor ('poisson': the slices' photon-noise deviance,
-'noiseless': a study's exact slices, 'none': not judged), relative_misfit, reasons (list of
-str), warning (str, '' when converged); with 'poisson' also deviance, expected_deviance,
-deviance_sd, misfit_ratio (deviance / its noise floor); after the model check
-model_misfit_gabor, model_misfit_field, model_selected; with error bars median_sigma_relative.
+'noiseless': a study's exact slices, 'none': the misfit not judged), relative_misfit, reasons
+(list of str), warning (str, '' when converged), judged (bool: a floor or error bars judged the
+run; False: reported only); with 'poisson' also deviance, expected_deviance, deviance_sd,
+misfit_ratio (deviance / its noise floor); after the model check model_misfit_gabor,
+model_misfit_field, model_selected; with error bars median_sigma_relative,
+predicted_error_relative; where the check needed error bars, error_bars ('given', 'computed',
+'skipped', 'off', 'unavailable'), error_bars_note, and the cost rule's error_bars_predicted_seconds,
+run_seconds (CPU) and error_bars_seconds.
 )doc");
 
     const RecoveryOptions ro;
@@ -1040,7 +1062,7 @@ model_misfit_gabor, model_misfit_field, model_selected; with error bars median_s
           "field_tile_core"_a = py::none(), "white_smoothness"_a = py::none(),
           "white_smoothness_iterations"_a = py::none(), "position_passes"_a = py::none(),
           "position_uncertainty_um"_a = py::none(), "oblique_lights"_a = ro.oblique_lights,
-          "plan_from_truth"_a = py::none(), R"doc(
+          "plan_from_truth"_a = py::none(), "check_error_bars"_a = "auto", R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -1117,6 +1139,10 @@ simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a stud
 uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
               uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
               coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
+check_error_bars  the convergence check's own error bars where it needs them (photon counts with
+              the misfit on the floor, or a loss without a noise level): 'auto' (computed when
+              predicted to take at most the recovery's own CPU time), 'always' or 'off' (the
+              CLI's --check-error-bars; result.convergence['error_bars'] says what was done)
 spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
               slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
 field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /

@@ -103,6 +103,68 @@ TEST(RealScansCli, AFitOfThePhotonNoiseIsCalledLikelyInaccurateWithoutTheTruth) 
     EXPECT_LT(predicted, 3.0 * error);
 }
 
+// The check's own error bars turned off: the nm run above is then not warned, and says that its
+// noise limit was not judged (run.json and the log); a mode it does not know is refused.
+TEST(RealScansCli, TheChecksErrorBarsTurnedOffSayTheNoiseLimitIsNotJudged) {
+    const fs::path dir = fresh_dir("realscans");
+    const CliResult off = run_cli(dir, kNoisy + " --height-range-um 0.02 --check-error-bars off --out off");
+    ASSERT_EQ(off.exit_code, 0) << off.err;
+    EXPECT_FALSE(contains(off.err, "likely inaccurate")) << off.err;
+    EXPECT_TRUE(contains(off.err, "convergence: the noise limit is not judged: the check's error bars are off"))
+        << off.err;
+    const nlohmann::json run = run_json(dir / "off");
+    EXPECT_EQ(run["convergence"]["error_bars"], "off");
+    EXPECT_EQ(run["convergence"]["check_error_bars"], "off");
+    EXPECT_TRUE(run["convergence"]["judged"].get<bool>());  // by the photon-noise floor
+    EXPECT_FALSE(run["convergence"].contains("predicted_error_relative")) << run["convergence"].dump();
+
+    const CliResult bad = run_cli(dir, kNoisy + " --check-error-bars sometimes --out bad");
+    EXPECT_NE(bad.exit_code, 0);
+    EXPECT_TRUE(contains(bad.err, "'sometimes'")) << bad.err;
+    EXPECT_FALSE(fs::exists(dir / "bad" / "run.json"));
+}
+
+// The amplitude loss states no noise level, so the misfit is not judged. The error bars, their
+// noise estimated from the residuals, fail a run where even they exceed the target (nm heights
+// under 10 % noise: the truth agrees), but do not pass one: 1 % noise on a 2 µm surface misses
+// the target (the truth) while its bars, the curvature at the minimum it found, predict far
+// less, so that run is reported as not judged.
+TEST(RealScansCli, AnAmplitudeLossRunIsFailedByWideErrorBarsButNotPassedByNarrowOnes) {
+    const fs::path dir = fresh_dir("realscans");
+    const std::string amp = "recover --size 16 --resolution 48 --seed 4 --no-plots --loss amplitude "
+                            "--check-error-bars always";
+    const CliResult wide = run_cli(dir, amp + " --noise gaussian:0.1 --height-range-um 0.02 --out wide");
+    ASSERT_EQ(wide.exit_code, 0) << wide.err;
+    EXPECT_TRUE(contains(wide.err, "wavebrdf: warning: the recovery is likely inaccurate: the misfit is not judged "
+                                   "(the loss states no noise level), but with the noise estimated from the residuals "
+                                   "the error bars predict"))
+        << wide.err;
+    const nlohmann::json w = run_json(dir / "wide");
+    EXPECT_EQ(w["convergence"]["floor"], "none");
+    EXPECT_EQ(w["convergence"]["error_bars"], "computed");
+    EXPECT_TRUE(w["convergence"]["judged"].get<bool>());
+    EXPECT_FALSE(w["convergence"]["converged"].get<bool>());
+    EXPECT_GT(w["convergence"]["predicted_error_relative"].get<double>(), k_predicted_error_limit);
+    const Heightfield wide_truth = read_heightfield_exr((dir / "wide" / "truth.exr").string(), 2.0);
+    EXPECT_GT(height_rel_rmse(read_heightfield_exr((dir / "wide" / "estimate.exr").string(), 2.0), wide_truth), 0.01);
+
+    const CliResult narrow = run_cli(dir, amp + " --noise gaussian:0.01 --out narrow");
+    ASSERT_EQ(narrow.exit_code, 0) << narrow.err;
+    EXPECT_FALSE(contains(narrow.err, "wavebrdf: warning: the recovery")) << narrow.err;
+    EXPECT_TRUE(contains(narrow.err, "a lower bound: without a noise level a wrong basin is not seen, so the run is "
+                                     "not judged"))
+        << narrow.err;
+    const nlohmann::json n = run_json(dir / "narrow");
+    EXPECT_FALSE(n["convergence"]["judged"].get<bool>());
+    const double predicted = n["convergence"]["predicted_error_relative"].get<double>();
+    EXPECT_LT(predicted, k_predicted_error_limit);
+    // Why narrow bars cannot pass it: the truth's error is beyond the target and the bars.
+    const Heightfield truth = read_heightfield_exr((dir / "narrow" / "truth.exr").string(), 2.0);
+    const double error = height_rel_rmse(read_heightfield_exr((dir / "narrow" / "estimate.exr").string(), 2.0), truth);
+    EXPECT_GT(error, 0.01);
+    EXPECT_GT(error, 5.0 * predicted);
+}
+
 // A measured file straight into the recovery: the bullet land (x3p, striated, with unmeasured
 // points elsewhere in the file), a 32² patch conditioned in the same command, planned for its
 // measured roughness, with photon noise. It meets the target or warns.

@@ -15,7 +15,8 @@
 // Without noise (a study's simulated slices, stored as float) the floor is the slices' rounding:
 // the relative amplitude misfit Σ(√I − √R)² / Σ R of a converged estimate is ~10⁻⁸ or less.
 // Other losses (amplitude on measured slices, mse) state no noise level: the misfit is reported
-// but not judged.
+// but not judged; the error bars (below), whose noise variance is estimated from the residuals
+// at the estimate (uncertainty.h), warn where even they exceed the target, but cannot pass it.
 // Observations with per-pixel weights: only the values of weight > 0 count, each term of D,
 // E[D], Σ(√I − √R)² and Σ R times its weight (Var[D]'s times its square), and N counts the
 // photons of those pixels (N / Σ R over them, as the weighted Poisson loss's scale).
@@ -49,6 +50,26 @@ constexpr double k_error_bar_limit = 0.01;
 // real scans, docs/surfaces.md). So a recovery whose misfit passes is also judged by its bars.
 constexpr double k_predicted_error_limit = 0.01;
 
+// The check's own error bars cost a forward pass per texel of every observation's footprint box
+// and a solve on the texels (exact up to 64²: O(texels³)); beside a short run at 64² that was
+// measured at 1.2–2.6× the recovery's own CPU time. So by default (CheckErrorBars::Auto) the
+// check computes them only where their predicted CPU time (predicted_uncertainty_seconds,
+// uncertainty.h) is at most this fraction of the recovery's; elsewhere the noise limit is not
+// judged and the check says so (error_bars "skipped", with both times). CPU time, not wall
+// time: the rule decides the same on a loaded machine. Always: computed whatever they cost;
+// Off: never (error_bars "off"). Error bars the run computes anyway (--uncertainty) always judge.
+constexpr double k_check_error_bars_budget = 1.0;
+enum class CheckErrorBars { Auto, Always, Off };
+std::string to_string(CheckErrorBars mode);
+// "auto", "always" or "off"; std::invalid_argument naming the value otherwise.
+CheckErrorBars parse_check_error_bars(const std::string& text);
+// The rule above: whether bars predicted to take `predicted_seconds` of CPU are computed beside
+// a recovery that took `run_seconds` of CPU (Always: yes; Off: no; Auto: predicted ≤ budget ×
+// run, both finite and ≥ 0; a prediction that is not finite is not affordable).
+bool check_error_bars_affordable(CheckErrorBars mode, double predicted_seconds, double run_seconds);
+// The CPU seconds this process has used (all threads; CLOCK_PROCESS_CPUTIME_ID).
+double process_cpu_seconds();
+
 struct ConvergenceCheck {
     // "poisson" (judged against the photon-noise floor), "noiseless" (judged against the float
     // slices' rounding) or "none" (no noise level known: not judged).
@@ -68,12 +89,36 @@ struct ConvergenceCheck {
     // Error bars, when computed (asked for, or by the check itself: needs_error_bars): √(mean σ²)
     // over the height range, the rms error they predict (else −1).
     double predicted_error_relative = -1.0;
+    // Where the check needed error bars (needs_error_bars), what became of them: "given" (the
+    // run's own, --uncertainty), "computed" (for the check, by the cost rule or Always),
+    // "skipped" (Auto: predicted beyond k_check_error_bars_budget of the run), "off"
+    // (CheckErrorBars::Off) or "unavailable" (the problem has none: error_bars_note says why);
+    // "" where none were needed (the misfit already failed, or noiseless slices).
+    std::string error_bars;
+    std::string error_bars_note;
+    // The CPU seconds the bars were predicted to take and the recovery took (the cost rule's
+    // operands; −1 when the rule was not applied), and what the check's own bars took
+    // ("computed"; else −1). Rank 0's, the same on every rank.
+    double error_bars_predicted_seconds = -1.0, run_seconds = -1.0;
+    double error_bars_seconds = -1.0;
+    // The CPU seconds check_convergence's forwards took (each observation's slice rendered by its
+    // built plan, summed over this rank's observations; rank 0's, the same on every rank): the
+    // cost rule's measure of a forward.
+    double pass_seconds = -1.0;
     bool converged = true;             // no reason below
     std::vector<std::string> reasons;  // why it did not converge (or may miss the target), one clause each
     // "" when converged; else "the recovery did not converge: REASON; …" where the misfit is a
     // reason, "the recovery is likely inaccurate: REASON; …" where only the error bars are.
     bool misfit_failed = false;
     std::string warning() const;
+    // Whether the run was judged: by a noise floor ("poisson", "noiseless"), or, with floor
+    // "none", by error bars that found it wide (a reason). Bars within the target do not pass a
+    // run of floor "none": their noise is the residuals', and at a wrong basin's minimum they
+    // are as narrow as at the truth's (16², gaussian noise, amplitude loss: 0.13 % predicted,
+    // 3.8 % true; 0.35 % predicted, 27 % true), so only the misfit against a known noise level
+    // can show a wrong basin. Such a run is reported, not judged: `converged` only means no
+    // reason was found.
+    bool judged() const { return floor != "none" || !converged; }
 };
 
 // The misfit part of the check: the estimate's slices for `observations` (this rank's share
@@ -93,8 +138,10 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
 void add_model_check(ConvergenceCheck& check, double misfit_gabor, double misfit_field, const std::string& selected);
 void add_error_bars(ConvergenceCheck& check, double median_sigma_um, double height_range_um);
 
-// Whether the check is left to the error bars: photon counts (floor "poisson") and a misfit
-// that passed, so it cannot tell an accurate estimate from one that fits the noise.
+// Whether the check is left to the error bars: a misfit that passed on photon counts (floor
+// "poisson": it cannot tell an accurate estimate from one that fits the noise), or a loss that
+// states no noise level (floor "none": the misfit is not judged at all; the bars, their noise
+// estimated from the residuals, can only fail such a run: ConvergenceCheck::judged).
 bool needs_error_bars(const ConvergenceCheck& check);
 // The noise limit (k_predicted_error_limit above): the error bars' σ (µm, one per texel, ≥ 0)
 // over the height range (µm, > 0; else nothing is added). A reason when √(mean σ²) exceeds the

@@ -132,6 +132,9 @@ struct RecoveryOptions {
     // Error bars (uncertainty.h): run_recovery_in_directory also writes uncertainty.exr (σ of
     // every height, µm) and the summary, at the cost of a few refinements (docs/recovery.md).
     bool uncertainty = false;
+    // Whether the convergence check computes error bars of its own where it needs them
+    // (convergence.h: auto, by the cost rule; always; off).
+    CheckErrorBars check_error_bars = CheckErrorBars::Auto;
     // How prepare_recovery's messages name the options (the front end's spelling).
     OptionStyle names = OptionStyle::Cli;
 };
@@ -179,6 +182,7 @@ struct PreparedRecovery {
     // rank's share; calibration.h's meaning), what a calibrated recovery should find.
     std::optional<Calibration> true_calibration;
     bool uncertainty = false;  // options.uncertainty
+    CheckErrorBars check_error_bars = CheckErrorBars::Auto;  // options.check_error_bars
 };
 
 // Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from
@@ -245,13 +249,21 @@ Heightfield run_recovery(const PreparedRecovery& prepared, const std::function<b
 // Collective over `comm` (the run's communicator).
 std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& prepared, const Heightfield& estimate,
                                                      const Communicator& comm = serial_communicator(),
-                                                     std::string* why_not = nullptr);
+                                                     std::string* why_not = nullptr,
+                                                     const UncertaintySettings& settings = {});
 
 // The convergence check's noise limit (convergence.h, add_predicted_error) for a run's estimate:
 // with `sigma_um` (error bars the run computed) as given; else, where the check needs them
-// (needs_error_bars: photon counts and a misfit on the floor), the bars computed here for the
-// check alone (recovery_error_bars; a problem without bars adds nothing). Collective.
+// (needs_error_bars: a misfit on the photon-noise floor, or a loss without a noise level), the
+// bars computed here for the check alone (recovery_error_bars) when prepared.check_error_bars
+// and the cost rule allow (check_error_bars_affordable: predicted_uncertainty_seconds from the
+// check's pass_seconds against `run_seconds`, the recovery's CPU time; rank 0's prediction,
+// the same decision on every rank). The check needs only √(mean σ²), which the probed diagonal
+// estimates as well as the exact one (64²: 2.3653 % against 2.3645 %), so its bars take
+// whichever of the dense and the probed solve is predicted cheaper. check.error_bars and its
+// note say what was done. Collective.
 void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& prepared, const Heightfield& estimate,
-                       const std::vector<double>* sigma_um, const Communicator& comm = serial_communicator());
+                       const std::vector<double>* sigma_um, double run_seconds,
+                       const Communicator& comm = serial_communicator());
 
 }  // namespace wavebrdf

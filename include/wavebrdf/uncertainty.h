@@ -149,6 +149,29 @@ HeightUncertainty height_uncertainty(const std::vector<Observation>& observation
                                      const Loss& loss, const UncertaintySettings& settings = {},
                                      const Communicator& comm = serial_communicator());
 
+// Multiply-adds per CPU second that predicted_uncertainty_seconds assumes for the band's
+// products and the solve (this code's loops: the dense 64² solve ran at about this rate).
+constexpr double k_uncertainty_madds_per_second = 1e9;
+// A forward difference of the band (heights set on a built plan, one texel changed) took about
+// half the CPU time of check_convergence's timed forward (measured at 16²: 18 064 forwards).
+constexpr double k_uncertainty_forward_fraction = 0.5;
+// Jᵀ W J's products are vectorised dot products over the slice values: this many times faster.
+constexpr double k_uncertainty_vector_speedup = 4.0;
+
+// The predicted CPU seconds (all threads) of height_uncertainty(observations, estimate, loss,
+// settings) for this rank's share, from `pass_seconds`, the CPU time one forward of every
+// observation of the share took (its slice rendered by its built plan, as check_convergence
+// times it).
+// The band: a forward per
+// texel the slice depends on (a disk of the footprint's 3σ_p reach and one texel beyond) at
+// k_uncertainty_forward_fraction of that pass's rate, and Jᵀ W J's products (texels² / 2 per slice value, vectorised); the solve: n³/3
+// multiply-adds (dense, up to settings.dense_max_texels) or probes × cg_iterations × n × band
+// width (probed, every probe running out its iterations), at k_uncertainty_madds_per_second. An estimate for deciding whether the bars
+// are worth their time (convergence.h, CheckErrorBars), not a measurement. Throws
+// std::domain_error for a pass_seconds that is negative or not finite.
+double predicted_uncertainty_seconds(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                     double pass_seconds, const UncertaintySettings& settings = {});
+
 // The fraction (0 … 1) of texels whose error, (estimate − its mean) − (truth − its mean) in µm,
 // lies within ±k·σ (sigma_um: rows·cols values ≥ 0; k > 0). Throws std::invalid_argument on
 // a size mismatch, std::domain_error for k ≤ 0.

@@ -310,7 +310,7 @@ class Heightfield:
     def save_exr(self, path: Union[str, os.PathLike], made_by: str = ...) -> None:
         """Writes the values (texel units) as a single-channel float EXR (atomically), with the
         attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,
-        "Files"), so that from_exr reads the same scale back.
+        "Files"), so that from_exr reads the same scale back. ValueError for a path not ending in .exr.
         """
         ...
     def save(self, path: Union[str, os.PathLike], made_by: str = ...) -> None:
@@ -320,7 +320,7 @@ class Heightfield:
         """
         ...
     def save_png(self, path: Union[str, os.PathLike]) -> None:
-        """Writes a grey PNG preview, min black, max white."""
+        """Writes a grey PNG preview, min black, max white. ValueError for a path not ending in .png."""
         ...
     def copy(self) -> Heightfield:
         ...
@@ -632,10 +632,14 @@ class RecoveryResult:
     def convergence(self) -> dict:
         """dict: whether the recovery converged, judged without the truth (convergence.h; the CLI's
         run.json "convergence"): converged (bool), floor ('poisson': the slices' photon-noise deviance,
-        'noiseless': a study's exact slices, 'none': not judged), relative_misfit, reasons (list of
-        str), warning (str, '' when converged); with 'poisson' also deviance, expected_deviance,
-        deviance_sd, misfit_ratio (deviance / its noise floor); after the model check
-        model_misfit_gabor, model_misfit_field, model_selected; with error bars median_sigma_relative.
+        'noiseless': a study's exact slices, 'none': the misfit not judged), relative_misfit, reasons
+        (list of str), warning (str, '' when converged), judged (bool: a floor or error bars judged the
+        run; False: reported only); with 'poisson' also deviance, expected_deviance, deviance_sd,
+        misfit_ratio (deviance / its noise floor); after the model check model_misfit_gabor,
+        model_misfit_field, model_selected; with error bars median_sigma_relative,
+        predicted_error_relative; where the check needed error bars, error_bars ('given', 'computed',
+        'skipped', 'off', 'unavailable'), error_bars_note, and the cost rule's error_bars_predicted_seconds,
+        run_seconds (CPU) and error_bars_seconds.
         """
         ...
 
@@ -926,7 +930,7 @@ def read_slice(path: Union[str, os.PathLike]) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ..., oblique_lights: bool = ..., plan_from_truth: Any = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ..., oblique_lights: bool = ..., plan_from_truth: Any = ..., check_error_bars: str = ...) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -1003,6 +1007,10 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
                   uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
                   coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
+    check_error_bars  the convergence check's own error bars where it needs them (photon counts with
+                  the misfit on the floor, or a loss without a noise level): 'auto' (computed when
+                  predicted to take at most the recovery's own CPU time), 'always' or 'off' (the
+                  CLI's --check-error-bars; result.convergence['error_bars'] says what was done)
     spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
                   slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
     field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /

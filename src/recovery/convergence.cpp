@@ -1,6 +1,7 @@
 #include "wavebrdf/convergence.h"
 
 #include <algorithm>
+#include <ctime>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -27,7 +28,19 @@ double deviance_term(double k, double mu) {
     return 2.0 * (k * std::log1p((k - mu) / mu) - (k - mu));
 }
 
+double thread_cpu_seconds() {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
 }  // namespace
+
+double process_cpu_seconds() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
 
 void poisson_deviance_moments(double mu, double& mean, double& variance) {
     if (!(std::isfinite(mu) && mu >= 0.0))
@@ -79,6 +92,7 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
     // deviance, its expectation and variance, Σ(√I − √R)², Σ R.
     std::vector<double> dev(n, 0.0), mean(n, 0.0), var(n, 0.0), amp(n, 0.0), energy(n, 0.0);
     std::vector<std::string> errors(n);
+    std::vector<double> forward_seconds(n, 0.0);  // each observation's slice plan built and rendered
 #pragma omp parallel for schedule(dynamic, 1)
     for (std::size_t i = 0; i < n; ++i) {
         try {
@@ -87,7 +101,11 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
                                    detail::calibrated_query(o, sigma_scale,
                                                             positions ? &calibration->position_offsets_um[i] : nullptr),
                                    o.lambdas_um, o.resolution, o.channels());
+            plan.forward();
+            // Timed again once built, as the error bars' forward differences run it (the cost rule).
+            const double forward_start = thread_cpu_seconds();
             std::vector<double> model = plan.forward();
+            forward_seconds[i] = thread_cpu_seconds() - forward_start;
             if (model.size() != o.reference.size())
                 throw std::invalid_argument("observation " + std::to_string(i) + " has " +
                                             std::to_string(o.reference.size()) + " reference values; expected " +
@@ -125,8 +143,13 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
             errors[i] = e.what();
         }
     }
+    // The forwards' CPU time (the deviance's exact moments excluded: the error bars' cost rule
+    // needs a forward's cost); rank 0's, the same on every rank.
+    double pass_seconds = 0.0;
+    for (const double t : forward_seconds) pass_seconds += t;
     for (const std::string& e : errors)
         if (!e.empty()) throw std::invalid_argument("check_convergence: " + e);
+    comm.broadcast(&pass_seconds, 1);
     std::vector<double> sums(5, 0.0);
     for (std::size_t i = 0; i < n; ++i) {
         sums[0] += dev[i];
@@ -137,6 +160,7 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
     }
     comm.allreduce_sum(sums);
     ConvergenceCheck check;
+    check.pass_seconds = pass_seconds;
     check.relative_misfit = sums[4] > 0.0 ? sums[3] / sums[4] : 0.0;
     if (poisson && sums[1] > 0.0) {
         check.floor = "poisson";
@@ -183,7 +207,28 @@ void add_error_bars(ConvergenceCheck& check, double median_sigma_um, double heig
     }
 }
 
-bool needs_error_bars(const ConvergenceCheck& check) { return check.floor == "poisson" && check.converged; }
+bool needs_error_bars(const ConvergenceCheck& check) {
+    return (check.floor == "poisson" || check.floor == "none") && check.converged;
+}
+
+std::string to_string(CheckErrorBars mode) {
+    return mode == CheckErrorBars::Always ? "always" : mode == CheckErrorBars::Off ? "off" : "auto";
+}
+
+CheckErrorBars parse_check_error_bars(const std::string& text) {
+    if (text == "auto") return CheckErrorBars::Auto;
+    if (text == "always") return CheckErrorBars::Always;
+    if (text == "off") return CheckErrorBars::Off;
+    throw std::invalid_argument("check error bars '" + text + "' is invalid; expected auto, always or off");
+}
+
+bool check_error_bars_affordable(CheckErrorBars mode, double predicted_seconds, double run_seconds) {
+    if (mode == CheckErrorBars::Always) return true;
+    if (mode == CheckErrorBars::Off) return false;
+    if (!(std::isfinite(predicted_seconds) && predicted_seconds >= 0.0)) return false;
+    if (!(std::isfinite(run_seconds) && run_seconds >= 0.0)) return false;
+    return predicted_seconds <= k_check_error_bars_budget * run_seconds;
+}
 
 void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sigma_um, double height_range_um) {
     if (sigma_um.empty() || !(height_range_um > 0.0)) return;
@@ -195,11 +240,24 @@ void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sig
                                 2.0 * check.median_sigma_relative > k_error_bar_limit;
     check.converged = false;
     if (wide_bars_said) return;
+    const std::string predicted = "the error bars predict an rms height error of " +
+                                  fixed("%.3g", 100.0 * check.predicted_error_relative) +
+                                  " % of the height range (target " + fixed("%.0f", 100.0 * k_predicted_error_limit) +
+                                  " %)";
+    if (check.floor == "none") {
+        // No noise level stated: the bars' noise is the residuals' variance, so they are wide
+        // both where the slices carry too little information and where the estimate leaves them
+        // unexplained; either way the heights are not known to the target.
+        check.reasons.push_back("the misfit is not judged (the loss states no noise level), but with the noise "
+                                "estimated from the residuals " +
+                                predicted +
+                                ": the slices' noise, or what the estimate leaves unexplained, is too large for "
+                                "the heights");
+        return;
+    }
     check.reasons.push_back(std::string(check.misfit_failed ? "" : "the misfit is on the photon-noise floor, but ") +
-                            "the error bars predict an rms height error of " +
-                            fixed("%.3g", 100.0 * check.predicted_error_relative) +
-                            " % of the height range (target " + fixed("%.0f", 100.0 * k_predicted_error_limit) +
-                            " %): the slices do not determine the heights that well at this photon count "
+                            predicted +
+                            ": the slices do not determine the heights that well at this photon count "
                             "(more photons, slices or wavelengths would)");
 }
 

@@ -140,6 +140,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     };
     // A failure midway keeps the metrics of the steps that finished.
     Calibration calibration;
+    const double run_start = process_cpu_seconds();
     const Heightfield estimate = [&] {
         try {
             return run_recovery(r, record, comm, &calibration);
@@ -158,6 +159,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
             throw std::runtime_error(std::string(e.what()) + more);
         }
     }();
+    const double run_seconds = process_cpu_seconds() - run_start;  // CPU: the error bars' cost rule
 
     // calibration.json: what was refined and found (with simulated errors, the truth and the
     // errors of the estimate), every rank's observations gathered on rank 0.
@@ -192,7 +194,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     });
     add_model_check(convergence, misfit_gabor, misfit_field, selected);
     if (bars) add_error_bars(convergence, bars->median_sigma_um, r.range_um);
-    judge_noise_limit(convergence, r, estimate, bars ? &bars->map.sigma_um : nullptr, comm);
+    judge_noise_limit(convergence, r, estimate, bars ? &bars->map.sigma_um : nullptr, run_seconds, comm);
     if (out.convergence) *out.convergence = convergence;
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());
@@ -255,6 +257,18 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         run["convergence"]["median_sigma_relative"] = convergence.median_sigma_relative;
     if (convergence.predicted_error_relative >= 0.0)
         run["convergence"]["predicted_error_relative"] = convergence.predicted_error_relative;
+    run["convergence"]["judged"] = convergence.judged();
+    run["convergence"]["check_error_bars"] = to_string(r.check_error_bars);
+    if (!convergence.error_bars.empty()) {
+        run["convergence"]["error_bars"] = convergence.error_bars;
+        if (!convergence.error_bars_note.empty()) run["convergence"]["error_bars_note"] = convergence.error_bars_note;
+        if (convergence.error_bars_predicted_seconds >= 0.0) {
+            run["convergence"]["error_bars_predicted_seconds"] = convergence.error_bars_predicted_seconds;
+            run["convergence"]["run_seconds"] = convergence.run_seconds;
+        }
+        if (convergence.error_bars_seconds >= 0.0)
+            run["convergence"]["error_bars_seconds"] = convergence.error_bars_seconds;
+    }
     if (!convergence.converged) run["warnings"].push_back(convergence.warning());
     // The estimate's spectrum against the truth's (surface_stats.h): psd.csv and its summary.
     if (r.truth && r.metric_note.empty()) {

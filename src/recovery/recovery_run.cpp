@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "wavebrdf/constants.h"
@@ -504,6 +505,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.white_smoothness_iterations >= 0)
         r.pipeline.white_smoothness_iterations = options.white_smoothness_iterations;
     r.uncertainty = options.uncertainty;
+    r.check_error_bars = options.check_error_bars;
     r.pipeline.error_bars = options.uncertainty;
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
@@ -539,12 +541,13 @@ Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(con
 }
 
 std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& r, const Heightfield& estimate,
-                                                     const Communicator& comm, std::string* why_not) {
+                                                     const Communicator& comm, std::string* why_not,
+                                                     const UncertaintySettings& settings) {
     const auto start = std::chrono::steady_clock::now();
     std::string why;
     HeightUncertainty map = run_or_abort(comm, [&] {
         try {
-            return height_uncertainty(r.observations, estimate, r.loss, {}, comm);
+            return height_uncertainty(r.observations, estimate, r.loss, settings, comm);
         } catch (const std::domain_error& e) {
             why = e.what();
         } catch (const std::invalid_argument& e) {
@@ -560,14 +563,57 @@ std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& r, 
 }
 
 void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const Heightfield& estimate,
-                       const std::vector<double>* sigma_um, const Communicator& comm) {
+                       const std::vector<double>* sigma_um, double run_seconds, const Communicator& comm) {
     if (sigma_um) {
+        check.error_bars = "given";
         add_predicted_error(check, *sigma_um, r.range_um);
         return;
     }
     if (!needs_error_bars(check)) return;
-    std::optional<UncertaintyReport> bars = recovery_error_bars(r, estimate, comm, nullptr);
-    if (bars) add_predicted_error(check, bars->map.sigma_um, r.range_um);
+    if (r.check_error_bars == CheckErrorBars::Off) {
+        check.error_bars = "off";
+        check.error_bars_note = "the check's error bars are off";
+        return;
+    }
+    // The cheaper solve (rank 0's prediction and time: one decision on every rank).
+    UncertaintySettings settings;
+    const double pass = std::max(check.pass_seconds, 0.0);
+    double predicted = predicted_uncertainty_seconds(r.observations, estimate, pass, settings);
+    UncertaintySettings probed = settings;
+    probed.dense_max_texels = 0;
+    double predicted_probed = predicted_uncertainty_seconds(r.observations, estimate, pass, probed);
+    comm.broadcast(&predicted, 1);
+    comm.broadcast(&predicted_probed, 1);
+    if (predicted_probed < predicted) {
+        settings = probed;
+        predicted = predicted_probed;
+    }
+    double seconds = run_seconds;
+    comm.broadcast(&seconds, 1);
+    check.error_bars_predicted_seconds = predicted;
+    check.run_seconds = seconds;
+    if (!check_error_bars_affordable(r.check_error_bars, predicted, seconds)) {
+        check.error_bars = "skipped";
+        char note[256];
+        std::snprintf(note, sizeof note,
+                      "the error bars would take about %.3g CPU s, more than %.3g x the recovery's %.3g CPU s",
+                      predicted, k_check_error_bars_budget, seconds);
+        check.error_bars_note = note;
+        return;
+    }
+    std::string why_not;
+    const double cpu_before = process_cpu_seconds();
+    std::optional<UncertaintyReport> bars = recovery_error_bars(r, estimate, comm, &why_not, settings);
+    double bars_cpu = process_cpu_seconds() - cpu_before;
+    comm.broadcast(&bars_cpu, 1);
+    if (!bars) {
+        check.error_bars = "unavailable";
+        check.error_bars_note = "no error bars: " + why_not;
+        return;
+    }
+    check.error_bars = "computed";
+    check.error_bars_seconds = bars_cpu;
+    add_predicted_error(check, bars->map.sigma_um, r.range_um);
 }
 
 }  // namespace wavebrdf

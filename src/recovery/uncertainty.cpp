@@ -11,6 +11,7 @@
 #include "core/parallel.h"
 #include "core/random.h"
 #include "recovery/observation_loss.h"
+#include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/slice_plan.h"
@@ -638,6 +639,41 @@ double error_coverage(const Heightfield& estimate, const Heightfield& truth, con
             if (std::abs(e) <= k * sigma_um[std::size_t(i) * cols + j]) inside += 1.0;
         }
     return inside / n;
+}
+
+double predicted_uncertainty_seconds(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                     double pass_seconds, const UncertaintySettings& settings) {
+    if (!(std::isfinite(pass_seconds) && pass_seconds >= 0.0))
+        throw std::domain_error("predicted uncertainty seconds: pass seconds " + std::to_string(pass_seconds) +
+                                " is invalid; expected a finite value >= 0");
+    const int rows = estimate.rows(), cols = estimate.cols();
+    const double n = double(rows) * double(cols), texel = estimate.texel_um();
+    const double per_forward = observations.empty() ? 0.0 : pass_seconds / double(observations.size());
+    const double rate = k_uncertainty_madds_per_second;
+    double forwards = 0.0, products = 0.0;
+    int extent_rows = 1, extent_cols = 1;
+    for (const Observation& o : observations) {
+        // The texels the slice depends on: the kernels within 3σ_p and their neighbours, a disk
+        // of radius 3σ_p + 1 texel (SlicePlan::gradient_box's box holds them).
+        const double reach = 3.0 * o.query.sigma_p_um / texel;
+        const int er = std::min(rows, 2 * int(std::ceil(reach)) + 3), ec = std::min(cols, 2 * int(std::ceil(reach)) + 3);
+        extent_rows = std::max(extent_rows, er);
+        extent_cols = std::max(extent_cols, ec);
+        const double touched = std::min(double(er) * double(ec), k_pi * (reach + 1.0) * (reach + 1.0));
+        forwards += touched + 2.0;
+        products += 0.5 * touched * touched * double(o.resolution) * double(o.resolution) * double(o.channels());
+    }
+    double solve = 0.0;
+    if (n <= double(settings.dense_max_texels)) {
+        solve = n * n * n / 3.0;
+    } else {
+        const double width = double(2 * extent_rows - 1 >= rows ? rows : 2 * extent_rows - 1) *
+                             double(2 * extent_cols - 1 >= cols ? cols : 2 * extent_cols - 1);
+        const double probes = double(std::min(settings.probe_spacing, rows)) *
+                              double(std::min(settings.probe_spacing, cols)) * double(settings.rounds);
+        solve = probes * double(settings.cg_iterations) * n * width;
+    }
+    return k_uncertainty_forward_fraction * forwards * per_forward + products / (k_uncertainty_vector_speedup * rate) + solve / rate;
 }
 
 double median_sigma_um(const std::vector<double>& sigma_um) {

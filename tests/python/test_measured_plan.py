@@ -134,7 +134,24 @@ def test_a_converged_study_says_so():
     assert not any("did not converge" in w for w in r.warnings)
 
 
+def test_the_checks_error_bars_follow_check_error_bars():
+    # Photon counts on nm heights: the misfit on the floor, the bars (default: by the cost rule;
+    # 'always' here, the rule being timing-dependent) warn; 'off' leaves the noise limit unjudged.
+    kw = dict(size=16, resolution=48, noise="poisson:1e4", seed=4, height_range_um=0.02, quiet=True)
+    on = wb.recover(check_error_bars="always", **kw)
+    assert on.convergence["error_bars"] == "computed"
+    assert on.convergence["predicted_error_relative"] > 0.01
+    assert on.convergence["error_bars_seconds"] > 0 and on.convergence["run_seconds"] > 0
+    assert any("likely inaccurate" in w for w in on.warnings)
+    off = wb.recover(check_error_bars="off", **kw)
+    assert off.convergence["error_bars"] == "off" and off.convergence["judged"] is True
+    assert "predicted_error_relative" not in off.convergence
+    assert not any("likely inaccurate" in w for w in off.warnings)
+    assert off.convergence["misfit_ratio"] == pytest.approx(on.convergence["misfit_ratio"], rel=1e-12)
+
+
 @pytest.mark.parametrize("kwargs, needles", [
+    (dict(check_error_bars="sometimes"), ["check_error_bars", "'sometimes'"]),
     (dict(plan_from_truth=True), ["plan_from_truth", "truth"]),
     (dict(truth=np.eye(4), plan_from_truth=True, correlation_texels=3), ["plan_from_truth", "correlation_texels"]),
     (dict(truth=np.eye(4), plan_from_truth="yes"), ["plan_from_truth", "'yes'"]),
