@@ -23,8 +23,9 @@ report_phases() {
 }
 trap 'report_phases' EXIT
 
-phase "layering (scripts/check_layers.py)"
+phase "layering and function length (scripts/check_layers.py, check_function_length.py)"
 /usr/bin/python3 scripts/check_layers.py  # src/ includes run down the stages only
+/usr/bin/python3 scripts/check_function_length.py  # no function in src/ over 200 lines
 phase "setup and Release build"
 bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
 phase "Release tests (ctest)"

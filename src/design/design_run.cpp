@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <random>
@@ -771,30 +773,26 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
 }
 
 namespace {
-DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step,
-                             bool survey_views) {
+
+// The relaxed phase's outcome: each texel's level (quantised), the target's fractions where the
+// relaxation ended, and its time.
+struct RelaxedLevels {
+    std::vector<int> level;
+    Fractions fractions;
+    double seconds = 0.0;
+};
+
+// Relaxed phase: softmax over the levels per texel, p = softmax(θ / τ), τ annealed from
+// k_tau_start to k_tau_end, Adam on θ; then each texel's most likely level. A grayscale run
+// relaxes the heights instead (grayscale_design).
+RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluator,
+                             const std::function<void(const DesignStep&)>& report, const bool& stopped) {
     const DesignOptions& o = p.options;
-    const auto start = Clock::now();
     const int K = o.levels, N = o.size;
     const std::size_t n2 = static_cast<std::size_t>(N) * static_cast<std::size_t>(N);
     const bool grayscale = o.min_feature_um != 0.0;  // the relaxed phase is grayscale_design's
     const std::size_t total = grayscale ? 0 : n2 * static_cast<std::size_t>(K);
-    std::vector<double> scales{1.0};
-    if (o.errors.scale > 0.0) scales = {1.0 - o.errors.scale, 1.0, 1.0 + o.errors.scale};
-    detail::Evaluator evaluator(p, scales);
-    DesignResult r;
-    r.size = N;
-    r.texel_um = o.texel_um;
-    r.levels_um = p.levels_um;
-    r.lambdas_um = p.lambdas_um;
-    bool stopped = false;
-    auto report = [&](const DesignStep& s) {
-        r.curve.push_back(s);
-        if (on_step && !on_step(s)) stopped = true;
-    };
-
-    // Relaxed phase: softmax over the levels per texel, p = softmax(θ / τ), τ annealed from
-    // k_tau_start to k_tau_end, Adam on θ.
+    RelaxedLevels out;
     std::mt19937_64 rng(detail::derive_seed(o.seed, 0xde5190));
     std::vector<double> theta(total);
     detail::fill_standard_normal(theta.data(), theta.size(), rng);
@@ -824,13 +822,12 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
             for (int l = 0; l < K; ++l) weights[static_cast<std::size_t>(l) * n2 + t] /= s;
         }
     };
-    Fractions relaxed_fractions;
     const auto relaxed_start = Clock::now();
     for (int it = 0; !grayscale && it < o.iterations && !stopped; ++it) {
         const double frac = o.iterations > 1 ? static_cast<double>(it) / (o.iterations - 1) : 1.0;
         const double tau = k_tau_start * std::pow(k_tau_end / k_tau_start, frac);
         softmax(tau);
-        const double loss = evaluator.evaluate(weights, &grad, &relaxed_fractions);
+        const double loss = evaluator.evaluate(weights, &grad, &out.fractions);
         // Through the softmax: ∂L/∂θ_ℓ = p_ℓ (g_ℓ − Σ_j p_j g_j) / τ; then Adam.
         const double c1 = 1.0 - std::pow(k_b1, it + 1), c2 = 1.0 - std::pow(k_b2, it + 1);
         for (std::size_t t = 0; t < n2; ++t) {
@@ -846,42 +843,70 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         }
         report({"relaxed", it, loss, tau});
     }
-    std::vector<int> grey_level;
-    if (grayscale) grey_level = detail::grayscale_design(p, evaluator, report, stopped, relaxed_fractions);
-    const double relaxed_seconds = seconds_since(relaxed_start);
-
-    // Quantise: each texel's most likely level; then discrete passes that switch the texels the
-    // gradient predicts to gain most, kept only when the exact loss falls.
-    std::vector<int> level(n2);
-    if (grayscale) level = std::move(grey_level);
-    for (std::size_t t = 0; !grayscale && t < n2; ++t) {
+    if (grayscale) {
+        out.level = detail::grayscale_design(p, evaluator, report, stopped, out.fractions);
+        out.seconds = seconds_since(relaxed_start);
+        return out;
+    }
+    out.seconds = seconds_since(relaxed_start);
+    // Quantise: each texel's most likely level.
+    out.level.resize(n2);
+    for (std::size_t t = 0; t < n2; ++t) {
         int best = 0;
         for (int l = 1; l < K; ++l)
             if (theta[static_cast<std::size_t>(l) * n2 + t] > theta[static_cast<std::size_t>(best) * n2 + t]) best = l;
-        level[t] = best;
+        out.level[t] = best;
     }
-    const auto refine_start = Clock::now();
-    // Blur in the loop: the discrete refinement minimises the mean loss over the error samples,
-    // the height scales and the blurred relief (blur_term.h); the relaxed phase's level
-    // mixtures have no heights to blur.
-    std::unique_ptr<detail::BlurTerm> blur_term;
-    if (o.errors.blur_um > 0.0 && !grayscale) blur_term = std::make_unique<detail::BlurTerm>(p, o.errors.blur_um / o.texel_um);
-    const double blur_weight = 1.0 / (static_cast<double>(scales.size()) + 1.0);
-    auto refine_loss = [&](const std::vector<int>& lv, std::vector<double>* g) {
-        const double nominal = evaluator.evaluate(one_hot(lv, K), g);
-        if (!blur_term) return nominal;
+    return out;
+}
+
+// The discrete refinement's loss of a relief on the levels: the loop's model (mean over the
+// height scales) and, with a blur error, the blurred relief (blur_term.h) as one more sample;
+// the relaxed phase's level mixtures have no heights to blur.
+class RefineLoss {
+public:
+    RefineLoss(const PreparedDesign& p, detail::Evaluator& evaluator, std::size_t scale_samples)
+        : m_p(p), m_evaluator(evaluator), m_blur_weight(1.0 / (static_cast<double>(scale_samples) + 1.0)) {
+        const DesignOptions& o = p.options;
+        if (o.errors.blur_um > 0.0 && o.min_feature_um == 0.0)
+            m_blur = std::make_unique<detail::BlurTerm>(p, o.errors.blur_um / o.texel_um);
+    }
+
+    double operator()(const std::vector<int>& lv, std::vector<double>* g) {
+        const int K = m_p.options.levels;
+        const std::size_t n2 = lv.size();
+        const double nominal = m_evaluator.evaluate(one_hot(lv, K), g);
+        if (!m_blur) return nominal;
         std::vector<double> gh;
-        const double blurred = blur_term->evaluate(lv, g ? &gh : nullptr);
+        const double blurred = m_blur->evaluate(lv, g ? &gh : nullptr);
         if (g) {
             // A texel's switch from level a to b changes its height by h_b − h_a: the blurred
             // loss's gradient per level is ∂L/∂h · h_ℓ.
-            for (double& x : *g) x *= 1.0 - blur_weight;
+            for (double& x : *g) x *= 1.0 - m_blur_weight;
             for (int l = 0; l < K; ++l)
                 for (std::size_t t = 0; t < n2; ++t)
-                    (*g)[static_cast<std::size_t>(l) * n2 + t] += blur_weight * gh[t] * p.levels_um[static_cast<std::size_t>(l)];
+                    (*g)[static_cast<std::size_t>(l) * n2 + t] += m_blur_weight * gh[t] * m_p.levels_um[static_cast<std::size_t>(l)];
         }
-        return (1.0 - blur_weight) * nominal + blur_weight * blurred;
-    };
+        return (1.0 - m_blur_weight) * nominal + m_blur_weight * blurred;
+    }
+
+private:
+    const PreparedDesign& m_p;
+    detail::Evaluator& m_evaluator;
+    std::unique_ptr<detail::BlurTerm> m_blur;
+    double m_blur_weight;
+};
+
+// Discrete passes on the levels that switch the texels the gradient predicts to gain most, kept
+// only when the exact loss falls (a grayscale relief is scored, not refined). Returns the
+// final loss; `level` holds the relief.
+double refine_levels(const PreparedDesign& p, RefineLoss& refine_loss, std::vector<int>& level,
+                     const std::function<void(const DesignStep&)>& report, const bool& stopped) {
+    const DesignOptions& o = p.options;
+    const int K = o.levels;
+    const std::size_t n2 = level.size();
+    const bool grayscale = o.min_feature_um != 0.0;
+    std::vector<double> grad;
     double loss = refine_loss(level, &grad);
     const int iteration0 = o.iterations;
     report({"refine", iteration0, loss, 0.0});
@@ -919,46 +944,53 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         }
         report({"refine", iteration0 + pass + 1, loss, fraction});
     }
-    const double refine_seconds = seconds_since(refine_start);
+    return loss;
+}
 
-    r.level = level;
-    r.heights_um.resize(n2);
-    for (std::size_t t = 0; t < n2; ++t) r.heights_um[t] = p.levels_um[static_cast<std::size_t>(level[t])];
-
-    // Metrics: the loop's model on the final relief, the relaxation where it ended, exact scalar
-    // diffraction of the relief (the heights alone, re-levelled) with a direct-sum spot check, and
-    // the fabrication errors.
-    const auto metrics_start = Clock::now();
-    const auto& sets = *p.order_sets;
-    Fractions model_fractions;
-    (void)evaluator.evaluate(one_hot(level, K), nullptr, &model_fractions);
-    const detail::LevelRelief relief = detail::to_level_relief(r.heights_um, detail::k_exact_max_levels);
-    const auto exact_flux = detail::level_flux(relief, N, sets, 1.0);
+// The finished relief's scores: the loop's model, exact scalar diffraction of the relief (the
+// heights alone, re-levelled) with a direct-sum spot check, and the fabrication errors.
+struct ReliefScores {
+    Fractions model, exact;
+    std::vector<std::vector<double>> exact_flux;
     std::vector<double> kirchhoff_totals;
-    const Fractions exact_fractions = detail::group_fractions(*p.target, exact_flux, &kirchhoff_totals);
     std::size_t checked = 0;
-    const double spot = spot_check(r.heights_um, N, sets, exact_flux, N >= 512 ? 4 : 16, o.seed, checked);
-    double model_vs_exact = 0.0;
-    for (std::size_t w = 0; w < exact_fractions.size(); ++w)
-        for (std::size_t q = 0; q < exact_fractions[w].size(); ++q)
-            model_vs_exact = std::max(model_vs_exact, std::abs(exact_fractions[w][q] - model_fractions[w][q]));
+    double spot = 0.0, model_vs_exact = 0.0;
     nlohmann::json fabrication = nlohmann::json::array();
+};
+
+ReliefScores score_relief(const PreparedDesign& p, detail::Evaluator& evaluator, const DesignResult& r) {
+    const DesignOptions& o = p.options;
+    const int K = o.levels, N = o.size;
+    const auto& sets = *p.order_sets;
+    ReliefScores s;
+    (void)evaluator.evaluate(one_hot(r.level, K), nullptr, &s.model);
+    const detail::LevelRelief relief = detail::to_level_relief(r.heights_um, detail::k_exact_max_levels);
+    s.exact_flux = detail::level_flux(relief, N, sets, 1.0);
+    s.exact = detail::group_fractions(*p.target, s.exact_flux, &s.kirchhoff_totals);
+    s.spot = spot_check(r.heights_um, N, sets, s.exact_flux, N >= 512 ? 4 : 16, o.seed, s.checked);
+    for (std::size_t w = 0; w < s.exact.size(); ++w)
+        for (std::size_t q = 0; q < s.exact[w].size(); ++q)
+            s.model_vs_exact = std::max(s.model_vs_exact, std::abs(s.exact[w][q] - s.model[w][q]));
     if (o.errors.scale > 0.0)
-        for (double s : {1.0 - o.errors.scale, 1.0 + o.errors.scale}) {
-            const auto flux = detail::level_flux(relief, N, sets, s);
-            fabrication.push_back({{"error", "scale " + num(s)}, {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
+        for (double scale : {1.0 - o.errors.scale, 1.0 + o.errors.scale}) {
+            const auto flux = detail::level_flux(relief, N, sets, scale);
+            s.fabrication.push_back({{"error", "scale " + num(scale)}, {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
         }
     if (o.errors.blur_um > 0.0) {
         const std::vector<double> blurred = detail::periodic_blur(r.heights_um, N, o.errors.blur_um / o.texel_um);
         const detail::LevelRelief b = detail::to_level_relief(blurred, detail::k_exact_max_levels);
         const auto flux = detail::level_flux(b, N, sets, 1.0);
-        fabrication.push_back({{"error", "blur " + num(o.errors.blur_um) + " um"},
-                               {"quantised_to_levels", b.quantised ? detail::k_exact_max_levels : 0},
-                               {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
+        s.fabrication.push_back({{"error", "blur " + num(o.errors.blur_um) + " um"},
+                                 {"quantised_to_levels", b.quantised ? detail::k_exact_max_levels : 0},
+                                 {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
     }
-    const double metrics_seconds = seconds_since(metrics_start);
+    return s;
+}
 
-    // Pictures on the window grid.
+// The pictures on the window grid about the mirror direction: the far field of the exact
+// flux and the target (r.picture_size, r.picture_extent and both pictures set).
+void draw_pictures(const PreparedDesign& p, const ReliefScores& scores, DesignResult& r) {
+    const DesignOptions& o = p.options;
     const std::array<double, 2> mirror{-o.omega_i[0], -o.omega_i[1]};
     // A brdf target's pictures on its table's ω_o grid (about the mirror direction): what it is scored on.
     r.picture_size = o.target.kind == DesignKind::Brdf ? o.target.table->spec.resolution : 256;
@@ -976,41 +1008,42 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     }
     r.picture_extent = extent;
     const int n = r.picture_size;
-    r.far_field_picture = far_field_picture(sets, exact_fractions, exact_flux, p.lambdas_um, n, extent);
+    r.far_field_picture = far_field_picture(*p.order_sets, scores.exact, scores.exact_flux, p.lambdas_um, n, extent);
     r.target_picture.assign(static_cast<std::size_t>(n) * static_cast<std::size_t>(n) * 3, 0.0f);
     if (o.target.kind == DesignKind::Iridescent || o.target.kind == DesignKind::Brdf) {
         detail::more_target_picture(o, n, extent, r.target_picture);
-    } else {
-        const double pixel_area = (2.0 * extent / n) * (2.0 * extent / n);
-        for (int i = 0; i < n; ++i)
-            for (int j = 0; j < n; ++j) {
-                const double dx = (i + 0.5) / n * 2.0 * extent - extent, dy = (j + 0.5) / n * 2.0 * extent - extent;
-                std::array<double, 3> c{0.0, 0.0, 0.0};
-                if (o.target.kind == DesignKind::AntiMirror) {
-                    const Region g = parse_region(o.region);
-                    const double rr = std::hypot(dx, dy);
-                    const double area = k_pi * (g.r2 * g.r2 - g.r1 * g.r1);
-                    if (rr >= g.r1 && rr <= g.r2) c = {1.0 / area, 1.0 / area, 1.0 / area};
-                } else if (o.target.kind == DesignKind::Pattern) {
-                    const int ii = std::min(o.target.image_rows - 1, static_cast<int>((i + 0.5) / n * o.target.image_rows));
-                    const int jj = std::min(o.target.image_cols - 1, static_cast<int>((j + 0.5) / n * o.target.image_cols));
-                    const double sum = std::accumulate(o.target.image.begin(), o.target.image.end(), 0.0);
-                    const double cell = pixel_area * n * n / (static_cast<double>(o.target.image_rows) * o.target.image_cols);
-                    const double v = o.target.image[static_cast<std::size_t>(ii * o.target.image_cols + jj)] / (sum * cell);
-                    c = {v, v, v};
-                } else {
-                    const std::array<double, 2> view = o.view ? *o.view : mirror;
-                    if (std::hypot(dx - (view[0] - mirror[0]), dy - (view[1] - mirror[1])) <= o.view_cone) c = o.target.linear_rgb;
-                }
-                for (std::size_t k = 0; k < 3; ++k)
-                    r.target_picture[(static_cast<std::size_t>(i) * static_cast<std::size_t>(n) + static_cast<std::size_t>(j)) * 3 + k] =
-                        static_cast<float>(c[k]);
-            }
+        return;
     }
+    const double pixel_area = (2.0 * extent / n) * (2.0 * extent / n);
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            const double dx = (i + 0.5) / n * 2.0 * extent - extent, dy = (j + 0.5) / n * 2.0 * extent - extent;
+            std::array<double, 3> c{0.0, 0.0, 0.0};
+            if (o.target.kind == DesignKind::AntiMirror) {
+                const Region g = parse_region(o.region);
+                const double rr = std::hypot(dx, dy);
+                const double area = k_pi * (g.r2 * g.r2 - g.r1 * g.r1);
+                if (rr >= g.r1 && rr <= g.r2) c = {1.0 / area, 1.0 / area, 1.0 / area};
+            } else if (o.target.kind == DesignKind::Pattern) {
+                const int ii = std::min(o.target.image_rows - 1, static_cast<int>((i + 0.5) / n * o.target.image_rows));
+                const int jj = std::min(o.target.image_cols - 1, static_cast<int>((j + 0.5) / n * o.target.image_cols));
+                const double sum = std::accumulate(o.target.image.begin(), o.target.image.end(), 0.0);
+                const double cell = pixel_area * n * n / (static_cast<double>(o.target.image_rows) * o.target.image_cols);
+                const double v = o.target.image[static_cast<std::size_t>(ii * o.target.image_cols + jj)] / (sum * cell);
+                c = {v, v, v};
+            } else {
+                const std::array<double, 2> view = o.view ? *o.view : mirror;
+                if (std::hypot(dx - (view[0] - mirror[0]), dy - (view[1] - mirror[1])) <= o.view_cone) c = o.target.linear_rgb;
+            }
+            for (std::size_t k = 0; k < 3; ++k)
+                r.target_picture[(static_cast<std::size_t>(i) * static_cast<std::size_t>(n) + static_cast<std::size_t>(j)) * 3 + k] =
+                    static_cast<float>(c[k]);
+        }
+}
 
-    nlohmann::json j;
-    j["kind"] = "design";
-    j["version"] = k_version;
+// design.json's "target": its kind, text and the settings that define it.
+nlohmann::json target_json(const DesignOptions& o) {
+    const std::array<double, 2> mirror{-o.omega_i[0], -o.omega_i[1]};
     nlohmann::json target{{"kind", to_string(o.target.kind)}, {"text", o.target.text}};
     if (o.target.kind == DesignKind::AntiMirror) {
         const Region g = parse_region(o.region);
@@ -1032,27 +1065,91 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     } else {
         detail::more_target_json(o, target);
     }
-    j["target"] = target;
-    j["picture_extent"] = extent;
+    return target;
+}
+
+// A colour target's extras in design.json: the mixture bound (where the view holds the mirror
+// and the levels are few enough), the cone bound (normal light, the view cone on the mirror
+// direction) and, when the colour is missed, the view survey. Returns the notes of the bounds
+// that were not computed.
+std::vector<std::string> add_colour_reach(const PreparedDesign& p, const ReliefScores& scores, bool survey_views,
+                                          nlohmann::json& j) {
+    const DesignOptions& o = p.options;
+    const int K = o.levels;
+    const bool grayscale = o.min_feature_um != 0.0;
+    std::string mixture_note, cone_note;
+    // The programme grows as 8K rows by K columns and the dense simplex with it (minutes at
+    // 256 levels), so it is solved up to k_mixture_bound_max_levels; a failure is a note, never
+    // the end of a finished design.
+    constexpr int k_mixture_bound_max_levels = 64;
+    if (colour_view_holds_mirror(o) && !grayscale) {
+        if (K > k_mixture_bound_max_levels) {
+            mixture_note = "the mixture bound is computed for up to " + std::to_string(k_mixture_bound_max_levels) +
+                           " levels; this run has " + std::to_string(o.levels);
+        } else {
+            try {
+                j["mixture_bound"] = mixture_bound_json(p, scores.exact, scores.kirchhoff_totals);
+            } catch (const std::runtime_error& e) {
+                mixture_note = std::string("the mixture bound was not computed: ") + e.what();
+            }
+        }
+    }
+    // The cone bound: normal light, the view cone centred on the mirror direction, levels.
+    const bool normal_light = o.omega_i[0] == 0.0 && o.omega_i[1] == 0.0;
+    const bool centred = !o.view || ((*o.view)[0] == 0.0 && (*o.view)[1] == 0.0);
+    if (normal_light && centred && !grayscale && K >= 2 && K <= 64) {
+        try {
+            j["cone_bound"] = cone_bound_json(p, scores.exact, scores.kirchhoff_totals);
+        } catch (const std::exception& e) {
+            cone_note = std::string("the cone bound was not computed: ") + e.what();
+        }
+    }
+    const nlohmann::json& e = j["metrics"]["exact"];
+    // Grayscale reliefs (no levels) are not surveyed.
+    const bool reached = !survey_views || o.min_feature_um > 0.0 || !e.contains("delta_uv") || !e.contains("luminous_efficiency") ||
+                         (e["delta_uv"].get<double>() <= k_reached_delta_uv &&
+                          e["luminous_efficiency"].get<double>() >= k_reached_y);
+    // A colour the cone bound rules out for this view is surveyed too: which view reaches it.
+    const bool ruled_out = j.contains("cone_bound") && j["cone_bound"]["out_of_reach_at_target"].get<bool>();
+    if (!reached || (survey_views && o.min_feature_um == 0.0 && ruled_out)) {
+        const auto survey_start = Clock::now();
+        j["view_survey"] = view_survey(p);
+        j["view_survey"]["seconds"] = seconds_since(survey_start);
+    }
+    std::vector<std::string> notes;
+    for (const std::string& note : {mixture_note, cone_note})
+        if (!note.empty()) notes.push_back(note);
+    return notes;
+}
+
+// design.json without its colour extras and timings.
+nlohmann::json design_json(const PreparedDesign& p, const DesignResult& r, const RelaxedLevels& relaxed,
+                           const ReliefScores& scores, double loss, bool stopped) {
+    const DesignOptions& o = p.options;
+    nlohmann::json j;
+    j["kind"] = "design";
+    j["version"] = k_version;
+    j["target"] = target_json(o);
+    j["picture_extent"] = r.picture_extent;
     j["light"] = {{"omega_i", o.omega_i}, {"lambdas_um", p.lambdas_um}, {"spectral", o.spectral},
                   {"band_um", o.spectral ? nlohmann::json(o.band_um) : nlohmann::json(nullptr)}};
-    j["constraints"] = {{"size", N}, {"texel_um", o.texel_um}, {"height_range_um", o.height_range_um},
-                        {"levels", K}, {"fabrication_error", {{"scale", o.errors.scale}, {"blur_um", o.errors.blur_um}}}};
-    if (grayscale) j["constraints"]["min_feature_um"] = o.min_feature_um;
+    j["constraints"] = {{"size", o.size}, {"texel_um", o.texel_um}, {"height_range_um", o.height_range_um},
+                        {"levels", o.levels}, {"fabrication_error", {{"scale", o.errors.scale}, {"blur_um", o.errors.blur_um}}}};
+    if (o.min_feature_um != 0.0) j["constraints"]["min_feature_um"] = o.min_feature_um;
     j["levels_um"] = p.levels_um;
     j["seed"] = o.seed;
     j["options"] = {{"iterations", o.iterations}, {"refine_passes", o.refine_passes}, {"stopped_early", stopped}};
     j["orders"] = p.orders;
     j["estimated_bytes"] = p.estimated_bytes;
     j["metrics"] = {
-        {"model", p.target->metrics(model_fractions)},
-        {"exact", p.target->metrics(exact_fractions)},
-        {"relaxed", relaxed_fractions.empty() ? nlohmann::json(nullptr) : p.target->metrics(relaxed_fractions)},
-        {"model_vs_exact_max_fraction_difference", model_vs_exact},
-        {"exact_direct_sum_check", {{"orders", checked}, {"max_flux_difference_relative_to_peak", spot}}},
-        {"kirchhoff_total", kirchhoff_totals},
+        {"model", p.target->metrics(scores.model)},
+        {"exact", p.target->metrics(scores.exact)},
+        {"relaxed", relaxed.fractions.empty() ? nlohmann::json(nullptr) : p.target->metrics(relaxed.fractions)},
+        {"model_vs_exact_max_fraction_difference", scores.model_vs_exact},
+        {"exact_direct_sum_check", {{"orders", scores.checked}, {"max_flux_difference_relative_to_peak", scores.spot}}},
+        {"kirchhoff_total", scores.kirchhoff_totals},
         {"final_loss", loss}};
-    j["fabrication_errors"] = fabrication;
+    j["fabrication_errors"] = scores.fabrication;
     if (o.target.kind == DesignKind::Colour)
         j["optimal_colour_bound"] = optimal_colour_bound_json(p.lambdas_um, o.target.linear_rgb);
     if (o.target.kind == DesignKind::Iridescent) {
@@ -1060,51 +1157,49 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         for (const auto& pair : o.target.pairs) pairs.push_back(optimal_colour_bound_json(p.lambdas_um, pair.linear_rgb));
         j["optimal_colour_bound"] = pairs;
     }
-    std::string mixture_note, cone_note;
-    if (o.target.kind == DesignKind::Colour) {
-        // The programme grows as 8K rows by K columns and the dense simplex with it (minutes at
-        // 256 levels), so it is solved up to k_mixture_bound_max_levels; a failure is a note, never
-        // the end of a finished design.
-        constexpr int k_mixture_bound_max_levels = 64;
-        if (colour_view_holds_mirror(o) && !grayscale) {
-            if (K > k_mixture_bound_max_levels) {
-                mixture_note = "the mixture bound is computed for up to " + std::to_string(k_mixture_bound_max_levels) +
-                               " levels; this run has " + std::to_string(K);
-            } else {
-                try {
-                    j["mixture_bound"] = mixture_bound_json(p, exact_fractions, kirchhoff_totals);
-                } catch (const std::runtime_error& e) {
-                    mixture_note = std::string("the mixture bound was not computed: ") + e.what();
-                }
-            }
-        }
-        // The cone bound: normal light, the view cone centred on the mirror direction, levels.
-        const bool normal_light = o.omega_i[0] == 0.0 && o.omega_i[1] == 0.0;
-        const bool centred = !o.view || ((*o.view)[0] == 0.0 && (*o.view)[1] == 0.0);
-        if (normal_light && centred && !grayscale && K >= 2 && K <= 64) {
-            try {
-                j["cone_bound"] = cone_bound_json(p, exact_fractions, kirchhoff_totals);
-            } catch (const std::exception& e) {
-                cone_note = std::string("the cone bound was not computed: ") + e.what();
-            }
-        }
-        const nlohmann::json& e = j["metrics"]["exact"];
-        // Grayscale reliefs (no levels) are not surveyed.
-        const bool reached = !survey_views || o.min_feature_um > 0.0 || !e.contains("delta_uv") || !e.contains("luminous_efficiency") ||
-                             (e["delta_uv"].get<double>() <= k_reached_delta_uv &&
-                              e["luminous_efficiency"].get<double>() >= k_reached_y);
-        // A colour the cone bound rules out for this view is surveyed too: which view reaches it.
-        const bool ruled_out = j.contains("cone_bound") && j["cone_bound"]["out_of_reach_at_target"].get<bool>();
-        if (!reached || (survey_views && o.min_feature_um == 0.0 && ruled_out)) {
-            const auto survey_start = Clock::now();
-            j["view_survey"] = view_survey(p);
-            j["view_survey"]["seconds"] = seconds_since(survey_start);
-        }
-    }
+    return j;
+}
+
+DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step,
+                             bool survey_views) {
+    const DesignOptions& o = p.options;
+    const auto start = Clock::now();
+    std::vector<double> scales{1.0};
+    if (o.errors.scale > 0.0) scales = {1.0 - o.errors.scale, 1.0, 1.0 + o.errors.scale};
+    detail::Evaluator evaluator(p, scales);
+    DesignResult r;
+    r.size = o.size;
+    r.texel_um = o.texel_um;
+    r.levels_um = p.levels_um;
+    r.lambdas_um = p.lambdas_um;
+    bool stopped = false;
+    const std::function<void(const DesignStep&)> report = [&](const DesignStep& s) {
+        r.curve.push_back(s);
+        if (on_step && !on_step(s)) stopped = true;
+    };
+
+    RelaxedLevels relaxed = relaxed_levels(p, evaluator, report, stopped);
+    std::vector<int> level = std::move(relaxed.level);
+    const auto refine_start = Clock::now();
+    RefineLoss refine_loss(p, evaluator, scales.size());
+    const double loss = refine_levels(p, refine_loss, level, report, stopped);
+    const double refine_seconds = seconds_since(refine_start);
+
+    r.level = level;
+    r.heights_um.resize(level.size());
+    for (std::size_t t = 0; t < level.size(); ++t) r.heights_um[t] = p.levels_um[static_cast<std::size_t>(level[t])];
+
+    const auto metrics_start = Clock::now();
+    const ReliefScores scores = score_relief(p, evaluator, r);
+    const double metrics_seconds = seconds_since(metrics_start);
+    draw_pictures(p, scores, r);
+
+    nlohmann::json j = design_json(p, r, relaxed, scores, loss, stopped);
+    const std::vector<std::string> colour_notes =
+        o.target.kind == DesignKind::Colour ? add_colour_reach(p, scores, survey_views, j) : std::vector<std::string>{};
     j["notes"] = p.notes;
-    if (!mixture_note.empty()) j["notes"].push_back(mixture_note);
-    if (!cone_note.empty()) j["notes"].push_back(cone_note);
-    j["timings_s"] = {{"relaxed", relaxed_seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
+    for (const std::string& note : colour_notes) j["notes"].push_back(note);
+    j["timings_s"] = {{"relaxed", relaxed.seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
                       {"total", seconds_since(start)}};
     r.metrics_json = j.dump(2);
     return r;

@@ -240,10 +240,10 @@ double position_uncertainty_um(const RecoveryOptions& options, double texel_um) 
     return options.position_uncertainty_um.value_or(options.errors.position_rms_texels * texel_um);
 }
 
-}  // namespace
-
-PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth,
-                                  std::vector<Observation> observations, bool show_progress, const Communicator& comm) {
+// Every option checked here, once, before any work, named as the front end spells it
+// (options.names). Returns the memory limit the run is held to.
+MemoryLimit check_recovery_options(const RecoveryOptions& options, const Heightfield* truth,
+                                   const std::vector<Observation>& observations, const Communicator& comm) {
     if (truth != nullptr && !observations.empty())
         throw std::invalid_argument("a truth and observations exclude each other; expected one of them (or neither)");
     if (options.noise.kind != NoiseKind::None && !observations.empty())
@@ -253,9 +253,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.simulator != Simulator::Gabor && !observations.empty())
         throw std::invalid_argument(std::string("simulator '") + to_string(options.simulator) +
                                     "' simulates observations of a truth; given observations are used as they are");
-    // Every option checked here, once, before any work, named as the front end spells it
-    // (options.names). The sentinels first: -1 is "the library's default"; another negative or
-    // a NaN is a mistake (an option given as -5 or nan).
+    // The sentinels first: -1 is "the library's default"; another negative or a NaN is a
+    // mistake (an option given as -5 or nan).
     const auto name = [&](const std::string& key) { return option_name(options.names, key); };
     {
         const std::pair<const char*, long long> counts[] = {
@@ -317,162 +316,168 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
             "method thesis runs on one process (Adam draws one observation at a time); "
             "expected the pipeline under MPI (" +
             std::to_string(comm.size()) + " ranks)");
-
-    PreparedRecovery r;
-    r.ranks = comm.size();
-    r.method = options.method;
-    r.noise = options.noise;
-    r.loss = recovery_loss(options);
-    r.range_um = options.height_range_um;
-    r.texel_um = options.texel_um;
-    r.vscale = options.vscale;
     // The pipeline's field retrieval needs single-wavelength separable slices: checked here,
     // before the observations are simulated, not after.
-    if (options.method == RecoveryMethod::Pipeline) {
-        if (observations.empty() && options.spectral == 0 && options.model == Model::Kirchhoff)
-            throw std::invalid_argument(std::string("model ") + to_string(options.model) +
-                                        " has no field stage; the pipeline expects OHS, ROHS, GHS or RGHS "
-                                        "(or the thesis's method)");
-    }
-    // Every observation's metadata (check_acquisition needs them all), and this rank's share.
-    std::vector<Observation> catalogue;
-    std::optional<RoughnessPlan> measured;  // options.plan_from_truth: the truth's measured roughness
-    std::optional<MeasuredRoughness> measured_roughness;
-    if (!observations.empty()) {
-        r.total_observations = observations.size();
-        r.share = observation_share(positions_of(observations), comm.rank(), comm.size());
-        if (comm.size() > 1) {
-            catalogue = metadata_of(observations);
-            for (std::size_t k = 0; k < r.share.size(); ++k)
-                r.observations.push_back(std::move(observations[r.share[k]]));
-            observations.clear();
-            observations.shrink_to_fit();
-        } else {
-            r.observations = std::move(observations);
-        }
-        r.rows = options.rows;
-        r.cols = options.cols;
-        check_observation_extent(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um);
-        check_observation_coverage(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um);
-        require_memory(estimate_recovery_bytes(r.observations, r.rows, r.cols, r.texel_um, options.method), limit,
-                       "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
-                           std::to_string(r.observations.size()) + " given observations)");
-    } else {
-        r.truth = truth != nullptr ? *truth : generated_recovery_truth(options);
-        r.rows = r.truth->rows();
-        r.cols = r.truth->cols();
-        r.texel_um = r.truth->texel_um();
-        r.vscale = r.truth->vscale();
-        const HeightStats stats = height_stats(*r.truth);
-        r.range_um = stats.max_um - stats.min_um;
-        PlanRequest request;
-        request.rows = r.rows;
-        request.cols = r.cols;
-        request.texel_um = r.texel_um;
-        request.height_range_um = r.range_um;
-        request.sigma_p_um = options.sigma_p_um;
-        request.position_uncertainty_um = position_uncertainty_um(options, r.texel_um);
-        if (options.overlap != 0.0)
-            request.overlap = options.overlap;
-        else if (options.calibrate.positions)
-            request.overlap = k_position_calibration_overlap;  // else the planner's default
-        request.jitter = options.jitter;
-        request.omega_i = options.omega_i;
-        request.model = options.model;
-        request.seed = options.seed;
-        request.lambdas_um = options.lambdas_um;
-        request.resolution = options.resolution;
-        std::vector<double> white;
-        if (options.spectral != 0) {
-            white = spectral_wavelengths_um(options.spectral);
-            request.lambdas_um = {*std::min_element(white.begin(), white.end())};  // sizes the slices
-        }
-        AcquisitionPlan plan = plan_acquisition(request);
-        // Rough surfaces (roughness_plan.h): long wavelengths for the field stage's start.
-        // Steep ones: oblique lights, so that their steep facets reflect into a slice.
-        if (options.plan_from_truth && truth != nullptr && r.range_um > 0.0) {
-            measured_roughness = measure_roughness(*r.truth);
-            measured = plan_for_measured_roughness(*measured_roughness, r.texel_um);
-        }
-        if (options.method == RecoveryMethod::Pipeline && white.empty() && options.correlation_texels > 0.0 &&
-            r.range_um > 0.0) {
-            const RoughnessPlan rough =
-                measured ? *measured : plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
-            if (options.lambdas_um.empty()) add_long_wavelengths(rough, plan);
-            if (options.oblique_lights) add_oblique_lights(rough, plan);
-        }
-        if (!white.empty()) {
-            plan.white_lambdas_um = white;
-            plan.notes.push_back("white light: one RGB slice per position, " + std::to_string(white.size()) +
-                                 " wavelengths");
-        }
-        r.notes = plan.notes;
-        std::vector<Observation> planned = planned_observations(plan);
-        r.total_observations = planned.size();
-        r.share = observation_share(positions_of(planned), comm.rank(), comm.size());
-        std::vector<Observation> mine;
-        for (std::size_t i : r.share) mine.push_back(planned[i]);
-        require_memory(estimate_recovery_bytes(mine, r.rows, r.cols, r.texel_um, options.method), limit,
-                       "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
-                           std::to_string(mine.size()) + " observations of " + std::to_string(plan.resolution) + "x" +
-                           std::to_string(plan.resolution) + ")");
-        Progress progress("simulate", static_cast<long long>(r.share.size()), show_progress && comm.is_root());
-        // With acquisition errors: rendered for the true (perturbed) acquisition, handed over
-        // with the nominal one.
-        const AcquisitionErrors& e = options.errors;
-        AcquisitionPlan true_plan = plan;
-        std::vector<std::array<double, 2>> offsets(plan.positions_um.size());
-        if (e.any()) {
-            true_plan.sigma_p_um *= e.sigma_p_factor;
-            for (std::size_t p = 0; p < offsets.size(); ++p)
-                offsets[p] = simulated_position_offset_um(e, p, r.texel_um);
-            // Mean-free: a common offset of every position is a shift of the whole surface, which
-            // no slice sees (the recovery's gauge puts the surface where the stated positions do),
-            // so height_rel_rmse would measure that shift rather than the recovery.
-            std::array<double, 2> mean{{0.0, 0.0}};
-            for (const auto& o : offsets)
-                for (int c = 0; c < 2; ++c) mean[std::size_t(c)] += o[std::size_t(c)] / double(offsets.size());
-            for (std::size_t p = 0; p < offsets.size(); ++p) {
-                for (int c = 0; c < 2; ++c) offsets[p][std::size_t(c)] -= mean[std::size_t(c)];
-                true_plan.positions_um[p][0] += offsets[p][0];
-                true_plan.positions_um[p][1] += offsets[p][1];
-            }
-        }
-        if (options.simulator == Simulator::Scalar)
-            r.observations = simulate_scalar_observations(*r.truth, true_plan, options.noise, options.seed, r.share, {},
-                                                          &progress);
-        else
-            r.observations = comm.size() > 1 || e.any()
-                                 ? simulate_observations(*r.truth, true_plan, options.noise, options.seed, r.share,
-                                                         &progress)
-                                 : simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
-        if (e.any()) {
-            Calibration t;
-            t.sigma_p_scale = e.sigma_p_factor;
-            const std::size_t per_position = std::max<std::size_t>(observations_per_position(plan), 1);
-            for (std::size_t k = 0; k < r.share.size(); ++k) {
-                Observation& o = r.observations[k];
-                const double exposure = simulated_exposure(e, r.share[k]);
-                for (float& v : o.reference) v = float(double(v) * exposure);
-                o.query = planned[r.share[k]].query;  // the stated acquisition
-                t.exposures.push_back(exposure);
-                t.position_offsets_um.push_back(offsets[r.share[k] / per_position]);
-            }
-            r.true_calibration = std::move(t);
-        }
-        progress.finish();
-        if (comm.size() > 1) catalogue = std::move(planned);
-    }
-    if (r.truth) {
-        const HeightStats stats = height_stats(*r.truth);
-        if (!(stats.max_um > stats.min_um)) r.metric_note = "undefined: the truth is flat";
-    }
-    r.warnings = check_acquisition(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um,
-                                   r.truth ? &*r.truth : nullptr);
-    if (comm.size() > 1) r.catalogue = std::move(catalogue);
-    if (!r.metric_note.empty())
-        r.warnings.push_back("height_rel_rmse is " + r.metric_note + " (its height range is 0); the metrics give nan");
+    if (options.method == RecoveryMethod::Pipeline && observations.empty() && options.spectral == 0 &&
+        options.model == Model::Kirchhoff)
+        throw std::invalid_argument(std::string("model ") + to_string(options.model) +
+                                    " has no field stage; the pipeline expects OHS, ROHS, GHS or RGHS "
+                                    "(or the thesis's method)");
+    return limit;
+}
 
+// Given observations: this rank's share (under MPI `catalogue` gets every observation's
+// metadata), checked against the grid's extent and the memory limit.
+void take_given_observations(PreparedRecovery& r, const RecoveryOptions& options, std::vector<Observation> observations,
+                             const MemoryLimit& limit, const Communicator& comm, std::vector<Observation>& catalogue) {
+    r.total_observations = observations.size();
+    r.share = observation_share(positions_of(observations), comm.rank(), comm.size());
+    if (comm.size() > 1) {
+        catalogue = metadata_of(observations);
+        for (std::size_t k = 0; k < r.share.size(); ++k) r.observations.push_back(std::move(observations[r.share[k]]));
+        observations.clear();
+        observations.shrink_to_fit();
+    } else {
+        r.observations = std::move(observations);
+    }
+    r.rows = options.rows;
+    r.cols = options.cols;
+    check_observation_extent(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um);
+    check_observation_coverage(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um);
+    require_memory(estimate_recovery_bytes(r.observations, r.rows, r.cols, r.texel_um, options.method), limit,
+                   "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
+                       std::to_string(r.observations.size()) + " given observations)");
+}
+
+// The planned acquisition of a truth (r.truth, its grid and range set), with the surface's
+// measured roughness where options.plan_from_truth asks for it.
+struct TruthAcquisition {
+    AcquisitionPlan plan;
+    std::optional<RoughnessPlan> measured;
+    std::optional<MeasuredRoughness> measured_roughness;
+};
+
+TruthAcquisition plan_truth_acquisition(const PreparedRecovery& r, const RecoveryOptions& options,
+                                        bool truth_given) {
+    PlanRequest request;
+    request.rows = r.rows;
+    request.cols = r.cols;
+    request.texel_um = r.texel_um;
+    request.height_range_um = r.range_um;
+    request.sigma_p_um = options.sigma_p_um;
+    request.position_uncertainty_um = position_uncertainty_um(options, r.texel_um);
+    if (options.overlap != 0.0)
+        request.overlap = options.overlap;
+    else if (options.calibrate.positions)
+        request.overlap = k_position_calibration_overlap;  // else the planner's default
+    request.jitter = options.jitter;
+    request.omega_i = options.omega_i;
+    request.model = options.model;
+    request.seed = options.seed;
+    request.lambdas_um = options.lambdas_um;
+    request.resolution = options.resolution;
+    std::vector<double> white;
+    if (options.spectral != 0) {
+        white = spectral_wavelengths_um(options.spectral);
+        request.lambdas_um = {*std::min_element(white.begin(), white.end())};  // sizes the slices
+    }
+    TruthAcquisition a{plan_acquisition(request), std::nullopt, std::nullopt};
+    // Rough surfaces (roughness_plan.h): long wavelengths for the field stage's start.
+    // Steep ones: oblique lights, so that their steep facets reflect into a slice.
+    if (options.plan_from_truth && truth_given && r.range_um > 0.0) {
+        a.measured_roughness = measure_roughness(*r.truth);
+        a.measured = plan_for_measured_roughness(*a.measured_roughness, r.texel_um);
+    }
+    if (options.method == RecoveryMethod::Pipeline && white.empty() && options.correlation_texels > 0.0 &&
+        r.range_um > 0.0) {
+        const RoughnessPlan rough =
+            a.measured ? *a.measured : plan_for_roughness(r.range_um, options.correlation_texels * r.texel_um, r.texel_um);
+        if (options.lambdas_um.empty()) add_long_wavelengths(rough, a.plan);
+        if (options.oblique_lights) add_oblique_lights(rough, a.plan);
+    }
+    if (!white.empty()) {
+        a.plan.white_lambdas_um = white;
+        a.plan.notes.push_back("white light: one RGB slice per position, " + std::to_string(white.size()) +
+                               " wavelengths");
+    }
+    return a;
+}
+
+// With acquisition errors: the true (perturbed) acquisition the observations are rendered for;
+// `offsets` gets each position's offset (µm).
+AcquisitionPlan perturbed_plan(const AcquisitionPlan& plan, const AcquisitionErrors& e, double texel_um,
+                               std::vector<std::array<double, 2>>& offsets) {
+    AcquisitionPlan true_plan = plan;
+    offsets.assign(plan.positions_um.size(), {});
+    if (!e.any()) return true_plan;
+    true_plan.sigma_p_um *= e.sigma_p_factor;
+    for (std::size_t p = 0; p < offsets.size(); ++p) offsets[p] = simulated_position_offset_um(e, p, texel_um);
+    // Mean-free: a common offset of every position is a shift of the whole surface, which
+    // no slice sees (the recovery's gauge puts the surface where the stated positions do),
+    // so height_rel_rmse would measure that shift rather than the recovery.
+    std::array<double, 2> mean{{0.0, 0.0}};
+    for (const auto& o : offsets)
+        for (int c = 0; c < 2; ++c) mean[std::size_t(c)] += o[std::size_t(c)] / double(offsets.size());
+    for (std::size_t p = 0; p < offsets.size(); ++p) {
+        for (int c = 0; c < 2; ++c) offsets[p][std::size_t(c)] -= mean[std::size_t(c)];
+        true_plan.positions_um[p][0] += offsets[p][0];
+        true_plan.positions_um[p][1] += offsets[p][1];
+    }
+    return true_plan;
+}
+
+// This rank's share of the plan's observations rendered from r.truth (with acquisition errors:
+// for the true acquisition, handed over with the nominal one, and r.true_calibration set).
+// Under MPI `catalogue` gets every planned observation.
+void simulate_planned_observations(PreparedRecovery& r, const RecoveryOptions& options, const AcquisitionPlan& plan,
+                                   const MemoryLimit& limit, bool show_progress, const Communicator& comm,
+                                   std::vector<Observation>& catalogue) {
+    r.notes = plan.notes;
+    std::vector<Observation> planned = planned_observations(plan);
+    r.total_observations = planned.size();
+    r.share = observation_share(positions_of(planned), comm.rank(), comm.size());
+    std::vector<Observation> mine;
+    for (std::size_t i : r.share) mine.push_back(planned[i]);
+    require_memory(estimate_recovery_bytes(mine, r.rows, r.cols, r.texel_um, options.method), limit,
+                   "recover (" + std::to_string(r.rows) + "x" + std::to_string(r.cols) + " heights, " +
+                       std::to_string(mine.size()) + " observations of " + std::to_string(plan.resolution) + "x" +
+                       std::to_string(plan.resolution) + ")");
+    Progress progress("simulate", static_cast<long long>(r.share.size()), show_progress && comm.is_root());
+    const AcquisitionErrors& e = options.errors;
+    std::vector<std::array<double, 2>> offsets;
+    const AcquisitionPlan true_plan = perturbed_plan(plan, e, r.texel_um, offsets);
+    if (options.simulator == Simulator::Scalar)
+        r.observations =
+            simulate_scalar_observations(*r.truth, true_plan, options.noise, options.seed, r.share, {}, &progress);
+    else
+        r.observations = comm.size() > 1 || e.any()
+                             ? simulate_observations(*r.truth, true_plan, options.noise, options.seed, r.share,
+                                                     &progress)
+                             : simulate_observations(*r.truth, plan, options.noise, options.seed, &progress);
+    if (e.any()) {
+        Calibration t;
+        t.sigma_p_scale = e.sigma_p_factor;
+        const std::size_t per_position = std::max<std::size_t>(observations_per_position(plan), 1);
+        for (std::size_t k = 0; k < r.share.size(); ++k) {
+            Observation& o = r.observations[k];
+            const double exposure = simulated_exposure(e, r.share[k]);
+            for (float& v : o.reference) v = float(double(v) * exposure);
+            o.query = planned[r.share[k]].query;  // the stated acquisition
+            t.exposures.push_back(exposure);
+            t.position_offsets_um.push_back(offsets[r.share[k] / per_position]);
+        }
+        r.true_calibration = std::move(t);
+    }
+    progress.finish();
+    if (comm.size() > 1) catalogue = std::move(planned);
+}
+
+// The pipeline's inputs as the caller stated them: loss, calibration, the surface (the
+// schedule, recover.h's scheduled_settings, takes the smooth or the rough-surface plan from
+// it) and the counts the caller set; the rest stays unset for the schedule.
+void state_pipeline_settings(PreparedRecovery& r, const RecoveryOptions& options,
+                             const std::optional<RoughnessPlan>& measured,
+                             const std::optional<MeasuredRoughness>& measured_roughness) {
     r.pipeline.refine_loss = r.loss;
     r.pipeline.calibrate = options.calibrate;
     // The position loop's rescue reaches as far as the stated uncertainty: ± k × it about a lost
@@ -483,8 +488,6 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         r.pipeline.position_rescue_step_texels *= rescue_radius_texels / r.pipeline.position_rescue_radius_texels;
         r.pipeline.position_rescue_radius_texels = rescue_radius_texels;
     }
-    // The surface as stated (or measured): the schedule (recover.h, scheduled_settings) takes
-    // the smooth or the rough-surface plan from it.
     r.pipeline.surface.height_range_um = r.range_um;
     r.pipeline.surface.correlation_um = options.correlation_texels * r.texel_um;
     r.pipeline.surface.measured = measured_roughness;
@@ -504,9 +507,53 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (options.white_smoothness) r.pipeline.white_smoothness = *options.white_smoothness;
     if (options.white_smoothness_iterations >= 0)
         r.pipeline.white_smoothness_iterations = options.white_smoothness_iterations;
+    r.pipeline.error_bars = options.uncertainty;
+}
+
+}  // namespace
+
+PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth,
+                                  std::vector<Observation> observations, bool show_progress, const Communicator& comm) {
+    const MemoryLimit limit = check_recovery_options(options, truth, observations, comm);
+    PreparedRecovery r;
+    r.ranks = comm.size();
+    r.method = options.method;
+    r.noise = options.noise;
+    r.loss = recovery_loss(options);
+    r.range_um = options.height_range_um;
+    r.texel_um = options.texel_um;
+    r.vscale = options.vscale;
+    // Every observation's metadata (check_acquisition needs them all), and this rank's share.
+    std::vector<Observation> catalogue;
+    std::optional<RoughnessPlan> measured;  // options.plan_from_truth: the truth's measured roughness
+    std::optional<MeasuredRoughness> measured_roughness;
+    if (!observations.empty()) {
+        take_given_observations(r, options, std::move(observations), limit, comm, catalogue);
+    } else {
+        r.truth = truth != nullptr ? *truth : generated_recovery_truth(options);
+        r.rows = r.truth->rows();
+        r.cols = r.truth->cols();
+        r.texel_um = r.truth->texel_um();
+        r.vscale = r.truth->vscale();
+        const HeightStats stats = height_stats(*r.truth);
+        r.range_um = stats.max_um - stats.min_um;
+        TruthAcquisition a = plan_truth_acquisition(r, options, truth != nullptr);
+        measured = std::move(a.measured);
+        measured_roughness = std::move(a.measured_roughness);
+        simulate_planned_observations(r, options, a.plan, limit, show_progress, comm, catalogue);
+    }
+    if (r.truth) {
+        const HeightStats stats = height_stats(*r.truth);
+        if (!(stats.max_um > stats.min_um)) r.metric_note = "undefined: the truth is flat";
+    }
+    r.warnings = check_acquisition(comm.size() > 1 ? catalogue : r.observations, r.rows, r.cols, r.texel_um,
+                                   r.truth ? &*r.truth : nullptr);
+    if (comm.size() > 1) r.catalogue = std::move(catalogue);
+    if (!r.metric_note.empty())
+        r.warnings.push_back("height_rel_rmse is " + r.metric_note + " (its height range is 0); the metrics give nan");
+    state_pipeline_settings(r, options, measured, measured_roughness);
     r.uncertainty = options.uncertainty;
     r.check_error_bars = options.check_error_bars;
-    r.pipeline.error_bars = options.uncertainty;
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
     r.thesis.seed = options.seed;
