@@ -82,6 +82,66 @@ std::vector<Observation> gathered_observations(const PreparedRecovery& r, const 
     return out;
 }
 
+// uncertainty.exr (σ of every height, µm), uncertainty_height.npy and uncertainty.json.
+void write_uncertainty_files(const std::string& dir, const PreparedRecovery& r, const UncertaintyReport& bars) {
+    const std::vector<std::size_t> height_shape{std::size_t(r.rows), std::size_t(r.cols)};
+    // Values in µm: vscale 1/texel_um makes a raw value a height in µm.
+    write_heightfield_exr(dir + "/uncertainty.exr",
+                          Heightfield(r.rows, r.cols, bars.map.sigma_um, r.texel_um, 1.0 / r.texel_um),
+                          "wavebrdf recover: uncertainty (standard deviation of each height, um)");
+    write_npy(dir + "/uncertainty_height.npy", height_shape, bars.map.sigma_um);
+    nlohmann::json summary = {{"median_sigma_um", bars.median_sigma_um},
+                              {"seconds", bars.seconds},
+                              {"exact", bars.map.exact},
+                              {"forwards", bars.map.forwards},
+                              {"probes", bars.map.probes},
+                              {"products", bars.map.products},
+                              {"max_cg_iterations", bars.map.max_cg_iterations},
+                              {"worst_relative_residual", bars.map.worst_relative_residual},
+                              {"filled", bars.map.filled},
+                              {"noise_variance", bars.map.noise_variance},
+                              {"loss", to_string(r.loss)}};
+    if (bars.coverage_2sigma >= 0.0) {
+        summary["coverage_1sigma"] = bars.coverage_1sigma;
+        summary["coverage_2sigma"] = bars.coverage_2sigma;
+        summary["rms_error_um"] = bars.rms_error_um;
+    }
+    write_text_atomically(dir + "/uncertainty.json", summary.dump(1) + "\n");
+}
+
+// run.json's "convergence": the check's verdict, its floor, the model check and its error bars.
+nlohmann::json convergence_json(const ConvergenceCheck& convergence, const PreparedRecovery& r) {
+    nlohmann::json c = {{"converged", convergence.converged},
+                        {"floor", convergence.floor},
+                        {"relative_misfit", convergence.relative_misfit},
+                        {"reasons", convergence.reasons}};
+    if (convergence.floor == "poisson") {
+        c["deviance"] = convergence.deviance;
+        c["expected_deviance"] = convergence.expected_deviance;
+        c["deviance_sd"] = convergence.deviance_sd;
+        c["misfit_ratio"] = convergence.misfit_ratio;
+    }
+    if (!convergence.model_selected.empty()) {
+        c["model_misfit_gabor"] = convergence.model_misfit_gabor;
+        c["model_misfit_field"] = convergence.model_misfit_field;
+        c["model_selected"] = convergence.model_selected;
+    }
+    if (convergence.median_sigma_relative >= 0.0) c["median_sigma_relative"] = convergence.median_sigma_relative;
+    if (convergence.predicted_error_relative >= 0.0) c["predicted_error_relative"] = convergence.predicted_error_relative;
+    c["judged"] = convergence.judged();
+    c["check_error_bars"] = to_string(r.check_error_bars);
+    if (!convergence.error_bars.empty()) {
+        c["error_bars"] = convergence.error_bars;
+        if (!convergence.error_bars_note.empty()) c["error_bars_note"] = convergence.error_bars_note;
+        if (convergence.error_bars_predicted_seconds >= 0.0) {
+            c["error_bars_predicted_seconds"] = convergence.error_bars_predicted_seconds;
+            c["run_seconds"] = convergence.run_seconds;
+        }
+        if (convergence.error_bars_seconds >= 0.0) c["error_bars_seconds"] = convergence.error_bars_seconds;
+    }
+    return c;
+}
+
 }  // namespace
 
 Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryOptions& options,
@@ -202,30 +262,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
         write_text_atomically(
             dir + "/calibration.json",
             detail::calibration_json(r.pipeline.calibrate, all_calibration, r.true_calibration ? &all_truth : nullptr));
-    if (bars) {
-        // Values in µm: vscale 1/texel_um makes a raw value a height in µm.
-        write_heightfield_exr(dir + "/uncertainty.exr",
-                              Heightfield(r.rows, r.cols, bars->map.sigma_um, r.texel_um, 1.0 / r.texel_um),
-                              "wavebrdf recover: uncertainty (standard deviation of each height, um)");
-        write_npy(dir + "/uncertainty_height.npy", height_shape, bars->map.sigma_um);
-        nlohmann::json summary = {{"median_sigma_um", bars->median_sigma_um},
-                                  {"seconds", bars->seconds},
-                                  {"exact", bars->map.exact},
-                                  {"forwards", bars->map.forwards},
-                                  {"probes", bars->map.probes},
-                                  {"products", bars->map.products},
-                                  {"max_cg_iterations", bars->map.max_cg_iterations},
-                                  {"worst_relative_residual", bars->map.worst_relative_residual},
-                                  {"filled", bars->map.filled},
-                                  {"noise_variance", bars->map.noise_variance},
-                                  {"loss", to_string(r.loss)}};
-        if (bars->coverage_2sigma >= 0.0) {
-            summary["coverage_1sigma"] = bars->coverage_1sigma;
-            summary["coverage_2sigma"] = bars->coverage_2sigma;
-            summary["rms_error_um"] = bars->rms_error_um;
-        }
-        write_text_atomically(dir + "/uncertainty.json", summary.dump(1) + "\n");
-    }
+    if (bars) write_uncertainty_files(dir, r, *bars);
     write_heightfield_exr(dir + "/estimate.exr", estimate,
                           std::string("wavebrdf recover: estimate (") + to_string(r.method) + ")");
     write_heightfield_png(dir + "/estimate.png", estimate);
@@ -238,37 +275,7 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     write_npy(dir + "/reference.npy", slice_shape, to_doubles(first.reference));
     write_npy(dir + "/final.npy", slice_shape, render_observation(estimate, first));
     nlohmann::json run = run_json(r, options);
-    run["convergence"] = {{"converged", convergence.converged},
-                          {"floor", convergence.floor},
-                          {"relative_misfit", convergence.relative_misfit},
-                          {"reasons", convergence.reasons}};
-    if (convergence.floor == "poisson") {
-        run["convergence"]["deviance"] = convergence.deviance;
-        run["convergence"]["expected_deviance"] = convergence.expected_deviance;
-        run["convergence"]["deviance_sd"] = convergence.deviance_sd;
-        run["convergence"]["misfit_ratio"] = convergence.misfit_ratio;
-    }
-    if (!convergence.model_selected.empty()) {
-        run["convergence"]["model_misfit_gabor"] = convergence.model_misfit_gabor;
-        run["convergence"]["model_misfit_field"] = convergence.model_misfit_field;
-        run["convergence"]["model_selected"] = convergence.model_selected;
-    }
-    if (convergence.median_sigma_relative >= 0.0)
-        run["convergence"]["median_sigma_relative"] = convergence.median_sigma_relative;
-    if (convergence.predicted_error_relative >= 0.0)
-        run["convergence"]["predicted_error_relative"] = convergence.predicted_error_relative;
-    run["convergence"]["judged"] = convergence.judged();
-    run["convergence"]["check_error_bars"] = to_string(r.check_error_bars);
-    if (!convergence.error_bars.empty()) {
-        run["convergence"]["error_bars"] = convergence.error_bars;
-        if (!convergence.error_bars_note.empty()) run["convergence"]["error_bars_note"] = convergence.error_bars_note;
-        if (convergence.error_bars_predicted_seconds >= 0.0) {
-            run["convergence"]["error_bars_predicted_seconds"] = convergence.error_bars_predicted_seconds;
-            run["convergence"]["run_seconds"] = convergence.run_seconds;
-        }
-        if (convergence.error_bars_seconds >= 0.0)
-            run["convergence"]["error_bars_seconds"] = convergence.error_bars_seconds;
-    }
+    run["convergence"] = convergence_json(convergence, r);
     if (!convergence.converged) run["warnings"].push_back(convergence.warning());
     // The estimate's spectrum against the truth's (surface_stats.h): psd.csv and its summary.
     if (r.truth && r.metric_note.empty()) {
