@@ -61,7 +61,7 @@ std::string one_line(std::string text) {
     return text;
 }
 
-[[noreturn]] void fail(const std::string& path, const std::string& what) {
+[[noreturn]] void fail_file(const std::string& path, const std::string& what) {
     throw std::runtime_error(path + ": " + one_line(what));
 }
 
@@ -134,7 +134,7 @@ void refuse_non_regular(const std::string& path) {
     struct stat st {};
     if (::lstat(path.c_str(), &st) != 0) return;  // absent (or unreachable: the write will say)
     if (S_ISREG(st.st_mode)) return;
-    fail(path, std::string("is ") + file_kind(st.st_mode) + ", not a regular file; refusing to replace it");
+    fail_file(path, std::string("is ") + file_kind(st.st_mode) + ", not a regular file; refusing to replace it");
 }
 
 // Throws when `path` is an OpenEXR file of several parts: InputFile would silently read part 0
@@ -145,10 +145,10 @@ void refuse_multi_part(const std::string& path) {
     try {
         parts = Imf::MultiPartInputFile(path.c_str()).parts();
     } catch (const std::exception& e) {
-        fail(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
+        fail_file(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
     }
     if (parts > 1)
-        fail(path, "is a multi-part OpenEXR file (" + std::to_string(parts) +
+        fail_file(path, "is a multi-part OpenEXR file (" + std::to_string(parts) +
                        " parts); expected a single-part image (extract the part you want first)");
 }
 
@@ -225,7 +225,7 @@ void check_attribute_sizes(const std::string& path) {
             while (read_name(channel) && !channel.empty()) {
                 in.seekg(16, std::ios::cur);
                 if (++channels > k_max_exr_channels)
-                    fail(path, "declares more than " + std::to_string(k_max_exr_channels) +
+                    fail_file(path, "declares more than " + std::to_string(k_max_exr_channels) +
                                    " channels; expected an image (R, G, B, A or Y)");
             }
             if (!in) return;
@@ -247,13 +247,13 @@ void check_attribute_sizes(const std::string& path) {
                 const long long width = v[2] - v[0] + 1, height = v[3] - v[1] + 1;
                 if (width > k_max_exr_side || height > k_max_exr_side)
                     // No pixel count: sides up to 2^32 each would overflow it (found by the fuzzer).
-                    fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) +
+                    fail_file(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) +
                                    " image; the limit is " + std::to_string(k_max_exr_side) + " per side (" +
                                    std::to_string(k_max_exr_pixels) + " pixels)");
             } else {
                 const long long tile_x = std::uint32_t(v[0]), tile_y = std::uint32_t(v[1]);
                 if (tile_x > k_max_exr_side || tile_y > k_max_exr_side || tile_x * tile_y > k_max_exr_tile_pixels)
-                    fail(path, "declares " + std::to_string(tile_x) + "x" + std::to_string(tile_y) +
+                    fail_file(path, "declares " + std::to_string(tile_x) + "x" + std::to_string(tile_y) +
                                    " tiles; the limit is " + std::to_string(k_max_exr_tile_pixels) +
                                    " pixels per tile");
             }
@@ -269,7 +269,7 @@ void check_attribute_sizes(const std::string& path) {
         if (at < 0) return;
         const std::uintmax_t rest = file_size - std::min<std::uintmax_t>(file_size, std::uintmax_t(at));
         if (std::uintmax_t(size) > rest)
-            fail(path, "header attribute '" + name + "' (type '" + type + "') declares " + std::to_string(size) +
+            fail_file(path, "header attribute '" + name + "' (type '" + type + "') declares " + std::to_string(size) +
                            " bytes but only " + std::to_string(rest) +
                            " follow; expected an OpenEXR file that is not corrupt or truncated");
         in.seekg(size, std::ios::cur);
@@ -338,7 +338,7 @@ public:
     bool has(const std::string& name) const { return m_header.find(k_prefix + name) != m_header.end(); }
 
     [[noreturn]] void bad(const std::string& name, const std::string& what) const {
-        fail(m_path, "attribute '" + k_prefix + name + "' " + what);
+        fail_file(m_path, "attribute '" + k_prefix + name + "' " + what);
     }
 
     template <typename Attribute>
@@ -427,11 +427,11 @@ namespace {
 const char* height_channel(const ExrSource& source) {
     const auto* kind = source.m_file->header().findTypedAttribute<Imf::StringAttribute>("wavebrdf:kind");
     if (kind != nullptr && kind->value() == "wavebrdf brdf table")
-        fail(source.m_path, "is a '" + one_line(kind->value().substr(0, 64)) +
+        fail_file(source.m_path, "is a '" + one_line(kind->value().substr(0, 64)) +
                                 "' file (attribute wavebrdf:kind), not a heightfield; expected a heightfield EXR "
                                 "(heights in R)");
     const char* channel = source.has_channel("R") ? "R" : source.has_channel("Y") ? "Y" : nullptr;
-    if (channel == nullptr) fail(source.m_path, "has no R or Y channel; expected a heightfield in R");
+    if (channel == nullptr) fail_file(source.m_path, "has no R or Y channel; expected a heightfield in R");
     return channel;
 }
 
@@ -711,7 +711,7 @@ RgbImage read_rgb_exr(const std::string& path) {
         return image;
     }
     // A luminance-only file is grey: replicate Y so callers always get three channels.
-    if (!source.has_channel("Y")) fail(path, "has no R, G, B channels (nor Y); expected an RGB image");
+    if (!source.has_channel("Y")) fail_file(path, "has no R, G, B channels (nor Y); expected an RGB image");
     std::vector<float> grey;
     source.read({"Y"}, grey);
     image.data.resize(grey.size() * 3u);
@@ -784,15 +784,15 @@ void write_file_atomically(const std::string& path,
         write(tmp);
     } catch (const std::exception& e) {
         remove_quietly(tmp);
-        fail(path, std::string("cannot write file (") + e.what() + ")");
+        fail_file(path, std::string("cannot write file (") + e.what() + ")");
     } catch (...) {
         remove_quietly(tmp);
-        fail(path, "cannot write file (unknown error)");
+        fail_file(path, "cannot write file (unknown error)");
     }
     if (std::rename(tmp.c_str(), path.c_str()) != 0) {
         const int err = errno;
         remove_quietly(tmp);
-        fail(path, std::string("cannot move the finished file into place (") + std::strerror(err) + ")");
+        fail_file(path, std::string("cannot move the finished file into place (") + std::strerror(err) + ")");
     }
 }
 
@@ -818,7 +818,7 @@ void check_readable_file(const std::string& path) {
     struct stat st {};
     if (::stat(path.c_str(), &st) != 0) return;  // absent: the reader says so
     if (S_ISREG(st.st_mode)) return;
-    fail(path, std::string("is ") + file_kind(st.st_mode) + ", not a regular file; expected a regular file to read");
+    fail_file(path, std::string("is ") + file_kind(st.st_mode) + ", not a regular file; expected a regular file to read");
 }
 
 void check_writable(const std::string& path) {
@@ -828,7 +828,7 @@ void check_writable(const std::string& path) {
     std::FILE* file = std::fopen(tmp.c_str(), "wb");
     if (file == nullptr) {
         const int err = errno;
-        fail(path, std::string("cannot create a file here (") + std::strerror(err) + ")");
+        fail_file(path, std::string("cannot create a file here (") + std::strerror(err) + ")");
     }
     std::fclose(file);
     remove_quietly(tmp);
@@ -875,28 +875,28 @@ double exr_expansion_limit(int compression) {
 
 ExrSource::ExrSource(const std::string& path) : m_path(path) {
     std::error_code ec;
-    if (!fs::exists(path, ec)) fail(path, "file does not exist");
-    if (fs::is_directory(path, ec)) fail(path, "is a directory; expected an OpenEXR file");
+    if (!fs::exists(path, ec)) fail_file(path, "file does not exist");
+    if (fs::is_directory(path, ec)) fail_file(path, "is a directory; expected an OpenEXR file");
     check_readable_file(path);
     // isOpenExrFile checks the magic number, giving a clearer message than InputFile.
-    if (!Imf::isOpenExrFile(path.c_str())) fail(path, "not an OpenEXR file (missing magic number or unreadable)");
+    if (!Imf::isOpenExrFile(path.c_str())) fail_file(path, "not an OpenEXR file (missing magic number or unreadable)");
     check_attribute_sizes(path);  // first: opening the file is what allocates
     refuse_multi_part(path);
     try {
         m_file = std::make_unique<Imf::InputFile>(path.c_str(), detail::exr_threads());
     } catch (const std::exception& e) {
-        fail(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
+        fail_file(path, std::string("cannot read OpenEXR header (") + e.what() + ")");
     }
     const Imath::Box2i dw = m_file->header().dataWindow();
     const long long width = static_cast<long long>(dw.max.x) - dw.min.x + 1;
     const long long height = static_cast<long long>(dw.max.y) - dw.min.y + 1;
     if (width < 1 || height < 1 || width > std::numeric_limits<int>::max() ||
         height > std::numeric_limits<int>::max())
-        fail(path, "data window " + std::to_string(width) + "x" + std::to_string(height) +
+        fail_file(path, "data window " + std::to_string(width) + "x" + std::to_string(height) +
                        " is invalid; expected a non-empty image");
     // Before any pixel is allocated: a small file may declare a huge image.
     if (width * height > k_max_exr_pixels)
-        fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image (" +
+        fail_file(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image (" +
                        std::to_string(width * height) + " pixels); the limit is " + std::to_string(k_max_exr_pixels) +
                        " pixels (16384x16384)");
     // ... and no more pixel data than the file can hold: each stored byte expands to at most
@@ -913,7 +913,7 @@ ExrSource::ExrSource(const std::string& path) : m_path(path) {
             declared += bytes * std::floor(double(width) / xs) * std::floor(double(height) / ys);
         }
         if (declared > limit * double(file_size))
-            fail(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image of " +
+            fail_file(path, "declares a " + std::to_string(width) + "x" + std::to_string(height) + " image of " +
                            format_shortest(declared) + " bytes, more than its " + std::to_string(file_size) +
                            " bytes can hold (at most " + format_shortest(limit) +
                            " times their size with its compression); expected an OpenEXR file that is not "
@@ -956,7 +956,7 @@ void ExrSource::read_rows(const std::vector<std::string>& channels, int first_ro
         m_file->readPixels(rows.min.y, rows.max.y);
     } catch (const std::exception& e) {
         // A truncated file usually opens fine and only fails here.
-        fail(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") + e.what() + ")");
+        fail_file(m_path, std::string("cannot read OpenEXR pixels, file truncated or corrupt (") + e.what() + ")");
     }
 }
 

@@ -190,6 +190,10 @@ FieldTileLayout field_tile_layout(int rows, int cols, int refine, int reach, con
     return layout;
 }
 
+// File-local like the AxisTiles it holds (a class outside the anonymous namespace holding one
+// draws GCC's -Wsubobject-linkage once the file is compiled in a unity batch).
+namespace {
+
 // The tiles' objects, their blend weights and per-tile phases a + b·x + c·y (x, y in texels
 // from the tile's centre), for aligning the tiles' arbitrary phases and blending them.
 template <typename T>
@@ -450,6 +454,8 @@ private:
     std::vector<std::vector<double>> wx, wy;
     std::vector<double> phase;
 };
+
+}  // namespace
 
 template <typename T>
 std::vector<std::complex<double>> blend_field_tiles(const FieldTileLayout& layout,
