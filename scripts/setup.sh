@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Installs what wavebrdf needs (Debian packages) and builds it into build/ (Release).
 # Usage: bash scripts/setup.sh [--demo] [extra cmake args...]
-# --demo: only what scripts/demo.sh needs (the CLI and the Python module, their packages and
-# ccache), not the tests, benchmarks, MPI, HDF5, clang or the documentation tools.
+# --demo: only what scripts/demo.sh needs: its packages (those of the CLI and the Python module)
+# and ccache, and only the CLI built (demo.sh builds the module itself, after its first pictures);
+# not the tests, benchmarks, MPI, HDF5, clang or the documentation tools.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -34,13 +35,15 @@ fi
 # ccache, where the machine has it, makes rebuilds of other checkouts nearly free.
 launcher=()
 command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+# WAVEBRDF_UNITY_BUILD: the library, the CLI and the Python module compiled in batches, so that a
+# fresh build parses the headers once a batch instead of once a file (CMakeLists.txt).
 if [ "$demo" = 1 ]; then
     cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DWAVEBRDF_BUILD_TESTS=OFF -DWAVEBRDF_BUILD_BENCH=OFF \
-          -DWAVEBRDF_BUILD_EXPERIMENTS=OFF "${launcher[@]}" "$@" >/dev/null
-    cmake --build build -j"$(nproc)" --target wavebrdf_cli wavebrdf_python
+          -DWAVEBRDF_BUILD_EXPERIMENTS=OFF -DWAVEBRDF_UNITY_BUILD=ON "${launcher[@]}" "$@" >/dev/null
+    cmake --build build -j"$(nproc)" --target wavebrdf_cli
 else
     # Explicit: a build/ configured by --demo has the tests, benchmarks and experiments cached OFF.
     cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DWAVEBRDF_BUILD_TESTS=ON -DWAVEBRDF_BUILD_BENCH=ON \
-          -DWAVEBRDF_BUILD_EXPERIMENTS=ON "${launcher[@]}" "$@" >/dev/null
+          -DWAVEBRDF_BUILD_EXPERIMENTS=ON -DWAVEBRDF_UNITY_BUILD=ON "${launcher[@]}" "$@" >/dev/null
     cmake --build build -j"$(nproc)"
 fi
