@@ -7,6 +7,8 @@
 #      installed CLI draws a report with the installed Python package (when it was built).
 #   2. add_subdirectory(<this source tree>): the consumer's own Debug build of the library, with
 #      tests, benchmarks, Python and the CLI off by default (build-consumer/, kept for ccache).
+#      Each source file is compiled alone here (no WAVEBRDF_UNITY_BUILD, unlike scripts/setup.sh's
+#      and the sanitizer build), so a file that misses an #include fails here.
 # Both check that no flag of ours (-march=native, sanitizers, OpenMP, Eigen's path) reaches the
 # consumer's compile lines.
 # Usage: bash scripts/test_consumer.sh      Environment: BUILD (default build), JOBS (default 2).
