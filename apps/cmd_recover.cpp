@@ -323,7 +323,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     auto on_step = [&](const StageMetrics& m) {
         if (!progress || m.stage != last.stage) {
             end_stage();
-            progress = std::make_unique<Progress>(m.stage, stage_iterations(r, m.stage), !quiet);
+            progress = std::make_unique<Progress>(m.stage, std::max(m.total, 1), !quiet);
         }
         char message[96];
         if (m.height_rel_rmse >= 0.0)

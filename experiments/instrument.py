@@ -84,7 +84,10 @@ def run_cli(binary, name, seed, args, out):
 
 def run_python(wb, name, seed, kwargs):
     start = time.monotonic()
-    result = wb.recover(seed=seed, quiet=True, **kwargs)
+    # The rarely used options go in a RecoverSettings (recover()'s settings=).
+    rare = {k: v for k, v in kwargs.items() if hasattr(wb.RecoverSettings, k)}
+    common = {k: v for k, v in kwargs.items() if k not in rare}
+    result = wb.recover(seed=seed, quiet=True, settings=wb.RecoverSettings(**rare), **common)
     seconds = time.monotonic() - start
     m = result.metrics
     err = float(m["height_rel_rmse"][-1])

@@ -113,11 +113,20 @@ PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object
 void bind_heightfield(py::module_& m);
 void bind_gabor(py::module_& m);
 void bind_brdf(py::module_& m);
+void bind_spectrum(py::module_& m);
 void bind_loss(py::module_& m);
 void bind_observation(py::module_& m);
+void bind_observation_file(py::module_& m);
 void bind_optim(py::module_& m);
 void bind_invert(py::module_& m);
+void bind_acquisition(py::module_& m);
+void bind_roughness_plan(py::module_& m);
+void bind_noise(py::module_& m);
 void bind_recover(py::module_& m);
+void bind_baseline(py::module_& m);
+void bind_generate(py::module_& m);
+void bind_recovery_run(py::module_& m);
+void bind_uncertainty(py::module_& m);
 void bind_surface(py::module_& m);  // surface.cpp: metrology
 void bind_conditioning(py::module_& m);
 void bind_table(py::module_& m);

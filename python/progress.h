@@ -19,11 +19,13 @@ inline void check_quiet(const py::object& quiet) {
 
 class PythonProgress {
 public:
-    // wavebrdf._progress.<wrapper>(callback, quiet, totals); with the GIL held.
-    PythonProgress(const char* wrapper, const py::object& callback, const py::object& quiet, const py::object& totals) {
-        const py::tuple wrapped = py::module_::import("wavebrdf._progress").attr(wrapper)(callback, quiet, totals);
-        m_callback = wrapped[0];
-        m_display = wrapped[1];
+    // wavebrdf._progress.<wrapper>(callback, quiet, total); with the GIL held.
+    PythonProgress(const char* wrapper, const py::object& callback, const py::object& quiet, const py::object& total) {
+        init(py::module_::import("wavebrdf._progress").attr(wrapper)(callback, quiet, total));
+    }
+    // wavebrdf._progress.<wrapper>(callback, quiet).
+    PythonProgress(const char* wrapper, const py::object& callback, const py::object& quiet) {
+        init(py::module_::import("wavebrdf._progress").attr(wrapper)(callback, quiet));
     }
     PythonProgress(const PythonProgress&) = delete;
     PythonProgress& operator=(const PythonProgress&) = delete;
@@ -45,6 +47,10 @@ public:
     }
 
 private:
+    void init(const py::tuple& wrapped) {
+        m_callback = wrapped[0];
+        m_display = wrapped[1];
+    }
     py::object m_callback = py::none();
     py::object m_display = py::none();
 };

@@ -49,7 +49,7 @@ struct Fixture {
     std::map<double, std::vector<const Observation*>> by_lambda;
     Heightfield flat{4, 4, std::vector<double>(16, 0.0), 2.0, 1.0};
     std::function<bool(const StageMetrics&)> on_step;
-    StageReporter reporter{on_step, nullptr, serial_communicator()};
+    StageReporter reporter{on_step, nullptr, serial_communicator(), RecoverSettings{}};
     explicit Fixture(const std::vector<double>& lambdas) {
         for (double l : lambdas) by_lambda[l];
     }

@@ -490,8 +490,50 @@ RecoverSettings scheduled_settings(const RecoverSettings& settings, double texel
 // the single-wavelength slices at its heights; the last two left out when
 // model_check_skip_ratio skips the field refinement) and "select:gabor" or "select:field" (the
 // heights returned).
+//
+// Every step carries its stage's kind and planned iteration total (what a progress bar needs),
+// so that no front end reads the names.
+enum class StageKind {
+    BlurredFit,      // "blur:S": blur width S's iterations
+    BlurredResult,   // "blur": the blurred fit's heights
+    ExposuresHeld,   // "exposures:held"
+    Field,           // "field:λ": the field retrieval at λ (µm)
+    Unwrap,          // "unwrap"
+    SigmaSearch,     // "sigma:…" (σ_p research at the unwrapped heights)
+    Refine,          // "refine": the refinement on every slice
+    RefineRung,      // "refine:λ": the wavelength ladder's rung at λ
+    RefineCoarse,    // "refine:coarse": the coarse space's iterations
+    CalibrateSigma,  // "calibrate:sigma": σ_p rounds
+    RepairOutliers,  // "repair:outliers"
+    RepairWhite,     // "repair": white light's defect repair
+    Positions,       // "positions:register", "positions:newton", "positions:rescue", "positions:stall"
+    ModelMisfit,     // "misfit:gabor", "misfit:field-start", "misfit:field-floor", "misfit:field"
+    ModelRefine,     // "refine:field": the refinement in the field model
+    ModelSelect,     // "select:gabor", "select:field"
+    Thesis,          // "thesis": the thesis's Adam epochs (recover_heights_thesis)
+    Other,           // none of the above (a stage the list does not know: a bug)
+};
+constexpr int k_stage_kinds = int(StageKind::Other) + 1;
+
+// The kind's name: the metrics text of its steps (metrics.csv, run.json), whole ("blur",
+// "unwrap"), or, ending in ':', the prefix of the steps named per width, wavelength or model
+// ("field:" for "field:0.7"); "other" for Other.
+const char* stage_kind_name(StageKind kind);
+
+// The kind of a step named `stage` (exact names before prefixes: "refine:coarse" is
+// RefineCoarse, "refine:0.7" RefineRung); Other for a name of no kind.
+StageKind stage_kind(const std::string& stage);
+
+// The most iterations a step of `kind` reports in one stage with `settings` as resolved by
+// scheduled_settings (a progress bar's length, ≥ 1), or 0 for a kind reported once per result
+// (blur, unwrap, repairs, positions, misfits, selections). Thesis: 0 here (its epochs are
+// BaselineSettings').
+int planned_iterations(const RecoverSettings& settings, StageKind kind);
+
 struct StageMetrics {
     std::string stage;
+    StageKind kind = StageKind::Other;
+    int total = 0;  // planned_iterations for this stage (0: a result, reported once)
     int iteration = 0;
     double loss = 0.0;              // the stage's own loss (relative for the blur and field stages; 0 for results)
     double seconds = 0.0;           // since recover_heights started

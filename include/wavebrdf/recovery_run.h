@@ -225,19 +225,14 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 // The estimate (prepared.rows × prepared.cols, texel units with prepared.texel_um and
 // vscale) from a flat start, by prepared.method. on_step receives every StageMetrics of the
 // method ("blur:S", "blur", "field:λ", "unwrap", "refine" for the pipeline; "thesis" every
-// report_every epochs), with height_rel_rmse when a truth is known and not flat (else −1);
+// report_every epochs), with height_rel_rmse when a truth is known and not flat (else −1),
+// each with its kind and planned total (recover.h, StageKind: a progress bar's length);
 // returning false stops and returns the estimate so far.
 // `comm`: the ranks prepared.observations are split over (prepared with a communicator of the
 // same size, else std::invalid_argument); collective, the estimate the same on every rank,
 // on_step called on every rank (recover_heights).
 // `calibration`, when given, receives the acquisition as the pipeline refined it
 // (recover_heights; this rank's share; the default Calibration for the thesis's method).
-// The most iterations stage `stage` of run_recovery's metrics stream reports, from the schedule
-// the run resolves (a progress bar's length, ≥ 1): "blur:S" the blurred fit's per width,
-// "field:λ" the field stage's, "refine" the refinement's, "refine:λ" a wavelength ladder's rung,
-// "thesis" the epochs; 1 for a stage reported once.
-long long stage_iterations(const PreparedRecovery& prepared, const std::string& stage);
-
 Heightfield run_recovery(const PreparedRecovery& prepared, const std::function<bool(const StageMetrics&)>& on_step = {},
                          const Communicator& comm = serial_communicator(), Calibration* calibration = nullptr);
 
@@ -265,5 +260,29 @@ std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& pre
 void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& prepared, const Heightfield& estimate,
                        const std::vector<double>* sigma_um, double run_seconds,
                        const Communicator& comm = serial_communicator());
+
+// The model check's misfits as a run reports them (run_recovery's metrics stream: the steps of
+// kinds ModelMisfit and ModelSelect), for the convergence check.
+struct ModelCheckMisfits {
+    double gabor = -1.0, field = -1.0;  // −1: not reported
+    std::string selected;               // "gabor" or "field"; "" without the check
+    void record(const StageMetrics& step);
+};
+
+// What follows run_recovery, as both front ends report it: the error bars (with
+// prepared.uncertainty and a run not stopped: recovery_error_bars; a problem without bars keeps
+// its estimate and says why in no_error_bars) and whether the run converged, judged without the
+// truth (check_convergence on the run's floor, the model check's misfits, the bars and the noise
+// limit: judge_noise_limit with `run_seconds`, the recovery's CPU time, not after a stop).
+// `calibration`: the run's, this rank's share (null or ignored without self-calibration).
+// Collective over `comm`.
+struct RecoveryJudgement {
+    std::optional<UncertaintyReport> error_bars;
+    std::string no_error_bars;  // why there are none, where they were asked for and there are none
+    ConvergenceCheck convergence;
+};
+RecoveryJudgement judge_recovery(const PreparedRecovery& prepared, const Heightfield& estimate,
+                                 const ModelCheckMisfits& misfits, const Calibration* calibration, bool stopped,
+                                 double run_seconds, const Communicator& comm = serial_communicator());
 
 }  // namespace wavebrdf

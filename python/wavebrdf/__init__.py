@@ -13,7 +13,8 @@ Two plain functions carry everything else:
 
 and the objects of the thesis's listing 4.1: Heightfield, GaborRep, Query, render, the losses
 (Loss, cmsle, mse, amplitude), gradient / observation_loss, the optimisers (Adam,
-lbfgs_minimize) and invert. Heightfield recovery: recover (``wavebrdf recover``), its parts
+lbfgs_minimize) and invert. Heightfield recovery: recover (``wavebrdf recover``; its rarely
+used settings in a RecoverSettings), its parts
 plan_acquisition, planned_observations, simulate_observations, add_noise, check_acquisition,
 recover_heights, recover_heights_thesis, and height_rel_rmse, with_height_range, height_uncertainty
 (error bars). ``wavebrdf.torch`` wraps render_slice as a differentiable PyTorch
@@ -31,6 +32,7 @@ from ._core import (  # noqa: F401
     Loss,
     Observation,
     Query,
+    RecoverSettings,
     RecoveryResult,
     add_noise,
     amplitude,
@@ -74,7 +76,7 @@ from .table import BrdfTable, lobe_brdf, lobe_table, read_table, render_table  #
 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
-    "Query", "RecoveryResult", "add_noise", "amplitude", "check_acquisition", "cie1931_xyz", "cmsle", "gradient",
+    "Query", "RecoverSettings", "RecoveryResult", "add_noise", "amplitude", "check_acquisition", "cie1931_xyz", "cmsle", "gradient",
     "height_mse", "height_rel_rmse", "height_rel_rmse_plane_removed", "height_uncertainty", "invert", "lbfgs_minimize", "mse", "observation_loss", "plan_acquisition",
     "planned_observations", "read_observations", "recover", "recover_heights", "recover_heights_thesis", "render",
     "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",

@@ -550,6 +550,149 @@ class Query:
     def __repr__(self) -> str:
         ...
 
+class RecoverSettings:
+    """recover()'s rarely used settings, as the CLI's options of the same names (docs/recovery.md,
+    "Settings by stage"); None: the library's (the schedule's). recover(settings=...) converts them
+    and the library checks them, naming them as here. Each is an attribute of the same name.
+
+    field_iterations, refine_iterations  pipeline iterations (>= 0; None: the schedule's)
+    field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /
+                  --field-tile-core): a surface with a side above the threshold (texels, 0...10^6; 0:
+                  never) is retrieved on tiles of about `field_tile_core` texels (8...4096) plus a
+                  margin; None: the library's (64, 48)
+    refine_coarse_spacing, refine_coarse_weight, refine_coarse_iterations  the refinement's coarse
+                  space (the CLI's --refine-coarse-*): node spacing in texels (0: off), the joint
+                  variables' weight, coarse-only iterations per round; None: the library's
+    position_passes  with calibrate 'positions' (or 'all'): at most this many passes of the
+                  position loop after the first recovery (the CLI's --position-passes, 0...100; 0:
+                  off; None: the library's, 40, stopped earlier when the loss stalls); its per-pass
+                  steps are in result.metrics (positions:register, positions:newton, ...)
+    white_smoothness  white light's smoothness continuation (the CLI's --white-smoothness): weights,
+                  largest first (at most 64, each 0 ... 1e12; [] none; None: the library's 10, 1,
+                  0.1, 0.01); white_smoothness_iterations: L-BFGS iterations per weight (None: 20)
+    epochs        method 'thesis': Adam epochs (>= 0, default 1000)
+    overlap       the planner's worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6,
+                  0.8 with calibrate 'positions' or 'all'); jitter 0 ... 0.3 (default 0.2)
+    oblique_lights  steep generated surfaces (expected rms slope > 0.2 from height_range_um and
+                  correlation_texels): every position is observed under 4 oblique lights at
+                  sin(theta_i) = 0.8 as well, so that steep facets reflect into a slice (default
+                  True; OHS and ROHS: GHS-type models keep one light); False: under `light` alone
+                  (the CLI's --no-oblique-lights)
+    plan_from_truth  None (default): as the CLI, a given truth is planned for its measured
+                  roughness (measure_roughness: peak to valley, rms slope, Sal, Str; a rough, steep
+                  or strongly striated surface gets long wavelengths, oblique lights and the longer
+                  schedule, docs/recovery.md "Rough surfaces") unless correlation_texels is given;
+                  True: that (a truth needed, not with correlation_texels); False: the stated plan
+                  (height range and correlation_texels, default 4)
+    simulator     how a truth's observations are simulated: 'gabor' (the model, default) or
+                  'scalar' (the exact field of the interpolated heights, scalar_diffraction.h;
+                  OHS / ROHS); not with observations
+    simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a study's
+                  acquisition errors (the CLI's --simulate-*; a truth only): footprint positions off
+                  by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
+                  log-uniform in (min, max), the true sigma_p this factor times the stated one
+                  (0.25...4); the recovery is given the stated acquisition
+    """
+    def __init__(self, *, field_iterations: Any = ..., refine_iterations: Any = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., refine_coarse_spacing: Any = ..., refine_coarse_weight: Any = ..., refine_coarse_iterations: Any = ..., position_passes: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., epochs: Any = ..., overlap: Any = ..., jitter: Any = ..., oblique_lights: Any = ..., plan_from_truth: Any = ..., simulator: Any = ..., simulate_position_error_texels: Any = ..., simulate_exposure: Any = ..., simulate_sigma_factor: Any = ...) -> None:
+        ...
+    def __repr__(self) -> str:
+        ...
+    @property
+    def overlap(self) -> Any:
+        ...
+    @overlap.setter
+    def overlap(self, value: Any) -> None: ...
+    @property
+    def jitter(self) -> Any:
+        ...
+    @jitter.setter
+    def jitter(self, value: Any) -> None: ...
+    @property
+    def oblique_lights(self) -> Any:
+        ...
+    @oblique_lights.setter
+    def oblique_lights(self, value: Any) -> None: ...
+    @property
+    def plan_from_truth(self) -> Any:
+        ...
+    @plan_from_truth.setter
+    def plan_from_truth(self, value: Any) -> None: ...
+    @property
+    def simulator(self) -> Any:
+        ...
+    @simulator.setter
+    def simulator(self, value: Any) -> None: ...
+    @property
+    def field_iterations(self) -> Any:
+        ...
+    @field_iterations.setter
+    def field_iterations(self, value: Any) -> None: ...
+    @property
+    def refine_iterations(self) -> Any:
+        ...
+    @refine_iterations.setter
+    def refine_iterations(self, value: Any) -> None: ...
+    @property
+    def field_tile_threshold(self) -> Any:
+        ...
+    @field_tile_threshold.setter
+    def field_tile_threshold(self, value: Any) -> None: ...
+    @property
+    def field_tile_core(self) -> Any:
+        ...
+    @field_tile_core.setter
+    def field_tile_core(self, value: Any) -> None: ...
+    @property
+    def refine_coarse_spacing(self) -> Any:
+        ...
+    @refine_coarse_spacing.setter
+    def refine_coarse_spacing(self, value: Any) -> None: ...
+    @property
+    def refine_coarse_weight(self) -> Any:
+        ...
+    @refine_coarse_weight.setter
+    def refine_coarse_weight(self, value: Any) -> None: ...
+    @property
+    def refine_coarse_iterations(self) -> Any:
+        ...
+    @refine_coarse_iterations.setter
+    def refine_coarse_iterations(self, value: Any) -> None: ...
+    @property
+    def white_smoothness(self) -> Any:
+        ...
+    @white_smoothness.setter
+    def white_smoothness(self, value: Any) -> None: ...
+    @property
+    def white_smoothness_iterations(self) -> Any:
+        ...
+    @white_smoothness_iterations.setter
+    def white_smoothness_iterations(self, value: Any) -> None: ...
+    @property
+    def position_passes(self) -> Any:
+        ...
+    @position_passes.setter
+    def position_passes(self, value: Any) -> None: ...
+    @property
+    def epochs(self) -> Any:
+        ...
+    @epochs.setter
+    def epochs(self, value: Any) -> None: ...
+    @property
+    def simulate_position_error_texels(self) -> Any:
+        ...
+    @simulate_position_error_texels.setter
+    def simulate_position_error_texels(self, value: Any) -> None: ...
+    @property
+    def simulate_exposure(self) -> Any:
+        ...
+    @simulate_exposure.setter
+    def simulate_exposure(self, value: Any) -> None: ...
+    @property
+    def simulate_sigma_factor(self) -> Any:
+        ...
+    @simulate_sigma_factor.setter
+    def simulate_sigma_factor(self, value: Any) -> None: ...
+
 class RecoveryResult:
     """What recover() returns."""
     @property
@@ -930,7 +1073,7 @@ def read_slice(path: Union[str, os.PathLike]) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., resolution: int = ..., lambdas_um: Any = ..., overlap: Any = ..., jitter: float = ..., noise: Any = ..., loss: Any = ..., method: str = ..., field_iterations: Any = ..., refine_iterations: Any = ..., epochs: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., simulator: str = ..., calibrate: Any = ..., simulate_position_error_texels: float = ..., simulate_exposure: Any = ..., simulate_sigma_factor: float = ..., uncertainty: bool = ..., spectral: int = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., position_passes: Any = ..., position_uncertainty_um: Any = ..., oblique_lights: bool = ..., plan_from_truth: Any = ..., check_error_bars: str = ...) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., position_uncertainty_um: Any = ..., resolution: int = ..., lambdas_um: Any = ..., spectral: int = ..., noise: Any = ..., loss: Any = ..., method: str = ..., calibrate: Any = ..., uncertainty: bool = ..., check_error_bars: str = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., settings: Any = ..., **kwargs: Any) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -948,38 +1091,36 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     correlation_texels  generated truth: correlation length in texels (> 0; None: 4). With a given
                   truth: the stated correlation the acquisition is planned for (as a user without
                   the truth would plan it) instead of the truth's measured roughness
-    plan_from_truth  None (default): as the CLI, a given truth is planned for its measured
-                  roughness (measure_roughness: peak to valley, rms slope, Sal, Str; a rough, steep
-                  or strongly striated surface gets long wavelengths, oblique lights and the longer
-                  schedule, docs/recovery.md "Rough surfaces") unless correlation_texels is given;
-                  True: that (a truth needed, not with correlation_texels); False: the stated plan
-                  (height range and correlation_texels, default 4)
     model         'OHS', 'ROHS', 'GHS' or 'RGHS' (GHS-type through the separable proxy); light: (wx, wy), |w| < 1
-    oblique_lights  steep generated surfaces (expected rms slope > 0.2 from height_range_um and
-                  correlation_texels): every position is observed under 4 oblique lights at
-                  sin(theta_i) = 0.8 as well, so that steep facets reflect into a slice (default
-                  True; OHS and ROHS: GHS-type models keep one light); False: under `light` alone
-                  (the CLI's --no-oblique-lights)
     sigma_p_um    footprint sigma_p in um (0: the planner's, 1.5 texels or position_uncertainty_um
                   if larger)
     position_uncertainty_um  how far the stage may put a footprint from where it says, um rms per
                   coordinate (the CLI's --position-uncertainty-um): the planner makes sigma_p at
-                  least this and the position loop searches lost positions 4x as far; None: the simulated error's rms (simulate_position_error_texels x
-                  texel_um), else 0
+                  least this and the position loop searches lost positions 4x as far; None: the
+                  simulated error's rms (settings.simulate_position_error_texels x texel_um), else 0
     resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
     lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
-    overlap       worst-case overlap of neighbouring windows, 0.6 ... 0.95 (None: 0.6, 0.8 with
-                  calibrate 'positions' or 'all'); jitter 0 ... 0.3
+    spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
+                  slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
     noise         simulated noise: 'none', 'poisson:N' (photons per slice) or 'gaussian:REL'
     loss          a spec or Loss; None: matched to the noise for the pipeline (amplitude without
                   noise, poisson:N, mse), cmsle:1 for the thesis's method
     method        'pipeline' (blurred fit, field retrieval, unwrapping, refinement) or 'thesis'
-                  (Adam, one observation per epoch)
-    field_iterations, refine_iterations  pipeline iterations (>= 0; None: the schedule's)
-    epochs        thesis method: Adam epochs (>= 0)
+                  (Adam, one observation per epoch; settings.epochs)
+    calibrate     self-calibration, the CLI's --calibrate: None or 'none' (default), 'positions',
+                  'exposure', 'sigma' (comma-separated or a sequence), or 'all'; the refined values
+                  are in result.calibration
+    uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
+                  uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
+                  coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
+    check_error_bars  the convergence check's own error bars where it needs them (photon counts with
+                  the misfit on the floor, or a loss without a noise level): 'auto' (computed when
+                  predicted to take at most the recovery's own CPU time), 'always' or 'off' (the
+                  CLI's --check-error-bars; result.convergence['error_bars'] says what was done)
     seed          generated truth, position jitter, noise, the thesis's draws
-    callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse)
-                  after every reported step; return False to stop early.
+    callback      callback(metrics: dict with stage, kind, total (the stage's planned iterations, 0
+                  for a result: what the progress bars show), iteration, loss, seconds,
+                  height_rel_rmse) after every reported step; return False to stop early.
     max_memory_gb refuse (MemoryError, before any work) a run whose estimated peak memory exceeds
                   this many GB; 0 (default): the physical memory
     quiet         progress (a tqdm bar per stage if tqdm is installed, else a line on stderr): None
@@ -989,37 +1130,10 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   observations (result.observations: this rank's); the sums are allreduced, every
                   rank gets the same estimate, only rank 0 shows progress (docs/scale.md). The
                   thesis's method runs on one process only.
-    simulator     how a truth's observations are simulated: 'gabor' (the model, default) or
-                  'scalar' (the exact field of the interpolated heights, scalar_diffraction.h;
-                  OHS / ROHS); not with observations
-    calibrate     self-calibration, the CLI's --calibrate: None or 'none' (default), 'positions',
-                  'exposure', 'sigma' (comma-separated or a sequence), or 'all'; the refined values
-                  are in result.calibration
-    position_passes  with calibrate 'positions' (or 'all'): at most this many passes of the
-                  position loop after the first recovery (the CLI's --position-passes, 0...100; 0:
-                  off; None: the library's, 40, stopped earlier when the loss stalls); its per-pass
-                  steps are in result.metrics (positions:register, positions:newton, ...)
-    simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a study's
-                  acquisition errors (the CLI's --simulate-*; a truth only): footprint positions off
-                  by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
-                  log-uniform in (min, max), the true sigma_p this factor times the stated one
-                  (0.25...4); the recovery is given the stated acquisition
-    uncertainty   True: also the error bars (height_uncertainty with the run's loss): the result's
-                  uncertainty (sigma per texel, um), median_sigma_um and, with a truth,
-                  coverage_1sigma / coverage_2sigma (wavebrdf recover --uncertainty)
-    check_error_bars  the convergence check's own error bars where it needs them (photon counts with
-                  the misfit on the floor, or a loss without a noise level): 'auto' (computed when
-                  predicted to take at most the recovery's own CPU time), 'always' or 'off' (the
-                  CLI's --check-error-bars; result.convergence['error_bars'] says what was done)
-    spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
-                  slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices
-    field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /
-                  --field-tile-core): a surface with a side above the threshold (texels, 0...10^6; 0:
-                  never) is retrieved on tiles of about `field_tile_core` texels (8...4096) plus a
-                  margin; None: the library's (64, 48)
-    white_smoothness  white light's smoothness continuation (the CLI's --white-smoothness): weights,
-                  largest first (at most 64, each 0 ... 1e12; [] none; None: the library's 10, 1,
-                  0.1, 0.01); white_smoothness_iterations: L-BFGS iterations per weight (None: 20)
+    settings      a RecoverSettings: the rarely used settings (iterations, tiles, the position
+                  loop's passes, white light's continuation, the planner's overlap and lights, a
+                  study's simulated acquisition errors); None: the defaults. Their names as
+                  keywords of recover() still work for now, with a FutureWarning.
     Whether the run converged is judged without the truth, as the CLI judges it (docs/recovery.md,
     "Did it converge?"): result.convergence; when it did not, its warning is also the last entry
     of result.warnings (as in the CLI's run.json).
@@ -1074,8 +1188,9 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
                   weights count (a pixel of weight 0 is out of every misfit; docs/recovery.md)
     size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
     truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
-    callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse
-                  (NaN without a truth)) after every reported step; return False to stop early
+    callback      callback(metrics: dict with stage, kind (the stage's kind: 'field:', 'refine', ...),
+                  total (its planned iterations; 0 for a result), iteration, loss, seconds,
+                  height_rel_rmse (NaN without a truth)) after every reported step; return False to stop early
                   (the estimate so far is returned). The run releases the GIL; Ctrl-C stops it
                   at the next step (KeyboardInterrupt).
     """
@@ -1092,8 +1207,9 @@ def recover_heights_thesis(observations: Any, size: Any, texel_um: float, vscale
                   weights count (a pixel of weight 0 is out of every misfit; docs/recovery.md)
     size          N or (rows, cols) of the estimate, 1...16384; texel_um > 0 (um), vscale finite
     truth         a Heightfield of that size, or None: only feeds height_rel_rmse in the metrics
-    callback      callback(metrics: dict with stage, iteration, loss, seconds, height_rel_rmse
-                  (NaN without a truth)) after every reported step; return False to stop early
+    callback      callback(metrics: dict with stage, kind (the stage's kind: 'field:', 'refine', ...),
+                  total (its planned iterations; 0 for a result), iteration, loss, seconds,
+                  height_rel_rmse (NaN without a truth)) after every reported step; return False to stop early
                   (the estimate so far is returned). The run releases the GIL; Ctrl-C stops it
                   at the next step (KeyboardInterrupt).
     """

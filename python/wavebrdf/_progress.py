@@ -108,24 +108,17 @@ def wrap_invert(callback, quiet, total_epochs):
     return on_epoch, display
 
 
-def _total(totals, stage):
-    """The steps of `stage` in `totals` (keys ending in ':' are prefixes), or None."""
-    for key, value in totals.items():
-        if stage == key or (key.endswith(":") and stage.startswith(key)):
-            return value
-    return None
-
-
-def wrap_recover(callback, quiet, totals):
-    """(callback to run recover with, Display or None). `totals`: the iterations of each stage
-    ({'field:': 50, ...}); steps of the stages without one (a stage's result) are not drawn."""
+def wrap_recover(callback, quiet):
+    """(callback to run recover with, Display or None). Each step's metrics carry its stage's
+    planned iterations ('total', the run's: recover.h, StageKind); steps of a stage reported once
+    (total 0: a stage's result) are not drawn."""
     if not shown(quiet):
         return callback, None
     display = Display()
 
     def on_step(metrics):
-        total = _total(totals, metrics["stage"])
-        if total is not None:
+        total = metrics["total"]
+        if total > 0:
             message = "loss %.3g" % metrics["loss"]
             if metrics["height_rel_rmse"] == metrics["height_rel_rmse"]:  # not NaN
                 message += " height err %.2f%%" % (100.0 * metrics["height_rel_rmse"])

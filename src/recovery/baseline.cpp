@@ -1,5 +1,6 @@
 #include "wavebrdf/baseline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <random>
 #include <stdexcept>
@@ -33,6 +34,8 @@ Heightfield recover_heights_thesis(const std::vector<Observation>& observations,
         if (on_step && ((epoch + 1) % settings.report_every == 0 || epoch + 1 == settings.epochs)) {
             StageMetrics m;
             m.stage = "thesis";
+            m.kind = StageKind::Thesis;
+            m.total = std::max(settings.epochs, 1);
             m.iteration = epoch + 1;
             m.loss = loss;
             m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -62,7 +62,9 @@ std::string to_string(const CalibrationSettings& settings) {
 }
 
 void check_acquisition_errors(const AcquisitionErrors& e, const std::string& prefix) {
-    const auto fail = [&](const std::string& what, double value, const std::string& expected) {
+    const auto fail = [&](std::string what, double value, const std::string& expected) {
+        // A Python-style prefix ("simulate_") names the keyword: simulate_sigma_factor.
+        if (!prefix.empty() && prefix.back() == '_') std::replace(what.begin(), what.end(), '-', '_');
         std::ostringstream v;
         v << value;
         throw std::invalid_argument(prefix + what + " " + v.str() + " is invalid; expected " + expected);

@@ -68,7 +68,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations, const s
                            double vscale, const RecoverSettings& settings,
                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
                            const Communicator& comm, Calibration* calibration) {
-    detail::StageReporter reporter(on_step, truth, comm);
+    detail::StageReporter reporter(on_step, truth, comm, settings);
     // White light: no single-wavelength observation on any rank.
     const bool white = by_lambda.empty();
     const detail::FieldProxy proxy = detail::common_field_proxy(by_lambda, comm);

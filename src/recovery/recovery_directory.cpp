@@ -185,18 +185,17 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
     csv.precision(10);
     csv << "stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed\n";
     // The model check's misfits, for the convergence check after the run.
-    double misfit_gabor = -1.0, misfit_field = -1.0;
-    std::string selected;
+    ModelCheckMisfits misfits;
+    bool stopped = false;
     auto record = [&](const StageMetrics& m) {
-        if (m.stage == "misfit:gabor") misfit_gabor = m.loss;
-        if (m.stage == "misfit:field") misfit_field = m.loss;
-        if (m.stage.rfind("select:", 0) == 0) selected = m.stage.substr(7);
+        misfits.record(m);
         csv << m.stage << ',' << m.iteration << ',' << m.loss << ',' << m.seconds << ','
             << (m.height_rel_rmse >= 0.0 ? std::to_string(m.height_rel_rmse) : std::string("nan")) << ','
             << (m.height_rel_rmse_plane_removed >= 0.0 ? std::to_string(m.height_rel_rmse_plane_removed)
                                                        : std::string("nan"))
             << '\n';
-        return on_step ? on_step(m) : true;
+        if (on_step && !on_step(m)) stopped = true;
+        return !stopped;
     };
     // A failure midway keeps the metrics of the steps that finished.
     Calibration calibration;
@@ -231,30 +230,14 @@ Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryO
             all_truth = detail::gathered_calibration(*r.true_calibration, r.share, r.total_observations, comm);
     }
     if (out.calibration) *out.calibration = all_calibration;
-    // Error bars at the estimate (collective), before rank 0 writes.
-    std::unique_ptr<UncertaintyReport> bars;
-    if (r.uncertainty) {
-        // A problem without error bars must not cost the estimate: it is written, and why not.
-        std::string why_not;
-        std::optional<UncertaintyReport> report = recovery_error_bars(r, estimate, comm, &why_not);
-        if (report) {
-            bars = std::make_unique<UncertaintyReport>(std::move(*report));
-            if (uncertainty) *uncertainty = *bars;
-        } else if (root) {
-            std::fprintf(stderr, "wavebrdf: warning: no error bars: %s\n", why_not.c_str());
-        }
-    }
-    // Whether it converged, judged without the truth (convergence.h): collective.
-    ConvergenceCheck convergence = run_or_abort(comm, [&] {
-        const double photons = r.noise.kind == NoiseKind::Poisson ? r.noise.level
-                               : r.loss.kind == LossKind::Poisson ? r.loss.photons
-                                                                  : 0.0;
-        return check_convergence(r.observations, estimate, photons, r.truth && r.noise.kind == NoiseKind::None,
-                                 r.pipeline.calibrate.any() ? &calibration : nullptr, comm);
-    });
-    add_model_check(convergence, misfit_gabor, misfit_field, selected);
-    if (bars) add_error_bars(convergence, bars->median_sigma_um, r.range_um);
-    judge_noise_limit(convergence, r, estimate, bars ? &bars->map.sigma_um : nullptr, run_seconds, comm);
+    // Error bars at the estimate and whether it converged (collective), before rank 0 writes.
+    RecoveryJudgement judged = judge_recovery(r, estimate, misfits, &calibration, stopped, run_seconds, comm);
+    // A problem without error bars must not cost the estimate: it is written, and why not.
+    if (r.uncertainty && !judged.error_bars && !judged.no_error_bars.empty() && root)
+        std::fprintf(stderr, "wavebrdf: warning: no error bars: %s\n", judged.no_error_bars.c_str());
+    const std::optional<UncertaintyReport>& bars = judged.error_bars;
+    if (bars && uncertainty) *uncertainty = *bars;
+    const ConvergenceCheck& convergence = judged.convergence;
     if (out.convergence) *out.convergence = convergence;
     if (!root) return estimate;  // rank 0 writes the results
     write_text_atomically(dir + "/metrics.csv", csv.str());

@@ -283,6 +283,8 @@ MemoryLimit check_recovery_options(const RecoveryOptions& options, const Heightf
     validate_iterations(options.epochs, name("epochs"));
     if (options.field_iterations >= 0) validate_iterations(options.field_iterations, name("field_iterations"));
     if (options.refine_iterations >= 0) validate_iterations(options.refine_iterations, name("refine_iterations"));
+    if (options.refine_coarse_iterations >= 0)
+        validate_iterations(options.refine_coarse_iterations, name("refine_coarse_iterations"));
     if (options.position_passes > 100)
         throw std::invalid_argument(name("position_passes") + " " + std::to_string(options.position_passes) +
                                     " is invalid; expected 0 to 100 (0: off)");
@@ -560,18 +562,6 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     return r;
 }
 
-long long stage_iterations(const PreparedRecovery& r, const std::string& stage) {
-    const auto starts = [&](const char* prefix) { return stage.rfind(prefix, 0) == 0; };
-    if (r.method == RecoveryMethod::Thesis) return stage == "thesis" ? std::max(r.thesis.epochs, 1) : 1;
-    const RecoverSettings s = scheduled_settings(r.pipeline, r.texel_um);
-    const long long total = starts("blur:")     ? s.blurred.iterations
-                            : starts("field")   ? s.field.iterations
-                            : stage == "refine" ? s.refine_iterations
-                            : starts("refine:") ? s.refine_ladder_iterations
-                                                : 1;
-    return std::max<long long>(total, 1);
-}
-
 Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(const StageMetrics&)>& on_step,
                          const Communicator& comm, Calibration* calibration) {
     if (calibration) *calibration = Calibration{};
@@ -661,6 +651,32 @@ void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const
     check.error_bars = "computed";
     check.error_bars_seconds = bars_cpu;
     add_predicted_error(check, bars->map.sigma_um, r.range_um);
+}
+
+void ModelCheckMisfits::record(const StageMetrics& m) {
+    if (m.kind == StageKind::ModelMisfit && m.stage == "misfit:gabor") gabor = m.loss;
+    if (m.kind == StageKind::ModelMisfit && m.stage == "misfit:field") field = m.loss;
+    if (m.kind == StageKind::ModelSelect) selected = m.stage.substr(std::string(stage_kind_name(m.kind)).size());
+}
+
+RecoveryJudgement judge_recovery(const PreparedRecovery& r, const Heightfield& estimate,
+                                 const ModelCheckMisfits& misfits, const Calibration* calibration, bool stopped,
+                                 double run_seconds, const Communicator& comm) {
+    RecoveryJudgement j;
+    if (r.uncertainty && !stopped) j.error_bars = recovery_error_bars(r, estimate, comm, &j.no_error_bars);
+    j.convergence = run_or_abort(comm, [&] {
+        const double photons = r.noise.kind == NoiseKind::Poisson ? r.noise.level
+                               : r.loss.kind == LossKind::Poisson ? r.loss.photons
+                                                                  : 0.0;
+        return check_convergence(r.observations, estimate, photons, r.truth && r.noise.kind == NoiseKind::None,
+                                 r.pipeline.calibrate.any() ? calibration : nullptr, comm);
+    });
+    add_model_check(j.convergence, misfits.gabor, misfits.field, misfits.selected);
+    if (j.error_bars) add_error_bars(j.convergence, j.error_bars->median_sigma_um, r.range_um);
+    if (!stopped)
+        judge_noise_limit(j.convergence, r, estimate, j.error_bars ? &j.error_bars->map.sigma_um : nullptr,
+                          run_seconds, comm);
+    return j;
 }
 
 }  // namespace wavebrdf

@@ -44,6 +44,53 @@ constexpr double k_height_range_um = 4.0;
 
 }  // namespace
 
+namespace {
+
+// Each kind's metrics text (stage_kind_name), in StageKind's order.
+constexpr const char* k_stage_kind_names[k_stage_kinds] = {
+    "blur:",      "blur",    "exposures:held", "field:",          "unwrap",          "sigma:",
+    "refine",     "refine:", "refine:coarse",  "calibrate:sigma", "repair:outliers", "repair",
+    "positions:", "misfit:", "refine:field",   "select:",         "thesis",          "other"};
+
+}  // namespace
+
+const char* stage_kind_name(StageKind kind) {
+    const int k = int(kind);
+    return k >= 0 && k < k_stage_kinds ? k_stage_kind_names[k] : "other";
+}
+
+StageKind stage_kind(const std::string& stage) {
+    // Whole names first, then the longest prefix (none of the prefixes is another's prefix but
+    // "refine:", which the whole names "refine:coarse" and "refine:field" precede).
+    for (int k = 0; k + 1 < k_stage_kinds; ++k) {
+        const std::string name = k_stage_kind_names[k];
+        if (name.back() != ':' && stage == name) return StageKind(k);
+    }
+    for (int k = 0; k + 1 < k_stage_kinds; ++k) {
+        const std::string name = k_stage_kind_names[k];
+        if (name.back() == ':' && stage.size() > name.size() && stage.compare(0, name.size(), name) == 0)
+            return StageKind(k);
+    }
+    return StageKind::Other;
+}
+
+int planned_iterations(const RecoverSettings& s, StageKind kind) {
+    int total = 0;
+    switch (kind) {
+        case StageKind::BlurredFit:
+            total = s.blurred.iterations;
+            for (int n : s.blurred.width_iterations) total = std::max(total, n);
+            break;
+        case StageKind::Field: total = s.field.iterations; break;
+        case StageKind::Refine: total = s.refine_iterations; break;
+        case StageKind::RefineRung: total = s.refine_ladder_iterations; break;
+        case StageKind::RefineCoarse: total = s.refine_coarse_iterations; break;
+        case StageKind::ModelRefine: total = s.model_check_iterations; break;
+        default: return 0;  // reported once per result
+    }
+    return std::max(total, 1);
+}
+
 RecoverSettings scheduled_settings(const RecoverSettings& settings, double texel_um) {
     RecoverSettings s = settings;
     const SurfaceClass& surface = settings.surface;
@@ -104,14 +151,18 @@ constexpr double k_position_outer_stall_tolerance = 0.02;
 }  // namespace
 
 StageReporter::StageReporter(const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
-                             const Communicator& comm)
-    : m_on_step(on_step), m_truth(truth), m_comm(comm), m_start(std::chrono::steady_clock::now()) {}
+                             const Communicator& comm, const RecoverSettings& resolved)
+    : m_on_step(on_step), m_truth(truth), m_comm(comm), m_start(std::chrono::steady_clock::now()) {
+    for (int k = 0; k < k_stage_kinds; ++k) m_totals[std::size_t(k)] = planned_iterations(resolved, StageKind(k));
+}
 
 bool StageReporter::operator()(const std::string& stage, int iteration, double loss, const Heightfield* heights) {
     bool go_on = true;
     if (m_on_step) {
         StageMetrics m;
         m.stage = stage;
+        m.kind = stage_kind(stage);
+        m.total = m_totals[std::size_t(m.kind)];
         m.iteration = iteration;
         m.loss = loss;
         m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - m_start).count();

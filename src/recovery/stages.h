@@ -33,8 +33,9 @@ namespace wavebrdf::detail {
 // stays true.
 class StageReporter {
 public:
+    // `resolved`: the run's settings (scheduled_settings), for each step's planned total.
     StageReporter(const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
-                  const Communicator& comm);
+                  const Communicator& comm, const RecoverSettings& resolved);
     bool operator()(const std::string& stage, int iteration, double loss, const Heightfield* heights);
     bool stopped() const { return m_stopped; }
 
@@ -44,6 +45,7 @@ private:
     const Communicator& m_comm;
     std::chrono::steady_clock::time_point m_start;
     bool m_stopped = false;
+    std::array<int, k_stage_kinds> m_totals{};
 };
 
 // What every stage reads and none changes.

@@ -11,7 +11,8 @@ SMALL = dict(size=8, texel_um=2.0, sigma_p_um=3.0, height_range_um=0.1, seed=505
 
 
 def test_recover_refines_exposures_and_returns_them():
-    r = wb.recover(**SMALL, calibrate=("exposure",), simulate_exposure=(0.5, 2.0), quiet=True)
+    r = wb.recover(**SMALL, calibrate=("exposure",), quiet=True,
+                   settings=wb.RecoverSettings(simulate_exposure=(0.5, 2.0)))
     c = r.calibration
     assert c["refined"] == "exposure"
     assert c["position_offsets_um"] is None and c["sigma_p_scale"] == 1.0
@@ -26,7 +27,7 @@ def test_recover_refines_exposures_and_returns_them():
 
 
 def test_recover_without_calibration_has_no_truth_and_plain_values():
-    r = wb.recover(**SMALL, field_iterations=2, refine_iterations=1, quiet=True)
+    r = wb.recover(**SMALL, quiet=True, settings=wb.RecoverSettings(field_iterations=2, refine_iterations=1))
     assert r.calibration["refined"] == "none" and r.calibration["truth"] is None
     assert r.calibration["exposures"] is None
 
@@ -48,13 +49,13 @@ def test_recover_heights_returns_the_calibration_when_asked():
 
 
 def test_position_passes_bounds_the_position_loop():
-    args = dict(SMALL, calibrate="positions", simulate_position_error_texels=0.5, field_iterations=3,
-                refine_iterations=3, quiet=True)
-    one = wb.recover(**args, position_passes=1)
+    args = dict(SMALL, calibrate="positions", quiet=True)
+    fast = dict(simulate_position_error_texels=0.5, field_iterations=3, refine_iterations=3)
+    one = wb.recover(**args, settings=wb.RecoverSettings(**fast, position_passes=1))
     stages = list(one.metrics["stage"])
     assert stages.count("positions:register") == 1 and stages.count("positions:newton") == 1
     assert one.calibration["position_offsets_um"].shape == (len(one.observations), 2)
-    off = wb.recover(**args, position_passes=0)
+    off = wb.recover(**args, settings=wb.RecoverSettings(**fast, position_passes=0))
     assert "positions:register" not in list(off.metrics["stage"])
 
 
@@ -62,12 +63,17 @@ def test_position_passes_bounds_the_position_loop():
     (lambda: wb.recover(size=8, calibrate="exposure,focus"), ["calibrate", "'focus'", "positions, exposure"]),
     (lambda: wb.recover(size=8, calibrate=("exposure", 3)), ["calibrate", "sequence"]),
     (lambda: wb.recover(size=8, calibrate=5), ["calibrate", "sequence"]),
-    (lambda: wb.recover(size=8, simulate_exposure=(2.0, 1.0)), ["simulate_exposure", "min <= max"]),
-    (lambda: wb.recover(size=8, simulate_exposure="0.5,2"), ["simulate_exposure"]),
-    (lambda: wb.recover(size=8, simulate_sigma_factor=9.0), ["simulate_sigma_factor", "9"]),
-    (lambda: wb.recover(size=8, simulate_position_error_texels=-1.0), ["simulate_position_error_texels"]),
-    (lambda: wb.recover(size=8, calibrate="positions", position_passes=101), ["position_passes", "101", "0 to 100"]),
-    (lambda: wb.recover(size=8, calibrate="positions", position_passes=-2), ["position_passes", "-2"]),
+    (lambda: wb.recover(size=8,
+                        settings=wb.RecoverSettings(simulate_exposure=(2.0, 1.0))), ["simulate_exposure", "at most the max"]),
+    (lambda: wb.recover(size=8, settings=wb.RecoverSettings(simulate_exposure="0.5,2")), ["simulate_exposure"]),
+    (lambda: wb.recover(size=8,
+                        settings=wb.RecoverSettings(simulate_sigma_factor=9.0)), ["simulate_sigma_factor", "9"]),
+    (lambda: wb.recover(size=8,
+                        settings=wb.RecoverSettings(simulate_position_error_texels=-1.0)), ["simulate_position_error_texels"]),
+    (lambda: wb.recover(size=8, calibrate="positions",
+                        settings=wb.RecoverSettings(position_passes=101)), ["position_passes", "101", "0 to 100"]),
+    (lambda: wb.recover(size=8, calibrate="positions",
+                        settings=wb.RecoverSettings(position_passes=-2)), ["position_passes", "-2"]),
 ])
 def test_bad_calibration_arguments_name_themselves(call, needles):
     with pytest.raises(ValueError) as e:

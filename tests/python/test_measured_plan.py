@@ -19,7 +19,8 @@ import wavebrdf as wb
 import conftest
 
 ONE_THREAD = dict(os.environ, OMP_NUM_THREADS="1")
-FAST = dict(field_iterations=1, refine_iterations=1, resolution=16)
+FAST_SETTINGS = dict(field_iterations=1, refine_iterations=1)
+FAST = dict(resolution=16, settings=wb.RecoverSettings(**FAST_SETTINGS))
 FAST_CLI = ["--field-iterations", "1", "--refine-iterations", "1", "--resolution", "16"]
 
 
@@ -94,10 +95,11 @@ def test_recover_plans_a_truth_as_the_cli_does(steep_truth, tmp_path):
     saved = tmp_path / "py.json"
     script = (
         "import json, wavebrdf as wb\n"
-        "r = wb.recover(truth=%r, noise='poisson:1e4', quiet=True, **%r)\n"
+        "r = wb.recover(truth=%r, noise='poisson:1e4', quiet=True, resolution=16,\n"
+        "               settings=wb.RecoverSettings(**%r))\n"
         "json.dump(dict(notes=r.notes, warnings=r.warnings, observations=len(r.observations),\n"
         "               lambdas=sorted({l for o in r.observations for l in o.lambdas_um}),\n"
-        "               convergence=r.convergence), open(%r, 'w'))\n" % (str(steep_truth), FAST, str(saved)))
+        "               convergence=r.convergence), open(%r, 'w'))\n" % (str(steep_truth), FAST_SETTINGS, str(saved)))
     env = dict(ONE_THREAD, PYTHONPATH=os.path.join(conftest.BUILD, "python"))
     subprocess.run([sys.executable, "-c", script], check=True, env=env)
     py = json.load(open(saved))
@@ -119,10 +121,12 @@ def test_recover_plans_a_truth_as_the_cli_does(steep_truth, tmp_path):
 
 def test_recover_plans_as_stated_when_a_correlation_is_given(steep_truth):
     stated = wb.recover(truth=str(steep_truth), correlation_texels=4, quiet=True, **FAST)
-    off = wb.recover(truth=str(steep_truth), plan_from_truth=False, quiet=True, **FAST)
+    off = wb.recover(truth=str(steep_truth), quiet=True, resolution=16,
+                    settings=wb.RecoverSettings(**FAST_SETTINGS, plan_from_truth=False))
     assert not any("measured roughness" in n for n in stated.notes)
     assert stated.notes == off.notes and len(stated.observations) == len(off.observations)
-    measured = wb.recover(truth=str(steep_truth), plan_from_truth=True, quiet=True, **FAST)
+    measured = wb.recover(truth=str(steep_truth), quiet=True, resolution=16,
+                         settings=wb.RecoverSettings(**FAST_SETTINGS, plan_from_truth=True))
     assert any("measured roughness" in n for n in measured.notes)
     assert len(measured.observations) > len(stated.observations)
 
@@ -152,9 +156,10 @@ def test_the_checks_error_bars_follow_check_error_bars():
 
 @pytest.mark.parametrize("kwargs, needles", [
     (dict(check_error_bars="sometimes"), ["check_error_bars", "'sometimes'"]),
-    (dict(plan_from_truth=True), ["plan_from_truth", "truth"]),
-    (dict(truth=np.eye(4), plan_from_truth=True, correlation_texels=3), ["plan_from_truth", "correlation_texels"]),
-    (dict(truth=np.eye(4), plan_from_truth="yes"), ["plan_from_truth", "'yes'"]),
+    (dict(settings=wb.RecoverSettings(plan_from_truth=True)), ["plan_from_truth", "truth"]),
+    (dict(truth=np.eye(4), settings=wb.RecoverSettings(plan_from_truth=True), correlation_texels=3),
+     ["plan_from_truth", "correlation_texels"]),
+    (dict(truth=np.eye(4), settings=wb.RecoverSettings(plan_from_truth="yes")), ["plan_from_truth", "'yes'"]),
     (dict(correlation_texels=-1), ["correlation_texels"]),
 ])
 def test_bad_plan_arguments_name_themselves(kwargs, needles):

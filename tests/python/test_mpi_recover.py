@@ -54,8 +54,8 @@ def _heights(hf):
 @pytest.mark.skipif(MPIEXEC is None, reason="needs mpiexec (openmpi-bin) and a wavebrdf built with MPI")
 def test_recover_with_comm_shards_and_matches_one_process(tmp_path):
     pytest.importorskip("mpi4py")
-    one = wavebrdf.recover(size=12, seed=3, lambdas_um=[0.6], height_range_um=0.2, field_iterations=10,
-                           refine_iterations=5, quiet=True)
+    one = wavebrdf.recover(size=12, seed=3, lambdas_um=[0.6], height_range_um=0.2, 
+                           quiet=True, settings=wavebrdf.RecoverSettings(field_iterations=10, refine_iterations=5))
     a, counts = _mpi_run(tmp_path, 2, "a")
     b, _ = _mpi_run(tmp_path, 2, "b")
     assert (a[0] == a[1]).all(), "every rank returns the same heights"

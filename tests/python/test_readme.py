@@ -45,7 +45,8 @@ SHRINK = {
         "--no-plots": None,
     },
 }
-RECOVER_SHRINK = dict(size=8, epochs=3, resolution=16, field_iterations=2, refine_iterations=2, lambdas_um=[0.5])
+RECOVER_SHRINK = dict(size=8, resolution=16, lambdas_um=[0.5])
+RECOVER_SETTINGS_SHRINK = dict(epochs=3, field_iterations=2, refine_iterations=2)  # wb.RecoverSettings
 
 
 def code_blocks(language):
@@ -154,6 +155,11 @@ def test_readme_python_example_runs_as_written(fresh_dir, monkeypatch):
         calls.append(dict(kwargs))
         for key, value in RECOVER_SHRINK.items():
             kwargs[key] = min(kwargs[key], value) if isinstance(kwargs.get(key), (int, float)) else value
+        settings = kwargs.get("settings") or wb.RecoverSettings()
+        for key, value in RECOVER_SETTINGS_SHRINK.items():
+            current = getattr(settings, key)
+            setattr(settings, key, min(current, value) if isinstance(current, (int, float)) else value)
+        kwargs["settings"] = settings
         return real_recover(*args, **kwargs)
 
     monkeypatch.setattr(wb, "recover", recover)

@@ -270,7 +270,7 @@ def test_thesis_method_reduces_its_loss(small_observations):
     est = wb.recover_heights_thesis(obs, (8, 8), 2.0, truth=truth, epochs=30, callback=seen.append)
     assert [m["iteration"] for m in seen] == [10, 20, 30] and {m["stage"] for m in seen} == {"thesis"}
     assert seen[-1]["height_rel_rmse"] == pytest.approx(wb.height_rel_rmse(est, truth), rel=1e-12)
-    r = wb.recover(**SMALL, method="thesis", epochs=20, resolution=32)
+    r = wb.recover(**SMALL, method="thesis", resolution=32, settings=wb.RecoverSettings(epochs=20))
     assert r.loss == "cmsle:1" and r.method == "thesis" and list(r.metrics["iteration"]) == [10, 20]
 
 
@@ -299,18 +299,20 @@ def test_recover_refuses_what_cannot_fit_before_any_work():
     (lambda: wb.recover(noise="loud"), ["noise", "loud"]),
     (lambda: wb.recover(loss="cmsle:0"), ["cmsle:0"]),
     (lambda: wb.recover(size=0), ["size"]),
-    (lambda: wb.recover(size=8, overlap=0.3), ["overlap", "0.3"]),
-    (lambda: wb.recover(size=8, overlap=0), ["overlap", "0"]),
-    (lambda: wb.recover(size=8, jitter=0.9), ["jitter", "0.9"]),
+    (lambda: wb.recover(size=8, settings=wb.RecoverSettings(overlap=0.3)), ["overlap", "0.3"]),
+    (lambda: wb.recover(size=8, settings=wb.RecoverSettings(overlap=0)), ["overlap", "0"]),
+    (lambda: wb.recover(size=8, settings=wb.RecoverSettings(jitter=0.9)), ["jitter", "0.9"]),
     (lambda: wb.recover(lambdas_um=[0.5, -1]), ["lambdas_um"]),
     (lambda: wb.recover(height_range_um=0), ["height_range_um"]),
     (lambda: wb.recover(texel_um=-1), ["texel_um"]),
     (lambda: wb.recover(light=(0.9, 0.9)), ["light"]),
     (lambda: wb.recover(model="XYZ"), ["model", "XYZ"]),
-    (lambda: wb.recover(field_iterations=-1), ["field_iterations"]),
-    (lambda: wb.recover(epochs=-1, method="thesis"), ["epochs"]),
-    (lambda: wb.recover(epochs=2**31 - 1, method="thesis"), ["epochs 2147483647", "0 to 10000000"]),
-    (lambda: wb.recover(field_iterations=10**8), ["field_iterations 100000000", "0 to 10000000"]),
+    (lambda: wb.recover(settings=wb.RecoverSettings(field_iterations=-1)), ["field_iterations"]),
+    (lambda: wb.recover(method="thesis", settings=wb.RecoverSettings(epochs=-1)), ["epochs"]),
+    (lambda: wb.recover(method="thesis",
+                        settings=wb.RecoverSettings(epochs=2**31 - 1)), ["epochs 2147483647", "0 to 10000000"]),
+    (lambda: wb.recover(
+                        settings=wb.RecoverSettings(field_iterations=10**8)), ["field_iterations 100000000", "0 to 10000000"]),
     (lambda: wb.recover(resolution=-2), ["resolution"]),
     (lambda: wb.recover(callback=3), ["callback"]),
     (lambda: wb.recover(truth=np.zeros((4, 4)), observations="o.json"), ["truth", "observations"]),
@@ -361,7 +363,8 @@ def test_recover_flat_truth_reports_undefined_metric():
     # (Kirchhoff; GHS and RGHS go through the separable proxy) is refused before the
     # observations are simulated.
     flat = wb.Heightfield(np.full((8, 8), 0.25), texel_um=2.0)
-    r = wb.recover(flat, sigma_p_um=3.0, field_iterations=3, refine_iterations=2, resolution=32)
+    r = wb.recover(flat, sigma_p_um=3.0, resolution=32,
+                   settings=wb.RecoverSettings(field_iterations=3, refine_iterations=2))
     assert r.estimate.shape == (8, 8)
     assert np.all(np.isnan(r.metrics["height_rel_rmse"]))
     assert any("undefined: the truth is flat" in w for w in r.warnings)
@@ -372,7 +375,7 @@ def test_recover_flat_truth_reports_undefined_metric():
 def test_recover_takes_white_light_rgb_slices_alone():
     # White light (docs/recovery.md): every planned slice RGB of 4 wavelengths, no laser; the
     # blurred fit and the refinement run, no field stage; the estimate improves on flat.
-    r = wb.recover(**SMALL, resolution=24, spectral=4, refine_iterations=10)
+    r = wb.recover(**SMALL, resolution=24, spectral=4, settings=wb.RecoverSettings(refine_iterations=10))
     stages = set(r.metrics["stage"])
     assert "refine" in stages and "unwrap" not in stages
     truth_um = r.truth.heights_um()
@@ -387,8 +390,8 @@ def test_recover_takes_white_light_rgb_slices_alone():
 # recover_heights() takes them too (its field stage then reports every tile's iterations), and bad
 # values name themselves. The smallest surface that cuts: 32 rows (3 cores of ~11 texels plus
 # margins of 10), 8 columns (not cut).
-TILED = dict(size=(32, 8), seed=3, lambdas_um=[0.6], height_range_um=0.2, resolution=24, field_iterations=6,
-             refine_iterations=3)
+TILED = dict(size=(32, 8), seed=3, lambdas_um=[0.6], height_range_um=0.2, resolution=24)
+TILED_SETTINGS = dict(field_iterations=6, refine_iterations=3)
 TILED_CLI = ["--size", "32x8", "--seed", "3", "--lambdas-um", "0.6", "--height-range-um", "0.2", "--resolution", "24",
              "--field-iterations", "6", "--refine-iterations", "3"]
 
@@ -399,11 +402,11 @@ def test_field_tile_knobs_are_the_clis(tmp_path):
     subprocess.run([cli, "recover", *TILED_CLI, "--field-tile-threshold", "16", "--field-tile-core", "12",
                     "--no-plots", "--quiet", "--out", str(out)], check=True, env=ONE_THREAD)
     cli_um = np.load(out / "estimate_height.npy")
-    r = wb.recover(**TILED, field_tile_threshold=16, field_tile_core=12)
+    r = wb.recover(**TILED, settings=wb.RecoverSettings(**TILED_SETTINGS, field_tile_threshold=16, field_tile_core=12))
     # Three tiles of 6 iterations each (the whole surface: 6 rows).
     assert list(r.metrics["stage"]).count("field:0.6") == 18
     np.testing.assert_allclose(r.estimate.heights_um(), cli_um, rtol=0, atol=1e-6 * np.abs(cli_um).max())
-    whole = wb.recover(**TILED, field_tile_threshold=0)
+    whole = wb.recover(**TILED, settings=wb.RecoverSettings(**TILED_SETTINGS, field_tile_threshold=0))
     assert list(whole.metrics["stage"]).count("field:0.6") == 6
     assert np.abs(whole.estimate.heights_um() - cli_um).max() > 1e-5 * np.abs(cli_um).max(), "tiles changed nothing"
 
@@ -417,8 +420,10 @@ def test_field_tile_knobs_are_the_clis(tmp_path):
                        field_tile_threshold=0, callback=callback)
     assert stages.count("field:0.6") == 2
 
-    for call, needle in [(lambda: wb.recover(size=8, field_tile_core=4), "field_tile_core"),
-                         (lambda: wb.recover(size=8, field_tile_threshold=-3), "field_tile_threshold"),
+    for call, needle in [(lambda: wb.recover(size=8,
+                                             settings=wb.RecoverSettings(field_tile_core=4)), "field_tile_core"),
+                         (lambda: wb.recover(size=8,
+                                             settings=wb.RecoverSettings(field_tile_threshold=-3)), "field_tile_threshold"),
                          (lambda: wb.recover_heights(r.observations, (32, 8), 2.0, field_tile_core=5000),
                           "field_tile_core"),
                          (lambda: wb.recover_heights(r.observations, (32, 8), 2.0, field_tile_threshold=-1),
@@ -431,10 +436,10 @@ def test_steep_surfaces_are_observed_under_oblique_lights():
     # ±4 µm at correlation 4 texels (expected rms slope 0.33): the planner adds 4 oblique lights,
     # every position observed under each; oblique_lights=False keeps the one light, and then
     # the check names the texels whose light leaves every slice.
-    kw = dict(size=8, resolution=16, height_range_um=8.0, seed=6301, quiet=True, field_iterations=1,
-              refine_iterations=1)
-    many = wb.recover(**kw)
-    one = wb.recover(oblique_lights=False, **kw)
+    kw = dict(size=8, resolution=16, height_range_um=8.0, seed=6301, quiet=True)
+    fast = dict(field_iterations=1, refine_iterations=1)
+    many = wb.recover(**kw, settings=wb.RecoverSettings(**fast))
+    one = wb.recover(**kw, settings=wb.RecoverSettings(**fast, oblique_lights=False))
     assert len(many.observations) == 5 * len(one.observations)
     lights = {tuple(o.query.light) for o in many.observations}
     assert len(lights) == 5 and (0.0, 0.0) in lights
@@ -448,3 +453,28 @@ def test_steep_surfaces_are_observed_under_oblique_lights():
 
     assert unseen(one, "reflect the light beyond the slice's rim") > 0
     assert unseen(many, "reflect each of the 5 lights beyond") < unseen(one, "reflect the light beyond")
+
+
+def test_recover_settings_group_the_rare_keywords():
+    # The settings object and its old keywords run the same recovery; the old ones warn.
+    s = wb.RecoverSettings(epochs=4, jitter=0.1)
+    assert s.epochs == 4 and s.jitter == 0.1 and s.field_iterations is None
+    assert repr(s) == "RecoverSettings(jitter=0.1, epochs=4)"
+    s.field_iterations = 3
+    assert s.field_iterations == 3
+    new = wb.recover(size=8, resolution=16, method="thesis", quiet=True, settings=wb.RecoverSettings(epochs=4))
+    with pytest.warns(FutureWarning, match=r"recover\(epochs=...\) is deprecated"):
+        old = wb.recover(size=8, resolution=16, method="thesis", quiet=True, epochs=4)
+    np.testing.assert_array_equal(new.estimate.values, old.estimate.values)
+    assert list(new.metrics["iteration"]) == list(old.metrics["iteration"])
+    with pytest.raises(TypeError, match="unexpected keyword argument 'epoch'"):
+        wb.recover(size=8, epoch=4)
+    with pytest.raises(ValueError, match="settings = 3 is invalid; expected a RecoverSettings"):
+        wb.recover(size=8, settings=3)
+    # Values are checked once, by the library, named as Python spells them.
+    for settings, needle in [(wb.RecoverSettings(field_tile_core=4), "field_tile_core 4 texels is invalid"),
+                             (wb.RecoverSettings(refine_coarse_iterations=10**8), "refine_coarse_iterations"),
+                             (wb.RecoverSettings(simulate_sigma_factor=9.0), "simulate_sigma_factor 9 is invalid"),
+                             (wb.RecoverSettings(epochs="many"), "epochs = 'many' is invalid")]:
+        with pytest.raises(ValueError, match=needle):
+            wb.recover(size=8, settings=settings)

@@ -22,15 +22,15 @@ def rel_l2(a, b):
 
 def test_flat_truth_gives_the_gabor_models_slices():
     flat = wb.Heightfield(np.full((8, 8), 0.25), texel_um=2.0)
-    scalar = wb.recover(flat, simulator="scalar", **FAST)
+    scalar = wb.recover(flat, **FAST, settings=wb.RecoverSettings(simulator="scalar"))
     gabor = wb.recover(flat, **FAST)
     assert rel_l2(references(scalar), references(gabor)) < 1e-6
 
 
 def test_rough_truth_gives_other_slices():
     study = dict(size=8, height_range_um=0.1, **FAST)
-    scalar = wb.recover(simulator="scalar", **study)
-    gabor = wb.recover(simulator="gabor", **study)
+    scalar = wb.recover(**study, settings=wb.RecoverSettings(simulator="scalar"))
+    gabor = wb.recover(**study, settings=wb.RecoverSettings(simulator="gabor"))
     d = rel_l2(references(scalar), references(gabor))
     # Measured 0.127: the distance grows linearly with the heights (it is the interference of the
     # specular lobe with the model's first-order error in the scattered field; 0.018 at +-5 nm,
@@ -41,9 +41,9 @@ def test_rough_truth_gives_other_slices():
 
 def test_bad_simulator_and_given_observations_are_refused():
     with pytest.raises(ValueError, match="simulator 'exact'"):
-        wb.recover(size=8, simulator="exact")
+        wb.recover(size=8, settings=wb.RecoverSettings(simulator="exact"))
     plan = wb.plan_acquisition(rows=8, texel_um=2.0, sigma_p_um=3.0, height_range_um=0.1, resolution=16)
     truth = wb.Heightfield(np.zeros((8, 8)), texel_um=2.0)
     observations = wb.simulate_observations(truth, plan)
     with pytest.raises(ValueError, match="simulator 'scalar'"):
-        wb.recover(observations=observations, size=8, texel_um=2.0, simulator="scalar")
+        wb.recover(observations=observations, size=8, texel_um=2.0, settings=wb.RecoverSettings(simulator="scalar"))

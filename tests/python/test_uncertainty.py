@@ -45,7 +45,7 @@ def test_recover_returns_the_map_and_its_coverage(run):
     again = wb.height_uncertainty(r.observations, r.estimate, r.loss)
     np.testing.assert_array_equal(again, sigma)
     # Without the keyword: none.
-    plain = wb.recover(**SMALL, field_iterations=0, refine_iterations=0, quiet=True)
+    plain = wb.recover(**SMALL, quiet=True, settings=wb.RecoverSettings(field_iterations=0, refine_iterations=0))
     assert plain.uncertainty is None and np.isnan(plain.coverage_2sigma)
 
 

@@ -14,20 +14,24 @@ def last_refine_iteration(metrics):
 
 
 def test_recover_white_smoothness_sets_the_continuation():
-    one = wb.recover(**SMALL_WHITE, white_smoothness=[5.0], white_smoothness_iterations=3, refine_iterations=1)
-    two = wb.recover(**SMALL_WHITE, white_smoothness=(5.0, 0.5), white_smoothness_iterations=3, refine_iterations=1)
+    one = wb.recover(**SMALL_WHITE,
+                     settings=wb.RecoverSettings(white_smoothness=[5.0], white_smoothness_iterations=3,
+                                                 refine_iterations=1))
+    two = wb.recover(**SMALL_WHITE,
+                     settings=wb.RecoverSettings(white_smoothness=(5.0, 0.5), white_smoothness_iterations=3,
+                                                 refine_iterations=1))
     assert last_refine_iteration(one.metrics) == 4
     assert last_refine_iteration(two.metrics) == 7
     for bad, match in [([-1.0], "white_smoothness"), ("10,1", "white_smoothness"), ([1.0] * 65, "at most 64"),
                        ([float("nan")], "white_smoothness")]:
         with pytest.raises(ValueError, match=match):
-            wb.recover(**SMALL_WHITE, white_smoothness=bad)
+            wb.recover(**SMALL_WHITE, settings=wb.RecoverSettings(white_smoothness=bad))
     with pytest.raises(ValueError, match="white_smoothness_iterations"):
-        wb.recover(**SMALL_WHITE, white_smoothness_iterations=-2)
+        wb.recover(**SMALL_WHITE, settings=wb.RecoverSettings(white_smoothness_iterations=-2))
 
 
 def test_recover_heights_takes_white_smoothness():
-    r = wb.recover(**SMALL_WHITE, refine_iterations=0, white_smoothness=[])
+    r = wb.recover(**SMALL_WHITE, settings=wb.RecoverSettings(refine_iterations=0, white_smoothness=[]))
     seen = []
     wb.recover_heights(r.observations, 8, 2.0, truth=r.truth, blur_widths=[4.0], blur_iterations=2,
                        refine_iterations=1, white_smoothness=[5.0, 0.5], white_smoothness_iterations=2,
