@@ -13,6 +13,7 @@ namespace {
 
 std::atomic<bool> g_graceful{false};
 std::atomic<int> g_stop_signal{0};
+std::atomic<bool> g_ended{false};
 static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free,
               "the signal handler needs lock-free atomics");
 
@@ -37,7 +38,7 @@ extern "C" void on_signal(int sig) {
         if (g_stop_signal.compare_exchange_strong(none, sig)) return;  // the first: stop gracefully
     }
     remove_temporary_files();
-    say_stopped(sig);
+    if (!g_ended.load()) say_stopped(sig);
     struct sigaction fallback {};
     fallback.sa_handler = SIG_DFL;
     sigemptyset(&fallback.sa_mask);
@@ -62,6 +63,8 @@ void install_signal_cleanup() {
         sigaction(sig, &action, nullptr);
     }
 }
+
+void mark_command_ended() { g_ended.store(true); }
 
 GracefulStop::GracefulStop() {
     g_stop_signal.store(0);

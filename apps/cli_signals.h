@@ -8,6 +8,12 @@ namespace wavebrdf::cli {
 // `*.tmp-PID-N` file. Call once, first thing in main.
 void install_signal_cleanup();
 
+// The command has returned its exit status: a signal from now on (mpiexec ends the other ranks
+// when one exits non-zero, while they finalise MPI) still ends the process, but without the
+// "stopped before the run finished" line, which would be untrue and, on a rank that fails
+// alike, a second message for one error.
+void mark_command_ended();
+
 // While a GracefulStop lives, the first SIGINT or SIGTERM is only recorded (signal() returns
 // it) so that a long loop can stop at its next safe point and save its work; a second one (or
 // SIGHUP) ends the process as install_signal_cleanup describes. Not nestable.

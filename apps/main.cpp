@@ -49,21 +49,25 @@ int main(int argc, char** argv) {
     // Started by mpiexec (docs/scale.md): every rank parses the same arguments and fails alike;
     // rank 0 alone prints (help, version, errors).
     const bool quiet_rank = wavebrdf::world_communicator()->rank() != 0;
-    try {
-        app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-        if (quiet_rank) return e.get_exit_code();
-        return app.exit(e);
-    } catch (const wavebrdf::RankFailed& e) {
-        // Agreed on every rank (run_on_world prints these itself): rank 0 says why.
-        if (!quiet_rank) std::cerr << "wavebrdf: error: " << e.what() << "\n";
-        return 1;
-    } catch (const wavebrdf::cli::ExitStatus& e) {
-        return e.code;
-    } catch (const std::exception& e) {
-        // Errors raised by the commands themselves (they run from parse callbacks).
-        std::cerr << "wavebrdf: error: " << e.what() << "\n";
-        return 1;
-    }
-    return 0;
+    const int status = [&]() -> int {
+        try {
+            app.parse(argc, argv);
+        } catch (const CLI::ParseError& e) {
+            if (quiet_rank) return e.get_exit_code();
+            return app.exit(e);
+        } catch (const wavebrdf::RankFailed& e) {
+            // Agreed on every rank (run_on_world prints these itself): rank 0 says why.
+            if (!quiet_rank) std::cerr << "wavebrdf: error: " << e.what() << "\n";
+            return 1;
+        } catch (const wavebrdf::cli::ExitStatus& e) {
+            return e.code;
+        } catch (const std::exception& e) {
+            // Errors raised by the commands themselves (they run from parse callbacks).
+            std::cerr << "wavebrdf: error: " << e.what() << "\n";
+            return 1;
+        }
+        return 0;
+    }();
+    wavebrdf::cli::mark_command_ended();
+    return status;
 }

@@ -186,9 +186,15 @@ TEST(RecoveryRun, LibraryDefaultsRunTheFrontEndsSchedule) {
     const RecoverSettings s = scheduled_settings(RecoverSettings{}, prepared.texel_um);
     for (const StageMetrics& m : front) {
         EXPECT_EQ(m.kind, stage_kind(m.stage)) << m.stage;
-        if (m.stage == "refine") EXPECT_EQ(m.total, s.refine_iterations);
-        if (m.kind == StageKind::Field) EXPECT_EQ(m.total, s.field.iterations) << m.stage;
-        if (m.stage == "unwrap") EXPECT_EQ(m.total, 0);
+        if (m.stage == "refine") {
+            EXPECT_EQ(m.total, s.refine_iterations);
+        }
+        if (m.kind == StageKind::Field) {
+            EXPECT_EQ(m.total, s.field.iterations) << m.stage;
+        }
+        if (m.stage == "unwrap") {
+            EXPECT_EQ(m.total, 0);
+        }
     }
 }
 

@@ -200,7 +200,7 @@ TEST(RobustOutputsTest, ObservationSetIsReplacedAsAWhole) {
         for (int i = 0; i < count; ++i) {
             Observation o;
             o.query.x_um = i;
-            o.lambdas_um = {0.5};
+            o.lambdas_um.assign(1, 0.5);
             o.resolution = 4;
             o.reference.assign(16, value + float(i));
             out.push_back(std::move(o));
