@@ -16,6 +16,7 @@ packages=(build-essential cmake pkg-config ccache libopenexr-dev libeigen3-dev l
           libzip-dev libpugixml-dev)  # x3p surface files (docs/surfaces.md)
 [ "$demo" = 1 ] || packages+=(libgtest-dev libbenchmark-dev
           python3-pil python3-pytest python3-torch
+          python3-scipy python3-cvxopt python3-h5py  # independent checks in the Python tests (HiGHS, a semidefinite solver, HDF5 files)
           python3-venv python3-setuptools python3-pip python3-wheel python3-tqdm doxygen
           libopenmpi-dev openmpi-bin python3-mpi4py libhdf5-dev  # MPI and HDF5 (docs/scale.md)
           gwyddion libgwyddion20-dev libgtk2.0-dev libgtkglext1-dev  # tests/gwyddion/gwy_probe.c (gwyddion.pc needs GTK 2)
