@@ -128,7 +128,7 @@ TEST(RealScansCli, TheChecksErrorBarsTurnedOffSayTheNoiseLimitIsNotJudged) {
 // noise estimated from the residuals, fail a run where even they exceed the target (nm heights
 // under 10 % noise: the truth agrees), but do not pass one: 1 % noise on a 2 µm surface misses
 // the target (the truth) while its bars, the curvature at the minimum it found, predict far
-// less, so that run is reported as not judged.
+// less (docs/recovery.md), so such a run is reported as not judged.
 TEST(RealScansCli, AnAmplitudeLossRunIsFailedByWideErrorBarsButNotPassedByNarrowOnes) {
     const fs::path dir = fresh_dir("realscans");
     const std::string amp = "recover --size 16 --resolution 48 --seed 4 --no-plots --loss amplitude "
@@ -158,11 +158,9 @@ TEST(RealScansCli, AnAmplitudeLossRunIsFailedByWideErrorBarsButNotPassedByNarrow
     EXPECT_FALSE(n["convergence"]["judged"].get<bool>());
     const double predicted = n["convergence"]["predicted_error_relative"].get<double>();
     EXPECT_LT(predicted, k_predicted_error_limit);
-    // Why narrow bars cannot pass it: the truth's error is beyond the target and the bars.
-    const Heightfield truth = read_heightfield_exr((dir / "narrow" / "truth.exr").string(), 2.0);
-    const double error = height_rel_rmse(read_heightfield_exr((dir / "narrow" / "estimate.exr").string(), 2.0), truth);
-    EXPECT_GT(error, 0.01);
-    EXPECT_GT(error, 5.0 * predicted);
+    // Narrow bars leave it unjudged whatever the truth says: this run ends in a wrong basin (3.8 %
+    // off, bars 0.13 %) under GCC and in the right one under clang's sanitizer build, a difference
+    // in rounding along the way, and the bars of the two look alike.
 }
 
 // A measured file straight into the recovery: the bullet land (x3p, striated, with unmeasured
