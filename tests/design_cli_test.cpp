@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "cli_util.h"
 #include "wavebrdf/design.h"
@@ -16,19 +17,38 @@ namespace {
 
 using namespace wavebrdf::test;
 
+// `design --out run ARGS` in DIR; its design.json when it succeeded (else null).
+struct DesignCliRun {
+    CliResult cli;
+    nlohmann::json json;
+};
+DesignCliRun run_design(const fs::path& dir, const std::string& args) {
+    DesignCliRun run{run_cli(dir, "design --out run " + args), nullptr};
+    if (run.cli.exit_code == 0) run.json = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
+    return run;
+}
+
+// The CLI's stderr holds FORMAT with VALUE printed into it (the number design.json records).
+void expect_says(const std::string& err, const char* format, double value) {
+    char expected[128];
+    std::snprintf(expected, sizeof expected, format, value);
+    EXPECT_NE(err.find(expected), std::string::npos) << expected << " not in: " << err;
+}
+
 TEST(DesignCli, WritesARunDirectoryWhoseReliefScoresAsReported) {
     const fs::path dir = fresh_dir("design_cli");
-    const CliResult r = run_cli(dir, "design --out run --size 24 --spectral 3 --band-um 0.45,0.65 --levels 4 "
-                                     "--height-range-um 1 --region annulus:0.15,0.6 --specular-cone 0.1 "
-                                     "--iterations 10 --refine-passes 5 --fabrication-error scale:5%,blur:0.2um --quiet --no-plots");
+    const auto [r, j] = run_design(
+        dir,
+        "--size 24 --spectral 3 --band-um 0.45,0.65 --levels 4 "
+        "--height-range-um 1 --region annulus:0.15,0.6 --specular-cone 0.1 "
+        "--iterations 10 --refine-passes 5 --fabrication-error scale:5%,blur:0.2um --quiet --no-plots");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     for (const char* name : {"design.json", "heights.exr", "target.exr", "far_field.exr", "metrics.csv", "heights.png",
                              "heights.stl", "masks.json", "masks_01.png", "masks_02.png"})
         EXPECT_TRUE(fs::is_regular_file(dir / "run" / name)) << name;
-    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
     EXPECT_EQ(j["target"]["kind"], "anti-mirror");
     EXPECT_EQ(j["levels_um"].size(), 4u);
-    EXPECT_EQ(j["fabrication_errors"].size(), 3u);  // scale − and +, blur
+    EXPECT_EQ(j["fabrication_errors"].size(), 3u);          // scale − and +, blur
     EXPECT_EQ(j["fabrication_files"]["masks"].size(), 2u);  // 4 levels: log2 4 binary-weighted masks
     const Heightfield hf = read_heightfield_exr((dir / "run" / "heights.exr").string());
     EXPECT_DOUBLE_EQ(hf.texel_um(), 0.5);
@@ -50,10 +70,12 @@ TEST(DesignCli, WritesARunDirectoryWhoseReliefScoresAsReported) {
     }
     EXPECT_LT(j["metrics"]["exact_direct_sum_check"]["max_flux_difference_relative_to_peak"].get<double>(), 1e-9);
     // The directory is a design's: a second run refuses it without --force, takes it with.
-    const CliResult again = run_cli(dir, "design --out run --size 8 --spectral 3 --iterations 1 --refine-passes 0 --quiet");
+    const CliResult again = run_cli(dir,
+                                    "design --out run --size 8 --spectral 3 --iterations 1 --refine-passes 0 --quiet");
     expect_one_line_naming(again, {"run"});
-    const CliResult forced = run_cli(dir, "design --out run --size 8 --spectral 3 --iterations 1 --refine-passes 0 "
-                                          "--quiet --force");
+    const CliResult forced = run_cli(dir,
+                                     "design --out run --size 8 --spectral 3 --iterations 1 --refine-passes 0 "
+                                     "--quiet --force");
     EXPECT_EQ(forced.exit_code, 0) << forced.err;
 }
 
@@ -61,25 +83,21 @@ TEST(DesignCli, AMissedColourIsReportedWithTheOptimalColourLimit) {
     // Blue on a 4-level 8² tile with one iteration misses Y ≥ 5 %: the CLI says so with the bound
     // design.json holds, and --no-view-survey leaves the survey out.
     const fs::path dir = fresh_dir("design_cli_bound");
-    const CliResult r = run_cli(dir, "design --out run --target colour:#0000FF --size 8 --spectral 8 --levels 4 "
-                                     "--iterations 1 --refine-passes 0 --no-view-survey --no-plots");
+    const auto [r, j] = run_design(dir,
+                                   "--target colour:#0000FF --size 8 --spectral 8 --levels 4 --iterations 1 "
+                                   "--refine-passes 0 --no-view-survey --no-plots");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
     EXPECT_FALSE(j.contains("view_survey"));
     ASSERT_TRUE(j.contains("optimal_colour_bound"));
-    char expected[64];
-    std::snprintf(expected, sizeof expected, "brighter than Y %.3g", j["optimal_colour_bound"]["y_at_target"].get<double>());
-    EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
+    expect_says(r.err, "brighter than Y %.3g", j["optimal_colour_bound"]["y_at_target"].get<double>());
     // The mixture bound's line, with design.json's numbers: out of reach for mixtures or not, and
     // whether this relief exceeds the bound.
     ASSERT_TRUE(j.contains("mixture_bound"));
     const auto& m = j["mixture_bound"];
     if (!m["reachable_at_target"].get<bool>()) {
         EXPECT_NE(r.err.find("out of reach for this view as level mixtures"), std::string::npos) << r.err;
-        if (!m["delta_uv_at_min_y"].is_null()) {
-            std::snprintf(expected, sizeof expected, "delta u'v' >= %.3g", m["delta_uv_at_min_y"].get<double>());
-            EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
-        }
+        if (!m["delta_uv_at_min_y"].is_null())
+            expect_says(r.err, "delta u'v' >= %.3g", m["delta_uv_at_min_y"].get<double>());
     } else {
         EXPECT_NE(r.err.find("the levels do not rule it out"), std::string::npos) << r.err;
     }
@@ -92,19 +110,17 @@ TEST(DesignCli, AColourTheConeBoundRulesOutIsSaidSoAndSurveyed) {
     // Red on 16 levels within 2 µm in the mirror cone: the cone bound rules it out in incident
     // power; the CLI says so with design.json's numbers, and the view survey says which view reaches it.
     const fs::path dir = fresh_dir("design_cli_cone");
-    const CliResult r = run_cli(dir, "design --out run --target colour:#FF0000 --size 16 --spectral 16 --levels 16 "
-                                     "--height-range-um 2 --iterations 2 --refine-passes 0 --no-plots");
+    const auto [r, j] = run_design(dir,
+                                   "--target colour:#FF0000 --size 16 --spectral 16 --levels 16 "
+                                   "--height-range-um 2 --iterations 2 --refine-passes 0 --no-plots");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const nlohmann::json j = nlohmann::json::parse(read_text(dir / "run" / "design.json"));
     ASSERT_TRUE(j.contains("cone_bound"));
     const auto& c = j["cone_bound"];
     ASSERT_TRUE(c["out_of_reach_at_target"].get<bool>());
-    char expected[96];
-    std::snprintf(expected, sizeof expected, "more than Y %.3g of the incident light", c["y_at_target"].get<double>());
-    EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
-    std::snprintf(expected, sizeof expected, "within delta u'v' %.3g of it", c["delta_uv_ruled_out"].get<double>());
-    EXPECT_NE(r.err.find(expected), std::string::npos) << r.err;
-    EXPECT_EQ(r.err.find("lifted by the division") != std::string::npos, !c["design_check"]["normalised"]["within"].get<bool>())
+    expect_says(r.err, "more than Y %.3g of the incident light", c["y_at_target"].get<double>());
+    expect_says(r.err, "within delta u'v' %.3g of it", c["delta_uv_ruled_out"].get<double>());
+    EXPECT_EQ(r.err.find("lifted by the division") != std::string::npos,
+              !c["design_check"]["normalised"]["within"].get<bool>())
         << r.err;
     EXPECT_TRUE(c["design_check"]["absolute"]["within"].get<bool>());
     ASSERT_TRUE(j.contains("view_survey"));
@@ -113,7 +129,8 @@ TEST(DesignCli, AColourTheConeBoundRulesOutIsSaidSoAndSurveyed) {
 
 TEST(DesignCli, BadInputGetsOneLineBeforeAnyWork) {
     const fs::path dir = fresh_dir("design_cli");
-    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --levels 8 --min-feature-um 1"), {"--min-feature-um", "--levels"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --levels 8 --min-feature-um 1"),
+                           {"--min-feature-um", "--levels"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target colour:#12345"), {"#12345"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target pattern:missing.png"), {"missing.png"});
     {
@@ -122,8 +139,9 @@ TEST(DesignCli, BadInputGetsOneLineBeforeAnyWork) {
     }
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target pattern:bad.png"), {"bad.png"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target anti-mirror --light-x 0.7"), {"--region"});
-    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --target colour:#ff0000 --spectral 8 --view-x 0.95 --view-y 0.3"),
-                           {"view"});
+    expect_one_line_naming(
+        run_cli(dir, "design --size 16 --out a --target colour:#ff0000 --spectral 8 --view-x 0.95 --view-y 0.3"),
+        {"view"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --fabrication-error scale:90%"), {"scale"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --region ring:1"), {"ring:1"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --max-memory-gb 0.000001"), {"max-memory-gb"});

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <string>
 
 #include "design/mixture_bound.h"
 #include "design/target.h"
@@ -192,16 +193,23 @@ TEST(DesignMixtureBound, NoMixtureBeatsItsDeltaUvAtFivePercent) {
     }
 }
 
+// A colour design's options: an N² tile on K levels under `spectral` wavelengths, no view survey.
+DesignOptions colour_run(const std::string& target, int size, int levels, int spectral, int iterations,
+                         int refine_passes) {
+    DesignOptions o;
+    o.target = parse_design_target(target);
+    o.size = size;
+    o.levels = levels;
+    o.spectral = spectral;
+    o.iterations = iterations;
+    o.refine_passes = refine_passes;
+    o.survey_views = false;
+    return o;
+}
+
 TEST(DesignMixtureBound, DesignJsonChecksTheDesignsConeLight) {
     // design.json's check of the run's own cone light, against exact_orders summed here.
-    DesignOptions o;
-    o.target = parse_design_target("colour:#FF0000");
-    o.size = 16;
-    o.levels = 4;
-    o.spectral = 8;
-    o.iterations = 20;
-    o.refine_passes = 4;
-    o.survey_views = false;
+    const DesignOptions o = colour_run("colour:#FF0000", 16, 4, 8, 20, 4);
     const DesignResult r = run_design(prepare_design(o));
     const auto j = nlohmann::json::parse(r.metrics_json);
     ASSERT_TRUE(j.contains("mixture_bound"));
@@ -210,7 +218,8 @@ TEST(DesignMixtureBound, DesignJsonChecksTheDesignsConeLight) {
     std::vector<double> normalised(orders.size(), 0.0), absolute(orders.size(), 0.0);
     for (std::size_t l = 0; l < orders.size(); ++l) {
         for (std::size_t q = 0; q < orders[l].power.size(); ++q)
-            if (std::hypot(orders[l].omega_x[q], orders[l].omega_y[q]) <= o.view_cone) normalised[l] += orders[l].power[q];
+            if (std::hypot(orders[l].omega_x[q], orders[l].omega_y[q]) <= o.view_cone)
+                normalised[l] += orders[l].power[q];
         absolute[l] = normalised[l] * orders[l].kirchhoff_total;
     }
     EXPECT_NEAR(m["design_check"]["normalised"]["y"].get<double>(), reflectance_xyz(r.lambdas_um, normalised)[1], 1e-9);
@@ -224,15 +233,8 @@ TEST(DesignMixtureBound, DesignJsonChecksTheDesignsConeLight) {
 }
 
 TEST(DesignMixtureBound, AboveSixtyFourLevelsTheRunSaysItIsNotComputed) {
-    DesignOptions o;
-    o.target = parse_design_target("colour:#0000FF");
-    o.size = 4;
-    o.levels = 128;
-    o.spectral = 4;
-    o.iterations = 1;
-    o.refine_passes = 0;
-    o.survey_views = false;
-    const auto j = nlohmann::json::parse(run_design(prepare_design(o)).metrics_json);
+    const auto j = nlohmann::json::parse(
+        run_design(prepare_design(colour_run("colour:#0000FF", 4, 128, 4, 1, 0))).metrics_json);
     EXPECT_FALSE(j.contains("mixture_bound"));
     bool noted = false;
     for (const auto& n : j["notes"]) noted = noted || n.get<std::string>().find("up to 64 levels") != std::string::npos;

@@ -12,7 +12,6 @@
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/memory.h"
 #include "forward/direct.h"
-#include "core/parallel.h"
 #include "wavebrdf/progress.h"
 
 namespace wavebrdf {
@@ -68,22 +67,18 @@ DirectField direct_field(const FootprintKernels& k, const Query& query, double l
     double cutoff = prune_tolerance > 0.0 ? std::log(1e3 / prune_tolerance) : std::numeric_limits<double>::infinity();
     const long long units = work_units(n);
     for (int attempt = 0;; ++attempt) {
-        detail::RegionGuard guard;
-        const long long work = static_cast<long long>(n) * n * static_cast<long long>(k.size());
-#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(work))
-        for (int p = 0; p < n; ++p)
-            guard.run([&] {
-                for (const auto [q, ox, oy] : disk_row(p, n)) {
-                    const std::size_t at = static_cast<std::size_t>(p) * n + q;
-                    const PixelSum s = sum_pixel(k, query, lambda_um, ox, oy, cutoff);
-                    out.field[at] = s.field;
-                    out.c1[at] = s.c1;
-                    const double v = s.c1 * std::norm(s.field);
-                    out.value[at] = std::isfinite(v) ? v : 0.0;
-                }
+        for_disk_pixels(
+            n, k.size(),
+            [&](std::size_t at, double ox, double oy) {
+                const PixelSum s = sum_pixel(k, query, lambda_um, ox, oy, cutoff);
+                out.field[at] = s.field;
+                out.c1[at] = s.c1;
+                const double v = s.c1 * std::norm(s.field);
+                out.value[at] = std::isfinite(v) ? v : 0.0;
+            },
+            [&](int p) {
                 if (progress && attempt == 0) progress->advance(units / n + (p < units % n ? 1 : 0));
             });
-        guard.rethrow();
         if (!std::isfinite(cutoff)) break;
         // Error bound: each pixel's dropped amplitude ε ≤ e^{−cutoff} · bound, so
         // |f − f̃| ≤ c1 (2|Ĩ| + ε) ε. Accept when every pixel is within tolerance · (peak − err).

@@ -90,24 +90,19 @@ KernelGradient direct_backward(const FootprintKernels& k, const Query& query, do
 std::vector<double> direct_tangent(const FootprintKernels& k, const Query& query, double lambda_um, int n,
                                    const DirectField& forward, const KernelGradient& dk) {
     std::vector<double> out(static_cast<std::size_t>(n) * n, 0.0);
-    RegionGuard guard;
-    const long long work = static_cast<long long>(n) * n * static_cast<long long>(k.size());
-#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(work))
-    for (int p = 0; p < n; ++p)
-        guard.run([&] {
-            for (const auto [q, ox, oy] : disk_row(p, n)) {
-                const std::size_t at = static_cast<std::size_t>(p) * n + q;
-                if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) continue;
-                std::complex<double> d_field = 0.0;
-                visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
-                            [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx,
-                                std::complex<double> dsy, std::complex<double>) {
-                                d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
-                            });
-                out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
-            }
-        });
-    guard.rethrow();
+    for_disk_pixels(
+        n, k.size(),
+        [&](std::size_t at, double ox, double oy) {
+            if (!std::isfinite(forward.c1[at] * std::norm(forward.field[at]))) return;
+            std::complex<double> d_field = 0.0;
+            visit_terms(k, query, lambda_um, ox, oy, forward.cutoff,
+                        [&](std::size_t i, std::complex<double> dh, std::complex<double> dsx, std::complex<double> dsy,
+                            std::complex<double>) {
+                            d_field += dh * dk.height[i] + dsx * dk.slope_x[i] + dsy * dk.slope_y[i];
+                        });
+            out[at] = 2.0 * forward.c1[at] * std::real(std::conj(forward.field[at]) * d_field);
+        },
+        [](int) {});
     return out;
 }
 

@@ -3,8 +3,10 @@
 // and its adjoint and tangent (brdf_direct_adjoint.cpp).
 #include <cmath>
 #include <complex>
+#include <cstddef>
 #include <vector>
 
+#include "core/parallel.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/kernel_gradient.h"
@@ -68,6 +70,23 @@ struct DirectField {
     std::vector<double> value;                // the slice (non-finite → 0)
     double cutoff = 0.0;                      // Gaussian exponent beyond which kernels were skipped
 };
+
+// pixel(at, ox, oy) for every pixel of the n × n slice's visible disk (at = p n + q, (ox, oy) its
+// ω_o), then row_done(p) after row p: the loop of the direct sum's forward pass and tangent. Rows
+// are spread over the threads with a dynamic schedule (the disk's rows differ in length) when
+// n² × kernels is worth it; an exception in any row is rethrown here.
+template <typename Pixel, typename RowDone>
+void for_disk_pixels(int n, std::size_t kernels, Pixel&& pixel, RowDone&& row_done) {
+    RegionGuard guard;
+    const long long work = static_cast<long long>(n) * n * static_cast<long long>(kernels);
+#pragma omp parallel for schedule(dynamic, 1) if (worth_parallel(work))
+    for (int p = 0; p < n; ++p)
+        guard.run([&] {
+            for (const auto [q, ox, oy] : disk_row(p, n)) pixel(static_cast<std::size_t>(p) * n + q, ox, oy);
+            row_done(p);
+        });
+    guard.rethrow();
+}
 
 // The direct sum with the pruning bound of RenderOptions::prune_tolerance (0: none).
 DirectField direct_field(const FootprintKernels& kernels, const Query& query, double lambda_um, int n,
