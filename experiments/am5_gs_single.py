@@ -71,7 +71,6 @@ def main():
     print("  ring shares", [round(float(o["P"][(rr >= edges[q]) & (rr < edges[q + 1])].sum()), 3) for q in range(4)])
     print(f"N {N} lambda {lam} step {step} emin {emin}: region {100 * reg:.1f} %  uniformity {uni:.3f}  "
           f"cone {100 * cone:.3f} %  kirchhoff {kt:.3f}  levels used {np.bincount(idx.ravel(), minlength=8)}")
-    np.save(f"/tmp/a5/gs_{N}_{lam}_{step}_{emin}.npy", h)
 
 
 if __name__ == "__main__":
