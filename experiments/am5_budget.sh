@@ -20,3 +20,7 @@ one s55_it1 0.55 --seed 5 --iterations 1000 --refine-passes 200
 one s55_shallow 0.55 --seed 5 --level-step-um 0.0356
 one s55_s7 0.55 --seed 7
 one s45 0.45 --seed 5
+# larger equal steps on the acceptance tile (the mirror cone is lost above ~0.17 um)
+run f180 256 1000 200 --seed 2611298 --level-step-um 0.18
+run f200 256 1000 200 --seed 2611298 --level-step-um 0.20
+run f240 256 1000 200 --seed 2611298 --level-step-um 0.24
