@@ -156,11 +156,11 @@ void run(DesignArgs a) {
                           << three_digits(one["delta_uv"].get<double>()) << " at Y " << three_digits(one["y"].get<double>())
                           << "): the levels do not rule it out\n";
             }
-            if (missed && !b["design_check"]["normalised"]["within"].get<bool>())
+            if (missed && !b["design_check"]["absolute"]["within"].get<bool>())
                 std::cerr << "design: this design's cone light (Y "
-                          << three_digits(b["design_check"]["normalised"]["y"].get<double>())
+                          << three_digits(b["design_check"]["absolute"]["y"].get<double>())
                           << ") exceeds the mixture bound at its own chromaticity (Y "
-                          << three_digits(b["design_check"]["normalised"]["bound_y_at_its_chromaticity"].get<double>())
+                          << three_digits(b["design_check"]["absolute"]["bound_y_at_its_chromaticity"].get<double>())
                           << "): the bound does not cover this relief\n";
         }
         if (j.contains("cone_bound") && j["cone_bound"]["out_of_reach_at_target"].get<bool>()) {
@@ -171,12 +171,12 @@ void run(DesignArgs a) {
                       << " of the incident light into the view cone at its chromaticity, and none Y >= "
                       << three_digits(c["min_y"].get<double>()) << " within delta u'v' "
                       << three_digits(c["delta_uv_ruled_out"].get<double>()) << " of it (design.json cone_bound)\n";
-            const auto& own = c["design_check"]["normalised"];
-            if (!own["within"].get<bool>())
-                std::cerr << "design: this design's scored Y " << three_digits(own["y"].get<double>())
-                          << " exceeds that bound at its own chromaticity (Y "
-                          << three_digits(own["bound_y_at_its_chromaticity"].get<double>())
-                          << " in incident power): the share is lifted by the division by the reflected propagating power\n";
+            const auto& share = c["design_check"]["normalised"];
+            if (!share["within"].get<bool>())
+                std::cerr << "design: as a share of the reflected propagating power this design's cone light is Y "
+                          << three_digits(share["y"].get<double>()) << ", above that bound at its chromaticity (Y "
+                          << three_digits(share["bound_y_at_its_chromaticity"].get<double>())
+                          << "): a share is lifted by the division by the reflected power; the metrics count incident power\n";
         }
         if (o.target.kind == DesignKind::Colour && j.contains("optimal_colour_bound")) {
             const auto& e = j["metrics"]["exact"];

@@ -102,7 +102,7 @@ TEST(DesignCli, AMissedColourIsReportedWithTheOptimalColourLimit) {
         EXPECT_NE(r.err.find("the levels do not rule it out"), std::string::npos) << r.err;
     }
     EXPECT_EQ(r.err.find("exceeds the mixture bound") != std::string::npos,
-              !m["design_check"]["normalised"]["within"].get<bool>())
+              !m["design_check"]["absolute"]["within"].get<bool>())
         << r.err;
 }
 
@@ -123,6 +123,12 @@ TEST(DesignCli, AColourTheConeBoundRulesOutIsSaidSoAndSurveyed) {
               !c["design_check"]["normalised"]["within"].get<bool>())
         << r.err;
     EXPECT_TRUE(c["design_check"]["absolute"]["within"].get<bool>());
+    // The metrics count incident power: the design's own Y is the check's absolute Y, which the
+    // bound covers.
+    const auto& e = j["metrics"]["exact"];
+    EXPECT_NEAR(e["luminous_efficiency"].get<double>(), c["design_check"]["absolute"]["y"].get<double>(), 1e-12);
+    EXPECT_NEAR(e["luminous_efficiency_share_of_reflected"].get<double>(), c["design_check"]["normalised"]["y"].get<double>(), 1e-12);
+    EXPECT_LE(e["luminous_efficiency"].get<double>(), c["design_check"]["absolute"]["bound_y_at_its_chromaticity"].get<double>());
     ASSERT_TRUE(j.contains("view_survey"));
     EXPECT_NE(r.err.find("design: reachable: from view"), std::string::npos) << r.err;
 }

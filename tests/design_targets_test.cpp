@@ -170,7 +170,8 @@ TEST(DesignTargets, BrdfTableOfAReliefsOwnFarFieldIsMatchedByIt) {
 
 TEST(DesignTargets, TwoPairIridescentDesignBeatsItsStart) {
     // Two views, two colours, under white light; scored from the heights alone: exact_orders'
-    // power inside each view cone per wavelength, its colour by reflectance_xyz.
+    // power inside each view cone per wavelength (of the incident power), its colour by
+    // reflectance_xyz.
     DesignOptions o;
     o.size = 32;
     o.levels = 8;
@@ -190,7 +191,7 @@ TEST(DesignTargets, TwoPairIridescentDesignBeatsItsStart) {
             for (const auto& w : orders) {
                 double r = 0.0;
                 for (std::size_t k = 0; k < w.m.size(); ++k)
-                    if (std::hypot(w.omega_x[k] - pair.view[0], w.omega_y[k] - pair.view[1]) <= o.view_cone) r += w.power[k];
+                    if (std::hypot(w.omega_x[k] - pair.view[0], w.omega_y[k] - pair.view[1]) <= o.view_cone) r += w.power[k] * w.kirchhoff_total;
                 reflectance.push_back(r);
             }
             const auto uv = xyz_to_uv(reflectance_xyz(p.lambdas_um, reflectance));

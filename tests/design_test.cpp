@@ -573,7 +573,7 @@ TEST(Design, ColourOutOfReachIsSurveyedFromOtherViews) {
         for (const auto& op : e) {
             double in = 0.0;
             for (std::size_t k = 0; k < op.m.size(); ++k)
-                if (std::hypot(op.omega_x[k] - (*w.view)[0], op.omega_y[k] - (*w.view)[1]) <= o.view_cone) in += op.power[k];
+                if (std::hypot(op.omega_x[k] - (*w.view)[0], op.omega_y[k] - (*w.view)[1]) <= o.view_cone) in += op.power[k] * op.kirchhoff_total;
             reflectance.push_back(in);
         }
         const auto xyz = reflectance_xyz(rv.lambdas_um, reflectance);

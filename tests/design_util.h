@@ -53,7 +53,7 @@ inline PlateOptions small_plate(int size, int spectral, int levels, int iteratio
 }
 
 // Per wavelength, the power exact_orders sends from the relief `h` (size² texels, normal light)
-// into the cone |ω − view| ≤ cone.
+// into the cone |ω − view| ≤ cone, per unit incident power (as the colour targets count it).
 inline std::vector<double> cone_power(const std::vector<double>& h, int size, double texel_um,
                                       const std::vector<double>& lambdas, std::array<double, 2> view, double cone) {
     const auto orders = exact_orders(h, size, texel_um, {0.0, 0.0}, lambdas);
@@ -61,7 +61,7 @@ inline std::vector<double> cone_power(const std::vector<double>& h, int size, do
     for (std::size_t w = 0; w < orders.size(); ++w)
         for (std::size_t q = 0; q < orders[w].power.size(); ++q)
             if (std::hypot(orders[w].omega_x[q] - view[0], orders[w].omega_y[q] - view[1]) <= cone)
-                r[w] += orders[w].power[q];
+                r[w] += orders[w].power[q] * orders[w].kirchhoff_total;
     return r;
 }
 

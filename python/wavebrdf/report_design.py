@@ -176,7 +176,7 @@ def _format_value(v):
 # The scalar metrics worth a row, most telling first; others follow in file order.
 _PREFERRED = ("specular_fraction_worst", "specular_fraction_mean", "region_fraction_mean", "region_fraction_worst",
               "uniformity_worst", "uniformity_mean", "correlation", "efficiency", "delta_uv", "luminous_efficiency",
-              "relative_l2")
+              "luminous_efficiency_share_of_reflected", "relative_l2")
 
 
 def metrics_rows(doc):
@@ -278,7 +278,11 @@ def make_report(directory):
         if isinstance(du, (int, float)):
             sub.append("Δu′v′ %.3f" % du)
         if isinstance(y, (int, float)):
-            sub.append("Y %.1f%%" % (100 * y))
+            text = "Y %.1f%% of incident" % (100 * y)
+            share = _get(doc, "metrics", "exact", "luminous_efficiency_share_of_reflected")
+            if isinstance(share, (int, float)):
+                text += " (%.1f%% of reflected)" % (100 * share)
+            sub.append(text)
         bound = _get(doc, "optimal_colour_bound", "y_at_target")
         if isinstance(bound, (int, float)):
             sub.append("any surface: Y ≤ %.1f%%" % (100 * bound))
@@ -288,7 +292,7 @@ def make_report(directory):
         if isinstance(mix, (int, float)) and isinstance(min_y, (int, float)):
             if mix < min_y:
                 text = "out of reach for this view: level mixtures' bound Y %.1f%% < %.0f%%" % (100 * mix, 100 * min_y)
-                if _get(doc, "mixture_bound", "design_check", "normalised", "within") is False:
+                if _get(doc, "mixture_bound", "design_check", "absolute", "within") is False:
                     text += "\n(this relief exceeds it: not a bound for it)"
                 best = _get(doc, "view_survey", "best")
                 view = _get(best, "view") if isinstance(best, dict) else None

@@ -359,7 +359,7 @@ PlateResult run_plate(const PreparedPlate& p, const std::function<bool(int, cons
             for (std::size_t w = 0; w < orders.size(); ++w)
                 for (std::size_t q = 0; q < orders[w].power.size(); ++q)
                     if (std::hypot(orders[w].omega_x[q] - views[v][0], orders[w].omega_y[q] - views[v][1]) <= o.design.view_cone)
-                        reflectance[w] += orders[w].power[q];
+                        reflectance[w] += orders[w].power[q] * orders[w].kirchhoff_total;  // of the incident power
             appearance_xyz[e][v] = reflectance_xyz(d.lambdas_um, reflectance);
             const auto uv = xyz_to_uv(appearance_xyz[e][v]);
             nlohmann::json vj{{"view", views[v]}, {"xyz", appearance_xyz[e][v]}, {"uv", uv},

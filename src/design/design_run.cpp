@@ -376,9 +376,9 @@ detail::BestMixture colour_best_mixture(const PreparedDesign& p) {
 // run's levels: the largest Y at the target chromaticity of any relief made of patches of level
 // mixtures, the Δu′v′ such reliefs cannot beat at Y ≥ k_reached_y, what one mixture reaches (a
 // local search: fine random mixing of those shares), and the run's own cone light against the
-// bound at its own chromaticity, in incident power (absolute) and as the metrics count it (shares
-// of the reflected propagating power): where the design exceeds it, its detail did what no
-// mixture can, and the bound does not hold for that design.
+// bound at its own chromaticity, in incident power (absolute, as the metrics count it) and as a
+// share of the reflected propagating power (normalised): where the design exceeds it, its detail
+// did what no mixture can, and the bound does not hold for that design.
 nlohmann::json mixture_bound_json(const PreparedDesign& p, const detail::Fractions& exact, const std::vector<double>& totals) {
     const DesignOptions& o = p.options;
     const std::size_t W = p.lambdas_um.size();
@@ -399,8 +399,8 @@ nlohmann::json mixture_bound_json(const PreparedDesign& p, const detail::Fractio
     };
     std::vector<double> normalised(W), absolute(W);
     for (std::size_t w = 0; w < W; ++w) {
-        normalised[w] = exact[w][0];
-        absolute[w] = exact[w][0] * totals[w];
+        absolute[w] = exact[w][0];
+        normalised[w] = totals[w] > 0.0 ? exact[w][0] / totals[w] : 0.0;
     }
     nlohmann::json j{
         {"what", "the largest luminous efficiency Y at the target chromaticity of any relief made of patches of "
@@ -430,9 +430,9 @@ nlohmann::json mixture_bound_json(const PreparedDesign& p, const detail::Fractio
 // The cone bound (cone_bound.h) for a colour view cone about the mirror direction under normal
 // light: the largest Y, in incident power, of any relief on the run's levels at the target
 // chromaticity, the radius about the target within which it proves Y < k_reached_y, and the run's
-// own cone light against it at its own chromaticity, in incident power (where the bound holds for
-// every relief) and as the metrics count it (shares of the reflected propagating power, which the
-// bound does not cover).
+// own cone light against it at its own chromaticity, in incident power (as the metrics count it,
+// and where the bound holds for every relief) and as a share of the reflected propagating power
+// (which the bound does not cover).
 nlohmann::json cone_bound_json(const PreparedDesign& p, const detail::Fractions& exact, const std::vector<double>& totals) {
     const DesignOptions& o = p.options;
     const std::size_t W = p.lambdas_um.size();
@@ -452,14 +452,14 @@ nlohmann::json cone_bound_json(const PreparedDesign& p, const detail::Fractions&
     };
     std::vector<double> normalised(W), absolute(W);
     for (std::size_t w = 0; w < W; ++w) {
-        normalised[w] = exact[w][0];
-        absolute[w] = exact[w][0] * totals[w];
+        absolute[w] = exact[w][0];
+        normalised[w] = totals[w] > 0.0 ? exact[w][0] / totals[w] : 0.0;
     }
     return {{"what", "an upper bound on the luminous efficiency Y, in incident power, of the light any relief on these "
                      "levels sends into the view cone about the mirror direction under normal light, at the target "
                      "chromaticity (classes of the cone's orders as non-negative cosine polynomials in the level "
-                     "phase step, Parseval at each step; a semidefinite dual, docs/design.md); it does not cover the "
-                     "metrics' division by the reflected propagating power"},
+                     "phase step, Parseval at each step; a semidefinite dual, docs/design.md), the unit the metrics' "
+                     "luminous_efficiency counts in; it does not cover the luminous_efficiency_share_of_reflected"},
             {"units", "incident power"},
             {"levels", K},
             {"level_step_um", step},
@@ -947,6 +947,21 @@ double refine_levels(const PreparedDesign& p, RefineLoss& refine_loss, std::vect
     return loss;
 }
 
+// The exact metrics; a target counted in incident power also gets its luminous efficiency as a
+// share of the reflected propagating power (each wavelength's cone flux over that wavelength's
+// total), which is what a reflectance normalised to the light the surface sends anywhere shows.
+nlohmann::json exact_metrics(const detail::Target& target, const Fractions& exact, const std::vector<double>& totals) {
+    nlohmann::json m = target.metrics(exact);
+    if (!target.incident_power()) return m;
+    Fractions share = exact;
+    for (std::size_t w = 0; w < share.size(); ++w)
+        for (double& x : share[w]) x = totals[w] > 0.0 ? x / totals[w] : 0.0;
+    const nlohmann::json s = target.metrics(share);
+    m["luminous_efficiency_units"] = "fraction of the incident white light's luminous power";
+    m["luminous_efficiency_share_of_reflected"] = s["luminous_efficiency"];
+    return m;
+}
+
 // The finished relief's scores: the loop's model, exact scalar diffraction of the relief (the
 // heights alone, re-levelled) with a direct-sum spot check, and the fabrication errors.
 struct ReliefScores {
@@ -974,15 +989,19 @@ ReliefScores score_relief(const PreparedDesign& p, detail::Evaluator& evaluator,
     if (o.errors.scale > 0.0)
         for (double scale : {1.0 - o.errors.scale, 1.0 + o.errors.scale}) {
             const auto flux = detail::level_flux(relief, N, sets, scale);
-            s.fabrication.push_back({{"error", "scale " + num(scale)}, {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
+            std::vector<double> totals;
+            const Fractions f = detail::group_fractions(*p.target, flux, &totals);
+            s.fabrication.push_back({{"error", "scale " + num(scale)}, {"metrics", exact_metrics(*p.target, f, totals)}});
         }
     if (o.errors.blur_um > 0.0) {
         const std::vector<double> blurred = detail::periodic_blur(r.heights_um, N, o.errors.blur_um / o.texel_um);
         const detail::LevelRelief b = detail::to_level_relief(blurred, detail::k_exact_max_levels);
         const auto flux = detail::level_flux(b, N, sets, 1.0);
+        std::vector<double> totals;
+        const Fractions f = detail::group_fractions(*p.target, flux, &totals);
         s.fabrication.push_back({{"error", "blur " + num(o.errors.blur_um) + " um"},
                                  {"quantised_to_levels", b.quantised ? detail::k_exact_max_levels : 0},
-                                 {"metrics", p.target->metrics(detail::group_fractions(*p.target, flux))}});
+                                 {"metrics", exact_metrics(*p.target, f, totals)}});
     }
     return s;
 }
@@ -1143,7 +1162,7 @@ nlohmann::json design_json(const PreparedDesign& p, const DesignResult& r, const
     j["estimated_bytes"] = p.estimated_bytes;
     j["metrics"] = {
         {"model", p.target->metrics(scores.model)},
-        {"exact", p.target->metrics(scores.exact)},
+        {"exact", exact_metrics(*p.target, scores.exact, scores.kirchhoff_totals)},
         {"relaxed", relaxed.fractions.empty() ? nlohmann::json(nullptr) : p.target->metrics(relaxed.fractions)},
         {"model_vs_exact_max_fraction_difference", scores.model_vs_exact},
         {"exact_direct_sum_check", {{"orders", scores.checked}, {"max_flux_difference_relative_to_peak", scores.spot}}},

@@ -252,6 +252,7 @@ public:
           m_xyz_weights(colour_xyz_weights(spec.lambdas_um)),
           m_target_uv(xyz_to_uv(linear_srgb_to_xyz(spec.rgb))) {}
     int groups() const override { return 1; }
+    bool incident_power() const override { return true; }
 
     void assign(const std::vector<OrderSet>& sets) override {
         m_members.assign(sets.size(), {});
@@ -357,7 +358,7 @@ Fractions group_fractions(const Target& target, const std::vector<std::vector<do
             for (int q : mem[o])
                 if (q >= 0) f[w][static_cast<std::size_t>(q)] += p;
         }
-        if (total > 0.0)
+        if (total > 0.0 && !target.incident_power())
             for (double& x : f[w]) x /= total;
         if (totals) (*totals)[w] = total;
     }
@@ -375,6 +376,13 @@ void flux_gradient(const Target& target, const std::vector<std::vector<double>>&
         double common = 0.0;
         for (std::size_t q = 0; q < f[w].size(); ++q) common += df[w][q] * f[w][q];
         gradient[w].assign(flux[w].size(), 0.0);
+        if (target.incident_power()) {
+            // f_q = X_q: ∂L/∂Φ_o = Σ_{q ∋ o} ∂L/∂f_q
+            for (std::size_t o = 0; o < flux[w].size(); ++o)
+                for (int q : mem[o])
+                    if (q >= 0) gradient[w][o] += df[w][static_cast<std::size_t>(q)];
+            continue;
+        }
         if (!(total > 0.0)) continue;
         for (std::size_t o = 0; o < flux[w].size(); ++o) {
             double s = -common;

@@ -3,6 +3,10 @@
 // every wavelength belongs to at most two groups (a cone, a region's bin, an image pixel); a
 // target sees only each group's fraction of the wavelength's reflected power,
 // f[w][q] = Σ_{o ∈ q} Φ_o / Σ_o Φ_o, and maps them to a loss (with its gradient) and to metrics.
+// The colour targets see fractions of the incident power instead, f[w][q] = Σ_{o ∈ q} Φ_o (the
+// fluxes are per unit incident power): the luminous efficiency is the fraction of the white
+// light's luminous power that reaches the view cone, and no design can raise it by reflecting
+// less elsewhere.
 #include <array>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -25,6 +29,8 @@ public:
     // The groups of every order (-1: none), for these order sets; called once, before the rest.
     virtual void assign(const std::vector<OrderSet>& sets) = 0;
     virtual int groups() const = 0;
+    // Whether the fractions are of the incident power (true) or of the reflected propagating power.
+    virtual bool incident_power() const { return false; }
     // The loss of the fractions; with `gradient`, ∂loss/∂f (same shape).
     virtual double loss(const Fractions& f, Fractions* gradient) const = 0;
     // The target's metrics (design.json), from the fractions.
@@ -37,10 +43,11 @@ protected:
     std::vector<std::vector<std::array<int, 2>>> m_members;  // [wavelength][order]
 };
 
-// Each group's fraction and each wavelength's total flux Σ Φ.
+// Each group's fraction (of the incident or the reflected power, as the target counts) and each
+// wavelength's total flux Σ Φ (the reflected propagating power per unit incident power).
 Fractions group_fractions(const Target& target, const std::vector<std::vector<double>>& flux,
                           std::vector<double>* totals = nullptr);
-// ∂loss/∂Φ_o from ∂loss/∂f (the fractions' quotient rule).
+// ∂loss/∂Φ_o from ∂loss/∂f (the fractions' quotient rule; the identity for incident power).
 void flux_gradient(const Target& target, const std::vector<std::vector<double>>& flux, const Fractions& f,
                    const Fractions& df, std::vector<std::vector<double>>& gradient);
 

@@ -45,6 +45,7 @@ public:
         for (const auto& rgb : spec.rgb) m_target_uv.push_back(xyz_to_uv(linear_srgb_to_xyz(rgb)));
     }
     int groups() const override { return static_cast<int>(m_spec.rgb.size()); }
+    bool incident_power() const override { return true; }
 
     void assign(const std::vector<OrderSet>& sets) override {
         m_members.assign(sets.size(), {});

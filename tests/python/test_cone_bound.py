@@ -158,11 +158,17 @@ def test_design_json_cone_bound_holds_for_the_run_and_matches_an_independent_sol
                   height_range_um=1.5, view_cone=0.2, iterations=20, refine_passes=2, seed=11)
     doc = r["design"]
     c = doc["cone_bound"]
-    # the run's own cone light in incident power, from the exact metrics
+    # the run's own cone light in incident power: the exact metrics' reflectance (per unit incident
+    # power) and their Y; divided by kirchhoff_total, the share of the reflected power
     w = np.asarray(doc["mixture_bound"]["xyz_weights"]).reshape(3, -1)
-    X = w @ (np.asarray(doc["metrics"]["exact"]["reflectance"]) * np.asarray(doc["metrics"]["kirchhoff_total"]))
+    refl = np.asarray(doc["metrics"]["exact"]["reflectance"])
+    X = w @ refl
     own = c["design_check"]["absolute"]
     assert own["y"] == pytest.approx(X[1], rel=1e-9)
+    assert doc["metrics"]["exact"]["luminous_efficiency"] == pytest.approx(X[1], rel=1e-9)
+    share = (w @ (refl / np.asarray(doc["metrics"]["kirchhoff_total"])))[1]
+    assert doc["metrics"]["exact"]["luminous_efficiency_share_of_reflected"] == pytest.approx(share, rel=1e-9)
+    assert c["design_check"]["normalised"]["y"] == pytest.approx(share, rel=1e-9)
     assert own["within"] and X[1] <= own["bound_y_at_its_chromaticity"]
     # the same programme by HiGHS on a grid (a weaker relaxation) and by cvxopt (the exact dual)
     lam = np.asarray(doc["light"]["lambdas_um"])
