@@ -376,12 +376,16 @@ void run(const RecoverArgs& a, const Communicator& comm) {
                      convergence.floor == "none" && convergence.converged
                          ? "; a lower bound: without a noise level a wrong basin is not seen, so the run is not judged"
                          : "");
-    // Where the check needed error bars and has none, the noise limit is not judged.
+    // Where the check needed error bars and has none, the noise limit is not judged. Bars left
+    // out for memory are left out under `always` too: the note says how to raise the limit.
+    const bool over_memory = convergence.memory_limit_bytes >= 0.0 &&
+                             !check_error_bars_fit(convergence.error_bars_predicted_bytes,
+                                                   convergence.memory_limit_bytes);
     if (!quiet && (convergence.error_bars == "skipped" || convergence.error_bars == "off" ||
                    convergence.error_bars == "unavailable"))
         std::fprintf(stderr, "convergence: the %s not judged: %s%s\n",
                      convergence.judged() ? "noise limit is" : "recovery is", convergence.error_bars_note.c_str(),
-                     convergence.error_bars == "unavailable"
+                     convergence.error_bars == "unavailable" || over_memory
                          ? ""
                          : " (--check-error-bars always or --uncertainty computes them)");
     if (!convergence.converged) std::fprintf(stderr, "wavebrdf: warning: %s\n", convergence.warning().c_str());
@@ -543,7 +547,7 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--check-error-bars", a->check_error_bars,
                     "the convergence check's own error bars, where it needs them (photon counts with the misfit on "
                     "the floor, or a loss without a noise level): auto (computed when predicted to take at most "
-                    "half the recovery's time), always, or off")
+                    "the recovery's CPU time), always, or off; either way within --max-memory-gb")
         ->default_str("auto");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");

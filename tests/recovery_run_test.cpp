@@ -1,6 +1,7 @@
 // recovery_run.h: the memory estimate of a recovery and the limit prepare_recovery enforces.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <optional>
 #include <set>
 #include <string>
@@ -11,6 +12,8 @@
 #include "wavebrdf/memory.h"
 #include "wavebrdf/acquisition.h"
 #include "wavebrdf/calibration.h"
+#include "wavebrdf/convergence.h"
+#include "wavebrdf/noise.h"
 #include "wavebrdf/recovery_run.h"
 
 namespace wavebrdf {
@@ -72,6 +75,65 @@ TEST(RecoveryRun, EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
     });
     ASSERT_GT(measured, 0.0) << "the recovery failed in the child";
     test::expect_estimate_within_factor_of_two(estimate, measured, "recover 24x24");
+}
+
+// The convergence check's own error bars are held to the run's memory limit, as the recovery
+// is (require_memory): a 16² photon-noise run of nm heights, whose misfit sits on the floor so
+// that the check needs bars, computes them under the physical memory; with a limit below their
+// predicted peak it skips them (auto) or has none (always), the note the refusal's message; with
+// a limit above it computes them again. The run's CPU time is given as large: only memory decides.
+TEST(RecoveryRun, TheChecksErrorBarsAreHeldToTheMemoryLimit) {
+    RecoveryOptions options;
+    options.rows = options.cols = 16;
+    options.resolution = 48;
+    options.noise = parse_noise("poisson:1e4");
+    options.seed = 4;
+    options.height_range_um = 0.02;
+    PreparedRecovery r = prepare_recovery(options);
+    const Heightfield estimate = run_recovery(r);
+    const ModelCheckMisfits none;
+    const double run_seconds = 1e6;
+    const ConvergenceCheck free = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+    ASSERT_EQ(free.floor, "poisson");
+    EXPECT_EQ(free.error_bars, "computed") << free.error_bars_note;
+    EXPECT_GT(free.predicted_error_relative, 0.0);
+    const double needed = free.error_bars_predicted_bytes;
+    EXPECT_GT(needed, 64e6);  // the program's base and what the run holds, then the bars
+    if (physical_memory_bytes() > 0) EXPECT_EQ(free.memory_limit_bytes, double(physical_memory_bytes()));
+
+    r.max_memory_gb = 0.9 * needed / 1e9;
+    const ConvergenceCheck tight = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+    EXPECT_EQ(tight.error_bars, "skipped");
+    EXPECT_LT(tight.predicted_error_relative, 0.0);
+    EXPECT_NE(tight.error_bars_note.find("computing the check's error bars (16x16 heights, "), std::string::npos)
+        << tight.error_bars_note;
+    EXPECT_NE(tight.error_bars_note.find("(max-memory-gb); raise it with --max-memory-gb"), std::string::npos)
+        << tight.error_bars_note;
+    EXPECT_DOUBLE_EQ(tight.memory_limit_bytes, r.max_memory_gb * 1e9);
+
+    r.check_error_bars = CheckErrorBars::Always;
+    const ConvergenceCheck always = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+    EXPECT_EQ(always.error_bars, "unavailable");
+    EXPECT_EQ(always.error_bars_note, tight.error_bars_note);
+
+    r.check_error_bars = CheckErrorBars::Auto;
+    r.max_memory_gb = 1.1 * needed / 1e9;
+    const ConvergenceCheck roomy = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+    EXPECT_EQ(roomy.error_bars, "computed") << roomy.error_bars_note;
+    EXPECT_DOUBLE_EQ(roomy.predicted_error_relative, free.predicted_error_relative);
+}
+
+// The memory half of the rule on its own: a need within the limit fits, one above it or one
+// that is not a number does not; an infinite limit (an unknown physical memory) takes any
+// finite need.
+TEST(RecoveryRun, TheChecksErrorBarsFitRule) {
+    EXPECT_TRUE(check_error_bars_fit(1e9, 2e9));
+    EXPECT_TRUE(check_error_bars_fit(2e9, 2e9));
+    EXPECT_FALSE(check_error_bars_fit(2.1e9, 2e9));
+    EXPECT_FALSE(check_error_bars_fit(std::nan(""), 2e9));
+    EXPECT_FALSE(check_error_bars_fit(-1.0, 2e9));
+    EXPECT_FALSE(check_error_bars_fit(HUGE_VAL, HUGE_VAL));
+    EXPECT_TRUE(check_error_bars_fit(1e15, HUGE_VAL));
 }
 
 // The references are held in float (Observation::reference): one more observation adds its

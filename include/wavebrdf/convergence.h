@@ -58,6 +58,11 @@ constexpr double k_predicted_error_limit = 0.01;
 // judged and the check says so (error_bars "skipped", with both times). CPU time, not wall
 // time: the rule decides the same on a loaded machine. Always: computed whatever they cost;
 // Off: never (error_bars "off"). Error bars the run computes anyway (--uncertainty) always judge.
+// Memory as the recovery's own rule (memory.h, require_memory against --max-memory-gb, else the
+// physical memory): bars whose predicted peak (predicted_uncertainty_cost's bytes and what the
+// run holds) exceeds the limit are not computed, Always included: a finished recovery is not
+// lost to the check's allocation (error_bars "skipped" under Auto, "unavailable" under Always,
+// the note the refusal's message).
 constexpr double k_check_error_bars_budget = 1.0;
 enum class CheckErrorBars { Auto, Always, Off };
 std::string to_string(CheckErrorBars mode);
@@ -67,6 +72,10 @@ CheckErrorBars parse_check_error_bars(const std::string& text);
 // a recovery that took `run_seconds` of CPU (Always: yes; Off: no; Auto: predicted ≤ budget ×
 // run, both finite and ≥ 0; a prediction that is not finite is not affordable).
 bool check_error_bars_affordable(CheckErrorBars mode, double predicted_seconds, double run_seconds);
+// The memory half of the rule: whether bars whose run would peak at `needed_bytes` (what the
+// run holds and the bars' own) fit `limit_bytes` (Off: never asked; a need that is not finite
+// never fits; an infinite limit, an unknown physical memory, takes any finite need).
+bool check_error_bars_fit(double needed_bytes, double limit_bytes);
 // The CPU seconds this process has used (all threads; CLOCK_PROCESS_CPUTIME_ID).
 double process_cpu_seconds();
 
@@ -100,6 +109,9 @@ struct ConvergenceCheck {
     // operands; −1 when the rule was not applied), and what the check's own bars took
     // ("computed"; else −1). Rank 0's, the same on every rank.
     double error_bars_predicted_seconds = -1.0, run_seconds = -1.0;
+    // The peak bytes the bars were predicted to need with what the run holds, and the limit
+    // they were held to (memory_limit; −1 when the rule was not applied).
+    double error_bars_predicted_bytes = -1.0, memory_limit_bytes = -1.0;
     double error_bars_seconds = -1.0;
     // The CPU seconds check_convergence's forwards took (each observation's slice rendered by its
     // built plan, summed over this rank's observations; rank 0's, the same on every rank): the

@@ -183,6 +183,10 @@ struct PreparedRecovery {
     std::optional<Calibration> true_calibration;
     bool uncertainty = false;  // options.uncertainty
     CheckErrorBars check_error_bars = CheckErrorBars::Auto;  // options.check_error_bars
+    // The memory limit the run was held to (options.max_memory_gb; 0: the physical memory) and
+    // how the front end names it in messages: the check's own error bars are held to it too.
+    double max_memory_gb = 0.0;
+    std::string memory_hint = "--max-memory-gb";
 };
 
 // Estimated peak memory (bytes) of recovering a rows × cols heightfield of texel_um from
@@ -255,8 +259,11 @@ std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& pre
 // check's pass_seconds against `run_seconds`, the recovery's CPU time; rank 0's prediction,
 // the same decision on every rank). The check needs only √(mean σ²), which the probed diagonal
 // estimates as well as the exact one (64²: 2.3653 % against 2.3645 %), so its bars take
-// whichever of the dense and the probed solve is predicted cheaper. check.error_bars and its
-// note say what was done. Collective.
+// whichever of the dense and the probed solve is predicted cheaper among those whose predicted
+// peak (predicted_uncertainty_cost's bytes, with the observations and heights the run holds)
+// fits prepared.max_memory_gb (memory_limit; check_error_bars_fit). Bars that fit neither way
+// are not computed, Always included ("skipped" under Auto, "unavailable" under Always, the
+// note require_memory's message). check.error_bars and its note say what was done. Collective.
 void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& prepared, const Heightfield& estimate,
                        const std::vector<double>* sigma_um, double run_seconds,
                        const Communicator& comm = serial_communicator());

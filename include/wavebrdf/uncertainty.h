@@ -172,6 +172,23 @@ constexpr double k_uncertainty_vector_speedup = 4.0;
 double predicted_uncertainty_seconds(const std::vector<Observation>& observations, const Heightfield& estimate,
                                      double pass_seconds, const UncertaintySettings& settings = {});
 
+// The operation counts, CPU seconds and memory height_uncertainty is predicted to take for this
+// rank's share (what predicted_uncertainty_seconds returns the seconds of).
+struct UncertaintyCost {
+    double forwards = 0.0;       // forward passes forming G (HeightUncertainty::forwards counts them)
+    double product_madds = 0.0;  // Jᵀ W J's multiply-adds
+    double solve_madds = 0.0;    // the dense Cholesky's or the probes' CG multiply-adds
+    double seconds = 0.0;        // predicted_uncertainty_seconds
+    // Peak bytes height_uncertainty allocates beyond what its caller holds: every observation's
+    // slice and weights at the solution (two doubles a slice value), the band's exact sum (16
+    // bytes a stored value, a double a value per thread and one for the band itself), one
+    // observation's Jacobian per thread (a double per box texel and slice value), and then the
+    // dense matrix (texels² doubles) or the probes' CG vectors. `threads`: the threads it runs on.
+    double bytes = 0.0;
+};
+UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                           double pass_seconds, const UncertaintySettings& settings, int threads);
+
 // The fraction (0 … 1) of texels whose error, (estimate − its mean) − (truth − its mean) in µm,
 // lies within ±k·σ (sigma_um: rows·cols values ≥ 0; k > 0). Throws std::invalid_argument on
 // a size mismatch, std::domain_error for k ≤ 0.

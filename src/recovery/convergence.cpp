@@ -230,6 +230,11 @@ bool check_error_bars_affordable(CheckErrorBars mode, double predicted_seconds, 
     return predicted_seconds <= k_check_error_bars_budget * run_seconds;
 }
 
+bool check_error_bars_fit(double needed_bytes, double limit_bytes) {
+    if (!(std::isfinite(needed_bytes) && needed_bytes >= 0.0)) return false;
+    return needed_bytes <= limit_bytes;
+}
+
 void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sigma_um, double height_range_um) {
     if (sigma_um.empty() || !(height_range_um > 0.0)) return;
     double sum = 0.0;

@@ -556,6 +556,8 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     state_pipeline_settings(r, options, measured, measured_roughness);
     r.uncertainty = options.uncertainty;
     r.check_error_bars = options.check_error_bars;
+    r.max_memory_gb = options.max_memory_gb;
+    r.memory_hint = options.names == OptionStyle::Cli ? "--max-memory-gb" : "max_memory_gb=";
     r.thesis.epochs = options.epochs;
     r.thesis.loss = r.loss;
     r.thesis.seed = options.seed;
@@ -612,23 +614,48 @@ void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const
         check.error_bars_note = "the check's error bars are off";
         return;
     }
-    // The cheaper solve (rank 0's prediction and time: one decision on every rank).
+    // The cheaper solve that fits the memory limit (rank 0's predictions and time: one decision
+    // on every rank).
     UncertaintySettings settings;
-    const double pass = std::max(check.pass_seconds, 0.0);
-    double predicted = predicted_uncertainty_seconds(r.observations, estimate, pass, settings);
     UncertaintySettings probed = settings;
     probed.dense_max_texels = 0;
-    double predicted_probed = predicted_uncertainty_seconds(r.observations, estimate, pass, probed);
-    comm.broadcast(&predicted, 1);
-    comm.broadcast(&predicted_probed, 1);
-    if (predicted_probed < predicted) {
-        settings = probed;
-        predicted = predicted_probed;
-    }
-    double seconds = run_seconds;
-    comm.broadcast(&seconds, 1);
+    const double pass = std::max(check.pass_seconds, 0.0);
+    const int threads = std::max(1, omp_get_max_threads());
+    const UncertaintyCost exact_cost = predicted_uncertainty_cost(r.observations, estimate, pass, settings, threads);
+    const UncertaintyCost probed_cost = predicted_uncertainty_cost(r.observations, estimate, pass, probed, threads);
+    // What the run holds meanwhile: the program's base, the observations' references and
+    // weights (floats) and the estimate's heights.
+    double held = 64e6 + 3.0 * sizeof(double) * double(estimate.values().size());
+    for (const Observation& o : r.observations)
+        held += sizeof(float) * double(o.reference.size() + o.weights.size());
+    double costs[5] = {exact_cost.seconds, held + exact_cost.bytes, probed_cost.seconds, held + probed_cost.bytes,
+                       run_seconds};
+    comm.broadcast(costs, 5);
+    const MemoryLimit limit = memory_limit(r.max_memory_gb);
+    const bool exact_fits = check_error_bars_fit(costs[1], limit.bytes);
+    const bool probed_fits = check_error_bars_fit(costs[3], limit.bytes);
+    const bool take_probed = exact_fits == probed_fits ? costs[2] < costs[0] : probed_fits;
+    if (take_probed) settings = probed;
+    const double predicted = take_probed ? costs[2] : costs[0], needed = take_probed ? costs[3] : costs[1];
+    const double seconds = costs[4];
     check.error_bars_predicted_seconds = predicted;
     check.run_seconds = seconds;
+    check.error_bars_predicted_bytes = needed;
+    if (std::isfinite(limit.bytes)) check.memory_limit_bytes = limit.bytes;
+    if (!check_error_bars_fit(needed, limit.bytes)) {
+        check.error_bars = r.check_error_bars == CheckErrorBars::Always ? "unavailable" : "skipped";
+        try {
+            require_memory(needed, limit,
+                           "computing the check's error bars (" + std::to_string(estimate.rows()) + "x" +
+                               std::to_string(estimate.cols()) + " heights, " +
+                               std::to_string(r.observations.size()) + " observations)",
+                           r.memory_hint);
+            check.error_bars_note = "the check's error bars' memory is not known";  // a need that is not finite
+        } catch (const OutOfMemory& e) {
+            check.error_bars_note = e.what();
+        }
+        return;
+    }
     if (!check_error_bars_affordable(r.check_error_bars, predicted, seconds)) {
         check.error_bars = "skipped";
         char note[256];

@@ -641,8 +641,8 @@ double error_coverage(const Heightfield& estimate, const Heightfield& truth, con
     return inside / n;
 }
 
-double predicted_uncertainty_seconds(const std::vector<Observation>& observations, const Heightfield& estimate,
-                                     double pass_seconds, const UncertaintySettings& settings) {
+UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                           double pass_seconds, const UncertaintySettings& settings, int threads) {
     if (!(std::isfinite(pass_seconds) && pass_seconds >= 0.0))
         throw std::domain_error("predicted uncertainty seconds: pass seconds " + std::to_string(pass_seconds) +
                                 " is invalid; expected a finite value >= 0");
@@ -650,8 +650,10 @@ double predicted_uncertainty_seconds(const std::vector<Observation>& observation
     const double n = double(rows) * double(cols), texel = estimate.texel_um();
     const double per_forward = observations.empty() ? 0.0 : pass_seconds / double(observations.size());
     const double rate = k_uncertainty_madds_per_second;
-    double forwards = 0.0, products = 0.0;
+    const double workers = double(std::max(threads, 1));
+    UncertaintyCost cost;
     int extent_rows = 1, extent_cols = 1;
+    double held = 0.0, jacobian = 0.0;
     for (const Observation& o : observations) {
         // The texels the slice depends on: the kernels within 3σ_p and their neighbours, a disk
         // of radius 3σ_p + 1 texel (SlicePlan::gradient_box's box holds them).
@@ -660,20 +662,38 @@ double predicted_uncertainty_seconds(const std::vector<Observation>& observation
         extent_rows = std::max(extent_rows, er);
         extent_cols = std::max(extent_cols, ec);
         const double touched = std::min(double(er) * double(ec), k_pi * (reach + 1.0) * (reach + 1.0));
-        forwards += touched + 2.0;
-        products += 0.5 * touched * touched * double(o.resolution) * double(o.resolution) * double(o.channels());
+        const double values = double(o.resolution) * double(o.resolution) * double(o.channels());
+        cost.forwards += touched + 2.0;
+        cost.product_madds += 0.5 * touched * touched * values;
+        // The slice and its weights kept per observation, its plan's bookkeeping (released
+        // between uses), and the largest Jacobian one thread holds.
+        held += 2.0 * sizeof(double) * values + 2048.0;
+        jacobian = std::max(jacobian, double(sizeof(double)) * touched * values);
     }
-    double solve = 0.0;
+    const double width = double(2 * extent_rows - 1 >= rows ? rows : 2 * extent_rows - 1) *
+                         double(2 * extent_cols - 1 >= cols ? cols : 2 * extent_cols - 1);
+    // Forming the band (GaussNewtonOperator::band): the exact sum's accumulator and scratches.
+    const double forming = n * width * (16.0 + sizeof(double) * (1.0 + workers)) + workers * jacobian;
+    double solving = n * width * sizeof(double);  // the band, kept through the solve
     if (n <= double(settings.dense_max_texels)) {
-        solve = n * n * n / 3.0;
+        cost.solve_madds = n * n * n / 3.0;
+        solving += n * n * sizeof(double) + workers * n * sizeof(double);
     } else {
-        const double width = double(2 * extent_rows - 1 >= rows ? rows : 2 * extent_rows - 1) *
-                             double(2 * extent_cols - 1 >= cols ? cols : 2 * extent_cols - 1);
         const double probes = double(std::min(settings.probe_spacing, rows)) *
                               double(std::min(settings.probe_spacing, cols)) * double(settings.rounds);
-        solve = probes * double(settings.cg_iterations) * n * width;
+        cost.solve_madds = probes * double(settings.cg_iterations) * n * width;
+        // Per probe (all rounds at once): its signs, x, r and p; the preconditioner and the diagonal.
+        solving += (4.0 * probes + 3.0) * n * sizeof(double);
     }
-    return k_uncertainty_forward_fraction * forwards * per_forward + products / (k_uncertainty_vector_speedup * rate) + solve / rate;
+    cost.bytes = held + std::max(forming, solving);
+    cost.seconds = k_uncertainty_forward_fraction * cost.forwards * per_forward +
+                   cost.product_madds / (k_uncertainty_vector_speedup * rate) + cost.solve_madds / rate;
+    return cost;
+}
+
+double predicted_uncertainty_seconds(const std::vector<Observation>& observations, const Heightfield& estimate,
+                                     double pass_seconds, const UncertaintySettings& settings) {
+    return predicted_uncertainty_cost(observations, estimate, pass_seconds, settings, 1).seconds;
 }
 
 double median_sigma_um(const std::vector<double>& sigma_um) {
