@@ -16,12 +16,9 @@
 #include "test_util.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/memory.h"
-#include "wavebrdf/acquisition.h"
-#include "wavebrdf/convergence.h"
 #include "wavebrdf/noise.h"
 #include "wavebrdf/optim.h"
 #include "wavebrdf/recover.h"
-#include "wavebrdf/recovery_run.h"
 
 namespace wavebrdf {
 namespace {
@@ -405,53 +402,6 @@ TEST(HeightUncertainty, PredictedCostCountsTheForwardsAndTheMemory) {
     ASSERT_GT(idle, 0.0);
     ASSERT_GT(peak, 0.0) << "height_uncertainty failed in the child";
     test::expect_estimate_within_factor_of_two(cost.bytes, peak - idle, "height_uncertainty 40x40 dense");
-}
-
-// A study, not a check (run with --gtest_also_run_disabled_tests): the cost rule's prediction
-// against the CPU time height_uncertainty takes on one thread, for the planner's acquisitions
-// (48² slices, σ_p 1.5 texels, photon noise) of generated nm surfaces of growing size; the
-// dense solve up to 64², the probed one beside it from 32². Prints each part.
-TEST(HeightUncertainty, DISABLED_CostStudy) {
-    omp_set_num_threads(1);
-    const char* sizes = std::getenv("WAVEBRDF_COST_STUDY_SIZES");  // e.g. "16,32,48"
-    std::vector<int> all{16, 32, 48, 64};
-    if (sizes) {
-        all.clear();
-        for (const char* p = sizes; *p;) {
-            char* end = nullptr;
-            all.push_back(int(std::strtol(p, &end, 10)));
-            p = *end ? end + 1 : end;
-        }
-    }
-    for (const int rows : all) {
-        PlanRequest request;
-        request.rows = request.cols = rows;
-        request.height_range_um = 0.05;
-        request.resolution = 48;
-        request.seed = 4;
-        const AcquisitionPlan plan = plan_acquisition(request);
-        RecoveryOptions g;
-        g.rows = g.cols = rows;
-        g.height_range_um = 0.05;
-        g.seed = 4;
-        const Heightfield truth = generated_recovery_truth(g);
-        const std::vector<Observation> obs = simulate_observations(truth, plan, parse_noise("poisson:1e4"), 4);
-        const ConvergenceCheck check = check_convergence(obs, truth, 1e4, false);
-        for (const int dense : {4096, 0}) {
-            if (dense == 0 && rows < 32) continue;
-            UncertaintySettings s;
-            s.dense_max_texels = dense;
-            const UncertaintyCost cost = predicted_uncertainty_cost(obs, truth, check.pass_seconds, s, 1);
-            const double before = process_cpu_seconds();
-            const HeightUncertainty u = height_uncertainty(obs, truth, k_poisson, s);
-            const double took = process_cpu_seconds() - before;
-            std::printf("%d^2 %s: %zu observations, pass %.3f s; forwards %.0f (counted %lld) products %.3g solve %.3g "
-                        "madds; predicted %.2f CPU s, took %.2f (ratio %.2f); bytes %s\n",
-                        rows, dense ? "dense" : "probed", obs.size(), check.pass_seconds, cost.forwards,
-                        static_cast<long long>(u.forwards), cost.product_madds, cost.solve_madds, cost.seconds, took,
-                        took / cost.seconds, format_bytes(cost.bytes).c_str());
-        }
-    }
 }
 
 }  // namespace

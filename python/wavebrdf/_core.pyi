@@ -782,7 +782,8 @@ class RecoveryResult:
         model_misfit_field, model_selected; with error bars median_sigma_relative,
         predicted_error_relative; where the check needed error bars, error_bars ('given', 'computed',
         'skipped', 'off', 'unavailable'), error_bars_note, and the cost rule's error_bars_predicted_seconds,
-        run_seconds (CPU) and error_bars_seconds.
+        run_seconds (CPU), error_bars_seconds, error_bars_predicted_bytes (the bars' predicted peak with what
+        the run holds) and memory_limit_bytes (max_memory_gb, else the physical memory).
         """
         ...
 
