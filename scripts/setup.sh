@@ -13,6 +13,7 @@ demo=0
 packages=(build-essential cmake pkg-config ccache libopenexr-dev libeigen3-dev libcli11-dev
           nlohmann-json3-dev libfftw3-dev libpng-dev python3 python3-numpy python3-matplotlib
           python3-dev pybind11-dev
+          python3-munkres  # fonttools (matplotlib) needs SciPy or this: named, SciPy, Pythran and Boost stay out (300 MB)
           libzip-dev libpugixml-dev)  # x3p surface files (docs/surfaces.md)
 [ "$demo" = 1 ] || packages+=(libgtest-dev libbenchmark-dev
           python3-pil python3-pytest python3-torch
@@ -30,7 +31,11 @@ if [ ${#missing[@]} -gt 0 ]; then
     SUDO=""
     [ "$(id -u)" -ne 0 ] && SUDO="sudo"
     $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
+    # The demo installs no recommended packages: it needs none, and on a new machine unpacking is
+    # most of its set-up time.
+    lean=()
+    [ "$demo" = 1 ] && lean=(--no-install-recommends)
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${lean[@]}" "${missing[@]}" >/dev/null
 fi
 
 # ccache, where the machine has it, makes rebuilds of other checkouts nearly free.
