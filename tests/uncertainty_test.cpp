@@ -14,6 +14,7 @@
 
 #include "recover_util.h"
 #include "test_util.h"
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/noise.h"
@@ -402,6 +403,32 @@ TEST(HeightUncertainty, PredictedCostCountsTheForwardsAndTheMemory) {
     ASSERT_GT(idle, 0.0);
     ASSERT_GT(peak, 0.0) << "height_uncertainty failed in the child";
     test::expect_estimate_within_factor_of_two(cost.bytes, peak - idle, "height_uncertainty 40x40 dense");
+}
+
+// A study, not a check (run with --gtest_also_run_disabled_tests): the cost rule's prediction
+// (predicted_uncertainty_cost, from check_convergence's timed forwards) against the CPU time
+// height_uncertainty takes on one thread, on tiles of growing size seen as the planner sees
+// them (make_tile: σ_p 1.5 texels, a footprint every 2 texels, here 48² slices), the dense
+// solve and the probed one. Prints each part. A timing, hence not a check.
+TEST(HeightUncertainty, DISABLED_CostStudy) {
+    omp_set_num_threads(1);
+    for (const int rows : {16, 24, 32}) {
+        const Tile t = make_tile(rows, 48, 7200 + std::uint64_t(rows));
+        const ConvergenceCheck check = check_convergence(t.observations, t.truth, 1e4, false);
+        for (const int dense : {4096, 0}) {
+            UncertaintySettings s;
+            s.dense_max_texels = dense;
+            const UncertaintyCost cost = predicted_uncertainty_cost(t.observations, t.truth, check.pass_seconds, s, 1);
+            const double before = process_cpu_seconds();
+            const HeightUncertainty u = height_uncertainty(t.observations, t.truth, k_poisson, s);
+            const double took = process_cpu_seconds() - before;
+            std::printf("%d^2 %s: %zu observations, pass %.3f s; forwards %.0f (counted %lld) products %.3g solve %.3g "
+                        "madds; predicted %.2f CPU s, took %.2f (ratio %.2f)\n",
+                        rows, dense ? "dense" : "probed", t.observations.size(), check.pass_seconds, cost.forwards,
+                        static_cast<long long>(u.forwards), cost.product_madds, cost.solve_madds, cost.seconds, took,
+                        took / cost.seconds);
+        }
+    }
 }
 
 }  // namespace

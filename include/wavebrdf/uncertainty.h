@@ -164,8 +164,8 @@ constexpr double k_uncertainty_vector_speedup = 4.0;
 // times it).
 // The band: a forward per
 // texel the slice depends on (a disk of the footprint's 3σ_p reach and one texel beyond) at
-// k_uncertainty_forward_fraction of that pass's rate, and Jᵀ W J's products (texels² / 2 per slice value, vectorised); the solve: n³/3
-// multiply-adds (dense, up to settings.dense_max_texels) or probes × cg_iterations × n × band
+// k_uncertainty_forward_fraction of that pass's rate, and Jᵀ W J's products (texels² / 2 per slice value, vectorised); the solve: n³/2
+// multiply-adds (dense, up to settings.dense_max_texels: the factor and the diagonal's substitutions) or probes × cg_iterations × n × band
 // width (probed, every probe running out its iterations), at k_uncertainty_madds_per_second. An estimate for deciding whether the bars
 // are worth their time (convergence.h, CheckErrorBars), not a measurement. Throws
 // std::domain_error for a pass_seconds that is negative or not finite.
@@ -177,7 +177,7 @@ double predicted_uncertainty_seconds(const std::vector<Observation>& observation
 struct UncertaintyCost {
     double forwards = 0.0;       // forward passes forming G (HeightUncertainty::forwards counts them)
     double product_madds = 0.0;  // Jᵀ W J's multiply-adds
-    double solve_madds = 0.0;    // the dense Cholesky's or the probes' CG multiply-adds
+    double solve_madds = 0.0;    // the dense solve's (factor and substitutions) or the probes' CG multiply-adds
     double seconds = 0.0;        // predicted_uncertainty_seconds
     // Peak bytes height_uncertainty allocates beyond what its caller holds: every observation's
     // slice and weights at the solution (two doubles a slice value), the band's exact sum (16

@@ -676,7 +676,8 @@ UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& obser
     const double forming = n * width * (16.0 + sizeof(double) * (1.0 + workers)) + workers * jacobian;
     double solving = n * width * sizeof(double);  // the band, kept through the solve
     if (n <= double(settings.dense_max_texels)) {
-        cost.solve_madds = n * n * n / 3.0;
+        // The Cholesky factor (n³/3) and a forward substitution per texel for the diagonal (n³/6).
+        cost.solve_madds = n * n * n / 2.0;
         solving += n * n * sizeof(double) + workers * n * sizeof(double);
     } else {
         const double probes = double(std::min(settings.probe_spacing, rows)) *
