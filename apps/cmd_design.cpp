@@ -250,6 +250,9 @@ void add_design_command(CLI::App& app) {
     auto* vy = cmd->add_option("--view-y", a->view_y, "colour: projected view direction, y (default: the mirror's)");
     cmd->add_option("--view-cone", a->options.view_cone, "colour, iridescent: sin of the view cone's half-angle")
         ->capture_default_str();
+    cmd->add_option("--delta-uv-tolerance", a->options.delta_uv_tolerance,
+                    "colour: delta u'v' from the target the loss does not count, traded for luminous efficiency")
+        ->capture_default_str();
     cmd->add_option("--size", a->options.size, "N: the N x N periodic tile")->capture_default_str();
     cmd->add_option("--texel-um", a->options.texel_um, "texel width in um")->capture_default_str();
     cmd->add_option("--height-range-um", a->options.height_range_um, "every height within 0..H um")

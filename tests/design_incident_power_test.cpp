@@ -99,5 +99,34 @@ TEST(DesignIncidentPower, ADesignsLuminousEfficiencyIsTheIncidentFractionOfADire
     EXPECT_EQ(e["luminous_efficiency_units"].get<std::string>(), "fraction of the incident white light's luminous power");
 }
 
+TEST(DesignIncidentPower, TheColourLossIgnoresChromaticityWithinItsToleranceAndItsGradientIsExact) {
+    // colour_loss against the target u′v′ of sRGB blue: inside the tolerance only the Y hinge
+    // counts; outside, (Δ − t)²/0.01²; the gradient against central differences on both sides.
+    const auto target = xyz_to_uv(linear_srgb_to_xyz({0.0, 0.0, 1.0}));
+    const double t = 0.02;
+    auto xyz_at = [&](double du, double y) {
+        // The XYZ with chromaticity target + (du, 0) and luminance y: X = 9uY/(4v), Z = (12 − 3u − 20v)Y/(4v).
+        const double u = target[0] + du, v = target[1];
+        return std::array<double, 3>{9.0 * u * y / (4.0 * v), y, (12.0 - 3.0 * u - 20.0 * v) * y / (4.0 * v)};
+    };
+    const double hinge = 4.0 * std::pow((0.1 - 0.04) / 0.1, 2);
+    EXPECT_NEAR(detail::colour_loss(xyz_at(0.015, 0.04), target, nullptr, t), hinge, 1e-9);
+    EXPECT_NEAR(detail::colour_loss(xyz_at(0.03, 0.04), target, nullptr, t), hinge + std::pow(0.01 / 0.01, 2), 1e-9);
+    EXPECT_NEAR(detail::colour_loss(xyz_at(0.015, 0.04), target, nullptr, 0.0), hinge + std::pow(0.015 / 0.01, 2), 1e-9);
+    for (double du : {0.005, 0.015, 0.025, 0.04}) {
+        const auto X = xyz_at(du, 0.04);
+        std::array<double, 3> g{};
+        detail::colour_loss(X, target, &g, t);
+        for (std::size_t c = 0; c < 3; ++c) {
+            const double h = 1e-7;
+            auto a = X, b = X;
+            a[c] += h;
+            b[c] -= h;
+            const double fd = (detail::colour_loss(a, target, nullptr, t) - detail::colour_loss(b, target, nullptr, t)) / (2 * h);
+            EXPECT_NEAR(g[c], fd, 1e-4 * std::max(1.0, std::abs(fd))) << du << " " << c;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace wavebrdf

@@ -182,6 +182,8 @@ TEST(Design, LossGradientMatchesFiniteDifferences) {
     c.view_cone = 0.2;
     c.target = parse_design_target("colour:#20c040");
     check_gradient(c);
+    c.delta_uv_tolerance = 0.005;  // a tolerance the random weights' colour lies beyond
+    check_gradient(c);
 }
 
 TEST(Design, BadOptionsFailBeforeAnyWork) {

@@ -90,6 +90,9 @@ struct DesignOptions {
     // cone of every pair's view; the views are the pairs').
     std::optional<std::array<double, 2>> view;
     double view_cone = 0.05;
+    // Colour: the Δu′v′ from the target that the loss does not count (0 … 0.1): within it the
+    // design trades chromaticity for luminous efficiency.
+    double delta_uv_tolerance = 0.0;
     // The tile and the fabrication constraints.
     int size = 256;                 // N: the N × N tile, 2 … 2048
     double texel_um = 0.5;          // 0.05 … 100

@@ -679,6 +679,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
         }
         case DesignKind::Colour: {
             require_range(o.view_cone, 1e-3, 0.5, "--view-cone", "1e-3 to 0.5");
+            require_range(o.delta_uv_tolerance, 0.0, 0.1, "--delta-uv-tolerance", "0 to 0.1");
             const std::array<double, 2> view = o.view ? *o.view : mirror;
             if (!(std::hypot(view[0], view[1]) + o.view_cone < 1.0))
                 throw std::domain_error("view (" + num(view[0]) + ", " + num(view[1]) + ") with --view-cone " +
@@ -691,6 +692,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
             spec.view_cone = o.view_cone;
             spec.rgb = o.target.linear_rgb;
             spec.lambdas_um = p.lambdas_um;
+            spec.delta_uv_tolerance = o.delta_uv_tolerance;
             p.target = detail::make_colour(spec);
             break;
         }
@@ -1081,6 +1083,7 @@ nlohmann::json target_json(const DesignOptions& o) {
         target["linear_rgb"] = o.target.linear_rgb;
         target["view"] = view;
         target["view_cone"] = o.view_cone;
+        target["delta_uv_tolerance"] = o.delta_uv_tolerance;
     } else {
         detail::more_target_json(o, target);
     }

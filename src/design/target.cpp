@@ -271,7 +271,7 @@ public:
 
     double loss(const Fractions& f, Fractions* gradient) const override {
         std::array<double, 3> g{};
-        const double value = colour_loss(xyz(f), m_target_uv, gradient ? &g : nullptr);
+        const double value = colour_loss(xyz(f), m_target_uv, gradient ? &g : nullptr, m_spec.delta_uv_tolerance);
         if (gradient) {
             const std::size_t n = f.size();
             gradient->assign(n, std::vector<double>(1, 0.0));
@@ -324,24 +324,30 @@ std::array<double, 3> cone_xyz(const std::vector<double>& xyz_weights, const Fra
     return x;
 }
 
-double colour_loss(const std::array<double, 3>& X, const std::array<double, 2>& target_uv, std::array<double, 3>* d_xyz) {
+double colour_loss(const std::array<double, 3>& X, const std::array<double, 2>& target_uv, std::array<double, 3>* d_xyz,
+                   double tolerance) {
     constexpr double k_uv_scale = 0.01, k_min_y = 0.10, k_weight_y = 4.0;
     const double dd = std::max(X[0] + 15.0 * X[1] + 3.0 * X[2], 1e-12);
     const double u = 4.0 * X[0] / dd, v = 9.0 * X[1] / dd;
     const double du = u - target_uv[0], dv = v - target_uv[1];
     const double s = 1.0 / (k_uv_scale * k_uv_scale);
     const double hinge = std::max(0.0, k_min_y - X[1]) / k_min_y;
+    // The chromaticity term: Δ² without a tolerance (smooth at Δ = 0), else (Δ − t)² beyond it,
+    // whose gradient (Δ − t)/Δ · ∂Δ²/∂X vanishes continuously at Δ = t.
+    const double delta = std::hypot(du, dv);
+    const double excess = tolerance > 0.0 ? std::max(0.0, delta - tolerance) : delta;
+    const double scale = tolerance > 0.0 ? (excess > 0.0 ? excess / delta : 0.0) : 1.0;
     if (d_xyz) {
         // ∂u/∂X = (4/d)e_x − u/d ∂d/∂X,  ∂v/∂X = (9/d)e_y − v/d ∂d/∂X,  ∂d/∂X = (1, 15, 3)
         const std::array<double, 3> dd_dx{1.0, 15.0, 3.0};
         for (std::size_t c = 0; c < 3; ++c) {
             const double du_dx = (c == 0 ? 4.0 / dd : 0.0) - u / dd * dd_dx[c];
             const double dv_dx = (c == 1 ? 9.0 / dd : 0.0) - v / dd * dd_dx[c];
-            (*d_xyz)[c] = s * 2.0 * (du * du_dx + dv * dv_dx);
+            (*d_xyz)[c] = s * 2.0 * scale * (du * du_dx + dv * dv_dx);
         }
         (*d_xyz)[1] += -2.0 * k_weight_y * hinge / k_min_y;
     }
-    return s * (du * du + dv * dv) + k_weight_y * hinge * hinge;
+    return s * (tolerance > 0.0 ? excess * excess : du * du + dv * dv) + k_weight_y * hinge * hinge;
 }
 
 Fractions group_fractions(const Target& target, const std::vector<std::vector<double>>& flux,

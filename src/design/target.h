@@ -67,17 +67,20 @@ std::unique_ptr<Target> make_pattern(const PatternSpec& spec);
 // The colour targets' pieces (colour, iridescent): the weights that turn a cone's reflectance
 // per wavelength into CIE XYZ under the white light sampled at `lambdas_um` (3 × n, row c
 // holding X, Y or Z), that XYZ, and the loss of one cone's XYZ against a target u′v′:
-// (Δu′v′ / 0.01)² + 4 · (max(0, 0.1 − Y) / 0.1)², with ∂loss/∂XYZ when `d_xyz` is given.
+// (max(0, Δu′v′ − tolerance) / 0.01)² + 4 · (max(0, 0.1 − Y) / 0.1)², with ∂loss/∂XYZ when
+// `d_xyz` is given. A tolerance lets the design trade chromaticity within it for luminous
+// efficiency, which the second term alone asks for.
 std::vector<double> colour_xyz_weights(const std::vector<double>& lambdas_um);
 std::array<double, 3> cone_xyz(const std::vector<double>& xyz_weights, const Fractions& f, std::size_t group);
 double colour_loss(const std::array<double, 3>& xyz, const std::array<double, 2>& target_uv,
-                   std::array<double, 3>* d_xyz);
+                   std::array<double, 3>* d_xyz, double tolerance = 0.0);
 
 struct ColourSpec {
     std::array<double, 2> view_offset{{0.0, 0.0}};  // view direction − mirror direction
     double view_cone = 0.05;
     std::array<double, 3> rgb{{1.0, 1.0, 1.0}};      // target, linear sRGB
     std::vector<double> lambdas_um;                  // the white light's samples
+    double delta_uv_tolerance = 0.0;                 // Δu′v′ the loss does not count
 };
 std::unique_ptr<Target> make_colour(const ColourSpec& spec);
 
