@@ -20,7 +20,8 @@ Usage: am5_gram_sdp.py N STEP_UM [RHO]   (levels l * STEP, l = 0..7)
 import sys
 
 import numpy as np
-from cvxopt import matrix, solvers
+from cvxopt import matrix, solvers, spmatrix
+from scipy.sparse import coo_matrix
 
 LAMBDAS = 0.40 + (np.arange(16) + 0.5) * 0.30 / 16
 
@@ -202,7 +203,9 @@ def main():
     Ae2, be2 = (U[:, keep].T @ Ae), U[:, keep].T @ np.array(be)
     solvers.options["show_progress"] = False
     solvers.options["maxiters"] = 200
-    sol = solvers.conelp(matrix(c), matrix(Gall), matrix(hall), dims, matrix(Ae2), matrix(be2))
+    Gs = coo_matrix(Gall)  # the PSD blocks touch only their own group's entries
+    Gsp = spmatrix(Gs.data.tolist(), Gs.row.tolist(), Gs.col.tolist(), Gall.shape)
+    sol = solvers.conelp(matrix(c), Gsp, matrix(hall), dims, matrix(Ae2), matrix(be2))
     x = np.array(sol["x"]).ravel()
     print(f"status {sol['status']}  tau {x[ot]:.4g}  primal obj {sol['primal objective']:.4g} dual obj "
           f"{sol['dual objective']:.4g}  shares {np.round(x[os_:os_ + 8], 3)}")
