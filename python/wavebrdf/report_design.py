@@ -278,15 +278,14 @@ def make_report(directory):
         if isinstance(du, (int, float)):
             sub.append("Δu′v′ %.3f" % du)
         if isinstance(y, (int, float)):
-            text = "Y %.1f%% of incident" % (100 * y)
-            share = _get(doc, "metrics", "exact", "luminous_efficiency_share_of_reflected")
-            if isinstance(share, (int, float)):
-                text += " (%.1f%% of reflected)" % (100 * share)
-            sub.append(text)
+            sub.append("Y %.1f%% of incident" % (100 * y))
+        lines = [", ".join(sub)] if sub else []
+        share = _get(doc, "metrics", "exact", "luminous_efficiency_share_of_reflected")
+        if isinstance(share, (int, float)):
+            lines.append("(%.1f%% of the reflected light)" % (100 * share))
         bound = _get(doc, "optimal_colour_bound", "y_at_target")
         if isinstance(bound, (int, float)):
-            sub.append("any surface: Y ≤ %.1f%%" % (100 * bound))
-        lines = [", ".join(sub)] if sub else []
+            lines.append("any surface: Y ≤ %.1f%%" % (100 * bound))
         mix = _get(doc, "mixture_bound", "y_at_target")
         min_y = _get(doc, "mixture_bound", "min_y")
         if isinstance(mix, (int, float)) and isinstance(min_y, (int, float)):
