@@ -30,7 +30,7 @@ std::vector<Case> cases() {
             {Model::GHS, RenderPath::Auto}, {Model::Kirchhoff, RenderPath::Auto}, {Model::GHS, RenderPath::Fft}};
 }
 
-RenderOptions with_path(RenderPath path) {
+RenderOptions with_batch_path(RenderPath path) {
     RenderOptions o;
     o.path = path;
     return o;
@@ -43,7 +43,7 @@ std::vector<double> item_values(const std::vector<double>& all, std::size_t b, s
                                all.begin() + static_cast<std::ptrdiff_t>((b + 1) * values));
 }
 
-double max_abs_diff(const std::vector<double>& a, const std::vector<double>& b) {
+double max_abs_difference(const std::vector<double>& a, const std::vector<double>& b) {
     EXPECT_EQ(a.size(), b.size());
     double m = 0.0;
     for (std::size_t i = 0; i < a.size() && i < b.size(); ++i) m = std::max(m, std::abs(a[i] - b[i]));
@@ -61,7 +61,7 @@ void expect_product_equals_single_calls() {
     for (const Case& c : cases()) {
         SCOPED_TRACE(to_string(c.model));
         const Query base = make_query(c.model, 0.0, 0.0, 4.0);
-        const RenderOptions options = with_path(c.path);
+        const RenderOptions options = with_batch_path(c.path);
         const SliceBatch batch = batch_product(base, lights, positions, bands, n);
         ASSERT_EQ(batch.items.size(), 8u);
         const std::vector<Float> out = render_batch<Float>(hf, batch, options);
@@ -90,7 +90,7 @@ void expect_gradient_equals_single_calls(double tolerance) {
     const int n = 16;
     for (const Case& c : cases()) {
         SCOPED_TRACE(to_string(c.model));
-        const RenderOptions options = with_path(c.path);
+        const RenderOptions options = with_batch_path(c.path);
         const SliceBatch batch = batch_product(make_query(c.model, 0.0, 0.0, 4.0), {{0.0, 0.0}, {0.2, 0.25}},
                                                {{7.0, 9.5}, {12.0, 2.0}}, {{0.5}, {0.45, 0.6}}, n);
         const std::vector<double> weights = uniform_vector(batch.items.size() * k_values, -1.0, 1.0, 11);
@@ -105,7 +105,7 @@ void expect_gradient_equals_single_calls(double tolerance) {
             plan.forward();
             plan.adjoint(item_values(weights, b, k_values), expected);
         }
-        EXPECT_LE(max_abs_diff(gradient, expected), tolerance * max_abs(expected));
+        EXPECT_LE(max_abs_difference(gradient, expected), tolerance * max_abs(expected));
     }
 }
 
@@ -139,7 +139,7 @@ TEST(BatchTest, BatchOfHeightfieldsGetsOneGradientEach) {
     const int n = 16;
     for (const Case& c : cases()) {
         SCOPED_TRACE(to_string(c.model));
-        const RenderOptions options = with_path(c.path);
+        const RenderOptions options = with_batch_path(c.path);
         const Query q = make_query(c.model, 6.0, 8.0, 4.0, 0.1, 0.2);
         const std::vector<double> lambdas = spectral_wavelengths_um(2);
         const SliceBatch batch = batch_per_heightfield(q, lambdas, n, hfs.size());
@@ -154,7 +154,7 @@ TEST(BatchTest, BatchOfHeightfieldsGetsOneGradientEach) {
             plan.forward();
             std::vector<double> expected;
             plan.adjoint(item_values(weights, b, k_values), expected);
-            EXPECT_LE(max_abs_diff(gradients[b], expected), 1e-12 * max_abs(expected)) << "heightfield " << b;
+            EXPECT_LE(max_abs_difference(gradients[b], expected), 1e-12 * max_abs(expected)) << "heightfield " << b;
         }
         // Gradients accumulate (adjoint.h's rule): a second call doubles them.
         std::vector<std::vector<double>> twice = gradients;

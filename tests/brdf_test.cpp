@@ -19,7 +19,7 @@ using wavebrdf::test::random_heightfield;
 namespace {
 
 using wavebrdf::k_pi;
-const Model kModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
+const Model kBrdfModels[] = {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff};
 
 // docs/model.md §3-5 written out literally: absolute kernel positions μ_k, C_k and a_k as stated,
 // ĝ_k(u) = C_k exp(−2π²σ²|u + a_k|²) e^{−i2π(u + a_k)·μ_k}, no algebraic shortcut. Only valid
@@ -70,7 +70,7 @@ std::vector<double> literal_model(const Heightfield& hf, const Query& q, double 
     return out;
 }
 
-std::vector<double> direct(const Heightfield& hf, const Query& q, double lambda, int n, double tol = 0) {
+std::vector<double> direct_slice(const Heightfield& hf, const Query& q, double lambda, int n, double tol = 0) {
     RenderOptions o;
     o.path = RenderPath::Direct;
     o.prune_tolerance = tol;
@@ -87,10 +87,10 @@ std::vector<double> separable(const Heightfield& hf, const Query& q, double lamb
 
 TEST(BrdfTest, DirectSumMatchesLiteralModelForEveryModel) {
     const Heightfield hf = random_heightfield(24, 20, 0.3, 7, 0.8, 1.3);
-    for (Model m : kModels) {
+    for (Model m : kBrdfModels) {
         const Query q = make_query(m, 9.7, 8.1, 2.0, 0.21, -0.13);
         const auto ref = literal_model(hf, q, 0.55, 24);
-        const auto got = direct(hf, q, 0.55, 24);
+        const auto got = direct_slice(hf, q, 0.55, 24);
         EXPECT_LT(max_abs_diff(ref, got), 1e-10 * max_abs(ref)) << to_string(m);
         EXPECT_GT(max_abs(ref), 0.0);
     }
@@ -101,7 +101,7 @@ TEST(BrdfTest, SeparableMatchesDirectSum) {
     for (Model m : {Model::OHS, Model::ROHS}) {
         for (double lambda : {0.4, 0.7}) {
             const Query q = make_query(m, 3.0, 37.5, 4.0, -0.3, 0.25);  // footprint wraps the tile
-            const auto d = direct(hf, q, lambda, 40);
+            const auto d = direct_slice(hf, q, lambda, 40);
             const auto s = separable(hf, q, lambda, 40);
             EXPECT_LT(max_abs_diff(d, s), 1e-11 * max_abs(d)) << to_string(m) << " " << lambda;
         }
@@ -113,7 +113,7 @@ TEST(BrdfTest, SeparableMatchesDirectSum) {
 TEST(BrdfTest, SeparableMatchesDirectSumOnFineGridsWithSteepSlopes) {
     const Heightfield hf = random_heightfield(16, 16, 0.5, 5, 1.0, 1.0);
     const Query q = make_query(Model::OHS, 5.0, 9.0, 2.0, 0.2, -0.1);
-    const auto d = direct(hf, q, 0.5, 320);
+    const auto d = direct_slice(hf, q, 0.5, 320);
     const auto s = separable(hf, q, 0.5, 320);
     EXPECT_LT(max_abs_diff(d, s), 1e-11 * max_abs(d));
     EXPECT_GT(max_abs(d), 0.0);
@@ -130,10 +130,10 @@ TEST(BrdfTest, FloatAgreesWithDouble) {
 
 TEST(BrdfTest, PruningErrorIsBelowToleranceForEveryModel) {
     const Heightfield hf = random_heightfield(48, 48, 0.5, 5, 1.0, 1.0);
-    for (Model m : kModels) {
+    for (Model m : kBrdfModels) {
         const Query q = make_query(m, 20.0, 25.0, 5.0, 0.2, 0.1);
-        const auto exact = direct(hf, q, 0.5, 32, 0.0);
-        const auto pruned = direct(hf, q, 0.5, 32, 1e-6);
+        const auto exact = direct_slice(hf, q, 0.5, 32, 0.0);
+        const auto pruned = direct_slice(hf, q, 0.5, 32, 1e-6);
         EXPECT_LE(max_abs_diff(exact, pruned), 1e-6 * max_abs(exact)) << to_string(m);
     }
 }
@@ -143,7 +143,7 @@ TEST(BrdfTest, ConstantHeightOffsetChangesNothing) {
     std::vector<double> shifted = hf.values();
     for (double& v : shifted) v += 0.37;
     const Heightfield hf2 = hf.with_values(shifted);
-    for (Model m : kModels) {
+    for (Model m : kBrdfModels) {
         const Query q = make_query(m, 12.0, 15.0, 4.0, 0.1, 0.2);
         const auto a = render_slice<double>(hf, q, 0.5, 32);
         const auto b = render_slice<double>(hf2, q, 0.5, 32);
@@ -160,7 +160,7 @@ TEST(BrdfTest, TranslatingHeightfieldAndQueryTogetherChangesNothing) {
         for (int j = 0; j < cols; ++j)
             rolled[hf.index(((i + di) % rows + rows) % rows, ((j + dj) % cols + cols) % cols)] = hf.value(i, j);
     const Heightfield moved = hf.with_values(rolled);
-    for (Model m : kModels) {
+    for (Model m : kBrdfModels) {
         const Query q = make_query(m, 5.0, 30.0, 3.5, -0.2, 0.3);
         Query q2 = q;
         q2.x_um += di * hf.texel_um();
@@ -178,7 +178,7 @@ TEST(BrdfTest, FlatMirrorAlbedoIsOne) {
     const Heightfield flat(96, 96, std::vector<double>(96 * 96, 0.0), 1.0, 1.0);
     const double sigma_p = 10.0, sigma = 0.5;
     for (auto wi : {std::array<double, 2>{0.0, 0.0}, std::array<double, 2>{0.3, -0.2}}) {
-        for (Model m : kModels) {
+        for (Model m : kBrdfModels) {
             const Query q = make_query(m, 48.0, 48.0, sigma_p, wi[0], wi[1]);
             const int n = 128;  // pixel spacing in u = 2/(nλ): 1.4 lobe standard deviations
             const auto f = render_slice<double>(flat, q, 1.0, n);
@@ -194,7 +194,7 @@ TEST(BrdfTest, FlatMirrorAlbedoIsOne) {
 TEST(BrdfTest, MirrorLobeIsAtTheMirrorDirection) {
     const Heightfield flat(64, 64, std::vector<double>(64 * 64, 0.0), 1.0, 1.0);
     const int n = 200;
-    for (Model m : kModels) {
+    for (Model m : kBrdfModels) {
         const Query q = make_query(m, 10.0, 50.0, 6.0, 0.35, -0.5);
         const auto f = render_slice<double>(flat, q, 0.5, n);
         std::size_t best = 0;
@@ -371,7 +371,7 @@ TEST(BrdfTest, RoughSurfaceSpecularPeakFollowsBeckmannKirchhoff) {
     const Heightfield flat(256, 256, std::vector<double>(256 * 256, 0.0), 1.0, 1.0);
     const int n = 11;  // odd: the slice has a pixel exactly at ω_o = −ω_i when ω_i = 0
     for (double tilt : {0.0, 0.5}) {
-        for (Model m : kModels) {
+        for (Model m : kBrdfModels) {
             // A tilted light moves the mirror direction; pick ω_i on the pixel grid so that
             // −ω_i is a pixel centre: ω_o = slice_omega(3, 11) = −0.3636…
             const double wx = tilt == 0.0 ? 0.0 : -slice_omega(3, n);

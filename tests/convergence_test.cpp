@@ -49,19 +49,19 @@ TEST(Convergence, DevianceMomentsMatchPoissonDraws) {
     EXPECT_THROW(poisson_deviance_moments(-1.0, mean, variance), std::domain_error);
 }
 
-struct Case {
+struct ConvergenceCase {
     Heightfield truth;
     std::vector<Observation> observations;
 };
 
 // A 16² surface of ±1 µm seen at 9 positions and two wavelengths, slices rendered by the model.
-Case make_case(double photons) {
+ConvergenceCase make_case(double photons) {
     SurfaceParams p;
     p.rows = p.cols = 16;
     p.texel_um = 2.0;
     p.correlation_um = 8.0;
     p.seed = 5;
-    Case c{with_height_range(generate_heightfield(p).with_scale(2.0, 1.0), 2.0), {}};
+    ConvergenceCase c{with_height_range(generate_heightfield(p).with_scale(2.0, 1.0), 2.0), {}};
     for (int a = 0; a < 3; ++a)
         for (int b = 0; b < 3; ++b)
             for (double lambda : {0.5, 0.7}) {
@@ -79,7 +79,7 @@ Case make_case(double photons) {
 }
 
 TEST(Convergence, TheTruthSitsOnThePhotonNoiseFloorAndAWrongSurfaceDoesNot) {
-    const Case c = make_case(1e4);
+    const ConvergenceCase c = make_case(1e4);
     const ConvergenceCheck at_truth = check_convergence(c.observations, c.truth, 1e4, false);
     EXPECT_EQ(at_truth.floor, "poisson");
     EXPECT_TRUE(at_truth.converged) << at_truth.warning();
@@ -99,7 +99,7 @@ TEST(Convergence, TheTruthSitsOnThePhotonNoiseFloorAndAWrongSurfaceDoesNot) {
 }
 
 TEST(Convergence, NoiselessSlicesAreJudgedByTheirRounding) {
-    const Case c = make_case(0.0);
+    const ConvergenceCase c = make_case(0.0);
     const ConvergenceCheck at_truth = check_convergence(c.observations, c.truth, 0.0, true);
     EXPECT_EQ(at_truth.floor, "noiseless");
     EXPECT_TRUE(at_truth.converged);

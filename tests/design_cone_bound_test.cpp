@@ -49,7 +49,7 @@ std::vector<double> direct_cone_power(const std::vector<int>& level, int N, doub
     return out;
 }
 
-std::vector<double> cone_power(const detail::ConeProgramme& p, const std::vector<double>& g) {
+std::vector<double> programme_cone_power(const detail::ConeProgramme& p, const std::vector<double>& g) {
     const std::size_t C = p.classes.size(), K = static_cast<std::size_t>(p.levels);
     std::vector<double> P(static_cast<std::size_t>(p.wavelengths), 0.0);
     for (std::size_t w = 0; w < P.size(); ++w)
@@ -69,7 +69,7 @@ TEST(DesignConeBound, AReliefIsAPointOfTheProgrammeWithTheDirectSumsConePower) {
         for (int t = 0; t < N * N; ++t)
             level[static_cast<std::size_t>(t)] = trial == 2 ? ((t / N + t % N) / 3) % K : static_cast<int>(rng() % K);
         const auto g = detail::cone_relief_point(p, level, N);
-        const auto P = cone_power(p, g);
+        const auto P = programme_cone_power(p, g);
         const auto direct = direct_cone_power(level, N, texel, cone, step, lambdas);
         for (std::size_t w = 0; w < P.size(); ++w) EXPECT_NEAR(P[w], direct[w], 1e-12 + 1e-9 * direct[w]);
         // Every class's polynomial and the rest's are non-negative; the mirror order's is a mixture's.
@@ -105,7 +105,7 @@ TEST(DesignConeBound, NoReliefOfASmallTileExceedsItAtItsOwnChromaticity) {
     std::vector<int> level(9, 0);
     for (int code = 0; code < 19683; ++code) {
         for (int t = 0, c = code; t < 9; ++t, c /= 3) level[static_cast<std::size_t>(t)] = c % 3;
-        const auto P = cone_power(p, detail::cone_relief_point(p, level, N));
+        const auto P = programme_cone_power(p, detail::cone_relief_point(p, level, N));
         std::array<double, 3> X{};
         for (int c = 0; c < 3; ++c)
             for (std::size_t l = 0; l < 3; ++l) X[static_cast<std::size_t>(c)] += w[static_cast<std::size_t>(c) * 3 + l] * P[l];
@@ -114,7 +114,7 @@ TEST(DesignConeBound, NoReliefOfASmallTileExceedsItAtItsOwnChromaticity) {
     // The direct sum on one of them, so that the brute force rests on it too.
     for (int t = 0, c = 12345; t < 9; ++t, c /= 3) level[static_cast<std::size_t>(t)] = c % 3;
     const auto direct = direct_cone_power(level, N, 0.5, 0.45, 0.3, lambdas);
-    const auto P = cone_power(p, detail::cone_relief_point(p, level, N));
+    const auto P = programme_cone_power(p, detail::cone_relief_point(p, level, N));
     for (std::size_t l = 0; l < 3; ++l) EXPECT_NEAR(P[l], direct[l], 1e-12);
     std::sort(all.begin(), all.end(), [](const Colour& a, const Colour& b) { return a.y > b.y; });
     int tight = 0;

@@ -102,7 +102,7 @@ struct Band {
 };
 
 // The slices' white at W samples of 0.40–0.70 µm, K levels within 2 µm, normal light.
-Band band(int W, int K) {
+Band mixture_band(int W, int K) {
     Band b;
     for (int k = 0; k < W; ++k) b.lambdas.push_back(0.40 + (k + 0.5) * 0.30 / W);
     b.weights = detail::colour_xyz_weights(b.lambdas);
@@ -132,7 +132,7 @@ std::vector<double> random_shares(int K, std::mt19937_64& rng, double sparsity) 
 TEST(DesignMixtureBound, TwoLevelsAreExact) {
     // K = 2: the autocorrelations r_1 = a(1 − a) fill [0, 1/4], the programme's whole set, so the
     // bound at a mixture's own chromaticity is that mixture's Y.
-    const Band b = band(12, 2);
+    const Band b = mixture_band(12, 2);
     for (double a : {0.1, 0.3, 0.45}) {
         const auto R = detail::mixture_spectrum({a, 1.0 - a}, b.nu);
         const auto X = xyz(b, R);
@@ -144,7 +144,7 @@ TEST(DesignMixtureBound, NoMixtureOrPatchworkExceedsIt) {
     std::mt19937_64 rng(5);
     std::uniform_real_distribution<double> u(0.0, 1.0);
     for (int K : {3, 8, 16}) {
-        const Band b = band(16, K);
+        const Band b = mixture_band(16, K);
         for (int trial = 0; trial < 12; ++trial) {
             // One mixture, or patches of three (a convex combination of their spectra).
             std::vector<double> R(b.nu.size(), 0.0);
@@ -164,7 +164,7 @@ TEST(DesignMixtureBound, NoMixtureOrPatchworkExceedsIt) {
 
 TEST(DesignMixtureBound, NoMixtureBeatsItsDeltaUvAtFivePercent) {
     const int K = 16;
-    const Band b = band(16, K);
+    const Band b = mixture_band(16, K);
     const auto blue = xyz_to_uv(linear_srgb_to_xyz({0.0, 0.0, 1.0}));
     const auto bound = detail::mixture_bound(b.weights, b.nu, K, blue, 0.05);
     const auto one = detail::best_mixture(b.weights, b.nu, K, blue, 1e-3, 0.05, 3);

@@ -24,7 +24,7 @@ namespace {
 using namespace wavebrdf::test;
 using C = std::complex<double>;
 
-PlateOptions small_plate() {
+PlateOptions small_test_plate() {
     PlateOptions o = test::small_plate(32, 8, 16, 40, 10);
     o.design.height_range_um = 2.0;
     o.picture = picture(2, 2, {{{0, 255, 0}}, {{255, 0, 255}}, {{255, 0, 255}}, {{0, 255, 0}}});
@@ -102,7 +102,7 @@ std::vector<double> block_cone_flux(const std::vector<double>& h, int cols, int 
 
 TEST(DesignPlate, EachRegionShowsItsPaletteColourUnderADirectIntegralOverTheRegion) {
     const fs::path dir = fresh_dir("design_plate");
-    const PlateOptions o = small_plate();
+    const PlateOptions o = small_test_plate();
     const PreparedPlate p = prepare_plate(o);
     EXPECT_EQ(p.pixel_texels, 128);
     EXPECT_EQ(p.rows, 256);
@@ -142,7 +142,7 @@ TEST(DesignPlate, EachDirectionRegionSendsItsHighlightToItsOwnDirection) {
     // region of the exported plate, integrated alone over both view cones, puts far more of the
     // light into its own entry's cone than into the other's, as its tile's exact orders say.
     const fs::path dir = fresh_dir("design_plate");
-    PlateOptions o = small_plate();
+    PlateOptions o = small_test_plate();
     o.palette = parse_palette("dir:0.2,0;dir:0,-0.2");
     o.picture = picture(1, 2, {{{0, 0, 0}}, {{255, 255, 255}}});
     const PreparedPlate p = prepare_plate(o);
@@ -179,7 +179,7 @@ void write_picture(const fs::path& path, const PlatePicture& p) {
 }
 
 TEST(DesignPlate, ThePlateIsTheEntriesTilesLaidOutAsThePicture) {
-    PlateOptions o = small_plate();
+    PlateOptions o = small_test_plate();
     o.design.size = 8;
     o.design.iterations = 0;
     o.design.refine_passes = 0;
@@ -228,19 +228,19 @@ TEST(DesignPlate, BadInputIsRefusedBeforeAnyWork) {
     } catch (const std::invalid_argument& e) {
         EXPECT_NE(std::string(e.what()).find("#12345"), std::string::npos) << e.what();
     }
-    PlateOptions o = small_plate();
+    PlateOptions o = small_test_plate();
     o.plate_pixel_um = 50.0;  // not a multiple of 16 um
     EXPECT_THROW(prepare_plate(o), std::domain_error);
-    o = small_plate();
+    o = small_test_plate();
     o.picture = picture(200, 1, std::vector<std::array<int, 3>>(200, {{0, 255, 0}}));  // 200 x 128 texels a side
     EXPECT_THROW(prepare_plate(o), std::domain_error);
-    o = small_plate();
+    o = small_test_plate();
     o.design.max_memory_gb = 1e-6;
     EXPECT_THROW(prepare_plate(o), OutOfMemory);
-    o = small_plate();
+    o = small_test_plate();
     o.design.spectral = 0;
     EXPECT_THROW(prepare_plate(o), std::invalid_argument);
-    o = small_plate();
+    o = small_test_plate();
     o.palette = parse_palette("dir:0.95,0;dir:0,0");  // the cone reaches outside the visible disk
     EXPECT_THROW(prepare_plate(o), std::domain_error);
 

@@ -36,7 +36,7 @@ std::string write_file(const fs::path& path, const std::string& text) {
 }
 
 // The loop's loss and gradient against central finite differences (weights as the loop feeds them).
-void check_gradient(const DesignOptions& options) {
+void check_target_gradient(const DesignOptions& options) {
     const PreparedDesign prepared = prepare_design(options);
     detail::Evaluator evaluator(prepared, {0.97, 1.0, 1.03});
     const std::size_t total = static_cast<std::size_t>(options.size * options.size * options.levels);
@@ -104,7 +104,7 @@ BrdfTable table_of_relief(const std::vector<double>& h, int size, double texel_u
     return t;
 }
 
-std::vector<double> random_levels(int size, int levels, double step_um, std::uint64_t seed) {
+std::vector<double> random_target_levels(int size, int levels, double step_um, std::uint64_t seed) {
     std::mt19937_64 rng(seed);
     std::vector<double> h(static_cast<std::size_t>(size * size));
     for (double& x : h) x = step_um * static_cast<double>(rng() % static_cast<std::uint64_t>(levels));
@@ -127,7 +127,7 @@ TEST(DesignTargets, IridescentGradientMatchesFiniteDifferences) {
     o.omega_i = {0.1, 0.05};
     o.view_cone = 0.15;
     o.target = iridescent({{{-0.1, -0.05}, {32, 192, 64}, {}}, {{0.25, -0.05}, {200, 40, 90}, {}}});
-    check_gradient(o);
+    check_target_gradient(o);
 }
 
 TEST(DesignTargets, BrdfGradientMatchesFiniteDifferences) {
@@ -141,14 +141,14 @@ TEST(DesignTargets, BrdfGradientMatchesFiniteDifferences) {
     o.size = 8;
     o.levels = 3;
     o.target = brdf(lobe_table(lobe));
-    check_gradient(o);
+    check_target_gradient(o);
     // ... and a table of three wavelengths mixed to sRGB (values of no particular BRDF).
     BrdfTable t = lobe_table(lobe);
     t.spec.lambdas_um = {0.45, 0.55, 0.65};
     std::mt19937_64 rng(3);
     for (float& v : t.values) v *= static_cast<float>(0.5 + static_cast<double>(rng() % 100) / 100.0);
     o.target = brdf(t);
-    check_gradient(o);
+    check_target_gradient(o);
 }
 
 TEST(DesignTargets, BrdfTableOfAReliefsOwnFarFieldIsMatchedByIt) {
@@ -156,7 +156,7 @@ TEST(DesignTargets, BrdfTableOfAReliefsOwnFarFieldIsMatchedByIt) {
     // relief matches its own table to the direct sum's midpoint-rule error, at four oblique lights;
     // another relief on the same levels does not.
     const int size = 12;
-    const std::vector<double> h = random_levels(size, 4, 0.11, 5);
+    const std::vector<double> h = random_target_levels(size, 4, 0.11, 5);
     DesignOptions o;
     o.size = size;
     o.levels = 4;
@@ -165,7 +165,7 @@ TEST(DesignTargets, BrdfTableOfAReliefsOwnFarFieldIsMatchedByIt) {
     const PreparedDesign p = prepare_design(o);
     EXPECT_EQ(p.order_sets->size(), 4u);  // four lights, one wavelength
     EXPECT_LT(target_l2(p, h), 5e-3);  // 1.7e-3 measured
-    EXPECT_GT(target_l2(p, random_levels(size, 4, 0.11, 6)), 0.2);
+    EXPECT_GT(target_l2(p, random_target_levels(size, 4, 0.11, 6)), 0.2);
 }
 
 TEST(DesignTargets, TwoPairIridescentDesignBeatsItsStart) {

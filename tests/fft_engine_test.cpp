@@ -28,7 +28,7 @@ using detail::KernelWeights;
 using detail::SliceGrid;
 using Cd = std::complex<double>;
 
-struct Case {
+struct EngineCase {
     int n = 40;
     double lambda_um = 0.5;
     double sigma_p_um = 4.0;
@@ -46,7 +46,7 @@ struct Fixture {
     KernelWeights weights;
 };
 
-Fixture make_setup(const Case& c, std::uint64_t seed = 7) {
+Fixture make_setup(const EngineCase& c, std::uint64_t seed = 7) {
     Heightfield hf = test::random_heightfield(c.rows, c.rows, c.amplitude, seed);
     Query query = test::make_query(Model::OHS, 11.0, 17.0, c.sigma_p_um, c.wx, c.wy);
     FootprintKernels kernels = footprint_kernels(hf, query.x_um, query.y_um, query.sigma_p_um);
@@ -99,7 +99,7 @@ double relative_error(const std::vector<ComplexMatrix<Float>>& fast, const std::
     return worst;
 }
 
-double engine_error(const Case& c, double tolerance, detail::FftGridInfo* info = nullptr) {
+double engine_error(const EngineCase& c, double tolerance, detail::FftGridInfo* info = nullptr) {
     const Fixture s = make_setup(c);
     const SliceGrid grid(s.query, c.lambda_um, c.n);
     FftEngine<double> engine(s.kernels, grid, c.lambda_um, c.n, tolerance);
@@ -111,7 +111,7 @@ double engine_error(const Case& c, double tolerance, detail::FftGridInfo* info =
 }
 
 TEST(FftEngineTest, MatchesTheSlowSumForThreeViewsObliqueLightAndAShiftScale) {
-    Case c;
+    EngineCase c;
     c.views = 3;
     c.shift_scale = 0.7;
     c.wx = 0.3;
@@ -120,7 +120,7 @@ TEST(FftEngineTest, MatchesTheSlowSumForThreeViewsObliqueLightAndAShiftScale) {
 }
 
 TEST(FftEngineTest, MatchesTheSlowSumWithSteepSlopesWhoseSpectraLeaveTheWindow) {
-    Case c;
+    EngineCase c;
     c.amplitude = 6.0;  // slopes of order 1–3: many spectra partly or wholly outside
     c.wx = -0.5;
     detail::FftGridInfo info;
@@ -129,7 +129,7 @@ TEST(FftEngineTest, MatchesTheSlowSumWithSteepSlopesWhoseSpectraLeaveTheWindow) 
 }
 
 TEST(FftEngineTest, FoldsAFootprintLargerThanThePeriod) {
-    Case c;
+    EngineCase c;
     c.n = 12;  // period P = nλ/2 = 3 µm, footprint ±3σ_p = ±15 µm
     c.sigma_p_um = 5.0;
     c.views = 2;
@@ -137,14 +137,14 @@ TEST(FftEngineTest, FoldsAFootprintLargerThanThePeriod) {
 }
 
 TEST(FftEngineTest, OddSliceSize) {
-    Case c;
+    EngineCase c;
     c.n = 37;
     c.wy = 0.2;
     EXPECT_LE(engine_error(c, 1e-6), 1e-6);
 }
 
 TEST(FftEngineTest, ErrorFollowsTheTolerance) {
-    Case c;
+    EngineCase c;
     c.wx = 0.2;
     const double loose = engine_error(c, 1e-3), tight = engine_error(c, 1e-10);
     EXPECT_LE(loose, 1e-3);
@@ -153,7 +153,7 @@ TEST(FftEngineTest, ErrorFollowsTheTolerance) {
 }
 
 TEST(FftEngineTest, FloatEngineWithinFloatAccuracy) {
-    Case c;
+    EngineCase c;
     c.views = 2;
     c.wx = 0.1;
     const Fixture s = make_setup(c);
@@ -166,7 +166,7 @@ TEST(FftEngineTest, FloatEngineWithinFloatAccuracy) {
 
 TEST(FftEngineTest, MatchesTheSeparablePathForOhs) {
     for (const double wx : {0.0, 0.4}) {
-        Case c;
+        EngineCase c;
         c.n = 64;
         c.wx = wx;
         const Fixture s = make_setup(c);
@@ -183,7 +183,7 @@ TEST(FftEngineTest, MatchesTheSeparablePathForOhs) {
 }
 
 // L = 2 Re Σ_v Σ_pq B_v F_v, so B_v = ∂L/∂F_v in the FieldEngine's convention.
-double loss(FftEngine<double>& engine, const KernelWeights& w, double shift_scale,
+double engine_loss(FftEngine<double>& engine, const KernelWeights& w, double shift_scale,
             const std::vector<ComplexMatrix<double>>& b) {
     std::vector<ComplexMatrix<double>> fields;
     engine.forward(w, shift_scale, fields);
@@ -202,7 +202,7 @@ std::vector<ComplexMatrix<double>> random_cotangents(int views, int n, std::uint
 }
 
 TEST(FftEngineTest, AdjointIdentityForTheWeights) {
-    Case c;
+    EngineCase c;
     c.views = 2;
     c.wx = 0.3;
     c.shift_scale = 1.3;
@@ -270,7 +270,7 @@ TEST(FftEngineTest, AdjointIdentityForTheWeights) {
 }
 
 TEST(FftEngineTest, ShiftGradientMatchesFiniteDifferences) {
-    Case c;
+    EngineCase c;
     c.views = 2;
     c.wy = 0.25;
     c.shift_scale = 0.8;
@@ -295,14 +295,14 @@ TEST(FftEngineTest, ShiftGradientMatchesFiniteDifferences) {
             s.kernels.slope_x[k] = original.slope_x[k] + t * dx[k];
             s.kernels.slope_y[k] = original.slope_y[k] + t * dy[k];
         }
-        return loss(engine, s.weights, c.shift_scale, b);
+        return engine_loss(engine, s.weights, c.shift_scale, b);
     };
     const double fd = (at(eps) - at(-eps)) / (2.0 * eps);
     EXPECT_NEAR(fd, predicted, 1e-6 * std::abs(predicted));
 }
 
 TEST(FftEngineTest, RefusesBadArgumentsAndHostileSizesBeforeAllocating) {
-    Case c;
+    EngineCase c;
     Fixture s = make_setup(c);
     const SliceGrid grid(s.query, c.lambda_um, c.n);
     EXPECT_THROW(FftEngine<double>(s.kernels, grid, c.lambda_um, c.n, 0.5), std::domain_error);
@@ -338,7 +338,7 @@ TEST(FftEngineTest, GoodFftSizes) {
 // its choice follows the costs: the product for small slices, the FFT for large footprints.
 TEST(FftEngineTest, CostModelGridBoundsTheEnginesAndPicksByCost) {
     for (const double amplitude : {0.3, 3.0}) {
-        Case c;
+        EngineCase c;
         c.amplitude = amplitude;
         c.wx = 0.3;
         const Fixture s = make_setup(c);

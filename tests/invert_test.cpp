@@ -66,7 +66,7 @@ Observation tiny_observation(const Heightfield& truth, double x_um = 4.0, double
 
 Heightfield flat() { return Heightfield(8, 8, std::vector<double>(64, 0.0)); }
 
-InversionSettings tiny_settings(int epochs) {
+InversionSettings tiny_invert_settings(int epochs) {
     InversionSettings s;
     s.epochs = epochs;
     return s;
@@ -74,7 +74,7 @@ InversionSettings tiny_settings(int epochs) {
 
 // Runs `f`, expecting exception E whose message contains every one of `needles`.
 template <typename E, typename F>
-void expect_throw_naming(F&& f, const std::vector<std::string>& needles) {
+void expect_throw_naming_each(F&& f, const std::vector<std::string>& needles) {
     try {
         f();
         ADD_FAILURE() << "no exception thrown";
@@ -157,7 +157,7 @@ protected:
 TEST_F(InvertTest, AdamReducesTheLossAndEpochZeroIsTheInitialGuess) {
     const Heightfield truth = tiny_truth();
     const std::vector<Observation> obs = {tiny_observation(truth)};
-    const InversionSettings settings = tiny_settings(20);
+    const InversionSettings settings = tiny_invert_settings(20);
     Inversion inversion(obs, flat(), settings, &truth);
     std::vector<EpochMetrics> seen;
     inversion.run([&](const EpochMetrics& m, const Heightfield&, const std::vector<double>& gradient,
@@ -191,7 +191,7 @@ TEST_F(InvertTest, AdamReducesTheLossAndEpochZeroIsTheInitialGuess) {
 TEST_F(InvertTest, LbfgsReducesTheLoss) {
     const Heightfield truth = tiny_truth();
     const std::vector<Observation> obs = {tiny_observation(truth)};
-    InversionSettings settings = tiny_settings(25);
+    InversionSettings settings = tiny_invert_settings(25);
     settings.optimizer = OptimizerKind::Lbfgs;
     Inversion inversion(obs, flat(), settings, &truth);
     inversion.run({});
@@ -211,7 +211,7 @@ TEST_F(InvertTest, CheckpointResumesBitForBit) {
     const fs::path& dir = m_dir;
     const Heightfield truth = tiny_truth();
     const std::vector<Observation> obs = {tiny_observation(truth)};
-    const InversionSettings settings = tiny_settings(12);
+    const InversionSettings settings = tiny_invert_settings(12);
 
     Inversion whole(obs, flat(), settings, &truth);
     whole.run({});
@@ -260,7 +260,7 @@ TEST_F(InvertTest, CheckpointResumesBitForBitWithEveryOptimiser) {
                           Case{"lbfgs", OptimizerKind::Lbfgs, PositionMode::Fixed},
                           Case{"adam random", OptimizerKind::Adam, PositionMode::Random}}) {
         SCOPED_TRACE(c.name);
-        InversionSettings settings = tiny_settings(14);
+        InversionSettings settings = tiny_invert_settings(14);
         settings.optimizer = c.optimizer;
         settings.positions = c.positions;
         settings.lbfgs.history = 4;
@@ -296,7 +296,7 @@ TEST_F(InvertTest, CheckpointOfAnotherRunIsRefused) {
     const fs::path& dir = m_dir;
     const Heightfield truth = tiny_truth();
     const std::vector<Observation> obs = {tiny_observation(truth)};
-    const InversionSettings settings = tiny_settings(3);
+    const InversionSettings settings = tiny_invert_settings(3);
     const std::string checkpoint = (dir / "checkpoint.json").string();
     {
         Inversion run(obs, flat(), settings, &truth);
@@ -311,23 +311,23 @@ TEST_F(InvertTest, CheckpointOfAnotherRunIsRefused) {
 
     InversionSettings other_lr = settings;
     other_lr.adam.lr = 0.02;
-    expect_throw_naming<std::runtime_error>(
+    expect_throw_naming_each<std::runtime_error>(
         [&] { Inversion(obs, flat(), other_lr, &truth).load_checkpoint(checkpoint); },
         {"checkpoint.json", "different run", "lr 0.01 in the checkpoint, 0.02 now"});
 
     InversionSettings other_seed = settings;
     other_seed.seed = 2;
-    expect_throw_naming<std::runtime_error>(
+    expect_throw_naming_each<std::runtime_error>(
         [&] { Inversion(obs, flat(), other_seed, &truth).load_checkpoint(checkpoint); }, {"different run", "seed"});
 
     const std::vector<Observation> other_obs = {tiny_observation(truth, 3.0, 4.0)};
-    expect_throw_naming<std::runtime_error>(
+    expect_throw_naming_each<std::runtime_error>(
         [&] { Inversion(other_obs, flat(), settings, &truth).load_checkpoint(checkpoint); },
         {"different run", "observations"});
 
     // Another size is another run too.
     const Heightfield big(8, 9, std::vector<double>(72, 0.0));
-    expect_throw_naming<std::runtime_error>([&] { Inversion(obs, big, settings).load_checkpoint(checkpoint); },
+    expect_throw_naming_each<std::runtime_error>([&] { Inversion(obs, big, settings).load_checkpoint(checkpoint); },
                                             {"different run", "size"});
 }
 
@@ -335,7 +335,7 @@ TEST_F(InvertTest, CorruptCheckpointThrows) {
     const fs::path& dir = m_dir;
     const Heightfield truth = tiny_truth();
     const std::vector<Observation> obs = {tiny_observation(truth)};
-    const InversionSettings settings = tiny_settings(3);
+    const InversionSettings settings = tiny_invert_settings(3);
     const std::string good = (dir / "good.json").string();
     {
         Inversion run(obs, flat(), settings, &truth);
@@ -348,32 +348,32 @@ TEST_F(InvertTest, CorruptCheckpointThrows) {
         std::ofstream(file, std::ios::binary) << content;
         Inversion(obs, flat(), settings, &truth).load_checkpoint(file);
     };
-    expect_throw_naming<std::runtime_error>([&] { load("garbage.json", "not a checkpoint {"); },
+    expect_throw_naming_each<std::runtime_error>([&] { load("garbage.json", "not a checkpoint {"); },
                                             {"garbage.json", "corrupt"});
-    expect_throw_naming<std::runtime_error>([&] { load("cut.json", text.substr(0, text.size() / 2)); },
+    expect_throw_naming_each<std::runtime_error>([&] { load("cut.json", text.substr(0, text.size() / 2)); },
                                             {"cut.json", "corrupt"});
-    expect_throw_naming<std::runtime_error>([&] { load("empty.json", ""); }, {"empty.json"});
+    expect_throw_naming_each<std::runtime_error>([&] { load("empty.json", ""); }, {"empty.json"});
     nlohmann::json j = nlohmann::json::parse(text);
     j["format"] = "something-else";
-    expect_throw_naming<std::runtime_error>([&] { load("format.json", j.dump()); }, {"format.json", "format"});
+    expect_throw_naming_each<std::runtime_error>([&] { load("format.json", j.dump()); }, {"format.json", "format"});
     j = nlohmann::json::parse(text);
     j["heights"].erase(0);
-    expect_throw_naming<std::runtime_error>([&] { load("short.json", j.dump()); }, {"short.json"});
+    expect_throw_naming_each<std::runtime_error>([&] { load("short.json", j.dump()); }, {"short.json"});
     // Issue 9: integers must be integers in range (get<int> read 2.5 as 2, wrapped 2^40 + 8).
     for (const auto& [field, value] : std::vector<std::pair<const char*, nlohmann::json>>{
              {"epoch", 2.5}, {"epoch", -1}, {"rows", 1099511627784LL}, {"adam_steps", 1.5}}) {
         j = nlohmann::json::parse(text);
         j[field] = value;
-        expect_throw_naming<std::runtime_error>([&] { load("int.json", j.dump()); },
+        expect_throw_naming_each<std::runtime_error>([&] { load("int.json", j.dump()); },
                                                 {"int.json", std::string("'") + field + "'"});
     }
     j = nlohmann::json::parse(text);
     j["metrics"][0][0] = 0.5;
-    expect_throw_naming<std::runtime_error>([&] { load("metric.json", j.dump()); }, {"metric.json", "metrics epoch"});
+    expect_throw_naming_each<std::runtime_error>([&] { load("metric.json", j.dump()); }, {"metric.json", "metrics epoch"});
     j = nlohmann::json::parse(text);
     j.erase("adam_m");
-    expect_throw_naming<std::runtime_error>([&] { load("no_m.json", j.dump()); }, {"no_m.json", "adam_m"});
-    expect_throw_naming<std::runtime_error>(
+    expect_throw_naming_each<std::runtime_error>([&] { load("no_m.json", j.dump()); }, {"no_m.json", "adam_m"});
+    expect_throw_naming_each<std::runtime_error>(
         [&] { Inversion(obs, flat(), settings, &truth).load_checkpoint((dir / "missing.json").string()); },
         {"missing.json"});
 }
@@ -435,7 +435,7 @@ TEST_F(InvertTest, RandomPositionsFollowTheSeed) {
     // A random-position run is itself reproducible from its seed, and depends on it.
     const Heightfield truth = tiny_truth();
     const std::vector<Observation> obs = {tiny_observation(truth)};
-    InversionSettings settings = tiny_settings(4);
+    InversionSettings settings = tiny_invert_settings(4);
     settings.positions = PositionMode::Random;
     auto run = [&](std::uint64_t seed) {
         settings.seed = seed;
@@ -451,17 +451,17 @@ TEST_F(InvertTest, RandomPositionsFollowTheSeed) {
 TEST_F(InvertTest, InvalidSettingsThrow) {
     const Heightfield truth = tiny_truth();
     const std::vector<Observation> obs = {tiny_observation(truth)};
-    InversionSettings lbfgs_random = tiny_settings(3);
+    InversionSettings lbfgs_random = tiny_invert_settings(3);
     lbfgs_random.optimizer = OptimizerKind::Lbfgs;
     lbfgs_random.positions = PositionMode::Random;
-    expect_throw_naming<std::invalid_argument>([&] { Inversion(obs, flat(), lbfgs_random, &truth); },
+    expect_throw_naming_each<std::invalid_argument>([&] { Inversion(obs, flat(), lbfgs_random, &truth); },
                                                {"L-BFGS", "--positions fixed"});
-    expect_throw_naming<std::invalid_argument>([&] { Inversion(obs, flat(), tiny_settings(-1), &truth); },
+    expect_throw_naming_each<std::invalid_argument>([&] { Inversion(obs, flat(), tiny_invert_settings(-1), &truth); },
                                                {"epochs -1"});
-    expect_throw_naming<std::invalid_argument>([&] { Inversion({}, flat(), tiny_settings(3), &truth); },
+    expect_throw_naming_each<std::invalid_argument>([&] { Inversion({}, flat(), tiny_invert_settings(3), &truth); },
                                                {"no observations"});
     const Heightfield other(8, 9, std::vector<double>(72, 0.0));
-    expect_throw_naming<std::invalid_argument>([&] { Inversion(obs, flat(), tiny_settings(3), &other); }, {"8x9"});
+    expect_throw_naming_each<std::invalid_argument>([&] { Inversion(obs, flat(), tiny_invert_settings(3), &other); }, {"8x9"});
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -81,7 +81,7 @@ Heightfield make_field(int rows, int cols) {
 
 // Expects `call` to throw exactly `Exception` with the path somewhere in its message.
 template <typename Exception, typename Call>
-void expect_throw_naming(Call call, const std::string& path) {
+void expect_io_error_naming(Call call, const std::string& path) {
     try {
         call();
         ADD_FAILURE() << "no exception for " << path;
@@ -211,8 +211,8 @@ TEST_F(IoTest, ResolveHeightfieldScaleWarnsNamingBothValues) {
     EXPECT_EQ(differ.warnings[0], "--texel-um 1 disagrees with " + path + "'s texel_um 0.5; using 1");
     EXPECT_EQ(differ.warnings[1], "--vscale 3 disagrees with " + path + "'s vscale 1; using 3");
     // Out of range is an error naming the file, not a disagreement.
-    expect_throw_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 1e-300, 1.0); }, path);
-    expect_throw_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 0.5, 1e300); }, path);
+    expect_io_error_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 1e-300, 1.0); }, path);
+    expect_io_error_naming<std::domain_error>([&] { wavebrdf::resolve_heightfield_scale(path, a, 0.5, 1e300); }, path);
 }
 
 // A hostile attribute (not finite, out of range, the wrong type, a huge string) is refused
@@ -257,7 +257,7 @@ TEST_F(IoTest, HostileHeightfieldAttributesAreRefused) {
         for (const auto& read : {std::function<void()>([&] { wavebrdf::read_heightfield_exr(path); }),
                                  std::function<void()>([&] { wavebrdf::read_heightfield_attributes(path); }),
                                  std::function<void()>([&] { wavebrdf::read_heightfield_exr(path, 1.0, 1.0); })}) {
-            expect_throw_naming<std::runtime_error>(read, path);
+            expect_io_error_naming<std::runtime_error>(read, path);
             try {
                 read();
             } catch (const std::runtime_error& e) {
@@ -284,7 +284,7 @@ TEST_F(IoTest, CorruptedTexelAttributeBytesAreRefused) {
     const double nan = std::numeric_limits<double>::quiet_NaN();
     std::memcpy(&bytes[at], &nan, sizeof nan);
     std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
-    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
     try {
         wavebrdf::read_heightfield_exr(path);
     } catch (const std::runtime_error& e) {
@@ -390,7 +390,7 @@ TEST_F(IoTest, HostileSliceAttributesAreRefused) {
                                                                               {"wavebrdf:lambdas_um", &negative_sigma}};
     for (std::size_t k = 0; k < cases.size(); ++k) {
         const std::string path = rewrite("bad" + std::to_string(k) + ".exr", cases[k].first, cases[k].second);
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_slice_exr(path); }, path);
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_slice_exr(path); }, path);
         try {
             wavebrdf::read_slice_exr(path);
         } catch (const std::runtime_error& e) {
@@ -480,14 +480,14 @@ TEST_F(IoTest, RgbExrRoundTripsWithAndWithoutAlpha) {
 
 TEST_F(IoTest, MissingFileThrowsNamingPath) {
     const std::string path = file("absent.exr");
-    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
-    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
+    expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
 }
 
 TEST_F(IoTest, TextFileThrowsNamingPath) {
     const std::string path = file("notes.exr");
     std::ofstream(path) << "this is not an image\n";
-    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
 }
 
 TEST_F(IoTest, TruncatedExrThrowsNamingPath) {
@@ -500,7 +500,7 @@ TEST_F(IoTest, TruncatedExrThrowsNamingPath) {
     wavebrdf::write_heightfield_exr(path, Heightfield(rows, cols, values));
     const auto size = fs::file_size(path);
     fs::resize_file(path, size / 2);
-    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
 }
 
 // Issue 9: a 1.6 MB file declaring 20000² pixels took 4.7 GB and failed with std::bad_alloc.
@@ -569,14 +569,14 @@ TEST_F(IoTest, ExrAttributeLargerThanTheFileIsRefusedBeforeAllocating) {
 TEST_F(IoTest, ExrWithoutRedOrLuminanceThrowsNamingPath) {
     const std::string path = file("green.exr");
     write_exr_channel(path, "G", 2, 2, 0, 0, {1.0f, 2.0f, 3.0f, 4.0f});
-    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
-    expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
+    expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
 }
 
 TEST_F(IoTest, NonFiniteValueThrowsDomainErrorNamingPath) {
     const std::string path = file("nan.exr");
     write_exr_channel(path, "R", 2, 2, 0, 0, {1.0f, std::numeric_limits<float>::quiet_NaN(), 3.0f, 4.0f});
-    expect_throw_naming<std::domain_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+    expect_io_error_naming<std::domain_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
 }
 
 TEST_F(IoTest, FailedWritesLeaveNoFileBehind) {
@@ -586,14 +586,14 @@ TEST_F(IoTest, FailedWritesLeaveNoFileBehind) {
     std::ofstream(file("plain")) << "x";
     for (const std::string& dir : {file("missing"), file("plain")}) {
         const std::string path = dir + "/out";
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_heightfield_exr(path + ".exr", field); },
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::write_heightfield_exr(path + ".exr", field); },
                                                 path + ".exr");
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_heightfield_png(path + ".png", field); },
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::write_heightfield_png(path + ".png", field); },
                                                 path + ".png");
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_rgb_exr(path + ".exr", image, true); },
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::write_rgb_exr(path + ".exr", image, true); },
                                                 path + ".exr");
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_rgb_png(path + ".png", image); }, path + ".png");
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::check_writable(path + ".exr"); }, path + ".exr");
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::write_rgb_png(path + ".png", image); }, path + ".png");
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::check_writable(path + ".exr"); }, path + ".exr");
     }
     EXPECT_FALSE(fs::exists(file("missing")));
     EXPECT_EQ(listing(), std::vector<std::string>{"plain"});
@@ -603,7 +603,7 @@ TEST_F(IoTest, RenameOntoDirectoryFailsAndRemovesTemporary) {
     // The temporary is written fine; only the final rename fails, which must clean up too.
     fs::create_directory(file("taken.exr"));
     fs::create_directory(file("taken.exr") + "/inside");
-    expect_throw_naming<std::runtime_error>(
+    expect_io_error_naming<std::runtime_error>(
         [&] { wavebrdf::write_heightfield_exr(file("taken.exr"), make_field(2, 2)); }, file("taken.exr"));
     EXPECT_EQ(listing(), std::vector<std::string>{"taken.exr"});
 }
@@ -779,7 +779,7 @@ TEST_F(IoTest, FailedWriteLeavesNoTemporary) {
     const fs::path sub = m_dir / "sub";
     fs::create_directory(sub);
     const std::string inside = (sub / "metrics.csv").string();
-    expect_throw_naming<std::runtime_error>(
+    expect_io_error_naming<std::runtime_error>(
         [&] {
             wavebrdf::write_file_atomically(inside, [&](const std::string& tmp) {
                 std::ofstream(tmp) << "data";
@@ -793,7 +793,7 @@ TEST_F(IoTest, FailedWriteLeavesNoTemporary) {
     fs::create_directory(sub);
     fs::permissions(sub, fs::perms::owner_read | fs::perms::owner_exec);
     if (::geteuid() != 0) {
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::write_text_atomically(inside, "x"); }, inside);
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::write_text_atomically(inside, "x"); }, inside);
         EXPECT_TRUE(fs::is_empty(sub));
     }
     fs::permissions(sub, fs::perms::owner_all);
@@ -948,8 +948,6 @@ TEST_F(IoTest, InvalidImageArgumentsThrow) {
     EXPECT_TRUE(listing().empty());
 }
 
-}  // namespace
-
 // Found by fuzz/exr_fuzz.cpp: OpenEXR sizes line-offset tables, compressor and tile buffers from
 // the header when it opens a file (up to 1.2 GB from 133 bytes). Each saved input is refused
 // before it is opened, with a runtime_error naming the file.
@@ -959,8 +957,10 @@ TEST_F(IoTest, FuzzerFoundExrHeadersAreRefusedBeforeOpening) {
     for (const auto& entry : fs::directory_iterator(dir)) {
         const std::string path = entry.path().string();
         ++seen;
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
-        expect_throw_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_heightfield_exr(path); }, path);
+        expect_io_error_naming<std::runtime_error>([&] { wavebrdf::read_rgb_exr(path); }, path);
     }
     EXPECT_GE(seen, 5);
 }
+
+}  // namespace

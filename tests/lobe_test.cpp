@@ -14,6 +14,7 @@
 
 #include "cli_util.h"
 #include "test_util.h"
+#include "wavebrdf/constants.h"  // k_pi
 #include "wavebrdf/io.h"
 #include "wavebrdf/table.h"
 
@@ -21,7 +22,6 @@ namespace wavebrdf {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double k_pi = 3.14159265358979323846;
 
 // ∫ g(θ, φ) dω over the upper hemisphere by the midpoint rule in (u = cos θ, φ); the
 // substitution keeps the sample density fine near the pole where narrow lobes peak.

@@ -187,7 +187,7 @@ struct ScalarCase {
 // A smooth ±0.5 µm surface (correlation 8 µm, 12², texel 2 µm) seen at 6 × 6 jittered
 // positions (σ_p = 3 µm, 78 % overlap) and two wavelengths, 32² slices simulated by
 // `simulator` (recover_test's small case).
-ScalarCase small_case(Simulator simulator, std::uint64_t seed) {
+ScalarCase small_scalar_case(Simulator simulator, std::uint64_t seed) {
     const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
     ScalarCase c{surface, {}};
     std::mt19937_64 rng(seed + 100);
@@ -240,7 +240,7 @@ RecoverSettings small_settings() {
 // model check keeps the field model's heights, no worse than the unwrapped ones (measured
 // bound: experiments/2026-11-23-scalar-diffraction-model-check.md).
 TEST(ModelCheck, OnScalarSlicesTheResultIsNoWorseThanTheUnwrappedHeights) {
-    const ScalarCase c = small_case(Simulator::Scalar, 5705);
+    const ScalarCase c = small_scalar_case(Simulator::Scalar, 5705);
     std::string selected;
     const std::map<std::string, double> r = run_stages(c, small_settings(), &selected);
     for (const auto& [k, v] : r) RecordProperty(k, std::to_string(v));
@@ -254,7 +254,7 @@ TEST(ModelCheck, OnScalarSlicesTheResultIsNoWorseThanTheUnwrappedHeights) {
 // On the Gabor model's own slices the Gabor refinement explains them (loss far below the field
 // model's floor) and is kept: the final heights are stage 3's, as without the check.
 TEST(ModelCheck, OnGaborSlicesTheRefinementIsKept) {
-    const ScalarCase c = small_case(Simulator::Gabor, 5705);
+    const ScalarCase c = small_scalar_case(Simulator::Gabor, 5705);
     std::string selected;
     const std::map<std::string, double> r = run_stages(c, small_settings(), &selected);
     for (const auto& [k, v] : r) RecordProperty(k, std::to_string(v));
@@ -271,7 +271,7 @@ TEST(ModelCheck, SkipRuleAndItsRange) {
     EXPECT_FALSE(detail::skip_field_refinement(1e-9, 1e-2, 0.0));
     EXPECT_THROW(detail::skip_field_refinement(1e-4, 1e-2, -0.1), std::invalid_argument);
     EXPECT_THROW(detail::skip_field_refinement(1e-4, 1e-2, 1.5), std::invalid_argument);
-    const ScalarCase c = small_case(Simulator::Gabor, 6601);
+    const ScalarCase c = small_scalar_case(Simulator::Gabor, 6601);
     RecoverSettings s = small_settings();
     s.model_check_skip_ratio = 2.0;
     EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}), std::invalid_argument);
@@ -303,7 +303,7 @@ TEST(ModelCheck, ReusedStartEvaluationGivesTheSameRefinement) {
 // field refinement is skipped ("refine:field" never reported) and the heights are the same
 // bits as with the refinement run and lost (skip ratio 0).
 TEST(ModelCheck, OnGaborSlicesTheFieldRefinementIsSkippedWithTheSameResult) {
-    const ScalarCase c = small_case(Simulator::Gabor, 6604);
+    const ScalarCase c = small_scalar_case(Simulator::Gabor, 6604);
     const auto run = [&](double ratio, std::map<std::string, int>* stages) {
         RecoverSettings s = small_settings();
         s.model_check_skip_ratio = ratio;
@@ -330,7 +330,7 @@ TEST(ModelCheck, OnGaborSlicesTheFieldRefinementIsSkippedWithTheSameResult) {
 // instead of "misfit:field-start") and stage 3's heights are kept; a floor too low for the rule,
 // or none (0), evaluates the field model's start as before. The heights are the same bits.
 TEST(ModelCheck, FieldFloorShortcutSkipsBuildingTheFieldModel) {
-    const ScalarCase c = small_case(Simulator::Gabor, 6605);
+    const ScalarCase c = small_scalar_case(Simulator::Gabor, 6605);
     std::vector<double> near = c.truth.values();
     for (std::size_t k = 0; k < near.size(); ++k) near[k] += 0.002 * std::sin(0.7 * double(k));
     const Heightfield refined = c.truth.with_values(near);

@@ -15,12 +15,12 @@
 namespace wavebrdf::test {
 namespace {
 
-const std::vector<std::string> kSmall = {"--texel-um",          "2",   "--sigma-p-um",       "3",
+const std::vector<std::string> kSmallArgs = {"--texel-um",          "2",   "--sigma-p-um",       "3",
                                          "--height-range-um",   "0.1", "--field-iterations", "3",
                                          "--refine-iterations", "2",   "--no-plots",         "--quiet"};
 
 // Rank 0 runs `wavebrdf recover first…`, rank 1 `wavebrdf recover second…`, both with --out run
-// (and kSmall's options when `small`).
+// (and kSmallArgs's options when `small`).
 CliResult run_two(const fs::path& dir, const std::vector<std::string>& first, const std::vector<std::string>& second,
                   bool small = true) {
     std::vector<std::string> argv{"/usr/bin/timeout", "120", WAVEBRDF_MPIEXEC, "-q", "--oversubscribe",
@@ -29,7 +29,7 @@ CliResult run_two(const fs::path& dir, const std::vector<std::string>& first, co
         if (part == &second) argv.emplace_back(":");
         argv.insert(argv.end(), {"-n", "1", WAVEBRDF_CLI, "recover"});
         argv.insert(argv.end(), part->begin(), part->end());
-        if (small) argv.insert(argv.end(), kSmall.begin(), kSmall.end());
+        if (small) argv.insert(argv.end(), kSmallArgs.begin(), kSmallArgs.end());
         argv.insert(argv.end(), {"--out", "run"});
     }
     return spawn_in(dir, argv, mpi_environment(1));

@@ -24,7 +24,7 @@ namespace {
 Heightfield small_surface(std::uint64_t seed) { return test::peak_scaled_surface(12, 8.0, 0.5, seed); }
 
 // 6 × 6 jittered positions (σ_p = 3 µm, 78 % overlap) at λ = 0.5 and 0.6 µm, `model` under `omega_i`.
-std::vector<Observation> small_observations(const Heightfield& truth, Model model, std::array<double, 2> omega_i,
+std::vector<Observation> small_oblique_observations(const Heightfield& truth, Model model, std::array<double, 2> omega_i,
                                             std::uint64_t seed, int resolution) {
     std::vector<Observation> observations;
     std::mt19937_64 rng(seed + 100);
@@ -122,7 +122,7 @@ TEST(FieldProxy, GhsSliceIsTheOhsSliceOfScaledHeightsWhereCosThetaOIsCosThetaI) 
 
 TEST(RecoverOblique, OhsUnderObliqueLightRecoversASmallTile) {
     const Heightfield truth = small_surface(6402);
-    const SmallRun run = recover_small(truth, small_observations(truth, Model::OHS, {0.4, 0.2}, 6402, 32));
+    const SmallRun run = recover_small(truth, small_oblique_observations(truth, Model::OHS, {0.4, 0.2}, 6402, 32));
     ASSERT_TRUE(run.stage_rmse.count("unwrap"));
     EXPECT_LT(run.stage_rmse.at("unwrap"), 0.02);
     EXPECT_LT(run.rmse, 0.01);
@@ -132,7 +132,7 @@ TEST(RecoverOblique, OhsUnderObliqueLightRecoversASmallTile) {
 // proxy's correction): the field stage through the proxy, the refinement in GHS.
 TEST(RecoverOblique, GhsSlicesRecoverThroughTheSeparableProxy) {
     const Heightfield truth = small_surface(6403);
-    const SmallRun run = recover_small(truth, small_observations(truth, Model::GHS, {0.5, 0.0}, 6403, 32));
+    const SmallRun run = recover_small(truth, small_oblique_observations(truth, Model::GHS, {0.5, 0.0}, 6403, 32));
     ASSERT_TRUE(run.stage_rmse.count("unwrap"));
     // Measured: 2.6 % with the proxy's scale, 3.8 % without it (the proxy at s = 1), Release;
     // 3.5 % with the proxy in the sanitizer build (RelWithDebInfo: other rounding, other field
@@ -145,7 +145,7 @@ TEST(RecoverOblique, GhsSlicesRecoverThroughTheSeparableProxy) {
 
 TEST(RecoverOblique, RefusesGhsSlicesUnderDifferentLights) {
     const Heightfield truth = small_surface(6404);
-    std::vector<Observation> observations = small_observations(truth, Model::GHS, {0.3, 0.0}, 6404, 8);
+    std::vector<Observation> observations = small_oblique_observations(truth, Model::GHS, {0.3, 0.0}, 6404, 8);
     observations.back().query.omega_i = {0.0, 0.2};
     RecoverSettings s = quick_settings();
     s.blurred.iterations = 0;

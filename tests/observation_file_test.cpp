@@ -125,7 +125,7 @@ TEST(ObservationFileTest, WithoutHdf5TheFunctionsSaySo) {
 namespace {
 
 // Opens `path` read-write, runs `edit` on it, closes it.
-void edit_file(const fs::path& path, const std::function<void(hid_t)>& edit) {
+void edit_hdf5_file(const fs::path& path, const std::function<void(hid_t)>& edit) {
     const hid_t file = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
     ASSERT_GE(file, 0);
     edit(file);
@@ -300,7 +300,7 @@ TEST(ObservationFileTest, HostileFilesAreRefusedWithOneLine) {
     auto hostile = [&](const std::function<void(hid_t)>& edit) {
         const fs::path path = dir / ("hostile_" + std::to_string(made++) + ".h5");
         write_observations_hdf5(path.string(), good);
-        edit_file(path, edit);
+        edit_hdf5_file(path, edit);
         return path;
     };
     expect_refused(hostile([](hid_t f) { H5Ldelete(f, "/entry_1/wavebrdf_1/x_um", H5P_DEFAULT); }),
@@ -374,25 +374,25 @@ TEST(ObservationFileTest, HugeDeclaredSizesAreRefusedBeforeAllocating) {
     const fs::path path = dir / "huge.h5";
     // Too many observations.
     write_observations_hdf5(path.string(), good);
-    edit_file(path, [](hid_t f) {
+    edit_hdf5_file(path, [](hid_t f) {
         replace_dataset(f, "/entry_1/data_1/data", H5T_IEEE_F32LE, {200000000, 1, 4, 4}, false, {1, 1, 4, 4});
     });
     expect_refused(path, {"/entry_1/data_1/data", "200000000 observations", "1e8"});
     // A slice too large, and many wavelengths.
     write_observations_hdf5(path.string(), good);
-    edit_file(path, [](hid_t f) {
+    edit_hdf5_file(path, [](hid_t f) {
         replace_dataset(f, "/entry_1/data_1/data", H5T_IEEE_F32LE, {4, 1, 100000, 100000}, false, {1, 1, 64, 64});
     });
     expect_refused(path, {"/entry_1/data_1/data", "100000"});
     write_observations_hdf5(path.string(), good);
-    edit_file(path, [](hid_t f) {
+    edit_hdf5_file(path, [](hid_t f) {
         replace_dataset(f, "/entry_1/wavebrdf_1/wavelengths_um", H5T_IEEE_F64LE, {4, 100000});
     });
     expect_refused(path, {"/entry_1/wavebrdf_1/wavelengths_um", "100000"});
     // 1e8 observations of 8192² declared in a few kilobytes: refused without allocating (the
     // index's metadata were never written; the slices would need ~27 PB).
     write_observations_hdf5(path.string(), good);
-    edit_file(path, [](hid_t f) {
+    edit_hdf5_file(path, [](hid_t f) {
         const hsize_t n = 100000000;
         replace_dataset(f, "/entry_1/data_1/data", H5T_IEEE_F32LE, {n, 1, 8192, 8192}, false, {1, 1, 8192, 8192});
         for (const char* name :

@@ -21,11 +21,11 @@ using test::offset_rms;
 namespace {
 
 // The 5 × 5 positions of the shared case (position_cases.h): linear overlap 1 − 4.8/18 = 73 %.
-OffCase off_case(std::uint64_t seed, double rms_texels, int resolution = 40) {
+OffCase shared_off_case(std::uint64_t seed, double rms_texels, int resolution = 40) {
     return test::off_case(seed, rms_texels, resolution, 5);
 }
 
-RecoverSettings quick_settings(bool positions) {
+RecoverSettings quick_position_settings(bool positions) {
     RecoverSettings s;
     s.blurred.blur_widths = {12.0, 4.0};
     s.blurred.iterations = 15;
@@ -52,11 +52,11 @@ RecoverSettings one_pass_settings() {
 }  // namespace
 
 TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
-    const OffCase c = off_case(5111, 0.5);
-    const Heightfield without = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(false));
+    const OffCase c = shared_off_case(5111, 0.5);
+    const Heightfield without = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_position_settings(false));
     Calibration calibration;
     calibration.position_offsets_um = {{9.0, 9.0}};  // replaced
-    const Heightfield with = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(true), {}, nullptr,
+    const Heightfield with = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_position_settings(true), {}, nullptr,
                                              serial_communicator(), &calibration);
     ASSERT_EQ(calibration.position_offsets_um.size(), c.observations.size());
     // Observations at one stated centre share one offset; the offsets have mean 0 (the gauge).
@@ -80,7 +80,7 @@ TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
     recover_heights(
         c.observations, 12, 12, 2.0, 1.0,
         [] {
-            RecoverSettings s = quick_settings(false);
+            RecoverSettings s = quick_position_settings(false);
             s.blurred.iterations = 0;
             s.field.iterations = 1;
             s.refine_iterations = 1;
@@ -94,7 +94,7 @@ TEST(PositionCalibration, FindsOffsetsOfHalfATexelAndBetterHeights) {
 // bit for bit (as K ranks must, docs/scale.md), through one pass of the position loop as well
 // (the registration's, the Newton step's and the rescue's decisions).
 TEST(PositionCalibration, ExactSumsGiveTheSameBitsForAnyThreadCount) {
-    const OffCase c = off_case(5112, 1.0, 24);
+    const OffCase c = shared_off_case(5112, 1.0, 24);
     RecoverSettings s = one_pass_settings();
     const int threads = omp_get_max_threads();
     Calibration one_cal, two_cal;

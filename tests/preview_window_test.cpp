@@ -25,7 +25,7 @@ namespace {
 
 // The pixel rows (or columns) of an n-pixel axis whose centre ω = (i + ½)/n · 2 − 1 lies in
 // [lo, hi], by testing every pixel.
-std::vector<int> inside(double lo, double hi, int n) {
+std::vector<int> inside_indices(double lo, double hi, int n) {
     std::vector<int> kept;
     for (int i = 0; i < n; ++i) {
         const double centre = (i + 0.5) / n * 2.0 - 1.0;
@@ -53,7 +53,7 @@ TEST(OmegaWindow, SelectsExactlyThePixelsWhoseCentreIsInside) {
             }
             OmegaWindow w{std::min(a, b), std::max(a, b), std::min(c, d), std::max(c, d)};
             if (!(w.x0 < w.x1) || !(w.y0 < w.y1)) continue;
-            const std::vector<int> rows = inside(w.x0, w.x1, n), cols = inside(w.y0, w.y1, n);
+            const std::vector<int> rows = inside_indices(w.x0, w.x1, n), cols = inside_indices(w.y0, w.y1, n);
             if (rows.empty() || cols.empty()) {
                 EXPECT_THROW(window_pixels(w, n), std::invalid_argument);
                 continue;
@@ -106,7 +106,7 @@ TEST(SlicePreview, WindowShowsThePixelsInsideItScaledUp) {
     o.has_window = true;
     o.window = {-0.3, 0.1, 0.2, 0.9};
     const Preview8 p = make_slice_preview(image, o);
-    const std::vector<int> rows = inside(-0.3, 0.1, n), cols = inside(0.2, 0.9, n);
+    const std::vector<int> rows = inside_indices(-0.3, 0.1, n), cols = inside_indices(0.2, 0.9, n);
     RgbImage crop;
     crop.rows = int(rows.size());
     crop.cols = int(cols.size());
@@ -167,7 +167,7 @@ TEST(SlicePreview, AxesTickTheOmegaValuesAtTheirPixels) {
     // Rows 141…165 of the slice have their centres in [0.1, 0.3]; the picture spans their edges,
     // ω 0.1016 to 0.2969, so the ticks are 0.15, 0.2 and 0.25 (a step of 0.05), each at the
     // row its value falls in.
-    const std::vector<int> rows = inside(0.1, 0.3, 256);
+    const std::vector<int> rows = inside_indices(0.1, 0.3, 256);
     ASSERT_EQ(rows.front(), 141);
     ASSERT_EQ(rows.back(), 165);
     std::vector<int> expected;

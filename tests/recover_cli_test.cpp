@@ -21,7 +21,7 @@ namespace {
 
 // A small problem that runs in seconds: 8×8 texels of 2 µm, heights within 0.1 µm (one
 // wavelength suffices), σ_p = 3 µm.
-const std::string kSmall = "--size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 --no-plots --quiet";
+const std::string kSmallRecover = "--size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 --no-plots --quiet";
 
 // The last height_rel_rmse of metrics.csv.
 double final_height_error(const fs::path& metrics) {
@@ -82,7 +82,7 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
 
 TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
     const fs::path dir = fresh_dir("recover");
-    const CliResult r = run_cli(dir, "recover " + kSmall + " --save-observations --out run");
+    const CliResult r = run_cli(dir, "recover " + kSmallRecover + " --save-observations --out run");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     for (const char* name :
          {"estimate.exr", "estimate.png", "truth.exr", "metrics.csv", "run.json", "estimate_height.npy",
@@ -98,7 +98,7 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
     EXPECT_NEAR(final_height_error(dir / "run" / "metrics.csv"), height_rel_rmse(estimate, truth), 1e-5);
 
     // The saved observations give the same recovery through --observations.
-    const CliResult again = run_cli(dir, "recover --observations run/observations.json " + kSmall + " --out again");
+    const CliResult again = run_cli(dir, "recover --observations run/observations.json " + kSmallRecover + " --out again");
     ASSERT_EQ(again.exit_code, 0) << again.err;
     const Heightfield from_files = read_heightfield_exr((dir / "again" / "estimate.exr").string(), 2.0);
     EXPECT_LT(height_rel_rmse(from_files, truth), 0.01);
@@ -109,7 +109,7 @@ TEST(RecoverCliTest, SmallStudyRecoversTheTruthAndWritesEveryOutput) {
 // holds what was refined, one exposure per observation near the true one, and the errors.
 TEST(RecoverCliTest, CalibratedStudyWritesCalibrationJson) {
     const fs::path dir = fresh_dir("recover");
-    const CliResult r = run_cli(dir, "recover " + kSmall + " --simulate-exposure 0.5,2 --calibrate exposure --out run");
+    const CliResult r = run_cli(dir, "recover " + kSmallRecover + " --simulate-exposure 0.5,2 --calibrate exposure --out run");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const nlohmann::json run = nlohmann::json::parse(read_text(dir / "run" / "run.json"));
     EXPECT_EQ(run.at("calibrate"), "exposure");
@@ -152,7 +152,7 @@ TEST(RecoverCliTest, HostileOutNamesRunNoShellAndGetTheirReport) {
 
 TEST(RecoverCliTest, ThesisMethodRunsOnTheSameData) {
     const fs::path dir = fresh_dir("recover");
-    const CliResult r = run_cli(dir, "recover " + kSmall + " --method thesis --epochs 40 --out thesis");
+    const CliResult r = run_cli(dir, "recover " + kSmallRecover + " --method thesis --epochs 40 --out thesis");
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const auto lines = lines_of(read_text(dir / "thesis" / "metrics.csv"));
     ASSERT_EQ(lines.size(), 1u + 4u) << "a row every 10 epochs";
@@ -206,7 +206,7 @@ TEST(RecoverCliTest, TruthFilesTexelWidthAppliesUnlessGiven) {
 // outputs and nothing else.
 TEST(RecoverCliTest, OutMustBeNewOrEmptyUnlessForced) {
     const fs::path dir = fresh_dir("recover");
-    const std::string fast = kSmall + " --field-iterations 3 --refine-iterations 2";
+    const std::string fast = kSmallRecover + " --field-iterations 3 --refine-iterations 2";
     const CliResult first = run_cli(dir, "recover " + fast + " --save-observations --out run");
     ASSERT_EQ(first.exit_code, 0) << first.err;
     const std::string metrics_before = read_text(dir / "run" / "metrics.csv");

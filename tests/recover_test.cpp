@@ -468,7 +468,7 @@ TEST(RecoverHeights, RefinementPlanCycleMatchesFreshPlans) {
     }
 }
 
-RecoverSettings quick_settings() {
+RecoverSettings quick_recover_settings() {
     RecoverSettings s;
     s.blurred.blur_widths = {12.0, 4.0};
     s.blurred.iterations = 15;
@@ -481,7 +481,7 @@ TEST(RecoverHeights, RecoversASmallSurfaceFromFlat) {
     const SmallCase c = small_case(21);
     std::map<std::string, double> last_rmse;
     const Heightfield estimate = recover_heights(
-        c.observations, 12, 12, 2.0, 1.0, quick_settings(),
+        c.observations, 12, 12, 2.0, 1.0, quick_recover_settings(),
         [&](const StageMetrics& m) {
             if (m.height_rel_rmse >= 0.0) last_rmse[m.stage] = m.height_rel_rmse;
             return true;
@@ -579,7 +579,7 @@ TEST(RecoverHeights, HeapDoesNotGrowWithIterations) {
                     "the heap is checked in the plain build";
 #endif
     const SmallCase c = small_case(21);
-    RecoverSettings s = quick_settings();
+    RecoverSettings s = quick_recover_settings();
     s.blurred.blur_widths = {8.0};
     s.blurred.iterations = 10;
     s.field.iterations = 3;
@@ -632,15 +632,15 @@ TEST(AutoRefine, SamplesTheSliceBandAndTheField) {
 // the same input gives the same heights, bit for bit, on every run.
 TEST(RecoverHeights, IsReproducibleOnSeveralThreads) {
     const SmallCase c = small_case(23);
-    const Heightfield a = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings());
-    const Heightfield b = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings());
+    const Heightfield a = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_recover_settings());
+    const Heightfield b = recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_recover_settings());
     EXPECT_EQ(a.values(), b.values());
 }
 
 TEST(RecoverHeights, StopsWhenTheCallbackSaysSo) {
     const SmallCase c = small_case(22);
     int calls = 0;
-    recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_settings(), [&](const StageMetrics&) {
+    recover_heights(c.observations, 12, 12, 2.0, 1.0, quick_recover_settings(), [&](const StageMetrics&) {
         ++calls;
         return false;
     });
@@ -661,7 +661,7 @@ Heightfield recover_counting_stages(const SmallCase& c, const RecoverSettings& s
 // refine_ladder_min_um; negative counts other than −1 (unset: the schedule's) are refused.
 TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
     const SmallCase c = small_case(25);
-    RecoverSettings s = quick_settings();
+    RecoverSettings s = quick_recover_settings();
     s.field_wavelengths = 0;  // every wavelength (the smooth schedule's default is the longest)
     s.refine_iterations = 3;
     s.refine_ladder_iterations = 4;
@@ -699,7 +699,7 @@ TEST(RecoverHeights, FieldAndLadderWavelengthCountsTakeTheLongestWavelengths) {
 // on every slice still runs its iterations; 0 runs the rung to its cap. Out of range: refused.
 TEST(RecoverHeights, LadderRelativeToleranceStopsTheRungEarly) {
     const SmallCase c = small_case(25);
-    RecoverSettings s = quick_settings();
+    RecoverSettings s = quick_recover_settings();
     s.refine_iterations = 3;
     s.refine_ladder_iterations = 6;
     s.model_check_iterations = 0;
@@ -730,7 +730,7 @@ TEST(RecoverHeights, LadderRelativeToleranceStopsTheRungEarly) {
 // as off). The refinement on every slice still runs its iterations. Out of range: refused.
 TEST(RecoverHeights, LadderStallRuleStopsTheRung) {
     const SmallCase c = small_case(25);
-    RecoverSettings s = quick_settings();
+    RecoverSettings s = quick_recover_settings();
     s.refine_iterations = 3;
     s.refine_ladder_iterations = 8;
     s.model_check_iterations = 0;

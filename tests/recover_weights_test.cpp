@@ -32,7 +32,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-using Case = test::SmallCase;
+using WeightsCase = test::SmallCase;
 using test::small_case;
 
 // `fraction` of each slice's pixels (chosen at random) set to garbage: bright hot pixels of up
@@ -92,7 +92,7 @@ Heightfield perturbed(const Heightfield& truth) {
 // The objective with weights (some 0, the others between 0.1 and 2) against central differences
 // of its value, at heights off the truth, with the exposure's closed form and without it.
 TEST(RecoverWeights, ObjectiveGradientWithWeightsMatchesFiniteDifferences) {
-    const Case c = small_case(41);
+    const WeightsCase c = small_case(41);
     std::vector<Observation> obs = weighted(c.observations, 7, 0.0f);
     obs.resize(12);  // a few slices keep the differences quick
     for (std::size_t i = 0; i < obs.size(); ++i)  // exposures that differ per slice
@@ -127,7 +127,7 @@ TEST(RecoverWeights, ObjectiveGradientWithWeightsMatchesFiniteDifferences) {
 // The exposure's chain rule with weights on its own: the model's gradient against differences
 // of slice_misfit in each value of the slice (weights in (0, 2], a tenth 0).
 TEST(RecoverWeights, ExposureChainRuleWithWeightsMatchesFiniteDifferences) {
-    const Case c = small_case(43);
+    const WeightsCase c = small_case(43);
     const Observation o = weighted({c.observations[3]}, 11, 5.0f)[0];
     const std::vector<double> model = render_observation(perturbed(c.truth), o);
     std::vector<float> f(model.begin(), model.end());
@@ -225,7 +225,7 @@ TEST(RecoverWeights, PixelsOfWeightZeroChangeNothingInAnyStage) {
 // slice there (a pixel that fits exactly adds nothing to the amplitude misfit or deviance), an
 // independent evaluation by the unweighted code.
 TEST(RecoverWeights, ConvergenceCountsOnlyWeightedPixels) {
-    const Case c = small_case(47);
+    const WeightsCase c = small_case(47);
     const Heightfield at = perturbed(c.truth);
     std::vector<Observation> masked = c.observations, filled = c.observations;
     masked.resize(8);
@@ -258,7 +258,7 @@ TEST(RecoverWeights, ConvergenceCountsOnlyWeightedPixels) {
 // Slices with 3 % of their pixels corrupted (hot and dead pixels): masked, the default
 // recovery reaches the accuracy of the clean slices; unmasked, it does not.
 TEST(RecoverWeights, MaskedCorruptedPixelsRecoverAsWellAsCleanSlices) {
-    const Case c = small_case(45);
+    const WeightsCase c = small_case(45);
     const auto run = [&](const std::vector<Observation>& obs) {
         return height_rel_rmse(recover_heights(obs, 12, 12, 2.0, 1.0, RecoverSettings{}), c.truth);
     };
@@ -276,7 +276,7 @@ TEST(RecoverWeights, MaskedCorruptedPixelsRecoverAsWellAsCleanSlices) {
 // --save-observations writes them with their weights.
 TEST(RecoverWeights, CliRecoversWeightedObservationsAndSavesTheirWeights) {
     const fs::path dir = test::fresh_dir("recover_weights");
-    const Case c = small_case(45);
+    const WeightsCase c = small_case(45);
     const std::vector<Observation> obs = corrupted(c.observations, 0.03, true, 5);
     write_observations_json((dir / "o.json").string(), obs, ReferenceStorage::Exr);
     const test::CliResult r = test::run_cli(

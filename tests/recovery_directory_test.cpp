@@ -24,7 +24,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string read_text(const fs::path& path) {
+std::string read_file_text(const fs::path& path) {
     std::ifstream in(path, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
@@ -37,7 +37,7 @@ fs::path fresh(const std::string& name) {
 }
 
 // The small study of recover_cli_test.cpp, by the thesis's method (a few epochs: seconds).
-RecoveryOptions small_options() {
+RecoveryOptions small_directory_options() {
     RecoveryOptions options;
     options.rows = options.cols = 8;
     options.texel_um = 2.0;
@@ -50,7 +50,7 @@ RecoveryOptions small_options() {
 }
 
 TEST(RecoveryDirectory, WritesEveryFileOfTheLayout) {
-    const RecoveryOptions options = small_options();
+    const RecoveryOptions options = small_directory_options();
     const PreparedRecovery prepared = prepare_recovery(options);
     RecoveryDirectoryOptions out;
     out.dir = fresh("all").string();
@@ -66,7 +66,7 @@ TEST(RecoveryDirectory, WritesEveryFileOfTheLayout) {
         EXPECT_TRUE(fs::is_regular_file(dir / name)) << name;
     EXPECT_TRUE(fs::is_regular_file(dir / "observations" / "slice_0000.exr"));
 
-    const nlohmann::json run = nlohmann::json::parse(read_text(dir / "run.json"));
+    const nlohmann::json run = nlohmann::json::parse(read_file_text(dir / "run.json"));
     EXPECT_EQ(run.at("method"), "thesis");
     EXPECT_EQ(run.at("size"), "8x8");
     EXPECT_EQ(run.at("texel_um"), 2.0);
@@ -96,7 +96,7 @@ TEST(RecoveryDirectory, WritesEveryFileOfTheLayout) {
     EXPECT_EQ(slice.attributes->lambdas_um, prepared.observations.front().lambdas_um);
 
     // One row per step the callback saw, in the order it saw them.
-    const std::string csv = read_text(dir / "metrics.csv");
+    const std::string csv = read_file_text(dir / "metrics.csv");
     ASSERT_EQ(csv.rfind("stage,iteration,loss,seconds,height_rel_rmse,height_rel_rmse_plane_removed\n", 0), 0u) << csv;
     ASSERT_EQ(std::count(csv.begin(), csv.end(), '\n'), std::ptrdiff_t(seen.size() + 1)) << csv;
     ASSERT_FALSE(seen.empty());
@@ -111,21 +111,21 @@ TEST(RecoveryDirectory, WritesEveryFileOfTheLayout) {
 }
 
 TEST(RecoveryDirectory, EarlyStopStillWritesTheEstimate) {
-    const RecoveryOptions options = small_options();
+    const RecoveryOptions options = small_directory_options();
     const PreparedRecovery prepared = prepare_recovery(options);
     RecoveryDirectoryOptions out;
     out.dir = fresh("stopped").string();
     int calls = 0;
     run_recovery_in_directory(prepared, options, out, [&](const StageMetrics&) { return ++calls < 1; });
     EXPECT_EQ(calls, 1);
-    const std::string csv = read_text(fs::path(out.dir) / "metrics.csv");
+    const std::string csv = read_file_text(fs::path(out.dir) / "metrics.csv");
     EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 2) << csv;
     EXPECT_TRUE(fs::is_regular_file(fs::path(out.dir) / "estimate.exr"));
     EXPECT_FALSE(fs::exists(fs::path(out.dir) / "observations.json")) << "not asked for";
 }
 
 TEST(RecoveryDirectory, ForeignFilesRefuseTheDirectoryBeforeAnyWork) {
-    const RecoveryOptions options = small_options();
+    const RecoveryOptions options = small_directory_options();
     const PreparedRecovery prepared = prepare_recovery(options);
     const fs::path dir = fresh("foreign");
     fs::create_directories(dir);
@@ -138,7 +138,7 @@ TEST(RecoveryDirectory, ForeignFilesRefuseTheDirectoryBeforeAnyWork) {
                  std::invalid_argument);
     EXPECT_FALSE(ran);
     EXPECT_FALSE(fs::exists(dir / "run.json"));
-    EXPECT_EQ(read_text(dir / "notes.txt"), "mine");
+    EXPECT_EQ(read_file_text(dir / "notes.txt"), "mine");
 }
 
 }  // namespace

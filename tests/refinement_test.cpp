@@ -14,14 +14,14 @@ using namespace wavebrdf;
 
 namespace {
 
-test::OffCase small_case() { return test::off_case(5111, 0.5, 24, 3); }
+test::OffCase small_refine_case() { return test::off_case(5111, 0.5, 24, 3); }
 
 }  // namespace
 
 // With every offset 0 the positions' form is the heights' form: the same value and the same
 // height gradient (one algorithm, two sets of variables).
 TEST(Refinement, PositionsAtZeroOffsetsAreTheHeightsAlone) {
-    const test::OffCase c = small_case();
+    const test::OffCase c = small_refine_case();
     const Heightfield flat = c.truth.with_values(std::vector<double>(c.truth.values().size(), 0.0));
     const Heightfield start = c.truth.with_values([&] {
         std::vector<double> h = c.truth.values();
@@ -51,7 +51,7 @@ TEST(Refinement, PositionsAtZeroOffsetsAreTheHeightsAlone) {
 // The positions' gradient (the offsets' part, through the gauge t − mean t) agrees with central
 // differences of the value.
 TEST(Refinement, OffsetGradientMatchesFiniteDifferences) {
-    const test::OffCase c = small_case();
+    const test::OffCase c = small_refine_case();
     const Heightfield flat = c.truth.with_values(std::vector<double>(c.truth.values().size(), 0.0));
     const double total = double(c.observations.size());
     std::vector<std::size_t> index;

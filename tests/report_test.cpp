@@ -18,14 +18,14 @@ using namespace wavebrdf::test;
 namespace {
 
 // The small runs of invert_test.cpp and recover_cli_test.cpp (seconds each).
-const std::string kInvert = "invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 2 --quiet";
+const std::string kInvertLine = "invert --size 8 --sigma-p-um 2 --resolution 16 --lambda-um 0.5 --epochs 2 --quiet";
 const std::string kRecover =
     "recover --size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 "
     "--method thesis --epochs 2 --quiet";
 
 const fs::path k_build_python = WAVEBRDF_BUILD_PYTHON_DIR;
 
-bool is_png(const fs::path& path) { return read_text(path).rfind("\x89PNG\r\n\x1a\n", 0) == 0; }
+bool is_png_file(const fs::path& path) { return read_text(path).rfind("\x89PNG\r\n\x1a\n", 0) == 0; }
 
 // <root>/bin/wavebrdf and <root>/python/ (a copy of the build's package); with `broken`, a
 // package of that name in <root>/python that cannot be imported (it shadows the real one).
@@ -69,15 +69,15 @@ TEST(ReportTest, DrawsReportsWithoutTheSourceTree) {
     const fs::path dir = fresh_dir("report");
     const fs::path exe = moved_layout(dir / "moved");
     fs::create_directories(dir / "work");
-    const CliResult invert = run_moved(dir / "work", exe, kInvert + " --out inv");
+    const CliResult invert = run_moved(dir / "work", exe, kInvertLine + " --out inv");
     ASSERT_EQ(invert.exit_code, 0) << invert.err;
     EXPECT_EQ(invert.err, "") << "no warning when the report is drawn";
-    EXPECT_TRUE(is_png(dir / "work" / "inv" / "report.png"));
-    EXPECT_TRUE(is_png(dir / "work" / "inv" / "curves.png"));
+    EXPECT_TRUE(is_png_file(dir / "work" / "inv" / "report.png"));
+    EXPECT_TRUE(is_png_file(dir / "work" / "inv" / "curves.png"));
     const CliResult recover = run_moved(dir / "work", exe, kRecover + " --out rec");
     ASSERT_EQ(recover.exit_code, 0) << recover.err;
     EXPECT_EQ(lines_but_convergence_warning(recover.err), std::vector<std::string>{}) << "no warning when the report is drawn";
-    EXPECT_TRUE(is_png(dir / "work" / "rec" / "report.png"));
+    EXPECT_TRUE(is_png_file(dir / "work" / "rec" / "report.png"));
     EXPECT_FALSE(fs::exists(dir / "work" / "rec" / "curves.png"));
     EXPECT_EQ(temporaries_under(dir / "work"), std::vector<std::string>{});
 }
@@ -90,11 +90,11 @@ TEST(ReportTest, InstalledCliDrawsReportsWithTheInstalledPackage) {
     const fs::path exe = installed_layout(dir / "prefix");
     EXPECT_FALSE(fs::exists(dir / "prefix" / "python")) << "the build tree's place is not the one used";
     fs::create_directories(dir / "work");
-    const CliResult invert = run_moved(dir / "work", exe, kInvert + " --out inv");
+    const CliResult invert = run_moved(dir / "work", exe, kInvertLine + " --out inv");
     ASSERT_EQ(invert.exit_code, 0) << invert.err;
     EXPECT_EQ(invert.err, "") << "no warning when the report is drawn";
-    EXPECT_TRUE(is_png(dir / "work" / "inv" / "report.png"));
-    EXPECT_TRUE(is_png(dir / "work" / "inv" / "curves.png"));
+    EXPECT_TRUE(is_png_file(dir / "work" / "inv" / "report.png"));
+    EXPECT_TRUE(is_png_file(dir / "work" / "inv" / "curves.png"));
 }
 
 // Neither beside nor installed with the executable: the interpreter's own path (a pip-installed
@@ -112,7 +112,7 @@ TEST(ReportTest, PackageOnTheInterpretersPathDrawsReports) {
                                   "PYTHONPATH=" + quote((dir / "site").string()));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(lines_but_convergence_warning(r.err), std::vector<std::string>{}) << "no warning when the report is drawn";
-    EXPECT_TRUE(is_png(dir / "work" / "rec" / "report.png"));
+    EXPECT_TRUE(is_png_file(dir / "work" / "rec" / "report.png"));
 }
 
 // Without Python, NumPy or matplotlib: the data are written, exit 0, one line naming what
@@ -130,7 +130,7 @@ TEST(ReportTest, MissingPythonOrMatplotlibIsOneWarning) {
         {"no-matplotlib", "matplotlib", "", kRecover,
          "wavebrdf: warning: report.png not drawn: matplotlib is not installed for /usr/bin/python3 (the run's data "
          "are in no-matplotlib)"},
-        {"no-numpy", "numpy", "", kInvert,
+        {"no-numpy", "numpy", "", kInvertLine,
          "wavebrdf: warning: report.png and curves.png not drawn: numpy is not installed for /usr/bin/python3 (the "
          "run's data are in no-numpy)"},
         {"no-python", "", "WAVEBRDF_PYTHON=/nonexistent/python3", kRecover,

@@ -27,7 +27,7 @@ const std::string kNpy = "\x93NUMPY";
 const std::string kPng = "\x89PNG";
 
 // A small recovery that runs in seconds (as recover_cli_test's).
-const std::string kSmall = "--size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 --no-plots --quiet";
+const std::string kSmallRobust = "--size 8 --texel-um 2 --sigma-p-um 3 --height-range-um 0.1 --seed 3 --no-plots --quiet";
 
 }  // namespace
 
@@ -64,7 +64,7 @@ TEST(RobustCliTest, OutputsWriteTheFormatTheirExtensionNames) {
          "--png i.jpg", ".png", "i.jpg"},
         {"lobe --lights 2x2 --resolution 4 --out l.npy --quiet", "--out l.npy", ".exr", "l.npy"},
         {"lobe --lights 2x2 --resolution 4 --out l.exr --png l.tif --quiet", "--png l.tif", ".png", "l.exr"},
-        {"recover " + kSmall + " --save-observations mine --out run", "--save-observations mine",
+        {"recover " + kSmallRobust + " --save-observations mine --out run", "--save-observations mine",
          ".json, .h5, .hdf5, .cxi", "run"},
     };
     for (const Case& c : cases) {
@@ -138,7 +138,7 @@ TEST(RobustCliTest, RecoverSizeMustMatchTheObservations) {
 // holds nothing the command calls foreign.
 TEST(RobustCliTest, ForceReplacesARunWithEveryOptionalOutput) {
     const fs::path dir = fresh_dir("robust");
-    const std::string fast = kSmall + " --field-iterations 3 --refine-iterations 2";
+    const std::string fast = kSmallRobust + " --field-iterations 3 --refine-iterations 2";
     const CliResult first = run_cli(
         dir, "recover " + fast + " --simulate-exposure 0.8,1.25 --calibrate exposure --uncertainty --out c1");
     ASSERT_EQ(first.exit_code, 0) << first.err;
@@ -154,24 +154,24 @@ TEST(RobustCliTest, RecoverOutputsNeverOverwriteInputsOrEachOther) {
     const fs::path dir = fresh_dir("robust");
     ASSERT_EQ(run_cli(dir, "heightfield --size 8 --texel-um 2 --out t.exr --no-png --quiet").exit_code, 0);
     const std::string truth_before = read_text(dir / "t.exr");
-    const CliResult saved = run_cli(dir, "recover " + kSmall + " --save-observations in.h5 --out first");
+    const CliResult saved = run_cli(dir, "recover " + kSmallRobust + " --save-observations in.h5 --out first");
     ASSERT_EQ(saved.exit_code, 0) << saved.err;
     const std::string input_before = read_text(dir / "in.h5");
 
-    expect_one_line_naming(run_cli(dir, "recover " + kSmall + " --truth t.exr --save-observations t.exr --out a"),
+    expect_one_line_naming(run_cli(dir, "recover " + kSmallRobust + " --truth t.exr --save-observations t.exr --out a"),
                            {"--save-observations t.exr", ".json, .h5"});
     expect_one_line_naming(run_cli(dir,
                                    "recover --size 8 --texel-um 2 --no-plots --quiet --observations in.h5 "
                                    "--save-observations in.h5 --out b"),
                            {"--observations in.h5", "--save-observations in.h5", "name the same file"});
-    expect_one_line_naming(run_cli(dir, "recover " + kSmall + " --save-observations c/run.json --out c"),
+    expect_one_line_naming(run_cli(dir, "recover " + kSmallRobust + " --save-observations c/run.json --out c"),
                            {"--save-observations c/run.json", "--out's run.json", "name the same file"});
-    expect_one_line_naming(run_cli(dir, "recover " + kSmall + " --save-observations c/metrics.csv --out c"),
+    expect_one_line_naming(run_cli(dir, "recover " + kSmallRobust + " --save-observations c/metrics.csv --out c"),
                            {"--save-observations c/metrics.csv", ".json, .h5"});
-    expect_one_line_naming(run_cli(dir, "recover " + kSmall + " --truth first/truth.exr --force --out first"),
+    expect_one_line_naming(run_cli(dir, "recover " + kSmallRobust + " --truth first/truth.exr --force --out first"),
                            {"--truth first/truth.exr", "--out's truth.exr", "name the same file"});
     // An input inside --out that is no output of this run: --force would delete it first.
-    ASSERT_EQ(run_cli(dir, "recover " + kSmall + " --save-observations --out second").exit_code, 0);
+    ASSERT_EQ(run_cli(dir, "recover " + kSmallRobust + " --save-observations --out second").exit_code, 0);
     expect_one_line_naming(run_cli(dir,
                                    "recover --size 8 --texel-um 2 --no-plots --quiet --observations "
                                    "second/observations.json --force --out second"),
@@ -185,7 +185,7 @@ TEST(RobustCliTest, RecoverOutputsNeverOverwriteInputsOrEachOther) {
     // A user's own folder named after the JSON is not written over.
     fs::create_directories(dir / "mine");
     std::ofstream(dir / "mine" / "notes.txt") << "mine";
-    expect_one_line_naming(run_cli(dir, "recover " + kSmall + " --save-observations mine.json --out d"),
+    expect_one_line_naming(run_cli(dir, "recover " + kSmallRobust + " --save-observations mine.json --out d"),
                            {"mine", "notes.txt", "not a slice of an observations set"});
     EXPECT_EQ(read_text(dir / "mine" / "notes.txt"), "mine");
     EXPECT_FALSE(fs::exists(dir / "mine.json"));
@@ -227,7 +227,7 @@ TEST(RobustOutputsTest, ObservationSetIsReplacedAsAWhole) {
 // run that ends normally marks it finished.
 TEST(RobustCliTest, InterruptedRecoveryIsMarkedUnfinished) {
     const fs::path dir = fresh_dir("robust");
-    const CliResult done = run_cli(dir, "recover " + kSmall + " --field-iterations 3 --refine-iterations 2 --out done");
+    const CliResult done = run_cli(dir, "recover " + kSmallRobust + " --field-iterations 3 --refine-iterations 2 --out done");
     ASSERT_EQ(done.exit_code, 0) << done.err;
     EXPECT_EQ(nlohmann::json::parse(read_text(dir / "done" / "run.json")).at("finished"), true);
 
@@ -259,7 +259,7 @@ TEST(RobustCliTest, RecoverValidatesCountsNumbersAndListsUpFront) {
     };
     for (const auto& [args, needles] : cases) {
         SCOPED_TRACE(args);
-        expect_one_line_naming(run_cli(dir, "recover " + kSmall + " " + args + " --out run"), needles);
+        expect_one_line_naming(run_cli(dir, "recover " + kSmallRobust + " " + args + " --out run"), needles);
         EXPECT_FALSE(fs::exists(dir / "run"));
     }
     expect_one_line_naming(run_cli(dir, "heightfield --size 8 --seed 99999999999999999999 --out h.exr"),

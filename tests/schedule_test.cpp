@@ -44,13 +44,13 @@ const T* find(const Schedule& schedule) {
 
 // A context of the given wavelengths (no observations: make_schedule reads only the wavelengths
 // and the run's conditions).
-struct Fixture {
+struct ScheduleFixture {
     std::vector<Observation> observations;
     std::map<double, std::vector<const Observation*>> by_lambda;
     Heightfield flat{4, 4, std::vector<double>(16, 0.0), 2.0, 1.0};
     std::function<bool(const StageMetrics&)> on_step;
     StageReporter reporter{on_step, nullptr, serial_communicator(), RecoverSettings{}};
-    explicit Fixture(const std::vector<double>& lambdas) {
+    explicit ScheduleFixture(const std::vector<double>& lambdas) {
         for (double l : lambdas) by_lambda[l];
     }
     Schedule schedule(const RecoverSettings& settings, bool proxied = false) {
@@ -65,7 +65,7 @@ struct Fixture {
 }  // namespace
 
 TEST(Schedule, DefaultsRunEveryStageInOrder) {
-    Fixture f({0.45, 0.5, 0.6});
+    ScheduleFixture f({0.45, 0.5, 0.6});
     const Schedule s = f.schedule(RecoverSettings{});
     EXPECT_EQ(order(s), (std::vector<std::string>{"blurred", "field", "unwrap", "release", "refine", "model-check"}));
     const FieldStage* field = find<FieldStage>(s);
@@ -85,7 +85,7 @@ TEST(Schedule, DefaultsRunEveryStageInOrder) {
 }
 
 TEST(Schedule, WavelengthCountsBecomeWavelengths) {
-    Fixture f({0.45, 0.5, 0.6});
+    ScheduleFixture f({0.45, 0.5, 0.6});
     RecoverSettings settings;
     settings.field_wavelengths = 1;
     settings.refine_ladder_wavelengths = 2;
@@ -95,19 +95,19 @@ TEST(Schedule, WavelengthCountsBecomeWavelengths) {
 }
 
 TEST(Schedule, WhiteLightHasNoFieldStageAndNoModelCheck) {
-    Fixture f({});
+    ScheduleFixture f({});
     const Schedule s = f.schedule(RecoverSettings{});
     EXPECT_EQ(order(s), (std::vector<std::string>{"blurred", "release", "refine"}));
     EXPECT_EQ(find<BlurredFitStage>(s)->fit.blur_widths, RecoverSettings{}.white_blurred.blur_widths);
 }
 
 TEST(Schedule, ProxiedSlicesSkipTheModelCheck) {
-    Fixture f({0.5});
+    ScheduleFixture f({0.5});
     EXPECT_EQ(find<ModelCheckStage>(f.schedule(RecoverSettings{}, true)), nullptr);
 }
 
 TEST(Schedule, CalibrationAddsItsStagesAndResolvesTheLoopsDefaults) {
-    Fixture f({0.5, 0.6});
+    ScheduleFixture f({0.5, 0.6});
     RecoverSettings settings;
     settings.calibrate.sigma = true;
     EXPECT_EQ(order(f.schedule(settings)),
@@ -134,7 +134,7 @@ TEST(Schedule, CalibrationAddsItsStagesAndResolvesTheLoopsDefaults) {
 }
 
 TEST(Schedule, NoRefinementNoModelCheck) {
-    Fixture f({0.5});
+    ScheduleFixture f({0.5});
     RecoverSettings settings;
     settings.refine_iterations = 0;
     settings.blurred.blur_widths.clear();

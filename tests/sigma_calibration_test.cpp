@@ -21,14 +21,14 @@ namespace {
 // A 12² surface (±0.5 µm, correlation 4 texels) seen at 6 × 6 positions, one wavelength,
 // stated σ_p = 3 µm; rendered with σ_p · sigma_factor, each centre off by a Gaussian offset of
 // position_rms_texels per coordinate, each slice times an exposure in [exposure_min, max].
-struct Acquired {
+struct SigmaAcquired {
     Heightfield truth;
     std::vector<Observation> observations;
     std::vector<double> exposures;
     std::vector<std::array<double, 2>> offsets_um;
 };
 
-Acquired acquired(std::uint64_t seed, double sigma_factor, double position_rms_texels = 0.0, double exposure_min = 1.0,
+SigmaAcquired acquired_with_sigma(std::uint64_t seed, double sigma_factor, double position_rms_texels = 0.0, double exposure_min = 1.0,
                   double exposure_max = 1.0) {
     SurfaceParams p;
     p.rows = p.cols = 12;
@@ -36,7 +36,7 @@ Acquired acquired(std::uint64_t seed, double sigma_factor, double position_rms_t
     p.correlation_um = 8.0;
     p.rms_height_um = 1.0;
     p.seed = seed;
-    Acquired c{with_height_range(generate_heightfield(p), 1.0), {}, {}, {}};
+    SigmaAcquired c{with_height_range(generate_heightfield(p), 1.0), {}, {}, {}};
     AcquisitionErrors e;
     e.position_rms_texels = position_rms_texels;
     e.exposure_min = exposure_min;
@@ -68,7 +68,7 @@ Acquired acquired(std::uint64_t seed, double sigma_factor, double position_rms_t
     return c;
 }
 
-RecoverSettings quick() {
+RecoverSettings quick_sigma() {
     RecoverSettings s;
     s.blurred.blur_widths = {12.0, 4.0};
     s.blurred.iterations = 12;
@@ -82,7 +82,7 @@ RecoverSettings quick() {
 TEST(SigmaPresearch, FindsTheTrueScaleAtTheTrueHeights) {
     for (double factor : {1.3, 0.8}) {
         SCOPED_TRACE(factor);
-        const Acquired c = acquired(5611, factor, 0.0, 0.5, 2.0);  // (the search itself handles exposures)
+        const SigmaAcquired c = acquired_with_sigma(5611, factor, 0.0, 0.5, 2.0);  // (the search itself handles exposures)
         const Loss amplitude{LossKind::Amplitude, 1.0};
         const double n = double(c.observations.size());
         const double s = detail::presearch_sigma_scale(c.observations, n, c.truth, amplitude, true,
@@ -95,7 +95,7 @@ TEST(SigmaPresearch, FindsTheTrueScaleAtTheTrueHeights) {
                                                         serial_communicator());
         EXPECT_LT(at, 0.01 * stated);
     }
-    const Acquired c = acquired(5611, 1.0);
+    const SigmaAcquired c = acquired_with_sigma(5611, 1.0);
     EXPECT_THROW(detail::scaled_sigma_loss(c.observations, 36.0, c.truth, 0.0, Loss{}, false, serial_communicator()),
                  std::domain_error);
 }
@@ -103,8 +103,8 @@ TEST(SigmaPresearch, FindsTheTrueScaleAtTheTrueHeights) {
 // The field stage sees the σ_p found at the blurred heights: with σ_p 30 % larger than stated,
 // its heights (no refinement) are clearly better than with the stated σ_p.
 TEST(SigmaPresearch, TheFieldStageSeesTheRefinedSigma) {
-    const Acquired c = acquired(5612, 1.3);
-    RecoverSettings s = quick();
+    const SigmaAcquired c = acquired_with_sigma(5612, 1.3);
+    RecoverSettings s = quick_sigma();
     s.refine_iterations = 0;  // the field stage's (unwrapped) heights
     s.calibrate = parse_calibration("sigma");
     Calibration found;
@@ -124,8 +124,8 @@ TEST(SigmaPresearch, TheFieldStageSeesTheRefinedSigma) {
 // the calibration are the same bits on 1 and 2 threads. (Accuracy is measured at 32² through
 // the CLI, docs/recovery.md; this 12² tile with few iterations only checks the plumbing.)
 TEST(SigmaPresearch, AllCalibratesPositionsExposuresAndSigmaTogether) {
-    const Acquired c = acquired(5613, 1.2, 0.5, 0.5, 2.0);
-    RecoverSettings s = quick();
+    const SigmaAcquired c = acquired_with_sigma(5613, 1.2, 0.5, 0.5, 2.0);
+    RecoverSettings s = quick_sigma();
     s.blurred.iterations = 6;
     s.field.iterations = 8;
     s.refine_iterations = 6;
@@ -163,7 +163,7 @@ TEST(SigmaPresearch, AllCalibratesPositionsExposuresAndSigmaTogether) {
 // unwrapped ones) the second search about that biased answer finds the true scale, and
 // sigma_scale_moved says the field stage must run again.
 TEST(SigmaPresearch, TheSecondSearchAtBetterHeightsFindsTheTrueScale) {
-    const Acquired c = acquired(5614, 1.3);
+    const SigmaAcquired c = acquired_with_sigma(5614, 1.3);
     const Loss amplitude{LossKind::Amplitude, 1.0};
     const double n = double(c.observations.size());
     const int rows = c.truth.rows(), cols = c.truth.cols();
@@ -204,7 +204,7 @@ TEST(SigmaPresearch, WithExposuresTheGuardedSearchFindsTheTrueScale) {
     const Loss amplitude{LossKind::Amplitude, 1.0};
     for (double factor : {1.3, 1.0, 0.8}) {
         SCOPED_TRACE(factor);
-        const Acquired c = acquired(5615, factor, 0.0, 0.5, 2.0);
+        const SigmaAcquired c = acquired_with_sigma(5615, factor, 0.0, 0.5, 2.0);
         const double n = double(c.observations.size());
         const std::vector<double>& t = c.truth.values();
         const auto [lo, hi] = std::minmax_element(t.begin(), t.end());
@@ -223,7 +223,7 @@ TEST(SigmaPresearch, WithExposuresTheGuardedSearchFindsTheTrueScale) {
 // closed-form exposure of every slice is the exposure it was simulated with; at the stated
 // centres (1 texel off) it is not.
 TEST(ExposuresAt, TrueHeightsAndCentresGiveTheSimulatedExposures) {
-    const Acquired c = acquired(5621, 1.0, 1.0, 0.5, 2.0);
+    const SigmaAcquired c = acquired_with_sigma(5621, 1.0, 1.0, 0.5, 2.0);
     std::vector<std::size_t> index;
     const std::size_t positions = detail::gather_positions(c.observations, index, serial_communicator()).size();
     std::vector<double> offsets(2 * positions, 0.0);

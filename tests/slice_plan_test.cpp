@@ -18,7 +18,7 @@ using test::uniform_vector;
 
 namespace {
 
-RenderOptions with_path(RenderPath path) {
+RenderOptions with_plan_path(RenderPath path) {
     RenderOptions o;
     o.path = path;
     return o;
@@ -29,13 +29,13 @@ std::vector<Float> as(const std::vector<double>& v) {
     return std::vector<Float>(v.begin(), v.end());
 }
 
-struct Case {
+struct PlanCase {
     Model model;
     RenderPath path;
     std::vector<double> lambdas;
 };
 
-std::vector<Case> cases() {
+std::vector<PlanCase> plan_cases() {
     return {{Model::OHS, RenderPath::Auto, {0.5}},
             {Model::OHS, RenderPath::Auto, spectral_wavelengths_um(4)},
             {Model::ROHS, RenderPath::Separable, {0.45, 0.61}},
@@ -55,10 +55,10 @@ void expect_plan_matches_one_call_functions() {
     const Heightfield second = random_heightfield(20, 18, 0.3, 6, 0.8, 1.0);
     const int n = 20;
     const std::size_t pixels = static_cast<std::size_t>(n) * n;
-    for (const Case& c : cases()) {
+    for (const PlanCase& c : plan_cases()) {
         SCOPED_TRACE(std::string(to_string(c.model)) + " lambdas " + std::to_string(c.lambdas.size()));
         const Query q = make_query(c.model, 7.0, 9.5, 4.0, 0.15, -0.1);
-        const RenderOptions options = with_path(c.path);
+        const RenderOptions options = with_plan_path(c.path);
         SlicePlan<Float> plan(first, q, c.lambdas, n, 3, options);
         plan.set_heights(second.values());
         const std::vector<Float> rgb = plan.forward();
@@ -137,7 +137,7 @@ TEST(SlicePlanTest, AgreesWithTheDirectSum) {
         const std::vector<double> w = uniform_vector(static_cast<std::size_t>(n) * n, -1.0, 1.0, 5);
         std::vector<double> g, g_direct;
         plan.adjoint(w, g);
-        slice_gradient<double>(hf, q, 0.5, n, w, g_direct, with_path(RenderPath::Direct));
+        slice_gradient<double>(hf, q, 0.5, n, w, g_direct, with_plan_path(RenderPath::Direct));
         if (m != Model::GHS) {
             EXPECT_LT(test::max_abs_diff(g, g_direct), 1e-9 * test::max_abs(g_direct));
         }
@@ -155,7 +155,7 @@ TEST(SlicePlanTest, MatchesReportsItsArguments) {
     Query moved = q;
     moved.x_um = 9.0;
     EXPECT_FALSE(plan.matches(hf, moved, {0.5, 0.6}, 16, 3, {}));
-    EXPECT_FALSE(plan.matches(hf, q, {0.5, 0.6}, 16, 3, with_path(RenderPath::Direct)));
+    EXPECT_FALSE(plan.matches(hf, q, {0.5, 0.6}, 16, 3, with_plan_path(RenderPath::Direct)));
     EXPECT_EQ(plan.wavelengths(), 2u);
     EXPECT_EQ(plan.channels(), 3);
     EXPECT_EQ(plan.resolution(), 16);
@@ -175,8 +175,8 @@ TEST(SlicePlanTest, BadInputThrows) {
     test::expect_throw_naming<std::domain_error>([&] { SlicePlan<double>(hf, q, {0.5}, 0, 3); }, "resolution 0");
     // Every model has the separable and fft paths (c3_nodes_test).
     EXPECT_NO_THROW(
-        SlicePlan<double>(hf, make_query(Model::GHS, 8, 8, 4), {0.5}, 16, 3, with_path(RenderPath::Separable)));
-    EXPECT_NO_THROW(SlicePlan<double>(hf, make_query(Model::GHS, 8, 8, 4), {0.5}, 16, 3, with_path(RenderPath::Fft)));
+        SlicePlan<double>(hf, make_query(Model::GHS, 8, 8, 4), {0.5}, 16, 3, with_plan_path(RenderPath::Separable)));
+    EXPECT_NO_THROW(SlicePlan<double>(hf, make_query(Model::GHS, 8, 8, 4), {0.5}, 16, 3, with_plan_path(RenderPath::Fft)));
     SlicePlan<double> plan(hf, q, {0.5}, 16, 3);
     std::vector<double> g;
     test::expect_throw_naming<std::logic_error>([&] { plan.adjoint(std::vector<double>(16 * 16 * 3), g); },

@@ -33,7 +33,7 @@ void write_noise(const fs::path& path, double rms) {
     wavebrdf::write_heightfield_exr(path.string(), wavebrdf::Heightfield(32, 32, v, 1.0, 1.0), "test");
 }
 
-bool contains(const std::string& text, const std::string& needle) { return text.find(needle) != std::string::npos; }
+bool contains_text(const std::string& text, const std::string& needle) { return text.find(needle) != std::string::npos; }
 
 bool starts_with_line(const std::string& text, const std::string& line) { return text.rfind(line + "\n", 0) == 0; }
 
@@ -45,16 +45,16 @@ TEST(SurfaceCli, RenderWarnsOnHeightsInNanometres) {
     const CliResult r = run_cli(dir, "render --heightfield nm.exr --resolution 8 --sigma-p-um 4 --x-um 16 "
                                      "--y-um 16 --out o.exr --quiet");
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_TRUE(contains(r.err, "wavebrdf: warning: nm.exr: rms slope")) << r.err;
-    EXPECT_TRUE(contains(r.err, "heights are in nm")) << r.err;
+    EXPECT_TRUE(contains_text(r.err, "wavebrdf: warning: nm.exr: rms slope")) << r.err;
+    EXPECT_TRUE(contains_text(r.err, "heights are in nm")) << r.err;
     // The same surface in µm: the summary line, no warning.
     write_noise(dir / "um.exr", 0.05);
     const CliResult ok = run_cli(dir, "render --heightfield um.exr --resolution 8 --sigma-p-um 4 --x-um 16 "
                                       "--y-um 16 --out o2.exr");
     EXPECT_EQ(ok.exit_code, 0) << ok.err;
-    EXPECT_TRUE(contains(ok.err, "um.exr: rms height")) << ok.err;
-    EXPECT_TRUE(contains(ok.err, "phase rms")) << ok.err;
-    EXPECT_FALSE(contains(ok.err, "warning")) << ok.err;
+    EXPECT_TRUE(contains_text(ok.err, "um.exr: rms height")) << ok.err;
+    EXPECT_TRUE(contains_text(ok.err, "phase rms")) << ok.err;
+    EXPECT_FALSE(contains_text(ok.err, "warning")) << ok.err;
 }
 
 TEST(SurfaceCli, GenbrdfTableAndHeightfieldPrintTheUnitCheck) {
@@ -62,19 +62,19 @@ TEST(SurfaceCli, GenbrdfTableAndHeightfieldPrintTheUnitCheck) {
     write_noise(dir / "nm.exr", 50.0);
     const CliResult g = run_cli(dir, "genbrdf -i nm.exr -o g.exr -r 8 -l 0.5 -x 16 -y 16 -p 4 --quiet");
     EXPECT_EQ(g.exit_code, 0) << g.err;
-    EXPECT_TRUE(contains(g.err, "warning: nm.exr: rms slope")) << g.err;
+    EXPECT_TRUE(contains_text(g.err, "warning: nm.exr: rms slope")) << g.err;
     const CliResult t = run_cli(dir, "table --heightfield nm.exr --lights 2x2 --resolution 8 --sigma-p-um 4 --x-um 16 "
                                      "--y-um 16 --out t.exr --quiet");
-    EXPECT_TRUE(contains(t.err, "warning: nm.exr: rms slope")) << t.err;
+    EXPECT_TRUE(contains_text(t.err, "warning: nm.exr: rms slope")) << t.err;
     const CliResult h = run_cli(dir, "heightfield --size 32 --out h.exr --no-png --texel-um 0.5");
     EXPECT_EQ(h.exit_code, 0) << h.err;
-    EXPECT_TRUE(contains(h.err, "h.exr: rms height")) << h.err;
+    EXPECT_TRUE(contains_text(h.err, "h.exr: rms height")) << h.err;
 }
 
 namespace {
 
 // ../shared/real-surfaces/ beside the repository (or beside the worktree's parent), else "".
-fs::path shared_surfaces() {
+fs::path shared_surfaces_dir() {
     for (const fs::path& p : {fs::path(WAVEBRDF_SOURCE_DIR) / ".." / "shared" / "real-surfaces",
                               fs::path(WAVEBRDF_SOURCE_DIR) / ".." / ".." / "shared" / "real-surfaces"})
         if (fs::is_directory(p)) return fs::canonical(p);
@@ -84,7 +84,7 @@ fs::path shared_surfaces() {
 // `wavebrdf stats FILE ARGS --json` on a shared scan, parsed; skips the test when the scans are
 // absent or this build does not read the format yet.
 nlohmann::json shared_stats(const std::string& file, const std::string& args) {
-    const fs::path dir = shared_surfaces();
+    const fs::path dir = shared_surfaces_dir();
     if (dir.empty()) throw std::runtime_error("skip: ../shared/real-surfaces is absent");
     try {
         (void)wavebrdf::read_surface((dir / file).string());
@@ -125,7 +125,7 @@ TEST(SurfaceCli, StatsJsonOfACosine) {
     EXPECT_EQ(j.at("dx_um").get<double>(), 0.5);
     EXPECT_TRUE(starts_with_line(read_text(dir / "psd.csv"), "q_per_um,psd_um4,count"));
     EXPECT_TRUE(starts_with_line(read_text(dir / "acf.csv"), "lag_um,acf,count"));
-    EXPECT_TRUE(contains(r.err, "cos.txt: rms height")) << r.err;
+    EXPECT_TRUE(contains_text(r.err, "cos.txt: rms height")) << r.err;
 }
 
 TEST(SurfaceCli, StatsAndConvertRefuseUnmeasuredPointsUnlessFilled) {
@@ -146,10 +146,10 @@ TEST(SurfaceCli, StatsAndConvertRefuseUnmeasuredPointsUnlessFilled) {
     const CliResult ok = run_cli(dir, "convert holes.txt h.exr --spacing-um 1 --detrend plane --fill harmonic "
                                       "--periodic smooth");
     ASSERT_EQ(ok.exit_code, 0) << ok.err;
-    EXPECT_TRUE(contains(ok.err, "conditioning: detrend: a plane removed")) << ok.err;
-    EXPECT_TRUE(contains(ok.err, "conditioning: fill: 3 unmeasured points")) << ok.err;
-    EXPECT_TRUE(contains(ok.err, "seam slope ratio")) << ok.err;
-    EXPECT_TRUE(contains(ok.err, "h.exr: rms height")) << ok.err;
+    EXPECT_TRUE(contains_text(ok.err, "conditioning: detrend: a plane removed")) << ok.err;
+    EXPECT_TRUE(contains_text(ok.err, "conditioning: fill: 3 unmeasured points")) << ok.err;
+    EXPECT_TRUE(contains_text(ok.err, "seam slope ratio")) << ok.err;
+    EXPECT_TRUE(contains_text(ok.err, "h.exr: rms height")) << ok.err;
     const wavebrdf::MeasuredSurface back = wavebrdf::read_surface((dir / "h.exr").string());
     EXPECT_EQ(back.invalid_count(), 0u);
     // A plane with its plane removed: only the filled points' rounding is left.
@@ -172,10 +172,10 @@ TEST(SurfaceCli, RecoverConditionsAMeasuredTruth) {
                                      "--periodic smooth --sigma-p-um 3 --field-iterations 3 --refine-iterations 2 "
                                      "--no-plots --out run");
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_TRUE(contains(r.err, "conditioning: fill: 1 unmeasured points")) << r.err;
-    EXPECT_TRUE(contains(r.err, "t.txt: rms height")) << r.err;
+    EXPECT_TRUE(contains_text(r.err, "conditioning: fill: 1 unmeasured points")) << r.err;
+    EXPECT_TRUE(contains_text(r.err, "t.txt: rms height")) << r.err;
     const std::string run = read_text(dir / "run" / "run.json");
-    EXPECT_TRUE(contains(run, "truth conditioning: periodic")) << run;
+    EXPECT_TRUE(contains_text(run, "truth conditioning: periodic")) << run;
     expect_one_line_naming(run_cli(dir, "recover --fill nearest --out other --quiet"), {"--truth"});
 }
 

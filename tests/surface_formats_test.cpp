@@ -136,7 +136,7 @@ void expect_same_as_gwyddion(const std::string& path, const MeasuredSurface& s, 
     }
 }
 
-std::string temp_path(const std::string& name) {
+std::string temp_file(const std::string& name) {
     const fs::path dir = fs::path(WAVEBRDF_TEST_TMP) / "surface_formats" / std::to_string(::getpid());
     fs::create_directories(dir);
     return (dir / name).string();
@@ -244,7 +244,7 @@ TEST(SurfaceFileGwyddion, ReadsTheX3pAndSdfWeWrite) {
     for (bool with_nan : {false, true}) {
         const MeasuredSurface s = synthetic(with_nan);
         for (const char* ext : {".x3p", ".sdf"}) {
-            const std::string path = temp_path(std::string("ours") + (with_nan ? "_nan" : "") + ext);
+            const std::string path = temp_file(std::string("ours") + (with_nan ? "_nan" : "") + ext);
             write_surface(path, s);
             SCOPED_TRACE(path);
             expect_same_as_gwyddion(path, s, 1e-12);
@@ -264,13 +264,13 @@ TEST(SurfaceFileGwyddion, ReadsTheX3pAndSdfWeWrite) {
 TEST(SurfaceFileGwyddion, ReadsTheSdfSurAndTextGwyddionWrites) {
     REQUIRE_GWYDDION();
     const MeasuredSurface s = synthetic(false);
-    const std::string ours = temp_path("source.x3p");
+    const std::string ours = temp_file("source.x3p");
     write_surface(ours, s);
     const Moments m = moments(s);
     // Gwyddion's exports: SDF as text with 6 significant digits ("aBCR-0.0"), SUR as int32
     // counts of the range, the ASCII matrix with 5 significant digits (no spacing: given).
     for (const auto& [ext, rel] : std::map<std::string, double>{{".sdf", 1e-5}, {".sur", 1e-6}, {".txt", 1e-4}}) {
-        const std::string path = temp_path("gwyddion" + ext);
+        const std::string path = temp_file("gwyddion" + ext);
         ASSERT_FALSE(gwyddion_probe(ours, path).empty()) << "Gwyddion cannot write " << path;
         SCOPED_TRACE(path);
         const MeasuredSurface g = read_surface(path, s.dx_um);
@@ -326,7 +326,7 @@ TEST(SurfaceFileGwyddion, SeesTheSameSurfaceInEveryBinarySeed) {
 
 TEST(SurfaceFileX3p, RefusesDamageAndUnsupportedVariants) {
     const MeasuredSurface s = synthetic(false);
-    const std::string path = temp_path("good.x3p");
+    const std::string path = temp_file("good.x3p");
     write_surface(path, s);
     std::ifstream in(path, std::ios::binary);
     const std::string good((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -367,7 +367,7 @@ TEST(SurfaceFileSdf, ReadsTheStandardsAsciiExampleAndRefusesDamage) {
     huge_code.replace(huge_code.find("DataType = 7"), 12, "DataType = 1e300");
     expect_throw_naming<std::runtime_error>([&] { read_surface_bytes(huge_code, "h.sdf"); }, "expected a code 0 to 255");
     // Binary: what we write reads back; a short file is truncated.
-    const std::string path = temp_path("b.sdf");
+    const std::string path = temp_file("b.sdf");
     write_surface(path, synthetic(true));
     std::ifstream in(path, std::ios::binary);
     const std::string binary((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -14,11 +14,11 @@ using namespace wavebrdf;
 
 namespace {
 
-constexpr double pi = 3.14159265358979323846;
+constexpr double kPi = 3.14159265358979323846;
 
 // z(x, y) sampled at x = c · dx, y = r · dy.
 template <typename F>
-HeightGrid sample(int rows, int cols, double dx, double dy, F f) {
+HeightGrid sample_surface(int rows, int cols, double dx, double dy, F f) {
     HeightGrid g;
     g.rows = rows;
     g.cols = cols;
@@ -35,14 +35,14 @@ HeightGrid sample(int rows, int cols, double dx, double dy, F f) {
 // z = A cos(2π x / L) over whole periods, with a sample on each crest and trough.
 TEST(SurfaceStats, SinusoidAlongXHasItsClosedFormParameters) {
     const double a = 0.3, period = 16.0, dx = 0.5, dy = 0.7;
-    const HeightGrid g = sample(96, 256, dx, dy, [&](double x, double) { return a * std::cos(2 * pi * x / period); });
+    const HeightGrid g = sample_surface(96, 256, dx, dy, [&](double x, double) { return a * std::cos(2 * kPi * x / period); });
     const SurfaceParameters p = surface_parameters(g);
     EXPECT_NEAR(p.Sq, a / std::sqrt(2.0), 1e-12);
     // Sa: the mean of the sampled |cos| (32 points a period), and within 0.5 % of 2A/π.
     double sum_abs = 0.0;
-    for (int c = 0; c < 256; ++c) sum_abs += std::abs(a * std::cos(2 * pi * c * dx / period));
+    for (int c = 0; c < 256; ++c) sum_abs += std::abs(a * std::cos(2 * kPi * c * dx / period));
     EXPECT_NEAR(p.Sa, sum_abs / 256, 1e-12);
-    EXPECT_NEAR(p.Sa, 2 * a / pi, 5e-3 * a);
+    EXPECT_NEAR(p.Sa, 2 * a / kPi, 5e-3 * a);
     EXPECT_NEAR(p.Sp, a, 1e-12);
     EXPECT_NEAR(p.Sv, a, 1e-12);
     EXPECT_NEAR(p.Sz, 2 * a, 1e-12);
@@ -51,7 +51,7 @@ TEST(SurfaceStats, SinusoidAlongXHasItsClosedFormParameters) {
     // Forward differences of a cosine: rms 2A sin(k dx / 2) / (√2 dx) over whole periods (the
     // last column's pair is missing, 1/256 of them); the continuous value A k / √2 differs by
     // the factor sin(k dx/2) / (k dx/2) = 0.9984.
-    const double k = 2 * pi / period;
+    const double k = 2 * kPi / period;
     const double discrete = 2 * a * std::sin(k * dx / 2) / (std::sqrt(2.0) * dx);
     EXPECT_NEAR(p.Sdq, discrete, 3e-3 * discrete);
     EXPECT_NEAR(p.Sdq, a * k / std::sqrt(2.0), 5e-3 * discrete);
@@ -59,7 +59,7 @@ TEST(SurfaceStats, SinusoidAlongXHasItsClosedFormParameters) {
     double sum = 0.0;
     const int n = 100000;
     for (int m = 0; m < n; ++m) {
-        const double s = a * k * std::sin(2 * pi * (m + 0.5) / n);
+        const double s = a * k * std::sin(2 * kPi * (m + 0.5) / n);
         sum += std::sqrt(1 + s * s);
     }
     const double sdr = 100.0 * (sum / n - 1.0);
@@ -88,11 +88,11 @@ TEST(SurfaceStats, SinusoidAlongXHasItsClosedFormParameters) {
 }
 
 TEST(SurfaceStats, LayDirectionFollowsTheGrooves) {
-    const HeightGrid along_x = sample(128, 128, 1.0, 1.0, [](double, double y) { return std::cos(2 * pi * y / 8); });
+    const HeightGrid along_x = sample_surface(128, 128, 1.0, 1.0, [](double, double y) { return std::cos(2 * kPi * y / 8); });
     EXPECT_NEAR(surface_parameters(along_x).Std, 0.0, 0.5);
     // Varying along (1, 1): the grooves run along (1, −1), i.e. at 135°.
     const HeightGrid diagonal =
-        sample(128, 128, 1.0, 1.0, [](double x, double y) { return std::cos(2 * pi * (x + y) / 16); });
+        sample_surface(128, 128, 1.0, 1.0, [](double x, double y) { return std::cos(2 * kPi * (x + y) / 16); });
     EXPECT_NEAR(surface_parameters(diagonal).Std, 135.0, 0.5);
 }
 
@@ -102,20 +102,20 @@ TEST(SurfaceStats, GaussianBumpOnNonSquareSpacing) {
     const double h = 0.2, s = 6.0, dx = 0.5, dy = 0.8;
     const int rows = 100, cols = 160;
     const double x0 = cols * dx / 2, y0 = rows * dy / 2;
-    const HeightGrid g = sample(rows, cols, dx, dy, [&](double x, double y) {
+    const HeightGrid g = sample_surface(rows, cols, dx, dy, [&](double x, double y) {
         const double r2 = (x - x0) * (x - x0) + (y - y0) * (y - y0);
         return h * std::exp(-r2 / (2 * s * s));
     });
     const SurfaceParameters p = surface_parameters(g);
     const double area = rows * dx * cols * dy;
-    const double mean = 2 * pi * s * s * h / area;
-    EXPECT_NEAR(p.Sq, std::sqrt(pi * s * s * h * h / area - mean * mean), 1e-6);
+    const double mean = 2 * kPi * s * s * h / area;
+    EXPECT_NEAR(p.Sq, std::sqrt(kPi * s * s * h * h / area - mean * mean), 1e-6);
     EXPECT_NEAR(p.Sp, h - mean, 1e-3 * h);
     EXPECT_NEAR(p.Sv, mean, 1e-9);
     // Forward differences of a bump sampled at s/dx = 12 and s/dy = 7.5 points, averaged over
     // the (rows − 1)(cols − 1) points that have both: within 0.5 % of π h² over their area.
     const double cells = (rows - 1) * dx * (cols - 1) * dy;
-    EXPECT_NEAR(p.Sdq, std::sqrt(pi * h * h / cells), 5e-3 * std::sqrt(pi * h * h / cells));
+    EXPECT_NEAR(p.Sdq, std::sqrt(kPi * h * h / cells), 5e-3 * std::sqrt(kPi * h * h / cells));
     // A round bump correlates alike in every direction whatever the spacing (a mix-up of dx
     // and dy would give Str ≈ dy/dx or dx/dy).
     EXPECT_GT(p.Str, 0.9);
@@ -124,33 +124,33 @@ TEST(SurfaceStats, GaussianBumpOnNonSquareSpacing) {
 TEST(SurfaceStats, PsdSumsToTheVarianceAndPeaksAtTheSinusoid) {
     std::mt19937 rng(7);
     std::normal_distribution<double> normal(0.0, 0.05);
-    const HeightGrid noise = sample(64, 80, 0.3, 0.45, [&](double, double) { return 1.0 + normal(rng); });
+    const HeightGrid noise = sample_surface(64, 80, 0.3, 0.45, [&](double, double) { return 1.0 + normal(rng); });
     const Spectrum2d c = power_spectrum_2d(noise);
     double sum = 0.0;
     for (const double v : c.values) sum += v;
     const double sq = surface_parameters(noise).Sq;
-    EXPECT_NEAR(sum * c.step_x * c.step_y / (4 * pi * pi), sq * sq, 1e-12 * sq * sq);
+    EXPECT_NEAR(sum * c.step_x * c.step_y / (4 * kPi * kPi), sq * sq, 1e-12 * sq * sq);
 
     const double period = 8.0;
-    const HeightGrid wave = sample(64, 64, 0.5, 0.5, [&](double x, double) { return std::sin(2 * pi * x / period); });
+    const HeightGrid wave = sample_surface(64, 64, 0.5, 0.5, [&](double x, double) { return std::sin(2 * kPi * x / period); });
     const RadialProfile radial = radial_power_spectrum(wave);
     std::size_t best = 0;
     for (std::size_t k = 0; k < radial.value.size(); ++k)
         if (radial.value[k] > radial.value[best]) best = k;
     // The peak's ring holds 2π/L (bins one Δq wide, centred on multiples of Δq).
-    EXPECT_NEAR(radial.r[best], 2 * pi / period, 0.5 * 2 * pi / (64 * 0.5));
+    EXPECT_NEAR(radial.r[best], 2 * kPi / period, 0.5 * 2 * kPi / (64 * 0.5));
     // Its 2-D PSD holds the power at (0, ±k) alone, centred at (rows/2, cols/2 ± 4).
     const Spectrum2d c2 = power_spectrum_2d(wave);
     const double peak = c2.values[32 * 64 + 36];
     EXPECT_GT(peak, 0.0);
     EXPECT_NEAR(c2.values[32 * 64 + 28], peak, 1e-9 * peak);
-    EXPECT_NEAR(peak * 2 * c2.step_x * c2.step_y / (4 * pi * pi), 0.5, 1e-9);
+    EXPECT_NEAR(peak * 2 * c2.step_x * c2.step_y / (4 * kPi * kPi), 0.5, 1e-9);
 }
 
 TEST(SurfaceStats, AcfIsOneAtZeroLagAndMatchesADirectSum) {
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    const HeightGrid g = sample(9, 7, 1.0, 2.0, [&](double, double) { return u(rng); });
+    const HeightGrid g = sample_surface(9, 7, 1.0, 2.0, [&](double, double) { return u(rng); });
     const Spectrum2d acf = autocorrelation_2d(g);
     ASSERT_EQ(acf.rows, 17);
     ASSERT_EQ(acf.cols, 13);
@@ -178,7 +178,7 @@ TEST(SurfaceStats, AcfIsOneAtZeroLagAndMatchesADirectSum) {
 }
 
 TEST(SurfaceStats, FlatAndBadInputs) {
-    const HeightGrid flat = sample(8, 8, 1.0, 1.0, [](double, double) { return 2.5; });
+    const HeightGrid flat = sample_surface(8, 8, 1.0, 1.0, [](double, double) { return 2.5; });
     const SurfaceParameters p = surface_parameters(flat);
     EXPECT_EQ(p.Sq, 0.0);
     EXPECT_EQ(p.Sdr, 0.0);
@@ -193,7 +193,7 @@ TEST(SurfaceStats, FlatAndBadInputs) {
     } catch (const std::invalid_argument& e) {
         EXPECT_NE(std::string(e.what()).find("2 points"), std::string::npos) << e.what();
     }
-    HeightGrid thin = sample(1, 8, 1.0, 1.0, [](double, double) { return 0.0; });
+    HeightGrid thin = sample_surface(1, 8, 1.0, 1.0, [](double, double) { return 0.0; });
     EXPECT_THROW(surface_parameters(thin), std::invalid_argument);
     HeightGrid spacing = flat;
     spacing.dx_um = 0.0;
@@ -205,7 +205,7 @@ TEST(SurfaceStats, HeightfieldIsTransposedIntoTheImageFrame) {
     // along y, Std 90°.
     std::vector<double> v(64 * 32);
     for (int i = 0; i < 64; ++i)
-        for (int j = 0; j < 32; ++j) v[static_cast<std::size_t>(i) * 32 + j] = std::cos(2 * pi * i / 8.0);
+        for (int j = 0; j < 32; ++j) v[static_cast<std::size_t>(i) * 32 + j] = std::cos(2 * kPi * i / 8.0);
     const Heightfield hf(64, 32, v, 0.5, 0.1);
     const HeightGrid g = height_grid(hf);
     EXPECT_EQ(g.rows, 32);
@@ -228,7 +228,7 @@ TEST(UnitCheck, NanometreHeightsWarn) {
     // The same in µm: no warning, and the phase is 4π Sq / λ.
     const UnitCheck um = check_units(Heightfield(32, 32, v, 1.0, 1e-3), 0.5);
     EXPECT_TRUE(um.warnings.empty());
-    EXPECT_NEAR(um.phase_rms_rad, 4 * pi * um.rms_height_um / 0.5, 1e-12);
+    EXPECT_NEAR(um.phase_rms_rad, 4 * kPi * um.rms_height_um / 0.5, 1e-12);
     // In metres: a mirror.
     const UnitCheck m = check_units(Heightfield(32, 32, v, 1.0, 1e-6), 0.5);  // 5e-5 um rms
     ASSERT_EQ(m.warnings.size(), 1u);
@@ -248,12 +248,12 @@ TEST(UnitCheck, FootprintCheckSeesOnlyTheFootprintsTexels) {
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
             const bool near = std::abs(i - cx) <= 3 * sigma_p + 2 && std::abs(j - cy) <= 3 * sigma_p + 2;
-            v[static_cast<std::size_t>(i) * n + j] = near ? A * std::cos(2 * pi * j / 8.0) : 1e6;
+            v[static_cast<std::size_t>(i) * n + j] = near ? A * std::cos(2 * kPi * j / 8.0) : 1e6;
         }
     const Heightfield hf(n, n, v, 1.0, 1.0);
     const UnitCheck c = check_units_footprint(hf, cx, cy, sigma_p, 0.5);
     EXPECT_NEAR(c.rms_height_um, A / std::sqrt(2.0), 0.03 * A / std::sqrt(2.0));
-    EXPECT_NEAR(c.rms_slope, A * std::sin(2 * pi / 8.0) / 2.0, 0.03 * A * std::sin(2 * pi / 8.0) / 2.0);
+    EXPECT_NEAR(c.rms_slope, A * std::sin(2 * kPi / 8.0) / 2.0, 0.03 * A * std::sin(2 * kPi / 8.0) / 2.0);
     EXPECT_TRUE(c.warnings.empty());
     // The whole tile is another surface altogether.
     EXPECT_GT(check_units(hf, 0.5).rms_height_um, 1e5);

@@ -62,7 +62,7 @@ struct Measured {
 // Runs `read` here, with this process's peak resident size reset first (/proc/self/clear_refs;
 // a forked child would find OpenEXR's and OpenMP's thread pools without their threads), so the
 // peak it reports is what `read` itself made resident: the other threads are idle meanwhile.
-Measured measure(const std::function<void()>& read) {
+Measured measure_read(const std::function<void()>& read) {
     { std::ofstream("/proc/self/clear_refs") << "5"; }
     const long before = status_kib("VmRSS:");
     Measured r;
@@ -106,7 +106,7 @@ TEST(ExrBound, PixelDataLargerThanTheFileCanHoldIsRefusedBeforeAllocating) {
              {"read_heightfield_exr", [&] { read_heightfield_exr(cut); }},
              {"read_brdf_table", [&] { read_brdf_table(cut); }}}) {
         SCOPED_TRACE(what);
-        const Measured r = measure(read);
+        const Measured r = measure_read(read);
         EXPECT_NE(r.message.find("more than its " + std::to_string(size / 4) + " bytes can hold"), std::string::npos)
             << r.message;
         if (kMeasuresMemory) {
@@ -121,7 +121,7 @@ TEST(TableFile, IsReadOnceAndOnlyAfterItsAttributes) {
     const fs::path dir = test::fresh_dir("traps");
     const std::string plain = (dir / "plain.exr").string(), table_path = (dir / "table.exr").string();
     write_zero_exr(plain, kSide);  // an RGB image without a table's attributes
-    const Measured refused = measure([&] { read_brdf_table(plain); });
+    const Measured refused = measure_read([&] { read_brdf_table(plain); });
     EXPECT_NE(refused.message.find("wavebrdf:kind"), std::string::npos) << refused.message;
     if (kMeasuresMemory) {
         EXPECT_LT(refused.grown_bytes, 0.25 * kImageBytes) << "the pixels were read before the attributes";
@@ -141,7 +141,7 @@ TEST(TableFile, IsReadOnceAndOnlyAfterItsAttributes) {
         for (std::size_t k = 0; k < t.values.size(); k += 7) t.values[k] = float(k % 1000) * 1e-3f;
         write_brdf_table(table_path, t);
     }
-    const Measured read = measure([&] {
+    const Measured read = measure_read([&] {
         const BrdfTable back = read_brdf_table(table_path);
         if (back.values.size() != std::size_t(kImageBytes / sizeof(float)) || back.values[7] != float(7) * 1e-3f)
             throw std::runtime_error("wrong values");

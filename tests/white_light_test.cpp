@@ -21,14 +21,14 @@ namespace {
 // A 12 × 12 isotropic surface (correlation 4 texels, max |H| = 0.5 µm), and its observations
 // at 6 × 6 jittered positions (σ_p 3 µm, 78 % overlap): RGB slices of `spectral` wavelengths,
 // plus laser slices at `laser` wavelengths.
-struct Case {
+struct WhiteCase {
     Heightfield truth;
     std::vector<Observation> observations;
 };
 
-Case white_case(std::uint64_t seed, int spectral, const std::vector<double>& laser, int resolution) {
+WhiteCase white_case(std::uint64_t seed, int spectral, const std::vector<double>& laser, int resolution) {
     const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
-    Case c{surface, {}};
+    WhiteCase c{surface, {}};
     std::mt19937_64 rng(seed + 100);
     std::uniform_real_distribution<double> jitter(-0.2, 0.2);
     std::vector<std::vector<double>> sets;
@@ -64,7 +64,7 @@ RecoverSettings quick_white_settings() {
 // no field stage runs. Small settings (4 wavelengths, 10 iterations per smoothness weight, 15
 // refinement iterations: ≈ 1 s user CPU) set here explicitly.
 TEST(WhiteLight, RecoversASmallSurfaceFromRgbSlicesOnly) {
-    const Case c = white_case(5411, 4, {}, 32);
+    const WhiteCase c = white_case(5411, 4, {}, 32);
     RecoverSettings s = quick_white_settings();
     s.white_smoothness = {10.0, 1.0, 0.1, 0.01};
     s.white_smoothness_iterations = 10;
@@ -91,7 +91,7 @@ TEST(WhiteLight, RecoversASmallSurfaceFromRgbSlicesOnly) {
 
 // Laser and RGB slices together: the laser ones feed the field stage, all the refinement.
 TEST(WhiteLight, MixedSetRunsTheFieldStageOnTheLaserSlices) {
-    const Case c = white_case(5412, 4, {0.5}, 32);
+    const WhiteCase c = white_case(5412, 4, {0.5}, 32);
     RecoverSettings s;
     s.blurred.blur_widths = {12.0, 4.0};
     s.blurred.iterations = 15;
