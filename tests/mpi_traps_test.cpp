@@ -18,7 +18,7 @@ namespace wavebrdf::test {
 namespace {
 
 // Rank 0 runs `wavebrdf first…`, rank 1 `wavebrdf second…` (each list starts with the command).
-CliResult run_two(const fs::path& dir, const std::vector<std::string>& first, const std::vector<std::string>& second) {
+CliResult run_two_ranks(const fs::path& dir, const std::vector<std::string>& first, const std::vector<std::string>& second) {
     std::vector<std::string> argv{"/usr/bin/timeout", "120", WAVEBRDF_MPIEXEC, "-q", "--oversubscribe",
                                   "--bind-to",        "none"};
     bool later = false;  // first and second may be the same vector
@@ -31,7 +31,7 @@ CliResult run_two(const fs::path& dir, const std::vector<std::string>& first, co
     return spawn_in(dir, argv, mpi_environment(1));
 }
 
-void expect_one_error(const CliResult& r, const std::string& needle) {
+void expect_one_error_line(const CliResult& r, const std::string& needle) {
     EXPECT_NE(r.exit_code, 0);
     EXPECT_NE(r.exit_code, 124) << "the ranks hung (timeout)";
     EXPECT_EQ(r.err.find("MPI_ERR"), std::string::npos) << r.err;
@@ -45,7 +45,7 @@ void expect_one_error(const CliResult& r, const std::string& needle) {
     EXPECT_EQ(lines.size(), 1u) << r.err;
 }
 
-std::vector<std::string> with(std::vector<std::string> base, const std::vector<std::string>& extra) {
+std::vector<std::string> with_args(std::vector<std::string> base, const std::vector<std::string>& extra) {
     base.insert(base.end(), extra.begin(), extra.end());
     return base;
 }
@@ -56,13 +56,13 @@ const std::vector<std::string> kInvert = {"invert",     "--size",  "8",         
 
 TEST(MpiTraps, InvertRanksGivenDifferentOptionsOrInputsRefuseToRun) {
     const fs::path dir = fresh_dir("mpi_traps");
-    expect_one_error(run_two(dir, with(kInvert, {"--seed", "1"}), with(kInvert, {"--seed", "2"})),
+    expect_one_error_line(run_two_ranks(dir, with_args(kInvert, {"--seed", "1"}), with_args(kInvert, {"--seed", "2"})),
                      "the ranks were given different options or inputs");
-    expect_one_error(run_two(dir, with(kInvert, {"--lr", "0.01"}), with(kInvert, {"--lr", "0.02"})),
+    expect_one_error_line(run_two_ranks(dir, with_args(kInvert, {"--lr", "0.01"}), with_args(kInvert, {"--lr", "0.02"})),
                      "the ranks were given different options or inputs");
     EXPECT_FALSE(fs::exists(dir / "run" / "metrics.csv"));
     // The same job on both: it runs.
-    const CliResult same = run_two(dir, kInvert, kInvert);
+    const CliResult same = run_two_ranks(dir, kInvert, kInvert);
     EXPECT_EQ(same.exit_code, 0) << same.err << same.out;
 }
 
@@ -75,10 +75,10 @@ TEST(MpiTraps, TableRanksGivenDifferentSurfacesRefuseToRun) {
                   0);
     const std::vector<std::string> table = {"table",      "--sigma-p-um", "3",   "--lights", "3x3", "--resolution",
                                             "8",          "--quiet",      "--out", "t.exr",   "--heightfield"};
-    expect_one_error(run_two(dir, with(table, {"h1.exr"}), with(table, {"h2.exr"})),
+    expect_one_error_line(run_two_ranks(dir, with_args(table, {"h1.exr"}), with_args(table, {"h2.exr"})),
                      "the ranks were given different slices to render");
     EXPECT_FALSE(fs::exists(dir / "t.exr"));
-    const CliResult same = run_two(dir, with(table, {"h1.exr"}), with(table, {"h1.exr"}));
+    const CliResult same = run_two_ranks(dir, with_args(table, {"h1.exr"}), with_args(table, {"h1.exr"}));
     EXPECT_EQ(same.exit_code, 0) << same.err << same.out;
 }
 
@@ -88,7 +88,7 @@ TEST(MpiTraps, OneRankThatFailsAloneStopsEveryRank) {
     ASSERT_EQ(run_cli(dir, "heightfield --size 16 --out h.exr --no-png --quiet").exit_code, 0);
     const std::vector<std::string> table = {"table", "--heightfield", "h.exr", "--sigma-p-um", "3",     "--lights",
                                             "3x3",   "--resolution",  "8",     "--quiet",      "--out", "t.exr"};
-    expect_one_error(run_two(dir, table, with(table, {"--max-memory-gb", "1e-6"})), "--max-memory-gb");
+    expect_one_error_line(run_two_ranks(dir, table, with_args(table, {"--max-memory-gb", "1e-6"})), "--max-memory-gb");
     EXPECT_FALSE(fs::exists(dir / "t.exr"));
     const std::vector<std::string> given = {"invert", "--size",    "8",       "--epochs", "3", "--no-plots",
                                             "--quiet", "--out",    "given",   "--observations"};
@@ -97,7 +97,7 @@ TEST(MpiTraps, OneRankThatFailsAloneStopsEveryRank) {
                            "--out made")
                   .exit_code,
               0);
-    expect_one_error(run_two(dir, with(given, {"o.json"}), with(given, {"nope.json"})), "nope.json");
+    expect_one_error_line(run_two_ranks(dir, with_args(given, {"o.json"}), with_args(given, {"nope.json"})), "nope.json");
     EXPECT_FALSE(fs::exists(dir / "given" / "metrics.csv"));
 }
 
@@ -126,7 +126,8 @@ TEST(MpiTraps, SigtermStopsEveryRankWithAMessage) {
              {"invert --size 8 --sigma-p-um 2 --resolution 8 --epochs 10000000 --no-plots --quiet "
               "--checkpoint-every 5 --out run",
               "by SIGTERM; checkpoint written"},
-             {"recover --size 96 --seed 2 --no-plots --quiet --out run",
+             // 48²: run.json (the signal's cue) comes after seconds, the run itself takes minutes.
+             {"recover --size 48 --seed 2 --no-plots --quiet --out run",
               "stopped by SIGTERM before the run finished"}}) {
         SCOPED_TRACE(args);
         fs::remove_all(dir / "run");
