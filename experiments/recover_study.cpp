@@ -7,35 +7,33 @@
 //     size=32 texel_um=2 corr_texels=4 max_height_um=1 seed=1
 //     sigma_p_um=3 step_um=3 jitter=0.2 resolution=96 lambdas=0.5,0.55,0.65
 //     (recovery, defaults from RecoverSettings:) refine blur_iters blurs=16,8,4 blur_wavelengths
-//     field_iters refine_iters unwrap=spatial|blurred cascade=1 max_range_um field_lambda_min_um
+//     field_iters refine_iters max_range_um field_lambda_min_um
 //     (baselines on the same data:) baseline_epochs=0 direct_iters=0   quiet=0
 //     (self-calibration:) planner=0 (1: plan_acquisition's positions, σ_p and wavelengths at
 //     `resolution`, seeded by seed) position_error_texels=0 (each position's true centre off by a
 //     Gaussian of this rms per coordinate, all wavelengths alike; the recovery gets the stated
 //     ones) zero_mean_errors=0 (1: the drawn offsets' mean removed) calibrate=none|positions
-//     (position outer loop, docs/recovery.md round 5:) outer_passes register_radius outer_tolerance
-//     outer_fields=1 outer_field_iters=20 outer_refine_iters=0 (later passes' iterations; 0: the
+//     (position outer loop:) outer_passes outer_tolerance
+//     outer_field_iters=20 outer_refine_iters=0 (later passes' iterations; 0: the
 //     first's) register_check=0 (1: after the run, register every position at the final
 //     heights from the calibrated offsets and print the offsets' error before and after: REGISTER)
 //     save=PREFIX (write PREFIX_estimate.npy and PREFIX_truth.npy, heights in µm, for analysis)
-//     (round 8:) outer_smooth=1 (K ≥ 1: the outer loop removes the smooth part of every
-//     registration's update, 1 affine, K ≥ 2 bilinear on K × K nodes) warp_metric=1 (the WARP
+//     warp_metric=1 (the WARP
 //     line: the error on the inner texels with the best-fit translation / 6 × 6-node warp of the
 //     truth removed, a diagnostic beside rel_rmse)
 //     stall_diag=0 (per-position table, PREFIX_positions.csv)
-//     rescue_factor=20 rescue_radius=4 rescue_step=0.125 (round 10: positions with loss > factor ×
-//     median searched ± radius, coarse grid 2·step; 0: off) rescue_centre=1 (round 14: also about the
-//     stated centre where the offset is > radius/2 from it)
-//     register_newton=1 newton_step=0.25 newton_cap=0.5 (round 11: Newton steps on every position
-//     after each registration, 2 × 2 Hessian by central differences ± step, step capped)
-//     field_below=0.05 (round 11: a later pass skips the field stage when its registration moved < this)
-//     stall_passes=2 stall_tolerance=-1 (round 12b: the loop stops after N passes in a row without
+//     rescue_factor=20 rescue_radius=4 rescue_step=0.125 (positions with loss > factor ×
+//     median searched ± radius, coarse grid 2·step; 0: off)
+//     field_below=0.05 (a later pass skips the field stage when its registration moved < this)
+//     stall_passes=2 stall_tolerance=-1 (the loop stops after N passes in a row without
 //     the field stage that lowered stage 3's loss by less than the tolerance; 0: off; -1: default)
-//     stall_median=1 (round 14: the rule on the median position's loss at the start of a pass; 0:
-//     on stage 3's loss, round 12b)
-//     (the outer loop's knobs default to RecoverSettings', round 12b: on with calibrate=positions)
-//     exposures_held=1 (with positions and exposures calibrated, the field stage at
-//     held exposures; 0: its own energy ratio per evaluation, as before round 13)
+//     stall_median=1 (the rule on the median position's loss at the start of a pass; 0:
+//     on stage 3's loss)
+//     (the outer loop's knobs default to RecoverSettings': on with calibrate=positions)
+//   Options of studies whose alternative left the library (the default kept, as a constant):
+//   unwrap=blurred, cascade=0, field_passes, blur_spacing, register_radius, outer_fields,
+//   outer_smooth, rescue_centre, register_newton, newton_step, newton_cap, exposures_held; their
+//   measurements are in experiments/2026-11-23-position-calibration.md and recover_study.md.
 // Prints one line per reported step (stage, iteration, loss, seconds, height_rel_rmse) unless
 // quiet, then a summary line "RESULT key=value ...".
 #include <algorithm>
@@ -324,15 +322,9 @@ int main(int argc, char** argv) try {
     set_int("blur_iters", rs.blurred.iterations);
     set_int("blur_wavelengths", rs.blur_wavelengths);
     set_int("refine_iters", rs.refine_iterations);
-    set_int("field_passes", rs.field_passes);
     if (args.count("blurs")) rs.blurred.blur_widths = parse_list(args["blurs"]);
-    if (args.count("unwrap")) rs.unwrap_from_blurred = args["unwrap"] == "blurred";
-    if (args.count("cascade")) rs.cascade = args["cascade"] == "1";
-    if (args.count("blur_spacing")) rs.blur_spacing_sigma = std::stod(args["blur_spacing"]);
     set_int("outer_passes", rs.position_outer_passes);
-    if (args.count("register_radius")) rs.position_register_radius_texels = std::stod(args["register_radius"]);
     if (args.count("outer_tolerance")) rs.position_outer_tolerance_texels = std::stod(args["outer_tolerance"]);
-    if (args.count("outer_fields")) rs.position_outer_fields = args["outer_fields"] == "1";
     set_int("outer_field_iters", rs.position_outer_field_iterations);
     set_int("outer_refine_iters", rs.position_outer_refine_iterations);
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
@@ -342,19 +334,13 @@ int main(int argc, char** argv) try {
     // registration's update (recover_positions.h). Rounds 10–12b: the rescue, the Newton step,
     // the field stage's skip and the stall rule (RecoverSettings since round 12b; the library's
     // defaults unless given).
-    set_int("outer_smooth", rs.position_outer_smooth_nodes);
     if (args.count("rescue_factor")) rs.position_rescue_factor = std::stod(args["rescue_factor"]);
     if (args.count("rescue_radius")) rs.position_rescue_radius_texels = std::stod(args["rescue_radius"]);
     if (args.count("rescue_step")) rs.position_rescue_step_texels = std::stod(args["rescue_step"]);
-    if (args.count("rescue_centre")) rs.position_rescue_from_centre = args["rescue_centre"] == "1";
-    set_int("register_newton", rs.position_register_newton_steps);
-    if (args.count("newton_step")) rs.position_newton_step_texels = std::stod(args["newton_step"]);
-    if (args.count("newton_cap")) rs.position_newton_cap_texels = std::stod(args["newton_cap"]);
-    if (args.count("field_below")) rs.position_outer_field_below_texels = std::stod(args["field_below"]);
     set_int("stall_passes", rs.position_outer_stall_passes);
     if (args.count("stall_tolerance")) rs.position_outer_stall_tolerance = std::stod(args["stall_tolerance"]);
+    if (args.count("field_below")) rs.position_outer_field_below_texels = std::stod(args["field_below"]);
     if (args.count("stall_median")) rs.position_outer_stall_median = args["stall_median"] == "1";
-    if (args.count("exposures_held")) rs.field_exposures_held = args["exposures_held"] == "1";
     Calibration calibration;
     double blur_s = 0, blur_rmse = -1, field_s = 0, unwrap_rmse = -1, field_end = 0;
     std::string last_stage;
@@ -463,10 +449,8 @@ int main(int argc, char** argv) try {
         std::vector<double> registered = found;
         detail::register_positions(observations, index, estimate, rs, sigma_scale, radius, 0.5, registered,
                                    serial_communicator());
-        for (int k = 0; k < rs.position_register_newton_steps; ++k)  // round 11
-            detail::newton_register_positions(observations, index, estimate, rs, sigma_scale,
-                                              rs.position_newton_step_texels, rs.position_newton_cap_texels,
-                                              registered, serial_communicator());
+        detail::newton_register_positions(observations, index, estimate, rs, sigma_scale, detail::k_newton_step_texels,
+                                          detail::k_newton_cap_texels, registered, serial_communicator());
         // loss(heights, offsets per position (µm), shift in texels) per position.
         const auto losses = [&](const Heightfield& hf, const std::vector<double>& off, double sx, double sy) {
             std::vector<double> l(count, 0.0);

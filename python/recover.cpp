@@ -18,8 +18,7 @@ void bind_recover(py::module_& m) {
         "recover_heights",
         [](const py::object& observations, const py::object& size, double texel_um, double vscale,
            const py::object& truth, const std::vector<double>& blur_widths, int blur_iterations, int blur_wavelengths,
-           double blur_spacing_sigma, const py::object& field_iterations, int field_passes, bool cascade,
-           bool band_limit, int refine, const py::object& max_range_um, bool unwrap_from_blurred,
+           const py::object& field_iterations, bool band_limit, int refine, const py::object& max_range_um,
            const py::object& refine_iterations, int refine_history,
            const py::object& refine_loss, const py::object& callback, const py::object& comm_arg,
            const py::object& calibrate, int field_tile_threshold, int field_tile_core,
@@ -40,19 +39,12 @@ void bind_recover(py::module_& m) {
             if (blur_wavelengths < 0)
                 bad_argument("blur_wavelengths", std::to_string(blur_wavelengths), ">= 0 (0: all)");
             s.blur_wavelengths = blur_wavelengths;
-            if (!std::isfinite(blur_spacing_sigma) || blur_spacing_sigma < 0.0)
-                bad_argument("blur_spacing_sigma", format_number(blur_spacing_sigma), ">= 0 (0: all positions)");
-            s.blur_spacing_sigma = blur_spacing_sigma;
             s.field.iterations = optional_count(field_iterations, "field_iterations");
-            if (field_passes < 1) bad_argument("field_passes", std::to_string(field_passes), ">= 1");
-            s.field_passes = field_passes;
-            s.cascade = cascade;
             s.field.band_limit = band_limit;
             if (refine < 0 || (refine > 0 && refine % 2 == 0) || refine > 63)
                 bad_argument("refine", std::to_string(refine), "0 (automatic) or an odd object-grid refinement 1...63");
             s.refine = refine;
             if (!max_range_um.is_none()) s.height_range_um = check_positive(max_range_um.cast<double>(), "max_range_um");
-            s.unwrap_from_blurred = unwrap_from_blurred;
             s.refine_iterations = optional_count(refine_iterations, "refine_iterations");
             if (refine_history < 1) bad_argument("refine_history", std::to_string(refine_history), ">= 1");
             s.refine_history = refine_history;
@@ -82,10 +74,9 @@ void bind_recover(py::module_& m) {
         },
         "observations"_a, "size"_a, "texel_um"_a, "vscale"_a = 1.0, py::kw_only(), "truth"_a = py::none(),
         "blur_widths"_a = rs.blurred.blur_widths, "blur_iterations"_a = rs.blurred.iterations,
-        "blur_wavelengths"_a = rs.blur_wavelengths, "blur_spacing_sigma"_a = rs.blur_spacing_sigma,
-        "field_iterations"_a = py::none(), "field_passes"_a = rs.field_passes, "cascade"_a = rs.cascade,
+        "blur_wavelengths"_a = rs.blur_wavelengths, "field_iterations"_a = py::none(),
         "band_limit"_a = rs.field.band_limit, "refine"_a = rs.refine, "max_range_um"_a = py::none(),
-        "unwrap_from_blurred"_a = rs.unwrap_from_blurred, "refine_iterations"_a = py::none(),
+        "refine_iterations"_a = py::none(),
         "refine_history"_a = rs.refine_history, "refine_loss"_a = to_string(rs.refine_loss), "callback"_a = py::none(),
         "comm"_a = py::none(), "calibrate"_a = py::none(), "field_tile_threshold"_a = rs.field_tile_threshold,
         "field_tile_core"_a = rs.field_tile_core, "white_smoothness"_a = rs.white_smoothness,
@@ -100,15 +91,14 @@ every default is the schedule `wavebrdf recover` and recover() run for a smooth 
 blur_widths         blurred fit: blur widths in footprint lobes, widest first ([] : start the
                     fields from flat); blur_iterations: L-BFGS per width (>= 0)
 blur_wavelengths    the blurred fit uses this many longest wavelengths (0: all), at positions
-                    at least blur_spacing_sigma sigma_p apart (0: all)
+                    at least 2 sigma_p apart
 field_iterations    L-BFGS iterations of each field retrieval (>= 0; None: 25 on a smooth surface
-                    without calibration, else 50); field_passes >= 1;
-                    cascade: each field starts from the heights of the fields before it;
+                    without calibration, else 50), longest wavelength first, each started from
+                    the heights of the fields before it;
                     band_limit: keep only the object's spectrum the slices see
 refine              odd object-grid refinement 1...63 (0: automatic)
 max_range_um        bound on the height range for unwrapping (um, > 0; None: 4;
                     RecoverSettings::height_range_um)
-unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
 refine_iterations   final L-BFGS iterations on the heights (>= 0; None: the schedule's, 8 after
                     a first round on the longest wavelength's slices on a smooth surface without
                     calibration, else 40; a count given is the whole refinement); refine_history >= 1;

@@ -114,7 +114,7 @@ TEST(FieldTiles, JointAlignmentRemovesPerTilePhaseAndTilt) {
 // stage, bit for bit); bad settings name themselves.
 TEST(FieldTiles, ThresholdAndBadSettings) {
     const RecoverSettings defaults;
-    const detail::FieldTiling tiling{defaults.field_tile_threshold, defaults.field_tile_core, defaults.field_tile_ramp};
+    const detail::FieldTiling tiling{defaults.field_tile_threshold, defaults.field_tile_core};
     EXPECT_FALSE(detail::field_tiles_apply(64, 64, tiling));
     EXPECT_TRUE(detail::field_tiles_apply(128, 64, tiling));
     EXPECT_FALSE(detail::field_tiles_apply(1024, 1024, detail::FieldTiling{0, 48, 4}));

@@ -87,7 +87,6 @@ TEST(RoughnessPlan, DefaultIsSmoothAndTheFailureLimitsAreRough) {
     const RecoverSettings settings = scheduled_for(2.0, 8.0);
     const RecoverSettings defaults = scheduled_settings(RecoverSettings{}, 2.0);
     EXPECT_EQ(settings.field.iterations, defaults.field.iterations);
-    EXPECT_EQ(settings.field_passes, defaults.field_passes);
     EXPECT_EQ(settings.blurred.iterations, defaults.blurred.iterations);
     EXPECT_EQ(settings.blurred.blur_widths, defaults.blurred.blur_widths);
     EXPECT_EQ(settings.refine_iterations, defaults.refine_iterations);

@@ -101,7 +101,8 @@ TEST(SigmaPresearch, FindsTheTrueScaleAtTheTrueHeights) {
 }
 
 // The field stage sees the σ_p found at the blurred heights: with σ_p 30 % larger than stated,
-// its heights (no refinement) are clearly better than with the stated σ_p.
+// the scale the field stage used is found (its heights, no refinement, were measured at 5.4 %
+// against 6.8 % with the stated σ_p).
 TEST(SigmaPresearch, TheFieldStageSeesTheRefinedSigma) {
     const SigmaAcquired c = acquired_with_sigma(5612, 1.3);
     RecoverSettings s = quick_sigma();
@@ -112,12 +113,7 @@ TEST(SigmaPresearch, TheFieldStageSeesTheRefinedSigma) {
         recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(), &found), c.truth);
     EXPECT_NEAR(found.sigma_p_scale_fields, 1.3, 0.15);
     EXPECT_EQ(found.sigma_p_scale, found.sigma_p_scale_fields);
-    s.sigma_presearch = false;
-    Calibration stated;
-    const double without = height_rel_rmse(
-        recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator(), &stated), c.truth);
-    EXPECT_EQ(stated.sigma_p_scale_fields, 1.0);
-    EXPECT_LT(with, 0.9 * without) << with << " vs " << without;  // measured 5.4 % vs 6.8 %
+    EXPECT_LT(with, 0.062) << with;  // measured 5.4 %; the stated σ_p's field stage gave 6.8 %
 }
 
 // `all`: positions, exposures and σ_p refined together: each is returned, and the heights and
@@ -254,13 +250,12 @@ TEST(ExposuresAt, TrueHeightsAndCentresGiveTheSimulatedExposures) {
 
 // Positions and exposures unknown together (experiments/2026-11-28-calibrate-all.md):
 // the field stage with each slice's exposure held at its value at the blurred fit's heights and
-// offsets (field_exposures_held, the default) unwraps far closer to the truth than with the
-// exposures found anew at every evaluation, where the complex object trades its local amplitude
-// for them. The planner's acquisition of a 16² surface (recovery_run.h), positions 1 texel rms
+// offsets unwraps close to the truth (with the exposures found anew at every evaluation, where
+// the complex object trades its local amplitude for them, it was measured at 16.1 % and 12.3 %). The planner's acquisition of a 16² surface (recovery_run.h), positions 1 texel rms
 // off, exposures in ×[0.5, 2], 32² slices, the first field stage's unwrapped heights, on two
 // seeds. (A 12² tile's field stage was too chaotic: 4.4 % against 7.7 % with GCC, 10.2 % against
 // 9.0 % with clang.)
-TEST(AllAtOnce, HeldExposuresGiveTheFieldStageBetterHeights) {
+TEST(AllAtOnce, TheFieldStageAtHeldExposuresUnwrapsCloseToTheTruth) {
     for (std::uint64_t seed : {5631, 5632}) {  // measured 4.09 % / 4.01 % held, 16.1 % / 12.3 % free
         RecoveryOptions options;
         options.rows = options.cols = 16;
@@ -274,14 +269,10 @@ TEST(AllAtOnce, HeldExposuresGiveTheFieldStageBetterHeights) {
         RecoverSettings s = r.pipeline;
         s.refine_iterations = 0;  // the field stage's unwrapped heights
         s.position_outer_passes = 0;
-        double error[2];
-        for (int held = 0; held < 2; ++held) {
-            s.field_exposures_held = held == 1;
-            error[held] = height_rel_rmse(recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, s, {},
-                                                          nullptr, serial_communicator()),
-                                          *r.truth);
-        }
-        EXPECT_LT(error[1], 0.7 * error[0]) << seed << ": " << error[1] << " held vs " << error[0] << " free";
+        const double error = height_rel_rmse(
+            recover_heights(r.observations, r.rows, r.cols, r.texel_um, r.vscale, s, {}, nullptr, serial_communicator()),
+            *r.truth);
+        EXPECT_LT(error, 0.08) << seed << ": " << error;
     }
 }
 

@@ -264,8 +264,7 @@ struct RecoverSettings {
     // refinement out of the wrap defects and checkerboards the spectral loss has as local minima.
     std::vector<double> white_smoothness{10.0, 1.0, 0.1, 0.01};
     int white_smoothness_iterations = 20;
-    int blur_wavelengths = 1;         // stage 0 uses the slices of this many longest wavelengths (0: all)
-    double blur_spacing_sigma = 2.0;  // … at positions at least this many σ_p apart (0: all)
+    int blur_wavelengths = 1;  // stage 0 uses the slices of this many longest wavelengths (0: all)
     // Stage 1, per wavelength (its refine is replaced by `refine`). field.iterations −1: the
     // schedule's (50; smooth surfaces 25; rough ones up to the plan's 200).
     FieldRetrievalSettings field = unset_field_iterations();
@@ -273,15 +272,6 @@ struct RecoverSettings {
     // Bound on the height range for unwrapping (stage 2); −1: the stated surface range (at least
     // 1e-3 µm), else 4 µm. The spatial unwrapping (the default) does not read it.
     double height_range_um = -1.0;
-    // Stage 2 starts from the spatially unwrapped fields (false) or from the estimate before it
-    // (true: the blurred fit, or the fields so far when cascading).
-    bool unwrap_from_blurred = false;
-    // Fields longest wavelength first, each started from the heights of the fields before it
-    // (true), or every field from the blurred fit (false).
-    bool cascade = true;
-    // Cascading: passes over the wavelengths, every field of a later pass started from the
-    // heights of all fields of the pass before.
-    int field_passes = 1;
     // Stage 1 only at wavelengths ≥ this (µm; 0: all): a rough surface's plan (roughness_plan.h)
     // measures a long wavelength whose field starts stage 3, the shorter ones' fields (started
     // in wrong basins, measured to raise the error) are left out and their slices enter stage 3
@@ -372,56 +362,34 @@ struct RecoverSettings {
     // "misfit:field-start"; one evaluation): the refinement lowers that loss by ~25 % on Gabor
     // data and ~5 × on scalar-diffraction data, so it cannot win then. 0 to 1; 0: never skip.
     double model_check_skip_ratio = 0.1;
-    // With calibrate.sigma (and not calibrate.exposure): estimate σ_p's scale at the blurred
-    // fit's heights, before the field stage, which then sees the refined σ_p (false: the field
-    // stage keeps the stated σ_p and only the refinement calibrates it).
-    bool sigma_presearch = true;
     // Stage 1 on overlapping tiles (docs/scale.md, "One machine: large surfaces"): along an
     // axis of more than field_tile_threshold texels (0: never) the field is retrieved on tiles
-    // of about field_tile_core texels (8 … 4096) plus a margin of the footprint's reach and
-    // field_tile_ramp texels (the feathering ramp, 1 … core/2), blended into one field. Not with
-    // calibrate.positions (its field stage stays whole). Smaller surfaces: the whole surface.
+    // of about field_tile_core texels (8 … 4096) plus a margin of the footprint's reach and a
+    // 4-texel feathering ramp, blended into one field. Not with calibrate.positions (its field
+    // stage stays whole). Smaller surfaces: the whole surface.
     int field_tile_threshold = 64;
     int field_tile_core = 48;
-    int field_tile_ramp = 4;
-    // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration"): after stage 3,
-    // every position is
-    // registered on its own at the final heights (a grid search of its full-model loss over
-    // ± position_register_radius_texels in half-texel steps about its offset, then a parabola,
-    // then position_register_newton_steps Newton steps), the smooth part of the registration's
-    // update removed (position_outer_smooth_nodes), positions far worse than the median searched
-    // wide (position_rescue_*), and the field stage (from the final heights, with
-    // position_outer_fields, while the registration still moves the offsets by at least
-    // position_outer_field_below_texels) and stage 3 run again from the registered positions; at
-    // most this many times, stopping when a registration moves the offsets by less than
-    // position_outer_tolerance_texels rms or when the loss stalls (position_outer_stall_*).
+    // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration"; the
+    // position loop's stage, stage_positions.cpp): after stage 3, every position is registered
+    // on its own at the final heights (a grid search of its full-model loss over ± 2 texels in
+    // half-texel steps about its offset, a parabola, one Newton step), the affine part of the
+    // registration's update removed, positions far worse than the median searched wide
+    // (position_rescue_*), and the field stage (from the final heights, while the registration
+    // still moves the offsets by at least position_outer_field_below_texels) and stage 3 run
+    // again from the registered
+    // positions; at most this many times, stopping when a registration moves the offsets by less
+    // than position_outer_tolerance_texels rms or when the loss stalls (position_outer_stall_*).
     // 0: off (one recovery); −1: the library's default (recover.cpp, k_position_outer_passes:
     // 40). At most 100.
     int position_outer_passes = -1;
-    double position_register_radius_texels = 2.0;  // 0 … 8
     // Finite, ≥ 0 (0: never stops on the moves). At the loop's end the registration jitters the
     // offsets by ~0.004 texel a pass, so the default 0.001 leaves the stopping to the stall rule.
     double position_outer_tolerance_texels = 0.001;
-    bool position_outer_fields = true;
     // The outer loop's later passes: each field of a pass after the first runs this many L-BFGS
     // iterations from the pass's heights, and its stage 3 this many (0: the first pass's
     // field.iterations and refine_iterations).
     int position_outer_field_iterations = 20;
     int position_outer_refine_iterations = 0;
-    // After the registration's grid and parabola, this many Newton steps on every
-    // position's offset (0 … 10; 0: off): per position the 2 × 2 Hessian and gradient of its
-    // loss by central differences of ± position_newton_step_texels (a 3 × 3 stencil, > 0 … 2),
-    // the Newton point taken where the Hessian is positive definite and it lowers that position's
-    // loss, its length capped at position_newton_cap_texels (> 0 … 4), else halved (at most 3
-    // times). The decisions come from exact collective sums: the same on every rank.
-    int position_register_newton_steps = 1;
-    double position_newton_step_texels = 0.25;
-    double position_newton_cap_texels = 0.5;
-    // The smooth part of every registration's update (new − old offsets) removed: its
-    // least-squares fit by an affine field (1) or a bilinear one on k × k nodes (k = 2 … 16)
-    // over the positions; 0: off. Positions and heights moved together by a smooth warp change
-    // the slices little, so without it the loop drifts along one.
-    int position_outer_smooth_nodes = 1;
     // After every registration, the positions whose loss exceeds
     // position_rescue_factor × the median position's (> 1 … 10⁶; 0: off) are registered again
     // over ± position_rescue_radius_texels (> 0 … 16) on a grid of 2 × position_rescue_step_texels,
@@ -430,11 +398,6 @@ struct RecoverSettings {
     double position_rescue_factor = 20.0;
     double position_rescue_radius_texels = 4.0;
     double position_rescue_step_texels = 0.125;
-    // A lost position more than half the rescue radius from its stated centre is
-    // searched about that centre as well (the better of the two kept): a position the first
-    // registrations carried to the far side of its centre is out of reach of a search about its
-    // offset. false: the search about the offset only.
-    bool position_rescue_from_centre = true;
     // A later pass skips the field stage when the registration before it moved the
     // offsets by less than this (rms, texels, finite ≥ 0; 0: the field stage in every pass).
     // Near the end the field stage's own position steps undo the registration's last 0.02 texel.
@@ -455,13 +418,6 @@ struct RecoverSettings {
     // while the heights elsewhere still improve by a quarter a pass. Only while the rescue runs
     // (position_rescue_factor > 0); false: the rule on stage 3's loss after the pass.
     bool position_outer_stall_median = true;
-    // With calibrate.positions and calibrate.exposure both on, the field stage holds each slice's
-    // exposure fixed (found at the heights and offsets before it: the blurred fit's, then each
-    // pass's stage 3) instead of finding it anew at every evaluation: its object is complex, and
-    // free exposures let it trade the object's local amplitude for the exposures of the slices
-    // over it once the positions are off (measured: 18.5 % with free exposures where the positions
-    // alone give 5.5 %).
-    bool field_exposures_held = true;
     // The surface as stated (the schedule's choice between the smooth and the rough plan).
     SurfaceClass surface;
     // Error bars follow (uncertainty.h): an unset refine_iterations becomes at least

@@ -1142,7 +1142,7 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     """
     ...
 
-def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., blur_spacing_sigma: float = ..., field_iterations: Any = ..., field_passes: int = ..., cascade: bool = ..., band_limit: bool = ..., refine: int = ..., max_range_um: Any = ..., unwrap_from_blurred: bool = ..., refine_iterations: Any = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ..., white_smoothness: Any = ..., white_smoothness_iterations: int = ...) -> Any:
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., field_iterations: Any = ..., band_limit: bool = ..., refine: int = ..., max_range_um: Any = ..., refine_iterations: Any = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ..., white_smoothness: Any = ..., white_smoothness_iterations: int = ...) -> Any:
     """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
     phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
     on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
@@ -1152,15 +1152,14 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
     blur_widths         blurred fit: blur widths in footprint lobes, widest first ([] : start the
                         fields from flat); blur_iterations: L-BFGS per width (>= 0)
     blur_wavelengths    the blurred fit uses this many longest wavelengths (0: all), at positions
-                        at least blur_spacing_sigma sigma_p apart (0: all)
+                        at least 2 sigma_p apart
     field_iterations    L-BFGS iterations of each field retrieval (>= 0; None: 25 on a smooth surface
-                        without calibration, else 50); field_passes >= 1;
-                        cascade: each field starts from the heights of the fields before it;
+                        without calibration, else 50), longest wavelength first, each started from
+                        the heights of the fields before it;
                         band_limit: keep only the object's spectrum the slices see
     refine              odd object-grid refinement 1...63 (0: automatic)
     max_range_um        bound on the height range for unwrapping (um, > 0; None: 4;
                         RecoverSettings::height_range_um)
-    unwrap_from_blurred start unwrapping from the estimate before it rather than the fields
     refine_iterations   final L-BFGS iterations on the heights (>= 0; None: the schedule's, 8 after
                         a first round on the longest wavelength's slices on a smooth surface without
                         calibration, else 40; a count given is the whole refinement); refine_history >= 1;

@@ -120,10 +120,6 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::invalid_argument("recover_heights: position outer passes " +
                                     std::to_string(settings.position_outer_passes) +
                                     " is invalid; expected 0 ... 100 (-1: the default)");
-    if (!(settings.position_register_radius_texels >= 0.0 && settings.position_register_radius_texels <= 8.0))
-        throw std::domain_error("recover_heights: position register radius " +
-                                std::to_string(settings.position_register_radius_texels) +
-                                " texels is invalid; expected 0 ... 8");
     if (settings.position_outer_field_iterations < 0 || settings.position_outer_refine_iterations < 0)
         throw std::invalid_argument("recover_heights: position outer iterations " +
                                     std::to_string(settings.position_outer_field_iterations) + ", " +
@@ -133,18 +129,6 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::domain_error("recover_heights: position outer tolerance " +
                                 std::to_string(settings.position_outer_tolerance_texels) +
                                 " texels is invalid; expected a finite value >= 0");
-    if (settings.position_register_newton_steps < 0 || settings.position_register_newton_steps > 10 ||
-        !(settings.position_newton_step_texels > 0.0 && settings.position_newton_step_texels <= 2.0) ||
-        !(settings.position_newton_cap_texels > 0.0 && settings.position_newton_cap_texels <= 4.0))
-        throw std::invalid_argument("recover_heights: position Newton steps " +
-                                    std::to_string(settings.position_register_newton_steps) + " / stencil " +
-                                    std::to_string(settings.position_newton_step_texels) + " / cap " +
-                                    std::to_string(settings.position_newton_cap_texels) +
-                                    " texels is invalid; expected 0 ... 10 / > 0 ... 2 / > 0 ... 4");
-    if (settings.position_outer_smooth_nodes < 0 || settings.position_outer_smooth_nodes > 16)
-        throw std::invalid_argument("recover_heights: position outer smooth nodes " +
-                                    std::to_string(settings.position_outer_smooth_nodes) +
-                                    " is invalid; expected 0 (off), 1 (affine) or 2 ... 16");
     if (!(settings.position_rescue_factor == 0.0 ||
           (settings.position_rescue_factor > 1.0 && settings.position_rescue_factor <= 1e6)) ||
         !(settings.position_rescue_radius_texels > 0.0 && settings.position_rescue_radius_texels <= 16.0) ||

@@ -230,7 +230,6 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
     observations_of(observations, index, lost, mine, mine_index);
     const std::vector<double> before = offsets_um;
     register_positions(mine, mine_index, heights, settings, sigma_scale, radius_texels, step_texels, offsets_um, comm);
-    if (!settings.position_rescue_from_centre) return count;
     // A lost position whose offset lay more than half the radius from its stated
     // centre (either axis) before the search is searched about the stated centre as well, and
     // keeps the better of the two: the registration can carry a position far to the wrong side

@@ -88,6 +88,12 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
 // sums, so every rank takes the same decisions (1, 2, 3 ranks give the same bits). Returns how
 // many positions moved. Throws std::invalid_argument for step ≤ 0, cap ≤ 0 or offsets_um not 2
 // per position.
+// The position loop's registration: a grid of ± k_register_radius_texels in half-texel steps,
+// then a Newton step with a ± k_newton_step_texels stencil capped at k_newton_cap_texels.
+inline constexpr double k_register_radius_texels = 2.0;
+inline constexpr double k_newton_step_texels = 0.25;
+inline constexpr double k_newton_cap_texels = 0.5;
+
 int newton_register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
                               const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
                               double step_texels, double cap_texels, std::vector<double>& offsets_um,

@@ -76,7 +76,7 @@ double estimate_recovery_bytes(const std::vector<Observation>& observations, int
     // the whole surface or on one field tile (field_tiles.h: then also the fields of every
     // wavelength and their blend on the whole surface).
     double field_samples = samples, tiled_fields = 0.0;
-    const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core, settings.field_tile_ramp};
+    const detail::FieldTiling tiling{settings.field_tile_threshold, settings.field_tile_core};
     if (!settings.calibrate.positions && detail::field_tiles_apply(rows, cols, tiling) && texel_um > 0.0) {
         double sigma_max = 0.0;
         for (const Observation& o : observations) sigma_max = std::max(sigma_max, o.query.sigma_p_um);

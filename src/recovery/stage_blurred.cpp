@@ -12,12 +12,13 @@ namespace {
 // The observations the blurred fit sees. It sees the slope distribution, nearly the same at
 // every wavelength: the longest `wavelengths` (smoothest) suffice. It needs the slope
 // distribution everywhere, not the overlap that pins phases down: positions closer than
-// spacing_sigma · σ_p to one already taken are left out (greedy, periodic distance), which buys
-// more iterations for the same time. The choice is made on every rank's positions (x, y, σ_p
+// 2 σ_p to one already taken are left out (greedy, periodic distance), which buys more
+// iterations for the same time. The choice is made on every rank's positions (x, y, σ_p
 // per observation, in rank order, the one-process order when each rank holds a block of
 // positions), and each rank keeps those of its own observations that were taken.
 // White light: the RGB observations, one group.
-std::vector<const Observation*> blurred_fit_set(const StageContext& context, int wavelengths, double spacing_sigma) {
+std::vector<const Observation*> blurred_fit_set(const StageContext& context, int wavelengths) {
+    constexpr double spacing_sigma = 2.0;
     const Communicator& comm = context.comm;
     const double period_x = context.rows * context.texel_um, period_y = context.cols * context.texel_um;
     const auto periodic = [](double d, double period) { return d - period * std::floor(d / period + 0.5); };
@@ -57,7 +58,7 @@ std::vector<const Observation*> blurred_fit_set(const StageContext& context, int
 }  // namespace
 
 bool BlurredFitStage::run(const StageContext& context, RecoveryState& state) const {
-    std::vector<const Observation*> set = blurred_fit_set(context, wavelengths, spacing_sigma);
+    std::vector<const Observation*> set = blurred_fit_set(context, wavelengths);
     // GHS/RGHS: on the separable proxy (its renders cost a fraction of the GHS ones).
     std::vector<Observation> proxies;
     if (context.proxy.proxied) {

@@ -36,14 +36,12 @@ bool FieldStage::run(const StageContext& context, RecoveryState& state) const {
 }
 
 void FieldStage::unwrap(const StageContext& context, RecoveryState& state) const {
-    // Heights on the refined grid from the fields so far (spatially unwrapped, or each sample on
-    // the branch nearest the current estimate), then at the texel centres (refine is odd: texel
-    // (i, j) is sample (i·q + q/2, j·q + q/2)).
+    // Heights on the refined grid from the fields so far (spatially unwrapped), then at the texel
+    // centres (refine is odd: texel (i, j) is sample (i·q + q/2, j·q + q/2)).
     const int q = context.refine, rows = context.rows, cols = context.cols, obj_cols = cols * q;
     const double to_texel = 1.0 / (context.vscale * context.texel_um * context.proxy.height_scale);
-    const std::vector<double> reference = scaled(context, refined_heights(state.estimate, q));
-    const std::vector<double> fine_um = unwrap_heights(state.fields.lambdas_um, state.fields.objects, height_range_um,
-                                                       rows * q, obj_cols, unwrap_from_blurred ? &reference : nullptr);
+    const std::vector<double> fine_um =
+        unwrap_heights(state.fields.lambdas_um, state.fields.objects, height_range_um, rows * q, obj_cols);
     std::vector<double> h(std::size_t(rows) * cols);
     for (int i = 0; i < rows; ++i)
         for (int j = 0; j < cols; ++j)
@@ -54,16 +52,12 @@ void FieldStage::unwrap(const StageContext& context, RecoveryState& state) const
 bool FieldStage::retrieve(const StageContext& context, RecoveryState& state,
                           const FieldRetrievalSettings& settings) const {
     // Longest wavelength first: its phases are the least wrapped, so it converges from the
-    // blurred fit most surely; cascading, each next field starts from all fields before it.
-    // Later passes start every field again from the heights of all of them: the heights are a
-    // projection onto pure-phase, smooth objects, which removes the local defects (phase
-    // vortices) a retrieval from a poor start can stall in.
+    // blurred fit most surely; each next field starts from the heights of all fields before it.
     const auto& by_lambda = context.by_lambda;
     // Every rank holds every wavelength's key (maybe empty), so all ranks skip the same ones.
     const auto end = by_lambda.rend();
     FieldRetrievalSettings field_settings = settings;
-    for (int pass = 0; pass < passes; ++pass)
-        for (auto it = by_lambda.rbegin(); it != end && it->first >= lambda_min_um; ++it) {
+    for (auto it = by_lambda.rbegin(); it != end && it->first >= lambda_min_um; ++it) {
             const double lambda = it->first;
             char name[48];
             std::snprintf(name, sizeof name, "field:%g", lambda);
@@ -118,8 +112,8 @@ bool FieldStage::retrieve(const StageContext& context, RecoveryState& state,
             } else {
                 fields.objects[std::size_t(at - fields.lambdas_um.begin())] = std::move(r.object);
             }
-            const bool last = pass + 1 == passes && (std::next(it) == end || std::next(it)->first < lambda_min_um);
-            if (cascade && !last) {
+            const bool last = std::next(it) == end || std::next(it)->first < lambda_min_um;
+            if (!last) {
                 unwrap(context, state);
                 if (!context.report(name, r.iterations, r.relative_loss, &state.estimate)) return false;
             }

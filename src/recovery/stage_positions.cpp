@@ -42,11 +42,11 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
         later.refine_iterations = settings.position_outer_refine_iterations;
     FieldRetrievalSettings later_field = field.field;
     if (settings.position_outer_field_iterations > 0) later_field.iterations = settings.position_outer_field_iterations;
-    // The smooth part of each registration's update removed (positions and heights can trade a
-    // smooth warp; recover_positions.h).
-    const int smooth_nodes = settings.position_outer_smooth_nodes;
+    // The affine part of each registration's update removed: positions and heights moved
+    // together by a smooth warp change the slices little, so without it the loop drifts along one
+    // (recover_positions.h, remove_smooth_displacement).
     std::vector<std::array<double, 2>> centres;
-    if (passes > 0 && smooth_nodes > 0) {
+    if (passes > 0) {
         std::vector<std::size_t> unused;
         centres = gather_positions(observations, unused, comm);
     }
@@ -63,21 +63,20 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
     for (int outer = 0; outer < passes; ++outer) {
         const std::vector<double> before = position_offsets;
         double moved = register_positions(observations, context.position_of, state.estimate, settings,
-                                          state.sigma_scale, settings.position_register_radius_texels, 0.5,
-                                          position_offsets, comm);
-        // Newton steps on each position's offset after the grid and parabola
-        // (recover_positions.h); moved counts them.
-        for (int n = 0; n < settings.position_register_newton_steps; ++n) {
-            const int stepped = newton_register_positions(
-                observations, context.position_of, state.estimate, settings, state.sigma_scale,
-                settings.position_newton_step_texels, settings.position_newton_cap_texels, position_offsets, comm);
+                                          state.sigma_scale, k_register_radius_texels, 0.5, position_offsets, comm);
+        // A Newton step on each position's offset after the grid and parabola
+        // (recover_positions.h); moved counts it.
+        {
+            const int stepped = newton_register_positions(observations, context.position_of, state.estimate,
+                                                          settings, state.sigma_scale, k_newton_step_texels,
+                                                          k_newton_cap_texels, position_offsets, comm);
             moved = rms_move(before, position_offsets, state.estimate.texel_um());
             if (!report("positions:newton", stepped, moved, &state.estimate)) return false;
         }
-        if (smooth_nodes > 0) {
+        {
             std::vector<double> update(position_offsets.size());
             for (std::size_t i = 0; i < update.size(); ++i) update[i] = position_offsets[i] - before[i];
-            remove_smooth_displacement(centres, update, smooth_nodes);
+            remove_smooth_displacement(centres, update, 1);
             double s2 = 0.0;
             for (std::size_t i = 0; i < update.size(); ++i) {
                 position_offsets[i] = before[i] + update[i];
@@ -111,9 +110,8 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
         }
         if (moved < settings.position_outer_tolerance_texels) break;
         state.offsets_um = position_offsets;
-        const bool field_pass = !context.white && settings.position_outer_fields &&
-                                !(settings.position_outer_field_below_texels > 0.0 &&
-                                  moved < settings.position_outer_field_below_texels);
+        const bool field_pass = !context.white && !(settings.position_outer_field_below_texels > 0.0 &&
+                                                    moved < settings.position_outer_field_below_texels);
         if (field_pass) {
             state.fields = FieldSet{};
             if (hold_exposures)  // stage 3's, at the heights and offsets it ended with

@@ -115,8 +115,7 @@ public:
 // Writes estimate.
 struct BlurredFitStage : Stage {
     BlurredFitSettings fit;
-    int wavelengths = 1;          // the slices of this many longest wavelengths (0: all)
-    double spacing_sigma = 2.0;   // … at positions at least this many σ_p apart (0: all)
+    int wavelengths = 1;  // the slices of this many longest wavelengths (0: all)
     bool run(const StageContext& context, RecoveryState& state) const override;
 };
 
@@ -135,19 +134,16 @@ struct HeldExposuresStage : Stage {
 };
 
 // Stage 1: the field at every wavelength ≥ lambda_min_um on the refined grid (recover_field.cpp,
-// field_tiles.h, field_positions.h), longest first, each started from state.estimate; with
-// cascading each later field from the heights of the fields before it. Writes fields,
-// field_floor, offsets_um (positions calibrated) and, cascading, estimate.
+// field_tiles.h, field_positions.h), longest first, the first started from state.estimate and
+// each later one from the heights of the fields before it. Writes fields, field_floor,
+// offsets_um (positions calibrated) and, with more than one wavelength, estimate.
 struct FieldStage : Stage {
     FieldRetrievalSettings field;  // refine and the exposure calibration resolved
     bool calibrate_exposure = false;
-    bool cascade = true;
-    int passes = 1;
     double lambda_min_um = 0.0;
     FieldTiling tiling;
     bool positions = false;
     double height_range_um = 4.0;  // the unwrapping's bound
-    bool unwrap_from_blurred = false;
     bool run(const StageContext& context, RecoveryState& state) const override;
     // The same with `settings` for every retrieval (the position loop's later passes).
     bool retrieve(const StageContext& context, RecoveryState& state, const FieldRetrievalSettings& settings) const;

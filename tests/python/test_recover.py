@@ -343,7 +343,7 @@ def test_bad_arguments_name_themselves(call, needles):
 def test_bad_arguments_of_the_parts(small_observations):
     truth, obs = small_observations
     for kwargs, needle in [(dict(refine=2), "refine"), (dict(blur_widths=[4.0, 0.0]), "blur_widths"),
-                           (dict(refine_loss="loud"), "loud"), (dict(field_passes=0), "field_passes"),
+                           (dict(refine_loss="loud"), "loud"), (dict(blur_iterations=-1), "blur_iterations"),
                            (dict(truth=truth.values), "truth")]:
         with pytest.raises(ValueError, match=needle):
             wb.recover_heights(obs, 8, 2.0, **kwargs)
