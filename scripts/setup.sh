@@ -41,7 +41,7 @@ fi
 # ccache, where the machine has it, makes rebuilds of other checkouts nearly free.
 launcher=()
 command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-# WAVEBRDF_UNITY_BUILD: the library, the CLI and the Python module compiled in batches, so that a
+# WAVEBRDF_UNITY_BUILD: the library, the CLI, the Python module and the tests compiled in batches, so that a
 # fresh build parses the headers once a batch instead of once a file (CMakeLists.txt).
 if [ "$demo" = 1 ]; then
     cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DWAVEBRDF_BUILD_TESTS=OFF -DWAVEBRDF_BUILD_BENCH=OFF \
