@@ -128,8 +128,6 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     if (a.out.empty()) throw std::invalid_argument("no output directory; expected --out DIR");
     // A new or empty directory (or, with --force, one of recover's own runs), before any work.
     if (comm.is_root()) check_run_directory(RunKind::Recover, a.out, a.force);
-    if (!a.truth.empty() && !a.observations.empty())
-        throw std::invalid_argument("--truth and --observations exclude each other");
     if (a.truth.empty() && any_conditioning(a.conditioning))
         throw std::invalid_argument(
             "--resample-um, --fill, --detrend, --crop and --periodic condition a measured --truth; expected --truth FILE");
@@ -177,10 +175,6 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.noise = parse_noise(a.noise);
     options.simulator = parse_simulator(a.simulator, "--simulator");
     if (!a.loss.empty()) options.loss = parse_loss(a.loss);
-    if (options.noise.kind != NoiseKind::None && !a.observations.empty())
-        throw std::invalid_argument(
-            "--noise simulates noise on rendered observations; it needs --truth (or the generated default), not "
-            "--observations");
     options.texel_um = a.texel_um;
     options.vscale = a.vscale;
     options.height_range_um = a.height_range_um;
@@ -223,13 +217,20 @@ void run(const RecoverArgs& a, const Communicator& comm) {
         options.errors.exposure_min = range[0];
         options.errors.exposure_max = range[1];
     }
-    check_acquisition_errors(options.errors, "--simulate-");
-    if (options.errors.any() && !a.observations.empty())
-        throw std::invalid_argument(
-            "--simulate-* render the observations with acquisition errors; they need --truth "
-            "(or the generated default), not --observations");
     options.uncertainty = a.uncertainty;
     options.check_error_bars = parse_check_error_bars(a.check_error_bars);
+    // The planned acquisition's model and wavelengths (given observations bring their own).
+    if (a.observations.empty()) {
+        options.model = parse_model(a.model);
+        if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
+        options.spectral = a.spectral;
+    }
+    // Every option the library checks, before any file is read (it checks them again).
+    RecoveryInputs given;
+    given.truth = !a.truth.empty();
+    given.observations = !a.observations.empty();
+    given.correlation = a.given_correlation;
+    check_recovery_options(options, given);
 
     // Truth and observations (files read here; planned, simulated and checked by the library).
     std::unique_ptr<Heightfield> truth;
@@ -259,9 +260,6 @@ void run(const RecoverArgs& a, const Communicator& comm) {
                 truth = std::make_unique<Heightfield>(read_heightfield_exr(a.truth, scale.texel_um, scale.vscale));
             });
         }
-        options.model = parse_model(a.model);
-        if (!a.lambdas.empty()) options.lambdas_um = parse_list("--lambdas-um", a.lambdas);
-        options.spectral = a.spectral;
     }
     // Every rank must run the same job: a digest of its options and inputs, agreed before the
     // first collective that depends on them (different sizes would abort in MPI itself).

@@ -16,10 +16,7 @@ void bind_baseline(py::module_& m) {
         [](const py::object& observations, const py::object& size, double texel_um, double vscale,
            const py::object& truth, int epochs, double lr, double beta1, double beta2, double decay,
            const py::object& loss, std::uint64_t seed, int report_every, const py::object& callback) {
-            const std::vector<Observation> list = observations_or_file(observations);
-            const std::array<int, 2> rc = size_argument(size);
-            check_positive(texel_um, "texel_um");
-            check_finite(vscale, "vscale");
+            const HeightsArguments given = heights_arguments(observations, size, texel_um, vscale);
             BaselineSettings s;
             if (epochs < 0) bad_argument("epochs", std::to_string(epochs), "an epoch count >= 0");
             s.epochs = epochs;
@@ -34,7 +31,8 @@ void bind_baseline(py::module_& m) {
             std::vector<StageMetrics> history;
             bool stopped = false;
             return run_released(callback, history, stopped, [&](const auto& on_step) {
-                return recover_heights_thesis(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr);
+                return recover_heights_thesis(given.observations, given.rows, given.cols, texel_um, vscale, s, on_step,
+                                              t ? &*t : nullptr);
             });
         },
         "observations"_a, "size"_a, "texel_um"_a, "vscale"_a = 1.0, py::kw_only(), "truth"_a = py::none(),

@@ -1,4 +1,5 @@
-// Rendering slices and their vector-Jacobian products (brdf.h, adjoint.h) and the Query.
+// Rendering slices and their vector-Jacobian products (brdf.h); the Query is model.cpp's, the
+// plan slice_plan.cpp's.
 //
 // RGB and the adjoint: a slice is always (n, n, 3), the library's spectral mix
 // (spectral_mix_weights, spectrum.h): one wavelength λ gives R = G = B = f_λ, several give
@@ -9,6 +10,7 @@
 
 #include "batch.h"
 #include "common.h"
+#include "slice_args.h"
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/slice_plan.h"
@@ -43,12 +45,6 @@ std::vector<double> rgb_gradient(const Heightfield& hf, const PyQuery& q, int n,
     return gradient;
 }
 
-std::vector<double> weights_argument(py::handle weights, int n) {
-    const py::array w = float_array(weights, "weights");
-    check_shape(w, {n, n, 3}, "weights");
-    return slice_weights(w, n, "weights");
-}
-
 py::array gradient_array(std::vector<double>&& g, const Heightfield& hf, bool single) {
     if (!single) return owning_array(std::move(g), {hf.rows(), hf.cols()});
     return owning_array(std::vector<float>(g.begin(), g.end()), {hf.rows(), hf.cols()});
@@ -60,79 +56,6 @@ bool double_precision(const std::string& precision) {
     bad_argument("precision", "'" + precision + "'", "'float' or 'double'");
 }
 
-// The texel width and vertical scale for `heights`: a Heightfield's own, with texel_um and
-// vscale (None when not given) allowed only when they agree with it, so that its scale is never
-// silently replaced by the defaults; any other heights take the keywords' values (default 1).
-struct Scale {
-    double texel_um = 1.0, vscale = 1.0;
-};
-
-Scale heights_scale(py::handle heights, const py::object& texel_um, const py::object& vscale) {
-    const auto number = [](const py::object& v, const char* name) {
-        try {
-            return v.cast<double>();
-        } catch (const py::cast_error&) {
-            throw py::value_error(std::string(name) + " = " + std::string(py::repr(v)) +
-                                  " is invalid; expected a number");
-        }
-    };
-    Scale s;
-    if (!py::isinstance<Heightfield>(heights)) {
-        if (!texel_um.is_none()) s.texel_um = number(texel_um, "texel_um");
-        if (!vscale.is_none()) s.vscale = number(vscale, "vscale");
-        return s;
-    }
-    const auto& hf = heights.cast<const Heightfield&>();
-    s = {hf.texel_um(), hf.vscale()};
-    const auto agree = [&](const py::object& given, double own, const char* name) {
-        if (given.is_none()) return;
-        const double v = number(given, name);
-        if (v != own)
-            throw py::value_error(std::string(name) + " = " + format_number(v) + " conflicts with the Heightfield's " +
-                                  name + " " + format_number(own) + "; expected no " + name +
-                                  " keyword (the Heightfield's own is used) or the same value "
-                                  "(Heightfield.with_scale gives another)");
-    };
-    agree(texel_um, s.texel_um, "texel_um");
-    agree(vscale, s.vscale, "vscale");
-    return s;
-}
-
-// The plain functions' arguments, checked in the order of the signature.
-struct Plain {
-    Heightfield hf;
-    bool single;
-    PyQuery q;
-};
-
-Plain plain_arguments(py::handle heights, double texel_um, double vscale, double x_um, double y_um, double sigma_p_um,
-                      const py::object& lambda_um, const py::object& spectral, const py::object& light, int resolution,
-                      const std::string& model) {
-    const py::array h = float_array(heights, "heights");
-    const bool single = is_float32(h);
-    Heightfield hf = heightfield_from_array(h, "heights", texel_um, vscale);
-    check_resolution(resolution);
-    return {std::move(hf), single, make_query(x_um, y_um, sigma_p_um, light, model, lambda_um, spectral)};
-}
-
-// A differentiable plan of the plain functions' arguments (wavebrdf.torch keeps one per
-// forward for its backward): float32 heights plan in single precision, float64 in double.
-struct PyPlan {
-    std::unique_ptr<SlicePlan<float>> single_plan;
-    std::unique_ptr<SlicePlan<double>> double_plan;
-    int n = 0, rows = 0, cols = 0;
-};
-
-template <typename Float>
-py::array plan_forward(SlicePlan<Float>& plan, int n) {
-    std::vector<Float> out;
-    {
-        InterruptibleRelease release;
-        out = plan.forward();
-    }
-    return owning_array(std::move(out), {n, n, 3});
-}
-
 // A scalar x_um / y_um of a single query (a Python number or a 0-d array) as a double.
 double scalar(py::handle value, const char* name) {
     try {
@@ -142,17 +65,6 @@ double scalar(py::handle value, const char* name) {
     } catch (const py::cast_error&) {}
     throw py::value_error(std::string(name) + " = " + std::string(py::repr(value)) +
                           " is invalid; expected a number or an array of numbers");
-}
-
-std::string query_repr(const PyQuery& q) {
-    std::string s = "Query(x_um=" + format_number(q.query.x_um) + ", y_um=" + format_number(q.query.y_um) +
-                    ", sigma_p_um=" + format_number(q.query.sigma_p_um) + ", light=(" +
-                    format_number(q.query.omega_i[0]) + ", " + format_number(q.query.omega_i[1]) + "), model='" +
-                    to_string(q.query.model) + "', ";
-    if (!q.spectral) return s + "lambda_um=" + format_number(q.lambdas_um[0]) + ")";
-    s += "spectral=[";
-    for (std::size_t i = 0; i < q.lambdas_um.size(); ++i) s += (i ? ", " : "") + format_number(q.lambdas_um[i]);
-    return s + "])";
 }
 
 const char* kPlainArgs = R"doc(
@@ -185,63 +97,6 @@ const std::string kPlainDoc = std::string(kPlainArgs) + kRenderOptionsDoc;
 }  // namespace
 
 void bind_brdf(py::module_& m) {
-    py::class_<PyQuery>(m, "Query", R"doc(
-One BRDF query: a Gaussian footprint on the surface, a light direction, a diffraction model
-and the wavelength(s).
-
-Query(x_um=0.0, y_um=0.0, sigma_p_um=10.0, light=(0.0, 0.0), model='OHS', lambda_um=None,
-      spectral=None)
-    x_um, y_um   footprint centre in um (x along rows, y along columns); finite, periodic
-    sigma_p_um   footprint standard deviation in um, 1e-6 to 1e6 (and <= 10 tile periods)
-    light        projected direction towards the light (wx, wy), wx^2 + wy^2 < 1
-    model        'OHS', 'GHS', 'ROHS', 'RGHS' or 'Kirchhoff'
-    lambda_um    one wavelength in um (0.01 to 1000); default 0.5 when spectral is None
-    spectral     N samples over 0.36-0.83 um (1...256) or a list of wavelengths in um, to
-                 linear sRGB (CIE 1931); excludes lambda_um
-Position, sigma_p, light and model can be set later (validated); the wavelengths are fixed.
-)doc")
-        .def(py::init(&make_query), "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0,
-             "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "lambda_um"_a = py::none(),
-             "spectral"_a = py::none())
-        .def_property(
-            "x_um", [](const PyQuery& q) { return q.query.x_um; },
-            [](PyQuery& q, double v) { q.query.x_um = check_finite(v, "x_um"); })
-        .def_property(
-            "y_um", [](const PyQuery& q) { return q.query.y_um; },
-            [](PyQuery& q, double v) { q.query.y_um = check_finite(v, "y_um"); })
-        .def_property(
-            "sigma_p_um", [](const PyQuery& q) { return q.query.sigma_p_um; },
-            [](PyQuery& q, double v) { q.query.sigma_p_um = check_positive(v, "sigma_p_um"); })
-        .def_property(
-            "light", [](const PyQuery& q) { return py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]); },
-            [](PyQuery& q, py::object v) { q.query.omega_i = light_direction(v); })
-        .def_property(
-            "model", [](const PyQuery& q) { return std::string(to_string(q.query.model)); },
-            [](PyQuery& q, const std::string& v) { q.query.model = model_from(v); })
-        .def_property_readonly(
-            "lambdas_um", [](const PyQuery& q) { return q.lambdas_um; }, "the wavelengths in um")
-        .def_property_readonly(
-            "spectral", [](const PyQuery& q) { return q.spectral; },
-            "True when the slice is spectral (RGB through CIE 1931)")
-        .def(
-            "kwargs",
-            [](const PyQuery& q) {
-                py::dict d("x_um"_a = q.query.x_um, "y_um"_a = q.query.y_um, "sigma_p_um"_a = q.query.sigma_p_um,
-                           "light"_a = py::make_tuple(q.query.omega_i[0], q.query.omega_i[1]),
-                           "model"_a = to_string(q.query.model));
-                if (q.spectral)
-                    d["spectral"] = q.lambdas_um;
-                else
-                    d["lambda_um"] = q.lambdas_um[0];
-                return d;
-            },
-            "The query as keyword arguments of render_slice and slice_gradient.")
-        .def("copy", [](const PyQuery& q) { return PyQuery(q); })
-        .def("__copy__", [](const PyQuery& q) { return PyQuery(q); })
-        .def(
-            "__deepcopy__", [](const PyQuery& q, py::dict) { return PyQuery(q); }, "memo"_a)
-        .def("__repr__", &query_repr);
-
     m.def(
         "render_slice",
         [](py::handle heights, int resolution, const py::object& texel_arg, const py::object& vscale_arg,
@@ -273,56 +128,6 @@ Position, sigma_p, light and model can be set later (validated); the wavelengths
                      "over its ranks, rank 0 gets the whole array (equal to one process's), the others None.\n") +
          kPlainDoc + kBatchDoc)
             .c_str());
-
-    py::class_<PyPlan>(m, "_SlicePlan", R"doc(
-Internal (wavebrdf.torch): the library's SlicePlan for render_slice's arguments, so that a
-backward pass reuses its forward. forward() -> the (n, n, 3) slice; adjoint(weights) -> the
-gradient of sum(weights * slice) (as slice_gradient, after forward()).
-)doc")
-        .def(py::init([](py::handle heights, int resolution, const py::object& texel_arg, const py::object& vscale_arg,
-                         double x_um, double y_um, double sigma_p_um, const py::object& lambda_um,
-                         const py::object& spectral, const py::object& light, const std::string& model,
-                         const std::string& path, double tolerance) {
-                 const auto [texel_um, vscale] = heights_scale(heights, texel_arg, vscale_arg);
-                 const RenderOptions options = render_options(path, tolerance);
-                 const Plain a = plain_arguments(heights, texel_um, vscale, x_um, y_um, sigma_p_um, lambda_um, spectral,
-                                                 light, resolution, model);
-                 PyPlan p;
-                 p.n = resolution;
-                 p.rows = a.hf.rows();
-                 p.cols = a.hf.cols();
-                 if (a.single)
-                     p.single_plan = std::make_unique<SlicePlan<float>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3,
-                                                                        options);
-                 else
-                     p.double_plan = std::make_unique<SlicePlan<double>>(a.hf, a.q.query, a.q.lambdas_um, resolution, 3,
-                                                                         options);
-                 return p;
-             }),
-             "heights"_a, py::kw_only(), "resolution"_a, "texel_um"_a = py::none(), "vscale"_a = py::none(),
-             "x_um"_a = 0.0, "y_um"_a = 0.0, "sigma_p_um"_a = 10.0, "lambda_um"_a = py::none(),
-             "spectral"_a = py::none(), "light"_a = py::make_tuple(0.0, 0.0), "model"_a = "OHS", "path"_a = "auto",
-             "tolerance"_a = 1e-6)
-        .def("forward",
-             [](PyPlan& p) {
-                 return p.single_plan ? plan_forward(*p.single_plan, p.n) : plan_forward(*p.double_plan, p.n);
-             })
-        .def(
-            "adjoint",
-            [](const PyPlan& p, py::handle weights) {
-                const std::vector<double> w = weights_argument(weights, p.n);
-                std::vector<double> g;
-                {
-                    InterruptibleRelease release;
-                    if (p.single_plan)
-                        p.single_plan->adjoint(w, g);
-                    else
-                        p.double_plan->adjoint(w, g);
-                }
-                if (!p.single_plan) return py::array(owning_array(std::move(g), {p.rows, p.cols}));
-                return py::array(owning_array(std::vector<float>(g.begin(), g.end()), {p.rows, p.cols}));
-            },
-            "weights"_a);
 
     m.def(
         "slice_gradient",

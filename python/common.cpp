@@ -210,6 +210,19 @@ HeightfieldScale heightfield_file_scale(const std::string& path, const py::objec
     return scale;
 }
 
+HeightfieldScale truth_scale(const py::object& truth, const py::object& texel_arg, const py::object& vscale_arg,
+                             double default_texel_um) {
+    if (py::isinstance<py::str>(truth))
+        return heightfield_file_scale(truth.cast<std::string>(), texel_arg, vscale_arg, default_texel_um, 1.0);
+    const bool object = py::isinstance<Heightfield>(truth);
+    HeightfieldScale scale;
+    scale.texel_um = texel_arg.is_none() ? (object ? truth.cast<const Heightfield&>().texel_um() : default_texel_um)
+                                         : check_positive(texel_arg.cast<double>(), "texel_um");
+    scale.vscale = vscale_arg.is_none() ? (object ? truth.cast<const Heightfield&>().vscale() : 1.0)
+                                        : check_finite(vscale_arg.cast<double>(), "vscale");
+    return scale;
+}
+
 std::vector<double> wavelengths(const py::object& lambda_um, const py::object& spectral) {
     if (!lambda_um.is_none() && !spectral.is_none())
         throw py::value_error("lambda_um and spectral exclude each other; expected one of them (or neither: 0.5 um)");

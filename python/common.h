@@ -78,6 +78,12 @@ HeightfieldScale heightfield_file_scale(const std::string& path, const py::objec
                                         const py::object& vscale_arg, double default_texel_um = 1.0,
                                         double default_vscale = 1.0);
 
+// The texel width and vertical scale of a run given `truth` (None, a Heightfield, a file path
+// or an array): texel_arg / vscale_arg when not None (checked), else a Heightfield's own or a
+// file's attributes (heightfield_file_scale), else default_texel_um and 1.
+HeightfieldScale truth_scale(const py::object& truth, const py::object& texel_arg, const py::object& vscale_arg,
+                             double default_texel_um);
+
 // A NumPy array that owns `values` (moved, not copied), of the given C-order shape.
 template <typename T>
 py::array_t<T> owning_array(std::vector<T>&& values, const std::vector<py::ssize_t>& shape) {
@@ -113,6 +119,9 @@ PyQuery make_query(double x_um, double y_um, double sigma_p_um, const py::object
 void bind_heightfield(py::module_& m);
 void bind_gabor(py::module_& m);
 void bind_brdf(py::module_& m);
+void bind_model(py::module_& m);       // model.cpp: Query
+void bind_slice_plan(py::module_& m);  // slice_plan.cpp: _SlicePlan
+void bind_io(py::module_& m);          // io.cpp: read_slice
 void bind_spectrum(py::module_& m);
 void bind_loss(py::module_& m);
 void bind_observation(py::module_& m);

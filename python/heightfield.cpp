@@ -1,11 +1,11 @@
-// Heightfield: from NumPy or an EXR file, to NumPy; the procedural generators.
+// Heightfield (heightfield.h): from NumPy or an EXR file, to NumPy. Heightfield.generate and
+// Heightfield.stats are generate.cpp's, read_slice io.cpp's.
 #include <cstring>
 #include <filesystem>
 #include <optional>
 
 #include "common.h"
 #include <pybind11/stl/filesystem.h>
-#include "wavebrdf/generate.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/surface_file.h"
 
@@ -100,42 +100,6 @@ Heightfield(values, texel_um=1.0, vscale=1.0)
             "path"_a,
             "What a heightfield EXR says about itself (no pixels read): a dict with texel_um, vscale\n"
             "(None when the file does not say), units, made_by and version ('' when absent).")
-        .def_static(
-            "generate",
-            [](const std::string& type, int rows, std::optional<int> cols, double texel_um, std::uint64_t seed,
-               double rms_height_um, double rms_slope, double correlation_um, double anisotropy, int scratch_count,
-               double scratch_depth_um, double scratch_width_um, double amplitude_um, double period_um) {
-                SurfaceParams p;
-                p.type = parse_surface_type(type);
-                p.rows = rows;
-                p.cols = cols.value_or(rows);
-                p.texel_um = texel_um;
-                p.seed = seed;
-                p.rms_height_um = rms_height_um;
-                p.rms_slope = rms_slope;
-                p.correlation_um = correlation_um;
-                p.anisotropy = anisotropy;
-                p.scratch_count = scratch_count;
-                p.scratch_depth_um = scratch_depth_um;
-                p.scratch_width_um = scratch_width_um;
-                p.amplitude_um = amplitude_um;
-                p.period_um = period_um;
-                py::gil_scoped_release release;
-                return generate_heightfield(p);
-            },
-            "type"_a = "isotropic", "rows"_a = 256, "cols"_a = py::none(), "texel_um"_a = 1.0, "seed"_a = 1,
-            "rms_height_um"_a = 0.1, "rms_slope"_a = 0.0, "correlation_um"_a = 4.0, "anisotropy"_a = 8.0,
-            "scratch_count"_a = 40, "scratch_depth_um"_a = 0.05, "scratch_width_um"_a = 1.5, "amplitude_um"_a = 0.1,
-            "period_um"_a = 32.0, R"doc(
-A procedural periodic surface, deterministic in ``seed`` (as ``wavebrdf heightfield``).
-
-type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_um, or rms
-      slope rms_slope when > 0, correlation length correlation_um), 'brushed' (the same,
-      anisotropy times longer along y), 'scratched' (scratch_count Gaussian grooves of depth
-      scratch_depth_um and width scratch_width_um on a smooth base) or 'grating'
-      (amplitude_um * sin(2 pi x / period_um)). Lengths in um; rows, cols in 1...16384
-      (cols defaults to rows). The result has vscale 1 and texel width texel_um.
-)doc")
         .def_property_readonly("rows", &Heightfield::rows)
         .def_property_readonly("cols", &Heightfield::cols)
         .def_property_readonly(
@@ -192,14 +156,6 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             },
             "texel_um"_a, "vscale"_a, "The same values with another texel width (um) and vertical scale.")
         .def(
-            "stats",
-            [](const Heightfield& hf) {
-                const HeightStats s = height_stats(hf);
-                return py::dict("mean_um"_a = s.mean_um, "rms_height_um"_a = s.rms_height_um, "min_um"_a = s.min_um,
-                                "max_um"_a = s.max_um, "rms_slope"_a = s.rms_slope);
-            },
-            "Mean, rms height, min and max in um (vscale included) and rms slope.")
-        .def(
             "save_exr",
             [](const Heightfield& hf, const std::filesystem::path& path_arg, const std::string& made_by) {
                 const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
@@ -247,52 +203,6 @@ type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_
             return "Heightfield(" + std::to_string(hf.rows()) + "x" + std::to_string(hf.cols()) +
                    ", texel_um=" + format_number(hf.texel_um()) + ", vscale=" + format_number(hf.vscale()) + ")";
         });
-
-    m.def(
-        "read_slice",
-        [](const std::filesystem::path& path_arg) {
-            const std::string path = path_arg.string();  // str or os.PathLike (pathlib.Path)
-            SliceFile file;
-            {
-                py::gil_scoped_release release;
-                file = read_slice_exr(path);
-            }
-            const py::ssize_t rows = file.image.rows, cols = file.image.cols;
-            py::array_t<float> image = owning_array(std::move(file.image.data), {rows, cols, 3});
-            py::dict d;
-            if (file.attributes) {
-                const SliceAttributes& a = *file.attributes;
-                d["x_um"] = a.query.x_um;
-                d["y_um"] = a.query.y_um;
-                d["sigma_p_um"] = a.query.sigma_p_um;
-                d["light"] = py::make_tuple(a.query.omega_i[0], a.query.omega_i[1]);
-                d["model"] = std::string(to_string(a.query.model));
-                d["lambdas_um"] = a.lambdas_um;
-                d["resolution"] = a.resolution;
-                d["channels"] = a.channels;
-                if (a.heightfield_rows > 0) {
-                    d["texel_um"] = a.texel_um;
-                    d["vscale"] = a.vscale;
-                    d["heightfield_size"] = py::make_tuple(a.heightfield_rows, a.heightfield_cols);
-                    d["heightfield_file"] = a.heightfield_file;
-                }
-                d["unit"] = a.unit;
-                d["made_by"] = a.made_by;
-                d["version"] = a.version;
-            }
-            return py::make_tuple(image, d);
-        },
-        "path"_a, R"doc(
-Reads a slice EXR written by wavebrdf (render --out, genbrdf -o, a run's reference_/final_
-slices, observation files) or any RGB EXR.
-
-Returns (image, info): image a float32 array (n, n, 3), linear, in the slice's unit; info a dict
-of what the file says about itself: x_um, y_um, sigma_p_um (um), light (omega_i x, y), model,
-lambdas_um (list, um), resolution, channels (1: one wavelength, stored R = G = B; 3: sRGB),
-the heightfield's texel_um, vscale, heightfield_size (rows, cols) and heightfield_file (when
-known), unit (f_r, the BRDF, in 1/sr), made_by and version. An empty dict for a file without
-wavebrdf's attributes. RuntimeError names the file when it is unreadable or an attribute is
-hostile.)doc");
 }
 
 }  // namespace wavebrdf::python

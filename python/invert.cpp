@@ -103,18 +103,9 @@ InversionResult invert(const py::object& truth_arg, const py::object& observatio
     check_quiet(quiet);
 
     // Scale: given, else the truth's when it is a Heightfield, else 1.
-    const bool truth_object = py::isinstance<Heightfield>(truth_arg);
-    options.texel_um = texel_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().texel_um() : 1.0)
-                                           : check_positive(texel_arg.cast<double>(), "texel_um");
-    options.vscale = vscale_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().vscale() : 1.0)
-                                          : check_finite(vscale_arg.cast<double>(), "vscale");
-    // A truth file: its own attributes where texel_um / vscale are not given.
-    if (py::isinstance<py::str>(truth_arg)) {
-        const HeightfieldScale scale = heightfield_file_scale(truth_arg.cast<std::string>(), texel_arg, vscale_arg,
-                                                              options.texel_um, options.vscale);
-        options.texel_um = scale.texel_um;
-        options.vscale = scale.vscale;
-    }
+    const HeightfieldScale scale = truth_scale(truth_arg, texel_arg, vscale_arg, 1.0);
+    options.texel_um = scale.texel_um;
+    options.vscale = scale.vscale;
 
     // Wavelengths (checked here with Python's names); none: the CLI's default, spectral 8.
     if (!lambda_um.is_none() || !spectral.is_none()) {

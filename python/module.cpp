@@ -14,7 +14,10 @@ PYBIND11_MODULE(_core, m) {
         "losses, optimisers, the inverse renderer and heightfield recovery";
     m.attr("__version__") = wavebrdf::k_version;
     bind_heightfield(m);
+    bind_io(m);
+    bind_model(m);
     bind_brdf(m);
+    bind_slice_plan(m);
     bind_spectrum(m);
     bind_gabor(m);
     bind_loss(m);

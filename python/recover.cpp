@@ -24,11 +24,7 @@ void bind_recover(py::module_& m) {
            const py::object& calibrate, int field_tile_threshold, int field_tile_core,
            const py::object& white_smoothness, int white_smoothness_iterations) -> py::object {
             const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
-            const std::vector<Observation> list = observations_or_file(observations);
-            const std::array<int, 2> rc = size_argument(size);
-            check_positive(texel_um, "texel_um");
-            check_finite(vscale, "vscale");
-            if (vscale == 0.0) bad_argument("vscale", "0", "a non-zero vertical scale");
+            const HeightsArguments given = heights_arguments(observations, size, texel_um, vscale);
             RecoverSettings s;
             for (double w : blur_widths)
                 if (!std::isfinite(w) || w <= 0.0)
@@ -65,8 +61,8 @@ void bind_recover(py::module_& m) {
             Heightfield estimate = run_released(
                 callback, history, stopped,
                 [&](const auto& on_step) {
-                    return recover_heights(list, rc[0], rc[1], texel_um, vscale, s, on_step, t ? &*t : nullptr, *comm,
-                                           &calibration);
+                    return recover_heights(given.observations, given.rows, given.cols, texel_um, vscale, s, on_step,
+                                           t ? &*t : nullptr, *comm, &calibration);
                 },
                 nullptr, comm->size() > 1);
             if (calibrate.is_none()) return py::cast(std::move(estimate));

@@ -45,17 +45,31 @@ std::vector<double> wavelength_list(const py::object& lambdas, const char* name)
     return list;
 }
 
+HeightsArguments heights_arguments(const py::object& observations, const py::object& size, double texel_um,
+                                   double vscale) {
+    HeightsArguments a;
+    a.observations = observations_or_file(observations);
+    const std::array<int, 2> rc = size_argument(size);
+    a.rows = rc[0];
+    a.cols = rc[1];
+    check_positive(texel_um, "texel_um");
+    check_finite(vscale, "vscale");
+    if (vscale == 0.0) bad_argument("vscale", "0", "a non-zero vertical scale");
+    return a;
+}
+
 int planned_resolution(int resolution) {
     if (resolution != 0) check_resolution(resolution, "resolution");
     return resolution;
 }
 
 // White light's smoothness weights (RecoverSettings::white_smoothness): None → the default;
-// else a sequence of at most 64 numbers, each finite in [0, 1e12] (empty: no continuation).
+// else a sequence of numbers (empty: no continuation; the library bounds their count and range).
 std::optional<std::vector<double>> white_smoothness_argument(const py::object& value) {
     if (value.is_none()) return std::nullopt;
     std::vector<double> weights;
-    bool ok = !py::isinstance<py::str>(value) && py::isinstance<py::sequence>(value) && py::len(value) <= 64;
+    // The type here; the count and the range are the library's to check.
+    bool ok = !py::isinstance<py::str>(value) && py::isinstance<py::sequence>(value);
     if (ok) {
         try {
             weights = value.cast<std::vector<double>>();
@@ -63,11 +77,9 @@ std::optional<std::vector<double>> white_smoothness_argument(const py::object& v
             ok = false;
         }
     }
-    for (double w : weights) ok = ok && w >= 0.0 && w <= 1e12;
     if (!ok)
-        throw py::value_error("white_smoothness = " + std::string(py::repr(value)) +
-                              " is invalid; expected a sequence of at most 64 weights, each 0 to 1e12, largest "
-                              "first, or None");
+        throw py::value_error("white_smoothness = " + std::string(py::repr(value)).substr(0, 80) +
+                              " is invalid; expected a sequence of weights (numbers), largest first, or None");
     return weights;
 }
 

@@ -25,6 +25,15 @@ namespace wavebrdf::python {
 
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// The first arguments of recover_heights and recover_heights_thesis: the observations (or their
+// file) and the grid they recover, size texels of texel_um (> 0) with vscale (finite, non-zero).
+struct HeightsArguments {
+    std::vector<Observation> observations;
+    int rows = 0, cols = 0;
+};
+HeightsArguments heights_arguments(const py::object& observations, const py::object& size, double texel_um,
+                                   double vscale);
+
 // noise=: None, 'none', 'poisson:N' or 'gaussian:REL'.
 Noise noise_argument(const py::object& noise);
 // Observations as given (Observation, list) or read from a path (JSON, or HDF5: observation_file.h).

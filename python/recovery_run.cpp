@@ -180,19 +180,6 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     const std::array<int, 2> rc = size_argument(size);
     options.rows = rc[0];
     options.cols = rc[1];
-    const bool truth_object = py::isinstance<Heightfield>(truth_arg);
-    options.texel_um = texel_arg.is_none()
-                           ? (truth_object ? truth_arg.cast<const Heightfield&>().texel_um() : options.texel_um)
-                           : check_positive(texel_arg.cast<double>(), "texel_um");
-    options.vscale = vscale_arg.is_none() ? (truth_object ? truth_arg.cast<const Heightfield&>().vscale() : 1.0)
-                                          : check_finite(vscale_arg.cast<double>(), "vscale");
-    // A truth file: its own attributes where texel_um / vscale are not given.
-    if (py::isinstance<py::str>(truth_arg)) {
-        const HeightfieldScale scale = heightfield_file_scale(truth_arg.cast<std::string>(), texel_arg, vscale_arg,
-                                                              options.texel_um, options.vscale);
-        options.texel_um = scale.texel_um;
-        options.vscale = scale.vscale;
-    }
     options.height_range_um = check_positive(height_range_um, "height_range_um");
     // As the CLI: a given truth is planned for its measured roughness unless a correlation length
     // is stated (then the stated plan, as a user without the truth would have it).
@@ -203,16 +190,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     if (!k.plan_from_truth.is_none()) {
         if (!py::isinstance<py::bool_>(k.plan_from_truth))
             bad_argument("plan_from_truth", std::string(py::repr(k.plan_from_truth)), "True, False or None");
-        const bool wanted = k.plan_from_truth.cast<bool>();
-        if (wanted && truth_arg.is_none())
-            throw py::value_error(
-                "plan_from_truth = True plans for a given truth's measured roughness; expected a truth (not "
-                "observations or the generated default)");
-        if (wanted && correlation_given)
-            throw py::value_error(
-                "plan_from_truth = True and correlation_texels exclude each other; expected one of them (the "
-                "measured roughness, or the stated correlation length)");
-        options.plan_from_truth = wanted;
+        options.plan_from_truth = k.plan_from_truth.cast<bool>();
     }
     options.model = model_from(model);
     options.omega_i = light_direction(light);
@@ -241,8 +219,6 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.white_smoothness_iterations = optional_count(k.white_smoothness_iterations, "white_smoothness_iterations");
     options.epochs = knob<int>(k.epochs, "epochs", "an epoch count >= 0");
     options.seed = seed;
-    if (!std::isfinite(max_memory_gb) || max_memory_gb < 0.0)
-        bad_argument("max_memory_gb", format_number(max_memory_gb), "a limit in GB > 0, or 0 for the physical memory");
     options.max_memory_gb = max_memory_gb;
     options.uncertainty = with_uncertainty;  // the plan refines to the minimum first (recovery_run.h)
     try {
@@ -266,18 +242,18 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.errors.sigma_p_factor = knob<double>(k.simulate_sigma_factor, "simulate_sigma_factor",
                                                  "a factor in [0.25, 4]");
     options.errors.seed = seed;
-    if (options.errors.any() && !observations_arg.is_none())
-        throw py::value_error(
-            "simulate_* render the observations with acquisition errors; they need a truth (or the "
-            "generated default), not observations");
     check_callback(callback);
     check_quiet(quiet);
-    if (!truth_arg.is_none() && !observations_arg.is_none())
-        throw py::value_error("truth and observations exclude each other; expected one of them (or neither)");
-    if (options.noise.kind != NoiseKind::None && !observations_arg.is_none())
-        throw py::value_error("noise = '" + to_string(options.noise) +
-                              "' simulates noise on rendered observations; it needs a truth (or the generated "
-                              "default), not observations");
+    // Every option the library checks, before any file is read (prepare_recovery checks them again).
+    RecoveryInputs given;
+    given.truth = !truth_arg.is_none();
+    given.observations = !observations_arg.is_none();
+    given.correlation = correlation_given;
+    check_recovery_options(options, given);
+    // The scale: given, else a truth Heightfield's or a truth file's (its header read here).
+    const HeightfieldScale scale = truth_scale(truth_arg, texel_arg, vscale_arg, options.texel_um);
+    options.texel_um = scale.texel_um;
+    options.vscale = scale.vscale;
 
     std::optional<Heightfield> truth;
     std::vector<Observation> observations;

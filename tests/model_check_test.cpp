@@ -189,23 +189,11 @@ struct ScalarCase {
 // `simulator` (recover_test's small case).
 ScalarCase small_scalar_case(Simulator simulator, std::uint64_t seed) {
     const Heightfield surface = test::peak_scaled_surface(12, 8.0, 0.5, seed);
-    ScalarCase c{surface, {}};
-    std::mt19937_64 rng(seed + 100);
-    std::uniform_real_distribution<double> jitter(-0.2, 0.2);
-    const double step = 4.0;
-    for (double lambda : {0.5, 0.6})
-        for (int a = 0; a < 6; ++a)
-            for (int b = 0; b < 6; ++b) {
-                Observation o;
-                o.query = test::make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step,
-                                           3.0);
-                o.lambdas_um.assign(1, lambda);
-                o.resolution = 32;
-                o.reference = to_reference(simulator == Simulator::Scalar
-                                               ? scalar_slice(c.truth, o.query, lambda, o.resolution)
-                                               : render_observation(c.truth, o));
-                c.observations.push_back(std::move(o));
-            }
+    ScalarCase c{surface, test::small_case_footprints(seed, 32)};
+    for (Observation& o : c.observations)
+        o.reference = to_reference(simulator == Simulator::Scalar
+                                       ? scalar_slice(c.truth, o.query, o.lambdas_um[0], o.resolution)
+                                       : render_observation(c.truth, o));
     return c;
 }
 
@@ -341,8 +329,9 @@ TEST(ModelCheck, FieldFloorShortcutSkipsBuildingTheFieldModel) {
     const auto run = [&](double floor, std::map<std::string, double>* stages) {
         return detail::check_model(
             pointers(c.observations), index, {}, 1.0, c.truth, refined, 3, s,
-            [&](const std::string& stage, int, double loss, const Heightfield*) {
-                (*stages)[stage] = loss;
+            [&](const detail::StageId& stage, int, double loss, const Heightfield*) {
+                EXPECT_EQ(stage.kind, stage_kind(stage.name)) << stage.name;
+                (*stages)[stage.name] = loss;
                 return true;
             },
             serial_communicator(), floor);

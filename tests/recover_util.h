@@ -43,8 +43,10 @@ struct SmallCase {
     std::vector<Observation> observations;
 };
 
-inline SmallCase small_case(std::uint64_t seed) {
-    SmallCase c{peak_scaled_surface(12, 8.0, 0.5, seed), {}};
+// The small case's footprints without references: `resolution`² pixels each (seeded by `seed`
+// as small_case's).
+inline std::vector<Observation> small_case_footprints(std::uint64_t seed, int resolution) {
+    std::vector<Observation> observations;
     std::mt19937_64 rng(seed + 100);
     std::uniform_real_distribution<double> jitter(-0.2, 0.2);
     const double step = 4.0;
@@ -54,10 +56,15 @@ inline SmallCase small_case(std::uint64_t seed) {
                 Observation o;
                 o.query = make_query(Model::OHS, (a + 0.5 + jitter(rng)) * step, (b + 0.5 + jitter(rng)) * step, 3.0);
                 o.lambdas_um = std::vector<double>(1, lambda);  // not = {lambda}: GCC 12's -Wnonnull misfires on it
-                o.resolution = 64;
-                o.reference = to_reference(render_observation(c.truth, o));
-                c.observations.push_back(std::move(o));
+                o.resolution = resolution;
+                observations.push_back(std::move(o));
             }
+    return observations;
+}
+
+inline SmallCase small_case(std::uint64_t seed) {
+    SmallCase c{peak_scaled_surface(12, 8.0, 0.5, seed), small_case_footprints(seed, 64)};
+    for (Observation& o : c.observations) o.reference = to_reference(render_observation(c.truth, o));
     return c;
 }
 

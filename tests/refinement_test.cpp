@@ -90,9 +90,10 @@ TEST(Refinement, RoundsCountAcrossRoundsAndStopBelowTheTolerance) {
     };
     std::vector<std::string> stages;
     std::vector<int> iterations;
-    const detail::StageReport report = [&](const std::string& stage, int iteration, double, const Heightfield* h) {
+    const detail::StageReport report = [&](const detail::StageId& stage, int iteration, double, const Heightfield* h) {
         EXPECT_NE(h, nullptr);
-        stages.push_back(stage);
+        EXPECT_EQ(stage.kind, StageKind::RefineRung);
+        stages.push_back(stage.name);
         iterations.push_back(iteration);
         return true;
     };
@@ -100,12 +101,12 @@ TEST(Refinement, RoundsCountAcrossRoundsAndStopBelowTheTolerance) {
     std::vector<double> g0(4);
     const double reference = objective(x, g0);
     detail::RefinementRounds rounds(objective, flat, 5, reference, report);
-    rounds.run(x, 2, "a");
+    rounds.run(x, 2, {StageKind::RefineRung, detail::stage_part(0.7)});
     ASSERT_EQ(iterations.size(), 2u);
     EXPECT_EQ(iterations.back(), 2);
-    rounds.run(x, 50, "b", 1e-6);
-    EXPECT_EQ(stages.front(), "a");
-    EXPECT_EQ(stages.back(), "b");
+    rounds.run(x, 50, {StageKind::RefineRung, detail::stage_part(0.55)}, 1e-6);
+    EXPECT_EQ(stages.front(), "refine:0.7");
+    EXPECT_EQ(stages.back(), "refine:0.55");
     EXPECT_GT(iterations.back(), 2);  // counted on from the first round
     EXPECT_EQ(iterations.back(), rounds.done());
     EXPECT_TRUE(rounds.reported());
@@ -114,7 +115,7 @@ TEST(Refinement, RoundsCountAcrossRoundsAndStopBelowTheTolerance) {
     for (std::size_t k = 0; k < x.size(); ++k) EXPECT_NEAR(x[k], target[k], 1e-3);
     // A report that asks to stop ends the round and every later one.
     detail::RefinementRounds stopping(objective, flat, 5, reference,
-                                      [](const std::string&, int, double, const Heightfield*) { return false; });
+                                      [](const detail::StageId&, int, double, const Heightfield*) { return false; });
     std::vector<double> y(4, 0.0);
     stopping.run(y, 10);
     EXPECT_FALSE(stopping.go_on());

@@ -45,9 +45,9 @@ TEST(WhiteLightCli, SmoothnessKnobsReachTheContinuationAndBadValuesFailWithOneLi
     std::string many = "1";  // 65 weights, one more than allowed
     for (int i = 1; i < 65; ++i) many += ",1";
     const std::vector<std::pair<std::string, std::vector<std::string>>> cases = {
-        {"--white-smoothness -1", {"white smoothness weight -1", "0 to 1e12"}},
+        {"--white-smoothness -1", {"--white-smoothness weight -1 is invalid", "0 to 1e12"}},
         {"--white-smoothness 1,x", {"--white-smoothness", "'1,x'"}},
-        {"--white-smoothness 1e13", {"white smoothness weight", "0 to 1e12"}},
+        {"--white-smoothness 1e13", {"--white-smoothness weight 10000000000000 is invalid", "0 to 1e12"}},
         {"--white-smoothness " + many, {"65 weights", "at most 64"}},
         {"--white-smoothness-iterations 10000001", {"--white-smoothness-iterations 10000001", "0 to 10000000"}},
     };

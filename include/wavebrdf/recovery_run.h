@@ -201,6 +201,24 @@ struct PreparedRecovery {
 double estimate_recovery_bytes(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
                                RecoveryMethod method, const RecoverSettings& settings = {});
 
+// What a front end was given besides the options: a truth, observations, a stated
+// correlation length (the library cannot tell a stated one from the default).
+struct RecoveryInputs {
+    bool truth = false;
+    bool observations = false;
+    bool correlation = false;
+};
+
+// Every check of `options` that needs no file, each written here once and named as
+// options.names spells the option: the ranges of the counts, weights, wavelengths, tiles,
+// white light's smoothness list, the position uncertainty, the simulated acquisition errors
+// and max_memory_gb; which inputs exclude each other (a truth and observations; noise, a
+// simulator, simulated errors or plan_from_truth without a truth to render;
+// plan_from_truth with a stated correlation length); a pipeline without a field stage. The
+// front ends call it before reading any file; prepare_recovery calls it again (without
+// `given.correlation`). Throws std::invalid_argument (one line).
+void check_recovery_options(const RecoveryOptions& options, const RecoveryInputs& given);
+
 // For the pipeline, a model that is not separable (planned laser observations) is refused
 // (std::invalid_argument) before any work; RGB observations alone take the white-light path
 // (recover_heights).

@@ -241,18 +241,6 @@ class Heightfield:
         (None when the file does not say), units, made_by and version ('' when absent).
         """
         ...
-    @staticmethod
-    def generate(type: str = ..., rows: int = ..., cols: Optional[int] = ..., texel_um: float = ..., seed: int = ..., rms_height_um: float = ..., rms_slope: float = ..., correlation_um: float = ..., anisotropy: float = ..., scratch_count: int = ..., scratch_depth_um: float = ..., scratch_width_um: float = ..., amplitude_um: float = ..., period_um: float = ...) -> Heightfield:
-        """A procedural periodic surface, deterministic in ``seed`` (as ``wavebrdf heightfield``).
-
-        type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_um, or rms
-              slope rms_slope when > 0, correlation length correlation_um), 'brushed' (the same,
-              anisotropy times longer along y), 'scratched' (scratch_count Gaussian grooves of depth
-              scratch_depth_um and width scratch_width_um on a smooth base) or 'grating'
-              (amplitude_um * sin(2 pi x / period_um)). Lengths in um; rows, cols in 1...16384
-              (cols defaults to rows). The result has vscale 1 and texel width texel_um.
-        """
-        ...
     @property
     def rows(self) -> int:
         ...
@@ -304,9 +292,6 @@ class Heightfield:
     def with_scale(self, texel_um: float, vscale: float) -> Heightfield:
         """The same values with another texel width (um) and vertical scale."""
         ...
-    def stats(self) -> dict:
-        """Mean, rms height, min and max in um (vscale included) and rms slope."""
-        ...
     def save_exr(self, path: Union[str, os.PathLike], made_by: str = ...) -> None:
         """Writes the values (texel units) as a single-channel float EXR (atomically), with the
         attributes texel_um, vscale, units, made_by and the wavebrdf version (docs/conventions.md,
@@ -329,6 +314,21 @@ class Heightfield:
     def __deepcopy__(self, memo: dict) -> Heightfield:
         ...
     def __repr__(self) -> str:
+        ...
+    @staticmethod
+    def generate(type: str = ..., rows: int = ..., cols: Optional[int] = ..., texel_um: float = ..., seed: int = ..., rms_height_um: float = ..., rms_slope: float = ..., correlation_um: float = ..., anisotropy: float = ..., scratch_count: int = ..., scratch_depth_um: float = ..., scratch_width_um: float = ..., amplitude_um: float = ..., period_um: float = ...) -> Heightfield:
+        """A procedural periodic surface, deterministic in ``seed`` (as ``wavebrdf heightfield``).
+
+        type  'flat', 'isotropic' (Gaussian-correlated noise with rms height rms_height_um, or rms
+              slope rms_slope when > 0, correlation length correlation_um), 'brushed' (the same,
+              anisotropy times longer along y), 'scratched' (scratch_count Gaussian grooves of depth
+              scratch_depth_um and width scratch_width_um on a smooth base) or 'grating'
+              (amplitude_um * sin(2 pi x / period_um)). Lengths in um; rows, cols in 1...16384
+              (cols defaults to rows). The result has vscale 1 and texel width texel_um.
+        """
+        ...
+    def stats(self) -> dict:
+        """Mean, rms height, min and max in um (vscale included) and rms slope."""
         ...
     @staticmethod
     def from_um(heights_um: Any, texel_um: float, vscale: float = ...) -> Heightfield:

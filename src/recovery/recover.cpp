@@ -18,6 +18,7 @@
 #include "recovery/recover_field_model.h"
 #include "recovery/recover_positions.h"
 #include "recovery/stages.h"
+#include "recovery/white_light.h"
 
 namespace wavebrdf {
 
@@ -193,10 +194,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                                     std::to_string(settings.outlier_repair_threshold) +
                                     " is invalid; expected 0 ... 100 / a finite value > 0");
     validate_iterations(settings.white_smoothness_iterations, "recover_heights: white smoothness iterations");
-    for (double w : settings.white_smoothness)
-        if (!(w >= 0.0 && w <= 1e12))
-            throw std::domain_error("recover_heights: white smoothness weight " + std::to_string(w) +
-                                    " is invalid; expected a finite value >= 0");
+    detail::check_white_smoothness(settings.white_smoothness, "recover_heights: white_smoothness");
     detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]
     // Single-wavelength separable observations, grouped by wavelength, feed the field stage.
     // (Pointers, not copies: the references are most of the memory a run holds.)

@@ -374,9 +374,8 @@ bool skip_field_refinement(double gabor_loss, double field_start_loss, double sk
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
-                        const RecoverSettings& settings,
-                        const std::function<bool(const std::string&, int, double, const Heightfield*)>& report,
-                        const Communicator& comm, double field_floor_loss) {
+                        const RecoverSettings& settings, const StageReport& report, const Communicator& comm,
+                        double field_floor_loss) {
     std::vector<Query> queries;
     queries.reserve(separable.size());
     for (std::size_t i = 0; i < separable.size(); ++i) {
@@ -390,12 +389,12 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
     }
     const bool exposure = settings.calibrate.exposure;
     const double gabor = gabor_amplitude_loss(separable, queries, refined, exposure, comm);
-    if (!report("misfit:gabor", 0, gabor, &refined)) return refined;
+    if (!report({StageKind::ModelMisfit, "gabor"}, 0, gabor, &refined)) return refined;
     // The field model's loss at any heights is not expected below the field stage's floor (its
     // retrievals minimised it over free objects): skipped without building the model.
     if (field_floor_loss > 0.0 && skip_field_refinement(gabor, field_floor_loss, settings.model_check_skip_ratio)) {
-        if (!report("misfit:field-floor", 0, field_floor_loss, &unwrapped)) return refined;
-        report("select:gabor", 0, gabor, &refined);
+        if (!report({StageKind::ModelMisfit, "field-floor"}, 0, field_floor_loss, &unwrapped)) return refined;
+        report({StageKind::ModelSelect, "gabor"}, 0, gabor, &refined);
         return refined;
     }
     const FieldModelLoss model(separable, queries, refined.rows(), refined.cols(), refined.texel_um(), refine, exposure,
@@ -406,9 +405,9 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
     // data), cannot overtake it and is skipped (recover.h, model_check_skip_ratio).
     FieldModelEvaluation at_start;
     at_start.loss = model(heights_um_of(unwrapped), &at_start.gradient);
-    if (!report("misfit:field-start", 0, at_start.loss, &unwrapped)) return refined;
+    if (!report({StageKind::ModelMisfit, "field-start"}, 0, at_start.loss, &unwrapped)) return refined;
     if (skip_field_refinement(gabor, at_start.loss, settings.model_check_skip_ratio)) {
-        report("select:gabor", 0, gabor, &refined);
+        report({StageKind::ModelSelect, "gabor"}, 0, gabor, &refined);
         return refined;
     }
     bool go_on = true;
@@ -416,12 +415,14 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
     const Heightfield in_field = refine_in_field_model(
         model, unwrapped, settings.model_check_iterations, settings.field.history, settings.field.stall_window,
         settings.field.stall_tolerance,
-        [&](int it, double value, const Heightfield& h) { return go_on = report("refine:field", it, value, &h); },
+        [&](int it, double value, const Heightfield& h) {
+            return go_on = report(StageKind::ModelRefine, it, value, &h);
+        },
         &field, &at_start);
-    if (!go_on || !report("misfit:field", 0, field, &in_field)) return refined;
+    if (!go_on || !report({StageKind::ModelMisfit, "field"}, 0, field, &in_field)) return refined;
     const bool keep_field = field < gabor;
     const Heightfield& chosen = keep_field ? in_field : refined;
-    report(keep_field ? "select:field" : "select:gabor", 0, std::min(field, gabor), &chosen);
+    report({StageKind::ModelSelect, keep_field ? "field" : "gabor"}, 0, std::min(field, gabor), &chosen);
     return chosen;
 }
 

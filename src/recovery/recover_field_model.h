@@ -18,6 +18,7 @@
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
+#include "recovery/stage_report.h"
 
 namespace wavebrdf::detail {
 
@@ -127,8 +128,7 @@ bool skip_field_refinement(double gabor_loss, double field_start_loss, double sk
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
-                        const RecoverSettings& settings,
-                        const std::function<bool(const std::string&, int, double, const Heightfield*)>& report,
-                        const Communicator& comm, double field_floor_loss = 0.0);
+                        const RecoverSettings& settings, const StageReport& report, const Communicator& comm,
+                        double field_floor_loss = 0.0);
 
 }  // namespace wavebrdf::detail

@@ -240,22 +240,35 @@ double position_uncertainty_um(const RecoveryOptions& options, double texel_um) 
     return options.position_uncertainty_um.value_or(options.errors.position_rms_texels * texel_um);
 }
 
-// Every option checked here, once, before any work, named as the front end spells it
-// (options.names). Returns the memory limit the run is held to.
-MemoryLimit check_recovery_options(const RecoveryOptions& options, const Heightfield* truth,
-                                   const std::vector<Observation>& observations, const Communicator& comm) {
-    if (truth != nullptr && !observations.empty())
-        throw std::invalid_argument("a truth and observations exclude each other; expected one of them (or neither)");
-    if (options.noise.kind != NoiseKind::None && !observations.empty())
-        throw std::invalid_argument(
-            "noise '" + to_string(options.noise) +
-            "' is simulated on rendered observations; it needs a truth, not given observations");
-    if (options.simulator != Simulator::Gabor && !observations.empty())
-        throw std::invalid_argument(std::string("simulator '") + to_string(options.simulator) +
-                                    "' simulates observations of a truth; given observations are used as they are");
+}  // namespace
+
+void check_recovery_options(const RecoveryOptions& options, const RecoveryInputs& given) {
+    const auto name = [&](const std::string& key) { return option_name(options.names, key); };
+    const std::string truth = name("truth"), observations = name("observations");
+    if (given.truth && given.observations)
+        throw std::invalid_argument(truth + " and " + observations +
+                                    " exclude each other; expected one of them (or neither)");
+    if (options.noise.kind != NoiseKind::None && given.observations)
+        throw std::invalid_argument(name("noise") + " '" + to_string(options.noise) +
+                                    "' simulates noise on rendered observations; it needs " + truth +
+                                    " (or the generated default), not " + observations);
+    if (options.simulator != Simulator::Gabor && given.observations)
+        throw std::invalid_argument(name("simulator") + " '" + to_string(options.simulator) +
+                                    "' simulates observations of a truth; it needs " + truth +
+                                    " (or the generated default), not " + observations);
+    if (options.plan_from_truth && !given.truth)
+        throw std::invalid_argument(name("plan_from_truth") +
+                                    " plans for a given truth's measured roughness; expected " + truth + " (not " +
+                                    observations + " or the generated default)");
+    if (options.plan_from_truth && given.correlation)
+        throw std::invalid_argument(name("plan_from_truth") + " and " + name("correlation_texels") +
+                                    " exclude each other; expected one of them (the measured roughness, or the "
+                                    "stated correlation length)");
+    if (!std::isfinite(options.max_memory_gb) || options.max_memory_gb < 0.0)
+        throw std::invalid_argument(name("max_memory_gb") + " " + detail::format_shortest(options.max_memory_gb) +
+                                    " is invalid; expected a limit in GB > 0, or 0 for the physical memory");
     // The sentinels first: -1 is "the library's default"; another negative or a NaN is a
     // mistake (an option given as -5 or nan).
-    const auto name = [&](const std::string& key) { return option_name(options.names, key); };
     {
         const std::pair<const char*, long long> counts[] = {
             {"field_iterations", options.field_iterations},
@@ -291,7 +304,7 @@ MemoryLimit check_recovery_options(const RecoveryOptions& options, const Heightf
     if (options.field_tile_threshold > 1000000)
         throw std::invalid_argument(name("field_tile_threshold") + " " + std::to_string(options.field_tile_threshold) +
                                     " texels is invalid; expected 0 to 1000000");
-    if (options.white_smoothness) detail::check_white_smoothness(*options.white_smoothness);
+    if (options.white_smoothness) detail::check_white_smoothness(*options.white_smoothness, name("white_smoothness"));
     if (options.white_smoothness_iterations >= 0)
         validate_iterations(options.white_smoothness_iterations, name("white_smoothness_iterations"));
     if (options.field_tile_core >= 0 && (options.field_tile_core < 8 || options.field_tile_core > 4096))
@@ -308,23 +321,35 @@ MemoryLimit check_recovery_options(const RecoveryOptions& options, const Heightf
                                     " is invalid; expected 2 ... " + std::to_string(k_max_spectral_samples) +
                                     " wavelengths, without given wavelengths (0: laser slices)");
     check_acquisition_errors(options.errors, options.names == OptionStyle::Cli ? "--simulate-" : "simulate_");
-    if (options.errors.any() && !observations.empty())
-        throw std::invalid_argument(
-            "simulated acquisition errors need a truth (the observations are rendered with them), not given "
-            "observations");
+    if (options.errors.any() && given.observations)
+        throw std::invalid_argument((options.names == OptionStyle::Cli ? "--simulate-*" : "simulate_*") +
+                                    std::string(" render the observations with acquisition errors; they need ") +
+                                    truth + " (or the generated default), not " + observations);
+    // The pipeline's field retrieval needs single-wavelength separable slices: checked here,
+    // before the observations are simulated, not after.
+    if (options.method == RecoveryMethod::Pipeline && !given.observations && options.spectral == 0 &&
+        options.model == Model::Kirchhoff)
+        throw std::invalid_argument(name("model") + " " + to_string(options.model) +
+                                    " has no field stage; the pipeline expects OHS, ROHS, GHS or RGHS "
+                                    "(or the thesis's method)");
+}
+
+namespace {
+
+// check_recovery_options with what prepare_recovery was given, and what needs the ranks.
+// Returns the memory limit the run is held to.
+MemoryLimit checked_options(const RecoveryOptions& options, const Heightfield* truth,
+                            const std::vector<Observation>& observations, const Communicator& comm) {
+    RecoveryInputs given;
+    given.truth = truth != nullptr;
+    given.observations = !observations.empty();
+    check_recovery_options(options, given);
     const MemoryLimit limit = memory_limit(options.max_memory_gb);
     if (comm.size() > 1 && options.method == RecoveryMethod::Thesis)
         throw std::invalid_argument(
             "method thesis runs on one process (Adam draws one observation at a time); "
             "expected the pipeline under MPI (" +
             std::to_string(comm.size()) + " ranks)");
-    // The pipeline's field retrieval needs single-wavelength separable slices: checked here,
-    // before the observations are simulated, not after.
-    if (options.method == RecoveryMethod::Pipeline && observations.empty() && options.spectral == 0 &&
-        options.model == Model::Kirchhoff)
-        throw std::invalid_argument(std::string("model ") + to_string(options.model) +
-                                    " has no field stage; the pipeline expects OHS, ROHS, GHS or RGHS "
-                                    "(or the thesis's method)");
     return limit;
 }
 
@@ -516,7 +541,7 @@ void state_pipeline_settings(PreparedRecovery& r, const RecoveryOptions& options
 
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth,
                                   std::vector<Observation> observations, bool show_progress, const Communicator& comm) {
-    const MemoryLimit limit = check_recovery_options(options, truth, observations, comm);
+    const MemoryLimit limit = checked_options(options, truth, observations, comm);
     PreparedRecovery r;
     r.ranks = comm.size();
     r.method = options.method;

@@ -2,6 +2,7 @@
 #include "recovery/refinement.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <omp.h>
 #include <utility>
 
@@ -125,6 +126,12 @@ double ObservationObjective::operator()(const std::vector<double>& x, std::vecto
     return value;
 }
 
+std::string stage_part(double value) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", value);
+    return text;
+}
+
 RefinementRounds::RefinementRounds(Objective objective, const Heightfield& flat, int history, double reference_loss,
                                    StageReport report, const CoarseBasis* coarse, bool coarse_joint,
                                    int coarse_iterations)
@@ -145,8 +152,8 @@ Heightfield RefinementRounds::heights_of(const std::vector<double>& x) const {
     return m_flat.with_values(std::vector<double>(x.begin(), x.begin() + std::ptrdiff_t(cells)));
 }
 
-bool RefinementRounds::run(std::vector<double>& x, int iterations, const std::string& stage,
-                           double relative_tolerance, int stall_window, double stall_tolerance) {
+bool RefinementRounds::run(std::vector<double>& x, int iterations, const StageId& stage, double relative_tolerance,
+                           int stall_window, double stall_tolerance) {
     if (iterations <= 0 || !m_go_on) return false;
     const double stop_below = std::max(k_refine_relative_tolerance, relative_tolerance) * m_reference_loss;
     LbfgsOptions round = m_options;
@@ -193,7 +200,7 @@ bool RefinementRounds::run(std::vector<double>& x, int iterations, const std::st
             x = h0;
             m_coarse->apply(c.data(), x);
             const Heightfield current = m_flat.with_values(x);
-            return m_go_on = m_report("refine:coarse", it, value, &current);
+            return m_go_on = m_report(StageKind::RefineCoarse, it, value, &current);
         });
         x = h0;
         m_coarse->apply(c.data(), x);
@@ -212,7 +219,7 @@ double calibrate_sigma_rounds(ObservationObjective& objective, RefinementRounds&
         [&](int round, double scale, double value) {
             objective.set_sigma_scale(scale);
             const Heightfield current = rounds.heights_of(x);
-            if (!report("calibrate:sigma", round, value, &current)) {
+            if (!report(StageKind::CalibrateSigma, round, value, &current)) {
                 rounds.stop();
                 return false;
             }

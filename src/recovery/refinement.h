@@ -14,6 +14,7 @@
 #include "core/exact_sum.h"
 #include "recovery/coarse_correction.h"
 #include "recovery/observation_loss.h"
+#include "recovery/stage_report.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/loss.h"
@@ -22,10 +23,6 @@
 #include "wavebrdf/slice_plan.h"
 
 namespace wavebrdf::detail {
-
-// report(stage, iteration, loss, heights): one StageMetrics of recover_heights (heights null
-// where the stage has none yet); false: stop.
-using StageReport = std::function<bool(const std::string&, int, double, const Heightfield*)>;
 
 // Stage 3 stops once its loss / loss(flat heights) is below this: the heights are then exact
 // to the precision of the single-precision slices.
@@ -108,7 +105,7 @@ public:
                      int coarse_iterations = 0);
 
     // One round of at most `iterations` from x (updated); true when the stall rule stopped it.
-    bool run(std::vector<double>& x, int iterations, const std::string& stage = "refine",
+    bool run(std::vector<double>& x, int iterations, const StageId& stage = StageKind::Refine,
              double relative_tolerance = 0.0, int stall_window = 0, double stall_tolerance = 0.0);
 
     bool go_on() const { return m_go_on; }  // false once a report asked to stop

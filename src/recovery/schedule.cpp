@@ -156,12 +156,12 @@ StageReporter::StageReporter(const std::function<bool(const StageMetrics&)>& on_
     for (int k = 0; k < k_stage_kinds; ++k) m_totals[std::size_t(k)] = planned_iterations(resolved, StageKind(k));
 }
 
-bool StageReporter::operator()(const std::string& stage, int iteration, double loss, const Heightfield* heights) {
+bool StageReporter::operator()(const StageId& stage, int iteration, double loss, const Heightfield* heights) {
     bool go_on = true;
     if (m_on_step) {
         StageMetrics m;
-        m.stage = stage;
-        m.kind = stage_kind(stage);
+        m.stage = stage.name;
+        m.kind = stage.kind;
         m.total = m_totals[std::size_t(m.kind)];
         m.iteration = iteration;
         m.loss = loss;

@@ -71,7 +71,9 @@ bool BlurredFitStage::run(const StageContext& context, RecoveryState& state) con
     }
     state.estimate = fit_blurred(
         set, state.estimate, fit,
-        [&](int stage, int it, double loss) { return context.report("blur:" + std::to_string(stage), it, loss, nullptr); },
+        [&](int stage, int it, double loss) {
+            return context.report({StageKind::BlurredFit, std::to_string(stage)}, it, loss, nullptr);
+        },
         context.comm);
     const double proxy_scale = context.proxy.height_scale;
     if (proxy_scale != 1.0) {
@@ -80,7 +82,7 @@ bool BlurredFitStage::run(const StageContext& context, RecoveryState& state) con
         state.estimate = context.flat.with_values(std::move(h));
     }
     std::vector<Observation>().swap(proxies);
-    return !context.stopped() && context.report("blur", 0, 0.0, &state.estimate);
+    return !context.stopped() && context.report(StageKind::BlurredResult, 0, 0.0, &state.estimate);
 }
 
 bool SigmaPresearchStage::run(const StageContext& context, RecoveryState& state) const {

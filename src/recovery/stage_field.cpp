@@ -59,8 +59,7 @@ bool FieldStage::retrieve(const StageContext& context, RecoveryState& state,
     FieldRetrievalSettings field_settings = settings;
     for (auto it = by_lambda.rbegin(); it != end && it->first >= lambda_min_um; ++it) {
             const double lambda = it->first;
-            char name[48];
-            std::snprintf(name, sizeof name, "field:%g", lambda);
+            const StageId name(StageKind::Field, stage_part(lambda));
             // This wavelength's observations where they are (pointers: no copy of the references);
             // with σ_p calibration copies at σ_p · s while its field runs (one wavelength's at a
             // time); with position calibration the offsets are applied and corrected inside
@@ -123,13 +122,13 @@ bool FieldStage::retrieve(const StageContext& context, RecoveryState& state,
 
 bool UnwrapStage::run(const StageContext& context, RecoveryState& state) const {
     field->unwrap(context, state);
-    return context.report("unwrap", pass, 0.0, &state.estimate);
+    return context.report(StageKind::Unwrap, pass, 0.0, &state.estimate);
 }
 
 bool HeldExposuresStage::run(const StageContext& context, RecoveryState& state) const {
     state.field_exposures =
         exposures_at(context.observations, context.position_of, state.estimate, state.sigma_scale, state.offsets_um);
-    return context.report("exposures:held", 0, 0.0, &state.estimate);
+    return context.report(StageKind::ExposuresHeld, 0, 0.0, &state.estimate);
 }
 
 bool SigmaResearchStage::run(const StageContext& context, RecoveryState& state) const {
@@ -145,7 +144,7 @@ bool SigmaResearchStage::run(const StageContext& context, RecoveryState& state) 
                          : guarded_sigma_scale(context.observations, context.observations_total, state.estimate, loss,
                                                calibrate_exposure, context.comm);
     const bool moved = sigma_scale_moved(state.sigma_scale, s);
-    if (!context.report("sigma:unwrapped", moved ? 1 : 0, s, &state.estimate)) return false;
+    if (!context.report({StageKind::SigmaSearch, "unwrapped"}, moved ? 1 : 0, s, &state.estimate)) return false;
     if (!moved) return true;
     state.sigma_scale = s;
     state.calibration.sigma_p_scale = state.calibration.sigma_p_scale_fields = s;
@@ -155,7 +154,7 @@ bool SigmaResearchStage::run(const StageContext& context, RecoveryState& state) 
             exposures_at(context.observations, context.position_of, state.estimate, state.sigma_scale, state.offsets_um);
     if (!field->run(context, state)) return false;
     field->unwrap(context, state);
-    return context.report("unwrap", 1, 0.0, &state.estimate);
+    return context.report(StageKind::Unwrap, 1, 0.0, &state.estimate);
 }
 
 }  // namespace wavebrdf::detail

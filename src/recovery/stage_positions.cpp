@@ -71,7 +71,7 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
                                                           settings, state.sigma_scale, k_newton_step_texels,
                                                           k_newton_cap_texels, position_offsets, comm);
             moved = rms_move(before, position_offsets, state.estimate.texel_um());
-            if (!report("positions:newton", stepped, moved, &state.estimate)) return false;
+            if (!report({StageKind::Positions, "newton"}, stepped, moved, &state.estimate)) return false;
         }
         {
             std::vector<double> update(position_offsets.size());
@@ -84,7 +84,7 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
             }
             moved = update.empty() ? 0.0 : std::sqrt(s2 / double(update.size())) / state.estimate.texel_um();
         }
-        if (!report("positions:register", outer + 1, moved, &state.estimate)) return false;
+        if (!report({StageKind::Positions, "register"}, outer + 1, moved, &state.estimate)) return false;
         // The lost positions searched wide.
         bool median_judged = false;  // the median position's stall rule judged this pass
         if (settings.position_rescue_factor > 0.0) {
@@ -95,7 +95,7 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
                 settings.position_rescue_factor, settings.position_rescue_radius_texels,
                 settings.position_rescue_step_texels, position_offsets, comm, &median);
             const double jump = rms_move(kept, position_offsets, state.estimate.texel_um());
-            if (!report("positions:rescue", rescued, jump, &state.estimate)) return false;
+            if (!report({StageKind::Positions, "rescue"}, rescued, jump, &state.estimate)) return false;
             if (jump > 0.0) moved = std::max(moved, settings.position_outer_tolerance_texels);
             // The stall rule on the median position's loss at the heights of the pass before
             // (stage 3's loss is dominated by positions lost for good). A stalled loop ends here,
@@ -104,7 +104,7 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
                 median_judged = true;
                 stalled = after_field ? 0 : median > (1.0 - stall_tolerance) * best_median ? stalled + 1 : 0;
                 best_median = after_field && outer == 0 ? median : std::min(best_median, median);
-                if (!report("positions:stall", stalled, median, &state.estimate)) return false;
+                if (!report({StageKind::Positions, "stall"}, stalled, median, &state.estimate)) return false;
                 if (stalled >= settings.position_outer_stall_passes) break;
             }
         }
@@ -121,7 +121,7 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
                                                            state.sigma_scale, state.offsets_um);
             if (!field.retrieve(context, state, later_field)) return false;
             field.unwrap(context, state);
-            if (!report("unwrap", outer + 1, 0.0, &state.estimate)) return false;
+            if (!report(StageKind::Unwrap, outer + 1, 0.0, &state.estimate)) return false;
             state.unwrapped = state.estimate;
         }
         state.estimate = refine_heights_and_positions(observations, context.observations_total, context.flat,
@@ -138,7 +138,7 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
             stalled = 0;
         } else if (settings.position_outer_stall_passes > 0 && !median_judged) {
             stalled = last_refine_loss > (1.0 - stall_tolerance) * best_loss ? stalled + 1 : 0;
-            if (!report("positions:stall", stalled, last_refine_loss, &state.estimate)) return false;
+            if (!report({StageKind::Positions, "stall"}, stalled, last_refine_loss, &state.estimate)) return false;
             if (stalled >= settings.position_outer_stall_passes) break;
         }
         best_loss = std::min(best_loss, last_refine_loss);

@@ -57,7 +57,7 @@ OutlierRepairCounts repair_outliers(const StageContext& context, const RecoverSe
     data.set_active(within);
     if (counts.flagged > 0) {
         const Heightfield current = context.flat.with_values(h);
-        if (!context.report("repair:outliers", counts.kept, double(counts.flagged), &current)) rounds.stop();
+        if (!context.report(StageKind::RepairOutliers, counts.kept, double(counts.flagged), &current)) rounds.stop();
     }
     return counts;
 }
@@ -77,8 +77,7 @@ bool run_ladder(const StageContext& context, const RecoverSettings& settings, Ob
             active[i] = !l.empty() && *std::min_element(l.begin(), l.end()) >= it->first;
         }
         data.set_active(active);
-        char name[48];
-        std::snprintf(name, sizeof name, "refine:%g", it->first);
+        const StageId name(StageKind::RefineRung, stage_part(it->first));
         rounds.set_done(0);
         int rung_start = 0;  // the iteration count where the last round of the rung began
         const auto rung = [&](int iterations, int stall_window) {
@@ -156,9 +155,9 @@ bool RefineStage::run(const StageContext& context, RecoveryState& state) const {
     for (int round = 0; !white && going() && round < settings.outlier_repair_rounds; ++round) {
         const OutlierRepairCounts counts = repair_outliers(context, settings, data, rounds, h, {});
         if (counts.flagged == 0 || counts.kept == 0 || !going()) break;
-        rounds.run(h, settings.outlier_repair_iterations > 0 ? settings.outlier_repair_iterations
-                                                             : settings.refine_iterations,
-                   "refine", settings.refine_ladder_relative_tolerance);
+        rounds.run(
+            h, settings.outlier_repair_iterations > 0 ? settings.outlier_repair_iterations : settings.refine_iterations,
+            StageKind::Refine, settings.refine_ladder_relative_tolerance);
     }
     // White light: isolated texels (or connected regions) left a wrap from their neighbours,
     // repaired where the loss agrees, then refined again (white_light.h).
@@ -169,7 +168,7 @@ bool RefineStage::run(const StageContext& context, RecoveryState& state) const {
         const int kept = repair_defect_regions(h, rows, cols, white_wrap_height(context), k_white_repair_threshold,
                                                budget, k_white_repair_region_texels, loss_of);
         const Heightfield current = context.flat.with_values(h);
-        if (!context.report("repair", kept, 0.0, &current)) break;
+        if (!context.report(StageKind::RepairWhite, kept, 0.0, &current)) break;
         if (kept == 0) break;
         rounds.run(h, settings.refine_iterations);
     }

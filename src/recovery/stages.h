@@ -36,7 +36,7 @@ public:
     // `resolved`: the run's settings (scheduled_settings), for each step's planned total.
     StageReporter(const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
                   const Communicator& comm, const RecoverSettings& resolved);
-    bool operator()(const std::string& stage, int iteration, double loss, const Heightfield* heights);
+    bool operator()(const StageId& stage, int iteration, double loss, const Heightfield* heights);
     bool stopped() const { return m_stopped; }
 
 private:

@@ -7,6 +7,7 @@
 #include <string>
 #include <utility>
 
+#include "core/text.h"
 #include "recovery/texel_neighbours.h"
 
 namespace wavebrdf::detail {
@@ -83,14 +84,14 @@ std::vector<double> periodic_laplacian(const std::vector<double>& x, int rows, i
 
 }  // namespace
 
-void check_white_smoothness(const std::vector<double>& weights) {
+void check_white_smoothness(const std::vector<double>& weights, const std::string& name) {
     if (weights.size() > k_max_white_smoothness_weights)
-        throw std::invalid_argument("white smoothness: " + std::to_string(weights.size()) +
+        throw std::invalid_argument(name + ": " + std::to_string(weights.size()) +
                                     " weights are too many; expected at most " +
                                     std::to_string(k_max_white_smoothness_weights));
     for (double w : weights)
         if (!(w >= 0.0 && w <= 1e12))
-            throw std::invalid_argument("white smoothness weight " + std::to_string(w) +
+            throw std::invalid_argument(name + " weight " + format_shortest(w) +
                                         " is invalid; expected a finite value 0 to 1e12");
 }
 

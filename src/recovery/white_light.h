@@ -3,6 +3,7 @@
 // the defect repair after the refinement and the smoothness continuation before it.
 #include <cstddef>
 #include <functional>
+#include <string>
 #include <vector>
 
 namespace wavebrdf::detail {
@@ -26,9 +27,10 @@ int repair_defects(std::vector<double>& heights, int rows, int cols, double thre
 // disagree. Deterministic (the same bits on every rank).
 // Checks a smoothness continuation's weights (RecoverSettings::white_smoothness): at most
 // k_max_white_smoothness_weights of them, each finite in [0, 10^12]. Throws
-// std::invalid_argument naming the bad weight (or the count) otherwise.
+// std::invalid_argument naming the bad weight (or the count) and `name` (how the caller spells
+// the option) otherwise.
 constexpr std::size_t k_max_white_smoothness_weights = 64;
-void check_white_smoothness(const std::vector<double>& weights);
+void check_white_smoothness(const std::vector<double>& weights, const std::string& name = "white smoothness");
 
 double add_smoothness_penalty(const std::vector<double>& heights, int rows, int cols, double weight,
                               std::vector<double>& gradient);
