@@ -99,7 +99,9 @@ TEST(RecoveryRun, TheChecksErrorBarsAreHeldToTheMemoryLimit) {
     EXPECT_GT(free.predicted_error_relative, 0.0);
     const double needed = free.error_bars_predicted_bytes;
     EXPECT_GT(needed, 64e6);  // the program's base and what the run holds, then the bars
-    if (physical_memory_bytes() > 0) EXPECT_EQ(free.memory_limit_bytes, double(physical_memory_bytes()));
+    if (physical_memory_bytes() > 0) {
+        EXPECT_EQ(free.memory_limit_bytes, double(physical_memory_bytes()));
+    }
 
     r.max_memory_gb = 0.9 * needed / 1e9;
     const ConvergenceCheck tight = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
