@@ -1,6 +1,8 @@
 // The arguments the recovery's bindings share (recovery_args.h).
 #include "recovery_args.h"
 
+#include <algorithm>
+
 #include <cmath>
 
 #include "observation_arg.h"
@@ -265,5 +267,101 @@ callback      callback(metrics: dict with stage, kind (the stage's kind: 'field:
               (the estimate so far is returned). The run releases the GIL; Ctrl-C stops it
               at the next step (KeyboardInterrupt).
 )doc";
+
+int optional_int(const py::object& value, const char* name) {
+    if (value.is_none()) return -1;
+    const int n = knob<int>(value, name, "an integer >= 0 or None");
+    if (n < 0) bad_argument(name, std::to_string(n), "an integer >= 0 or None (the library's default)");
+    return n;
+}
+double optional_nonnegative(const py::object& value, const char* name) {
+    if (value.is_none()) return -1.0;
+    const double x = knob<double>(value, name, "a number >= 0 or None");
+    if (!(x >= 0.0)) bad_argument(name, format_number(x), "a number >= 0 or None (the library's default)");
+    return x;
+}
+
+const std::vector<std::pair<const char*, KnobField>>& knob_fields() {
+    static const std::vector<std::pair<const char*, KnobField>> fields = {
+        {"field_iterations", &RecoverKnobs::field_iterations},
+        {"refine_iterations", &RecoverKnobs::refine_iterations},
+        {"field_tile_threshold", &RecoverKnobs::field_tile_threshold},
+        {"field_tile_core", &RecoverKnobs::field_tile_core},
+        {"refine_coarse_spacing", &RecoverKnobs::refine_coarse_spacing},
+        {"refine_coarse_weight", &RecoverKnobs::refine_coarse_weight},
+        {"refine_coarse_iterations", &RecoverKnobs::refine_coarse_iterations},
+        {"position_passes", &RecoverKnobs::position_passes},
+        {"white_smoothness", &RecoverKnobs::white_smoothness},
+        {"white_smoothness_iterations", &RecoverKnobs::white_smoothness_iterations},
+        {"epochs", &RecoverKnobs::epochs},
+        {"overlap", &RecoverKnobs::overlap},
+        {"jitter", &RecoverKnobs::jitter},
+        {"oblique_lights", &RecoverKnobs::oblique_lights},
+        {"plan_from_truth", &RecoverKnobs::plan_from_truth},
+        {"simulator", &RecoverKnobs::simulator},
+        {"simulate_position_error_texels", &RecoverKnobs::simulate_position_error_texels},
+        {"simulate_exposure", &RecoverKnobs::simulate_exposure},
+        {"simulate_sigma_factor", &RecoverKnobs::simulate_sigma_factor},
+        {"blur_widths", &RecoverKnobs::blur_widths},
+        {"blur_iterations", &RecoverKnobs::blur_iterations},
+        {"blur_wavelengths", &RecoverKnobs::blur_wavelengths},
+        {"band_limit", &RecoverKnobs::band_limit},
+        {"refine", &RecoverKnobs::refine},
+        {"max_range_um", &RecoverKnobs::max_range_um},
+        {"refine_history", &RecoverKnobs::refine_history},
+        {"refine_loss", &RecoverKnobs::refine_loss},
+    };
+    return fields;
+}
+
+RecoverKnobs knobs_argument(const py::object& settings, const py::kwargs& old, const char* function,
+                            const std::vector<std::string>& accepted, bool for_recover) {
+    RecoverKnobs k;
+    if (!settings.is_none()) {
+        try {
+            k = settings.cast<RecoverKnobs>();
+        } catch (const py::cast_error&) {
+            throw py::value_error("settings = " + std::string(py::repr(settings)).substr(0, 80) +
+                                  " is invalid; expected a RecoverSettings or None");
+        }
+    }
+    const auto& fields = knob_fields();
+    for (const auto& [key, value] : old) {
+        const std::string name = py::str(key);
+        const auto field = std::find_if(fields.begin(), fields.end(), [&](const auto& f) { return name == f.first; });
+        if (field == fields.end() || std::find(accepted.begin(), accepted.end(), name) == accepted.end())
+            throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + name + "'");
+        py::module_::import("warnings")
+            .attr("warn")(std::string(function) + "(" + name + "=...) is deprecated; pass settings=RecoverSettings(" +
+                              name + "=...)",
+                          py::module_::import("builtins").attr("FutureWarning"), 2);
+        k.*(field->second) = py::reinterpret_borrow<py::object>(value);
+    }
+    // The fields the other function reads: recover_heights' stages' own, recover()'s acquisition.
+    const std::vector<std::string> foreign = for_recover
+                                                 ? std::vector<std::string>{"blur_widths",      "blur_iterations",
+                                                                            "blur_wavelengths", "band_limit",
+                                                                            "refine",           "max_range_um",
+                                                                            "refine_history",   "refine_loss"}
+                                                 : std::vector<std::string>{"overlap",
+                                                                            "jitter",
+                                                                            "oblique_lights",
+                                                                            "plan_from_truth",
+                                                                            "simulator",
+                                                                            "simulate_position_error_texels",
+                                                                            "simulate_exposure",
+                                                                            "simulate_sigma_factor",
+                                                                            "epochs"};
+    const RecoverKnobs defaults;
+    for (const auto& [name, field] : fields)
+        if (std::find(foreign.begin(), foreign.end(), name) != foreign.end() && !(k.*field).equal(defaults.*field))
+            throw py::value_error(
+                std::string("settings.") + name + " = " + std::string(py::repr(k.*field)).substr(0, 80) +
+                (for_recover ? " is a setting of recover_heights' stages; expected None in recover(), which plans "
+                               "the schedule"
+                             : " is a setting of the acquisition's plan or simulation; expected its default in "
+                               "recover_heights, which recovers the observations given"));
+    return k;
+}
 
 }  // namespace wavebrdf::python

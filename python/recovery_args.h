@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -19,6 +20,7 @@
 #include "wavebrdf/noise.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
+#include "wavebrdf/recovery_run.h"
 #include "wavebrdf/roughness_plan.h"
 
 namespace wavebrdf::python {
@@ -33,6 +35,46 @@ struct HeightsArguments {
 };
 HeightsArguments heights_arguments(const py::object& observations, const py::object& size, double texel_um,
                                    double vscale);
+
+// The recovery's rarely used settings (wb.RecoverSettings) as given; None: the library's (the
+// schedule's). recover() reads the acquisition's and the schedule's (the CLI's options of the
+// same names), recover_heights the schedule's and its stages' own (RecoverSettings, recover.h);
+// each refuses the other's when set.
+struct RecoverKnobs {
+    py::object overlap = py::none(), jitter = py::float_(RecoveryOptions{}.jitter), oblique_lights = py::bool_(true),
+               plan_from_truth = py::none(), simulator = py::str("gabor"), field_iterations = py::none(),
+               refine_iterations = py::none(), field_tile_threshold = py::none(), field_tile_core = py::none(),
+               refine_coarse_spacing = py::none(), refine_coarse_weight = py::none(),
+               refine_coarse_iterations = py::none(), white_smoothness = py::none(),
+               white_smoothness_iterations = py::none(), position_passes = py::none(),
+               epochs = py::int_(RecoveryOptions{}.epochs), simulate_position_error_texels = py::float_(0.0),
+               simulate_exposure = py::none(), simulate_sigma_factor = py::float_(1.0), blur_widths = py::none(),
+               blur_iterations = py::none(), blur_wavelengths = py::none(), band_limit = py::none(),
+               refine = py::none(), max_range_um = py::none(), refine_history = py::none(), refine_loss = py::none();
+};
+using KnobField = py::object RecoverKnobs::*;
+// Every field by its name (the constructor's keywords and the attributes), in the signature's order.
+const std::vector<std::pair<const char*, KnobField>>& knob_fields();
+
+// settings= (a RecoverSettings or None) with `function`'s old keywords for its fields, each
+// still accepted, with a FutureWarning, where `accepted` names it (a TypeError otherwise, as
+// Python's own); then the fields `function` does not read refused when set (ValueError):
+// recover() (for_recover) reads no stage's own, recover_heights nothing of the acquisition's.
+RecoverKnobs knobs_argument(const py::object& settings, const py::kwargs& old, const char* function,
+                            const std::vector<std::string>& accepted, bool for_recover);
+
+// `value` as a T (ValueError naming `name` and what was expected otherwise).
+template <typename T>
+T knob(const py::object& value, const char* name, const char* expected) {
+    try {
+        if (!py::isinstance<py::str>(value) || std::is_same_v<T, std::string>) return value.cast<T>();
+    } catch (const py::cast_error&) {}
+    throw py::value_error(std::string(name) + " = " + std::string(py::repr(value)) + " is invalid; expected " +
+                          expected);
+}
+// None → `unset` (-1, the library's default); else an integer / a number >= 0.
+int optional_int(const py::object& value, const char* name);
+double optional_nonnegative(const py::object& value, const char* name);
 
 // noise=: None, 'none', 'poisson:N' or 'gaussian:REL'.
 Noise noise_argument(const py::object& noise);

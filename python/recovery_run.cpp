@@ -72,92 +72,6 @@ py::dict convergence_dict(const ConvergenceCheck& c) {
     return d;
 }
 
-// recover()'s rarely used options (wb.RecoverSettings): the CLI's options of the same names,
-// as given (None: the library's); recover() converts them and prepare_recovery checks them,
-// naming them as here.
-struct RecoverKnobs {
-    py::object overlap = py::none(), jitter = py::float_(RecoveryOptions{}.jitter), oblique_lights = py::bool_(true),
-               plan_from_truth = py::none(), simulator = py::str("gabor"), field_iterations = py::none(),
-               refine_iterations = py::none(), field_tile_threshold = py::none(), field_tile_core = py::none(),
-               refine_coarse_spacing = py::none(), refine_coarse_weight = py::none(),
-               refine_coarse_iterations = py::none(), white_smoothness = py::none(),
-               white_smoothness_iterations = py::none(), position_passes = py::none(),
-               epochs = py::int_(RecoveryOptions{}.epochs), simulate_position_error_texels = py::float_(0.0),
-               simulate_exposure = py::none(), simulate_sigma_factor = py::float_(1.0);
-};
-
-// Each field by its name (the constructor's keywords, the attributes, recover()'s old keywords).
-const std::pair<const char*, py::object RecoverKnobs::*> k_knobs[] = {
-    {"overlap", &RecoverKnobs::overlap},
-    {"jitter", &RecoverKnobs::jitter},
-    {"oblique_lights", &RecoverKnobs::oblique_lights},
-    {"plan_from_truth", &RecoverKnobs::plan_from_truth},
-    {"simulator", &RecoverKnobs::simulator},
-    {"field_iterations", &RecoverKnobs::field_iterations},
-    {"refine_iterations", &RecoverKnobs::refine_iterations},
-    {"field_tile_threshold", &RecoverKnobs::field_tile_threshold},
-    {"field_tile_core", &RecoverKnobs::field_tile_core},
-    {"refine_coarse_spacing", &RecoverKnobs::refine_coarse_spacing},
-    {"refine_coarse_weight", &RecoverKnobs::refine_coarse_weight},
-    {"refine_coarse_iterations", &RecoverKnobs::refine_coarse_iterations},
-    {"white_smoothness", &RecoverKnobs::white_smoothness},
-    {"white_smoothness_iterations", &RecoverKnobs::white_smoothness_iterations},
-    {"position_passes", &RecoverKnobs::position_passes},
-    {"epochs", &RecoverKnobs::epochs},
-    {"simulate_position_error_texels", &RecoverKnobs::simulate_position_error_texels},
-    {"simulate_exposure", &RecoverKnobs::simulate_exposure},
-    {"simulate_sigma_factor", &RecoverKnobs::simulate_sigma_factor},
-};
-
-// `value` as a T (ValueError naming `name` and what was expected otherwise).
-template <typename T>
-T knob(const py::object& value, const char* name, const char* expected) {
-    try {
-        if (!py::isinstance<py::str>(value) || std::is_same_v<T, std::string>) return value.cast<T>();
-    } catch (const py::cast_error&) {}
-    throw py::value_error(std::string(name) + " = " + std::string(py::repr(value)) + " is invalid; expected " +
-                          expected);
-}
-
-// None → `unset` (the library's default); else a number >= 0 (the library checks the range).
-int optional_int(const py::object& value, const char* name) {
-    if (value.is_none()) return -1;
-    const int n = knob<int>(value, name, "an integer >= 0 or None");
-    if (n < 0) bad_argument(name, std::to_string(n), "an integer >= 0 or None (the library's default)");
-    return n;
-}
-double optional_nonnegative(const py::object& value, const char* name) {
-    if (value.is_none()) return -1.0;
-    const double x = knob<double>(value, name, "a number >= 0 or None");
-    if (!(x >= 0.0)) bad_argument(name, format_number(x), "a number >= 0 or None (the library's default)");
-    return x;
-}
-
-// settings= and recover()'s old keywords for its fields (which still work, with a FutureWarning).
-RecoverKnobs knobs_argument(const py::object& settings, const py::kwargs& old) {
-    RecoverKnobs k;
-    if (!settings.is_none()) {
-        try {
-            k = settings.cast<RecoverKnobs>();
-        } catch (const py::cast_error&) {
-            throw py::value_error("settings = " + std::string(py::repr(settings)).substr(0, 80) +
-                                  " is invalid; expected a RecoverSettings or None");
-        }
-    }
-    for (const auto& [key, value] : old) {
-        const std::string name = py::str(key);
-        const auto* field = std::find_if(std::begin(k_knobs), std::end(k_knobs),
-                                         [&](const auto& f) { return name == f.first; });
-        if (field == std::end(k_knobs))
-            throw py::type_error("recover() got an unexpected keyword argument '" + name + "'");
-        py::module_::import("warnings")
-            .attr("warn")("recover(" + name + "=...) is deprecated; pass settings=RecoverSettings(" + name + "=...)",
-                          py::module_::import("builtins").attr("FutureWarning"), 2);
-        k.*(field->second) = py::reinterpret_borrow<py::object>(value);
-    }
-    return k;
-}
-
 RecoveryResult recover(const py::object& truth_arg, const py::object& observations_arg, const py::object& size,
                        const py::object& texel_arg, const py::object& vscale_arg, double height_range_um,
                        const py::object& correlation_texels, const std::string& model, const py::object& light,
@@ -167,7 +81,13 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const std::string& check_error_bars, std::uint64_t seed, const py::object& callback,
                        double max_memory_gb, const py::object& quiet, const py::object& comm_arg,
                        const py::object& settings, const py::kwargs& old_keywords) {
-    const RecoverKnobs k = knobs_argument(settings, old_keywords);
+    const RecoverKnobs k = knobs_argument(
+        settings, old_keywords, "recover",
+        {"field_iterations", "refine_iterations", "field_tile_threshold", "field_tile_core", "refine_coarse_spacing",
+         "refine_coarse_weight", "refine_coarse_iterations", "position_passes", "white_smoothness",
+         "white_smoothness_iterations", "overlap", "jitter", "oblique_lights", "plan_from_truth", "simulator",
+         "simulate_position_error_texels", "simulate_exposure", "simulate_sigma_factor", "epochs"},
+        true);
     const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
     // Options, checked before any work; the planner checks sigma_p_um, overlap and jitter.
     RecoveryOptions options;
@@ -382,9 +302,12 @@ the run holds) and memory_limit_bytes (max_memory_gb, else the physical memory).
 )doc");
     const RecoveryOptions ro;
     py::class_<RecoverKnobs> knobs(m, "RecoverSettings", R"doc(
-recover()'s rarely used settings, as the CLI's options of the same names (docs/recovery.md,
-"Settings by stage"); None: the library's (the schedule's). recover(settings=...) converts them
-and the library checks them, naming them as here. Each is an attribute of the same name.
+The recovery's rarely used settings, for recover(settings=...) and recover_heights(settings=...):
+the CLI's options of the same names (docs/recovery.md, "Settings by stage") and recover_heights'
+stages' own; None: the library's (the schedule's). The functions convert them and the library
+checks them, naming them as here. recover() refuses the stages' own (below, last) and
+recover_heights the acquisition's (overlap, jitter, oblique_lights, plan_from_truth, simulator,
+simulate_*, epochs) when set. Each is an attribute of the same name.
 
 field_iterations, refine_iterations  pipeline iterations (>= 0; None: the schedule's)
 field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /
@@ -423,6 +346,16 @@ simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a stud
               by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
               log-uniform in (min, max), the true sigma_p this factor times the stated one
               (0.25...4); the recovery is given the stated acquisition
+The stages' own (recover_heights only; None: RecoverSettings' defaults, recover.h):
+blur_widths   blurred fit: blur widths in footprint lobes, widest first ([]: start the fields
+              from flat); blur_iterations: L-BFGS per width (>= 0)
+blur_wavelengths  the blurred fit uses this many longest wavelengths (0: all), at positions at
+              least 2 sigma_p apart
+band_limit    the field stage keeps only the object's spectrum the slices see
+refine        odd object-grid refinement 1...63 (0: automatic)
+max_range_um  bound on the height range for unwrapping (um, > 0; None: 4)
+refine_history  L-BFGS history of the refinement (>= 1); refine_loss: 'amplitude', 'poisson:N',
+              'mse', 'cmsle:EPS' or a Loss
 )doc");
     knobs
         .def(py::init([](const py::object& field_iterations, const py::object& refine_iterations,
@@ -433,26 +366,40 @@ simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a stud
                          const py::object& epochs, const py::object& overlap, const py::object& jitter,
                          const py::object& oblique_lights, const py::object& plan_from_truth,
                          const py::object& simulator, const py::object& simulate_position_error_texels,
-                         const py::object& simulate_exposure, const py::object& simulate_sigma_factor) {
-                 return RecoverKnobs{overlap,
-                                     jitter,
-                                     oblique_lights,
-                                     plan_from_truth,
-                                     simulator,
-                                     field_iterations,
-                                     refine_iterations,
-                                     field_tile_threshold,
-                                     field_tile_core,
-                                     refine_coarse_spacing,
-                                     refine_coarse_weight,
-                                     refine_coarse_iterations,
-                                     white_smoothness,
-                                     white_smoothness_iterations,
-                                     position_passes,
-                                     epochs,
-                                     simulate_position_error_texels,
-                                     simulate_exposure,
-                                     simulate_sigma_factor};
+                         const py::object& simulate_exposure, const py::object& simulate_sigma_factor,
+                         const py::object& blur_widths, const py::object& blur_iterations,
+                         const py::object& blur_wavelengths, const py::object& band_limit, const py::object& refine,
+                         const py::object& max_range_um, const py::object& refine_history,
+                         const py::object& refine_loss) {
+                 RecoverKnobs k;
+                 k.field_iterations = field_iterations;
+                 k.refine_iterations = refine_iterations;
+                 k.field_tile_threshold = field_tile_threshold;
+                 k.field_tile_core = field_tile_core;
+                 k.refine_coarse_spacing = refine_coarse_spacing;
+                 k.refine_coarse_weight = refine_coarse_weight;
+                 k.refine_coarse_iterations = refine_coarse_iterations;
+                 k.position_passes = position_passes;
+                 k.white_smoothness = white_smoothness;
+                 k.white_smoothness_iterations = white_smoothness_iterations;
+                 k.epochs = epochs;
+                 k.overlap = overlap;
+                 k.jitter = jitter;
+                 k.oblique_lights = oblique_lights;
+                 k.plan_from_truth = plan_from_truth;
+                 k.simulator = simulator;
+                 k.simulate_position_error_texels = simulate_position_error_texels;
+                 k.simulate_exposure = simulate_exposure;
+                 k.simulate_sigma_factor = simulate_sigma_factor;
+                 k.blur_widths = blur_widths;
+                 k.blur_iterations = blur_iterations;
+                 k.blur_wavelengths = blur_wavelengths;
+                 k.band_limit = band_limit;
+                 k.refine = refine;
+                 k.max_range_um = max_range_um;
+                 k.refine_history = refine_history;
+                 k.refine_loss = refine_loss;
+                 return k;
              }),
              py::kw_only(), "field_iterations"_a = py::none(), "refine_iterations"_a = py::none(),
              "field_tile_threshold"_a = py::none(), "field_tile_core"_a = py::none(),
@@ -461,20 +408,23 @@ simulate_position_error_texels, simulate_exposure, simulate_sigma_factor  a stud
              "white_smoothness"_a = py::none(), "white_smoothness_iterations"_a = py::none(), "epochs"_a = ro.epochs,
              "overlap"_a = py::none(), "jitter"_a = ro.jitter, "oblique_lights"_a = ro.oblique_lights,
              "plan_from_truth"_a = py::none(), "simulator"_a = "gabor", "simulate_position_error_texels"_a = 0.0,
-             "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0)
+             "simulate_exposure"_a = py::none(), "simulate_sigma_factor"_a = 1.0, "blur_widths"_a = py::none(),
+             "blur_iterations"_a = py::none(), "blur_wavelengths"_a = py::none(), "band_limit"_a = py::none(),
+             "refine"_a = py::none(), "max_range_um"_a = py::none(), "refine_history"_a = py::none(),
+             "refine_loss"_a = py::none())
         .def("__repr__", [](const RecoverKnobs& k) {
             // The settings that differ from a default RecoverSettings.
             const RecoverKnobs defaults;
             std::string text = "RecoverSettings(";
             bool first = true;
-            for (const auto& [name, field] : k_knobs)
+            for (const auto& [name, field] : knob_fields())
                 if (!(k.*field).equal(defaults.*field)) {
                     text += std::string(first ? "" : ", ") + name + "=" + std::string(py::repr(k.*field));
                     first = false;
                 }
             return text + ")";
         });
-    for (const auto& [name, field] : k_knobs) knobs.def_readwrite(name, field);
+    for (const auto& [name, field] : knob_fields()) knobs.def_readwrite(name, field);
     m.def("recover", &recover, "truth"_a = py::none(), "observations"_a = py::none(), py::kw_only(), "size"_a = ro.rows,
           "texel_um"_a = py::none(), "vscale"_a = py::none(), "height_range_um"_a = ro.height_range_um,
           "correlation_texels"_a = py::none(), "model"_a = "OHS", "light"_a = py::make_tuple(0.0, 0.0),

@@ -551,9 +551,12 @@ class Query:
         ...
 
 class RecoverSettings:
-    """recover()'s rarely used settings, as the CLI's options of the same names (docs/recovery.md,
-    "Settings by stage"); None: the library's (the schedule's). recover(settings=...) converts them
-    and the library checks them, naming them as here. Each is an attribute of the same name.
+    """The recovery's rarely used settings, for recover(settings=...) and recover_heights(settings=...):
+    the CLI's options of the same names (docs/recovery.md, "Settings by stage") and recover_heights'
+    stages' own; None: the library's (the schedule's). The functions convert them and the library
+    checks them, naming them as here. recover() refuses the stages' own (below, last) and
+    recover_heights the acquisition's (overlap, jitter, oblique_lights, plan_from_truth, simulator,
+    simulate_*, epochs) when set. Each is an attribute of the same name.
 
     field_iterations, refine_iterations  pipeline iterations (>= 0; None: the schedule's)
     field_tile_threshold, field_tile_core  the field stage on tiles (the CLI's --field-tile-threshold /
@@ -592,36 +595,21 @@ class RecoverSettings:
                   by this rms per coordinate (texels, 0...10), each slice scaled by an exposure
                   log-uniform in (min, max), the true sigma_p this factor times the stated one
                   (0.25...4); the recovery is given the stated acquisition
+    The stages' own (recover_heights only; None: RecoverSettings' defaults, recover.h):
+    blur_widths   blurred fit: blur widths in footprint lobes, widest first ([]: start the fields
+                  from flat); blur_iterations: L-BFGS per width (>= 0)
+    blur_wavelengths  the blurred fit uses this many longest wavelengths (0: all), at positions at
+                  least 2 sigma_p apart
+    band_limit    the field stage keeps only the object's spectrum the slices see
+    refine        odd object-grid refinement 1...63 (0: automatic)
+    max_range_um  bound on the height range for unwrapping (um, > 0; None: 4)
+    refine_history  L-BFGS history of the refinement (>= 1); refine_loss: 'amplitude', 'poisson:N',
+                  'mse', 'cmsle:EPS' or a Loss
     """
-    def __init__(self, *, field_iterations: Any = ..., refine_iterations: Any = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., refine_coarse_spacing: Any = ..., refine_coarse_weight: Any = ..., refine_coarse_iterations: Any = ..., position_passes: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., epochs: Any = ..., overlap: Any = ..., jitter: Any = ..., oblique_lights: Any = ..., plan_from_truth: Any = ..., simulator: Any = ..., simulate_position_error_texels: Any = ..., simulate_exposure: Any = ..., simulate_sigma_factor: Any = ...) -> None:
+    def __init__(self, *, field_iterations: Any = ..., refine_iterations: Any = ..., field_tile_threshold: Any = ..., field_tile_core: Any = ..., refine_coarse_spacing: Any = ..., refine_coarse_weight: Any = ..., refine_coarse_iterations: Any = ..., position_passes: Any = ..., white_smoothness: Any = ..., white_smoothness_iterations: Any = ..., epochs: Any = ..., overlap: Any = ..., jitter: Any = ..., oblique_lights: Any = ..., plan_from_truth: Any = ..., simulator: Any = ..., simulate_position_error_texels: Any = ..., simulate_exposure: Any = ..., simulate_sigma_factor: Any = ..., blur_widths: Any = ..., blur_iterations: Any = ..., blur_wavelengths: Any = ..., band_limit: Any = ..., refine: Any = ..., max_range_um: Any = ..., refine_history: Any = ..., refine_loss: Any = ...) -> None:
         ...
     def __repr__(self) -> str:
         ...
-    @property
-    def overlap(self) -> Any:
-        ...
-    @overlap.setter
-    def overlap(self, value: Any) -> None: ...
-    @property
-    def jitter(self) -> Any:
-        ...
-    @jitter.setter
-    def jitter(self, value: Any) -> None: ...
-    @property
-    def oblique_lights(self) -> Any:
-        ...
-    @oblique_lights.setter
-    def oblique_lights(self, value: Any) -> None: ...
-    @property
-    def plan_from_truth(self) -> Any:
-        ...
-    @plan_from_truth.setter
-    def plan_from_truth(self, value: Any) -> None: ...
-    @property
-    def simulator(self) -> Any:
-        ...
-    @simulator.setter
-    def simulator(self, value: Any) -> None: ...
     @property
     def field_iterations(self) -> Any:
         ...
@@ -658,6 +646,11 @@ class RecoverSettings:
     @refine_coarse_iterations.setter
     def refine_coarse_iterations(self, value: Any) -> None: ...
     @property
+    def position_passes(self) -> Any:
+        ...
+    @position_passes.setter
+    def position_passes(self, value: Any) -> None: ...
+    @property
     def white_smoothness(self) -> Any:
         ...
     @white_smoothness.setter
@@ -668,15 +661,35 @@ class RecoverSettings:
     @white_smoothness_iterations.setter
     def white_smoothness_iterations(self, value: Any) -> None: ...
     @property
-    def position_passes(self) -> Any:
-        ...
-    @position_passes.setter
-    def position_passes(self, value: Any) -> None: ...
-    @property
     def epochs(self) -> Any:
         ...
     @epochs.setter
     def epochs(self, value: Any) -> None: ...
+    @property
+    def overlap(self) -> Any:
+        ...
+    @overlap.setter
+    def overlap(self, value: Any) -> None: ...
+    @property
+    def jitter(self) -> Any:
+        ...
+    @jitter.setter
+    def jitter(self, value: Any) -> None: ...
+    @property
+    def oblique_lights(self) -> Any:
+        ...
+    @oblique_lights.setter
+    def oblique_lights(self, value: Any) -> None: ...
+    @property
+    def plan_from_truth(self) -> Any:
+        ...
+    @plan_from_truth.setter
+    def plan_from_truth(self, value: Any) -> None: ...
+    @property
+    def simulator(self) -> Any:
+        ...
+    @simulator.setter
+    def simulator(self, value: Any) -> None: ...
     @property
     def simulate_position_error_texels(self) -> Any:
         ...
@@ -692,6 +705,46 @@ class RecoverSettings:
         ...
     @simulate_sigma_factor.setter
     def simulate_sigma_factor(self, value: Any) -> None: ...
+    @property
+    def blur_widths(self) -> Any:
+        ...
+    @blur_widths.setter
+    def blur_widths(self, value: Any) -> None: ...
+    @property
+    def blur_iterations(self) -> Any:
+        ...
+    @blur_iterations.setter
+    def blur_iterations(self, value: Any) -> None: ...
+    @property
+    def blur_wavelengths(self) -> Any:
+        ...
+    @blur_wavelengths.setter
+    def blur_wavelengths(self, value: Any) -> None: ...
+    @property
+    def band_limit(self) -> Any:
+        ...
+    @band_limit.setter
+    def band_limit(self, value: Any) -> None: ...
+    @property
+    def refine(self) -> Any:
+        ...
+    @refine.setter
+    def refine(self, value: Any) -> None: ...
+    @property
+    def max_range_um(self) -> Any:
+        ...
+    @max_range_um.setter
+    def max_range_um(self, value: Any) -> None: ...
+    @property
+    def refine_history(self) -> Any:
+        ...
+    @refine_history.setter
+    def refine_history(self, value: Any) -> None: ...
+    @property
+    def refine_loss(self) -> Any:
+        ...
+    @refine_loss.setter
+    def refine_loss(self, value: Any) -> None: ...
 
 class RecoveryResult:
     """What recover() returns."""
@@ -1142,31 +1195,20 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
     """
     ...
 
-def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., blur_widths: List[float] = ..., blur_iterations: int = ..., blur_wavelengths: int = ..., field_iterations: Any = ..., band_limit: bool = ..., refine: int = ..., max_range_um: Any = ..., refine_iterations: Any = ..., refine_history: int = ..., refine_loss: Any = ..., callback: Any = ..., comm: Any = ..., calibrate: Any = ..., field_tile_threshold: int = ..., field_tile_core: int = ..., white_smoothness: Any = ..., white_smoothness_iterations: int = ...) -> Any:
+def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float = ..., *, truth: Any = ..., calibrate: Any = ..., callback: Any = ..., comm: Any = ..., settings: Any = ..., **kwargs: Any) -> Any:
     """The heightfield whose slices match `observations`, from a flat start (recover.h): a blurred fit,
     phase retrieval of the field per wavelength on a refined object grid, unwrapping, then L-BFGS
     on the heights in the full model. Returns a Heightfield (size, texel units with texel_um and
-    vscale). Settings (defaults: the library's, in the signature; None: the schedule's, which with
-    every default is the schedule `wavebrdf recover` and recover() run for a smooth surface):
+    vscale). With default settings it runs the schedule `wavebrdf recover` and recover() run for a
+    smooth surface.
 
-    blur_widths         blurred fit: blur widths in footprint lobes, widest first ([] : start the
-                        fields from flat); blur_iterations: L-BFGS per width (>= 0)
-    blur_wavelengths    the blurred fit uses this many longest wavelengths (0: all), at positions
-                        at least 2 sigma_p apart
-    field_iterations    L-BFGS iterations of each field retrieval (>= 0; None: 25 on a smooth surface
-                        without calibration, else 50), longest wavelength first, each started from
-                        the heights of the fields before it;
-                        band_limit: keep only the object's spectrum the slices see
-    refine              odd object-grid refinement 1...63 (0: automatic)
-    max_range_um        bound on the height range for unwrapping (um, > 0; None: 4;
-                        RecoverSettings::height_range_um)
-    refine_iterations   final L-BFGS iterations on the heights (>= 0; None: the schedule's, 8 after
-                        a first round on the longest wavelength's slices on a smooth surface without
-                        calibration, else 40; a count given is the whole refinement); refine_history >= 1;
-                        refine_loss: 'amplitude', 'poisson:N', 'mse', 'cmsle:EPS' or a Loss
-    white_smoothness    white light (RGB slices only): the smoothness continuation's weights before
-                        the refinement, largest first (at most 64, each 0 ... 1e12; [] none);
-                        white_smoothness_iterations: L-BFGS iterations per weight (>= 0)
+    settings            a RecoverSettings (None: the defaults): the schedule's settings it shares
+                        with recover() (field_iterations, refine_iterations, field tiles, the coarse
+                        space, position_passes, white light's continuation) and the stages' own
+                        (blur_widths, blur_iterations, blur_wavelengths, band_limit, refine,
+                        max_range_um, refine_history, refine_loss; help(RecoverSettings));
+                        one of the acquisition's (overlap, simulate_*, ...) set is a ValueError. Their
+                        names as keywords of recover_heights still work for now, with a FutureWarning.
     Metrics stages: 'blur:S', 'blur', 'field:LAMBDA', 'unwrap', 'refine'.
     comm                None (one process) or an mpi4py communicator: `observations` is then this
                         rank's share (every rank calls with its own; docs/scale.md), the sums are
@@ -1178,10 +1220,6 @@ def recover_heights(observations: Any, size: Any, texel_um: float, vscale: float
                         (true sigma_p / stated), exposures (float64 (N,): reference ~ exposure *
                         model, per observation in the order given; None when not refined),
                         position_offsets_um (float64 (N, 2): true - stated centre; or None).
-    field_tile_threshold  a surface with a side above this many texels (0...10^6; 0: never) has its
-                        field retrieved on tiles of about field_tile_core texels (8...4096) plus a
-                        margin, blended into one field (RecoverSettings::field_tile_*; not with
-                        calibrate='positions', which keeps the whole-surface field stage)
 
     observations  Observation(s) at several positions and wavelengths (OHS / ROHS single-wavelength
                   ones feed the blurred fit and the fields; all feed the refinement and Adam); their

@@ -36,15 +36,17 @@ def test_recover_heights_returns_the_calibration_when_asked():
     plan = wb.plan_acquisition(rows=8, texel_um=2.0, sigma_p_um=3.0, height_range_um=0.1, resolution=32)
     truth = wb.with_height_range(wb.Heightfield.generate("isotropic", rows=8, texel_um=2.0, seed=5052), 0.1)
     obs = wb.simulate_observations(truth, plan)
-    plain = wb.recover_heights(obs, 8, 2.0, field_iterations=3, refine_iterations=2)
+    plain = wb.recover_heights(obs, 8, 2.0, settings=wb.RecoverSettings(field_iterations=3, refine_iterations=2))
     assert isinstance(plain, wb.Heightfield)
-    est, c = wb.recover_heights(obs, 8, 2.0, field_iterations=3, refine_iterations=2, calibrate="exposure,sigma")
+    est, c = wb.recover_heights(obs, 8, 2.0, calibrate="exposure,sigma",
+                                settings=wb.RecoverSettings(field_iterations=3, refine_iterations=2))
     assert isinstance(est, wb.Heightfield)
     assert c["refined"] == "exposure,sigma"
     assert c["exposures"].shape == (len(obs),)
     np.testing.assert_allclose(c["exposures"], 1.0, rtol=0.2)  # rendered exactly: 1 (few iterations here)
     assert 0.8 < c["sigma_p_scale"] < 1.25
-    _, none = wb.recover_heights(obs, 8, 2.0, field_iterations=1, refine_iterations=1, calibrate=[])
+    _, none = wb.recover_heights(obs, 8, 2.0, calibrate=[],
+                                 settings=wb.RecoverSettings(field_iterations=1, refine_iterations=1))
     assert none["refined"] == "none"
 
 

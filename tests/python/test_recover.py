@@ -248,7 +248,8 @@ def test_recover_heights_reports_stages_and_stops(small_observations):
         seen.append(m)
         return m["stage"] != "blur:1"
 
-    est = wb.recover_heights(obs, 8, 2.0, truth=truth, blur_iterations=3, callback=callback)
+    est = wb.recover_heights(obs, 8, 2.0, truth=truth, callback=callback,
+                             settings=wb.RecoverSettings(blur_iterations=3))
     assert [m["stage"] for m in seen] == ["blur:0"] * 3 + ["blur:1"]
     assert [m["iteration"] for m in seen[:3]] == [1, 2, 3]
     assert all(np.isnan(m["height_rel_rmse"]) for m in seen)
@@ -342,8 +343,10 @@ def test_bad_arguments_name_themselves(call, needles):
 
 def test_bad_arguments_of_the_parts(small_observations):
     truth, obs = small_observations
-    for kwargs, needle in [(dict(refine=2), "refine"), (dict(blur_widths=[4.0, 0.0]), "blur_widths"),
-                           (dict(refine_loss="loud"), "loud"), (dict(blur_iterations=-1), "blur_iterations"),
+    for kwargs, needle in [(dict(settings=wb.RecoverSettings(refine=2)), "refine"),
+                           (dict(settings=wb.RecoverSettings(blur_widths=[4.0, 0.0])), "blur_widths"),
+                           (dict(settings=wb.RecoverSettings(refine_loss="loud")), "loud"),
+                           (dict(settings=wb.RecoverSettings(blur_iterations=-1)), "blur_iterations"),
                            (dict(truth=truth.values), "truth")]:
         with pytest.raises(ValueError, match=needle):
             wb.recover_heights(obs, 8, 2.0, **kwargs)
@@ -412,21 +415,25 @@ def test_field_tile_knobs_are_the_clis(tmp_path):
 
     stages = []
     callback = lambda m: stages.append(m["stage"]) or True
-    wb.recover_heights(r.observations, (32, 8), 2.0, blur_iterations=1, field_iterations=2, refine_iterations=0,
-                       field_tile_threshold=16, field_tile_core=12, callback=callback)
+    wb.recover_heights(r.observations, (32, 8), 2.0, callback=callback,
+                       settings=wb.RecoverSettings(blur_iterations=1, field_iterations=2, refine_iterations=0,
+                                                   field_tile_threshold=16, field_tile_core=12))
     assert stages.count("field:0.6") == 6
     stages.clear()
-    wb.recover_heights(r.observations, (32, 8), 2.0, blur_iterations=1, field_iterations=2, refine_iterations=0,
-                       field_tile_threshold=0, callback=callback)
+    wb.recover_heights(r.observations, (32, 8), 2.0, callback=callback,
+                       settings=wb.RecoverSettings(blur_iterations=1, field_iterations=2, refine_iterations=0,
+                                                   field_tile_threshold=0))
     assert stages.count("field:0.6") == 2
 
     for call, needle in [(lambda: wb.recover(size=8,
                                              settings=wb.RecoverSettings(field_tile_core=4)), "field_tile_core"),
                          (lambda: wb.recover(size=8,
                                              settings=wb.RecoverSettings(field_tile_threshold=-3)), "field_tile_threshold"),
-                         (lambda: wb.recover_heights(r.observations, (32, 8), 2.0, field_tile_core=5000),
+                         (lambda: wb.recover_heights(r.observations, (32, 8), 2.0,
+                                                     settings=wb.RecoverSettings(field_tile_core=5000)),
                           "field_tile_core"),
-                         (lambda: wb.recover_heights(r.observations, (32, 8), 2.0, field_tile_threshold=-1),
+                         (lambda: wb.recover_heights(r.observations, (32, 8), 2.0,
+                                                     settings=wb.RecoverSettings(field_tile_threshold=-1)),
                           "field_tile_threshold")]:
         with pytest.raises(ValueError, match=needle):
             call()
@@ -459,7 +466,7 @@ def test_recover_settings_group_the_rare_keywords():
     # The settings object and its old keywords run the same recovery; the old ones warn.
     s = wb.RecoverSettings(epochs=4, jitter=0.1)
     assert s.epochs == 4 and s.jitter == 0.1 and s.field_iterations is None
-    assert repr(s) == "RecoverSettings(jitter=0.1, epochs=4)"
+    assert repr(s) == "RecoverSettings(epochs=4, jitter=0.1)"
     s.field_iterations = 3
     assert s.field_iterations == 3
     new = wb.recover(size=8, resolution=16, method="thesis", quiet=True, settings=wb.RecoverSettings(epochs=4))

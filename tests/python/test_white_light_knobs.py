@@ -33,11 +33,12 @@ def test_recover_white_smoothness_sets_the_continuation():
 def test_recover_heights_takes_white_smoothness():
     r = wb.recover(**SMALL_WHITE, settings=wb.RecoverSettings(refine_iterations=0, white_smoothness=[]))
     seen = []
-    wb.recover_heights(r.observations, 8, 2.0, truth=r.truth, blur_widths=[4.0], blur_iterations=2,
-                       refine_iterations=1, white_smoothness=[5.0, 0.5], white_smoothness_iterations=2,
-                       callback=lambda m: seen.append((m["stage"], m["iteration"])) or True)
+    wb.recover_heights(r.observations, 8, 2.0, truth=r.truth,
+                       callback=lambda m: seen.append((m["stage"], m["iteration"])) or True,
+                       settings=wb.RecoverSettings(blur_widths=[4.0], blur_iterations=2, refine_iterations=1,
+                                                   white_smoothness=[5.0, 0.5], white_smoothness_iterations=2))
     assert max(i for s, i in seen if s == "refine") == 5
     with pytest.raises(ValueError, match="white_smoothness"):
-        wb.recover_heights(r.observations, 8, 2.0, white_smoothness=[1e13])
+        wb.recover_heights(r.observations, 8, 2.0, settings=wb.RecoverSettings(white_smoothness=[1e13]))
     with pytest.raises(ValueError, match="white_smoothness_iterations"):
-        wb.recover_heights(r.observations, 8, 2.0, white_smoothness_iterations=-1)
+        wb.recover_heights(r.observations, 8, 2.0, settings=wb.RecoverSettings(white_smoothness_iterations=-1))
