@@ -14,6 +14,7 @@
 
 #include "recover_util.h"
 #include "test_util.h"
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/noise.h"
 #include "wavebrdf/recover.h"
@@ -353,4 +354,108 @@ TEST(ModelCheck, FieldFloorShortcutSkipsBuildingTheFieldModel) {
     EXPECT_EQ(high.count("select:gabor"), 1u);
     EXPECT_EQ(d.values(), refined.values());
     EXPECT_EQ(a.values(), b.values());
+}
+
+namespace {
+
+// small_scalar_case's Gabor slices with Poisson noise of `photons` per slice.
+ScalarCase noisy_gabor_case(std::uint64_t seed, double photons) {
+    ScalarCase c = small_scalar_case(Simulator::Gabor, seed);
+    add_noise(c.observations, Noise{NoiseKind::Poisson, photons}, seed + 1);
+    return c;
+}
+
+// The truth's heights plus a smooth bump of `amplitude` µm: a fit that is off.
+Heightfield off_by(const Heightfield& truth, double amplitude_um) {
+    std::vector<double> v = truth.values();
+    const double to_values = 1.0 / (truth.vscale() * truth.texel_um());
+    for (int i = 0; i < truth.rows(); ++i)
+        for (int j = 0; j < truth.cols(); ++j)
+            v[std::size_t(i) * truth.cols() + j] +=
+                amplitude_um * to_values * std::sin(2.0 * M_PI * i / truth.rows()) * std::cos(2.0 * M_PI * j / truth.cols());
+    return truth.with_values(std::move(v));
+}
+
+}  // namespace
+
+// The convergence check's floor rule, which the model check shares: above the floor only by
+// both the ratio (1.05) and five standard deviations.
+TEST(ModelCheck, PhotonFloorRule) {
+    EXPECT_TRUE(misfit_on_photon_floor(1000.0, 1000.0, 10.0));
+    EXPECT_TRUE(misfit_on_photon_floor(1040.0, 1000.0, 1.0));   // within the ratio
+    EXPECT_TRUE(misfit_on_photon_floor(1100.0, 1000.0, 30.0));  // within 5 sd
+    EXPECT_FALSE(misfit_on_photon_floor(1100.0, 1000.0, 10.0));
+    EXPECT_TRUE(misfit_on_photon_floor(900.0, 1000.0, 1.0));  // below: part of the noise fitted
+}
+
+// The Gabor deviance against the Poisson statistics it claims: at the truth, on slices drawn as
+// Poisson counts of the truth's own slices, D lies within 5 sd of E[D]; on the noiseless slices
+// it is 0 there (every count equal to its mean); and it is the convergence check's deviance of
+// the same slices (an independent implementation: double forwards, ordered sums) to 1e-5.
+TEST(ModelCheck, GaborPhotonDevianceFollowsPoissonStatistics) {
+    const double photons = 1e4;
+    const ScalarCase noisy = noisy_gabor_case(7101, photons);
+    const ScalarCase clean = small_scalar_case(Simulator::Gabor, 7101);
+    const Communicator& comm = serial_communicator();
+    const SliceDeviance d =
+        detail::gabor_photon_deviance(pointers(noisy.observations), queries_of(noisy.observations), noisy.truth,
+                                      false, photons, comm);
+    ASSERT_GT(d.expected, 0.0);
+    ASSERT_GT(d.variance, 0.0);
+    EXPECT_LT(std::abs(d.deviance - d.expected), 5.0 * std::sqrt(d.variance))
+        << d.deviance << " against " << d.expected << " +- " << std::sqrt(d.variance);
+    const SliceDeviance zero = detail::gabor_photon_deviance(
+        pointers(clean.observations), queries_of(clean.observations), clean.truth, false, photons, comm);
+    EXPECT_LT(zero.deviance, 1e-3 * zero.expected);
+    const ConvergenceCheck check = check_convergence(noisy.observations, noisy.truth, photons, false, nullptr, comm);
+    EXPECT_NEAR(d.deviance, check.deviance, 1e-5 * check.deviance);
+    EXPECT_NEAR(d.expected, check.expected_deviance, 1e-5 * check.expected_deviance);
+    EXPECT_THROW(detail::gabor_photon_deviance(pointers(noisy.observations), {}, noisy.truth, false, photons, comm),
+                 std::invalid_argument);
+}
+
+// With photon counts (the refinement's Poisson loss) a Gabor fit on the noise floor is kept
+// without building the field model ("misfit:gabor-noise" ≤ the floor rule, then
+// "select:gabor": no "misfit:field-start", no field refinement), and the heights are the Gabor
+// fit's. A fit off the floor (a 0.02 µm bump on ±0.5 µm) still goes on to the field model, and
+// without photons (amplitude loss) the rule is not asked.
+TEST(ModelCheck, AGaborFitOnThePhotonFloorIsKept) {
+    const double photons = 1e4;
+    const ScalarCase c = noisy_gabor_case(7102, photons);
+    std::vector<std::size_t> index(c.observations.size());
+    for (std::size_t k = 0; k < index.size(); ++k) index[k] = k;
+    const Heightfield unwrapped = off_by(c.truth, 0.05);
+    const auto run = [&](const Heightfield& refined, const Loss& loss, std::map<std::string, double>* stages) {
+        RecoverSettings s = small_settings();
+        s.model_check_iterations = 2;
+        s.model_check_skip_ratio = 0.0;  // the field model's own shortcut never decides here
+        s.refine_loss = loss;
+        return detail::check_model(
+            pointers(c.observations), index, {}, 1.0, unwrapped, refined, 3, s,
+            [&](const detail::StageId& stage, int, double value, const Heightfield*) {
+                EXPECT_EQ(stage.kind, stage_kind(stage.name)) << stage.name;
+                (*stages)[stage.name] = value;
+                return true;
+            },
+            serial_communicator(), 0.0);
+    };
+    std::map<std::string, double> on_floor, off_floor, no_photons;
+    const Loss poisson{LossKind::Poisson, 1.0, photons};
+    const Heightfield kept = run(c.truth, poisson, &on_floor);
+    ASSERT_EQ(on_floor.count("misfit:gabor-noise"), 1u);
+    EXPECT_LT(on_floor.at("misfit:gabor-noise"), k_misfit_ratio_limit);
+    EXPECT_GT(on_floor.at("misfit:gabor-noise"), 0.9);
+    EXPECT_EQ(on_floor.count("select:gabor"), 1u);
+    EXPECT_EQ(on_floor.count("misfit:field-start"), 0u);
+    EXPECT_EQ(on_floor.count("refine:field"), 0u);
+    EXPECT_EQ(kept.values(), c.truth.values());
+
+    run(off_by(c.truth, 0.02), poisson, &off_floor);
+    ASSERT_EQ(off_floor.count("misfit:gabor-noise"), 1u);
+    EXPECT_GT(off_floor.at("misfit:gabor-noise"), k_misfit_ratio_limit);
+    EXPECT_EQ(off_floor.count("misfit:field-start"), 1u);
+
+    run(c.truth, Loss{LossKind::Amplitude, 1.0, 0.0}, &no_photons);
+    EXPECT_EQ(no_photons.count("misfit:gabor-noise"), 0u);
+    EXPECT_EQ(no_photons.count("misfit:field-start"), 1u);
 }

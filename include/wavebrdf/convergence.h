@@ -36,6 +36,10 @@ namespace wavebrdf {
 // docs/recovery.md, "Did it converge?").
 constexpr double k_misfit_ratio_limit = 1.05;
 constexpr double k_misfit_sd_limit = 5.0;
+// The rule above: true when a deviance D (expected E[D] ± sd under photon noise) is on the
+// noise floor, i.e. not above it by both the ratio and the standard deviations. Also the model
+// check's (recover.h, model_check_iterations): a Gabor fit on the floor is kept.
+bool misfit_on_photon_floor(double deviance, double expected, double sd);
 // Without noise: not converged above this relative amplitude misfit.
 constexpr double k_noiseless_misfit_limit = 1e-5;
 // Error bars: a warning when twice the median σ exceeds this fraction of the height range (the
@@ -159,6 +163,17 @@ bool needs_error_bars(const ConvergenceCheck& check);
 // over the height range (µm, > 0; else nothing is added). A reason when √(mean σ²) exceeds the
 // limit, unless the wide-bars reason (add_error_bars) is there already.
 void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sigma_um, double height_range_um);
+
+// One slice's Poisson deviance D of its reference against `model` (the model's slice, o's size,
+// exposure applied) at `photons` > 0 per slice, and D's expectation and variance were the
+// reference Poisson counts of that model: the check's per-observation terms (above: weights,
+// the photons of the counted values). All 0 when the slice holds no light.
+struct SliceDeviance {
+    double deviance = 0.0;
+    double expected = 0.0;
+    double variance = 0.0;
+};
+SliceDeviance slice_photon_deviance(const Observation& o, const std::vector<double>& model, double photons);
 
 // e(μ) and Var of the Poisson deviance of one pixel of mean μ ≥ 0 (see above), by exact sums
 // over the counts (to 12 standard deviations past μ). For tests and the check above.

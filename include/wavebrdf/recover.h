@@ -355,6 +355,8 @@ struct RecoverSettings {
     // iterations (stopping as the field stage does: field.stall_window, stall_tolerance), and
     // the heights whose own model explains the single-wavelength OHS / ROHS slices better
     // (relative amplitude loss, "misfit:gabor" / "misfit:field" in the metrics) are returned.
+    // With refine_loss Poisson the Gabor heights are kept at once when their deviance is on the
+    // photon-noise floor (misfit_on_photon_floor, convergence.h; "misfit:gabor-noise": D / E[D]).
     // 0: off (stage 3's heights).
     int model_check_iterations = 40;
     // The model check skips the field refinement and keeps stage 3's heights when misfit:gabor
@@ -441,7 +443,9 @@ RecoverSettings scheduled_settings(const RecoverSettings& settings, double texel
 // after unwrapping), "unwrap", "refine", "repair:outliers" (only where a texel was flagged:
 // iteration = texels changed, loss = texels evaluated; outlier_repair_rounds) and "refine" again
 // where one changed, then with the model check (model_check_iterations)
-// "misfit:gabor", "misfit:field-start" (the field model's loss at the unwrapped heights),
+// "misfit:gabor", with the Poisson loss "misfit:gabor-noise" (the Gabor deviance over its
+// expectation; on the floor the Gabor heights are selected at once), "misfit:field-start" (the
+// field model's loss at the unwrapped heights),
 // "refine:field" (iterations), "misfit:field" (loss: each model's relative amplitude loss on
 // the single-wavelength slices at its heights; the last two left out when
 // model_check_skip_ratio skips the field refinement) and "select:gabor" or "select:field" (the
@@ -463,7 +467,7 @@ enum class StageKind {
     RepairOutliers,  // "repair:outliers"
     RepairWhite,     // "repair": white light's defect repair
     Positions,       // "positions:register", "positions:newton", "positions:rescue", "positions:stall"
-    ModelMisfit,     // "misfit:gabor", "misfit:field-start", "misfit:field-floor", "misfit:field"
+    ModelMisfit,     // "misfit:gabor", "misfit:gabor-noise", "misfit:field-start", "misfit:field-floor", "misfit:field"
     ModelRefine,     // "refine:field": the refinement in the field model
     ModelSelect,     // "select:gabor", "select:field"
     Thesis,          // "thesis": the thesis's Adam epochs (recover_heights_thesis)

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "wavebrdf/communicator.h"
+#include "wavebrdf/convergence.h"
 #include "wavebrdf/heightfield.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/recover.h"
@@ -84,6 +85,14 @@ private:
 double gabor_amplitude_loss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
                             const Heightfield& heightfield, bool calibrate_exposure, const Communicator& comm);
 
+// The Gabor model's Poisson deviance on the same observations at `photons` > 0 per slice, with
+// its expectation and variance were the slices Poisson counts of that model
+// (slice_photon_deviance, convergence.h, per observation; exposures as above). Collective;
+// each of the three sums exact (the same bits for any thread count and split over ranks).
+SliceDeviance gabor_photon_deviance(const std::vector<const Observation*>& observations,
+                                    const std::vector<Query>& queries, const Heightfield& heightfield,
+                                    bool calibrate_exposure, double photons, const Communicator& comm);
+
 // One evaluation of FieldModelLoss: its value and gradient (1/µm) at some heights.
 struct FieldModelEvaluation {
     double loss = 0.0;
@@ -124,7 +133,9 @@ bool skip_field_refinement(double gabor_loss, double field_start_loss, double sk
 // the field stage's retrievals, which minimised the same loss over free objects, a superset of
 // the field model's pure-phase ones: when skip_field_refinement(misfit:gabor, field_floor_loss)
 // holds already, the field model is not even built ("misfit:field-floor" reported instead of
-// "misfit:field-start"; experiments/2026-11-23-recovery-speed.md).
+// "misfit:field-start"; experiments/2026-11-23-recovery-speed.md). With settings.refine_loss
+// Poisson, next: "misfit:gabor-noise" (gabor_photon_deviance's D / E[D] at `refined`), and
+// when misfit_on_photon_floor holds, "select:gabor" and `refined` without the field model.
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
