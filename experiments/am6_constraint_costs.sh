@@ -16,3 +16,6 @@ run no_cone WB_WCONE=0
 run region_only WB_WUNIF=0 WB_WCONE=0
 run ufree_024 WB_UFREE=0.24
 run cone_hinge WB_CFREE=0.0015 WB_WCONE=1000
+run both_hinges WB_UFREE=0.24 WB_CFREE=0.0015 WB_WCONE=1000
+run weights_half WB_WCONE=50 WB_WUNIF=10
+run weights_quarter WB_WCONE=25 WB_WUNIF=5
