@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -844,6 +845,54 @@ TEST_F(IoTest, SignalHandlerRemovesTheTemporaryOfAWriteInProgress) {
     ASSERT_EQ(::waitpid(pid, &status, 0), pid);
     ASSERT_TRUE(WIFEXITED(status));
     EXPECT_EQ(WEXITSTATUS(status), 3);
+    EXPECT_TRUE(listing().empty()) << "left: " << (listing().empty() ? "" : listing()[0]);
+}
+
+// A signal handled on one thread while another thread writes: the writer creates its temporary
+// only after the handler began (unlinking then would not stop it), so remove_temporary_files()
+// must wait for it; the write then removes its temporary and fails instead of moving the file
+// into place, and a write begun afterwards fails at once. In a child process: the removal is
+// for good.
+TEST_F(IoTest, RemovalWaitsForAWriteOnAnotherThread) {
+    const std::string path = file("checkpoint.json");
+    const std::string later = file("later.json");
+    const pid_t pid = ::fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+        ::alarm(60);  // never outlive a broken test
+        std::atomic<bool> registered{false};
+        std::atomic<int> outcome{0};  // 1: the write threw, 2: it returned
+        std::thread writer([&] {
+            try {
+                wavebrdf::write_file_atomically(path, [&](const std::string& tmp) {
+                    registered = true;
+                    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+                    std::ofstream(tmp) << "{}";
+                });
+                outcome = 2;
+            } catch (const std::runtime_error&) {
+                outcome = 1;
+            }
+        });
+        while (!registered) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        wavebrdf::remove_temporary_files();
+        const bool waited = outcome != 0;
+        writer.join();
+        bool later_refused = false;
+        try {
+            wavebrdf::write_text_atomically(later, "{}");
+        } catch (const std::runtime_error&) {
+            later_refused = true;
+        }
+        std::_Exit((waited ? 0 : 1) | (outcome == 1 ? 0 : 2) | (later_refused ? 0 : 4));
+    }
+    int status = 0;
+    ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFEXITED(status)) << status;
+    const int code = WEXITSTATUS(status);
+    EXPECT_EQ(code & 1, 0) << "the removal returned before the other thread's write ended";
+    EXPECT_EQ(code & 2, 0) << "the write moved its file into place after the removal";
+    EXPECT_EQ(code & 4, 0) << "a write begun after the removal went ahead";
     EXPECT_TRUE(listing().empty()) << "left: " << (listing().empty() ? "" : listing()[0]);
 }
 

@@ -206,7 +206,9 @@ void write_file_atomically(const std::string& path,
 void write_text_atomically(const std::string& path, const std::string& text);
 
 // Removes (unlink) every temporary file of a write in progress in this process. Async-signal-
-// safe: meant for a handler of SIGINT/SIGTERM that then ends the process. The table holds 64
+// safe: meant for a handler of SIGINT/SIGTERM that then ends the process. A write in progress
+// on another thread is waited for (up to 5 s): it removes its own temporary and throws instead
+// of moving the file into place, and every later write throws at once. The table holds 64
 // writes in progress at once with paths up to 4095 bytes; a write beyond that still works but
 // its temporary is not removed by this call.
 void remove_temporary_files() noexcept;

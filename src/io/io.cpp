@@ -2,6 +2,8 @@
 #include "wavebrdf/input_files.h"
 
 #include <sys/stat.h>
+#include <sys/syscall.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -85,10 +87,19 @@ constexpr int kTemporarySlots = 64;
 constexpr std::size_t kTemporaryNameMax = 4096;
 struct TemporarySlot {
     std::atomic<int> state{0};
+    std::atomic<long> owner{0};  // the writing thread (its kernel id)
     char name[kTemporaryNameMax];
 };
-static_assert(std::atomic<int>::is_always_lock_free, "the signal handler needs lock-free atomics");
+static_assert(std::atomic<int>::is_always_lock_free && std::atomic<long>::is_always_lock_free &&
+                  std::atomic<bool>::is_always_lock_free,
+              "the signal handler needs lock-free atomics");
 TemporarySlot g_temporary_slots[kTemporarySlots];
+
+// Set once remove_temporary_files() has begun: the process is ending, and a write that has
+// not yet moved its file into place removes its temporary and fails instead.
+std::atomic<bool> g_removing{false};
+
+long this_thread_id() { return static_cast<long>(::syscall(SYS_gettid)); }
 
 // Lists `name` in a free slot for as long as it lives (none free, or a name too long: not
 // listed, and the write goes on without that safety net).
@@ -100,6 +111,7 @@ public:
             int expected = 0;
             if (g_temporary_slots[k].state.compare_exchange_strong(expected, 1)) {
                 std::memcpy(g_temporary_slots[k].name, name.c_str(), name.size() + 1);
+                g_temporary_slots[k].owner.store(this_thread_id());
                 g_temporary_slots[k].state.store(2);
                 m_slot = k;
                 return;
@@ -780,6 +792,9 @@ void write_file_atomically(const std::string& path,
     refuse_non_regular(path);
     const std::string tmp = temporary_name(path);
     const TemporaryRegistration registration(tmp);
+    // Checked after registering and again before the rename, while still registered: either
+    // remove_temporary_files() waits for this write, or this write sees it and cleans up.
+    if (g_removing.load()) fail_file(path, "not written: the process is being stopped");
     try {
         write(tmp);
     } catch (const std::exception& e) {
@@ -788,6 +803,10 @@ void write_file_atomically(const std::string& path,
     } catch (...) {
         remove_quietly(tmp);
         fail_file(path, "cannot write file (unknown error)");
+    }
+    if (g_removing.load()) {
+        remove_quietly(tmp);
+        fail_file(path, "not written: the process is being stopped");
     }
     if (std::rename(tmp.c_str(), path.c_str()) != 0) {
         const int err = errno;
@@ -810,8 +829,27 @@ void write_text_atomically(const std::string& path, const std::string& text) {
 }
 
 void remove_temporary_files() noexcept {
-    for (TemporarySlot& slot : g_temporary_slots)
-        if (slot.state.load() == 2) ::unlink(slot.name);
+    // Another thread may be writing while this one handles a signal; unlinking its temporary
+    // now would not stop it from creating the file afterwards (the process dies only when the
+    // handler returns). So this thread's own temporaries go at once (its write never resumes),
+    // and the others' writers, seeing g_removing, remove theirs and release the slot; after
+    // kWaitMs (a writer blocked on this thread, say) the rest are unlinked regardless.
+    g_removing.store(true);
+    constexpr int kWaitMs = 5000;
+    const long self = this_thread_id();
+    for (int waited = 0;; ++waited) {
+        bool others = false;
+        for (TemporarySlot& slot : g_temporary_slots) {
+            if (slot.state.load() != 2) continue;
+            if (slot.owner.load() == self || waited >= kWaitMs)
+                ::unlink(slot.name);
+            else
+                others = true;
+        }
+        if (!others) return;
+        const struct timespec millisecond = {0, 1000000};
+        ::nanosleep(&millisecond, nullptr);
+    }
 }
 
 void check_readable_file(const std::string& path) {
