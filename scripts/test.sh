@@ -23,11 +23,26 @@ report_phases() {
 }
 trap 'report_phases' EXIT
 
+# ccache compares paths relative to the checkout (also on a machine whose ccache has no base_dir),
+# so that the pip package's build (build-pip/, at build/'s depth) finds what the Release build
+# compiled: the same library, the same flags. With CCACHE_DISABLE set (no cache from before this
+# run, as on a new machine) those two builds share this run's own cache, emptied here; the other
+# builds compile without one.
+export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$PWD}"
+run_cache=""
+if [ -n "${CCACHE_DISABLE:-}" ] && command -v ccache >/dev/null 2>&1; then
+    run_cache="$PWD/build-ccache"
+    rm -rf "$run_cache"
+fi
+with_run_cache() {  # command...: with this run's cache, where CCACHE_DISABLE asked for one
+    if [ -n "$run_cache" ]; then env -u CCACHE_DISABLE CCACHE_DIR="$run_cache" "$@"; else "$@"; fi
+}
+
 phase "layering and function length (scripts/check_layers.py, check_function_length.py)"
 /usr/bin/python3 scripts/check_layers.py  # src/ includes run down the stages only
 /usr/bin/python3 scripts/check_function_length.py  # no function in src/ over 200 lines
 phase "setup and Release build"
-bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
+with_run_cache bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
 phase "Release tests (ctest)"
 (cd build && ctest --output-on-failure -j"$(nproc)")
 /usr/bin/python3 scripts/slowest_tests.py build  # docs/reliability.md quotes these
@@ -38,7 +53,7 @@ bash scripts/docs.sh  # the API reference (Doxygen + pydoc) builds without warni
 phase "C++ package (scripts/test_consumer.sh)"
 JOBS="$(nproc)" bash scripts/test_consumer.sh  # find_package against an install, and add_subdirectory
 phase "pip package (scripts/test_pip.sh)"
-bash scripts/test_pip.sh  # pip install in a fresh venv, smoke test outside the tree
+with_run_cache bash scripts/test_pip.sh  # pip install in a fresh venv, smoke test outside the tree
 
 # clang, not GCC (the Release pass's compiler): with ASan + UBSan GCC 12 takes 2.5-3 times the
 # CPU to compile (src/recovery/recover.cpp 38 s against 12 s; tests/recover_test.cpp 38 against

@@ -19,7 +19,8 @@ echo "test_pip: venv in $work/venv ($python)"
 "$python" -m venv --system-site-packages "$work/venv"
 echo "test_pip: pip install --no-build-isolation $root"
 # The CMake build in <checkout>/build-pip (ignored, kept): at build/'s depth, so ccache reuses
-# the library build/ compiled (same flags) and only the extension's own sources compile anew.
+# the library build/ compiled (same flags, same batches) and only the extension's own sources
+# compile anew (scripts/test.sh gives the two builds one cache even under CCACHE_DISABLE).
 WAVEBRDF_PIP_BUILD_DIR="$work/build" WAVEBRDF_PIP_CMAKE_DIR="$root/build-pip" "$work/venv/bin/python" -m pip install --no-build-isolation --no-index \
     --disable-pip-version-check "$root"
 installed=$(date +%s)
