@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Sets up, builds and runs every test: the Release build (GCC), then the same suite built with
-# clang, AddressSanitizer and UndefinedBehaviorSanitizer, then the fuzzers (scripts/fuzz.sh, FUZZ_SECONDS
+# clang, AddressSanitizer and UndefinedBehaviorSanitizer (compiled in the background, at the lowest
+# priority, while the Release build's checks run), then the fuzzers (scripts/fuzz.sh, FUZZ_SECONDS
 # each, default 20). Prints the wall time of each phase at the end (CI's budget: 30 minutes on
 # 2 cores, from a fresh machine).
 set -euo pipefail
@@ -21,7 +22,7 @@ report_phases() {
     printf '  %s\n' "${phases[@]}"
     printf '%8d s  in all\n' "$SECONDS"
 }
-trap 'report_phases' EXIT
+trap '[ -z "${sanitize_pid:-}" ] || kill -- -"$sanitize_pid" 2>/dev/null; report_phases' EXIT
 
 # ccache compares paths relative to the checkout (also on a machine whose ccache has no base_dir),
 # so that the pip package's build (build-pip/, at build/'s depth) finds what the Release build
@@ -43,6 +44,54 @@ phase "layering and function length (scripts/check_layers.py, check_function_len
 /usr/bin/python3 scripts/check_function_length.py  # no function in src/ over 200 lines
 phase "setup and Release build"
 with_run_cache bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
+# clang, not GCC (the Release pass's compiler): with ASan + UBSan GCC 12 takes 2.5-3 times the
+# CPU to compile (src/recovery/recover.cpp 38 s against 12 s; tests/recover_test.cpp 38 against
+# 17), and a second compiler checks the code as well. Line tables only (-g1): the reports still
+# name every frame's function, file and line. The same build holds the fuzzers, so the
+# instrumented library is compiled once; shared, so that each fuzzer's link is its own small
+# file. libFuzzer's coverage goes into the readers the fuzzers call only (CMakeLists.txt,
+# WAVEBRDF_FUZZED_SOURCES): in the whole library it made the sanitizer tests 3-4 times slower.
+# Compiled in batches (WAVEBRDF_UNITY_BUILD, as the Release build): the readers that carry
+# libFuzzer's coverage stay out of the batches, their flags being their own. The consumer's build
+# (scripts/test_consumer.sh) compiles every source file alone, so a missing #include that a batch
+# hides still fails CI.
+# It starts as soon as the Release build is done, in the background at the lowest priority
+# (nice 19), so that it takes only the CPU time the Release tests, pytest and the package checks
+# leave idle (processes waiting for the CLI they started, a serial Python, single-threaded links)
+# and slows none of them; what is left of it runs after them. Its output goes to
+# build-sanitize/build.log, shown when it is joined.
+launcher=()  # ccache, where the machine has it, as in setup.sh (a fresh CI machine has none)
+command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+sanitize_build() {
+    CC=clang CXX=clang++ cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+          -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DWAVEBRDF_SANITIZE=ON -DWAVEBRDF_BUILD_FUZZERS=ON \
+          -DWAVEBRDF_SHARED=ON -DWAVEBRDF_BUILD_BENCH=OFF -DWAVEBRDF_BUILD_PYTHON=OFF -DWAVEBRDF_BUILD_EXPERIMENTS=OFF \
+          -DWAVEBRDF_UNITY_BUILD=ON "${launcher[@]}" >/dev/null
+    cmake --build build-sanitize -j"$(nproc)"
+}
+sanitize_pid=""
+sanitize_start() {
+    mkdir -p build-sanitize
+    sanitize_started=$SECONDS
+    # Its own process group (set -m), so that a failing run stops the whole build.
+    set -m
+    ( renice -n 19 -p "$BASHPID" >/dev/null; sanitize_build ) >build-sanitize/build.log 2>&1 &
+    sanitize_pid=$!
+    set +m
+    echo "test: sanitizer build started in the background (nice 19; build-sanitize/build.log)"
+}
+sanitize_wait() {
+    local rc=0
+    # The rest at the priority of the phases before it (raising it back needs root; elsewhere it
+    # stays at 19, which on a machine of its own changes nothing).
+    renice -n 0 -g "$sanitize_pid" >/dev/null 2>&1 || true
+    wait "$sanitize_pid" || rc=$?
+    sanitize_pid=""
+    cat build-sanitize/build.log
+    echo "test: sanitizer build took $((SECONDS - sanitize_started)) s, in the background from the Release build on"
+    [ "$rc" = 0 ] || { echo "test: FAILED: the sanitizer build (exit $rc)"; exit 1; }
+}
+sanitize_start
 phase "Release tests (ctest)"
 (cd build && ctest --output-on-failure -j"$(nproc)")
 /usr/bin/python3 scripts/slowest_tests.py build  # docs/reliability.md quotes these
@@ -55,25 +104,8 @@ JOBS="$(nproc)" bash scripts/test_consumer.sh  # find_package against an install
 phase "pip package (scripts/test_pip.sh)"
 with_run_cache bash scripts/test_pip.sh  # pip install in a fresh venv, smoke test outside the tree
 
-# clang, not GCC (the Release pass's compiler): with ASan + UBSan GCC 12 takes 2.5-3 times the
-# CPU to compile (src/recovery/recover.cpp 38 s against 12 s; tests/recover_test.cpp 38 against
-# 17), and a second compiler checks the code as well. Line tables only (-g1): the reports still
-# name every frame's function, file and line. The same build holds the fuzzers, so the
-# instrumented library is compiled once; shared, so that each fuzzer's link is its own small
-# file. libFuzzer's coverage goes into the readers the fuzzers call only (CMakeLists.txt,
-# WAVEBRDF_FUZZED_SOURCES): in the whole library it made the sanitizer tests 3-4 times slower.
-# Compiled in batches (WAVEBRDF_UNITY_BUILD, as the Release build): the readers that carry
-# libFuzzer's coverage stay out of the batches, their flags being their own. The consumer's build
-# (scripts/test_consumer.sh) compiles every source file alone, so a missing #include that a batch
-# hides still fails CI.
-phase "sanitizer build (clang, ASan + UBSan; tests and fuzzers)"
-launcher=()  # ccache, where the machine has it, as in setup.sh (a fresh CI machine has none)
-command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-CC=clang CXX=clang++ cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DWAVEBRDF_SANITIZE=ON -DWAVEBRDF_BUILD_FUZZERS=ON \
-      -DWAVEBRDF_SHARED=ON -DWAVEBRDF_BUILD_BENCH=OFF -DWAVEBRDF_BUILD_PYTHON=OFF -DWAVEBRDF_BUILD_EXPERIMENTS=OFF \
-      -DWAVEBRDF_UNITY_BUILD=ON "${launcher[@]}" >/dev/null
-cmake --build build-sanitize -j"$(nproc)"
+phase "sanitizer build: the rest (waiting for the background build)"
+sanitize_wait
 phase "sanitizer tests (ctest)"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
