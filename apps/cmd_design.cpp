@@ -253,6 +253,10 @@ void add_design_command(CLI::App& app) {
     cmd->add_option("--delta-uv-tolerance", a->options.delta_uv_tolerance,
                     "colour: delta u'v' from the target the loss does not count, traded for luminous efficiency")
         ->capture_default_str();
+    cmd->add_option("--delta-uv-ceiling", a->options.delta_uv_ceiling,
+                    "colour: when the schedule ends below Y 0.05, continue in blocks raising the tolerance up to this "
+                    "delta u'v' (0: stop after the schedule)")
+        ->capture_default_str();
     cmd->add_option("--size", a->options.size, "N: the N x N periodic tile")->capture_default_str();
     cmd->add_option("--texel-um", a->options.texel_um, "texel width in um")->capture_default_str();
     cmd->add_option("--height-range-um", a->options.height_range_um, "every height within 0..H um")

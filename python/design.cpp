@@ -17,7 +17,7 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
                 const py::object& view, double view_cone, int size, double texel_um, double height_range_um,
                 int levels, double level_step_um, double min_feature_um, const std::string& fabrication_error,
                 std::uint64_t seed, int iterations, int refine_passes, double max_memory_gb,
-                double delta_uv_tolerance) {
+                double delta_uv_tolerance, double delta_uv_ceiling) {
     DesignOptions o;
     if (!image.is_none()) {
         if (target != "pattern")
@@ -50,6 +50,7 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
                               fabrication_error, seed, iterations, refine_passes, max_memory_gb);
     o.min_feature_um = min_feature_um;
     o.delta_uv_tolerance = delta_uv_tolerance;
+    o.delta_uv_ceiling = delta_uv_ceiling;
     const DesignResult result = run_design_into(
         out, force, [&] { return run_design(prepare_design(o)); },
         [&](const std::string& dir, const DesignResult& r) { write_design_directory(dir, r, force); });
@@ -99,15 +100,15 @@ void bind_design(py::module_& m) {
           "region"_a = "annulus:0.1,0.5", "window"_a = 0.3, "view"_a = py::none(), "view_cone"_a = 0.05,
           "size"_a = 256, "texel_um"_a = 0.5, "height_range_um"_a = 2.0, "levels"_a = 8, "level_step_um"_a = 0.0,
           "min_feature_um"_a = 0.0, "fabrication_error"_a = "", "seed"_a = 1, "iterations"_a = 200,
-          "refine_passes"_a = 60, "max_memory_gb"_a = 0.0, "delta_uv_tolerance"_a = 0.0,
+          "refine_passes"_a = 60, "max_memory_gb"_a = 0.0, "delta_uv_tolerance"_a = 0.0, "delta_uv_ceiling"_a = 0.04,
           R"(A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
 target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
 pairs), 'brdf:TABLE.exr' (a wavebrdf table or lobe file; its lights and wavelengths), or 'pattern' with
 image= (a 2-D grey array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
 or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, region
-(anti-mirror), window (pattern), view (default the mirror direction), view_cone and
-delta_uv_tolerance (colour) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule),
+(anti-mirror), window (pattern), view (default the mirror direction), view_cone,
+delta_uv_tolerance and delta_uv_ceiling (colour) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule),
 min_feature_um with levels=0 (a grayscale relief: no lateral detail finer than it),
 fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
 out: also write the run directory there (force: reuse one holding only a design's outputs).

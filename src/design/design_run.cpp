@@ -680,6 +680,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
         case DesignKind::Colour: {
             require_range(o.view_cone, 1e-3, 0.5, "--view-cone", "1e-3 to 0.5");
             require_range(o.delta_uv_tolerance, 0.0, 0.1, "--delta-uv-tolerance", "0 to 0.1");
+            require_range(o.delta_uv_ceiling, 0.0, 0.1, "--delta-uv-ceiling", "0 to 0.1");
             const std::array<double, 2> view = o.view ? *o.view : mirror;
             if (!(std::hypot(view[0], view[1]) + o.view_cone < 1.0))
                 throw std::domain_error("view (" + num(view[0]) + ", " + num(view[1]) + ") with --view-cone " +
@@ -788,7 +789,8 @@ struct RelaxedLevels {
 // k_tau_start to k_tau_end, Adam on θ; then each texel's most likely level. A grayscale run
 // relaxes the heights instead (grayscale_design).
 RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluator,
-                             const std::function<void(const DesignStep&)>& report, const bool& stopped) {
+                             const std::function<void(const DesignStep&)>& report, const bool& stopped,
+                             const std::vector<int>* warm = nullptr, int iteration0 = 0) {
     const DesignOptions& o = p.options;
     const int K = o.levels, N = o.size;
     const std::size_t n2 = static_cast<std::size_t>(N) * static_cast<std::size_t>(N);
@@ -798,6 +800,14 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
     std::mt19937_64 rng(detail::derive_seed(o.seed, 0xde5190));
     std::vector<double> theta(total);
     detail::fill_standard_normal(theta.data(), theta.size(), rng);
+    if (warm) {
+        // A warm start from a relief: each texel's own level holds half the weight at τ = 1,
+        // the other levels share the rest, so the mixture's far field starts near the relief's.
+        const double own = std::log(0.5), other = std::log(0.5 / std::max(1, K - 1));
+        for (int l = 0; l < K; ++l)
+            for (std::size_t t = 0; t < n2; ++t)
+                theta[static_cast<std::size_t>(l) * n2 + t] = (*warm)[t] == l ? own : other;
+    }
     if (o.target.kind == DesignKind::AntiMirror && !grayscale) {
         // Start from the shares of the levels that darken the mirror order over the band
         // (dark_mirror_shares, on the run's step); the loop shapes the rest.
@@ -843,7 +853,7 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
                 theta[i] -= k_rate * (m1[i] / c1) / (std::sqrt(m2[i] / c2) + 1e-12);
             }
         }
-        report({"relaxed", it, loss, tau});
+        report({"relaxed", iteration0 + it, loss, tau});
     }
     if (grayscale) {
         out.level = detail::grayscale_design(p, evaluator, report, stopped, out.fractions);
@@ -902,19 +912,18 @@ private:
 // Discrete passes on the levels that switch the texels the gradient predicts to gain most, kept
 // only when the exact loss falls (a grayscale relief is scored, not refined). Returns the
 // final loss; `level` holds the relief.
-double refine_levels(const PreparedDesign& p, RefineLoss& refine_loss, std::vector<int>& level,
-                     const std::function<void(const DesignStep&)>& report, const bool& stopped) {
+double refine_levels(const PreparedDesign& p, RefineLoss& refine_loss, std::vector<int>& level, int passes,
+                     int iteration0, const std::function<void(const DesignStep&)>& report, const bool& stopped) {
     const DesignOptions& o = p.options;
     const int K = o.levels;
     const std::size_t n2 = level.size();
     const bool grayscale = o.min_feature_um != 0.0;
     std::vector<double> grad;
     double loss = refine_loss(level, &grad);
-    const int iteration0 = o.iterations;
     report({"refine", iteration0, loss, 0.0});
     double fraction = 0.01;
     std::vector<double> trial_grad;
-    for (int pass = 0; !grayscale && pass < o.refine_passes && !stopped; ++pass) {
+    for (int pass = 0; !grayscale && pass < passes && !stopped; ++pass) {
         std::vector<std::pair<double, std::size_t>> gain;
         std::vector<int> best(n2, -1);
         for (std::size_t t = 0; t < n2; ++t) {
@@ -947,6 +956,96 @@ double refine_levels(const PreparedDesign& p, RefineLoss& refine_loss, std::vect
         report({"refine", iteration0 + pass + 1, loss, fraction});
     }
     return loss;
+}
+
+// Brightness for chromaticity (colour targets on levels). The loss asks for both a chromaticity
+// (Δu′v′ → 0) and a luminous efficiency (the hinge below Y 0.1); the two compete, since light
+// into the view cone at the wavelengths that pull the chromaticity off the target is light the
+// hinge wants. A colour whose brightest reflectors are dim (blue: its optimal-colour limit is a
+// few times the hinge's Y at best) settles where the chromaticity term's pull, which grows with
+// Δu′v′ from zero, balances the hinge's, and there the schedule ends far inside any visible
+// colour difference while Y is still below what a reached colour has. Only then (the loop's Y
+// below k_reached_y after the schedule) does the loop continue, in blocks: the tolerance raised
+// a quarter of the way from delta_uv_tolerance to delta_uv_ceiling, the relaxed phase run again
+// from the relief (warm, o.iterations) and the discrete passes after it; a block's relief is
+// kept only where it lowers the loss at the block's tolerance. So the Δu′v′ given up is the
+// least of those steps that reaches the brightness; at the ceiling blocks continue while one
+// still lowers the loss, at most k_trade_max_blocks in all. Greedy discrete passes alone, tried
+// first, stop short: the levels that move light between wavelengths change many texels at once.
+// A design whose schedule reaches the brightness is untouched.
+constexpr int k_trade_steps = 4, k_trade_max_blocks = 8;
+struct BrightnessTrade {
+    bool considered = false;  // a colour target on levels with a ceiling above its tolerance
+    int blocks = 0;
+    double tolerance = 0.0, y_before = 0.0, y_after = 0.0, loss_after = 0.0, seconds = 0.0;
+};
+
+double model_luminous_efficiency(const PreparedDesign& p, detail::Evaluator& evaluator, const std::vector<int>& level) {
+    Fractions f;
+    (void)evaluator.evaluate(one_hot(level, p.options.levels), nullptr, &f);
+    return p.target->metrics(f)["luminous_efficiency"].get<double>();
+}
+
+BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator& evaluator, RefineLoss& refine_loss,
+                                     std::vector<int>& level, double& loss,
+                                     const std::function<void(const DesignStep&)>& report, const bool& stopped) {
+    const DesignOptions& o = p.options;
+    BrightnessTrade t;
+    t.tolerance = o.delta_uv_tolerance;
+    if (o.target.kind != DesignKind::Colour || o.min_feature_um != 0.0 || !(o.delta_uv_ceiling > o.delta_uv_tolerance) ||
+        o.refine_passes == 0)
+        return t;
+    t.considered = true;
+    const auto start = Clock::now();
+    t.y_before = t.y_after = model_luminous_efficiency(p, evaluator, level);
+    t.loss_after = loss;
+    // The loss is the prepared target's; the tolerance goes back to the user's on the way out.
+    struct Restore {
+        detail::Target& target;
+        double tolerance;
+        ~Restore() { target.set_delta_uv_tolerance(tolerance); }
+    } restore{*p.target, o.delta_uv_tolerance};
+    const double step = (o.delta_uv_ceiling - o.delta_uv_tolerance) / k_trade_steps;
+    int iteration = o.iterations + o.refine_passes;
+    while (t.y_after < k_reached_y && t.blocks < k_trade_max_blocks && !stopped) {
+        const bool at_ceiling = t.tolerance >= o.delta_uv_ceiling;
+        t.tolerance = std::min(o.delta_uv_ceiling, o.delta_uv_tolerance + step * (t.blocks + 1));
+        p.target->set_delta_uv_tolerance(t.tolerance);
+        const double before = refine_loss(level, nullptr);
+        RelaxedLevels block = relaxed_levels(p, evaluator, report, stopped, &level, iteration);
+        iteration += o.iterations;
+        double block_loss = refine_levels(p, refine_loss, block.level, o.refine_passes, iteration, report, stopped);
+        iteration += o.refine_passes;
+        ++t.blocks;
+        if (block_loss < before) {
+            level.swap(block.level);
+            t.loss_after = block_loss;
+        } else {
+            t.loss_after = before;
+            if (at_ceiling) break;
+        }
+        t.y_after = model_luminous_efficiency(p, evaluator, level);
+    }
+    loss = t.loss_after;
+    t.seconds = seconds_since(start);
+    return t;
+}
+
+nlohmann::json brightness_trade_json(const PreparedDesign& p, const BrightnessTrade& t) {
+    const DesignOptions& o = p.options;
+    return {{"what", "when the schedule ends below luminous efficiency y_floor (loop's model): blocks of the relaxed phase "
+                     "(warm from the relief, iterations) and refine_passes discrete passes, the delta u'v' tolerance "
+                     "raised by a quarter of (ceiling - delta_uv_tolerance) per block up to the ceiling, a block kept "
+                     "where it lowers the loss, while Y stays below y_floor and the loss still falls"},
+            {"y_floor", k_reached_y},
+            {"ceiling", o.delta_uv_ceiling},
+            {"max_blocks", k_trade_max_blocks},
+            {"blocks", t.blocks},
+            {"tolerance_used", t.tolerance},
+            {"model_y_before", t.y_before},
+            {"model_y_after", t.y_after},
+            {"final_loss", t.loss_after},
+            {"seconds", t.seconds}};
 }
 
 // The exact metrics; a target counted in incident power also gets its luminous efficiency as a
@@ -1084,6 +1183,7 @@ nlohmann::json target_json(const DesignOptions& o) {
         target["view"] = view;
         target["view_cone"] = o.view_cone;
         target["delta_uv_tolerance"] = o.delta_uv_tolerance;
+        target["delta_uv_ceiling"] = o.delta_uv_ceiling;
     } else {
         detail::more_target_json(o, target);
     }
@@ -1204,8 +1304,9 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     std::vector<int> level = std::move(relaxed.level);
     const auto refine_start = Clock::now();
     RefineLoss refine_loss(p, evaluator, scales.size());
-    const double loss = refine_levels(p, refine_loss, level, report, stopped);
+    double loss = refine_levels(p, refine_loss, level, o.refine_passes, o.iterations, report, stopped);
     const double refine_seconds = seconds_since(refine_start);
+    const BrightnessTrade trade = trade_for_brightness(p, evaluator, refine_loss, level, loss, report, stopped);
 
     r.level = level;
     r.heights_um.resize(level.size());
@@ -1217,12 +1318,13 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     draw_pictures(p, scores, r);
 
     nlohmann::json j = design_json(p, r, relaxed, scores, loss, stopped);
+    if (trade.considered) j["brightness_trade"] = brightness_trade_json(p, trade);
     const std::vector<std::string> colour_notes =
         o.target.kind == DesignKind::Colour ? add_colour_reach(p, scores, survey_views, j) : std::vector<std::string>{};
     j["notes"] = p.notes;
     for (const std::string& note : colour_notes) j["notes"].push_back(note);
-    j["timings_s"] = {{"relaxed", relaxed.seconds}, {"refine", refine_seconds}, {"metrics", metrics_seconds},
-                      {"total", seconds_since(start)}};
+    j["timings_s"] = {{"relaxed", relaxed.seconds}, {"refine", refine_seconds}, {"brightness_trade", trade.seconds},
+                      {"metrics", metrics_seconds}, {"total", seconds_since(start)}};
     r.metrics_json = j.dump(2);
     return r;
 }
