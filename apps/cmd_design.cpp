@@ -133,6 +133,15 @@ void run(DesignArgs a) {
     if (!a.no_plots) draw_report(RunKind::Design, a.out);
     if (!a.quiet) {
         const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
+        if (j.contains("brightness_trade") && j["brightness_trade"]["blocks"].get<int>() > 0) {
+            const auto& t = j["brightness_trade"];
+            std::cerr << "design: Y " << three_digits(t["model_y_before"].get<double>()) << " after the schedule, below "
+                      << three_digits(t["y_floor"].get<double>()) << ": " << t["blocks"].get<int>()
+                      << " more block(s) with the delta u'v' tolerance raised to "
+                      << three_digits(t["tolerance_used"].get<double>()) << " (--delta-uv-ceiling "
+                      << three_digits(t["ceiling"].get<double>()) << ") reached Y "
+                      << three_digits(t["model_y_after"].get<double>()) << " (design.json brightness_trade)\n";
+        }
         if (j.contains("mixture_bound")) {
             // A missed colour against what mixtures of the levels can do in this view.
             const auto& e = j["metrics"]["exact"];
