@@ -980,10 +980,13 @@ struct BrightnessTrade {
     double tolerance = 0.0, y_before = 0.0, y_after = 0.0, loss_after = 0.0, seconds = 0.0;
 };
 
+// The loop's Y of a relief; NaN for a target without one (a plate's highlight entry runs as a
+// colour design with its own target).
 double model_luminous_efficiency(const PreparedDesign& p, detail::Evaluator& evaluator, const std::vector<int>& level) {
     Fractions f;
     (void)evaluator.evaluate(one_hot(level, p.options.levels), nullptr, &f);
-    return p.target->metrics(f)["luminous_efficiency"].get<double>();
+    const nlohmann::json m = p.target->metrics(f);
+    return m.contains("luminous_efficiency") ? m["luminous_efficiency"].get<double>() : std::nan("");
 }
 
 BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator& evaluator, RefineLoss& refine_loss,
@@ -995,9 +998,10 @@ BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator&
     if (o.target.kind != DesignKind::Colour || o.min_feature_um != 0.0 || !(o.delta_uv_ceiling > o.delta_uv_tolerance) ||
         o.refine_passes == 0)
         return t;
-    t.considered = true;
     const auto start = Clock::now();
     t.y_before = t.y_after = model_luminous_efficiency(p, evaluator, level);
+    if (std::isnan(t.y_before)) return t;
+    t.considered = true;
     t.loss_after = loss;
     // The loss is the prepared target's; the tolerance goes back to the user's on the way out.
     struct Restore {
