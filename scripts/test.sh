@@ -31,7 +31,7 @@ trap '[ -z "${sanitize_pid:-}" ] || kill -- -"$sanitize_pid" 2>/dev/null; report
 # builds compile without one.
 export CCACHE_BASEDIR="${CCACHE_BASEDIR:-$PWD}"
 run_cache=""
-if [ -n "${CCACHE_DISABLE:-}" ] && command -v ccache >/dev/null 2>&1; then
+if [ -n "${CCACHE_DISABLE:-}" ]; then  # (setup.sh installs ccache, if it is not there yet)
     run_cache="$PWD/build-ccache"
     rm -rf "$run_cache"
 fi
