@@ -325,8 +325,8 @@ TEST(ModelCheck, FieldFloorShortcutSkipsBuildingTheFieldModel) {
     const Heightfield refined = c.truth.with_values(near);
     std::vector<std::size_t> index(c.observations.size());
     for (std::size_t k = 0; k < index.size(); ++k) index[k] = k;
-    RecoverSettings s = small_settings();
-    s.model_check_iterations = 2;
+    detail::ModelCheckSettings s;  // the library's defaults
+    s.iterations = 2;
     const auto run = [&](double floor, std::map<std::string, double>* stages) {
         return detail::check_model(
             pointers(c.observations), index, {}, 1.0, c.truth, refined, 3, s,
@@ -426,10 +426,10 @@ TEST(ModelCheck, AGaborFitOnThePhotonFloorIsKept) {
     for (std::size_t k = 0; k < index.size(); ++k) index[k] = k;
     const Heightfield unwrapped = off_by(c.truth, 0.05);
     const auto run = [&](const Heightfield& refined, const Loss& loss, std::map<std::string, double>* stages) {
-        RecoverSettings s = small_settings();
-        s.model_check_iterations = 2;
-        s.model_check_skip_ratio = 0.0;  // the field model's own shortcut never decides here
-        s.refine_loss = loss;
+        detail::ModelCheckSettings s;  // the library's defaults
+        s.iterations = 2;
+        s.skip_ratio = 0.0;  // the field model's own shortcut never decides here
+        s.loss = loss;
         return detail::check_model(
             pointers(c.observations), index, {}, 1.0, unwrapped, refined, 3, s,
             [&](const detail::StageId& stage, int, double value, const Heightfield*) {

@@ -75,13 +75,13 @@ TEST(Schedule, DefaultsRunEveryStageInOrder) {
     // then the refinement's first rung on its slices.
     EXPECT_EQ(field->lambda_min_um, 0.6);
     EXPECT_EQ(field->field.iterations, scheduled_settings(RecoverSettings{}, 2.0).field.iterations);
-    EXPECT_EQ(find<RefineStage>(s)->settings.refine_ladder_min_um, 0.6);
+    EXPECT_EQ(find<RefineStage>(s)->settings.ladder_min_um, 0.6);
     // With calibration the longer schedule: every wavelength's field.
     RecoverSettings calibrated;
     calibrated.calibrate.exposure = true;
     const Schedule c = f.schedule(calibrated);
     EXPECT_EQ(find<FieldStage>(c)->lambda_min_um, 0.0);
-    EXPECT_EQ(find<RefineStage>(c)->settings.refine_ladder_min_um, 0.0);
+    EXPECT_EQ(find<RefineStage>(c)->settings.ladder_min_um, 0.0);
 }
 
 TEST(Schedule, WavelengthCountsBecomeWavelengths) {
@@ -91,7 +91,7 @@ TEST(Schedule, WavelengthCountsBecomeWavelengths) {
     settings.refine_ladder_wavelengths = 2;
     const Schedule s = f.schedule(settings);
     EXPECT_EQ(find<FieldStage>(s)->lambda_min_um, 0.6);  // the longest
-    EXPECT_EQ(find<RefineStage>(s)->settings.refine_ladder_min_um, 0.5);  // the second longest
+    EXPECT_EQ(find<RefineStage>(s)->settings.ladder_min_um, 0.5);  // the second longest
 }
 
 TEST(Schedule, WhiteLightHasNoFieldStageAndNoModelCheck) {

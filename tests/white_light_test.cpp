@@ -55,7 +55,6 @@ RecoverSettings quick_white_settings() {
     s.white_blurred.blur_widths = {12.0, 4.0, 1.0};
     s.white_blurred.iterations = 15;
     s.refine_iterations = 25;
-    s.white_repair_rounds = 1;
     return s;
 }
 

@@ -253,11 +253,10 @@ struct RecoverSettings {
     // White light (no single-wavelength OHS / ROHS observation): stage 0 on the RGB slices with
     // these settings, then stage 3 (docs/recovery.md, White light).
     BlurredFitSettings white_blurred{{16.0, 8.0, 4.0, 2.0, 1.0, 0.5}, 40, 20, false, {}, 0, 0.0};
-    // … and after stage 3, up to this many rounds of: connected regions of texels farther than
-    // 3 robust deviations from their neighbours' median (grown by one, up to 64 texels), each
-    // shifted by whole wraps (λ̄/2) or set to the fill around it where that lowers the loss
-    // (detail::repair_defect_regions), then stage 3 again (0: none).
-    int white_repair_rounds = 2;
+    // (After stage 3 up to two rounds of white light's defect repair follow: connected regions
+    // of texels farther than 3 robust deviations from their neighbours' median, grown by one, up
+    // to 64 texels, each shifted by whole wraps (λ̄/2) or set to the fill around it where that
+    // lowers the loss (detail::repair_defect_regions), then stage 3 again.)
     // … and before stage 3, a smoothness continuation: stage 3's loss plus weight · mean (Δh)²
     // (h in texel units, Δ the 5-point Laplacian) for white_smoothness_iterations L-BFGS
     // iterations at each of these weights in turn (largest first; empty: none), which keeps the
@@ -320,20 +319,16 @@ struct RecoverSettings {
     double refine_ladder_stall_tolerance = 0.01;
     // Single-texel outliers: after stage 3 with
     // single-wavelength slices (not white light, not with position calibration), up to this many
-    // rounds of: texels farther than outlier_repair_threshold robust deviations (and a quarter of
-    // the shortest wavelength's λ/2) from the quadratic through their 8 neighbours, each tried at
-    // that quadratic, the neighbours' median and ± λ/2 of every wavelength, judged by the loss of
-    // the slices that see it and kept where that loss falls; where any was kept, stage 3's last
-    // refine_iterations again (0: off). A texel the refinement left ≈ 0.22 µm off while every other
+    // rounds of: texels farther than 6 robust deviations (and a quarter of the shortest
+    // wavelength's λ/2) from the quadratic through their 8 neighbours, each tried at that
+    // quadratic, the neighbours' median and ± λ/2 of every wavelength, judged by the loss of the
+    // slices that see it and kept where that loss falls; where any was kept, 30 iterations of
+    // the refinement on every slice (stopped early where loss / loss(flat) falls below
+    // refine_ladder_relative_tolerance) (0: off). A texel the refinement left ≈ 0.22 µm off while every other
     // converged is a local minimum it does not leave (seeds 4 and 10632 at 32², 10423 at 64²).
     // −1: 3 on smooth surfaces without calibration (a second trapped texel may stand out only
     // once the first is repaired), else 1.
     int outlier_repair_rounds = -1;
-    double outlier_repair_threshold = 6.0;
-    // … the refinement on every slice after a repair: this many iterations (0: refine_iterations),
-    // stopped early where loss / loss(flat) falls below refine_ladder_relative_tolerance (the
-    // texel's neighbours had bent towards it: 8 iterations left seed 4 at 0.05 %).
-    int outlier_repair_iterations = 30;
     int refine_history = 20;
     // Stage 3's coarse space (docs/scale.md, "One machine: large surfaces"): levels of periodic
     // cubic B-splines of node spacing refine_coarse_spacing texels, doubled while an axis keeps
@@ -513,7 +508,7 @@ struct StageMetrics {
 // blurred fit, the last unwrapped heights or the refinement's last step). `truth`, when given,
 // only feeds height_rel_rmse in the metrics. Without any single-wavelength OHS / ROHS slice
 // (white light: RGB slices only) the blurred fit runs on the RGB slices (white_blurred), then
-// the refinement and the defect repair (white_repair_rounds; docs/recovery.md, White light);
+// the refinement and the defect repair (docs/recovery.md, White light);
 // no field stage. Throws std::invalid_argument when the observations
 // are empty, or the truth's size differs;
 // std::domain_error for vscale 0.

@@ -186,13 +186,10 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                                     std::to_string(settings.refine_ladder_stall_window) + " / tolerance " +
                                     std::to_string(settings.refine_ladder_stall_tolerance) +
                                     " is invalid; expected >= 0 (0: off) / a finite value >= 0");
-    validate_iterations(settings.outlier_repair_iterations, "recover_heights: outlier repair iterations");
-    if (settings.outlier_repair_rounds < 0 || settings.outlier_repair_rounds > 100 ||
-        !(settings.outlier_repair_threshold > 0.0 && std::isfinite(settings.outlier_repair_threshold)))
+    if (settings.outlier_repair_rounds < 0 || settings.outlier_repair_rounds > 100)
         throw std::invalid_argument("recover_heights: outlier repair rounds " +
-                                    std::to_string(settings.outlier_repair_rounds) + " / threshold " +
-                                    std::to_string(settings.outlier_repair_threshold) +
-                                    " is invalid; expected 0 ... 100 / a finite value > 0");
+                                    std::to_string(settings.outlier_repair_rounds) +
+                                    " is invalid; expected 0 ... 100 (-1: the schedule's)");
     validate_iterations(settings.white_smoothness_iterations, "recover_heights: white smoothness iterations");
     detail::check_white_smoothness(settings.white_smoothness, "recover_heights: white_smoothness");
     detail::skip_field_refinement(0.0, 0.0, settings.model_check_skip_ratio);  // throws when out of [0, 1]

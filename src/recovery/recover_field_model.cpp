@@ -400,7 +400,7 @@ bool skip_field_refinement(double gabor_loss, double field_start_loss, double sk
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
-                        const RecoverSettings& settings, const StageReport& report, const Communicator& comm,
+                        const ModelCheckSettings& settings, const StageReport& report, const Communicator& comm,
                         double field_floor_loss) {
     std::vector<Query> queries;
     queries.reserve(separable.size());
@@ -413,12 +413,12 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
         q.sigma_p_um *= sigma_scale;
         queries.push_back(q);
     }
-    const bool exposure = settings.calibrate.exposure;
+    const bool exposure = settings.calibrate_exposure;
     const double gabor = gabor_amplitude_loss(separable, queries, refined, exposure, comm);
     if (!report({StageKind::ModelMisfit, "gabor"}, 0, gabor, &refined)) return refined;
     // The field model's loss at any heights is not expected below the field stage's floor (its
     // retrievals minimised it over free objects): skipped without building the model.
-    if (field_floor_loss > 0.0 && skip_field_refinement(gabor, field_floor_loss, settings.model_check_skip_ratio)) {
+    if (field_floor_loss > 0.0 && skip_field_refinement(gabor, field_floor_loss, settings.skip_ratio)) {
         if (!report({StageKind::ModelMisfit, "field-floor"}, 0, field_floor_loss, &unwrapped)) return refined;
         report({StageKind::ModelSelect, "gabor"}, 0, gabor, &refined);
         return refined;
@@ -429,7 +429,7 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
     // refinement would only fit the noise another way: refined in the amplitude loss that
     // decides below, it wins that comparison against the Gabor fit made in the deviance while
     // its heights are further off (0.77 % against 0.27 % on a real scan at 64², docs/surfaces.md).
-    const double photons = settings.refine_loss.kind == LossKind::Poisson ? settings.refine_loss.photons : 0.0;
+    const double photons = settings.loss.kind == LossKind::Poisson ? settings.loss.photons : 0.0;
     if (photons > 0.0) {
         const SliceDeviance d = gabor_photon_deviance(separable, queries, refined, exposure, photons, comm);
         if (d.expected > 0.0) {
@@ -449,15 +449,14 @@ Heightfield check_model(const std::vector<const Observation*>& separable, const 
     FieldModelEvaluation at_start;
     at_start.loss = model(heights_um_of(unwrapped), &at_start.gradient);
     if (!report({StageKind::ModelMisfit, "field-start"}, 0, at_start.loss, &unwrapped)) return refined;
-    if (skip_field_refinement(gabor, at_start.loss, settings.model_check_skip_ratio)) {
+    if (skip_field_refinement(gabor, at_start.loss, settings.skip_ratio)) {
         report({StageKind::ModelSelect, "gabor"}, 0, gabor, &refined);
         return refined;
     }
     bool go_on = true;
     double field = 0.0;
     const Heightfield in_field = refine_in_field_model(
-        model, unwrapped, settings.model_check_iterations, settings.field.history, settings.field.stall_window,
-        settings.field.stall_tolerance,
+        model, unwrapped, settings.iterations, settings.history, settings.stall_window, settings.stall_tolerance,
         [&](int it, double value, const Heightfield& h) {
             return go_on = report(StageKind::ModelRefine, it, value, &h);
         },

@@ -120,6 +120,18 @@ Heightfield refine_in_field_model(const FieldModelLoss& model, const Heightfield
 // Throws std::invalid_argument outside that range.
 bool skip_field_refinement(double gabor_loss, double field_start_loss, double skip_ratio);
 
+// The model check's settings (RecoverSettings' model_check_*, the field stage's L-BFGS history
+// and stall rule, the exposure calibration).
+struct ModelCheckSettings {
+    int iterations = 40;      // the field model's refinement (RecoverSettings::model_check_iterations)
+    double skip_ratio = 0.1;  // skip_field_refinement's (model_check_skip_ratio)
+    int history = 20;         // FieldRetrievalSettings' history, stall_window, stall_tolerance
+    int stall_window = 5;
+    double stall_tolerance = 5e-3;
+    bool calibrate_exposure = false;
+    Loss loss{LossKind::Amplitude, 1.0};  // the refinement's (refine_loss): Poisson asks the photon floor
+};
+
 // The model check after stage 3 (RecoverSettings::model_check_iterations): `unwrapped` (stage
 // 2's heights) refined in the field model at refine × the texels on the single-wavelength
 // OHS / ROHS observations `separable` (this rank's; index[i]: its index in the run's
@@ -133,13 +145,13 @@ bool skip_field_refinement(double gabor_loss, double field_start_loss, double sk
 // the field stage's retrievals, which minimised the same loss over free objects, a superset of
 // the field model's pure-phase ones: when skip_field_refinement(misfit:gabor, field_floor_loss)
 // holds already, the field model is not even built ("misfit:field-floor" reported instead of
-// "misfit:field-start"; experiments/2026-11-23-recovery-speed.md). With settings.refine_loss
+// "misfit:field-start"; experiments/2026-11-23-recovery-speed.md). With settings.loss
 // Poisson, next: "misfit:gabor-noise" (gabor_photon_deviance's D / E[D] at `refined`), and
 // when misfit_on_photon_floor holds, "select:gabor" and `refined` without the field model.
 Heightfield check_model(const std::vector<const Observation*>& separable, const std::vector<std::size_t>& index,
                         const std::vector<std::array<double, 2>>& offsets_um, double sigma_scale,
                         const Heightfield& unwrapped, const Heightfield& refined, int refine,
-                        const RecoverSettings& settings, const StageReport& report, const Communicator& comm,
+                        const ModelCheckSettings& settings, const StageReport& report, const Communicator& comm,
                         double field_floor_loss = 0.0);
 
 }  // namespace wavebrdf::detail

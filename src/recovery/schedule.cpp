@@ -198,6 +198,45 @@ bool ModelCheckStage::run(const StageContext& context, RecoveryState& state) con
     return !context.stopped();
 }
 
+namespace {
+
+// Stage 3's own settings from the run's (scheduled, the ladder's wavelengths resolved).
+RefineSettings refine_settings(const RecoverSettings& s) {
+    RefineSettings r;
+    r.iterations = s.refine_iterations;
+    r.history = s.refine_history;
+    r.loss = s.refine_loss;
+    r.calibrate_exposure = s.calibrate.exposure;
+    r.calibrate_sigma = s.calibrate.sigma;
+    r.coarse_spacing = s.refine_coarse_spacing;
+    r.coarse_weight = s.refine_coarse_weight;
+    r.coarse_iterations = s.refine_coarse_iterations;
+    r.ladder_min_um = s.refine_ladder_min_um;
+    r.ladder_iterations = s.refine_ladder_iterations;
+    r.ladder_relative_tolerance = s.refine_ladder_relative_tolerance;
+    r.ladder_stall_window = s.refine_ladder_stall_window;
+    r.ladder_stall_tolerance = s.refine_ladder_stall_tolerance;
+    r.outlier_repair_rounds = s.outlier_repair_rounds;
+    r.white_smoothness = s.white_smoothness;
+    r.white_smoothness_iterations = s.white_smoothness_iterations;
+    return r;
+}
+
+// The model check's own settings: its iterations and shortcut, the field stage's L-BFGS rule.
+ModelCheckSettings model_check_settings(const RecoverSettings& s) {
+    ModelCheckSettings m;
+    m.iterations = s.model_check_iterations;
+    m.skip_ratio = s.model_check_skip_ratio;
+    m.history = s.field.history;
+    m.stall_window = s.field.stall_window;
+    m.stall_tolerance = s.field.stall_tolerance;
+    m.calibrate_exposure = s.calibrate.exposure;
+    m.loss = s.refine_loss;
+    return m;
+}
+
+}  // namespace
+
 Schedule make_schedule(const RecoverSettings& settings_in, const StageContext& context) {
     RecoverSettings settings = scheduled_settings(settings_in, context.texel_um);
     const auto& by_lambda = context.by_lambda;
@@ -287,14 +326,14 @@ Schedule make_schedule(const RecoverSettings& settings_in, const StageContext& c
         add(stage);
     } else if (settings.refine_iterations > 0) {
         auto stage = std::make_shared<RefineStage>();
-        stage->settings = settings;
+        stage->settings = refine_settings(settings);
         add(stage);
     }
     // Not for white light (no single-wavelength slice, no field model, no unwrapped heights),
     // nor for GHS/RGHS slices (the field model is their separable proxy's, not theirs).
     if (!white && !context.proxy.proxied && settings.refine_iterations > 0 && settings.model_check_iterations > 0) {
         auto stage = std::make_shared<ModelCheckStage>();
-        stage->settings = settings;
+        stage->settings = model_check_settings(settings);
         add(stage);
     }
     return schedule;

@@ -19,6 +19,7 @@
 
 #include "recovery/field_proxy.h"
 #include "recovery/field_tiles.h"
+#include "recovery/recover_field_model.h"
 #include "recovery/refinement.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
@@ -176,12 +177,36 @@ struct ReleaseFieldsStage : Stage {
     bool run(const StageContext& context, RecoveryState& state) const override;
 };
 
+// Stage 3's settings (RecoverSettings' refine_*, outlier_repair_rounds, white_smoothness*, the
+// calibration's exposure and σ_p; the ladder's as wavelengths, resolved by make_schedule).
+struct RefineSettings {
+    int iterations = 0;  // on every slice (refine_iterations)
+    int history = 20;
+    Loss loss{LossKind::Amplitude, 1.0};
+    bool calibrate_exposure = false;
+    bool calibrate_sigma = false;  // σ_p's calibration rounds instead of the plain refinement
+    // The coarse space (refine_coarse_*).
+    double coarse_spacing = 0.0;
+    double coarse_weight = 1.0;
+    int coarse_iterations = 0;
+    // The wavelength ladder (refine_ladder_*): rungs at wavelengths ≥ ladder_min_um (0: none).
+    double ladder_min_um = 0.0;
+    int ladder_iterations = 40;
+    double ladder_relative_tolerance = 0.0;
+    int ladder_stall_window = 0;
+    double ladder_stall_tolerance = 0.01;
+    int outlier_repair_rounds = 0;
+    // White light's smoothness continuation (white_smoothness*).
+    std::vector<double> white_smoothness;
+    int white_smoothness_iterations = 0;
+};
+
 // Stage 3 on the heights: L-BFGS in the full model (refinement.h) with the wavelength ladder
 // and its outlier repairs, σ_p's calibration rounds, white light's smoothness continuation, the
 // outlier repair and white light's defect repair. Writes estimate, sigma_scale's calibration,
 // refined_sigma_scale and the calibration's exposures.
 struct RefineStage : Stage {
-    RecoverSettings settings;  // refine_*, outlier_repair_*, white_*, calibrate
+    RefineSettings settings;
     bool run(const StageContext& context, RecoveryState& state) const override;
 };
 
@@ -201,7 +226,7 @@ struct PositionLoopStage : Stage {
 // The model check (recover_field_model.h): the unwrapped heights refined in the field model
 // against stage 3's, the better-fitting kept. Writes estimate.
 struct ModelCheckStage : Stage {
-    RecoverSettings settings;  // model_check_*, field, refine_loss
+    ModelCheckSettings settings;
     bool run(const StageContext& context, RecoveryState& state) const override;
 };
 

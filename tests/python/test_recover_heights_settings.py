@@ -70,3 +70,20 @@ def test_bad_settings_name_themselves(small, call, error, needle):
     with pytest.raises(error) as info:
         call(obs)
     assert needle in str(info.value) and "\n" not in str(info.value), str(info.value)
+
+
+def test_band_limit_reaches_the_field_stage(small):
+    # Off, the field stage's unknowns are the object grid's samples rather than the band the
+    # slices see: another retrieval from the same start, so other losses after its first step.
+    _, obs = small
+
+    def field_losses(**kw):
+        seen = []
+        wb.recover_heights(obs, 8, 2.0, callback=lambda m: seen.append((m["stage"], m["loss"])) or True,
+                           settings=wb.RecoverSettings(blur_widths=[4.0], blur_iterations=2, field_iterations=3,
+                                                       refine_iterations=0, **kw))
+        return [(s, loss) for s, loss in seen if s.startswith("field:")]
+
+    on, off = field_losses(), field_losses(band_limit=False)
+    assert on and [s for s, _ in on] == [s for s, _ in off]
+    assert [loss for _, loss in on] != [loss for _, loss in off]
