@@ -185,9 +185,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.sigma_p_um = a.sigma_p_um;
     if (a.given_position_uncertainty) options.position_uncertainty_um = a.position_uncertainty_um;
     options.resolution = a.resolution;
-    if (a.given_overlap && !(a.overlap >= 0.6 && a.overlap <= 0.95))
-        throw std::invalid_argument("--overlap " + format_shortest(a.overlap) + " is invalid; expected 0.6 to 0.95");
-    options.overlap = a.given_overlap ? a.overlap : 0.0;  // 0: the planner's default for the calibration
+    if (a.given_overlap) options.overlap = a.overlap;  // unset: the planner's default for the calibration
     options.jitter = a.jitter;
     options.field_iterations = a.field_iterations;
     options.refine_iterations = a.refine_iterations;

@@ -124,9 +124,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.spectral = spectral;
     // The settings as values (None: the sentinel the library reads as its default); their ranges
     // are prepare_recovery's (and the planner's) to check.
-    options.overlap = k.overlap.is_none() ? 0.0 : knob<double>(k.overlap, "overlap", "0.6 ... 0.95 or None");
-    if (!k.overlap.is_none() && options.overlap == 0.0)
-        bad_argument("overlap", "0", "0.6 ... 0.95, or None (the planner's: 0.6, 0.8 with calibrate 'positions')");
+    if (!k.overlap.is_none()) options.overlap = knob<double>(k.overlap, "overlap", "0.6 ... 0.95 or None");
     options.jitter = knob<double>(k.jitter, "jitter", "0 ... 0.3");
     options.field_iterations = optional_count(k.field_iterations, "field_iterations");
     options.refine_iterations = optional_count(k.refine_iterations, "refine_iterations");

@@ -153,10 +153,10 @@ TEST(RecoveryRun, EstimateCountsTheReferencesInFloat) {
     EXPECT_EQ(estimate_recovery_bytes(with_rgb, 16, 16, 2.0, RecoveryMethod::Thesis) - a, 40.0 * 40.0 * 3.0 * 4.0);
 }
 
-// The planner's overlap (RecoveryOptions::overlap 0): 0.6, and k_position_calibration_overlap
+// The planner's overlap (RecoveryOptions::overlap unset): 0.6, and k_position_calibration_overlap
 // (0.7) where the positions are calibrated (experiments/2026-11-23-position-calibration.md); a stated overlap is kept with or without calibration.
 TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
-    const auto planned = [](const char* calibrate, double overlap) {
+    const auto planned = [](const char* calibrate, std::optional<double> overlap) {
         RecoveryOptions options;
         options.rows = options.cols = 16;
         options.resolution = 16;
@@ -170,15 +170,15 @@ TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
             if (n.find("overlap by at least") != std::string::npos) note = n;
         return std::make_pair(positions.size(), note);
     };
-    const auto plain = planned("none", 0.0);
-    const auto calibrated = planned("positions", 0.0);
+    const auto plain = planned("none", std::nullopt);
+    const auto calibrated = planned("positions", std::nullopt);
     EXPECT_NE(plain.second.find("at least 6"), std::string::npos) << plain.second;            // 60 % and up
     EXPECT_NE(calibrated.second.find("at least 8"), std::string::npos) << calibrated.second;  // 80 % and up
     EXPECT_GT(calibrated.first, plain.first);
-    EXPECT_EQ(planned("all", 0.0).first, calibrated.first);
+    EXPECT_EQ(planned("all", std::nullopt).first, calibrated.first);
     EXPECT_EQ(planned("positions", 0.6).first, plain.first);  // stated: kept
     EXPECT_EQ(planned("none", 0.8).first, calibrated.first);
-    EXPECT_EQ(planned("exposure,sigma", 0.0).first, plain.first);  // not without positions
+    EXPECT_EQ(planned("exposure,sigma", std::nullopt).first, plain.first);  // not without positions
 }
 
 // The simulated position error is the stage's stated uncertainty unless one is given: the

@@ -87,10 +87,10 @@ struct RecoveryOptions {
     // sampled at spectral_wavelengths_um(N) (spectrum.h; the renderer's --spectral N), one per
     // position, its resolution planned for the shortest of them; 0: laser (lambdas_um).
     int spectral = 0;
-    // Worst-case linear overlap of neighbouring windows for the planner (0.6 … 0.95); 0: the
-    // planner's default (PlanRequest's, 0.6), or k_position_calibration_overlap with
-    // calibrate.positions.
-    double overlap = 0.0;
+    // Worst-case linear overlap of neighbouring windows for the planner (0.6 … 0.95,
+    // check_recovery_options); unset: the planner's default (PlanRequest's, 0.6), or
+    // k_position_calibration_overlap with calibrate.positions.
+    std::optional<double> overlap;
     double jitter = 0.2;
     Noise noise;  // simulated on the rendered observations (a truth only)
     // How the observations of a truth are simulated: the Gabor model (render_observation) or

@@ -264,6 +264,10 @@ void check_recovery_options(const RecoveryOptions& options, const RecoveryInputs
         throw std::invalid_argument(name("plan_from_truth") + " and " + name("correlation_texels") +
                                     " exclude each other; expected one of them (the measured roughness, or the "
                                     "stated correlation length)");
+    if (options.overlap && !(*options.overlap >= 0.6 && *options.overlap <= 0.95))
+        throw std::invalid_argument(name("overlap") + " " + detail::format_shortest(*options.overlap) +
+                                    " is invalid; expected 0.6 to 0.95 (unset: the planner's, 0.6, or 0.8 with the "
+                                    "positions calibrated)");
     if (!std::isfinite(options.max_memory_gb) || options.max_memory_gb < 0.0)
         throw std::invalid_argument(name("max_memory_gb") + " " + detail::format_shortest(options.max_memory_gb) +
                                     " is invalid; expected a limit in GB > 0, or 0 for the physical memory");
@@ -393,8 +397,8 @@ TruthAcquisition plan_truth_acquisition(const PreparedRecovery& r, const Recover
     request.height_range_um = r.range_um;
     request.sigma_p_um = options.sigma_p_um;
     request.position_uncertainty_um = position_uncertainty_um(options, r.texel_um);
-    if (options.overlap != 0.0)
-        request.overlap = options.overlap;
+    if (options.overlap)
+        request.overlap = *options.overlap;
     else if (options.calibrate.positions)
         request.overlap = k_position_calibration_overlap;  // else the planner's default
     request.jitter = options.jitter;

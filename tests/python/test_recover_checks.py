@@ -28,6 +28,9 @@ CASES = [
     (["--white-smoothness=-1"], dict(settings=wb.RecoverSettings(white_smoothness=[-1.0])),
      ["white_smoothness weight -1 is invalid"]),
     (["--model", "Kirchhoff"], dict(model="Kirchhoff"), ["model Kirchhoff has no field stage"]),
+    (["--overlap", "0.5"], dict(settings=wb.RecoverSettings(overlap=0.5)), ["overlap 0.5 is invalid; expected 0.6 to 0.95"]),
+    (["--overlap", "0"], dict(settings=wb.RecoverSettings(overlap=0)), ["overlap 0 is invalid; expected 0.6 to 0.95"]),
+    (["--overlap", "nan"], dict(settings=wb.RecoverSettings(overlap=float("nan"))), ["overlap nan is invalid"]),
 ]
 
 
