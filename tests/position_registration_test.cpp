@@ -151,13 +151,13 @@ TEST(PositionRegistration, CalibratePositionsRunsTheOuterLoopByDefault) {
     EXPECT_LT(after_loop, 0.5 * after_once) << "once " << after_once << " loop " << after_loop;
 }
 
-// The stall rules: with a tolerance of 1 every judged pass counts as stalled. Round 12b's rule
-// (position_outer_stall_median false, stage 3's loss after each pass) with the field stage never
-// rerun stops the loop after its first pass with stall_passes = 1 (2 with stall_passes = 2; all 4
-// with the rule off). Round 14's rule (the default: the median position's loss at the start of a
-// pass, for the pass before's heights) does not judge the first pass (it follows the field
-// stage's heights), so it stops at the start of the second pass with stall_passes = 1 (the third
-// with 2); out-of-range settings are refused.
+// The stall rule over passes: with a tolerance of 1 a pass stalls unless the lowest loss halved
+// over the window. On stage 3's loss after each pass (position_outer_stall_median false) with the
+// field stage never rerun, the loop stops after its first pass with stall_passes = 1 (2 with
+// stall_passes = 2; all 4 with the rule off). On the median position's loss at the start of a
+// pass (the default, for the pass before's heights), the first pass is not judged (it follows the
+// field stage's heights, a new start), so the loop stops at the start of the second pass with
+// stall_passes = 1 (the third with 2); out-of-range settings are refused.
 TEST(PositionRegistration, StallRuleStopsTheLoop) {
     const OffCase c = off_case(5125, 1.0, 24, 3);
     RecoverSettings s;

@@ -399,13 +399,13 @@ struct RecoverSettings {
     // offsets by less than this (rms, texels, finite ≥ 0; 0: the field stage in every pass).
     // Near the end the field stage's own position steps undo the registration's last 0.02 texel.
     double position_outer_field_below_texels = 0.05;
-    // The stopping rule: the loop stops once position_outer_stall_passes (0 … 100; 0:
-    // off) consecutive passes without the field stage each lowered stage 3's final loss by less
-    // than position_outer_stall_tolerance (a fraction of the lowest such loss before, 0 … 1; −1:
-    // the library's default, recover.cpp k_position_outer_stall_tolerance) — at the end the
-    // registration's ± 0.25-texel stencil is coarser than stage 3 and the loss jitters
-    // The loss is the exact collective objective: every rank
-    // stops at the same pass.
+    // The stopping rule, the recovery's one stall rule (src/core/stall_rule.h) over passes: the
+    // loop stops once the lowest loss so far fell by less than position_outer_stall_tolerance
+    // (a fraction of it, 0 … 1, 0: never; −1: the library's default,
+    // schedule.cpp k_position_outer_stall_tolerance) over the last position_outer_stall_passes
+    // (0 … 100; 0: off) passes; a pass with the field stage starts the rule again. At the end
+    // the registration's ± 0.25-texel stencil is coarser than stage 3 and the loss jitters. The
+    // loss is the exact collective objective: every rank stops at the same pass.
     int position_outer_stall_passes = 2;
     double position_outer_stall_tolerance = -1.0;
     // The stall rule judges the median position's loss (each position's loss at its

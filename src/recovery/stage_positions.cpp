@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/stall_rule.h"
 #include "recovery/recover_positions.h"
 #include "recovery/stages.h"
 
@@ -50,16 +51,14 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
         std::vector<std::size_t> unused;
         centres = gather_positions(observations, unused, comm);
     }
-    // The stall rule on stage 3's loss: the lowest stage-3 loss of the passes without the field
-    // stage (and of the first recovery), and how many such passes in a row lowered it by less
-    // than the tolerance.
-    double best_loss = last_refine_loss;
-    int stalled = 0;
-    // The rule on the median position's loss (position_outer_stall_median), judged at the start
-    // of each pass for the heights of the pass before (a pass after the field stage's heights, a
-    // new start, resets the count as the rule on stage 3's loss does).
-    double best_median = 0.0;
-    bool after_field = true;  // the first recovery ran the field stage
+    // The stall rule (core/stall_rule.h) over passes, on stage 3's loss after each pass or, with
+    // position_outer_stall_median, on the median position's loss at the start of each pass (for
+    // the heights of the pass before). Heights from the field stage are a new start: the rule
+    // starts again from their loss.
+    StallRule stall(settings.position_outer_stall_passes, stall_tolerance);
+    const bool judge_median = settings.position_outer_stall_median && settings.position_rescue_factor > 0.0;
+    if (!judge_median) stall.stalled_at(last_refine_loss);  // the first recovery ran the field stage
+    bool after_field = true;
     for (int outer = 0; outer < passes; ++outer) {
         const std::vector<double> before = position_offsets;
         double moved = register_positions(observations, context.position_of, state.estimate, settings,
@@ -86,7 +85,6 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
         }
         if (!report({StageKind::Positions, "register"}, outer + 1, moved, &state.estimate)) return false;
         // The lost positions searched wide.
-        bool median_judged = false;  // the median position's stall rule judged this pass
         if (settings.position_rescue_factor > 0.0) {
             const std::vector<double> kept = position_offsets;
             double median = 0.0;
@@ -100,12 +98,11 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
             // The stall rule on the median position's loss at the heights of the pass before
             // (stage 3's loss is dominated by positions lost for good). A stalled loop ends here,
             // with the pass before's heights and offsets.
-            if (settings.position_outer_stall_median && settings.position_outer_stall_passes > 0) {
-                median_judged = true;
-                stalled = after_field ? 0 : median > (1.0 - stall_tolerance) * best_median ? stalled + 1 : 0;
-                best_median = after_field && outer == 0 ? median : std::min(best_median, median);
-                if (!report({StageKind::Positions, "stall"}, stalled, median, &state.estimate)) return false;
-                if (stalled >= settings.position_outer_stall_passes) break;
+            if (judge_median && settings.position_outer_stall_passes > 0) {
+                if (after_field) stall.restart();
+                const bool stalled = stall.stalled_at(median);
+                if (!report({StageKind::Positions, "stall"}, stall.quiet(), median, &state.estimate)) return false;
+                if (stalled) break;
             }
         }
         if (moved < settings.position_outer_tolerance_texels) break;
@@ -129,19 +126,16 @@ bool PositionLoopStage::run(const StageContext& context, RecoveryState& state) c
                                                       &exposures, &state.sigma_scale, &position_offsets,
                                                       &last_refine_loss);
         if (context.stopped()) return false;
-        // The stall rule on stage 3's loss: a pass of registration and stage 3 alone that
-        // lowered stage 3's loss by less than the tolerance (relative to the lowest so far)
-        // counts; the loop stops after position_outer_stall_passes of them in a row. A pass
-        // with the field stage resets the count (its heights are a new start).
         after_field = field_pass;
-        if (field_pass) {
-            stalled = 0;
-        } else if (settings.position_outer_stall_passes > 0 && !median_judged) {
-            stalled = last_refine_loss > (1.0 - stall_tolerance) * best_loss ? stalled + 1 : 0;
-            if (!report({StageKind::Positions, "stall"}, stalled, last_refine_loss, &state.estimate)) return false;
-            if (stalled >= settings.position_outer_stall_passes) break;
+        if (!judge_median) {
+            if (field_pass) stall.restart();
+            const bool stalled = stall.stalled_at(last_refine_loss);
+            if (!field_pass && settings.position_outer_stall_passes > 0) {
+                if (!report({StageKind::Positions, "stall"}, stall.quiet(), last_refine_loss, &state.estimate))
+                    return false;
+                if (stalled) break;
+            }
         }
-        best_loss = std::min(best_loss, last_refine_loss);
     }
     state.refined_offsets = offsets;
     state.refined_sigma_scale = state.sigma_scale;
