@@ -90,6 +90,14 @@ std::string three_digits(double v) {
     return buffer;
 }
 
+// A number, or a list of them (an iridescent target's per-pair values) as "a, b, c".
+std::string three_digits(const nlohmann::json& v) {
+    if (!v.is_array()) return three_digits(v.get<double>());
+    std::string s;
+    for (const auto& x : v) s += (s.empty() ? "" : ", ") + three_digits(x.get<double>());
+    return s;
+}
+
 void run(DesignArgs a) {
     DesignOptions& o = a.options;
     // Everything checked before any work: the output directory, then the options.
@@ -135,12 +143,13 @@ void run(DesignArgs a) {
         const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
         if (j.contains("brightness_trade") && j["brightness_trade"]["blocks"].get<int>() > 0) {
             const auto& t = j["brightness_trade"];
-            std::cerr << "design: Y " << three_digits(t["model_y_before"].get<double>()) << " after the schedule, below "
+            const char* per = t["model_y_before"].is_array() ? " (per pair)" : "";
+            std::cerr << "design: Y " << three_digits(t["model_y_before"]) << per << " after the schedule, below "
                       << three_digits(t["y_floor"].get<double>()) << ": " << t["blocks"].get<int>()
                       << " more block(s) with the delta u'v' tolerance raised to "
-                      << three_digits(t["tolerance_used"].get<double>()) << " (--delta-uv-ceiling "
+                      << three_digits(t["tolerance_used"]) << " (--delta-uv-ceiling "
                       << three_digits(t["ceiling"].get<double>()) << ") reached Y "
-                      << three_digits(t["model_y_after"].get<double>()) << " (design.json brightness_trade)\n";
+                      << three_digits(t["model_y_after"]) << " (design.json brightness_trade)\n";
         }
         if (j.contains("mixture_bound")) {
             // A missed colour against what mixtures of the levels can do in this view.
@@ -260,11 +269,12 @@ void add_design_command(CLI::App& app) {
     cmd->add_option("--view-cone", a->options.view_cone, "colour, iridescent: sin of the view cone's half-angle")
         ->capture_default_str();
     cmd->add_option("--delta-uv-tolerance", a->options.delta_uv_tolerance,
-                    "colour: delta u'v' from the target the loss does not count, traded for luminous efficiency")
+                    "colour, iridescent (each pair): delta u'v' from the target the loss does not count, traded for "
+                    "luminous efficiency")
         ->capture_default_str();
     cmd->add_option("--delta-uv-ceiling", a->options.delta_uv_ceiling,
-                    "colour: when the schedule ends below Y 0.05, continue in blocks raising the tolerance up to this "
-                    "delta u'v' (0: stop after the schedule)")
+                    "colour, iridescent (each pair): when the schedule ends below Y 0.05, continue in blocks raising "
+                    "the tolerance up to this delta u'v' (0: stop after the schedule)")
         ->capture_default_str();
     cmd->add_option("--size", a->options.size, "N: the N x N periodic tile")->capture_default_str();
     cmd->add_option("--texel-um", a->options.texel_um, "texel width in um")->capture_default_str();

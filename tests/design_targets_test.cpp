@@ -181,6 +181,9 @@ TEST(DesignTargets, TwoPairIridescentDesignBeatsItsStart) {
     o.view_cone = 0.08;
     o.iterations = 60;
     o.refine_passes = 20;
+    // The schedule alone: the brightness trade gives up Δu′v′ (up to the ceiling) for a dim pair's
+    // Y, and has its own test (design_brightness_test.cpp).
+    o.delta_uv_ceiling = 0.0;
     o.target = iridescent({{{0.2, 0.0}, {255, 128, 0}, {}}, {{-0.2, 0.0}, {0, 128, 255}, {}}});
     const PreparedDesign p = prepare_design(o);
     auto score = [&](const std::vector<double>& heights) {

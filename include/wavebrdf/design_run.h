@@ -90,14 +90,14 @@ struct DesignOptions {
     // cone of every pair's view; the views are the pairs').
     std::optional<std::array<double, 2>> view;
     double view_cone = 0.05;
-    // Colour: the Δu′v′ from the target that the loss does not count (0 … 0.1): within it the
-    // design trades chromaticity for luminous efficiency.
+    // Colour, iridescent (each pair): the Δu′v′ from the target that the loss does not count
+    // (0 … 0.1): within it the design trades chromaticity for luminous efficiency.
     double delta_uv_tolerance = 0.0;
-    // Colour: the most Δu′v′ the loop may trade for brightness when its relief ends below the
-    // luminous efficiency a reached colour has (Y 0.05): it then continues in blocks of the
-    // schedule (warm from the relief) with the tolerance raised a quarter of the way to this
-    // ceiling per block (docs/design.md); 0, or a ceiling at or below delta_uv_tolerance, stops
-    // after the schedule.
+    // Colour, iridescent (each pair): the most Δu′v′ the loop may trade for brightness when its
+    // relief ends below the luminous efficiency a reached colour has (Y 0.05): it then continues
+    // in blocks of the schedule (warm from the relief) with the tolerance (of each dim pair) raised
+    // a quarter of the way to this ceiling per block (docs/design.md); 0, or a ceiling at or below
+    // delta_uv_tolerance, stops after the schedule.
     double delta_uv_ceiling = 0.04;
     // The tile and the fabrication constraints.
     int size = 256;                 // N: the N × N tile, 2 … 2048

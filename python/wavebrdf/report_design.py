@@ -2,7 +2,8 @@
 `python3 -m wavebrdf.report DIR`, see wavebrdf.report).
 
 make_report(DIR) writes DIR/report.png: the target beside the achieved far field (linear and
-log), the colour swatches target / achieved when the target is a colour, the height map with
+log), the colour swatches target / achieved when the target is a colour (with a line on the
+brightness trade when its blocks ran), the height map with
 its level histogram, the loss curve, and the metrics under the design model, under exact scalar
 diffraction and under each fabrication error.
 
@@ -201,6 +202,32 @@ def metrics_rows(doc):
     return names, columns
 
 
+def _numbers(v):
+    """v as a list of numbers (a number is a list of one); None when it is neither."""
+    v = v if isinstance(v, list) else [v]
+    ok = v and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)
+    return v if ok else None
+
+
+def brightness_trade_text(doc):
+    """The report's line on design.json's brightness_trade (colour: one view cone, iridescent:
+    values per pair), or None when no block ran: blocks, the Δu′v′ tolerance used within the
+    ceiling, and the loop's Y before and after."""
+    t = _get(doc, "brightness_trade")
+    if not isinstance(t, dict) or not isinstance(t.get("blocks"), int) or t["blocks"] <= 0:
+        return None
+    tol, before, after = (_numbers(t.get(k)) for k in ("tolerance_used", "model_y_before", "model_y_after"))
+    ceiling = t.get("ceiling")
+    if tol is None or before is None or after is None or not isinstance(ceiling, (int, float)):
+        return None
+    per_pair = isinstance(t.get("tolerance_used"), list)
+    join = "/".join
+    return "brightness trade%s: %d block%s, Δu′v′ tolerance %s (ceiling %.3g): loop's Y %s%% → %s%%" % (
+        " per pair" if per_pair else "", t["blocks"], "" if t["blocks"] == 1 else "s",
+        join("%.3g" % x for x in tol), ceiling, join("%.1f" % (100 * y) for y in before),
+        join("%.1f" % (100 * y) for y in after))
+
+
 def make_report(directory):
     """Writes directory/report.png and returns its path. Raises ReportError for an unusable file."""
     doc = read_design_json(directory)
@@ -264,7 +291,8 @@ def make_report(directory):
             ax.text(k + 0.45, -0.08, label, ha="center", va="top", fontsize=7)
         ax.set_xlim(-0.1, len(pairs))
         ax.set_ylim(-0.6, 2.15)
-        ax.set_title("pairs: target (top), exact (bottom)", fontsize=9)
+        trade = brightness_trade_text(doc)
+        ax.set_title("pairs: target (top), exact (bottom)" + ("\n" + _wrap(trade, 60) if trade else ""), fontsize=9)
         ax.axis("off")
     elif len(swatches) >= 1 and target_rgb is not None:
         for k, (label, rgb) in enumerate(swatches):
@@ -302,6 +330,9 @@ def make_report(directory):
                 lines.append(text)
             else:
                 lines.append("level mixtures: Y ≤ %.1f%%" % (100 * mix))
+        trade = brightness_trade_text(doc)
+        if trade:
+            lines.append(_wrap(trade, 60))
         ax.set_title("colour (each swatch at full brightness)" + ("\n" + "\n".join(lines) if lines else ""), fontsize=9)
         ax.axis("off")
     else:

@@ -972,21 +972,30 @@ double refine_levels(const PreparedDesign& p, RefineLoss& refine_loss, std::vect
 // least of those steps that reaches the brightness; at the ceiling blocks continue while one
 // still lowers the loss, at most k_trade_max_blocks in all. Greedy discrete passes alone, tried
 // first, stop short: the levels that move light between wavelengths change many texels at once.
-// A design whose schedule reaches the brightness is untouched.
+// A design whose schedule reaches the brightness is untouched. An iridescent target trades per
+// pair: each block raises the tolerance of the pairs whose Y is still below k_reached_y, so a
+// bright pair's colour is not given up for a dim one's brightness; it stops when every pair
+// reaches the brightness, or when a block in which every dim pair was already at the ceiling
+// does not lower the loss, or after k_trade_max_blocks.
 constexpr int k_trade_steps = 4, k_trade_max_blocks = 8;
 struct BrightnessTrade {
-    bool considered = false;  // a colour target on levels with a ceiling above its tolerance
+    bool considered = false;  // a colour or iridescent target on levels with a ceiling above its tolerance
+    bool per_pair = false;    // iridescent: the vectors hold one entry per pair
     int blocks = 0;
-    double tolerance = 0.0, y_before = 0.0, y_after = 0.0, loss_after = 0.0, seconds = 0.0;
+    std::vector<double> tolerance, y_before, y_after;  // per view cone (colour: one)
+    double loss_after = 0.0, seconds = 0.0;
 };
 
-// The loop's Y of a relief; NaN for a target without one (a plate's highlight entry runs as a
-// colour design with its own target).
-double model_luminous_efficiency(const PreparedDesign& p, detail::Evaluator& evaluator, const std::vector<int>& level) {
+// The loop's Y of a relief, per view cone (colour: one; iridescent: one per pair); empty for a
+// target without one (a plate's highlight entry runs as a colour design with its own target).
+std::vector<double> model_luminous_efficiency(const PreparedDesign& p, detail::Evaluator& evaluator,
+                                              const std::vector<int>& level) {
     Fractions f;
     (void)evaluator.evaluate(one_hot(level, p.options.levels), nullptr, &f);
     const nlohmann::json m = p.target->metrics(f);
-    return m.contains("luminous_efficiency") ? m["luminous_efficiency"].get<double>() : std::nan("");
+    if (!m.contains("luminous_efficiency")) return {};
+    const nlohmann::json& y = m["luminous_efficiency"];
+    return y.is_array() ? y.get<std::vector<double>>() : std::vector<double>{y.get<double>()};
 }
 
 BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator& evaluator, RefineLoss& refine_loss,
@@ -994,27 +1003,44 @@ BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator&
                                      const std::function<void(const DesignStep&)>& report, const bool& stopped) {
     const DesignOptions& o = p.options;
     BrightnessTrade t;
-    t.tolerance = o.delta_uv_tolerance;
-    if (o.target.kind != DesignKind::Colour || o.min_feature_um != 0.0 || !(o.delta_uv_ceiling > o.delta_uv_tolerance) ||
+    const bool colour = o.target.kind == DesignKind::Colour, iridescent = o.target.kind == DesignKind::Iridescent;
+    if (!(colour || iridescent) || o.min_feature_um != 0.0 || !(o.delta_uv_ceiling > o.delta_uv_tolerance) ||
         o.refine_passes == 0)
         return t;
     const auto start = Clock::now();
     t.y_before = t.y_after = model_luminous_efficiency(p, evaluator, level);
-    if (std::isnan(t.y_before)) return t;
+    if (t.y_before.empty()) return t;
     t.considered = true;
+    t.per_pair = iridescent;
     t.loss_after = loss;
-    // The loss is the prepared target's; the tolerance goes back to the user's on the way out.
+    const std::size_t cones = t.y_before.size();
+    t.tolerance.assign(cones, o.delta_uv_tolerance);
+    // The loss is the prepared target's; the tolerances go back to the user's on the way out.
     struct Restore {
         detail::Target& target;
+        std::size_t cones;
         double tolerance;
-        ~Restore() { target.set_delta_uv_tolerance(tolerance); }
-    } restore{*p.target, o.delta_uv_tolerance};
+        ~Restore() {
+            for (std::size_t q = 0; q < cones; ++q) target.set_delta_uv_tolerance(q, tolerance);
+        }
+    } restore{*p.target, cones, o.delta_uv_tolerance};
     const double step = (o.delta_uv_ceiling - o.delta_uv_tolerance) / k_trade_steps;
+    std::vector<int> raised(cones, 0);  // each cone's blocks so far
+    auto dim = [&](std::size_t q) { return t.y_after[q] < k_reached_y; };
+    auto any_dim = [&] {
+        for (std::size_t q = 0; q < cones; ++q)
+            if (dim(q)) return true;
+        return false;
+    };
     int iteration = o.iterations + o.refine_passes;
-    while (t.y_after < k_reached_y && t.blocks < k_trade_max_blocks && !stopped) {
-        const bool at_ceiling = t.tolerance >= o.delta_uv_ceiling;
-        t.tolerance = std::min(o.delta_uv_ceiling, o.delta_uv_tolerance + step * (t.blocks + 1));
-        p.target->set_delta_uv_tolerance(t.tolerance);
+    while (any_dim() && t.blocks < k_trade_max_blocks && !stopped) {
+        bool at_ceiling = true;  // every dim cone's tolerance already at the ceiling before this block
+        for (std::size_t q = 0; q < cones; ++q) {
+            if (!dim(q)) continue;
+            at_ceiling = at_ceiling && t.tolerance[q] >= o.delta_uv_ceiling;
+            t.tolerance[q] = std::min(o.delta_uv_ceiling, o.delta_uv_tolerance + step * ++raised[q]);
+            p.target->set_delta_uv_tolerance(q, t.tolerance[q]);
+        }
         const double before = refine_loss(level, nullptr);
         RelaxedLevels block = relaxed_levels(p, evaluator, report, stopped, &level, iteration);
         iteration += o.iterations;
@@ -1037,17 +1063,21 @@ BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator&
 
 nlohmann::json brightness_trade_json(const PreparedDesign& p, const BrightnessTrade& t) {
     const DesignOptions& o = p.options;
-    return {{"what", "when the schedule ends below luminous efficiency y_floor (loop's model): blocks of the relaxed phase "
-                     "(warm from the relief, iterations) and refine_passes discrete passes, the delta u'v' tolerance "
-                     "raised by a quarter of (ceiling - delta_uv_tolerance) per block up to the ceiling, a block kept "
-                     "where it lowers the loss, while Y stays below y_floor and the loss still falls"},
+    // A colour's values are numbers; an iridescent target's, one per pair.
+    auto value = [&](const std::vector<double>& v) { return t.per_pair ? nlohmann::json(v) : nlohmann::json(v.at(0)); };
+    return {{"what", std::string("when the schedule ends below luminous efficiency y_floor (loop's model): blocks of the "
+                                 "relaxed phase (warm from the relief, iterations) and refine_passes discrete passes, the "
+                                 "delta u'v' tolerance raised by a quarter of (ceiling - delta_uv_tolerance) per block up "
+                                 "to the ceiling, a block kept where it lowers the loss, while Y stays below y_floor and "
+                                 "the loss still falls") +
+                         (t.per_pair ? "; per pair: only the tolerances of the pairs below y_floor are raised" : "")},
             {"y_floor", k_reached_y},
             {"ceiling", o.delta_uv_ceiling},
             {"max_blocks", k_trade_max_blocks},
             {"blocks", t.blocks},
-            {"tolerance_used", t.tolerance},
-            {"model_y_before", t.y_before},
-            {"model_y_after", t.y_after},
+            {"tolerance_used", value(t.tolerance)},
+            {"model_y_before", value(t.y_before)},
+            {"model_y_after", value(t.y_after)},
             {"final_loss", t.loss_after},
             {"seconds", t.seconds}};
 }

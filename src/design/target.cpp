@@ -253,7 +253,9 @@ public:
           m_target_uv(xyz_to_uv(linear_srgb_to_xyz(spec.rgb))) {}
     int groups() const override { return 1; }
     bool incident_power() const override { return true; }
-    void set_delta_uv_tolerance(double tolerance) override { m_spec.delta_uv_tolerance = tolerance; }
+    void set_delta_uv_tolerance(std::size_t /*cone*/, double tolerance) override {
+        m_spec.delta_uv_tolerance = tolerance;
+    }
 
     void assign(const std::vector<OrderSet>& sets) override {
         m_members.assign(sets.size(), {});

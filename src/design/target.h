@@ -35,8 +35,9 @@ public:
     virtual double loss(const Fractions& f, Fractions* gradient) const = 0;
     // The target's metrics (design.json), from the fractions.
     virtual nlohmann::json metrics(const Fractions& f) const = 0;
-    // The Δu′v′ a colour target's loss does not count (colour_loss); other targets have none.
-    virtual void set_delta_uv_tolerance(double /*tolerance*/) {}
+    // The Δu′v′ the colour loss of view cone `cone` does not count (colour_loss; colour: cone 0,
+    // iridescent: one per pair, in order); other targets have none.
+    virtual void set_delta_uv_tolerance(std::size_t /*cone*/, double /*tolerance*/) {}
     // What the target picture holds on a size × size grid of ω_o about the mirror direction
     // (target.exr): rows along ω_x.
     const std::vector<std::vector<std::array<int, 2>>>& members() const { return m_members; }

@@ -41,11 +41,18 @@ int nesting_depth(const std::string& text) {
 
 class Iridescent final : public Target {
 public:
-    explicit Iridescent(const IridescentSpec& spec) : m_spec(spec), m_xyz_weights(colour_xyz_weights(spec.lambdas_um)) {
+    explicit Iridescent(const IridescentSpec& spec)
+        : m_spec(spec),
+          m_xyz_weights(colour_xyz_weights(spec.lambdas_um)),
+          m_tolerance(spec.rgb.size(), spec.delta_uv_tolerance) {
         for (const auto& rgb : spec.rgb) m_target_uv.push_back(xyz_to_uv(linear_srgb_to_xyz(rgb)));
     }
     int groups() const override { return static_cast<int>(m_spec.rgb.size()); }
     bool incident_power() const override { return true; }
+    // Per pair: the run's brightness trade raises only the tolerances of the pairs that are dim.
+    void set_delta_uv_tolerance(std::size_t cone, double tolerance) override {
+        if (cone < m_tolerance.size()) m_tolerance[cone] = tolerance;
+    }
 
     void assign(const std::vector<OrderSet>& sets) override {
         m_members.assign(sets.size(), {});
@@ -74,14 +81,14 @@ public:
 
     std::array<double, 3> xyz(const Fractions& f, std::size_t q) const { return cone_xyz(m_xyz_weights, f, q); }
 
-    // The sum over the pairs of the colour target's loss.
+    // The sum over the pairs of the colour target's loss, each at its pair's tolerance.
     double loss(const Fractions& f, Fractions* gradient) const override {
         const std::size_t n = f.size(), P = m_spec.rgb.size();
         if (gradient) gradient->assign(n, std::vector<double>(P, 0.0));
         double total = 0.0;
         for (std::size_t q = 0; q < P; ++q) {
             std::array<double, 3> g{};
-            total += colour_loss(xyz(f, q), m_target_uv[q], gradient ? &g : nullptr);
+            total += colour_loss(xyz(f, q), m_target_uv[q], gradient ? &g : nullptr, m_tolerance[q]);
             if (!gradient) continue;
             for (std::size_t l = 0; l < n; ++l)
                 for (std::size_t c = 0; c < 3; ++c) (*gradient)[l][q] += g[c] * m_xyz_weights[c * n + l];
@@ -125,6 +132,7 @@ public:
 private:
     IridescentSpec m_spec;
     std::vector<double> m_xyz_weights;
+    std::vector<double> m_tolerance;  // per pair
     std::vector<std::array<double, 2>> m_target_uv;
 };
 

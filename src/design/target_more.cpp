@@ -55,6 +55,12 @@ void prepare_more_target(PreparedDesign& p) {
     if (o.target.kind == DesignKind::Iridescent) {
         if (!(o.view_cone >= 1e-3 && o.view_cone <= 0.5))
             throw std::domain_error("--view-cone " + num(o.view_cone) + " is out of range; expected 1e-3 to 0.5");
+        if (!(o.delta_uv_tolerance >= 0.0 && o.delta_uv_tolerance <= 0.1))
+            throw std::domain_error("--delta-uv-tolerance " + num(o.delta_uv_tolerance) +
+                                    " is out of range; expected 0 to 0.1");
+        if (!(o.delta_uv_ceiling >= 0.0 && o.delta_uv_ceiling <= 0.1))
+            throw std::domain_error("--delta-uv-ceiling " + num(o.delta_uv_ceiling) +
+                                    " is out of range; expected 0 to 0.1");
         if (p.lambdas_um.size() < 3)
             throw std::invalid_argument("--target " + o.target.text +
                                         " needs white light; give --spectral N (N >= 3), not one --lambda-um");
@@ -63,6 +69,7 @@ void prepare_more_target(PreparedDesign& p) {
         IridescentSpec spec;
         spec.view_cone = o.view_cone;
         spec.lambdas_um = p.lambdas_um;
+        spec.delta_uv_tolerance = o.delta_uv_tolerance;
         const auto& pairs = o.target.pairs;
         for (std::size_t k = 0; k < pairs.size(); ++k) {
             const auto& v = pairs[k].view;
@@ -165,6 +172,8 @@ void more_target_json(const DesignOptions& o, nlohmann::json& target) {
             pairs.push_back({{"view", p.view}, {"srgb8", p.srgb8}, {"linear_rgb", p.linear_rgb}});
         target["pairs"] = pairs;
         target["view_cone"] = o.view_cone;
+        target["delta_uv_tolerance"] = o.delta_uv_tolerance;
+        target["delta_uv_ceiling"] = o.delta_uv_ceiling;
         target["spec_file"] = o.target.spec_file;
     } else if (o.target.kind == DesignKind::Brdf && o.target.table) {
         const BrdfTable& t = *o.target.table;

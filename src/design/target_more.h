@@ -45,6 +45,7 @@ struct IridescentSpec {
     std::vector<std::array<double, 3>> rgb;           // linear sRGB, per pair
     double view_cone = 0.05;
     std::vector<double> lambdas_um;
+    double delta_uv_tolerance = 0.0;  // every pair's, as the colour target's (set_delta_uv_tolerance per pair)
 };
 std::unique_ptr<Target> make_iridescent(const IridescentSpec& spec);
 

@@ -80,6 +80,11 @@ def test_iridescent_cli_and_python_give_the_same_design(cli, tmp_path):
     assert doc["metrics"]["exact"]["delta_uv"] == pytest.approx(r["metrics"]["exact"]["delta_uv"], rel=1e-12)
     assert doc["metrics"]["exact"]["luminous_efficiency"] == pytest.approx(
         r["metrics"]["exact"]["luminous_efficiency"], rel=1e-12)
+    # Both pairs end the schedule dim, so both front ends ran the per-pair brightness trade.
+    trade = r["design"]["brightness_trade"]
+    assert trade["blocks"] >= 1 and len(trade["tolerance_used"]) == 2
+    for key in ("blocks", "tolerance_used", "model_y_before", "model_y_after", "final_loss"):
+        assert doc["brightness_trade"][key] == pytest.approx(trade[key], rel=1e-12, abs=0)
 
 
 def test_bad_iridescent_spec_is_one_line(tmp_path):

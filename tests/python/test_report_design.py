@@ -199,3 +199,29 @@ def test_iridescent_pairs_are_drawn_as_swatches(tmp_path):
     im = np.asarray(Image.open(os.path.join(d, "report.png")).convert("RGB")).astype(int)
     for colour in ([255, 0, 0], [0, 255, 0], [0, 0, 255]):
         assert (np.abs(im - colour).sum(axis=2) < 10).sum() > 500, colour
+
+
+def test_the_brightness_trade_is_in_the_colour_text(tmp_path, monkeypatch):
+    from wavebrdf import report_design
+
+    doc = design_doc("colour")
+    assert report_design.brightness_trade_text(doc) is None  # no trade in the run
+    doc["brightness_trade"] = {"blocks": 0, "ceiling": 0.04, "tolerance_used": 0.0, "model_y_before": 0.2,
+                               "model_y_after": 0.2}
+    assert report_design.brightness_trade_text(doc) is None  # a bright colour: no block ran
+    doc["brightness_trade"].update(blocks=3, tolerance_used=0.03, model_y_before=0.0336, model_y_after=0.0579)
+    text = report_design.brightness_trade_text(doc)
+    assert text == "brightness trade: 3 blocks, Δu′v′ tolerance 0.03 (ceiling 0.04): loop's Y 3.4% → 5.8%"
+    # The drawn figure holds that line (its texts read back from the figure before it is saved).
+    drawn = []
+    monkeypatch.setattr(report_design, "save_figure",
+                        lambda fig, path, dpi: drawn.extend(t.get_text() for t in fig.findobj(matplotlib.text.Text)))
+    report_design.make_report(make_run(str(tmp_path / "traded"), doc=doc))
+    assert any(text in t.replace("\n  ", " ") for t in drawn), drawn
+    # An iridescent run's values are per pair.
+    doc["brightness_trade"].update(blocks=1, tolerance_used=[0.01, 0.0], model_y_before=[0.021, 0.06],
+                                   model_y_after=[0.03, 0.055])
+    assert report_design.brightness_trade_text(doc) == ("brightness trade per pair: 1 block, Δu′v′ tolerance "
+                                                        "0.01/0 (ceiling 0.04): loop's Y 2.1/6.0% → 3.0/5.5%")
+    doc["brightness_trade"]["model_y_after"] = "damaged"
+    assert report_design.brightness_trade_text(doc) is None
