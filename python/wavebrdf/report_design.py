@@ -292,7 +292,7 @@ def make_report(directory):
         ax.set_xlim(-0.1, len(pairs))
         ax.set_ylim(-0.6, 2.15)
         trade = brightness_trade_text(doc)
-        ax.set_title("pairs: target (top), exact (bottom)" + ("\n" + _wrap(trade, 60) if trade else ""), fontsize=9)
+        ax.set_title("pairs: target (top), exact (bottom)" + ("\n" + _wrap(trade, 40) if trade else ""), fontsize=9)
         ax.axis("off")
     elif len(swatches) >= 1 and target_rgb is not None:
         for k, (label, rgb) in enumerate(swatches):
@@ -332,7 +332,7 @@ def make_report(directory):
                 lines.append("level mixtures: Y ≤ %.1f%%" % (100 * mix))
         trade = brightness_trade_text(doc)
         if trade:
-            lines.append(_wrap(trade, 60))
+            lines.append(_wrap(trade, 40))
         ax.set_title("colour (each swatch at full brightness)" + ("\n" + "\n".join(lines) if lines else ""), fontsize=9)
         ax.axis("off")
     else:
