@@ -8,8 +8,8 @@ registration's moves (rms, texels, after the Newton step and the gauge), the New
 positions moved, the rescue's positions searched, user CPU and peak RSS.
 Round 12b: stage 3's final loss per recovery (the last "refine" line of each, printed every 10
 iterations: exact when stage 3 ends on a multiple of 10), which passes ran the field stage, and
-with --stall N,TOL[;N,TOL...] where RecoverSettings' stall rule (position_outer_stall_passes N,
-position_outer_stall_tolerance TOL) would have stopped a log of the loop run without it (the
+with --stall N,TOL[;N,TOL...] where the loop's stall rule (PositionLoopSettings' stall_passes N,
+stall_tolerance TOL; recover_study stall_passes=N stall_tolerance=TOL) would have stopped a log of the loop run without it (the
 passes before the stop are the same bits), with the % after that pass's stage 3."""
 import re
 import sys

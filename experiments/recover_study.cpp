@@ -22,14 +22,14 @@
 //     line: the error on the inner texels with the best-fit translation / 6 × 6-node warp of the
 //     truth removed, a diagnostic beside rel_rmse)
 //     stall_diag=0 (per-position table, PREFIX_positions.csv)
-//     rescue_factor=20 rescue_radius=4 rescue_step=0.125 (positions with loss > factor ×
+//     rescue_factor=20 rescue_radius=4 rescue_step=radius/32 (positions with loss > factor ×
 //     median searched ± radius, coarse grid 2·step; 0: off)
 //     field_below=0.05 (a later pass skips the field stage when its registration moved < this)
-//     stall_passes=2 stall_tolerance=-1 (the loop stops after N passes in a row without
-//     the field stage that lowered stage 3's loss by less than the tolerance; 0: off; -1: default)
+//     stall_passes=2 stall_tolerance=0.02 (the stall rule, core/stall_rule.h, over passes; 0: off)
 //     stall_median=1 (the rule on the median position's loss at the start of a pass; 0:
 //     on stage 3's loss)
-//     (the outer loop's knobs default to RecoverSettings': on with calibrate=positions)
+//     (the outer loop's knobs default to the schedule's, PositionLoopSettings in stages.h; the
+//     loop is on with calibrate=positions; outer_passes and rescue_radius are RecoverSettings')
 //   Options of studies whose alternative left the library (the default kept, as a constant):
 //   unwrap=blurred, cascade=0, field_passes, blur_spacing, register_radius, outer_fields,
 //   outer_smooth, rescue_centre, register_newton, newton_step, newton_cap, exposures_held; their
@@ -60,6 +60,7 @@
 #include "core/catmull_rom.h"
 #include "recovery/field_positions.h"
 #include "recovery/recover_positions.h"
+#include "recovery/stages.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/slice_plan.h"
@@ -324,28 +325,37 @@ int main(int argc, char** argv) try {
     set_int("refine_iters", rs.refine_iterations);
     if (args.count("blurs")) rs.blurred.blur_widths = parse_list(args["blurs"]);
     set_int("outer_passes", rs.position_outer_passes);
-    if (args.count("outer_tolerance")) rs.position_outer_tolerance_texels = std::stod(args["outer_tolerance"]);
-    set_int("outer_field_iters", rs.position_outer_field_iterations);
-    set_int("outer_refine_iters", rs.position_outer_refine_iterations);
     if (args.count("max_range_um")) rs.height_range_um = std::stod(args["max_range_um"]);
     if (args.count("field_lambda_min_um")) rs.field_lambda_min_um = std::stod(args["field_lambda_min_um"]);
     rs.calibrate.positions = get("calibrate", "none") == "positions";  // (parse_calibration: CAL)
-    // Round 8: the outer loop removes the smooth part (1: affine, k: k × k nodes) of every
-    // registration's update (recover_positions.h). Rounds 10–12b: the rescue, the Newton step,
-    // the field stage's skip and the stall rule (RecoverSettings since round 12b; the library's
-    // defaults unless given).
-    if (args.count("rescue_factor")) rs.position_rescue_factor = std::stod(args["rescue_factor"]);
     if (args.count("rescue_radius")) rs.position_rescue_radius_texels = std::stod(args["rescue_radius"]);
-    if (args.count("rescue_step")) rs.position_rescue_step_texels = std::stod(args["rescue_step"]);
-    set_int("stall_passes", rs.position_outer_stall_passes);
-    if (args.count("stall_tolerance")) rs.position_outer_stall_tolerance = std::stod(args["stall_tolerance"]);
-    if (args.count("field_below")) rs.position_outer_field_below_texels = std::stod(args["field_below"]);
-    if (args.count("stall_median")) rs.position_outer_stall_median = args["stall_median"] == "1";
+    // The position loop's own settings (stages.h, PositionLoopSettings): the schedule's unless a
+    // key overrides them.
+    std::map<std::string, std::string> loop_args;
+    for (const char* key : {"outer_tolerance", "outer_field_iters", "outer_refine_iters", "rescue_factor",
+                            "rescue_step", "stall_passes", "stall_tolerance", "field_below", "stall_median"})
+        if (args.count(key)) loop_args[key] = args[key];
+    const auto edit = [loop_args](detail::Schedule& schedule) {
+        detail::edit_stages<detail::PositionLoopStage>(schedule, [&](detail::PositionLoopStage& stage) {
+            detail::PositionLoopSettings& p = stage.settings;
+            for (const auto& [key, value] : loop_args) {
+                if (key == "outer_tolerance") p.tolerance_texels = std::stod(value);
+                if (key == "outer_field_iters") p.field_iterations = std::stoi(value);
+                if (key == "outer_refine_iters") p.refine_iterations = std::stoi(value);
+                if (key == "rescue_factor") p.rescue_factor = std::stod(value);
+                if (key == "rescue_step") p.rescue_step_texels = std::stod(value);
+                if (key == "stall_passes") p.stall_passes = std::stoi(value);
+                if (key == "stall_tolerance") p.stall_tolerance = std::stod(value);
+                if (key == "field_below") p.field_below_texels = std::stod(value);
+                if (key == "stall_median") p.stall_median = value == "1";
+            }
+        });
+    };
     Calibration calibration;
     double blur_s = 0, blur_rmse = -1, field_s = 0, unwrap_rmse = -1, field_end = 0;
     std::string last_stage;
-    const Heightfield estimate = recover_heights(
-        observations, size, size, texel_um, 1.0, rs,
+    const Heightfield estimate = detail::recover_heights_edited(
+        observations, size, size, texel_um, 1.0, rs, edit,
         [&](const StageMetrics& m) {
             if (m.stage == "blur") {
                 blur_rmse = m.height_rel_rmse;
@@ -364,6 +374,9 @@ int main(int argc, char** argv) try {
         },
         &truth, serial_communicator(), &calibration);
     const double rel = height_rel_rmse(estimate, truth);
+    detail::PositionFitSettings fit;  // what the registration reads of rs (the diagnostics below)
+    fit.loss = rs.refine_loss;
+    fit.calibrate_exposure = rs.calibrate.exposure;
     if (args.count("save")) {
         const std::vector<std::size_t> shape{std::size_t(truth.rows()), std::size_t(truth.cols())};
         write_npy(args["save"] + "_estimate.npy", shape, heights_um(estimate));
@@ -411,7 +424,7 @@ int main(int argc, char** argv) try {
             };
             const double radius = std::stod(get("register_radius", "2"));
             const double moved = detail::register_positions(
-                observations, index, estimate, rs, calibration.sigma_p_scale > 0 ? calibration.sigma_p_scale : 1.0,
+                observations, index, estimate, fit, calibration.sigma_p_scale > 0 ? calibration.sigma_p_scale : 1.0,
                 radius, 0.5, off, serial_communicator());
             std::printf(
                 "REGISTER radius_texels=%g moved_rms_texels=%.4f before_rms_texels=%.4f "
@@ -447,9 +460,9 @@ int main(int argc, char** argv) try {
         const double h = std::stod(get("diag_step", "0.25"));
         const double radius = std::stod(get("register_radius", "2"));
         std::vector<double> registered = found;
-        detail::register_positions(observations, index, estimate, rs, sigma_scale, radius, 0.5, registered,
+        detail::register_positions(observations, index, estimate, fit, sigma_scale, radius, 0.5, registered,
                                    serial_communicator());
-        detail::newton_register_positions(observations, index, estimate, rs, sigma_scale, detail::k_newton_step_texels,
+        detail::newton_register_positions(observations, index, estimate, fit, sigma_scale, detail::k_newton_step_texels,
                                           detail::k_newton_cap_texels, registered, serial_communicator());
         // loss(heights, offsets per position (µm), shift in texels) per position.
         const auto losses = [&](const Heightfield& hf, const std::vector<double>& off, double sx, double sy) {

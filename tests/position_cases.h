@@ -4,14 +4,26 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <random>
 #include <vector>
 
 #include "recover_util.h"
+#include "recovery/stages.h"
 #include "test_util.h"
 #include "wavebrdf/observation.h"
 
 namespace wavebrdf::test {
+
+// An edit for detail::recover_heights_edited: the position loop's own settings (stages.h,
+// PositionLoopSettings; make_schedule's constants) changed by `change`.
+inline std::function<void(detail::Schedule&)> edit_position_loop(
+    std::function<void(detail::PositionLoopSettings&)> change) {
+    return [change](detail::Schedule& schedule) {
+        detail::edit_stages<detail::PositionLoopStage>(schedule,
+                                                       [&](detail::PositionLoopStage& s) { change(s.settings); });
+    };
+}
 
 struct OffCase {
     Heightfield truth;

@@ -57,7 +57,7 @@ TEST(PositionRegistration, FindsKnownOffsetsAtTheTrueHeightsWithTheFullModel) {
     std::vector<std::size_t> index;
     const std::size_t count = detail::gather_positions(c.observations, index, serial_communicator()).size();
     ASSERT_EQ(count, 9u);
-    RecoverSettings settings;
+    detail::PositionFitSettings settings;
     const int threads = omp_get_max_threads();
     std::vector<std::vector<double>> found;
     for (int t : {1, 2}) {
@@ -119,11 +119,9 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     EXPECT_LT(after_outer, 0.8 * after_once) << "once " << after_once << " outer " << after_outer;
 }
 
-// (experiments/2026-11-23-position-calibration.md): calibrate.positions alone runs
-// the position loop — RecoverSettings' defaults: up to 20 passes, Newton steps after every
-// registration, the field stage while the registration moves, stopped by the stall rule — and
-// its offsets end closer to the truth than one recovery's (before round 12b the loop was off
-// unless position_outer_passes was set, and this failed).
+// calibrate.positions alone runs the position loop — the schedule's defaults: up to 40 passes,
+// a Newton step after every registration, the field stage while the registration moves, stopped
+// by the stall rule — and its offsets end closer to the truth than one recovery's.
 TEST(PositionRegistration, CalibratePositionsRunsTheOuterLoopByDefault) {
     const OffCase c = off_case(5124, 1.0, 32, 5);
     RecoverSettings s = tile_settings(15, 40);
@@ -152,12 +150,12 @@ TEST(PositionRegistration, CalibratePositionsRunsTheOuterLoopByDefault) {
 }
 
 // The stall rule over passes: with a tolerance of 1 a pass stalls unless the lowest loss halved
-// over the window. On stage 3's loss after each pass (position_outer_stall_median false) with the
-// field stage never rerun, the loop stops after its first pass with stall_passes = 1 (2 with
+// over the window. On stage 3's loss after each pass (stall_median false) with the field stage
+// never rerun, the loop stops after its first pass with stall_passes = 1 (2 with
 // stall_passes = 2; all 4 with the rule off). On the median position's loss at the start of a
 // pass (the default, for the pass before's heights), the first pass is not judged (it follows the
 // field stage's heights, a new start), so the loop stops at the start of the second pass with
-// stall_passes = 1 (the third with 2); out-of-range settings are refused.
+// stall_passes = 1 (the third with 2); out-of-range loop settings are refused.
 TEST(PositionRegistration, StallRuleStopsTheLoop) {
     const OffCase c = off_case(5125, 1.0, 24, 3);
     RecoverSettings s;
@@ -168,15 +166,19 @@ TEST(PositionRegistration, StallRuleStopsTheLoop) {
     s.model_check_iterations = 0;
     s.calibrate.positions = true;
     s.position_outer_passes = 4;
-    s.position_outer_tolerance_texels = 0.0;
-    s.position_outer_field_below_texels = 1e9;  // no field stage in later passes
-    s.position_outer_stall_tolerance = 1.0;
+    const auto loop = [](int stall_passes, bool median) {
+        return test::edit_position_loop([=](detail::PositionLoopSettings& p) {
+            p.tolerance_texels = 0.0;
+            p.field_below_texels = 1e9;  // no field stage in later passes
+            p.stall_tolerance = 1.0;
+            p.stall_passes = stall_passes;
+            p.stall_median = median;
+        });
+    };
     const auto passes = [&](int stall_passes, bool median) {
-        s.position_outer_stall_passes = stall_passes;
-        s.position_outer_stall_median = median;
         int registered = 0, stall_reports = 0;
-        recover_heights(
-            c.observations, 12, 12, 2.0, 1.0, s,
+        detail::recover_heights_edited(
+            c.observations, 12, 12, 2.0, 1.0, s, loop(stall_passes, median),
             [&](const StageMetrics& m) {
                 registered += m.stage == "positions:register";
                 stall_reports += m.stage == "positions:stall";
@@ -191,32 +193,43 @@ TEST(PositionRegistration, StallRuleStopsTheLoop) {
     EXPECT_EQ(passes(1, true), 2);
     EXPECT_EQ(passes(2, true), 3);
     EXPECT_EQ(passes(0, true), 4);
-    const auto refused = [&](const std::function<void(RecoverSettings&)>& change) {
-        RecoverSettings bad = s;
-        change(bad);
-        EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad, {}, nullptr, serial_communicator()),
+    const auto refused = [&](const std::function<void(detail::PositionLoopSettings&)>& change) {
+        EXPECT_THROW(detail::recover_heights_edited(c.observations, 12, 12, 2.0, 1.0, s,
+                                                    test::edit_position_loop(change), {}, nullptr,
+                                                    serial_communicator()),
                      std::invalid_argument);
     };
-    refused([](RecoverSettings& b) { b.position_outer_stall_passes = -1; });
-    refused([](RecoverSettings& b) { b.position_outer_stall_tolerance = 1.5; });
-    refused([](RecoverSettings& b) { b.position_rescue_factor = 0.5; });
-    refused([](RecoverSettings& b) { b.position_rescue_step_texels = 0.01; });  // 4 / 0.02 > 16
+    refused([](detail::PositionLoopSettings& p) { p.stall_passes = -1; });
+    refused([](detail::PositionLoopSettings& p) { p.stall_tolerance = 1.5; });
+    refused([](detail::PositionLoopSettings& p) { p.rescue_factor = 0.5; });
+    refused([](detail::PositionLoopSettings& p) { p.rescue_step_texels = 0.01; });  // 4 / 0.02 > 16
+    refused([](detail::PositionLoopSettings& p) { p.field_iterations = -1; });
+    refused([](detail::PositionLoopSettings& p) { p.refine_iterations = -1; });
+    refused([](detail::PositionLoopSettings& p) { p.tolerance_texels = std::nan(""); });
+    // The user's settings are refused before the run.
+    RecoverSettings bad = s;
+    bad.position_outer_passes = 101;
+    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad), std::invalid_argument);
+    bad = s;
+    bad.position_rescue_radius_texels = 17.0;
+    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, bad), std::invalid_argument);
 }
 
-// The outer loop's later passes (round 7) run position_outer_field_iterations per field and
-// position_outer_refine_iterations in stage 3 (the first pass keeps field.iterations and
-// refine_iterations); negative counts are refused.
+// The outer loop's later passes run the loop's field_iterations per field and refine_iterations
+// in stage 3 (the first pass keeps field.iterations and refine_iterations).
 TEST(PositionRegistration, OuterLoopLaterPassesRunTheirOwnIterationCounts) {
     const OffCase c = off_case(5123, 1.0, 32, 5);
     RecoverSettings s = tile_settings(10, 30);
     s.position_outer_passes = 1;
-    s.position_outer_tolerance_texels = 0.0;
-    s.position_outer_field_iterations = 10;
-    s.position_outer_refine_iterations = 4;
     int pass = 0;
     std::array<int, 2> field_max{0, 0}, refine_max{0, 0};
-    recover_heights(
+    detail::recover_heights_edited(
         c.observations, 12, 12, 2.0, 1.0, s,
+        test::edit_position_loop([](detail::PositionLoopSettings& p) {
+            p.tolerance_texels = 0.0;
+            p.field_iterations = 10;
+            p.refine_iterations = 4;
+        }),
         [&](const StageMetrics& m) {
             if (m.stage == "positions:register") pass = 1;
             if (m.stage.rfind("field:", 0) == 0) field_max[pass] = std::max(field_max[pass], m.iteration);
@@ -231,9 +244,6 @@ TEST(PositionRegistration, OuterLoopLaterPassesRunTheirOwnIterationCounts) {
     EXPECT_LE(field_max[1], 10);
     EXPECT_GT(refine_max[1], 0);
     EXPECT_LE(refine_max[1], 4);
-    s.position_outer_refine_iterations = -1;
-    EXPECT_THROW(recover_heights(c.observations, 12, 12, 2.0, 1.0, s, {}, nullptr, serial_communicator()),
-                 std::invalid_argument);
 }
 
 // Round 8's gauge helper: a displacement that is affine (or bilinear on the nodes) is removed
@@ -339,7 +349,7 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
     const auto lost_error = [&](const std::vector<double>& o) {
         return std::hypot(o[2 * lost] - truth[2 * lost], o[2 * lost + 1] - truth[2 * lost + 1]) / texel_um;
     };
-    RecoverSettings settings;
+    detail::PositionFitSettings settings;
     std::vector<double> registered = start;
     detail::register_positions(c.observations, index, c.truth, settings, 1.0, 2.0, 0.5, registered,
                                serial_communicator());
@@ -356,7 +366,7 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
         o.query.x_um += start[2 * index[i]];
         o.query.y_um += start[2 * index[i] + 1];
         const std::vector<double> reference = to_doubles(o.reference);
-        position_loss[index[i]] += loss_value(settings.refine_loss, render_observation(c.truth, o), reference,
+        position_loss[index[i]] += loss_value(settings.loss, render_observation(c.truth, o), reference,
                                               o.channels(), nullptr) /
                                    double(c.observations.size());
     }
@@ -403,7 +413,7 @@ TEST(PositionRegistration, RescueSearchesAboutTheStatedCentreToo) {
         return std::hypot(o[2 * r.lost] - r.truth[2 * r.lost], o[2 * r.lost + 1] - r.truth[2 * r.lost + 1]) /
                texel_um;
     };
-    RecoverSettings settings;
+    detail::PositionFitSettings settings;
     std::vector<double> both = start;
     const int searched_both = detail::rescue_lost_positions(r.c.observations, r.index, r.c.truth, settings, 1.0, 20.0, 4.0,
                                                             0.5, both, serial_communicator());
@@ -447,7 +457,7 @@ TEST(PositionRegistration, NewtonStepLandsCloserThanTheGridAndParabola) {
         for (std::size_t k = 0; k < o.size(); ++k) s2 += (o[k] - truth[k]) * (o[k] - truth[k]);
         return std::sqrt(s2 / double(o.size())) / texel_um;
     };
-    RecoverSettings settings;
+    detail::PositionFitSettings settings;
     std::vector<double> grid = start;
     detail::register_positions(c.observations, index, c.truth, settings, 1.0, 2.0, 0.5, grid, serial_communicator());
     const int threads = omp_get_max_threads();

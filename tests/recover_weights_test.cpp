@@ -193,8 +193,8 @@ TEST(RecoverWeights, PixelsOfWeightZeroChangeNothingInAnyStage) {
     const std::size_t positions = detail::gather_positions(clean, index, comm).size();
     const std::vector<double> offsets(2 * positions, 0.3);
     EXPECT_EQ(detail::exposures_at(clean, index, at, 1.0, offsets), detail::exposures_at(dirty, index, at, 1.0, offsets));
-    RecoverSettings s;
-    s.calibrate.exposure = true;
+    detail::PositionFitSettings s;
+    s.calibrate_exposure = true;
     std::vector<double> oa = offsets, ob = offsets;
     detail::register_positions(clean, index, at, s, 1.0, 1.0, 0.5, oa, comm);
     detail::register_positions(dirty, index, at, s, 1.0, 1.0, 0.5, ob, comm);

@@ -184,11 +184,11 @@ TEST(RecoveryRun, CalibratedPositionsArePlannedWithMoreOverlap) {
 // The simulated position error is the stage's stated uncertainty unless one is given: the
 // planner sizes the footprint for it (PlanRequest::position_uncertainty_um), and the position
 // loop's rescue reaches k × it (k_rescue_radius_per_position_uncertainty) where that is farther
-// than its default, with as many grid points.
+// than its default (its grid keeps its number of points: schedule_test.cpp).
 TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprintAndTheRescue) {
     const RecoverSettings defaults;
     struct Planned {
-        double sigma_p_um, rescue_radius_texels, rescue_step_texels;
+        double sigma_p_um, rescue_radius_texels;
     };
     const auto planned = [](double error_texels, std::optional<double> uncertainty_um,
                             const char* calibrate = "positions") {
@@ -199,8 +199,7 @@ TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprintAndTheRescue) {
         options.errors.position_rms_texels = error_texels;
         options.position_uncertainty_um = uncertainty_um;
         const PreparedRecovery r = prepare_recovery(options);
-        return Planned{r.observations.front().query.sigma_p_um, r.pipeline.position_rescue_radius_texels,
-                       r.pipeline.position_rescue_step_texels};
+        return Planned{r.observations.front().query.sigma_p_um, r.pipeline.position_rescue_radius_texels};
     };
     EXPECT_EQ(planned(0.0, std::nullopt).sigma_p_um, 3.0);  // 1.5 texels of 2 um
     EXPECT_EQ(planned(1.0, std::nullopt).sigma_p_um, 3.0);  // 2 um: within the default footprint
@@ -208,8 +207,6 @@ TEST(RecoveryRun, SimulatedPositionErrorSizesTheFootprintAndTheRescue) {
     const Planned three = planned(3.0, std::nullopt);  // 6 um rms per coordinate
     EXPECT_EQ(three.sigma_p_um, 6.0);
     EXPECT_EQ(three.rescue_radius_texels, k_rescue_radius_per_position_uncertainty * 3.0);
-    EXPECT_DOUBLE_EQ(three.rescue_radius_texels / three.rescue_step_texels,
-                     defaults.position_rescue_radius_texels / defaults.position_rescue_step_texels);
     EXPECT_EQ(planned(10.0, std::nullopt).rescue_radius_texels, 16.0);  // the rescue's bound
     EXPECT_EQ(planned(3.0, 0.0).sigma_p_um, 3.0);                      // stated: kept
     EXPECT_EQ(planned(3.0, 0.0).rescue_radius_texels, defaults.position_rescue_radius_texels);

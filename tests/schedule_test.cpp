@@ -120,17 +120,30 @@ TEST(Schedule, CalibrationAddsItsStagesAndResolvesTheLoopsDefaults) {
                                                   "release", "positions", "model-check"}));
     const PositionLoopStage* loop = find<PositionLoopStage>(s);
     ASSERT_NE(loop, nullptr);
-    EXPECT_EQ(loop->passes, 40);  // position_outer_passes −1: the library's default
-    EXPECT_EQ(loop->stall_tolerance, 0.02);
-    EXPECT_TRUE(loop->hold_exposures);
+    EXPECT_EQ(loop->settings.passes, 40);  // position_outer_passes −1: the library's default
+    EXPECT_EQ(loop->settings.stall_tolerance, 0.02);
+    EXPECT_TRUE(loop->settings.hold_exposures);
     EXPECT_TRUE(loop->field.positions);
     EXPECT_TRUE(find<FieldStage>(s)->calibrate_exposure);
+    // Stage 3's settings as the plain refinement's, the rescue's as the run's.
+    EXPECT_EQ(loop->settings.fit.iterations, scheduled_settings(settings, 2.0).refine_iterations);
+    EXPECT_EQ(loop->settings.fit.history, settings.refine_history);
+    EXPECT_TRUE(loop->settings.fit.calibrate_exposure);
+    EXPECT_TRUE(loop->settings.fit.calibrate_sigma);
+    EXPECT_EQ(loop->settings.rescue_radius_texels, 4.0);
+    EXPECT_EQ(loop->settings.rescue_step_texels, 0.125);
+    EXPECT_NO_THROW(check_position_loop(loop->settings));
     settings.position_outer_passes = 3;
-    settings.position_outer_stall_tolerance = 0.5;
+    settings.position_rescue_radius_texels = 12.0;
+    settings.refine_loss = Loss{LossKind::Poisson, 1.0};
     const Schedule given = f.schedule(settings);  // held: the stages live as long as their schedule
     const PositionLoopStage* set = find<PositionLoopStage>(given);
-    EXPECT_EQ(set->passes, 3);
-    EXPECT_EQ(set->stall_tolerance, 0.5);
+    EXPECT_EQ(set->settings.passes, 3);
+    EXPECT_EQ(set->settings.fit.loss.kind, LossKind::Poisson);
+    // The rescue's grid keeps its number of points: radius / step as at the default.
+    EXPECT_EQ(set->settings.rescue_radius_texels, 12.0);
+    EXPECT_EQ(set->settings.rescue_step_texels, 0.375);
+    EXPECT_NO_THROW(check_position_loop(set->settings));
 }
 
 TEST(Schedule, NoRefinementNoModelCheck) {

@@ -367,54 +367,20 @@ struct RecoverSettings {
     int field_tile_threshold = 64;
     int field_tile_core = 48;
     // With calibrate.positions, the outer loop (docs/recovery.md, "Self-calibration"; the
-    // position loop's stage, stage_positions.cpp): after stage 3, every position is registered
-    // on its own at the final heights (a grid search of its full-model loss over ± 2 texels in
-    // half-texel steps about its offset, a parabola, one Newton step), the affine part of the
-    // registration's update removed, positions far worse than the median searched wide
-    // (position_rescue_*), and the field stage (from the final heights, while the registration
-    // still moves the offsets by at least position_outer_field_below_texels) and stage 3 run
-    // again from the registered
-    // positions; at most this many times, stopping when a registration moves the offsets by less
-    // than position_outer_tolerance_texels rms or when the loss stalls (position_outer_stall_*).
-    // 0: off (one recovery); −1: the library's default (recover.cpp, k_position_outer_passes:
-    // 40). At most 100.
+    // position loop's stage, stage_positions.cpp, with its own settings, schedule.cpp): after
+    // stage 3, every position is registered on its own at the final heights (a grid search of
+    // its full-model loss over ± 2 texels in half-texel steps about its offset, a parabola, one
+    // Newton step), the affine part of the registration's update removed, positions far worse
+    // than the median searched wide (over ± position_rescue_radius_texels), and the field stage
+    // (while the registration still moves the offsets) and stage 3 run again from the registered
+    // positions; at most this many times, stopping when the offsets stop moving or the loss
+    // stalls (the recovery's one stall rule, src/core/stall_rule.h). 0: off (one recovery); −1:
+    // the library's default (schedule.cpp, k_position_outer_passes: 40). At most 100.
     int position_outer_passes = -1;
-    // Finite, ≥ 0 (0: never stops on the moves). At the loop's end the registration jitters the
-    // offsets by ~0.004 texel a pass, so the default 0.001 leaves the stopping to the stall rule.
-    double position_outer_tolerance_texels = 0.001;
-    // The outer loop's later passes: each field of a pass after the first runs this many L-BFGS
-    // iterations from the pass's heights, and its stage 3 this many (0: the first pass's
-    // field.iterations and refine_iterations).
-    int position_outer_field_iterations = 20;
-    int position_outer_refine_iterations = 0;
-    // After every registration, the positions whose loss exceeds
-    // position_rescue_factor × the median position's (> 1 … 10⁶; 0: off) are registered again
-    // over ± position_rescue_radius_texels (> 0 … 16) on a grid of 2 × position_rescue_step_texels,
-    // then ± the step (> 0, radius/(2·step) ≤ 16): a position trapped beyond the registration's
-    // radius is brought back.
-    double position_rescue_factor = 20.0;
+    // How far the position loop searches a lost position (± texels, > 0 … 16) about its offset,
+    // on a grid of the same number of points at any radius. The CLI and Python recover() raise
+    // it to 4 × the stated position uncertainty (recovery_run.h).
     double position_rescue_radius_texels = 4.0;
-    double position_rescue_step_texels = 0.125;
-    // A later pass skips the field stage when the registration before it moved the
-    // offsets by less than this (rms, texels, finite ≥ 0; 0: the field stage in every pass).
-    // Near the end the field stage's own position steps undo the registration's last 0.02 texel.
-    double position_outer_field_below_texels = 0.05;
-    // The stopping rule, the recovery's one stall rule (src/core/stall_rule.h) over passes: the
-    // loop stops once the lowest loss so far fell by less than position_outer_stall_tolerance
-    // (a fraction of it, 0 … 1, 0: never; −1: the library's default,
-    // schedule.cpp k_position_outer_stall_tolerance) over the last position_outer_stall_passes
-    // (0 … 100; 0: off) passes; a pass with the field stage starts the rule again. At the end
-    // the registration's ± 0.25-texel stencil is coarser than stage 3 and the loss jitters. The
-    // loss is the exact collective objective: every rank stops at the same pass.
-    int position_outer_stall_passes = 2;
-    double position_outer_stall_tolerance = -1.0;
-    // The stall rule judges the median position's loss (each position's loss at its
-    // registered offset and the heights of the pass before, as the rescue computes it) instead
-    // of stage 3's loss, and is applied at the start of a pass (a stalled loop ends before that
-    // pass's stage 3). A few positions lost for good dominate stage 3's loss and stop the loop
-    // while the heights elsewhere still improve by a quarter a pass. Only while the rescue runs
-    // (position_rescue_factor > 0); false: the rule on stage 3's loss after the pass.
-    bool position_outer_stall_median = true;
     // The surface as stated (the schedule's choice between the smooth and the rough plan).
     SurfaceClass surface;
     // Error bars follow (uncertainty.h): an unset refine_iterations becomes at least

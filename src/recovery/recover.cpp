@@ -67,6 +67,7 @@ Heightfield recover_stages(const std::vector<Observation>& observations, const s
                            const std::map<double, std::vector<const Observation*>>& by_lambda,
                            double observations_total, const Heightfield& flat, int rows, int cols, double texel_um,
                            double vscale, const RecoverSettings& settings,
+                           const std::function<void(detail::Schedule&)>& edit,
                            const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
                            const Communicator& comm, Calibration* calibration) {
     detail::StageReporter reporter(on_step, truth, comm, settings);
@@ -92,7 +93,9 @@ Heightfield recover_stages(const std::vector<Observation>& observations, const s
     const detail::StageContext context{observations, by_lambda, observations_total, flat, rows, cols, texel_um,
                                        vscale, comm, reporter, std::ref(reporter), white, proxy, q,
                                        std::move(position_of), filled};
-    detail::run_schedule(detail::make_schedule(settings, context), context, state);
+    detail::Schedule schedule = detail::make_schedule(settings, context);
+    if (edit) edit(schedule);
+    detail::run_schedule(schedule, context, state);
     if (calibration) *calibration = std::move(state.calibration);
     return std::move(state.estimate);
 }
@@ -103,6 +106,16 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
                             double vscale, const RecoverSettings& given,
                             const std::function<bool(const StageMetrics&)>& on_step, const Heightfield* truth,
                             const Communicator& comm, Calibration* calibration) {
+    return detail::recover_heights_edited(observations, rows, cols, texel_um, vscale, given, {}, on_step, truth, comm,
+                                          calibration);
+}
+
+Heightfield detail::recover_heights_edited(const std::vector<Observation>& observations, int rows, int cols,
+                                           double texel_um, double vscale, const RecoverSettings& given,
+                                           const std::function<void(Schedule&)>& edit,
+                                           const std::function<bool(const StageMetrics&)>& on_step,
+                                           const Heightfield* truth, const Communicator& comm,
+                                           Calibration* calibration) {
     if (calibration) *calibration = Calibration{};
     // Checks of what every rank is given alike first, then of each rank's share, agreed.
     const Heightfield flat(rows, cols, std::vector<double>(std::size_t(rows) * std::size_t(cols), 0.0), texel_um,
@@ -121,37 +134,10 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
         throw std::invalid_argument("recover_heights: position outer passes " +
                                     std::to_string(settings.position_outer_passes) +
                                     " is invalid; expected 0 ... 100 (-1: the default)");
-    if (settings.position_outer_field_iterations < 0 || settings.position_outer_refine_iterations < 0)
-        throw std::invalid_argument("recover_heights: position outer iterations " +
-                                    std::to_string(settings.position_outer_field_iterations) + ", " +
-                                    std::to_string(settings.position_outer_refine_iterations) +
-                                    " (field, refinement) must be >= 0 (0: the first pass's)");
-    if (!(settings.position_outer_tolerance_texels >= 0.0 && std::isfinite(settings.position_outer_tolerance_texels)))
-        throw std::domain_error("recover_heights: position outer tolerance " +
-                                std::to_string(settings.position_outer_tolerance_texels) +
-                                " texels is invalid; expected a finite value >= 0");
-    if (!(settings.position_rescue_factor == 0.0 ||
-          (settings.position_rescue_factor > 1.0 && settings.position_rescue_factor <= 1e6)) ||
-        !(settings.position_rescue_radius_texels > 0.0 && settings.position_rescue_radius_texels <= 16.0) ||
-        !(settings.position_rescue_step_texels > 0.0 &&
-          settings.position_rescue_radius_texels / (2.0 * settings.position_rescue_step_texels) <= 16.0))
-        throw std::invalid_argument("recover_heights: position rescue factor " +
-                                    std::to_string(settings.position_rescue_factor) + " / radius " +
-                                    std::to_string(settings.position_rescue_radius_texels) + " / step " +
-                                    std::to_string(settings.position_rescue_step_texels) +
-                                    " texels is invalid; expected 0 (off) or > 1 ... 1e6 / > 0 ... 16 / > 0 with "
-                                    "radius / (2 step) <= 16");
-    if (!(settings.position_outer_field_below_texels >= 0.0 && std::isfinite(settings.position_outer_field_below_texels)))
-        throw std::domain_error("recover_heights: position outer field-below " +
-                                std::to_string(settings.position_outer_field_below_texels) +
-                                " texels is invalid; expected a finite value >= 0");
-    if (settings.position_outer_stall_passes < 0 || settings.position_outer_stall_passes > 100 ||
-        !(settings.position_outer_stall_tolerance == -1.0 ||
-          (settings.position_outer_stall_tolerance >= 0.0 && settings.position_outer_stall_tolerance <= 1.0)))
-        throw std::invalid_argument("recover_heights: position outer stall passes " +
-                                    std::to_string(settings.position_outer_stall_passes) + " / tolerance " +
-                                    std::to_string(settings.position_outer_stall_tolerance) +
-                                    " is invalid; expected 0 ... 100 / 0 ... 1 (-1: the default)");
+    if (!(settings.position_rescue_radius_texels > 0.0 && settings.position_rescue_radius_texels <= 16.0))
+        throw std::invalid_argument("recover_heights: position rescue radius " +
+                                    std::to_string(settings.position_rescue_radius_texels) +
+                                    " texels is invalid; expected > 0 ... 16");
     validate_iterations(settings.refine_coarse_iterations, "recover_heights: refine coarse iterations");
     if (!(std::isfinite(settings.refine_coarse_spacing) &&
           (settings.refine_coarse_spacing == 0.0 || settings.refine_coarse_spacing >= 1.0)))
@@ -219,7 +205,7 @@ Heightfield recover_heights(const std::vector<Observation>& observations, int ro
     // From here on the ranks meet in collective calls: one rank's failure ends them all.
     return run_or_abort(comm, [&] {
         return recover_stages(observations, filled.empty() ? nullptr : &filled, by_lambda, total[0], flat, rows, cols,
-                              texel_um, vscale, settings, on_step, truth, comm, calibration);
+                              texel_um, vscale, settings, edit, on_step, truth, comm, calibration);
     });
 }
 

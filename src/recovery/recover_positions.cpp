@@ -97,7 +97,7 @@ namespace {
 // observations' losses (exact, every rank's), then per position its count marker (1 where it has
 // an observation): positions · (candidates + 1) values.
 std::vector<double> grid_losses(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                                const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                                const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                                 int half, double step_texels, const std::vector<double>& offsets_um,
                                 const Communicator& comm) {
     const std::size_t positions = offsets_um.size() / 2;
@@ -121,8 +121,8 @@ std::vector<double> grid_losses(const std::vector<Observation>& observations, co
             const std::array<double, 2> offset{
                 offsets_um[2 * p] + texel_um * step_texels * (int(c / std::size_t(side)) - half),
                 offsets_um[2 * p + 1] + texel_um * step_texels * (int(c % std::size_t(side)) - half)};
-            out[p * candidates + c] = scale * observation_misfit(heights, o, settings.refine_loss, sigma_scale, &offset,
-                                                                 settings.calibrate.exposure, false);
+            out[p * candidates + c] = scale * observation_misfit(heights, o, settings.loss, sigma_scale, &offset,
+                                                                 settings.calibrate_exposure, false);
             columns[c] = int(p * candidates + c);
         }
         out[positions * candidates + p] = 1.0;
@@ -136,7 +136,7 @@ std::vector<double> grid_losses(const std::vector<Observation>& observations, co
 // One grid of register_positions (recover_positions.h): the best point of the grid, then the
 // parabola. Returns nothing; offsets_um is updated.
 void register_grid(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                   const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                   const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                    double radius_texels, double step_texels, bool parabola, std::vector<double>& offsets_um,
                    const Communicator& comm) {
     if (!(radius_texels >= 0.0) || !(step_texels > 0.0) || !(radius_texels / step_texels <= 16.0))
@@ -177,7 +177,7 @@ void register_grid(const std::vector<Observation>& observations, const std::vect
 }  // namespace
 
 double register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                           double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm) {
     const std::vector<double> start = offsets_um;
@@ -198,7 +198,7 @@ double register_positions(const std::vector<Observation>& observations, const st
 }
 
 int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                           double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm, double* median_loss) {
     if (!(factor > 1.0) || !(radius_texels > 0.0))
@@ -263,7 +263,7 @@ int rescue_lost_positions(const std::vector<Observation>& observations, const st
 }
 
 int newton_register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                              const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                              const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                               double step_texels, double cap_texels, std::vector<double>& offsets_um,
                               const Communicator& comm) {
     if (!(step_texels > 0.0) || !(cap_texels > 0.0))
@@ -328,7 +328,7 @@ int newton_register_positions(const std::vector<Observation>& observations, cons
 
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
-                                         const RecoverSettings& settings, const StageReport& report,
+                                         const PositionFitSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um,
                                          std::vector<double>* exposures_out, double* sigma_scale,
@@ -342,17 +342,17 @@ Heightfield refine_heights_and_positions(const std::vector<Observation>& observa
     if (initial_offsets_um.size() == 2 * count)
         for (std::size_t k = 0; k < 2 * count; ++k) x[cells + k] = initial_offsets_um[k] / texel_um;
 
-    ObservationObjective objective(observations, observations_total, flat, settings.refine_loss,
-                                   settings.calibrate.exposure, sigma_scale ? *sigma_scale : 1.0, comm, &index, count);
-    RefinementRounds rounds(std::ref(objective), flat, settings.refine_history,
-                            mean_observation_loss(observations, observations_total, flat, settings.refine_loss, comm),
+    ObservationObjective objective(observations, observations_total, flat, settings.loss,
+                                   settings.calibrate_exposure, sigma_scale ? *sigma_scale : 1.0, comm, &index, count);
+    RefinementRounds rounds(std::ref(objective), flat, settings.history,
+                            mean_observation_loss(observations, observations_total, flat, settings.loss, comm),
                             report);
-    if (settings.calibrate.sigma && sigma_scale)
-        *sigma_scale = calibrate_sigma_rounds(objective, rounds, x, settings.refine_iterations, report);
+    if (settings.calibrate_sigma && sigma_scale)
+        *sigma_scale = calibrate_sigma_rounds(objective, rounds, x, settings.iterations, report);
     else
-        rounds.run(x, settings.refine_iterations);
+        rounds.run(x, settings.iterations);
     if (last_loss && rounds.reported()) *last_loss = rounds.last_loss();
-    if (settings.calibrate.exposure) {  // the exposures at the final heights (collective)
+    if (settings.calibrate_exposure) {  // the exposures at the final heights (collective)
         std::vector<double> g;
         objective(x, g);
         if (exposures_out) *exposures_out = objective.exposures();

@@ -33,6 +33,18 @@ std::vector<std::array<double, 2>> gather_positions(const std::vector<Observatio
 
 // The field stage's position correction: field_positions.h.
 
+// What the position fits read of stage 3's settings: the loss and the exposure calibration
+// (every function below); L-BFGS's iterations and history and σ_p's calibration
+// (refine_heights_and_positions only). The defaults are RecoverSettings' refine_loss and
+// refine_history; the schedule (PositionLoopSettings, stages.h) sets every field.
+struct PositionFitSettings {
+    Loss loss{LossKind::Amplitude, 1.0};
+    bool calibrate_exposure = false;
+    bool calibrate_sigma = false;
+    int iterations = 0;
+    int history = 20;
+};
+
 // Each of this rank's observations' closed-form exposure (calibration_detail.h, slice_exposure:
 // Σ R / Σ f) at `heights`, its centre moved by its position's offset (offsets_um, 2 per gathered
 // position, µm; index[i]: observation i's position) and σ_p × sigma_scale; 1 where the ratio is
@@ -46,8 +58,8 @@ std::vector<double> exposures_at(const std::vector<Observation>& observations, c
 
 // Registration at fixed heights (the outer loop of stage 3 with positions): every gathered
 // position's offset (offsets_um, 2 per position, µm, every rank's) moved where the sum of its
-// observations' losses (all its wavelengths, the full slice model, settings.refine_loss, each
-// slice's exposure its energy ratio with settings.calibrate.exposure, every σ_p × sigma_scale)
+// observations' losses (all its wavelengths, the full slice model, settings.loss, each
+// slice's exposure its energy ratio with settings.calibrate_exposure, every σ_p × sigma_scale)
 // is smallest, coarse to fine: the best
 // point of the grid {offset + 2·step·(a, b): |a|, |b| ≤ radius/(2·step)} (texels), then of the
 // grid ± step in steps of step about it (radius ≤ step: one grid ± radius in steps of step);
@@ -60,7 +72,7 @@ std::vector<double> exposures_at(const std::vector<Observation>& observations, c
 // coordinates. Throws std::invalid_argument for radius < 0, step ≤ 0, radius/(2·step) > 16 or
 // offsets_um not 2 per position.
 double register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                           double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm);
 
@@ -74,7 +86,7 @@ double register_positions(const std::vector<Observation>& observations, const st
 // median position's loss before the search (0 when no position has an observation; the outer
 // loop's stall rule on the median position). Throws std::invalid_argument for factor ≤ 1 or radius ≤ 0.
 int rescue_lost_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                          const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                          const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                           double factor, double radius_texels, double step_texels, std::vector<double>& offsets_um,
                           const Communicator& comm, double* median_loss = nullptr);
 
@@ -95,7 +107,7 @@ inline constexpr double k_newton_step_texels = 0.25;
 inline constexpr double k_newton_cap_texels = 0.5;
 
 int newton_register_positions(const std::vector<Observation>& observations, const std::vector<std::size_t>& index,
-                              const Heightfield& heights, const RecoverSettings& settings, double sigma_scale,
+                              const Heightfield& heights, const PositionFitSettings& settings, double sigma_scale,
                               double step_texels, double cap_texels, std::vector<double>& offsets_um,
                               const Communicator& comm);
 
@@ -123,13 +135,13 @@ SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 
                                            const std::vector<double>& values, int nodes);
 
 // Stage 3 with positions: L-BFGS on the heights of `estimate` and the position offsets
-// (settings.refine_iterations, refine_history, refine_loss, k_refine_relative_tolerance) on all
+// (settings.iterations, history, loss, k_refine_relative_tolerance) on all
 // ranks' observations (observations_total of them), from initial_offsets_um (2 per gathered
 // position; empty: 0). Returns the heights; offsets_um receives
 // one offset (true − stated, µm, mean 0 over the positions) per observation of this rank.
-// With settings.calibrate.exposure each slice's exposure is its energy ratio at every
+// With settings.calibrate_exposure each slice's exposure is its energy ratio at every
 // evaluation (calibration_detail.h), and exposures_out (when given) receives them at the end.
-// sigma_scale (when given): every σ_p is used × *sigma_scale; with settings.calibrate.sigma the
+// sigma_scale (when given): every σ_p is used × *sigma_scale; with settings.calibrate_sigma the
 // scale is refined as well, in the rounds of calibration_detail.h's refine_sigma_scale (a
 // golden-section search from *sigma_scale at fixed heights and offsets, then L-BFGS on both),
 // and *sigma_scale receives it. position_offsets_out (when given) receives the offsets per
@@ -138,7 +150,7 @@ SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 
 // The refinement's objective and rounds are refinement.h's, with the offsets as variables.
 Heightfield refine_heights_and_positions(const std::vector<Observation>& observations, double observations_total,
                                          const Heightfield& flat, const Heightfield& estimate,
-                                         const RecoverSettings& settings, const StageReport& report,
+                                         const PositionFitSettings& settings, const StageReport& report,
                                          const Communicator& comm, std::vector<std::array<double, 2>>& offsets_um,
                                          const std::vector<double>& initial_offsets_um = {},
                                          std::vector<double>* exposures_out = nullptr, double* sigma_scale = nullptr,

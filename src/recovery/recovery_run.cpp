@@ -512,13 +512,11 @@ void state_pipeline_settings(PreparedRecovery& r, const RecoveryOptions& options
     r.pipeline.refine_loss = r.loss;
     r.pipeline.calibrate = options.calibrate;
     // The position loop's rescue reaches as far as the stated uncertainty: ± k × it about a lost
-    // position's offset and stated centre, on a grid of the same number of points (coarser).
+    // position's offset and stated centre (the schedule keeps its grid's number of points).
     const double rescue_radius_texels = std::min(
         k_rescue_radius_per_position_uncertainty * position_uncertainty_um(options, r.texel_um) / r.texel_um, 16.0);
-    if (options.calibrate.positions && rescue_radius_texels > r.pipeline.position_rescue_radius_texels) {
-        r.pipeline.position_rescue_step_texels *= rescue_radius_texels / r.pipeline.position_rescue_radius_texels;
+    if (options.calibrate.positions && rescue_radius_texels > r.pipeline.position_rescue_radius_texels)
         r.pipeline.position_rescue_radius_texels = rescue_radius_texels;
-    }
     r.pipeline.surface.height_range_um = r.range_um;
     r.pipeline.surface.correlation_um = options.correlation_texels * r.texel_um;
     r.pipeline.surface.measured = measured_roughness;

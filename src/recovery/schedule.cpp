@@ -142,11 +142,33 @@ namespace {
 // converged or stalled runs end earlier by the stall rule
 // (experiments/2026-11-23-position-calibration.md).
 constexpr int k_position_outer_passes = 40;
-// RecoverSettings::position_outer_stall_tolerance = −1 (the default): the stall rule's relative
-// loss decrease: converging runs lower stage 3's loss by ≥ 14 % a pass to their 12th, a stalled
-// one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue brought back later, 0.05 nearly
-// did.
+// The position loop's constants (PositionLoopSettings; measured in
+// experiments/2026-11-23-position-calibration.md).
+// The loop's stop on the registration's moves: at the loop's end the registration jitters the
+// offsets by ~0.004 texel a pass, so 0.001 leaves the stopping to the stall rule.
+constexpr double k_position_outer_tolerance_texels = 0.001;
+// Later passes warm-start from the pass before (its heights, hence its objects): 20 field
+// iterations suffice there; stage 3 keeps the first pass's count.
+constexpr int k_position_outer_field_iterations = 20;
+constexpr int k_position_outer_refine_iterations = 0;
+// The rescue: a position trapped beyond the registration's ± 2 texels had a loss 100–700 × the
+// median; 20 × finds those and leaves the rest. Its coarse grid reaches radius / (2 step) = 16
+// points each side, the most register_positions allows, so the step follows the radius (0.125
+// texel at the default ± 4: the true basin can be narrower than a texel).
+constexpr double k_position_rescue_factor = 20.0;
+constexpr double k_position_rescue_points = 32.0;  // radius / step
+// A later pass skips the field stage once the registration moves the offsets by less than this
+// (rms, texels): near the end the field stage's own position steps undo the registration's last
+// 0.02 texel.
+constexpr double k_position_outer_field_below_texels = 0.05;
+// The stall rule over passes: 2 passes, 2 % (converging runs lower stage 3's loss by ≥ 14 % a
+// pass to their 12th, a stalled one by ≤ 1 %; 0.1 stopped a run whose lost cluster the rescue
+// brought back later, 0.05 nearly did). On the median position's loss: a few positions lost for
+// good dominate stage 3's loss and stop the loop while the heights elsewhere still improve by a
+// quarter a pass.
+constexpr int k_position_outer_stall_passes = 2;
 constexpr double k_position_outer_stall_tolerance = 0.02;
+constexpr bool k_position_outer_stall_median = true;
 
 }  // namespace
 
@@ -220,6 +242,30 @@ RefineSettings refine_settings(const RecoverSettings& s) {
     r.white_smoothness = s.white_smoothness;
     r.white_smoothness_iterations = s.white_smoothness_iterations;
     return r;
+}
+
+// The position loop's own settings from the run's (scheduled): stage 3's fit, the user's passes
+// and rescue radius, the loop's constants.
+PositionLoopSettings position_loop_settings(const RecoverSettings& s, bool hold_exposures) {
+    PositionLoopSettings p;
+    p.fit.loss = s.refine_loss;
+    p.fit.calibrate_exposure = s.calibrate.exposure;
+    p.fit.calibrate_sigma = s.calibrate.sigma;
+    p.fit.iterations = s.refine_iterations;
+    p.fit.history = s.refine_history;
+    p.passes = s.position_outer_passes >= 0 ? s.position_outer_passes : k_position_outer_passes;
+    p.tolerance_texels = k_position_outer_tolerance_texels;
+    p.field_iterations = k_position_outer_field_iterations;
+    p.refine_iterations = k_position_outer_refine_iterations;
+    p.rescue_factor = k_position_rescue_factor;
+    p.rescue_radius_texels = s.position_rescue_radius_texels;
+    p.rescue_step_texels = s.position_rescue_radius_texels / k_position_rescue_points;
+    p.field_below_texels = k_position_outer_field_below_texels;
+    p.stall_passes = k_position_outer_stall_passes;
+    p.stall_tolerance = k_position_outer_stall_tolerance;
+    p.stall_median = k_position_outer_stall_median;
+    p.hold_exposures = hold_exposures;
+    return p;
 }
 
 // The model check's own settings: its iterations and shortcut, the field stage's L-BFGS rule.
@@ -315,13 +361,7 @@ Schedule make_schedule(const RecoverSettings& settings_in, const StageContext& c
 
     if (settings.refine_iterations > 0 && calibrate.positions) {
         auto stage = std::make_shared<PositionLoopStage>();
-        stage->settings = settings;
-        stage->passes =
-            settings.position_outer_passes >= 0 ? settings.position_outer_passes : k_position_outer_passes;
-        stage->stall_tolerance = settings.position_outer_stall_tolerance >= 0.0
-                                     ? settings.position_outer_stall_tolerance
-                                     : k_position_outer_stall_tolerance;
-        stage->hold_exposures = hold_exposures;
+        stage->settings = position_loop_settings(settings, hold_exposures);
         stage->field = *field;
         add(stage);
     } else if (settings.refine_iterations > 0) {

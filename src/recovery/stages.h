@@ -20,6 +20,7 @@
 #include "recovery/field_proxy.h"
 #include "recovery/field_tiles.h"
 #include "recovery/recover_field_model.h"
+#include "recovery/recover_positions.h"
 #include "recovery/refinement.h"
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
@@ -210,15 +211,45 @@ struct RefineStage : Stage {
     bool run(const StageContext& context, RecoveryState& state) const override;
 };
 
+// The position loop's settings (PositionLoopStage; make_schedule sets every field: passes from
+// RecoverSettings::position_outer_passes, the rescue's radius from
+// position_rescue_radius_texels, the rest the loop's measured constants in schedule.cpp). Tests
+// and experiments/recover_study.cpp vary them through recover_heights_edited.
+struct PositionLoopSettings {
+    PositionFitSettings fit;  // stage 3 with positions (its first run's iterations)
+    int passes = 0;           // outer passes at most (0: one recovery)
+    // The loop ends when a registration moves the offsets by less than this (rms, texels; 0: never).
+    double tolerance_texels = 0.0;
+    // A later pass's L-BFGS iterations: each field's and stage 3's (0: the first pass's).
+    int field_iterations = 0;
+    int refine_iterations = 0;
+    // The rescue: positions whose loss exceeds rescue_factor × the median position's (> 1; 0:
+    // off) registered again over ± rescue_radius_texels on a grid of 2 × rescue_step_texels,
+    // then ± the step.
+    double rescue_factor = 0.0;
+    double rescue_radius_texels = 0.0;
+    double rescue_step_texels = 0.0;
+    // A later pass skips the field stage when the registration moved the offsets by less than
+    // this (rms, texels; 0: the field stage in every pass).
+    double field_below_texels = 0.0;
+    // The stall rule (core/stall_rule.h) over stall_passes passes (0: off) with stall_tolerance;
+    // stall_median: on the median position's loss at the start of a pass (with the rescue on),
+    // else on stage 3's loss after it.
+    int stall_passes = 0;
+    double stall_tolerance = 0.0;
+    bool stall_median = false;
+    bool hold_exposures = false;  // each field stage at stage 3's exposures, held
+};
+
+// Throws std::invalid_argument naming the first out-of-range field of `settings`.
+void check_position_loop(const PositionLoopSettings& settings);
+
 // Stage 3 with the positions as variables (recover_positions.h), then the position loop:
 // registration, rescue, the field stage and stage 3 again until the offsets stop moving or the
 // loss stalls. Writes estimate, offsets_um, sigma_scale, unwrapped, refined_offsets,
 // refined_sigma_scale and the calibration.
 struct PositionLoopStage : Stage {
-    RecoverSettings settings;  // position_*, refine_*, calibrate
-    int passes = 0;            // outer passes (resolved)
-    double stall_tolerance = 0.0;
-    bool hold_exposures = false;
+    PositionLoopSettings settings;
     FieldStage field;
     bool run(const StageContext& context, RecoveryState& state) const override;
 };
@@ -241,5 +272,28 @@ Schedule make_schedule(const RecoverSettings& settings, const StageContext& cont
 
 // Runs the stages in order from state (estimate: flat), stopping at the first that returns false.
 void run_schedule(const Schedule& schedule, const StageContext& context, RecoveryState& state);
+
+// Each stage of type S in `schedule` replaced by a copy with change(S&) applied: how
+// recover_heights_edited's callers vary one stage's own settings.
+template <typename S, typename Change>
+void edit_stages(Schedule& schedule, const Change& change) {
+    for (auto& stage : schedule.stages)
+        if (const S* s = dynamic_cast<const S*>(stage.get())) {
+            auto copy = std::make_shared<S>(*s);
+            change(*copy);
+            stage = std::move(copy);
+        }
+}
+
+// recover_heights with edit(schedule) applied to its schedule before the run (null: none, as
+// recover_heights): tests and experiments/recover_study.cpp vary the settings that stages hold
+// but RecoverSettings does not (e.g. the position loop's) this way.
+Heightfield recover_heights_edited(const std::vector<Observation>& observations, int rows, int cols, double texel_um,
+                                   double vscale, const RecoverSettings& settings,
+                                   const std::function<void(Schedule&)>& edit,
+                                   const std::function<bool(const StageMetrics&)>& on_step = {},
+                                   const Heightfield* truth = nullptr,
+                                   const Communicator& comm = serial_communicator(),
+                                   Calibration* calibration = nullptr);
 
 }  // namespace wavebrdf::detail
