@@ -113,9 +113,8 @@ TEST(PositionRegistration, OuterLoopReducesTheOffsetsError) {
     std::printf("offsets error (um): before %.3f, one recovery %.3f, outer loop %.3f\n", before, after_once,
                 after_outer);
     EXPECT_GT(before, 1.4);  // µm: about 0.7 texel or more
-    // Measured 0.975 -> 0.169 µm on the round-5 branch alone, 0.920 -> 0.652 µm with the fifth
-    // speed pass's float products and flushed denormals (a different path from the same start):
-    // the loop is off by default and this checks only that it reduces the error.
+    // The loop's path depends on rounding (measured: 0.80 -> 0.24 µm in two passes), so this
+    // checks only that it reduces the error.
     EXPECT_LT(after_outer, 0.8 * after_once) << "once " << after_once << " outer " << after_outer;
 }
 
@@ -246,7 +245,7 @@ TEST(PositionRegistration, OuterLoopLaterPassesRunTheirOwnIterationCounts) {
     EXPECT_LE(refine_max[1], 4);
 }
 
-// Round 8's gauge helper: a displacement that is affine (or bilinear on the nodes) is removed
+// The loop's gauge helper: a displacement that is affine (or bilinear on the nodes) is removed
 // to rounding; white noise keeps most of its rms (its smooth projection is small); bad input
 // throws.
 TEST(PositionRegistration, SmoothDisplacementRemovesAffineAndNodeFieldsAndKeepsNoise) {
@@ -358,8 +357,8 @@ TEST(PositionRegistration, RescueFindsAPositionBeyondTheRegistrationRadius) {
     double median = -1.0;
     const int searched = detail::rescue_lost_positions(c.observations, index, c.truth, settings, 1.0, 20.0, 6.0, 0.5,
                                                        rescued, serial_communicator(), &median);
-    // The median it reports (round 14's stall rule) is the median position's loss at the start
-    // offsets: each position's observations rendered in double at their shifted centres.
+    // The median it reports (the loop's stall rule reads it) is the median position's loss at the
+    // start offsets: each position's observations rendered in double at their shifted centres.
     std::vector<double> position_loss(count, 0.0);
     for (std::size_t i = 0; i < c.observations.size(); ++i) {
         Observation o = c.observations[i];
