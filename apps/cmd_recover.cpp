@@ -377,8 +377,17 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     const bool over_memory = convergence.memory_limit_bytes >= 0.0 &&
                              !check_error_bars_fit(convergence.error_bars_predicted_bytes,
                                                    convergence.memory_limit_bytes);
-    if (!quiet && (convergence.error_bars == "skipped" || convergence.error_bars == "off" ||
-                   convergence.error_bars == "unavailable"))
+    // In their place G's diagonal bounds what they would predict from below: above the target
+    // it judges (a warning), within it the noise limit is still not judged.
+    const double bound = convergence.error_lower_bound_relative;
+    if (!quiet && bound >= 0.0)
+        std::fprintf(stderr,
+                     "convergence: the error bars not computed (%s); their lower bound from the slices' Fisher "
+                     "information: %.3g %% of the height range (target <= %.0f %%)\n",
+                     convergence.error_bars_note.c_str(), 100.0 * bound, 100.0 * k_predicted_error_limit);
+    if (!quiet && !(bound > k_predicted_error_limit) &&
+        (convergence.error_bars == "skipped" || convergence.error_bars == "off" ||
+         convergence.error_bars == "unavailable"))
         std::fprintf(stderr, "convergence: the %s not judged: %s%s\n",
                      convergence.judged() ? "noise limit is" : "recovery is", convergence.error_bars_note.c_str(),
                      convergence.error_bars == "unavailable" || over_memory

@@ -66,6 +66,10 @@ py::dict convergence_dict(const ConvergenceCheck& c) {
             d["run_seconds"] = c.run_seconds;
         }
         if (c.error_bars_seconds >= 0.0) d["error_bars_seconds"] = c.error_bars_seconds;
+        if (c.error_lower_bound_relative >= 0.0) {
+            d["error_lower_bound_relative"] = c.error_lower_bound_relative;
+            d["error_lower_bound_seconds"] = c.error_lower_bound_seconds;
+        }
         if (c.error_bars_predicted_bytes >= 0.0) d["error_bars_predicted_bytes"] = c.error_bars_predicted_bytes;
         if (c.memory_limit_bytes >= 0.0) d["memory_limit_bytes"] = c.memory_limit_bytes;
     }
@@ -296,7 +300,9 @@ model_misfit_field, model_selected; with error bars median_sigma_relative,
 predicted_error_relative; where the check needed error bars, error_bars ('given', 'computed',
 'skipped', 'off', 'unavailable'), error_bars_note, and the cost rule's error_bars_predicted_seconds,
 run_seconds (CPU), error_bars_seconds, error_bars_predicted_bytes (the bars' predicted peak with what
-the run holds) and memory_limit_bytes (max_memory_gb, else the physical memory).
+the run holds) and memory_limit_bytes (max_memory_gb, else the physical memory); where the bars were
+left out for their cost or memory, error_lower_bound_relative (the rms error they would predict,
+bounded from below by the slices' Fisher information alone) and error_lower_bound_seconds (CPU).
 )doc");
     const RecoveryOptions ro;
     py::class_<RecoverKnobs> knobs(m, "RecoverSettings", R"doc(

@@ -125,6 +125,63 @@ TEST(RecoveryRun, TheChecksErrorBarsAreHeldToTheMemoryLimit) {
     EXPECT_DOUBLE_EQ(roomy.predicted_error_relative, free.predicted_error_relative);
 }
 
+// Where the check's bars are left out for their cost, G's diagonal still judges the noise limit:
+// a 16² photon-noise run of nm heights (0.005 µm range: the misfit on the floor, the slices'
+// 10⁴ photons too few for the heights) warns with the bars skipped, the bound alone beyond the
+// target, and the exact bars, computed after, predict at least as much; a run of µm heights
+// (0.3 µm, converged) gets a bound within the target and no warning. The run's CPU time is set
+// between the diagonal's predicted cost and the bars': the cost rule skips the bars, not the
+// bound.
+TEST(RecoveryRun, SkippedErrorBarsLeaveTheirLowerBoundToJudge) {
+    for (const double range_um : {0.005, 0.3}) {
+        RecoveryOptions options;
+        options.rows = options.cols = 16;
+        options.resolution = 48;
+        options.noise = parse_noise("poisson:1e4");
+        options.seed = 4;
+        options.height_range_um = range_um;
+        PreparedRecovery r = prepare_recovery(options);
+        const Heightfield estimate = run_recovery(r);
+        const ModelCheckMisfits none;
+        r.check_error_bars = CheckErrorBars::Always;
+        const ConvergenceCheck bars = judge_recovery(r, estimate, none, nullptr, false, 1e6).convergence;
+        ASSERT_EQ(bars.floor, "poisson");
+        ASSERT_EQ(bars.error_bars, "computed") << bars.error_bars_note;
+        EXPECT_LT(bars.error_lower_bound_relative, 0.0);  // bars computed: no bound asked
+        r.check_error_bars = CheckErrorBars::Auto;
+        // The bars' predicted CPU time, and a run just below it: skipped by the cost rule.
+        const double run_seconds = 0.9 * bars.error_bars_predicted_seconds;
+        const ConvergenceCheck skipped = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+        EXPECT_EQ(skipped.error_bars, "skipped");
+        EXPECT_LT(skipped.predicted_error_relative, 0.0);
+        ASSERT_GE(skipped.error_lower_bound_relative, 0.0) << "the bound was not computed";
+        EXPECT_GE(skipped.error_lower_bound_seconds, 0.0);
+        std::printf("range %.3g um: bars predict %.3g %%, the bound %.3g %%, true %s\n", range_um,
+                    100.0 * bars.predicted_error_relative, 100.0 * skipped.error_lower_bound_relative,
+                    skipped.converged ? "converged" : skipped.warning().c_str());
+        EXPECT_LE(skipped.error_lower_bound_relative, bars.predicted_error_relative * (1.0 + 1e-6));
+        if (range_um < 0.01) {
+            EXPECT_TRUE(bars.misfit_ratio < k_misfit_ratio_limit) << bars.misfit_ratio;
+            EXPECT_FALSE(skipped.converged);
+            EXPECT_FALSE(skipped.misfit_failed);
+            EXPECT_GT(skipped.error_lower_bound_relative, k_predicted_error_limit);
+            EXPECT_NE(skipped.warning().find("the recovery is likely inaccurate: the misfit is on the photon-noise "
+                                             "floor, but the slices' Fisher information bounds"),
+                      std::string::npos)
+                << skipped.warning();
+        } else {
+            EXPECT_TRUE(skipped.converged) << skipped.warning();
+            EXPECT_TRUE(bars.converged) << bars.warning();
+            EXPECT_LT(skipped.error_lower_bound_relative, k_predicted_error_limit);
+        }
+        // Off: neither the bars nor the bound.
+        r.check_error_bars = CheckErrorBars::Off;
+        const ConvergenceCheck off = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+        EXPECT_LT(off.error_lower_bound_relative, 0.0);
+        EXPECT_TRUE(off.converged);
+    }
+}
+
 // The memory half of the rule on its own: a need within the limit fits, one above it or one
 // that is not a number does not; an infinite limit (an unknown physical memory) takes any
 // finite need.

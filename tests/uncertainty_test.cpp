@@ -186,6 +186,38 @@ TEST(GaussNewtonOperator, BandOfOffsetsOnALargerTile) {
     EXPECT_LT(asymmetry, 1e-12 * test::max_abs(dense));
 }
 
+// G's diagonal alone (one forward difference per box texel, each column dotted with itself)
+// against the dense G's from central differences of render_observation, and the lower bound it
+// gives: √(mean (1 − 1/n)² / G_ii) is at most the exact bars' √(mean σ²) (Cauchy–Schwarz; a
+// bound without the (1 − 1/n)² or taken as 1 / mean G_ii the wrong way would not be a bound
+// on every tile), and no trivial one (here within a factor of 10 of the bars). A texel no slice
+// depends on has G_ii = 0: no bound.
+TEST(GaussNewtonOperator, DiagonalMatchesDenseMatrixAndBoundsTheErrorBars) {
+    const Tile t = make_tile(8, 32, 5809);
+    const std::size_t n = 64;
+    const std::vector<double> g = dense_gauss_newton(t.observations, t.truth, k_poisson.photons);
+    const GaussNewtonOperator op(t.observations, t.truth, k_poisson);
+    std::int64_t forwards = 0;
+    const std::vector<double> diagonal = op.diagonal(&forwards);
+    ASSERT_EQ(diagonal.size(), n);
+    EXPECT_EQ(forwards, op.band().forwards);
+    double largest = 0.0;
+    for (std::size_t a = 0; a < n; ++a) largest = std::max(largest, g[a * n + a]);
+    for (std::size_t a = 0; a < n; ++a) EXPECT_NEAR(diagonal[a], g[a * n + a], 1e-5 * largest) << "texel " << a;
+    const std::vector<double> exact = pseudo_inverse_diagonal(g, n);
+    double mean_variance = 0.0;
+    for (double v : exact) mean_variance += v / double(n);
+    const double bars = std::sqrt(mean_variance), bound = fisher_rms_error_lower_bound_um(diagonal);
+    std::printf("rms error: the bars %.4g um, the bound from the diagonal %.4g um\n", bars, bound);
+    EXPECT_GT(bound, 0.0);
+    EXPECT_LE(bound, bars);
+    EXPECT_GT(bound, 0.1 * bars);
+    std::vector<double> unseen = diagonal;
+    unseen[7] = 0.0;
+    EXPECT_EQ(fisher_rms_error_lower_bound_um(unseen), HUGE_VAL);
+    EXPECT_EQ(fisher_rms_error_lower_bound_um({3.0}), 0.0);
+}
+
 // The diagonal of G⁺ against the exact one (the dense G from central differences of the
 // renderer, inverted by Gauss–Jordan). The default (formed G, Cholesky) is exact up to the
 // forward differences: σ within 1e-4. Probing on the formed G (dense_max_texels 0) with one

@@ -117,6 +117,10 @@ struct ConvergenceCheck {
     // they were held to (memory_limit; −1 when the rule was not applied).
     double error_bars_predicted_bytes = -1.0, memory_limit_bytes = -1.0;
     double error_bars_seconds = -1.0;
+    // Where the bars were not computed for their cost or memory: the lower bound of the rms
+    // error they would predict (add_error_lower_bound), over the height range, and the CPU
+    // seconds G's diagonal took (else −1 both).
+    double error_lower_bound_relative = -1.0, error_lower_bound_seconds = -1.0;
     // The CPU seconds check_convergence's forwards took (each observation's slice rendered by its
     // built plan, summed over this rank's observations; rank 0's, the same on every rank): the
     // cost rule's measure of a forward.
@@ -163,6 +167,14 @@ bool needs_error_bars(const ConvergenceCheck& check);
 // over the height range (µm, > 0; else nothing is added). A reason when √(mean σ²) exceeds the
 // limit, unless the wide-bars reason (add_error_bars) is there already.
 void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sigma_um, double height_range_um);
+
+// The noise limit where the bars are not computed (their cost or memory) on photon counts
+// (floor "poisson"): the lower bound of
+// the rms error they would predict, from G's diagonal alone (fisher_rms_error_lower_bound_um,
+// uncertainty.h; µm, HUGE_VAL: a texel no slice sees), over the height range (µm, > 0; else
+// nothing is added). A reason when it exceeds k_predicted_error_limit: the bars would then
+// predict at least as much. Within the limit it passes nothing (the bars may still exceed it).
+void add_error_lower_bound(ConvergenceCheck& check, double bound_um, double height_range_um);
 
 // One slice's Poisson deviance D of its reference against `model` (the model's slice, o's size,
 // exposure applied) at `photons` > 0 per slice, and D's expectation and variance were the

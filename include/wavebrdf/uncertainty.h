@@ -114,6 +114,10 @@ public:
     // G formed (GaussNewtonBand): one forward pass per texel of each observation's gradient box,
     // then Jᵀ W J over its slice values, exact sums (collective: the same bits on every rank).
     GaussNewtonBand band() const;
+    // G's diagonal alone, G_ii in 1/µm² (rows·cols values): band()'s forward differences, each
+    // column dotted with itself only (no Jacobian kept, no products between texels, no solve).
+    // `forwards`, when given, receives the forward passes it took (all ranks). Collective.
+    std::vector<double> diagonal(std::int64_t* forwards = nullptr) const;
     // The slice values the variance was estimated from (all ranks), less the texels − 1
     // free heights (0 for poisson).
     double degrees_of_freedom() const;
@@ -148,6 +152,14 @@ struct HeightUncertainty {
 HeightUncertainty height_uncertainty(const std::vector<Observation>& observations, const Heightfield& estimate,
                                      const Loss& loss, const UncertaintySettings& settings = {},
                                      const Communicator& comm = serial_communicator());
+
+// A lower bound of the rms error the error bars predict, √(mean σ²) in µm, from G's diagonal
+// alone (GaussNewtonOperator::diagonal, 1/µm²): σ_i² ≥ (1 − 1/n)² / G_ii for the mean-free
+// heights (Cauchy–Schwarz on G⁺; G·1 = 0), so √(mean σ²) ≥ √(mean (1 − 1/n)² / G_ii). The
+// Cramér–Rao bound of each texel's height were all the others known: what the slices' photons
+// at that texel tell about it alone. HUGE_VAL where some G_ii is 0 (no slice value depends on
+// the texel); 0 for fewer than two texels.
+double fisher_rms_error_lower_bound_um(const std::vector<double>& fisher_diagonal);
 
 // Multiply-adds per CPU second that predicted_uncertainty_seconds assumes for the band's
 // products and the solve (this code's loops: the dense 64² solve ran at about this rate).
@@ -185,6 +197,10 @@ struct UncertaintyCost {
     // observation's Jacobian per thread (a double per box texel and slice value), and then the
     // dense matrix (texels² doubles) or the probes' CG vectors. `threads`: the threads it runs on.
     double bytes = 0.0;
+    // GaussNewtonOperator::diagonal alone (the lower bound above): the same forwards and a dot
+    // product per box texel and slice value; its peak bytes (the slices, the exact sum of n
+    // values and a scratch per thread).
+    double diagonal_seconds = 0.0, diagonal_bytes = 0.0;
 };
 UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& observations, const Heightfield& estimate,
                                            double pass_seconds, const UncertaintySettings& settings, int threads);

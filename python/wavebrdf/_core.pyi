@@ -836,7 +836,9 @@ class RecoveryResult:
         predicted_error_relative; where the check needed error bars, error_bars ('given', 'computed',
         'skipped', 'off', 'unavailable'), error_bars_note, and the cost rule's error_bars_predicted_seconds,
         run_seconds (CPU), error_bars_seconds, error_bars_predicted_bytes (the bars' predicted peak with what
-        the run holds) and memory_limit_bytes (max_memory_gb, else the physical memory).
+        the run holds) and memory_limit_bytes (max_memory_gb, else the physical memory); where the bars were
+        left out for their cost or memory, error_lower_bound_relative (the rms error they would predict,
+        bounded from below by the slices' Fisher information alone) and error_lower_bound_seconds (CPU).
         """
         ...
 

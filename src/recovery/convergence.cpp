@@ -263,6 +263,22 @@ bool check_error_bars_fit(double needed_bytes, double limit_bytes) {
     return needed_bytes <= limit_bytes;
 }
 
+void add_error_lower_bound(ConvergenceCheck& check, double bound_um, double height_range_um) {
+    if (!(bound_um >= 0.0) || !(height_range_um > 0.0)) return;
+    check.error_lower_bound_relative = bound_um / height_range_um;
+    if (!(check.error_lower_bound_relative > k_predicted_error_limit)) return;
+    check.converged = false;
+    const std::string bound = std::isfinite(check.error_lower_bound_relative)
+                                  ? "at least " + fixed("%.3g", 100.0 * check.error_lower_bound_relative) + " %"
+                                  : "no bound (some texel no slice value depends on)";
+    check.reasons.push_back(std::string(check.misfit_failed ? "" : "the misfit is on the photon-noise floor, but ") +
+                            "the slices' Fisher information bounds the rms height error the error bars would predict "
+                            "from below: " +
+                            bound + " of the height range (target " + fixed("%.0f", 100.0 * k_predicted_error_limit) +
+                            " %): the slices do not determine the heights that well at this photon count "
+                            "(more photons, slices or wavelengths would)");
+}
+
 void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sigma_um, double height_range_um) {
     if (sigma_um.empty() || !(height_range_um > 0.0)) return;
     double sum = 0.0;

@@ -138,6 +138,10 @@ nlohmann::json convergence_json(const ConvergenceCheck& convergence, const Prepa
             c["run_seconds"] = convergence.run_seconds;
         }
         if (convergence.error_bars_seconds >= 0.0) c["error_bars_seconds"] = convergence.error_bars_seconds;
+        if (convergence.error_lower_bound_relative >= 0.0) {
+            c["error_lower_bound_relative"] = convergence.error_lower_bound_relative;
+            c["error_lower_bound_seconds"] = convergence.error_lower_bound_seconds;
+        }
         if (convergence.error_bars_predicted_bytes >= 0.0) c["error_bars_predicted_bytes"] = convergence.error_bars_predicted_bytes;
         if (convergence.memory_limit_bytes >= 0.0) c["memory_limit_bytes"] = convergence.memory_limit_bytes;
     }

@@ -655,9 +655,9 @@ void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const
     double held = 64e6 + 3.0 * sizeof(double) * double(estimate.values().size());
     for (const Observation& o : r.observations)
         held += sizeof(float) * double(o.reference.size() + o.weights.size());
-    double costs[5] = {exact_cost.seconds, held + exact_cost.bytes, probed_cost.seconds, held + probed_cost.bytes,
-                       run_seconds};
-    comm.broadcast(costs, 5);
+    double costs[7] = {exact_cost.seconds,    held + exact_cost.bytes, probed_cost.seconds, held + probed_cost.bytes,
+                       run_seconds,           exact_cost.diagonal_seconds, held + exact_cost.diagonal_bytes};
+    comm.broadcast(costs, 7);
     const MemoryLimit limit = memory_limit(r.max_memory_gb);
     const bool exact_fits = check_error_bars_fit(costs[1], limit.bytes);
     const bool probed_fits = check_error_bars_fit(costs[3], limit.bytes);
@@ -669,6 +669,38 @@ void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const
     check.run_seconds = seconds;
     check.error_bars_predicted_bytes = needed;
     if (std::isfinite(limit.bytes)) check.memory_limit_bytes = limit.bytes;
+    // Bars left out for their cost or memory: G's diagonal alone still bounds what they would
+    // predict from below (fisher_rms_error_lower_bound_um), at the cost of their forwards only
+    // (no products between texels, no solve). Where the slices' photons are too few for the
+    // heights (nm surfaces at 10⁴ photons per slice: the misfit on the floor, the bars costlier
+    // than the short run) the bound alone exceeds the target, so the run warns without the bars;
+    // within the target it passes nothing. Held to the same cost and memory rules as the bars;
+    // photon counts only (their Fisher information is absolute, nothing estimated).
+    const auto bound_instead = [&] {
+        if (check.floor != "poisson" || !check_error_bars_fit(costs[6], limit.bytes) ||
+            (r.check_error_bars == CheckErrorBars::Auto &&
+             !check_error_bars_affordable(CheckErrorBars::Auto, costs[5], seconds)))
+            return;
+        const double cpu_before = process_cpu_seconds();
+        std::vector<double> diagonal;
+        std::string why;
+        run_or_abort(comm, [&] {
+            try {
+                diagonal = GaussNewtonOperator(r.observations, estimate, r.loss, UncertaintySettings{}.step_um, comm)
+                               .diagonal();
+            } catch (const std::domain_error& e) {
+                why = e.what();
+            } catch (const std::invalid_argument& e) {
+                why = e.what();
+            }
+            return 0;
+        });
+        double cpu = process_cpu_seconds() - cpu_before;
+        comm.broadcast(&cpu, 1);
+        if (!why.empty()) return;
+        check.error_lower_bound_seconds = cpu;
+        add_error_lower_bound(check, fisher_rms_error_lower_bound_um(diagonal), r.range_um);
+    };
     if (!check_error_bars_fit(needed, limit.bytes)) {
         check.error_bars = r.check_error_bars == CheckErrorBars::Always ? "unavailable" : "skipped";
         try {
@@ -681,6 +713,7 @@ void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const
         } catch (const OutOfMemory& e) {
             check.error_bars_note = e.what();
         }
+        bound_instead();
         return;
     }
     if (!check_error_bars_affordable(r.check_error_bars, predicted, seconds)) {
@@ -690,6 +723,7 @@ void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const
                       "the error bars would take about %.3g CPU s, more than %.3g x the recovery's %.3g CPU s",
                       predicted, k_check_error_bars_budget, seconds);
         check.error_bars_note = note;
+        bound_instead();
         return;
     }
     std::string why_not;

@@ -105,6 +105,69 @@ struct GaussNewtonOperator::Impl {
         return out;
     }
 
+    // The box texels observation i's slice depends on: those one adjoint (weights 1 … 2, fixed)
+    // writes; the others (the box's corners outside the footprint's kernels and their
+    // neighbours) have J = 0 and need no forward. Leaves the plan at the solution's heights.
+    std::vector<std::size_t> box_texels(std::size_t i) const {
+        SlicePlan<double>& plan = *plans[i];
+        const std::size_t values = slices[i].size();
+        plan.set_heights(heights);
+        plan.forward();
+        std::vector<double> probe(values), touched(heights.size(), 0.0);
+        for (std::size_t p = 0; p < values; ++p) probe[p] = 1.0 + double((p * 2654435761u) % 1024) / 1024.0;
+        plan.adjoint(probe, touched);
+        std::vector<std::size_t> texels;
+        for (int r : box_rows[i])
+            for (int c : box_cols[i]) {
+                const std::size_t t = std::size_t(r) * std::size_t(cols) + std::size_t(c);
+                if (touched[t] != 0.0) texels.push_back(t);
+            }
+        return texels;
+    }
+
+    // G's diagonal alone (normalised, raw units): per observation one forward difference per box
+    // texel, as form_band, but each column only dotted with itself (no Jacobian kept, no
+    // products between columns), exact sums over the observations and the ranks.
+    std::vector<double> form_diagonal(std::int64_t& forwards) const {
+        const std::size_t n = std::size_t(rows) * std::size_t(cols);
+        detail::ExactParallelSum sum(n, k_product_fraction_bits);
+        std::vector<int> counted(plans.size(), 0);
+        run_agreed(*comm, [&] {
+            sum.run_local(plans.size(), [&](std::size_t i, detail::ExactScratch& scratch) {
+                SlicePlan<double>& plan = *plans[i];
+                const std::vector<double>& f0 = slices[i];
+                const std::vector<double>& w = weights[i];
+                const std::vector<std::size_t> texels = box_texels(i);
+                std::vector<double> h = heights;
+                double* out = scratch.data();
+                for (const std::size_t t : texels) {
+                    h[t] = heights[t] + step_raw;
+                    plan.set_heights(h);
+                    const std::vector<double>& f = plan.forward();
+                    double g = 0.0;
+                    for (std::size_t p = 0; p < f0.size(); ++p) {
+                        const double d = (f[p] - f0[p]) / step_raw;
+                        g += w[p] * d * d;
+                    }
+                    out[t] += g;
+                    h[t] = heights[t];
+                }
+                plan.release();
+                counted[i] = int(texels.size()) + 1;
+                scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
+                return 0.0;
+            });
+        });
+        std::vector<double> total_forwards{0.0};
+        for (int c : counted) total_forwards[0] += double(c);
+        comm->allreduce_sum(total_forwards);
+        forwards = std::int64_t(total_forwards[0]);
+        sum.total().allreduce(*comm);
+        std::vector<double> diagonal(n);
+        sum.total().take_values(diagonal.data(), n);
+        return diagonal;
+    }
+
     // G formed (normalised, raw units; GaussNewtonOperator::band scales it): J of one observation
     // by one forward difference per texel of its box (its columns), then Jᵀ W J over its slice
     // values, exact sums over the observations and the ranks.
@@ -141,17 +204,7 @@ struct GaussNewtonOperator::Impl {
                 // The box texels the slice depends on: those one adjoint (weights 1 … 2, fixed)
                 // writes; the others (the box's corners outside the footprint's kernels and
                 // their neighbours) have J = 0 and need no forward.
-                plan.set_heights(heights);
-                plan.forward();
-                std::vector<double> probe(f0.size()), touched(heights.size(), 0.0);
-                for (std::size_t p = 0; p < f0.size(); ++p) probe[p] = 1.0 + double((p * 2654435761u) % 1024) / 1024.0;
-                plan.adjoint(probe, touched);
-                std::vector<std::size_t> texels;
-                for (int r : box_rows[i])
-                    for (int c : box_cols[i]) {
-                        const std::size_t t = std::size_t(r) * std::size_t(cols) + std::size_t(c);
-                        if (touched[t] != 0.0) texels.push_back(t);
-                    }
+                const std::vector<std::size_t> texels = box_texels(i);
                 std::vector<std::size_t> pixels;  // the slice values with a weight
                 for (std::size_t p = 0; p < f0.size(); ++p)
                     if (w[p] > 0.0) pixels.push_back(p);
@@ -373,6 +426,30 @@ GaussNewtonBand GaussNewtonOperator::band() const {
     const double to = m.scale / (m.to_um * m.to_um);  // normalised raw units → 1/µm²
     for (double& x : band.values) x *= to;
     return band;
+}
+
+std::vector<double> GaussNewtonOperator::diagonal(std::int64_t* forwards) const {
+    const Impl& m = *m_impl;
+    std::int64_t count = 0;
+    std::vector<double> d = m.form_diagonal(count);
+    if (forwards) *forwards = count;
+    const double to = m.scale / (m.to_um * m.to_um);  // normalised raw units → 1/µm²
+    for (double& x : d) x *= to;
+    return d;
+}
+
+double fisher_rms_error_lower_bound_um(const std::vector<double>& fisher_diagonal) {
+    const std::size_t n = fisher_diagonal.size();
+    if (n < 2) return 0.0;
+    // Var(h_i − mean h) = uᵀ G⁺ u with u = e_i − 1/n, and G·1 = 0 gives uᵀ G u = G_ii, so
+    // Cauchy–Schwarz bounds uᵀ G⁺ u ≥ (uᵀu)² / (uᵀ G u) = (1 − 1/n)² / G_ii.
+    const double keep = (1.0 - 1.0 / double(n)) * (1.0 - 1.0 / double(n));
+    double sum = 0.0;
+    for (const double g : fisher_diagonal) {
+        if (!(g > 0.0) || !std::isfinite(g)) return HUGE_VAL;  // a texel no slice value depends on
+        sum += keep / g;
+    }
+    return std::sqrt(sum / double(n));
 }
 
 std::vector<double> GaussNewtonBand::multiply(const std::vector<double>& v) const {
@@ -653,7 +730,7 @@ UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& obser
     const double workers = double(std::max(threads, 1));
     UncertaintyCost cost;
     int extent_rows = 1, extent_cols = 1;
-    double held = 0.0, jacobian = 0.0;
+    double held = 0.0, jacobian = 0.0, diagonal_madds = 0.0;
     for (const Observation& o : observations) {
         // The texels the slice depends on: the kernels within 3σ_p and their neighbours, a disk
         // of radius 3σ_p + 1 texel (SlicePlan::gradient_box's box holds them).
@@ -665,6 +742,7 @@ UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& obser
         const double values = double(o.resolution) * double(o.resolution) * double(o.channels());
         cost.forwards += touched + 2.0;
         cost.product_madds += 0.5 * touched * touched * values;
+        diagonal_madds += touched * values;
         // The slice and its weights kept per observation, its plan's bookkeeping (released
         // between uses), and the largest Jacobian one thread holds.
         held += 2.0 * sizeof(double) * values + 2048.0;
@@ -689,6 +767,8 @@ UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& obser
     cost.bytes = held + std::max(forming, solving);
     cost.seconds = k_uncertainty_forward_fraction * cost.forwards * per_forward +
                    cost.product_madds / (k_uncertainty_vector_speedup * rate) + cost.solve_madds / rate;
+    cost.diagonal_seconds = k_uncertainty_forward_fraction * cost.forwards * per_forward + diagonal_madds / rate;
+    cost.diagonal_bytes = held + n * (16.0 + sizeof(double) * (1.0 + workers));
     return cost;
 }
 
