@@ -61,6 +61,8 @@ struct RecoverArgs {
     int refine_coarse_iterations = -1;
     std::uint64_t seed = 1;
     double max_memory_gb = 0.0;          // 0: the physical memory
+    double target_error = k_default_target_error;  // photon-aware planning (photon_plan.h)
+    int max_exposures = k_default_max_exposures;
     std::string calibrate = "none";      // --calibrate (calibration.h)
     int position_passes = -1;            // --position-passes (-1: the library's)
     double position_error_texels = 0.0;  // --simulate-position-error-texels
@@ -202,6 +204,8 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     options.epochs = a.epochs;
     options.seed = a.seed;
     options.max_memory_gb = a.max_memory_gb;
+    options.target_error = a.target_error;
+    options.max_exposures = a.max_exposures;
     options.calibrate = parse_calibration(a.calibrate, "--calibrate");
     options.position_passes = a.position_passes;
     options.errors.position_rms_texels = a.position_error_texels;
@@ -269,6 +273,7 @@ void run(const RecoverArgs& a, const Communicator& comm) {
             d.add(text);
         for (double v : {options.texel_um, options.vscale, options.height_range_um, options.correlation_texels,
                          options.omega_i[0], options.omega_i[1], a.sigma_p_um, a.overlap, a.jitter, a.sigma_factor,
+                         a.target_error, double(a.max_exposures),
                          a.position_error_texels, options.refine_coarse_spacing, options.refine_coarse_weight})
             d.add(v);
         for (long long v : {static_cast<long long>(options.seed), static_cast<long long>(a.resolution),
@@ -554,6 +559,14 @@ void add_recover_command(CLI::App& app) {
                     "the floor, or a loss without a noise level): auto (computed when predicted to take at most "
                     "the recovery's CPU time), always, or off; either way within --max-memory-gb")
         ->default_str("auto");
+    cmd->add_option("--target-error", a->target_error,
+                    "photon noise: the rms height error the planner aims at, a fraction of the truth's peak to "
+                    "valley (0: off); where the planned slices' error bars predict more, every slice is taken "
+                    "as several exposures of the --noise photons, summed")
+        ->capture_default_str();
+    cmd->add_option("--max-exposures", a->max_exposures,
+                    "photon noise: at most this many exposures per slice for --target-error (1 to 10000)")
+        ->capture_default_str();
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
     add_conditioning_options(cmd, a->conditioning);

@@ -82,7 +82,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        double sigma_p_um, const py::object& position_uncertainty_um, int resolution,
                        const py::object& lambdas_um, int spectral, const py::object& noise, const py::object& loss,
                        const std::string& method, const py::object& calibrate, bool with_uncertainty,
-                       const std::string& check_error_bars, std::uint64_t seed, const py::object& callback,
+                       const std::string& check_error_bars, double target_error, int max_exposures,
+                       std::uint64_t seed, const py::object& callback,
                        double max_memory_gb, const py::object& quiet, const py::object& comm_arg,
                        const py::object& settings, const py::kwargs& old_keywords) {
     const RecoverKnobs k = knobs_argument(
@@ -148,6 +149,8 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     } catch (const std::invalid_argument&) {
         bad_argument("check_error_bars", "'" + check_error_bars + "'", "'auto', 'always' or 'off'");
     }
+    options.target_error = target_error;  // prepare_recovery checks both ranges
+    options.max_exposures = max_exposures;
     options.calibrate = calibrate_argument(calibrate);
     options.position_passes = optional_count(k.position_passes, "position_passes");
     options.errors.position_rms_texels = knob<double>(k.simulate_position_error_texels,
@@ -435,7 +438,7 @@ refine_history  L-BFGS history of the refinement (>= 1); refine_loss: 'amplitude
           "sigma_p_um"_a = ro.sigma_p_um, "position_uncertainty_um"_a = py::none(), "resolution"_a = ro.resolution,
           "lambdas_um"_a = py::none(), "spectral"_a = ro.spectral, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "calibrate"_a = py::none(), "uncertainty"_a = false, "check_error_bars"_a = "auto",
-          "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb, "quiet"_a = py::none(),
+          "target_error"_a = ro.target_error, "max_exposures"_a = ro.max_exposures, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb, "quiet"_a = py::none(),
           "comm"_a = py::none(), "settings"_a = py::none(), R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -480,6 +483,11 @@ check_error_bars  the convergence check's own error bars where it needs them (ph
               the misfit on the floor, or a loss without a noise level): 'auto' (computed when
               predicted to take at most the recovery's own CPU time), 'always' or 'off' (the
               CLI's --check-error-bars; result.convergence['error_bars'] says what was done)
+target_error  photon noise: the rms height error the planner aims at, a fraction of the truth's
+              peak to valley (default 0.01; 0: off): where the planned slices' error bars predict
+              more, every slice is taken as several exposures of the noise's N photons, summed
+              (result.noise then says k*N; result.notes says why), at most max_exposures
+              (1 ... 10000, default 16); the CLI's --target-error, --max-exposures
 seed          generated truth, position jitter, noise, the thesis's draws
 callback      callback(metrics: dict with stage, kind, total (the stage's planned iterations, 0
               for a result: what the progress bars show), iteration, loss, seconds,

@@ -77,7 +77,8 @@ TEST(RealScansCli, ARecoveryThatDidNotConvergeSaysSoWithoutTheTruth) {
 // the target, and the bars say that too.
 TEST(RealScansCli, AFitOfThePhotonNoiseIsCalledLikelyInaccurateWithoutTheTruth) {
     const fs::path dir = fresh_dir("realscans");
-    const CliResult nm = run_cli(dir, kNoisy + " --height-range-um 0.02 --out nm");
+    // One exposure per slice (the photon-aware planner off): the photon limit as it comes.
+    const CliResult nm = run_cli(dir, kNoisy + " --height-range-um 0.02 --target-error 0 --out nm");
     ASSERT_EQ(nm.exit_code, 0) << nm.err;
     const nlohmann::json run = run_json(dir / "nm");
     // The misfit cannot tell: on the floor.
@@ -107,7 +108,7 @@ TEST(RealScansCli, AFitOfThePhotonNoiseIsCalledLikelyInaccurateWithoutTheTruth) 
 // noise limit was not judged (run.json and the log); a mode it does not know is refused.
 TEST(RealScansCli, TheChecksErrorBarsTurnedOffSayTheNoiseLimitIsNotJudged) {
     const fs::path dir = fresh_dir("realscans");
-    const CliResult off = run_cli(dir, kNoisy + " --height-range-um 0.02 --check-error-bars off --out off");
+    const CliResult off = run_cli(dir, kNoisy + " --height-range-um 0.02 --target-error 0 --check-error-bars off --out off");
     ASSERT_EQ(off.exit_code, 0) << off.err;
     EXPECT_FALSE(contains(off.err, "likely inaccurate")) << off.err;
     EXPECT_TRUE(contains(off.err, "convergence: the noise limit is not judged: the check's error bars are off"))

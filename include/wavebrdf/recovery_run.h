@@ -22,6 +22,7 @@
 #include "wavebrdf/noise.h"
 #include "wavebrdf/observation.h"
 #include "wavebrdf/option_style.h"
+#include "wavebrdf/photon_plan.h"
 #include "wavebrdf/recover.h"
 #include "wavebrdf/scalar_observations.h"
 #include "wavebrdf/uncertainty.h"
@@ -93,6 +94,11 @@ struct RecoveryOptions {
     std::optional<double> overlap;
     double jitter = 0.2;
     Noise noise;  // simulated on the rendered observations (a truth only)
+    // Photon-aware planning (photon_plan.h), with Poisson noise and the loss matched to it: the
+    // target rms height error, a fraction of the truth's peak to valley (0 … 1; 0: off), and the
+    // most exposures of N photons (noise's N, per exposure) summed into a slice (1 … 10^4).
+    double target_error = k_default_target_error;
+    int max_exposures = k_default_max_exposures;
     // How the observations of a truth are simulated: the Gabor model (render_observation) or
     // the independent scalar-diffraction simulator (scalar_diffraction.h, OHS / ROHS only).
     Simulator simulator = Simulator::Gabor;
@@ -158,8 +164,10 @@ struct PreparedRecovery {
     double texel_um = 0.0, vscale = 1.0;  // of the estimate
     double range_um = 0.0;                // the truth's peak-to-valley, else options.height_range_um
     RecoveryMethod method = RecoveryMethod::Pipeline;
-    Noise noise;
+    Noise noise;  // of the slices as recovered: with photon_plan, its exposures summed (k·N photons)
     Loss loss;
+    // The photon-aware plan (options.target_error), where it was evaluated.
+    std::optional<PhotonPlan> photon_plan;
     RecoverSettings pipeline;           // used when method is Pipeline
     BaselineSettings thesis;            // used when method is Thesis
     std::vector<std::string> notes;     // the plan's (none with given observations)

@@ -1129,7 +1129,7 @@ def read_slice(path: Union[str, os.PathLike]) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., position_uncertainty_um: Any = ..., resolution: int = ..., lambdas_um: Any = ..., spectral: int = ..., noise: Any = ..., loss: Any = ..., method: str = ..., calibrate: Any = ..., uncertainty: bool = ..., check_error_bars: str = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., settings: Any = ..., **kwargs: Any) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., position_uncertainty_um: Any = ..., resolution: int = ..., lambdas_um: Any = ..., spectral: int = ..., noise: Any = ..., loss: Any = ..., method: str = ..., calibrate: Any = ..., uncertainty: bool = ..., check_error_bars: str = ..., target_error: float = ..., max_exposures: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., settings: Any = ..., **kwargs: Any) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -1173,6 +1173,11 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   the misfit on the floor, or a loss without a noise level): 'auto' (computed when
                   predicted to take at most the recovery's own CPU time), 'always' or 'off' (the
                   CLI's --check-error-bars; result.convergence['error_bars'] says what was done)
+    target_error  photon noise: the rms height error the planner aims at, a fraction of the truth's
+                  peak to valley (default 0.01; 0: off): where the planned slices' error bars predict
+                  more, every slice is taken as several exposures of the noise's N photons, summed
+                  (result.noise then says k*N; result.notes says why), at most max_exposures
+                  (1 ... 10000, default 16); the CLI's --target-error, --max-exposures
     seed          generated truth, position jitter, noise, the thesis's draws
     callback      callback(metrics: dict with stage, kind, total (the stage's planned iterations, 0
                   for a result: what the progress bars show), iteration, loss, seconds,

@@ -50,6 +50,20 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
         run["sigma_p_um"] = r.observations.front().query.sigma_p_um;
         run["resolution"] = r.observations.front().resolution;
     }
+    if (r.photon_plan) {
+        const PhotonPlan& p = *r.photon_plan;
+        run["photon_plan"] = {{"photons_per_exposure", p.photons},
+                              {"exposures", p.exposures},
+                              {"target_error", p.target},
+                              {"max_exposures", options.max_exposures},
+                              {"capped", p.capped},
+                              {"predicted_error_one_exposure", p.single_rms_um / p.range_um},
+                              {"predicted_error", p.rms_um / p.range_um},
+                              {"predicted_rms_um", p.rms_um},
+                              {"proxy_size", std::to_string(p.proxy_rows) + "x" + std::to_string(p.proxy_cols)},
+                              {"proxy_observations", p.proxy_observations},
+                              {"seconds", p.seconds}};
+    }
     if (options.simulator != Simulator::Gabor) run["simulator"] = to_string(options.simulator);
     if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
     return run;

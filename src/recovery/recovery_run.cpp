@@ -268,6 +268,13 @@ void check_recovery_options(const RecoveryOptions& options, const RecoveryInputs
         throw std::invalid_argument(name("overlap") + " " + detail::format_shortest(*options.overlap) +
                                     " is invalid; expected 0.6 to 0.95 (unset: the planner's, 0.6, or 0.8 with the "
                                     "positions calibrated)");
+    if (!(std::isfinite(options.target_error) && options.target_error >= 0.0 && options.target_error <= 1.0))
+        throw std::invalid_argument(name("target_error") + " " + detail::format_shortest(options.target_error) +
+                                    " is invalid; expected 0 (no photon planning) to 1 (a fraction of the peak to "
+                                    "valley)");
+    if (options.max_exposures < 1 || options.max_exposures > 10000)
+        throw std::invalid_argument(name("max_exposures") + " " + std::to_string(options.max_exposures) +
+                                    " is invalid; expected 1 to 10000 exposures per slice");
     if (!std::isfinite(options.max_memory_gb) || options.max_memory_gb < 0.0)
         throw std::invalid_argument(name("max_memory_gb") + " " + detail::format_shortest(options.max_memory_gb) +
                                     " is invalid; expected a limit in GB > 0, or 0 for the physical memory");
@@ -434,6 +441,21 @@ TruthAcquisition plan_truth_acquisition(const PreparedRecovery& r, const Recover
     return a;
 }
 
+// The photon-aware plan (photon_plan.h) of a truth's acquisition, into r.photon_plan: with
+// Poisson noise, the loss matched to it (a loss of one's own states its own photons), laser
+// slices (the white-light slices' channels share their photons) and a target. True when it
+// asks for more than one exposure per slice.
+bool plan_photons(PreparedRecovery& r, const RecoveryOptions& options, const AcquisitionPlan& plan) {
+    if (options.noise.kind != NoiseKind::Poisson || options.target_error <= 0.0 || options.loss ||
+        options.method != RecoveryMethod::Pipeline || !plan.white_lambdas_um.empty() || !(r.range_um > 0.0))
+        return false;
+    PhotonPlanSettings settings;
+    settings.target = options.target_error;
+    settings.max_exposures = options.max_exposures;
+    r.photon_plan = plan_exposures(*r.truth, plan, options.noise.level, r.range_um, settings);
+    return r.photon_plan->exposures > 1;
+}
+
 // With acquisition errors: the true (perturbed) acquisition the observations are rendered for;
 // `offsets` gets each position's offset (µm).
 AcquisitionPlan perturbed_plan(const AcquisitionPlan& plan, const AcquisitionErrors& e, double texel_um,
@@ -569,7 +591,15 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         TruthAcquisition a = plan_truth_acquisition(r, options, truth != nullptr);
         measured = std::move(a.measured);
         measured_roughness = std::move(a.measured_roughness);
-        simulate_planned_observations(r, options, a.plan, limit, show_progress, comm, catalogue);
+        // Photon-limited: k exposures of N photons per slice, summed, are one slice of k·N.
+        RecoveryOptions exposed = options;
+        if (plan_photons(r, options, a.plan)) {
+            exposed.noise.level *= double(r.photon_plan->exposures);
+            r.noise = exposed.noise;
+            r.loss = recovery_loss(exposed);
+        }
+        simulate_planned_observations(r, exposed, a.plan, limit, show_progress, comm, catalogue);
+        if (r.photon_plan) r.notes.push_back(r.photon_plan->note);
     }
     if (r.truth) {
         const HeightStats stats = height_stats(*r.truth);

@@ -141,7 +141,8 @@ def test_a_converged_study_says_so():
 def test_the_checks_error_bars_follow_check_error_bars():
     # Photon counts on nm heights: the misfit on the floor, the bars (default: by the cost rule;
     # 'always' here, the rule being timing-dependent) warn; 'off' leaves the noise limit unjudged.
-    kw = dict(size=16, resolution=48, noise="poisson:1e4", seed=4, height_range_um=0.02, quiet=True)
+    kw = dict(size=16, resolution=48, noise="poisson:1e4", seed=4, height_range_um=0.02, quiet=True,
+              target_error=0)  # one exposure per slice: the photon limit as it comes
     on = wb.recover(check_error_bars="always", **kw)
     assert on.convergence["error_bars"] == "computed"
     assert on.convergence["predicted_error_relative"] > 0.01
