@@ -139,6 +139,9 @@ void run(DesignArgs a) {
     progress.finish();
     write_design_directory(a.out, result, a.force);
     if (!a.no_plots) draw_report(RunKind::Design, a.out);
+    // A broken limit is said even with --quiet.
+    for (const auto& w : nlohmann::json::parse(result.metrics_json).value("warnings", nlohmann::json::array()))
+        std::cerr << "design: warning: " << w.get<std::string>() << "\n";
     if (!a.quiet) {
         const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
         if (j.contains("brightness_trade") && j["brightness_trade"]["blocks"].get<int>() > 0) {
@@ -259,6 +262,12 @@ void add_design_command(CLI::App& app) {
         ->delimiter(',')
         ->expected(2);
     cmd->add_option("--specular-cone", a->options.specular_cone, "anti-mirror: sin of the mirror cone's half-angle")
+        ->capture_default_str();
+    cmd->add_option("--cone-limit", a->options.cone_limit,
+                    "anti-mirror: most fraction of the reflected power in the cone at any wavelength")
+        ->capture_default_str();
+    cmd->add_option("--uniformity-limit", a->options.uniformity_limit,
+                    "anti-mirror: most std/mean of the region's 16 bins at any wavelength")
         ->capture_default_str();
     cmd->add_option("--region", a->region, "anti-mirror: annulus:R1,R2 or disk:R about the mirror direction")
         ->capture_default_str();

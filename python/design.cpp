@@ -13,7 +13,8 @@ namespace {
 
 py::dict design(const std::string& target, const py::object& image, const py::object& out, bool force,
                 std::array<double, 2> light, const py::object& lambda_um, const py::object& spectral,
-                std::array<double, 2> band_um, double specular_cone, const std::string& region, double window,
+                std::array<double, 2> band_um, double specular_cone, double cone_limit, double uniformity_limit,
+                const std::string& region, double window,
                 const py::object& view, double view_cone, int size, double texel_um, double height_range_um,
                 int levels, double level_step_um, double min_feature_um, const std::string& fabrication_error,
                 std::uint64_t seed, int iterations, int refine_passes, double max_memory_gb,
@@ -42,6 +43,8 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     }
     o.band_um = band_um;
     o.specular_cone = specular_cone;
+    o.cone_limit = cone_limit;
+    o.uniformity_limit = uniformity_limit;
     o.region = region;
     o.window = window;
     if (!view.is_none() && o.target.kind == DesignKind::Iridescent)
@@ -67,6 +70,11 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     for (const DesignStep& s : result.curve)
         curve.append(py::make_tuple(s.iteration, s.loss, s.phase, s.temperature));
     const py::object info = py::module_::import("json").attr("loads")(result.metrics_json);
+    // A limit the exported relief breaks (design.json warnings) is a Python warning too.
+    if (info.contains("warnings"))
+        for (const auto& w : info["warnings"])
+            if (PyErr_WarnEx(PyExc_UserWarning, ("design: " + w.cast<std::string>()).c_str(), 1) != 0)
+                throw py::error_already_set();
     return py::dict("heights_um"_a = heights, "level"_a = level, "levels_um"_a = result.levels_um,
                     "lambdas_um"_a = result.lambdas_um, "texel_um"_a = result.texel_um, "target"_a = target_picture,
                     "far_field"_a = far_field, "picture_extent"_a = result.picture_extent, "curve"_a = curve,
@@ -97,7 +105,7 @@ void bind_design(py::module_& m) {
     m.def("design", &design, "target"_a = "anti-mirror", "image"_a = py::none(), "out"_a = py::none(),
           "force"_a = false, "light"_a = std::array<double, 2>{{0.0, 0.0}}, "lambda_um"_a = py::none(),
           "spectral"_a = py::none(), "band_um"_a = std::array<double, 2>{{0.36, 0.83}}, "specular_cone"_a = 0.05,
-          "region"_a = "annulus:0.1,0.5", "window"_a = 0.3, "view"_a = py::none(), "view_cone"_a = 0.05,
+          "cone_limit"_a = 0.002, "uniformity_limit"_a = 0.25, "region"_a = "annulus:0.1,0.5", "window"_a = 0.3, "view"_a = py::none(), "view_cone"_a = 0.05,
           "size"_a = 256, "texel_um"_a = 0.5, "height_range_um"_a = 2.0, "levels"_a = 8, "level_step_um"_a = 0.0,
           "min_feature_um"_a = 0.0, "fabrication_error"_a = "", "seed"_a = 1, "iterations"_a = 200,
           "refine_passes"_a = 60, "max_memory_gb"_a = 0.0, "delta_uv_tolerance"_a = 0.0, "delta_uv_ceiling"_a = 0.04,
@@ -106,8 +114,8 @@ void bind_design(py::module_& m) {
 target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
 pairs), 'brdf:TABLE.exr' (a wavebrdf table or lobe file; its lights and wavelengths), or 'pattern' with
 image= (a 2-D grey array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
-or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, region
-(anti-mirror), window (pattern), view (default the mirror direction), view_cone,
+or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, cone_limit,
+uniformity_limit, region (anti-mirror; a limit the relief breaks is also a UserWarning), window (pattern), view (default the mirror direction), view_cone,
 delta_uv_tolerance and delta_uv_ceiling (colour, iridescent) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule),
 min_feature_um with levels=0 (a grayscale relief: no lateral detail finer than it),
 fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.

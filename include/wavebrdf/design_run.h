@@ -84,6 +84,12 @@ struct DesignOptions {
     // Anti-mirror.
     double specular_cone = 0.05;
     std::string region = "annulus:0.1,0.5";  // or disk:R, about the mirror direction
+    // The limits the design keeps at every wavelength while it maximises the region's fraction:
+    // the cone's fraction of the reflected power and the region's uniformity (std/mean of its 16
+    // bins). The loop aims a little inside them; a final relief above either is reported in
+    // design.json's warnings (docs/design.md).
+    double cone_limit = 0.002;
+    double uniformity_limit = 0.25;
     // Pattern: the window's half-width about the mirror direction.
     double window = 0.3;
     // Colour: the view direction (unset: the mirror direction) and its cone (iridescent: the

@@ -661,10 +661,13 @@ PreparedDesign prepare_design(const DesignOptions& options) {
         case DesignKind::AntiMirror: {
             const Region region = parse_region(o.region);
             require_range(o.specular_cone, 1e-4, 0.5, "--specular-cone", "1e-4 to 0.5");
+            require_range(o.cone_limit, 1e-6, 1.0, "--cone-limit", "1e-6 to 1 (a fraction of the reflected power)");
+            // 16 bins' std/mean is at most sqrt(15) (all the light in one bin).
+            require_range(o.uniformity_limit, 1e-3, 3.87, "--uniformity-limit", "1e-3 to 3.87 (std/mean of 16 bins)");
             if (!(mirror_r + region.r2 < 1.0))
                 throw std::domain_error("--region " + o.region + " about the mirror direction reaches |omega_o| = " +
                                         num(mirror_r + region.r2) + "; expected the region inside the visible disk (< 1)");
-            p.target = detail::make_anti_mirror({o.specular_cone, region.r1, region.r2});
+            p.target = detail::make_anti_mirror({o.specular_cone, region.r1, region.r2, o.cone_limit, o.uniformity_limit});
             break;
         }
         case DesignKind::Pattern: {
@@ -783,7 +786,15 @@ struct RelaxedLevels {
     std::vector<int> level;
     Fractions fractions;
     double seconds = 0.0;
+    int multiplier_updates = 0;
 };
+
+// A constrained target's blocks (target.h): the relaxed phase moves its multipliers
+// k_relaxed_blocks times, the discrete refinement runs in k_refine_blocks blocks with a move
+// between them, and a relief that still breaks a limit gets up to k_repair_blocks more blocks of
+// refinement, each with ρ doubled and the multipliers moved first.
+constexpr int k_relaxed_blocks = 10, k_refine_blocks = 4, k_repair_blocks = 4;
+int multiplier_block(int steps, int blocks) { return std::max(1, (steps + blocks - 1) / blocks); }
 
 // Relaxed phase: softmax over the levels per texel, p = softmax(θ / τ), τ annealed from
 // k_tau_start to k_tau_end, Adam on θ; then each texel's most likely level. A grayscale run
@@ -835,11 +846,18 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
         }
     };
     const auto relaxed_start = Clock::now();
+    int updates = 0;
     for (int it = 0; !grayscale && it < o.iterations && !stopped; ++it) {
         const double frac = o.iterations > 1 ? static_cast<double>(it) / (o.iterations - 1) : 1.0;
         const double tau = k_tau_start * std::pow(k_tau_end / k_tau_start, frac);
         softmax(tau);
         const double loss = evaluator.evaluate(weights, &grad, &out.fractions);
+        // A constrained target's multipliers move at the end of each block, from the fractions
+        // the block ended on; the next block optimises against them.
+        if (p.target->constrained() && (it + 1) % multiplier_block(o.iterations, k_relaxed_blocks) == 0) {
+            p.target->update_multipliers(out.fractions);
+            ++updates;
+        }
         // Through the softmax: ∂L/∂θ_ℓ = p_ℓ (g_ℓ − Σ_j p_j g_j) / τ; then Adam.
         const double c1 = 1.0 - std::pow(k_b1, it + 1), c2 = 1.0 - std::pow(k_b2, it + 1);
         for (std::size_t t = 0; t < n2; ++t) {
@@ -861,6 +879,7 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
         return out;
     }
     out.seconds = seconds_since(relaxed_start);
+    out.multiplier_updates = updates;
     // Quantise: each texel's most likely level.
     out.level.resize(n2);
     for (std::size_t t = 0; t < n2; ++t) {
@@ -954,6 +973,50 @@ double refine_levels(const PreparedDesign& p, RefineLoss& refine_loss, std::vect
             fraction /= 4.0;
         }
         report({"refine", iteration0 + pass + 1, loss, fraction});
+    }
+    return loss;
+}
+
+// The discrete refinement; a constrained target's runs in k_refine_blocks blocks with its
+// multipliers moved between them at the relief's fractions (the loop's model of the relief is its
+// exact scalar diffraction), then, while the relief breaks one of the user's limits, repair blocks
+// (k_repair_blocks at most). Returns the final loss at the final multipliers.
+struct ConstrainedRefine {
+    int updates = 0, repair_blocks = 0;
+};
+double refine_constrained(const PreparedDesign& p, detail::Evaluator& evaluator, RefineLoss& refine_loss,
+                          std::vector<int>& level, const std::function<void(const DesignStep&)>& report,
+                          const bool& stopped, ConstrainedRefine& c) {
+    const DesignOptions& o = p.options;
+    const int iteration = o.iterations;
+    if (!p.target->constrained() || o.min_feature_um != 0.0)
+        return refine_levels(p, refine_loss, level, o.refine_passes, iteration, report, stopped);
+    auto nominal = [&] {
+        Fractions f;
+        (void)evaluator.evaluate(one_hot(level, o.levels), nullptr, &f);
+        return f;
+    };
+    const int block = multiplier_block(o.refine_passes, k_refine_blocks);
+    double loss = 0.0;
+    int done = 0;
+    do {
+        const int passes = std::min(block, o.refine_passes - done);
+        if (done > 0) {
+            p.target->update_multipliers(nominal());
+            ++c.updates;
+        }
+        loss = refine_levels(p, refine_loss, level, passes, iteration + done, report, stopped);
+        done += passes;
+    } while (done < o.refine_passes && !stopped);
+    while (!stopped && o.refine_passes > 0 && c.repair_blocks < k_repair_blocks) {
+        const Fractions f = nominal();
+        if (p.target->broken_limits(f).empty()) break;
+        p.target->stiffen();
+        p.target->update_multipliers(f);
+        ++c.updates;
+        loss = refine_levels(p, refine_loss, level, block, iteration + done, report, stopped);
+        done += block;
+        ++c.repair_blocks;
     }
     return loss;
 }
@@ -1202,6 +1265,8 @@ nlohmann::json target_json(const DesignOptions& o) {
     if (o.target.kind == DesignKind::AntiMirror) {
         const Region g = parse_region(o.region);
         target["specular_cone"] = o.specular_cone;
+        target["cone_limit"] = o.cone_limit;
+        target["uniformity_limit"] = o.uniformity_limit;
         target["region"] = o.region;
         target["region_r1"] = g.r1;
         target["region_r2"] = g.r2;
@@ -1334,11 +1399,13 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         if (on_step && !on_step(s)) stopped = true;
     };
 
+    p.target->reset_multipliers();
     RelaxedLevels relaxed = relaxed_levels(p, evaluator, report, stopped);
     std::vector<int> level = std::move(relaxed.level);
     const auto refine_start = Clock::now();
     RefineLoss refine_loss(p, evaluator, scales.size());
-    double loss = refine_levels(p, refine_loss, level, o.refine_passes, o.iterations, report, stopped);
+    ConstrainedRefine constrained;
+    double loss = refine_constrained(p, evaluator, refine_loss, level, report, stopped, constrained);
     const double refine_seconds = seconds_since(refine_start);
     const BrightnessTrade trade = trade_for_brightness(p, evaluator, refine_loss, level, loss, report, stopped);
 
@@ -1357,6 +1424,15 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         o.target.kind == DesignKind::Colour ? add_colour_reach(p, scores, survey_views, j) : std::vector<std::string>{};
     j["notes"] = p.notes;
     for (const std::string& note : colour_notes) j["notes"].push_back(note);
+    // A constrained target's limits, checked on the exported relief's exact scalar diffraction.
+    j["warnings"] = p.target->broken_limits(scores.exact);
+    if (p.target->constrained()) {
+        j["constraint_loop"] = p.target->constraints_json();
+        j["constraint_loop"]["relaxed_updates"] = relaxed.multiplier_updates;
+        j["constraint_loop"]["refine_updates"] = constrained.updates;
+        j["constraint_loop"]["repair_blocks"] = constrained.repair_blocks;
+        j["constraint_loop"]["limits_met"] = j["warnings"].empty();
+    }
     j["timings_s"] = {{"relaxed", relaxed.seconds}, {"refine", refine_seconds}, {"brightness_trade", trade.seconds},
                       {"metrics", metrics_seconds}, {"total", seconds_since(start)}};
     r.metrics_json = j.dump(2);

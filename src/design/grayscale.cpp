@@ -65,6 +65,9 @@ std::vector<int> grayscale_design(const PreparedDesign& p, Evaluator& evaluator,
     constexpr double k_rate = 0.1, k_b1 = 0.9, k_b2 = 0.999;
     for (int it = 0; it < o.iterations && !stopped; ++it) {
         const double loss = grayscale_loss(filter, evaluator, o.height_range_um, K, z, &grad, &relaxed_fractions);
+        // A constrained target's multipliers move at the end of each tenth of the iterations.
+        if (p.target->constrained() && (it + 1) % std::max(1, (o.iterations + 9) / 10) == 0)
+            p.target->update_multipliers(relaxed_fractions);
         const double c1 = 1.0 - std::pow(k_b1, it + 1), c2 = 1.0 - std::pow(k_b2, it + 1);
         for (std::size_t t = 0; t < n2; ++t) {
             m1[t] = k_b1 * m1[t] + (1.0 - k_b1) * grad[t];

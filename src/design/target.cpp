@@ -33,8 +33,10 @@ public:
 
     void assign(const std::vector<OrderSet>& sets) override {
         m_members.assign(sets.size(), {});
+        m_lambdas.clear();
         for (std::size_t w = 0; w < sets.size(); ++w) {
             const OrderSet& s = sets[w];
+            m_lambdas.push_back(s.lambda_um);
             auto& mem = m_members[w];
             mem.assign(s.size(), {{-1, -1}});
             for (std::size_t o = 0; o < s.size(); ++o) {
@@ -66,12 +68,9 @@ public:
         return ring * 4 + quadrant;
     }
 
-    // Per wavelength: weight_specular · s + (1 − r) + weight_uniformity · max(0, u − u_free)²,
-    // u = std/mean of the bins, averaged over the wavelengths. The uniformity costs nothing
-    // below u_free: a penalty on all of u (u² at any size) made the loop buy uniformity where it
-    // was already good, at the wavelengths in the middle of the band, with region it then lacked,
-    // while the worst wavelength stayed as it was; the hinge spends the relief on the wavelengths
-    // whose bins are uneven.
+    // Per wavelength, averaged over the wavelengths: (1 − region) plus the augmented-Lagrangian
+    // terms (target.h) of the two constraints against the loop's aims inside the limits:
+    // g_cone = ln(cone / aim_cone) and g_u = ln(u / aim_u), u = std/mean of the bins.
     double loss(const Fractions& f, Fractions* gradient) const override {
         const std::size_t W = f.size();
         if (gradient) {
@@ -79,33 +78,82 @@ public:
             for (std::size_t w = 0; w < W; ++w) (*gradient)[w].assign(f[w].size(), 0.0);
         }
         const double scale = 1.0 / static_cast<double>(W);
+        const double aim_cone = k_anti_mirror_aim * m_spec.cone_limit, aim_u = k_anti_mirror_aim * m_spec.uniformity_limit;
         double total = 0.0;
         for (std::size_t w = 0; w < W; ++w) {
             const auto& g = f[w];
-            double r = 0.0;
-            for (int q = 1; q <= 16; ++q) r += g[static_cast<std::size_t>(q)];
-            const double mean_bin = r / 16.0;
-            double var = 0.0;
-            for (int q = 1; q <= 16; ++q) var += (g[static_cast<std::size_t>(q)] - mean_bin) * (g[static_cast<std::size_t>(q)] - mean_bin);
-            var /= 16.0;
-            const double m2 = std::max(mean_bin * mean_bin, 1e-30);
-            const double u = std::sqrt(var / m2);
-            const double excess = std::max(0.0, u - k_uniformity_free);
-            total += scale * (k_weight_specular * g[0] + (1.0 - r) + k_weight_uniformity * excess * excess);
+            const Bins b = bins(g);
+            const double lc = multiplier(m_lambda_cone, w), lu = multiplier(m_lambda_u, w);
+            const double pc = std::max(0.0, lc + m_rho * excess(g[0], aim_cone));
+            const double pu = std::max(0.0, lu + m_rho * excess(b.u, aim_u));
+            total += scale * ((1.0 - b.r) + (pc * pc - lc * lc) / (2.0 * m_rho) + (pu * pu - lu * lu) / (2.0 * m_rho));
             if (gradient) {
                 auto& d = (*gradient)[w];
-                d[0] = scale * k_weight_specular;
-                // u² = var/mean²: ∂u²/∂b_q = 2(b_q − mean)/(16 mean²) − 2 var/(mean³ · 16);
-                // ∂(excess²) = 2 excess ∂u = excess ∂u² / u.
-                const double dexcess = u > 0.0 ? excess / u : 0.0;
+                d[0] = scale * pc * excess_slope(g[0], aim_cone);
+                // u² = var/mean²: ∂u²/∂b_q = 2(b_q − mean)/(16 mean²) − 2 var/(mean³ · 16), ∂u = ∂u²/(2u).
+                const double du_scale = b.u > 0.0 ? pu * excess_slope(b.u, aim_u) / (2.0 * b.u) : 0.0;
                 for (int q = 1; q <= 16; ++q) {
                     const double bq = g[static_cast<std::size_t>(q)];
-                    const double du2 = 2.0 * (bq - mean_bin) / (16.0 * m2) - 2.0 * var / (m2 * std::max(mean_bin, 1e-15) * 16.0);
-                    d[static_cast<std::size_t>(q)] = scale * (-1.0 + k_weight_uniformity * dexcess * du2);
+                    const double du2 = 2.0 * (bq - b.mean) / (16.0 * b.m2) - 2.0 * b.var / (b.m2 * std::max(b.mean, 1e-15) * 16.0);
+                    d[static_cast<std::size_t>(q)] = scale * (-1.0 + du_scale * du2);
                 }
             }
         }
         return total;
+    }
+
+    bool constrained() const override { return true; }
+    void reset_multipliers() override {
+        m_lambda_cone.clear();
+        m_lambda_u.clear();
+        m_rho = k_rho;
+    }
+    void update_multipliers(const Fractions& f) override {
+        const double aim_cone = k_anti_mirror_aim * m_spec.cone_limit, aim_u = k_anti_mirror_aim * m_spec.uniformity_limit;
+        m_lambda_cone.resize(f.size(), 0.0);
+        m_lambda_u.resize(f.size(), 0.0);
+        for (std::size_t w = 0; w < f.size(); ++w) {
+            m_lambda_cone[w] = std::max(0.0, m_lambda_cone[w] + m_rho * excess(f[w][0], aim_cone));
+            m_lambda_u[w] = std::max(0.0, m_lambda_u[w] + m_rho * excess(bins(f[w]).u, aim_u));
+        }
+    }
+    void stiffen() override { m_rho *= 2.0; }
+
+    std::vector<std::string> broken_limits(const Fractions& f) const override {
+        std::vector<std::string> out;
+        auto line = [&](const char* what, const char* option, double limit, auto value_of) {
+            int count = 0;
+            double worst_value = 0.0, worst_lambda = 0.0;
+            for (std::size_t w = 0; w < f.size(); ++w) {
+                const double v = value_of(f[w]);
+                if (!(v > limit)) continue;
+                ++count;
+                if (v > worst_value) {
+                    worst_value = v;
+                    worst_lambda = w < m_lambdas.size() ? m_lambdas[w] : 0.0;
+                }
+            }
+            if (count > 0)
+                out.push_back(std::string(what) + " " + num(worst_value) + " at " + num(worst_lambda) + " um is above " +
+                              option + " " + num(limit) + " (" + std::to_string(count) + " of " + std::to_string(f.size()) +
+                              " wavelengths above it)");
+        };
+        line("the cone's fraction", "--cone-limit", m_spec.cone_limit, [](const std::vector<double>& g) { return g[0]; });
+        line("the region's uniformity", "--uniformity-limit", m_spec.uniformity_limit,
+             [this](const std::vector<double>& g) { return bins(g).u; });
+        return out;
+    }
+
+    nlohmann::json constraints_json() const override {
+        return {{"what", "the region's mean fraction maximised subject to, at every wavelength, the cone's fraction <= "
+                         "cone_limit and the uniformity <= uniformity_limit; the loop aims at aim x each limit with an "
+                         "augmented Lagrangian, multipliers moved between blocks"},
+                {"cone_limit", m_spec.cone_limit},
+                {"uniformity_limit", m_spec.uniformity_limit},
+                {"aim", k_anti_mirror_aim},
+                {"rho", m_rho},
+                {"cone_multipliers", m_lambda_cone},
+                {"uniformity_multipliers", m_lambda_u}};
     }
 
     nlohmann::json metrics(const Fractions& f) const override {
@@ -142,11 +190,41 @@ public:
     }
 
 private:
+    struct Bins {
+        double r = 0.0, mean = 0.0, var = 0.0, m2 = 0.0, u = 0.0;
+    };
+    static Bins bins(const std::vector<double>& g) {
+        Bins b;
+        for (int q = 1; q <= 16; ++q) b.r += g[static_cast<std::size_t>(q)];
+        b.mean = b.r / 16.0;
+        for (int q = 1; q <= 16; ++q) b.var += (g[static_cast<std::size_t>(q)] - b.mean) * (g[static_cast<std::size_t>(q)] - b.mean);
+        b.var /= 16.0;
+        b.m2 = std::max(b.mean * b.mean, 1e-30);
+        b.u = std::sqrt(b.var / b.m2);
+        return b;
+    }
+    // A constraint x ≤ aim as g = ln(x / aim) ≤ 0: a relief far inside (g → −∞) lowers the
+    // multiplier to 0 in one block, while x / aim − 1 ≥ −1 would lower it by ρ at most per block,
+    // and a violation early in the relaxed phase (the start's cone holds several times the
+    // aim) raises it by ln of the ratio, not the ratio, so it does not hold the cone far inside the
+    // aim for the blocks after. Measured (64², 0.165 µm steps, seed 17): 81.2 % against 79.8 %
+    // with x / aim − 1 at ρ = 1.
+    static double excess(double x, double aim) { return std::log(std::max(x, 1e-12 * aim) / aim); }
+    static double excess_slope(double x, double aim) { return x > 1e-12 * aim ? 1.0 / x : 0.0; }
+    static double multiplier(const std::vector<double>& lambda, std::size_t w) { return w < lambda.size() ? lambda[w] : 0.0; }
+
     static constexpr std::size_t k_inside = 17, k_beyond = 18;
-    static constexpr double k_weight_specular = 100.0;
-    static constexpr double k_weight_uniformity = 20.0;
-    static constexpr double k_uniformity_free = 0.2;
+    // ρ in units of the region's fraction per unit of ln(x / aim): a limit broken by 10 % costs
+    // 0.05 % of region light per wavelength before its multiplier moves, and each block moves the
+    // multiplier by ρ ln(x / aim). A soft ρ lets the relaxed phase keep its region and leaves the
+    // limits to the multipliers and, where the relief still breaks one, the repair blocks (ρ
+    // doubled each). Measured (64², 0.165 µm steps, seed 17, the final relief): ρ 3: 79.3 %,
+    // 1: 81.2 %, 0.3: 82.1 %, 0.1: 83.1 % (two repair blocks), 0.03: 82.7 % (four).
+    static constexpr double k_rho = 0.1;
     AntiMirrorSpec m_spec;
+    std::vector<double> m_lambdas;
+    std::vector<double> m_lambda_cone, m_lambda_u;
+    double m_rho = k_rho;
 };
 
 // Pattern: one group per image pixel over the window (rows along ω_x); the binned far field

@@ -38,6 +38,21 @@ public:
     // The Δu′v′ the colour loss of view cone `cone` does not count (colour_loss; colour: cone 0,
     // iridescent: one per pair, in order); other targets have none.
     virtual void set_delta_uv_tolerance(std::size_t /*cone*/, double /*tolerance*/) {}
+    // A constrained target (the anti-mirror) maximises one metric subject to limits on others.
+    // Each constraint g ≤ 0 enters the loss as the augmented-Lagrangian term
+    // (max(0, λ + ρ g)² − λ²) / (2ρ), whose multiplier λ the loop moves between blocks of the
+    // optimisation (update_multipliers: λ ← max(0, λ + ρ g) at the block's fractions), so that it
+    // grows while the constraint is violated and falls while it holds: the design settles on the
+    // limits rather than at a fixed trade against them. Other targets have no constraints.
+    virtual bool constrained() const { return false; }
+    virtual void reset_multipliers() {}
+    virtual void update_multipliers(const Fractions& /*f*/) {}
+    // Doubles ρ (a repair block: the relief still breaks a limit).
+    virtual void stiffen() {}
+    // Which user limits the fractions break, one line each (empty: all met).
+    virtual std::vector<std::string> broken_limits(const Fractions& /*f*/) const { return {}; }
+    // The constraints' state for design.json (null for an unconstrained target).
+    virtual nlohmann::json constraints_json() const { return nullptr; }
     // What the target picture holds on a size × size grid of ω_o about the mirror direction
     // (target.exr): rows along ω_x.
     const std::vector<std::vector<std::array<int, 2>>>& members() const { return m_members; }
@@ -54,10 +69,17 @@ Fractions group_fractions(const Target& target, const std::vector<std::vector<do
 void flux_gradient(const Target& target, const std::vector<std::vector<double>>& flux, const Fractions& f,
                    const Fractions& df, std::vector<std::vector<double>>& gradient);
 
+// The anti-mirror maximises the region's mean fraction over the wavelengths subject to, at every
+// wavelength, the cone's fraction ≤ cone_limit and the region's uniformity ≤ uniformity_limit; the
+// loop aims a margin inside each limit (k_anti_mirror_aim of it), since the relaxed mixtures it
+// moves the multipliers on are not quite the final relief.
 struct AntiMirrorSpec {
     double specular_cone = 0.05;  // sin of the cone's half-angle about the mirror direction
     double r1 = 0.1, r2 = 0.5;    // the region: r1 ≤ |ω_o − ω_mirror| ≤ r2 (disk: r1 = 0)
+    double cone_limit = 0.002;     // fraction of the reflected power in the cone, per wavelength
+    double uniformity_limit = 0.25;  // std/mean of the region's 16 bins, per wavelength
 };
+constexpr double k_anti_mirror_aim = 0.95;
 std::unique_ptr<Target> make_anti_mirror(const AntiMirrorSpec& spec);
 
 struct PatternSpec {
