@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "wavebrdf/constants.h"
 #include <numeric>
@@ -121,6 +122,11 @@ public:
 
     std::vector<std::string> broken_limits(const Fractions& f) const override {
         std::vector<std::string> out;
+        auto three = [](double v) {
+            char buffer[32];
+            std::snprintf(buffer, sizeof buffer, "%.3g", v);
+            return std::string(buffer);
+        };
         auto line = [&](const char* what, const char* option, double limit, auto value_of) {
             int count = 0;
             double worst_value = 0.0, worst_lambda = 0.0;
@@ -134,7 +140,7 @@ public:
                 }
             }
             if (count > 0)
-                out.push_back(std::string(what) + " " + num(worst_value) + " at " + num(worst_lambda) + " um is above " +
+                out.push_back(std::string(what) + " " + three(worst_value) + " at " + three(worst_lambda) + " um is above " +
                               option + " " + num(limit) + " (" + std::to_string(count) + " of " + std::to_string(f.size()) +
                               " wavelengths above it)");
         };
