@@ -895,14 +895,14 @@ def condition_surface(heights_um: Any, dx_um: float, dy_um: Any = ..., fill: str
     """
     ...
 
-def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ...) -> dict:
+def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., cone_limit: float = ..., uniformity_limit: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ...) -> dict:
     """A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
     target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
     pairs), 'brdf:TABLE.exr' (a wavebrdf table or lobe file; its lights and wavelengths), or 'pattern' with
     image= (a 2-D grey array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
-    or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, region
-    (anti-mirror), window (pattern), view (default the mirror direction), view_cone,
+    or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, cone_limit,
+    uniformity_limit, region (anti-mirror; a limit the relief breaks is also a UserWarning), window (pattern), view (default the mirror direction), view_cone,
     delta_uv_tolerance and delta_uv_ceiling (colour, iridescent) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule),
     min_feature_um with levels=0 (a grayscale relief: no lateral detail finer than it),
     fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
