@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -96,6 +97,69 @@ TEST(Convergence, TheTruthSitsOnThePhotonNoiseFloorAndAWrongSurfaceDoesNot) {
     EXPECT_GT(off.misfit_ratio, k_misfit_ratio_limit);
     EXPECT_NE(off.warning().find("did not converge"), std::string::npos) << off.warning();
     EXPECT_NE(off.warning().find("photon noise"), std::string::npos) << off.warning();
+}
+
+// A slice's limit against published χ² quantiles (a χ²_ν is a Gamma of mean ν, variance 2ν): the
+// 0.99 quantile of χ²₁₀₀ is 135.807, the 0.9999 quantile of χ²₃₀ is 67.633 (1 − 0.01/100). No
+// light, no limit.
+TEST(Convergence, TheSliceLimitIsTheGammaQuantileAtTheBonferroniLevel) {
+    EXPECT_NEAR(slice_deviance_limit(100.0, 200.0, 1.0), 135.807, 0.005 * 135.807);
+    EXPECT_NEAR(slice_deviance_limit(30.0, 60.0, 100.0), 67.633, 0.005 * 67.633);
+    EXPECT_GT(slice_deviance_limit(30.0, 60.0, 1e4), slice_deviance_limit(30.0, 60.0, 100.0));
+    EXPECT_EQ(slice_deviance_limit(0.0, 0.0, 10.0), HUGE_VAL);
+}
+
+// A local error the whole misfit cannot see: a 64² tile of µm heights seen at 256 positions, and
+// the truth with one pit of 2×2 texels 0.015 µm deep (a phase error of 0.38 rad at 0.5 µm, 2
+// texels wide: a feature the footprints of a few positions hold). At the truth no slice is off its floor (five noise draws);
+// with the pit the summed misfit stays on its floor (256 slices outweigh the few that hold it)
+// while the slices over the pit are off theirs, the worst centred within 2 σ_p of it.
+TEST(Convergence, ALocalErrorIsSeenSliceBySlice) {
+    SurfaceParams sp;
+    sp.rows = sp.cols = 64;
+    sp.texel_um = 1.0;
+    sp.correlation_um = 6.0;
+    sp.seed = 9;
+    const Heightfield truth = with_height_range(generate_heightfield(sp).with_scale(1.0, 1.0), 0.5);
+    std::vector<Observation> clean;
+    for (int a = 0; a < 16; ++a)
+        for (int b = 0; b < 16; ++b) {
+            Observation o;
+            o.query.x_um = 2.0 + 4.0 * a;
+            o.query.y_um = 2.0 + 4.0 * b;
+            o.query.sigma_p_um = 2.0;
+            o.lambdas_um = {0.5};
+            o.resolution = 32;
+            o.reference = to_reference(render_observation(truth, o));
+            clean.push_back(std::move(o));
+        }
+    for (std::uint64_t seed : {11, 12, 13, 14, 15}) {
+        std::vector<Observation> noisy = clean;
+        add_noise(noisy, Noise{NoiseKind::Poisson, 1e4}, seed);
+        const ConvergenceCheck at_truth = check_convergence(noisy, truth, 1e4, false);
+        EXPECT_EQ(at_truth.slices_off_floor, 0) << "seed " << seed << ": " << at_truth.warning();
+        EXPECT_TRUE(at_truth.converged) << at_truth.warning();
+        EXPECT_LT(at_truth.worst_slice_excess, 1.0);
+    }
+    std::vector<Observation> noisy = clean;
+    add_noise(noisy, Noise{NoiseKind::Poisson, 1e4}, 11);
+    std::vector<double> pit = truth.values();
+    const int r0 = 30, c0 = 41;
+    for (int i = r0; i < r0 + 2; ++i)
+        for (int j = c0; j < c0 + 2; ++j) pit[std::size_t(i) * 64 + std::size_t(j)] -= 0.015;
+    const ConvergenceCheck off = check_convergence(noisy, truth.with_values(pit), 1e4, false);
+    std::printf("with the pit: misfit %.4f x the floor (sd %.3g of %.4g), %d slices off their floor, the worst %.3g x "
+                "its limit at (%.1f, %.1f) um\n",
+                off.misfit_ratio, off.deviance_sd, off.expected_deviance, off.slices_off_floor,
+                off.worst_slice_excess, off.worst_slice_x_um, off.worst_slice_y_um);
+    EXPECT_TRUE(misfit_on_photon_floor(off.deviance, off.expected_deviance, off.deviance_sd));
+    EXPECT_GE(off.slices_off_floor, 1);
+    EXPECT_FALSE(off.converged);
+    EXPECT_TRUE(off.misfit_failed);
+    EXPECT_LT(std::hypot(off.worst_slice_x_um - (r0 + 1.0), off.worst_slice_y_um - (c0 + 1.0)), 4.0);
+    EXPECT_NE(off.warning().find("the recovery did not converge: "), std::string::npos) << off.warning();
+    EXPECT_NE(off.warning().find("slices are above their own photon-noise floor"), std::string::npos)
+        << off.warning();
 }
 
 TEST(Convergence, NoiselessSlicesAreJudgedByTheirRounding) {

@@ -831,7 +831,8 @@ class RecoveryResult:
         'noiseless': a study's exact slices, 'none': the misfit not judged), relative_misfit, reasons
         (list of str), warning (str, '' when converged), judged (bool: a floor or error bars judged the
         run; False: reported only); with 'poisson' also deviance, expected_deviance, deviance_sd,
-        misfit_ratio (deviance / its noise floor); after the model check model_misfit_gabor,
+        misfit_ratio (deviance / its noise floor), slices_off_floor (slices above their own floor) and
+        worst_slice_excess, worst_slice_x_um, worst_slice_y_um (the worst one's deviance over its limit, its centre); after the model check model_misfit_gabor,
         model_misfit_field, model_selected; with error bars median_sigma_relative,
         predicted_error_relative; where the check needed error bars, error_bars ('given', 'computed',
         'skipped', 'off', 'unavailable'), error_bars_note, and the cost rule's error_bars_predicted_seconds,

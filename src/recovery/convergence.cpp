@@ -61,11 +61,34 @@ SliceDeviance slice_photon_deviance(const Observation& o, const std::vector<doub
         const double mu = s * std::max(model[p], 0.0), k = s * std::max(double(o.reference[p]), 0.0);
         double e = 0.0, v = 0.0;
         poisson_deviance_moments(mu, e, v);
-        d.deviance += w * deviance_term(k, mu);
+        const double term = deviance_term(k, mu);
+        d.deviance += w * term;
         d.expected += w * e;
         d.variance += w * w * v;
+        if (mu >= k_slice_bright_photons) {
+            d.bright_deviance += w * term;
+            d.bright_expected += w * e;
+            d.bright_variance += w * w * v;
+        }
     }
     return d;
+}
+
+double slice_deviance_limit(double expected, double variance, double slices) {
+    if (!(expected > 0.0 && variance > 0.0 && slices >= 1.0) || !std::isfinite(expected) || !std::isfinite(variance))
+        return HUGE_VAL;
+    // The normal quantile z of 1 − α/M by bisection on the upper tail ½ erfc(z/√2).
+    const double p = k_slice_false_alarm / slices;
+    double lo = 0.0, hi = 40.0;
+    for (int it = 0; it < 200; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (0.5 * std::erfc(mid / std::sqrt(2.0)) > p ? lo : hi) = mid;
+    }
+    const double z = 0.5 * (lo + hi);
+    // Gamma of shape k = E²/Var: (X/E)^(1/3) ≈ normal, mean 1 − 1/(9k), variance 1/(9k).
+    const double c = variance / (9.0 * expected * expected);
+    const double root = 1.0 - c + z * std::sqrt(c);
+    return expected * root * root * root;
 }
 
 bool misfit_on_photon_floor(double deviance, double expected, double sd) {
@@ -127,6 +150,7 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
     // Per observation, summed in order afterwards (the same bits for any thread count):
     // deviance, its expectation and variance, Σ(√I − √R)², Σ R.
     std::vector<double> dev(n, 0.0), mean(n, 0.0), var(n, 0.0), amp(n, 0.0), energy(n, 0.0);
+    std::vector<double> bright_dev(n, 0.0), bright_mean(n, 0.0), bright_var(n, 0.0);
     std::vector<std::string> errors(n);
     std::vector<double> forward_seconds(n, 0.0);  // each observation's slice plan built and rendered
 #pragma omp parallel for schedule(dynamic, 1)
@@ -167,6 +191,9 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
                 dev[i] = d.deviance;
                 mean[i] = d.expected;
                 var[i] = d.variance;
+                bright_dev[i] = d.bright_deviance;
+                bright_mean[i] = d.bright_expected;
+                bright_var[i] = d.bright_variance;
             }
         } catch (const std::exception& e) {
             errors[i] = e.what();
@@ -204,6 +231,46 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
                                     "x what photon noise leaves (deviance " + fixed("%.4g", check.deviance) +
                                     ", expected " + fixed("%.4g", check.expected_deviance) + " +- " +
                                     fixed("%.2g", check.deviance_sd) + ")");
+        }
+        // Each slice against its own floor (k_slice_false_alarm): the count over every rank,
+        // and the worst slice (each rank's worst in its own slot, then summed).
+        std::vector<double> slices{double(n)};
+        comm.allreduce_sum(slices);
+        std::vector<double> worst(3 * std::size_t(comm.size()) + 1, 0.0);
+        double& off = worst.back();
+        double local_worst = -1.0;
+        for (std::size_t i = 0; i < n; ++i) {
+            const double limit = slice_deviance_limit(bright_mean[i], bright_var[i], slices[0]);
+            if (!std::isfinite(limit)) continue;
+            const double excess = bright_dev[i] / limit;
+            if (excess > 1.0) off += 1.0;
+            if (excess > local_worst) {
+                local_worst = excess;
+                double* slot = worst.data() + 3 * std::size_t(comm.rank());
+                slot[0] = excess;
+                slot[1] = observations[i].query.x_um;
+                slot[2] = observations[i].query.y_um;
+            }
+        }
+        comm.allreduce_sum(worst);
+        check.slices_off_floor = int(off);
+        for (int r = 0; r < comm.size(); ++r) {
+            const double* slot = worst.data() + 3 * std::size_t(r);
+            if (slot[0] > check.worst_slice_excess) {
+                check.worst_slice_excess = slot[0];
+                check.worst_slice_x_um = slot[1];
+                check.worst_slice_y_um = slot[2];
+            }
+        }
+        if (check.slices_off_floor > 0) {
+            check.converged = false;
+            check.misfit_failed = true;
+            check.reasons.push_back(
+                std::to_string(check.slices_off_floor) + " of " + fixed("%.0f", slices[0]) +
+                " slices are above their own photon-noise floor (the worst, centred at x " +
+                fixed("%.1f", check.worst_slice_x_um) + " um, y " + fixed("%.1f", check.worst_slice_y_um) + " um, " +
+                fixed("%.3g", check.worst_slice_excess) + "x its limit on the pixels of >= 1 expected photon): the "
+                "heights under those footprints are not explained (a pit, spike or step the fit did not resolve)");
         }
     } else if (noiseless) {
         check.floor = "noiseless";

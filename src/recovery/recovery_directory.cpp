@@ -134,6 +134,10 @@ nlohmann::json convergence_json(const ConvergenceCheck& convergence, const Prepa
         c["expected_deviance"] = convergence.expected_deviance;
         c["deviance_sd"] = convergence.deviance_sd;
         c["misfit_ratio"] = convergence.misfit_ratio;
+        c["slices_off_floor"] = convergence.slices_off_floor;
+        c["worst_slice_excess"] = convergence.worst_slice_excess;
+        c["worst_slice_x_um"] = convergence.worst_slice_x_um;
+        c["worst_slice_y_um"] = convergence.worst_slice_y_um;
     }
     if (!convergence.model_selected.empty()) {
         c["model_misfit_gabor"] = convergence.model_misfit_gabor;
