@@ -99,12 +99,13 @@ TEST(Convergence, TheTruthSitsOnThePhotonNoiseFloorAndAWrongSurfaceDoesNot) {
     EXPECT_NE(off.warning().find("photon noise"), std::string::npos) << off.warning();
 }
 
-// A slice's limit against published χ² quantiles (a χ²_ν is a Gamma of mean ν, variance 2ν): the
-// 0.99 quantile of χ²₁₀₀ is 135.807, the 0.9999 quantile of χ²₃₀ is 67.633 (1 − 0.01/100). No
-// light, no limit.
+// A slice's limit against χ² quantiles (a χ²_ν is a Gamma of mean ν, variance 2ν; the values
+// from scipy.stats.chi2.ppf): the 1 − 10⁻⁴ quantile of χ²₁₀₀ is 161.319, the 1 − 10⁻⁶ quantile
+// of χ²₃₀ (10⁻⁴ over 100 slices) is 82.044. No light, no limit.
 TEST(Convergence, TheSliceLimitIsTheGammaQuantileAtTheBonferroniLevel) {
-    EXPECT_NEAR(slice_deviance_limit(100.0, 200.0, 1.0), 135.807, 0.005 * 135.807);
-    EXPECT_NEAR(slice_deviance_limit(30.0, 60.0, 100.0), 67.633, 0.005 * 67.633);
+    ASSERT_EQ(k_slice_false_alarm, 1e-4);
+    EXPECT_NEAR(slice_deviance_limit(100.0, 200.0, 1.0), 161.319, 0.005 * 161.319);
+    EXPECT_NEAR(slice_deviance_limit(30.0, 60.0, 100.0), 82.044, 0.01 * 82.044);
     EXPECT_GT(slice_deviance_limit(30.0, 60.0, 1e4), slice_deviance_limit(30.0, 60.0, 100.0));
     EXPECT_EQ(slice_deviance_limit(0.0, 0.0, 10.0), HUGE_VAL);
 }
@@ -153,7 +154,7 @@ TEST(Convergence, ALocalErrorIsSeenSliceBySlice) {
                 off.misfit_ratio, off.deviance_sd, off.expected_deviance, off.slices_off_floor,
                 off.worst_slice_excess, off.worst_slice_x_um, off.worst_slice_y_um);
     EXPECT_TRUE(misfit_on_photon_floor(off.deviance, off.expected_deviance, off.deviance_sd));
-    EXPECT_GE(off.slices_off_floor, 1);
+    EXPECT_GE(off.slices_off_floor, k_slices_off_floor_min);
     EXPECT_FALSE(off.converged);
     EXPECT_TRUE(off.misfit_failed);
     EXPECT_LT(std::hypot(off.worst_slice_x_um - (r0 + 1.0), off.worst_slice_y_um - (c0 + 1.0)), 4.0);

@@ -262,7 +262,7 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
                 check.worst_slice_y_um = slot[2];
             }
         }
-        if (check.slices_off_floor > 0) {
+        if (check.slices_off_floor >= k_slices_off_floor_min) {
             check.converged = false;
             check.misfit_failed = true;
             check.reasons.push_back(
