@@ -125,13 +125,11 @@ TEST(RecoveryRun, TheChecksErrorBarsAreHeldToTheMemoryLimit) {
     EXPECT_DOUBLE_EQ(roomy.predicted_error_relative, free.predicted_error_relative);
 }
 
-// Where the check's bars are left out for their cost, G's diagonal still judges the noise limit:
+// Where the check's bars are left out (here by the memory rule), G's diagonal still judges the noise limit:
 // a 16² photon-noise run of nm heights (0.005 µm range: the misfit on the floor, the slices'
 // 10⁴ photons too few for the heights) warns with the bars skipped, the bound alone beyond the
 // target, and the exact bars, computed after, predict at least as much; a run of µm heights
-// (0.3 µm, converged) gets a bound within the target and no warning. The run's CPU time is set
-// between the diagonal's predicted cost and the bars': the cost rule skips the bars, not the
-// bound.
+// (0.3 µm, converged) gets a bound within the target and no warning.
 TEST(RecoveryRun, SkippedErrorBarsLeaveTheirLowerBoundToJudge) {
     for (const double range_um : {0.005, 0.3}) {
         RecoveryOptions options;
@@ -150,10 +148,19 @@ TEST(RecoveryRun, SkippedErrorBarsLeaveTheirLowerBoundToJudge) {
         ASSERT_EQ(bars.error_bars, "computed") << bars.error_bars_note;
         EXPECT_LT(bars.error_lower_bound_relative, 0.0);  // bars computed: no bound asked
         r.check_error_bars = CheckErrorBars::Auto;
-        // The bars' predicted CPU time, and a run just below it: skipped by the cost rule.
-        const double run_seconds = 0.9 * bars.error_bars_predicted_seconds;
-        const ConvergenceCheck skipped = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
-        EXPECT_EQ(skipped.error_bars, "skipped");
+        // Bars left out by the memory rule, whose predictions are counts of bytes (the cost
+        // rule's are timings: a bound predicted at 0.9 x the bars' time under one build is
+        // over it under another): a limit just below the bars' need, and just below the other
+        // solve's too where that one fits under the first limit. G's diagonal needs far less.
+        const double run_seconds = 1e6;
+        r.max_memory_gb = (1.0 - 1e-6) * bars.error_bars_predicted_bytes / 1e9;
+        ConvergenceCheck skipped = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+        if (skipped.error_bars == "computed") {
+            r.max_memory_gb = (1.0 - 1e-6) * skipped.error_bars_predicted_bytes / 1e9;
+            skipped = judge_recovery(r, estimate, none, nullptr, false, run_seconds).convergence;
+        }
+        r.max_memory_gb = 0.0;
+        EXPECT_EQ(skipped.error_bars, "skipped") << skipped.error_bars_note;
         EXPECT_LT(skipped.predicted_error_relative, 0.0);
         ASSERT_GE(skipped.error_lower_bound_relative, 0.0) << "the bound was not computed";
         EXPECT_GE(skipped.error_lower_bound_seconds, 0.0);
