@@ -4,8 +4,9 @@
 make_report(DIR) writes DIR/report.png: the target beside the achieved far field (linear and
 log), the colour swatches target / achieved when the target is a colour (with a line on the
 brightness trade when its blocks ran), the height map with
-its level histogram, the loss curve, and the metrics under the design model, under exact scalar
-diffraction and under each fabrication error.
+its level histogram, the loss curve, the metrics under the design model, under exact scalar
+diffraction and under each fabrication error, and, when design.json has `warnings` (a limit the
+exported relief still breaks, ...), a panel along the bottom that lists them.
 
 DIR layout (docs/design.md): design.json (required: target, constraints, levels_um, metrics
 {model, exact, ...}, fabrication_errors [{error, metrics}], notes), heights.exr (µm = value ·
@@ -228,6 +229,17 @@ def brightness_trade_text(doc):
         join("%.1f" % (100 * y) for y in after))
 
 
+def warnings_lines(doc):
+    """design.json's `warnings`, each as the text the report's warnings panel shows (wrapped to
+    the panel's width); [] when the run has none. A value that is not a list of strings is shown
+    as it is, so that a warning is never dropped for its form."""
+    w = _get(doc, "warnings", default=[])
+    if w in (None, []):
+        return []
+    items = w if isinstance(w, list) else [w]
+    return [_wrap(x if isinstance(x, str) else json.dumps(x), 180) for x in items]
+
+
 def make_report(directory):
     """Writes directory/report.png and returns its path. Raises ReportError for an unusable file."""
     doc = read_design_json(directory)
@@ -244,7 +256,12 @@ def make_report(directory):
         extent = _get(doc, "target", "window", default=None)
         extent = extent if isinstance(extent, (int, float)) else None
 
-    fig, axes = plt.subplots(2, 4, figsize=(19, 9))
+    # The warnings panel: a band along the bottom, one line of text per wrapped line.
+    warnings = warnings_lines(doc)
+    band = 0.0
+    if warnings:
+        band = 0.25 + 0.2 * sum(w.count("\n") + 1 for w in warnings)  # inches
+    fig, axes = plt.subplots(2, 4, figsize=(19, 9 + band))
     title = "wavebrdf design: target %s" % _get(doc, "target", "text", default=kind)
     parts = []
     if "size" in constraints:
@@ -405,7 +422,16 @@ def make_report(directory):
     else:
         ax.text(0.5, 0.5, "no metrics in design.json", ha="center", va="center", fontsize=8)
 
-    fig.tight_layout(rect=(0, 0, 1, 0.94))
+    # The panels keep their 9 inches and the title its space; the warnings take the band below.
+    bottom = band / (9 + band)
+    fig.tight_layout(rect=(0, bottom, 1, 1 - 0.06 * 9 / (9 + band)))
+    if warnings:
+        ax = fig.add_axes((0.01, 0.1 * bottom, 0.98, 0.85 * bottom))
+        ax.axis("off")
+        ax.add_patch(plt.Rectangle((0, 0), 1, 1, transform=ax.transAxes, facecolor="#fff1e0", edgecolor="#c05000",
+                                   lw=1.5))
+        ax.text(0.005, 0.5, "\n".join("warning: " + w for w in warnings), transform=ax.transAxes, va="center",
+                ha="left", fontsize=10, color="#802000")
     return save_figure(fig, os.path.join(directory, "report.png"), 100)
 
 

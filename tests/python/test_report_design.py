@@ -225,3 +225,50 @@ def test_the_brightness_trade_is_in_the_colour_text(tmp_path, monkeypatch):
                                                         "0.01/0 (ceiling 0.04): loop's Y 2.1/6.0% → 3.0/5.5%")
     doc["brightness_trade"]["model_y_after"] = "damaged"
     assert report_design.brightness_trade_text(doc) is None
+
+
+def drawn_texts(monkeypatch, report_design, directory):
+    """The texts of the figure make_report draws for `directory`, read back from the figure
+    before it is saved (newlines of the report's wrapping undone)."""
+    drawn = []
+    monkeypatch.setattr(report_design, "save_figure",
+                        lambda fig, path, dpi: drawn.extend(t.get_text() for t in fig.findobj(matplotlib.text.Text)))
+    report_design.make_report(directory)
+    return [t.replace("\n  ", " ") for t in drawn]
+
+
+def test_a_run_with_a_warning_puts_it_on_the_report(cli, tmp_path, monkeypatch):
+    # A real run whose exported relief breaks a limit no relief keeps (16 bins exactly even):
+    # design.json's warnings, each word of each, are on the report's warnings panel.
+    from wavebrdf import report_design
+
+    out = tmp_path / "run"
+    subprocess.run([cli, "design", "--out", str(out), "--size", "16", "--spectral", "3", "--band-um", "0.45,0.65",
+                    "--levels", "4", "--height-range-um", "1", "--iterations", "8", "--refine-passes", "4",
+                    "--seed", "7", "--uniformity-limit", "0.001", "--quiet", "--no-plots"], check=True,
+                   capture_output=True)
+    warnings = report_design.read_design_json(str(out))["warnings"]
+    assert warnings and any("--uniformity-limit" in w for w in warnings)
+    texts = drawn_texts(monkeypatch, report_design, str(out))
+    panel = [t for t in texts if t.startswith("warning: ")]
+    assert len(panel) == 1, texts
+    assert panel[0].split("\n") == ["warning: " + w for w in warnings]
+    # The same run's relief with no warnings in design.json draws no panel.
+    doc = report_design.read_design_json(str(out))
+    doc["warnings"] = []
+    (out / "design.json").write_text(json.dumps(doc))
+    assert not [t for t in drawn_texts(monkeypatch, report_design, str(out)) if "warning" in t]
+
+
+def test_warnings_lines_keep_every_warning():
+    from wavebrdf import report_design
+
+    doc = design_doc()
+    assert report_design.warnings_lines(doc) == []
+    long = "the region's uniformity 0.312 at 0.69 um is above --uniformity-limit 0.25 " * 4
+    doc["warnings"] = ["short one", long.strip(), {"odd": 1}]
+    lines = report_design.warnings_lines(doc)
+    assert len(lines) == 3 and lines[0] == "short one"
+    assert "\n" in lines[1] and lines[1].replace("\n  ", " ") == long.strip()
+    assert all(len(x) <= 182 for x in lines[1].split("\n"))
+    assert lines[2] == '{"odd": 1}'
