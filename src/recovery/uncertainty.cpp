@@ -125,44 +125,65 @@ struct GaussNewtonOperator::Impl {
         return texels;
     }
 
-    // G's diagonal alone (normalised, raw units): per observation one forward difference per box
-    // texel, as form_band, but each column only dotted with itself (no Jacobian kept, no
-    // products between columns), exact sums over the observations and the ranks.
-    std::vector<double> form_diagonal(std::int64_t& forwards) const {
-        const std::size_t n = std::size_t(rows) * std::size_t(cols);
-        detail::ExactParallelSum sum(n, k_product_fraction_bits);
+    // Observation i's forward differences, one per box texel its slice depends on (box_texels):
+    // column(b, f) gets texel texels[b]'s slice f with that texel raised by step_raw, the others
+    // at the solution (the difference quotient is (f − slices[i]) / step_raw). Releases the plan.
+    // Returns the forwards run: one per texel and box_texels' one at the solution.
+    template <class Column>
+    int forward_differences(std::size_t i, const std::vector<std::size_t>& texels, Column&& column) const {
+        SlicePlan<double>& plan = *plans[i];
+        std::vector<double> h = heights;
+        for (std::size_t b = 0; b < texels.size(); ++b) {
+            h[texels[b]] = heights[texels[b]] + step_raw;
+            plan.set_heights(h);
+            column(b, plan.forward());
+            h[texels[b]] = heights[texels[b]];
+        }
+        plan.release();
+        return int(texels.size()) + 1;
+    }
+
+    // Runs observe(i, scratch) (the forwards it ran) on every observation of this rank into
+    // `sum`, a failure on one rank agreed; returns the forwards over all ranks, and sums `sum`
+    // over the ranks.
+    template <class Observe>
+    std::int64_t over_observations(detail::ExactParallelSum& sum, Observe&& observe) const {
         std::vector<int> counted(plans.size(), 0);
         run_agreed(*comm, [&] {
             sum.run_local(plans.size(), [&](std::size_t i, detail::ExactScratch& scratch) {
-                SlicePlan<double>& plan = *plans[i];
-                const std::vector<double>& f0 = slices[i];
-                const std::vector<double>& w = weights[i];
-                const std::vector<std::size_t> texels = box_texels(i);
-                std::vector<double> h = heights;
-                double* out = scratch.data();
-                for (const std::size_t t : texels) {
-                    h[t] = heights[t] + step_raw;
-                    plan.set_heights(h);
-                    const std::vector<double>& f = plan.forward();
-                    double g = 0.0;
-                    for (std::size_t p = 0; p < f0.size(); ++p) {
-                        const double d = (f[p] - f0[p]) / step_raw;
-                        g += w[p] * d * d;
-                    }
-                    out[t] += g;
-                    h[t] = heights[t];
-                }
-                plan.release();
-                counted[i] = int(texels.size()) + 1;
-                scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
+                counted[i] = observe(i, scratch);
                 return 0.0;
             });
         });
         std::vector<double> total_forwards{0.0};
         for (int c : counted) total_forwards[0] += double(c);
         comm->allreduce_sum(total_forwards);
-        forwards = std::int64_t(total_forwards[0]);
         sum.total().allreduce(*comm);
+        return std::int64_t(total_forwards[0]);
+    }
+
+    // G's diagonal alone (normalised, raw units): the forward differences of form_band, each
+    // column only dotted with itself (no Jacobian kept, no products between columns), exact
+    // sums over the observations and the ranks.
+    std::vector<double> form_diagonal(std::int64_t& forwards) const {
+        const std::size_t n = std::size_t(rows) * std::size_t(cols);
+        detail::ExactParallelSum sum(n, k_product_fraction_bits);
+        forwards = over_observations(sum, [&](std::size_t i, detail::ExactScratch& scratch) {
+            const std::vector<double>& f0 = slices[i];
+            const std::vector<double>& w = weights[i];
+            const std::vector<std::size_t> texels = box_texels(i);
+            double* out = scratch.data();
+            const int counted = forward_differences(i, texels, [&](std::size_t b, const std::vector<double>& f) {
+                double g = 0.0;
+                for (std::size_t p = 0; p < f0.size(); ++p) {
+                    const double d = (f[p] - f0[p]) / step_raw;
+                    g += w[p] * d * d;
+                }
+                out[texels[b]] += g;
+            });
+            scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols));
+            return counted;
+        });
         std::vector<double> diagonal(n);
         sum.total().take_values(diagonal.data(), n);
         return diagonal;
@@ -195,65 +216,47 @@ struct GaussNewtonOperator::Impl {
         detail::ExactParallelSum sum = allocating("the Gauss-Newton band", bytes, [&] {
             return detail::ExactParallelSum(n * width, k_product_fraction_bits);
         });
-        std::vector<int> counted(plans.size(), 0);
-        run_agreed(*comm, [&] {
-            sum.run_local(plans.size(), [&](std::size_t i, detail::ExactScratch& scratch) {
-                SlicePlan<double>& plan = *plans[i];
-                const std::vector<double>& f0 = slices[i];
-                const std::vector<double>& w = weights[i];
-                // The box texels the slice depends on: those one adjoint (weights 1 … 2, fixed)
-                // writes; the others (the box's corners outside the footprint's kernels and
-                // their neighbours) have J = 0 and need no forward.
-                const std::vector<std::size_t> texels = box_texels(i);
-                std::vector<std::size_t> pixels;  // the slice values with a weight
-                for (std::size_t p = 0; p < f0.size(); ++p)
-                    if (w[p] > 0.0) pixels.push_back(p);
-                const std::size_t b_count = texels.size(), m = pixels.size();
-                std::vector<double> a = allocating("an observation's Jacobian", 8.0 * double(b_count) * double(m),
-                                                   [&] { return std::vector<double>(b_count * m); });
-                std::vector<double> h = heights;
-                for (std::size_t b = 0; b < b_count; ++b) {  // √W · J, one column per box texel
-                    h[texels[b]] = heights[texels[b]] + step_raw;
-                    plan.set_heights(h);
-                    const std::vector<double>& f = plan.forward();
-                    double* row = a.data() + b * m;
-                    for (std::size_t q = 0; q < m; ++q)
-                        row[q] = std::sqrt(w[pixels[q]]) * ((f[pixels[q]] - f0[pixels[q]]) / step_raw);
-                    h[texels[b]] = heights[texels[b]];
-                }
-                plan.release();
-                counted[i] = int(b_count) + 1;
-                double* out = scratch.data();
-                for (std::size_t x = 0; x < b_count; ++x) {
-                    const int rx = int(texels[x] / std::size_t(cols)), cx = int(texels[x] % std::size_t(cols));
-                    const double* ax = a.data() + x * m;
-                    for (std::size_t y = x; y < b_count; ++y) {
-                        const double* ay = a.data() + y * m;
-                        double g = 0.0;  // vectorised: a fixed order per build, the same on every rank
-#pragma omp simd reduction(+ : g)
-                        for (std::size_t q = 0; q < m; ++q) g += ax[q] * ay[q];
-                        const int ry = int(texels[y] / std::size_t(cols)), cy = int(texels[y] % std::size_t(cols));
-                        const int dr = (ry - rx + rows) % rows, dc = (cy - cx + cols) % cols;
-                        out[texels[x] * width +
-                            std::size_t(band_offset(dr, rows, band.extent_rows, band.full_rows)) *
-                                std::size_t(band.offset_cols) +
-                            std::size_t(band_offset(dc, cols, band.extent_cols, band.full_cols))] += g;
-                        if (y == x) continue;
-                        out[texels[y] * width +
-                            std::size_t(band_offset((rows - dr) % rows, rows, band.extent_rows, band.full_rows)) *
-                                std::size_t(band.offset_cols) +
-                            std::size_t(band_offset((cols - dc) % cols, cols, band.extent_cols, band.full_cols))] += g;
-                    }
-                }
-                scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols), int(width));
-                return 0.0;
+        band.forwards = over_observations(sum, [&](std::size_t i, detail::ExactScratch& scratch) {
+            const std::vector<double>& f0 = slices[i];
+            const std::vector<double>& w = weights[i];
+            const std::vector<std::size_t> texels = box_texels(i);
+            std::vector<std::size_t> pixels;  // the slice values with a weight
+            for (std::size_t p = 0; p < f0.size(); ++p)
+                if (w[p] > 0.0) pixels.push_back(p);
+            const std::size_t b_count = texels.size(), m = pixels.size();
+            std::vector<double> a = allocating("an observation's Jacobian", 8.0 * double(b_count) * double(m),
+                                               [&] { return std::vector<double>(b_count * m); });
+            // √W · J, one column per box texel.
+            const int counted = forward_differences(i, texels, [&](std::size_t b, const std::vector<double>& f) {
+                double* row = a.data() + b * m;
+                for (std::size_t q = 0; q < m; ++q)
+                    row[q] = std::sqrt(w[pixels[q]]) * ((f[pixels[q]] - f0[pixels[q]]) / step_raw);
             });
+            double* out = scratch.data();
+            for (std::size_t x = 0; x < b_count; ++x) {
+                const int rx = int(texels[x] / std::size_t(cols)), cx = int(texels[x] % std::size_t(cols));
+                const double* ax = a.data() + x * m;
+                for (std::size_t y = x; y < b_count; ++y) {
+                    const double* ay = a.data() + y * m;
+                    double g = 0.0;  // vectorised: a fixed order per build, the same on every rank
+#pragma omp simd reduction(+ : g)
+                    for (std::size_t q = 0; q < m; ++q) g += ax[q] * ay[q];
+                    const int ry = int(texels[y] / std::size_t(cols)), cy = int(texels[y] % std::size_t(cols));
+                    const int dr = (ry - rx + rows) % rows, dc = (cy - cx + cols) % cols;
+                    out[texels[x] * width +
+                        std::size_t(band_offset(dr, rows, band.extent_rows, band.full_rows)) *
+                            std::size_t(band.offset_cols) +
+                        std::size_t(band_offset(dc, cols, band.extent_cols, band.full_cols))] += g;
+                    if (y == x) continue;
+                    out[texels[y] * width +
+                        std::size_t(band_offset((rows - dr) % rows, rows, band.extent_rows, band.full_rows)) *
+                            std::size_t(band.offset_cols) +
+                        std::size_t(band_offset((cols - dc) % cols, cols, band.extent_cols, band.full_cols))] += g;
+                }
+            }
+            scratch.take_box(box_rows[i], box_cols[i], std::size_t(cols), int(width));
+            return counted;
         });
-        std::vector<double> total_forwards{0.0};
-        for (int c : counted) total_forwards[0] += double(c);
-        comm->allreduce_sum(total_forwards);
-        band.forwards = std::int64_t(total_forwards[0]);
-        sum.total().allreduce(*comm);
         band.values.resize(n * width);
         sum.total().take_values(band.values.data(), n * width);
         return band;
@@ -690,15 +693,10 @@ HeightUncertainty height_uncertainty(const std::vector<Observation>& observation
     return result;
 }
 
-double error_coverage(const Heightfield& estimate, const Heightfield& truth, const std::vector<double>& sigma_um,
-                      double k) {
-    if (estimate.rows() != truth.rows() || estimate.cols() != truth.cols() ||
-        sigma_um.size() != estimate.values().size())
-        throw std::invalid_argument("error_coverage: estimate " + std::to_string(estimate.rows()) + " x " +
-                                    std::to_string(estimate.cols()) + ", truth " + std::to_string(truth.rows()) +
-                                    " x " + std::to_string(truth.cols()) + " and " + std::to_string(sigma_um.size()) +
-                                    " sigmas; expected the same size");
-    if (!(k > 0.0)) throw std::domain_error("error_coverage: k " + std::to_string(k) + " is invalid; expected > 0");
+namespace {
+
+// The estimate's error at every texel (µm, row-major), each heightfield's mean removed.
+std::vector<double> mean_free_errors_um(const Heightfield& estimate, const Heightfield& truth) {
     const int rows = truth.rows(), cols = truth.cols();
     double mean_e = 0.0, mean_t = 0.0;
     for (int i = 0; i < rows; ++i)
@@ -709,13 +707,30 @@ double error_coverage(const Heightfield& estimate, const Heightfield& truth, con
     const double n = double(rows) * double(cols);
     mean_e /= n;
     mean_t /= n;
-    double inside = 0.0;
+    std::vector<double> errors;
+    errors.reserve(std::size_t(rows) * std::size_t(cols));
     for (int i = 0; i < rows; ++i)
-        for (int j = 0; j < cols; ++j) {
-            const double e = (estimate.height_um(i, j) - mean_e) - (truth.height_um(i, j) - mean_t);
-            if (std::abs(e) <= k * sigma_um[std::size_t(i) * cols + j]) inside += 1.0;
-        }
-    return inside / n;
+        for (int j = 0; j < cols; ++j)
+            errors.push_back((estimate.height_um(i, j) - mean_e) - (truth.height_um(i, j) - mean_t));
+    return errors;
+}
+
+}  // namespace
+
+double error_coverage(const Heightfield& estimate, const Heightfield& truth, const std::vector<double>& sigma_um,
+                      double k) {
+    if (estimate.rows() != truth.rows() || estimate.cols() != truth.cols() ||
+        sigma_um.size() != estimate.values().size())
+        throw std::invalid_argument("error_coverage: estimate " + std::to_string(estimate.rows()) + " x " +
+                                    std::to_string(estimate.cols()) + ", truth " + std::to_string(truth.rows()) +
+                                    " x " + std::to_string(truth.cols()) + " and " + std::to_string(sigma_um.size()) +
+                                    " sigmas; expected the same size");
+    if (!(k > 0.0)) throw std::domain_error("error_coverage: k " + std::to_string(k) + " is invalid; expected > 0");
+    const std::vector<double> errors = mean_free_errors_um(estimate, truth);
+    double inside = 0.0;
+    for (std::size_t t = 0; t < errors.size(); ++t)
+        if (std::abs(errors[t]) <= k * sigma_um[t]) inside += 1.0;
+    return inside / double(errors.size());
 }
 
 UncertaintyCost predicted_uncertainty_cost(const std::vector<Observation>& observations, const Heightfield& estimate,
@@ -795,21 +810,10 @@ UncertaintyReport uncertainty_report(HeightUncertainty map, double seconds, cons
     if (truth) {
         r.coverage_1sigma = error_coverage(estimate, *truth, map.sigma_um, 1.0);
         r.coverage_2sigma = error_coverage(estimate, *truth, map.sigma_um, 2.0);
-        const int rows = truth->rows(), cols = truth->cols();
-        double mean_e = 0.0, mean_t = 0.0;
-        for (int i = 0; i < rows; ++i)
-            for (int j = 0; j < cols; ++j) {
-                mean_e += estimate.height_um(i, j);
-                mean_t += truth->height_um(i, j);
-            }
-        const double n = double(rows) * double(cols);
+        const std::vector<double> errors = mean_free_errors_um(estimate, *truth);
         double sum = 0.0;
-        for (int i = 0; i < rows; ++i)
-            for (int j = 0; j < cols; ++j) {
-                const double e = (estimate.height_um(i, j) - mean_e / n) - (truth->height_um(i, j) - mean_t / n);
-                sum += e * e;
-            }
-        r.rms_error_um = std::sqrt(sum / n);
+        for (const double e : errors) sum += e * e;
+        r.rms_error_um = std::sqrt(sum / double(errors.size()));
     }
     r.map = std::move(map);
     return r;
