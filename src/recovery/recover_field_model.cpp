@@ -292,6 +292,23 @@ double FieldModelLoss::operator()(const std::vector<double>& heights_um, std::ve
     return value;
 }
 
+namespace {
+
+// Observation o's slice in the Gabor model at `heightfield` (its query `query`), scaled by its
+// fitted exposure where calibrate_exposure, on the reference's values (0 past the slice's).
+std::vector<double> gabor_model_slice(const Observation& o, const Query& query, const Heightfield& heightfield,
+                                      bool calibrate_exposure) {
+    SlicePlan<float> plan(heightfield, query, o.lambdas_um, o.resolution, 1);
+    const std::vector<float>& f = plan.forward();
+    const std::size_t n = std::min(f.size(), o.reference.size());
+    const double e = calibrate_exposure ? slice_exposure(f.data(), o.reference.data(), n) : 1.0;
+    std::vector<double> model(o.reference.size(), 0.0);
+    for (std::size_t k = 0; k < n; ++k) model[k] = e * double(f[k]);
+    return model;
+}
+
+}  // namespace
+
 double gabor_amplitude_loss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
                             const Heightfield& heightfield, bool calibrate_exposure, const Communicator& comm) {
     check_inputs(observations, queries, "gabor_amplitude_loss");
@@ -301,14 +318,10 @@ double gabor_amplitude_loss(const std::vector<const Observation*>& observations,
     ExactParallelSum sum(0);
     return sum.run(observations.size(), comm, no_gradient, [&](std::size_t i, ExactScratch&) {
         const Observation& o = *observations[i];
-        SlicePlan<float> plan(heightfield, queries[i], o.lambdas_um, o.resolution, 1);
-        const std::vector<float>& f = plan.forward();
-        const std::size_t n = std::min(f.size(), o.reference.size());
-        const double e = calibrate_exposure ? slice_exposure(f.data(), o.reference.data(), n) : 1.0;
+        const std::vector<double> model = gabor_model_slice(o, queries[i], heightfield, calibrate_exposure);
         double v = 0.0;
         for (std::size_t k = 0; k < o.reference.size(); ++k) {
-            const double m = k < n ? std::sqrt(std::max(0.0, e * double(f[k]))) : 0.0;
-            const double d = m - std::sqrt(std::max(0.0, double(o.reference[k])));
+            const double d = std::sqrt(std::max(0.0, model[k])) - std::sqrt(std::max(0.0, double(o.reference[k])));
             v += d * d;
         }
         return v;
@@ -324,13 +337,8 @@ SliceDeviance gabor_photon_deviance(const std::vector<const Observation*>& obser
     SliceDeviance d;
     d.deviance = sum.run(observations.size(), comm, moments, [&](std::size_t i, ExactScratch& scratch) {
         const Observation& o = *observations[i];
-        SlicePlan<float> plan(heightfield, queries[i], o.lambdas_um, o.resolution, 1);
-        const std::vector<float>& f = plan.forward();
-        const std::size_t n = std::min(f.size(), o.reference.size());
-        const double e = calibrate_exposure ? slice_exposure(f.data(), o.reference.data(), n) : 1.0;
-        std::vector<double> model(o.reference.size(), 0.0);
-        for (std::size_t k = 0; k < n; ++k) model[k] = e * double(f[k]);
-        const SliceDeviance one = slice_photon_deviance(o, model, photons);
+        const SliceDeviance one =
+            slice_photon_deviance(o, gabor_model_slice(o, queries[i], heightfield, calibrate_exposure), photons);
         scratch.data()[0] = one.expected;
         scratch.data()[1] = one.variance;
         scratch.take_all();
