@@ -17,6 +17,8 @@
 #include "wavebrdf/design_run.h"
 #include <nlohmann/json.hpp>
 
+#include "design_util.h"
+
 namespace wavebrdf {
 namespace {
 
@@ -159,16 +161,22 @@ void check_gradient(const DesignOptions& options) {
     }
 }
 
-TEST(Design, LossGradientMatchesFiniteDifferences) {
+// An anti-mirror on an 8 × 8 tile under oblique light at 4 wavelengths, the gradient tests' design.
+DesignOptions oblique_anti_mirror(int levels) {
     DesignOptions o;
     o.size = 8;
-    o.levels = 3;
+    o.levels = levels;
     o.texel_um = 0.5;
     o.spectral = 4;
     o.band_um = {0.4, 0.7};
     o.omega_i = {0.1, 0.05};
     o.specular_cone = 0.2;
     o.region = "annulus:0.25,0.6";
+    return o;
+}
+
+TEST(Design, LossGradientMatchesFiniteDifferences) {
+    const DesignOptions o = oblique_anti_mirror(3);
     check_gradient(o);
     DesignOptions p = o;
     p.spectral = 0;
@@ -184,6 +192,62 @@ TEST(Design, LossGradientMatchesFiniteDifferences) {
     check_gradient(c);
     c.delta_uv_tolerance = 0.005;  // a tolerance the random weights' colour lies beyond
     check_gradient(c);
+}
+
+TEST(Design, LevelStepGradientMatchesFiniteDifferences) {
+    // The anti-mirror's level step Δ is a design variable: the loss's derivative in Δ (one more
+    // contraction of the level spectra) against central differences of the loss, for level
+    // mixtures and for a relief on the levels, heights scaled by fabrication errors.
+    const PreparedDesign prepared = prepare_design(oblique_anti_mirror(4));
+    detail::Evaluator evaluator(prepared, {0.97, 1.0, 1.03});
+    const std::size_t n2 = 64, total = n2 * 4;
+    std::mt19937_64 rng(17);
+    std::uniform_real_distribution<double> uniform(0.1, 1.0);
+    std::vector<double> mixture(total), relief(total, 0.0);
+    for (double& x : mixture) x = uniform(rng);
+    for (std::size_t t = 0; t < n2; ++t) relief[(rng() % 4) * n2 + t] = 1.0;
+    for (const auto* w : {&mixture, &relief})
+        for (double step : {0.12, 0.19, 0.31}) {
+            evaluator.set_step_um(step);
+            std::vector<double> g;
+            double dstep = 0.0;
+            evaluator.evaluate(*w, &g, nullptr, &dstep);
+            const double h = 1e-6;
+            evaluator.set_step_um(step + h);
+            const double plus = evaluator.evaluate(*w, nullptr);
+            evaluator.set_step_um(step - h);
+            const double minus = evaluator.evaluate(*w, nullptr);
+            const double fd = (plus - minus) / (2 * h);
+            EXPECT_GT(std::abs(fd), 1e-3) << "step " << step;  // a derivative worth checking
+            EXPECT_NEAR(dstep, fd, 1e-5 * std::max(1.0, std::abs(fd))) << "step " << step;
+        }
+}
+
+TEST(Design, AntiMirrorLevelStepMovesWithinTheRangeAndTheExportMatchesTheLoop) {
+    // Without --level-step-um the anti-mirror's step starts on the rule's and moves: the exported
+    // heights lie on the final step's levels within the height range, and the loop's model of
+    // them (on the step it ended with) is their exact scalar diffraction. With --level-step-um
+    // the step stays where the user put it.
+    DesignOptions o = test::small_design("anti-mirror", 8, 60, 15);
+    o.band_um = {0.4, 0.7};
+    const PreparedDesign p = prepare_design(o);
+    const DesignResult r = run_design(p);
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    ASSERT_TRUE(j.contains("level_step"));
+    const double start = j["level_step"]["start_um"].get<double>(), end = j["level_step"]["final_um"].get<double>();
+    EXPECT_DOUBLE_EQ(start, p.levels_um[1]);
+    EXPECT_NE(end, start);
+    EXPECT_NEAR(r.levels_um[1], end, 1e-15);
+    EXPECT_LE(r.levels_um.back(), o.height_range_um);
+    EXPECT_EQ(j["levels_um"].get<std::vector<double>>(), r.levels_um);
+    for (std::size_t t = 0; t < r.level.size(); ++t)
+        EXPECT_EQ(r.heights_um[t], r.levels_um[static_cast<std::size_t>(r.level[t])]);
+    EXPECT_LT(j["metrics"]["model_vs_exact_max_fraction_difference"].get<double>(), 1e-9);
+    DesignOptions fixed = o;
+    fixed.level_step_um = 0.16;
+    const DesignResult rf = run_design(prepare_design(fixed));
+    EXPECT_FALSE(nlohmann::json::parse(rf.metrics_json).contains("level_step"));
+    EXPECT_DOUBLE_EQ(rf.levels_um[1], 0.16);
 }
 
 TEST(Design, BadOptionsFailBeforeAnyWork) {
@@ -352,7 +416,7 @@ TEST(Design, SmallAntiMirrorDesignBeatsItsStartAndKeepsTheConstraints) {
     for (double h : r.heights_um) {
         EXPECT_GE(h, 0.0);
         EXPECT_LE(h, 1.5 + 1e-12);
-        const double level = h / p.levels_um[1];
+        const double level = h / r.levels_um[1];
         EXPECT_NEAR(level, std::round(level), 1e-9);
     }
     // Scored here from the heights alone (exact_orders), against the loop's random start (the

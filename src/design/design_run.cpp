@@ -222,13 +222,31 @@ MirrorShares dark_mirror_shares(double step_um, int levels, const std::vector<do
     return r;
 }
 
-// The anti-mirror's level step: the largest Δ ≤ H/(K−1) on which some shares of the levels
-// (dark_mirror_shares) keep the mirror order's power at most k_mirror_power_wanted at every
-// wavelength of the band, else the step of least such power. The largest, because a larger step
-// makes the levels' phases differ more between the band's ends, and that is what lets the relief
-// light a spatial frequency at one end and not at the other (measured: region 68 % on 0.132 µm,
-// 77–79 % on 0.155–0.165 µm, for 0.40–0.70 µm); 1e-4 keeps the mirror order at a twentieth of a
-// 0.2 % cone, which the loop's own shares then improve on.
+// A length in a note, to four significant digits.
+std::string four_digits(double v) {
+    char buffer[32];
+    std::snprintf(buffer, sizeof buffer, "%.4g", v);
+    return buffer;
+}
+
+// The anti-mirror's level step is a design variable where the user gave none: the loop starts
+// from the rule's step (anti_mirror_step) and moves Δ with the texels (the heights' phase is
+// linear in Δ: Evaluator's step gradient), within (K − 1)Δ ≤ H. Not with a blur error, whose
+// term holds the levels' heights, nor on a grayscale relief.
+bool step_is_free(const PreparedDesign& p) {
+    const DesignOptions& o = p.options;
+    return o.target.kind == DesignKind::AntiMirror && o.min_feature_um == 0.0 && o.level_step_um == 0.0 &&
+           o.errors.blur_um == 0.0 && o.levels > 1;
+}
+
+// The anti-mirror's level step (where it is free, the loop's start): the largest Δ ≤ H/(K−1) on
+// which some shares of the levels (dark_mirror_shares) keep the mirror order's power at most
+// k_mirror_power_wanted at every wavelength of the band, else the step of least such power. The
+// largest, because a larger step makes the levels' phases differ more between the band's ends, and
+// that is what lets the relief light a spatial frequency at one end and not at the other
+// (measured: region 68 % on 0.132 µm, 77–79 % on 0.155–0.165 µm, for 0.40–0.70 µm); 1e-4 keeps the
+// mirror order at a twentieth of a 0.2 % cone, so the loop starts from a mirror order it can
+// darken and moves the step up to where the cone's limit holds it (0.167–0.169 µm there).
 constexpr double k_mirror_power_wanted = 1e-4;
 double anti_mirror_step(double range_um, int levels, const std::vector<double>& lambdas_um, double cos_i) {
     const double full = range_um / (levels - 1);
@@ -653,8 +671,9 @@ PreparedDesign prepare_design(const DesignOptions& options) {
     } else if (o.target.kind == DesignKind::AntiMirror && !grayscale) {
         step = anti_mirror_step(o.height_range_um, o.levels, p.lambdas_um, std::sqrt(1.0 - light * light));
         if (step < o.height_range_um / (o.levels - 1))
-            p.notes.push_back("level step " + num(step) + " um (top level " + num(step * (o.levels - 1)) +
-                              " um): on the full range's step no design keeps the mirror order dark at every wavelength of the band");
+            p.notes.push_back("level step " + four_digits(step) + " um (top level " + four_digits(step * (o.levels - 1)) +
+                              " um): on the full range's step no design keeps the mirror order dark at every wavelength of the band" +
+                              (step_is_free(p) ? "; the design starts there and moves it" : ""));
     }
     p.levels_um = level_heights(o.levels, step);
     switch (o.target.kind) {
@@ -798,6 +817,25 @@ struct RelaxedLevels {
 // the relief ended over both limits).
 constexpr int k_relaxed_block = 20, k_refine_block = 15, k_repair_blocks = 4;
 
+// Adam on ln Δ (the step's scale, not its size, is what the band sees), Δ kept ≤ H/(K − 1).
+struct StepAdam {
+    double rate = 0.0, max_um = 0.0, m1 = 0.0, m2 = 0.0;
+    int t = 0;
+    void update(detail::Evaluator& evaluator, double step_gradient) {
+        constexpr double b1 = 0.9, b2 = 0.999;
+        const double g = step_gradient * evaluator.step_um();  // ∂L/∂ln Δ
+        ++t;
+        m1 = b1 * m1 + (1.0 - b1) * g;
+        m2 = b2 * m2 + (1.0 - b2) * g * g;
+        const double c1 = 1.0 - std::pow(b1, t), c2 = 1.0 - std::pow(b2, t);
+        const double ln = std::log(evaluator.step_um()) - rate * (m1 / c1) / (std::sqrt(m2 / c2) + 1e-12);
+        evaluator.set_step_um(std::min(max_um, std::exp(ln)));
+    }
+};
+// Measured (64², four seeds, 0.40–0.70 µm): rates 1e-3, 3e-3 and 1e-2 all end on 0.167–0.169 µm
+// from the rule's 0.153, the region within 0.3 point of each other.
+constexpr double k_step_rate = 3e-3;
+
 // Relaxed phase: softmax over the levels per texel, p = softmax(θ / τ), τ annealed from
 // k_tau_start to k_tau_end, Adam on θ; then each texel's most likely level. A grayscale run
 // relaxes the heights instead (grayscale_design).
@@ -849,11 +887,17 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
     };
     const auto relaxed_start = Clock::now();
     int updates = 0;
+    const bool free_step = step_is_free(p);
+    StepAdam step_adam;
+    step_adam.rate = k_step_rate;
+    step_adam.max_um = o.height_range_um / (K - 1);
+    double step_gradient = 0.0;
     for (int it = 0; !grayscale && it < o.iterations && !stopped; ++it) {
         const double frac = o.iterations > 1 ? static_cast<double>(it) / (o.iterations - 1) : 1.0;
         const double tau = k_tau_start * std::pow(k_tau_end / k_tau_start, frac);
         softmax(tau);
-        const double loss = evaluator.evaluate(weights, &grad, &out.fractions);
+        const double loss = evaluator.evaluate(weights, &grad, &out.fractions, free_step ? &step_gradient : nullptr);
+        if (free_step) step_adam.update(evaluator, step_gradient);
         // A constrained target's multipliers move at the end of each block, from the fractions
         // the block ended on; the next block optimises against them.
         if (p.target->constrained() && (it + 1) % k_relaxed_block == 0) {
@@ -1359,7 +1403,7 @@ nlohmann::json design_json(const PreparedDesign& p, const DesignResult& r, const
     j["constraints"] = {{"size", o.size}, {"texel_um", o.texel_um}, {"height_range_um", o.height_range_um},
                         {"levels", o.levels}, {"fabrication_error", {{"scale", o.errors.scale}, {"blur_um", o.errors.blur_um}}}};
     if (o.min_feature_um != 0.0) j["constraints"]["min_feature_um"] = o.min_feature_um;
-    j["levels_um"] = p.levels_um;
+    j["levels_um"] = r.levels_um;
     j["seed"] = o.seed;
     j["options"] = {{"iterations", o.iterations}, {"refine_passes", o.refine_passes}, {"stopped_early", stopped}};
     j["orders"] = p.orders;
@@ -1412,8 +1456,10 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     const BrightnessTrade trade = trade_for_brightness(p, evaluator, refine_loss, level, loss, report, stopped);
 
     r.level = level;
+    const bool free_step = step_is_free(p);
+    if (free_step) r.levels_um = level_heights(o.levels, evaluator.step_um());
     r.heights_um.resize(level.size());
-    for (std::size_t t = 0; t < level.size(); ++t) r.heights_um[t] = p.levels_um[static_cast<std::size_t>(level[t])];
+    for (std::size_t t = 0; t < level.size(); ++t) r.heights_um[t] = r.levels_um[static_cast<std::size_t>(level[t])];
 
     const auto metrics_start = Clock::now();
     const ReliefScores scores = score_relief(p, evaluator, r);
@@ -1425,6 +1471,16 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     const std::vector<std::string> colour_notes =
         o.target.kind == DesignKind::Colour ? add_colour_reach(p, scores, survey_views, j) : std::vector<std::string>{};
     j["notes"] = p.notes;
+    if (free_step) {
+        const double start_um = p.levels_um[1] - p.levels_um[0], final_um = evaluator.step_um();
+        j["level_step"] = {{"what", "the anti-mirror's level step, a design variable: started on the rule's step and "
+                                    "moved with the texels by its gradient, (levels - 1) x step <= height_range_um"},
+                           {"start_um", start_um},
+                           {"final_um", final_um}};
+        j["notes"].push_back("level step " + four_digits(final_um) + " um (top level " +
+                             four_digits(final_um * (o.levels - 1)) + " um), designed from the rule's " +
+                             four_digits(start_um) + " um");
+    }
     for (const std::string& note : colour_notes) j["notes"].push_back(note);
     // A constrained target's limits, checked on the exported relief's exact scalar diffraction.
     j["warnings"] = p.target->broken_limits(scores.exact);

@@ -201,4 +201,30 @@ void order_flux_adjoint(const OrderSet& orders, const LevelHeights& heights, con
     }
 }
 
+double order_flux_step_gradient(const OrderSet& orders, const LevelSpectra& spectra, const LevelHeights& heights,
+                                const std::vector<Complex>& amplitude, const std::vector<double>& flux_gradient) {
+    const std::ptrdiff_t count = static_cast<std::ptrdiff_t>(orders.size());
+    const int levels = spectra.levels();
+    const Complex* F = spectra.spectra().data();
+    double total = 0.0;
+#pragma omp parallel for schedule(static) reduction(+ : total)
+    for (std::ptrdiff_t o = 0; o < count; ++o) {
+        const auto u = static_cast<std::size_t>(o);
+        const double g = flux_gradient[u];
+        if (g == 0.0) continue;
+        const double phase = orders.k * orders.q[u];
+        Complex phasor = std::polar(1.0, -phase * heights.base_um);
+        const Complex step = std::polar(1.0, -phase * heights.step_um);
+        const Complex* f = F + static_cast<std::size_t>(orders.bin[u]) * static_cast<std::size_t>(levels);
+        Complex d(0.0, 0.0);  // Σ_ℓ ℓ e^{−i k h_ℓ q} F_ℓ; ∂A/∂Δ = −i k q d
+        for (int l = 0; l < levels; ++l) {
+            d += static_cast<double>(l) * phasor * f[l];
+            phasor *= step;
+        }
+        const Complex dA = Complex(0.0, -phase) * d;
+        total += 2.0 * g * orders.env[u] * (std::conj(amplitude[u]) * dA).real();
+    }
+    return total;
+}
+
 }  // namespace wavebrdf::detail

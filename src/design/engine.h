@@ -83,4 +83,11 @@ struct GradientBuffers {
 void order_flux_adjoint(const OrderSet& orders, const LevelHeights& heights, const std::vector<Complex>& amplitude,
                         const std::vector<double>& flux_gradient, int levels, GradientBuffers& buffers);
 
+// The level step's gradient: for the flux gradient g_o = ∂L/∂Φ_o, ∂L/∂Δ = Σ_o 2 g_o env_o
+// Re[conj(A_o) ∂A_o/∂Δ] with ∂A_o/∂Δ = Σ_ℓ (−i k q_o ℓ) e^{−i k h_ℓ q_o} F[bin_o · K + ℓ]
+// (h_ℓ = base + ℓ Δ, Δ = heights.step_um): the phase is linear in the step, so this is one more
+// contraction of the spectra the forward pass read. OpenMP over the orders.
+double order_flux_step_gradient(const OrderSet& orders, const LevelSpectra& spectra, const LevelHeights& heights,
+                                const std::vector<Complex>& amplitude, const std::vector<double>& flux_gradient);
+
 }  // namespace wavebrdf::detail

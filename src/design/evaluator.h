@@ -10,7 +10,9 @@
 namespace wavebrdf::detail {
 
 // The loop's evaluation: level weights → loss (mean over the fabrication scale samples) and
-// its gradient with respect to the weights.
+// its gradient with respect to the weights and, when asked, the level step (the levels are
+// 0, Δ, …, (K − 1)Δ: Δ starts at the prepared design's step and is the loop's to move,
+// set_step_um).
 class Evaluator {
 public:
     Evaluator(const PreparedDesign& p, std::vector<double> scales)
@@ -19,11 +21,17 @@ public:
         m_heights.step_um = p.levels_um[1] - p.levels_um[0];
     }
 
-    double evaluate(const std::vector<double>& weights, std::vector<double>* gradient, Fractions* nominal = nullptr) {
+    double step_um() const { return m_heights.step_um; }
+    void set_step_um(double step_um) { m_heights.step_um = step_um; }
+
+    // step_gradient (with gradient): ∂loss/∂Δ.
+    double evaluate(const std::vector<double>& weights, std::vector<double>* gradient, Fractions* nominal = nullptr,
+                    double* step_gradient = nullptr) {
         m_spectra.forward(weights);
         const int K = m_p.options.levels, N = m_p.options.size;
         if (gradient) m_buffers.reset(K, N);
         double loss = 0.0;
+        if (step_gradient) *step_gradient = 0.0;
         const double inv = 1.0 / static_cast<double>(m_scales.size());
         for (double scale : m_scales) {
             const LevelHeights h{m_heights.base_um * scale, m_heights.step_um * scale};
@@ -39,8 +47,12 @@ public:
             for (auto& d : df)
                 for (double& x : d) x *= inv;
             flux_gradient(*m_p.target, m_flux, f, df, m_grad);
-            for (std::size_t w = 0; w < m_sets.size(); ++w)
+            for (std::size_t w = 0; w < m_sets.size(); ++w) {
                 order_flux_adjoint(m_sets[w], h, m_amplitude[w], m_grad[w], K, m_buffers);
+                // The heights' step is scale · Δ.
+                if (step_gradient)
+                    *step_gradient += scale * order_flux_step_gradient(m_sets[w], m_spectra, h, m_amplitude[w], m_grad[w]);
+            }
         }
         if (gradient) m_spectra.adjoint(m_buffers.sum(), *gradient);
         return loss;
