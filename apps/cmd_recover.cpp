@@ -475,7 +475,7 @@ void add_recover_command(CLI::App& app) {
                         "how far the stage may put a footprint from where it says, um rms per coordinate: the "
                         "planner makes sigma_p at least this and the position loop searches lost positions 4x as "
                         "far (default: the simulated error's rms with --simulate-position-error-texels, else 0)");
-    cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's Nyquist choice)")
+    cmd->add_option("--resolution", a->resolution, "slice size n (0: the planner's: 48, raised where the footprint needs it)")
         ->capture_default_str();
     cmd->add_option("--lambdas-um", a->lambdas, "wavelengths in um, comma-separated (default: the planner's ladder)");
     cmd->add_option("--spectral", a->spectral,

@@ -26,7 +26,7 @@ py::array positions_array(const AcquisitionPlan& plan) {
 void bind_acquisition(py::module_& m) {
     py::class_<AcquisitionPlan>(m, "AcquisitionPlan", R"doc(
 What plan_acquisition proposes: footprint centres on a jittered raster over the periodic tile,
-a slice resolution that samples the window (Nyquist), and wavelengths whose synthetic
+a slice resolution that samples the window (within 4x of Nyquist, at least 48), and wavelengths whose synthetic
 wavelengths unwrap the height range. planned_observations / simulate_observations turn it
 into Observations (one per position, light and wavelength).
 )doc")
@@ -133,7 +133,8 @@ jitter           position jitter, fraction of the raster step, 0 ... 0.3
 lambda_um        base wavelength lambda0 (um), within lambda_min_um ... lambda_max_um (the
                  wavelengths the ladder may use); max_step_ratio: ladder step, 1.5 ... 100
 lambdas_um       given wavelengths (um) instead of the ladder; None: planned
-resolution       given slice size n (1...8192) instead of Nyquist's n >= 4D/lambda; 0: planned
+resolution       given slice size n (1...8192); 0: planned, n >= D/lambda (within 4x of Nyquist's
+                 4D/lambda) and at least 48, never above Nyquist's
 light            projected light direction (wx, wy), wx^2 + wy^2 < 1; model: 'OHS', 'ROHS', ...
 seed             the jitter
 roughness        None, or a known surface's measured roughness: a Heightfield (measured here) or

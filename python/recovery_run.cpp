@@ -469,7 +469,7 @@ position_uncertainty_um  how far the stage may put a footprint from where it say
               coordinate (the CLI's --position-uncertainty-um): the planner makes sigma_p at
               least this and the position loop searches lost positions 4x as far; None: the
               simulated error's rms (settings.simulate_position_error_texels x texel_um), else 0
-resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
+resolution    slice size n, 1...8192 (0: the planner's: 48, or more where the window needs it)
 lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
 spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
               slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices

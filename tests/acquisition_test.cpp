@@ -79,15 +79,41 @@ TEST(PlanTest, PositionsOverlapAsRequestedAndCoverTheTile) {
     }
 }
 
+// The planned slices sample every wavelength's u within 4× of the Nyquist spacing 1/(2D) (what
+// check_acquisition accepts), at 48² where that suffices, the smallest multiple of 8 that does
+// where the footprint is wide, and never finer than Nyquist.
 TEST(PlanTest, ResolutionSamplesTheWindowAtEveryWavelength) {
-    PlanRequest r;
-    r.height_range_um = 2.0;
-    const AcquisitionPlan plan = plan_acquisition(r);
-    const double d = 6.0 * plan.sigma_p_um;
-    for (double lambda : plan.lambdas_um) EXPECT_LE(2.0 / (plan.resolution * lambda), 0.5 / d) << lambda;
-    const double shortest = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());
-    EXPECT_GT(2.0 / ((plan.resolution - 8) * shortest), 0.5 / d) << "not larger than needed";
-    EXPECT_EQ(plan.resolution % 8, 0);
+    // σ_p (µm), texel (µm), at λ down to 0.4706 µm: the defaults (48² suffices, Nyquist 160²),
+    // sur-2's 3.484 µm texels (σ_p 5.2 µm: 48² samples at 5.6×, so 72²), a wide footprint (σ_p
+    // 12 µm: 160²) and a narrow one whose Nyquist size is below 48² (σ_p 0.5 µm: 32²).
+    struct Case {
+        double sigma_p_um, texel_um;
+        int expected;
+    };
+    for (const Case c : {Case{0.0, 2.0, 48}, Case{0.0, 3.484, 72}, Case{12.0, 2.0, 160}, Case{0.5, 0.5, 32}}) {
+        PlanRequest r;
+        r.height_range_um = 2.0;
+        r.texel_um = c.texel_um;
+        r.sigma_p_um = c.sigma_p_um;
+        const AcquisitionPlan plan = plan_acquisition(r);
+        const double d = 6.0 * plan.sigma_p_um;
+        const double shortest = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());
+        EXPECT_EQ(plan.resolution, c.expected) << "sigma_p " << plan.sigma_p_um;
+        EXPECT_EQ(plan.resolution % 8, 0);
+        const double nyquist = 4.0 * d / shortest;  // n ≥ 4D/λ
+        EXPECT_LE(plan.resolution, std::ceil(nyquist / 8.0) * 8.0) << "finer than Nyquist";
+        for (double lambda : plan.lambdas_um)
+            EXPECT_LE(2.0 / (plan.resolution * lambda), 4.0 * 0.5 / d) << "sigma_p " << plan.sigma_p_um << ", " << lambda;
+        if (plan.resolution > 48)
+            EXPECT_GT(2.0 / ((plan.resolution - 8) * shortest), 4.0 * 0.5 / d) << "not larger than needed";
+        EXPECT_TRUE(check_acquisition(with_flat_references(planned_observations(plan)), r.rows, r.cols, r.texel_um)
+                        .empty())
+            << "sigma_p " << plan.sigma_p_um;
+        const bool raised = std::any_of(plan.notes.begin(), plan.notes.end(), [](const std::string& n) {
+            return n.find("raised from 48x48") != std::string::npos;
+        });
+        EXPECT_EQ(raised, plan.resolution > 48) << "sigma_p " << plan.sigma_p_um;
+    }
 }
 
 TEST(PlanTest, WavelengthLadderSpansTheRangeInBoundedSteps) {
@@ -168,7 +194,7 @@ TEST(PlanTest, CheckNamesSparseAndCoarseData) {
     ASSERT_GE(sparse.size(), 2u);
     EXPECT_TRUE(mentions(check_acquisition(sparse, r.rows, r.cols, r.texel_um), "overlap by only"));
 
-    // Slices 4× coarser than the planned (Nyquist) ones are accepted, 5× coarser are not.
+    // Slices 4× coarser than Nyquist's are accepted, 5× coarser are not.
     const auto with_resolution = [&](int n) {
         auto coarse = obs;
         for (auto& o : coarse) {
@@ -177,10 +203,12 @@ TEST(PlanTest, CheckNamesSparseAndCoarseData) {
         }
         return coarse;
     };
-    ASSERT_EQ(plan.resolution % 4, 0);
-    EXPECT_TRUE(check_acquisition(with_resolution(plan.resolution / 4), r.rows, r.cols, r.texel_um).empty());
-    EXPECT_TRUE(mentions(check_acquisition(with_resolution(plan.resolution / 5), r.rows, r.cols, r.texel_um),
-                         "expected at least " + std::to_string(plan.resolution / 4) + " pixels"));
+    const double shortest = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());
+    const int nyquist = static_cast<int>(std::ceil(4.0 * 6.0 * plan.sigma_p_um / shortest / 8.0)) * 8;
+    ASSERT_EQ(nyquist % 4, 0);
+    EXPECT_TRUE(check_acquisition(with_resolution(nyquist / 4), r.rows, r.cols, r.texel_um).empty());
+    EXPECT_TRUE(mentions(check_acquisition(with_resolution(nyquist / 5), r.rows, r.cols, r.texel_um),
+                         "expected at least " + std::to_string(nyquist / 4) + " pixels"));
 
     // Steep slopes reflect light off the slice.
     const Heightfield steep = test::random_heightfield(r.rows, r.cols, 2.0, 3, r.texel_um, 1.0);

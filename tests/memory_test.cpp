@@ -88,7 +88,7 @@ TEST(Memory, CliRefusesRunsThatCannotFit) {
     const test::fs::path dir = test::fresh_dir("memory");
     // The default limit (physical memory) refuses it on any machine with less than ~260 GB.
     if (double(physical_memory_bytes()) < 200e9) {
-        test::expect_one_line_naming(test::run_cli(dir, "recover --size 1000 --out run --quiet"),
+        test::expect_one_line_naming(test::run_cli(dir, "recover --size 1000 --resolution 160 --out run --quiet"),
                                      {"recover (1000x1000 heights, 492075 observations of 160x160) needs about",
                                       "(physical memory); raise it with --max-memory-gb"});
         EXPECT_FALSE(test::fs::exists(dir / "run")) << "refused before writing anything";

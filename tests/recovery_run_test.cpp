@@ -19,11 +19,13 @@
 namespace wavebrdf {
 namespace {
 
-// `recover --size 1000` planned 492075 observations of 160x160 and grew until the machine ran
-// out; it is now refused before any work, with the estimate and the limit in the message.
+// `recover --size 1000` planned 492075 observations of 160x160 (the planner's Nyquist size then)
+// and grew until the machine ran out; it is now refused before any work, with the estimate and
+// the limit in the message.
 TEST(RecoveryRun, RefusesAPlanThatCannotFitBeforeSimulating) {
     RecoveryOptions options;
     options.rows = options.cols = 1000;
+    options.resolution = 160;
     options.max_memory_gb = 8.0;
     try {
         prepare_recovery(options);
@@ -55,8 +57,10 @@ TEST(RecoveryRun, EstimateIsWithinAFactorOfTwoOfTheMeasuredPeak) {
 #endif
     RecoveryOptions options;
     options.rows = options.cols = 24;
+    options.resolution = 160;
     PlanRequest request;
     request.rows = request.cols = 24;
+    request.resolution = options.resolution;
     request.texel_um = options.texel_um;
     request.height_range_um = options.height_range_um;
     request.seed = options.seed;

@@ -9,7 +9,10 @@
 //    raster over the periodic tile, each jittered by up to ±jitter · step (a perfect raster
 //    has ambiguities of its own), with the step chosen so the worst case still overlaps.
 //  - A slice samples u = (ω_i + ω_o)/λ every Δu = 2/(nλ). The intensity of a window of support
-//    D is band-limited to |Δx| ≤ D, so Nyquist asks Δu ≤ 1/(2D): n ≥ 4D/λ.
+//    D is band-limited to |Δx| ≤ D, so Nyquist asks Δu ≤ 1/(2D): n ≥ 4D/λ. Recovery works
+//    down to 4× coarser (measured: 4.5× works, 6× fails), so the planner takes n ≥ D/λ at the
+//    shortest wavelength, at least 48 (the size the accuracy tables were measured at) and at
+//    most Nyquist's.
 //  - One wavelength determines the heights modulo λ/2. A pair (λ0, λj) has the synthetic
 //    wavelength Λ = λ0λj/|λ0 − λj| and determines them modulo Λ/2. The planner builds a ladder
 //    of synthetic wavelengths from one that spans the height range with a margin down to λ0,
@@ -52,7 +55,7 @@ struct PlanRequest {
     double lambda_max_um = 0.70;
     double max_step_ratio = 4.0;                // ladder: Λ_j / Λ_{j+1} ≤ this (≥ 1.5)
     std::vector<double> lambdas_um;             // given wavelengths (µm) instead of the ladder; empty: plan them
-    int resolution = 0;                         // given slice size instead of Nyquist's; 0: plan it
+    int resolution = 0;                         // given slice size; 0: plan it (above)
     std::array<double, 2> omega_i{{0.0, 0.0}};  // projected light direction ω_i of every observation
     Model model = Model::OHS;
     std::uint64_t seed = 1;  // jitter

@@ -82,7 +82,7 @@ struct RecoveryOptions {
     // simulated error's rms (errors.position_rms_texels × texel_um), as a stage's datasheet would
     // state it; 0 without simulated errors.
     std::optional<double> position_uncertainty_um;
-    int resolution = 0;                         // 0: the planner's Nyquist choice
+    int resolution = 0;                         // 0: the planner's (acquisition.h)
     std::vector<double> lambdas_um;             // empty: the planner's ladder
     // White light: N ≥ 2 makes every planned observation one RGB slice of a broadband source
     // sampled at spectral_wavelengths_um(N) (spectrum.h; the renderer's --spectral N), one per

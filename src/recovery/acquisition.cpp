@@ -46,6 +46,29 @@ int nyquist_resolution(double sigma_p_um, double lambda_um) {
     return static_cast<int>(std::ceil(n / 8.0 - 1e-9)) * 8;
 }
 
+// How much coarser than the Nyquist spacing 1/(2D) a slice may sample u: measured to work at
+// 4.5×, to fail at 6× (docs/recovery.md); check_acquisition warns beyond it, the planner stays
+// within it.
+constexpr double k_max_nyquist_factor = 4.0;
+
+// The smallest slice, a multiple of 8, whose Δu = 2/(nλ) is within k_max_nyquist_factor of
+// 1/(2D): n ≥ D/λ.
+int sampled_resolution(double sigma_p_um, double lambda_um) {
+    const double n = 4.0 * support_um(sigma_p_um) / (k_max_nyquist_factor * lambda_um);
+    return static_cast<int>(std::ceil(n / 8.0 - 1e-9)) * 8;
+}
+
+// The planner's slice size when none is given: the size the accuracy tables were measured at
+// (docs/recovery.md, docs/surfaces.md: 48², a third of the default window's Nyquist size, the
+// same accuracy at a tenth of the time), raised to what the window needs (sampled_resolution)
+// where 48² samples it too coarsely (wide footprints: σ_p = 1.5 texels of 3.5 µm asks 64²),
+// and never finer than Nyquist.
+constexpr int k_measured_slice_resolution = 48;
+int planned_resolution(double sigma_p_um, double lambda_um) {
+    return std::min(nyquist_resolution(sigma_p_um, lambda_um),
+                    std::max(k_measured_slice_resolution, sampled_resolution(sigma_p_um, lambda_um)));
+}
+
 // Periodic distance along one axis.
 double wrapped(double d, double period) {
     d = std::fmod(std::abs(d), period);
@@ -231,9 +254,10 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
         }
     plan.overlap = 1.0 - std::max(plan.step_x_um, plan.step_y_um) * spread / d_um;
 
-    // Resolution: Nyquist for the window at the shortest wavelength.
+    // Resolution: sampling the window at the shortest wavelength within k_max_nyquist_factor
+    // of Nyquist (planned_resolution), or the given one (check_acquisition warns if too coarse).
     const double lambda_short = *std::min_element(plan.lambdas_um.begin(), plan.lambdas_um.end());
-    plan.resolution = r.resolution != 0 ? r.resolution : nyquist_resolution(plan.sigma_p_um, lambda_short);
+    plan.resolution = r.resolution != 0 ? r.resolution : planned_resolution(plan.sigma_p_um, lambda_short);
     validate_resolution(plan.resolution);
 
     plan.notes.push_back("footprint sigma_p = " + format_shortest(plan.sigma_p_um) +
@@ -247,9 +271,16 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
                          fixed(plan.step_y_um, 2) + " um, jitter +-" + fixed(100.0 * r.jitter, 0) +
                          " % of a step: neighbours overlap by at least " + fixed(100.0 * plan.overlap, 0) + " %");
     const double du = 2.0 / (plan.resolution * lambda_short);
+    const bool raised = r.resolution == 0 && plan.resolution > k_measured_slice_resolution;
     plan.notes.push_back(std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) +
-                         " slices: du = " + fixed(du, 4) + " 1/um at lambda = " + fixed(lambda_short, 4) + " um, " +
-                         (du <= 0.5 / d_um ? "<= " : "coarser than ") + "1/(2D) = " + fixed(0.5 / d_um, 4));
+                         " slices" + (r.resolution != 0 ? " (given)" : "") + ": du = " + fixed(du, 4) +
+                         " 1/um at lambda = " + fixed(lambda_short, 4) + " um, " +
+                         (du <= 0.5 / d_um ? "<= " : fixed(du * 2.0 * d_um, 2) + "x, coarser than ") + "1/(2D) = " +
+                         fixed(0.5 / d_um, 4) +
+                         (raised ? " (raised from " + std::to_string(k_measured_slice_resolution) + "x" +
+                                       std::to_string(k_measured_slice_resolution) + " to sample the window within " +
+                                       format_shortest(k_max_nyquist_factor) + "x of Nyquist)"
+                                 : std::string()));
     std::string lambdas;
     for (double l : plan.lambdas_um) lambdas += (lambdas.empty() ? "" : ", ") + fixed(l, 4);
     std::string synthetic;
@@ -391,8 +422,9 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
         const double d_um = support_um(o.query.sigma_p_um);
         for (double lambda : o.lambdas_um) {
             const double du = 2.0 / (o.resolution * lambda);
-            if (du <= 4.0 * 0.5 / d_um) continue;
-            const int needed = static_cast<int>(std::ceil(nyquist_resolution(o.query.sigma_p_um, lambda) / 4.0));
+            if (du <= k_max_nyquist_factor * 0.5 / d_um) continue;
+            const int needed = static_cast<int>(
+                std::ceil(nyquist_resolution(o.query.sigma_p_um, lambda) / k_max_nyquist_factor));
             const std::string w = std::to_string(o.resolution) + "x" + std::to_string(o.resolution) +
                                   " slices at lambda = " + format_shortest(lambda) + " um sample u every " +
                                   fixed(du, 4) +

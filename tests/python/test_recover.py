@@ -159,8 +159,8 @@ def test_plan_keeps_its_rules(kw):
         assert np.abs(offset).max() > 0.5 * jitter
     else:
         assert overlap_nn.min() == pytest.approx(plan.overlap, abs=1e-12)
-    # Nyquist: du = 2 / (n lambda) <= 1 / (2 D) at the shortest wavelength (unless given).
-    assert 2.0 / (plan.resolution * min(plan.lambdas_um)) <= 0.5 / support + 1e-12
+    # Within 4x of Nyquist: du = 2 / (n lambda) <= 4 / (2 D) at the shortest wavelength (unless given).
+    assert 2.0 / (plan.resolution * min(plan.lambdas_um)) <= 4.0 * 0.5 / support + 1e-12
     # Synthetic wavelengths of the pairs with lambda0 (planned) or all pairs (given).
     lam = plan.lambdas_um
     if "lambdas_um" in kw:
@@ -285,12 +285,13 @@ def test_recover_callback_stops_early():
 
 
 def test_recover_refuses_what_cannot_fit_before_any_work():
-    # size=1000 planned 492075 slices of 160x160 and grew until the machine ran out of memory.
+    # size=1000 planned 492075 slices of 160x160 and grew until the machine ran out of memory
+    # (the planner's Nyquist size then; its 48x48 now need ~16 GB, which a machine may have).
     with pytest.raises(MemoryError, match=r"needs about .* GB; the limit is 2 GB \(max-memory-gb\)"):
         wb.recover(size=1000, max_memory_gb=2)
     if os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE") < 200e9:  # the default limit
         with pytest.raises(MemoryError, match=r"the limit is .* \(physical memory\)"):
-            wb.recover(size=1000)
+            wb.recover(size=1000, resolution=160)
     with pytest.raises(ValueError, match="max_memory_gb"):
         wb.recover(size=8, max_memory_gb=-1)
 
