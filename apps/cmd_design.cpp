@@ -292,7 +292,7 @@ void add_design_command(CLI::App& app) {
     auto* levels = cmd->add_option("--levels", a->options.levels, "K equally spaced height levels (2-256)")
                        ->capture_default_str();
     cmd->add_option("--level-step-um", a->options.level_step_um,
-                    "spacing of the levels in um (default: H/(K-1); anti-mirror: chosen so the mirror order can cancel)");
+                    "spacing of the levels in um (default: H/(K-1); anti-mirror: designed, from a step on which the mirror order can cancel)");
     cmd->add_option("--min-feature-um", a->options.min_feature_um,
                     "grayscale relief: no lateral detail finer than this, um (contradicts --levels)");
     cmd->add_option("--fabrication-error", a->errors, "e.g. scale:5%,blur:0.3um (design for and score under them)");
