@@ -4,7 +4,8 @@
 // view cone (design_util.h cone_colour, an evaluation independent of the loop's model) must be
 // brighter after the trade and within the ceiling of the target; the trade must start from the
 // schedule's own relief (the same loss curve, bit for bit, up to the schedule's end), and the
-// final loss must be the colour loss written out here at the tolerances it reports.
+// final loss must be the colour loss written out here at the tolerances it reports. A grayscale
+// relief runs the same blocks; a trade that ends below the brightness is a design.json warning.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -36,10 +37,12 @@ std::array<double, 2> scored(const DesignResult& r, std::array<double, 2> view, 
     return {std::hypot(c[1] - target[0], c[2] - target[1]), c[0]};
 }
 
-// A 32² tile of 0.5 µm, 16 levels within 2 µm, white light at 6 wavelengths, a short schedule.
-DesignOptions small(const std::string& target) {
-    DesignOptions o = test::small_design(target, 16, 80, 20);
-    o.size = 32;
+// A 32² tile of 0.5 µm, 16 levels within 2 µm, white light at 6 wavelengths, a short schedule;
+// with a minimum feature, a grayscale 16² tile.
+DesignOptions small(const std::string& target, double min_feature_um = 0.0) {
+    DesignOptions o = test::small_design(target, min_feature_um > 0.0 ? 0 : 16, 80, 20);
+    o.min_feature_um = min_feature_um;
+    o.size = min_feature_um > 0.0 ? 16 : 32;
     o.spectral = 8;
     o.height_range_um = 2.0;
     o.seed = 5;
@@ -167,6 +170,63 @@ TEST(DesignBrightness, IridescentPairsTradeOnlyWhereTheyAreDim) {
     // A pair is raised only while it is dim: the green pair keeps the user's tolerance, 0.
     EXPECT_EQ(tolerance[1], 0.0);
     EXPECT_GE(t.at("model_y_after").get<std::vector<double>>()[1], 0.05);
+}
+
+// A grayscale relief (--min-feature-um 1, 16² texels of 0.5 µm, 256 evaluation levels) of
+// magenta: its schedule ends far below Y 0.05 (about 1 %).
+DesignOptions grey_magenta(double ceiling) {
+    DesignOptions o = small("colour:#FF00FF", 1.0);
+    o.delta_uv_ceiling = ceiling;
+    return o;
+}
+
+TEST(DesignBrightness, AGrayscaleReliefRunsTheSameTradeAndReachesTheBrightnessWithinItsCeiling) {
+    const DesignOptions o = grey_magenta(0.0);
+    const DesignResult plain = run_design(prepare_design(o));
+    const DesignResult traded = run_design(prepare_design(grey_magenta(0.08)));
+    const auto jp = nlohmann::json::parse(plain.metrics_json), jt = nlohmann::json::parse(traded.metrics_json);
+    const auto uv = target_uv(o.target.linear_rgb);
+    const auto before = scored(plain, {0.0, 0.0}, o.view_cone, uv), after = scored(traded, {0.0, 0.0}, o.view_cone, uv);
+    ASSERT_LT(before[1], 0.05) << "grey magenta's schedule reached Y " << before[1] << "; the test needs a dim colour";
+    EXPECT_FALSE(jp.contains("brightness_trade"));
+    const auto& t = jt.at("brightness_trade");
+    ASSERT_GE(t.at("blocks").get<int>(), 1);
+    const double tolerance = t.at("tolerance_used").get<double>();
+    EXPECT_GT(tolerance, 0.0);
+    EXPECT_LE(tolerance, 0.08);
+    // It continues the schedule's own relief: the same curve up to the schedule's end.
+    ASSERT_GT(traded.curve.size(), plain.curve.size());
+    for (std::size_t k = 0; k < plain.curve.size(); ++k) EXPECT_EQ(traded.curve[k].loss, plain.curve[k].loss) << "step " << k;
+    EXPECT_EQ(t.at("model_y_before").get<double>(), jp["metrics"]["model"]["luminous_efficiency"].get<double>());
+    // Exact scalar diffraction of the heights (the relief as written, 256 levels): Y at least
+    // 0.05, Δu′v′ within the tolerance the blocks reached (plus 0.005, as above).
+    std::printf("grey magenta, exact: Y %.4f -> %.4f, delta u'v' %.4f -> %.4f; %d block(s), tolerance %.3f\n", before[1],
+                after[1], before[0], after[0], t.at("blocks").get<int>(), tolerance);
+    EXPECT_GE(after[1], 0.05);
+    EXPECT_LE(after[0], tolerance + 0.005);
+    EXPECT_NEAR(after[1], jt["metrics"]["exact"]["luminous_efficiency"].get<double>(), 2e-3);
+    // Still grayscale: no detail finer than F is asked of the trade's relief either (its heights
+    // lie on the 256 evaluation levels, whose rounding alone the filter does not remove).
+    EXPECT_EQ(jt["constraints"]["min_feature_um"].get<double>(), 1.0);
+    EXPECT_TRUE(jt["warnings"].empty()) << jt["warnings"].dump();
+}
+
+TEST(DesignBrightness, ATradeThatEndsDimIsAWarning) {
+    // At the default ceiling 0.04 the same grey magenta stays below Y 0.05: design.json says so,
+    // with the Y of the heights' exact scalar diffraction.
+    const DesignResult r = run_design(prepare_design(grey_magenta(0.04)));
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    const auto uv = target_uv(parse_design_target("colour:#FF00FF").linear_rgb);
+    const auto exact = scored(r, {0.0, 0.0}, 0.05, uv);
+    ASSERT_LT(exact[1], 0.05) << "the test needs the trade to end dim at ceiling 0.04";
+    ASSERT_GE(j.at("brightness_trade").at("blocks").get<int>(), 1);
+    ASSERT_EQ(j["warnings"].size(), 1u) << j["warnings"].dump();
+    const std::string w = j["warnings"][0].get<std::string>();
+    char y[32];
+    std::snprintf(y, sizeof y, "Y %.3g %%", 100.0 * j["metrics"]["exact"]["luminous_efficiency"].get<double>());
+    EXPECT_NE(w.find(y), std::string::npos) << w;
+    EXPECT_NE(w.find("--delta-uv-ceiling 0.04"), std::string::npos) << w;
+    EXPECT_NEAR(j["metrics"]["exact"]["luminous_efficiency"].get<double>(), exact[1], 2e-3);
 }
 
 TEST(DesignBrightness, IridescentToleranceAndCeilingAreChecked) {

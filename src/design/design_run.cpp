@@ -803,6 +803,7 @@ namespace {
 // relaxation ended, and its time.
 struct RelaxedLevels {
     std::vector<int> level;
+    std::vector<double> latent;  // a grayscale relief's parameters z (grayscale.h); empty on levels
     Fractions fractions;
     double seconds = 0.0;
     int multiplier_updates = 0;
@@ -838,10 +839,11 @@ constexpr double k_step_rate = 3e-3;
 
 // Relaxed phase: softmax over the levels per texel, p = softmax(θ / τ), τ annealed from
 // k_tau_start to k_tau_end, Adam on θ; then each texel's most likely level. A grayscale run
-// relaxes the heights instead (grayscale_design).
+// relaxes the heights instead (grayscale_design), warm from `warm_latent` where given.
 RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluator,
                              const std::function<void(const DesignStep&)>& report, const bool& stopped,
-                             const std::vector<int>* warm = nullptr, int iteration0 = 0) {
+                             const std::vector<int>* warm = nullptr, int iteration0 = 0,
+                             const std::vector<double>* warm_latent = nullptr) {
     const DesignOptions& o = p.options;
     const int K = o.levels, N = o.size;
     const std::size_t n2 = static_cast<std::size_t>(N) * static_cast<std::size_t>(N);
@@ -851,7 +853,7 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
     std::mt19937_64 rng(detail::derive_seed(o.seed, 0xde5190));
     std::vector<double> theta(total);
     detail::fill_standard_normal(theta.data(), theta.size(), rng);
-    if (warm) {
+    if (warm && !grayscale) {
         // A warm start from a relief: each texel's own level holds half the weight at τ = 1,
         // the other levels share the rest, so the mixture's far field starts near the relief's.
         const double own = std::log(0.5), other = std::log(0.5 / std::max(1, K - 1));
@@ -920,7 +922,8 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
         report({"relaxed", iteration0 + it, loss, tau});
     }
     if (grayscale) {
-        out.level = detail::grayscale_design(p, evaluator, report, stopped, out.fractions);
+        out.level = detail::grayscale_design(p, evaluator, report, stopped, out.fractions, out.latent, warm_latent,
+                                             iteration0);
         out.seconds = seconds_since(relaxed_start);
         return out;
     }
@@ -1067,10 +1070,10 @@ double refine_constrained(const PreparedDesign& p, detail::Evaluator& evaluator,
     return loss;
 }
 
-// Brightness for chromaticity (colour targets on levels). The loss asks for both a chromaticity
-// (Δu′v′ → 0) and a luminous efficiency (the hinge below Y 0.1); the two compete, since light
-// into the view cone at the wavelengths that pull the chromaticity off the target is light the
-// hinge wants. A colour whose brightest reflectors are dim (blue: its optimal-colour limit is a
+// Brightness for chromaticity (colour and iridescent targets, on levels or grayscale). The loss
+// asks for both a chromaticity (Δu′v′ → 0) and a luminous efficiency (the hinge below Y 0.1);
+// the two compete, since light into the view cone at the wavelengths that pull the chromaticity
+// off the target is light the hinge wants. A colour whose brightest reflectors are dim (blue: its optimal-colour limit is a
 // few times the hinge's Y at best) settles where the chromaticity term's pull, which grows with
 // Δu′v′ from zero, balances the hinge's, and there the schedule ends far inside any visible
 // colour difference while Y is still below what a reached colour has. Only then (the loop's Y
@@ -1081,6 +1084,9 @@ double refine_constrained(const PreparedDesign& p, detail::Evaluator& evaluator,
 // least of those steps that reaches the brightness; at the ceiling blocks continue while one
 // still lowers the loss, at most k_trade_max_blocks in all. Greedy discrete passes alone, tried
 // first, stop short: the levels that move light between wavelengths change many texels at once.
+// A grayscale relief (--min-feature-um) runs the same blocks: its relaxed phase warm from the
+// heights' parameters z where the kept relief left them, its discrete passes none (the relief
+// is scored, as after its schedule).
 // A design whose schedule reaches the brightness is untouched. An iridescent target trades per
 // pair: each block raises the tolerance of the pairs whose Y is still below k_reached_y, so a
 // bright pair's colour is not given up for a dim one's brightness; it stops when every pair
@@ -1088,7 +1094,7 @@ double refine_constrained(const PreparedDesign& p, detail::Evaluator& evaluator,
 // does not lower the loss, or after k_trade_max_blocks.
 constexpr int k_trade_steps = 4, k_trade_max_blocks = 8;
 struct BrightnessTrade {
-    bool considered = false;  // a colour or iridescent target on levels with a ceiling above its tolerance
+    bool considered = false;  // a colour or iridescent target with a ceiling above its tolerance
     bool per_pair = false;    // iridescent: the vectors hold one entry per pair
     int blocks = 0;
     std::vector<double> tolerance, y_before, y_after;  // per view cone (colour: one)
@@ -1108,13 +1114,13 @@ std::vector<double> model_luminous_efficiency(const PreparedDesign& p, detail::E
 }
 
 BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator& evaluator, RefineLoss& refine_loss,
-                                     std::vector<int>& level, double& loss,
+                                     std::vector<int>& level, std::vector<double>& latent, double& loss,
                                      const std::function<void(const DesignStep&)>& report, const bool& stopped) {
     const DesignOptions& o = p.options;
     BrightnessTrade t;
     const bool colour = o.target.kind == DesignKind::Colour, iridescent = o.target.kind == DesignKind::Iridescent;
-    if (!(colour || iridescent) || o.min_feature_um != 0.0 || !(o.delta_uv_ceiling > o.delta_uv_tolerance) ||
-        o.refine_passes == 0)
+    const bool grayscale = o.min_feature_um != 0.0;
+    if (!(colour || iridescent) || !(o.delta_uv_ceiling > o.delta_uv_tolerance) || (o.refine_passes == 0 && !grayscale))
         return t;
     const auto start = Clock::now();
     t.y_before = t.y_after = model_luminous_efficiency(p, evaluator, level);
@@ -1151,13 +1157,14 @@ BrightnessTrade trade_for_brightness(const PreparedDesign& p, detail::Evaluator&
             p.target->set_delta_uv_tolerance(q, t.tolerance[q]);
         }
         const double before = refine_loss(level, nullptr);
-        RelaxedLevels block = relaxed_levels(p, evaluator, report, stopped, &level, iteration);
+        RelaxedLevels block = relaxed_levels(p, evaluator, report, stopped, &level, iteration, &latent);
         iteration += o.iterations;
         double block_loss = refine_levels(p, refine_loss, block.level, o.refine_passes, iteration, report, stopped);
         iteration += o.refine_passes;
         ++t.blocks;
         if (block_loss < before) {
             level.swap(block.level);
+            latent.swap(block.latent);
             t.loss_after = block_loss;
         } else {
             t.loss_after = before;
@@ -1179,7 +1186,10 @@ nlohmann::json brightness_trade_json(const PreparedDesign& p, const BrightnessTr
                                  "delta u'v' tolerance raised by a quarter of (ceiling - delta_uv_tolerance) per block up "
                                  "to the ceiling, a block kept where it lowers the loss, while Y stays below y_floor and "
                                  "the loss still falls") +
-                         (t.per_pair ? "; per pair: only the tolerances of the pairs below y_floor are raised" : "")},
+                         (t.per_pair ? "; per pair: only the tolerances of the pairs below y_floor are raised" : "") +
+                         (o.min_feature_um != 0.0 ? "; grayscale: the relaxed phase warm from the kept relief's latent "
+                                                    "heights, no discrete passes"
+                                                  : "")},
             {"y_floor", k_reached_y},
             {"ceiling", o.delta_uv_ceiling},
             {"max_blocks", k_trade_max_blocks},
@@ -1189,6 +1199,31 @@ nlohmann::json brightness_trade_json(const PreparedDesign& p, const BrightnessTr
             {"model_y_after", value(t.y_after)},
             {"final_loss", t.loss_after},
             {"seconds", t.seconds}};
+}
+
+// A warning per view cone still below k_reached_y under exact scalar diffraction of the relief
+// after blocks of the trade ran: the Y it ended at, the tolerance the blocks reached and where
+// they stopped (at the ceiling, after k_trade_max_blocks, or interrupted).
+std::vector<std::string> brightness_trade_warnings(const PreparedDesign& p, const BrightnessTrade& t,
+                                                   const nlohmann::json& exact) {
+    std::vector<std::string> out;
+    if (!t.considered || t.blocks == 0 || !exact.contains("luminous_efficiency")) return out;
+    const nlohmann::json& y = exact["luminous_efficiency"];
+    const std::vector<double> ys = y.is_array() ? y.get<std::vector<double>>() : std::vector<double>{y.get<double>()};
+    const char* why = t.blocks >= k_trade_max_blocks ? "after the most blocks" : "before the ceiling (interrupted)";
+    for (std::size_t q = 0; q < ys.size() && q < t.tolerance.size(); ++q) {
+        if (!(ys[q] < k_reached_y)) continue;
+        char line[400];
+        std::snprintf(line, sizeof line,
+                      "%s Y %.3g %% is below %.3g %% after %d block%s of the brightness trade (delta u'v' tolerance %.3g, "
+                      "--delta-uv-ceiling %.3g; stopped %s)%s",
+                      t.per_pair ? ("pair " + std::to_string(q + 1) + "'s").c_str() : "the colour's", 100.0 * ys[q],
+                      100.0 * k_reached_y, t.blocks, t.blocks == 1 ? "" : "s", t.tolerance[q], p.options.delta_uv_ceiling,
+                      t.tolerance[q] >= p.options.delta_uv_ceiling ? "at the ceiling" : why,
+                      p.options.min_feature_um != 0.0 ? "; a grayscale relief" : "");
+        out.emplace_back(line);
+    }
+    return out;
 }
 
 // The exact metrics; a target counted in incident power also gets its luminous efficiency as a
@@ -1453,7 +1488,8 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     ConstrainedRefine constrained;
     double loss = refine_constrained(p, evaluator, refine_loss, level, report, stopped, constrained);
     const double refine_seconds = seconds_since(refine_start);
-    const BrightnessTrade trade = trade_for_brightness(p, evaluator, refine_loss, level, loss, report, stopped);
+    const BrightnessTrade trade =
+        trade_for_brightness(p, evaluator, refine_loss, level, relaxed.latent, loss, report, stopped);
 
     r.level = level;
     const bool free_step = step_is_free(p);
@@ -1491,6 +1527,8 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
         j["constraint_loop"]["repair_blocks"] = constrained.repair_blocks;
         j["constraint_loop"]["limits_met"] = j["warnings"].empty();
     }
+    // A dim colour the trade did not bring to the brightness.
+    for (const std::string& w : brightness_trade_warnings(p, trade, j["metrics"]["exact"])) j["warnings"].push_back(w);
     j["timings_s"] = {{"relaxed", relaxed.seconds}, {"refine", refine_seconds}, {"brightness_trade", trade.seconds},
                       {"metrics", metrics_seconds}, {"total", seconds_since(start)}};
     r.metrics_json = j.dump(2);

@@ -54,14 +54,18 @@ double grayscale_loss(const FeatureFilter& filter, Evaluator& evaluator, double 
 
 std::vector<int> grayscale_design(const PreparedDesign& p, Evaluator& evaluator,
                                   const std::function<void(const DesignStep&)>& report, const bool& stopped,
-                                  Fractions& relaxed_fractions) {
+                                  Fractions& relaxed_fractions, std::vector<double>& latent,
+                                  const std::vector<double>* warm, int iteration0) {
     const DesignOptions& o = p.options;
     const int N = o.size, K = o.levels;
     const std::size_t n2 = static_cast<std::size_t>(N) * static_cast<std::size_t>(N);
     const FeatureFilter filter(N, o.texel_um, o.min_feature_um);
     std::mt19937_64 rng(derive_seed(o.seed, 0x67a7));
     std::vector<double> z(n2), grad, m1(n2, 0.0), m2(n2, 0.0);
-    fill_standard_normal(z.data(), z.size(), rng);
+    if (warm && warm->size() == n2)
+        z = *warm;
+    else
+        fill_standard_normal(z.data(), z.size(), rng);
     constexpr double k_rate = 0.1, k_b1 = 0.9, k_b2 = 0.999;
     for (int it = 0; it < o.iterations && !stopped; ++it) {
         const double loss = grayscale_loss(filter, evaluator, o.height_range_um, K, z, &grad, &relaxed_fractions);
@@ -74,7 +78,7 @@ std::vector<int> grayscale_design(const PreparedDesign& p, Evaluator& evaluator,
             m2[t] = k_b2 * m2[t] + (1.0 - k_b2) * grad[t] * grad[t];
             z[t] -= k_rate * (m1[t] / c1) / (std::sqrt(m2[t] / c2) + 1e-12);
         }
-        report({"relaxed", it, loss, 0.0});
+        report({"relaxed", iteration0 + it, loss, 0.0});
     }
     std::vector<double> h;
     filtered_heights(filter, o.height_range_um, z, h);
@@ -82,6 +86,7 @@ std::vector<int> grayscale_design(const PreparedDesign& p, Evaluator& evaluator,
     std::vector<int> level(n2);
     for (std::size_t t = 0; t < n2; ++t)
         level[t] = std::clamp(static_cast<int>(std::lround(h[t] / step)), 0, K - 1);
+    latent.swap(z);
     return level;
 }
 

@@ -20,10 +20,13 @@ constexpr int k_grayscale_levels = 256;
 double grayscale_loss(const FeatureFilter& filter, Evaluator& evaluator, double height_range_um, int levels,
                       const std::vector<double>& z, std::vector<double>* gradient, Fractions* nominal = nullptr);
 
-// The relaxed phase of a grayscale design: `iterations` Adam steps on z (seeded from `seed`),
-// each reported; returns each texel's nearest level of the final heights (the relief as written).
+// The relaxed phase of a grayscale design: `iterations` Adam steps on z (seeded from `seed`, or
+// from `warm`, an earlier run's final z), each reported from iteration `iteration0`; returns each
+// texel's nearest level of the final heights (the relief as written) and leaves the final z in
+// `latent`.
 std::vector<int> grayscale_design(const PreparedDesign& p, Evaluator& evaluator,
                                   const std::function<void(const DesignStep&)>& report, const bool& stopped,
-                                  Fractions& relaxed_fractions);
+                                  Fractions& relaxed_fractions, std::vector<double>& latent,
+                                  const std::vector<double>* warm = nullptr, int iteration0 = 0);
 
 }  // namespace wavebrdf::detail
