@@ -134,7 +134,7 @@ lambda_um        base wavelength lambda0 (um), within lambda_min_um ... lambda_m
                  wavelengths the ladder may use); max_step_ratio: ladder step, 1.5 ... 100
 lambdas_um       given wavelengths (um) instead of the ladder; None: planned
 resolution       given slice size n (1...8192); 0: planned, n >= D/lambda (within 4x of Nyquist's
-                 4D/lambda) and at least 48, never above Nyquist's
+                 4D/lambda) and at least 48
 light            projected light direction (wx, wy), wx^2 + wy^2 < 1; model: 'OHS', 'ROHS', ...
 seed             the jitter
 roughness        None, or a known surface's measured roughness: a Heightfield (measured here) or

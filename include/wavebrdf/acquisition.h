@@ -11,8 +11,8 @@
 //  - A slice samples u = (ω_i + ω_o)/λ every Δu = 2/(nλ). The intensity of a window of support
 //    D is band-limited to |Δx| ≤ D, so Nyquist asks Δu ≤ 1/(2D): n ≥ 4D/λ. Recovery works
 //    down to 4× coarser (measured: 4.5× works, 6× fails), so the planner takes n ≥ D/λ at the
-//    shortest wavelength, at least 48 (the size the accuracy tables were measured at) and at
-//    most Nyquist's.
+//    shortest wavelength, at least 48 (the size the accuracy tables were measured at, also
+//    where Nyquist asks less).
 //  - One wavelength determines the heights modulo λ/2. A pair (λ0, λj) has the synthetic
 //    wavelength Λ = λ0λj/|λ0 − λj| and determines them modulo Λ/2. The planner builds a ladder
 //    of synthetic wavelengths from one that spans the height range with a margin down to λ0,

@@ -61,12 +61,12 @@ int sampled_resolution(double sigma_p_um, double lambda_um) {
 // The planner's slice size when none is given: the size the accuracy tables were measured at
 // (docs/recovery.md, docs/surfaces.md: 48², a third of the default window's Nyquist size, the
 // same accuracy at a tenth of the time), raised to what the window needs (sampled_resolution)
-// where 48² samples it too coarsely (wide footprints: σ_p = 1.5 texels of 3.5 µm asks 64²),
-// and never finer than Nyquist.
+// where 48² samples it too coarsely (wide footprints: σ_p = 1.5 texels of 3.5 µm asks 64²).
+// Not below 48² where Nyquist asks less (x3p-2's 0.5 µm texels: 40²): no smaller size was
+// measured on the real scans.
 constexpr int k_measured_slice_resolution = 48;
 int planned_resolution(double sigma_p_um, double lambda_um) {
-    return std::min(nyquist_resolution(sigma_p_um, lambda_um),
-                    std::max(k_measured_slice_resolution, sampled_resolution(sigma_p_um, lambda_um)));
+    return std::max(k_measured_slice_resolution, sampled_resolution(sigma_p_um, lambda_um));
 }
 
 // Periodic distance along one axis.
