@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <random>
 #include <stdexcept>
@@ -12,6 +13,7 @@
 #include "core/random.h"
 #include "core/text.h"
 #include "wavebrdf/conditioning.h"
+#include "wavebrdf/constants.h"
 #include "wavebrdf/loss.h"
 #include "wavebrdf/noise.h"
 #include "wavebrdf/observation.h"
@@ -59,22 +61,138 @@ int proxy_steps(double period_um, double step_um) {
     return std::max(1, static_cast<int>(std::lround(period_um / step_um)));
 }
 
+// The variance of every Fourier mode of the proxy's heights (row-major over its rows × cols
+// frequencies, µm²: Λ(q) = f_qᴴ G⁺ f_q / n, f_q = e^{2πi q·x}; 0 at q = 0; the mean over the modes
+// is the bars' mean σ²): A = G + c·11ᵀ/n = L Lᵀ (c the mean diagonal) has A⁻¹ = G⁺ + 11ᵀ/(n c)
+// and f_q ⊥ 1, so Λ(q) = (‖L⁻¹ Re f_q‖² + ‖L⁻¹ Im f_q‖²) / n. Throws std::domain_error for a G
+// that is not positive on the mean-free heights (a texel no observation sees).
+std::vector<double> mode_variances(std::vector<double> g, int rows, int cols) {
+    const std::size_t n = std::size_t(rows) * std::size_t(cols);
+    double c = 0.0;
+    for (std::size_t a = 0; a < n; ++a) c += g[a * n + a] / double(n);
+    for (double& x : g) x += c / double(n);
+    for (std::size_t j = 0; j < n; ++j) {  // Cholesky in place, lower triangle
+        double* lj = g.data() + j * n;
+        double d = lj[j];
+        for (std::size_t k = 0; k < j; ++k) d -= lj[k] * lj[k];
+        if (!(d > 0.0))
+            throw std::domain_error("photon plan: the proxy's Gauss-Newton matrix is singular at texel " +
+                                    std::to_string(j) + "; expected every texel seen by an observation");
+        lj[j] = std::sqrt(d);
+        for (std::size_t i = j + 1; i < n; ++i) {
+            double* li = g.data() + i * n;
+            double sum = li[j];
+            for (std::size_t k = 0; k < j; ++k) sum -= li[k] * lj[k];
+            li[j] = sum / lj[j];
+        }
+    }
+    const auto solved_norm = [&](std::vector<double> x) {  // ‖L⁻¹ x‖²
+        double norm = 0.0;
+        for (std::size_t r = 0; r < n; ++r) {
+            const double* lr = g.data() + r * n;
+            for (std::size_t k = 0; k < r; ++k) x[r] -= lr[k] * x[k];
+            x[r] /= lr[r];
+            norm += x[r] * x[r];
+        }
+        return norm;
+    };
+    std::vector<double> spectrum(n, 0.0), re(n), im(n);
+    for (int qr = 0; qr < rows; ++qr)
+        for (int qc = 0; qc < cols; ++qc) {
+            if (qr == 0 && qc == 0) continue;
+            for (int r = 0; r < rows; ++r)
+                for (int cc = 0; cc < cols; ++cc) {
+                    const double phase = 2.0 * k_pi * (double(qr * r) / rows + double(qc * cc) / cols);
+                    re[std::size_t(r) * std::size_t(cols) + std::size_t(cc)] = std::cos(phase);
+                    im[std::size_t(r) * std::size_t(cols) + std::size_t(cc)] = std::sin(phase);
+                }
+            spectrum[std::size_t(qr) * std::size_t(cols) + std::size_t(qc)] =
+                (solved_norm(re) + solved_norm(im)) / double(n);
+        }
+    return spectrum;
+}
+
+// |X(q)|² of the mean-free heights in µm (X the unnormalised 2-D DFT), row-major: separable, a
+// DFT along the rows then the columns (rows·cols·(rows + cols) complex multiply-adds).
+std::vector<double> height_power(const Heightfield& surface) {
+    const int rows = surface.rows(), cols = surface.cols();
+    const std::size_t n = std::size_t(rows) * std::size_t(cols);
+    const double to_um = surface.texel_um() * surface.vscale();
+    double mean = 0.0;
+    for (double v : surface.values()) mean += v / double(n);
+    std::vector<std::complex<double>> x(n), y(n);
+    for (std::size_t t = 0; t < n; ++t) x[t] = (surface.values()[t] - mean) * to_um;
+    const auto twiddles = [](int size) {
+        std::vector<std::complex<double>> e(static_cast<std::size_t>(size));
+        for (int k = 0; k < size; ++k) e[std::size_t(k)] = std::polar(1.0, -2.0 * k_pi * k / size);
+        return e;
+    };
+    const std::vector<std::complex<double>> er = twiddles(rows), ec = twiddles(cols);
+    for (int r = 0; r < rows; ++r)  // along each row (over columns)
+        for (int k = 0; k < cols; ++k) {
+            std::complex<double> s = 0.0;
+            for (int c = 0; c < cols; ++c) s += x[std::size_t(r) * std::size_t(cols) + std::size_t(c)] * ec[std::size_t((k * c) % cols)];
+            y[std::size_t(r) * std::size_t(cols) + std::size_t(k)] = s;
+        }
+    std::vector<double> power(n);
+    for (int c = 0; c < cols; ++c)
+        for (int k = 0; k < rows; ++k) {
+            std::complex<double> s = 0.0;
+            for (int r = 0; r < rows; ++r) s += y[std::size_t(r) * std::size_t(cols) + std::size_t(c)] * er[std::size_t((k * r) % rows)];
+            power[std::size_t(k) * std::size_t(cols) + std::size_t(c)] = std::norm(s);
+        }
+    return power;
+}
+
+// The proxy's frequency index (0 … proxy − 1) nearest the whole tile's index k of `size`.
+int nearest_frequency(int k, int size, int proxy) {
+    const double f = (k > size / 2 ? k - size : k) / double(size);  // cycles per texel, −½ … ½
+    return ((int(std::lround(f * proxy)) % proxy) + proxy) % proxy;
+}
+
+// photon_limited_bias_um on the tile's power |X(q)|² (height_power).
+double bias_of_power(const std::vector<double>& power, int rows, int cols, const PhotonPlan& details, int exposures) {
+    const int pr = details.proxy_rows, pc = details.proxy_cols;
+    const double n = double(rows) * double(cols);
+    double bias2 = 0.0;
+    for (int kr = 0; kr < rows; ++kr)
+        for (int kc = 0; kc < cols; ++kc) {
+            const double t = power[std::size_t(kr) * std::size_t(cols) + std::size_t(kc)];
+            if ((kr == 0 && kc == 0) || !(t > 0.0)) continue;
+            const std::size_t at = std::size_t(nearest_frequency(kr, rows, pr)) * std::size_t(pc) +
+                                   std::size_t(nearest_frequency(kc, cols, pc));
+            const double v = n * details.variance_spectrum[at] / double(exposures);
+            const double shrink = std::min(1.0, v / (2.0 * t));
+            bias2 += t * shrink * shrink;
+        }
+    return std::sqrt(bias2) / n;
+}
+
 }  // namespace
 
-int exposures_for_target(double single_rms_um, double target_um, int max_exposures, bool* capped) {
-    if (!(std::isfinite(single_rms_um) && single_rms_um >= 0.0))
-        throw std::domain_error("predicted rms height error " + format_shortest(single_rms_um) +
+int exposures_for_target(const std::function<double(int)>& rms_um, double target_um, int max_exposures,
+                         bool* capped) {
+    if (capped) *capped = false;
+    const double single = rms_um(1);
+    if (!(std::isfinite(single) && single >= 0.0))
+        throw std::domain_error("predicted rms height error " + format_shortest(single) +
                                 " um is invalid; expected a finite value >= 0");
     if (!(std::isfinite(target_um) && target_um > 0.0))
         throw std::domain_error("target height error " + format_shortest(target_um) +
                                 " um is invalid; expected a finite value > 0");
     if (max_exposures < 1)
         throw std::domain_error("max exposures " + std::to_string(max_exposures) + " is invalid; expected >= 1");
-    const double ratio = single_rms_um / target_um;
-    // The variance falls as 1/k: k ≥ ratio² (the 1e-9 keeps a ratio of exactly 1 at one exposure).
-    const double needed = std::max(1.0, std::ceil(ratio * ratio - 1e-9));
-    if (capped) *capped = needed > double(max_exposures);
-    return static_cast<int>(std::min(needed, double(max_exposures)));
+    if (single <= target_um) return 1;
+    if (rms_um(max_exposures) > target_um) {
+        if (capped) *capped = true;
+        return max_exposures;
+    }
+    int lo = 1, hi = max_exposures;  // rms_um(lo) > target ≥ rms_um(hi)
+    while (hi - lo > 1) {
+        const int mid = lo + (hi - lo) / 2;
+        (rms_um(mid) > target_um ? lo : hi) = mid;
+    }
+    return hi;
 }
 
 double predict_photon_limited_rms_um(const Heightfield& surface, const AcquisitionPlan& plan, double photons,
@@ -112,19 +230,37 @@ double predict_photon_limited_rms_um(const Heightfield& surface, const Acquisiti
 
     const std::vector<Observation> observations = simulate_observations(tile, proxy, Noise{}, 1);
     const Loss loss{LossKind::Poisson, 1.0, photons};
-    const HeightUncertainty u = height_uncertainty(observations, tile, loss);
+    // G on the proxy (uncertainty.h), its pseudo-inverse mode by mode: the bars' variance is the
+    // modes' mean, its spectrum what photon_limited_bias_um weighs the truth's power against.
+    const GaussNewtonBand band = GaussNewtonOperator(observations, tile, loss).band();
+    std::vector<double> spectrum = mode_variances(band.dense(), tile.rows(), tile.cols());
     double sum = 0.0;
-    for (const double s : u.sigma_um) sum += s * s;
-    const double rms = std::sqrt(sum / double(std::max<std::size_t>(u.sigma_um.size(), 1)) * density_ratio);
+    for (double& v : spectrum) {
+        v *= density_ratio;
+        sum += v;
+    }
+    const double rms = std::sqrt(sum / double(std::max<std::size_t>(spectrum.size(), 1)));
     if (details) {
         details->proxy_rows = rows;
         details->proxy_cols = cols;
         details->proxy_observations = observations.size();
         details->density_ratio = density_ratio;
-        details->forwards = u.forwards;
+        details->forwards = band.forwards;
+        details->variance_spectrum = std::move(spectrum);
         details->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
     return rms;
+}
+
+double photon_limited_bias_um(const Heightfield& surface, const PhotonPlan& details, int exposures) {
+    const int pr = details.proxy_rows, pc = details.proxy_cols;
+    if (pr < 1 || pc < 1 || details.variance_spectrum.size() != std::size_t(pr) * std::size_t(pc))
+        throw std::invalid_argument("photon-limited bias: a variance spectrum of " +
+                                    std::to_string(details.variance_spectrum.size()) + " values; expected " +
+                                    std::to_string(pr) + "x" + std::to_string(pc));
+    if (exposures < 1)
+        throw std::domain_error("exposures " + std::to_string(exposures) + " is invalid; expected >= 1");
+    return bias_of_power(height_power(surface), surface.rows(), surface.cols(), details, exposures);
 }
 
 PhotonPlan plan_exposures(const Heightfield& surface, const AcquisitionPlan& plan, double photons, double range_um,
@@ -137,22 +273,32 @@ PhotonPlan plan_exposures(const Heightfield& surface, const AcquisitionPlan& pla
     p.photons = photons;
     p.range_um = range_um;
     p.target = settings.target;
-    p.single_rms_um = predict_photon_limited_rms_um(surface, plan, photons, settings, &p);
+    const double single_sd_um = predict_photon_limited_rms_um(surface, plan, photons, settings, &p);
+    // √(variance/k + bias(k)²): both fall with k.
+    const std::vector<double> power = height_power(surface);
+    const auto total_um = [&](int k, double* bias_um) {
+        const double b = bias_of_power(power, surface.rows(), surface.cols(), p, k);
+        if (bias_um) *bias_um = b;
+        return std::sqrt(single_sd_um * single_sd_um / double(k) + b * b);
+    };
+    p.single_rms_um = total_um(1, &p.single_bias_um);
     if (settings.target > 0.0)
-        p.exposures = exposures_for_target(p.single_rms_um, settings.target * range_um, settings.max_exposures,
-                                           &p.capped);
-    p.rms_um = p.single_rms_um / std::sqrt(double(p.exposures));
+        p.exposures = exposures_for_target([&](int k) { return total_um(k, nullptr); }, settings.target * range_um,
+                                           settings.max_exposures, &p.capped);
+    p.rms_um = total_um(p.exposures, &p.bias_um);
     const auto pct = [&](double rms_um) { return fixed("%.3g", 100.0 * rms_um / range_um) + " %"; };
     const std::string predicted = "photon-limited rms height error predicted " + pct(p.single_rms_um) +
-                                  " of the peak to valley (" + fixed("%.3g", 1000.0 * p.single_rms_um) + " nm) at " +
-                                  format_shortest(photons) + " photons per exposure";
+                                  " of the peak to valley (" + fixed("%.3g", 1000.0 * p.single_rms_um) +
+                                  " nm, of which a bias of " + fixed("%.3g", 1000.0 * p.single_bias_um) +
+                                  " nm rms: the high spatial frequencies shrunk) at " + format_shortest(photons) +
+                                  " photons per exposure";
     const std::string target = "target " + fixed("%.3g", 100.0 * settings.target) + " %";
     const std::string proxy = " (error bars on a " + std::to_string(p.proxy_rows) + "x" +
                               std::to_string(p.proxy_cols) + " proxy tile, " +
                               std::to_string(p.proxy_observations) + " observations)";
     if (settings.target <= 0.0)
         p.note = predicted + " (no target: one exposure per slice)" + proxy;
-    else if (p.exposures == 1)
+    else if (p.exposures == 1 && !p.capped)
         p.note = predicted + ", within the " + target + ": one exposure per slice" + proxy;
     else
         p.note = predicted + " > " + target + ": " + std::to_string(p.exposures) +

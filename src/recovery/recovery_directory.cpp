@@ -60,6 +60,7 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                               {"predicted_error_one_exposure", p.single_rms_um / p.range_um},
                               {"predicted_error", p.rms_um / p.range_um},
                               {"predicted_rms_um", p.rms_um},
+                              {"predicted_bias_um", p.bias_um},
                               {"proxy_size", std::to_string(p.proxy_rows) + "x" + std::to_string(p.proxy_cols)},
                               {"proxy_observations", p.proxy_observations},
                               {"seconds", p.seconds}};
