@@ -36,6 +36,12 @@ struct DesignArgs {
     DesignOptions options;
 };
 
+// design.json's warnings (a broken limit, a dim colour), each a stderr line, even with --quiet.
+void print_warnings(const std::string& metrics_json) {
+    for (const auto& w : nlohmann::json::parse(metrics_json).value("warnings", nlohmann::json::array()))
+        std::cerr << "design: warning: " << w.get<std::string>() << "\n";
+}
+
 // --target image:PICTURE.png --palette …: a plate of palette designs (design_plate.h).
 void run_plate_command(const DesignArgs& a) {
     PlateOptions po;
@@ -67,6 +73,7 @@ void run_plate_command(const DesignArgs& a) {
     });
     progress.finish();
     write_plate_directory(a.out, result, a.force);
+    print_warnings(result.metrics_json);
     if (!a.quiet) {
         const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
         for (const auto& e : j["entries"]) {
@@ -139,9 +146,7 @@ void run(DesignArgs a) {
     progress.finish();
     write_design_directory(a.out, result, a.force);
     if (!a.no_plots) draw_report(RunKind::Design, a.out);
-    // A broken limit is said even with --quiet.
-    for (const auto& w : nlohmann::json::parse(result.metrics_json).value("warnings", nlohmann::json::array()))
-        std::cerr << "design: warning: " << w.get<std::string>() << "\n";
+    print_warnings(result.metrics_json);
     if (!a.quiet) {
         const nlohmann::json j = nlohmann::json::parse(result.metrics_json);
         if (j.contains("brightness_trade") && j["brightness_trade"]["blocks"].get<int>() > 0) {

@@ -70,11 +70,7 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     for (const DesignStep& s : result.curve)
         curve.append(py::make_tuple(s.iteration, s.loss, s.phase, s.temperature));
     const py::object info = py::module_::import("json").attr("loads")(result.metrics_json);
-    // A limit the exported relief breaks (design.json warnings) is a Python warning too.
-    if (info.contains("warnings"))
-        for (const auto& w : info["warnings"])
-            if (PyErr_WarnEx(PyExc_UserWarning, ("design: " + w.cast<std::string>()).c_str(), 1) != 0)
-                throw py::error_already_set();
+    warn_design_warnings(info);
     return py::dict("heights_um"_a = heights, "level"_a = level, "levels_um"_a = result.levels_um,
                     "lambdas_um"_a = result.lambdas_um, "texel_um"_a = result.texel_um, "target"_a = target_picture,
                     "far_field"_a = far_field, "picture_extent"_a = result.picture_extent, "curve"_a = curve,
@@ -82,6 +78,13 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
 }
 
 }  // namespace
+
+void warn_design_warnings(const py::object& info) {
+    if (!info.contains("warnings")) return;
+    for (const auto& w : info["warnings"])
+        if (PyErr_WarnEx(PyExc_UserWarning, ("design: " + w.cast<std::string>()).c_str(), 1) != 0)
+            throw py::error_already_set();
+}
 
 void set_common_design_options(DesignOptions& o, const py::object& view, double view_cone, int size, double texel_um,
                                double height_range_um, int levels, double level_step_um,

@@ -20,6 +20,10 @@ void set_common_design_options(DesignOptions& o, const py::object& view, double 
                                const std::string& fabrication_error, std::uint64_t seed, int iterations,
                                int refine_passes, double max_memory_gb);
 
+// design.json's warnings (a limit the exported relief breaks, a dim colour; `info` its parsed
+// dict) as Python UserWarnings, each "design: …".
+void warn_design_warnings(const py::object& info);
+
 // Runs `run()` without the GIL (Ctrl-C interrupts it): with `out` a path, its run directory is
 // checked first (new or empty, or a design's with force) and `write(dir, result)` fills it after.
 template <typename Run, typename Write>

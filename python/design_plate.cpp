@@ -64,6 +64,7 @@ py::dict design_plate(const py::object& picture, const std::string& palette, con
     float* dst = appearance.mutable_data();
     for (const auto& panel : r.appearance) dst = std::copy(panel.begin(), panel.end(), dst);
     const py::object info = py::module_::import("json").attr("loads")(r.metrics_json);
+    warn_design_warnings(info);
     return py::dict("heights_um"_a = heights, "levels_um"_a = r.levels_um, "texel_um"_a = r.texel_um,
                     "assignment"_a = assignment, "appearance"_a = appearance, "views"_a = r.view_names,
                     "design"_a = info);

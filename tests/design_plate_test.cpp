@@ -214,6 +214,41 @@ TEST(DesignPlate, ThePlateIsTheEntriesTilesLaidOutAsThePicture) {
     EXPECT_EQ(rq.appearance.size(), 2u);
 }
 
+TEST(DesignPlate, AnEntrysWarningsReachThePlatesDesignJsonNamingTheEntry) {
+    // A grayscale blue (1 µm features, 16² texels) ends dim after the brightness trade; magenta
+    // reaches Y 5 %.
+    PlateOptions o = test::small_plate(16, 8, 0, 80, 20);
+    o.design.min_feature_um = 1.0;
+    o.design.view_cone = 0.05;
+    o.design.height_range_um = 2.0;
+    o.design.seed = 5;
+    o.palette = parse_palette("#0000FF;#FF00FF");
+    o.picture = picture(2, 2, {{{0, 0, 255}}, {{255, 0, 255}}, {{255, 0, 255}}, {{0, 0, 255}}});
+    const PlateResult r = run_plate(prepare_plate(o));
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    ASSERT_EQ(j["entries"].size(), 2u);
+    std::vector<std::string> expected;
+    for (std::size_t e = 0; e < 2; ++e) {
+        const auto tile = nlohmann::json::parse(r.tiles[e].metrics_json);
+        const auto& entry = j["entries"][e];
+        EXPECT_EQ(entry["warnings"], tile["warnings"]) << e;
+        EXPECT_EQ(entry["brightness_trade"], tile["brightness_trade"]) << e;
+        EXPECT_EQ(entry["optimal_colour_bound"], tile["optimal_colour_bound"]) << e;
+        for (const auto& w : tile["warnings"])
+            expected.push_back("palette entry " + o.palette[e].text + ": " + w.get<std::string>());
+        // A warned entry is the dim one by the plate's own scoring (its tile's exact orders into
+        // the view cone, computed apart from the trade's warning).
+        const double y = entry["views"][0]["luminous_efficiency"].get<double>();
+        if (tile["warnings"].empty()) {
+            EXPECT_GE(y, 0.05) << o.palette[e].text;
+        } else {
+            EXPECT_LT(y, 0.05) << o.palette[e].text;
+        }
+    }
+    ASSERT_FALSE(expected.empty()) << "the test needs a dim entry: " << j["entries"].dump();
+    EXPECT_EQ(j["warnings"].get<std::vector<std::string>>(), expected);
+}
+
 TEST(DesignPlate, BadInputIsRefusedBeforeAnyWork) {
     EXPECT_THROW(parse_palette("#FF0000"), std::invalid_argument);
     EXPECT_THROW(parse_palette("#FF0000;dir:0.1,0"), std::invalid_argument);

@@ -338,6 +338,7 @@ PlateResult run_plate(const PreparedPlate& p, const std::function<bool(int, cons
     // appearance_xyz[e][v]: the XYZ of entry e's tile into view v's cone (fractions of the incident light).
     std::vector<std::vector<std::array<double, 3>>> appearance_xyz(K, std::vector<std::array<double, 3>>(views.size(), {0.0, 0.0, 0.0}));
 
+    std::vector<std::string> plate_warnings;
     for (std::size_t e = 0; e < K; ++e) {
         if (p.pixels_per_entry[e] == 0) {
             entries.push_back({{"entry", o.palette[e].text}, {"pixels", 0}});
@@ -379,7 +380,15 @@ PlateResult run_plate(const PreparedPlate& p, const std::function<bool(int, cons
                            {"exact_direct_sum_check", dj["metrics"]["exact_direct_sum_check"]},
                            {"fabrication_errors", dj["fabrication_errors"]},
                            {"views", views_json},
+                           {"warnings", dj["warnings"]},
                            {"timings_s", dj["timings_s"]}});
+        // What the entry's own design.json says of its reach: the trade and the bounds.
+        for (const char* key : {"brightness_trade", "optimal_colour_bound", "cone_bound", "mixture_bound"})
+            if (dj.contains(key)) entries.back()[key] = dj[key];
+        // The plate's own list names the entry, so that a dim or broken entry is said where the
+        // plate's reader looks (its stderr, report and Python warnings read design.json's list).
+        for (const auto& w : dj["warnings"])
+            plate_warnings.push_back("palette entry " + o.palette[e].text + ": " + w.get<std::string>());
         r.tiles[e] = std::move(d);
     }
 
@@ -444,6 +453,7 @@ PlateResult run_plate(const PreparedPlate& p, const std::function<bool(int, cons
     j["seed"] = o.design.seed;
     j["options"] = {{"iterations", o.design.iterations}, {"refine_passes", o.design.refine_passes}};
     j["entries"] = entries;
+    j["warnings"] = plate_warnings;
     j["appearance_note"] =
         "each entry's tile under exact scalar diffraction (its periodic orders into the view cone); a region of "
         "finite size also spreads each order by about lambda / its width";
