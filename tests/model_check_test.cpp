@@ -6,7 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
 #include <string>
@@ -107,6 +109,67 @@ TEST(FieldModelLoss, OneWavelengthAtATimeInAnyOrderGivesTheSameBits) {
         EXPECT_EQ(va, vb) << "exposure " << exposure;
         EXPECT_EQ(ga, gb) << "exposure " << exposure;
         EXPECT_EQ(a(h, nullptr), va);  // a second evaluation starts from zero sums
+    }
+}
+
+// Pixel weights (Observation::weights) in the model check's losses: a pixel of weight 0 enters
+// neither the field model's loss nor the Gabor amplitude loss (its value, here 50 × the slice's
+// peak or NaN, changes neither value nor gradient), and the weights count (the weighted loss
+// differs from the unweighted one). Each slice's brightest pixel is among those masked: on the
+// planner's 48² slices 3 % of the pixels hid one slice's specular peak, and the model check,
+// reading values filled from its dim neighbours unweighted, swapped the refined heights (4e-6
+// off) for the field model's (3 % off; tests/python/test_recover_weights.py).
+TEST(FieldModelLoss, PixelsOfWeightZeroEnterNeitherModelCheckLoss) {
+    const int n = 12, refine = 3, resolution = 24;
+    const Heightfield truth = test::random_heightfield(n, n, 0.15, 5709, 2.0);
+    const std::vector<Observation> clean = few_slices(truth, {0.5, 0.6}, resolution);
+    std::vector<Observation> masked = clean, garbage;
+    std::mt19937_64 rng(5710);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    for (Observation& o : masked) {
+        o.weights.assign(o.reference.size(), 1.0f);
+        const std::size_t peak =
+            std::size_t(std::max_element(o.reference.begin(), o.reference.end()) - o.reference.begin());
+        o.weights[peak] = 0.0f;
+        for (float& w : o.weights)
+            if (u(rng) < 0.05) w = 0.0f;
+        for (float& w : o.weights)
+            if (w != 0.0f) w = float(0.5 + u(rng));
+    }
+    garbage = masked;
+    for (Observation& o : garbage) {
+        const float peak = *std::max_element(o.reference.begin(), o.reference.end());
+        bool first = true;
+        for (std::size_t k = 0; k < o.reference.size(); ++k)
+            if (o.weights[k] == 0.0f) {
+                o.reference[k] = first ? std::numeric_limits<float>::quiet_NaN() : 50.0f * peak;
+                first = false;
+            }
+    }
+    const Heightfield start = test::random_heightfield(n, n, 0.15, 5711, 2.0);
+    const std::vector<double> h = heights_um(start);
+    for (bool exposure : {false, true}) {
+        SCOPED_TRACE(exposure ? "exposure calibrated" : "exposure 1");
+        const auto field_loss = [&](const std::vector<Observation>& obs, std::vector<double>& g) {
+            const detail::FieldModelLoss loss(pointers(obs), queries_of(obs), n, n, 2.0, refine, exposure,
+                                              serial_communicator());
+            return loss(h, &g);
+        };
+        std::vector<double> g_clean, g_masked, g_garbage;
+        const double v_clean = field_loss(clean, g_clean), v_masked = field_loss(masked, g_masked),
+                     v_garbage = field_loss(garbage, g_garbage);
+        EXPECT_TRUE(std::isfinite(v_garbage));
+        EXPECT_EQ(v_masked, v_garbage);
+        EXPECT_EQ(g_masked, g_garbage);
+        EXPECT_GT(std::abs(v_masked - v_clean), 1e-3 * v_clean);  // the weights count
+        const auto gabor = [&](const std::vector<Observation>& obs, const Heightfield& at) {
+            return detail::gabor_amplitude_loss(pointers(obs), queries_of(obs), at, exposure, serial_communicator());
+        };
+        EXPECT_EQ(gabor(masked, start), gabor(garbage, start));
+        EXPECT_GT(std::abs(gabor(masked, start) - gabor(clean, start)), 1e-3 * gabor(clean, start));
+        // The slices are the Gabor model's: at the truth the weighted loss is ~0 whatever the
+        // masked pixels hold.
+        EXPECT_LT(gabor(garbage, truth), 1e-9);
     }
 }
 

@@ -118,7 +118,6 @@ std::vector<Observation> filled_observations(const std::vector<Observation>& obs
                     break;
                 }
             }
-        o.weights.clear();
     }
     return out;
 }

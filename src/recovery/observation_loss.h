@@ -8,7 +8,9 @@
 // Per-pixel weights (Observation::weights): a pixel of weight 0 (dead, saturated, unmeasured)
 // enters nothing here (its reference is never read: it may hold NaN); otherwise each pixel
 // counts with its weight. The stages with their own slice models (the blurred fit, the field
-// stage, the model check) read filled_observations' copies instead.
+// stage, the model check) read filled_observations' copies instead: the field stage's and the
+// model check's amplitude losses honour the weights too (amplitude_loss.h); the blurred fit,
+// whose blurred images mix neighbouring pixels, reads the filled values.
 #include <array>
 #include <cstddef>
 #include <vector>
@@ -61,11 +63,14 @@ double mean_observation_loss(const std::vector<Observation>& observations, doubl
 // Whether any of `observations` (this rank's) has weights.
 bool any_weights(const std::vector<Observation>& observations);
 
-// Copies without weights for the stages whose models read whole slices (the blurred fit's
-// blurred images, the field stage's amplitudes, the model check): each value of a pixel of
-// weight 0 replaced by the mean of the same channel over the pixels of weight > 0 in the
-// smallest square window about it that holds any. They only start the full-model stages,
-// which see the observations themselves.
+// Copies for the stages whose models read whole slices (the blurred fit's blurred images, the
+// field stage's amplitudes, the model check): each value of a pixel of weight 0 replaced by the
+// mean of the same channel over the pixels of weight > 0 in the smallest square window about it
+// that holds any (finite values where the given ones may be NaN), the weights kept. Only the
+// blurred fit reads the filled values; the amplitude losses leave pixels of weight 0 out. (With
+// the model check reading the filled values unweighted, a masked specular peak, filled with
+// its dim neighbours' mean, made it pick the field model's heights 3 % off over the refined ones
+// at 4e-6: experiments/2026-11-30-masked-pixels-model-check.md.)
 std::vector<Observation> filled_observations(const std::vector<Observation>& observations);
 
 }  // namespace wavebrdf::detail

@@ -682,7 +682,8 @@ namespace {
 struct RetrievalSlice {
     FieldOperator op;
     Eigen::MatrixXf sqrt_ref;  // √R on the operator's box
-    double outside = 0.0;      // Σ R beyond the box (the model is 0 there)
+    Eigen::MatrixXf weight;    // the pixel weights on the box (empty: the observation has none)
+    double outside = 0.0;      // Σ w R beyond the box (the model is 0 there)
 };
 
 // The retrieval's arguments, checked before anything is built (the same checks on every rank).
@@ -743,20 +744,26 @@ std::vector<RetrievalSlice> build_retrieval_slices(const std::vector<const Obser
             guard.run([&] {
                 const Observation& o = *observations[i];
                 auto s = std::make_unique<RetrievalSlice>(
-                    RetrievalSlice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, 0.0});
+                    RetrievalSlice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, {}, 0.0});
                 const auto& impl = FieldAccess::impl(s->op);
                 s->sqrt_ref.resize(impl.ma(), impl.mb());
+                if (!o.weights.empty()) s->weight.resize(impl.ma(), impl.mb());
                 const int n = o.resolution;
                 double sum = 0.0;
                 for (int p = 0; p < n; ++p)
                     for (int c = 0; c < n; ++c) {
-                        const double r = std::max(0.0, double(o.reference[std::size_t(p) * n + c]));
-                        sum += r;
+                        const std::size_t k = std::size_t(p) * n + c;
+                        // A pixel of weight 0 enters nothing (its value may be anything).
+                        const float w = o.weights.empty() ? 1.0f : o.weights[k];
+                        const double r = w == 0.0f ? 0.0 : std::max(0.0, double(o.reference[k]));
+                        sum += double(w) * r;
                         const int a = p - impl.a0(), b = c - impl.b0();
-                        if (a >= 0 && a < impl.ma() && b >= 0 && b < impl.mb())
+                        if (a >= 0 && a < impl.ma() && b >= 0 && b < impl.mb()) {
                             s->sqrt_ref(a, b) = float(std::sqrt(r));
-                        else
-                            s->outside += r;
+                            if (s->weight.size()) s->weight(a, b) = w;
+                        } else {
+                            s->outside += double(w) * r;
+                        }
                     }
                 totals[i] = sum;
                 built[i] = std::move(s);
@@ -860,7 +867,8 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
     std::vector<std::complex<double>> object(texels);
     for (std::size_t t = 0; t < texels; ++t) object[t] = mask[t] * (initial.empty() ? 1.0 : initial[t]);
 
-    // L(O) = Σ_slices [Σ_box (√c1|Ψ| − √R)² + Σ_outside R] / Σ R. With g = ∂L/∂Re Ψ + i ∂L/∂Im Ψ
+    // L(O) = Σ_slices [Σ_box (√c1|Ψ| − √R)² + Σ_outside R] / Σ R (each pixel × its weight
+    // where the observation has weights: amplitude_loss.h). With g = ∂L/∂Re Ψ + i ∂L/∂Im Ψ
     // = 2(√c1|Ψ| − √R) √c1 Ψ/|Ψ| / ΣR, the gradient G = ∂L/∂Re O + i ∂L/∂Im O is Aᴴ g.
     const double inv_total = 1.0 / total;
     // Σ over the slices on all threads and ranks, exactly (core/exact_sum.h): each slice's
@@ -876,8 +884,11 @@ FieldRetrievalResult retrieve_field(const std::vector<const Observation*>& obser
         const auto& impl = FieldAccess::impl(s.op);
         impl.forward_unphased(obj, psi);
         // Self-calibrated exposure when asked (amplitude_loss.h), the model amplitude scaled by √e.
-        const double v = detail::amplitude_box_loss(psi, impl.amp_box(), s.sqrt_ref, s.outside,
-                                                    settings.calibrate_exposure, inv_total, g);
+        const double v = s.weight.size() == 0
+                             ? detail::amplitude_box_loss(psi, impl.amp_box(), s.sqrt_ref, detail::UnitWeight{},
+                                                          s.outside, settings.calibrate_exposure, inv_total, g)
+                             : detail::amplitude_box_loss(psi, impl.amp_box(), s.sqrt_ref, s.weight, s.outside,
+                                                          settings.calibrate_exposure, inv_total, g);
         impl.adjoint_unphased_add(g, gradient);
         return v * inv_total;
     };

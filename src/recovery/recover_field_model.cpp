@@ -19,6 +19,7 @@
 #include "recovery/amplitude_loss.h"
 #include "recovery/calibration_detail.h"
 #include "recovery/field_operator_detail.h"
+#include "recovery/observation_loss.h"
 
 namespace wavebrdf::detail {
 
@@ -128,11 +129,22 @@ std::vector<double> lambdas_of(const std::vector<const Observation*>& observatio
     return all;
 }
 
-// Σ R over every rank's observations (negative values clamped), exactly.
+// Slice value k of o (negative clamped to 0) and its weight (value_weight; a value of weight 0
+// is not read: it may be anything).
+double weighted_reference(const Observation& o, std::size_t k, double& w) {
+    w = value_weight(o, k);
+    return w == 0.0 ? 0.0 : std::max(0.0, double(o.reference[k]));
+}
+
+// Σ w R over every rank's observations (negative values clamped), exactly.
 double reference_total(const std::vector<const Observation*>& observations, const Communicator& comm) {
     std::vector<double> totals(observations.size(), 0.0);
     for (std::size_t i = 0; i < observations.size(); ++i)
-        for (const float r : observations[i]->reference) totals[i] += std::max(0.0, double(r));
+        for (std::size_t k = 0; k < observations[i]->reference.size(); ++k) {
+            double w = 1.0;
+            const double r = weighted_reference(*observations[i], k, w);
+            totals[i] += w * r;
+        }
     return exact_total(totals, comm);
 }
 
@@ -157,11 +169,15 @@ struct FieldModelLoss::Impl {
         // (rounded to float as the products are; no copy of the references is kept).
         const Observation* observation = nullptr;
         int a0 = 0, b0 = 0;  // the box's first slice row / column
-        float sqrt_ref(Eigen::Index a, Eigen::Index b) const {
-            const int n = observation->resolution;
-            return float(std::sqrt(std::max(0.0, double(observation->reference[std::size_t(a0 + a) * n + (b0 + b)]))));
+        std::size_t at(Eigen::Index a, Eigen::Index b) const {
+            return std::size_t(a0 + a) * std::size_t(observation->resolution) + std::size_t(b0 + b);
         }
-        double outside = 0.0;  // Σ R beyond the box
+        float sqrt_ref(Eigen::Index a, Eigen::Index b) const {
+            return float(std::sqrt(std::max(0.0, double(observation->reference[at(a, b)]))));
+        }
+        // The pixel weight (read only when the observation has weights).
+        float weight(Eigen::Index a, Eigen::Index b) const { return observation->weights[at(a, b)]; }
+        double outside = 0.0;  // Σ w R beyond the box
         int lambda = 0;        // index into lambdas
         double k = 0.0;        // 4π/λ (1/µm)
         double scale = 1.0;    // of the field (the window's integral)
@@ -228,9 +244,10 @@ FieldModelLoss::FieldModelLoss(const std::vector<const Observation*>& observatio
                                        "'s pixel box lies outside its slice");
             for (int p = 0; p < n; ++p)
                 for (int c = 0; c < n; ++c) {
-                    const double r = std::max(0.0, double(o.reference[std::size_t(p) * n + c]));
+                    double w = 1.0;
+                    const double r = weighted_reference(o, std::size_t(p) * n + c, w);
                     const int a = p - a0, b = c - b0;
-                    if (!(a >= 0 && a < amp.rows() && b >= 0 && b < amp.cols())) slice.outside += r;
+                    if (!(a >= 0 && a < amp.rows() && b >= 0 && b < amp.cols())) slice.outside += w * r;
                 }
         });
     guard.rethrow();
@@ -267,9 +284,14 @@ double FieldModelLoss::operator()(const std::vector<double>& heights_um, std::ve
                 const Eigen::MatrixXd& amp_box = field_amplitude_box(*slice.op, a0, b0);
                 const Eigen::MatrixXd amp = slice.scale * amp_box;
                 field_forward_unphased(*slice.op, object.data(), psi);
-                const double v = amplitude_box_loss(
-                    psi, amp, [&](Eigen::Index a, Eigen::Index b) { return slice.sqrt_ref(a, b); }, slice.outside,
-                    s.calibrate_exposure, s.inv_total, g);
+                const auto sqrt_ref = [&](Eigen::Index a, Eigen::Index b) { return slice.sqrt_ref(a, b); };
+                const double v =
+                    slice.observation->weights.empty()
+                        ? amplitude_box_loss(psi, amp, sqrt_ref, UnitWeight{}, slice.outside, s.calibrate_exposure,
+                                             s.inv_total, g)
+                        : amplitude_box_loss(
+                              psi, amp, sqrt_ref, [&](Eigen::Index a, Eigen::Index b) { return slice.weight(a, b); },
+                              slice.outside, s.calibrate_exposure, s.inv_total, g);
                 field_adjoint_unphased_add(*slice.op, g, object_gradient.data());
                 const std::vector<int>& rows = field_rows(*slice.op);
                 const std::vector<int>& cols = field_cols(*slice.op);
@@ -301,7 +323,7 @@ std::vector<double> gabor_model_slice(const Observation& o, const Query& query, 
     SlicePlan<float> plan(heightfield, query, o.lambdas_um, o.resolution, 1);
     const std::vector<float>& f = plan.forward();
     const std::size_t n = std::min(f.size(), o.reference.size());
-    const double e = calibrate_exposure ? slice_exposure(f.data(), o.reference.data(), n) : 1.0;
+    const double e = calibrate_exposure ? observation_exposure(f, o) : 1.0;  // over the weighted pixels
     std::vector<double> model(o.reference.size(), 0.0);
     for (std::size_t k = 0; k < n; ++k) model[k] = e * double(f[k]);
     return model;
@@ -321,8 +343,11 @@ double gabor_amplitude_loss(const std::vector<const Observation*>& observations,
         const std::vector<double> model = gabor_model_slice(o, queries[i], heightfield, calibrate_exposure);
         double v = 0.0;
         for (std::size_t k = 0; k < o.reference.size(); ++k) {
-            const double d = std::sqrt(std::max(0.0, model[k])) - std::sqrt(std::max(0.0, double(o.reference[k])));
-            v += d * d;
+            double w = 1.0;
+            const double r = weighted_reference(o, k, w);
+            if (w == 0.0) continue;
+            const double d = std::sqrt(std::max(0.0, model[k])) - std::sqrt(r);
+            v += w * (d * d);
         }
         return v;
     }) / total;

@@ -59,7 +59,9 @@ private:
 // FieldOperator's, spaced d = w/refine, make one of σ_p² + d²/4; so F_o is built with
 // σ'² = σ_p² + (w² − d²)/4 and its field scaled by σ_p/σ' (the same integral). Collective: every sum over
 // the observations is exact (core/exact_sum.h), so the value and gradient are the same bits
-// for any thread count and split over ranks.
+// for any thread count and split over ranks. With Observation::weights every sum (the box's,
+// outside it, Σ R, the exposure's) weighs each pixel; a pixel of weight 0 is not read
+// (amplitude_loss.h).
 class FieldModelLoss {
 public:
     // observations (this rank's; none null, each single-wavelength OHS / ROHS) and queries
@@ -81,7 +83,8 @@ private:
 
 // The Gabor model's relative amplitude loss on the same observations, Σ(√(e f) − √R)² / Σ R
 // with f the full model's slice (render_slice's, slopes included) of `heightfield` at each
-// query, e as above. Collective and exact as FieldModelLoss.
+// query, e as above; weighted as FieldModelLoss (e over the pixels of weight > 0,
+// observation_exposure). Collective and exact as FieldModelLoss.
 double gabor_amplitude_loss(const std::vector<const Observation*>& observations, const std::vector<Query>& queries,
                             const Heightfield& heightfield, bool calibrate_exposure, const Communicator& comm);
 

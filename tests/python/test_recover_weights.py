@@ -2,13 +2,16 @@
 weight 0 recover as well as the clean slices, through recover_heights and recover(), and the
 same corrupted slices without the weights do not."""
 import numpy as np
+import pytest
 
 import wavebrdf as wb
 
-# The small study of test_recover.py: 8x8 texels of 2 um, heights within 0.1 um, on 160x160
-# slices (the Nyquist size these values were measured at: on the planner's 48x48 the masked
-# slices come back 3 % off against 4e-6 clean: an open finding, not this test's subject).
-SMALL = dict(size=8, texel_um=2.0, sigma_p_um=3.0, height_range_um=0.1, seed=3, resolution=160)
+# The small study of test_recover.py: 8x8 texels of 2 um, heights within 0.1 um, on the
+# planner's slices (48x48), seeds 3-5: there 3 % of the pixels can hide a slice's specular
+# peak, which the model check, when it read the filled values unweighted, took for a misfit of
+# the refined heights and swapped them for the field model's, 2.3-3.0 % off (clean 3-4e-6;
+# experiments/2026-11-30-masked-pixels-model-check.md).
+SMALL = dict(size=8, texel_um=2.0, sigma_p_um=3.0, height_range_um=0.1)
 
 
 def _corrupted(observations, mask, seed=5, fraction=0.03):
@@ -28,8 +31,9 @@ def _corrupted(observations, mask, seed=5, fraction=0.03):
     return out
 
 
-def test_masked_corrupted_pixels_recover_as_well_as_clean_slices():
-    clean = wb.recover(**SMALL)
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_masked_corrupted_pixels_recover_as_well_as_clean_slices(seed):
+    clean = wb.recover(**SMALL, seed=seed)
     truth = clean.truth
     masked = _corrupted(clean.observations, True)
     assert all(o.weights is not None for o in masked)
