@@ -35,6 +35,10 @@ $W heightfield --type scratched --size 512 --seed 7 --scratches 60 --scratch-dep
 scene=(--heightfield "$dir/scratched.exr" --plane-size-um "$plane" --camera -6000,0,9000 --look-at 0,0,0
        --fov-deg 40 --point-light 5000,1500,7000 --spectral 16 --sigma-p-um 10 --quiet --threads "$threads")
 
+# The processor and the load: the project's machines are not always the same CPU (an AMD EPYC on
+# 2026-11-29, an Intel Xeon on 2026-11-30, where the 1024² run took 1.5x its CPU time), so figures compare only
+# with the same model name.
+echo "== machine: $(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo | head -1), $(nproc) CPUs; load $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "== speed: ${resolution}² image, $threads threads"
 /usr/bin/time -f "wall %e s, user %U s, sys %S s, max RSS %M kB" \
     "$W" image "${scene[@]}" --resolution "$resolution" --prune-tolerance 1e-3 --precision "$precision" --out "$dir/speed.exr" \
