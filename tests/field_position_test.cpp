@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <complex>
+#include <limits>
 #include <random>
 
 #include "recovery/field_positions.h"
@@ -91,29 +92,50 @@ GridCase grid_case(const std::vector<std::complex<double>>& object, Draw draw) {
 
 }  // namespace
 
+// With and without pixel weights (the weighted one: weights in [0.5, 1.5], every 7th pixel and
+// the brightest at weight 0 holding NaN, which the loss never reads).
 TEST(FieldPositions, CentreGradientMatchesCentralDifferences) {
     const auto object = smooth_object(5501, 0.3);
     const auto truth = smooth_object(5502, 0.3);
-    for (const std::array<double, 2> centre : {std::array<double, 2>{11.3, 12.7}, {1.1, 22.9}}) {
-        const Observation o = observation_at(truth, centre, {0.7, -0.4});
-        for (const std::array<double, 2> offset : {std::array<double, 2>{0.0, 0.0}, {0.37, -0.61}}) {
-            std::array<double, 2> g{0.0, 0.0};
-            const double l = detail::field_position_loss(o, offset, object, kLambda, kRows, kCols, kTexel, kRefine, &g);
-            ASSERT_GT(l, 0.0);
-            const double h = 1e-4;  // µm: well inside one fine sample, no sample crosses the 3σ_p cut
-            for (int c = 0; c < 2; ++c) {
-                std::array<double, 2> plus = offset, minus = offset;
-                plus[std::size_t(c)] += h;
-                minus[std::size_t(c)] -= h;
-                const double fd =
-                    (detail::field_position_loss(o, plus, object, kLambda, kRows, kCols, kTexel, kRefine, nullptr) -
-                     detail::field_position_loss(o, minus, object, kLambda, kRows, kCols, kTexel, kRefine, nullptr)) /
-                    (2.0 * h);
-                EXPECT_NEAR(g[std::size_t(c)], fd, 1e-5 * (std::abs(fd) + std::abs(g[0]) + std::abs(g[1])))
-                    << "centre " << centre[0] << "," << centre[1] << " coordinate " << c;
+    for (const bool weighted : {false, true})
+        for (const std::array<double, 2> centre : {std::array<double, 2>{11.3, 12.7}, {1.1, 22.9}}) {
+            Observation o = observation_at(truth, centre, {0.7, -0.4});
+            if (weighted) {
+                const Observation unweighted = o;
+                o.weights.resize(o.reference.size());
+                for (std::size_t k = 0; k < o.weights.size(); ++k)
+                    o.weights[k] = float(k % 7 ? 0.5 + 0.01 * double(k % 101) : 0.0);
+                const std::size_t peak = std::size_t(std::max_element(o.reference.begin(), o.reference.end()) -
+                                                     o.reference.begin());
+                o.weights[peak] = 0.0f;
+                for (std::size_t k = 0; k < o.weights.size(); ++k)
+                    if (o.weights[k] == 0.0f) o.reference[k] = std::numeric_limits<float>::quiet_NaN();
+                const double lw = detail::field_position_loss(o, {0.2, 0.1}, object, kLambda, kRows, kCols, kTexel,
+                                                              kRefine, nullptr);
+                EXPECT_TRUE(std::isfinite(lw));
+                EXPECT_NE(lw, detail::field_position_loss(unweighted, {0.2, 0.1}, object, kLambda, kRows, kCols, kTexel,
+                                                          kRefine, nullptr));
+            }
+            for (const std::array<double, 2> offset : {std::array<double, 2>{0.0, 0.0}, {0.37, -0.61}}) {
+                std::array<double, 2> g{0.0, 0.0};
+                const double l = detail::field_position_loss(o, offset, object, kLambda, kRows, kCols, kTexel, kRefine,
+                                                             &g);
+                ASSERT_GT(l, 0.0);
+                const double h = 1e-4;  // µm: well inside one fine sample, no sample crosses the 3σ_p cut
+                for (int c = 0; c < 2; ++c) {
+                    std::array<double, 2> plus = offset, minus = offset;
+                    plus[std::size_t(c)] += h;
+                    minus[std::size_t(c)] -= h;
+                    const double fd = (detail::field_position_loss(o, plus, object, kLambda, kRows, kCols, kTexel,
+                                                                   kRefine, nullptr) -
+                                       detail::field_position_loss(o, minus, object, kLambda, kRows, kCols, kTexel,
+                                                                   kRefine, nullptr)) /
+                                      (2.0 * h);
+                    EXPECT_NEAR(g[std::size_t(c)], fd, 1e-5 * (std::abs(fd) + std::abs(g[0]) + std::abs(g[1])))
+                        << "centre " << centre[0] << "," << centre[1] << " coordinate " << c;
+                }
             }
         }
-    }
 }
 
 TEST(FieldPositions, ShiftingTheObjectByWholeSamplesIsARoll) {

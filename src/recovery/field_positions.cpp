@@ -13,6 +13,7 @@
 #include "core/exact_sum.h"
 #include "core/fftw_planner.h"
 #include "core/parallel.h"
+#include "recovery/observation_loss.h"
 #include "wavebrdf/constants.h"
 
 namespace wavebrdf::detail {
@@ -32,11 +33,13 @@ double field_position_loss(const Observation& o, const std::array<double, 2>& of
     std::vector<std::complex<double>> g(gradient_um ? field.size() : 0);
     double sum = 0.0;
     for (std::size_t k = 0; k < field.size(); ++k) {
-        if (amp[k] == 0.0) continue;
-        const double mag = std::abs(field[k]);
-        const double d = amp[k] * mag - std::sqrt(std::max(0.0, double(o.reference[k])));
+        const double w = value_weight(o, k);  // weight 0: not read
+        if (amp[k] == 0.0 || w == 0.0) continue;
+        // √w times the residual (√1 = 1: without weights the unweighted sums).
+        const double root_w = std::sqrt(w), mag = std::abs(field[k]);
+        const double d = root_w * (amp[k] * mag - std::sqrt(std::max(0.0, double(o.reference[k]))));
         sum += d * d;
-        if (gradient_um && mag > 0.0) g[k] = (2.0 * d * amp[k] / mag) * field[k];
+        if (gradient_um && mag > 0.0) g[k] = (2.0 * root_w * d * amp[k] / mag) * field[k];
     }
     if (gradient_um) {
         // G = Aᴴ g, then Σ_a Re(conj(G_a) O_a) δ_a / σ_p² (field_positions.h), δ_a the sample's
@@ -224,10 +227,13 @@ bool register_positions(const std::vector<const Observation*>& group, const std:
         if (p >= count)
             throw std::invalid_argument("correct_positions: position index " + std::to_string(p) +
                                         " is out of range; expected < " + std::to_string(count));
-    // The loss normalised by every rank's Σ R (so every term is of order 1 or less).
+    // The loss normalised by every rank's Σ w R (so every term is of order 1 or less).
     std::vector<double> totals(group.size(), 0.0);
     for (std::size_t g = 0; g < group.size(); ++g)
-        for (const float r : group[g]->reference) totals[g] += std::max(0.0, double(r));
+        for (std::size_t k = 0; k < group[g]->reference.size(); ++k) {
+            const double w = value_weight(*group[g], k);
+            if (w != 0.0) totals[g] += w * std::max(0.0, double(group[g]->reference[k]));
+        }
     const double total = exact_total(totals, comm);
     if (!(total > 0.0)) return false;
     const double inv_total = 1.0 / total;

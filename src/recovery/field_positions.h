@@ -21,8 +21,9 @@
 
 namespace wavebrdf::detail {
 
-// The amplitude loss Σ_k (√c1_k |Ψ_k| − √R_k)² of observation `o` (single wavelength
-// lambda_um, OHS or ROHS) over its disk's pixels under FieldOperator(rows, cols, texel_um, query
+// The amplitude loss Σ_k w_k (√c1_k |Ψ_k| − √R_k)² of observation `o` (single wavelength
+// lambda_um, OHS or ROHS; w_k its pixel weights, 1 without; a pixel of weight 0 is not read)
+// over its disk's pixels under FieldOperator(rows, cols, texel_um, query
 // with the centre moved by offset_um, lambda_um, resolution, refine) applied to `object`
 // ((rows·refine)·(cols·refine) samples). With `gradient_um` given it receives ∂loss/∂offset
 // (per µm, x then y). Thread-safe; throws as FieldOperator for invalid arguments.

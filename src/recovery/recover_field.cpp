@@ -743,8 +743,8 @@ std::vector<RetrievalSlice> build_retrieval_slices(const std::vector<const Obser
         for (std::size_t i = 0; i < observations.size(); ++i)
             guard.run([&] {
                 const Observation& o = *observations[i];
-                auto s = std::make_unique<RetrievalSlice>(
-                    RetrievalSlice{FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, {}, 0.0});
+                auto s = std::make_unique<RetrievalSlice>(RetrievalSlice{
+                    FieldOperator(rows, cols, texel_um, o.query, lambda_um, o.resolution, q), {}, {}, 0.0});
                 const auto& impl = FieldAccess::impl(s->op);
                 s->sqrt_ref.resize(impl.ma(), impl.mb());
                 if (!o.weights.empty()) s->weight.resize(impl.ma(), impl.mb());
