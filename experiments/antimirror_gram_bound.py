@@ -269,8 +269,35 @@ def solve_dual(V, A, V0, A0, lead, sums):
         except (ZeroDivisionError, ArithmeticError, ValueError):
             continue
         if sol["x"] is not None:
+            solve_dual.last_z = (np.array(sol["z"]).ravel(), J, n, k1)
             return np.array(sol["x"]).ravel(), sol["status"]
     raise RuntimeError("cvxopt failed at every tolerance")
+
+
+def relaxed_point(kind, h, lambdas, f):
+    """Solve on the bins f (bin 0 first) and read the relaxation's own optimum from the multipliers
+    of the LMIs: per bin orbit the Gram matrix B X B^T, the lift Z = U W U^T / (U W U^T)_00 (its
+    corner G(0), its row s), each bin's Gram scaled alike; per wavelength the fractions (cone, rings,
+    the rest) of the propagating flux, with the mirror bin's; and how far Parseval is off."""
+    K = len(h)
+    V, A, lead, sums = problem(f, h, lambdas, kind)
+    solve_dual(V[1:], A[:, 1:], V[0], A[:, 0], lead, sums)
+    z, J, n, k1 = solve_dual.last_z
+    X = z[J:J + n * k1 * k1].reshape(n, k1, k1)
+    W = z[J + n * k1 * k1:].reshape(K, K)
+    U = lift_basis(K)
+    Z = U @ W @ U.T
+    scale = Z[0, 0]
+    Z = Z / scale
+    B = basis_perp_ones(K)
+    G = np.concatenate([Z[None, 1:, 1:], np.einsum("ki,nij,lj->nkl", B, X, B) / scale])
+    s = Z[0, 1:]
+    parseval = np.abs(G.sum(0) - np.diag(s)).max()
+    frac = []
+    for lam in lambdas:
+        fl = np.einsum("cnij,nij->c", class_weights(f, lam, h), G)
+        frac.append(fl / fl.sum())
+    return G, s, np.array(frac), parseval
 
 
 def certified(kind, h, lambdas, fs, fc):
@@ -341,6 +368,29 @@ def relief_metrics(levels_map, step, lambdas=LAMBDAS):
     return {k: np.array(v) for k, v in out.items()}
 
 
+def print_relaxed_point(a):
+    """The relaxation's optimum of the mean programme on the solve grid, read back and checked: PSD,
+    Parseval, the cone and the rings' uniformity at every wavelength; its true band-mean region
+    fraction is a value the relaxation reaches, so no bound from it can be lower."""
+    step = float(a.steps.split(",")[0])
+    h = np.arange(LEVELS) * step
+    f, _ = grid_bins(a.solve_size)
+    pbar = np.array(json.load(open(a.json))[0]["pbar"])
+    G, s, fr, parseval = relaxed_point(("mean", pbar), h, LAMBDAS, f)
+    rings = fr[:, 1:5]
+    u = rings.std(1) / rings.mean(1)
+    print(f"step {step}, {a.solve_size}^2: shares {np.round(s, 3)}; least eigenvalue {np.linalg.eigvalsh(G).min():.1e}, "
+          f"Parseval off by {parseval:.1e}")
+    for lam, r, uu in zip(LAMBDAS, fr, u):
+        print(f"  {lam:.3f} um: region {100 * r[1:5].sum():.1f} %, cone {100 * r[0]:.3f} %, rings' std/mean {uu:.3f}, "
+              f"the rest {100 * r[5]:.1f} %")
+    print(f"band mean {100 * fr[:, 1:5].sum(1).mean():.2f} %, cone <= {100 * fr[:, 0].max():.4f} %, "
+          f"rings' std/mean <= {u.max():.4f}")
+    tr = np.trace(G[1:], axis1=1, axis2=2)
+    hist, edges = np.histogram(np.linalg.norm(f[1:], axis=1), bins=np.arange(0, 1.3, 0.1), weights=tr)
+    print("trace by |f| (cycles/um): " + ", ".join(f"{e:.1f}: {v:.3f}" for e, v in zip(edges, hist)))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--solve-size", type=int, default=64)
@@ -350,7 +400,11 @@ def main():
     ap.add_argument("--no-mean", action="store_true")
     ap.add_argument("--no-every", action="store_true")
     ap.add_argument("--bracket", default="0.5,1.0", help="the every-wavelength bisection's start (lo,hi)")
+    ap.add_argument("--relaxed-point", action="store_true",
+                    help="the relaxation's own optimum of the mean programme (Pbar from --json's file) and its metrics")
     a = ap.parse_args()
+    if a.relaxed_point:
+        return print_relaxed_point(a)
     out = []
     for s in [float(v) for v in a.steps.split(",")]:
         t0 = time.process_time()

@@ -2,7 +2,8 @@
 its weights give the library's exact metrics of a designed relief; weak duality holds at real reliefs'
 own Gram matrices for any multipliers (a sign or scale slip in the certificate breaks it); the bound on
 the cone's flux equals its known optimum (1, a flat relief); the certified bounds lie above what a
-designed relief achieves (region fraction, propagating flux)."""
+designed relief achieves (region fraction, propagating flux); the relaxation's own optimum, read
+back from the solver, keeps its constraints and its objective equals the certified bound."""
 import os
 import sys
 
@@ -81,3 +82,21 @@ def test_the_certified_bounds_lie_above_a_designed_relief(designed):
     j = 1.0 - np.mean((got["cone"] + got["other"]) * got["P"] / pbar)
     assert j >= ex["region_fraction_mean"] - 1e-12
     assert ex["region_fraction_mean"] <= 1.0 + bm  # the limits hold: the relief is a point of the relaxation
+
+
+def test_the_relaxations_own_optimum_keeps_its_constraints_and_reaches_its_bound():
+    f, _ = gb.grid_bins(16)
+    h = np.arange(gb.LEVELS) * 0.165
+    pbar = np.array([gb.certified(("power", w), h, LAMS, f, f)[0] for w in range(len(LAMS))])
+    bm, *_ = gb.certified(("mean", pbar), h, LAMS, f, f)
+    G, s, fr, parseval = gb.relaxed_point(("mean", pbar), h, LAMS, f)
+    assert parseval < 1e-7 and s.sum() == pytest.approx(1.0, abs=1e-7)
+    assert np.linalg.eigvalsh(G).min() > -1e-7
+    assert np.abs(G[1:].sum(2)).max() < 1e-7  # each bin's Gram matrix is orthogonal to 1
+    assert fr[:, 0].max() <= gb.CONE_LIMIT + 1e-6
+    rings = fr[:, 1:5]
+    assert (rings.std(1) / rings.mean(1)).max() <= gb.UNIFORMITY + 1e-5
+    # the programme's objective at its optimum equals the certified bound (strong duality)
+    P = np.array([np.einsum("cnij,nij->", gb.class_weights(f, lam, h), G) for lam in LAMS])
+    phi = -np.mean((fr[:, 0] + fr[:, 5]) * P / pbar)
+    assert phi == pytest.approx(bm, abs=1e-5)
