@@ -8,6 +8,10 @@ namespace wavebrdf::python {
 
 using namespace pybind11::literals;
 
+namespace {
+constexpr int k_max_matrix_texels = 16384;  // 2 GiB of doubles
+}  // namespace
+
 void bind_uncertainty(py::module_& m) {
     const UncertaintySettings us;
     m.def(
@@ -46,6 +50,34 @@ texel of each observation's footprint): exact (dense Cholesky) up to dense_max_t
 sign draws, 1...64) and conjugate gradients on the formed G (cg_tolerance in (0, 1),
 cg_iterations 1...10000). comm: None or an mpi4py communicator (observations: this rank's
 share; every rank gets the same map). uncertainty.h, docs/recovery.md "Error bars".
+)doc");
+    m.def(
+        "gauss_newton_matrix",
+        [](const py::object& observations, const Heightfield& estimate, const py::object& loss, double step_um,
+           const py::object& comm_arg) {
+            const std::shared_ptr<const Communicator> comm = ranks_argument(comm_arg);
+            const std::vector<Observation> list = observations_or_file(observations);
+            const Loss l = loss_argument(loss);
+            const int n = estimate.rows() * estimate.cols();
+            if (n > k_max_matrix_texels)
+                bad_argument("estimate", std::to_string(estimate.rows()) + "x" + std::to_string(estimate.cols()),
+                             "at most " + std::to_string(k_max_matrix_texels) + " texels (G is texels^2 doubles)");
+            std::vector<double> g;
+            {
+                py::gil_scoped_release release;
+                g = GaussNewtonOperator(list, estimate, l, step_um, *comm).band().dense();
+            }
+            return owning_array(std::move(g), {n, n});
+        },
+        "observations"_a, "estimate"_a, "loss"_a, py::kw_only(), "step_um"_a = us.step_um, "comm"_a = py::none(),
+        R"doc(
+The Gauss-Newton matrix G of `loss` at `estimate` (a Heightfield fitted to `observations`),
+dense, 1/um^2, a float64 array (n, n) over the texels in row-major order (n = rows x cols, at
+most 16384): the matrix height_uncertainty inverts ('poisson:N': the Fisher information of the
+photon counts; G times a constant vector is 0: the mean height is not observed). Its
+pseudo-inverse is the heights' covariance, so f^H G^+ f / n is the variance of a Fourier mode f
+(experiments/2026-11-30-photon-plan-variance.md). step_um: the forward differences' step (> 0);
+comm as height_uncertainty's. uncertainty.h.
 )doc");
 }
 

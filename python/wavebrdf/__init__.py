@@ -40,6 +40,7 @@ from ._core import (  # noqa: F401
     check_acquisition,
     cmsle,
     condition_surface,
+    gauss_newton_matrix,
     gradient,
     height_mse,
     height_rel_rmse,
@@ -76,7 +77,7 @@ from .table import BrdfTable, lobe_brdf, lobe_table, read_table, render_table  #
 
 __all__ = [
     "AcquisitionPlan", "Adam", "GaborRep", "Heightfield", "InversionResult", "LbfgsResult", "Loss", "Observation",
-    "Query", "RecoverSettings", "RecoveryResult", "add_noise", "amplitude", "check_acquisition", "cie1931_xyz", "cmsle", "gradient",
+    "Query", "RecoverSettings", "RecoveryResult", "add_noise", "amplitude", "check_acquisition", "cie1931_xyz", "cmsle", "gauss_newton_matrix", "gradient",
     "height_mse", "height_rel_rmse", "height_rel_rmse_plane_removed", "height_uncertainty", "invert", "lbfgs_minimize", "mse", "observation_loss", "plan_acquisition",
     "planned_observations", "read_observations", "recover", "recover_heights", "recover_heights_thesis", "render",
     "render_slice", "rgb_gamma_mse", "rgb_mse", "simulate_observations", "slice_gradient",
@@ -106,7 +107,7 @@ from ._arguments import explained as _explained  # noqa: E402
 
 for _name in ("render_slice", "slice_gradient", "render", "gradient", "observation_loss", "invert", "recover",
               "recover_heights", "recover_heights_thesis", "plan_acquisition", "planned_observations",
-              "simulate_observations", "height_uncertainty", "height_rel_rmse", "height_rel_rmse_plane_removed",
+              "simulate_observations", "height_uncertainty", "gauss_newton_matrix", "height_rel_rmse", "height_rel_rmse_plane_removed",
               "read_observations", "write_observations", "render_image", "image_gradient", "design",
               "design_plate", "surface_stats", "condition_surface", "write_fabrication_exports",
               "measure_roughness"):

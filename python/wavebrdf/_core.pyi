@@ -10,7 +10,7 @@ __version__: str
 
 class AcquisitionPlan:
     """What plan_acquisition proposes: footprint centres on a jittered raster over the periodic tile,
-    a slice resolution that samples the window (Nyquist), and wavelengths whose synthetic
+    a slice resolution that samples the window (within 4x of Nyquist, at least 48), and wavelengths whose synthetic
     wavelengths unwrap the height range. planned_observations / simulate_observations turn it
     into Observations (one per position, light and wavelength).
     """
@@ -933,6 +933,17 @@ def design_plate(picture: Any, palette: str, out: Any = ..., force: bool = ..., 
     """
     ...
 
+def gauss_newton_matrix(observations: Any, estimate: Heightfield, loss: Any, *, step_um: float = ..., comm: Any = ...) -> numpy.ndarray:
+    """The Gauss-Newton matrix G of `loss` at `estimate` (a Heightfield fitted to `observations`),
+    dense, 1/um^2, a float64 array (n, n) over the texels in row-major order (n = rows x cols, at
+    most 16384): the matrix height_uncertainty inverts ('poisson:N': the Fisher information of the
+    photon counts; G times a constant vector is 0: the mean height is not observed). Its
+    pseudo-inverse is the heights' covariance, so f^H G^+ f / n is the variance of a Fourier mode f
+    (experiments/2026-11-30-photon-plan-variance.md). step_um: the forward differences' step (> 0);
+    comm as height_uncertainty's. uncertainty.h.
+    """
+    ...
+
 def gradient(heightfield: Heightfield, query: Query, weights: Any, precision: str = ..., *, path: str = ..., tolerance: float = ...) -> numpy.ndarray:
     """The gradient of sum(weights * render(heightfield, query, n)) with respect to the heightfield's
     values (texel units): float64 (rows, cols). weights: (n, n, 3), e.g. dL/dslice of a loss
@@ -1079,7 +1090,8 @@ def plan_acquisition(*, rows: int = ..., cols: Any = ..., texel_um: float = ...,
     lambda_um        base wavelength lambda0 (um), within lambda_min_um ... lambda_max_um (the
                      wavelengths the ladder may use); max_step_ratio: ladder step, 1.5 ... 100
     lambdas_um       given wavelengths (um) instead of the ladder; None: planned
-    resolution       given slice size n (1...8192) instead of Nyquist's n >= 4D/lambda; 0: planned
+    resolution       given slice size n (1...8192); 0: planned, n >= D/lambda (within 4x of Nyquist's
+                     4D/lambda) and at least 48
     light            projected light direction (wx, wy), wx^2 + wy^2 < 1; model: 'OHS', 'ROHS', ...
     seed             the jitter
     roughness        None, or a known surface's measured roughness: a Heightfield (measured here) or
@@ -1155,7 +1167,7 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   coordinate (the CLI's --position-uncertainty-um): the planner makes sigma_p at
                   least this and the position loop searches lost positions 4x as far; None: the
                   simulated error's rms (settings.simulate_position_error_texels x texel_um), else 0
-    resolution    slice size n, 1...8192 (0: the planner's Nyquist choice)
+    resolution    slice size n, 1...8192 (0: the planner's: 48, or more where the window needs it)
     lambdas_um    wavelengths in um (None: the planner's ladder for the height range)
     spectral      white light (the CLI's --spectral): N >= 2 makes every planned observation one RGB
                   slice of a broadband source sampled at N wavelengths (no laser); 0: laser slices

@@ -55,6 +55,27 @@ def test_height_uncertainty_rejects_bad_settings(run):
         wb.height_uncertainty(r.observations, r.estimate, r.loss, probe_spacing=0)
 
 
+def test_gauss_newton_matrix_is_the_matrix_the_error_bars_invert(run):
+    """gauss_newton_matrix: G symmetric, blind to the mean height, and its pseudo-inverse on the
+    mean-free heights (NumPy's, by eigenvalues) has the error bars' squares on its diagonal."""
+    r = run
+    g = wb.gauss_newton_matrix(r.observations, r.estimate, r.loss)
+    n = r.estimate.rows * r.estimate.cols
+    assert g.shape == (n, n) and g.dtype == np.float64
+    scale = np.abs(g).max()
+    np.testing.assert_allclose(g, g.T, rtol=0, atol=1e-12 * scale)
+    assert np.abs(g @ np.ones(n)).max() < 1e-3 * scale  # a piston changes no intensity (5e-5: the differences)
+    p = np.eye(n) - 1.0 / n
+    w, v = np.linalg.eigh(p @ g @ p)
+    keep = w > 1e-9 * w.max()
+    assert keep.sum() == n - 1  # only the piston is unobserved
+    cov = (v[:, keep] / w[keep]) @ v[:, keep].T
+    sigma = wb.height_uncertainty(r.observations, r.estimate, r.loss)
+    np.testing.assert_allclose(np.sqrt(np.diag(cov)).reshape(sigma.shape), sigma, rtol=1e-6)
+    with pytest.raises(ValueError, match="at most 16384 texels"):
+        wb.gauss_newton_matrix(r.observations, wb.Heightfield(np.zeros((129, 128))), r.loss)
+
+
 def test_cli_writes_the_map_and_the_report_shows_it(tmp_path):
     out = tmp_path / "run"
     cli = os.path.join(conftest.BUILD, "bin", "wavebrdf")
