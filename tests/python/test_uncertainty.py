@@ -76,6 +76,33 @@ def test_gauss_newton_matrix_is_the_matrix_the_error_bars_invert(run):
         wb.gauss_newton_matrix(r.observations, wb.Heightfield(np.zeros((129, 128))), r.loss)
 
 
+def test_the_estimate_is_the_likelihoods_maximum(run):
+    """The bars are the curvature at the loss's minimum: a Newton step from the estimate (G from
+    gauss_newton_matrix, the deviance's gradient from observation_loss, independently) moves it
+    by far less than its bars, while from heights 1 sigma off it undoes most of the offset."""
+    r = run
+    obs, est = r.observations, r.estimate
+    to_um, n = est.texel_um * est.vscale, est.rows * est.cols
+    counted = len(obs) * obs[0].resolution ** 2  # observation_loss: the mean over slices and pixels
+    g = wb.gauss_newton_matrix(obs, est, r.loss)
+    a = g + np.trace(g) / n / n  # G + c 11^T / n: invertible, G^+ on the mean-free heights
+
+    def newton_step_um(heights):
+        value, gradient = wb.observation_loss(heights, obs, r.loss)
+        step = -np.linalg.solve(a, 0.5 * counted * gradient.ravel() / to_um)  # -G^+ (-log L)'
+        return step - step.mean(), value
+
+    bars = np.sqrt(np.mean(r.uncertainty ** 2))
+    step, value = newton_step_um(est)
+    assert np.sqrt(np.mean(step ** 2)) < 0.05 * bars  # 0.0009 here
+    moved, _ = wb.observation_loss(est.with_values(est.values + step.reshape(est.shape) / to_um), obs, r.loss)
+    assert (moved - value) * counted == pytest.approx(-(step @ g @ step), rel=0.1)  # the quadratic model
+    offset = np.random.default_rng(1).standard_normal(n) * r.uncertainty.ravel()
+    offset -= offset.mean()
+    back, _ = newton_step_um(est.with_values(est.values + offset.reshape(est.shape) / to_um))
+    assert np.corrcoef(back, -offset)[0, 1] > 0.7 and 0.7 < np.linalg.norm(back) / np.linalg.norm(offset) < 1.3
+
+
 def test_cli_writes_the_map_and_the_report_shows_it(tmp_path):
     out = tmp_path / "run"
     cli = os.path.join(conftest.BUILD, "bin", "wavebrdf")
