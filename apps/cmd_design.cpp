@@ -91,11 +91,7 @@ void run_plate_command(const DesignArgs& a) {
 }
 
 // A metric for a summary line: three significant digits.
-std::string three_digits(double v) {
-    char buffer[32];
-    std::snprintf(buffer, sizeof buffer, "%.3g", v);
-    return buffer;
-}
+std::string three_digits(double v) { return wavebrdf::format_number(v, "%.3g"); }
 
 // A number, or a list of them (an iridescent target's per-pair values) as "a, b, c".
 std::string three_digits(const nlohmann::json& v) {

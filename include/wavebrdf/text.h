@@ -18,4 +18,19 @@ inline std::string format_shortest(double v) {
     return buf;
 }
 
+// `v` by one printf conversion for doubles ("%.3g", "%.2f", …): the numbers of notes, plan
+// lines and warnings, which are read, not parsed back (those use format_shortest).
+inline std::string format_number(double v, const char* format) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, format, v);
+    return buf;
+}
+
+// `v` with `digits` digits after the point ("%.*f").
+inline std::string format_fixed(double v, int digits) {
+    char buf[352];  // DBL_MAX in %f is 309 digits before the point
+    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+    return buf;
+}
+
 }  // namespace wavebrdf

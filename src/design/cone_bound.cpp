@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/cholesky.h"
 #include "wavebrdf/constants.h"
 
 namespace wavebrdf::detail {
@@ -13,37 +14,6 @@ namespace wavebrdf::detail {
 namespace {
 
 double sinc(double x) { return x == 0.0 ? 1.0 : std::sin(k_pi * x) / (k_pi * x); }
-
-// In-place Cholesky of a symmetric n × n matrix (lower triangle); false when it is not positive definite.
-bool cholesky(std::vector<double>& a, std::size_t n) {
-    for (std::size_t j = 0; j < n; ++j) {
-        double d = a[j * n + j];
-        for (std::size_t k = 0; k < j; ++k) d -= a[j * n + k] * a[j * n + k];
-        if (!(d > 0.0) || !std::isfinite(d)) return false;
-        d = std::sqrt(d);
-        a[j * n + j] = d;
-        for (std::size_t i = j + 1; i < n; ++i) {
-            double s = a[i * n + j];
-            for (std::size_t k = 0; k < j; ++k) s -= a[i * n + k] * a[j * n + k];
-            a[i * n + j] = s / d;
-        }
-    }
-    return true;
-}
-
-// Solves L Lᵀ x = b for a factor from cholesky().
-void cholesky_solve(const std::vector<double>& l, std::size_t n, std::vector<double>& b) {
-    for (std::size_t i = 0; i < n; ++i) {
-        double s = b[i];
-        for (std::size_t k = 0; k < i; ++k) s -= l[i * n + k] * b[k];
-        b[i] = s / l[i * n + i];
-    }
-    for (std::size_t i = n; i-- > 0;) {
-        double s = b[i];
-        for (std::size_t k = i + 1; k < n; ++k) s -= l[k * n + i] * b[k];
-        b[i] = s / l[i * n + i];
-    }
-}
 
 // The dual programme: every matrix constraint is T(v_k(z)) ⪰ 0 with v_k affine in z,
 // T(v)_ii = v_0, T(v)_ij = v_|i−j| / 2.
@@ -84,7 +54,7 @@ struct Dual {
         }
         for (std::size_t k = 0; k < base.size(); ++k) {
             std::vector<double> t = toeplitz(v(k, z));
-            if (!cholesky(t, K)) return HUGE_VAL;
+            if (cholesky_in_place(t, K, false) < K) return HUGE_VAL;
             for (std::size_t i = 0; i < K; ++i) f -= 2.0 * std::log(t[i * K + i]);
         }
         return f;
@@ -118,7 +88,7 @@ double minimise(const Dual& d, std::vector<double> z, double stop_below, double 
             }
             for (std::size_t k = 0; k < d.base.size(); ++k) {
                 std::vector<double> l = d.toeplitz(d.v(k, z));
-                if (!cholesky(l, K)) throw std::runtime_error("cone bound: left the interior");
+                if (cholesky_in_place(l, K, false) < K) throw std::runtime_error("cone bound: left the interior");
                 for (std::size_t j = 0; j < K; ++j) {
                     std::vector<double> e(K, 0.0);
                     e[j] = 1.0;
@@ -178,7 +148,7 @@ double minimise(const Dual& d, std::vector<double> z, double stop_below, double 
                 for (std::size_t j = 0; j < n; ++j) h[i * n + j] *= scale[i] * scale[j];
             for (std::size_t i = 0; i < n; ++i) h[i * n + i] += 1e-12;
             for (std::size_t i = 0; i < n; ++i) dz[i] = -grad[i] * scale[i];
-            if (cholesky(h, n)) cholesky_solve(h, n, dz);
+            if (cholesky_in_place(h, n, false) == n) cholesky_solve(h, n, dz);
             for (std::size_t i = 0; i < n; ++i) dz[i] *= scale[i];
             double decrement = 0.0;
             for (std::size_t i = 0; i < n; ++i) decrement -= grad[i] * dz[i];

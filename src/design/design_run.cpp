@@ -223,11 +223,7 @@ MirrorShares dark_mirror_shares(double step_um, int levels, const std::vector<do
 }
 
 // A length in a note, to four significant digits.
-std::string four_digits(double v) {
-    char buffer[32];
-    std::snprintf(buffer, sizeof buffer, "%.4g", v);
-    return buffer;
-}
+std::string four_digits(double v) { return format_number(v, "%.4g"); }
 
 // The anti-mirror's level step is a design variable where the user gave none: the loop starts
 // from the rule's step (anti_mirror_step) and moves Δ with the texels (the heights' phase is

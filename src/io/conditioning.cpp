@@ -17,6 +17,7 @@
 
 #include "core/fftw_raii.h"
 #include "wavebrdf/constants.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf {
 
@@ -28,11 +29,7 @@ std::size_t at(int r, int c, int cols) {
     return static_cast<std::size_t>(r) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(c);
 }
 
-std::string number(double x) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.6g", x);
-    return buf;
-}
+std::string number(double x) { return format_number(x, "%.6g"); }
 
 std::size_t count_invalid(const MeasuredSurface& s) {
     std::size_t n = 0;

@@ -25,12 +25,6 @@ namespace {
 using detail::format_shortest;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
-std::string fixed(double v, int digits) {
-    char buf[48];
-    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-    return buf;
-}
-
 void require_range(double value, double lo, double hi, const char* name) {
     if (!(std::isfinite(value) && value >= lo && value <= hi))
         throw std::domain_error(std::string(name) + " = " + format_shortest(value) + " is out of range; expected " +
@@ -267,29 +261,29 @@ AcquisitionPlan plan_acquisition(const PlanRequest& r) {
                                               : std::string()) +
                          ")");
     plan.notes.push_back(std::to_string(plan.positions_um.size()) + " positions on a " + std::to_string(nx) + "x" +
-                         std::to_string(ny) + " raster, steps " + fixed(plan.step_x_um, 2) + " x " +
-                         fixed(plan.step_y_um, 2) + " um, jitter +-" + fixed(100.0 * r.jitter, 0) +
-                         " % of a step: neighbours overlap by at least " + fixed(100.0 * plan.overlap, 0) + " %");
+                         std::to_string(ny) + " raster, steps " + format_fixed(plan.step_x_um, 2) + " x " +
+                         format_fixed(plan.step_y_um, 2) + " um, jitter +-" + format_fixed(100.0 * r.jitter, 0) +
+                         " % of a step: neighbours overlap by at least " + format_fixed(100.0 * plan.overlap, 0) + " %");
     const double du = 2.0 / (plan.resolution * lambda_short);
     const bool raised = r.resolution == 0 && plan.resolution > k_measured_slice_resolution;
     plan.notes.push_back(std::to_string(plan.resolution) + "x" + std::to_string(plan.resolution) +
-                         " slices" + (r.resolution != 0 ? " (given)" : "") + ": du = " + fixed(du, 4) +
-                         " 1/um at lambda = " + fixed(lambda_short, 4) + " um, " +
-                         (du <= 0.5 / d_um ? "<= " : fixed(du * 2.0 * d_um, 2) + "x, coarser than ") + "1/(2D) = " +
-                         fixed(0.5 / d_um, 4) +
+                         " slices" + (r.resolution != 0 ? " (given)" : "") + ": du = " + format_fixed(du, 4) +
+                         " 1/um at lambda = " + format_fixed(lambda_short, 4) + " um, " +
+                         (du <= 0.5 / d_um ? "<= " : format_fixed(du * 2.0 * d_um, 2) + "x, coarser than ") + "1/(2D) = " +
+                         format_fixed(0.5 / d_um, 4) +
                          (raised ? " (raised from " + std::to_string(k_measured_slice_resolution) + "x" +
                                        std::to_string(k_measured_slice_resolution) + " to sample the window within " +
                                        format_shortest(k_max_nyquist_factor) + "x of Nyquist)"
                                  : std::string()));
     std::string lambdas;
-    for (double l : plan.lambdas_um) lambdas += (lambdas.empty() ? "" : ", ") + fixed(l, 4);
+    for (double l : plan.lambdas_um) lambdas += (lambdas.empty() ? "" : ", ") + format_fixed(l, 4);
     std::string synthetic;
-    for (double s : plan.synthetic_um) synthetic += (synthetic.empty() ? "" : ", ") + fixed(s, 3);
+    for (double s : plan.synthetic_um) synthetic += (synthetic.empty() ? "" : ", ") + format_fixed(s, 3);
     plan.notes.push_back("wavelengths " + lambdas + " um" +
                          (synthetic.empty()
                               ? std::string(r.lambdas_um.empty() ? " (one suffices for the height range)" : "")
                               : " (synthetic " + synthetic + " um; heights unwrap up to " +
-                                    fixed(0.5 * plan.synthetic_um.front(), 3) + " um)"));
+                                    format_fixed(0.5 * plan.synthetic_um.front(), 3) + " um)"));
     return plan;
 }
 
@@ -399,9 +393,9 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
             for (std::size_t a = 0; a < centres.size(); ++a) worst = std::max(worst, grid.nearest(centres[a], a));
             const double overlap = 1.0 - worst / d_um;
             if (overlap < 0.6)
-                warnings.push_back("neighbouring footprints" + which + " overlap by only " + fixed(100.0 * overlap, 0) +
-                                   " % (centres up to " + fixed(worst, 2) + " um apart, window D = 6 sigma_p = " +
-                                   fixed(d_um, 2) + " um); expected at least 60 %");
+                warnings.push_back("neighbouring footprints" + which + " overlap by only " + format_fixed(100.0 * overlap, 0) +
+                                   " % (centres up to " + format_fixed(worst, 2) + " um apart, window D = 6 sigma_p = " +
+                                   format_fixed(d_um, 2) + " um); expected at least 60 %");
         }
         int uncovered = 0;
         for (int i = 0; i < rows; ++i)
@@ -427,8 +421,8 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
                 std::ceil(nyquist_resolution(o.query.sigma_p_um, lambda) / k_max_nyquist_factor));
             const std::string w = std::to_string(o.resolution) + "x" + std::to_string(o.resolution) +
                                   " slices at lambda = " + format_shortest(lambda) + " um sample u every " +
-                                  fixed(du, 4) +
-                                  " 1/um, more than 4x the Nyquist spacing 1/(2D) = " + fixed(0.5 / d_um, 4) +
+                                  format_fixed(du, 4) +
+                                  " 1/um, more than 4x the Nyquist spacing 1/(2D) = " + format_fixed(0.5 / d_um, 4) +
                                   " for sigma_p = " + format_shortest(o.query.sigma_p_um) + " um; expected at least " +
                                   std::to_string(needed) + " pixels";
             if (seen.insert(w).second) warnings.push_back(w);
@@ -446,7 +440,7 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
         values += double(at->second) * double(o.lambdas_um.size());
     }
     if (values < double(rows) * cols)
-        warnings.push_back("the slices hold " + fixed(values, 0) + " values for " + std::to_string(rows * cols) +
+        warnings.push_back("the slices hold " + format_fixed(values, 0) + " values for " + std::to_string(rows * cols) +
                            " heights: too few to determine them");
 
     // Light must reach a slice: a facet of slope s reflects light ω_i towards ω_o ≈ −ω_i − 2s,
@@ -473,7 +467,7 @@ std::vector<std::string> check_acquisition(const std::vector<Observation>& obser
         const bool one = lights.size() == 1;
         if (unseen > 0)
             warnings.push_back(std::to_string(unseen) + " of " + std::to_string(truth->rows() * truth->cols()) +
-                               " texels (slopes up to " + fixed(max_unseen_slope, 3) + ") reflect " +
+                               " texels (slopes up to " + format_fixed(max_unseen_slope, 3) + ") reflect " +
                                (one ? "the light" : "each of the " + std::to_string(lights.size()) + " lights") +
                                " beyond the slice's rim (|omega_o| > 0.9): part of the field is not measured (use " +
                                (one ? "oblique lights, " : "") + "larger texels or lower heights)");

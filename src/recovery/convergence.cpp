@@ -10,16 +10,11 @@
 
 #include "recovery/observation_loss.h"
 #include "wavebrdf/slice_plan.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf {
 
 namespace {
-
-std::string fixed(const char* format, double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, format, v);
-    return buf;
-}
 
 // 2 [k log(k/μ) − (k − μ)], 0 log 0 = 0.
 double deviance_term(double k, double mu) {
@@ -227,10 +222,10 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
         if (!misfit_on_photon_floor(check.deviance, check.expected_deviance, check.deviance_sd)) {
             check.converged = false;
             check.misfit_failed = true;
-            check.reasons.push_back("the slices' misfit is " + fixed("%.3g", check.misfit_ratio) +
-                                    "x what photon noise leaves (deviance " + fixed("%.4g", check.deviance) +
-                                    ", expected " + fixed("%.4g", check.expected_deviance) + " +- " +
-                                    fixed("%.2g", check.deviance_sd) + ")");
+            check.reasons.push_back("the slices' misfit is " + format_number(check.misfit_ratio, "%.3g") +
+                                    "x what photon noise leaves (deviance " + format_number(check.deviance, "%.4g") +
+                                    ", expected " + format_number(check.expected_deviance, "%.4g") + " +- " +
+                                    format_number(check.deviance_sd, "%.2g") + ")");
         }
         // Each slice against its own floor (k_slice_false_alarm): the count over every rank,
         // and the worst slice (each rank's worst in its own slot, then summed).
@@ -266,10 +261,10 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
             check.converged = false;
             check.misfit_failed = true;
             check.reasons.push_back(
-                std::to_string(check.slices_off_floor) + " of " + fixed("%.0f", slices[0]) +
+                std::to_string(check.slices_off_floor) + " of " + format_number(slices[0], "%.0f") +
                 " slices are above their own photon-noise floor (the worst, centred at x " +
-                fixed("%.1f", check.worst_slice_x_um) + " um, y " + fixed("%.1f", check.worst_slice_y_um) + " um, " +
-                fixed("%.3g", check.worst_slice_excess) + "x its limit on the pixels of >= 1 expected photon): the "
+                format_number(check.worst_slice_x_um, "%.1f") + " um, y " + format_number(check.worst_slice_y_um, "%.1f") + " um, " +
+                format_number(check.worst_slice_excess, "%.3g") + "x its limit on the pixels of >= 1 expected photon): the "
                 "heights under those footprints are not explained (a pit, spike or step the fit did not resolve)");
         }
     } else if (noiseless) {
@@ -278,8 +273,8 @@ ConvergenceCheck check_convergence(const std::vector<Observation>& observations,
             check.converged = false;
             check.misfit_failed = true;
             check.reasons.push_back("the slices were simulated without noise, yet the estimate's relative misfit is " +
-                                    fixed("%.3g", check.relative_misfit) + " (a converged estimate: below " +
-                                    fixed("%.0e", k_noiseless_misfit_limit) + ")");
+                                    format_number(check.relative_misfit, "%.3g") + " (a converged estimate: below " +
+                                    format_number(k_noiseless_misfit_limit, "%.0e") + ")");
         }
     }
     return check;
@@ -297,8 +292,8 @@ void add_error_bars(ConvergenceCheck& check, double median_sigma_um, double heig
     if (2.0 * check.median_sigma_relative > k_error_bar_limit) {
         check.converged = false;
         check.reasons.push_back("the error bars are wide: 2 sigma (median) is " +
-                                fixed("%.3g", 200.0 * check.median_sigma_relative) +
-                                " % of the height range (target " + fixed("%.0f", 100.0 * k_error_bar_limit) + " %)");
+                                format_number(200.0 * check.median_sigma_relative, "%.3g") +
+                                " % of the height range (target " + format_number(100.0 * k_error_bar_limit, "%.0f") + " %)");
     }
 }
 
@@ -336,12 +331,12 @@ void add_error_lower_bound(ConvergenceCheck& check, double bound_um, double heig
     if (!(check.error_lower_bound_relative > k_predicted_error_limit)) return;
     check.converged = false;
     const std::string bound = std::isfinite(check.error_lower_bound_relative)
-                                  ? "at least " + fixed("%.3g", 100.0 * check.error_lower_bound_relative) + " %"
+                                  ? "at least " + format_number(100.0 * check.error_lower_bound_relative, "%.3g") + " %"
                                   : "no bound (some texel no slice value depends on)";
     check.reasons.push_back(std::string(check.misfit_failed ? "" : "the misfit is on the photon-noise floor, but ") +
                             "the slices' Fisher information bounds the rms height error the error bars would predict "
                             "from below: " +
-                            bound + " of the height range (target " + fixed("%.0f", 100.0 * k_predicted_error_limit) +
+                            bound + " of the height range (target " + format_number(100.0 * k_predicted_error_limit, "%.0f") +
                             " %): the slices do not determine the heights that well at this photon count "
                             "(more photons, slices or wavelengths would)");
 }
@@ -357,8 +352,8 @@ void add_predicted_error(ConvergenceCheck& check, const std::vector<double>& sig
     check.converged = false;
     if (wide_bars_said) return;
     const std::string predicted = "the error bars predict an rms height error of " +
-                                  fixed("%.3g", 100.0 * check.predicted_error_relative) +
-                                  " % of the height range (target " + fixed("%.0f", 100.0 * k_predicted_error_limit) +
+                                  format_number(100.0 * check.predicted_error_relative, "%.3g") +
+                                  " % of the height range (target " + format_number(100.0 * k_predicted_error_limit, "%.0f") +
                                   " %)";
     if (check.floor == "none") {
         // No noise level stated: the bars' noise is the residuals' variance, so they are wide

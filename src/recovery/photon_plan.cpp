@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/cholesky.h"
 #include "core/random.h"
 #include "core/text.h"
 #include "wavebrdf/conditioning.h"
@@ -25,12 +26,6 @@ namespace wavebrdf {
 namespace {
 
 using detail::format_shortest;
-
-std::string fixed(const char* format, double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof buf, format, v);
-    return buf;
-}
 
 void check_settings(const PhotonPlanSettings& s) {
     if (!(std::isfinite(s.target) && s.target >= 0.0 && s.target <= 1.0))
@@ -71,21 +66,10 @@ std::vector<double> mode_variances(std::vector<double> g, int rows, int cols) {
     double c = 0.0;
     for (std::size_t a = 0; a < n; ++a) c += g[a * n + a] / double(n);
     for (double& x : g) x += c / double(n);
-    for (std::size_t j = 0; j < n; ++j) {  // Cholesky in place, lower triangle
-        double* lj = g.data() + j * n;
-        double d = lj[j];
-        for (std::size_t k = 0; k < j; ++k) d -= lj[k] * lj[k];
-        if (!(d > 0.0))
-            throw std::domain_error("photon plan: the proxy's Gauss-Newton matrix is singular at texel " +
-                                    std::to_string(j) + "; expected every texel seen by an observation");
-        lj[j] = std::sqrt(d);
-        for (std::size_t i = j + 1; i < n; ++i) {
-            double* li = g.data() + i * n;
-            double sum = li[j];
-            for (std::size_t k = 0; k < j; ++k) sum -= li[k] * lj[k];
-            li[j] = sum / lj[j];
-        }
-    }
+    const std::size_t singular = detail::cholesky_in_place(g, n, false);
+    if (singular < n)
+        throw std::domain_error("photon plan: the proxy's Gauss-Newton matrix is singular at texel " +
+                                std::to_string(singular) + "; expected every texel seen by an observation");
     const auto solved_norm = [&](std::vector<double> x) {  // ‖L⁻¹ x‖²
         double norm = 0.0;
         for (std::size_t r = 0; r < n; ++r) {
@@ -286,13 +270,13 @@ PhotonPlan plan_exposures(const Heightfield& surface, const AcquisitionPlan& pla
         p.exposures = exposures_for_target([&](int k) { return total_um(k, nullptr); }, settings.target * range_um,
                                            settings.max_exposures, &p.capped);
     p.rms_um = total_um(p.exposures, &p.bias_um);
-    const auto pct = [&](double rms_um) { return fixed("%.3g", 100.0 * rms_um / range_um) + " %"; };
+    const auto pct = [&](double rms_um) { return format_number(100.0 * rms_um / range_um, "%.3g") + " %"; };
     const std::string predicted = "photon-limited rms height error predicted " + pct(p.single_rms_um) +
-                                  " of the peak to valley (" + fixed("%.3g", 1000.0 * p.single_rms_um) +
-                                  " nm, of which a bias of " + fixed("%.3g", 1000.0 * p.single_bias_um) +
+                                  " of the peak to valley (" + format_number(1000.0 * p.single_rms_um, "%.3g") +
+                                  " nm, of which a bias of " + format_number(1000.0 * p.single_bias_um, "%.3g") +
                                   " nm rms: the high spatial frequencies shrunk) at " + format_shortest(photons) +
                                   " photons per exposure";
-    const std::string target = "target " + fixed("%.3g", 100.0 * settings.target) + " %";
+    const std::string target = "target " + format_number(100.0 * settings.target, "%.3g") + " %";
     const std::string proxy = " (error bars on a " + std::to_string(p.proxy_rows) + "x" +
                               std::to_string(p.proxy_cols) + " proxy tile, " +
                               std::to_string(p.proxy_observations) + " observations)";

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/cholesky.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "recovery/calibration_detail.h"
@@ -440,26 +441,12 @@ SmoothDisplacement fit_smooth_displacement(const std::vector<std::array<double, 
     double trace = 0.0;
     for (int p = 0; p < m; ++p) trace += a[p * m + p];
     for (int p = 0; p < m; ++p) a[p * m + p] += 1e-10 * trace / m;
-    for (int j = 0; j < m; ++j) {
-        for (int k = 0; k < j; ++k) a[j * m + j] -= a[j * m + k] * a[j * m + k];
-        a[j * m + j] = std::sqrt(a[j * m + j]);
-        for (int i = j + 1; i < m; ++i) {
-            for (int k = 0; k < j; ++k) a[i * m + j] -= a[i * m + k] * a[j * m + k];
-            a[i * m + j] /= a[j * m + j];
-        }
-    }
+    detail::cholesky_in_place(a, std::size_t(m), false);  // positive definite by the ridge
     for (int d = 0; d < 2; ++d) {
         std::vector<double> r(m, 0.0);
         for (std::size_t i = 0; i < n; ++i)
             for (int p = 0; p < m; ++p) r[p] += basis[i * m + p] * values[2 * i + d];
-        for (int i = 0; i < m; ++i) {  // L y = r, then Lᵀ x = y
-            for (int k = 0; k < i; ++k) r[i] -= a[i * m + k] * r[k];
-            r[i] /= a[i * m + i];
-        }
-        for (int i = m - 1; i >= 0; --i) {
-            for (int k = i + 1; k < m; ++k) r[i] -= a[k * m + i] * r[k];
-            r[i] /= a[i * m + i];
-        }
+        detail::cholesky_solve(a, std::size_t(m), r);
         fit.coefficients[std::size_t(d)] = r;
     }
     return fit;

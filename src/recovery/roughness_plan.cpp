@@ -46,12 +46,6 @@ constexpr double kVisibleMaxUm = 0.7;
 constexpr double kLayeredAspect = 0.5;
 // At most this many long wavelengths (a range of 8 µm needs 2).
 constexpr int kMaxLongLambdas = 4;
-std::string fixed(double v, int digits) {
-    char buf[48];
-    std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-    return buf;
-}
-
 void require(bool ok, const char* name, double value, const char* expected) {
     if (!ok)
         throw std::domain_error(std::string(name) + " = " + format_shortest(value) + " is out of range; expected " +
@@ -105,12 +99,12 @@ RoughnessPlan plan_from_slopes(double height_range_um, double rms_slope, double 
                 plan.oblique_omega_i.push_back({{kObliqueLightSin * a[0], kObliqueLightSin * a[1]}});
         plan.notes.push_back(
             std::string("rough surface (") +
-            (steep ? "expected rms slope " + fixed(plan.rms_slope, 2) + " > " + fixed(kRoughSlope, 2) + ", " +
-                         fixed(100.0 * plan.rim_fraction, 1) + " % of texels reflect beyond the slice's rim"
+            (steep ? "expected rms slope " + format_fixed(plan.rms_slope, 2) + " > " + format_fixed(kRoughSlope, 2) + ", " +
+                         format_fixed(100.0 * plan.rim_fraction, 1) + " % of texels reflect beyond the slice's rim"
                    : "") +
             (steep && fine ? "; " : "") +
             (fine
-                 ? "correlation " + fixed(plan.correlation_texels, 2) + " texels < " + fixed(kRoughCorrelationTexels, 1)
+                 ? "correlation " + format_fixed(plan.correlation_texels, 2) + " texels < " + format_fixed(kRoughCorrelationTexels, 1)
                  : "") +
             (layered && !steep && !fine ? "a lay, and a range whose blurred fit is expected beyond a quarter wave "
                                           "at the visible wavelengths"
@@ -120,7 +114,7 @@ RoughnessPlan plan_from_slopes(double height_range_um, double rms_slope, double 
                  : "): the default field iterations") +
             (plan.long_lambdas_um.empty()
                  ? std::string()
-                 : "; blurred fit expected " + fixed(plan.blur_error_um, 2) +
+                 : "; blurred fit expected " + format_fixed(plan.blur_error_um, 2) +
                        " um rms off: the field stage at long wavelengths only, the refinement from the longest "
                        "wavelength's slices down to every slice (docs/recovery.md, Rough surfaces)"));
     }
@@ -180,11 +174,11 @@ RoughnessPlan plan_for_measured_roughness(const MeasuredRoughness& m, double tex
         m.aspect < kLayeredAspect && kBlurErrorFraction * m.range_um > 0.25 * kVisibleMaxUm;
     RoughnessPlan plan = plan_from_slopes(m.range_um, m.rms_slope, m.rim_fraction, correlation_texels, layered);
     plan.notes.insert(plan.notes.begin(),
-                      "planned for the truth's measured roughness: peak to valley " + fixed(m.range_um, 3) +
-                          " um, rms slope " + fixed(m.rms_slope, 3) + " (" + fixed(100.0 * m.rim_fraction, 1) +
-                          " % of texels beyond slope 0.5), correlation length Sal " + fixed(m.correlation_um, 2) +
-                          " um (" + fixed(m.correlation_um / texel_um, 2) + " texels), Str " + fixed(m.aspect, 2) +
-                          (m.aspect < 0.3 ? " (strongly anisotropic, lay at " + fixed(m.lay_deg, 0) + " deg)" : ""));
+                      "planned for the truth's measured roughness: peak to valley " + format_fixed(m.range_um, 3) +
+                          " um, rms slope " + format_fixed(m.rms_slope, 3) + " (" + format_fixed(100.0 * m.rim_fraction, 1) +
+                          " % of texels beyond slope 0.5), correlation length Sal " + format_fixed(m.correlation_um, 2) +
+                          " um (" + format_fixed(m.correlation_um / texel_um, 2) + " texels), Str " + format_fixed(m.aspect, 2) +
+                          (m.aspect < 0.3 ? " (strongly anisotropic, lay at " + format_fixed(m.lay_deg, 0) + " deg)" : ""));
     return plan;
 }
 
@@ -198,13 +192,13 @@ int add_long_wavelengths(const RoughnessPlan& plan, AcquisitionPlan& acquisition
     for (double l : plan.long_lambdas_um)
         if (l > longest) {
             acquisition.lambdas_um.push_back(l);
-            added += (added.empty() ? "" : ", ") + fixed(l, 1);
+            added += (added.empty() ? "" : ", ") + format_fixed(l, 1);
             ++count;
         }
     if (count > 0)
         acquisition.notes.push_back(
             "rough surface: long wavelengths " + added + " um added (an infrared source is required): the longest is " +
-            fixed(kLongLambdaFactor, 0) + "x the blurred fit's expected error (" + fixed(plan.blur_error_um, 2) +
+            format_fixed(kLongLambdaFactor, 0) + "x the blurred fit's expected error (" + format_fixed(plan.blur_error_um, 2) +
             " um rms), so its field starts within a quarter wave; the field stage runs at "
             "these, every wavelength in the refinement");
     return count;
@@ -225,8 +219,8 @@ int add_oblique_lights(const RoughnessPlan& plan, AcquisitionPlan& acquisition) 
                                        plan.oblique_omega_i.end());
     const int count = int(plan.oblique_omega_i.size());
     acquisition.notes.push_back(
-        "steep surface: " + std::to_string(count) + " oblique lights at sin(theta_i) = " + fixed(kObliqueLightSin, 2) +
-        " added (azimuths every " + fixed(360.0 / count, 0) +
+        "steep surface: " + std::to_string(count) + " oblique lights at sin(theta_i) = " + format_fixed(kObliqueLightSin, 2) +
+        " added (azimuths every " + format_fixed(360.0 / count, 0) +
         " deg): facets up to slope 0.63 in any direction (0.85 along the lights) reflect into a slice; "
         "every position is observed under each light, " +
         std::to_string(count + 1) + "x the slices");

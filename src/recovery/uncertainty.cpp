@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/cholesky.h"
 #include "core/exact_sum.h"
 #include "core/parallel.h"
 #include "core/random.h"
@@ -513,26 +514,12 @@ std::vector<double> dense_pseudo_inverse_diagonal(std::vector<double> g, std::si
         throw std::domain_error("height uncertainty: the Gauss-Newton matrix has mean diagonal " + std::to_string(c) +
                                 "; expected > 0");
     for (double& x : g) x += c / double(n);
-    // Cholesky in place, lower triangle, row-major (row i's prefix · row j's prefix).
     const bool parallel = detail::worth_parallel(static_cast<long long>(double(n) * double(n) * double(n) / 6.0));
-    for (std::size_t j = 0; j < n; ++j) {
-        double* lj = g.data() + j * n;
-        double d = lj[j];
-        for (std::size_t k = 0; k < j; ++k) d -= lj[k] * lj[k];
-        if (!(d > 0.0))
-            throw std::domain_error("height uncertainty: the Gauss-Newton matrix is singular at texel " +
-                                    std::to_string(j) + " (pivot " + std::to_string(d) +
-                                    "); expected every texel seen by an observation");
-        const double ljj = std::sqrt(d);
-        lj[j] = ljj;
-#pragma omp parallel for schedule(static) if (parallel && n - j > 64)
-        for (std::size_t i = j + 1; i < n; ++i) {
-            double* li = g.data() + i * n;
-            double s = li[j];
-            for (std::size_t k = 0; k < j; ++k) s -= li[k] * lj[k];
-            li[j] = s / ljj;
-        }
-    }
+    const std::size_t j = detail::cholesky_in_place(g, n, parallel);
+    if (j < n)
+        throw std::domain_error("height uncertainty: the Gauss-Newton matrix is singular at texel " + std::to_string(j) +
+                                " (pivot " + std::to_string(g[j * n + j]) +
+                                "); expected every texel seen by an observation");
     // x = L⁻¹ e_i (zero above i) by forward substitution; diag(A⁻¹)_i = ‖x‖².
     std::vector<double> diag(n, 0.0);
 #pragma omp parallel if (parallel)

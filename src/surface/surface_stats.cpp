@@ -15,6 +15,7 @@
 #include "core/fftw_raii.h"
 #include "surface/footprint_offsets.h"
 #include "wavebrdf/constants.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf {
 
@@ -29,11 +30,7 @@ std::size_t at(int i, int j, int cols) {
     return static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j);
 }
 
-std::string number(double x) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.4g", x);
-    return buf;
-}
+std::string number(double x) { return format_number(x, "%.4g"); }
 
 void validate(const HeightGrid& g) {
     if (g.rows < 2 || g.cols < 2)
