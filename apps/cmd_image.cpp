@@ -12,6 +12,7 @@
 #include "wavebrdf/io.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/spectrum.h"
+#include "wavebrdf/text.h"
 
 namespace wavebrdf::cli {
 
@@ -108,7 +109,13 @@ void run(ImageArgs a) {
     }
     o.camera.position = parse_vec3(a.camera, "--camera");
     o.camera.look_at = parse_vec3(a.look_at, "--look-at");
-    if (!a.up.empty()) o.camera.up = parse_vec3(a.up, "--up");
+    if (!a.up.empty()) {
+        o.camera.up = parse_vec3(a.up, "--up");
+        if (o.camera.up == std::array<double, 3>{{0.0, 0.0, 0.0}})
+            throw std::domain_error(
+                "--up " + a.up +
+                " is invalid; expected a nonzero direction (default: +z, or -x looking straight down)");
+    }
     const std::array<double, 2> res = parse_pair(a.resolution, "--resolution");
     if (!(res[0] >= 1 && res[0] <= 8192 && res[1] >= 1 && res[1] <= 8192 && res[0] == std::floor(res[0]) &&
           res[1] == std::floor(res[1])))
@@ -165,8 +172,11 @@ void run(ImageArgs a) {
         throw std::domain_error("--frames " + std::to_string(a.frames) + " is out of range; expected 1 to 10000");
     if (a.orbit != "light" && a.orbit != "camera")
         throw std::invalid_argument("--orbit '" + a.orbit + "' is unknown; expected light or camera");
-    if (!std::isfinite(a.start_deg) || !std::isfinite(a.end_deg))
-        throw std::domain_error("--start-deg / --end-deg must be finite");
+    for (const auto& [name, angle] :
+         {std::pair<const char*, double>{"--start-deg", a.start_deg}, {"--end-deg", a.end_deg}})
+        if (!(std::isfinite(angle) && std::abs(angle) <= 1e6))
+            throw std::domain_error(std::string(name) + " " + format_shortest(angle) +
+                                    " is invalid; expected a finite angle within +-1e6 deg");
     if (!std::isfinite(a.exposure))
         throw std::domain_error("--exposure " + std::to_string(a.exposure) + " is not finite");
     if (a.out.empty() && a.png.empty())

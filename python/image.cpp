@@ -107,7 +107,12 @@ ImageOptions scene_options(WB_IMAGE_SCENE_PARAMS) {
     o.single_precision = precision == "float";
     o.camera.position = vec3_argument(camera, "camera");
     o.camera.look_at = vec3_argument(look_at, "look_at");
-    if (!up.is_none()) o.camera.up = vec3_argument(up, "up");
+    if (!up.is_none()) {
+        o.camera.up = vec3_argument(up, "up");
+        if (o.camera.up == std::array<double, 3>{{0.0, 0.0, 0.0}})
+            bad_argument("up", std::string(py::repr(up)),
+                         "a nonzero direction (None: +z, or -x looking straight down)");
+    }
     o.camera.fov_deg = fov_deg;
     o.camera.orthographic = orthographic;
     o.camera.view_width_um = view_width_um;

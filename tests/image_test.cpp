@@ -15,6 +15,7 @@
 #include "wavebrdf/brdf.h"
 #include "wavebrdf/gabor.h"
 #include "wavebrdf/point_eval.h"
+#include "wavebrdf/spectrum.h"
 
 namespace wavebrdf {
 namespace {
@@ -25,6 +26,19 @@ using test::unit;
 using test::value_at;
 using test::Vec3;
 
+// A pinhole camera at `camera` looking at the origin, up +z, over a square plate.
+ImageOptions looking_at_origin(const Vec3& camera, double fov_deg, int rows, int cols, double plate_um) {
+    ImageOptions o;
+    o.camera.position = camera;
+    o.camera.look_at = {0.0, 0.0, 0.0};
+    o.camera.up = {0.0, 0.0, 1.0};
+    o.camera.fov_deg = fov_deg;
+    o.camera.rows = rows;
+    o.camera.cols = cols;
+    o.plane_size_um = {plate_um, plate_um};
+    return o;
+}
+
 // An orthographic camera along −ω_o (ω_o a slice pixel centre) and a directional light: every
 // pixel's value is the slice pixel of its own footprint, times cos θ_i.
 TEST(Image, PixelsEqualRenderSliceOfTheirOwnFootprint) {
@@ -34,7 +48,7 @@ TEST(Image, PixelsEqualRenderSliceOfTheirOwnFootprint) {
     const Vec3 wo{ox, oy, std::sqrt(1.0 - ox * ox - oy * oy)};
     const std::array<double, 2> wi{{0.25, -0.1}};
     const Vec3 light{wi[0], wi[1], std::sqrt(1.0 - wi[0] * wi[0] - wi[1] * wi[1])};
-    for (Model model : {Model::OHS, Model::RGHS, Model::Kirchhoff}) {
+    for (Model model : {Model::OHS, Model::GHS, Model::ROHS, Model::RGHS, Model::Kirchhoff}) {
         ImageOptions o;
         o.camera.orthographic = true;
         o.camera.position = {300.0 * wo[0] + 3.0, 300.0 * wo[1] - 2.0, 300.0 * wo[2]};
@@ -80,6 +94,129 @@ TEST(Image, PixelsEqualRenderSliceOfTheirOwnFootprint) {
             EXPECT_EQ(value_at(image, r, c, 0), value_at(image, r, c, 2));  // one wavelength: grey
         }
     }
+}
+
+// Two lights give the sum of their images; a pixel whose ray misses the plate (by hand: a camera
+// looking straight down) holds the background, every other pixel a lit value.
+TEST(Image, LightsAddAndMissedPixelsHoldTheBackground) {
+    const Heightfield hf = test::random_heightfield(32, 32, 0.3, 9, 1.0, 1.0);
+    const double height = 400.0, plate = 200.0, half = std::tan(20.0 * k_pi / 180.0);
+    ImageOptions o;
+    o.camera.position = {0.0, 0.0, height};
+    o.camera.look_at = {0.0, 0.0, 0.0};  // straight down: up is −x, columns run along +y
+    o.camera.fov_deg = 40.0;
+    o.camera.rows = 12;
+    o.camera.cols = 10;
+    o.plane_size_um = {plate, plate};
+    o.lambdas_um = {0.45, 0.55, 0.65};
+    o.sigma_p_um = 3.0;
+    o.prune_tolerance = 0.0;
+    const ImageLight point{LightKind::Point, {150.0, -60.0, 500.0}};
+    const ImageLight directional{LightKind::Directional, {-0.3, 0.4, 1.0}};
+    auto values = [&](std::vector<ImageLight> lights, std::array<double, 3> background) {
+        ImageOptions with = o;
+        with.lights = std::move(lights);
+        with.background = background;
+        return render_image_values(hf, prepare_image(hf, with));
+    };
+    const std::vector<double> a = values({point}, {0.0, 0.0, 0.0}), b = values({directional}, {0.0, 0.0, 0.0});
+    const std::vector<double> both = values({point, directional}, {0.0, 0.0, 0.0});
+    const double peak = test::max_abs(both);
+    ASSERT_GT(peak, 0.0);
+    for (std::size_t k = 0; k < both.size(); ++k) EXPECT_NEAR(both[k], a[k] + b[k], 1e-12 * peak) << "value " << k;
+    const std::array<double, 3> background{0.25, 0.5, 0.75};
+    const std::vector<double> shown = values({point, directional}, background);
+    int hits = 0, misses = 0;
+    for (int r = 0; r < o.camera.rows; ++r)
+        for (int c = 0; c < o.camera.cols; ++c) {
+            const double sy = (1.0 - (r + 0.5) / o.camera.rows * 2.0) * half;
+            const double sx = ((c + 0.5) / o.camera.cols * 2.0 - 1.0) * half * o.camera.cols / o.camera.rows;
+            const double x = -sy * height, y = sx * height;
+            const bool hit = std::abs(x) < 0.5 * plate && std::abs(y) < 0.5 * plate;
+            for (std::size_t ch = 0; ch < 3; ++ch) {
+                const std::size_t k = (std::size_t(r) * o.camera.cols + c) * 3 + ch;
+                if (hit)
+                    EXPECT_EQ(shown[k], both[k]) << "pixel " << r << "," << c << " sees the plate";
+                else
+                    EXPECT_EQ(shown[k], background[ch]) << "pixel " << r << "," << c << " misses the plate";
+            }
+            const double* rgb = &both[(std::size_t(r) * o.camera.cols + c) * 3];
+            if (hit)  // lit: its luminance (a channel of a few wavelengths' mix may be negative)
+                EXPECT_GT(0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2], 0.0) << "pixel " << r << "," << c;
+            hits += hit;
+            misses += !hit;
+        }
+    EXPECT_GT(hits, 20);
+    EXPECT_GT(misses, 20);
+}
+
+// A direction is a direction whatever its length: a directional light or an up vector with
+// huge or tiny components gives the image of the same direction at unit scale, bit for bit.
+TEST(Image, DirectionsOfAnyLengthGiveTheSameImage) {
+    const Heightfield hf = test::random_heightfield(16, 16, 0.3, 21, 1.0, 1.0);
+    ImageOptions o = looking_at_origin({-100.0, 30.0, 300.0}, 30.0, 5, 5, 200.0);
+    o.lambdas_um = {0.5};
+    o.sigma_p_um = 3.0;
+    o.lights = {ImageLight{LightKind::Directional, {0.5, -0.25, 1.0}}};
+    const std::vector<double> unit_scale = render_image_values(hf, prepare_image(hf, o));
+    ASSERT_GT(test::max_abs(unit_scale), 0.0);
+    for (double scale : {1e300, 1e-300}) {
+        ImageOptions scaled = o;
+        scaled.lights[0].vector = {0.5 * scale, -0.25 * scale, scale};
+        scaled.camera.up = {0.0, 0.0, scale};
+        EXPECT_EQ(render_image_values(hf, prepare_image(hf, scaled)), unit_scale) << "scale " << scale;
+    }
+}
+
+// A blackbody light weighs each wavelength by Planck's law normalised to mean 1 over the
+// samples: the image's per-wavelength parts, recovered from the white image through the 3 x 3
+// spectral mix, weighted by B(λ, T) computed here from h, c and k.
+TEST(Image, BlackbodyLightWeighsEachWavelengthByPlanck) {
+    const Heightfield hf = test::random_heightfield(32, 32, 0.3, 13, 1.0, 1.0);
+    ImageOptions o = looking_at_origin({-150.0, 40.0, 400.0}, 30.0, 6, 6, 300.0);
+    o.lambdas_um = {0.45, 0.55, 0.65};
+    o.sigma_p_um = 3.0;
+    o.prune_tolerance = 0.0;
+    ImageLight light{LightKind::Point, {200.0, -50.0, 450.0}};
+    o.lights = {light};
+    const std::vector<double> white = render_image_values(hf, prepare_image(hf, o));
+    const double temperature = 2700.0;
+    o.lights[0].spectrum = LightSpectrum::Blackbody;
+    o.lights[0].temperature_k = temperature;
+    const std::vector<double> warm = render_image_values(hf, prepare_image(hf, o));
+    const double h = 6.62607015e-34, c = 2.99792458e8, k = 1.380649e-23;
+    std::array<double, 3> planck{};
+    double mean = 0.0;
+    for (std::size_t l = 0; l < 3; ++l) {
+        const double lambda_m = o.lambdas_um[l] * 1e-6;
+        planck[l] = 2.0 * h * c * c / std::pow(lambda_m, 5.0) / (std::exp(h * c / (lambda_m * k * temperature)) - 1.0);
+        mean += planck[l] / 3.0;
+    }
+    const std::vector<double> m = spectral_mix_weights(o.lambdas_um);  // M[ch * 3 + l]
+    const double det = m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6]) +
+                       m[2] * (m[3] * m[7] - m[4] * m[6]);
+    ASSERT_GT(std::abs(det), 1e-6);
+    const double peak = test::max_abs(warm);
+    ASSERT_GT(peak, 0.0);
+    for (std::size_t p = 0; p < white.size() / 3; ++p) {
+        // f = M⁻¹ rgb by Cramer's rule, then M diag(B/mean) f.
+        const double* w = &white[3 * p];
+        std::array<double, 3> f{};
+        for (std::size_t l = 0; l < 3; ++l) {
+            std::array<double, 9> a = {m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]};
+            for (std::size_t ch = 0; ch < 3; ++ch) a[ch * 3 + l] = w[ch];
+            f[l] = (a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6]) +
+                    a[2] * (a[3] * a[7] - a[4] * a[6])) /
+                   det;
+        }
+        for (std::size_t ch = 0; ch < 3; ++ch) {
+            double expected = 0.0;
+            for (std::size_t l = 0; l < 3; ++l) expected += m[ch * 3 + l] * planck[l] / mean * f[l];
+            EXPECT_NEAR(warm[3 * p + ch], expected, 1e-9 * peak) << "pixel " << p << " channel " << ch;
+        }
+    }
+    // And the weights themselves are a warm light's: B(0.65 µm) / B(0.45 µm) ≈ 6 at 2700 K.
+    EXPECT_GT(planck[2] / planck[0], 3.0);
 }
 
 // A flat mirror under a point light: one highlight, at the pixel that sees the mirror image of
@@ -230,13 +367,7 @@ TEST(Image, SwappingLightAndCameraKeepsReciprocalModels) {
 
 TEST(Image, PrunedImageWithinItsStatedBound) {
     const Heightfield hf = test::random_heightfield(64, 64, 0.8, 23, 1.0, 1.0);
-    ImageOptions o;
-    o.camera.position = {-300.0, 100.0, 600.0};
-    o.camera.look_at = {0.0, 0.0, 0.0};
-    o.camera.up = {0.0, 0.0, 1.0};
-    o.camera.fov_deg = 40.0;
-    o.camera.rows = o.camera.cols = 24;
-    o.plane_size_um = {1000.0, 1000.0};
+    ImageOptions o = looking_at_origin({-300.0, 100.0, 600.0}, 40.0, 24, 24, 1000.0);
     o.lights = {ImageLight{LightKind::Directional, {0.6, 0.1, 0.5}}};
     o.lambdas_um = {0.5};
     o.sigma_p_um = 5.0;
@@ -349,6 +480,25 @@ TEST(Image, BadInputFailsBeforeWork) {
                           }));
         },
         "pixel footprint");
+    // Huge positions (beyond a kilometre) and angles: named, not rendered into a black image.
+    test::expect_throw_naming<std::domain_error>(
+        [&] {
+            prepare_image(hf, with([](ImageOptions& o) { o.camera.position = {0.0, 0.0, 1e300}; }));
+        },
+        "camera position 0,0,1e+300 um is invalid; expected finite coordinates within +-1e9 um");
+    test::expect_throw_naming<std::domain_error>(
+        [&] {
+            prepare_image(hf, with([](ImageOptions& o) { o.camera.look_at = {2e9, 0.0, 0.0}; }));
+        },
+        "look-at point 2000000000,0,0 um is invalid");
+    test::expect_throw_naming<std::domain_error>(
+        [&] {
+            prepare_image(hf, with([](ImageOptions& o) { o.lights[0].vector = {1e300, 0.0, 1e300}; }));
+        },
+        "point light 1e+300,0,1e+300 um is invalid; expected finite coordinates within +-1e9 um");
+    test::expect_throw_naming<std::domain_error>(
+        [&] { prepare_image(hf, with([](ImageOptions& o) { o.rotation_deg = 1e300; })); },
+        "rotation 1e+300 deg is invalid; expected a finite angle within +-1e6 deg");
 }
 
 }  // namespace

@@ -45,13 +45,28 @@ Vec3 cross(const Vec3& a, const Vec3& b) {
     return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
 }
 double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
-Vec3 normalised(const Vec3& a) { return mul(a, 1.0 / norm(a)); }
+// a / |a|, scaled by its largest component first so that a direction given with huge or tiny
+// components (a directional light at 1e300,0,1e300) neither overflows nor underflows.
+Vec3 normalised(const Vec3& a) {
+    const double largest = std::max({std::abs(a[0]), std::abs(a[1]), std::abs(a[2])});
+    const Vec3 b = largest > 0.0 && std::isfinite(largest) ? Vec3{a[0] / largest, a[1] / largest, a[2] / largest} : a;
+    return mul(b, 1.0 / norm(b));
+}
 
 std::string vec_text(const Vec3& v) {
     return format_shortest(v[0]) + "," + format_shortest(v[1]) + "," + format_shortest(v[2]);
 }
 
 bool finite(const Vec3& v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); }
+
+// A position in the scene: finite and within a kilometre of the origin on each axis (a camera or
+// light beyond that sees or lights the sample only as a rounding error, a black image).
+constexpr double k_max_coordinate_um = 1e9;
+bool position_in_range(const Vec3& v) {
+    return finite(v) && std::abs(v[0]) <= k_max_coordinate_um && std::abs(v[1]) <= k_max_coordinate_um &&
+           std::abs(v[2]) <= k_max_coordinate_um;
+}
+const char* const k_position_expected = " um is invalid; expected finite coordinates within +-1e9 um";
 
 // The camera's orthonormal frame: forward, right (image columns), up (towards row 0).
 struct CameraFrame {
@@ -261,10 +276,11 @@ void light_at(const Emitter& light, const Vec3& p, Vec3& omega, double& irradian
 std::vector<double> light_spectrum(const ImageLight& light, const std::vector<double>& lambdas) {
     std::vector<double> s(lambdas.size(), 1.0);
     if (light.spectrum == LightSpectrum::Blackbody && lambdas.size() > 1) {
-        // Planck: B ∝ λ^−5 / (e^{hc/(λkT)} − 1), hc/k = 14387.77 µm·K.
+        // Planck: B ∝ λ^−5 / (e^{hc/(λkT)} − 1), hc/k = 14387.768775 µm·K (from the SI's exact h,
+        // c and k; 14387.77 put the weights 5e-8 off).
         double mean = 0.0;
         for (std::size_t l = 0; l < lambdas.size(); ++l) {
-            const double x = 14387.77 / (lambdas[l] * light.temperature_k);
+            const double x = 14387.768775039337 / (lambdas[l] * light.temperature_k);
             s[l] = std::pow(lambdas[l], -5.0) / std::expm1(x);
             mean += s[l];
         }
@@ -356,8 +372,8 @@ bool sample_ray_hit(const ImageOptions& o, const std::array<double, 3>& origin, 
 
 PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& options) {
     const ImageCamera& cam = options.camera;
-    require(finite(cam.position), "camera position " + vec_text(cam.position) + " um is not finite");
-    require(finite(cam.look_at), "look-at point " + vec_text(cam.look_at) + " um is not finite");
+    require(position_in_range(cam.position), "camera position " + vec_text(cam.position) + k_position_expected);
+    require(position_in_range(cam.look_at), "look-at point " + vec_text(cam.look_at) + k_position_expected);
     require(finite(cam.up), "camera up " + vec_text(cam.up) + " is not finite");
     const bool plane = options.shape == SampleShape::Plane;
     const bool sphere = options.shape == SampleShape::Sphere;
@@ -404,8 +420,9 @@ PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& 
         require(std::isfinite(options.plane_size_um[a]) && options.plane_size_um[a] > 0.0 &&
                     options.plane_size_um[a] <= 1e9,
                 "plane size " + format_shortest(options.plane_size_um[a]) + " um is invalid; expected 0 < size <= 1e9");
-    require(std::isfinite(options.rotation_deg),
-            "rotation " + format_shortest(options.rotation_deg) + " deg is not finite");
+    require(std::isfinite(options.rotation_deg) && std::abs(options.rotation_deg) <= 1e6,
+            "rotation " + format_shortest(options.rotation_deg) +
+                " deg is invalid; expected a finite angle within +-1e6 deg");
     require(!options.lights.empty(), "no light; expected at least one (--point-light, --directional-light or --disc-light)");
     require(options.lights.size() <= 64,
             std::to_string(options.lights.size()) + " lights are too many; expected at most 64");
@@ -413,7 +430,10 @@ PreparedImage prepare_image(const Heightfield& heightfield, const ImageOptions& 
         const std::string what = light.kind == LightKind::Point         ? "point light "
                                  : light.kind == LightKind::Directional ? "directional light "
                                                                         : "disc light ";
-        require(finite(light.vector), what + vec_text(light.vector) + " is not finite");
+        if (light.kind == LightKind::Directional)
+            require(finite(light.vector), what + vec_text(light.vector) + " is not finite");
+        else
+            require(position_in_range(light.vector), what + vec_text(light.vector) + k_position_expected);
         if (light.kind == LightKind::Disc) {
             require(
                 std::isfinite(light.radius_um) && light.radius_um > 0.0 && light.radius_um <= 1e9,

@@ -36,6 +36,28 @@ def test_orbit_writes_numbered_frames(tmp_path, rng, cli, random_heightfield_exr
     assert sorted(os.listdir(tmp_path)) == ["f_0000.png", "f_0001.png", "f_0002.png", "h.exr"]
 
 
+@pytest.mark.parametrize("orbit", ["light", "camera"])
+def test_orbit_frames_are_the_scene_turned_about_z(tmp_path, rng, cli, orbit, random_heightfield_exr):
+    # Frame k of an orbit from A to B is the single image with the light (or the camera) turned
+    # by A + k (B - A) / (N - 1) about the z axis, bit for bit.
+    hf = random_heightfield_exr(16)
+    subprocess.run([cli, "image", "--heightfield", hf, *SCENE, "--out", str(tmp_path / "f.exr"), "--frames", "3",
+                    "--orbit", orbit, "--start-deg", "30", "--end-deg", "90", "--quiet"], check=True)
+    light, camera = np.array([250.0, -40.0, 400.0]), np.array([-300.0, 50.0, 500.0])
+    frames = []
+    for k, angle in enumerate([30.0, 60.0, 90.0]):
+        a = np.radians(angle)
+        turn = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        expected = wb.render_image(hf, plane_size_um=400, camera=tuple(turn @ camera if orbit == "camera" else camera),
+                                   look_at=(0, 0, 0), fov_deg=40, resolution=(12, 10),
+                                   point_light=tuple(turn @ light if orbit == "light" else light), spectral=3,
+                                   sigma_p_um=3)
+        frame = np.asarray(wb.read_slice(str(tmp_path / ("f_%04d.exr" % k)))[0])
+        np.testing.assert_allclose(frame, expected, rtol=1e-5, atol=1e-6 * expected.max())
+        frames.append(frame)
+    assert not np.array_equal(frames[0], frames[2])  # the glints moved
+
+
 @pytest.mark.parametrize("change, message", [
     (["--camera", "0,0,-5"], "camera position 0,0,-5 um is inside or below the sample"),
     (["--point-light", "0,0,-1"], "point light 0,0,-1 um is behind the sample"),
@@ -54,6 +76,29 @@ def test_bad_scenes_fail_before_work(tmp_path, rng, cli, change, message, random
     assert not out.exists()
     with pytest.raises(ValueError, match="camera position"):
         wb.render_image(hf, plane_size_um=400, camera=(0, 0, -5), point_light=(0, 0, 100))
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--up", "0,0,0"], "--up 0,0,0 is invalid; expected a nonzero direction"),
+    (["--frames", "3", "--start-deg", "nan"], "--start-deg nan is invalid; expected a finite angle within +-1e6"),
+    (["--frames", "3", "--end-deg", "1e300"], "--end-deg 1e+300 is invalid; expected a finite angle within +-1e6"),
+    (["--rotation-deg", "1e300"], "rotation 1e+300 deg is invalid"),
+])
+def test_bad_options_fail_before_work(tmp_path, rng, cli, extra, message, random_heightfield_exr):
+    hf = random_heightfield_exr(16)
+    out = tmp_path / "bad.exr"
+    r = subprocess.run([cli, "image", "--heightfield", hf, *SCENE, *extra, "--out", str(out)], capture_output=True,
+                       text=True)
+    assert r.returncode != 0 and message in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not list(tmp_path.glob("bad*"))
+
+
+def test_bad_python_vectors_fail_before_work(tmp_path, rng, random_heightfield_exr):
+    hf = random_heightfield_exr(16)
+    with pytest.raises(ValueError, match=r"up = \(0, 0, 0\) is invalid; expected a nonzero direction"):
+        wb.render_image(hf, plane_size_um=400, camera=(0, 0, 500), point_light=(0, 0, 100), up=(0, 0, 0))
+    with pytest.raises(ValueError, match=r"camera position 0,0,1e\+300 um is invalid"):
+        wb.render_image(hf, plane_size_um=400, camera=(0, 0, 1e300), point_light=(0, 0, 100))
 
 
 def test_missing_heightfield(tmp_path, cli):
