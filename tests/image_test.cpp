@@ -135,14 +135,14 @@ TEST(Image, LightsAddAndMissedPixelsHoldTheBackground) {
             const bool hit = std::abs(x) < 0.5 * plate && std::abs(y) < 0.5 * plate;
             for (std::size_t ch = 0; ch < 3; ++ch) {
                 const std::size_t k = (std::size_t(r) * o.camera.cols + c) * 3 + ch;
-                if (hit)
-                    EXPECT_EQ(shown[k], both[k]) << "pixel " << r << "," << c << " sees the plate";
-                else
-                    EXPECT_EQ(shown[k], background[ch]) << "pixel " << r << "," << c << " misses the plate";
+                const double expected = hit ? both[k] : background[ch];
+                EXPECT_EQ(shown[k], expected)
+                    << "pixel " << r << "," << c << (hit ? " sees" : " misses") << " the plate";
             }
+            // Lit: its luminance is positive (a channel of a few wavelengths' mix may be negative).
             const double* rgb = &both[(std::size_t(r) * o.camera.cols + c) * 3];
-            if (hit)  // lit: its luminance (a channel of a few wavelengths' mix may be negative)
-                EXPECT_GT(0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2], 0.0) << "pixel " << r << "," << c;
+            const double luminance = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+            EXPECT_TRUE(!hit || luminance > 0.0) << "pixel " << r << "," << c << " luminance " << luminance;
             hits += hit;
             misses += !hit;
         }
@@ -288,17 +288,17 @@ TEST(Image, GratingOrdersWhereTheGratingEquationPutsThem) {
     o.lights = {ImageLight{LightKind::Directional, {0.0, 0.0, 1.0}}};
     o.sigma_p_um = 10.0;
     o.prune_tolerance = 0.0;
+    // ω_o,x of row r by hand: looking straight down, up is −x, so row r's ray meets the plane at
+    // x = −sy · tan(fov/2) · h with sy = 1 − 2(r + ½)/R, and ω_o = (camera − point)/distance.
+    auto omega_x = [&](int r) {
+        const double sy = 1.0 - (r + 0.5) / o.camera.rows * 2.0;
+        const double x = -sy * 0.1 * height;
+        return -x / std::sqrt(x * x + height * height);
+    };
     double previous_first_order = 0.0;
     for (double lambda : {0.45, 0.65}) {
         o.lambdas_um = {lambda};
         const RgbImage image = render_image(grating, prepare_image(grating, o));
-        // ω_o,x of row r by hand: looking straight down, up is −x, so row r's ray meets the plane at
-        // x = −sy · tan(fov/2) · h with sy = 1 − 2(r + ½)/R, and ω_o = (camera − point)/distance.
-        auto omega_x = [&](int r) {
-            const double sy = 1.0 - (r + 0.5) / o.camera.rows * 2.0;
-            const double x = -sy * 0.1 * height;
-            return -x / std::sqrt(x * x + height * height);
-        };
         for (int m : {-2, -1, 1, 2}) {
             const double expected = m * lambda / (period * 1.0);
             // The brightest row within ±0.4 λ/Λ of the predicted order.
@@ -321,6 +321,26 @@ TEST(Image, GratingOrdersWhereTheGratingEquationPutsThem) {
             }
         }
     }
+    // Under white light (the slices' 8 wavelengths in one image) the first order is a rainbow in
+    // its colour sequence: within ω_x in [0.40, 0.70] µm / Λ (no second order there) the blue
+    // channel peaks nearest the specular direction, then green, then red, each where the grating
+    // equation puts the samples it weighs most (0.36-0.83 µm, 0.067 apart: blue 0.43-0.49, green
+    // 0.56, red 0.63-0.70; measured 0.447, 0.553, 0.659 µm).
+    o.lambdas_um = spectral_wavelengths_um(8);
+    const RgbImage white = render_image(grating, prepare_image(grating, o));
+    std::array<double, 3> peak_omega{}, peak{};
+    for (int r = 0; r < o.camera.rows; ++r)
+        if (omega_x(r) > 0.40 / period && omega_x(r) < 0.70 / period)
+            for (int ch = 0; ch < 3; ++ch)
+                if (value_at(white, r, 1, ch) > peak[std::size_t(ch)]) {
+                    peak[std::size_t(ch)] = value_at(white, r, 1, ch);
+                    peak_omega[std::size_t(ch)] = omega_x(r);
+                }
+    EXPECT_LT(peak_omega[2], peak_omega[1]) << "blue before green";
+    EXPECT_LT(peak_omega[1], peak_omega[0]) << "green before red";
+    EXPECT_NEAR(peak_omega[2] * period, 0.46, 0.03);
+    EXPECT_NEAR(peak_omega[1] * period, 0.56, 0.03);
+    EXPECT_NEAR(peak_omega[0] * period, 0.665, 0.035);
 }
 
 // One pixel looking at P with a point light: its f_r, the radiance divided by cos θ_i E.
