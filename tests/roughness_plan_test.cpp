@@ -363,6 +363,7 @@ TEST(RoughnessPlan, RefineLadderAddsOneWavelengthPerRungLongestFirst) {
     prepared.pipeline.field_lambda_min_um = 0.55;  // the 0.5 µm slices enter the refinement only
     prepared.pipeline.refine_ladder_min_um = 0.55;
     prepared.pipeline.refine_ladder_iterations = 6;
+    prepared.pipeline.refine_ladder_stall_window = 0;  // each rung runs its cap (no run-on)
     prepared.pipeline.refine_iterations = 6;
     prepared.pipeline.model_check_iterations = 0;
     const auto run = [](const PreparedRecovery& p) {

@@ -314,6 +314,10 @@ struct RecoverSettings {
     // fraction of its value) over the last refine_ladder_stall_window iterations (0: off). A
     // rung trapped by a single-texel outlier stalls at a loss ≈ 1e-5 from its ~17th iteration on while an untrapped one falls by 25–50 % every 5: the repair after the rung
     // then comes without the idle iterations.
+    // A rung with this rule (window and tolerance > 0) that reaches its cap without stalling,
+    // above its relative tolerance, runs on under the rule, up to 4 × its cap in all: where the
+    // truth holds a texel-scale texture the loss still falls 2–3 % an iteration at 40
+    // (experiments/2026-11-30-refinement-budget.md).
     // −1: 5 on smooth surfaces without calibration, else 0.
     int refine_ladder_stall_window = -1;
     double refine_ladder_stall_tolerance = 0.01;

@@ -114,6 +114,7 @@ public:
     // Whether any iteration was reported, and the loss of the last one.
     bool reported() const { return m_reported; }
     double last_loss() const { return m_last_loss; }
+    double reference_loss() const { return m_reference_loss; }
     void set_done(int done) { m_done = done; }
     const Objective& objective() const { return m_objective; }
     // The heights of x (its first rows · cols values).
