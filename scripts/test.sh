@@ -93,7 +93,11 @@ sanitize_wait() {
 }
 sanitize_start
 phase "Release tests (ctest)"
-(cd build && ctest --output-on-failure -j"$(nproc)")
+# ctest runs nproc tests at once and each test nproc OpenMP threads: threads that spin at their
+# barriers (the default policy) take the cores from the other test's work; sleeping ones do not
+# (the design tests ran 20-50x slower in pairs: bench/results/2026-11-30-ci-omp-wait.md).
+ctest_threads=(env OMP_WAIT_POLICY=passive)
+(cd build && "${ctest_threads[@]}" ctest --output-on-failure -j"$(nproc)")
 /usr/bin/python3 scripts/slowest_tests.py build  # docs/reliability.md quotes these
 phase "Python (pytest)"
 /usr/bin/python3 -m pytest -q tests/python
@@ -113,7 +117,7 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 # tests/sanitizer_skip.txt names each with the lighter test that runs its code here.
 skip="$(grep -v '^#' tests/sanitizer_skip.txt | awk 'NF { gsub(/\./, "\\.", $1); print $1 }' | paste -sd'|')"
 echo "test: sanitizer pass skips $(grep -cv '^#' tests/sanitizer_skip.txt) tests (tests/sanitizer_skip.txt)"
-(cd build-sanitize && ctest --output-on-failure -j"$(nproc)" -E "^(${skip})\$")
+(cd build-sanitize && "${ctest_threads[@]}" ctest --output-on-failure -j"$(nproc)" -E "^(${skip})\$")
 /usr/bin/python3 scripts/slowest_tests.py build-sanitize
 
 # Each target's saved inputs and seeds, then FUZZ_SECONDS of fuzzing (default here 20: a check
