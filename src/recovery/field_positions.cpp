@@ -229,11 +229,7 @@ bool register_positions(const std::vector<const Observation*>& group, const std:
                                         " is out of range; expected < " + std::to_string(count));
     // The loss normalised by every rank's Σ w R (so every term is of order 1 or less).
     std::vector<double> totals(group.size(), 0.0);
-    for (std::size_t g = 0; g < group.size(); ++g)
-        for (std::size_t k = 0; k < group[g]->reference.size(); ++k) {
-            const double w = value_weight(*group[g], k);
-            if (w != 0.0) totals[g] += w * std::max(0.0, double(group[g]->reference[k]));
-        }
+    for (std::size_t g = 0; g < group.size(); ++g) totals[g] = weighted_reference_total(*group[g]);
     const double total = exact_total(totals, comm);
     if (!(total > 0.0)) return false;
     const double inv_total = 1.0 / total;

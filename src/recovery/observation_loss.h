@@ -11,6 +11,7 @@
 // stage, the model check) read filled_observations' copies instead: the field stage's and the
 // model check's amplitude losses honour the weights too (amplitude_loss.h); the blurred fit,
 // whose blurred images mix neighbouring pixels, reads the filled values.
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <vector>
@@ -29,6 +30,16 @@ Query calibrated_query(const Observation& o, double sigma_scale, const std::arra
 // The weight of slice value k (pixel k / channels) of o: its pixel's weight, 1 without weights.
 inline double value_weight(const Observation& o, std::size_t k) {
     return o.weights.empty() ? 1.0 : double(o.weights[k / std::size_t(o.channels())]);
+}
+
+// Σ w·max(0, R) over o's slice values, a value of weight 0 not read (it may be anything).
+inline double weighted_reference_total(const Observation& o) {
+    double total = 0.0;
+    for (std::size_t k = 0; k < o.reference.size(); ++k) {
+        const double w = value_weight(o, k);
+        if (w != 0.0) total += w * std::max(0.0, double(o.reference[k]));
+    }
+    return total;
 }
 
 // o's exposure a (reference ≈ a · model) for the model slice f: the ratio of energies

@@ -139,12 +139,7 @@ double weighted_reference(const Observation& o, std::size_t k, double& w) {
 // Σ w R over every rank's observations (negative values clamped), exactly.
 double reference_total(const std::vector<const Observation*>& observations, const Communicator& comm) {
     std::vector<double> totals(observations.size(), 0.0);
-    for (std::size_t i = 0; i < observations.size(); ++i)
-        for (std::size_t k = 0; k < observations[i]->reference.size(); ++k) {
-            double w = 1.0;
-            const double r = weighted_reference(*observations[i], k, w);
-            totals[i] += w * r;
-        }
+    for (std::size_t i = 0; i < observations.size(); ++i) totals[i] = weighted_reference_total(*observations[i]);
     return exact_total(totals, comm);
 }
 
