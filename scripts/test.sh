@@ -2,7 +2,7 @@
 # Sets up, builds and runs every test: the Release build (GCC), then the same suite built with
 # clang, AddressSanitizer and UndefinedBehaviorSanitizer (compiled in the background, at the lowest
 # priority, while the Release build's checks run), then the fuzzers (scripts/fuzz.sh, FUZZ_SECONDS
-# each, default 20). Prints the wall time of each phase at the end (CI's budget: 30 minutes on
+# each, default 10). Prints the wall time of each phase at the end (CI's budget: 30 minutes on
 # 2 cores, from a fresh machine).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -120,10 +120,10 @@ echo "test: sanitizer pass skips $(grep -cv '^#' tests/sanitizer_skip.txt) tests
 (cd build-sanitize && "${ctest_threads[@]}" ctest --output-on-failure -j"$(nproc)" -E "^(${skip})\$")
 /usr/bin/python3 scripts/slowest_tests.py build-sanitize
 
-# Each target's saved inputs and seeds, then FUZZ_SECONDS of fuzzing (default here 20: a check
+# Each target's saved inputs and seeds, then FUZZ_SECONDS of fuzzing (default here 10: a check
 # that nothing found before comes back and that a short run finds nothing; scripts/fuzz.sh
 # alone fuzzes 60 s a target, longer when asked).
-fuzz_seconds="${FUZZ_SECONDS:-20}"
+fuzz_seconds="${FUZZ_SECONDS:-10}"
 phase "fuzzers (libFuzzer, ASan + UBSan, ${fuzz_seconds} s each)"
 unset ASAN_OPTIONS UBSAN_OPTIONS  # fuzz.sh sets its own; abort_on_error would hide libFuzzer's report
 FUZZ_BUILD=build-sanitize FUZZ_SECONDS="$fuzz_seconds" FUZZ_JOBS="$(nproc)" bash scripts/fuzz.sh
