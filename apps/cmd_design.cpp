@@ -1,11 +1,13 @@
 // wavebrdf design: a surface relief for a target appearance (docs/design.md). Reads the target,
 // runs the library's design (design_run.h), writes the run directory.
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "cli_common.h"
 #include "commands.h"
@@ -13,6 +15,8 @@
 #include "wavebrdf/design_plate.h"
 #include "wavebrdf/design_run.h"
 #include "wavebrdf/fabrication.h"
+#include "wavebrdf/heightfield.h"
+#include "wavebrdf/io.h"
 #include "wavebrdf/memory.h"
 #include "wavebrdf/progress.h"
 #include "wavebrdf/run_directory.h"
@@ -28,6 +32,7 @@ struct DesignArgs {
     std::string region = "annulus:0.1,0.5";
     std::string errors;
     std::string palette;
+    std::string start;
     double plate_pixel_um = 0.0;
     std::vector<double> band_um;
     double view_x = 0.0, view_y = 0.0;
@@ -101,6 +106,24 @@ std::string three_digits(const nlohmann::json& v) {
     return s;
 }
 
+// --start HEIGHTS.exr: a heightfield (a design's heights.exr, or any EXR in the heightfield
+// convention) as heights in µm, its side and texel checked against --size and --texel-um.
+std::vector<double> read_start_relief(const std::string& path, const DesignOptions& o) {
+    const Heightfield hf = read_heightfield_exr(path);
+    if (hf.rows() != o.size || hf.cols() != o.size)
+        throw std::invalid_argument("--start " + path + " is " + std::to_string(hf.rows()) + " x " +
+                                    std::to_string(hf.cols()) + " texels; expected " + std::to_string(o.size) + " x " +
+                                    std::to_string(o.size) + " (--size)");
+    if (!(std::abs(hf.texel_um() - o.texel_um) <= 1e-6 * o.texel_um))
+        throw std::invalid_argument("--start " + path + " has texels of " + format_shortest(hf.texel_um()) +
+                                    " um; expected --texel-um " + format_shortest(o.texel_um));
+    std::vector<double> h(static_cast<std::size_t>(o.size) * static_cast<std::size_t>(o.size));
+    for (int i = 0; i < o.size; ++i)
+        for (int j = 0; j < o.size; ++j)
+            h[static_cast<std::size_t>(i) * static_cast<std::size_t>(o.size) + static_cast<std::size_t>(j)] = hf.height_um(i, j);
+    return h;
+}
+
 void run(DesignArgs a) {
     DesignOptions& o = a.options;
     // Everything checked before any work: the output directory, then the options.
@@ -114,7 +137,11 @@ void run(DesignArgs a) {
     o.region = a.region;
     o.errors = parse_fabrication_errors(a.errors);
     if (a.no_view_survey) o.survey_views = false;
-    if (a.target.rfind("image:", 0) == 0) return run_plate_command(a);
+    if (a.target.rfind("image:", 0) == 0) {
+        if (!a.start.empty()) throw std::invalid_argument("--start " + a.start + " with --target " + a.target +
+                                                          ": a plate's tiles start at random; expected no --start");
+        return run_plate_command(a);
+    }
     if (!a.palette.empty()) throw std::invalid_argument("--palette goes with --target image:PICTURE.png");
     o.target = parse_design_target(a.target);
     if (o.target.kind == DesignKind::Iridescent && a.given_view)
@@ -123,6 +150,7 @@ void run(DesignArgs a) {
     if (o.target.kind == DesignKind::Brdf && a.given_lambda)
         throw std::invalid_argument("--lambda-um with --target " + a.target +
                                     ": a brdf target's wavelengths are its table's; expected no --lambda-um");
+    if (!a.start.empty()) o.start_heights_um = read_start_relief(a.start, o);
     const PreparedDesign prepared = prepare_design(o);
     if (!a.quiet) {
         std::cerr << "design: " << o.size << "x" << o.size << " texels of " << format_shortest(o.texel_um) << " um, "
@@ -298,6 +326,8 @@ void add_design_command(CLI::App& app) {
                     "grayscale relief: no lateral detail finer than this, um (contradicts --levels)");
     cmd->add_option("--fabrication-error", a->errors, "e.g. scale:5%,blur:0.3um (design for and score under them)");
     cmd->add_option("--seed", a->options.seed, "random start")->capture_default_str();
+    cmd->add_option("--start", a->start,
+                    "start from this relief (a heights.exr on the run's levels) instead of a random one");
     cmd->add_option("--iterations", a->options.iterations, "relaxed iterations")->capture_default_str();
     cmd->add_option("--refine-passes", a->options.refine_passes, "discrete passes on the levels")
         ->capture_default_str();

@@ -18,7 +18,7 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
                 const py::object& view, double view_cone, int size, double texel_um, double height_range_um,
                 int levels, double level_step_um, double min_feature_um, const std::string& fabrication_error,
                 std::uint64_t seed, int iterations, int refine_passes, double max_memory_gb,
-                double delta_uv_tolerance, double delta_uv_ceiling) {
+                double delta_uv_tolerance, double delta_uv_ceiling, const py::object& start) {
     DesignOptions o;
     if (!image.is_none()) {
         if (target != "pattern")
@@ -54,6 +54,11 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     o.min_feature_um = min_feature_um;
     o.delta_uv_tolerance = delta_uv_tolerance;
     o.delta_uv_ceiling = delta_uv_ceiling;
+    if (!start.is_none()) {
+        const py::array a = float_array(start, "start");
+        check_shape(a, {size, size}, "start");
+        o.start_heights_um = to_doubles(a, "start");
+    }
     const DesignResult result = run_design_into(
         out, force, [&] { return run_design(prepare_design(o)); },
         [&](const std::string& dir, const DesignResult& r) { write_design_directory(dir, r, force); });
@@ -111,7 +116,7 @@ void bind_design(py::module_& m) {
           "cone_limit"_a = 0.002, "uniformity_limit"_a = 0.25, "region"_a = "annulus:0.1,0.5", "window"_a = 0.3, "view"_a = py::none(), "view_cone"_a = 0.05,
           "size"_a = 256, "texel_um"_a = 0.5, "height_range_um"_a = 2.0, "levels"_a = 8, "level_step_um"_a = 0.0,
           "min_feature_um"_a = 0.0, "fabrication_error"_a = "", "seed"_a = 1, "iterations"_a = 200,
-          "refine_passes"_a = 60, "max_memory_gb"_a = 0.0, "delta_uv_tolerance"_a = 0.0, "delta_uv_ceiling"_a = 0.04,
+          "refine_passes"_a = 60, "max_memory_gb"_a = 0.0, "delta_uv_tolerance"_a = 0.0, "delta_uv_ceiling"_a = 0.04, "start"_a = py::none(),
           R"(A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
 target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
@@ -122,6 +127,8 @@ uniformity_limit, region (anti-mirror; a limit the relief breaks is also a UserW
 delta_uv_tolerance and delta_uv_ceiling (colour, iridescent; a colour the brightness trade leaves below Y 5 % is also a UserWarning) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule; the anti-mirror designs its own),
 min_feature_um with levels=0 (a grayscale relief: no lateral detail finer than it),
 fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
+start: a size x size array of heights (um) on the run's levels to start from instead of a random
+relief (the CLI's --start HEIGHTS.exr; e.g. an earlier design's heights_um).
 out: also write the run directory there (force: reuse one holding only a design's outputs).
 
 Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,

@@ -7,6 +7,8 @@
 #include <complex>
 #include <map>
 #include <random>
+#include <stdexcept>
+#include <string>
 
 #include "design/engine.h"
 #include "design/relief.h"
@@ -620,6 +622,72 @@ TEST(Design, ColourOutOfReachIsSurveyedFromOtherViews) {
     double least = 1e300;
     for (const auto& v : survey["views"]) least = std::min(least, v["loss"].get<double>());
     EXPECT_EQ(survey["best"]["loss"].get<double>(), least);
+}
+
+// A start relief (DesignOptions::start_heights_um) with no relaxed iterations and no discrete
+// passes comes back as it was: the levels bit for bit and the heights exactly, on the run's own
+// levels (a colour target: H/(K − 1)) and on the anti-mirror's free step (the start's own, which
+// design.json reports as the step's start). Without the start the loop begins at random and the
+// levels differ. With passes the loop starts there: its first curve point is the start's loss.
+TEST(Design, AStartReliefIsKeptWhenTheLoopDoesNothingAndIsWhereTheLoopStarts) {
+    std::mt19937_64 rng(11);
+    std::vector<int> start(256);
+    for (int& l : start) l = static_cast<int>(rng() % 4);
+    DesignOptions o = test::small_design("colour:#80a0c0", 4, 0, 0);
+    const double step = 1.0 / 3.0;  // --height-range-um 1 on 4 levels
+    o.height_range_um = 1.0;
+    for (int l : start) o.start_heights_um.push_back(step * l);
+    DesignResult r = run_design(prepare_design(o));
+    EXPECT_EQ(r.level, start);
+    EXPECT_EQ(r.heights_um, o.start_heights_um);
+    o.start_heights_um.clear();
+    EXPECT_NE(run_design(prepare_design(o)).level, start);  // a random start is another relief
+
+    DesignOptions a = test::small_design("anti-mirror", 4, 0, 0);
+    for (int l : start) a.start_heights_um.push_back(0.13 * l);
+    r = run_design(prepare_design(a));
+    EXPECT_EQ(r.level, start);
+    for (std::size_t t = 0; t < start.size(); ++t) EXPECT_NEAR(r.heights_um[t], a.start_heights_um[t], 1e-15);
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    EXPECT_NEAR(j["level_step"]["start_um"].get<double>(), 0.13, 1e-15);
+    EXPECT_EQ(j["start"].get<std::string>().rfind("the given relief", 0), 0u);
+
+    a.refine_passes = 5;
+    const PreparedDesign p = prepare_design(a);
+    const double start_loss = run_design(p).curve.front().loss;
+    a.refine_passes = 0;
+    DesignResult kept = run_design(prepare_design(a));
+    EXPECT_EQ(kept.curve.front().loss, start_loss);  // the refinement's first point: the start's loss
+}
+
+TEST(Design, ABadStartFailsBeforeAnyWorkNamingTheValue) {
+    DesignOptions o = test::small_design("colour:#80a0c0", 4, 0, 0);
+    o.height_range_um = 1.0;
+    auto message = [&](const std::vector<double>& h) {
+        o.start_heights_um = h;
+        try {
+            (void)prepare_design(o);
+        } catch (const std::exception& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_NE(message(std::vector<double>(255, 0.0)).find("255 texels; expected 16 x 16"), std::string::npos);
+    std::vector<double> h(256, 0.0);
+    h[7] = 0.2;  // between 0 and 1/3
+    EXPECT_NE(message(h).find("0.2 um is not on the levels"), std::string::npos);
+    h[7] = 1.5;
+    EXPECT_NE(message(h).find("1.5 um is outside"), std::string::npos);
+    h[7] = std::nan("");
+    EXPECT_NE(message(h).find("nan"), std::string::npos);
+    DesignOptions a = test::small_design("anti-mirror", 4, 0, 0);
+    a.height_range_um = 1.0;
+    a.start_heights_um.assign(256, 0.0);
+    a.start_heights_um[3] = 0.5;  // one height 0.5: level 1 of step 0.5, 4 levels reach 1.5 um
+    EXPECT_THROW(prepare_design(a), std::domain_error);
+    a.start_heights_um[3] = 0.25;
+    a.start_heights_um[4] = 0.6;  // 0.6 is not a multiple of the smallest gap 0.25
+    EXPECT_THROW(prepare_design(a), std::invalid_argument);
 }
 
 }  // namespace

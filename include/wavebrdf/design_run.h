@@ -118,6 +118,13 @@ struct DesignOptions {
     // a filtered parameterisation evaluated on 256 levels (docs/design.md); 0: the levels above.
     double min_feature_um = 0.0;
     FabricationErrors errors;
+    // A relief to start from (`--start HEIGHTS.exr`, start=): size² heights in µm, row-major, each
+    // on one of the run's levels (where the anti-mirror's step is free, the start's own step: the
+    // smallest gap between its heights, and that is where the loop's step starts); empty: a
+    // random start. The relaxed phase starts warm from it (each texel's own level holding half the
+    // weight); with iterations 0 the discrete passes start on it as it is, so with refine_passes 0
+    // too the result is the start. Not with a grayscale relief.
+    std::vector<double> start_heights_um;
     // The optimisation.
     std::uint64_t seed = 1;
     int iterations = 200;       // relaxed (softmax over levels) iterations, 0 … 100000
@@ -148,6 +155,7 @@ struct PreparedDesign {
     std::vector<std::string> notes;
     std::shared_ptr<const std::vector<detail::OrderSet>> order_sets;
     std::shared_ptr<detail::Target> target;
+    std::vector<int> start_level;   // the start relief's level per texel (empty: a random start)
 };
 
 // Estimated peak memory (bytes) of a design with these options (orders of every wavelength, the

@@ -896,7 +896,7 @@ def condition_surface(heights_um: Any, dx_um: float, dy_um: Any = ..., fill: str
     """
     ...
 
-def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., cone_limit: float = ..., uniformity_limit: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ...) -> dict:
+def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., cone_limit: float = ..., uniformity_limit: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ..., start: Any = ...) -> dict:
     """A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
     target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
@@ -907,6 +907,8 @@ def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..
     delta_uv_tolerance and delta_uv_ceiling (colour, iridescent; a colour the brightness trade leaves below Y 5 % is also a UserWarning) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule; the anti-mirror designs its own),
     min_feature_um with levels=0 (a grayscale relief: no lateral detail finer than it),
     fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
+    start: a size x size array of heights (um) on the run's levels to start from instead of a random
+    relief (the CLI's --start HEIGHTS.exr; e.g. an earlier design's heights_um).
     out: also write the run directory there (force: reuse one holding only a design's outputs).
 
     Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,

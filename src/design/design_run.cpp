@@ -616,6 +616,49 @@ double estimate_design_bytes(const DesignOptions& o) {
     return 1.2 * (orders * 76.0 + weights + spectra + blur + detail::more_target_bytes(o)) + 64e6;
 }
 
+// The start relief's levels (DesignOptions::start_heights_um) into p.start_level; returns the run's
+// step: the given one, or where the anti-mirror's step is free (no --level-step-um) the start's
+// own, the smallest gap between its heights (heights.exr stores float32: 1e-4 of a step is slack).
+double start_levels(PreparedDesign& p, double step) {
+    const DesignOptions& o = p.options;
+    const std::vector<double>& h = o.start_heights_um;
+    const std::size_t n2 = static_cast<std::size_t>(o.size) * static_cast<std::size_t>(o.size);
+    if (o.min_feature_um != 0.0)
+        throw std::invalid_argument("--start is a relief on levels; a grayscale design (--min-feature-um) has none");
+    if (h.size() != n2)
+        throw std::invalid_argument("--start has " + std::to_string(h.size()) + " texels; expected " +
+                                    std::to_string(o.size) + " x " + std::to_string(o.size) + " (--size)");
+    for (double v : h)
+        if (!(std::isfinite(v) && v >= 0.0 && v <= o.height_range_um * (1.0 + 1e-6)))
+            throw std::domain_error("--start height " + num(v) + " um is outside 0 .. --height-range-um " +
+                                    num(o.height_range_um));
+    const bool free = step_is_free(p);
+    if (free) {
+        std::vector<double> d(h);
+        std::sort(d.begin(), d.end());
+        const double top = d.back();
+        double gap = 0.0;
+        for (std::size_t i = 1; i < d.size(); ++i)
+            if (d[i] - d[i - 1] > 1e-6 * std::max(top, 1e-12) && (gap == 0.0 || d[i] - d[i - 1] < gap)) gap = d[i] - d[i - 1];
+        if (gap == 0.0 && top > 0.0) gap = top;   // one height, not 0: level 1
+        if (gap > 0.0) step = top / std::round(top / gap);  // the top level's multiple, exact where the heights are
+        if (!(step * (o.levels - 1) <= o.height_range_um * (1.0 + 1e-6)))
+            throw std::domain_error("--start's heights are " + num(step) + " um apart; " + std::to_string(o.levels) +
+                                    " levels of that step reach " + num(step * (o.levels - 1)) +
+                                    " um, expected at most --height-range-um " + num(o.height_range_um));
+    }
+    p.start_level.resize(n2);
+    for (std::size_t t = 0; t < n2; ++t) {
+        const double l = std::round(h[t] / step);
+        if (!(l <= o.levels - 1 && std::abs(h[t] - l * step) <= 1e-4 * step))
+            throw std::invalid_argument("--start height " + num(h[t]) + " um is not on the levels 0, " + num(step) +
+                                        ", ..., " + num(step * (o.levels - 1)) + " um" +
+                                        (free ? " (the step the start's heights give)" : ""));
+        p.start_level[t] = static_cast<int>(l);
+    }
+    return step;
+}
+
 PreparedDesign prepare_design(const DesignOptions& options) {
     // A grayscale design (min_feature_um > 0, levels 0) is evaluated on k_grayscale_levels levels.
     DesignOptions grey = options;
@@ -671,6 +714,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
                               " um): on the full range's step no design keeps the mirror order dark at every wavelength of the band" +
                               (step_is_free(p) ? "; the design starts there and moves it" : ""));
     }
+    if (!o.start_heights_um.empty()) step = start_levels(p, step);
     p.levels_um = level_heights(o.levels, step);
     switch (o.target.kind) {
         case DesignKind::AntiMirror: {
@@ -849,6 +893,7 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
     std::mt19937_64 rng(detail::derive_seed(o.seed, 0xde5190));
     std::vector<double> theta(total);
     detail::fill_standard_normal(theta.data(), theta.size(), rng);
+    if (!warm && !p.start_level.empty() && !grayscale) warm = &p.start_level;
     if (warm && !grayscale) {
         // A warm start from a relief: each texel's own level holds half the weight at τ = 1,
         // the other levels share the rest, so the mixture's far field starts near the relief's.
@@ -856,8 +901,7 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
         for (int l = 0; l < K; ++l)
             for (std::size_t t = 0; t < n2; ++t)
                 theta[static_cast<std::size_t>(l) * n2 + t] = (*warm)[t] == l ? own : other;
-    }
-    if (o.target.kind == DesignKind::AntiMirror && !grayscale) {
+    } else if (o.target.kind == DesignKind::AntiMirror && !grayscale) {
         // Start from the shares of the levels that darken the mirror order over the band
         // (dark_mirror_shares, on the run's step); the loop shapes the rest.
         const double light = std::hypot(o.omega_i[0], o.omega_i[1]);
@@ -1503,14 +1547,17 @@ DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(c
     const std::vector<std::string> colour_notes =
         o.target.kind == DesignKind::Colour ? add_colour_reach(p, scores, survey_views, j) : std::vector<std::string>{};
     j["notes"] = p.notes;
+    j["start"] = p.start_level.empty() ? "random (seed)" : "the given relief (start_heights_um, --start)";
     if (free_step) {
         const double start_um = p.levels_um[1] - p.levels_um[0], final_um = evaluator.step_um();
-        j["level_step"] = {{"what", "the anti-mirror's level step, a design variable: started on the rule's step and "
-                                    "moved with the texels by its gradient, (levels - 1) x step <= height_range_um"},
+        j["level_step"] = {{"what", std::string("the anti-mirror's level step, a design variable: started on ") +
+                                        (p.start_level.empty() ? "the rule's step" : "the start relief's step") +
+                                        " and moved with the texels by its gradient, (levels - 1) x step <= height_range_um"},
                            {"start_um", start_um},
                            {"final_um", final_um}};
         j["notes"].push_back("level step " + four_digits(final_um) + " um (top level " +
-                             four_digits(final_um * (o.levels - 1)) + " um), designed from the rule's " +
+                             four_digits(final_um * (o.levels - 1)) + " um), designed from the " +
+                             (p.start_level.empty() ? "rule's " : "start relief's ") +
                              four_digits(start_um) + " um");
     }
     for (const std::string& note : colour_notes) j["notes"].push_back(note);

@@ -121,3 +121,47 @@ def test_brdf_against_a_lobe_file_cli_and_python_agree(cli, tmp_path):
     assert r["metrics"]["exact"]["relative_l2"] < start["metrics"]["exact"]["relative_l2"]
     with pytest.raises(ValueError, match="lambda_um"):
         wb.design(target=target, lambda_um=0.6, size=8)
+
+
+def test_a_start_relief_cli_and_python_give_the_same_design(cli, tmp_path):
+    # An earlier design's heights.exr as the start of both: the same relief and metrics; with no
+    # iterations and no passes the start itself comes back.
+    first = tmp_path / "first"
+    args = ["--size", "16", "--spectral", "3", "--band-um", "0.45,0.65", "--levels", "4", "--height-range-um", "1",
+            "--seed", "7", "--quiet", "--no-plots"]
+    subprocess.run([cli, "design", "--out", str(first), "--iterations", "8", "--refine-passes", "4"] + args, check=True)
+    hf = wb.Heightfield.from_exr(str(first / "heights.exr"))
+    start = (np.asarray(hf.values) * hf.texel_um * hf.vscale).reshape(16, 16)
+    kept = wb.design(**dict(SMALL, iterations=0, refine_passes=0), start=start)
+    # The anti-mirror's step is the start's (from float32 heights: equal to their rounding).
+    np.testing.assert_array_equal(kept["level"], np.rint(start / kept["levels_um"][1]).astype(int))
+    np.testing.assert_allclose(kept["heights_um"], start, rtol=0, atol=1e-7)
+    second = tmp_path / "second"
+    subprocess.run([cli, "design", "--out", str(second), "--start", str(first / "heights.exr"), "--iterations", "8",
+                    "--refine-passes", "4"] + args, check=True)
+    r = wb.design(**SMALL, start=start)
+    hf2 = wb.Heightfield.from_exr(str(second / "heights.exr"))
+    np.testing.assert_allclose((np.asarray(hf2.values) * hf2.texel_um).reshape(16, 16), r["heights_um"], atol=1e-6)
+    doc = json.loads((second / "design.json").read_text())
+    assert doc["start"].startswith("the given relief")
+    assert doc["metrics"]["exact"]["region_fraction"] == pytest.approx(r["metrics"]["exact"]["region_fraction"],
+                                                                      rel=1e-12)
+    # From a random start the same seed gives another relief.
+    assert not np.array_equal(wb.design(**SMALL)["heights_um"], r["heights_um"])
+
+
+def test_a_bad_start_is_one_line_before_any_work(cli, tmp_path):
+    with pytest.raises(ValueError, match="start"):
+        wb.design(**SMALL, start=np.zeros((8, 8)))
+    bad = np.zeros((16, 16))
+    bad[2, 3] = 0.2
+    with pytest.raises(ValueError, match="0.2 um is not on the levels"):
+        wb.design(**dict(SMALL, target="colour:#80a0c0"), start=bad)
+    first = tmp_path / "first"
+    subprocess.run([cli, "design", "--out", str(first), "--size", "8", "--spectral", "3", "--iterations", "2",
+                    "--refine-passes", "1", "--quiet", "--no-plots"], check=True)
+    p = subprocess.run([cli, "design", "--out", str(tmp_path / "b"), "--size", "16", "--start",
+                        str(first / "heights.exr")], capture_output=True, text=True)
+    assert p.returncode != 0
+    assert p.stderr.strip().count("\n") == 0 and "8 x 8 texels; expected 16 x 16" in p.stderr
+    assert not (tmp_path / "b" / "design.json").exists()
