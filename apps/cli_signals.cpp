@@ -14,6 +14,7 @@ namespace {
 std::atomic<bool> g_graceful{false};
 std::atomic<int> g_stop_signal{0};
 std::atomic<bool> g_ended{false};
+std::atomic<bool> g_stopping{false};
 static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free,
               "the signal handler needs lock-free atomics");
 
@@ -37,8 +38,13 @@ extern "C" void on_signal(int sig) {
         int none = 0;
         if (g_stop_signal.compare_exchange_strong(none, sig)) return;  // the first: stop gracefully
     }
+    // Set before the temporaries go: a write that sees them going fails, and the command's
+    // catch then leaves the line to this handler (stopping()). Whether the command had ended
+    // is read now, before its thread can end it with that failure.
+    g_stopping.store(true);
+    const bool ended = g_ended.load();
     remove_temporary_files();
-    if (!g_ended.load()) say_stopped(sig);
+    if (!ended) say_stopped(sig);
     struct sigaction fallback {};
     fallback.sa_handler = SIG_DFL;
     sigemptyset(&fallback.sa_mask);
@@ -65,6 +71,8 @@ void install_signal_cleanup() {
 }
 
 void mark_command_ended() { g_ended.store(true); }
+
+bool stopping() { return g_stopping.load(); }
 
 GracefulStop::GracefulStop() {
     g_stop_signal.store(0);

@@ -14,6 +14,11 @@ void install_signal_cleanup();
 // alike, a second message for one error.
 void mark_command_ended();
 
+// A handled signal is ending the process (its handler is removing the temporaries and will print
+// the "stopped" line): an error the command raises now (a write refused because the process is
+// being stopped) is a consequence of the signal, not a second message to print.
+bool stopping();
+
 // While a GracefulStop lives, the first SIGINT or SIGTERM is only recorded (signal() returns
 // it) so that a long loop can stop at its next safe point and save its work; a second one (or
 // SIGHUP) ends the process as install_signal_cleanup describes. Not nestable.

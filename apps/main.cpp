@@ -62,8 +62,9 @@ int main(int argc, char** argv) {
         } catch (const wavebrdf::cli::ExitStatus& e) {
             return e.code;
         } catch (const std::exception& e) {
-            // Errors raised by the commands themselves (they run from parse callbacks).
-            std::cerr << "wavebrdf: error: " << e.what() << "\n";
+            // Errors raised by the commands themselves (they run from parse callbacks); one
+            // caused by a signal being handled is left to the handler's line.
+            if (!wavebrdf::cli::stopping()) std::cerr << "wavebrdf: error: " << e.what() << "\n";
             return 1;
         }
         return 0;
