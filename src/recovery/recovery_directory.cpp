@@ -52,27 +52,15 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
     }
     if (r.photon_plan) {
         const PhotonPlan& p = *r.photon_plan;
-        nlohmann::json tried = nlohmann::json::array();
-        for (const PhotonPlan::MonteCarlo& m : p.tried)
-            tried.push_back({{"exposures", m.exposures},
-                             {"error", m.rms_um / p.range_um},
-                             {"error_bound", m.bound_um / p.range_um},
-                             {"gradients", m.gradients},
-                             {"most_newton_steps", m.most_steps}});
         run["photon_plan"] = {{"photons_per_exposure", p.photons},
                               {"exposures", p.exposures},
                               {"target_error", p.target},
                               {"max_exposures", options.max_exposures},
                               {"capped", p.capped},
-                              {"bars_error_one_exposure", p.bars_rms_um / p.range_um},
+                              {"predicted_error_one_exposure", p.single_rms_um / p.range_um},
                               {"predicted_error", p.rms_um / p.range_um},
-                              {"predicted_error_bound", p.bound_um / p.range_um},
                               {"predicted_rms_um", p.rms_um},
-                              {"monte_carlo", {{"draws", k_photon_mc_draws},
-                                               {"max_newton_steps", k_photon_mc_steps},
-                                               {"confidence", "one-sided 95 %, Student t over the draws"},
-                                               {"gradients", p.gradients},
-                                               {"tried", tried}}},
+                              {"predicted_bias_um", p.bias_um},
                               {"proxy_size", std::to_string(p.proxy_rows) + "x" + std::to_string(p.proxy_cols)},
                               {"proxy_observations", p.proxy_observations},
                               {"seconds", p.seconds}};

@@ -452,7 +452,6 @@ bool plan_photons(PreparedRecovery& r, const RecoveryOptions& options, const Acq
     PhotonPlanSettings settings;
     settings.target = options.target_error;
     settings.max_exposures = options.max_exposures;
-    settings.seed = options.seed;
     r.photon_plan = plan_exposures(*r.truth, plan, options.noise.level, r.range_um, settings);
     return r.photon_plan->exposures > 1;
 }
