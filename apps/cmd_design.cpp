@@ -117,11 +117,7 @@ std::vector<double> read_start_relief(const std::string& path, const DesignOptio
     if (!(std::abs(hf.texel_um() - o.texel_um) <= 1e-6 * o.texel_um))
         throw std::invalid_argument("--start " + path + " has texels of " + format_shortest(hf.texel_um()) +
                                     " um; expected --texel-um " + format_shortest(o.texel_um));
-    std::vector<double> h(static_cast<std::size_t>(o.size) * static_cast<std::size_t>(o.size));
-    for (int i = 0; i < o.size; ++i)
-        for (int j = 0; j < o.size; ++j)
-            h[static_cast<std::size_t>(i) * static_cast<std::size_t>(o.size) + static_cast<std::size_t>(j)] = hf.height_um(i, j);
-    return h;
+    return heights_um(hf);
 }
 
 void run(DesignArgs a) {
