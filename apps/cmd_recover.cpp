@@ -20,6 +20,7 @@
 #include "wavebrdf/calibration.h"
 #include "wavebrdf/communicator.h"
 #include "wavebrdf/convergence.h"
+#include "wavebrdf/texel_texture.h"
 #include "wavebrdf/input_digest.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/observation_file.h"
@@ -398,6 +399,13 @@ void run(const RecoverArgs& a, const Communicator& comm) {
                      convergence.error_bars == "unavailable" || over_memory
                          ? ""
                          : " (--check-error-bars always or --uncertainty computes them)");
+    if (!quiet && !convergence.texture_sigma_source.empty())
+        std::fprintf(stderr,
+                     "convergence: texture: %.3g %% of the texels stand off their 3x3 median by more than the rms height and "
+                     "%.0f sigma (%.3g %% of the height range, from the %s) (warned from %.0f %% where 2 sigma exceeds "
+                     "the target)\n",
+                     100.0 * convergence.texture_fraction, k_texture_sigmas, 100.0 * convergence.texture_sigma_relative,
+                     convergence.texture_sigma_source.c_str(), 100.0 * k_texture_fraction);
     if (!convergence.converged) std::fprintf(stderr, "wavebrdf: warning: %s\n", convergence.warning().c_str());
     if (!quiet && options.calibrate.any()) {
         std::fprintf(stderr, "calibrated %s: sigma_p scale %.4f", to_string(options.calibrate).c_str(),

@@ -14,6 +14,7 @@
 #include "wavebrdf/convergence.h"
 #include "wavebrdf/io.h"
 #include "wavebrdf/recover.h"
+#include "wavebrdf/texel_texture.h"
 
 namespace wavebrdf::test {
 namespace {
@@ -62,6 +63,13 @@ TEST(RealScansCli, ARecoveryThatDidNotConvergeSaysSoWithoutTheTruth) {
     ASSERT_TRUE(good["convergence"].contains("predicted_error_relative")) << good["convergence"].dump();
     EXPECT_LT(good["convergence"]["predicted_error_relative"].get<double>(), 0.01);
     EXPECT_TRUE(contains(full.err, "convergence: the error bars predict an rms height error of")) << full.err;
+    // The texture check (texel_texture.h) ran at the bars' σ: a smooth generated surface holds
+    // no texel-scale spikes, so it counts few texels and does not warn.
+    ASSERT_TRUE(good["convergence"].contains("texture")) << good["convergence"].dump();
+    EXPECT_EQ(good["convergence"]["texture"]["sigma_source"], "error bars");
+    EXPECT_LT(good["convergence"]["texture"]["fraction"].get<double>(), k_texture_fraction);
+    EXPECT_FALSE(good["convergence"]["texture"]["warned"].get<bool>());
+    EXPECT_TRUE(contains(full.err, "convergence: texture: ")) << full.err;
     // The stopped run's misfit said it already: no bars were computed for it.
     EXPECT_FALSE(bad["convergence"].contains("predicted_error_relative")) << bad["convergence"].dump();
     // The truth agrees with the verdicts: the stopped run is worse than the target, the full one meets it.

@@ -153,6 +153,15 @@ struct ConvergenceCheck {
     // bright-pixel deviance over its limit and its footprint centre (−1 / 0 when none).
     int slices_off_floor = 0;
     double worst_slice_excess = -1.0, worst_slice_x_um = 0.0, worst_slice_y_um = 0.0;
+    // The texture check (texel_texture.h), where the run has a predicted per-texel error: that σ
+    // over the height range and where it came from ("error bars", "photon plan", "error lower
+    // bound"; "" and −1: not judged), the texels more than k_texture_sigmas σ off their 3 × 3
+    // median, their fraction, their share of the texel-scale power, and whether it warned.
+    double texture_sigma_relative = -1.0;
+    std::string texture_sigma_source;
+    int texture_texels = 0;
+    double texture_fraction = 0.0, texture_power_share = 0.0;
+    bool texture_warned = false;
     std::string warning() const;
     // Whether the run was judged: by a noise floor ("poisson", "noiseless"), or, with floor
     // "none", by error bars that found it wide (a reason). Bars within the target do not pass a

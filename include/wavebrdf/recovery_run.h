@@ -293,6 +293,10 @@ std::optional<UncertaintyReport> recovery_error_bars(const PreparedRecovery& pre
 void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& prepared, const Heightfield& estimate,
                        const std::vector<double>* sigma_um, double run_seconds,
                        const Communicator& comm = serial_communicator());
+// The texture check (texel_texture.h) after the noise limit: at the error bars' rms σ where
+// judge_noise_limit or the run computed them, else the photon plan's predicted rms error less its
+// bias (studies with --noise poisson), else the Fisher diagonal's lower bound; else not judged.
+void judge_texture(ConvergenceCheck& check, const PreparedRecovery& prepared, const Heightfield& estimate);
 
 // The model check's misfits as a run reports them (run_recovery's metrics stream: the steps of
 // kinds ModelMisfit and ModelSelect), for the convergence check.

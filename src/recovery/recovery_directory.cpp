@@ -147,6 +147,13 @@ nlohmann::json convergence_json(const ConvergenceCheck& convergence, const Prepa
     }
     if (convergence.median_sigma_relative >= 0.0) c["median_sigma_relative"] = convergence.median_sigma_relative;
     if (convergence.predicted_error_relative >= 0.0) c["predicted_error_relative"] = convergence.predicted_error_relative;
+    if (!convergence.texture_sigma_source.empty())
+        c["texture"] = {{"sigma_relative", convergence.texture_sigma_relative},
+                        {"sigma_source", convergence.texture_sigma_source},
+                        {"texels", convergence.texture_texels},
+                        {"fraction", convergence.texture_fraction},
+                        {"power_share", convergence.texture_power_share},
+                        {"warned", convergence.texture_warned}};
     c["judged"] = convergence.judged();
     c["check_error_bars"] = to_string(r.check_error_bars);
     if (!convergence.error_bars.empty()) {

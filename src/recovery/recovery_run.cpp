@@ -19,6 +19,7 @@
 #include "wavebrdf/progress.h"
 #include "wavebrdf/roughness_plan.h"
 #include "wavebrdf/spectrum.h"
+#include "wavebrdf/texel_texture.h"
 
 namespace wavebrdf {
 
@@ -771,6 +772,25 @@ void judge_noise_limit(ConvergenceCheck& check, const PreparedRecovery& r, const
     add_predicted_error(check, bars->map.sigma_um, r.range_um);
 }
 
+// The texture check (texel_texture.h) at the run's predicted per-texel rms error: the error
+// bars' where computed, else the photon plan's without its bias (the plan's range is the
+// truth's, the run's), else the Fisher diagonal's lower bound; none of them: not judged. The
+// same heights and numbers on every rank.
+void judge_texture(ConvergenceCheck& check, const PreparedRecovery& r, const Heightfield& estimate) {
+    if (check.predicted_error_relative > 0.0) {
+        add_texel_texture(check, estimate, check.predicted_error_relative, r.range_um, "error bars");
+        return;
+    }
+    if (r.photon_plan && r.photon_plan->range_um > 0.0) {
+        const PhotonPlan& p = *r.photon_plan;
+        const double noise_um = std::sqrt(std::max(p.rms_um * p.rms_um - p.bias_um * p.bias_um, 0.0));
+        add_texel_texture(check, estimate, noise_um / p.range_um, r.range_um, "photon plan");
+        return;
+    }
+    if (check.error_lower_bound_relative > 0.0)
+        add_texel_texture(check, estimate, check.error_lower_bound_relative, r.range_um, "error lower bound");
+}
+
 void ModelCheckMisfits::record(const StageMetrics& m) {
     if (m.kind == StageKind::ModelMisfit && m.stage == "misfit:gabor") gabor = m.loss;
     if (m.kind == StageKind::ModelMisfit && m.stage == "misfit:field") field = m.loss;
@@ -791,9 +811,11 @@ RecoveryJudgement judge_recovery(const PreparedRecovery& r, const Heightfield& e
     });
     add_model_check(j.convergence, misfits.gabor, misfits.field, misfits.selected);
     if (j.error_bars) add_error_bars(j.convergence, j.error_bars->median_sigma_um, r.range_um);
-    if (!stopped)
+    if (!stopped) {
         judge_noise_limit(j.convergence, r, estimate, j.error_bars ? &j.error_bars->map.sigma_um : nullptr,
                           run_seconds, comm);
+        judge_texture(j.convergence, r, estimate);
+    }
     return j;
 }
 

@@ -153,6 +153,13 @@ def test_the_checks_error_bars_follow_check_error_bars():
     assert "predicted_error_relative" not in off.convergence
     assert not any("likely inaccurate" in w for w in off.warnings)
     assert off.convergence["misfit_ratio"] == pytest.approx(on.convergence["misfit_ratio"], rel=1e-12)
+    # The texture check (texel_texture.h) reads the estimate at the bars' σ where they exist: a
+    # smooth generated surface holds no texel-scale spikes; without bars or a plan it is not judged.
+    t = on.convergence["texture"]
+    assert t["sigma_source"] == "error bars"
+    assert t["sigma_relative"] == pytest.approx(on.convergence["predicted_error_relative"], rel=1e-12)
+    assert t["fraction"] < 0.05 and t["warned"] is False
+    assert "texture" not in off.convergence
 
 
 @pytest.mark.parametrize("kwargs, needles", [
