@@ -18,21 +18,34 @@ from scipy.optimize import minimize
 import wavebrdf as wb
 
 
-def main():
-    d = sys.argv[1]
-    iterations = int(sys.argv[2]) if len(sys.argv) > 2 else 300
-    restarts = int(sys.argv[3]) if len(sys.argv) > 3 else 2
+def load_run(d):
+    """A recovery directory with saved observations: (run.json, texel µm, observations, truth and
+    estimate in texel units, the truth's peak to valley, the run's loss with its gradient)."""
     run = json.load(open(os.path.join(d, 'run.json')))
     texel = run['texel_um']
     observations = wb.read_observations(os.path.join(d, 'obs.h5'))
     truth = np.load(os.path.join(d, 'truth_height.npy')) / texel  # texel units
     estimate = np.load(os.path.join(d, 'estimate_height.npy')) / texel
-    pv = truth.max() - truth.min()
 
     def loss(x):
         value, grad = wb.observation_loss(wb.Heightfield(x.reshape(truth.shape), texel_um=texel), observations,
                                           run['loss'])
         return value, np.asarray(grad, dtype=float).ravel()
+
+    return run, texel, observations, truth, estimate, truth.max() - truth.min(), loss
+
+
+def minimise(loss, x0, iterations):
+    """L-BFGS from x0 to the loss's minimum (scipy's result)."""
+    return minimize(loss, x0.ravel(), jac=True, method='L-BFGS-B',
+                    options={'maxiter': iterations, 'gtol': 1e-14, 'ftol': 1e-15})
+
+
+def main():
+    d = sys.argv[1]
+    iterations = int(sys.argv[2]) if len(sys.argv) > 2 else 300
+    restarts = int(sys.argv[3]) if len(sys.argv) > 3 else 2
+    run, texel, observations, truth, estimate, pv, loss = load_run(d)
 
     def nm(x):
         e = x.reshape(truth.shape) - truth
@@ -43,8 +56,7 @@ def main():
     starts += [('the estimate + 1 nm noise', estimate + rng.normal(0.0, 0.001 / texel, truth.shape)) for _ in range(restarts)]
     minima = []
     for name, x0 in starts:
-        r = minimize(loss, x0.ravel(), jac=True, method='L-BFGS-B',
-                     options={'maxiter': iterations, 'gtol': 1e-14, 'ftol': 1e-15})
+        r = minimise(loss, x0, iterations)
         x = r.x.reshape(truth.shape)
         minima.append(x - x.mean())
         print('from %-26s (%.3f nm, loss %.8e): %3d iterations, loss %.8e, error %.3f nm (%.3f %%)' % (
