@@ -16,8 +16,8 @@
 // neighbourhood (periodic) by more than both k_texture_sigmas σ and the estimate's rms height.
 // σ is the run's predicted per-texel rms error (the error bars' √(mean σ²) where computed, else
 // the photon planner's prediction less its bias, else the lower bound from the Fisher
-// diagonal): the estimate's own noise stands ~1.1 σ off the median, so 4 σ leaves ~10⁻⁴ of the
-// texels to it. The rms height: a surface smooth at the texel scale stands off the median by
+// diagonal): the estimate's own noise stands 0.97 σ rms off the median (white noise), and 4 σ
+// leaves 1–2·10⁻⁴ of the texels to it. The rms height: a surface smooth at the texel scale stands off the median by
 // its curvature over one texel, a fraction of its rms height (a Gaussian-correlated surface of
 // correlation 4 texels: at most 0.6 ×; the scans' striations and grooves, plu-1, x3p-2 and the
 // bullet land: at most 0.24 % of the texels beyond 1 ×), so what passes both is texel-scale
