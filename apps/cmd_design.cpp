@@ -157,7 +157,9 @@ void run(DesignArgs a) {
                   << " propagating orders; estimated memory " << format_bytes(prepared.estimated_bytes) << "\n";
         for (const std::string& note : prepared.notes) std::cerr << "design: note: " << note << "\n";
     }
-    Progress progress("design", o.iterations + o.refine_passes, !a.quiet);
+    long long steps = o.iterations + o.refine_passes;
+    for (const DesignStage& s : prepared.stages) steps += s.iterations + s.refine_passes;
+    Progress progress("design", steps, !a.quiet);
     const DesignResult result = run_design(prepared, [&](const DesignStep& s) {
         progress.advance();
         progress.set_message(s.phase + " loss " + format_shortest(s.loss));
@@ -324,6 +326,10 @@ void add_design_command(CLI::App& app) {
     cmd->add_option("--seed", a->options.seed, "random start")->capture_default_str();
     cmd->add_option("--start", a->start,
                     "start from this relief (a heights.exr on the run's levels) instead of a random one");
+    cmd->add_option("--continuation", a->options.continuation,
+                    "design on smaller tiles first, each tiled into the next: auto (anti-mirror: from size/2), off, "
+                    "or tile sizes such as 64,128")
+        ->capture_default_str();
     cmd->add_option("--iterations", a->options.iterations, "relaxed iterations")->capture_default_str();
     cmd->add_option("--refine-passes", a->options.refine_passes, "discrete passes on the levels")
         ->capture_default_str();

@@ -18,7 +18,8 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
                 const py::object& view, double view_cone, int size, double texel_um, double height_range_um,
                 int levels, double level_step_um, double min_feature_um, const std::string& fabrication_error,
                 std::uint64_t seed, int iterations, int refine_passes, double max_memory_gb,
-                double delta_uv_tolerance, double delta_uv_ceiling, const py::object& start) {
+                double delta_uv_tolerance, double delta_uv_ceiling, const py::object& start,
+                const std::string& continuation) {
     DesignOptions o;
     if (!image.is_none()) {
         if (target != "pattern")
@@ -54,6 +55,7 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     o.min_feature_um = min_feature_um;
     o.delta_uv_tolerance = delta_uv_tolerance;
     o.delta_uv_ceiling = delta_uv_ceiling;
+    o.continuation = continuation;
     if (!start.is_none()) {
         const py::array a = float_array(start, "start");
         check_shape(a, {size, size}, "start");
@@ -117,6 +119,7 @@ void bind_design(py::module_& m) {
           "size"_a = 256, "texel_um"_a = 0.5, "height_range_um"_a = 2.0, "levels"_a = 8, "level_step_um"_a = 0.0,
           "min_feature_um"_a = 0.0, "fabrication_error"_a = "", "seed"_a = 1, "iterations"_a = 200,
           "refine_passes"_a = 60, "max_memory_gb"_a = 0.0, "delta_uv_tolerance"_a = 0.0, "delta_uv_ceiling"_a = 0.04, "start"_a = py::none(),
+          "continuation"_a = "auto",
           R"(A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
 target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
@@ -129,6 +132,8 @@ min_feature_um with levels=0 (a grayscale relief: no lateral detail finer than i
 fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
 start: a size x size array of heights (um) on the run's levels to start from instead of a random
 relief (the CLI's --start HEIGHTS.exr; e.g. an earlier design's heights_um).
+continuation: 'auto' (the anti-mirror from a random start on an even size: designed on size/2 first,
+tiled and continued), 'off', or tile sizes such as '64,128' (the CLI's --continuation).
 out: also write the run directory there (force: reuse one holding only a design's outputs).
 
 Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,

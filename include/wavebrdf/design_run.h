@@ -125,6 +125,14 @@ struct DesignOptions {
     // weight); with iterations 0 the discrete passes start on it as it is, so with refine_passes 0
     // too the result is the start. Not with a grayscale relief.
     std::vector<double> start_heights_um;
+    // Tile continuation (`--continuation`, docs/design.md): "auto", "off", or the sizes of smaller
+    // tiles designed first, ascending, each dividing the next and --size ("64,128"). The first
+    // starts at random (seed); each tile's relief, repeated to the next size (a tiled relief
+    // reflects its tile's far field), is where the next starts, as a start relief would be. A tile
+    // of n² texels takes iterations and passes times (size/n)², about the CPU of the last stage.
+    // "auto": the anti-mirror on levels from a random start with an even size continues from
+    // size/2; every other design runs on its tile alone. A given schedule: the anti-mirror only.
+    std::string continuation = "auto";
     // The optimisation.
     std::uint64_t seed = 1;
     int iterations = 200;       // relaxed (softmax over levels) iterations, 0 … 100000
@@ -140,10 +148,17 @@ std::vector<double> design_wavelengths_um(const DesignOptions& options);
 
 // One step of the optimisation, for progress and metrics.csv.
 struct DesignStep {
-    std::string phase;   // "relaxed" or "refine"
+    std::string phase;   // "relaxed" or "refine" (a continuation's earlier tile: "relaxed 32x32", ...)
     int iteration = 0;   // counted over both phases
     double loss = 0.0;
     double temperature = 0.0;  // softmax temperature (relaxed), or the refine pass's fraction of texels tried
+};
+
+// One tile of a continuation (DesignOptions::continuation): its size and budget.
+struct DesignStage {
+    int size = 0;
+    int iterations = 0;
+    int refine_passes = 0;
 };
 
 struct PreparedDesign {
@@ -156,6 +171,7 @@ struct PreparedDesign {
     std::shared_ptr<const std::vector<detail::OrderSet>> order_sets;
     std::shared_ptr<detail::Target> target;
     std::vector<int> start_level;   // the start relief's level per texel (empty: a random start)
+    std::vector<DesignStage> stages;  // the continuation's smaller tiles, designed first (empty: none)
 };
 
 // Estimated peak memory (bytes) of a design with these options (orders of every wavelength, the

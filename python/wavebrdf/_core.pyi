@@ -896,7 +896,7 @@ def condition_surface(heights_um: Any, dx_um: float, dy_um: Any = ..., fill: str
     """
     ...
 
-def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., cone_limit: float = ..., uniformity_limit: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ..., start: Any = ...) -> dict:
+def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., cone_limit: float = ..., uniformity_limit: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ..., start: Any = ..., continuation: str = ...) -> dict:
     """A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
     target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
@@ -909,6 +909,8 @@ def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..
     fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
     start: a size x size array of heights (um) on the run's levels to start from instead of a random
     relief (the CLI's --start HEIGHTS.exr; e.g. an earlier design's heights_um).
+    continuation: 'auto' (the anti-mirror from a random start on an even size: designed on size/2 first,
+    tiled and continued), 'off', or tile sizes such as '64,128' (the CLI's --continuation).
     out: also write the run directory there (force: reuse one holding only a design's outputs).
 
     Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,

@@ -19,6 +19,7 @@
 #include "core/random.h"
 #include "design/blur_term.h"
 #include "design/colour_bound.h"
+#include "design/continuation.h"
 #include "design/mixture_bound.h"
 #include "design/cone_bound.h"
 #include "design/engine.h"
@@ -762,6 +763,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
         case DesignKind::Iridescent:
         case DesignKind::Brdf: detail::prepare_more_target(p); break;
     }
+    p.stages = detail::continuation_stages(o, grayscale);
     p.estimated_bytes = estimate_design_bytes(o);
     require_memory(p.estimated_bytes, memory_limit(o.max_memory_gb), "the design");
     auto sets = std::make_shared<std::vector<detail::OrderSet>>();
@@ -834,6 +836,10 @@ nlohmann::json view_survey(const PreparedDesign& p) {
 }  // namespace
 
 DesignResult run_design(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step) {
+    if (!p.stages.empty())
+        return detail::run_continued(p, on_step, [](const PreparedDesign& one, const detail::DesignStepFn& f) {
+            return run_design_impl(one, f, one.options.survey_views);
+        });
     return run_design_impl(p, on_step, p.options.survey_views);
 }
 
@@ -1481,6 +1487,10 @@ nlohmann::json design_json(const PreparedDesign& p, const DesignResult& r, const
     j["levels_um"] = r.levels_um;
     j["seed"] = o.seed;
     j["options"] = {{"iterations", o.iterations}, {"refine_passes", o.refine_passes}, {"stopped_early", stopped}};
+    // One tile (run_continued rewrites this for a continuation).
+    j["options"]["continuation"] = o.continuation;
+    j["continuation"] = {{"setting", o.continuation},
+                         {"schedule", {{{"size", o.size}, {"iterations", o.iterations}, {"refine_passes", o.refine_passes}}}}};
     j["orders"] = p.orders;
     j["estimated_bytes"] = p.estimated_bytes;
     j["metrics"] = {

@@ -165,3 +165,34 @@ def test_a_bad_start_is_one_line_before_any_work(cli, tmp_path):
     assert p.returncode != 0
     assert p.stderr.strip().count("\n") == 0 and "8 x 8 texels; expected 16 x 16" in p.stderr
     assert not (tmp_path / "b" / "design.json").exists()
+
+
+def test_a_continued_design_cli_and_python_give_the_same_design(cli, tmp_path):
+    # The anti-mirror's default continuation (16 -> 8 first) and a given schedule: the CLI and
+    # wb.design give the same relief and schedule; off is another design on the tile alone.
+    args = ["--size", "16", "--spectral", "3", "--band-um", "0.45,0.65", "--levels", "4", "--height-range-um", "1",
+            "--iterations", "8", "--refine-passes", "4", "--seed", "7", "--quiet", "--no-plots"]
+    for schedule in ("auto", "4,8"):
+        out = tmp_path / schedule.replace(",", "_")
+        subprocess.run([cli, "design", "--out", str(out), "--continuation", schedule] + args, check=True)
+        r = wb.design(**SMALL, continuation=schedule)
+        hf = wb.Heightfield.from_exr(str(out / "heights.exr"))
+        np.testing.assert_allclose((np.asarray(hf.values) * hf.texel_um * hf.vscale).reshape(16, 16), r["heights_um"],
+                                   atol=1e-6)
+        doc = json.loads((out / "design.json").read_text())
+        sizes = [s["size"] for s in doc["continuation"]["schedule"]]
+        assert sizes == ([8, 16] if schedule == "auto" else [4, 8, 16])
+        assert [s["size"] for s in r["design"]["continuation"]["schedule"]] == sizes
+        assert doc["continuation"]["schedule"][0]["iterations"] == 8 * (16 // sizes[0]) ** 2
+        assert doc["metrics"]["exact"]["region_fraction_mean"] == pytest.approx(
+            r["metrics"]["exact"]["region_fraction_mean"], rel=1e-12)
+    off = wb.design(**SMALL, continuation="off")
+    assert [s["size"] for s in off["design"]["continuation"]["schedule"]] == [16]
+    assert not np.array_equal(off["heights_um"], r["heights_um"])
+    with pytest.raises(ValueError, match="--continuation 6: tile 6 does not divide 16"):
+        wb.design(**SMALL, continuation="6")
+    p = subprocess.run([cli, "design", "--out", str(tmp_path / "bad"), "--continuation", "fast"] + args,
+                       capture_output=True, text=True)
+    assert p.returncode != 0
+    assert p.stderr.strip().count("\n") == 0 and "--continuation fast is not a schedule" in p.stderr
+    assert not (tmp_path / "bad").exists()

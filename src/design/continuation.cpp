@@ -1,0 +1,196 @@
+// Tile continuation: design on smaller tiles, tile, continue (continuation.h).
+#include "design/continuation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "wavebrdf/text.h"
+
+namespace wavebrdf::detail {
+
+namespace {
+
+std::vector<int> parse_continuation_sizes(const std::string& text) {
+    std::vector<int> sizes;
+    std::size_t at = 0;
+    while (at <= text.size()) {
+        const std::size_t comma = std::min(text.find(',', at), text.size());
+        const std::string part = text.substr(at, comma - at);
+        std::size_t used = 0;
+        int n = 0;
+        try {
+            n = std::stoi(part, &used);
+        } catch (const std::exception&) {
+            used = 0;
+        }
+        if (part.empty() || used != part.size())
+            throw std::invalid_argument("--continuation " + text +
+                                        " is not a schedule; expected auto, off, or tile sizes such as 64,128");
+        sizes.push_back(n);
+        at = comma + 1;
+    }
+    return sizes;
+}
+
+// A given schedule's sizes against the run: ascending, each dividing the next and the run's size.
+void check_continuation_sizes(const DesignOptions& o, const std::vector<int>& sizes, bool grayscale) {
+    const std::string& c = o.continuation;
+    if (o.target.kind != DesignKind::AntiMirror)
+        throw std::invalid_argument("--continuation " + c + " with --target " + o.target.text +
+                                    ": a continuation is for the anti-mirror; expected auto or off");
+    if (grayscale)
+        throw std::invalid_argument("--continuation " + c +
+                                    " with a grayscale relief (--min-feature-um): a continuation tiles reliefs on levels; expected auto or off");
+    if (!o.start_heights_um.empty())
+        throw std::invalid_argument("--continuation " + c +
+                                    " with a start relief (--start): the start is where the design begins; expected auto or off");
+    for (std::size_t i = 0; i < sizes.size(); ++i) {
+        const int next = i + 1 < sizes.size() ? sizes[i + 1] : o.size;
+        if (!(sizes[i] >= 2 && sizes[i] < next && next % sizes[i] == 0))
+            throw std::invalid_argument("--continuation " + c + ": tile " + std::to_string(sizes[i]) +
+                                        " does not divide " + std::to_string(next) +
+                                        "; expected ascending sizes of at least 2, each dividing the next and --size " +
+                                        std::to_string(o.size));
+    }
+}
+
+int scaled_budget(int budget, int size, int tile) {
+    const double factor = static_cast<double>(size) / tile;
+    return static_cast<int>(std::min(100000.0, budget * factor * factor));
+}
+
+}  // namespace
+
+std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool grayscale) {
+    const std::string& c = o.continuation;
+    if (c == "off") return {};
+    std::vector<int> sizes;
+    if (c == "auto") {
+        if (o.target.kind != DesignKind::AntiMirror || grayscale || !o.start_heights_um.empty() || o.size % 2 != 0)
+            return {};
+        sizes = {o.size / 2};
+    } else {
+        sizes = parse_continuation_sizes(c);
+        check_continuation_sizes(o, sizes, grayscale);
+    }
+    std::vector<DesignStage> stages;
+    for (int n : sizes)
+        stages.push_back({n, scaled_budget(o.iterations, o.size, n), scaled_budget(o.refine_passes, o.size, n)});
+    return stages;
+}
+
+std::vector<int> tile_levels(const std::vector<int>& level, int n, int size) {
+    std::vector<int> out(static_cast<std::size_t>(size) * static_cast<std::size_t>(size));
+    for (int y = 0; y < size; ++y)
+        for (int x = 0; x < size; ++x)
+            out[static_cast<std::size_t>(y) * size + x] = level[static_cast<std::size_t>(y % n) * n + x % n];
+    return out;
+}
+
+namespace {
+
+using ContinuationClock = std::chrono::steady_clock;
+
+double continuation_seconds(ContinuationClock::time_point since) {
+    return std::chrono::duration<double>(ContinuationClock::now() - since).count();
+}
+
+// p started from `level` (n² texels, tiled to p's size) on levels `step` apart.
+void start_from_tile(PreparedDesign& p, const std::vector<int>& level, int n, double step) {
+    p.start_level = tile_levels(level, n, p.options.size);
+    for (std::size_t k = 0; k < p.levels_um.size(); ++k) p.levels_um[k] = static_cast<double>(k) * step;
+}
+
+// design.json of the last tile, told that it continued `stages` (their schedule entries).
+std::string continued_json(const PreparedDesign& p, const std::string& last_json, nlohmann::json stages,
+                           double stage_seconds, double total_seconds) {
+    nlohmann::json j = nlohmann::json::parse(last_json);
+    const DesignOptions& o = p.options;
+    stages.push_back({{"size", o.size}, {"iterations", o.iterations}, {"refine_passes", o.refine_passes},
+                      {"seconds", j["timings_s"]["total"]}});
+    std::string sizes;
+    for (const auto& s : stages) sizes += (sizes.empty() ? "" : " -> ") + std::to_string(s["size"].get<int>());
+    j["continuation"] = {{"what", "designed on each tile in turn (" + sizes +
+                                      "): the first from a random start, each next from the last relief "
+                                      "repeated to its size; a tile of n^2 texels took the iterations and passes "
+                                      "times (size/n)^2; exact: each tile's relief scored by exact scalar diffraction"},
+                         {"setting", o.continuation},
+                         {"schedule", stages}};
+    j["options"]["continuation"] = o.continuation;
+    j["start"] = "random (seed) on the continuation's first tile, " + std::to_string(stages[0]["size"].get<int>()) +
+                 " x " + std::to_string(stages[0]["size"].get<int>());
+    if (j.contains("level_step")) {
+        const double rule = p.levels_um[1] - p.levels_um[0];
+        j["level_step"]["what"] = "the anti-mirror's level step, a design variable: started on the rule's step on the "
+                                  "continuation's first tile and moved with the texels by its gradient on every tile, "
+                                  "(levels - 1) x step <= height_range_um";
+        j["level_step"]["start_um"] = rule;
+        nlohmann::json notes = nlohmann::json::array();
+        for (const auto& note : j["notes"])
+            if (note.get<std::string>().find("designed from the start relief's") == std::string::npos) notes.push_back(note);
+        const double final_um = j["level_step"]["final_um"].get<double>();
+        notes.push_back("level step " + format_number(final_um, "%.4g") + " um (top level " +
+                        format_number(final_um * (o.levels - 1), "%.4g") + " um), designed on the continuation's tiles from the rule's " +
+                        format_number(rule, "%.4g") + " um");
+        j["notes"] = notes;
+    }
+    j["timings_s"]["continuation"] = stage_seconds;
+    j["timings_s"]["total"] = total_seconds;
+    return j.dump(2);
+}
+
+}  // namespace
+
+DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step, const RunOneDesign& run_one) {
+    const auto start = ContinuationClock::now();
+    std::vector<DesignStep> curve;
+    int offset = 0;
+    std::string tile;  // an earlier tile's steps are marked with its size (the report's curve, one line a phase)
+    bool stopped = false;
+    const DesignStepFn forward = [&](const DesignStep& s) {
+        DesignStep t = s;
+        t.iteration += offset;
+        t.phase += tile;
+        curve.push_back(t);
+        if (!stopped && on_step && !on_step(t)) stopped = true;
+        return !stopped;
+    };
+    nlohmann::json stages = nlohmann::json::array();
+    std::vector<int> level;
+    int n = 0;
+    double step = 0.0;
+    for (const DesignStage& s : p.stages) {
+        DesignOptions o = p.options;
+        o.size = s.size;
+        o.iterations = s.iterations;
+        o.refine_passes = s.refine_passes;
+        o.continuation = "off";
+        const auto t0 = ContinuationClock::now();
+        tile = " " + std::to_string(s.size) + "x" + std::to_string(s.size);
+        PreparedDesign sp = prepare_design(o);
+        if (!level.empty()) start_from_tile(sp, level, n, step);
+        const DesignResult r = run_one(sp, forward);
+        const nlohmann::json j = nlohmann::json::parse(r.metrics_json);
+        stages.push_back({{"size", s.size}, {"iterations", s.iterations}, {"refine_passes", s.refine_passes},
+                          {"seconds", continuation_seconds(t0)}, {"level_step_um", r.levels_um[1] - r.levels_um[0]},
+                          {"exact", j["metrics"]["exact"]}, {"warnings", j["warnings"]}});
+        level = r.level;
+        n = s.size;
+        step = r.levels_um[1] - r.levels_um[0];
+        if (!curve.empty()) offset = curve.back().iteration + 1;
+    }
+    const double stage_seconds = continuation_seconds(start);
+    tile.clear();
+    PreparedDesign last = p;
+    last.stages.clear();
+    start_from_tile(last, level, n, step);
+    DesignResult r = run_one(last, forward);
+    r.curve = std::move(curve);
+    r.metrics_json = continued_json(p, r.metrics_json, std::move(stages), stage_seconds, continuation_seconds(start));
+    return r;
+}
+
+}  // namespace wavebrdf::detail

@@ -1,0 +1,151 @@
+// Tile continuation (DesignOptions::continuation): the anti-mirror designed on a smaller tile
+// first, the tile's relief repeated and continued on the run's tile.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "design_util.h"
+
+namespace wavebrdf {
+namespace {
+
+// A 16² anti-mirror at 4 wavelengths whose orders lie off the cone's and the region's edges.
+DesignOptions small_anti_mirror(int iterations, int refine_passes) {
+    DesignOptions o = test::small_design("anti-mirror", 8, iterations, refine_passes);
+    o.spectral = 4;
+    o.band_um = {0.41, 0.69};
+    return o;
+}
+
+// Per wavelength, the fractions of the reflected power in the specular cone and in the region
+// (|ω_o| ≤ 0.05 and 0.1 ≤ |ω_o| ≤ 0.5, normal light) of these orders.
+std::vector<std::array<double, 2>> cone_and_region(const std::vector<OrderPowers>& orders) {
+    std::vector<std::array<double, 2>> f;
+    for (const OrderPowers& w : orders) {
+        std::array<double, 2> s{0.0, 0.0};
+        for (std::size_t k = 0; k < w.power.size(); ++k) {
+            const double r = std::hypot(w.omega_x[k], w.omega_y[k]);
+            if (r <= 0.05) s[0] += w.power[k];
+            if (r >= 0.1 && r <= 0.5) s[1] += w.power[k];
+        }
+        f.push_back(s);
+    }
+    return f;
+}
+
+TEST(DesignContinuation, TheContinuedAntiMirrorKeepsItsLevelsAndItsMetricsAreTheExportsExactDiffraction) {
+    // auto on 16²: the 8² tile first with four times the budget (the same run as that tile's
+    // design alone), then 16² from it. The export keeps the levels and the range, and design.json's
+    // exact metrics are the exact scalar diffraction of the exported heights.
+    const DesignOptions o = small_anti_mirror(10, 3);
+    const PreparedDesign p = prepare_design(o);
+    ASSERT_EQ(p.stages.size(), 1u);
+    EXPECT_EQ(p.stages[0].size, 8);
+    EXPECT_EQ(p.stages[0].iterations, 40);
+    EXPECT_EQ(p.stages[0].refine_passes, 12);
+    const DesignResult r = run_design(p);
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    ASSERT_EQ(j["continuation"]["schedule"].size(), 2u);
+    EXPECT_EQ(j["continuation"]["schedule"][0]["size"].get<int>(), 8);
+    EXPECT_EQ(j["continuation"]["schedule"][1]["size"].get<int>(), 16);
+    ASSERT_EQ(r.heights_um.size(), 256u);
+    ASSERT_EQ(r.levels_um.size(), 8u);
+    const double step = r.levels_um[1];
+    for (std::size_t k = 0; k < r.levels_um.size(); ++k) EXPECT_NEAR(r.levels_um[k], static_cast<double>(k) * step, 1e-12);
+    EXPECT_LE(r.levels_um.back(), o.height_range_um + 1e-12);
+    for (std::size_t t = 0; t < r.heights_um.size(); ++t)
+        EXPECT_EQ(r.heights_um[t], r.levels_um[static_cast<std::size_t>(r.level[t])]);
+    const auto exact = cone_and_region(exact_orders(r.heights_um, 16, o.texel_um, o.omega_i, r.lambdas_um));
+    const auto& m = j["metrics"]["exact"];
+    for (std::size_t w = 0; w < exact.size(); ++w) {
+        EXPECT_NEAR(m["specular_fraction"][w].get<double>(), exact[w][0], 1e-9);
+        EXPECT_NEAR(m["region_fraction"][w].get<double>(), exact[w][1], 1e-9);
+    }
+    // The 8² stage is the tile's own design: the same relief's metrics.
+    DesignOptions tile = o;
+    tile.size = 8;
+    tile.iterations = 40;
+    tile.refine_passes = 12;
+    tile.continuation = "off";
+    const auto jt = nlohmann::json::parse(run_design(prepare_design(tile)).metrics_json);
+    const auto& stage = j["continuation"]["schedule"][0]["exact"];
+    EXPECT_DOUBLE_EQ(stage["region_fraction_mean"].get<double>(), jt["metrics"]["exact"]["region_fraction_mean"].get<double>());
+    // off: the 16² tile alone from a random start, another relief.
+    DesignOptions off = o;
+    off.continuation = "off";
+    const DesignResult ro = run_design(prepare_design(off));
+    EXPECT_EQ(nlohmann::json::parse(ro.metrics_json)["continuation"]["schedule"].size(), 1u);
+    EXPECT_NE(ro.heights_um, r.heights_um);
+}
+
+TEST(DesignContinuation, ATiledReliefScoresAsItsTileByADirectSum) {
+    // With no iterations and no passes the continuation's last tile is its first tile's random
+    // relief repeated 2 × 2, scored as it is: its exact metrics are the tile's. The premise, by
+    // the direct Kirchhoff sum (independent of the FFT identity): the tiled relief sends the
+    // tile's power into the cone and the region at every wavelength.
+    DesignOptions o = small_anti_mirror(0, 0);
+    o.continuation = "8";
+    const DesignResult r = run_design(prepare_design(o));
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    std::vector<double> tile(64);
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x) {
+            const double h = r.heights_um[static_cast<std::size_t>(y * 16 + x)];
+            if (y < 8 && x < 8) tile[static_cast<std::size_t>(y * 8 + x)] = h;
+            else EXPECT_EQ(h, tile[static_cast<std::size_t>((y % 8) * 8 + x % 8)]) << y << "," << x;
+        }
+    const auto& stage = j["continuation"]["schedule"][0]["exact"];
+    const auto& last = j["metrics"]["exact"];
+    for (const char* key : {"specular_fraction", "region_fraction", "uniformity"})
+        for (std::size_t w = 0; w < 4; ++w)
+            EXPECT_NEAR(last[key][w].get<double>(), stage[key][w].get<double>(), 1e-12) << key;
+    const auto small = cone_and_region(direct_orders(tile, 8, o.texel_um, o.omega_i, r.lambdas_um, 4));
+    const auto big = cone_and_region(direct_orders(r.heights_um, 16, o.texel_um, o.omega_i, r.lambdas_um, 4));
+    for (std::size_t w = 0; w < 4; ++w) {
+        EXPECT_GT(small[w][1], 0.2);  // a random relief lights the region
+        EXPECT_NEAR(big[w][0], small[w][0], 1e-9);
+        EXPECT_NEAR(big[w][1], small[w][1], 1e-9);
+    }
+}
+
+TEST(DesignContinuation, ABadScheduleFailsBeforeAnyWorkNamingTheValue) {
+    DesignOptions o = small_anti_mirror(10, 3);
+    auto message = [&](const std::string& schedule) {
+        DesignOptions b = o;
+        b.continuation = schedule;
+        try {
+            prepare_design(b);
+        } catch (const std::invalid_argument& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_NE(message("fast").find("--continuation fast is not a schedule"), std::string::npos);
+    EXPECT_NE(message("4,,8").find("not a schedule"), std::string::npos);
+    EXPECT_NE(message("6").find("tile 6 does not divide 16"), std::string::npos);
+    EXPECT_NE(message("8,4").find("tile 8 does not divide 4"), std::string::npos);
+    EXPECT_NE(message("16").find("tile 16 does not divide 16"), std::string::npos);
+    o.target = parse_design_target("colour:#80a0c0");
+    EXPECT_NE(message("8").find("for the anti-mirror"), std::string::npos);
+    o.continuation = "8";
+    o.target = parse_design_target("anti-mirror");
+    o.start_heights_um.assign(256, 0.0);
+    EXPECT_THROW(prepare_design(o), std::invalid_argument);
+    // auto: a start relief, an odd size or another target run on their tile alone.
+    o.continuation = "auto";
+    EXPECT_TRUE(prepare_design(o).stages.empty());
+    o.start_heights_um.clear();
+    o.size = 15;
+    EXPECT_TRUE(prepare_design(o).stages.empty());
+    o.size = 16;
+    o.target = parse_design_target("colour:#80a0c0");
+    EXPECT_TRUE(prepare_design(o).stages.empty());
+}
+
+}  // namespace
+}  // namespace wavebrdf
