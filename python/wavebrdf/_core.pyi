@@ -834,7 +834,8 @@ class RecoveryResult:
         misfit_ratio (deviance / its noise floor), slices_off_floor (slices above their own floor) and
         worst_slice_excess, worst_slice_x_um, worst_slice_y_um (the worst one's deviance over its limit, its centre); after the model check model_misfit_gabor,
         model_misfit_field, model_selected; with error bars median_sigma_relative,
-        predicted_error_relative; where the check needed error bars, error_bars ('given', 'computed',
+        predicted_error_relative; texture (where the run predicts a per-texel error: sigma_relative,
+        sigma_source, texels, fraction, power_share, warned; texel_texture.h); where the check needed error bars, error_bars ('given', 'computed',
         'skipped', 'off', 'unavailable'), error_bars_note, and the cost rule's error_bars_predicted_seconds,
         run_seconds (CPU), error_bars_seconds, error_bars_predicted_bytes (the bars' predicted peak with what
         the run holds) and memory_limit_bytes (max_memory_gb, else the physical memory); where the bars were
