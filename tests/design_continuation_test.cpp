@@ -113,6 +113,31 @@ TEST(DesignContinuation, ATiledReliefScoresAsItsTileByADirectSum) {
     }
 }
 
+TEST(DesignContinuation, AColourContinuesAndATiledReliefScoresAsItsTile) {
+    // A colour's view cone holds the same orders of a tiled relief as of its tile, so with no
+    // iterations and no passes the 16² result (the 8² tile's random relief repeated) has its tile's
+    // chromaticity and luminous efficiency; the two earlier tiles share one tile's budget.
+    DesignOptions o = small_anti_mirror(0, 0);
+    o.target = parse_design_target("colour:#80a0c0");
+    o.delta_uv_ceiling = 0.0;  // no brightness trade after the (empty) schedule
+    o.continuation = "4,8";
+    o.iterations = 10;
+    const PreparedDesign p = prepare_design(o);
+    ASSERT_EQ(p.stages.size(), 2u);
+    EXPECT_EQ(p.stages[0].iterations, 10 * 16 / 2);  // (16/4)², over two earlier tiles
+    EXPECT_EQ(p.stages[1].iterations, 10 * 4 / 2);
+    o.continuation = "8";
+    o.iterations = 0;
+    const auto j = nlohmann::json::parse(run_design(prepare_design(o)).metrics_json);
+    ASSERT_EQ(j["continuation"]["schedule"].size(), 2u);
+    const auto& stage = j["continuation"]["schedule"][0]["exact"];
+    for (const char* key : {"delta_uv", "luminous_efficiency"}) {
+        ASSERT_TRUE(stage.contains(key)) << key;
+        EXPECT_NEAR(j["metrics"]["exact"][key].get<double>(), stage[key].get<double>(), 1e-12) << key;
+    }
+    EXPECT_GT(stage["luminous_efficiency"].get<double>(), 0.0);
+}
+
 TEST(DesignContinuation, ABadScheduleFailsBeforeAnyWorkNamingTheValue) {
     DesignOptions o = small_anti_mirror(10, 3);
     auto message = [&](const std::string& schedule) {
@@ -130,8 +155,8 @@ TEST(DesignContinuation, ABadScheduleFailsBeforeAnyWorkNamingTheValue) {
     EXPECT_NE(message("6").find("tile 6 does not divide 16"), std::string::npos);
     EXPECT_NE(message("8,4").find("tile 8 does not divide 4"), std::string::npos);
     EXPECT_NE(message("16").find("tile 16 does not divide 16"), std::string::npos);
-    o.target = parse_design_target("colour:#80a0c0");
-    EXPECT_NE(message("8").find("for the anti-mirror"), std::string::npos);
+    o.target = pattern_target(2, 2, {0.0, 1.0, 1.0, 0.0});
+    EXPECT_NE(message("8").find("for the anti-mirror and colour"), std::string::npos);
     o.continuation = "8";
     o.target = parse_design_target("anti-mirror");
     o.start_heights_um.assign(256, 0.0);

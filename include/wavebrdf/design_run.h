@@ -127,11 +127,11 @@ struct DesignOptions {
     std::vector<double> start_heights_um;
     // Tile continuation (`--continuation`, docs/design.md): "auto", "off", or the sizes of smaller
     // tiles designed first, ascending, each dividing the next and --size ("64,128"). The first
-    // starts at random (seed); each tile's relief, repeated to the next size (a tiled relief
-    // reflects its tile's far field), is where the next starts, as a start relief would be. A tile
-    // of n² texels takes iterations and passes times (size/n)², about the CPU of the last stage.
+    // starts at random (seed); each tile's relief, repeated to the next size, is where the next
+    // starts, as a start relief would be. A tile of n² texels takes iterations and passes times
+    // (size/n)² over the number of earlier tiles: together they cost about the last tile's CPU.
     // "auto": the anti-mirror on levels from a random start with an even size continues from
-    // size/2; every other design runs on its tile alone. A given schedule: the anti-mirror only.
+    // size/2; every other design runs on its tile alone. A given schedule: anti-mirror, colour.
     std::string continuation = "auto";
     // The optimisation.
     std::uint64_t seed = 1;

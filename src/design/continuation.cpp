@@ -38,9 +38,9 @@ std::vector<int> parse_continuation_sizes(const std::string& text) {
 // A given schedule's sizes against the run: ascending, each dividing the next and the run's size.
 void check_continuation_sizes(const DesignOptions& o, const std::vector<int>& sizes, bool grayscale) {
     const std::string& c = o.continuation;
-    if (o.target.kind != DesignKind::AntiMirror)
+    if (o.target.kind != DesignKind::AntiMirror && o.target.kind != DesignKind::Colour)
         throw std::invalid_argument("--continuation " + c + " with --target " + o.target.text +
-                                    ": a continuation is for the anti-mirror; expected auto or off");
+                                    ": a continuation is for the anti-mirror and colour; expected auto or off");
     if (grayscale)
         throw std::invalid_argument("--continuation " + c +
                                     " with a grayscale relief (--min-feature-um): a continuation tiles reliefs on levels; expected auto or off");
@@ -57,9 +57,11 @@ void check_continuation_sizes(const DesignOptions& o, const std::vector<int>& si
     }
 }
 
-int scaled_budget(int budget, int size, int tile) {
+// A tile of `tile`² texels' share of the budget: times (size/tile)², so that it costs about what
+// the run's own tile does, divided among the `earlier` tiles, so that they cost together about that.
+int scaled_budget(int budget, int size, int tile, std::size_t earlier) {
     const double factor = static_cast<double>(size) / tile;
-    return static_cast<int>(std::min(100000.0, budget * factor * factor));
+    return static_cast<int>(std::min(100000.0, budget * factor * factor / static_cast<double>(earlier)));
 }
 
 }  // namespace
@@ -78,7 +80,8 @@ std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool graysc
     }
     std::vector<DesignStage> stages;
     for (int n : sizes)
-        stages.push_back({n, scaled_budget(o.iterations, o.size, n), scaled_budget(o.refine_passes, o.size, n)});
+        stages.push_back({n, scaled_budget(o.iterations, o.size, n, sizes.size()),
+                          scaled_budget(o.refine_passes, o.size, n, sizes.size())});
     return stages;
 }
 
@@ -116,7 +119,8 @@ std::string continued_json(const PreparedDesign& p, const std::string& last_json
     j["continuation"] = {{"what", "designed on each tile in turn (" + sizes +
                                       "): the first from a random start, each next from the last relief "
                                       "repeated to its size; a tile of n^2 texels took the iterations and passes "
-                                      "times (size/n)^2; exact: each tile's relief scored by exact scalar diffraction"},
+                                      "times (size/n)^2 divided by the number of earlier tiles (together about the "
+                                      "last tile's CPU); exact: each tile's relief scored by exact scalar diffraction"},
                          {"setting", o.continuation},
                          {"schedule", stages}};
     j["options"]["continuation"] = o.continuation;
@@ -168,6 +172,7 @@ DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step,
         o.iterations = s.iterations;
         o.refine_passes = s.refine_passes;
         o.continuation = "off";
+        o.survey_views = false;  // an earlier tile is no design of its own: the last tile surveys
         const auto t0 = ContinuationClock::now();
         tile = " " + std::to_string(s.size) + "x" + std::to_string(s.size);
         PreparedDesign sp = prepare_design(o);
