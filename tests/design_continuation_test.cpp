@@ -83,6 +83,32 @@ TEST(DesignContinuation, TheContinuedAntiMirrorKeepsItsLevelsAndItsMetricsAreThe
     EXPECT_NE(ro.heights_um, r.heights_um);
 }
 
+TEST(DesignContinuation, AutoHalvesWhileTheHalfHoldsAnOrderBesidesTheMirrorInTheConeAtEveryWavelength) {
+    // The acceptance tile (256² of 0.5 µm, 0.40–0.70 µm): the orders lie λ/(n·0.5 µm) apart, so a
+    // 32² tile holds one inside the cone 0.05 at 0.69 µm (0.043) and a 16² one does not (0.086):
+    // 32 -> 64 -> 128 -> 256. The three earlier tiles share one tile's budget, each times (256/n)².
+    DesignOptions o = test::small_design("anti-mirror", 8, 200, 60);
+    o.size = 256;
+    o.spectral = 16;
+    o.band_um = {0.40, 0.70};
+    const auto sizes = [](const DesignOptions& d) {
+        std::vector<std::array<int, 3>> s;
+        for (const DesignStage& t : prepare_design(d).stages) s.push_back({t.size, t.iterations, t.refine_passes});
+        return s;
+    };
+    EXPECT_EQ(sizes(o), (std::vector<std::array<int, 3>>{{32, 4266, 1280}, {64, 1066, 320}, {128, 266, 80}}));
+    // To 0.83 µm: 0.051 apart on 32², outside the cone: 64 -> 128 -> 256, each earlier tile at half.
+    o.band_um = {0.40, 0.83};
+    EXPECT_EQ(sizes(o), (std::vector<std::array<int, 3>>{{64, 1600, 480}, {128, 400, 120}}));
+    // A wider cone lets the tile halve further; the 64² docs tile (16² holds no order in the cone) once.
+    o.specular_cone = 0.11;
+    EXPECT_EQ(sizes(o).front()[0], 16);
+    o.specular_cone = 0.05;
+    o.size = 64;
+    o.band_um = {0.40, 0.70};
+    EXPECT_EQ(sizes(o), (std::vector<std::array<int, 3>>{{32, 800, 240}}));
+}
+
 TEST(DesignContinuation, ATiledReliefScoresAsItsTileByADirectSum) {
     // With no iterations and no passes the continuation's last tile is its first tile's random
     // relief repeated 2 × 2, scored as it is: its exact metrics are the tile's. The premise, by

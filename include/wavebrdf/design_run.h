@@ -130,8 +130,8 @@ struct DesignOptions {
     // starts at random (seed); each tile's relief, repeated to the next size, is where the next
     // starts, as a start relief would be. A tile of n² texels takes iterations and passes times
     // (size/n)² over the number of earlier tiles: together they cost about the last tile's CPU.
-    // "auto": the anti-mirror on levels from a random start with an even size continues from
-    // size/2; every other design runs on its tile alone. A given schedule: anti-mirror, colour.
+    // "auto": the anti-mirror on levels from a random start, even size: size/2 and its halves while
+    // one holds an order besides the mirror one in the specular cone at every λ. Schedules: also colour.
     std::string continuation = "auto";
     // The optimisation.
     std::uint64_t seed = 1;

@@ -64,6 +64,18 @@ int scaled_budget(int budget, int size, int tile, std::size_t earlier) {
     return static_cast<int>(std::min(100000.0, budget * factor * factor / static_cast<double>(earlier)));
 }
 
+// auto's tiles: N/2, then halved again while the half still holds, at every wavelength, an order
+// besides the mirror one inside the specular cone (the orders lie λ/(n·texel) apart in direction
+// cosines), so that every tile sees the cone's own orders, not the mirror order alone.
+std::vector<int> auto_sizes(const DesignOptions& o) {
+    double lambda_max = 0.0;
+    for (double lambda : design_wavelengths_um(o)) lambda_max = std::max(lambda_max, lambda);
+    std::vector<int> sizes{o.size / 2};
+    while (sizes.front() % 2 == 0 && lambda_max / (sizes.front() / 2 * o.texel_um) <= o.specular_cone)
+        sizes.insert(sizes.begin(), sizes.front() / 2);
+    return sizes;
+}
+
 }  // namespace
 
 std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool grayscale) {
@@ -73,7 +85,7 @@ std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool graysc
     if (c == "auto") {
         if (o.target.kind != DesignKind::AntiMirror || grayscale || !o.start_heights_um.empty() || o.size % 2 != 0)
             return {};
-        sizes = {o.size / 2};
+        sizes = auto_sizes(o);
     } else {
         sizes = parse_continuation_sizes(c);
         check_continuation_sizes(o, sizes, grayscale);
