@@ -107,6 +107,16 @@ TEST(DesignContinuation, AutoHalvesWhileTheHalfHoldsAnOrderBesidesTheMirrorInThe
     o.size = 64;
     o.band_um = {0.40, 0.70};
     EXPECT_EQ(sizes(o), (std::vector<std::array<int, 3>>{{32, 800, 240}}));
+    // Coarse texels hold orders in the cone on every tile: the halving stops at the smallest
+    // tile a design takes (2²) rather than asking for a 1² one.
+    // (20 µm texels: λ/(1 · 20 µm) ≤ 0.035 would let a 1² tile hold one.)
+    o.size = 16;
+    o.texel_um = 20.0;
+    o.spectral = 2;
+    const auto coarse = sizes(o);
+    ASSERT_FALSE(coarse.empty());
+    EXPECT_EQ(coarse.front()[0], 2);
+    EXPECT_EQ(coarse.back()[0], 8);
 }
 
 TEST(DesignContinuation, ATiledReliefScoresAsItsTileByADirectSum) {

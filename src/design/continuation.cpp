@@ -70,8 +70,10 @@ int scaled_budget(int budget, int size, int tile, std::size_t earlier) {
 std::vector<int> auto_sizes(const DesignOptions& o) {
     double lambda_max = 0.0;
     for (double lambda : design_wavelengths_um(o)) lambda_max = std::max(lambda_max, lambda);
+    // Not below a 2² tile, the smallest --size (coarse texels hold the cone's orders on any tile).
     std::vector<int> sizes{o.size / 2};
-    while (sizes.front() % 2 == 0 && lambda_max / (sizes.front() / 2 * o.texel_um) <= o.specular_cone)
+    while (sizes.front() % 2 == 0 && sizes.front() / 2 >= 2 &&
+           lambda_max / (sizes.front() / 2 * o.texel_um) <= o.specular_cone)
         sizes.insert(sizes.begin(), sizes.front() / 2);
     return sizes;
 }
