@@ -38,7 +38,8 @@ std::array<double, 2> scored(const DesignResult& r, std::array<double, 2> view, 
 }
 
 // A 32² tile of 0.5 µm, 16 levels within 2 µm, white light at 6 wavelengths, a short schedule;
-// with a minimum feature, a grayscale 16² tile.
+// with a minimum feature, a grayscale 16² tile. On its tile alone (no continuation: auto would
+// continue a dim blue, whose earlier tile runs its own trade): the trade after one schedule.
 DesignOptions small(const std::string& target, double min_feature_um = 0.0) {
     DesignOptions o = test::small_design(target, min_feature_um > 0.0 ? 0 : 16, 80, 20);
     o.min_feature_um = min_feature_um;
@@ -46,6 +47,7 @@ DesignOptions small(const std::string& target, double min_feature_um = 0.0) {
     o.spectral = 8;
     o.height_range_um = 2.0;
     o.seed = 5;
+    o.continuation = "off";
     return o;
 }
 

@@ -119,6 +119,38 @@ TEST(DesignContinuation, AutoHalvesWhileTheHalfHoldsAnOrderBesidesTheMirrorInThe
     EXPECT_EQ(coarse.back()[0], 8);
 }
 
+TEST(DesignContinuation, AutoContinuesAColourOnlyWhenNoSpectrumOfItsChromaticityReachesTheLossesY) {
+    // The colour acceptance's tile (128², 0.5 µm texels, 16 samples of the white, the mirror
+    // view's cone 0.05). Blue's optimal-colour limit (7.8 % under this light, docs/design.md) is
+    // below the Y the colour loss counts up to (10 %), the other five's are above it (23.8 to
+    // 94.4 %): auto continues blue alone, from the halves whose view cone holds an order besides
+    // the central one at every wavelength: 64² alone (the longest sample, 0.815 µm, lies
+    // 0.815 / (64 · 0.5) = 0.025 apart on 64² and 0.051 > 0.05 apart on 32²).
+    DesignOptions o = test::small_design("colour:#0000FF", 16, 10, 3);
+    o.size = 128;
+    o.spectral = 16;
+    o.height_range_um = 2.0;
+    const auto sizes = [&](const std::string& colour) {
+        o.target = parse_design_target("colour:" + colour);
+        std::vector<int> s;
+        for (const DesignStage& stage : prepare_design(o).stages) s.push_back(stage.size);
+        return s;
+    };
+    EXPECT_EQ(sizes("#0000FF"), (std::vector<int>{64}));
+    for (const char* colour : {"#FF0000", "#00FF00", "#00FFFF", "#FF00FF", "#FFFF00"})
+        EXPECT_TRUE(sizes(colour).empty()) << colour;
+    // The rule reads the limit, not the colour's name: a lighter blue (#2060FF, limit 17.6 %) runs
+    // alone under this light, and is continued under a white cut to 0.40-0.50 µm (limit 7.2 %),
+    // where the longest sample, 0.497 µm, lets the halving go on to 32² (0.031 <= 0.05 < 0.062).
+    for (const char* colour : {"#2060FF", "#4080FF"}) EXPECT_TRUE(sizes(colour).empty()) << colour;
+    o.band_um = {0.40, 0.50};
+    EXPECT_EQ(sizes("#2060FF"), (std::vector<int>{32, 64}));
+    EXPECT_TRUE(sizes("#4080FF").empty());  // 12.6 % under the cut light
+    o.band_um = {0.38, 0.78};
+    o.continuation = "off";
+    EXPECT_TRUE(sizes("#0000FF").empty());
+}
+
 TEST(DesignContinuation, ATiledReliefScoresAsItsTileByADirectSum) {
     // With no iterations and no passes the continuation's last tile is its first tile's random
     // relief repeated 2 × 2, scored as it is: its exact metrics are the tile's. The premise, by
@@ -174,6 +206,50 @@ TEST(DesignContinuation, AColourContinuesAndATiledReliefScoresAsItsTile) {
     EXPECT_GT(stage["luminous_efficiency"].get<double>(), 0.0);
 }
 
+TEST(DesignContinuation, AnIridescentTargetContinuesAndItsTiledReliefScoresAsItsTileByADirectSum) {
+    // Each pair's view cone holds the same orders of a tiled relief as of its tile: with no
+    // iterations and no passes the 16² result (the 8² tile's random relief repeated) has each
+    // pair's chromaticity and Y of its tile, and the direct Kirchhoff sum (no FFT) puts the same
+    // power into each cone from both reliefs, the Y design.json reports.
+    DesignOptions o = small_anti_mirror(0, 0);
+    o.target.kind = DesignKind::Iridescent;
+    o.target.text = "iridescent";
+    o.target.pairs = {{{0.2, 0.0}, {255, 128, 0}, {}}, {{0.0, -0.25}, {0, 128, 255}, {}}};
+    for (auto& pair : o.target.pairs)
+        for (std::size_t c = 0; c < 3; ++c) pair.linear_rgb[c] = srgb_decode(pair.srgb8[c] / 255.0);
+    o.view_cone = 0.08;
+    o.delta_uv_ceiling = 0.0;
+    o.continuation = "8";
+    const DesignResult r = run_design(prepare_design(o));
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    ASSERT_EQ(j["continuation"]["schedule"].size(), 2u);
+    const auto& stage = j["continuation"]["schedule"][0]["exact"];
+    const auto& last = j["metrics"]["exact"];
+    std::vector<double> tile(64);
+    for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 8; ++x) tile[static_cast<std::size_t>(y * 8 + x)] = r.heights_um[static_cast<std::size_t>(y * 16 + x)];
+    const auto small = direct_orders(tile, 8, o.texel_um, o.omega_i, r.lambdas_um, 8);
+    const auto big = direct_orders(r.heights_um, 16, o.texel_um, o.omega_i, r.lambdas_um, 8);
+    auto cone = [&](const OrderPowers& w, const IridescentPair& pair) {
+        double in = 0.0;
+        for (std::size_t k = 0; k < w.power.size(); ++k)
+            if (std::hypot(w.omega_x[k] - pair.view[0], w.omega_y[k] - pair.view[1]) <= o.view_cone) in += w.power[k];
+        return in * w.kirchhoff_total;
+    };
+    for (std::size_t q = 0; q < 2; ++q) {
+        for (const char* key : {"delta_uv", "luminous_efficiency"})
+            EXPECT_NEAR(last[key][q].get<double>(), stage[key][q].get<double>(), 1e-12) << key << " pair " << q;
+        std::vector<double> reflectance;
+        for (std::size_t w = 0; w < small.size(); ++w) {
+            EXPECT_NEAR(cone(big[w], o.target.pairs[q]), cone(small[w], o.target.pairs[q]), 1e-9) << "pair " << q;
+            reflectance.push_back(cone(small[w], o.target.pairs[q]));
+        }
+        const double y = reflectance_xyz(r.lambdas_um, reflectance)[1];
+        EXPECT_GT(y, 0.001) << "pair " << q;  // a random relief lights each cone
+        EXPECT_NEAR(last["luminous_efficiency"][q].get<double>(), y, 2e-3) << "pair " << q;
+    }
+}
+
 TEST(DesignContinuation, ABadScheduleFailsBeforeAnyWorkNamingTheValue) {
     DesignOptions o = small_anti_mirror(10, 3);
     auto message = [&](const std::string& schedule) {
@@ -192,7 +268,7 @@ TEST(DesignContinuation, ABadScheduleFailsBeforeAnyWorkNamingTheValue) {
     EXPECT_NE(message("8,4").find("tile 8 does not divide 4"), std::string::npos);
     EXPECT_NE(message("16").find("tile 16 does not divide 16"), std::string::npos);
     o.target = pattern_target(2, 2, {0.0, 1.0, 1.0, 0.0});
-    EXPECT_NE(message("8").find("for the anti-mirror and colour"), std::string::npos);
+    EXPECT_NE(message("8").find("for the anti-mirror, colour and iridescent"), std::string::npos);
     o.continuation = "8";
     o.target = parse_design_target("anti-mirror");
     o.start_heights_um.assign(256, 0.0);

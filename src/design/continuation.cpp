@@ -7,6 +7,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "design/colour_bound.h"
+#include "design/target.h"
+#include "wavebrdf/design.h"
 #include "wavebrdf/text.h"
 
 namespace wavebrdf::detail {
@@ -38,9 +41,10 @@ std::vector<int> parse_continuation_sizes(const std::string& text) {
 // A given schedule's sizes against the run: ascending, each dividing the next and the run's size.
 void check_continuation_sizes(const DesignOptions& o, const std::vector<int>& sizes, bool grayscale) {
     const std::string& c = o.continuation;
-    if (o.target.kind != DesignKind::AntiMirror && o.target.kind != DesignKind::Colour)
+    if (o.target.kind != DesignKind::AntiMirror && o.target.kind != DesignKind::Colour &&
+        o.target.kind != DesignKind::Iridescent)
         throw std::invalid_argument("--continuation " + c + " with --target " + o.target.text +
-                                    ": a continuation is for the anti-mirror and colour; expected auto or off");
+                                    ": a continuation is for the anti-mirror, colour and iridescent targets; expected auto or off");
     if (grayscale)
         throw std::invalid_argument("--continuation " + c +
                                     " with a grayscale relief (--min-feature-um): a continuation tiles reliefs on levels; expected auto or off");
@@ -65,17 +69,25 @@ int scaled_budget(int budget, int size, int tile, std::size_t earlier) {
 }
 
 // auto's tiles: N/2, then halved again while the half still holds, at every wavelength, an order
-// besides the mirror one inside the specular cone (the orders lie λ/(n·texel) apart in direction
-// cosines), so that every tile sees the cone's own orders, not the mirror order alone.
-std::vector<int> auto_sizes(const DesignOptions& o) {
+// besides the central one inside the cone of half-width `cone` (the orders lie λ/(n·texel) apart in
+// direction cosines), so that every tile sees the cone's own orders, not one order alone.
+std::vector<int> auto_sizes(const DesignOptions& o, double cone) {
     double lambda_max = 0.0;
     for (double lambda : design_wavelengths_um(o)) lambda_max = std::max(lambda_max, lambda);
     // Not below a 2² tile, the smallest --size (coarse texels hold the cone's orders on any tile).
     std::vector<int> sizes{o.size / 2};
-    while (sizes.front() % 2 == 0 && sizes.front() / 2 >= 2 &&
-           lambda_max / (sizes.front() / 2 * o.texel_um) <= o.specular_cone)
+    while (sizes.front() % 2 == 0 && sizes.front() / 2 >= 2 && lambda_max / (sizes.front() / 2 * o.texel_um) <= cone)
         sizes.insert(sizes.begin(), sizes.front() / 2);
     return sizes;
+}
+
+// Whether no reflectance spectrum of the colour's chromaticity reaches, under this white light, the
+// luminous efficiency the colour loss asks for (its optimal-colour limit below k_colour_loss_min_y):
+// then the loss's chromaticity and brightness terms compete at every relief.
+bool colour_dimmer_than_the_loss_asks(const DesignOptions& o) {
+    const auto weights = colour_xyz_weights(design_wavelengths_um(o));
+    const auto target_uv = xyz_to_uv(linear_srgb_to_xyz(o.target.linear_rgb));
+    return optimal_colour_bound(weights, target_uv, 0.0).y_at_target < k_colour_loss_min_y;
 }
 
 }  // namespace
@@ -85,9 +97,10 @@ std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool graysc
     if (c == "off") return {};
     std::vector<int> sizes;
     if (c == "auto") {
-        if (o.target.kind != DesignKind::AntiMirror || grayscale || !o.start_heights_um.empty() || o.size % 2 != 0)
-            return {};
-        sizes = auto_sizes(o);
+        if (grayscale || !o.start_heights_um.empty() || o.size % 2 != 0) return {};
+        if (o.target.kind == DesignKind::AntiMirror) sizes = auto_sizes(o, o.specular_cone);
+        else if (o.target.kind == DesignKind::Colour && colour_dimmer_than_the_loss_asks(o)) sizes = auto_sizes(o, o.view_cone);
+        else return {};
     } else {
         sizes = parse_continuation_sizes(c);
         check_continuation_sizes(o, sizes, grayscale);

@@ -413,7 +413,7 @@ std::array<double, 3> cone_xyz(const std::vector<double>& xyz_weights, const Fra
 
 double colour_loss(const std::array<double, 3>& X, const std::array<double, 2>& target_uv, std::array<double, 3>* d_xyz,
                    double tolerance) {
-    constexpr double k_uv_scale = 0.01, k_min_y = 0.10, k_weight_y = 4.0;
+    constexpr double k_uv_scale = 0.01, k_min_y = k_colour_loss_min_y, k_weight_y = 4.0;
     const double dd = std::max(X[0] + 15.0 * X[1] + 3.0 * X[2], 1e-12);
     const double u = 4.0 * X[0] / dd, v = 9.0 * X[1] / dd;
     const double du = u - target_uv[0], dv = v - target_uv[1];

@@ -96,6 +96,8 @@ std::unique_ptr<Target> make_pattern(const PatternSpec& spec);
 // `d_xyz` is given. A tolerance lets the design trade chromaticity within it for luminous
 // efficiency, which the second term alone asks for.
 std::vector<double> colour_xyz_weights(const std::vector<double>& lambdas_um);
+// The luminous efficiency below which colour_loss counts Y (its 0.1 above).
+constexpr double k_colour_loss_min_y = 0.10;
 std::array<double, 3> cone_xyz(const std::vector<double>& xyz_weights, const Fractions& f, std::size_t group);
 double colour_loss(const std::array<double, 3>& xyz, const std::array<double, 2>& target_uv,
                    std::array<double, 3>* d_xyz, double tolerance = 0.0);
