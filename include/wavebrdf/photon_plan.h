@@ -46,6 +46,55 @@ constexpr int k_default_max_exposures = 16;
 // The default proxy tile, texels per side (plan_exposures below).
 constexpr int k_photon_proxy_texels = 16;
 
+// The pilot (recovery_run.h's prepare_recovery runs it): the first-order prediction above sees the
+// estimate's variance and its second-order bias but not where the recovery's own path ends: its
+// estimate is one of many likelihood minima that differ above ~0.4 cycles per texel, 5–16 % above
+// the prediction in rms on plu-1 (experiments/2026-11-30-final-refinement-stall.md). So where the
+// first-order plan's prediction lies within k_photon_pilot_band of the target, the recovery itself
+// (the same acquisition plan, schedule and cold start as the full run) runs on tiles of
+// k_photon_pilot_texels² cut from the planner's surface (draw d on the cell (Halton₂(d), Halton₃(d))
+// of its grid of such cells), on draws of simulated Poisson slices at the first-order plan's
+// exposures; the rms of its errors over the first-order prediction for the same tiles is the
+// measured ratio ρ. The target bounds ONE run's error, not the mean over noise draws, so the
+// exposures for the full tile are the fewest whose prediction times the upper ratio
+// U = max(1, ρ + z √(se² + s_N²)) meets the target (z = k_photon_pilot_z; the first order is a
+// lower bound): se is ρ's standard error over the draws and s_N the spread of one run's ratio on
+// the full tile, taken as a draw's ratio's spread s_draw on a pilot tile scaled by the pilot tiles
+// the full tile holds, s_N = s_draw √(n² / (rows cols)) (the full tile's rms error averages that
+// many independent pilot tiles' squared errors; s_N = s_draw on a tile no larger than a pilot's).
+// The draws go on (at least k_photon_pilot_min_draws, at most k_photon_pilot_max_draws) until
+// ρ + z s_N ± 2 se (which holds U) asks for the same exposures; a draw's ratio scatters by
+// 0.06–0.1 on plu-1's 32² tiles (experiments/2026-11-30-photon-pilot.md). On plu-1 at 10⁴ photons
+// it meets 1 % at 64² to 256² but not on the 128² tile with seed 1 (U 1.155 where a fifth exposure
+// needs 1.157: 1.004 %): the pilot's mean reads that tile's excess ~3 % low (issue 36, open).
+constexpr int k_photon_pilot_texels = 32;
+constexpr int k_photon_pilot_min_draws = 4;
+constexpr int k_photon_pilot_max_draws = 16;
+// The pilot runs where the first-order prediction of the plan is at least target / band.
+constexpr double k_photon_pilot_band = 1.5;
+// The one-sided quantile of one run's error ratio the exposures are planned for (2: ~97.5 %).
+constexpr double k_photon_pilot_z = 2.0;
+
+// What the pilot measured (PhotonPlan::pilot).
+struct PhotonPilot {
+    bool ran = false;
+    int rows = 0, cols = 0;            // the pilot's proxy tile
+    int exposures = 0;                 // the exposures it was run at (the first-order plan's)
+    int first_order_exposures = 0;     // the first-order plan's exposures (before the pilot)
+    int tiles = 0;                     // distinct tiles the draws ran on
+    std::vector<double> errors_um;     // each draw's rms height error (mean removed)
+    std::vector<double> predicted_um;  // ... and the first-order prediction for its tile
+    double measured_rms_um = 0.0;      // the errors' rms
+    double predicted_rms_um = 0.0;     // the predictions' rms
+    double ratio = 1.0;                // measured_rms_um / predicted_rms_um
+    double ratio_sd = 0.0;             // the ratio's standard error over the draws
+    double draw_sd = 0.0;              // the spread (sd) of one draw's ratio, errors_um / predicted_um
+    double run_sd = 0.0;               // ... scaled to one run on the full tile (s_N above)
+    double upper_ratio = 1.0;          // U above: the ratio the exposures are planned with
+    double cpu_seconds = 0.0;          // the pilot's process CPU time
+    std::string why_not;               // when it did not run: why
+};
+
 struct PhotonPlanSettings {
     double target = k_default_target_error;  // rms height error / peak to valley; 0: no planning (0 … 1)
     int max_exposures = k_default_max_exposures;  // 1 … 10^4
@@ -71,6 +120,7 @@ struct PhotonPlan {
     // (row-major, µm²: f_qᴴ G⁺ f_q / n with the density ratio, one exposure; 0 at q = 0; their
     // mean is the bars' variance): predict_photon_limited_rms_um fills it.
     std::vector<double> variance_spectrum;
+    PhotonPilot pilot;              // the pilot of the pipeline (set by prepare_recovery)
     std::string note;               // one line: what the planner did and why (no times: the same every run)
 };
 
@@ -103,5 +153,26 @@ double photon_limited_bias_um(const Heightfield& surface, const PhotonPlan& deta
 // settings.target × range_um, with the note. Throws as the two above.
 PhotonPlan plan_exposures(const Heightfield& surface, const AcquisitionPlan& plan, double photons, double range_um,
                           const PhotonPlanSettings& settings = {});
+
+// The first-order prediction of `p` (made by plan_exposures for `surface`) with `exposures`:
+// √(variance/k + bias(k)²) (µm). Throws as photon_limited_bias_um.
+double photon_plan_rms_um(const Heightfield& surface, const PhotonPlan& p, int exposures);
+
+// The middle rows × cols of `surface` made periodic (periodic-plus-smooth decomposition), or the
+// surface itself where it is no larger: the proxy tiles' cut.
+Heightfield photon_proxy_tile(const Heightfield& surface, int rows, int cols);
+// The same cut at rows row0 … and columns col0 … (clamped into the surface).
+Heightfield photon_proxy_tile_at(const Heightfield& surface, int row0, int col0, int rows, int cols);
+
+// The pilot's draw_sd, run_sd and upper_ratio (above) from its draws (errors_um, predicted_um),
+// ratio and ratio_sd, for a full tile of rows × cols.
+void set_photon_pilot_spread(PhotonPilot& pilot, int rows, int cols);
+
+// The plan `p` (plan_exposures' for `surface`) with the pilot's measurement: `pilot` stored (its
+// spread set for `surface`), the exposures the fewest (≤ settings.max_exposures) whose first-order
+// prediction times pilot.upper_ratio meets the target, rms_um and bias_um that prediction, and the note saying
+// what the pilot measured (or why it did not run).
+void apply_photon_pilot(PhotonPlan& p, const Heightfield& surface, const PhotonPlanSettings& settings,
+                        PhotonPilot pilot);
 
 }  // namespace wavebrdf

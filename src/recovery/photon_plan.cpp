@@ -39,17 +39,6 @@ void check_settings(const PhotonPlanSettings& s) {
                                 " texels is out of range; expected 4 to 64");
 }
 
-// The middle rows × cols of `surface`, made periodic (periodic-plus-smooth decomposition), or
-// the surface itself where it is no larger.
-Heightfield proxy_tile(const Heightfield& surface, int rows, int cols) {
-    if (rows == surface.rows() && cols == surface.cols()) return surface;
-    MeasuredSurface m = from_heightfield(surface);  // transposed: m.rows = surface.cols()
-    ConditioningOptions c;
-    c.crop = std::array<int, 4>{{(m.rows - cols) / 2, (m.cols - rows) / 2, cols, rows}};
-    c.periodic = PeriodicMethod::Smooth;
-    return to_heightfield(condition(m, c), "the photon plan's proxy tile", surface.texel_um(), surface.vscale());
-}
-
 // Positions per axis on the proxy's period nearest to the full plan's step (at least 1).
 int proxy_steps(double period_um, double step_um) {
     if (!(step_um > 0.0)) return 1;
@@ -152,7 +141,65 @@ double bias_of_power(const std::vector<double>& power, int rows, int cols, const
     return std::sqrt(bias2) / n;
 }
 
+// The plan's note: the first-order prediction, the pilot's measurement where it ran, the
+// exposures taken and the proxies (no times: the same every run).
+std::string plan_note(const PhotonPlan& p, const PhotonPlanSettings& settings) {
+    const auto pct = [&](double rms_um) { return format_number(100.0 * rms_um / p.range_um, "%.3g") + " %"; };
+    const std::string predicted = "photon-limited rms height error predicted " + pct(p.single_rms_um) +
+                                  " of the peak to valley (" + format_number(1000.0 * p.single_rms_um, "%.3g") +
+                                  " nm, of which a bias of " + format_number(1000.0 * p.single_bias_um, "%.3g") +
+                                  " nm rms: the high spatial frequencies shrunk) at " + format_shortest(p.photons) +
+                                  " photons per exposure";
+    const std::string target = "target " + format_number(100.0 * settings.target, "%.3g") + " %";
+    const std::string proxy = " (error bars on a " + std::to_string(p.proxy_rows) + "x" +
+                              std::to_string(p.proxy_cols) + " proxy tile, " +
+                              std::to_string(p.proxy_observations) + " observations)";
+    const PhotonPilot& q = p.pilot;
+    std::string pilot;
+    if (q.ran)
+        pilot = "; a pilot of the recovery on " + std::to_string(q.tiles) + " " + std::to_string(q.rows) + "x" +
+                std::to_string(q.cols) + " proxy tile" + (q.tiles == 1 ? "" : "s") + " (" +
+                std::to_string(q.errors_um.size()) + " noise draws at " + std::to_string(q.exposures) +
+                " exposures) measured " + format_number(q.ratio, "%.3f") + " +- " +
+                format_number(q.ratio_sd, "%.3f") + " x the first-order prediction (" +
+                format_number(1000.0 * q.measured_rms_um, "%.3g") + " nm against " +
+                format_number(1000.0 * q.predicted_rms_um, "%.3g") + " nm), a draw's ratio scattering by " +
+                format_number(q.draw_sd, "%.3f") + ", one run's on the full tile by " +
+                format_number(q.run_sd, "%.3f") + ": the exposures are planned with " +
+                format_number(q.upper_ratio, "%.3f") + " x the prediction (the ratio + " +
+                format_number(k_photon_pilot_z, "%.3g") + " sd, one run's bound)";
+    else if (!q.why_not.empty())
+        pilot = "; no pilot: " + q.why_not;
+    if (settings.target <= 0.0) return predicted + " (no target: one exposure per slice)" + proxy;
+    if (p.exposures == 1 && !p.capped)
+        return predicted + pilot + ", within the " + target + ": one exposure per slice" + proxy;
+    return predicted + pilot + " > " + target + ": " + std::to_string(p.exposures) +
+           " exposures per slice, summed, predicted " + pct(p.rms_um) +
+           (p.capped ? " (the cap, " + std::to_string(settings.max_exposures) + " exposures: the target is not met)"
+                     : "") +
+           proxy;
+}
+
 }  // namespace
+
+Heightfield photon_proxy_tile(const Heightfield& surface, int rows, int cols) {
+    rows = std::min(rows, surface.rows());
+    cols = std::min(cols, surface.cols());
+    return photon_proxy_tile_at(surface, (surface.rows() - rows) / 2, (surface.cols() - cols) / 2, rows, cols);
+}
+
+Heightfield photon_proxy_tile_at(const Heightfield& surface, int row0, int col0, int rows, int cols) {
+    rows = std::min(rows, surface.rows());
+    cols = std::min(cols, surface.cols());
+    if (rows == surface.rows() && cols == surface.cols()) return surface;
+    row0 = std::clamp(row0, 0, surface.rows() - rows);
+    col0 = std::clamp(col0, 0, surface.cols() - cols);
+    MeasuredSurface m = from_heightfield(surface);  // transposed: m.rows = surface.cols()
+    ConditioningOptions c;
+    c.crop = std::array<int, 4>{{col0, row0, cols, rows}};
+    c.periodic = PeriodicMethod::Smooth;
+    return to_heightfield(condition(m, c), "the photon plan's proxy tile", surface.texel_um(), surface.vscale());
+}
 
 int exposures_for_target(const std::function<double(int)>& rms_um, double target_um, int max_exposures,
                          bool* capped) {
@@ -188,7 +235,7 @@ double predict_photon_limited_rms_um(const Heightfield& surface, const Acquisiti
     const auto start = std::chrono::steady_clock::now();
     const int rows = std::min(surface.rows(), settings.proxy_texels);
     const int cols = std::min(surface.cols(), settings.proxy_texels);
-    const Heightfield tile = proxy_tile(surface, rows, cols);
+    const Heightfield tile = photon_proxy_tile(surface, rows, cols);
     const double w = surface.texel_um();
 
     // The same acquisition on the proxy: the full raster's steps (as near as the proxy's period
@@ -270,28 +317,46 @@ PhotonPlan plan_exposures(const Heightfield& surface, const AcquisitionPlan& pla
         p.exposures = exposures_for_target([&](int k) { return total_um(k, nullptr); }, settings.target * range_um,
                                            settings.max_exposures, &p.capped);
     p.rms_um = total_um(p.exposures, &p.bias_um);
-    const auto pct = [&](double rms_um) { return format_number(100.0 * rms_um / range_um, "%.3g") + " %"; };
-    const std::string predicted = "photon-limited rms height error predicted " + pct(p.single_rms_um) +
-                                  " of the peak to valley (" + format_number(1000.0 * p.single_rms_um, "%.3g") +
-                                  " nm, of which a bias of " + format_number(1000.0 * p.single_bias_um, "%.3g") +
-                                  " nm rms: the high spatial frequencies shrunk) at " + format_shortest(photons) +
-                                  " photons per exposure";
-    const std::string target = "target " + format_number(100.0 * settings.target, "%.3g") + " %";
-    const std::string proxy = " (error bars on a " + std::to_string(p.proxy_rows) + "x" +
-                              std::to_string(p.proxy_cols) + " proxy tile, " +
-                              std::to_string(p.proxy_observations) + " observations)";
-    if (settings.target <= 0.0)
-        p.note = predicted + " (no target: one exposure per slice)" + proxy;
-    else if (p.exposures == 1 && !p.capped)
-        p.note = predicted + ", within the " + target + ": one exposure per slice" + proxy;
-    else
-        p.note = predicted + " > " + target + ": " + std::to_string(p.exposures) +
-                 " exposures per slice, summed, predicted " + pct(p.rms_um) +
-                 (p.capped ? " (the cap, " + std::to_string(settings.max_exposures) +
-                                 " exposures: the target is not met)"
-                           : "") +
-                 proxy;
+    p.note = plan_note(p, settings);
     return p;
+}
+
+
+double photon_plan_rms_um(const Heightfield& surface, const PhotonPlan& p, int exposures) {
+    const double bias = photon_limited_bias_um(surface, p, exposures);
+    const double variance = std::max(p.single_rms_um * p.single_rms_um - p.single_bias_um * p.single_bias_um, 0.0);
+    return std::sqrt(variance / double(exposures) + bias * bias);
+}
+
+void set_photon_pilot_spread(PhotonPilot& pilot, int rows, int cols) {
+    const std::size_t n = std::min(pilot.errors_um.size(), pilot.predicted_um.size());
+    double mean = 0.0, sum2 = 0.0;
+    for (std::size_t d = 0; d < n; ++d) mean += pilot.errors_um[d] / pilot.predicted_um[d];
+    mean /= double(std::max<std::size_t>(n, 1));
+    for (std::size_t d = 0; d < n; ++d) {
+        const double r = pilot.errors_um[d] / pilot.predicted_um[d] - mean;
+        sum2 += r * r;
+    }
+    pilot.draw_sd = n > 1 ? std::sqrt(sum2 / double(n - 1)) : 0.0;
+    const double cells = double(rows) * double(cols) / (double(k_photon_pilot_texels) * k_photon_pilot_texels);
+    pilot.run_sd = pilot.draw_sd / std::sqrt(std::max(1.0, cells));
+    pilot.upper_ratio = std::max(1.0, pilot.ratio + k_photon_pilot_z * std::sqrt(pilot.ratio_sd * pilot.ratio_sd +
+                                                                                  pilot.run_sd * pilot.run_sd));
+}
+
+void apply_photon_pilot(PhotonPlan& p, const Heightfield& surface, const PhotonPlanSettings& settings,
+                        PhotonPilot pilot) {
+    check_settings(settings);
+    p.pilot = std::move(pilot);
+    if (p.pilot.ran) set_photon_pilot_spread(p.pilot, surface.rows(), surface.cols());
+    if (p.pilot.ran && settings.target > 0.0) {
+        const double ratio = p.pilot.upper_ratio;
+        p.exposures = exposures_for_target([&](int k) { return ratio * photon_plan_rms_um(surface, p, k); },
+                                           settings.target * p.range_um, settings.max_exposures, &p.capped);
+        p.bias_um = photon_limited_bias_um(surface, p, p.exposures);
+        p.rms_um = ratio * photon_plan_rms_um(surface, p, p.exposures);
+    }
+    p.note = plan_note(p, settings);
 }
 
 }  // namespace wavebrdf

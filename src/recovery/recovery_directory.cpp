@@ -64,6 +64,27 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
                               {"proxy_size", std::to_string(p.proxy_rows) + "x" + std::to_string(p.proxy_cols)},
                               {"proxy_observations", p.proxy_observations},
                               {"seconds", p.seconds}};
+        const PhotonPilot& q = p.pilot;
+        nlohmann::json pilot = {{"ran", q.ran}, {"first_order_exposures", q.first_order_exposures}};
+        if (q.ran) {
+            pilot["size"] = std::to_string(q.rows) + "x" + std::to_string(q.cols);
+            pilot["exposures"] = q.exposures;
+            pilot["draws"] = q.errors_um.size();
+            pilot["tiles"] = q.tiles;
+            pilot["errors_um"] = q.errors_um;
+            pilot["predicted_um"] = q.predicted_um;
+            pilot["measured_rms_um"] = q.measured_rms_um;
+            pilot["predicted_rms_um"] = q.predicted_rms_um;
+            pilot["ratio"] = q.ratio;
+            pilot["ratio_sd"] = q.ratio_sd;
+            pilot["draw_sd"] = q.draw_sd;
+            pilot["run_sd"] = q.run_sd;
+            pilot["upper_ratio"] = q.upper_ratio;
+            pilot["cpu_seconds"] = q.cpu_seconds;
+        } else {
+            pilot["why_not"] = q.why_not;
+        }
+        run["photon_plan"]["pilot"] = pilot;
     }
     if (options.simulator != Simulator::Gabor) run["simulator"] = to_string(options.simulator);
     if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;

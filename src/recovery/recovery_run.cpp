@@ -3,6 +3,7 @@
 #include "recovery/field_tiles.h"
 #include "recovery/white_light.h"
 #include "core/parallel.h"
+#include "core/random.h"
 #include "core/text.h"
 
 #include <algorithm>
@@ -397,7 +398,7 @@ struct TruthAcquisition {
 };
 
 TruthAcquisition plan_truth_acquisition(const PreparedRecovery& r, const RecoveryOptions& options,
-                                        bool truth_given) {
+                                        bool truth_given, const MeasuredRoughness* given_roughness = nullptr) {
     PlanRequest request;
     request.rows = r.rows;
     request.cols = r.cols;
@@ -424,7 +425,7 @@ TruthAcquisition plan_truth_acquisition(const PreparedRecovery& r, const Recover
     // Rough surfaces (roughness_plan.h): long wavelengths for the field stage's start.
     // Steep ones: oblique lights, so that their steep facets reflect into a slice.
     if (options.plan_from_truth && truth_given && r.range_um > 0.0) {
-        a.measured_roughness = measure_roughness(*r.truth);
+        a.measured_roughness = given_roughness ? *given_roughness : measure_roughness(*r.truth);
         a.measured = plan_for_measured_roughness(*a.measured_roughness, r.texel_um);
     }
     if (options.method == RecoveryMethod::Pipeline && white.empty() && options.correlation_texels > 0.0 &&
@@ -440,21 +441,6 @@ TruthAcquisition plan_truth_acquisition(const PreparedRecovery& r, const Recover
                                " wavelengths");
     }
     return a;
-}
-
-// The photon-aware plan (photon_plan.h) of a truth's acquisition, into r.photon_plan: with
-// Poisson noise, the loss matched to it (a loss of one's own states its own photons), laser
-// slices (the white-light slices' channels share their photons) and a target. True when it
-// asks for more than one exposure per slice.
-bool plan_photons(PreparedRecovery& r, const RecoveryOptions& options, const AcquisitionPlan& plan) {
-    if (options.noise.kind != NoiseKind::Poisson || options.target_error <= 0.0 || options.loss ||
-        options.method != RecoveryMethod::Pipeline || !plan.white_lambdas_um.empty() || !(r.range_um > 0.0))
-        return false;
-    PhotonPlanSettings settings;
-    settings.target = options.target_error;
-    settings.max_exposures = options.max_exposures;
-    r.photon_plan = plan_exposures(*r.truth, plan, options.noise.level, r.range_um, settings);
-    return r.photon_plan->exposures > 1;
 }
 
 // With acquisition errors: the true (perturbed) acquisition the observations are rendered for;
@@ -562,6 +548,197 @@ void state_pipeline_settings(PreparedRecovery& r, const RecoveryOptions& options
     r.pipeline.error_bars = options.uncertainty;
 }
 
+// A recovery of `tile` as the pilot's truth, planned for the full tile's range `range_um` (the same
+// wavelengths and bounds as the full run).
+PreparedRecovery pilot_tile_run(const Heightfield& tile, double range_um) {
+    PreparedRecovery p;
+    p.truth = tile;
+    p.rows = tile.rows();
+    p.cols = tile.cols();
+    p.texel_um = tile.texel_um();
+    p.vscale = tile.vscale();
+    p.range_um = range_um;
+    return p;
+}
+
+// One draw of the photon plan's pilot (photon_plan.h): the recovery of `tile` (planned as `a`,
+// the full run's roughness and schedule) from its Poisson slices of `photons` simulated with
+// `seed`; its rms height error in µm (means removed). One process (rank 0 draws).
+double photon_pilot_error_um(const Heightfield& tile, double range_um, const RecoveryOptions& options,
+                             const TruthAcquisition& a, double photons, std::uint64_t seed, const MemoryLimit& limit) {
+    PreparedRecovery p = pilot_tile_run(tile, range_um);
+    RecoveryOptions o = options;
+    o.noise.level = photons;
+    o.seed = seed;
+    p.noise = o.noise;
+    p.loss = recovery_loss(o);
+    std::vector<Observation> catalogue;
+    simulate_planned_observations(p, o, a.plan, limit, false, serial_communicator(), catalogue);
+    state_pipeline_settings(p, o, a.measured, a.measured_roughness);
+    const Heightfield estimate = recover_heights(p.observations, p.rows, p.cols, p.texel_um, p.vscale, p.pipeline);
+    const HeightStats stats = height_stats(tile);
+    return height_rel_rmse(estimate, tile) * (stats.max_um - stats.min_um);
+}
+
+// The pilot's ratio from its draws' errors² x and their tiles' predicted errors² y: ρ = √(Σx / Σy)
+// (measured_rms_um and predicted_rms_um their rms), its standard error by the delta method on the
+// ratio of means: se(R) = √(Σ(x − R y)² / (n (n − 1))) / ȳ, se(ρ) = se(R) / (2ρ).
+void ratio_of_draws(const std::vector<double>& x, const std::vector<double>& y, PhotonPilot& pilot) {
+    const double n = double(x.size());
+    double sx = 0.0, sy = 0.0;
+    for (std::size_t d = 0; d < x.size(); ++d) {
+        sx += x[d];
+        sy += y[d];
+    }
+    const double ratio2 = sx / sy;
+    double spread = 0.0;
+    for (std::size_t d = 0; d < x.size(); ++d) spread += (x[d] - ratio2 * y[d]) * (x[d] - ratio2 * y[d]);
+    pilot.measured_rms_um = std::sqrt(sx / n);
+    pilot.predicted_rms_um = std::sqrt(sy / n);
+    pilot.ratio = std::sqrt(ratio2);
+    pilot.ratio_sd = n > 1.0 ? std::sqrt(spread / (n * (n - 1.0))) / (sy / n) / (2.0 * pilot.ratio) : 0.0;
+}
+
+// A pilot tile (photon_plan.h): the k_photon_pilot_texels² cut at row0, col0 of r.truth, its
+// acquisition planned as the full run's (the full tile's range and measured roughness) and its
+// first-order prediction with `exposures`.
+struct PilotTile {
+    PreparedRecovery run;
+    TruthAcquisition a;
+    double predicted_um = 0.0;
+};
+
+PilotTile pilot_tile(const PreparedRecovery& r, const RecoveryOptions& options, const TruthAcquisition& full,
+                     bool truth_given, int row0, int col0, int exposures) {
+    PilotTile t;
+    t.run = pilot_tile_run(
+        photon_proxy_tile_at(*r.truth, row0, col0, k_photon_pilot_texels, k_photon_pilot_texels), r.range_um);
+    t.a = plan_truth_acquisition(t.run, options, truth_given,
+                                 full.measured_roughness ? &*full.measured_roughness : nullptr);
+    PhotonPlanSettings first_order;
+    first_order.target = 0.0;
+    const PhotonPlan plan = plan_exposures(*t.run.truth, t.a.plan, options.noise.level, r.range_um, first_order);
+    t.predicted_um = photon_plan_rms_um(*t.run.truth, plan, exposures);
+    return t;
+}
+
+// The radical inverse of d in `base` (0 … 1): the Halton sequence that spreads the draws' tiles.
+double radical_inverse(int d, int base) {
+    double x = 0.0, f = 1.0 / base;
+    for (; d > 0; d /= base, f /= base) x += f * (d % base);
+    return x;
+}
+
+// The photon plan's pilot (photon_plan.h): the recovery itself on k_photon_pilot_texels² tiles of
+// r.truth at the first-order plan's exposures, draw d on the cell (Halton(d, 2), Halton(d, 3)) of the
+// tile's grid of such cells (so the draws spread over the surface), until the decision is made,
+// against the first-order prediction for the same tiles; or why not.
+PhotonPilot run_photon_pilot(const PreparedRecovery& r, const RecoveryOptions& options, const TruthAcquisition& full,
+                             bool truth_given, const MemoryLimit& limit, const Communicator& comm) {
+    const PhotonPlan& plan = *r.photon_plan;
+    PhotonPilot pilot;
+    pilot.first_order_exposures = plan.exposures;
+    if (plan.capped) {
+        pilot.why_not = "the first-order plan is already capped";
+        return pilot;
+    }
+    if (plan.rms_um * k_photon_pilot_band < options.target_error * plan.range_um) {
+        pilot.why_not = "the first-order prediction is below the target / " + format_number(k_photon_pilot_band, "%.3g");
+        return pilot;
+    }
+    if (!comm.is_root()) return pilot;  // rank 0 draws; share_photon_pilot hands its result on
+    const double cpu_before = process_cpu_seconds();
+    pilot.exposures = plan.exposures;
+    // The full tile's first-order prediction by exposures (memoised: the bias is a sum over its
+    // spectrum) and the exposures a ratio asks for.
+    std::vector<double> full_rms(std::size_t(options.max_exposures) + 1, -1.0);
+    const auto exposures_at = [&](double ratio) {
+        return exposures_for_target(
+            [&](int k) {
+                double& v = full_rms[std::size_t(k)];
+                if (v < 0.0) v = photon_plan_rms_um(*r.truth, plan, k);
+                return std::max(1.0, ratio) * v;
+            },
+            options.target_error * plan.range_um, options.max_exposures);
+    };
+    const int n = k_photon_pilot_texels;
+    const int grid_rows = std::max(1, r.rows / n), grid_cols = std::max(1, r.cols / n);
+    std::vector<std::optional<PilotTile>> tiles(std::size_t(grid_rows) * std::size_t(grid_cols));
+    std::vector<double> x, y;  // each draw's error² and its tile's predicted error²
+    for (int d = 0; d < k_photon_pilot_max_draws; ++d) {
+        const int gr = std::min(grid_rows - 1, int(radical_inverse(d, 2) * grid_rows));
+        const int gc = std::min(grid_cols - 1, int(radical_inverse(d, 3) * grid_cols));
+        std::optional<PilotTile>& t = tiles[std::size_t(gr) * std::size_t(grid_cols) + std::size_t(gc)];
+        if (!t)
+            t = pilot_tile(r, options, full, truth_given, gr * (r.rows / grid_rows) + (r.rows / grid_rows - n) / 2,
+                           gc * (r.cols / grid_cols) + (r.cols / grid_cols - n) / 2, plan.exposures);
+        const double e = photon_pilot_error_um(*t->run.truth, r.range_um, options, t->a,
+                                               options.noise.level * plan.exposures,
+                                               detail::derive_seed(options.seed, 0x9170 + std::uint64_t(d)), limit);
+        pilot.errors_um.push_back(e);
+        pilot.predicted_um.push_back(t->predicted_um);
+        pilot.rows = t->run.rows;
+        pilot.cols = t->run.cols;
+        x.push_back(e * e);
+        y.push_back(t->predicted_um * t->predicted_um);
+        ratio_of_draws(x, y, pilot);
+        set_photon_pilot_spread(pilot, r.rows, r.cols);
+        // U (photon_plan.h) lies within ρ + z s_N ± z se: stop when both ends ask the same exposures.
+        const double centre = pilot.ratio + k_photon_pilot_z * pilot.run_sd;
+        const double half = k_photon_pilot_z * pilot.ratio_sd;
+        if (d + 1 >= k_photon_pilot_min_draws && exposures_at(centre - half) == exposures_at(centre + half)) break;
+    }
+    for (const auto& t : tiles) pilot.tiles += t ? 1 : 0;
+    pilot.ran = true;
+    pilot.cpu_seconds = process_cpu_seconds() - cpu_before;
+    return pilot;
+}
+
+// Rank 0's pilot on every rank (the same exposures everywhere). Collective.
+void share_photon_pilot(PhotonPilot& pilot, const Communicator& comm) {
+    if (comm.size() == 1 || !pilot.why_not.empty()) return;  // why_not: the same on every rank
+    double head[12] = {double(pilot.ran),        double(pilot.rows),          double(pilot.cols),
+                       double(pilot.exposures),  double(pilot.errors_um.size()), pilot.measured_rms_um,
+                       pilot.predicted_rms_um,   pilot.ratio,                 pilot.ratio_sd,
+                       pilot.cpu_seconds,        double(pilot.first_order_exposures), double(pilot.tiles)};
+    comm.broadcast(head, 12);
+    pilot.ran = head[0] != 0.0;
+    pilot.rows = int(head[1]);
+    pilot.cols = int(head[2]);
+    pilot.exposures = int(head[3]);
+    pilot.errors_um.resize(std::size_t(head[4]));
+    pilot.measured_rms_um = head[5];
+    pilot.predicted_rms_um = head[6];
+    pilot.ratio = head[7];
+    pilot.ratio_sd = head[8];
+    pilot.cpu_seconds = head[9];
+    pilot.tiles = int(head[11]);
+    pilot.predicted_um.resize(pilot.errors_um.size());
+    if (pilot.errors_um.empty()) return;
+    comm.broadcast(pilot.errors_um.data(), pilot.errors_um.size());
+    comm.broadcast(pilot.predicted_um.data(), pilot.predicted_um.size());
+}
+
+// The photon-aware plan (photon_plan.h) of a truth's acquisition, into r.photon_plan: with
+// Poisson noise, the loss matched to it (a loss of one's own states its own photons), laser
+// slices (the white-light slices' channels share their photons) and a target; the first-order
+// plan, then its pilot. True when it asks for more than one exposure per slice.
+bool plan_photons(PreparedRecovery& r, const RecoveryOptions& options, const TruthAcquisition& a, bool truth_given,
+                  const MemoryLimit& limit, const Communicator& comm) {
+    const AcquisitionPlan& plan = a.plan;
+    if (options.noise.kind != NoiseKind::Poisson || options.target_error <= 0.0 || options.loss ||
+        options.method != RecoveryMethod::Pipeline || !plan.white_lambdas_um.empty() || !(r.range_um > 0.0))
+        return false;
+    PhotonPlanSettings settings;
+    settings.target = options.target_error;
+    settings.max_exposures = options.max_exposures;
+    r.photon_plan = plan_exposures(*r.truth, plan, options.noise.level, r.range_um, settings);
+    PhotonPilot pilot = run_photon_pilot(r, options, a, truth_given, limit, comm);
+    share_photon_pilot(pilot, comm);
+    apply_photon_pilot(*r.photon_plan, *r.truth, settings, std::move(pilot));
+    return r.photon_plan->exposures > 1;
+}
+
 }  // namespace
 
 PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfield* truth,
@@ -590,15 +767,15 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         const HeightStats stats = height_stats(*r.truth);
         r.range_um = stats.max_um - stats.min_um;
         TruthAcquisition a = plan_truth_acquisition(r, options, truth != nullptr);
-        measured = std::move(a.measured);
-        measured_roughness = std::move(a.measured_roughness);
         // Photon-limited: k exposures of N photons per slice, summed, are one slice of k·N.
         RecoveryOptions exposed = options;
-        if (plan_photons(r, options, a.plan)) {
+        if (plan_photons(r, options, a, truth != nullptr, limit, comm)) {
             exposed.noise.level *= double(r.photon_plan->exposures);
             r.noise = exposed.noise;
             r.loss = recovery_loss(exposed);
         }
+        measured = std::move(a.measured);
+        measured_roughness = std::move(a.measured_roughness);
         simulate_planned_observations(r, exposed, a.plan, limit, show_progress, comm, catalogue);
         if (r.photon_plan) r.notes.push_back(r.photon_plan->note);
     }
