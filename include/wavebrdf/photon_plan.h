@@ -65,8 +65,9 @@ constexpr int k_photon_proxy_texels = 16;
 // The draws go on (at least k_photon_pilot_min_draws, at most k_photon_pilot_max_draws) until
 // ρ + z s_N ± 2 se (which holds U) asks for the same exposures; a draw's ratio scatters by
 // 0.06–0.1 on plu-1's 32² tiles (experiments/2026-11-30-photon-pilot.md). On plu-1 at 10⁴ photons
-// it meets 1 % at 64² to 256² but not on the 128² tile with seed 1 (U 1.155 where a fifth exposure
-// needs 1.157: 1.004 %): the pilot's mean reads that tile's excess ~3 % low (issue 36, open).
+// it meets 1 % at 64² to 256² but not on the 128² tile with seeds 1 and 14 (U 1.155 and 1.137 where a
+// fifth exposure needs 1.157: 1.004 % and 1.014 %): the pilot's mean reads that tile's excess low (ρ
+// 1.110 and 1.094 against the tile's own 1.142 over 14 seeds: experiments/2026-11-30-plu1-seeds.md).
 constexpr int k_photon_pilot_texels = 32;
 constexpr int k_photon_pilot_min_draws = 4;
 constexpr int k_photon_pilot_max_draws = 16;
