@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <utility>
 
 #include "wavebrdf/constants.h"
 #include "wavebrdf/generate.h"
@@ -548,15 +549,20 @@ void state_pipeline_settings(PreparedRecovery& r, const RecoveryOptions& options
     r.pipeline.error_bars = options.uncertainty;
 }
 
+// `truth` as the run's truth, with the grid, texel and vertical scale it carries.
+void set_truth(PreparedRecovery& r, Heightfield truth) {
+    r.rows = truth.rows();
+    r.cols = truth.cols();
+    r.texel_um = truth.texel_um();
+    r.vscale = truth.vscale();
+    r.truth = std::move(truth);
+}
+
 // A recovery of `tile` as the pilot's truth, planned for the full tile's range `range_um` (the same
 // wavelengths and bounds as the full run).
 PreparedRecovery pilot_tile_run(const Heightfield& tile, double range_um) {
     PreparedRecovery p;
-    p.truth = tile;
-    p.rows = tile.rows();
-    p.cols = tile.cols();
-    p.texel_um = tile.texel_um();
-    p.vscale = tile.vscale();
+    set_truth(p, tile);
     p.range_um = range_um;
     return p;
 }
@@ -759,11 +765,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
     if (!observations.empty()) {
         take_given_observations(r, options, std::move(observations), limit, comm, catalogue);
     } else {
-        r.truth = truth != nullptr ? *truth : generated_recovery_truth(options);
-        r.rows = r.truth->rows();
-        r.cols = r.truth->cols();
-        r.texel_um = r.truth->texel_um();
-        r.vscale = r.truth->vscale();
+        set_truth(r, truth != nullptr ? *truth : generated_recovery_truth(options));
         const HeightStats stats = height_stats(*r.truth);
         r.range_um = stats.max_um - stats.min_um;
         TruthAcquisition a = plan_truth_acquisition(r, options, truth != nullptr);
