@@ -327,10 +327,10 @@ void add_design_command(CLI::App& app) {
     cmd->add_option("--start", a->start,
                     "start from this relief (a heights.exr on the run's levels) instead of a random one");
     cmd->add_option("--continuation", a->options.continuation,
-                    "design on smaller tiles first, each tiled into the next: auto (anti-mirror, and a colour whose "
-                    "optimal-colour limit is below Y 10 %: from size/2 and its halves while the specular or view cone "
-                    "holds an order besides the central one), off, or tile sizes such as 64,128 (anti-mirror, colour, "
-                    "iridescent)")
+                    "design on smaller tiles first, each tiled into the next: auto (anti-mirror, and a colour or an "
+                    "iridescent pair half of whose optimal-colour limit is below Y 10 %: from size/2 and its halves "
+                    "while the specular or view cone holds an order besides the central one), off, or tile sizes such "
+                    "as 64,128 (anti-mirror, colour, iridescent)")
         ->capture_default_str();
     cmd->add_option("--iterations", a->options.iterations, "relaxed iterations")->capture_default_str();
     cmd->add_option("--refine-passes", a->options.refine_passes, "discrete passes on the levels")

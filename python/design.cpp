@@ -134,9 +134,9 @@ start: a size x size array of heights (um) on the run's levels to start from ins
 relief (the CLI's --start HEIGHTS.exr; e.g. an earlier design's heights_um).
 continuation: 'auto' (the anti-mirror from a random start on an even size: designed on size/2 first,
 and on its halves while one holds an order besides the mirror one inside the specular cone at every
-wavelength, each tiled and continued; so is a colour whose optimal-colour limit is below Y 10 %, with
-the view cone), 'off', or tile sizes such as '64,128' (the CLI's --continuation; anti-mirror, colour
-and iridescent).
+wavelength, each tiled and continued; so is a colour, or an iridescent target with a pair, half of
+whose optimal-colour limit is below Y 10 %, with the view cone), 'off', or tile sizes such as
+'64,128' (the CLI's --continuation; anti-mirror, colour and iridescent).
 out: also write the run directory there (force: reuse one holding only a design's outputs).
 
 Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,

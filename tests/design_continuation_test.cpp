@@ -119,12 +119,14 @@ TEST(DesignContinuation, AutoHalvesWhileTheHalfHoldsAnOrderBesidesTheMirrorInThe
     EXPECT_EQ(coarse.back()[0], 8);
 }
 
-TEST(DesignContinuation, AutoContinuesAColourOnlyWhenNoSpectrumOfItsChromaticityReachesTheLossesY) {
+TEST(DesignContinuation, AutoContinuesAColourWhenHalfItsOptimalColourLimitIsBelowTheLossesY) {
     // The colour acceptance's tile (128², 0.5 µm texels, 16 samples of the white, the mirror
-    // view's cone 0.05). Blue's optimal-colour limit (7.8 % under this light, docs/design.md) is
-    // below the Y the colour loss counts up to (10 %), the other five's are above it (23.8 to
-    // 94.4 %): auto continues blue alone, from the halves whose view cone holds an order besides
-    // the central one at every wavelength: 64² alone (the longest sample, 0.815 µm, lies
+    // view's cone 0.05). A design on its tile alone reaches at most about half of its colour's
+    // optimal-colour limit; auto continues a colour when that half is below the Y the colour loss
+    // counts up to (10 %): of the six blue alone (limit 7.8 %; red 23.8 % and the others above),
+    // and the lighter blues #0040FF (12.1 %), #0060FF (17.3 %) and #2060FF (17.6 %), not #0080FF
+    // (25.0 %) or #4080FF (26.2 %); from the halves whose view cone holds an order besides the
+    // central one at every wavelength: 64² alone (the longest sample, 0.815 µm, lies
     // 0.815 / (64 · 0.5) = 0.025 apart on 64² and 0.051 > 0.05 apart on 32²).
     DesignOptions o = test::small_design("colour:#0000FF", 16, 10, 3);
     o.size = 128;
@@ -136,19 +138,44 @@ TEST(DesignContinuation, AutoContinuesAColourOnlyWhenNoSpectrumOfItsChromaticity
         for (const DesignStage& stage : prepare_design(o).stages) s.push_back(stage.size);
         return s;
     };
-    EXPECT_EQ(sizes("#0000FF"), (std::vector<int>{64}));
-    for (const char* colour : {"#FF0000", "#00FF00", "#00FFFF", "#FF00FF", "#FFFF00"})
+    for (const char* colour : {"#0000FF", "#0040FF", "#0060FF", "#2060FF"})
+        EXPECT_EQ(sizes(colour), (std::vector<int>{64})) << colour;
+    for (const char* colour : {"#FF0000", "#00FF00", "#00FFFF", "#FF00FF", "#FFFF00", "#0080FF", "#4080FF"})
         EXPECT_TRUE(sizes(colour).empty()) << colour;
-    // The rule reads the limit, not the colour's name: a lighter blue (#2060FF, limit 17.6 %) runs
-    // alone under this light, and is continued under a white cut to 0.40-0.50 µm (limit 7.2 %),
-    // where the longest sample, 0.497 µm, lets the halving go on to 32² (0.031 <= 0.05 < 0.062).
-    for (const char* colour : {"#2060FF", "#4080FF"}) EXPECT_TRUE(sizes(colour).empty()) << colour;
+    // The rule reads the limit under the run's light, not the colour's name: under a white cut to
+    // 0.40-0.50 µm #4080FF's limit is 12.6 % and it is continued, from 32² (the longest sample,
+    // 0.497 µm, lets the halving go on: 0.031 <= 0.05 < 0.062).
     o.band_um = {0.40, 0.50};
-    EXPECT_EQ(sizes("#2060FF"), (std::vector<int>{32, 64}));
-    EXPECT_TRUE(sizes("#4080FF").empty());  // 12.6 % under the cut light
+    EXPECT_EQ(sizes("#4080FF"), (std::vector<int>{32, 64}));
     o.band_um = {0.38, 0.78};
     o.continuation = "off";
     EXPECT_TRUE(sizes("#0000FF").empty());
+}
+
+TEST(DesignContinuation, AutoContinuesAnIridescentTargetWhenAnyPairIsInTheLossesCompetingRegime) {
+    // docs/design.md's example (64², 16 samples of 0.40-0.70 µm, view cones 0.08): the pairs'
+    // optimal-colour limits are 41.8, 81.1 and 17.7 % (#2060FF); half of the last is below 10 %, so
+    // auto continues, from 32² (0.69 µm lies 0.043 <= 0.08 apart on 32², 0.086 on 16²); without
+    // that pair the target runs on its tile alone.
+    DesignOptions o = test::small_design("colour:#0000FF", 16, 10, 3);
+    o.size = 64;
+    o.spectral = 16;
+    o.band_um = {0.40, 0.70};
+    o.height_range_um = 2.0;
+    o.view_cone = 0.08;
+    o.target.kind = DesignKind::Iridescent;
+    o.target.text = "iridescent";
+    o.target.pairs = {{{0.3, 0.0}, {255, 96, 0}, {}}, {{0.0, 0.3}, {32, 192, 64}, {}}, {{-0.3, 0.0}, {32, 96, 255}, {}}};
+    for (auto& pair : o.target.pairs)
+        for (std::size_t c = 0; c < 3; ++c) pair.linear_rgb[c] = srgb_decode(pair.srgb8[c] / 255.0);
+    const auto sizes = [&]() {
+        std::vector<int> s;
+        for (const DesignStage& stage : prepare_design(o).stages) s.push_back(stage.size);
+        return s;
+    };
+    EXPECT_EQ(sizes(), (std::vector<int>{32}));
+    o.target.pairs.pop_back();
+    EXPECT_TRUE(sizes().empty());
 }
 
 TEST(DesignContinuation, ATiledReliefScoresAsItsTileByADirectSum) {

@@ -2,6 +2,7 @@
 #include "design/continuation.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -81,13 +82,25 @@ std::vector<int> auto_sizes(const DesignOptions& o, double cone) {
     return sizes;
 }
 
-// Whether no reflectance spectrum of the colour's chromaticity reaches, under this white light, the
-// luminous efficiency the colour loss asks for (its optimal-colour limit below k_colour_loss_min_y):
-// then the loss's chromaticity and brightness terms compete at every relief.
-bool colour_dimmer_than_the_loss_asks(const DesignOptions& o) {
+// The most of its optimal-colour limit a design on its tile alone reaches, rounded up: every
+// colour that reached its chromaticity on the colour acceptance's tile got 21-43 % of its limit,
+// the docs' iridescent pairs 5-16 % (experiments/2026-12-01-colour-continuation-rule.md).
+constexpr double k_reached_share_of_limit = 0.5;
+
+// Whether a colour (or any iridescent pair) is in the regime where the colour loss's two terms
+// compete: half of its optimal-colour limit (the brightest reflectance spectrum of its chromaticity
+// under this white light), the most a design on its tile alone reaches, is below the luminous
+// efficiency the loss asks for (k_colour_loss_min_y), so the tile alone ends where the loss still
+// counts Y and its schedule trades the chromaticity for it.
+bool colour_loss_terms_compete(const DesignOptions& o) {
     const auto weights = colour_xyz_weights(design_wavelengths_um(o));
-    const auto target_uv = xyz_to_uv(linear_srgb_to_xyz(o.target.linear_rgb));
-    return optimal_colour_bound(weights, target_uv, 0.0).y_at_target < k_colour_loss_min_y;
+    const auto dim = [&](const std::array<double, 3>& linear_rgb) {
+        const auto uv = xyz_to_uv(linear_srgb_to_xyz(linear_rgb));
+        return k_reached_share_of_limit * optimal_colour_bound(weights, uv, 0.0).y_at_target < k_colour_loss_min_y;
+    };
+    if (o.target.kind == DesignKind::Colour) return dim(o.target.linear_rgb);
+    return std::any_of(o.target.pairs.begin(), o.target.pairs.end(),
+                       [&](const IridescentPair& pair) { return dim(pair.linear_rgb); });
 }
 
 }  // namespace
@@ -99,7 +112,9 @@ std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool graysc
     if (c == "auto") {
         if (grayscale || !o.start_heights_um.empty() || o.size % 2 != 0) return {};
         if (o.target.kind == DesignKind::AntiMirror) sizes = auto_sizes(o, o.specular_cone);
-        else if (o.target.kind == DesignKind::Colour && colour_dimmer_than_the_loss_asks(o)) sizes = auto_sizes(o, o.view_cone);
+        else if ((o.target.kind == DesignKind::Colour || o.target.kind == DesignKind::Iridescent) &&
+                 colour_loss_terms_compete(o))
+            sizes = auto_sizes(o, o.view_cone);
         else return {};
     } else {
         sizes = parse_continuation_sizes(c);
