@@ -157,25 +157,40 @@ TEST(DesignContinuation, AutoContinuesAnIridescentTargetWhenAnyPairIsInTheLosses
     // optimal-colour limits are 41.8, 81.1 and 17.7 % (#2060FF); half of the last is below 10 %, so
     // auto continues, from 32² (0.69 µm lies 0.043 <= 0.08 apart on 32², 0.086 on 16²); without
     // that pair the target runs on its tile alone.
+    const auto sizes = [](DesignOptions o, std::vector<IridescentPair> pairs) {
+        o.target.kind = DesignKind::Iridescent;
+        o.target.text = "iridescent";
+        for (auto& pair : pairs)
+            for (std::size_t c = 0; c < 3; ++c) pair.linear_rgb[c] = srgb_decode(pair.srgb8[c] / 255.0);
+        o.target.pairs = pairs;
+        std::vector<int> s;
+        for (const DesignStage& stage : prepare_design(o).stages) s.push_back(stage.size);
+        return s;
+    };
     DesignOptions o = test::small_design("colour:#0000FF", 16, 10, 3);
     o.size = 64;
     o.spectral = 16;
     o.band_um = {0.40, 0.70};
     o.height_range_um = 2.0;
     o.view_cone = 0.08;
-    o.target.kind = DesignKind::Iridescent;
-    o.target.text = "iridescent";
-    o.target.pairs = {{{0.3, 0.0}, {255, 96, 0}, {}}, {{0.0, 0.3}, {32, 192, 64}, {}}, {{-0.3, 0.0}, {32, 96, 255}, {}}};
-    for (auto& pair : o.target.pairs)
-        for (std::size_t c = 0; c < 3; ++c) pair.linear_rgb[c] = srgb_decode(pair.srgb8[c] / 255.0);
-    const auto sizes = [&]() {
-        std::vector<int> s;
-        for (const DesignStage& stage : prepare_design(o).stages) s.push_back(stage.size);
-        return s;
-    };
-    EXPECT_EQ(sizes(), (std::vector<int>{32}));
-    o.target.pairs.pop_back();
-    EXPECT_TRUE(sizes().empty());
+    const IridescentPair orange{{0.3, 0.0}, {255, 96, 0}, {}}, green{{0.0, 0.3}, {32, 192, 64}, {}};
+    EXPECT_EQ(sizes(o, {orange, green, {{-0.3, 0.0}, {32, 96, 255}, {}}}), (std::vector<int>{32}));
+    EXPECT_TRUE(sizes(o, {orange, green}).empty());
+    // A pair's cone off the mirror may hold orders of the tile and none of its half: on 16² at
+    // 0.445-0.655 µm a cone of 0.05 about (0, 0.06) holds (0, λ/8 µm) at 0.445 µm, while on 8² the
+    // orders lie λ/4 µm >= 0.111 apart and none is within 0.05 of it. A half given by hand is refused;
+    // auto, whose half's orders lie 0.164 > 0.05 apart, leaves the target on its tile, where it runs.
+    DesignOptions small = small_anti_mirror(2, 0);
+    small.view_cone = 0.05;
+    const IridescentPair near_mirror{{0.0, 0.06}, {32, 96, 255}, {}};
+    EXPECT_TRUE(sizes(small, {near_mirror}).empty());
+    small.target = parse_design_target("colour:#2060FF");
+    small.target.kind = DesignKind::Iridescent;
+    small.target.pairs = {near_mirror};
+    for (std::size_t c = 0; c < 3; ++c) small.target.pairs[0].linear_rgb[c] = small.target.linear_rgb[c];
+    EXPECT_NO_THROW(run_design(prepare_design(small)));
+    small.continuation = "8";
+    EXPECT_THROW(run_design(prepare_design(small)), std::invalid_argument);
 }
 
 TEST(DesignContinuation, ATiledReliefScoresAsItsTileByADirectSum) {

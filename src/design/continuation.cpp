@@ -72,12 +72,18 @@ int scaled_budget(int budget, int size, int tile, std::size_t earlier) {
 // auto's tiles: N/2, then halved again while the half still holds, at every wavelength, an order
 // besides the central one inside the cone of half-width `cone` (the orders lie λ/(n·texel) apart in
 // direction cosines), so that every tile sees the cone's own orders, not one order alone.
-std::vector<int> auto_sizes(const DesignOptions& o, double cone) {
+// Whether an n² tile's orders lie at most `cone` apart at every wavelength (λ/(n·texel) ≤ cone), so
+// that a cone of that half-width holds one wherever it points.
+bool orders_within_cone(const DesignOptions& o, int n, double cone) {
     double lambda_max = 0.0;
     for (double lambda : design_wavelengths_um(o)) lambda_max = std::max(lambda_max, lambda);
+    return lambda_max / (n * o.texel_um) <= cone;
+}
+
+std::vector<int> auto_sizes(const DesignOptions& o, double cone) {
     // Not below a 2² tile, the smallest --size (coarse texels hold the cone's orders on any tile).
     std::vector<int> sizes{o.size / 2};
-    while (sizes.front() % 2 == 0 && sizes.front() / 2 >= 2 && lambda_max / (sizes.front() / 2 * o.texel_um) <= cone)
+    while (sizes.front() % 2 == 0 && sizes.front() / 2 >= 2 && orders_within_cone(o, sizes.front() / 2, cone))
         sizes.insert(sizes.begin(), sizes.front() / 2);
     return sizes;
 }
@@ -112,8 +118,11 @@ std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool graysc
     if (c == "auto") {
         if (grayscale || !o.start_heights_um.empty() || o.size % 2 != 0) return {};
         if (o.target.kind == DesignKind::AntiMirror) sizes = auto_sizes(o, o.specular_cone);
-        else if ((o.target.kind == DesignKind::Colour || o.target.kind == DesignKind::Iridescent) &&
-                 colour_loss_terms_compete(o))
+        else if (o.target.kind == DesignKind::Colour && colour_loss_terms_compete(o)) sizes = auto_sizes(o, o.view_cone);
+        // An iridescent pair's cone, off the mirror, may hold no order of the half tile unless its
+        // orders lie within the cone (the half would then be refused where the tile is not).
+        else if (o.target.kind == DesignKind::Iridescent && colour_loss_terms_compete(o) &&
+                 orders_within_cone(o, o.size / 2, o.view_cone))
             sizes = auto_sizes(o, o.view_cone);
         else return {};
     } else {
