@@ -148,6 +148,16 @@ TEST(DesignContinuation, AutoContinuesAColourWhenHalfItsOptimalColourLimitIsBelo
     o.band_um = {0.40, 0.50};
     EXPECT_EQ(sizes("#4080FF"), (std::vector<int>{32, 64}));
     o.band_um = {0.38, 0.78};
+    // A view off the mirror, whose cone may hold no order of the half tile: under 0.38-0.78 µm
+    // (longest sample 0.7675 µm) 64²'s orders lie up to 0.024 apart and 32²'s 0.048, within the
+    // cone 0.05, so blue is continued as at the mirror; with the cone 0.02, 64²'s are not, and blue
+    // runs alone there, while at the mirror it is continued (the mirror order is in every mirror cone).
+    o.view = std::array<double, 2>{0.2, 0.0};
+    EXPECT_EQ(sizes("#0000FF"), (std::vector<int>{32, 64}));
+    o.view_cone = 0.02;
+    EXPECT_TRUE(sizes("#0000FF").empty());
+    o.view.reset();
+    EXPECT_EQ(sizes("#0000FF"), (std::vector<int>{64}));
     o.continuation = "off";
     EXPECT_TRUE(sizes("#0000FF").empty());
 }

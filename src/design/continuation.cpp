@@ -80,6 +80,12 @@ bool orders_within_cone(const DesignOptions& o, int n, double cone) {
     return lambda_max / (n * o.texel_um) <= cone;
 }
 
+// Whether the run's view cone (or one of them) is centred off the mirror direction.
+bool cone_off_the_mirror(const DesignOptions& o) {
+    if (o.target.kind == DesignKind::Iridescent) return true;
+    return o.view && ((*o.view)[0] != -o.omega_i[0] || (*o.view)[1] != -o.omega_i[1]);
+}
+
 std::vector<int> auto_sizes(const DesignOptions& o, double cone) {
     // Not below a 2² tile, the smallest --size (coarse texels hold the cone's orders on any tile).
     std::vector<int> sizes{o.size / 2};
@@ -118,11 +124,11 @@ std::vector<DesignStage> continuation_stages(const DesignOptions& o, bool graysc
     if (c == "auto") {
         if (grayscale || !o.start_heights_um.empty() || o.size % 2 != 0) return {};
         if (o.target.kind == DesignKind::AntiMirror) sizes = auto_sizes(o, o.specular_cone);
-        else if (o.target.kind == DesignKind::Colour && colour_loss_terms_compete(o)) sizes = auto_sizes(o, o.view_cone);
-        // An iridescent pair's cone, off the mirror, may hold no order of the half tile unless its
-        // orders lie within the cone (the half would then be refused where the tile is not).
-        else if (o.target.kind == DesignKind::Iridescent && colour_loss_terms_compete(o) &&
-                 orders_within_cone(o, o.size / 2, o.view_cone))
+        // A cone off the mirror (an iridescent pair's, a colour's given view) may hold no order of the
+        // half tile unless its orders lie within the cone: the half would design an empty cone (an
+        // iridescent pair's is refused) where the tile does not. The mirror order is in every mirror cone.
+        else if ((o.target.kind == DesignKind::Colour || o.target.kind == DesignKind::Iridescent) &&
+                 colour_loss_terms_compete(o) && (!cone_off_the_mirror(o) || orders_within_cone(o, o.size / 2, o.view_cone)))
             sizes = auto_sizes(o, o.view_cone);
         else return {};
     } else {
