@@ -502,7 +502,7 @@ check_error_bars  the convergence check's own error bars where it needs them (ph
 target_error  photon noise: the rms height error the planner aims at, a fraction of the truth's
               peak to valley (default 0.01; 0: off): where the planned slices' predicted error
               (their error bars and bias; within 1.5x of the target scaled by a pilot of the
-              recovery on 32x32 tiles, result.notes) is more, every slice is taken as several exposures of the noise's N photons, summed
+              recovery on 32x32 to 64x64 tiles, result.notes) is more, every slice is taken as several exposures of the noise's N photons, summed
               (result.noise then says k*N; result.notes says why), at most max_exposures
               (1 ... 10000, default 16); the CLI's --target-error, --max-exposures
 seed          generated truth, position jitter, noise, the thesis's draws

@@ -133,6 +133,7 @@ PhotonPilot pilot_of(int exposures, double ratio, double spread, double se, int 
 // at least 1.
 TEST(PhotonPlan, OneRunsRatioSpreadScalesTheDrawsByThePilotTilesInTheFullTile) {
     PhotonPilot pilot = pilot_of(3, 1.1, 0.05, 0.02);
+    pilot.rows = pilot.cols = 32;
     const double draw_sd = 0.05 * std::sqrt(4.0 / 3.0);
     set_photon_pilot_spread(pilot, 128, 64);  // 8 pilot tiles of 32²
     EXPECT_NEAR(pilot.draw_sd, draw_sd, 1e-12);
@@ -140,9 +141,32 @@ TEST(PhotonPlan, OneRunsRatioSpreadScalesTheDrawsByThePilotTilesInTheFullTile) {
     EXPECT_NEAR(pilot.upper_ratio, 1.1 + 2.0 * std::hypot(0.02, draw_sd / std::sqrt(8.0)), 1e-12);
     set_photon_pilot_spread(pilot, 16, 16);  // smaller than a pilot tile: a draw's own spread
     EXPECT_NEAR(pilot.run_sd, draw_sd, 1e-12);
+    pilot.rows = pilot.cols = 64;  // the pilot's own tiles count, not a fixed side
+    set_photon_pilot_spread(pilot, 128, 64);
+    EXPECT_NEAR(pilot.run_sd, draw_sd / std::sqrt(2.0), 1e-12);
     pilot = pilot_of(3, 0.7, 0.01, 0.01);
     set_photon_pilot_spread(pilot, 64, 64);
     EXPECT_EQ(pilot.upper_ratio, 1.0);  // the first order is a lower bound
+}
+
+// The pilot's tiles (photon_pilot_tile_texels): half the surface's side within 32 … 64, so that the
+// draws fall on places of the surface, not on the surface itself, and hold its error at
+// wavelengths up to 64 texels; its budget (photon_pilot_max_draws): 16 draws of 32² (the texels of
+// 4 draws of 64²), at least 4 draws on any tile, at most 16 on small ones (photon_plan.h).
+TEST(PhotonPlan, ThePilotsTilesAreHalfTheSurfaceWithinItsBoundsAndItsDrawsSpendOneBudgetOfTexels) {
+    EXPECT_EQ(photon_pilot_tile_texels(16, 16), 16);  // the whole surface below 64²
+    EXPECT_EQ(photon_pilot_tile_texels(32, 48), 32);
+    EXPECT_EQ(photon_pilot_tile_texels(64, 64), 32);  // places of the surface, not the surface
+    EXPECT_EQ(photon_pilot_tile_texels(96, 96), 48);
+    EXPECT_EQ(photon_pilot_tile_texels(128, 128), 64);
+    EXPECT_EQ(photon_pilot_tile_texels(512, 256), 64);
+    EXPECT_THROW(photon_pilot_tile_texels(0, 64), std::invalid_argument);
+    EXPECT_EQ(photon_pilot_max_draws(32, 32), 16);
+    EXPECT_EQ(photon_pilot_max_draws(64, 64), 4);
+    EXPECT_EQ(photon_pilot_max_draws(48, 48), 7);  // 16 384 / 2 304
+    EXPECT_EQ(photon_pilot_max_draws(16, 16), 16);
+    EXPECT_EQ(photon_pilot_max_draws(128, 128), 4);
+    EXPECT_THROW(photon_pilot_max_draws(0, 64), std::invalid_argument);
 }
 
 // The pilot's measurement in the plan (apply_photon_pilot): the fewest exposures whose first-order
@@ -340,6 +364,20 @@ TEST(PhotonPlan, ThePilotMeasuresTheRecoverysExcessOnAFinelyStriatedScan) {
                 pilot.ratio, pilot.ratio_sd, r.photon_plan->exposures);
     EXPECT_EQ(pilot.exposures, pilot.first_order_exposures);
     EXPECT_EQ(pilot.rows, 32);
+    // Each draw against the full plan's own model on its tile's heights (draw d on the 2 × 2 grid's
+    // cell (Halton₂(d), Halton₃(d))), not its tile's own proxy (1–2 % higher on plu-1).
+    const auto halton = [](int d, int base) {
+        double x = 0.0, f = 1.0 / base;
+        for (; d > 0; d /= base, f /= base) x += f * (d % base);
+        return x;
+    };
+    for (std::size_t d = 0; d < pilot.predicted_um.size(); ++d) {
+        const int row0 = 32 * std::min(1, int(2.0 * halton(int(d), 2)));
+        const int col0 = 32 * std::min(1, int(2.0 * halton(int(d), 3)));
+        const double own = photon_plan_rms_um(photon_proxy_tile_at(truth, row0, col0, 32, 32), *r.photon_plan,
+                                              pilot.exposures);
+        EXPECT_NEAR(pilot.predicted_um[d], own, 1e-9 * own) << "draw " << d;
+    }
     EXPECT_GT(pilot.ratio - 2.0 * pilot.ratio_sd, 1.0);
     EXPECT_NEAR(pilot.run_sd, pilot.draw_sd / 2.0, 1e-12);  // a 64² tile holds four 32² ones
     EXPECT_NEAR(pilot.upper_ratio, pilot.ratio + 2.0 * std::hypot(pilot.ratio_sd, pilot.run_sd), 1e-12);

@@ -51,26 +51,39 @@ constexpr int k_photon_proxy_texels = 16;
 // estimate is one of many likelihood minima that differ above ~0.4 cycles per texel, 5–16 % above
 // the prediction in rms on plu-1 (experiments/2026-11-30-final-refinement-stall.md). So where the
 // first-order plan's prediction lies within k_photon_pilot_band of the target, the recovery itself
-// (the same acquisition plan, schedule and cold start as the full run) runs on tiles of
-// k_photon_pilot_texels² cut from the planner's surface (draw d on the cell (Halton₂(d), Halton₃(d))
-// of its grid of such cells), on draws of simulated Poisson slices at the first-order plan's
-// exposures; the rms of its errors over the first-order prediction for the same tiles is the
-// measured ratio ρ. The target bounds ONE run's error, not the mean over noise draws, so the
-// exposures for the full tile are the fewest whose prediction times the upper ratio
-// U = max(1, ρ + z √(se² + s_N²)) meets the target (z = k_photon_pilot_z; the first order is a
-// lower bound): se is ρ's standard error over the draws and s_N the spread of one run's ratio on
-// the full tile, taken as a draw's ratio's spread s_draw on a pilot tile scaled by the pilot tiles
-// the full tile holds, s_N = s_draw √(n² / (rows cols)) (the full tile's rms error averages that
-// many independent pilot tiles' squared errors; s_N = s_draw on a tile no larger than a pilot's).
-// The draws go on (at least k_photon_pilot_min_draws, at most k_photon_pilot_max_draws) until
-// ρ + z s_N ± 2 se (which holds U) asks for the same exposures; a draw's ratio scatters by
-// 0.06–0.1 on plu-1's 32² tiles (experiments/2026-11-30-photon-pilot.md). On plu-1 at 10⁴ photons
-// it meets 1 % at 64² to 256² but not on the 128² tile with seeds 1 and 14 (U 1.155 and 1.137 where a
-// fifth exposure needs 1.157: 1.004 % and 1.014 %): the pilot's mean reads that tile's excess low (ρ
-// 1.110 and 1.094 against the tile's own 1.142 over 14 seeds: experiments/2026-11-30-plu1-seeds.md).
-constexpr int k_photon_pilot_texels = 32;
+// (the same acquisition plan, schedule and cold start as the full run) runs on square tiles cut
+// from the planner's surface (draw d on the cell (Halton₂(d), Halton₃(d)) of its grid of such
+// cells), on draws of simulated Poisson slices at the first-order plan's exposures; the rms of its
+// errors over the first-order prediction for the same tiles is the measured ratio ρ. Each tile's
+// prediction is the full tile's model (its variance spectrum, from the full tile's proxy) applied to
+// the tile's own heights (photon_plan_rms_um), so that ρ scales the very prediction the plan
+// multiplies; a tile's own proxy read its first order 1–2 % off the full tile's on plu-1
+// (experiments/2026-12-01-pilot-embedding.md). The tiles are as large as the draws' budget allows:
+// a draw costs ~its texels and its ratio scatters ~1/side, so the budget
+// (k_photon_pilot_budget_texels) buys the same precision on any tile side, while a larger tile
+// holds more of the full tile's error: on plu-1's 128² tile 32² tiles read the ratio 3 % under
+// 64² ones (the error at wavelengths beyond 32 texels, and the recovery's own excess on a small
+// tile). But the tiles must be places of the surface, not the surface itself: draws on the full
+// tile differ only in their noise (on plu-1 64² a ratio spread of 0.004) and miss the spread
+// between acquisitions (0.86–1.02 % over seeds with the same exposures). So the side is half the
+// surface's, within k_photon_pilot_min_texels … k_photon_pilot_texels and at most the surface's
+// (photon_pilot_tile_texels), with at least k_photon_pilot_min_draws draws (photon_pilot_max_draws).
+// The target bounds ONE run's error, not the mean over noise draws, so the exposures for the full
+// tile are the fewest whose prediction times the upper ratio U = max(1, ρ + z √(se² + s_N²)) meets
+// the target (z = k_photon_pilot_z; the first order is a lower bound): se is ρ's standard error
+// over the draws and s_N the spread of one run's ratio on the full tile, taken as a draw's ratio's
+// spread s_draw on a pilot tile scaled by the pilot tiles the full tile holds,
+// s_N = s_draw √(n² / (rows cols)) (the full tile's rms error averages that many independent pilot
+// tiles' squared errors; s_N = s_draw on a tile no larger than a pilot's). The draws go on (at
+// least k_photon_pilot_min_draws, at most photon_pilot_max_draws) until ρ + z s_N ± 2 se (which
+// holds U) asks for the same exposures; a draw's ratio scatters by 0.06–0.1 on plu-1's 32² tiles,
+// 0.03–0.06 on its 64² ones.
+constexpr int k_photon_pilot_texels = 64;      // the largest pilot tile's side
+constexpr int k_photon_pilot_min_texels = 32;  // the smallest (where the surface is larger)
 constexpr int k_photon_pilot_min_draws = 4;
 constexpr int k_photon_pilot_max_draws = 16;
+// The texels the draws recover at most (16 draws of 32², 4 of 64²).
+constexpr long long k_photon_pilot_budget_texels = 16LL * 32 * 32;
 // The pilot runs where the first-order prediction of the plan is at least target / band.
 constexpr double k_photon_pilot_band = 1.5;
 // The one-sided quantile of one run's error ratio the exposures are planned for (2: ~97.5 %).
@@ -165,8 +178,19 @@ Heightfield photon_proxy_tile(const Heightfield& surface, int rows, int cols);
 // The same cut at rows row0 … and columns col0 … (clamped into the surface).
 Heightfield photon_proxy_tile_at(const Heightfield& surface, int row0, int col0, int rows, int cols);
 
+// The side of the pilot's square tiles on a surface of rows × cols: half its smaller side, within
+// k_photon_pilot_min_texels … k_photon_pilot_texels, at most that side (the whole surface below
+// 2 × k_photon_pilot_min_texels). Throws std::invalid_argument for a side < 1.
+int photon_pilot_tile_texels(int rows, int cols);
+
+// The most draws the pilot takes on tiles of rows × cols texels: k_photon_pilot_budget_texels
+// of them, at least k_photon_pilot_min_draws and at most k_photon_pilot_max_draws.
+// Throws std::invalid_argument for a tile side < 1.
+int photon_pilot_max_draws(int rows, int cols);
+
 // The pilot's draw_sd, run_sd and upper_ratio (above) from its draws (errors_um, predicted_um),
-// ratio and ratio_sd, for a full tile of rows × cols.
+// ratio and ratio_sd, for a full tile of rows × cols (the pilot's tiles pilot.rows × pilot.cols,
+// k_photon_pilot_texels² where unset).
 void set_photon_pilot_spread(PhotonPilot& pilot, int rows, int cols);
 
 // The plan `p` (plan_exposures' for `surface`) with the pilot's measurement: `pilot` stored (its

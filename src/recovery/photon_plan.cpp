@@ -328,6 +328,22 @@ double photon_plan_rms_um(const Heightfield& surface, const PhotonPlan& p, int e
     return std::sqrt(variance / double(exposures) + bias * bias);
 }
 
+int photon_pilot_tile_texels(int rows, int cols) {
+    if (rows < 1 || cols < 1)
+        throw std::invalid_argument("surface " + std::to_string(rows) + "x" + std::to_string(cols) +
+                                    " is invalid for the pilot; expected at least 1x1");
+    const int side = std::min(rows, cols);
+    return std::min(side, std::clamp(side / 2, k_photon_pilot_min_texels, k_photon_pilot_texels));
+}
+
+int photon_pilot_max_draws(int rows, int cols) {
+    if (rows < 1 || cols < 1)
+        throw std::invalid_argument("pilot tile " + std::to_string(rows) + "x" + std::to_string(cols) +
+                                    " is invalid; expected at least 1x1");
+    const long long draws = k_photon_pilot_budget_texels / (static_cast<long long>(rows) * cols);
+    return int(std::clamp<long long>(draws, k_photon_pilot_min_draws, k_photon_pilot_max_draws));
+}
+
 void set_photon_pilot_spread(PhotonPilot& pilot, int rows, int cols) {
     const std::size_t n = std::min(pilot.errors_um.size(), pilot.predicted_um.size());
     double mean = 0.0, sum2 = 0.0;
@@ -338,7 +354,9 @@ void set_photon_pilot_spread(PhotonPilot& pilot, int rows, int cols) {
         sum2 += r * r;
     }
     pilot.draw_sd = n > 1 ? std::sqrt(sum2 / double(n - 1)) : 0.0;
-    const double cells = double(rows) * double(cols) / (double(k_photon_pilot_texels) * k_photon_pilot_texels);
+    const double tile = pilot.rows > 0 && pilot.cols > 0 ? double(pilot.rows) * double(pilot.cols)
+                                                         : double(k_photon_pilot_texels) * k_photon_pilot_texels;
+    const double cells = double(rows) * double(cols) / tile;
     pilot.run_sd = pilot.draw_sd / std::sqrt(std::max(1.0, cells));
     pilot.upper_ratio = std::max(1.0, pilot.ratio + k_photon_pilot_z * std::sqrt(pilot.ratio_sd * pilot.ratio_sd +
                                                                                   pilot.run_sd * pilot.run_sd));

@@ -605,9 +605,9 @@ void ratio_of_draws(const std::vector<double>& x, const std::vector<double>& y, 
     pilot.ratio_sd = n > 1.0 ? std::sqrt(spread / (n * (n - 1.0))) / (sy / n) / (2.0 * pilot.ratio) : 0.0;
 }
 
-// A pilot tile (photon_plan.h): the k_photon_pilot_texels² cut at row0, col0 of r.truth, its
-// acquisition planned as the full run's (the full tile's range and measured roughness) and its
-// first-order prediction with `exposures`.
+// A pilot tile (photon_plan.h): the size² cut at row0, col0 of r.truth, its acquisition planned
+// as the full run's (the full tile's range and measured roughness) and its first-order
+// prediction with `exposures` by the full tile's plan (its variance spectrum, the tile's heights).
 struct PilotTile {
     PreparedRecovery run;
     TruthAcquisition a;
@@ -615,16 +615,12 @@ struct PilotTile {
 };
 
 PilotTile pilot_tile(const PreparedRecovery& r, const RecoveryOptions& options, const TruthAcquisition& full,
-                     bool truth_given, int row0, int col0, int exposures) {
+                     bool truth_given, int row0, int col0, int size, int exposures) {
     PilotTile t;
-    t.run = pilot_tile_run(
-        photon_proxy_tile_at(*r.truth, row0, col0, k_photon_pilot_texels, k_photon_pilot_texels), r.range_um);
+    t.run = pilot_tile_run(photon_proxy_tile_at(*r.truth, row0, col0, size, size), r.range_um);
     t.a = plan_truth_acquisition(t.run, options, truth_given,
                                  full.measured_roughness ? &*full.measured_roughness : nullptr);
-    PhotonPlanSettings first_order;
-    first_order.target = 0.0;
-    const PhotonPlan plan = plan_exposures(*t.run.truth, t.a.plan, options.noise.level, r.range_um, first_order);
-    t.predicted_um = photon_plan_rms_um(*t.run.truth, plan, exposures);
+    t.predicted_um = photon_plan_rms_um(*t.run.truth, *r.photon_plan, exposures);
     return t;
 }
 
@@ -635,8 +631,8 @@ double radical_inverse(int d, int base) {
     return x;
 }
 
-// The photon plan's pilot (photon_plan.h): the recovery itself on k_photon_pilot_texels² tiles of
-// r.truth at the first-order plan's exposures, draw d on the cell (Halton(d, 2), Halton(d, 3)) of the
+// The photon plan's pilot (photon_plan.h): the recovery itself on square tiles of side
+// photon_pilot_tile_texels of r.truth at the first-order plan's exposures, draw d on the cell (Halton(d, 2), Halton(d, 3)) of the
 // tile's grid of such cells (so the draws spread over the surface), until the decision is made,
 // against the first-order prediction for the same tiles; or why not.
 PhotonPilot run_photon_pilot(const PreparedRecovery& r, const RecoveryOptions& options, const TruthAcquisition& full,
@@ -667,17 +663,18 @@ PhotonPilot run_photon_pilot(const PreparedRecovery& r, const RecoveryOptions& o
             },
             options.target_error * plan.range_um, options.max_exposures);
     };
-    const int n = k_photon_pilot_texels;
+    const int n = photon_pilot_tile_texels(r.rows, r.cols);
     const int grid_rows = std::max(1, r.rows / n), grid_cols = std::max(1, r.cols / n);
     std::vector<std::optional<PilotTile>> tiles(std::size_t(grid_rows) * std::size_t(grid_cols));
     std::vector<double> x, y;  // each draw's error² and its tile's predicted error²
-    for (int d = 0; d < k_photon_pilot_max_draws; ++d) {
+    const int max_draws = photon_pilot_max_draws(n, n);
+    for (int d = 0; d < max_draws; ++d) {
         const int gr = std::min(grid_rows - 1, int(radical_inverse(d, 2) * grid_rows));
         const int gc = std::min(grid_cols - 1, int(radical_inverse(d, 3) * grid_cols));
         std::optional<PilotTile>& t = tiles[std::size_t(gr) * std::size_t(grid_cols) + std::size_t(gc)];
         if (!t)
             t = pilot_tile(r, options, full, truth_given, gr * (r.rows / grid_rows) + (r.rows / grid_rows - n) / 2,
-                           gc * (r.cols / grid_cols) + (r.cols / grid_cols - n) / 2, plan.exposures);
+                           gc * (r.cols / grid_cols) + (r.cols / grid_cols - n) / 2, n, plan.exposures);
         const double e = photon_pilot_error_um(*t->run.truth, r.range_um, options, t->a,
                                                options.noise.level * plan.exposures,
                                                detail::derive_seed(options.seed, 0x9170 + std::uint64_t(d)), limit);
