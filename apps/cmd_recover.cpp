@@ -570,7 +570,7 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--target-error", a->target_error,
                     "photon noise: the rms height error the planner aims at, a fraction of the truth's peak to "
                     "valley (0: off); where the planned slices' predicted error (their error bars and bias, "
-                    "within 1.5x of the target scaled by a pilot of the recovery on 32x32 tiles) is more, every "
+                    "within 1.5x of the target scaled by a pilot of the recovery on 32x32 to 64x64 tiles) is more, every "
                     "slice is taken as several exposures of the --noise photons, summed")
         ->capture_default_str();
     cmd->add_option("--max-exposures", a->max_exposures,
