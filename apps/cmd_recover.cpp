@@ -69,7 +69,7 @@ struct RecoverArgs {
     double position_error_texels = 0.0;  // --simulate-position-error-texels
     std::string simulate_exposure;       // --simulate-exposure MIN,MAX ("": none)
     double sigma_factor = 1.0;           // --simulate-sigma-factor
-    bool save_observations = false, quiet = false, no_plots = false, force = false;
+    bool save_observations = false, quiet = false, no_plots = false, force = false, plan_only = false;
     bool uncertainty = false;  // error bars: uncertainty.exr (uncertainty.h)
     std::string check_error_bars = "auto";  // --check-error-bars (convergence.h)
     // Whether --texel-um / --vscale were given: when not, a --truth file's attributes apply.
@@ -221,6 +221,9 @@ void run(const RecoverArgs& a, const Communicator& comm) {
         options.errors.exposure_max = range[1];
     }
     options.uncertainty = a.uncertainty;
+    options.plan_only = a.plan_only;
+    if (a.plan_only && a.save_observations)
+        throw std::invalid_argument("--plan-only renders no slices; expected --save-observations without it");
     options.check_error_bars = parse_check_error_bars(a.check_error_bars);
     // The planned acquisition's model and wavelengths (given observations bring their own).
     if (a.observations.empty()) {
@@ -341,6 +344,11 @@ void run(const RecoverArgs& a, const Communicator& comm) {
     RecoveryDirectoryOptions out;
     out.dir = a.out;
     out.force = a.force;
+    if (r.plan_only) {
+        write_recovery_plan(r, options, out, comm);
+        if (!quiet) std::fprintf(stderr, "plan only: nothing simulated or recovered; run.json in %s\n", a.out.c_str());
+        return;
+    }
     out.save_observations = a.save_observations;
     out.observations_path = a.save_observations_path;
     Calibration calibration;
@@ -576,6 +584,9 @@ void add_recover_command(CLI::App& app) {
     cmd->add_option("--max-exposures", a->max_exposures,
                     "photon noise: at most this many exposures per slice for --target-error (1 to 10000)")
         ->capture_default_str();
+    cmd->add_flag("--plan-only", a->plan_only,
+                  "plan the acquisition and the photons (with the pilot) as the run would, print the plan, write "
+                  "run.json alone in --out and stop before simulating a slice");
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--quiet", a->quiet, "no progress or summary");
     add_conditioning_options(cmd, a->conditioning);

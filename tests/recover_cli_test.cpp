@@ -72,6 +72,9 @@ TEST(RecoverCliTest, BadInputFailsWithOneLineAndWritesNothing) {
         {"--calibrate positions --overlap 0.96 --out " + out, {"--overlap", "0.96", "0.6 to 0.95"}},
         {"--position-uncertainty-um -2 --out " + out, {"--position-uncertainty-um", "-2", "0 to 1e6"}},
         {"--observations o.json --simulate-sigma-factor 1.2 --size 8 --out " + out, {"--simulate-", "--truth"}},
+        // A plan needs a truth to plan for, and renders nothing to save.
+        {"--observations o.json --size 8 --plan-only --out " + out, {"--plan-only", "--observations", "nothing to plan"}},
+        {"--size 8 --plan-only --save-observations --out " + out, {"--plan-only", "--save-observations"}},
     };
     for (const Case& c : cases) {
         SCOPED_TRACE(c.args);
@@ -249,4 +252,43 @@ TEST(RecoverCliTest, SmoothScheduleLeavesNoSingleTexelOutlier) {
     // Whether the trap occurs depends on the build's float rounding: the Release build lands in it
     // (and the repair reports repair:outliers), the sanitizer build (other optimisation) does not.
     // So the outcome is asserted here; the repair itself is OutlierRepair.*'s.
+}
+
+// --plan-only plans as the run does (the same photon plan and pilot, the same slices) and writes
+// run.json alone. 16² of 20 nm at 1e5 photons: the first-order plan asks 3 exposures and the pilot
+// runs (one 16² tile, 4 draws), so a plan that skipped or changed it would differ from the run's.
+TEST(RecoverCliTest, PlanOnlyPlansAsTheRunAndWritesRunJsonAlone) {
+    const fs::path dir = fresh_dir("recover");
+    const std::string args =
+        "recover --size 16 --resolution 48 --noise poisson:1e5 --height-range-um 0.02 --seed 4 --no-plots --threads 1";
+    const CliResult plan = run_cli(dir, args + " --plan-only --out plan");
+    ASSERT_EQ(plan.exit_code, 0) << plan.err;
+    EXPECT_NE(plan.err.find("plan: photon-limited"), std::string::npos) << plan.err;
+    std::vector<std::string> written;
+    for (const auto& e : fs::directory_iterator(dir / "plan")) written.push_back(e.path().filename().string());
+    EXPECT_EQ(written, std::vector<std::string>{"run.json"});
+    const CliResult full = run_cli(dir, args + " --quiet --save-observations --out full");
+    ASSERT_EQ(full.exit_code, 0) << full.err;
+    const auto p = nlohmann::json::parse(read_text(dir / "plan" / "run.json"));
+    const auto f = nlohmann::json::parse(read_text(dir / "full" / "run.json"));
+    EXPECT_TRUE(p.at("plan_only").get<bool>());
+    EXPECT_FALSE(p.contains("convergence") || p.contains("finished"));
+    for (const char* key : {"plan", "noise", "loss", "observations", "wavelengths_um", "sigma_p_um", "resolution", "size"})
+        EXPECT_EQ(p.at(key), f.at(key)) << key;
+    const auto& pp = p.at("photon_plan");
+    const auto& fp = f.at("photon_plan");
+    EXPECT_EQ(pp.at("exposures").get<int>(), 3);
+    for (const char* key : {"exposures", "capped", "predicted_error", "predicted_error_one_exposure", "predicted_bias_um"})
+        EXPECT_EQ(pp.at(key), fp.at(key)) << key;
+    ASSERT_TRUE(pp.at("pilot").at("ran").get<bool>());
+    for (const char* key : {"errors_um", "predicted_um", "ratio", "ratio_sd", "upper_ratio", "exposures"})
+        EXPECT_EQ(pp.at("pilot").at(key), fp.at("pilot").at(key)) << key;
+    // The footprint centres: the run's slices' positions (one light, one wavelength: one slice each).
+    const auto slices = nlohmann::json::parse(read_text(dir / "full" / "observations.json")).at("observations");
+    const auto& positions = p.at("positions_um");
+    ASSERT_EQ(positions.size(), slices.size());
+    for (std::size_t k = 0; k < slices.size(); ++k) {
+        EXPECT_EQ(positions[k][0].get<double>(), slices[k].at("x_um").get<double>()) << k;
+        EXPECT_EQ(positions[k][1].get<double>(), slices[k].at("y_um").get<double>()) << k;
+    }
 }

@@ -141,6 +141,10 @@ struct RecoveryOptions {
     // Whether the convergence check computes error bars of its own where it needs them
     // (convergence.h: auto, by the cost rule; always; off).
     CheckErrorBars check_error_bars = CheckErrorBars::Auto;
+    // Plan only (a truth, given or generated): prepare_recovery plans the acquisition and the
+    // photons (plan_photons with its pilot) as the run would, then stops before simulating:
+    // `observations` holds the planned slices without references, for write_recovery_plan.
+    bool plan_only = false;
     // How prepare_recovery's messages name the options (the front end's spelling).
     OptionStyle names = OptionStyle::Cli;
 };
@@ -184,6 +188,7 @@ struct PreparedRecovery {
     // them on rank 0); kept only on several ranks.
     std::vector<std::size_t> share;
     std::size_t total_observations = 0;
+    bool plan_only = false;  // options.plan_only: observations are the planned slices, not rendered
     int ranks = 1;
     std::vector<Observation> catalogue;
     // With a truth and options.errors: the true acquisition errors of `observations` (this

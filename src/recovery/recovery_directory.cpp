@@ -1,6 +1,7 @@
 #include "wavebrdf/threads.h"
 #include "wavebrdf/recovery_directory.h"
 
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <exception>
@@ -88,6 +89,14 @@ nlohmann::json run_json(const PreparedRecovery& r, const RecoveryOptions& option
     }
     if (options.simulator != Simulator::Gabor) run["simulator"] = to_string(options.simulator);
     if (!r.metric_note.empty()) run["height_rel_rmse"] = r.metric_note;
+    if (r.plan_only) {  // the footprint centres, each position once (its lights and wavelengths follow it)
+        std::vector<std::array<double, 2>> positions;
+        for (const Observation& o : r.observations)
+            if (positions.empty() || positions.back() != std::array<double, 2>{o.query.x_um, o.query.y_um})
+                positions.push_back({o.query.x_um, o.query.y_um});
+        run["plan_only"] = true;
+        run["positions_um"] = positions;
+    }
     return run;
 }
 
@@ -196,6 +205,17 @@ nlohmann::json convergence_json(const ConvergenceCheck& convergence, const Prepa
 }
 
 }  // namespace
+
+void write_recovery_plan(const PreparedRecovery& r, const RecoveryOptions& options, const RecoveryDirectoryOptions& out,
+                         const Communicator& comm) {
+    if (!r.plan_only)
+        throw std::invalid_argument("write_recovery_plan: the recovery was prepared to run; expected plan_only");
+    run_agreed(comm, [&] {
+        if (!comm.is_root()) return;
+        prepare_run_directory(RunKind::Recover, out.dir, out.force, out.option);
+        write_text_atomically(out.dir + "/run.json", run_json(r, options).dump(1) + "\n");
+    });
+}
 
 Heightfield run_recovery_in_directory(const PreparedRecovery& r, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,

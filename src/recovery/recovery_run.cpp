@@ -251,6 +251,9 @@ void check_recovery_options(const RecoveryOptions& options, const RecoveryInputs
     if (given.truth && given.observations)
         throw std::invalid_argument(truth + " and " + observations +
                                     " exclude each other; expected one of them (or neither)");
+    if (options.plan_only && given.observations)
+        throw std::invalid_argument(name("plan_only") + " plans the acquisition of a truth; with " + observations +
+                                    " there is nothing to plan; expected " + truth + " or the generated truth");
     if (options.noise.kind != NoiseKind::None && given.observations)
         throw std::invalid_argument(name("noise") + " '" + to_string(options.noise) +
                                     "' simulates noise on rendered observations; it needs " + truth +
@@ -775,7 +778,14 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         }
         measured = std::move(a.measured);
         measured_roughness = std::move(a.measured_roughness);
-        simulate_planned_observations(r, exposed, a.plan, limit, show_progress, comm, catalogue);
+        if (options.plan_only) {  // the slices as planned, nothing rendered
+            r.plan_only = true;
+            r.notes = a.plan.notes;
+            r.observations = planned_observations(a.plan);
+            r.total_observations = r.observations.size();
+        } else {
+            simulate_planned_observations(r, exposed, a.plan, limit, show_progress, comm, catalogue);
+        }
         if (r.photon_plan) r.notes.push_back(r.photon_plan->note);
     }
     if (r.truth) {
@@ -801,6 +811,9 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
 Heightfield run_recovery(const PreparedRecovery& r, const std::function<bool(const StageMetrics&)>& on_step,
                          const Communicator& comm, Calibration* calibration) {
     if (calibration) *calibration = Calibration{};
+    if (r.plan_only)
+        throw std::invalid_argument("run_recovery: the recovery was prepared as a plan only (its slices are not "
+                                    "rendered); expected one prepared without plan_only");
     if (comm.size() != r.ranks)
         throw std::invalid_argument("run_recovery: the recovery was prepared for " + std::to_string(r.ranks) +
                                     " ranks but runs on " + std::to_string(comm.size()) +
