@@ -66,6 +66,13 @@ struct RecoveryDirectoryOptions {
     ConvergenceCheck* convergence = nullptr;
 };
 
+// The plan of `prepared` (prepare_recovery with options.plan_only) into out.dir: prepares the
+// directory as run_recovery_in_directory does and writes run.json alone (the plan, the photon
+// plan with its pilot, "plan_only": true, the footprint centres as "positions_um"; no metrics).
+// Throws std::invalid_argument for a recovery prepared to run. Collective (rank 0 writes).
+void write_recovery_plan(const PreparedRecovery& prepared, const RecoveryOptions& options,
+                         const RecoveryDirectoryOptions& out, const Communicator& comm = serial_communicator());
+
 // Runs `prepared` (prepare_recovery with `options`) into out.dir: prepares the directory
 // (prepare_run_directory: a new or empty one, or with out.force one of recover's own runs),
 // checks that metrics.csv can be written, writes run.json, the observations (when asked) and
@@ -85,13 +92,6 @@ struct RecoveryDirectoryOptions {
 // report (on every rank). When the loss leaves no noise to estimate (height_uncertainty's
 // std::domain_error / std::invalid_argument, alike on every rank) the estimate is still written,
 // the bars are not, rank 0 warns on stderr and `uncertainty` is left as it was.
-// The plan of `prepared` (prepare_recovery with options.plan_only) into out.dir: prepares the
-// directory as run_recovery_in_directory does and writes run.json alone (the plan, the photon
-// plan with its pilot, "plan_only": true, the footprint centres as "positions_um"; no metrics).
-// Throws std::invalid_argument for a recovery prepared to run. Collective (rank 0 writes).
-void write_recovery_plan(const PreparedRecovery& prepared, const RecoveryOptions& options,
-                         const RecoveryDirectoryOptions& out, const Communicator& comm = serial_communicator());
-
 Heightfield run_recovery_in_directory(const PreparedRecovery& prepared, const RecoveryOptions& options,
                                       const RecoveryDirectoryOptions& out,
                                       const std::function<bool(const StageMetrics&)>& on_step = {},
