@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -252,6 +253,33 @@ TEST(RecoverCliTest, SmoothScheduleLeavesNoSingleTexelOutlier) {
     // Whether the trap occurs depends on the build's float rounding: the Release build lands in it
     // (and the repair reports repair:outliers), the sanitizer build (other optimisation) does not.
     // So the outcome is asserted here; the repair itself is OutlierRepair.*'s.
+}
+
+// The plan-only path without photon noise (no pilot), small enough for the sanitizer pass: run.json
+// alone, marked plan_only, one footprint centre per planned slice, each distinct and on the surface.
+TEST(RecoverCliTest, PlanOnlyWithoutPhotonNoiseWritesTheSlicesPositionsAlone) {
+    const fs::path dir = fresh_dir("recover");
+    const CliResult plan = run_cli(dir, "recover --size 16 --resolution 48 --height-range-um 0.02 --seed 4 --no-plots "
+                                        "--threads 1 --plan-only --out plan");
+    ASSERT_EQ(plan.exit_code, 0) << plan.err;
+    EXPECT_NE(plan.err.find("49 positions on a 7x7 raster"), std::string::npos) << plan.err;
+    std::vector<std::string> written;
+    for (const auto& e : fs::directory_iterator(dir / "plan")) written.push_back(e.path().filename().string());
+    EXPECT_EQ(written, std::vector<std::string>{"run.json"});
+    const auto p = nlohmann::json::parse(read_text(dir / "plan" / "run.json"));
+    EXPECT_TRUE(p.at("plan_only").get<bool>());
+    EXPECT_FALSE(p.contains("photon_plan"));
+    const auto& positions = p.at("positions_um");
+    ASSERT_EQ(positions.size(), 49u);
+    EXPECT_EQ(p.at("observations").get<std::size_t>(), positions.size());
+    const double side_um = 16 * p.at("texel_um").get<double>();
+    std::set<std::pair<double, double>> distinct;
+    for (const auto& c : positions) {
+        const double x = c[0].get<double>(), y = c[1].get<double>();
+        EXPECT_TRUE(x >= 0.0 && x <= side_um && y >= 0.0 && y <= side_um) << x << ", " << y;
+        distinct.insert({x, y});
+    }
+    EXPECT_EQ(distinct.size(), positions.size());
 }
 
 // --plan-only plans as the run does (the same photon plan and pilot, the same slices) and writes

@@ -470,15 +470,21 @@ AcquisitionPlan perturbed_plan(const AcquisitionPlan& plan, const AcquisitionErr
     return true_plan;
 }
 
+// The plan's notes and its slices' count as r's; returns every planned slice, not rendered.
+std::vector<Observation> adopt_plan(PreparedRecovery& r, const AcquisitionPlan& plan) {
+    r.notes = plan.notes;
+    std::vector<Observation> planned = planned_observations(plan);
+    r.total_observations = planned.size();
+    return planned;
+}
+
 // This rank's share of the plan's observations rendered from r.truth (with acquisition errors:
 // for the true acquisition, handed over with the nominal one, and r.true_calibration set).
 // Under MPI `catalogue` gets every planned observation.
 void simulate_planned_observations(PreparedRecovery& r, const RecoveryOptions& options, const AcquisitionPlan& plan,
                                    const MemoryLimit& limit, bool show_progress, const Communicator& comm,
                                    std::vector<Observation>& catalogue) {
-    r.notes = plan.notes;
-    std::vector<Observation> planned = planned_observations(plan);
-    r.total_observations = planned.size();
+    const std::vector<Observation> planned = adopt_plan(r, plan);
     r.share = observation_share(positions_of(planned), comm.rank(), comm.size());
     std::vector<Observation> mine;
     for (std::size_t i : r.share) mine.push_back(planned[i]);
@@ -780,9 +786,7 @@ PreparedRecovery prepare_recovery(const RecoveryOptions& options, const Heightfi
         measured_roughness = std::move(a.measured_roughness);
         if (options.plan_only) {  // the slices as planned, nothing rendered
             r.plan_only = true;
-            r.notes = a.plan.notes;
-            r.observations = planned_observations(a.plan);
-            r.total_observations = r.observations.size();
+            r.observations = adopt_plan(r, a.plan);
         } else {
             simulate_planned_observations(r, exposed, a.plan, limit, show_progress, comm, catalogue);
         }
