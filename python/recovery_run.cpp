@@ -14,6 +14,7 @@
 #include "wavebrdf/convergence.h"
 #include "wavebrdf/generate.h"
 #include "wavebrdf/observation_file.h"
+#include "wavebrdf/recovery_directory.h"
 #include "wavebrdf/recovery_run.h"
 #include "wavebrdf/spectrum.h"
 #include "wavebrdf/uncertainty.h"
@@ -34,6 +35,7 @@ struct RecoveryResult {
     py::object uncertainty = py::none();
     double median_sigma_um = NAN, coverage_1sigma = NAN, coverage_2sigma = NAN, uncertainty_seconds = NAN;
     py::dict convergence;  // the run's own verdict, without the truth (convergence.h)
+    py::object plan;       // run.json's plan as a dict (recovery_plan_json)
 };
 
 // run.json's "convergence" block (recovery_directory.cpp) as a dict, with its warning line.
@@ -97,7 +99,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
                        const py::object& lambdas_um, int spectral, const py::object& noise, const py::object& loss,
                        const std::string& method, const py::object& calibrate, bool with_uncertainty,
                        const std::string& check_error_bars, double target_error, int max_exposures,
-                       std::uint64_t seed, const py::object& callback,
+                       std::uint64_t seed, bool plan_only, const py::object& callback,
                        double max_memory_gb, const py::object& quiet, const py::object& comm_arg,
                        const py::object& settings, const py::kwargs& old_keywords) {
     const RecoverKnobs k = knobs_argument(
@@ -156,6 +158,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     options.white_smoothness_iterations = optional_count(k.white_smoothness_iterations, "white_smoothness_iterations");
     options.epochs = knob<int>(k.epochs, "epochs", "an epoch count >= 0");
     options.seed = seed;
+    options.plan_only = plan_only;
     options.max_memory_gb = max_memory_gb;
     options.uncertainty = with_uncertainty;  // the plan refines to the minimum first (recovery_run.h)
     try {
@@ -209,8 +212,23 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
             prepared = prepare_recovery(options, truth ? &*truth : nullptr, std::move(observations), false, *comm);
         });
     }
-    std::vector<StageMetrics> history;
     RecoveryResult result;
+    result.plan = py::module_::import("json").attr("loads")(recovery_plan_json(*prepared, options));
+    result.truth = prepared->truth ? py::cast(*prepared->truth) : py::none();
+    result.observations = py::cast(prepared->observations);
+    result.notes = prepared->notes;
+    result.warnings = prepared->warnings;
+    result.method = to_string(prepared->method);
+    result.loss = to_string(prepared->loss);
+    result.noise = to_string(prepared->noise);
+    result.height_range_um = prepared->range_um;
+    if (plan_only) {  // the plan alone: nothing simulated or recovered
+        result.estimate = py::none();
+        result.metrics = py::dict();
+        result.calibration = py::none();
+        return result;
+    }
+    std::vector<StageMetrics> history;
     // Progress (progress.h): a bar per iterating stage of the length the run reports with each
     // step, closed however the run ends. Under MPI only rank 0 shows progress.
     PythonProgress progress("wrap_recover", callback, comm->is_root() ? quiet : py::object(py::bool_(true)));
@@ -228,15 +246,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
     if (prepared->true_calibration) cal["truth"].cast<py::dict>().attr("pop")("refined");
     result.calibration = cal;
     result.estimate = py::cast(estimate);
-    result.truth = prepared->truth ? py::cast(*prepared->truth) : py::none();
-    result.observations = py::cast(prepared->observations);
     result.metrics = metrics_columns(history);
-    result.notes = prepared->notes;
-    result.warnings = prepared->warnings;
-    result.method = to_string(prepared->method);
-    result.loss = to_string(prepared->loss);
-    result.noise = to_string(prepared->noise);
-    result.height_range_um = prepared->range_um;
     // The error bars and whether it converged: the library's, as for the CLI (judge_recovery).
     ModelCheckMisfits misfits;
     for (const StageMetrics& m : history) misfits.record(m);
@@ -271,7 +281,7 @@ RecoveryResult recover(const py::object& truth_arg, const py::object& observatio
 void bind_recovery_run(py::module_& m) {
     // ---- the CLI's run -----------------------------------------------------------------------
     py::class_<RecoveryResult>(m, "RecoveryResult", "What recover() returns.")
-        .def_readonly("estimate", &RecoveryResult::estimate, "the recovered Heightfield")
+        .def_readonly("estimate", &RecoveryResult::estimate, "the recovered Heightfield (None with plan_only=True)")
         .def_readonly("truth", &RecoveryResult::truth,
                       "the truth Heightfield (given or generated; None with observations)")
         .def_readonly("observations", &RecoveryResult::observations,
@@ -288,6 +298,11 @@ height_rel_rmse_plane_removed (float64; NaN without a truth or before heights ex
         .def_readonly("noise", &RecoveryResult::noise, "the simulated noise, as a spec")
         .def_readonly("height_range_um", &RecoveryResult::height_range_um,
                       "the truth's peak-to-valley (um), or the bound given with observations")
+        .def_readonly("plan", &RecoveryResult::plan, R"doc(
+dict: the plan as the CLI's run.json states it before the run (its notes as "plan", the
+wavelengths, resolution, noise and loss, with photon noise "photon_plan" with its pilot); with
+plan_only=True also plan_only (True) and positions_um, the footprint centres in order.
+)doc")
         .def_readonly("stopped", &RecoveryResult::stopped, "True when the callback stopped the run early")
         .def_readonly("calibration", &RecoveryResult::calibration, R"doc(
 dict of the self-calibration (calibration.h): refined (str, e.g. 'exposure,sigma' or 'none'),
@@ -454,7 +469,7 @@ refine_history  L-BFGS history of the refinement (>= 1); refine_loss: 'amplitude
           "sigma_p_um"_a = ro.sigma_p_um, "position_uncertainty_um"_a = py::none(), "resolution"_a = ro.resolution,
           "lambdas_um"_a = py::none(), "spectral"_a = ro.spectral, "noise"_a = "none", "loss"_a = py::none(),
           "method"_a = "pipeline", "calibrate"_a = py::none(), "uncertainty"_a = false, "check_error_bars"_a = "auto",
-          "target_error"_a = ro.target_error, "max_exposures"_a = ro.max_exposures, "seed"_a = ro.seed, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb, "quiet"_a = py::none(),
+          "target_error"_a = ro.target_error, "max_exposures"_a = ro.max_exposures, "seed"_a = ro.seed, "plan_only"_a = false, "callback"_a = py::none(), "max_memory_gb"_a = ro.max_memory_gb, "quiet"_a = py::none(),
           "comm"_a = py::none(), "settings"_a = py::none(), R"doc(
 Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
 options and seed give the same estimate. Returns a RecoveryResult.
@@ -506,6 +521,10 @@ target_error  photon noise: the rms height error the planner aims at, a fraction
               (result.noise then says k*N; result.notes says why), at most max_exposures
               (1 ... 10000, default 16); the CLI's --target-error, --max-exposures
 seed          generated truth, position jitter, noise, the thesis's draws
+plan_only     True: plan the acquisition (with photon noise the exposures and their pilot) as
+              the run would and stop there, nothing simulated or recovered (the CLI's
+              --plan-only): result.plan holds the plan with "positions_um", the footprint
+              centres; result.observations the planned slices (no references); estimate None
 callback      callback(metrics: dict with stage, kind, total (the stage's planned iterations, 0
               for a result: what the progress bars show), iteration, loss, seconds,
               height_rel_rmse) after every reported step; return False to stop early.

@@ -73,6 +73,11 @@ struct RecoveryDirectoryOptions {
 void write_recovery_plan(const PreparedRecovery& prepared, const RecoveryOptions& options,
                          const RecoveryDirectoryOptions& out, const Communicator& comm = serial_communicator());
 
+// run.json's text for `prepared` before the run (the plan, the photon plan with its pilot; with
+// options.plan_only also "plan_only" and the footprint centres as "positions_um"): what
+// write_recovery_plan writes, for callers without a directory (the Python module).
+std::string recovery_plan_json(const PreparedRecovery& prepared, const RecoveryOptions& options);
+
 // Runs `prepared` (prepare_recovery with `options`) into out.dir: prepares the directory
 // (prepare_run_directory: a new or empty one, or with out.force one of recover's own runs),
 // checks that metrics.csv can be written, writes run.json, the observations (when asked) and

@@ -750,7 +750,7 @@ class RecoveryResult:
     """What recover() returns."""
     @property
     def estimate(self) -> Any:
-        """the recovered Heightfield"""
+        """the recovered Heightfield (None with plan_only=True)"""
         ...
     @property
     def truth(self) -> Any:
@@ -790,6 +790,13 @@ class RecoveryResult:
     @property
     def height_range_um(self) -> float:
         """the truth's peak-to-valley (um), or the bound given with observations"""
+        ...
+    @property
+    def plan(self) -> Any:
+        """dict: the plan as the CLI's run.json states it before the run (its notes as "plan", the
+        wavelengths, resolution, noise and loss, with photon noise "photon_plan" with its pilot); with
+        plan_only=True also plan_only (True) and positions_um, the footprint centres in order.
+        """
         ...
     @property
     def stopped(self) -> bool:
@@ -1150,7 +1157,7 @@ def read_slice(path: Union[str, os.PathLike]) -> tuple:
     """
     ...
 
-def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., position_uncertainty_um: Any = ..., resolution: int = ..., lambdas_um: Any = ..., spectral: int = ..., noise: Any = ..., loss: Any = ..., method: str = ..., calibrate: Any = ..., uncertainty: bool = ..., check_error_bars: str = ..., target_error: float = ..., max_exposures: int = ..., seed: int = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., settings: Any = ..., **kwargs: Any) -> RecoveryResult:
+def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel_um: Any = ..., vscale: Any = ..., height_range_um: float = ..., correlation_texels: Any = ..., model: str = ..., light: Any = ..., sigma_p_um: float = ..., position_uncertainty_um: Any = ..., resolution: int = ..., lambdas_um: Any = ..., spectral: int = ..., noise: Any = ..., loss: Any = ..., method: str = ..., calibrate: Any = ..., uncertainty: bool = ..., check_error_bars: str = ..., target_error: float = ..., max_exposures: int = ..., seed: int = ..., plan_only: bool = ..., callback: Any = ..., max_memory_gb: float = ..., quiet: Any = ..., comm: Any = ..., settings: Any = ..., **kwargs: Any) -> RecoveryResult:
     """Heightfield recovery as ``wavebrdf recover`` runs it, without its output directory: the same
     options and seed give the same estimate. Returns a RecoveryResult.
 
@@ -1201,6 +1208,10 @@ def recover(truth: Any = ..., observations: Any = ..., *, size: Any = ..., texel
                   (result.noise then says k*N; result.notes says why), at most max_exposures
                   (1 ... 10000, default 16); the CLI's --target-error, --max-exposures
     seed          generated truth, position jitter, noise, the thesis's draws
+    plan_only     True: plan the acquisition (with photon noise the exposures and their pilot) as
+                  the run would and stop there, nothing simulated or recovered (the CLI's
+                  --plan-only): result.plan holds the plan with "positions_um", the footprint
+                  centres; result.observations the planned slices (no references); estimate None
     callback      callback(metrics: dict with stage, kind, total (the stage's planned iterations, 0
                   for a result: what the progress bars show), iteration, loss, seconds,
                   height_rel_rmse) after every reported step; return False to stop early.

@@ -206,6 +206,10 @@ nlohmann::json convergence_json(const ConvergenceCheck& convergence, const Prepa
 
 }  // namespace
 
+std::string recovery_plan_json(const PreparedRecovery& r, const RecoveryOptions& options) {
+    return run_json(r, options).dump(1);
+}
+
 void write_recovery_plan(const PreparedRecovery& r, const RecoveryOptions& options, const RecoveryDirectoryOptions& out,
                          const Communicator& comm) {
     if (!r.plan_only)

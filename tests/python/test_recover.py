@@ -486,3 +486,28 @@ def test_recover_settings_group_the_rare_keywords():
                              (wb.RecoverSettings(epochs="many"), "epochs = 'many' is invalid")]:
         with pytest.raises(ValueError, match=needle):
             wb.recover(size=8, settings=settings)
+
+
+def test_plan_only_plans_as_the_cli_and_stops(cli, tmp_path):
+    """recover(plan_only=True) plans as `wavebrdf recover --plan-only` does, the photon plan's pilot
+    included (16² of 20 nm at 1e5 photons: 3 exposures, a pilot of 4 draws), and recovers nothing."""
+    args = dict(size=16, resolution=48, noise="poisson:1e5", height_range_um=0.02, seed=4)
+    subprocess.run([cli, "recover", "--size", "16", "--resolution", "48", "--noise", "poisson:1e5",
+                    "--height-range-um", "0.02", "--seed", "4", "--no-plots", "--threads", "1", "--quiet",
+                    "--plan-only", "--out", str(tmp_path / "plan")], check=True)
+    with open(tmp_path / "plan" / "run.json", encoding="utf-8") as f:
+        want = json.load(f)
+    r = wb.recover(**args, plan_only=True, quiet=True)
+    assert r.estimate is None and r.metrics == {}
+    got = r.plan
+    assert got["plan_only"] is True
+    for key in ("plan", "noise", "loss", "observations", "wavelengths_um", "sigma_p_um", "positions_um"):
+        assert got[key] == want[key], key
+    assert got["photon_plan"]["exposures"] == want["photon_plan"]["exposures"] == 3
+    assert got["photon_plan"]["pilot"]["ran"]
+    for key in ("errors_um", "ratio", "upper_ratio", "exposures"):
+        assert got["photon_plan"]["pilot"][key] == want["photon_plan"]["pilot"][key], key
+    assert len(r.observations) == len(got["positions_um"]) == got["observations"]
+    assert r.noise == "poisson:300000"
+    with pytest.raises(ValueError, match="plan_only"):
+        wb.recover(observations=r.observations, plan_only=True, quiet=True)
