@@ -635,14 +635,8 @@ double start_levels(PreparedDesign& p, double step) {
                                     num(o.height_range_um));
     const bool free = step_is_free(p);
     if (free) {
-        std::vector<double> d(h);
-        std::sort(d.begin(), d.end());
-        const double top = d.back();
-        double gap = 0.0;
-        for (std::size_t i = 1; i < d.size(); ++i)
-            if (d[i] - d[i - 1] > 1e-6 * std::max(top, 1e-12) && (gap == 0.0 || d[i] - d[i - 1] < gap)) gap = d[i] - d[i - 1];
-        if (gap == 0.0 && top > 0.0) gap = top;   // one height, not 0: level 1
-        if (gap > 0.0) step = top / std::round(top / gap);  // the top level's multiple, exact where the heights are
+        const double given = detail::start_step_um(h);
+        if (given > 0.0) step = given;
         if (!(step * (o.levels - 1) <= o.height_range_um * (1.0 + 1e-6)))
             throw std::domain_error("--start's heights are " + num(step) + " um apart; " + std::to_string(o.levels) +
                                     " levels of that step reach " + num(step * (o.levels - 1)) +

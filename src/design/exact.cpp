@@ -87,6 +87,18 @@ LevelRelief to_level_relief(const std::vector<double>& heights_um, int max_level
     return r;
 }
 
+double start_step_um(const std::vector<double>& heights_um) {
+    if (heights_um.empty()) return 0.0;
+    std::vector<double> d(heights_um);
+    std::sort(d.begin(), d.end());
+    const double top = d.back();
+    double gap = 0.0;
+    for (std::size_t i = 1; i < d.size(); ++i)
+        if (d[i] - d[i - 1] > 1e-6 * std::max(top, 1e-12) && (gap == 0.0 || d[i] - d[i - 1] < gap)) gap = d[i] - d[i - 1];
+    if (gap == 0.0 && top > 0.0) gap = top;  // one height, not 0: level 1
+    return gap > 0.0 ? top / std::round(top / gap) : 0.0;
+}
+
 std::vector<std::vector<double>> level_flux(const LevelRelief& relief, int size,
                                             const std::vector<OrderSet>& order_sets, double height_scale) {
     const std::size_t n2 = static_cast<std::size_t>(size) * static_cast<std::size_t>(size);

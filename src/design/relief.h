@@ -22,6 +22,12 @@ struct LevelRelief {
 // max_levels levels, else rounded onto max_levels levels across their range).
 LevelRelief to_level_relief(const std::vector<double>& heights_um, int max_levels);
 
+// The level step a relief's heights give (a --start relief, read from float32 heights.exr): the
+// top height over the nearest integer of top / the smallest gap, gaps under 1e-6 of the top
+// being rounding, not levels (exact where the heights are on a grid from 0); the top itself where
+// there is one non-zero height (level 1); 0 where every height is 0 (no step to read).
+double start_step_um(const std::vector<double>& heights_um);
+
 // Flux Φ_o of every order of every order set (design.h's definition), heights scaled by
 // height_scale (a fabrication error).
 std::vector<std::vector<double>> level_flux(const LevelRelief& relief, int size, const std::vector<OrderSet>& order_sets,
