@@ -217,7 +217,7 @@ void write_recovery_plan(const PreparedRecovery& r, const RecoveryOptions& optio
     run_agreed(comm, [&] {
         if (!comm.is_root()) return;
         prepare_run_directory(RunKind::Recover, out.dir, out.force, out.option);
-        write_text_atomically(out.dir + "/run.json", run_json(r, options).dump(1) + "\n");
+        write_text_atomically(out.dir + "/run.json", recovery_plan_json(r, options) + "\n");
     });
 }
 
