@@ -36,6 +36,7 @@ struct DesignArgs {
     double plate_pixel_um = 0.0;
     std::vector<double> band_um;
     double view_x = 0.0, view_y = 0.0;
+    int anneal_sweeps = 0;
     bool given_view = false, given_spectral = false, given_lambda = false, force = false, quiet = false, no_plots = false,
          no_view_survey = false;
     DesignOptions options;
@@ -159,6 +160,12 @@ void run(DesignArgs a) {
     }
     long long steps = o.iterations + o.refine_passes;
     for (const DesignStage& s : prepared.stages) steps += s.iterations + s.refine_passes;
+    if (prepared.anneal_sweeps > 0) {
+        // The loop designs the first tile alone, then the sweeps; the run's tile is scored, not designed.
+        steps = prepared.stages.empty() ? o.iterations + o.refine_passes
+                                        : prepared.stages.front().iterations + prepared.stages.front().refine_passes;
+        steps += prepared.anneal_sweeps;
+    }
     Progress progress("design", steps, !a.quiet);
     const DesignResult result = run_design(prepared, [&](const DesignStep& s) {
         progress.advance();
@@ -332,6 +339,10 @@ void add_design_command(CLI::App& app) {
                     "while the specular or view cone holds an order besides the central one), off, or tile sizes such "
                     "as 64,128 (anti-mirror, colour, iridescent)")
         ->capture_default_str();
+    auto* anneal = cmd->add_option(
+        "--anneal-sweeps", a->anneal_sweeps,
+        "anti-mirror on levels: heat-bath sweeps over the continuation's smallest tile after the loop designed it, "
+        "then that tile repeated and scored (default 400 from a random start; 0: none)");
     cmd->add_option("--iterations", a->options.iterations, "relaxed iterations")->capture_default_str();
     cmd->add_option("--refine-passes", a->options.refine_passes, "discrete passes on the levels")
         ->capture_default_str();
@@ -342,8 +353,9 @@ void add_design_command(CLI::App& app) {
     cmd->add_flag("--no-plots", a->no_plots, "do not draw report.png");
     cmd->add_flag("--no-view-survey", a->no_view_survey,
                   "colour: when the colour is missed, do not design it for other views (design.json view_survey)");
-    cmd->callback([a, spectral, lambda, vx, vy, levels] {
+    cmd->callback([a, spectral, lambda, vx, vy, levels, anneal] {
         a->given_spectral = spectral->count() > 0;
+        if (anneal->count() > 0) a->options.anneal_sweeps = a->anneal_sweeps;
         // A grayscale relief has no levels: --min-feature-um without --levels.
         if (a->options.min_feature_um != 0.0 && levels->count() == 0) a->options.levels = 0;
         a->given_lambda = lambda->count() > 0;

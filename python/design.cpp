@@ -19,7 +19,7 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
                 int levels, double level_step_um, double min_feature_um, const std::string& fabrication_error,
                 std::uint64_t seed, int iterations, int refine_passes, double max_memory_gb,
                 double delta_uv_tolerance, double delta_uv_ceiling, const py::object& start,
-                const std::string& continuation) {
+                const std::string& continuation, const py::object& anneal_sweeps) {
     DesignOptions o;
     if (!image.is_none()) {
         if (target != "pattern")
@@ -56,6 +56,7 @@ py::dict design(const std::string& target, const py::object& image, const py::ob
     o.delta_uv_tolerance = delta_uv_tolerance;
     o.delta_uv_ceiling = delta_uv_ceiling;
     o.continuation = continuation;
+    if (!anneal_sweeps.is_none()) o.anneal_sweeps = anneal_sweeps.cast<int>();
     if (!start.is_none()) {
         const py::array a = float_array(start, "start");
         check_shape(a, {size, size}, "start");
@@ -119,7 +120,7 @@ void bind_design(py::module_& m) {
           "size"_a = 256, "texel_um"_a = 0.5, "height_range_um"_a = 2.0, "levels"_a = 8, "level_step_um"_a = 0.0,
           "min_feature_um"_a = 0.0, "fabrication_error"_a = "", "seed"_a = 1, "iterations"_a = 200,
           "refine_passes"_a = 60, "max_memory_gb"_a = 0.0, "delta_uv_tolerance"_a = 0.0, "delta_uv_ceiling"_a = 0.04, "start"_a = py::none(),
-          "continuation"_a = "auto",
+          "continuation"_a = "auto", "anneal_sweeps"_a = py::none(),
           R"(A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
 target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
@@ -137,6 +138,9 @@ and on its halves while one holds an order besides the mirror one inside the spe
 wavelength, each tiled and continued; so is a colour, or an iridescent target with a pair, half of
 whose optimal-colour limit is below Y 10 %, with the view cone), 'off', or tile sizes such as
 '64,128' (the CLI's --continuation; anti-mirror, colour and iridescent).
+anneal_sweeps: the anti-mirror's annealed last stage (the CLI's --anneal-sweeps): heat-bath sweeps over
+the continuation's smallest tile after the loop designed it, then that tile repeated and scored;
+None: 400 where it applies (levels, a random start, no fabrication errors), 0: none.
 out: also write the run directory there (force: reuse one holding only a design's outputs).
 
 Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,

@@ -151,6 +151,12 @@ TEST(DesignCli, BadInputGetsOneLineBeforeAnyWork) {
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --fabrication-error scale:90%"), {"scale"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --region ring:1"), {"ring:1"});
     expect_one_line_naming(run_cli(dir, "design --size 16 --out a --max-memory-gb 0.000001"), {"max-memory-gb"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --anneal-sweeps -1"), {"--anneal-sweeps -1"});
+    expect_one_line_naming(run_cli(dir, "design --size 16 --out a --spectral 4 --target colour:#00ff00 --anneal-sweeps 5"),
+                           {"--anneal-sweeps 5", "colour:#00ff00"});
+    expect_one_line_naming(run_cli(dir, "design --size 256 --out a --spectral 16 --band-um 0.4,0.7 --continuation off "
+                                        "--anneal-sweeps 400"),
+                           {"--anneal-sweeps 400", "256x256", "CPU-s"});
     EXPECT_FALSE(fs::exists(dir / "a"));
 }
 

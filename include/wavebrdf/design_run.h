@@ -133,6 +133,14 @@ struct DesignOptions {
     // "auto": the anti-mirror on levels from a random start, even size: size/2 and its halves while
     // one holds an order besides the mirror one in the specular cone at every λ. Schedules: also colour.
     std::string continuation = "auto";
+    // The anti-mirror's annealed last stage (`--anneal-sweeps`, docs/design.md): heat-bath sweeps
+    // over the continuation's smallest tile (the run's own tile without one) after the loop designed
+    // it, each texel drawn among its levels by the exact far field, then that tile repeated to
+    // `size` and scored, in place of the larger tiles' polish. Unset: 400 where it applies (the
+    // anti-mirror on levels from a random start, no fabrication errors, the sweeps' estimated CPU
+    // within an hour), else none, said in the notes; 0: none (the continuation as before);
+    // 1 … 100000: those sweeps, refused where annealing does not apply.
+    std::optional<int> anneal_sweeps;
     // The optimisation.
     std::uint64_t seed = 1;
     int iterations = 200;       // relaxed (softmax over levels) iterations, 0 … 100000
@@ -172,6 +180,11 @@ struct PreparedDesign {
     std::shared_ptr<detail::Target> target;
     std::vector<int> start_level;   // the start relief's level per texel (empty: a random start)
     std::vector<DesignStage> stages;  // the continuation's smaller tiles, designed first (empty: none)
+    // The annealed last stage (DesignOptions::anneal_sweeps): its sweeps (0: none), the tile it
+    // anneals (the first stage's, else the run's own) and its estimated CPU seconds.
+    int anneal_sweeps = 0;
+    int anneal_size = 0;
+    double anneal_cpu_estimate_s = 0.0;
 };
 
 // Estimated peak memory (bytes) of a design with these options (orders of every wavelength, the

@@ -904,7 +904,7 @@ def condition_surface(heights_um: Any, dx_um: float, dy_um: Any = ..., fill: str
     """
     ...
 
-def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., cone_limit: float = ..., uniformity_limit: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ..., start: Any = ..., continuation: str = ...) -> dict:
+def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..., light: List[float[2]] = ..., lambda_um: Any = ..., spectral: Any = ..., band_um: List[float[2]] = ..., specular_cone: float = ..., cone_limit: float = ..., uniformity_limit: float = ..., region: str = ..., window: float = ..., view: Any = ..., view_cone: float = ..., size: int = ..., texel_um: float = ..., height_range_um: float = ..., levels: int = ..., level_step_um: float = ..., min_feature_um: float = ..., fabrication_error: str = ..., seed: int = ..., iterations: int = ..., refine_passes: int = ..., max_memory_gb: float = ..., delta_uv_tolerance: float = ..., delta_uv_ceiling: float = ..., start: Any = ..., continuation: str = ..., anneal_sweeps: Any = ...) -> dict:
     """A texel relief for a target appearance: `wavebrdf design` (docs/design.md), the same library run.
 
     target: 'anti-mirror', 'pattern:IMAGE.png', 'colour:#RRGGBB', 'iridescent:SPEC.json' (view and colour
@@ -922,6 +922,9 @@ def design(target: str = ..., image: Any = ..., out: Any = ..., force: bool = ..
     wavelength, each tiled and continued; so is a colour, or an iridescent target with a pair, half of
     whose optimal-colour limit is below Y 10 %, with the view cone), 'off', or tile sizes such as
     '64,128' (the CLI's --continuation; anti-mirror, colour and iridescent).
+    anneal_sweeps: the anti-mirror's annealed last stage (the CLI's --anneal-sweeps): heat-bath sweeps over
+    the continuation's smallest tile after the loop designed it, then that tile repeated and scored;
+    None: 400 where it applies (levels, a random start, no fabrication errors), 0: none.
     out: also write the run directory there (force: reuse one holding only a design's outputs).
 
     Returns a dict: heights_um (size x size float64, um), level (each texel's level index), levels_um,

@@ -4,10 +4,13 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
 
+#include "design/anneal.h"
 #include "design/colour_bound.h"
 #include "design/target.h"
 #include "wavebrdf/design.h"
@@ -165,7 +168,7 @@ void start_from_tile(PreparedDesign& p, const std::vector<int>& level, int n, do
 }
 
 // design.json of the last tile, told that it continued `stages` (their schedule entries).
-std::string continued_json(const PreparedDesign& p, const std::string& last_json, nlohmann::json stages,
+std::string continued_json(const PreparedDesign& p, double rule, const std::string& last_json, nlohmann::json stages,
                            double stage_seconds, double total_seconds) {
     nlohmann::json j = nlohmann::json::parse(last_json);
     const DesignOptions& o = p.options;
@@ -184,7 +187,6 @@ std::string continued_json(const PreparedDesign& p, const std::string& last_json
     j["start"] = "random (seed) on the continuation's first tile, " + std::to_string(stages[0]["size"].get<int>()) +
                  " x " + std::to_string(stages[0]["size"].get<int>());
     if (j.contains("level_step")) {
-        const double rule = p.levels_um[1] - p.levels_um[0];
         j["level_step"]["what"] = "the anti-mirror's level step, a design variable: started on the rule's step on the "
                                   "continuation's first tile and moved with the texels by its gradient on every tile, "
                                   "(levels - 1) x step <= height_range_um";
@@ -201,6 +203,93 @@ std::string continued_json(const PreparedDesign& p, const std::string& last_json
     j["timings_s"]["continuation"] = stage_seconds;
     j["timings_s"]["total"] = total_seconds;
     return j.dump(2);
+}
+
+// design.json of an annealed run (continued_json's, from the last tile's): the loop designed the
+// n² tile, the anneal ("anneal" block) was its last stage, the run's tile is that relief repeated.
+std::string annealed_json(const PreparedDesign& p, int n, const std::string& json, nlohmann::json anneal) {
+    nlohmann::json j = nlohmann::json::parse(json);
+    const DesignOptions& o = p.options;
+    const std::string tile = std::to_string(n) + "x" + std::to_string(n);
+    j["continuation"]["what"] = "the loop designed the " + tile + " tile" +
+                                (p.stages.empty() ? "" : " (the continuation's first)") +
+                                ", the anneal (anneal) was its last stage, and the " + std::to_string(o.size) + "x" +
+                                std::to_string(o.size) + " tile is that relief repeated and scored (a tiled relief "
+                                "reflects exactly its tile's orders), not polished";
+    j["options"]["anneal_sweeps"] = p.anneal_sweeps;
+    if (!p.start_level.empty()) j["start"] = "the given relief (start_heights_um, --start)";
+    if (!anneal.is_null()) {
+        j["timings_s"]["anneal"] = anneal["seconds"];
+        j["anneal"] = std::move(anneal);
+    }
+    if (j.contains("level_step")) {
+        j["level_step"]["what"] = "the anti-mirror's level step, a design variable: moved with the texels by its gradient "
+                                  "while the loop designed the " + tile + " tile, then fixed while annealing, "
+                                  "(levels - 1) x step <= height_range_um";
+        for (auto& note : j["notes"])
+            if (note.get<std::string>().find("designed on the continuation's tiles") != std::string::npos) {
+                std::string text = note.get<std::string>();
+                text.replace(text.find("on the continuation's tiles"), std::string("on the continuation's tiles").size(),
+                             "on the " + tile + " tile (then annealed)");
+                note = text;
+            }
+    }
+    return j.dump(2);
+}
+
+// The annealed last stage (anneal.h) on the tile sp designed, from its relief `level` on levels
+// `step` apart: the relief kept, and design.json's "anneal" block. Reports every sweep through
+// `report` as a step of phase "anneal NxN" (loss: 1 − the annealed objective; temperature: T);
+// a false return stops the sweeps.
+struct AnnealedTile {
+    std::vector<int> level;
+    nlohmann::json json;
+};
+AnnealedTile anneal_tile(const PreparedDesign& sp, int sweeps, double cpu_estimate_s, const std::vector<int>& level,
+                         double step, const DesignStepFn& report) {
+    const DesignOptions& o = sp.options;
+    const auto t0 = ContinuationClock::now();
+    AnnealSchedule schedule;
+    schedule.sweeps = sweeps;
+    schedule.seed = o.seed;
+    const AnnealAims aims = anneal_aims(o.cone_limit, o.uniformity_limit);
+    const std::string phase = "anneal " + std::to_string(o.size) + "x" + std::to_string(o.size);
+    int run = 0;
+    const AnnealOutcome a = anneal_relief(
+        *sp.order_sets, *sp.target, o.size, o.levels, step, aims, schedule, level, [&](const AnnealProgress& g) {
+            run = g.sweep;
+            return !report || report({phase, g.sweep - 1, 1.0 - g.current.objective, g.temperature});
+        });
+    const auto scores = [](const AnnealScore& s) {
+        return nlohmann::json{{"region_fraction_mean", s.region}, {"specular_fraction_worst", s.cone_worst},
+                              {"uniformity_worst", s.uniformity_worst}, {"within_aims", s.within_aims}};
+    };
+    nlohmann::json j{
+        {"what", "heat-bath sweeps over the tile's texels, each texel set to a level drawn with probability "
+                 "proportional to exp(objective / T) by the exact far field updated move by move; objective: the "
+                 "region's band mean less the augmented-Lagrangian terms (max(0, l + rho g)^2 - l^2) / (2 rho) of "
+                 "g = x / aim - 1 for the cone's fraction and the uniformity at every wavelength, the multipliers l "
+                 "moved after every sweep (l <- max(0, l + rho g)); T geometric from t_start to t_end; then "
+                 "best-improvement passes from the last relief and from the best one; kept: the relief within both "
+                 "aims at every wavelength of the highest region among the loop's, the best seen and the passes' ends"},
+        {"tile", o.size},
+        {"sweeps", sweeps},
+        {"sweeps_run", run},
+        {"schedule", {{"t_start", schedule.t_start}, {"t_end", schedule.t_end}, {"kind", "geometric"}}},
+        {"rho", schedule.rho},
+        {"aims", {{"cone", aims.cone}, {"uniformity", aims.uniformity}}},
+        {"greedy_passes", schedule.greedy_passes},
+        {"seed", schedule.seed},
+        {"level_step_um", step},
+        {"before", scores(a.start)},
+        {"after", scores(a.kept)},
+        {"kept_from", a.kept_from},
+        {"moves", a.moves},
+        {"greedy_moves", a.greedy_moves},
+        {"cpu_s", a.cpu_seconds},
+        {"cpu_estimate_s", cpu_estimate_s},
+        {"seconds", continuation_seconds(t0)}};
+    return {a.level, j};
 }
 
 }  // namespace
@@ -223,12 +312,22 @@ DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step,
     std::vector<int> level;
     int n = 0;
     double step = 0.0;
-    for (const DesignStage& s : p.stages) {
+    // Annealed: the loop designs the first tile alone (the run's own without a continuation), and
+    // the anneal on it is the last stage.
+    const bool anneal = p.anneal_sweeps > 0;
+    std::vector<DesignStage> schedule = p.stages;
+    if (anneal) {
+        if (schedule.empty()) schedule.push_back({p.options.size, p.options.iterations, p.options.refine_passes});
+        schedule.resize(1);
+    }
+    std::optional<PreparedDesign> first;
+    for (const DesignStage& s : schedule) {
         DesignOptions o = p.options;
         o.size = s.size;
         o.iterations = s.iterations;
         o.refine_passes = s.refine_passes;
         o.continuation = "off";
+        o.anneal_sweeps = 0;
         o.survey_views = false;  // an earlier tile is no design of its own: the last tile surveys
         const auto t0 = ContinuationClock::now();
         tile = " " + std::to_string(s.size) + "x" + std::to_string(s.size);
@@ -243,15 +342,32 @@ DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step,
         n = s.size;
         step = r.levels_um[1] - r.levels_um[0];
         if (!curve.empty()) offset = curve.back().iteration + 1;
+        if (anneal) first = std::move(sp);
+    }
+    nlohmann::json anneal_json;
+    if (anneal && !stopped) {
+        tile.clear();
+        AnnealedTile a = anneal_tile(*first, p.anneal_sweeps, p.anneal_cpu_estimate_s, level, step, forward);
+        level = std::move(a.level);
+        anneal_json = std::move(a.json);
+        if (!curve.empty()) offset = curve.back().iteration + 1;
     }
     const double stage_seconds = continuation_seconds(start);
     tile.clear();
     PreparedDesign last = p;
     last.stages.clear();
     start_from_tile(last, level, n, step);
+    if (anneal) {
+        // The annealed tile repeated is the design: scored as it is (a tiled relief reflects exactly its
+        // tile's orders), not polished (the loop's phases from it lower the region it reached).
+        last.options.iterations = 0;
+        last.options.refine_passes = 0;
+    }
     DesignResult r = run_one(last, forward);
     r.curve = std::move(curve);
-    r.metrics_json = continued_json(p, r.metrics_json, std::move(stages), stage_seconds, continuation_seconds(start));
+    r.metrics_json = continued_json(anneal ? last : p, p.levels_um[1] - p.levels_um[0], r.metrics_json,
+                                    std::move(stages), stage_seconds, continuation_seconds(start));
+    if (anneal) r.metrics_json = annealed_json(p, n, r.metrics_json, std::move(anneal_json));
     return r;
 }
 

@@ -17,6 +17,7 @@
 #include <stdexcept>
 
 #include "core/random.h"
+#include "design/anneal.h"
 #include "design/blur_term.h"
 #include "design/colour_bound.h"
 #include "design/continuation.h"
@@ -654,6 +655,68 @@ double start_levels(PreparedDesign& p, double step) {
     return step;
 }
 
+namespace {
+
+// The most CPU the annealed stage may be estimated to take (anneal_cpu_estimate_s): its sweeps cost
+// grows as the tile's size to the fourth (every texel against every order).
+constexpr double k_anneal_max_cpu_s = 3600.0;
+
+// The annealed last stage (DesignOptions::anneal_sweeps) into p: where it applies, its sweeps,
+// tile and estimated CPU; refusals (std::invalid_argument naming the value) where it was asked for
+// and does not apply; a note where the default does not apply to an anti-mirror on levels.
+void plan_anneal(PreparedDesign& p, bool grayscale) {
+    const DesignOptions& o = p.options;
+    const bool given = o.anneal_sweeps.has_value();
+    const int sweeps = given ? *o.anneal_sweeps : detail::k_anneal_default_sweeps;
+    const std::string text = "--anneal-sweeps " + std::to_string(sweeps);
+    if (given) require_range(sweeps, 0, 100000, "--anneal-sweeps", "0 to 100000 sweeps");
+    if (sweeps == 0) return;
+    if (o.target.kind != DesignKind::AntiMirror) {
+        if (given)
+            throw std::invalid_argument(text + " with --target " + o.target.text +
+                                        ": annealing is the anti-mirror's last stage; expected 0 or no --anneal-sweeps");
+        return;
+    }
+    std::string why_not;
+    if (grayscale) why_not = "a grayscale relief (--min-feature-um) has no levels to anneal";
+    else if (o.errors.scale > 0.0 || o.errors.blur_um > 0.0)
+        why_not = "the annealed stage scores the relief as drawn, not under --fabrication-error";
+    if (!why_not.empty()) {
+        if (given) throw std::invalid_argument(text + ": " + why_not + "; expected 0 or no --anneal-sweeps");
+        p.notes.push_back("not annealed: " + why_not);
+        return;
+    }
+    if (!given && !o.start_heights_um.empty()) {
+        p.notes.push_back("not annealed: the run starts from the given relief (--start); give --anneal-sweeps S to anneal it");
+        return;
+    }
+    const int n = p.stages.empty() ? o.size : p.stages.front().size;
+    const double tile = static_cast<double>(n) / o.size;
+    const double estimate = detail::anneal_cpu_estimate_s(static_cast<double>(p.orders) * tile * tile, n, o.levels, sweeps);
+    if (estimate > k_anneal_max_cpu_s) {
+        const std::string what = std::to_string(sweeps) + " sweeps of the " + std::to_string(n) + "x" + std::to_string(n) +
+                                 " tile would take about " + format_number(estimate, "%.0f") +
+                                 " CPU-s (a sweep costs as the tile's size to the fourth), more than " +
+                                 format_number(k_anneal_max_cpu_s, "%.0f");
+        if (given)
+            throw std::invalid_argument(text + ": " + what +
+                                        "; expected fewer sweeps, a smaller first tile (--continuation auto or n1,...), or 0");
+        p.notes.push_back("not annealed: " + what + "; give --anneal-sweeps S to anneal fewer sweeps");
+        return;
+    }
+    p.anneal_sweeps = sweeps;
+    p.anneal_size = n;
+    p.anneal_cpu_estimate_s = estimate;
+    p.notes.push_back("annealed last stage: " + std::to_string(sweeps) + " sweeps of the " + std::to_string(n) + "x" +
+                      std::to_string(n) + " tile after the loop designed it, about " + format_number(estimate, "%.0f") +
+                      " CPU-s (estimated)" +
+                      (n < o.size ? ", then repeated to " + std::to_string(o.size) + "x" + std::to_string(o.size) +
+                                        " and scored"
+                                  : ""));
+}
+
+}  // namespace
+
 PreparedDesign prepare_design(const DesignOptions& options) {
     // A grayscale design (min_feature_um > 0, levels 0) is evaluated on k_grayscale_levels levels.
     DesignOptions grey = options;
@@ -768,6 +831,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
         }
     p.target->assign(*sets);
     p.order_sets = sets;
+    plan_anneal(p, grayscale);
     if (o.errors.blur_um > 0.0)
         p.notes.push_back(grayscale ? "the blur error is scored, not designed for: a grayscale loop averages the height scale errors only"
                                     : "the blur error is designed for in the discrete refinement (the relaxed phase averages the height scale errors only)");
@@ -830,7 +894,7 @@ nlohmann::json view_survey(const PreparedDesign& p) {
 }  // namespace
 
 DesignResult run_design(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step) {
-    if (!p.stages.empty())
+    if (!p.stages.empty() || p.anneal_sweeps > 0)
         return detail::run_continued(p, on_step, [](const PreparedDesign& one, const detail::DesignStepFn& f) {
             return run_design_impl(one, f, one.options.survey_views);
         });

@@ -174,8 +174,10 @@ def test_a_continued_design_cli_and_python_give_the_same_design(cli, tmp_path):
             "--iterations", "8", "--refine-passes", "4", "--seed", "7", "--quiet", "--no-plots"]
     for schedule in ("auto", "4,8"):
         out = tmp_path / schedule.replace(",", "_")
-        subprocess.run([cli, "design", "--out", str(out), "--continuation", schedule] + args, check=True)
-        r = wb.design(**SMALL, continuation=schedule)
+        # The continuation alone: no annealed last stage (test_an_annealed_design_...).
+        subprocess.run([cli, "design", "--out", str(out), "--continuation", schedule, "--anneal-sweeps", "0"] + args,
+                       check=True)
+        r = wb.design(**SMALL, continuation=schedule, anneal_sweeps=0)
         hf = wb.Heightfield.from_exr(str(out / "heights.exr"))
         np.testing.assert_allclose((np.asarray(hf.values) * hf.texel_um * hf.vscale).reshape(16, 16), r["heights_um"],
                                    atol=1e-6)
@@ -187,7 +189,7 @@ def test_a_continued_design_cli_and_python_give_the_same_design(cli, tmp_path):
         assert doc["continuation"]["schedule"][0]["iterations"] == 8 * (16 // sizes[0]) ** 2 // (len(sizes) - 1)
         assert doc["metrics"]["exact"]["region_fraction_mean"] == pytest.approx(
             r["metrics"]["exact"]["region_fraction_mean"], rel=1e-12)
-    off = wb.design(**SMALL, continuation="off")
+    off = wb.design(**SMALL, continuation="off", anneal_sweeps=0)
     assert [s["size"] for s in off["design"]["continuation"]["schedule"]] == [16]
     assert not np.array_equal(off["heights_um"], r["heights_um"])
     with pytest.raises(ValueError, match="--continuation 6: tile 6 does not divide 16"):
@@ -196,4 +198,39 @@ def test_a_continued_design_cli_and_python_give_the_same_design(cli, tmp_path):
                        capture_output=True, text=True)
     assert p.returncode != 0
     assert p.stderr.strip().count("\n") == 0 and "--continuation fast is not a schedule" in p.stderr
+    assert not (tmp_path / "bad").exists()
+
+
+def test_an_annealed_design_cli_and_python_give_the_same_design(cli, tmp_path):
+    # The anti-mirror's annealed last stage, by default from a random start (400 sweeps) and with
+    # --anneal-sweeps given: the loop designs the 8^2 tile, the anneal is its last stage, the 16^2
+    # tile is that relief repeated; the CLI and wb.design give the same relief and anneal block.
+    args = ["--size", "16", "--spectral", "3", "--band-um", "0.45,0.65", "--levels", "4", "--height-range-um", "1",
+            "--iterations", "8", "--refine-passes", "4", "--seed", "7", "--quiet", "--no-plots"]
+    for sweeps in (None, 30):
+        out = tmp_path / f"anneal_{sweeps}"
+        extra = [] if sweeps is None else ["--anneal-sweeps", str(sweeps)]
+        subprocess.run([cli, "design", "--out", str(out)] + args + extra, check=True)
+        r = wb.design(**SMALL, anneal_sweeps=sweeps)
+        hf = wb.Heightfield.from_exr(str(out / "heights.exr"))
+        np.testing.assert_allclose((np.asarray(hf.values) * hf.texel_um * hf.vscale).reshape(16, 16), r["heights_um"],
+                                   atol=1e-6)
+        doc = json.loads((out / "design.json").read_text())
+        assert doc["anneal"]["sweeps"] == (400 if sweeps is None else sweeps)
+        assert doc["anneal"]["tile"] == 8
+        assert r["design"]["anneal"]["moves"] == doc["anneal"]["moves"]
+        assert [s["size"] for s in doc["continuation"]["schedule"]] == [8, 16]
+        level = r["level"]
+        assert np.array_equal(level, np.tile(level[:8, :8], (2, 2)))
+        assert doc["metrics"]["exact"]["region_fraction_mean"] == pytest.approx(
+            r["metrics"]["exact"]["region_fraction_mean"], rel=1e-12)
+        assert sum(1 for c in r["curve"] if c[2] == "anneal 8x8") == doc["anneal"]["sweeps_run"]
+    with pytest.raises(ValueError, match="--anneal-sweeps -1"):
+        wb.design(**SMALL, anneal_sweeps=-1)
+    with pytest.raises(ValueError, match="--anneal-sweeps 5 with --target colour:#00FF00"):
+        wb.design(**dict(SMALL, spectral=4), target="colour:#00FF00", anneal_sweeps=5)
+    p = subprocess.run([cli, "design", "--out", str(tmp_path / "bad"), "--anneal-sweeps", "200000"] + args,
+                       capture_output=True, text=True)
+    assert p.returncode != 0
+    assert p.stderr.strip().count("\n") == 0 and "--anneal-sweeps 200000" in p.stderr
     assert not (tmp_path / "bad").exists()
