@@ -2,6 +2,7 @@
 // Observations: reference BRDF slices with the queries that produced them, and the loss of a
 // heightfield against a set of them, with its gradient (summed over wavelengths, positions,
 // light directions; spectral slices through the CIE → sRGB weights).
+#include <array>
 #include <cstddef>
 #include <memory>
 #include <string>
@@ -46,6 +47,10 @@ void validate(const Observation& observation, std::size_t index = 0);
 std::vector<float> to_reference(const std::vector<double>& values);
 // Observation::reference (or any float slice) as doubles, for the functions that take a double slice.
 std::vector<double> to_doubles(const std::vector<float>& values);
+
+// The footprint centre (query.x_um, query.y_um) of each observation, in order: the positions
+// observation_share (communicator.h) splits.
+std::vector<std::array<double, 2>> footprint_centres(const std::vector<Observation>& observations);
 
 // What `observation` would see of `heightfield`: resolution² · channels() values (double).
 std::vector<double> render_observation(const Heightfield& heightfield, const Observation& observation,

@@ -177,17 +177,6 @@ std::vector<double> option_wavelengths(const InversionOptions& o) {
     return spectral_wavelengths_um(count);
 }
 
-}  // namespace
-
-namespace {
-
-// The positions of `observations` (observation_share's argument).
-std::vector<std::array<double, 2>> positions_of(const std::vector<Observation>& observations) {
-    std::vector<std::array<double, 2>> positions;
-    for (const Observation& o : observations) positions.push_back({o.query.x_um, o.query.y_um});
-    return positions;
-}
-
 // The one observation of options.reference_path (and its weights), with the options' query.
 Observation reference_observation(const InversionOptions& o, const std::vector<double>& lambdas) {
     const auto name = [&](const char* key) { return option_name(o.names, key); };
@@ -355,7 +344,7 @@ PreparedInversion prepare_on_rank(const InversionOptions& o, std::optional<Heigh
                                         " needs at least two observations");
         if (sharded && !read_share) {  // read whole (JSON), this rank's share kept
             p.shard.count = p.observations.size();
-            p.shard.indices = observation_share(positions_of(p.observations), comm.rank(), comm.size());
+            p.shard.indices = observation_share(footprint_centres(p.observations), comm.rank(), comm.size());
             std::vector<Observation> mine;
             for (std::size_t i : p.shard.indices) mine.push_back(std::move(p.observations[i]));
             p.observations = std::move(mine);

@@ -43,6 +43,13 @@ SliceAttributes slice_attributes(const Observation& observation, const Heightfie
     return a;
 }
 
+std::vector<std::array<double, 2>> footprint_centres(const std::vector<Observation>& observations) {
+    std::vector<std::array<double, 2>> centres;
+    centres.reserve(observations.size());
+    for (const Observation& o : observations) centres.push_back({{o.query.x_um, o.query.y_um}});
+    return centres;
+}
+
 std::vector<float> to_reference(const std::vector<double>& values) {
     std::vector<float> out(values.size());
     for (std::size_t i = 0; i < values.size(); ++i) out[i] = static_cast<float>(values[i]);

@@ -84,9 +84,7 @@ std::vector<Observation> read_observations_file(const std::string& path, int ran
         // JSON: read whole, then the other ranks' observations are dropped (a JSON set is small;
         // large sets belong in HDF5).
         std::vector<Observation> all = read_observations_json(path, max_memory_gb);
-        std::vector<std::array<double, 2>> positions(all.size());
-        for (std::size_t i = 0; i < all.size(); ++i) positions[i] = {all[i].query.x_um, all[i].query.y_um};
-        share = observation_share(positions, rank, size);
+        share = observation_share(footprint_centres(all), rank, size);
         out.reserve(share.size());
         for (std::size_t i : share) out.push_back(std::move(all[i]));
     }

@@ -139,14 +139,6 @@ Heightfield generated_recovery_truth(const RecoveryOptions& options) {
 
 namespace {
 
-// The footprint centre of every observation, for observation_share.
-std::vector<std::array<double, 2>> positions_of(const std::vector<Observation>& observations) {
-    std::vector<std::array<double, 2>> positions;
-    positions.reserve(observations.size());
-    for (const Observation& o : observations) positions.push_back({{o.query.x_um, o.query.y_um}});
-    return positions;
-}
-
 // The observations without their references.
 std::vector<Observation> metadata_of(const std::vector<Observation>& observations) {
     std::vector<Observation> out;
@@ -375,7 +367,7 @@ MemoryLimit checked_options(const RecoveryOptions& options, const Heightfield* t
 void take_given_observations(PreparedRecovery& r, const RecoveryOptions& options, std::vector<Observation> observations,
                              const MemoryLimit& limit, const Communicator& comm, std::vector<Observation>& catalogue) {
     r.total_observations = observations.size();
-    r.share = observation_share(positions_of(observations), comm.rank(), comm.size());
+    r.share = observation_share(footprint_centres(observations), comm.rank(), comm.size());
     if (comm.size() > 1) {
         catalogue = metadata_of(observations);
         for (std::size_t k = 0; k < r.share.size(); ++k) r.observations.push_back(std::move(observations[r.share[k]]));
@@ -485,7 +477,7 @@ void simulate_planned_observations(PreparedRecovery& r, const RecoveryOptions& o
                                    const MemoryLimit& limit, bool show_progress, const Communicator& comm,
                                    std::vector<Observation>& catalogue) {
     const std::vector<Observation> planned = adopt_plan(r, plan);
-    r.share = observation_share(positions_of(planned), comm.rank(), comm.size());
+    r.share = observation_share(footprint_centres(planned), comm.rank(), comm.size());
     std::vector<Observation> mine;
     for (std::size_t i : r.share) mine.push_back(planned[i]);
     require_memory(estimate_recovery_bytes(mine, r.rows, r.cols, r.texel_um, options.method), limit,
