@@ -454,10 +454,10 @@ AnnealOutcome anneal_relief(const std::vector<OrderSet>& sets, const Target& tar
 }
 
 double anneal_cpu_estimate_s(double orders, int size, int levels, int sweeps) {
-    // Measured: 0.35 CPU-s a sweep of a 32² tile's 1024 texels over 45 276 orders on 8 levels
-    // (experiments/2026-12-01-antimirror-annealing.md), about 7.5 ns per texel and order; the
-    // levels' loop is part of that.
-    constexpr double k_seconds = 7.5e-9;
+    // Measured on a 32² tile's 1024 texels over 45 276 orders on 8 levels: 0.35 CPU-s a sweep in
+    // the study (experiments/2026-12-01-antimirror-annealing.md), 0.17–0.21 here (400 sweeps in
+    // 68 CPU-s within the acceptance run): about 5 ns per texel and order, the levels' loop included.
+    constexpr double k_seconds = 5e-9;
     return k_seconds * (4.0 + levels) / 12.0 * orders * static_cast<double>(size) * size * sweeps;
 }
 
