@@ -7,13 +7,12 @@
 #include <string>
 
 #include "core/cholesky.h"
+#include "design/engine.h"
 #include "wavebrdf/constants.h"
 
 namespace wavebrdf::detail {
 
 namespace {
-
-double sinc(double x) { return x == 0.0 ? 1.0 : std::sin(k_pi * x) / (k_pi * x); }
 
 // The dual programme: every matrix constraint is T(v_k(z)) ⪰ 0 with v_k affine in z,
 // T(v)_ii = v_0, T(v)_ij = v_|i−j| / 2.

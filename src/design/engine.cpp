@@ -16,15 +16,13 @@
 
 namespace wavebrdf::detail {
 
-namespace {
-
-
-
 double sinc(double x) {
     if (x == 0.0) return 1.0;
     const double px = k_pi * x;
     return std::sin(px) / px;
 }
+
+namespace {
 
 int wrap(int i, int n) {
     const int r = i % n;

@@ -30,6 +30,9 @@ struct OrderSet {
 };
 
 // Validates and builds (std::invalid_argument / std::domain_error naming the value).
+// sin(πx)/(πx), 1 at 0: a square texel's far-field envelope along one axis is sinc(m/N)².
+double sinc(double x);
+
 OrderSet make_order_set(int size, double texel_um, const std::array<double, 2>& omega_i, double lambda_um);
 
 // The spectra of K level maps p_ℓ (any real weights per texel: one-hot masks for a relief, a

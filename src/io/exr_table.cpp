@@ -49,7 +49,7 @@ std::string join(const std::vector<double>& values) {
     return s;
 }
 
-[[noreturn]] void fail(const std::string& path, const std::string& what) {
+[[noreturn]] void table_fail(const std::string& path, const std::string& what) {
     throw std::runtime_error(path + ": " + what);
 }
 
@@ -62,7 +62,7 @@ public:
         const auto* a = m_header.findTypedAttribute<Imf::StringAttribute>(name);
         if (a == nullptr) missing(name, "string");
         if (a->value().size() > max_length)
-            fail(m_path, "attribute " + name + " is " + std::to_string(a->value().size()) +
+            table_fail(m_path, "attribute " + name + " is " + std::to_string(a->value().size()) +
                              " bytes long; expected at most " + std::to_string(max_length));
         return a->value();
     }
@@ -70,14 +70,14 @@ public:
         const auto* a = m_header.findTypedAttribute<Imf::DoubleAttribute>(name);
         if (a == nullptr) missing(name, "double");
         if (!std::isfinite(a->value()))
-            fail(m_path, "attribute " + name + " = " + format_shortest(a->value()) + " is not finite");
+            table_fail(m_path, "attribute " + name + " = " + format_shortest(a->value()) + " is not finite");
         return a->value();
     }
     int integer(const std::string& name, int lo, int hi) const {
         const auto* a = m_header.findTypedAttribute<Imf::IntAttribute>(name);
         if (a == nullptr) missing(name, "int");
         if (a->value() < lo || a->value() > hi)
-            fail(m_path, "attribute " + name + " = " + std::to_string(a->value()) + " is out of range; expected " +
+            table_fail(m_path, "attribute " + name + " = " + std::to_string(a->value()) + " is out of range; expected " +
                              std::to_string(lo) + " to " + std::to_string(hi));
         return a->value();
     }
@@ -92,9 +92,9 @@ public:
             char* end = nullptr;
             const double v = std::strtod(item.c_str(), &end);
             if (item.empty() || end != item.c_str() + item.size() || !std::isfinite(v))
-                fail(m_path, "attribute " + name + " has '" + item + "'; expected finite numbers separated by commas");
+                table_fail(m_path, "attribute " + name + " has '" + item + "'; expected finite numbers separated by commas");
             if (values.size() >= max_count)
-                fail(m_path, "attribute " + name + " lists more than " + std::to_string(max_count) + " numbers");
+                table_fail(m_path, "attribute " + name + " lists more than " + std::to_string(max_count) + " numbers");
             values.push_back(v);
             at = comma + 1;
         }
@@ -103,7 +103,7 @@ public:
 
 private:
     [[noreturn]] void missing(const std::string& name, const char* type) const {
-        fail(m_path, "has no " + std::string(type) + " attribute " + name +
+        table_fail(m_path, "has no " + std::string(type) + " attribute " + name +
                          "; expected a BRDF table written by wavebrdf table (docs/table.md)");
     }
     const std::string& m_path;
@@ -196,7 +196,7 @@ BrdfTable read_brdf_table(const std::string& path) {
     try {
         const Attributes at(path, source.header());
         const std::string kind = at.text("wavebrdf:kind");
-        if (kind != k_kind) fail(path, "attribute wavebrdf:kind is '" + kind + "'; expected '" + k_kind + "'");
+        if (kind != k_kind) table_fail(path, "attribute wavebrdf:kind is '" + kind + "'; expected '" + k_kind + "'");
         t.version = at.text("wavebrdf:version", 256);
         // The conventions the values follow: every one required, and the one this build writes.
         const std::pair<const char*, const char*> conventions[] = {{"wavebrdf:unit", k_unit},
@@ -205,7 +205,7 @@ BrdfTable read_brdf_table(const std::string& path) {
                                                                    {"wavebrdf:light_grid", k_light_grid}};
         for (const auto& [name, expected] : conventions)
             if (at.text(name, 1024) != expected)
-                fail(path, std::string("attribute ") + name +
+                table_fail(path, std::string("attribute ") + name +
                                " differs from this build's convention; expected a table written by wavebrdf table "
                                "(docs/table.md)");
         TableSpec& s = t.spec;
@@ -222,23 +222,23 @@ BrdfTable read_brdf_table(const std::string& path) {
         s.spectral = at.integer("wavebrdf:spectral", 0, 1) == 1;
         const std::string precision = at.text("wavebrdf:precision", 16);
         if (precision != "float" && precision != "double")
-            fail(path, "attribute wavebrdf:precision is '" + precision + "'; expected 'float' or 'double'");
+            table_fail(path, "attribute wavebrdf:precision is '" + precision + "'; expected 'float' or 'double'");
         s.double_precision = precision == "double";
         // The surface it was rendered from: the bounds of a heightfield (io.h, heightfield.h).
         t.heightfield_rows = at.integer("wavebrdf:heightfield_rows", 1, 65536);
         t.heightfield_cols = at.integer("wavebrdf:heightfield_cols", 1, 65536);
         t.texel_um = at.real("wavebrdf:texel_um");
         if (!(t.texel_um >= 1e-4 && t.texel_um <= 1e4))
-            fail(path, "attribute wavebrdf:texel_um = " + format_shortest(t.texel_um) +
+            table_fail(path, "attribute wavebrdf:texel_um = " + format_shortest(t.texel_um) +
                            " is out of range; expected 1e-4 to 1e4 um");
         t.vscale = at.real("wavebrdf:vscale");
         if (std::abs(t.vscale) > 1e4)
-            fail(path,
+            table_fail(path,
                  "attribute wavebrdf:vscale = " + format_shortest(t.vscale) + " is out of range; expected |v| <= 1e4");
         // The footprint's limit for this surface (brdf.h validate: at most 10 tile periods).
         const double period = t.texel_um * double(std::max(t.heightfield_rows, t.heightfield_cols));
         if (s.query.sigma_p_um > 10.0 * period)
-            fail(path, "attribute wavebrdf:sigma_p_um = " + format_shortest(s.query.sigma_p_um) +
+            table_fail(path, "attribute wavebrdf:sigma_p_um = " + format_shortest(s.query.sigma_p_um) +
                            " um is more than 10 periods of the " + std::to_string(t.heightfield_rows) + "x" +
                            std::to_string(t.heightfield_cols) + " surface of texel " + format_shortest(t.texel_um) +
                            " um (" + format_shortest(period) + " um); expected the table of a real render");
@@ -247,12 +247,12 @@ BrdfTable read_brdf_table(const std::string& path) {
         try {
             validate(s);
         } catch (const std::exception& e) {
-            fail(path, std::string("attributes describe an invalid table: ") + e.what());
+            table_fail(path, std::string("attributes describe an invalid table: ") + e.what());
         }
         const long long height = static_cast<long long>(s.lights.rows) * s.resolution;
         const long long width = static_cast<long long>(s.lights.cols) * s.resolution;
         if (source.m_rows != height || source.m_cols != width)
-            fail(path, "mosaic is " + std::to_string(source.m_rows) + "x" + std::to_string(source.m_cols) +
+            table_fail(path, "mosaic is " + std::to_string(source.m_rows) + "x" + std::to_string(source.m_cols) +
                            " pixels but the attributes declare " + std::to_string(s.lights.rows) + "x" +
                            std::to_string(s.lights.cols) + " lights of " + std::to_string(s.resolution) + "x" +
                            std::to_string(s.resolution) + " (" + std::to_string(height) + "x" + std::to_string(width) +
@@ -261,13 +261,13 @@ BrdfTable read_brdf_table(const std::string& path) {
         const std::vector<double> light_x = at.reals("wavebrdf:light_x", std::size_t(s.lights.rows));
         const std::vector<double> light_y = at.reals("wavebrdf:light_y", std::size_t(s.lights.cols));
         if (light_x != t.light_x || light_y != t.light_y)
-            fail(path,
+            table_fail(path,
                  "attributes wavebrdf:light_x/light_y disagree with the grid of wavebrdf:light_rows, "
                  "light_cols and light_max_sin; expected max_sin * ((a + 0.5) / rows * 2 - 1)");
     } catch (const std::runtime_error&) {
         throw;
     } catch (const std::exception& e) {
-        fail(path, std::string("cannot read the table's attributes (") + e.what() + ")");
+        table_fail(path, std::string("cannot read the table's attributes (") + e.what() + ")");
     }
     // The values once, read a row of lights (n mosaic rows) at a time into their place
     // (rows, cols, n, n, 3): the table's memory and one row of lights, not the mosaic twice.
@@ -279,7 +279,7 @@ BrdfTable read_brdf_table(const std::string& path) {
                        std::to_string(n) + "x" + std::to_string(n) + ")",
                    "more memory");
     const bool rgb = source.has_channel("R") && source.has_channel("G") && source.has_channel("B");
-    if (!rgb && !source.has_channel("Y")) fail(path, "has no R, G, B channels (nor Y); expected an RGB image");
+    if (!rgb && !source.has_channel("Y")) table_fail(path, "has no R, G, B channels (nor Y); expected an RGB image");
     t.values = allocating("the table's values", 4.0 * values,
                           [&] { return std::vector<float>(static_cast<std::size_t>(values)); });
     std::vector<float> band(width * n * 3);
@@ -292,7 +292,7 @@ BrdfTable read_brdf_table(const std::string& path) {
             for (std::size_t k = width * n; k-- > 0;) band[3 * k] = band[3 * k + 1] = band[3 * k + 2] = band[k];
         }
         for (float v : band)
-            if (!std::isfinite(v)) fail(path, "has a value that is not finite; expected f_r values");
+            if (!std::isfinite(v)) table_fail(path, "has a value that is not finite; expected f_r values");
         for (std::size_t b = 0; b < cols; ++b)
             for (std::size_t p = 0; p < n; ++p) {
                 const float* from = band.data() + (p * width + b * n) * 3;
