@@ -113,8 +113,8 @@ sanitize_wait
 phase "sanitizer tests (ctest)"
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-# The slowest recoveries (over a minute each under the sanitizers) are left to the Release pass:
-# tests/sanitizer_skip.txt names each with the lighter test that runs its code here.
+# The slowest tests (most of them recoveries of over a minute under the sanitizers) are left to the
+# Release pass: tests/sanitizer_skip.txt names each with the lighter test that runs its code here.
 skip="$(grep -v '^#' tests/sanitizer_skip.txt | awk 'NF { gsub(/\./, "\\.", $1); print $1 }' | paste -sd'|')"
 echo "test: sanitizer pass skips $(grep -cv '^#' tests/sanitizer_skip.txt) tests (tests/sanitizer_skip.txt)"
 (cd build-sanitize && "${ctest_threads[@]}" ctest --output-on-failure -j"$(nproc)" -E "^(${skip})\$")
