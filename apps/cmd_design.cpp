@@ -166,6 +166,8 @@ void run(DesignArgs a) {
                                         : prepared.stages.front().iterations + prepared.stages.front().refine_passes;
         steps += prepared.anneal_sweeps;
     }
+    // The anti-mirror's step survey: one loop at the run's budget on each step first.
+    steps += static_cast<long long>(prepared.step_survey_um.size()) * (o.iterations + o.refine_passes);
     Progress progress("design", steps, !a.quiet);
     const DesignResult result = run_design(prepared, [&](const DesignStep& s) {
         progress.advance();
@@ -326,7 +328,7 @@ void add_design_command(CLI::App& app) {
     auto* levels = cmd->add_option("--levels", a->options.levels, "K equally spaced height levels (2-256)")
                        ->capture_default_str();
     cmd->add_option("--level-step-um", a->options.level_step_um,
-                    "spacing of the levels in um (default: H/(K-1); anti-mirror: designed, from a step on which the mirror order can cancel)");
+                    "spacing of the levels in um (default: H/(K-1); anti-mirror: designed, from the best of a survey of the steps on which the mirror order can be kept dark)");
     cmd->add_option("--min-feature-um", a->options.min_feature_um,
                     "grayscale relief: no lateral detail finer than this, um (contradicts --levels)");
     cmd->add_option("--fabrication-error", a->errors, "e.g. scale:5%,blur:0.3um (design for and score under them)");

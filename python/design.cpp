@@ -128,7 +128,7 @@ pairs), 'brdf:TABLE.exr' (a wavebrdf table or lobe file; its lights and waveleng
 image= (a 2-D grey array, rows along omega_x). light: the projected light direction. lambda_um (a laser, default 0.5)
 or spectral=N (white light, N equal-energy wavelengths over band_um). specular_cone, cone_limit,
 uniformity_limit, region (anti-mirror; a limit the relief breaks is also a UserWarning), window (pattern), view (default the mirror direction), view_cone,
-delta_uv_tolerance and delta_uv_ceiling (colour, iridescent; a colour the brightness trade leaves below Y 5 % is also a UserWarning) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule; the anti-mirror designs its own),
+delta_uv_tolerance and delta_uv_ceiling (colour, iridescent; a colour the brightness trade leaves below Y 5 % is also a UserWarning) as the CLI's options; size, texel_um, height_range_um, levels, level_step_um (0: the default rule; the anti-mirror designs its own, from the best of a survey of steps: design['step_survey']),
 min_feature_um with levels=0 (a grayscale relief: no lateral detail finer than it),
 fabrication_error ('scale:5%,blur:0.3um'), seed, iterations, refine_passes, max_memory_gb likewise.
 start: a size x size array of heights (um) on the run's levels to start from instead of a random

@@ -69,12 +69,14 @@ TEST(DesignContinuation, TheContinuedAntiMirrorKeepsItsLevelsAndItsMetricsAreThe
         EXPECT_NEAR(m["specular_fraction"][w].get<double>(), exact[w][0], 1e-9);
         EXPECT_NEAR(m["region_fraction"][w].get<double>(), exact[w][1], 1e-9);
     }
-    // The 8² stage is the tile's own design: the same relief's metrics.
+    // The 8² stage is the tile's own design on the step the run's survey chose: the same relief's
+    // metrics.
     DesignOptions tile = o;
     tile.size = 8;
     tile.iterations = 40;
     tile.refine_passes = 12;
     tile.continuation = "off";
+    tile.level_step_um = j["step_survey"]["chosen_um"].get<double>();
     const auto jt = nlohmann::json::parse(run_design(prepare_design(tile)).metrics_json);
     const auto& stage = j["continuation"]["schedule"][0]["exact"];
     EXPECT_DOUBLE_EQ(stage["region_fraction_mean"].get<double>(), jt["metrics"]["exact"]["region_fraction_mean"].get<double>());

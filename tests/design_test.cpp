@@ -226,16 +226,20 @@ TEST(Design, LevelStepGradientMatchesFiniteDifferences) {
 }
 
 TEST(Design, AntiMirrorLevelStepMovesWithinTheRangeAndTheExportMatchesTheLoop) {
-    // Without --level-step-um the anti-mirror's step starts on the rule's and moves: the exported
+    // Where no step survey runs (a start relief, more than 32 levels; here the survey taken out of
+    // the prepared run) the anti-mirror's free step starts on the rule's and moves: the exported
     // heights lie on the final step's levels within the height range, and the loop's model of
     // them (on the step it ended with) is their exact scalar diffraction. With --level-step-um
-    // the step stays where the user put it.
+    // the step stays where the user put it, and so does the survey's (design_step_survey_test).
     DesignOptions o = test::small_design("anti-mirror", 8, 60, 15);
     o.band_um = {0.4, 0.7};
-    const PreparedDesign p = prepare_design(o);
+    PreparedDesign p = prepare_design(o);
+    ASSERT_FALSE(p.step_survey_um.empty());
+    p.step_survey_um.clear();
     const DesignResult r = run_design(p);
     const auto j = nlohmann::json::parse(r.metrics_json);
     ASSERT_TRUE(j.contains("level_step"));
+    EXPECT_FALSE(j.contains("step_survey"));
     const double start = j["level_step"]["start_um"].get<double>(), end = j["level_step"]["final_um"].get<double>();
     EXPECT_DOUBLE_EQ(start, p.levels_um[1]);
     EXPECT_NE(end, start);

@@ -185,6 +185,10 @@ struct PreparedDesign {
     int anneal_sweeps = 0;
     int anneal_size = 0;
     double anneal_cpu_estimate_s = 0.0;
+    // The anti-mirror's level-step survey (where its step is free): the steps it designs a small
+    // tile on, step_survey_size² texels, before the design runs on the best (empty: none).
+    std::vector<double> step_survey_um;
+    int step_survey_size = 0;
 };
 
 // Estimated peak memory (bytes) of a design with these options (orders of every wavelength, the

@@ -240,6 +240,44 @@ def warnings_lines(doc):
     return [_wrap(x if isinstance(x, str) else json.dumps(x), 180) for x in items]
 
 
+def survey_points(doc):
+    """The anti-mirror's level-step survey (design.json step_survey) as (step µm, region band mean,
+    limits met) triples, in the file's order; [] where the run has none."""
+    points = []
+    for entry in _get(doc, "step_survey", "steps", default=[]) or []:
+        step, region = _get(entry, "step_um"), _get(entry, "region_fraction_mean")
+        if isinstance(step, (int, float)) and isinstance(region, (int, float)):
+            points.append((float(step), float(region), _get(entry, "limits_met") is True))
+    return points
+
+
+def _step_survey_axes(ax, doc):
+    """Region band mean against the surveyed level steps; the chosen start and the final step marked."""
+    points = survey_points(doc)
+    steps = np.array([p[0] for p in points])
+    region = 100 * np.array([p[1] for p in points])
+    met = np.array([p[2] for p in points])
+    order = np.argsort(steps)
+    ax.plot(steps[order], region[order], "-", color="0.7", lw=1)
+    ax.plot(steps[met], region[met], "o", color="tab:blue", ms=4, label="limits met")
+    if (~met).any():
+        ax.plot(steps[~met], region[~met], "x", color="tab:red", ms=5, label="a limit broken")
+    chosen = _get(doc, "step_survey", "chosen_um")
+    if isinstance(chosen, (int, float)):
+        ax.axvline(chosen, color="tab:green", lw=1, ls="--", label="start %.4g µm" % chosen)
+    final = _get(doc, "level_step", "final_um")
+    if isinstance(final, (int, float)):
+        ax.axvline(final, color="tab:purple", lw=1, ls=":", label="final %.4g µm" % final)
+    size = _get(doc, "step_survey", "size", default="?")
+    budget = "%s:%s" % (_get(doc, "step_survey", "iterations", default="?"),
+                        _get(doc, "step_survey", "refine_passes", default="?"))
+    ax.set_title("level-step survey: %s² tile at %s each" % (size, budget), fontsize=9)
+    ax.set_xlabel("level step (µm)")
+    ax.set_ylabel("region, band mean (%)")
+    ax.legend(fontsize=7)
+    ax.grid(True, alpha=0.3)
+
+
 def make_report(directory):
     """Writes directory/report.png and returns its path. Raises ReportError for an unusable file."""
     doc = read_design_json(directory)
@@ -352,6 +390,8 @@ def make_report(directory):
             lines.append(_wrap(trade, 40))
         ax.set_title("colour (each swatch at full brightness)" + ("\n" + "\n".join(lines) if lines else ""), fontsize=9)
         ax.axis("off")
+    elif survey_points(doc):
+        _step_survey_axes(ax, doc)
     else:
         ax.axis("off")
         notes = _get(doc, "notes", default=[]) or []

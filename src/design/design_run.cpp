@@ -26,6 +26,7 @@
 #include "design/engine.h"
 #include "design/evaluator.h"
 #include "design/grayscale.h"
+#include "design/level_step.h"
 #include "design/png_input.h"
 #include "design/relief.h"
 #include "design/target.h"
@@ -119,111 +120,6 @@ std::vector<double> level_heights(int levels, double step_um) {
     return h;
 }
 
-// How dark levels 0, Δ, …, (K−1)Δ can make the mirror order over the whole band. Its amplitude
-// is P(z) = Σ_ℓ a_ℓ z^ℓ, a_ℓ ≥ 0 the levels' shares (Σ a_ℓ = 1), z = e^{−iθ}, θ = 2 k Δ cos θ_i,
-// whatever the texels' arrangement: a polynomial with non-negative coefficients that must be
-// small on the arc of θ the band sweeps. A step with 2Δ cos θ_i a multiple of a wavelength in the
-// band (θ = 2π) makes every design a mirror there; short of that, the shares that keep |P|² least
-// on average over the band (a dense grid between its extreme wavelengths) are the minimum of the
-// quadratic form a·G·a, G_ℓm = mean over the grid of cos((ℓ − m)θ), on the simplex: a small
-// convex problem, solved exactly by an active set. Their worst power over the grid says how well a
-// step suits the band. (The binomial shares C(K−1, ℓ)/2^{K−1}, |P| = |cos(θ/2)|^{K−1}, are dark only
-// near θ = π: on 0.40–0.70 µm with 8 levels they need Δ ≤ 0.132 µm for a power of 1e-5 and 0.138 µm for
-// 1e-4, where these shares allow 0.146 and 0.153 µm.)
-struct MirrorShares {
-    std::vector<double> shares;
-    double worst_power = 1.0;
-};
-MirrorShares dark_mirror_shares(double step_um, int levels, const std::vector<double>& lambdas_um, double cos_i) {
-    const auto [lo, hi] = std::minmax_element(lambdas_um.begin(), lambdas_um.end());
-    constexpr int k_dense = 128;
-    const auto K = static_cast<std::size_t>(levels);
-    std::vector<double> thetas;
-    for (int d = 0; d <= (*hi > *lo ? k_dense : 0); ++d)
-        thetas.push_back(4.0 * k_pi * step_um * cos_i / (*lo + (*hi - *lo) * d / k_dense));
-    // G depends on ℓ − m only.
-    std::vector<long double> c(K, 0.0L);
-    for (std::size_t d = 0; d < K; ++d) {
-        for (double th : thetas) c[d] += std::cos(static_cast<long double>(d) * th);
-        c[d] /= static_cast<long double>(thetas.size());
-    }
-    auto G = [&](std::size_t l, std::size_t m) { return c[l > m ? l - m : m - l] + (l == m ? 1e-13L : 0.0L); };
-    // Primal active set from the uniform shares: on the free set F, the least a·G·a with
-    // Σ a = 1 is a_F ∝ G_FF⁻¹ 1; step towards it until a share reaches 0 (it leaves F); at the
-    // minimum over F, add the level whose gradient most undercuts the multiplier, until none does.
-    std::vector<long double> x(K, 1.0L / static_cast<long double>(K));
-    std::vector<char> free(K, 1);
-    for (int guard = 0; guard < 4 * levels + 8; ++guard) {
-        std::vector<std::size_t> F;
-        for (std::size_t l = 0; l < K; ++l)
-            if (free[l]) F.push_back(l);
-        const std::size_t n = F.size();
-        // Cholesky of G_FF, then y = G_FF⁻¹ 1.
-        std::vector<long double> L(n * n, 0.0L), y(n, 1.0L);
-        for (std::size_t i = 0; i < n; ++i)
-            for (std::size_t j = 0; j <= i; ++j) {
-                long double sum = G(F[i], F[j]);
-                for (std::size_t k = 0; k < j; ++k) sum -= L[i * n + k] * L[j * n + k];
-                L[i * n + j] = i == j ? std::sqrt(std::max(sum, 1e-30L)) : sum / L[j * n + j];
-            }
-        for (std::size_t i = 0; i < n; ++i) {
-            for (std::size_t k = 0; k < i; ++k) y[i] -= L[i * n + k] * y[k];
-            y[i] /= L[i * n + i];
-        }
-        for (std::size_t i = n; i-- > 0;) {
-            for (std::size_t k = i + 1; k < n; ++k) y[i] -= L[k * n + i] * y[k];
-            y[i] /= L[i * n + i];
-        }
-        long double total = 0.0L;
-        for (long double v : y) total += v;
-        std::vector<long double> s(K, 0.0L);
-        bool feasible = true;
-        for (std::size_t i = 0; i < n; ++i) {
-            s[F[i]] = y[i] / total;
-            feasible = feasible && s[F[i]] >= 0.0L;
-        }
-        if (!feasible) {
-            long double alpha = 1.0L;
-            for (std::size_t l : F)
-                if (s[l] < 0.0L) alpha = std::min(alpha, x[l] / (x[l] - s[l]));
-            for (std::size_t l : F) {
-                x[l] += alpha * (s[l] - x[l]);
-                if (x[l] <= 1e-18L) {
-                    x[l] = 0.0L;
-                    free[l] = 0;
-                }
-            }
-            continue;
-        }
-        x = s;
-        // Optimality: (G x)_ℓ ≥ x·G·x for every level outside F.
-        long double quad = 0.0L;
-        std::vector<long double> gx(K, 0.0L);
-        for (std::size_t l = 0; l < K; ++l) {
-            for (std::size_t m = 0; m < K; ++m) gx[l] += G(l, m) * x[m];
-            quad += x[l] * gx[l];
-        }
-        std::size_t add = K;
-        long double most = 1e-15L;
-        for (std::size_t l = 0; l < K; ++l)
-            if (!free[l] && quad - gx[l] > most) {
-                most = quad - gx[l];
-                add = l;
-            }
-        if (add == K) break;
-        free[add] = 1;
-    }
-    MirrorShares r;
-    r.shares.assign(x.begin(), x.end());
-    r.worst_power = 0.0;
-    for (double th : thetas) {
-        Complex a(0.0, 0.0);
-        for (std::size_t l = 0; l < K; ++l) a += r.shares[l] * std::polar(1.0, -th * static_cast<double>(l));
-        r.worst_power = std::max(r.worst_power, std::norm(a));
-    }
-    return r;
-}
-
 // A length in a note, to four significant digits.
 std::string four_digits(double v) { return format_number(v, "%.4g"); }
 
@@ -235,31 +131,6 @@ bool step_is_free(const PreparedDesign& p) {
     const DesignOptions& o = p.options;
     return o.target.kind == DesignKind::AntiMirror && o.min_feature_um == 0.0 && o.level_step_um == 0.0 &&
            o.errors.blur_um == 0.0 && o.levels > 1;
-}
-
-// The anti-mirror's level step (where it is free, the loop's start): the largest Δ ≤ H/(K−1) on
-// which some shares of the levels (dark_mirror_shares) keep the mirror order's power at most
-// k_mirror_power_wanted at every wavelength of the band, else the step of least such power. The
-// largest, because a larger step makes the levels' phases differ more between the band's ends, and
-// that is what lets the relief light a spatial frequency at one end and not at the other
-// (measured: region 68 % on 0.132 µm, 77–79 % on 0.155–0.165 µm, for 0.40–0.70 µm); 1e-4 keeps the
-// mirror order at a twentieth of a 0.2 % cone, so the loop starts from a mirror order it can
-// darken and moves the step up to where the cone's limit holds it (0.167–0.169 µm there).
-constexpr double k_mirror_power_wanted = 1e-4;
-double anti_mirror_step(double range_um, int levels, const std::vector<double>& lambdas_um, double cos_i) {
-    const double full = range_um / (levels - 1);
-    double best = full, best_power = 1e300;
-    constexpr int k_candidates = 1000;
-    for (int c = 0; c < k_candidates; ++c) {
-        const double step = full * (1.0 - static_cast<double>(c) / k_candidates);
-        const double power = dark_mirror_shares(step, levels, lambdas_um, cos_i).worst_power;
-        if (power <= k_mirror_power_wanted) return step;
-        if (power < best_power) {
-            best_power = power;
-            best = step;
-        }
-    }
-    return best;
 }
 
 std::vector<double> one_hot(const std::vector<int>& level, int levels) {
@@ -759,6 +630,7 @@ PreparedDesign prepare_design(const DesignOptions& options) {
     p.options = o;
     p.lambdas_um = design_wavelengths_um(o);
     double step = o.height_range_um / (o.levels - 1);
+    std::string rule_note;  // said where no step survey replaces the rule's step
     if (o.level_step_um > 0.0) {
         if (!(o.level_step_um * (o.levels - 1) <= o.height_range_um * (1.0 + 1e-12)))
             throw std::domain_error("--level-step-um " + num(o.level_step_um) + " puts the top level at " +
@@ -766,11 +638,11 @@ PreparedDesign prepare_design(const DesignOptions& options) {
                                     num(o.height_range_um));
         step = o.level_step_um;
     } else if (o.target.kind == DesignKind::AntiMirror && !grayscale) {
-        step = anti_mirror_step(o.height_range_um, o.levels, p.lambdas_um, std::sqrt(1.0 - light * light));
+        step = detail::anti_mirror_step(o.height_range_um, o.levels, p.lambdas_um, std::sqrt(1.0 - light * light));
         if (step < o.height_range_um / (o.levels - 1))
-            p.notes.push_back("level step " + four_digits(step) + " um (top level " + four_digits(step * (o.levels - 1)) +
-                              " um): on the full range's step no design keeps the mirror order dark at every wavelength of the band" +
-                              (step_is_free(p) ? "; the design starts there and moves it" : ""));
+            rule_note = "level step " + four_digits(step) + " um (top level " + four_digits(step * (o.levels - 1)) +
+                        " um): on the full range's step no design keeps the mirror order dark at every wavelength of the band" +
+                        (step_is_free(p) ? "; the design starts there and moves it" : "");
     }
     if (!o.start_heights_um.empty()) step = start_levels(p, step);
     p.levels_um = level_heights(o.levels, step);
@@ -832,6 +704,8 @@ PreparedDesign prepare_design(const DesignOptions& options) {
     p.target->assign(*sets);
     p.order_sets = sets;
     plan_anneal(p, grayscale);
+    detail::plan_step_survey(p, step_is_free(p));
+    if (!rule_note.empty() && p.step_survey_um.empty()) p.notes.insert(p.notes.begin(), rule_note);
     if (o.errors.blur_um > 0.0)
         p.notes.push_back(grayscale ? "the blur error is scored, not designed for: a grayscale loop averages the height scale errors only"
                                     : "the blur error is designed for in the discrete refinement (the relaxed phase averages the height scale errors only)");
@@ -894,6 +768,28 @@ nlohmann::json view_survey(const PreparedDesign& p) {
 }  // namespace
 
 DesignResult run_design(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step) {
+    if (!p.step_survey_um.empty()) {
+        // The step surveyed first; the design (its continuation and anneal too) keeps the best. The
+        // step is not moved further: from the survey's best the relaxed phase's gradient, on level
+        // mixtures, moves it into another peak (0.110 -> 0.131-0.139 um on the acceptance tile, whose
+        // 32² designs score 10-16 points lower there: experiments/2026-12-02-antimirror-step-survey.md).
+        const detail::StepSurvey survey = detail::run_step_survey(p, on_step);
+        PreparedDesign q = p;
+        q.step_survey_um.clear();
+        q.options.level_step_um = survey.step_um;
+        q.levels_um = level_heights(p.options.levels, survey.step_um);
+        DesignResult r = run_design(q, on_step);
+        nlohmann::json j = nlohmann::json::parse(r.metrics_json);
+        j["step_survey"] = survey.json;
+        j["level_step"] = {{"what", "the anti-mirror's level step, a design variable: the step survey's best "
+                                    "(step_survey), kept while the design ran, (levels - 1) x step <= height_range_um"},
+                           {"start_um", survey.step_um},
+                           {"final_um", survey.step_um}};
+        j["timings_s"]["step_survey"] = survey.json["seconds"];
+        j["timings_s"]["total"] = j["timings_s"]["total"].get<double>() + survey.json["seconds"].get<double>();
+        r.metrics_json = j.dump(2);
+        return r;
+    }
     if (!p.stages.empty() || p.anneal_sweeps > 0)
         return detail::run_continued(p, on_step, [](const PreparedDesign& one, const detail::DesignStepFn& f) {
             return run_design_impl(one, f, one.options.survey_views);
@@ -969,8 +865,8 @@ RelaxedLevels relaxed_levels(const PreparedDesign& p, detail::Evaluator& evaluat
         // Start from the shares of the levels that darken the mirror order over the band
         // (dark_mirror_shares, on the run's step); the loop shapes the rest.
         const double light = std::hypot(o.omega_i[0], o.omega_i[1]);
-        const MirrorShares start =
-            dark_mirror_shares(p.levels_um[1] - p.levels_um[0], K, p.lambdas_um, std::sqrt(1.0 - light * light));
+        const detail::MirrorShares start =
+            detail::dark_mirror_shares(p.levels_um[1] - p.levels_um[0], K, p.lambdas_um, std::sqrt(1.0 - light * light));
         for (int l = 0; l < K; ++l) {
             const double log_share = std::log(std::max(start.shares[static_cast<std::size_t>(l)], 1e-6));
             for (std::size_t t = 0; t < n2; ++t) theta[static_cast<std::size_t>(l) * n2 + t] += log_share;

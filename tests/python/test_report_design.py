@@ -272,3 +272,24 @@ def test_warnings_lines_keep_every_warning():
     assert "\n" in lines[1] and lines[1].replace("\n  ", " ") == long.strip()
     assert all(len(x) <= 182 for x in lines[1].split("\n"))
     assert lines[2] == '{"odd": 1}'
+
+
+def test_an_anti_mirrors_step_survey_is_read_and_drawn(tmp_path):
+    # design.json's step_survey (the anti-mirror's level steps, each with the region it reached)
+    # as the report reads it, and a report drawn with it; a malformed entry is left out.
+    from wavebrdf import report_design
+
+    doc = design_doc("anti-mirror")
+    doc["target"] = {"kind": "anti-mirror", "text": "anti-mirror"}
+    doc["step_survey"] = {"size": 32, "iterations": 200, "refine_passes": 60, "chosen_um": 0.11,
+                          "steps": [{"step_um": 0.153, "region_fraction_mean": 0.83, "limits_met": True},
+                                    {"step_um": 0.11, "region_fraction_mean": 0.85, "limits_met": True},
+                                    {"step_um": 0.12, "region_fraction_mean": 0.81, "limits_met": False},
+                                    {"step_um": "x", "region_fraction_mean": 0.9}]}
+    doc["level_step"] = {"start_um": 0.11, "final_um": 0.1112}
+    assert report_design.survey_points(doc) == [(0.153, 0.83, True), (0.11, 0.85, True), (0.12, 0.81, False)]
+    assert report_design.survey_points(design_doc()) == []
+    d = make_run(str(tmp_path / "run"), doc=doc)
+    r = run_report(d)
+    assert r.returncode == 0, r.stderr
+    assert os.path.getsize(os.path.join(d, "report.png")) > 10000
