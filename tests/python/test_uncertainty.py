@@ -96,7 +96,11 @@ def test_the_estimate_is_the_likelihoods_maximum(run):
     step, value = newton_step_um(est)
     assert np.sqrt(np.mean(step ** 2)) < 0.05 * bars  # 0.0009 here
     moved, _ = wb.observation_loss(est.with_values(est.values + step.reshape(est.shape) / to_um), obs, r.loss)
-    assert (moved - value) * counted == pytest.approx(-(step @ g @ step), rel=0.1)  # the quadratic model
+    # The quadratic model. G is the Gauss-Newton matrix, not the Hessian: the residuals' own
+    # curvature, which it leaves out, makes the decrease differ from the model's by about a tenth
+    # (0.895 of it on one machine's -march=native build, 0.9-1.1 on others), so rel 0.2; a wrong
+    # scale or sign of G (a factor 2 at least) still fails.
+    assert (moved - value) * counted == pytest.approx(-(step @ g @ step), rel=0.2)
     offset = np.random.default_rng(1).standard_normal(n) * r.uncertainty.ravel()
     offset -= offset.mean()
     back, _ = newton_step_um(est.with_values(est.values + offset.reshape(est.shape) / to_um))
