@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "design/engine.h"
 #include "design/target.h"
 #include "wavebrdf/constants.h"
 #include "wavebrdf/text.h"
@@ -151,10 +152,6 @@ constexpr int k_step_survey_max_steps = 24;
 // the survey would take longer to plan than to run, and the run starts on the rule's step.
 constexpr int k_step_survey_max_levels = 32;
 
-double cos_incidence(const DesignOptions& o) {
-    return std::sqrt(std::max(0.0, 1.0 - o.omega_i[0] * o.omega_i[0] - o.omega_i[1] * o.omega_i[1]));
-}
-
 }  // namespace
 
 void plan_step_survey(PreparedDesign& p, bool free) {
@@ -171,7 +168,7 @@ void plan_step_survey(PreparedDesign& p, bool free) {
     for (int d = 1; d <= std::min(first, k_step_survey_max_size); ++d)
         if (o.size % d == 0) size = d;
     if (size < 2) return;
-    const double cos_i = cos_incidence(o);
+    const double cos_i = p.order_sets->front().cos_i;  // the anti-mirror's one light
     const double lambda_min = *std::min_element(p.lambdas_um.begin(), p.lambdas_um.end());
     const double full = o.height_range_um / (o.levels - 1);
     const double spacing = k_step_survey_top_phase * lambda_min / (4.0 * k_pi * (o.levels - 1) * cos_i);
@@ -251,7 +248,7 @@ StepSurvey run_step_survey(const PreparedDesign& p, const std::function<bool(con
                           "so that its relief repeats into the run's tile) at the run's iterations and passes, the "
                           "same seed, no continuation or anneal, and scored by its exact metrics: the region's band "
                           "mean less max(0, x / limit - 1) for the cone's fraction and the uniformity at their worst "
-                          "wavelengths; the design starts on the step of the highest score"},
+                          "wavelengths; the design runs on the step of the highest score, kept fixed"},
                  {"size", p.step_survey_size},
                  {"iterations", o.iterations},
                  {"refine_passes", o.refine_passes},

@@ -28,7 +28,8 @@ double anti_mirror_step(double range_um, int levels, const std::vector<double>& 
 // Plans the step survey into p (p.step_survey_um, p.step_survey_size, a note) where the step is
 // free (`free`) and the design starts at random: the rule's step p.levels_um holds and every step
 // of a grid over (0, H/(K−1)] on which the mirror order can be kept below the cone's aim. Needs
-// p's stages and anneal plan (the survey's tile is the first tile the loop designs, at most 32²).
+// p's stages, anneal plan and order sets (the survey's tile is the first tile the loop designs, at
+// most 32²; the light's obliquity from the orders).
 void plan_step_survey(PreparedDesign& p, bool free);
 
 // Designs p's survey tile on each of p.step_survey_um at the run's budget (the same seed, no
