@@ -158,17 +158,7 @@ void run(DesignArgs a) {
                   << " propagating orders; estimated memory " << format_bytes(prepared.estimated_bytes) << "\n";
         for (const std::string& note : prepared.notes) std::cerr << "design: note: " << note << "\n";
     }
-    long long steps = o.iterations + o.refine_passes;
-    for (const DesignStage& s : prepared.stages) steps += s.iterations + s.refine_passes;
-    if (prepared.anneal_sweeps > 0) {
-        // The loop designs the first tile alone, then the sweeps; the run's tile is scored, not designed.
-        steps = prepared.stages.empty() ? o.iterations + o.refine_passes
-                                        : prepared.stages.front().iterations + prepared.stages.front().refine_passes;
-        steps += prepared.anneal_sweeps;
-    }
-    // The anti-mirror's step survey: one loop at the run's budget on each step first.
-    steps += static_cast<long long>(prepared.step_survey_um.size()) * (o.iterations + o.refine_passes);
-    Progress progress("design", steps, !a.quiet);
+    Progress progress("design", design_step_count(prepared), !a.quiet);
     const DesignResult result = run_design(prepared, [&](const DesignStep& s) {
         progress.advance();
         progress.set_message(s.phase + " loss " + format_shortest(s.loss));

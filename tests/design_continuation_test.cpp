@@ -42,8 +42,8 @@ std::vector<std::array<double, 2>> cone_and_region(const std::vector<OrderPowers
 }
 
 TEST(DesignContinuation, TheContinuedAntiMirrorKeepsItsLevelsAndItsMetricsAreTheExportsExactDiffraction) {
-    // auto on 16²: the 8² tile first with four times the budget (the same run as that tile's
-    // design alone), then 16² from it. The export keeps the levels and the range, and design.json's
+    // auto on 16²: the 8² tile first (the step survey's, designed at the run's budget: the same run
+    // as that tile's design alone), then 16² from it. The export keeps the levels and the range, and design.json's
     // exact metrics are the exact scalar diffraction of the exported heights.
     const DesignOptions o = small_anti_mirror(10, 3);
     const PreparedDesign p = prepare_design(o);
@@ -69,12 +69,13 @@ TEST(DesignContinuation, TheContinuedAntiMirrorKeepsItsLevelsAndItsMetricsAreThe
         EXPECT_NEAR(m["specular_fraction"][w].get<double>(), exact[w][0], 1e-9);
         EXPECT_NEAR(m["region_fraction"][w].get<double>(), exact[w][1], 1e-9);
     }
-    // The 8² stage is the tile's own design on the step the run's survey chose: the same relief's
-    // metrics.
+    // The 8² stage is the tile the run's survey designed on the step it chose (at the run's budget,
+    // not the stage's 40:12: the survey's tile is the first): that tile's own design, the same
+    // relief's metrics.
+    ASSERT_TRUE(p.step_survey_first_tile);
+    EXPECT_EQ(j["continuation"]["schedule"][0]["iterations"].get<int>(), o.iterations);
     DesignOptions tile = o;
     tile.size = 8;
-    tile.iterations = 40;
-    tile.refine_passes = 12;
     tile.continuation = "off";
     tile.level_step_um = j["step_survey"]["chosen_um"].get<double>();
     const auto jt = nlohmann::json::parse(run_design(prepare_design(tile)).metrics_json);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <complex>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "design_util.h"
 #include "wavebrdf/constants.h"
@@ -137,6 +138,73 @@ TEST(DesignStepSurvey, EachScoreIsTheFixedStepsDesignAndTheRunStartsOnTheBest) {
         EXPECT_EQ(jf["metrics"]["exact"]["region_fraction_mean"].get<double>(),
                   steps[k]["region_fraction_mean"].get<double>());
     }
+}
+
+// Where the survey's tile is the run's first (a continuation's first tile, the annealed tile), the
+// run starts from the best step's tile as surveyed: that tile is not designed again.
+TEST(DesignStepSurvey, TheBestStepsTileIsTheRunsFirstTile) {
+    DesignOptions o = band_anti_mirror();
+    o.continuation = "auto";  // 8² first, then the 16² tile
+    o.anneal_sweeps = 6;      // the anneal takes the 8² tile
+    const PreparedDesign p = prepare_design(o);
+    ASSERT_EQ(p.step_survey_size, 8);
+    ASSERT_EQ(p.anneal_size, 8);
+    ASSERT_TRUE(p.step_survey_first_tile);
+    long long reported = 0, first_tile_loops = 0;
+    const DesignResult r = run_design(p, [&](const DesignStep& s) {
+        ++reported;
+        // A loop on the 8² tile after the survey would report "relaxed 8x8" or "refine 8x8".
+        first_tile_loops += s.phase.find("8x8") != std::string::npos && s.phase.rfind("anneal", 0) != 0;
+        return true;
+    });
+    EXPECT_EQ(first_tile_loops, 0);  // the survey's tile is annealed, not designed again
+    const long long budget = o.iterations + o.refine_passes;
+    EXPECT_EQ(design_step_count(p), static_cast<long long>(p.step_survey_um.size()) * budget + 6);
+    EXPECT_GE(reported, design_step_count(p));  // a repair block may add passes to a loop
+    const auto j = nlohmann::json::parse(r.metrics_json);
+    // The first stage is the chosen step's surveyed tile: the same exact metrics, and the anneal
+    // starts from them.
+    const double chosen = j["step_survey"]["chosen_um"].get<double>();
+    nlohmann::json surveyed;
+    for (const auto& s : j["step_survey"]["steps"])
+        if (s["step_um"].get<double>() == chosen) surveyed = s;
+    ASSERT_FALSE(surveyed.is_null());
+    const auto& first = j["continuation"]["schedule"][0];
+    EXPECT_TRUE(first.contains("designed_by"));
+    EXPECT_EQ(first["size"].get<int>(), 8);
+    EXPECT_EQ(first["iterations"].get<int>(), o.iterations);
+    EXPECT_EQ(first["level_step_um"].get<double>(), chosen);
+    for (const char* key : {"region_fraction_mean", "specular_fraction_worst", "uniformity_worst"}) {
+        EXPECT_EQ(first["exact"][key].get<double>(), surveyed[key].get<double>()) << key;
+        EXPECT_NEAR(j["anneal"]["before"][key].get<double>(), surveyed[key].get<double>(), 1e-10) << key;
+    }
+    // The survey's tile's steps are the curve's first (an 8x8 tile's).
+    ASSERT_FALSE(r.curve.empty());
+    EXPECT_NE(r.curve.front().phase.find("8x8"), std::string::npos);
+
+    // Without the anneal the continuation goes on from that tile: only the 16² tile's loop runs.
+    o.anneal_sweeps = 0;
+    const PreparedDesign q = prepare_design(o);
+    ASSERT_TRUE(q.step_survey_first_tile);
+    long long loops = 0, reported_q = 0;
+    const DesignResult rq = run_design(q, [&](const DesignStep& s) {
+        ++reported_q;
+        loops += s.phase != "step survey";
+        EXPECT_EQ(s.phase.find("8x8"), std::string::npos) << s.phase;
+        return true;
+    });
+    EXPECT_GE(loops, budget);
+    EXPECT_EQ(design_step_count(q), static_cast<long long>(q.step_survey_um.size() + 1) * budget);
+    EXPECT_GE(reported_q, design_step_count(q));
+    const auto jq = nlohmann::json::parse(rq.metrics_json);
+    EXPECT_TRUE(jq["continuation"]["schedule"][0].contains("designed_by"));
+    EXPECT_EQ(jq["continuation"]["schedule"].size(), 2u);
+
+    // A fabrication error designs the first tile under it, as the survey does not: no reuse.
+    o.errors.scale = 0.05;
+    EXPECT_FALSE(prepare_design(o).step_survey_first_tile);
+    // Nor where the survey's tile is the run's own (no continuation, no anneal).
+    EXPECT_FALSE(prepare_design(band_anti_mirror()).step_survey_first_tile);
 }
 
 TEST(DesignStepSurvey, NotWhereTheStepIsGivenOrTheDesignHasNoBudget) {

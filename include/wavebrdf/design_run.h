@@ -189,7 +189,15 @@ struct PreparedDesign {
     // tile on, step_survey_size² texels, before the design runs on the best (empty: none).
     std::vector<double> step_survey_um;
     int step_survey_size = 0;
+    // Whether the survey's tile is the first tile the loop designs (the continuation's first, or
+    // the annealed tile), on the same seed: the run then starts from the best step's tile instead
+    // of designing that tile again.
+    bool step_survey_first_tile = false;
 };
+
+// The steps run_design reports through on_step (the survey's, the loops', the anneal's sweeps),
+// for a progress bar's total.
+long long design_step_count(const PreparedDesign& prepared);
 
 // Estimated peak memory (bytes) of a design with these options (orders of every wavelength, the
 // level weights and their optimiser state, the spectra and their gradients).

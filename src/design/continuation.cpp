@@ -180,7 +180,12 @@ std::string continued_json(const PreparedDesign& p, double rule, const std::stri
                                       "): the first from a random start, each next from the last relief "
                                       "repeated to its size; a tile of n^2 texels took the iterations and passes "
                                       "times (size/n)^2 divided by the number of earlier tiles (together about the "
-                                      "last tile's CPU); exact: each tile's relief scored by exact scalar diffraction"},
+                                      "last tile's CPU)" +
+                                      std::string(stages[0].contains("designed_by")
+                                                      ? ", but for the first, the step survey's best tile, designed at "
+                                                        "the run's iterations and passes"
+                                                      : "") +
+                                      "; exact: each tile's relief scored by exact scalar diffraction"},
                          {"setting", o.continuation},
                          {"schedule", stages}};
     j["options"]["continuation"] = o.continuation;
@@ -211,8 +216,9 @@ std::string annealed_json(const PreparedDesign& p, int n, const std::string& jso
     nlohmann::json j = nlohmann::json::parse(json);
     const DesignOptions& o = p.options;
     const std::string tile = std::to_string(n) + "x" + std::to_string(n);
-    j["continuation"]["what"] = "the loop designed the " + tile + " tile" +
-                                (p.stages.empty() ? "" : " (the continuation's first)") +
+    const bool surveyed = j["continuation"]["schedule"][0].contains("designed_by");
+    j["continuation"]["what"] = std::string(surveyed ? "the step survey designed the " : "the loop designed the ") +
+                                tile + " tile" + (p.stages.empty() ? "" : " (the continuation's first)") +
                                 ", the anneal (anneal) was its last stage, and the " + std::to_string(o.size) + "x" +
                                 std::to_string(o.size) + " tile is that relief repeated and scored (a tiled relief "
                                 "reflects exactly its tile's orders), not polished";
@@ -294,7 +300,8 @@ AnnealedTile anneal_tile(const PreparedDesign& sp, int sweeps, double cpu_estima
 
 }  // namespace
 
-DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step, const RunOneDesign& run_one) {
+DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step, const RunOneDesign& run_one,
+                           const DesignResult* first_tile) {
     const auto start = ContinuationClock::now();
     std::vector<DesignStep> curve;
     int offset = 0;
@@ -333,11 +340,22 @@ DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step,
         tile = " " + std::to_string(s.size) + "x" + std::to_string(s.size);
         PreparedDesign sp = prepare_design(o);
         if (!level.empty()) start_from_tile(sp, level, n, step);
-        const DesignResult r = run_one(sp, forward);
+        const bool made = first_tile && level.empty();
+        if (made) {
+            for (DesignStep t : first_tile->curve) {
+                t.iteration += offset;
+                t.phase += tile;
+                curve.push_back(t);
+            }
+        }
+        const DesignResult r = made ? *first_tile : run_one(sp, forward);
         const nlohmann::json j = nlohmann::json::parse(r.metrics_json);
-        stages.push_back({{"size", s.size}, {"iterations", s.iterations}, {"refine_passes", s.refine_passes},
-                          {"seconds", continuation_seconds(t0)}, {"level_step_um", r.levels_um[1] - r.levels_um[0]},
+        const nlohmann::json& options = j["options"];
+        stages.push_back({{"size", s.size}, {"iterations", options["iterations"]}, {"refine_passes", options["refine_passes"]},
+                          {"seconds", made ? j["timings_s"]["total"] : nlohmann::json(continuation_seconds(t0))},
+                          {"level_step_um", r.levels_um[1] - r.levels_um[0]},
                           {"exact", j["metrics"]["exact"]}, {"warnings", j["warnings"]}});
+        if (made) stages.back()["designed_by"] = "the step survey (its best step's tile)";
         level = r.level;
         n = s.size;
         step = r.levels_um[1] - r.levels_um[0];

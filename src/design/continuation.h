@@ -19,7 +19,10 @@ using DesignStepFn = std::function<bool(const DesignStep&)>;
 using RunOneDesign = std::function<DesignResult(const PreparedDesign&, const DesignStepFn&)>;
 // Runs p's stages, then p's own tile from the last stage's relief tiled, each by run_one (the run
 // on one tile); the result is the last tile's, its curve every stage's steps, and design.json
-// says the schedule ("continuation") with every stage's exact metrics and time.
-DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step, const RunOneDesign& run_one);
+// says the schedule ("continuation") with every stage's exact metrics and time. `first_tile`, where
+// given, is the first stage's design, made already (the step survey's best tile: its steps were
+// reported then, and enter the curve only).
+DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step, const RunOneDesign& run_one,
+                           const DesignResult* first_tile = nullptr);
 
 }  // namespace wavebrdf::detail

@@ -716,6 +716,11 @@ namespace {
 DesignResult run_design_impl(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step,
                              bool survey_views);
 
+// One tile of a continuation (detail::RunOneDesign).
+DesignResult run_one_tile(const PreparedDesign& one, const detail::DesignStepFn& on_step) {
+    return run_design_impl(one, on_step, one.options.survey_views);
+}
+
 // Which views reach a colour: for a few view directions (offsets along x from the mirror
 // direction, inside the visible disk), a small design on the same levels, texel and light. Its
 // tile (the largest divisor of the run's size up to k_survey_size) repeats into the run's tile
@@ -776,9 +781,12 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
         const detail::StepSurvey survey = detail::run_step_survey(p, on_step);
         PreparedDesign q = p;
         q.step_survey_um.clear();
+        q.step_survey_first_tile = false;
         q.options.level_step_um = survey.step_um;
         q.levels_um = level_heights(p.options.levels, survey.step_um);
-        DesignResult r = run_design(q, on_step);
+        DesignResult r = p.step_survey_first_tile
+                             ? detail::run_continued(q, on_step, run_one_tile, &survey.tile)
+                             : run_design(q, on_step);
         nlohmann::json j = nlohmann::json::parse(r.metrics_json);
         j["step_survey"] = survey.json;
         j["level_step"] = {{"what", "the anti-mirror's level step, a design variable: the step survey's best "
@@ -790,11 +798,26 @@ DesignResult run_design(const PreparedDesign& p, const std::function<bool(const 
         r.metrics_json = j.dump(2);
         return r;
     }
-    if (!p.stages.empty() || p.anneal_sweeps > 0)
-        return detail::run_continued(p, on_step, [](const PreparedDesign& one, const detail::DesignStepFn& f) {
-            return run_design_impl(one, f, one.options.survey_views);
-        });
+    if (!p.stages.empty() || p.anneal_sweeps > 0) return detail::run_continued(p, on_step, run_one_tile);
     return run_design_impl(p, on_step, p.options.survey_views);
+}
+
+long long design_step_count(const PreparedDesign& p) {
+    const DesignOptions& o = p.options;
+    const long long budget = o.iterations + o.refine_passes;
+    // The survey: one loop at the run's budget on each step.
+    long long steps = static_cast<long long>(p.step_survey_um.size()) * budget;
+    if (p.anneal_sweeps > 0) {
+        // The loop designs the first tile alone (unless the survey did), then the sweeps; the run's
+        // tile is scored, not designed.
+        if (!p.step_survey_first_tile)
+            steps += p.stages.empty() ? budget : p.stages.front().iterations + p.stages.front().refine_passes;
+        return steps + p.anneal_sweeps;
+    }
+    steps += budget;
+    for (std::size_t k = p.step_survey_first_tile ? 1 : 0; k < p.stages.size(); ++k)
+        steps += p.stages[k].iterations + p.stages[k].refine_passes;
+    return steps;
 }
 
 namespace {

@@ -188,12 +188,17 @@ void plan_step_survey(PreparedDesign& p, bool free) {
     std::sort(steps.rbegin(), steps.rend());
     p.step_survey_um = steps;
     p.step_survey_size = size;
+    // The survey designs the loop's first tile itself where that tile is one of the run's earlier
+    // stages (a continuation's first, or the tile the anneal takes) and is designed as the survey
+    // designs it (no fabrication error).
+    p.step_survey_first_tile = size == first && (!p.stages.empty() || p.anneal_sweeps > 0) && o.errors.scale == 0.0;
     p.notes.push_back("level step surveyed: " + std::to_string(steps.size()) + " steps from " +
                       format_number(steps.back(), "%.4g") + " to " + format_number(steps.front(), "%.4g") +
                       " um (the rule's and those on which the mirror order can be kept below the cone's aim), "
                       "each designed on a " + std::to_string(size) + "x" + std::to_string(size) + " tile at " +
                       std::to_string(o.iterations) + ":" + std::to_string(o.refine_passes) +
-                      "; the design keeps the best (design.json step_survey)");
+                      "; the design keeps the best (design.json step_survey)" +
+                      (p.step_survey_first_tile ? ", and the best step's tile is its first" : ""));
 }
 
 StepSurvey run_step_survey(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step) {
@@ -242,6 +247,7 @@ StepSurvey run_step_survey(const PreparedDesign& p, const std::function<bool(con
         if (score > best_score) {
             best_score = score;
             best.step_um = step;
+            best.tile = r;
         }
     }
     best.json = {{"what", "the level steps surveyed: each designed on a tile of size^2 texels (a divisor of the run's, "

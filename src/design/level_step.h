@@ -38,6 +38,7 @@ void plan_step_survey(PreparedDesign& p, bool free);
 // through on_step (phase "step survey"); a false return stops the survey at the steps designed.
 struct StepSurvey {
     double step_um = 0.0;  // the best step
+    DesignResult tile;     // its tile's design
     nlohmann::json json;   // design.json's "step_survey"
 };
 StepSurvey run_step_survey(const PreparedDesign& p, const std::function<bool(const DesignStep&)>& on_step);
