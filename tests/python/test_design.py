@@ -185,8 +185,12 @@ def test_a_continued_design_cli_and_python_give_the_same_design(cli, tmp_path):
         sizes = [s["size"] for s in doc["continuation"]["schedule"]]
         assert sizes == ([8, 16] if schedule == "auto" else [4, 8, 16])
         assert [s["size"] for s in r["design"]["continuation"]["schedule"]] == sizes
-        # each earlier tile at the budget times (16/n)^2, the earlier tiles sharing one tile's
-        assert doc["continuation"]["schedule"][0]["iterations"] == 8 * (16 // sizes[0]) ** 2 // (len(sizes) - 1)
+        # each earlier tile at the budget times (16/n)^2, the earlier tiles sharing one tile's, but
+        # the first: the level-step survey's best tile, designed at the run's budget
+        first = doc["continuation"]["schedule"][0]
+        assert first["iterations"] == 8 and "designed_by" in first
+        for k in range(1, len(sizes) - 1):
+            assert doc["continuation"]["schedule"][k]["iterations"] == 8 * (16 // sizes[k]) ** 2 // (len(sizes) - 1)
         assert doc["metrics"]["exact"]["region_fraction_mean"] == pytest.approx(
             r["metrics"]["exact"]["region_fraction_mean"], rel=1e-12)
     off = wb.design(**SMALL, continuation="off", anneal_sweeps=0)
