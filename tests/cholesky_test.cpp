@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -63,7 +64,7 @@ TEST(Cholesky, NamesTheFirstPivotThatIsNotPositive) {
     negative[0] = -1.0;
     EXPECT_EQ(detail::cholesky_in_place(negative, n, false), 0u);
     std::vector<double> infinite = random_spd(n, 5);
-    infinite[2 * n + 2] = INFINITY;
+    infinite[2 * n + 2] = std::numeric_limits<double>::infinity();
     EXPECT_EQ(detail::cholesky_in_place(infinite, n, false), 2u);
 }
 

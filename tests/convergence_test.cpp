@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -274,7 +275,8 @@ TEST(Convergence, TheChecksErrorBarsAreComputedByDefaultOnlyWhereCheap) {
     EXPECT_FALSE(check_error_bars_affordable(CheckErrorBars::Auto, 26.0, 10.0));  // a 64² dense solve's share
     EXPECT_FALSE(check_error_bars_affordable(CheckErrorBars::Auto, std::nan(""), 10.0));
     EXPECT_FALSE(check_error_bars_affordable(CheckErrorBars::Auto, 1.0, -1.0));
-    EXPECT_FALSE(check_error_bars_affordable(CheckErrorBars::Auto, INFINITY, INFINITY));
+    const double inf = std::numeric_limits<double>::infinity();
+    EXPECT_FALSE(check_error_bars_affordable(CheckErrorBars::Auto, inf, inf));
     EXPECT_TRUE(check_error_bars_affordable(CheckErrorBars::Always, 1e9, 1.0));
     EXPECT_FALSE(check_error_bars_affordable(CheckErrorBars::Off, 0.0, 10.0));
     EXPECT_EQ(parse_check_error_bars("auto"), CheckErrorBars::Auto);

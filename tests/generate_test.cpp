@@ -458,7 +458,7 @@ TEST(GenerateTest, WithHeightRangeScalesPeakToValleyAboutTheMean) {
     EXPECT_EQ(scaled.texel_um(), 2.0);
     EXPECT_EQ(scaled.vscale(), 0.5);
     EXPECT_THROW(with_height_range(hf, 0.0), std::domain_error);
-    EXPECT_THROW(with_height_range(hf, NAN), std::domain_error);
+    EXPECT_THROW(with_height_range(hf, std::numeric_limits<double>::quiet_NaN()), std::domain_error);
     EXPECT_THROW(with_height_range(Heightfield(4, 4, std::vector<double>(16, 1.0)), 1.0), std::domain_error);
 }
 

@@ -21,7 +21,7 @@ inline Vec3 unit(const Vec3& v) {
 
 // Channel `ch` of pixel (r, c).
 inline double value_at(const RgbImage& image, int r, int c, int ch = 0) {
-    return image.data[(std::size_t(r) * image.cols + std::size_t(c)) * 3 + std::size_t(ch)];
+    return static_cast<double>(image.data[(std::size_t(r) * image.cols + std::size_t(c)) * 3 + std::size_t(ch)]);
 }
 
 // The brightest pixel of channel 0 (the first of equals).

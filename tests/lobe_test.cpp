@@ -185,7 +185,7 @@ TEST(Lobe, AnisotropyStretchesAlongItsAxis) {
         double sum = 0, xx = 0, yy = 0;
         for (int p = 0; p < 256; ++p)
             for (int q = 0; q < 256; ++q) {
-                const double v = t.values[(std::size_t(p) * 256 + std::size_t(q)) * 3];
+                const double v = static_cast<double>(t.values[(std::size_t(p) * 256 + std::size_t(q)) * 3]);
                 const double ox = slice_omega(p, 256), oy = slice_omega(q, 256);
                 if (ox * ox + oy * oy > 0.25) continue;  // the lobe's core, away from GGX's tail
                 sum += v;

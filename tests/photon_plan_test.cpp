@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <stdexcept>
 
 #include "recover_util.h"
@@ -52,7 +53,7 @@ TEST(PhotonPlan, ExposuresAreTheFewestThatMeetTheTarget) {
     const auto root = [](double single) { return [=](int k) { return single / std::sqrt(double(k)); }; };
     EXPECT_EQ(exposures_for_target(root(2.0), 0.5, 100), 16);  // (2 / 0.5)² exactly
     EXPECT_THROW(exposures_for_target(root(-1.0), 1.0, 4), std::domain_error);
-    EXPECT_THROW(exposures_for_target(root(NAN), 1.0, 4), std::domain_error);
+    EXPECT_THROW(exposures_for_target(root(std::numeric_limits<double>::quiet_NaN()), 1.0, 4), std::domain_error);
     EXPECT_THROW(exposures_for_target(root(1.0), 0.0, 4), std::domain_error);
     EXPECT_THROW(exposures_for_target(root(1.0), 1.0, 0), std::domain_error);
 }
@@ -408,7 +409,7 @@ TEST(PhotonPlan, ASurfaceThatMeetsTheTargetKeepsItsPlan) {
 TEST(PhotonPlan, OptionsOutOfRangeAreRefused) {
     RecoveryOptions options = nm_run(1.5);
     EXPECT_THROW(check_recovery_options(options, {}), std::invalid_argument);
-    options.target_error = NAN;
+    options.target_error = std::numeric_limits<double>::quiet_NaN();
     EXPECT_THROW(check_recovery_options(options, {}), std::invalid_argument);
     options.target_error = 0.01;
     options.max_exposures = 0;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <limits>
 #include <set>
 #include <string>
 #include <vector>
@@ -28,7 +29,7 @@ const std::string kSmallRecover = "--size 8 --texel-um 2 --sigma-p-um 3 --height
 double final_height_error(const fs::path& metrics) {
     const auto lines = lines_of(read_text(metrics));
     EXPECT_GE(lines.size(), 2u);
-    if (lines.size() < 2) return NAN;
+    if (lines.size() < 2) return std::numeric_limits<double>::quiet_NaN();
     // The fifth column (height_rel_rmse; the sixth is the plane-removed one).
     std::string last = lines.back();
     for (int column = 0; column < 4; ++column) last = last.substr(last.find(',') + 1);

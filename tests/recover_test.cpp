@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <complex>
+#include <limits>
 #include <map>
 #include <malloc.h>
 #include <random>
@@ -323,7 +324,7 @@ TEST(UnwrapHeights, RecoversHeightsFromExactFieldsAtSeveralWavelengths) {
     const Heightfield hf = generate_heightfield(p);
     const std::vector<double> lambdas = {0.5, 0.55, 0.65};
     std::vector<std::vector<Complex>> fields;
-    double lo = INFINITY, hi = -INFINITY, mean = 0.0;
+    double lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity(), mean = 0.0;
     for (double v : hf.values()) {
         lo = std::min(lo, v * p.texel_um);
         hi = std::max(hi, v * p.texel_um);

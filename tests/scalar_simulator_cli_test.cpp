@@ -45,7 +45,7 @@ TEST(ScalarSimulatorCli, ScalarObservationsAreTheSimulatorsSlices) {
         const std::vector<double> s = scalar_slice(truth, o.query, o.lambdas_um[0], o.resolution);
         const std::vector<double> g = render_slice<double>(truth, o.query, o.lambdas_um[0], o.resolution);
         for (std::size_t i = 0; i < s.size(); ++i) {
-            const double r = o.reference[i];
+            const double r = static_cast<double>(o.reference[i]);
             to_scalar += (r - s[i]) * (r - s[i]);
             to_gabor += (r - g[i]) * (r - g[i]);
             norm += s[i] * s[i];

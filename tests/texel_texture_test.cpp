@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -118,7 +119,7 @@ TEST(TexelTexture, AnEstimatesOwnNoiseIsNot) {
 TEST(TexelTexture, RefusesABadSigma) {
     const Heightfield h = smooth_surface(0.01, 1);
     EXPECT_THROW(texel_texture(h, 0.0), std::invalid_argument);
-    EXPECT_THROW(texel_texture(h, NAN), std::invalid_argument);
+    EXPECT_THROW(texel_texture(h, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
     ConvergenceCheck check;
     add_texel_texture(check, h, -1.0, 1.0, "error bars");  // not judged
     EXPECT_TRUE(check.texture_sigma_source.empty());

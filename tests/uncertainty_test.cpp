@@ -59,7 +59,7 @@ std::vector<double> dense_gauss_newton(const std::vector<Observation>& observati
     for (const Observation& o : observations) {
         const std::vector<double> f = render_observation(at, o);
         double total = 0.0;
-        for (double r : o.reference) total += r;
+        for (const float r : o.reference) total += static_cast<double>(r);
         const double s = photons / total;
         std::vector<std::vector<double>> j(n);
         for (std::size_t t = 0; t < n; ++t) {

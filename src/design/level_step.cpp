@@ -36,7 +36,7 @@ MirrorShares dark_mirror_shares(double step_um, int levels, const std::vector<do
     // G depends on ℓ − m only.
     std::vector<long double> c(K, 0.0L);
     for (std::size_t d = 0; d < K; ++d) {
-        for (double th : thetas) c[d] += std::cos(static_cast<long double>(d) * th);
+        for (double th : thetas) c[d] += std::cos(static_cast<long double>(d) * static_cast<long double>(th));
         c[d] /= static_cast<long double>(thetas.size());
     }
     auto G = [&](std::size_t l, std::size_t m) { return c[l > m ? l - m : m - l] + (l == m ? 1e-13L : 0.0L); };

@@ -146,7 +146,7 @@ public:
         };
         line("the cone's fraction", "--cone-limit", m_spec.cone_limit, [](const std::vector<double>& g) { return g[0]; });
         line("the region's uniformity", "--uniformity-limit", m_spec.uniformity_limit,
-             [this](const std::vector<double>& g) { return bins(g).u; });
+             [](const std::vector<double>& g) { return bins(g).u; });
         return out;
     }
 

@@ -204,7 +204,7 @@ double weighted_sum(const std::vector<double>& estimate, const std::vector<Ref>&
     if (gradient) gradient->assign(estimate.size(), 0.0);
     double sum = 0.0;
     for (std::size_t p = 0; p < weights.size(); ++p) {
-        const double w = weights[p];
+        const double w = static_cast<double>(weights[p]);
         if (w == 0.0) continue;
         for (std::size_t c = 0; c < channels; ++c) {
             const std::size_t i = p * channels + c;

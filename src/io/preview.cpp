@@ -401,7 +401,8 @@ Preview8 make_slice_preview(const RgbImage& image, const PreviewOptions& options
         if (!options.colour_bar) return picture;
         double peak = 0.0;
         for (std::size_t p = 0; p < crop.data.size() / 3; ++p) {
-            const double r = crop.data[3 * p], g = crop.data[3 * p + 1], b = crop.data[3 * p + 2];
+            const double r = static_cast<double>(crop.data[3 * p]), g = static_cast<double>(crop.data[3 * p + 1]),
+                         b = static_cast<double>(crop.data[3 * p + 2]);
             const double v = r == g && g == b ? r : 0.2126 * r + 0.7152 * g + 0.0722 * b;
             if (std::isfinite(v)) peak = std::max(peak, v);
         }
