@@ -46,10 +46,10 @@ phase "setup and Release build"
 with_run_cache bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an older build/ may have it cached OFF
 # clang, not GCC (the Release pass's compiler): with ASan + UBSan GCC 12 takes 2.5-3 times the
 # CPU to compile (src/recovery/recover.cpp 38 s against 12 s; tests/recover_test.cpp 38 against
-# 17), and a second compiler checks the code as well. -O1 (ASan's advice): on the 2-core machine
-# it compiled this build in 867 CPU-s against -O2's 1381, and its tests ran 791 s wall against
-# 672 (the design's loops are not vectorised), so the run ends about 140 s sooner
-# (bench/results/2026-12-02-ci-time.md). Line tables only (-g1): the reports still
+# 17), and a second compiler checks the code as well. -O2, not -O1: -O1 compiles this build in
+# 0.63 of the CPU, but its tests run about 1.2 times as long (the design's loops are not
+# vectorised), and in a whole CI run the two nearly cancel (2320 s against 2445 s, the tests 799 s
+# against 672: bench/results/2026-12-02-ci-time.md). Line tables only (-g1): the reports still
 # name every frame's function, file and line. The same build holds the fuzzers, so the
 # instrumented library is compiled once; shared, so that each fuzzer's link is its own small
 # file. libFuzzer's coverage goes into the readers the fuzzers call only (CMakeLists.txt,
@@ -67,7 +67,7 @@ launcher=()  # ccache, where the machine has it, as in setup.sh (a fresh CI mach
 command -v ccache >/dev/null 2>&1 && launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 sanitize_build() {
     CC=clang CXX=clang++ cmake -S . -B build-sanitize -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-          -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DWAVEBRDF_SANITIZE=ON -DWAVEBRDF_BUILD_FUZZERS=ON \
+          -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -g1 -DNDEBUG" -DWAVEBRDF_SANITIZE=ON -DWAVEBRDF_BUILD_FUZZERS=ON \
           -DWAVEBRDF_SHARED=ON -DWAVEBRDF_BUILD_BENCH=OFF -DWAVEBRDF_BUILD_PYTHON=OFF -DWAVEBRDF_BUILD_EXPERIMENTS=OFF \
           -DWAVEBRDF_UNITY_BUILD=ON "${launcher[@]}" >/dev/null
     cmake --build build-sanitize -j"$(nproc)"
