@@ -307,10 +307,14 @@ DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step,
     int offset = 0;
     std::string tile;  // an earlier tile's steps are marked with its size (the report's curve, one line a phase)
     bool stopped = false;
-    const DesignStepFn forward = [&](const DesignStep& s) {
-        DesignStep t = s;
+    // A tile's step as the run's curve holds it: after the earlier tiles' steps, marked with the tile.
+    const auto in_run = [&](DesignStep t) {
         t.iteration += offset;
         t.phase += tile;
+        return t;
+    };
+    const DesignStepFn forward = [&](const DesignStep& s) {
+        const DesignStep t = in_run(s);
         curve.push_back(t);
         if (!stopped && on_step && !on_step(t)) stopped = true;
         return !stopped;
@@ -341,13 +345,8 @@ DesignResult run_continued(const PreparedDesign& p, const DesignStepFn& on_step,
         PreparedDesign sp = prepare_design(o);
         if (!level.empty()) start_from_tile(sp, level, n, step);
         const bool made = first_tile && level.empty();
-        if (made) {
-            for (DesignStep t : first_tile->curve) {
-                t.iteration += offset;
-                t.phase += tile;
-                curve.push_back(t);
-            }
-        }
+        if (made)
+            for (const DesignStep& t : first_tile->curve) curve.push_back(in_run(t));
         const DesignResult r = made ? *first_tile : run_one(sp, forward);
         const nlohmann::json j = nlohmann::json::parse(r.metrics_json);
         const nlohmann::json& options = j["options"];
