@@ -6,7 +6,10 @@
 #      Asking for 0.3, 1.0 or 0.1 instead must fail (0.x: same minor version only). The
 #      installed CLI draws a report with the installed Python package (when it was built).
 #   2. add_subdirectory(<this source tree>): the consumer's own Debug build of the library, with
-#      tests, benchmarks, Python and the CLI off by default (build-consumer/, kept for ccache).
+#      tests, benchmarks, Python and the CLI off by default (build-consumer/, kept for ccache),
+#      compiled with clang where the machine has it (setup.sh installs it): a second compiler for
+#      the per-file compile, and at -O0 it takes 0.61 of GCC's CPU (12 of the library's sources:
+#      26.2 against 42.7 CPU-s; bench/results/2026-12-02-ci-time.md).
 #      Each source file is compiled alone here (no WAVEBRDF_UNITY_BUILD, unlike scripts/setup.sh's
 #      and the sanitizer build), so a file that misses an #include fails here.
 # Both check that no flag of ours (-march=native, sanitizers, OpenMP, Eigen's path) reaches the
@@ -89,9 +92,13 @@ fi
 
 # A Debug consumer: a second build type, and -O0 compiles the whole library (this part builds
 # all of it, with the consumer's flags) faster than -O2.
-echo "test_consumer: 2. add_subdirectory of the source tree (Debug)"
+compilers=()
+if command -v clang >/dev/null 2>&1 && command -v clang++ >/dev/null 2>&1; then
+    compilers=(-DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++)
+fi
+echo "test_consumer: 2. add_subdirectory of the source tree (Debug${compilers:+, clang})"
 cmake -S tests/consumer -B build-consumer -DWAVEBRDF_SOURCE_DIR="$root" -DCMAKE_BUILD_TYPE=Debug \
-    -DCMAKE_EXPORT_COMPILE_COMMANDS=ON "${launcher[@]}" >"$work/sub-configure.log"
+    -DCMAKE_EXPORT_COMPILE_COMMANDS=ON "${compilers[@]}" "${launcher[@]}" >"$work/sub-configure.log"
 cache=build-consumer/CMakeCache.txt
 for option in WAVEBRDF_BUILD_TESTS WAVEBRDF_BUILD_BENCH WAVEBRDF_BUILD_PYTHON WAVEBRDF_BUILD_CLI \
         WAVEBRDF_BUILD_EXPERIMENTS WAVEBRDF_NATIVE; do
