@@ -141,6 +141,14 @@ double bias_of_power(const std::vector<double>& power, int rows, int cols, const
     return std::sqrt(bias2) / n;
 }
 
+// The predicted total with `exposures` and its bias: √(variance/k + bias²), the variance being
+// the single exposure's total less its bias. One sum for plan_exposures and photon_plan_rms_um,
+// so that a plan's rms_um is photon_plan_rms_um of its exposures to the bit.
+double rms_with_bias(const PhotonPlan& p, int exposures, double bias_um) {
+    const double variance = std::max(p.single_rms_um * p.single_rms_um - p.single_bias_um * p.single_bias_um, 0.0);
+    return std::sqrt(variance / double(exposures) + bias_um * bias_um);
+}
+
 // The plan's note: the first-order prediction, the pilot's measurement where it ran, the
 // exposures taken and the proxies (no times: the same every run).
 std::string plan_note(const PhotonPlan& p, const PhotonPlanSettings& settings) {
@@ -307,12 +315,13 @@ PhotonPlan plan_exposures(const Heightfield& surface, const AcquisitionPlan& pla
     const double single_sd_um = predict_photon_limited_rms_um(surface, plan, photons, settings, &p);
     // √(variance/k + bias(k)²): both fall with k.
     const std::vector<double> power = height_power(surface);
+    p.single_bias_um = bias_of_power(power, surface.rows(), surface.cols(), p, 1);
+    p.single_rms_um = std::sqrt(single_sd_um * single_sd_um + p.single_bias_um * p.single_bias_um);
     const auto total_um = [&](int k, double* bias_um) {
         const double b = bias_of_power(power, surface.rows(), surface.cols(), p, k);
         if (bias_um) *bias_um = b;
-        return std::sqrt(single_sd_um * single_sd_um / double(k) + b * b);
+        return rms_with_bias(p, k, b);
     };
-    p.single_rms_um = total_um(1, &p.single_bias_um);
     if (settings.target > 0.0)
         p.exposures = exposures_for_target([&](int k) { return total_um(k, nullptr); }, settings.target * range_um,
                                            settings.max_exposures, &p.capped);
@@ -323,9 +332,7 @@ PhotonPlan plan_exposures(const Heightfield& surface, const AcquisitionPlan& pla
 
 
 double photon_plan_rms_um(const Heightfield& surface, const PhotonPlan& p, int exposures) {
-    const double bias = photon_limited_bias_um(surface, p, exposures);
-    const double variance = std::max(p.single_rms_um * p.single_rms_um - p.single_bias_um * p.single_bias_um, 0.0);
-    return std::sqrt(variance / double(exposures) + bias * bias);
+    return rms_with_bias(p, exposures, photon_limited_bias_um(surface, p, exposures));
 }
 
 int photon_pilot_tile_texels(int rows, int cols) {
