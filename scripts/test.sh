@@ -123,7 +123,7 @@ phase "sanitizer tests (ctest)"
 # A quarantine of 32 MB, not ASan's 256: freed memory waits there before it is reused, so that a
 # use after free finds it poisoned. With 256 MB the recoveries' loops, which allocate, kept
 # touching fresh pages: 28 % of the pass's CPU time was the kernel's (page faults), 24 % with
-# 32 MB, which still holds what a loop frees over many of its iterations. The whole pass: 608 s
+# 32 MB, which still finds a use of anything among the last 32 MB freed. The whole pass: 608 s
 # against 737 (1160 CPU-s against 1416; bench/results/2026-12-02-asan-quarantine.md).
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:malloc_context_size=8:quarantine_size_mb=32
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
