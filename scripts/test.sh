@@ -56,7 +56,9 @@ with_run_cache bash scripts/setup.sh -DWAVEBRDF_BUILD_PYTHON=ON  # explicit: an 
 # WAVEBRDF_FUZZED_SOURCES): in the whole library it made the sanitizer tests 3-4 times slower.
 # The tests' own sources at the build's -O2 too (WAVEBRDF_TESTS_OPT empty; the Release build
 # compiles them at -O1): at -O0 they compiled in 211 CPU-s against 558, but the library code
-# inlined into them ran unoptimised under ASan and the tests took 1061 s against 672.
+# inlined into them ran unoptimised under ASan and the tests took 1061 s against 672. At -O1 (on the
+# current machine) they compiled in 393 CPU-s against 434 and the tests took 28 CPU-s more: no gain
+# (bench/results/2026-12-03-ci-cpu.md).
 # Compiled in batches (WAVEBRDF_UNITY_BUILD, as the Release build): the readers that carry
 # libFuzzer's coverage stay out of the batches, their flags being their own. The consumer's build
 # (scripts/test_consumer.sh) compiles every source file alone, so a missing #include that a batch
