@@ -129,8 +129,9 @@ phase "sanitizer tests (ctest)"
 # against 737 (1160 CPU-s against 1416; bench/results/2026-12-02-asan-quarantine.md).
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:malloc_context_size=8:quarantine_size_mb=32
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-# The slowest tests (most of them recoveries of over a minute under the sanitizers) are left to the
-# Release pass: tests/sanitizer_skip.txt names each with the lighter test that runs its code here.
+# Slow tests whose every line of our code the kept tests run are left to the Release pass:
+# tests/sanitizer_skip.txt, written by scripts/sanitizer_skip.py from each test's line coverage,
+# names each with the kept test that runs most of its lines.
 skip="$(grep -v '^#' tests/sanitizer_skip.txt | awk 'NF { gsub(/\./, "\\.", $1); print $1 }' | paste -sd'|')"
 echo "test: sanitizer pass skips $(grep -cv '^#' tests/sanitizer_skip.txt) tests (tests/sanitizer_skip.txt)"
 (cd build-sanitize && "${ctest_threads[@]}" ctest --output-on-failure -j"$(nproc)" -E "^(${skip})\$")
