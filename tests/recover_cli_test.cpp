@@ -14,6 +14,7 @@
 
 #include "cli_util.h"
 #include "wavebrdf/io.h"
+#include "wavebrdf/photon_plan.h"
 #include "wavebrdf/recover.h"
 
 using namespace wavebrdf;
@@ -281,6 +282,26 @@ TEST(RecoverCliTest, PlanOnlyWithoutPhotonNoiseWritesTheSlicesPositionsAlone) {
         distinct.insert({x, y});
     }
     EXPECT_EQ(distinct.size(), positions.size());
+}
+
+// A first-order prediction well within the target (8² of 2 µm heights at 1e4 photons) runs no
+// pilot, and the plan says why, in the log and in run.json; the reason is the pilot's own rule
+// (prediction × k_photon_pilot_band below the target). Small enough for the sanitizer pass.
+TEST(RecoverCliTest, APlanWellWithinTheTargetSaysWhyNoPilotRan) {
+    const fs::path dir = fresh_dir("recover");
+    const CliResult plan = run_cli(dir, "recover --size 8 --resolution 16 --noise poisson:1e4 --seed 4 --no-plots "
+                                        "--threads 1 --plan-only --out plan");
+    ASSERT_EQ(plan.exit_code, 0) << plan.err;
+    const std::string why = "the first-order prediction is below the target / 1.5";
+    EXPECT_NE(plan.err.find("no pilot: " + why), std::string::npos) << plan.err;
+    const auto p = nlohmann::json::parse(read_text(dir / "plan" / "run.json")).at("photon_plan");
+    EXPECT_EQ(p.at("exposures").get<int>(), 1);
+    EXPECT_LT(p.at("predicted_error").get<double>() * k_photon_pilot_band, p.at("target_error").get<double>());
+    const auto& pilot = p.at("pilot");
+    EXPECT_FALSE(pilot.at("ran").get<bool>());
+    EXPECT_EQ(pilot.at("why_not"), why);
+    EXPECT_EQ(pilot.at("first_order_exposures").get<int>(), 1);
+    EXPECT_FALSE(pilot.contains("ratio") || pilot.contains("errors_um")) << pilot.dump();
 }
 
 // --plan-only plans as the run does (the same photon plan and pilot, the same slices) and writes
