@@ -64,7 +64,7 @@ TEST(StageKind, EveryStepOfTheDefaultRunHasAKindAndItsTotal) {
 
 TEST(StageKind, EveryStepOfACalibratedRunHasAKindAndItsTotal) {
     RecoveryOptions options;
-    options.rows = options.cols = 12;
+    options.rows = options.cols = 8;
     options.resolution = 16;
     options.seed = 3;
     options.calibrate = parse_calibration("all");
