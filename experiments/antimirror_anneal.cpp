@@ -22,10 +22,6 @@
 //     last relief and from the best one; the better within the aims is kept)
 //     out=best.exr tile=1 (the relief written, repeated tile × tile: a tiled relief reflects
 //     exactly its tile's orders, so `wavebrdf design --size 32·tile --start` scores it as its tile)
-//     tiles=1 (M > 1: M tiles designed together, the objective on their far fields' mean, as a plate
-//     of M equal patches would show it binned; the other tiles start uniform random, seed random + m;
-//     out= writes tile m as OUT.m.exr) plate=0 plate_out=plate.exr (the plate of plate² texels: the
-//     tiles in M stripes side by side; experiments/2026-12-03-antimirror-mixtures.md)
 //   Prints the library's exact metrics of the start, the last and the final relief, with
 //   `deviation`, the largest difference between the incremental fractions and the library's.
 //   Environment: OMP_NUM_THREADS=1 for one thread.
@@ -201,17 +197,6 @@ struct State {
     std::vector<double> flux, acc;
 };
 
-// tiles=M: the plate is M tiles of equal area side by side (patches many tiles wide), and its
-// binned far field is then the tiles' mean (their orders coincide; the patches' cross terms
-// oscillate from order to order and cancel over a bin of many orders: checked on the plate by the
-// library's exact evaluation). The objective reads the mean of the tiles' totals.
-std::vector<double> mix_acc(const std::vector<State>& tiles) {
-    std::vector<double> a(tiles[0].acc.size(), 0.0);
-    for (const State& t : tiles)
-        for (std::size_t q = 0; q < a.size(); ++q) a[q] += t.acc[q] / static_cast<double>(tiles.size());
-    return a;
-}
-
 // Amplitudes by the direct sum over texels (not the library's FFT).
 void fresh(const Problem& p, State& s) {
     const std::size_t O = p.w.size();
@@ -276,17 +261,16 @@ void trial_all(const Problem& p, const State& s, int u, std::vector<double>& del
 }
 
 // The objective of each level of unit u (its own level's: the current objective).
-// base: the totals the objective reads (the tiles' mean, of which this tile is the share weight).
-std::vector<Score> level_scores(const Problem& p, const State& s, const std::vector<double>& base, double weight, int u,
-                                std::vector<double>& delta, std::vector<double>& acc) {
+std::vector<Score> level_scores(const Problem& p, const State& s, int u, std::vector<double>& delta,
+                                std::vector<double>& acc) {
     trial_all(p, s, u, delta);
     const int t = p.orbits[static_cast<std::size_t>(u)][0];
     const std::size_t K = static_cast<std::size_t>(p.K), G = s.acc.size();
     std::vector<Score> out(K);
     for (std::size_t b = 0; b < K; ++b) {
-        acc = base;
+        acc = s.acc;
         if (static_cast<int>(b) != s.level[static_cast<std::size_t>(t)])
-            for (std::size_t q = 0; q < G; ++q) acc[q] += weight * delta[q * K + b];
+            for (std::size_t q = 0; q < G; ++q) acc[q] += delta[q * K + b];
         out[b] = score(p, acc);
     }
     return out;
@@ -379,52 +363,12 @@ void report(const char* what, const Problem& p, const State& s) {
                 m["specular_fraction_worst"].get<double>(), m["uniformity_worst"].get<double>(), deviation(p, s, f));
 }
 
-// Each tile's exact scores, and with several tiles their mean far field's (the library's flux of
-// each tile, averaged order by order, binned by the library's groups).
-void report(const char* what, const Problem& p, const std::vector<State>& tiles) {
-    for (const State& s : tiles) report(what, p, s);
-    if (tiles.size() == 1) return;
-    std::vector<std::vector<double>> mean;
-    for (const State& s : tiles) {
-        detail::LevelRelief r;
-        r.levels = p.K;
-        r.heights.step_um = p.step;
-        r.level = s.level;
-        const auto flux = detail::level_flux(r, p.N, p.sets, 1.0);
-        if (mean.empty()) mean.assign(flux.size(), {});
-        for (std::size_t w = 0; w < flux.size(); ++w) {
-            mean[w].resize(flux[w].size(), 0.0);
-            for (std::size_t o = 0; o < flux[w].size(); ++o) mean[w][o] += flux[w][o] / static_cast<double>(tiles.size());
-        }
-    }
-    const nlohmann::json m = p.target->metrics(detail::group_fractions(*p.target, mean));
-    std::printf("%s mixture region_mean=%.12f region_worst=%.12f cone_worst=%.12f uniformity_worst=%.12f\n", what,
-                m["region_fraction_mean"].get<double>(), m["region_fraction_worst"].get<double>(),
-                m["specular_fraction_worst"].get<double>(), m["uniformity_worst"].get<double>());
-}
-
-// The plate of plate × plate texels: the M tiles side by side in M stripes of equal width (texel
-// (i, j) in stripe ⌊j M / plate⌋), each stripe its tile repeated.
-void write_plate(const Problem& p, const std::vector<State>& tiles, int plate, const std::string& path) {
-    const int M = static_cast<int>(tiles.size());
-    std::vector<double> values(static_cast<std::size_t>(plate) * plate);
-    for (int i = 0; i < plate; ++i)
-        for (int j = 0; j < plate; ++j) {
-            const State& s = tiles[static_cast<std::size_t>(j * M / plate)];
-            values[static_cast<std::size_t>(i) * plate + j] =
-                s.level[static_cast<std::size_t>((i % p.N) * p.N + j % p.N)] * p.step / p.texel;
-        }
-    write_heightfield_exr(path, Heightfield(plate, plate, std::move(values), p.texel, 1.0), "antimirror_anneal");
-}
-
 // Best-improvement descent: each pass tries every texel's every other level and keeps the best
 // move of each texel when it raises the objective. Returns the number of moves kept.
-long greedy_pass(const Problem& p, std::vector<State>& tiles, std::vector<double>& delta, std::vector<double>& acc) {
+long greedy_pass(const Problem& p, State& s, std::vector<double>& delta, std::vector<double>& acc) {
     long kept = 0;
-    const double weight = 1.0 / static_cast<double>(tiles.size());
-    for (State& s : tiles)
     for (int u = 0; u < static_cast<int>(p.orbits.size()); ++u) {
-        const std::vector<Score> v = level_scores(p, s, mix_acc(tiles), weight, u, delta, acc);
+        const std::vector<Score> v = level_scores(p, s, u, delta, acc);
         const int a = s.level[static_cast<std::size_t>(p.orbits[static_cast<std::size_t>(u)][0])];
         int best = a;
         for (int b = 0; b < p.K; ++b)
@@ -439,21 +383,16 @@ long greedy_pass(const Problem& p, std::vector<State>& tiles, std::vector<double
 
 // One heat-bath sweep at temperature T: the texels in a random order, each set to a level drawn
 // with probability ∝ exp(objective / T) among its K levels. Keeps the best relief within the aims.
-long heat_sweep(const Problem& p, std::vector<State>& tiles, double T, std::mt19937_64& rng, std::vector<double>& delta,
-                std::vector<double>& acc, std::vector<State>& best, Score& best_score) {
-    const int U = static_cast<int>(p.orbits.size());
-    std::vector<int> order(static_cast<std::size_t>(U) * tiles.size());
+long heat_sweep(const Problem& p, State& s, double T, std::mt19937_64& rng, std::vector<double>& delta,
+                std::vector<double>& acc, State& best, Score& best_score) {
+    std::vector<int> order(p.orbits.size());
     std::iota(order.begin(), order.end(), 0);
     std::shuffle(order.begin(), order.end(), rng);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     long moved = 0;
     std::vector<double> weight(static_cast<std::size_t>(p.K));
-    std::vector<double> base = mix_acc(tiles);
-    const double share = 1.0 / static_cast<double>(tiles.size());
-    for (int tu : order) {
-        State& s = tiles[static_cast<std::size_t>(tu / U)];
-        const int u = tu % U;
-        const std::vector<Score> v = level_scores(p, s, base, share, u, delta, acc);
+    for (int u : order) {
+        const std::vector<Score> v = level_scores(p, s, u, delta, acc);
         double top = -1e300;
         for (const Score& x : v) top = std::max(top, x.objective);
         double sum = 0.0;
@@ -464,10 +403,9 @@ long heat_sweep(const Problem& p, std::vector<State>& tiles, double T, std::mt19
         if (static_cast<int>(b) == s.level[static_cast<std::size_t>(p.orbits[static_cast<std::size_t>(u)][0])]) continue;
         accept(p, s, u, static_cast<int>(b));
         ++moved;
-        base = mix_acc(tiles);
-        const Score now = score(p, base);
+        const Score now = score(p, s.acc);
         if (now.feasible && (!best_score.feasible || now.region > best_score.region)) {
-            best = tiles;
+            best = s;
             best_score = now;
         }
     }
@@ -503,8 +441,6 @@ int main(int argc, char** argv) {
         p.lam_u.assign(p.lambdas.size(), 0.0);
         const unsigned long seed = std::stoul(args.get("seed", "1"));
         std::mt19937_64 rng(seed);
-        const int M = static_cast<int>(args.num("tiles", 1));
-        if (M < 1 || M > 16) throw std::invalid_argument("tiles must be 1 to 16");
         State s;
         const std::size_t n2 = static_cast<std::size_t>(p.N) * p.N;
         if (args.kv.count("start")) {
@@ -529,40 +465,30 @@ int main(int argc, char** argv) {
                     ++changed;
                 }
         build(p);
-        std::printf("orders=%zu step_um=%.9f units=%zu symmetrised=%d tiles=%d\n", p.w.size(), p.step, p.orbits.size(),
-                    changed, M);
+        std::printf("orders=%zu step_um=%.9f units=%zu symmetrised=%d\n", p.w.size(), p.step, p.orbits.size(), changed);
         const double c0 = cpu_seconds();
-        // Tiles after the first: uniform random levels (seed random + m).
-        std::vector<State> tiles{s};
-        for (int m = 1; m < M; ++m) {
-            State t;
-            std::mt19937_64 start_rng(std::stoul(args.get("random", "1")) + static_cast<unsigned long>(m));
-            std::uniform_int_distribution<int> lvl(0, p.K - 1);
-            for (std::size_t u = 0; u < n2; ++u) t.level.push_back(lvl(start_rng));
-            tiles.push_back(t);
-        }
-        for (State& t : tiles) fresh(p, t);
-        report("start", p, tiles);
+        fresh(p, s);
+        report("start", p, s);
         std::vector<double> acc, delta;
-        std::vector<State> best = tiles;
-        Score best_score = score(p, mix_acc(tiles));
+        State best = s;
+        Score best_score = score(p, s.acc);
         const double t0 = args.num("t0", 1e-4), t1 = args.num("t1", 1e-7);
-        Score cur = score(p, mix_acc(tiles));
+        Score cur = score(p, s.acc);
         const double heat = args.num("heat", 0.0);
         const long heat_sweeps = static_cast<long>(heat);
         const double mu0 = p.mu, mu1 = args.num("mu1", p.mu);  // the penalty ramps geometrically mu → mu1
         for (long k = 0; k < heat_sweeps; ++k) {
             const double T = t0 * std::pow(t1 / t0, static_cast<double>(k) / static_cast<double>(std::max(1L, heat_sweeps - 1)));
             p.mu = mu0 * std::pow(mu1 / mu0, static_cast<double>(k) / static_cast<double>(std::max(1L, heat_sweeps - 1)));
-            const long moved = heat_sweep(p, tiles, T, rng, delta, acc, best, best_score);
-            if (p.rho > 0.0) update_multipliers(p, mix_acc(tiles));
+            const long moved = heat_sweep(p, s, T, rng, delta, acc, best, best_score);
+            if (p.rho > 0.0) update_multipliers(p, s.acc);
             if ((k + 1) % 5 == 0 || k + 1 == heat_sweeps) {
-                cur = score(p, mix_acc(tiles));
+                cur = score(p, s.acc);
                 std::printf("heat sweep=%ld T=%.3g mu=%.3g objective=%.6f region=%.6f cone=%.6f u=%.4f moved=%ld best=%.6f cpu=%.0f\n",
                             k + 1, T, p.mu, cur.objective, cur.region, cur.cone_worst, cur.u_worst, moved,
                             best_score.feasible ? best_score.region : 0.0, cpu_seconds() - c0);
                 std::fflush(stdout);
-                for (State& t : tiles) fresh(p, t);
+                fresh(p, s);
             }
         }
         // The descent (hinge penalty mu_greedy) from the best relief within the aims and from the
@@ -570,31 +496,26 @@ int main(int argc, char** argv) {
         const int passes = static_cast<int>(args.num("greedy", 0));
         p.mu = args.num("mu_greedy", 1.0);
         p.rho = 0.0;
-        std::vector<std::vector<State>> ends{tiles};
+        std::vector<State> ends{s};
         if (heat_sweeps > 0) {
-            report("last", p, tiles);
+            report("last", p, s);
             if (best_score.feasible) ends.push_back(best);
         }
-        for (std::vector<State>& e : ends) {
+        for (State& e : ends) {
             for (int pass = 0; pass < passes; ++pass) {
                 const long kept = greedy_pass(p, e, delta, acc);
-                const Score v = score(p, mix_acc(e));
+                const Score v = score(p, e.acc);
                 std::printf("greedy pass=%d kept=%ld objective=%.6f region=%.6f cone=%.6f u=%.4f cpu=%.0f\n", pass + 1,
                             kept, v.objective, v.region, v.cone_worst, v.u_worst, cpu_seconds() - c0);
                 std::fflush(stdout);
                 if (kept == 0) break;
             }
-            const Score v = score(p, mix_acc(e)), w = score(p, mix_acc(tiles));
-            if (&e == &ends[0] || (v.feasible && (!w.feasible || v.region > w.region))) tiles = e;
+            const Score v = score(p, e.acc), w = score(p, s.acc);
+            if (&e == &ends[0] || (v.feasible && (!w.feasible || v.region > w.region))) s = e;
         }
-        report("final", p, tiles);
+        report("final", p, s);
         std::printf("cpu_s=%.1f\n", cpu_seconds() - c0);
-        if (args.kv.count("out")) write_relief(p, tiles[0].level, static_cast<int>(args.num("tile", 1)), args.get("out", ""));
-        for (int m = 1; m < M && args.kv.count("out"); ++m)
-            write_relief(p, tiles[static_cast<std::size_t>(m)].level, static_cast<int>(args.num("tile", 1)),
-                         args.get("out", "") + "." + std::to_string(m) + ".exr");
-        if (args.kv.count("plate"))
-            write_plate(p, tiles, static_cast<int>(args.num("plate", 256)), args.get("plate_out", "plate.exr"));
+        if (args.kv.count("out")) write_relief(p, s.level, static_cast<int>(args.num("tile", 1)), args.get("out", ""));
         return 0;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "antimirror_anneal: %s\n", e.what());
